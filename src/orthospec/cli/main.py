@@ -1,0 +1,66 @@
+"""Entry point: import every ``cmd_*`` module and map errors to exit codes.
+
+Exit codes: 0 accepted / success, 1 rejected, 2 could not evaluate (bad input or arguments).
+"""
+
+from __future__ import annotations
+
+import importlib
+import pkgutil
+import sys
+
+import click
+
+from ..errors import OrthospecError
+from . import groups
+
+_loaded = False
+
+
+def _load_commands() -> None:
+    global _loaded
+    if _loaded:
+        return
+    package = sys.modules[__package__]
+    for info in sorted(pkgutil.iter_modules(package.__path__), key=lambda i: i.name):
+        if info.name.startswith("cmd_"):
+            importlib.import_module(f"{__package__}.{info.name}")
+    _loaded = True
+
+
+def cli() -> click.Group:
+    """The fully registered click group (for CliRunner in tests)."""
+    _load_commands()
+    return groups.main
+
+
+def main(argv: list[str] | None = None) -> None:
+    _load_commands()
+    debug = "--debug" in (argv if argv is not None else sys.argv[1:])
+    try:
+        rv = groups.main.main(args=argv, prog_name="orthospec", standalone_mode=False)
+    except OrthospecError as exc:
+        click.echo(f"error: {exc}", err=True)
+        sys.exit(exc.exit_code)
+    except click.exceptions.Abort:
+        click.echo("aborted", err=True)
+        sys.exit(2)
+    except click.ClickException as exc:
+        exc.show()
+        sys.exit(2)
+    except click.exceptions.Exit as exc:
+        sys.exit(exc.exit_code)
+    except KeyboardInterrupt:
+        click.echo("interrupted", err=True)
+        sys.exit(2)
+    except Exception as exc:  # an internal bug: say so plainly, never a traceback unless --debug
+        if debug:
+            raise
+        click.echo(f"internal error: {type(exc).__name__}: {exc} (run with --debug for details)",
+                   err=True)
+        sys.exit(2)
+    sys.exit(rv if isinstance(rv, int) else 0)
+
+
+if __name__ == "__main__":
+    main()
