@@ -1,0 +1,65 @@
+"""orthospec check: evaluate a delivery against a profile and write the QCRs."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import click
+from rich.console import Console
+
+from ..api import check
+from ..qcr import atomic_write, render_all
+from ..reports.terminal import render as render_terminal
+from .groups import main
+from .options import date_option, param_option, profile_option, split_formats
+
+FORMATS = ("terminal", "json", "csv", "junit", "html", "pdf")
+
+
+def render_documents(doc: dict, fmts: list[str], *, extra: dict | None = None) -> dict[str, str | bytes]:
+    """Machine outputs plus HTML/PDF reports, all in memory (nothing partial is ever written)."""
+    out = render_all(doc, fmts)
+    if "html" in fmts or "pdf" in fmts:
+        from ..reports import document as reportdoc  # heavy imports only when asked for
+
+        out.update(reportdoc.render(doc, formats=[f for f in fmts if f in ("html", "pdf")], extra=extra))
+    return out
+
+
+@main.command("check")
+@click.argument("delivery", type=click.Path(file_okay=False, path_type=Path))
+@profile_option
+@param_option
+@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), default=None,
+              help="Folder for qcr.json, qcr.csv, junit.xml and reports (default reports/<delivery id>).")
+@click.option("--format", "formats", default="terminal,json,csv,junit", show_default=True,
+              help="Comma-separated: " + ", ".join(FORMATS) + ".")
+@date_option
+@click.option("--fail-on", type=click.Choice(["fail", "warn"]), default="fail", show_default=True,
+              help="'warn' makes recommended-level rules blocking.")
+@click.option("--operator", default=None, help="Name of the person running the check (recorded in QCRs).")
+@click.option("--workers", type=int, default=None, help="Worker processes for raster checks (default: cores).")
+@click.option("--scheduler", default=None, metavar="ADDRESS", help="Dask distributed scheduler address.")
+@click.option("--max-items", type=int, default=8, show_default=True,
+              help="Offending items listed per rule in the terminal (JSON lists all).")
+@click.option("--verbose", "-v", is_flag=True, help="Show passing rules in the terminal too.")
+def check_cmd(delivery: Path, profile: str, params: tuple[str, ...], out_dir: Path | None, formats: str,
+              date: str | None, fail_on: str, operator: str | None, workers: int | None,
+              scheduler: str | None, max_items: int, verbose: bool) -> int:
+    """Check DELIVERY against a spec profile; exit 0 accepted, 1 rejected, 2 could not evaluate."""
+    fmts = split_formats(formats, FORMATS)
+    options = {"workers": workers, "scheduler": scheduler, "progress": sys.stderr.isatty()}
+    result = check(delivery, profile, params=params, date=date, fail_on=fail_on, operator=operator,
+                   options=options)
+    doc = result.document
+    files = render_documents(doc, [f for f in fmts if f != "terminal"],
+                             extra={"evaluation": result.evaluation})
+    target = out_dir if out_dir is not None else Path("reports") / doc["delivery"]["id"]
+    for name, data in files.items():
+        atomic_write(target / name, data)
+    if "terminal" in fmts:
+        render_terminal(doc, Console(highlight=False, soft_wrap=True), max_items=max_items, verbose=verbose)
+        if files:
+            click.echo(f"wrote {', '.join(sorted(files))} to {target}/")
+    return 0 if result.accepted else 1

@@ -1,0 +1,163 @@
+"""orthospec profiles / spec show / spec validate / spec diff / explain / measures."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+import yaml
+from rich.console import Console
+from rich.markup import escape
+from rich.table import Table
+
+from ..spec.diff import diff_profiles
+from ..spec.loader import available, load_profile, validate_file
+from .groups import main, spec
+
+
+@main.command("profiles")
+@click.argument("paths", nargs=-1, type=click.Path(exists=True, path_type=Path))
+def profiles_cmd(paths: tuple[Path, ...]) -> None:
+    """List shipped profiles (and those in PATHS: files or folders) with version."""
+    extra = [p for p in paths if p.is_dir()]
+    rows = available(extra)
+    for p in paths:
+        if p.is_file():
+            prof = load_profile(p, check_measures=False)
+            rows.append((prof.id, prof.version, prof.title, p))
+    t = Table("id", "version", "rules", "title", "file", box=None, header_style="bold")
+    for pid, ver, title, path in rows:
+        try:
+            n = str(len(load_profile(path).rules))
+        except Exception as exc:  # list broken profiles too, saying why
+            n = f"invalid ({type(exc).__name__})"
+        t.add_row(escape(pid), escape(ver), n, escape(title), escape(_short(path)))
+    Console(highlight=False).print(t)
+
+
+def _short(path: Path) -> str:
+    try:
+        return path.resolve().relative_to(Path.cwd().resolve()).as_posix()
+    except ValueError:
+        return path.name
+
+
+@spec.command("show")
+@click.argument("profile")
+@click.option("--json", "as_json", is_flag=True, help="Print the canonical resolved JSON.")
+def show_cmd(profile: str, as_json: bool) -> None:
+    """Print the resolved profile (extends applied) and its SHA-256."""
+    p = load_profile(profile)
+    if as_json:
+        click.echo(p.canonical_json())
+        return
+    click.echo(f"# {p.id} {p.version}  sha256 {p.sha256}")
+    click.echo(f"# resolved from: {' <- '.join(f'{i} {v}' for i, v, _ in p.chain)}")
+    click.echo(yaml.safe_dump(p.canonical, sort_keys=False, allow_unicode=True, width=100))
+
+
+@spec.command("validate")
+@click.argument("files", nargs=-1, required=True, type=click.Path(path_type=Path))
+def validate_cmd(files: tuple[Path, ...]) -> int:
+    """Validate profile FILES (schema, models, units, expressions, measures); exit 2 on problems."""
+    bad = 0
+    for f in files:
+        problems = validate_file(f)
+        if problems:
+            bad += 1
+            for pr in problems:
+                click.echo(f"error: {pr}", err=True)
+        else:
+            p = load_profile(f)
+            click.echo(f"{f}: valid ({p.id} {p.version}, {len(p.rules)} rules, sha256 {p.sha256})")
+    return 2 if bad else 0
+
+
+@spec.command("diff")
+@click.argument("a")
+@click.argument("b")
+@click.option("--json", "as_json", is_flag=True)
+def diff_cmd(a: str, b: str, as_json: bool) -> None:
+    """What changed from profile A to profile B: rules and thresholds added, removed, changed."""
+    import json
+
+    d = diff_profiles(load_profile(a), load_profile(b))
+    if as_json:
+        click.echo(json.dumps(d, indent=1, ensure_ascii=False))
+        return
+    click.echo(f"{d['a']} -> {d['b']}")
+    for kind in ("parameters", "rules"):
+        for name in d[kind]["added"]:
+            click.echo(f"+ {kind[:-1]} {name}")
+        for name in d[kind]["removed"]:
+            click.echo(f"- {kind[:-1]} {name}")
+        for name, changes in d[kind]["changed"].items():
+            click.echo(f"~ {kind[:-1]} {name}")
+            for field, (old, new) in changes.items():
+                click.echo(f"    {field}: {old!r} -> {new!r}")
+    if not any(d[k][c] for k in ("parameters", "rules") for c in ("added", "removed", "changed")):
+        click.echo("no differences in rules or parameters")
+
+
+@main.command("explain")
+@click.argument("rule_id")
+@click.option("--profile", "-p", default="jrc-v3", show_default=True)
+def explain_cmd(rule_id: str, profile: str) -> None:
+    """Clause, quote, requirement and the evidence a rule reads."""
+    from ..engine.evaluator import requirement_text
+    from ..engine.registry import measure_info
+
+    p = load_profile(profile)
+    try:
+        r = p.rule(rule_id)
+    except KeyError:
+        near = [x.id for x in p.rules if rule_id.lower() in x.id.lower()][:10]
+        raise click.ClickException(f"no rule {rule_id!r} in {p.id} {p.version}"
+                                   + (f"; did you mean {', '.join(near)}?" if near else "")) from None
+    info = measure_info(r.measure)
+    c = Console(highlight=False)
+    c.print(f"[bold]{escape(r.id)}[/] {escape(r.title)}")
+    c.print(f"clause:      {escape(r.clause.text())}")
+    c.print(f"quote:       “{escape(r.quote)}”")
+    c.print(f"scope:       {r.scope}" + (f"   when: {escape(r.when)}" if r.when else ""))
+    c.print(f"measure:     {escape(r.measure)}" + (f" ({info[1]})" if info else "")
+            + ("  [manual: recorded human verdict]" if r.manual else ""))
+    c.print(f"requirement: {escape(requirement_text(r.requirement, {'unit': r.requirement.unit}))}")
+    c.print(f"level:       {r.level}   consequence: {r.consequence}")
+    if r.audit:
+        c.print(f"audit:       {escape(str(r.audit.model_dump(exclude_none=True)))}")
+    if r.note:
+        c.print(f"note:        {escape(r.note)}")
+    c.print(f"evidence:    {escape(_evidence_hint(r.measure))}")
+
+
+def _evidence_hint(measure: str) -> str:
+    from ..delivery.convention import table_specs
+
+    head = measure.split(".")[0]
+    if head == "manual":
+        return "tables.manual_checks (check, item, inspector, date, verdict)"
+    if head == "manifest":
+        return f"delivery.yaml: {measure[len('manifest.'):]}"
+    if head in table_specs():
+        return f"tables.{head} ({table_specs()[head].description})"
+    if head == "raster":
+        return "the image files listed in tables.images (read with rasterio)"
+    if head == "rollup":
+        return "the verdicts of the item-level rules of this run"
+    return "computed from the delivery by the measure provider"
+
+
+@main.command("measures")
+def measures_cmd() -> None:
+    """List the measures rules may read (besides the generic <table>.<column> ones)."""
+    from ..engine.registry import ROLLUP, known_measures
+
+    t = Table("measure", "scope", "unit", "provider", box=None, header_style="bold")
+    for name, specx in known_measures().items():
+        t.add_row(name, specx.scope, specx.measures[name], specx.description)
+    for name, (scope, unit) in ROLLUP.items():
+        t.add_row(name, scope, unit, "evaluator roll-up (second phase)")
+    Console(highlight=False).print(t)
+    click.echo("plus <table>.<column>, <table>.present, <table>.count, <table>.count_per_block, "
+               "<table>.<column>.complete and manifest.<path> for every table in specs/delivery-tables.yaml")

@@ -1,0 +1,113 @@
+"""The delivery manifest (delivery.yaml) as pydantic models; its JSON Schema is published."""
+
+from __future__ import annotations
+
+import datetime as dt
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from .convention import table_specs
+
+
+class _Open(BaseModel):
+    """Sub-objects accept extra keys (kept as facts rules may read via manifest.* names)."""
+
+    model_config = ConfigDict(extra="allow", frozen=True)
+
+
+class _Closed(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class QuantityIn(_Closed):
+    value: float
+    unit: str
+
+
+Scalar = float | int | str | bool | dt.date | None
+
+
+class Project(_Open):
+    id: str
+    name: str | None = None
+    crs: str | None = Field(None, description="National projection, e.g. 'EPSG:25832'.")
+    area_of_interest: str | None = Field(None, description="Vector file with the area of interest.")
+
+
+class Party(_Open):
+    name: str
+    contact: str | None = None
+    role: str | None = None
+
+
+class Sensor(_Open):
+    type: Literal["aerial", "satellite"]
+    digital: bool | None = None
+    camera: str | None = None
+    platform: str | None = None
+
+
+class Product(_Open):
+    gsd: QuantityIn | None = None
+    bit_depth: int | None = None
+    bands: list[str] | None = None
+    format: str | None = None
+    dem_delivered: bool = False
+
+
+class Block(_Closed):
+    id: str
+    polygon: list[list[float]] | None = Field(None, description="Block outline [[x, y], ...] in project CRS.")
+    polygon_file: str | None = None
+    method: str | None = Field(None, description="aerotriangulation, space_resection, rpc, polynomial...")
+    reported: dict[str, QuantityIn] | None = Field(
+        None, description="Contractor-reported statistics, e.g. rmse_x, rmse_y (recomputed and compared).")
+    tags: list[str] = Field(default_factory=list)
+    problem_batch: bool = False
+
+
+class Waiver(_Closed):
+    rule: str
+    items: list[str] = Field(default_factory=lambda: ["*"])
+    justification: str = Field(min_length=1)
+    approver: str = Field(min_length=1)
+    date: dt.date | None = None
+
+
+class EdgeTarget(_Closed):
+    id: str
+    image: str
+    roi: list[int] = Field(min_length=4, max_length=4, description="x0, y0, x1, y1 in pixels.")
+    band: int = 1
+    direction: Literal["along", "across", "auto"] = "auto"
+
+
+class Manifest(_Closed):
+    orthospec_delivery: Literal[1]
+    id: str
+    project: Project
+    contractor: Party
+    operator: Party | None = None
+    dates: dict[str, dt.date | dt.datetime | str] = Field(default_factory=dict)
+    sensor: Sensor
+    product: Product = Field(default_factory=Product)
+    parameters: dict[str, QuantityIn | Scalar] = Field(
+        default_factory=dict, description="Contract values for profile parameters (the tender's wins).")
+    blocks: list[Block] = Field(default_factory=list)
+    tables: dict[str, str] = Field(default_factory=dict)
+    vectors: dict[str, str] = Field(default_factory=dict, description="seamlines, tiles, blocks, aoi...")
+    units: dict[str, str] = Field(default_factory=dict, description="Length unit per table (m default).")
+    waivers: list[Waiver] = Field(default_factory=list)
+    edge_targets: list[EdgeTarget] = Field(default_factory=list)
+    notes: str | None = None
+
+
+def manifest_schema() -> dict[str, Any]:
+    s = Manifest.model_json_schema(mode="validation")
+    s["$schema"] = "https://json-schema.org/draft/2020-12/schema"
+    s["$id"] = "https://orthospec.dev/schema/delivery.schema.json"
+    s["title"] = "orthospec delivery manifest (delivery.yaml)"
+    s["description"] = "Known tables: " + ", ".join(sorted(table_specs())) + "."
+    s["properties"]["tables"]["propertyNames"] = {"enum": sorted(table_specs())}
+    return s

@@ -1,0 +1,350 @@
+"""Open a delivery folder: the manifest, its CSV tables and file checksums. Read-only.
+
+This module and ``raster/`` are the only places that read a delivery. Nothing here writes into
+the delivery folder.
+"""
+
+from __future__ import annotations
+
+import csv
+import datetime as dt
+import io
+import math
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path, PurePosixPath
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from pydantic import ValidationError
+
+from ..errors import DeliveryError, UnitError
+from ..provenance import Evidence, sha256_bytes, sha256_file
+from ..spec.yamlio import YamlError, load_file
+from ..units import canonical, parse_unit
+from .convention import TableSpec, table_specs
+from .manifest import Manifest
+
+MANIFEST = "delivery.yaml"
+_TRUE = {"true", "yes", "y", "1", "t"}
+_FALSE = {"false", "no", "n", "0", "f"}
+
+
+@dataclass(frozen=True)
+class Table:
+    """A validated delivery table. ``df`` keeps a ``_row`` column: 1-based data row numbers."""
+
+    name: str
+    spec: TableSpec
+    file: str
+    sha256: str
+    df: pd.DataFrame
+    units: dict[str, str]
+
+    def evidence(self, rows: Any = ()) -> tuple[Evidence, ...]:
+        return (Evidence(self.file, self.sha256, tuple(int(r) for r in rows)),)
+
+    @property
+    def ids(self) -> pd.Series:
+        col = self.spec.id
+        if col is None:
+            return self.df["_row"].astype(str)
+        return self.df[col].astype(str)
+
+
+@dataclass
+class Delivery:
+    root: Path
+    manifest: Manifest
+    raw: dict[str, Any]
+    manifest_sha256: str
+    positions: dict[tuple[Any, ...], tuple[int, int]] = field(repr=False, default_factory=dict)
+    _tables: dict[str, Table] = field(default_factory=dict, repr=False)
+    _sha: dict[str, str] = field(default_factory=dict, repr=False)
+
+    # --- paths and checksums -----------------------------------------------------------
+    def path(self, rel: str, *, what: str = "file") -> Path:
+        """Resolve ``rel`` inside the delivery; refuse anything that escapes it."""
+        pp = PurePosixPath(rel.replace("\\", "/"))
+        if pp.is_absolute() or ".." in pp.parts:
+            raise DeliveryError(f"{what} path {rel!r} must be relative and inside the delivery",
+                                file=MANIFEST)
+        return self.root / Path(*pp.parts)
+
+    def sha256(self, rel: str) -> str:
+        if rel not in self._sha:
+            self._sha[rel] = sha256_file(self.path(rel))
+        return self._sha[rel]
+
+    def evidence(self, rel: str, *, rows: Any = (), path: str | None = None) -> Evidence:
+        return Evidence(rel, self.sha256(rel), tuple(int(r) for r in rows), path)
+
+    def manifest_evidence(self, path: str) -> Evidence:
+        return Evidence(MANIFEST, self.manifest_sha256, (), path)
+
+    def where(self, path: tuple[Any, ...]) -> int | None:
+        p = tuple(path)
+        while p:
+            if p in self.positions:
+                return self.positions[p][0]
+            p = p[:-1]
+        return None
+
+    @cached_property
+    def files(self) -> list[dict[str, Any]]:
+        """Every file of the delivery with size and SHA-256, sorted (for the QCR appendix)."""
+        out = []
+        for p in sorted(self.root.rglob("*")):
+            if p.is_file() and not p.is_symlink():
+                rel = p.relative_to(self.root).as_posix()
+                out.append({"path": rel, "bytes": p.stat().st_size, "sha256": self.sha256(rel)})
+        return out
+
+    # --- facts ------------------------------------------------------------------------
+    @property
+    def id(self) -> str:
+        return self.manifest.id
+
+    @property
+    def project_id(self) -> str:
+        return self.manifest.project.id
+
+    @property
+    def gsd_m(self) -> float | None:
+        g = self.manifest.product.gsd
+        if g is None:
+            return None
+        return _to_m(g.value, g.unit)
+
+    @property
+    def block_ids(self) -> list[str]:
+        ids = [b.id for b in self.manifest.blocks]
+        if not ids:
+            for name in ("images", "checkpoints"):
+                t = self.table(name)
+                if t is not None and "block" in t.df:
+                    ids = sorted(set(t.df["block"].astype(str)))
+                    break
+        return ids
+
+    def flat_manifest(self) -> dict[str, Any]:
+        """``manifest.a.b`` -> value for every scalar (and {value, unit} quantity) in delivery.yaml."""
+        out: dict[str, Any] = {}
+
+        def walk(obj: Any, prefix: str) -> None:
+            if isinstance(obj, dict):
+                if set(obj) == {"value", "unit"}:
+                    out[prefix] = obj
+                    return
+                for k, v in obj.items():
+                    walk(v, f"{prefix}.{k}")
+            elif isinstance(obj, list):
+                out[prefix] = obj
+            else:
+                out[prefix] = obj
+
+        walk(self.raw, "manifest")
+        return out
+
+    # --- tables -----------------------------------------------------------------------
+    def has_table(self, name: str) -> bool:
+        return name in self.manifest.tables
+
+    def table(self, name: str) -> Table | None:
+        """The validated table, or None when the manifest does not declare it."""
+        if name not in self.manifest.tables:
+            return None
+        if name not in self._tables:
+            self._tables[name] = self._read_table(name, self.manifest.tables[name])
+        return self._tables[name]
+
+    def require_table(self, name: str) -> Table:
+        t = self.table(name)
+        if t is None:
+            raise DeliveryError(f"the manifest declares no '{name}' table (tables: {name}: FILE)",
+                                file=MANIFEST)
+        return t
+
+    def load_all_tables(self) -> None:
+        """Read every declared table now, so bad input fails before any rule runs."""
+        for name in self.manifest.tables:
+            self.table(name)
+
+    def _read_table(self, name: str, rel: str) -> Table:
+        spec = table_specs()[name]
+        p = self.path(rel, what=f"table {name}")
+        if not p.is_file():
+            raise DeliveryError(f"table '{name}' file not found: {rel}", file=MANIFEST,
+                                line=self.where(("tables", name)))
+        data = p.read_bytes()
+        sha = sha256_bytes(data)
+        self._sha[rel] = sha
+        try:
+            text = data.decode("utf-8-sig")
+        except UnicodeDecodeError as exc:
+            raise DeliveryError(f"not UTF-8 text (byte {exc.start})", file=rel) from None
+        length_unit = self.manifest.units.get(name, "m")
+        try:
+            parse_unit(length_unit)
+        except UnitError as exc:
+            raise DeliveryError(f"units.{name}: {exc}", file=MANIFEST,
+                                line=self.where(("units", name))) from None
+        df = parse_csv(text, spec, file=rel)
+        units = {}
+        for col, cs in spec.columns.items():
+            if cs.type == "number" and col in df:
+                units[col] = canonical(length_unit if cs.unit == "length" else cs.unit)
+        return Table(name, spec, rel, sha, df, units)
+
+
+def _to_m(value: float, unit: str) -> float:
+    from ..units import convert
+
+    return float(convert([value], unit, "m")[0])
+
+
+def parse_csv(text: str, spec: TableSpec, *, file: str) -> pd.DataFrame:
+    """Parse and type a CSV table against its spec; every problem names file, row and column."""
+    reader = csv.reader(io.StringIO(text))
+    try:
+        header = next(reader)
+    except StopIteration:
+        raise DeliveryError("empty table: expected a header row with columns "
+                            + ", ".join(spec.columns), file=file) from None
+    header = [h.strip() for h in header]
+    dup = sorted({h for h in header if header.count(h) > 1})
+    if dup:
+        raise DeliveryError(f"duplicate column(s) {', '.join(dup)}", file=file, line=1)
+    unknown = [h for h in header if h not in spec.columns]
+    missing = [c for c in spec.required if c not in header]
+    if unknown or missing:
+        parts = []
+        if missing:
+            parts.append("missing required column(s) " + ", ".join(missing))
+        if unknown:
+            parts.append("unexpected column(s) " + ", ".join(unknown))
+        raise DeliveryError(
+            "; ".join(parts) + f". Expected columns for table '{spec.name}': required "
+            + ", ".join(spec.required) + "; optional "
+            + ", ".join(c for c in spec.columns if c not in spec.required),
+            file=file, line=1)
+    rows = []
+    for i, rec in enumerate(reader, start=1):
+        if not rec or all(not c.strip() for c in rec):
+            continue
+        if len(rec) != len(header):
+            raise DeliveryError(f"has {len(rec)} fields, the header has {len(header)}", file=file, row=i)
+        rows.append((i, [c.strip() for c in rec]))
+    df = pd.DataFrame([r for _, r in rows], columns=header, dtype=object)
+    df.insert(0, "_row", np.array([i for i, _ in rows], dtype=np.int64))
+    for col in header:
+        cs = spec.columns[col]
+        df[col] = _convert_column(df[col], df["_row"], cs.type, col, file, cs.required)
+    if spec.id and spec.id in df:
+        ids = df[spec.id]
+        dups = ids[ids.duplicated(keep=False)]
+        if len(dups):
+            first = dups.iloc[0]
+            where = df.loc[ids == first, "_row"].tolist()
+            raise DeliveryError(f"duplicate id {first!r} in rows {', '.join(map(str, where))}",
+                                file=file, field=spec.id)
+    return df
+
+
+def _convert_column(s: pd.Series, rows: pd.Series, kind: str, col: str, file: str,
+                    required: bool) -> pd.Series:
+    empty = s.map(lambda v: v is None or str(v).strip() == "")
+    if required and empty.any():
+        raise DeliveryError("required value is empty", file=file, row=int(rows[empty].iloc[0]), field=col)
+    if kind == "text":
+        return s.where(~empty, None)
+    if kind == "number":
+        num = pd.to_numeric(s.where(~empty, None), errors="coerce")
+        bad = num.isna() & ~empty
+        if bad.any():
+            r = int(rows[bad].iloc[0])
+            raise DeliveryError(f"expected a number, got {s[bad].iloc[0]!r}", file=file, row=r, field=col)
+        lowered = s.str.lower()
+        nonfinite = lowered.isin(["nan", "inf", "-inf", "+inf", "infinity", "-infinity"]) | (
+            num.notna() & ~np.isfinite(num.astype(float)))
+        if nonfinite.any():
+            r = int(rows[nonfinite].iloc[0])
+            raise DeliveryError(f"expected a finite number, got {s[nonfinite].iloc[0]!r} "
+                                "(leave the cell empty when the value is unknown)", file=file, row=r, field=col)
+        return num.astype(float)
+    if kind == "bool":
+        def tobool(v: Any) -> Any:
+            if v is None or str(v).strip() == "":
+                return None
+            t = str(v).strip().lower()
+            if t in _TRUE:
+                return True
+            if t in _FALSE:
+                return False
+            return "__bad__"
+        out = s.map(tobool)
+        bad = out.map(lambda v: v == "__bad__")
+        if bad.any():
+            raise DeliveryError(f"expected true/false, got {s[bad].iloc[0]!r}", file=file,
+                                row=int(rows[bad].iloc[0]), field=col)
+        return out
+    if kind in ("date", "datetime"):
+        def todate(v: Any) -> Any:
+            if v is None or str(v).strip() == "":
+                return None
+            t = str(v).strip()
+            try:
+                if kind == "date":
+                    return dt.date.fromisoformat(t).isoformat()
+                return dt.datetime.fromisoformat(t.replace("Z", "+00:00")).isoformat()
+            except ValueError:
+                return "__bad__"
+        out = s.map(todate)
+        bad = out.map(lambda v: v == "__bad__")
+        if bad.any():
+            fmt = "YYYY-MM-DD" if kind == "date" else "ISO 8601 (YYYY-MM-DDTHH:MM:SS)"
+            raise DeliveryError(f"expected a {kind} {fmt}, got {s[bad].iloc[0]!r}", file=file,
+                                row=int(rows[bad].iloc[0]), field=col)
+        return out
+    raise AssertionError(kind)
+
+
+def open_delivery(path: str | Path) -> Delivery:
+    """Open and validate a delivery folder; raise DeliveryError naming file and line."""
+    root = Path(path)
+    if not root.exists():
+        raise DeliveryError(f"delivery folder {str(path)!r} not found")
+    if not root.is_dir():
+        raise DeliveryError(f"{str(path)!r} is not a folder (a delivery is a folder with {MANIFEST})")
+    mpath = root / MANIFEST
+    if not mpath.is_file():
+        raise DeliveryError(f"no {MANIFEST} in {str(path)!r}; `orthospec init DIR` writes a template")
+    try:
+        doc = load_file(mpath, display=MANIFEST)
+    except YamlError as exc:
+        raise DeliveryError(str(exc)) from None
+    if not isinstance(doc.data, dict):
+        raise DeliveryError("the manifest must be a YAML mapping", file=MANIFEST, line=1)
+    try:
+        manifest = Manifest.model_validate(doc.data)
+    except ValidationError as exc:
+        lines = []
+        for e in exc.errors()[:20]:
+            loc = tuple(e["loc"])
+            line, col = doc.where(loc)
+            where = f"{MANIFEST}:{line}:{col}" if line else MANIFEST
+            lines.append(f"{where}: {'.'.join(map(str, loc)) or '(document)'}: {e['msg']}")
+        raise DeliveryError("invalid manifest:\n  " + "\n  ".join(lines)) from None
+    for name in manifest.tables:
+        if name not in table_specs():
+            raise DeliveryError(f"unknown table {name!r}; known tables: {', '.join(sorted(table_specs()))}",
+                                file=MANIFEST, line=doc.where(("tables", name))[0])
+    d = Delivery(root=root, manifest=manifest, raw=doc.data,
+                 manifest_sha256=sha256_file(mpath), positions=doc.marks)
+    d._sha[MANIFEST] = d.manifest_sha256
+    return d
+
+
+def finite(values: Any) -> bool:
+    return all(math.isfinite(float(v)) for v in values)

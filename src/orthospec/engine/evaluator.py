@@ -1,0 +1,608 @@
+"""Apply every rule of a resolved profile to every item in its scope.
+
+One vectorised comparison per rule (numpy over the scope's items), never a Python loop per item
+for the decision itself. Failures are results: a rule that crashes yields `error` records and the
+other rules still run. Roll-up (JRC §12.3, §12.7, §12.8) runs as a second phase over the item
+verdicts of the first.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from ..delivery.reader import MANIFEST, Delivery
+from ..errors import ExpressionError, OrthospecError, UnitError
+from ..provenance import Evidence
+from ..spec import expr
+from ..spec.loader import ResolvedProfile
+from ..spec.models import Requirement, Rule
+from ..units import NON_NUMERIC, Q_, canonical, convert, parse_unit, ureg
+from .params import ParamValue
+from .registry import ROLLUP, Measured, MeasureCache, ProviderContext, measure_info
+
+PASS, FAIL, WARN, NA, MISSING, ERROR, WAIVED = range(7)
+VERDICTS = ("pass", "fail", "warn", "not_applicable", "missing", "error", "waived")
+#: worst first, for a rule's overall verdict
+SEVERITY = (ERROR, FAIL, MISSING, WARN, WAIVED, PASS, NA)
+_OP_TEXT = {"<": "<", "<=": "<=", ">": ">", ">=": ">=", "==": "=", "!=": "!="}
+
+
+@dataclass
+class RuleResult:
+    """The columnar outcome of one rule over its items."""
+
+    rule: Rule
+    items: np.ndarray
+    verdict: np.ndarray
+    measured: np.ndarray
+    unit: str
+    threshold: dict[str, Any]
+    evidence: list[tuple[Evidence, ...]]
+    notes: np.ndarray
+    original: np.ndarray | None = None
+    waivers: dict[str, dict[str, Any]] = field(default_factory=dict)
+    error: str | None = None
+
+    @property
+    def worst(self) -> int:
+        present = set(self.verdict.tolist())
+        for v in SEVERITY:
+            if v in present:
+                return v
+        return NA
+
+    def counts(self) -> dict[str, int]:
+        bc = np.bincount(self.verdict.astype(np.int64), minlength=len(VERDICTS))
+        return {VERDICTS[i]: int(bc[i]) for i in range(len(VERDICTS))}
+
+
+@dataclass
+class Evaluation:
+    profile: ResolvedProfile
+    delivery: Delivery
+    parameters: dict[str, ParamValue]
+    results: list[RuleResult]
+    rejected: dict[str, list[str]]
+    reasons: list[str]
+    verdict: str
+    fail_on: str
+    details: dict[str, Any]
+    unused_waivers: list[dict[str, Any]]
+
+
+# --- helpers --------------------------------------------------------------------------------
+
+def _is_missing(v: Any) -> bool:
+    if v is None:
+        return True
+    if isinstance(v, float) and math.isnan(v):
+        return True
+    return bool(isinstance(v, str) and not v.strip())
+
+
+def _missing_mask(values: np.ndarray) -> np.ndarray:
+    if values.dtype.kind == "f":
+        return np.isnan(values)
+    return np.fromiter((_is_missing(v) for v in values), dtype=bool, count=len(values))
+
+
+def universe(scope: str, d: Delivery) -> tuple[list[str] | None, str | None]:
+    """The items a rule at ``scope`` must judge; None = take the measure's own items."""
+    if scope == "delivery":
+        return [d.id], None
+    if scope == "project":
+        return [d.project_id], None
+    if scope == "block":
+        ids = d.block_ids
+        return ids, None if ids else "the delivery declares no blocks"
+    if scope == "edge":
+        return [e.id for e in d.manifest.edge_targets], "the manifest lists no edge_targets"
+    table = {"image": "images", "checkpoint": "checkpoints", "gcp": "gcps", "flight": "flights",
+             "camera": "cameras"}.get(scope)
+    if table is None:
+        return None, None
+    t = d.table(table)
+    if t is None:
+        return [], f"the manifest declares no '{table}' table"
+    return t.ids.tolist(), None
+
+
+def item_gsd(scope: str, items: list[str], d: Delivery, cache: MeasureCache) -> np.ndarray | None:
+    """GSD in metres per item, to convert px thresholds (image rows first, else the product GSD)."""
+    base = d.gsd_m
+    out = np.full(len(items), np.nan if base is None else base, dtype=float)
+    if scope == "image" and d.table("images") is not None:
+        try:
+            m = cache.get("images.gsd")
+            vals = pd.to_numeric(m.values.reindex(items), errors="coerce").to_numpy(dtype=float)
+            vals = convert(vals, m.unit, "m")
+            out = np.where(np.isnan(vals), out, vals)
+        except (KeyError, OrthospecError):
+            pass
+    return None if np.isnan(out).all() else out
+
+
+class _Names(Mapping[str, Any]):
+    """Names an expression may use: parameters, manifest paths, measures of the rule's scope."""
+
+    def __init__(self, params: dict[str, ParamValue], manifest: dict[str, Any], cache: MeasureCache,
+                 scope: str, items: list[str], classes: dict[str, Any]) -> None:
+        self.params, self.manifest, self.cache = params, manifest, cache
+        self.scope, self.items = scope, items
+        self.classes = classes
+
+    def __getitem__(self, key: str) -> Any:
+        if key in self.params:
+            q = self.params[key].quantity()
+            if q is None:
+                raise ExpressionError(f"parameter {key} is unset")
+            return q
+        if key.startswith("param."):
+            return self[key[6:]]
+        if key.startswith("manifest."):
+            v = self.manifest.get(key)
+            if isinstance(v, dict) and set(v) == {"value", "unit"}:
+                return Q_(float(v["value"]), parse_unit(v["unit"]))
+            return v
+        info = measure_info(key)
+        if info is None:
+            raise KeyError(key)
+        m = self.cache.get(key)
+        vals = m.values.reindex(self.items)
+        if m.unit in NON_NUMERIC or m.unit == "any":
+            return vals.to_numpy(dtype=object)
+        arr = pd.to_numeric(vals, errors="coerce").to_numpy(dtype=float)
+        return Q_(arr, parse_unit(m.unit))
+
+    def __contains__(self, key: object) -> bool:
+        if not isinstance(key, str):
+            return False
+        return (key in self.params or key.startswith("manifest.") or key.startswith("param.")
+                or measure_info(key) is not None)
+
+    def __iter__(self):  # pragma: no cover - Mapping protocol; never enumerated
+        return iter(self.params)
+
+    def __len__(self) -> int:  # pragma: no cover
+        return len(self.params)
+
+
+def _magnitudes(v: Any, unit: str | None, n: int, gsd: np.ndarray | None, what: str) -> np.ndarray:
+    """A threshold as float magnitudes in ``unit`` (broadcast to n items)."""
+    if hasattr(v, "units"):
+        mag = np.asarray(v.magnitude, dtype=float)
+        src = str(v.units)
+        if unit is None:
+            raise UnitError(f"{what}: the expression has unit {canonical(src)!r}; give the requirement a unit")
+        if v.units == ureg.dimensionless:
+            # a pure number (e.g. "0.1 * 256") means "in the requirement's unit"
+            return np.broadcast_to(mag, (n,)).astype(float)
+        return np.broadcast_to(convert(mag, src, unit, gsd_m=gsd, what=what), (n,)).astype(float)
+    if isinstance(v, bool) or v is None:
+        raise UnitError(f"{what}: expected a number, got {v!r}")
+    return np.broadcast_to(np.asarray(v, dtype=float), (n,)).astype(float)
+
+
+def _threshold_value(v: Any, names: _Names) -> Any:
+    if isinstance(v, str):
+        return expr.parse(v).evaluate(names)
+    return v
+
+
+def _fmt(x: Any) -> str:
+    if isinstance(x, float):
+        if math.isnan(x):
+            return "n/a"
+        return f"{x:.6g}"
+    return str(x)
+
+
+# --- the evaluator ---------------------------------------------------------------------------
+
+class Evaluator:
+    def __init__(self, profile: ResolvedProfile, delivery: Delivery, parameters: dict[str, ParamValue],
+                 *, fail_on: str = "fail", options: Mapping[str, Any] | None = None) -> None:
+        self.profile, self.d, self.params = profile, delivery, parameters
+        self.fail_on = fail_on
+        ctx = ProviderContext(delivery, {k: v.quantity() for k, v in parameters.items()}, dict(options or {}))
+        self.cache = MeasureCache(ctx)
+        self.manifest = delivery.flat_manifest()
+        self._manual = self._manual_table()
+
+    # phase 1 + 2
+    def run(self) -> Evaluation:
+        first = [r for r in self.profile.rules if not r.measure.startswith("rollup.")]
+        second = [r for r in self.profile.rules if r.measure.startswith("rollup.")]
+        results = [self._safe(r) for r in first]
+        used = self._apply_waivers(results)
+        rejected, reasons = self._rollup_items(results)
+        self._rollup_values = self._rollup_measures(rejected)
+        later = [self._safe(r) for r in second]
+        used |= self._apply_waivers(later)
+        results += later
+        waived_unused = self._unused_waivers(used)
+        verdict, reasons2 = self._overall(results, rejected, has_block_rollup=any(
+            r.measure in ("rollup.block_rejected_share", "rollup.blocks_rejected") for r in second),
+            has_image_rollup=any(r.measure in ("rollup.image_rejected_share", "rollup.images_rejected")
+                                 for r in second))
+        details = self.cache.details()
+        return Evaluation(self.profile, self.d, self.params, results, rejected, reasons + reasons2,
+                          verdict, self.fail_on, details, waived_unused)
+
+    def _safe(self, rule: Rule) -> RuleResult:
+        try:
+            return self._evaluate(rule)
+        except (OrthospecError, KeyError) as exc:
+            msg = str(exc) if not isinstance(exc, KeyError) else f"no provider for measure {exc}"
+            return self._all(rule, ERROR, msg)
+        except Exception as exc:  # a crashing rule is `error`, never `fail`, and never stops the run
+            return self._all(rule, ERROR, f"internal error in rule: {type(exc).__name__}: {exc}")
+
+    def _all(self, rule: Rule, verdict: int, note: str, items: list[str] | None = None,
+             evidence: tuple[Evidence, ...] = ()) -> RuleResult:
+        its = items if items else ["*"]
+        n = len(its)
+        return RuleResult(rule, np.array(its, dtype=object), np.full(n, verdict, dtype=np.int8),
+                          np.full(n, None, dtype=object), "", self._req_dict(rule.requirement, None),
+                          [evidence] * n, np.full(n, note, dtype=object),
+                          error=note if verdict == ERROR else None)
+
+    # --- one rule
+    def _evaluate(self, rule: Rule) -> RuleResult:
+        items, why = universe(rule.scope, self.d)
+        if rule.manual:
+            return self._manual_rule(rule, items if items is not None else [self.d.id])
+        if rule.measure.startswith("rollup."):
+            m = self._rollup_values[rule.measure]
+        else:
+            m = self.cache.get(rule.measure)
+        if items is None:
+            items = sorted(map(str, m.values.index))
+            if not items and m.notes is not None and len(m.notes):
+                why = str(m.notes.iloc[0])
+        if not items:
+            return self._all(rule, MISSING, f"no items to check at scope {rule.scope}: {why or 'none delivered'}",
+                             evidence=(self.d.manifest_evidence("tables"),))
+        n = len(items)
+        verdict = np.full(n, PASS, dtype=np.int8)
+        notes = np.full(n, None, dtype=object)
+        names = _Names(self.params, self.manifest, self.cache, rule.scope, items,
+                       dict(self.profile.classes))
+        # applicability
+        applicable = np.ones(n, dtype=bool)
+        if rule.when:
+            cond = expr.parse(rule.when).evaluate(names)
+            cond = getattr(cond, "magnitude", cond)
+            if cond is None:
+                cond = False
+            if np.ndim(cond) == 0:
+                applicable[:] = bool(cond)
+            else:
+                arr = np.asarray(cond, dtype=object)
+                applicable = np.array([bool(c) if c is not None and not (isinstance(c, float) and math.isnan(c))
+                                       else False for c in arr], dtype=bool)
+        values = m.values.reindex(items)
+        evidence = m.evidence.reindex(items)
+        evidence_list = [e if isinstance(e, tuple) else () for e in evidence.tolist()]
+        raw = values.to_numpy(dtype=object)
+        missing = _missing_mask(raw) & (rule.requirement.op != "present") | (
+            ~values.index.isin(m.values.index))
+        if m.notes is not None:
+            nn = m.notes.reindex(items)
+            notes = np.where(nn.notna().to_numpy(), nn.to_numpy(dtype=object), notes)
+            if "*" in m.notes.index and not len(m.values):
+                notes[:] = m.notes["*"]
+        errs = np.zeros(n, dtype=bool)
+        if m.errors is not None and len(m.errors):
+            ee = m.errors.reindex(items)
+            errs = ee.notna().to_numpy() & ee.astype(object).map(bool).to_numpy()
+            notes = np.where(errs, ee.to_numpy(dtype=object), notes)
+        req = rule.requirement
+        unit = m.unit
+        ok, measured, thr, unit = self._compare(rule, req, raw, m.unit, missing | errs, names, items)
+        verdict[~ok] = FAIL if rule.level == "mandatory" else WARN
+        verdict[missing] = MISSING
+        for i in np.flatnonzero(missing):
+            if notes[i] is None:
+                notes[i] = f"no value for {rule.measure}" + (
+                    f" in {evidence_list[i][0].file} row {evidence_list[i][0].rows[0]}"
+                    if evidence_list[i] and evidence_list[i][0].rows else "")
+        verdict[errs] = ERROR
+        verdict[~applicable] = NA
+        return RuleResult(rule, np.array(items, dtype=object), verdict, measured, unit, thr,
+                          evidence_list, notes)
+
+    def _compare(self, rule: Rule, req: Requirement, raw: np.ndarray, munit: str, skip: np.ndarray,
+                 names: _Names, items: list[str]) -> tuple[np.ndarray, np.ndarray, dict[str, Any], str]:
+        n = len(raw)
+        op = req.op
+        ok = np.ones(n, dtype=bool)
+        thr = self._req_dict(req, None)
+        if op == "present":
+            ok = ~_missing_mask(raw)
+            return ok, raw, thr, munit
+        if op in ("true", "false"):
+            want = op == "true"
+            vals = np.array([v is want or (isinstance(v, np.bool_) and bool(v) is want) for v in raw])
+            ok = vals | skip
+            return ok, raw, thr, munit
+        numeric_ops = ("<", "<=", ">", ">=", "between")
+        textual = munit in NON_NUMERIC or munit == "any"
+        literal_text = op in ("==", "!=", "in") and (
+            textual or any(isinstance(v, str) and not self._is_expr(v) for v in (req.value, *(req.values or []))))
+        if literal_text:
+            vals = np.array([None if _is_missing(v) else str(v) for v in raw], dtype=object)
+            if op == "in":
+                allowed = {str(v) for v in req.values or []}
+                ok = np.array([v in allowed for v in vals]) | skip
+            else:
+                target = str(_threshold_value(req.value, names))
+                eq = np.array([v == target for v in vals])
+                ok = (eq if op == "==" else ~eq) | skip
+            return ok, vals, thr, munit
+        if textual:
+            raise UnitError(f"measure {rule.measure} is {munit}, the requirement {op} needs a number")
+        values = pd.to_numeric(pd.Series(raw), errors="coerce").to_numpy(dtype=float)
+        target_unit = canonical(req.unit) if req.unit else munit
+        gsd = item_gsd(rule.scope, items, self.d, self.cache) if (
+            "px" in (canonical(munit), target_unit)) else None
+        if canonical(munit) != target_unit:
+            values = convert(values, munit, target_unit, gsd_m=gsd, what=f"measure {rule.measure}")
+        what = f"rule {rule.id} requirement"
+        if op in numeric_ops or op in ("==", "!="):
+            with np.errstate(invalid="ignore"):
+                if op == "between":
+                    lo = _magnitudes(_threshold_value(req.min, names), req.unit, n, gsd, what) \
+                        if req.min is not None else np.full(n, -np.inf)
+                    hi = _magnitudes(_threshold_value(req.max, names), req.unit, n, gsd, what) \
+                        if req.max is not None else np.full(n, np.inf)
+                    a = values >= lo if req.min_inclusive else values > lo
+                    b = values <= hi if req.max_inclusive else values < hi
+                    ok = a & b
+                    thr = self._req_dict(req, (lo, hi))
+                else:
+                    t = _magnitudes(_threshold_value(req.value, names), req.unit, n, gsd, what)
+                    cmp = {"<": np.less, "<=": np.less_equal, ">": np.greater, ">=": np.greater_equal,
+                           "==": np.isclose, "!=": lambda a, b: ~np.isclose(a, b)}[op]
+                    ok = cmp(values, t)
+                    thr = self._req_dict(req, (t,))
+        elif op == "in":
+            allowed = np.array([float(_threshold_value(v, names)) for v in req.values or []])
+            ok = np.isin(values, allowed)
+        ok = ok | skip | np.isnan(values)
+        return ok, values, thr, target_unit
+
+    @staticmethod
+    def _is_expr(v: str) -> bool:
+        return False
+
+    def _req_dict(self, req: Requirement, resolved: tuple[np.ndarray, ...] | None) -> dict[str, Any]:
+        unit = canonical(req.unit) if req.unit and req.unit not in NON_NUMERIC else req.unit
+        out: dict[str, Any] = {"op": req.op, "unit": unit}
+
+        def one(spec: Any, arr: np.ndarray | None) -> Any:
+            if arr is None:
+                return spec
+            uniq = np.unique(arr[~np.isnan(arr)]) if arr.dtype.kind == "f" else arr
+            if len(uniq) == 1:
+                return float(uniq[0])
+            return None  # varies per item; see the record's own threshold
+
+        if req.op == "between":
+            out["min"] = one(req.min, resolved[0] if resolved else None)
+            out["max"] = one(req.max, resolved[1] if resolved else None)
+            if isinstance(req.min, str):
+                out["min_expr"] = req.min
+            if isinstance(req.max, str):
+                out["max_expr"] = req.max
+            out["min_inclusive"], out["max_inclusive"] = req.min_inclusive, req.max_inclusive
+        elif req.op == "in":
+            out["values"] = list(req.values or [])
+        elif req.op in ("present", "true", "false"):
+            pass
+        else:
+            out["value"] = one(req.value, resolved[0] if resolved else None)
+            if isinstance(req.value, str) and resolved is not None:
+                out["expr"] = req.value
+        if resolved is not None:
+            out["_arrays"] = resolved
+        out["text"] = requirement_text(req, out)
+        return out
+
+    # --- manual rules
+    def _manual_table(self) -> pd.DataFrame | None:
+        t = self.d.table("manual_checks")
+        return None if t is None else t.df.assign(_file=t.file, _sha=t.sha256)
+
+    def _manual_rule(self, rule: Rule, items: list[str]) -> RuleResult:
+        if not items:
+            items = [self.d.id]
+        n = len(items)
+        verdict = np.full(n, MISSING, dtype=np.int8)
+        measured = np.full(n, None, dtype=object)
+        notes = np.full(n, "manual check: no recorded verdict (inspector, date, pass/fail) in "
+                           "the delivery's manual_checks table", dtype=object)
+        evidence: list[tuple[Evidence, ...]] = [()] * n
+        df = self._manual
+        if df is not None:
+            rows = df[df["check"] == rule.id]
+            for i, item in enumerate(items):
+                hit = rows[(rows["item"] == item) | (rows["item"] == "*")]
+                if len(hit):
+                    h = hit.iloc[-1]
+                    v = str(h["verdict"]).strip().lower()
+                    evidence[i] = (Evidence(str(h["_file"]), str(h["_sha"]), (int(h["_row"]),)),)
+                    measured[i] = v
+                    if v == "pass":
+                        verdict[i] = PASS
+                        notes[i] = f"signed by {h['inspector']} on {h['date']}"
+                    elif v == "fail":
+                        verdict[i] = FAIL if rule.level == "mandatory" else WARN
+                        notes[i] = f"judged failing by {h['inspector']} on {h['date']}"
+                    else:
+                        verdict[i] = ERROR
+                        notes[i] = f"manual_checks verdict must be pass or fail, got {v!r}"
+        if rule.when:
+            names = _Names(self.params, self.manifest, self.cache, rule.scope, items, {})
+            cond = expr.parse(rule.when).evaluate(names)
+            if np.ndim(cond) == 0 and not bool(cond):
+                verdict[:] = NA
+        return RuleResult(rule, np.array(items, dtype=object), verdict, measured, "text",
+                          self._req_dict(rule.requirement, None), evidence, notes)
+
+    # --- waivers
+    def _waivers(self) -> list[tuple[str, dict[str, Any]]]:
+        waivers = [("delivery", w.model_dump(mode="json")) for w in self.d.manifest.waivers]
+        return waivers + [("profile", w.model_dump(mode="json")) for w in self.profile.waivers]
+
+    def _unused_waivers(self, used: set[int]) -> list[dict[str, Any]]:
+        return [dict(w, declared_in=src) for i, (src, w) in enumerate(self._waivers()) if i not in used]
+
+    def _apply_waivers(self, results: list[RuleResult]) -> set[int]:
+        """Waived items keep their original verdict beside `waived`; returns the waivers used."""
+        waivers = self._waivers()
+        by_rule: dict[str, list[tuple[int, str, dict[str, Any]]]] = {}
+        for i, (src, w) in enumerate(waivers):
+            by_rule.setdefault(w["rule"], []).append((i, src, w))
+        used: set[int] = set()
+        for r in results:
+            ws = by_rule.get(r.rule.id)
+            if not ws:
+                continue
+            for idx, src, w in ws:
+                items = set(map(str, w["items"]))
+                match = np.ones(len(r.items), dtype=bool) if "*" in items else np.isin(r.items, list(items))
+                target = match & np.isin(r.verdict, (FAIL, WARN, MISSING))
+                if target.any():
+                    used.add(idx)
+                    if r.original is None:
+                        r.original = r.verdict.copy()
+                    for it in r.items[target]:
+                        r.waivers[str(it)] = {**w, "declared_in": src if src == "profile" else MANIFEST}
+                    r.verdict[target] = WAIVED
+        return used
+
+    # --- roll-up
+    def _blocking(self, r: RuleResult) -> np.ndarray:
+        bad = (FAIL, MISSING, ERROR) + ((WARN,) if self.fail_on == "warn" else ())
+        if r.rule.level == "recommended" and self.fail_on != "warn":
+            return np.zeros(len(r.verdict), dtype=bool)
+        return np.isin(r.verdict, bad)
+
+    def _block_of(self, scope: str) -> dict[str, str]:
+        table = {"image": "images", "checkpoint": "checkpoints", "gcp": "gcps"}.get(scope)
+        if table is None:
+            return {}
+        t = self.d.table(table)
+        if t is None or "block" not in t.df:
+            return {}
+        return dict(zip(t.ids.tolist(), t.df["block"].astype(str).tolist(), strict=True))
+
+    def _rollup_items(self, results: list[RuleResult]) -> tuple[dict[str, list[str]], list[str]]:
+        rejected: dict[str, set[str]] = {}
+        reasons: list[str] = []
+        for r in results:
+            mask = self._blocking(r)
+            if not mask.any():
+                continue
+            items = [str(i) for i in r.items[mask]]
+            c = r.rule.consequence
+            if c == "reject_item":
+                rejected.setdefault(r.rule.scope, set()).update(items)
+            elif c == "reject_block":
+                if r.rule.scope == "block":
+                    blocks = set(items)
+                else:
+                    bmap = self._block_of(r.rule.scope)
+                    blocks = {bmap[i] for i in items if i in bmap} or set(self.d.block_ids)
+                rejected.setdefault("block", set()).update(blocks)
+                reasons.append(f"{r.rule.id} ({r.rule.clause.text()}) rejects block(s) "
+                               + ", ".join(sorted(blocks)))
+        return {k: sorted(v) for k, v in sorted(rejected.items())}, reasons
+
+    def _rollup_measures(self, rejected: dict[str, list[str]]) -> dict[str, Measured]:
+        d = self.d
+        out: dict[str, Measured] = {}
+        imgs = d.table("images")
+        ev_img = imgs.evidence(imgs.df["_row"]) if imgs is not None else (d.manifest_evidence("tables"),)
+        if imgs is not None:
+            all_imgs = imgs.ids.tolist()
+            sampled = all_imgs
+            if "sample" in imgs.df and imgs.df["sample"].map(lambda v: v is True).any():
+                sampled = imgs.ids[imgs.df["sample"].map(lambda v: v is True)].tolist()
+            rej = set(rejected.get("image", [])) & set(sampled)
+            share = 100.0 * len(rej) / len(sampled) if sampled else None
+            samp = 100.0 * len(sampled) / len(all_imgs) if all_imgs else None
+        else:
+            share = samp = None
+            rej = set()
+        blocks = d.block_ids
+        cps = d.table("checkpoints")
+        checked = sorted(set(cps.df["block"].astype(str)) & set(blocks)) if cps is not None else []
+        brej = set(rejected.get("block", [])) & set(blocks)
+        bshare = 100.0 * len(brej & set(checked or blocks)) / len(checked or blocks) if blocks else None
+        bchecked = 100.0 * len(checked) / len(blocks) if blocks else None
+        ev_blk = (cps.evidence(cps.df["_row"]) if cps is not None else (d.manifest_evidence("blocks"),))
+        vals = {
+            "rollup.image_rejected_share": (share, ev_img), "rollup.images_sampled_share": (samp, ev_img),
+            "rollup.images_rejected": (float(len(rej)) if imgs is not None else None, ev_img),
+            "rollup.block_rejected_share": (bshare, ev_blk), "rollup.blocks_checked_share": (bchecked, ev_blk),
+            "rollup.blocks_rejected": (float(len(brej)), ev_blk),
+        }
+        for name, (v, ev) in vals.items():
+            scope, unit = ROLLUP[name]
+            item = d.id if scope == "delivery" else d.project_id
+            out[name] = Measured(name, scope, unit, pd.Series({item: v}, dtype=object),
+                                 pd.Series({item: ev}, dtype=object))
+        return out
+
+    def _overall(self, results: list[RuleResult], rejected: dict[str, list[str]], *,
+                 has_block_rollup: bool, has_image_rollup: bool) -> tuple[str, list[str]]:
+        reasons: list[str] = []
+        for r in results:
+            mask = self._blocking(r)
+            if not mask.any():
+                continue
+            if r.rule.consequence == "return_delivery" or (
+                    r.rule.consequence == "reject_block" and r.rule.scope in ("delivery", "project")):
+                items = ", ".join(str(i) for i in r.items[mask][:5])
+                reasons.append(f"{r.rule.id} ({r.rule.clause.text()}): {VERDICTS[int(r.verdict[mask][0])]} "
+                               f"for {items}")
+        if rejected.get("block") and not has_block_rollup:
+            reasons.append("block(s) " + ", ".join(rejected["block"]) + " rejected and the profile has no "
+                           "project-level roll-up rule: any rejected block returns the delivery")
+        if rejected.get("image") and not has_image_rollup:
+            reasons.append("image(s) rejected and the profile has no delivery-level roll-up rule: any "
+                           "rejected image returns the delivery")
+        return ("rejected" if reasons else "accepted"), reasons
+
+
+def requirement_text(req: Requirement, resolved: dict[str, Any]) -> str:
+    u = f" {resolved['unit']}" if resolved.get("unit") and resolved["unit"] not in ("1",) else ""
+
+    def show(spec: Any, val: Any) -> str:
+        if isinstance(spec, str) and val is not None and not isinstance(val, str):
+            return f"{spec} ({_fmt(val)}{u})"
+        if isinstance(spec, str):
+            return spec
+        return f"{_fmt(spec)}{u}"
+
+    if req.op == "between":
+        lo = show(req.min, resolved.get("min")) if req.min is not None else "-inf"
+        hi = show(req.max, resolved.get("max")) if req.max is not None else "+inf"
+        lb = "[" if req.min_inclusive else "("
+        rb = "]" if req.max_inclusive else ")"
+        return f"in {lb}{lo}, {hi}{rb}"
+    if req.op == "in":
+        return "one of " + ", ".join(map(str, req.values or []))
+    if req.op == "present":
+        return "present"
+    if req.op in ("true", "false"):
+        return f"is {req.op}"
+    return f"{_OP_TEXT[req.op]} {show(req.value, resolved.get('value'))}"

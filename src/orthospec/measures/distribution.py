@@ -1,0 +1,198 @@
+"""Checkpoint distribution: count, quadrants, spacing, independence from GCPs, footprint.
+
+JRC EUR 23638 EN §12.4-12.5 and the caption of Figure 4: "Generally a minimum number of 20
+well-distributed Check Points per site"; "At least 20% of the points should lay in each
+quarter whereas the optimum distance between points is related to the diagonal distance of
+the area (1/10th of Δ)"; "CPs should not be close to the GCPs". Pure: arrays and shapely
+geometries in, a frozen result out; distances with ``scipy.spatial.cKDTree``.
+
+Conventions
+-----------
+* Quadrants split at the centre of the bounding box of ``area`` (the block polygon) when
+  given, otherwise of the convex hull of the points (same box as the points' bounding box);
+  ``split_source`` says which. A point on a split line goes east (x >= cx) / north (y >= cy).
+* Δ is the diagonal of the same bounding box; spacing is reported as each point's
+  nearest-neighbour distance relative to Δ/10 (no verdict here: the rule decides).
+* "Identical" checkpoint/GCP pairs: the same id in both sets, or a distance <= ``identical_tol``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import shapely
+from scipy.spatial import cKDTree
+from shapely.geometry.base import BaseGeometry
+
+from ..errors import MeasureError
+
+__all__ = ["QUADRANTS", "DistributionResult", "checkpoint_distribution"]
+
+#: Quadrant order used in every output.
+QUADRANTS = ("NE", "NW", "SW", "SE")
+
+
+@dataclass(frozen=True)
+class DistributionResult:
+    """How checkpoints are spread (lengths in the coordinates' unit)."""
+
+    n: int
+    min_count: int
+    count_ok: bool
+    split_source: str  # "area" | "convex_hull"
+    centre: tuple[float, float]
+    diagonal: float
+    quadrant_counts: dict[str, int]
+    quadrant_shares: dict[str, float]
+    min_quadrant_share: float
+    quadrants_ok: bool
+    nn_distance: np.ndarray = field(repr=False, compare=False)
+    nn_reference: float = 0.0  # Δ/10
+    nn_min: float = 0.0
+    nn_mean: float = 0.0
+    nn_min_ratio: float = 0.0  # nn_min / (Δ/10)
+    nn_mean_ratio: float = 0.0
+    closer_than_reference: tuple[str, ...] = ()
+    gcp_distance: np.ndarray | None = field(default=None, repr=False, compare=False)
+    gcp_min_distance: float | None = None
+    too_close_to_gcp: tuple[str, ...] = ()
+    identical_to_gcp: tuple[str, ...] = ()
+    outside_footprint: tuple[str, ...] = ()
+    inside_footprint_share: float | None = None
+    quadrant: np.ndarray = field(default_factory=lambda: np.empty(0), repr=False, compare=False)
+
+    @property
+    def well_distributed(self) -> bool:
+        return self.count_ok and self.quadrants_ok
+
+
+def _ids(ids: Sequence[Any] | np.ndarray | None, n: int, what: str) -> np.ndarray:
+    arr = np.asarray([str(i) for i in ids], dtype=object) if ids is not None else \
+        np.asarray([str(i) for i in range(n)], dtype=object)
+    if arr.size != n:
+        raise MeasureError(f"{arr.size} {what} ids given for {n} points")
+    return arr
+
+
+def _xy(x: Any, y: Any, ids: np.ndarray, what: str) -> np.ndarray:
+    ax, ay = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+    if ax.shape != ay.shape or ax.ndim != 1 or ax.size != ids.size:
+        raise MeasureError(f"{what} x and y must be 1-D arrays of the same length as the ids")
+    bad = ~(np.isfinite(ax) & np.isfinite(ay))
+    if bad.any():
+        raise MeasureError(f"non-finite {what} coordinates for {', '.join(ids[bad][:20])}")
+    return np.column_stack([ax, ay])
+
+
+def checkpoint_distribution(
+    x: Any,
+    y: Any,
+    *,
+    ids: Sequence[Any] | np.ndarray | None = None,
+    area: BaseGeometry | None = None,
+    gcp_x: Any = None,
+    gcp_y: Any = None,
+    gcp_ids: Sequence[Any] | np.ndarray | None = None,
+    min_gcp_distance: float = 0.0,
+    identical_tol: float = 1e-6,
+    footprint: BaseGeometry | None = None,
+    min_count: int = 20,
+    min_quadrant_share: float = 0.20,
+) -> DistributionResult:
+    """Distribution measures for one block/site's checkpoints.
+
+    Parameters
+    ----------
+    x, y
+        Checkpoint reference coordinates (projected, one length unit).
+    area
+        Block polygon; defines the quadrant split and Δ. Default: convex hull of the points.
+    gcp_x, gcp_y, gcp_ids
+        GCPs used for the correction; checkpoints nearer than ``min_gcp_distance`` to any
+        GCP are listed in ``too_close_to_gcp`` and identical ones in ``identical_to_gcp``.
+    footprint
+        Product footprint polygon; points not covered (boundary counts as inside) are
+        listed in ``outside_footprint``.
+
+    Raises
+    ------
+    MeasureError
+        No points, non-finite coordinates, mismatched lengths, an empty ``area``.
+    """
+    cp_ids = _ids(ids, np.asarray(x).size, "checkpoint")
+    pts = _xy(x, y, cp_ids, "checkpoint")
+    n = pts.shape[0]
+    if n == 0:
+        raise MeasureError("no checkpoints given")
+
+    if area is not None:
+        if area.is_empty:
+            raise MeasureError("the area polygon is empty")
+        minx, miny, maxx, maxy = area.bounds
+        source = "area"
+    else:
+        minx, miny = pts.min(axis=0)
+        maxx, maxy = pts.max(axis=0)
+        source = "convex_hull"
+    cx, cy = (minx + maxx) / 2.0, (miny + maxy) / 2.0
+    diagonal = float(np.hypot(maxx - minx, maxy - miny))
+
+    east = pts[:, 0] >= cx
+    north = pts[:, 1] >= cy
+    quad = np.where(north, np.where(east, 0, 1), np.where(east, 3, 2))
+    counts = np.bincount(quad, minlength=4)
+    shares = counts / n
+    q_counts = {q: int(c) for q, c in zip(QUADRANTS, counts, strict=True)}
+    q_shares = {q: float(s) for q, s in zip(QUADRANTS, shares, strict=True)}
+
+    ref = diagonal / 10.0
+    if n >= 2:
+        dist, _ = cKDTree(pts).query(pts, k=2)
+        nn = dist[:, 1]
+    else:
+        nn = np.full(1, np.inf)
+    finite_nn = nn[np.isfinite(nn)]
+    nn_min = float(finite_nn.min()) if finite_nn.size else float("inf")
+    nn_mean = float(finite_nn.mean()) if finite_nn.size else float("inf")
+    close = tuple(cp_ids[nn < ref].tolist()) if ref > 0 else ()
+
+    gdist = None
+    gmin = None
+    too_close: tuple[str, ...] = ()
+    identical: tuple[str, ...] = ()
+    if gcp_x is not None or gcp_y is not None:
+        if gcp_x is None or gcp_y is None:
+            raise MeasureError("gcp_x and gcp_y must be given together")
+        g_ids = _ids(gcp_ids, np.asarray(gcp_x).size, "GCP")
+        gpts = _xy(gcp_x, gcp_y, g_ids, "GCP")
+        if gpts.shape[0]:
+            gdist, _ = cKDTree(gpts).query(pts, k=1)
+            gmin = float(gdist.min())
+            too_close = tuple(cp_ids[gdist < min_gcp_distance].tolist())
+            same = (gdist <= identical_tol) | np.isin(cp_ids.astype(str), g_ids.astype(str))
+            identical = tuple(cp_ids[same].tolist())
+
+    outside: tuple[str, ...] = ()
+    inside_share = None
+    if footprint is not None:
+        inside = shapely.intersects_xy(footprint, pts[:, 0], pts[:, 1])
+        outside = tuple(cp_ids[~inside].tolist())
+        inside_share = float(inside.mean())
+
+    return DistributionResult(
+        n=n, min_count=min_count, count_ok=n >= min_count, split_source=source,
+        centre=(float(cx), float(cy)), diagonal=diagonal,
+        quadrant_counts=q_counts, quadrant_shares=q_shares,
+        min_quadrant_share=min_quadrant_share,
+        quadrants_ok=bool((shares >= min_quadrant_share).all()),
+        nn_distance=nn, nn_reference=ref, nn_min=nn_min, nn_mean=nn_mean,
+        nn_min_ratio=nn_min / ref if ref > 0 else float("inf"),
+        nn_mean_ratio=nn_mean / ref if ref > 0 else float("inf"),
+        closer_than_reference=close,
+        gcp_distance=gdist, gcp_min_distance=gmin, too_close_to_gcp=too_close,
+        identical_to_gcp=identical, outside_footprint=outside,
+        inside_footprint_share=inside_share, quadrant=quad,
+    )

@@ -1,0 +1,755 @@
+"""Spatial quality from an edge target: the CEOS WGCV IVOS 12-step method.
+
+Source: seed ``003_ceb4b69be8905903.txt`` (Lee & Helder 2015, "Edge target for
+Spatial Quality", processing steps [RD5]); RER two-direction form from seed
+``000_64edc9235d9ff7d6.txt`` (USGS); effective resolution from seed
+``004_0930f95275292898.txt`` (Passini, Jacobsen, Day). ``docs/edge-method.md``
+explains every choice where the seed says TBD/TBR/TBC.
+
+The chain (seed step in brackets) on a 2-D ROI holding one straight edge:
+
+* orientation [4a]: the ROI is transposed so that the edge runs near the
+  columns (profile along x), and mirrored so that dark is left, bright right
+  [4b]. Everything below runs in that working frame, so results do not depend
+  on edge polarity or on transposing the image.
+* per line [5a-c]: largest adjacent difference, cubic through the four pixels
+  around it, edge at the cubic's inflection point.
+* robust line [5d-f]: least squares of all locations, iteratively rejecting
+  lines beyond 3 robust sigmas (1.4826 MAD, floor 0.05 px); angle to the
+  along/across direction.
+* ESF [6]: every pixel of the kept lines at its *perpendicular* distance
+  ``d = (x - x_edge(y)) cos(theta)`` from the fitted line.
+* plateaus [7]: cubic smoothing spline of the binned ESF; the starts of the dark
+  and bright plateaus are the LSF's inflection points (extrema of ESF'');
+  the ESF is trimmed ``plateau_px`` beyond them.
+* fits [8]: non-parametric (scipy ``make_smoothing_spline``, GCV, on the ESF
+  binned at 1/``oversample`` px, weighted by counts) and parametric (sum of
+  Fermi-Dirac functions); both normalised 0..1.
+* RER [9] at +-0.5 px around the centre (LSF peak for the spline, ESF = 0.5
+  for the parametric fit, as the seed says); LSF [10] by differentiation;
+  FWHM and widths at 25 % / 80 % [11]; MTF [12] by FFT of the LSF normalised
+  at zero frequency, value at Nyquist (0.5 cycles/px).
+
+Health checks [3] fail with their measured values; then ``valid`` is False and
+no estimator is reported. Only malformed input raises :class:`MeasureError`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy import optimize
+from scipy.interpolate import make_smoothing_spline
+
+from ..errors import MeasureError
+
+__all__ = [
+    "EdgeFit",
+    "EdgeResult",
+    "Estimate",
+    "HealthCheck",
+    "measure_edge",
+    "rer_two_directions",
+]
+
+NYQUIST = 0.5  # cycles per pixel
+SPLINE = "spline"
+_GRID = 0.01  # px, evaluation grid of fitted curves
+_MTF_FREQ = np.round(np.arange(0, 101) * 0.01, 10)  # reported MTF curve, cycles/px
+
+
+@dataclass(frozen=True)
+class HealthCheck:
+    """One step-3 health check: what was measured, the limit, pass/fail and why."""
+
+    name: str
+    value: float | None
+    op: str  # ">", ">=", "<=", "in"
+    limit: float | tuple[float, float]
+    unit: str
+    passed: bool
+    reason: str = ""
+
+    def to_dict(self) -> dict[str, Any]:
+        lim = list(self.limit) if isinstance(self.limit, tuple) else self.limit
+        return {"name": self.name, "value": _f(self.value), "op": self.op, "limit": lim,
+                "unit": self.unit, "passed": self.passed, "reason": self.reason}
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """One spatial-quality estimator with its unit and the fit that produced it."""
+
+    name: str
+    value: float
+    unit: str
+    fit: str
+
+
+@dataclass(frozen=True, eq=False)
+class EdgeFit:
+    """A fitted, normalised ESF (0..1) and what follows from it; curves on a 0.01 px grid."""
+
+    fit: str
+    x: np.ndarray  # px, perpendicular distance, dark < 0 < bright
+    esf: np.ndarray
+    lsf: np.ndarray  # 1/px
+    centre_px: float
+    mtf_freq: np.ndarray  # cycles/px
+    mtf: np.ndarray
+    rer: float
+    fwhm_px: float
+    width25_px: float
+    width80_px: float
+    mtf_nyquist: float
+    edge_slope_per_px: float
+    dark_level: float
+    bright_level: float
+    params: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def effective_resolution_factor(self) -> float:
+        """FWHM of the LSF over the 1-px FWHM of an ideal square-pixel sampler (see docs)."""
+        return self.fwhm_px / 1.0
+
+
+@dataclass(frozen=True, eq=False)
+class EdgeResult:
+    """Everything the chain measured; estimators only when every health check passed."""
+
+    valid: bool
+    reasons: tuple[str, ...]
+    checks: tuple[HealthCheck, ...]
+    direction: str  # "across" (profile along x / columns) or "along" (profile along y / rows)
+    transposed: bool
+    polarity: str  # "dark_to_bright" or "bright_to_dark" along increasing x (or y)
+    angle_deg: float | None  # edge to the along/across direction, >= 0
+    shape: tuple[int, int]
+    # per-line edge locations in ROI coordinates (x = column, y = row), and the fitted line
+    line_x: np.ndarray
+    line_y: np.ndarray
+    line_kept: np.ndarray
+    fitted_x: np.ndarray  # fitted line at the same points
+    fitted_y: np.ndarray
+    residual_rms_px: float | None
+    # ESF samples (perpendicular distance px, DN) of the kept lines
+    esf_d: np.ndarray
+    esf_dn: np.ndarray
+    dark_level: float | None
+    bright_level: float | None
+    dark_std: float | None
+    bright_std: float | None
+    dark_start_px: float | None
+    bright_start_px: float | None
+    window_px: tuple[float, float] | None
+    fits: dict[str, EdgeFit]
+    primary_fit: str
+    estimates: tuple[Estimate, ...]
+    gsd_m: float | None = None
+
+    def estimate(self, name: str, fit: str | None = None) -> Estimate | None:
+        """The estimator ``name`` from ``fit`` (primary fit by default); None if invalid."""
+        want = fit or self.primary_fit
+        return next((e for e in self.estimates if e.name == name and e.fit == want), None)
+
+    def _value(self, name: str) -> float | None:
+        e = self.estimate(name)
+        return None if e is None else e.value
+
+    @property
+    def rer(self) -> float | None:
+        return self._value("rer")
+
+    @property
+    def fwhm_px(self) -> float | None:
+        return self._value("fwhm_px")
+
+    @property
+    def mtf_nyquist(self) -> float | None:
+        return self._value("mtf_nyquist")
+
+    @property
+    def effective_resolution_factor(self) -> float | None:
+        return self._value("effective_resolution_factor")
+
+    def check(self, name: str) -> HealthCheck:
+        return next(c for c in self.checks if c.name == name)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Flat, JSON-safe values (floats, str, bool, None); NaN becomes None."""
+        out: dict[str, Any] = {
+            "valid": self.valid,
+            "reasons": "; ".join(self.reasons),
+            "direction": self.direction,
+            "transposed": self.transposed,
+            "polarity": self.polarity,
+            "angle_deg": _f(self.angle_deg),
+            "lines": int(self.line_kept.size),
+            "lines_kept": int(self.line_kept.sum()),
+            "residual_rms_px": _f(self.residual_rms_px),
+            "dark_level_dn": _f(self.dark_level),
+            "bright_level_dn": _f(self.bright_level),
+            "dark_std_dn": _f(self.dark_std),
+            "bright_std_dn": _f(self.bright_std),
+            "dark_start_px": _f(self.dark_start_px),
+            "bright_start_px": _f(self.bright_start_px),
+            "gsd_m": _f(self.gsd_m),
+            "primary_fit": self.primary_fit,
+        }
+        for c in self.checks:
+            out[f"check.{c.name}.value"] = _f(c.value)
+            out[f"check.{c.name}.unit"] = c.unit
+            out[f"check.{c.name}.passed"] = c.passed
+        names = []
+        for e in self.estimates:
+            if e.name not in names:
+                names.append(e.name)
+        for name in names:
+            prim = self.estimate(name)
+            if prim is not None:
+                out[name] = _f(prim.value)
+                out[f"{name}.unit"] = prim.unit
+                out[f"{name}.fit"] = prim.fit
+            for e in self.estimates:
+                if e.name == name and e.fit != self.primary_fit:
+                    out[f"{name}.{e.fit}"] = _f(e.value)
+        return out
+
+
+def rer_two_directions(rer_x: Any, rer_y: Any) -> np.ndarray:
+    """USGS RER = sqrt(RER_x * RER_y), the geometric mean of the two directions (seed 000).
+
+    "RER is a geometric mean of normalized edge response differences measured in two
+    directions of image pixels (X and Y) at points distanced from the edge by -0.5 and
+    0.5 GSD: RER = sqrt([ERx(0.5) - ERx(-0.5)][ERy(0.5) - ERy(-0.5)])".
+    """
+    x = np.asarray(rer_x, dtype=float)
+    y = np.asarray(rer_y, dtype=float)
+    if np.any(x < 0) or np.any(y < 0):
+        raise MeasureError("RER values must be >= 0 to take their geometric mean")
+    return np.sqrt(x * y)
+
+
+# ----------------------------------------------------------------------------------------
+# the chain
+
+
+def measure_edge(
+    roi: np.ndarray,
+    *,
+    gsd: float | None = None,
+    nodata: float | None = None,
+    bit_depth: int | None = None,
+    saturation_dn: tuple[float | None, float | None] | None = None,
+    min_snr: float = 50.0,
+    min_contrast_dn: float = 50.0,
+    max_angle_deg: float = 30.0,
+    min_edge_length_px: int = 20,
+    min_plateau_width_px: float = 5.0,
+    max_straightness_px: float = 1.0,
+    max_outlier_fraction: float = 0.2,
+    min_supersampling: float = 0.8,
+    max_saturated_fraction: float = 0.01,
+    plateau_px: float = 5.0,
+    oversample: int = 10,
+    fermi_terms: int = 3,
+) -> EdgeResult:
+    """Run the CEOS 12-step edge chain on one ROI.
+
+    Parameters
+    ----------
+    roi
+        2-D array (rows, columns) holding one straight edge; NaN (or ``nodata``)
+        pixels are ignored.
+    gsd
+        Ground sample distance in metres per pixel; adds metre-valued estimators.
+    bit_depth, saturation_dn
+        Saturation levels (low, high) in DN. Default: low 0 and high
+        ``2**bit_depth - 1``, or the integer dtype's maximum.
+    min_snr, min_contrast_dn, max_angle_deg, min_edge_length_px, min_plateau_width_px
+        Step-3 limits of the seed (SNR > 50, DN difference > 50, 0-30 deg,
+        > 10-20 px -> 20 by default, > 5 px).
+    max_straightness_px, max_outlier_fraction
+        Straightness: the largest residual of a kept line from the fitted line
+        (seed: "by one pixel") and the share of lines rejected as outliers.
+    min_supersampling
+        Share of 1/``oversample`` px ESF bins within +-2 px of the edge that
+        hold samples; fails for an edge too close to 0 deg to super-sample.
+    plateau_px
+        How far beyond the plateau starts the ESF is kept (trim, step 7).
+    fermi_terms
+        Number of Fermi-Dirac terms of the parametric fit (1 = plain Fermi-Dirac).
+
+    Returns
+    -------
+    EdgeResult
+
+    Raises
+    ------
+    MeasureError
+        When ``roi`` is not a 2-D numeric array of at least 5 x 5 pixels with finite values.
+    """
+    arr = np.asarray(roi)
+    if arr.ndim != 2:
+        raise MeasureError(f"edge ROI must be a 2-D array, got {arr.ndim} dimension(s) {arr.shape}")
+    if min(arr.shape) < 5:
+        raise MeasureError(f"edge ROI {arr.shape[1]} x {arr.shape[0]} px is too small; "
+                           "expected at least 5 x 5 px (and > 20 lines to pass the checks)")
+    if not (np.issubdtype(arr.dtype, np.number) or arr.dtype == bool):
+        raise MeasureError(f"edge ROI must be numeric, got dtype {arr.dtype}")
+    sat_lo, sat_hi = _saturation(arr.dtype, bit_depth, saturation_dn)
+    img = arr.astype(float)
+    if nodata is not None:
+        img[img == nodata] = np.nan
+    if not np.isfinite(img).any():
+        raise MeasureError("edge ROI has no finite pixels")
+    if gsd is not None and not (math.isfinite(gsd) and gsd > 0):
+        raise MeasureError(f"gsd must be a positive number of metres per pixel, got {gsd!r}")
+
+    # step 4a: along/across; 4b: bright/dark side -> working frame (edge ~ vertical, dark left)
+    ex = np.nansum(np.diff(img, axis=1) ** 2)
+    ey = np.nansum(np.diff(img, axis=0) ** 2)
+    transposed = bool(ey > ex)
+    work = img.T if transposed else img
+    mirrored = bool(np.nansum(np.diff(work, axis=1)) < 0)
+    if mirrored:
+        work = work[:, ::-1]
+    work = np.ascontiguousarray(work)
+    direction = "along" if transposed else "across"
+    polarity = "bright_to_dark" if mirrored else "dark_to_bright"
+    nrow, ncol = work.shape
+
+    def to_roi(r: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Working (row, col) -> ROI (x, y)."""
+        cc = (ncol - 1) - c if mirrored else c
+        return (r, cc) if transposed else (cc, r)
+
+    # step 5a-c: per-line edge location
+    rows, locs = _line_locations(work)
+    kept = np.zeros(rows.size, dtype=bool)
+    c0 = c1 = math.nan
+    resid_rms = math.nan
+    max_resid = math.nan
+    if rows.size >= 3:
+        c0, c1, kept = _robust_line(rows.astype(float), locs)
+        res = locs[kept] - (c0 + c1 * rows[kept])
+        resid_rms = float(np.sqrt(np.mean(res**2)))
+        max_resid = float(np.max(np.abs(res)))
+    n_kept = int(kept.sum())
+    line_ok = n_kept >= 3 and math.isfinite(c1)
+    theta = math.atan(c1) if line_ok else math.nan
+    angle = abs(math.degrees(theta)) if line_ok else None
+
+    lx, ly = to_roi(rows.astype(float), locs)
+    fit_c = c0 + c1 * rows if line_ok else np.full(rows.size, np.nan)
+    fx, fy = to_roi(rows.astype(float), fit_c)
+
+    # step 6: ESF samples at perpendicular distance
+    d = np.empty(0)
+    v = np.empty(0)
+    row_dmin = row_dmax = np.empty(0)
+    if line_ok:
+        kr = rows[kept]
+        cols = np.arange(ncol, dtype=float)
+        dd = (cols[None, :] - (c0 + c1 * kr[:, None])) * math.cos(theta)
+        vv = work[kr, :]
+        fin = np.isfinite(vv)
+        d, v = dd[fin], vv[fin]
+        row_dmin = np.where(fin, dd, np.inf).min(axis=1)
+        row_dmax = np.where(fin, dd, -np.inf).max(axis=1)
+        order = np.argsort(d, kind="stable")
+        d, v = d[order], v[order]
+
+    # step 7: plateau starts from a first spline fit
+    dark_start = bright_start = math.nan
+    window: tuple[float, float] | None = None
+    fits: dict[str, EdgeFit] = {}
+    levels = (math.nan, math.nan)
+    stds = (math.nan, math.nan)
+    sat_frac = math.nan
+    coverage = math.nan
+    widths = (math.nan, math.nan)
+    if d.size >= 20:
+        bw = 1.0 / oversample
+        coverage = _coverage(d, bw, 2.0)
+        first = _spline(d, v, bw, -12.0, 12.0)
+        if first is not None:
+            dark_start, bright_start = _plateau_starts(first, d)
+        if math.isfinite(dark_start) and math.isfinite(bright_start):
+            # the uniform areas begin 3x the start's distance from the centre (>= 1 px
+            # beyond it): at the LSF inflection the ESF tail still holds ~16 % of a
+            # Gaussian's step, at 3 sigma 0.1 %.
+            centre = 0.5 * (dark_start + bright_start)
+            dark_edge = centre + min(3.0 * (dark_start - centre), dark_start - centre - 1.0)
+            bright_edge = centre + max(3.0 * (bright_start - centre), bright_start - centre + 1.0)
+            lo = max(min(dark_start - plateau_px, dark_edge - 1.0), float(d[0]))
+            hi = min(max(bright_start + plateau_px, bright_edge + 1.0), float(d[-1]))
+            window = (lo, hi)
+            dark_side = d <= dark_edge
+            bright_side = d >= bright_edge
+            dsel = dark_side & (d >= lo)
+            bsel = bright_side & (d <= hi)
+            if dsel.any() and bsel.any():
+                levels = (float(v[dsel].mean()), float(v[bsel].mean()))
+            if dark_side.sum() > 1 and bright_side.sum() > 1:
+                stds = (float(v[dark_side].std(ddof=1)), float(v[bright_side].std(ddof=1)))
+                sides = np.concatenate([v[dark_side], v[bright_side]])
+                sat = np.zeros(sides.size, dtype=bool)
+                if sat_lo is not None:
+                    sat |= sides <= sat_lo
+                if sat_hi is not None:
+                    sat |= sides >= sat_hi
+                sat_frac = float(sat.mean())
+            widths = (float(np.median(dark_start - row_dmin)),
+                      float(np.median(row_dmax - bright_start)))
+            if all(math.isfinite(x) for x in levels) and levels[1] > levels[0]:
+                sel = (d >= lo) & (d <= hi)
+                spl = _spline(d[sel], v[sel], bw, lo, hi)
+                if spl is not None:
+                    fits[SPLINE] = _spline_fit(spl, lo, hi, levels)
+                fermi = _fermi_fit(d[sel], v[sel], bw, lo, hi, levels, fermi_terms)
+                if fermi is not None:
+                    fits[fermi.fit] = fermi
+
+    contrast = levels[1] - levels[0]
+    noise = (stds[0] + stds[1]) / 2.0
+    snr = contrast / noise if noise > 0 else (math.inf if contrast > 0 else math.nan)
+
+    # step 3: health checks
+    checks = (
+        _chk("edge_length", n_kept, ">=", min_edge_length_px, "px",
+             "too few lines with a detectable edge"),
+        _chk("straightness", max_resid if line_ok else None, "<=", max_straightness_px, "px",
+             "per-line edge locations do not lie on one straight line"),
+        _chk("outliers", (1 - n_kept / rows.size) if rows.size else None, "<=",
+             max_outlier_fraction, "1", "too many lines rejected as outliers"),
+        _chk("angle", angle, "in", (0.0, max_angle_deg), "deg",
+             "edge angle to the along/across direction out of range"),
+        _chk("supersampling", coverage, ">=", min_supersampling, "1",
+             "ESF bins near the edge left empty (edge too close to 0 deg or too short)"),
+        _chk("contrast", contrast, ">", min_contrast_dn, "DN",
+             "DN difference between bright and dark too small"),
+        _chk("snr", snr, ">", min_snr, "1",
+             "bright/dark areas not uniform or too noisy: SNR = dDN / mean(std) too low"),
+        _chk("saturation", sat_frac, "<=", max_saturated_fraction, "1",
+             "saturated (or zero-filled) pixels in the bright/dark areas"),
+        _chk("dark_width", widths[0], ">", min_plateau_width_px, "px", "dark area too narrow"),
+        _chk("bright_width", widths[1], ">", min_plateau_width_px, "px",
+             "bright area too narrow"),
+        _chk("fit", float(SPLINE in fits), ">=", 1.0, "1",
+             "the ESF could not be fitted (no plateau or no transition found)"),
+    )
+    reasons = tuple(f"{c.name}: {c.reason}" for c in checks if not c.passed)
+    valid = not reasons
+
+    estimates: tuple[Estimate, ...] = ()
+    if valid:
+        estimates = tuple(e for f in fits.values() for e in _estimates_of(f, gsd))
+        if any(not math.isfinite(e.value) for e in estimates if e.fit == SPLINE):
+            bad = [e.name for e in estimates if e.fit == SPLINE and not math.isfinite(e.value)]
+            valid = False
+            reasons = (f"estimators: could not be computed ({', '.join(bad)})",)
+            estimates = ()
+        else:
+            estimates = tuple(e for e in estimates if math.isfinite(e.value))
+
+    return EdgeResult(
+        valid=valid, reasons=reasons, checks=checks, direction=direction,
+        transposed=transposed, polarity=polarity, angle_deg=angle,
+        shape=(int(arr.shape[0]), int(arr.shape[1])),
+        line_x=lx, line_y=ly, line_kept=kept, fitted_x=fx, fitted_y=fy,
+        residual_rms_px=resid_rms if line_ok else None,
+        esf_d=d, esf_dn=v,
+        dark_level=_opt(levels[0]), bright_level=_opt(levels[1]),
+        dark_std=_opt(stds[0]), bright_std=_opt(stds[1]),
+        dark_start_px=_opt(dark_start), bright_start_px=_opt(bright_start),
+        window_px=window, fits=fits, primary_fit=SPLINE, estimates=estimates, gsd_m=gsd,
+    )
+
+
+# ----------------------------------------------------------------------------------------
+# steps
+
+
+_CUBIC = np.linalg.inv(np.vander(np.array([-1.0, 0.0, 1.0, 2.0]), 4))
+
+
+def _line_locations(work: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Seed 5a-c per line: largest adjacent difference, cubic through the 4 pixels
+    around it (t = -1, 0, 1, 2 from its left pixel), edge at the inflection -b / 3a."""
+    nrow, ncol = work.shape
+    diff = np.diff(work, axis=1)
+    diff = np.where(np.isfinite(diff), diff, -np.inf)
+    k = np.argmax(diff, axis=1)
+    rows = np.arange(nrow)
+    ok = (k >= 1) & (k + 2 <= ncol - 1) & (diff[rows, k] > 0)
+    rows, k = rows[ok], k[ok]
+    vals = work[rows[:, None], k[:, None] + np.arange(-1, 3)[None, :]]
+    fin = np.isfinite(vals).all(axis=1)
+    rows, k, vals = rows[fin], k[fin], vals[fin]
+    coef = vals @ _CUBIC.T  # a t^3 + b t^2 + c t + d
+    a, b = coef[:, 0], coef[:, 1]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.where(np.abs(a) > 1e-12 * np.abs(vals).max(axis=1, initial=1.0),
+                     -b / (3.0 * a), 0.5)
+    good = (t >= -1.0) & (t <= 2.0)
+    return rows[good], k[good] + t[good]
+
+
+def _robust_line(r: np.ndarray, x: np.ndarray) -> tuple[float, float, np.ndarray]:
+    """x = c0 + c1 r by least squares, rejecting |residual| > 3 * max(1.4826 MAD, 0.05 px)
+    until the kept set no longer changes."""
+    kept = np.ones(r.size, dtype=bool)
+    c1, c0 = np.polyfit(r, x, 1)
+    for _ in range(30):
+        res = x - (c0 + c1 * r)
+        sig = 1.4826 * np.median(np.abs(res[kept] - np.median(res[kept])))
+        new = np.abs(res) <= 3.0 * max(float(sig), 0.05)
+        if new.sum() < 3 or np.array_equal(new, kept):
+            break
+        kept = new
+        c1, c0 = np.polyfit(r[kept], x[kept], 1)
+    return float(c0), float(c1), kept
+
+
+def _bins(d: np.ndarray, v: np.ndarray, bw: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Bin the ESF at ``bw`` px (bins centred on multiples of bw, symmetric about 0)."""
+    idx = np.floor(d / bw + 0.5).astype(np.int64)
+    idx -= idx.min()
+    n = np.bincount(idx)
+    sd = np.bincount(idx, weights=d)
+    sv = np.bincount(idx, weights=v)
+    nz = n > 0
+    return sd[nz] / n[nz], sv[nz] / n[nz], n[nz].astype(float)
+
+
+def _coverage(d: np.ndarray, bw: float, half: float) -> float:
+    """Share of bins within +-half px of the edge that hold at least one sample."""
+    sel = np.abs(d) <= half
+    nb = int(round(2 * half / bw)) + 1
+    if not sel.any():
+        return 0.0
+    idx = np.floor(d[sel] / bw + 0.5).astype(np.int64)
+    return float(np.unique(idx).size / nb)
+
+
+def _spline(d: np.ndarray, v: np.ndarray, bw: float, lo: float, hi: float) -> Any:
+    sel = (d >= lo) & (d <= hi)
+    if sel.sum() < 10:
+        return None
+    xb, yb, nb = _bins(d[sel], v[sel], bw)
+    if xb.size < 6:
+        return None
+    try:
+        return make_smoothing_spline(xb, yb, w=nb)
+    except (ValueError, np.linalg.LinAlgError):
+        return None
+
+
+def _plateau_starts(spl: Any, d: np.ndarray) -> tuple[float, float]:
+    """Seed 7a: LSF inflection points (extrema of ESF'') either side of the LSF peak."""
+    lo, hi = max(float(d[0]), -12.0), min(float(d[-1]), 12.0)
+    x = np.arange(lo, hi + _GRID / 2, _GRID)
+    lsf = spl.derivative(1)(x)
+    near = np.abs(x) <= 3.0
+    if not near.any():
+        return math.nan, math.nan
+    ip = int(np.flatnonzero(near)[np.argmax(lsf[near])])
+    peak = x[ip]
+    d2 = spl.derivative(2)(x)
+    left = (x >= peak - 6.0) & (x < peak)
+    right = (x > peak) & (x <= peak + 6.0)
+    if not left.any() or not right.any():
+        return math.nan, math.nan
+    return float(x[left][np.argmax(d2[left])]), float(x[right][np.argmin(d2[right])])
+
+
+def _spline_fit(spl: Any, lo: float, hi: float, levels: tuple[float, float]) -> EdgeFit:
+    dark, bright = levels
+    x = np.arange(lo, hi + _GRID / 2, _GRID)
+    esf = (spl(x) - dark) / (bright - dark)
+    lsf = spl.derivative(1)(x) / (bright - dark)
+    centre = float(x[np.argmax(lsf)])  # seed 9b: the LSF top is the RER centre
+
+    def esf_at(p: np.ndarray) -> np.ndarray:
+        return (spl(p) - dark) / (bright - dark)
+
+    return _make_fit(SPLINE, x, esf, lsf, centre, esf_at, levels,
+                     {"lam": None, "bin_px": None})
+
+
+def _fermi(x: np.ndarray, p: np.ndarray) -> np.ndarray:
+    a = p[0]
+    out = np.full_like(x, a, dtype=float)
+    for b, c, s in p[1:].reshape(-1, 3):
+        out += b * _logistic((x - c) / s)
+    return out
+
+
+def _logistic(z: np.ndarray) -> np.ndarray:
+    return 0.5 * (1.0 + np.tanh(0.5 * z))
+
+
+def _fermi_fit(d: np.ndarray, v: np.ndarray, bw: float, lo: float, hi: float,
+               levels: tuple[float, float], terms: int) -> EdgeFit | None:
+    """Parametric ESF: a + sum_i b_i / (1 + exp(-(x - c_i) / s_i)) (Fermi-Dirac terms)."""
+    xb, yb, nb = _bins(d, v, bw)
+    dark, bright = levels
+    span = bright - dark
+
+    def fit(p0: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray | None:
+        try:
+            res = optimize.least_squares(
+                lambda p: (_fermi(xb, p) - yb) * np.sqrt(nb), p0, bounds=(lower, upper),
+                x_scale="jac", max_nfev=2000)
+        except (ValueError, np.linalg.LinAlgError):
+            return None
+        return res.x if res.success else None
+
+    big = 10 * abs(span) + 1
+    p1 = fit(np.array([dark, span, 0.0, 0.5]),
+             np.array([dark - big, 0.0, lo, 0.02]), np.array([bright + big, 3 * big, hi, 10.0]))
+    if p1 is None:
+        return None
+    p, name = p1, "fermi"
+    if terms > 1:
+        cs = np.linspace(-0.3, 0.3, terms) * p1[3] + p1[2]
+        ss = p1[3] * np.geomspace(0.6, 1.6, terms)
+        p0 = np.concatenate([[p1[0]], np.column_stack([np.full(terms, p1[1] / terms), cs, ss]).ravel()])
+        lower = np.concatenate([[dark - big], np.tile([-big, lo, 0.02], terms)])
+        upper = np.concatenate([[bright + big], np.tile([3 * big, hi, 10.0], terms)])
+        pn = fit(p0, lower, upper)
+        if pn is not None:
+            p, name = pn, f"fermi{terms}"
+    a = float(p[0])
+    b_tot = float(p[1::3].sum()) if name != "fermi" else float(p[1])
+    if b_tot <= 0:
+        return None
+    x = np.arange(lo, hi + _GRID / 2, _GRID)
+
+    def esf_at(q: np.ndarray) -> np.ndarray:
+        return (_fermi(np.asarray(q, dtype=float), p) - a) / b_tot
+
+    esf = esf_at(x)
+    lsf = np.zeros_like(x)
+    for b, c, s in p[1:].reshape(-1, 3):
+        z = (x - c) / s
+        lsf += b / (4.0 * s) / np.cosh(0.5 * z) ** 2
+    lsf /= b_tot
+    # seed 9d: for a parametric ESF the RER centre is 0.5 on the normalised DN
+    try:
+        centre = float(optimize.brentq(lambda q: float(esf_at(np.array([q]))[0]) - 0.5, lo, hi))
+    except ValueError:
+        centre = float(x[np.argmax(lsf)])
+    return _make_fit(name, x, esf, lsf, centre, esf_at, (a, a + b_tot),
+                     {"terms": (p.size - 1) // 3, "params": [float(q) for q in p]})
+
+
+def _make_fit(name: str, x: np.ndarray, esf: np.ndarray, lsf: np.ndarray, centre: float,
+              esf_at: Any, levels: tuple[float, float], params: dict[str, Any]) -> EdgeFit:
+    e = esf_at(np.array([centre - 0.5, centre + 0.5]))
+    rer = float(e[1] - e[0])
+    ip = int(np.argmax(lsf))
+    freq, mtf = _mtf(lsf, _GRID)
+    return EdgeFit(
+        fit=name, x=x, esf=esf, lsf=lsf, centre_px=centre,
+        mtf_freq=_MTF_FREQ, mtf=np.interp(_MTF_FREQ, freq, mtf),
+        rer=rer,
+        fwhm_px=_width(x, lsf, ip, 0.5),
+        width25_px=_width(x, lsf, ip, 0.25),
+        width80_px=_width(x, lsf, ip, 0.80),
+        mtf_nyquist=float(np.interp(NYQUIST, freq, mtf)),
+        edge_slope_per_px=float(lsf[ip]),
+        dark_level=float(levels[0]), bright_level=float(levels[1]),
+        params=params,
+    )
+
+
+def _width(x: np.ndarray, lsf: np.ndarray, ip: int, level: float) -> float:
+    """Width of the LSF at ``level`` of its peak: nearest crossings either side, linear."""
+    h = level * lsf[ip]
+    left = np.flatnonzero(lsf[:ip] < h)
+    right = np.flatnonzero(lsf[ip + 1:] < h)
+    if not left.size or not right.size:
+        return math.nan
+    i = int(left[-1])
+    j = int(right[0]) + ip + 1
+    xl = x[i] + (h - lsf[i]) * (x[i + 1] - x[i]) / (lsf[i + 1] - lsf[i])
+    xr = x[j - 1] + (h - lsf[j - 1]) * (x[j] - x[j - 1]) / (lsf[j] - lsf[j - 1])
+    return float(xr - xl)
+
+
+def _mtf(lsf: np.ndarray, dx: float) -> tuple[np.ndarray, np.ndarray]:
+    """Seed 12: |FFT(LSF)| normalised at zero frequency (zero-padded for resolution)."""
+    n = 1 << max(15, int(math.ceil(math.log2(lsf.size))) + 1)
+    spec = np.abs(np.fft.rfft(lsf, n))
+    freq = np.fft.rfftfreq(n, dx)
+    return freq, spec / spec[0] if spec[0] > 0 else spec * math.nan
+
+
+def _estimates_of(f: EdgeFit, gsd: float | None) -> list[Estimate]:
+    out = [
+        Estimate("rer", f.rer, "1", f.fit),
+        Estimate("fwhm_px", f.fwhm_px, "px", f.fit),
+        Estimate("width25_px", f.width25_px, "px", f.fit),
+        Estimate("width80_px", f.width80_px, "px", f.fit),
+        Estimate("mtf_nyquist", f.mtf_nyquist, "1", f.fit),
+        Estimate("edge_slope_per_px", f.edge_slope_per_px, "1/px", f.fit),
+        Estimate("effective_resolution_factor", f.effective_resolution_factor, "1", f.fit),
+    ]
+    if gsd is not None:
+        out += [
+            Estimate("fwhm_m", f.fwhm_px * gsd, "m", f.fit),
+            Estimate("width25_m", f.width25_px * gsd, "m", f.fit),
+            Estimate("width80_m", f.width80_px * gsd, "m", f.fit),
+            Estimate("edge_slope_per_m", f.edge_slope_per_px / gsd, "1/m", f.fit),
+            Estimate("effective_gsd_m", f.effective_resolution_factor * gsd, "m", f.fit),
+        ]
+    return out
+
+
+# ----------------------------------------------------------------------------------------
+# helpers
+
+
+def _saturation(dtype: np.dtype, bit_depth: int | None,
+                given: tuple[float | None, float | None] | None) -> tuple[float | None, float | None]:
+    if given is not None:
+        return given
+    hi: float | None = None
+    if bit_depth is not None:
+        hi = float(2**bit_depth - 1)
+    elif np.issubdtype(dtype, np.integer):
+        hi = float(np.iinfo(dtype).max)
+    lo = 0.0 if (bit_depth is not None or np.issubdtype(dtype, np.unsignedinteger)) else None
+    return lo, hi
+
+
+def _chk(name: str, value: float | None, op: str, limit: float | tuple[float, float],
+         unit: str, why: str) -> HealthCheck:
+    val = None if value is None or (isinstance(value, float) and math.isnan(value)) else float(value)
+    if val is None:
+        return HealthCheck(name, None, op, limit, unit, False, f"not measurable; {why}")
+    if op == "in":
+        lo, hi = limit  # type: ignore[misc]
+        ok = lo <= val <= hi
+        text = f"{val:.4g} {unit} not in [{lo:g}, {hi:g}]"
+    else:
+        lim = float(limit)  # type: ignore[arg-type]
+        ok = {">": val > lim, ">=": val >= lim, "<=": val <= lim}[op]
+        text = f"{val:.4g} {unit} is not {op} {lim:g}"
+    return HealthCheck(name, val, op, limit, unit, bool(ok), "" if ok else f"{text}; {why}")
+
+
+def _opt(x: float) -> float | None:
+    return None if x is None or not math.isfinite(x) else float(x)
+
+
+def _f(x: Any) -> Any:
+    if x is None:
+        return None
+    x = float(x)
+    return x if math.isfinite(x) else None

@@ -1,0 +1,317 @@
+"""Quality control records (QCRs): the document every report and the ledger are built from.
+
+``build_document`` turns an :class:`~orthospec.engine.evaluator.Evaluation` into a plain,
+JSON-safe dict; ``write_outputs`` writes qcr.json / qcr.csv / junit.xml atomically. The same
+delivery, profile and date always give byte-identical JSON (sorted records, rounded floats, no
+wall-clock time, no absolute paths).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import os
+import tempfile
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+from xml.sax.saxutils import escape, quoteattr
+
+import numpy as np
+
+from . import __version__
+from .engine.evaluator import ERROR, FAIL, MISSING, PASS, VERDICTS, WAIVED, WARN, Evaluation, RuleResult
+from .engine.registry import SCOPES
+
+SCHEMA_ID = "orthospec.qcr/1"
+SIG_DIGITS = 10
+_SCOPE_ORDER = {s: i for i, s in enumerate(SCOPES)}
+
+
+def stable(x: Any) -> Any:
+    """JSON-safe, deterministic value: floats rounded to 10 significant digits, NaN -> None."""
+    if isinstance(x, bool | np.bool_):
+        return bool(x)
+    if isinstance(x, int | np.integer):
+        return int(x)
+    if isinstance(x, float | np.floating):
+        f = float(x)
+        if math.isnan(f) or math.isinf(f):
+            return None
+        if f == 0:
+            return 0.0
+        r = float(f"{f:.{SIG_DIGITS}g}")
+        return r
+    if isinstance(x, dict):
+        return {str(k): stable(v) for k, v in x.items() if not str(k).startswith("_")}
+    if isinstance(x, list | tuple):
+        return [stable(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return [stable(v) for v in x.tolist()]
+    return x
+
+
+def _fmt(v: Any) -> str:
+    if v is None:
+        return "n/a"
+    if isinstance(v, float):
+        return f"{v:.6g}"
+    return str(v)
+
+
+def _record(r: RuleResult, i: int) -> dict[str, Any]:
+    rule = r.rule
+    v = int(r.verdict[i])
+    item = str(r.items[i])
+    measured = r.measured[i]
+    if isinstance(measured, np.generic):
+        measured = measured.item()
+    if isinstance(measured, float) and math.isnan(measured):
+        measured = None
+    req = {k: v2 for k, v2 in r.threshold.items() if not k.startswith("_")}
+    arrays = r.threshold.get("_arrays")
+    if arrays is not None:
+        if rule.requirement.op == "between":
+            req["min"], req["max"] = float(arrays[0][i]), float(arrays[1][i])
+        else:
+            req["value"] = float(arrays[0][i])
+        from .engine.evaluator import requirement_text
+
+        req["text"] = requirement_text(rule.requirement, req)
+    unit = r.unit if r.unit not in ("", "any") else None
+    verdict = VERDICTS[v]
+    note = r.notes[i]
+    if v in (PASS, FAIL, WARN) and note is None:
+        mtxt = f"{rule.measure} = {_fmt(measured)}{' ' + unit if unit and unit != '1' else ''}"
+        note = f"{mtxt}; required {req.get('text', '')}"
+    elif v == WAIVED and r.original is not None:
+        w = r.waivers.get(item, {})
+        note = (f"{VERDICTS[int(r.original[i])]} waived: {w.get('justification', '')} "
+                f"(approved by {w.get('approver', '?')})")
+    elif note is None:
+        note = ""
+    rec: dict[str, Any] = {
+        "rule": rule.id,
+        "title": rule.title,
+        "clause": rule.clause.model_dump(mode="json", exclude_none=True),
+        "quote": rule.quote,
+        "scope": rule.scope,
+        "item": item,
+        "level": rule.level,
+        "consequence": rule.consequence,
+        "manual": rule.manual,
+        "verdict": verdict,
+        "measure": rule.measure,
+        "measured": {"value": measured, "unit": unit},
+        "requirement": req,
+        "evidence": [e.to_dict() for e in sorted(set(r.evidence[i]))],
+        "message": str(note),
+        "waiver": r.waivers.get(item) if v == WAIVED else None,
+    }
+    if r.original is not None and v == WAIVED:
+        rec["waived_verdict"] = VERDICTS[int(r.original[i])]
+    if rule.audit is not None:
+        rec["audit"] = rule.audit.model_dump(mode="json", exclude_none=True)
+    return rec
+
+
+def _sort_key(rec: dict[str, Any]) -> tuple[Any, ...]:
+    return (_SCOPE_ORDER.get(rec["scope"], 99), rec["rule"], rec["item"])
+
+
+def iter_records(ev: Evaluation) -> Iterable[dict[str, Any]]:
+    for r in ev.results:
+        for i in range(len(r.items)):
+            yield _record(r, i)
+
+
+def build_document(ev: Evaluation, *, date: str, operator: str | None = None,
+                   delivery_path: str | None = None) -> dict[str, Any]:
+    """The QCR document (see specs/schema/qcr.schema.json)."""
+    d, p = ev.delivery, ev.profile
+    records = sorted(iter_records(ev), key=_sort_key)
+    summary = {k: 0 for k in VERDICTS}
+    for rec in records:
+        summary[rec["verdict"]] += 1
+    rules = []
+    for r in sorted(ev.results, key=lambda r: (_SCOPE_ORDER.get(r.rule.scope, 99), r.rule.id)):
+        offending = sorted(str(x) for x in r.items[np.isin(r.verdict, (FAIL, WARN, MISSING, ERROR))])
+        rules.append({
+            "rule": r.rule.id, "title": r.rule.title, "scope": r.rule.scope, "level": r.rule.level,
+            "consequence": r.rule.consequence, "clause": r.rule.clause.text(),
+            "verdict": VERDICTS[r.worst], "counts": {k: v for k, v in r.counts().items() if v},
+            "offending": offending, "error": r.error,
+        })
+    man = d.manifest
+    doc: dict[str, Any] = {
+        "schema": SCHEMA_ID,
+        "tool": {"name": "orthospec", "version": __version__},
+        "date": date,
+        "operator": operator or (man.operator.name if man.operator else None),
+        "profile": {
+            "id": p.id, "version": p.version, "title": p.title, "sha256": p.sha256,
+            "source": p.source.model_dump(mode="json", exclude_none=True),
+            "extends": [{"id": c[0], "version": c[1]} for c in p.chain[1:]],
+            "parameters": {k: v.to_dict() for k, v in sorted(ev.parameters.items())},
+        },
+        "delivery": {
+            "id": d.id,
+            "path": delivery_path if delivery_path is not None else d.root.name,
+            "manifest_sha256": d.manifest_sha256,
+            "project": man.project.model_dump(mode="json", exclude_none=True),
+            "contractor": man.contractor.model_dump(mode="json", exclude_none=True),
+            "operator": man.operator.model_dump(mode="json", exclude_none=True) if man.operator else None,
+            "sensor": man.sensor.model_dump(mode="json", exclude_none=True),
+            "dates": {k: str(v) for k, v in sorted(man.dates.items())},
+            "files": d.files,
+        },
+        "verdict": ev.verdict,
+        "fail_on": ev.fail_on,
+        "summary": {"rules": len(ev.results), "records": len(records), **summary},
+        "rollup": {"rejected": ev.rejected, "reasons": ev.reasons},
+        "waivers_unused": ev.unused_waivers,
+        "rules": rules,
+        "records": records,
+        "details": ev.details,
+    }
+    return stable(doc)
+
+
+def dumps(doc: dict[str, Any]) -> str:
+    return json.dumps(doc, indent=1, sort_keys=False, ensure_ascii=False, allow_nan=False) + "\n"
+
+
+# --- writers --------------------------------------------------------------------------------
+
+CSV_COLUMNS = ["rule", "clause", "scope", "item", "level", "consequence", "verdict", "measure",
+               "measured_value", "measured_unit", "requirement", "evidence", "message"]
+
+
+def to_csv(doc: dict[str, Any]) -> str:
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(CSV_COLUMNS)
+    for r in doc["records"]:
+        c = r["clause"]
+        clause = ", ".join(str(c[k]) for k in ("document", "section", "table", "row") if c.get(k))
+        ev = "; ".join(f"{e['file']}" + (f"#rows={','.join(map(str, e['rows']))}" if e.get("rows") else "")
+                       + (f"#{e['path']}" if e.get("path") else "") for e in r["evidence"])
+        w.writerow([r["rule"], clause, r["scope"], r["item"], r["level"], r["consequence"], r["verdict"],
+                    r["measure"], "" if r["measured"]["value"] is None else r["measured"]["value"],
+                    r["measured"]["unit"] or "", r["requirement"].get("text", ""), ev, r["message"]])
+    return buf.getvalue()
+
+
+def to_junit(doc: dict[str, Any]) -> str:
+    """One testsuite per rule, one testcase per item: CI systems render it natively."""
+    by_rule: dict[str, list[dict[str, Any]]] = {}
+    for r in doc["records"]:
+        by_rule.setdefault(r["rule"], []).append(r)
+    s = doc["summary"]
+    out = ['<?xml version="1.0" encoding="UTF-8"?>',
+           f'<testsuites name={quoteattr("orthospec " + doc["profile"]["id"])} tests="{s["records"]}" '
+           f'failures="{s["fail"] + s["missing"] + (s["warn"] if doc["fail_on"] == "warn" else 0)}" '
+           f'errors="{s["error"]}" skipped="{s["not_applicable"] + s["waived"]}">']
+    for rid, recs in by_rule.items():
+        fails = sum(r["verdict"] in ("fail", "missing") for r in recs)
+        errs = sum(r["verdict"] == "error" for r in recs)
+        skipped = sum(r["verdict"] in ("not_applicable", "waived") for r in recs)
+        out.append(f'  <testsuite name={quoteattr(rid)} tests="{len(recs)}" failures="{fails}" '
+                   f'errors="{errs}" skipped="{skipped}">')
+        for r in recs:
+            name = quoteattr(f"{rid}[{r['item']}]")
+            cls = quoteattr(f"{r['scope']}.{rid}")
+            msg = quoteattr(r["message"])
+            body = escape(f"{r['title']} — {r['requirement'].get('text', '')}")
+            v = r["verdict"]
+            if v in ("fail", "missing") or (v == "warn" and doc["fail_on"] == "warn"):
+                out.append(f'    <testcase name={name} classname={cls}><failure message={msg} '
+                           f'type="{v}">{body}</failure></testcase>')
+            elif v == "error":
+                out.append(f'    <testcase name={name} classname={cls}><error message={msg} '
+                           f'type="error">{body}</error></testcase>')
+            elif v in ("not_applicable", "waived"):
+                out.append(f'    <testcase name={name} classname={cls}><skipped message={msg}/></testcase>')
+            else:
+                out.append(f'    <testcase name={name} classname={cls}/>')
+        out.append("  </testsuite>")
+    out.append("</testsuites>")
+    return "\n".join(out) + "\n"
+
+
+def atomic_write(path: Path, data: str | bytes) -> None:
+    """Write to a temp file in the same folder, fsync, then rename over the target."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data.encode("utf-8") if isinstance(data, str) else data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        raise
+
+
+def render_all(doc: dict[str, Any], formats: Iterable[str]) -> dict[str, str | bytes]:
+    """Every requested machine output in memory first, so nothing partial is ever written."""
+    out: dict[str, str | bytes] = {}
+    fmts = set(formats)
+    if "json" in fmts:
+        out["qcr.json"] = dumps(doc)
+    if "csv" in fmts:
+        out["qcr.csv"] = to_csv(doc)
+    if "junit" in fmts:
+        out["junit.xml"] = to_junit(doc)
+    return out
+
+
+def qcr_schema() -> dict[str, Any]:
+    """JSON Schema of qcr.json (hand-written: the document is plain data, not a model)."""
+    verdict = {"enum": list(VERDICTS)}
+    ev = {"type": "object", "required": ["file", "sha256"], "properties": {
+        "file": {"type": "string"}, "sha256": {"type": "string", "pattern": "^[0-9a-f]{64}$"},
+        "rows": {"type": "array", "items": {"type": "integer", "minimum": 0}},
+        "path": {"type": "string"}}, "additionalProperties": False}
+    record = {"type": "object", "required": [
+        "rule", "clause", "title", "scope", "item", "level", "verdict", "measured", "requirement",
+        "evidence", "message", "quote", "consequence"], "properties": {
+        "rule": {"type": "string"}, "title": {"type": "string"}, "quote": {"type": "string"},
+        "clause": {"type": "object", "required": ["document"]},
+        "scope": {"type": "string"}, "item": {"type": "string"},
+        "level": {"enum": ["mandatory", "recommended"]},
+        "consequence": {"enum": ["reject_item", "reject_block", "return_delivery", "warn"]},
+        "manual": {"type": "boolean"}, "verdict": verdict, "measure": {"type": "string"},
+        "measured": {"type": "object", "required": ["value", "unit"]},
+        "requirement": {"type": "object", "required": ["op", "text"]},
+        "evidence": {"type": "array", "items": ev}, "message": {"type": "string"},
+        "waiver": {"type": ["object", "null"]}, "waived_verdict": verdict, "audit": {"type": "object"}}}
+    return {
+        "$schema": "https://json-schema.org/draft/2020-12/schema",
+        "$id": "https://orthospec.dev/schema/qcr.schema.json",
+        "title": "orthospec quality control records (qcr.json)",
+        "type": "object",
+        "required": ["schema", "tool", "date", "profile", "delivery", "verdict", "summary", "records", "rules"],
+        "properties": {
+            "schema": {"const": SCHEMA_ID},
+            "tool": {"type": "object", "required": ["name", "version"]},
+            "date": {"type": "string", "pattern": r"^\d{4}-\d{2}-\d{2}$"},
+            "operator": {"type": ["string", "null"]},
+            "profile": {"type": "object", "required": ["id", "version", "sha256", "parameters"], "properties": {
+                "sha256": {"type": "string", "pattern": "^[0-9a-f]{64}$"}}},
+            "delivery": {"type": "object", "required": ["id", "path", "manifest_sha256", "files"]},
+            "verdict": {"enum": ["accepted", "rejected"]},
+            "fail_on": {"enum": ["fail", "warn"]},
+            "summary": {"type": "object", "required": ["rules", "records", *VERDICTS]},
+            "rollup": {"type": "object"},
+            "rules": {"type": "array"},
+            "records": {"type": "array", "items": record},
+            "details": {"type": "object"},
+        },
+    }

@@ -1,0 +1,336 @@
+"""Scan many images at national scale: worker processes or Dask, cache, progress.
+
+``scan_images`` is the public entry point for the rule engine: one :class:`ImageReport` per
+path, in input order, each with ``error`` set instead of raising when a file is bad.
+Header checks always run (cheap); the pixel scan is skipped when the cache already holds
+the result for the file's SHA-256 and the same settings.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import sys
+import time
+from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any, Protocol, TextIO
+
+import rasterio
+
+from ..errors import MeasureError, OrthospecError
+from ..provenance import sha256_file
+from .cache import ResultCache
+from .filechecks import check_file
+from .reading import ScanSettings, mask_share, scan_raster
+
+STATISTICS_NOTE = "exact, population std, nodata excluded per band, as GDAL"
+
+
+@dataclass(frozen=True)
+class ScanOptions:
+    """Everything a worker needs besides the path (picklable)."""
+
+    settings: ScanSettings = field(default_factory=ScanSettings)
+    expect_epsg: int | None = None
+    expect_gsd: float | None = None
+    gsd_tolerance: float = 0.01
+    cache_dir: str | None = None
+
+    def key(self) -> str:
+        return self.settings.key()
+
+
+@dataclass
+class ImageReport:
+    """File checks + exact radiometry of one image; ``error`` set when it could not be read."""
+
+    path: str
+    sha256: str | None = None
+    bytes: int | None = None
+    error: str | None = None
+    checks: dict[str, Any] = field(default_factory=dict)
+    radiometry: dict[str, Any] | None = None
+    cloud_cover_pct: float | None = None
+    cached: bool = False
+    seconds: float = 0.0
+
+    def to_dict(self) -> dict[str, Any]:
+        """Flat mapping: file checks, ``band<i>.<measure>``, ``luminosity.<measure>``,
+        ``image.<aggregate>``; histograms stay as nested values under ``*.histogram``."""
+        out: dict[str, Any] = {"path": self.path, "sha256": self.sha256, "bytes": self.bytes,
+                               "error": self.error, "cached": self.cached,
+                               "cloud_cover_pct": self.cloud_cover_pct}
+        for k, v in self.checks.items():
+            if k not in out:
+                out[k] = v
+        rad = self.radiometry
+        if not rad:
+            return out
+        out["statistics"] = rad.get("statistics", STATISTICS_NOTE)
+        bands = rad.get("bands", [])
+        for b in bands:
+            for k, v in b.items():
+                if k != "band":
+                    out[f"band{b['band']}.{k}"] = v
+        lum = rad.get("luminosity")
+        if lum:
+            for k, v in lum.items():
+                if k != "band":
+                    out[f"luminosity.{k}"] = v
+        for idx, m in (rad.get("misregistration") or {}).items():
+            out[f"band{idx}.misregistration_px"] = m["magnitude_px"]
+            out[f"band{idx}.misregistration_dy_px"] = m["dy_px"]
+            out[f"band{idx}.misregistration_dx_px"] = m["dx_px"]
+        out.update(_aggregates(bands, lum, rad.get("misregistration") or {}))
+        return out
+
+
+def _aggregates(bands: list[dict[str, Any]], lum: dict[str, Any] | None,
+                mis: dict[str, Any]) -> dict[str, Any]:
+    """Image-level values for rules: the luminosity for colour images (§6.3), else worst band."""
+    def vals(key: str) -> list[float]:
+        return [b[key] for b in bands if b.get(key) is not None]
+
+    def worst(key: str, fn: Callable[[list[float]], float]) -> float | None:
+        v = vals(key)
+        return fn(v) if v else None
+
+    src = lum if lum else None
+    out = {
+        "image.saturation_low_pct": (src or {}).get("saturation_low_pct",
+                                                    worst("saturation_low_pct", max)),
+        "image.saturation_high_pct": (src or {}).get("saturation_high_pct",
+                                                     worst("saturation_high_pct", max)),
+        "image.saturation_low_pct_max_band": worst("saturation_low_pct", max),
+        "image.saturation_high_pct_max_band": worst("saturation_high_pct", max),
+        "image.cv_percent_min": worst("cv_percent", min),
+        "image.cv_percent_max": worst("cv_percent", max),
+        "image.std_max": worst("std", max),
+        "image.dark_margin_pct_min": worst("dark_margin_pct", min),
+        "image.bright_margin_pct_min": worst("bright_margin_pct", min),
+        "image.noise_sigma_homogeneous_max": worst("noise_sigma_homogeneous", max),
+        "image.nodata_fraction": worst("nodata_fraction", max),
+        "image.used_bits_max": worst("used_bits", max),
+        "image.misregistration_px_max": max((m["magnitude_px"] for m in mis.values()),
+                                            default=None),
+    }
+    return out
+
+
+def scan_image(path: str | Path, options: ScanOptions | None = None, *,
+               cloud_mask: str | Path | None = None) -> ImageReport:
+    """Check and measure one image; never raises for a bad file."""
+    o = options or ScanOptions()
+    t0 = time.perf_counter()
+    p = str(path)
+    checks = check_file(p, expect_epsg=o.expect_epsg, expect_gsd=o.expect_gsd,
+                        gsd_tolerance=o.gsd_tolerance)
+    rep = ImageReport(path=p, bytes=checks.bytes, checks=checks.to_dict(), error=checks.error)
+    if checks.error is not None and checks.bytes in (None, 0):
+        rep.seconds = time.perf_counter() - t0
+        return rep
+    try:
+        rep.sha256 = sha256_file(p)
+    except OSError as exc:
+        rep.error = f"{p}: cannot read file: {exc.strerror or exc}"
+        return rep
+    if checks.error is not None and checks.driver is None:
+        rep.seconds = time.perf_counter() - t0
+        return rep  # not a raster at all: nothing more to measure
+    cached = None
+    if o.cache_dir:
+        with ResultCache(o.cache_dir, read_only=True) as cache:
+            cached = cache.get(rep.sha256, o.key())
+    if cached is not None:
+        rep.radiometry, rep.cached = cached, True
+    else:
+        try:
+            rep.radiometry = scan_raster(p, o.settings).to_dict()
+        except (OrthospecError, rasterio.errors.RasterioError, ValueError) as exc:
+            rep.error = str(exc) if p in str(exc) else f"{p}: {exc}"
+    if cloud_mask is not None and rep.error is None:
+        try:
+            rep.cloud_cover_pct = mask_share(cloud_mask, settings=o.settings).percent
+        except (OrthospecError, rasterio.errors.RasterioError) as exc:
+            rep.error = f"{cloud_mask}: cloud mask unreadable: {exc}"
+    rep.seconds = time.perf_counter() - t0
+    return rep
+
+
+# --------------------------------------------------------------------------- progress
+
+
+class Progress(Protocol):
+    """Callback interface: the CLI chooses rich (TTY) or plain lines."""
+
+    def start(self, files: int, total_bytes: int) -> None: ...
+    def advance(self, report: ImageReport) -> None: ...
+    def close(self) -> None: ...
+
+
+class PlainProgress:
+    """One line per file: ``[i/n] path bytes status`` (logs, CI, pipes)."""
+
+    def __init__(self, stream: TextIO | None = None) -> None:
+        self.stream = stream or sys.stderr
+        self.n = self.i = 0
+
+    def start(self, files: int, total_bytes: int) -> None:
+        self.n = files
+        print(f"scanning {files} files, {total_bytes / 2**20:.1f} MiB", file=self.stream)
+
+    def advance(self, report: ImageReport) -> None:
+        self.i += 1
+        status = "error: " + report.error if report.error else (
+            "cached" if report.cached else f"ok {report.seconds:.2f} s")
+        size = f"{(report.bytes or 0) / 2**20:.1f} MiB"
+        print(f"[{self.i}/{self.n}] {report.path} {size} {status}", file=self.stream, flush=True)
+
+    def close(self) -> None:
+        self.stream.flush()
+
+
+class RichProgress:
+    """A rich progress bar with files, bytes and ETA (interactive terminals)."""
+
+    def __init__(self) -> None:
+        from rich.progress import (BarColumn, DownloadColumn, MofNCompleteColumn, Progress,
+                                   TextColumn, TimeRemainingColumn, TransferSpeedColumn)
+
+        self._p = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                           TextColumn("files"), DownloadColumn(), TransferSpeedColumn(),
+                           TimeRemainingColumn())
+        self._files = self._bytes = None
+
+    def start(self, files: int, total_bytes: int) -> None:
+        self._p.start()
+        self._files = self._p.add_task("files", total=files)
+        self._bytes = self._p.add_task("bytes", total=total_bytes)
+
+    def advance(self, report: ImageReport) -> None:
+        self._p.advance(self._files)  # type: ignore[arg-type]
+        self._p.advance(self._bytes, report.bytes or 0)  # type: ignore[arg-type]
+
+    def close(self) -> None:
+        self._p.stop()
+
+
+def make_progress(stream: TextIO | None = None) -> Progress:
+    """Rich bar on a terminal, plain lines otherwise."""
+    s = stream or sys.stderr
+    return RichProgress() if s.isatty() else PlainProgress(s)
+
+
+# --------------------------------------------------------------------------- batch
+
+
+def _check_cache_outside(cache_dir: Path, paths: Sequence[str]) -> None:
+    c = cache_dir.resolve()
+    for p in paths:
+        parent = Path(p).resolve().parent
+        if parent == c or c in parent.parents:
+            raise MeasureError(f"cache directory {cache_dir} contains the image {p}; "
+                               "put the cache outside the delivery")
+
+
+def scan_images(
+    paths: Sequence[str | Path], *, workers: int | None = None,
+    scheduler: Any = None, cache_dir: str | Path | None = None, bit_depth: int | None = None,
+    progress: Progress | None = None, expect_epsg: int | None = None,
+    expect_gsd: float | None = None, gsd_tolerance: float = 0.01,
+    cloud_masks: Mapping[str, str | Path] | None = None,
+    settings: ScanSettings | None = None,
+) -> list[ImageReport]:
+    """Check and measure many images; results in input order, bad files as ``error``.
+
+    Parameters
+    ----------
+    paths
+        image files.
+    workers
+        worker processes (default: CPU count); 1 runs in this process.
+    scheduler
+        a Dask distributed scheduler address (``"tcp://host:8786"``), ``Client`` or cluster
+        object; when given, tasks go to Dask instead of local processes.
+    cache_dir
+        directory of the result cache, outside the delivery.
+    bit_depth
+        declared radiometric resolution overriding NBITS / dtype (e.g. 11 for 11-bit data).
+    progress
+        :class:`Progress` callbacks (see :func:`make_progress`).
+    """
+    p_list = [str(p) for p in paths]
+    s = settings or ScanSettings()
+    if bit_depth is not None:
+        s = replace(s, bit_depth=bit_depth)
+    if cache_dir is not None:
+        _check_cache_outside(Path(cache_dir), p_list)
+        ResultCache(cache_dir).close()  # create the schema before workers read it
+    opts = ScanOptions(settings=s, expect_epsg=expect_epsg, expect_gsd=expect_gsd,
+                       gsd_tolerance=gsd_tolerance,
+                       cache_dir=None if cache_dir is None else str(cache_dir))
+    masks = {str(k): str(v) for k, v in (cloud_masks or {}).items()}
+    sizes = []
+    for p in p_list:
+        try:
+            sizes.append(Path(p).stat().st_size)
+        except OSError:
+            sizes.append(0)
+    if progress:
+        progress.start(len(p_list), sum(sizes))
+    results: list[ImageReport | None] = [None] * len(p_list)
+
+    def done(i: int, rep: ImageReport) -> None:
+        results[i] = rep
+        if progress:
+            progress.advance(rep)
+
+    try:
+        if scheduler is not None:
+            _run_dask(scheduler, p_list, opts, masks, done)
+        else:
+            n = workers or multiprocessing.cpu_count()
+            n = max(1, min(n, len(p_list)))
+            if n == 1:
+                for i, p in enumerate(p_list):
+                    done(i, scan_image(p, opts, cloud_mask=masks.get(p)))
+            else:
+                ctx = multiprocessing.get_context("spawn")
+                with ProcessPoolExecutor(max_workers=n, mp_context=ctx) as pool:
+                    futs = {pool.submit(scan_image, p, opts, cloud_mask=masks.get(p)): i
+                            for i, p in enumerate(p_list)}
+                    for fut in as_completed(futs):
+                        done(futs[fut], fut.result())
+    finally:
+        if progress:
+            progress.close()
+    reports = [r for r in results if r is not None]
+    if cache_dir is not None:
+        with ResultCache(cache_dir) as cache:
+            for r in reports:
+                if r.sha256 and r.radiometry is not None and not r.cached:
+                    cache.put(r.sha256, opts.key(), r.radiometry)
+    return reports
+
+
+def _run_dask(scheduler: Any, paths: list[str], opts: ScanOptions, masks: dict[str, str],
+              done: Callable[[int, ImageReport], None]) -> None:
+    from distributed import Client
+    from distributed import as_completed as dask_completed
+
+    own = not isinstance(scheduler, Client)
+    if isinstance(scheduler, Client):
+        client = scheduler
+    else:
+        client = Client(getattr(scheduler, "scheduler_address", scheduler))
+    try:
+        futs = [client.submit(scan_image, p, opts, cloud_mask=masks.get(p), pure=False)
+                for p in paths]
+        index = {f.key: i for i, f in enumerate(futs)}
+        for fut in dask_completed(futs):
+            done(index[fut.key], fut.result())
+    finally:
+        if own:
+            client.close()

@@ -1,0 +1,469 @@
+"""Stream rasters block by block into the pure radiometry accumulators.
+
+Why this shape:
+
+* windows are unions of whole internal blocks (``ds.block_shapes``: tiles or strips), so GDAL
+  decodes every block once and memory stays bounded by ``ScanSettings.chunk_bytes`` whatever
+  the image size;
+* overviews are never used for statistics (plain full-resolution ``read``);
+* the delivery is never written: datasets are opened read-only inside ``rasterio.Env`` with
+  ``GDAL_PAM_ENABLED=NO`` so GDAL creates no ``.aux.xml`` next to the file, and
+  ``GDAL_CACHEMAX`` is kept small because each block is read once anyway.
+
+Validity follows GDAL's ``ComputeStatistics``: a band's nodata value when it has one (plus
+NaN for floats); else the per-dataset mask (internal ``.msk``) or alpha band when the band has
+one (the alpha band itself is never masked); else every pixel.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import rasterio
+from rasterio.enums import ColorInterp, MaskFlags
+from rasterio.windows import Window
+
+from ..errors import MeasureError
+from ..measures import radiometry as rad
+
+#: Counter of full raster scans in this process (tests use it to check the cache).
+SCAN_COUNT = {"scans": 0}
+
+
+@dataclass(frozen=True)
+class ScanSettings:
+    """What a scan computes; part of the cache key."""
+
+    bit_depth: int | None = None
+    noise: bool = True
+    luminosity: bool = True
+    misregistration: bool = True
+    chunk_bytes: int = 16 * 2**20
+    gdal_cachemax_mb: int = 64
+
+    def key(self) -> str:
+        """Stable text key of the settings that change results (not of performance knobs)."""
+        d = asdict(self)
+        d.pop("chunk_bytes")
+        d.pop("gdal_cachemax_mb")
+        return ";".join(f"{k}={d[k]}" for k in sorted(d))
+
+
+@contextmanager
+def read_only_env(settings: ScanSettings | None = None) -> Iterator[None]:
+    """GDAL configuration that writes nothing next to the input and caches little."""
+    s = settings or ScanSettings()
+    with rasterio.Env(GDAL_PAM_ENABLED="NO", GDAL_CACHEMAX=s.gdal_cachemax_mb,
+                      GDAL_DISABLE_READDIR_ON_OPEN="EMPTY_DIR"):
+        yield
+
+
+def open_read_only(path: str | Path) -> rasterio.io.DatasetReader:
+    """Open a raster strictly read-only (call inside :func:`read_only_env`)."""
+    return rasterio.open(path, "r")
+
+
+def chunk_windows(ds: rasterio.io.DatasetReader, chunk_bytes: int) -> Iterator[Window]:
+    """Windows made of whole internal blocks, each about ``chunk_bytes`` of all bands."""
+    bh, bw = ds.block_shapes[0]
+    height, width = ds.height, ds.width
+    bpp = ds.count * max(np.dtype(dt).itemsize for dt in ds.dtypes)
+    row_bytes = width * bpp
+    if bw >= width or row_bytes * bh <= chunk_bytes:
+        per = max(1, chunk_bytes // max(row_bytes * bh, 1))  # whole rows of blocks
+        step = per * bh
+        for row in range(0, height, step):
+            yield Window(0, row, width, min(step, height - row))
+        return
+    tiles = max(1, chunk_bytes // max(bh * bw * bpp, 1))  # part of one row of tiles
+    step_c = tiles * bw
+    for row in range(0, height, bh):
+        h = min(bh, height - row)
+        for col in range(0, width, step_c):
+            yield Window(col, row, min(step_c, width - col), h)
+
+
+@dataclass(frozen=True)
+class BandInfo:
+    """How one band's pixels are validated and which grey range applies."""
+
+    index: int
+    dtype: str
+    nodata: float | None
+    use_mask: bool
+    colour: str
+    grey: rad.GreyRange
+
+
+def band_infos(ds: rasterio.io.DatasetReader, bit_depth: int | None) -> list[BandInfo]:
+    """Per-band validity rule (GDAL's) and bit depth (argument > NBITS > dtype)."""
+    out = []
+    for i in range(1, ds.count + 1):
+        dtype = ds.dtypes[i - 1]
+        nodata = ds.nodatavals[i - 1]
+        flags = ds.mask_flag_enums[i - 1]
+        colour = ds.colorinterp[i - 1]
+        use_mask = nodata is None and colour != ColorInterp.alpha and (
+            MaskFlags.per_dataset in flags or MaskFlags.alpha in flags) and (
+            MaskFlags.all_valid not in flags)
+        nbits_tag = ds.tags(i, ns="IMAGE_STRUCTURE").get("NBITS") or ds.tags(
+            ns="IMAGE_STRUCTURE").get("NBITS")
+        nbits = int(nbits_tag) if nbits_tag else None
+        if nodata is not None and np.dtype(dtype).kind in "ui":
+            nodata = float(nodata)
+        out.append(BandInfo(index=i, dtype=dtype, nodata=nodata, use_mask=use_mask,
+                            colour=colour.name, grey=rad.grey_range(dtype, declared=bit_depth,
+                                                                    nbits=nbits)))
+    return out
+
+
+@dataclass
+class RasterStats:
+    """Everything a scan of one raster measured (no file checks)."""
+
+    bands: list[rad.BandStats]
+    luminosity: rad.BandStats | None
+    misregistration: dict[int, rad.Shift] = field(default_factory=dict)
+    reference_band: int | None = None
+    chunks: int = 0
+
+    def to_dict(self, *, histogram: bool = True) -> dict[str, Any]:
+        return {
+            "statistics": "exact, population std, nodata excluded per band, as GDAL",
+            "bands": [b.to_dict(histogram=histogram) for b in self.bands],
+            "luminosity": None if self.luminosity is None else self.luminosity.to_dict(
+                histogram=histogram),
+            "luminosity_weights": list(rad.LUMA_WEIGHTS),
+            "misregistration": {
+                str(k): {"dy_px": v.dy, "dx_px": v.dx, "magnitude_px": v.magnitude,
+                         "peak": v.peak} for k, v in sorted(self.misregistration.items())},
+            "misregistration_reference_band": self.reference_band,
+        }
+
+
+def _rgb_bands(infos: Sequence[BandInfo]) -> tuple[int, int, int] | None:
+    """1-based R, G, B band indexes by colour interpretation, else bands 1-3 of a 3/4-band image."""
+    by = {b.colour: b.index for b in infos}
+    if {"red", "green", "blue"} <= by.keys():
+        return by["red"], by["green"], by["blue"]
+    if len(infos) in (3, 4) and all(b.colour in ("undefined", "gray") for b in infos[:3]):
+        return 1, 2, 3
+    return None
+
+
+def _valid(data: np.ndarray, info: BandInfo, mask: np.ndarray | None) -> np.ndarray | None:
+    """Validity of one band's block: None means all pixels are valid."""
+    valid = None
+    if info.use_mask and mask is not None:
+        valid = mask != 0
+    if np.dtype(info.dtype).kind == "f":
+        finite = ~np.isnan(data)
+        valid = finite if valid is None else valid & finite
+    if info.nodata is not None and not (isinstance(info.nodata, float) and math.isnan(info.nodata)):
+        nd = np.asarray(info.nodata).astype(data.dtype)
+        v = data != nd
+        valid = v if valid is None else valid & v
+    return valid
+
+
+def scan_raster(path: str | Path, settings: ScanSettings | None = None) -> RasterStats:
+    """Exact per-band statistics, histograms and §6.3 measures of one raster, streamed.
+
+    Raises
+    ------
+    MeasureError
+        when the raster cannot be read to the end (truncated or corrupt blocks).
+    """
+    s = settings or ScanSettings()
+    SCAN_COUNT["scans"] += 1
+    with read_only_env(s), open_read_only(path) as ds:
+        try:
+            return _scan(ds, s)
+        except rasterio.errors.RasterioIOError as exc:
+            raise MeasureError(f"{path}: cannot read pixels: {exc}") from exc
+
+
+def _scan(ds: rasterio.io.DatasetReader, s: ScanSettings) -> RasterStats:
+    infos = band_infos(ds, s.bit_depth)
+    exact = [rad.histogram_layout(b.dtype) is not None for b in infos]
+    hists = {b.index: rad.HistogramAccumulator.for_dtype(b.dtype)
+             for b, ex in zip(infos, exact, strict=True) if ex}
+    moms = {b.index: rad.Moments() for b, ex in zip(infos, exact, strict=True) if not ex}
+    edge_counts = {b.index: [0, 0, 0] for b in infos if b.index in moms}  # low, high, outside
+    noise = {b.index: rad.NoiseAccumulator() for b in infos} if s.noise else {}
+    rgb = _rgb_bands(infos) if s.luminosity else None
+    if rgb is not None and not all(exact[i - 1] for i in rgb):
+        rgb = None
+    lum = rad.HistogramAccumulator.for_dtype(infos[rgb[0] - 1].dtype) if rgb else None
+    need_valid = bool(noise) or rgb is not None or bool(moms)
+    chunks = 0
+    for win in chunk_windows(ds, s.chunk_bytes):
+        chunks += 1
+        data = ds.read(window=win)
+        shared_mask = None
+        valids: dict[int, np.ndarray | None] = {}
+        for b in infos:
+            band = data[b.index - 1]
+            mask = None
+            if b.use_mask:
+                if shared_mask is None:
+                    shared_mask = ds.read_masks(b.index, window=win)
+                mask = shared_mask
+            if b.index in hists:
+                hists[b.index].add(band, None if mask is None else mask != 0)
+            valid = _valid(band, b, mask) if need_valid else None
+            valids[b.index] = valid
+            if b.index in moms:
+                moms[b.index].add(band, valid)
+                g = b.grey
+                if g.bit_depth is not None:
+                    vals = band if valid is None else band[valid]
+                    ec = edge_counts[b.index]
+                    ec[0] += int(np.count_nonzero(vals == g.low))
+                    ec[1] += int(np.count_nonzero(vals == g.high))
+                    ec[2] += int(np.count_nonzero((vals < g.low) | (vals > g.high)))
+            if noise:
+                noise[b.index].add(band, valid)
+        if rgb is not None and lum is not None:
+            r, g_, bl = (data[i - 1] for i in rgb)
+            y = rad.luminosity(r, g_, bl, data.dtype)
+            vs = [valids.get(i) for i in rgb]
+            v = None
+            for part in vs:
+                if part is not None:
+                    v = part if v is None else v & part
+            lum.add(y, v)
+    # floats / 32-bit: second pass for the binned histogram between exact min and max
+    binned: dict[int, rad.BinnedHistogramAccumulator] = {}
+    if moms:
+        for idx, m in moms.items():
+            if m.n:
+                binned[idx] = rad.BinnedHistogramAccumulator(m.vmin, m.vmax)
+        for win in chunk_windows(ds, s.chunk_bytes):
+            data = ds.read(indexes=sorted(binned), window=win) if binned else None
+            if data is None:
+                break
+            for k, idx in enumerate(sorted(binned)):
+                b = infos[idx - 1]
+                mask = ds.read_masks(idx, window=win) if b.use_mask else None
+                binned[idx].add(data[k], _valid(data[k], b, mask))
+    bands: list[rad.BandStats] = []
+    for b in infos:
+        nz = noise.get(b.index)
+        if b.index in hists:
+            acc = hists[b.index]
+            if not b.use_mask:
+                acc.exclude_value(b.nodata)
+            bands.append(rad.band_stats_from_histogram(str(b.index), b.dtype, acc, b.grey,
+                                                       noise=nz))
+        else:
+            ec = edge_counts[b.index]
+            bands.append(rad.band_stats_from_moments(
+                str(b.index), b.dtype, ds.width * ds.height, moms[b.index], b.grey,
+                histogram=binned.get(b.index), noise=nz, count_low=ec[0], count_high=ec[1],
+                above_range=ec[2]))
+    lum_stats = None
+    if lum is not None and rgb is not None:
+        lum_stats = rad.band_stats_from_histogram("luminosity", infos[rgb[0] - 1].dtype, lum,
+                                                  infos[rgb[0] - 1].grey)
+    out = RasterStats(bands=bands, luminosity=lum_stats, chunks=chunks)
+    if s.misregistration and ds.count >= 2:
+        out.reference_band, out.misregistration = _misregistration(ds, infos)
+    return out
+
+
+def _misregistration(ds: rasterio.io.DatasetReader, infos: Sequence[BandInfo], *,
+                     size: int = 512) -> tuple[int, dict[int, rad.Shift]]:
+    """Band-to-band shift vs the green (else first) band: median over up to 5 windows."""
+    colour = {b.colour: b.index for b in infos}
+    ref = colour.get("green", 1)
+    others = [b for b in infos if b.index != ref and b.colour != "alpha"]
+    n = min(size, ds.height, ds.width)
+    if n < 32 or not others:
+        return ref, {}
+    centres = [(0.5, 0.5), (0.25, 0.25), (0.25, 0.75), (0.75, 0.25), (0.75, 0.75)]
+    found: dict[int, list[rad.Shift]] = {b.index: [] for b in others}
+    seen = set()
+    for fy, fx in centres:
+        row = int(min(max(fy * ds.height - n / 2, 0), ds.height - n))
+        col = int(min(max(fx * ds.width - n / 2, 0), ds.width - n))
+        if (row, col) in seen:
+            continue
+        seen.add((row, col))
+        win = Window(col, row, n, n)
+        data = ds.read(window=win)
+        ref_info = infos[ref - 1]
+        a = _filled(data[ref - 1], _valid(data[ref - 1], ref_info, _mask(ds, ref_info, win)))
+        if a is None:
+            continue
+        for b in others:
+            m = _filled(data[b.index - 1], _valid(data[b.index - 1], b, _mask(ds, b, win)))
+            if m is None:
+                continue
+            found[b.index].append(rad.phase_correlation(a, m))
+    result = {}
+    for idx, shifts in found.items():
+        if shifts:
+            result[idx] = rad.Shift(dy=float(np.median([s.dy for s in shifts])),
+                                    dx=float(np.median([s.dx for s in shifts])),
+                                    peak=float(np.median([s.peak for s in shifts])))
+    return ref, result
+
+
+def _mask(ds: rasterio.io.DatasetReader, info: BandInfo, win: Window) -> np.ndarray | None:
+    return ds.read_masks(info.index, window=win) if info.use_mask else None
+
+
+def _filled(band: np.ndarray, valid: np.ndarray | None, min_valid: float = 0.9) -> np.ndarray | None:
+    """Band as float with invalid pixels set to the valid mean; None if too few or flat."""
+    a = band.astype(np.float64)
+    if valid is not None:
+        if valid.mean() < min_valid:
+            return None
+        a[~valid] = a[valid].mean()
+    if float(a.std()) == 0.0:
+        return None
+    return a
+
+
+# --------------------------------------------------------------------------- cloud mask
+
+
+def mask_share(path: str | Path, *, settings: ScanSettings | None = None) -> rad.MaskShareAccumulator:
+    """Share of non-zero pixels of band 1 of a delivered mask raster (nodata excluded)."""
+    s = settings or ScanSettings()
+    acc = rad.MaskShareAccumulator()
+    with read_only_env(s), open_read_only(path) as ds:
+        info = band_infos(ds, None)[0]
+        for win in chunk_windows(ds, s.chunk_bytes):
+            band = ds.read(1, window=win)
+            acc.add(band, _valid(band, info, _mask(ds, info, win)))
+    return acc
+
+
+# --------------------------------------------------------------------------- mosaics
+
+
+def read_vector(path: str | Path) -> tuple[list[Any], str | None]:
+    """Geometries (shapely) and CRS (WKT/authority string) of a vector file, with pyogrio."""
+    import pyogrio
+    import shapely
+
+    meta, _fids, geometry, _fields = pyogrio.raw.read(str(path))
+    geoms = [] if geometry is None else list(shapely.from_wkb(geometry))
+    return [g for g in geoms if g is not None], meta.get("crs")
+
+
+@dataclass(frozen=True)
+class OverlapPixels:
+    """Mean DN of each band of two orthos over their common, jointly valid pixels."""
+
+    bands: tuple[int, ...]
+    mean_a: tuple[float, ...]
+    mean_b: tuple[float, ...]
+    pixels: int
+
+
+def overlap_means(path_a: str | Path, path_b: str | Path, *, bands: Sequence[int] | None = None,
+                  settings: ScanSettings | None = None) -> OverlapPixels:
+    """Stream the overlap strip of two adjacent orthos on the grid of ``path_a``.
+
+    Both must share the CRS; ``path_b`` is read with nearest resampling onto ``path_a``'s
+    pixels of the common extent. Pixels valid in both (GDAL masks) are averaged.
+    """
+    s = settings or ScanSettings()
+    with read_only_env(s), open_read_only(path_a) as a, open_read_only(path_b) as b:
+        if a.crs != b.crs:
+            raise MeasureError(f"{path_a} and {path_b} have different CRS ({a.crs} vs {b.crs})")
+        left = max(a.bounds.left, b.bounds.left)
+        right = min(a.bounds.right, b.bounds.right)
+        bottom = max(a.bounds.bottom, b.bounds.bottom)
+        top = min(a.bounds.top, b.bounds.top)
+        if right <= left or top <= bottom:
+            raise MeasureError(f"{path_a} and {path_b} do not overlap")
+        idx = list(bands or range(1, min(a.count, b.count) + 1))
+        wa = a.window(left, bottom, right, top).round_offsets().round_lengths()
+        wa = wa.intersection(Window(0, 0, a.width, a.height))
+        sums_a = np.zeros(len(idx))
+        sums_b = np.zeros(len(idx))
+        n = 0
+        rows = max(1, s.chunk_bytes // max(int(wa.width) * 8 * len(idx), 1))
+        for r0 in range(int(wa.row_off), int(wa.row_off + wa.height), rows):
+            h = min(rows, int(wa.row_off + wa.height) - r0)
+            sub = Window(wa.col_off, r0, wa.width, h)
+            da = a.read(idx, window=sub, masked=True)
+            ba = rasterio.windows.bounds(sub, a.transform)
+            wb = b.window(*ba)
+            db = b.read(idx, window=wb, out_shape=(len(idx), h, int(wa.width)), boundless=True,
+                        masked=True, resampling=rasterio.enums.Resampling.nearest)
+            ok = ~(np.ma.getmaskarray(da).any(axis=0) | np.ma.getmaskarray(db).any(axis=0))
+            n += int(ok.sum())
+            sums_a += np.asarray(da.data[:, ok], dtype=np.float64).sum(axis=1)
+            sums_b += np.asarray(db.data[:, ok], dtype=np.float64).sum(axis=1)
+        if n == 0:
+            raise MeasureError(f"{path_a} and {path_b} have no jointly valid overlap pixels")
+        return OverlapPixels(bands=tuple(idx), mean_a=tuple(sums_a / n), mean_b=tuple(sums_b / n),
+                             pixels=n)
+
+
+def read_window_array(path: str | Path, *, size: int = 1024, bands: Sequence[int] | None = None,
+                      bounds: tuple[float, float, float, float] | None = None,
+                      out_shape: tuple[int, int] | None = None) -> np.ndarray:
+    """A central (or given-bounds) window as float64, for sharpness comparisons."""
+    with read_only_env(), open_read_only(path) as ds:
+        idx = list(bands or range(1, ds.count + 1))
+        if bounds is not None:
+            win = ds.window(*bounds)
+        else:
+            n_r, n_c = min(size, ds.height), min(size, ds.width)
+            win = Window((ds.width - n_c) // 2, (ds.height - n_r) // 2, n_c, n_r)
+        shape = None if out_shape is None else (len(idx), *out_shape)
+        return ds.read(idx, window=win, out_shape=shape, boundless=bounds is not None,
+                       resampling=rasterio.enums.Resampling.nearest).astype(np.float64)
+
+
+def window_bounds(path: str | Path, size: int = 1024) -> tuple[float, float, float, float]:
+    """Ground bounds of the central ``size`` window of a raster."""
+    with read_only_env(), open_read_only(path) as ds:
+        n_r, n_c = min(size, ds.height), min(size, ds.width)
+        win = Window((ds.width - n_c) // 2, (ds.height - n_r) // 2, n_c, n_r)
+        return tuple(rasterio.windows.bounds(win, ds.transform))  # type: ignore[return-value]
+
+
+def pan_fused_windows(pan_path: str | Path, fused_path: str | Path, *,
+                      size: int = 1024) -> tuple[np.ndarray, np.ndarray]:
+    """The central PAN window and the fused product over the same ground, on the PAN grid."""
+    b = window_bounds(pan_path, size)
+    pan = read_window_array(pan_path, bands=[1], bounds=b)
+    fused = read_window_array(fused_path, bounds=b, out_shape=pan.shape[1:])
+    return pan[0], fused
+
+
+def seamline_check(seamlines_path: str | Path, aoi_path: str | Path) -> Any:
+    """Read seamline and AOI vector files and measure gaps/overlaps (``SeamlineCoverage``).
+
+    Raises
+    ------
+    MeasureError
+        when a file is missing or unreadable, or holds no polygon.
+    """
+    import shapely
+
+    from ..measures.mosaic import seamline_coverage
+
+    parts = []
+    for label, p in (("seamline", seamlines_path), ("area-of-interest", aoi_path)):
+        try:
+            geoms, _crs = read_vector(p)
+        except Exception as exc:  # pyogrio raises DataSourceError and friends
+            raise MeasureError(f"{p}: {label} file unreadable: {exc}") from exc
+        if not geoms:
+            raise MeasureError(f"{p}: {label} file holds no geometry")
+        parts.append(geoms)
+    return seamline_coverage(parts[0], shapely.union_all(parts[1]))

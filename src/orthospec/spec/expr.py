@@ -1,0 +1,230 @@
+"""A small, safe expression grammar for profiles.
+
+Grammar (parsed with :mod:`ast` in ``eval`` mode and *interpreted* over a whitelist; nothing is
+ever compiled or executed):
+
+    expr    := or
+    or      := and ('or' and)*
+    and     := not ('and' not)*
+    not     := 'not' not | cmp
+    cmp     := arith (('<'|'<='|'>'|'>='|'=='|'!=') arith)*
+    arith   := term (('+'|'-') term)*
+    term    := unary (('*'|'/'|'%') unary)*
+    unary   := ('-'|'+') unary | power
+    power   := atom ('**' unary)?
+    atom    := NUMBER | STRING | 'true' | 'false' | NAME ('.' NAME)* | call | '(' expr ')'
+    call    := ('min'|'max'|'abs') '(' expr (',' expr)* ')'
+
+Names resolve through a caller-given mapping: parameters, manifest paths (``manifest.sensor.type``)
+and measures of the rule's scope. Values may be numbers, strings, booleans, numpy arrays or pint
+quantities, so one expression evaluates a whole column at once (vectorised).
+"""
+
+from __future__ import annotations
+
+import ast
+import operator
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from functools import lru_cache
+from typing import Any
+
+import numpy as np
+
+from ..errors import ExpressionError
+
+_BIN: dict[type, Callable[[Any, Any], Any]] = {
+    ast.Add: operator.add,
+    ast.Sub: operator.sub,
+    ast.Mult: operator.mul,
+    ast.Div: operator.truediv,
+    ast.Mod: operator.mod,
+    ast.Pow: operator.pow,
+}
+_CMP: dict[type, Callable[[Any, Any], Any]] = {
+    ast.Lt: operator.lt,
+    ast.LtE: operator.le,
+    ast.Gt: operator.gt,
+    ast.GtE: operator.ge,
+    ast.Eq: operator.eq,
+    ast.NotEq: operator.ne,
+}
+_CMP_TEXT = {ast.Lt: "<", ast.LtE: "<=", ast.Gt: ">", ast.GtE: ">=", ast.Eq: "==", ast.NotEq: "!="}
+_FUNCS = {"min", "max", "abs"}
+_CONSTS = {"true": True, "false": False, "True": True, "False": False, "null": None, "None": None}
+MAX_LENGTH = 500
+
+
+def _dotted(node: ast.AST) -> str | None:
+    parts: list[str] = []
+    while isinstance(node, ast.Attribute):
+        parts.append(node.attr)
+        node = node.value
+    if isinstance(node, ast.Name):
+        parts.append(node.id)
+        return ".".join(reversed(parts))
+    return None
+
+
+@dataclass(frozen=True)
+class Expression:
+    """A parsed expression; evaluate it with :meth:`evaluate`."""
+
+    source: str
+    tree: ast.AST
+    names: frozenset[str]
+
+    def evaluate(self, names: Mapping[str, Any]) -> Any:
+        return _Eval(names, self.source).visit(self.tree)
+
+
+@lru_cache(maxsize=2048)
+def parse(source: str) -> Expression:
+    """Parse ``source`` or raise ExpressionError saying what is not allowed."""
+    if not isinstance(source, str) or not source.strip():
+        raise ExpressionError("empty expression")
+    if len(source) > MAX_LENGTH:
+        raise ExpressionError(f"expression longer than {MAX_LENGTH} characters")
+    try:
+        tree = ast.parse(source.strip(), mode="eval")
+    except SyntaxError as exc:
+        raise ExpressionError(f"invalid expression {source!r}: {exc.msg} at column {exc.offset}") from None
+    names: set[str] = set()
+    _check(tree.body, source, names)
+    return Expression(source, tree.body, frozenset(names))
+
+
+def _check(node: ast.AST, src: str, names: set[str]) -> None:
+    bad = f"not allowed in expression {src!r}"
+    if isinstance(node, ast.BoolOp):
+        for v in node.values:
+            _check(v, src, names)
+    elif isinstance(node, ast.UnaryOp):
+        if not isinstance(node.op, ast.Not | ast.USub | ast.UAdd):
+            raise ExpressionError(f"operator {type(node.op).__name__} {bad}")
+        _check(node.operand, src, names)
+    elif isinstance(node, ast.BinOp):
+        if type(node.op) not in _BIN:
+            raise ExpressionError(f"operator {type(node.op).__name__} {bad}")
+        _check(node.left, src, names)
+        _check(node.right, src, names)
+    elif isinstance(node, ast.Compare):
+        for op in node.ops:
+            if type(op) not in _CMP:
+                raise ExpressionError(f"comparison {type(op).__name__} {bad}")
+        _check(node.left, src, names)
+        for c in node.comparators:
+            _check(c, src, names)
+    elif isinstance(node, ast.Call):
+        fname = node.func.id if isinstance(node.func, ast.Name) else None
+        if fname not in _FUNCS or node.keywords or not node.args:
+            raise ExpressionError(f"only min(), max() and abs() calls are allowed in {src!r}")
+        if fname == "abs" and len(node.args) != 1:
+            raise ExpressionError(f"abs() takes one argument in {src!r}")
+        for a in node.args:
+            if isinstance(a, ast.Starred):
+                raise ExpressionError(f"*args {bad}")
+            _check(a, src, names)
+    elif isinstance(node, ast.Constant):
+        if not isinstance(node.value, int | float | str | bool) and node.value is not None:
+            raise ExpressionError(f"constant {node.value!r} {bad}")
+    elif isinstance(node, ast.Name | ast.Attribute):
+        dotted = _dotted(node)
+        if dotted is None:
+            raise ExpressionError(f"attribute access on a non-name {bad}")
+        if any(part.startswith("_") for part in dotted.split(".")):
+            raise ExpressionError(f"names starting with '_' are {bad}")
+        if dotted not in _CONSTS:
+            names.add(dotted)
+    else:
+        raise ExpressionError(f"{type(node).__name__} {bad}")
+
+
+class _Eval:
+    def __init__(self, names: Mapping[str, Any], src: str) -> None:
+        self.names, self.src = names, src
+
+    def visit(self, node: ast.AST) -> Any:
+        if isinstance(node, ast.Constant):
+            return node.value
+        if isinstance(node, ast.Name | ast.Attribute):
+            dotted = _dotted(node)
+            assert dotted is not None
+            if dotted in _CONSTS:
+                return _CONSTS[dotted]
+            if dotted not in self.names:
+                raise ExpressionError(f"unknown name {dotted!r} in {self.src!r}")
+            return self.names[dotted]
+        if isinstance(node, ast.BoolOp):
+            vals = [self.visit(v) for v in node.values]
+            fn = np.logical_and if isinstance(node.op, ast.And) else np.logical_or
+            out = vals[0]
+            for v in vals[1:]:
+                out = fn(_truth(out), _truth(v))
+            return _scalar(out)
+        if isinstance(node, ast.UnaryOp):
+            v = self.visit(node.operand)
+            if isinstance(node.op, ast.Not):
+                return _scalar(np.logical_not(_truth(v)))
+            return -v if isinstance(node.op, ast.USub) else +v
+        if isinstance(node, ast.BinOp):
+            return self._arith(_BIN[type(node.op)], self.visit(node.left), self.visit(node.right))
+        if isinstance(node, ast.Compare):
+            left = self.visit(node.left)
+            result: Any = True
+            for op, comp in zip(node.ops, node.comparators, strict=True):
+                right = self.visit(comp)
+                result = np.logical_and(result, self._arith(_CMP[type(op)], left, right))
+                left = right
+            return _scalar(result)
+        if isinstance(node, ast.Call):
+            fname = node.func.id  # type: ignore[attr-defined]
+            args = [self.visit(a) for a in node.args]
+            if fname == "abs":
+                return abs(args[0])
+            out = args[0]
+            for a in args[1:]:
+                pick = self._arith(operator.lt if fname == "min" else operator.gt, a, out)
+                out = _where(pick, a, out)
+            return out
+        raise ExpressionError(f"cannot evaluate {type(node).__name__} in {self.src!r}")
+
+    def _arith(self, fn: Callable[[Any, Any], Any], a: Any, b: Any) -> Any:
+        try:
+            return fn(a, b)
+        except ZeroDivisionError:
+            raise ExpressionError(f"division by zero in {self.src!r}") from None
+        except Exception as exc:  # pint DimensionalityError, TypeError on str vs number
+            raise ExpressionError(f"cannot combine {_show(a)} and {_show(b)} in {self.src!r}: {exc}") from None
+
+
+def _truth(v: Any) -> Any:
+    return getattr(v, "magnitude", v)
+
+
+def _scalar(v: Any) -> Any:
+    if isinstance(v, np.ndarray) and v.ndim == 0:
+        return bool(v)
+    if isinstance(v, np.bool_):
+        return bool(v)
+    return v
+
+
+def _where(cond: Any, a: Any, b: Any) -> Any:
+    if np.ndim(cond) == 0:
+        return a if bool(cond) else b
+    if hasattr(a, "units") or hasattr(b, "units"):
+        unit = getattr(a, "units", None) or getattr(b, "units")
+        am = a.to(unit).magnitude if hasattr(a, "units") else a
+        bm = b.to(unit).magnitude if hasattr(b, "units") else b
+        return type(a if hasattr(a, "units") else b)(np.where(cond, am, bm), unit)
+    return np.where(cond, a, b)
+
+
+def _show(v: Any) -> str:
+    text = repr(v)
+    return text if len(text) < 40 else text[:37] + "..."
+
+
+def describe_ops() -> str:
+    return "arithmetic + - * / % **, comparisons " + " ".join(_CMP_TEXT.values()) + ", and/or/not, min/max/abs"

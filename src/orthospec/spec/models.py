@@ -1,0 +1,231 @@
+"""Pydantic models of a spec profile. The JSON Schema in specs/schema/ is generated from these."""
+
+from __future__ import annotations
+
+import re
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Discriminator, Field, Tag, field_validator
+
+SEMVER = r"^(0|[1-9]\d*)\.(0|[1-9]\d*)\.(0|[1-9]\d*)(?:-[0-9A-Za-z.-]+)?$"
+PROFILE_ID = r"^[a-z0-9][a-z0-9._-]*$"
+RULE_ID = r"^[A-Za-z0-9][A-Za-z0-9._-]*$"
+
+Scope = Literal[
+    "delivery", "project", "block", "image", "band", "checkpoint", "gcp", "flight", "camera",
+    "scanner", "dem", "mosaic", "edge",
+]
+Level = Literal["mandatory", "recommended"]
+Consequence = Literal["reject_item", "reject_block", "return_delivery", "warn"]
+Op = Literal["<", "<=", ">", ">=", "==", "!=", "between", "in", "present", "true", "false"]
+Scalar = float | int | str | bool
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class Clause(_Strict):
+    """Where in the source document a requirement is written."""
+
+    document: str = Field(description="Document short name, e.g. 'JRC EUR 23638 EN'.")
+    section: str | None = Field(None, description="Section number, e.g. '12.7'.")
+    table: str | None = Field(None, description="Table number, e.g. '9'.")
+    row: str | None = Field(None, description="Table row or item, when there is one.")
+    figure: str | None = None
+    seed: str | None = Field(None, description="Seed file the quote is taken from, when not the profile's.")
+
+    @field_validator("section", "table", "row", "figure", mode="before")
+    @classmethod
+    def _to_text(cls, v: Any) -> Any:
+        return None if v is None else str(v)
+
+    def text(self) -> str:
+        parts = [self.document]
+        if self.section:
+            parts.append(f"§{self.section}")
+        if self.table:
+            parts.append(f"Table {self.table}")
+        if self.row:
+            parts.append(f"row '{self.row}'")
+        if self.figure:
+            parts.append(f"Figure {self.figure}")
+        return ", ".join(parts)
+
+
+class Source(_Strict):
+    title: str
+    issue: str | None = None
+    year: int | None = None
+    identifier: str | None = None
+    seed: str | None = Field(None, description="Seed file in ../shared/seeds that quotes come from.")
+    url: str | None = None
+
+    @field_validator("issue", mode="before")
+    @classmethod
+    def _issue_text(cls, v: Any) -> Any:
+        return None if v is None else str(v)
+
+
+class Parameter(_Strict):
+    """A value the tender fixes (tolerance, pixel size...), with its unit."""
+
+    unit: str = Field(description="m, mm, µm, ft, usft, px, %, deg, DN, 1, or text/bool/date.")
+    default: Scalar | None = Field(None, description="Value from the standard, when it gives one.")
+    value: Scalar | None = Field(None, description="Value fixed by a tender profile (wins over defaults).")
+    required: bool = False
+    description: str = ""
+    choices: list[Scalar] | None = None
+
+
+class Requirement(_Strict):
+    """Operator and threshold; values may be numbers or safe expressions over parameters."""
+
+    op: Op
+    value: Scalar | None = None
+    min: Scalar | None = None
+    max: Scalar | None = None
+    min_inclusive: bool = True
+    max_inclusive: bool = True
+    values: list[Scalar] | None = None
+    unit: str | None = Field(None, description="Unit of literal numbers and of the comparison.")
+
+
+class Audit(_Strict):
+    """JRC Tables 6 and 10: who produces the QCR, how the EC inspects it, when."""
+
+    table: str | None = None
+    qcr: str | None = None
+    qcr_production: str | None = None
+    inspection: str | None = None
+    stage: str | None = None
+    family: str | None = Field(None, description="QCR family for Normal/Tightened audit state.")
+
+    @field_validator("table", mode="before")
+    @classmethod
+    def _t(cls, v: Any) -> Any:
+        return None if v is None else str(v)
+
+
+class Rule(_Strict):
+    id: Annotated[str, Field(pattern=RULE_ID)]
+    title: str
+    clause: Clause
+    quote: str = Field(min_length=1, description="The exact words of the source the rule encodes.")
+    scope: Scope
+    when: str | None = Field(None, description="Applicability condition (safe expression).")
+    measure: str
+    requirement: Requirement
+    level: Level = "mandatory"
+    consequence: Consequence
+    manual: bool = False
+    note: str | None = None
+    audit: Audit | None = None
+    tags: list[str] = Field(default_factory=list)
+    override: Literal[False] = False
+
+
+class RuleOverride(_Strict):
+    """In a profile that extends another: change some keys of an inherited rule."""
+
+    id: Annotated[str, Field(pattern=RULE_ID)]
+    override: Literal[True]
+    title: str | None = None
+    clause: Clause | None = None
+    quote: str | None = None
+    scope: Scope | None = None
+    when: str | None = None
+    measure: str | None = None
+    requirement: Requirement | None = None
+    level: Level | None = None
+    consequence: Consequence | None = None
+    manual: bool | None = None
+    note: str | None = None
+    audit: Audit | None = None
+    tags: list[str] | None = None
+
+
+def _rule_kind(v: Any) -> str:
+    if isinstance(v, dict):
+        return "override" if v.get("override") is True else "rule"
+    return "override" if getattr(v, "override", False) else "rule"
+
+
+AnyRule = Annotated[
+    Annotated[Rule, Tag("rule")] | Annotated[RuleOverride, Tag("override")],
+    Discriminator(_rule_kind),
+]
+
+
+class Extends(_Strict):
+    id: Annotated[str, Field(pattern=PROFILE_ID)]
+    version: Annotated[str, Field(pattern=SEMVER)]
+
+
+class LookupTable(_Strict):
+    description: str = ""
+    columns: list[str]
+    units: dict[str, str] | None = None
+    rows: list[list[Scalar | None]]
+    clause: Clause | None = None
+    note: str | None = None
+
+
+class ClassItem(_Strict):
+    id: str
+    min: float | None = None
+    max: float | None = None
+    min_inclusive: bool = True
+    max_inclusive: bool = True
+    description: str | None = None
+
+
+class ClassSet(_Strict):
+    unit: str
+    description: str = ""
+    items: list[ClassItem]
+    clause: Clause | None = None
+    note: str | None = None
+
+
+class ProfileTest(_Strict):
+    delivery: str
+    params: dict[str, Scalar] = Field(default_factory=dict)
+    expect: dict[str, Any] = Field(default_factory=dict)
+    description: str | None = None
+
+
+class ProfileWaiver(_Strict):
+    """A waiver granted in the tender profile itself (e.g. a rule not applicable to this ITT)."""
+
+    rule: str
+    items: list[str] = Field(default_factory=lambda: ["*"])
+    justification: str = Field(min_length=1)
+    approver: str = Field(min_length=1)
+
+
+class Profile(_Strict):
+    """A versioned spec profile as written in one YAML file (before ``extends`` is resolved)."""
+
+    orthospec_profile: Literal[1]
+    id: Annotated[str, Field(pattern=PROFILE_ID)]
+    version: Annotated[str, Field(pattern=SEMVER)]
+    title: str
+    description: str | None = None
+    source: Source
+    extends: Extends | None = None
+    parameters: dict[str, Parameter] = Field(default_factory=dict)
+    tables: dict[str, LookupTable] = Field(default_factory=dict)
+    classes: dict[str, ClassSet] = Field(default_factory=dict)
+    rules: list[AnyRule] = Field(default_factory=list)
+    remove_rules: list[str] = Field(default_factory=list)
+    waivers: list[ProfileWaiver] = Field(default_factory=list)
+    tests: list[ProfileTest] = Field(default_factory=list)
+
+    @field_validator("parameters")
+    @classmethod
+    def _param_names(cls, v: dict[str, Parameter]) -> dict[str, Parameter]:
+        for name in v:
+            if not re.fullmatch(r"[a-z][a-z0-9_]*", name):
+                raise ValueError(f"parameter name {name!r} must be lower_snake_case")
+        return v
