@@ -13,6 +13,7 @@ import io
 import json
 import math
 import os
+import re
 import tempfile
 from collections.abc import Iterable
 from pathlib import Path
@@ -117,8 +118,14 @@ def _record(r: RuleResult, i: int) -> dict[str, Any]:
     return rec
 
 
+def natural_key(text: str) -> tuple[Any, ...]:
+    """IMG_2 before IMG_10: digits compare as numbers, the rest as text (total order, stable)."""
+    parts = re.split(r"(\d+)", text)
+    return tuple((0, int(p), p) if p.isdigit() else (1, 0, p) for p in parts)
+
+
 def _sort_key(rec: dict[str, Any]) -> tuple[Any, ...]:
-    return (_SCOPE_ORDER.get(rec["scope"], 99), rec["rule"], rec["item"])
+    return (_SCOPE_ORDER.get(rec["scope"], 99), rec["rule"], natural_key(rec["item"]))
 
 
 def iter_records(ev: Evaluation) -> Iterable[dict[str, Any]]:
@@ -137,7 +144,8 @@ def build_document(ev: Evaluation, *, date: str, operator: str | None = None,
         summary[rec["verdict"]] += 1
     rules = []
     for r in sorted(ev.results, key=lambda r: (_SCOPE_ORDER.get(r.rule.scope, 99), r.rule.id)):
-        offending = sorted(str(x) for x in r.items[np.isin(r.verdict, (FAIL, WARN, MISSING, ERROR))])
+        offending = sorted((str(x) for x in r.items[np.isin(r.verdict, (FAIL, WARN, MISSING, ERROR))]),
+                           key=natural_key)
         rules.append({
             "rule": r.rule.id, "title": r.rule.title, "scope": r.rule.scope, "level": r.rule.level,
             "consequence": r.rule.consequence, "clause": r.rule.clause.text(),

@@ -46,7 +46,7 @@ def render_documents(doc: dict, fmts: list[str], *, extra: dict | None = None) -
 @click.option("--verbose", "-v", is_flag=True, help="Show passing rules in the terminal too.")
 def check_cmd(delivery: Path, profile: str, params: tuple[str, ...], out_dir: Path | None, formats: str,
               date: str | None, fail_on: str, operator: str | None, workers: int | None,
-              scheduler: str | None, max_items: int, verbose: bool) -> int:
+              scheduler: str | None, max_items: int, verbose: bool) -> None:
     """Check DELIVERY against a spec profile; exit 0 accepted, 1 rejected, 2 could not evaluate."""
     fmts = split_formats(formats, FORMATS)
     options = {"workers": workers, "scheduler": scheduler, "progress": sys.stderr.isatty()}
@@ -62,4 +62,4 @@ def check_cmd(delivery: Path, profile: str, params: tuple[str, ...], out_dir: Pa
         render_terminal(doc, Console(highlight=False, soft_wrap=True), max_items=max_items, verbose=verbose)
         if files:
             click.echo(f"wrote {', '.join(sorted(files))} to {target}/")
-    return 0 if result.accepted else 1
+    click.get_current_context().exit(0 if result.accepted else 1)

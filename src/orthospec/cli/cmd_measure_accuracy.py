@@ -45,7 +45,7 @@ def _payload(res: BlunderResult, *, file: str, source_unit: str, gsd: float | No
         "limit_x": _clean(res.limit_x), "limit_y": _clean(res.limit_y),
         "limit_z": _clean(res.limit_z), "limit_r": _clean(res.limit_r),
         "candidates": list(res.candidates), "excluded": list(res.excluded),
-        "errors": [d.point_id for d in res.errors],
+        "errors": list(res.error_ids), "note": res.note,
         "decisions": [
             {"point_id": d.point_id, "dx": _clean(d.dx), "dy": _clean(d.dy), "dz": _clean(d.dz),
              "dr": _clean(d.dr), "exceeds_x": d.exceeds_x, "exceeds_y": d.exceeds_y,
@@ -94,6 +94,8 @@ def _render(payload: dict[str, Any]) -> None:
         f"|dy| > {fmt(b['limit_y'])}): candidates {', '.join(b['candidates']) or 'none'}; "
         f"excluded {', '.join(b['excluded']) or 'none'}"
     )
+    if b["note"]:
+        console.print(f"  note: {b['note']}")
     for d in b["decisions"]:
         if d["decision"] != "kept":
             console.print(f"  {d['point_id']}: {d['decision']}: {d['reason']}")

@@ -58,7 +58,7 @@ def show_cmd(profile: str, as_json: bool) -> None:
 
 @spec.command("validate")
 @click.argument("files", nargs=-1, required=True, type=click.Path(path_type=Path))
-def validate_cmd(files: tuple[Path, ...]) -> int:
+def validate_cmd(files: tuple[Path, ...]) -> None:
     """Validate profile FILES (schema, models, units, expressions, measures); exit 2 on problems."""
     bad = 0
     for f in files:
@@ -70,7 +70,7 @@ def validate_cmd(files: tuple[Path, ...]) -> int:
         else:
             p = load_profile(f)
             click.echo(f"{f}: valid ({p.id} {p.version}, {len(p.rules)} rules, sha256 {p.sha256})")
-    return 2 if bad else 0
+    click.get_current_context().exit(2 if bad else 0)
 
 
 @spec.command("diff")
@@ -155,7 +155,7 @@ def measures_cmd() -> None:
 
     t = Table("measure", "scope", "unit", "provider", box=None, header_style="bold")
     for name, specx in known_measures().items():
-        t.add_row(name, specx.scope, specx.measures[name], specx.description)
+        t.add_row(name, specx.scope, specx.measures[name], specx.fn.__module__.rsplit(".", 1)[-1])
     for name, (scope, unit) in ROLLUP.items():
         t.add_row(name, scope, unit, "evaluator roll-up (second phase)")
     Console(highlight=False).print(t)

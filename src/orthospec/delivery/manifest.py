@@ -83,6 +83,15 @@ class EdgeTarget(_Closed):
     direction: Literal["along", "across", "auto"] = "auto"
 
 
+class Tender(_Closed):
+    """The invitation to tender / contract the delivery answers, as the delivery records it."""
+
+    reference: str | None = Field(None, description="ITT / contract reference.")
+    parameters: dict[str, QuantityIn | Scalar] = Field(
+        default_factory=dict,
+        description="Contract values for profile parameters; a tender profile or --param wins over them.")
+
+
 class Manifest(_Closed):
     orthospec_delivery: Literal[1]
     id: str
@@ -92,8 +101,7 @@ class Manifest(_Closed):
     dates: dict[str, dt.date | dt.datetime | str] = Field(default_factory=dict)
     sensor: Sensor
     product: Product = Field(default_factory=Product)
-    parameters: dict[str, QuantityIn | Scalar] = Field(
-        default_factory=dict, description="Contract values for profile parameters (the tender's wins).")
+    tender: Tender | None = None
     blocks: list[Block] = Field(default_factory=list)
     tables: dict[str, str] = Field(default_factory=dict)
     vectors: dict[str, str] = Field(default_factory=dict, description="seamlines, tiles, blocks, aoi...")

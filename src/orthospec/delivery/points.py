@@ -75,6 +75,9 @@ def read_points_csv(path: str | Path, *, units: str | None = None) -> PointTable
     if not header:
         raise DeliveryError(f"empty file; expected a header with columns {_EXPECTED}", file=name)
 
+    dup = sorted({h for h in header if header.count(h) > 1})
+    if dup:
+        raise DeliveryError(f"duplicate column(s) {', '.join(dup)} in the header", file=name)
     cols = set(header)
     id_col = "id" if "id" in cols else "point_id" if "point_id" in cols else None
     if id_col is None:

@@ -261,13 +261,13 @@ def _convert_column(s: pd.Series, rows: pd.Series, kind: str, col: str, file: st
         return s.where(~empty, None)
     if kind == "number":
         num = pd.to_numeric(s.where(~empty, None), errors="coerce")
-        bad = num.isna() & ~empty
+        lowered = s.map(lambda v: str(v).strip().lower() if v is not None else "")
+        nonfinite = lowered.isin(["nan", "inf", "-inf", "+inf", "infinity", "-infinity"]) | (
+            num.notna() & ~np.isfinite(num.astype(float)))
+        bad = num.isna() & ~empty & ~nonfinite
         if bad.any():
             r = int(rows[bad].iloc[0])
             raise DeliveryError(f"expected a number, got {s[bad].iloc[0]!r}", file=file, row=r, field=col)
-        lowered = s.str.lower()
-        nonfinite = lowered.isin(["nan", "inf", "-inf", "+inf", "infinity", "-infinity"]) | (
-            num.notna() & ~np.isfinite(num.astype(float)))
         if nonfinite.any():
             r = int(rows[nonfinite].iloc[0])
             raise DeliveryError(f"expected a finite number, got {s[nonfinite].iloc[0]!r} "

@@ -303,8 +303,12 @@ class Evaluator:
             ee = m.errors.reindex(items)
             errs = ee.notna().to_numpy() & ee.astype(object).map(bool).to_numpy()
             notes = np.where(errs, ee.to_numpy(dtype=object), notes)
+        if m.na is not None and len(m.na):
+            nav = m.na.reindex(items)
+            na_mask = nav.notna().to_numpy()
+            applicable &= ~na_mask
+            notes = np.where(na_mask, nav.to_numpy(dtype=object), notes)
         req = rule.requirement
-        unit = m.unit
         ok, measured, thr, unit = self._compare(rule, req, raw, m.unit, missing | errs, names, items)
         verdict[~ok] = FAIL if rule.level == "mandatory" else WARN
         verdict[missing] = MISSING
@@ -574,6 +578,11 @@ class Evaluator:
                 items = ", ".join(str(i) for i in r.items[mask][:5])
                 reasons.append(f"{r.rule.id} ({r.rule.clause.text()}): {VERDICTS[int(r.verdict[mask][0])]} "
                                f"for {items}")
+        if self.fail_on == "warn":
+            warned = [r.rule.id for r in results if (r.verdict == WARN).any()]
+            if warned:
+                reasons.append(f"--fail-on warn: recommended-level rule(s) not met: {', '.join(warned[:10])}"
+                               + (f" (+{len(warned) - 10} more)" if len(warned) > 10 else ""))
         if rejected.get("block") and not has_block_rollup:
             reasons.append("block(s) " + ", ".join(rejected["block"]) + " rejected and the profile has no "
                            "project-level roll-up rule: any rejected block returns the delivery")

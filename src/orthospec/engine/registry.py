@@ -42,6 +42,8 @@ class Measured:
     notes: pd.Series | None = None
     #: items whose value could not be computed because their input is broken (verdict `error`)
     errors: pd.Series | None = None
+    #: items the measure does not apply to (verdict `not_applicable`), value = reason text
+    na: pd.Series | None = None
 
     def __post_init__(self) -> None:
         self.values.index = self.values.index.astype(str)
@@ -56,6 +58,8 @@ class ProviderContext:
     delivery: Delivery
     parameters: Mapping[str, Any]  # name -> pint Quantity, str, bool, number
     options: Mapping[str, Any] = field(default_factory=dict)  # workers, scheduler, cache...
+    #: shared work between providers of one run (e.g. one pass over the checkpoints)
+    memo: dict[str, Any] = field(default_factory=dict)
 
 
 ProviderFn = Callable[[ProviderContext], Iterable[Measured]]

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, field, fields, replace
 from typing import Any, Literal
 
 import numpy as np
@@ -261,11 +261,19 @@ class AccuracyStats:
 
 
 def _axis(d: np.ndarray) -> tuple[float, float, float, float]:
-    """mean, std (n-1), rmse (n), max |d| of one axis."""
+    """mean, std (n-1), rmse (n), max |d| of one axis.
+
+    The RMSE is computed on ``d / max|d|`` and scaled back so tiny deltas do not underflow
+    (a zero RMSE with non-zero deltas would make every point a blunder).
+    """
     mean = float(d.mean())
     std = float(d.std(ddof=1))
-    rmse = float(np.sqrt(np.mean(d * d)))
-    return mean, std, rmse, float(np.abs(d).max())
+    peak = float(np.abs(d).max())
+    if peak == 0.0:
+        return mean, std, 0.0, 0.0
+    u = d / peak
+    rmse = peak * float(np.sqrt(np.mean(u * u)))
+    return mean, std, rmse, peak
 
 
 def accuracy_stats(
@@ -392,8 +400,10 @@ class BlunderDecision:
 class BlunderResult:
     """Blunder screening of a checkpoint set (JRC §12.6, Table 9).
 
-    ``stats_all`` uses every point; ``stats_kept`` drops only the justified exclusions
-    (None when fewer than 2 points would remain, see ``note``).
+    Per-point results are arrays (vectorised); :attr:`decisions` turns them into one
+    :class:`BlunderDecision` per point for QCRs. ``stats_all`` uses every point;
+    ``stats_kept`` drops only the justified exclusions (None when fewer than 2 points would
+    remain, see ``note``).
     """
 
     basis: str
@@ -402,22 +412,69 @@ class BlunderResult:
     limit_y: float
     limit_z: float | None
     limit_r: float
-    decisions: tuple[BlunderDecision, ...]
     stats_all: AccuracyStats
     stats_kept: AccuracyStats | None
+    ids: np.ndarray = field(repr=False, compare=False)
+    dx: np.ndarray = field(repr=False, compare=False)
+    dy: np.ndarray = field(repr=False, compare=False)
+    dz: np.ndarray | None = field(repr=False, compare=False)
+    exceeds_x: np.ndarray = field(repr=False, compare=False)
+    exceeds_y: np.ndarray = field(repr=False, compare=False)
+    exceeds_z: np.ndarray = field(repr=False, compare=False)
+    exceeds_r: np.ndarray = field(repr=False, compare=False)
+    decision: np.ndarray = field(repr=False, compare=False)  # one decision string per point
+    justifications: dict[str, str] = field(repr=False, compare=False, default_factory=dict)
     note: str = ""
 
     @property
+    def candidate(self) -> np.ndarray:
+        return self.exceeds_x | self.exceeds_y | self.exceeds_z
+
+    @property
     def candidates(self) -> tuple[str, ...]:
-        return tuple(d.point_id for d in self.decisions if d.candidate)
+        return tuple(self.ids[self.candidate].tolist())
 
     @property
     def excluded(self) -> tuple[str, ...]:
-        return tuple(d.point_id for d in self.decisions if d.decision == EXCLUDED)
+        return tuple(self.ids[self.decision == EXCLUDED].tolist())
+
+    @property
+    def error_ids(self) -> tuple[str, ...]:
+        err = (self.decision == ERROR_WITHIN_TOLERANCE) | (self.decision == ERROR_NO_JUSTIFICATION)
+        return tuple(self.ids[err].tolist())
 
     @property
     def errors(self) -> tuple[BlunderDecision, ...]:
         return tuple(d for d in self.decisions if d.is_error)
+
+    @property
+    def decisions(self) -> tuple[BlunderDecision, ...]:
+        """One decision per point, in input order, with its reason text."""
+        out = []
+        dr = np.hypot(self.dx, self.dy)
+        for i, pid in enumerate(self.ids.tolist()):
+            axes = [a for a, f in (("x", self.exceeds_x[i]), ("y", self.exceeds_y[i]),
+                                   ("z", self.exceeds_z[i])) if f]
+            over = "exceeds the maximum tolerable discrepancy in " + ", ".join(axes)
+            just = self.justifications.get(pid, "")
+            decision = str(self.decision[i])
+            reason = {
+                KEPT: "within the maximum tolerable discrepancy",
+                ERROR_WITHIN_TOLERANCE: "exclusion requested but the point is within the maximum "
+                "tolerable discrepancy; it stays in the sample (JRC §12.6)",
+                CANDIDATE_KEPT: f"{over}; no exclusion requested, kept",
+                ERROR_NO_JUSTIFICATION: f"{over}; exclusion requested without a justification, kept",
+                EXCLUDED: f"{over}; excluded: {just}",
+            }[decision]
+            out.append(BlunderDecision(
+                point_id=pid, dx=float(self.dx[i]), dy=float(self.dy[i]),
+                dz=None if self.dz is None else float(self.dz[i]), dr=float(dr[i]),
+                exceeds_x=bool(self.exceeds_x[i]), exceeds_y=bool(self.exceeds_y[i]),
+                exceeds_z=bool(self.exceeds_z[i]), exceeds_r=bool(self.exceeds_r[i]),
+                candidate=bool(axes), exclusion_requested=pid in self.justifications,
+                justification=just, decision=decision, reason=reason,
+            ))
+        return tuple(out)
 
 
 def detect_blunders(
@@ -440,7 +497,8 @@ def detect_blunders(
     ``basis="calculated"`` follows JRC §12.6: the maximum tolerable discrepancy is
     ``factor × RMSE`` calculated from all points (per axis: 3·RMSE_x, 3·RMSE_y, 3·RMSE_z).
     ``basis="target"`` follows Table 9 ("3 x the target RMSE"): ``factor × target_rmse_xy``
-    on each planimetric axis and ``factor × target_rmse_z`` vertically. Note that with the
+    on each planimetric axis and ``factor × target_rmse_z`` vertically (without
+    ``target_rmse_z`` the z axis is not screened and ``note`` says so). Note that with the
     calculated basis no point can exceed 3·RMSE when n <= 9 (``max|d| <= sqrt(n)·RMSE``).
 
     How a radial discrepancy meets a 1-D RMSE: a point is a *candidate* when ``|dx| >
@@ -458,7 +516,7 @@ def detect_blunders(
     ------
     MeasureError
         Invalid deltas (see :func:`accuracy_stats`), unknown ids in ``exclusions``, a missing
-        or non-positive target RMSE for ``basis="target"``, an unknown basis.
+        or non-positive planimetric target RMSE for ``basis="target"``, an unknown basis.
     """
     ax, ay, az = _f(dx), _f(dy), _f(dz)
     assert ax is not None and ay is not None
@@ -474,17 +532,17 @@ def detect_blunders(
         if target_rmse_xy is None or not target_rmse_xy > 0:
             raise MeasureError("blunder basis 'target' needs a positive target RMSE (target_rmse_xy)")
         lx = ly = factor * float(target_rmse_xy)
-        if az is None:
-            lz = None
-        elif target_rmse_z is None or not target_rmse_z > 0:
-            raise MeasureError("blunder basis 'target' with dz needs a positive target_rmse_z")
+        if az is None or target_rmse_z is None:
+            lz = None  # z not screened: reported in ``note``
+        elif not target_rmse_z > 0:
+            raise MeasureError(f"target_rmse_z must be positive, got {target_rmse_z!r}")
         else:
             lz = factor * float(target_rmse_z)
     else:
         raise MeasureError(f"blunder basis {basis!r} unknown; use 'calculated' or 'target'")
     lr = math.hypot(lx, ly)
 
-    requests = dict(exclusions or {})
+    requests = {str(k): (v or "").strip() for k, v in (exclusions or {}).items()}
     unknown = sorted(set(requests) - set(id_arr.tolist()))
     if unknown:
         raise MeasureError(f"exclusion requested for unknown point id(s): {', '.join(unknown)}")
@@ -492,47 +550,31 @@ def detect_blunders(
     ex = np.abs(ax) > lx
     ey = np.abs(ay) > ly
     ez = np.zeros(ax.size, bool) if az is None or lz is None else np.abs(az) > lz
-    dr = np.hypot(ax, ay)
-    er = dr > lr
+    er = np.hypot(ax, ay) > lr
     cand = ex | ey | ez
-
-    decisions: list[BlunderDecision] = []
-    keep = np.ones(ax.size, bool)
-    for i, pid in enumerate(id_arr.tolist()):
-        requested = pid in requests
-        just = (requests.get(pid) or "").strip() if requested else ""
-        axes = [a for a, f in (("x", ex[i]), ("y", ey[i]), ("z", ez[i])) if f]
-        if not cand[i]:
-            if requested:
-                decision = ERROR_WITHIN_TOLERANCE
-                reason = ("exclusion requested but the point is within the maximum tolerable "
-                          "discrepancy; it stays in the sample (JRC §12.6)")
-            else:
-                decision, reason = KEPT, "within the maximum tolerable discrepancy"
-        else:
-            over = "exceeds the maximum tolerable discrepancy in " + ", ".join(axes)
-            if not requested:
-                decision, reason = CANDIDATE_KEPT, f"{over}; no exclusion requested, kept"
-            elif not just:
-                decision = ERROR_NO_JUSTIFICATION
-                reason = f"{over}; exclusion requested without a justification, kept"
-            else:
-                decision, reason = EXCLUDED, f"{over}; excluded: {just}"
-                keep[i] = False
-        decisions.append(BlunderDecision(
-            point_id=pid, dx=float(ax[i]), dy=float(ay[i]),
-            dz=None if az is None else float(az[i]), dr=float(dr[i]),
-            exceeds_x=bool(ex[i]), exceeds_y=bool(ey[i]), exceeds_z=bool(ez[i]),
-            exceeds_r=bool(er[i]), candidate=bool(cand[i]), exclusion_requested=requested,
-            justification=just, decision=decision, reason=reason,
-        ))
+    requested = np.zeros(ax.size, bool)
+    justified = np.zeros(ax.size, bool)
+    if requests:
+        pos = {pid: i for i, pid in enumerate(id_arr.tolist())}
+        for pid, just in requests.items():
+            requested[pos[pid]] = True
+            justified[pos[pid]] = bool(just)
+    decision = np.select(
+        [~cand & ~requested, ~cand & requested, cand & ~requested, cand & ~justified],
+        [KEPT, ERROR_WITHIN_TOLERANCE, CANDIDATE_KEPT, ERROR_NO_JUSTIFICATION],
+        default=EXCLUDED,
+    ).astype(object)
+    keep = decision != EXCLUDED
 
     note = ""
+    if az is not None and lz is None:
+        note = "dz not screened for blunders: no target RMSE_z given (basis 'target'); "
     kept_stats: AccuracyStats | None
     if keep.all():
         kept_stats = stats
     elif keep.sum() < 2:
-        kept_stats, note = None, f"only {int(keep.sum())} point(s) left after exclusions"
+        kept_stats = None
+        note += f"only {int(keep.sum())} point(s) left after exclusions"
     else:
         kept_stats = accuracy_stats(
             ax[keep], ay[keep], None if az is None else az[keep], ids=id_arr[keep], gsd=gsd,
@@ -540,5 +582,7 @@ def detect_blunders(
         )
     return BlunderResult(
         basis=basis, factor=factor, limit_x=lx, limit_y=ly, limit_z=lz, limit_r=lr,
-        decisions=tuple(decisions), stats_all=stats, stats_kept=kept_stats, note=note,
+        stats_all=stats, stats_kept=kept_stats, ids=id_arr, dx=ax, dy=ay, dz=az,
+        exceeds_x=ex, exceeds_y=ey, exceeds_z=ez, exceeds_r=er, decision=decision,
+        justifications=requests, note=note,
     )

@@ -47,7 +47,8 @@ class DistributionResult:
     diagonal: float
     quadrant_counts: dict[str, int]
     quadrant_shares: dict[str, float]
-    min_quadrant_share: float
+    min_quadrant_share: float  # measured: the smallest of the four shares (0-1)
+    required_quadrant_share: float  # the threshold applied (JRC Figure 4: 0.20)
     quadrants_ok: bool
     nn_distance: np.ndarray = field(repr=False, compare=False)
     nn_reference: float = 0.0  # Δ/10
@@ -186,7 +187,7 @@ def checkpoint_distribution(
         n=n, min_count=min_count, count_ok=n >= min_count, split_source=source,
         centre=(float(cx), float(cy)), diagonal=diagonal,
         quadrant_counts=q_counts, quadrant_shares=q_shares,
-        min_quadrant_share=min_quadrant_share,
+        min_quadrant_share=float(shares.min()), required_quadrant_share=min_quadrant_share,
         quadrants_ok=bool((shares >= min_quadrant_share).all()),
         nn_distance=nn, nn_reference=ref, nn_min=nn_min, nn_mean=nn_mean,
         nn_min_ratio=nn_min / ref if ref > 0 else float("inf"),

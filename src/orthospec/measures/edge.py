@@ -57,6 +57,7 @@ __all__ = [
 
 NYQUIST = 0.5  # cycles per pixel
 SPLINE = "spline"
+SPLINE_BASE = True
 _GRID = 0.01  # px, evaluation grid of fitted curves
 _MTF_FREQ = np.round(np.arange(0, 101) * 0.01, 10)  # reported MTF curve, cycles/px
 
@@ -253,7 +254,7 @@ def measure_edge(
     max_outlier_fraction: float = 0.2,
     min_supersampling: float = 0.8,
     max_saturated_fraction: float = 0.01,
-    plateau_px: float = 5.0,
+    plateau_px: float = 1.0,
     oversample: int = 10,
     fermi_terms: int = 3,
 ) -> EdgeResult:
@@ -385,8 +386,12 @@ def measure_edge(
             centre = 0.5 * (dark_start + bright_start)
             dark_edge = centre + min(3.0 * (dark_start - centre), dark_start - centre - 1.0)
             bright_edge = centre + max(3.0 * (bright_start - centre), bright_start - centre + 1.0)
-            lo = max(min(dark_start - plateau_px, dark_edge - 1.0), float(d[0]))
-            hi = min(max(bright_start + plateau_px, bright_edge + 1.0), float(d[-1]))
+            # trim (7b-c): keep at least plateau_px beyond each start, and at least 4x the
+            # start's distance from the centre (so the LSF tails are not cut)
+            lo = max(min(dark_start - plateau_px, centre + 4.0 * (dark_start - centre)),
+                     float(d[0]))
+            hi = min(max(bright_start + plateau_px, centre + 4.0 * (bright_start - centre)),
+                     float(d[-1]))
             window = (lo, hi)
             dark_side = d <= dark_edge
             bright_side = d >= bright_edge
@@ -407,12 +412,16 @@ def measure_edge(
                       float(np.median(row_dmax - bright_start)))
             if all(math.isfinite(x) for x in levels) and levels[1] > levels[0]:
                 sel = (d >= lo) & (d <= hi)
-                spl = _spline(d[sel], v[sel], bw, lo, hi)
-                if spl is not None:
-                    fits[SPLINE] = _spline_fit(spl, lo, hi, levels)
                 fermi = _fermi_fit(d[sel], v[sel], bw, lo, hi, levels, fermi_terms)
                 if fermi is not None:
                     fits[fermi.fit] = fermi
+                base = None
+                if SPLINE_BASE and fermi is not None:
+                    base = np.asarray(fermi.params["params"])
+                resid = v[sel] - (0.0 if base is None else _fermi(d[sel], base))
+                spl = _spline(d[sel], resid, bw, lo, hi)
+                if spl is not None:
+                    fits[SPLINE] = _spline_fit(spl, lo, hi, levels, base)
 
     contrast = levels[1] - levels[0]
     noise = (stds[0] + stds[1]) / 2.0
@@ -567,15 +576,27 @@ def _plateau_starts(spl: Any, d: np.ndarray) -> tuple[float, float]:
     return float(x[left][np.argmax(d2[left])]), float(x[right][np.argmin(d2[right])])
 
 
-def _spline_fit(spl: Any, lo: float, hi: float, levels: tuple[float, float]) -> EdgeFit:
+def _spline_fit(spl: Any, lo: float, hi: float, levels: tuple[float, float],
+                base: np.ndarray | None = None) -> EdgeFit:
+    """Normalised spline ESF; with ``base`` (Fermi parameters) the spline models the
+    residual from that parametric ESF, so GCV smooths towards it, not towards a line."""
     dark, bright = levels
     x = np.arange(lo, hi + _GRID / 2, _GRID)
-    esf = (spl(x) - dark) / (bright - dark)
-    lsf = spl.derivative(1)(x) / (bright - dark)
+
+    def raw(q: np.ndarray) -> np.ndarray:
+        out = spl(q)
+        return out if base is None else out + _fermi(q, base)
+
+    def slope(q: np.ndarray) -> np.ndarray:
+        out = spl.derivative(1)(q)
+        return out if base is None else out + _dfermi(q, base)
+
+    esf = (raw(x) - dark) / (bright - dark)
+    lsf = slope(x) / (bright - dark)
     centre = float(x[np.argmax(lsf)])  # seed 9b: the LSF top is the RER centre
 
     def esf_at(p: np.ndarray) -> np.ndarray:
-        return (spl(p) - dark) / (bright - dark)
+        return (raw(p) - dark) / (bright - dark)
 
     return _make_fit(SPLINE, x, esf, lsf, centre, esf_at, levels,
                      {"lam": None, "bin_px": None})
@@ -586,6 +607,13 @@ def _fermi(x: np.ndarray, p: np.ndarray) -> np.ndarray:
     out = np.full_like(x, a, dtype=float)
     for b, c, s in p[1:].reshape(-1, 3):
         out += b * _logistic((x - c) / s)
+    return out
+
+
+def _dfermi(x: np.ndarray, p: np.ndarray) -> np.ndarray:
+    out = np.zeros_like(x, dtype=float)
+    for b, c, s in p[1:].reshape(-1, 3):
+        out += b / (4.0 * s) / np.cosh(0.5 * (x - c) / s) ** 2
     return out
 
 
@@ -600,14 +628,25 @@ def _fermi_fit(d: np.ndarray, v: np.ndarray, bw: float, lo: float, hi: float,
     dark, bright = levels
     span = bright - dark
 
+    sw = np.sqrt(nb)
+
+    def jac(p: np.ndarray) -> np.ndarray:
+        cols = [sw]
+        for b, c, s in p[1:].reshape(-1, 3):
+            z = (xb - c) / s
+            lg = _logistic(z)
+            dl = lg * (1.0 - lg)
+            cols += [lg * sw, -b * dl / s * sw, -b * dl * z / s * sw]
+        return np.column_stack(cols)
+
     def fit(p0: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray | None:
         try:
             res = optimize.least_squares(
-                lambda p: (_fermi(xb, p) - yb) * np.sqrt(nb), p0, bounds=(lower, upper),
-                x_scale="jac", max_nfev=2000)
+                lambda p: (_fermi(xb, p) - yb) * sw, np.clip(p0, lower, upper),
+                jac=jac, bounds=(lower, upper), x_scale="jac", max_nfev=200)
         except (ValueError, np.linalg.LinAlgError):
             return None
-        return res.x if res.success else None
+        return res.x if res.status > 0 else None
 
     big = 10 * abs(span) + 1
     p1 = fit(np.array([dark, span, 0.0, 0.5]),
@@ -622,7 +661,8 @@ def _fermi_fit(d: np.ndarray, v: np.ndarray, bw: float, lo: float, hi: float,
         lower = np.concatenate([[dark - big], np.tile([-big, lo, 0.02], terms)])
         upper = np.concatenate([[bright + big], np.tile([3 * big, hi, 10.0], terms)])
         pn = fit(p0, lower, upper)
-        if pn is not None:
+        # a term narrower than 0.05 px with a visible step is a spike fitted to noise
+        if pn is not None and not np.any((pn[3::3] < 0.05) & (np.abs(pn[1::3]) > 0.05 * span)):
             p, name = pn, f"fermi{terms}"
     a = float(p[0])
     b_tot = float(p[1::3].sum()) if name != "fermi" else float(p[1])

@@ -31,9 +31,9 @@ import numpy as np
 from ..errors import MeasureError
 
 __all__ = [
-    "FitResult",
     "IO_LIMITS_PX",
     "SCANNER_LIMITS_UM",
+    "FitResult",
     "fit_affine",
     "fit_polynomial",
     "interior_orientation",

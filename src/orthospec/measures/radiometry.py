@@ -415,8 +415,8 @@ class BandStats:
 def _used_bits(vmax: float | None, signed: bool) -> int | None:
     if vmax is None or not np.isfinite(vmax):
         return None
-    top = abs(int(math.floor(vmax))) if vmax >= 0 else abs(int(math.floor(vmax))) - 1
-    return max(int(top).bit_length() + (1 if signed else 0), 1)
+    top = math.floor(vmax)
+    return max(abs(top).bit_length() + (1 if signed else 0), 1)
 
 
 def band_stats_from_histogram(
@@ -449,7 +449,7 @@ def band_stats_from_histogram(
         dm = 100.0 * (m.vmin - low) / span
         bm = 100.0 * (high - m.vmax) / span
         cum = np.cumsum(counts)
-        k = max(int(math.ceil(ROBUST_TAIL * n)), 1)
+        k = max(math.ceil(ROBUST_TAIL * n), 1)
         p_lo = int(np.searchsorted(cum, k)) + acc.offset
         p_hi = int(np.searchsorted(cum, n - k + 1)) + acc.offset
         dmr = 100.0 * (p_lo - low) / span
@@ -567,7 +567,7 @@ def phase_correlation(reference: np.ndarray, moving: np.ndarray, *,
     peak = float(np.abs(cc).max())
     if upsample > 1:
         shifts = np.round(shifts * upsample) / upsample
-        region = int(math.ceil(upsample * 1.5))
+        region = math.ceil(upsample * 1.5)
         centre = float(np.fix(region / 2.0))
         offsets = centre - shifts * upsample
         up = _upsampled_dft(product.conj(), region, upsample,

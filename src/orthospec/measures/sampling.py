@@ -64,7 +64,7 @@ def select_sample(
     y: Any,
     *,
     seed: int,
-    round: int = 0,  # noqa: A002 - the redelivery round is the natural name
+    round: int = 0,  # the redelivery round (shadows the builtin on purpose)
     fraction: float = 0.10,
     minimum: int = 1,
     tags: Sequence[Any] | np.ndarray | None = None,

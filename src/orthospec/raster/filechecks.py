@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import re
+import warnings
 from collections import Counter
 from collections.abc import Iterable
 from dataclasses import asdict, dataclass, field
@@ -189,10 +190,13 @@ def check_file(path: str | Path, *, expect_epsg: int | None = None,
     if size == 0:
         return FileChecks(error=f"{p}: zero-size file", **base)
     try:
-        with read_only_env(), rasterio.open(p, "r") as ds:
-            return _check_open(ds, base, expect_epsg=expect_epsg, expect_gsd=expect_gsd,
-                               gsd_tolerance=gsd_tolerance, min_bits=min_bits,
-                               recommended_bits=recommended_bits)
+        with warnings.catch_warnings():
+            # reported as an error below; not a warning to print
+            warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+            with read_only_env(), rasterio.open(p, "r") as ds:
+                return _check_open(ds, base, expect_epsg=expect_epsg,
+                                   expect_gsd=expect_gsd, gsd_tolerance=gsd_tolerance,
+                                   min_bits=min_bits, recommended_bits=recommended_bits)
     except rasterio.errors.RasterioIOError as exc:
         msg = str(exc).replace(str(p) + ": ", "")
         return FileChecks(error=f"{p}: not a readable raster ({msg})", **base)

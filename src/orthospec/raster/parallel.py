@@ -196,8 +196,15 @@ class RichProgress:
     """A rich progress bar with files, bytes and ETA (interactive terminals)."""
 
     def __init__(self) -> None:
-        from rich.progress import (BarColumn, DownloadColumn, MofNCompleteColumn, Progress,
-                                   TextColumn, TimeRemainingColumn, TransferSpeedColumn)
+        from rich.progress import (
+            BarColumn,
+            DownloadColumn,
+            MofNCompleteColumn,
+            Progress,
+            TextColumn,
+            TimeRemainingColumn,
+            TransferSpeedColumn,
+        )
 
         self._p = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                            TextColumn("files"), DownloadColumn(), TransferSpeedColumn(),
@@ -226,11 +233,22 @@ def make_progress(stream: TextIO | None = None) -> Progress:
 # --------------------------------------------------------------------------- batch
 
 
+def _mp_context() -> multiprocessing.context.BaseContext:
+    """forkserver where available: workers fork from a clean server that has already
+    imported orthospec (fast start, no inherited threads or GDAL handles); else spawn."""
+    if "forkserver" in multiprocessing.get_all_start_methods():
+        ctx = multiprocessing.get_context("forkserver")
+        ctx.set_forkserver_preload(["orthospec.raster.parallel"])
+        return ctx
+    return multiprocessing.get_context("spawn")
+
+
 def _check_cache_outside(cache_dir: Path, paths: Sequence[str]) -> None:
+    """Refuse a cache in (or below) an image's folder, or one that holds an image."""
     c = cache_dir.resolve()
     for p in paths:
         parent = Path(p).resolve().parent
-        if parent == c or c in parent.parents:
+        if parent == c or c in parent.parents or parent in c.parents:
             raise MeasureError(f"cache directory {cache_dir} contains the image {p}; "
                                "put the cache outside the delivery")
 
@@ -297,7 +315,7 @@ def scan_images(
                 for i, p in enumerate(p_list):
                     done(i, scan_image(p, opts, cloud_mask=masks.get(p)))
             else:
-                ctx = multiprocessing.get_context("spawn")
+                ctx = _mp_context()
                 with ProcessPoolExecutor(max_workers=n, mp_context=ctx) as pool:
                     futs = {pool.submit(scan_image, p, opts, cloud_mask=masks.get(p)): i
                             for i, p in enumerate(p_list)}

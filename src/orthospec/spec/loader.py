@@ -86,6 +86,8 @@ def schema_problems(doc: Located) -> list[Problem]:
     validator = jsonschema.Draft202012Validator(_schema())
     out = []
     for err in sorted(validator.iter_errors(doc.data), key=lambda e: [str(p) for p in e.absolute_path]):
+        while err.context:  # anyOf/oneOf: report the most specific branch, where the mistake is
+            err = jsonschema.exceptions.best_match(err.context)
         path = tuple(err.absolute_path)
         line, col = doc.where(path)
         loc = "/".join(str(p) for p in path) or "(document)"
@@ -275,6 +277,10 @@ def _merge(prof: Profile, base: ResolvedProfile | None, path: Path, doc: Located
            problems: list[Problem]) -> ResolvedProfile | None:
     params = dict(base.parameters) if base else {}
     for name, p in prof.parameters.items():
+        if name not in params and p.unit is None:
+            line, col = doc.where(("parameters", name))
+            problems.append(Problem(doc.file, line, col, f"parameter {name}: a new parameter needs a unit"))
+            continue
         if name in params:
             merged = params[name].model_dump()
             merged.update(p.model_dump(exclude_unset=True))
@@ -348,7 +354,7 @@ def semantic_problems(p: ResolvedProfile, *, check_measures: bool = True) -> lis
         out.append(Problem(file, line, col, msg, rule.id if rule else None))
 
     for name, par in p.parameters.items():
-        if par.unit not in NON_NUMERIC:
+        if par.unit is not None and par.unit not in NON_NUMERIC:
             try:
                 parse_unit(par.unit)
             except UnitError as exc:

@@ -29,10 +29,10 @@ class Clause(_Strict):
     """Where in the source document a requirement is written."""
 
     document: str = Field(description="Document short name, e.g. 'JRC EUR 23638 EN'.")
-    section: str | None = Field(None, description="Section number, e.g. '12.7'.")
-    table: str | None = Field(None, description="Table number, e.g. '9'.")
-    row: str | None = Field(None, description="Table row or item, when there is one.")
-    figure: str | None = None
+    section: str | int | float | None = Field(None, description="Section number, e.g. '12.7'.")
+    table: str | int | None = Field(None, description="Table number, e.g. 9.")
+    row: str | int | None = Field(None, description="Table row or item, when there is one.")
+    figure: str | int | None = None
     seed: str | None = Field(None, description="Seed file the quote is taken from, when not the profile's.")
 
     @field_validator("section", "table", "row", "figure", mode="before")
@@ -55,7 +55,7 @@ class Clause(_Strict):
 
 class Source(_Strict):
     title: str
-    issue: str | None = None
+    issue: str | int | float | None = None
     year: int | None = None
     identifier: str | None = None
     seed: str | None = Field(None, description="Seed file in ../shared/seeds that quotes come from.")
@@ -70,7 +70,8 @@ class Source(_Strict):
 class Parameter(_Strict):
     """A value the tender fixes (tolerance, pixel size...), with its unit."""
 
-    unit: str = Field(description="m, mm, µm, ft, usft, px, %, deg, DN, 1, or text/bool/date.")
+    unit: str | None = Field(None, description="m, mm, µm, ft, usft, px, %, deg, DN, 1, or text/bool/date "
+                                               "(required for a new parameter; optional when overriding).")
     default: Scalar | None = Field(None, description="Value from the standard, when it gives one.")
     value: Scalar | None = Field(None, description="Value fixed by a tender profile (wins over defaults).")
     required: bool = False
@@ -94,7 +95,7 @@ class Requirement(_Strict):
 class Audit(_Strict):
     """JRC Tables 6 and 10: who produces the QCR, how the EC inspects it, when."""
 
-    table: str | None = None
+    table: str | int | None = None
     qcr: str | None = None
     qcr_production: str | None = None
     inspection: str | None = None

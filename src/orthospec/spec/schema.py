@@ -17,6 +17,12 @@ SCHEMA_BASE = "https://orthospec.dev/schema/"
 
 def profile_schema() -> dict[str, Any]:
     s = Profile.model_json_schema(mode="validation")
+    # if/then/else instead of oneOf: editors and validators then report the mistake inside the rule
+    s["properties"]["rules"]["items"] = {
+        "if": {"properties": {"override": {"const": True}}, "required": ["override"]},
+        "then": {"$ref": "#/$defs/RuleOverride"},
+        "else": {"$ref": "#/$defs/Rule"},
+    }
     s["$schema"] = "https://json-schema.org/draft/2020-12/schema"
     s["$id"] = SCHEMA_BASE + "profile.schema.json"
     s["title"] = "orthospec spec profile"

@@ -1,0 +1,248 @@
+"""Block-level checkpoint statistics (JRC §12.5-§12.7, USGS, NSSDA) and per-point blunder decisions.
+
+Adapts the delivery's checkpoints (and GCPs, block polygons, contractor-reported values) to the pure
+functions of :mod:`orthospec.measures.accuracy` and :mod:`orthospec.measures.distribution`.
+Official block statistics drop only *justified* blunder exclusions (§12.6); ``*_all`` keep every point.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from shapely.geometry import Polygon
+
+from ...errors import MeasureError
+from ...measures.accuracy import AccuracyStats, detect_blunders
+from ...measures.distribution import checkpoint_distribution
+from ...provenance import Evidence
+from ...units import convert
+from ..registry import Measured, ProviderContext, provider
+
+_STATS = {
+    "n": "1", "rmse_x": "L", "rmse_y": "L", "rmse_z": "L", "rmse_r": "L", "mean_x": "L", "mean_y": "L",
+    "mean_z": "L", "std_x": "L", "std_y": "L", "std_z": "L", "max_abs_dx": "L", "max_abs_dy": "L",
+    "max_abs_dz": "L", "max_dr": "L", "ce90": "L", "ce95": "L", "ce90_selected": "L",
+    "ce95_selected": "L", "ce90_empirical": "L", "ce95_empirical": "L", "nssda_horizontal_95": "L",
+    "nssda_vertical_95": "L", "nssda_ratio": "1", "bias_ratio": "1",
+}
+BLOCK_MEASURES: dict[str, str] = {f"checkpoints.{k}": ("m" if u == "L" else u) for k, u in _STATS.items()}
+BLOCK_MEASURES.update({
+    "checkpoints.rmse_x_all": "m", "checkpoints.rmse_y_all": "m", "checkpoints.rmse_z_all": "m",
+    "checkpoints.n_all": "1", "checkpoints.excluded": "1", "checkpoints.blunders": "1",
+    "checkpoints.blunders_unjustified": "1", "checkpoints.bias_negligible": "bool",
+    "checkpoints.nssda_approximation_holds": "bool",
+    "checkpoints.rmse_x_gsd": "px", "checkpoints.rmse_y_gsd": "px",
+    "checkpoints.quadrant_min_share": "%", "checkpoints.spacing_ratio": "1",
+    "checkpoints.min_gcp_distance": "m", "checkpoints.near_gcp": "1", "checkpoints.outside_block": "1",
+    "checkpoints.reported_diff_x": "m", "checkpoints.reported_diff_y": "m",
+    "checkpoints.reported_diff_z": "m",
+})
+POINT_MEASURES = {
+    "checkpoint.dx": "m", "checkpoint.dy": "m", "checkpoint.dz": "m", "checkpoint.dr": "m",
+    "checkpoint.blunder_ok": "bool", "checkpoint.decision": "text",
+}
+
+
+def _param(ctx: ProviderContext, name: str, default: Any, unit: str | None = None) -> Any:
+    v = ctx.parameters.get(name)
+    if v is None:
+        return default
+    if unit and hasattr(v, "to"):
+        return float(v.to(unit).magnitude)
+    return getattr(v, "magnitude", v)
+
+
+def _compute(ctx: ProviderContext) -> dict[str, Any]:
+    if "checkpoints" not in ctx.memo:
+        ctx.memo["checkpoints"] = _compute_once(ctx)
+    return ctx.memo["checkpoints"]
+
+
+def _compute_once(ctx: ProviderContext) -> dict[str, Any]:
+    d = ctx.delivery
+    t = d.table("checkpoints")
+    if t is None:
+        return {"missing": "the manifest declares no 'checkpoints' table"}
+    df = t.df
+    unit = t.units.get("x", "m")
+    to_m = float(convert([1.0], unit, "m")[0])
+    gcps = d.table("gcps")
+    polys = {}
+    for b in d.manifest.blocks:
+        if b.polygon and len(b.polygon) >= 3:
+            polys[b.id] = Polygon([(float(x) * to_m, float(y) * to_m) for x, y in b.polygon])
+    basis = str(_param(ctx, "blunder_basis", "calculated"))
+    factor = float(_param(ctx, "blunder_factor", 3.0))
+    target = _param(ctx, "tolerance_xy", None, "m")
+    target_z = _param(ctx, "tolerance_z", None, "m")
+    min_gcp = float(_param(ctx, "min_checkpoint_gcp_distance", 0.0, "m") or 0.0)
+    min_count = int(_param(ctx, "min_checkpoints", 20))
+    gsd = d.gsd_m
+    blocks: dict[str, dict[str, Any]] = {}
+    points: dict[str, dict[str, Any]] = {}
+    table_detail: dict[str, list[dict[str, Any]]] = {}
+    for block, g in df.groupby(df["block"].astype(str), sort=True):
+        rows = tuple(int(r) for r in g["_row"])
+        ev = (Evidence(t.file, t.sha256, rows),)
+        ids = g["point_id"].astype(str).to_numpy()
+        dx = (g["x"].to_numpy(float) - g["x_ref"].to_numpy(float)) * to_m
+        dy = (g["y"].to_numpy(float) - g["y_ref"].to_numpy(float)) * to_m
+        dz = None
+        if "z" in g and "z_ref" in g:
+            zz = (g["z"].astype(float) - g["z_ref"].astype(float)).to_numpy(float) * to_m
+            dz = None if np.isnan(zz).all() else zz
+        excl: dict[str, str | None] = {}
+        if "excluded" in g:
+            for pid, flag, why in zip(ids, g["excluded"], g.get("exclusion_reason", [None] * len(g)),
+                                      strict=False):
+                if flag is True:
+                    excl[pid] = why
+        out: dict[str, Any] = {"evidence": ev}
+        try:
+            br = detect_blunders(dx, dy, dz, ids=ids, basis=basis if basis in ("calculated", "target")
+                                 else "calculated", factor=factor, target_rmse_xy=target,
+                                 target_rmse_z=target_z, exclusions=excl, gsd=gsd, unit="m")
+        except MeasureError as exc:
+            out["error"] = f"{t.file}: block {block}: {exc}"
+            blocks[block] = out
+            continue
+        st: AccuracyStats = br.stats_kept or br.stats_all
+        for k in _STATS:
+            out[f"checkpoints.{k}"] = getattr(st, k) if k in st.__dataclass_fields__ else st.to_dict().get(k)
+        out["checkpoints.ce90_selected"] = st.ce90_selected
+        out["checkpoints.ce95_selected"] = st.ce95_selected
+        out["checkpoints.bias_negligible"] = st.bias_negligible
+        out["checkpoints.nssda_approximation_holds"] = st.nssda_approximation_holds
+        out["checkpoints.rmse_x_all"] = br.stats_all.rmse_x
+        out["checkpoints.rmse_y_all"] = br.stats_all.rmse_y
+        out["checkpoints.rmse_z_all"] = br.stats_all.rmse_z
+        out["checkpoints.n_all"] = br.stats_all.n
+        out["checkpoints.excluded"] = len(br.excluded)
+        out["checkpoints.blunders"] = len(br.candidates)
+        out["checkpoints.blunders_unjustified"] = len(br.errors)
+        if gsd:
+            out["checkpoints.rmse_x_gsd"] = st.rmse_x / gsd
+            out["checkpoints.rmse_y_gsd"] = st.rmse_y / gsd
+        gx = gy = gids = None
+        if gcps is not None:
+            gg = gcps.df[gcps.df["block"].astype(str) == block]
+            gunit = float(convert([1.0], gcps.units.get("x", "m"), "m")[0])
+            gx, gy = gg["x"].to_numpy(float) * gunit, gg["y"].to_numpy(float) * gunit
+            gids = gg["point_id"].astype(str).to_numpy()
+        try:
+            dist = checkpoint_distribution(
+                g["x_ref"].to_numpy(float) * to_m, g["y_ref"].to_numpy(float) * to_m, ids=ids,
+                area=polys.get(block), gcp_x=gx, gcp_y=gy, gcp_ids=gids, min_gcp_distance=min_gcp,
+                footprint=polys.get(block), min_count=min_count)
+            out["checkpoints.quadrant_min_share"] = dist.min_quadrant_share * 100.0
+            out["checkpoints.spacing_ratio"] = dist.nn_min_ratio
+            out["checkpoints.min_gcp_distance"] = dist.gcp_min_distance
+            out["checkpoints.near_gcp"] = len(dist.too_close_to_gcp) + len(dist.identical_to_gcp)
+            out["checkpoints.outside_block"] = len(dist.outside_footprint) if polys.get(block) else None
+            out["distribution_source"] = dist.split_source
+        except MeasureError as exc:
+            out["distribution_error"] = str(exc)
+        decisions = {dd.point_id: dd for dd in br.decisions}
+        limit = (br.limit_x, br.limit_y)
+        rows_by_id = dict(zip(ids, rows, strict=True))
+        detail = []
+        for i, pid in enumerate(ids):
+            dd = decisions[pid]
+            points[pid] = {
+                "checkpoint.dx": dx[i], "checkpoint.dy": dy[i],
+                "checkpoint.dz": None if dz is None else dz[i], "checkpoint.dr": dd.dr,
+                "checkpoint.blunder_ok": not dd.is_error, "checkpoint.decision": dd.decision,
+                "reason": dd.reason,
+                "evidence": (Evidence(t.file, t.sha256, (rows_by_id[pid],)),),
+            }
+            detail.append({
+                "point_id": pid, "dx": dx[i], "dy": dy[i], "dz": None if dz is None else dz[i], "dr": dd.dr,
+                "x_ref": float(g["x_ref"].iloc[i]) * to_m, "y_ref": float(g["y_ref"].iloc[i]) * to_m,
+                "status": "fail" if dd.candidate else "pass", "decision": dd.decision, "row": rows_by_id[pid],
+            })
+        table_detail[block] = {
+            "points": detail,
+            "limit_x": limit[0], "limit_y": limit[1], "basis": br.basis, "unit": "m",
+            "stats": {k: out.get(f"checkpoints.{k}") for k in ("n", "mean_x", "mean_y", "std_x", "std_y",
+                                                               "rmse_x", "rmse_y", "rmse_z", "max_abs_dx",
+                                                               "max_abs_dy", "max_dr")},
+            "gcps": [] if gx is None else [{"point_id": str(a), "x": float(b), "y": float(c)}
+                                           for a, b, c in zip(gids, gx, gy, strict=True)],
+            "area_source": out.get("distribution_source"),
+        }
+        # reported vs recomputed (a disagreement is itself a finding)
+        rep = next((b.reported for b in d.manifest.blocks if b.id == block and b.reported), None)
+        for axis in ("x", "y", "z"):
+            key = f"rmse_{axis}"
+            if rep and key in rep and getattr(st, key) is not None:
+                rv = float(convert([rep[key].value], rep[key].unit, "m")[0])
+                out[f"checkpoints.reported_diff_{axis}"] = abs(rv - float(getattr(st, key)))
+                out[f"reported_{axis}"] = rv
+        blocks[block] = out
+    return {"blocks": blocks, "points": points, "detail": table_detail}
+
+
+@provider(scope="block", measures=BLOCK_MEASURES)
+def block_checkpoint_stats(ctx: ProviderContext) -> list[Measured]:
+    """Checkpoint statistics per block (RMSE, CE, NSSDA, bias, blunders, distribution)."""
+    got = _compute(ctx)
+    d = ctx.delivery
+    items = d.block_ids
+    out = []
+    if "missing" in got:
+        note = pd.Series({b: got["missing"] for b in items}, dtype=object)
+        for name, unit in BLOCK_MEASURES.items():
+            out.append(Measured(name, "block", unit, pd.Series({b: None for b in items}, dtype=object),
+                                pd.Series({b: (d.manifest_evidence("tables"),) for b in items}, dtype=object),
+                                notes=note))
+        return out
+    blocks = got["blocks"]
+    for name, unit in BLOCK_MEASURES.items():
+        vals, evs, notes, errs, na = {}, {}, {}, {}, {}
+        for b in items:
+            rec = blocks.get(b)
+            if rec is None:
+                vals[b], evs[b] = None, (d.manifest_evidence("blocks"),)
+                notes[b] = f"no checkpoints for block {b}"
+                continue
+            evs[b] = rec["evidence"]
+            if "error" in rec:
+                vals[b], errs[b] = None, rec["error"]
+                continue
+            vals[b] = rec.get(name)
+            if name.startswith("checkpoints.reported_diff_"):
+                axis = name[-1]
+                if vals[b] is None:
+                    na[b] = f"block {b} reports no rmse_{axis}"
+                else:
+                    notes[b] = (f"reported RMSE_{axis} {rec[f'reported_{axis}']:.4g} m vs recomputed "
+                                f"{rec[f'checkpoints.rmse_{axis}']:.4g} m")
+            elif vals[b] is None and "distribution_error" in rec and name in (
+                    "checkpoints.quadrant_min_share", "checkpoints.spacing_ratio"):
+                notes[b] = rec["distribution_error"]
+        out.append(Measured(
+            name, "block", unit, pd.Series(vals, dtype=object), pd.Series(evs, dtype=object),
+            detail={"checkpoints": got["detail"]} if name == "checkpoints.rmse_x" else None,
+            notes=pd.Series(notes, dtype=object) if notes else None,
+            errors=pd.Series(errs, dtype=object) if errs else None,
+            na=pd.Series(na, dtype=object) if na else None))
+    return out
+
+
+@provider(scope="checkpoint", measures=POINT_MEASURES)
+def point_decisions(ctx: ProviderContext) -> list[Measured]:
+    """Per-checkpoint discrepancies and blunder/exclusion decisions (one QCR per point, §12.6)."""
+    got = _compute(ctx)
+    out = []
+    pts = got.get("points", {})
+    for name, unit in POINT_MEASURES.items():
+        vals = {p: v[name] for p, v in pts.items()}
+        evs = {p: v["evidence"] for p, v in pts.items()}
+        notes = {p: v["reason"] for p, v in pts.items()} if name in ("checkpoint.blunder_ok",
+                                                                      "checkpoint.decision") else None
+        out.append(Measured(name, "checkpoint", unit, pd.Series(vals, dtype=object),
+                            pd.Series(evs, dtype=object),
+                            notes=pd.Series(notes, dtype=object) if notes else None))
+    return out

@@ -1,0 +1,216 @@
+"""Accuracy figures as deterministic SVG text: checkpoint map, quadrants, residual histograms.
+
+The checkpoint map follows JRC EUR 23638 EN Figure 5 ("Output from External QC Showing Check
+Points, Discrepancies and GCPs"): points, discrepancy vectors exaggerated by a scale factor
+with a scale arrow, GCPs. Same inputs give byte-identical SVG: Agg backend, fixed
+``svg.hashsalt``, no date in the metadata. Key artists carry a ``gid`` so reports and tests
+can find them (``checkpoints``, ``discrepancy-vectors``, ``scale-arrow``, ``gcps``...).
+"""
+
+from __future__ import annotations
+
+import io
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg", force=False)
+
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.figure import Figure
+from matplotlib.patches import FancyArrowPatch
+
+from ..errors import MeasureError
+
+__all__ = ["checkpoint_map_svg", "quadrant_distribution_svg", "residual_histograms_svg"]
+
+_RC = {
+    "svg.hashsalt": "orthospec",
+    "svg.fonttype": "none",  # text stays text: smaller, searchable, font-independent
+    "font.family": "DejaVu Sans",
+    "figure.dpi": 100,
+}
+
+
+def _svg(fig: Figure) -> str:
+    buf = io.StringIO()
+    with plt.rc_context(_RC):
+        fig.savefig(buf, format="svg", metadata={"Date": None, "Creator": "orthospec"})
+    plt.close(fig)
+    return buf.getvalue()
+
+
+def _arr(name: str, v: Any, n: int | None = None) -> np.ndarray:
+    a = np.asarray(v, dtype=float).ravel()
+    if n is not None and a.size != n:
+        raise MeasureError(f"{name} has {a.size} values, expected {n}")
+    if not np.isfinite(a).all():
+        raise MeasureError(f"{name} contains non-finite values")
+    return a
+
+
+def _nice(v: float) -> float:
+    """A 1-2-5 round number close to ``v`` (for the scale arrow)."""
+    if v <= 0 or not math.isfinite(v):
+        return 1.0
+    e = math.floor(math.log10(v))
+    for m in (1, 2, 5, 10):
+        if m * 10**e >= v:
+            return float(m * 10**e)
+    return float(10 ** (e + 1))
+
+
+def checkpoint_map_svg(
+    x: Any,
+    y: Any,
+    dx: Any,
+    dy: Any,
+    *,
+    ids: Sequence[Any] | None = None,
+    gcp_x: Any = None,
+    gcp_y: Any = None,
+    scale: float | None = None,
+    unit: str = "m",
+    flagged: Sequence[Any] = (),
+    title: str = "Checkpoints and discrepancies",
+) -> str:
+    """Checkpoint map with discrepancy vectors (× ``scale``) and GCPs, as SVG text.
+
+    ``scale`` defaults to one that makes the largest discrepancy 8 % of the map extent.
+    ``flagged`` ids (e.g. blunder candidates) are drawn in red.
+    """
+    ax_x = _arr("x", x)
+    n = ax_x.size
+    if n == 0:
+        raise MeasureError("no checkpoints to draw")
+    ax_y, vdx, vdy = _arr("y", y, n), _arr("dx", dx, n), _arr("dy", dy, n)
+    labels = [str(i) for i in ids] if ids is not None else [str(i) for i in range(n)]
+    if len(labels) != n:
+        raise MeasureError(f"{len(labels)} ids for {n} checkpoints")
+    extent = max(float(np.ptp(ax_x)), float(np.ptp(ax_y)), 1e-9)
+    dmax = float(np.hypot(vdx, vdy).max())
+    if scale is None:
+        scale = 0.08 * extent / dmax if dmax > 0 else 1.0
+    if not (math.isfinite(scale) and scale > 0):
+        raise MeasureError(f"scale must be positive, got {scale}")
+
+    with plt.rc_context(_RC):
+        fig, ax = plt.subplots(figsize=(7, 7))
+        red = np.isin(np.asarray(labels), [str(f) for f in flagged])
+        pts = ax.scatter(ax_x, ax_y, s=18, c=np.where(red, "tab:red", "tab:blue"), zorder=3,
+                         label="check point")
+        pts.set_gid("checkpoints")
+        q = ax.quiver(ax_x, ax_y, vdx * scale, vdy * scale, angles="xy", scale_units="xy",
+                      scale=1, color=np.where(red, "tab:red", "black"), width=0.003, zorder=4)
+        q.set_gid("discrepancy-vectors")
+        for xi, yi, lab in zip(ax_x, ax_y, labels, strict=True):
+            ax.annotate(lab, (xi, yi), xytext=(3, 3), textcoords="offset points", fontsize=6)
+        if gcp_x is not None and gcp_y is not None:
+            gx = _arr("gcp_x", gcp_x)
+            gy = _arr("gcp_y", gcp_y, gx.size)
+            g = ax.scatter(gx, gy, marker="^", s=40, facecolors="none", edgecolors="tab:green",
+                           zorder=2, label="GCP")
+            g.set_gid("gcps")
+        ref_len = _nice(dmax if dmax > 0 else 1.0)
+        x0 = float(ax_x.min())
+        y0 = float(ax_y.min()) - 0.08 * extent
+        arrow = FancyArrowPatch((x0, y0), (x0 + ref_len * scale, y0), arrowstyle="->",
+                                mutation_scale=12, color="black", gid="scale-arrow")
+        ax.add_patch(arrow)
+        ax.text(x0, y0 - 0.03 * extent, f"{ref_len:g} {unit} discrepancy (vectors × {scale:.3g})",
+                fontsize=8, gid="scale-label")
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.set_xlabel(f"Easting ({unit})")
+        ax.set_ylabel(f"Northing ({unit})")
+        ax.set_title(title)
+        ax.legend(loc="best", fontsize=8)
+        ax.ticklabel_format(useOffset=False, style="plain")
+        fig.tight_layout()
+        return _svg(fig)
+
+
+def quadrant_distribution_svg(
+    x: Any,
+    y: Any,
+    *,
+    centre: tuple[float, float],
+    shares: dict[str, float] | None = None,
+    area: Sequence[tuple[float, float]] | None = None,
+    min_share: float = 0.20,
+    unit: str = "m",
+    title: str = "Check point distribution by quadrant",
+) -> str:
+    """Points with the quadrant split lines and each quadrant's share (JRC Figure 4).
+
+    ``centre`` and ``shares`` come from :func:`orthospec.measures.distribution.checkpoint_distribution`;
+    shares below ``min_share`` are printed in red.
+    """
+    ax_x = _arr("x", x)
+    ax_y = _arr("y", y, ax_x.size)
+    if ax_x.size == 0:
+        raise MeasureError("no checkpoints to draw")
+    cx, cy = centre
+    with plt.rc_context(_RC):
+        fig, ax = plt.subplots(figsize=(6, 6))
+        if area is not None:
+            ring = np.asarray(area, dtype=float)
+            (ln,) = ax.plot(np.r_[ring[:, 0], ring[0, 0]], np.r_[ring[:, 1], ring[0, 1]],
+                            color="grey", lw=1)
+            ln.set_gid("area")
+        ax.scatter(ax_x, ax_y, s=18, color="tab:blue", zorder=3).set_gid("checkpoints")
+        ax.axvline(cx, color="black", lw=0.8, ls="--", gid="split-x")
+        ax.axhline(cy, color="black", lw=0.8, ls="--", gid="split-y")
+        if shares:
+            xmin, xmax = min(ax_x.min(), cx), max(ax_x.max(), cx)
+            ymin, ymax = min(ax_y.min(), cy), max(ax_y.max(), cy)
+            pos = {"NE": ((cx + xmax) / 2, (cy + ymax) / 2), "NW": ((xmin + cx) / 2, (cy + ymax) / 2),
+                   "SW": ((xmin + cx) / 2, (ymin + cy) / 2), "SE": ((cx + xmax) / 2, (ymin + cy) / 2)}
+            for q, (px, py) in pos.items():
+                s = shares.get(q, 0.0)
+                ax.text(px, py, f"{q} {s:.0%}", ha="center", va="center", fontsize=11,
+                        color="tab:red" if s < min_share else "tab:green", gid=f"share-{q}")
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.set_xlabel(f"Easting ({unit})")
+        ax.set_ylabel(f"Northing ({unit})")
+        ax.set_title(title)
+        ax.ticklabel_format(useOffset=False, style="plain")
+        fig.tight_layout()
+        return _svg(fig)
+
+
+def residual_histograms_svg(
+    dx: Any,
+    dy: Any,
+    dz: Any = None,
+    *,
+    unit: str = "m",
+    bins: int | str = "auto",
+    title: str = "Check point discrepancies",
+) -> str:
+    """One histogram per axis (dx, dy and dz when given) with the mean and ±RMSE marked."""
+    vdx = _arr("dx", dx)
+    vdy = _arr("dy", dy, vdx.size)
+    series = [("dx", vdx), ("dy", vdy)]
+    if dz is not None:
+        series.append(("dz", _arr("dz", dz, vdx.size)))
+    if vdx.size == 0:
+        raise MeasureError("no discrepancies to draw")
+    with plt.rc_context(_RC):
+        fig, axes = plt.subplots(1, len(series), figsize=(4 * len(series), 3.5), squeeze=False)
+        for ax, (name, v) in zip(axes[0], series, strict=True):
+            _, _, patches = ax.hist(v, bins=bins, color="tab:blue", alpha=0.8)
+            for p in patches:
+                p.set_gid(f"hist-{name}-bar")
+            rmse = float(np.sqrt(np.mean(v * v)))
+            ax.axvline(float(v.mean()), color="black", lw=1, gid=f"mean-{name}")
+            for s in (-rmse, rmse):
+                ax.axvline(s, color="tab:red", lw=1, ls="--", gid=f"rmse-{name}")
+            ax.set_xlabel(f"{name} ({unit})")
+            ax.set_title(f"{name}: mean {v.mean():.3g}, RMSE {rmse:.3g}", fontsize=9)
+        axes[0][0].set_ylabel("points")
+        fig.suptitle(title)
+        fig.tight_layout()
+        return _svg(fig)

@@ -1,0 +1,44 @@
+"""Run a profile's own `tests:` (delivery + params + expected verdicts) so tender authors can test specs."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ..errors import SpecError
+from .loader import load_profile
+
+
+@dataclass(frozen=True)
+class Expectation:
+    what: str
+    expected: str
+    got: str
+
+
+@dataclass
+class Outcome:
+    name: str
+    checks: list[Expectation] = field(default_factory=list)
+
+
+def verify_profile(ref: str | Path) -> list[Outcome]:
+    from ..api import check
+
+    prof = load_profile(ref)
+    outcomes = []
+    for i, t in enumerate(prof.tests):
+        path = (prof.path.parent / t.delivery).resolve()
+        name = t.description or f"tests[{i}] {Path(t.delivery).name}"
+        if not path.is_dir():
+            raise SpecError(f"{prof.path}: tests[{i}]: delivery folder {t.delivery!r} not found")
+        res = check(path, prof, params={k: str(v) for k, v in t.params.items()}, date="2000-01-01")
+        doc = res.document
+        o = Outcome(name)
+        if "verdict" in t.expect:
+            o.checks.append(Expectation("verdict", str(t.expect["verdict"]), doc["verdict"]))
+        got_rules = {r["rule"]: r["verdict"] for r in doc["rules"]}
+        for rid, exp in sorted((t.expect.get("rules") or {}).items()):
+            o.checks.append(Expectation(f"rule {rid}", str(exp), got_rules.get(rid, "absent")))
+        outcomes.append(o)
+    return outcomes

@@ -1,0 +1,76 @@
+"""Shared fixtures: small real deliveries written into tmp_path, the repository's folders."""
+
+from __future__ import annotations
+
+import shutil
+import textwrap
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+DATA = Path(__file__).resolve().parent / "data"
+SEEDS = ROOT.parent / "shared" / "seeds"
+REAL = ROOT.parent / "shared" / "data" / "real"
+EXAMPLES = ROOT / "examples" / "deliveries"
+
+MANIFEST = """\
+orthospec_delivery: 1
+id: D1
+project: {id: P1, name: Test project, crs: "EPSG:25832"}
+contractor: {name: ACME Mapping}
+operator: {name: Jane Doe}
+sensor: {type: aerial, digital: true}
+product: {gsd: {value: 0.25, unit: m}}
+tender: {reference: ITT-1, parameters: {tolerance_xy: {value: 0.5, unit: m}}}
+blocks: [{id: B1}, {id: B2}]
+tables: {images: tables/images.csv, manual_checks: tables/manual.csv}
+waivers: [{rule: R-ROLL, items: [I3], justification: turbulence over the ridge, approver: Chief}]
+"""
+IMAGES = """\
+image_id,file,block,roll,flying_height,std_dn
+I1,images/i1.tif,B1,0.5,1000,30
+I2,images/i2.tif,B1,2.5,,40
+I3,images/i3.tif,B2,4,1100,20
+"""
+MANUAL = """\
+check,item,inspector,date,verdict
+R-VIS,*,Joe Bloggs,2026-01-01,pass
+"""
+
+
+@pytest.fixture
+def mini_profile() -> Path:
+    return DATA / "profiles" / "mini.yaml"
+
+
+@pytest.fixture
+def make_delivery(tmp_path: Path) -> Callable[..., Path]:
+    """Write a small delivery; keyword args replace the manifest or a table's text."""
+
+    def make(name: str = "d", *, manifest: str = MANIFEST, images: str | None = IMAGES,
+             manual: str | None = MANUAL, extra: dict[str, str] | None = None) -> Path:
+        root = tmp_path / name
+        (root / "tables").mkdir(parents=True)
+        (root / "delivery.yaml").write_text(textwrap.dedent(manifest), encoding="utf-8")
+        if images is not None:
+            (root / "tables" / "images.csv").write_text(images, encoding="utf-8")
+        if manual is not None:
+            (root / "tables" / "manual.csv").write_text(manual, encoding="utf-8")
+        for rel, text in (extra or {}).items():
+            (root / rel).parent.mkdir(parents=True, exist_ok=True)
+            (root / rel).write_text(text, encoding="utf-8")
+        return root
+
+    return make
+
+
+@pytest.fixture
+def example_copy(tmp_path: Path) -> Callable[[str], Path]:
+    def copy(name: str) -> Path:
+        dst = tmp_path / name
+        shutil.copytree(EXAMPLES / name, dst)
+        return dst
+
+    return copy

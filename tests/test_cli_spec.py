@@ -1,0 +1,89 @@
+import json
+
+import pytest
+from click.testing import CliRunner
+
+from orthospec.cli.main import cli
+from orthospec.delivery.reader import open_delivery
+
+
+def run(*args):
+    return CliRunner().invoke(cli(), list(map(str, args)))
+
+
+def test_spec_validate_ok_and_bad(mini_profile, tmp_path):
+    ok = run("spec", "validate", mini_profile)
+    assert ok.exit_code == 0 and "valid (mini 1.0.0, 5 rules" in ok.output
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(mini_profile.read_text().replace("scope: image\n    measure: images.roll",
+                                                    "scope: image\n    measure: images.rol"))
+    res = run("spec", "validate", bad)
+    assert res.exit_code == 2
+    assert "bad.yaml:" in res.output and "unknown measure 'images.rol'" in res.output
+
+
+def test_spec_show_and_diff(mini_profile, tmp_path):
+    shown = run("spec", "show", mini_profile, "--json")
+    assert shown.exit_code == 0 and json.loads(shown.output)["id"] == "mini"
+    tender = tmp_path / "tender.yaml"
+    tender.write_text(f"""\
+orthospec_profile: 1
+id: tender
+version: 1.0.0
+title: A tender
+source: {{title: ITT 1}}
+extends: {{id: mini, version: 1.0.0}}
+parameters:
+  max_roll: {{value: 2}}
+remove_rules: [R-CV]
+rules:
+  - id: R-ROLL
+    override: true
+    level: recommended
+""")
+    (tmp_path / "mini.yaml").write_text(mini_profile.read_text())
+    res = run("spec", "diff", tmp_path / "mini.yaml", tender)
+    assert res.exit_code == 0, res.output
+    assert "- rule R-CV" in res.output
+    assert "~ rule R-ROLL" in res.output and "level: 'mandatory' -> 'recommended'" in res.output
+    assert "~ parameter max_roll" in res.output and "value: None -> 2" in res.output
+
+
+def test_explain(mini_profile):
+    res = run("explain", "R-ROLL", "--profile", mini_profile)
+    assert res.exit_code == 0
+    assert "§5.2.4" in res.output and "images.roll" in res.output and "<= max_roll" in res.output
+    miss = run("explain", "R-RO", "--profile", mini_profile)
+    assert miss.exit_code != 0 and "did you mean R-ROLL" in miss.output
+
+
+def test_profiles_lists_given_files(mini_profile):
+    res = run("profiles", mini_profile)
+    assert res.exit_code == 0 and "mini" in res.output and "1.0.0" in res.output
+
+
+def test_init_writes_a_valid_template(tmp_path):
+    res = run("init", tmp_path / "new")
+    assert res.exit_code == 0
+    d = open_delivery(tmp_path / "new")
+    d.load_all_tables()
+    assert d.manifest.project.crs == "EPSG:25832"
+    again = run("init", tmp_path / "new")
+    assert again.exit_code != 0
+
+
+def test_verify_runs_profile_tests(mini_profile, make_delivery, tmp_path):
+    root = make_delivery()
+    prof = tmp_path / "v.yaml"
+    prof.write_text(mini_profile.read_text() + f"""
+tests:
+  - delivery: {root}
+    expect: {{verdict: rejected, rules: {{R-ROLL: waived, R-FH: fail}}}}
+  - delivery: {root}
+    params: {{max_roll: 10}}
+    expect: {{verdict: accepted}}
+""")
+    res = run("verify", prof)
+    assert "3 of 4 expectations met" in res.output, res.output
+    assert res.exit_code == 1
+    assert "MISMATCH" in res.output

@@ -1,0 +1,129 @@
+import json
+
+import numpy as np
+import pytest
+
+from orthospec.api import check
+from orthospec.engine.params import ParameterError
+from tests.conftest import MANIFEST
+
+
+def recs(doc, rule):
+    return {r["item"]: r for r in doc["records"] if r["rule"] == rule}
+
+
+def test_verdicts_per_item(make_delivery, mini_profile):
+    doc = check(make_delivery(), mini_profile, date="2026-01-01").document
+    roll = recs(doc, "R-ROLL")
+    assert {k: v["verdict"] for k, v in roll.items()} == {"I1": "pass", "I2": "pass", "I3": "waived"}
+    assert roll["I3"]["waived_verdict"] == "fail"
+    assert roll["I3"]["waiver"]["approver"] == "Chief"
+    assert roll["I1"]["requirement"]["value"] == 3.0 and roll["I1"]["requirement"]["unit"] == "deg"
+    assert roll["I1"]["evidence"][0]["rows"] == [1]
+    fh = recs(doc, "R-FH")
+    assert fh["I2"]["verdict"] == "fail"  # flying height absent on row 2
+    cv = recs(doc, "R-CV")
+    assert cv["I3"]["verdict"] == "warn"  # recommended level => warn, not fail
+    assert cv["I1"]["requirement"]["min"] == pytest.approx(25.6)
+    assert recs(doc, "R-VIS")["D1"]["verdict"] == "pass"
+
+
+def test_rollup_counts_rejected_images(make_delivery, mini_profile):
+    doc = check(make_delivery(), mini_profile, date="2026-01-01").document
+    assert doc["rollup"]["rejected"] == {"image": ["I2"]}  # I3 is waived, not rejected
+    share = recs(doc, "R-ROLLUP")["D1"]
+    assert share["measured"]["value"] == pytest.approx(100 / 3)
+    assert share["verdict"] == "fail"
+    assert doc["verdict"] == "rejected"
+
+
+def test_fixing_the_data_accepts(make_delivery, mini_profile):
+    images = "image_id,file,block,roll,flying_height,std_dn\nI1,a.tif,B1,0.5,1000,30\nI2,b.tif,B1,1,900,40\n"
+    doc = check(make_delivery(images=images), mini_profile, date="2026-01-01").document
+    assert doc["verdict"] == "accepted"
+    assert doc["summary"]["fail"] == 0
+    assert doc["waivers_unused"] and doc["waivers_unused"][0]["rule"] == "R-ROLL"
+
+
+def test_fail_on_warn_makes_recommended_blocking(make_delivery, mini_profile):
+    images = "image_id,file,block,roll,flying_height,std_dn\nI1,a.tif,B1,0.5,1000,5\n"
+    soft = check(make_delivery("a", images=images), mini_profile, date="2026-01-01").document
+    hard = check(make_delivery("b", images=images), mini_profile, date="2026-01-01", fail_on="warn").document
+    assert soft["verdict"] == "accepted" and soft["summary"]["warn"] == 1
+    assert hard["verdict"] == "rejected"
+
+
+def test_manual_check_without_record_is_missing(make_delivery, mini_profile):
+    doc = check(make_delivery(manual="check,item,inspector,date,verdict\n"), mini_profile,
+                date="2026-01-01").document
+    vis = recs(doc, "R-VIS")["D1"]
+    assert vis["verdict"] == "missing" and "no recorded verdict" in vis["message"]
+    assert doc["verdict"] == "rejected"
+
+
+def test_cli_param_overrides_and_unit_conversion(make_delivery, mini_profile):
+    # 100 cm = 1 deg? no: max_roll is in degrees; 0.6 deg makes I2 (2.5 deg) fail
+    doc = check(make_delivery(), mini_profile, date="2026-01-01", params=["max_roll=0.6deg"]).document
+    assert recs(doc, "R-ROLL")["I2"]["verdict"] == "fail"
+    assert doc["profile"]["parameters"]["max_roll"] == {"value": 0.6, "unit": "deg", "source": "cli"}
+    assert doc["profile"]["parameters"]["tolerance_xy"]["source"] == "delivery"
+
+
+@pytest.mark.parametrize("param, message", [
+    ("max_roll=3m", "does not convert"),
+    ("nope=1", "has no such parameter"),
+    ("max_roll", "expected NAME=VALUE"),
+    ("max_roll=abc", "cannot read 'abc'"),
+])
+def test_bad_params(make_delivery, mini_profile, param, message):
+    with pytest.raises(ParameterError, match=message):
+        check(make_delivery(), mini_profile, params=[param])
+
+
+def test_required_parameter_unset(make_delivery, mini_profile):
+    manifest = MANIFEST.replace("tender: {reference: ITT-1, parameters: {tolerance_xy: {value: 0.5, unit: m}}}\n", "")
+    with pytest.raises(ParameterError, match="needs parameter"):
+        check(make_delivery(manifest=manifest), mini_profile)
+
+
+def test_a_crashing_rule_is_error_and_others_still_run(make_delivery, tmp_path, mini_profile):
+    text = mini_profile.read_text().replace("measure: images.std_dn", "measure: images.bands")
+    p = tmp_path / "p.yaml"
+    p.write_text(text)
+    doc = check(make_delivery(), p, date="2026-01-01").document
+    cv = recs(doc, "R-CV")
+    assert {r["verdict"] for r in cv.values()} == {"error"}
+    assert "text" in next(iter(cv.values()))["message"]
+    assert recs(doc, "R-ROLL")["I1"]["verdict"] == "pass"
+
+
+def test_deterministic_json(make_delivery, mini_profile):
+    from orthospec.qcr import dumps
+
+    root = make_delivery()
+    a = dumps(check(root, mini_profile, date="2026-01-01").document)
+    b = dumps(check(root, mini_profile, date="2026-01-01").document)
+    assert a == b
+    json.loads(a)
+
+
+def test_records_are_schema_valid(make_delivery, mini_profile):
+    import jsonschema
+
+    from orthospec.qcr import qcr_schema
+
+    doc = check(make_delivery(), mini_profile, date="2026-01-01").document
+    jsonschema.validate(doc, qcr_schema())
+
+
+def test_vectorised_over_many_items(make_delivery, mini_profile):
+    n = 5000
+    rng = np.random.default_rng(1)
+    rolls = rng.uniform(0, 4, n)
+    rows = "\n".join(f"I{i},f{i}.tif,B1,{r:.3f},1000,30" for i, r in enumerate(rolls))
+    doc = check(make_delivery(images="image_id,file,block,roll,flying_height,std_dn\n" + rows + "\n"),
+                mini_profile, date="2026-01-01").document
+    roll = recs(doc, "R-ROLL")
+    failing = {k for k, v in roll.items() if v["verdict"] in ("fail", "waived")}
+    expected = {f"I{i}" for i, r in enumerate(np.round(rolls, 3)) if r > 3}
+    assert failing == expected

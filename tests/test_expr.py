@@ -1,0 +1,69 @@
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from orthospec.errors import ExpressionError
+from orthospec.spec.expr import parse
+from orthospec.units import Q_
+
+
+@pytest.mark.parametrize("src, names, expected", [
+    ("3 * tolerance", {"tolerance": 2.0}, 6.0),
+    ("tolerance / 3", {"tolerance": 1.5}, 0.5),
+    ("max(a, b) - min(a, b)", {"a": 2.0, "b": 5.0}, 3.0),
+    ("abs(a) ** 2", {"a": -3.0}, 9.0),
+    ("a < b and not c", {"a": 1, "b": 2, "c": False}, True),
+    ("a < b < c", {"a": 1, "b": 3, "c": 2}, False),
+    ("manifest.sensor.type == 'aerial'", {"manifest.sensor.type": "aerial"}, True),
+    ("x == true or y", {"x": False, "y": False}, False),
+    ("7 % 4", {}, 3),
+])
+def test_evaluates(src, names, expected):
+    assert parse(src).evaluate(names) == expected
+
+
+def test_units_flow_through_arithmetic():
+    got = parse("0.5 * pixel").evaluate({"pixel": Q_(0.25, "m")})
+    assert got.to("cm").magnitude == pytest.approx(12.5)
+
+
+def test_incompatible_units_are_refused():
+    with pytest.raises(ExpressionError, match="cannot combine"):
+        parse("a + b").evaluate({"a": Q_(1, "m"), "b": Q_(1, "degree")})
+
+
+def test_vectorised_over_arrays():
+    out = parse("min(a, 2 * b)").evaluate({"a": np.array([1.0, 9.0, 3.0]), "b": 2.0})
+    assert out.tolist() == [1.0, 4.0, 3.0]
+
+
+@pytest.mark.parametrize("src", [
+    "__import__('os').system('true')", "a.__class__", "open('x')", "[1, 2]", "{'a': 1}",
+    "lambda: 1", "a if b else c", "a[0]", "f'{a}'", "a @ b", "a << 1", "x := 1", "(a for a in b)",
+    "min(*a)", "max(a, key=b)", "a.b()", "",
+])
+def test_outside_the_grammar_is_refused(src):
+    with pytest.raises(ExpressionError):
+        parse(src)
+
+
+def test_unknown_name_is_named():
+    with pytest.raises(ExpressionError, match="unknown name 'nope'"):
+        parse("nope + 1").evaluate({})
+
+
+def test_division_by_zero_is_a_clear_error():
+    with pytest.raises(ExpressionError, match="division by zero"):
+        parse("1 / a").evaluate({"a": 0})
+
+
+def test_names_are_collected():
+    assert parse("a + manifest.x.y * min(b, 2)").names == {"a", "manifest.x.y", "b"}
+
+
+@given(st.floats(-1e6, 1e6, allow_nan=False), st.floats(-1e6, 1e6, allow_nan=False))
+def test_min_max_agree_with_python(a, b):
+    names = {"a": a, "b": b}
+    assert parse("min(a, b)").evaluate(names) == min(a, b)
+    assert parse("max(a, b)").evaluate(names) == max(a, b)
