@@ -85,7 +85,8 @@ def _record(r: RuleResult, i: int) -> dict[str, Any]:
     verdict = VERDICTS[v]
     note = r.notes[i]
     if v in (PASS, FAIL, WARN) and note is None:
-        mtxt = f"{rule.measure} = {_fmt(measured)}{' ' + unit if unit and unit != '1' else ''}"
+        shown_unit = f" {unit}" if unit and unit not in ("1", "bool", "text", "date") else ""
+        mtxt = f"{rule.measure} = {_fmt(measured)}{shown_unit}"
         note = f"{mtxt}; required {req.get('text', '')}"
     elif v == WAIVED and r.original is not None:
         w = r.waivers.get(item, {})

@@ -41,15 +41,21 @@ def render_documents(doc: dict, fmts: list[str], *, extra: dict | None = None) -
 @click.option("--operator", default=None, help="Name of the person running the check (recorded in QCRs).")
 @click.option("--workers", type=int, default=None, help="Worker processes for raster checks (default: cores).")
 @click.option("--scheduler", default=None, metavar="ADDRESS", help="Dask distributed scheduler address.")
+@click.option("--sample", "sample_file", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Sample table from `orthospec sample`: only those images/blocks are checked (JRC §12.3).")
 @click.option("--max-items", type=int, default=8, show_default=True,
               help="Offending items listed per rule in the terminal (JSON lists all).")
 @click.option("--verbose", "-v", is_flag=True, help="Show passing rules in the terminal too.")
 def check_cmd(delivery: Path, profile: str, params: tuple[str, ...], out_dir: Path | None, formats: str,
               date: str | None, fail_on: str, operator: str | None, workers: int | None,
-              scheduler: str | None, max_items: int, verbose: bool) -> None:
+              scheduler: str | None, sample_file: Path | None, max_items: int, verbose: bool) -> None:
     """Check DELIVERY against a spec profile; exit 0 accepted, 1 rejected, 2 could not evaluate."""
     fmts = split_formats(formats, FORMATS)
     options = {"workers": workers, "scheduler": scheduler, "progress": sys.stderr.isatty()}
+    if sample_file is not None:
+        from ..engine.sample import read_sample
+
+        options["sample"] = read_sample(sample_file)
     result = check(delivery, profile, params=params, date=date, fail_on=fail_on, operator=operator,
                    options=options)
     doc = result.document

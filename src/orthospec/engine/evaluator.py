@@ -210,6 +210,7 @@ class Evaluator:
                  *, fail_on: str = "fail", options: Mapping[str, Any] | None = None) -> None:
         self.profile, self.d, self.params = profile, delivery, parameters
         self.fail_on = fail_on
+        self.options = dict(options or {})
         ctx = ProviderContext(delivery, {k: v.quantity() for k, v in parameters.items()}, dict(options or {}))
         self.cache = MeasureCache(ctx)
         self.manifest = delivery.flat_manifest()
@@ -287,6 +288,11 @@ class Evaluator:
                 arr = np.asarray(cond, dtype=object)
                 applicable = np.array([bool(c) if c is not None and not (isinstance(c, float) and math.isnan(c))
                                        else False for c in arr], dtype=bool)
+        sampled = self._sample_mask(rule.scope, items)
+        if sampled is not None:
+            for i in np.flatnonzero(applicable & ~sampled):
+                notes[i] = f"not in the external QC sample ({rule.scope})"
+            applicable &= sampled
         values = m.values.reindex(items)
         evidence = m.evidence.reindex(items)
         evidence_list = [e if isinstance(e, tuple) else () for e in evidence.tolist()]
@@ -419,6 +425,13 @@ class Evaluator:
         out["text"] = requirement_text(req, out)
         return out
 
+    def _sample_mask(self, scope: str, items: list[str]) -> np.ndarray | None:
+        """With `check --sample`, items of the sampled scope outside the sample are not checked."""
+        sample = self.options.get("sample")
+        if not sample or sample[0] != scope:
+            return None
+        return np.isin(np.asarray(items, dtype=object), list(sample[1]))
+
     # --- manual rules
     def _manual_table(self) -> pd.DataFrame | None:
         t = self.d.table("manual_checks")
@@ -538,7 +551,10 @@ class Evaluator:
         if imgs is not None:
             all_imgs = imgs.ids.tolist()
             sampled = all_imgs
-            if "sample" in imgs.df and imgs.df["sample"].map(lambda v: v is True).any():
+            given = self.options.get("sample")
+            if given and given[0] == "image":
+                sampled = [i for i in all_imgs if i in given[1]]
+            elif "sample" in imgs.df and imgs.df["sample"].map(lambda v: v is True).any():
                 sampled = imgs.ids[imgs.df["sample"].map(lambda v: v is True)].tolist()
             rej = set(rejected.get("image", [])) & set(sampled)
             share = 100.0 * len(rej) / len(sampled) if sampled else None
@@ -549,6 +565,9 @@ class Evaluator:
         blocks = d.block_ids
         cps = d.table("checkpoints")
         checked = sorted(set(cps.df["block"].astype(str)) & set(blocks)) if cps is not None else []
+        given = self.options.get("sample")
+        if given and given[0] == "block":
+            checked = [b for b in checked if b in given[1]]
         brej = set(rejected.get("block", [])) & set(blocks)
         bshare = 100.0 * len(brej & set(checked or blocks)) / len(checked or blocks) if blocks else None
         bchecked = 100.0 * len(checked) / len(blocks) if blocks else None

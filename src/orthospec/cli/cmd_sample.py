@@ -1,0 +1,45 @@
+"""orthospec sample: draw the external-QC sample (JRC §12.4, §12.8) reproducibly from a seed."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from ..delivery.reader import open_delivery
+from ..engine.sample import draw
+from ..qcr import atomic_write
+from ..spec.loader import load_profile
+from .groups import main
+
+
+@main.command("sample")
+@click.argument("delivery", type=click.Path(file_okay=False, path_type=Path))
+@click.option("--profile", "-p", "profile", default="jrc-v3", show_default=True,
+              help="Profile whose sample_fraction parameter sets the size (10 %% when absent).")
+@click.option("--seed", type=int, required=True, help="Seed: the same seed and round give the same sample.")
+@click.option("--round", "round_", type=int, default=0, show_default=True,
+              help="Redelivery round: each round draws a new sample (it may include earlier items).")
+@click.option("--scope", type=click.Choice(["image", "block"]), default="image", show_default=True)
+@click.option("--fraction", type=float, default=None, help="Share of items to draw (overrides the profile).")
+@click.option("--minimum", type=int, default=1, show_default=True, help="Smallest sample size.")
+@click.option("--out", "out", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="CSV to write (default sample-<scope>-r<round>.csv); give it to `check --sample`.")
+def sample_cmd(delivery: Path, profile: str, seed: int, round_: int, scope: str, fraction: float | None,
+               minimum: int, out: Path | None) -> None:
+    """Select images or blocks for external QC: systematic spread, every tag, problem batches, random part."""
+    d = open_delivery(delivery)
+    d.load_all_tables()
+    if fraction is None:
+        prof = load_profile(profile)
+        par = prof.parameters.get("sample_fraction")
+        val = None if par is None else (par.value if par.value is not None else par.default)
+        fraction = float(val) / (100.0 if par is not None and par.unit == "%" else 1.0) if val is not None else 0.10
+    if not 0 < fraction <= 1:
+        raise click.BadParameter(f"fraction must be in (0, 1], got {fraction}")
+    got = draw(d, scope=scope, seed=seed, round=round_, fraction=fraction, minimum=minimum)
+    target = out or Path(f"sample-{scope}-r{round_}.csv")
+    atomic_write(target, got.table.to_csv(index=False, lineterminator="\n"))
+    s = got.sample
+    click.echo(f"selected {len(s.ids)} of {s.n_items} {scope}s ({100 * s.fraction:.1f} %, target {s.target}) "
+               f"with seed {seed}, round {round_}; wrote {target}")

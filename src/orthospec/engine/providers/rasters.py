@@ -1,0 +1,220 @@
+"""Image-scope measures read from the delivered rasters themselves (JRC §3.2, §6.3-§6.5, §9.2).
+
+One parallel pass (worker processes or Dask) over the files the images table lists; a file that
+is missing, empty or corrupt gives `readable = false` and `error` for every other measure of that
+image, and the rest of the delivery is still checked.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import pandas as pd
+from pyproj import CRS
+from pyproj.exceptions import CRSError
+
+from ...provenance import Evidence
+from ...raster.filechecks import check_name, listing_consistency
+from ...raster.parallel import ImageReport, make_progress, scan_images
+from ..registry import Measured, ProviderContext, provider
+
+IMAGE_MEASURES: dict[str, str] = {
+    "raster.exists": "bool", "raster.readable": "bool", "raster.format": "text", "raster.compression": "text",
+    "raster.lossless": "bool", "raster.tiled": "bool", "raster.bit_depth": "1",
+    "raster.bit_depth_container": "1", "raster.used_bits": "1", "raster.band_count": "1",
+    "raster.bands": "text", "raster.crs_epsg": "1", "raster.crs_ok": "bool", "raster.pixel_size": "m",
+    "raster.pixel_size_diff": "%", "raster.nodata_declared": "bool", "raster.nodata_share": "%",
+    "raster.name_ok": "bool", "raster.georeferenced": "bool",
+    "raster.saturation_low": "%", "raster.saturation_high": "%",
+    "raster.saturation_low_max_band": "%", "raster.saturation_high_max_band": "%",
+    "raster.cv_percent_min": "%", "raster.cv_percent_max": "%", "raster.cv_percent": "%",
+    "raster.std_max": "DN", "raster.noise_std": "DN", "raster.noise_std_8bit": "DN",
+    "raster.dark_margin": "%", "raster.bright_margin": "%", "raster.misregistration": "px",
+    "raster.mean_dn": "DN", "raster.std_dn": "DN", "raster.reported_mean_diff": "DN",
+    "raster.reported_std_diff": "DN",
+}
+DELIVERY_MEASURES = {"raster.unlisted_files": "1", "raster.listed_missing": "1"}
+SMALL_DELIVERY_BYTES = 64 << 20
+_IMAGE_EXT = {".tif", ".tiff", ".jp2", ".j2k", ".img", ".vrt", ".png", ".jpg", ".jpeg", ".ecw", ".sid"}
+
+
+def _epsg(text: str | None) -> int | None:
+    if not text:
+        return None
+    try:
+        return CRS.from_user_input(text).to_epsg()
+    except CRSError:
+        return None
+
+
+def _pooled(bands: list[dict[str, Any]]) -> tuple[float | None, float | None]:
+    """Mean and population std over all bands' valid pixels, exactly, from per-band moments."""
+    n = sum(b.get("valid") or 0 for b in bands)
+    if not n:
+        return None, None
+    mean = sum((b["valid"] or 0) * b["mean"] for b in bands if b.get("mean") is not None) / n
+    ex2 = sum((b["valid"] or 0) * (b["std"] ** 2 + b["mean"] ** 2) for b in bands if b.get("mean") is not None) / n
+    return mean, math.sqrt(max(ex2 - mean * mean, 0.0))
+
+
+def _scan(ctx: ProviderContext) -> dict[str, Any]:
+    if "rasters" in ctx.memo:
+        return ctx.memo["rasters"]
+    d = ctx.delivery
+    t = d.table("images")
+    if t is None:
+        ctx.memo["rasters"] = {"missing": "the manifest declares no 'images' table"}
+        return ctx.memo["rasters"]
+    ids = t.ids.tolist()
+    files = t.df["file"].astype(str).tolist()
+    paths = {}
+    for i, f in zip(ids, files, strict=True):
+        try:
+            paths[i] = d.path(f, what=f"images row for {i}")
+        except Exception as exc:  # path escaping the delivery: an error for that image only
+            paths[i] = exc
+    existing = {i: p for i, p in paths.items() if not isinstance(p, Exception) and p.is_file()}
+    product = d.manifest.product
+    opts = ctx.options
+    progress = make_progress() if opts.get("progress") else None
+    workers = opts.get("workers")
+    if workers is None and sum(p.stat().st_size for p in existing.values()) < SMALL_DELIVERY_BYTES:
+        workers = 1  # process start-up costs more than it saves on a small delivery
+    reports = scan_images(
+        [str(p) for p in existing.values()], workers=workers or None,
+        scheduler=opts.get("scheduler"), cache_dir=opts.get("cache_dir"), bit_depth=product.bit_depth,
+        progress=progress, expect_epsg=_epsg(d.manifest.project.crs), expect_gsd=d.gsd_m,
+    )
+    by_id: dict[str, ImageReport | str] = dict(zip(existing, reports, strict=True))
+    for i, p in paths.items():
+        if i not in by_id:
+            by_id[i] = (str(p) if isinstance(p, Exception) else
+                        f"{files[ids.index(i)]}: listed in {t.file} but not found in the delivery")
+    on_disk = sorted(p.relative_to(d.root).as_posix() for p in d.root.rglob("*")
+                     if p.is_file() and p.suffix.lower() in _IMAGE_EXT)
+    listing = listing_consistency(files, on_disk)
+    ctx.memo["rasters"] = {"reports": by_id, "rows": dict(zip(ids, t.df["_row"], strict=True)),
+                           "table": t, "listing": listing}
+    return ctx.memo["rasters"]
+
+
+def _values(rep: ImageReport, reported: dict[str, Any], gsd: float | None) -> dict[str, Any]:
+    d = rep.to_dict()
+    bands = (rep.radiometry or {}).get("bands", [])
+    mean, std = _pooled(bands)
+    bit_depth = max((b.get("bit_depth") or 0 for b in bands), default=None) or d.get("nbits") or d.get(
+        "bit_depth_container")
+    noise = d.get("image.noise_sigma_homogeneous_max")
+    scale = 255.0 / (2 ** bit_depth - 1) if bit_depth else None
+    ps = d.get("pixel_size_x")
+    out = {
+        "raster.exists": True, "raster.readable": rep.error is None, "raster.format": d.get("driver"),
+        "raster.compression": d.get("compression"), "raster.lossless": d.get("lossless"),
+        "raster.tiled": None if d.get("layout") is None else d.get("layout") == "tiled",
+        "raster.bit_depth": bit_depth, "raster.bit_depth_container": d.get("bit_depth_container"),
+        "raster.used_bits": d.get("image.used_bits_max"), "raster.band_count": d.get("band_count"),
+        "raster.bands": ";".join(d.get("colour_interpretation") or []) or None,
+        "raster.crs_epsg": d.get("epsg"), "raster.crs_ok": d.get("crs_ok"),
+        "raster.georeferenced": d.get("crs") is not None,
+        "raster.pixel_size": ps if d.get("pixel_size_unit") in ("metre", "meter", "m") else None,
+        "raster.pixel_size_diff": (abs(ps - gsd) / gsd * 100.0) if ps and gsd else None,
+        "raster.nodata_declared": d.get("nodata_declared"),
+        "raster.nodata_share": None if d.get("image.nodata_fraction") is None
+        else 100.0 * d["image.nodata_fraction"],
+        "raster.name_ok": d.get("name_ok"),
+        "raster.saturation_low": d.get("image.saturation_low_pct"),
+        "raster.saturation_high": d.get("image.saturation_high_pct"),
+        "raster.saturation_low_max_band": d.get("image.saturation_low_pct_max_band"),
+        "raster.saturation_high_max_band": d.get("image.saturation_high_pct_max_band"),
+        "raster.cv_percent_min": d.get("image.cv_percent_min"),
+        "raster.cv_percent_max": d.get("image.cv_percent_max"),
+        "raster.cv_percent": d.get("luminosity.cv_percent", d.get("image.cv_percent_min")),
+        "raster.std_max": d.get("image.std_max"), "raster.noise_std": noise,
+        "raster.noise_std_8bit": None if noise is None or scale is None else noise * scale,
+        "raster.dark_margin": d.get("image.dark_margin_pct_min"),
+        "raster.bright_margin": d.get("image.bright_margin_pct_min"),
+        "raster.misregistration": d.get("image.misregistration_px_max"),
+        "raster.mean_dn": mean, "raster.std_dn": std,
+        "raster.reported_mean_diff": None if mean is None or reported.get("mean_dn") is None
+        else abs(mean - reported["mean_dn"]),
+        "raster.reported_std_diff": None if std is None or reported.get("std_dn") is None
+        else abs(std - reported["std_dn"]),
+    }
+    return out
+
+
+@provider(scope="image", measures=IMAGE_MEASURES)
+def raster_measures(ctx: ProviderContext) -> list[Measured]:
+    """File checks and exact radiometry of every listed image (streamed, parallel, cached)."""
+    got = _scan(ctx)
+    if "missing" in got:
+        return [Measured(n, "image", u, pd.Series(dtype=object), pd.Series(dtype=object),
+                         notes=pd.Series({"*": got["missing"]}, dtype=object)) for n, u in IMAGE_MEASURES.items()]
+    t = got["table"]
+    df = t.df.set_index(t.ids)
+    values: dict[str, dict[str, Any]] = {n: {} for n in IMAGE_MEASURES}
+    evidence: dict[str, tuple[Evidence, ...]] = {}
+    errors: dict[str, str] = {}
+    name_notes: dict[str, str] = {}
+    for item, rep in got["reports"].items():
+        row = int(got["rows"][item])
+        listed = Evidence(t.file, t.sha256, (row,))
+        name = check_name(str(df.loc[item, "file"]).replace("\\", "/").rsplit("/", 1)[-1])
+        if not name.ok:
+            name_notes[item] = f"file name {name.name!r}: " + "; ".join(name.problems)
+        if isinstance(rep, str):
+            errors[item] = rep
+            evidence[item] = (listed,)
+            for n in IMAGE_MEASURES:
+                values[n][item] = None
+            values["raster.exists"][item] = False
+            values["raster.readable"][item] = False
+            values["raster.name_ok"][item] = name.ok
+            continue
+        rel = df.loc[item, "file"]
+        evidence[item] = (listed, Evidence(str(rel), rep.sha256 or "", ()))
+        reported = {k: df.loc[item, k] for k in ("mean_dn", "std_dn") if k in df.columns
+                    and df.loc[item, k] is not None and not pd.isna(df.loc[item, k])}
+        vals = _values(rep, reported, ctx.delivery.gsd_m)
+        if rep.error is not None:
+            errors[item] = rep.error
+            vals = {n: None for n in IMAGE_MEASURES} | {"raster.exists": True, "raster.readable": False,
+                                                        "raster.name_ok": vals["raster.name_ok"]}
+        for n in IMAGE_MEASURES:
+            values[n][item] = vals.get(n)
+    out = []
+    ev = pd.Series(evidence, dtype=object)
+    for n, u in IMAGE_MEASURES.items():
+        errs = None
+        if errors and n not in ("raster.exists", "raster.readable", "raster.name_ok"):
+            errs = pd.Series(errors, dtype=object)
+        notes = pd.Series(errors, dtype=object) if errors and n in ("raster.exists", "raster.readable") else None
+        if n == "raster.name_ok" and name_notes:
+            notes = pd.Series(name_notes, dtype=object)
+        out.append(Measured(n, "image", u, pd.Series(values[n], dtype=object), ev, notes=notes, errors=errs))
+    return out
+
+
+@provider(scope="delivery", measures=DELIVERY_MEASURES)
+def listing_measures(ctx: ProviderContext) -> list[Measured]:
+    """Files on disk vs the images table, both directions (JRC §6.4: names match the metadata table)."""
+    got = _scan(ctx)
+    d = ctx.delivery
+    if "missing" in got:
+        return [Measured(n, "delivery", u, pd.Series({d.id: None}, dtype=object),
+                         pd.Series({d.id: (d.manifest_evidence("tables"),)}, dtype=object),
+                         notes=pd.Series({d.id: got["missing"]}, dtype=object)) for n, u in DELIVERY_MEASURES.items()]
+    lc = got["listing"]
+    t = got["table"]
+    ev = pd.Series({d.id: t.evidence(t.df["_row"])}, dtype=object)
+    unlisted = list(lc.unlisted)
+    missing = list(lc.listed_missing)
+    return [
+        Measured("raster.unlisted_files", "delivery", "1", pd.Series({d.id: float(len(unlisted))}, dtype=object), ev,
+                 notes=pd.Series({d.id: "not in the images table: " + ", ".join(unlisted)}, dtype=object)
+                 if unlisted else None),
+        Measured("raster.listed_missing", "delivery", "1", pd.Series({d.id: float(len(missing))}, dtype=object), ev,
+                 notes=pd.Series({d.id: "listed but absent: " + ", ".join(missing)}, dtype=object)
+                 if missing else None),
+    ]

@@ -1,0 +1,111 @@
+"""Draw the external-QC sample (JRC §12.4) from a delivery: images or blocks, reproducibly."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from shapely.geometry import Polygon
+
+from ..delivery.reader import Delivery, parse_csv
+from ..delivery.convention import ColumnSpec, TableSpec
+from ..errors import DeliveryError
+from ..measures.sampling import Sample, select_sample
+
+SAMPLE_SPEC = TableSpec(
+    "sample", "delivery", "item", "External QC sample written by `orthospec sample`.",
+    {
+        "item": ColumnSpec("item", "text", None, True, "Selected image or block id."),
+        "scope": ColumnSpec("scope", "text", None, True, "image or block."),
+        "reason": ColumnSpec("reason", "text", None, False, "Why it was selected."),
+        "seed": ColumnSpec("seed", "number", "1", False, "Seed of the draw."),
+        "round": ColumnSpec("round", "number", "1", False, "Redelivery round."),
+    },
+)
+
+
+@dataclass(frozen=True)
+class DrawnSample:
+    scope: str
+    sample: Sample
+    table: pd.DataFrame
+
+
+def _image_centres(d: Delivery) -> tuple[list[str], np.ndarray, np.ndarray, pd.DataFrame]:
+    t = d.require_table("images")
+    df = t.df
+    ids = t.ids.tolist()
+    if {"exposure_x", "exposure_y"} <= set(df.columns) and df["exposure_x"].notna().all():
+        return ids, df["exposure_x"].to_numpy(float), df["exposure_y"].to_numpy(float), df
+    import rasterio
+
+    xs, ys = [], []
+    for i, f in zip(ids, df["file"], strict=True):
+        try:
+            with rasterio.open(d.path(str(f))) as ds:
+                b = ds.bounds
+                xs.append((b.left + b.right) / 2)
+                ys.append((b.bottom + b.top) / 2)
+        except Exception:  # unreadable image: place it at the origin; it still can be drawn at random
+            xs.append(0.0)
+            ys.append(0.0)
+            del i
+    return ids, np.asarray(xs), np.asarray(ys), df
+
+
+def draw(d: Delivery, *, scope: str = "image", seed: int, round: int = 0, fraction: float = 0.10,
+         minimum: int = 1, random_share: float = 0.2) -> DrawnSample:
+    """Images (§12.3/§12.4) or blocks (§12.8) for external QC; same seed+round, same sample."""
+    if scope == "image":
+        ids, x, y, df = _image_centres(d)
+        tags = df["tags"].fillna("").astype(str).tolist() if "tags" in df else None
+        batches = df["batch"].fillna("").astype(str).tolist() if "batch" in df else None
+        problem = sorted({b for b in (batches or []) if b and any(
+            blk.problem_batch and blk.id == b for blk in d.manifest.blocks)})
+    elif scope == "block":
+        ids, xs, ys, tags = [], [], [], []
+        for b in d.manifest.blocks:
+            ids.append(b.id)
+            if b.polygon and len(b.polygon) >= 3:
+                c = Polygon(b.polygon).centroid
+                xs.append(c.x)
+                ys.append(c.y)
+            else:
+                xs.append(float(len(xs)))
+                ys.append(0.0)
+            tags.append(";".join(b.tags))
+        if not ids:
+            raise DeliveryError("the manifest declares no blocks to sample", file="delivery.yaml")
+        x, y = np.asarray(xs), np.asarray(ys)
+        batches = None
+        problem = [b.id for b in d.manifest.blocks if b.problem_batch]
+        batches = ids if problem else None
+    else:
+        raise DeliveryError(f"cannot sample scope {scope!r}; use image or block")
+    s = select_sample(ids, x, y, seed=seed, round=round, fraction=fraction, minimum=minimum,
+                      tags=tags, batches=batches, problem_batches=problem, random_share=random_share)
+    table = pd.DataFrame({"item": list(s.ids), "scope": scope, "reason": [s.reasons[i] for i in s.ids],
+                          "seed": seed, "round": round})
+    return DrawnSample(scope, s, table)
+
+
+def read_sample(path: str | Path) -> tuple[str, set[str]]:
+    """A sample table written by `orthospec sample`: (scope, ids)."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise DeliveryError(f"cannot read sample table: {exc.strerror}", file=str(path)) from None
+    df = parse_csv(text, SAMPLE_SPEC, file=str(path))
+    scopes = set(df["scope"].astype(str))
+    if len(scopes) != 1 or not scopes <= {"image", "block"}:
+        raise DeliveryError(f"a sample table holds one scope (image or block), found {sorted(scopes)}",
+                            file=str(path))
+    return scopes.pop(), set(df["item"].astype(str))
+
+
+def target_size(n: int, fraction: float, minimum: int) -> int:
+    return min(n, max(minimum, math.ceil(fraction * n)))
