@@ -62,84 +62,106 @@ def _fmt(v: Any) -> str:
     return str(v)
 
 
-def _record(r: RuleResult, i: int) -> dict[str, Any]:
-    rule = r.rule
-    v = int(r.verdict[i])
-    item = str(r.items[i])
-    measured = r.measured[i]
-    if isinstance(measured, np.generic):
-        measured = measured.item()
-    if isinstance(measured, float) and math.isnan(measured):
-        measured = None
-    req = {k: v2 for k, v2 in r.threshold.items() if not k.startswith("_")}
-    arrays = r.threshold.get("_arrays")
-    if arrays is not None:
-        if rule.requirement.op == "between":
-            req["min"], req["max"] = float(arrays[0][i]), float(arrays[1][i])
-        else:
-            req["value"] = float(arrays[0][i])
+class _RuleRecords:
+    """Builds the records of one rule result; everything constant per rule is computed once."""
+
+    def __init__(self, r: RuleResult) -> None:
         from .engine.evaluator import requirement_text
 
-        req["text"] = requirement_text(rule.requirement, req)
-    unit = r.unit if r.unit not in ("", "any") else None
-    verdict = VERDICTS[v]
-    note = r.notes[i]
-    if v in (PASS, FAIL, WARN) and note is None:
-        shown_unit = f" {unit}" if unit and unit not in ("1", "bool", "text", "date") else ""
-        mtxt = f"{rule.measure} = {_fmt(measured)}{shown_unit}"
-        note = f"{mtxt}; required {req.get('text', '')}"
-    elif v == WAIVED and r.original is not None:
-        w = r.waivers.get(item, {})
-        note = (f"{VERDICTS[int(r.original[i])]} waived: {w.get('justification', '')} "
-                f"(approved by {w.get('approver', '?')})")
-    elif note is None:
-        note = ""
-    rec: dict[str, Any] = {
-        "rule": rule.id,
-        "title": rule.title,
-        "clause": rule.clause.model_dump(mode="json", exclude_none=True),
-        "quote": rule.quote,
-        "scope": rule.scope,
-        "item": item,
-        "level": rule.level,
-        "consequence": rule.consequence,
-        "manual": rule.manual,
-        "verdict": verdict,
-        "measure": rule.measure,
-        "measured": {"value": measured, "unit": unit},
-        "requirement": req,
-        "evidence": [e.to_dict() for e in sorted(set(r.evidence[i]))],
-        "message": str(note),
-        "waiver": r.waivers.get(item) if v == WAIVED else None,
-    }
-    if r.original is not None and v == WAIVED:
-        rec["waived_verdict"] = VERDICTS[int(r.original[i])]
-    if rule.audit is not None:
-        rec["audit"] = rule.audit.model_dump(mode="json", exclude_none=True)
-    return rec
+        self.r = r
+        rule = r.rule
+        self.text = requirement_text
+        self.base: dict[str, Any] = {
+            "rule": rule.id, "title": rule.title,
+            "clause": rule.clause.model_dump(mode="json", exclude_none=True),
+            "quote": rule.quote, "scope": rule.scope,
+        }
+        self.tail: dict[str, Any] = {
+            "level": rule.level, "consequence": rule.consequence, "manual": rule.manual,
+        }
+        self.req = stable({k: v for k, v in r.threshold.items() if not k.startswith("_")})
+        self.arrays = r.threshold.get("_arrays")
+        self.unit = r.unit if r.unit not in ("", "any") else None
+        self.shown_unit = f" {self.unit}" if self.unit and self.unit not in ("1", "bool", "text", "date") else ""
+        self.audit = rule.audit.model_dump(mode="json", exclude_none=True) if rule.audit is not None else None
+
+    def record(self, i: int) -> dict[str, Any]:
+        r, rule = self.r, self.r.rule
+        v = int(r.verdict[i])
+        item = str(r.items[i])
+        measured = r.measured[i]
+        if isinstance(measured, np.generic):
+            measured = measured.item()
+        measured = stable(measured)
+        req = self.req
+        if self.arrays is not None:
+            req = dict(req)
+            if rule.requirement.op == "between":
+                req["min"], req["max"] = stable(float(self.arrays[0][i])), stable(float(self.arrays[1][i]))
+            else:
+                req["value"] = stable(float(self.arrays[0][i]))
+            req["text"] = self.text(rule.requirement, req)
+        note = r.notes[i]
+        if v in (PASS, FAIL, WARN) and note is None:
+            note = f"{rule.measure} = {_fmt(measured)}{self.shown_unit}; required {req.get('text', '')}"
+        elif v == WAIVED and r.original is not None:
+            w = r.waivers.get(item, {})
+            note = (f"{VERDICTS[int(r.original[i])]} waived: {w.get('justification', '')} "
+                    f"(approved by {w.get('approver', '?')})")
+        elif note is None:
+            note = ""
+        rec = dict(self.base)
+        rec["item"] = item
+        rec.update(self.tail)
+        rec["verdict"] = VERDICTS[v]
+        rec["measure"] = rule.measure
+        rec["measured"] = {"value": measured, "unit": self.unit}
+        rec["requirement"] = req
+        ev = r.evidence[i]
+        rec["evidence"] = [e.to_dict() for e in (sorted(set(ev)) if len(ev) > 1 else ev)]
+        rec["message"] = str(note)
+        rec["waiver"] = r.waivers.get(item) if v == WAIVED else None
+        if v == WAIVED and r.original is not None:
+            rec["waived_verdict"] = VERDICTS[int(r.original[i])]
+        if self.audit is not None:
+            rec["audit"] = self.audit
+        return rec
+
+
+_DIGITS = re.compile(r"(\d+)")
 
 
 def natural_key(text: str) -> tuple[Any, ...]:
     """IMG_2 before IMG_10: digits compare as numbers, the rest as text (total order, stable)."""
-    parts = re.split(r"(\d+)", text)
-    return tuple((0, int(p), p) if p.isdigit() else (1, 0, p) for p in parts)
+    return tuple((0, int(p), p) if p.isdigit() else (1, 0, p) for p in _DIGITS.split(text))
 
 
-def _sort_key(rec: dict[str, Any]) -> tuple[Any, ...]:
-    return (_SCOPE_ORDER.get(rec["scope"], 99), rec["rule"], natural_key(rec["item"]))
+def _order(items: np.ndarray, cache: dict[Any, Any]) -> np.ndarray:
+    """Natural order of a rule's items; rules over the same items share one sort."""
+    key = id(items) if len(items) < 2 else (len(items), str(items[0]), str(items[-1]))
+    hit = cache.get(key)
+    if hit is not None and (hit[1] is items or np.array_equal(hit[1], items)):
+        return hit[0]
+    keys = [natural_key(str(x)) for x in items]
+    order = np.array(sorted(range(len(items)), key=keys.__getitem__), dtype=np.int64)
+    cache[key] = (order, items)
+    return order
 
 
 def iter_records(ev: Evaluation) -> Iterable[dict[str, Any]]:
-    for r in ev.results:
-        for i in range(len(r.items)):
-            yield _record(r, i)
+    """Records sorted by (scope order, rule id, item in natural order)."""
+    cache: dict[Any, Any] = {}
+    for r in sorted(ev.results, key=lambda r: (_SCOPE_ORDER.get(r.rule.scope, 99), r.rule.id)):
+        rb = _RuleRecords(r)
+        for i in _order(r.items, cache):
+            yield rb.record(int(i))
 
 
 def build_document(ev: Evaluation, *, date: str, operator: str | None = None,
                    delivery_path: str | None = None) -> dict[str, Any]:
     """The QCR document (see specs/schema/qcr.schema.json)."""
     d, p = ev.delivery, ev.profile
-    records = sorted(iter_records(ev), key=_sort_key)
+    records = list(iter_records(ev))
     summary = {k: 0 for k in VERDICTS}
     for rec in records:
         summary[rec["verdict"]] += 1
@@ -182,14 +204,27 @@ def build_document(ev: Evaluation, *, date: str, operator: str | None = None,
         "rollup": {"rejected": ev.rejected, "reasons": ev.reasons},
         "waivers_unused": ev.unused_waivers,
         "rules": rules,
-        "records": records,
+        "records": [],
         "details": ev.details,
     }
-    return stable(doc)
+    doc = stable(doc)
+    doc["records"] = records  # already JSON-safe, field by field
+    return doc
 
 
 def dumps(doc: dict[str, Any]) -> str:
-    return json.dumps(doc, indent=1, sort_keys=False, ensure_ascii=False, allow_nan=False) + "\n"
+    """qcr.json text: readable header, then one record per line (greppable, diffable, streamable)."""
+    return "".join(iter_dumps(doc))
+
+
+def iter_dumps(doc: dict[str, Any]) -> Iterable[str]:
+    head = {k: v for k, v in doc.items() if k != "records"}
+    text = json.dumps(head, indent=1, ensure_ascii=False, allow_nan=False)
+    yield text[:-2] + ',\n "records": ['
+    enc = json.JSONEncoder(ensure_ascii=False, allow_nan=False, separators=(",", ":")).encode
+    for n, rec in enumerate(doc["records"]):
+        yield ("\n  " if n == 0 else ",\n  ") + enc(rec)
+    yield "\n ]\n}\n"
 
 
 # --- writers --------------------------------------------------------------------------------

@@ -46,9 +46,13 @@ def render_documents(doc: dict, fmts: list[str], *, extra: dict | None = None) -
 @click.option("--max-items", type=int, default=8, show_default=True,
               help="Offending items listed per rule in the terminal (JSON lists all).")
 @click.option("--verbose", "-v", is_flag=True, help="Show passing rules in the terminal too.")
+@click.option("--ledger", "ledger_target", metavar="PATH|URL", default=None,
+              help="Record this run in a QCR ledger: SQLite file (e.g. ./orthospec-ledger.sqlite) "
+                   "or postgresql+psycopg:// URL.")
 def check_cmd(delivery: Path, profile: str, params: tuple[str, ...], out_dir: Path | None, formats: str,
               date: str | None, fail_on: str, operator: str | None, workers: int | None,
-              scheduler: str | None, sample_file: Path | None, max_items: int, verbose: bool) -> None:
+              scheduler: str | None, sample_file: Path | None, max_items: int, verbose: bool,
+              ledger_target: str | None = None) -> None:
     """Check DELIVERY against a spec profile; exit 0 accepted, 1 rejected, 2 could not evaluate."""
     fmts = split_formats(formats, FORMATS)
     options = {"workers": workers, "scheduler": scheduler, "progress": sys.stderr.isatty()}
@@ -68,4 +72,10 @@ def check_cmd(delivery: Path, profile: str, params: tuple[str, ...], out_dir: Pa
         render_terminal(doc, Console(highlight=False, soft_wrap=True), max_items=max_items, verbose=verbose)
         if files:
             click.echo(f"wrote {', '.join(sorted(files))} to {target}/")
+    if ledger_target is not None:  # after the outputs: the ledger records what was written
+        from ..ledger import open_ledger
+
+        with open_ledger(ledger_target) as led:
+            run_id = led.record(doc)
+        click.echo(f"recorded run #{run_id} in ledger {led.display}")
     click.get_current_context().exit(0 if result.accepted else 1)

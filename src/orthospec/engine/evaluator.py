@@ -89,6 +89,8 @@ def _is_missing(v: Any) -> bool:
 def _missing_mask(values: np.ndarray) -> np.ndarray:
     if values.dtype.kind == "f":
         return np.isnan(values)
+    if values.dtype.kind in "iub":
+        return np.zeros(len(values), dtype=bool)
     return np.fromiter((_is_missing(v) for v in values), dtype=bool, count=len(values))
 
 
@@ -294,9 +296,8 @@ class Evaluator:
                 notes[i] = f"not in the external QC sample ({rule.scope})"
             applicable &= sampled
         values = m.values.reindex(items)
-        evidence = m.evidence.reindex(items)
-        evidence_list = [e if isinstance(e, tuple) else () for e in evidence.tolist()]
-        raw = values.to_numpy(dtype=object)
+        evidence_list = m.evidence_for(items)
+        raw = values.to_numpy()
         missing = _missing_mask(raw) & (rule.requirement.op != "present") | (
             ~values.index.isin(m.values.index))
         if m.notes is not None:
@@ -358,7 +359,8 @@ class Evaluator:
             return ok, vals, thr, munit
         if textual:
             raise UnitError(f"measure {rule.measure} is {munit}, the requirement {op} needs a number")
-        values = pd.to_numeric(pd.Series(raw), errors="coerce").to_numpy(dtype=float)
+        values = raw.astype(float) if raw.dtype.kind in "fiu" else \
+            pd.to_numeric(pd.Series(raw), errors="coerce").to_numpy(dtype=float)
         target_unit = canonical(req.unit) if req.unit else munit
         gsd = item_gsd(rule.scope, items, self.d, self.cache) if (
             "px" in (canonical(munit), target_unit)) else None

@@ -16,7 +16,7 @@ from ..delivery.convention import table_specs
 from ..delivery.reader import MANIFEST, Delivery
 from ..provenance import Evidence
 from ..units import canonical
-from .registry import Measured
+from .registry import Measured, RowEvidence
 
 _COL_UNIT = {"text": "text", "bool": "bool", "date": "date", "datetime": "date"}
 
@@ -99,8 +99,7 @@ def compute(name: str, d: Delivery) -> Measured:
     else:
         vals = pd.Series(df[col].values, index=ids.values)
         notes = None
-    ev = pd.Series([(Evidence(t.file, t.sha256, (int(r),)),) for r in df["_row"]], index=ids.values,
-                   dtype=object)
+    ev = RowEvidence(t.file, t.sha256, pd.Series(df["_row"].to_numpy(), index=ids.astype(str).values))
     return Measured(name, scope, u, vals, ev, notes=notes)
 
 

@@ -8,7 +8,7 @@ never opens one.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -47,8 +47,42 @@ class Measured:
 
     def __post_init__(self) -> None:
         self.values.index = self.values.index.astype(str)
-        self.evidence = self.evidence.reindex(self.values.index)
-        self.evidence = self.evidence.map(lambda e: e if isinstance(e, tuple) else ())
+        if isinstance(self.evidence, pd.Series):
+            self.evidence = self.evidence.reindex(self.values.index)
+            self.evidence = self.evidence.map(lambda e: e if isinstance(e, tuple) else ())
+
+    def evidence_for(self, items: list[str]) -> Sequence[tuple[Evidence, ...]]:
+        """Evidence per item, in ``items`` order (empty tuple where there is none)."""
+        if isinstance(self.evidence, RowEvidence):
+            return self.evidence.take(items)
+        ev = self.evidence.reindex(items)
+        return [e if isinstance(e, tuple) else () for e in ev.tolist()]
+
+
+class RowEvidence:
+    """Per-row evidence of one table, built only when a record is written (no tuple per row)."""
+
+    def __init__(self, file: str, sha256: str, rows: pd.Series) -> None:
+        self.file, self.sha256 = file, sha256
+        self.rows = rows  # index = item id, value = 1-based data row
+
+    def take(self, items: list[str]) -> _LazyEvidence:
+        rows = self.rows.reindex(items).to_numpy(dtype=float)
+        return _LazyEvidence(self.file, self.sha256, rows)
+
+
+class _LazyEvidence(Sequence[tuple[Evidence, ...]]):
+    def __init__(self, file: str, sha256: str, rows: np.ndarray) -> None:
+        self.file, self.sha256, self.rows = file, sha256, rows
+
+    def __len__(self) -> int:
+        return len(self.rows)
+
+    def __getitem__(self, i: int) -> tuple[Evidence, ...]:  # type: ignore[override]
+        r = self.rows[i]
+        if np.isnan(r):
+            return ()
+        return (Evidence(self.file, self.sha256, (int(r),)),)
 
 
 @dataclass

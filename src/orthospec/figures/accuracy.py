@@ -27,7 +27,7 @@ from ..errors import MeasureError
 
 __all__ = ["checkpoint_map_svg", "quadrant_distribution_svg", "residual_histograms_svg"]
 
-_RC = {
+_RC: Any = {
     "svg.hashsalt": "orthospec",
     "svg.fonttype": "none",  # text stays text: smaller, searchable, font-independent
     "font.family": "DejaVu Sans",

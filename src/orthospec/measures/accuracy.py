@@ -245,7 +245,7 @@ class AccuracyStats:
         """The same statistics with every length divided by the GSD (unit ``px``)."""
         if self.gsd is None:
             raise MeasureError("no GSD given: statistics cannot be expressed in GSD units")
-        changes = {
+        changes: dict[str, Any] = {
             name: (None if getattr(self, name) is None else getattr(self, name) / self.gsd)
             for name in _LENGTH_FIELDS
         }
@@ -320,11 +320,14 @@ def accuracy_stats(
 
     mx, sx, rx, maxx = _axis(ax)
     my, sy, ry, maxy = _axis(ay)
+    mz: float | None = None
+    sz: float | None = None
+    rz: float | None = None
+    maxz: float | None = None
+    nssda_v: float | None = None
     if az is not None:
         mz, sz, rz, maxz = _axis(az)
-        nssda_v: float | None = NSSDA_VERTICAL_FACTOR * rz
-    else:
-        mz = sz = rz = maxz = nssda_v = None
+        nssda_v = NSSDA_VERTICAL_FACTOR * rz
 
     rr = float(math.hypot(rx, ry))
     nssda_h, ratio, holds, method = nssda_horizontal(rx, ry)

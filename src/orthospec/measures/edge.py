@@ -21,7 +21,9 @@ The chain (seed step in brackets) on a 2-D ROI holding one straight edge:
   ``d = (x - x_edge(y)) cos(theta)`` from the fitted line.
 * plateaus [7]: cubic smoothing spline of the binned ESF; the starts of the dark
   and bright plateaus are the LSF's inflection points (extrema of ESF'');
-  the ESF is trimmed ``plateau_px`` beyond them.
+  the ESF is trimmed at max(``plateau_px``, 3x the start's distance from the
+  centre) beyond each start; the dark/bright levels and the uniformity (SNR)
+  come from the pixels beyond 3x that distance (>= 1 px beyond the start).
 * fits [8]: non-parametric (scipy ``make_smoothing_spline``, GCV, on the ESF
   binned at 1/``oversample`` px, weighted by counts) and parametric (sum of
   Fermi-Dirac functions); both normalised 0..1.
@@ -57,7 +59,6 @@ __all__ = [
 
 NYQUIST = 0.5  # cycles per pixel
 SPLINE = "spline"
-SPLINE_BASE = True
 _GRID = 0.01  # px, evaluation grid of fitted curves
 _MTF_FREQ = np.round(np.arange(0, 101) * 0.01, 10)  # reported MTF curve, cycles/px
 
@@ -113,7 +114,21 @@ class EdgeFit:
 
     @property
     def effective_resolution_factor(self) -> float:
-        """FWHM of the LSF over the 1-px FWHM of an ideal square-pixel sampler (see docs)."""
+        """Factor for effective resolution (Passini, Jacobsen & Day; seed 004, section 4).
+
+        "A sudden change of the gray values in object space is causing a continuous change
+        of the gray values in a profile perpendicular to the edge. If this gray value
+        profile is differentiated, it leads to the point spread function. The width of the
+        point spread function leads to the factor for effective resolution (Jacobsen
+        2008). This factor multiplied with the pixel size or the GSD leads to the effective
+        resolution [...]. By simple theory this factor should not be below 1.0, but by
+        image enhancement this can be".
+
+        Read as: factor = width (FWHM) of the differentiated perpendicular profile (our
+        LSF) in pixels, divided by the width an ideal sampler gives: a perfect square
+        pixel with no blur has a 1-px box LSF, FWHM 1 px, factor 1.0 ("should not be
+        below 1.0"); sharpening makes it < 1. Effective GSD = factor x GSD.
+        """
         return self.fwhm_px / 1.0
 
 
@@ -280,7 +295,8 @@ def measure_edge(
         Share of 1/``oversample`` px ESF bins within +-2 px of the edge that
         hold samples; fails for an edge too close to 0 deg to super-sample.
     plateau_px
-        How far beyond the plateau starts the ESF is kept (trim, step 7).
+        Least distance beyond each plateau start kept in the trimmed ESF (seed step 7b,
+        "1 pixel (TBR)"); the trim reaches at least 3x the start's distance further out.
     fermi_terms
         Number of Fermi-Dirac terms of the parametric fit (1 = plain Fermi-Dirac).
 
@@ -321,7 +337,7 @@ def measure_edge(
     work = np.ascontiguousarray(work)
     direction = "along" if transposed else "across"
     polarity = "bright_to_dark" if mirrored else "dark_to_bright"
-    nrow, ncol = work.shape
+    ncol = work.shape[1]
 
     def to_roi(r: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Working (row, col) -> ROI (x, y)."""
@@ -338,7 +354,7 @@ def measure_edge(
         c0, c1, kept = _robust_line(rows.astype(float), locs)
         res = locs[kept] - (c0 + c1 * rows[kept])
         resid_rms = float(np.sqrt(np.mean(res**2)))
-        max_resid = float(np.max(np.abs(res)))
+        max_resid = _straightness(res)
     n_kept = int(kept.sum())
     line_ok = n_kept >= 3 and math.isfinite(c1)
     theta = math.atan(c1) if line_ok else math.nan
@@ -401,13 +417,8 @@ def measure_edge(
                 levels = (float(v[dsel].mean()), float(v[bsel].mean()))
             if dark_side.sum() > 1 and bright_side.sum() > 1:
                 stds = (float(v[dark_side].std(ddof=1)), float(v[bright_side].std(ddof=1)))
-                sides = np.concatenate([v[dark_side], v[bright_side]])
-                sat = np.zeros(sides.size, dtype=bool)
-                if sat_lo is not None:
-                    sat |= sides <= sat_lo
-                if sat_hi is not None:
-                    sat |= sides >= sat_hi
-                sat_frac = float(sat.mean())
+                sat_frac = max(_saturated(v[dark_side], sat_lo, sat_hi),
+                               _saturated(v[bright_side], sat_lo, sat_hi))
             widths = (float(np.median(dark_start - row_dmin)),
                       float(np.median(row_dmax - bright_start)))
             if all(math.isfinite(x) for x in levels) and levels[1] > levels[0]:
@@ -415,13 +426,9 @@ def measure_edge(
                 fermi = _fermi_fit(d[sel], v[sel], bw, lo, hi, levels, fermi_terms)
                 if fermi is not None:
                     fits[fermi.fit] = fermi
-                base = None
-                if SPLINE_BASE and fermi is not None:
-                    base = np.asarray(fermi.params["params"])
-                resid = v[sel] - (0.0 if base is None else _fermi(d[sel], base))
-                spl = _spline(d[sel], resid, bw, lo, hi)
+                spl = _spline(d[sel], v[sel], bw, lo, hi)
                 if spl is not None:
-                    fits[SPLINE] = _spline_fit(spl, lo, hi, levels, base)
+                    fits[SPLINE] = _spline_fit(spl, lo, hi, levels, bw)
 
     contrast = levels[1] - levels[0]
     noise = (stds[0] + stds[1]) / 2.0
@@ -444,7 +451,7 @@ def measure_edge(
         _chk("snr", snr, ">", min_snr, "1",
              "bright/dark areas not uniform or too noisy: SNR = dDN / mean(std) too low"),
         _chk("saturation", sat_frac, "<=", max_saturated_fraction, "1",
-             "saturated (or zero-filled) pixels in the bright/dark areas"),
+             "saturated (or zero-filled) pixels in the bright or dark area"),
         _chk("dark_width", widths[0], ">", min_plateau_width_px, "px", "dark area too narrow"),
         _chk("bright_width", widths[1], ">", min_plateau_width_px, "px",
              "bright area too narrow"),
@@ -456,7 +463,8 @@ def measure_edge(
 
     estimates: tuple[Estimate, ...] = ()
     if valid:
-        estimates = tuple(e for f in fits.values() for e in _estimates_of(f, gsd))
+        ordered = sorted(fits.values(), key=lambda f: (f.fit != SPLINE, f.fit))  # primary first
+        estimates = tuple(e for f in ordered for e in _estimates_of(f, gsd))
         if any(not math.isfinite(e.value) for e in estimates if e.fit == SPLINE):
             bad = [e.name for e in estimates if e.fit == SPLINE and not math.isfinite(e.value)]
             valid = False
@@ -524,6 +532,15 @@ def _robust_line(r: np.ndarray, x: np.ndarray) -> tuple[float, float, np.ndarray
     return float(c0), float(c1), kept
 
 
+def _straightness(res: np.ndarray, window: int = 5) -> float:
+    """Largest deviation of the edge from the fitted line, as a running median over
+    ``window`` consecutive kept lines (so per-line noise does not count as bending)."""
+    if res.size < window:
+        return float(np.max(np.abs(res)))
+    runs = np.median(np.lib.stride_tricks.sliding_window_view(res, window), axis=1)
+    return float(np.max(np.abs(runs)))
+
+
 def _bins(d: np.ndarray, v: np.ndarray, bw: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Bin the ESF at ``bw`` px (bins centred on multiples of bw, symmetric about 0)."""
     idx = np.floor(d / bw + 0.5).astype(np.int64)
@@ -538,7 +555,7 @@ def _bins(d: np.ndarray, v: np.ndarray, bw: float) -> tuple[np.ndarray, np.ndarr
 def _coverage(d: np.ndarray, bw: float, half: float) -> float:
     """Share of bins within +-half px of the edge that hold at least one sample."""
     sel = np.abs(d) <= half
-    nb = int(round(2 * half / bw)) + 1
+    nb = round(2 * half / bw) + 1
     if not sel.any():
         return 0.0
     idx = np.floor(d[sel] / bw + 0.5).astype(np.int64)
@@ -577,29 +594,18 @@ def _plateau_starts(spl: Any, d: np.ndarray) -> tuple[float, float]:
 
 
 def _spline_fit(spl: Any, lo: float, hi: float, levels: tuple[float, float],
-                base: np.ndarray | None = None) -> EdgeFit:
-    """Normalised spline ESF; with ``base`` (Fermi parameters) the spline models the
-    residual from that parametric ESF, so GCV smooths towards it, not towards a line."""
+                bw: float) -> EdgeFit:
     dark, bright = levels
     x = np.arange(lo, hi + _GRID / 2, _GRID)
-
-    def raw(q: np.ndarray) -> np.ndarray:
-        out = spl(q)
-        return out if base is None else out + _fermi(q, base)
-
-    def slope(q: np.ndarray) -> np.ndarray:
-        out = spl.derivative(1)(q)
-        return out if base is None else out + _dfermi(q, base)
-
-    esf = (raw(x) - dark) / (bright - dark)
-    lsf = slope(x) / (bright - dark)
+    esf = (spl(x) - dark) / (bright - dark)
+    lsf = spl.derivative(1)(x) / (bright - dark)
     centre = float(x[np.argmax(lsf)])  # seed 9b: the LSF top is the RER centre
 
     def esf_at(p: np.ndarray) -> np.ndarray:
-        return (raw(p) - dark) / (bright - dark)
+        return (spl(p) - dark) / (bright - dark)
 
     return _make_fit(SPLINE, x, esf, lsf, centre, esf_at, levels,
-                     {"lam": None, "bin_px": None})
+                     {"bin_px": bw, "smoothing": "GCV, weights = samples per bin"})
 
 
 def _fermi(x: np.ndarray, p: np.ndarray) -> np.ndarray:
@@ -643,10 +649,10 @@ def _fermi_fit(d: np.ndarray, v: np.ndarray, bw: float, lo: float, hi: float,
         try:
             res = optimize.least_squares(
                 lambda p: (_fermi(xb, p) - yb) * sw, np.clip(p0, lower, upper),
-                jac=jac, bounds=(lower, upper), x_scale="jac", max_nfev=200)
+                jac=jac, bounds=(lower, upper), x_scale="jac", max_nfev=1000)
         except (ValueError, np.linalg.LinAlgError):
             return None
-        return res.x if res.status > 0 else None
+        return res.x if res.status >= 0 and np.all(np.isfinite(res.x)) else None
 
     big = 10 * abs(span) + 1
     p1 = fit(np.array([dark, span, 0.0, 0.5]),
@@ -658,8 +664,8 @@ def _fermi_fit(d: np.ndarray, v: np.ndarray, bw: float, lo: float, hi: float,
         cs = np.linspace(-0.3, 0.3, terms) * p1[3] + p1[2]
         ss = p1[3] * np.geomspace(0.6, 1.6, terms)
         p0 = np.concatenate([[p1[0]], np.column_stack([np.full(terms, p1[1] / terms), cs, ss]).ravel()])
-        lower = np.concatenate([[dark - big], np.tile([-big, lo, 0.02], terms)])
-        upper = np.concatenate([[bright + big], np.tile([3 * big, hi, 10.0], terms)])
+        lower = np.concatenate([[dark - big], np.tile([0.0, lo, 0.1], terms)])
+        upper = np.concatenate([[bright + big], np.tile([1.2 * span, hi, 10.0], terms)])
         pn = fit(p0, lower, upper)
         # a term narrower than 0.05 px with a visible step is a spike fitted to noise
         if pn is not None and not np.any((pn[3::3] < 0.05) & (np.abs(pn[1::3]) > 0.05 * span)):
@@ -724,7 +730,7 @@ def _width(x: np.ndarray, lsf: np.ndarray, ip: int, level: float) -> float:
 
 def _mtf(lsf: np.ndarray, dx: float) -> tuple[np.ndarray, np.ndarray]:
     """Seed 12: |FFT(LSF)| normalised at zero frequency (zero-padded for resolution)."""
-    n = 1 << max(15, int(math.ceil(math.log2(lsf.size))) + 1)
+    n = 1 << max(15, math.ceil(math.log2(lsf.size)) + 1)
     spec = np.abs(np.fft.rfft(lsf, n))
     freq = np.fft.rfftfreq(n, dx)
     return freq, spec / spec[0] if spec[0] > 0 else spec * math.nan
@@ -766,6 +772,16 @@ def _saturation(dtype: np.dtype, bit_depth: int | None,
         hi = float(np.iinfo(dtype).max)
     lo = 0.0 if (bit_depth is not None or np.issubdtype(dtype, np.unsignedinteger)) else None
     return lo, hi
+
+
+def _saturated(vals: np.ndarray, lo: float | None, hi: float | None) -> float:
+    """Share of one side's pixels at (or beyond) a saturation level."""
+    sat = np.zeros(vals.size, dtype=bool)
+    if lo is not None:
+        sat |= vals <= lo
+    if hi is not None:
+        sat |= vals >= hi
+    return float(sat.mean()) if vals.size else math.nan
 
 
 def _chk(name: str, value: float | None, op: str, limit: float | tuple[float, float],

@@ -70,6 +70,33 @@ def _as_bin_index(values: np.ndarray) -> np.ndarray:
     return values
 
 
+_BINCOUNT_SLICE = 1 << 19  # elements per bincount call: the intp temporary stays in cache
+
+
+def fast_bincount(values: np.ndarray, bins: int) -> np.ndarray:
+    """``np.bincount(values, minlength=bins)`` for unsigned 8/16-bit values, about 3x faster.
+
+    Bytes are counted in pairs (a uint16 view, 65536 bins, folded back to 256), and long
+    arrays go through bincount in slices so its intp temporary stays in the CPU cache.
+    """
+    v = np.ascontiguousarray(values).ravel()
+    out = np.zeros(bins, dtype=np.int64)
+    if v.dtype.itemsize == 1 and bins == 256 and v.size >= 2:
+        if v.size % 2:
+            out[int(v[-1])] += 1
+            v = v[:-1]
+        pairs = v.view(np.uint16)
+        acc = np.zeros(65536, dtype=np.int64)
+        for i in range(0, pairs.size, _BINCOUNT_SLICE):
+            acc += np.bincount(pairs[i:i + _BINCOUNT_SLICE], minlength=65536)
+        folded = acc.reshape(256, 256)
+        out += folded.sum(axis=0) + folded.sum(axis=1)
+        return out
+    for i in range(0, v.size, _BINCOUNT_SLICE):
+        out += np.bincount(v[i:i + _BINCOUNT_SLICE], minlength=bins)
+    return out
+
+
 @dataclass
 class HistogramAccumulator:
     """Exact per-DN histogram of one integer band; merges by adding counts."""
@@ -91,7 +118,7 @@ class HistogramAccumulator:
         self.total += int(data.size)
         values = data.ravel() if valid is None else data[valid]
         if values.size:
-            self.counts += np.bincount(_as_bin_index(values), minlength=self.counts.size)
+            self.counts += fast_bincount(_as_bin_index(values), self.counts.size)
 
     def merge(self, other: HistogramAccumulator) -> HistogramAccumulator:
         if other.offset != self.offset or other.counts.size != self.counts.size:
@@ -240,7 +267,7 @@ class NoiseAccumulator:
         hh, ww = (h // k) * k, (w // k) * k
         if hh and ww:
             tiles = a[:hh, :ww].reshape(hh // k, k, ww // k, k)
-            sd = tiles.std(axis=(1, 3), ddof=1, dtype=np.float64)
+            sd = tiles.std(axis=(1, 3), ddof=1)  # float32, centred: precise enough
             if valid is not None:
                 vt = valid[:hh, :ww].reshape(hh // k, k, ww // k, k).all(axis=(1, 3))
                 sd = sd[vt]
@@ -288,18 +315,26 @@ def _chi_quantile_factor() -> float:
 
 
 def luminosity(r: np.ndarray, g: np.ndarray, b: np.ndarray, dtype: np.dtype | str) -> np.ndarray:
-    """Rec.601 luma Y = 0.299 R + 0.587 G + 0.114 B rounded half up, in the bands' dtype."""
-    wr, wg, wb = LUMA_WEIGHTS
-    y = r.astype(np.float32) * np.float32(wr)
-    y += g.astype(np.float32) * np.float32(wg)
-    y += b.astype(np.float32) * np.float32(wb)
-    y += np.float32(0.5)
-    np.floor(y, out=y)
+    """Rec.601 luma Y = 0.299 R + 0.587 G + 0.114 B rounded half up, in the bands' dtype.
+
+    Unsigned integer bands are computed exactly in integers,
+    Y = (299 R + 587 G + 114 B + 500) // 1000, so ties round up with no float error.
+    """
     dt = np.dtype(dtype)
+    if dt.kind == "u" and dt.itemsize <= 2:
+        y = r.astype(np.uint32) * np.uint32(299)
+        y += g.astype(np.uint32) * np.uint32(587)
+        y += b.astype(np.uint32) * np.uint32(114)
+        y += np.uint32(500)
+        y //= np.uint32(1000)
+        return y.astype(dt)
+    wr, wg, wb = LUMA_WEIGHTS
+    yf = r.astype(np.float64) * wr + g.astype(np.float64) * wg + b.astype(np.float64) * wb
+    yf = np.floor(yf + 0.5)
     if dt.kind in "ui":
         info = np.iinfo(dt)
-        np.clip(y, info.min, info.max, out=y)
-    return y.astype(dt)
+        np.clip(yf, info.min, info.max, out=yf)
+    return yf.astype(dt)
 
 
 @dataclass(frozen=True)
@@ -528,35 +563,47 @@ def _upsampled_dft(data: np.ndarray, region: int, factor: float,
     """Matrix-multiply DFT of ``data`` on a ``region``^2 grid upsampled by ``factor``.
 
     Guizar-Sicairos, Thurman & Fienup (2008), "Efficient subpixel image registration
-    algorithms", Opt. Lett. 33(2): only the neighbourhood of the coarse peak is evaluated.
+    algorithms", Opt. Lett. 33(2): only the neighbourhood of the coarse peak is evaluated,
+    as K_rows @ data @ K_cols^T. Computed with ``einsum`` (no BLAS): the products are small,
+    and multi-threaded BLAS in every worker process oversubscribes the cores and makes the
+    last digits depend on the thread count.
     """
-    out = data
-    for axis in (1, 0):
-        n_items = data.shape[axis]
-        kernel = (np.arange(region) - offsets[axis])[:, None] * np.fft.fftfreq(n_items, factor)
-        kernel = np.exp(-2j * np.pi * kernel)
-        out = np.tensordot(kernel, out, axes=(1, axis))
-        if axis == 1:
-            out = np.moveaxis(out, 0, 1)
-    return out
+    kernels = []
+    for axis in (0, 1):
+        freq = np.fft.fftfreq(data.shape[axis], factor)
+        kernels.append(np.exp(-2j * np.pi * (np.arange(region) - offsets[axis])[:, None]
+                              * freq[None, :]))
+    rows = np.einsum("rm,mn->rn", kernels[0], data, optimize=False)
+    return np.einsum("rn,cn->rc", rows, kernels[1], optimize=False)
+
+
+def tapered_spectrum(image: np.ndarray) -> np.ndarray:
+    """FFT of a demeaned, Hann-tapered image (the taper removes wrap-around edge effects)."""
+    a = np.asarray(image, dtype=np.float64)
+    if a.ndim != 2 or min(a.shape) < 8:
+        raise MeasureError(f"phase correlation needs a 2-D array of at least 8x8, got {a.shape}")
+    win = np.outer(np.hanning(a.shape[0]), np.hanning(a.shape[1]))
+    return np.fft.fft2((a - a.mean()) * win)
 
 
 def phase_correlation(reference: np.ndarray, moving: np.ndarray, *,
                       upsample: int = 20) -> Shift:
     """Sub-pixel shift of ``moving`` relative to ``reference`` by phase correlation.
 
-    Both images are demeaned and tapered with a Hann window (edge effects), the normalised
-    cross-power spectrum gives the integer peak, which the upsampled DFT refines to
-    1/``upsample`` pixel.
+    Both images are demeaned and tapered with a Hann window, the normalised cross-power
+    spectrum gives the integer peak, which the upsampled DFT refines to 1/``upsample`` px.
     """
-    ref = np.asarray(reference, dtype=np.float64)
-    mov = np.asarray(moving, dtype=np.float64)
-    if ref.shape != mov.shape or ref.ndim != 2 or min(ref.shape) < 8:
+    ref, mov = np.asarray(reference), np.asarray(moving)
+    if ref.shape != mov.shape or ref.ndim != 2:
         raise MeasureError(f"phase correlation needs two equal 2-D arrays of at least 8x8, "
                            f"got {ref.shape} and {mov.shape}")
-    win = np.outer(np.hanning(ref.shape[0]), np.hanning(ref.shape[1]))
-    f_ref = np.fft.fft2((ref - ref.mean()) * win)
-    f_mov = np.fft.fft2((mov - mov.mean()) * win)
+    return phase_correlation_spectra(tapered_spectrum(ref), tapered_spectrum(mov),
+                                     upsample=upsample)
+
+
+def phase_correlation_spectra(f_ref: np.ndarray, f_mov: np.ndarray, *,
+                              upsample: int = 20) -> Shift:
+    """:func:`phase_correlation` from :func:`tapered_spectrum` s (reuse the reference's)."""
     product = f_ref * f_mov.conj()
     product /= np.maximum(np.abs(product), 1e-12)
     cc = np.fft.ifft2(product)

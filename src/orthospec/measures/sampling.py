@@ -157,9 +157,9 @@ def select_sample(
         start = float(rng.random())
         pos = np.floor((np.arange(n_sys) + start) * occupied.size / n_sys).astype(int)
         for cell in occupied[np.unique(np.minimum(pos, occupied.size - 1))]:
-            members = [int(i) for i in np.flatnonzero(serp == cell) if int(i) not in chosen]
-            if members:
-                chosen[int(rng.choice(members))] = "systematic"
+            free = [int(i) for i in np.flatnonzero(serp == cell) if int(i) not in chosen]
+            if free:
+                chosen[int(rng.choice(free))] = "systematic"
 
     # 5. random remainder
     left = np.array([i for i in range(n) if i not in chosen], dtype=int)

@@ -186,10 +186,16 @@ def slanted_edge(
     bright = 0.8 * full if bright is None else float(bright)
 
     s = int(supersample)
+    # render with a margin wide enough for the PSF, so the blur sees the edge continue
+    if psf is not None:
+        reach = 0.5 * max(np.shape(psf)) * psf_step_px
+    else:
+        reach = 6.0 * float(sigma_px or 0.0)
+    m = int(np.ceil(reach)) + 1
     # sub-pixel centres in pixel coordinates (pixel centres at integers)
     sub = (np.arange(s) + 0.5) / s - 0.5
-    y = (np.arange(rows)[:, None] + sub[None, :]).ravel()
-    x = (np.arange(cols)[:, None] + sub[None, :]).ravel()
+    y = (np.arange(-m, rows + m)[:, None] + sub[None, :]).ravel()
+    x = (np.arange(-m, cols + m)[:, None] + sub[None, :]).ravel()
     cy, cx = (rows - 1) / 2.0, (cols - 1) / 2.0 + offset_px
     t = np.deg2rad(angle_deg)
     dist = (x[None, :] - cx) * np.cos(t) - (y[:, None] - cy) * np.sin(t)
@@ -215,7 +221,7 @@ def slanted_edge(
                                           truncate=6.0)
     else:
         blurred = scene
-    img = blurred.reshape(rows, s, cols, s).mean(axis=(1, 3))
+    img = blurred.reshape(rows + 2 * m, s, cols + 2 * m, s).mean(axis=(1, 3))[m:-m, m:-m]
 
     if snr is not None:
         if snr <= 0:

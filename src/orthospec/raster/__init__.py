@@ -6,7 +6,15 @@ Public API for the rule engine: :func:`scan_images` -> list of :class:`ImageRepo
 from __future__ import annotations
 
 from .cache import ResultCache
-from .filechecks import FileChecks, ListingCheck, check_file, check_name, listing_consistency
+from .filechecks import (
+    FileChecks,
+    ListingCheck,
+    VectorCheck,
+    check_file,
+    check_name,
+    check_vector,
+    listing_consistency,
+)
 from .parallel import (
     ImageReport,
     PlainProgress,
@@ -17,7 +25,15 @@ from .parallel import (
     scan_image,
     scan_images,
 )
-from .reading import RasterStats, ScanSettings, mask_share, overlap_means, scan_raster
+from .reading import (
+    RasterStats,
+    ScanSettings,
+    mask_share,
+    overlap_means,
+    pan_fused_windows,
+    scan_raster,
+    seamline_check,
+)
 
 __all__ = [
     "FileChecks",
@@ -30,13 +46,17 @@ __all__ = [
     "RichProgress",
     "ScanOptions",
     "ScanSettings",
+    "VectorCheck",
     "check_file",
     "check_name",
+    "check_vector",
     "listing_consistency",
     "make_progress",
     "mask_share",
     "overlap_means",
+    "pan_fused_windows",
     "scan_image",
     "scan_images",
     "scan_raster",
+    "seamline_check",
 ]

@@ -3,7 +3,9 @@
 Why: a national delivery is re-checked after partial redelivery; only files whose bytes
 changed should be read again. The key is the content hash, not the path or mtime, so a
 renamed or copied file is still a hit and a rewritten file with the same size and date is
-still a miss. The cache lives outside the delivery (``scan_images`` refuses a cache directory
+still a miss. Optionally (``trust_mtime``) the SHA-256 itself is remembered per absolute
+path, size and modification time, so unchanged files are not even re-hashed. The cache
+lives outside the delivery (``scan_images`` refuses a cache directory
 that contains an image) and is written only by the coordinating process; workers only read.
 """
 
@@ -38,6 +40,9 @@ class ResultCache:
         self._con.execute(
             "CREATE TABLE IF NOT EXISTS results (sha256 TEXT NOT NULL, settings TEXT NOT NULL, "
             "result TEXT NOT NULL, PRIMARY KEY (sha256, settings))")
+        self._con.execute(
+            "CREATE TABLE IF NOT EXISTS hashes (path TEXT PRIMARY KEY, size INTEGER NOT NULL, "
+            "mtime_ns INTEGER NOT NULL, sha256 TEXT NOT NULL)")
         self._con.commit()
 
     @staticmethod
@@ -60,6 +65,24 @@ class ResultCache:
         self._con.execute("INSERT OR REPLACE INTO results VALUES (?, ?, ?)",
                           (sha256, self.key(settings_key),
                            json.dumps(result, sort_keys=True, allow_nan=True)))
+        self._con.commit()
+
+    def get_hash(self, path: str, size: int, mtime_ns: int) -> str | None:
+        """SHA-256 recorded for this absolute path with the same size and mtime, if any."""
+        if self._con is None:
+            return None
+        try:
+            row = self._con.execute("SELECT sha256 FROM hashes WHERE path=? AND size=? AND "
+                                    "mtime_ns=?", (path, size, mtime_ns)).fetchone()
+        except sqlite3.OperationalError:
+            return None
+        return None if row is None else str(row[0])
+
+    def put_hash(self, path: str, size: int, mtime_ns: int, sha256: str) -> None:
+        if self._con is None or self.read_only:
+            raise RuntimeError("cache opened read-only")
+        self._con.execute("INSERT OR REPLACE INTO hashes VALUES (?, ?, ?, ?)",
+                          (path, size, mtime_ns, sha256))
         self._con.commit()
 
     def __len__(self) -> int:

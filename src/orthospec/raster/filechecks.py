@@ -254,3 +254,50 @@ def _check_open(ds: rasterio.io.DatasetReader, base: dict[str, Any], *, expect_e
     return FileChecks(crs=crs.to_string(), epsg=epsg, crs_ok=crs_ok, pixel_size_x=px,
                       pixel_size_y=py, pixel_size_unit=unit, gsd_ok=gsd_ok,
                       rotated=bool(t.b or t.d), **base, **facts)
+
+
+@dataclass(frozen=True)
+class VectorCheck:
+    """A delivered vector file (seamlines, tiles; JRC §11): present, readable, what it holds."""
+
+    path: str
+    error: str | None = None
+    features: int | None = None
+    geometry_type: str | None = None
+    crs: str | None = None
+    crs_ok: bool | None = None
+    fields: tuple[str, ...] = ()
+
+    def to_dict(self) -> dict[str, Any]:
+        d = asdict(self)
+        d["fields"] = list(self.fields)
+        return d
+
+
+def check_vector(path: str | Path, *, expect_epsg: int | None = None) -> VectorCheck:
+    """Open a seamline/tile vector file with pyogrio; ``error`` set when absent or unreadable."""
+    import pyogrio
+
+    p = Path(path)
+    if not p.exists():
+        return VectorCheck(path=str(p), error=f"{p}: file not found")
+    try:
+        info = pyogrio.read_info(str(p))
+    except Exception as exc:  # pyogrio raises DataSourceError and friends
+        return VectorCheck(path=str(p), error=f"{p}: not a readable vector file ({exc})")
+    crs_text = info.get("crs")
+    crs_ok = None
+    if expect_epsg is not None:
+        if crs_text is None:
+            crs_ok = False
+        else:
+            from pyproj import CRS
+
+            try:
+                crs_ok = CRS.from_user_input(crs_text).equals(CRS.from_epsg(int(expect_epsg)),
+                                                              ignore_axis_order=True)
+            except Exception:  # unparseable CRS: not equal
+                crs_ok = False
+    return VectorCheck(path=str(p), features=int(info.get("features", 0)),
+                       geometry_type=info.get("geometry_type"), crs=crs_text, crs_ok=crs_ok,
+                       fields=tuple(str(f) for f in info.get("fields", ())))

@@ -9,10 +9,12 @@ the result for the file's SHA-256 and the same settings.
 from __future__ import annotations
 
 import multiprocessing
+import os
 import sys
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
+from contextlib import contextmanager, suppress
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Protocol, TextIO
@@ -37,6 +39,7 @@ class ScanOptions:
     expect_gsd: float | None = None
     gsd_tolerance: float = 0.01
     cache_dir: str | None = None
+    trust_mtime: bool = True
 
     def key(self) -> str:
         return self.settings.key()
@@ -132,7 +135,7 @@ def scan_image(path: str | Path, options: ScanOptions | None = None, *,
         rep.seconds = time.perf_counter() - t0
         return rep
     try:
-        rep.sha256 = sha256_file(p)
+        rep.sha256 = _file_hash(p, o)
     except OSError as exc:
         rep.error = f"{p}: cannot read file: {exc.strerror or exc}"
         return rep
@@ -157,6 +160,26 @@ def scan_image(path: str | Path, options: ScanOptions | None = None, *,
             rep.error = f"{cloud_mask}: cloud mask unreadable: {exc}"
     rep.seconds = time.perf_counter() - t0
     return rep
+
+
+#: Files hashed in this process (tests check that unchanged files are not re-read).
+HASH_COUNT = {"files": 0}
+
+
+def _stat_key(path: str) -> tuple[str, int, int]:
+    st = os.stat(path)
+    return str(Path(path).resolve()), st.st_size, st.st_mtime_ns
+
+
+def _file_hash(path: str, o: ScanOptions) -> str:
+    """SHA-256 of the file, or the one remembered for the same path, size and mtime."""
+    if o.cache_dir and o.trust_mtime:
+        with ResultCache(o.cache_dir, read_only=True) as cache:
+            known = cache.get_hash(*_stat_key(path))
+        if known:
+            return known
+    HASH_COUNT["files"] += 1
+    return sha256_file(path)
 
 
 # --------------------------------------------------------------------------- progress
@@ -233,6 +256,29 @@ def make_progress(stream: TextIO | None = None) -> Progress:
 # --------------------------------------------------------------------------- batch
 
 
+_THREAD_VARS = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+@contextmanager
+def _one_thread_per_worker() -> Iterator[None]:
+    """Start worker processes with single-threaded BLAS/OpenMP (as Dask's nanny does).
+
+    N processes each spinning N BLAS threads oversubscribe the cores; the variables are set
+    only while the workers are launched and restored afterwards (user settings are kept).
+    """
+    saved = {k: os.environ.get(k) for k in _THREAD_VARS}
+    for k in _THREAD_VARS:
+        os.environ.setdefault(k, "1")
+    try:
+        yield
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
 def _mp_context() -> multiprocessing.context.BaseContext:
     """forkserver where available: workers fork from a clean server that has already
     imported orthospec (fast start, no inherited threads or GDAL handles); else spawn."""
@@ -259,7 +305,7 @@ def scan_images(
     progress: Progress | None = None, expect_epsg: int | None = None,
     expect_gsd: float | None = None, gsd_tolerance: float = 0.01,
     cloud_masks: Mapping[str, str | Path] | None = None,
-    settings: ScanSettings | None = None,
+    settings: ScanSettings | None = None, trust_mtime: bool = True,
 ) -> list[ImageReport]:
     """Check and measure many images; results in input order, bad files as ``error``.
 
@@ -278,6 +324,19 @@ def scan_images(
         declared radiometric resolution overriding NBITS / dtype (e.g. 11 for 11-bit data).
     progress
         :class:`Progress` callbacks (see :func:`make_progress`).
+    trust_mtime
+        with a cache, reuse the SHA-256 of a file whose absolute path, size and modification
+        time are unchanged instead of reading it again (False: hash every file every run).
+
+    Returns
+    -------
+    list[ImageReport]
+        one per path, in input order; unreadable files have ``error`` set.
+
+    Raises
+    ------
+    MeasureError
+        when ``cache_dir`` lies inside an image's folder.
     """
     p_list = [str(p) for p in paths]
     s = settings or ScanSettings()
@@ -288,7 +347,8 @@ def scan_images(
         ResultCache(cache_dir).close()  # create the schema before workers read it
     opts = ScanOptions(settings=s, expect_epsg=expect_epsg, expect_gsd=expect_gsd,
                        gsd_tolerance=gsd_tolerance,
-                       cache_dir=None if cache_dir is None else str(cache_dir))
+                       cache_dir=None if cache_dir is None else str(cache_dir),
+                       trust_mtime=trust_mtime)
     masks = {str(k): str(v) for k, v in (cloud_masks or {}).items()}
     sizes = []
     for p in p_list:
@@ -317,8 +377,9 @@ def scan_images(
             else:
                 ctx = _mp_context()
                 with ProcessPoolExecutor(max_workers=n, mp_context=ctx) as pool:
-                    futs = {pool.submit(scan_image, p, opts, cloud_mask=masks.get(p)): i
-                            for i, p in enumerate(p_list)}
+                    with _one_thread_per_worker():  # workers (and the forkserver) start here
+                        futs = {pool.submit(scan_image, p, opts, cloud_mask=masks.get(p)): i
+                                for i, p in enumerate(p_list)}
                     for fut in as_completed(futs):
                         done(futs[fut], fut.result())
     finally:
@@ -330,6 +391,9 @@ def scan_images(
             for r in reports:
                 if r.sha256 and r.radiometry is not None and not r.cached:
                     cache.put(r.sha256, opts.key(), r.radiometry)
+                if r.sha256 and trust_mtime:
+                    with suppress(OSError):  # the file vanished meanwhile: nothing to keep
+                        cache.put_hash(*_stat_key(r.path), r.sha256)
     return reports
 
 

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -44,6 +45,9 @@ class ScanSettings:
     noise: bool = True
     luminosity: bool = True
     misregistration: bool = True
+    #: noise estimators look at whole chunks spread evenly over the image, at most this many
+    #: pixels per band (4 Mpx estimate sigma to better than 1 %); 0 = every chunk
+    noise_max_pixels: int = 4 * 2**20
     chunk_bytes: int = 16 * 2**20
     gdal_cachemax_mb: int = 64
 
@@ -201,44 +205,30 @@ def _scan(ds: rasterio.io.DatasetReader, s: ScanSettings) -> RasterStats:
     if rgb is not None and not all(exact[i - 1] for i in rgb):
         rgb = None
     lum = rad.HistogramAccumulator.for_dtype(infos[rgb[0] - 1].dtype) if rgb else None
-    need_valid = bool(noise) or rgb is not None or bool(moms)
+    wins = list(chunk_windows(ds, s.chunk_bytes))
+    stride = 1
+    if noise and s.noise_max_pixels:
+        stride = max(1, math.ceil(ds.width * ds.height / s.noise_max_pixels))
+    mask_band = next((b.index for b in infos if b.use_mask), None)
+
+    def fetch(win: Window) -> tuple[np.ndarray, np.ndarray | None]:
+        # GDAL masks of one dataset (per-dataset mask or alpha) are shared by its bands
+        mask = ds.read_masks(mask_band, window=win) if mask_band is not None else None
+        return ds.read(window=win), mask
+
     chunks = 0
-    for win in chunk_windows(ds, s.chunk_bytes):
-        chunks += 1
-        data = ds.read(window=win)
-        shared_mask = None
-        valids: dict[int, np.ndarray | None] = {}
-        for b in infos:
-            band = data[b.index - 1]
-            mask = None
-            if b.use_mask:
-                if shared_mask is None:
-                    shared_mask = ds.read_masks(b.index, window=win)
-                mask = shared_mask
-            if b.index in hists:
-                hists[b.index].add(band, None if mask is None else mask != 0)
-            valid = _valid(band, b, mask) if need_valid else None
-            valids[b.index] = valid
-            if b.index in moms:
-                moms[b.index].add(band, valid)
-                g = b.grey
-                if g.bit_depth is not None:
-                    vals = band if valid is None else band[valid]
-                    ec = edge_counts[b.index]
-                    ec[0] += int(np.count_nonzero(vals == g.low))
-                    ec[1] += int(np.count_nonzero(vals == g.high))
-                    ec[2] += int(np.count_nonzero((vals < g.low) | (vals > g.high)))
-            if noise:
-                noise[b.index].add(band, valid)
-        if rgb is not None and lum is not None:
-            r, g_, bl = (data[i - 1] for i in rgb)
-            y = rad.luminosity(r, g_, bl, data.dtype)
-            vs = [valids.get(i) for i in rgb]
-            v = None
-            for part in vs:
-                if part is not None:
-                    v = part if v is None else v & part
-            lum.add(y, v)
+    # one reader thread decodes the next chunk (GDAL releases the GIL) while this one counts;
+    # the dataset is only ever touched by that thread inside the loop
+    with ThreadPoolExecutor(max_workers=1) as reader:
+        pending = reader.submit(fetch, wins[0]) if wins else None
+        for k in range(len(wins)):
+            assert pending is not None
+            data, shared_mask = pending.result()
+            if k + 1 < len(wins):
+                pending = reader.submit(fetch, wins[k + 1])
+            chunks += 1
+            _accumulate(data, shared_mask, infos, hists, moms, edge_counts,
+                        noise if k % stride == 0 else {}, rgb, lum)
     # floats / 32-bit: second pass for the binned histogram between exact min and max
     binned: dict[int, rad.BinnedHistogramAccumulator] = {}
     if moms:
@@ -278,8 +268,44 @@ def _scan(ds: rasterio.io.DatasetReader, s: ScanSettings) -> RasterStats:
     return out
 
 
+def _accumulate(data: np.ndarray, shared_mask: np.ndarray | None, infos: Sequence[BandInfo],
+                hists: dict[int, rad.HistogramAccumulator], moms: dict[int, rad.Moments],
+                edge_counts: dict[int, list[int]], noise: dict[int, rad.NoiseAccumulator],
+                rgb: tuple[int, int, int] | None,
+                lum: rad.HistogramAccumulator | None) -> None:
+    """Feed one chunk (bands, rows, cols) to every accumulator."""
+    need_valid = bool(noise) or rgb is not None or bool(moms)
+    valids: dict[int, np.ndarray | None] = {}
+    for b in infos:
+        band = data[b.index - 1]
+        mask = shared_mask if b.use_mask else None
+        if b.index in hists:
+            hists[b.index].add(band, None if mask is None else mask != 0)
+        valid = _valid(band, b, mask) if need_valid else None
+        valids[b.index] = valid
+        if b.index in moms:
+            moms[b.index].add(band, valid)
+            g = b.grey
+            if g.bit_depth is not None:
+                vals = band if valid is None else band[valid]
+                ec = edge_counts[b.index]
+                ec[0] += int(np.count_nonzero(vals == g.low))
+                ec[1] += int(np.count_nonzero(vals == g.high))
+                ec[2] += int(np.count_nonzero((vals < g.low) | (vals > g.high)))
+        if b.index in noise:
+            noise[b.index].add(band, valid)
+    if rgb is not None and lum is not None:
+        r, g_, bl = (data[i - 1] for i in rgb)
+        y = rad.luminosity(r, g_, bl, data.dtype)
+        v = None
+        for part in (valids.get(i) for i in rgb):
+            if part is not None:
+                v = part if v is None else v & part
+        lum.add(y, v)
+
+
 def _misregistration(ds: rasterio.io.DatasetReader, infos: Sequence[BandInfo], *,
-                     size: int = 512) -> tuple[int, dict[int, rad.Shift]]:
+                     size: int = 256) -> tuple[int, dict[int, rad.Shift]]:
     """Band-to-band shift vs the green (else first) band: median over up to 5 windows."""
     colour = {b.colour: b.index for b in infos}
     ref = colour.get("green", 1)
@@ -302,11 +328,12 @@ def _misregistration(ds: rasterio.io.DatasetReader, infos: Sequence[BandInfo], *
         a = _filled(data[ref - 1], _valid(data[ref - 1], ref_info, _mask(ds, ref_info, win)))
         if a is None:
             continue
+        f_ref = rad.tapered_spectrum(a)
         for b in others:
             m = _filled(data[b.index - 1], _valid(data[b.index - 1], b, _mask(ds, b, win)))
             if m is None:
                 continue
-            found[b.index].append(rad.phase_correlation(a, m))
+            found[b.index].append(rad.phase_correlation_spectra(f_ref, rad.tapered_spectrum(m)))
     result = {}
     for idx, shifts in found.items():
         if shifts:

@@ -1,0 +1,222 @@
+"""Ledger commands: history, diff and signoff on ``main``; verify, state and runs on ``ledger``.
+
+The ledger is a SQLite file (default ``./orthospec-ledger.sqlite`` or ``$ORTHOSPEC_LEDGER``) or a
+PostgreSQL URL (``postgresql+psycopg://user@host/db``). These commands only parse, call
+:mod:`orthospec.ledger` and print.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict
+from typing import Any
+
+import click
+
+from ..errors import LedgerError
+from ..ledger import ROLES, Ledger, open_ledger
+from ..ledger.history import History
+from .groups import ledger, main
+
+ledger_option = click.option(
+    "--ledger", "ledger_target", metavar="PATH|URL", envvar="ORTHOSPEC_LEDGER", default=None,
+    help="Ledger: SQLite file or postgresql+psycopg:// URL "
+         "(default $ORTHOSPEC_LEDGER, else ./orthospec-ledger.sqlite).")
+json_option = click.option("--json", "as_json", is_flag=True, help="Print JSON instead of text.")
+
+_SHORT = {"pass": "pass", "fail": "FAIL", "warn": "warn", "missing": "MISS", "error": "ERR",
+          "waived": "wvd", "not_applicable": "n/a", "rejected": "REJ"}
+
+
+def _open(target: str | None) -> Ledger:
+    return open_ledger(target, create=False)
+
+
+def _run_id(text: str) -> int:
+    t = text.lstrip("#")
+    if not t.isdigit():
+        raise click.BadParameter(f"{text!r}: a run id is a number (see `orthospec ledger runs`)")
+    return int(t)
+
+
+def _grid(title: str, rows: dict[str, dict[int, str]], run_ids: list[int]) -> list[str]:
+    if not rows:
+        return []
+    width = max(len(k) for k in rows)
+    head = " " * width + "  " + " ".join(f"{'#' + str(i):>5}" for i in run_ids)
+    lines = [title, head]
+    for key, per in rows.items():
+        cells = " ".join(f"{_SHORT.get(per.get(i, ''), '-') if i in per else '-':>5}" for i in run_ids)
+        lines.append(f"{key:<{width}}  {cells}")
+    return lines
+
+
+def _history_text(h: History) -> str:
+    out = []
+    ids = [e.run.id for e in h.entries]
+    out.append(f"{'run':>5}  {'date':<10}  {'round':<14}  {'delivery':<16}  {'verdict':<8}  "
+               f"{'pass':>5} {'fail':>5} {'warn':>5} {'miss':>5}  sign-offs")
+    for e in h.entries:
+        c = e.run.summary.get("counts", {})
+        kind = f"{e.round} {e.kind}"
+        out.append(f"{'#' + str(e.run.id):>5}  {e.run.date:<10}  {kind:<14}  {e.run.delivery_id:<16}  "
+                   f"{e.run.verdict:<8}  {c.get('pass', 0):>5} {c.get('fail', 0):>5} "
+                   f"{c.get('warn', 0):>5} {c.get('missing', 0):>5}  {e.signoffs}")
+    for title, rows in (("per rule (worst verdict per run):", h.rules),
+                        ("per block:", h.blocks)):
+        grid = _grid(title, rows, ids)
+        if grid:
+            out += ["", *grid]
+    return "\n".join(out)
+
+
+@main.command("history")
+@click.argument("project", required=False)
+@ledger_option
+@json_option
+def history_cmd(project: str | None, ledger_target: str | None, as_json: bool) -> None:
+    """Deliveries, redeliveries and their verdicts over time, per rule and per block."""
+    with _open(ledger_target) as led:
+        projects = [project] if project is not None else led.projects()
+        hists = [led.history(p) for p in projects]
+    if project is not None and not hists[0].entries:
+        raise LedgerError(f"no runs of project {project!r} in the ledger (projects: "
+                          f"{', '.join(p for p in projects if p != project) or 'none'})")
+    if as_json:
+        click.echo(json.dumps([{
+            "project": h.project,
+            "runs": [{"run": e.run.id, "date": e.run.date, "recorded_at": e.run.recorded_at,
+                      "kind": e.kind, "round": e.round, "delivery": e.run.delivery_id,
+                      "verdict": e.run.verdict, "summary": e.run.summary.get("counts", {}),
+                      "signoffs": e.signoffs, "hash": e.run.hash} for e in h.entries],
+            "rules": {k: {str(i): v for i, v in per.items()} for k, per in h.rules.items()},
+            "blocks": {k: {str(i): v for i, v in per.items()} for k, per in h.blocks.items()},
+        } for h in hists], indent=1, ensure_ascii=False))
+        return
+    for n, h in enumerate(hists):
+        if n:
+            click.echo("")
+        click.echo(f"project {h.project}: {len(h.entries)} run(s)")
+        click.echo(_history_text(h))
+
+
+@main.command("diff")
+@click.argument("run_a")
+@click.argument("run_b")
+@ledger_option
+@json_option
+def diff_cmd(run_a: str, run_b: str, ledger_target: str | None, as_json: bool) -> None:
+    """What changed between two runs per rule and item: fixed, newly failing, still failing."""
+    a, b = _run_id(run_a), _run_id(run_b)
+    with _open(ledger_target) as led:
+        d = led.diff(a, b)
+    if as_json:
+        click.echo(json.dumps({"run_a": a, "run_b": b, "counts": d.counts,
+                               "changes": [asdict(c) for c in d.changes]}, indent=1))
+        return
+    order = ("fixed", "newly_failing", "still_failing", "changed", "added", "removed")
+    click.echo(f"run #{a} -> run #{b}: " + (", ".join(f"{d.counts[k]} {k.replace('_', ' ')}"
+                                                      for k in order if k in d.counts) or "no changes"))
+    for status in order:
+        group = [c for c in d.changes if c.status == status]
+        if not group:
+            continue
+        click.echo(f"{status.replace('_', ' ')}:")
+        for c in group:
+            click.echo(f"  {c.rule} [{c.item}]: {c.before or '-'} -> {c.after or '-'}")
+
+
+def _manual(values: tuple[str, ...]) -> dict[str, str]:
+    out = {}
+    for v in values:
+        rule, sep, verdict = v.partition("=")
+        if not sep or verdict.strip().lower() not in ("pass", "fail") or not rule.strip():
+            raise click.BadParameter(f"{v!r}: expected RULE=pass or RULE=fail", param_hint="--manual")
+        out[rule.strip()] = verdict.strip().lower()
+    return out
+
+
+@main.command("signoff")
+@click.argument("run")
+@click.option("--by", "by", required=True, help="Name of the person countersigning.")
+@click.option("--role", type=click.Choice(ROLES), default="supervisor", show_default=True)
+@click.option("--note", default=None, help="Free text recorded with the signature.")
+@click.option("--manual", "manual", multiple=True, metavar="RULE=pass|fail",
+              help="Verdict of a manual check of this run (repeatable).")
+@click.option("--date", metavar="YYYY-MM-DD", default=None, help="Date of the signature (default today).")
+@ledger_option
+def signoff_cmd(run: str, by: str, role: str, note: str | None, manual: tuple[str, ...],
+                date: str | None, ledger_target: str | None) -> None:
+    """Countersign RUN (JRC §2.4) and record manual-check verdicts."""
+    rid = _run_id(run)
+    verdicts = _manual(manual)
+    with _open(ledger_target) as led:
+        sid = led.signoff(rid, by=by, role=role, note=note, manual=verdicts, date=date)
+    extra = f" with {len(verdicts)} manual verdict(s)" if verdicts else ""
+    click.echo(f"signed run #{rid} as {role} ({by}){extra}: sign-off {sid}")
+
+
+@ledger.command("verify")
+@ledger_option
+@click.option("--expect-head", metavar="HASH", default=None,
+              help="Head hash noted earlier (e.g. in a report); a mismatch means rewritten history.")
+def verify_cmd(ledger_target: str | None, expect_head: str | None) -> None:
+    """Check the hash chain: exit 0 when intact, 1 listing every edited or deleted row."""
+    with _open(ledger_target) as led:
+        rep = led.verify()
+    problems = [str(p) for p in rep.problems]
+    if expect_head is not None and not rep.head_hash.startswith(expect_head.lower()):
+        problems.append(f"head hash {rep.head_hash} does not match the expected {expect_head}")
+    if problems:
+        click.echo(f"ledger {led.display}: {len(problems)} problem(s):")
+        for p in problems:
+            click.echo(f"  {p}")
+        click.get_current_context().exit(1)
+    click.echo(f"ledger {led.display}: intact, {rep.entries} entries ({rep.runs} runs, "
+               f"{rep.signoffs} sign-offs), head {rep.head_hash}")
+
+
+@ledger.command("state")
+@click.argument("project")
+@click.option("--normal", type=float, default=0.10, show_default=True, help="Sample share when normal.")
+@click.option("--tightened", type=float, default=0.20, show_default=True, help="Sample share when tightened.")
+@ledger_option
+@json_option
+def state_cmd(project: str, normal: float, tightened: float, ledger_target: str | None,
+              as_json: bool) -> None:
+    """Normal/Tightened audit state per QCR family of PROJECT (JRC §2.3) and the next sample share."""
+    with _open(ledger_target) as led:
+        states = led.audit_states(project)
+    if not states:
+        raise LedgerError(f"no runs of project {project!r} in the ledger")
+    rows: list[dict[str, Any]] = [
+        {**asdict(s), "suspect_items": list(s.suspect_items),
+         "sample_fraction": tightened if s.state == "tightened" else normal} for s in states.values()]
+    if as_json:
+        click.echo(json.dumps({"project": project, "families": rows}, indent=1, ensure_ascii=False))
+        return
+    width = max(len(r["family"]) for r in rows)
+    for r in rows:
+        suspects = r["suspect_items"]
+        trail = f"; trail: {', '.join(suspects[:8])}{' ...' if len(suspects) > 8 else ''}" if suspects else ""
+        click.echo(f"{r['family']:<{width}}  {r['state']:<9}  sample {100 * r['sample_fraction']:.0f} %  "
+                   f"since run #{r['since_run']}  ({r['reason']}{trail})")
+
+
+@ledger.command("runs")
+@click.argument("project", required=False)
+@ledger_option
+@json_option
+def runs_cmd(project: str | None, ledger_target: str | None, as_json: bool) -> None:
+    """List recorded runs (oldest first)."""
+    with _open(ledger_target) as led:
+        runs = led.runs(project)
+    if as_json:
+        click.echo(json.dumps([{"run": r.id, "seq": r.seq, "date": r.date, "recorded_at": r.recorded_at,
+                                "project": r.project_id, "delivery": r.delivery_id, "verdict": r.verdict,
+                                "profile": f"{r.profile_id}@{r.profile_version}", "operator": r.operator,
+                                "records": r.n_records, "hash": r.hash} for r in runs], indent=1))
+        return
+    for r in runs:
+        click.echo(f"#{r.id:<4} {r.date}  {r.project_id}  {r.delivery_id}  {r.verdict:<8}  "
+                   f"{r.profile_id}@{r.profile_version}  {r.n_records} QCRs  {r.hash[:12]}")

@@ -1,0 +1,75 @@
+"""orthospec report (re-render a stored qcr.json) and orthospec spec render (the tender annex)."""
+
+from __future__ import annotations
+
+import json
+from datetime import date as Date
+from pathlib import Path
+
+import click
+
+from ..errors import ReportError
+from ..qcr import atomic_write
+from .groups import main, spec
+from .options import split_formats
+
+REPORT_FORMATS = ("html", "pdf")
+ANNEX_FORMATS = ("md", "html", "pdf")
+
+
+def _read_qcr(path: Path) -> dict:
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError as exc:
+        raise ReportError(f"{path}: no such file (expected a qcr.json written by `orthospec check`)") from exc
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ReportError(f"{path}: not valid JSON ({exc})") from exc
+    return doc
+
+
+@main.command("report")
+@click.argument("qcr_json", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--format", "formats", default="html,pdf", show_default=True,
+              help="Comma-separated: " + ", ".join(REPORT_FORMATS) + ".")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), default=None,
+              help="Folder for report.html / report.pdf (default: beside QCR_JSON).")
+def report_cmd(qcr_json: Path, formats: str, out_dir: Path | None) -> None:
+    """Render the auditor's report (HTML, archival PDF/A-3b) from a stored QCR_JSON."""
+    from ..reports import document as reportdoc  # WeasyPrint only when this command runs
+
+    fmts = split_formats(formats, REPORT_FORMATS)
+    doc = _read_qcr(qcr_json)
+    files = reportdoc.render(doc, formats=fmts)
+    target = out_dir if out_dir is not None else qcr_json.parent
+    for name, data in files.items():
+        atomic_write(target / name, data)
+    click.echo(f"wrote {', '.join(sorted(files))} to {target}/ (qcr.json SHA-256 "
+               f"{reportdoc.document_sha256(doc)})")
+
+
+@spec.command("render")
+@click.argument("profile")
+@click.option("--format", "formats", default="pdf,html,md", show_default=True,
+              help="Comma-separated: " + ", ".join(ANNEX_FORMATS) + ".")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), default=Path("."),
+              show_default=True, help="Folder for annex-<id>-<version>.<format>.")
+@click.option("--date", "day", metavar="YYYY-MM-DD", default=None,
+              help="Date printed on the annex (default today); fix it for byte-identical output.")
+def render_cmd(profile: str, formats: str, out_dir: Path, day: str | None) -> None:
+    """Render PROFILE as the technical-specification annex of an invitation to tender."""
+    from ..reports.annex import render_annex
+    from ..spec.loader import load_profile
+
+    fmts = split_formats(formats, ANNEX_FORMATS)
+    if day is not None:
+        try:
+            Date.fromisoformat(day)
+        except ValueError as exc:
+            raise click.BadParameter(f"{day!r} is not a date YYYY-MM-DD", param_hint="--date") from exc
+    # the annex documents requirements; whether every measure is implemented is `spec validate`'s job
+    prof = load_profile(profile, check_measures=False)
+    files = render_annex(prof, formats=fmts, day=day)
+    for name, data in files.items():
+        atomic_write(out_dir / name, data)
+    click.echo(f"wrote {', '.join(sorted(files))} to {out_dir}/ (profile {prof.id} {prof.version}, "
+               f"sha256 {prof.sha256})")

@@ -1,0 +1,147 @@
+"""SVG figures of the edge chain: detection, ESF, LSF and MTF (seed 003 steps 5, 6-8, 10, 12).
+
+Figures are built on :class:`matplotlib.figure.Figure` (Agg canvas, no pyplot state) and
+written with a fixed ``svg.hashsalt`` and no date, so the same result gives byte-identical SVG.
+"""
+
+from __future__ import annotations
+
+import io
+
+import matplotlib as mpl
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from ..measures.edge import NYQUIST, EdgeResult
+
+__all__ = ["detection_svg", "edge_figures", "esf_svg", "lsf_svg", "mtf_svg"]
+
+_RC = {"svg.hashsalt": "orthospec-edge", "svg.fonttype": "none", "font.size": 9,
+       "axes.grid": True, "grid.alpha": 0.3}
+_COLOURS = {"spline": "tab:red", "fermi": "tab:blue"}
+_MAX_POINTS = 4000
+
+
+def _colour(fit: str) -> str:
+    return _COLOURS.get(fit, _COLOURS["fermi"] if fit.startswith("fermi") else "tab:green")
+
+
+def _svg(fig: Figure) -> str:
+    FigureCanvasAgg(fig)
+    buf = io.StringIO()
+    with mpl.rc_context(_RC):
+        fig.savefig(buf, format="svg", metadata={"Date": None, "Creator": "orthospec"})
+    return buf.getvalue()
+
+
+def _figure() -> tuple[Figure, object]:
+    with mpl.rc_context(_RC):
+        fig = Figure(figsize=(6.0, 4.0), dpi=100)
+        ax = fig.add_subplot(1, 1, 1)
+    return fig, ax
+
+
+def _status(result: EdgeResult) -> str:
+    return "valid" if result.valid else "INVALID: " + "; ".join(r.split(":")[0] for r in result.reasons)
+
+
+def detection_svg(roi: np.ndarray, result: EdgeResult) -> str:
+    """ROI with per-line edge locations (kept and rejected) and the fitted line (step 5)."""
+    with mpl.rc_context(_RC):
+        fig, ax = _figure()
+        ax.grid(False)
+        ax.imshow(np.asarray(roi, dtype=float), cmap="gray", interpolation="nearest")
+        k = result.line_kept
+        if k.size:
+            ax.plot(result.line_x[k], result.line_y[k], ".", ms=3, color="tab:red",
+                    label="edge location per line")
+            if (~k).any():
+                ax.plot(result.line_x[~k], result.line_y[~k], "x", ms=4, color="tab:orange",
+                        label="rejected line")
+            if np.isfinite(result.fitted_x).all():
+                ax.plot(result.fitted_x, result.fitted_y, "-", lw=1, color="tab:green",
+                        label="fitted edge line")
+        angle = "n/a" if result.angle_deg is None else f"{result.angle_deg:.2f}°"
+        ax.set_title(f"Edge detection ({result.direction}, {angle}) — {_status(result)}",
+                     fontsize=8)
+        ax.set_xlabel("x (column, px)")
+        ax.set_ylabel("y (row, px)")
+        if k.size:
+            ax.legend(loc="lower right", fontsize=7)
+        return _svg(fig)
+
+
+def esf_svg(result: EdgeResult) -> str:
+    """Normalised ESF samples at perpendicular distance with both fits (steps 6-8)."""
+    with mpl.rc_context(_RC):
+        fig, ax = _figure()
+        if result.dark_level is not None and result.bright_level is not None and result.window_px:
+            lo, hi = result.window_px
+            span = result.bright_level - result.dark_level
+            sel = (result.esf_d >= lo - 1) & (result.esf_d <= hi + 1)
+            d, v = result.esf_d[sel], (result.esf_dn[sel] - result.dark_level) / span
+            if d.size > _MAX_POINTS:  # deterministic thinning for file size
+                step = int(np.ceil(d.size / _MAX_POINTS))
+                d, v = d[::step], v[::step]
+            ax.plot(d, v, ".", ms=1.5, color="0.5", label="pixels")
+            for fit in result.fits.values():
+                ax.plot(fit.x, fit.esf, "-", lw=1.2, color=_colour(fit.fit), label=f"{fit.fit} fit")
+            for x, name in ((result.dark_start_px, "dark start"),
+                            (result.bright_start_px, "bright start")):
+                if x is not None:
+                    ax.axvline(x, ls=":", lw=0.8, color="k")
+                    ax.text(x, 1.02, name, fontsize=6, ha="center")
+            ax.legend(loc="lower right", fontsize=7)
+        ax.set_xlabel("distance from edge, perpendicular (px)")
+        ax.set_ylabel("normalised DN")
+        ax.set_title(f"Edge spread function — {_status(result)}", fontsize=8)
+        return _svg(fig)
+
+
+def lsf_svg(result: EdgeResult) -> str:
+    """LSF of each fit with the FWHM marked (steps 10-11)."""
+    with mpl.rc_context(_RC):
+        fig, ax = _figure()
+        for fit in result.fits.values():
+            ax.plot(fit.x, fit.lsf, "-", lw=1.2, color=_colour(fit.fit),
+                    label=f"{fit.fit}: FWHM {fit.fwhm_px:.3f} px")
+            peak = float(np.max(fit.lsf))
+            ax.hlines(peak / 2, fit.centre_px - fit.fwhm_px / 2, fit.centre_px + fit.fwhm_px / 2,
+                      color=_colour(fit.fit), lw=0.8, ls="--")
+        if result.fits:
+            ax.legend(loc="upper right", fontsize=7)
+        ax.set_xlabel("distance from edge, perpendicular (px)")
+        ax.set_ylabel("LSF (1/px)")
+        ax.set_title(f"Line spread function — {_status(result)}", fontsize=8)
+        return _svg(fig)
+
+
+def mtf_svg(result: EdgeResult) -> str:
+    """MTF of each fit, Nyquist (0.5 cycles/px) marked (step 12)."""
+    with mpl.rc_context(_RC):
+        fig, ax = _figure()
+        for fit in result.fits.values():
+            ax.plot(fit.mtf_freq, fit.mtf, "-", lw=1.2, color=_colour(fit.fit),
+                    label=f"{fit.fit}: MTF@Ny {fit.mtf_nyquist:.3f}")
+            ax.plot([NYQUIST], [fit.mtf_nyquist], "o", ms=4, color=_colour(fit.fit))
+        ax.axvline(NYQUIST, ls="--", lw=0.8, color="k")
+        ax.text(NYQUIST, 1.02, "Nyquist", fontsize=7, ha="center")
+        ax.set_xlim(0, 1.0)
+        ax.set_ylim(0, 1.1)
+        if result.fits:
+            ax.legend(loc="upper right", fontsize=7)
+        ax.set_xlabel("spatial frequency (cycles/px)")
+        ax.set_ylabel("MTF")
+        ax.set_title(f"Modulation transfer function — {_status(result)}", fontsize=8)
+        return _svg(fig)
+
+
+def edge_figures(roi: np.ndarray, result: EdgeResult) -> dict[str, str]:
+    """All four figures, keyed by file stem: detection, esf, lsf, mtf."""
+    return {
+        "detection": detection_svg(roi, result),
+        "esf": esf_svg(result),
+        "lsf": lsf_svg(result),
+        "mtf": mtf_svg(result),
+    }

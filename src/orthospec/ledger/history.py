@@ -1,0 +1,132 @@
+"""History and diff over recorded runs: pure functions on what the store returns.
+
+JRC §12.8: "Redelivery of products will be followed by a further independent check on a new
+sample of the products. This procedure will continue until the products are finally acceptable."
+A project's history is therefore a sequence of rounds: the first delivered content, then each
+redelivery (new manifest or file checksums); a run over content already seen is a re-check.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from .store import RunInfo
+
+#: worst first (same order as the evaluator's roll-up)
+SEVERITY = ("error", "fail", "missing", "warn", "waived", "pass", "not_applicable")
+FAILING = frozenset({"fail", "missing", "error"})
+
+
+def worst(verdicts: Sequence[str] | set[str]) -> str:
+    present = set(verdicts)
+    for v in SEVERITY:
+        if v in present:
+            return v
+    return "not_applicable"
+
+
+@dataclass(frozen=True)
+class HistoryEntry:
+    run: RunInfo
+    kind: str            # delivery | redelivery | recheck
+    round: int           # 1 = first delivery, 2 = first redelivery, ...
+    signoffs: int
+
+
+@dataclass(frozen=True)
+class History:
+    project: str | None
+    entries: tuple[HistoryEntry, ...]
+    #: rule -> run id -> worst (effective) verdict of the rule in that run
+    rules: dict[str, dict[int, str]]
+    #: block -> run id -> "rejected" or the worst verdict of its block-scope records
+    blocks: dict[str, dict[int, str]]
+
+
+def rounds(runs: Sequence[RunInfo]) -> list[tuple[str, int]]:
+    """(kind, round) per run, oldest first, counted per project."""
+    seen: dict[str, dict[str, int]] = {}
+    count: dict[str, int] = {}
+    out = []
+    for r in runs:
+        keys = seen.setdefault(r.project_id, {})
+        if r.content_key in keys:
+            out.append(("recheck", keys[r.content_key]))
+            continue
+        count[r.project_id] = count.get(r.project_id, 0) + 1
+        keys[r.content_key] = count[r.project_id]
+        out.append(("delivery" if count[r.project_id] == 1 else "redelivery", count[r.project_id]))
+    return out
+
+
+def build_history(project: str | None, runs: Sequence[RunInfo],
+                  qcrs: Mapping[int, Sequence[Mapping[str, Any]]],
+                  manual: Mapping[int, Mapping[str, str]], signoffs: Mapping[int, int]) -> History:
+    """Assemble the per-run, per-rule and per-block views from stored rows."""
+    entries = tuple(HistoryEntry(r, k, n, signoffs.get(r.id, 0)) for r, (k, n) in zip(runs, rounds(runs),
+                                                                                        strict=True))
+    rules: dict[str, dict[int, set[str]]] = {}
+    blocks: dict[str, dict[int, set[str]]] = {}
+    for r in runs:
+        over = manual.get(r.id, {})
+        for q in qcrs.get(r.id, []):
+            v = over.get(q["rule"], q["verdict"])
+            rules.setdefault(q["rule"], {}).setdefault(r.id, set()).add(v)
+            if q["scope"] == "block":
+                blocks.setdefault(q["item"], {}).setdefault(r.id, set()).add(v)
+        for b in (r.summary.get("rejected") or {}).get("block", []):
+            blocks.setdefault(str(b), {}).setdefault(r.id, set()).add("rejected")
+    rule_view = {k: {rid: worst(vs) for rid, vs in per.items()} for k, per in sorted(rules.items())}
+    block_view = {k: {rid: ("rejected" if "rejected" in vs else worst(vs)) for rid, vs in per.items()}
+                  for k, per in sorted(blocks.items())}
+    return History(project, entries, rule_view, block_view)
+
+
+@dataclass(frozen=True)
+class Change:
+    rule: str
+    item: str
+    before: str | None   # None: the record did not exist in run A
+    after: str | None
+    status: str          # fixed | newly_failing | still_failing | changed | added | removed
+
+
+@dataclass(frozen=True)
+class Diff:
+    run_a: int
+    run_b: int
+    changes: tuple[Change, ...]
+    counts: dict[str, int] = field(default_factory=dict)
+
+
+def classify(before: str | None, after: str | None) -> str | None:
+    """The kind of change between two verdicts of one (rule, item); None when nothing changed."""
+    if before == after and before not in FAILING:
+        return None
+    if before is None:
+        return "newly_failing" if after in FAILING else "added"
+    if after is None:
+        return "removed"
+    if before in FAILING and after in FAILING:
+        return "still_failing"
+    if before in FAILING:
+        return "fixed"
+    if after in FAILING:
+        return "newly_failing"
+    return "changed"
+
+
+def diff_verdicts(run_a: int, run_b: int, a: Mapping[tuple[str, str], str],
+                  b: Mapping[tuple[str, str], str]) -> Diff:
+    """Compare two runs' (rule, item) -> verdict maps."""
+    changes = []
+    for key in sorted(set(a) | set(b)):
+        status = classify(a.get(key), b.get(key))
+        if status is not None:
+            changes.append(Change(key[0], key[1], a.get(key), b.get(key), status))
+    counts: dict[str, int] = {}
+    for c in changes:
+        counts[c.status] = counts.get(c.status, 0) + 1
+    return Diff(run_a, run_b, tuple(changes), counts)

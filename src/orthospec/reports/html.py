@@ -1,0 +1,364 @@
+"""The auditor's report as HTML: a view model computed from qcr.json alone, rendered by Jinja2.
+
+Everything here reads the QCR document (never an ``Evaluation``), so a stored ``qcr.json`` can be
+re-rendered years later. The same view model feeds the PDF (``pdf.py``); ``bounded=True`` keeps
+its tables short (failing items in full, passing items summarised per rule with counts) because
+the complete data travels as attachments.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from typing import Any
+
+import jinja2
+
+from ..qcr import dumps, natural_key
+from ..resources import templates_dir
+
+__all__ = ["ReportOptions", "document_sha256", "environment", "render_html", "report_context"]
+
+# verdicts the auditor must read first, worst first
+PROBLEM_VERDICTS = ("error", "fail", "missing", "warn")
+VERDICT_ORDER = {v: i for i, v in enumerate(("error", "fail", "missing", "warn", "waived", "pass",
+                                              "not_applicable"))}
+SCOPE_TITLES = {"delivery": "Delivery", "project": "Project", "block": "Blocks", "image": "Images",
+                "band": "Bands", "checkpoint": "Checkpoints", "gcp": "Ground control points",
+                "flight": "Flights", "camera": "Cameras", "scanner": "Scanners", "dem": "DEM",
+                "mosaic": "Mosaic", "edge": "Edge targets"}
+
+
+@dataclass(frozen=True)
+class ReportOptions:
+    """How much of the document the tables show.
+
+    ``bounded`` (the PDF): passing records are summarised per rule; checkpoint tables longer than
+    ``max_points`` show their failing points only. Otherwise (HTML) passing records are listed
+    up to ``max_pass_rows`` per rule. Figures are drawn for at most ``max_figure_blocks`` blocks
+    (failing blocks first).
+    """
+
+    bounded: bool = False
+    max_pass_rows: int = 2000
+    max_points: int = 300
+    max_figure_blocks: int = 12
+    figures: bool = True
+
+
+def canonical_qcr(doc: dict[str, Any]) -> str:
+    """qcr.json text as ``orthospec check`` writes it, without sign-offs added later."""
+    return dumps({k: v for k, v in doc.items() if k != "signoffs"})
+
+
+def document_sha256(doc: dict[str, Any]) -> str:
+    """The report checksum: SHA-256 of :func:`canonical_qcr` (``sha256sum qcr.json`` agrees).
+
+    Sign-offs are excluded so a countersignature can cite the checksum of what it signs.
+    """
+    return hashlib.sha256(canonical_qcr(doc).encode("utf-8")).hexdigest()
+
+
+# --- formatting filters -------------------------------------------------------------------------
+
+def fmt_value(v: Any, digits: int = 6) -> str:
+    if v is None:
+        return "—"
+    if isinstance(v, bool):
+        return "yes" if v else "no"
+    if isinstance(v, float):
+        if math.isnan(v) or math.isinf(v):
+            return "—"
+        return f"{v:.{digits}g}"
+    if isinstance(v, list):
+        return ", ".join(fmt_value(x, digits) for x in v)
+    return str(v)
+
+
+def fmt_fixed(v: Any, places: int = 3) -> str:
+    if v is None or isinstance(v, str):
+        return "—" if v is None else v
+    return f"{float(v):.{places}f}"
+
+
+def fmt_measured(m: dict[str, Any] | None) -> str:
+    if not m:
+        return "—"
+    unit = m.get("unit")
+    text = fmt_value(m.get("value"))
+    if text != "—" and unit and unit not in ("1", "text", "bool", "date"):
+        text += f" {unit}"
+    return text
+
+
+def fmt_clause(c: dict[str, Any] | str | None) -> str:
+    if not c:
+        return ""
+    if isinstance(c, str):
+        return c
+    parts = [str(c.get("document", ""))]
+    if c.get("section"):
+        parts.append(f"§{c['section']}")
+    if c.get("table"):
+        parts.append(f"Table {c['table']}")
+    if c.get("row"):
+        parts.append(f"row '{c['row']}'")
+    if c.get("figure"):
+        parts.append(f"Figure {c['figure']}")
+    return ", ".join(p for p in parts if p)
+
+
+def fmt_rows(rows: Iterable[int] | None) -> str:
+    """[1,2,3,7] -> '1–3, 7' (evidence row lists can be long)."""
+    rs = sorted(set(rows or ()))
+    out: list[str] = []
+    i = 0
+    while i < len(rs):
+        j = i
+        while j + 1 < len(rs) and rs[j + 1] == rs[j] + 1:
+            j += 1
+        out.append(str(rs[i]) if i == j else f"{rs[i]}–{rs[j]}")
+        i = j + 1
+    return ", ".join(out)
+
+
+def environment() -> jinja2.Environment:
+    """Jinja2 over the templates folder with autoescaping on: delivery text is always text."""
+    env = jinja2.Environment(
+        loader=jinja2.FileSystemLoader(str(templates_dir())),
+        autoescape=True,
+        undefined=jinja2.ChainableUndefined,  # older qcr.json may lack newer keys
+        trim_blocks=True,
+        lstrip_blocks=True,
+        keep_trailing_newline=True,
+    )
+    env.filters.update(value=fmt_value, fixed=fmt_fixed, measured=fmt_measured, clause=fmt_clause,
+                       rows=fmt_rows, short=lambda s, n=12: (s or "")[:n])
+    return env
+
+
+# --- view model ---------------------------------------------------------------------------------
+
+@dataclass
+class RuleView:
+    rule: str
+    title: str
+    clause: str
+    quote: str
+    scope: str
+    level: str
+    consequence: str
+    measure: str
+    verdict: str
+    counts: dict[str, int]
+    requirement: str
+    shown: list[dict[str, Any]] = field(default_factory=list)   # records listed in full
+    passing: list[dict[str, Any]] = field(default_factory=list)  # HTML: passing records listed
+    pass_count: int = 0
+    pass_hidden: int = 0
+    pass_range: str = ""
+    na_count: int = 0
+    error: str | None = None
+
+
+def _numeric(v: Any) -> bool:
+    return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _rule_views(doc: dict[str, Any], opts: ReportOptions) -> list[RuleView]:
+    by_rule: dict[str, list[dict[str, Any]]] = {}
+    for rec in doc.get("records", []):
+        by_rule.setdefault(rec["rule"], []).append(rec)
+    meta = {r["rule"]: r for r in doc.get("rules", [])}
+    order = list(meta) + [r for r in by_rule if r not in meta]
+    views = []
+    for rid in order:
+        recs = by_rule.get(rid, [])
+        m = meta.get(rid, {})
+        first = recs[0] if recs else {}
+        reqs = {r["requirement"].get("text", "") for r in recs}
+        v = RuleView(
+            rule=rid, title=m.get("title") or first.get("title", ""),
+            clause=fmt_clause(first.get("clause") or m.get("clause")), quote=first.get("quote", ""),
+            scope=m.get("scope") or first.get("scope", ""), level=m.get("level") or first.get("level", ""),
+            consequence=m.get("consequence") or first.get("consequence", ""),
+            measure=first.get("measure", ""), verdict=m.get("verdict", "not_applicable"),
+            counts=m.get("counts", {}), requirement=next(iter(reqs)) if len(reqs) == 1 else "per item",
+            error=m.get("error"),
+        )
+        passing = [r for r in recs if r["verdict"] == "pass"]
+        v.na_count = sum(r["verdict"] == "not_applicable" for r in recs)
+        v.shown = [r for r in recs if r["verdict"] not in ("pass", "not_applicable")]
+        v.shown.sort(key=lambda r: VERDICT_ORDER.get(r["verdict"], 9))  # stable: item order kept
+        v.pass_count = len(passing)
+        nums = [r["measured"]["value"] for r in passing if _numeric(r["measured"].get("value"))]
+        if nums:
+            unit = passing[0]["measured"].get("unit")
+            u = f" {unit}" if unit and unit not in ("1", "text", "bool", "date") else ""
+            lo, hi = min(nums), max(nums)
+            v.pass_range = fmt_value(lo) + u if lo == hi else f"{fmt_value(lo)} to {fmt_value(hi)}{u}"
+        if not opts.bounded:
+            v.passing = passing[: opts.max_pass_rows]
+            v.pass_hidden = len(passing) - len(v.passing)
+        views.append(v)
+    return views
+
+
+def _checkpoint_blocks(doc: dict[str, Any], opts: ReportOptions,
+                       figure: Callable[[str, str], str] | None,
+                       cache: dict[str, list[dict[str, str]]]) -> list[dict[str, Any]]:
+    cps = (doc.get("details") or {}).get("checkpoints") or {}
+    failing_blocks = set((doc.get("rollup") or {}).get("rejected", {}).get("block", []))
+    blocks = []
+    for bid in sorted(cps, key=natural_key):
+        b = cps[bid]
+        if not isinstance(b, dict):
+            continue
+        pts = list(b.get("points") or [])
+        has_z = any(p.get("dz") is not None for p in pts)
+        n_fail = sum(p.get("status") == "fail" for p in pts)
+        shown = pts
+        if opts.bounded and len(pts) > opts.max_points:
+            shown = [p for p in pts if p.get("status") == "fail" or p.get("decision") not in (None, "kept")]
+        blocks.append({
+            "id": bid, "points": shown, "n_points": len(pts), "n_hidden": len(pts) - len(shown),
+            "n_fail": n_fail, "has_z": has_z, "stats": b.get("stats") or {}, "unit": b.get("unit", "m"),
+            "limit_x": b.get("limit_x"), "limit_y": b.get("limit_y"), "basis": b.get("basis"),
+            "n_gcps": len(b.get("gcps") or []), "rejected": bid in failing_blocks,
+            "area_source": b.get("area_source"), "figures": [],
+        })
+    if figure is not None and opts.figures:
+        ranked = sorted(blocks, key=lambda b: (not b["rejected"], b["n_fail"] == 0, natural_key(b["id"])))
+        for b in ranked[: opts.max_figure_blocks]:
+            if b["id"] not in cache:
+                cache[b["id"]] = _block_figures(cps[b["id"]], b["id"])
+            b["figures"] = [{**f, "uri": figure(f["svg"], "image/svg+xml")} for f in cache[b["id"]]]
+    return blocks
+
+
+def _block_figures(b: dict[str, Any], bid: str) -> list[dict[str, str]]:
+    """JRC §12.6 / Figure 5 graphics for one block, from the JSON point list (SVG data URIs)."""
+    from ..figures import accuracy as figs  # matplotlib: imported only when figures are drawn
+    from ..measures.distribution import checkpoint_distribution
+
+    pts = [p for p in b.get("points") or []
+           if all(_numeric(p.get(k)) for k in ("x_ref", "y_ref", "dx", "dy"))]
+    if not pts:
+        return []
+    unit = b.get("unit", "m")
+    x = [p["x_ref"] for p in pts]
+    y = [p["y_ref"] for p in pts]
+    dx = [p["dx"] for p in pts]
+    dy = [p["dy"] for p in pts]
+    ids = [str(p["point_id"]) for p in pts]
+    gcps = [g for g in b.get("gcps") or [] if _numeric(g.get("x")) and _numeric(g.get("y"))]
+    out = []
+    flagged = [str(p["point_id"]) for p in pts if p.get("status") == "fail"]
+    svg = figs.checkpoint_map_svg(
+        x, y, dx, dy, ids=ids, gcp_x=[g["x"] for g in gcps] or None, gcp_y=[g["y"] for g in gcps] or None,
+        unit=unit, flagged=flagged, title=f"Block {bid}: check points and discrepancies")
+    out.append({"svg": svg, "kind": "map",
+                "caption": f"Block {bid}: check points (blue; red = above the maximum tolerable "
+                           f"discrepancy), discrepancy vectors (exaggerated, see scale arrow) and GCPs "
+                           f"(green triangles), as JRC Figure 5."})
+    dz = [p.get("dz") for p in pts]
+    dz_ok = all(_numeric(v) for v in dz)
+    svg = figs.residual_histograms_svg(dx, dy, dz if dz_ok else None, unit=unit,
+                                       title=f"Block {bid}: discrepancies")
+    out.append({"svg": svg, "kind": "hist",
+                "caption": f"Block {bid}: distribution of the discrepancies per axis with the mean "
+                           f"(black) and ±RMSE (red dashed)."})
+    if len(pts) >= 4:
+        try:
+            dist = checkpoint_distribution(x, y, ids=ids, min_count=0)
+        except Exception:  # a degenerate layout (collinear points): the map above still shows it
+            dist = None
+        if dist is not None:
+            svg = figs.quadrant_distribution_svg(x, y, centre=dist.centre, shares=dist.quadrant_shares,
+                                                 unit=unit, title=f"Block {bid}: distribution by quadrant")
+            out.append({"svg": svg, "kind": "dist",
+                        "caption": f"Block {bid}: check points per quadrant, split at the centre of the "
+                                   f"points' {dist.split_source.replace('_', ' ')} (the block polygon "
+                                   f"is not stored in qcr.json, so shares may differ slightly from the "
+                                   f"measured value, which used the {b.get('area_source') or 'block'}) ."})
+    return out
+
+
+def _edge_figures(doc: dict[str, Any], figure: Callable[[str, str], str] | None) -> list[dict[str, Any]]:
+    """ESF/LSF/MTF plots when the document carries edge curves (``details.edge``)."""
+    edge = (doc.get("details") or {}).get("edge")
+    if not isinstance(edge, dict) or figure is None:
+        return []
+    try:
+        from ..figures import edge as edge_figs  # type: ignore[attr-defined]
+    except ImportError:
+        return []
+    out = []
+    for tid in sorted(edge, key=natural_key):
+        data = edge[tid]
+        fn = getattr(edge_figs, "edge_report_svg", None)
+        if fn is None or not isinstance(data, dict):
+            continue
+        try:
+            svg = fn(**{k: data[k] for k in ("esf", "lsf", "mtf") if k in data})
+        except Exception:  # optional figure: never block the report on it
+            continue
+        out.append({"id": tid, "uri": figure(svg, "image/svg+xml"),
+                    "caption": f"Edge target {tid}: ESF, LSF and MTF."})
+    return out
+
+
+def report_context(doc: dict[str, Any], opts: ReportOptions | None = None, *,
+                   figure: Callable[[str, str], str] | None = None,
+                   cache: dict[str, list[dict[str, str]]] | None = None) -> dict[str, Any]:
+    """Everything the template shows, computed from the QCR document alone.
+
+    ``figure(svg_text, mime)`` turns a figure into a URI (the PDF registers data: URIs with its
+    fetcher); ``None`` draws no figures. ``cache`` keeps drawn SVGs between HTML and PDF renders.
+    """
+    opts = opts or ReportOptions()
+    records = doc.get("records", [])
+    problems = [r for r in records if r["verdict"] in PROBLEM_VERDICTS]
+    problems.sort(key=lambda r: (VERDICT_ORDER.get(r["verdict"], 9),))
+    rules = _rule_views(doc, opts)
+    scopes: list[dict[str, Any]] = []
+    for v in rules:
+        if not scopes or scopes[-1]["scope"] != v.scope:
+            scopes.append({"scope": v.scope, "title": SCOPE_TITLES.get(v.scope, v.scope.title()),
+                           "rules": []})
+        scopes[-1]["rules"].append(v)
+    failing_rules = [v for v in rules if v.verdict in ("error", "fail")]
+    manual = [r for r in records if r.get("manual")]
+    to_sign = [r for r in manual if r["verdict"] == "missing"]
+    signed = [r for r in manual if r["verdict"] != "missing"]
+    d = doc.get("delivery", {})
+    p = doc.get("profile", {})
+    return {
+        "doc": doc, "opts": opts, "sha256": document_sha256(doc),
+        "delivery": d, "profile": p, "summary": doc.get("summary", {}),
+        "verdict": doc.get("verdict", "rejected"),
+        "reasons": (doc.get("rollup") or {}).get("reasons", []),
+        "rejected": (doc.get("rollup") or {}).get("rejected", {}),
+        "problems": problems, "failing_rules": failing_rules,
+        "missing": [r for r in records if r["verdict"] == "missing"],
+        "waived": [r for r in records if r["verdict"] == "waived"],
+        "waivers_unused": doc.get("waivers_unused") or [],
+        "scopes": scopes,
+        "checkpoints": _checkpoint_blocks(doc, opts, figure, {} if cache is None else cache),
+        "edge_figures": _edge_figures(doc, figure),
+        "to_sign": to_sign, "signed": signed,
+        "signoffs": doc.get("signoffs") or [],
+        "parameters": sorted((p.get("parameters") or {}).items()),
+        "files": d.get("files") or [],
+        "title": f"Quality control report — delivery {d.get('id', '?')}",
+    }
+
+
+def render_html(doc: dict[str, Any], opts: ReportOptions | None = None, *,
+                figure: Callable[[str, str], str] | None = None, pdf: bool = False,
+                cache: dict[str, list[dict[str, str]]] | None = None) -> str:
+    """The report as one self-contained HTML page (figures inlined as data: URIs)."""
+    ctx = report_context(doc, opts, figure=figure, cache=cache)
+    return environment().get_template("report.html.j2").render(**ctx, pdf=pdf)
