@@ -141,10 +141,7 @@ class _Names(Mapping[str, Any]):
 
     def __getitem__(self, key: str) -> Any:
         if key in self.params:
-            q = self.params[key].quantity()
-            if q is None:
-                raise ExpressionError(f"parameter {key} is unset")
-            return q
+            return self.params[key].quantity()  # None when unset: `param != null` tests that
         if key.startswith("param."):
             return self[key[6:]]
         if key.startswith("manifest."):
@@ -257,7 +254,24 @@ class Evaluator:
                           error=note if verdict == ERROR else None)
 
     # --- one rule
+    def _scalar_condition(self, rule: Rule) -> bool | None:
+        """A `when` over parameters and manifest facts only: decided once for the whole rule."""
+        if not rule.when:
+            return None
+        e = expr.parse(rule.when)
+        if any(not (n in self.params or n.startswith(("manifest.", "param."))) for n in e.names):
+            return None
+        names = _Names(self.params, self.manifest, self.cache, rule.scope, [], {})
+        v = e.evaluate(names)
+        v = getattr(v, "magnitude", v)
+        return bool(v) if v is not None and np.ndim(v) == 0 else False
+
     def _evaluate(self, rule: Rule) -> RuleResult:
+        cond = self._scalar_condition(rule)
+        if cond is False:
+            items0, _ = universe(rule.scope, self.d)
+            return self._all(rule, NA, f"not applicable: {rule.when} is false for this delivery",
+                             items=items0 or None, evidence=(self.d.manifest_evidence("(when)"),))
         items, why = universe(rule.scope, self.d)
         if rule.manual:
             return self._manual_rule(rule, items if items is not None else [self.d.id])

@@ -43,7 +43,15 @@ def info(name: str) -> tuple[str, str] | None:
         return spec.scope, _unit(col.type, col.unit)
     if len(parts) == 3 and parts[2] == "complete" and parts[1] in spec.columns:
         return "delivery", "%"
+    if len(parts) == 3 and parts[2] in AGGREGATES and parts[1] in spec.columns:
+        col = spec.columns[parts[1]]
+        return ("delivery", _unit(col.type, col.unit)) if col.type == "number" else None
     return None
+
+
+#: ``<table>.<column>.<aggregate>`` at delivery scope, over the table's non-empty values
+AGGREGATES = {"mean": np.nanmean, "max": np.nanmax, "min": np.nanmin,
+              "max_abs": lambda a: np.nanmax(np.abs(a)), "mean_abs": lambda a: np.nanmean(np.abs(a))}
 
 
 def _unit(kind: str, unit: str | None) -> str:
@@ -81,6 +89,14 @@ def compute(name: str, d: Delivery) -> Measured:
         ev = pd.Series({b: t.evidence(counts.get(b, [])) for b in blocks}, dtype=object)
         return Measured(name, "block", "1", vals, ev)
     col = parts[1]
+    if len(parts) == 3 and parts[2] in AGGREGATES:
+        col = parts[1]
+        vals = df[col].to_numpy(float) if col in df else np.array([], dtype=float)
+        have = ~np.isnan(vals)
+        value = float(AGGREGATES[parts[2]](vals)) if have.any() else None
+        u = (t.units.get(col) or canonical(d.manifest.units.get(tname, "m"))) if unit == "length" else unit
+        return _one(name, "delivery", u, d.id, value, t.evidence(df["_row"][have] if have.any() else df["_row"]),
+                    note=None if value is not None else f"no values in column {col!r} of {t.file}")
     if len(parts) == 3:  # .complete
         if col not in df:
             share = 0.0 if len(df) else None
@@ -92,7 +108,7 @@ def compute(name: str, d: Delivery) -> Measured:
         return _one(name, "delivery", "%", d.id, share, t.evidence(rows if len(rows) else df["_row"]),
                     note=None if col in df else f"column {col!r} absent from {t.file}")
     ids = t.ids
-    u = t.units.get(col, unit) if unit == "length" else unit
+    u = (t.units.get(col) or canonical(d.manifest.units.get(tname, "m"))) if unit == "length" else unit
     if col not in df:
         vals = pd.Series([None] * len(df), index=ids.values, dtype=object)
         notes = pd.Series([f"column {col!r} absent from {t.file}"] * len(df), index=ids.values, dtype=object)

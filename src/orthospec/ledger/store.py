@@ -159,8 +159,9 @@ class Ledger:
                     raise LedgerError(f"{self.display}: the chain head row is missing; "
                                       "run `orthospec ledger verify`")
                 yield conn, int(row.seq), str(row.hash)
-        except OperationalError as exc:
-            raise LedgerError(f"{self.display}: write failed: {exc.orig}") from None
+        except DBAPIError as exc:
+            raise LedgerError(f"{self.display}: write failed, nothing recorded: "
+                              f"{str(exc.orig).strip()}") from None
 
     def _read(self) -> Any:
         return self.engine.connect()
@@ -179,31 +180,31 @@ class Ledger:
             p = document["profile"]
             project = str((d.get("project") or {}).get("id") or "")
             doc_text = dumps(dict(document))
-            records = list(document["records"])
-        except (KeyError, TypeError) as exc:
-            raise LedgerError(f"not a QCR document (missing {exc}); expected qcr.json structure") from None
-        if not project:
-            raise LedgerError(f"delivery {d.get('id')!r}: manifest has no project.id; "
-                              "the ledger files runs by project")
-        rollup = document.get("rollup") or {}
-        summary = {"counts": document.get("summary", {}), "rejected": rollup.get("rejected", {}),
-                   "reasons": rollup.get("reasons", [])}
-        files = [{"path": str(f["path"]), "sha256": str(f["sha256"]),
-                  "bytes": None if f.get("bytes") is None else int(f["bytes"])}
-                 for f in d.get("files", [])]
-        qrows = [_qcr_row(i, rec) for i, rec in enumerate(records)]
-        with self._write() as (conn, seq, prev):
-            run_id = int(conn.execute(select(func.coalesce(func.max(m.runs.c.id), 0))).scalar_one()) + 1
-            row: dict[str, Any] = {
-                "id": run_id, "seq": seq + 1, "recorded_at": recorded_at or _now(),
+            rollup = document.get("rollup") or {}
+            summary = {"counts": document.get("summary", {}), "rejected": rollup.get("rejected", {}),
+                       "reasons": rollup.get("reasons", [])}
+            files = [{"path": str(f["path"]), "sha256": str(f["sha256"]),
+                      "bytes": None if f.get("bytes") is None else int(f["bytes"])}
+                     for f in d.get("files", [])]
+            qrows = [_qcr_row(i, rec) for i, rec in enumerate(document["records"])]
+            fields: dict[str, Any] = {
                 "date": str(document["date"]), "project_id": project, "delivery_id": str(d["id"]),
                 "delivery_path": d.get("path"), "manifest_sha256": str(d["manifest_sha256"]),
                 "profile_id": str(p["id"]), "profile_version": str(p["version"]),
                 "profile_sha256": str(p["sha256"]), "verdict": str(document["verdict"]),
                 "fail_on": str(document.get("fail_on", "fail")), "operator": document.get("operator"),
                 "n_records": len(qrows), "summary": canonical(summary), "document": doc_text,
-                "document_sha256": sha256_text(doc_text), "prev_hash": prev,
+                "document_sha256": sha256_text(doc_text),
             }
+        except (KeyError, TypeError, AttributeError) as exc:
+            raise LedgerError(f"not a QCR document (missing {exc}); expected qcr.json structure") from None
+        if not project:
+            raise LedgerError(f"delivery {d.get('id')!r}: manifest has no project.id; "
+                              "the ledger files runs by project")
+        with self._write() as (conn, seq, prev):
+            run_id = int(conn.execute(select(func.coalesce(func.max(m.runs.c.id), 0))).scalar_one()) + 1
+            row: dict[str, Any] = {"id": run_id, "seq": seq + 1, "recorded_at": recorded_at or _now(),
+                                   **fields, "prev_hash": prev}
             row["hash"] = run_hash(row, files, qrows, prev)
             conn.execute(m.runs.insert(), row)
             if files:

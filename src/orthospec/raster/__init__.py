@@ -1,62 +1,52 @@
 """Reading rasters in windows, file checks, parallel scans and the result cache.
 
 Public API for the rule engine: :func:`scan_images` -> list of :class:`ImageReport`.
+Names are imported lazily (PEP 562) so that ``import orthospec.raster.reading`` in a worker
+or a short CLI call does not pay for multiprocessing, SQLite and the rest.
 """
 
 from __future__ import annotations
 
-from .cache import ResultCache
-from .filechecks import (
-    FileChecks,
-    ListingCheck,
-    VectorCheck,
-    check_file,
-    check_name,
-    check_vector,
-    listing_consistency,
-)
-from .parallel import (
-    ImageReport,
-    PlainProgress,
-    Progress,
-    RichProgress,
-    ScanOptions,
-    make_progress,
-    scan_image,
-    scan_images,
-)
-from .reading import (
-    RasterStats,
-    ScanSettings,
-    mask_share,
-    overlap_means,
-    pan_fused_windows,
-    scan_raster,
-    seamline_check,
-)
+import importlib
+from typing import Any
 
-__all__ = [
-    "FileChecks",
-    "ImageReport",
-    "ListingCheck",
-    "PlainProgress",
-    "Progress",
-    "RasterStats",
-    "ResultCache",
-    "RichProgress",
-    "ScanOptions",
-    "ScanSettings",
-    "VectorCheck",
-    "check_file",
-    "check_name",
-    "check_vector",
-    "listing_consistency",
-    "make_progress",
-    "mask_share",
-    "overlap_means",
-    "pan_fused_windows",
-    "scan_image",
-    "scan_images",
-    "scan_raster",
-    "seamline_check",
-]
+_EXPORTS = {
+    "FileChecks": "filechecks",
+    "ImageReport": "parallel",
+    "ListingCheck": "filechecks",
+    "PlainProgress": "parallel",
+    "Progress": "parallel",
+    "RasterStats": "reading",
+    "ResultCache": "cache",
+    "RichProgress": "parallel",
+    "ScanOptions": "parallel",
+    "ScanSettings": "reading",
+    "VectorCheck": "filechecks",
+    "check_file": "filechecks",
+    "check_name": "filechecks",
+    "check_vector": "filechecks",
+    "listing_consistency": "filechecks",
+    "make_progress": "parallel",
+    "mask_share": "reading",
+    "overlap_means": "reading",
+    "pan_fused_windows": "reading",
+    "scan_image": "parallel",
+    "scan_images": "parallel",
+    "scan_raster": "reading",
+    "seamline_check": "reading",
+}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str) -> Any:
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"{__name__}.{module}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_EXPORTS))

@@ -9,6 +9,7 @@ CSV of every check point as attachments.
 from __future__ import annotations
 
 import csv
+import hashlib
 import io
 from collections.abc import Iterable
 from typing import Any
@@ -59,19 +60,20 @@ def render(doc: dict[str, Any], *, formats: Iterable[str] = FORMATS, extra: dict
     _check_doc(doc)
     out: dict[str, str | bytes] = {}
     cache: dict[str, list[dict[str, str]]] = {}  # figures are drawn once for both formats
+    qcr_text = dumps(doc)  # serialised once: checksum and attachment (national deliveries are large)
+    sha = document_sha256(doc) if "signoffs" in doc else hashlib.sha256(qcr_text.encode("utf-8")).hexdigest()
     if "html" in fmts:
         opts = options or ReportOptions(bounded=False)
-        out["report.html"] = render_html(doc, opts, figure=data_uri, cache=cache)
+        out["report.html"] = render_html(doc, opts, figure=data_uri, cache=cache, sha256=sha)
     if "pdf" in fmts:
         from .pdf import FileAttachment, write_pdf
 
         opts = options or ReportOptions(bounded=True)
         fetcher = SafeFetcher(templates_dir())
         html = render_html(doc, opts, figure=lambda data, mime: fetcher.allow(data_uri(data, mime)),
-                           pdf=True, cache=cache)
-        sha = document_sha256(doc)
+                           pdf=True, cache=cache, sha256=sha)
         signed = " plus sign-offs" if "signoffs" in doc else ""
-        files = [FileAttachment("qcr.json", dumps(doc).encode("utf-8"),
+        files = [FileAttachment("qcr.json", qcr_text.encode("utf-8"),
                                 f"The complete quality control records{signed} "
                                 f"(report checksum SHA-256 {sha}, sign-offs excluded)")]
         cps = (doc.get("details") or {}).get("checkpoints")

@@ -286,33 +286,45 @@ def _block_figures(b: dict[str, Any], bid: str) -> list[dict[str, str]]:
     return out
 
 
-def _edge_figures(doc: dict[str, Any], figure: Callable[[str, str], str] | None) -> list[dict[str, Any]]:
-    """ESF/LSF/MTF plots when the document carries edge curves (``details.edge``)."""
-    edge = (doc.get("details") or {}).get("edge")
-    if not isinstance(edge, dict) or figure is None:
-        return []
-    try:
-        from ..figures import edge as edge_figs  # type: ignore[attr-defined]
-    except ImportError:
+def _edge_targets(doc: dict[str, Any]) -> list[dict[str, Any]]:
+    """Edge-target results (``details.edges``): health checks and estimators per target.
+
+    qcr.json stores the flat results of the edge chain, not the ESF/LSF/MTF curves, so the report
+    tabulates them; the curves are drawn by ``orthospec measure edge`` from the image itself.
+    """
+    edges = (doc.get("details") or {}).get("edges")
+    if not isinstance(edges, dict):
         return []
     out = []
-    for tid in sorted(edge, key=natural_key):
-        data = edge[tid]
-        fn = getattr(edge_figs, "edge_report_svg", None)
-        if fn is None or not isinstance(data, dict):
+    for tid in sorted(edges, key=natural_key):
+        d = edges[tid]
+        if not isinstance(d, dict):
             continue
-        try:
-            svg = fn(**{k: data[k] for k in ("esf", "lsf", "mtf") if k in data})
-        except Exception:  # optional figure: never block the report on it
-            continue
-        out.append({"id": tid, "uri": figure(svg, "image/svg+xml"),
-                    "caption": f"Edge target {tid}: ESF, LSF and MTF."})
+        checks = []
+        for k in d:
+            if k.startswith("check.") and k.endswith(".value"):
+                name = k[len("check."):-len(".value")]
+                checks.append({"name": name, "value": d[k], "unit": d.get(f"check.{name}.unit"),
+                               "passed": d.get(f"check.{name}.passed")})
+        estimates = []
+        for k, v in d.items():
+            if k.startswith("check.") or k.endswith((".unit", ".fit")) or not _numeric(v):
+                continue
+            if f"{k}.unit" in d:
+                estimates.append({"name": k, "value": v, "unit": d.get(f"{k}.unit"), "fit": d.get(f"{k}.fit", "")})
+            elif "." in k and k.rsplit(".", 1)[0] + ".unit" in d:  # an alternative fit of an estimator
+                base, fit = k.rsplit(".", 1)
+                estimates.append({"name": base, "value": v, "unit": d.get(f"{base}.unit"), "fit": fit})
+        out.append({"id": tid, "valid": d.get("valid"), "reasons": d.get("reasons") or "",
+                    "direction": d.get("direction"), "angle_deg": d.get("angle_deg"),
+                    "checks": checks, "estimates": estimates})
     return out
 
 
 def report_context(doc: dict[str, Any], opts: ReportOptions | None = None, *,
                    figure: Callable[[str, str], str] | None = None,
-                   cache: dict[str, list[dict[str, str]]] | None = None) -> dict[str, Any]:
+                   cache: dict[str, list[dict[str, str]]] | None = None,
+                   sha256: str | None = None) -> dict[str, Any]:
     """Everything the template shows, computed from the QCR document alone.
 
     ``figure(svg_text, mime)`` turns a figure into a URI (the PDF registers data: URIs with its
@@ -336,7 +348,7 @@ def report_context(doc: dict[str, Any], opts: ReportOptions | None = None, *,
     d = doc.get("delivery", {})
     p = doc.get("profile", {})
     return {
-        "doc": doc, "opts": opts, "sha256": document_sha256(doc),
+        "doc": doc, "opts": opts, "sha256": sha256 or document_sha256(doc),
         "delivery": d, "profile": p, "summary": doc.get("summary", {}),
         "verdict": doc.get("verdict", "rejected"),
         "reasons": (doc.get("rollup") or {}).get("reasons", []),
@@ -347,7 +359,7 @@ def report_context(doc: dict[str, Any], opts: ReportOptions | None = None, *,
         "waivers_unused": doc.get("waivers_unused") or [],
         "scopes": scopes,
         "checkpoints": _checkpoint_blocks(doc, opts, figure, {} if cache is None else cache),
-        "edge_figures": _edge_figures(doc, figure),
+        "edges": _edge_targets(doc),
         "to_sign": to_sign, "signed": signed,
         "signoffs": doc.get("signoffs") or [],
         "parameters": sorted((p.get("parameters") or {}).items()),
@@ -358,7 +370,7 @@ def report_context(doc: dict[str, Any], opts: ReportOptions | None = None, *,
 
 def render_html(doc: dict[str, Any], opts: ReportOptions | None = None, *,
                 figure: Callable[[str, str], str] | None = None, pdf: bool = False,
-                cache: dict[str, list[dict[str, str]]] | None = None) -> str:
+                cache: dict[str, list[dict[str, str]]] | None = None, sha256: str | None = None) -> str:
     """The report as one self-contained HTML page (figures inlined as data: URIs)."""
-    ctx = report_context(doc, opts, figure=figure, cache=cache)
+    ctx = report_context(doc, opts, figure=figure, cache=cache, sha256=sha256)
     return environment().get_template("report.html.j2").render(**ctx, pdf=pdf)

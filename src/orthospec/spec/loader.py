@@ -113,6 +113,9 @@ def parse_profile(doc: Located) -> tuple[Profile | None, list[Problem]]:
     """Schema + pydantic validation of one file (no extends resolution)."""
     if not isinstance(doc.data, dict):
         return None, [Problem(doc.file, 1, 1, "a profile must be a YAML mapping")]
+    if "orthospec_profile" not in doc.data:
+        return None, [Problem(doc.file, 1, 1, "not an orthospec spec profile (it has no "
+                              "'orthospec_profile: 1' key)")]
     problems = schema_problems(doc)
     try:
         prof = Profile.model_validate(doc.data)

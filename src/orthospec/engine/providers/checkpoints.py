@@ -38,6 +38,7 @@ BLOCK_MEASURES.update({
     "checkpoints.min_gcp_distance": "m", "checkpoints.near_gcp": "1", "checkpoints.outside_block": "1",
     "checkpoints.reported_diff_x": "m", "checkpoints.reported_diff_y": "m",
     "checkpoints.reported_diff_z": "m",
+    "checkpoints.asprs_rmse_h": "m", "checkpoints.asprs_rmse_v": "m",
 })
 POINT_MEASURES = {
     "checkpoint.dx": "m", "checkpoint.dy": "m", "checkpoint.dz": "m", "checkpoint.dr": "m",
@@ -122,6 +123,12 @@ def _compute_once(ctx: ProviderContext) -> dict[str, Any]:
         out["checkpoints.excluded"] = len(br.excluded)
         out["checkpoints.blunders"] = len(br.candidates)
         out["checkpoints.blunders_unjustified"] = len(br.errors)
+        # ASPRS Ed. 2: product accuracy combines the checkpoint survey's own error (RMSE_H2, RMSE_V2)
+        survey_h = float(_param(ctx, "survey_rmse_h", 0.0, "m") or 0.0)
+        survey_v = float(_param(ctx, "survey_rmse_v", 0.0, "m") or 0.0)
+        out["checkpoints.asprs_rmse_h"] = float(np.sqrt(st.rmse_x ** 2 + st.rmse_y ** 2 + survey_h ** 2))
+        out["checkpoints.asprs_rmse_v"] = (None if st.rmse_z is None
+                                           else float(np.sqrt(st.rmse_z ** 2 + survey_v ** 2)))
         if gsd:
             out["checkpoints.rmse_x_gsd"] = st.rmse_x / gsd
             out["checkpoints.rmse_y_gsd"] = st.rmse_y / gsd

@@ -1,0 +1,106 @@
+"""Mosaic measures (JRC §5.2.2 coverage, §11 and Table 11 seamlines) from delivered vectors and image footprints.
+
+The area of interest is the project's `area_of_interest` vector file, else the union of the block
+polygons of the manifest; the evidence says which.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pandas as pd
+import rasterio
+import shapely
+from shapely.geometry import Polygon, box
+
+from ...errors import MeasureError, OrthospecError
+from ...measures.mosaic import seamline_coverage
+from ...raster.reading import read_only_env, read_vector
+from ..registry import Measured, ProviderContext, provider
+
+MEASURES = {"mosaic.aoi_coverage": "%", "mosaic.seamline_coverage": "%", "mosaic.seamline_overlap": "%",
+            "mosaic.seamlines_invalid": "1"}
+
+
+def _aoi(ctx: ProviderContext) -> tuple[Any, tuple[Any, ...], str]:
+    d = ctx.delivery
+    rel = d.manifest.project.area_of_interest
+    if rel:
+        geoms, _ = read_vector(d.path(rel, what="project.area_of_interest"))
+        if not geoms:
+            raise MeasureError(f"{rel}: the area of interest has no geometry")
+        return shapely.union_all(geoms), (d.evidence(rel),), f"area of interest {rel}"
+    polys = [Polygon(b.polygon) for b in d.manifest.blocks if b.polygon and len(b.polygon) >= 3]
+    if not polys:
+        return None, (d.manifest_evidence("project.area_of_interest"),), ""
+    return shapely.union_all(polys), (d.manifest_evidence("blocks"),), "union of the block polygons"
+
+
+def _footprints(ctx: ProviderContext) -> tuple[list[Any], list[str]]:
+    d = ctx.delivery
+    t = d.table("images")
+    if t is None:
+        return [], []
+    out, bad = [], []
+    with read_only_env():
+        for rel in t.df["file"].astype(str):
+            try:
+                with rasterio.open(d.path(rel)) as ds:
+                    out.append(box(*ds.bounds))
+            except (OrthospecError, OSError, rasterio.errors.RasterioError):
+                bad.append(rel)
+    return out, bad
+
+
+@provider(scope="delivery", measures=MEASURES)
+def mosaic_measures(ctx: ProviderContext) -> list[Measured]:
+    """Coverage of the area of interest by image footprints and by seamline polygons, overlaps."""
+    d = ctx.delivery
+    item = d.id
+    vals: dict[str, Any] = dict.fromkeys(MEASURES)
+    notes: dict[str, str] = {}
+    errors: dict[str, str] = {}
+    evs: dict[str, tuple[Any, ...]] = {}
+    try:
+        aoi, aoi_ev, source = _aoi(ctx)
+    except (OrthospecError, OSError) as exc:
+        aoi, aoi_ev, source = None, (d.manifest_evidence("project.area_of_interest"),), ""
+        for n in MEASURES:
+            errors[n] = str(exc)
+    if aoi is not None:
+        feet, bad = _footprints(ctx)
+        if feet:
+            cov = shapely.union_all(feet).intersection(aoi).area / aoi.area * 100.0
+            vals["mosaic.aoi_coverage"] = cov
+            notes["mosaic.aoi_coverage"] = (f"image footprints cover {cov:.3f} % of the {source}"
+                                            + (f"; unreadable: {', '.join(bad)}" if bad else ""))
+            t = d.table("images")
+            evs["mosaic.aoi_coverage"] = aoi_ev + t.evidence(t.df["_row"])
+        seam = d.manifest.vectors.get("seamlines")
+        if seam:
+            try:
+                geoms, _ = read_vector(d.path(seam, what="vectors.seamlines"))
+                sc = seamline_coverage(geoms, aoi)
+                vals["mosaic.seamline_coverage"] = 100.0 - sc.gap_pct
+                vals["mosaic.seamline_overlap"] = sc.overlap_pct
+                vals["mosaic.seamlines_invalid"] = float(len(sc.invalid_polygons))
+                notes["mosaic.seamline_coverage"] = (f"gap {sc.gap_area:.1f} m² ({sc.gap_pct:.4f} %) of the "
+                                                     f"{source}")
+                for n in ("mosaic.seamline_coverage", "mosaic.seamline_overlap", "mosaic.seamlines_invalid"):
+                    evs[n] = (*aoi_ev, d.evidence(seam))
+            except (OrthospecError, OSError, Exception) as exc:  # unreadable vector: error, not a crash
+                for n in ("mosaic.seamline_coverage", "mosaic.seamline_overlap", "mosaic.seamlines_invalid"):
+                    errors[n] = f"{seam}: cannot read seamlines: {exc}"
+        else:
+            for n in ("mosaic.seamline_coverage", "mosaic.seamline_overlap", "mosaic.seamlines_invalid"):
+                notes[n] = "the manifest gives no vectors.seamlines file"
+    else:
+        for n in MEASURES:
+            notes.setdefault(n, "no area of interest: give project.area_of_interest or block polygons")
+    out = []
+    for n, unit in MEASURES.items():
+        out.append(Measured(n, "delivery", unit, pd.Series({item: vals[n]}, dtype=object),
+                            pd.Series({item: evs.get(n, aoi_ev)}, dtype=object),
+                            notes=pd.Series({item: notes[n]}, dtype=object) if n in notes else None,
+                            errors=pd.Series({item: errors[n]}, dtype=object) if n in errors else None))
+    return out
