@@ -2,10 +2,10 @@ import json
 
 import pytest
 from click.testing import CliRunner
+from tests.conftest import MANIFEST
 
 from orthospec.cli.main import cli
 from orthospec.provenance import sha256_file
-from tests.conftest import MANIFEST
 
 
 def run(*args):
@@ -93,7 +93,7 @@ def test_delivery_is_not_modified(make_delivery, mini_profile, tmp_path, capsys)
 
 def test_terminal_caps_items_but_json_lists_all(make_delivery, mini_profile, tmp_path, capsys):
     rows = "\n".join(f"I{i},f{i}.tif,B1,5,1000,30" for i in range(30))
-    code, stdout, _ = run_main(["check", make_delivery(images="image_id,file,block,roll,flying_height,std_dn\n"
+    _, stdout, _ = run_main(["check", make_delivery(images="image_id,file,block,roll,flying_height,std_dn\n"
                                                                 + rows + "\n"), "-p", mini_profile,
                                 "--out", tmp_path / "o", "--max-items", "3"], capsys)
     assert "I0, I1, I2 … (+26 more)" in stdout  # I3 is waived; natural order

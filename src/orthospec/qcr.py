@@ -8,6 +8,7 @@ wall-clock time, no absolute paths).
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import io
 import json
@@ -23,7 +24,17 @@ from xml.sax.saxutils import escape, quoteattr
 import numpy as np
 
 from . import __version__
-from .engine.evaluator import ERROR, FAIL, MISSING, PASS, VERDICTS, WAIVED, WARN, Evaluation, RuleResult
+from .engine.evaluator import (
+    ERROR,
+    FAIL,
+    MISSING,
+    PASS,
+    VERDICTS,
+    WAIVED,
+    WARN,
+    Evaluation,
+    RuleResult,
+)
 from .engine.registry import SCOPES
 
 SCHEMA_ID = "orthospec.qcr/1"
@@ -296,10 +307,8 @@ def atomic_write(path: Path, data: str | bytes) -> None:
             os.fsync(fh.fileno())
         os.replace(tmp, path)
     except BaseException:
-        try:
+        with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
-        except FileNotFoundError:
-            pass
         raise
 
 

@@ -7,7 +7,6 @@ the delivery folder.
 from __future__ import annotations
 
 import csv
-import datetime as dt
 import io
 import math
 import re

@@ -17,14 +17,14 @@ import numpy as np
 import pandas as pd
 
 from ..delivery.reader import MANIFEST, Delivery
-from ..errors import ExpressionError, OrthospecError, UnitError
+from ..errors import OrthospecError, UnitError
 from ..provenance import Evidence
 from ..spec import expr
 from ..spec.loader import ResolvedProfile
 from ..spec.models import Requirement, Rule
 from ..units import NON_NUMERIC, Q_, canonical, convert, parse_unit, ureg
 from .params import ParamValue
-from .registry import ROLLUP, Measured, MeasureCache, ProviderContext, measure_info
+from .registry import ROLLUP, MeasureCache, Measured, ProviderContext, measure_info
 
 PASS, FAIL, WARN, NA, MISSING, ERROR, WAIVED = range(7)
 VERDICTS = ("pass", "fail", "warn", "not_applicable", "missing", "error", "waived")

@@ -10,8 +10,8 @@ import numpy as np
 import pandas as pd
 from shapely.geometry import Polygon
 
-from ..delivery.reader import Delivery, parse_csv
 from ..delivery.convention import ColumnSpec, TableSpec
+from ..delivery.reader import Delivery, parse_csv
 from ..errors import DeliveryError
 from ..measures.sampling import Sample, select_sample
 

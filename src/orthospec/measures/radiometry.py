@@ -420,6 +420,13 @@ class BandStats:
     cv_percent: float | None
     noise_sigma_immerkaer: float | None = None
     noise_sigma_homogeneous: float | None = None
+    nodata: float | None = None
+
+    @property
+    def saturation_low_hidden(self) -> bool:
+        """True when nodata is the lowest grey level: dark saturation is then invisible."""
+        return self.nodata is not None and self.range_low is not None and (
+            self.nodata == self.range_low)
 
     @property
     def nodata_fraction(self) -> float:
@@ -441,6 +448,7 @@ class BandStats:
             "cv_percent": self.cv_percent, "noise_std_global": self.std,
             "noise_sigma_immerkaer": self.noise_sigma_immerkaer,
             "noise_sigma_homogeneous": self.noise_sigma_homogeneous,
+            "nodata": self.nodata, "saturation_low_hidden_by_nodata": self.saturation_low_hidden,
         }
         if histogram:
             out["histogram"] = None if self.histogram is None else self.histogram.to_dict()
@@ -456,7 +464,7 @@ def _used_bits(vmax: float | None, signed: bool) -> int | None:
 
 def band_stats_from_histogram(
     band: str, dtype: str, acc: HistogramAccumulator, rng: GreyRange, *,
-    noise: NoiseAccumulator | None = None,
+    noise: NoiseAccumulator | None = None, nodata: float | None = None,
 ) -> BandStats:
     """Exact statistics and §6.3 measures from a per-DN histogram (nodata already excluded)."""
     m = acc.moments()
@@ -501,14 +509,14 @@ def band_stats_from_histogram(
         dark_margin_pct=dm, bright_margin_pct=bm,
         dark_margin_robust_pct=dmr, bright_margin_robust_pct=bmr, cv_percent=cv,
         noise_sigma_immerkaer=noise.immerkaer_sigma if noise else None,
-        noise_sigma_homogeneous=noise.homogeneous_sigma if noise else None,
+        noise_sigma_homogeneous=noise.homogeneous_sigma if noise else None, nodata=nodata,
     )
 
 
 def band_stats_from_moments(
     band: str, dtype: str, pixels: int, m: Moments, rng: GreyRange, *,
     histogram: BinnedHistogramAccumulator | None = None, noise: NoiseAccumulator | None = None,
-    count_low: int = 0, count_high: int = 0, above_range: int = 0,
+    count_low: int = 0, count_high: int = 0, above_range: int = 0, nodata: float | None = None,
 ) -> BandStats:
     """Statistics of a float / 32-bit band; saturation only when a bit depth is known."""
     n = m.n
@@ -534,7 +542,7 @@ def band_stats_from_moments(
         dark_margin_pct=dm, bright_margin_pct=bm, dark_margin_robust_pct=None,
         bright_margin_robust_pct=None, cv_percent=cv,
         noise_sigma_immerkaer=noise.immerkaer_sigma if noise else None,
-        noise_sigma_homogeneous=noise.homogeneous_sigma if noise else None,
+        noise_sigma_homogeneous=noise.homogeneous_sigma if noise else None, nodata=nodata,
     )
 
 

@@ -118,6 +118,8 @@ def _aggregates(bands: list[dict[str, Any]], lum: dict[str, Any] | None,
         "image.used_bits_max": worst("used_bits", max),
         "image.misregistration_px_max": max((m["magnitude_px"] for m in mis.values()),
                                             default=None),
+        "image.saturation_low_hidden_by_nodata": any(
+            bool(b.get("saturation_low_hidden_by_nodata")) for b in bands),
     }
     return out
 

@@ -251,13 +251,13 @@ def _scan(ds: rasterio.io.DatasetReader, s: ScanSettings) -> RasterStats:
             if not b.use_mask:
                 acc.exclude_value(b.nodata)
             bands.append(rad.band_stats_from_histogram(str(b.index), b.dtype, acc, b.grey,
-                                                       noise=nz))
+                                                       noise=nz, nodata=b.nodata))
         else:
             ec = edge_counts[b.index]
             bands.append(rad.band_stats_from_moments(
                 str(b.index), b.dtype, ds.width * ds.height, moms[b.index], b.grey,
                 histogram=binned.get(b.index), noise=nz, count_low=ec[0], count_high=ec[1],
-                above_range=ec[2]))
+                above_range=ec[2], nodata=b.nodata))
     lum_stats = None
     if lum is not None and rgb is not None:
         lum_stats = rad.band_stats_from_histogram("luminosity", infos[rgb[0] - 1].dtype, lum,

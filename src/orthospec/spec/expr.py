@@ -214,7 +214,7 @@ def _where(cond: Any, a: Any, b: Any) -> Any:
     if np.ndim(cond) == 0:
         return a if bool(cond) else b
     if hasattr(a, "units") or hasattr(b, "units"):
-        unit = getattr(a, "units", None) or getattr(b, "units")
+        unit = getattr(a, "units", None) or b.units
         am = a.to(unit).magnitude if hasattr(a, "units") else a
         bm = b.to(unit).magnitude if hasattr(b, "units") else b
         return type(a if hasattr(a, "units") else b)(np.where(cond, am, bm), unit)

@@ -1,0 +1,203 @@
+"""Measure providers on real files: checkpoints, rasters, edges, mosaics, records, generic aggregates."""
+
+import textwrap
+
+import numpy as np
+import pandas as pd
+import pytest
+import rasterio
+from rasterio.transform import from_origin
+from tests.conftest import EXAMPLES
+
+from orthospec.api import check
+from orthospec.measures.synthetic import slanted_edge
+
+PROFILE_HEAD = """\
+orthospec_profile: 1
+id: t
+version: 1.0.0
+title: provider test
+source: {title: JRC EUR 23638 EN}
+parameters:
+  tolerance_xy: {unit: m, default: 0.5}
+rules:
+"""
+
+
+def profile(tmp_path, *rules: str):
+    p = tmp_path / "p.yaml"
+    body = "".join(textwrap.indent(textwrap.dedent(r), "  ") for r in rules)
+    p.write_text(PROFILE_HEAD + body)
+    return p
+
+
+def rule(rid, scope, measure, req, consequence="reject_item", extra=""):
+    return f"""\
+- id: {rid}
+  title: {rid}
+  clause: {{document: JRC EUR 23638 EN, section: "12.7"}}
+  quote: q
+  scope: {scope}
+  measure: {measure}
+  requirement: {req}
+  consequence: {consequence}
+{extra}"""
+
+
+def recs(doc, rid):
+    return {r["item"]: r for r in doc["records"] if r["rule"] == rid}
+
+
+def test_block_rmse_equals_numpy_on_the_example(tmp_path):
+    p = profile(tmp_path, rule("RX", "block", "checkpoints.rmse_x", '{op: "<=", value: tolerance_xy, unit: m}',
+                               "reject_block"),
+                rule("RD", "block", "checkpoints.reported_diff_x", '{op: "<=", value: 0.01, unit: m}',
+                     "reject_block"))
+    doc = check(EXAMPLES / "aerial-pass", p, date="2026-01-01").document
+    cp = pd.read_csv(EXAMPLES / "aerial-pass" / "tables" / "checkpoints.csv")
+    for block, g in cp.groupby("block"):
+        keep = g[~g.get("excluded", pd.Series(False, index=g.index)).fillna(False).astype(bool)]
+        expected = float(np.sqrt(np.mean((keep["x"] - keep["x_ref"]) ** 2)))
+        got = recs(doc, "RX")[block]
+        assert got["measured"]["value"] == pytest.approx(expected, rel=1e-9)
+        assert got["verdict"] == "pass"
+        assert len(got["evidence"][0]["rows"]) == len(g)
+        assert recs(doc, "RD")[block]["verdict"] == "pass"  # reported values agree within 1 cm
+    table = doc["details"]["checkpoints"]
+    assert set(table) == {"B01", "B02", "B03"} and table["B01"]["points"][0]["point_id"]
+
+
+def test_reported_rmse_that_disagrees_is_a_finding(tmp_path):
+    p = profile(tmp_path, rule("RD", "block", "checkpoints.reported_diff_y", '{op: "<=", value: 0.01, unit: m}',
+                               "reject_block"))
+    doc = check(EXAMPLES / "aerial-fail", p, date="2026-01-01").document
+    assert recs(doc, "RD")["B02"]["verdict"] == "fail"
+    assert "reported RMSE_y" in recs(doc, "RD")["B02"]["message"]
+
+
+def write_tif(path, arr, *, gsd=0.25, x0=500000.0, y0=5400000.0, nodata=None, crs="EPSG:25832"):
+    arr = np.atleast_3d(arr)
+    if arr.ndim == 3 and arr.shape[0] not in (1, 3, 4):
+        arr = arr.transpose(2, 0, 1)
+    with rasterio.open(path, "w", driver="GTiff", height=arr.shape[1], width=arr.shape[2], count=arr.shape[0],
+                       dtype=arr.dtype, crs=crs, transform=from_origin(x0, y0, gsd, gsd), nodata=nodata) as ds:
+        ds.write(arr)
+
+
+def delivery_with_images(make_delivery, files: dict[str, np.ndarray | bytes], extra_manifest=""):
+    rows = "\n".join(f"{Path_(f).stem},{f},B1" for f in files)
+    root = make_delivery(images="image_id,file,block\n" + rows + "\n", manual=None, manifest=f"""\
+orthospec_delivery: 1
+id: D1
+project: {{id: P1, crs: "EPSG:25832"}}
+contractor: {{name: ACME}}
+sensor: {{type: aerial, digital: true}}
+product: {{gsd: {{value: 0.25, unit: m}}, bit_depth: 8}}
+blocks: [{{id: B1, polygon: [[500000, 5399968], [500032, 5399968], [500032, 5400000], [500000, 5400000]]}}]
+tables: {{images: tables/images.csv}}
+{extra_manifest}""")
+    for f, data in files.items():
+        (root / f).parent.mkdir(parents=True, exist_ok=True)
+        if isinstance(data, bytes):
+            (root / f).write_bytes(data)
+        else:
+            write_tif(root / f, data)
+    return root
+
+
+def Path_(f):
+    from pathlib import Path
+
+    return Path(f)
+
+
+def test_raster_measures_and_a_corrupt_file(make_delivery, tmp_path):
+    rng = np.random.default_rng(3)
+    good = rng.integers(60, 200, (3, 128, 128), dtype=np.uint8)
+    sat = good.copy()
+    sat[:, :20, :] = 255  # 15.6 % saturated at the bright tail
+    root = delivery_with_images(make_delivery, {"images/a.tif": good, "images/b.tif": sat,
+                                                "images/c.tif": b"not a tiff at all"})
+    p = profile(tmp_path,
+                rule("READ", "image", "raster.readable", '{op: "true"}'),
+                rule("SAT", "image", "raster.saturation_high", '{op: "<=", value: 0.5, unit: "%"}'),
+                rule("CRS", "image", "raster.crs_epsg", '{op: "==", value: 25832}'))
+    doc = check(root, p, date="2026-01-01").document
+    assert {k: v["verdict"] for k, v in recs(doc, "READ").items()} == {"a": "pass", "b": "pass", "c": "fail"}
+    sat_recs = recs(doc, "SAT")
+    assert sat_recs["a"]["verdict"] == "pass" and sat_recs["b"]["verdict"] == "fail"
+    assert sat_recs["b"]["measured"]["value"] == pytest.approx(100 * 20 / 128, rel=1e-6)
+    assert sat_recs["c"]["verdict"] == "error" and "images/c.tif" in sat_recs["c"]["message"]
+    assert recs(doc, "CRS")["a"]["verdict"] == "pass"
+    assert any(e["file"] == "images/a.tif" for e in sat_recs["a"]["evidence"])
+
+
+def test_edge_target_measured_through_a_rule(make_delivery, tmp_path):
+    edge = slanted_edge((100, 100), angle_deg=8.0, sigma_px=0.7, dark=40, bright=200, snr=200, bit_depth=8,
+                        rng=np.random.default_rng(5))
+    flat = np.full((100, 100), 120, dtype=np.uint8)
+    root = delivery_with_images(make_delivery, {"images/e.tif": edge, "images/f.tif": flat},
+                                extra_manifest="edge_targets: [{id: E1, image: e, roi: [0, 0, 100, 100]}, "
+                                               "{id: E2, image: f, roi: [0, 0, 100, 100]}]\n")
+    p = profile(tmp_path,
+                rule("SNR", "edge", "edge.snr", '{op: ">", value: 50}'),
+                rule("RER", "edge", "edge.rer", '{op: ">=", value: 0.3}'))
+    doc = check(root, p, date="2026-01-01").document
+    rer = recs(doc, "RER")
+    assert rer["E1"]["verdict"] == "pass" and 0.3 < rer["E1"]["measured"]["value"] < 0.9
+    assert rer["E2"]["verdict"] == "error"  # no edge: health checks fail, no estimator reported
+    assert "health checks failed" in rer["E2"]["message"]
+    assert recs(doc, "SNR")["E2"]["verdict"] in ("fail", "missing")
+
+
+def test_seamline_coverage_from_a_vector_file(make_delivery, tmp_path):
+    import shapely
+
+    root = delivery_with_images(make_delivery, {"images/a.tif": np.full((3, 128, 128), 100, np.uint8)},
+                                extra_manifest="vectors: {seamlines: vectors/seams.gpkg}\n")
+    (root / "vectors").mkdir()
+    left = shapely.box(500000, 5399968, 500016, 5400000)
+    right = shapely.box(500016, 5399968, 500030, 5400000)  # leaves a 2 m gap
+    _write_gpkg(root / "vectors" / "seams.gpkg", [left, right])
+    p = profile(tmp_path, rule("SEAM", "delivery", "mosaic.seamline_coverage", '{op: ">=", value: 100, unit: "%"}',
+                               "return_delivery"))
+    doc = check(root, p, date="2026-01-01").document
+    r = recs(doc, "SEAM")["D1"]
+    assert r["verdict"] == "fail"
+    assert r["measured"]["value"] == pytest.approx(100 * 30 / 32)
+
+
+def _write_gpkg(path, geoms):
+    import pyogrio
+    import shapely
+
+    pyogrio.raw.write(str(path), geometry=shapely.to_wkb(np.array(geoms, dtype=object)),
+                      field_data=[np.arange(len(geoms))], fields=["id"], crs="EPSG:25832",
+                      geometry_type="Polygon", driver="GPKG")
+
+
+def test_records_providers(make_delivery, tmp_path):
+    images = ("image_id,file,block,flight_id,roll,flying_height,cloud_cover\n"
+              "I1,a.tif,B1,F1,0.5,3846,2\nI2,b.tif,B1,F1,-1.5,3846,4\nI3,c.tif,B1,F2,0.2,,9\n")
+    manifest_extra = ("dates: {acquired_from: 2026-04-01}\n"
+                      "tables: {images: tables/images.csv, flights: tables/flights.csv, cameras: tables/cameras.csv}\n")
+    from tests.conftest import MANIFEST
+
+    m = MANIFEST.replace("tables: {images: tables/images.csv, manual_checks: tables/manual.csv}\n", manifest_extra)
+    root = make_delivery(manifest=m, images=images, extra={
+        "tables/flights.csv": "flight_id,camera_id\nF1,C1\nF2,C1\n",
+        "tables/cameras.csv": "camera_id,focal_length,pixel_size,calibration_date\nC1,80,5.2,2024-04-01\n"})
+    p = profile(tmp_path,
+                rule("ROLL", "flight", "flight.roll_mean_abs", '{op: "<=", value: 1, unit: deg}'),
+                rule("AGE", "camera", "camera.calibration_age", '{op: "<=", value: 2, unit: year}'),
+                rule("GSD", "image", "geometry.gsd_from_flying_height", '{op: "<=", value: 0.25, unit: m}'),
+                rule("CLOUD", "delivery", "images.cloud_cover.mean", '{op: "<=", value: 5, unit: "%"}',
+                     "return_delivery"))
+    doc = check(root, p, date="2026-01-01").document
+    roll = recs(doc, "ROLL")
+    assert roll["F1"]["measured"]["value"] == pytest.approx(1.0) and roll["F1"]["verdict"] == "pass"
+    assert recs(doc, "AGE")["C1"]["measured"]["value"] == pytest.approx(730 / 365.25)
+    gsd = recs(doc, "GSD")
+    assert gsd["I1"]["measured"]["value"] == pytest.approx(3846 * 5.2e-6 / 0.080)
+    assert gsd["I3"]["verdict"] == "missing"
+    assert recs(doc, "CLOUD")["D1"]["measured"]["value"] == pytest.approx(5.0)
