@@ -1,6 +1,5 @@
 import json
 
-import pytest
 from click.testing import CliRunner
 
 from orthospec.cli.main import cli
@@ -26,15 +25,15 @@ def test_spec_show_and_diff(mini_profile, tmp_path):
     shown = run("spec", "show", mini_profile, "--json")
     assert shown.exit_code == 0 and json.loads(shown.output)["id"] == "mini"
     tender = tmp_path / "tender.yaml"
-    tender.write_text(f"""\
+    tender.write_text("""\
 orthospec_profile: 1
 id: tender
 version: 1.0.0
 title: A tender
-source: {{title: ITT 1}}
-extends: {{id: mini, version: 1.0.0}}
+source: {title: ITT 1}
+extends: {id: mini, version: 1.0.0}
 parameters:
-  max_roll: {{value: 2}}
+  max_roll: {value: 2}
 remove_rules: [R-CV]
 rules:
   - id: R-ROLL

@@ -1,9 +1,9 @@
 import pytest
+from tests.conftest import IMAGES
 
 from orthospec.delivery.reader import open_delivery
 from orthospec.errors import DeliveryError
 from orthospec.provenance import sha256_file
-from tests.conftest import IMAGES
 
 
 def test_opens_and_types_tables(make_delivery):

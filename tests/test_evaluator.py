@@ -2,10 +2,10 @@ import json
 
 import numpy as np
 import pytest
+from tests.conftest import MANIFEST
 
 from orthospec.api import check
 from orthospec.engine.params import ParameterError
-from tests.conftest import MANIFEST
 
 
 def recs(doc, rule):

@@ -14,7 +14,7 @@ from typing import Any
 import click
 
 from ..errors import LedgerError
-from ..ledger import ROLES, Ledger, open_ledger
+from ..ledger import MARGIN, ROLES, Ledger, open_ledger
 from ..ledger.history import History
 from .groups import ledger, main
 
@@ -180,13 +180,15 @@ def verify_cmd(ledger_target: str | None, expect_head: str | None) -> None:
 @click.argument("project")
 @click.option("--normal", type=float, default=0.10, show_default=True, help="Sample share when normal.")
 @click.option("--tightened", type=float, default=0.20, show_default=True, help="Sample share when tightened.")
+@click.option("--margin", type=float, default=MARGIN, show_default=True,
+              help="A pass this close (relative) to its threshold is marginal and tightens (JRC §12.7).")
 @ledger_option
 @json_option
-def state_cmd(project: str, normal: float, tightened: float, ledger_target: str | None,
+def state_cmd(project: str, normal: float, tightened: float, margin: float, ledger_target: str | None,
               as_json: bool) -> None:
     """Normal/Tightened audit state per QCR family of PROJECT (JRC §2.3) and the next sample share."""
     with _open(ledger_target) as led:
-        states = led.audit_states(project)
+        states = led.audit_states(project, margin=margin)
     if not states:
         raise LedgerError(f"no runs of project {project!r} in the ledger")
     rows: list[dict[str, Any]] = [

@@ -202,6 +202,8 @@ def check_file(path: str | Path, *, expect_epsg: int | None = None,
         return FileChecks(error=f"{p}: not a readable raster ({msg})", **base)
     except rasterio.errors.RasterioError as exc:
         return FileChecks(error=f"{p}: {exc}", **base)
+    except Exception as exc:  # GDAL CPLE_* errors on damaged headers: report, never stop
+        return FileChecks(error=f"{p}: unreadable header: {type(exc).__name__}: {exc}", **base)
 
 
 def _check_open(ds: rasterio.io.DatasetReader, base: dict[str, Any], *, expect_epsg: int | None,

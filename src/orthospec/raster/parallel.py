@@ -155,6 +155,8 @@ def scan_image(path: str | Path, options: ScanOptions | None = None, *,
             rep.radiometry = scan_raster(p, o.settings).to_dict()
         except (OrthospecError, rasterio.errors.RasterioError, ValueError) as exc:
             rep.error = str(exc) if p in str(exc) else f"{p}: {exc}"
+        except Exception as exc:  # GDAL CPLE_* and friends: one bad file never stops a batch
+            rep.error = f"{p}: cannot read pixels: {type(exc).__name__}: {exc}"
     if cloud_mask is not None and rep.error is None:
         try:
             rep.cloud_cover_pct = mask_share(cloud_mask, settings=o.settings).percent

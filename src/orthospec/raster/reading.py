@@ -79,6 +79,13 @@ def chunk_windows(ds: rasterio.io.DatasetReader, chunk_bytes: int) -> Iterator[W
     height, width = ds.height, ds.width
     bpp = ds.count * max(np.dtype(dt).itemsize for dt in ds.dtypes)
     row_bytes = width * bpp
+    if bh * bw * bpp > 4 * chunk_bytes:
+        # one internal block is huge (untiled JPEG2000, single-strip TIFF): memory first,
+        # read full-width bands of rows instead (the driver decodes sub-windows)
+        step = max(1, chunk_bytes // max(row_bytes, 1))
+        for row in range(0, height, step):
+            yield Window(0, row, width, min(step, height - row))
+        return
     if bw >= width or row_bytes * bh <= chunk_bytes:
         per = max(1, chunk_bytes // max(row_bytes * bh, 1))  # whole rows of blocks
         step = per * bh
@@ -170,6 +177,10 @@ def _valid(data: np.ndarray, info: BandInfo, mask: np.ndarray | None) -> np.ndar
         finite = ~np.isnan(data)
         valid = finite if valid is None else valid & finite
     if info.nodata is not None and not (isinstance(info.nodata, float) and math.isnan(info.nodata)):
+        if data.dtype.kind in "ui":
+            lim = np.iinfo(data.dtype)
+            if not (lim.min <= info.nodata <= lim.max and info.nodata == int(info.nodata)):
+                return valid  # a nodata value the band cannot hold excludes nothing
         nd = np.asarray(info.nodata).astype(data.dtype)
         v = data != nd
         valid = v if valid is None else valid & v

@@ -1,0 +1,141 @@
+"""Benchmark: orthospec exact radiometry vs ``gdalinfo -stats -hist`` on the same big GeoTIFF.
+
+Usage::
+
+    .venv/bin/python benchmarks/radiometry.py [--size-mb 400] [--dtype uint8|uint16]
+                                              [--compress none|deflate] [--rounds 2]
+
+Creates a tiled 3-band GeoTIFF of about ``--size-mb`` MB in a temporary directory, warms the
+page cache, then runs each tool in its own subprocess (fair: the same interpreter start-up
+cost for orthospec is included) and reads wall time and peak RSS of that very child with
+``os.wait4``. orthospec runs twice: ``stats`` (min/max/mean/std + full histogram, what
+gdalinfo computes) and ``full`` (plus luminosity, both noise estimators, misregistration).
+Needs ``gdalinfo`` (Debian: ``apt-get install gdal-bin``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ORTHOSPEC = """
+import sys
+from orthospec.raster.reading import ScanSettings, scan_raster
+full = sys.argv[2] == "full"
+s = ScanSettings(noise=full, luminosity=full, misregistration=full)
+r = scan_raster(sys.argv[1], s)
+print(r.bands[0].mean, r.bands[0].std)
+"""
+
+
+def make_image(path: Path, size_mb: int, dtype: str, compress: str) -> None:
+    """A 3-band tiled GeoTIFF with textured content, written tile-row by tile-row.
+
+    Runs in a child process so that this (measuring) process stays small: a child's peak
+    RSS (ru_maxrss) starts from the parent's RSS at fork time.
+    """
+    import numpy as np
+    import rasterio
+    from affine import Affine
+    from rasterio.windows import Window
+
+    itemsize = np.dtype(dtype).itemsize
+    side = int((size_mb * 1e6 / (3 * itemsize)) ** 0.5) // 512 * 512
+    top = 255 if dtype == "uint8" else 2047
+    profile = dict(driver="GTiff", width=side, height=side, count=3, dtype=dtype, tiled=True,
+                   blockxsize=512, blockysize=512, crs="EPSG:25832", nodata=0,
+                   transform=Affine(0.2, 0, 500000, 0, -0.2, 5600000), BIGTIFF="IF_SAFER")
+    if dtype == "uint16":
+        profile["nbits"] = 11
+    if compress != "none":
+        profile["compress"] = compress
+    rng = np.random.default_rng(0)
+    x = np.linspace(0, 20, side)
+    with rasterio.open(path, "w", **profile) as ds:
+        for row in range(0, side, 512):
+            y = np.linspace(row / side * 20, (row + 512) / side * 20, 512)[:, None]
+            base = (np.sin(x[None, :] + y) + 1) * top / 3
+            for b in range(3):
+                noise = rng.normal(0, top / 40, (512, side))
+                block = np.clip(base * (0.8 + 0.1 * b) + noise + top / 10, 0, top)
+                ds.write(block.astype(dtype), b + 1, window=Window(0, row, side, 512))
+
+
+def run(cmd: list[str]) -> tuple[float, float, str]:
+    """Wall seconds, peak RSS (MB) of exactly this child, and its stdout."""
+    t0 = time.perf_counter()
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    out = proc.stdout.read() if proc.stdout else ""
+    err = proc.stderr.read() if proc.stderr else ""
+    _pid, status, usage = os.wait4(proc.pid, 0)
+    wall = time.perf_counter() - t0
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    if proc.returncode:
+        raise SystemExit(f"{cmd[0]} failed ({proc.returncode}): {err.strip()}")
+    return wall, usage.ru_maxrss / 1024.0, out
+
+
+def _self_rss() -> float:
+    import resource
+
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--size-mb", type=int, default=400)
+    ap.add_argument("--dtype", choices=["uint8", "uint16"], default="uint8")
+    ap.add_argument("--compress", choices=["none", "deflate"], default="none")
+    ap.add_argument("--rounds", type=int, default=2)
+    ap.add_argument("--image", help="use this existing GeoTIFF instead of creating one")
+    ap.add_argument("--make", help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    gdalinfo = shutil.which("gdalinfo")
+    if gdalinfo is None:
+        raise SystemExit("gdalinfo not found: install it (Debian: apt-get install gdal-bin)")
+    gdal_version = subprocess.run([gdalinfo, "--version"], capture_output=True,
+                                  text=True).stdout.strip()
+    if args.make:
+        make_image(Path(args.make), args.size_mb, args.dtype, args.compress)
+        return
+    print(f"orthospec bench: parent peak RSS {_self_rss():.0f} MB (children inherit it)")
+    with tempfile.TemporaryDirectory(prefix="orthospec-bench-") as tmp:
+        img = Path(args.image) if args.image else Path(tmp) / "big.tif"
+        t0 = time.perf_counter()
+        if not args.image:
+            subprocess.run([sys.executable, __file__, "--make", str(img), "--size-mb",
+                            str(args.size_mb), "--dtype", args.dtype, "--compress",
+                            args.compress], check=True)
+        size = img.stat().st_size
+        print(f"image: {img.name} {size / 1e6:.0f} MB, ready in {time.perf_counter() - t0:.1f} s")
+        with open(img, "rb") as fh:  # warm the page cache for both tools
+            while fh.read(1 << 24):
+                pass
+        results: dict[str, list[tuple[float, float]]] = {"gdal": [], "stats": [], "full": []}
+        for _ in range(args.rounds):
+            aux = Path(str(img) + ".aux.xml")
+            aux.unlink(missing_ok=True)
+            w, m, _ = run([gdalinfo, "-stats", "-hist", str(img)])
+            aux.unlink(missing_ok=True)  # gdalinfo caches statistics there
+            results["gdal"].append((w, m))
+            for mode in ("stats", "full"):
+                w, m, _ = run([sys.executable, "-c", ORTHOSPEC, str(img), mode])
+                results[mode].append((w, m))
+        best = {k: (min(w for w, _ in v), max(m for _, m in v)) for k, v in results.items()}
+        print(f"gdalinfo -stats -hist ({gdal_version}): {best['gdal'][0]:.2f} s, "
+              f"peak {best['gdal'][1]:.0f} MB")
+        for mode in ("stats", "full"):
+            w, m = best[mode]
+            print(f"orthospec {mode:5s}: {w:.2f} s, peak {m:.0f} MB, "
+                  f"time ratio orthospec/gdal = {w / best['gdal'][0]:.2f}")
+        print(f"throughput orthospec stats: {size / 1e6 / best['stats'][0]:.0f} MB/s")
+
+
+if __name__ == "__main__":
+    main()

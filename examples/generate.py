@@ -1,0 +1,877 @@
+#!/usr/bin/env python3
+"""Write the two bundled example deliveries, ``aerial-pass`` and ``aerial-fail``.
+
+Why a script and not hand-made files: every number a delivery reports (histogram statistics,
+cloud cover, sun elevation, block RMSE) is computed here from the data written beside it, so
+the examples stay internally consistent, and the defects of ``aerial-fail`` are injected on
+purpose and listed in its ``expected.yaml`` and ``README.md``. Fixed seeds and no timestamps
+make the output byte-identical from run to run (``tests/test_examples.py`` checks it).
+
+    python examples/generate.py              # rewrite examples/deliveries/aerial-{pass,fail}
+    python examples/generate.py --out DIR    # write DIR/aerial-pass and DIR/aerial-fail
+
+Conventions (docs/ARCHITECTURE.md "Delivery convention", specs/delivery-tables.yaml):
+images are 128 x 128 px, 4-band (R, G, B, NIR) uint8 GeoTIFF extracts at 0.25 m in
+ETRS89 / UTM 32N (EPSG:25832), DEFLATE, striped (not tiled), nodata 0 declared (no pixel is
+nodata). Reported histogram statistics in ``images.csv`` are pooled over all pixels of all
+bands: mean and population standard deviation (ddof=0) in DN, min/max DN, and the shares (%)
+of values equal to 0 (``saturation_low``) and 255 (``saturation_high``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import itertools
+import math
+import shutil
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from datetime import UTC, date, datetime, timedelta
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import rasterio
+import yaml
+from pyproj import Transformer
+from rasterio.crs import CRS
+from rasterio.transform import Affine
+from scipy import ndimage
+
+HERE = Path(__file__).resolve().parent
+DEFAULT_OUT = HERE / "deliveries"
+EPSG = 25832
+GSD_M = 0.25  # delivered orthoimage pixel = acquisition GSD (JRC §3.1: 1:1 for digital cameras)
+TOLERANCE_XY_M = 0.5  # ITT tolerance: RMSEx, RMSEy <= 2 x GSD per axis (JRC §8.1, §12.7)
+IMAGE_PX = 128
+BANDS = ("R", "G", "B", "NIR")
+JRC = "JRC EUR 23638 EN"
+
+# UltraCam Eagle as listed in Passini/Jacobsen Table 1 (seed 004): 13080 x 20010 px, 5.2 µm,
+# f = 80 mm (the 210 mm lens is the alternative). Flying height from JRC §3.1 GSD = (H/f)·CCD.
+CAMERA = {"model": "UltraCam Eagle", "focal_length_mm": 80.0, "pixel_size_um": 5.2,
+          "pixels_x": 13080, "pixels_y": 20010}
+FLYING_HEIGHT_M = GSD_M * CAMERA["focal_length_mm"] * 1e-3 / (CAMERA["pixel_size_um"] * 1e-6)
+BASE_M = 0.4 * CAMERA["pixels_x"] * GSD_M  # 60 % forward overlap (JRC §5.2.2)
+STRIP_M = 0.7 * CAMERA["pixels_y"] * GSD_M  # 30 % side overlap
+GROUND_SPEED_MS = 77.0
+
+# Reflectance (R, G, B, NIR) of the land covers painted into the extracts (April, leaf-off).
+COVERS = np.array([
+    [0.45, 0.40, 0.33, 0.50],  # bare soil
+    [0.22, 0.35, 0.20, 0.75],  # winter cereal
+    [0.28, 0.40, 0.25, 0.65],  # grassland
+    [0.14, 0.20, 0.14, 0.45],  # forest
+    [0.55, 0.50, 0.42, 0.55],  # stubble
+])
+ROAD = np.array([0.60, 0.60, 0.60, 0.42])
+ROOF = np.array([0.62, 0.36, 0.30, 0.38])
+SHADOW = np.array([0.06, 0.07, 0.09, 0.10])
+TREE = np.array([0.09, 0.16, 0.09, 0.55])
+SNOW = np.array([0.93, 0.94, 0.96, 0.86])
+
+_TO_WGS84 = Transformer.from_crs(EPSG, 4326, always_xy=True)
+
+
+# --------------------------------------------------------------------------- scenario data
+@dataclass(frozen=True)
+class BlockPlan:
+    """One aerotriangulation block flown by one flight (2 strips x 5 photos)."""
+
+    id: str
+    flight: str
+    origin: tuple[float, float]  # SW corner of the block polygon (E, N)
+    day: date
+    start_utc: tuple[int, int]  # first exposure (hour, minute) UTC
+    rmse: tuple[float, float]  # target RMSE of the check point discrepancies (x, y), m
+    n_checkpoints: int
+    weather: str
+
+
+@dataclass
+class Scenario:
+    """Everything that differs between the two deliveries, defects included."""
+
+    name: str
+    seed: int
+    delivery_id: str
+    project: dict[str, Any]
+    dates: dict[str, date]
+    blocks: list[BlockPlan]
+    textures: dict[str, str] = field(default_factory=dict)  # image id -> texture kind
+    no_flying_height: tuple[str, ...] = ()
+    roll: dict[str, float] = field(default_factory=dict)
+    file_with_space: str | None = None
+    missing_file: str | None = None
+    blunder: tuple[str, float, str] | None = None  # block, dx (m), justification ('' = none)
+    reported_override: dict[str, dict[str, float]] = field(default_factory=dict)
+    manual_fail: dict[str, str] = field(default_factory=dict)  # image id -> inspector note
+    waivers: list[dict[str, Any]] = field(default_factory=list)
+
+
+WEATHER = "METAR EDDS {t}: {c} °C, QNH {p} hPa, wind {d}°/{w} kt, CAVOK"
+
+PASS = Scenario(
+    name="aerial-pass",
+    seed=20260409,
+    delivery_id="D-2026-014",
+    project={"id": "P-2026-ORTHO-L1", "name": "CAP orthophoto campaign 2026, lot 1 (fictional)"},
+    dates={"delivered": date(2026, 6, 12), "acquired_from": date(2026, 4, 9),
+           "acquired_to": date(2026, 4, 15)},
+    blocks=[
+        BlockPlan("B01", "F01", (500000.0, 5400000.0), date(2026, 4, 9), (9, 42), (0.27, 0.29), 25,
+                  WEATHER.format(t="1020Z", c=11, p=1021, d=240, w=7)),
+        BlockPlan("B02", "F02", (507500.0, 5403000.0), date(2026, 4, 14), (10, 5), (0.31, 0.28), 25,
+                  WEATHER.format(t="1020Z", c=13, p=1018, d=260, w=9)),
+        BlockPlan("B03", "F03", (512500.0, 5411000.0), date(2026, 4, 15), (11, 18), (0.26, 0.33), 23,
+                  WEATHER.format(t="1120Z", c=9, p=1024, d=50, w=6)),
+    ],
+    textures={"F03_0104": "snow", "F01_0203": "light_cloud", "F02_0105": "light_cloud",
+              "F02_0202": "glint"},
+    blunder=("B02", 2.35, "Fence post relocated between the survey (2026-03-18) and the flight; "
+                          "field sketch and site photo 7 document the change (JRC §12.6)."),
+    waivers=[{
+        "rule": "JRC-6.3-CV",
+        "items": ["F03_0104"],
+        "justification": ("Residual snow cover on the north-facing slope (about 60 % of the "
+                          "extract) lowers the coefficient of variation below 10 %; JRC §6.3 "
+                          "names large snowed areas as an exception. A re-flight before leaf-out "
+                          "was not possible."),
+        "approver": "A. Moreau, paying agency GIS unit (fictional)",
+    }],
+)
+
+FAIL = Scenario(
+    name="aerial-fail",
+    seed=20260416,
+    delivery_id="D-2026-021",
+    project={"id": "P-2026-ORTHO-L2", "name": "CAP orthophoto campaign 2026, lot 2 (fictional)"},
+    dates={"delivered": date(2026, 6, 19), "acquired_from": date(2026, 4, 16),
+           "acquired_to": date(2026, 4, 22)},
+    blocks=[
+        BlockPlan("B01", "F01", (501000.0, 5412500.0), date(2026, 4, 16), (9, 55), (0.25, 0.27), 25,
+                  WEATHER.format(t="1020Z", c=12, p=1016, d=230, w=11)),
+        BlockPlan("B02", "F02", (508500.0, 5412000.0), date(2026, 4, 20), (10, 30), (0.32, 0.64), 25,
+                  WEATHER.format(t="1020Z", c=10, p=1012, d=270, w=14)),
+        BlockPlan("B03", "F03", (513000.0, 5401500.0), date(2026, 4, 22), (11, 5), (0.29, 0.30), 14,
+                  WEATHER.format(t="1120Z", c=15, p=1019, d=80, w=5)),
+    ],
+    textures={"F02_0203": "saturated", "F03_0105": "cloud"},
+    no_flying_height=("F01_0103", "F01_0104", "F01_0105"),
+    roll={"F02_0102": 3.72},
+    file_with_space="F02_0104",
+    missing_file="F03_0202",
+    blunder=("B01", 1.62, ""),
+    reported_override={"B02": {"rmse_y": 0.31}},
+    manual_fail={"F01_0202": "Haze over the eastern half; contrast too low to place check points."},
+)
+
+SCENARIOS = (PASS, FAIL)
+
+
+# --------------------------------------------------------------------------- small helpers
+def terrain_m(e: float, n: float) -> float:
+    """A smooth, made-up terrain height (m) for GCP heights and exposure station heights."""
+    return 420.0 + 80.0 * math.sin(e / 2300.0) * math.cos(n / 3100.0) + 30.0 * math.sin((e + n) / 900.0)
+
+
+def sun_elevation_deg(e: float, n: float, when: datetime) -> float:
+    """Solar elevation (NOAA general solar position formulas) at a UTM 32N point and UTC time."""
+    lon, lat = _TO_WGS84.transform(e, n)
+    doy = when.timetuple().tm_yday
+    hour = when.hour + when.minute / 60.0 + when.second / 3600.0
+    g = 2.0 * math.pi / 365.0 * (doy - 1 + (hour - 12.0) / 24.0)
+    decl = (0.006918 - 0.399912 * math.cos(g) + 0.070257 * math.sin(g)
+            - 0.006758 * math.cos(2 * g) + 0.000907 * math.sin(2 * g)
+            - 0.002697 * math.cos(3 * g) + 0.00148 * math.sin(3 * g))
+    eqtime = 229.18 * (0.000075 + 0.001868 * math.cos(g) - 0.032077 * math.sin(g)
+                       - 0.014615 * math.cos(2 * g) - 0.040849 * math.sin(2 * g))
+    true_solar_min = hour * 60.0 + eqtime + 4.0 * lon
+    ha = math.radians(true_solar_min / 4.0 - 180.0)
+    phi = math.radians(lat)
+    cos_zen = math.sin(phi) * math.sin(decl) + math.cos(phi) * math.cos(decl) * math.cos(ha)
+    return 90.0 - math.degrees(math.acos(max(-1.0, min(1.0, cos_zen))))
+
+
+def polygon_of(origin: tuple[float, float]) -> list[list[float]]:
+    """Block outline: 7.0 x 7.2 km with the NE corner cut (closed ring)."""
+    e0, n0 = origin
+    ring = [(0, 0), (7000, 0), (7000, 6000), (6000, 7200), (0, 7200), (0, 0)]
+    return [[e0 + dx, n0 + dy] for dx, dy in ring]
+
+
+def inside(poly: Sequence[Sequence[float]], e: float, n: float) -> bool:
+    """Even-odd point-in-polygon test (the ring is small and convex enough for this)."""
+    hit = False
+    for (x1, y1), (x2, y2) in itertools.pairwise(poly):
+        if (y1 > n) != (y2 > n) and e < x1 + (n - y1) * (x2 - x1) / (y2 - y1):
+            hit = not hit
+    return hit
+
+
+def iso(t: datetime) -> str:
+    return t.strftime("%Y-%m-%dT%H:%M:%SZ")
+
+
+def fmt(value: float, digits: int) -> str:
+    """Fixed decimals without a negative zero."""
+    text = f"{value:.{digits}f}"
+    return text[1:] if text.startswith("-") and float(text) == 0 else text
+
+
+def rms(values: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(np.square(values))))
+
+
+# --------------------------------------------------------------------------- image texture
+def _smooth(rng: np.random.Generator, n: int, sigma: float) -> np.ndarray:
+    """Zero-mean, unit-std smooth random field."""
+    f = ndimage.gaussian_filter(rng.normal(size=(n, n)), sigma, mode="wrap")
+    return (f - f.mean()) / f.std()
+
+
+def render_image(rng: np.random.Generator, kind: str, n: int = IMAGE_PX) -> tuple[np.ndarray, float]:
+    """Paint a 4-band leaf-off rural scene; return (uint8 array (4, n, n), cloud cover %).
+
+    Parcels are Voronoi cells of random land covers, plus a road, a farm building with its
+    shadow on the north side (sun from the south), a few trees, smooth and fine noise. Each band
+    is then stretched linearly to a target mean and standard deviation, the way a contractor's
+    DRA would, so the contrast (CV) lands inside JRC §6.3's 10-20 % unless ``kind`` says not.
+    """
+    yy, xx = np.mgrid[0:n, 0:n].astype(float)
+    k = int(rng.integers(6, 10))
+    seeds = rng.uniform(-12, n + 12, size=(k, 2))
+    label = ((yy[..., None] - seeds[:, 0]) ** 2 + (xx[..., None] - seeds[:, 1]) ** 2).argmin(-1)
+    cover = COVERS[rng.integers(0, len(COVERS), size=k)] * rng.uniform(0.9, 1.1, size=(k, 1))
+    img = cover[label]  # (n, n, 4)
+    img = img + 0.05 * _smooth(rng, n, 6.0)[..., None]
+
+    angle = rng.uniform(0, math.pi)
+    c = rng.uniform(0.3 * n, 0.7 * n, size=2)
+    dist = np.abs((xx - c[1]) * math.sin(angle) - (yy - c[0]) * math.cos(angle))
+    img[dist < 1.6] = ROAD
+    for _ in range(int(rng.integers(1, 3))):
+        h, w = (int(v) for v in rng.integers(7, 14, size=2))
+        r0, c0 = (int(v) for v in rng.integers(8, n - 20, size=2))
+        img[max(r0 - 4, 0):r0, c0:c0 + w] = SHADOW
+        img[r0:r0 + h, c0:c0 + w] = ROOF
+    for _ in range(int(rng.integers(3, 8))):
+        r, cc, rad = rng.uniform(0, n), rng.uniform(0, n), rng.uniform(1.5, 3.5)
+        img[(yy - r) ** 2 + (xx - cc) ** 2 < rad**2] = TREE
+
+    if kind == "snow":
+        snow = _smooth(rng, n, 10.0) > -0.25  # about 60 % of the extract
+        img[snow] = SNOW
+    img = img + 0.010 * rng.normal(size=img.shape)
+
+    if kind == "snow":
+        means, stds = rng.uniform(190, 200, 4), rng.uniform(15.0, 17.5, 4)
+    elif kind == "saturated":
+        means, stds = rng.uniform(165, 175, 4), rng.uniform(38, 44, 4)
+    elif kind == "cloud":
+        means, stds = rng.uniform(95, 115, 4), rng.uniform(26, 29, 4)
+    else:
+        means = rng.uniform(104, 118) + np.array([0.0, 6.0, -8.0, 10.0]) + rng.uniform(-3, 3, 4)
+        stds = rng.uniform(31, 41, 4)
+    out = np.empty((4, n, n))
+    for b in range(4):
+        band = img[..., b]
+        z = 2.5 * np.tanh((band - band.mean()) / band.std() / 2.5)  # soft tails, like a DRA curve
+        z = (z - z.mean()) / z.std()
+        reach = float(np.abs(z).max())
+        std = min(stds[b], (means[b] - 6.0) / reach, (249.0 - means[b]) / reach)  # §6.3 margins
+        out[b] = z * std + means[b]
+    cloud_pct = 0.0
+    if kind in ("cloud", "light_cloud"):
+        field_ = _smooth(rng, n, 14.0)
+        share = 0.14 if kind == "cloud" else 0.025
+        core = np.quantile(field_, 1.0 - share)
+        alpha = np.clip((field_ - core) / 0.6 + 0.5, 0.0, 1.0)
+        brightness = 215.0 if kind == "cloud" else 190.0
+        out = (1 - alpha) * out + alpha * (brightness + 3.0 * rng.normal(size=out.shape))
+        cloud_pct = float(np.mean(alpha > 0.5) * 100.0)
+    if kind == "saturated":
+        # over-exposure: shift each band so that ~2.2 % of its pixels clip at 255
+        for b in range(4):
+            out[b] += 255.5 - np.quantile(out[b], 0.978)
+    if kind == "glint":  # sun glint on a glass roof: 20 saturated pixels in R, G and B
+        r0, c0 = (int(v) for v in rng.integers(10, n - 10, size=2))
+        out[:3, r0:r0 + 5, c0:c0 + 4] = 255.0
+    return np.clip(np.rint(out), 0, 255).astype(np.uint8), cloud_pct
+
+
+def image_stats(arr: np.ndarray) -> dict[str, float]:
+    """Histogram statistics pooled over all bands, as reported in images.csv (JRC §6.4)."""
+    v = arr.astype(np.float64).ravel()
+    return {
+        "mean_dn": float(v.mean()), "std_dn": float(v.std()),
+        "min_dn": float(v.min()), "max_dn": float(v.max()),
+        "saturation_low": float(np.mean(v == 0) * 100.0),
+        "saturation_high": float(np.mean(v == 255) * 100.0),
+    }
+
+
+def band_stats(arr: np.ndarray) -> list[dict[str, float]]:
+    return [image_stats(arr[b : b + 1]) for b in range(arr.shape[0])]
+
+
+def write_geotiff(path: Path, arr: np.ndarray, centre: tuple[float, float], tags: dict[str, str]) -> None:
+    """Striped, DEFLATE-compressed GeoTIFF centred on the photo nadir point (no timestamps)."""
+    half = IMAGE_PX * GSD_M / 2
+    west, north = round(centre[0]) - half, round(centre[1]) + half
+    profile = {
+        "driver": "GTiff", "width": IMAGE_PX, "height": IMAGE_PX, "count": 4, "dtype": "uint8",
+        "crs": CRS.from_epsg(EPSG), "transform": Affine(GSD_M, 0.0, west, 0.0, -GSD_M, north),
+        "nodata": 0, "compress": "deflate", "predictor": 2, "zlevel": 9, "tiled": False,
+        "photometric": "RGB",
+    }
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with rasterio.open(path, "w", **profile) as dst:
+        dst.write(arr)
+        dst.descriptions = BANDS
+        dst.update_tags(**tags)
+
+
+# --------------------------------------------------------------------------- the delivery
+@dataclass
+class Built:
+    """In-memory delivery: tables as lists of row dicts, images as arrays, manifest, defects."""
+
+    scenario: Scenario
+    images: list[dict[str, Any]]
+    arrays: dict[str, np.ndarray]
+    centres: dict[str, tuple[float, float]]
+    checkpoints: list[dict[str, Any]]
+    gcps: list[dict[str, Any]]
+    flights: list[dict[str, Any]]
+    cameras: list[dict[str, Any]]
+    manual: list[dict[str, Any]]
+    manifest: dict[str, Any]
+    recomputed: dict[str, dict[str, float]]  # block -> rmse_x/rmse_y/n (justified exclusions out)
+    defects: list[dict[str, Any]] = field(default_factory=list)
+    consequences: list[dict[str, Any]] = field(default_factory=list)
+
+
+def plan_photos(scn: Scenario, rng: np.random.Generator) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+    """Per-photo and per-flight records; images are rendered from per-image seeds."""
+    images, flights = [], []
+    for bp in scn.blocks:
+        t0 = datetime(bp.day.year, bp.day.month, bp.day.day, *bp.start_utc, tzinfo=UTC)
+        times = []
+        for strip in range(2):
+            e_nom = bp.origin[0] + 1750.0 + STRIP_M * strip
+            order = range(5) if strip == 0 else range(4, -1, -1)  # S->N, then N->S
+            for seq, k in enumerate(order):
+                t = t0 + timedelta(seconds=strip * 420 + seq * round(BASE_M / GROUND_SPEED_MS))
+                times.append(t)
+                e = e_nom + rng.normal(0, 8.0)
+                n = bp.origin[1] + 1000.0 + BASE_M * k + rng.normal(0, 3.0)
+                fh = FLYING_HEIGHT_M + rng.normal(0, 12.0)
+                photo = f"{strip + 1}{k + 1:02d}"
+                image_id = f"{bp.flight}_0{photo}"
+                images.append({
+                    "image_id": image_id, "block": bp.id, "flight_id": bp.flight,
+                    "photo_number": f"0{photo}", "flying_height": fh,
+                    "exposure_x": e, "exposure_y": n, "exposure_z": terrain_m(e, n) + fh,
+                    "exposure_time": t, "roll": float(np.clip(rng.normal(0, 0.7), -2.4, 2.4)),
+                })
+        flights.append({
+            "flight_id": bp.flight, "camera_id": "UCE-01",
+            "calibration_certificate": "VX-UCE-2025-1104",
+            "start_time": iso(min(times) - timedelta(minutes=35)),
+            "finish_time": iso(max(times) + timedelta(minutes=40)),
+            "weather": bp.weather,
+        })
+    images.sort(key=lambda r: r["image_id"])
+    return images, flights
+
+
+def plan_points(scn: Scenario, rng: np.random.Generator) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+    """GCPs (a double in each corner and one in the middle, JRC Table 4) and check points."""
+    gcps, cps = [], []
+    for bp in scn.blocks:
+        poly = polygon_of(bp.origin)
+        verts = np.array(poly[:-1])
+        centroid = verts.mean(axis=0)
+        anchors = [v + 400.0 * (centroid - v) / np.linalg.norm(centroid - v) for v in verts]
+        anchors.append(centroid)
+        g_xy = []
+        for i, a in enumerate(anchors, start=1):
+            a = a + rng.normal(0, 60.0, size=2)
+            for twin, off in (("a", 0.0), ("b", 1.0)):
+                p = a + off * rng.uniform(20, 40) * np.array([math.cos(i), math.sin(i)])
+                g_xy.append(p)
+                gcps.append({
+                    "point_id": f"{bp.id}-G{i:02d}{twin}", "block": bp.id,
+                    "x": p[0], "y": p[1], "z": terrain_m(*p) + 1.2,
+                    "precision_xy": 0.02, "precision_z": 0.04,
+                    "source": "GNSS RTK (SAPOS HEPS), signalised, 2026-03",
+                })
+        g_xy_arr = np.array(g_xy)
+        # stratified candidates: one per cell of a 6 x 6 grid, inside, >= 300 m from any GCP
+        cands = []
+        for i in range(6):
+            for j in range(6):
+                for _ in range(60):
+                    e = bp.origin[0] + (i + rng.uniform(0.1, 0.9)) * 7000.0 / 6
+                    n = bp.origin[1] + (j + rng.uniform(0.1, 0.9)) * 7200.0 / 6
+                    if inside(poly, e, n) and np.min(np.hypot(*(g_xy_arr - (e, n)).T)) >= 300.0:
+                        cands.append((e, n))
+                        break
+        pick = np.sort(rng.choice(len(cands), size=bp.n_checkpoints, replace=False))
+        ref = np.array([cands[p] for p in pick])
+        z = rng.normal(size=(len(ref), 2))
+        d = z / np.sqrt(np.mean(z**2, axis=0)) * np.array(bp.rmse)  # exact target RMSE per axis
+        for i, ((e, n), (dx, dy)) in enumerate(zip(ref, d, strict=True), start=1):
+            cps.append({"point_id": f"{bp.id}-C{i:02d}", "block": bp.id, "x_ref": e, "y_ref": n,
+                        "dx": dx, "dy": dy, "excluded": False, "exclusion_reason": ""})
+    return gcps, cps
+
+
+def build(scn: Scenario) -> Built:
+    """Plan, render and measure one delivery in memory; every reported value is computed here."""
+    rng = np.random.default_rng(scn.seed)
+    images, flights = plan_photos(scn, rng)
+    gcps, cps = plan_points(scn, rng)
+
+    # ---- images: render, measure, report
+    arrays, centres = {}, {}
+    for idx, row in enumerate(images):
+        kind = scn.textures.get(row["image_id"], "normal")
+        arr, cloud = render_image(np.random.default_rng([scn.seed, idx]), kind)
+        arrays[row["image_id"]] = arr
+        centres[row["image_id"]] = (row["exposure_x"], row["exposure_y"])
+        row.update(image_stats(arr))
+        row["kind"] = kind
+        row["cloud_cover"] = cloud
+        row["sun_elevation"] = sun_elevation_deg(row["exposure_x"], row["exposure_y"], row["exposure_time"])
+        name = row["image_id"].replace("_", " ") if row["image_id"] == scn.file_with_space else row["image_id"]
+        row["file"] = f"images/{name}.tif"
+    for image_id, value in scn.roll.items():
+        _row(images, image_id)["roll"] = value
+    for image_id in scn.no_flying_height:
+        _row(images, image_id)["flying_height"] = None
+
+    # ---- check points: measured coordinates, blunder, nearest photo
+    if scn.blunder:
+        block, dx, reason = scn.blunder
+        target = [c for c in cps if c["block"] == block][len([c for c in cps if c["block"] == block]) // 2]
+        target.update(dx=dx, dy=0.4 * target["dy"], excluded=True, exclusion_reason=reason)
+    for c in cps:
+        c["x_ref"], c["y_ref"] = round(c["x_ref"], 3), round(c["y_ref"], 3)
+        c["x"], c["y"] = round(c["x_ref"] + c["dx"], 2), round(c["y_ref"] + c["dy"], 2)
+        photos = [r for r in images if r["block"] == c["block"]]
+        dist = [math.hypot(r["exposure_x"] - c["x_ref"], r["exposure_y"] - c["y_ref"]) for r in photos]
+        c["image_id"] = photos[int(np.argmin(dist))]["image_id"]
+        c["source"] = "GNSS RTK survey, independent of the contractor (SAPOS HEPS), 2026-03"
+
+    recomputed = {}
+    for bp in scn.blocks:
+        kept = [c for c in cps if c["block"] == bp.id and not (c["excluded"] and c["exclusion_reason"])]
+        dx = np.array([c["x"] - c["x_ref"] for c in kept])
+        dy = np.array([c["y"] - c["y_ref"] for c in kept])
+        recomputed[bp.id] = {"rmse_x": rms(dx), "rmse_y": rms(dy), "n": len(kept)}
+
+    # ---- manifest
+    blocks = []
+    for bp in scn.blocks:
+        contractor_pts = [c for c in cps if c["block"] == bp.id and not c["excluded"]]
+        rep = {
+            "rmse_x": rms(np.array([c["x"] - c["x_ref"] for c in contractor_pts])),
+            "rmse_y": rms(np.array([c["y"] - c["y_ref"] for c in contractor_pts])),
+        }
+        rep.update(scn.reported_override.get(bp.id, {}))
+        blocks.append({
+            "id": bp.id, "polygon": polygon_of(bp.origin), "method": "aerotriangulation",
+            "reported": {k: {"value": round(v, 2), "unit": "m"} for k, v in rep.items()},
+        })
+    manifest: dict[str, Any] = {
+        "orthospec_delivery": 1,
+        "id": scn.delivery_id,
+        "project": {**scn.project, "crs": f"EPSG:{EPSG}"},
+        "contractor": {"name": "Nordlicht Luftbild GmbH (fictional)", "contact": "qa@nordlicht.example"},
+        "operator": {"name": "K. Brandt (fictional)", "role": "contractor QA manager"},
+        "dates": dict(scn.dates),
+        "sensor": {"type": "aerial", "platform": "Vulcanair P68 Observer 2", "camera": CAMERA["model"],
+                   "digital": True},
+        "product": {"gsd": {"value": GSD_M, "unit": "m"}, "bit_depth": 8, "bands": list(BANDS),
+                    "format": "GeoTIFF", "dem_delivered": False},
+        "tender": {"reference": "ITT 2026/CAP-ORTHO, Annex II §3 (fictional)",
+                   "parameters": {"tolerance_xy": {"value": TOLERANCE_XY_M, "unit": "m"}}},
+        "blocks": blocks,
+        "tables": {t: f"tables/{t}.csv" for t in ("images", "checkpoints", "gcps", "flights",
+                                                   "cameras", "manual_checks")},
+        "units": {"checkpoints": "m", "gcps": "m"},
+        "waivers": scn.waivers,
+    }
+
+    cameras = [{"camera_id": "UCE-01", "model": CAMERA["model"],
+                "focal_length": CAMERA["focal_length_mm"], "pixel_size": CAMERA["pixel_size_um"],
+                "calibration_date": "2025-11-04", "certificate": "VX-UCE-2025-1104"}]
+    manual = manual_checks(scn, images)
+    built = Built(scn, images, arrays, centres, cps, gcps, flights, cameras, manual, manifest, recomputed)
+    check_invariants(built)
+    if scn is FAIL:
+        describe_fail_defects(built)
+    return built
+
+
+def _row(rows: Iterable[dict[str, Any]], image_id: str) -> dict[str, Any]:
+    return next(r for r in rows if r["image_id"] == image_id)
+
+
+#: Manual (human-judged) checks signed in manual_checks.csv: (rule id, scope, note when passed).
+#: Ids follow the jrc-v3 profile draft; film-only, DEM and update checks do not apply here.
+MANUAL_CHECKS: tuple[tuple[str, str, str], ...] = (
+    ("JRC-5.3-IDQA", "delivery", "Input data quality assessment report reviewed (Table 1)."),
+    ("JRC-T1-CAMERA-FMC", "delivery", "UltraCam Eagle with TDI and computer-managed exposure."),
+    ("JRC-4.3-RADIOMETRIC-CERTIFICATE", "camera", "Certificate VX-UCE-2025-1104 lists live cells and band metrics."),
+    ("JRC-5.2.5-FLYING-CONDITIONS", "delivery", "Sun angles, cloud and contrast acceptable on all photos."),
+    ("JRC-5.2.7-SENSOR-SETTINGS", "delivery", "Exposure control and filters documented in the flight reports."),
+    ("JRC-6.3-HISTOGRAM-PER-COLLECT", "delivery", "Histogram optimisation applied per flight (collect)."),
+    ("JRC-6.4-TILING", "delivery", "Striped GeoTIFF, not tiled."),
+    ("JRC-6.4-FORMAT-SAMPLE", "delivery", "Sample GeoTIFF accepted on 2026-03-02."),
+    ("JRC-6.5-VISUALLY-LOSSLESS", "delivery", "Lossless DEFLATE only; no visually lossless codec used."),
+    ("JRC-7.2-WELL-DEFINED-POINTS", "delivery", "Points on road markings and field corners, none on buildings."),
+    ("JRC-7.3-POINTS-MARKED", "delivery", "Every point marked on an image extract with its identifier."),
+    ("JRC-T5-RIGOROUS-MODEL", "delivery", "Rigorous frame model, most-nadir pixel selection."),
+    ("JRC-T6-OPERATOR-TRAINING", "delivery", "Training certificates of the DPWS operators on file."),
+    ("JRC-T4-GCP-PATTERN-MANUAL", "block", "Double GCP in each corner and one double in the middle."),
+    ("JRC-6.3-ARTEFACTS", "image", "No scratches, dust, hot spots, haze, colour seams or artefacts."),
+    ("JRC-T6-ORTHO-INSPECTION", "image", "Inspected on screen; no defects recorded."),
+)
+NOT_INSPECTED = "File not on the delivery medium; could not be inspected."
+
+
+def manual_checks(scn: Scenario, images: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Recorded human verdicts for the visual and procedural checks (rule ids: MANUAL_CHECKS)."""
+    inspector, day = "M. Keller, external QC (fictional)", (scn.dates["delivered"] + timedelta(days=9)).isoformat()
+    rows = []
+    for check, scope, ok_note in MANUAL_CHECKS:
+        items = {"delivery": ["*"], "camera": ["UCE-01"], "block": [bp.id for bp in scn.blocks],
+                 "image": [r["image_id"] for r in images]}[scope]
+        for item in items:
+            note, verdict = ok_note, "pass"
+            if item == scn.missing_file:
+                note, verdict = NOT_INSPECTED, "fail"
+            elif check == "JRC-6.3-ARTEFACTS" and item in scn.manual_fail:
+                note, verdict = scn.manual_fail[item], "fail"
+            elif check == "JRC-6.3-ARTEFACTS" and scn.textures.get(item) == "snow":
+                note = "Residual snow on the slope; otherwise no artefacts."
+            rows.append({"check": check, "item": item, "inspector": inspector, "date": day,
+                         "verdict": verdict, "note": note})
+    return rows
+
+
+def check_invariants(b: Built) -> None:
+    """Refuse to write an example whose numbers do not say what the README claims."""
+    scn = b.scenario
+    for r in b.images:
+        pooled, bands = image_stats(b.arrays[r["image_id"]]), band_stats(b.arrays[r["image_id"]])
+        cvs = [s["std_dn"] / 256 * 100 for s in [pooled, *bands]]
+        sat = [max(s["saturation_low"], s["saturation_high"]) for s in [pooled, *bands]]
+        if r["kind"] == "snow":
+            assert all(cv < 10 for cv in cvs), (r["image_id"], cvs)
+        else:
+            assert all(10 <= cv <= 20 for cv in cvs), (r["image_id"], cvs)
+        if r["kind"] == "saturated":
+            assert all(1.0 < s["saturation_high"] < 5.0 for s in [pooled, *bands]), sat
+        else:
+            assert all(s < 0.5 for s in sat), (r["image_id"], sat)
+        assert r["sun_elevation"] >= 30.0, r
+        assert r["cloud_cover"] > 10.0 if r["kind"] == "cloud" else r["cloud_cover"] <= 5.0, r
+        if r["image_id"] not in scn.roll:
+            assert abs(r["roll"]) <= 3.0
+    for bp in scn.blocks:
+        rec = b.recomputed[bp.id]
+        assert rec["rmse_x"] <= TOLERANCE_XY_M or scn is FAIL
+        assert (rec["rmse_y"] > TOLERANCE_XY_M + 0.05) == (scn is FAIL and bp.id == "B02"), rec
+        assert rec["n"] >= 20 or (scn is FAIL and bp.id == "B03"), rec
+    if scn.blunder:  # a blunder under both JRC readings: > 3 x RMSE (all points) and > 3 x target
+        block, _, _ = scn.blunder
+        pts = [c for c in b.checkpoints if c["block"] == block]
+        dx = np.array([c["x"] - c["x_ref"] for c in pts])
+        bad = next(c for c in pts if c["excluded"])
+        assert abs(bad["x"] - bad["x_ref"]) > max(3 * rms(dx), 3 * TOLERANCE_XY_M)
+        if not bad["exclusion_reason"]:  # kept in (unjustified), the block still meets tolerance
+            assert rms(dx) < TOLERANCE_XY_M
+    g = np.array([[p["x"], p["y"]] for p in b.gcps])
+    for c in b.checkpoints:
+        assert np.min(np.hypot(*(g - (c["x_ref"], c["y_ref"])).T)) >= 300.0
+
+
+# --------------------------------------------------------------------------- fail description
+def describe_fail_defects(b: Built) -> None:
+    """Record each injected defect: JRC clause, item, file, rows, measured value, requirement."""
+    scn, rec = b.scenario, b.recomputed
+    img_row = {r["image_id"]: i for i, r in enumerate(b.images, start=1)}
+    cp_rows = {c["point_id"]: i for i, c in enumerate(b.checkpoints, start=1)}
+    b02 = [cp_rows[c["point_id"]] for c in b.checkpoints if c["block"] == "B02"]
+    b03 = [cp_rows[c["point_id"]] for c in b.checkpoints if c["block"] == "B03"]
+    blunder = next(c for c in b.checkpoints if c["excluded"])
+    sat = _row(b.images, "F02_0203")
+    cloud = _row(b.images, "F03_0105")
+    reported_y = b.manifest["blocks"][1]["reported"]["rmse_y"]["value"]
+    blunder_block = [c for c in b.checkpoints if c["block"] == blunder["block"]]
+    all_dx = np.array([c["x"] - c["x_ref"] for c in blunder_block])
+
+    def d(kind: str, section: str, scope: str, items: list[str], file: str, rows: list[int],
+          columns: list[str], measured: Any, unit: str, requirement: str, consequence: str,
+          text: str, table: str | None = None, raster: str | None = None) -> None:
+        b.defects.append({
+            "id": f"F{len(b.defects) + 1:02d}", "kind": kind,
+            "clause": {"document": JRC, "section": section, "table": table},
+            "scope": scope, "items": items, "file": file, "rows": rows, "columns": columns,
+            "raster": raster, "measured": {"value": measured, "unit": unit},
+            "requirement": requirement,
+            "consequence": consequence, "description": text,
+        })
+
+    d("rmse_above_tolerance", "12.7", "block", ["B02"], "tables/checkpoints.csv", b02,
+      ["y", "y_ref"], round(rec["B02"]["rmse_y"], 3), "m",
+      f"RMSEy <= tolerance_xy ({TOLERANCE_XY_M} m); X and Y are applied independently",
+      "reject_block",
+      f"Block B02 RMSEy is {rec['B02']['rmse_y']:.3f} m over {rec['B02']['n']} check points, above "
+      f"the {TOLERANCE_XY_M} m tolerance: all products of B02 are rejected.")
+    d("reported_rmse_mismatch", "12.6", "block", ["B02"], "delivery.yaml", [],
+      ["blocks[1].reported.rmse_y"], reported_y, "m",
+      f"reported RMSEy equals the recomputed RMSEy ({rec['B02']['rmse_y']:.2f} m) within 0.01 m",
+      "warn",
+      f"The contractor reports RMSEy = {reported_y:.2f} m for B02 (Table 6 QCR 11); the check "
+      f"points give {rec['B02']['rmse_y']:.2f} m.", table="Table 6 row 11 (§8.4)")
+    d("saturation_high", "6.3", "image", ["F02_0203"], "tables/images.csv",
+      [img_row["F02_0203"]], ["saturation_high"], round(sat["saturation_high"], 3), "%",
+      "saturation <= 0.5 % at each tail of the histogram", "reject_item",
+      f"Over-exposed image: {sat['saturation_high']:.2f} % of the values (all bands pooled; every "
+      "band above 1 %) are 255, in the pixels and as reported.", raster=sat["file"])
+    d("missing_field", "5.3", "image", list(scn.no_flying_height), "tables/images.csv",
+      [img_row[i] for i in scn.no_flying_height], ["flying_height"], None, "m",
+      "flying height recorded for each photo", "reject_item",
+      "Flying height is empty for three photos of flight F01 (per-photo field of JRC §5.3).")
+    d("unjustified_exclusion", "12.6", "checkpoint", [blunder["point_id"]], "tables/checkpoints.csv",
+      [cp_rows[blunder["point_id"]]], ["excluded", "exclusion_reason"],
+      round(blunder["x"] - blunder["x_ref"], 3), "m",
+      "a point eliminated as a blunder carries a documented justification", "reject_item",
+      f"{blunder['point_id']} is excluded (dx = {blunder['x'] - blunder['x_ref']:.2f} m, beyond 3 x "
+      f"RMSE = {3 * rms(all_dx):.2f} m) but exclusion_reason is empty, so it stays in the sample. "
+      f"Kept in, B01 RMSEx is {rms(all_dx):.3f} m: still within tolerance, but no longer the "
+      f"reported {b.manifest['blocks'][0]['reported']['rmse_x']['value']:.2f} m.")
+    d("file_missing", "6.4", "image", [scn.missing_file], "tables/images.csv",
+      [img_row[scn.missing_file]], ["file"], _row(b.images, scn.missing_file)["file"], "text",
+      "every file listed in the metadata table is delivered and readable", "reject_item",
+      f"{_row(b.images, scn.missing_file)['file']} is listed in images.csv but not on the medium.",
+      table=None)
+    d("file_name_space", "6.4", "image", [scn.file_with_space], "tables/images.csv",
+      [img_row[scn.file_with_space]], ["file"], _row(b.images, scn.file_with_space)["file"], "text",
+      "file names without spaces, name plus extension (e.g. photo_nr.tif)", "reject_item",
+      f"File name {_row(b.images, scn.file_with_space)['file']!r} contains a space.")
+    d("too_few_checkpoints", "12.4", "block", ["B03"], "tables/checkpoints.csv", b03,
+      ["point_id"], rec["B03"]["n"], "1", "at least 20 well-distributed check points per site",
+      "reject_block", f"Block B03 has only {rec['B03']['n']} check points.", table="Table 12")
+    d("roll_above_max", "5.2.4", "image", ["F02_0102"], "tables/images.csv", [img_row["F02_0102"]],
+      ["roll"], scn.roll["F02_0102"], "deg", "roll <= 3 degrees for a single image",
+      "reject_item", f"Photo F02_0102 was exposed with {scn.roll['F02_0102']:.2f}° roll.")
+    d("cloud_cover_above_max", "6.3", "image", ["F03_0105"], "tables/images.csv",
+      [img_row["F03_0105"]], ["cloud_cover"], round(cloud["cloud_cover"], 1), "%",
+      "cloud cover <= 5-10 % per image (10 % used here)", "reject_item",
+      f"A cumulus covers {cloud['cloud_cover']:.1f} % of F03_0105 (visible in the pixels).",
+      raster=cloud["file"])
+    manual_row = next(i for i, m in enumerate(b.manual, start=1)
+                      if m["item"] == "F01_0202" and m["verdict"] == "fail")
+    d("manual_check_fail", "6.3", "image", ["F01_0202"], "tables/manual_checks.csv", [manual_row],
+      ["verdict"], "fail", "text", "visual check passed (haze, artefacts, colour seams)",
+      "reject_item", f"Inspector verdict 'fail' for F01_0202: {scn.manual_fail['F01_0202']}")
+
+    b.consequences = [
+        {"clause": {"document": JRC, "section": "12.7"}, "scope": "block", "items": ["B02", "B03"],
+         "text": "B02 (RMSEy) and B03 (too few check points) are rejected with all their products."},
+        {"clause": {"document": JRC, "section": "12.6"}, "scope": "block", "items": ["B01"],
+         "text": f"With {blunder['point_id']} kept in (its exclusion is unjustified), B01 RMSEx is "
+                 f"{rms(all_dx):.2f} m against the reported "
+                 f"{b.manifest['blocks'][0]['reported']['rmse_x']['value']:.2f} m: a reported-vs-"
+                 "recomputed comparison differs here too, while the tolerance is still met."},
+        {"clause": {"document": JRC, "section": "12.8"}, "scope": "project", "items": ["*"],
+         "text": "2 of 3 blocks fail (> 5 %): all products are returned to the contractor."},
+        {"clause": {"document": JRC, "section": "12.3"}, "scope": "delivery", "items": ["*"],
+         "text": "More than 5 % of the images fail one or more Chapter 6 checks: the delivery may "
+                 "be returned."},
+        {"clause": {"document": JRC, "section": "6.4"}, "scope": "image", "items": [scn.missing_file],
+         "text": f"The missing {scn.missing_file} also has no raster to measure and 'fail' rows for "
+                 "its visual checks (not inspected)."},
+    ]
+
+
+# --------------------------------------------------------------------------- writers
+def _csv(path: Path, columns: Sequence[str], rows: Iterable[dict[str, Any]]) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with path.open("w", encoding="utf-8", newline="") as fh:
+        w = csv.writer(fh, lineterminator="\n")
+        w.writerow(columns)
+        for r in rows:
+            w.writerow(["" if r.get(c) is None else r[c] for c in columns])
+
+
+def _plain(data: Any) -> Any:
+    """numpy scalars -> Python scalars, recursively (safe_dump knows only the latter)."""
+    if isinstance(data, dict):
+        return {k: _plain(v) for k, v in data.items()}
+    if isinstance(data, list | tuple):
+        return [_plain(v) for v in data]
+    return data.item() if isinstance(data, np.generic) else data
+
+
+def _yaml(path: Path, data: Any, header: str) -> None:
+    text = yaml.safe_dump(_plain(data), sort_keys=False, default_flow_style=None, allow_unicode=True, width=100)
+    path.write_text(header + text, encoding="utf-8")
+
+
+HEADER = "# Generated by examples/generate.py: do not edit by hand, run `python examples/generate.py`.\n"
+
+
+def write(b: Built, root: Path) -> None:
+    """Write one delivery folder from scratch."""
+    scn = b.scenario
+    if root.exists():
+        shutil.rmtree(root)
+    (root / "tables").mkdir(parents=True)
+    _yaml(root / "delivery.yaml", b.manifest, HEADER + "# Delivery convention: docs/ARCHITECTURE.md.\n")
+
+    image_rows = [{
+        "image_id": r["image_id"], "file": r["file"], "block": r["block"], "flight_id": r["flight_id"],
+        "photo_number": r["photo_number"],
+        "flying_height": None if r["flying_height"] is None else fmt(r["flying_height"], 1),
+        "exposure_x": fmt(r["exposure_x"], 2), "exposure_y": fmt(r["exposure_y"], 2),
+        "exposure_z": fmt(r["exposure_z"], 2), "exposure_time": iso(r["exposure_time"]),
+        "gsd": fmt(GSD_M, 2), "bit_depth": "8", "bands": ";".join(BANDS),
+        "mean_dn": fmt(r["mean_dn"], 2), "std_dn": fmt(r["std_dn"], 2),
+        "min_dn": fmt(r["min_dn"], 0), "max_dn": fmt(r["max_dn"], 0),
+        "saturation_low": fmt(r["saturation_low"], 3), "saturation_high": fmt(r["saturation_high"], 3),
+        "cloud_cover": fmt(r["cloud_cover"], 1), "sun_elevation": fmt(r["sun_elevation"], 1),
+        "roll": fmt(r["roll"], 2),
+    } for r in b.images]
+    _csv(root / "tables/images.csv", list(image_rows[0]), image_rows)
+    _csv(root / "tables/checkpoints.csv",
+         ["point_id", "block", "x", "y", "x_ref", "y_ref", "image_id", "source", "excluded",
+          "exclusion_reason"],
+         ({**c, "x": fmt(c["x"], 2), "y": fmt(c["y"], 2), "x_ref": fmt(c["x_ref"], 3),
+           "y_ref": fmt(c["y_ref"], 3), "excluded": "true" if c["excluded"] else "false"}
+          for c in b.checkpoints))
+    _csv(root / "tables/gcps.csv",
+         ["point_id", "block", "x", "y", "z", "precision_xy", "precision_z", "source"],
+         ({**g, "x": fmt(g["x"], 3), "y": fmt(g["y"], 3), "z": fmt(g["z"], 3),
+           "precision_xy": fmt(g["precision_xy"], 2), "precision_z": fmt(g["precision_z"], 2)}
+          for g in b.gcps))
+    _csv(root / "tables/flights.csv",
+         ["flight_id", "camera_id", "calibration_certificate", "start_time", "finish_time", "weather"],
+         b.flights)
+    _csv(root / "tables/cameras.csv",
+         ["camera_id", "model", "focal_length", "pixel_size", "calibration_date", "certificate"],
+         b.cameras)
+    _csv(root / "tables/manual_checks.csv", ["check", "item", "inspector", "date", "verdict", "note"],
+         b.manual)
+
+    for r in b.images:
+        if r["image_id"] == scn.missing_file:
+            continue
+        write_geotiff(root / r["file"], b.arrays[r["image_id"]], b.centres[r["image_id"]], {
+            "IMAGE_ID": r["image_id"], "FLIGHT_ID": r["flight_id"], "PHOTO_NUMBER": r["photo_number"],
+            "EXPOSURE_TIME": iso(r["exposure_time"]), "BLOCK": r["block"],
+        })
+
+    expected = {
+        "delivery": scn.delivery_id,
+        "verdict": "rejected" if b.defects else "accepted",
+        "parameters": {"tolerance_xy": {"value": TOLERANCE_XY_M, "unit": "m"}},
+        "recomputed": {k: {"rmse_x": round(v["rmse_x"], 3), "rmse_y": round(v["rmse_y"], 3), "n": v["n"]}
+                       for k, v in b.recomputed.items()},
+        "waived": [{"rule": w["rule"], "items": w["items"], "clause": {"document": JRC, "section": "6.3"}}
+                   for w in scn.waivers],
+        "defects": b.defects,
+        "consequences": b.consequences,
+    }
+    _yaml(root / "expected.yaml", expected,
+          HEADER + "# What a correct check must find in this delivery (rule-id agnostic: JRC clauses).\n")
+    (root / "README.md").write_text(readme(b), encoding="utf-8")
+
+
+def readme(b: Built) -> str:
+    scn, m = b.scenario, b.manifest
+    lines = [
+        f"# {scn.name}: {m['project']['name']}",
+        "",
+        "Generated by `examples/generate.py` (do not edit by hand). See `../../README.md` for the "
+        "conventions shared by both examples.",
+        "",
+        f"Delivery `{scn.delivery_id}`, project `{m['project']['id']}`, {len(scn.blocks)} blocks, "
+        f"{len(b.images)} images (4-band 0.25 m extracts), {len(b.checkpoints)} check points, "
+        f"{len(b.gcps)} GCPs. Camera {CAMERA['model']} (f = {CAMERA['focal_length_mm']} mm, "
+        f"{CAMERA['pixel_size_um']} µm pixel), flying height {FLYING_HEIGHT_M:.0f} m above ground. "
+        f"ITT tolerance: RMSEx and RMSEy <= {TOLERANCE_XY_M} m per block "
+        f"(`tender.parameters.tolerance_xy`).",
+        "",
+        "| block | flight | check points used | RMSEx (m) | RMSEy (m) | reported x / y (m) |",
+        "|---|---|---|---|---|---|",
+    ]
+    for bp, blk in zip(scn.blocks, m["blocks"], strict=True):
+        rec, rep = b.recomputed[bp.id], blk["reported"]
+        lines.append(f"| {bp.id} | {bp.flight} | {rec['n']} | {rec['rmse_x']:.3f} | {rec['rmse_y']:.3f} | "
+                     f"{rep['rmse_x']['value']:.2f} / {rep['rmse_y']['value']:.2f} |")
+    lines.append("")
+    if not b.defects:
+        lines += [
+            "Expected verdict: **accepted**. Every block meets the tolerance with at least 20 check "
+            "points, reported RMSEs agree with the recomputation within 0.01 m, every image has "
+            "saturation < 0.5 %, contrast (CV) 10-20 %, cloud cover <= 5 %, sun elevation >= 30° "
+            "and roll <= 3°, and every visual check is signed 'pass'.",
+            "",
+            "Deliberate details:",
+            "",
+        ]
+        bl = next(c for c in b.checkpoints if c["excluded"])
+        lines.append(f"- `{bl['point_id']}` is excluded as a blunder (dx = {bl['x'] - bl['x_ref']:.2f} m, "
+                     f"beyond 3 x RMSE) with a documented justification (JRC §12.6); the block RMSE "
+                     "is computed without it.")
+        for w in scn.waivers:
+            lines.append(f"- Waiver `{w['rule']}` (placeholder rule id) for {', '.join(w['items'])}: "
+                         f"{w['justification']}")
+        lines.append("- Two images carry small clouds (cloud cover reported from the pixels, <= 5 %); "
+                     "F02_0202 has sun glint on a glass roof (a few saturated pixels, well under "
+                     "0.5 %).")
+    else:
+        lines += ["Expected verdict: **rejected**, for exactly these reasons (machine-readable in "
+                  "`expected.yaml`; rows are 1-based data rows):", "",
+                  "| # | JRC clause | scope | item(s) | file (rows) | defect |", "|---|---|---|---|---|---|"]
+        for x in b.defects:
+            cl = f"§{x['clause']['section']}" + (f", {x['clause']['table']}" if x["clause"]["table"] else "")
+            rows = f" ({', '.join(map(str, x['rows']))})" if x["rows"] and len(x["rows"]) <= 3 else ""
+            lines.append(f"| {x['id']} | {cl} | {x['scope']} | {', '.join(x['items'])} | "
+                         f"`{x['file']}`{rows} | {x['description']} |")
+        lines += ["", "Consequences:", ""]
+        lines += [f"- §{c['clause']['section']}: {c['text']}" for c in b.consequences]
+    lines += ["", "Rule ids in `manual_checks.csv` and `waivers` follow the jrc-v3 profile draft "
+              "(`MANUAL_CHECKS` in `examples/generate.py`); the expected findings above are stated "
+              "by JRC clause so they do not depend on them.", ""]
+    return "\n".join(lines)
+
+
+def generate(out: Path = DEFAULT_OUT) -> list[Path]:
+    """Write both example deliveries under ``out``; return their folders."""
+    roots = []
+    for scn in SCENARIOS:
+        root = Path(out) / scn.name
+        write(build(scn), root)
+        roots.append(root)
+    return roots
+
+
+def main(argv: Sequence[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help="parent folder of the deliveries")
+    args = parser.parse_args(argv)
+    for root in generate(args.out):
+        print(root)
+
+
+if __name__ == "__main__":
+    main()

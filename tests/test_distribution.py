@@ -1,0 +1,90 @@
+"""Checkpoint distribution: quadrants, spacing vs Δ/10, GCP independence, footprint."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from shapely.geometry import Polygon, box
+
+from orthospec.errors import MeasureError
+from orthospec.measures.distribution import checkpoint_distribution
+
+
+def _grid(nx=5, ny=4, size=1000.0):
+    xs = (np.arange(nx) + 0.5) * size / nx
+    ys = (np.arange(ny) + 0.5) * size / ny
+    gx, gy = np.meshgrid(xs, ys)
+    return gx.ravel(), gy.ravel()
+
+
+def test_even_grid_is_well_distributed():
+    x, y = _grid()
+    ids = [f"C{i}" for i in range(20)]
+    r = checkpoint_distribution(x, y, ids=ids, area=box(0, 0, 1000, 1000))
+    assert r.n == 20 and r.count_ok and r.split_source == "area"
+    assert r.centre == (500.0, 500.0)
+    assert r.diagonal == pytest.approx(1000 * np.sqrt(2))
+    # 5 columns: x = 100,300,500,700,900 -> x=500 goes east: 3 east, 2 west per row; 2 rows north
+    assert r.quadrant_counts == {"NE": 6, "NW": 4, "SW": 4, "SE": 6}
+    assert r.quadrants_ok and r.well_distributed
+    assert r.min_quadrant_share == pytest.approx(0.2) and r.required_quadrant_share == 0.2
+    assert r.nn_reference == pytest.approx(100 * np.sqrt(2))
+    assert r.nn_min == pytest.approx(200.0)  # x spacing 200, y spacing 250
+    assert r.nn_min_ratio == pytest.approx(200 / (100 * np.sqrt(2)))
+    assert r.closer_than_reference == ()
+
+
+def test_clustered_points_fail_quadrants_and_spacing():
+    x, y = _grid()
+    x = x * 0.3  # all in the west part of the block
+    pts_x = np.r_[x, 990.0]
+    pts_y = np.r_[y, 990.0]
+    r = checkpoint_distribution(pts_x, pts_y, area=box(0, 0, 1000, 1000))
+    assert r.quadrant_counts["SE"] == 0 and not r.quadrants_ok
+    assert r.min_quadrant_share == 0.0
+    assert r.quadrant_shares["NE"] == pytest.approx(1 / 21)
+    assert len(r.closer_than_reference) == 20  # 60 m x-spacing < Δ/10 = 141 m
+
+
+def test_hull_split_when_no_area_and_count_below_twenty():
+    r = checkpoint_distribution([0, 10, 0, 10, 4], [0, 0, 20, 20, 3])
+    assert r.split_source == "convex_hull" and r.centre == (5.0, 10.0)
+    assert not r.count_ok
+    assert r.quadrant_counts["SW"] == 2
+
+
+def test_gcp_proximity_and_identical_points():
+    x, y = _grid()
+    ids = [f"C{i}" for i in range(20)]
+    gx = np.array([x[0] + 5.0, x[5], 2000.0])
+    gy = np.array([y[0], y[5], 2000.0])
+    r = checkpoint_distribution(x, y, ids=ids, gcp_x=gx, gcp_y=gy, gcp_ids=["G1", "G2", "C19"],
+                                min_gcp_distance=10.0)
+    assert set(r.too_close_to_gcp) == {"C0", "C5"}
+    assert set(r.identical_to_gcp) == {"C5", "C19"}  # same position / same id
+    assert r.gcp_min_distance == 0.0
+    assert r.gcp_distance is not None and r.gcp_distance[0] == pytest.approx(5.0)
+
+
+def test_footprint():
+    x, y = _grid()
+    fp = Polygon([(0, 0), (1000, 0), (0, 1000)])  # lower-left triangle
+    r = checkpoint_distribution(x, y, footprint=fp)
+    inside = x + y <= 1000
+    assert len(r.outside_footprint) == int((~inside).sum())
+    assert r.inside_footprint_share == pytest.approx(inside.mean())
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"x": [], "y": []}, "no checkpoints"),
+        ({"x": [1.0, np.nan], "y": [1.0, 2.0], "ids": ["a", "b"]}, "non-finite.*b"),
+        ({"x": [1.0, 2.0], "y": [1.0]}, "same length"),
+        ({"x": [1.0], "y": [1.0], "area": Polygon()}, "empty"),
+        ({"x": [1.0], "y": [1.0], "gcp_x": [1.0]}, "together"),
+    ],
+)
+def test_bad_input(kwargs, match):
+    with pytest.raises(MeasureError, match=match):
+        checkpoint_distribution(**kwargs)

@@ -1,0 +1,284 @@
+"""The bundled example deliveries: up to date, deterministic, and saying what they claim.
+
+``examples/generate.py`` writes ``examples/deliveries/aerial-{pass,fail}``. These tests
+regenerate them into a temporary folder and compare every file's SHA-256 with the committed
+ones, then check the committed data against the convention (specs/delivery-tables.yaml) and
+against the claims of each delivery's ``expected.yaml``: the pass example meets the JRC
+guidelines, and the fail example breaks them for exactly the documented reasons.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import math
+import sys
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import pytest
+import rasterio
+import yaml
+from shapely.geometry import Point, Polygon
+
+ROOT = Path(__file__).resolve().parents[1]
+EXAMPLES = ROOT / "examples" / "deliveries"
+NAMES = ("aerial-pass", "aerial-fail")
+SPEC = yaml.safe_load((ROOT / "specs" / "delivery-tables.yaml").read_text(encoding="utf-8"))["tables"]
+GSD = 0.25
+
+
+def _generator() -> ModuleType:
+    """Import examples/generate.py (a script, not a package module) once."""
+    name = "orthospec_examples_generate"
+    if name not in sys.modules:
+        spec = importlib.util.spec_from_file_location(name, ROOT / "examples" / "generate.py")
+        assert spec is not None and spec.loader is not None
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[name] = module  # dataclasses resolve string annotations through sys.modules
+        spec.loader.exec_module(module)
+    return sys.modules[name]
+
+
+def _digests(root: Path) -> dict[str, str]:
+    return {p.relative_to(root).as_posix(): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+@pytest.fixture(scope="module")
+def regenerated(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("examples")
+    _generator().generate(out)
+    return out
+
+
+def _manifest(name: str) -> dict[str, Any]:
+    return yaml.safe_load((EXAMPLES / name / "delivery.yaml").read_text(encoding="utf-8"))
+
+
+def _expected(name: str) -> dict[str, Any]:
+    return yaml.safe_load((EXAMPLES / name / "expected.yaml").read_text(encoding="utf-8"))
+
+
+def _table(name: str, table: str) -> pd.DataFrame:
+    path = EXAMPLES / name / _manifest(name)["tables"][table]
+    return pd.read_csv(path, dtype=str, keep_default_na=False, encoding="utf-8")
+
+
+def _num(series: pd.Series) -> pd.Series:
+    return pd.to_numeric(series.replace("", np.nan))
+
+
+# --------------------------------------------------------------------------- up to date
+@pytest.mark.parametrize("name", NAMES)
+def test_committed_example_equals_a_fresh_generation(regenerated: Path, name: str) -> None:
+    fresh, committed = _digests(regenerated / name), _digests(EXAMPLES / name)
+    assert sorted(fresh) == sorted(committed), "file lists differ: run `python examples/generate.py`"
+    stale = [f for f in fresh if fresh[f] != committed[f]]
+    assert not stale, f"stale files {stale}: run `python examples/generate.py`"
+
+
+def test_generation_is_byte_identical_twice(regenerated: Path, tmp_path: Path) -> None:
+    _generator().generate(tmp_path)
+    for name in NAMES:
+        assert _digests(tmp_path / name) == _digests(regenerated / name)
+
+
+def test_examples_stay_small() -> None:
+    size = sum(p.stat().st_size for p in EXAMPLES.rglob("*") if p.is_file())
+    assert 500_000 < size < 3_000_000
+
+
+# --------------------------------------------------------------------------- convention
+@pytest.mark.parametrize("name", NAMES)
+def test_manifest_follows_the_delivery_convention(name: str) -> None:
+    m = _manifest(name)
+    assert m["orthospec_delivery"] == 1
+    assert m["project"]["crs"] == "EPSG:25832"
+    assert m["sensor"] == {**m["sensor"], "type": "aerial", "digital": True}
+    assert m["product"]["gsd"] == {"value": GSD, "unit": "m"}
+    assert m["product"]["dem_delivered"] is False
+    assert m["dates"]["acquired_from"] <= m["dates"]["acquired_to"] < m["dates"]["delivered"]
+    assert set(m["tables"]) <= set(SPEC)
+    for rel in m["tables"].values():
+        assert (EXAMPLES / name / rel).is_file(), rel
+    images = _table(name, "images")
+    block_ids = [b["id"] for b in m["blocks"]]
+    assert set(images["block"]) == set(block_ids) == set(_table(name, "checkpoints")["block"])
+    assert 2 <= len(block_ids) <= 3 and 24 <= len(images) <= 36
+    for b in m["blocks"]:
+        assert Polygon(b["polygon"]).is_valid and Polygon(b["polygon"]).area > 1e7
+        assert set(b["reported"]) == {"rmse_x", "rmse_y"}
+        assert all(v["unit"] == "m" for v in b["reported"].values())
+    for w in m["waivers"]:
+        assert set(w["items"]) <= set(images["image_id"]) and w["justification"].strip()
+
+
+@pytest.mark.parametrize("name", NAMES)
+@pytest.mark.parametrize("table", ["images", "checkpoints", "gcps", "flights", "cameras", "manual_checks"])
+def test_table_has_only_spec_columns_and_its_required_ones(name: str, table: str) -> None:
+    df = _table(name, table)
+    allowed = SPEC[table]["columns"]
+    required = {c for c, spec in allowed.items() if spec.get("required")}
+    assert set(df.columns) <= set(allowed), f"unknown columns {set(df.columns) - set(allowed)}"
+    assert required <= set(df.columns)
+    assert len(df) > 0
+    assert (df[sorted(required)] != "").all().all(), "a required value is empty"
+    for column, spec in allowed.items():
+        if column in df and spec["type"] == "number":
+            assert _num(df[column]).notna().sum() > 0
+            _num(df[column])  # raises if a value is not numeric
+        if column in df and spec["type"] == "bool":
+            assert set(df[column]) <= {"true", "false", ""}
+    id_col = SPEC[table]["id"]
+    if id_col:
+        assert df[id_col].is_unique
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_rasters_match_their_reported_statistics_and_location(name: str) -> None:
+    images, root = _table(name, "images"), EXAMPLES / name
+    polygons = {b["id"]: Polygon(b["polygon"]) for b in _manifest(name)["blocks"]}
+    missing = {i for d in _expected(name)["defects"] if d["kind"] == "file_missing" for i in d["items"]}
+    opened = 0
+    for row in images.itertuples(index=False):
+        path = root / row.file
+        if row.image_id in missing:
+            assert not path.exists()
+            continue
+        with rasterio.open(path) as ds:
+            assert ds.crs.to_epsg() == 25832 and ds.res == (GSD, GSD)
+            assert (ds.count, ds.dtypes[0], ds.nodata) == (4, "uint8", 0)
+            assert ds.compression.name.lower() == "deflate" and not ds.profile.get("tiled")
+            arr = ds.read().astype(np.float64)
+            centre = ds.xy(ds.height // 2, ds.width // 2)
+        opened += 1
+        v = arr.ravel()
+        assert float(row.mean_dn) == pytest.approx(v.mean(), abs=0.005 + 1e-9)
+        assert float(row.std_dn) == pytest.approx(v.std(), abs=0.005 + 1e-9)
+        assert (float(row.min_dn), float(row.max_dn)) == (v.min(), v.max())
+        assert float(row.saturation_low) == pytest.approx(np.mean(v == 0) * 100, abs=5e-4 + 1e-9)
+        assert float(row.saturation_high) == pytest.approx(np.mean(v == 255) * 100, abs=5e-4 + 1e-9)
+        exposure = (float(row.exposure_x), float(row.exposure_y))
+        assert math.dist(centre, exposure) < 1.0
+        assert polygons[row.block].contains(Point(exposure))
+    assert opened == len(images) - len(missing)
+
+
+# --------------------------------------------------------------------------- what they claim
+def _block_rmse(name: str) -> dict[str, dict[str, float]]:
+    """Per block: RMSE with justified exclusions out, and as the contractor computed it."""
+    cp = _table(name, "checkpoints")
+    dx = _num(cp["x"]) - _num(cp["x_ref"])
+    dy = _num(cp["y"]) - _num(cp["y_ref"])
+    excluded = cp["excluded"] == "true"
+    justified = excluded & (cp["exclusion_reason"].str.strip() != "")
+    out = {}
+    for block in sorted(set(cp["block"])):
+        inb = cp["block"] == block
+        kept, contractor = inb & ~justified, inb & ~excluded
+        out[block] = {
+            "n": int(kept.sum()),
+            "rmse_x": float(np.sqrt(np.mean(dx[kept] ** 2))),
+            "rmse_y": float(np.sqrt(np.mean(dy[kept] ** 2))),
+            "contractor_x": float(np.sqrt(np.mean(dx[contractor] ** 2))),
+            "contractor_y": float(np.sqrt(np.mean(dy[contractor] ** 2))),
+            "limit_x": 3 * float(np.sqrt(np.mean(dx[inb] ** 2))),
+        }
+    return out
+
+
+def _findings(name: str) -> set[tuple[str, str]]:
+    """(defect kind, item) for every guideline breach a checker could find in the data."""
+    m, root, tol = _manifest(name), EXAMPLES / name, 0.5
+    assert m["tender"]["parameters"]["tolerance_xy"] == {"value": tol, "unit": "m"}
+    found: set[tuple[str, str]] = set()
+    img = _table(name, "images")
+    sat = np.maximum(_num(img["saturation_low"]), _num(img["saturation_high"]))
+    cv = _num(img["std_dn"]) / 256 * 100
+    for i, row in img.iterrows():
+        item = row["image_id"]
+        checks = {
+            "saturation_high": sat[i] > 0.5,
+            "contrast_out_of_range": not 10 <= cv[i] <= 20,
+            "cloud_cover_above_max": float(row["cloud_cover"]) > 10,
+            "roll_above_max": abs(float(row["roll"])) > 3,
+            "sun_below_min": float(row["sun_elevation"]) < 30,
+            "missing_field": row["flying_height"] == "",
+            "file_missing": not (root / row["file"]).is_file(),
+            "file_name_space": " " in row["file"],
+        }
+        found |= {(kind, item) for kind, hit in checks.items() if hit}
+    manual = _table(name, "manual_checks")
+    absent = {i for kind, i in found if kind == "file_missing"}  # its 'fail' row is a consequence
+    found |= {("manual_check_fail", r["item"]) for _, r in manual.iterrows()
+              if r["verdict"] == "fail" and r["item"] not in absent}
+    assert set(manual["verdict"]) <= {"pass", "fail"}
+    cp = _table(name, "checkpoints")
+    found |= {("unjustified_exclusion", r["point_id"]) for _, r in cp.iterrows()
+              if r["excluded"] == "true" and not r["exclusion_reason"].strip()}
+    reported = {b["id"]: b["reported"] for b in m["blocks"]}
+    for block, r in _block_rmse(name).items():
+        if max(r["rmse_x"], r["rmse_y"]) > tol:
+            found.add(("rmse_above_tolerance", block))
+        if r["n"] < 20:
+            found.add(("too_few_checkpoints", block))
+        for axis in "xy":
+            if abs(reported[block][f"rmse_{axis}"]["value"] - r[f"contractor_{axis}"]) > 0.005 + 1e-9:
+                found.add(("reported_rmse_mismatch", block))
+    return found
+
+
+def test_pass_example_meets_the_guidelines_except_its_waiver() -> None:
+    waived = {("contrast_out_of_range", i) for w in _manifest("aerial-pass")["waivers"] for i in w["items"]}
+    assert _findings("aerial-pass") == waived
+    assert _expected("aerial-pass")["verdict"] == "accepted" and not _expected("aerial-pass")["defects"]
+
+
+def test_pass_example_blocks_use_realistic_accuracy_and_justified_blunders() -> None:
+    cp = _table("aerial-pass", "checkpoints")
+    rmse = _block_rmse("aerial-pass")
+    reported = {b["id"]: b["reported"] for b in _manifest("aerial-pass")["blocks"]}
+    for block, r in rmse.items():
+        assert 0.2 <= r["rmse_x"] <= 0.4 and 0.2 <= r["rmse_y"] <= 0.4 and r["n"] >= 20
+        assert reported[block]["rmse_x"]["value"] == pytest.approx(r["rmse_x"], abs=0.005 + 1e-9)
+        assert reported[block]["rmse_y"]["value"] == pytest.approx(r["rmse_y"], abs=0.005 + 1e-9)
+    blunders = cp[cp["excluded"] == "true"]
+    assert len(blunders) == 1  # one documented blunder, beyond 3 x RMSE of all its block's points
+    b = blunders.iloc[0]
+    assert abs(float(b["x"]) - float(b["x_ref"])) > rmse[b["block"]]["limit_x"]
+    gcp = _table("aerial-pass", "gcps")
+    g = np.column_stack([_num(gcp["x"]), _num(gcp["y"])])
+    c = np.column_stack([_num(cp["x_ref"]), _num(cp["y_ref"])])
+    assert np.min(np.linalg.norm(c[:, None, :] - g[None, :, :], axis=2)) >= 300.0
+
+
+def test_fail_example_breaks_exactly_the_documented_rules() -> None:
+    expected = _expected("aerial-fail")
+    documented = {(d["kind"], i) for d in expected["defects"] for i in d["items"]}
+    assert expected["verdict"] == "rejected"
+    assert _findings("aerial-fail") == documented
+    for d in expected["defects"]:
+        assert d["clause"]["document"] == "JRC EUR 23638 EN" and d["clause"]["section"]
+        assert (EXAMPLES / "aerial-fail" / d["file"]).is_file()
+        if d["file"].endswith(".csv") and d["kind"] not in ("rmse_above_tolerance", "too_few_checkpoints"):
+            df = pd.read_csv(EXAMPLES / "aerial-fail" / d["file"], dtype=str, keep_default_na=False)
+            id_col = "point_id" if "point_id" in df else ("item" if "item" in df else "image_id")
+            assert sorted(df.iloc[[r - 1 for r in d["rows"]]][id_col]) == sorted(d["items"])
+
+
+def test_fail_example_measured_values_agree_with_the_data() -> None:
+    defects = {d["kind"]: d for d in _expected("aerial-fail")["defects"]}
+    rmse = _block_rmse("aerial-fail")
+    assert defects["rmse_above_tolerance"]["measured"]["value"] == pytest.approx(rmse["B02"]["rmse_y"], abs=5e-4)
+    assert defects["too_few_checkpoints"]["measured"]["value"] == rmse["B03"]["n"] < 20
+    reported = {b["id"]: b["reported"] for b in _manifest("aerial-fail")["blocks"]}
+    assert abs(reported["B02"]["rmse_y"]["value"] - rmse["B02"]["rmse_y"]) > 0.1
+    assert reported["B01"]["rmse_x"]["value"] == pytest.approx(rmse["B01"]["contractor_x"], abs=0.005)
+    with rasterio.open(EXAMPLES / "aerial-fail" / defects["saturation_high"]["raster"]) as ds:
+        arr = ds.read()
+    assert all(np.mean(band == 255) * 100 > 0.5 for band in arr)
+    assert defects["saturation_high"]["measured"]["value"] == pytest.approx(np.mean(arr == 255) * 100, abs=5e-4)

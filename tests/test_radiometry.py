@@ -1,0 +1,201 @@
+"""Pure radiometry accumulators: exact moments, merges, §6.3 measures, noise, misregistration."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+from scipy import ndimage
+
+from orthospec.errors import MeasureError
+from orthospec.measures import radiometry as rad
+
+
+def _stats_u8(values: np.ndarray, bits: int = 8) -> rad.BandStats:
+    acc = rad.HistogramAccumulator.for_dtype(values.dtype)
+    acc.add(values)
+    return rad.band_stats_from_histogram("1", str(values.dtype), acc,
+                                         rad.grey_range(values.dtype, declared=bits))
+
+
+@settings(max_examples=60, deadline=None)
+@given(arrays(np.uint16, st.integers(1, 400), elements=st.integers(0, 65535)),
+       st.integers(1, 5))
+def test_histogram_moments_equal_numpy_population_stats_in_any_chunking(a, parts):
+    acc = rad.HistogramAccumulator.for_dtype(a.dtype)
+    for chunk in np.array_split(a, parts):
+        part = rad.HistogramAccumulator.for_dtype(a.dtype)
+        part.add(chunk)
+        acc.merge(part)
+    m = acc.moments()
+    assert m.n == a.size
+    assert m.vmin == a.min() and m.vmax == a.max()
+    assert m.mean == pytest.approx(a.astype(np.float64).mean(), rel=1e-12)
+    assert m.std == pytest.approx(a.astype(np.float64).std(ddof=0), rel=1e-9, abs=1e-12)
+
+
+@settings(max_examples=60, deadline=None)
+@given(arrays(np.float64, st.integers(1, 300),
+              elements=st.floats(-1e6, 1e6, allow_nan=False)), st.integers(1, 6))
+def test_chan_merge_equals_one_pass_numpy(a, parts):
+    m = rad.Moments()
+    for chunk in np.array_split(a, parts):
+        m.add(chunk)
+    assert m.n == a.size
+    assert m.mean == pytest.approx(a.mean(), rel=1e-9, abs=1e-6)
+    assert m.std == pytest.approx(a.std(), rel=1e-7, abs=1e-6)
+    assert (m.vmin, m.vmax) == (a.min(), a.max())
+
+
+def test_signed_int16_histogram_uses_offset_bins():
+    a = np.array([-32768, -1, 0, 5, 32767, 5], dtype=np.int16)
+    acc = rad.HistogramAccumulator.for_dtype(a.dtype)
+    acc.add(a)
+    m = acc.moments()
+    assert (m.vmin, m.vmax) == (-32768.0, 32767.0)
+    assert m.mean == pytest.approx(a.mean())
+    assert acc.counts[5 + 32768] == 2
+
+
+def test_nodata_bin_is_excluded_and_counted():
+    a = np.array([0, 0, 0, 10, 20, 30], dtype=np.uint8)
+    acc = rad.HistogramAccumulator.for_dtype(a.dtype)
+    acc.add(a)
+    assert acc.exclude_value(0.0) == 3
+    m = acc.moments()
+    assert (m.n, m.vmin, m.mean) == (3, 10.0, 20.0)
+    s = rad.band_stats_from_histogram("1", "uint8", acc, rad.grey_range("uint8"))
+    assert s.nodata_fraction == pytest.approx(0.5)
+
+
+def test_saturation_margins_and_cv_by_hand():
+    # 1000 pixels: 3 at 0, 7 at 255, the rest at 100 and 150 (495 each)
+    a = np.concatenate([np.zeros(3), np.full(7, 255), np.full(495, 100), np.full(495, 150)])
+    s = _stats_u8(a.astype(np.uint8))
+    assert s.saturation_low_pct == pytest.approx(0.3)
+    assert s.saturation_high_pct == pytest.approx(0.7)
+    assert s.dark_margin_pct == 0.0 and s.bright_margin_pct == 0.0
+    # robust margins ignore the 0.1 % tails at each side: 3 pixels at 0 > 1 pixel -> still 0
+    assert s.dark_margin_robust_pct == 0.0
+    assert s.cv_percent == pytest.approx(100 * a.std() / 256)
+    assert s.used_bits == 8
+
+
+def test_margins_in_percent_of_range_and_eleven_bit_depth():
+    a = np.array([205, 1000, 1842], dtype=np.uint16)  # 11-bit range 0..2047
+    s = _stats_u8(a, bits=11)
+    assert (s.range_low, s.range_high, s.bit_depth) == (0, 2047, 11)
+    assert s.dark_margin_pct == pytest.approx(100 * 205 / 2047)
+    assert s.bright_margin_pct == pytest.approx(100 * (2047 - 1842) / 2047)
+    assert s.cv_percent == pytest.approx(100 * a.std() / 2048)
+    assert s.used_bits == 11
+    assert s.saturation_high_pct == 0.0
+
+
+def test_values_above_declared_range_are_reported():
+    a = np.array([10, 2047, 4000], dtype=np.uint16)
+    s = _stats_u8(a, bits=11)
+    assert s.above_range == 1
+    assert s.saturation_high_pct == pytest.approx(100 / 3)
+    assert s.used_bits == 12
+
+
+def test_grey_range_priority_and_errors():
+    assert rad.grey_range("uint16", declared=12, nbits=11).source == "argument"
+    assert rad.grey_range("uint16", nbits=11).bit_depth == 11
+    assert rad.grey_range("uint16").bit_depth == 16
+    assert rad.grey_range("float32").bit_depth is None
+    with pytest.raises(MeasureError, match="does not fit"):
+        rad.grey_range("uint8", declared=11)
+
+
+def test_luminosity_rec601_rounded_half_up():
+    r = np.array([255, 0, 0, 10], dtype=np.uint8)
+    g = np.array([0, 255, 0, 20], dtype=np.uint8)
+    b = np.array([0, 0, 255, 30], dtype=np.uint8)
+    y = rad.luminosity(r, g, b, np.uint8)
+    expected = np.floor(0.299 * r + 0.587 * g + 0.114 * b + 0.5).astype(np.uint8)
+    assert np.array_equal(y, expected)
+    assert y.tolist() == [76, 150, 29, 18]
+    # an exact tie: 299*0 + 587*0 + 114*25 = 2850 -> 2.85 -> 3; 1000*x.5 ties round up
+    tie = rad.luminosity(np.array([5], np.uint16), np.array([5], np.uint16),
+                         np.array([5], np.uint16), np.uint16)
+    assert tie.tolist() == [5]
+    r16 = np.array([1000, 2047, 3], np.uint16)
+    y16 = rad.luminosity(r16, r16[::-1].copy(), r16, np.uint16)
+    ri = r16.astype(np.int64)
+    assert np.array_equal(y16, (299 * ri + 587 * ri[::-1] + 114 * ri + 500) // 1000)
+
+
+@settings(max_examples=50, deadline=None)
+@given(arrays(np.uint8, st.integers(0, 3000)))
+def test_fast_bincount_equals_numpy(a):
+    assert np.array_equal(rad.fast_bincount(a, 256), np.bincount(a, minlength=256))
+
+
+@pytest.mark.parametrize("sigma", [2.0, 5.0, 12.0])
+def test_noise_estimators_recover_known_gaussian_sigma(sigma):
+    rng = np.random.default_rng(42)
+    yy, xx = np.mgrid[0:512, 0:512]
+    signal = 300 + 0.2 * xx + 0.1 * yy  # a smooth ramp: both estimators must ignore it
+    img = signal + rng.normal(0, sigma, signal.shape)
+    acc = rad.NoiseAccumulator()
+    for rows in np.array_split(np.arange(512), 4):  # streamed in 4 chunks and merged
+        part = rad.NoiseAccumulator()
+        part.add(img[rows])
+        acc.merge(part)
+    assert acc.immerkaer_sigma == pytest.approx(sigma, rel=0.03)
+    assert acc.homogeneous_sigma == pytest.approx(sigma, rel=0.06)
+
+
+def test_homogeneous_noise_ignores_textured_half():
+    rng = np.random.default_rng(1)
+    img = rng.normal(100, 3.0, (256, 256))
+    img[:, 128:] += rng.normal(0, 40, (256, 128))  # strong texture on half the image
+    acc = rad.NoiseAccumulator()
+    acc.add(img)
+    assert acc.homogeneous_sigma == pytest.approx(3.0, rel=0.08)
+    assert acc.immerkaer_sigma > 10  # the global estimator is fooled, as documented
+
+
+def test_noise_respects_validity_mask():
+    rng = np.random.default_rng(2)
+    img = rng.normal(50, 4.0, (128, 128))
+    img[:, :40] = 0  # nodata stripe with a sharp edge
+    valid = np.ones(img.shape, bool)
+    valid[:, :40] = False
+    acc = rad.NoiseAccumulator()
+    acc.add(img, valid)
+    assert acc.immerkaer_sigma == pytest.approx(4.0, rel=0.05)
+
+
+@pytest.mark.parametrize("shift", [(0.0, 0.0), (1.3, -0.4), (-2.75, 3.5), (0.2, 0.6)])
+def test_phase_correlation_recovers_subpixel_shift(shift):
+    rng = np.random.default_rng(7)
+    ref = ndimage.gaussian_filter(rng.normal(size=(256, 256)), 2.0) * 100
+    moved = np.fft.ifft2(ndimage.fourier_shift(np.fft.fft2(ref), shift)).real
+    s = rad.phase_correlation(ref, moved, upsample=50)
+    assert s.dy == pytest.approx(shift[0], abs=0.05)
+    assert s.dx == pytest.approx(shift[1], abs=0.05)
+    assert s.magnitude == pytest.approx(math.hypot(*shift), abs=0.07)
+
+
+def test_phase_correlation_rejects_bad_shapes():
+    with pytest.raises(MeasureError, match="equal 2-D arrays"):
+        rad.phase_correlation(np.zeros((10, 10)), np.zeros((10, 12)))
+
+
+def test_mask_share_accumulates_over_blocks():
+    m1 = np.array([[0, 1], [1, 1]], dtype=np.uint8)
+    m2 = np.array([[0, 0], [255, 0]], dtype=np.uint8)
+    acc = rad.MaskShareAccumulator()
+    acc.add(m1)
+    part = rad.MaskShareAccumulator()
+    part.add(m2, np.array([[True, True], [True, False]]))
+    acc.merge(part)
+    assert (acc.flagged, acc.valid) == (4, 7)
+    assert acc.percent == pytest.approx(400 / 7)

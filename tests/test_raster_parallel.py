@@ -1,0 +1,141 @@
+"""Batch scans: worker processes, Dask, cache by checksum, progress, bad files in a batch."""
+
+from __future__ import annotations
+
+import io
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import rasterio
+from affine import Affine
+
+from orthospec.errors import MeasureError
+from orthospec.raster import parallel, reading
+from orthospec.raster.cache import ResultCache
+from orthospec.raster.parallel import PlainProgress, make_progress, scan_images
+
+REAL = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "real"
+RGB = REAL / "RGB.byte.tif"
+
+
+def write(path: Path, seed: int, size: int = 96) -> Path:
+    a = np.random.default_rng(seed).integers(1, 256, (3, size, size), dtype=np.uint8)
+    with rasterio.open(path, "w", driver="GTiff", width=size, height=size, count=3,
+                       dtype="uint8", crs="EPSG:25832", nodata=0,
+                       transform=Affine(0.5, 0, 5e5, 0, -0.5, 6e6)) as ds:
+        ds.write(a)
+    return path
+
+
+@pytest.fixture
+def delivery(tmp_path):
+    d = tmp_path / "delivery"
+    d.mkdir()
+    files = [write(d / f"img_{i}.tif", i) for i in range(4)]
+    bad = d / "broken.tif"
+    bad.write_bytes(b"II*\x00garbage")
+    return files, bad
+
+
+def _comparable(reports):
+    return [{k: v for k, v in r.to_dict().items() if k != "cached"} for r in reports]
+
+
+def test_processes_equal_in_process_and_keep_input_order(delivery):
+    files, bad = delivery
+    paths = [*files[:2], bad, *files[2:]]
+    one = scan_images(paths, workers=1)
+    two = scan_images(paths, workers=2)
+    assert [r.path for r in two] == [str(p) for p in paths]
+    assert _comparable(one) == _comparable(two)
+    assert two[2].error and "broken.tif" in two[2].error
+    assert all(r.error is None for i, r in enumerate(two) if i != 2)
+
+
+def test_flat_report_has_band_and_image_keys(delivery):
+    files, _ = delivery
+    d = scan_images([files[0]], workers=1, expect_epsg=25832, expect_gsd=0.5)[0].to_dict()
+    for k in ("band1.mean", "band3.std", "band2.histogram", "band1.saturation_high_pct",
+              "band1.cv_percent", "band1.nodata_fraction", "luminosity.mean",
+              "image.saturation_high_pct", "driver", "crs_ok", "gsd_ok", "sha256"):
+        assert k in d, k
+    assert d["crs_ok"] is True and d["gsd_ok"] is True
+    assert d["statistics"] == "exact, population std, nodata excluded per band, as GDAL"
+    json.dumps(d)  # JSON-serialisable
+
+
+def test_cache_reads_only_changed_files(delivery, tmp_path):
+    files, _ = delivery
+    cache = tmp_path / "cache"
+    reading.SCAN_COUNT["scans"] = 0
+    parallel.HASH_COUNT["files"] = 0
+    first = scan_images(files, workers=1, cache_dir=cache)
+    assert reading.SCAN_COUNT["scans"] == 4 and not any(r.cached for r in first)
+    assert parallel.HASH_COUNT["files"] == 4
+    with ResultCache(cache) as c:
+        assert len(c) == 4
+    write(files[1], seed=99)  # partial redelivery: one file changed
+    second = scan_images(files, workers=1, cache_dir=cache)
+    assert reading.SCAN_COUNT["scans"] == 5
+    assert parallel.HASH_COUNT["files"] == 5  # unchanged files not even re-hashed
+    assert [r.cached for r in second] == [True, False, True, True]
+    assert [r.sha256 for r in second] != [r.sha256 for r in first]
+    assert [r.sha256 for i, r in enumerate(second) if i != 1] == [
+        r.sha256 for i, r in enumerate(first) if i != 1]
+    assert second[0].to_dict()["band1.mean"] == first[0].to_dict()["band1.mean"]
+    assert second[1].to_dict()["band1.mean"] != first[1].to_dict()["band1.mean"]
+    # other settings are another key: everything is read again
+    third = scan_images(files, workers=1, cache_dir=cache, bit_depth=7)
+    assert reading.SCAN_COUNT["scans"] == 9 and not any(r.cached for r in third)
+    # without trust in mtimes every file is hashed again, results still come from the cache
+    fourth = scan_images(files, workers=1, cache_dir=cache, trust_mtime=False)
+    assert parallel.HASH_COUNT["files"] == 9 and all(r.cached for r in fourth)
+
+
+def test_cache_hits_in_worker_processes(delivery, tmp_path):
+    files, _ = delivery
+    cache = tmp_path / "cache"
+    scan_images(files, workers=2, cache_dir=cache)
+    again = scan_images(files, workers=2, cache_dir=cache)
+    assert all(r.cached for r in again)
+
+
+def test_cache_inside_the_delivery_is_refused(delivery):
+    files, _ = delivery
+    with pytest.raises(MeasureError, match="outside the delivery"):
+        scan_images(files, workers=1, cache_dir=files[0].parent / ".cache")
+
+
+def test_plain_progress_lines(delivery):
+    files, bad = delivery
+    out = io.StringIO()
+    scan_images([files[0], bad], workers=1, progress=PlainProgress(out))
+    lines = out.getvalue().splitlines()
+    assert lines[0].startswith("scanning 2 files")
+    assert lines[1].startswith("[1/2]") and lines[1].endswith(" s")
+    assert lines[2].startswith("[2/2]") and "error:" in lines[2]
+    assert isinstance(make_progress(io.StringIO()), PlainProgress)
+
+
+def test_dask_local_cluster(delivery):
+    distributed = pytest.importorskip("distributed")
+    files, bad = delivery
+    paths = [*files, bad, RGB]
+    local = scan_images(paths, workers=1)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster:
+        remote = scan_images(paths, scheduler=cluster.scheduler_address)
+    assert _comparable(remote) == _comparable(local)
+    assert remote[4].error is not None
+
+
+def test_public_api_names_resolve():
+    import orthospec.raster as api
+
+    assert api.__all__ == sorted(api.__all__)
+    for name in api.__all__:
+        assert getattr(api, name) is not None
+    with pytest.raises(AttributeError):
+        api.no_such_name  # noqa: B018
