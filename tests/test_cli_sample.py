@@ -43,3 +43,21 @@ def test_bad_sample_table(make_delivery, mini_profile, tmp_path):
     sample.write_text("item,scope\nI1,galaxy\n")
     res = run("check", make_delivery(), "-p", mini_profile, "--sample", sample, "--out", tmp_path / "o")
     assert res.exit_code != 0
+
+
+def test_tightened_ledger_state_draws_a_larger_sample_with_the_suspects(make_delivery, mini_profile, tmp_path):
+    rows = "\n".join(f"I{i},f{i}.tif,B1,{5 if i == 7 else 0.5},1000,30,{i * 100},{(i % 5) * 100}" for i in range(40))
+    root = make_delivery(images="image_id,file,block,roll,flying_height,std_dn,exposure_x,exposure_y\n" + rows + "\n")
+    ledger = tmp_path / "ledger.sqlite"
+    res = run("check", root, "-p", mini_profile, "--out", tmp_path / "o", "--ledger", ledger, "--date", "2026-01-01")
+    # 1 failing image in 40 (2.5 %) is within the §12.3 5 % rule: accepted, but its family turns tightened
+    assert res.exit_code == 0, res.output
+    normal = run("sample", root, "-p", mini_profile, "--seed", 3, "--fraction", 0.1, "--out", tmp_path / "n.csv")
+    tight = run("sample", root, "-p", mini_profile, "--seed", 3, "--fraction", 0.1, "--ledger", ledger,
+                "--out", tmp_path / "t.csv")
+    assert "audit level normal" in normal.output
+    assert "audit level tightened" in tight.output, tight.output
+    n_ids = (tmp_path / "n.csv").read_text().splitlines()[1:]
+    t_ids = (tmp_path / "t.csv").read_text().splitlines()[1:]
+    assert len(t_ids) > len(n_ids)
+    assert any(line.startswith("I7,") for line in t_ids)

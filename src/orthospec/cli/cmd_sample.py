@@ -23,23 +23,49 @@ from .groups import main
 @click.option("--scope", type=click.Choice(["image", "block"]), default="image", show_default=True)
 @click.option("--fraction", type=float, default=None, help="Share of items to draw (overrides the profile).")
 @click.option("--minimum", type=int, default=1, show_default=True, help="Smallest sample size.")
+@click.option("--ledger", "ledger_url", default=None, metavar="PATH|URL",
+              help="QCR ledger: a tightened audit state (JRC Tables 6, 10) draws a larger sample and "
+                   "adds every suspect item of the tightened families.")
+@click.option("--family", "families", multiple=True,
+              help="Audit families to consult in the ledger (default: all of the project's).")
 @click.option("--out", "out", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="CSV to write (default sample-<scope>-r<round>.csv); give it to `check --sample`.")
 def sample_cmd(delivery: Path, profile: str, seed: int, round_: int, scope: str, fraction: float | None,
-               minimum: int, out: Path | None) -> None:
+               minimum: int, ledger_url: str | None, families: tuple[str, ...], out: Path | None) -> None:
     """Select images or blocks for external QC: systematic spread, every tag, problem batches, random part."""
     d = open_delivery(delivery)
     d.load_all_tables()
+    prof = load_profile(profile)
     if fraction is None:
-        prof = load_profile(profile)
-        par = prof.parameters.get("sample_fraction")
-        val = None if par is None else (par.value if par.value is not None else par.default)
-        fraction = float(val) / (100.0 if par is not None and par.unit == "%" else 1.0) if val is not None else 0.10
+        fraction = _profile_fraction(prof, "sample_fraction", 0.10)
     if not 0 < fraction <= 1:
         raise click.BadParameter(f"fraction must be in (0, 1], got {fraction}")
-    got = draw(d, scope=scope, seed=seed, round=round_, fraction=fraction, minimum=minimum)
+    suspects: set[str] = set()
+    state = "normal"
+    if ledger_url is not None:
+        from ..ledger import TIGHTENED, open_ledger
+
+        with open_ledger(ledger_url, create=False) as led:
+            states = led.audit_states(d.project_id)
+            chosen = {f: st for f, st in states.items() if not families or f in families}
+            tight = {f: st for f, st in chosen.items() if st.state == TIGHTENED}
+            if tight:
+                state = "tightened (" + ", ".join(sorted(tight)) + ")"
+                fraction = min(1.0, _profile_fraction(prof, "sample_fraction_tightened", 2 * fraction))
+                for st in tight.values():
+                    suspects.update(st.suspect_items)
+    got = draw(d, scope=scope, seed=seed, round=round_, fraction=fraction, minimum=minimum,
+               must_include=suspects)
     target = out or Path(f"sample-{scope}-r{round_}.csv")
     atomic_write(target, got.table.to_csv(index=False, lineterminator="\n"))
     s = got.sample
     click.echo(f"selected {len(s.ids)} of {s.n_items} {scope}s ({100 * s.fraction:.1f} %, target {s.target}) "
-               f"with seed {seed}, round {round_}; wrote {target}")
+               f"with seed {seed}, round {round_}, audit level {state}; wrote {target}")
+
+
+def _profile_fraction(prof, name: str, fallback: float) -> float:
+    par = prof.parameters.get(name)
+    val = None if par is None else (par.value if par.value is not None else par.default)
+    if val is None:
+        return fallback
+    return float(val) / (100.0 if par.unit == "%" else 1.0)

@@ -105,6 +105,10 @@ class Manifest(_Closed):
     blocks: list[Block] = Field(default_factory=list)
     tables: dict[str, str] = Field(default_factory=dict)
     vectors: dict[str, str] = Field(default_factory=dict, description="seamlines, tiles, blocks, aoi...")
+    documents: dict[str, str] = Field(
+        default_factory=dict,
+        description="Reports the standard requires (internal_qcr, gcp_report, geodetic_control...): "
+                    "name -> file in the delivery. A listed file that is absent counts as not delivered.")
     units: dict[str, str] = Field(default_factory=dict, description="Length unit per table (m default).")
     waivers: list[Waiver] = Field(default_factory=list)
     edge_targets: list[EdgeTarget] = Field(default_factory=list)

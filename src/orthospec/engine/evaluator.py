@@ -367,7 +367,8 @@ class Evaluator:
                 allowed = {str(v) for v in req.values or []}
                 ok = np.array([v in allowed for v in vals]) | skip
             else:
-                target = str(_threshold_value(req.value, names))
+                target = (str(_threshold_value(req.value, names)) if isinstance(req.value, str)
+                          and self._is_expr(req.value) else str(req.value))
                 eq = np.array([v == target for v in vals])
                 ok = (eq if op == "==" else ~eq) | skip
             return ok, vals, thr, munit
@@ -404,9 +405,14 @@ class Evaluator:
         ok = ok | skip | np.isnan(values)
         return ok, values, thr, target_unit
 
-    @staticmethod
-    def _is_expr(v: str) -> bool:
-        return False
+    def _is_expr(self, v: str) -> bool:
+        """A string value is an expression only if it parses and names a parameter or manifest fact."""
+        try:
+            e = expr.parse(v)
+        except ExpressionError:
+            return False
+        return bool(e.names) and all(n in self.params or n.startswith(("manifest.", "param."))
+                                     for n in e.names)
 
     def _req_dict(self, req: Requirement, resolved: tuple[np.ndarray, ...] | None) -> dict[str, Any]:
         unit = canonical(req.unit) if req.unit and req.unit not in NON_NUMERIC else req.unit

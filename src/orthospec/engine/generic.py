@@ -133,6 +133,16 @@ def _manifest(name: str, d: Delivery) -> Measured:
     if name not in flat:
         return _one(name, "delivery", "any", d.id, None, ev, note=f"{MANIFEST} has no {path}")
     v = flat[name]
+    if path.startswith(("documents.", "vectors.")) and isinstance(v, str):
+        # a document or vector file counts only when it is really in the delivery
+        try:
+            exists = d.path(v, what=path).is_file()
+        except Exception:
+            exists = False
+        if not exists:
+            return _one(name, "delivery", "text", d.id, None, ev,
+                        note=f"{MANIFEST} lists {path}: {v}, but the file is not in the delivery")
+        return _one(name, "delivery", "text", d.id, v, (*ev, d.evidence(v)))
     if isinstance(v, dict) and set(v) == {"value", "unit"}:
         return _one(name, "delivery", canonical(v["unit"]), d.id, float(v["value"]), ev)
     if isinstance(v, bool):

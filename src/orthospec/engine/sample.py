@@ -57,7 +57,8 @@ def _image_centres(d: Delivery) -> tuple[list[str], np.ndarray, np.ndarray, pd.D
 
 
 def draw(d: Delivery, *, scope: str = "image", seed: int, round: int = 0, fraction: float = 0.10,
-         minimum: int = 1, random_share: float = 0.2) -> DrawnSample:
+         minimum: int = 1, random_share: float = 0.2, must_include: set[str] | frozenset[str] = frozenset()
+         ) -> DrawnSample:
     """Images (§12.3/§12.4) or blocks (§12.8) for external QC; same seed+round, same sample."""
     if scope == "image":
         ids, x, y, df = _image_centres(d)
@@ -87,6 +88,10 @@ def draw(d: Delivery, *, scope: str = "image", seed: int, round: int = 0, fracti
         raise DeliveryError(f"cannot sample scope {scope!r}; use image or block")
     s = select_sample(ids, x, y, seed=seed, round=round, fraction=fraction, minimum=minimum,
                       tags=tags, batches=batches, problem_batches=problem, random_share=random_share)
+    extra = sorted(set(must_include) & set(map(str, ids)) - set(s.ids))
+    if extra:  # tightened audit: every suspect item of the last checks is drawn again
+        reasons = {**s.reasons, **dict.fromkeys(extra, "tightened audit trail")}
+        s = Sample(tuple(sorted((*s.ids, *extra))), reasons, s.target, s.n_items, s.seed, s.round)
     table = pd.DataFrame({"item": list(s.ids), "scope": scope, "reason": [s.reasons[i] for i in s.ids],
                           "seed": seed, "round": round})
     return DrawnSample(scope, s, table)
