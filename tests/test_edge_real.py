@@ -73,26 +73,25 @@ def test_baotou_whole_chip_fails_health_checks():
 def test_baotou_edge_window():
     """Near-vertical dark->bright edge, x 45..80, y 16..42, fill (0) as nodata.
 
-    Measured: angle 17.04 deg (16.86 from the per-line cubic line alone), contrast ~6400 DN,
-    SNR 43.8 - under the seed's 50 because the panels are not uniform (bright std ~190 DN,
-    dark ~100 DN). With the seed's limit the window is rejected for SNR alone; with the
-    limit relaxed to 30 (a documented choice of this test, not of the method) it gives
-    FWHM ~1.57 px (Fermi fit 1.51), RER ~0.48, MTF@Nyquist ~0.14, and a wider window on
-    the same edge agrees within 5 %.
+    Measured: angle 17.04 deg (16.86 from the per-line cubic line alone), contrast ~6400 DN.
+    The LSF has a long tail on the bright side (still 3-5 % of its peak 3-5 px out), so the
+    uniform bright area starts only ~5.5 px from the edge; measured from there the SNR is
+    ~80 and every seed health check passes. FWHM ~1.6 px (Fermi fit ~1.53), RER ~0.42,
+    MTF@Nyquist ~0.10; a wider window on the same edge agrees within 5 %. Only 26-30 lines
+    here, so the two fits differing by ~6 % is the precision to expect.
     """
     img = _read(BAOTOU)
-    win = img[16:42, 45:80]
-    strict = measure_edge(win, nodata=0)
-    assert [c.name for c in strict.checks if not c.passed] == ["snr"]
-    assert 30 < strict.check("snr").value < 50
-    r = measure_edge(win, nodata=0, min_snr=30)
+    r = measure_edge(img[16:42, 45:80], nodata=0)
     assert r.valid, r.reasons
     assert r.direction == "across" and r.polarity == "dark_to_bright"
+    assert 50 < r.check("snr").value < 150
+    assert r.bright_start_px < 1.0 and r.window_px[1] > 5.0  # the long bright tail is kept
     assert 16.0 < r.angle_deg < 17.5
-    assert 1.3 < r.fwhm_px < 1.8
-    assert 0.38 < r.rer < 0.55
-    assert 0.08 < r.mtf_nyquist < 0.22
-    wider = measure_edge(img[12:42, 40:85], nodata=0, min_snr=30)
+    assert 1.4 < r.fwhm_px < 1.8
+    assert r.estimate("fwhm_px", "fermi3").value == pytest.approx(r.fwhm_px, rel=0.1)
+    assert 0.35 < r.rer < 0.5
+    assert 0.05 < r.mtf_nyquist < 0.15
+    wider = measure_edge(img[12:42, 40:85], nodata=0)
     assert wider.valid
     assert wider.fwhm_px == pytest.approx(r.fwhm_px, rel=0.05)
     assert wider.angle_deg == pytest.approx(r.angle_deg, abs=0.2)

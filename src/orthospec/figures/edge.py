@@ -87,11 +87,11 @@ def esf_svg(result: EdgeResult) -> str:
             ax.plot(d, v, ".", ms=1.5, color="0.5", label="pixels")
             for fit in result.fits.values():
                 ax.plot(fit.x, fit.esf, "-", lw=1.2, color=_colour(fit.fit), label=f"{fit.fit} fit")
-            for x, name in ((result.dark_start_px, "dark start"),
-                            (result.bright_start_px, "bright start")):
+            for x, name, align in ((result.dark_start_px, "dark start ", "right"),
+                                   (result.bright_start_px, " bright start", "left")):
                 if x is not None:
                     ax.axvline(x, ls=":", lw=0.8, color="k")
-                    ax.text(x, 1.02, name, fontsize=6, ha="center")
+                    ax.text(x, 1.03, name, fontsize=6, ha=align)
             ax.legend(loc="lower right", fontsize=7)
         ax.set_xlabel("distance from edge, perpendicular (px)")
         ax.set_ylabel("normalised DN")

@@ -21,9 +21,11 @@ The chain (seed step in brackets) on a 2-D ROI holding one straight edge:
   ``d = (x - x_edge(y)) cos(theta)`` from the fitted line.
 * plateaus [7]: cubic smoothing spline of the binned ESF; the starts of the dark
   and bright plateaus are the LSF's inflection points (extrema of ESF'');
-  the ESF is trimmed at max(``plateau_px``, 3x the start's distance from the
-  centre) beyond each start; the dark/bright levels and the uniformity (SNR)
-  come from the pixels beyond 3x that distance (>= 1 px beyond the start).
+  the uniform areas begin at 3x the start's distance from the centre (>= 1 px
+  beyond it) or where the LSF falls below 2 % of its peak, whichever is further;
+  the ESF is trimmed at max(``plateau_px``, 3x the start's distance, 1 px into
+  the uniform area) beyond each start; the dark/bright levels and the
+  uniformity (SNR) come from the uniform areas.
 * fits [8]: non-parametric (scipy ``make_smoothing_spline``, GCV, on the ESF
   binned at 1/``oversample`` px, weighted by counts) and parametric (sum of
   Fermi-Dirac functions); both normalised 0..1.
@@ -403,18 +405,24 @@ def measure_edge(
         if first is not None:
             dark_start, bright_start = _plateau_starts(first, d)
         if math.isfinite(dark_start) and math.isfinite(bright_start):
-            # the uniform areas begin 3x the start's distance from the centre (>= 1 px
-            # beyond it): at the LSF inflection the ESF tail still holds ~16 % of a
-            # Gaussian's step, at 3 sigma 0.1 %.
+            # the uniform areas begin at 3x the start's distance from the centre (>= 1 px
+            # beyond it; at the LSF inflection a Gaussian's ESF tail still holds ~16 % of
+            # the step, at 3 sigma 0.1 %), or further out where the LSF has a long tail
+            # (below 2 % of its peak only there)
             centre = 0.5 * (dark_start + bright_start)
+            tail_d, tail_b = _tail_ends(first, d, dark_start, bright_start)
             dark_edge = centre + min(3.0 * (dark_start - centre), dark_start - centre - 1.0)
             bright_edge = centre + max(3.0 * (bright_start - centre), bright_start - centre + 1.0)
-            # trim (7b-c): keep at least plateau_px beyond each start, and at least 4x the
-            # start's distance from the centre (so the LSF tails are not cut)
-            lo = max(min(dark_start - plateau_px, centre + 4.0 * (dark_start - centre)),
-                     float(d[0]))
-            hi = min(max(bright_start + plateau_px, centre + 4.0 * (bright_start - centre)),
-                     float(d[-1]))
+            if math.isfinite(tail_d):
+                dark_edge = min(dark_edge, tail_d)
+            if math.isfinite(tail_b):
+                bright_edge = max(bright_edge, tail_b)
+            # trim (7b-c): keep at least plateau_px beyond each start, at least 4x the
+            # start's distance from the centre, and 1 px of uniform area (tails not cut)
+            lo = max(min(dark_start - plateau_px, centre + 4.0 * (dark_start - centre),
+                         dark_edge - 1.0), float(d[0]))
+            hi = min(max(bright_start + plateau_px, centre + 4.0 * (bright_start - centre),
+                         bright_edge + 1.0), float(d[-1]))
             window = (lo, hi)
             dark_side = d <= dark_edge
             bright_side = d >= bright_edge
@@ -629,6 +637,7 @@ def _coverage(d: np.ndarray, bw: float, half: float) -> float:
     return float(np.unique(idx).size / nb)
 
 
+_TAIL = 0.02  # the uniform areas begin where the LSF is below 2 % of its peak
 _CHI2_TRIGGER = 0.1  # GCV fits below this interpolate noise (seen: 0.07; normal: 0.2-1)
 _CHI2_TARGET = 0.4  # where such a fit is moved to (typical chi2 / bins of good fits)
 
@@ -692,6 +701,23 @@ def _plateau_starts(spl: Any, d: np.ndarray) -> tuple[float, float]:
     if not left.any() or not right.any():
         return math.nan, math.nan
     return float(x[left][np.argmax(d2[left])]), float(x[right][np.argmin(d2[right])])
+
+
+def _tail_ends(spl: Any, d: np.ndarray, dark_start: float, bright_start: float,
+               frac: float = _TAIL) -> tuple[float, float]:
+    """First points beyond the plateau starts where the first-pass LSF falls below ``frac``
+    of its peak (NaN if it never does within the data / 12 px)."""
+    lo, hi = max(float(d[0]), -12.0), min(float(d[-1]), 12.0)
+    x = np.arange(lo, hi + _GRID / 2, _GRID)
+    lsf = spl.derivative(1)(x)
+    between = (x >= dark_start) & (x <= bright_start)
+    if not between.any():
+        return math.nan, math.nan
+    thr = frac * float(lsf[between].max())
+    left = np.flatnonzero((x < dark_start) & (lsf < thr))
+    right = np.flatnonzero((x > bright_start) & (lsf < thr))
+    return (float(x[left[-1]]) if left.size else math.nan,
+            float(x[right[0]]) if right.size else math.nan)
 
 
 def _spline_fit(spl: Any, lo: float, hi: float, levels: tuple[float, float],

@@ -164,7 +164,9 @@ def slanted_edge(
     sigma_px, psf
         Gaussian PSF sigma in pixels, or a measured PSF kernel sampled every
         ``psf_step_px`` pixels (normalised to sum 1 here). Exactly one is used:
-        ``psf`` when given.
+        ``psf`` when given. A kernel is resampled to the render's sub-pixel step
+        (1 / ``supersample`` px) by linear interpolation, which widens a narrow core;
+        sample it at that step to render it exactly.
     snr
         Signal-to-noise ratio as the CEOS seed defines it, (bright - dark) / mean
         noise std; Gaussian noise of std (bright - dark) / snr on every pixel.
