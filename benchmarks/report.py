@@ -159,7 +159,7 @@ def main() -> None:
     pages = len(PdfReader(io.BytesIO(pdf["report.pdf"])).pages)
     print(f"html: {t_html:.2f} s, {len(html['report.html']) / 1e6:.2f} MB (figures {'on' if figs else 'off'})")
     print(f"pdf:  {t_pdf:.2f} s, {len(pdf['report.pdf']) / 1e6:.2f} MB, {pages} pages (bounded tables)")
-    print(f"html+pdf together (figures drawn once): {t_both:.2f} s")
+    print(f"html+pdf together, default options (figures on, drawn once): {t_both:.2f} s")
 
 
 if __name__ == "__main__":

@@ -130,3 +130,17 @@ def test_spec_render_command_writes_requested_formats(tmp_path: Path) -> None:
     assert bad.exit_code == 2 and "unknown format" in bad.output
     with pytest.raises(ReportError, match="unknown annex format"):
         render_annex(load_profile(DATA / "profiles" / "mini.yaml"), formats=["rtf"])
+
+
+def test_spec_render_publishes_profile_with_unimplemented_measures(tmp_path: Path) -> None:
+    path = tmp_path / "future.yaml"
+    path.write_text(HOSTILE.replace("measure: images.roll", "measure: future.measure_x"), encoding="utf-8")
+    res = CliRunner().invoke(cli(), ["spec", "render", str(path), "--format", "md", "--out", str(tmp_path),
+                                     "--date", "2026-01-01"])
+    assert res.exit_code == 0, res.output
+    assert "warning:" in res.output and "future.measure_x" in res.output
+    assert "`H-2`" in (tmp_path / "annex-hostile-0.1.0.md").read_text(encoding="utf-8")
+    broken = tmp_path / "broken.yaml"
+    broken.write_text(HOSTILE.replace("scope: block", "scope: nowhere"), encoding="utf-8")
+    res = CliRunner().invoke(cli(), ["spec", "render", str(broken), "--format", "md", "--out", str(tmp_path)])
+    assert res.exit_code != 0 and not (tmp_path / "annex-hostile-0.1.0.html").exists()

@@ -61,6 +61,14 @@ rules:
     measure: checkpoints.rmse_y
     requirement: {op: "<=", value: tolerance_xy, unit: m}
     consequence: reject_block
+  - id: R-NPTS
+    title: At least 20 check points per block
+    clause: {document: JRC EUR 23638 EN, section: "12.5"}
+    quote: "a minimum of 20 points"
+    scope: block
+    measure: checkpoints.n
+    requirement: {op: ">=", value: 20, unit: "1"}
+    consequence: reject_block
   - id: R-SEAM
     title: Seamlines visually inspected
     clause: {document: JRC EUR 23638 EN, section: "6.4", table: "11"}
@@ -376,3 +384,41 @@ def test_edge_target_results_are_tabulated(checked: dict[str, Any]) -> None:
     assert f">{result['rer']:.5g}<" in section and f">{result['rer.fermi3']:.5g}<" in section
     assert "fermi3" in section and "straightness" in section
     assert 'id="edges"' not in render_html(checked["doc"], ReportOptions(figures=False))
+
+
+def _rec(item: str, verdict: str, value: Any, message: str) -> dict[str, Any]:
+    return {"rule": "R", "item": item, "verdict": verdict, "measured": {"value": value, "unit": "m"},
+            "requirement": {"text": "<= 1 m"}, "message": message,
+            "evidence": [{"file": "t.csv", "rows": [int(item[1:])], "sha256": "0" * 64}]}
+
+
+def test_rows_without_values_are_grouped_and_nothing_is_dropped() -> None:
+    from orthospec.reports.html import group_rows
+
+    recs = [_rec("I1", "fail", 2.0, "x = 2"), _rec("I2", "missing", None, "no value"),
+            _rec("I3", "missing", None, "no value"), _rec("I4", "missing", None, "no file"),
+            _rec("I5", "fail", 3.0, "x = 3")]
+    rows = group_rows(recs)
+    assert [r["item_list"] for r in rows] == [["I1"], ["I2", "I3"], ["I4"], ["I5"]]
+    assert [e["rows"] for e in rows[1]["evidence"]] == [[2], [3]]
+    assert sorted(i for r in rows for i in r["item_list"]) == [r["item"] for r in recs]
+
+
+@pytest.mark.parametrize(("rows", "text"), [([1, 2, 3, 7], "1–3, 7"), ([5], "5"), ([], ""),
+                                            ([4, 2, 3, 3, 9, 10], "2–4, 9–10")])
+def test_evidence_rows_are_compressed_to_ranges(rows: list[int], text: str) -> None:
+    from orthospec.reports.html import fmt_rows
+
+    assert fmt_rows(rows) == text
+
+
+def test_bounded_report_folds_quiet_rules_into_one_table(checked: dict[str, Any]) -> None:
+    short = render_html(checked["doc"], ReportOptions(bounded=True, figures=False))
+    full = render_html(checked["doc"], ReportOptions(bounded=False, figures=False))
+    quiet = [r["rule"] for r in checked["doc"]["rules"] if r["verdict"] in ("pass", "not_applicable")]
+    assert quiet == ["R-NPTS"]
+    table = short[short.index("Blocks: rules passed or not applicable"):]
+    table = table[:table.index("</table>")]
+    assert '<span class="mono">R-NPTS</span>' in table and "pass: 2" in table
+    assert "R-RMSEX" not in table  # a failing rule keeps its full block
+    assert "rules passed or not applicable" not in full

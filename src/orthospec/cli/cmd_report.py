@@ -8,7 +8,7 @@ from pathlib import Path
 
 import click
 
-from ..errors import ReportError
+from ..errors import ReportError, SpecError
 from ..qcr import atomic_write
 from .groups import main, spec
 from .options import split_formats
@@ -66,8 +66,16 @@ def render_cmd(profile: str, formats: str, out_dir: Path, day: str | None) -> No
             Date.fromisoformat(day)
         except ValueError as exc:
             raise click.BadParameter(f"{day!r} is not a date YYYY-MM-DD", param_hint="--date") from exc
-    # the annex documents requirements; whether every measure is implemented is `spec validate`'s job
-    prof = load_profile(profile, check_measures=False)
+    try:
+        prof = load_profile(profile)
+    except SpecError as exc:
+        # The annex documents requirements; a profile whose measures orthospec does not implement
+        # yet can still be published as text (`spec validate` reports them).
+        try:
+            prof = load_profile(profile, check_measures=False)
+        except SpecError:
+            raise exc from None
+        click.echo(f"warning: rendering although the profile does not validate: {exc}", err=True)
     files = render_annex(prof, formats=fmts, day=day)
     for name, data in files.items():
         atomic_write(out_dir / name, data)

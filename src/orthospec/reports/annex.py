@@ -90,12 +90,27 @@ def _group_of(rule: Rule) -> tuple[tuple[Any, ...], str]:
     """Group like the source: by table when the clause cites one, else by top-level section."""
     c = rule.clause
     if c.table:
-        return (c.document, 1, natural_key(str(c.table))), f"{c.document} — Table {c.table}"
+        return (c.document, "table", str(c.table)), f"{c.document} — Table {c.table}"
     if c.section:
         top = str(c.section).split(".")[0]
         label = f"Section {top}" if top[:1].isdigit() else top
-        return (c.document, 0, natural_key(top)), f"{c.document} — {label}"
-    return (c.document, 2, ()), f"{c.document} — general"
+        return (c.document, "section", top), f"{c.document} — {label}"
+    return (c.document, "general", ""), f"{c.document} — general"
+
+
+def _top(rule: Rule) -> str:
+    return str(rule.clause.section or "").split(".")[0]
+
+
+def _group_order(g: Group, sections: list[Rule]) -> tuple[Any, ...]:
+    """Source order: each table right after the section its rules cite (Table 1 within §5...)."""
+    doc, kind, key = g.key
+    if kind == "section":
+        return (doc, natural_key(key), 0, ())
+    if kind == "table":
+        tops = sorted((_top(r) for r in sections if _top(r)), key=natural_key)
+        return (doc, natural_key(tops[0]) if tops else ((2, 0, ""),), 1, natural_key(key))
+    return (doc, ((2, 0, ""),), 2, ())
 
 
 def _rule_view(rule: Rule, params: dict[str, Parameter]) -> dict[str, Any]:
@@ -114,10 +129,12 @@ def annex_context(profile: ResolvedProfile, *, day: str) -> dict[str, Any]:
     """Everything the annex templates show, from the resolved profile."""
     params = dict(profile.parameters)
     groups: dict[tuple[Any, ...], Group] = {}
+    members: dict[tuple[Any, ...], list[Rule]] = {}
     for rule in profile.rules:
         key, title = _group_of(rule)
         groups.setdefault(key, Group(key, title)).rules.append(_rule_view(rule, params))
-    ordered = [groups[k] for k in sorted(groups)]
+        members.setdefault(key, []).append(rule)
+    ordered = sorted(groups.values(), key=lambda g: _group_order(g, members[g.key]))
     for g in ordered:
         g.rules.sort(key=lambda r: r["sort"])
     src = profile.source

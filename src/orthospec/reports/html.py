@@ -156,7 +156,8 @@ class RuleView:
     verdict: str
     counts: dict[str, int]
     requirement: str
-    shown: list[dict[str, Any]] = field(default_factory=list)   # records listed in full
+    shown: list[dict[str, Any]] = field(default_factory=list)   # rows: records not passing, grouped
+    n_shown: int = 0
     passing: list[dict[str, Any]] = field(default_factory=list)  # HTML: passing records listed
     pass_count: int = 0
     pass_hidden: int = 0
@@ -167,6 +168,44 @@ class RuleView:
 
 def _numeric(v: Any) -> bool:
     return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def group_rows(recs: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Table rows for records: one per measured record; records without a measured value that
+    share verdict, requirement and message (e.g. 300 images lacking the same manual check)
+    become one row listing every item, so nothing is dropped and nothing repeats."""
+    rows: list[dict[str, Any]] = []
+    groups: dict[tuple[str, str, str], dict[str, Any]] = {}
+    for r in recs:
+        if r["measured"].get("value") is not None:
+            rows.append({**r, "item_list": [r["item"]]})
+            continue
+        key = (r["verdict"], r["requirement"].get("text", ""), r["message"])
+        g = groups.get(key)
+        if g is None:
+            g = groups[key] = {**r, "item_list": [], "evidence": []}
+            rows.append(g)
+        g["item_list"].append(r["item"])
+        for e in r["evidence"]:
+            if e not in g["evidence"]:
+                g["evidence"].append(e)
+    return rows
+
+
+def _problem_rules(records: list[dict[str, Any]], max_items: int) -> list[dict[str, Any]]:
+    """The summary: one row per (rule, verdict) that failed, erred, lacked evidence or warned."""
+    out: dict[tuple[str, str], dict[str, Any]] = {}
+    for r in records:
+        if r["verdict"] not in PROBLEM_VERDICTS:
+            continue
+        row = out.setdefault((r["rule"], r["verdict"]), {
+            "rule": r["rule"], "title": r["title"], "clause": r["clause"], "scope": r["scope"],
+            "verdict": r["verdict"], "requirement": r["requirement"].get("text", ""),
+            "consequence": r["consequence"], "item_list": [], "n": 0})
+        row["n"] += 1
+        if len(row["item_list"]) < max_items:
+            row["item_list"].append(r["item"])
+    return sorted(out.values(), key=lambda x: VERDICT_ORDER.get(x["verdict"], 9))
 
 
 def _rule_views(doc: dict[str, Any], opts: ReportOptions) -> list[RuleView]:
@@ -192,8 +231,10 @@ def _rule_views(doc: dict[str, Any], opts: ReportOptions) -> list[RuleView]:
         )
         passing = [r for r in recs if r["verdict"] == "pass"]
         v.na_count = sum(r["verdict"] == "not_applicable" for r in recs)
-        v.shown = [r for r in recs if r["verdict"] not in ("pass", "not_applicable")]
-        v.shown.sort(key=lambda r: VERDICT_ORDER.get(r["verdict"], 9))  # stable: item order kept
+        shown = [r for r in recs if r["verdict"] not in ("pass", "not_applicable")]
+        shown.sort(key=lambda r: VERDICT_ORDER.get(r["verdict"], 9))  # stable: item order kept
+        v.shown = group_rows(shown)
+        v.n_shown = len(shown)
         v.pass_count = len(passing)
         nums = [r["measured"]["value"] for r in passing if _numeric(r["measured"].get("value"))]
         if nums:
@@ -202,7 +243,7 @@ def _rule_views(doc: dict[str, Any], opts: ReportOptions) -> list[RuleView]:
             lo, hi = min(nums), max(nums)
             v.pass_range = fmt_value(lo) + u if lo == hi else f"{fmt_value(lo)} to {fmt_value(hi)}{u}"
         if not opts.bounded:
-            v.passing = passing[: opts.max_pass_rows]
+            v.passing = [{**r, "item_list": [r["item"]]} for r in passing[: opts.max_pass_rows]]
             v.pass_hidden = len(passing) - len(v.passing)
         views.append(v)
     return views
@@ -339,18 +380,22 @@ def report_context(doc: dict[str, Any], opts: ReportOptions | None = None, *,
     """
     opts = opts or ReportOptions()
     records = doc.get("records", [])
-    problems = [r for r in records if r["verdict"] in PROBLEM_VERDICTS]
-    problems.sort(key=lambda r: (VERDICT_ORDER.get(r["verdict"], 9),))
+    problems = _problem_rules(records, 30 if opts.bounded else 10**9)
     rules = _rule_views(doc, opts)
     scopes: list[dict[str, Any]] = []
     for v in rules:
         if not scopes or scopes[-1]["scope"] != v.scope:
             scopes.append({"scope": v.scope, "title": SCOPE_TITLES.get(v.scope, v.scope.title()),
-                           "rules": []})
-        scopes[-1]["rules"].append(v)
+                           "rules": [], "quiet": []})
+        # bounded: rules with nothing to show (all passing / not applicable) become one table row
+        quiet = opts.bounded and not v.shown and not v.error
+        scopes[-1]["quiet" if quiet else "rules"].append(v)
     failing_rules = [v for v in rules if v.verdict in ("error", "fail")]
     manual = [r for r in records if r.get("manual")]
-    to_sign = [r for r in manual if r["verdict"] == "missing"]
+    to_sign: dict[str, dict[str, Any]] = {}
+    for r in manual:
+        if r["verdict"] == "missing":
+            to_sign.setdefault(r["rule"], {**r, "item_list": []})["item_list"].append(r["item"])
     signed = [r for r in manual if r["verdict"] != "missing"]
     d = doc.get("delivery", {})
     p = doc.get("profile", {})
@@ -367,7 +412,7 @@ def report_context(doc: dict[str, Any], opts: ReportOptions | None = None, *,
         "scopes": scopes,
         "checkpoints": _checkpoint_blocks(doc, opts, figure, {} if cache is None else cache),
         "edges": _edge_targets(doc),
-        "to_sign": to_sign, "signed": signed,
+        "to_sign": list(to_sign.values()), "signed": signed,
         "signoffs": doc.get("signoffs") or [],
         "parameters": sorted((p.get("parameters") or {}).items()),
         "files": d.get("files") or [],
