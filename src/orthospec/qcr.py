@@ -182,7 +182,7 @@ def build_document(ev: Evaluation, *, date: str, operator: str | None = None,
                            key=natural_key)
         rules.append({
             "rule": r.rule.id, "title": r.rule.title, "scope": r.rule.scope, "level": r.rule.level,
-            "consequence": r.rule.consequence, "clause": r.rule.clause.text(),
+            "consequence": r.rule.consequence, "clause": r.rule.clause.text(), "clause_ref": r.rule.clause.ref(),
             "verdict": VERDICTS[r.worst], "counts": {k: v for k, v in r.counts().items() if v},
             "offending": offending, "error": r.error,
         })

@@ -69,7 +69,8 @@ def check_cmd(delivery: Path, profile: str, params: tuple[str, ...], out_dir: Pa
     for name, data in files.items():
         atomic_write(target / name, data)
     if "terminal" in fmts:
-        render_terminal(doc, Console(highlight=False, soft_wrap=True), max_items=max_items, verbose=verbose)
+        console = Console(highlight=False) if sys.stdout.isatty() else Console(highlight=False, width=120)
+        render_terminal(doc, console, max_items=max_items, verbose=verbose)
         if files:
             click.echo(f"wrote {', '.join(sorted(files))} to {target}/")
     if ledger_target is not None:  # after the outputs: the ledger records what was written

@@ -26,6 +26,7 @@ def profiles_cmd(paths: tuple[Path, ...]) -> None:
             prof = load_profile(p, check_measures=False)
             rows.append((prof.id, prof.version, prof.title, p))
     t = Table("id", "version", "rules", "title", "file", box=None, header_style="bold")
+    t.columns[3].ratio = 3
     for pid, ver, title, path in rows:
         try:
             n = str(len(load_profile(path).rules))
@@ -36,6 +37,10 @@ def profiles_cmd(paths: tuple[Path, ...]) -> None:
 
 
 def _short(path: Path) -> str:
+    from ..resources import specs_dir
+
+    if path.resolve().parent == specs_dir().resolve():
+        return "shipped"
     try:
         return path.resolve().relative_to(Path.cwd().resolve()).as_posix()
     except ValueError:

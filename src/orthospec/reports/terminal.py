@@ -26,12 +26,14 @@ def render(doc: dict[str, Any], console: Console, *, max_items: int = MAX_ITEMS,
     colour = "green" if doc["verdict"] == "accepted" else "red"
     console.print(f"[bold]orthospec[/] {escape(d['path'])} against {escape(p['id'])} {escape(p['version'])} "
                   f"(sha256 {p['sha256'][:12]}…), {doc['date']}")
+    shown_rules = [r for r in doc["rules"] if verbose or r["verdict"] not in ("pass", "not_applicable")]
+    id_width = max((len(r["rule"]) for r in shown_rules), default=4)
     t = Table(show_header=True, header_style="bold", box=None, pad_edge=False)
-    t.add_column("verdict")
-    t.add_column("rule")
-    t.add_column("clause")
-    t.add_column("scope")
-    t.add_column("items")
+    t.add_column("verdict", no_wrap=True, min_width=7)
+    t.add_column("rule", no_wrap=True, min_width=id_width)  # ids are what auditors search for: never cut
+    t.add_column("scope", no_wrap=True)
+    t.add_column("clause", no_wrap=True)
+    t.add_column("items / reason", ratio=1)
     shown = 0
     for r in doc["rules"]:
         v = r["verdict"]
@@ -43,8 +45,8 @@ def render(doc: dict[str, Any], console: Console, *, max_items: int = MAX_ITEMS,
             items = f"{r['counts'].get('waived', 0)} waived"
         if r.get("error"):
             items = r["error"]
-        t.add_row(f"[{_STYLE.get(v, '')}]{v}[/]", escape(r["rule"]), escape(r["clause"]), r["scope"],
-                  escape(items))
+        t.add_row(f"[{_STYLE.get(v, '')}]{v}[/]", escape(r["rule"]), r["scope"],
+                  escape(r.get("clause_ref") or r["clause"]), escape(items))
         shown += 1
     if shown:
         console.print(t)

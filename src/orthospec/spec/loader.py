@@ -403,7 +403,7 @@ def semantic_problems(p: ResolvedProfile, *, check_measures: bool = True) -> lis
             for n in e.names:
                 if n in known or n.startswith("manifest.") or n.startswith("param."):
                     continue
-                if check_measures and measure_info(n) is not None:
+                if not check_measures or measure_info(n) is not None:
                     continue
                 add(r, ("when",) if text is r.when else ("requirement",),
                     f"expression {text!r} names {n!r}, which is neither a parameter nor a measure")

@@ -40,6 +40,17 @@ class Clause(_Strict):
     def _to_text(cls, v: Any) -> Any:
         return None if v is None else str(v)
 
+    def ref(self) -> str:
+        """Section, table and row without the document name (short form for terminals)."""
+        parts = []
+        if self.section:
+            parts.append(f"§{self.section}")
+        if self.table:
+            parts.append(f"T{self.table}")
+        if self.figure:
+            parts.append(f"Fig. {self.figure}")
+        return " ".join(parts) or self.document
+
     def text(self) -> str:
         parts = [self.document]
         if self.section:
