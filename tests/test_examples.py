@@ -94,6 +94,47 @@ def test_examples_stay_small() -> None:
 
 # --------------------------------------------------------------------------- convention
 @pytest.mark.parametrize("name", NAMES)
+def test_documents_are_delivered_and_consistent(name: str) -> None:
+    """Every manifest document is a small text file in the delivery; GCP references resolve."""
+    m, root = _manifest(name), EXAMPLES / name
+    assert {"internal_qcr", "gcp_report", "geodetic_control", "gcp_plot", "rejected_items"} <= set(m["documents"])
+    texts = {}
+    for rel in m["documents"].values():
+        path = root / rel
+        assert path.is_file() and rel.startswith("documents/") and 100 < path.stat().st_size < 60_000, rel
+        texts[rel] = path.read_text(encoding="utf-8")
+    assert m["product"]["extracts"] is True
+    gcp = _table(name, "gcps")
+    report = texts[m["documents"]["gcp_report"]]
+    assert all(f"| {pid} |" in report for pid in gcp["point_id"])
+    assert (_num(gcp["images_measured"]) >= 2).all()
+    for ref in pd.concat([gcp["sketch"], gcp["photo"]]):
+        rel, anchor = ref.split("#")
+        assert f"## {anchor}\n" in texts[rel], ref
+    assert "EPSG:25832" in texts[m["documents"]["geodetic_control"]]
+    assert texts[m["documents"]["gcp_plot"]].startswith("<svg") and texts[m["documents"]["gcp_plot"]].count("<circle") == len(_table(name, "images"))
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_flight_and_at_records_are_consistent(name: str) -> None:
+    """Overlaps, GSD and AT accuracy agree with the camera, the photos and the tolerance."""
+    cam = _table(name, "cameras").iloc[0]
+    img = _table(name, "images")
+    fh = _num(img["flying_height"])
+    gsd = fh * float(cam["pixel_size"]) * 1e-3 / float(cam["focal_length"])
+    ok = fh.notna()
+    assert np.allclose(gsd[ok], _num(img["acquisition_gsd"])[ok], atol=6e-5)
+    assert (_num(img["acquisition_gsd"]) <= GSD).all()
+    fl = _table(name, "flights")
+    assert (_num(fl["forward_overlap"]) >= 60).all() and _num(fl["side_overlap"]).between(15, 60).all()
+    at = _table(name, "aerotriangulation")
+    assert set(at["block"]) == {b["id"] for b in _manifest(name)["blocks"]}
+    assert (_num(at["checkpoint_rmse_x"]) <= 0.5 / 3).all() and (_num(at["gcp_rmse_y"]) < 0.25).all()
+    assert (_num(_table(name, "checkpoints")["precision_xy"]) <= 0.5 / 3).all()
+
+
+
+@pytest.mark.parametrize("name", NAMES)
 def test_manifest_follows_the_delivery_convention(name: str) -> None:
     m = _manifest(name)
     assert m["orthospec_delivery"] == 1
@@ -118,7 +159,8 @@ def test_manifest_follows_the_delivery_convention(name: str) -> None:
 
 
 @pytest.mark.parametrize("name", NAMES)
-@pytest.mark.parametrize("table", ["images", "checkpoints", "gcps", "flights", "cameras", "manual_checks"])
+@pytest.mark.parametrize("table", ["images", "checkpoints", "gcps", "flights", "cameras", "aerotriangulation",
+                                   "manual_checks"])
 def test_table_has_only_spec_columns_and_its_required_ones(name: str, table: str) -> None:
     df = _table(name, table)
     allowed = SPEC[table]["columns"]
