@@ -48,7 +48,8 @@ def main() -> None:
     ap.add_argument("--tiles", type=int, default=50)
     ap.add_argument("--side", type=int, default=1024)
     args = ap.parse_args()
-    print(f"cpus: {os.cpu_count()}")
+    print(f"cpus: {os.cpu_count()}, load average before: {os.getloadavg()[0]:.2f} "
+          "(other jobs on the machine take cores and memory bandwidth)")
     with tempfile.TemporaryDirectory(prefix="orthospec-par-") as tmp:
         files = make_tiles(Path(tmp), args.tiles, args.side)
         mb = sum(f.stat().st_size for f in files) / 1e6
@@ -75,7 +76,7 @@ def main() -> None:
             print(f"{name:22s} {t:6.2f} s  speed-up {times['1 process'] / t:4.2f}x  "
                   f"{len(files) / t:5.1f} files/s")
         print(f"dask cluster start-up {t_cluster:.2f} s (included above)")
-        print(f"identical results: {same}")
+        print(f"identical results: {same}; load average after: {os.getloadavg()[0]:.2f}")
 
 
 if __name__ == "__main__":

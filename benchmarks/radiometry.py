@@ -25,12 +25,14 @@ import time
 from pathlib import Path
 
 ORTHOSPEC = """
-import sys
+import sys, time
+t0 = time.perf_counter()
 from orthospec.raster.reading import ScanSettings, scan_raster
+t1 = time.perf_counter()
 full = sys.argv[2] == "full"
 s = ScanSettings(noise=full, luminosity=full, misregistration=full)
 r = scan_raster(sys.argv[1], s)
-print(r.bands[0].mean, r.bands[0].std)
+print(t1 - t0, time.perf_counter() - t1)
 """
 
 
@@ -118,6 +120,7 @@ def main() -> None:
             while fh.read(1 << 24):
                 pass
         results: dict[str, list[tuple[float, float]]] = {"gdal": [], "stats": [], "full": []}
+        inner: dict[str, list[tuple[float, float]]] = {}
         for _ in range(args.rounds):
             aux = Path(str(img) + ".aux.xml")
             aux.unlink(missing_ok=True)
@@ -125,16 +128,23 @@ def main() -> None:
             aux.unlink(missing_ok=True)  # gdalinfo caches statistics there
             results["gdal"].append((w, m))
             for mode in ("stats", "full"):
-                w, m, _ = run([sys.executable, "-c", ORTHOSPEC, str(img), mode])
+                w, m, out = run([sys.executable, "-c", ORTHOSPEC, str(img), mode])
                 results[mode].append((w, m))
+                imp, scan = (float(v) for v in out.split())
+                inner.setdefault(mode, []).append((imp, scan))
         best = {k: (min(w for w, _ in v), max(m for _, m in v)) for k, v in results.items()}
         print(f"gdalinfo -stats -hist ({gdal_version}): {best['gdal'][0]:.2f} s, "
               f"peak {best['gdal'][1]:.0f} MB")
         for mode in ("stats", "full"):
             w, m = best[mode]
+            imp = min(i for i, _ in inner[mode])
+            scan = min(sc for _, sc in inner[mode])
             print(f"orthospec {mode:5s}: {w:.2f} s, peak {m:.0f} MB, "
-                  f"time ratio orthospec/gdal = {w / best['gdal'][0]:.2f}")
-        print(f"throughput orthospec stats: {size / 1e6 / best['stats'][0]:.0f} MB/s")
+                  f"time ratio orthospec/gdal = {w / best['gdal'][0]:.2f}  "
+                  f"(of which import {imp:.2f} s, scan {scan:.2f} s: scan/gdal = "
+                  f"{scan / best['gdal'][0]:.2f})")
+        print(f"throughput orthospec stats: {size / 1e6 / best['stats'][0]:.0f} MB/s; "
+              f"load average: {os.getloadavg()[0]:.2f} on {os.cpu_count()} cpus")
 
 
 if __name__ == "__main__":

@@ -199,3 +199,10 @@ def test_mask_share_accumulates_over_blocks():
     acc.merge(part)
     assert (acc.flagged, acc.valid) == (4, 7)
     assert acc.percent == pytest.approx(400 / 7)
+
+
+def test_chi_factor_constant_matches_scipy():
+    from scipy.stats import chi2
+
+    expected = math.sqrt(chi2.ppf(0.1, 63) / 63)
+    assert abs(rad._CHI_FACTOR_8X8_P10 - expected) <= 1e-15 * expected

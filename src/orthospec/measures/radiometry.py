@@ -46,6 +46,12 @@ ROBUST_TAIL = 0.001
 
 # log-spaced bins for the histogram of local standard deviations (0.5 % relative resolution)
 _LOCAL_STD_EDGES = np.geomspace(1e-3, 1e6, 4201)
+_LOG_STEP = math.log(1e6 / 1e-3) / 4200
+
+#: Pixels per slab of the per-pixel noise and luminosity arithmetic: float32 temporaries of
+#: this size stay in the CPU cache, which matters more than anything when several worker
+#: processes share the memory bandwidth.
+SLAB_PIXELS = 1 << 16
 
 
 def histogram_layout(dtype: np.dtype | str) -> tuple[int, int] | None:
@@ -248,32 +254,57 @@ class NoiseAccumulator:
     n_flat: int = 0  # windows whose local std is below the first edge (perfectly flat)
 
     def add(self, block: np.ndarray, valid: np.ndarray | None = None) -> None:
-        a = np.asarray(block, dtype=np.float32)
-        if a.ndim != 2:
-            raise MeasureError(f"noise needs a 2-D block, got shape {a.shape}")
-        h, w = a.shape
-        if h >= 3 and w >= 3:
-            d = a[:, :-2] - 2.0 * a[:, 1:-1] + a[:, 2:]
-            lap = np.abs(d[:-2] - 2.0 * d[1:-1] + d[2:])
-            if valid is None:
-                self.sum_abs += float(lap.sum(dtype=np.float64))
-                self.n_lap += lap.size
-            else:
-                r = valid[:, :-2] & valid[:, 1:-1] & valid[:, 2:]
-                ok = r[:-2] & r[1:-1] & r[2:]
-                self.sum_abs += float(lap[ok].sum(dtype=np.float64))
-                self.n_lap += int(ok.sum())
+        """Add a 2-D block; worked through in cache-sized slabs of rows (same result)."""
+        block = np.asarray(block)
+        if block.ndim != 2:
+            raise MeasureError(f"noise needs a 2-D block, got shape {block.shape}")
+        h, w = block.shape
         k = NOISE_WINDOW
-        hh, ww = (h // k) * k, (w // k) * k
-        if hh and ww:
-            tiles = a[:hh, :ww].reshape(hh // k, k, ww // k, k)
-            sd = tiles.std(axis=(1, 3), ddof=1)  # float32, centred: precise enough
-            if valid is not None:
-                vt = valid[:hh, :ww].reshape(hh // k, k, ww // k, k).all(axis=(1, 3))
-                sd = sd[vt]
-            sd = sd.ravel()
-            self.n_flat += int((sd < _LOCAL_STD_EDGES[0]).sum())
-            self.local_counts += np.histogram(sd, bins=_LOCAL_STD_EDGES)[0]
+        slab = max(k, (SLAB_PIXELS // max(w, 1)) // k * k)
+        for r0 in range(0, h, slab):
+            r1 = min(h, r0 + slab)
+            self._laplacian(block, valid, max(r0, 1), min(r1, h - 1))
+            self._local_std(block, valid, r0, min(r1, (h // k) * k))
+
+    def _laplacian(self, block: np.ndarray, valid: np.ndarray | None, c0: int, c1: int) -> None:
+        """Immerkær sums for the centre rows [c0, c1) (their 3x3 neighbourhoods)."""
+        if c1 <= c0 or block.shape[1] < 3:
+            return
+        a = block[c0 - 1:c1 + 1].astype(np.float32)
+        d = a[:, :-2] + a[:, 2:]
+        d -= 2.0 * a[:, 1:-1]
+        lap = d[:-2] + d[2:]
+        lap -= 2.0 * d[1:-1]
+        np.abs(lap, out=lap)
+        if valid is None:
+            self.sum_abs += float(lap.sum(dtype=np.float64))
+            self.n_lap += lap.size
+            return
+        v = valid[c0 - 1:c1 + 1]
+        r = v[:, :-2] & v[:, 1:-1] & v[:, 2:]
+        ok = r[:-2] & r[1:-1] & r[2:]
+        self.sum_abs += float(lap[ok].sum(dtype=np.float64))
+        self.n_lap += int(np.count_nonzero(ok))
+
+    def _local_std(self, block: np.ndarray, valid: np.ndarray | None, r0: int, r1: int) -> None:
+        """Local stds of the whole NOISE_WINDOW squares in rows [r0, r1) (multiples of k)."""
+        k = NOISE_WINDOW
+        ww = (block.shape[1] // k) * k
+        if r1 <= r0 or not ww:
+            return
+        tiles = block[r0:r1, :ww].astype(np.float32).reshape((r1 - r0) // k, k, ww // k, k)
+        sd = tiles.std(axis=(1, 3), ddof=1)  # float32, centred: precise enough
+        if valid is not None:
+            vt = valid[r0:r1, :ww].reshape((r1 - r0) // k, k, ww // k, k).all(axis=(1, 3))
+            sd = sd[vt]
+        sd = sd.ravel()
+        flat = sd < _LOCAL_STD_EDGES[0]
+        self.n_flat += int(np.count_nonzero(flat))
+        pos = sd[~flat]
+        if pos.size:
+            idx = np.floor(np.log(pos / _LOCAL_STD_EDGES[0]) / _LOG_STEP).astype(np.intp)
+            np.clip(idx, 0, self.local_counts.size - 1, out=idx)
+            self.local_counts += np.bincount(idx, minlength=self.local_counts.size)
 
     def merge(self, other: NoiseAccumulator) -> NoiseAccumulator:
         self.sum_abs += other.sum_abs

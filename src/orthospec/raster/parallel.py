@@ -288,7 +288,7 @@ def _mp_context() -> multiprocessing.context.BaseContext:
     imported orthospec (fast start, no inherited threads or GDAL handles); else spawn."""
     if "forkserver" in multiprocessing.get_all_start_methods():
         ctx = multiprocessing.get_context("forkserver")
-        ctx.set_forkserver_preload(["orthospec.raster.parallel"])
+        ctx.set_forkserver_preload(["orthospec.raster.parallel", "pyproj"])
         return ctx
     return multiprocessing.get_context("spawn")
 
