@@ -817,12 +817,13 @@ def check_invariants(b: Built) -> None:
 #: tests/test_examples_jrc.py. Only mandatory rules can reject; recommended ones warn.
 JRC_V3_RULES: dict[str, list[tuple[str, str, str, str, list[str] | None]]] = {
     "rmse_above_tolerance": [("JRC-12.7-RMSEY", "fail", "mandatory", "reject_block", None)],
-    "reported_rmse_mismatch": [],
+    "reported_rmse_mismatch": [("JRC-9.5-REPORTED-RMSE-Y", "fail", "mandatory", "warn", None)],
     "saturation_high": [("JRC-6.3-SATURATION-HIGH", "warn", "recommended", "warn", None)],
     "missing_field": [("JRC-5.3-PHOTO-FLYING-HEIGHT", "warn", "recommended", "warn", ["D-2026-021"]),
                       ("JRC-5.2.1-FLYING-HEIGHT-GSD", "missing", "recommended", "warn", None)],
     "unjustified_exclusion": [("JRC-12.6-BLUNDER-EXCLUSIONS", "fail", "mandatory", "warn", ["B01"]),
-                              ("JRC-12.6-BLUNDER-CANDIDATES", "warn", "recommended", "warn", ["B01"])],
+                              ("JRC-12.6-BLUNDER-CANDIDATES", "warn", "recommended", "warn", ["B01"]),
+                              ("JRC-9.5-REPORTED-RMSE-X", "fail", "mandatory", "warn", ["B01"])],
     "file_missing": [("JRC-9.2-T7-READABLE", "fail", "mandatory", "reject_item", None),
                      ("JRC-6.4-FORMAT", "error", "mandatory", "reject_item", None),
                      ("JRC-12.4-T12-ORTHO-GEOREFERENCED", "error", "mandatory", "reject_item", None),
@@ -842,15 +843,16 @@ JRC_V3_RULES: dict[str, list[tuple[str, str, str, str, list[str] | None]]] = {
 #: Why a defect has no (or only a weaker) jrc-v3 rule.
 JRC_V3_NOTES = {
     "reported_rmse_mismatch": (
-        "Not caught: no jrc-v3 rule compares the reported RMSE with the recomputed one (the "
-        "guidelines ask for the QCR, Table 6 row 11, but set no agreement test). The measures exist "
-        "(checkpoints.reported_diff_x/_y: 0.33 m here); a tender profile can add the rule."),
+        "The reported QCR value disagrees with the recomputed RMSEy by 0.33 m: a mandatory finding "
+        "against the contractor's QCRs (consequence warn); B02 is rejected on the recomputed RMSEy "
+        "by JRC-12.7-RMSEY."),
     "too_few_checkpoints": (
         "jrc-v3 reads Table 12's minimum as constraining the check, not the product: the rule fails "
         "(mandatory) with consequence warn, so B03 is not rejected (docs/decisions.md)."),
     "unjustified_exclusion": (
         "The refused exclusion is recorded (mandatory fail, consequence warn); the point stays in B01's "
-        "RMSE, which still meets the tolerance."),
+        "RMSE, which still meets the tolerance but no longer equals the reported 0.25 m "
+        "(JRC-9.5-REPORTED-RMSE-X)."),
     "file_missing": (
         "The missing raster cannot be measured: the raster rules give 'error' (no value), "
         "JRC-9.2-T7-READABLE fails and F03_0202 is rejected as an item."),
@@ -1088,16 +1090,9 @@ def write(b: Built, root: Path) -> None:
 #: Recommended-level findings jrc-v3 reports on BOTH examples although nothing is wrong with
 #: the data: (rule, verdict, why). Listed in expected.yaml and the READMEs (engine issues
 #: reported to the lead; rules under review).
-KNOWN_NON_BLOCKING = (
-    ("JRC-6.3-MISREGISTRATION", "warn",
-     "Engine issue: phase correlation of NIR against green on these 128-px extracts (pixel "
-     "correlation 0.15-0.7) peaks at only 0.06-0.14 and returns spurious 1.3-30 px shifts although "
-     "the bands are painted in register; the measure reports a shift whatever the peak height."),
-    ("JRC-T8-MR-LR-TERRAIN", "missing",
-     "Engine issue: a manual rule whose `when` is evaluated per item (scenes.* columns) ignores a "
-     "False condition, so the satellite-only check asks aerial images for a signature."),
-    ("JRC-T9-BI-CC-OUTPUT-PIXEL", "missing", "Same engine issue as JRC-T8-MR-LR-TERRAIN."),
-)
+#: Recommended-level findings that are not defects of the example (none since the engine fixes of
+#: the misregistration peak test and per-item `when` on manual rules).
+KNOWN_NON_BLOCKING: tuple[tuple[str, str, str], ...] = ()
 
 
 def jrc_v3_outcome(b: Built) -> dict[str, Any]:
@@ -1108,12 +1103,10 @@ def jrc_v3_outcome(b: Built) -> dict[str, Any]:
         bl = next(c for c in b.checkpoints if c["excluded"])
         return {"verdict": "accepted", "exit_code": 0, "rejected": {},
                 "waived": [{"rule": w["rule"], "items": w["items"]} for w in b.scenario.waivers],
-                "expected_warnings": [
-                    {"rule": "JRC-12.6-BLUNDER-CANDIDATES", "verdict": "warn", "level": "recommended",
-                     "items": [bl["block"]],
-                     "why": f"{bl['point_id']} exceeds 3 x RMSE and is flagged for inspection; the "
-                            "inspection is documented (exclusion_reason) and JRC-12.6-BLUNDER-EXCLUSIONS "
-                            "passes."}],
+                "expected_warnings": [],
+                "inspected_blunder": {"point": bl["point_id"], "block": bl["block"],
+                                      "why": "exceeds 3 x RMSE; excluded with a documented justification, "
+                                             "so JRC-12.6-BLUNDER-EXCLUSIONS and -CANDIDATES pass"},
                 "known_engine_issues": known}
     (rule, verdict, level, cons, items), = JRC_V3_OUTCOME["project"]
     mandatory = sorted({(e["rule"], i) for d in b.defects for e in d["jrc_v3"]["rules"]
@@ -1182,9 +1175,10 @@ def readme(b: Built) -> str:
         lines.append("- Two images carry small clouds (cloud cover reported from the pixels, <= 5 %); "
                      "F02_0202 has sun glint on a glass roof (a few saturated pixels, well under "
                      "0.5 %).")
-        lines += ["", "Recommended-level findings that remain (they do not reject):", ""]
-        lines += [f"- `{w['rule']}` ({w['verdict']}, {', '.join(w['items'])}): {w['why']}"
-                  for w in out["expected_warnings"]]
+        bl = out["inspected_blunder"]
+        lines.append(f"- Check point {bl['point']} ({bl['block']}) {bl['why']}.")
+        lines += ["", "No recommended-level finding remains: every record passes, is waived or does not "
+                  "apply (0 warned, 0 missing, 0 errors)."]
     else:
         lines += [f"Expected verdict: **rejected** ({check} exits 1), for exactly these reasons "
                   "(machine-readable in `expected.yaml`; rows are 1-based data rows). Rule ids in "
@@ -1206,9 +1200,9 @@ def readme(b: Built) -> str:
                   f"rejected images {', '.join(out['rejected']['image'])}; every mandatory "
                   "fail/missing/error record is one of the defects above "
                   "(`jrc_v3.mandatory_failing` in `expected.yaml`)."]
-    lines += ["", "Known engine issues (recommended level, reported to the lead; they do not "
-              "change either verdict):", ""]
-    lines += [f"- `{k['rule']}` ({k['verdict']}): {k['why']}" for k in out["known_engine_issues"]]
+    if out["known_engine_issues"]:
+        lines += ["", "Known engine issues (recommended level; they do not change either verdict):", ""]
+        lines += [f"- `{k['rule']}` ({k['verdict']}): {k['why']}" for k in out["known_engine_issues"]]
     lines.append("")
     return "\n".join(lines)
 

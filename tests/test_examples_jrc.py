@@ -106,12 +106,15 @@ def test_aerial_fail_defects_get_the_documented_rule_verdicts(runs: dict) -> Non
     assert rest == set()
 
 
-def test_the_unmatched_reported_rmse_defect_is_really_uncaught(runs: dict) -> None:
-    """F02 has no jrc-v3 rule: no record on B02 names the reported RMSE (keeps the note honest)."""
+def test_the_reported_rmse_mismatch_is_caught(runs: dict) -> None:
+    """F02: B02 reports RMSEy 0.31 m, the points give 0.64 m: a mandatory QCR finding (§9.5)."""
     _, doc = runs["aerial-fail"]
-    d = next(x for x in _expected("aerial-fail")["defects"] if x["kind"] == "reported_rmse_mismatch")
-    assert d["jrc_v3"]["rules"] == [] and "Not caught" in d["jrc_v3"]["note"]
-    assert not any("reported_diff" in RULES[r["rule"]]["measure"] for r in doc["records"])
+    rec = next(r for r in doc["records"] if r["rule"] == "JRC-9.5-REPORTED-RMSE-Y" and r["item"] == "B02")
+    assert rec["verdict"] == "fail" and rec["consequence"] == "warn"
+    assert rec["measured"]["value"] == pytest.approx(0.33, abs=0.01)
+    assert "reported RMSE_y" in rec["message"]
+    _, ok = runs["aerial-pass"]
+    assert {r["verdict"] for r in ok["records"] if r["rule"].startswith("JRC-9.5-REPORTED-RMSE")} == {"pass"}
 
 
 @pytest.mark.parametrize("profile", ["jrc-v3", str(ROOT / "examples" / "specs" / "tender-example.yaml")])

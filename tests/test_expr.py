@@ -67,3 +67,19 @@ def test_min_max_agree_with_python(a, b):
     names = {"a": a, "b": b}
     assert parse("min(a, b)").evaluate(names) == min(a, b)
     assert parse("max(a, b)").evaluate(names) == max(a, b)
+
+
+@pytest.mark.parametrize("src, names, expected", [
+    ("roll > 1", {"roll": Q_(2.5, "degree")}, True),      # 1 deg, not 1 rad
+    ("cloud < 5", {"cloud": Q_(3.0, "percent")}, True),   # 5 %, not 500 %
+    ("cloud < 5", {"cloud": Q_(6.0, "percent")}, False),
+    ("h + 10 > 100", {"h": Q_(95.0, "m")}, True),
+    ("2 * tol > 1", {"tol": Q_(0.6, "m")}, True),
+])
+def test_bare_numbers_take_the_unit_they_meet(src, names, expected):
+    assert bool(parse(src).evaluate(names)) is expected
+
+
+def test_bare_numbers_meet_arrays_per_item():
+    out = parse("roll > 1").evaluate({"roll": Q_(np.array([0.5, 2.5]), "degree")})
+    assert out.tolist() == [False, True]

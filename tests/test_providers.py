@@ -201,3 +201,26 @@ def test_records_providers(make_delivery, tmp_path):
     assert gsd["I1"]["measured"]["value"] == pytest.approx(3846 * 5.2e-6 / 0.080)
     assert gsd["I3"]["verdict"] == "missing"
     assert recs(doc, "CLOUD")["D1"]["measured"]["value"] == pytest.approx(5.0)
+
+
+def test_weak_band_correlation_is_not_reported_as_misregistration(make_delivery, tmp_path):
+    rng = np.random.default_rng(11)
+    base = rng.integers(40, 220, (128, 128)).astype(np.uint8)
+    noise = rng.integers(40, 220, (128, 128)).astype(np.uint8)  # a band sharing no texture (NIR-like)
+    img = np.stack([base, base, base, noise])
+    root = delivery_with_images(make_delivery, {"images/a.tif": img})
+    p = profile(tmp_path, rule("MIS", "image", "raster.misregistration", '{op: "<=", value: 1, unit: px}'))
+    doc = check(root, p, date="2026-01-01").document
+    r = recs(doc, "MIS")["a"]
+    assert r["verdict"] == "pass" and r["measured"]["value"] == pytest.approx(0.0, abs=0.05)
+
+
+def test_manual_rule_applies_per_item(make_delivery, tmp_path):
+    images = "image_id,file,block,roll\nI1,a.tif,B1,0.5\nI2,b.tif,B1,2.5\n"
+    root = make_delivery(images=images, manual="check,item,inspector,date,verdict\nM,I2,Ann,2026-01-02,pass\n")
+    p = profile(tmp_path, rule("M", "image", "manual.M", '{op: "==", value: pass}',
+                               extra="  manual: true\n  when: 'images.roll > 1'\n"))
+    doc = check(root, p, date="2026-01-01").document
+    m = recs(doc, "M")
+    assert m["I1"]["verdict"] == "not_applicable"  # condition false for I1: no signature asked for
+    assert m["I2"]["verdict"] == "pass" and "Ann" in m["I2"]["message"]

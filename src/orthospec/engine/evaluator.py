@@ -254,6 +254,22 @@ class Evaluator:
                           error=note if verdict == ERROR else None)
 
     # --- one rule
+    def _applicable(self, rule: Rule, items: list[str]) -> np.ndarray:
+        """Per-item applicability from `when` (scalar or one value per item); None/NaN count as false."""
+        n = len(items)
+        if not rule.when:
+            return np.ones(n, dtype=bool)
+        names = _Names(self.params, self.manifest, self.cache, rule.scope, items, dict(self.profile.classes))
+        cond = expr.parse(rule.when).evaluate(names)
+        cond = getattr(cond, "magnitude", cond)
+        if cond is None:
+            return np.zeros(n, dtype=bool)
+        if np.ndim(cond) == 0:
+            return np.full(n, bool(cond), dtype=bool)
+        arr = np.asarray(cond, dtype=object)
+        return np.array([bool(c) if c is not None and not (isinstance(c, float) and math.isnan(c)) else False
+                         for c in arr], dtype=bool)
+
     def _scalar_condition(self, rule: Rule) -> bool | None:
         """A `when` over parameters and manifest facts only: decided once for the whole rule."""
         if not rule.when:
@@ -291,19 +307,7 @@ class Evaluator:
         notes = np.full(n, None, dtype=object)
         names = _Names(self.params, self.manifest, self.cache, rule.scope, items,
                        dict(self.profile.classes))
-        # applicability
-        applicable = np.ones(n, dtype=bool)
-        if rule.when:
-            cond = expr.parse(rule.when).evaluate(names)
-            cond = getattr(cond, "magnitude", cond)
-            if cond is None:
-                cond = False
-            if np.ndim(cond) == 0:
-                applicable[:] = bool(cond)
-            else:
-                arr = np.asarray(cond, dtype=object)
-                applicable = np.array([bool(c) if c is not None and not (isinstance(c, float) and math.isnan(c))
-                                       else False for c in arr], dtype=bool)
+        applicable = self._applicable(rule, items)
         sampled = self._sample_mask(rule.scope, items)
         if sampled is not None:
             for i in np.flatnonzero(applicable & ~sampled):
@@ -488,10 +492,9 @@ class Evaluator:
                         verdict[i] = ERROR
                         notes[i] = f"manual_checks verdict must be pass or fail, got {v!r}"
         if rule.when:
-            names = _Names(self.params, self.manifest, self.cache, rule.scope, items, {})
-            cond = expr.parse(rule.when).evaluate(names)
-            if np.ndim(cond) == 0 and not bool(cond):
-                verdict[:] = NA
+            applicable = self._applicable(rule, items)
+            verdict[~applicable] = NA
+            notes[~applicable] = f"not applicable: {rule.when} is false"
         return RuleResult(rule, np.array(items, dtype=object), verdict, measured, "text",
                           self._req_dict(rule.requirement, None), evidence, notes)
 

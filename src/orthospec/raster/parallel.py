@@ -116,7 +116,7 @@ def _aggregates(bands: list[dict[str, Any]], lum: dict[str, Any] | None,
         "image.noise_sigma_homogeneous_max": worst("noise_sigma_homogeneous", max),
         "image.nodata_fraction": worst("nodata_fraction", max),
         "image.used_bits_max": worst("used_bits", max),
-        "image.misregistration_px_max": max((m["magnitude_px"] for m in mis.values()),
+        "image.misregistration_px_max": max((m["magnitude_px"] for m in mis.values() if m.get("reliable", True)),
                                             default=None),
         "image.saturation_low_hidden_by_nodata": any(
             bool(b.get("saturation_low_hidden_by_nodata")) for b in bands),

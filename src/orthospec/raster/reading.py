@@ -141,6 +141,7 @@ class RasterStats:
     bands: list[rad.BandStats]
     luminosity: rad.BandStats | None
     misregistration: dict[int, rad.Shift] = field(default_factory=dict)
+    misregistration_spread: dict[int, float] = field(default_factory=dict)
     reference_band: int | None = None
     chunks: int = 0
 
@@ -152,8 +153,10 @@ class RasterStats:
                 histogram=histogram),
             "luminosity_weights": list(rad.LUMA_WEIGHTS),
             "misregistration": {
-                str(k): {"dy_px": v.dy, "dx_px": v.dx, "magnitude_px": v.magnitude,
-                         "peak": v.peak} for k, v in sorted(self.misregistration.items())},
+                str(k): {"dy_px": v.dy, "dx_px": v.dx, "magnitude_px": v.magnitude, "peak": v.peak,
+                         "spread_px": self.misregistration_spread.get(k),
+                         "reliable": misregistration_reliable(v.peak, self.misregistration_spread.get(k))}
+                for k, v in sorted(self.misregistration.items())},
             "misregistration_reference_band": self.reference_band,
         }
 
@@ -275,7 +278,7 @@ def _scan(ds: rasterio.io.DatasetReader, s: ScanSettings) -> RasterStats:
                                                   infos[rgb[0] - 1].grey)
     out = RasterStats(bands=bands, luminosity=lum_stats, chunks=chunks)
     if s.misregistration and ds.count >= 2:
-        out.reference_band, out.misregistration = _misregistration(ds, infos)
+        out.reference_band, out.misregistration, out.misregistration_spread = _misregistration(ds, infos)
     return out
 
 
@@ -325,16 +328,17 @@ MISREGISTRATION_UPSAMPLE = 20
 
 
 def _misregistration(ds: rasterio.io.DatasetReader, infos: Sequence[BandInfo], *,
-                     size: int = 256) -> tuple[int, dict[int, rad.Shift]]:
+                     size: int = 256) -> tuple[int, dict[int, rad.Shift], dict[int, float]]:
     """Band-to-band shift vs the green (else first) band: median over up to 5 windows."""
     colour = {b.colour: b.index for b in infos}
     ref = colour.get("green", 1)
     others = [b for b in infos if b.index != ref and b.colour != "alpha"]
     n = min(size, ds.height, ds.width)
     if n < 32 or not others:
-        return ref, {}
+        return ref, {}, {}
     centres = [(0.5, 0.5), (0.25, 0.25), (0.25, 0.75), (0.75, 0.25), (0.75, 0.75)]
     found: dict[int, list[rad.Shift]] = {b.index: [] for b in others}
+    spreads: dict[int, float] = {}
     seen = set()
     for fy, fx in centres:
         row = int(min(max(fy * ds.height - n / 2, 0), ds.height - n))
@@ -358,10 +362,22 @@ def _misregistration(ds: rasterio.io.DatasetReader, infos: Sequence[BandInfo], *
     result = {}
     for idx, shifts in found.items():
         if shifts:
-            result[idx] = rad.Shift(dy=float(np.median([s.dy for s in shifts])),
-                                    dx=float(np.median([s.dx for s in shifts])),
-                                    peak=float(np.median([s.peak for s in shifts])))
-    return ref, result
+            dy = float(np.median([s.dy for s in shifts]))
+            dx = float(np.median([s.dx for s in shifts]))
+            spread = max(float(np.hypot(s.dy - dy, s.dx - dx)) for s in shifts)
+            result[idx] = rad.Shift(dy=dy, dx=dx, peak=float(np.median([s.peak for s in shifts])))
+            spreads[idx] = spread
+    return ref, result, spreads
+
+
+#: A band shift is trusted only when the phase-correlation peak stands out and the windows agree:
+#: bands that share little texture (NIR vs green over vegetation) give weak, wandering peaks.
+MISREGISTRATION_MIN_PEAK = 0.2
+MISREGISTRATION_MAX_SPREAD_PX = 1.0
+
+
+def misregistration_reliable(peak: float, spread_px: float | None) -> bool:
+    return peak >= MISREGISTRATION_MIN_PEAK and (spread_px is None or spread_px <= MISREGISTRATION_MAX_SPREAD_PX)
 
 
 def _mask(ds: rasterio.io.DatasetReader, info: BandInfo, win: Window) -> np.ndarray | None:

@@ -40,13 +40,15 @@ class ReportOptions:
     up to ``max_pass_rows`` per rule. Figures are drawn for at most ``max_figure_blocks`` blocks
     (rejected blocks first, then by points above the limit and RMSE): drawing and embedding a
     figure costs about a second, so a national delivery shows its worst blocks, and the attached
-    checkpoints.csv holds every point.
+    checkpoints.csv holds every point. Edge targets likewise: the ESF/LSF/MTF figures of at most
+    ``max_figure_edges`` targets (failing or erring targets first), their values all tabulated.
     """
 
     bounded: bool = False
     max_pass_rows: int = 2000
     max_points: int = 300
     max_figure_blocks: int = 6
+    max_figure_edges: int = 6
     figures: bool = True
 
 
@@ -334,12 +336,16 @@ def _block_figures(b: dict[str, Any], bid: str) -> list[dict[str, str]]:
     return out
 
 
-def _edge_targets(doc: dict[str, Any]) -> list[dict[str, Any]]:
-    """Edge-target results (``details.edges``): health checks and estimators per target.
+def _edge_targets(doc: dict[str, Any], opts: ReportOptions | None = None,
+                  figure: Callable[[str, str], str] | None = None,
+                  cache: dict[str, list[dict[str, str]]] | None = None) -> list[dict[str, Any]]:
+    """Edge-target results (``details.edges``): health checks, estimators and figures per target.
 
-    qcr.json stores the flat results of the edge chain, not the ESF/LSF/MTF curves, so the report
-    tabulates them; the curves are drawn by ``orthospec measure edge`` from the image itself.
+    The figures (detection, ESF, LSF, MTF) are drawn from the decimated ``curves`` the edge
+    provider stores in qcr.json; a document without them (older or hand-made) gets the tables only.
     """
+    opts = opts or ReportOptions()
+    cache = {} if cache is None else cache
     edges = (doc.get("details") or {}).get("edges")
     if not isinstance(edges, dict):
         return []
@@ -365,7 +371,86 @@ def _edge_targets(doc: dict[str, Any]) -> list[dict[str, Any]]:
                 estimates.append({"name": base, "value": v, "unit": d.get(f"{base}.unit"), "fit": fit})
         out.append({"id": tid, "valid": d.get("valid"), "reasons": d.get("reasons") or "",
                     "direction": d.get("direction"), "angle_deg": d.get("angle_deg"),
-                    "checks": checks, "estimates": estimates})
+                    "checks": checks, "estimates": estimates,
+                    "has_curves": isinstance(d.get("curves"), dict), "figures": []})
+    if figure is not None and opts.figures:
+        bad = {r["item"] for r in doc.get("records", [])
+               if r.get("scope") == "edge" and r.get("verdict") in ("fail", "error")}
+        ranked = sorted((e for e in out if e["has_curves"]), key=lambda e: e["id"] not in bad)  # stable
+        for e in ranked[: opts.max_figure_edges]:
+            key = f"edge:{e['id']}"  # block ids share the cache
+            if key not in cache:
+                cache[key] = _edge_figures(edges[e["id"]], e["id"])
+            e["figures"] = [{**f, "uri": figure(f["svg"], "image/svg+xml")} for f in cache[key]]
+    return out
+
+
+def _floats(v: Any) -> list[float]:
+    """A stored curve as floats (None -> NaN; anything that is not a list -> empty)."""
+    if not isinstance(v, list):
+        return []
+    return [float(x) if _numeric(x) else math.nan for x in v]
+
+
+def _edge_figures(d: dict[str, Any], tid: str) -> list[dict[str, str]]:
+    """CEOS steps 5-12 for one edge target, from ``details.edges.<id>.curves`` (SVG)."""
+    from ..figures import edge as figs  # matplotlib: imported only when figures are drawn
+
+    c = d["curves"]
+    status = "valid" if d.get("valid") else "INVALID"
+    out = []
+    lines = c.get("lines") or {}
+    shape = c.get("shape") or [0, 0]
+    angle = c.get("angle_deg")
+    angle_txt = f", {angle:.2f}°" if _numeric(angle) else ""
+    if lines.get("kept_x") or lines.get("rejected_x"):
+        svg = figs.detection_svg_from_arrays(
+            _floats(lines.get("kept_x")), _floats(lines.get("kept_y")), shape=(int(shape[0]), int(shape[1])),
+            rejected_x=_floats(lines.get("rejected_x")), rejected_y=_floats(lines.get("rejected_y")),
+            fit_x=_floats(lines.get("fit_x")), fit_y=_floats(lines.get("fit_y")),
+            title=f"{tid}: edge detection ({c.get('direction', '?')}{angle_txt}) — {status}")
+        out.append({"svg": svg, "kind": "edge detection",
+                    "caption": f"Edge target {tid}, edge detection: edge location per line (red; orange = "
+                               f"rejected as outlier) and the fitted edge line (green), in ROI pixels "
+                               f"(CEOS step 5)."})
+    n = len(c.get("mtf_freq") or [])
+    fits = []
+    for name, f in (c.get("fits") or {}).items():
+        if not isinstance(f, dict) or not _numeric(f.get("x0")) or not _numeric(f.get("dx")):
+            continue
+        esf = _floats(f.get("esf"))
+        fits.append(figs.FitCurves(
+            fit=str(name), x=[f["x0"] + i * f["dx"] for i in range(len(esf))], esf=esf,
+            lsf=_floats(f.get("lsf")), freq=_floats(c.get("mtf_freq")), mtf=_floats(f.get("mtf"))[:n],
+            centre_px=f.get("centre_px") if _numeric(f.get("centre_px")) else None,
+            fwhm_px=f.get("fwhm_px") if _numeric(f.get("fwhm_px")) else None,
+            mtf_nyquist=f.get("mtf_nyquist") if _numeric(f.get("mtf_nyquist")) else None))
+    esf = c.get("esf") or {}
+    if esf or fits:
+        svg = figs.esf_svg_from_arrays(
+            _floats(esf.get("d")), _floats(esf.get("v")), fits,
+            dark_start_px=esf.get("dark_start_px") if _numeric(esf.get("dark_start_px")) else None,
+            bright_start_px=esf.get("bright_start_px") if _numeric(esf.get("bright_start_px")) else None,
+            title=f"{tid}: edge spread function (ESF) — {status}")
+        shown = len(esf.get("d") or [])
+        out.append({"svg": svg, "kind": "edge esf",
+                    "caption": f"Edge target {tid}, ESF: {shown} of the {esf.get('n_samples', shown)} pixel "
+                               f"samples within the fitted window ±1 px (grey) at their perpendicular "
+                               f"distance from the edge, normalised "
+                               f"0 (dark) to 1 (bright), the fitted ESFs and the plateau starts "
+                               f"(CEOS steps 6-8)."})
+    if fits:
+        fw = "; ".join(f"{f.fit} {f.fwhm_px:.3f} px" for f in fits if f.fwhm_px is not None)
+        svg = figs.lsf_svg_from_arrays(fits, title=f"{tid}: line spread function (LSF) — {status}")
+        out.append({"svg": svg, "kind": "edge lsf",
+                    "caption": f"Edge target {tid}, LSF: derivative of the fitted ESF, the arrow marks "
+                               f"the full width at half maximum (FWHM {fw or 'n/a'}; CEOS steps 10-11)."})
+        ny = "; ".join(f"{f.fit} {f.mtf_nyquist:.3f}" for f in fits if f.mtf_nyquist is not None)
+        svg = figs.mtf_svg_from_arrays(fits, title=f"{tid}: modulation transfer function (MTF) — {status}")
+        out.append({"svg": svg, "kind": "edge mtf",
+                    "caption": f"Edge target {tid}, MTF: modulus of the Fourier transform of the LSF, "
+                               f"normalised at zero frequency; Nyquist (0.5 cycles/px) dashed, MTF there "
+                               f"{ny or 'n/a'} (CEOS step 12)."})
     return out
 
 
@@ -411,7 +496,7 @@ def report_context(doc: dict[str, Any], opts: ReportOptions | None = None, *,
         "waivers_unused": doc.get("waivers_unused") or [],
         "scopes": scopes,
         "checkpoints": _checkpoint_blocks(doc, opts, figure, {} if cache is None else cache),
-        "edges": _edge_targets(doc),
+        "edges": _edge_targets(doc, opts, figure, {} if cache is None else cache),
         "to_sign": list(to_sign.values()), "signed": signed,
         "signoffs": doc.get("signoffs") or [],
         "parameters": sorted((p.get("parameters") or {}).items()),

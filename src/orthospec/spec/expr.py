@@ -16,7 +16,8 @@ ever compiled or executed):
     call    := ('min'|'max'|'abs') '(' expr (',' expr)* ')'
 
 Names resolve through a caller-given mapping: parameters, manifest paths (``manifest.sensor.type``)
-and measures of the rule's scope. Values may be numbers, strings, booleans, numpy arrays or pint
+and measures of the rule's scope. In comparisons and in + and -, a bare number takes the unit of
+the other side: ``images.roll > 1`` reads 1 deg, ``cloud_cover < 5`` reads 5 %. Values may be numbers, strings, booleans, numpy arrays or pint
 quantities, so one expression evaluates a whole column at once (vectorised).
 """
 
@@ -190,12 +191,37 @@ class _Eval:
         raise ExpressionError(f"cannot evaluate {type(node).__name__} in {self.src!r}")
 
     def _arith(self, fn: Callable[[Any, Any], Any], a: Any, b: Any) -> Any:
+        if fn in _SAME_UNIT:
+            a, b = _coerce_bare(a, b)
         try:
             return fn(a, b)
         except ZeroDivisionError:
             raise ExpressionError(f"division by zero in {self.src!r}") from None
         except Exception as exc:  # pint DimensionalityError, TypeError on str vs number
             raise ExpressionError(f"cannot combine {_show(a)} and {_show(b)} in {self.src!r}: {exc}") from None
+
+
+#: Operations where a bare number takes the unit of the other side ("roll > 1" with roll in deg
+#: means 1 deg, not 1 radian; "cloud < 5" with cloud in % means 5 %). pint alone would read a
+#: bare number as dimensionless and convert deg to rad or % to a fraction.
+_SAME_UNIT = {operator.add, operator.sub, *_CMP.values()}
+
+
+def _coerce_bare(a: Any, b: Any) -> tuple[Any, Any]:
+    ua, ub = hasattr(a, "units"), hasattr(b, "units")
+    if ua and not ub and _is_number(b):
+        return a, type(a)(b, a.units)
+    if ub and not ua and _is_number(a):
+        return type(b)(a, b.units), b
+    return a, b
+
+
+def _is_number(v: Any) -> bool:
+    if isinstance(v, bool):
+        return False
+    if isinstance(v, int | float | np.integer | np.floating):
+        return True
+    return isinstance(v, np.ndarray) and v.dtype.kind in "fiu"
 
 
 def _truth(v: Any) -> Any:

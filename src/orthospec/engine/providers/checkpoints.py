@@ -31,7 +31,8 @@ BLOCK_MEASURES: dict[str, str] = {f"checkpoints.{k}": ("m" if u == "L" else u) f
 BLOCK_MEASURES.update({
     "checkpoints.rmse_x_all": "m", "checkpoints.rmse_y_all": "m", "checkpoints.rmse_z_all": "m",
     "checkpoints.n_all": "1", "checkpoints.excluded": "1", "checkpoints.blunders": "1",
-    "checkpoints.blunders_unjustified": "1", "checkpoints.bias_negligible": "bool",
+    "checkpoints.blunders_unjustified": "1", "checkpoints.blunders_uninspected": "1",
+    "checkpoints.bias_negligible": "bool",
     "checkpoints.nssda_approximation_holds": "bool",
     "checkpoints.rmse_x_gsd": "px", "checkpoints.rmse_y_gsd": "px",
     "checkpoints.quadrant_min_share": "%", "checkpoints.spacing_ratio": "1",
@@ -123,6 +124,8 @@ def _compute_once(ctx: ProviderContext) -> dict[str, Any]:
         out["checkpoints.excluded"] = len(br.excluded)
         out["checkpoints.blunders"] = len(br.candidates)
         out["checkpoints.blunders_unjustified"] = len(br.errors)
+        # a candidate excluded with a documented justification has been inspected (§12.6)
+        out["checkpoints.blunders_uninspected"] = len(set(br.candidates) - set(br.excluded))
         # ASPRS Ed. 2: product accuracy combines the checkpoint survey's own error (RMSE_H2, RMSE_V2)
         survey_h = float(_param(ctx, "survey_rmse_h", 0.0, "m") or 0.0)
         survey_v = float(_param(ctx, "survey_rmse_v", 0.0, "m") or 0.0)

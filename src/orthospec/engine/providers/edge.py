@@ -4,6 +4,10 @@ Edge targets are listed in the manifest (`edge_targets: [{id, image, roi, band}]
 read with one windowed rasterio read and measured by :func:`orthospec.measures.edge.measure_edge`.
 When a health check fails, the estimators of that target are *errors* with the reason, never
 values reported as if valid.
+
+Each target's detail also carries ``curves`` (:func:`edge_curves`): the detection, ESF, LSF and
+MTF decimated and rounded so that the report can draw them from qcr.json alone (the report must
+re-render from the stored document) while the document stays small (< ~30 kB per target).
 """
 
 from __future__ import annotations
@@ -16,7 +20,7 @@ import rasterio
 from rasterio.windows import Window
 
 from ...errors import OrthospecError
-from ...measures.edge import measure_edge
+from ...measures.edge import NYQUIST, EdgeResult, measure_edge
 from ...raster.reading import read_only_env
 from ..registry import Measured, ProviderContext, provider
 
@@ -33,6 +37,85 @@ ESTIMATES = {  # measure -> estimator name
 }
 MEASURES = {"edge.valid": "bool", "edge.direction": "text",
             **{k: u for k, (_, u) in HEALTH.items()}, **{k: u for k, (_, u) in ESTIMATES.items()}}
+
+# bounds of the stored curves: enough to draw them legibly, small enough for qcr.json
+CURVE_DIGITS = 6           # significant digits of every stored number
+MAX_ESF_SAMPLES = 300      # ESF pixel samples (of typically ~10^4)
+MAX_LINES = 150            # per-line edge locations
+FIT_STEP_PX = 0.05         # grid of the fitted ESF/LSF (a multiple of it for wide windows)
+MAX_FIT_POINTS = 161
+MTF_STEP = 0.02            # cycles/px, MTF stored at 0..1
+MTF_MAX = 1.0
+
+
+def _r(a: Any) -> list[float | None]:
+    """Rounded to CURVE_DIGITS significant digits, NaN/inf -> None (JSON-safe, deterministic)."""
+    return [float(f"{x:.{CURVE_DIGITS}g}") if np.isfinite(x) else None
+            for x in np.asarray(a, dtype=float).ravel().tolist()]
+
+
+def _r1(x: float | None) -> float | None:
+    return None if x is None else _r([x])[0]
+
+
+def _pick(n: int, most: int) -> np.ndarray:
+    """``most`` indices spread evenly over ``range(n)`` (all when n <= most), first and last kept."""
+    if n <= most:
+        return np.arange(n)
+    return np.unique(np.round(np.linspace(0, n - 1, most)).astype(int))
+
+
+def edge_curves(res: EdgeResult) -> dict[str, Any]:
+    """The curves of one edge for the report, from the result of the chain.
+
+    ``lines``: per-line edge locations in ROI pixels (kept and rejected lines) and the end points
+    of the fitted line; ``esf``: normalised pixel samples (0 dark, 1 bright) at their perpendicular
+    distance within the fitted window +-1 px; ``fits``: per fit (primary first) the ESF and LSF on
+    the grid ``x0 + i * dx`` px and the MTF at ``mtf_freq`` cycles/px, with the FWHM, its centre and
+    the MTF at Nyquist. Everything is decimated deterministically (evenly spaced samples).
+    """
+    out: dict[str, Any] = {"shape": [int(res.shape[0]), int(res.shape[1])],
+                           "direction": res.direction, "angle_deg": _r1(res.angle_deg)}
+    fin = np.isfinite(res.line_x) & np.isfinite(res.line_y)
+    lines: dict[str, Any] = {}
+    for key, sel in (("kept", res.line_kept & fin), ("rejected", ~res.line_kept & fin)):
+        idx = np.flatnonzero(sel)
+        idx = idx[_pick(idx.size, MAX_LINES)]
+        lines[f"{key}_x"], lines[f"{key}_y"] = _r(res.line_x[idx]), _r(res.line_y[idx])
+    ok = np.flatnonzero(np.isfinite(res.fitted_x) & np.isfinite(res.fitted_y))
+    if ok.size:
+        ends = ok[[0, -1]]
+        lines["fit_x"], lines["fit_y"] = _r(res.fitted_x[ends]), _r(res.fitted_y[ends])
+    out["lines"] = lines
+    if res.dark_level is not None and res.bright_level is not None and res.window_px \
+            and res.bright_level > res.dark_level:
+        lo, hi = res.window_px
+        sel = (res.esf_d >= lo - 1) & (res.esf_d <= hi + 1)
+        d = res.esf_d[sel]
+        v = (res.esf_dn[sel] - res.dark_level) / (res.bright_level - res.dark_level)
+        k = _pick(d.size, MAX_ESF_SAMPLES)
+        out["esf"] = {"d": _r(d[k]), "v": _r(v[k]), "n_samples": int(d.size),
+                      "window_px": _r(res.window_px),
+                      "dark_start_px": _r1(res.dark_start_px), "bright_start_px": _r1(res.bright_start_px)}
+    fits = sorted(res.fits.values(), key=lambda f: (f.fit != res.primary_fit, f.fit))
+    if fits:
+        nf = round(MTF_MAX / MTF_STEP) + 1
+        freq = np.round(np.arange(nf) * MTF_STEP, 10)
+        out["mtf_freq"] = _r(freq)
+        out["fits"] = {}
+        for f in fits:
+            grid = float(np.median(np.diff(f.x))) if f.x.size > 1 else FIT_STEP_PX
+            stride = max(1, round(FIT_STEP_PX / grid))
+            stride *= max(1, int(np.ceil((f.x.size - 1) / stride / (MAX_FIT_POINTS - 1))))
+            idx = np.arange(0, f.x.size, stride)
+            out["fits"][f.fit] = {
+                "x0": _r1(float(f.x[0])), "dx": _r1(grid * stride),
+                "esf": _r(f.esf[idx]), "lsf": _r(f.lsf[idx]),
+                "mtf": _r(np.interp(freq, f.mtf_freq, f.mtf)),
+                "centre_px": _r1(f.centre_px), "fwhm_px": _r1(f.fwhm_px), "rer": _r1(f.rer),
+                "mtf_nyquist": _r1(f.mtf_nyquist), "nyquist": NYQUIST,
+            }
+    return out
 
 
 def _measure_all(ctx: ProviderContext) -> dict[str, Any]:
@@ -69,7 +152,8 @@ def edge_measures(ctx: ProviderContext) -> list[Measured]:
     got = _measure_all(ctx)
     ev = pd.Series({k: v["evidence"] for k, v in got.items()}, dtype=object)
     out = []
-    detail = {k: v["result"].to_dict() for k, v in got.items() if "result" in v}
+    detail = {k: {**v["result"].to_dict(), "curves": edge_curves(v["result"])}
+              for k, v in got.items() if "result" in v}
     for name, unit in MEASURES.items():
         vals: dict[str, Any] = {}
         errs: dict[str, str] = {}
