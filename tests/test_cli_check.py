@@ -113,3 +113,15 @@ def test_every_command_has_help():
     for path, cmd in walk(group, []):
         assert (cmd.help or "").strip(), f"orthospec {' '.join(path)} has no help text"
         assert run(*path, "--help").exit_code == 0
+
+
+def test_outputs_are_ordinary_files(make_delivery, mini_profile, tmp_path, capsys):
+    import os
+    import stat
+
+    run_main(["check", make_delivery(), "-p", mini_profile, "--out", tmp_path / "o", "--format", "json"], capsys)
+    mode = stat.S_IMODE((tmp_path / "o" / "qcr.json").stat().st_mode)
+    mask = os.umask(0)
+    os.umask(mask)
+    assert mode == 0o666 & ~mask
+    assert not list((tmp_path / "o").glob(".*.tmp"))  # no temp file left behind
