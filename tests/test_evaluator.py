@@ -127,3 +127,56 @@ def test_vectorised_over_many_items(make_delivery, mini_profile):
     failing = {k for k, v in roll.items() if v["verdict"] in ("fail", "waived")}
     expected = {f"I{i}" for i, r in enumerate(np.round(rolls, 3)) if r > 3}
     assert failing == expected
+
+
+def test_rejected_items_of_a_scope_without_rollup_return_the_delivery(make_delivery, tmp_path):
+    images = "image_id,file,block,flight_id,roll\nI1,a.tif,B1,F1,2.5\nI2,b.tif,B1,F2,0.1\n"
+    m = MANIFEST.replace("tables: {images: tables/images.csv, manual_checks: tables/manual.csv}",
+                         "tables: {images: tables/images.csv, flights: tables/flights.csv}")
+    root = make_delivery(manifest=m, images=images, manual=None,
+                         extra={"tables/flights.csv": "flight_id,camera_id\nF1,C1\nF2,C1\n"})
+    p = tmp_path / "p.yaml"
+    p.write_text("""\
+orthospec_profile: 1
+id: f
+version: 1.0.0
+title: flights
+source: {title: JRC EUR 23638 EN}
+rules:
+  - id: ROLL-MEAN
+    title: mean roll per flight
+    clause: {document: JRC EUR 23638 EN, section: "5.2.4"}
+    quote: Roll and drift
+    scope: flight
+    measure: flight.roll_mean_abs
+    requirement: {op: "<=", value: 1, unit: deg}
+    consequence: reject_item
+""")
+    doc = check(root, p, date="2026-01-01").document
+    assert doc["rollup"]["rejected"] == {"flight": ["F1"]}
+    assert doc["verdict"] == "rejected"
+    assert any("no roll-up rule covers the flight scope" in r for r in doc["rollup"]["reasons"])
+
+
+@pytest.mark.parametrize("value, expected", [("GeoTIFF", "pass"), ("pass", "fail"), ("Geo TIFF", "fail")])
+def test_text_requirements_are_literals_even_when_not_identifiers(make_delivery, tmp_path, value, expected):
+    images = "image_id,file,block,bands\nI1,a.tif,B1,GeoTIFF\n"
+    p = tmp_path / "p.yaml"
+    p.write_text(f"""\
+orthospec_profile: 1
+id: t
+version: 1.0.0
+title: text
+source: {{title: JRC EUR 23638 EN}}
+rules:
+  - id: FMT
+    title: format
+    clause: {{document: JRC EUR 23638 EN, section: "6.4"}}
+    quote: TIFF 6
+    scope: image
+    measure: images.bands
+    requirement: {{op: "==", value: "{value}"}}
+    consequence: reject_item
+""")
+    doc = check(make_delivery(images=images), p, date="2026-01-01").document
+    assert recs(doc, "FMT")["I1"]["verdict"] == expected

@@ -63,7 +63,10 @@ def check_cmd(delivery: Path, profile: str, params: tuple[str, ...], out_dir: Pa
     result = check(delivery, profile, params=params, date=date, fail_on=fail_on, operator=operator,
                    options=options)
     doc = result.document
-    files = render_documents(doc, [f for f in fmts if f != "terminal"],
+    shown = doc
+    if ledger_target is not None and ("html" in fmts or "pdf" in fmts):
+        shown = {**doc, "history": _history_with_this_run(ledger_target, doc)}
+    files = render_documents(shown, [f for f in fmts if f != "terminal"],
                              extra={"evaluation": result.evaluation})
     target = out_dir if out_dir is not None else Path("reports") / doc["delivery"]["id"]
     for name, data in files.items():
@@ -80,3 +83,23 @@ def check_cmd(delivery: Path, profile: str, params: tuple[str, ...], out_dir: Pa
             run_id = led.record(doc)
         click.echo(f"recorded run #{run_id} in ledger {led.display}")
     click.get_current_context().exit(0 if result.accepted else 1)
+
+
+def _history_with_this_run(ledger_target: str, doc: dict) -> list[dict]:
+    """The project's earlier runs from the ledger, then this one (recorded right after rendering)."""
+    from ..ledger import open_ledger
+
+    project = doc["delivery"]["project"].get("id")
+    with open_ledger(ledger_target) as led:
+        rows = [{"run": e.run.id, "round": e.round, "kind": e.kind, "date": e.run.date,
+                 "delivery": e.run.delivery_id, "verdict": e.run.verdict, "signoffs": e.signoffs,
+                 "profile": f"{e.run.profile_id} {e.run.profile_version}", "current": False}
+                for e in led.history(project).entries]
+    last_round = rows[-1]["round"] if rows else 0
+    redelivery = bool(rows) and rows[-1]["delivery"] != doc["delivery"]["id"]
+    rows.append({"run": "new", "round": last_round + 1 if redelivery or not rows else last_round,
+                 "kind": "delivery" if not rows else ("redelivery" if redelivery else "recheck"),
+                 "date": doc["date"], "delivery": doc["delivery"]["id"], "verdict": doc["verdict"],
+                 "signoffs": 0, "profile": f"{doc['profile']['id']} {doc['profile']['version']}",
+                 "current": True})
+    return rows

@@ -28,19 +28,35 @@ def _read_qcr(path: Path) -> dict:
 
 
 @main.command("report")
-@click.argument("qcr_json", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("qcr_json", type=click.Path(dir_okay=False, path_type=Path), required=False)
 @click.option("--format", "formats", default="html,pdf", show_default=True,
               help="Comma-separated: " + ", ".join(REPORT_FORMATS) + ".")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), default=None,
-              help="Folder for report.html / report.pdf (default: beside QCR_JSON).")
-def report_cmd(qcr_json: Path, formats: str, out_dir: Path | None) -> None:
-    """Render the auditor's report (HTML, archival PDF/A-3b) from a stored QCR_JSON."""
+              help="Folder for report.html / report.pdf (default: beside QCR_JSON, or ./report-run-N).")
+@click.option("--ledger", "ledger_target", default=None, metavar="PATH|URL",
+              help="Render a run stored in the QCR ledger, with its sign-offs and the project's history.")
+@click.option("--run", "run_id", type=int, default=None, help="Run id in the ledger (with --ledger).")
+def report_cmd(qcr_json: Path | None, formats: str, out_dir: Path | None, ledger_target: str | None,
+               run_id: int | None) -> None:
+    """Render the auditor's report (HTML, archival PDF/A-3b) from a stored QCR_JSON or a ledger run."""
     from ..reports import document as reportdoc  # WeasyPrint only when this command runs
 
     fmts = split_formats(formats, REPORT_FORMATS)
-    doc = _read_qcr(qcr_json)
+    if ledger_target is not None or run_id is not None:
+        if ledger_target is None or run_id is None or qcr_json is not None:
+            raise click.UsageError("give either QCR_JSON, or --ledger PATH|URL with --run N")
+        from ..ledger import open_ledger
+
+        with open_ledger(ledger_target, create=False) as led:
+            doc = led.report_document(run_id)
+        default_target = Path(f"report-run-{run_id}")
+    elif qcr_json is None:
+        raise click.UsageError("give QCR_JSON, or --ledger PATH|URL with --run N")
+    else:
+        doc = _read_qcr(qcr_json)
+        default_target = qcr_json.parent
     files = reportdoc.render(doc, formats=fmts)
-    target = out_dir if out_dir is not None else qcr_json.parent
+    target = out_dir if out_dir is not None else default_target
     for name, data in files.items():
         atomic_write(target / name, data)
     click.echo(f"wrote {', '.join(sorted(files))} to {target}/ (qcr.json SHA-256 "

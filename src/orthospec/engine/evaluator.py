@@ -17,7 +17,7 @@ import numpy as np
 import pandas as pd
 
 from ..delivery.reader import MANIFEST, Delivery
-from ..errors import OrthospecError, UnitError
+from ..errors import ExpressionError, OrthospecError, UnitError
 from ..provenance import Evidence
 from ..spec import expr
 from ..spec.loader import ResolvedProfile
@@ -633,6 +633,12 @@ class Evaluator:
         if rejected.get("image") and not has_image_rollup:
             reasons.append("image(s) rejected and the profile has no delivery-level roll-up rule: any "
                            "rejected image returns the delivery")
+        for scope, items in rejected.items():
+            if scope in ("image", "block") or not items:
+                continue  # these two have the JRC §12.3 / §12.8 roll-up rules above
+            shown = ", ".join(items[:5]) + (f" (+{len(items) - 5} more)" if len(items) > 5 else "")
+            reasons.append(f"{scope} item(s) {shown} rejected and no roll-up rule covers the {scope} scope: "
+                           "a rejected item returns the delivery")
         return ("rejected" if reasons else "accepted"), reasons
 
 

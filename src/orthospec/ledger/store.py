@@ -305,6 +305,20 @@ class Ledger:
                  "date": r["date"], "note": r["note"], "manual": json.loads(r["manual"]),
                  "recorded_at": r["recorded_at"]} for r in rows]
 
+    def report_document(self, run_id: int) -> dict[str, Any]:
+        """What a report of ``run_id`` shows: its document, sign-offs and the project's sequence of
+        deliveries, redeliveries and verdicts up to that run (JRC §12.8: redeliver until acceptable)."""
+        doc = self.document_with_signoffs(run_id)
+        project = self.run(run_id).project_id
+        hist = self.history(project)
+        doc["history"] = [
+            {"run": e.run.id, "round": e.round, "kind": e.kind, "date": e.run.date,
+             "delivery": e.run.delivery_id, "verdict": e.run.verdict, "signoffs": e.signoffs,
+             "profile": f"{e.run.profile_id} {e.run.profile_version}", "current": e.run.id == run_id}
+            for e in hist.entries if e.run.seq <= self.run(run_id).seq
+        ]
+        return doc
+
     def document_with_signoffs(self, run_id: int) -> dict[str, Any]:
         """The stored qcr document plus ``signoffs`` [{by, role, date, note, manual}] for reports."""
         doc = self.document(run_id)

@@ -15,10 +15,10 @@ from collections.abc import Iterable
 from typing import Any
 
 from ..errors import ReportError
-from ..qcr import dumps, natural_key
+from ..qcr import natural_key
 from ..resources import templates_dir
 from .fetcher import SafeFetcher, data_uri
-from .html import ReportOptions, document_sha256, render_html
+from .html import ReportOptions, canonical_qcr, document_sha256, render_html
 
 __all__ = ["FORMATS", "checkpoints_csv", "document_sha256", "render"]
 
@@ -60,8 +60,8 @@ def render(doc: dict[str, Any], *, formats: Iterable[str] = FORMATS, extra: dict
     _check_doc(doc)
     out: dict[str, str | bytes] = {}
     cache: dict[str, list[dict[str, str]]] = {}  # figures are drawn once for both formats
-    qcr_text = dumps(doc)  # serialised once: checksum and attachment (national deliveries are large)
-    sha = document_sha256(doc) if "signoffs" in doc else hashlib.sha256(qcr_text.encode("utf-8")).hexdigest()
+    qcr_text = canonical_qcr(doc)  # serialised once: checksum and attachment (national deliveries are large)
+    sha = hashlib.sha256(qcr_text.encode("utf-8")).hexdigest()
     if "html" in fmts:
         opts = options or ReportOptions(bounded=False)
         out["report.html"] = render_html(doc, opts, figure=data_uri, cache=cache, sha256=sha)
@@ -72,10 +72,9 @@ def render(doc: dict[str, Any], *, formats: Iterable[str] = FORMATS, extra: dict
         fetcher = SafeFetcher(templates_dir())
         html = render_html(doc, opts, figure=lambda data, mime: fetcher.allow(data_uri(data, mime)),
                            pdf=True, cache=cache, sha256=sha)
-        signed = " plus sign-offs" if "signoffs" in doc else ""
         files = [FileAttachment("qcr.json", qcr_text.encode("utf-8"),
-                                f"The complete quality control records{signed} "
-                                f"(report checksum SHA-256 {sha}, sign-offs excluded)")]
+                                f"The complete quality control records as orthospec check wrote them "
+                                f"(SHA-256 {sha}); sign-offs and history are in the report and the ledger")]
         cps = (doc.get("details") or {}).get("checkpoints")
         if cps:
             files.append(FileAttachment("checkpoints.csv", checkpoints_csv(doc).encode("utf-8"),

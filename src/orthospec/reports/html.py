@@ -52,9 +52,13 @@ class ReportOptions:
     figures: bool = True
 
 
+#: Keys a report may carry beside the QCR document (from the ledger); never part of qcr.json.
+CONTEXT_KEYS = ("signoffs", "history", "ledger")
+
+
 def canonical_qcr(doc: dict[str, Any]) -> str:
-    """qcr.json text as ``orthospec check`` writes it, without sign-offs added later."""
-    return dumps({k: v for k, v in doc.items() if k != "signoffs"})
+    """qcr.json text as ``orthospec check`` writes it, without the ledger context added later."""
+    return dumps({k: v for k, v in doc.items() if k not in CONTEXT_KEYS})
 
 
 def document_sha256(doc: dict[str, Any]) -> str:
@@ -499,6 +503,8 @@ def report_context(doc: dict[str, Any], opts: ReportOptions | None = None, *,
         "edges": _edge_targets(doc, opts, figure, {} if cache is None else cache),
         "to_sign": list(to_sign.values()), "signed": signed,
         "signoffs": doc.get("signoffs") or [],
+        "history": doc.get("history") or [],
+        "ledger": doc.get("ledger"),
         "parameters": sorted((p.get("parameters") or {}).items()),
         "files": d.get("files") or [],
         "title": f"Quality control report — delivery {d.get('id', '?')}",
