@@ -5,7 +5,10 @@
 set -euo pipefail
 need=()
 ldconfig -p 2>/dev/null | grep -q 'libpango-1.0.so' || need+=(libpango-1.0-0 libpangoft2-1.0-0 libharfbuzz0b libharfbuzz-subset0)
+ldconfig -p 2>/dev/null | grep -q 'libharfbuzz-subset.so' || need+=(libharfbuzz-subset0)
 command -v pdftoppm >/dev/null 2>&1 || need+=(poppler-utils)
+# gdalinfo: the radiometry tests compare with `gdalinfo -stats -hist`; the benchmark times it
+command -v gdalinfo >/dev/null 2>&1 || need+=(gdal-bin)
 fc-list 2>/dev/null | grep -qi 'dejavu' || need+=(fonts-dejavu-core fontconfig)
 # ledger tests start a throw-away PostgreSQL server (initdb/pg_ctl) on 127.0.0.1
 compgen -G '/usr/lib/postgresql/*/bin/initdb' >/dev/null || need+=(postgresql)
