@@ -54,9 +54,20 @@ def _findings(doc: dict[str, Any], verdicts: tuple[str, ...], level: str) -> set
 def test_every_record_carries_clause_and_the_profiles_verbatim_quote(runs: dict, name: str) -> None:
     _, doc = runs[name]
     assert doc["profile"]["id"] == "jrc-v3" and len(doc["rules"]) == len(RULES)
+    seed = " ".join((ROOT.parent / "shared" / "seeds" / "002_7421c4ca450e31c6.txt")
+                    .read_text(encoding="utf-8").split())
     for r in doc["records"]:
         assert r["clause"]["document"] == "JRC EUR 23638 EN" and r["clause"]["section"], r["rule"]
         assert r["quote"] and r["quote"] == RULES[r["rule"]]["quote"], r["rule"]
+        # the record itself carries words of the seed it cites (whitespace-normalised)
+        assert " ".join(r["quote"].split()) in seed, (r["rule"], r["quote"])
+
+
+def test_same_date_gives_byte_identical_qcr_json(tmp_path: Path) -> None:
+    a = _check("aerial-pass", tmp_path / "a")
+    b = _check("aerial-pass", tmp_path / "b")
+    assert a == b
+    assert (tmp_path / "a" / "qcr.json").read_bytes() == (tmp_path / "b" / "qcr.json").read_bytes()
 
 
 def test_aerial_pass_is_accepted_with_only_documented_warnings(runs: dict) -> None:
