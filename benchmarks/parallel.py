@@ -64,8 +64,13 @@ def main() -> None:
         from distributed import LocalCluster
 
         t0 = time.perf_counter()
-        with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                          dashboard_address=None) as cluster:
+        import dask
+
+        # workers spawned without the nanny's single-thread BLAS and malloc-trim overrides;
+        # orthospec also tunes the allocator of workers it did not start (raster.parallel)
+        with dask.config.set({"distributed.nanny.pre-spawn-environ": {}}), \
+                LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                             dashboard_address=None) as cluster:
             t_cluster = time.perf_counter() - t0
             t1 = time.perf_counter()
             dsk = scan_images(files, scheduler=cluster.scheduler_address)

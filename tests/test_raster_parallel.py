@@ -139,3 +139,9 @@ def test_public_api_names_resolve():
         assert getattr(api, name) is not None
     with pytest.raises(AttributeError):
         api.no_such_name  # noqa: B018
+
+
+def test_tune_allocator_sets_the_trim_threshold():
+    from orthospec.raster.parallel import tune_allocator
+
+    assert tune_allocator(1 << 30) is True  # glibc on this platform accepts M_TRIM_THRESHOLD

@@ -8,6 +8,7 @@ the result for the file's SHA-256 and the same settings.
 
 from __future__ import annotations
 
+
 import multiprocessing
 import os
 import sys
@@ -401,6 +402,29 @@ def scan_images(
     return reports
 
 
+#: glibc mallopt parameter: bytes of free heap kept before memory is returned to the OS
+_M_TRIM_THRESHOLD = -1
+
+
+def tune_allocator(trim_threshold: int = 1 << 30) -> bool:
+    """Keep freed block buffers in the process instead of trimming after every image.
+
+    Dask's nanny starts workers with ``MALLOC_TRIM_THRESHOLD_=65536``: glibc then gives memory back
+    after each large numpy buffer and every block read pays for fresh pages, which measured about
+    twice as slow per image as a plain process here. ``mallopt`` changes that at run time.
+    """
+    import ctypes
+    import ctypes.util
+
+    name = ctypes.util.find_library("c")
+    if not name:
+        return False
+    libc = ctypes.CDLL(name)
+    if not hasattr(libc, "mallopt"):
+        return False
+    return bool(libc.mallopt(_M_TRIM_THRESHOLD, int(trim_threshold)))
+
+
 def _run_dask(scheduler: Any, paths: list[str], opts: ScanOptions, masks: dict[str, str],
               done: Callable[[int, ImageReport], None]) -> None:
     from distributed import Client
@@ -412,6 +436,8 @@ def _run_dask(scheduler: Any, paths: list[str], opts: ScanOptions, masks: dict[s
     else:
         client = Client(getattr(scheduler, "scheduler_address", scheduler))
     try:
+        with suppress(Exception):  # best effort: a worker without glibc keeps its allocator
+            client.run(tune_allocator)
         futs = [client.submit(scan_image, p, opts, cloud_mask=masks.get(p), pure=False)
                 for p in paths]
         index = {f.key: i for i, f in enumerate(futs)}
