@@ -8,7 +8,6 @@ the result for the file's SHA-256 and the same settings.
 
 from __future__ import annotations
 
-
 import multiprocessing
 import os
 import sys
