@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import csv
 import io
-import math
 import re
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -357,7 +356,3 @@ def open_delivery(path: str | Path) -> Delivery:
                  manifest_sha256=sha256_file(mpath), positions=doc.marks)
     d._sha[MANIFEST] = d.manifest_sha256
     return d
-
-
-def finite(values: Any) -> bool:
-    return all(math.isfinite(float(v)) for v in values)

@@ -134,10 +134,9 @@ class _Names(Mapping[str, Any]):
     """Names an expression may use: parameters, manifest paths, measures of the rule's scope."""
 
     def __init__(self, params: dict[str, ParamValue], manifest: dict[str, Any], cache: MeasureCache,
-                 scope: str, items: list[str], classes: dict[str, Any]) -> None:
+                 scope: str, items: list[str]) -> None:
         self.params, self.manifest, self.cache = params, manifest, cache
         self.scope, self.items = scope, items
-        self.classes = classes
 
     def __getitem__(self, key: str) -> Any:
         if key in self.params:
@@ -259,7 +258,7 @@ class Evaluator:
         n = len(items)
         if not rule.when:
             return np.ones(n, dtype=bool)
-        names = _Names(self.params, self.manifest, self.cache, rule.scope, items, dict(self.profile.classes))
+        names = _Names(self.params, self.manifest, self.cache, rule.scope, items)
         cond = expr.parse(rule.when).evaluate(names)
         cond = getattr(cond, "magnitude", cond)
         if cond is None:
@@ -277,7 +276,7 @@ class Evaluator:
         e = expr.parse(rule.when)
         if any(not (n in self.params or n.startswith(("manifest.", "param."))) for n in e.names):
             return None
-        names = _Names(self.params, self.manifest, self.cache, rule.scope, [], {})
+        names = _Names(self.params, self.manifest, self.cache, rule.scope, [])
         v = e.evaluate(names)
         v = getattr(v, "magnitude", v)
         return bool(v) if v is not None and np.ndim(v) == 0 else False
@@ -305,8 +304,7 @@ class Evaluator:
         n = len(items)
         verdict = np.full(n, PASS, dtype=np.int8)
         notes = np.full(n, None, dtype=object)
-        names = _Names(self.params, self.manifest, self.cache, rule.scope, items,
-                       dict(self.profile.classes))
+        names = _Names(self.params, self.manifest, self.cache, rule.scope, items)
         applicable = self._applicable(rule, items)
         sampled = self._sample_mask(rule.scope, items)
         if sampled is not None:

@@ -221,21 +221,3 @@ class MeasureCache:
                     for k, v in m.detail.items():
                         out.setdefault(k, v)
         return dict(sorted(out.items()))
-
-
-def _details_of(m: Measured) -> dict[str, Any] | None:
-    return m.detail
-
-
-def constant_evidence(index: Iterable[str], evidence: tuple[Evidence, ...]) -> pd.Series:
-    """An evidence column where every item shares the same evidence."""
-    idx = pd.Index([str(i) for i in index])
-    return pd.Series([evidence] * len(idx), index=idx, dtype=object)
-
-
-def rows_evidence(groups: Mapping[str, np.ndarray | list[int]], *, file: str, sha256: str) -> pd.Series:
-    """An evidence column from item -> table rows (1-based data rows)."""
-    return pd.Series(
-        {str(k): (Evidence(file, sha256, tuple(int(r) for r in v)),) for k, v in groups.items()},
-        dtype=object,
-    )

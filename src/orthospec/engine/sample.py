@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -110,7 +109,3 @@ def read_sample(path: str | Path) -> tuple[str, set[str]]:
         raise DeliveryError(f"a sample table holds one scope (image or block), found {sorted(scopes)}",
                             file=str(path))
     return scopes.pop(), set(df["item"].astype(str))
-
-
-def target_size(n: int, fraction: float, minimum: int) -> int:
-    return min(n, max(minimum, math.ceil(fraction * n)))

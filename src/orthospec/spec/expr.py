@@ -250,7 +250,3 @@ def _where(cond: Any, a: Any, b: Any) -> Any:
 def _show(v: Any) -> str:
     text = repr(v)
     return text if len(text) < 40 else text[:37] + "..."
-
-
-def describe_ops() -> str:
-    return "arithmetic + - * / % **, comparisons " + " ".join(_CMP_TEXT.values()) + ", and/or/not, min/max/abs"
