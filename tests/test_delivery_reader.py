@@ -98,3 +98,11 @@ def test_reading_never_modifies_the_delivery(make_delivery):
     after = {p: sha256_file(p) for p in root.rglob("*") if p.is_file()}
     assert before == after
     assert IMAGES  # fixture text used above
+
+
+def test_misspelt_manifest_key_gets_a_suggestion(make_delivery):
+    from tests.conftest import MANIFEST
+
+    root = make_delivery(manifest=MANIFEST.replace("contractor:", "contracter:"))
+    with pytest.raises(DeliveryError, match="did you mean 'contractor'"):
+        open_delivery(root)

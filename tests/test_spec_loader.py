@@ -141,3 +141,10 @@ def test_published_schemas_are_up_to_date():
         on_disk = (specs_dir() / "schema" / name).read_text(encoding="utf-8")
         assert on_disk == schema_mod.dumps(schema), f"{name} is stale: run python -m orthospec.spec.schema"
         jsonschema.Draft202012Validator.check_schema(json.loads(on_disk))
+
+
+def test_suggestions_for_measures_and_profiles(tmp_path):
+    bad = write(tmp_path, "bad.yaml", BASE.replace("checkpoints.rmse_y", "checkpoints.rmse_yy"))
+    assert any("did you mean 'checkpoints.rmse_y'" in str(p) for p in validate_file(bad))
+    with pytest.raises(SpecError, match="did you mean 'jrc-v3'"):
+        load_profile("jrc-v2")

@@ -82,11 +82,21 @@ def validate_cmd(files: tuple[Path, ...]) -> None:
 @click.argument("a")
 @click.argument("b")
 @click.option("--json", "as_json", is_flag=True)
-def diff_cmd(a: str, b: str, as_json: bool) -> None:
+@click.option("--all", "show_all", is_flag=True, help="Also show changed prose (descriptions, notes, titles).")
+def diff_cmd(a: str, b: str, as_json: bool, show_all: bool) -> None:
     """What changed from profile A to profile B: rules and thresholds added, removed, changed."""
     import json
 
     d = diff_profiles(load_profile(a), load_profile(b))
+    if not show_all:
+        prose = ("description", "note", "title")
+        for kind in ("parameters", "rules"):
+            changed = {}
+            for name, fields in d[kind]["changed"].items():
+                kept = {f: v for f, v in fields.items() if f.split(".")[-1] not in prose}
+                if kept:
+                    changed[name] = kept
+            d[kind]["changed"] = changed
     if as_json:
         click.echo(json.dumps(d, indent=1, ensure_ascii=False))
         return

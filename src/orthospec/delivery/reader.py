@@ -322,6 +322,16 @@ def _convert_column(cells: np.ndarray, rows: np.ndarray, kind: str, col: str, fi
     raise AssertionError(kind)
 
 
+def _suggest_key(loc: tuple[Any, ...]) -> str:
+    """'; did you mean contractor?' for a misspelt top-level manifest key."""
+    import difflib
+
+    if len(loc) != 1:
+        return ""
+    near = difflib.get_close_matches(str(loc[0]), list(Manifest.model_fields), n=1, cutoff=0.75)
+    return f"; did you mean {near[0]!r}?" if near else ""
+
+
 def open_delivery(path: str | Path) -> Delivery:
     """Open and validate a delivery folder; raise DeliveryError naming file and line."""
     root = Path(path)
@@ -346,7 +356,8 @@ def open_delivery(path: str | Path) -> Delivery:
             loc = tuple(e["loc"])
             line, col = doc.where(loc)
             where = f"{MANIFEST}:{line}:{col}" if line else MANIFEST
-            lines.append(f"{where}: {'.'.join(map(str, loc)) or '(document)'}: {e['msg']}")
+            hint = _suggest_key(loc) if e["type"] == "extra_forbidden" else ""
+            lines.append(f"{where}: {'.'.join(map(str, loc)) or '(document)'}: {e['msg']}{hint}")
         raise DeliveryError("invalid manifest:\n  " + "\n  ".join(lines)) from None
     for name in manifest.tables:
         if name not in table_specs():

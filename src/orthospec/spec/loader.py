@@ -192,9 +192,14 @@ def find_profile(ref: str | Path, *, near: Path | None = None, version: str | No
     extra = [near] if near else []
     matches = [t for t in available(extra) if t[0] == str(ref) and (version is None or t[1] == version)]
     if not matches:
-        known = ", ".join(f"{i} {v}" for i, v, _, _ in available(extra)) or "none"
+        import difflib
+
+        have = available(extra)
+        known = ", ".join(f"{i} {v}" for i, v, _, _ in have) or "none"
         pin = f" version {version}" if version else ""
-        raise SpecError(f"unknown profile {str(ref)!r}{pin}; available: {known}")
+        near = difflib.get_close_matches(str(ref), [i for i, _, _, _ in have], n=1, cutoff=0.6)
+        hint = f"; did you mean {near[0]!r}?" if near and not version else ""
+        raise SpecError(f"unknown profile {str(ref)!r}{pin}{hint}; available: {known}")
     return matches[-1][3]
 
 
@@ -375,7 +380,8 @@ def semantic_problems(p: ResolvedProfile, *, check_measures: bool = True) -> lis
         elif check_measures:
             info = measure_info(r.measure)
             if info is None:
-                add(r, ("measure",), f"unknown measure {r.measure!r} (see `orthospec measures`)")
+                add(r, ("measure",), f"unknown measure {r.measure!r}{_near_measure(r.measure)} "
+                    "(see `orthospec measures`)")
             elif info[0] != r.scope and not r.measure.startswith("manifest."):
                 add(r, ("scope",), f"measure {r.measure!r} is at scope {info[0]!r}, rule says {r.scope!r}")
         req = r.requirement
@@ -409,6 +415,19 @@ def semantic_problems(p: ResolvedProfile, *, check_measures: bool = True) -> lis
                     f"expression {text!r} names {n!r}, which is neither a parameter nor a measure")
     del docs
     return out
+
+
+def _near_measure(name: str) -> str:
+    import difflib
+
+    from ..delivery.convention import table_specs
+    from ..engine.registry import ROLLUP, known_measures
+
+    names = [*known_measures(), *ROLLUP]
+    for t, spec in table_specs().items():
+        names += [f"{t}.{c}" for c in spec.columns] + [f"{t}.present", f"{t}.count"]
+    near = difflib.get_close_matches(name, names, n=1, cutoff=0.8)
+    return f"; did you mean {near[0]!r}?" if near else ""
 
 
 def _looks_like_expr(text: str, known: set[str]) -> bool:
