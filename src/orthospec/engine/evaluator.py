@@ -237,9 +237,8 @@ class Evaluator:
     def _safe(self, rule: Rule) -> RuleResult:
         try:
             return self._evaluate(rule)
-        except (OrthospecError, KeyError) as exc:
-            msg = str(exc) if not isinstance(exc, KeyError) else f"no provider for measure {exc}"
-            return self._all(rule, ERROR, msg)
+        except OrthospecError as exc:
+            return self._all(rule, ERROR, str(exc))
         except Exception as exc:  # a crashing rule is `error`, never `fail`, and never stops the run
             return self._all(rule, ERROR, f"internal error in rule: {type(exc).__name__}: {exc}")
 

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pandas as pd
 
-from ..errors import OrthospecError
+from ..errors import MeasureError, OrthospecError
 from ..provenance import Evidence
 
 if TYPE_CHECKING:
@@ -169,6 +169,13 @@ ROLLUP: dict[str, tuple[str, str]] = {
 }
 
 
+class UnknownMeasure(MeasureError, KeyError):
+    """No provider supplies this measure (a profile naming it fails validation first)."""
+
+    def __str__(self) -> str:
+        return f"no provider for measure {self.args[0]!r}"
+
+
 class MeasureCache:
     """Calls each provider at most once per run; remembers failures as per-measure errors."""
 
@@ -183,7 +190,7 @@ class MeasureCache:
             from . import generic
 
             if generic.info(name) is None:
-                raise KeyError(name)
+                raise UnknownMeasure(name)
             gkey = ("generic", name)
             if gkey not in self._generic:
                 try:
@@ -207,7 +214,7 @@ class MeasureCache:
         if isinstance(got, Exception):
             raise got
         if name not in got:
-            raise KeyError(name)
+            raise UnknownMeasure(name)
         return got[name]
 
     def details(self) -> dict[str, Any]:
