@@ -88,13 +88,11 @@ def check_cmd(delivery: Path, profile: str, params: tuple[str, ...], out_dir: Pa
 def _history_with_this_run(ledger_target: str, doc: dict) -> list[dict]:
     """The project's earlier runs from the ledger, then this one (recorded right after rendering)."""
     from ..ledger import open_ledger
+    from ..ledger.history import history_rows
 
     project = doc["delivery"]["project"].get("id")
     with open_ledger(ledger_target) as led:
-        rows = [{"run": e.run.id, "round": e.round, "kind": e.kind, "date": e.run.date,
-                 "delivery": e.run.delivery_id, "verdict": e.run.verdict, "signoffs": e.signoffs,
-                 "profile": f"{e.run.profile_id} {e.run.profile_version}", "current": False}
-                for e in led.history(project).entries]
+        rows = history_rows(led.history(project).entries)
     last_round = rows[-1]["round"] if rows else 0
     redelivery = bool(rows) and rows[-1]["delivery"] != doc["delivery"]["id"]
     rows.append({"run": "new", "round": last_round + 1 if redelivery or not rows else last_round,

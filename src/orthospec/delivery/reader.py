@@ -76,6 +76,10 @@ class Delivery:
             self._sha[rel] = sha256_file(self.path(rel))
         return self._sha[rel]
 
+    def remember_sha256(self, rel: str, sha256: str) -> None:
+        """A checksum another reader already computed (the raster scan), so no file is hashed twice."""
+        self._sha.setdefault(rel, sha256)
+
     def evidence(self, rel: str, *, rows: Any = (), path: str | None = None) -> Evidence:
         return Evidence(rel, self.sha256(rel), tuple(int(r) for r in rows), path)
 

@@ -130,3 +130,11 @@ def diff_verdicts(run_a: int, run_b: int, a: Mapping[tuple[str, str], str],
     for c in changes:
         counts[c.status] = counts.get(c.status, 0) + 1
     return Diff(run_a, run_b, tuple(changes), counts)
+
+
+def history_rows(entries: Sequence[HistoryEntry], *, current_run: int | None = None) -> list[dict[str, Any]]:
+    """Plain rows of a project's sequence of runs, as reports show them (JRC §12.8)."""
+    return [{"run": e.run.id, "round": e.round, "kind": e.kind, "date": e.run.date,
+             "delivery": e.run.delivery_id, "verdict": e.run.verdict, "signoffs": e.signoffs,
+             "profile": f"{e.run.profile_id} {e.run.profile_version}", "current": e.run.id == current_run}
+            for e in entries]

@@ -308,15 +308,12 @@ class Ledger:
     def report_document(self, run_id: int) -> dict[str, Any]:
         """What a report of ``run_id`` shows: its document, sign-offs and the project's sequence of
         deliveries, redeliveries and verdicts up to that run (JRC §12.8: redeliver until acceptable)."""
+        from .history import history_rows
+
         doc = self.document_with_signoffs(run_id)
-        project = self.run(run_id).project_id
-        hist = self.history(project)
-        doc["history"] = [
-            {"run": e.run.id, "round": e.round, "kind": e.kind, "date": e.run.date,
-             "delivery": e.run.delivery_id, "verdict": e.run.verdict, "signoffs": e.signoffs,
-             "profile": f"{e.run.profile_id} {e.run.profile_version}", "current": e.run.id == run_id}
-            for e in hist.entries if e.run.seq <= self.run(run_id).seq
-        ]
+        run = self.run(run_id)
+        entries = [e for e in self.history(run.project_id).entries if e.run.seq <= run.seq]
+        doc["history"] = history_rows(entries, current_run=run_id)
         return doc
 
     def document_with_signoffs(self, run_id: int) -> dict[str, Any]:
