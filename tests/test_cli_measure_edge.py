@@ -45,7 +45,8 @@ def test_json_valid_edge(edge_tif):
     assert doc["fwhm_px"] == pytest.approx(truth.fwhm_px, rel=0.02)
     assert doc["fwhm_m"] == pytest.approx(doc["fwhm_px"] * 0.2)
     assert doc["fwhm_px.unit"] == "px" and doc["fwhm_m.unit"] == "m"
-    assert doc["fwhm_px.fit"] == "spline" and "rer.fermi3" in doc
+    assert doc["fwhm_px.fit"] == doc["primary_fit"] == "gauss"
+    assert "rer.fermi3" in doc and doc["fwhm_px.spline"] == pytest.approx(truth.fwhm_px, rel=0.03)
     assert abs(doc["angle_deg"] - 6.0) < 0.1
     assert doc["check.snr.passed"] is True and doc["check.angle.unit"] == "deg"
 
@@ -56,7 +57,8 @@ def test_terminal_tables_and_plots(edge_tif, tmp_path):
                "--plots", str(out))
     assert res.exit_code == 0, res.output
     assert "Health checks" in res.output and "Estimators" in res.output
-    assert "fwhm_m" in res.output and "spline (primary)" in res.output
+    assert "fwhm_m" in res.output and "gauss (primary)" in res.output
+    assert "lack-of-fit" in res.output
     names = sorted(p.name for p in out.iterdir())
     assert names == ["edge_detection.svg", "edge_esf.svg", "edge_lsf.svg", "edge_mtf.svg"]
     assert "Nyquist" in (out / "edge_mtf.svg").read_text()

@@ -10,7 +10,7 @@ import pytest
 
 from orthospec.errors import MeasureError
 from orthospec.figures.edge import edge_figures
-from orthospec.measures.edge import measure_edge, rer_two_directions
+from orthospec.measures.edge import PSF_FITS, measure_edge, rer_two_directions
 from orthospec.measures.synthetic import edge_truth, slanted_edge
 
 TOL_FWHM = 0.02  # relative
@@ -48,33 +48,69 @@ def test_accuracy_single_roi(angle, sigma, snr):
     assert r.estimate("edge_slope_per_px").value == pytest.approx(t.edge_slope_per_px, rel=0.03)
 
 
-# low SNR: the per-ROI FWHM scatter is ~1-2 % (sd) at SNR 60 with 200 lines, so the FWHM
-# tolerance holds for the mean of five ROIs; MTF, RER and angle hold for each ROI.
-@pytest.mark.parametrize("angle,sigma,snr", [(2.0, 0.8, 60), (10.0, 1.5, 60), (25.0, 0.5, 100)])
-def test_accuracy_low_snr(angle, sigma, snr):
-    t = edge_truth(sigma_px=sigma, angle_deg=angle)
-    fwhm = []
-    for seed in range(5):
-        r = measure_edge(_edge(angle, sigma, snr, seed=seed, shape=(200, 100)))
-        _assert_close_to_truth(r, angle, sigma, fwhm=0.05)
-        assert r.check("snr").value == pytest.approx(snr, rel=0.1)
-        fwhm.append(r.fwhm_px)
-    assert np.mean(fwhm) == pytest.approx(t.fwhm_px, rel=TOL_FWHM)
+# single ROIs over the issue's grid, 100 x 100 px, down to SNR 50. At SNR 50 the seed's
+# "SNR > 50" health check is at its boundary (the measured SNR scatters +-1 % about 50),
+# so those ROIs run with the check at 45: the estimators are what is tested here.
+GRID = [(a, s, snr, seed) for snr in (50, 100) for s in (0.4, 0.8, 1.5)
+        for a in (2.0, 5.0, 10.0, 20.0, 29.0) for seed in (0, 1)]
 
 
-def test_parametric_fit_is_reported_with_its_name():
+@pytest.mark.parametrize("angle,sigma,snr,seed", GRID)
+def test_accuracy_low_snr_single_roi(angle, sigma, snr, seed):
+    r = measure_edge(_edge(angle, sigma, snr, seed=seed), min_snr=45, primary="model")
+    _assert_close_to_truth(r, angle, sigma)
+    assert r.check("snr").value == pytest.approx(snr, rel=0.05)
+    assert r.primary_fit in PSF_FITS
+
+
+def test_model_is_primary_on_gaussian_edges():
+    """``primary="auto"`` uses the model only when its lack-of-fit test passes (p >= 0.001).
+    Over the grid it passes on 59 of 60 ROIs; the one rejection (2 deg, sigma 1.5, SNR 50,
+    seed 1, p = 0.0006: a chance event, the F statistic of the same noise pattern is low
+    at every SNR) is reported with the spline, whose MTF@Nyquist is then 0.024 off."""
+    picked = [measure_edge(_edge(a, s, snr, seed=seed), min_snr=45).primary_fit
+              for a, s, snr, seed in GRID]
+    assert sum(p in PSF_FITS for p in picked) >= 58
+    assert set(picked) <= {*PSF_FITS, "spline"}
+
+
+def test_spline_alone_is_the_weaker_estimator_at_low_snr():
+    """Why the PSF model is primary: over the same ROIs the model-free spline scatters
+    3-4x more (it is still reported, and `primary="spline"` selects it)."""
+    model, spline = [], []
+    for a, s, snr, seed in GRID[:30]:
+        t = edge_truth(sigma_px=s, angle_deg=a)
+        r = measure_edge(_edge(a, s, snr, seed=seed), min_snr=45, primary="spline")
+        assert r.primary_fit == "spline" and r.fwhm_px == r.estimate("fwhm_px", "spline").value
+        spline.append(r.fwhm_px / t.fwhm_px - 1)
+        model.append(next(r.estimate("fwhm_px", f).value for f in PSF_FITS if f in r.fits)
+                     / t.fwhm_px - 1)
+    assert np.sqrt(np.mean(np.square(spline))) > 2.5 * np.sqrt(np.mean(np.square(model)))
+    assert max(map(abs, spline)) > TOL_FWHM > max(map(abs, model))
+
+
+def test_fits_are_reported_with_their_names():
     r = measure_edge(_edge(8.0, 0.7, 400))
     t = edge_truth(sigma_px=0.7, angle_deg=8.0)
     fits = {e.fit for e in r.estimates}
-    assert fits == {"spline", "fermi3"}
-    assert r.estimate("fwhm_px").fit == "spline"  # primary
-    assert r.estimate("fwhm_px", "fermi3").value == pytest.approx(t.fwhm_px, rel=0.03)
+    assert fits == {"spline", "fermi3", "gauss"}
+    assert r.primary_fit == "gauss" and r.estimate("fwhm_px").fit == "gauss"
+    model = r.fits["gauss"].params
+    assert model["adequate"] and model["p_value"] > 1e-3 and model["sigma_px"] == [
+        pytest.approx(0.7, rel=0.02)]
+    assert model["footprint_px"] == pytest.approx([math.cos(math.radians(8)), math.sin(math.radians(8))],
+                                                  abs=1e-3)
+    for fit in ("spline", "fermi3"):
+        assert r.estimate("fwhm_px", fit).value == pytest.approx(t.fwhm_px, rel=0.03)
     d = r.to_dict()
-    assert d["fwhm_px.fit"] == "spline" and "fwhm_px.fermi3" in d and d["fwhm_px.unit"] == "px"
+    assert d["fwhm_px.fit"] == "gauss" and d["primary_fit"] == "gauss"
+    assert "fwhm_px.fermi3" in d and "fwhm_px.spline" in d and d["fwhm_px.unit"] == "px"
     single = measure_edge(_edge(8.0, 0.7, 400), fermi_terms=1)
-    assert {e.fit for e in single.estimates} == {"spline", "fermi"}
+    assert {e.fit for e in single.estimates} == {"spline", "fermi", "gauss"}
     # a single Fermi-Dirac term is too heavy-tailed for a Gaussian system: narrower FWHM
     assert single.estimate("fwhm_px", "fermi").value < 0.95 * t.fwhm_px
+    with pytest.raises(MeasureError, match="primary must be one of"):
+        measure_edge(_edge(8.0, 0.7, 400), primary="fermi")
 
 
 @pytest.mark.parametrize("name,transform,direction,polarity", [

@@ -24,7 +24,7 @@ from rasterio.transform import from_origin
 
 from orthospec.cli.main import cli
 from orthospec.engine.providers.edge import MAX_ESF_SAMPLES, MAX_FIT_POINTS, MAX_LINES
-from orthospec.measures.edge import measure_edge
+from orthospec.measures.edge import PSF_FITS, measure_edge
 from orthospec.measures.synthetic import slanted_edge
 from orthospec.qcr import dumps
 from orthospec.reports.fetcher import data_uri
@@ -119,15 +119,19 @@ def test_qcr_json_carries_bounded_curves(checked: dict[str, Any]) -> None:
         assert edges[tid]["valid"] is True
         assert 0 < len(c["esf"]["d"]) == len(c["esf"]["v"]) <= MAX_ESF_SAMPLES < c["esf"]["n_samples"]
         assert 20 <= len(c["lines"]["kept_x"]) == len(c["lines"]["kept_y"]) <= MAX_LINES
-        assert list(c["fits"]) == [edges[tid]["primary_fit"], "fermi3"]  # primary first
+        # primary first, then the model-free spline to compare it with
+        assert list(c["fits"]) == [edges[tid]["primary_fit"], "spline"]
+        assert edges[tid]["primary_fit"] in PSF_FITS
         for f in c["fits"].values():
             assert len(f["esf"]) == len(f["lsf"]) <= MAX_FIT_POINTS and f["dx"] >= 0.05
             assert len(f["mtf"]) == len(c["mtf_freq"]) == 51 and c["mtf_freq"][-1] == 1.0
             assert all(len(re.sub(r"[-.]|e.*", "", repr(x)).lstrip("0")) <= 6 for x in f["lsf"])
         # the stored curves agree with the chain run on the same image (and ROI frame)
         spline = c["fits"]["spline"]
-        assert spline["fwhm_px"] == pytest.approx(edges[tid]["fwhm_px"], rel=1e-5)
-        assert spline["mtf_nyquist"] == pytest.approx(edges[tid]["mtf_nyquist"], rel=1e-5)
+        primary = c["fits"][edges[tid]["primary_fit"]]
+        assert primary["fwhm_px"] == pytest.approx(edges[tid]["fwhm_px"], rel=1e-5)
+        assert primary["mtf_nyquist"] == pytest.approx(edges[tid]["mtf_nyquist"], rel=1e-5)
+        assert spline["fwhm_px"] == pytest.approx(edges[tid]["fwhm_px.spline"], rel=1e-5)
         freq = np.array(c["mtf_freq"])
         assert np.interp(0.5, freq, spline["mtf"]) == pytest.approx(spline["mtf_nyquist"], abs=1e-5)
         assert max(spline["esf"]) > 0.95 and min(spline["esf"]) < 0.05

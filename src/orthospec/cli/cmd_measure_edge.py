@@ -128,7 +128,10 @@ def edge_command(image: str, roi: str | None, band: int, gsd: float | None,
 
 def _print_rich(image: str, window: Any, band: int, result: Any, written: list[str]) -> None:
     from rich.console import Console
+    from rich.markup import escape
     from rich.table import Table
+
+    from ..measures.edge import PSF_FITS
 
     console = Console(width=110)
     where = f"ROI {','.join(map(str, window))}" if window else "whole image"
@@ -162,5 +165,13 @@ def _print_rich(image: str, window: Any, band: int, result: Any, written: list[s
                 row.append(_fmt(other.value) if other is not None else "n/a")
             est.add_row(*row, e.unit)
         console.print(est)
+        model = next((result.fits[n] for n in PSF_FITS if n in result.fits), None)
+        if model is not None:
+            q = model.params
+            sig = ", ".join(f"{x:.4g}" for x in q["sigma_px"])
+            console.print(
+                f"PSF model {model.fit}: {escape(q['model'])}; sigma {sig} px; lack-of-fit "
+                f"F = {q['lack_of_fit_f']:.3g}, p = {q['p_value']:.3g} "
+                f"({'adequate' if q['adequate'] else 'rejected (p < 0.001): the spline is primary'})")
     for path in written:
         console.print(f"wrote {path}")

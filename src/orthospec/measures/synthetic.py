@@ -2,19 +2,11 @@
 
 Why: an edge measurement can only be trusted if it recovers a *known* system
 response. The response an image actually has along the edge normal is the PSF
-together with the square pixel's integration, projected on the normal:
-
-* the projection of an isotropic Gaussian PSF (sigma) on any direction is a
-  1-D Gaussian of the same sigma;
-* the projection of a unit square pixel on a direction at angle ``theta`` to
-  its side is the convolution of two boxes, of widths ``|cos theta|`` and
-  ``|sin theta|`` (a trapezoid; a 1-px box only when theta = 0).
-
-So along the normal LSF = G(sigma) * box(|cos t|) * box(|sin t|) and, by the
-Fourier slice theorem, MTF(f) = exp(-2 pi^2 sigma^2 f^2) |sinc(f cos t)| |sinc(f sin t)|.
-Every pixel value of an ideal rendered edge equals ESF(d) at the perpendicular
-distance d of the pixel centre from the edge, which is what the slanted-edge
-method samples.
+together with the square pixel's integration, projected on the normal; its closed
+forms live in :mod:`orthospec.measures.psf` (the edge chain's physical fit uses the
+same formulas). Every pixel value of an ideal rendered edge equals ESF(d) at the
+perpendicular distance d of the pixel centre from the edge, which is what the
+slanted-edge method samples.
 """
 
 from __future__ import annotations
@@ -23,40 +15,19 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy import ndimage, optimize, signal
-from scipy.special import ndtr
 
 from ..errors import MeasureError
+from .psf import gauss_pixel_esf, gauss_pixel_lsf, gauss_pixel_mtf
 
 __all__ = [
     "EdgeTruth",
     "edge_truth",
+    "kernel_truth",
     "slanted_edge",
     "truth_esf",
     "truth_lsf",
     "truth_mtf",
 ]
-
-_SQRT2PI = np.sqrt(2.0 * np.pi)
-
-
-def _footprint(angle_deg: float) -> tuple[float, float]:
-    """Widths of the two boxes a unit square pixel projects to along the edge normal."""
-    t = np.deg2rad(angle_deg)
-    return float(abs(np.cos(t))), float(abs(np.sin(t)))
-
-
-def _phi(x: np.ndarray, s: float) -> np.ndarray:
-    return np.exp(-0.5 * (x / s) ** 2) / (_SQRT2PI * s)
-
-
-def _psi1(x: np.ndarray, s: float) -> np.ndarray:
-    """Antiderivative of the Gaussian CDF Phi(x/s) in x."""
-    return x * ndtr(x / s) + s * s * _phi(x, s)
-
-
-def _psi2(x: np.ndarray, s: float) -> np.ndarray:
-    """Second antiderivative of Phi(x/s) in x."""
-    return 0.5 * (x * x + s * s) * ndtr(x / s) + 0.5 * x * s * s * _phi(x, s)
 
 
 def _check_sigma(sigma_px: float) -> None:
@@ -67,41 +38,29 @@ def _check_sigma(sigma_px: float) -> None:
 def truth_lsf(d: np.ndarray, *, sigma_px: float, angle_deg: float) -> np.ndarray:
     """Analytic LSF (area 1, 1/px) of Gaussian PSF * square pixel along the edge normal."""
     _check_sigma(sigma_px)
-    x = np.asarray(d, dtype=float)
-    a, b = _footprint(angle_deg)
-    s = float(sigma_px)
-    if b < 1e-9:  # box(a) only: [Phi((x+a/2)/s) - Phi((x-a/2)/s)] / a
-        return (ndtr((x + a / 2) / s) - ndtr((x - a / 2) / s)) / a
-    h1, h2 = (a + b) / 2, (a - b) / 2
-    return (_psi1(x + h1, s) - _psi1(x + h2, s) - _psi1(x - h2, s) + _psi1(x - h1, s)) / (a * b)
+    return gauss_pixel_lsf(d, sigma_px, angle_deg)
 
 
 def truth_esf(d: np.ndarray, *, sigma_px: float, angle_deg: float) -> np.ndarray:
     """Analytic normalised ESF (0 dark .. 1 bright) along the edge normal; d > 0 is bright."""
     _check_sigma(sigma_px)
-    x = np.asarray(d, dtype=float)
-    a, b = _footprint(angle_deg)
-    s = float(sigma_px)
-    if b < 1e-9:
-        return (_psi1(x + a / 2, s) - _psi1(x - a / 2, s)) / a
-    h1, h2 = (a + b) / 2, (a - b) / 2
-    return (_psi2(x + h1, s) - _psi2(x + h2, s) - _psi2(x - h2, s) + _psi2(x - h1, s)) / (a * b)
+    return gauss_pixel_esf(d, sigma_px, angle_deg)
 
 
 def truth_mtf(f: np.ndarray, *, sigma_px: float, angle_deg: float) -> np.ndarray:
     """Analytic MTF at spatial frequency f (cycles/px) along the edge normal."""
     _check_sigma(sigma_px)
-    ff = np.asarray(f, dtype=float)
-    a, b = _footprint(angle_deg)
-    gauss = np.exp(-2.0 * np.pi**2 * sigma_px**2 * ff**2)
-    return gauss * np.abs(np.sinc(ff * a)) * np.abs(np.sinc(ff * b))
+    return gauss_pixel_mtf(f, sigma_px, angle_deg)
 
 
 @dataclass(frozen=True)
 class EdgeTruth:
-    """Analytic estimators of a Gaussian-PSF, square-pixel edge (pixel units)."""
+    """Estimators of the true system response of a rendered edge (pixel units).
 
-    sigma_px: float
+    ``sigma_px`` is the Gaussian PSF's sigma, or None for a measured kernel.
+    """
+
+    sigma_px: float | None
     angle_deg: float
     fwhm_px: float
     width25_px: float
@@ -135,6 +94,79 @@ def edge_truth(*, sigma_px: float, angle_deg: float) -> EdgeTruth:
         rer=float(esf[1] - esf[0]),
         mtf_nyquist=float(truth_mtf(np.array([0.5]), sigma_px=sigma_px, angle_deg=angle_deg)[0]),
         edge_slope_per_px=float(truth_lsf(np.array([0.0]), sigma_px=sigma_px, angle_deg=angle_deg)[0]),
+    )
+
+
+def _render_kernel(psf: np.ndarray, psf_step_px: float, supersample: int) -> np.ndarray:
+    """The kernel as the renderer applies it: resampled to 1/supersample px, >= 0, sum 1."""
+    kernel = np.asarray(psf, dtype=float)
+    if kernel.ndim != 2 or not np.isfinite(kernel).all() or kernel.sum() <= 0:
+        raise MeasureError("psf must be a 2-D kernel of finite values with a positive sum")
+    zoom = psf_step_px * supersample
+    if zoom != 1.0:
+        kernel = ndimage.zoom(kernel, zoom, order=1)
+    kernel = np.clip(kernel, 0.0, None)
+    return kernel / kernel.sum()
+
+
+def _level_width(x: np.ndarray, y: np.ndarray, level: float) -> float:
+    """Width of a single-peaked curve at ``level`` of its peak (outermost crossings, linear)."""
+    h = level * float(y.max())
+    above = np.flatnonzero(y >= h)
+    i, j = int(above[0]), int(above[-1])
+    xl = x[i - 1] + (h - y[i - 1]) * (x[i] - x[i - 1]) / (y[i] - y[i - 1])
+    xr = x[j] + (h - y[j]) * (x[j + 1] - x[j]) / (y[j + 1] - y[j])
+    return float(xr - xl)
+
+
+def kernel_truth(psf: np.ndarray, *, angle_deg: float, psf_step_px: float = 1.0,
+                 supersample: int = 15, step_px: float = 0.002) -> EdgeTruth:
+    """True estimators of an edge rendered by :func:`slanted_edge` with a measured ``psf``.
+
+    Numerical, not closed-form: the kernel (as rendered) is projected on the edge normal
+    (each sample's weight lands at its distance u = x cos t - y sin t, split linearly
+    between the two nearest points of a ``step_px`` grid), then convolved with the
+    pixel's footprint boxes |cos t| and |sin t| and with the renderer's 1/supersample
+    px coverage ramp. MTF(f) = |sum k e^(-2 pi i f u)| |sinc(f cos t)| |sinc(f sin t)|
+    |sinc(f / supersample)| exactly. RER is taken about the point where the ESF is 0.5
+    (the LSF peak for a symmetric kernel).
+    """
+    if supersample < 1:
+        raise MeasureError(f"supersample must be >= 1, got {supersample}")
+    k = _render_kernel(psf, psf_step_px, supersample)
+    h = 1.0 / supersample
+    ny, nx = k.shape
+    yy, xx = np.mgrid[0:ny, 0:nx]
+    t = np.deg2rad(angle_deg)
+    u = ((xx - (nx - 1) / 2) * np.cos(t) - (yy - (ny - 1) / 2) * np.sin(t)).ravel() * h
+    w = k.ravel()
+    a, b = abs(float(np.cos(t))), abs(float(np.sin(t)))
+    reach = float(np.abs(u).max()) + a + b + h + 1.0
+    n = int(np.ceil(reach / step_px))
+    x = np.arange(-n, n + 1) * step_px
+    pos = (u + n * step_px) / step_px
+    i0 = np.floor(pos).astype(np.int64)
+    frac = pos - i0
+    lsf = np.bincount(i0, weights=w * (1 - frac), minlength=x.size)[: x.size]
+    lsf += np.bincount(i0 + 1, weights=w * frac, minlength=x.size)[: x.size]
+    for width in (a, b, h):
+        m = max(round(width / step_px), 1)
+        if m > 1:
+            lsf = np.convolve(lsf, np.full(m, 1.0 / m), mode="same")
+    lsf /= lsf.sum() * step_px
+    esf = np.cumsum(lsf) * step_px
+    mid = float(np.interp(0.5, esf, x))
+    e = np.interp([mid - 0.5, mid + 0.5], x, esf)
+    otf = np.abs(np.sum(w * np.exp(-2j * np.pi * 0.5 * u)))
+    return EdgeTruth(
+        sigma_px=None,
+        angle_deg=float(angle_deg),
+        fwhm_px=_level_width(x, lsf, 0.5),
+        width25_px=_level_width(x, lsf, 0.25),
+        width80_px=_level_width(x, lsf, 0.80),
+        rer=float(e[1] - e[0]),
+        mtf_nyquist=float(otf * abs(np.sinc(0.5 * a)) * abs(np.sinc(0.5 * b)) * abs(np.sinc(0.5 * h))),
+        edge_slope_per_px=float(lsf.max()),
     )
 
 
@@ -206,14 +238,7 @@ def slanted_edge(
     scene = dark + (bright - dark) * cover
 
     if psf is not None:
-        kernel = np.asarray(psf, dtype=float)
-        if kernel.ndim != 2 or kernel.sum() <= 0:
-            raise MeasureError("psf must be a 2-D kernel with a positive sum")
-        zoom = psf_step_px * s
-        if zoom != 1.0:
-            kernel = ndimage.zoom(kernel, zoom, order=1)
-        kernel = np.clip(kernel, 0.0, None)
-        kernel /= kernel.sum()
+        kernel = _render_kernel(psf, psf_step_px, s)
         # fftconvolve treats the outside as 0: pad by edge values first
         pad = max(kernel.shape) // 2 + 1
         padded = np.pad(scene, pad, mode="edge")

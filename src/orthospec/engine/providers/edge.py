@@ -20,7 +20,7 @@ import rasterio
 from rasterio.windows import Window
 
 from ...errors import OrthospecError
-from ...measures.edge import NYQUIST, EdgeResult, measure_edge
+from ...measures.edge import NYQUIST, PSF_FITS, EdgeResult, measure_edge
 from ...raster.reading import read_only_env
 from ..registry import Measured, ProviderContext, provider
 
@@ -97,7 +97,7 @@ def edge_curves(res: EdgeResult) -> dict[str, Any]:
         out["esf"] = {"d": _r(d[k]), "v": _r(v[k]), "n_samples": int(d.size),
                       "window_px": _r(res.window_px),
                       "dark_start_px": _r1(res.dark_start_px), "bright_start_px": _r1(res.bright_start_px)}
-    fits = sorted(res.fits.values(), key=lambda f: (f.fit != res.primary_fit, f.fit))
+    fits = _curve_fits(res)
     if fits:
         nf = round(MTF_MAX / MTF_STEP) + 1
         freq = np.round(np.arange(nf) * MTF_STEP, 10)
@@ -116,6 +116,17 @@ def edge_curves(res: EdgeResult) -> dict[str, Any]:
                 "mtf_nyquist": _r1(f.mtf_nyquist), "nyquist": NYQUIST,
             }
     return out
+
+
+def _curve_fits(res: EdgeResult) -> list[Any]:
+    """The primary fit and one to compare it with: the model-free spline, or (when the
+    spline is primary) the PSF model, else the Fermi-Dirac fit. Every fit's values stay in
+    the estimates; only two sets of curves are stored, to keep qcr.json bounded."""
+    if res.primary_fit not in res.fits:
+        return []
+    order = ["spline", *PSF_FITS, *sorted(res.fits)]
+    other = next((n for n in order if n in res.fits and n != res.primary_fit), None)
+    return [res.fits[res.primary_fit], *([res.fits[other]] if other else [])]
 
 
 def _measure_all(ctx: ProviderContext) -> dict[str, Any]:
