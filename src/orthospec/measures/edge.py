@@ -947,10 +947,15 @@ def _psf_fit(d: np.ndarray, v: np.ndarray, bw: float, lo: float, hi: float,
     if not var_pe > 0:
         return None
     a0, b0, c0, g = (float(q) for q in p)
+    # a component must be seen inside the window: +-2 sigma, the shift and the box in it
+    # (a halo wider than the window trades off against the levels and spoils the RER)
+    half = 0.5 * (hi - lo)
+    wide = max(half / 2.0, 1.5 * g)
     richer = {
-        "gauss-box": fit("gauss-box", [a0, b0, c0, 0.7 * g, 2.0 * g], [0.02, 0.0], [10.0, 20.0]),
-        "gauss2": fit("gauss2", [a0, b0, c0, 0.8 * g, 2.5 * g, 0.8, 0.0],
-                      [0.02, 0.02, 0.0, -5.0], [20.0, 20.0, 1.0, 5.0]),
+        "gauss-box": fit("gauss-box", [a0, b0, c0, 0.7 * g, 2.0 * g], [0.02, 0.0],
+                         [wide, max(half, 3.0 * g)]),
+        "gauss2": fit("gauss2", [a0, b0, c0, 0.8 * g, min(2.5 * g, wide), 0.8, 0.0],
+                      [0.02, 0.02, 0.0, -half / 2.0], [wide, wide, 1.0, half / 2.0]),
     }
     best_aic = ss / var_pe + 2 * p.size
     base_ss = ss
