@@ -26,7 +26,9 @@ The chain (seed step in brackets) on a 2-D ROI holding one straight edge:
   the ESF is trimmed at max(``plateau_px``, 3x the start's distance, 1 px into
   the uniform area) beyond each start; the dark/bright levels and the
   uniformity (SNR) come from the uniform areas.
-* fits [8]: non-parametric (scipy ``make_smoothing_spline``, GCV, on the ESF
+* fits [8]: a physical model (added): the PSF (Gaussian, Gaussian x box, or core +
+  halo) integrated over the square pixel at the measured angle, primary when its
+  lack-of-fit F test passes (else the spline); non-parametric (scipy ``make_smoothing_spline``, GCV, on the ESF
   binned at 1/``oversample`` px, weighted by counts) and parametric (sum of
   Fermi-Dirac functions); both normalised 0..1.
 * RER [9] at +-0.5 px around the centre (LSF peak for the spline, ESF = 0.5
