@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import shutil
 import textwrap
 from collections.abc import Callable
@@ -14,6 +15,20 @@ DATA = Path(__file__).resolve().parent / "data"
 SEEDS = ROOT.parent / "shared" / "seeds"
 REAL = ROOT.parent / "shared" / "data" / "real"
 EXAMPLES = ROOT / "examples" / "deliveries"
+
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item, call):
+    """With ORTHOSPEC_STRICT_SKIPS=1 (set by .ci/run) a skipped test fails: CI must not pass on a
+    machine that lacks what a test needs (../shared, gdalinfo, PostgreSQL, distributed)."""
+    outcome = yield
+    report = outcome.get_result()
+    if report.skipped and os.environ.get("ORTHOSPEC_STRICT_SKIPS") == "1" and not hasattr(report, "wasxfail"):
+        reason = report.longrepr[-1] if isinstance(report.longrepr, tuple) else str(report.longrepr)
+        report.outcome = "failed"
+        report.longrepr = f"skipped under ORTHOSPEC_STRICT_SKIPS=1 (CI): {reason}"
+
 
 MANIFEST = """\
 orthospec_delivery: 1
