@@ -1,12 +1,10 @@
-"""Entry point: import every ``cmd_*`` module and map errors to exit codes.
+"""Entry point: run the lazy click group (``groups.py``) and map errors to exit codes.
 
 Exit codes: 0 accepted / success, 1 rejected, 2 could not evaluate (bad input or arguments).
 """
 
 from __future__ import annotations
 
-import importlib
-import pkgutil
 import sys
 
 import click
@@ -18,9 +16,13 @@ _loaded = False
 
 
 def _load_commands() -> None:
+    """Import every ``cmd_*`` module (tests walk the complete tree; the CLI itself never needs to)."""
     global _loaded
     if _loaded:
         return
+    import importlib
+    import pkgutil
+
     package = sys.modules[__package__]
     for info in sorted(pkgutil.iter_modules(package.__path__), key=lambda i: i.name):
         if info.name.startswith("cmd_"):
@@ -35,7 +37,7 @@ def cli() -> click.Group:
 
 
 def main(argv: list[str] | None = None) -> None:
-    _load_commands()
+    """The ``orthospec`` executable: only the invoked command's module is imported."""
     debug = "--debug" in (argv if argv is not None else sys.argv[1:])
     try:
         rv = groups.main.main(args=argv, prog_name="orthospec", standalone_mode=False)
