@@ -817,13 +817,13 @@ def check_invariants(b: Built) -> None:
 #: tests/test_examples_jrc.py. Only mandatory rules can reject; recommended ones warn.
 JRC_V3_RULES: dict[str, list[tuple[str, str, str, str, list[str] | None]]] = {
     "rmse_above_tolerance": [("JRC-12.7-RMSEY", "fail", "mandatory", "reject_block", None)],
-    "reported_rmse_mismatch": [("JRC-9.5-REPORTED-RMSE-Y", "fail", "mandatory", "warn", None)],
+    "reported_rmse_mismatch": [("JRC-9.5-REPORTED-RMSE-Y", "fail", "mandatory", "reject_block", None)],
     "saturation_high": [("JRC-6.3-SATURATION-HIGH", "warn", "recommended", "warn", None)],
     "missing_field": [("JRC-5.3-PHOTO-FLYING-HEIGHT", "warn", "recommended", "warn", ["D-2026-021"]),
                       ("JRC-5.2.1-FLYING-HEIGHT-GSD", "missing", "recommended", "warn", None)],
-    "unjustified_exclusion": [("JRC-12.6-BLUNDER-EXCLUSIONS", "fail", "mandatory", "warn", ["B01"]),
+    "unjustified_exclusion": [("JRC-12.6-BLUNDER-EXCLUSIONS", "fail", "mandatory", "reject_block", ["B01"]),
                               ("JRC-12.6-BLUNDER-CANDIDATES", "warn", "recommended", "warn", ["B01"]),
-                              ("JRC-9.5-REPORTED-RMSE-X", "fail", "mandatory", "warn", ["B01"])],
+                              ("JRC-9.5-REPORTED-RMSE-X", "fail", "mandatory", "reject_block", ["B01"])],
     "file_missing": [("JRC-9.2-T7-READABLE", "fail", "mandatory", "reject_item", None),
                      ("JRC-6.4-FORMAT", "error", "mandatory", "reject_item", None),
                      ("JRC-12.4-T12-ORTHO-GEOREFERENCED", "error", "mandatory", "reject_item", None),
@@ -834,7 +834,7 @@ JRC_V3_RULES: dict[str, list[tuple[str, str, str, str, list[str] | None]]] = {
                      ("JRC-6.3-ARTEFACTS", "warn", "recommended", "warn", None),
                      ("JRC-T6-ORTHO-INSPECTION", "warn", "recommended", "warn", None)],
     "file_name_space": [("JRC-6.4-FILE-NAMING", "warn", "recommended", "warn", None)],
-    "too_few_checkpoints": [("JRC-12.4-T12-MIN-CHECKPOINTS", "fail", "mandatory", "warn", None),
+    "too_few_checkpoints": [("JRC-12.4-T12-MIN-CHECKPOINTS", "fail", "mandatory", "reject_block", None),
                             ("JRC-12.5-QUADRANTS", "warn", "recommended", "warn", None)],
     "roll_above_max": [("JRC-5.2.4-ROLL-MAX", "warn", "recommended", "warn", None)],
     "cloud_cover_above_max": [("JRC-6.3-CLOUD-COVER", "warn", "recommended", "warn", None)],
@@ -844,15 +844,15 @@ JRC_V3_RULES: dict[str, list[tuple[str, str, str, str, list[str] | None]]] = {
 JRC_V3_NOTES = {
     "reported_rmse_mismatch": (
         "The reported QCR value disagrees with the recomputed RMSEy by 0.33 m: a mandatory finding "
-        "against the contractor's QCRs (consequence warn); B02 is rejected on the recomputed RMSEy "
-        "by JRC-12.7-RMSEY."),
+        "against the contractor's QCRs (consequence reject_block); B02 is also rejected on the "
+        "recomputed RMSEy by JRC-12.7-RMSEY."),
     "too_few_checkpoints": (
-        "jrc-v3 reads Table 12's minimum as constraining the check, not the product: the rule fails "
-        "(mandatory) with consequence warn, so B03 is not rejected (docs/decisions.md)."),
+        "Table 12's minimum is 'necessary in order to apply reliable statistic tests': without it the "
+        "block's accuracy is not shown, so B03 is rejected (mandatory, consequence reject_block)."),
     "unjustified_exclusion": (
-        "The refused exclusion is recorded (mandatory fail, consequence warn); the point stays in B01's "
-        "RMSE, which still meets the tolerance but no longer equals the reported 0.25 m "
-        "(JRC-9.5-REPORTED-RMSE-X)."),
+        "The refused exclusion rejects B01 (mandatory fail, consequence reject_block); the point stays "
+        "in B01's RMSE, which still meets the tolerance but no longer equals the reported 0.25 m "
+        "(JRC-9.5-REPORTED-RMSE-X, which rejects B01 as well)."),
     "file_missing": (
         "The missing raster cannot be measured: the raster rules give 'error' (no value), "
         "JRC-9.2-T7-READABLE fails and F03_0202 is rejected as an item."),
@@ -860,7 +860,7 @@ JRC_V3_NOTES = {
 #: Delivery-level outcome of jrc-v3 on aerial-fail (roll-up of the records above).
 JRC_V3_OUTCOME = {
     "verdict": "rejected",
-    "rejected": {"block": ["B02"], "image": ["F03_0202"]},
+    "rejected": {"block": ["B01", "B02", "B03"], "image": ["F03_0202"]},
     "project": [("JRC-12.8-BLOCK-FAIL-SHARE", "fail", "mandatory", "return_delivery",
                  ["P-2026-ORTHO-L2"])],
 }
@@ -908,7 +908,7 @@ def describe_fail_defects(b: Built) -> None:
     d("reported_rmse_mismatch", "12.6", "block", ["B02"], "delivery.yaml", [],
       ["blocks[1].reported.rmse_y"], reported_y, "m",
       f"reported RMSEy equals the recomputed RMSEy ({rec['B02']['rmse_y']:.2f} m) within 0.01 m",
-      "warn",
+      "reject_block",
       f"The contractor reports RMSEy = {reported_y:.2f} m for B02 (Table 6 QCR 11); the check "
       f"points give {rec['B02']['rmse_y']:.2f} m.", table="Table 6 row 11 (§8.4)")
     d("saturation_high", "6.3", "image", ["F02_0203"], "tables/images.csv",
@@ -958,17 +958,17 @@ def describe_fail_defects(b: Built) -> None:
         {"clause": {"document": JRC, "section": "12.7"}, "scope": "block", "items": ["B02"],
          "rules": ["JRC-12.7-RMSEY"],
          "text": "B02 (RMSEy) is rejected with all its products. B03 (too few check points) fails "
-                 "JRC-12.4-T12-MIN-CHECKPOINTS, which jrc-v3 reads as a limit on the check (consequence "
-                 "warn): B03 cannot be accepted on 14 points, but is not rejected either."},
+                 "JRC-12.4-T12-MIN-CHECKPOINTS and is rejected too: it cannot be accepted on 14 points."},
         {"clause": {"document": JRC, "section": "12.6"}, "scope": "block", "items": ["B01"],
          "rules": ["JRC-12.6-BLUNDER-EXCLUSIONS"],
          "text": f"With {blunder['point_id']} kept in (its exclusion is unjustified), B01 RMSEx is "
                  f"{rms(all_dx):.2f} m against the reported "
                  f"{b.manifest['blocks'][0]['reported']['rmse_x']['value']:.2f} m: a reported-vs-"
-                 "recomputed comparison differs here too, while the tolerance is still met."},
+                 "recomputed comparison differs here too, while the tolerance is still met. B01 is "
+                 "rejected for the unjustified exclusion and the false QCR value."},
         {"clause": {"document": JRC, "section": "12.8"}, "scope": "project", "items": ["*"],
          "rules": ["JRC-12.8-BLOCK-FAIL-SHARE"],
-         "text": "1 of 3 blocks is rejected (33 % > 5 %): all products are returned to the contractor."},
+         "text": "3 of 3 blocks are rejected (100 % > 5 %): all products are returned to the contractor."},
         {"clause": {"document": JRC, "section": "12.3"}, "scope": "delivery", "items": ["*"],
          "rules": ["JRC-12.3-IMAGE-FAIL-SHARE"],
          "text": "5 of 30 images (17 %) break a Chapter 6 specification, but jrc-v3 encodes the "

@@ -172,8 +172,37 @@ def test_per_axis_tolerance_and_block_rejection() -> None:
     z = by_id["JRC-12.7-RMSEZ"]
     assert z["when"] == "manifest.product.dem_delivered == true" and z["requirement"]["value"] == "tolerance_z"
     assert by_id["JRC-12.8-BLOCK-FAIL-SHARE"]["level"] == "mandatory"
-    assert by_id["JRC-12.3-IMAGE-FAIL-SHARE"]["level"] == "recommended"
+    # §12.3 "may be returned": mandatory, the "may" is a parameter with a documented default (issue 12)
+    assert by_id["JRC-12.3-IMAGE-FAIL-SHARE"]["level"] == "mandatory"
     assert by_id["JRC-12.3-IMAGE-FAIL-SHARE"]["consequence"] == "return_delivery"
+    assert "image_fail_share_action" in by_id["JRC-12.3-IMAGE-FAIL-SHARE"]["when"]
+    assert JRC["parameters"]["image_fail_share_action"]["default"] == "return"
+
+
+@pytest.mark.parametrize("name", SHIPPED)
+def test_no_mandatory_rule_has_consequence_warn(name: str) -> None:
+    """Issue 12: every mandatory rule can change the verdict (warn never does)."""
+    bad = [r["id"] for r in PROFILES[name]["rules"]
+           if r.get("level") == "mandatory" and r.get("consequence") == "warn"]
+    assert bad == []
+
+
+#: Chapter 9 rules that state a requirement for any delivered image or QCR (documented in their notes).
+BOTH_SENSORS = {"JRC-9.2-T7-READABLE", "JRC-9.5-REPORTED-RMSE-X", "JRC-9.5-REPORTED-RMSE-Y"}
+AERIAL_ONLY_SECTIONS = re.compile(r"^(4|5|6\.2|8)(\.|$)")
+
+
+def test_aerial_chapters_apply_to_aerial_deliveries_only() -> None:
+    """JRC chapters 4 (airborne cameras), 5 (airborne acquisition), 6.2 (film scanning) and 8
+    (airborne orthorectification) must not judge a satellite delivery (issue 12 item 4)."""
+    for r in JRC["rules"]:
+        if AERIAL_ONLY_SECTIONS.match(str(r["clause"]["section"])) or r["scope"] in ("camera", "scanner", "flight"):
+            assert "manifest.sensor.type == 'aerial'" in (r.get("when") or ""), r["id"]
+        if r["id"] in BOTH_SENSORS:
+            assert re.search(r"aerial|all sensors", r["note"]), r["id"]  # the note says why
+        elif str(r["clause"]["section"]).startswith("9.") or str(r["clause"].get("table")) in ("7", "8", "9", "10"):
+            w = r.get("when") or ""
+            assert "satellite" in w or "scenes." in w or "derived.resolution_class" in w, r["id"]
 
 
 def test_table9_lookup_agrees_with_rules() -> None:
