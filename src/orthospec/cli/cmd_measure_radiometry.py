@@ -19,13 +19,16 @@ def _fmt(v: object, digits: int = 3) -> str:
     return str(v)
 
 
-def _render(rep: ImageReport) -> None:
+def _render(rep: ImageReport, findings: list[str]) -> None:
     from rich.console import Console
+    from rich.markup import escape
     from rich.table import Table
 
     console = Console()
     c = rep.checks
-    console.print(f"[bold]{rep.path}[/bold]  sha256 {rep.sha256}")
+    console.print(f"[bold]{escape(rep.path)}[/bold]  sha256 {rep.sha256}", soft_wrap=True)
+    for f in findings:
+        console.print(f"[yellow]file check:[/yellow] {escape(f)}", soft_wrap=True)
     console.print(
         f"{c.get('driver')} {c.get('width')}x{c.get('height')} x{c.get('band_count')} "
         f"{','.join(c.get('dtypes') or [])}  compression {c.get('compression')} "
@@ -71,18 +74,21 @@ def radiometry_cmd(ctx: click.Context, image: str, as_json: bool, bit_depth: int
     """Exact per-band statistics, histograms and JRC §6.3 measures plus file checks of IMAGE.
 
     Statistics are exact (no overviews), with population std and nodata excluded per band,
-    as GDAL computes them. Exit code 2 when the file cannot be read.
+    as GDAL computes them. Radiometry needs no georeference: a missing or unparseable CRS is
+    reported as a file-check finding, not refused. Exit code 2 when the pixels cannot be read.
     """
     opts = ScanOptions(settings=ScanSettings(bit_depth=bit_depth), expect_epsg=expect_epsg,
                        expect_gsd=expect_gsd, gsd_tolerance=gsd_tolerance)
     rep = scan_image(image, opts, cloud_mask=cloud_mask)
-    if rep.error:
+    if rep.error and rep.radiometry is None:
         click.echo(f"error: {rep.error}", err=True)
         ctx.exit(2)
+    # pixels measured despite a header error (no CRS...): that error is a finding on the file
+    findings = [rep.error] if rep.error else []
     if as_json:
         doc = {"path": rep.path, "sha256": rep.sha256, "bytes": rep.bytes,
-               "checks": rep.checks, "radiometry": rep.radiometry,
+               "checks": rep.checks, "findings": findings, "radiometry": rep.radiometry,
                "cloud_cover_pct": rep.cloud_cover_pct}
         click.echo(json.dumps(doc, indent=2, sort_keys=True))
     else:
-        _render(rep)
+        _render(rep, findings)

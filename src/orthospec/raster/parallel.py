@@ -12,9 +12,10 @@ import multiprocessing
 import os
 import sys
 import time
+import warnings
 from collections.abc import Callable, Iterator, Mapping, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
-from contextlib import contextmanager, suppress
+from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor, as_completed
+from contextlib import contextmanager, nullcontext, suppress
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Protocol, TextIO
@@ -124,9 +125,19 @@ def _aggregates(bands: list[dict[str, Any]], lum: dict[str, Any] | None,
     return out
 
 
+#: Files at least this big are hashed in a thread while their pixels are scanned (hashlib and
+#: GDAL both release the GIL); smaller ones sequentially (a thread costs more than it saves).
+HASH_THREAD_BYTES = 4 * 2**20
+
+
 def scan_image(path: str | Path, options: ScanOptions | None = None, *,
                cloud_mask: str | Path | None = None) -> ImageReport:
-    """Check and measure one image; never raises for a bad file."""
+    """Check and measure one image; never raises for a bad file.
+
+    A header problem that leaves the pixels readable (no CRS, identity geotransform) is kept in
+    ``error`` but the pixels are still measured: ``radiometry`` is set (callers that need no
+    georeference, such as ``measure radiometry``, report it as a file-check finding).
+    """
     o = options or ScanOptions()
     t0 = time.perf_counter()
     p = str(path)
@@ -136,27 +147,28 @@ def scan_image(path: str | Path, options: ScanOptions | None = None, *,
     if checks.error is not None and checks.bytes in (None, 0):
         rep.seconds = time.perf_counter() - t0
         return rep
-    try:
-        rep.sha256 = _file_hash(p, o)
-    except OSError as exc:
-        rep.error = f"{p}: cannot read file: {exc.strerror or exc}"
-        return rep
-    if checks.error is not None and checks.driver is None:
-        rep.seconds = time.perf_counter() - t0
-        return rep  # not a raster at all: nothing more to measure
-    cached = None
-    if o.cache_dir:
-        with ResultCache(o.cache_dir, read_only=True) as cache:
-            cached = cache.get(rep.sha256, o.key())
-    if cached is not None:
-        rep.radiometry, rep.cached = cached, True
-    else:
-        try:
-            rep.radiometry = scan_raster(p, o.settings).to_dict()
-        except (OrthospecError, rasterio.errors.RasterioError, ValueError) as exc:
-            rep.error = str(exc) if p in str(exc) else f"{p}: {exc}"
-        except Exception as exc:  # GDAL CPLE_* and friends: one bad file never stops a batch
-            rep.error = f"{p}: cannot read pixels: {type(exc).__name__}: {exc}"
+    raster = not (checks.error is not None and checks.driver is None)
+    # With a result cache the hash decides whether to scan at all: compute it first. Without
+    # one, hash a big file in a thread while its pixels are scanned (one pass of wall time).
+    alongside = raster and not o.cache_dir and (checks.bytes or 0) >= HASH_THREAD_BYTES
+    with ThreadPoolExecutor(max_workers=1) if alongside else nullcontext() as pool:
+        hashing = pool.submit(_file_hash, p, o) if pool is not None else None
+        if hashing is None:
+            try:
+                rep.sha256 = _file_hash(p, o)
+            except OSError as exc:
+                rep.error = f"{p}: cannot read file: {exc.strerror or exc}"
+                return rep
+        if not raster:
+            rep.seconds = time.perf_counter() - t0
+            return rep  # not a raster at all: nothing more to measure
+        _measure_pixels(rep, p, o)
+        if hashing is not None:
+            try:
+                rep.sha256 = hashing.result()
+            except OSError as exc:
+                rep.error, rep.radiometry = f"{p}: cannot read file: {exc.strerror or exc}", None
+                return rep
     if cloud_mask is not None and rep.error is None:
         try:
             rep.cloud_cover_pct = mask_share(cloud_mask, settings=o.settings).percent
@@ -164,6 +176,25 @@ def scan_image(path: str | Path, options: ScanOptions | None = None, *,
             rep.error = f"{cloud_mask}: cloud mask unreadable: {exc}"
     rep.seconds = time.perf_counter() - t0
     return rep
+
+
+def _measure_pixels(rep: ImageReport, p: str, o: ScanOptions) -> None:
+    """Radiometry from the cache (by SHA-256 and settings) or from one scan of the pixels."""
+    cached = None
+    if o.cache_dir and rep.sha256:
+        with ResultCache(o.cache_dir, read_only=True) as cache:
+            cached = cache.get(rep.sha256, o.key())
+    if cached is not None:
+        rep.radiometry, rep.cached = cached, True
+        return
+    try:
+        with warnings.catch_warnings():  # a missing georeference is already a file-check finding
+            warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+            rep.radiometry = scan_raster(p, o.settings).to_dict()
+    except (OrthospecError, rasterio.errors.RasterioError, ValueError) as exc:
+        rep.error = str(exc) if p in str(exc) else f"{p}: {exc}"
+    except Exception as exc:  # GDAL CPLE_* and friends: one bad file never stops a batch
+        rep.error = f"{p}: cannot read pixels: {type(exc).__name__}: {exc}"
 
 
 #: Files hashed in this process (tests check that unchanged files are not re-read).
