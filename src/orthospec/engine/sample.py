@@ -39,12 +39,12 @@ def _image_centres(d: Delivery) -> tuple[list[str], np.ndarray, np.ndarray, pd.D
     ids = t.ids.tolist()
     if {"exposure_x", "exposure_y"} <= set(df.columns) and df["exposure_x"].notna().all():
         return ids, df["exposure_x"].to_numpy(float), df["exposure_y"].to_numpy(float), df
-    import rasterio
+    from ..raster.reading import open_read_only, read_only_env
 
     xs, ys = [], []
     for i, f in zip(ids, df["file"], strict=True):
         try:
-            with rasterio.open(d.path(str(f))) as ds:
+            with read_only_env(), open_read_only(d.path(str(f))) as ds:
                 b = ds.bounds
                 xs.append((b.left + b.right) / 2)
                 ys.append((b.bottom + b.top) / 2)

@@ -21,7 +21,7 @@ from rasterio.windows import Window
 
 from ...errors import OrthospecError
 from ...measures.edge import NYQUIST, PSF_FITS, EdgeResult, measure_edge
-from ...raster.reading import read_only_env
+from ...raster.reading import open_read_only, read_only_env
 from ..registry import Measured, ProviderContext, provider
 
 HEALTH = {  # measure -> health check name in EdgeResult
@@ -140,7 +140,7 @@ def _measure_all(ctx: ProviderContext) -> dict[str, Any]:
         rec: dict[str, Any] = {"file": rel}
         try:
             path = d.path(rel, what=f"edge target {t.id}")
-            with read_only_env(), rasterio.open(path) as ds:
+            with read_only_env(), open_read_only(path, name=rel) as ds:
                 if not 1 <= t.band <= ds.count:
                     raise OrthospecError(f"{rel}: band {t.band} does not exist ({ds.count} bands)")
                 if not (0 <= x0 < x1 <= ds.width and 0 <= y0 < y1 <= ds.height):

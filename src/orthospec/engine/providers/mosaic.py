@@ -15,7 +15,7 @@ from shapely.geometry import Polygon, box
 
 from ...errors import MeasureError, OrthospecError
 from ...measures.mosaic import seamline_coverage
-from ...raster.reading import read_only_env, read_vector
+from ...raster.reading import open_read_only, read_only_env, read_vector
 from ..registry import Measured, ProviderContext, provider
 
 MEASURES = {"mosaic.aoi_coverage": "%", "mosaic.seamline_coverage": "%", "mosaic.seamline_overlap": "%",
@@ -45,7 +45,7 @@ def _footprints(ctx: ProviderContext) -> tuple[list[Any], list[str]]:
     with read_only_env():
         for rel in t.df["file"].astype(str):
             try:
-                with rasterio.open(d.path(rel)) as ds:
+                with open_read_only(d.path(rel)) as ds:
                     out.append(box(*ds.bounds))
             except (OrthospecError, OSError, rasterio.errors.RasterioError):
                 bad.append(rel)
