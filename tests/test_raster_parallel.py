@@ -145,3 +145,37 @@ def test_tune_allocator_sets_the_trim_threshold():
     from orthospec.raster.parallel import tune_allocator
 
     assert tune_allocator(1 << 30) is True  # glibc on this platform accepts M_TRIM_THRESHOLD
+
+
+def test_check_through_dask_gives_byte_identical_qcr_json(tmp_path):
+    """Issue 14 item 5: `check --scheduler` (a distributed LocalCluster, in-process workers) writes
+    the very bytes of the local run's qcr.json for the same delivery and --date."""
+    distributed = pytest.importorskip("distributed")
+    from orthospec.cli.main import main
+
+    example = Path(__file__).resolve().parents[1] / "examples" / "deliveries" / "aerial-pass"
+    common = ["check", str(example), "-p", "jrc-v3", "--format", "json", "--date", "2026-11-21"]
+
+    def run(*extra: str) -> int:
+        with pytest.raises(SystemExit) as exc:
+            main([*common, *extra])
+        return int(exc.value.code)
+
+    local_code = run("--out", str(tmp_path / "local"), "--workers", "1")
+    with (distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
+                                   dashboard_address=None) as cluster,
+          distributed.Client(cluster) as client):
+        dask_code = run("--out", str(tmp_path / "dask"), "--scheduler", cluster.scheduler_address)
+        done = client.run_on_scheduler(_scan_tasks_done)
+    local = (tmp_path / "local" / "qcr.json").read_bytes()
+    assert dask_code == local_code
+    assert (tmp_path / "dask" / "qcr.json").read_bytes() == local
+    n_images = len(list((example / "images").glob("*.tif")))
+    assert done >= n_images, "the images were not scanned by the Dask cluster"
+    assert json.loads(local)["rules"]  # a real document, not an empty one
+
+
+def _scan_tasks_done(dask_scheduler) -> int:
+    """scan_image tasks the scheduler saw finish (runs on the scheduler)."""
+    prefix = dask_scheduler.task_prefixes.get("scan_image")
+    return 0 if prefix is None else int(prefix.state_counts.get("forgotten", 0))
