@@ -1,63 +1,15 @@
-"""Acceptance: block verdicts (X, Y, Z independently, marginal), project and delivery rules."""
+"""Acceptance (JRC §12.3 image share, §12.8 block share): the one implementation the evaluator calls.
+
+§12.7 block verdicts are profile rules (JRC-12.7-RMSEX/-RMSEY); their end-to-end behaviour is in
+tests/test_verdict_regressions.py.
+"""
 
 from __future__ import annotations
 
-import numpy as np
 import pytest
 
 from orthospec.errors import MeasureError
-from orthospec.measures.acceptance import (
-    block_verdicts,
-    image_delivery_verdict,
-    project_verdict,
-)
-
-
-@pytest.mark.parametrize(
-    ("rx", "ry", "passed", "marginal"),
-    [
-        (1.0, 1.0, True, False),
-        (2.5, 1.0, True, True),      # exactly the tolerance passes ("exceed" fails)
-        (2.6, 1.0, False, True),     # just above: fails, marginal
-        (1.0, 3.0, False, False),    # Y alone rejects the block
-        (2.3, 0.5, True, True),      # 0.2 below a 2.5 tolerance, margin 10% = 0.25
-        (2.2, 0.5, True, False),
-    ],
-)
-def test_block_verdict_table(rx, ry, passed, marginal):
-    v = block_verdicts([rx], [ry], tolerance_xy=2.5, block_ids=["B1"])
-    assert bool(v.passed[0]) is passed
-    assert bool(v.marginal[0]) is marginal
-    assert ("fail" in v.reasons[0]) is (not passed)
-    assert ("marginal" in v.reasons[0]) is marginal
-
-
-def test_block_verdicts_vectorised_with_dem_and_per_block_tolerance():
-    rx = np.array([0.3, 0.3, 0.3, 0.9])
-    ry = np.array([0.3, 0.3, 0.6, 0.3])
-    rz = np.array([0.5, 1.2, 0.5, 0.5])
-    v = block_verdicts(rx, ry, rz, tolerance_xy=[0.5, 0.5, 0.5, 1.0], tolerance_z=1.0,
-                       block_ids=["A", "B", "C", "D"])
-    assert v.passed.tolist() == [True, False, False, True]
-    assert v.pass_z is not None and v.pass_z.tolist() == [True, False, True, True]
-    assert v.failed_ids == ("B", "C")
-    assert v.marginal_ids == ("D",)  # 0.9 within 10% of 1.0
-    assert "RMSE_z 1.2 > 1" in v.reasons[1]
-
-
-@pytest.mark.parametrize(
-    ("args", "kwargs", "match"),
-    [
-        (([np.nan], [1.0]), {"tolerance_xy": 1.0, "block_ids": ["B7"]}, "rmse_x.*B7"),
-        (([1.0], [1.0]), {"tolerance_xy": 0.0}, "positive"),
-        (([1.0, 2.0], [1.0]), {"tolerance_xy": [1.0, 2.0, 3.0]}, "3 values for 2"),
-        (([1.0], [1.0], [1.0]), {"tolerance_xy": 1.0}, "tolerance_z"),
-        (([-1.0], [1.0]), {"tolerance_xy": 1.0}, "negative"),
-    ],
-)
-def test_block_verdicts_bad_input(args, kwargs, match):
-    with pytest.raises(MeasureError, match=match):
-        block_verdicts(*args, **kwargs)
+from orthospec.measures.acceptance import image_delivery_verdict, project_verdict
 
 
 def test_project_verdict_thresholds():
@@ -97,3 +49,23 @@ def test_image_delivery_verdict():
     assert not v3.sample_sufficient and v3.sampled_fraction == pytest.approx(0.095)
     with pytest.raises(MeasureError):
         image_delivery_verdict(10, [])
+
+
+@pytest.mark.parametrize(("n", "failed", "returned"), [
+    (30, 1, False),   # 1/30 = 3.3 % <= 5 %: the failing image is reprocessed
+    (30, 2, True),    # 2/30 = 6.7 % > 5 % (§12.3 "more than 5%"): the delivery is returned
+    (20, 1, False),   # exactly 5 % is not "more than 5%"
+    (19, 1, True),    # 1/19 = 5.3 %: one image already returns a small delivery (the text, kept)
+])
+def test_image_share_follows_section_12_3(n, failed, returned):
+    v = image_delivery_verdict(n, [True] * failed + [False] * (n - failed))
+    assert v.failed_fraction == pytest.approx(failed / n)
+    assert v.return_delivery is returned
+
+
+def test_image_share_may_is_a_parameter_with_return_as_default():
+    """§12.3 "may be returned": the default returns; the checker's discretion keeps the delivery."""
+    fails = [True, True] + [False] * 28
+    assert image_delivery_verdict(30, fails).return_delivery
+    kept = image_delivery_verdict(30, fails, returns=False)
+    assert not kept.return_delivery and "discretion" in kept.reason and kept.reprocess == ("0", "1")

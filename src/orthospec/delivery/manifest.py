@@ -49,11 +49,30 @@ class Sensor(_Open):
 
 
 class Product(_Open):
+    """What was bought and delivered. Facts rules gate on (``when: manifest.product.*``) are
+    declared here so a profile can only read paths the schema defines. An absent fact that a
+    rule's applicability depends on makes that rule ``missing`` (never silently not applicable);
+    where the data can decide, the engine computes the fact (``derived.*`` measures) instead."""
+
     gsd: QuantityIn | None = None
     bit_depth: int | None = None
     bands: list[str] | None = None
     format: str | None = None
     dem_delivered: bool = False
+    orthorectification: str | None = Field(
+        None, description="How the orthoimages were produced: aerotriangulation, space_resection, rpc, "
+                          "rpc_block, polynomial, physical (JRC §8, §9, §12.8 footnote 6). The engine also "
+                          "derives it from blocks[].method (derived.orthorectification).")
+    mosaic: bool | None = Field(None, description="The product is a mosaic (JRC §11, Table 11, Table 12).")
+    pansharpened: bool | None = Field(
+        None, description="The product is pan-sharpened (JRC §10). The engine also derives it from the bands "
+                          "(derived.pansharpened).")
+    dra_applied: bool | None = Field(None, description="Dynamic range adjustment was applied (JRC §6.3).")
+    update: bool | None = Field(None, description="An update of an existing orthoimage coverage (JRC §8.5).")
+    extracts: bool | None = Field(
+        None, description="The contractor declares the images are extracts (JRC §12.4), not the full coverage. "
+                          "Evidence only: rules use the computed derived.extracts.")
+    accuracy_statement: str | None = Field(None, description="The contractor's statement of product accuracy.")
 
 
 class Block(_Closed):

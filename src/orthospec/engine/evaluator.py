@@ -8,7 +8,10 @@ verdicts of the first.
 
 from __future__ import annotations
 
+import ast
+import itertools
 import math
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -16,13 +19,21 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from ..delivery.convention import table_specs
 from ..delivery.reader import MANIFEST, Delivery
 from ..errors import ExpressionError, OrthospecError, UnitError
+from ..measures.acceptance import (
+    DeliveryVerdict,
+    ProjectVerdict,
+    image_delivery_verdict,
+    project_verdict,
+)
 from ..provenance import Evidence
 from ..spec import expr
 from ..spec.loader import ResolvedProfile
 from ..spec.models import Requirement, Rule
 from ..units import NON_NUMERIC, Q_, canonical, convert, parse_unit, ureg
+from .builtin import BUILTIN_RULES, ITT_DECLARED, parameter_findings
 from .params import ParamValue
 from .registry import ROLLUP, MeasureCache, Measured, ProviderContext, measure_info
 
@@ -77,6 +88,46 @@ class Evaluation:
 
 
 # --- helpers --------------------------------------------------------------------------------
+
+_STRING_LITERAL = re.compile(r"'([^']*)'|\"([^\"]*)\"")
+_NUMBER_LITERAL = re.compile(r"(?<![\w.])(-?\d+(?:\.\d+)?(?:[eE][-+]?\d+)?)(?![\w.])")
+
+
+def _null_tested(when: str) -> set[str]:
+    """Names a `when` compares with null: their absence is part of the condition, not missing evidence."""
+    out: set[str] = set()
+    try:
+        tree = ast.parse(when, mode="eval")
+    except SyntaxError:
+        return out
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Compare):
+            sides = [node.left, *node.comparators]
+            if any(_is_null(x) for x in sides):
+                out.update(d for x in sides if (d := _dotted_name(x)) is not None)
+    return out
+
+
+def _is_null(node: ast.AST) -> bool:
+    return (isinstance(node, ast.Constant) and node.value is None) or (
+        isinstance(node, ast.Name) and node.id in ("null", "None"))
+
+
+def _dotted_name(node: ast.AST) -> str | None:
+    parts: list[str] = []
+    while isinstance(node, ast.Attribute):
+        parts.append(node.attr)
+        node = node.value
+    if isinstance(node, ast.Name) and node.id not in ("null", "None", "true", "false"):
+        return ".".join([node.id, *reversed(parts)])
+    return None
+
+
+def _unknown_note(rule: Rule, absent: list[str]) -> str:
+    shown = ", ".join(a[len("manifest."):] + " (delivery.yaml)" if a.startswith("manifest.") else a
+                      for a in absent)
+    return (f"applicability unknown: no value for {shown}; the rule applies when {rule.when} - "
+            "declare the fact (or deliver the data) so the rule can be decided")
 
 def _is_missing(v: Any) -> bool:
     if v is None:
@@ -134,17 +185,26 @@ class _Names(Mapping[str, Any]):
     """Names an expression may use: parameters, manifest paths, measures of the rule's scope."""
 
     def __init__(self, params: dict[str, ParamValue], manifest: dict[str, Any], cache: MeasureCache,
-                 scope: str, items: list[str]) -> None:
+                 scope: str, items: list[str], *, scalar: bool = False) -> None:
         self.params, self.manifest, self.cache = params, manifest, cache
-        self.scope, self.items = scope, items
+        self.scope, self.items, self.scalar = scope, items, scalar
+        self.fill = {}
+
+    #: name -> value substituted where that fact or measure is missing (applicability probing)
+    fill: dict[str, Any]
 
     def __getitem__(self, key: str) -> Any:
         if key in self.params:
-            return self.params[key].quantity()  # None when unset: `param != null` tests that
+            q = self.params[key].quantity()  # None when unset: `param != null` tests that
+            if q is None and key in self.fill:
+                return self.fill[key]
+            return q
         if key.startswith("param."):
             return self[key[6:]]
         if key.startswith("manifest."):
             v = self.manifest.get(key)
+            if _is_missing(v) and key in self.fill:
+                return self.fill[key]
             if isinstance(v, dict) and set(v) == {"value", "unit"}:
                 return Q_(float(v["value"]), parse_unit(v["unit"]))
             return v
@@ -152,11 +212,40 @@ class _Names(Mapping[str, Any]):
         if info is None:
             raise KeyError(key)
         m = self.cache.get(key)
-        vals = m.values.reindex(self.items)
+        if key in self.fill:
+            return self._filled(key, m, info)
+        if info[0] in ("delivery", "project") and (self.scalar or self.scope not in ("delivery", "project")):
+            # one value for the whole delivery: every item of any scope sees it
+            one = m.values.iloc[0] if len(m.values) else None
+            if self.scalar:
+                if _is_missing(one):
+                    return None
+                if m.unit in NON_NUMERIC or m.unit == "any":
+                    return one
+                return Q_(float(one), parse_unit(m.unit))
+            vals = pd.Series([one] * len(self.items), index=self.items, dtype=object)
+        else:
+            vals = m.values.reindex(self.items)
         if m.unit in NON_NUMERIC or m.unit == "any":
             return vals.to_numpy(dtype=object)
         arr = pd.to_numeric(vals, errors="coerce").to_numpy(dtype=float)
         return Q_(arr, parse_unit(m.unit))
+
+    def _filled(self, key: str, m: Measured, info: tuple[str, str]) -> Any:
+        """The measure with its missing entries replaced by the probe value ``fill[key]``."""
+        if info[0] in ("delivery", "project") and (self.scalar or self.scope not in ("delivery", "project")):
+            one = m.values.iloc[0] if len(m.values) else None
+            vals = pd.Series([one] * max(len(self.items), 1), dtype=object)
+        else:
+            vals = m.values.reindex(self.items)
+        raw = vals.to_numpy(dtype=object).copy()
+        miss = _missing_mask(raw)
+        raw[miss] = self.fill[key]
+        if m.unit in NON_NUMERIC or m.unit == "any":
+            return raw[0] if self.scalar else raw
+        arr = pd.to_numeric(pd.Series(raw), errors="coerce").to_numpy(dtype=float)
+        q = Q_(arr, parse_unit(m.unit))
+        return q[0] if self.scalar else q
 
     def __contains__(self, key: object) -> bool:
         if not isinstance(key, str):
@@ -182,7 +271,9 @@ def _magnitudes(v: Any, unit: str | None, n: int, gsd: np.ndarray | None, what: 
             # a pure number (e.g. "0.1 * 256") means "in the requirement's unit"
             return np.broadcast_to(mag, (n,)).astype(float)
         return np.broadcast_to(convert(mag, src, unit, gsd_m=gsd, what=what), (n,)).astype(float)
-    if isinstance(v, bool) or v is None:
+    if v is None:
+        raise _Undecidable(f"{what}: the threshold has no value (a fact or parameter it names is not given)")
+    if isinstance(v, bool):
         raise UnitError(f"{what}: expected a number, got {v!r}")
     return np.broadcast_to(np.asarray(v, dtype=float), (n,)).astype(float)
 
@@ -201,6 +292,10 @@ def _fmt(x: Any) -> str:
     return str(x)
 
 
+class _Undecidable(OrthospecError):
+    """A rule's requirement needs a value nobody gave (an unset parameter): verdict `missing`."""
+
+
 # --- the evaluator ---------------------------------------------------------------------------
 
 class Evaluator:
@@ -209,7 +304,8 @@ class Evaluator:
         self.profile, self.d, self.params = profile, delivery, parameters
         self.fail_on = fail_on
         self.options = dict(options or {})
-        ctx = ProviderContext(delivery, {k: v.quantity() for k, v in parameters.items()}, dict(options or {}))
+        ctx = ProviderContext(delivery, {k: v.quantity() for k, v in parameters.items()}, dict(options or {}),
+                              classes=dict(getattr(profile, "classes", {}) or {}))
         self.cache = MeasureCache(ctx)
         self.manifest = delivery.flat_manifest()
         self._manual = self._manual_table()
@@ -218,7 +314,7 @@ class Evaluator:
     def run(self) -> Evaluation:
         first = [r for r in self.profile.rules if not r.measure.startswith("rollup.")]
         second = [r for r in self.profile.rules if r.measure.startswith("rollup.")]
-        results = [self._safe(r) for r in first]
+        results = [self._safe(r) for r in first] + self._builtin()
         used = self._apply_waivers(results)
         rejected, reasons = self._rollup_items(results)
         self._rollup_values = self._rollup_measures(rejected)
@@ -226,21 +322,54 @@ class Evaluator:
         used |= self._apply_waivers(later)
         results += later
         waived_unused = self._unused_waivers(used)
+        # only a MANDATORY roll-up rule replaces the default "any rejected item returns the delivery":
+        # a recommended one cannot change the verdict, so it must not switch the default off
         verdict, reasons2 = self._overall(results, rejected, has_block_rollup=any(
-            r.measure in ("rollup.block_rejected_share", "rollup.blocks_rejected") for r in second),
+            r.measure in ("rollup.block_rejected_share", "rollup.blocks_rejected") and r.level == "mandatory"
+            for r in second),
             has_image_rollup=any(r.measure in ("rollup.image_rejected_share", "rollup.images_rejected")
-                                 for r in second))
+                                 and r.level == "mandatory" for r in second))
         details = self.cache.details()
         return Evaluation(self.profile, self.d, self.params, results, rejected, reasons + reasons2,
                           verdict, self.fail_on, details, waived_unused)
 
+    def _builtin(self) -> list[RuleResult]:
+        """The engine's own rules every profile gets (engine/builtin.py: parameter authority)."""
+        code = {0: PASS, 1: FAIL, 2: WARN, 3: NA}
+        out = []
+        rows_by_rule = parameter_findings(self.params, self.d)
+        for rule in BUILTIN_RULES:
+            rows = rows_by_rule[rule.id]
+            n = len(rows)
+            ev = (self.d.manifest_evidence("tender.parameters"),)
+            out.append(RuleResult(
+                rule, np.array([r[0] for r in rows], dtype=object),
+                np.array([code[r[3]] for r in rows], dtype=np.int8),
+                np.array([r[1] or None for r in rows], dtype=object), "text",
+                {"op": rule.requirement.op, "unit": None, "text": (
+                    "declared value = value in force" if rule.id == ITT_DECLARED.id
+                    else "set by a tender profile, --param or the standard")},
+                [ev] * n, np.array([r[2] for r in rows], dtype=object)))
+        return out
+
     def _safe(self, rule: Rule) -> RuleResult:
         try:
             return self._evaluate(rule)
+        except _Undecidable as exc:
+            return self._all(rule, MISSING, str(exc), items=self._items_or_none(rule))
         except OrthospecError as exc:
-            return self._all(rule, ERROR, str(exc))
+            return self._all(rule, ERROR, str(exc), items=self._items_or_none(rule))
         except Exception as exc:  # a crashing rule is `error`, never `fail`, and never stops the run
-            return self._all(rule, ERROR, f"internal error in rule: {type(exc).__name__}: {exc}")
+            return self._all(rule, ERROR, f"internal error in rule: {type(exc).__name__}: {exc}",
+                             items=self._items_or_none(rule))
+
+    def _items_or_none(self, rule: Rule) -> list[str] | None:
+        """The rule's items when they are known, so a broken rule still judges each one (not `*`)."""
+        try:
+            items, _ = universe(rule.scope, self.d)
+        except Exception:
+            return None
+        return items or None
 
     def _all(self, rule: Rule, verdict: int, note: str, items: list[str] | None = None,
              evidence: tuple[Evidence, ...] = ()) -> RuleResult:
@@ -251,42 +380,133 @@ class Evaluator:
                           [evidence] * n, np.full(n, note, dtype=object),
                           error=note if verdict == ERROR else None)
 
-    # --- one rule
-    def _applicable(self, rule: Rule, items: list[str]) -> np.ndarray:
-        """Per-item applicability from `when` (scalar or one value per item); None/NaN count as false."""
+    # --- one rule: applicability
+    def _global(self, name: str) -> bool:
+        """A name with one value for the whole delivery (parameter, manifest fact, delivery measure)."""
+        if name in self.params or name.startswith(("manifest.", "param.")):
+            return True
+        info = measure_info(name)
+        return info is not None and info[0] in ("delivery", "project")
+
+    def _missing_of(self, name: str, names: _Names, n: int) -> np.ndarray:
+        """Per item: the fact or measure ``name`` has no value (so a `when` over it cannot be decided)."""
+        key = name[6:] if name.startswith("param.") else name
+        if key in self.params:
+            return np.full(n, self.params[key].value is None)
+        if key.startswith("manifest."):
+            return np.full(n, _is_missing(self.manifest.get(key)))
+        info = measure_info(key)
+        try:
+            m = self.cache.get(key)
+        except OrthospecError:
+            return np.ones(n, dtype=bool)
+        if info is not None and info[0] in ("delivery", "project") and (
+                names.scalar or names.scope not in ("delivery", "project")):
+            one = m.values.iloc[0] if len(m.values) else None
+            return np.full(n, _is_missing(one))
+        return _missing_mask(m.values.reindex(names.items).to_numpy(dtype=object))
+
+    def _probes(self, name: str, when: str) -> list[Any]:
+        """Values that stand in for a missing ``name`` to see whether the `when` depends on it."""
+        strings = [a or b for a, b in _STRING_LITERAL.findall(when)]
+        numbers = [float(x) for x in _NUMBER_LITERAL.findall(when)]
+        key = name[6:] if name.startswith("param.") else name
+        if key in self.params:
+            p = self.params[key]
+            if p.unit in NON_NUMERIC:
+                return [True, False] if p.unit == "bool" else [*strings, "\x00absent"]
+            return [Q_(v, parse_unit(p.unit)) for v in (-1e12, 0.0, *numbers, 1e12)]
+        info = measure_info(key)
+        unit = info[1] if info else "any"
+        if unit == "bool":
+            return [True, False]
+        if unit in NON_NUMERIC:
+            return [*strings, "\x00absent"]
+        if unit == "any":
+            return [True, False, 0.0, *numbers, *strings, "\x00absent"]
+        return [-1e12, 0.0, *numbers, 1e12]
+
+    @staticmethod
+    def _truth(v: Any, n: int) -> np.ndarray:
+        v = getattr(v, "magnitude", v)
+        if v is None:
+            return np.zeros(n, dtype=bool)
+        if np.ndim(v) == 0:
+            return np.full(n, bool(v), dtype=bool)
+        return np.array([bool(c) if not _is_missing(c) else False for c in np.asarray(v, dtype=object)],
+                        dtype=bool)
+
+    def _when(self, rule: Rule, items: list[str], *, scalar: bool = False
+              ) -> tuple[np.ndarray, np.ndarray, list[str]]:
+        """(applies, unknown, absent names) per item of a rule's `when`.
+
+        A fact the `when` reads but the delivery does not give makes the rule's applicability
+        unknown - evidence missing, never a silent `not_applicable` - unless the condition is
+        decided whatever that fact is (``type == 'satellite' and digital == false`` on an aerial
+        delivery), or the `when` itself tests the name for null.
+        """
+        n = 1 if scalar else len(items)
+        e = expr.parse(rule.when or "true")
+        names = _Names(self.params, self.manifest, self.cache, rule.scope, items, scalar=scalar)
+        base = self._truth(e.evaluate(names), n)
+        nulls = _null_tested(rule.when or "")
+        missing = {k: self._missing_of(k, names, n) for k in sorted(e.names) if k not in nulls}
+        probe = [k for k, mk in missing.items() if mk.any()]
+        none = np.zeros(n, dtype=bool)
+        if not probe:
+            return base, none, []
+        has_missing = np.logical_or.reduce([missing[k] for k in probe])
+        cands = [self._probes(k, rule.when or "") for k in probe]
+        total = math.prod(len(c) for c in cands)
+        first: np.ndarray | None = None
+        unknown = none.copy()
+        if total <= 512:
+            for combo in itertools.product(*cands):
+                names.fill = dict(zip(probe, combo, strict=True))
+                try:
+                    v = self._truth(e.evaluate(names), n)
+                except (OrthospecError, TypeError, ValueError):
+                    continue
+                if first is None:
+                    first = v
+                else:
+                    unknown |= v != first
+        if first is None:
+            return base & ~has_missing, has_missing, probe
+        unknown &= has_missing
+        return first & ~unknown, unknown, probe
+
+    def _applicable(self, rule: Rule, items: list[str]) -> tuple[np.ndarray, np.ndarray, str | None]:
+        """Per-item applicability from `when`: (applies, unknown, note for the unknown items)."""
         n = len(items)
         if not rule.when:
-            return np.ones(n, dtype=bool)
-        names = _Names(self.params, self.manifest, self.cache, rule.scope, items)
-        cond = expr.parse(rule.when).evaluate(names)
-        cond = getattr(cond, "magnitude", cond)
-        if cond is None:
-            return np.zeros(n, dtype=bool)
-        if np.ndim(cond) == 0:
-            return np.full(n, bool(cond), dtype=bool)
-        arr = np.asarray(cond, dtype=object)
-        return np.array([bool(c) if c is not None and not (isinstance(c, float) and math.isnan(c)) else False
-                         for c in arr], dtype=bool)
+            return np.ones(n, dtype=bool), np.zeros(n, dtype=bool), None
+        applies, unknown, absent = self._when(rule, items)
+        return applies, unknown, _unknown_note(rule, absent) if unknown.any() else None
 
-    def _scalar_condition(self, rule: Rule) -> bool | None:
-        """A `when` over parameters and manifest facts only: decided once for the whole rule."""
+    def _scalar_condition(self, rule: Rule) -> tuple[bool | None, str | None]:
+        """A `when` over delivery-wide facts only, decided once: (True/False, None), (None, why
+        unknown), or (None, None) when it reads per-item measures."""
         if not rule.when:
-            return None
+            return None, None
         e = expr.parse(rule.when)
-        if any(not (n in self.params or n.startswith(("manifest.", "param."))) for n in e.names):
-            return None
-        names = _Names(self.params, self.manifest, self.cache, rule.scope, [])
-        v = e.evaluate(names)
-        v = getattr(v, "magnitude", v)
-        return bool(v) if v is not None and np.ndim(v) == 0 else False
+        if any(not self._global(n) for n in e.names):
+            return None, None
+        applies, unknown, absent = self._when(rule, [], scalar=True)
+        if unknown[0]:
+            return None, _unknown_note(rule, absent)
+        return bool(applies[0]), None
 
     def _evaluate(self, rule: Rule) -> RuleResult:
-        cond = self._scalar_condition(rule)
+        cond, unknown_why = self._scalar_condition(rule)
         if cond is False:
             items0, _ = universe(rule.scope, self.d)
             return self._all(rule, NA, f"not applicable: {rule.when} is false for this delivery",
                              items=items0 or None, evidence=(self.d.manifest_evidence("(when)"),))
         items, why = universe(rule.scope, self.d)
+        if unknown_why is not None:
+            return self._all(rule, MISSING, unknown_why, items=items or None,
+                             evidence=(self.d.manifest_evidence("(when)"),))
         if rule.manual:
             return self._manual_rule(rule, items if items is not None else [self.d.id])
         if rule.measure.startswith("rollup."):
@@ -304,7 +524,7 @@ class Evaluator:
         verdict = np.full(n, PASS, dtype=np.int8)
         notes = np.full(n, None, dtype=object)
         names = _Names(self.params, self.manifest, self.cache, rule.scope, items)
-        applicable = self._applicable(rule, items)
+        applicable, unknown, unknown_note = self._applicable(rule, items)
         sampled = self._sample_mask(rule.scope, items)
         if sampled is not None:
             for i in np.flatnonzero(applicable & ~sampled):
@@ -331,9 +551,13 @@ class Evaluator:
             applicable &= ~na_mask
             notes = np.where(na_mask, nav.to_numpy(dtype=object), notes)
         req = rule.requirement
-        ok, measured, thr, unit = self._compare(rule, req, raw, m.unit, missing | errs, names, items)
+        ok, measured, thr, unit, undecided = self._compare(rule, req, raw, m.unit, missing | errs, names, items)
         verdict[~ok] = FAIL if rule.level == "mandatory" else WARN
         verdict[missing] = MISSING
+        for code, mask, why in undecided:
+            mask = mask & ~missing & ~errs
+            verdict[mask] = code
+            notes[mask] = why
         for i in np.flatnonzero(missing):
             if notes[i] is None:
                 notes[i] = f"no value for {rule.measure}" + (
@@ -341,23 +565,35 @@ class Evaluator:
                     if evidence_list[i] and evidence_list[i][0].rows else "")
         verdict[errs] = ERROR
         verdict[~applicable] = NA
+        if unknown.any():
+            in_sample = unknown if sampled is None else unknown & sampled
+            verdict[in_sample] = MISSING
+            notes[in_sample] = unknown_note
         return RuleResult(rule, np.array(items, dtype=object), verdict, measured, unit, thr,
                           evidence_list, notes)
 
     def _compare(self, rule: Rule, req: Requirement, raw: np.ndarray, munit: str, skip: np.ndarray,
-                 names: _Names, items: list[str]) -> tuple[np.ndarray, np.ndarray, dict[str, Any], str]:
+                 names: _Names, items: list[str]
+                 ) -> tuple[np.ndarray, np.ndarray, dict[str, Any], str, list[tuple[int, np.ndarray, str]]]:
+        """Vectorised comparison: (ok, measured, threshold, unit, undecided).
+
+        ``undecided`` lists (verdict, mask, note) for items the comparison could not decide: a
+        value that does not convert (px without a GSD) or a threshold that cannot be computed is
+        `missing`; a non-finite threshold is `error`. Neither is ever `pass`.
+        """
         n = len(raw)
         op = req.op
         ok = np.ones(n, dtype=bool)
         thr = self._req_dict(req, None)
+        undecided: list[tuple[int, np.ndarray, str]] = []
         if op == "present":
             ok = ~_missing_mask(raw)
-            return ok, raw, thr, munit
+            return ok, raw, thr, munit, undecided
         if op in ("true", "false"):
             want = op == "true"
             vals = np.array([v is want or (isinstance(v, np.bool_) and bool(v) is want) for v in raw])
             ok = vals | skip
-            return ok, raw, thr, munit
+            return ok, raw, thr, munit, undecided
         numeric_ops = ("<", "<=", ">", ">=", "between")
         textual = munit in NON_NUMERIC or munit == "any"
         literal_text = op in ("==", "!=", "in") and (
@@ -372,7 +608,7 @@ class Evaluator:
                           and self._is_expr(req.value) else str(req.value))
                 eq = np.array([v == target for v in vals])
                 ok = (eq if op == "==" else ~eq) | skip
-            return ok, vals, thr, munit
+            return ok, vals, thr, munit, undecided
         if textual:
             raise UnitError(f"measure {rule.measure} is {munit}, the requirement {op} needs a number")
         values = raw.astype(float) if raw.dtype.kind in "fiu" else \
@@ -380,9 +616,15 @@ class Evaluator:
         target_unit = canonical(req.unit) if req.unit else munit
         gsd = item_gsd(rule.scope, items, self.d, self.cache) if (
             "px" in (canonical(munit), target_unit)) else None
+        before = np.isnan(values)
         if canonical(munit) != target_unit:
             values = convert(values, munit, target_unit, gsd_m=gsd, what=f"measure {rule.measure}")
+        lost = np.isnan(values) & ~before & ~skip
+        if lost.any():
+            undecided.append((MISSING, lost, f"{rule.measure} in {canonical(munit)} cannot be converted to "
+                              f"{target_unit}: no GSD for this item (give images.gsd or product.gsd)"))
         what = f"rule {rule.id} requirement"
+        self._need_params(rule, req)
         if op in numeric_ops or op in ("==", "!="):
             with np.errstate(invalid="ignore"):
                 if op == "between":
@@ -394,17 +636,44 @@ class Evaluator:
                     b = values <= hi if req.max_inclusive else values < hi
                     ok = a & b
                     thr = self._req_dict(req, (lo, hi))
+                    # an open side is written as no bound (-inf/+inf): only a given bound must be finite
+                    bounds = [x for x, given in ((lo, req.min is not None), (hi, req.max is not None)) if given]
                 else:
                     t = _magnitudes(_threshold_value(req.value, names), req.unit, n, gsd, what)
                     cmp = {"<": np.less, "<=": np.less_equal, ">": np.greater, ">=": np.greater_equal,
                            "==": np.isclose, "!=": lambda a, b: ~np.isclose(a, b)}[op]
                     ok = cmp(values, t)
                     thr = self._req_dict(req, (t,))
+                    bounds = [t]
+            for b_ in bounds:
+                nan_t = np.isnan(b_) & ~skip
+                if nan_t.any():
+                    undecided.append((MISSING, nan_t, f"the threshold of {rule.id} cannot be computed for "
+                                      "this item (a px threshold without a GSD, or a measure it uses is missing)"))
+                inf_t = np.isinf(b_) & ~skip
+                if inf_t.any():
+                    undecided.append((ERROR, inf_t, f"the threshold of {rule.id} is not a finite number "
+                                      f"({thr.get('text', '')}): a requirement must be a finite value"))
         elif op == "in":
             allowed = np.array([float(_threshold_value(v, names)) for v in req.values or []])
             ok = np.isin(values, allowed)
+        nan_v = np.isnan(values) & ~skip & ~lost
+        if nan_v.any():
+            undecided.append((MISSING, nan_v, f"no numeric value for {rule.measure}"))
         ok = ok | skip | np.isnan(values)
-        return ok, values, thr, target_unit
+        return ok, values, thr, target_unit, undecided
+
+    def _need_params(self, rule: Rule, req: Requirement) -> None:
+        """A threshold naming an unset parameter cannot be decided: raise so the rule is `missing`."""
+        for spec in (req.value, req.min, req.max, *(req.values or [])):
+            if not isinstance(spec, str) or not self._is_expr(spec):
+                continue
+            unset = sorted(n for n in expr.parse(spec).names
+                           if (n[6:] if n.startswith("param.") else n) in self.params
+                           and self.params[n[6:] if n.startswith("param.") else n].value is None)
+            if unset and not _null_tested(spec):
+                raise _Undecidable(f"parameter {', '.join(unset)} is not set, so {rule.id} cannot be decided: "
+                                   "set it in a tender profile or with --param NAME=VALUE")
 
     def _is_expr(self, v: str) -> bool:
         """A string value is an expression only if it parses and names a parameter or manifest fact."""
@@ -489,9 +758,13 @@ class Evaluator:
                         verdict[i] = ERROR
                         notes[i] = f"manual_checks verdict must be pass or fail, got {v!r}"
         if rule.when:
-            applicable = self._applicable(rule, items)
-            verdict[~applicable] = NA
-            notes[~applicable] = f"not applicable: {rule.when} is false"
+            applicable, unknown, unknown_note = self._applicable(rule, items)
+            na = ~applicable & ~unknown
+            verdict[na] = NA
+            notes[na] = f"not applicable: {rule.when} is false"
+            if unknown.any():
+                unsigned = unknown & (verdict == MISSING)
+                notes[unsigned] = unknown_note
         return RuleResult(rule, np.array(items, dtype=object), verdict, measured, "text",
                           self._req_dict(rule.requirement, None), evidence, notes)
 
@@ -534,65 +807,112 @@ class Evaluator:
             return np.zeros(len(r.verdict), dtype=bool)
         return np.isin(r.verdict, bad)
 
-    def _block_of(self, scope: str) -> dict[str, str]:
-        table = {"image": "images", "checkpoint": "checkpoints", "gcp": "gcps"}.get(scope)
-        if table is None:
-            return {}
-        t = self.d.table(table)
+    def _blocks_of(self, scope: str) -> dict[str, set[str]] | None:
+        """item -> blocks it belongs to / serves, from the scope's table `block` column
+        (';'-separated for an item serving several blocks, e.g. a DEM); None when unknown."""
+        table = next((name for name, spec in table_specs().items()
+                      if spec.scope == scope and spec.id is not None), None)
+        t = self.d.table(table) if table else None
         if t is None or "block" not in t.df:
-            return {}
-        return dict(zip(t.ids.tolist(), t.df["block"].astype(str).tolist(), strict=True))
+            return None
+        out: dict[str, set[str]] = {}
+        for item, b in zip(t.ids.astype(str).tolist(), t.df["block"].tolist(), strict=True):
+            if not _is_missing(b):
+                out[item] = {x.strip() for x in str(b).split(";") if x.strip()}
+        return out
 
     def _rollup_items(self, results: list[RuleResult]) -> tuple[dict[str, list[str]], list[str]]:
         rejected: dict[str, set[str]] = {}
         reasons: list[str] = []
+        self._scope_wide: list[str] = []  # findings that could not be tied to items: return the delivery
         for r in results:
             mask = self._blocking(r)
             if not mask.any():
                 continue
             items = [str(i) for i in r.items[mask]]
             c = r.rule.consequence
+            if "*" in items and c != "warn":
+                v = VERDICTS[int(r.verdict[mask][0])]
+                note = next((str(x) for x in r.notes[mask] if x), "")
+                self._scope_wide.append(f"{r.rule.id} ({r.rule.clause.text()}): {v} for the whole {r.rule.scope} "
+                                        f"scope, not for named items ({note[:160]}): the delivery is returned")
+                items = [i for i in items if i != "*"]
+                if not items:
+                    continue
             if c == "reject_item":
                 rejected.setdefault(r.rule.scope, set()).update(items)
             elif c == "reject_block":
                 if r.rule.scope == "block":
                     blocks = set(items)
+                    unmapped: list[str] = []
                 else:
-                    bmap = self._block_of(r.rule.scope)
-                    blocks = {bmap[i] for i in items if i in bmap} or set(self.d.block_ids)
-                rejected.setdefault("block", set()).update(blocks)
-                reasons.append(f"{r.rule.id} ({r.rule.clause.text()}) rejects block(s) "
-                               + ", ".join(sorted(blocks)))
+                    bmap = self._blocks_of(r.rule.scope)
+                    blocks = set().union(*(bmap.get(i, set()) for i in items)) if bmap else set()
+                    unmapped = [i for i in items if not bmap or not bmap.get(i)]
+                    if unmapped:
+                        self._scope_wide.append(
+                            f"{r.rule.id} ({r.rule.clause.text()}) rejects {r.rule.scope} item(s) "
+                            f"{', '.join(unmapped[:5])} but the blocks they serve are unknown (no `block` "
+                            f"column value for them): the finding stands at delivery level and the "
+                            "delivery is returned")
+                if blocks:
+                    rejected.setdefault("block", set()).update(blocks)
+                    reasons.append(f"{r.rule.id} ({r.rule.clause.text()}) rejects block(s) "
+                                   + ", ".join(sorted(blocks)))
         return {k: sorted(v) for k, v in sorted(rejected.items())}, reasons
 
+    def _param_number(self, name: str, default: float) -> float:
+        p = self.params.get(name)
+        v = getattr(p, "value", None)
+        return float(v) if isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) \
+            else default
+
     def _rollup_measures(self, rejected: dict[str, list[str]]) -> dict[str, Measured]:
+        """Roll-up measures through the one implementation of JRC §12.3 / §12.8 (measures/acceptance)."""
         d = self.d
         out: dict[str, Measured] = {}
+        max_share = self._param_number("fail_share_max", 5.0) / 100.0
         imgs = d.table("images")
         ev_img = imgs.evidence(imgs.df["_row"]) if imgs is not None else (d.manifest_evidence("tables"),)
+        share = samp = None
+        rej: set[str] = set()
+        self._image_verdict: DeliveryVerdict | None = None
         if imgs is not None:
-            all_imgs = imgs.ids.tolist()
+            all_imgs = imgs.ids.astype(str).tolist()
             sampled = all_imgs
             given = self.options.get("sample")
             if given and given[0] == "image":
                 sampled = [i for i in all_imgs if i in given[1]]
             elif "sample" in imgs.df and imgs.df["sample"].map(lambda v: v is True).any():
-                sampled = imgs.ids[imgs.df["sample"].map(lambda v: v is True)].tolist()
+                sampled = imgs.ids[imgs.df["sample"].map(lambda v: v is True)].astype(str).tolist()
             rej = set(rejected.get("image", [])) & set(sampled)
-            share = 100.0 * len(rej) / len(sampled) if sampled else None
             samp = 100.0 * len(sampled) / len(all_imgs) if all_imgs else None
-        else:
-            share = samp = None
-            rej = set()
+            if sampled:
+                action = getattr(self.params.get("image_fail_share_action"), "value", None)
+                self._image_verdict = image_delivery_verdict(
+                    len(all_imgs), [i in rej for i in sampled], sampled_ids=sampled,
+                    max_failed_fraction=max_share, returns=action != "keep")
+                share = 100.0 * self._image_verdict.failed_fraction
         blocks = d.block_ids
         cps = d.table("checkpoints")
-        checked = sorted(set(cps.df["block"].astype(str)) & set(blocks)) if cps is not None else []
+        with_points = set(cps.df["block"].astype(str)) & set(blocks) if cps is not None else set()
+        brej = set(rejected.get("block", [])) & set(blocks)
+        # a declared block without check points is missing evidence, never dropped from the share:
+        # the blocks subjected to external QC are those with points plus those a rule rejected
+        checked = sorted(with_points | brej)
         given = self.options.get("sample")
         if given and given[0] == "block":
             checked = [b for b in checked if b in given[1]]
-        brej = set(rejected.get("block", [])) & set(blocks)
-        bshare = 100.0 * len(brej & set(checked or blocks)) / len(checked or blocks) if blocks else None
-        bchecked = 100.0 * len(checked) / len(blocks) if blocks else None
+        self._block_verdict: ProjectVerdict | None = None
+        bshare = None
+        if blocks and checked:
+            self._block_verdict = project_verdict(
+                len(blocks), [b not in brej for b in checked], checked_ids=checked,
+                max_failed_fraction=max_share, space_resection=self._space_resection())
+            bshare = 100.0 * self._block_verdict.failed_fraction
+        elif blocks:
+            bshare = 0.0 if not brej else 100.0
+        bchecked = 100.0 * len(with_points) / len(blocks) if blocks else None
         ev_blk = (cps.evidence(cps.df["_row"]) if cps is not None else (d.manifest_evidence("blocks"),))
         vals = {
             "rollup.image_rejected_share": (share, ev_img), "rollup.images_sampled_share": (samp, ev_img),
@@ -607,9 +927,17 @@ class Evaluator:
                                  pd.Series({item: ev}, dtype=object))
         return out
 
+    def _space_resection(self) -> bool:
+        """JRC §12.8 footnote 6 applies: the orthophotos were produced by space resection."""
+        try:
+            m = self.cache.get("derived.orthorectification")
+        except OrthospecError:
+            return False
+        return bool(len(m.values)) and m.values.iloc[0] == "space_resection"
+
     def _overall(self, results: list[RuleResult], rejected: dict[str, list[str]], *,
                  has_block_rollup: bool, has_image_rollup: bool) -> tuple[str, list[str]]:
-        reasons: list[str] = []
+        reasons: list[str] = list(getattr(self, "_scope_wide", []))
         for r in results:
             mask = self._blocking(r)
             if not mask.any():
@@ -625,11 +953,15 @@ class Evaluator:
                 reasons.append(f"--fail-on warn: recommended-level rule(s) not met: {', '.join(warned[:10])}"
                                + (f" (+{len(warned) - 10} more)" if len(warned) > 10 else ""))
         if rejected.get("block") and not has_block_rollup:
+            bv = getattr(self, "_block_verdict", None)
             reasons.append("block(s) " + ", ".join(rejected["block"]) + " rejected and the profile has no "
-                           "project-level roll-up rule: any rejected block returns the delivery")
+                           "mandatory project-level roll-up rule: any rejected block returns the delivery"
+                           + (f" (JRC §12.8: {bv.reason})" if bv is not None else ""))
         if rejected.get("image") and not has_image_rollup:
-            reasons.append("image(s) rejected and the profile has no delivery-level roll-up rule: any "
-                           "rejected image returns the delivery")
+            iv = getattr(self, "_image_verdict", None)
+            reasons.append("image(s) rejected and the profile has no mandatory delivery-level roll-up rule: "
+                           "any rejected image returns the delivery"
+                           + (f" (JRC §12.3: {iv.reason})" if iv is not None else ""))
         for scope, items in rejected.items():
             if scope in ("image", "block") or not items:
                 continue  # these two have the JRC §12.3 / §12.8 roll-up rules above

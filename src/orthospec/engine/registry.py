@@ -94,6 +94,8 @@ class ProviderContext:
     options: Mapping[str, Any] = field(default_factory=dict)  # workers, scheduler, cache...
     #: shared work between providers of one run (e.g. one pass over the checkpoints)
     memo: dict[str, Any] = field(default_factory=dict)
+    #: the profile's named classes (e.g. ``resolution`` of JRC §9.1), for computed class measures
+    classes: Mapping[str, Any] = field(default_factory=dict)
 
 
 ProviderFn = Callable[[ProviderContext], Iterable[Measured]]

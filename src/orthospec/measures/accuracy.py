@@ -39,6 +39,7 @@ __all__ = [
     "BlunderDecision",
     "BlunderResult",
     "accuracy_stats",
+    "bias_significance",
     "ce90_formula",
     "ce95_formula",
     "deltas_from_coordinates",
@@ -355,6 +356,28 @@ def accuracy_stats(
         max_abs_dx=maxx, max_abs_dy=maxy, max_abs_dz=maxz, max_dr=float(dr.max()),
         gsd=gsd,
     )
+
+
+def bias_significance(mean: float | None, std: float | None, n: int) -> tuple[float | None, float | None]:
+    """One-sample Student t of a mean error and its two-sided p-value: systematic error per axis.
+
+    ``t = |μ| / (σ/√n)`` with ``σ`` the standard deviation with ``n-1`` (the seed 000 definition,
+    ``σ_x = sqrt(Σ(ΔX-μ_x)²/(n-1))``), and ``p = 2·(1 - F_t(t; n-1))``. The USGS bias ratio
+    ``μ/σ`` (seed 000: "If μ_x/σ_c > 0.1, then bias is not negligible") says how large the mean
+    is against the spread; ``t`` says whether it is distinguishable from zero with n points, so a
+    uniform 0.45 m shift under a 0.5 m tolerance is found even though the RMSE passes (JRC §12.4
+    asks for a guard against systematic error). Returns ``(None, None)`` for ``n < 2`` or an
+    absent axis; ``σ = 0`` gives ``t = inf, p = 0`` for a non-zero mean and ``t = 0, p = 1`` for
+    a zero mean.
+    """
+    if mean is None or std is None or n < 2 or not (math.isfinite(mean) and math.isfinite(std)):
+        return None, None
+    if std == 0.0:
+        return (0.0, 1.0) if mean == 0.0 else (math.inf, 0.0)
+    from scipy.stats import t as student_t
+
+    t = abs(mean) / (std / math.sqrt(n))
+    return float(t), float(2.0 * student_t.sf(t, n - 1))
 
 
 def _safe_ratio(num: float, den: float) -> float:

@@ -14,7 +14,7 @@ import pandas as pd
 from shapely.geometry import Polygon
 
 from ...errors import MeasureError
-from ...measures.accuracy import AccuracyStats, detect_blunders
+from ...measures.accuracy import AccuracyStats, bias_significance, detect_blunders
 from ...measures.distribution import checkpoint_distribution
 from ...provenance import Evidence
 from ...units import convert
@@ -40,6 +40,9 @@ BLOCK_MEASURES.update({
     "checkpoints.reported_diff_x": "m", "checkpoints.reported_diff_y": "m",
     "checkpoints.reported_diff_z": "m",
     "checkpoints.asprs_rmse_h": "m", "checkpoints.asprs_rmse_v": "m",
+    # systematic error (JRC §12.4; seed 000 bias): Student t of the mean error and its p-value
+    "checkpoints.bias_t_x": "1", "checkpoints.bias_t_y": "1", "checkpoints.bias_t_z": "1",
+    "checkpoints.bias_p_x": "1", "checkpoints.bias_p_y": "1", "checkpoints.bias_p_z": "1",
 })
 POINT_MEASURES = {
     "checkpoint.dx": "m", "checkpoint.dy": "m", "checkpoint.dz": "m", "checkpoint.dr": "m",
@@ -72,8 +75,16 @@ def _compute_once(ctx: ProviderContext) -> dict[str, Any]:
     to_m = float(convert([1.0], unit, "m")[0])
     gcps = d.table("gcps")
     polys = {}
+    bad_polygon: dict[str, str] = {}
     for b in d.manifest.blocks:
         if b.polygon and len(b.polygon) >= 3:
+            xy = np.asarray(b.polygon, dtype=float)
+            if not np.isfinite(xy).all():
+                row = int(np.flatnonzero(~np.isfinite(xy).all(axis=1))[0])
+                # a broken outline makes the block's statistics untrustworthy: error, never a pass
+                bad_polygon[b.id] = (f"delivery.yaml blocks[{b.id}].polygon vertex {row + 1} is not a finite "
+                                     f"number ({b.polygon[row]}): the block cannot be checked")
+                continue
             polys[b.id] = Polygon([(float(x) * to_m, float(y) * to_m) for x, y in b.polygon])
     basis = str(_param(ctx, "blunder_basis", "calculated"))
     factor = float(_param(ctx, "blunder_factor", 3.0))
@@ -102,6 +113,10 @@ def _compute_once(ctx: ProviderContext) -> dict[str, Any]:
                 if flag is True:
                     excl[pid] = why
         out: dict[str, Any] = {"evidence": ev}
+        if block in bad_polygon:
+            out["error"] = bad_polygon[block]
+            blocks[block] = out
+            continue
         try:
             br = detect_blunders(dx, dy, dz, ids=ids, basis=basis if basis in ("calculated", "target")
                                  else "calculated", factor=factor, target_rmse_xy=target,
@@ -117,6 +132,9 @@ def _compute_once(ctx: ProviderContext) -> dict[str, Any]:
         out["checkpoints.ce95_selected"] = st.ce95_selected
         out["checkpoints.bias_negligible"] = st.bias_negligible
         out["checkpoints.nssda_approximation_holds"] = st.nssda_approximation_holds
+        for axis in ("x", "y", "z"):
+            t_stat, p_val = bias_significance(getattr(st, f"mean_{axis}"), getattr(st, f"std_{axis}"), st.n)
+            out[f"checkpoints.bias_t_{axis}"], out[f"checkpoints.bias_p_{axis}"] = t_stat, p_val
         out["checkpoints.rmse_x_all"] = br.stats_all.rmse_x
         out["checkpoints.rmse_y_all"] = br.stats_all.rmse_y
         out["checkpoints.rmse_z_all"] = br.stats_all.rmse_z

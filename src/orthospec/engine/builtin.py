@@ -1,0 +1,120 @@
+"""Rules the engine adds to every profile: who set each threshold (parameter authority).
+
+JRC EUR 23638 EN §2.5: "The acceptance criterion for this check is the tolerance stated in the
+ITT." The ITT's numbers therefore come from a tender profile or the checker's ``--param``; the
+contractor's manifest only *declares* them (``tender.parameters``). Two built-in rules make that
+visible in qcr.json, the terminal and the reports, like any profile rule:
+
+* ``ORTHOSPEC-ITT-SOURCE`` (recommended, warn): a parameter the standard leaves to the ITT had no
+  value from a tender profile or ``--param``, so the manifest's declared value was used. The
+  verdict is ``warn`` per such parameter: "ITT value taken from the contractor's manifest;
+  confirm against the ITT".
+* ``ORTHOSPEC-ITT-DECLARED`` (mandatory, return_delivery): the manifest declares a value that
+  differs from the one in force (tender profile, ``--param`` or the standard's own number), or
+  declares one that cannot be read. Why return the delivery: §2.5 makes the contractor's
+  internal QC and its QCRs part of what the Commission audits; a delivery whose own record of
+  the contract differs from the contract documents a QC made against other numbers, so the
+  record is not evidence of conformity and goes back for correction. The products themselves
+  are still judged against the value in force by the other rules.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from ..spec.models import Clause, Requirement, Rule
+
+if TYPE_CHECKING:
+    from ..delivery.reader import Delivery
+    from .params import ParamValue
+
+_CLAUSE = Clause(document="JRC EUR 23638 EN", section="2.5")
+
+ITT_SOURCE = Rule(
+    id="ORTHOSPEC-ITT-SOURCE",
+    title="ITT parameter taken from the contractor's manifest",
+    clause=_CLAUSE,
+    quote="The acceptance criterion for this check is the tolerance stated in the ITT.",
+    scope="delivery",
+    measure="engine.parameter_source",
+    requirement=Requirement(op="in", values=["cli", "tender", "standard", "unset"]),
+    level="recommended",
+    consequence="warn",
+    note=("Built into the engine. A parameter the standard leaves to the ITT had no value from a tender "
+          "profile or --param; the manifest's declared value was used and must be confirmed against the "
+          "ITT. Recommended/warn: the value may well be right, but nobody independent of the contractor "
+          "has stated it."),
+    tags=["engine", "parameters"],
+)
+
+ITT_DECLARED = Rule(
+    id="ORTHOSPEC-ITT-DECLARED",
+    title="Manifest-declared contract value agrees with the value in force",
+    clause=_CLAUSE,
+    quote="The acceptance criterion for this check is the tolerance stated in the ITT.",
+    scope="delivery",
+    measure="engine.parameter_declared",
+    requirement=Requirement(op="==", value="value in force"),
+    level="mandatory",
+    consequence="return_delivery",
+    note=("Built into the engine. tender.parameters in delivery.yaml is evidence, never authority; a "
+          "declared value different from the tender profile's, the checker's (--param) or the standard's "
+          "means the contractor's internal QC was run against other numbers, so its QCRs do not show "
+          "conformity with the ITT (JRC §2.5): the delivery is returned for correction of the record."),
+    tags=["engine", "parameters"],
+)
+
+BUILTIN_RULES: tuple[Rule, ...] = (ITT_DECLARED, ITT_SOURCE)
+
+
+def _same(a: Any, b: Any) -> bool:
+    if isinstance(a, bool) or isinstance(b, bool):
+        return a is b
+    if isinstance(a, int | float) and isinstance(b, int | float):
+        return bool(np.isclose(float(a), float(b), rtol=1e-9, atol=0.0))
+    return str(a) == str(b)
+
+
+def _show(v: Any, unit: str) -> str:
+    if isinstance(v, float):
+        v = f"{v:.6g}"
+    return f"{v} {unit}" if unit and unit not in ("1", "text", "bool", "date") else str(v)
+
+
+def parameter_findings(params: dict[str, ParamValue], d: Delivery
+                       ) -> dict[str, list[tuple[str, str, str | None, int]]]:
+    """Per built-in rule id: (item, measured text, note, verdict code) rows.
+
+    Verdict codes are the evaluator's (imported there); here 0 pass, 1 fail, 2 warn, 3 n/a.
+    """
+    declared_raw = dict(d.manifest.tender.parameters) if d.manifest.tender else {}
+    source_rows: list[tuple[str, str, str | None, int]] = []
+    declared_rows: list[tuple[str, str, str | None, int]] = []
+    for name, p in sorted(params.items()):
+        src = getattr(p, "source", "")
+        declared = getattr(p, "declared", None)
+        if src == "manifest":
+            source_rows.append((name, src, "ITT value taken from the contractor's manifest; confirm against "
+                                f"the ITT ({name} = {_show(p.value, p.unit)} from delivery.yaml "
+                                "tender.parameters)", 2))
+        if src == "manifest" or name not in declared_raw:
+            continue
+        if declared is None:
+            why = getattr(p, "note", None) or "the declared value cannot be read in the parameter's unit"
+            declared_rows.append((name, str(declared_raw[name]), f"delivery.yaml tender.parameters.{name}: "
+                                  f"{why}", 1))
+        elif p.value is None or not _same(declared, p.value):
+            declared_rows.append((name, _show(declared, p.unit),
+                                  f"delivery.yaml declares {name} = {_show(declared, p.unit)}, the value in force "
+                                  f"is {_show(p.value, p.unit)} (source: {src}); the contractor's QC used "
+                                  "other numbers than the contract", 1))
+        else:
+            declared_rows.append((name, _show(declared, p.unit),
+                                  f"declared {_show(declared, p.unit)} = value in force (source: {src})", 0))
+    if not source_rows:
+        source_rows.append((d.id, "", "no ITT parameter was taken from the contractor's manifest", 3))
+    if not declared_rows:
+        declared_rows.append((d.id, "", "delivery.yaml declares no contract value for a profile parameter", 3))
+    return {ITT_SOURCE.id: source_rows, ITT_DECLARED.id: declared_rows}
