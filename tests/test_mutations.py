@@ -1,0 +1,311 @@
+"""Mutation suite: every mandatory automatic rule of every shipped profile can reject a delivery.
+
+Why: a mandatory rule that a planted violation cannot turn into REJECTED is a rule an auditor cannot
+trust (issue 12). One data table, ``tests/data/mutations.yaml``, drives the suite: each case names a
+rule, the item it must fail on and the mutation that plants the violation into a copy of an example
+delivery (edit a CSV cell, drop rows, change a manifest key, replace an image). Cases of one group
+share one copied delivery and one check run (their mutations touch different items), which keeps the
+suite fast. Rules that cannot be planted are listed in the same table with their reason, and
+``test_every_mandatory_automatic_rule_has_a_case`` fails when a new mandatory automatic rule has
+neither, so the table cannot fall behind the profiles.
+
+Each case asserts three things: in the unmutated delivery the rule does not fail on the item (so the
+mutation, not the example, causes the finding), after the mutation the delivery is rejected (the
+exit code of ``orthospec check`` is 1), and the rule is among the mandatory fail/missing/error records
+for that item. The coverage line ("mutation coverage: N/M ...") is printed at the end of the run.
+"""
+
+from __future__ import annotations
+
+import csv
+import functools
+import io
+import shutil
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import rasterio
+import yaml
+from rasterio.transform import Affine
+
+from orthospec import api
+from orthospec.errors import OrthospecError
+from orthospec.spec.loader import ResolvedProfile, load_profile
+
+ROOT = Path(__file__).resolve().parents[1]
+EXAMPLES = ROOT / "examples" / "deliveries"
+TABLE = yaml.safe_load((Path(__file__).parent / "data" / "mutations.yaml").read_text(encoding="utf-8"))
+SHIPPED = {name: ROOT / "specs" / f"{name}.yaml" for name in TABLE["profiles"]}
+BAD = ("fail", "missing", "error")
+DATE = "2026-11-21"
+
+
+# ---------------------------------------------------------------- the table
+def _cases() -> list[dict[str, Any]]:
+    out = []
+    for g in TABLE["groups"]:
+        for c in g["cases"]:
+            out.append({**c, "group": g["id"], "profile": g["profile"], "example": g["example"],
+                        "params": g.get("params") or {}})
+    return out
+
+
+CASES = _cases()
+GROUPS = {g["id"]: g for g in TABLE["groups"]}
+EXCEPTIONS = {(e["profile"], e["rule"]): e["reason"] for e in TABLE.get("exceptions") or []}
+
+
+def _mandatory_automatic(profile: str) -> set[str]:
+    rules = yaml.safe_load(SHIPPED[profile].read_text(encoding="utf-8"))["rules"]
+    return {r["id"] for r in rules if r.get("level") == "mandatory" and not r.get("manual")}
+
+
+# ---------------------------------------------------------------- mutations
+def _read_csv(path: Path) -> tuple[list[str], list[dict[str, str]]]:
+    with path.open(encoding="utf-8", newline="") as fh:
+        reader = csv.DictReader(fh)
+        return list(reader.fieldnames or []), list(reader)
+
+
+def _write_csv(path: Path, columns: list[str], rows: list[dict[str, str]]) -> None:
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=columns, lineterminator="\n")
+    w.writeheader()
+    w.writerows(rows)
+    path.write_text(buf.getvalue(), encoding="utf-8")
+
+
+def _match(row: dict[str, str], where: dict[str, Any] | None) -> bool:
+    return all(row.get(k) == str(v) for k, v in (where or {}).items())
+
+
+def _table_path(root: Path, table: str) -> Path:
+    manifest = yaml.safe_load((root / "delivery.yaml").read_text(encoding="utf-8"))
+    return root / manifest["tables"][table]
+
+
+def _mutate_csv(root: Path, m: dict[str, Any]) -> None:
+    path = _table_path(root, m["table"])
+    columns, rows = _read_csv(path)
+    hit = [r for r in rows if _match(r, m.get("where"))]
+    assert hit, f"mutation matches no row: {m}"
+    if "keep" in m:  # drop matching rows beyond the first `keep`
+        drop = {id(r) for r in hit[m["keep"]:]}
+        rows = [r for r in rows if id(r) not in drop]
+    for col, value in (m.get("set") or {}).items():
+        if col not in columns:
+            columns.append(col)
+            for r in rows:
+                r.setdefault(col, "")
+        for r in hit:
+            r[col] = "" if value is None else str(value)
+    for col, delta in (m.get("add") or {}).items():
+        for r in hit:
+            r[col] = f"{float(r[col]) + float(delta):.3f}"
+    for col, ref in (m.get("debias") or {}).items():  # remove the mean error of the matching rows
+        mean = sum(float(r[col]) - float(r[ref]) for r in hit) / len(hit)
+        for r in hit:
+            r[col] = f"{float(r[col]) - mean:.3f}"
+    for col, (ref, factor) in (m.get("scale_error") or {}).items():  # col = ref + factor x (col - ref)
+        for r in hit:
+            r[col] = f"{float(r[ref]) + float(factor) * (float(r[col]) - float(r[ref])):.3f}"
+    _write_csv(path, columns, rows)
+
+
+def _set_path(doc: Any, dotted: str, value: Any, *, delete: bool = False) -> None:
+    keys = dotted.split(".")
+    for k in keys[:-1]:
+        doc = doc[int(k)] if isinstance(doc, list) else doc.setdefault(k, {})
+    last = keys[-1]
+    if isinstance(doc, list):
+        if delete:
+            del doc[int(last)]
+        else:
+            doc[int(last)] = value
+    elif delete:
+        doc.pop(last, None)
+    else:
+        doc[last] = value
+
+
+def _mutate_manifest(root: Path, m: dict[str, Any]) -> None:
+    path = root / "delivery.yaml"
+    doc = yaml.safe_load(path.read_text(encoding="utf-8"))
+    for dotted, value in (m.get("set") or {}).items():
+        _set_path(doc, dotted, value)
+    for dotted in m.get("delete") or []:
+        _set_path(doc, dotted, None, delete=True)
+    for dotted, n in (m.get("copy_blocks") or {}).items():  # append n copies of a block, new ids
+        src = next(b for b in doc["blocks"] if b["id"] == dotted)
+        for i in range(n):
+            doc["blocks"].append({**src, "id": f"{dotted}-X{i + 1:02d}", "reported": {}})
+    path.write_text(yaml.safe_dump(doc, sort_keys=False, allow_unicode=True), encoding="utf-8")
+
+
+def _mutate_raster(root: Path, m: dict[str, Any]) -> None:
+    path = root / m["file"]
+    if m.get("truncate"):
+        data = path.read_bytes()
+        path.write_bytes(data[: len(data) // 3])
+        return
+    with rasterio.open(path) as src:
+        profile, arr = src.profile, src.read()
+    if "pixel_size" in m:
+        t = profile["transform"]
+        profile["transform"] = Affine(m["pixel_size"], 0.0, t.c, 0.0, -m["pixel_size"], t.f)
+    if "crs" in m:
+        profile["crs"] = m["crs"]
+    if "driver" in m:  # another format, same name: what a mislabelled file looks like
+        profile = {k: v for k, v in profile.items() if k in ("width", "height", "count", "dtype", "crs",
+                                                            "transform")}
+        profile["driver"] = m["driver"]
+    if "fill" in m:
+        arr = np.full_like(arr, m["fill"])
+    path.unlink()
+    with rasterio.open(path, "w", **profile) as dst:
+        dst.write(arr)
+
+
+def _delete_file(root: Path, m: dict[str, Any]) -> None:
+    (root / m["path"]).unlink()
+
+
+def _write_file(root: Path, m: dict[str, Any]) -> None:
+    path = root / m["path"]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(m["text"], encoding="utf-8")
+
+
+def _derive_table(root: Path, m: dict[str, Any]) -> None:
+    """A new table with one row per row of an existing one: copied id columns plus constant values."""
+    _, rows = _read_csv(_table_path(root, m["from"]))
+    columns = [*m["copy"], *m["set"]]
+    out = [{**{c: r[c] for c in m["copy"]}, **{k: "" if v is None else str(v) for k, v in m["set"].items()}}
+           for r in rows]
+    _write_csv(root / m["path"], columns, out)
+    _mutate_manifest(root, {"set": {f"tables.{m['table']}": m["path"]}})
+
+
+OPS = {"derive": _derive_table, "csv": _mutate_csv, "manifest": _mutate_manifest, "raster": _mutate_raster, "delete": _delete_file,
+       "write": _write_file}
+
+
+def apply_mutations(root: Path, mutations: list[dict[str, Any]]) -> None:
+    for m in mutations:
+        (op, spec), = m.items()
+        OPS[op](root, spec)
+
+
+# ---------------------------------------------------------------- runs (cached per module)
+@functools.cache
+def _profile(name: str) -> ResolvedProfile:
+    return load_profile(SHIPPED[name])
+
+
+def _run(root: Path, profile: str, params: dict[str, Any]) -> dict[str, Any]:
+    res = api.check(root, _profile(profile), params={k: str(v) for k, v in params.items()}, date=DATE,
+                    options={"workers": 1})
+    return res.document
+
+
+def _bad(doc: dict[str, Any]) -> dict[tuple[str, str], str]:
+    return {(r["rule"], r["item"]): r["verdict"] for r in doc["records"]
+            if r["verdict"] in BAD and r["level"] == "mandatory"}
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, Any]]:
+    """Lazily computed baseline and mutated runs: {("base", profile, example, params): doc, group: doc}."""
+    cache: dict[Any, Any] = {}
+
+    def get(key: Any) -> Any:
+        if key in cache:
+            return cache[key]
+        if key[0] == "base":
+            _, profile, example, params, group = key
+            root = EXAMPLES / example
+            if group:  # the group prepares the example (e.g. adds a statement) before both runs
+                root = tmp_path_factory.mktemp(f"{group}-base") / example
+                shutil.copytree(EXAMPLES / example, root)
+                apply_mutations(root, GROUPS[group]["prepare"])
+            cache[key] = _run(root, profile, dict(params))
+        else:
+            g = GROUPS[key]
+            root = tmp_path_factory.mktemp(key) / g["example"]
+            shutil.copytree(EXAMPLES / g["example"], root)
+            apply_mutations(root, g.get("prepare") or [])
+            for c in g["cases"]:
+                apply_mutations(root, c["mutations"])
+            try:
+                cache[key] = _run(root, g["profile"], g.get("params") or {})
+            except OrthospecError as exc:  # refused input: exit 2, never ACCEPTED
+                cache[key] = exc
+        return cache[key]
+
+    yield get  # type: ignore[misc]
+
+
+# ---------------------------------------------------------------- tests
+@pytest.mark.parametrize("case", CASES, ids=[f"{c['profile']}:{c['rule']}" for c in CASES])
+def test_planted_violation_rejects_for_the_rule(runs: Any, case: dict[str, Any]) -> None:
+    prepared = case["group"] if GROUPS[case["group"]].get("prepare") else None
+    base = runs(("base", case["profile"], case["example"], tuple(sorted(case["params"].items())), prepared))
+    key = (case["rule"], str(case["item"]))
+    if case.get("baseline") == "missing":  # no evidence in the example: the mutation plants failing evidence
+        assert _bad(base).get(key) == "missing", _bad(base).get(key)
+        case = {**case, "verdict": "fail"}
+    else:
+        assert key not in _bad(base), f"the unmutated {case['example']} already fails {key}: not a planted case"
+    doc = runs(case["group"])
+    if "refused" in case:  # the delivery convention itself refuses the violation (exit 2)
+        assert isinstance(doc, OrthospecError), f"expected the delivery to be refused, got {doc['verdict']}"
+        assert case["refused"] in str(doc), str(doc)
+        return
+    assert not isinstance(doc, OrthospecError), str(doc)
+    assert doc["verdict"] == "rejected", doc["rollup"]
+    bad = _bad(doc)
+    assert key in bad, (f"{case['rule']} does not fail on {case['item']} after the mutation; mandatory "
+                        f"findings: {sorted({r for r, _ in bad})}")
+    if case.get("verdict"):
+        assert bad[key] == case["verdict"], (key, bad[key])
+
+
+@pytest.mark.parametrize("profile", sorted(SHIPPED))
+def test_every_mandatory_automatic_rule_has_a_case(profile: str) -> None:
+    """A new mandatory automatic rule must get a case or a listed reason (issue 12 item 7)."""
+    rules = _mandatory_automatic(profile)
+    cased = {c["rule"] for c in CASES if c["profile"] == profile}
+    excepted = {r for p, r in EXCEPTIONS if p == profile}
+    assert not (rules - cased - excepted), f"mandatory automatic rules without a mutation case: {sorted(rules - cased - excepted)}"
+    assert not (cased & excepted), f"both planted and excepted: {sorted(cased & excepted)}"
+    stale = (cased | excepted) - rules
+    assert not stale, f"table names rules that are not mandatory automatic rules of {profile}: {sorted(stale)}"
+    assert all(len(EXCEPTIONS[(profile, r)]) > 20 for r in excepted), "each exception needs a reason"
+
+
+def coverage_line() -> str:
+    total = sum(len(_mandatory_automatic(p)) for p in SHIPPED)
+    planted = len({(c["profile"], c["rule"]) for c in CASES})
+    refused = len({(c["profile"], c["rule"]) for c in CASES if "refused" in c})
+    return (f"mutation coverage: {planted}/{total} mandatory automatic rules planted "
+            f"({refused} of them refused at load, exit 2), {len(EXCEPTIONS)} listed exceptions "
+            "(tests/data/mutations.yaml)")
+
+
+class _CoverageReport:
+    """Prints the coverage line in the terminal summary (shows in `make test`)."""
+
+    @staticmethod
+    def pytest_terminal_summary(terminalreporter: Any) -> None:
+        terminalreporter.write_sep("-", "mutation suite")
+        terminalreporter.write_line(coverage_line())
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _report_coverage(request: pytest.FixtureRequest) -> None:
+    pm = request.config.pluginmanager
+    if not pm.has_plugin("orthospec-mutation-coverage"):
+        pm.register(_CoverageReport(), "orthospec-mutation-coverage")
