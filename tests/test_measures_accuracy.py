@@ -350,3 +350,32 @@ def test_calculated_basis_cannot_flag_with_few_points(d):
     # the equality case, left out to stay clear of rounding).
     dx, dy = d
     assert detect_blunders(dx, dy).candidates == ()
+
+
+# --- systematic error: Student t of the mean error (JRC §12.4 guard; seed 000 bias) -----------
+
+@pytest.mark.parametrize(("mean", "std", "n", "t", "p"), [
+    # t = |mean| / (s / sqrt(n)); p from printed t-tables: t(0.975, 19) = 2.093, t(0.995, 9) = 3.250
+    (0.45, 0.1, 20, 0.45 * math.sqrt(20) / 0.1, None),
+    (2.093 * 0.1 / math.sqrt(20), 0.1, 20, 2.093, 0.05),
+    (-3.250 * 0.2 / math.sqrt(10), 0.2, 10, 3.250, 0.01),
+    (0.0, 0.3, 5, 0.0, 1.0),
+])
+def test_bias_significance_against_hand_values_and_t_tables(mean, std, n, t, p):
+    from orthospec.measures.accuracy import bias_significance
+
+    got_t, got_p = bias_significance(mean, std, n)
+    assert got_t == pytest.approx(t, rel=1e-9)
+    if p is None:
+        assert got_p < 1e-12  # a 0.45 m shift with 0.1 m noise over 20 points is no accident
+    else:
+        assert got_p == pytest.approx(p, abs=5e-4)
+
+
+def test_bias_significance_edge_cases():
+    from orthospec.measures.accuracy import bias_significance
+
+    assert bias_significance(0.2, 0.0, 5) == (math.inf, 0.0)   # every point shifted by exactly 0.2
+    assert bias_significance(0.0, 0.0, 5) == (0.0, 1.0)
+    assert bias_significance(0.2, 0.1, 1) == (None, None)      # one point: no spread, no test
+    assert bias_significance(None, None, 10) == (None, None)   # absent axis (no z)

@@ -224,3 +224,69 @@ def test_manual_rule_applies_per_item(make_delivery, tmp_path):
     m = recs(doc, "M")
     assert m["I1"]["verdict"] == "not_applicable"  # condition false for I1: no signature asked for
     assert m["I2"]["verdict"] == "pass" and "Ann" in m["I2"]["message"]
+
+
+def test_bias_t_statistic_equals_the_formula_on_the_example(tmp_path):
+    """checkpoints.bias_t_x = |mean dx| / (s(dx) / sqrt(n)), s with n - 1 (seed 000 sigma)."""
+    p = profile(tmp_path, rule("BT", "block", "checkpoints.bias_t_x", '{op: "<=", value: 1000, unit: "1"}',
+                               "reject_block"))
+    doc = check(EXAMPLES / "aerial-pass", p, date="2026-01-01").document
+    cp = pd.read_csv(EXAMPLES / "aerial-pass" / "tables" / "checkpoints.csv")
+    for block, g in cp.groupby("block"):
+        keep = g[~g.get("excluded", pd.Series(False, index=g.index)).fillna(False).astype(bool)]
+        dx = (keep["x"] - keep["x_ref"]).to_numpy()
+        expected = abs(dx.mean()) / (dx.std(ddof=1) / np.sqrt(dx.size))
+        assert recs(doc, "BT")[block]["measured"]["value"] == pytest.approx(expected, rel=1e-9)
+
+
+def _copy(tmp_path, name="aerial-pass"):
+    import shutil
+
+    dst = tmp_path / name
+    shutil.copytree(EXAMPLES / name, dst)
+    return dst
+
+
+def test_space_resection_is_derived_from_the_blocks(tmp_path):
+    """JRC §12.8 footnote 6 keys on space resection; a block's method decides it, not a product flag."""
+    import yaml
+
+    d = _copy(tmp_path)
+    m = yaml.safe_load((d / "delivery.yaml").read_text(encoding="utf-8"))
+    m["product"].pop("orthorectification", None)
+    m["blocks"][1]["method"] = "space_resection"
+    (d / "delivery.yaml").write_text(yaml.safe_dump(m, sort_keys=False), encoding="utf-8")
+    p = profile(tmp_path, rule("SR", "delivery", "derived.orthorectification",
+                               '{op: "==", value: aerotriangulation}', "return_delivery"))
+    doc = check(d, p, date="2026-01-01").document
+    rec = recs(doc, "SR")[doc["delivery"]["id"]]
+    assert rec["measured"]["value"] == "space_resection" and rec["verdict"] == "fail"
+    assert "B02" in rec["message"]
+
+
+def test_resolution_class_is_computed_from_the_pixel_size(tmp_path):
+    """JRC §9.1 classes from the profile's `classes:`; a gap of the text gives no class (missing)."""
+    d = _copy(tmp_path)
+    img = pd.read_csv(d / "tables" / "images.csv", dtype=str, keep_default_na=False)
+    img.loc[0, "acquisition_gsd"] = "5.0"   # HR: 3 <= 5 <= 8
+    img.loc[1, "acquisition_gsd"] = "9.0"   # in the 8-10 m gap of §9.1
+    img.to_csv(d / "tables" / "images.csv", index=False)
+    text = PROFILE_HEAD.replace("rules:\n", textwrap.dedent("""\
+        classes:
+          resolution:
+            unit: m
+            items:
+              - {id: VHR, max: 3, max_inclusive: false}
+              - {id: HR, min: 3, max: 8}
+              - {id: MR, min: 10, max: 20}
+        rules:
+        """)) + textwrap.indent(textwrap.dedent(rule("RC", "image", "derived.resolution_class",
+                                                      "{op: in, values: [VHR]}")), "  ")
+    p = tmp_path / "classes.yaml"
+    p.write_text(text)
+    doc = check(d, p, date="2026-01-01").document
+    got = recs(doc, "RC")
+    ids = img["image_id"].tolist()
+    assert got[ids[0]]["measured"]["value"] == "HR" and got[ids[0]]["verdict"] == "fail"
+    assert got[ids[1]]["verdict"] == "missing" and "no class" in got[ids[1]]["message"]
+    assert got[ids[2]]["measured"]["value"] == "VHR" and got[ids[2]]["verdict"] == "pass"

@@ -116,5 +116,7 @@ def parameter_findings(params: dict[str, ParamValue], d: Delivery
     if not source_rows:
         source_rows.append((d.id, "", "no ITT parameter was taken from the contractor's manifest", 3))
     if not declared_rows:
-        declared_rows.append((d.id, "", "delivery.yaml declares no contract value for a profile parameter", 3))
+        declared_rows.append((d.id, "", "no contract value declared in delivery.yaml to cross-check against a "
+                              "tender profile, --param or the standard (values used from it: "
+                              "ORTHOSPEC-ITT-SOURCE)", 3))
     return {ITT_SOURCE.id: source_rows, ITT_DECLARED.id: declared_rows}

@@ -1,0 +1,426 @@
+"""Regression tests for wrong verdicts an auditor found (issue 12, issue 17 "fail-open").
+
+Each case copies ``examples/deliveries/aerial-pass`` into tmp_path, plants one defect by editing
+its CSV/YAML, and runs the real ``orthospec.api.check``. Where the expected verdict depends on a
+rule's level or consequence, the case uses a small profile written next to it, so the engine's
+behaviour is asserted independently of the shipped profile's content; the shipped jrc-v3 is used
+where the engine alone decides (fail-open cases, built-in rules).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import shutil
+import textwrap
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import yaml
+
+from orthospec.api import check
+from orthospec.engine.params import ParameterError
+from orthospec.errors import OrthospecError
+
+ROOT = Path(__file__).resolve().parents[1]
+AERIAL_PASS = ROOT / "examples" / "deliveries" / "aerial-pass"
+DATE = "2026-11-21"
+
+
+# --- helpers ---------------------------------------------------------------------------------
+
+def copy_pass(tmp_path: Path, name: str = "d") -> Path:
+    dst = tmp_path / name
+    shutil.copytree(AERIAL_PASS, dst)
+    return dst
+
+
+def manifest(d: Path) -> dict[str, Any]:
+    return yaml.safe_load((d / "delivery.yaml").read_text(encoding="utf-8"))
+
+
+def write_manifest(d: Path, m: dict[str, Any]) -> None:
+    (d / "delivery.yaml").write_text(yaml.safe_dump(m, sort_keys=False, allow_unicode=True), encoding="utf-8")
+
+
+def read_table(d: Path, name: str) -> tuple[list[str], list[dict[str, str]]]:
+    with (d / "tables" / f"{name}.csv").open(encoding="utf-8", newline="") as f:
+        r = csv.DictReader(f)
+        return list(r.fieldnames or []), list(r)
+
+
+def write_table(d: Path, name: str, header: list[str], rows: list[dict[str, str]]) -> None:
+    with (d / "tables" / f"{name}.csv").open("w", encoding="utf-8", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=header, lineterminator="\n")
+        w.writeheader()
+        w.writerows(rows)
+
+
+TOLERANCE_FROM_ITT = "tolerance_xy: {unit: m, required: true, description: tolerance from the ITT}\n"
+
+
+def profile(tmp_path: Path, rules: str, *, parameters: str = TOLERANCE_FROM_ITT,
+            name: str = "regress.yaml") -> Path:
+    """A small profile (format of tests/data/profiles/mini.yaml) with the given rules."""
+    text = textwrap.dedent("""\
+        orthospec_profile: 1
+        id: regress
+        version: 1.0.0
+        title: Regression profile
+        source: {title: JRC, seed: 002_7421c4ca450e31c6.txt}
+        parameters:
+        """) + textwrap.indent(textwrap.dedent(parameters), "  ") + "rules:\n" + \
+        textwrap.indent(textwrap.dedent(rules), "  ")
+    p = tmp_path / name
+    p.write_text(text, encoding="utf-8")
+    return p
+
+
+def records(doc: dict[str, Any], rule: str) -> dict[str, dict[str, Any]]:
+    return {r["item"]: r for r in doc["records"] if r["rule"] == rule}
+
+
+def reasons(doc: dict[str, Any]) -> str:
+    return "\n".join(doc["rollup"]["reasons"])
+
+
+IMAGE_RULE = """\
+- id: R-CLOUD
+  title: cloud cover per image
+  clause: {document: JRC EUR 23638 EN, section: "6.3"}
+  quote: "The coefficient of variation"
+  scope: image
+  measure: images.cloud_cover
+  requirement: {op: "<=", value: 5, unit: "%"}
+  consequence: reject_item
+"""
+
+
+def image_rollup(level: str) -> str:
+    return f"""\
+- id: R-IMAGE-SHARE
+  title: image share
+  clause: {{document: JRC EUR 23638 EN, section: "12.3"}}
+  quote: "more than 5% of the images tested fail on one or more of these specifications"
+  scope: delivery
+  measure: rollup.image_rejected_share
+  requirement: {{op: "<=", value: 5, unit: "%"}}
+  level: {level}
+  consequence: return_delivery
+"""
+
+
+def cloudy(d: Path, n: int) -> list[str]:
+    """Give the first n images 50 % cloud cover (the R-CLOUD rule rejects them)."""
+    header, rows = read_table(d, "images")
+    for r in rows[:n]:
+        r["cloud_cover"] = "50.0"
+    write_table(d, "images", header, rows)
+    return [r["image_id"] for r in rows[:n]]
+
+
+# --- never pass what was not measured ----------------------------------------------------------
+
+def test_a_value_that_cannot_be_converted_is_missing_not_pass(tmp_path: Path) -> None:
+    """Issue 12: a px requirement on an image without a GSD converted to NaN and passed."""
+    d = copy_pass(tmp_path)
+    m = manifest(d)
+    del m["product"]["gsd"]
+    write_manifest(d, m)
+    header, rows = read_table(d, "images")
+    rows[0]["gsd"] = ""
+    write_table(d, "images", header, rows)
+    prof = profile(tmp_path, """\
+        - id: R-FH-PX
+          title: flying height in pixels
+          clause: {document: JRC EUR 23638 EN, section: "5.2.1"}
+          quote: "Flying height"
+          scope: image
+          measure: images.flying_height
+          requirement: {op: "<=", value: 1000000000, unit: px}
+          consequence: reject_item
+        """)
+    doc = check(d, prof, date=DATE).document
+    recs = records(doc, "R-FH-PX")
+    no_gsd, with_gsd = rows[0]["image_id"], rows[1]["image_id"]
+    assert recs[no_gsd]["verdict"] == "missing"
+    assert "no GSD" in recs[no_gsd]["message"]
+    assert recs[with_gsd]["verdict"] == "pass"
+    assert doc["verdict"] == "rejected" and no_gsd in doc["rollup"]["rejected"]["image"]
+
+
+def test_a_when_over_an_absent_manifest_fact_is_missing_not_not_applicable(tmp_path: Path) -> None:
+    d = copy_pass(tmp_path)
+    m = manifest(d)
+    m["product"].pop("mosaic", None)
+    write_manifest(d, m)
+    rules = """\
+        - id: R-SEAMLINES
+          title: seamlines for mosaics
+          clause: {document: JRC EUR 23638 EN, section: "12.4", table: 12}
+          quote: "Record of the location of seamlines for the mosaics (see 11)"
+          scope: delivery
+          when: "manifest.product.mosaic == true"
+          measure: manifest.vectors.seamlines
+          requirement: {op: present}
+          consequence: return_delivery
+        - id: R-SATELLITE-ONLY
+          title: decided whatever the absent fact is
+          clause: {document: JRC EUR 23638 EN, section: "9.1"}
+          quote: "Satellite"
+          scope: delivery
+          when: "manifest.sensor.type == 'satellite' and manifest.product.mosaic == true"
+          measure: manifest.vectors.seamlines
+          requirement: {op: present}
+          consequence: return_delivery
+        """
+    doc = check(d, profile(tmp_path, rules), date=DATE).document
+    rec = records(doc, "R-SEAMLINES")[doc["delivery"]["id"]]
+    assert rec["verdict"] == "missing" and "product.mosaic" in rec["message"]
+    assert records(doc, "R-SATELLITE-ONLY")[doc["delivery"]["id"]]["verdict"] == "not_applicable"
+    assert doc["verdict"] == "rejected" and "R-SEAMLINES" in reasons(doc)
+    # declaring the fact decides the rule
+    m["product"]["mosaic"] = False
+    write_manifest(d, m)
+    doc2 = check(d, profile(tmp_path, rules), date=DATE).document
+    assert records(doc2, "R-SEAMLINES")[doc2["delivery"]["id"]]["verdict"] == "not_applicable"
+
+
+def test_a_non_finite_threshold_is_an_error_never_a_pass(tmp_path: Path) -> None:
+    """Issue 17: `tolerance_xy=1e999` passed everything. The parameter is refused at resolution;
+    a threshold expression that overflows to inf is `error` per item in the evaluator."""
+    d = copy_pass(tmp_path)
+    prof = profile(tmp_path, """\
+        - id: R-RMSEX
+          title: block RMSEx
+          clause: {document: JRC EUR 23638 EN, section: "12.7"}
+          quote: "The planimetric threshold will be applied independently in X, and Y."
+          scope: block
+          measure: checkpoints.rmse_x
+          requirement: {op: "<=", value: "tolerance_xy * 1e308 * 10", unit: m}
+          consequence: reject_block
+        """)
+    doc = check(d, prof, date=DATE).document
+    verdicts = {r["verdict"] for r in records(doc, "R-RMSEX").values()}
+    assert verdicts == {"error"} and doc["verdict"] == "rejected"
+    with pytest.raises((ParameterError, OrthospecError)):
+        check(d, prof, date=DATE, params=["tolerance_xy=1e999"])
+
+
+# --- every mandatory rule can change the verdict -----------------------------------------------
+
+def test_a_recommended_rollup_does_not_switch_off_the_default(tmp_path: Path) -> None:
+    """Issue 12: §12.3 made `recommended` also disabled the default image roll-up -> ACCEPTED."""
+    d = copy_pass(tmp_path)
+    bad = cloudy(d, 1)
+    doc = check(d, profile(tmp_path, IMAGE_RULE + image_rollup("recommended")), date=DATE).document
+    assert doc["rollup"]["rejected"]["image"] == bad
+    assert doc["verdict"] == "rejected"
+    assert "any rejected image returns the delivery" in reasons(doc)
+    # a MANDATORY roll-up rule does replace the default: 1 of 30 (3.3 %) is within §12.3
+    doc2 = check(d, profile(tmp_path, IMAGE_RULE + image_rollup("mandatory"), name="m.yaml"), date=DATE).document
+    assert doc2["verdict"] == "accepted", reasons(doc2)
+    assert records(doc2, "R-IMAGE-SHARE")[doc2["delivery"]["id"]]["measured"]["value"] == pytest.approx(100 / 30)
+
+
+def test_two_of_thirty_images_unusable_is_more_than_five_percent(tmp_path: Path) -> None:
+    """§12.3: 2/30 = 6.7 % > 5 %: the mandatory image-share rule returns the delivery."""
+    d = copy_pass(tmp_path)
+    _, rows = read_table(d, "images")
+    assert len(rows) == 30
+    cloudy(d, 2)
+    doc = check(d, profile(tmp_path, IMAGE_RULE + image_rollup("mandatory")), date=DATE).document
+    rec = records(doc, "R-IMAGE-SHARE")[doc["delivery"]["id"]]
+    assert rec["verdict"] == "fail" and rec["measured"]["value"] == pytest.approx(200 / 30)
+    assert doc["verdict"] == "rejected" and "R-IMAGE-SHARE" in reasons(doc)
+
+
+def test_two_truncated_images_reject_the_delivery_under_jrc_v3(tmp_path: Path) -> None:
+    """Issue 12: 2 of 30 images truncated under jrc-v3 was ACCEPTED."""
+    d = copy_pass(tmp_path)
+    _, rows = read_table(d, "images")
+    bad = sorted(r["image_id"] for r in rows[:2])
+    for r in rows[:2]:
+        p = d / r["file"]
+        p.write_bytes(p.read_bytes()[:200])
+    doc = check(d, "jrc-v3", date=DATE, options={"workers": 1}).document
+    assert doc["verdict"] == "rejected"
+    assert set(bad) <= set(doc["rollup"]["rejected"].get("image", []))
+    assert "JRC-12.3-IMAGE-FAIL-SHARE" in reasons(doc) or "any rejected image" in reasons(doc)
+
+
+DEM_RULE = """\
+- id: R-DEM
+  title: DEM height accuracy
+  clause: {document: JRC EUR 23638 EN, section: "8.3", table: 5}
+  quote: "2 x planimetric 1-D RMSE required"
+  scope: dem
+  measure: dem.rmse_z
+  requirement: {op: "<=", value: "2 * tolerance_xy", unit: m}
+  consequence: reject_block
+- id: R-BLOCK-SHARE
+  title: block share
+  clause: {document: JRC EUR 23638 EN, section: "12.8"}
+  quote: "Should more than 5% of the blocks that are subjected to external QC fail"
+  scope: project
+  measure: rollup.block_rejected_share
+  requirement: {op: "<=", value: 50, unit: "%"}
+  consequence: return_delivery
+"""
+
+
+def _with_dem(d: Path, text: str) -> None:
+    (d / "tables" / "dem.csv").write_text(text, encoding="utf-8")
+    m = manifest(d)
+    m["tables"]["dem"] = "tables/dem.csv"
+    write_manifest(d, m)
+
+
+def test_a_failing_dem_rejects_only_the_blocks_it_serves(tmp_path: Path) -> None:
+    """Issue 12: JRC-T5-DEM-HEIGHT-ACCURACY rejected every block for one failing DEM."""
+    d = copy_pass(tmp_path)
+    _with_dem(d, "dem_id,block,rmse_z\nDEM-A,B01,0.4\nDEM-B,B02;B03,3.0\n")
+    doc = check(d, profile(tmp_path, DEM_RULE), date=DATE).document
+    recs = records(doc, "R-DEM")
+    assert (recs["DEM-A"]["verdict"], recs["DEM-B"]["verdict"]) == ("pass", "fail")
+    assert doc["rollup"]["rejected"] == {"block": ["B02", "B03"]}
+    # 2 of 3 blocks rejected is above the profile's 50 %: returned, for the stated reason
+    assert doc["verdict"] == "rejected" and "R-DEM" in reasons(doc) and "B01" not in reasons(doc).split("R-DEM")[1]
+
+
+def test_a_failing_dem_with_unknown_blocks_is_a_delivery_level_finding(tmp_path: Path) -> None:
+    d = copy_pass(tmp_path)
+    _with_dem(d, "dem_id,block,rmse_z\nDEM-A,B01,0.4\nDEM-X,,3.0\n")
+    doc = check(d, profile(tmp_path, DEM_RULE), date=DATE).document
+    assert doc["rollup"]["rejected"] == {}  # no block is blamed without evidence
+    assert doc["verdict"] == "rejected"
+    assert "DEM-X" in reasons(doc) and "blocks they serve are unknown" in reasons(doc)
+
+
+# --- fail-open by the contractor (issue 17) ----------------------------------------------------
+
+def test_a_nan_vertex_in_a_block_polygon_is_not_accepted(tmp_path: Path) -> None:
+    d = copy_pass(tmp_path)
+    text = (d / "delivery.yaml").read_text(encoding="utf-8")
+    text = text.replace("  - [507000.0, 5400000.0]", "  - [.nan, 5400000.0]", 1)
+    (d / "delivery.yaml").write_text(text, encoding="utf-8")
+    try:
+        doc = check(d, "jrc-v3", date=DATE, options={"workers": 1}).document
+    except OrthospecError as exc:  # refusing the manifest (exit 2) is also a correct outcome
+        assert "polygon" in str(exc) or "nan" in str(exc).lower()
+        return
+    assert doc["verdict"] == "rejected"
+    rec = records(doc, "JRC-12.7-RMSEX")["B01"]
+    assert rec["verdict"] == "error" and "not a finite number" in rec["message"]
+    assert "B01" in doc["rollup"]["rejected"]["block"]
+
+
+def test_an_error_for_the_whole_block_scope_returns_the_delivery(tmp_path: Path) -> None:
+    """A block-scope finding on item `*` used to be intersected with the block ids and vanish."""
+    d = copy_pass(tmp_path)
+    m = manifest(d)
+    m["blocks"] = []  # no blocks declared, none derivable from a table: a block rule has no items
+    del m["tables"]["images"]
+    write_manifest(d, m)
+    header, _ = read_table(d, "checkpoints")
+    write_table(d, "checkpoints", header, [])  # and the table gives none either
+    prof = profile(tmp_path, """\
+        - id: R-RMSEX
+          title: block RMSEx
+          clause: {document: JRC EUR 23638 EN, section: "12.7"}
+          quote: "The planimetric threshold will be applied independently in X, and Y."
+          scope: block
+          measure: checkpoints.rmse_x
+          requirement: {op: "<=", value: tolerance_xy, unit: m}
+          consequence: reject_block
+        - id: R-BLOCK-SHARE
+          title: block share
+          clause: {document: JRC EUR 23638 EN, section: "12.8"}
+          quote: "Should more than 5% of the blocks that are subjected to external QC fail"
+          scope: project
+          measure: rollup.block_rejected_share
+          requirement: {op: "<=", value: 5, unit: "%"}
+          consequence: return_delivery
+        """)
+    try:
+        doc = check(d, prof, date=DATE).document
+    except OrthospecError:
+        return  # refusing a delivery without blocks (exit 2) is also not an acceptance
+    assert records(doc, "R-RMSEX")["*"]["verdict"] in ("missing", "error")
+    assert doc["verdict"] == "rejected" and "R-RMSEX" in reasons(doc)
+
+
+def test_deleting_all_check_points_of_a_failing_block_is_not_accepted(tmp_path: Path) -> None:
+    """Issue 17: the block share counted only blocks with check points -> ACCEPTED."""
+    d = copy_pass(tmp_path)
+    header, rows = read_table(d, "checkpoints")
+    write_table(d, "checkpoints", header, [r for r in rows if r["block"] != "B02"])
+    doc = check(d, "jrc-v3", date=DATE, options={"workers": 1}).document
+    assert records(doc, "JRC-12.7-RMSEX")["B02"]["verdict"] == "missing"
+    assert doc["verdict"] == "rejected"
+    assert "B02" in doc["rollup"]["rejected"]["block"]
+    share = records(doc, "JRC-12.8-BLOCK-FAIL-SHARE")
+    assert next(iter(share.values()))["measured"]["value"] == pytest.approx(100 / 3)
+
+
+# --- parameter authority (built-in rules) -------------------------------------------------------
+
+def test_an_itt_value_taken_from_the_manifest_gives_a_visible_warning(tmp_path: Path) -> None:
+    d = copy_pass(tmp_path)
+    doc = check(d, "jrc-v3", date=DATE, options={"workers": 1}).document
+    assert doc["profile"]["parameters"]["tolerance_xy"]["source"] == "manifest"
+    rec = records(doc, "ORTHOSPEC-ITT-SOURCE")["tolerance_xy"]
+    assert rec["verdict"] == "warn" and rec["clause"]["section"] == "2.5"
+    assert "ITT value taken from the contractor's manifest; confirm against the ITT" in rec["message"]
+    # the checker's own value removes the warning, and agrees with the declaration
+    doc2 = check(d, "jrc-v3", date=DATE, params=["tolerance_xy=0.5m"], options={"workers": 1}).document
+    assert set(records(doc2, "ORTHOSPEC-ITT-SOURCE")) == {doc2["delivery"]["id"]}
+    assert records(doc2, "ORTHOSPEC-ITT-DECLARED")["tolerance_xy"]["verdict"] == "pass"
+
+
+def test_a_manifest_value_different_from_the_tender_is_a_finding(tmp_path: Path) -> None:
+    d = copy_pass(tmp_path)
+    tender = profile(tmp_path, IMAGE_RULE, parameters="tolerance_xy: {unit: m, value: 0.5, description: ITT §4.1}\n")
+    m = manifest(d)
+    m["tender"]["parameters"]["tolerance_xy"] = {"value": 1.0, "unit": "m"}  # the tender says 0.5 m
+    write_manifest(d, m)
+    doc = check(d, tender, date=DATE).document
+    assert doc["profile"]["parameters"]["tolerance_xy"]["source"] == "tender"
+    rec = records(doc, "ORTHOSPEC-ITT-DECLARED")["tolerance_xy"]
+    assert rec["verdict"] == "fail" and rec["level"] == "mandatory"
+    assert "declares tolerance_xy = 1 m" in rec["message"] and "0.5 m" in rec["message"]
+    assert doc["profile"]["parameters"]["tolerance_xy"]["value"] == 0.5  # the tender's value is used
+    assert doc["verdict"] == "rejected" and "ORTHOSPEC-ITT-DECLARED" in reasons(doc)
+
+
+# --- systematic error (JRC §12.4; USGS bias, seed 000) -----------------------------------------
+
+def test_a_uniform_shift_under_the_tolerance_shows_as_a_significant_bias(tmp_path: Path) -> None:
+    """A block shifted by 0.45 m (tolerance 0.5 m) passes RMSE but its mean error is significant."""
+    d = copy_pass(tmp_path)
+    header, rows = read_table(d, "checkpoints")
+    for r in rows:
+        if r["block"] == "B01":
+            r["x"] = f"{float(r['x']) + 0.45:.3f}"
+    write_table(d, "checkpoints", header, rows)
+    prof = profile(tmp_path, """\
+        - id: R-BIAS-X
+          title: no significant systematic error in X
+          clause: {document: JRC EUR 23638 EN, section: "12.4"}
+          quote: "check points"
+          scope: block
+          measure: checkpoints.bias_p_x
+          requirement: {op: ">=", value: 0.05, unit: "1"}
+          consequence: reject_block
+        """)
+    doc = check(d, prof, date=DATE).document
+    # expected t by hand from the table: |mean(dx)| / (s(dx) / sqrt(n)), s with n - 1
+    b01 = [r for r in rows if r["block"] == "B01" and r.get("excluded", "").lower() not in ("true", "1")]
+    dx = np.array([float(r["x"]) - float(r["x_ref"]) for r in b01])
+    t = abs(dx.mean()) / (dx.std(ddof=1) / math.sqrt(dx.size))
+    assert t > 4  # far beyond any usual critical value (t_0.975,24 = 2.064)
+    recs = records(doc, "R-BIAS-X")
+    assert recs["B01"]["verdict"] == "fail" and recs["B01"]["measured"]["value"] < 1e-3
+    assert {recs["B02"]["verdict"], recs["B03"]["verdict"]} == {"pass"}
