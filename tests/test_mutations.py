@@ -102,9 +102,6 @@ def _mutate_csv(root: Path, m: dict[str, Any]) -> None:
                 r.setdefault(col, "")
         for r in hit:
             r[col] = "" if value is None else str(value)
-    for col, delta in (m.get("add") or {}).items():
-        for r in hit:
-            r[col] = f"{float(r[col]) + float(delta):.3f}"
     for col, ref in (m.get("debias") or {}).items():  # remove the mean error of the matching rows
         mean = sum(float(r[col]) - float(r[ref]) for r in hit) / len(hit)
         for r in hit:
@@ -112,6 +109,9 @@ def _mutate_csv(root: Path, m: dict[str, Any]) -> None:
     for col, (ref, factor) in (m.get("scale_error") or {}).items():  # col = ref + factor x (col - ref)
         for r in hit:
             r[col] = f"{float(r[ref]) + float(factor) * (float(r[col]) - float(r[ref])):.3f}"
+    for col, delta in (m.get("add") or {}).items():  # after debias and scale_error
+        for r in hit:
+            r[col] = f"{float(r[col]) + float(delta):.3f}"
     _write_csv(path, columns, rows)
 
 
@@ -309,3 +309,26 @@ def _report_coverage(request: pytest.FixtureRequest) -> None:
     pm = request.config.pluginmanager
     if not pm.has_plugin("orthospec-mutation-coverage"):
         pm.register(_CoverageReport(), "orthospec-mutation-coverage")
+
+
+def test_uniform_shift_under_the_tolerance_raises_a_visible_finding(tmp_path: Path) -> None:
+    """Issue 12 item 5: B01 shifted by 0.45 m in x under the 0.5 m tolerance. RMSEx still passes, the
+    §12.4 systematic-error guard warns (default level) and rejects the block once a tender makes it
+    mandatory. The t value is recomputed here from the mutated CSV (one-sample t, s with n-1)."""
+    root = tmp_path / "aerial-pass"
+    shutil.copytree(EXAMPLES / "aerial-pass", root)
+    apply_mutations(root, [{"csv": {"table": "checkpoints", "where": {"block": "B01"}, "debias": {"x": "x_ref"},
+                                    "scale_error": {"x": ["x_ref", 0.3]}, "add": {"x": 0.45}}}])
+    _, rows = _read_csv(_table_path(root, "checkpoints"))
+    dx = np.array([float(r["x"]) - float(r["x_ref"]) for r in rows if r["block"] == "B01"])
+    t_expected = abs(dx.mean()) / (dx.std(ddof=1) / np.sqrt(dx.size))
+    assert 0.4 < dx.mean() < 0.5 and np.sqrt(np.mean(dx**2)) < 0.5 and t_expected > 10
+
+    doc = _run(root, "jrc-v3", {})
+    rec = {(r["rule"], r["item"]): r for r in doc["records"]}
+    assert rec[("JRC-12.7-RMSEX", "B01")]["verdict"] == "pass"
+    guard = rec[("JRC-12.4-SYSTEMATIC-X", "B01")]
+    assert guard["verdict"] == "warn" and guard["measured"]["value"] == pytest.approx(t_expected, rel=1e-3)
+
+    strict = _run(root, "jrc-v3", {"systematic_error_level": "mandatory"})
+    assert strict["verdict"] == "rejected" and "B01" in strict["rollup"]["rejected"]["block"]
