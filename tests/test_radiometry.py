@@ -206,3 +206,26 @@ def test_chi_factor_constant_matches_scipy():
 
     expected = math.sqrt(chi2.ppf(0.1, 63) / 63)
     assert abs(rad._CHI_FACTOR_8X8_P10 - expected) <= 1e-15 * expected
+
+
+@pytest.mark.parametrize(("dtype", "size"), [("uint8", rad.PARALLEL_BINCOUNT_MIN * 3 + 1),
+                                             ("uint16", rad.PARALLEL_BINCOUNT_MIN * 2 + 7),
+                                             ("uint8", rad.PARALLEL_BINCOUNT_MIN - 1)])
+def test_fast_bincount_split_over_threads_equals_numpy(dtype, size):
+    """Big arrays are counted in two halves (one in a helper thread): the counts are numpy's."""
+    a = np.random.default_rng(size).integers(0, np.iinfo(dtype).max, size, endpoint=True,
+                                             dtype=dtype)
+    bins = np.iinfo(dtype).max + 1
+    assert np.array_equal(rad.fast_bincount(a, bins), np.bincount(a, minlength=bins))
+
+
+@pytest.mark.parametrize("invalid_share", [0.0, 1e-4, 0.2, 0.7, 1.0])
+def test_histogram_with_validity_mask_equals_numpy_of_the_valid_pixels(invalid_share):
+    """Mostly valid blocks are counted whole minus the invalid pixels: same counts as selecting."""
+    rng = np.random.default_rng(3)
+    data = rng.integers(0, 256, (300, 700), dtype=np.uint8)
+    valid = rng.random(data.shape) >= invalid_share
+    acc = rad.HistogramAccumulator.for_dtype("uint8")
+    acc.add(data, valid)
+    assert np.array_equal(acc.counts, np.bincount(data[valid], minlength=256))
+    assert acc.total == data.size
