@@ -161,3 +161,51 @@ def pan_sharpness(pan: np.ndarray, fused: np.ndarray) -> Sharpness:
     lf = ndimage.laplace(f)[1:-1, 1:-1].ravel()
     corr = float(np.corrcoef(lp, lf)[0, 1]) if lp.std() > 0 and lf.std() > 0 else 0.0
     return Sharpness(ge_pan=ge_p, ge_fused=ge_f, ratio=ge_f / ge_p, highpass_correlation=corr)
+
+
+def photo_footprints(cx: Sequence[float], cy: Sequence[float], across: Sequence[float],
+                     along: Sequence[float], heading: Sequence[float]) -> list[object]:
+    """Ground footprints of vertical frame photos as rectangles (JRC §5.2.2 photo lay-down).
+
+    Each photo covers ``across`` × ``along`` metres (format in pixels × H/f × pixel size) centred
+    on its exposure station, the ``along`` side in the flight direction ``heading`` (radians from
+    +x). Tilt and relief are ignored: a vertical-photo approximation, the one the flight plan uses.
+    """
+    from shapely.geometry import Polygon
+
+    x, y = np.asarray(cx, dtype=float), np.asarray(cy, dtype=float)
+    a, b, h = (np.asarray(v, dtype=float) for v in (across, along, heading))
+    if not (x.size == y.size == a.size == b.size == h.size):
+        raise MeasureError("photo footprints need one centre, size and heading per photo")
+    if not np.isfinite(np.concatenate([x, y, a, b, h])).all() or (a <= 0).any() or (b <= 0).any():
+        raise MeasureError("photo footprints need finite centres and positive sizes")
+    ux, uy = np.cos(h), np.sin(h)  # along track
+    vx, vy = -uy, ux               # across track
+    out = []
+    for i in range(x.size):
+        da, dc = b[i] / 2.0, a[i] / 2.0
+        corners = [(x[i] + sa * da * ux[i] + sc * dc * vx[i], y[i] + sa * da * uy[i] + sc * dc * vy[i])
+                   for sa, sc in ((1, 1), (1, -1), (-1, -1), (-1, 1))]
+        out.append(Polygon(corners))
+    return out
+
+
+def strip_headings(cx: Sequence[float], cy: Sequence[float], groups: Sequence[str]) -> np.ndarray:
+    """Flight direction per photo: towards its nearest neighbour of the same flight (radians).
+
+    Along-track photo spacing is shorter than the strip spacing, so the nearest exposure of the
+    same flight lies on the same strip; a photo alone in its flight gets heading 0 (x axis).
+    """
+    x, y = np.asarray(cx, dtype=float), np.asarray(cy, dtype=float)
+    g = np.asarray([str(v) for v in groups], dtype=object)
+    out = np.zeros(x.size, dtype=float)
+    for key in np.unique(g):
+        idx = np.flatnonzero(g == key)
+        if idx.size < 2:
+            continue
+        px, py = x[idx], y[idx]
+        d2 = (px[:, None] - px[None, :]) ** 2 + (py[:, None] - py[None, :]) ** 2
+        np.fill_diagonal(d2, np.inf)
+        j = np.argmin(d2, axis=1)
+        out[idx] = np.arctan2(py[j] - py, px[j] - px)
+    return out

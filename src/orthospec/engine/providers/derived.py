@@ -9,6 +9,11 @@
   (``scenes.input_pixel_size``, else ``images.acquisition_gsd``, else ``images.gsd``) and the
   profile's ``classes: resolution``; the contractor's own label (``scenes.resolution_class``) is
   checked against it by ``derived.resolution_class_agrees``.
+* ``derived.photo_coverage`` (delivery): share of the area of interest covered by the photo
+  lay-down - footprints from the exposure stations, flying heights and the camera's focal
+  length, pixel size and format (JRC §5.2.2 "Side overlap must ensure that all the surveyed area
+  will be covered with imagery"). It does not depend on the delivered orthoimages, so a delivery
+  of extracts (§12.4) cannot switch the coverage check off by declaring ``product.extracts``.
 """
 
 from __future__ import annotations
@@ -18,11 +23,16 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from ...errors import MeasureError, OrthospecError
 from ...measures.classes import classify
+from ...measures.mosaic import photo_footprints, strip_headings
 from ...units import convert
 from ..registry import Measured, ProviderContext, RowEvidence, provider
 
 DELIVERY = {"derived.orthorectification": "text"}
+COVERAGE = {"derived.photo_coverage": "%"}
+#: camera format columns (pixels across and along track) the photo lay-down needs
+FORMAT_COLUMNS = ("format_across_px", "format_along_px")
 IMAGE = {"derived.resolution_class": "text", "derived.resolution_class_agrees": "bool"}
 
 
@@ -139,3 +149,82 @@ def resolution_class(ctx: ProviderContext) -> list[Measured]:
                                   if i not in na}, dtype=object),
                  na=pd.Series(na, dtype=object) if na else None),
     ]
+
+
+def _lay_down(ctx: ProviderContext) -> tuple[list[Any], list[Any], str | None]:
+    """Photo footprints, evidence, and why they cannot be computed (None when they can)."""
+    d = ctx.delivery
+    imgs, flights, cams = d.table("images"), d.table("flights"), d.table("cameras")
+    ev: list[Any] = [t.evidence(t.df["_row"]) for t in (imgs, flights, cams) if t is not None]
+    ev = [e for tup in ev for e in tup]
+    if imgs is None or flights is None or cams is None:
+        absent = [n for n, t in (("images", imgs), ("flights", flights), ("cameras", cams)) if t is None]
+        return [], ev, f"the manifest declares no {', '.join(absent)} table: no photo lay-down"
+    need_img = [c for c in ("exposure_x", "exposure_y", "flying_height", "flight_id") if c not in imgs.df]
+    need_cam = [c for c in ("focal_length", "pixel_size", *FORMAT_COLUMNS) if c not in cams.df]
+    if need_img or need_cam or "camera_id" not in flights.df:
+        parts = ([f"{imgs.file} columns {', '.join(need_img)}"] if need_img else []) + (
+            [f"{cams.file} columns {', '.join(need_cam)}"] if need_cam else [])
+        return [], ev, "the photo lay-down needs " + "; ".join(parts or [f"{flights.file} column camera_id"])
+    df = imgs.df
+    cam_of_flight = dict(zip(flights.ids.astype(str), flights.df["camera_id"].astype(str), strict=True))
+    cam = cams.df.set_index(cams.ids.astype(str))
+    x = pd.to_numeric(df["exposure_x"], errors="coerce").to_numpy(float)
+    y = pd.to_numeric(df["exposure_y"], errors="coerce").to_numpy(float)
+    x, y = convert(x, imgs.units.get("exposure_x", "m"), "m"), convert(y, imgs.units.get("exposure_y", "m"), "m")
+    hgt = convert(pd.to_numeric(df["flying_height"], errors="coerce").to_numpy(float),
+                  imgs.units.get("flying_height", "m"), "m")
+    cid = [cam_of_flight.get(str(f)) for f in df["flight_id"]]
+    def col(name: str, unit: str | None) -> np.ndarray:
+        v = np.array([float(cam.at[c, name]) if c in cam.index and cam.at[c, name] is not None else np.nan
+                      for c in cid], dtype=float)
+        return v if unit is None else convert(v, cams.units.get(name, unit), unit)
+    focal, pix = col("focal_length", "mm"), col("pixel_size", "µm")
+    across_px, along_px = col(FORMAT_COLUMNS[0], None), col(FORMAT_COLUMNS[1], None)
+    scale = hgt * (pix * 1e-6) / (focal * 1e-3)  # ground metres per pixel = H/f x pixel size
+    across, along = across_px * scale, along_px * scale
+    ok = np.isfinite(np.column_stack([x, y, across, along])).all(axis=1) & (across > 0) & (along > 0)
+    if not ok.any():
+        return [], ev, ("no image has an exposure station, flying height and a camera with format, focal "
+                        "length and pixel size: the photo lay-down cannot be computed")
+    ctx.memo["derived.lay_down_incomplete"] = imgs.ids.astype(str).to_numpy()[~ok].tolist()
+    heading = strip_headings(x[ok], y[ok], df["flight_id"].astype(str).to_numpy()[ok].tolist())
+    try:
+        return photo_footprints(x[ok], y[ok], across[ok], along[ok], heading), ev, None
+    except MeasureError as exc:
+        return [], ev, str(exc)
+
+
+@provider(scope="delivery", measures=COVERAGE)
+def photo_coverage(ctx: ProviderContext) -> list[Measured]:
+    """Share of the area of interest the photo lay-down covers (JRC §5.2.2)."""
+    import shapely
+
+    from .mosaic import _aoi
+
+    d = ctx.delivery
+    value: float | None = None
+    try:
+        aoi, aoi_ev, source = _aoi(ctx)
+    except (OrthospecError, OSError) as exc:
+        aoi, aoi_ev, source, note = None, (d.manifest_evidence("project.area_of_interest"),), "", str(exc)
+    else:
+        note = None if aoi is not None else "no area of interest: give project.area_of_interest or block polygons"
+    feet, ev, why = _lay_down(ctx)
+    if aoi is not None:
+        if why is not None:
+            note = why
+        else:
+            share = float(shapely.union_all(feet).intersection(aoi).area / aoi.area * 100.0)
+            skipped = ctx.memo.get("derived.lay_down_incomplete") or []
+            note = f"{len(feet)} photo footprints (H/f x pixel size x format) cover {share:.3f} % of the {source}"
+            if skipped and share < 100.0:
+                # the photos without data might cover the gap: a lower bound below 100 % decides nothing
+                note += (f"; image(s) {', '.join(skipped[:5])} lack an exposure station or flying height, so "
+                         "full coverage can be neither shown nor refuted")
+            else:
+                value = share
+                if skipped:
+                    note += f" even without image(s) {', '.join(skipped[:5])} (no exposure station or height)"
+    return [Measured("derived.photo_coverage", "delivery", "%", pd.Series({d.id: value}, dtype=object),
+                     pd.Series({d.id: (*aoi_ev, *ev)}, dtype=object), notes=pd.Series({d.id: note}, dtype=object))]
