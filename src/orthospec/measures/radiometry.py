@@ -675,15 +675,29 @@ def _upsampled_dft(data: np.ndarray, region: int, factor: float,
     algorithms", Opt. Lett. 33(2): only the neighbourhood of the coarse peak is evaluated,
     as K_rows @ data @ K_cols^T. Computed with ``einsum`` (no BLAS): the products are small,
     and multi-threaded BLAS in every worker process oversubscribes the cores and makes the
-    last digits depend on the thread count.
+    last digits depend on the thread count. Each complex product is four real ones: numpy's
+    real sum-of-products loops are vectorised, its complex ones are not (2x faster).
     """
     kernels = []
     for axis in (0, 1):
         freq = np.fft.fftfreq(data.shape[axis], factor)
         kernels.append(np.exp(-2j * np.pi * (np.arange(region) - offsets[axis])[:, None]
                               * freq[None, :]))
-    rows = np.einsum("rm,mn->rn", kernels[0], data, optimize=False)
-    return np.einsum("rn,cn->rc", rows, kernels[1], optimize=False)
+    rows = _complex_einsum("rm,mn->rn", kernels[0], data)
+    return _complex_einsum("rn,cn->rc", rows, kernels[1])
+
+
+def _complex_einsum(spec: str, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``np.einsum(spec, a, b)`` of two complex matrices through real einsums (no BLAS)."""
+    ar, ai = np.ascontiguousarray(a.real), np.ascontiguousarray(a.imag)
+    br, bi = np.ascontiguousarray(b.real), np.ascontiguousarray(b.imag)
+
+    def e(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        return np.einsum(spec, x, y, optimize=False)
+
+    out = (e(ar, br) - e(ai, bi)).astype(np.complex128)
+    out.imag = e(ar, bi) + e(ai, br)
+    return out
 
 
 def tapered_spectrum(image: np.ndarray) -> np.ndarray:
