@@ -145,14 +145,15 @@ def test_signoff_is_shown_with_the_document(ledger_url: str, docs: list[dict[str
     with open_ledger(ledger_url) as led:
         rid = led.record(docs[0])
         led.signoff(rid, by="Ann Super", role="supervisor", note="seen", date="2026-01-02",
-                    manual={"R-VIS": "fail"})
-        led.signoff(rid, by="Ian Spector", role="inspector", date="2026-01-03")
+                    manual={"R-VIS": "fail"}, acknowledge_rejection=True)
+        led.signoff(rid, by="Ian Spector", role="inspector", date="2026-01-03", acknowledge_rejection=True)
         doc = led.document_with_signoffs(rid)
         assert doc["records"] == docs[0]["records"]
         assert doc["signoffs"] == [
-            {"by": "Ann Super", "role": "supervisor", "date": "2026-01-02", "note": "seen",
-             "manual": {"R-VIS": "fail"}},
-            {"by": "Ian Spector", "role": "inspector", "date": "2026-01-03", "note": None, "manual": {}}]
+            {"by": "Ann Super", "role": "supervisor", "date": "2026-01-02",
+             "note": "[signed acknowledging the REJECTED verdict] seen", "manual": {"R-VIS": "fail"}},
+            {"by": "Ian Spector", "role": "inspector", "date": "2026-01-03",
+             "note": "[signed acknowledging the REJECTED verdict]", "manual": {}}]
         # a signed manual verdict overrides the table's for diff/history/audit state
         assert led.effective_verdicts(rid)[("R-VIS", "delivery")] == "fail"
         with pytest.raises(LedgerError, match="no manual rule R-ROLL"):

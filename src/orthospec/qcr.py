@@ -19,7 +19,8 @@ import tempfile
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
-from xml.sax.saxutils import escape, quoteattr
+from xml.sax.saxutils import escape as _escape
+from xml.sax.saxutils import quoteattr as _quoteattr
 
 import numpy as np
 
@@ -191,7 +192,8 @@ def build_document(ev: Evaluation, *, date: str, operator: str | None = None,
         "schema": SCHEMA_ID,
         "tool": {"name": "orthospec", "version": __version__},
         "date": date,
-        "operator": operator or (man.operator.name if man.operator else None),
+        # the checker (--operator); the contractor's QA operator stays in delivery.operator
+        "operator": operator or None,
         "profile": {
             "id": p.id, "version": p.version, "title": p.title, "sha256": p.sha256,
             "source": p.source.model_dump(mode="json", exclude_none=True),
@@ -244,9 +246,38 @@ CSV_COLUMNS = ["rule", "clause", "scope", "item", "level", "consequence", "verdi
                "measured_value", "measured_unit", "requirement", "evidence", "message"]
 
 
+_FORMULA_START = ("=", "+", "-", "@", "\t", "\r")
+
+
+def csv_safe(v: Any) -> Any:
+    """Neutralise a spreadsheet formula (OWASP CSV injection): text starting with = + - @ tab CR
+    gets a leading single quote. Numbers stay numbers (a negative dx is not a formula)."""
+    if isinstance(v, str) and v.startswith(_FORMULA_START):
+        return "'" + v
+    return v
+
+
+class _SafeWriter:
+    """csv.writer whose every cell passes through :func:`csv_safe`."""
+
+    def __init__(self, buf: io.StringIO) -> None:
+        self._w = csv.writer(buf, lineterminator="\n")
+
+    def writerow(self, row: Iterable[Any]) -> None:
+        self._w.writerow([csv_safe(v) for v in row])
+
+
+_XML_BAD = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f\x7f-\x84\x86-\x9f\ud800-\udfff\ufffe\uffff]")
+
+
+def xml_text(v: Any) -> str:
+    """Text that XML 1.0 can carry: control characters become visible \\xNN escapes."""
+    return _XML_BAD.sub(lambda m: f"\\x{ord(m.group(0)):02x}", str(v))
+
+
 def to_csv(doc: dict[str, Any]) -> str:
     buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
+    w = _SafeWriter(buf)
     w.writerow(CSV_COLUMNS)
     for r in doc["records"]:
         c = r["clause"]
@@ -260,7 +291,15 @@ def to_csv(doc: dict[str, Any]) -> str:
 
 
 def to_junit(doc: dict[str, Any]) -> str:
-    """One testsuite per rule, one testcase per item: CI systems render it natively."""
+    """One testsuite per rule, one testcase per item: CI systems render it natively.
+
+    Every text passes :func:`xml_text`, so control characters in delivery ids keep it well-formed."""
+    def quoteattr(v: Any) -> str:
+        return _quoteattr(xml_text(v))
+
+    def escape(v: Any) -> str:
+        return _escape(xml_text(v))
+
     by_rule: dict[str, list[dict[str, Any]]] = {}
     for r in doc["records"]:
         by_rule.setdefault(r["rule"], []).append(r)
@@ -362,7 +401,15 @@ def qcr_schema() -> dict[str, Any]:
             "schema": {"const": SCHEMA_ID},
             "tool": {"type": "object", "required": ["name", "version"]},
             "date": {"type": "string", "pattern": r"^\d{4}-\d{2}-\d{2}$"},
-            "operator": {"type": ["string", "null"]},
+            "operator": {"type": ["string", "null"],
+                         "description": "The checker who ran orthospec (--operator); null when not named. "
+                                        "The contractor's QA operator is delivery.operator."},
+            "ledger_head": {"type": "object", "required": ["seq", "hash"], "properties": {
+                "seq": {"type": "integer", "minimum": 0},
+                "hash": {"type": "string", "pattern": "^[0-9a-f]{64}$"}},
+                "description": "The QCR ledger's chain head just before this run was recorded "
+                               "(check --ledger); `orthospec ledger verify --head` checks it later."},
+            "sample": {"type": "object", "description": "The sample checked (check --sample)."},
             "profile": {"type": "object", "required": ["id", "version", "sha256", "parameters"], "properties": {
                 "sha256": {"type": "string", "pattern": "^[0-9a-f]{64}$"}}},
             "delivery": {"type": "object", "required": ["id", "path", "manifest_sha256", "files"]},

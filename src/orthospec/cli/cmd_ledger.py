@@ -7,8 +7,11 @@ PostgreSQL URL (``postgresql+psycopg://user@host/db``). These commands only pars
 
 from __future__ import annotations
 
+import io
 import json
+import re
 from dataclasses import asdict
+from pathlib import Path
 from typing import Any
 
 import click
@@ -77,6 +80,7 @@ def _history_text(h: History) -> str:
 def history_cmd(project: str | None, ledger_target: str | None, as_json: bool) -> None:
     """Deliveries, redeliveries and their verdicts over time, per rule and per block."""
     with _open(ledger_target) as led:
+        _warn_if_tampered(led)
         projects = [project] if project is not None else led.projects()
         hists = [led.history(p) for p in projects]
     if project is not None and not hists[0].entries:
@@ -144,36 +148,102 @@ def _manual(values: tuple[str, ...]) -> dict[str, str]:
 @click.option("--manual", "manual", multiple=True, metavar="RULE=pass|fail",
               help="Verdict of a manual check of this run (repeatable).")
 @click.option("--date", metavar="YYYY-MM-DD", default=None, help="Date of the signature (default today).")
+@click.option("--acknowledge-rejection", is_flag=True,
+              help="Needed to sign a REJECTED run: you sign that you have seen and accept the rejection.")
 @ledger_option
 def signoff_cmd(run: str, by: str, role: str, note: str | None, manual: tuple[str, ...],
-                date: str | None, ledger_target: str | None) -> None:
-    """Countersign RUN (JRC §2.4) and record manual-check verdicts."""
+                date: str | None, acknowledge_rejection: bool, ledger_target: str | None) -> None:
+    """Countersign RUN (JRC §2.4) and record manual-check verdicts.
+
+    The run's own checker cannot countersign it; a duplicate or a date before the run is refused.
+    Example: orthospec signoff 2 --by "M. Rossi" --manual JRC-6.3-ARTEFACTS=pass --ledger qc.sqlite
+    """
     rid = _run_id(run)
     verdicts = _manual(manual)
     with _open(ledger_target) as led:
-        sid = led.signoff(rid, by=by, role=role, note=note, manual=verdicts, date=date)
+        _warn_if_tampered(led)
+        sid = led.signoff(rid, by=by, role=role, note=note, manual=verdicts, date=date,
+                          acknowledge_rejection=acknowledge_rejection)
     extra = f" with {len(verdicts)} manual verdict(s)" if verdicts else ""
     click.echo(f"signed run #{rid} as {role} ({by}){extra}: sign-off {sid}")
 
 
+_HEAD_TEXT = re.compile(r"ledger head[^0-9a-f]{0,80}?([0-9a-f]{64})", re.S)
+
+
+def heads_in_file(path: Path) -> list[str]:
+    """Ledger head hashes printed in a report (PDF metadata and text, HTML) or a qcr.json."""
+    data = path.read_bytes()
+    texts: list[str] = []
+    if data[:5] == b"%PDF-":
+        from pypdf import PdfReader
+
+        reader = PdfReader(io.BytesIO(data))
+        meta = reader.metadata or {}
+        texts.append(str(meta.get("/Subject") or ""))
+        texts.append((reader.pages[0].extract_text() or "") if reader.pages else "")
+    else:
+        text = data.decode("utf-8", errors="replace")
+        try:
+            doc = json.loads(text)
+        except ValueError:
+            doc = None
+        if isinstance(doc, dict):
+            for key in ("ledger_head", "ledger"):
+                v = doc.get(key)
+                if isinstance(v, dict):
+                    h = v.get("hash") if key == "ledger_head" else v.get("head")
+                    if isinstance(h, str):
+                        texts.append(f"ledger head {h}")
+        texts.append(text)
+    return list(dict.fromkeys(m for t in texts for m in _HEAD_TEXT.findall(t.replace("\n", ""))))
+
+
+def _warn_if_tampered(led: Ledger) -> bool:
+    rep = led.verify()
+    if rep.ok:
+        return False
+    click.echo(f"WARNING: ledger {led.display} is TAMPERED ({len(rep.problems)} problem(s), first: "
+               f"{rep.problems[0]}); run `orthospec ledger verify`", err=True)
+    return True
+
+
 @ledger.command("verify")
 @ledger_option
+@click.option("--head", "head", metavar="HASH", default=None,
+              help="A ledger head hash printed earlier on a report or in qcr.json: the chain must still "
+                   "contain it (detects deleted newest entries even when the head row was rewritten).")
+@click.option("--against", "against", type=click.Path(dir_okay=False, exists=True, path_type=Path),
+              default=None, help="A report.pdf, report.html or qcr.json: check the ledger head printed in it.")
 @click.option("--expect-head", metavar="HASH", default=None,
-              help="Head hash noted earlier (e.g. in a report); a mismatch means rewritten history.")
-def verify_cmd(ledger_target: str | None, expect_head: str | None) -> None:
-    """Check the hash chain: exit 0 when intact, 1 listing every edited or deleted row."""
+              help="The current head must be exactly this hash (nothing recorded since).")
+def verify_cmd(ledger_target: str | None, head: str | None, against: Path | None,
+               expect_head: str | None) -> None:
+    """Check the hash chain: exit 0 when intact, 1 (TAMPERED) listing every edited or deleted row.
+
+    Example: orthospec ledger verify --ledger qc.sqlite --against reports/run-2/report.pdf
+    """
+    heads = [head] if head else []
+    if against is not None:
+        found = heads_in_file(against)
+        if not found:
+            raise click.BadParameter(f"{against}: no ledger head hash found in it", param_hint="--against")
+        heads += found
     with _open(ledger_target) as led:
-        rep = led.verify()
-    problems = [str(p) for p in rep.problems]
+        reps = [led.verify(head=h) for h in heads] or [led.verify()]
+    rep = reps[0]
+    problems = list(dict.fromkeys(str(p) for r in reps for p in r.problems))
     if expect_head is not None and not rep.head_hash.startswith(expect_head.lower()):
         problems.append(f"head hash {rep.head_hash} does not match the expected {expect_head}")
     if problems:
-        click.echo(f"ledger {led.display}: {len(problems)} problem(s):")
+        click.echo(f"ledger {led.display}: TAMPERED, {len(problems)} problem(s):")
         for p in problems:
             click.echo(f"  {p}")
         click.get_current_context().exit(1)
+    checked = f"; contains the head{'s' if len(heads) > 1 else ''} {', '.join(h[:16] for h in heads)}" \
+        if heads else ""
     click.echo(f"ledger {led.display}: intact, {rep.entries} entries ({rep.runs} runs, "
-               f"{rep.signoffs} sign-offs), head {rep.head_hash}")
+               f"{rep.signoffs} sign-offs), head {rep.head_hash}{checked}")
 
 
 @ledger.command("state")

@@ -49,6 +49,9 @@ def report_cmd(qcr_json: Path | None, formats: str, out_dir: Path | None, ledger
 
         with open_ledger(ledger_target, create=False) as led:
             doc = led.report_document(run_id)
+        if doc["ledger"]["problems"]:
+            click.echo(f"WARNING: ledger {ledger_target} is TAMPERED ({doc['ledger']['problems'][0]}); "
+                       "the report says so on page 1", err=True)
         default_target = Path(f"report-run-{run_id}")
     elif qcr_json is None:
         raise click.UsageError("give QCR_JSON, or --ledger PATH|URL with --run N")

@@ -48,6 +48,7 @@ __all__ = [
     "audit_state",
     "default_ledger",
     "family_of",
+    "head_for_check",
     "inspection_fractions",
     "is_marginal",
     "open_ledger",
@@ -70,3 +71,20 @@ def sample_fraction(ledger: Ledger | str | None, project: str, family: str, norm
         return ledger.sample_fraction(project, family, normal, tightened)
     with open_ledger(ledger, create=False) as led:
         return led.sample_fraction(project, family, normal, tightened)
+
+
+def head_for_check(target: str | None) -> dict[str, object]:
+    """Open (or create) the ledger a check will record into, refuse it when it does not verify,
+    and return its chain head ``{"seq", "hash"}`` for qcr.json (``ledger_head``).
+
+    Meant to run *before* the check, so a bad ledger fails before any output is written.
+    """
+    from ..errors import LedgerError
+
+    with open_ledger(target) as led:
+        rep = led.verify()
+        if not rep.ok:
+            raise LedgerError(f"ledger {led.display} does not verify ({rep.problems[0]}); "
+                              "run `orthospec ledger verify` before recording more runs")
+        seq, head = led.head()
+    return {"seq": seq, "hash": head}

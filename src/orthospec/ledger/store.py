@@ -217,8 +217,14 @@ class Ledger:
 
     def signoff(self, run_id: int, *, by: str, role: str = "supervisor", date: str | None = None,
                 note: str | None = None, manual: Mapping[str, str] | None = None,
-                recorded_at: str | None = None) -> int:
-        """Countersign a run (JRC §2.4), optionally with manual-check verdicts; returns its id."""
+                recorded_at: str | None = None, acknowledge_rejection: bool = False) -> int:
+        """Countersign a run (JRC §2.4), optionally with manual-check verdicts; returns its id.
+
+        Refused, with the reason: the run's own checker countersigning it (JRC §2.4 asks for an
+        independent countersignature), the same person signing the same run in the same role again
+        without new manual verdicts, a date before the run, and a rejected run without
+        ``acknowledge_rejection`` (recorded in the note, so it is part of the hashed entry).
+        """
         if not by.strip():
             raise LedgerError("sign-off needs the name of the person signing (--by)")
         if role not in ROLES:
@@ -233,7 +239,8 @@ class Ledger:
         if bad:
             raise LedgerError(f"manual verdicts {bad}: each must be 'pass' or 'fail'")
         with self._write() as (conn, seq, prev):
-            run = conn.execute(select(m.runs.c.hash).where(m.runs.c.id == run_id)).one_or_none()
+            run = conn.execute(select(m.runs.c.hash, m.runs.c.date, m.runs.c.operator, m.runs.c.verdict)
+                               .where(m.runs.c.id == run_id)).one_or_none()
             if run is None:
                 raise LedgerError(f"{self.display}: no run {run_id}")
             if verdicts:
@@ -245,6 +252,26 @@ class Ledger:
                     raise LedgerError(
                         f"run {run_id} has no manual rule {', '.join(unknown)}; manual rules of this run: "
                         f"{', '.join(sorted(manual_rules)) or 'none'}")
+            if day < run.date:
+                raise LedgerError(f"sign-off date {day} is before run {run_id} ({run.date}): "
+                                  "a run cannot be countersigned before it was made")
+            if run.operator and _same_person(run.operator, by) and role != "operator":
+                raise LedgerError(f"{by.strip()} ran check run {run_id} (its checker) and cannot countersign "
+                                  f"it as {role}: JRC §2.4 asks for an independent countersignature")
+            if run.verdict == "rejected" and not acknowledge_rejection:
+                raise LedgerError(f"run {run_id} was REJECTED; signing it records that you accept that "
+                                  "verdict: repeat with --acknowledge-rejection (CLI) to sign anyway")
+            earlier = conn.execute(select(m.signoffs.c.by_name, m.signoffs.c.role, m.signoffs.c.manual,
+                                          m.signoffs.c.date)
+                                   .where(m.signoffs.c.run_id == run_id)).all()
+            for e in earlier:
+                if _same_person(e.by_name, by) and e.role == role:
+                    signed = json.loads(e.manual)
+                    if not verdicts or all(signed.get(k) == v for k, v in verdicts.items()):
+                        raise LedgerError(f"{by.strip()} already signed run {run_id} as {role} on {e.date}: "
+                                          "a duplicate sign-off is refused")
+            if acknowledge_rejection and run.verdict == "rejected":
+                note = ACK_PREFIX + (f" {note}" if note else "")
             sid = int(conn.execute(select(func.coalesce(func.max(m.signoffs.c.id), 0))).scalar_one()) + 1
             row: dict[str, Any] = {
                 "id": sid, "seq": seq + 1, "run_id": run_id, "run_hash": run.hash,
@@ -309,9 +336,13 @@ class Ledger:
         """What a report of ``run_id`` shows: its document, sign-offs and the project's sequence of
         deliveries, redeliveries and verdicts up to that run (JRC §12.8: redeliver until acceptable)."""
         from .history import history_rows
+        from .signed import after_signoff
 
         doc = self.document_with_signoffs(run_id)
         run = self.run(run_id)
+        signed = after_signoff(doc, self.signoffs(run_id))
+        if signed is not None:
+            doc["after_signoff"] = signed
         entries = [e for e in self.history(run.project_id).entries if e.run.seq <= run.seq]
         doc["history"] = history_rows(entries, current_run=run_id)
         return doc
@@ -321,7 +352,10 @@ class Ledger:
         doc = self.document(run_id)
         doc["signoffs"] = [{k: s[k] for k in ("by", "role", "date", "note", "manual")}
                            for s in self.signoffs(run_id)]
-        doc["ledger"] = {"run": run_id, "hash": self.run(run_id).hash}
+        seq, head = self.head()
+        rep = self.verify()
+        doc["ledger"] = {"run": run_id, "hash": self.run(run_id).hash, "head": head, "head_seq": seq,
+                         "problems": [str(p) for p in rep.problems]}
         return doc
 
     def qcrs(self, run_id: int) -> list[dict[str, Any]]:
@@ -419,11 +453,24 @@ class Ledger:
 
     # --- verification ------------------------------------------------------------------------
 
-    def verify(self) -> VerifyReport:
-        """Recompute every hash and link; list each edited, deleted or reordered row."""
+    def head(self) -> tuple[int, str]:
+        """(seq, hash) of the chain head row: the anchor a report prints and `verify --head` checks."""
+        with self._read() as conn:
+            row = conn.execute(select(m.head.c.seq, m.head.c.hash).where(m.head.c.id == 1)).one_or_none()
+        if row is None:
+            raise LedgerError(f"{self.display}: the chain head row is missing; run `orthospec ledger verify`")
+        return int(row.seq), str(row.hash)
+
+    def verify(self, head: str | None = None) -> VerifyReport:
+        """Recompute every hash and link; list each edited, deleted or reordered row.
+
+        ``head``: a chain hash noted outside the ledger earlier (printed on every report and in
+        qcr.json). The chain must still contain it; a ledger whose newest entries were deleted and
+        whose head row and links were rewritten to match is detected only this way.
+        """
         problems: list[Problem] = []
         with self._read() as conn:
-            head = conn.execute(select(m.head)).mappings().all()
+            head_rows = conn.execute(select(m.head)).mappings().all()
             runs = [dict(r) for r in conn.execute(select(m.runs).order_by(m.runs.c.seq)).mappings()]
             files: dict[int, list[dict[str, Any]]] = {}
             for f in conn.execute(select(m.run_files)).mappings():
@@ -468,16 +515,34 @@ class Ledger:
                         else "its row was edited")
                 problems.append(Problem(table, key, f"content hash mismatch: {what}"))
             prev, expected_seq = row["hash"], row["seq"] + 1
-        if len(head) != 1:
-            problems.append(Problem("ledger_head", "id 1", f"{len(head)} head rows, expected 1"))
+        if len(head_rows) != 1:
+            problems.append(Problem("ledger_head", "id 1", f"{len(head_rows)} head rows, expected 1"))
         else:
-            hd = head[0]
+            hd = head_rows[0]
             if hd["seq"] != expected_seq - 1 or hd["hash"] != prev:
                 problems.append(Problem(
                     "ledger_head", "id 1",
                     f"head says seq {hd['seq']} hash {hd['hash'][:12]}..., the chain ends at seq "
                     f"{expected_seq - 1} hash {prev[:12]}... (newest entries deleted or head edited)"))
+        if head is not None:
+            want = head.strip().lower()
+            if len(want) < 12 or any(ch not in "0123456789abcdef" for ch in want):
+                problems.append(Problem("ledger_head", "anchor", f"{head!r} is not a chain hash (at least 12 "
+                                        "hex digits, as printed on a report)"))
+            elif not any(row["hash"].startswith(want) for _k, row in entries):
+                problems.append(Problem(
+                    "ledger_head", "anchor",
+                    f"the head {want[:16]}... noted earlier is not in the chain: entries up to it were deleted "
+                    f"and the chain rewritten (the chain now ends at seq {expected_seq - 1} hash {prev[:12]}...)"))
         return VerifyReport(len(entries), len(runs), len(signs), prev, tuple(problems))
+
+
+#: how an acknowledged rejection is recorded at the start of a sign-off note (hashed with it)
+ACK_PREFIX = "[signed acknowledging the REJECTED verdict]"
+
+
+def _same_person(a: str, b: str) -> bool:
+    return " ".join(a.split()).casefold() == " ".join(b.split()).casefold()
 
 
 def _qcr_row(i: int, rec: Mapping[str, Any]) -> dict[str, Any]:
@@ -560,6 +625,9 @@ def open_ledger(target: str | os.PathLike[str] | None = None, *, create: bool = 
         path = Path(url.database or "")
         if not url.database or url.database == ":memory:":
             raise LedgerError(f"ledger {raw!r}: an in-memory SQLite ledger would keep nothing")
+        if path.is_file() and path.stat().st_size == 0:
+            raise LedgerError(f"ledger {raw}: empty file (0 bytes). A truncated ledger is not a new one: "
+                              "restore it from a backup, or remove the file to start a new ledger")
         if not path.exists():
             if not create:
                 raise LedgerError(f"no ledger at {raw} (record a run first with "

@@ -18,6 +18,8 @@ import jinja2
 
 from ..qcr import dumps, natural_key
 from ..resources import templates_dir
+from .findings import findings as find_problems
+from .findings import not_applicable_summary
 
 __all__ = ["ReportOptions", "document_sha256", "environment", "render_html", "report_context"]
 
@@ -46,14 +48,17 @@ class ReportOptions:
 
     bounded: bool = False
     max_pass_rows: int = 2000
-    max_points: int = 300
+    max_points: int = 10
+    max_rule_rows: int = 8
     max_figure_blocks: int = 6
     max_figure_edges: int = 6
     figures: bool = True
 
 
 #: Keys a report may carry beside the QCR document (from the ledger); never part of qcr.json.
-CONTEXT_KEYS = ("signoffs", "history", "ledger")
+CONTEXT_KEYS = ("signoffs", "history", "ledger", "after_signoff")
+#: findings shown on page 1 (the rest in section 1)
+PAGE1_FINDINGS = 8
 
 
 def canonical_qcr(doc: dict[str, Any]) -> str:
@@ -70,6 +75,11 @@ def document_sha256(doc: dict[str, Any]) -> str:
 
 
 # --- formatting filters -------------------------------------------------------------------------
+
+def blank(v: Any) -> str:
+    """Empty fields print blank, never 'None'."""
+    return "" if v is None else str(v)
+
 
 def fmt_value(v: Any, digits: int = 6) -> str:
     if v is None:
@@ -143,7 +153,7 @@ def environment() -> jinja2.Environment:
         keep_trailing_newline=True,
     )
     env.filters.update(value=fmt_value, fixed=fmt_fixed, measured=fmt_measured, clause=fmt_clause,
-                       rows=fmt_rows, short=lambda s, n=12: (s or "")[:n])
+                       rows=fmt_rows, short=lambda s, n=12: (s or "")[:n], blank=blank)
     return env
 
 
@@ -169,6 +179,7 @@ class RuleView:
     pass_hidden: int = 0
     pass_range: str = ""
     na_count: int = 0
+    rows_hidden: int = 0
     error: str | None = None
 
 
@@ -241,6 +252,9 @@ def _rule_views(doc: dict[str, Any], opts: ReportOptions) -> list[RuleView]:
         shown.sort(key=lambda r: VERDICT_ORDER.get(r["verdict"], 9))  # stable: item order kept
         v.shown = group_rows(shown)
         v.n_shown = len(shown)
+        if opts.bounded and len(v.shown) > opts.max_rule_rows:
+            v.rows_hidden = len(v.shown) - opts.max_rule_rows
+            v.shown = v.shown[: opts.max_rule_rows]
         v.pass_count = len(passing)
         nums = [r["measured"]["value"] for r in passing if _numeric(r["measured"].get("value"))]
         if nums:
@@ -478,6 +492,8 @@ def report_context(doc: dict[str, Any], opts: ReportOptions | None = None, *,
                            "rules": [], "quiet": []})
         # bounded: rules with nothing to show (all passing / not applicable) become one table row
         quiet = opts.bounded and not v.shown and not v.error
+        if quiet and not v.pass_count and not v.counts.get("waived"):
+            continue  # not applicable throughout: summarised per condition, never row by row
         scopes[-1]["quiet" if quiet else "rules"].append(v)
     failing_rules = [v for v in rules if v.verdict in ("error", "fail")]
     manual = [r for r in records if r.get("manual")]
@@ -485,7 +501,17 @@ def report_context(doc: dict[str, Any], opts: ReportOptions | None = None, *,
     for r in manual:
         if r["verdict"] == "missing":
             to_sign.setdefault(r["rule"], {**r, "item_list": []})["item_list"].append(r["item"])
-    signed = [r for r in manual if r["verdict"] != "missing"]
+    decided = {d["rule"] for d in (doc.get("after_signoff") or {}).get("decisions", [])}
+    to_sign = {k: v for k, v in to_sign.items() if k not in decided}
+    signed_groups: dict[tuple[str, str, str], dict[str, Any]] = {}
+    for r in manual:
+        if r["verdict"] in ("missing", "not_applicable"):
+            continue
+        key = (r["rule"], r["verdict"], r["message"])
+        signed_groups.setdefault(key, {**r, "item_list": []})["item_list"].append(r["item"])
+    signed = list(signed_groups.values())
+    found = [f.as_dict() for f in find_problems(records)]
+    scopes = [s for s in scopes if s["rules"] or s["quiet"]]
     d = doc.get("delivery", {})
     p = doc.get("profile", {})
     return {
@@ -495,6 +521,10 @@ def report_context(doc: dict[str, Any], opts: ReportOptions | None = None, *,
         "reasons": (doc.get("rollup") or {}).get("reasons", []),
         "rejected": (doc.get("rollup") or {}).get("rejected", {}),
         "problems": problems, "failing_rules": failing_rules,
+        "findings": found, "page1_findings": found[:PAGE1_FINDINGS],
+        "not_applicable": not_applicable_summary(records),
+        "checker": doc.get("operator"), "qa_operator": d.get("operator") or {},
+        "after_signoff": doc.get("after_signoff"),
         "missing": [r for r in records if r["verdict"] == "missing"],
         "waived": [r for r in records if r["verdict"] == "waived"],
         "waivers_unused": doc.get("waivers_unused") or [],

@@ -1,4 +1,9 @@
-"""The rich terminal summary of a check: verdict, counts, failing rules with offending items."""
+"""The rich terminal summary of a check: verdict, findings (measured against required), counts.
+
+Findings come from :mod:`.findings` (the same list as page 1 of the PDF). Every text that comes
+from a delivery or profile passes :func:`~.findings.clean_text` (no ANSI/OSC escapes reach the
+terminal) and rich markup escaping. Off a TTY nothing is cut: long lines wrap, never end in "…".
+"""
 
 from __future__ import annotations
 
@@ -8,9 +13,15 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
+from .findings import clean_text, findings
+
 MAX_ITEMS = 8
 _STYLE = {"pass": "green", "fail": "bold red", "warn": "yellow", "missing": "magenta",
           "error": "bold red", "waived": "cyan", "not_applicable": "dim"}
+
+
+def _t(text: Any) -> str:
+    return escape(clean_text(text))
 
 
 def summary_line(doc: dict[str, Any]) -> str:
@@ -24,33 +35,39 @@ def render(doc: dict[str, Any], console: Console, *, max_items: int = MAX_ITEMS,
     p, d = doc["profile"], doc["delivery"]
     verdict = doc["verdict"].upper()
     colour = "green" if doc["verdict"] == "accepted" else "red"
-    console.print(f"[bold]orthospec[/] {escape(d['path'])} against {escape(p['id'])} {escape(p['version'])} "
-                  f"(sha256 {p['sha256'][:12]}…), {doc['date']}")
-    shown_rules = [r for r in doc["rules"] if verbose or r["verdict"] not in ("pass", "not_applicable")]
-    id_width = max((len(r["rule"]) for r in shown_rules), default=4)
-    t = Table(show_header=True, header_style="bold", box=None, pad_edge=False)
-    t.add_column("verdict", no_wrap=True, min_width=7)
-    t.add_column("rule", no_wrap=True, min_width=id_width)  # ids are what auditors search for: never cut
-    t.add_column("scope", no_wrap=True)
-    t.add_column("clause", no_wrap=True)
-    t.add_column("items / reason", ratio=1)
-    shown = 0
-    for r in doc["rules"]:
-        v = r["verdict"]
-        if v in ("pass", "not_applicable") and not verbose:
-            continue
-        off = r["offending"]
-        items = ", ".join(off[:max_items]) + (f" … (+{len(off) - max_items} more)" if len(off) > max_items else "")
-        if v == "waived":
-            items = f"{r['counts'].get('waived', 0)} waived"
-        if r.get("error"):
-            items = r["error"]
-        t.add_row(f"[{_STYLE.get(v, '')}]{v}[/]", escape(r["rule"]), r["scope"],
-                  escape(r.get("clause_ref") or r["clause"]), escape(items))
-        shown += 1
-    if shown:
+    console.print(f"[bold]orthospec[/] {_t(d['path'])} against {_t(p['id'])} {_t(p['version'])} "
+                  f"(sha256 {p['sha256'][:12]}…), {doc['date']}", overflow="fold")
+    checker = doc.get("operator")
+    qa = d.get("operator") or {}
+    console.print(f"checker: {_t(checker) if checker else '(not named: --operator NAME)'}; contractor QA "
+                  f"operator: {_t(qa.get('name', '')) or '-'}"
+                  + (f" ({_t(qa['role'])})" if qa.get("role") else ""), overflow="fold")
+    sample = doc.get("sample")
+    if isinstance(sample, dict) and sample.get("statement"):
+        console.print(f"sample: {_t(sample['statement'])}", overflow="fold")
+    found = findings(doc["records"])
+    if found:
+        t = Table(show_header=True, header_style="bold", box=None, pad_edge=False)
+        t.add_column("verdict", no_wrap=True, min_width=7)
+        t.add_column("finding (item: rule title: measured against required, clause)", ratio=1,
+                     overflow="fold")
+        t.add_column("rule", no_wrap=True, overflow="fold")
+        for f in found:
+            items = f.items
+            shown = ", ".join(items[:max_items]) + (f" … (+{len(items) - max_items} more)"
+                                                     if len(items) > max_items else "")
+            if len(f.rules) > 1:
+                text = f"{shown}: {f.what} ({len(f.rules)} checks affected: {', '.join(f.rules)})"
+            else:
+                text = f"{shown}: {f.title}: {f.what} ({f.clause})"
+            t.add_row(f"[{_STYLE.get(f.verdict, '')}]{f.verdict}[/]", _t(text), _t(f.rule))
         console.print(t)
+    if verbose:
+        for r in doc["rules"]:
+            if r["verdict"] in ("pass", "waived"):
+                console.print(f"  [{_STYLE.get(r['verdict'], '')}]{r['verdict']}[/] {_t(r['rule'])} "
+                              f"{_t(r['title'])}", overflow="fold")
     for reason in doc["rollup"]["reasons"]:
-        console.print(f"  [red]•[/] {escape(reason)}")
+        console.print(f"  [red]•[/] {_t(reason)}", overflow="fold")
     console.print(summary_line(doc))
     console.print(f"verdict: [bold {colour}]{verdict}[/]")

@@ -1,0 +1,89 @@
+"""The verdict after sign-off: manual verdicts given at ``signoff --manual`` applied to a run.
+
+The automatic verdict of a run never changes (it is what ``check`` wrote and the chain hashes).
+A report of a signed run shows, beside it, the records with the signed manual verdicts applied,
+the counts recomputed and a *verdict after sign-off*, with who decided what and when.
+
+The after-sign-off verdict is conservative, because a wrong ACCEPTED is the worst error: it is
+ACCEPTED only when the run was accepted and no manual check was signed failing with a rejecting
+consequence, or when the run was rejected and every record that could reject it (a mandatory
+rule, or any rule under ``--fail-on warn``, not passing, with a rejecting consequence) belongs to
+a manual check that was signed ``pass``. Otherwise it is REJECTED.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+__all__ = ["after_signoff", "apply_manual"]
+
+_REJECTING = ("reject_item", "reject_block", "return_delivery")
+
+
+def decisions(signoffs: Sequence[Mapping[str, Any]]) -> dict[str, dict[str, Any]]:
+    """rule -> {verdict, by, role, date}; a later sign-off overrides an earlier one."""
+    out: dict[str, dict[str, Any]] = {}
+    for s in signoffs:
+        for rule, verdict in sorted((s.get("manual") or {}).items()):
+            out[rule] = {"rule": rule, "verdict": verdict, "by": s.get("by"), "role": s.get("role"),
+                         "date": s.get("date")}
+    return out
+
+
+def apply_manual(records: Sequence[Mapping[str, Any]], decided: Mapping[str, Mapping[str, Any]],
+                 ) -> list[dict[str, Any]]:
+    """Records with the signed manual verdicts applied (a signed fail of a recommended rule warns)."""
+    out = []
+    for r in records:
+        d = decided.get(r["rule"])
+        if d is None or not r.get("manual") or r["verdict"] == "not_applicable":
+            out.append(dict(r))
+            continue
+        v = d["verdict"]
+        if v == "fail" and r.get("level") == "recommended":
+            v = "warn"
+        out.append({**r, "verdict": v, "signed_verdict": d["verdict"],
+                    "message": f"signed {d['verdict']} by {d['by']} ({d['role']}) on {d['date']}"})
+    return out
+
+
+def _blocking(r: Mapping[str, Any], fail_on: str) -> bool:
+    bad = ("fail", "missing", "error") + (("warn",) if fail_on == "warn" else ())
+    if r.get("level") == "recommended" and fail_on != "warn":
+        return False
+    return r["verdict"] in bad and r.get("consequence") in _REJECTING
+
+
+def after_signoff(doc: Mapping[str, Any], signoffs: Sequence[Mapping[str, Any]]) -> dict[str, Any] | None:
+    """{verdict, summary, decisions, basis} for a run with manual verdicts signed; None without."""
+    decided = decisions(signoffs)
+    if not decided:
+        return None
+    fail_on = str(doc.get("fail_on", "fail"))
+    records = doc.get("records") or []
+    applied = apply_manual(records, decided)
+    summary = dict(doc.get("summary") or {})
+    for k in ("pass", "fail", "warn", "missing", "error", "waived", "not_applicable"):
+        summary[k] = sum(r["verdict"] == k for r in applied)
+    signed_fail = any(r.get("signed_verdict") == "fail" and _blocking(r, fail_on) for r in applied)
+    if signed_fail:
+        verdict, basis = "rejected", "a manual check that can reject was signed fail"
+    elif doc.get("verdict") == "accepted":
+        verdict, basis = "accepted", "the run was accepted and no manual check was signed failing"
+    else:
+        open_ = [r for r in records if _blocking(r, fail_on)
+                 and not (r.get("manual") and (decided.get(r["rule"]) or {}).get("verdict") == "pass")]
+        if open_:
+            rules = sorted({r["rule"] for r in open_})
+            verdict = "rejected"
+            basis = (f"{len(open_)} rejecting record(s) are not manual checks signed pass "
+                     f"({', '.join(rules[:4])}{', …' if len(rules) > 4 else ''})")
+        else:
+            verdict, basis = "accepted", "every rejecting record was a manual check signed pass"
+    counts: dict[str, int] = {}
+    for r in records:
+        if r.get("manual") and r["rule"] in decided and r["verdict"] != "not_applicable":
+            counts[r["rule"]] = counts.get(r["rule"], 0) + 1
+    rows = [{**d, "records": counts.get(rule, 0)} for rule, d in sorted(decided.items())]
+    return {"verdict": verdict, "basis": basis, "summary": summary, "decisions": rows}

@@ -1,0 +1,256 @@
+"""Findings: what a person reads first, computed from qcr.json records.
+
+A *finding* states one problem as measured against required, with the rule title, the item and
+the clause (``B02: Block RMSEy within the tolerance: 0.641 m > 0.5 m (JRC EUR 23638 EN, §12.7)``).
+Findings are ordered by consequence (return the delivery, reject a block, reject an item, then
+missing evidence, errors, warnings) and one root cause gives one finding: the records of several
+rules that fail for the same item with the same message (one missing file) become one finding
+that lists the rules affected. The terminal, page 1 of the PDF and the failures table all use
+:func:`findings`, so they never disagree.
+
+Not-applicable records are summarised per condition by :func:`not_applicable_summary`.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+from typing import Any
+
+from ..qcr import natural_key
+
+__all__ = ["Finding", "clean_text", "findings", "fmt_number", "not_applicable_summary", "stated"]
+
+PROBLEMS = ("fail", "missing", "error", "warn")
+_CONSEQUENCE_RANK = {"return_delivery": 0, "reject_block": 1, "reject_item": 2}
+RANK_LABELS = ("returns the delivery", "rejects a block", "rejects an item", "fails (no rejection)",
+               "missing evidence", "could not be evaluated", "warning")
+#: the requirement violated, stated the other way round
+_NEGATED = {"<=": ">", "<": "≥", ">=": "<", ">": "≤", "==": "≠", "!=": "="}
+_NO_UNIT = (None, "", "1", "text", "bool", "date", "any")
+# ANSI CSI/OSC sequences and C0/C1 control characters (delivery text must not drive a terminal)
+_ESCAPES = re.compile(r"\x1b\][^\x07\x1b]*(?:\x07|\x1b\\)?|\x1b\[[0-?]*[ -/]*[@-~]|\x1b[@-_]?|[\x00-\x08\x0b-\x1f\x7f-\x9f]")
+
+
+def clean_text(text: Any) -> str:
+    """Delivery-supplied text without terminal escapes or control characters (tab/newline kept)."""
+    return _ESCAPES.sub("", "" if text is None else str(text))
+
+
+def fmt_number(v: Any) -> str:
+    """A measured number for a reader: three significant digits, large values to the unit."""
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, float):
+        if not math.isfinite(v):
+            return str(v)
+        if v == int(v) and abs(v) < 1e15:
+            return str(int(v))
+        return f"{v:.0f}" if abs(v) >= 1000 else f"{v:.3g}"
+    return str(v)
+
+
+def _req_number(v: Any) -> str:
+    """A required value as the profile states it (never rounded: 0.33 stays 0.33)."""
+    if isinstance(v, float) and math.isfinite(v) and v == int(v) and abs(v) < 1e15:
+        return str(int(v))
+    if isinstance(v, float):
+        return f"{v:.10g}"
+    return str(v)
+
+
+def _u(unit: Any) -> str:
+    return "" if unit in _NO_UNIT else f" {unit}"
+
+
+def stated(rec: dict[str, Any]) -> str | None:
+    """'0.641 m > 0.5 m' for a record with a numeric value and a comparison; None otherwise."""
+    m = rec.get("measured") or {}
+    v = m.get("value")
+    req = rec.get("requirement") or {}
+    op = req.get("op")
+    unit = _u(m.get("unit") if m.get("unit") not in _NO_UNIT else req.get("unit"))
+    if v is None or isinstance(v, str | list | dict):
+        return None
+    if isinstance(v, bool):
+        if op in ("true", "false"):
+            return f"{'true' if v else 'false'}, required {op}"
+        return None
+    if op in _NEGATED and req.get("value") is not None:
+        return f"{fmt_number(v)}{unit} {_NEGATED[op]} {_req_number(req['value'])}{unit}"
+    if op == "between":
+        lo = "−∞" if req.get("min") is None else _req_number(req["min"])
+        hi = "+∞" if req.get("max") is None else _req_number(req["max"])
+        lb = "[" if req.get("min_inclusive", True) else "("
+        rb = "]" if req.get("max_inclusive", True) else ")"
+        return f"{fmt_number(v)}{unit} outside {lb}{lo}, {hi}{rb}{unit}"
+    if op == "in":
+        return f"{fmt_number(v)} not one of {', '.join(map(str, req.get('values') or []))}"
+    return None
+
+
+def _clause(rec: dict[str, Any]) -> str:
+    c = rec.get("clause")
+    if isinstance(c, str):
+        return c
+    c = c or {}
+    parts = [str(c.get("document") or "")]
+    if c.get("section"):
+        parts.append(f"§{c['section']}")
+    if c.get("table"):
+        parts.append(f"Table {c['table']}")
+    return ", ".join(p for p in parts if p)
+
+
+def rank(verdict: str, consequence: str | None) -> int:
+    """Consequence order: return delivery, reject block, reject item, other fail, missing, error, warn."""
+    if verdict == "fail":
+        return _CONSEQUENCE_RANK.get(consequence or "", 3)
+    return {"missing": 4, "error": 5, "warn": 6}.get(verdict, 7)
+
+
+@dataclass
+class Finding:
+    """One problem as a person reads it."""
+
+    rank: int
+    verdict: str
+    consequence: str
+    rule: str
+    title: str
+    clause: str
+    items: list[str]
+    what: str                      # '0.641 m > 0.5 m' or the plain message
+    rules: list[str] = field(default_factory=list)   # every rule this finding stands for
+    n_records: int = 1
+
+    @property
+    def item_text(self) -> str:
+        if len(self.items) <= 6:
+            return ", ".join(self.items)
+        return f"{len(self.items)} items ({', '.join(self.items[:5])}, …)"
+
+    @property
+    def text(self) -> str:
+        """'B02: Block RMSEy within the tolerance: 0.641 m > 0.5 m (JRC EUR 23638 EN, §12.7)'."""
+        if len(self.rules) > 1:
+            return (f"{self.item_text}: {self.what} ({len(self.rules)} checks affected: "
+                    f"{', '.join(self.rules[:4])}{', …' if len(self.rules) > 4 else ''})")
+        return f"{self.item_text}: {self.title}: {self.what} ({self.clause})"
+
+    @property
+    def label(self) -> str:
+        return RANK_LABELS[self.rank] if self.rank < len(RANK_LABELS) else self.verdict
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"rank": self.rank, "label": self.label, "verdict": self.verdict,
+                "consequence": self.consequence, "rule": self.rule, "title": self.title,
+                "clause": self.clause, "items": list(self.items), "item_text": self.item_text,
+                "what": self.what, "rules": list(self.rules), "n_records": self.n_records,
+                "text": self.text}
+
+
+def _what(rec: dict[str, Any]) -> str:
+    s = stated(rec)
+    if s is not None:
+        return s
+    msg = clean_text(rec.get("message")).strip()
+    v = rec["verdict"]
+    if v == "missing":
+        return f"not measured: {msg}" if msg else "not measured (evidence missing)"
+    if v == "error":
+        return f"could not be evaluated: {msg}" if msg else "could not be evaluated"
+    return msg or f"{v}, required {(rec.get('requirement') or {}).get('text', '')}".strip()
+
+
+def findings(records: list[dict[str, Any]]) -> list[Finding]:
+    """Every failing, missing, erring or warning record as findings, most consequential first."""
+    problems = [r for r in records if r.get("verdict") in PROBLEMS]
+    # 1. one root cause: the same item and message under several rules, without a measured value
+    by_cause: dict[tuple[str, str], list[dict[str, Any]]] = {}
+    for r in problems:
+        value = (r.get("measured") or {}).get("value")
+        if (value is None or isinstance(value, bool)) and r.get("message"):
+            by_cause.setdefault((str(r["item"]), str(r["message"])), []).append(r)
+    grouped: set[int] = set()
+    out: list[Finding] = []
+    for (item, msg), recs in by_cause.items():
+        if len({r["rule"] for r in recs}) < 2:
+            continue
+        recs.sort(key=lambda r: (rank(r["verdict"], r.get("consequence")), r["rule"]))
+        top = recs[0]
+        grouped.update(id(r) for r in recs)
+        out.append(Finding(rank(top["verdict"], top.get("consequence")), top["verdict"],
+                           top.get("consequence") or "", top["rule"], top.get("title", ""), _clause(top),
+                           [item], clean_text(msg), rules=[r["rule"] for r in recs], n_records=len(recs)))
+    # 2. the same rule and message for many items (no value): one finding listing the items
+    by_rule: dict[tuple[str, str, str], list[dict[str, Any]]] = {}
+    for r in problems:
+        if id(r) in grouped:
+            continue
+        value = (r.get("measured") or {}).get("value")
+        key = (r["rule"], r["verdict"], _what(r)) if value is None or stated(r) is None else \
+              (r["rule"], r["verdict"], f"#{id(r)}")
+        by_rule.setdefault(key, []).append(r)
+    for (_rid, _v, _k), recs in by_rule.items():
+        top = recs[0]
+        out.append(Finding(rank(top["verdict"], top.get("consequence")), top["verdict"],
+                           top.get("consequence") or "", top["rule"], top.get("title", ""), _clause(top),
+                           sorted((str(r["item"]) for r in recs), key=natural_key), _what(top),
+                           rules=[top["rule"]], n_records=len(recs)))
+    # 3. the same statement for the same rules in many items (one cause): one finding listing them
+    merged: dict[tuple[Any, ...], Finding] = {}
+    for f in out:
+        key = (f.rank, f.verdict, tuple(f.rules), f.what)
+        g = merged.get(key)
+        if g is None:
+            merged[key] = f
+        else:
+            g.items = sorted(set(g.items) | set(f.items), key=natural_key)
+            g.n_records += f.n_records
+    final = list(merged.values())
+    final.sort(key=lambda f: (f.rank, f.rule, natural_key(f.items[0] if f.items else "")))
+    return final
+
+
+_NA = re.compile(r"^not applicable:\s*(?P<cond>.*?)\s+is false(?: for this delivery)?\s*$", re.S)
+
+
+def condition_prose(cond: str) -> str:
+    """``manifest.sensor.type == 'satellite'`` -> ``the sensor type is 'satellite'`` (plain words)."""
+    text = " ".join(cond.split())
+    text = re.sub(r"\bmanifest\.tables\.(\w+)", lambda m: "a " + m.group(1).replace("_", " ") + " table", text)
+    text = re.sub(r"\bmanifest\.vectors\.(\w+)", lambda m: "a " + m.group(1).replace("_", " ") + " vector layer",
+                  text)
+    text = re.sub(r"\bmanifest\.(sensor|product|tender|project)\.(\w+)(?:\.value)?",
+                  lambda m: f"the {m.group(1)} {m.group(2).replace('_', ' ')}", text)
+    text = re.sub(r"\bmanifest\.(\w+)", lambda m: "the delivery's " + m.group(1).replace("_", " "), text)
+    text = re.sub(r"\b([a-z]\w*)\.([a-z]\w*)\b", lambda m: f"the {m.group(2).replace('_', ' ')} "
+                  f"(in the {m.group(1)} table)", text)
+    for a, b in ((" == true", " is true"), (" == false", " is false"), (" != true", " is not true"),
+                 (" != false", " is not false"), (" != null", " is given"), (" == null", " is not given"),
+                 (" != ", " is not "), (" == ", " is "), (" >= ", " is at least "), (" <= ", " is at most "),
+                 (" > ", " is above "), (" < ", " is below ")):
+        text = text.replace(a, b)
+    text = re.sub(r"\b([a-z]+)_([a-z_]+)\b", lambda m: m.group(0).replace("_", " "), text)
+    return text
+
+
+def not_applicable_summary(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Not-applicable records per condition: {condition, prose, rules, records} (records stay in qcr.json)."""
+    groups: dict[str, dict[str, Any]] = {}
+    for r in records:
+        if r.get("verdict") != "not_applicable":
+            continue
+        msg = clean_text(r.get("message")).strip()
+        m = _NA.match(msg)
+        cond = m.group("cond") if m else (msg or "not applicable to this delivery")
+        prose = f"applies only when {condition_prose(cond)}" if m else cond
+        g = groups.setdefault(cond, {"condition": cond, "prose": prose, "rules": [], "records": 0})
+        g["records"] += 1
+        if r["rule"] not in g["rules"]:
+            g["rules"].append(r["rule"])
+    return sorted(groups.values(), key=lambda g: (-g["records"], g["condition"]))

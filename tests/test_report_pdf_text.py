@@ -1,0 +1,113 @@
+"""What a person reads in the demo reports (issue 13): the PDF text, read back with pdfplumber.
+
+Expected values come from the example deliveries' own README (aerial-fail: block B02 RMSEy 0.64 m
+against the 0.5 m tolerance of JRC §12.7; one image file missing), not from our output.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import re
+from pathlib import Path
+from typing import Any
+
+import pdfplumber
+import pytest
+from click.testing import CliRunner
+
+from orthospec.cli.main import cli
+from orthospec.reports.findings import findings
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _check(tmp: Path, name: str, *extra: str) -> dict[str, Any]:
+    out = tmp / name
+    res = CliRunner().invoke(cli(), ["check", str(ROOT / "examples" / "deliveries" / name), "--profile", "jrc-v3",
+                                     "--out", str(out), "--date", "2026-11-21", "--format",
+                                     "terminal,json,pdf,csv,junit", *extra])
+    assert res.exit_code in (0, 1), res.output + repr(res.exception)
+    with pdfplumber.open(io.BytesIO((out / "report.pdf").read_bytes())) as pdf:
+        pages = [p.extract_text() or "" for p in pdf.pages]
+    return {"out": out, "pages": pages, "doc": json.loads((out / "qcr.json").read_text(encoding="utf-8")),
+            "terminal": res.output}
+
+
+@pytest.fixture(scope="module")
+def fail(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
+    return _check(tmp_path_factory.mktemp("fail"), "aerial-fail", "--operator", "A. Auditor")
+
+
+@pytest.fixture(scope="module")
+def passed(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
+    return _check(tmp_path_factory.mktemp("pass"), "aerial-pass")
+
+
+def test_page1_states_b02_measured_against_required_before_any_error(fail: dict[str, Any]) -> None:
+    page1 = fail["pages"][0]
+    line = next(ln for ln in page1.splitlines() if "B02" in ln and "RMSEy" in ln)
+    assert re.search(r"0\.64\d? m > 0\.5 m", line), line
+    assert "§12.7" in page1
+    b02 = page1.index(line)
+    for marker in ("could not be evaluated", "error"):
+        if marker in page1:
+            assert page1.index(marker) > b02
+    # consequence order: the delivery-level return before the block, the block before an item
+    assert page1.index("returns the delivery") < page1.index("rejects a block") < page1.index("rejects an item")
+
+
+def test_failures_table_states_values_and_one_root_cause(fail: dict[str, Any]) -> None:
+    text = "\n".join(fail["pages"])
+    section = text[text.index("1. Failures and missing evidence"):text.index("2. Quality control records")]
+    assert re.search(r"0\.64\d? m > 0\.5 m", section)
+    # the missing image F03_0202 is one finding naming the checks it affects, not nine error rows
+    flat = re.sub(r"\s+", "", section)
+    assert flat.count("images/F03_0202.tif") == 1, section
+    recs = [r for r in fail["doc"]["records"] if r["item"] == "F03_0202" and "not found" in r["message"]]
+    assert len(recs) >= 5
+    root = [f for f in findings(fail["doc"]["records"]) if "F03_0202" in f.items and "not found" in f.what]
+    assert len(root) == 1 and set(root[0].rules) == {r["rule"] for r in recs}
+
+
+def test_no_page_lists_not_applicable_rows(fail: dict[str, Any], passed: dict[str, Any]) -> None:
+    for run in (fail, passed):
+        n_na = run["doc"]["summary"]["not_applicable"]
+        assert n_na > 100  # the records stay in qcr.json
+        text = "\n".join(run["pages"])
+        assert text.count("not applicable:") == 0
+        assert "Not applicable to this delivery" in text
+        assert "applies only when the sensor type is 'satellite'" in text
+
+
+def test_aerial_pass_report_is_at_most_12_pages(passed: dict[str, Any]) -> None:
+    assert len(passed["pages"]) <= 12
+
+
+def test_checker_and_contractor_operator_are_separate(fail: dict[str, Any], passed: dict[str, Any]) -> None:
+    assert fail["doc"]["operator"] == "A. Auditor"
+    assert fail["doc"]["delivery"]["operator"]["role"] == "contractor QA manager"
+    page1 = fail["pages"][0]
+    assert "A. Auditor (contractor QA manager)" not in page1.replace("\n", " ")
+    assert re.search(r"Checker \(ran orthospec,.*A\. Auditor", page1.replace("\n", " "))
+    # without --operator the contractor's operator is not named as the checker
+    assert passed["doc"]["operator"] is None
+    p1 = passed["pages"][0].replace("\n", " ")
+    contractor_op = passed["doc"]["delivery"]["operator"]["name"]
+    assert "not named" in p1 and contractor_op in p1
+    assert not re.search(rf"Checker \(generated the QCRs\) {re.escape(contractor_op)}", p1)
+
+
+def test_terminal_states_reasons_and_is_not_cut(fail: dict[str, Any]) -> None:
+    out = fail["terminal"]
+    assert re.search(r"B02: Block RMSEy within the tolerance: 0\.64\d? m > 0\.5 m", out.replace("\n", " "))
+    assert not re.search(r"…\s*$", out, re.M)  # nothing cut at the line end
+
+
+def test_csv_and_junit_of_the_demo_are_well_formed(fail: dict[str, Any]) -> None:
+    import csv
+    import xml.dom.minidom
+
+    rows = list(csv.reader(io.StringIO((fail["out"] / "qcr.csv").read_text(encoding="utf-8"))))
+    assert len(rows) == fail["doc"]["summary"]["records"] + 1
+    xml.dom.minidom.parseString((fail["out"] / "junit.xml").read_bytes())
