@@ -1,0 +1,47 @@
+"""Hostile ids in a delivery reach qcr.csv, junit.xml and the terminal harmlessly (issue 17 "Outputs").
+
+OWASP CSV injection guidance: a cell starting with = + - @ tab or CR is prefixed with a single quote.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import xml.dom.minidom
+from pathlib import Path
+
+from click.testing import CliRunner
+
+from orthospec.cli.main import cli
+from orthospec.qcr import csv_safe
+
+HOSTILE = ['=HYPERLINK("http://evil.example/x","click")', "+cmd|' /C calc'!A0", "@SUM(1+1)", "-2+3",
+           "I\x07bell\x1b[31mred\x1b]8;;http://evil.example\x07link"]
+
+
+def test_csv_safe_prefixes_formulas_only() -> None:
+    assert csv_safe("=1+1") == "'=1+1"
+    assert csv_safe("\tx") == "'\tx" and csv_safe("\rx") == "'\rx"
+    assert csv_safe("-0.25") == "'-0.25"  # text that a spreadsheet would evaluate
+    assert csv_safe(-0.25) == -0.25       # a number stays a number
+    assert csv_safe("B02") == "B02"
+
+
+def test_hostile_ids_are_neutralised_in_csv_junit_and_terminal(make_delivery, mini_profile, tmp_path: Path) -> None:
+    rows = "\n".join(f'"{i.replace(chr(34), chr(34) * 2)}",f{n}.tif,B1,{9 if "bell" in i else 0.5},1000,30'
+                     for n, i in enumerate(HOSTILE))  # the escape-laden id fails roll: the terminal shows it
+    root = make_delivery("h", images="image_id,file,block,roll,flying_height,std_dn\n" + rows + "\n")
+    out = tmp_path / "out"
+    res = CliRunner().invoke(cli(), ["check", str(root), "-p", str(mini_profile), "--out", str(out),
+                                     "--date", "2026-01-01", "--format", "terminal,json,csv,junit"])
+    assert res.exit_code in (0, 1), res.output + repr(res.exception)
+    cells = [c for row in csv.reader(io.StringIO((out / "qcr.csv").read_text(encoding="utf-8"))) for c in row]
+    items = [c for c in cells if "HYPERLINK" in c or "SUM(" in c or "cmd|" in c]
+    assert items, "the hostile ids reached the CSV"
+    for c in cells:
+        assert not c.startswith(("=", "+", "-", "@", "\t", "\r")), c
+    junit = (out / "junit.xml").read_bytes()
+    xml.dom.minidom.parseString(junit)  # well-formed despite BEL and ESC in an id
+    assert b"\x07" not in junit and b"\x1b" not in junit
+    assert "Ibellredlink" in res.output.replace("\n", "")  # shown, escapes stripped
+    assert "\x1b" not in res.output and "\x07" not in res.output
