@@ -424,3 +424,26 @@ def test_a_uniform_shift_under_the_tolerance_shows_as_a_significant_bias(tmp_pat
     recs = records(doc, "R-BIAS-X")
     assert recs["B01"]["verdict"] == "fail" and recs["B01"]["measured"]["value"] < 1e-3
     assert {recs["B02"]["verdict"], recs["B03"]["verdict"]} == {"pass"}
+
+
+def test_not_reporting_the_block_rmse_does_not_switch_the_cross_check_off(tmp_path: Path) -> None:
+    """A block without `reported:` used to make the reported-vs-recomputed rule not applicable."""
+    d = copy_pass(tmp_path)
+    m = manifest(d)
+    del m["blocks"][0]["reported"]
+    write_manifest(d, m)
+    prof = profile(tmp_path, """\
+        - id: R-REPORTED-X
+          title: reported RMSEx agrees
+          clause: {document: JRC EUR 23638 EN, section: "9.5"}
+          quote: "Number of checkpoints, Checkpoint RMSE, Maximum Checkpoint Discrepancy"
+          scope: block
+          measure: checkpoints.reported_diff_x
+          requirement: {op: "<=", value: 0.01, unit: m}
+          consequence: reject_block
+        """)
+    doc = check(d, prof, date=DATE).document
+    recs = records(doc, "R-REPORTED-X")
+    assert recs["B01"]["verdict"] == "missing" and "reported gives no rmse_x" in recs["B01"]["message"]
+    assert recs["B02"]["verdict"] == "pass"
+    assert doc["verdict"] == "rejected" and "B01" in doc["rollup"]["rejected"]["block"]

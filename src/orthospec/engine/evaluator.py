@@ -831,7 +831,7 @@ class Evaluator:
                 continue
             items = [str(i) for i in r.items[mask]]
             c = r.rule.consequence
-            if "*" in items and c != "warn":
+            if "*" in items and c in ("reject_item", "reject_block"):  # return_delivery is reported anyway
                 v = VERDICTS[int(r.verdict[mask][0])]
                 note = next((str(x) for x in r.notes[mask] if x), "")
                 self._scope_wide.append(f"{r.rule.id} ({r.rule.clause.text()}): {v} for the whole {r.rule.scope} "

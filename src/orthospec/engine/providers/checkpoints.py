@@ -242,7 +242,12 @@ def block_checkpoint_stats(ctx: ProviderContext) -> list[Measured]:
             vals[b] = rec.get(name)
             if name.startswith("checkpoints.reported_diff_"):
                 axis = name[-1]
-                if vals[b] is None:
+                if vals[b] is None and axis in ("x", "y"):
+                    # the checkpoint RMSE is a QCR field the contractor must record (JRC §9.5): not
+                    # reporting it must not switch the cross-check off - missing evidence
+                    notes[b] = (f"delivery.yaml blocks[{b}].reported gives no rmse_{axis}: the contractor's "
+                                "QCR value to cross-check is missing")
+                elif vals[b] is None:
                     na[b] = f"block {b} reports no rmse_{axis}"
                 else:
                     notes[b] = (f"reported RMSE_{axis} {rec[f'reported_{axis}']:.4g} m vs recomputed "
