@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Write the two bundled example deliveries, ``aerial-pass`` and ``aerial-fail``.
+"""Write the bundled example deliveries: ``aerial-pass``, ``aerial-fail``, ``satellite-pass``, ``satellite-fail``.
 
 Why a script and not hand-made files: every number a delivery reports (histogram statistics,
 cloud cover, sun elevation, block RMSE) is computed here from the data written beside it, so
@@ -321,13 +321,14 @@ def band_stats(arr: np.ndarray) -> list[dict[str, float]]:
     return [image_stats(arr[b : b + 1]) for b in range(arr.shape[0])]
 
 
-def write_geotiff(path: Path, arr: np.ndarray, centre: tuple[float, float], tags: dict[str, str]) -> None:
+def write_geotiff(path: Path, arr: np.ndarray, centre: tuple[float, float], tags: dict[str, str], *,
+                  gsd: float = GSD_M) -> None:
     """Striped, DEFLATE-compressed GeoTIFF centred on the photo nadir point (no timestamps)."""
-    half = IMAGE_PX * GSD_M / 2
+    half = IMAGE_PX * gsd / 2
     west, north = round(centre[0]) - half, round(centre[1]) + half
     profile = {
         "driver": "GTiff", "width": IMAGE_PX, "height": IMAGE_PX, "count": 4, "dtype": "uint8",
-        "crs": CRS.from_epsg(EPSG), "transform": Affine(GSD_M, 0.0, west, 0.0, -GSD_M, north),
+        "crs": CRS.from_epsg(EPSG), "transform": Affine(gsd, 0.0, west, 0.0, -gsd, north),
         "nodata": 0, "compress": "deflate", "predictor": 2, "zlevel": 9, "tiled": False,
         "photometric": "RGB",
     }
@@ -1217,12 +1218,342 @@ def readme(b: Built) -> str:
     return "\n".join(lines)
 
 
+# =========================================================================== satellite deliveries
+# A VHR satellite delivery (JRC Chapter 9): WorldView-3 scenes (PAN 0.31 m, MS 1.24 m) pan-sharpened
+# and orthorectified to 0.5 m with the vendor RPCs refined on GCPs: site S01 by an RPC block
+# adjustment (Table 9 "rpc_block", >= 1 GCP per scene), site S02 scene by scene ("rpc", >= 2 GCPs
+# per scene). One master image (S01_SC1) with 20 independent check points (Table 9 "master image").
+# The images are 128 x 128 px extracts of the orthoimages (§12.4 "Selected extracts").
+SAT_GSD_M = 0.5
+SAT_PAN_M = 0.31  # the §9.1 class input: VHR (< 3 m)
+SAT_TOLERANCE_XY_M = 1.0  # ITT: RMSEx, RMSEy <= 2 x the 0.5 m output pixel
+SAT_TIME = (10, 42)  # UTC overpass
+
+
+@dataclass(frozen=True)
+class SiteSpec:
+    """One check site (a `block` of the manifest) with its scenes."""
+
+    id: str
+    origin: tuple[float, float]
+    method: str  # rpc_block | rpc
+    gcps_per_scene: int
+    rmse: tuple[float, float]
+    n_checkpoints: int
+    day: date
+
+
+@dataclass
+class SatScenario:
+    name: str
+    seed: int
+    delivery_id: str
+    project: dict[str, Any]
+    dates: dict[str, date]
+    sites: list[SiteSpec]
+    master_checkpoints: int = 20
+    no_orientation: str | None = None  # scene whose RPC file is missing
+    gcp_short: str | None = None  # scene with 1 GCP under single-scene RPC (Table 9: >= 2)
+    rmse_scale: dict[str, float] = field(default_factory=dict)  # site -> factor on its errors
+
+
+SAT_PASS = SatScenario(
+    name="satellite-pass", seed=20260521, delivery_id="D-2026-031",
+    project={"id": "P-2026-VHR-L3", "name": "CAP VHR control campaign 2026, zone 3 (fictional)"},
+    dates={"delivered": date(2026, 7, 2), "acquired_from": date(2026, 5, 21), "acquired_to": date(2026, 5, 28)},
+    sites=[SiteSpec("S01", (530000.0, 5420000.0), "rpc_block", 2, (0.42, 0.45), 24, date(2026, 5, 21)),
+           SiteSpec("S02", (538000.0, 5426000.0), "rpc", 4, (0.47, 0.40), 22, date(2026, 5, 28))],
+)
+SAT_FAIL = SatScenario(
+    name="satellite-fail", seed=20260604, delivery_id="D-2026-038",
+    project={"id": "P-2026-VHR-L4", "name": "CAP VHR control campaign 2026, zone 4 (fictional)"},
+    dates={"delivered": date(2026, 7, 9), "acquired_from": date(2026, 6, 4), "acquired_to": date(2026, 6, 11)},
+    sites=[SiteSpec("S01", (541000.0, 5431000.0), "rpc_block", 2, (0.44, 0.41), 24, date(2026, 6, 4)),
+           SiteSpec("S02", (548000.0, 5437000.0), "rpc", 4, (0.46, 0.43), 22, date(2026, 6, 11))],
+    master_checkpoints=12, no_orientation="S01_SC3", gcp_short="S02_SC2", rmse_scale={"S02": 2.8},
+)
+SAT_SCENARIOS = (SAT_PASS, SAT_FAIL)
+
+#: Manual checks a VHR satellite delivery owes under jrc-v3 (rule id, scope, note when passed).
+SAT_MANUAL_CHECKS: tuple[tuple[str, str, str], ...] = (
+    ("JRC-9.2-T7-VISUAL-QUALITY", "image", "Readable; no haze or quantisation; GCPs placeable."),
+    ("JRC-T9-VISUAL-ACCURACY-CHECK", "image", "Parcel vector overlay fits within a pixel."),
+    ("JRC-T9-GCP-DISTRIBUTION", "image", "GCPs spread over the scene, none clustered."),
+    ("JRC-T9-BI-CC-OUTPUT-PIXEL", "image", "Cubic convolution; output pixel 0.5 m as specified."),
+    ("JRC-9.5-FINAL-LABELLED", "delivery", "Final products labelled with sensor, date and processing level."),
+    ("JRC-T10-OPERATOR-TRAINING", "delivery", "Operator training certificates on file."),
+    ("JRC-10.5.1-SAME-MODEL-GCPS", "delivery", "PAN and MS corrected with the same RPC model and GCPs."),
+    ("JRC-10.5.2-EXCLUDE-ZERO", "delivery", "Fill values (0) excluded from the fusion statistics."),
+    ("JRC-10.3-SPATIAL-RESOLUTION-PRESERVED", "delivery", "Pan-sharpened edges as sharp as the PAN band."),
+    ("JRC-9.2-T7-DEM-INTEGRITY", "dem", "DEM complete, georeferenced, no spikes (shaded relief reviewed)."),
+    ("JRC-6.3-HISTOGRAM-PER-COLLECT", "delivery", "Histogram stretch per acquisition date."),
+    ("JRC-6.4-TILING", "delivery", "Striped GeoTIFF, not tiled."),
+    ("JRC-6.4-FORMAT-SAMPLE", "delivery", "Sample GeoTIFF accepted on 2026-04-20."),
+    ("JRC-6.5-VISUALLY-LOSSLESS", "delivery", "Lossless DEFLATE only."),
+    ("JRC-7.2-WELL-DEFINED-POINTS", "delivery", "Points on road markings and field corners."),
+    ("JRC-7.3-POINTS-MARKED", "delivery", "Every point marked on an image extract with its identifier."),
+    ("JRC-12.4-SELECTION", "delivery", "Both sites checked; scenes stratified by date and view angle."),
+    ("JRC-12.4-CHECKPOINT-SOURCE", "delivery", "Check points from the agency's own GNSS survey."),
+    ("JRC-6.3-ARTEFACTS", "image", "No striping, haze, colour seams or artefacts."),
+)
+SAT_DOCS = {"internal_qcr": "internal_qcr.md", "rejected_items": "rejected_items.md",
+            "gcp_report": "gcp_report.md", "geodetic_control": "geodetic_control.md",
+            "gcp_plot": "gcp_plot.svg", "gcp_monographs": "gcp_monographs.md"}
+
+
+def build_satellite(scn: SatScenario) -> dict[str, Any]:
+    """Scenes, images, points and manifest of one satellite delivery (all values computed here)."""
+    rng = np.random.default_rng(scn.seed)
+    images, scenes, gcps, cps, arrays = [], [], [], [], {}
+    for site in scn.sites:
+        poly = polygon_of(site.origin)
+        t0 = datetime(site.day.year, site.day.month, site.day.day, *SAT_TIME, tzinfo=UTC)
+        for k in range(1, 4):
+            sid = f"{site.id}_SC{k}"
+            e = site.origin[0] + 1500.0 + 2000.0 * (k - 1) + rng.normal(0, 50.0)
+            n = site.origin[1] + 1800.0 + 1700.0 * (k - 1) + rng.normal(0, 50.0)
+            arr, cloud = render_image(np.random.default_rng([scn.seed, len(images)]), "normal")
+            arrays[sid] = (arr, (e, n))
+            view = float(rng.uniform(6.0, 17.0))
+            is_master = sid == "S01_SC1"
+            gcount = 1 if sid == scn.gcp_short else site.gcps_per_scene
+            images.append({"image_id": sid, "file": f"images/{sid}.tif", "block": site.id,
+                           "exposure_time": iso(t0 + timedelta(seconds=11 * k)), "gsd": fmt(SAT_GSD_M, 2),
+                           "bit_depth": "8", "bands": ";".join(BANDS), **{k2: fmt(v, 3 if "saturation" in k2 else 2)
+                           for k2, v in image_stats(arr).items()}, "cloud_cover": fmt(cloud, 1),
+                           "view_angle": fmt(view, 1), "resampling": "cubic"})
+            scenes.append({
+                "image_id": sid, "block": site.id, "master_image_id": "",
+                "master_pixel_size": "", "is_master": "true" if is_master else "false",
+                "sensor": "WorldView-3", "acquisition_date": site.day.isoformat(), "view_angle": fmt(view, 1),
+                "cloud_cover": fmt(cloud, 1), "product_level": "Ortho Ready Standard (OR2A)",
+                "initial_qc": "pass", "preprocessing": "pan-sharpened (PAN 0.31 m + MS 1.24 m, same RPC model)",
+                "input_pixel_size": fmt(SAT_PAN_M, 2), "resolution_class": "VHR",
+                "terrain_variation": fmt(float(rng.uniform(60, 140)), 0),
+                "orbit_model": "" if sid == scn.no_orientation else "RPC00B rational polynomial model",
+                "orientation_data": "" if sid == scn.no_orientation else f"rpc/{sid}.RPB (vendor RPC00B)",
+                "dem_grid_size": "10", "dem_accuracy": "1.5", "dem_qc_result": "pass",
+                "software": "ERDAS IMAGINE 2023 (fictional licence)", "blunder_check": "true",
+                "gcp_count": str(gcount), "residual_rmse": "0.35", "max_gcp_residual": "0.62",
+                "press_sqrt": "0.48", "correction_method": site.method, "polynomial_order": "",
+                "resampling_method": "cubic", "output_pixel_size": fmt(SAT_GSD_M, 2),
+                "checkpoint_count": str(scn.master_checkpoints if is_master else 10),
+                "checkpoint_rmse": "0.29" if is_master else "0.44", "max_checkpoint_discrepancy": "0.95",
+                "production_date": scn.dates["delivered"].isoformat(), "comments": "",
+                "operator": "L. Ferrari (fictional)"})
+            for g in range(1, gcount + 1):
+                ge, gn = e + rng.uniform(-25, 25), n + rng.uniform(-25, 25)
+                gcps.append({"point_id": f"{sid}-G{g}", "block": site.id, "x": fmt(ge, 3), "y": fmt(gn, 3),
+                             "z": fmt(terrain_m(ge, gn) + 0.2, 3), "precision_xy": "0.05", "precision_z": "0.08",
+                             "source": "GNSS RTK survey (fictional), 2026-04", "images_measured": "2",
+                             "sketch": f"documents/gcp_monographs.md#{sid.lower()}-g{g}",
+                             "photo": f"documents/gcp_monographs.md#{sid.lower()}-g{g}",
+                             "residual_x": fmt(float(rng.normal(0, 0.3)), 2),
+                             "residual_y": fmt(float(rng.normal(0, 0.3)), 2)})
+        z = rng.normal(size=(site.n_checkpoints, 2))
+        z = z - z.mean(axis=0)  # no systematic error in the example (JRC §12.4 guard)
+        d = z / np.sqrt(np.mean(z**2, axis=0)) * np.array(site.rmse) * scn.rmse_scale.get(site.id, 1.0)
+        g_xy = np.array([[float(g["x"]), float(g["y"])] for g in gcps if g["block"] == site.id])
+        i = 0
+        while i < site.n_checkpoints:
+            qe, qn = i % 2, (i // 2) % 2  # stratified: every quarter of the site gets a quarter of the points
+            e = site.origin[0] + rng.uniform(200, 3300) + 3500.0 * qe
+            n = site.origin[1] + rng.uniform(200, 3400) + 3600.0 * qn
+            if not inside(poly, e, n) or np.min(np.hypot(*(g_xy - (e, n)).T)) < 300.0:
+                continue
+            cps.append({"point_id": f"{site.id}-C{i + 1:02d}", "block": site.id,
+                        "x": fmt(round(e, 3) + d[i, 0], 2), "y": fmt(round(n, 3) + d[i, 1], 2),
+                        "x_ref": fmt(e, 3), "y_ref": fmt(n, 3), "image_id": f"{site.id}_SC{1 + i % 3}",
+                        "source": "GNSS RTK survey, independent of the contractor (fictional), 2026-04",
+                        "excluded": "false", "exclusion_reason": "", "precision_xy": "0.05"})
+            i += 1
+    recomputed, blocks = {}, []
+    for site in scn.sites:
+        pts = [c for c in cps if c["block"] == site.id]
+        dx = np.array([float(c["x"]) - float(c["x_ref"]) for c in pts])
+        dy = np.array([float(c["y"]) - float(c["y_ref"]) for c in pts])
+        recomputed[site.id] = {"rmse_x": rms(dx), "rmse_y": rms(dy), "n": len(pts)}
+        blocks.append({"id": site.id, "polygon": polygon_of(site.origin), "method": site.method,
+                       "reported": {"rmse_x": {"value": round(rms(dx), 2), "unit": "m"},
+                                    "rmse_y": {"value": round(rms(dy), 2), "unit": "m"}}})
+    manifest = {
+        "orthospec_delivery": 1, "id": scn.delivery_id, "project": {**scn.project, "crs": f"EPSG:{EPSG}"},
+        "contractor": {"name": "Orbita Cartografia S.r.l. (fictional)", "contact": "qc@orbita.example"},
+        "operator": {"name": "L. Ferrari (fictional)", "role": "contractor QC manager"},
+        "dates": dict(scn.dates),
+        "sensor": {"type": "satellite", "platform": "WorldView-3", "digital": True},
+        "product": {"gsd": {"value": SAT_GSD_M, "unit": "m"}, "bit_depth": 8, "bands": list(BANDS),
+                    "format": "GeoTIFF", "dem_delivered": False, "extracts": True, "pansharpened": True,
+                    "mosaic": False, "orthorectification": "rpc", "dra_applied": False, "update": False},
+        "tender": {"reference": "ITT 2026/CAP-VHR, Annex I §4 (fictional)",
+                   "parameters": {"tolerance_xy": {"value": SAT_TOLERANCE_XY_M, "unit": "m"}}},
+        "blocks": blocks,
+        "tables": {t: f"tables/{t}.csv" for t in ("images", "scenes", "checkpoints", "gcps", "dem",
+                                                   "manual_checks")},
+        "units": {"checkpoints": "m", "gcps": "m"},
+        "documents": {k: f"documents/{v}" for k, v in SAT_DOCS.items()},
+    }
+    dem = [{"dem_id": "DEM-10M", "block": s.id, "file": "", "source": "national DEM 10 m (fictional)",
+            "grid_spacing": "10", "rmse_z": "1.5", "checkpoints": "120"} for s in scn.sites[:1]]
+    inspector = "P. Novak, external QC (fictional)"
+    day = (scn.dates["delivered"] + timedelta(days=7)).isoformat()
+    manual = []
+    for check, scope, note in SAT_MANUAL_CHECKS:
+        items = {"delivery": ["*"], "image": [r["image_id"] for r in images], "dem": ["*"]}[scope]
+        manual += [{"check": check, "item": it, "inspector": inspector, "date": day, "verdict": "pass",
+                    "note": note} for it in items]
+    return {"scenario": scn, "images": images, "scenes": scenes, "gcps": gcps, "checkpoints": cps,
+            "arrays": arrays, "manifest": manifest, "recomputed": recomputed, "dem": dem, "manual": manual}
+
+
+def satellite_documents(b: dict[str, Any]) -> dict[str, str]:
+    scn, m = b["scenario"], b["manifest"]
+    head = f"{m['contractor']['name']}, delivery {scn.delivery_id}, project {m['project']['id']}"
+    qcr = ["# Internal quality control records (JRC §9.5, Table 10)", "", head, "",
+           "| scene | method | GCPs | residual RMSE (m) | check points | check point RMSE (m) |", "|---|---|---|---|---|---|"]
+    qcr += [f"| {s['image_id']} | {s['correction_method']} | {s['gcp_count']} | {s['residual_rmse']} | "
+            f"{s['checkpoint_count']} | {s['checkpoint_rmse']} |" for s in b["scenes"]]
+    gcp = ["# Ground control points (JRC §7.3, §12.4 Table 12 'GCPs')", "", head, "",
+           "Collection: GNSS RTK (two occupations) on road markings and field corners; horizontal control "
+           "ETRS89 / UTM 32N (EPSG:25832), vertical DHHN2016. Estimated precision 0.05 m (XY), 0.08 m (Z).", "",
+           "| point | site | E (m) | N (m) | H (m) |", "|---|---|---|---|---|"]
+    gcp += [f"| {g['point_id']} | {g['block']} | {g['x']} | {g['y']} | {g['z']} |" for g in b["gcps"]]
+    mono = ["# GCP monographs (JRC §7.3)", "", head, ""]
+    for g in b["gcps"]:
+        mono += [f"## {g['point_id'].lower()}", "", f"{g['point_id']}: road-marking corner; site picture "
+                 f"{g['point_id']}_N.jpg (archived by the contractor).", ""]
+    pts = [(float(g["x"]), float(g["y"]), "#cc3311") for g in b["gcps"]]
+    pts += [(float(c["x_ref"]), float(c["y_ref"]), "#4477aa") for c in b["checkpoints"]]
+    e0, n1 = min(p[0] for p in pts) - 200, max(p[1] for p in pts) + 200
+    svg = ['<svg xmlns="http://www.w3.org/2000/svg" width="400" height="400">',
+           f"<title>{scn.delivery_id}: GCPs (red) and check points (blue)</title>"]
+    svg += [f'<circle cx="{(x - e0) / 60:.1f}" cy="{(n1 - y) / 60:.1f}" r="2" fill="{c}"/>' for x, y, c in pts]
+    return {
+        SAT_DOCS["internal_qcr"]: "\n".join(qcr) + "\n",
+        SAT_DOCS["rejected_items"]: f"# Items rejected or reprocessed in internal QC (Table 10)\n\n{head}\n\nNone.\n",
+        SAT_DOCS["gcp_report"]: "\n".join(gcp) + "\n",
+        SAT_DOCS["geodetic_control"]: (f"# Coordinate system and geodetic control (JRC §7.3)\n\n{head}\n\n"
+                                       "- ETRS89 / UTM zone 32N (EPSG:25832), GRS80; heights DHHN2016 (GCG2016).\n"),
+        SAT_DOCS["gcp_plot"]: "\n".join([*svg, "</svg>"]) + "\n",
+        SAT_DOCS["gcp_monographs"]: "\n".join(mono),
+    }
+
+
+#: The planted defects of satellite-fail: (id, kind, JRC clause, table, items, rule, verdict, consequence, text).
+SAT_DEFECTS = (
+    ("S01", "master_checkpoints", "9.4", "9", ["S01_SC1"], "JRC-T9-MASTER-CHECKPOINTS", "fail", "reject_item",
+     "The master image S01_SC1 is checked on 12 points; Table 9 asks for at least 20."),
+    ("S02", "gcp_count", "9.4", "9", ["S02_SC2"], "JRC-T9-GCP-VHR-RPC", "fail", "reject_item",
+     "Scene S02_SC2 (single-scene RPC) was refined on 1 GCP; Table 9 asks for at least 2 (4 recommended)."),
+    ("S03", "orientation_missing", "9.2", "7", ["S01_SC3"], "JRC-9.2-T7-ORIENTATION-DATA", "fail", "reject_item",
+     "No RPC / orbit model recorded for S01_SC3 (scenes.csv orbit_model and orientation_data empty)."),
+    ("S04", "rmse_above_tolerance", "12.7", None, ["S02"], "JRC-12.7-RMSEX", "fail", "reject_block",
+     "Site S02 check point errors are 2.8 x larger than planned: RMSEx and RMSEy above the 1.0 m tolerance."),
+)
+
+
+def satellite_expected(b: dict[str, Any]) -> dict[str, Any]:
+    scn = b["scenario"]
+    warn = [{"rule": "ORTHOSPEC-ITT-SOURCE", "items": ["tolerance_xy"],
+             "why": "ITT value taken from the contractor's manifest; confirm against the ITT"}]
+    out: dict[str, Any] = {"delivery": scn.delivery_id,
+                           "parameters": {"tolerance_xy": {"value": SAT_TOLERANCE_XY_M, "unit": "m"}},
+                           "recomputed": {k: {"rmse_x": round(v["rmse_x"], 3), "rmse_y": round(v["rmse_y"], 3),
+                                              "n": v["n"]} for k, v in b["recomputed"].items()}}
+    if scn is SAT_PASS:
+        out.update(verdict="accepted", defects=[], jrc_v3={"verdict": "accepted", "exit_code": 0, "rejected": {},
+                                                           "expected_warnings": warn, "known_engine_issues": []})
+        return out
+    defects = [{"id": i, "kind": k, "clause": {"document": JRC, "section": s, "table": tb}, "items": its,
+                "jrc_v3": {"rules": [{"rule": r, "verdict": v, "level": "mandatory", "consequence": c,
+                                      "items": its}]}, "description": text}
+               for i, k, s, tb, its, r, v, c, text in SAT_DEFECTS]
+    for d in defects:
+        if d["kind"] == "orientation_missing":  # the orbit model field is the same record (Table 9)
+            d["jrc_v3"]["rules"].append({"rule": "JRC-T9-ORBIT-MODEL", "verdict": "fail", "level": "mandatory",
+                                         "consequence": "reject_item", "items": d["items"]})
+        if d["kind"] == "rmse_above_tolerance":  # RMSEy of S02 is above the tolerance too (same errors)
+            d["jrc_v3"]["rules"].append({"rule": "JRC-12.7-RMSEY", "verdict": "fail", "level": "mandatory",
+                                         "consequence": "reject_block", "items": ["S02"]})
+    project = [{"rule": "JRC-12.8-BLOCK-FAIL-SHARE", "verdict": "fail", "level": "mandatory",
+                "consequence": "return_delivery", "items": [scn.project["id"]],
+                "why": "1 of 2 sites rejected (50 % > 5 %)"},
+               {"rule": "JRC-12.3-IMAGE-FAIL-SHARE", "verdict": "fail", "level": "mandatory",
+                "consequence": "return_delivery", "items": [scn.delivery_id],
+                "why": "3 of 6 images rejected (50 % > 5 %)"}]
+    mandatory = sorted({(e["rule"], i) for d in defects for e in d["jrc_v3"]["rules"] for i in e["items"]}
+                       | {(p["rule"], i) for p in project for i in p["items"]})
+    out.update(verdict="rejected", defects=defects, jrc_v3={
+        "verdict": "rejected", "exit_code": 1,
+        "rejected": {"block": ["S02"], "image": sorted(i for d in defects if d["kind"] != "rmse_above_tolerance"
+                                                       for i in d["items"])},
+        "mandatory_failing": [{"rule": r, "item": i} for r, i in mandatory], "project": project,
+        "expected_warnings": warn, "known_engine_issues": []})
+    return out
+
+
+def satellite_readme(b: dict[str, Any], exp: dict[str, Any]) -> str:
+    scn, m = b["scenario"], b["manifest"]
+    lines = [f"# {scn.name}: {m['project']['name']}", "",
+             "Generated by `examples/generate.py` (do not edit by hand).", "",
+             f"VHR satellite delivery `{scn.delivery_id}`: {len(b['images'])} WorldView-3 scenes (PAN "
+             f"{SAT_PAN_M} m, MS 1.24 m, pan-sharpened and orthorectified to {SAT_GSD_M} m; 128-px 4-band "
+             "extracts), vendor RPCs refined on GCPs - site S01 by RPC block adjustment, site S02 scene by "
+             f"scene; master image S01_SC1. ITT tolerance RMSEx, RMSEy <= {SAT_TOLERANCE_XY_M} m per site. "
+             "Tables: images, scenes (JRC §9.5 metadata, Table 9 records), GCPs with residuals, independent "
+             "check points, the DEM used, signed manual checks; documents as for the aerial examples.", "",
+             "| site | method | check points | RMSEx (m) | RMSEy (m) |", "|---|---|---|---|---|"]
+    for s in scn.sites:
+        r = b["recomputed"][s.id]
+        lines.append(f"| {s.id} | {s.method} | {r['n']} | {r['rmse_x']:.3f} | {r['rmse_y']:.3f} |")
+    check = f"`orthospec check examples/deliveries/{scn.name} --profile jrc-v3`"
+    if scn is SAT_PASS:
+        lines += ["", f"Expected verdict: **accepted** ({check} exits 0). No aerial-only rule applies "
+                  "(they are `not_applicable`); the only warning is that the tolerance comes from the "
+                  "manifest's tender parameters (ORTHOSPEC-ITT-SOURCE)."]
+    else:
+        lines += ["", f"Expected verdict: **rejected** ({check} exits 1), for exactly these planted reasons:", "",
+                  "| # | JRC clause | item(s) | jrc-v3 rule | defect |", "|---|---|---|---|---|"]
+        for d in exp["defects"]:
+            cl = f"§{d['clause']['section']}" + (f", Table {d['clause']['table']}" if d["clause"]["table"] else "")
+            rules = ", ".join(e["rule"] for e in d["jrc_v3"]["rules"])
+            lines.append(f"| {d['id']} | {cl} | {', '.join(d['items'])} | {rules} | {d['description']} |")
+        lines += ["", "Roll-up: " + "; ".join(f"{p['rule']} ({p['why']})" for p in exp["jrc_v3"]["project"]) + "."]
+    return "\n".join(lines) + "\n"
+
+
+def write_satellite(b: dict[str, Any], root: Path) -> None:
+    scn = b["scenario"]
+    if root.exists():
+        shutil.rmtree(root)
+    (root / "tables").mkdir(parents=True)
+    _yaml(root / "delivery.yaml", b["manifest"], HEADER + "# Delivery convention: docs/ARCHITECTURE.md.\n")
+    for name, rows in (("images", b["images"]), ("scenes", b["scenes"]), ("gcps", b["gcps"]),
+                       ("checkpoints", b["checkpoints"]), ("dem", b["dem"]), ("manual_checks", b["manual"])):
+        _csv(root / f"tables/{name}.csv", list(rows[0]), rows)
+    for name, text in sorted(satellite_documents(b).items()):
+        (root / "documents").mkdir(exist_ok=True)
+        (root / "documents" / name).write_text(text, encoding="utf-8")
+    for sid, (arr, centre) in b["arrays"].items():
+        write_geotiff(root / f"images/{sid}.tif", arr, centre, {"IMAGE_ID": sid, "SENSOR": "WorldView-3"},
+                      gsd=SAT_GSD_M)
+    exp = satellite_expected(b)
+    _yaml(root / "expected.yaml", exp, HEADER + "# What a correct check must find in this delivery "
+          "(`orthospec check DELIVERY --profile jrc-v3`).\n")
+    (root / "README.md").write_text(satellite_readme(b, exp), encoding="utf-8")
+    del scn
+
+
 def generate(out: Path = DEFAULT_OUT) -> list[Path]:
-    """Write both example deliveries under ``out``; return their folders."""
+    """Write the example deliveries (aerial and satellite) under ``out``; return their folders."""
     roots = []
     for scn in SCENARIOS:
         root = Path(out) / scn.name
         write(build(scn), root)
+        roots.append(root)
+    for sat in SAT_SCENARIOS:
+        root = Path(out) / sat.name
+        write_satellite(build_satellite(sat), root)
         roots.append(root)
     return roots
 

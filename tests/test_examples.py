@@ -27,6 +27,7 @@ from shapely.geometry import Point, Polygon
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "examples" / "deliveries"
 NAMES = ("aerial-pass", "aerial-fail")
+SATELLITE = ("satellite-pass", "satellite-fail")
 SPEC = yaml.safe_load((ROOT / "specs" / "delivery-tables.yaml").read_text(encoding="utf-8"))["tables"]
 GSD = 0.25
 
@@ -73,7 +74,7 @@ def _num(series: pd.Series) -> pd.Series:
 
 
 # --------------------------------------------------------------------------- up to date
-@pytest.mark.parametrize("name", NAMES)
+@pytest.mark.parametrize("name", NAMES + SATELLITE)
 def test_committed_example_equals_a_fresh_generation(regenerated: Path, name: str) -> None:
     fresh, committed = _digests(regenerated / name), _digests(EXAMPLES / name)
     assert sorted(fresh) == sorted(committed), "file lists differ: run `python examples/generate.py`"
@@ -83,13 +84,46 @@ def test_committed_example_equals_a_fresh_generation(regenerated: Path, name: st
 
 def test_generation_is_byte_identical_twice(regenerated: Path, tmp_path: Path) -> None:
     _generator().generate(tmp_path)
-    for name in NAMES:
+    for name in NAMES + SATELLITE:
         assert _digests(tmp_path / name) == _digests(regenerated / name)
 
 
 def test_examples_stay_small() -> None:
     size = sum(p.stat().st_size for p in EXAMPLES.rglob("*") if p.is_file())
-    assert 500_000 < size < 3_000_000
+    assert 500_000 < size < 4_000_000
+    for name in SATELLITE:
+        assert sum(p.stat().st_size for p in (EXAMPLES / name).rglob("*") if p.is_file()) < 600_000
+
+
+# --------------------------------------------------------------------------- satellite
+@pytest.mark.parametrize("name", SATELLITE)
+def test_satellite_example_is_a_vhr_delivery_with_its_records(name: str) -> None:
+    """VHR by the §9.1 classes (PAN < 3 m), RPC block / single-scene RPC with Table 9 GCP counts,
+    GCP residuals saved, independent check points >= 300 m from every GCP, rasters at 0.5 m."""
+    m = _manifest(name)
+    assert m["sensor"]["type"] == "satellite" and m["product"]["gsd"] == {"value": 0.5, "unit": "m"}
+    scenes, gcps, cps = _table(name, "scenes"), _table(name, "gcps"), _table(name, "checkpoints")
+    assert (_num(scenes["input_pixel_size"]) < 3).all() and set(scenes["resolution_class"]) == {"VHR"}
+    assert set(scenes["correction_method"]) == {"rpc_block", "rpc"}
+    per_scene = gcps["point_id"].str.rsplit("-", n=1).str[0].value_counts()
+    assert (per_scene.reindex(scenes["image_id"]).to_numpy() == _num(scenes["gcp_count"]).to_numpy()).all()
+    assert (gcps[["residual_x", "residual_y"]] != "").all().all()
+    g = gcps[["x", "y"]].astype(float).to_numpy()
+    for x, y in cps[["x_ref", "y_ref"]].astype(float).to_numpy():
+        assert np.hypot(*(g - (x, y)).T).min() >= 300.0
+    for row in _table(name, "images").itertuples(index=False):
+        with rasterio.open(EXAMPLES / name / row.file) as ds:
+            assert ds.res == (0.5, 0.5) and ds.crs.to_epsg() == 25832 and ds.count == 4
+    exp = _expected(name)
+    for site, rec in exp["recomputed"].items():
+        pts = cps[cps["block"] == site]
+        dx = pts["x"].astype(float) - pts["x_ref"].astype(float)
+        assert round(float(np.sqrt(np.mean(dx**2))), 3) == rec["rmse_x"] and len(pts) == rec["n"]
+    fail = name == "satellite-fail"
+    master = scenes[scenes["is_master"] == "true"]
+    assert len(master) == 1 and (int(master["checkpoint_count"].iloc[0]) < 20) == fail
+    assert ((_num(scenes["gcp_count"]) < 2) & (scenes["correction_method"] == "rpc")).any() == fail
+    assert (exp["recomputed"]["S02"]["rmse_x"] > 1.0) == fail
 
 
 # --------------------------------------------------------------------------- convention

@@ -42,7 +42,8 @@ def _check(name: str, out: Path) -> tuple[int, dict[str, Any]]:
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[int, dict[str, Any]]]:
     out = tmp_path_factory.mktemp("qcr")
-    return {name: _check(name, out / name) for name in ("aerial-pass", "aerial-fail")}
+    return {name: _check(name, out / name)
+            for name in ("aerial-pass", "aerial-fail", "satellite-pass", "satellite-fail")}
 
 
 def _findings(doc: dict[str, Any], verdicts: tuple[str, ...], level: str) -> set[tuple[str, str]]:
@@ -50,7 +51,7 @@ def _findings(doc: dict[str, Any], verdicts: tuple[str, ...], level: str) -> set
             if r["verdict"] in verdicts and r["level"] == level}
 
 
-@pytest.mark.parametrize("name", ["aerial-pass", "aerial-fail"])
+@pytest.mark.parametrize("name", ["aerial-pass", "aerial-fail", "satellite-pass", "satellite-fail"])
 def test_every_record_carries_clause_and_the_profiles_verbatim_quote(runs: dict, name: str) -> None:
     _, doc = runs[name]
     profile_rules = [r for r in doc["rules"] if not r["rule"].startswith("ORTHOSPEC-")]  # engine built-ins
@@ -139,7 +140,7 @@ def test_profile_tests_verify(profile: str) -> None:
     assert "expectations met" in res.output
 
 
-@pytest.mark.parametrize("name", ["aerial-pass", "aerial-fail"])
+@pytest.mark.parametrize("name", ["aerial-pass", "aerial-fail", "satellite-pass", "satellite-fail"])
 def test_manual_checks_are_signed_for_every_applicable_manual_rule(runs: dict, name: str) -> None:
     _, doc = runs[name]
     signed = yaml.safe_load((EXAMPLES / name / "delivery.yaml").read_text(encoding="utf-8"))
@@ -150,3 +151,40 @@ def test_manual_checks_are_signed_for_every_applicable_manual_rule(runs: dict, n
     unsigned = {r["rule"] for r in doc["records"]
                 if RULES.get(r["rule"], {}).get("manual") and r["verdict"] == "missing"}
     assert unsigned <= issues
+
+
+AERIAL_ONLY = {rid for rid, r in RULES.items() if "manifest.sensor.type == 'aerial'" in (r.get("when") or "")}
+
+
+def test_satellite_pass_is_accepted_and_no_aerial_rule_applies(runs: dict) -> None:
+    """Issue 12 item 4: a VHR satellite delivery is never judged by aerial camera/flight rules."""
+    code, doc = runs["satellite-pass"]
+    exp = _expected("satellite-pass")["jrc_v3"]
+    assert code == exp["exit_code"] == 0 and doc["verdict"] == "accepted" and doc["rollup"]["rejected"] == {}
+    assert _findings(doc, BAD, "mandatory") == set()
+    assert {r["verdict"] for r in doc["records"] if r["rule"] in AERIAL_ONLY} == {"not_applicable"}
+    warned = {(w["rule"], i) for w in exp["expected_warnings"] for i in w["items"]}
+    assert _findings(doc, (*BAD, "warn"), "recommended") == warned
+    # the satellite rules did run: Table 9 GCP counts keyed on the computed §9.1 class
+    verdicts = {(r["rule"], r["item"]): r["verdict"] for r in doc["records"]}
+    assert verdicts[("JRC-T9-GCP-VHR-RPC", "S02_SC1")] == "pass"
+    assert verdicts[("JRC-T9-MASTER-CHECKPOINTS", "S01_SC1")] == "pass"
+    assert verdicts[("JRC-9.1-RESOLUTION-CLASS", "S01_SC1")] == "pass"
+
+
+def test_satellite_fail_is_rejected_for_exactly_its_planted_reasons(runs: dict) -> None:
+    code, doc = runs["satellite-fail"]
+    exp = _expected("satellite-fail")
+    out = exp["jrc_v3"]
+    assert code == out["exit_code"] == 1 and doc["verdict"] == "rejected"
+    assert doc["rollup"]["rejected"] == out["rejected"]
+    assert _findings(doc, BAD, "mandatory") == {(m["rule"], m["item"]) for m in out["mandatory_failing"]}
+    got = {(r["rule"], r["item"]): r for r in doc["records"]}
+    for d in exp["defects"]:
+        for e in d["jrc_v3"]["rules"]:
+            assert (RULES[e["rule"]]["level"], RULES[e["rule"]]["consequence"]) == (e["level"], e["consequence"])
+            for item in e["items"]:
+                assert got[(e["rule"], item)]["verdict"] == e["verdict"], (d["id"], e["rule"], item)
+    warned = {(w["rule"], i) for w in out["expected_warnings"] for i in w["items"]}
+    assert _findings(doc, (*BAD, "warn"), "recommended") == warned
+    assert {r["verdict"] for r in doc["records"] if r["rule"] in AERIAL_ONLY} == {"not_applicable"}
