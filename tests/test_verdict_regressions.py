@@ -299,6 +299,23 @@ def test_a_failing_dem_with_unknown_blocks_is_a_delivery_level_finding(tmp_path:
     assert "DEM-X" in reasons(doc) and "blocks they serve are unknown" in reasons(doc)
 
 
+def test_a_dem_without_a_block_is_placed_by_its_footprint(tmp_path: Path) -> None:
+    """A DEM row with no `block` but a delivered file: its footprint decides the blocks it serves."""
+    import rasterio
+    from rasterio.transform import from_origin
+
+    d = copy_pass(tmp_path)
+    (d / "dem").mkdir()
+    # 4 km x 6 km inside block B03 (x 512500-519500, y 5411000-5418200), away from B01 and B02
+    with rasterio.open(d / "dem" / "b03.tif", "w", driver="GTiff", width=10, height=10, count=1,
+                       dtype="float32", crs="EPSG:25832", transform=from_origin(515000, 5418000, 400, 600)) as ds:
+        ds.write(np.full((1, 10, 10), 300.0, dtype="float32"))
+    _with_dem(d, "dem_id,file,rmse_z\nDEM-F,dem/b03.tif,3.0\n")
+    doc = check(d, profile(tmp_path, DEM_RULE), date=DATE).document
+    assert records(doc, "R-DEM")["DEM-F"]["verdict"] == "fail"
+    assert doc["rollup"]["rejected"] == {"block": ["B03"]}
+
+
 # --- fail-open by the contractor (issue 17) ----------------------------------------------------
 
 def test_a_nan_vertex_in_a_block_polygon_is_not_accepted(tmp_path: Path) -> None:

@@ -809,7 +809,14 @@ class Evaluator:
 
     def _blocks_of(self, scope: str) -> dict[str, set[str]] | None:
         """item -> blocks it belongs to / serves, from the scope's table `block` column
-        (';'-separated for an item serving several blocks, e.g. a DEM); None when unknown."""
+        (';'-separated for an item serving several blocks, e.g. a DEM; a DEM without one is placed
+        by its file's footprint, derived.dem_blocks); None when unknown."""
+        if scope == "dem":
+            try:
+                m = self.cache.get("derived.dem_blocks")
+            except OrthospecError:
+                return None
+            return {str(k): {x for x in str(v).split(";") if x} for k, v in m.values.items() if not _is_missing(v)}
         table = next((name for name, spec in table_specs().items()
                       if spec.scope == scope and spec.id is not None), None)
         t = self.d.table(table) if table else None

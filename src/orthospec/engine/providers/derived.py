@@ -14,6 +14,10 @@
   length, pixel size and format (JRC §5.2.2 "Side overlap must ensure that all the surveyed area
   will be covered with imagery"). It does not depend on the delivered orthoimages, so a delivery
   of extracts (§12.4) cannot switch the coverage check off by declaring ``product.extracts``.
+* ``derived.dem_blocks`` (dem): the blocks a DEM serves (';'-separated), from the dem table's
+  ``block`` column, else from the delivered DEM file's footprint against the block polygons. A
+  failing DEM then rejects those blocks only (JRC Table 5, §12.7 "will reject all products for
+  the block"), never every block of the delivery.
 """
 
 from __future__ import annotations
@@ -31,6 +35,7 @@ from ..registry import Measured, ProviderContext, RowEvidence, provider
 
 DELIVERY = {"derived.orthorectification": "text"}
 COVERAGE = {"derived.photo_coverage": "%"}
+DEM = {"derived.dem_blocks": "text"}
 #: camera format columns (pixels across and along track) the photo lay-down needs
 FORMAT_COLUMNS = ("format_across_px", "format_along_px")
 IMAGE = {"derived.resolution_class": "text", "derived.resolution_class_agrees": "bool"}
@@ -228,3 +233,51 @@ def photo_coverage(ctx: ProviderContext) -> list[Measured]:
                     note += f" even without image(s) {', '.join(skipped[:5])} (no exposure station or height)"
     return [Measured("derived.photo_coverage", "delivery", "%", pd.Series({d.id: value}, dtype=object),
                      pd.Series({d.id: (*aoi_ev, *ev)}, dtype=object), notes=pd.Series({d.id: note}, dtype=object))]
+
+
+@provider(scope="dem", measures=DEM)
+def dem_blocks(ctx: ProviderContext) -> list[Measured]:
+    """Blocks each DEM serves: its `block` value, else its file's footprint over the block polygons."""
+    from shapely.geometry import Polygon, box
+
+    from ...raster.reading import open_read_only, read_only_env
+
+    d = ctx.delivery
+    t = d.table("dem")
+    if t is None:
+        return [Measured("derived.dem_blocks", "dem", "text", pd.Series(dtype=object), pd.Series(dtype=object),
+                         notes=pd.Series({"*": "the manifest declares no 'dem' table"}, dtype=object))]
+    polys = {}
+    for b in d.manifest.blocks:
+        if b.polygon and len(b.polygon) >= 3 and np.isfinite(np.asarray(b.polygon, dtype=float)).all():
+            polys[b.id] = Polygon(b.polygon)
+    ids = t.ids.astype(str).tolist()
+    vals: dict[str, Any] = {}
+    notes: dict[str, str] = {}
+    files = t.df["file"].tolist() if "file" in t.df else [None] * len(ids)
+    blocks_col = t.df["block"].tolist() if "block" in t.df else [None] * len(ids)
+    with read_only_env():
+        for dem_id, blk, rel in zip(ids, blocks_col, files, strict=True):
+            if blk is not None and not (isinstance(blk, float) and np.isnan(blk)) and str(blk).strip():
+                vals[dem_id] = ";".join(x.strip() for x in str(blk).split(";") if x.strip())
+                notes[dem_id] = f"{t.file} column block"
+                continue
+            vals[dem_id] = None
+            if not rel or (isinstance(rel, float) and np.isnan(rel)) or not polys:
+                notes[dem_id] = (f"{t.file} gives no block for {dem_id}"
+                                 + ("" if polys else " and the manifest gives no block polygons")
+                                 + ("" if rel and not isinstance(rel, float) else " and no DEM file"))
+                continue
+            try:
+                with open_read_only(d.path(str(rel), what=f"dem row for {dem_id}"), name=str(rel)) as ds:
+                    foot = box(*ds.bounds)
+            except (OrthospecError, OSError) as exc:
+                notes[dem_id] = f"cannot read the footprint of {rel}: {exc}"
+                continue
+            served = sorted(b for b, poly in polys.items() if foot.intersection(poly).area > 0)
+            vals[dem_id] = ";".join(served) or None
+            notes[dem_id] = (f"footprint of {rel} overlaps block(s) {', '.join(served)}" if served
+                             else f"footprint of {rel} overlaps no block polygon")
+    ev = RowEvidence(t.file, t.sha256, pd.Series(t.df["_row"].to_numpy(), index=t.ids.astype(str).to_numpy()))
+    return [Measured("derived.dem_blocks", "dem", "text", pd.Series(vals, dtype=object), ev,
+                     notes=pd.Series(notes, dtype=object))]
