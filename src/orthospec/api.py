@@ -3,6 +3,10 @@
 from __future__ import annotations
 
 import datetime as dt
+import os
+import re
+import shutil
+import tempfile
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -62,3 +66,100 @@ def _display(path: str) -> str:
         except ValueError:
             return p.name
     return p.as_posix().rstrip("/")
+
+
+# --------------------------------------------------------------------------- outputs
+# orthospec never writes into a delivery and never outside the output folder (issue 17).
+
+_UNSAFE = re.compile(r"[^A-Za-z0-9._-]+")
+
+
+def safe_segment(text: str, *, default: str = "delivery") -> str:
+    """``text`` as one harmless path segment: ``../../x`` -> ``x``, ``/a/b`` -> ``a_b``.
+
+    A delivery id is contractor text; used as a folder name it must not climb out of the
+    output folder, be absolute, or be hidden.
+    """
+    seg = _UNSAFE.sub("_", str(text)).strip("._-")[:100].rstrip("._-")
+    return seg or default
+
+
+def inside(path: str | Path, root: str | Path) -> bool:
+    """True when ``path`` (existing or not, symlinks resolved) is ``root`` or lies under it."""
+    return Path(path).resolve().is_relative_to(Path(root).resolve())
+
+
+def refuse_inside_delivery(path: str | Path, delivery: str | Path, *, what: str) -> None:
+    """Raise OrthospecError (exit 2) when an output path would land inside the delivery."""
+    if Path(delivery).is_dir() and inside(path, delivery):
+        raise OrthospecError(f"{what} {str(path)!r} is inside the delivery {str(delivery)!r}; orthospec "
+                             "never writes into a delivery: choose a folder outside it")
+
+
+def default_output_dir(delivery_id: str, *, base: str | Path = "reports") -> Path:
+    """``reports/<id>`` with the id reduced to one safe path segment."""
+    return Path(base) / safe_segment(delivery_id)
+
+
+def write_outputs(target: str | Path, files: Mapping[str, str | bytes]) -> list[str]:
+    """Write every output or none: render into a temporary folder inside ``target``, then move.
+
+    A destination that exists and is not a regular file (a folder named ``junit.xml``, a
+    symlink) refuses the whole set before anything is written; if a move still fails, the files
+    already moved are put back as they were. Returns the names written.
+
+    Raises
+    ------
+    OrthospecError
+        naming the output that could not be written; nothing new is left in ``target``.
+    """
+    out = Path(target)
+    for name in files:
+        dest = out / name
+        if dest.is_symlink() or (dest.exists() and not dest.is_file()):
+            raise OrthospecError(f"cannot write {name} to {out}/: {dest} exists and is not a regular "
+                                 "file; no output written")
+    created = [p for p in (out, *out.parents) if not p.exists()]
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix=".orthospec-out-", dir=out))
+    except OSError as exc:
+        raise OrthospecError(f"cannot create output folder {out}: {exc.strerror or exc}") from None
+    moved: list[tuple[Path, Path | None]] = []
+    current = ""
+    try:
+        mask = os.umask(0)
+        os.umask(mask)
+        for i, (name, data) in enumerate(files.items()):
+            current = name
+            staged = tmp / f"new-{i}"
+            with open(staged, "wb") as fh:
+                fh.write(data.encode("utf-8") if isinstance(data, str) else data)
+                fh.flush()
+                os.fsync(fh.fileno())
+            os.chmod(staged, 0o666 & ~mask)
+        for i, name in enumerate(files):
+            current = name
+            dest = out / name
+            backup = None
+            if dest.exists():
+                backup = tmp / f"old-{i}"
+                os.link(dest, backup)
+            os.replace(tmp / f"new-{i}", dest)
+            moved.append((dest, backup))
+    except OSError as exc:
+        for dest, backup in reversed(moved):
+            if backup is not None:
+                os.replace(backup, dest)
+            else:
+                dest.unlink(missing_ok=True)
+        shutil.rmtree(tmp, ignore_errors=True)
+        for p in created:
+            try:
+                p.rmdir()
+            except OSError:
+                break
+        raise OrthospecError(f"cannot write {current} to {out}/: {exc.strerror or exc}; "
+                             "no output written") from None
+    shutil.rmtree(tmp, ignore_errors=True)
+    return list(files)

@@ -2,14 +2,15 @@
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 
 import click
 from rich.console import Console
 
-from ..api import check
-from ..qcr import atomic_write, render_all
+from ..api import check, default_output_dir, refuse_inside_delivery, write_outputs
+from ..qcr import render_all
 from ..reports.terminal import render as render_terminal
 from .groups import main
 from .options import date_option, param_option, profile_option, split_formats
@@ -32,14 +33,16 @@ def render_documents(doc: dict, fmts: list[str], *, extra: dict | None = None) -
 @profile_option
 @param_option
 @click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), default=None,
-              help="Folder for qcr.json, qcr.csv, junit.xml and reports (default reports/<delivery id>).")
+              help="Folder for qcr.json, qcr.csv, junit.xml and reports (default reports/<delivery id>); "
+                   "never inside the delivery.")
 @click.option("--format", "formats", default="terminal,json,csv,junit", show_default=True,
               help="Comma-separated: " + ", ".join(FORMATS) + ".")
 @date_option
 @click.option("--fail-on", type=click.Choice(["fail", "warn"]), default="fail", show_default=True,
               help="'warn' makes recommended-level rules blocking.")
 @click.option("--operator", default=None, help="Name of the person running the check (recorded in QCRs).")
-@click.option("--workers", type=int, default=None, help="Worker processes for raster checks (default: cores).")
+@click.option("--workers", type=int, default=None,
+              help="Worker processes for raster checks (default and maximum: the cores).")
 @click.option("--scheduler", default=None, metavar="ADDRESS", help="Dask distributed scheduler address.")
 @click.option("--sample", "sample_file", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Sample table from `orthospec sample`: only those images/blocks are checked (JRC §12.3).")
@@ -55,6 +58,13 @@ def check_cmd(delivery: Path, profile: str, params: tuple[str, ...], out_dir: Pa
               ledger_target: str | None = None) -> None:
     """Check DELIVERY against a spec profile; exit 0 accepted, 1 rejected, 2 could not evaluate."""
     fmts = split_formats(formats, FORMATS)
+    workers = _workers(workers)
+    # refuse what would write into the delivery, and a ledger that cannot be used, before the check
+    refuse_inside_delivery(out_dir if out_dir is not None else Path("reports"), delivery,
+                           what="--out" if out_dir is not None else "the default output folder (run from "
+                           "outside the delivery or give --out)")
+    if ledger_target is not None:
+        _ledger_usable(ledger_target, delivery)
     options = {"workers": workers, "scheduler": scheduler, "progress": sys.stderr.isatty()}
     if sample_file is not None:
         from ..engine.sample import read_sample
@@ -68,9 +78,9 @@ def check_cmd(delivery: Path, profile: str, params: tuple[str, ...], out_dir: Pa
         shown = {**doc, "history": _history_with_this_run(ledger_target, doc)}
     files = render_documents(shown, [f for f in fmts if f != "terminal"],
                              extra={"evaluation": result.evaluation})
-    target = out_dir if out_dir is not None else Path("reports") / doc["delivery"]["id"]
-    for name, data in files.items():
-        atomic_write(target / name, data)
+    target = out_dir if out_dir is not None else default_output_dir(doc["delivery"]["id"])
+    refuse_inside_delivery(target, delivery, what="output folder")
+    write_outputs(target, files)
     if "terminal" in fmts:
         console = Console(highlight=False) if sys.stdout.isatty() else Console(highlight=False, width=120)
         render_terminal(doc, console, max_items=max_items, verbose=verbose)
@@ -83,6 +93,25 @@ def check_cmd(delivery: Path, profile: str, params: tuple[str, ...], out_dir: Pa
             run_id = led.record(doc)
         click.echo(f"recorded run #{run_id} in ledger {led.display}")
     click.get_current_context().exit(0 if result.accepted else 1)
+
+
+def _workers(workers: int | None) -> int | None:
+    """``--workers`` at least 1 and at most the cores (more only costs memory)."""
+    if workers is None:
+        return None
+    if workers < 1:
+        raise click.BadParameter(f"{workers} workers: give 1 or more", param_hint="'--workers'")
+    return min(workers, os.cpu_count() or 1)
+
+
+def _ledger_usable(ledger_target: str, delivery: Path) -> None:
+    """Open the ledger before the check, so a bad one fails before any output is written."""
+    from ..ledger import open_ledger
+
+    if "://" not in ledger_target:
+        refuse_inside_delivery(Path(ledger_target), delivery, what="--ledger")
+    with open_ledger(ledger_target):
+        pass
 
 
 def _history_with_this_run(ledger_target: str, doc: dict) -> list[dict]:

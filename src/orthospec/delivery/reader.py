@@ -2,13 +2,21 @@
 
 This module and ``raster/`` are the only places that read a delivery. Nothing here writes into
 the delivery folder.
+
+A delivery is untrusted input (the contractor is paid on the verdict), so every path it names or
+holds goes through :func:`contained` before anything opens or hashes it: no absolute path, no
+``..``, no URL or GDAL ``/vsi`` prefix, no symbolic link leaving the folder, no FIFO or device.
+Tables are bounded before they are parsed (file size, columns per line, bytes per cell; see
+:class:`Limits`), so a hostile table fails in well under a second with file and row.
 """
 
 from __future__ import annotations
 
 import csv
 import io
+import os
 import re
+import stat
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path, PurePosixPath
@@ -26,6 +34,165 @@ from .convention import TableSpec, table_specs
 from .manifest import Manifest
 
 MANIFEST = "delivery.yaml"
+#: Columns that hold a path relative to the delivery root, in any table.
+PATH_COLUMNS = frozenset({"file"})
+#: Manifest fields that hold paths relative to the delivery root (mappings of name -> path).
+_PATH_MAPPINGS = ("tables", "documents", "vectors")
+_SCHEME = re.compile(r"^[A-Za-z][A-Za-z0-9+.-]*:")
+_SPECIAL = {stat.S_IFIFO: "a FIFO (named pipe)", stat.S_IFCHR: "a character device",
+            stat.S_IFBLK: "a block device", stat.S_IFSOCK: "a socket"}
+
+
+def _env_int(name: str, default: int) -> int:
+    text = os.environ.get(name)
+    if text is None or not text.strip():
+        return default
+    try:
+        value = int(text)
+    except ValueError:
+        raise DeliveryError(f"environment variable {name}={text!r}: expected a whole number") from None
+    if value <= 0:
+        raise DeliveryError(f"environment variable {name}={text!r}: must be positive")
+    return value
+
+
+@dataclass(frozen=True)
+class Limits:
+    """What a delivery table may make orthospec read; defaults no real delivery meets.
+
+    A national images table of a million rows is about 300 MB with two dozen columns and cells
+    under 1 kB; the defaults leave a wide margin and are set by environment variables
+    ``ORTHOSPEC_MAX_TABLE_BYTES``, ``ORTHOSPEC_MAX_CSV_COLUMNS`` and ``ORTHOSPEC_MAX_CSV_CELL_BYTES``.
+    """
+
+    table_bytes: int = 2**30
+    columns: int = 10_000
+    cell_bytes: int = 64 * 2**20
+
+    @classmethod
+    def from_env(cls) -> Limits:
+        d = cls()
+        return cls(table_bytes=_env_int("ORTHOSPEC_MAX_TABLE_BYTES", d.table_bytes),
+                   columns=_env_int("ORTHOSPEC_MAX_CSV_COLUMNS", d.columns),
+                   cell_bytes=_env_int("ORTHOSPEC_MAX_CSV_CELL_BYTES", d.cell_bytes))
+
+
+def _lexical(rel: str) -> tuple[PurePosixPath | None, str]:
+    """The relative path ``rel`` names, or None and why it cannot name a file of the delivery."""
+    text = str(rel)
+    if not text.strip():
+        return None, "is empty"
+    if any(ord(c) < 32 or ord(c) == 127 for c in text):
+        return None, "contains control characters"
+    posix = text.replace("\\", "/")
+    if posix.lower().startswith("/vsi"):
+        return None, "is a GDAL virtual file system path (/vsi...); only files inside the delivery are read"
+    if _SCHEME.match(posix):
+        return None, "is a URL or a drive-letter path; only relative paths inside the delivery are read"
+    pp = PurePosixPath(posix)
+    if pp.is_absolute() or posix.startswith("//"):
+        return None, "is an absolute path; paths are relative to the delivery folder"
+    if ".." in pp.parts:
+        return None, "contains '..'; paths must stay inside the delivery folder"
+    if not pp.parts or pp.parts == (".",):
+        return None, "names the delivery folder itself, not a file"
+    return pp, ""
+
+
+def contained(root: str | Path, rel: str, *, what: str = "file", file: str | None = MANIFEST,
+              line: int | None = None, row: int | None = None, field: str | None = None,
+              follow: bool = True) -> Path:
+    """``root/rel`` if it names something inside the delivery; else a DeliveryError saying why.
+
+    The one containment check of orthospec (issue 17): every path a delivery names and every file
+    it holds is resolved against the delivery root before it is opened or hashed. Refused: empty,
+    absolute, ``..``, URL / drive letter, GDAL ``/vsi`` prefixes, control characters, a symbolic
+    link (anywhere on the way) that leads out of the folder, a FIFO, device or socket. A path that
+    does not exist is returned (callers report it as missing). ``follow=False`` skips the
+    file-system part (for bulk table columns, after :func:`check_tree` vetted every link).
+
+    Raises
+    ------
+    DeliveryError
+        naming ``file`` and ``line``/``row``/``field``, and the path as written.
+    """
+    pp, why = _lexical(rel)
+
+    def refuse(reason: str) -> DeliveryError:
+        return DeliveryError(f"{what} {str(rel)[:300]!r} {reason}", file=file, line=line, row=row,
+                             field=field)
+
+    if pp is None:
+        raise refuse(why)
+    base = Path(root)
+    p = base.joinpath(*pp.parts)
+    if not follow:
+        return p
+    try:
+        real_root = base.resolve()
+        real = p.resolve()
+    except (OSError, RuntimeError) as exc:  # symlink loops (RuntimeError before Python 3.13)
+        raise refuse(f"cannot be resolved ({exc})") from None
+    if not real.is_relative_to(real_root):
+        raise refuse("is (or passes through) a symbolic link leading out of the delivery folder")
+    try:
+        st = os.stat(p)
+    except FileNotFoundError:
+        return p
+    except OSError as exc:
+        raise refuse(f"cannot be read: {exc.strerror or exc}") from None
+    kind = _SPECIAL.get(stat.S_IFMT(st.st_mode))
+    if kind is not None:
+        raise refuse(f"is {kind}, not a regular file")
+    return p
+
+
+def check_tree(root: str | Path) -> list[str]:
+    """Vet every entry of the delivery folder; return its regular files (relative POSIX paths).
+
+    Symbolic links that stay inside the folder are allowed (and not followed here); one that leads
+    out, and any FIFO, device or socket, is refused with a DeliveryError naming it, so nothing
+    later can be tricked into reading outside the delivery or blocking on a pipe.
+    """
+    base = Path(root)
+    real_root = base.resolve()
+    files: list[str] = []
+    stack = [base]
+    while stack:
+        folder = stack.pop()
+        try:
+            entries = sorted(os.scandir(folder), key=lambda e: e.name)
+        except OSError as exc:
+            rel = folder.relative_to(base).as_posix()
+            raise DeliveryError(f"folder {rel!r} cannot be listed: {exc.strerror or exc}") from None
+        for e in entries:
+            rel = Path(e.path).relative_to(base).as_posix()
+            if e.is_symlink():
+                try:
+                    real = Path(e.path).resolve()
+                except (OSError, RuntimeError):
+                    raise DeliveryError("is a symbolic link that cannot be resolved (a loop?)",
+                                        file=rel) from None
+                if not real.is_relative_to(real_root):
+                    raise DeliveryError("is a symbolic link leading out of the delivery folder; "
+                                        "orthospec reads nothing outside the delivery", file=rel)
+                try:
+                    mode = os.stat(e.path).st_mode
+                except OSError:
+                    continue  # dangling link inside the folder: reported as missing if listed
+            elif e.is_dir(follow_symlinks=False):
+                stack.append(Path(e.path))
+                continue
+            elif e.is_file(follow_symlinks=False):
+                files.append(rel)
+                continue
+            else:
+                mode = e.stat(follow_symlinks=False).st_mode
+            kind = _SPECIAL.get(stat.S_IFMT(mode))
+            if kind is not None:
+                raise DeliveryError(f"is {kind}, not a regular file; a delivery holds files only",
+                                    file=rel)
+    return sorted(files)
 _TRUE = {"true", "yes", "y", "1", "t"}
 _FALSE = {"false", "no", "n", "0", "f"}
 
@@ -59,17 +226,16 @@ class Delivery:
     raw: dict[str, Any]
     manifest_sha256: str
     positions: dict[tuple[Any, ...], tuple[int, int]] = field(repr=False, default_factory=dict)
+    tree: list[str] | None = field(default=None, repr=False)  # regular files, from check_tree
+    limits: Limits = field(default_factory=Limits, repr=False)
     _tables: dict[str, Table] = field(default_factory=dict, repr=False)
     _sha: dict[str, str] = field(default_factory=dict, repr=False)
 
     # --- paths and checksums -----------------------------------------------------------
-    def path(self, rel: str, *, what: str = "file") -> Path:
-        """Resolve ``rel`` inside the delivery; refuse anything that escapes it."""
-        pp = PurePosixPath(rel.replace("\\", "/"))
-        if pp.is_absolute() or ".." in pp.parts:
-            raise DeliveryError(f"{what} path {rel!r} must be relative and inside the delivery",
-                                file=MANIFEST)
-        return self.root / Path(*pp.parts)
+    def path(self, rel: str, *, what: str = "file", file: str | None = MANIFEST,
+             row: int | None = None) -> Path:
+        """Resolve ``rel`` inside the delivery; refuse anything that escapes it (:func:`contained`)."""
+        return contained(self.root, rel, what=what, file=file, row=row)
 
     def sha256(self, rel: str) -> str:
         if rel not in self._sha:
@@ -98,10 +264,15 @@ class Delivery:
     def files(self) -> list[dict[str, Any]]:
         """Every file of the delivery with size and SHA-256, sorted (for the QCR appendix)."""
         out = []
-        for p in sorted(self.root.rglob("*")):
-            if p.is_file() and not p.is_symlink():
-                rel = p.relative_to(self.root).as_posix()
-                out.append({"path": rel, "bytes": p.stat().st_size, "sha256": self.sha256(rel)})
+        for rel in self.tree if self.tree is not None else check_tree(self.root):
+            p = self.root.joinpath(*rel.split("/"))  # a real name: a backslash in it is no separator
+            try:
+                if rel not in self._sha:
+                    self._sha[rel] = sha256_file(p)
+                size = p.lstat().st_size
+            except OSError as exc:
+                raise DeliveryError(f"cannot read: {exc.strerror or exc}", file=rel) from None
+            out.append({"path": rel, "bytes": size, "sha256": self._sha[rel]})
         return out
 
     # --- facts ------------------------------------------------------------------------
@@ -176,11 +347,24 @@ class Delivery:
 
     def _read_table(self, name: str, rel: str) -> Table:
         spec = table_specs()[name]
-        p = self.path(rel, what=f"table {name}")
+        line = self.where(("tables", name))
+        p = contained(self.root, rel, what=f"table {name}", line=line)
+        if p.is_dir():
+            raise DeliveryError(f"table '{name}' is a folder, not a file: {rel}", file=MANIFEST, line=line)
         if not p.is_file():
-            raise DeliveryError(f"table '{name}' file not found: {rel}", file=MANIFEST,
-                                line=self.where(("tables", name)))
-        data = p.read_bytes()
+            raise DeliveryError(f"table '{name}' file not found: {rel}", file=MANIFEST, line=line)
+        try:
+            with open(p, "rb") as fh:
+                size = os.fstat(fh.fileno()).st_size
+                if size > self.limits.table_bytes:
+                    raise DeliveryError(
+                        f"table of {size:,} bytes exceeds the limit of {self.limits.table_bytes:,} bytes "
+                        "(ORTHOSPEC_MAX_TABLE_BYTES)", file=rel)
+                check_csv_bounds(fh, file=rel, limits=self.limits)
+                fh.seek(0)
+                data = fh.read()
+        except OSError as exc:
+            raise DeliveryError(f"cannot read table: {exc.strerror or exc}", file=rel) from None
         sha = sha256_bytes(data)
         self._sha[rel] = sha
         try:
@@ -193,12 +377,86 @@ class Delivery:
         except UnitError as exc:
             raise DeliveryError(f"units.{name}: {exc}", file=MANIFEST,
                                 line=self.where(("units", name))) from None
+        if csv.field_size_limit() < self.limits.cell_bytes:
+            csv.field_size_limit(self.limits.cell_bytes)  # the bound is check_csv_bounds's, not csv's
         df = parse_csv(text, spec, file=rel)
+        for col in PATH_COLUMNS & set(df.columns):
+            for r, v in zip(df["_row"].tolist(), df[col].tolist(), strict=True):
+                if v is not None:
+                    contained(self.root, v, what="path", file=rel, row=int(r), field=col,
+                              follow=self.tree is None)
         units = {}
         for col, cs in spec.columns.items():
             if cs.type == "number" and col in df:
                 units[col] = canonical(length_unit if cs.unit == "length" else cs.unit)
         return Table(name, spec, rel, sha, df, units)
+
+
+def check_csv_bounds(fh: Any, *, file: str, limits: Limits, chunk: int = 16 * 2**20) -> None:
+    """Refuse a table whose raw bytes break the limits, before any CSV parser sees it.
+
+    One streaming pass over the bytes with numpy (C speed, memory bounded by ``chunk``): the
+    longest run between delimiters (a cell; quoted commas split a cell, so this is a lower bound,
+    the file-size limit is the hard one), the delimiters per physical line (columns) and a header
+    whose quotes do not close on its own line. Row numbers count physical lines after the header.
+    """
+    import numpy as np
+
+    run = 0           # bytes since the last delimiter, carried across chunks
+    commas = 0        # commas on the current physical line so far
+    line = 1          # physical line of the chunk start
+    header_done = False
+    while True:
+        data = fh.read(chunk)
+        if not data:
+            break
+        arr = np.frombuffer(data, dtype=np.uint8)
+        if not header_done:
+            nl = data.find(b"\n")
+            head = data if nl < 0 else data[:nl]
+            if nl >= 0 or len(data) < chunk:
+                header_done = True
+                if head.count(b'"') % 2:
+                    raise DeliveryError("the header row has an unclosed quote or a quoted line break; "
+                                        "column names are single-line text", file=file, line=1)
+        delim = np.flatnonzero((arr == 44) | (arr == 10))
+        if delim.size == 0:
+            run += len(data)
+        else:
+            gaps = np.diff(delim, prepend=-1 - run) - 1
+            big = np.flatnonzero(gaps > limits.cell_bytes)
+            if big.size:
+                at = int(delim[big[0]])
+                _refuse_cell(file, line + int(np.count_nonzero(arr[:at] == 10)), limits)
+            run = len(data) - 1 - int(delim[-1])
+        if run > limits.cell_bytes:
+            _refuse_cell(file, line + data.count(b"\n"), limits)
+        is_nl = arr[delim] == 10 if delim.size else np.zeros(0, dtype=bool)
+        nl_idx = np.flatnonzero(is_nl)
+        if nl_idx.size:
+            per_line = np.diff(nl_idx, prepend=-1) - 1
+            per_line[0] += commas
+            wide = np.flatnonzero(per_line + 1 > limits.columns)
+            if wide.size:
+                _refuse_columns(file, line + int(wide[0]), int(per_line[wide[0]]) + 1, limits)
+            commas = int(delim.size - 1 - nl_idx[-1])
+        else:
+            commas += int(delim.size)
+        if commas + 1 > limits.columns:
+            _refuse_columns(file, line + int(nl_idx.size), commas + 1, limits)
+        line += int(nl_idx.size)
+
+
+def _refuse_cell(file: str, line: int, limits: Limits) -> None:
+    where = {"row": line - 1} if line > 1 else {"line": 1}
+    raise DeliveryError(f"a cell longer than {limits.cell_bytes:,} bytes (ORTHOSPEC_MAX_CSV_CELL_BYTES); "
+                        "not read", file=file, **where)
+
+
+def _refuse_columns(file: str, line: int, n: int, limits: Limits) -> None:
+    where = {"row": line - 1} if line > 1 else {"line": 1}
+    raise DeliveryError(f"{n:,}+ fields on one line exceed the limit of {limits.columns:,} columns "
+                        "(ORTHOSPEC_MAX_CSV_COLUMNS); not read", file=file, **where)
 
 
 def _to_m(value: float, unit: str) -> float:
@@ -343,7 +601,7 @@ def open_delivery(path: str | Path) -> Delivery:
         raise DeliveryError(f"delivery folder {str(path)!r} not found")
     if not root.is_dir():
         raise DeliveryError(f"{str(path)!r} is not a folder (a delivery is a folder with {MANIFEST})")
-    mpath = root / MANIFEST
+    mpath = contained(root, MANIFEST, what="manifest", file=None)
     if not mpath.is_file():
         raise DeliveryError(f"no {MANIFEST} in {str(path)!r}; `orthospec init DIR` writes a template")
     try:
@@ -367,7 +625,20 @@ def open_delivery(path: str | Path) -> Delivery:
         if name not in table_specs():
             raise DeliveryError(f"unknown table {name!r}; known tables: {', '.join(sorted(table_specs()))}",
                                 file=MANIFEST, line=doc.where(("tables", name))[0])
+    for key in _PATH_MAPPINGS:
+        section = doc.data.get(key)
+        if isinstance(section, dict):
+            for name, rel in section.items():
+                if isinstance(rel, str):
+                    contained(root, rel, what=f"{key}.{name}", line=doc.where((key, name))[0])
+    extra_paths = [(("project", "area_of_interest"), manifest.project.area_of_interest)]
+    extra_paths += [(("blocks", i, "polygon_file"), b.polygon_file) for i, b in enumerate(manifest.blocks)]
+    for where, rel in extra_paths:
+        if rel:
+            contained(root, rel, what=".".join(map(str, where)), line=doc.where(where)[0])
+    tree = check_tree(root)
     d = Delivery(root=root, manifest=manifest, raw=doc.data,
-                 manifest_sha256=sha256_file(mpath), positions=doc.marks)
+                 manifest_sha256=sha256_file(mpath), positions=doc.marks, tree=tree,
+                 limits=Limits.from_env())
     d._sha[MANIFEST] = d.manifest_sha256
     return d

@@ -20,7 +20,8 @@ from typing import Any
 import numpy as np
 import rasterio
 
-from .reading import read_only_env
+from ..errors import MeasureError
+from .reading import gdal_errors, open_read_only, read_only_env, readable_vector
 
 #: Compression names (GDAL ``COMPRESSION`` tag / driver) that are always lossless.
 LOSSLESS = {"NONE", "LZW", "DEFLATE", "ZSTD", "PACKBITS", "LZMA", "CCITTRLE", "CCITTFAX3",
@@ -193,17 +194,12 @@ def check_file(path: str | Path, *, expect_epsg: int | None = None,
         with warnings.catch_warnings():
             # reported as an error below; not a warning to print
             warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
-            with read_only_env(), rasterio.open(p, "r") as ds:
+            with read_only_env(), open_read_only(p) as ds, gdal_errors(file=p, what="raster header"):
                 return _check_open(ds, base, expect_epsg=expect_epsg,
                                    expect_gsd=expect_gsd, gsd_tolerance=gsd_tolerance,
                                    min_bits=min_bits, recommended_bits=recommended_bits)
-    except rasterio.errors.RasterioIOError as exc:
-        msg = str(exc).replace(str(p) + ": ", "")
-        return FileChecks(error=f"{p}: not a readable raster ({msg})", **base)
-    except rasterio.errors.RasterioError as exc:
-        return FileChecks(error=f"{p}: {exc}", **base)
-    except Exception as exc:  # GDAL CPLE_* errors on damaged headers: report, never stop
-        return FileChecks(error=f"{p}: unreadable header: {type(exc).__name__}: {exc}", **base)
+    except MeasureError as exc:  # refused (format, declared size) or GDAL could not read it
+        return FileChecks(error=str(exc), **base)
 
 
 def _check_open(ds: rasterio.io.DatasetReader, base: dict[str, Any], *, expect_epsg: int | None,
@@ -284,9 +280,10 @@ def check_vector(path: str | Path, *, expect_epsg: int | None = None) -> VectorC
     if not p.exists():
         return VectorCheck(path=str(p), error=f"{p}: file not found")
     try:
-        info = pyogrio.read_info(str(p))
-    except Exception as exc:  # pyogrio raises DataSourceError and friends
-        return VectorCheck(path=str(p), error=f"{p}: not a readable vector file ({exc})")
+        with readable_vector(p) as (local, _driver), gdal_errors(file=p, path=local, what="vector file"):
+            info = pyogrio.read_info(local)
+    except MeasureError as exc:
+        return VectorCheck(path=str(p), error=str(exc))
     crs_text = info.get("crs")
     crs_ok = None
     if expect_epsg is not None:

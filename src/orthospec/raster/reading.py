@@ -18,6 +18,10 @@ one (the alpha band itself is never masked); else every pixel.
 from __future__ import annotations
 
 import math
+import os
+import shutil
+import stat
+import tempfile
 from collections.abc import Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
@@ -30,11 +34,128 @@ import rasterio
 from rasterio.enums import ColorInterp, MaskFlags
 from rasterio.windows import Window
 
-from ..errors import MeasureError
+from ..errors import MeasureError, OrthospecError
 from ..measures import radiometry as rad
 
 #: Counter of full raster scans in this process (tests use it to check the cache).
 SCAN_COUNT = {"scans": 0}
+
+#: GDAL configuration for the whole process (environment, so worker processes inherit it and
+#: every GDAL in the process, rasterio's and pyogrio's, reads it): no network file systems, no
+#: raw VRT bands (they open any file of the machine, even read-write).
+_SAFE_GDAL = {
+    "GDAL_VRT_ENABLE_RAWRASTERBAND": "NO",
+    "CPL_VSIL_CURL_ALLOWED_EXTENSIONS": ".orthospec-network-disabled",
+    "GDAL_HTTP_MAX_RETRY": "0",
+    "GDAL_HTTP_TIMEOUT": "1",
+    "GDAL_HTTP_CONNECTTIMEOUT": "1",
+    "CPL_VSIL_CURL_USE_HEAD": "NO",
+}
+os.environ.update(_SAFE_GDAL)
+
+#: First bytes -> the only GDAL driver allowed to open the file.
+_MAGIC = (
+    (b"II*\x00", "GTiff"), (b"MM\x00*", "GTiff"),          # TIFF, COG
+    (b"II+\x00", "GTiff"), (b"MM\x00+", "GTiff"),          # BigTIFF
+    (b"\x00\x00\x00\x0cjP  \r\n\x87\n", "JP2OpenJPEG"),   # JPEG 2000 (JP2)
+    (b"\xff\x4f\xff\x51", "JP2OpenJPEG"),                  # JPEG 2000 codestream (J2K)
+)
+_THIRD_PARTY = ("rasterio", "pyogrio", "osgeo", "fiona")
+
+
+def _env_int(name: str, default: int) -> int:
+    try:
+        value = int(os.environ.get(name, "") or default)
+    except ValueError:
+        raise OrthospecError(f"environment variable {name}: expected a whole number") from None
+    return value if value > 0 else default
+
+
+@dataclass(frozen=True)
+class RasterLimits:
+    """Largest raster header accepted, checked before any pixel is read.
+
+    Defaults far above a real orthophoto tile (a 20,000 x 20,000 px, 4-band tile is 0.4 gigapixels):
+    ``ORTHOSPEC_MAX_RASTER_PIXELS`` (width x height, default 2**32) and
+    ``ORTHOSPEC_MAX_RASTER_BANDS`` (default 64).
+    """
+
+    pixels: int = 2**32
+    bands: int = 64
+
+    @classmethod
+    def from_env(cls) -> RasterLimits:
+        d = cls()
+        return cls(pixels=_env_int("ORTHOSPEC_MAX_RASTER_PIXELS", d.pixels),
+                   bands=_env_int("ORTHOSPEC_MAX_RASTER_BANDS", d.bands))
+
+
+def _clean(exc: BaseException, path: str, name: str) -> str:
+    text = str(exc).strip() or type(exc).__name__
+    return text.replace(f"{path}: ", "").replace(path, name)
+
+
+@contextmanager
+def gdal_errors(*, file: str | Path, path: str | Path | None = None, what: str = "raster") -> Iterator[None]:
+    """The one boundary where GDAL / rasterio / pyogrio exceptions become MeasureError naming the file.
+
+    ``file`` is what the message shows (relative to the delivery when known); ``path`` the path
+    GDAL was given, removed from GDAL's text so messages do not depend on the working folder.
+    """
+    try:
+        yield
+    except OrthospecError:
+        raise
+    except Exception as exc:
+        if type(exc).__module__.split(".")[0] not in _THIRD_PARTY:
+            raise
+        raise MeasureError(f"{file}: not a readable {what}: {_clean(exc, str(path or file), str(file))}") from exc
+
+
+def _nonblocking(path: str, flags: int) -> int:
+    return os.open(path, flags | getattr(os, "O_NONBLOCK", 0))
+
+
+def _head(path: str | Path, name: str, n: int = 16) -> bytes:
+    """First bytes of a regular file; a FIFO, device or folder is refused without blocking."""
+    try:
+        with open(path, "rb", opener=_nonblocking) as fh:
+            if not stat.S_ISREG(os.fstat(fh.fileno()).st_mode):
+                raise MeasureError(f"{name}: not a regular file")
+            return fh.read(n)
+    except FileNotFoundError:
+        raise MeasureError(f"{name}: file not found") from None
+    except OSError as exc:
+        raise MeasureError(f"{name}: cannot read file: {exc.strerror or exc}") from None
+
+
+def raster_driver(path: str | Path, name: str | None = None) -> str:
+    """The GDAL driver allowed for this file by its first bytes (GTiff or JP2OpenJPEG).
+
+    Raises
+    ------
+    MeasureError
+        for anything else: a GDAL VRT (XML that can point at any file or URL), PNG, JPEG...
+    """
+    label = name or str(path)
+    head = _head(path, label)
+    for magic, driver in _MAGIC:
+        if head.startswith(magic):
+            return driver
+    kind = " (XML: a GDAL VRT?)" if head.lstrip().startswith(b"<") else ""
+    raise MeasureError(f"{label}: not a readable raster: not a GeoTIFF or JPEG 2000 file{kind}; other "
+                       "formats and VRTs are not read")
+
+
+def check_declared_size(ds: rasterio.io.DatasetReader, name: str, limits: RasterLimits | None = None) -> None:
+    """Refuse a raster whose header declares more pixels or bands than the limits (before reading)."""
+    lim = limits or RasterLimits.from_env()
+    if ds.count > lim.bands:
+        raise MeasureError(f"{name}: declares {ds.count:,} bands, more than the limit of {lim.bands} "
+                           "(ORTHOSPEC_MAX_RASTER_BANDS); not read")
+    if ds.width * ds.height > lim.pixels:
+        raise MeasureError(f"{name}: declares {ds.width:,} x {ds.height:,} = {ds.width * ds.height:,} pixels, "
+                           f"more than the limit of {lim.pixels:,} (ORTHOSPEC_MAX_RASTER_PIXELS); not read")
 
 
 @dataclass(frozen=True)
@@ -64,13 +185,32 @@ def read_only_env(settings: ScanSettings | None = None) -> Iterator[None]:
     """GDAL configuration that writes nothing next to the input and caches little."""
     s = settings or ScanSettings()
     with rasterio.Env(GDAL_PAM_ENABLED="NO", GDAL_CACHEMAX=s.gdal_cachemax_mb,
-                      GDAL_DISABLE_READDIR_ON_OPEN="EMPTY_DIR"):
+                      GDAL_DISABLE_READDIR_ON_OPEN="EMPTY_DIR", **_SAFE_GDAL):
         yield
 
 
-def open_read_only(path: str | Path) -> rasterio.io.DatasetReader:
-    """Open a raster strictly read-only (call inside :func:`read_only_env`)."""
-    return rasterio.open(path, "r")
+def open_read_only(path: str | Path, *, name: str | None = None,
+                   limits: RasterLimits | None = None) -> rasterio.io.DatasetReader:
+    """Open a delivered raster strictly read-only (call inside :func:`read_only_env`).
+
+    Only a regular TIFF/BigTIFF or JPEG 2000 file, with that driver alone; the declared size is
+    checked against ``limits`` before anything else reads it.
+
+    Raises
+    ------
+    MeasureError
+        naming ``name`` (default the path) when the file is refused or GDAL cannot open it.
+    """
+    label = name or str(path)
+    driver = raster_driver(path, label)
+    with gdal_errors(file=label, path=path):
+        ds = rasterio.open(path, "r", driver=driver)
+    try:
+        check_declared_size(ds, label, limits)
+    except MeasureError:
+        ds.close()
+        raise
+    return ds
 
 
 def chunk_windows(ds: rasterio.io.DatasetReader, chunk_bytes: int) -> Iterator[Window]:
@@ -200,11 +340,8 @@ def scan_raster(path: str | Path, settings: ScanSettings | None = None) -> Raste
     """
     s = settings or ScanSettings()
     SCAN_COUNT["scans"] += 1
-    with read_only_env(s), open_read_only(path) as ds:
-        try:
-            return _scan(ds, s)
-        except rasterio.errors.RasterioIOError as exc:
-            raise MeasureError(f"{path}: cannot read pixels: {exc}") from exc
+    with read_only_env(s), open_read_only(path) as ds, gdal_errors(file=path, what="raster (pixels)"):
+        return _scan(ds, s)
 
 
 def _scan(ds: rasterio.io.DatasetReader, s: ScanSettings) -> RasterStats:
@@ -414,13 +551,58 @@ def mask_share(path: str | Path, *, settings: ScanSettings | None = None) -> rad
 # --------------------------------------------------------------------------- mosaics
 
 
-def read_vector(path: str | Path) -> tuple[list[Any], str | None]:
+#: GeoPackage (SQLite) and shapefile magic; any other vector format (an OGR VRT can point at
+#: any file or URL) is refused.
+_VECTOR_MAGIC = ((b"SQLite format 3\x00", "GPKG"), (b"\x00\x00\x27\x0a", "ESRI Shapefile"))
+
+
+def vector_driver(path: str | Path, name: str | None = None) -> str:
+    """``GPKG`` or ``ESRI Shapefile`` from the file's first bytes; MeasureError for anything else."""
+    label = name or str(path)
+    head = _head(path, label)
+    for magic, driver in _VECTOR_MAGIC:
+        if head.startswith(magic):
+            return driver
+    kind = " (XML: an OGR VRT?)" if head.lstrip().startswith(b"<") else ""
+    raise MeasureError(f"{label}: not a readable vector file: not a GeoPackage or shapefile{kind}; other "
+                       "vector formats are not read")
+
+
+@contextmanager
+def readable_vector(path: str | Path, *, name: str | None = None) -> Iterator[tuple[str, str]]:
+    """(a path GDAL may open, driver) for a delivered vector file, leaving the delivery untouched.
+
+    A GeoPackage is copied (with its ``-wal``) to a temporary folder outside the delivery and read
+    there: SQLite would otherwise checkpoint and delete the delivered ``-wal`` even on a read-only
+    open. A shapefile is read in place (the driver writes nothing when reading).
+    """
+    label = name or str(path)
+    driver = vector_driver(path, label)
+    if driver != "GPKG":
+        yield str(path), driver
+        return
+    with tempfile.TemporaryDirectory(prefix="orthospec-gpkg-") as tmp:
+        local = Path(tmp) / "vector.gpkg"
+        try:
+            shutil.copyfile(path, local)
+            wal = Path(f"{path}-wal")
+            if wal.is_file() and not wal.is_symlink():
+                shutil.copyfile(wal, Path(f"{local}-wal"))
+        except OSError as exc:
+            raise MeasureError(f"{label}: cannot read file: {exc.strerror or exc}") from None
+        yield str(local), driver
+
+
+def read_vector(path: str | Path, *, name: str | None = None) -> tuple[list[Any], str | None]:
     """Geometries (shapely) and CRS (WKT/authority string) of a vector file, with pyogrio."""
     import pyogrio
     import shapely
 
-    meta, _fids, geometry, _fields = pyogrio.raw.read(str(path))
-    geoms = [] if geometry is None else list(shapely.from_wkb(geometry))
+    label = name or str(path)
+    with readable_vector(path, name=label) as (local, _driver), gdal_errors(
+            file=label, path=local, what="vector file"):
+        meta, _fids, geometry, _fields = pyogrio.raw.read(local)
+        geoms = [] if geometry is None else list(shapely.from_wkb(geometry))
     return [g for g in geoms if g is not None], meta.get("crs")
 
 
@@ -525,8 +707,8 @@ def seamline_check(seamlines_path: str | Path, aoi_path: str | Path) -> Any:
     for label, p in (("seamline", seamlines_path), ("area-of-interest", aoi_path)):
         try:
             geoms, _crs = read_vector(p)
-        except Exception as exc:  # pyogrio raises DataSourceError and friends
-            raise MeasureError(f"{p}: {label} file unreadable: {exc}") from exc
+        except MeasureError as exc:
+            raise MeasureError(f"{label} file unreadable: {exc}") from exc
         if not geoms:
             raise MeasureError(f"{p}: {label} file holds no geometry")
         parts.append(geoms)

@@ -19,12 +19,22 @@ Names resolve through a caller-given mapping: parameters, manifest paths (``mani
 and measures of the rule's scope. In comparisons and in + and -, a bare number takes the unit of
 the other side: ``images.roll > 1`` reads 1 deg, ``cloud_cover < 5`` reads 5 %. Values may be numbers, strings, booleans, numpy arrays or pint
 quantities, so one expression evaluates a whole column at once (vectorised).
+
+Limits (issue 17: a profile may come from anyone, and ``9**9**9`` or ``'a' * 10**10`` must not hang
+or exhaust memory). Checked when the expression is parsed, so ``spec validate`` refuses them with
+the location: at most ``MAX_LENGTH`` characters, ``MAX_DEPTH`` levels of nesting, ``MAX_ARGS``
+arguments to min()/max(), integer literals up to ``MAX_INT``, an exponent that is a number
+(|e| <= ``MAX_EXPONENT``) or a single name, and no string times anything. Checked while
+evaluating, before each operation: an exponent above ``MAX_EXPONENT``, an integer result beyond
+``MAX_INT_BITS`` bits, string repetition, and ``MAX_STEPS`` operations or ``MAX_SECONDS`` per
+evaluation.
 """
 
 from __future__ import annotations
 
 import ast
 import operator
+import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from functools import lru_cache
@@ -54,6 +64,13 @@ _CMP_TEXT = {ast.Lt: "<", ast.LtE: "<=", ast.Gt: ">", ast.GtE: ">=", ast.Eq: "==
 _FUNCS = {"min", "max", "abs"}
 _CONSTS = {"true": True, "false": False, "True": True, "False": False, "null": None, "None": None}
 MAX_LENGTH = 500
+MAX_DEPTH = 32
+MAX_ARGS = 16
+MAX_INT = 10**18
+MAX_EXPONENT = 64
+MAX_INT_BITS = 256
+MAX_STEPS = 10_000
+MAX_SECONDS = 5.0
 
 
 def _dotted(node: ast.AST) -> str | None:
@@ -95,27 +112,68 @@ def parse(source: str) -> Expression:
     return Expression(source, tree.body, frozenset(names))
 
 
-def _check(node: ast.AST, src: str, names: set[str]) -> None:
+def _number(node: ast.AST) -> float | int | None:
+    """The value of a (signed) number literal, else None."""
+    sign = 1
+    while isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.USub | ast.UAdd):
+        sign = -sign if isinstance(node.op, ast.USub) else sign
+        node = node.operand
+    if isinstance(node, ast.Constant) and isinstance(node.value, int | float) and not isinstance(
+            node.value, bool):
+        return sign * node.value
+    return None
+
+
+def _check(node: ast.AST, src: str, names: set[str], depth: int = 0) -> None:
     bad = f"not allowed in expression {src!r}"
+    if depth > MAX_DEPTH:
+        raise ExpressionError(f"expression {src!r} is nested more than {MAX_DEPTH} levels deep")
+    _limits(node, src)
+    _check_node(node, src, names, depth, bad)
+
+
+def _limits(node: ast.AST, src: str) -> None:
+    """The resource limits of the grammar, per node (see the module docstring)."""
+    if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Pow):
+        e = node.right
+        n = _number(e)
+        if n is None and not isinstance(e, ast.Name | ast.Attribute):
+            raise ExpressionError(f"the exponent of ** must be a number or a name, in {src!r}")
+        if n is not None and abs(n) > MAX_EXPONENT:
+            raise ExpressionError(f"exponent {n!r} is larger than {MAX_EXPONENT} in {src!r}")
+    if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Mult | ast.Mod):
+        for side in (node.left, node.right):
+            if isinstance(side, ast.Constant) and isinstance(side.value, str):
+                raise ExpressionError(f"string repetition and formatting ('text' * n, 'text' % x) "
+                                      f"are not allowed in {src!r}")
+    if isinstance(node, ast.Constant) and isinstance(node.value, int) and not isinstance(node.value, bool) \
+            and abs(node.value) > MAX_INT:
+        raise ExpressionError(f"integer {str(node.value)[:30]} is larger than {MAX_INT:.0e} in {src!r}")
+    if isinstance(node, ast.Call) and len(node.args) > MAX_ARGS:
+        raise ExpressionError(f"{len(node.args)} arguments: at most {MAX_ARGS} in {src!r}")
+
+
+def _check_node(node: ast.AST, src: str, names: set[str], depth: int, bad: str) -> None:
+    d = depth + 1
     if isinstance(node, ast.BoolOp):
         for v in node.values:
-            _check(v, src, names)
+            _check(v, src, names, d)
     elif isinstance(node, ast.UnaryOp):
         if not isinstance(node.op, ast.Not | ast.USub | ast.UAdd):
             raise ExpressionError(f"operator {type(node.op).__name__} {bad}")
-        _check(node.operand, src, names)
+        _check(node.operand, src, names, d)
     elif isinstance(node, ast.BinOp):
         if type(node.op) not in _BIN:
             raise ExpressionError(f"operator {type(node.op).__name__} {bad}")
-        _check(node.left, src, names)
-        _check(node.right, src, names)
+        _check(node.left, src, names, d)
+        _check(node.right, src, names, d)
     elif isinstance(node, ast.Compare):
         for op in node.ops:
             if type(op) not in _CMP:
                 raise ExpressionError(f"comparison {type(op).__name__} {bad}")
-        _check(node.left, src, names)
+        _check(node.left, src, names, d)
         for c in node.comparators:
-            _check(c, src, names)
+            _check(c, src, names, d)
     elif isinstance(node, ast.Call):
         fname = node.func.id if isinstance(node.func, ast.Name) else None
         if fname not in _FUNCS or node.keywords or not node.args:
@@ -125,7 +183,7 @@ def _check(node: ast.AST, src: str, names: set[str]) -> None:
         for a in node.args:
             if isinstance(a, ast.Starred):
                 raise ExpressionError(f"*args {bad}")
-            _check(a, src, names)
+            _check(a, src, names, d)
     elif isinstance(node, ast.Constant):
         if not isinstance(node.value, int | float | str | bool) and node.value is not None:
             raise ExpressionError(f"constant {node.value!r} {bad}")
@@ -144,8 +202,14 @@ def _check(node: ast.AST, src: str, names: set[str]) -> None:
 class _Eval:
     def __init__(self, names: Mapping[str, Any], src: str) -> None:
         self.names, self.src = names, src
+        self.steps = 0
+        self.deadline = time.perf_counter() + MAX_SECONDS
 
     def visit(self, node: ast.AST) -> Any:
+        self.steps += 1
+        if self.steps > MAX_STEPS or time.perf_counter() > self.deadline:
+            raise ExpressionError(f"evaluation budget exceeded ({MAX_STEPS} steps or {MAX_SECONDS:g} s) "
+                                  f"in {self.src!r}")
         if isinstance(node, ast.Constant):
             return node.value
         if isinstance(node, ast.Name | ast.Attribute):
@@ -193,12 +257,30 @@ class _Eval:
     def _arith(self, fn: Callable[[Any, Any], Any], a: Any, b: Any) -> Any:
         if fn in _SAME_UNIT:
             a, b = _coerce_bare(a, b)
+        self._bounded(fn, a, b)
         try:
-            return fn(a, b)
+            out = fn(a, b)
+            if isinstance(out, int) and not isinstance(out, bool) and out.bit_length() > MAX_INT_BITS:
+                raise ExpressionError(f"integer result larger than {MAX_INT_BITS} bits in {self.src!r}")
+            return out
+        except ExpressionError:
+            raise
         except ZeroDivisionError:
             raise ExpressionError(f"division by zero in {self.src!r}") from None
         except Exception as exc:  # pint DimensionalityError, TypeError on str vs number
             raise ExpressionError(f"cannot combine {_show(a)} and {_show(b)} in {self.src!r}: {exc}") from None
+
+
+    def _bounded(self, fn: Callable[[Any, Any], Any], a: Any, b: Any) -> None:
+        """Refuse, before computing, an operation whose result could exhaust time or memory."""
+        if fn is operator.mul and any(isinstance(v, str | bytes | list | tuple) for v in (a, b)):
+            raise ExpressionError(f"string repetition is not allowed in {self.src!r}")
+        if fn is operator.mod and isinstance(a, str | bytes):
+            raise ExpressionError(f"string formatting is not allowed in {self.src!r}")
+        if fn is operator.pow:
+            e = np.asarray(getattr(b, "magnitude", b))
+            if e.dtype.kind in "fiu" and e.size and float(np.nanmax(np.abs(e))) > MAX_EXPONENT:
+                raise ExpressionError(f"exponent larger than {MAX_EXPONENT} in {self.src!r}")
 
 
 #: Operations where a bare number takes the unit of the other side ("roll > 1" with roll in deg

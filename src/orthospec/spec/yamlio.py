@@ -3,10 +3,17 @@
 PyYAML's composer keeps marks on nodes; we build plain Python objects from the node tree
 ourselves so that validation errors can name ``file:line:column`` and duplicate keys are refused
 (YAML allows them silently; a tender author never means them).
+
+Profiles and manifests are untrusted text, so the document is measured on its node graph before any
+Python object is built (issue 17): file size, nesting depth, distinct nodes and the extra nodes
+that aliases expand to are bounded (:class:`YamlLimits`), and a recursive alias is refused. An
+alias bomb is refused in milliseconds instead of being expanded.
 """
 
 from __future__ import annotations
 
+import os
+import stat
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -20,6 +27,91 @@ Path_ = tuple[str | int, ...]
 
 class YamlError(OrthospecError, ValueError):
     """A YAML document could not be parsed."""
+
+
+def _env_int(name: str, default: int) -> int:
+    try:
+        value = int(os.environ.get(name, "") or default)
+    except ValueError:
+        raise YamlError(f"environment variable {name}: expected a whole number") from None
+    return value if value > 0 else default
+
+
+@dataclass(frozen=True)
+class YamlLimits:
+    """Bounds on one YAML document; defaults far above a real profile or manifest.
+
+    A 100,000-rule profile is about 30 MB and 3 million nodes with no alias; a manifest is a few
+    kB. Set by ``ORTHOSPEC_MAX_YAML_BYTES``, ``ORTHOSPEC_MAX_YAML_NODES``,
+    ``ORTHOSPEC_MAX_YAML_ALIAS_NODES`` and ``ORTHOSPEC_MAX_YAML_DEPTH``.
+    """
+
+    bytes: int = 64 * 2**20
+    nodes: int = 20_000_000
+    alias_nodes: int = 1_000_000
+    depth: int = 200
+
+    @classmethod
+    def from_env(cls) -> YamlLimits:
+        d = cls()
+        return cls(bytes=_env_int("ORTHOSPEC_MAX_YAML_BYTES", d.bytes),
+                   nodes=_env_int("ORTHOSPEC_MAX_YAML_NODES", d.nodes),
+                   alias_nodes=_env_int("ORTHOSPEC_MAX_YAML_ALIAS_NODES", d.alias_nodes),
+                   depth=_env_int("ORTHOSPEC_MAX_YAML_DEPTH", d.depth))
+
+
+def _at(file: str, node: yaml.Node) -> str:
+    return f"{file}:{node.start_mark.line + 1}:{node.start_mark.column + 1}: "
+
+
+def _measure(root: yaml.Node, file: str, limits: YamlLimits) -> None:
+    """Refuse a node graph that is too deep, too big, recursive, or that aliases blow up.
+
+    Works on the composed graph, where an alias is a second reference to the same node, so the
+    cost is linear in the distinct nodes whatever the aliases would expand to.
+    """
+    memo: dict[int, int] = {}
+    active: set[int] = set()
+    unique = 0
+
+    def size(n: yaml.Node, depth: int) -> int:
+        nonlocal unique
+        k = id(n)
+        if k in memo:
+            return memo[k]
+        if k in active:
+            raise YamlError(f"{_at(file, n)}a recursive alias (a node that contains itself) is not allowed")
+        if depth > limits.depth:
+            raise YamlError(f"{_at(file, n)}nested more than {limits.depth} levels deep")
+        unique += 1
+        if unique > limits.nodes:
+            raise YamlError(f"{_at(file, n)}more than {limits.nodes:,} YAML nodes (ORTHOSPEC_MAX_YAML_NODES)")
+        active.add(k)
+        total = 1
+        if isinstance(n, yaml.MappingNode):
+            for kn, vn in n.value:
+                total += size(kn, depth + 1) + size(vn, depth + 1)
+        elif isinstance(n, yaml.SequenceNode):
+            for c in n.value:
+                total += size(c, depth + 1)
+        active.discard(k)
+        memo[k] = total
+        return total
+
+    total = size(root, 0)
+    if total - unique > limits.alias_nodes:
+        raise YamlError(f"{file}: aliases (*name) expand the document to {total:,} nodes, more than "
+                        f"{limits.alias_nodes:,} beyond its {unique:,} written ones (an alias bomb?); "
+                        "not expanded (ORTHOSPEC_MAX_YAML_ALIAS_NODES)")
+
+
+def _construct(loader: yaml.SafeLoader, node: yaml.Node, file: str) -> Any:
+    """A scalar (or key) as Python; a value YAML's own types reject names file:line:col."""
+    try:
+        return loader.construct_object(node, deep=True)
+    except (ValueError, TypeError, OverflowError) as exc:  # 2026-02-30, 10**5000 digits...
+        value = node.value if isinstance(node, yaml.ScalarNode) else node.tag
+        raise YamlError(f"{_at(file, node)}invalid value {str(value)[:80]!r}: {exc}") from None
 
 
 @dataclass
@@ -52,7 +144,9 @@ def _build(node: yaml.Node, path: Path_, marks: dict[Path_, tuple[int, int]],
         loader.flatten_mapping(node)
         out: dict[Any, Any] = {}
         for knode, vnode in node.value:
-            key = loader.construct_object(knode, deep=True)
+            if not isinstance(knode, yaml.ScalarNode):
+                raise YamlError(f"{_at(file, knode)}mapping keys must be scalars")
+            key = _construct(loader, knode, file)
             if not isinstance(key, str | int | float | bool) and key is not None:
                 raise YamlError(f"{file}:{knode.start_mark.line + 1}:{knode.start_mark.column + 1}: "
                                 f"mapping keys must be scalars")
@@ -64,16 +158,21 @@ def _build(node: yaml.Node, path: Path_, marks: dict[Path_, tuple[int, int]],
         return out
     if isinstance(node, yaml.SequenceNode):
         return [_build(v, (*path, i), marks, loader, file) for i, v in enumerate(node.value)]
-    return loader.construct_object(node, deep=True)
+    return _construct(loader, node, file)
 
 
-def load_text(text: str, file: str) -> Located:
-    """Parse one YAML document with the safe loader, keeping positions."""
+def load_text(text: str, file: str, *, limits: YamlLimits | None = None) -> Located:
+    """Parse one YAML document with the safe loader, keeping positions, within ``limits``."""
+    lim = limits or YamlLimits.from_env()
+    if len(text) > lim.bytes:
+        raise YamlError(f"{file}: {len(text):,} characters exceed the limit of {lim.bytes:,} "
+                        "(ORTHOSPEC_MAX_YAML_BYTES)")
     loader = _Loader(text)
     try:
         node = loader.get_single_node()
         if node is None:
             return Located(None, file, {(): (1, 1)}, text)
+        _measure(node, file, lim)
         marks: dict[Path_, tuple[int, int]] = {}
         data = _build(node, (), marks, loader, file)
     except yaml.MarkedYAMLError as exc:
@@ -82,20 +181,37 @@ def load_text(text: str, file: str) -> Located:
         raise YamlError(f"{file}:{pos}invalid YAML: {exc.problem or exc}") from None
     except yaml.YAMLError as exc:
         raise YamlError(f"{file}: invalid YAML: {exc}") from None
+    except RecursionError:
+        raise YamlError(f"{file}: invalid YAML: nested too deeply to read") from None
     finally:
         loader.dispose()
     return Located(data, file, marks, text)
 
 
-def load_file(path: str | Path, *, display: str | None = None) -> Located:
+def load_file(path: str | Path, *, display: str | None = None,
+              limits: YamlLimits | None = None) -> Located:
+    """Read and parse a YAML file: a regular file, UTF-8, within the size limit."""
     p = Path(path)
     name = display or str(path)
+    lim = limits or YamlLimits.from_env()
     try:
-        text = p.read_text(encoding="utf-8")
+        with open(p, "rb", opener=_nonblocking) as fh:
+            st = os.fstat(fh.fileno())
+            if not stat.S_ISREG(st.st_mode):
+                raise YamlError(f"{name}: not a regular file")
+            if st.st_size > lim.bytes:
+                raise YamlError(f"{name}: {st.st_size:,} bytes exceed the limit of {lim.bytes:,} "
+                                "(ORTHOSPEC_MAX_YAML_BYTES)")
+            text = fh.read(lim.bytes + 1).decode("utf-8").replace("\r\n", "\n").replace("\r", "\n")
     except FileNotFoundError:
         raise YamlError(f"{name}: file not found") from None
     except UnicodeDecodeError as exc:
         raise YamlError(f"{name}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
     except OSError as exc:
         raise YamlError(f"{name}: cannot read: {exc.strerror}") from None
-    return load_text(text, name)
+    return load_text(text, name, limits=lim)
+
+
+def _nonblocking(path: str, flags: int) -> int:
+    """Open without blocking, so a FIFO in place of a YAML file is refused, not waited on."""
+    return os.open(path, flags | getattr(os, "O_NONBLOCK", 0))
