@@ -229,3 +229,21 @@ def test_histogram_with_validity_mask_equals_numpy_of_the_valid_pixels(invalid_s
     acc.add(data, valid)
     assert np.array_equal(acc.counts, np.bincount(data[valid], minlength=256))
     assert acc.total == data.size
+
+
+@pytest.mark.parametrize("dtype", ["uint8", "uint16", "int16", "bool"])
+def test_window_std_of_integers_equals_numpy_float64(dtype):
+    """The exact integer-sum window std (noise estimator) equals numpy's float64 std, ddof=1."""
+    rng = np.random.default_rng(11)
+    if dtype == "bool":
+        data = rng.random((48, 72)) > 0.5
+        data[:8, :8] = True  # a flat window: std exactly 0
+    else:
+        info = np.iinfo(dtype)
+        data = rng.integers(info.min, info.max, (48, 72), endpoint=True, dtype=dtype)
+        data[:8, :8] = info.max  # a flat window: std exactly 0
+    k = rad.NOISE_WINDOW
+    want = data.astype(np.float64).reshape(48 // k, k, 72 // k, k).std(axis=(1, 3), ddof=1)
+    got = rad._window_std_exact(data, k)
+    assert got[0, 0] == 0.0
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-9)

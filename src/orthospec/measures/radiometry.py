@@ -355,8 +355,12 @@ class NoiseAccumulator:
         ww = (block.shape[1] // k) * k
         if r1 <= r0 or not ww:
             return
-        tiles = block[r0:r1, :ww].astype(np.float32).reshape((r1 - r0) // k, k, ww // k, k)
-        sd = tiles.std(axis=(1, 3), ddof=1)  # float32, centred: precise enough
+        sub = block[r0:r1, :ww]
+        if sub.dtype.kind in "uib" and sub.dtype.itemsize <= 2:
+            sd = _window_std_exact(sub, k)
+        else:
+            tiles = sub.astype(np.float32).reshape((r1 - r0) // k, k, ww // k, k)
+            sd = tiles.std(axis=(1, 3), ddof=1)  # float32, centred: precise enough
         if valid is not None:
             vt = valid[r0:r1, :ww].reshape((r1 - r0) // k, k, ww // k, k).all(axis=(1, 3))
             sd = sd[vt]
@@ -398,6 +402,28 @@ class NoiseAccumulator:
         lo, hi = _LOCAL_STD_EDGES[i], _LOCAL_STD_EDGES[i + 1]
         value = float(lo * (hi / lo) ** frac)  # log interpolation inside the bin
         return value / _chi_quantile_factor()
+
+
+def _window_std_exact(sub: np.ndarray, k: int) -> np.ndarray:
+    """Sample std (ddof=1) of each k x k window of a block of integers of at most 16 bits.
+
+    Sums and sums of squares are exact integers in float64 (at most 64 * 65535^2 < 2^53), so
+    ``n * S2 - S1^2`` has no rounding at all; rows are added first (whole-row vector adds), then
+    groups of k columns: about 4x faster than ``std`` over a 4-D view.
+    """
+    rows, width = sub.shape
+    a = sub.reshape(rows // k, k, width)
+    s1 = a[:, 0].astype(np.float64)
+    s2 = s1 * s1
+    for i in range(1, k):
+        x = a[:, i].astype(np.float64)
+        s1 += x
+        x *= x
+        s2 += x
+    s1 = s1.reshape(rows // k, width // k, k).sum(axis=2)
+    s2 = s2.reshape(rows // k, width // k, k).sum(axis=2)
+    n = k * k
+    return np.sqrt(np.maximum(n * s2 - s1 * s1, 0.0) / (n * (n - 1)))
 
 
 #: sqrt(chi2.ppf(0.10, 63) / 63): the 10th percentile of the sample std of 64 unit-Gaussian
