@@ -54,8 +54,7 @@ def test_checkpoint_generator_writes_the_delivery_table_columns(tmp_path):
     cp.write_checkpoints(path, 2_345)
     df = pd.read_csv(path)
     tables = yaml.safe_load((ROOT / "specs" / "delivery-tables.yaml").read_text())
-    declared = tables["tables"]["checkpoints"]["columns"] if "tables" in tables else \
-        tables["checkpoints"]["columns"]
+    declared = tables["tables"]["checkpoints"]["columns"]
     assert set(df.columns) <= set(declared)
     assert {c for c, d in declared.items() if d.get("required")} <= set(df.columns)
     assert len(df) == 2_345 and df["point_id"].is_unique
