@@ -60,8 +60,8 @@ def test_markdown_lists_parameters_and_every_rule_with_clause_and_quote(mini_ann
     assert prof.sha256 in md
     for name, p in prof.parameters.items():
         assert f"`{name}`" in md and (p.unit or "") in md
-    assert re.search(r"\| `max_roll` \| 3 \| deg \| standard \|", md)
-    assert re.search(r"\| `tolerance_xy` \| — \| m \| to be fixed in the ITT \(required\) \|", md)
+    assert re.search(r"\| Max roll \(`max_roll`\) \| 3 \| deg \| standard \|", md)
+    assert re.search(r"\| Tolerance xy \(`tolerance_xy`\) \| — \| m \| to be fixed in the ITT \(required\) \|", md)
     for rule in prof.rules:
         assert f"`{rule.id}`" in md
         assert rule.clause.text() in md
@@ -70,7 +70,7 @@ def test_markdown_lists_parameters_and_every_rule_with_clause_and_quote(mini_ann
     heads = re.findall(r"^### 2\.\d+ (.+)$", md, flags=re.M)
     assert heads == ["JRC EUR 23638 EN — Section 5", "JRC EUR 23638 EN — Section 6",
                      "JRC EUR 23638 EN — Section 12"]
-    assert "≤ max_roll (3 deg)" in md and "reject item" in md
+    assert "≤ 3 deg" in md and "reject item" in md
 
 
 def test_pdf_annex_is_pdfa_with_resolved_profile_attached(mini_annex: dict) -> None:
@@ -107,12 +107,13 @@ def test_profile_text_is_escaped_in_html_and_markdown(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize(("req", "expected"), [
-    (Requirement(op="<=", value="tol", unit="m"), "≤ tol (0.5 m)"),
+    (Requirement(op="<=", value="tol", unit="m"), "≤ 0.5 m"),
+    (Requirement(op="<=", value="tol / 3", unit="m"), "≤ 0.167 m"),  # evaluated: 0.5 / 3
     (Requirement(op=">=", value=20, unit="1"), "≥ 20"),
     (Requirement(op="<", value=2.5, unit="m"), "< 2.5 m"),
     (Requirement(op="between", min=0, max=3, unit="deg"), "between 0 deg (incl.) and 3 deg (incl.)"),
     (Requirement(op="in", values=["a", "b"]), "one of a, b"),
-    (Requirement(op="<=", value="free", unit="m"), "≤ free (set by the ITT)"),
+    (Requirement(op="<=", value="free", unit="m"), "≤ the value fixed in the ITT"),
     (Requirement(op="<=", value="2 * tol"), "≤ 2 * tol"),
 ])
 def test_requirement_text(req: Requirement, expected: str) -> None:
@@ -144,3 +145,36 @@ def test_spec_render_publishes_profile_with_unimplemented_measures(tmp_path: Pat
     broken.write_text(HOSTILE.replace("scope: block", "scope: nowhere"), encoding="utf-8")
     res = CliRunner().invoke(cli(), ["spec", "render", str(broken), "--format", "md", "--out", str(tmp_path)])
     assert res.exit_code != 0 and not (tmp_path / "annex-hostile-0.1.0.html").exists()
+
+
+def test_tender_annex_is_procurement_grade() -> None:
+    """Issue 13 item 6: evaluated thresholds, sensor filter, prose conditions, plain notes, ITT changes."""
+    from pathlib import Path
+
+    from orthospec.spec.loader import load_profile
+
+    prof = load_profile(Path(__file__).resolve().parents[1] / "examples" / "specs" / "tender-example.yaml")
+    out = render_annex(prof, formats=["md", "pdf"], day="2026-11-23")
+    md = out[annex_filename(prof, "md")]
+    with pdfplumber.open(io.BytesIO(out[annex_filename(prof, "pdf")])) as pdf:
+        text = "\n".join(p.extract_text() or "" for p in pdf.pages)
+    for body in (md, text):
+        for word in ("seed", "Trap", "manifest.", "**"):
+            assert word not in body, word
+    # the block tolerance of the ITT (tolerance_xy = 0.5 m) as a number with its unit
+    rmsey = next(line for line in md.splitlines() if line.startswith("| `JRC-12.7-RMSEY`"))
+    assert "| ≤ 0.5 m |" in rmsey
+    # GCPs three times more precise than 0.5 m: 0.167 m, not a formula
+    gcp = next(line for line in md.splitlines() if line.startswith("| `JRC-7.1-GCP-ACCURACY-3X`"))
+    assert "0.167 m" in gcp and "gcp_accuracy_factor" not in gcp
+    # an aerial digital ITT: satellite and film rules are in Appendix A, not in the requirements
+    body, appendix = md.split("## Appendix A.")
+    sat = [r.id for r in prof.rules if r.when and "manifest.sensor.type == 'satellite'" in r.when
+           and " or " not in r.when]
+    assert sat
+    for rid in sat:
+        assert f"`{rid}`" not in body and f"`{rid}`" in appendix
+    # what the ITT changed is marked, and the tightened title does not keep the guideline's range
+    cloud = next(line for line in md.splitlines() if line.startswith("| `JRC-6.3-CLOUD-COVER`"))
+    assert "changed by the ITT" in cloud and "5-10 %" not in cloud and "≤ 5 %" in cloud
+    assert "## Appendix C. Interpretation notes" in md

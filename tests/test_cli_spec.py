@@ -33,7 +33,7 @@ title: A tender
 source: {title: ITT 1}
 extends: {id: mini, version: 1.0.0}
 parameters:
-  max_roll: {value: 2}
+  max_roll: {value: 2, justification: "ITT §4: stricter roll"}
 remove_rules: [R-CV]
 rules:
   - id: R-ROLL

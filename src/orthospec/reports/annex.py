@@ -8,6 +8,7 @@ clause, the quoted text, the level and the consequence of failing it. Markdown, 
 
 from __future__ import annotations
 
+import contextlib
 import re
 from collections.abc import Iterable
 from dataclasses import dataclass, field
@@ -15,12 +16,15 @@ from datetime import date as Date
 from typing import Any
 
 import jinja2
+from markupsafe import Markup, escape
 
-from ..errors import ReportError
+from ..errors import ExpressionError, ReportError
 from ..qcr import natural_key
 from ..resources import templates_dir
+from ..spec.expr import parse
 from ..spec.loader import ResolvedProfile
 from ..spec.models import Parameter, Requirement, Rule
+from .findings import condition_prose
 from .html import environment
 
 __all__ = ["ANNEX_FORMATS", "annex_context", "annex_filename", "render_annex"]
@@ -51,19 +55,40 @@ def param_value(p: Parameter) -> Any:
     return p.value if p.value is not None else p.default
 
 
-def requirement_text(req: Requirement, params: dict[str, Parameter]) -> str:
-    """'≤ tolerance_xy (2.5 m)': operator, threshold, and a parameter's current value when named."""
-    unit = req.unit if req.unit and req.unit != "1" else ""
+_NO_UNIT = ("", "1", "text", "bool", "date", None)
 
-    def show(v: Any) -> str:
-        if isinstance(v, str) and _NAME.fullmatch(v) and v in params:
-            p = params[v]
-            val = param_value(p)
-            pu = p.unit if p.unit and p.unit not in ("1", "text", "bool", "date") else ""
-            return f"{v} ({_num(val)}{' ' + pu if pu else ''})" if val is not None else f"{v} (set by the ITT)"
-        if isinstance(v, str):
-            return v
+
+def _threshold(v: Any, req: Requirement, params: dict[str, Parameter]) -> str:
+    """One threshold as a number with its unit: a parameter's value, or an expression evaluated
+    over the parameters' values (``tolerance_xy / gcp_accuracy_factor`` -> ``0.333 m``)."""
+    unit = req.unit if req.unit not in _NO_UNIT else ""
+    if not isinstance(v, str):
         return f"{_num(v)}{' ' + unit if unit else ''}"
+    if _NAME.fullmatch(v) and v in params:
+        p = params[v]
+        val = param_value(p)
+        pu = p.unit if p.unit not in _NO_UNIT else unit
+        return f"{_num(val)}{' ' + pu if pu else ''}" if val is not None else "the value fixed in the ITT"
+    try:
+        expr = parse(v)
+    except ExpressionError:
+        return v
+    names = {n: param_value(params[n]) for n in expr.names if n in params}
+    units = {params[n].unit for n in names} - set(_NO_UNIT)
+    if len(names) == len(expr.names) and all(x is not None for x in names.values()) and units <= {req.unit}:
+        try:
+            out = expr.evaluate(names)
+        except Exception:  # an expression the annex cannot evaluate stays readable as text
+            out = None
+        if isinstance(out, int | float) and not isinstance(out, bool):
+            return f"{float(out):.3g}{' ' + unit if unit else ''}"
+    return condition_prose(v)
+
+
+def requirement_text(req: Requirement, params: dict[str, Parameter]) -> str:
+    """'≤ 0.333 m': the operator and the threshold evaluated to a number with its unit."""
+    def show(v: Any) -> str:
+        return _threshold(v, req, params)
 
     if req.op == "between":
         lo = show(req.min) if req.min is not None else "−∞"
@@ -75,8 +100,47 @@ def requirement_text(req: Requirement, params: dict[str, Parameter]) -> str:
     if req.op == "present":
         return "present (recorded for every item)"
     if req.op in ("true", "false"):
-        return f"is {req.op}"
+        return "met (yes)" if req.op == "true" else "not the case (no)"
     return f"{_OPS.get(req.op, req.op)} {show(req.value)}"
+
+
+_AUTHOR = re.compile(r"\b(seed|seeds|verbatim|U\+[0-9A-F]{4}|LaTeX|\.ya?ml|\.txt|orthospec|rule author|"
+                     r"markers?|issue \d+)\b", re.I)
+
+
+def plain_note(note: str | None) -> str:
+    """A rule author's note in plain words for bidders: markup removed, author-only sentences
+    (source files, typography of the source) dropped, data names in words."""
+    if not note:
+        return ""
+    text = re.sub(r"\*\*(.+?)\*\*", r"\1", " ".join(note.split()))
+    text = re.sub(r"(?<![\w*])\*(\S.*?\S|\S)\*(?![\w*])", r"\1", text)
+    text = text.replace("`", "").replace("**", "")
+    text = re.sub(r"\bTrap:\s*", "Caution: ", text)
+    sentences = re.split(r"(?<=[.;])\s+(?=[A-Z(\"])", text)
+    kept = [x for x in sentences if not _AUTHOR.search(x)]
+    text = " ".join(kept)
+    text = re.sub(r"\bmanifest\.[\w.]*\w", lambda m: condition_prose(m.group(0)), text)
+    text = re.sub(r"\bmanifest\.", "manifest file.", text)
+    return text.strip()
+
+
+def _title(rule: Rule, requirement: str, tender_params: set[str]) -> str:
+    """The rule title, its range in parentheses replaced by the resolved value when the ITT fixed it
+    (a title '(5-10 %)' under a tender's 5 % would contradict the requirement)."""
+    title = rule.title
+    req = rule.requirement
+    used = {v for v in (req.value, req.min, req.max) if isinstance(v, str)}
+    names: set[str] = set()
+    for u in used:
+        with contextlib.suppress(ExpressionError):
+            names |= set(parse(u).names)
+    if names & tender_params:
+        if re.search(r"\([^()]*\d[^()]*\)\s*$", title):
+            title = re.sub(r"\s*\([^()]*\d[^()]*\)\s*$", "", title) + f" ({requirement})"
+        elif re.search(r"\d", title):
+            title += f" (this ITT: {requirement})"
+    return title
 
 
 @dataclass
@@ -113,35 +177,147 @@ def _group_order(g: Group, sections: list[Rule]) -> tuple[Any, ...]:
     return (doc, ((2, 0, ""),), 2, ())
 
 
-def _rule_view(rule: Rule, params: dict[str, Parameter]) -> dict[str, Any]:
+def _rule_view(rule: Rule, params: dict[str, Parameter], tender_params: set[str] | None = None,
+               change: str = "") -> dict[str, Any]:
+    req = requirement_text(rule.requirement, params)
     return {
-        "id": rule.id, "title": rule.title, "clause": rule.clause.text(), "quote": rule.quote,
-        "scope": rule.scope, "when": rule.when, "requirement": requirement_text(rule.requirement, params),
-        "measure": rule.measure, "level": rule.level, "consequence": rule.consequence,
+        "id": rule.id, "title": _title(rule, req, tender_params or set()), "clause": rule.clause.text(),
+        "quote": _plain_markup(rule.quote), "quote_html": _html_markup(rule.quote),
+        "scope": rule.scope, "when": rule.when, "when_prose": condition_prose(rule.when) if rule.when else "",
+        "requirement": req, "measure": rule.measure, "level": rule.level, "consequence": rule.consequence,
         "consequence_text": CONSEQUENCES.get(rule.consequence, rule.consequence), "manual": rule.manual,
-        "note": rule.note, "audit": rule.audit.model_dump(exclude_none=True) if rule.audit else {},
-        "tags": list(rule.tags),
+        "note": plain_note(rule.note), "audit": rule.audit.model_dump(exclude_none=True) if rule.audit else {},
+        "tags": list(rule.tags), "change": change,
         "sort": (natural_key(str(rule.clause.section or "")), natural_key(str(rule.clause.row or "")), rule.id),
     }
 
 
-def annex_context(profile: ResolvedProfile, *, day: str) -> dict[str, Any]:
+def _plain_markup(text: str | None) -> str:
+    """Source emphasis (**bold**, *italic*) as plain text."""
+    t = re.sub(r"\*\*(.+?)\*\*", r"\1", text or "")
+    return re.sub(r"(?<![\w*])\*(\S(?:.*?\S)?)\*(?![\w*])", r"\1", t).replace("**", "")
+
+
+def _html_markup(text: str | None) -> Markup:
+    """Source emphasis rendered: **bold** -> <b>, *italic* -> <i>; everything else escaped."""
+    t = str(escape(text or ""))
+    t = re.sub(r"\*\*(.+?)\*\*", r"<b>\1</b>", t)
+    t = re.sub(r"(?<![\w*])\*(\S(?:.*?\S)?)\*(?![\w*])", r"<i>\1</i>", t).replace("**", "")
+    return Markup(t)
+
+
+def tender_sensor(profile: ResolvedProfile) -> tuple[set[str], bool | None]:
+    """The sensor types and digital/film the tender requires (from its own sensor rules)."""
+    types: set[str] = set()
+    digital: bool | None = None
+    for r in profile.rules:
+        if r.measure == "manifest.sensor.type" and r.requirement.op == "in" and r.level == "mandatory":
+            types |= {str(v) for v in r.requirement.values or []}
+        if r.measure == "manifest.sensor.digital" and r.requirement.op in ("true", "false") \
+                and r.level == "mandatory":
+            digital = r.requirement.op == "true"
+    return types, digital
+
+
+_TYPE_EQ = re.compile(r"manifest\.sensor\.type\s*(==|!=)\s*['\"](\w+)['\"]")
+_DIGITAL_EQ = re.compile(r"manifest\.sensor\.digital\s*==\s*(true|false)")
+SATELLITE_TABLES = ("scenes.",)
+
+
+def cannot_apply(rule: Rule, sensors: set[str], digital: bool | None) -> str | None:
+    """Why ``rule`` cannot apply under the tender's sensor, or None. Only conjunctive conditions
+    are read (a condition with 'or' is kept: it might apply)."""
+    when = " ".join((rule.when or "").split())
+    if when and " or " not in when:
+        for op, val in _TYPE_EQ.findall(when):
+            if sensors and op == "==" and val not in sensors:
+                return f"applies to {val} sensors only"
+            if sensors and op == "!=" and sensors == {val}:
+                return f"does not apply to {val} sensors"
+        for val in _DIGITAL_EQ.findall(when):
+            if digital is not None and (val == "true") != digital:
+                return "applies to film cameras only" if val == "false" else "applies to digital sensors only"
+    if sensors and "satellite" not in sensors and (
+            rule.measure.startswith(SATELLITE_TABLES) or any(t in when for t in SATELLITE_TABLES)):
+        return "reads the satellite scenes table"
+    return None
+
+
+def _parent(profile: ResolvedProfile) -> ResolvedProfile | None:
+    """The profile this one extends, resolved (to mark what the ITT added, changed or removed)."""
+    if len(profile.chain) < 2:
+        return None
+    from ..spec.loader import load_profile
+
+    try:
+        return load_profile(profile.chain[1][2], check_measures=False)
+    except Exception:  # the annex still renders; it just cannot mark the changes
+        return None
+
+
+def _changed_keys(a: Rule, b: Rule) -> list[str]:
+    da, db = a.model_dump(mode="json"), b.model_dump(mode="json")
+    return sorted(k for k in set(da) | set(db) if da.get(k) != db.get(k) and k not in ("override",))
+
+
+def annex_context(profile: ResolvedProfile, *, day: str, sensor: str | None = None) -> dict[str, Any]:
     """Everything the annex templates show, from the resolved profile."""
     params = dict(profile.parameters)
+    parent = _parent(profile)
+    base_rules = {r.id: r for r in parent.rules} if parent is not None else {}
+    base_params = dict(parent.parameters) if parent is not None else {}
+    tender_params = {n for n, p in params.items()
+                     if parent is not None and (n not in base_params
+                                                or param_value(base_params[n]) != param_value(p))}
+    sensors, digital = tender_sensor(profile)
+    if sensor:
+        sensors = {sensor}
     groups: dict[tuple[Any, ...], Group] = {}
     members: dict[tuple[Any, ...], list[Rule]] = {}
+    excluded: list[dict[str, Any]] = []
+    changes: list[dict[str, Any]] = []
+    notes: list[dict[str, Any]] = []
     for rule in profile.rules:
+        why = cannot_apply(rule, sensors, digital)
+        if why is not None:
+            excluded.append({"id": rule.id, "title": rule.title, "clause": rule.clause.text(), "why": why})
+            continue
+        change = ""
+        if parent is not None:
+            if rule.id not in base_rules:
+                change = "added by the ITT"
+            else:
+                keys = _changed_keys(base_rules[rule.id], rule)
+                if keys:
+                    change = "changed by the ITT (" + ", ".join(k.replace("_", " ") for k in keys) + ")"
+        view = _rule_view(rule, params, tender_params, change)
+        if change:
+            changes.append({"id": rule.id, "title": view["title"], "change": change,
+                            "requirement": view["requirement"], "level": rule.level,
+                            "consequence": rule.consequence})
+        if view["note"]:
+            notes.append({"id": rule.id, "note": view["note"]})
         key, title = _group_of(rule)
-        groups.setdefault(key, Group(key, title)).rules.append(_rule_view(rule, params))
+        groups.setdefault(key, Group(key, title)).rules.append(view)
         members.setdefault(key, []).append(rule)
+    removed = []
+    if parent is not None:
+        ids = {r.id for r in profile.rules}
+        just = {str(getattr(x, "id", x)): getattr(x, "justification", None)
+                for x in getattr(profile, "removed", ()) or ()}
+        removed = [{"id": rid, "title": r.title, "clause": r.clause.text(),
+                    "justification": just.get(rid) or "no justification recorded in the profile"}
+                   for rid, r in base_rules.items() if rid not in ids]
     ordered = sorted(groups.values(), key=lambda g: _group_order(g, members[g.key]))
     for g in ordered:
         g.rules.sort(key=lambda r: r["sort"])
     src = profile.source
+    n_rules = sum(len(g.rules) for g in ordered)
     return {
         "profile": profile, "day": day, "source": src,
         "parameters": [{"name": n, "value": param_value(p), "unit": p.unit or "", "required": p.required,
-                        "description": p.description, "choices": p.choices,
+                        "description": plain_note(p.description) or p.description, "choices": p.choices,
+                        "changed": n in tender_params, "justification": getattr(p, "justification", None),
                         "fixed_by": "tender" if p.value is not None else ("standard" if p.default is not None
                                                                           else "to be fixed in the ITT")}
                        for n, p in sorted(params.items())],
@@ -150,9 +326,17 @@ def annex_context(profile: ResolvedProfile, *, day: str) -> dict[str, Any]:
         "classes": sorted(profile.classes.items()),
         "waivers": list(profile.waivers),
         "consequences": CONSEQUENCES, "levels": LEVELS,
-        "n_rules": len(profile.rules), "n_manual": sum(r.manual for r in profile.rules),
+        "n_rules": n_rules, "n_manual": sum(r["manual"] for g in ordered for r in g.rules),
+        "excluded": excluded, "changes": changes, "removed": removed, "notes": notes,
+        "sensors": sorted(sensors), "digital": digital, "parent": parent,
         "title": f"Technical specification annex — {profile.title}",
     }
+
+
+def human(name: Any) -> str:
+    """snake_case column name -> 'Snake case' header."""
+    text = str(name).replace("_", " ").strip()
+    return text[:1].upper() + text[1:]
 
 
 def annex_filename(profile: ResolvedProfile, fmt: str) -> str:
@@ -162,34 +346,38 @@ def annex_filename(profile: ResolvedProfile, fmt: str) -> str:
 def _md_cell(v: Any) -> str:
     """A Markdown table cell: pipes escaped, newlines folded (profile text stays text)."""
     text = "" if v is None else str(v)
-    text = text.replace("\\", "\\\\").replace("|", "\\|").replace("<", "&lt;").replace(">", "&gt;")
+    text = text.replace("\\", "\\\\").replace("|", "\\|")
+    text = re.sub(r"<(?=[A-Za-z/!?])", "&lt;", text)
     return " ".join(text.split())
 
 
 def _md_text(v: Any) -> str:
+    """Markdown text: an angle bracket that could open a tag is escaped ('<80 km' stays as written)."""
     text = "" if v is None else str(v)
-    return " ".join(text.replace("<", "&lt;").replace(">", "&gt;").split())
+    text = re.sub(r"<(?=[A-Za-z/!?])", "&lt;", text)
+    return " ".join(text.split())
 
 
 def render_annex(profile: ResolvedProfile, *, formats: Iterable[str] = ANNEX_FORMATS,
-                 day: str | None = None) -> dict[str, str | bytes]:
+                 day: str | None = None, sensor: str | None = None) -> dict[str, str | bytes]:
     """Render the annex in memory: ``{"annex-<id>-<version>.md": ..., ...}``."""
     fmts = list(dict.fromkeys(formats))
     bad = [f for f in fmts if f not in ANNEX_FORMATS]
     if bad:
         raise ReportError(f"unknown annex format(s) {', '.join(bad)}; choose from {', '.join(ANNEX_FORMATS)}")
     day = day or Date.today().isoformat()
-    ctx = annex_context(profile, day=day)
+    ctx = annex_context(profile, day=day, sensor=sensor)
     out: dict[str, str | bytes] = {}
     if "md" in fmts:
         env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(templates_dir())), autoescape=False,
                                  undefined=jinja2.StrictUndefined, trim_blocks=True, lstrip_blocks=True,
                                  keep_trailing_newline=True)
-        env.filters.update(cell=_md_cell, text=_md_text, num=_num)
+        env.filters.update(cell=_md_cell, text=_md_text, num=_num, human=human)
         out[annex_filename(profile, "md")] = env.get_template("annex.md.j2").render(**ctx)
     if "html" in fmts or "pdf" in fmts:
         env = environment()
         env.filters["num"] = _num
+        env.filters["human"] = human
         if "html" in fmts:
             out[annex_filename(profile, "html")] = env.get_template("annex.html.j2").render(**ctx, pdf=False)
         if "pdf" in fmts:
