@@ -527,7 +527,7 @@ def build(scn: Scenario) -> Built:
     cameras = [{"camera_id": "UCE-01", "model": CAMERA["model"],
                 "focal_length": CAMERA["focal_length_mm"], "pixel_size": CAMERA["pixel_size_um"],
                 "calibration_date": "2025-11-04", "certificate": "VX-UCE-2025-1104",
-                "radiometric_bits": RADIOMETRIC_BITS}]
+                "radiometric_bits": RADIOMETRIC_BITS, "calibration_type": "laboratory"}]
     manual = manual_checks(scn, images)
     built = Built(scn, images, arrays, centres, cps, gcps, flights, cameras, manual, manifest, recomputed)
     add_evidence(built)
@@ -754,7 +754,12 @@ MANUAL_CHECKS: tuple[tuple[str, str, str], ...] = (
     ("JRC-12.4-CHECKPOINT-SOURCE", "delivery", "Check points from the agency's own RTK survey, not from the contractor."),
     ("JRC-6.3-ARTEFACTS", "image", "No scratches, dust, hot spots, haze, colour seams or artefacts."),
     ("JRC-T6-ORTHO-INSPECTION", "image", "Inspected on screen; no defects recorded."),
-)
+) + tuple((rule, "delivery", note) for rule, note in (
+    ("JRC-2.4-QCR-LOCATION", "QCR archive at the contractor's documented server path; delivered copies under documents/."),
+    ("JRC-2.4-QCR-MINIMUM-SET", "All QCRs of the minimum set present in the internal QCR."),
+    ("JRC-7.2-CONTRACTOR-CHECKPOINTS", "Contractor's internal check points independent of GCPs, well defined, 3x accuracy."),
+    ("JRC-7.3-ARCHIVE", "Ground reference archive with marked image extracts inspected."),
+))
 NOT_INSPECTED = "File not on the delivery medium; could not be inspected."
 
 
@@ -1057,7 +1062,7 @@ def write(b: Built, root: Path) -> None:
          b.flights)
     _csv(root / "tables/cameras.csv",
          ["camera_id", "model", "focal_length", "pixel_size", "calibration_date", "certificate",
-          "radiometric_bits"],
+          "radiometric_bits", "calibration_type"],
          b.cameras)
     _csv(root / "tables/aerotriangulation.csv", list(b.aerotriangulation[0]), b.aerotriangulation)
     for name, text in sorted(b.documents.items()):
@@ -1295,6 +1300,14 @@ SAT_MANUAL_CHECKS: tuple[tuple[str, str, str], ...] = (
     ("JRC-12.4-SELECTION", "delivery", "Both sites checked; scenes stratified by date and view angle."),
     ("JRC-12.4-CHECKPOINT-SOURCE", "delivery", "Check points from the agency's own GNSS survey."),
     ("JRC-6.3-ARTEFACTS", "image", "No striping, haze, colour seams or artefacts."),
+    ("JRC-2.4-QCR-LOCATION", "delivery", "QCR archive at the contractor's documented path; copies under documents/."),
+    ("JRC-2.4-QCR-MINIMUM-SET", "delivery", "All Table 10 QCRs present in the internal QCR."),
+    ("JRC-7.2-CONTRACTOR-CHECKPOINTS", "delivery", "Contractor's internal check points meet the §12.5 requirements."),
+    ("JRC-7.3-ARCHIVE", "delivery", "Ground reference archive with marked image extracts inspected."),
+    ("JRC-10.5.1-MERGE-FACTORS", "delivery", "Not applicable in substance: PAN and MS from the same satellite, simultaneous."),
+    ("JRC-9.2-DEM-OFF-NADIR", "image", "dx = 1.5 m x tan(view angle) <= 0.46 m, below a third of the tolerance."),
+    ("JRC-T9-GCP-OVERLAP-ZONES", "image", "GCPs of the RPC block placed in the scene overlaps (corners)."),
+    ("JRC-T9-MASTER-INDEPENDENT", "master", "Master image check points are none of the GCPs."),
 )
 SAT_DOCS = {"internal_qcr": "internal_qcr.md", "rejected_items": "rejected_items.md",
             "gcp_report": "gcp_report.md", "geodetic_control": "geodetic_control.md",
@@ -1340,6 +1353,7 @@ def build_satellite(scn: SatScenario) -> dict[str, Any]:
                 "checkpoint_count": str(scn.master_checkpoints if is_master else 10),
                 "checkpoint_rmse": "0.29" if is_master else "0.44", "max_checkpoint_discrepancy": "0.95",
                 "production_date": scn.dates["delivered"].isoformat(), "comments": "",
+                "master_check_date": (site.day + timedelta(days=20)).isoformat() if is_master else "",
                 "operator": "L. Ferrari (fictional)"})
             for g in range(1, gcount + 1):
                 ge, gn = e + rng.uniform(-25, 25), n + rng.uniform(-25, 25)
@@ -1399,7 +1413,8 @@ def build_satellite(scn: SatScenario) -> dict[str, Any]:
     day = (scn.dates["delivered"] + timedelta(days=7)).isoformat()
     manual = []
     for check, scope, note in SAT_MANUAL_CHECKS:
-        items = {"delivery": ["*"], "image": [r["image_id"] for r in images], "dem": ["*"]}[scope]
+        items = {"delivery": ["*"], "image": [r["image_id"] for r in images], "dem": ["*"],
+                 "master": ["S01_SC1"]}[scope]
         manual += [{"check": check, "item": it, "inspector": inspector, "date": day, "verdict": "pass",
                     "note": note} for it in items]
     return {"scenario": scn, "images": images, "scenes": scenes, "gcps": gcps, "checkpoints": cps,
