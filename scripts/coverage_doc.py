@@ -92,8 +92,13 @@ NOT_ENCODED: list[tuple[str, str, str]] = [
      "Realised as the required parameter tolerance_xy."),
     ("8.5", "final acceptance will be made by applying the external quality control guidelines",
      "Chapter 12 rules apply to update projects unchanged."),
+    ("7.3", "point identifier (unique to project)",
+     "Unique within each table by the delivery convention (a duplicate id is refused, exit 2); "
+     "uniqueness across the GCP and check point tables is not checked (no cross-table measure yet)."),
+    ("7.3", "Other remarks", "Free text, no criterion; a `remarks` column would only be displayed."),
     ("9.2", "Figure 2. Influence of off-nadir angle and DEM accuracy",
-     "Figure without a numeric requirement."),
+     "The figure's relation dx = dh x tan(angle) is JRC-9.2-DEM-OFF-NADIR (manual until a "
+     "scenes.dem_displacement measure exists: the rule grammar has no tangent)."),
     ("9.3", "The requirements of the ground reference data described in Chapter 7 apply also",
      "The Chapter 7 rules have no sensor condition, so they apply to satellite deliveries."),
     ("9.4", "it is preferred to deliver separate RPC files for each standard image forming the strip",
@@ -109,6 +114,9 @@ NOT_ENCODED: list[tuple[str, str, str]] = [
      "Reported in the QCR details (checkpoints.mean_x/std_x ...), no pass/fail criterion."),
     ("12.3", "imagery failing the specification on one or more of the tests may be required to be "
      "re-processed", "This is the reject_item consequence of the image rules."),
+    ("12.4", "Hardcopy and softcopy (ASCII, Tab delimited) or GIS layers.",
+     "Table 12 GCP/check point file format: the convention's CSV tables are the softcopy (the reader "
+     "refuses malformed files with file:row:column); the hardcopy is outside the delivery."),
     ("12.6", "The recommended output is a report showing an analysis of the results",
      "orthospec's QCR and report are that output."),
     ("12.7", "further investigations may be necessary to increase confidence in the result should "
