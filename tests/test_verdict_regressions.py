@@ -464,3 +464,17 @@ def test_not_reporting_the_block_rmse_does_not_switch_the_cross_check_off(tmp_pa
     assert recs["B01"]["verdict"] == "missing" and "reported gives no rmse_x" in recs["B01"]["message"]
     assert recs["B02"]["verdict"] == "pass"
     assert doc["verdict"] == "rejected" and "B01" in doc["rollup"]["rejected"]["block"]
+
+
+def test_marking_only_good_images_as_sample_cannot_hide_failing_ones(tmp_path: Path) -> None:
+    """The images table's `sample` column comes with the delivery: a failing image is tested anyway."""
+    d = copy_pass(tmp_path)
+    bad = cloudy(d, 2)
+    header, rows = read_table(d, "images")
+    for r in rows:
+        r["sample"] = "true" if r["image_id"] not in bad and r is rows[5] else ""
+    write_table(d, "images", [*header, "sample"] if "sample" not in header else header, rows)
+    doc = check(d, profile(tmp_path, IMAGE_RULE + image_rollup("mandatory")), date=DATE).document
+    rec = records(doc, "R-IMAGE-SHARE")[doc["delivery"]["id"]]
+    assert rec["measured"]["value"] == pytest.approx(200 / 3)  # 2 failing of the 3 tested
+    assert doc["verdict"] == "rejected"

@@ -891,7 +891,12 @@ class Evaluator:
             if given and given[0] == "image":
                 sampled = [i for i in all_imgs if i in given[1]]
             elif "sample" in imgs.df and imgs.df["sample"].map(lambda v: v is True).any():
-                sampled = imgs.ids[imgs.df["sample"].map(lambda v: v is True)].astype(str).tolist()
+                # the `sample` column travels with the delivery: an image the rules checked and
+                # rejected counts as tested whether or not it is marked, so marking only good
+                # images cannot shrink the failure share (issue 17, fail-open by the contractor)
+                marked = set(imgs.ids[imgs.df["sample"].map(lambda v: v is True)].astype(str).tolist())
+                failed = set(rejected.get("image", []))
+                sampled = [i for i in all_imgs if i in marked or i in failed]
             rej = set(rejected.get("image", [])) & set(sampled)
             samp = 100.0 * len(sampled) / len(all_imgs) if all_imgs else None
             if sampled:
