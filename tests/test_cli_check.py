@@ -125,3 +125,73 @@ def test_outputs_are_ordinary_files(make_delivery, mini_profile, tmp_path, capsy
     os.umask(mask)
     assert mode == 0o666 & ~mask
     assert not list((tmp_path / "o").glob(".*.tmp"))  # no temp file left behind
+
+
+# --------------------------------------------------------------------------- outputs (issue 17)
+
+
+def test_out_inside_the_delivery_is_refused_before_the_check(make_delivery, mini_profile, capsys):
+    root = make_delivery()
+    before = sorted(p.relative_to(root).as_posix() for p in root.rglob("*"))
+    code, _, err = run_main(["check", root, "-p", mini_profile, "--out", root / "qc"], capsys)
+    assert code == 2 and "--out" in err and "never writes into a delivery" in err
+    assert sorted(p.relative_to(root).as_posix() for p in root.rglob("*")) == before
+
+
+@pytest.mark.parametrize("workers, ok", [("0", False), ("-3", False), ("1", True)])
+def test_workers_must_be_positive(make_delivery, mini_profile, tmp_path, capsys, workers, ok):
+    code, _, err = run_main(["check", make_delivery(), "-p", mini_profile, "--out", tmp_path / "o",
+                             "--workers", workers], capsys)
+    assert (code != 2) is ok, err
+    if not ok:
+        assert "--workers" in err
+
+
+def test_workers_are_capped_to_the_cores():
+    import os
+
+    from orthospec.cli.cmd_check import _workers
+
+    assert _workers(10_000) == (os.cpu_count() or 1) and _workers(None) is None and _workers(1) == 1
+
+
+def test_outputs_are_all_or_nothing(tmp_path):
+    from orthospec.api import write_outputs
+    from orthospec.errors import OrthospecError
+
+    out = tmp_path / "out"
+    (out / "junit.xml").mkdir(parents=True)
+    (out / "qcr.json").write_text("old")
+    with pytest.raises(OrthospecError, match="junit.xml exists and is not a regular file; no output written"):
+        write_outputs(out, {"qcr.json": "new", "qcr.csv": "new", "junit.xml": "new"})
+    assert sorted(p.name for p in out.iterdir()) == ["junit.xml", "qcr.json"]
+    assert (out / "qcr.json").read_text() == "old"
+    assert write_outputs(out / "fresh", {"a.txt": "1", "b.bin": b"\x00"}) == ["a.txt", "b.bin"]
+    assert (out / "fresh" / "b.bin").read_bytes() == b"\x00" and len(list((out / "fresh").iterdir())) == 2
+
+
+@pytest.mark.parametrize("text, expected", [
+    ("D-2026-014", "D-2026-014"), ("../../../escaped", "escaped"), ("/tmp/x/delivery", "tmp_x_delivery"),
+    ("..", "delivery"), ("", "delivery"), ("a b/c", "a_b_c")])
+def test_default_output_folder_is_one_safe_segment(text, expected):
+    from orthospec.api import default_output_dir, safe_segment
+
+    assert safe_segment(text) == expected
+    assert default_output_dir(text).parts == ("reports", expected)
+
+
+def test_junit_directory_in_out_exits_2_and_writes_nothing(make_delivery, mini_profile, tmp_path, capsys):
+    out = tmp_path / "out"
+    (out / "junit.xml").mkdir(parents=True)
+    code, _, err = run_main(["check", make_delivery(), "-p", mini_profile, "--out", out], capsys)
+    assert code == 2 and "junit.xml" in err and "internal error" not in err
+    assert [p.name for p in out.iterdir()] == ["junit.xml"]
+
+
+def test_a_bad_ledger_fails_before_the_check_writes_anything(make_delivery, mini_profile, tmp_path, capsys):
+    bad = tmp_path / "ledger.sqlite"
+    bad.write_bytes(b"not a database " * 100)
+    code, _, err = run_main(["check", make_delivery(), "-p", mini_profile, "--out", tmp_path / "o",
+                             "--ledger", bad], capsys)
+    assert code == 2 and "ledger" in err
+    assert not (tmp_path / "o").exists()

@@ -106,3 +106,177 @@ def test_misspelt_manifest_key_gets_a_suggestion(make_delivery):
     root = make_delivery(manifest=MANIFEST.replace("contractor:", "contracter:"))
     with pytest.raises(DeliveryError, match="did you mean 'contractor'"):
         open_delivery(root)
+
+
+# --------------------------------------------------------------------------- containment (issue 17)
+
+
+@pytest.mark.parametrize("rel, why", [
+    ("/etc/passwd", "absolute path"),
+    ("images/../../x.tif", "contains '..'"),
+    ("/vsicurl/http://example.com/x.tif", "GDAL virtual file system"),
+    ("http://example.com/x.tif", "URL"),
+    ("C:\\data\\x.tif", "URL or a drive-letter"),
+    ("images/a\x07.tif", "control characters"),
+    ("", "is empty"),
+])
+def test_contained_refuses_paths_that_leave_the_delivery(tmp_path, rel, why):
+    from orthospec.delivery.reader import contained
+
+    with pytest.raises(DeliveryError, match=r"tables/images.csv: row 4: column 'file': path .*" + why):
+        contained(tmp_path, rel, what="path", file="tables/images.csv", row=4, field="file")
+
+
+def test_contained_follows_links_but_only_inside(tmp_path):
+    import os
+
+    from orthospec.delivery.reader import contained
+
+    root = tmp_path / "d"
+    (root / "images").mkdir(parents=True)
+    (root / "images" / "a.tif").write_bytes(b"II*\x00")
+    (root / "images" / "alias.tif").symlink_to("a.tif")
+    (tmp_path / "outside.tif").write_bytes(b"secret")
+    (root / "images" / "out.tif").symlink_to(tmp_path / "outside.tif")
+    (root / "linked").symlink_to(tmp_path)
+    os.mkfifo(root / "images" / "pipe.tif")
+    assert contained(root, "images/alias.tif") == root / "images" / "alias.tif"
+    assert contained(root, "images\\a.tif") == root / "images" / "a.tif"  # Windows separators
+    assert contained(root, "images/missing.tif") == root / "images" / "missing.tif"  # reported later
+    for rel, why in [("images/out.tif", "symbolic link leading out"), ("linked/outside.tif", "out of"),
+                     ("images/pipe.tif", "FIFO")]:
+        with pytest.raises(DeliveryError, match=why):
+            contained(root, rel)
+
+
+def test_check_tree_refuses_outward_links_and_fifos(tmp_path):
+    import os
+
+    from orthospec.delivery.reader import check_tree
+
+    root = tmp_path / "d"
+    (root / "docs").mkdir(parents=True)
+    (root / "docs" / "a.md").write_text("a")
+    (root / "docs" / "b.md").symlink_to("a.md")
+    assert check_tree(root) == ["docs/a.md"]
+    (root / "docs" / "c.md").symlink_to("/etc/hostname")
+    with pytest.raises(DeliveryError, match=r"^docs/c.md: is a symbolic link leading out"):
+        check_tree(root)
+    (root / "docs" / "c.md").unlink()
+    os.mkfifo(root / "docs" / "p")
+    with pytest.raises(DeliveryError, match=r"^docs/p: is a FIFO"):
+        check_tree(root)
+
+
+def test_open_delivery_refuses_a_document_linked_outside(make_delivery, tmp_path):
+    (tmp_path / "secret.txt").write_text("secret")
+    root = make_delivery(manifest=MANIFEST_WITH_DOC)
+    (root / "documents").mkdir()
+    (root / "documents" / "qcr.md").symlink_to(tmp_path / "secret.txt")
+    with pytest.raises(DeliveryError, match=r"delivery.yaml:\d+: documents.internal_qcr 'documents/qcr.md' "
+                                            r"is \(or passes through\) a symbolic link"):
+        open_delivery(root)
+
+
+def test_file_column_outside_is_refused_with_row(make_delivery):
+    images = "image_id,file,block\nI1,images/a.tif,B1\nI2,/vsicurl/http://x/y.tif,B1\n"
+    d = open_delivery(make_delivery(images=images))
+    with pytest.raises(DeliveryError, match=r"tables/images.csv: row 2: column 'file': path "
+                                            r"'/vsicurl/http://x/y.tif' is a GDAL virtual"):
+        d.load_all_tables()
+
+
+MANIFEST_WITH_DOC = None  # set below from conftest's manifest
+
+
+def _manifest_with_doc() -> str:
+    from tests.conftest import MANIFEST
+
+    return MANIFEST + "documents: {internal_qcr: documents/qcr.md}\n"
+
+
+MANIFEST_WITH_DOC = _manifest_with_doc()
+
+
+# --------------------------------------------------------------------------- bounded tables
+
+
+@pytest.mark.parametrize("text, limits, message", [
+    (b"a,b\n1," + b"x" * 200 + b"\n", {"cell_bytes": 100}, "row 1: a cell longer than 100 bytes"),
+    (b"a,b\n1,2\n3," + b"x" * 50 + b"," * 30 + b"\n", {"columns": 20}, r"row 2: \d+\+ fields on one line exceed the limit of 20"),
+    (b"a," + b",".join(b"c%d" % i for i in range(30)) + b"\n", {"columns": 20}, r"tables/t.csv:1: \d+\+ fields"),
+    (b'"image\nid",file\n1,2\n', {}, "tables/t.csv:1: the header row has an unclosed quote"),
+])
+def test_csv_bounds_before_parsing(text, limits, message):
+    import io
+
+    from orthospec.delivery.reader import Limits, check_csv_bounds
+
+    with pytest.raises(DeliveryError, match=message):
+        check_csv_bounds(io.BytesIO(text), file="tables/t.csv", limits=Limits(**limits), chunk=7)
+
+
+def test_csv_bounds_accept_a_normal_table_across_chunks():
+    import io
+
+    from orthospec.delivery.reader import Limits, check_csv_bounds
+
+    text = IMAGES.encode() * 50
+    check_csv_bounds(io.BytesIO(text), file="t.csv", limits=Limits(cell_bytes=40, columns=6), chunk=5)
+
+
+def test_table_size_limit_from_the_environment(make_delivery, monkeypatch):
+    monkeypatch.setenv("ORTHOSPEC_MAX_TABLE_BYTES", "50")
+    d = open_delivery(make_delivery())
+    with pytest.raises(DeliveryError, match=r"tables/images.csv: table of \d+ bytes exceeds the limit of 50"):
+        d.table("images")
+
+
+def test_a_128_kib_cell_is_just_text(make_delivery):
+    images = "image_id,file,block,resampling\nI1,a.tif,B1," + "c" * 2**17 + "\n"
+    d = open_delivery(make_delivery(images=images))
+    assert len(d.table("images").df["resampling"][0]) == 2**17
+
+
+def test_manifest_impossible_date_names_line(make_delivery):
+    from tests.conftest import MANIFEST
+
+    root = make_delivery(manifest=MANIFEST + "dates: {delivered: 2026-02-30}\n")
+    with pytest.raises(DeliveryError, match=r"delivery.yaml:\d+:\d+: invalid value '2026-02-30': day is out"):
+        open_delivery(root)
+
+
+def test_manifest_alias_bomb_is_refused_fast(make_delivery):
+    import time
+
+    from tests.conftest import MANIFEST
+
+    bomb = "bomb:\n  l0: &l0 [lol]\n" + "".join(
+        f"  l{i}: &l{i} [{', '.join([f'*l{i - 1}'] * 9)}]\n" for i in range(1, 10))
+    root = make_delivery(manifest=MANIFEST + bomb)
+    t0 = time.perf_counter()
+    with pytest.raises(DeliveryError, match=r"aliases \(\*name\) expand the document to [\d,]+ nodes"):
+        open_delivery(root)
+    assert time.perf_counter() - t0 < 1.0
+
+
+@pytest.mark.parametrize("text, message", [
+    ("a: &a [*a]\n", "f.yaml:1:4: a recursive alias"),
+    ("x: " + "[" * 250 + "]" * 250 + "\n", "nested more than 200 levels"),
+    ("k: 1" + "0" * 5000 + "\n", "f.yaml:1:4: invalid value"),
+    ("a: 1\nb: [1, 2\n", "f.yaml:3:1: invalid YAML"),
+])
+def test_yaml_limits_and_positions(text, message):
+    from orthospec.spec.yamlio import YamlError, load_text
+
+    with pytest.raises(YamlError, match=message):
+        load_text(text, "f.yaml")
+
+
+def test_yaml_file_size_limit(tmp_path):
+    from orthospec.spec.yamlio import YamlError, YamlLimits, load_file
+
+    f = tmp_path / "p.yaml"
+    f.write_text("notes: '" + "a" * 1000 + "'\n")
+    with pytest.raises(YamlError, match=r"p.yaml: 1,010 bytes exceed the limit of 100"):
+        load_file(f, display="p.yaml", limits=YamlLimits(bytes=100))

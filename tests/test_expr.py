@@ -83,3 +83,45 @@ def test_bare_numbers_take_the_unit_they_meet(src, names, expected):
 def test_bare_numbers_meet_arrays_per_item():
     out = parse("roll > 1").evaluate({"roll": Q_(np.array([0.5, 2.5]), "degree")})
     assert out.tolist() == [False, True]
+
+
+# --------------------------------------------------------------------------- limits (issue 17)
+
+
+@pytest.mark.parametrize("src, message", [
+    ("9**9**9 > 1", "exponent of \\*\\* must be a number or a name"),
+    ("10**10**10", "exponent of \\*\\* must be a number or a name"),
+    ("2**1000000 > 1", "exponent 1000000 is larger than 64"),
+    ("'a' * 10**10 == 'a'", "string repetition"),
+    ("10 * 'a'", "string repetition"),
+    ("'%s' % x", "string repetition and formatting"),
+    ("max(" + ", ".join(["1"] * 240) + ") > 0", "longer than 500 characters"),
+    ("max(" + ",".join(["x"] * 20) + ") > 0", "20 arguments: at most 16"),
+    ("1" + "0" * 30 + " > x", "integer 1000000000+ is larger than 1e\\+18"),
+    ("-" * 40 + "x", "nested more than 32 levels"),
+])
+def test_resource_limits_refused_when_parsed(src, message):
+    import time
+
+    t0 = time.perf_counter()
+    with pytest.raises(ExpressionError, match=message):
+        parse(src)
+    assert time.perf_counter() - t0 < 0.5
+
+
+@pytest.mark.parametrize("src, names, message", [
+    ("x ** n", {"x": 2, "n": 1000000}, "exponent larger than 64"),
+    ("s * n", {"s": "a", "n": 10**10}, "string repetition"),
+    ("x * x * x * x * x", {"x": 10**60}, "integer result larger than 256 bits"),
+])
+def test_resource_limits_checked_before_evaluating(src, names, message):
+    with pytest.raises(ExpressionError, match=message):
+        parse(src).evaluate(names)
+
+
+def test_limits_leave_real_expressions_alone():
+    assert parse("abs(a) ** 2").evaluate({"a": -3.0}) == 9.0
+    assert parse("x ** -2").evaluate({"x": 2.0}) == 0.25
+    assert parse("min(required_checkpoints, max_required_checkpoints)").evaluate(
+        {"required_checkpoints": 20, "max_required_checkpoints": 120}) == 20
+    assert parse("2 ** 64 > x").evaluate({"x": 1}) is True

@@ -315,3 +315,109 @@ def test_nodata_outside_the_dtype_range_excludes_nothing(tmp_path, rng):
         ds.nodata = 70000  # not representable in uint16
     b = assert_equals_gdal(f, tmp_path)[0]
     assert b.valid == 64 * 64
+
+
+# --------------------------------------------------------------------------- hostile files (issue 17)
+
+
+def test_a_geotiff_named_vrt_is_refused_before_gdal_opens_it(tmp_path):
+    outside = write_tif(tmp_path / "outside.tif", np.full((8, 8), 7, np.uint8))
+    fake = tmp_path / "d" / "a.tif"
+    fake.parent.mkdir()
+    fake.write_text(f'<VRTDataset rasterXSize="8" rasterYSize="8"><VRTRasterBand dataType="Byte" band="1">'
+                    f'<SimpleSource><SourceFilename>{outside}</SourceFilename><SourceBand>1</SourceBand>'
+                    f'</SimpleSource></VRTRasterBand></VRTDataset>')
+    with pytest.raises(MeasureError, match=r"a.tif: not a readable raster: not a GeoTIFF or JPEG 2000 file "
+                                           r"\(XML: a GDAL VRT\?\)"):
+        open_read_only(fake, name="a.tif")
+    with pytest.raises(MeasureError, match="not a GeoTIFF"):
+        scan_raster(fake)
+
+
+def test_fifo_and_vsi_paths_are_refused_without_blocking(tmp_path):
+    import os
+
+    pipe = tmp_path / "p.tif"
+    os.mkfifo(pipe)
+    with pytest.raises(MeasureError, match="p.tif: not a regular file"):
+        open_read_only(pipe, name="p.tif")
+    with pytest.raises(MeasureError, match="file not found"):
+        open_read_only("/vsicurl/http://127.0.0.1:9/x.tif")
+
+
+def test_declared_size_is_refused_before_reading(tmp_path):
+    import time
+
+    from orthospec.raster.reading import RasterLimits
+
+    big = tmp_path / "big.tif"
+    with rasterio.open(big, "w", driver="GTiff", width=10**6, height=10**6, count=1, dtype="uint8",
+                       tiled=True, blockxsize=4096, blockysize=4096, BIGTIFF="YES", SPARSE_OK=True,
+                       crs="EPSG:25832", transform=Affine(0.5, 0, 500000, 0, -0.5, 5600000)):
+        pass
+    t0 = time.perf_counter()
+    with pytest.raises(MeasureError, match=r"declares 1,000,000 x 1,000,000 = 1,000,000,000,000 pixels, more "
+                                           r"than the limit of 4,294,967,296"):
+        scan_raster(big)
+    assert time.perf_counter() - t0 < 1.0
+    bands = write_tif(tmp_path / "bands.tif", np.ones((70, 2, 2), np.uint8))
+    with pytest.raises(MeasureError, match="declares 70 bands, more than the limit of 64"):
+        scan_raster(bands)
+    with read_only_env(), open_read_only(bands, limits=RasterLimits(bands=70)) as ds:
+        assert ds.count == 70
+
+
+def test_wal_geopackage_is_read_without_touching_the_delivery(tmp_path):
+    import hashlib
+    import sqlite3
+
+    import pyogrio
+    import shapely
+
+    from orthospec.raster.reading import read_vector
+
+    build = tmp_path / "build.gpkg"
+    geoms = np.array([shapely.to_wkb(shapely.box(0, 0, 1, 1))], dtype=object)
+    pyogrio.raw.write(str(build), geometry=geoms, field_data=[np.array([1])], fields=["seam"],
+                      geometry_type="Polygon", crs="EPSG:25832", driver="GPKG")
+    con = sqlite3.connect(build)
+    con.execute("PRAGMA journal_mode=WAL")
+    con.execute("PRAGMA wal_autocheckpoint=0")
+    con.execute("UPDATE gpkg_contents SET description = 'changed in the WAL'")
+    con.commit()
+    d = tmp_path / "d"
+    d.mkdir()
+    for suffix in ("", "-wal"):
+        shutil.copyfile(f"{build}{suffix}", d / f"s.gpkg{suffix}")
+    con.close()
+
+    def state():
+        return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(d.iterdir())}
+
+    before = state()
+    assert set(before) == {"s.gpkg", "s.gpkg-wal"}
+    got, crs = read_vector(d / "s.gpkg")
+    assert len(got) == 1 and got[0].equals(shapely.box(0, 0, 1, 1)) and "25832" in crs
+    assert state() == before
+
+
+def test_an_ogr_vrt_named_gpkg_is_refused(tmp_path):
+    from orthospec.raster.reading import read_vector
+
+    f = tmp_path / "seamlines.gpkg"
+    f.write_text("<OGRVRTDataSource><OGRVRTLayer name='x'><SrcDataSource>/etc/passwd</SrcDataSource>"
+                 "</OGRVRTLayer></OGRVRTDataSource>")
+    with pytest.raises(MeasureError, match=r"not a readable vector file: not a GeoPackage or shapefile "
+                                           r"\(XML: an OGR VRT\?\)"):
+        read_vector(f, name="seamlines.gpkg")
+
+
+def test_gdal_errors_carry_the_file_not_the_absolute_path(tmp_path):
+    from orthospec.raster.reading import gdal_errors
+
+    trunc = tmp_path / "t.tif"
+    good = write_tif(tmp_path / "g.tif", np.ones((64, 64), np.uint8))
+    trunc.write_bytes(good.read_bytes()[:100])
+    with pytest.raises(MeasureError) as info, gdal_errors(file="images/t.tif", path=trunc):
+        rasterio.open(trunc)
+    assert str(info.value).startswith("images/t.tif: not a readable raster") and str(tmp_path) not in str(info.value)
