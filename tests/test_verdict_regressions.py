@@ -175,11 +175,21 @@ def test_a_when_over_an_absent_manifest_fact_is_missing_not_not_applicable(tmp_p
           measure: manifest.vectors.seamlines
           requirement: {op: present}
           consequence: return_delivery
+        - id: R-NULL-TESTED
+          title: the when itself asks whether the fact is given
+          clause: {document: JRC EUR 23638 EN, section: "11"}
+          quote: "Mosaic"
+          scope: delivery
+          when: "manifest.product.mosaic != null and manifest.product.mosaic == true"
+          measure: manifest.vectors.seamlines
+          requirement: {op: present}
+          consequence: return_delivery
         """
     doc = check(d, profile(tmp_path, rules), date=DATE).document
     rec = records(doc, "R-SEAMLINES")[doc["delivery"]["id"]]
     assert rec["verdict"] == "missing" and "product.mosaic" in rec["message"]
     assert records(doc, "R-SATELLITE-ONLY")[doc["delivery"]["id"]]["verdict"] == "not_applicable"
+    assert records(doc, "R-NULL-TESTED")[doc["delivery"]["id"]]["verdict"] == "not_applicable"
     assert doc["verdict"] == "rejected" and "R-SEAMLINES" in reasons(doc)
     # declaring the fact decides the rule
     m["product"]["mosaic"] = False
@@ -478,3 +488,26 @@ def test_marking_only_good_images_as_sample_cannot_hide_failing_ones(tmp_path: P
     rec = records(doc, "R-IMAGE-SHARE")[doc["delivery"]["id"]]
     assert rec["measured"]["value"] == pytest.approx(200 / 3)  # 2 failing of the 3 tested
     assert doc["verdict"] == "rejected"
+
+
+def test_a_per_item_when_over_a_missing_value_is_missing_for_that_item(tmp_path: Path) -> None:
+    d = copy_pass(tmp_path)
+    header, rows = read_table(d, "images")
+    rows[0]["sun_elevation"] = ""
+    write_table(d, "images", header, rows)
+    prof = profile(tmp_path, """\
+        - id: R-LOW-SUN-ROLL
+          title: roll limit when the sun is low
+          clause: {document: JRC EUR 23638 EN, section: "5.2.5"}
+          quote: "sun elevation"
+          scope: image
+          when: "images.sun_elevation < 35"
+          measure: images.roll
+          requirement: {op: "<=", value: 1, unit: deg}
+          consequence: reject_item
+        """)
+    doc = check(d, prof, date=DATE).document
+    recs = records(doc, "R-LOW-SUN-ROLL")
+    first, second = rows[0]["image_id"], rows[1]["image_id"]
+    assert recs[first]["verdict"] == "missing" and "images.sun_elevation" in recs[first]["message"]
+    assert recs[second]["verdict"] == "not_applicable"  # 43.1 deg: decided, the rule does not apply
