@@ -102,3 +102,9 @@ def test_unknown_command_is_a_usage_error() -> None:
     fresh = subprocess.run([sys.executable, "-m", "orthospec.cli.main", "chek"], capture_output=True,
                            text=True, timeout=120)
     assert fresh.returncode == 2 and "No such command 'chek'" in fresh.stderr
+
+
+def test_measure_radiometry_help_loads_no_raster_stack() -> None:
+    res = probe("measure", "radiometry", "--help")
+    assert res["code"] == 0
+    assert res["modules"] == ["orthospec.cli.cmd_measure_radiometry"]

@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import json
+from typing import TYPE_CHECKING
 
 import click
 
-from ..raster.parallel import ImageReport, ScanOptions, scan_image
-from ..raster.reading import ScanSettings
 from .groups import measure
+
+if TYPE_CHECKING:  # the raster stack (numpy, rasterio) loads only when an image is measured
+    from ..raster.parallel import ImageReport
 
 
 def _fmt(v: object, digits: int = 3) -> str:
@@ -77,6 +79,9 @@ def radiometry_cmd(ctx: click.Context, image: str, as_json: bool, bit_depth: int
     as GDAL computes them. Radiometry needs no georeference: a missing or unparseable CRS is
     reported as a file-check finding, not refused. Exit code 2 when the pixels cannot be read.
     """
+    from ..raster.parallel import ScanOptions, scan_image
+    from ..raster.reading import ScanSettings
+
     opts = ScanOptions(settings=ScanSettings(bit_depth=bit_depth), expect_epsg=expect_epsg,
                        expect_gsd=expect_gsd, gsd_tolerance=gsd_tolerance)
     rep = scan_image(image, opts, cloud_mask=cloud_mask)
