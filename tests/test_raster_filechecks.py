@@ -151,3 +151,24 @@ def test_vector_files_present_and_readable(tmp_path):
     junk = tmp_path / "junk.gpkg"
     junk.write_text("nope")
     assert "not a readable vector file" in check_vector(junk).error
+
+
+def test_hostile_headers_are_errors_without_facts(tmp_path):
+    """Issue 17: a VRT named .tif and a 70-band image are refused before GDAL reads them further;
+    no driver is reported, so the scan (parallel.scan_image) measures nothing."""
+    import os
+
+    from orthospec.provenance import sha256_file
+
+    vrt = tmp_path / "v.tif"
+    vrt.write_text('<VRTDataset rasterXSize="2" rasterYSize="2"></VRTDataset>')
+    c = check_file(vrt)
+    assert "not a GeoTIFF or JPEG 2000 file (XML: a GDAL VRT?)" in c.error and c.driver is None
+    bands = write(tmp_path / "b.tif", np.ones((70, 2, 2), np.uint8))
+    c = check_file(bands)
+    assert "declares 70 bands, more than the limit of 64" in c.error and c.driver is None
+    pipe = tmp_path / "p.tif"
+    os.mkfifo(pipe)
+    assert "not a regular file" in check_file(pipe).error
+    with pytest.raises(OSError, match="not a regular file"):
+        sha256_file(pipe)

@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import errno
 import hashlib
+import os
+import stat
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -10,12 +13,22 @@ _CHUNK = 1 << 20
 
 
 def sha256_file(path: str | Path) -> str:
-    """SHA-256 of a file, streamed in 1 MiB chunks."""
+    """SHA-256 of a regular file, streamed in 1 MiB chunks.
+
+    Opened without blocking and refused unless a regular file, so a FIFO or device slipped in
+    place of a delivered file raises OSError instead of hanging or reading forever.
+    """
     h = hashlib.sha256()
-    with open(path, "rb") as fh:
+    with open(path, "rb", opener=_nonblocking) as fh:
+        if not stat.S_ISREG(os.fstat(fh.fileno()).st_mode):
+            raise OSError(errno.EINVAL, "not a regular file", str(path))
         while chunk := fh.read(_CHUNK):
             h.update(chunk)
     return h.hexdigest()
+
+
+def _nonblocking(path: str, flags: int) -> int:
+    return os.open(path, flags | getattr(os, "O_NONBLOCK", 0))
 
 
 def sha256_bytes(data: bytes) -> str:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import re
+import stat
 import warnings
 from collections import Counter
 from collections.abc import Iterable
@@ -184,9 +185,12 @@ def check_file(path: str | Path, *, expect_epsg: int | None = None,
     name = check_name(p.name)
     base: dict[str, Any] = {"path": str(p), "name_ok": name.ok, "name_problems": name.problems}
     try:
-        size = p.stat().st_size
+        st = p.stat()
     except OSError as exc:
         return FileChecks(error=f"{p}: cannot stat file: {exc.strerror or exc}", **base)
+    if not stat.S_ISREG(st.st_mode):  # a FIFO or device would block or never end
+        return FileChecks(error=f"{p}: not a regular file", **base)
+    size = st.st_size
     base["bytes"] = size
     if size == 0:
         return FileChecks(error=f"{p}: zero-size file", **base)
