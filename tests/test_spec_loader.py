@@ -68,8 +68,9 @@ version: 0.1.0
 title: Child
 source: {title: ITT}
 extends: {id: base, version: 1.0.0}
+allow_no_mandatory: true  # the only rule left is made recommended
 parameters:
-  tol: {value: 1.0}
+  tol: {value: 1.0, justification: "ITT 4.1 tightens the tolerance"}
 remove_rules: [B]
 rules:
   - id: A

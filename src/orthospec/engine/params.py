@@ -1,15 +1,29 @@
-"""Resolve profile parameters: --param > tender profile `value` > delivery `parameters` > default."""
+"""Resolve profile parameters, and record who set each one.
+
+Order: ``--param`` (source ``cli``, the checker's) > a profile's ``value`` (``tender``) > the
+shipped default (``standard``). The delivery manifest's ``tender.parameters`` is *evidence*, not
+authority: its declared value is kept (``declared``) so the evaluator can cross-check it, and it
+is used only for a parameter the standard leaves to the ITT (``set_by: itt``) that has no value
+from anywhere else (source ``manifest``; the evaluator turns that into a visible warning).
+
+A parameter with no value that an applicable rule's requirement reads stops the run here (exit 2
+with advice) instead of producing ``error`` records later.
+"""
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal
 
-import pint
-
-from ..errors import OrthospecError, UnitError
+from ..errors import ExpressionError, OrthospecError, UnitError
+from ..spec import expr
 from ..spec.loader import ResolvedProfile
-from ..units import NON_NUMERIC, Q_, canonical, parse_unit
+from ..spec.models import Parameter
+from ..units import NON_NUMERIC, Q_, canonical, number_problem, parse_number_text, parse_unit
+
+Source = Literal["cli", "tender", "standard", "manifest", "unset"]
+SOURCES: tuple[str, ...] = ("cli", "tender", "standard", "manifest", "unset")
 
 
 class ParameterError(OrthospecError, ValueError):
@@ -19,9 +33,17 @@ class ParameterError(OrthospecError, ValueError):
 @dataclass(frozen=True)
 class ParamValue:
     name: str
-    value: Any  # float magnitude in `unit`, or str/bool
+    value: Any  # float magnitude in `unit`, or str/bool; None when unset
     unit: str
-    source: str  # cli | profile | delivery | default
+    source: str  # one of SOURCES
+    #: the value the delivery manifest declares (in `unit`), None when it declares none or it is unreadable
+    declared: Any = None
+    #: "standard" or "itt" (see models.Parameter.set_by)
+    set_by: str = "standard"
+    #: why a tender profile changed a standard value (printed in the annex)
+    justification: str | None = None
+    #: why a declared value could not be read, or was not used
+    note: str | None = None
 
     def quantity(self) -> Any:
         if self.unit in NON_NUMERIC or not isinstance(self.value, int | float) or isinstance(self.value, bool):
@@ -29,7 +51,12 @@ class ParamValue:
         return Q_(float(self.value), parse_unit(self.unit))
 
     def to_dict(self) -> dict[str, Any]:
-        return {"value": self.value, "unit": self.unit, "source": self.source}
+        out: dict[str, Any] = {"value": self.value, "unit": self.unit, "source": self.source}
+        if self.declared is not None:
+            out["declared"] = self.declared
+        if self.justification:
+            out["justification"] = self.justification
+        return out
 
 
 def parse_cli_params(items: tuple[str, ...] | list[str]) -> dict[str, str]:
@@ -42,82 +69,259 @@ def parse_cli_params(items: tuple[str, ...] | list[str]) -> dict[str, str]:
     return out
 
 
-def _coerce(name: str, raw: Any, unit: str, where: str) -> Any:
+def _bool(raw: Any) -> bool | None:
+    if isinstance(raw, bool):
+        return raw
+    t = str(raw).strip().lower()
+    if t in ("true", "yes", "1"):
+        return True
+    if t in ("false", "no", "0"):
+        return False
+    return None
+
+
+def _from_cli(name: str, text: str, p: Parameter) -> Any:
+    """``--param NAME=TEXT``: the one number parser (no decimal comma, finite, unit converted)."""
+    unit = p.unit or "1"
     if unit == "bool":
-        if isinstance(raw, bool):
-            return raw
-        t = str(raw).strip().lower()
-        if t in ("true", "yes", "1"):
-            return True
-        if t in ("false", "no", "0"):
-            return False
-        raise ParameterError(f"{where}: parameter {name} expects true/false, got {raw!r}")
+        b = _bool(text)
+        if b is None:
+            raise ParameterError(f"--param {name}: expects true or false, got {text!r}")
+        return b
+    if unit in ("text", "date"):
+        return str(text)
+    try:
+        return parse_number_text(text, unit)
+    except UnitError as exc:
+        raise ParameterError(f"--param {name}={text}: {exc}") from None
+
+
+def _from_profile(name: str, raw: Any, p: Parameter, profile: ResolvedProfile) -> Any:
+    """A profile `value`/`default` (validated at load; re-checked so no path can skip it)."""
+    unit = p.unit or "1"
+    if unit == "bool":
+        b = _bool(raw)
+        if b is None:
+            raise ParameterError(f"profile {profile.id}: parameter {name} expects true or false, got {raw!r}")
+        return b
     if unit in ("text", "date"):
         return str(raw)
-    if isinstance(raw, dict) and set(raw) == {"value", "unit"}:
-        raw = f"{raw['value']} {raw['unit']}"
-    if isinstance(raw, bool):
-        raise ParameterError(f"{where}: parameter {name} expects a number in {unit}, got {raw!r}")
-    if isinstance(raw, int | float):
-        return float(raw)
-    text = str(raw).strip()
-    try:
-        return float(text)
-    except ValueError:
-        pass
-    for sym, spelled in (("µm", "micrometer"), ("um", "micrometer"), ("%", "percent"), ("px", "pixel"),
-                         ("deg", "degree"), ("usft", "US_survey_foot")):
-        if text.endswith(sym):
-            text = text[: -len(sym)].strip() + " " + spelled
-            break
-    try:
-        q = Q_(text)
-    except (pint.errors.UndefinedUnitError, pint.errors.DefinitionSyntaxError, ValueError,
-            AttributeError, TypeError):
-        raise ParameterError(f"{where}: parameter {name}: cannot read {raw!r} as a number with a unit "
-                             f"(expected e.g. 0.5 or 0.5 {unit})") from None
-    if not isinstance(q, pint.Quantity):
-        return float(q)
-    if q.dimensionless and q.units == Q_(1).units:
-        return float(q.magnitude)
-    try:
-        return float(q.to(parse_unit(unit)).magnitude)
-    except (pint.errors.DimensionalityError, UnitError):
-        raise ParameterError(f"{where}: parameter {name} is in {canonical(unit)}, "
-                             f"got {raw!r} which does not convert") from None
+    why = number_problem(raw)
+    if why:
+        raise ParameterError(f"profile {profile.id}: parameter {name}: {why}")
+    return float(raw)
 
 
-def resolve_parameters(profile: ResolvedProfile, delivery_params: dict[str, Any],
-                       cli: dict[str, str]) -> dict[str, ParamValue]:
+def _declared(name: str, raw: Any, p: Parameter) -> tuple[Any, str | None]:
+    """The manifest's declared value in the parameter's unit, or (None, why it cannot be read)."""
+    if raw is None:
+        return None, None
+    if hasattr(raw, "model_dump"):
+        raw = raw.model_dump()
+    unit = p.unit or "1"
+    if unit == "bool":
+        b = _bool(raw)
+        return (b, None) if b is not None else (None, f"the manifest declares {name}: {raw!r}, not true/false")
+    if unit in ("text", "date"):
+        return str(raw), None
+    try:
+        if isinstance(raw, dict) and set(raw) == {"value", "unit"}:
+            why = number_problem(raw["value"])
+            if why:
+                raise UnitError(why)
+            text = f"{float(raw['value'])!r} {raw['unit']}"
+        elif isinstance(raw, int | float) and not isinstance(raw, bool):
+            why = number_problem(raw)
+            if why:
+                raise UnitError(why)
+            return float(raw), None
+        elif isinstance(raw, str):
+            text = raw
+        else:
+            raise UnitError(f"expected a number in {canonical(unit)}, got {raw!r}")
+        return parse_number_text(text, unit), None
+    except UnitError as exc:
+        return None, f"the manifest's tender.parameters.{name} cannot be read ({exc}); ignored"
+
+
+def resolve_parameters(profile: ResolvedProfile, delivery_params: Mapping[str, Any],
+                       cli: Mapping[str, str], *,
+                       manifest: Mapping[str, Any] | None = None) -> dict[str, ParamValue]:
+    """Every parameter's value with its source; raise ParameterError (exit 2) with advice.
+
+    ``delivery_params`` is the manifest's ``tender.parameters`` (evidence); ``manifest`` the flat
+    manifest (``manifest.<path>`` -> value), used to tell whether a rule gated on a manifest fact
+    applies to this delivery when deciding that an unset parameter is needed.
+    """
     unknown = sorted(set(cli) - set(profile.parameters))
     if unknown:
-        raise ParameterError(f"--param {unknown[0]}: profile {profile.id} has no such parameter; "
-                             f"known: {', '.join(sorted(profile.parameters)) or 'none'}")
+        import difflib
+
+        near = difflib.get_close_matches(unknown[0], list(profile.parameters), n=1, cutoff=0.6)
+        hint = f"; did you mean {near[0]!r}?" if near else ""
+        raise ParameterError(f"--param {unknown[0]}: profile {profile.id} has no such parameter{hint} "
+                             f"(known: {', '.join(sorted(profile.parameters)) or 'none'})")
     out: dict[str, ParamValue] = {}
     missing = []
     for name, p in sorted(profile.parameters.items()):
         unit = p.unit if p.unit in NON_NUMERIC else canonical(p.unit)
+        authority = p.authority()
+        declared, note = _declared(name, delivery_params.get(name), p)
+        val: Any
+        src: str
         if name in cli:
-            val, src = _coerce(name, cli[name], p.unit, "--param"), "cli"
+            val, src = _from_cli(name, cli[name], p), "cli"
         elif p.value is not None:
-            val, src = _coerce(name, p.value, p.unit, f"profile {profile.id}"), "profile"
-        elif name in delivery_params and delivery_params[name] is not None:
-            raw = delivery_params[name]
-            if hasattr(raw, "model_dump"):
-                raw = raw.model_dump()
-            val, src = _coerce(name, raw, p.unit, "delivery.yaml parameters"), "delivery"
+            val, src = _from_profile(name, p.value, p, profile), "tender"
         elif p.default is not None:
-            val, src = _coerce(name, p.default, p.unit, f"profile {profile.id} default"), "default"
+            val, src = _from_profile(name, p.default, p, profile), "standard"
+        elif authority == "itt" and declared is not None:
+            val, src = declared, "manifest"
         else:
             val, src = None, "unset"
             if p.required:
                 missing.append(name)
         if p.choices is not None and val is not None and val not in p.choices:
-            raise ParameterError(f"parameter {name}={val!r} is not one of {p.choices}")
-        out[name] = ParamValue(name, val, unit, src)
-    if missing:
-        hints = ", ".join(f"{m} ({profile.parameters[m].unit})" for m in missing)
-        raise ParameterError(
-            f"profile {profile.id} needs parameter(s) {hints}: set them with --param NAME=VALUE, in a "
-            "tender profile that extends it, or under `parameters:` in delivery.yaml")
+            if src == "manifest":
+                note = f"the manifest declares {name}={val!r}, not one of {p.choices}; ignored"
+                val, src = None, "unset"
+                if p.required:
+                    missing.append(name)
+            else:
+                where = {"cli": "--param", "tender": f"profile {profile.id}"}.get(src, f"profile {profile.id}")
+                raise ParameterError(f"{where}: parameter {name}={val!r} is not one of {p.choices}")
+        out[name] = ParamValue(name, val, unit, src, declared=declared, set_by=authority,
+                               justification=p.justification, note=note)
+    needed, all_off = _needed(profile, out, manifest)
+    for name in missing:
+        needed.setdefault(name, [])
+    if needed:
+        raise ParameterError(_advice(profile, needed, all_off))
     return out
+
+
+def _advice(profile: ResolvedProfile, needed: dict[str, list[str]], all_off: bool = False) -> str:
+    if all_off:
+        lines = [f"profile {profile.id} would check no mandatory requirement: every mandatory rule reads a "
+                 "parameter that has no value (set at least the ones the ITT fixes):"]
+    else:
+        lines = [f"profile {profile.id} needs parameter(s) that have no value:"]
+    for name in sorted(needed):
+        p = profile.parameters[name]
+        unit = p.unit if p.unit in NON_NUMERIC else canonical(p.unit)
+        rules = needed[name]
+        who = (f"read by {', '.join(rules[:6])}" + (f" and {len(rules) - 6} more" if len(rules) > 6 else "")
+               if rules else "required by the profile")
+        lines.append(f"  {name} ({unit}): {who}")
+    first = sorted(needed)[0]
+    lines.append(f"set them with --param NAME=VALUE (e.g. --param {first}=...), or in a tender profile "
+                 f"that extends {profile.id} (parameters: {{{first}: {{value: ...}}}}); a value the "
+                 "delivery manifest declares is evidence, used only for a parameter the standard leaves "
+                 "to the ITT")
+    return "\n".join(lines)
+
+
+def _param_names(names: frozenset[str] | set[str], params: Mapping[str, Any]) -> set[str]:
+    out = set()
+    for n in names:
+        n2 = n[6:] if n.startswith("param.") else n
+        if n2 in params:
+            out.add(n2)
+    return out
+
+
+def needed_unset(profile: ResolvedProfile, values: Mapping[str, ParamValue],
+                 manifest: Mapping[str, Any] | None = None) -> dict[str, list[str]]:
+    """Unset parameters an applicable rule's requirement reads: name -> rule ids (see _needed)."""
+    return _needed(profile, values, manifest)[0]
+
+
+def _needed(profile: ResolvedProfile, values: Mapping[str, ParamValue],
+            manifest: Mapping[str, Any] | None = None) -> tuple[dict[str, list[str]], bool]:
+    """Unset parameters an applicable rule's requirement reads: name -> rule ids.
+
+    A rule whose ``when`` itself tests the parameter (``tolerance_z != null``) is written to be
+    optional and does not count. A rule whose ``when`` reads only parameters and manifest facts is
+    decided here when ``manifest`` is given (false: it does not apply, so it needs nothing).
+    Also, when every mandatory automatic rule is switched off by unset parameters, the profile
+    checks nothing mandatory: every such parameter is reported.
+    """
+    unset = {n for n, v in values.items() if v.value is None}
+    if not unset:
+        return {}, False
+    needed: dict[str, list[str]] = {}
+    mandatory_total = 0
+    mandatory_off: dict[str, list[str]] = {}
+    for r in profile.rules:
+        if r.manual or r.measure.startswith("manual."):
+            continue
+        req = r.requirement
+        reads: set[str] = set()
+        for v in (req.value, req.min, req.max):
+            if isinstance(v, str):
+                try:
+                    reads |= _param_names(expr.parse(v).names, values)
+                except ExpressionError:
+                    continue
+        when_names: set[str] = set()
+        when_params: set[str] = set()
+        if r.when:
+            try:
+                when_names = set(expr.parse(r.when).names)
+            except ExpressionError:
+                when_names = set()
+            when_params = _param_names(when_names, values)
+        if r.level == "mandatory":
+            mandatory_total += 1
+            for n in sorted((reads | when_params) & unset):
+                mandatory_off.setdefault(n, []).append(r.id)
+        missing_reads = (reads & unset) - when_params
+        if not missing_reads:
+            continue
+        if r.when and _may_not_apply(r.when, when_names, values, manifest):
+            continue
+        for n in sorted(missing_reads):
+            needed.setdefault(n, []).append(r.id)
+    if mandatory_total and not needed:
+        switched_off = {rid for ids in mandatory_off.values() for rid in ids}
+        if len(switched_off) == mandatory_total:
+            return {n: ids for n, ids in mandatory_off.items()}, True
+    return needed, False
+
+
+def _may_not_apply(when: str, names: set[str], values: Mapping[str, ParamValue],
+                   manifest: Mapping[str, Any] | None) -> bool:
+    """True unless ``when`` surely holds: it reads only parameters and manifest facts and is true.
+
+    A ``when`` that reads measures may hold for some items: it counts as applying (False here).
+
+    Without the manifest, a ``when`` that reads manifest facts cannot be decided: the rule may not
+    apply, so the parameter is left to the evaluator (which must record ``missing``).
+    """
+    if any(not (n in values or n.startswith(("param.", "manifest."))) for n in names):
+        return False  # reads measures: it may apply to some item, so the parameter is needed
+    reads_manifest = any(n.startswith("manifest.") for n in names)
+    if reads_manifest and manifest is None:
+        return True
+    env: dict[str, Any] = {}
+    for n in names:
+        if n.startswith("manifest."):
+            v = (manifest or {}).get(n)
+            if isinstance(v, dict) and set(v) == {"value", "unit"}:
+                try:
+                    v = Q_(float(v["value"]), parse_unit(v["unit"]))
+                except (UnitError, TypeError, ValueError):
+                    v = None
+            env[n] = v
+        else:
+            key = n[6:] if n.startswith("param.") else n
+            env[n] = values[key].quantity()
+    try:
+        got = expr.parse(when).evaluate(env)
+    except (ExpressionError, UnitError, TypeError, ValueError):
+        return True  # undecidable here: leave it to the evaluator
+    got = getattr(got, "magnitude", got)
+    try:
+        return got is None or not bool(got)
+    except (TypeError, ValueError):
+        return True

@@ -1,30 +1,38 @@
 """Load, validate and resolve spec profiles (``extends``, overrides, removals, checksum).
 
-Validation runs in three passes and reports *every* problem with ``file:line:column``:
-the published JSON Schema (what editors see), the pydantic models, then semantic checks
-(unique ids, units, expressions, known measures, scope of each measure).
+Validation reports *every* problem with ``file:line:column``: the pydantic models (one message per
+location, with a did-you-mean for unknown keys), then semantic checks (unique ids, threshold
+numbers, units and their dimensions, expressions, manifest paths the delivery schema defines, known
+measures and their scope, parameters nobody reads, who may change a standard value).
+
+Cost stays linear in the number of rules, each file is parsed once per process, and a resolved,
+validated profile is cached on disk keyed by the SHA-256 of every file in its ``extends`` chain
+(see :mod:`orthospec.spec.cache`).
 """
 
 from __future__ import annotations
 
+import difflib
 import hashlib
 import json
+import re
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
-from typing import Any
+from typing import Any, Union, get_args, get_origin
 
-import jsonschema
-from pydantic import ValidationError
+from pydantic import BaseModel, ValidationError
 
 from ..errors import ExpressionError, SpecError, UnitError
 from ..resources import specs_dir
-from ..units import NON_NUMERIC, parse_unit
 from . import expr
 from .models import Parameter, Profile, Rule, RuleOverride
-from .yamlio import Located, YamlError, load_file
+from .yamlio import Located, YamlError, load_text
 
 MAX_EXTENDS_DEPTH = 8
+#: how much of a candidate file is read to learn its id and version (never the whole file)
+HEADER_BYTES = 4096
+_ORDER_OPS = ("<", "<=", ">", ">=", "between")
 
 
 @dataclass(frozen=True)
@@ -62,12 +70,18 @@ class ResolvedProfile:
     chain: tuple[tuple[str, str, str], ...]  # (id, version, file) from this profile to its root
     canonical: dict[str, Any] = field(repr=False)
     sha256: str = ""
+    allow_no_mandatory: bool = False
+    #: where each rule / parameter was written (cold loads only; empty when served from the cache)
+    sites: _Sites | None = field(default=None, repr=False, compare=False)
+    _index: dict[str, int] = field(default_factory=dict, repr=False, compare=False)
 
     def rule(self, rule_id: str) -> Rule:
-        for r in self.rules:
-            if r.id == rule_id:
-                return r
-        raise KeyError(rule_id)
+        if not self._index:
+            self._index.update({r.id: i for i, r in enumerate(self.rules)})
+        try:
+            return self.rules[self._index[rule_id]]
+        except KeyError:
+            raise KeyError(rule_id) from None
 
     def canonical_json(self) -> str:
         return canonical_dumps(self.canonical)
@@ -77,12 +91,102 @@ def canonical_dumps(obj: Any) -> str:
     return json.dumps(obj, sort_keys=True, separators=(",", ":"), ensure_ascii=False, allow_nan=False)
 
 
-@lru_cache(maxsize=1)
-def _schema() -> dict[str, Any]:
-    return json.loads((specs_dir() / "schema" / "profile.schema.json").read_text(encoding="utf-8"))
+@dataclass
+class _Sites:
+    """Where things were written, for file:line:col of semantic problems (no file is re-read)."""
 
+    rules: dict[str, list[tuple[Located, int]]] = field(default_factory=dict)  # root first
+    params: dict[str, list[Located]] = field(default_factory=dict)  # root first
+    top: Located | None = None
+    inherited_params: set[str] = field(default_factory=set)
+    own_params: set[str] = field(default_factory=set)
+
+    def rule_where(self, rule_id: str, key: tuple[Any, ...]) -> tuple[str, int | None, int | None]:
+        sites = self.rules.get(rule_id) or []
+        for doc, i in reversed(sites):
+            rd = _rules_of(doc)[i] if i < len(_rules_of(doc)) else {}
+            if isinstance(rd, dict) and (not key or key[0] in rd):
+                return (doc.file, *doc.where(("rules", i, *key)))
+        if sites:
+            doc, i = sites[0]
+            return (doc.file, *doc.where(("rules", i)))
+        return (self.top.file if self.top else "?", None, None)
+
+    def param_where(self, name: str, key: str | None = None) -> tuple[str, int | None, int | None]:
+        docs = self.params.get(name) or []
+        for doc in reversed(docs):
+            pd = (doc.data.get("parameters") or {}).get(name) if isinstance(doc.data, dict) else None
+            if key is None or (isinstance(pd, dict) and key in pd):
+                return (doc.file, *doc.where(("parameters", name, *((key,) if key else ()))))
+        return (self.top.file if self.top else "?", None, None)
+
+
+def _rules_of(doc: Located) -> list[Any]:
+    d = doc.data if isinstance(doc.data, dict) else {}
+    r = d.get("rules")
+    return r if isinstance(r, list) else []
+
+
+# --- reading files: one parse per file per process -------------------------------------------
+
+_DOCS: dict[tuple[str, str], Located] = {}
+
+
+def _file_bytes(path: Path) -> bytes:
+    try:
+        return path.read_bytes()
+    except FileNotFoundError:
+        raise YamlError(f"{path}: file not found") from None
+    except OSError as exc:
+        raise YamlError(f"{path}: cannot read: {exc.strerror}") from None
+
+
+def file_sha256(path: Path) -> str:
+    return hashlib.sha256(_file_bytes(path)).hexdigest()
+
+
+def _load_doc(path: Path) -> tuple[Located, str]:
+    """The parsed document and the SHA-256 of its bytes, parsed at most once per content."""
+    raw = _file_bytes(path)
+    sha = hashlib.sha256(raw).hexdigest()
+    key = (str(path), sha)
+    doc = _DOCS.get(key)
+    if doc is None:
+        try:
+            text = raw.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            raise YamlError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+        doc = load_text(text, str(path))
+        if len(_DOCS) > 64:
+            _DOCS.clear()
+        _DOCS[key] = doc
+    _LAST_SHA[str(path)] = sha
+    return doc, sha
+
+
+_YAML_POS = re.compile(r"^(?P<file>.*?):(?P<line>\d+):(?P<col>\d+): (?P<msg>.*)$", re.S)
+
+
+def _yaml_problem(path: Path, exc: YamlError) -> Problem:
+    """A YAML error as a Problem that keeps its line and column."""
+    line = getattr(exc, "line", None)
+    col = getattr(exc, "column", None)
+    text = str(exc)
+    if line is not None:
+        msg = getattr(exc, "problem", None) or text
+        return Problem(str(path), line, col, str(msg))
+    m = _YAML_POS.match(text)
+    if m:
+        return Problem(m["file"], int(m["line"]), int(m["col"]), m["msg"])
+    return Problem(str(path), None, None, text.split(": ", 1)[-1] if text.startswith(str(path)) else text)
+
+
+# --- model validation ---------------------------------------------------------------------
 
 def schema_problems(doc: Located) -> list[Problem]:
+    """Problems the published JSON Schema finds (what editors see); kept for tools and tests."""
+    import jsonschema
+
     validator = jsonschema.Draft202012Validator(_schema())
     out = []
     for err in sorted(validator.iter_errors(doc.data), key=lambda e: [str(p) for p in e.absolute_path]):
@@ -93,6 +197,11 @@ def schema_problems(doc: Located) -> list[Problem]:
         loc = "/".join(str(p) for p in path) or "(document)"
         out.append(Problem(doc.file, line, col, f"{loc}: {_short(err.message)}", _rule_at(doc, path)))
     return out
+
+
+@lru_cache(maxsize=1)
+def _schema() -> dict[str, Any]:
+    return json.loads((specs_dir() / "schema" / "profile.schema.json").read_text(encoding="utf-8"))
 
 
 def _short(msg: str) -> str:
@@ -109,24 +218,104 @@ def _rule_at(doc: Located, path: tuple[Any, ...]) -> str | None:
     return None
 
 
+def _unwrap(t: Any, tag: Any = None) -> Any:
+    """The model class (or container type) behind Optional/Annotated/Union annotations."""
+    for _ in range(8):
+        origin = get_origin(t)
+        if origin is None:
+            return t
+        args = get_args(t)
+        if "Annotated" in str(origin):
+            t = args[0]
+            continue
+        if origin is Union or str(origin) == "<class 'types.UnionType'>":
+            models = [a for a in (_unwrap(x) for x in args) if isinstance(a, type) and issubclass(a, BaseModel)]
+            if tag == "override" and RuleOverride in models:
+                return RuleOverride
+            if tag == "rule" and Rule in models:
+                return Rule
+            if len(models) == 1:
+                return models[0]
+            conts = [a for a in args if get_origin(a) in (list, dict)]
+            return conts[0] if conts else t
+        return t
+    return t
+
+
+def _fields_at(loc: tuple[Any, ...]) -> list[str]:
+    """Field names of the model an error location points into (for did-you-mean)."""
+    t: Any = Profile
+    parts = list(loc)
+    i = 0
+    while i < len(parts):
+        part = parts[i]
+        t = _unwrap(t)
+        if isinstance(t, type) and issubclass(t, BaseModel):
+            f = t.model_fields.get(str(part))
+            if f is None:
+                return []
+            t = f.annotation
+            if get_origin(_unwrap(t)) is list and i + 2 < len(parts) and parts[i + 2] in ("rule", "override"):
+                t = _unwrap(get_args(_unwrap(t))[0], tag=parts[i + 2])
+                i += 3
+                continue
+        elif get_origin(t) is list:
+            t = get_args(t)[0]
+        elif get_origin(t) is dict:
+            t = get_args(t)[1]
+        else:
+            return []
+        i += 1
+    t = _unwrap(t)
+    return list(t.model_fields) if isinstance(t, type) and issubclass(t, BaseModel) else []
+
+
+def _pydantic_problems(doc: Located, exc: ValidationError) -> list[Problem]:
+    out = []
+    errors = exc.errors()
+    # a misspelt key also makes the real key "missing": say it once, at the misspelling
+    suggested: set[tuple[Any, ...]] = set()
+    for e in errors:
+        if e["type"] == "extra_forbidden":
+            raw_loc = tuple(e["loc"])
+            near = difflib.get_close_matches(str(raw_loc[-1]), _fields_at(raw_loc[:-1]), n=1, cutoff=0.6)
+            if near:
+                suggested.add((*raw_loc[:-1], near[0]))
+    for e in errors:
+        if e["type"] == "missing" and tuple(e["loc"]) in suggested:
+            continue
+        raw_loc = tuple(e["loc"])
+        path = tuple(p for p in raw_loc if not (isinstance(p, str) and p in ("rule", "override")))
+        # a union of scalar types reports one error per member type: name the location once
+        path = tuple(p for p in path if p not in ("float", "int", "str", "bool", "list[...]", "dict[...]"))
+        line, col = doc.where(path)
+        loc = "/".join(str(p) for p in path) or "(document)"
+        if e["type"] == "extra_forbidden":
+            key = str(path[-1])
+            allowed = _fields_at(raw_loc[:-1])
+            near = difflib.get_close_matches(key, allowed, n=1, cutoff=0.6)
+            hint = f"; did you mean {near[0]!r}?" if near else (f"; allowed: {', '.join(allowed)}" if allowed else "")
+            msg = f"{loc}: unknown key {key!r}{hint}"
+        else:
+            got = e.get("input")
+            shown = "" if isinstance(got, dict | list) or got is None else f" (got {_short(repr(got))})"
+            msg = f"{loc}: {e['msg']}{shown}"
+        out.append(Problem(doc.file, line, col, msg, _rule_at(doc, path)))
+    return out
+
+
 def parse_profile(doc: Located) -> tuple[Profile | None, list[Problem]]:
-    """Schema + pydantic validation of one file (no extends resolution)."""
+    """Model validation of one file (no extends resolution): one problem per location."""
     if not isinstance(doc.data, dict):
         return None, [Problem(doc.file, 1, 1, "a profile must be a YAML mapping")]
     if "orthospec_profile" not in doc.data:
         return None, [Problem(doc.file, 1, 1, "not an orthospec spec profile (it has no "
                               "'orthospec_profile: 1' key)")]
-    problems = schema_problems(doc)
     try:
         prof = Profile.model_validate(doc.data)
     except ValidationError as exc:
-        for e in exc.errors():
-            path = tuple(p for p in e["loc"] if not (isinstance(p, str) and p in ("rule", "override")))
-            line, col = doc.where(path)
-            loc = "/".join(str(p) for p in path)
-            problems.append(Problem(doc.file, line, col, f"{loc}: {e['msg']}", _rule_at(doc, path)))
-        return None, _dedupe(problems)
-    return prof, _dedupe(problems)
+        return None, _dedupe(_pydantic_problems(doc, exc))
+    return prof, []
 
 
 def _dedupe(problems: list[Problem]) -> list[Problem]:
@@ -141,77 +330,113 @@ def _dedupe(problems: list[Problem]) -> list[Problem]:
     return out
 
 
-# --- finding profiles ---------------------------------------------------------------------
+# --- finding profiles by id: headers only ------------------------------------------------------
+
+_HEAD_KEY = re.compile(r"^(id|version|title|orthospec_profile)[ \t]*:[ \t]*(.*?)[ \t]*$", re.M)
+
+
+def _scalar_text(v: str) -> str:
+    v = re.sub(r"\s+#.*$", "", v).strip()
+    if len(v) >= 2 and v[0] == v[-1] and v[0] in "'\"":
+        v = v[1:-1]
+    return v
+
+
+def read_header(path: Path) -> tuple[str, str, str] | None:
+    """(id, version, title) from the first HEADER_BYTES of a file, without parsing YAML.
+
+    Only top-level ``key: value`` lines count. Finding a profile by id never parses a file that
+    is not the one asked for (an unrelated alias bomb in the same folder cannot hang it).
+    """
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(HEADER_BYTES).decode("utf-8", errors="replace")
+    except OSError:
+        return None
+    found: dict[str, str] = {}
+    for m in _HEAD_KEY.finditer(head):
+        found.setdefault(m.group(1), _scalar_text(m.group(2)))
+    if "orthospec_profile" not in found or "id" not in found:
+        return None
+    return found["id"], found.get("version", ""), found.get("title", "")
+
 
 def profile_files(extra: list[Path] | None = None) -> list[Path]:
     dirs = [specs_dir(), *(extra or [])]
     files: list[Path] = []
     for d in dirs:
         if d.is_dir():
-            files.extend(sorted(p for p in d.glob("*.yaml") if _looks_like_profile(p)))
+            files.extend(sorted(p for p in d.glob("*.yaml") if p.is_file() and read_header(p)))
     return files
 
 
-def _looks_like_profile(path: Path) -> bool:
-    try:
-        with open(path, encoding="utf-8") as fh:
-            head = fh.read(4096)
-    except OSError:
-        return False
-    return "orthospec_profile:" in head
-
-
-def _header(path: Path) -> tuple[str, str, str] | None:
-    try:
-        doc = load_file(path)
-    except YamlError:
-        return None
-    d = doc.data if isinstance(doc.data, dict) else {}
-    if "id" not in d:
-        return None
-    return str(d.get("id")), str(d.get("version", "")), str(d.get("title", ""))
-
-
 def available(extra: list[Path] | None = None) -> list[tuple[str, str, str, Path]]:
-    """Shipped (and extra) profiles as (id, version, title, path)."""
+    """Shipped (and extra) profiles as (id, version, title, path), from their headers."""
     out = []
-    for p in profile_files(extra):
-        h = _header(p)
-        if h:
-            out.append((*h, p))
+    for d in [specs_dir(), *(extra or [])]:
+        if not d.is_dir():
+            continue
+        for p in sorted(d.glob("*.yaml")):
+            h = read_header(p) if p.is_file() else None
+            if h:
+                out.append((*h, p))
     return sorted(out, key=lambda t: (t[0], t[1]))
 
 
 def find_profile(ref: str | Path, *, near: Path | None = None, version: str | None = None) -> Path:
-    """A path to a profile given a file path or an id (optionally pinned to a version)."""
+    """A path to a profile given a file path (as the user typed it) or an id."""
     p = Path(ref)
     if p.suffix in (".yaml", ".yml") or p.exists():
         if not p.is_file():
             raise SpecError(f"profile file {str(ref)!r} not found")
         return p
-    extra = [near] if near else []
-    matches = [t for t in available(extra) if t[0] == str(ref) and (version is None or t[1] == version)]
-    if not matches:
-        import difflib
-
-        have = available(extra)
-        known = ", ".join(f"{i} {v}" for i, v, _, _ in have) or "none"
-        pin = f" version {version}" if version else ""
-        near = difflib.get_close_matches(str(ref), [i for i, _, _, _ in have], n=1, cutoff=0.6)
-        hint = f"; did you mean {near[0]!r}?" if near and not version else ""
-        raise SpecError(f"unknown profile {str(ref)!r}{pin}{hint}; available: {known}")
-    return matches[-1][3]
+    return find_by_id(str(ref), version=version, near=near)
 
 
-# --- resolution ---------------------------------------------------------------------------
+def find_by_id(pid: str, *, version: str | None = None, near: Path | None = None) -> Path:
+    """A profile by id (and pinned version): shipped profiles first, then ``near``'s folder.
+
+    An id is never a path: ``extends: {id: evil.yaml}`` does not open a file of that name. The
+    shipped profiles win, so a file in the tender's folder cannot stand in for a shipped standard.
+    """
+    def match(rows: list[tuple[str, str, str, Path]]) -> list[tuple[str, str, str, Path]]:
+        return [t for t in rows if t[0] == pid and (version is None or t[1] == version)]
+
+    shipped = available()
+    hits = match(shipped)
+    if not hits and near is not None and near.resolve() != specs_dir().resolve():
+        local = [t for t in available([near]) if t[3].parent.resolve() == near.resolve()]
+        hits = match(local)
+        if version is not None and len(hits) > 1:
+            files = ", ".join(str(t[3]) for t in hits)
+            raise SpecError(f"profile {pid!r} version {version} is defined by several files: {files}")
+    if hits:
+        return sorted(hits, key=lambda t: _semver_key(t[1]))[-1][3]
+    have = available([near] if near else None)
+    known = ", ".join(f"{i} {v}" for i, v, _, _ in have) or "none"
+    pin = f" version {version}" if version else ""
+    close = difflib.get_close_matches(pid, sorted({i for i, _, _, _ in have}), n=1, cutoff=0.6)
+    hint = f"; did you mean {close[0]!r}?" if close and close[0] != pid else ""
+    raise SpecError(f"unknown profile {pid!r}{pin}{hint}; available: {known}")
+
+
+def _semver_key(v: str) -> tuple[Any, ...]:
+    m = re.match(r"(\d+)\.(\d+)\.(\d+)(.*)", v)
+    if not m:
+        return (0, 0, 0, v)
+    return (int(m[1]), int(m[2]), int(m[3]), m[4] == "", m[4])
+
+
+# --- loading --------------------------------------------------------------------------------
+
+_RESOLVED: dict[str, tuple[ResolvedProfile, list[tuple[str, str]]]] = {}
+_LAST_SHA: dict[str, str] = {}  # file -> SHA-256 of the content last parsed
+
 
 def load_profile(ref: str | Path, *, check_measures: bool = True) -> ResolvedProfile:
     """Load a profile by id or path, resolve ``extends``, validate, and checksum it."""
     path = find_profile(ref)
-    problems: list[Problem] = []
-    resolved = _resolve(path, problems, depth=0, seen=())
-    if resolved is not None and not problems:
-        problems.extend(semantic_problems(resolved, check_measures=check_measures))
+    resolved, problems = _load(path, check_measures=check_measures)
     if problems:
         raise SpecError(_format(problems))
     assert resolved is not None
@@ -220,14 +445,47 @@ def load_profile(ref: str | Path, *, check_measures: bool = True) -> ResolvedPro
 
 def validate_file(path: str | Path, *, check_measures: bool = True) -> list[Problem]:
     """Every problem of a profile file (and what it extends), without raising."""
-    problems: list[Problem] = []
     try:
-        resolved = _resolve(find_profile(path), problems, depth=0, seen=())
+        p = find_profile(path)
     except SpecError as exc:
-        return [*problems, Problem(str(path), None, None, str(exc))]
+        return [Problem(str(path), None, None, str(exc))]
+    return _load(p, check_measures=check_measures)[1]
+
+
+def _load(path: Path, *, check_measures: bool) -> tuple[ResolvedProfile | None, list[Problem]]:
+    """Memo (this process) > disk cache (hash-checked) > parse, resolve and validate."""
+    from . import cache
+
+    try:
+        entry_sha = file_sha256(path)
+    except YamlError as exc:
+        return None, [_yaml_problem(path, exc)]
+    k = cache.key(path, entry_sha)
+    for mk in (k, k + ":nomeasures") if not check_measures else (k,):
+        hit = _RESOLVED.get(mk)
+        if hit is not None and cache.chain_current(hit[1]):
+            return hit[0], []
+    got = cache.get(k)
+    if got is not None:
+        _RESOLVED[k] = got
+        return got[0], []
+    problems: list[Problem] = []
+    resolved = _resolve(path, problems, depth=0, seen=())
     if resolved is not None and not problems:
         problems.extend(semantic_problems(resolved, check_measures=check_measures))
-    return problems
+    if problems or resolved is None:
+        return None, problems
+    shas = [(f, _LAST_SHA.get(f, "")) for _, _, f in resolved.chain]
+    if shas[0][1] != entry_sha:  # the file changed while we read it: do not cache
+        return resolved, []
+    if len(_RESOLVED) > 32:
+        _RESOLVED.clear()
+    if check_measures:
+        _RESOLVED[k] = (resolved, shas)
+        cache.put(k, resolved, shas)
+    else:
+        _RESOLVED[k + ":nomeasures"] = (resolved, shas)
+    return resolved, []
 
 
 def _format(problems: list[Problem]) -> str:
@@ -241,9 +499,9 @@ def _format(problems: list[Problem]) -> str:
 def _resolve(path: Path, problems: list[Problem], *, depth: int,
              seen: tuple[str, ...]) -> ResolvedProfile | None:
     try:
-        doc = load_file(path)
+        doc, _ = _load_doc(path)
     except YamlError as exc:
-        problems.append(Problem(str(path), None, None, str(exc).split(": ", 1)[-1]))
+        problems.append(_yaml_problem(path, exc))
         return None
     prof, probs = parse_profile(doc)
     problems.extend(probs)
@@ -260,12 +518,17 @@ def _resolve(path: Path, problems: list[Problem], *, depth: int,
             problems.append(Problem(doc.file, *doc.where(("extends",)), "extends chain too deep"))
             return None
         try:
-            parent_path = find_profile(prof.extends.id, near=path.parent, version=prof.extends.version)
+            parent_path = find_by_id(prof.extends.id, near=path.parent, version=prof.extends.version)
         except SpecError as exc:
             problems.append(Problem(doc.file, *doc.where(("extends",)), str(exc)))
             return None
         base = _resolve(parent_path, problems, depth=depth + 1, seen=(*seen, key))
         if base is None:
+            return None
+        if (base.id, base.version) != (prof.extends.id, prof.extends.version):
+            problems.append(Problem(doc.file, *doc.where(("extends",)),
+                                    f"extends {prof.extends.id} {prof.extends.version}, but {parent_path} "
+                                    f"is {base.id} {base.version}"))
             return None
     return _merge(prof, base, path, doc, problems)
 
@@ -281,52 +544,95 @@ def _check_unique_ids(prof: Profile, doc: Located, problems: list[Problem]) -> N
             seen[r.id] = i
 
 
+def _effective(p: Parameter) -> Any:
+    return p.value if p.value is not None else p.default
+
+
+def _same_value(a: Any, b: Any) -> bool:
+    if isinstance(a, bool) or isinstance(b, bool):
+        return a is b
+    if isinstance(a, int | float) and isinstance(b, int | float):
+        return float(a) == float(b)
+    return a == b
+
+
 def _merge(prof: Profile, base: ResolvedProfile | None, path: Path, doc: Located,
            problems: list[Problem]) -> ResolvedProfile | None:
+    sites = _Sites(top=doc)
+    if base is not None and base.sites is not None:
+        sites.rules = {k: list(v) for k, v in base.sites.rules.items()}
+        sites.params = {k: list(v) for k, v in base.sites.params.items()}
     params = dict(base.parameters) if base else {}
+    sites.inherited_params = set(params)
     for name, p in prof.parameters.items():
-        if name not in params and p.unit is None:
-            line, col = doc.where(("parameters", name))
-            problems.append(Problem(doc.file, line, col, f"parameter {name}: a new parameter needs a unit"))
+        sites.params.setdefault(name, []).append(doc)
+        if name not in params:
+            if p.unit is None:
+                line, col = doc.where(("parameters", name))
+                problems.append(Problem(doc.file, line, col, f"parameter {name}: a new parameter needs a unit"
+                                        + _did_you_mean(name, sites.inherited_params, "inherited")))
+                continue
+            params[name] = p.model_copy(update={"set_by": p.authority()})
+            sites.own_params.add(name)
             continue
-        if name in params:
-            merged = params[name].model_dump()
-            merged.update(p.model_dump(exclude_unset=True))
-            params[name] = Parameter.model_validate(merged)
-        else:
-            params[name] = p
+        old = params[name]
+        given = p.model_dump(exclude_unset=True)
+        if "set_by" in given and given["set_by"] != old.authority():
+            line, col = doc.where(("parameters", name, "set_by"))
+            problems.append(Problem(doc.file, line, col, f"parameter {name}: set_by is {old.authority()!r} where "
+                                    "the parameter is defined; an extending profile cannot change it"))
+            continue
+        merged = old.model_dump()
+        merged.update(given)
+        merged["set_by"] = old.authority()
+        if "justification" not in given:
+            merged["justification"] = None
+        new = Parameter.model_validate(merged)
+        if (old.authority() == "standard" and base is not None
+                and not _same_value(_effective(new), _effective(old)) and not p.justification):
+            key = "value" if "value" in given else ("default" if "default" in given else None)
+            line, col = doc.where(("parameters", name, *((key,) if key else ())))
+            problems.append(Problem(
+                doc.file, line, col,
+                f"parameter {name}: {_effective(old)!r} is the standard's value ({base.id} {base.version}); "
+                f"a tender profile that changes it to {_effective(new)!r} must say why: add "
+                f"`justification: \"ITT §...: ...\"` to the parameter (the report annex prints it)"))
+        params[name] = new
     tables = {**(base.tables if base else {}), **prof.tables}
     classes = {**(base.classes if base else {}), **prof.classes}
-    rules: dict[str, Rule] = {r.id: r for r in base.rules} if base else {}
-    order = list(rules)
+    rules: dict[str, Rule] = dict((r.id, r) for r in base.rules) if base else {}
     for i, rid in enumerate(prof.remove_rules):
         if rid not in rules:
             line, col = doc.where(("remove_rules", i))
-            problems.append(Problem(doc.file, line, col, f"remove_rules: no inherited rule {rid!r}"))
+            problems.append(Problem(doc.file, line, col, f"remove_rules: no inherited rule {rid!r}"
+                                    + _did_you_mean(rid, rules, "inherited")))
             continue
         del rules[rid]
-        order.remove(rid)
+        sites.rules.pop(rid, None)
     for i, r in enumerate(prof.rules):
         if isinstance(r, RuleOverride):
             if r.id not in rules:
                 line, col = doc.where(("rules", i))
-                problems.append(Problem(doc.file, line, col, f"override of unknown rule {r.id!r}", r.id))
+                problems.append(Problem(doc.file, line, col, f"override of unknown rule {r.id!r}"
+                                        + _did_you_mean(r.id, rules, "inherited"), r.id))
                 continue
-            merged = rules[r.id].model_dump()
-            merged.update({k: v for k, v in r.model_dump(exclude_unset=True).items() if k != "override"})
+            merged_r = rules[r.id].model_dump()
+            merged_r.update({k: v for k, v in r.model_dump(exclude_unset=True).items() if k != "override"})
             try:
-                rules[r.id] = Rule.model_validate(merged)
+                rules[r.id] = Rule.model_validate(merged_r)
             except ValidationError as exc:
                 line, col = doc.where(("rules", i))
                 problems.append(Problem(doc.file, line, col, f"override invalid: {exc.errors()[0]['msg']}", r.id))
+                continue
+            sites.rules.setdefault(r.id, []).append((doc, i))
         else:
-            if r.id not in rules:
-                order.append(r.id)
             rules[r.id] = r
+            sites.rules[r.id] = [(doc, i)]
     if problems:
         return None
-    final_rules = tuple(rules[rid] for rid in order if rid in rules)
+    final_rules = tuple(rules.values())
     chain = ((prof.id, prof.version, str(path)), *(base.chain if base else ()))
+    waivers = (*(base.waivers if base else ()), *prof.waivers)
     canonical = {
         "id": prof.id,
         "version": prof.version,
@@ -339,116 +645,298 @@ def _merge(prof: Profile, base: ResolvedProfile | None, path: Path, doc: Located
         "classes": {k: (v.model_dump(mode="json") if hasattr(v, "model_dump") else v)
                     for k, v in sorted(classes.items())},
         "rules": [r.model_dump(mode="json", exclude={"override"}) for r in final_rules],
-        "waivers": [w.model_dump(mode="json") for w in (*(base.waivers if base else ()), *prof.waivers)],
+        "waivers": [w.model_dump(mode="json") for w in waivers],
     }
-    sha = hashlib.sha256(canonical_dumps(canonical).encode("utf-8")).hexdigest()
+    if prof.allow_no_mandatory:
+        canonical["allow_no_mandatory"] = True
+    try:
+        sha = hashlib.sha256(canonical_dumps(canonical).encode("utf-8")).hexdigest()
+    except ValueError:  # nan or inf somewhere: say where (only on this failure path)
+        for where in _nonfinite(doc.data, ()):
+            line, col = doc.where(where)
+            problems.append(Problem(doc.file, line, col, f"{'/'.join(map(str, where))}: not a finite number "
+                                    "(write a number such as 1.0)", _rule_at(doc, where)))
+        if not problems:
+            problems.append(Problem(doc.file, None, None, "the profile holds a value that is not a finite number"))
+        return None
     return ResolvedProfile(
         id=prof.id, version=prof.version, title=prof.title, description=prof.description,
         source=prof.source, parameters=params, tables=tables, classes=classes, rules=final_rules,
-        tests=tuple(prof.tests), waivers=(*(base.waivers if base else ()), *prof.waivers), path=path, chain=chain, canonical=canonical, sha256=sha,
+        tests=tuple(prof.tests), waivers=waivers, path=path, chain=chain, canonical=canonical,
+        sha256=sha, allow_no_mandatory=prof.allow_no_mandatory, sites=sites,
     )
 
 
+def _nonfinite(obj: Any, path: tuple[Any, ...]) -> list[tuple[Any, ...]]:
+    if isinstance(obj, float) and (obj != obj or obj in (float("inf"), float("-inf"))):
+        return [path]
+    if isinstance(obj, dict):
+        return [w for k, v in obj.items() for w in _nonfinite(v, (*path, k))]
+    if isinstance(obj, list):
+        return [w for i, v in enumerate(obj) for w in _nonfinite(v, (*path, i))]
+    return []
+
+
+def _did_you_mean(name: str, candidates: Any, what: str = "") -> str:
+    near = difflib.get_close_matches(name, list(candidates), n=1, cutoff=0.6)
+    if not near:
+        return ""
+    return f"; did you mean {near[0]!r}" + (f" ({what})" if what else "") + "?"
+
+
+# --- semantic checks ---------------------------------------------------------------------------
+
+@lru_cache(maxsize=1)
+def manifest_paths() -> tuple[frozenset[str], tuple[str, ...]]:
+    """Paths the delivery manifest model defines, and prefixes under which any key is allowed.
+
+    Derived by walking ``delivery.manifest.Manifest`` (dict-typed fields such as
+    ``tender.parameters`` or ``documents`` accept any sub-key), so a rule's ``when`` can only read
+    facts a delivery can state in the published schema.
+    """
+    from ..delivery.manifest import Manifest
+
+    exact: set[str] = set()
+    open_: list[str] = []
+
+    def walk(model: type[BaseModel], prefix: str, depth: int) -> None:
+        for name, f in model.model_fields.items():
+            path = f"{prefix}{name}"
+            exact.add(path)
+            t = _unwrap(f.annotation)
+            if isinstance(t, type) and issubclass(t, BaseModel) and depth < 6:
+                walk(t, path + ".", depth + 1)
+            elif get_origin(t) is dict or t is dict:
+                open_.append(path + ".")
+
+    walk(Manifest, "", 0)
+    return frozenset(exact), tuple(sorted(open_))
+
+
+def manifest_path_problem(name: str) -> str | None:
+    """Why ``manifest.<path>`` is not a path the delivery schema defines (None when it is)."""
+    path = name[len("manifest."):]
+    exact, open_ = manifest_paths()
+    if path in exact or any(path.startswith(p) and len(path) > len(p) for p in open_):
+        return None
+    cands = sorted(exact | {p + "<key>" for p in open_})
+    near = difflib.get_close_matches(path, cands, n=1, cutoff=0.6)
+    hint = f"; did you mean 'manifest.{near[0]}'?" if near else ""
+    return (f"{name!r} is not a key the delivery manifest defines (specs/schema/delivery.schema.json): "
+            f"a rule may read only what a delivery can state in its schema{hint}")
+
+
+def _parse(text: str) -> expr.Expression:
+    return expr.parse(text)
+
+
 def semantic_problems(p: ResolvedProfile, *, check_measures: bool = True) -> list[Problem]:
-    """Units parse, expressions are in the grammar and name known things, measures exist."""
-    from ..engine.registry import measure_info  # late: the engine imports spec
+    """Units, threshold numbers, expressions, manifest paths, measures, parameters: linear in rules."""
+    from ..units import NON_NUMERIC, Q_, canonical, number_problem, parse_unit, units_meet, ureg
+    from .catalog import measure_info
 
     out: list[Problem] = []
-    docs = {str(c[2]): None for c in p.chain}
-    locs = _rule_locations(p)
+    sites = p.sites or _Sites()
 
     def add(rule: Rule | None, key: tuple[Any, ...], msg: str) -> None:
-        file, line, col = locs.get((rule.id if rule else None, key[:1]), (str(p.path), None, None))
-        out.append(Problem(file, line, col, msg, rule.id if rule else None))
+        if rule is None:
+            out.append(Problem(str(p.path), None, None, msg))
+            return
+        file, line, col = sites.rule_where(rule.id, key)
+        out.append(Problem(file, line, col, msg, rule.id))
 
+    def add_param(name: str, key: str | None, msg: str) -> None:
+        file, line, col = sites.param_where(name, key)
+        out.append(Problem(file, line, col, msg))
+
+    numeric_units: dict[str, str] = {}
     for name, par in p.parameters.items():
-        if par.unit is not None and par.unit not in NON_NUMERIC:
-            try:
-                parse_unit(par.unit)
-            except UnitError as exc:
-                out.append(Problem(str(p.path), None, None, f"parameter {name}: {exc}"))
+        unit = par.unit
+        if unit is None or unit in NON_NUMERIC:
+            continue
+        try:
+            parse_unit(unit)
+        except UnitError as exc:
+            add_param(name, "unit", f"parameter {name}: {exc}")
+            continue
+        numeric_units[name] = unit
+        for key in ("value", "default"):
+            v = getattr(par, key)
+            if v is not None:
+                why = number_problem(v)
+                if why:
+                    add_param(name, key, f"parameter {name}: {key}: {why}")
+        for i, c in enumerate(par.choices or []):
+            why = number_problem(c)
+            if why:
+                add_param(name, "choices", f"parameter {name}: choices[{i}]: {why}")
     for cname, cset in p.classes.items():
         try:
             parse_unit(cset.unit)
         except UnitError as exc:
             out.append(Problem(str(p.path), None, None, f"class set {cname}: {exc}"))
+    known = set(p.parameters) | {f"class.{c}" for c in p.classes}
+    read_params: set[str] = set()
+    manifest_checked: dict[str, str | None] = {}
+    unit_ok: dict[tuple[str, str], str | None] = {}
+    mandatory = 0
+
+    def check_manifest_names(rule: Rule, key: tuple[str, ...], names: Any) -> None:
+        for n in names:
+            if n.startswith("manifest."):
+                if n not in manifest_checked:
+                    manifest_checked[n] = manifest_path_problem(n)
+                if manifest_checked[n]:
+                    add(rule, key, str(manifest_checked[n]))
+
     for r in p.rules:
+        if r.level == "mandatory":
+            mandatory += 1
         info = None
         if r.manual or r.measure.startswith("manual."):
             if not r.measure.startswith("manual."):
                 add(r, ("measure",), f"a manual rule reads measure 'manual.{r.id}', not {r.measure!r}")
+        elif r.measure.startswith("manifest."):
+            check_manifest_names(r, ("measure",), (r.measure,))
         elif check_measures:
             info = measure_info(r.measure)
             if info is None:
                 add(r, ("measure",), f"unknown measure {r.measure!r}{_near_measure(r.measure)} "
                     "(see `orthospec measures`)")
-            elif info[0] != r.scope and not r.measure.startswith("manifest."):
+            elif info[0] != r.scope:
                 add(r, ("scope",), f"measure {r.measure!r} is at scope {info[0]!r}, rule says {r.scope!r}")
         req = r.requirement
-        if req.unit is not None and req.unit not in NON_NUMERIC:
+        req_numeric = req.unit is not None and req.unit not in NON_NUMERIC and req.unit != "any"
+        if req_numeric:
             try:
                 parse_unit(req.unit)
             except UnitError as exc:
                 add(r, ("requirement",), str(exc))
+                req_numeric = False
         if req.op == "between" and (req.min is None and req.max is None):
             add(r, ("requirement",), "op 'between' needs min and/or max")
         if req.op == "in" and not req.values:
             add(r, ("requirement",), "op 'in' needs values")
         if req.op in ("<", "<=", ">", ">=", "==", "!=") and req.value is None:
             add(r, ("requirement",), f"op {req.op!r} needs a value")
-        known = set(p.parameters) | {f"class.{c}" for c in p.classes}
-        for text in (r.when, *(v for v in (req.value, req.min, req.max) if isinstance(v, str))):
-            if not isinstance(text, str) or (text is not r.when and req.op in ("==", "!=", "in")
-                                             and not _looks_like_expr(text, known)):
+        if r.when:
+            try:
+                e = _parse(r.when)
+            except ExpressionError as exc:
+                add(r, ("when",), str(exc))
+            else:
+                _check_names(r, ("when",), e, known, check_measures, measure_info, add)
+                check_manifest_names(r, ("when",), e.names)
+                read_params |= _params_in(e.names, p.parameters)
+        numeric_threshold = req_numeric or req.op in _ORDER_OPS
+        for key in ("value", "min", "max"):
+            v = getattr(req, key)
+            if v is None:
+                continue
+            if not isinstance(v, str):
+                if numeric_threshold:
+                    why = number_problem(v)
+                    if why:
+                        add(r, ("requirement", key), f"requirement {key}: {why}")
+                continue
+            if numeric_threshold:
+                why = number_problem(v)
+                if why and "is not a number" not in why:
+                    add(r, ("requirement", key), f"requirement {key}: {why}")
+                    continue
+            elif req.op in ("==", "!=", "in") and not _looks_like_expr(v, known):
                 continue
             try:
-                e = expr.parse(text)
+                e = _parse(v)
             except ExpressionError as exc:
-                add(r, ("when",) if text is r.when else ("requirement",), str(exc))
+                hint = " (a threshold is a number such as 1.0, or an expression over parameters)" \
+                    if numeric_threshold else ""
+                add(r, ("requirement", key), f"{exc}{hint}")
                 continue
-            for n in e.names:
-                if n in known or n.startswith("manifest.") or n.startswith("param."):
-                    continue
-                if not check_measures or measure_info(n) is not None:
-                    continue
-                add(r, ("when",) if text is r.when else ("requirement",),
-                    f"expression {text!r} names {n!r}, which is neither a parameter nor a measure")
-    del docs
+            _check_names(r, ("requirement", key), e, known, check_measures, measure_info, add)
+            check_manifest_names(r, ("requirement", key), e.names)
+            used = _params_in(e.names, p.parameters)
+            read_params |= used
+            if req_numeric and used:
+                _check_dimensions(r, key, v, e, used, numeric_units, req.unit, unit_ok, out, sites,
+                                  Q_, ureg, units_meet, canonical)
+    # a parameter an extending profile adds but no rule reads is almost always a misspelling
+    for name in sorted(sites.own_params - read_params):
+        if not sites.inherited_params:
+            break
+        near = difflib.get_close_matches(name, sorted(sites.inherited_params), n=1, cutoff=0.6)
+        hint = (f"; did you mean {near[0]!r} (inherited)? As written, the inherited {near[0]} keeps its "
+                "value") if near else ""
+        add_param(name, None, f"parameter {name} is defined here but no rule reads it{hint}")
+    if mandatory == 0 and not p.allow_no_mandatory:
+        top = sites.top
+        out.append(Problem(top.file if top else str(p.path), 1 if top else None, 1 if top else None,
+                           f"profile {p.id} has no mandatory rule, so it would accept every delivery; "
+                           "add one, or say so explicitly with `allow_no_mandatory: true`"))
     return out
 
 
+def _params_in(names: Any, params: dict[str, Any]) -> set[str]:
+    out = set()
+    for n in names:
+        n2 = n[6:] if n.startswith("param.") else n
+        if n2 in params:
+            out.add(n2)
+    return out
+
+
+def _check_names(rule: Rule, key: tuple[str, ...], e: expr.Expression, known: set[str], check_measures: bool,
+                 measure_info: Any, add: Any) -> None:
+    for n in e.names:
+        if n in known or n.startswith("manifest.") or n.startswith("param."):
+            continue
+        if not check_measures or measure_info(n) is not None:
+            continue
+        add(rule, key, f"expression {e.source!r} names {n!r}, which is neither a parameter nor a measure"
+            + _did_you_mean(n, known, "parameter"))
+
+
+def _check_dimensions(r: Rule, key: str, text: str, e: expr.Expression, used: set[str],
+                      numeric_units: dict[str, str], req_unit: str, memo: dict[tuple[str, str], str | None],
+                      out: list[Problem], sites: _Sites, Q_: Any, ureg: Any, units_meet: Any,
+                      canonical: Any) -> None:
+    """The unit an expression over parameters yields must meet the requirement's unit."""
+    if any(not (n in numeric_units or (n.startswith("param.") and n[6:] in numeric_units)) for n in e.names):
+        return  # reads measures, manifest facts or text parameters: checked when evaluated
+    sig = (text, req_unit + "|" + ",".join(f"{n}={numeric_units[n]}" for n in sorted(used)))
+    if sig not in memo:
+        env = {n: Q_(1.0, numeric_units[n[6:] if n.startswith("param.") else n]) for n in e.names}
+        why: str | None = None
+        try:
+            got = e.evaluate(env)
+            units = getattr(got, "units", None)
+            if units is not None and units != ureg.dimensionless and not units_meet(str(units), req_unit):
+                why = (f"requirement {key} {text!r} is in {canonical(str(units))!r} (from parameter units "
+                       + ", ".join(f"{n}: {canonical(numeric_units[n])}" for n in sorted(used))
+                       + f"), which cannot be compared with the rule's unit {canonical(req_unit)!r}")
+        except (ExpressionError, UnitError, ValueError, TypeError) as exc:
+            why = f"requirement {key} {text!r}: {exc}"
+        except Exception as exc:  # pint DimensionalityError and friends
+            why = f"requirement {key} {text!r}: units do not combine ({exc})"
+        memo[sig] = why
+    if memo[sig]:
+        name = sorted(used)[0]
+        file, line, col = sites.param_where(name, "unit")
+        rfile, rline, _ = sites.rule_where(r.id, ("requirement",))
+        out.append(Problem(file, line, col, f"parameter {name}: {memo[sig]} (rule {r.id} at "
+                           f"{rfile}:{rline})"))
+
+
 def _near_measure(name: str) -> str:
-    import difflib
+    from .catalog import all_names
 
-    from ..delivery.convention import table_specs
-    from ..engine.registry import ROLLUP, known_measures
-
-    names = [*known_measures(), *ROLLUP]
-    for t, spec in table_specs().items():
-        names += [f"{t}.{c}" for c in spec.columns] + [f"{t}.present", f"{t}.count"]
-    near = difflib.get_close_matches(name, names, n=1, cutoff=0.8)
+    near = difflib.get_close_matches(name, all_names(), n=1, cutoff=0.8)
     return f"; did you mean {near[0]!r}?" if near else ""
 
 
 def _looks_like_expr(text: str, known: set[str]) -> bool:
     try:
-        e = expr.parse(text)
+        e = _parse(text)
     except ExpressionError:
         return False
     return bool(e.names & known)
-
-
-def _rule_locations(p: ResolvedProfile) -> dict[tuple[Any, ...], tuple[str, int | None, int | None]]:
-    out: dict[tuple[Any, ...], tuple[str, int | None, int | None]] = {}
-    for _, _, file in reversed(p.chain):
-        try:
-            doc = load_file(file)
-        except YamlError:
-            continue
-        for i, r in enumerate((doc.data or {}).get("rules", []) or []):
-            if not isinstance(r, dict):
-                continue
-            for key in ("measure", "scope", "requirement", "when", "id"):
-                line, col = doc.where(("rules", i, key))
-                out[(r.get("id"), (key,))] = (file, line, col)
-    return out

@@ -78,16 +78,43 @@ class Source(_Strict):
         return None if v is None else str(v)
 
 
+SetBy = Literal["standard", "itt"]
+
+
 class Parameter(_Strict):
-    """A value the tender fixes (tolerance, pixel size...), with its unit."""
+    """A value a rule compares against (tolerance, pixel size...), with its unit and its authority.
+
+    Who may set it matters as much as the number: the standard's own constants change only in a
+    tender profile (with a justification), never through the contractor's delivery manifest.
+    """
 
     unit: str | None = Field(None, description="m, mm, µm, ft, usft, px, %, deg, DN, 1, or text/bool/date "
                                                "(required for a new parameter; optional when overriding).")
-    default: Scalar | None = Field(None, description="Value from the standard, when it gives one.")
+    default: Scalar | None = Field(None, description="Value from the standard, when it gives one. A number "
+                                   "for a numeric unit (write 1.0, not '1.0' or 1,0).")
     value: Scalar | None = Field(None, description="Value fixed by a tender profile (wins over defaults).")
     required: bool = False
     description: str = ""
     choices: list[Scalar] | None = None
+    set_by: SetBy | None = Field(
+        None,
+        description="Who fixes the value. 'standard': a constant of the published standard; only a "
+                    "tender profile that extends it may change it, with a `justification`, and the "
+                    "delivery manifest never does. 'itt': left to the invitation to tender; a tender "
+                    "profile or --param sets it, and failing both the value the contractor's manifest "
+                    "declares under tender.parameters is used with a visible warning. When omitted: "
+                    "'standard' if the parameter has a default, else 'itt'. Fixed by the profile that "
+                    "defines the parameter (an extending profile cannot change it).")
+    justification: str | None = Field(
+        None, min_length=1,
+        description="Why an extending (tender) profile changes the value of an inherited 'standard' "
+                    "parameter; required then, and printed in the report annex.")
+
+    def authority(self) -> str:
+        """``set_by`` as written, else the documented default rule."""
+        if self.set_by is not None:
+            return self.set_by
+        return "standard" if self.default is not None else "itt"
 
 
 class Requirement(_Strict):
@@ -233,6 +260,10 @@ class Profile(_Strict):
     remove_rules: list[str] = Field(default_factory=list)
     waivers: list[ProfileWaiver] = Field(default_factory=list)
     tests: list[ProfileTest] = Field(default_factory=list)
+    allow_no_mandatory: bool = Field(
+        False,
+        description="A resolved profile with no mandatory rule accepts every delivery; it is refused "
+                    "unless this says so explicitly (e.g. an informative profile of recommendations).")
 
     @field_validator("parameters")
     @classmethod

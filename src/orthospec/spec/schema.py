@@ -1,6 +1,7 @@
 """Generate the published JSON Schemas (profile, delivery manifest, QCR) from the models.
 
-`python -m orthospec.spec.schema` rewrites specs/schema/*.json; a test fails when they are stale.
+`python -m orthospec.spec.schema` rewrites specs/schema/*.json (and the measure catalog
+measures.json, see spec/catalog.py); a test fails when they are stale.
 """
 
 from __future__ import annotations
@@ -54,6 +55,9 @@ def write(folder: Path) -> list[Path]:
         p = folder / name
         p.write_text(dumps(schema), encoding="utf-8")
         out.append(p)
+    from .catalog import write as write_catalog
+
+    out.append(write_catalog(folder))
     return out
 
 

@@ -1,0 +1,155 @@
+"""On-disk cache of resolved, validated profiles (JSON, never pickle).
+
+Where: ``$ORTHOSPEC_CACHE_DIR/profiles``, else ``$XDG_CACHE_HOME/orthospec/profiles``, else
+``~/.cache/orthospec/profiles``; ``ORTHOSPEC_CACHE_DIR=off`` disables it. Safe to delete at any time.
+
+Trust: an entry is used only when the SHA-256 of every file of its ``extends`` chain, as it is on
+disk now, equals the hash recorded when the entry was written, when it was written by the same
+orthospec code (version plus a fingerprint of the sources that decide validity), and when the
+canonical profile it holds still hashes to its recorded ``sha256``. Anything else is a miss and
+the profile is loaded and validated afresh. Entries are written atomically (temporary file +
+rename), so a crash never leaves a half entry that could be read.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import tempfile
+from functools import lru_cache
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from .loader import ResolvedProfile
+
+FORMAT = 1
+_PKG = Path(__file__).resolve().parent.parent
+
+
+def cache_dir() -> Path | None:
+    """The profile cache folder, or None when caching is off."""
+    env = os.environ.get("ORTHOSPEC_CACHE_DIR")
+    if env is not None and env.strip().lower() in ("off", "none", "0", "no", ""):
+        return None
+    if env:
+        return Path(env).expanduser() / "profiles"
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base).expanduser() / "orthospec" / "profiles"
+
+
+@lru_cache(maxsize=1)
+def code_fingerprint() -> str:
+    """orthospec version + the sources that decide whether a profile is valid."""
+    from .. import __version__
+    from .catalog import fingerprint as measures_fingerprint
+
+    h = hashlib.sha256(f"{FORMAT}|{__version__}|{measures_fingerprint()}".encode())
+    files = [*sorted((_PKG / "spec").glob("*.py")), _PKG / "units.py", _PKG / "delivery" / "manifest.py"]
+    for p in files:
+        h.update(p.name.encode() + b"\0")
+        try:
+            h.update(hashlib.sha256(p.read_bytes()).digest())
+        except OSError:
+            h.update(b"(absent)")
+    return h.hexdigest()
+
+
+def key(path: Path, sha256: str) -> str:
+    """Cache key of a profile file: its path (as given, and from where), content hash and the code.
+
+    The path as given is part of the key because the resolved profile records it (and the chain's
+    file names) for display; the working folder too when the path is relative.
+    """
+    where = "" if path.is_absolute() else os.getcwd()
+    text = f"{code_fingerprint()}|{where}|{path}|{path.resolve()}|{sha256}"
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+def _sha(path: str) -> str | None:
+    try:
+        return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    except OSError:
+        return None
+
+
+def chain_current(chain_shas: list[tuple[str, str]] | tuple[tuple[str, str], ...]) -> bool:
+    """Whether every file of a recorded chain still has the recorded content."""
+    return bool(chain_shas) and all(_sha(f) == sha for f, sha in chain_shas)
+
+
+def get(k: str) -> tuple[ResolvedProfile, list[tuple[str, str]]] | None:
+    """The cached profile for key ``k`` and its chain hashes, or None (miss, stale or unreadable)."""
+    d = cache_dir()
+    if d is None:
+        return None
+    f = d / f"{k}.json"
+    try:
+        doc = json.loads(f.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    try:
+        if doc.get("format") != FORMAT or doc.get("key") != k:
+            return None
+        chain_shas = [(str(a), str(b)) for a, b in doc["files"]]
+        if not chain_current(chain_shas):
+            return None
+        prof = _rebuild(doc["profile"])
+    except Exception:  # a damaged entry is a miss, never an error
+        return None
+    return prof, chain_shas
+
+
+def put(k: str, prof: ResolvedProfile, chain_shas: list[tuple[str, str]]) -> None:
+    """Write an entry atomically; a cache that cannot be written is silently skipped."""
+    d = cache_dir()
+    if d is None:
+        return
+    doc = {"format": FORMAT, "key": k, "files": [list(t) for t in chain_shas], "profile": _dump(prof)}
+    try:
+        d.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=".json", dir=d)
+        try:
+            with os.fdopen(fd, "w", encoding="utf-8") as fh:
+                json.dump(doc, fh, ensure_ascii=False, separators=(",", ":"), allow_nan=False)
+            os.replace(tmp, d / f"{k}.json")
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
+    except (OSError, ValueError, TypeError):
+        return
+
+
+def _dump(p: ResolvedProfile) -> dict[str, Any]:
+    return {
+        "canonical": p.canonical,
+        "sha256": p.sha256,
+        "description": p.description,
+        "tests": [t.model_dump(mode="json") for t in p.tests],
+        "path": str(p.path),
+        "chain": [list(c) for c in p.chain],
+        "allow_no_mandatory": p.allow_no_mandatory,
+    }
+
+
+def _rebuild(d: dict[str, Any]) -> ResolvedProfile:
+    from .loader import ResolvedProfile, canonical_dumps
+    from .models import ClassSet, LookupTable, Parameter, ProfileTest, ProfileWaiver, Rule, Source
+
+    c = d["canonical"]
+    sha = hashlib.sha256(canonical_dumps(c).encode("utf-8")).hexdigest()
+    if sha != d["sha256"]:
+        raise ValueError("cache entry does not hash to its recorded sha256")
+    return ResolvedProfile(
+        id=c["id"], version=c["version"], title=c["title"], description=d.get("description"),
+        source=Source.model_validate(c["source"]),
+        parameters={k: Parameter.model_validate(v) for k, v in c["parameters"].items()},
+        tables={k: LookupTable.model_validate(v) for k, v in c["tables"].items()},
+        classes={k: ClassSet.model_validate(v) for k, v in c["classes"].items()},
+        rules=tuple(Rule.model_validate(r) for r in c["rules"]),
+        tests=tuple(ProfileTest.model_validate(t) for t in d.get("tests", [])),
+        waivers=tuple(ProfileWaiver.model_validate(w) for w in c["waivers"]),
+        path=Path(d["path"]), chain=tuple((a, b, f) for a, b, f in d["chain"]),
+        canonical=c, sha256=sha, allow_no_mandatory=bool(d.get("allow_no_mandatory")),
+    )
