@@ -62,8 +62,8 @@ COMMANDS: dict[str, dict[str, tuple[str, str]]] = {
         "runs": ("cmd_ledger", "List recorded runs (oldest first)."),
         "state": ("cmd_ledger", "Normal/Tightened audit state per QCR family of PROJECT (JRC §2.3) "
                                 "and the next sample share."),
-        "verify": ("cmd_ledger", "Check the hash chain: exit 0 when intact, 1 listing every edited "
-                                 "or deleted row."),
+        "verify": ("cmd_ledger", "Check the hash chain: exit 0 when intact, 1 (TAMPERED) listing "
+                                 "every edited or deleted row."),
     },
 }
 
