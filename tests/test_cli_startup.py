@@ -63,13 +63,14 @@ def test_lazy_table_matches_what_the_modules_register() -> None:
     for gname, group in lazy_groups.items():
         assert isinstance(group, groups.LazyGroup) and group.table == gname
         registered = _registered(group)
-        assert set(registered) == set(groups.COMMANDS[gname]), gname
+        fix = "update the static table orthospec.cli.groups.COMMANDS"
+        assert set(registered) == set(groups.COMMANDS[gname]), f"group {gname}: {fix}"
         for name, cmd in registered.items():
             module, first = groups.COMMANDS[gname][name]
             assert cmd.callback is not None
-            assert cmd.callback.__module__ == f"orthospec.cli.{module}", (gname, name)
+            assert cmd.callback.__module__ == f"orthospec.cli.{module}", f"{gname} {name}: {fix}"
             assert click.Command(name, help=first).get_short_help_str(10**6) == \
-                cmd.get_short_help_str(10**6), (gname, name)
+                cmd.get_short_help_str(10**6), f"{gname} {name}: help changed, {fix}"
 
 
 FRESH_HELP = """
