@@ -38,7 +38,10 @@ def _read_qcr(path: Path) -> dict:
 @click.option("--run", "run_id", type=int, default=None, help="Run id in the ledger (with --ledger).")
 def report_cmd(qcr_json: Path | None, formats: str, out_dir: Path | None, ledger_target: str | None,
                run_id: int | None) -> None:
-    """Render the auditor's report (HTML, archival PDF/A-3b) from a stored QCR_JSON or a ledger run."""
+    """Render the auditor's report (HTML, archival PDF/A-3b) from a stored QCR_JSON or a ledger run.
+
+    Example: orthospec report --ledger qc.sqlite --run 2 --out reports/run-2
+    """
     from ..reports import document as reportdoc  # WeasyPrint only when this command runs
 
     fmts = split_formats(formats, REPORT_FORMATS)
@@ -74,8 +77,14 @@ def report_cmd(qcr_json: Path | None, formats: str, out_dir: Path | None, ledger
               show_default=True, help="Folder for annex-<id>-<version>.<format>.")
 @click.option("--date", "day", metavar="YYYY-MM-DD", default=None,
               help="Date printed on the annex (default today); fix it for byte-identical output.")
-def render_cmd(profile: str, formats: str, out_dir: Path, day: str | None) -> None:
-    """Render PROFILE as the technical-specification annex of an invitation to tender."""
+@click.option("--sensor", type=click.Choice(["aerial", "satellite"]), default=None,
+              help="The tender's sensor (default: read from the profile's own sensor rules); requirements "
+                   "that cannot apply to it move to an appendix.")
+def render_cmd(profile: str, formats: str, out_dir: Path, day: str | None, sensor: str | None) -> None:
+    """Render PROFILE as the technical-specification annex of an invitation to tender.
+
+    Example: orthospec spec render examples/specs/tender-example.yaml --format md,pdf --out annex/
+    """
     from ..reports.annex import render_annex
     from ..spec.loader import load_profile
 
@@ -95,7 +104,7 @@ def render_cmd(profile: str, formats: str, out_dir: Path, day: str | None) -> No
         except SpecError:
             raise exc from None
         click.echo(f"warning: rendering although the profile does not validate: {exc}", err=True)
-    files = render_annex(prof, formats=fmts, day=day)
+    files = render_annex(prof, formats=fmts, day=day, sensor=sensor)
     for name, data in files.items():
         atomic_write(out_dir / name, data)
     click.echo(f"wrote {', '.join(sorted(files))} to {out_dir}/ (profile {prof.id} {prof.version}, "

@@ -1,0 +1,36 @@
+"""The README walk-through runs as written (issue 13 item 7): the bash block, in a scratch folder."""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def walkthrough() -> str:
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    block = re.search(r"<!-- walkthrough:[^>]*-->\s*```bash\n(.*?)```", text, re.S)
+    assert block, "README has no walk-through block"
+    return block.group(1)
+
+
+def test_readme_walkthrough_runs_as_written(tmp_path: Path) -> None:
+    (tmp_path / "examples").symlink_to(ROOT / "examples")
+    env = {**os.environ, "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ.get('PATH', '')}",
+           "COLUMNS": "120"}
+    env.pop("ORTHOSPEC_LEDGER", None)
+    res = subprocess.run(["bash", "-e", "-o", "pipefail", "-c", walkthrough()], cwd=tmp_path, env=env,
+                         capture_output=True, text=True, timeout=600)
+    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
+    out = res.stdout
+    assert re.search(r"B02: Block RMSEy within the tolerance: 0\.641 m > 0\.5 m", out.replace("\n", " "))
+    assert "recorded run #1" in out and "recorded run #2" in out
+    assert "signed run #2 as supervisor (M. Rossi)" in out
+    assert re.search(r"intact, 3 entries \(2 runs, 1 sign-offs\).*contains the head", out)
+    assert (tmp_path / "qc" / "signed-2" / "report.pdf").is_file()
+    # nothing was written into the shipped deliveries
+    assert not (ROOT / "examples" / "deliveries" / "aerial-fail" / "qc").exists()
