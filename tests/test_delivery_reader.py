@@ -280,3 +280,17 @@ def test_yaml_file_size_limit(tmp_path):
     f.write_text("notes: '" + "a" * 1000 + "'\n")
     with pytest.raises(YamlError, match=r"p.yaml: 1,010 bytes exceed the limit of 100"):
         load_file(f, display="p.yaml", limits=YamlLimits(bytes=100))
+
+
+def test_cr_only_and_crlf_tables_read_like_lf(make_delivery):
+    """Old Mac (CR) and Windows (CRLF) line ends: the same rows, and the bounds count lines once."""
+    import io
+
+    from orthospec.delivery.reader import Limits, check_csv_bounds
+
+    for sep in ("\r", "\r\n"):
+        d = open_delivery(make_delivery(f"d{len(sep)}", images=IMAGES.replace("\n", sep)))
+        assert d.table("images").df["roll"].tolist() == [0.5, 2.5, 4.0]
+    wide = ("a,b\r\n1,2\r\n3," + "," * 30 + "\r\n").encode()
+    with pytest.raises(DeliveryError, match=r"row 2: \d+\+ fields"):
+        check_csv_bounds(io.BytesIO(wide), file="t.csv", limits=Limits(columns=20), chunk=4)

@@ -377,9 +377,14 @@ class Delivery:
         except UnitError as exc:
             raise DeliveryError(f"units.{name}: {exc}", file=MANIFEST,
                                 line=self.where(("units", name))) from None
+        if "\r" in text:  # CR-only or CRLF line ends: one convention for both parsers below
+            text = text.replace("\r\n", "\n").replace("\r", "\n")
         if csv.field_size_limit() < self.limits.cell_bytes:
             csv.field_size_limit(self.limits.cell_bytes)  # the bound is check_csv_bounds's, not csv's
-        df = parse_csv(text, spec, file=rel)
+        try:
+            df = parse_csv(text, spec, file=rel)
+        except csv.Error as exc:  # the csv module's own complaints (NUL bytes, stray quotes...)
+            raise DeliveryError(f"not a valid CSV table: {exc}", file=rel) from None
         for col in PATH_COLUMNS & set(df.columns):
             for r, v in zip(df["_row"].tolist(), df[col].tolist(), strict=True):
                 if v is not None:
@@ -410,16 +415,24 @@ def check_csv_bounds(fh: Any, *, file: str, limits: Limits, chunk: int = 16 * 2*
         data = fh.read(chunk)
         if not data:
             break
+        while data.endswith(b"\r"):  # keep CRLF in one chunk, so it ends one line, not two
+            more = fh.read(1)
+            if not more:
+                break
+            data += more
         arr = np.frombuffer(data, dtype=np.uint8)
         if not header_done:
-            nl = data.find(b"\n")
+            ends = [i for i in (data.find(b"\n"), data.find(b"\r")) if i >= 0]
+            nl = min(ends) if ends else -1
             head = data if nl < 0 else data[:nl]
             if nl >= 0 or len(data) < chunk:
                 header_done = True
                 if head.count(b'"') % 2:
                     raise DeliveryError("the header row has an unclosed quote or a quoted line break; "
                                         "column names are single-line text", file=file, line=1)
-        delim = np.flatnonzero((arr == 44) | (arr == 10))
+        # a line ends at LF, or at a CR not followed by LF (old Mac files); CRLF counts once
+        ends = (arr == 10) | ((arr == 13) & (np.append(arr[1:], 0) != 10))
+        delim = np.flatnonzero((arr == 44) | ends)
         if delim.size == 0:
             run += len(data)
         else:
@@ -427,11 +440,11 @@ def check_csv_bounds(fh: Any, *, file: str, limits: Limits, chunk: int = 16 * 2*
             big = np.flatnonzero(gaps > limits.cell_bytes)
             if big.size:
                 at = int(delim[big[0]])
-                _refuse_cell(file, line + int(np.count_nonzero(arr[:at] == 10)), limits)
+                _refuse_cell(file, line + int(np.count_nonzero(ends[:at])), limits)
             run = len(data) - 1 - int(delim[-1])
         if run > limits.cell_bytes:
-            _refuse_cell(file, line + data.count(b"\n"), limits)
-        is_nl = arr[delim] == 10 if delim.size else np.zeros(0, dtype=bool)
+            _refuse_cell(file, line + int(np.count_nonzero(ends)), limits)
+        is_nl = ends[delim] if delim.size else np.zeros(0, dtype=bool)
         nl_idx = np.flatnonzero(is_nl)
         if nl_idx.size:
             per_line = np.diff(nl_idx, prepend=-1) - 1
