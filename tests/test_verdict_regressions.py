@@ -511,3 +511,25 @@ def test_a_per_item_when_over_a_missing_value_is_missing_for_that_item(tmp_path:
     first, second = rows[0]["image_id"], rows[1]["image_id"]
     assert recs[first]["verdict"] == "missing" and "images.sun_elevation" in recs[first]["message"]
     assert recs[second]["verdict"] == "not_applicable"  # 43.1 deg: decided, the rule does not apply
+
+
+def test_a_mandatory_rule_with_consequence_warn_still_changes_the_verdict(tmp_path: Path) -> None:
+    """Issue 12: nine mandatory jrc-v3 rules had consequence `warn` and could never reject."""
+    d = copy_pass(tmp_path)
+    header, rows = read_table(d, "checkpoints")
+    b01 = [r for r in rows if r["block"] == "B01"][:8]
+    write_table(d, "checkpoints", header, [r for r in rows if r["block"] != "B01"] + b01)
+    prof = profile(tmp_path, """\
+        - id: R-MIN-CHECKPOINTS
+          title: at least 20 check points per block
+          clause: {document: JRC EUR 23638 EN, section: "12.4", table: 12}
+          quote: "Generally a minimum number of 20 well-distributed Check Points per site is necessary"
+          scope: block
+          measure: checkpoints.n
+          requirement: {op: ">=", value: 20, unit: "1"}
+          level: mandatory
+          consequence: warn
+        """)
+    doc = check(d, prof, date=DATE).document
+    assert records(doc, "R-MIN-CHECKPOINTS")["B01"]["verdict"] == "fail"
+    assert doc["verdict"] == "rejected" and "R-MIN-CHECKPOINTS" in reasons(doc)

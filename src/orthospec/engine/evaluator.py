@@ -954,7 +954,14 @@ class Evaluator:
             mask = self._blocking(r)
             if not mask.any():
                 continue
-            if r.rule.consequence == "return_delivery" or (
+            if r.rule.consequence == "warn" and r.rule.level == "mandatory":
+                # every mandatory rule can change the verdict: `warn` cannot make a failing
+                # mandatory requirement acceptable (issue 12); the finding returns the delivery
+                items = ", ".join(str(i) for i in r.items[mask][:5])
+                reasons.append(f"{r.rule.id} ({r.rule.clause.text()}): mandatory rule "
+                               f"{VERDICTS[int(r.verdict[mask][0])]} for {items}; its consequence 'warn' "
+                               "cannot accept a failing mandatory requirement")
+            elif r.rule.consequence == "return_delivery" or (
                     r.rule.consequence == "reject_block" and r.rule.scope in ("delivery", "project")):
                 items = ", ".join(str(i) for i in r.items[mask][:5])
                 reasons.append(f"{r.rule.id} ({r.rule.clause.text()}): {VERDICTS[int(r.verdict[mask][0])]} "
