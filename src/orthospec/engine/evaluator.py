@@ -3,7 +3,16 @@
 One vectorised comparison per rule (numpy over the scope's items), never a Python loop per item
 for the decision itself. Failures are results: a rule that crashes yields `error` records and the
 other rules still run. Roll-up (JRC §12.3, §12.7, §12.8) runs as a second phase over the item
-verdicts of the first.
+verdicts of the first, through the one implementation in :mod:`orthospec.measures.acceptance`.
+
+Nothing that was not measured passes: a value that does not convert (px without a GSD), a
+threshold that cannot be computed or names an unset parameter is ``missing``; a non-finite
+threshold is ``error``; a `when` that reads a fact the delivery does not give is ``missing``
+unless the condition is decided whatever that fact is, or the `when` tests it for null. A
+finding for a whole scope (item ``*``) returns the delivery; only a *mandatory* roll-up rule
+replaces the default "any rejected image/block returns the delivery"; a failing mandatory rule
+always changes the verdict. The engine's own rules (engine/builtin.py) record who set each
+threshold.
 """
 
 from __future__ import annotations
