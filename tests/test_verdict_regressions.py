@@ -533,3 +533,35 @@ def test_a_mandatory_rule_with_consequence_warn_still_changes_the_verdict(tmp_pa
     doc = check(d, prof, date=DATE).document
     assert records(doc, "R-MIN-CHECKPOINTS")["B01"]["verdict"] == "fail"
     assert doc["verdict"] == "rejected" and "R-MIN-CHECKPOINTS" in reasons(doc)
+
+
+def _cut_block(d: Path, block: str, keep: int) -> None:
+    header, rows = read_table(d, "checkpoints")
+    mine = [r for r in rows if r["block"] == block][:keep]
+    write_table(d, "checkpoints", header, [r for r in rows if r["block"] != block] + mine)
+
+
+def test_eight_check_points_in_a_block_reject_under_jrc_v3(tmp_path: Path) -> None:
+    """Issue 12, first observation: B01 cut to 8 check points was ACCEPTED."""
+    d = copy_pass(tmp_path)
+    _cut_block(d, "B01", 8)
+    doc = check(d, "jrc-v3", date=DATE, options={"workers": 1}).document
+    assert records(doc, "JRC-12.4-T12-MIN-CHECKPOINTS")["B01"]["verdict"] == "fail"
+    assert doc["verdict"] == "rejected" and "JRC-12.4-T12-MIN-CHECKPOINTS" in reasons(doc)
+
+
+def test_the_contractor_cannot_set_the_standards_numbers(tmp_path: Path) -> None:
+    """Issue 12: `min_checkpoints: 5` and `fail_share_max: 50 %` in the manifest were used."""
+    d = copy_pass(tmp_path)
+    _cut_block(d, "B01", 8)
+    m = manifest(d)
+    m["tender"]["parameters"]["min_checkpoints"] = 5
+    m["tender"]["parameters"]["fail_share_max"] = {"value": 50, "unit": "%"}
+    write_manifest(d, m)
+    doc = check(d, "jrc-v3", date=DATE, options={"workers": 1}).document
+    params = doc["profile"]["parameters"]
+    assert params["min_checkpoints"]["value"] == 20 and params["min_checkpoints"]["source"] == "standard"
+    declared = records(doc, "ORTHOSPEC-ITT-DECLARED")
+    assert declared["min_checkpoints"]["verdict"] == "fail" and declared["fail_share_max"]["verdict"] == "fail"
+    assert records(doc, "JRC-12.4-T12-MIN-CHECKPOINTS")["B01"]["verdict"] == "fail"
+    assert doc["verdict"] == "rejected" and "ORTHOSPEC-ITT-DECLARED" in reasons(doc)
