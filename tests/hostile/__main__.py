@@ -14,7 +14,7 @@ from .check import run_case
 def main() -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("names", nargs="*")
-    ap.add_argument("--timeout", type=float, default=30.0)
+    ap.add_argument("--timeout", type=float, default=60.0)
     a = ap.parse_args()
     names = a.names or list(CASES)
     print(f"{len(names)} hostile cases")

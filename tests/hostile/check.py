@@ -27,7 +27,7 @@ def _error_records(w: World, setup: Setup) -> list[dict]:
     return [r for r in doc.get("records", []) if r.get("verdict") == "error"]
 
 
-def run_case(name: str, base: Path, *, timeout: float = 30.0) -> Outcome:
+def run_case(name: str, base: Path, *, timeout: float = 60.0) -> Outcome:
     w = World(base)
     setup = CASES[name](w)
     before = tree_state(w.delivery)

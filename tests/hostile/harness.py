@@ -26,7 +26,7 @@ ROOT = Path(__file__).resolve().parents[2]
 EXAMPLE = ROOT / "examples" / "deliveries" / "aerial-pass"
 #: Address-space cap of the child (python + numpy + GDAL map ~1 GB of virtual memory at start).
 MEMORY_LIMIT = 4 * 2**30
-TIMEOUT_S = 30.0
+TIMEOUT_S = 60.0
 
 
 @dataclass
