@@ -565,3 +565,23 @@ def test_the_contractor_cannot_set_the_standards_numbers(tmp_path: Path) -> None
     assert declared["min_checkpoints"]["verdict"] == "fail" and declared["fail_share_max"]["verdict"] == "fail"
     assert records(doc, "JRC-12.4-T12-MIN-CHECKPOINTS")["B01"]["verdict"] == "fail"
     assert doc["verdict"] == "rejected" and "ORTHOSPEC-ITT-DECLARED" in reasons(doc)
+
+
+def test_a_check_point_on_a_gcp_and_imprecise_check_points_reject_under_jrc_v3(tmp_path: Path) -> None:
+    """Issue 12: one check point on a GCP and every check point at 1.0 m precision was ACCEPTED."""
+    d = copy_pass(tmp_path)
+    _, gcps = read_table(d, "gcps")
+    g = next(r for r in gcps if r["block"] == "B01")
+    header, rows = read_table(d, "checkpoints")
+    first = next(r for r in rows if r["block"] == "B01")
+    dx, dy = float(first["x"]) - float(first["x_ref"]), float(first["y"]) - float(first["y_ref"])
+    first["x_ref"], first["y_ref"] = g["x"], g["y"]
+    first["x"], first["y"] = f"{float(g['x']) + dx:.3f}", f"{float(g['y']) + dy:.3f}"
+    for r in rows:
+        r["precision_xy"] = "1.0"
+    write_table(d, "checkpoints", header, rows)
+    doc = check(d, "jrc-v3", date=DATE, options={"workers": 1}).document
+    assert records(doc, "JRC-12.5-INDEPENDENT-CHECKPOINTS")["B01"]["verdict"] == "fail"
+    assert records(doc, "JRC-DEF-CHECKPOINT-ACCURACY")[first["point_id"]]["verdict"] == "fail"
+    assert doc["verdict"] == "rejected"
+    assert "JRC-12.5-INDEPENDENT-CHECKPOINTS" in reasons(doc)
