@@ -88,6 +88,7 @@ def test_cold_load_writes_json_and_a_new_process_reuses_it(tmp_path, cache_dir):
     assert warm.sites is None
     assert warm.canonical_json() == cold.canonical_json() and warm.sha256 == cold.sha256
     assert warm.rules == cold.rules and warm.parameters == cold.parameters and warm.chain == cold.chain
+    assert warm.removed == cold.removed and warm.overridden == cold.overridden
     assert not list(cache_dir.glob(".tmp-*"))  # written atomically
 
 

@@ -149,3 +149,37 @@ def test_suggestions_for_measures_and_profiles(tmp_path):
     assert any("did you mean 'checkpoints.rmse_y'" in str(p) for p in validate_file(bad))
     with pytest.raises(SpecError, match="did you mean 'jrc-v3'"):
         load_profile("jrc-v2")
+
+
+def test_removals_and_overrides_are_recorded_with_their_justification(tmp_path):
+    write(tmp_path, "base.yaml", BASE)
+    child = write(tmp_path, "child.yaml", """\
+orthospec_profile: 1
+id: child
+version: 0.1.0
+title: Child
+source: {title: ITT}
+extends: {id: base, version: 1.0.0}
+remove_rules: [{id: B, justification: "ITT 2.1: no Y accuracy is contracted"}]
+rules:
+  - id: A
+    override: true
+    consequence: return_delivery
+""")
+    p = load_profile(child)
+    assert [(x.id, x.justification, x.profile) for x in p.removed] == [
+        ("B", "ITT 2.1: no Y accuracy is contracted", "child")]
+    assert p.overridden == {"A": ("consequence",)}
+    assert p.canonical["removed_rules"][0]["justification"].startswith("ITT 2.1")
+    bad = write(tmp_path, "bad.yaml", child.read_text().replace(', justification: "ITT 2.1: no Y accuracy is '
+                                                                 'contracted"', ", justification: ''"))
+    assert any("remove_rules/0" in str(x) for x in validate_file(bad))
+
+
+def test_measure_catalog_is_up_to_date():
+    from orthospec.spec import catalog
+
+    on_disk = json.loads((specs_dir() / "schema" / catalog.CATALOG_NAME).read_text(encoding="utf-8"))
+    assert on_disk == json.loads(json.dumps(catalog.build())), \
+        "specs/schema/measures.json is stale: run python -m orthospec.spec.schema"
+    assert catalog.is_current()

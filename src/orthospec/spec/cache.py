@@ -130,11 +130,12 @@ def _dump(p: ResolvedProfile) -> dict[str, Any]:
         "path": str(p.path),
         "chain": [list(c) for c in p.chain],
         "allow_no_mandatory": p.allow_no_mandatory,
+        "overridden": {k: list(v) for k, v in p.overridden.items()},
     }
 
 
 def _rebuild(d: dict[str, Any]) -> ResolvedProfile:
-    from .loader import ResolvedProfile, canonical_dumps
+    from .loader import Removal, ResolvedProfile, canonical_dumps
     from .models import ClassSet, LookupTable, Parameter, ProfileTest, ProfileWaiver, Rule, Source
 
     c = d["canonical"]
@@ -152,4 +153,6 @@ def _rebuild(d: dict[str, Any]) -> ResolvedProfile:
         waivers=tuple(ProfileWaiver.model_validate(w) for w in c["waivers"]),
         path=Path(d["path"]), chain=tuple((a, b, f) for a, b, f in d["chain"]),
         canonical=c, sha256=sha, allow_no_mandatory=bool(d.get("allow_no_mandatory")),
+        removed=tuple(Removal(x["id"], x["justification"], x["profile"]) for x in c.get("removed_rules", [])),
+        overridden={k: tuple(v) for k, v in d.get("overridden", {}).items()},
     )

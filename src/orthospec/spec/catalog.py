@@ -23,11 +23,15 @@ CATALOG_NAME = "measures.json"
 
 
 def _sources() -> list[tuple[str, Path]]:
-    """The files whose content decides which measure names exist."""
+    """The files whose content decides which measure names exist (those registering providers)."""
     out: list[tuple[str, Path]] = []
     eng = _PKG / "engine"
     for p in sorted([*eng.glob("*.py"), *eng.glob("providers/*.py")]):
-        if p.name != "params.py":
+        try:
+            defines = p.name in ("registry.py", "generic.py") or b"provider(" in p.read_bytes()
+        except OSError:
+            defines = True
+        if defines:
             out.append((p.relative_to(_PKG).as_posix(), p))
     out.append(("delivery/convention.py", _PKG / "delivery" / "convention.py"))
     out.append(("specs/delivery-tables.yaml", specs_dir() / "delivery-tables.yaml"))

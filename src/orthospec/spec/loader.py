@@ -71,6 +71,10 @@ class ResolvedProfile:
     canonical: dict[str, Any] = field(repr=False)
     sha256: str = ""
     allow_no_mandatory: bool = False
+    #: inherited rules taken out along the chain: (id, justification or None, profile id that removed it)
+    removed: tuple[Removal, ...] = ()
+    #: rule id -> keys changed by `override: true` along the chain
+    overridden: dict[str, tuple[str, ...]] = field(default_factory=dict)
     #: where each rule / parameter was written (cold loads only; empty when served from the cache)
     sites: _Sites | None = field(default=None, repr=False, compare=False)
     _index: dict[str, int] = field(default_factory=dict, repr=False, compare=False)
@@ -85,6 +89,15 @@ class ResolvedProfile:
 
     def canonical_json(self) -> str:
         return canonical_dumps(self.canonical)
+
+
+@dataclass(frozen=True)
+class Removal:
+    """A rule an extending profile removed, with its justification (None when it gave none)."""
+
+    id: str
+    justification: str | None
+    profile: str
 
 
 def canonical_dumps(obj: Any) -> str:
@@ -601,7 +614,10 @@ def _merge(prof: Profile, base: ResolvedProfile | None, path: Path, doc: Located
     tables = {**(base.tables if base else {}), **prof.tables}
     classes = {**(base.classes if base else {}), **prof.classes}
     rules: dict[str, Rule] = dict((r.id, r) for r in base.rules) if base else {}
-    for i, rid in enumerate(prof.remove_rules):
+    removed = list(base.removed) if base else []
+    overridden = {k: tuple(v) for k, v in base.overridden.items()} if base else {}
+    for i, item in enumerate(prof.remove_rules):
+        rid = item if isinstance(item, str) else item.id
         if rid not in rules:
             line, col = doc.where(("remove_rules", i))
             problems.append(Problem(doc.file, line, col, f"remove_rules: no inherited rule {rid!r}"
@@ -609,6 +625,8 @@ def _merge(prof: Profile, base: ResolvedProfile | None, path: Path, doc: Located
             continue
         del rules[rid]
         sites.rules.pop(rid, None)
+        overridden.pop(rid, None)
+        removed.append(Removal(rid, None if isinstance(item, str) else item.justification, prof.id))
     for i, r in enumerate(prof.rules):
         if isinstance(r, RuleOverride):
             if r.id not in rules:
@@ -617,7 +635,9 @@ def _merge(prof: Profile, base: ResolvedProfile | None, path: Path, doc: Located
                                         + _did_you_mean(r.id, rules, "inherited"), r.id))
                 continue
             merged_r = rules[r.id].model_dump()
-            merged_r.update({k: v for k, v in r.model_dump(exclude_unset=True).items() if k != "override"})
+            changed = {k: v for k, v in r.model_dump(exclude_unset=True).items() if k not in ("override", "id")}
+            merged_r.update(changed)
+            overridden[r.id] = tuple(sorted({*overridden.get(r.id, ()), *changed}))
             try:
                 rules[r.id] = Rule.model_validate(merged_r)
             except ValidationError as exc:
@@ -628,6 +648,7 @@ def _merge(prof: Profile, base: ResolvedProfile | None, path: Path, doc: Located
         else:
             rules[r.id] = r
             sites.rules[r.id] = [(doc, i)]
+            overridden.pop(r.id, None)
     if problems:
         return None
     final_rules = tuple(rules.values())
@@ -649,6 +670,9 @@ def _merge(prof: Profile, base: ResolvedProfile | None, path: Path, doc: Located
     }
     if prof.allow_no_mandatory:
         canonical["allow_no_mandatory"] = True
+    if removed:
+        canonical["removed_rules"] = [{"id": x.id, "justification": x.justification, "profile": x.profile}
+                                      for x in removed]
     try:
         sha = hashlib.sha256(canonical_dumps(canonical).encode("utf-8")).hexdigest()
     except ValueError:  # nan or inf somewhere: say where (only on this failure path)
@@ -663,7 +687,8 @@ def _merge(prof: Profile, base: ResolvedProfile | None, path: Path, doc: Located
         id=prof.id, version=prof.version, title=prof.title, description=prof.description,
         source=prof.source, parameters=params, tables=tables, classes=classes, rules=final_rules,
         tests=tuple(prof.tests), waivers=waivers, path=path, chain=chain, canonical=canonical,
-        sha256=sha, allow_no_mandatory=prof.allow_no_mandatory, sites=sites,
+        sha256=sha, allow_no_mandatory=prof.allow_no_mandatory, sites=sites, removed=tuple(removed),
+        overridden=overridden,
     )
 
 

@@ -196,6 +196,13 @@ AnyRule = Annotated[
 ]
 
 
+class RuleRemoval(_Strict):
+    """An inherited rule a tender profile takes out, and why (the report annex prints it)."""
+
+    id: Annotated[str, Field(pattern=RULE_ID)]
+    justification: str = Field(min_length=1, description="Why the ITT does not apply this rule.")
+
+
 class Extends(_Strict):
     id: Annotated[str, Field(pattern=PROFILE_ID)]
     version: Annotated[str, Field(pattern=SEMVER)]
@@ -257,7 +264,10 @@ class Profile(_Strict):
     tables: dict[str, LookupTable] = Field(default_factory=dict)
     classes: dict[str, ClassSet] = Field(default_factory=dict)
     rules: list[AnyRule] = Field(default_factory=list)
-    remove_rules: list[str] = Field(default_factory=list)
+    remove_rules: list[str | RuleRemoval] = Field(
+        default_factory=list,
+        description="Inherited rules this profile takes out: an id, or {id, justification} (preferred: "
+                    "the annex prints the justification).")
     waivers: list[ProfileWaiver] = Field(default_factory=list)
     tests: list[ProfileTest] = Field(default_factory=list)
     allow_no_mandatory: bool = Field(
