@@ -421,3 +421,19 @@ def test_gdal_errors_carry_the_file_not_the_absolute_path(tmp_path):
     with pytest.raises(MeasureError) as info, gdal_errors(file="images/t.tif", path=trunc):
         rasterio.open(trunc)
     assert str(info.value).startswith("images/t.tif: not a readable raster") and str(tmp_path) not in str(info.value)
+
+
+def test_a_plain_sqlite_file_named_gpkg_is_refused(tmp_path):
+    """Only a GeoPackage (application_id GPKG) goes to GDAL; another SQLite file could hold OGR
+    virtual tables pointing anywhere."""
+    import sqlite3
+
+    from orthospec.raster.reading import read_vector
+
+    f = tmp_path / "seamlines.gpkg"
+    con = sqlite3.connect(f)
+    con.execute("CREATE TABLE t (a)")
+    con.commit()
+    con.close()
+    with pytest.raises(MeasureError, match="not a GeoPackage or shapefile"):
+        read_vector(f)
