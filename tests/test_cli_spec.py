@@ -1,4 +1,5 @@
 import json
+from pathlib import Path
 
 from click.testing import CliRunner
 
@@ -44,8 +45,8 @@ rules:
     res = run("spec", "diff", tmp_path / "mini.yaml", tender)
     assert res.exit_code == 0, res.output
     assert "- rule R-CV" in res.output
-    assert "~ rule R-ROLL" in res.output and "level: 'mandatory' -> 'recommended'" in res.output
-    assert "~ parameter max_roll" in res.output and "value: None -> 2" in res.output
+    assert "~ rule R-ROLL" in res.output and "level: mandatory -> recommended" in res.output
+    assert "~ parameter max_roll: effective 3 deg -> 2 deg" in res.output and "value: — -> 2" in res.output
 
 
 def test_explain(mini_profile):
@@ -86,3 +87,21 @@ tests:
     assert "3 of 4 expectations met" in res.output, res.output
     assert res.exit_code == 1
     assert "MISMATCH" in res.output
+
+
+def test_spec_diff_shows_effective_values_with_units_and_warns_on_same_version(tmp_path):
+    root = Path(__file__).resolve().parents[1]
+    tender = root / "examples" / "specs" / "tender-example.yaml"
+    res = run("spec", "diff", "jrc-v3", tender)
+    assert res.exit_code == 0, res.output
+    assert "~ parameter tolerance_xy: effective — -> 0.5 m" in res.output
+    assert "None" not in res.output and ": '" not in res.output  # YAML-like values, not Python reprs
+    # 0.5 m / gcp_accuracy_factor 3 (JRC §7.1) = 0.167 m
+    assert "JRC-7.1-GCP-ACCURACY-3X: requirement" in res.output and "-> ≤ 0.167 m" in res.output
+    edited = tmp_path / "tender-edited.yaml"
+    edited.write_text(tender.read_text(encoding="utf-8").replace("value: 0.5\n", "value: 0.4\n", 1),
+                      encoding="utf-8")
+    same = CliRunner().invoke(cli(), ["spec", "diff", str(tender), str(edited)])
+    assert same.exit_code == 0
+    assert "warning: both files say tender-example 1.0.0" in same.stderr
+    assert "effective 0.5 m -> 0.4 m" in same.output

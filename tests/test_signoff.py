@@ -119,3 +119,17 @@ def test_truncated_ledger_does_not_verify_as_empty(unsigned: dict[str, Path]) ->
     assert res.exit_code != 0 and "intact" not in res.output
     assert isinstance(res.exception, LedgerError) and "0 bytes" in str(res.exception)
     assert ledger.stat().st_size == 0  # and no fresh schema was written into it
+
+
+def test_history_shows_changes_by_default(unsigned: dict[str, Path]) -> None:
+    ledger = unsigned["ledger"]
+    short = run("history", "P1", "--ledger", ledger)
+    full = run("history", "P1", "--ledger", ledger, "--all")
+    assert short.exit_code == 0 and full.exit_code == 0
+    assert "R-VIS" in short.output  # missing in the run: shown
+    passing = [line.split()[0] for line in full.output.splitlines()
+               if line.startswith("R-") and line.split()[-1] == "pass"]
+    assert passing  # rules that passed in every run are listed with --all only
+    for rid in passing:
+        assert not re.search(rf"^{re.escape(rid)}\s", short.output, re.M)
+    assert "--all shows them" in short.output

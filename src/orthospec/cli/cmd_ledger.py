@@ -54,7 +54,16 @@ def _grid(title: str, rows: dict[str, dict[int, str]], run_ids: list[int]) -> li
     return lines
 
 
-def _history_text(h: History) -> str:
+_QUIET = frozenset({"pass", "not_applicable"})
+
+
+def _changing(rows: dict[str, dict[int, str]]) -> dict[str, dict[int, str]]:
+    """Rows whose verdict differs between runs or is not pass / not applicable in some run."""
+    return {k: per for k, per in rows.items()
+            if len(set(per.values())) > 1 or not set(per.values()) <= _QUIET}
+
+
+def _history_text(h: History, show_all: bool = False) -> str:
     out = []
     ids = [e.run.id for e in h.entries]
     out.append(f"{'run':>5}  {'date':<10}  {'round':<14}  {'delivery':<16}  {'verdict':<8}  "
@@ -67,18 +76,28 @@ def _history_text(h: History) -> str:
                    f"{c.get('warn', 0):>5} {c.get('missing', 0):>5}  {e.signoffs}")
     for title, rows in (("per rule (worst verdict per run):", h.rules),
                         ("per block:", h.blocks)):
-        grid = _grid(title, rows, ids)
+        shown = rows if show_all else _changing(rows)
+        grid = _grid(title, shown, ids)
         if grid:
             out += ["", *grid]
+        hidden = len(rows) - len(shown)
+        if hidden:
+            out.append(f"({hidden} {'rules' if 'rule' in title else 'blocks'} passing or not applicable in "
+                       "every run not shown; --all shows them)")
     return "\n".join(out)
 
 
 @main.command("history")
 @click.argument("project", required=False)
+@click.option("--all", "show_all", is_flag=True, help="Also list rules that passed in every run.")
 @ledger_option
 @json_option
-def history_cmd(project: str | None, ledger_target: str | None, as_json: bool) -> None:
-    """Deliveries, redeliveries and their verdicts over time, per rule and per block."""
+def history_cmd(project: str | None, show_all: bool, ledger_target: str | None, as_json: bool) -> None:
+    """Deliveries, redeliveries and their verdicts over time, per rule and per block.
+
+    By default only rules and blocks that changed or did not pass are listed (--all for every one).
+    Example: orthospec history P-2026-ORTHO-L2 --ledger qc.sqlite
+    """
     with _open(ledger_target) as led:
         _warn_if_tampered(led)
         projects = [project] if project is not None else led.projects()
@@ -101,16 +120,21 @@ def history_cmd(project: str | None, ledger_target: str | None, as_json: bool) -
         if n:
             click.echo("")
         click.echo(f"project {h.project}: {len(h.entries)} run(s)")
-        click.echo(_history_text(h))
+        click.echo(_history_text(h, show_all))
 
 
 @main.command("diff")
 @click.argument("run_a")
 @click.argument("run_b")
+@click.option("--all", "show_all", is_flag=True,
+              help="Also list records added or removed with a passing or not-applicable verdict.")
 @ledger_option
 @json_option
-def diff_cmd(run_a: str, run_b: str, ledger_target: str | None, as_json: bool) -> None:
-    """What changed between two runs per rule and item: fixed, newly failing, still failing."""
+def diff_cmd(run_a: str, run_b: str, show_all: bool, ledger_target: str | None, as_json: bool) -> None:
+    """What changed between two runs per rule and item: fixed, newly failing, still failing.
+
+    Example: orthospec diff 1 2 --ledger qc.sqlite
+    """
     a, b = _run_id(run_a), _run_id(run_b)
     with _open(ledger_target) as led:
         d = led.diff(a, b)
@@ -121,13 +145,21 @@ def diff_cmd(run_a: str, run_b: str, ledger_target: str | None, as_json: bool) -
     order = ("fixed", "newly_failing", "still_failing", "changed", "added", "removed")
     click.echo(f"run #{a} -> run #{b}: " + (", ".join(f"{d.counts[k]} {k.replace('_', ' ')}"
                                                       for k in order if k in d.counts) or "no changes"))
+    hidden = 0
     for status in order:
         group = [c for c in d.changes if c.status == status]
+        if not show_all and status in ("added", "removed"):
+            keep = [c for c in group if not {c.before, c.after} <= (_QUIET | {None})]
+            hidden += len(group) - len(keep)
+            group = keep
         if not group:
             continue
         click.echo(f"{status.replace('_', ' ')}:")
         for c in group:
             click.echo(f"  {c.rule} [{c.item}]: {c.before or '-'} -> {c.after or '-'}")
+    if hidden:
+        click.echo(f"({hidden} records added or removed with a passing or not-applicable verdict not shown; "
+                   "--all shows them)")
 
 
 def _manual(values: tuple[str, ...]) -> dict[str, str]:

@@ -78,16 +78,39 @@ def validate_cmd(files: tuple[Path, ...]) -> None:
     click.get_current_context().exit(2 if bad else 0)
 
 
+def _show(v: object) -> str:
+    """A profile value as written in YAML, not as a Python repr (None -> '—')."""
+    if v is None:
+        return "—"
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, float):
+        return f"{v:g}"
+    if isinstance(v, list | dict):
+        import json
+
+        return json.dumps(v, ensure_ascii=False)
+    return str(v)
+
+
 @spec.command("diff")
 @click.argument("a")
 @click.argument("b")
 @click.option("--json", "as_json", is_flag=True)
 @click.option("--all", "show_all", is_flag=True, help="Also show changed prose (descriptions, notes, titles).")
 def diff_cmd(a: str, b: str, as_json: bool, show_all: bool) -> None:
-    """What changed from profile A to profile B: rules and thresholds added, removed, changed."""
+    """What changed from profile A to profile B: rules and thresholds added, removed, changed.
+
+    Parameters are shown with their units and effective values (the tender's value, else the
+    standard's default); changed rules with their effective requirement before and after.
+    Example: orthospec spec diff jrc-v3 examples/specs/tender-example.yaml
+    """
     import json
 
-    d = diff_profiles(load_profile(a), load_profile(b))
+    from ..reports.annex import param_value, requirement_text
+
+    pa, pb = load_profile(a), load_profile(b)
+    d = diff_profiles(pa, pb)
     if not show_all:
         prose = ("description", "note", "title")
         for kind in ("parameters", "rules"):
@@ -97,19 +120,55 @@ def diff_cmd(a: str, b: str, as_json: bool, show_all: bool) -> None:
                 if kept:
                     changed[name] = kept
             d[kind]["changed"] = changed
+    warning = None
+    if (pa.id, pa.version) == (pb.id, pb.version) and pa.sha256 != pb.sha256:
+        warning = (f"warning: both files say {pa.id} {pa.version} but their contents differ (sha256 "
+                   f"{pa.sha256[:12]}… vs {pb.sha256[:12]}…): give the changed profile a new version")
+        d["warning"] = warning
     if as_json:
         click.echo(json.dumps(d, indent=1, ensure_ascii=False))
         return
+    if warning:
+        click.echo(warning, err=True)
     click.echo(f"{d['a']} -> {d['b']}")
+
+    def eff(p: object, name: str) -> str:
+        par = p.parameters.get(name)  # type: ignore[attr-defined]
+        if par is None:
+            return "—"
+        unit = f" {par.unit}" if par.unit and par.unit not in ("1", "text", "bool", "date") else ""
+        v = param_value(par)
+        return "—" if v is None else f"{_show(v)}{unit}"
+
     for kind in ("parameters", "rules"):
         for name in d[kind]["added"]:
-            click.echo(f"+ {kind[:-1]} {name}")
+            extra = f" = {eff(pb, name)}" if kind == "parameters" else \
+                f": {requirement_text(pb.rule(name).requirement, dict(pb.parameters))}"
+            click.echo(f"+ {kind[:-1]} {name}{extra}")
         for name in d[kind]["removed"]:
             click.echo(f"- {kind[:-1]} {name}")
         for name, changes in d[kind]["changed"].items():
-            click.echo(f"~ {kind[:-1]} {name}")
+            if kind == "parameters":
+                click.echo(f"~ parameter {name}: effective {eff(pa, name)} -> {eff(pb, name)}")
+            else:
+                ra = requirement_text(pa.rule(name).requirement, dict(pa.parameters))
+                rb = requirement_text(pb.rule(name).requirement, dict(pb.parameters))
+                click.echo(f"~ rule {name}" + (f": requirement {ra} -> {rb}" if ra != rb else ""))
             for field, (old, new) in changes.items():
-                click.echo(f"    {field}: {old!r} -> {new!r}")
+                click.echo(f"    {field}: {_show(old)} -> {_show(new)}")
+    # rules whose threshold changed only through a parameter
+    if d["parameters"]["changed"] or d["parameters"]["added"]:
+        for r in pb.rules:
+            if r.id in d["rules"]["changed"] or r.id in d["rules"]["added"]:
+                continue
+            try:
+                old_rule = pa.rule(r.id)
+            except KeyError:
+                continue
+            ra = requirement_text(old_rule.requirement, dict(pa.parameters))
+            rb = requirement_text(r.requirement, dict(pb.parameters))
+            if ra != rb:
+                click.echo(f"~ rule {r.id}: requirement {ra} -> {rb} (through its parameters)")
     if not any(d[k][c] for k in ("parameters", "rules") for c in ("added", "removed", "changed")):
         click.echo("no differences in rules or parameters")
 
@@ -168,11 +227,13 @@ def measures_cmd() -> None:
     """List the measures rules may read (besides the generic <table>.<column> ones)."""
     from ..engine.registry import ROLLUP, known_measures
 
-    t = Table("measure", "scope", "unit", "provider", box=None, header_style="bold")
+    t = Table(box=None, header_style="bold")
+    for col in ("measure", "scope", "unit", "provider"):
+        t.add_column(col, no_wrap=True, overflow="fold")  # names are copied from here: never cut
     for name, specx in known_measures().items():
         t.add_row(name, specx.scope, specx.measures[name], specx.fn.__module__.rsplit(".", 1)[-1])
     for name, (scope, unit) in ROLLUP.items():
         t.add_row(name, scope, unit, "evaluator roll-up (second phase)")
-    Console(highlight=False).print(t)
+    Console(highlight=False, width=max(160, Console().width), soft_wrap=True).print(t)
     click.echo("plus <table>.<column>, <table>.present, <table>.count, <table>.count_per_block, "
                "<table>.<column>.complete and manifest.<path> for every table in specs/delivery-tables.yaml")

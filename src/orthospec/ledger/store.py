@@ -381,11 +381,13 @@ class Ledger:
     def effective_verdicts(self, run_id: int) -> dict[tuple[str, str], str]:
         """(rule, item) -> verdict, with signed-off manual verdicts applied.
 
-        Delivery-scope records are keyed ``(rule, "delivery")``: a redelivery usually carries a
-        new delivery id, yet it answers the same requirement.
+        Delivery-scope records about the delivery itself are keyed ``(rule, "delivery")``: a
+        redelivery usually carries a new delivery id, yet it answers the same requirement. Other
+        delivery-scope items (e.g. a parameter name) keep their own stable key.
         """
         manual = self.manual_verdicts(run_id)
-        return {(q["rule"], "delivery" if q["scope"] == "delivery" else q["item"]):
+        did = self.run(run_id).delivery_id
+        return {(q["rule"], "delivery" if q["scope"] == "delivery" and q["item"] == did else q["item"]):
                 manual.get(q["rule"], q["verdict"]) for q in self.qcrs(run_id)}
 
     # --- history and diff ---------------------------------------------------------------------

@@ -82,7 +82,7 @@ def _threshold(v: Any, req: Requirement, params: dict[str, Parameter]) -> str:
             out = None
         if isinstance(out, int | float) and not isinstance(out, bool):
             return f"{float(out):.3g}{' ' + unit if unit else ''}"
-    return condition_prose(v)
+    return condition_prose(v) if "manifest." in v else v
 
 
 def requirement_text(req: Requirement, params: dict[str, Parameter]) -> str:
