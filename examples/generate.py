@@ -527,7 +527,9 @@ def build(scn: Scenario) -> Built:
     cameras = [{"camera_id": "UCE-01", "model": CAMERA["model"],
                 "focal_length": CAMERA["focal_length_mm"], "pixel_size": CAMERA["pixel_size_um"],
                 "calibration_date": "2025-11-04", "certificate": "VX-UCE-2025-1104",
-                "radiometric_bits": RADIOMETRIC_BITS, "calibration_type": "laboratory"}]
+                "radiometric_bits": RADIOMETRIC_BITS, "calibration_type": "laboratory",
+                # across track = the 20010-px side (footprint(): E extent), along track = 13080 px
+                "format_across_px": CAMERA["pixels_y"], "format_along_px": CAMERA["pixels_x"]}]
     manual = manual_checks(scn, images)
     built = Built(scn, images, arrays, centres, cps, gcps, flights, cameras, manual, manifest, recomputed)
     add_evidence(built)
@@ -754,12 +756,11 @@ MANUAL_CHECKS: tuple[tuple[str, str, str], ...] = (
     ("JRC-12.4-CHECKPOINT-SOURCE", "delivery", "Check points from the agency's own RTK survey, not from the contractor."),
     ("JRC-6.3-ARTEFACTS", "image", "No scratches, dust, hot spots, haze, colour seams or artefacts."),
     ("JRC-T6-ORTHO-INSPECTION", "image", "Inspected on screen; no defects recorded."),
-) + tuple((rule, "delivery", note) for rule, note in (
-    ("JRC-2.4-QCR-LOCATION", "QCR archive at the contractor's documented server path; delivered copies under documents/."),
-    ("JRC-2.4-QCR-MINIMUM-SET", "All QCRs of the minimum set present in the internal QCR."),
-    ("JRC-7.2-CONTRACTOR-CHECKPOINTS", "Contractor's internal check points independent of GCPs, well defined, 3x accuracy."),
-    ("JRC-7.3-ARCHIVE", "Ground reference archive with marked image extracts inspected."),
-))
+    ("JRC-2.4-QCR-LOCATION", "delivery", "QCR archive at the contractor's documented server path; copies under documents/."),
+    ("JRC-2.4-QCR-MINIMUM-SET", "delivery", "All QCRs of the minimum set present in the internal QCR."),
+    ("JRC-7.2-CONTRACTOR-CHECKPOINTS", "delivery", "Contractor's internal check points independent of GCPs, 3x accuracy."),
+    ("JRC-7.3-ARCHIVE", "delivery", "Ground reference archive with marked image extracts inspected."),
+)
 NOT_INSPECTED = "File not on the delivery medium; could not be inspected."
 
 
@@ -830,6 +831,7 @@ JRC_V3_RULES: dict[str, list[tuple[str, str, str, str, list[str] | None]]] = {
     "reported_rmse_mismatch": [("JRC-9.5-REPORTED-RMSE-Y", "fail", "mandatory", "reject_block", None)],
     "saturation_high": [("JRC-6.3-SATURATION-HIGH", "warn", "recommended", "warn", None)],
     "missing_field": [("JRC-5.3-PHOTO-FLYING-HEIGHT", "warn", "recommended", "warn", ["D-2026-021"]),
+                      ("JRC-5.2.2-COVERAGE", "missing", "mandatory", "return_delivery", ["D-2026-021"]),
                       ("JRC-5.2.1-FLYING-HEIGHT-GSD", "missing", "recommended", "warn", None)],
     "unjustified_exclusion": [("JRC-12.6-BLUNDER-EXCLUSIONS", "fail", "mandatory", "reject_block", ["B01"]),
                               ("JRC-12.6-BLUNDER-CANDIDATES", "warn", "recommended", "warn", ["B01"]),
@@ -852,6 +854,10 @@ JRC_V3_RULES: dict[str, list[tuple[str, str, str, str, list[str] | None]]] = {
 }
 #: Why a defect has no (or only a weaker) jrc-v3 rule.
 JRC_V3_NOTES = {
+    "missing_field": (
+        "Without the three flying heights the photo lay-down (derived.photo_coverage) covers 93.9 % of the "
+        "blocks from the other 27 photos: full coverage (Table 1) can be neither shown nor refuted, so the "
+        "mandatory JRC-5.2.2-COVERAGE is missing and returns the delivery."),
     "reported_rmse_mismatch": (
         "The reported QCR value disagrees with the recomputed RMSEy by 0.33 m: a mandatory finding "
         "against the contractor's QCRs (consequence reject_block); B02 is also rejected on the "
@@ -1062,7 +1068,7 @@ def write(b: Built, root: Path) -> None:
          b.flights)
     _csv(root / "tables/cameras.csv",
          ["camera_id", "model", "focal_length", "pixel_size", "calibration_date", "certificate",
-          "radiometric_bits", "calibration_type"],
+          "radiometric_bits", "calibration_type", "format_across_px", "format_along_px"],
          b.cameras)
     _csv(root / "tables/aerotriangulation.csv", list(b.aerotriangulation[0]), b.aerotriangulation)
     for name, text in sorted(b.documents.items()):
