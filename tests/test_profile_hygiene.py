@@ -274,3 +274,12 @@ def test_problems_are_still_located_in_a_big_profile(tmp_path):
     assert problems[0].line == text[:text.index("titel")].count("\n") + 1
     with pytest.raises(SpecError):
         load_profile(f)
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="needs FIFOs")
+def test_a_fifo_next_to_the_tender_is_not_waited_on(tmp_path):
+    os.mkfifo(tmp_path / "pipe.yaml")  # a reader that opened it normally would block forever
+    code, out = validate(tmp_path, HEAD + "parameters:\n  tolerance_xy: {value: 0.5}\n")
+    assert code == 0, out
+    with pytest.raises(SpecError, match="not a regular file"):
+        load_profile(tmp_path / "pipe.yaml")

@@ -68,9 +68,12 @@ def key(path: Path, sha256: str) -> str:
 
 
 def _sha(path: str) -> str | None:
+    from .loader import read_regular
+    from .yamlio import YamlError
+
     try:
-        return hashlib.sha256(Path(path).read_bytes()).hexdigest()
-    except OSError:
+        return hashlib.sha256(read_regular(Path(path))).hexdigest()
+    except (OSError, YamlError):
         return None
 
 

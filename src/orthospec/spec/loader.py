@@ -15,7 +15,9 @@ from __future__ import annotations
 import difflib
 import hashlib
 import json
+import os
 import re
+import stat
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
@@ -27,7 +29,7 @@ from ..errors import ExpressionError, SpecError, UnitError
 from ..resources import specs_dir
 from . import expr
 from .models import Parameter, Profile, Rule, RuleOverride
-from .yamlio import Located, YamlError, load_text
+from .yamlio import Located, YamlError, YamlLimits, load_text
 
 MAX_EXTENDS_DEPTH = 8
 #: how much of a candidate file is read to learn its id and version (never the whole file)
@@ -145,13 +147,30 @@ def _rules_of(doc: Located) -> list[Any]:
 _DOCS: dict[tuple[str, str], Located] = {}
 
 
-def _file_bytes(path: Path) -> bytes:
+def read_regular(path: Path, limit: int | None = None) -> bytes:
+    """The bytes of a regular file, at most ``limit`` (default: the YAML size limit).
+
+    Opened without blocking and checked with fstat, so a FIFO or device named like a profile is
+    refused instead of waited on or read forever (issue 17).
+    """
+    lim = YamlLimits.from_env().bytes if limit is None else limit
     try:
-        return path.read_bytes()
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
     except FileNotFoundError:
         raise YamlError(f"{path}: file not found") from None
     except OSError as exc:
         raise YamlError(f"{path}: cannot read: {exc.strerror}") from None
+    with os.fdopen(fd, "rb") as fh:
+        st = os.fstat(fh.fileno())
+        if not stat.S_ISREG(st.st_mode):
+            raise YamlError(f"{path}: not a regular file")
+        if limit is None and st.st_size > lim:
+            raise YamlError(f"{path}: {st.st_size:,} bytes exceed the limit of {lim:,} (ORTHOSPEC_MAX_YAML_BYTES)")
+        return fh.read(lim)
+
+
+def _file_bytes(path: Path) -> bytes:
+    return read_regular(path)
 
 
 def file_sha256(path: Path) -> str:
@@ -166,7 +185,7 @@ def _load_doc(path: Path) -> tuple[Located, str]:
     doc = _DOCS.get(key)
     if doc is None:
         try:
-            text = raw.decode("utf-8")
+            text = raw.decode("utf-8").replace("\r\n", "\n").replace("\r", "\n")
         except UnicodeDecodeError as exc:
             raise YamlError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
         doc = load_text(text, str(path))
@@ -362,9 +381,8 @@ def read_header(path: Path) -> tuple[str, str, str] | None:
     is not the one asked for (an unrelated alias bomb in the same folder cannot hang it).
     """
     try:
-        with open(path, "rb") as fh:
-            head = fh.read(HEADER_BYTES).decode("utf-8", errors="replace")
-    except OSError:
+        head = read_regular(path, HEADER_BYTES).decode("utf-8", errors="replace")
+    except (OSError, YamlError):
         return None
     found: dict[str, str] = {}
     for m in _HEAD_KEY.finditer(head):
@@ -400,6 +418,8 @@ def find_profile(ref: str | Path, *, near: Path | None = None, version: str | No
     """A path to a profile given a file path (as the user typed it) or an id."""
     p = Path(ref)
     if p.suffix in (".yaml", ".yml") or p.exists():
+        if p.exists() and not p.is_file():
+            raise SpecError(f"profile file {str(ref)!r} is not a regular file")
         if not p.is_file():
             raise SpecError(f"profile file {str(ref)!r} not found")
         return p
