@@ -105,3 +105,24 @@ def test_spec_diff_shows_effective_values_with_units_and_warns_on_same_version(t
     assert same.exit_code == 0
     assert "warning: both files say tender-example 1.0.0" in same.stderr
     assert "effective 0.5 m -> 0.4 m" in same.output
+
+
+def test_init_for_a_profile_and_sensor_writes_what_it_reads(tmp_path):
+    """The satellite template has the scenes table, the aerial one the flights and cameras tables
+    (JRC §5.3 per-flight records); both validate as written and name a local schema."""
+    for sensor in ("aerial", "satellite"):
+        folder = tmp_path / sensor
+        res = run("init", folder, "--profile", "jrc-v3", "--sensor", sensor)
+        assert res.exit_code == 0, res.output
+        manifest = (folder / "delivery.yaml").read_text(encoding="utf-8")
+        assert "$schema=./delivery.schema.json" in manifest and (folder / "delivery.schema.json").is_file()
+        assert "documents:" in manifest and "internal_qcr" in manifest
+        d = open_delivery(folder)
+        d.load_all_tables()
+        tables = set(d.manifest.tables)
+        assert "manual_checks" in tables and "checkpoints" in tables
+        guide = (folder / "TEMPLATE.md").read_text(encoding="utf-8")
+        assert "| point_id | required |" in guide and "optional" in guide
+    assert "scenes" in set(open_delivery(tmp_path / "satellite").manifest.tables)
+    aerial = set(open_delivery(tmp_path / "aerial").manifest.tables)
+    assert "scenes" not in aerial and {"flights", "cameras"} <= aerial

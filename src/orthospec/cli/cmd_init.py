@@ -15,9 +15,15 @@ from .groups import main
 
 @main.command("init")
 @click.argument("folder", type=click.Path(file_okay=False, path_type=Path))
-def init_cmd(folder: Path) -> None:
-    """Write a commented delivery template (delivery.yaml and table headers) into FOLDER."""
-    for p in write_template(folder):
+@click.option("--profile", "-p", default=None,
+              help="Write only the tables, columns and documents this profile reads (listed in TEMPLATE.md).")
+@click.option("--sensor", type=click.Choice(["aerial", "satellite"]), default="aerial", show_default=True)
+def init_cmd(folder: Path, profile: str | None, sensor: str) -> None:
+    """Write a commented delivery template (delivery.yaml, table headers, TEMPLATE.md) into FOLDER.
+
+    Example: orthospec init my-delivery --profile jrc-v3 --sensor satellite
+    """
+    for p in write_template(folder, profile=profile, sensor=sensor):
         click.echo(f"wrote {p}")
 
 
