@@ -247,3 +247,18 @@ def test_window_std_of_integers_equals_numpy_float64(dtype):
     got = rad._window_std_exact(data, k)
     assert got[0, 0] == 0.0
     np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-9)
+
+
+@pytest.mark.parametrize("big", [3, 2**50])
+def test_histogram_mean_is_the_exact_integer_mean(big):
+    """The mean from the histogram is sum(count * DN) / n done in exact integers, also when the
+    products would overflow int64 (Python ints then)."""
+    from fractions import Fraction
+
+    acc = rad.HistogramAccumulator.for_dtype("uint16")
+    acc.counts[[0, 1, 40000, 65535]] = [5, 7, big, big + 1]
+    m = acc.moments()
+    total = 7 * 1 + big * 40000 + (big + 1) * 65535
+    n = 5 + 7 + big + big + 1
+    assert m.n == n and (m.vmin, m.vmax) == (0.0, 65535.0)
+    assert m.mean == float(Fraction(total, n))

@@ -213,8 +213,13 @@ class HistogramAccumulator:
         nz = np.flatnonzero(self.counts)
         values = nz.astype(np.float64) + self.offset
         weights = self.counts[nz]
-        # exact integer sum (Python ints) then a second, centred pass: no cancellation
-        total = int(np.dot(weights.astype(object), (nz + self.offset).astype(object)))
+        # exact integer sum, then a second, centred pass: no cancellation. int64 is exact while
+        # n * max|DN| < 2^63 (any image below 1.4e14 pixels); Python ints beyond that
+        dn = nz.astype(np.int64) + self.offset
+        if n * max(abs(int(dn[0])), abs(int(dn[-1])), 1) < 2**63:
+            total = int(np.dot(weights.astype(np.int64), dn))
+        else:
+            total = int(np.dot(weights.astype(object), dn.astype(object)))
         mean = total / n
         var = float(np.dot(weights.astype(np.float64), (values - mean) ** 2)) / n
         return Moments(n=n, mean=mean, m2=var * n, vmin=float(values[0]), vmax=float(values[-1]))
@@ -600,7 +605,7 @@ def band_stats_from_histogram(
     hist = None
     if n:
         lo_i, hi_i = int(m.vmin) - acc.offset, int(m.vmax) - acc.offset
-        hist = Histogram(counts=tuple(int(c) for c in counts[lo_i:hi_i + 1]), offset=int(m.vmin))
+        hist = Histogram(counts=tuple(counts[lo_i:hi_i + 1].tolist()), offset=int(m.vmin))
     sat_lo = sat_hi = dm = bm = dmr = bmr = cv = None
     above = 0
     if n and rng.bit_depth is not None:
@@ -649,7 +654,7 @@ def band_stats_from_moments(
     n = m.n
     hist = None
     if histogram is not None and n:
-        hist = Histogram(counts=tuple(int(c) for c in histogram.counts),
+        hist = Histogram(counts=tuple(histogram.counts.tolist()),
                          edges=tuple(float(e) for e in histogram.edges))
     sat_lo = sat_hi = dm = bm = cv = None
     if n and rng.bit_depth is not None:
