@@ -332,3 +332,33 @@ def test_uniform_shift_under_the_tolerance_raises_a_visible_finding(tmp_path: Pa
 
     strict = _run(root, "jrc-v3", {"systematic_error_level": "mandatory"})
     assert strict["verdict"] == "rejected" and "B01" in strict["rollup"]["rejected"]["block"]
+
+
+#: Issue 12 "What was observed", each reproduced on a copy of aerial-pass under jrc-v3: the mutation,
+#: and the mandatory rules that must now reject it (all three were ACCEPTED, exit 0, before).
+OBSERVED = {
+    "block B01 cut to 8 check points": (
+        [{"csv": {"table": "checkpoints", "where": {"block": "B01"}, "keep": 8}}],
+        {("JRC-12.4-T12-MIN-CHECKPOINTS", "B01")}),
+    "2 of 30 images truncated (6.7 % > 5 %)": (
+        [{"raster": {"file": "images/F01_0101.tif", "truncate": True}},
+         {"raster": {"file": "images/F02_0203.tif", "truncate": True}}],
+        {("JRC-9.2-T7-READABLE", "F01_0101"), ("JRC-9.2-T7-READABLE", "F02_0203"),
+         ("JRC-12.3-IMAGE-FAIL-SHARE", "D-2026-014")}),
+    "a check point on a GCP and every check point at 1.0 m precision": (
+        [{"csv": {"table": "checkpoints", "where": {"point_id": "B02-C01"},
+                  "set": {"x_ref": 507802.959, "y_ref": 5403235.439, "x": 507803.05, "y": 5403235.21}}},
+         {"csv": {"table": "checkpoints", "set": {"precision_xy": 1.0}}}],
+        {("JRC-12.5-INDEPENDENT-CHECKPOINTS", "B02"), ("JRC-DEF-CHECKPOINT-ACCURACY", "B01-C01")}),
+}
+
+
+@pytest.mark.parametrize("case", sorted(OBSERVED))
+def test_observed_wrong_acceptances_are_now_rejected(tmp_path: Path, case: str) -> None:
+    mutations, expected = OBSERVED[case]
+    root = tmp_path / "aerial-pass"
+    shutil.copytree(EXAMPLES / "aerial-pass", root)
+    apply_mutations(root, mutations)
+    doc = _run(root, "jrc-v3", {})
+    assert doc["verdict"] == "rejected", case
+    assert expected <= set(_bad(doc)), (case, sorted(set(_bad(doc))))
