@@ -127,22 +127,88 @@ def accuracy_cmd(ctx: click.Context, points: str, gsd: float | None, units: str 
     """RMSE, NSSDA, CE90/CE95, bias test and blunder screening of checkpoint discrepancies.
 
     POINTS.csv has columns id,x,y[,z],x_ref,y_ref[,z_ref] or id,dx,dy[,dz], optionally
-    unit, excluded and exclusion_reason. Results are in metres.
+    unit, excluded and exclusion_reason; other columns (a delivery's checkpoints table has
+    image_id, source, ...) are ignored. With a block column, each block is measured on its own
+    (JRC §12.7 is per block). Results are in metres.
+
+    Example: orthospec measure accuracy examples/deliveries/aerial-fail/tables/checkpoints.csv
     """
     try:
-        table = read_points_csv(points, units=units)
-        res = detect_blunders(
-            table.dx, table.dy, table.dz, ids=table.ids, basis=blunder_basis,  # type: ignore[arg-type]
-            target_rmse_xy=target_rmse, target_rmse_z=target_rmse_z,
-            exclusions=table.exclusions, gsd=gsd, unit="m",
-            percentile_method=percentile,  # type: ignore[arg-type]
-        )
-        payload = _payload(res, file=points, source_unit=table.source_unit, gsd=gsd,
-                           layout=table.layout)
+        groups, ignored = _split(points)
+        payloads = {}
+        for block, path in groups.items():
+            table = read_points_csv(path, units=units)
+            res = detect_blunders(
+                table.dx, table.dy, table.dz, ids=table.ids, basis=blunder_basis,  # type: ignore[arg-type]
+                target_rmse_xy=target_rmse, target_rmse_z=target_rmse_z,
+                exclusions=table.exclusions, gsd=gsd, unit="m",
+                percentile_method=percentile,  # type: ignore[arg-type]
+            )
+            label = points if block is None else f"{points} block {block}"
+            payloads[block] = _payload(res, file=label, source_unit=table.source_unit, gsd=gsd,
+                                       layout=table.layout)
     except OrthospecError as exc:
         click.echo(f"error: {exc}", err=True)
         ctx.exit(2)
+    if ignored and not as_json:
+        click.echo(f"ignored column(s): {', '.join(ignored)}", err=True)
     if as_json:
-        click.echo(json.dumps(payload, indent=2, ensure_ascii=False))
+        out = payloads[None] if list(payloads) == [None] else {
+            "file": points, "blocks": payloads, "ignored_columns": ignored}
+        click.echo(json.dumps(out, indent=2, ensure_ascii=False))
     else:
-        _render(payload)
+        for payload in payloads.values():
+            _render(payload)
+
+
+_KNOWN = ("id", "point_id", "x", "y", "z", "x_ref", "y_ref", "z_ref", "dx", "dy", "dz", "unit", "excluded",
+          "exclusion_reason")
+
+
+def _split(points: str) -> tuple[dict[str | None, str], list[str]]:
+    """{block or None: CSV path with the known columns only}, and the columns ignored.
+
+    The whole file is validated first (so an error names the row of the file as given); then
+    each block's rows are written to a private temporary file (never beside the input).
+    """
+    import atexit
+    import csv
+    import shutil
+    import tempfile
+
+    from ..errors import DeliveryError
+
+    try:
+        with open(points, newline="", encoding="utf-8-sig") as fh:
+            reader = csv.reader(fh)
+            header = [h.strip() for h in next(reader, [])]
+            rows = list(reader)
+    except FileNotFoundError:
+        raise DeliveryError("file not found", file=points) from None
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        raise DeliveryError(f"cannot read CSV: {exc}", file=points) from None
+    keep = [i for i, h in enumerate(header) if h in _KNOWN]
+    ignored = [h for h in header if h not in _KNOWN and h != "block"]
+    block_col = header.index("block") if "block" in header else None
+    if not ignored and block_col is None:
+        return {None: points}, []
+    tmp = tempfile.mkdtemp(prefix="orthospec-accuracy-")
+    atexit.register(shutil.rmtree, tmp, True)
+
+    def write(name: str, subset: list[list[str]]) -> str:
+        path = f"{tmp}/{name}.csv"
+        with open(path, "w", newline="", encoding="utf-8") as fh:
+            w = csv.writer(fh)
+            w.writerow([header[i] for i in keep])
+            for r in subset:
+                w.writerow([r[i] if i < len(r) else "" for i in keep])
+        return path
+
+    whole = write("all", rows)
+    read_points_csv(whole)  # row numbers of errors are the file's own
+    if block_col is None:
+        return {None: whole}, ignored
+    blocks: dict[str, list[list[str]]] = {}
+    for r in rows:
+        blocks.setdefault(r[block_col].strip() if block_col < len(r) else "", []).append(r)
+    return {b: write(f"block-{n}", sub) for n, (b, sub) in enumerate(sorted(blocks.items()))}, ignored
