@@ -585,3 +585,22 @@ def test_a_check_point_on_a_gcp_and_imprecise_check_points_reject_under_jrc_v3(t
     assert records(doc, "JRC-DEF-CHECKPOINT-ACCURACY")[first["point_id"]]["verdict"] == "fail"
     assert doc["verdict"] == "rejected"
     assert "JRC-12.5-INDEPENDENT-CHECKPOINTS" in reasons(doc)
+
+
+def test_space_resection_rule_applies_when_a_block_used_space_resection(tmp_path: Path) -> None:
+    """Issue 12: JRC-12.8-SPACE-RESECTION never applied (it read a manifest key nobody wrote)."""
+    d = copy_pass(tmp_path)
+    m = manifest(d)
+    m["product"].pop("orthorectification", None)
+    for b in m["blocks"]:
+        b["method"] = "space_resection"
+    write_manifest(d, m)
+    header, rows = read_table(d, "checkpoints")
+    for r in rows:
+        if r["block"] == "B02":
+            r["x"] = f"{float(r['x']) + 1.0:.3f}"
+    write_table(d, "checkpoints", header, rows)
+    doc = check(d, "jrc-v3", date=DATE, options={"workers": 1}).document
+    rec = next(iter(records(doc, "JRC-12.8-SPACE-RESECTION").values()))
+    assert rec["verdict"] == "fail", rec["message"]
+    assert doc["verdict"] == "rejected" and "JRC-12.8-SPACE-RESECTION" in reasons(doc)

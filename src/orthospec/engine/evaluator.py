@@ -223,7 +223,7 @@ class _Names(Mapping[str, Any]):
         m = self.cache.get(key)
         if key in self.fill:
             return self._filled(key, m, info)
-        if info[0] in ("delivery", "project") and (self.scalar or self.scope not in ("delivery", "project")):
+        if info[0] in ("delivery", "project") and (self.scalar or self.scope != info[0]):
             # one value for the whole delivery: every item of any scope sees it
             one = m.values.iloc[0] if len(m.values) else None
             if self.scalar:
@@ -242,7 +242,7 @@ class _Names(Mapping[str, Any]):
 
     def _filled(self, key: str, m: Measured, info: tuple[str, str]) -> Any:
         """The measure with its missing entries replaced by the probe value ``fill[key]``."""
-        if info[0] in ("delivery", "project") and (self.scalar or self.scope not in ("delivery", "project")):
+        if info[0] in ("delivery", "project") and (self.scalar or self.scope != info[0]):
             one = m.values.iloc[0] if len(m.values) else None
             vals = pd.Series([one] * max(len(self.items), 1), dtype=object)
         else:
@@ -410,7 +410,7 @@ class Evaluator:
         except OrthospecError:
             return np.ones(n, dtype=bool)
         if info is not None and info[0] in ("delivery", "project") and (
-                names.scalar or names.scope not in ("delivery", "project")):
+                names.scalar or names.scope != info[0]):
             one = m.values.iloc[0] if len(m.values) else None
             return np.full(n, _is_missing(one))
         return _missing_mask(m.values.reindex(names.items).to_numpy(dtype=object))
