@@ -45,3 +45,38 @@ def test_unknown_unit():
                                          ("deg", "deg"), ("m", "m"), ("1", "1"), ("usft", "usft")])
 def test_canonical_spelling(name, shown):
     assert canonical(name) == shown
+
+
+def test_static_unit_dimensions_agree_with_pint():
+    """Profile validation reads dimensions from STATIC_UNITS without loading pint: each entry must be
+    what pint itself says (independent source: pint's unit definitions)."""
+    from orthospec.units import STATIC_UNITS, ureg
+
+    for name, (dims, pure) in STATIC_UNITS.items():
+        unit = parse_unit(name)
+        assert dict(dims) == {str(k): int(v) for k, v in dict(unit.dimensionality).items() if v}, name
+        assert pure == (unit == ureg.dimensionless), name
+
+
+def test_unit_probe_finds_the_unit_an_expression_yields():
+    from orthospec.spec import expr
+    from orthospec.units import UnitProbe, probe_meets
+
+    def yields(text, **units):
+        return expr.parse(text).evaluate({k: UnitProbe.of(u) for k, u in units.items()})
+
+    assert probe_meets(yields("tol / factor", tol="m", factor="1"), "m")
+    assert probe_meets(yields("2 * tol", tol="px"), "m")  # px meets lengths through the GSD
+    assert not probe_meets(yields("tol", tol="%"), "m")
+    assert probe_meets(yields("factor", factor="1"), "m")  # a plain number is read in the rule's unit
+    with pytest.raises(Exception, match="cannot add"):
+        yields("a + b", a="m", b="%")
+
+
+def test_importing_units_does_not_load_pint():
+    import subprocess
+    import sys
+
+    code = "import sys, orthospec.units as u; u.check_unit('µm'); print('pint' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "False"

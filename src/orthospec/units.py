@@ -11,18 +11,42 @@ from __future__ import annotations
 import math
 import re
 from functools import lru_cache
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pint
 
 from .errors import UnitError
 
-ureg = pint.UnitRegistry(autoconvert_offset_to_baseunit=True, cache_folder=None)
-ureg.define("grey_level = [grey_level] = DN = dn = GL")
-ureg.define("US_survey_foot = 1200 / 3937 * meter = ftUS = us_ft")
-ureg.define("fraction = [] = frac")
-Q_ = ureg.Quantity
+if TYPE_CHECKING:
+    import pint
+
+
+@lru_cache(maxsize=1)
+def _reg() -> pint.UnitRegistry:
+    """pint's registry, built on first use (importing pint and building it costs ~0.8 s, which
+    commands that only read a profile, such as `explain`, should not pay)."""
+    import pint
+
+    ureg = pint.UnitRegistry(autoconvert_offset_to_baseunit=True, cache_folder=None)
+    ureg.define("grey_level = [grey_level] = DN = dn = GL")
+    ureg.define("US_survey_foot = 1200 / 3937 * meter = ftUS = us_ft")
+    ureg.define("fraction = [] = frac")
+    return ureg
+
+
+def __getattr__(name: str) -> Any:
+    """``units.ureg`` and ``units.Q_`` as before, created lazily (PEP 562)."""
+    if name == "ureg":
+        return _reg()
+    if name == "Q_":
+        return _reg().Quantity
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+def _pint_errors() -> Any:
+    import pint
+
+    return pint.errors
+
 
 #: Names accepted in profiles and deliveries, mapped to pint spellings.
 ALIASES = {
@@ -58,8 +82,8 @@ def parse_unit(name: str | None) -> pint.Unit:
         raise UnitError(f"unit {key!r} is not numeric")
     spelled = ALIASES.get(key, key)
     try:
-        return ureg.Unit(spelled)
-    except (pint.errors.UndefinedUnitError, pint.errors.DefinitionSyntaxError, AttributeError,
+        return _reg().Unit(spelled)
+    except (_pint_errors().UndefinedUnitError, _pint_errors().DefinitionSyntaxError, AttributeError,
             TypeError, ValueError) as exc:
         raise UnitError(
             f"unknown unit {name!r}; use e.g. m, mm, µm, ft, usft, px, %, deg, DN or 1"
@@ -72,14 +96,14 @@ def canonical(name: str | None) -> str:
     if key in NON_NUMERIC:
         return key
     unit = parse_unit(key)
-    if unit == ureg.dimensionless:
+    if unit == _reg().dimensionless:
         return "1"
     text = f"{unit:~P}"
     return {"pixel": "px", "°": "deg", "ftUS": "usft"}.get(text, text)
 
 
 def is_pixel(unit: str | None) -> bool:
-    return (unit or "").strip() not in NON_NUMERIC and parse_unit(unit).dimensionality == ureg.pixel.dimensionality
+    return (unit or "").strip() not in NON_NUMERIC and parse_unit(unit).dimensionality == _reg().pixel.dimensionality
 
 
 def convert(
@@ -98,20 +122,20 @@ def convert(
     src, dst = parse_unit(from_unit), parse_unit(to_unit)
     if src == dst:
         return arr
-    px = ureg.pixel.dimensionality
-    length = ureg.meter.dimensionality
+    px = _reg().pixel.dimensionality
+    length = _reg().meter.dimensionality
     if src.dimensionality == px and dst.dimensionality == length:
         if gsd_m is None:
             raise UnitError(f"{what}: cannot convert px to {to_unit} without the item's GSD")
-        return (Q_(arr * np.asarray(gsd_m, dtype=float), "meter")).to(dst).magnitude
+        return (_reg().Quantity(arr * np.asarray(gsd_m, dtype=float), "meter")).to(dst).magnitude
     if src.dimensionality == length and dst.dimensionality == px:
         if gsd_m is None:
             raise UnitError(f"{what}: cannot convert {from_unit} to px without the item's GSD")
-        metres = Q_(arr, src).to("meter").magnitude
+        metres = _reg().Quantity(arr, src).to("meter").magnitude
         return metres / np.asarray(gsd_m, dtype=float)
     try:
-        return Q_(arr, src).to(dst).magnitude
-    except pint.errors.DimensionalityError as exc:
+        return _reg().Quantity(arr, src).to(dst).magnitude
+    except _pint_errors().DimensionalityError as exc:
         raise UnitError(
             f"{what}: {canonical(from_unit)!r} cannot be compared with {canonical(to_unit)!r}"
         ) from exc
@@ -185,8 +209,8 @@ def parse_number_text(text: str, unit: str | None) -> float:
     if src == dst:
         return value
     try:
-        out = float(Q_(value, src).to(dst).magnitude)
-    except pint.errors.DimensionalityError:
+        out = float(_reg().Quantity(value, src).to(dst).magnitude)
+    except _pint_errors().DimensionalityError:
         raise NumberError(f"{raw!r} is in {canonical(written)}, which does not convert to "
                           f"{canonical(unit)}") from None
     if not math.isfinite(out):
@@ -204,5 +228,161 @@ def units_meet(a: str | None, b: str | None) -> bool:
     da, db = dimension_of(a), dimension_of(b)
     if da == db:
         return True
-    px, length = ureg.pixel.dimensionality, ureg.meter.dimensionality
+    px, length = _reg().pixel.dimensionality, _reg().meter.dimensionality
     return (da == px and db == length) or (da == length and db == px)
+
+
+# --- dimensions without pint (profile validation) -----------------------------------------------
+# Validating a profile needs only the dimension of each unit, and of an expression over parameters.
+# Loading pint costs most of a cold `spec validate`, so the spellings profiles use are described
+# here (tests/test_units.py checks every entry against pint) and any other spelling goes to pint.
+
+Dims = tuple[tuple[str, int], ...]
+_LEN: Dims = (("[length]", 1),)
+_NONE: Dims = ()
+#: spelling -> (dimensions, pure): pure is the plain number unit ("1"); % and deg are scaled.
+STATIC_UNITS: dict[str, tuple[Dims, bool]] = {
+    **{u: (_LEN, False) for u in ("m", "meter", "metre", "mm", "cm", "km", "µm", "μm", "um", "micrometer",
+                                  "ft", "foot", "usft", "us-ft", "ftUS", "us_ft", "US_survey_foot")},
+    **{u: ((("[printing_unit]", 1),), False) for u in ("px", "pixel", "pixels")},
+    **{u: (_NONE, True) for u in ("1", "", "count", "ratio", "dimensionless")},
+    **{u: (_NONE, False) for u in ("%", "pct", "percent", "deg", "degree", "degrees", "°", "rad", "radian")},
+    **{u: ((("[grey_level]", 1),), False) for u in ("DN", "dn", "GL", "grey_level")},
+    **{u: ((("[time]", 1),), False) for u in ("s", "second", "min", "minute", "h", "hour", "day", "year")},
+}
+
+
+def unit_signature(name: str | None) -> tuple[Dims, bool]:
+    """(dimensions, pure) of a unit name; pint only for spellings not in STATIC_UNITS."""
+    key = "" if name is None else str(name).strip()
+    hit = STATIC_UNITS.get(key)
+    if hit is not None:
+        return hit
+    unit = parse_unit(key)
+    dims = tuple(sorted((str(k), int(v)) for k, v in dict(unit.dimensionality).items() if v))
+    return dims, unit == _reg().dimensionless
+
+
+def check_unit(name: str | None) -> None:
+    """Raise UnitError for a unit name nobody knows (cheap for the usual spellings)."""
+    unit_signature(name)
+
+
+def _dims_meet(a: Dims, b: Dims) -> bool:
+    if a == b:
+        return True
+    pair = {a, b}
+    return pair == {(("[printing_unit]", 1),), _LEN}
+
+
+def _combine(a: Dims, b: Dims, sign: int) -> Dims:
+    out: dict[str, int] = dict(a)
+    for k, v in b:
+        out[k] = out.get(k, 0) + sign * v
+    return tuple(sorted((k, v) for k, v in out.items() if v))
+
+
+class ProbeUnits:
+    """The units of a :class:`UnitProbe`: dimensions and whether it is the plain number unit."""
+
+    __slots__ = ("dims", "pure")
+
+    def __init__(self, dims: Dims, pure: bool) -> None:
+        self.dims, self.pure = dims, pure
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, ProbeUnits) and (self.dims, self.pure) == (other.dims, other.pure)
+
+    def __hash__(self) -> int:
+        return hash((self.dims, self.pure))
+
+    def describe(self) -> str:
+        if not self.dims:
+            return "a plain number" if self.pure else "a dimensionless ratio (%, deg)"
+        names = {"printing_unit": "pixel", "grey_level": "DN"}
+        return " ".join(names.get(k.strip("[]"), k.strip("[]")) + (f"^{v}" if v != 1 else "") for k, v in self.dims)
+
+
+class UnitProbe:
+    """Stands for "one of this unit" in a safe expression, to learn the unit the expression yields.
+
+    Supports what the expression grammar does (+ - * / % **, comparisons, min/max/abs); adding or
+    comparing values of different dimensions raises UnitError, as pint would.
+    """
+
+    __slots__ = ("magnitude", "units")
+
+    def __init__(self, magnitude: Any, units: ProbeUnits) -> None:
+        self.magnitude, self.units = 1.0, units
+
+    @classmethod
+    def of(cls, unit: str | None) -> UnitProbe:
+        dims, pure = unit_signature(unit)
+        return cls(1.0, ProbeUnits(dims, pure))
+
+    @staticmethod
+    def _u(v: Any) -> ProbeUnits:
+        return v.units if isinstance(v, UnitProbe) else ProbeUnits((), True)
+
+    def _same(self, other: Any, op: str) -> ProbeUnits:
+        a, b = self.units, self._u(other)
+        if a.dims != b.dims and not _dims_meet(a.dims, b.dims):
+            raise UnitError(f"cannot {op} {a.describe()} and {b.describe()}")
+        return a
+
+    def __add__(self, o: Any) -> UnitProbe:
+        return UnitProbe(1.0, self._same(o, "add"))
+
+    __radd__ = __add__
+    __sub__ = __add__
+    __rsub__ = __add__
+    __mod__ = __add__
+
+    def __mul__(self, o: Any) -> UnitProbe:
+        b = self._u(o)
+        return UnitProbe(1.0, ProbeUnits(_combine(self.units.dims, b.dims, 1), self.units.pure and b.pure))
+
+    __rmul__ = __mul__
+
+    def __truediv__(self, o: Any) -> UnitProbe:
+        b = self._u(o)
+        return UnitProbe(1.0, ProbeUnits(_combine(self.units.dims, b.dims, -1), self.units.pure and b.pure))
+
+    def __rtruediv__(self, o: Any) -> UnitProbe:
+        return UnitProbe(1.0, ProbeUnits(_combine((), self.units.dims, -1), self.units.pure))
+
+    def __pow__(self, o: Any) -> UnitProbe:
+        n = int(o) if isinstance(o, int | float) and not isinstance(o, bool) and float(o).is_integer() else 1
+        return UnitProbe(1.0, ProbeUnits(tuple((k, v * n) for k, v in self.units.dims), self.units.pure))
+
+    def __neg__(self) -> UnitProbe:
+        return self
+
+    __pos__ = __neg__
+    __abs__ = __neg__
+
+    def _cmp(self, o: Any) -> bool:
+        self._same(o, "compare")
+        return True
+
+    __lt__ = __le__ = __gt__ = __ge__ = _cmp
+
+    def __eq__(self, o: object) -> bool:  # type: ignore[override]
+        return self._cmp(o)
+
+    def __ne__(self, o: object) -> bool:  # type: ignore[override]
+        return self._cmp(o)
+
+    __hash__ = None  # type: ignore[assignment]
+
+
+def probe_meets(result: Any, unit: str | None) -> bool:
+    """Whether an expression's probe result can be compared with a requirement in ``unit``.
+
+    A plain number means "in the requirement's unit" (as the evaluator reads it); px meets lengths.
+    """
+    if not isinstance(result, UnitProbe):
+        return True
+    if not result.units.dims and result.units.pure:
+        return True
+    return _dims_meet(result.units.dims, unit_signature(unit)[0])

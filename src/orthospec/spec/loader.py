@@ -777,7 +777,8 @@ def _parse(text: str) -> expr.Expression:
 
 def semantic_problems(p: ResolvedProfile, *, check_measures: bool = True) -> list[Problem]:
     """Units, threshold numbers, expressions, manifest paths, measures, parameters: linear in rules."""
-    from ..units import NON_NUMERIC, Q_, canonical, number_problem, parse_unit, units_meet, ureg
+    from ..units import NON_NUMERIC, number_problem
+    from ..units import check_unit as parse_unit  # the usual spellings without loading pint
     from .catalog import measure_info
 
     out: list[Problem] = []
@@ -903,8 +904,7 @@ def semantic_problems(p: ResolvedProfile, *, check_measures: bool = True) -> lis
             used = _params_in(e.names, p.parameters)
             read_params |= used
             if req_numeric and used:
-                _check_dimensions(r, key, v, e, used, numeric_units, req.unit, unit_ok, out, sites,
-                                  Q_, ureg, units_meet, canonical)
+                _check_dimensions(r, key, v, e, used, numeric_units, req.unit, unit_ok, out, sites)
     # a parameter an extending profile adds but no rule reads is almost always a misspelling
     for name in sorted(sites.own_params - read_params):
         if not sites.inherited_params:
@@ -943,26 +943,24 @@ def _check_names(rule: Rule, key: tuple[str, ...], e: expr.Expression, known: se
 
 def _check_dimensions(r: Rule, key: str, text: str, e: expr.Expression, used: set[str],
                       numeric_units: dict[str, str], req_unit: str, memo: dict[tuple[str, str], str | None],
-                      out: list[Problem], sites: _Sites, Q_: Any, ureg: Any, units_meet: Any,
-                      canonical: Any) -> None:
-    """The unit an expression over parameters yields must meet the requirement's unit."""
+                      out: list[Problem], sites: _Sites) -> None:
+    """The unit an expression over parameters yields must meet the requirement's unit (px meets m)."""
+    from ..units import UnitProbe, probe_meets
+
     if any(not (n in numeric_units or (n.startswith("param.") and n[6:] in numeric_units)) for n in e.names):
         return  # reads measures, manifest facts or text parameters: checked when evaluated
     sig = (text, req_unit + "|" + ",".join(f"{n}={numeric_units[n]}" for n in sorted(used)))
     if sig not in memo:
-        env = {n: Q_(1.0, numeric_units[n[6:] if n.startswith("param.") else n]) for n in e.names}
+        env = {n: UnitProbe.of(numeric_units[n[6:] if n.startswith("param.") else n]) for n in e.names}
+        units = ", ".join(f"{n} is in {numeric_units[n]!r}" for n in sorted(used))
         why: str | None = None
         try:
             got = e.evaluate(env)
-            units = getattr(got, "units", None)
-            if units is not None and units != ureg.dimensionless and not units_meet(str(units), req_unit):
-                why = (f"requirement {key} {text!r} is in {canonical(str(units))!r} (from parameter units "
-                       + ", ".join(f"{n}: {canonical(numeric_units[n])}" for n in sorted(used))
-                       + f"), which cannot be compared with the rule's unit {canonical(req_unit)!r}")
+            if not probe_meets(got, req_unit):
+                why = (f"requirement {key} {text!r} yields {got.units.describe()} ({units}), which cannot be "
+                       f"compared with the rule's unit {req_unit!r}")
         except (ExpressionError, UnitError, ValueError, TypeError) as exc:
-            why = f"requirement {key} {text!r}: {exc}"
-        except Exception as exc:  # pint DimensionalityError and friends
-            why = f"requirement {key} {text!r}: units do not combine ({exc})"
+            why = f"requirement {key} {text!r}: units do not combine ({units}): {exc}"
         memo[sig] = why
     if memo[sig]:
         name = sorted(used)[0]
