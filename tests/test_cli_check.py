@@ -195,3 +195,18 @@ def test_a_bad_ledger_fails_before_the_check_writes_anything(make_delivery, mini
                              "--ledger", bad], capsys)
     assert code == 2 and "ledger" in err
     assert not (tmp_path / "o").exists()
+
+
+def test_a_ledger_inside_the_delivery_is_refused(make_delivery, mini_profile, tmp_path, capsys):
+    root = make_delivery()
+    code, _, err = run_main(["check", root, "-p", mini_profile, "--out", tmp_path / "o",
+                             "--ledger", root / "ledger.sqlite"], capsys)
+    assert code == 2 and "--ledger" in err and not (root / "ledger.sqlite").exists()
+    assert not (tmp_path / "o").exists()
+
+
+def test_cwd_inside_the_delivery_without_out_is_refused(make_delivery, mini_profile, capsys, monkeypatch):
+    root = make_delivery()
+    monkeypatch.chdir(root)
+    code, _, err = run_main(["check", ".", "-p", mini_profile], capsys)
+    assert code == 2 and "default output folder" in err and not (root / "reports").exists()
