@@ -69,8 +69,9 @@ def test_lazy_table_matches_what_the_modules_register() -> None:
             module, first = groups.COMMANDS[gname][name]
             assert cmd.callback is not None
             assert cmd.callback.__module__ == f"orthospec.cli.{module}", f"{gname} {name}: {fix}"
-            assert click.Command(name, help=first).get_short_help_str(10**6) == \
-                cmd.get_short_help_str(10**6), f"{gname} {name}: help changed, {fix}"
+            now = cmd.get_short_help_str(10**6)
+            assert click.Command(name, help=first).get_short_help_str(10**6) == now, (
+                f"{gname} {name}: help changed, {fix}: {name!r}: ({module!r}, {now!r})")
 
 
 FRESH_HELP = """

@@ -27,8 +27,8 @@ COMMANDS: dict[str, dict[str, tuple[str, str]]] = {
         "explain": ("cmd_profiles", "Clause, quote, requirement and the evidence a rule reads."),
         "history": ("cmd_ledger", "Deliveries, redeliveries and their verdicts over time, per rule "
                                   "and per block."),
-        "init": ("cmd_init", "Write a commented delivery template (delivery.yaml and table "
-                             "headers) into FOLDER."),
+        "init": ("cmd_init", "Write a commented delivery template (delivery.yaml, table headers, "
+                             "TEMPLATE.md) into FOLDER."),
         "measures": ("cmd_profiles", "List the measures rules may read (besides the generic "
                                      "<table>.<column> ones)."),
         "profiles": ("cmd_profiles", "List shipped profiles (and those in PATHS: files or folders) "
