@@ -6,6 +6,7 @@ polygons of the manifest; the evidence says which.
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import pandas as pd
@@ -30,7 +31,12 @@ def _aoi(ctx: ProviderContext) -> tuple[Any, tuple[Any, ...], str]:
         if not geoms:
             raise MeasureError(f"{rel}: the area of interest has no geometry")
         return shapely.union_all(geoms), (d.evidence(rel),), f"area of interest {rel}"
-    polys = [Polygon(b.polygon) for b in d.manifest.blocks if b.polygon and len(b.polygon) >= 3]
+    blocks = [b for b in d.manifest.blocks if b.polygon and len(b.polygon) >= 3]
+    broken = [b.id for b in blocks if not all(math.isfinite(float(v)) for xy in b.polygon for v in xy)]
+    if broken:
+        raise MeasureError(f"delivery.yaml blocks {', '.join(broken)}: a polygon vertex is not a finite number, "
+                           "so the area of interest cannot be formed")
+    polys = [Polygon(b.polygon) for b in blocks]
     if not polys:
         return None, (d.manifest_evidence("project.area_of_interest"),), ""
     return shapely.union_all(polys), (d.manifest_evidence("blocks"),), "union of the block polygons"
