@@ -133,7 +133,8 @@ def test_the_reported_rmse_mismatch_is_caught(runs: dict) -> None:
     assert {r["verdict"] for r in ok["records"] if r["rule"].startswith("JRC-9.5-REPORTED-RMSE")} == {"pass"}
 
 
-@pytest.mark.parametrize("profile", ["jrc-v3", str(ROOT / "examples" / "specs" / "tender-example.yaml")])
+@pytest.mark.parametrize("profile", ["jrc-v3", str(ROOT / "examples" / "specs" / "tender-example.yaml"),
+                                     "fgdc-nssda-1998", "asprs-2023", "passini-jacobsen"])
 def test_profile_tests_verify(profile: str) -> None:
     res = CliRunner().invoke(cli(), ["verify", profile], terminal_width=200)
     assert res.exit_code == 0, res.output
