@@ -604,3 +604,14 @@ def test_space_resection_rule_applies_when_a_block_used_space_resection(tmp_path
     rec = next(iter(records(doc, "JRC-12.8-SPACE-RESECTION").values()))
     assert rec["verdict"] == "fail", rec["message"]
     assert doc["verdict"] == "rejected" and "JRC-12.8-SPACE-RESECTION" in reasons(doc)
+
+
+def test_an_unreadable_declared_value_is_a_finding_not_silence(tmp_path: Path) -> None:
+    """A declared contract value that cannot be read (decimal comma) is not quietly ignored."""
+    d = copy_pass(tmp_path)
+    m = manifest(d)
+    m["tender"]["parameters"]["tolerance_xy"] = "0,5"
+    write_manifest(d, m)
+    doc = check(d, profile(tmp_path, IMAGE_RULE), date=DATE, params=["tolerance_xy=0.5m"]).document
+    rec = records(doc, "ORTHOSPEC-ITT-DECLARED")["tolerance_xy"]
+    assert rec["verdict"] == "fail" and "tender.parameters.tolerance_xy" in rec["message"]
