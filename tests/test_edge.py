@@ -331,3 +331,50 @@ def test_measured_psf_with_halo():
     assert r.fwhm_px == pytest.approx(fwhm, rel=TOL_FWHM)
     assert abs(r.rer - (esf[1] - esf[0])) < TOL_RER
     assert abs(r.mtf_nyquist - mix(truth_mtf, np.array([0.5]))[0]) < TOL_MTF
+
+
+# ---- issue 16: the JSON contract ------------------------------------------------------
+
+
+def test_json_contract_every_estimator_key_present():
+    from orthospec.measures.edge import ESTIMATORS
+
+    good = measure_edge(_edge(17.0, 0.8, 300)).to_dict()
+    bad = measure_edge(_edge(17.0, 0.8, 10)).to_dict()
+    for name in ESTIMATORS:
+        for d in (good, bad):
+            assert name in d and f"{name}.reason" in d and f"{name}.unit" in d
+        assert bad[name] is None and bad[f"{name}.reason"].startswith("invalid edge: snr")
+    assert good["rer"] is not None and good["rer.reason"] is None
+    assert good["fwhm_m"] is None and good["fwhm_m.reason"] == "no GSD given"
+    # a check's value is never null while it passes
+    for d in (good, bad):
+        for key in d:
+            if key.startswith("check.") and key.endswith(".passed") and d[key]:
+                assert d[key[:-len(".passed")] + ".value"] is not None, key
+
+
+def test_json_states_the_direction_and_row_equivalents():
+    """Widths are normal to the edge; along a row they are width / cos(theta) (the
+    MTF_Estimator image of docs/edge-method.md: FWHM_row = FWHM_perp / cos theta)."""
+    angle = 17.0
+    r = measure_edge(_edge(angle, 0.8, 300))
+    d = r.to_dict()
+    assert "normal" in d["direction_convention"]
+    c = math.cos(math.radians(r.angle_deg))
+    assert d["fwhm_px.along_row"] == pytest.approx(d["fwhm_px"] / c, rel=1e-9)
+    assert d["fwhm_px.along_column"] == pytest.approx(d["fwhm_px"] / math.sin(math.radians(r.angle_deg)))
+    # along the row the response is wider: lower RER and MTF than normal to the edge
+    assert d["rer.along_row"] < d["rer"] and d["mtf_nyquist.along_row"] < d["mtf_nyquist"]
+    t = r.transposed
+    rt = measure_edge(_edge(angle, 0.8, 300).T).to_dict()
+    assert not t and rt["fwhm_px.along_column"] == pytest.approx(rt["fwhm_px"] / c, rel=1e-3)
+
+
+def test_noise_free_float_edge_has_a_finite_snr():
+    from orthospec.measures.synthetic import slanted_edge as se
+
+    d = measure_edge(se((100, 100), angle_deg=7.0, sigma_px=0.8)).to_dict()
+    # the floor is 1e-6 of the contrast (SNR <= 1e6); the blur tail left in the uniform
+    # areas is what remains here
+    assert d["check.snr.passed"] is True and 1e3 < d["check.snr.value"] <= 1e6

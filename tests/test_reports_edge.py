@@ -219,3 +219,55 @@ def test_document_without_curves_keeps_the_tables(checked: dict[str, Any]) -> No
     section = html[html.index('id="edges"'):html.index('id="manual"')]
     assert "Edge target E1 " in section and "fwhm_px" in section
     assert not _svgs(section) and "Edge figures are drawn" not in section
+
+
+COMBINED_PROFILE = textwrap.dedent("""\
+    orthospec_profile: 1
+    id: edge-combined-test
+    version: 1.0.0
+    title: Edge combined RER test
+    source: {title: USGS in-situ}
+    rules:
+      - id: C-RER
+        title: USGS two-direction RER at least 0.3
+        clause: {document: USGS in-situ, section: Spatial Results}
+        quote: "RER is a geometric mean"
+        scope: delivery
+        measure: edge.rer_combined
+        requirement: {op: ">=", value: 0.3, unit: "1"}
+        consequence: warn
+      - id: C-NIIRS
+        title: GIQE 4 NIIRS recorded
+        clause: {document: Leachtenauer et al. 1997, section: eq. 1}
+        quote: "NIIRS"
+        scope: delivery
+        measure: edge.giqe4_niirs
+        requirement: {op: ">=", value: 0, unit: "1"}
+        consequence: warn
+    """)
+
+
+def test_delivery_combined_rer_is_the_usgs_geometric_mean(tmp_path: Path) -> None:
+    """Issue 16: E1 is profiled along x, E2 (transposed) along y; the delivery-scope
+    edge.rer_combined = sqrt(RER_x RER_y) (USGS seed 000), and GIQE 4 is computed from it
+    (Leachtenauer et al. 1997, with GSD 0.25 m = 9.8425 in, H, G = 1, the edge SNR)."""
+    from orthospec.measures.giqe import giqe4
+
+    delivery = _delivery(tmp_path / "delivery")
+    (tmp_path / "profile.yaml").write_text(COMBINED_PROFILE, encoding="utf-8")
+    out = tmp_path / "out"
+    res = CliRunner().invoke(cli(), ["check", str(delivery), "--profile", str(tmp_path / "profile.yaml"),
+                                     "--out", str(out), "--date", "2026-01-01", "--format", "json"])
+    assert res.exit_code in (0, 1), res.output + str(res.exception)
+    doc = json.loads((out / "qcr.json").read_text(encoding="utf-8"))
+    rec = {r["rule"]: r for r in doc["records"]}
+    e1 = measure_edge(rasterio.open(delivery / "images" / "E1.tif").read(1), gsd=0.25)
+    e2 = measure_edge(rasterio.open(delivery / "images" / "E2.tif").read(1), gsd=0.25)
+    assert (e1.direction, e2.direction) == ("across", "along")
+    want = (e1.rer * e2.rer) ** 0.5
+    assert rec["C-RER"]["measured"]["value"] == pytest.approx(want, rel=1e-6)
+    assert rec["C-RER"]["verdict"] == "pass"
+    h = (e1.estimate("overshoot_h").value * e2.estimate("overshoot_h").value) ** 0.5
+    snr = float(np.median([e1.check("snr").value, e2.check("snr").value]))
+    niirs = giqe4(gsd_m=0.25, rer=want, overshoot=h, noise_gain=1.0, snr=snr).niirs
+    assert rec["C-NIIRS"]["measured"]["value"] == pytest.approx(niirs, rel=1e-6)

@@ -125,3 +125,28 @@ def test_bad_generator_input(kwargs):
 def test_bad_truth_sigma():
     with pytest.raises(MeasureError, match="sigma_px"):
         edge_truth(sigma_px=0.0, angle_deg=5)
+
+
+def test_unsharp_truth_reduces_to_the_closed_form_and_uses_ndimage_kernel():
+    """unsharp_truth (issue 16): amount 0 is the Gaussian edge's closed form; the MTF gain
+    at Nyquist matches the transfer function of scipy.ndimage's own filter, obtained by
+    filtering a delta image (independent of the taps unsharp_truth builds)."""
+    from scipy import ndimage
+
+    from orthospec.measures.synthetic import unsharp_truth
+
+    base = edge_truth(sigma_px=0.8, angle_deg=12.0)
+    zero = unsharp_truth(sigma_px=0.8, angle_deg=12.0, amount=0.0, mask_sigma_px=1.5)
+    assert zero.fwhm_px == pytest.approx(base.fwhm_px, rel=1e-3)
+    assert zero.rer == pytest.approx(base.rer, abs=1e-9)
+    assert zero.mtf_nyquist == pytest.approx(base.mtf_nyquist, abs=1e-12)
+    delta = np.zeros((41, 41))
+    delta[20, 20] = 1.0
+    kern = ndimage.gaussian_filter(delta, 1.5, mode="constant")
+    yy, xx = np.mgrid[-20:21, -20:21]
+    t = np.deg2rad(12.0)
+    u = xx * np.cos(t) - yy * np.sin(t)
+    gain = abs(1.0 + 1.0 - 1.0 * float(np.sum(kern * np.cos(2 * np.pi * 0.5 * u))))
+    sharp = unsharp_truth(sigma_px=0.8, angle_deg=12.0, amount=1.0, mask_sigma_px=1.5)
+    assert sharp.mtf_nyquist == pytest.approx(base.mtf_nyquist * gain, rel=1e-9)
+    assert sharp.fwhm_px < base.fwhm_px and sharp.rer > base.rer

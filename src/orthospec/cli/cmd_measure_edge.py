@@ -74,7 +74,9 @@ def _fmt(value: Any) -> str:
 
 @measure.command("edge")
 @click.argument("image", type=click.Path(dir_okay=False))
-@click.option("--roi", help="Pixel window x0,y0,x1,y1 (x1, y1 exclusive); default the whole image.")
+@click.option("--roi", help="Pixel window x0,y0,x1,y1 (x1, y1 exclusive) holding one edge. "
+              "Default: find the straight edges automatically and measure each one.")
+@click.option("--whole", is_flag=True, help="Measure the whole image as one ROI (no edge search).")
 @click.option("--band", type=int, default=1, show_default=True, help="Band to read (1-based).")
 @click.option("--gsd", type=float, help="Ground sample distance (m/px): adds metre values.")
 @click.option("--nodata", type=float, help="DN to ignore (default: the file's nodata).")
@@ -84,21 +86,29 @@ def _fmt(value: Any) -> str:
 @click.option("--json", "as_json", is_flag=True, help="Print the flat JSON result.")
 @click.option("--plots", type=click.Path(file_okay=False),
               help="Write detection/ESF/LSF/MTF SVGs into this directory.")
-def edge_command(image: str, roi: str | None, band: int, gsd: float | None,
+def edge_command(image: str, roi: str | None, whole: bool, band: int, gsd: float | None,
                  nodata: float | None, bit_depth: int | None, min_snr: float, as_json: bool,
                  plots: str | None) -> None:
     """Measure RER, FWHM, MTF at Nyquist and effective resolution on an edge target.
 
     Runs the CEOS 12-step edge method (health checks first: an ROI that fails
-    them reports the measured values and why, and no estimator). Exit code 0 when
-    the edge is valid, 1 when a health check fails, 2 when IMAGE, --roi or --band
-    cannot be used.
+    them reports the measured values and why, and no estimator). Without --roi
+    (and without --whole) the straight edges are found automatically, an ROI that
+    passes the health checks is grown around each, and the USGS combined
+    RER = sqrt(RER_x * RER_y) is reported. Exit code 0 when the edge (or at least
+    one found edge) is valid, 1 when the health checks fail, 2 when IMAGE, --roi
+    or --band cannot be used.
     """
     from ..measures.edge import measure_edge
 
     try:
         window = _parse_roi(roi)
         arr, file_nodata = _read_roi(image, window, band)
+        if window is None and not whole:
+            _auto(image, band, arr, gsd=gsd,
+                  nodata=nodata if nodata is not None else file_nodata,
+                  bit_depth=bit_depth, min_snr=min_snr, as_json=as_json)
+            return
         result = measure_edge(arr, gsd=gsd, nodata=nodata if nodata is not None else file_nodata,
                               bit_depth=bit_depth, min_snr=min_snr)
         written: list[str] = []
@@ -123,6 +133,41 @@ def edge_command(image: str, roi: str | None, band: int, gsd: float | None,
     else:
         _print_rich(image, window, band, result, written)
     if not result.valid:
+        click.get_current_context().exit(1)
+
+
+def _auto(image: str, band: int, arr: Any, *, gsd: float | None, nodata: float | None,
+          bit_depth: int | None, min_snr: float, as_json: bool) -> None:
+    """No ROI: find the edges, measure each, print them and the combined RER."""
+    from ..measures.edge_detect import measure_target
+
+    target = measure_target(arr, nodata=nodata, gsd=gsd, bit_depth=bit_depth, min_snr=min_snr)
+    ok = any(e.result is not None and e.result.valid for e in target.edges)
+    if as_json:
+        doc = {"image": image, "band": band, "roi": None, "mode": "auto", **target.to_dict()}
+        click.echo(json.dumps(doc, indent=2, sort_keys=True))
+    else:
+        from rich.console import Console
+        from rich.table import Table
+
+        console = Console(width=120)
+        console.print(f"{image} band {band}: {len(target.edges)} straight edge(s) found "
+                      "(no ROI given: automatic search)")
+        tab = Table(title="Edges (estimators normal to the edge; X = easting, Y = northing)")
+        for col in ("profile", "line angle", "ROI x0,y0,x1,y1", "valid", "angle", "RER",
+                    "FWHM px", "MTF@Ny", "fit", "why not valid"):
+            tab.add_column(col)
+        for e in target.edges:
+            r = e.result
+            tab.add_row(e.axis.upper(), f"{e.line_angle_deg:.2f}°", ",".join(map(str, e.window)),
+                        "yes" if r.valid else "no", _fmt(r.angle_deg), _fmt(r.rer),
+                        _fmt(r.fwhm_px), _fmt(r.mtf_nyquist), r.primary_fit if r.valid else "",
+                        "; ".join(x.split(";")[0] for x in r.reasons))
+        console.print(tab)
+        console.print(f"RER_x {_fmt(target.rer_x)}, RER_y {_fmt(target.rer_y)}, combined "
+                      f"sqrt(RER_x RER_y) {_fmt(target.rer_combined)} (USGS, seed 000)"
+                      + (f": {target.reason}" if target.reason else ""))
+    if not ok:
         click.get_current_context().exit(1)
 
 
@@ -168,7 +213,11 @@ def _print_rich(image: str, window: Any, band: int, result: Any, written: list[s
         model = next((result.fits[n] for n in PSF_FITS if n in result.fits), None)
         if model is not None:
             q = model.params
-            sig = ", ".join(f"{x:.4g}" for x in q["sigma_px"])
+            sig = ", ".join(f"{x:.4g}" for x in sorted(set(q["sigma_px"])))
+            if "disk_radius_px" in q:
+                sig += f"; disk radius {q['disk_radius_px']:.4g}"
+            if "usm_amount" in q:
+                sig += f"; unsharp mask amount {q['usm_amount']:.3g}, sigma {q['usm_sigma_px']:.3g}"
             console.print(
                 f"PSF model {model.fit}: {escape(q['model'])}; sigma {sig} px; lack-of-fit "
                 f"F = {q['lack_of_fit_f']:.3g}, p = {q['p_value']:.3g} "

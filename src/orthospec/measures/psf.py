@@ -42,7 +42,8 @@ def _phi(x: np.ndarray, s: float) -> np.ndarray:
 
 
 def _psi(n: int, x: np.ndarray, s: float) -> np.ndarray:
-    """n-th antiderivative in x of the Gaussian CDF Phi(x/s); n = -1 is the density.
+    """n-th antiderivative in x of the Gaussian CDF Phi(x/s); n = -1 is the density, -2 its
+    derivative.
 
     With z = x/s and the standard normal Phi, phi: psi_n(x) = s^n P_n(z) with
     P_1 = z Phi + phi, P_2 = (z^2 + 1)/2 Phi + z/2 phi, P_3 = (z^3 + 3z)/6 Phi + (z^2 + 2)/6 phi.
@@ -50,6 +51,8 @@ def _psi(n: int, x: np.ndarray, s: float) -> np.ndarray:
     z = x / s
     if n == -1:
         return _phi(x, s)
+    if n == -2:  # derivative of the density
+        return -z / s * _phi(x, s)
     cdf = ndtr(z)
     pdf = np.exp(-0.5 * z * z) / _SQRT2PI
     if n == 0:
@@ -93,6 +96,12 @@ def gauss_boxes_esf(d: np.ndarray, sigma_px: float, widths: tuple[float, ...]) -
 def gauss_boxes_lsf(d: np.ndarray, sigma_px: float, widths: tuple[float, ...]) -> np.ndarray:
     """LSF (area 1, 1/px) of a Gaussian (sigma) convolved with boxes of ``widths``."""
     return _boxed(np.asarray(d, dtype=float), float(sigma_px), widths, -1)
+
+
+def gauss_boxes_esf_dsigma(d: np.ndarray, sigma_px: float, widths: tuple[float, ...]) -> np.ndarray:
+    """d ESF / d sigma of :func:`gauss_boxes_esf`: sigma times d LSF / dx (the heat equation,
+    dG/d(sigma^2 / 2) = d^2 G / dx^2, commutes with the boxes). For analytic Jacobians."""
+    return float(sigma_px) * _boxed(np.asarray(d, dtype=float), float(sigma_px), widths, -2)
 
 
 def gauss_pixel_lsf(d: np.ndarray, sigma_px: float, angle_deg: float) -> np.ndarray:
