@@ -294,3 +294,17 @@ def test_cr_only_and_crlf_tables_read_like_lf(make_delivery):
     wide = ("a,b\r\n1,2\r\n3," + "," * 30 + "\r\n").encode()
     with pytest.raises(DeliveryError, match=r"row 2: \d+\+ fields"):
         check_csv_bounds(io.BytesIO(wide), file="t.csv", limits=Limits(columns=20), chunk=4)
+
+
+def test_yaml_error_carries_file_line_column_and_deep_flow_is_refused_fast():
+    import time
+
+    from orthospec.spec.yamlio import YamlError, load_text
+
+    with pytest.raises(YamlError) as info:
+        load_text("a: 1\nb: [1, 2\n", "dir/p.yaml")
+    assert (info.value.file, info.value.line, info.value.column) == ("dir/p.yaml", 3, 1)
+    t0 = time.perf_counter()
+    with pytest.raises(YamlError, match="p.yaml:1: nested more than 200 levels deep"):
+        load_text("x: " + "[" * 20000 + "]" * 20000, "p.yaml")
+    assert time.perf_counter() - t0 < 1.0

@@ -13,6 +13,7 @@ alias bomb is refused in milliseconds instead of being expanded.
 from __future__ import annotations
 
 import os
+import re
 import stat
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -26,7 +27,17 @@ Path_ = tuple[str | int, ...]
 
 
 class YamlError(OrthospecError, ValueError):
-    """A YAML document could not be parsed."""
+    """A YAML document could not be parsed; ``file``, ``line``, ``column`` when known (1-based)."""
+
+    def __init__(self, message: str) -> None:
+        super().__init__(message)
+        m = _WHERE.match(message)
+        self.file: str | None = m.group("file") if m else None
+        self.line: int | None = int(m.group("line")) if m and m.group("line") else None
+        self.column: int | None = int(m.group("col")) if m and m.group("col") else None
+
+
+_WHERE = re.compile(r"^(?P<file>[^\n]+?)(?::(?P<line>\d+)(?::(?P<col>\d+))?)?: ")
 
 
 def _env_int(name: str, default: int) -> int:
@@ -133,8 +144,8 @@ class Located:
         return self.marks.get((), (None, None))
 
 
-class _Loader(yaml.SafeLoader):
-    pass
+class _Loader(getattr(yaml, "CSafeLoader", yaml.SafeLoader)):  # type: ignore[misc]
+    """libyaml's parser and composer when available (10x faster, same nodes and marks)."""
 
 
 def _build(node: yaml.Node, path: Path_, marks: dict[Path_, tuple[int, int]],
@@ -161,12 +172,29 @@ def _build(node: yaml.Node, path: Path_, marks: dict[Path_, tuple[int, int]],
     return _construct(loader, node, file)
 
 
+_BRACKETS = re.compile(r"[\[\]{}]")
+
+
+def _flow_depth(text: str, file: str, limits: YamlLimits) -> None:
+    """Refuse deep ``[[[[...`` nesting before libyaml scans it (its scanner is quadratic in it:
+    20,000 levels take 9 s). Brackets inside quoted text count too, so the gate is 5x the limit."""
+    if text.count("[") + text.count("{") <= 5 * limits.depth:
+        return
+    depth = 0
+    for m in _BRACKETS.finditer(text):
+        depth += 1 if m.group() in "[{" else -1
+        if depth > 5 * limits.depth:
+            line = text.count("\n", 0, m.start()) + 1
+            raise YamlError(f"{file}:{line}: nested more than {limits.depth} levels deep")
+
+
 def load_text(text: str, file: str, *, limits: YamlLimits | None = None) -> Located:
     """Parse one YAML document with the safe loader, keeping positions, within ``limits``."""
     lim = limits or YamlLimits.from_env()
     if len(text) > lim.bytes:
         raise YamlError(f"{file}: {len(text):,} characters exceed the limit of {lim.bytes:,} "
                         "(ORTHOSPEC_MAX_YAML_BYTES)")
+    _flow_depth(text, file, lim)
     loader = _Loader(text)
     try:
         node = loader.get_single_node()
