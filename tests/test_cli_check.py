@@ -210,3 +210,13 @@ def test_cwd_inside_the_delivery_without_out_is_refused(make_delivery, mini_prof
     monkeypatch.chdir(root)
     code, _, err = run_main(["check", ".", "-p", mini_profile], capsys)
     assert code == 2 and "default output folder" in err and not (root / "reports").exists()
+
+
+def test_ledger_head_is_recorded_in_the_qcr(make_delivery, mini_profile, tmp_path, capsys):
+    led = tmp_path / "ledger.sqlite"
+    args = ["check", make_delivery(), "-p", mini_profile, "--ledger", led, "--date", "2026-01-01"]
+    run_main([*args, "--out", tmp_path / "o1"], capsys)
+    first = json.loads((tmp_path / "o1" / "qcr.json").read_text())["ledger_head"]
+    run_main([*args, "--out", tmp_path / "o2"], capsys)
+    second = json.loads((tmp_path / "o2" / "qcr.json").read_text())["ledger_head"]
+    assert first["seq"] + 1 == second["seq"] and first["hash"] != second["hash"]

@@ -63,8 +63,7 @@ def check_cmd(delivery: Path, profile: str, params: tuple[str, ...], out_dir: Pa
     refuse_inside_delivery(out_dir if out_dir is not None else Path("reports"), delivery,
                            what="--out" if out_dir is not None else "the default output folder (run from "
                            "outside the delivery or give --out)")
-    if ledger_target is not None:
-        _ledger_usable(ledger_target, delivery)
+    ledger_head = _ledger_usable(ledger_target, delivery) if ledger_target is not None else None
     options = {"workers": workers, "scheduler": scheduler, "progress": sys.stderr.isatty()}
     if sample_file is not None:
         from ..engine.sample import read_sample
@@ -73,6 +72,10 @@ def check_cmd(delivery: Path, profile: str, params: tuple[str, ...], out_dir: Pa
     result = check(delivery, profile, params=params, date=date, fail_on=fail_on, operator=operator,
                    options=options)
     doc = result.document
+    if ledger_head is not None:
+        doc["ledger_head"] = ledger_head  # the chain head this run extends (issue 13 item 5)
+    if sample_file is not None:
+        doc["sample"] = _sample_block(options["sample"], result, sample_file)
     shown = doc
     if ledger_target is not None and ("html" in fmts or "pdf" in fmts):
         shown = {**doc, "history": _history_with_this_run(ledger_target, doc)}
@@ -82,7 +85,8 @@ def check_cmd(delivery: Path, profile: str, params: tuple[str, ...], out_dir: Pa
     refuse_inside_delivery(target, delivery, what="output folder")
     write_outputs(target, files)
     if "terminal" in fmts:
-        console = Console(highlight=False) if sys.stdout.isatty() else Console(highlight=False, width=120)
+        console = Console(highlight=False) if sys.stdout.isatty() else Console(
+            highlight=False, width=120, soft_wrap=False)
         render_terminal(doc, console, max_items=max_items, verbose=verbose)
         if files:
             click.echo(f"wrote {', '.join(sorted(files))} to {target}/")
@@ -104,14 +108,25 @@ def _workers(workers: int | None) -> int | None:
     return min(workers, os.cpu_count() or 1)
 
 
-def _ledger_usable(ledger_target: str, delivery: Path) -> None:
-    """Open the ledger before the check, so a bad one fails before any output is written."""
-    from ..ledger import open_ledger
+def _ledger_usable(ledger_target: str, delivery: Path) -> dict:
+    """Open and verify the ledger before the check, so a bad one fails before any output is
+    written; its chain head goes into qcr.json (``ledger_head``)."""
+    from ..ledger import head_for_check
 
     if "://" not in ledger_target:
         refuse_inside_delivery(Path(ledger_target), delivery, what="--ledger")
-    with open_ledger(ledger_target):
-        pass
+    return head_for_check(ledger_target)
+
+
+def _sample_block(sample: tuple[str, set[str]], result: object, sample_file: Path) -> dict:
+    """What ``--sample`` restricted the check to, for the QCR (JRC §12.3 / §12.8)."""
+    scope, items = sample
+    d = result.evaluation.delivery  # type: ignore[attr-defined]
+    total = len(d.block_ids) if scope == "block" else (
+        len(d.table("images").df) if d.has_table("images") else 0)
+    clause = "§12.8" if scope == "block" else "§12.3"
+    return {"kind": scope, "items": sorted(items),
+            "statement": f"sample of {len(items)} of {total} {scope}s (file {sample_file.name}, JRC {clause})"}
 
 
 def _history_with_this_run(ledger_target: str, doc: dict) -> list[dict]:
