@@ -31,6 +31,7 @@ import rasterio
 import yaml
 from rasterio.transform import Affine
 
+from mutation_coverage import PLUGIN_NAME, CoverageReport, mandatory_automatic
 from orthospec import api
 from orthospec.errors import OrthospecError
 from orthospec.spec.loader import ResolvedProfile, load_profile
@@ -56,11 +57,6 @@ def _cases() -> list[dict[str, Any]]:
 CASES = _cases()
 GROUPS = {g["id"]: g for g in TABLE["groups"]}
 EXCEPTIONS = {(e["profile"], e["rule"]): e["reason"] for e in TABLE.get("exceptions") or []}
-
-
-def _mandatory_automatic(profile: str) -> set[str]:
-    rules = yaml.safe_load(SHIPPED[profile].read_text(encoding="utf-8"))["rules"]
-    return {r["id"] for r in rules if r.get("level") == "mandatory" and not r.get("manual")}
 
 
 # ---------------------------------------------------------------- mutations
@@ -205,10 +201,17 @@ def _profile(name: str) -> ResolvedProfile:
     return load_profile(SHIPPED[name])
 
 
-def _run(root: Path, profile: str, params: dict[str, Any]) -> dict[str, Any]:
+def _run(root: Path, profile: str, params: dict[str, Any], cache: Path | None = None) -> dict[str, Any]:
+    """One check through the library; ``cache`` is orthospec's raster result cache (by SHA-256), so
+    the unchanged images of a copied delivery are not scanned again."""
     res = api.check(root, _profile(profile), params={k: str(v) for k, v in params.items()}, date=DATE,
-                    options={"workers": 1})
+                    options={"workers": 1, "cache_dir": str(cache) if cache else None})
     return res.document
+
+
+@pytest.fixture(scope="module")
+def raster_cache(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return tmp_path_factory.mktemp("raster-cache")
 
 
 def _bad(doc: dict[str, Any]) -> dict[tuple[str, str], str]:
@@ -217,7 +220,7 @@ def _bad(doc: dict[str, Any]) -> dict[tuple[str, str], str]:
 
 
 @pytest.fixture(scope="module")
-def runs(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, Any]]:
+def runs(tmp_path_factory: pytest.TempPathFactory, raster_cache: Path) -> Iterator[dict[str, Any]]:
     """Lazily computed baseline and mutated runs: {("base", profile, example, params): doc, group: doc}."""
     cache: dict[Any, Any] = {}
 
@@ -231,7 +234,7 @@ def runs(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, Any]]:
                 root = tmp_path_factory.mktemp(f"{group}-base") / example
                 shutil.copytree(EXAMPLES / example, root)
                 apply_mutations(root, GROUPS[group]["prepare"])
-            cache[key] = _run(root, profile, dict(params))
+            cache[key] = _run(root, profile, dict(params), raster_cache)
         else:
             g = GROUPS[key]
             root = tmp_path_factory.mktemp(key) / g["example"]
@@ -240,7 +243,7 @@ def runs(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, Any]]:
             for c in g["cases"]:
                 apply_mutations(root, c["mutations"])
             try:
-                cache[key] = _run(root, g["profile"], g.get("params") or {})
+                cache[key] = _run(root, g["profile"], g.get("params") or {}, raster_cache)
             except OrthospecError as exc:  # refused input: exit 2, never ACCEPTED
                 cache[key] = exc
         return cache[key]
@@ -276,7 +279,7 @@ def test_planted_violation_rejects_for_the_rule(runs: Any, case: dict[str, Any])
 @pytest.mark.parametrize("profile", sorted(SHIPPED))
 def test_every_mandatory_automatic_rule_has_a_case(profile: str) -> None:
     """A new mandatory automatic rule must get a case or a listed reason (issue 12 item 7)."""
-    rules = _mandatory_automatic(profile)
+    rules = mandatory_automatic(profile)
     cased = {c["rule"] for c in CASES if c["profile"] == profile}
     excepted = {r for p, r in EXCEPTIONS if p == profile}
     assert not (rules - cased - excepted), f"mandatory automatic rules without a mutation case: {sorted(rules - cased - excepted)}"
@@ -286,32 +289,15 @@ def test_every_mandatory_automatic_rule_has_a_case(profile: str) -> None:
     assert all(len(EXCEPTIONS[(profile, r)]) > 20 for r in excepted), "each exception needs a reason"
 
 
-def coverage_line() -> str:
-    total = sum(len(_mandatory_automatic(p)) for p in SHIPPED)
-    planted = len({(c["profile"], c["rule"]) for c in CASES})
-    refused = len({(c["profile"], c["rule"]) for c in CASES if "refused" in c})
-    return (f"mutation coverage: {planted}/{total} mandatory automatic rules planted "
-            f"({refused} of them refused at load, exit 2), {len(EXCEPTIONS)} listed exceptions "
-            "(tests/data/mutations.yaml)")
-
-
-class _CoverageReport:
-    """Prints the coverage line in the terminal summary (shows in `make test`)."""
-
-    @staticmethod
-    def pytest_terminal_summary(terminalreporter: Any) -> None:
-        terminalreporter.write_sep("-", "mutation suite")
-        terminalreporter.write_line(coverage_line())
-
-
 @pytest.fixture(scope="module", autouse=True)
 def _report_coverage(request: pytest.FixtureRequest) -> None:
+    """Print the coverage line at the end of a plain run (under xdist tests/conftest.py registers it)."""
     pm = request.config.pluginmanager
-    if not pm.has_plugin("orthospec-mutation-coverage"):
-        pm.register(_CoverageReport(), "orthospec-mutation-coverage")
+    if not pm.has_plugin(PLUGIN_NAME):
+        pm.register(CoverageReport(), PLUGIN_NAME)
 
 
-def test_uniform_shift_under_the_tolerance_raises_a_visible_finding(tmp_path: Path) -> None:
+def test_uniform_shift_under_the_tolerance_raises_a_visible_finding(tmp_path: Path, raster_cache: Path) -> None:
     """Issue 12 item 5: B01 shifted by 0.45 m in x under the 0.5 m tolerance. RMSEx still passes, the
     §12.4 systematic-error guard warns (default level) and rejects the block once a tender makes it
     mandatory. The t value is recomputed here from the mutated CSV (one-sample t, s with n-1)."""
@@ -324,13 +310,13 @@ def test_uniform_shift_under_the_tolerance_raises_a_visible_finding(tmp_path: Pa
     t_expected = abs(dx.mean()) / (dx.std(ddof=1) / np.sqrt(dx.size))
     assert 0.4 < dx.mean() < 0.5 and np.sqrt(np.mean(dx**2)) < 0.5 and t_expected > 10
 
-    doc = _run(root, "jrc-v3", {})
+    doc = _run(root, "jrc-v3", {}, raster_cache)
     rec = {(r["rule"], r["item"]): r for r in doc["records"]}
     assert rec[("JRC-12.7-RMSEX", "B01")]["verdict"] == "pass"
     guard = rec[("JRC-12.4-SYSTEMATIC-X", "B01")]
     assert guard["verdict"] == "warn" and guard["measured"]["value"] == pytest.approx(t_expected, rel=1e-3)
 
-    strict = _run(root, "jrc-v3", {"systematic_error_level": "mandatory"})
+    strict = _run(root, "jrc-v3", {"systematic_error_level": "mandatory"}, raster_cache)
     assert strict["verdict"] == "rejected" and "B01" in strict["rollup"]["rejected"]["block"]
 
 
@@ -354,11 +340,11 @@ OBSERVED = {
 
 
 @pytest.mark.parametrize("case", sorted(OBSERVED))
-def test_observed_wrong_acceptances_are_now_rejected(tmp_path: Path, case: str) -> None:
+def test_observed_wrong_acceptances_are_now_rejected(tmp_path: Path, raster_cache: Path, case: str) -> None:
     mutations, expected = OBSERVED[case]
     root = tmp_path / "aerial-pass"
     shutil.copytree(EXAMPLES / "aerial-pass", root)
     apply_mutations(root, mutations)
-    doc = _run(root, "jrc-v3", {})
+    doc = _run(root, "jrc-v3", {}, raster_cache)
     assert doc["verdict"] == "rejected", case
     assert expected <= set(_bad(doc)), (case, sorted(set(_bad(doc))))
