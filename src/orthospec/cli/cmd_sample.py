@@ -16,7 +16,7 @@ from .groups import main
 @main.command("sample")
 @click.argument("delivery", type=click.Path(file_okay=False, path_type=Path))
 @click.option("--profile", "-p", "profile", default="jrc-v3", show_default=True,
-              help="Profile whose sample_fraction parameter sets the size (10 %% when absent).")
+              help="Profile whose sample_fraction parameter sets the size (10 % when absent).")
 @click.option("--seed", type=int, required=True, help="Seed: the same seed and round give the same sample.")
 @click.option("--round", "round_", type=int, default=0, show_default=True,
               help="Redelivery round: each round draws a new sample (it may include earlier items).")
@@ -32,7 +32,10 @@ from .groups import main
               help="CSV to write (default sample-<scope>-r<round>.csv); give it to `check --sample`.")
 def sample_cmd(delivery: Path, profile: str, seed: int, round_: int, scope: str, fraction: float | None,
                minimum: int, ledger_url: str | None, families: tuple[str, ...], out: Path | None) -> None:
-    """Select images or blocks for external QC: systematic spread, every tag, problem batches, random part."""
+    """Select images or blocks for external QC: systematic spread, every tag, problem batches, random part.
+
+    Example: orthospec sample examples/deliveries/aerial-pass --seed 7 --out sample.csv
+    """
     d = open_delivery(delivery)
     d.load_all_tables()
     prof = load_profile(profile)

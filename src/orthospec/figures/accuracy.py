@@ -76,11 +76,15 @@ def checkpoint_map_svg(
     unit: str = "m",
     flagged: Sequence[Any] = (),
     title: str = "Checkpoints and discrepancies",
+    polygon: Sequence[tuple[float, float]] | None = None,
 ) -> str:
     """Checkpoint map with discrepancy vectors (× ``scale``) and GCPs, as SVG text.
 
     ``scale`` defaults to one that makes the largest discrepancy 8 % of the map extent.
-    ``flagged`` ids (e.g. blunder candidates) are drawn in red.
+    ``flagged`` ids (e.g. blunder candidates) are drawn in red and always labelled; other labels
+    are drawn only where they do not crowd an earlier one. The figure's shape follows the
+    points' (and ``polygon``'s, the block outline) extent, so an elongated block is not drawn in
+    a mostly empty square.
     """
     ax_x = _arr("x", x)
     n = ax_x.size
@@ -97,8 +101,18 @@ def checkpoint_map_svg(
     if not (math.isfinite(scale) and scale > 0):
         raise MeasureError(f"scale must be positive, got {scale}")
 
+    px = np.asarray([p[0] for p in polygon], dtype=float) if polygon else np.empty(0)
+    py = np.asarray([p[1] for p in polygon], dtype=float) if polygon else np.empty(0)
+    allx, ally = np.concatenate([ax_x, px]), np.concatenate([ax_y, py])
+    wx, wy = max(float(np.ptp(allx)), 1e-9), max(float(np.ptp(ally)), 1e-9)
+    height = float(np.clip(7.0 * wy / wx, 3.2, 9.0)) + 0.8  # room for title, labels, scale arrow
     with plt.rc_context(_RC):
-        fig, ax = plt.subplots(figsize=(7, 7))
+        fig, ax = plt.subplots(figsize=(7, height))
+        if polygon:
+            outline = ax.fill(px, py, facecolor="none", edgecolor="0.4", linestyle="--", linewidth=0.8,
+                              label="block outline", zorder=1)
+            for o in outline:
+                o.set_gid("block-outline")
         red = np.isin(np.asarray(labels), [str(f) for f in flagged])
         pts = ax.scatter(ax_x, ax_y, s=18, c=np.where(red, "tab:red", "tab:blue"), zorder=3,
                          label="check point")
@@ -106,8 +120,15 @@ def checkpoint_map_svg(
         q = ax.quiver(ax_x, ax_y, vdx * scale, vdy * scale, angles="xy", scale_units="xy",
                       scale=1, color=np.where(red, "tab:red", "black"), width=0.003, zorder=4)
         q.set_gid("discrepancy-vectors")
-        for xi, yi, lab in zip(ax_x, ax_y, labels, strict=True):
-            ax.annotate(lab, (xi, yi), xytext=(3, 3), textcoords="offset points", fontsize=6)
+        placed: list[tuple[float, float]] = []
+        min_gap = 0.045 * max(wx, wy)
+        for i in sorted(range(n), key=lambda k: (not red[k], k)):  # flagged points first, always
+            xi, yi = float(ax_x[i]), float(ax_y[i])
+            if not red[i] and any(math.hypot(xi - a, yi - b) < min_gap for a, b in placed):
+                continue
+            placed.append((xi, yi))
+            ax.annotate(labels[i], (xi, yi), xytext=(3, 3), textcoords="offset points", fontsize=6,
+                        color="tab:red" if red[i] else "black")
         if gcp_x is not None and gcp_y is not None:
             gx = _arr("gcp_x", gcp_x)
             gy = _arr("gcp_y", gcp_y, gx.size)

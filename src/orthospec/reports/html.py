@@ -76,6 +76,16 @@ def document_sha256(doc: dict[str, Any]) -> str:
 
 # --- formatting filters -------------------------------------------------------------------------
 
+#: where a parameter value came from, in words (helper names: cli, tender, standard, manifest, unset)
+PARAMETER_SOURCES = {"cli": "command line (--param)", "tender": "tender profile", "standard": "the standard",
+                     "default": "the standard", "manifest": "contractor's manifest (confirm against the ITT)",
+                     "unset": "not set", "profile": "tender profile"}
+
+
+def param_source(v: Any) -> str:
+    return PARAMETER_SOURCES.get(str(v), "" if v is None else str(v))
+
+
 def blank(v: Any) -> str:
     """Empty fields print blank, never 'None'."""
     return "" if v is None else str(v)
@@ -153,7 +163,8 @@ def environment() -> jinja2.Environment:
         keep_trailing_newline=True,
     )
     env.filters.update(value=fmt_value, fixed=fmt_fixed, measured=fmt_measured, clause=fmt_clause,
-                       rows=fmt_rows, short=lambda s, n=12: (s or "")[:n], blank=blank)
+                       rows=fmt_rows, short=lambda s, n=12: (s or "")[:n], blank=blank,
+                       source=param_source)
     return env
 
 
@@ -180,6 +191,7 @@ class RuleView:
     pass_range: str = ""
     na_count: int = 0
     rows_hidden: int = 0
+    clause_ref: str = ""
     error: str | None = None
 
 
@@ -244,7 +256,7 @@ def _rule_views(doc: dict[str, Any], opts: ReportOptions) -> list[RuleView]:
             consequence=m.get("consequence") or first.get("consequence", ""),
             measure=first.get("measure", ""), verdict=m.get("verdict", "not_applicable"),
             counts=m.get("counts", {}), requirement=next(iter(reqs)) if len(reqs) == 1 else "per item",
-            error=m.get("error"),
+            error=m.get("error"), clause_ref=m.get("clause_ref") or "",
         )
         passing = [r for r in recs if r["verdict"] == "pass"]
         v.na_count = sum(r["verdict"] == "not_applicable" for r in recs)
