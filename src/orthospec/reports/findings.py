@@ -53,6 +53,18 @@ def fmt_number(v: Any) -> str:
     return str(v)
 
 
+def _distinct(v: Any, required: Any) -> str:
+    """The measured number with enough digits that it never reads equal to the requirement
+    (1.0004 m > 1 m must not print as '1 m > 1 m')."""
+    text = fmt_number(v)
+    if isinstance(v, float) and isinstance(required, int | float) and v != required:
+        digits = 3
+        while digits < 12 and float(text) == float(required):
+            digits += 1
+            text = f"{v:.{digits}g}"
+    return text
+
+
 def _req_number(v: Any) -> str:
     """A required value as the profile states it (never rounded: 0.33 stays 0.33)."""
     if isinstance(v, float) and math.isfinite(v) and v == int(v) and abs(v) < 1e15:
@@ -80,7 +92,7 @@ def stated(rec: dict[str, Any]) -> str | None:
             return f"{'true' if v else 'false'}, required {op}"
         return None
     if op in _NEGATED and req.get("value") is not None:
-        return f"{fmt_number(v)}{unit} {_NEGATED[op]} {_req_number(req['value'])}{unit}"
+        return f"{_distinct(v, req['value'])}{unit} {_NEGATED[op]} {_req_number(req['value'])}{unit}"
     if op == "between":
         lo = "−∞" if req.get("min") is None else _req_number(req["min"])
         hi = "+∞" if req.get("max") is None else _req_number(req["max"])
@@ -157,6 +169,8 @@ def _what(rec: dict[str, Any]) -> str:
     s = stated(rec)
     if s is not None:
         return s
+    if (rec.get("requirement") or {}).get("op") == "present" and rec["verdict"] in ("fail", "warn"):
+        return f"{rec.get('measure') or 'value'} not given, required for every item"
     msg = clean_text(rec.get("message")).strip()
     v = rec["verdict"]
     if v == "missing":

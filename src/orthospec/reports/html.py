@@ -336,9 +336,14 @@ def _block_figures(b: dict[str, Any], bid: str) -> list[dict[str, str]]:
     gcps = [g for g in b.get("gcps") or [] if _numeric(g.get("x")) and _numeric(g.get("y"))]
     out = []
     flagged = [str(p["point_id"]) for p in pts if p.get("status") == "fail"]
+    poly = b.get("polygon")  # the block outline, when the provider stores it in qcr.json
+    polygon = [(float(v[0]), float(v[1])) for v in poly
+               if isinstance(v, list | tuple) and len(v) >= 2 and _numeric(v[0]) and _numeric(v[1])] \
+        if isinstance(poly, list) else None
     svg = figs.checkpoint_map_svg(
         x, y, dx, dy, ids=ids, gcp_x=[g["x"] for g in gcps] or None, gcp_y=[g["y"] for g in gcps] or None,
-        unit=unit, flagged=flagged, title=f"Block {bid}: check points and discrepancies")
+        unit=unit, flagged=flagged, title=f"Block {bid}: check points and discrepancies",
+        polygon=polygon if polygon and len(polygon) >= 3 else None)
     out.append({"svg": svg, "kind": "map",
                 "caption": f"Block {bid}: check points (blue; red = above the maximum tolerable "
                            f"discrepancy), discrepancy vectors (exaggerated, see scale arrow) and GCPs "
