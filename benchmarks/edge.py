@@ -52,7 +52,8 @@ ANGLES = (2.0, 5.0, 10.0, 20.0, 29.0)
 SIGMAS = (0.4, 0.8, 1.5)
 SNRS = (50.0, 100.0, 500.0)
 S = 9  # supersampling of the render; kernels are sampled at 1/S px
-CODE = {"gauss": "g", "gauss-box": "b", "gauss2": "2", "gauss-usm": "u", "spline": "s"}
+CODE = {"gauss": "g", "gauss-box": "b", "gauss2": "2", "gauss-usm": "u", "gauss-disk": "d",
+        "spline": "s"}
 
 
 def _kernels() -> dict[str, np.ndarray]:

@@ -105,3 +105,24 @@ def test_too_small_roi_exits_2(edge_tif):
 def test_help_text():
     res = CliRunner().invoke(cli(), ["measure", "edge", "--help"])
     assert res.exit_code == 0 and "--roi" in res.output and "Exit code" in res.output
+
+
+def test_no_roi_finds_the_edge_automatically(edge_tif):
+    """Issue 16: without --roi the edges are found; band 2 holds one near-vertical edge
+    (6 deg) inside a flat frame, so one X edge and no combined RER (no Y edge), with the
+    reason. --whole keeps the old whole-image measurement."""
+    res = _run(str(edge_tif), "--band", "2", "--json")
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.output)
+    assert doc["mode"] == "auto" and doc["roi"] is None
+    valid = [e for e in doc["edges"] if e["valid"]]
+    assert [e["axis"] for e in valid] == ["x"]
+    e = valid[0]
+    assert e["angle_deg"] == pytest.approx(6.0, abs=0.1)
+    t = edge_truth(sigma_px=0.7, angle_deg=6.0)
+    assert e["fwhm_px"] == pytest.approx(t.fwhm_px, rel=0.03)
+    assert doc["rer_combined"] is None and "Y (northing)" in doc["rer_combined.reason"]
+    text = _run(str(edge_tif), "--band", "2")
+    assert text.exit_code == 0 and "combined" in text.output and "automatic search" in text.output
+    whole = json.loads(_run(str(edge_tif), "--band", "2", "--whole", "--json").output)
+    assert "mode" not in whole and "valid" in whole

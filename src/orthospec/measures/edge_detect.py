@@ -18,7 +18,9 @@ straight edge per ROI, and guessing windows by hand is slow and error-prone. Her
 5. ROI: a band of half-width w around the run, restricted to the run's side of every
    other line (no second edge in the band) and to valid pixels; everything else NaN.
    w grows over ``half_widths`` and the widest band whose edge passes every CEOS health
-   check is kept (the last one tried is reported with its reasons when none passes).
+   check is kept (the last one tried is reported with its reasons when none passes);
+   growing stops at a failure a wider band cannot fix (angle, straightness, sampling,
+   SNR, contrast, saturation).
 
 Edges whose profile runs along image x (edge near the columns) give the response in X,
 the others in Y; for a north-up image X is easting and Y northing. The USGS combined RER
@@ -197,8 +199,8 @@ def find_edges(image: np.ndarray, *, nodata: float | None = None, sigma: float =
             c, u = _fit_line(near)
         if u[1] < 0 or (u[1] == 0 and u[0] < 0):
             u = -u
-        if not any(abs(float(u @ u2)) > math.cos(math.radians(2)) and
-                   abs(float((c - c2) @ np.array([-u2[1], u2[0]]))) < 2.0 for c2, u2 in lines):
+        if not any(abs(float(u @ u2)) > math.cos(math.radians(4)) and
+                   abs(float((c - c2) @ np.array([-u2[1], u2[0]]))) < 3.0 for c2, u2 in lines):
             lines.append((c, u))
 
     out = []
@@ -232,6 +234,10 @@ def find_edges(image: np.ndarray, *, nodata: float | None = None, sigma: float =
                 out.append((c, u, float(t[i]), float(t[j])))
             i = j + 1
     return out
+
+
+# health checks that a wider band can turn to pass (more plateau, more of the transition)
+_WIDTH_CHECKS = {"dark_width", "bright_width", "fit"}
 
 
 def _band_mask(shape: tuple[int, int], c: np.ndarray, u: np.ndarray, t0: float, t1: float,
@@ -294,6 +300,9 @@ def measure_target(image: np.ndarray, *, nodata: float | None = None, gsd: float
                 best = cand
             elif best.result is not None and best.result.valid:
                 break  # grown past the widest passing band
+            failed = {c.name for c in res.checks if not c.passed}
+            if not res.valid and not failed <= _WIDTH_CHECKS:
+                break  # a wider band does not fix the angle, straightness or sampling
         if best is not None:
             edges.append(best)
     edges.sort(key=lambda e: (e.axis, e.y0, e.x0))
