@@ -15,6 +15,7 @@ import warnings
 from collections import Counter
 from collections.abc import Iterable
 from dataclasses import asdict, dataclass, field
+from functools import lru_cache
 from pathlib import Path, PurePath
 from typing import Any
 
@@ -238,24 +239,31 @@ def _check_open(ds: rasterio.io.DatasetReader, base: dict[str, Any], *, expect_e
         return FileChecks(error=f"{p}: no georeference (identity geotransform)", **base,
                           **facts)
     try:
-        from pyproj import CRS
-
-        crs = CRS.from_user_input(ds.crs.to_wkt())
+        crs_text, epsg, unit, crs_ok = _crs_facts(ds.crs.to_wkt(), expect_epsg)
     except Exception as exc:  # pyproj raises CRSError, plus odd ValueErrors on broken WKT
         return FileChecks(error=f"{p}: unparseable CRS: {exc}", **base, **facts)
-    epsg = crs.to_epsg()
-    crs_ok = None
-    if expect_epsg is not None:
-        crs_ok = crs.equals(CRS.from_epsg(int(expect_epsg)), ignore_axis_order=True)
     t = ds.transform
     px, py = math.hypot(t.a, t.d), math.hypot(t.b, t.e)
-    unit = crs.axis_info[0].unit_name if crs.axis_info else None
     gsd_ok = None
     if expect_gsd is not None:
         gsd_ok = all(abs(v - expect_gsd) <= gsd_tolerance * expect_gsd for v in (px, py))
-    return FileChecks(crs=crs.to_string(), epsg=epsg, crs_ok=crs_ok, pixel_size_x=px,
+    return FileChecks(crs=crs_text, epsg=epsg, crs_ok=crs_ok, pixel_size_x=px,
                       pixel_size_y=py, pixel_size_unit=unit, gsd_ok=gsd_ok,
                       rotated=bool(t.b or t.d), **base, **facts)
+
+
+@lru_cache(maxsize=64)
+def _crs_facts(wkt: str, expect_epsg: int | None) -> tuple[str, int | None, str | None, bool | None]:
+    """(name, EPSG code, axis unit, equals the expected EPSG) of a CRS; parsed once per WKT, since
+    every image of a delivery shares one CRS and pyproj takes about a millisecond per parse."""
+    from pyproj import CRS
+
+    crs = CRS.from_user_input(wkt)
+    ok = None
+    if expect_epsg is not None:
+        ok = crs.equals(CRS.from_epsg(int(expect_epsg)), ignore_axis_order=True)
+    unit = crs.axis_info[0].unit_name if crs.axis_info else None
+    return crs.to_string(), crs.to_epsg(), unit, ok
 
 
 @dataclass(frozen=True)

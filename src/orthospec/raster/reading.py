@@ -370,6 +370,13 @@ def _scan(ds: rasterio.io.DatasetReader, s: ScanSettings) -> RasterStats:
     chunks = 0
     # one reader thread decodes the next chunk (GDAL releases the GIL) while this one counts;
     # the dataset is only ever touched by that thread inside the loop
+    if len(wins) <= 1:  # one chunk (a small image): no reader thread to start and hand off to
+        for k, win in enumerate(wins):
+            data, shared_mask = fetch(win)
+            chunks += 1
+            _accumulate(data, shared_mask, infos, hists, moms, edge_counts, noise if k % stride == 0 else {},
+                        rgb, lum)
+        wins = []
     with ThreadPoolExecutor(max_workers=1) as reader:
         pending = reader.submit(fetch, wins[0]) if wins else None
         for k in range(len(wins)):
