@@ -21,15 +21,17 @@ import stat
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
-from typing import Any, Union, get_args, get_origin
+from typing import TYPE_CHECKING, Any, Union, get_args, get_origin
 
 from pydantic import BaseModel, ValidationError
 
 from ..errors import ExpressionError, SpecError, UnitError
 from ..resources import specs_dir
-from . import expr
 from .models import Parameter, Profile, Rule, RuleOverride
 from .yamlio import Located, YamlError, YamlLimits, load_text
+
+if TYPE_CHECKING:
+    from . import expr
 
 MAX_EXTENDS_DEPTH = 8
 #: how much of a candidate file is read to learn its id and version (never the whole file)
@@ -772,6 +774,8 @@ def manifest_path_problem(name: str) -> str | None:
 
 
 def _parse(text: str) -> expr.Expression:
+    from . import expr  # numpy: only when a profile is validated, not when served from the cache
+
     return expr.parse(text)
 
 
