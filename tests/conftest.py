@@ -18,6 +18,14 @@ EXAMPLES = ROOT / "examples" / "deliveries"
 
 
 
+def pytest_configure(config: pytest.Config) -> None:
+    """Print the mutation suite's coverage line in the summary (controller side, also under xdist)."""
+    if not hasattr(config, "workerinput"):
+        from mutation_coverage import PLUGIN_NAME, CoverageReport
+
+        config.pluginmanager.register(CoverageReport(), PLUGIN_NAME)
+
+
 @pytest.hookimpl(hookwrapper=True)
 def pytest_runtest_makereport(item, call):
     """With ORTHOSPEC_STRICT_SKIPS=1 (set by .ci/run) a skipped test fails: CI must not pass on a

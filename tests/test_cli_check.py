@@ -28,7 +28,7 @@ def test_rejected_delivery_exits_1_and_writes_outputs(make_delivery, mini_profil
                                 "--date", "2026-01-01"], capsys)
     assert code == 1
     assert "REJECTED" in stdout and "R-ROLLUP" in stdout
-    assert "rules, 11 records" in stdout
+    assert "rules, 13 records" in stdout  # 11 profile records + 2 built-in ORTHOSPEC-ITT-* rules
     doc = json.loads((out / "qcr.json").read_text())
     assert doc["verdict"] == "rejected"
     assert (out / "qcr.csv").read_text().startswith("rule,clause,scope,item")

@@ -27,7 +27,7 @@ def _aoi(ctx: ProviderContext) -> tuple[Any, tuple[Any, ...], str]:
     d = ctx.delivery
     rel = d.manifest.project.area_of_interest
     if rel:
-        geoms, _ = read_vector(d.path(rel, what="project.area_of_interest"))
+        geoms, _ = read_vector(d.path(rel, what="project.area_of_interest"), name=rel)
         if not geoms:
             raise MeasureError(f"{rel}: the area of interest has no geometry")
         return shapely.union_all(geoms), (d.evidence(rel),), f"area of interest {rel}"
@@ -85,7 +85,7 @@ def mosaic_measures(ctx: ProviderContext) -> list[Measured]:
         seam = d.manifest.vectors.get("seamlines")
         if seam:
             try:
-                geoms, _ = read_vector(d.path(seam, what="vectors.seamlines"))
+                geoms, _ = read_vector(d.path(seam, what="vectors.seamlines"), name=seam)
                 sc = seamline_coverage(geoms, aoi)
                 vals["mosaic.seamline_coverage"] = 100.0 - sc.gap_pct
                 vals["mosaic.seamline_overlap"] = sc.overlap_pct
