@@ -115,6 +115,7 @@ def test_unreadable_declared_value_is_noted_not_fatal(tmp_path):
     assert vals["min_checkpoints"].declared is None and "decimal comma" in vals["min_checkpoints"].note
     assert vals["cloud_cover_max"].declared is None and vals["cloud_cover_max"].note
     assert "declared" not in vals["min_checkpoints"].to_dict()
+    assert "decimal comma" in vals["min_checkpoints"].to_dict()["note"]  # evidence the report can show
     assert vals["min_checkpoints"].value == 20
 
 

@@ -56,6 +56,8 @@ class ParamValue:
             out["declared"] = self.declared
         if self.justification:
             out["justification"] = self.justification
+        if self.note:
+            out["note"] = self.note
         return out
 
 
