@@ -148,6 +148,12 @@ def test_changing_a_standard_value_needs_a_justification(tmp_path):
     assert par.value == 25 and par.justification.startswith("ITT 4.3") and par.authority() == "standard"
 
 
+def test_an_extending_profile_sets_value_not_default(tmp_path):
+    text = HEAD + "parameters:\n  tolerance_xy: {default: 0.5}\n"
+    code, out = validate(tmp_path, text)
+    assert code == 2 and "sets `value:`, not `default:`" in out and "itt.yaml" + line_col(text, "0.5}") in out
+
+
 def test_set_by_is_fixed_where_the_parameter_is_defined(tmp_path):
     text = HEAD + "parameters:\n  min_checkpoints: {set_by: itt}\n"
     code, out = validate(tmp_path, text)

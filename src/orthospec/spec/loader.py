@@ -617,6 +617,11 @@ def _merge(prof: Profile, base: ResolvedProfile | None, path: Path, doc: Located
             problems.append(Problem(doc.file, line, col, f"parameter {name}: set_by is {old.authority()!r} where "
                                     "the parameter is defined; an extending profile cannot change it"))
             continue
+        if "default" in given and not _same_value(given["default"], old.default):
+            line, col = doc.where(("parameters", name, "default"))
+            problems.append(Problem(doc.file, line, col, f"parameter {name}: an extending profile sets `value:`, "
+                                    "not `default:` (the default is the value of the profile that defines it)"))
+            continue
         merged = old.model_dump()
         merged.update(given)
         merged["set_by"] = old.authority()
