@@ -272,6 +272,8 @@ def annex_context(profile: ResolvedProfile, *, day: str, sensor: str | None = No
     sensors, digital = tender_sensor(profile)
     if sensor:
         sensors = {sensor}
+    if sensors == {"satellite"} and digital is None:
+        digital = True  # satellite sensors are digital: film-camera rules cannot apply
     groups: dict[tuple[Any, ...], Group] = {}
     members: dict[tuple[Any, ...], list[Rule]] = {}
     excluded: list[dict[str, Any]] = []
