@@ -133,3 +133,28 @@ def test_history_shows_changes_by_default(unsigned: dict[str, Path]) -> None:
     for rid in passing:
         assert not re.search(rf"^{re.escape(rid)}\s", short.output, re.M)
     assert "--all shows them" in short.output
+
+
+def test_anchor_file_catches_a_recomputed_chain(make_delivery, mini_profile, tmp_path: Path,
+                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    """With $ORTHOSPEC_LEDGER_ANCHOR every new head is appended outside the ledger; deleting the
+    newest entry and rewriting the head row then fails `ledger verify` without any --head."""
+    anchor = tmp_path / "anchor.txt"
+    monkeypatch.setenv("ORTHOSPEC_LEDGER_ANCHOR", str(anchor))
+    root = make_delivery("d", manifest=MANIFEST.replace(NO_WAIVER, ""), images=GOOD)
+    ledger = tmp_path / "anchored.sqlite"
+    for day in ("2026-03-01", "2026-03-02"):
+        res = run("check", root, "-p", mini_profile, "--out", tmp_path / day, "--ledger", ledger, "--date", day,
+                  "--format", "json")
+        assert res.exit_code in (0, 1), res.output
+    lines = anchor.read_text(encoding="utf-8").splitlines()
+    assert [ln.split()[0] for ln in lines] == ["1", "2"]
+    assert run("ledger", "verify", "--ledger", ledger).exit_code == 0
+    with sqlite3.connect(ledger) as con:
+        first = con.execute("SELECT hash FROM runs WHERE seq = 1").fetchone()[0]
+        con.execute("DELETE FROM qcrs WHERE run_id = 2")
+        con.execute("DELETE FROM run_files WHERE run_id = 2")
+        con.execute("DELETE FROM runs WHERE seq = 2")
+        con.execute("UPDATE ledger_head SET seq = 1, hash = ?", (first,))
+    bad = run("ledger", "verify", "--ledger", ledger)
+    assert bad.exit_code == 1 and "anchor line 2" in bad.output, bad.output

@@ -40,6 +40,9 @@ if TYPE_CHECKING:
 #: the file used when neither ``--ledger`` nor ``ORTHOSPEC_LEDGER`` names one
 DEFAULT_LEDGER = "orthospec-ledger.sqlite"
 ENV_LEDGER = "ORTHOSPEC_LEDGER"
+#: an append-only file outside the ledger that receives every new chain head ("seq hash" lines);
+#: `verify` then checks that each head in it is still in the chain (an external anchor)
+ENV_ANCHOR = "ORTHOSPEC_LEDGER_ANCHOR"
 QCR_SCHEMA = "orthospec.qcr/1"
 ROLES = ("supervisor", "inspector", "auditor", "operator")
 _PG_LOCK_KEY = 0x6F72_7468  # advisory lock serialising schema upgrades on a shared server
@@ -213,6 +216,7 @@ class Ledger:
                 conn.execute(m.qcrs.insert(), [{"run_id": run_id, **q} for q in qrows])
             conn.execute(update(m.head).where(m.head.c.id == 1).values(seq=seq + 1, hash=row["hash"]))
             _maybe_pause()
+        _anchor(seq + 1, row["hash"])
         return run_id
 
     def signoff(self, run_id: int, *, by: str, role: str = "supervisor", date: str | None = None,
@@ -282,6 +286,7 @@ class Ledger:
             conn.execute(m.signoffs.insert(), row)
             conn.execute(update(m.head).where(m.head.c.id == 1).values(seq=seq + 1, hash=row["hash"]))
             _maybe_pause()
+        _anchor(seq + 1, row["hash"])
         return sid
 
     # --- reading -----------------------------------------------------------------------------
@@ -526,6 +531,13 @@ class Ledger:
                     "ledger_head", "id 1",
                     f"head says seq {hd['seq']} hash {hd['hash'][:12]}..., the chain ends at seq "
                     f"{expected_seq - 1} hash {prev[:12]}... (newest entries deleted or head edited)"))
+        anchors = _read_anchors()
+        hashes = {row["hash"] for _k, row in entries}
+        for line, (a_seq, a_hash) in anchors:
+            if a_hash not in hashes:
+                problems.append(Problem("ledger_head", f"anchor line {line}",
+                                        f"the head of seq {a_seq} ({a_hash[:16]}...) recorded in "
+                                        f"${ENV_ANCHOR} is not in the chain: entries were deleted or rewritten"))
         if head is not None:
             want = head.strip().lower()
             if len(want) < 12 or any(ch not in "0123456789abcdef" for ch in want):
@@ -537,6 +549,40 @@ class Ledger:
                     f"the head {want[:16]}... noted earlier is not in the chain: entries up to it were deleted "
                     f"and the chain rewritten (the chain now ends at seq {expected_seq - 1} hash {prev[:12]}...)"))
         return VerifyReport(len(entries), len(runs), len(signs), prev, tuple(problems))
+
+
+def _anchor(seq: int, head: str) -> None:
+    """Append the new head to the anchor file named by $ORTHOSPEC_LEDGER_ANCHOR (if set)."""
+    path = os.environ.get(ENV_ANCHOR)
+    if not path:
+        return
+    try:
+        with open(path, "a", encoding="utf-8") as fh:
+            fh.write(f"{seq} {head}\n")
+            fh.flush()
+            os.fsync(fh.fileno())
+    except OSError as exc:
+        raise LedgerError(f"recorded, but the head could not be appended to ${ENV_ANCHOR} {path}: {exc}") from None
+
+
+def _read_anchors() -> list[tuple[int, tuple[int, str]]]:
+    """(line number, (seq, hash)) of the anchor file; a missing file is an error when the variable is set."""
+    path = os.environ.get(ENV_ANCHOR)
+    if not path:
+        return []
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except FileNotFoundError:
+        return []  # nothing recorded yet with this anchor
+    except OSError as exc:
+        raise LedgerError(f"${ENV_ANCHOR} {path}: cannot read: {exc}") from None
+    out = []
+    for n, line in enumerate(text.splitlines(), start=1):
+        parts = line.split()
+        if len(parts) != 2 or not parts[0].isdigit() or len(parts[1]) != 64:
+            raise LedgerError(f"${ENV_ANCHOR} {path}:{n}: expected 'SEQ HASH', got {line[:80]!r}")
+        out.append((n, (int(parts[0]), parts[1].lower())))
+    return out
 
 
 #: how an acknowledged rejection is recorded at the start of a sign-off note (hashed with it)
