@@ -64,3 +64,45 @@ def test_checkpoint_generator_writes_the_delivery_table_columns(tmp_path):
         assert g["x_ref"].between(x0, x1).all() and g["y_ref"].between(y0, y1).all()
     dx = (df["x"] - df["x_ref"]).to_numpy()
     assert 0.1 < float(np.sqrt(np.mean(dx ** 2))) < 0.2  # N(0, 0.15 m) errors, as documented
+
+
+def test_point_csv_reader_keeps_row_semantics_when_vectorised(tmp_path):
+    """Column-wise reading (issue 14) keeps what the row-wise reader did: blank lines skipped,
+    a missing trailing cell is empty, extra cells dropped, cells stripped, errors name the row."""
+    from orthospec.delivery.points import read_points_csv
+    from orthospec.errors import DeliveryError
+
+    path = tmp_path / "p.csv"
+    path.write_text("id, x ,y,x_ref,y_ref,exclusion_reason\n"
+                    " A ,10.5,20,10,20.25\n"
+                    "\n"
+                    "B,1_000,5,999.5,4,blunder: cone moved,extra cell\n"
+                    "C,3,3,3,3,\n", encoding="utf-8")
+    t = read_points_csv(path)
+    assert t.ids.tolist() == ["A", "B", "C"] and t.rows.tolist() == [1, 2, 3]
+    np.testing.assert_array_equal(t.dx, [0.5, 0.5, 0.0])
+    np.testing.assert_array_equal(t.dy, [-0.25, 1.0, 0.0])
+    assert t.exclusions == {"B": "blunder: cone moved"}
+    path.write_text("id,x,y,x_ref,y_ref\nA,1,2,1,2\nB,1,2,1,2\nC,1,two,1,2\nD,1,inf,1,2\n")
+    with pytest.raises(DeliveryError, match="expected a number, got 'two'") as exc:
+        read_points_csv(path)
+    assert "row 3" in str(exc.value) and "y" in str(exc.value)
+    path.write_text("id,x,y,x_ref,y_ref\nA,1,2,1,2\nB,1,2,1,2\nA,1,2,1,2\n")
+    with pytest.raises(DeliveryError, match=r"duplicate point id 'A' \(first on row 1\)"):
+        read_points_csv(path)
+
+
+def test_point_csv_reader_on_a_large_generated_table(tmp_path):
+    from orthospec.delivery.points import read_points_csv
+
+    n = 200_000
+    rng = np.random.default_rng(5)
+    xr = np.round(500000 + rng.random(n) * 6000, 3)
+    x = np.round(xr + rng.normal(0, 0.15, n), 3)
+    path = tmp_path / "big.csv"
+    with open(path, "w", encoding="utf-8") as fh:
+        fh.write("point_id,x,y,x_ref,y_ref,unit\n")
+        fh.writelines(f"P{i},{x[i]:.3f},7,{xr[i]:.3f},7,m\n" for i in range(n))
+    t = read_points_csv(path)
+    np.testing.assert_array_equal(t.dx, x - xr)  # the same float64 operations on the same values
+    assert len(t.ids) == n and t.source_unit == "m" and not t.exclusions

@@ -14,7 +14,6 @@ after the header, as everywhere in orthospec. Values are returned in metres.
 from __future__ import annotations
 
 import csv
-import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -65,13 +64,14 @@ def read_points_csv(path: str | Path, *, units: str | None = None) -> PointTable
     name = str(path)
     try:
         with open(path, newline="", encoding="utf-8-sig") as fh:
-            reader = csv.DictReader(fh)
-            header = [h.strip() for h in (reader.fieldnames or [])]
-            records = list(reader)
+            reader = csv.reader(fh)
+            raw_header = next(reader, None)
+            records = [r for r in reader if r]  # csv.DictReader skips empty lines too
     except FileNotFoundError:
         raise DeliveryError("file not found", file=name) from None
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise DeliveryError(f"cannot read CSV: {exc}", file=name) from None
+    header = [h.strip() for h in (raw_header or [])]
     if not header:
         raise DeliveryError(f"empty file; expected a header with columns {_EXPECTED}", file=name)
 
@@ -102,51 +102,35 @@ def read_points_csv(path: str | Path, *, units: str | None = None) -> PointTable
     if layout == "coordinates" and (("z" in cols) != ("z_ref" in cols)):
         raise DeliveryError("columns z and z_ref must be given together", file=name)
 
-    def clean(rec: dict[str, str | None]) -> dict[str, str]:
-        return {(k or "").strip(): (v or "").strip() for k, v in rec.items() if k is not None}
+    n = len(records)
+    if n < 2:
+        raise DeliveryError(f"{n} point(s); at least 2 are needed for statistics", file=name)
+    table = _columns(records, header)
 
-    rows = [clean(r) for r in records]
-    if len(rows) < 2:
-        raise DeliveryError(f"{len(rows)} point(s); at least 2 are needed for statistics",
-                            file=name)
-
-    ids = []
-    seen: dict[str, int] = {}
-    for i, r in enumerate(rows, start=1):
-        pid = r.get(id_col, "")
-        if not pid:
-            raise DeliveryError("empty point id", file=name, row=i, field=id_col)
-        if pid in seen:
-            raise DeliveryError(f"duplicate point id {pid!r} (first on row {seen[pid]})",
-                                file=name, row=i, field=id_col)
-        seen[pid] = i
-        ids.append(pid)
+    ids = table[id_col]
+    empty = np.flatnonzero(ids == "")
+    if empty.size:
+        raise DeliveryError("empty point id", file=name, row=int(empty[0]) + 1, field=id_col)
+    if len(set(ids.tolist())) != n:
+        seen: dict[str, int] = {}
+        for i, pid in enumerate(ids.tolist(), start=1):
+            if pid in seen:
+                raise DeliveryError(f"duplicate point id {pid!r} (first on row {seen[pid]})",
+                                    file=name, row=i, field=id_col)
+            seen[pid] = i
 
     def number(col: str) -> np.ndarray:
-        out = np.empty(len(rows))
-        for i, r in enumerate(rows, start=1):
-            text = r.get(col, "")
-            try:
-                v = float(text)
-            except ValueError:
-                raise DeliveryError(f"expected a number, got {text!r}", file=name, row=i,
-                                    field=col) from None
-            if not math.isfinite(v):
-                raise DeliveryError(f"expected a finite number, got {text!r}", file=name, row=i,
-                                    field=col)
-            out[i - 1] = v
-        return out
+        return _numbers(table[col], name, col)
 
     def optional_number(col: str) -> np.ndarray | None:
         if col not in cols:
             return None
-        filled = [bool(r.get(col, "")) for r in rows]
-        if not any(filled):
+        filled = table[col] != ""
+        if not filled.any():
             return None
-        if not all(filled):
-            row = filled.index(False) + 1
+        if not filled.all():
             raise DeliveryError("empty cell in a partly filled column (fill all rows or none)",
-                                file=name, row=row, field=col)
+                                file=name, row=int(np.argmin(filled)) + 1, field=col)
         return number(col)
 
     if layout == "coordinates":
@@ -159,7 +143,7 @@ def read_points_csv(path: str | Path, *, units: str | None = None) -> PointTable
     else:
         dx, dy, dz = number("dx"), number("dy"), optional_number("dz")
 
-    unit = _resolve_unit(rows, cols, units, name)
+    unit = _resolve_unit(table.get("unit"), units, name)
     try:
         dx, dy = convert(dx, unit, "m", what=name), convert(dy, unit, "m", what=name)
         dz = None if dz is None else convert(dz, unit, "m", what=name)
@@ -167,43 +151,82 @@ def read_points_csv(path: str | Path, *, units: str | None = None) -> PointTable
         raise DeliveryError(str(exc), file=name, field="unit") from None
 
     exclusions: dict[str, str] = {}
-    for i, r in enumerate(rows, start=1):
-        reason = r.get("exclusion_reason", "")
-        if "excluded" in cols:
-            flag = r.get("excluded", "").lower()
-            if flag not in _TRUE | _FALSE:
-                raise DeliveryError(f"expected true/false, got {r.get('excluded')!r}", file=name,
-                                    row=i, field="excluded")
-            if flag in _TRUE:
-                exclusions[ids[i - 1]] = reason
-        elif reason:
-            exclusions[ids[i - 1]] = reason
+    reasons = table.get("exclusion_reason")
+    if "excluded" in cols:
+        flags = np.char.lower(table["excluded"].astype(str))
+        bad = ~np.isin(flags, sorted(_TRUE | _FALSE))
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise DeliveryError(f"expected true/false, got {table['excluded'][i]!r}", file=name,
+                                row=i + 1, field="excluded")
+        chosen = np.flatnonzero(np.isin(flags, sorted(_TRUE)))
+    elif reasons is not None:
+        chosen = np.flatnonzero(reasons != "")
+    else:
+        chosen = np.zeros(0, dtype=np.intp)
+    for i in chosen.tolist():
+        exclusions[ids[i]] = "" if reasons is None else reasons[i]
 
     return PointTable(
-        file=name, ids=np.asarray(ids, dtype=object), rows=np.arange(1, len(rows) + 1),
+        file=name, ids=ids.astype(object), rows=np.arange(1, n + 1),
         dx=dx, dy=dy, dz=dz, source_unit=unit, layout=layout, exclusions=exclusions,
     )
 
 
-def _resolve_unit(rows: list[dict[str, str]], cols: set[str], units: str | None,
-                  name: str) -> str:
+def _columns(records: list[list[str]], header: list[str]) -> dict[str, np.ndarray]:
+    """Stripped cells by column, as ``csv.DictReader`` would give them: a missing trailing cell
+    is empty, cells beyond the header are dropped."""
+    width = len(header)
+    if set(map(len, records)) != {width}:
+        records = [r[:width] if len(r) >= width else r + [""] * (width - len(r)) for r in records]
+    out = {}
+    for h, cells in zip(header, zip(*records, strict=True), strict=True):
+        out[h] = np.array(list(map(str.strip, cells)), dtype=object)  # C loop, no frame per cell
+    return out
+
+
+def _numbers(cells: np.ndarray, name: str, col: str) -> np.ndarray:
+    """Python ``float`` of every cell (numpy calls it per object, in C), finite; else the first
+    offending row, as a per-row loop would report it."""
+    try:
+        values = np.asarray(cells, dtype=np.float64)
+    except (ValueError, TypeError):
+        parsed = []
+        for i, text in enumerate(cells.tolist(), start=1):
+            try:
+                parsed.append(float(text))
+            except ValueError:
+                raise DeliveryError(f"expected a number, got {text!r}", file=name, row=i,
+                                    field=col) from None
+        values = np.asarray(parsed, dtype=np.float64)
+    finite = np.isfinite(values)
+    if not finite.all():
+        i = int(np.argmin(finite))
+        raise DeliveryError(f"expected a finite number, got {cells[i]!r}", file=name, row=i + 1,
+                            field=col)
+    return values
+
+
+def _resolve_unit(cells: np.ndarray | None, units: str | None, name: str) -> str:
+    """The file's one length unit (validated once per distinct spelling, in row order)."""
     column_unit = None
-    if "unit" in cols:
+    if cells is not None:
+        empty = np.flatnonzero(cells == "")
+        if empty.size:
+            raise DeliveryError("empty unit", file=name, row=int(empty[0]) + 1, field="unit")
+        spellings, first = np.unique(cells.astype(str), return_index=True)
         found: dict[str, int] = {}
-        for i, r in enumerate(rows, start=1):
-            u = r.get("unit", "")
-            if not u:
-                raise DeliveryError("empty unit", file=name, row=i, field="unit")
+        for i, u in sorted(zip(first.tolist(), spellings.tolist(), strict=True)):
             try:
                 key = canonical(u)
                 ok = parse_unit(u).dimensionality == parse_unit("m").dimensionality
             except UnitError:
                 raise DeliveryError(f"unknown unit {u!r}; expected m, ft or usft", file=name,
-                                    row=i, field="unit") from None
+                                    row=i + 1, field="unit") from None
             if not ok:
                 raise DeliveryError(f"unit {u!r} is not a length; expected m, ft or usft",
-                                    file=name, row=i, field="unit")
-            found.setdefault(key, i)
+                                    file=name, row=i + 1, field="unit")
+            found.setdefault(key, i + 1)
         if len(found) > 1:
             listed = ", ".join(f"{k} (row {v})" for k, v in found.items())
             raise DeliveryError(f"mixed units in one file: {listed}; use one unit", file=name,
