@@ -79,6 +79,13 @@ def test_parameter_value_must_be_a_plain_number(tmp_path, written, hint):
     assert hint in out
 
 
+def test_decimal_comma_in_a_flow_mapping(tmp_path):
+    # in {...} YAML splits `1,0` at the comma: value 1 and a stray key '0' - never silently value 1
+    text = HEAD + "parameters:\n  tolerance_xy: {value: 0,5}\n"
+    code, out = validate(tmp_path, text)
+    assert code == 2 and "decimal comma" in out and "write 0.5" in out, out
+
+
 def test_good_tender_values_validate(tmp_path):
     text = HEAD + "parameters:\n  tolerance_xy: {value: 0.5}\n  tolerance_z: {value: 1}\n"
     code, out = validate(tmp_path, text)

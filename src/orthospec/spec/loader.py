@@ -329,6 +329,8 @@ def _pydantic_problems(doc: Located, exc: ValidationError) -> list[Problem]:
             allowed = _fields_at(raw_loc[:-1])
             near = difflib.get_close_matches(key, allowed, n=1, cutoff=0.6)
             hint = f"; did you mean {near[0]!r}?" if near else (f"; allowed: {', '.join(allowed)}" if allowed else "")
+            if key.isdigit():  # `{value: 1,0}`: in a {flow mapping} the comma splits the number
+                hint = _split_number_hint(doc, path, key)
             msg = f"{loc}: unknown key {key!r}{hint}"
         else:
             got = e.get("input")
@@ -336,6 +338,25 @@ def _pydantic_problems(doc: Located, exc: ValidationError) -> list[Problem]:
             msg = f"{loc}: {e['msg']}{shown}"
         out.append(Problem(doc.file, line, col, msg, _rule_at(doc, path)))
     return out
+
+
+def _split_number_hint(doc: Located, path: tuple[Any, ...], key: str) -> str:
+    """`{value: 0,5}` reads as value 0 and a key '5': name the number the author meant."""
+    parent: Any = doc.data
+    for part in path[:-1]:
+        try:
+            parent = parent[part]
+        except (KeyError, IndexError, TypeError):
+            parent = None
+            break
+    if isinstance(parent, dict) and key in parent:
+        keys = list(parent)
+        i = keys.index(key)
+        if i > 0 and isinstance(parent[keys[i - 1]], int) and not isinstance(parent[keys[i - 1]], bool):
+            prev, whole = keys[i - 1], parent[keys[i - 1]]
+            return (f": a decimal comma inside {{...}} splits the number (`{prev}: {whole},{key}` reads as "
+                    f"{prev} {whole} and a key '{key}'); write {whole}.{key}")
+    return ": a decimal comma inside {...} splits a number (`1,0` reads as 1 and a key '0'); write 1.0"
 
 
 def parse_profile(doc: Located) -> tuple[Profile | None, list[Problem]]:
