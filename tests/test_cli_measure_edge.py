@@ -126,3 +126,14 @@ def test_no_roi_finds_the_edge_automatically(edge_tif):
     assert text.exit_code == 0 and "combined" in text.output and "automatic search" in text.output
     whole = json.loads(_run(str(edge_tif), "--band", "2", "--whole", "--json").output)
     assert "mode" not in whole and "valid" in whole
+
+
+def test_no_roi_writes_figures_per_found_edge(edge_tif, tmp_path):
+    res = _run(str(edge_tif), "--band", "2", "--json", "--plots", str(tmp_path / "figs"))
+    doc = json.loads(res.output)
+    n = len(doc["edges"])
+    assert n >= 1 and len(doc["plots"]) == 4 * n
+    first = [p for p in doc["plots"] if Path(p).name.startswith("edge1_")]
+    assert {Path(p).name.split("_", 2)[2] for p in first} == {"detection.svg", "esf.svg", "lsf.svg",
+                                                             "mtf.svg"}
+    assert all(Path(p).read_text(encoding="utf-8").lstrip().startswith("<?xml") for p in doc["plots"])

@@ -107,7 +107,7 @@ def edge_command(image: str, roi: str | None, whole: bool, band: int, gsd: float
         if window is None and not whole:
             _auto(image, band, arr, gsd=gsd,
                   nodata=nodata if nodata is not None else file_nodata,
-                  bit_depth=bit_depth, min_snr=min_snr, as_json=as_json)
+                  bit_depth=bit_depth, min_snr=min_snr, as_json=as_json, plots=plots)
             return
         result = measure_edge(arr, gsd=gsd, nodata=nodata if nodata is not None else file_nodata,
                               bit_depth=bit_depth, min_snr=min_snr)
@@ -137,14 +137,28 @@ def edge_command(image: str, roi: str | None, whole: bool, band: int, gsd: float
 
 
 def _auto(image: str, band: int, arr: Any, *, gsd: float | None, nodata: float | None,
-          bit_depth: int | None, min_snr: float, as_json: bool) -> None:
+          bit_depth: int | None, min_snr: float, as_json: bool, plots: str | None) -> None:
     """No ROI: find the edges, measure each, print them and the combined RER."""
     from ..measures.edge_detect import measure_target
 
     target = measure_target(arr, nodata=nodata, gsd=gsd, bit_depth=bit_depth, min_snr=min_snr)
     ok = any(e.result is not None and e.result.valid for e in target.edges)
+    written: list[str] = []
+    if plots:
+        from ..figures.edge import edge_figures
+
+        out = Path(plots)
+        out.mkdir(parents=True, exist_ok=True)
+        for i, e in enumerate(target.edges, start=1):
+            if e.result is None or e.roi is None:
+                continue
+            for stem, svg in edge_figures(e.roi, e.result).items():
+                path = out / f"edge{i}_{e.axis}_{stem}.svg"
+                path.write_text(svg, encoding="utf-8")
+                written.append(str(path))
     if as_json:
-        doc = {"image": image, "band": band, "roi": None, "mode": "auto", **target.to_dict()}
+        doc = {"image": image, "band": band, "roi": None, "mode": "auto", **target.to_dict(),
+               "plots": written}
         click.echo(json.dumps(doc, indent=2, sort_keys=True))
     else:
         from rich.console import Console
@@ -167,6 +181,8 @@ def _auto(image: str, band: int, arr: Any, *, gsd: float | None, nodata: float |
         console.print(f"RER_x {_fmt(target.rer_x)}, RER_y {_fmt(target.rer_y)}, combined "
                       f"sqrt(RER_x RER_y) {_fmt(target.rer_combined)} (USGS, seed 000)"
                       + (f": {target.reason}" if target.reason else ""))
+        for path in written:
+            console.print(f"wrote {path}")
     if not ok:
         click.get_current_context().exit(1)
 

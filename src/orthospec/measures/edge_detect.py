@@ -59,6 +59,7 @@ class FoundEdge:
     window: tuple[int, int, int, int]  # x0, y0, x1, y1 of the ROI (x1, y1 exclusive)
     half_width_px: float
     result: EdgeResult | None = None
+    roi: np.ndarray | None = None  # the measured pixels (NaN outside the band), for figures
 
     def to_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {
@@ -295,7 +296,7 @@ def measure_target(image: np.ndarray, *, nodata: float | None = None, gsd: float
             p0, p1 = c + t0 * u, c + t1 * u
             cand = FoundEdge(float(p0[0]), float(p0[1]), float(p1[0]), float(p1[1]),
                              math.degrees(math.atan2(u[1], u[0])) % 180.0, axis,
-                             (x0, y0, x1, y1), half, res)
+                             (x0, y0, x1, y1), half, res, roi)
             if res.valid or best is None or not (best.result and best.result.valid):
                 best = cand
             elif best.result is not None and best.result.valid:
