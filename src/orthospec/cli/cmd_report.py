@@ -67,6 +67,10 @@ def report_cmd(qcr_json: Path | None, formats: str, out_dir: Path | None, ledger
         atomic_write(target / name, data)
     click.echo(f"wrote {', '.join(sorted(files))} to {target}/ (qcr.json SHA-256 "
                f"{reportdoc.document_sha256(doc)})")
+    head = (doc.get("ledger") or {}).get("head")
+    if head:
+        click.echo(f"ledger head {head} (printed in the report; check later with "
+                   f"`orthospec ledger verify --head {head[:16]}`)")
 
 
 @spec.command("render")
