@@ -379,3 +379,39 @@ def test_bias_significance_edge_cases():
     assert bias_significance(0.0, 0.0, 5) == (0.0, 1.0)
     assert bias_significance(0.2, 0.1, 1) == (None, None)      # one point: no spread, no test
     assert bias_significance(None, None, 10) == (None, None)   # absent axis (no z)
+
+
+def test_blunder_reasons_per_decision_class_and_axes_with_target_basis():
+    """Reason texts (built once per decision/axes class) name exactly the axes over 3 x the target
+    RMSE (JRC Table 9) and carry each excluded point's own justification."""
+    dx = np.full(12, 0.1)
+    dy = np.full(12, -0.1)
+    dz = np.full(12, 0.05)
+    dx[[1, 3, 5]] = 2.0  # over 3 x 0.5 m in x
+    dy[[3, 4, 5]] = 2.0  # over 3 x 0.5 m in y
+    dz[[5, 6]] = 1.0  # over 3 x 0.25 m in z
+    ids = [f"Q{i}" for i in range(12)]
+    res = detect_blunders(dx, dy, dz, ids=ids, basis="target", target_rmse_xy=0.5, target_rmse_z=0.25,
+                          exclusions={"Q1": "target destroyed", "Q3": "mis-identified", "Q4": "",
+                                      "Q8": "looks odd"})
+    over = "exceeds the maximum tolerable discrepancy in "
+    expected = {
+        "Q0": "within the maximum tolerable discrepancy",
+        "Q1": over + "x; excluded: target destroyed",
+        "Q3": over + "x, y; excluded: mis-identified",
+        "Q4": over + "y; exclusion requested without a justification, kept",
+        "Q5": over + "x, y, z; no exclusion requested, kept",
+        "Q6": over + "z; no exclusion requested, kept",
+        "Q8": "exclusion requested but the point is within the maximum tolerable discrepancy; it stays in "
+              "the sample (JRC §12.6)",
+    }
+    got = dict(zip(ids, res.reasons.tolist(), strict=True))
+    for pid, text in expected.items():
+        assert got[pid] == text
+    assert [d.reason for d in res.decisions] == res.reasons.tolist()
+    assert res.excluded == ("Q1", "Q3")
+    assert res.error_ids == ("Q4", "Q8") and tuple(d.point_id for d in res.errors) == ("Q4", "Q8")
+    assert res.candidates == ("Q1", "Q3", "Q4", "Q5", "Q6")
+    np.testing.assert_array_equal(res.dr, np.hypot(dx, dy))
+    # built once: the per-point objects are not rebuilt on every access
+    assert res.decisions is res.decisions and res.reasons is res.reasons

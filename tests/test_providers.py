@@ -290,3 +290,53 @@ def test_resolution_class_is_computed_from_the_pixel_size(tmp_path):
     assert got[ids[0]]["measured"]["value"] == "HR" and got[ids[0]]["verdict"] == "fail"
     assert got[ids[1]]["verdict"] == "missing" and "no class" in got[ids[1]]["message"]
     assert got[ids[2]]["measured"]["value"] == "VHR" and got[ids[2]]["verdict"] == "pass"
+
+
+def test_per_point_decisions_values_and_rows_on_a_copied_example(tmp_path):
+    """Per-point measures (built as arrays) equal pandas' deltas, name the CSV data row and give the
+    §12.6 decision: a justified exclusion of a blunder, an exclusion of a point within tolerance."""
+    import hashlib
+    import shutil
+
+    root = tmp_path / "d"
+    shutil.copytree(EXAMPLES / "aerial-pass", root)
+    csv = root / "tables" / "checkpoints.csv"
+    cp = pd.read_csv(csv, dtype={"exclusion_reason": object})
+    cp.loc[cp["point_id"] == "B01-C05", "x"] += 5.0  # a 5 m blunder: 3 x RMSE_x of B01 is about 3 m
+    cp.loc[cp["point_id"] == "B01-C05", ["excluded", "exclusion_reason"]] = [True, "target mis-identified"]
+    cp.loc[cp["point_id"] == "B01-C06", "excluded"] = True  # within tolerance, no reason: not allowed
+    cp["excluded"] = cp["excluded"].map(lambda v: "true" if v is True or v == "True" else "false")
+    cp.to_csv(csv, index=False)
+    p = profile(tmp_path, rule("DX", "checkpoint", "checkpoint.dx", '{op: "<=", value: 100, unit: m}'),
+                rule("OK", "checkpoint", "checkpoint.blunder_ok", "{op: \"true\"}"),
+                rule("DEC", "checkpoint", "checkpoint.decision", '{op: "present"}'),
+                rule("RX", "block", "checkpoints.rmse_x", '{op: "<=", value: tolerance_xy, unit: m}',
+                     "reject_block"))
+    doc = check(root, p, date="2026-01-01").document
+    sha = hashlib.sha256(csv.read_bytes()).hexdigest()
+    dx, ok, dec = recs(doc, "DX"), recs(doc, "OK"), recs(doc, "DEC")
+    assert set(dx) == set(cp["point_id"]) == set(ok) == set(dec)
+    for row, pt in enumerate(cp.itertuples(index=False), start=1):
+        rec = dx[pt.point_id]
+        assert rec["measured"]["value"] == pytest.approx(pt.x - pt.x_ref, rel=1e-9, abs=1e-12)
+        assert rec["evidence"] == [{"file": "tables/checkpoints.csv", "sha256": sha, "rows": [row]}]
+        assert ok[pt.point_id]["evidence"] == rec["evidence"]
+    assert dec["B01-C05"]["measured"]["value"] == "excluded"
+    assert ok["B01-C05"]["verdict"] == "pass"
+    assert ok["B01-C05"]["message"] == ("exceeds the maximum tolerable discrepancy in x; excluded: "
+                                        "target mis-identified")
+    assert dec["B01-C06"]["measured"]["value"] == "error_within_tolerance"
+    assert ok["B01-C06"]["verdict"] == "fail"
+    assert "within the maximum tolerable discrepancy; it stays in the sample" in ok["B01-C06"]["message"]
+    assert dec["B02-C13"]["measured"]["value"] == "excluded"  # the example's own justified exclusion
+    kept = [k for k in dec if k not in ("B01-C05", "B01-C06", "B02-C13")]
+    assert {dec[k]["measured"]["value"] for k in kept} == {"kept"}
+    assert {ok[k]["message"] for k in kept} == {"within the maximum tolerable discrepancy"}
+    # the figure's per-point detail keeps its keys and the excluded blunder is drawn as failing
+    pts = {q["point_id"]: q for q in doc["details"]["checkpoints"]["B01"]["points"]}
+    assert set(pts["B01-C05"]) == {"point_id", "dx", "dy", "dz", "dr", "x_ref", "y_ref", "status", "decision",
+                                   "row"}
+    b5 = cp[cp["point_id"] == "B01-C05"].iloc[0]
+    assert pts["B01-C05"]["status"] == "fail" and pts["B01-C05"]["x_ref"] == pytest.approx(b5["x_ref"])
+    assert pts["B01-C05"]["dr"] == pytest.approx(np.hypot(b5["x"] - b5["x_ref"], b5["y"] - b5["y_ref"]))
+    assert pts["B01-C06"]["status"] == "pass"

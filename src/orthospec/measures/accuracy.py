@@ -22,6 +22,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields, replace
+from functools import cached_property
 from typing import Any, Literal
 
 import numpy as np
@@ -452,9 +453,22 @@ class BlunderResult:
     justifications: dict[str, str] = field(repr=False, compare=False, default_factory=dict)
     note: str = ""
 
-    @property
+    # Derived per-point arrays are cached (the dataclass is frozen and has no slots, so
+    # ``cached_property`` writes the instance ``__dict__``): a national delivery has millions of
+    # points, and rebuilding them on every access was the check-point path's main cost.
+    @cached_property
     def candidate(self) -> np.ndarray:
         return self.exceeds_x | self.exceeds_y | self.exceeds_z
+
+    @cached_property
+    def dr(self) -> np.ndarray:
+        """Radial discrepancy ``ΔR = sqrt(ΔX² + ΔY²)`` per point."""
+        return np.hypot(self.dx, self.dy)
+
+    @cached_property
+    def is_error(self) -> np.ndarray:
+        """Per point: an exclusion request that §12.6 does not allow (kept, reported as error)."""
+        return (self.decision == ERROR_WITHIN_TOLERANCE) | (self.decision == ERROR_NO_JUSTIFICATION)
 
     @property
     def candidates(self) -> tuple[str, ...]:
@@ -466,41 +480,70 @@ class BlunderResult:
 
     @property
     def error_ids(self) -> tuple[str, ...]:
-        err = (self.decision == ERROR_WITHIN_TOLERANCE) | (self.decision == ERROR_NO_JUSTIFICATION)
-        return tuple(self.ids[err].tolist())
+        return tuple(self.ids[self.is_error].tolist())
 
     @property
     def errors(self) -> tuple[BlunderDecision, ...]:
-        return tuple(d for d in self.decisions if d.is_error)
+        return tuple(self.decisions[i] for i in np.flatnonzero(self.is_error))
 
-    @property
+    @cached_property
+    def reasons(self) -> np.ndarray:
+        """The reason text per point (object array), built once per (decision, axes) class.
+
+        Only five decisions times eight axis combinations exist; the per-point part is the
+        justification of an excluded point, appended for those points alone.
+        """
+        n = self.ids.size
+        code = np.zeros(n, dtype=np.int64)
+        for k, name in enumerate(_DECISIONS):
+            code[self.decision == name] = k
+        key = code * 8 + self.exceeds_x * 4 + self.exceeds_y * 2 + self.exceeds_z * 1
+        uniq, inverse = np.unique(key, return_inverse=True)
+        texts = np.empty(len(uniq), dtype=object)
+        for j, k in enumerate(uniq.tolist()):
+            texts[j] = _reason(_DECISIONS[k // 8], bool(k & 4), bool(k & 2), bool(k & 1), "")
+        out = texts[inverse.reshape(-1)] if n else np.empty(0, dtype=object)
+        ids = self.ids
+        for i in np.flatnonzero(self.decision == EXCLUDED).tolist():
+            out[i] = _reason(EXCLUDED, bool(self.exceeds_x[i]), bool(self.exceeds_y[i]),
+                             bool(self.exceeds_z[i]), self.justifications.get(ids[i], ""))
+        return out
+
+    @cached_property
     def decisions(self) -> tuple[BlunderDecision, ...]:
-        """One decision per point, in input order, with its reason text."""
-        out = []
-        dr = np.hypot(self.dx, self.dy)
-        for i, pid in enumerate(self.ids.tolist()):
-            axes = [a for a, f in (("x", self.exceeds_x[i]), ("y", self.exceeds_y[i]),
-                                   ("z", self.exceeds_z[i])) if f]
-            over = "exceeds the maximum tolerable discrepancy in " + ", ".join(axes)
-            just = self.justifications.get(pid, "")
-            decision = str(self.decision[i])
-            reason = {
-                KEPT: "within the maximum tolerable discrepancy",
-                ERROR_WITHIN_TOLERANCE: "exclusion requested but the point is within the maximum "
-                "tolerable discrepancy; it stays in the sample (JRC §12.6)",
-                CANDIDATE_KEPT: f"{over}; no exclusion requested, kept",
-                ERROR_NO_JUSTIFICATION: f"{over}; exclusion requested without a justification, kept",
-                EXCLUDED: f"{over}; excluded: {just}",
-            }[decision]
-            out.append(BlunderDecision(
-                point_id=pid, dx=float(self.dx[i]), dy=float(self.dy[i]),
-                dz=None if self.dz is None else float(self.dz[i]), dr=float(dr[i]),
-                exceeds_x=bool(self.exceeds_x[i]), exceeds_y=bool(self.exceeds_y[i]),
-                exceeds_z=bool(self.exceeds_z[i]), exceeds_r=bool(self.exceeds_r[i]),
-                candidate=bool(axes), exclusion_requested=pid in self.justifications,
-                justification=just, decision=decision, reason=reason,
-            ))
-        return tuple(out)
+        """One decision per point, in input order, with its reason text (built once)."""
+        dr, reasons = self.dr.tolist(), self.reasons
+        dx, dy = self.dx.tolist(), self.dy.tolist()
+        dz = [None] * self.ids.size if self.dz is None else self.dz.tolist()
+        ex, ey, ez, er = (a.tolist() for a in (self.exceeds_x, self.exceeds_y, self.exceeds_z,
+                                               self.exceeds_r))
+        cand = self.candidate.tolist()
+        return tuple(
+            BlunderDecision(
+                point_id=pid, dx=dx[i], dy=dy[i], dz=dz[i], dr=dr[i], exceeds_x=ex[i],
+                exceeds_y=ey[i], exceeds_z=ez[i], exceeds_r=er[i], candidate=cand[i],
+                exclusion_requested=pid in self.justifications,
+                justification=self.justifications.get(pid, ""), decision=str(self.decision[i]),
+                reason=reasons[i],
+            )
+            for i, pid in enumerate(self.ids.tolist()))
+
+
+_DECISIONS = (KEPT, ERROR_WITHIN_TOLERANCE, CANDIDATE_KEPT, ERROR_NO_JUSTIFICATION, EXCLUDED)
+
+
+def _reason(decision: str, ex: bool, ey: bool, ez: bool, just: str) -> str:
+    """The §12.6 reason text of one decision (the axes that exceed the maximum discrepancy)."""
+    axes = [a for a, f in (("x", ex), ("y", ey), ("z", ez)) if f]
+    over = "exceeds the maximum tolerable discrepancy in " + ", ".join(axes)
+    return {
+        KEPT: "within the maximum tolerable discrepancy",
+        ERROR_WITHIN_TOLERANCE: "exclusion requested but the point is within the maximum "
+        "tolerable discrepancy; it stays in the sample (JRC §12.6)",
+        CANDIDATE_KEPT: f"{over}; no exclusion requested, kept",
+        ERROR_NO_JUSTIFICATION: f"{over}; exclusion requested without a justification, kept",
+        EXCLUDED: f"{over}; excluded: {just}",
+    }[decision]
 
 
 def detect_blunders(

@@ -18,7 +18,7 @@ from ...measures.accuracy import AccuracyStats, bias_significance, detect_blunde
 from ...measures.distribution import checkpoint_distribution
 from ...provenance import Evidence
 from ...units import convert
-from ..registry import Measured, ProviderContext, provider
+from ..registry import Measured, ProviderContext, RowEvidence, provider
 
 _STATS = {
     "n": "1", "rmse_x": "L", "rmse_y": "L", "rmse_z": "L", "rmse_r": "L", "mean_x": "L", "mean_y": "L",
@@ -94,10 +94,12 @@ def _compute_once(ctx: ProviderContext) -> dict[str, Any]:
     min_count = int(_param(ctx, "min_checkpoints", 20))
     gsd = d.gsd_m
     blocks: dict[str, dict[str, Any]] = {}
-    points: dict[str, dict[str, Any]] = {}
+    # per-point results as arrays, one entry per block in block order (no Python object per point)
+    points: list[dict[str, Any]] = []
     table_detail: dict[str, list[dict[str, Any]]] = {}
     for block, g in df.groupby(df["block"].astype(str), sort=True):
-        rows = tuple(int(r) for r in g["_row"])
+        row_arr = g["_row"].to_numpy()
+        rows = tuple(int(r) for r in row_arr.tolist())
         ev = (Evidence(t.file, t.sha256, rows),)
         ids = g["point_id"].astype(str).to_numpy()
         dx = (g["x"].to_numpy(float) - g["x_ref"].to_numpy(float)) * to_m
@@ -108,10 +110,11 @@ def _compute_once(ctx: ProviderContext) -> dict[str, Any]:
             dz = None if np.isnan(zz).all() else zz
         excl: dict[str, str | None] = {}
         if "excluded" in g:
-            for pid, flag, why in zip(ids, g["excluded"], g.get("exclusion_reason", [None] * len(g)),
-                                      strict=False):
-                if flag is True:
-                    excl[pid] = why
+            flags = _is_true(g["excluded"])
+            if flags.any():
+                whys = (g["exclusion_reason"][flags].tolist() if "exclusion_reason" in g
+                        else [None] * int(flags.sum()))
+                excl = dict(zip(ids[flags].tolist(), whys, strict=True))
         out: dict[str, Any] = {"evidence": ev}
         if block in bad_polygon:
             out["error"] = bad_polygon[block]
@@ -141,7 +144,7 @@ def _compute_once(ctx: ProviderContext) -> dict[str, Any]:
         out["checkpoints.n_all"] = br.stats_all.n
         out["checkpoints.excluded"] = len(br.excluded)
         out["checkpoints.blunders"] = len(br.candidates)
-        out["checkpoints.blunders_unjustified"] = len(br.errors)
+        out["checkpoints.blunders_unjustified"] = len(br.error_ids)
         # a candidate excluded with a documented justification has been inspected (§12.6)
         out["checkpoints.blunders_uninspected"] = len(set(br.candidates) - set(br.excluded))
         # ASPRS Ed. 2: product accuracy combines the checkpoint survey's own error (RMSE_H2, RMSE_V2)
@@ -172,24 +175,19 @@ def _compute_once(ctx: ProviderContext) -> dict[str, Any]:
             out["distribution_source"] = dist.split_source
         except MeasureError as exc:
             out["distribution_error"] = str(exc)
-        decisions = {dd.point_id: dd for dd in br.decisions}
         limit = (br.limit_x, br.limit_y)
-        rows_by_id = dict(zip(ids, rows, strict=True))
-        detail = []
-        for i, pid in enumerate(ids):
-            dd = decisions[pid]
-            points[pid] = {
-                "checkpoint.dx": dx[i], "checkpoint.dy": dy[i],
-                "checkpoint.dz": None if dz is None else dz[i], "checkpoint.dr": dd.dr,
-                "checkpoint.blunder_ok": not dd.is_error, "checkpoint.decision": dd.decision,
-                "reason": dd.reason,
-                "evidence": (Evidence(t.file, t.sha256, (rows_by_id[pid],)),),
-            }
-            detail.append({
-                "point_id": pid, "dx": dx[i], "dy": dy[i], "dz": None if dz is None else dz[i], "dr": dd.dr,
-                "x_ref": float(g["x_ref"].iloc[i]) * to_m, "y_ref": float(g["y_ref"].iloc[i]) * to_m,
-                "status": "fail" if dd.candidate else "pass", "decision": dd.decision, "row": rows_by_id[pid],
-            })
+        points.append({"ids": ids, "dx": dx, "dy": dy, "dz": dz, "dr": br.dr, "ok": ~br.is_error,
+                       "decision": br.decision, "reason": br.reasons, "rows": row_arr})
+        xr = (g["x_ref"].to_numpy(float) * to_m).tolist()
+        yr = (g["y_ref"].to_numpy(float) * to_m).tolist()
+        dzl = [None] * len(ids) if dz is None else dz.tolist()
+        status = np.where(br.candidate, "fail", "pass").tolist()
+        detail = [
+            {"point_id": pid, "dx": a, "dy": b, "dz": c, "dr": r, "x_ref": xx, "y_ref": yy, "status": st_,
+             "decision": dec, "row": row}
+            for pid, a, b, c, r, xx, yy, st_, dec, row in zip(
+                ids.tolist(), dx.tolist(), dy.tolist(), dzl, br.dr.tolist(), xr, yr, status,
+                br.decision.tolist(), row_arr.tolist(), strict=True)]
         table_detail[block] = {
             "points": detail,
             "limit_x": limit[0], "limit_y": limit[1], "basis": br.basis, "unit": "m",
@@ -210,6 +208,16 @@ def _compute_once(ctx: ProviderContext) -> dict[str, Any]:
                 out[f"reported_{axis}"] = rv
         blocks[block] = out
     return {"blocks": blocks, "points": points, "detail": table_detail}
+
+
+def _is_true(col: pd.Series) -> np.ndarray:
+    """Mask of cells that are the boolean True (the table parser's value), never a truthy string."""
+    v = col.to_numpy()
+    if v.dtype.kind == "b":
+        return v.astype(bool, copy=False)
+    if v.dtype == object:
+        return np.fromiter((f is True or f is np.True_ for f in v), dtype=bool, count=len(v))
+    return np.zeros(len(v), dtype=bool)
 
 
 @provider(scope="block", measures=BLOCK_MEASURES)
@@ -268,14 +276,44 @@ def block_checkpoint_stats(ctx: ProviderContext) -> list[Measured]:
 def point_decisions(ctx: ProviderContext) -> list[Measured]:
     """Per-checkpoint discrepancies and blunder/exclusion decisions (one QCR per point, §12.6)."""
     got = _compute(ctx)
-    out = []
-    pts = got.get("points", {})
-    for name, unit in POINT_MEASURES.items():
-        vals = {p: v[name] for p, v in pts.items()}
-        evs = {p: v["evidence"] for p, v in pts.items()}
-        notes = {p: v["reason"] for p, v in pts.items()} if name in ("checkpoint.blunder_ok",
-                                                                      "checkpoint.decision") else None
-        out.append(Measured(name, "checkpoint", unit, pd.Series(vals, dtype=object),
-                            pd.Series(evs, dtype=object),
-                            notes=pd.Series(notes, dtype=object) if notes else None))
-    return out
+    parts: list[dict[str, Any]] = got.get("points", [])
+    ids = _cat([p["ids"] for p in parts], object)
+    # a point id repeated across blocks: one item, at its first position, with the last block's values
+    keep = None
+    if len(ids) and pd.Index(ids).has_duplicates:
+        idx = pd.Index(ids)
+        last = np.flatnonzero(~idx.duplicated(keep="last"))
+        first_ids = idx[~idx.duplicated(keep="first")]
+        keep = last[pd.Index(ids[last]).get_indexer(first_ids)]
+    rows = _cat([p["rows"] for p in parts], np.int64)
+    dz_parts = [p["dz"] for p in parts]
+    if all(z is not None for z in dz_parts):
+        dz = _cat(dz_parts, float)
+    else:
+        dz = _cat([np.full(len(p["ids"]), None, dtype=object) if p["dz"] is None
+                   else p["dz"].astype(object) for p in parts], object)
+    cols: dict[str, np.ndarray] = {
+        "checkpoint.dx": _cat([p["dx"] for p in parts], float),
+        "checkpoint.dy": _cat([p["dy"] for p in parts], float),
+        "checkpoint.dz": dz,
+        "checkpoint.dr": _cat([p["dr"] for p in parts], float),
+        # Python booleans, as the rules' `true`/`false` comparisons and the records expect
+        "checkpoint.blunder_ok": _cat([p["ok"] for p in parts], bool).astype(object),
+        "checkpoint.decision": _cat([p["decision"] for p in parts], object),
+    }
+    reason = _cat([p["reason"] for p in parts], object)
+    if keep is not None:
+        ids, rows, reason = ids[keep], rows[keep], reason[keep]
+        cols = {k: v[keep] for k, v in cols.items()}
+    index = pd.Index(ids, dtype=object)
+    t = ctx.delivery.table("checkpoints")
+    ev = RowEvidence(t.file, t.sha256, pd.Series(rows, index=index)) if t is not None else \
+        pd.Series([], dtype=object)
+    notes = pd.Series(reason, index=index, dtype=object)
+    return [Measured(name, "checkpoint", unit, pd.Series(cols[name], index=index), ev,
+                     notes=notes if name in ("checkpoint.blunder_ok", "checkpoint.decision") else None)
+            for name, unit in POINT_MEASURES.items()]
+
+
+def _cat(arrays: list[np.ndarray], dtype: Any) -> np.ndarray:
+    return np.concatenate(arrays).astype(dtype, copy=False) if arrays else np.empty(0, dtype=dtype)
