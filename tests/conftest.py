@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import shutil
+import tempfile
 import textwrap
 from collections.abc import Callable
 from pathlib import Path
@@ -16,6 +17,20 @@ SEEDS = ROOT.parent / "shared" / "seeds"
 REAL = ROOT.parent / "shared" / "data" / "real"
 EXAMPLES = ROOT / "examples" / "deliveries"
 
+
+
+# Resolved-profile cache of the test run: never the user's ~/.cache/orthospec (subprocesses inherit it)
+os.environ.setdefault("ORTHOSPEC_CACHE_DIR", tempfile.mkdtemp(prefix="orthospec-test-cache-"))
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """`opt_in` tests (minutes long) are deselected, not skipped, unless ORTHOSPEC_SLOW_TESTS=1."""
+    if os.environ.get("ORTHOSPEC_SLOW_TESTS") == "1":
+        return
+    keep = [i for i in items if i.get_closest_marker("opt_in") is None]
+    if len(keep) != len(items):
+        config.hook.pytest_deselected(items=[i for i in items if i.get_closest_marker("opt_in")])
+        items[:] = keep
 
 
 def pytest_configure(config: pytest.Config) -> None:

@@ -285,8 +285,7 @@ def test_many_rules_validate_in_linear_time(tmp_path):
     assert big <= 10 * 1.5 * max(small, 0.05) + 2, (small, big)  # 10x the rules, at most ~15x the time
 
 
-@pytest.mark.skipif(os.environ.get("ORTHOSPEC_SLOW_TESTS") != "1", reason="minutes on a busy machine; "
-                    "run with ORTHOSPEC_SLOW_TESTS=1")
+@pytest.mark.opt_in  # minutes on a busy machine: deselected unless ORTHOSPEC_SLOW_TESTS=1 (tests/conftest.py)
 def test_100000_rules_validate(tmp_path):
     t_validate, t_yaml = _time_validate(tmp_path, 100_000)
     assert t_validate <= 4 * t_yaml + 5, (t_validate, t_yaml)

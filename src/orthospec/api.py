@@ -50,7 +50,8 @@ def check(delivery: str | Path | Delivery, profile: str | Path | ResolvedProfile
     d = delivery if isinstance(delivery, Delivery) else open_delivery(delivery)
     d.load_all_tables()
     cli = dict(params) if isinstance(params, Mapping) else parse_cli_params(list(params))
-    values = resolve_parameters(prof, dict(d.manifest.tender.parameters) if d.manifest.tender else {}, cli)
+    values = resolve_parameters(prof, dict(d.manifest.tender.parameters) if d.manifest.tender else {}, cli,
+                                manifest=d.flat_manifest())
     ev = Evaluator(prof, d, values, fail_on=fail_on, options=options).run()
     shown = str(delivery) if not isinstance(delivery, Delivery) else d.root.name
     doc = build_document(ev, date=parse_date(date), operator=operator, delivery_path=_display(shown))
