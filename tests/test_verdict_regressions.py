@@ -615,3 +615,20 @@ def test_an_unreadable_declared_value_is_a_finding_not_silence(tmp_path: Path) -
     doc = check(d, profile(tmp_path, IMAGE_RULE), date=DATE, params=["tolerance_xy=0.5m"]).document
     rec = records(doc, "ORTHOSPEC-ITT-DECLARED")["tolerance_xy"]
     assert rec["verdict"] == "fail" and "tender.parameters.tolerance_xy" in rec["message"]
+
+
+def test_a_when_that_tests_an_unset_parameter_is_not_applicable_not_missing(tmp_path: Path) -> None:
+    """usgs-insitu's CE90/CE95 rules apply `when: tolerance_ce90 != null and ...`: with the optional
+    tolerance unset they are not applicable (the delivery was rejected for them before); with it set
+    they judge every block. aerial-pass has RMSEx/y of about 0.3 m per block, so its CE90 (formula
+    2.1460/2 (RMSEx + RMSEy), USGS seed) is far above 0.05 m."""
+    d = copy_pass(tmp_path)
+    unset = check(d, "usgs-insitu", date=DATE).document
+    for rule in ("USGS-CE90", "USGS-CE95"):
+        assert {r["verdict"] for r in records(unset, rule).values()} == {"not_applicable"}, rule
+    assert unset["verdict"] == "accepted", reasons(unset)
+    tight = check(d, "usgs-insitu", params={"tolerance_ce90": "0.05 m"}, date=DATE).document
+    formula, empirical = records(tight, "USGS-CE90"), records(tight, "USGS-CE90-EMPIRICAL")
+    for block in ("B01", "B02", "B03"):  # the bias test picks one of the two CE90s per block
+        assert {formula[block]["verdict"], empirical[block]["verdict"]} == {"fail", "not_applicable"}, block
+    assert tight["verdict"] == "rejected"

@@ -560,7 +560,14 @@ class Evaluator:
             applicable &= ~na_mask
             notes = np.where(na_mask, nav.to_numpy(dtype=object), notes)
         req = rule.requirement
-        ok, measured, thr, unit, undecided = self._compare(rule, req, raw, m.unit, missing | errs, names, items)
+        try:
+            ok, measured, thr, unit, undecided = self._compare(rule, req, raw, m.unit, missing | errs, names,
+                                                               items)
+        except _Undecidable as exc:
+            # an unset parameter the threshold needs: `missing` only where the rule applies (a `when`
+            # such as `tolerance_ce90 != null` makes the rule not applicable instead)
+            ok, measured, thr, unit = np.ones(n, dtype=bool), raw, self._req_dict(req, None), m.unit
+            undecided = [(MISSING, np.ones(n, dtype=bool), str(exc))]
         verdict[~ok] = FAIL if rule.level == "mandatory" else WARN
         verdict[missing] = MISSING
         for code, mask, why in undecided:
