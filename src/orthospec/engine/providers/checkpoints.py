@@ -99,7 +99,7 @@ def _compute_once(ctx: ProviderContext) -> dict[str, Any]:
     table_detail: dict[str, list[dict[str, Any]]] = {}
     for block, g in df.groupby(df["block"].astype(str), sort=True):
         row_arr = g["_row"].to_numpy()
-        rows = tuple(int(r) for r in row_arr.tolist())
+        rows = tuple(row_arr.astype(np.int64).tolist())
         ev = (Evidence(t.file, t.sha256, rows),)
         ids = g["point_id"].astype(str).to_numpy()
         dx = (g["x"].to_numpy(float) - g["x_ref"].to_numpy(float)) * to_m
