@@ -424,3 +424,25 @@ def test_bounded_report_folds_quiet_rules_into_one_table(checked: dict[str, Any]
     assert '<span class="mono">R-NPTS</span>' in table and "pass: 2" in table
     assert "R-RMSEX" not in table  # a failing rule keeps its full block
     assert "rules passed</h4>" not in full
+
+
+def test_block_polygon_is_stored_and_drawn(tmp_path: Path) -> None:
+    """Issue 13 item 2: the manifest's block outline reaches qcr.json and the report's map."""
+    b1 = [[499900.0, 5399900.0], [505100.0, 5399900.0], [505100.0, 5405100.0], [499900.0, 5405100.0]]
+    blocks = [{"id": "B1", "polygon": b1}, {"id": "B2"}]
+    out = run_check(tmp_path, write_delivery(tmp_path / "delivery", blocks=blocks), fmts="json,html")
+    doc = json.loads((out / "qcr.json").read_text(encoding="utf-8"))
+    cps = doc["details"]["checkpoints"]
+    assert cps["B1"]["polygon"] == b1  # the manifest's vertices, unchanged (metres in, metres out)
+    assert cps["B2"]["polygon"] is None  # no outline given: null, not invented
+    import base64
+
+    html = (out / "report.html").read_text(encoding="utf-8")
+    svgs = [base64.b64decode(u).decode("utf-8")
+            for u in re.findall(r'src="data:image/svg\+xml;base64,([A-Za-z0-9+/=]+)"', html)]
+    maps = [s for s in svgs if 'id="checkpoints"' in s and 'id="discrepancy-vectors"' in s]
+    assert sum('id="block-outline' in s for s in maps) == 1  # B1's map only
+    # same inputs, same bytes
+    out2 = run_check(tmp_path / "again", write_delivery(tmp_path / "again" / "delivery", blocks=blocks),
+                     fmts="json")
+    assert (out2 / "qcr.json").read_bytes() == (out / "qcr.json").read_bytes()

@@ -356,18 +356,24 @@ def _block_figures(b: dict[str, Any], bid: str) -> list[dict[str, str]]:
                 "caption": f"Block {bid}: distribution of the discrepancies per axis with the mean "
                            f"(black) and ±RMSE (red dashed)."})
     if len(pts) >= 4:
+        outline = polygon if polygon and len(polygon) >= 3 else None
         try:
-            dist = checkpoint_distribution(x, y, ids=ids, min_count=0)
+            from shapely.geometry import Polygon
+
+            dist = checkpoint_distribution(x, y, ids=ids, min_count=0,
+                                           area=Polygon(outline) if outline else None)
         except Exception:  # a degenerate layout (collinear points): the map above still shows it
             dist = None
         if dist is not None:
             svg = figs.quadrant_distribution_svg(x, y, centre=dist.centre, shares=dist.quadrant_shares,
-                                                 unit=unit, title=f"Block {bid}: distribution by quadrant")
+                                                 area=outline, unit=unit,
+                                                 title=f"Block {bid}: distribution by quadrant")
+            where = ("the block polygon (grey)" if outline else
+                     f"the points' {dist.split_source.replace('_', ' ')} (no block polygon in the "
+                     f"delivery, so shares may differ slightly from the measured value, which used the "
+                     f"{b.get('area_source') or 'block'})")
             out.append({"svg": svg, "kind": "dist",
-                        "caption": f"Block {bid}: check points per quadrant, split at the centre of the "
-                                   f"points' {dist.split_source.replace('_', ' ')} (the block polygon "
-                                   f"is not stored in qcr.json, so shares may differ slightly from the "
-                                   f"measured value, which used the {b.get('area_source') or 'block'}) ."})
+                        "caption": f"Block {bid}: check points per quadrant, split at the centre of {where}."})
     return out
 
 

@@ -197,6 +197,9 @@ def _compute_once(ctx: ProviderContext) -> dict[str, Any]:
             "gcps": [] if gx is None else [{"point_id": str(a), "x": float(b), "y": float(c)}
                                            for a, b, c in zip(gids, gx, gy, strict=True)],
             "area_source": out.get("distribution_source"),
+            # the block outline (manifest blocks[].polygon, same units as x_ref/y_ref) for the report's map
+            "polygon": ([[float(px), float(py)] for px, py in polys[block].exterior.coords[:-1]]
+                        if block in polys else None),
         }
         # reported vs recomputed (a disagreement is itself a finding)
         rep = next((b.reported for b in d.manifest.blocks if b.id == block and b.reported), None)
