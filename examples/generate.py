@@ -1237,6 +1237,7 @@ def readme(b: Built) -> str:
 # The images are 128 x 128 px extracts of the orthoimages (§12.4 "Selected extracts").
 SAT_GSD_M = 0.5
 SAT_PAN_M = 0.31  # the §9.1 class input: VHR (< 3 m)
+SAT_MS_M = 1.24  # native multispectral pixel: 4 bands at 0.5 m are pan-sharpened (derived.pansharpened)
 SAT_TOLERANCE_XY_M = 1.0  # ITT: RMSEx, RMSEy <= 2 x the 0.5 m output pixel
 SAT_TIME = (10, 42)  # UTC overpass
 
@@ -1347,7 +1348,8 @@ def build_satellite(scn: SatScenario) -> dict[str, Any]:
                 "sensor": "WorldView-3", "acquisition_date": site.day.isoformat(), "view_angle": fmt(view, 1),
                 "cloud_cover": fmt(cloud, 1), "product_level": "Ortho Ready Standard (OR2A)",
                 "initial_qc": "pass", "preprocessing": "pan-sharpened (PAN 0.31 m + MS 1.24 m, same RPC model)",
-                "input_pixel_size": fmt(SAT_PAN_M, 2), "resolution_class": "VHR",
+                "input_pixel_size": fmt(SAT_PAN_M, 2), "ms_pixel_size": fmt(SAT_MS_M, 2),
+                "resolution_class": "VHR",
                 "terrain_variation": fmt(float(rng.uniform(60, 140)), 0),
                 "orbit_model": "" if sid == scn.no_orientation else "RPC00B rational polynomial model",
                 "orientation_data": "" if sid == scn.no_orientation else f"rpc/{sid}.RPB (vendor RPC00B)",

@@ -104,3 +104,126 @@ def test_photo_coverage_of_the_example_lay_down(tmp_path):
     doc2 = check(d, p, date="2026-01-01").document
     rec2 = next(r for r in doc2["records"] if r["rule"] == "COV")
     assert rec2["verdict"] == "fail" and rec2["measured"]["value"] < 100.0
+
+
+# ---------------------------------------------------------------- derived.pansharpened (JRC §10.5)
+PANSHARPENED_PROFILE = """\
+orthospec_profile: 1
+id: t
+version: 1.0.0
+title: pan-sharpening
+source: {title: JRC EUR 23638 EN}
+parameters:
+  tolerance_xy: {unit: m, default: 0.5}
+rules:
+  - id: PS
+    title: pan-sharpened
+    clause: {document: JRC EUR 23638 EN, section: "10.5"}
+    quote: "Pan-sharpening of satellite data"
+    scope: delivery
+    measure: derived.pansharpened
+    requirement: {op: "true"}
+    consequence: warn
+  - id: AG
+    title: declared as computed
+    clause: {document: JRC EUR 23638 EN, section: "10.5"}
+    quote: "Pan-sharpening of satellite data"
+    scope: delivery
+    measure: derived.pansharpened_agrees
+    requirement: {op: "true"}
+    consequence: warn
+"""
+SAT_ID = "D-2026-031"
+
+
+def _sat_copy(tmp_path, *, scenes=None, images=None, product=None):
+    """A copy of satellite-pass with columns of scenes/images set (None drops the column) and
+    product keys of delivery.yaml set (None deletes the key)."""
+    import shutil
+
+    import pandas as pd
+    import yaml
+
+    d = tmp_path / "d"
+    shutil.copytree(EXAMPLES / "satellite-pass", d)
+    for name, cols in (("scenes", scenes), ("images", images)):
+        f = d / "tables" / f"{name}.csv"
+        df = pd.read_csv(f, dtype=str, keep_default_na=False)
+        for col, v in (cols or {}).items():
+            if v is None:
+                df = df.drop(columns=[col])
+            else:
+                df[col] = v
+        df.to_csv(f, index=False)
+    if product:
+        man = yaml.safe_load((d / "delivery.yaml").read_text())
+        for k, v in product.items():
+            if v is None:
+                man["product"].pop(k, None)
+            else:
+                man["product"][k] = v
+        (d / "delivery.yaml").write_text(yaml.safe_dump(man, sort_keys=False))
+    return d
+
+
+def _ps(tmp_path, d):
+    p = tmp_path / "p.yaml"
+    p.write_text(PANSHARPENED_PROFILE)
+    doc = check(d, p, date="2026-08-01").document
+    return {r["rule"]: r for r in doc["records"] if r["item"] == SAT_ID}
+
+
+def test_pansharpened_from_bands_and_pixel_sizes_of_satellite_pass(tmp_path):
+    # WorldView-3: 4 bands (R;G;B;NIR) at 0.5 m; MS native 1.24 m; 0.5 <= 1.24 / 1.5 = 0.827 -> true
+    rec = _ps(tmp_path, _sat_copy(tmp_path))
+    assert rec["PS"]["verdict"] == "pass" and rec["PS"]["measured"]["value"] is True
+    assert rec["AG"]["verdict"] == "pass"  # declared true
+
+
+def test_pansharpened_false_for_a_single_band_or_a_product_not_finer_than_the_ms_pixel(tmp_path):
+    # one band (PAN only) at 0.5 m: not multispectral -> false
+    rec = _ps(tmp_path / "a", _sat_copy(tmp_path / "a", images={"bands": "PAN"}, product={"bands": ["PAN"]}))
+    assert rec["PS"]["verdict"] == "fail" and rec["PS"]["measured"]["value"] is False
+    assert rec["AG"]["verdict"] == "fail"  # the manifest still declares pansharpened: true
+    # 4 bands at 1.24 m, the MS pixel itself: 1.24 >= 1.24 -> false
+    rec = _ps(tmp_path / "b", _sat_copy(tmp_path / "b", images={"gsd": "1.24"}))
+    assert rec["PS"]["verdict"] == "fail" and rec["PS"]["measured"]["value"] is False
+
+
+def test_pansharpened_is_missing_without_the_ms_pixel_size(tmp_path):
+    rec = _ps(tmp_path, _sat_copy(tmp_path, scenes={"ms_pixel_size": None}))
+    assert rec["PS"]["verdict"] == "missing" and "ms_pixel_size" in rec["PS"]["message"]
+
+
+def test_between_the_ms_pixel_and_the_margin_the_declaration_decides(tmp_path):
+    # 1.0 m: finer than 1.24 m but coarser than 1.24 / 1.5 = 0.827 m (plain resampling possible)
+    rec = _ps(tmp_path / "a", _sat_copy(tmp_path / "a", images={"gsd": "1.0"}))
+    assert rec["PS"]["measured"]["value"] is True and "declared" in rec["PS"]["message"]
+    rec = _ps(tmp_path / "b", _sat_copy(tmp_path / "b", images={"gsd": "1.0"}, product={"pansharpened": None}))
+    assert rec["PS"]["verdict"] == "missing"
+    assert rec["AG"]["verdict"] == "not_applicable"
+
+
+def test_a_declared_false_does_not_switch_off_the_pan_sharpening_rules(tmp_path):
+    """MS bands at 0.5 m from 1.24 m scenes declared `pansharpened: false`: jrc-v3 §10.5 still applies,
+    and without the inspector's record of JRC-10.5.1-SAME-MODEL-GCPS the delivery is not accepted."""
+    import pandas as pd
+
+    d = _sat_copy(tmp_path, product={"pansharpened": False})
+    rec = _ps(tmp_path, d)
+    assert rec["PS"]["measured"]["value"] is True and rec["AG"]["verdict"] == "fail"
+    assert "contradict" in rec["PS"]["message"]
+    f = d / "tables" / "manual_checks.csv"
+    mc = pd.read_csv(f, dtype=str, keep_default_na=False)
+    mc[mc["check"] != "JRC-10.5.1-SAME-MODEL-GCPS"].to_csv(f, index=False)
+    doc = check(d, "jrc-v3", date="2026-08-01").document
+    recs = {r["rule"]: r for r in doc["records"] if r["rule"].startswith("JRC-10.")}
+    assert recs["JRC-10.5.1-SAME-MODEL-GCPS"]["verdict"] == "missing"
+    assert recs["JRC-10.5.2-EXCLUDE-ZERO"]["verdict"] == "pass"  # applies: the inspector's record is there
+    assert doc["verdict"] == "rejected"
+
+
+def test_pan_sharpening_rules_do_not_apply_to_an_aerial_delivery():
+    doc = check(EXAMPLES / "aerial-pass", "jrc-v3", date="2026-08-01").document
+    recs = [r for r in doc["records"] if r["rule"].startswith(("JRC-10.5", "JRC-10.3"))]
+    assert len(recs) == 4 and all(r["verdict"] == "not_applicable" for r in recs)

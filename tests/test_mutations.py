@@ -320,8 +320,9 @@ def test_uniform_shift_under_the_tolerance_raises_a_visible_finding(tmp_path: Pa
     assert strict["verdict"] == "rejected" and "B01" in strict["rollup"]["rejected"]["block"]
 
 
-#: Issue 12 "What was observed", each reproduced on a copy of aerial-pass under jrc-v3: the mutation,
-#: and the mandatory rules that must now reject it (all three were ACCEPTED, exit 0, before).
+#: Issue 12 "What was observed", each reproduced on a copy of aerial-pass (satellite-pass for a key
+#: starting "satellite:") under jrc-v3: the mutation, and the mandatory rules that must now reject it
+#: (all were ACCEPTED, exit 0, before).
 OBSERVED = {
     "block B01 cut to 8 check points": (
         [{"csv": {"table": "checkpoints", "where": {"block": "B01"}, "keep": 8}}],
@@ -336,14 +337,22 @@ OBSERVED = {
                   "set": {"x_ref": 507802.959, "y_ref": 5403235.439, "x": 507803.05, "y": 5403235.21}}},
          {"csv": {"table": "checkpoints", "set": {"precision_xy": 1.0}}}],
         {("JRC-12.5-INDEPENDENT-CHECKPOINTS", "B02"), ("JRC-DEF-CHECKPOINT-ACCURACY", "B01-C01")}),
+    # satellite-pass: 4 bands at 0.5 m from 1.24 m multispectral scenes, declared not pan-sharpened; the
+    # §10.5 rules were gated on that flag (not applicable, ACCEPTED). Now derived.pansharpened decides.
+    "satellite: pan-sharpened product declared pansharpened: false, §10.5.1 record failed": (
+        [{"manifest": {"set": {"product.pansharpened": False}}},
+         {"csv": {"table": "manual_checks", "where": {"check": "JRC-10.5.1-SAME-MODEL-GCPS"},
+                  "set": {"verdict": "fail"}}}],
+        {("JRC-10.5.1-SAME-MODEL-GCPS", "D-2026-031")}),
 }
 
 
 @pytest.mark.parametrize("case", sorted(OBSERVED))
 def test_observed_wrong_acceptances_are_now_rejected(tmp_path: Path, raster_cache: Path, case: str) -> None:
     mutations, expected = OBSERVED[case]
-    root = tmp_path / "aerial-pass"
-    shutil.copytree(EXAMPLES / "aerial-pass", root)
+    example = "satellite-pass" if case.startswith("satellite:") else "aerial-pass"
+    root = tmp_path / example
+    shutil.copytree(EXAMPLES / example, root)
     apply_mutations(root, mutations)
     doc = _run(root, "jrc-v3", {}, raster_cache)
     assert doc["verdict"] == "rejected", case

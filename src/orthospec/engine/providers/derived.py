@@ -18,6 +18,10 @@
   ``block`` column, else from the delivered DEM file's footprint against the block polygons. A
   failing DEM then rejects those blocks only (JRC Table 5, §12.7 "will reject all products for
   the block"), never every block of the delivery.
+* ``derived.pansharpened`` (delivery): the product is pan-sharpened, computed from the bands and
+  pixel sizes (a multispectral product finer than the scenes' native multispectral pixel), so a
+  declared ``product.pansharpened: false`` cannot switch off JRC §10.5 ("Pan-sharpening of
+  satellite data"); ``derived.pansharpened_agrees`` compares it with the declaration.
 """
 
 from __future__ import annotations
@@ -39,6 +43,9 @@ DEM = {"derived.dem_blocks": "text"}
 #: camera format columns (pixels across and along track) the photo lay-down needs
 FORMAT_COLUMNS = ("format_across_px", "format_along_px")
 IMAGE = {"derived.resolution_class": "text", "derived.resolution_class_agrees": "bool"}
+PANSHARPENED = {"derived.pansharpened": "bool", "derived.pansharpened_agrees": "bool"}
+#: a product at most 1/1.5 of the native multispectral pixel is read as fused with the PAN band
+PAN_MARGIN = 1.5
 
 
 def _norm(v: Any) -> str | None:
@@ -281,3 +288,103 @@ def dem_blocks(ctx: ProviderContext) -> list[Measured]:
     ev = RowEvidence(t.file, t.sha256, pd.Series(t.df["_row"].to_numpy(), index=t.ids.astype(str).to_numpy()))
     return [Measured("derived.dem_blocks", "dem", "text", pd.Series(vals, dtype=object), ev,
                      notes=pd.Series(notes, dtype=object))]
+
+
+def _table_metres(t: Any, col: str) -> pd.Series:
+    """One numeric column of a table in metres, indexed by item id (first row per id)."""
+    vals = convert(pd.to_numeric(t.df[col], errors="coerce").to_numpy(dtype=float), t.units.get(col, "m"), "m")
+    s = pd.Series(vals, index=t.ids.astype(str).to_numpy())
+    return s[~s.index.duplicated()]
+
+
+def _image_pansharpened(n_bands: int | None, gsd: float, ms: float, declared: bool | None) -> tuple[bool | None, str]:
+    """One image: pan-sharpened or not, and why (see :func:`pansharpened`)."""
+    if n_bands is None:
+        return None, "band count unknown (images.bands or product.bands)"
+    if n_bands < 2:
+        return False, f"{n_bands} band: not a multispectral product"
+    if not np.isfinite(gsd):
+        return None, "no delivered pixel size (images.gsd or product.gsd)"
+    if not np.isfinite(ms):
+        return None, "no native multispectral pixel size: deliver scenes.ms_pixel_size"
+    if gsd <= ms / PAN_MARGIN:
+        return True, (f"{n_bands} bands at {gsd:.4g} m, finer than the {ms:.4g} m multispectral pixel / "
+                      f"{PAN_MARGIN:g}: the detail comes from the PAN band")
+    if gsd >= ms:
+        return False, f"{n_bands} bands at {gsd:.4g} m, not finer than the {ms:.4g} m multispectral pixel"
+    if declared is not None:
+        return declared, (f"{n_bands} bands at {gsd:.4g} m, between the {ms:.4g} m multispectral pixel and "
+                          f"{ms / PAN_MARGIN:.4g} m (plain resampling possible): the declared "
+                          f"product.pansharpened decides")
+    return None, (f"{n_bands} bands at {gsd:.4g} m, between the {ms:.4g} m multispectral pixel and "
+                  f"{ms / PAN_MARGIN:.4g} m: the data do not decide and product.pansharpened is not declared")
+
+
+@provider(scope="delivery", measures=PANSHARPENED)
+def pansharpened(ctx: ProviderContext) -> list[Measured]:
+    """The delivered product is pan-sharpened (JRC §10.5), computed from bands and pixel sizes.
+
+    Per image: true when the product is multispectral (>= 2 bands: ``images.bands``, else
+    ``product.bands``) at a pixel size (``images.gsd``, else ``product.gsd``) at most the native
+    multispectral pixel of its scene (``scenes.ms_pixel_size``) divided by 1.5. Resampling the MS
+    bands alone to a grid a little finer than their own pixel (1.24 m -> 1.0 m for a round output
+    pixel) is ordinary resampling, not fusion; but a product 1.5 x finer than the MS bands carries
+    detail they do not have, and every VHR/HR pan/MS pair has a ratio of at least 2 (WorldView-3
+    0.31/1.24 m, Pleiades 0.7/2.8 m, SPOT 6/7 1.5/6 m, Landsat 15/30 m), so a true pan-sharpened
+    product is always on the true side of the margin. (A product merely upsampled 1.5 x from its MS
+    bands also counts: §10.3 "preservation of the spatial resolution of the panchromatic image" is
+    then exactly what the inspector must look at.) False for a single-band product or one not
+    finer than the MS pixel; between the two the data do not decide and the declared
+    ``product.pansharpened`` is used (with a note), else missing. The delivery is pan-sharpened when
+    any image is; false when every image is decided false; else missing with the column to deliver.
+    """
+    d = ctx.delivery
+    m = d.manifest
+    imgs, scenes = d.table("images"), d.table("scenes")
+    declared = getattr(m.product, "pansharpened", None)
+    ev: list[Any] = [d.manifest_evidence("product.bands"), d.manifest_evidence("product.gsd"),
+                     d.manifest_evidence("product.pansharpened")]
+    ev += [e for t in (imgs, scenes) if t is not None for e in t.evidence(t.df["_row"])]
+    ids: list[str] = sorted(set(imgs.ids.astype(str)) if imgs is not None else set())
+    if scenes is not None:
+        ids = sorted(set(ids) | set(scenes.ids.astype(str)))
+    product_bands = len(m.product.bands) if m.product.bands else None
+    gsd_default = d.gsd_m if d.gsd_m is not None else np.nan
+    gsd = pd.Series(gsd_default, index=ids, dtype=float)
+    bands: dict[str, int | None] = {i: product_bands for i in ids}
+    if imgs is not None and "gsd" in imgs.df:
+        g = _table_metres(imgs, "gsd").reindex(ids)
+        gsd[g.notna()] = g[g.notna()]
+    if imgs is not None and "bands" in imgs.df:
+        col = pd.Series(imgs.df["bands"].to_numpy(), index=imgs.ids.astype(str).to_numpy())
+        for i, v in col[~col.index.duplicated()].items():
+            parts = [b for b in str(v).split(";") if b.strip()] if isinstance(v, str) else []
+            if parts:
+                bands[i] = len(parts)
+    ms = (_table_metres(scenes, "ms_pixel_size").reindex(ids) if scenes is not None and "ms_pixel_size" in scenes.df
+          else pd.Series(np.nan, index=ids, dtype=float))
+    per = {i: _image_pansharpened(bands[i], float(gsd[i]), float(ms[i]), declared) for i in ids}
+    yes = [i for i, (v, _) in per.items() if v is True]
+    undecided = [i for i, (v, _) in per.items() if v is None]
+    if not ids:
+        value: bool | None = None
+        note = "the delivery has no images or scenes table: pan-sharpening cannot be computed"
+    elif yes:
+        value, note = True, f"{len(yes)} of {len(ids)} image(s) pan-sharpened, e.g. {yes[0]}: {per[yes[0]][1]}"
+    elif undecided:
+        value, note = None, f"{len(undecided)} image(s) undecided, e.g. {undecided[0]}: {per[undecided[0]][1]}"
+    else:
+        value, note = False, f"no image pan-sharpened, e.g. {ids[0]}: {per[ids[0]][1]}"
+    agrees: bool | None = None if declared is None or value is None else bool(declared) == value
+    if agrees is False:
+        note += f"; the manifest declares product.pansharpened: {str(declared).lower()}, which the data contradict"
+    agree_note = (f"declared {str(declared).lower()}, computed {str(value).lower()}" if agrees is not None else
+                  "product.pansharpened not declared" if declared is None else "the computed value is missing")
+    na = pd.Series({d.id: "the contractor declares no product.pansharpened"}, dtype=object) if declared is None else None
+    evidence = pd.Series({d.id: tuple(ev)}, dtype=object)
+    return [
+        Measured("derived.pansharpened", "delivery", "bool", pd.Series({d.id: value}, dtype=object), evidence,
+                 notes=pd.Series({d.id: note}, dtype=object)),
+        Measured("derived.pansharpened_agrees", "delivery", "bool", pd.Series({d.id: agrees}, dtype=object),
+                 evidence, notes=pd.Series({d.id: agree_note}, dtype=object), na=na),
+    ]
