@@ -220,3 +220,31 @@ def test_ledger_head_is_recorded_in_the_qcr(make_delivery, mini_profile, tmp_pat
     run_main([*args, "--out", tmp_path / "o2"], capsys)
     second = json.loads((tmp_path / "o2" / "qcr.json").read_text())["ledger_head"]
     assert first["seq"] + 1 == second["seq"] and first["hash"] != second["hash"]
+
+
+def test_qcr_json_does_not_depend_on_the_working_folder(tmp_path, monkeypatch, capsys):
+    """Issue 17: qcr.json embedded the delivery path as typed and absolute paths in messages.
+    The same delivery checked from two working folders (relative and absolute path), with an
+    unreadable image so that a raster error message is recorded, gives the same bytes."""
+    import shutil
+    from pathlib import Path
+
+    src = Path(__file__).resolve().parents[1] / "examples" / "deliveries" / "aerial-pass"
+    d = tmp_path / "x" / "lot"
+    shutil.copytree(src, d)
+    img = sorted((d / "images").glob("*.tif"))[0]
+    img.write_bytes(img.read_bytes()[:2000])  # truncated: not a readable raster
+    outs = []
+    for cwd, target in ((tmp_path, "x/lot"), (img.parent, str(d))):
+        monkeypatch.chdir(cwd)
+        out = tmp_path / f"out{len(outs)}"
+        code, _, _ = run_main(["check", target, "-p", "jrc-v3", "--out", out, "--format", "json",
+                               "--date", "2026-11-21"], capsys)
+        assert code in (0, 1)
+        outs.append((out / "qcr.json").read_bytes())
+    assert outs[0] == outs[1]
+    text = outs[0].decode("utf-8")
+    doc = json.loads(text)
+    assert img.stem in doc["rollup"]["rejected"]["image"]  # the unreadable image itself is rejected
+    assert str(tmp_path) not in text
+    assert f"images/{img.name}" in text  # the error names the file relative to the delivery

@@ -53,20 +53,9 @@ def check(delivery: str | Path | Delivery, profile: str | Path | ResolvedProfile
     values = resolve_parameters(prof, dict(d.manifest.tender.parameters) if d.manifest.tender else {}, cli,
                                 manifest=d.flat_manifest())
     ev = Evaluator(prof, d, values, fail_on=fail_on, options=options).run()
-    shown = str(delivery) if not isinstance(delivery, Delivery) else d.root.name
-    doc = build_document(ev, date=parse_date(date), operator=operator, delivery_path=_display(shown))
+    # the delivery folder's own name: the same bytes whatever the working folder or the path typed
+    doc = build_document(ev, date=parse_date(date), operator=operator, delivery_path=d.root.name)
     return CheckResult(doc, ev)
-
-
-def _display(path: str) -> str:
-    """A relative, stable display path (absolute paths would break byte-identical output)."""
-    p = Path(path)
-    if p.is_absolute():
-        try:
-            return p.resolve().relative_to(Path.cwd().resolve()).as_posix()
-        except ValueError:
-            return p.name
-    return p.as_posix().rstrip("/")
 
 
 # --------------------------------------------------------------------------- outputs

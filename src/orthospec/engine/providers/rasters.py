@@ -8,6 +8,7 @@ image, and the rest of the delivery is still checked.
 from __future__ import annotations
 
 import math
+import os
 from pathlib import Path
 from typing import Any
 
@@ -88,9 +89,14 @@ def _scan(ctx: ProviderContext) -> dict[str, Any]:
         progress=progress, expect_epsg=_epsg(d.manifest.project.crs), expect_gsd=d.gsd_m,
     )
     by_id: dict[str, ImageReport | str] = dict(zip(existing, reports, strict=True))
+    # scans run (possibly in other processes) on absolute paths; what enters the QCR is relative
+    # to the delivery root, so qcr.json does not depend on where the delivery or the caller is
+    root_prefix = f"{d.root}{os.sep}"
     for rep in reports:
         if rep.sha256:
             d.remember_sha256(Path(rep.path).relative_to(d.root).as_posix(), rep.sha256)
+        if rep.error:
+            rep.error = rep.error.replace(root_prefix, "")
     for i, p in paths.items():
         if i not in by_id:
             by_id[i] = (str(p) if isinstance(p, Exception) else
