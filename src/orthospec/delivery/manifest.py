@@ -97,7 +97,10 @@ class Waiver(_Closed):
 class EdgeTarget(_Closed):
     id: str
     image: str
-    roi: list[int] = Field(min_length=4, max_length=4, description="x0, y0, x1, y1 in pixels.")
+    roi: list[int] | None = Field(
+        None, min_length=4, max_length=4,
+        description="x0, y0, x1, y1 in pixels; omitted: the straight edges of the image are found "
+                    "and measured automatically (items <id>/x1, <id>/y1, ...).")
     band: int = 1
     direction: Literal["along", "across", "auto"] = "auto"
 

@@ -2,6 +2,9 @@
 
 Edge targets are listed in the manifest (`edge_targets: [{id, image, roi, band}]`); each ROI is
 read with one windowed rasterio read and measured by :func:`orthospec.measures.edge.measure_edge`.
+A target without an ROI is searched for straight edges (issue 16 item 2,
+:func:`orthospec.measures.edge_detect.measure_target`): every edge found feeds the USGS
+combined RER, and the target's item reports its least sharp valid edge.
 When a health check fails, the estimators of that target are *errors* with the reason, never
 values reported as if valid.
 
@@ -137,23 +140,32 @@ def _measure_all(ctx: ProviderContext) -> dict[str, Any]:
 
 
 def _measure_targets(ctx: ProviderContext) -> dict[str, Any]:
+    """Target id -> record (``result`` or ``error``, ``evidence``, ``file``).
+
+    A target without an ROI (issue 16 item 2) is searched for straight edges
+    (:func:`_auto_target`); its record adds ``edges`` (every edge found) and ``found`` (their
+    summary, stored in the detail); no edge found is an error with the reason.
+    """
     d = ctx.delivery
     imgs = d.table("images")
     files = dict(zip(imgs.ids, imgs.df["file"].astype(str), strict=True)) if imgs is not None else {}
     out: dict[str, Any] = {}
     for t in d.manifest.edge_targets:
         rel = files.get(t.image, t.image)
-        x0, y0, x1, y1 = t.roi
         rec: dict[str, Any] = {"file": rel}
         try:
             path = d.path(rel, what=f"edge target {t.id}")
             with read_only_env(), open_read_only(path, name=rel) as ds:
                 if not 1 <= t.band <= ds.count:
                     raise OrthospecError(f"{rel}: band {t.band} does not exist ({ds.count} bands)")
+                if t.roi is None:
+                    out[t.id] = _auto_target(d, t, rel, ds)
+                    continue
+                x0, y0, x1, y1 = t.roi
                 if not (0 <= x0 < x1 <= ds.width and 0 <= y0 < y1 <= ds.height):
                     raise OrthospecError(f"{rel}: ROI {t.roi} is outside the image ({ds.width} x {ds.height})")
                 roi = ds.read(t.band, window=Window(x0, y0, x1 - x0, y1 - y0), masked=True)
-                gsd = abs(ds.transform.a) if ds.crs is not None and ds.crs.is_projected else d.gsd_m
+                gsd = _gsd(ds, d)
             arr = roi.filled(np.nan).astype(float) if np.ma.isMaskedArray(roi) else roi.astype(float)
             rec["result"] = measure_edge(arr, gsd=gsd)
             rec["evidence"] = (d.manifest_evidence(f"edge_targets.{t.id}"), d.evidence(rel))
@@ -164,13 +176,54 @@ def _measure_targets(ctx: ProviderContext) -> dict[str, Any]:
     return out
 
 
+def _gsd(ds: Any, d: Any) -> float | None:
+    """Pixel size of a projected raster, else the delivery's declared GSD."""
+    return abs(ds.transform.a) if ds.crs is not None and ds.crs.is_projected else d.gsd_m
+
+
+def _auto_target(d: Any, t: Any, rel: str, ds: Any) -> dict[str, Any]:
+    """The record of a target image without an ROI: its edges found and measured.
+
+    The whole band is read masked (declared nodata and masks become NaN, so they bound the
+    search); without any, :func:`measure_target` detects a zero fill connected to the border.
+    Every edge found is kept in ``edges`` (the USGS combined RER uses them all); the target's
+    own item reports the valid edge with the lowest RER (the least sharp edge: a per-target
+    ``>=`` RER or ``<=`` width rule then judges the worst edge, never a flattering one), or,
+    when none is valid, the first edge found (its failed health checks are the reason).
+    """
+    from ...measures.edge_detect import measure_target
+
+    band = ds.read(t.band, masked=True)
+    masked = np.ma.isMaskedArray(band) and bool(np.ma.getmaskarray(band).any())
+    arr = band.filled(np.nan).astype(float) if np.ma.isMaskedArray(band) else band.astype(float)
+    target = measure_target(arr, nodata=float("nan") if masked else None, gsd=_gsd(ds, d))
+    ev = (d.manifest_evidence(f"edge_targets.{t.id}"), d.evidence(rel))
+    found = [e for e in target.edges if e.result is not None]
+    if not found:
+        return {"file": rel, "evidence": ev,
+                "error": f"{rel}: no straight edge found in band {t.band} (edge target {t.id} has "
+                         "no ROI, so its edges are searched automatically)"}
+    valid = [e for e in found if e.result.valid and e.result.rer is not None]
+    pick = min(valid, key=lambda e: e.result.rer) if valid else found[0]
+    summary = [{k: v for k, v in e.to_dict().items() if k in _FOUND_KEYS} for e in found]
+    return {"file": rel, "evidence": ev, "result": pick.result, "edges": [e.result for e in found],
+            "found": {"edges": summary, "reported": found.index(pick),
+                      "rer_x": target.rer_x, "rer_y": target.rer_y, "rer_combined": target.rer_combined,
+                      "choice": "the valid edge with the lowest RER (else the first edge found)"}}
+
+
+_FOUND_KEYS = ("segment", "line_angle_deg", "axis", "direction", "roi", "half_width_px", "valid", "rer",
+               "fwhm_px", "mtf_nyquist", "angle_deg", "reasons")
+
+
 @provider(scope="edge", measures=MEASURES)
 def edge_measures(ctx: ProviderContext) -> list[Measured]:
     """Health checks and estimators of every edge target (ESF/LSF/MTF chain)."""
     got = _measure_all(ctx)
     ev = pd.Series({k: v["evidence"] for k, v in got.items()}, dtype=object)
     out = []
-    detail = {k: {**v["result"].to_dict(), "curves": edge_curves(v["result"])}
+    detail = {k: {**v["result"].to_dict(), "curves": edge_curves(v["result"]),
+                  **({"found": v["found"]} if "found" in v else {})}
               for k, v in got.items() if "result" in v}
     for name, unit in MEASURES.items():
         vals: dict[str, Any] = {}
@@ -221,9 +274,9 @@ def edge_combined(ctx: ProviderContext) -> list[Measured]:
     ev = tuple(e for rec in got.values() for e in rec["evidence"])
     by_axis: dict[str, list[Any]] = {"across": [], "along": []}
     for rec in got.values():
-        res = rec.get("result")
-        if res is not None and res.valid and res.rer is not None:
-            by_axis[res.direction].append(res)
+        for res in rec.get("edges", [rec.get("result")]):  # a target without ROI: all its edges
+            if res is not None and res.valid and res.rer is not None:
+                by_axis[res.direction].append(res)
     vals: dict[str, Any] = dict.fromkeys(COMBINED)
     notes: dict[str, str] = {}
     if not got:
@@ -239,7 +292,7 @@ def edge_combined(ctx: ProviderContext) -> list[Measured]:
         rer = float(rer_two_directions(rx, ry))
         vals["edge.rer_combined"] = rer
         notes["edge.rer_combined"] = (f"sqrt(RER_x {rx:.4f} x RER_y {ry:.4f}) over "
-                                      f"{len(by_axis['across'])} + {len(by_axis['along'])} targets")
+                                      f"{len(by_axis['across'])} + {len(by_axis['along'])} edges")
         h = [r.estimate("overshoot_h") for r in by_axis["across"] + by_axis["along"]]
         hx = [e.value for e in h if e is not None]
         gsds = [r.gsd_m for r in by_axis["across"] + by_axis["along"] if r.gsd_m]
