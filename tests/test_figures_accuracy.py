@@ -78,3 +78,16 @@ def test_bad_figure_input():
         checkpoint_map_svg([0.0, 1.0], [0.0, 1.0], [np.nan, 0.0], [0.0, 0.0])
     with pytest.raises(MeasureError, match="expected 2"):
         residual_histograms_svg([0.0, 1.0], [0.0])
+
+
+def test_map_draws_block_outline_and_a_ground_scale_bar():
+    x, y, dx, dy = _data()
+    poly = [(-50.0, -50.0), (1950.0, -50.0), (1950.0, 1050.0), (-50.0, 1050.0)]  # 2 km wide block
+    svg = checkpoint_map_svg(x, y, dx, dy, polygon=poly, scale=100.0)
+    ids = _gids(svg)
+    assert {"block-outline", "map-scale-bar", "map-scale-label", "scale-arrow"} <= ids
+    # the ground bar: a fifth of the 2000 m wide extent (400 m) rounded up to 1-2-5, i.e. 500 m
+    root = ET.fromstring(svg)
+    label = "".join(next(el for el in root.iter() if el.get("id") == "map-scale-label").itertext())
+    assert label.strip() == "500 m"
+    assert "1 m discrepancy (vectors × 100)" in svg  # vectors to scale: the stated factor is the one used

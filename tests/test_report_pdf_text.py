@@ -111,3 +111,22 @@ def test_csv_and_junit_of_the_demo_are_well_formed(fail: dict[str, Any]) -> None
     rows = list(csv.reader(io.StringIO((fail["out"] / "qcr.csv").read_text(encoding="utf-8"))))
     assert len(rows) == fail["doc"]["summary"]["records"] + 1
     xml.dom.minidom.parseString((fail["out"] / "junit.xml").read_bytes())
+
+
+def test_one_checkpoint_map_page_per_block_with_outline_and_scales(passed: dict[str, Any]) -> None:
+    """Issue 13 item 2: several blocks, one page each: its statistics and its map with both scales."""
+    blocks = sorted(passed["doc"]["details"]["checkpoints"])
+    assert len(blocks) == 3  # aerial-pass has B01..B03 (its delivery.yaml)
+    flat = [re.sub(r"\s+", "", p) for p in passed["pages"]]
+    map_pages = []
+    for b in blocks:
+        assert passed["doc"]["details"]["checkpoints"][b]["polygon"]  # the outline is in qcr.json
+        hits = [i for i, p in enumerate(flat) if f"Block{b}:checkpointsanddiscrepancies" in p]
+        assert len(hits) == 1, (b, hits)
+        page = flat[hits[0]]
+        assert f"Block{b}" in page and "RMSE" in page  # the block's statistics on the same page
+        assert not any(f"Block{o}:checkpointsanddiscrepancies" in page for o in blocks if o != b)
+        assert re.search(r"\d+mdiscrepancy\(vectors×[\d.]+\)", page)  # vectors to a stated scale
+        assert re.search(r"\)\d+(\.\d+)?m", page) and "blockoutline" in page  # ground scale bar, outline
+        map_pages.append(hits[0])
+    assert map_pages == sorted(set(map_pages))

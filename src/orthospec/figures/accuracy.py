@@ -136,18 +136,27 @@ def checkpoint_map_svg(
                            zorder=2, label="GCP")
             g.set_gid("gcps")
         ref_len = _nice(dmax if dmax > 0 else 1.0)
-        x0 = float(ax_x.min())
-        y0 = float(ax_y.min()) - 0.08 * extent
+        span = max(wx, wy)
+        x0 = float(allx.min())
+        y0 = float(ally.min()) - 0.08 * span  # below the points and the outline
         arrow = FancyArrowPatch((x0, y0), (x0 + ref_len * scale, y0), arrowstyle="->",
                                 mutation_scale=12, color="black", gid="scale-arrow")
         ax.add_patch(arrow)
-        ax.text(x0, y0 - 0.03 * extent, f"{ref_len:g} {unit} discrepancy (vectors × {scale:.3g})",
+        ax.text(x0, y0 - 0.03 * span, f"{ref_len:g} {unit} discrepancy (vectors × {scale:.3g})",
                 fontsize=8, gid="scale-label")
+        # ground scale bar (map distance, not exaggerated), right-aligned on the same line
+        bar = _nice(0.2 * wx) if _nice(0.2 * wx) <= 0.3 * wx else _nice(0.1 * wx)
+        x1 = float(allx.max())
+        (sb,) = ax.plot([x1 - bar, x1], [y0, y0], color="black", linewidth=2.5, solid_capstyle="butt")
+        sb.set_gid("map-scale-bar")
+        ax.text(x1 - bar / 2, y0 - 0.03 * span, f"{bar:g} {unit}", fontsize=8, ha="center",
+                gid="map-scale-label")
         ax.set_aspect("equal", adjustable="datalim")
         ax.set_xlabel(f"Easting ({unit})")
         ax.set_ylabel(f"Northing ({unit})")
         ax.set_title(title)
-        ax.legend(loc="best", fontsize=8)
+        # the legend below the axes, never over points or the scale bars
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=4, fontsize=8, frameon=False)
         ax.ticklabel_format(useOffset=False, style="plain")
         fig.tight_layout()
         return _svg(fig)
