@@ -27,6 +27,7 @@ import pandas as pd
 from pydantic import ValidationError
 
 from ..errors import DeliveryError, UnitError
+from ..limits import env_limit
 from ..provenance import Evidence, sha256_bytes, sha256_file
 from ..spec.yamlio import YamlError, load_file
 from ..units import canonical, parse_unit
@@ -43,17 +44,6 @@ _SPECIAL = {stat.S_IFIFO: "a FIFO (named pipe)", stat.S_IFCHR: "a character devi
             stat.S_IFBLK: "a block device", stat.S_IFSOCK: "a socket"}
 
 
-def _env_int(name: str, default: int) -> int:
-    text = os.environ.get(name)
-    if text is None or not text.strip():
-        return default
-    try:
-        value = int(text)
-    except ValueError:
-        raise DeliveryError(f"environment variable {name}={text!r}: expected a whole number") from None
-    if value <= 0:
-        raise DeliveryError(f"environment variable {name}={text!r}: must be positive")
-    return value
 
 
 @dataclass(frozen=True)
@@ -72,9 +62,9 @@ class Limits:
     @classmethod
     def from_env(cls) -> Limits:
         d = cls()
-        return cls(table_bytes=_env_int("ORTHOSPEC_MAX_TABLE_BYTES", d.table_bytes),
-                   columns=_env_int("ORTHOSPEC_MAX_CSV_COLUMNS", d.columns),
-                   cell_bytes=_env_int("ORTHOSPEC_MAX_CSV_CELL_BYTES", d.cell_bytes))
+        return cls(table_bytes=env_limit("ORTHOSPEC_MAX_TABLE_BYTES", d.table_bytes, error=DeliveryError),
+                   columns=env_limit("ORTHOSPEC_MAX_CSV_COLUMNS", d.columns, error=DeliveryError),
+                   cell_bytes=env_limit("ORTHOSPEC_MAX_CSV_CELL_BYTES", d.cell_bytes, error=DeliveryError))
 
 
 def _lexical(rel: str) -> tuple[PurePosixPath | None, str]:

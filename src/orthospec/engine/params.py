@@ -18,7 +18,7 @@ from typing import Any, Literal
 
 from ..errors import ExpressionError, OrthospecError, UnitError
 from ..spec import expr
-from ..spec.loader import ResolvedProfile
+from ..spec.loader import ResolvedProfile, params_named
 from ..spec.models import Parameter
 from ..units import NON_NUMERIC, Q_, canonical, number_problem, parse_number_text, parse_unit
 
@@ -223,13 +223,6 @@ def _advice(profile: ResolvedProfile, needed: dict[str, list[str]], all_off: boo
     return "\n".join(lines)
 
 
-def _param_names(names: frozenset[str] | set[str], params: Mapping[str, Any]) -> set[str]:
-    out = set()
-    for n in names:
-        n2 = n[6:] if n.startswith("param.") else n
-        if n2 in params:
-            out.add(n2)
-    return out
 
 
 def needed_unset(profile: ResolvedProfile, values: Mapping[str, ParamValue],
@@ -262,7 +255,7 @@ def _needed(profile: ResolvedProfile, values: Mapping[str, ParamValue],
         for v in (req.value, req.min, req.max):
             if isinstance(v, str):
                 try:
-                    reads |= _param_names(expr.parse(v).names, values)
+                    reads |= params_named(expr.parse(v).names, values)
                 except ExpressionError:
                     continue
         when_names: set[str] = set()
@@ -272,7 +265,7 @@ def _needed(profile: ResolvedProfile, values: Mapping[str, ParamValue],
                 when_names = set(expr.parse(r.when).names)
             except ExpressionError:
                 when_names = set()
-            when_params = _param_names(when_names, values)
+            when_params = params_named(when_names, values)
         if r.level == "mandatory":
             mandatory_total += 1
             for n in sorted((reads | when_params) & unset):

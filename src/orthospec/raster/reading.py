@@ -35,6 +35,7 @@ from rasterio.enums import ColorInterp, MaskFlags
 from rasterio.windows import Window
 
 from ..errors import MeasureError, OrthospecError
+from ..limits import env_limit
 from ..measures import radiometry as rad
 
 #: Counter of full raster scans in this process (tests use it to check the cache).
@@ -63,12 +64,6 @@ _MAGIC = (
 _THIRD_PARTY = ("rasterio", "pyogrio", "osgeo", "fiona")
 
 
-def _env_int(name: str, default: int) -> int:
-    try:
-        value = int(os.environ.get(name, "") or default)
-    except ValueError:
-        raise OrthospecError(f"environment variable {name}: expected a whole number") from None
-    return value if value > 0 else default
 
 
 @dataclass(frozen=True)
@@ -86,8 +81,8 @@ class RasterLimits:
     @classmethod
     def from_env(cls) -> RasterLimits:
         d = cls()
-        return cls(pixels=_env_int("ORTHOSPEC_MAX_RASTER_PIXELS", d.pixels),
-                   bands=_env_int("ORTHOSPEC_MAX_RASTER_BANDS", d.bands))
+        return cls(pixels=env_limit("ORTHOSPEC_MAX_RASTER_PIXELS", d.pixels),
+                   bands=env_limit("ORTHOSPEC_MAX_RASTER_BANDS", d.bands))
 
 
 def _clean(exc: BaseException, path: str, name: str) -> str:

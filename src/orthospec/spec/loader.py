@@ -18,6 +18,7 @@ import json
 import os
 import re
 import stat
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
@@ -903,7 +904,7 @@ def semantic_problems(p: ResolvedProfile, *, check_measures: bool = True) -> lis
             else:
                 _check_names(r, ("when",), e, known, check_measures, measure_info, add)
                 check_manifest_names(r, ("when",), e.names)
-                read_params |= _params_in(e.names, p.parameters)
+                read_params |= params_named(e.names, p.parameters)
         numeric_threshold = req_numeric or req.op in _ORDER_OPS
         for key in ("value", "min", "max"):
             v = getattr(req, key)
@@ -931,7 +932,7 @@ def semantic_problems(p: ResolvedProfile, *, check_measures: bool = True) -> lis
                 continue
             _check_names(r, ("requirement", key), e, known, check_measures, measure_info, add)
             check_manifest_names(r, ("requirement", key), e.names)
-            used = _params_in(e.names, p.parameters)
+            used = params_named(e.names, p.parameters)
             read_params |= used
             if req_numeric and used:
                 _check_dimensions(r, key, v, e, used, numeric_units, req.unit, unit_ok, out, sites)
@@ -951,7 +952,8 @@ def semantic_problems(p: ResolvedProfile, *, check_measures: bool = True) -> lis
     return out
 
 
-def _params_in(names: Any, params: dict[str, Any]) -> set[str]:
+def params_named(names: Any, params: Mapping[str, Any]) -> set[str]:
+    """The parameters an expression's names refer to (``NAME`` or ``param.NAME``)."""
     out = set()
     for n in names:
         n2 = n[6:] if n.startswith("param.") else n

@@ -22,6 +22,7 @@ from typing import Any
 import yaml
 
 from ..errors import OrthospecError
+from ..limits import env_limit
 
 Path_ = tuple[str | int, ...]
 
@@ -40,12 +41,6 @@ class YamlError(OrthospecError, ValueError):
 _WHERE = re.compile(r"^(?P<file>[^\n]+?)(?::(?P<line>\d+)(?::(?P<col>\d+))?)?: ")
 
 
-def _env_int(name: str, default: int) -> int:
-    try:
-        value = int(os.environ.get(name, "") or default)
-    except ValueError:
-        raise YamlError(f"environment variable {name}: expected a whole number") from None
-    return value if value > 0 else default
 
 
 @dataclass(frozen=True)
@@ -65,10 +60,10 @@ class YamlLimits:
     @classmethod
     def from_env(cls) -> YamlLimits:
         d = cls()
-        return cls(bytes=_env_int("ORTHOSPEC_MAX_YAML_BYTES", d.bytes),
-                   nodes=_env_int("ORTHOSPEC_MAX_YAML_NODES", d.nodes),
-                   alias_nodes=_env_int("ORTHOSPEC_MAX_YAML_ALIAS_NODES", d.alias_nodes),
-                   depth=_env_int("ORTHOSPEC_MAX_YAML_DEPTH", d.depth))
+        return cls(bytes=env_limit("ORTHOSPEC_MAX_YAML_BYTES", d.bytes, error=YamlError),
+                   nodes=env_limit("ORTHOSPEC_MAX_YAML_NODES", d.nodes, error=YamlError),
+                   alias_nodes=env_limit("ORTHOSPEC_MAX_YAML_ALIAS_NODES", d.alias_nodes, error=YamlError),
+                   depth=env_limit("ORTHOSPEC_MAX_YAML_DEPTH", d.depth, error=YamlError))
 
 
 def _at(file: str, node: yaml.Node) -> str:
