@@ -181,13 +181,30 @@ def test_pansharpened_from_bands_and_pixel_sizes_of_satellite_pass(tmp_path):
 
 
 def test_pansharpened_false_for_a_single_band_or_a_product_not_finer_than_the_ms_pixel(tmp_path):
-    # one band (PAN only) at 0.5 m: not multispectral -> false
-    rec = _ps(tmp_path / "a", _sat_copy(tmp_path / "a", images={"bands": "PAN"}, product={"bands": ["PAN"]}))
+    # one band (PAN only) at 0.5 m: not multispectral -> false. The files decide: each image is
+    # rewritten with its first band only (same grid), as a PAN-only product would be delivered.
+    import rasterio
+
+    d = _sat_copy(tmp_path / "a", images={"bands": "PAN"}, product={"bands": ["PAN"]})
+    for f in sorted((d / "images").glob("*.tif")):
+        with rasterio.open(f) as src:
+            band, profile = src.read(1), {**src.profile, "count": 1}
+        profile.pop("photometric", None)
+        with rasterio.open(f, "w", **profile) as dst:
+            dst.write(band, 1)
+    rec = _ps(tmp_path / "a", d)
     assert rec["PS"]["verdict"] == "fail" and rec["PS"]["measured"]["value"] is False
+    assert any(e["file"] == "images/S01_SC1.tif" for e in rec["PS"]["evidence"])  # the file was read
     assert rec["AG"]["verdict"] == "fail"  # the manifest still declares pansharpened: true
     # 4 bands at 1.24 m, the MS pixel itself: 1.24 >= 1.24 -> false
     rec = _ps(tmp_path / "b", _sat_copy(tmp_path / "b", images={"gsd": "1.24"}))
     assert rec["PS"]["verdict"] == "fail" and rec["PS"]["measured"]["value"] is False
+
+
+def test_declaring_a_single_band_does_not_hide_the_four_bands_of_the_files(tmp_path):
+    # images.bands and product.bands say PAN only; the delivered GeoTIFFs carry 4 colour bands
+    rec = _ps(tmp_path, _sat_copy(tmp_path, images={"bands": "PAN"}, product={"bands": ["PAN"]}))
+    assert rec["PS"]["verdict"] == "pass" and rec["PS"]["measured"]["value"] is True
 
 
 def test_pansharpened_is_missing_without_the_ms_pixel_size(tmp_path):

@@ -300,7 +300,7 @@ def _table_metres(t: Any, col: str) -> pd.Series:
 def _image_pansharpened(n_bands: int | None, gsd: float, ms: float, declared: bool | None) -> tuple[bool | None, str]:
     """One image: pan-sharpened or not, and why (see :func:`pansharpened`)."""
     if n_bands is None:
-        return None, "band count unknown (images.bands or product.bands)"
+        return None, "band count unknown (image file, images.bands or product.bands)"
     if n_bands < 2:
         return False, f"{n_bands} band: not a multispectral product"
     if not np.isfinite(gsd):
@@ -320,12 +320,42 @@ def _image_pansharpened(n_bands: int | None, gsd: float, ms: float, declared: bo
                   f"{ms / PAN_MARGIN:.4g} m: the data do not decide and product.pansharpened is not declared")
 
 
+def _file_band_counts(ctx: ProviderContext, ids: list[str]) -> tuple[dict[str, int], list[Any]]:
+    """Colour bands (alpha excluded) of the delivered image files of ``ids``: the file, not the
+    declared ``images.bands``, decides whether the product is multispectral. Unreadable files are
+    left to the declared bands (their own rules report them)."""
+    from rasterio.enums import ColorInterp
+
+    from ...raster.reading import open_read_only, read_only_env
+
+    d = ctx.delivery
+    imgs = d.table("images")
+    if imgs is None or "file" not in imgs.df or not ids:
+        return {}, []
+    files = pd.Series(imgs.df["file"].to_numpy(), index=imgs.ids.astype(str).to_numpy())
+    files = files[~files.index.duplicated()]
+    out: dict[str, int] = {}
+    ev: list[Any] = []
+    with read_only_env():
+        for i in ids:
+            rel = files.get(i)
+            if not isinstance(rel, str) or not rel.strip():
+                continue
+            try:
+                with open_read_only(d.path(rel, what=f"images row for {i}"), name=rel) as ds:
+                    out[i] = sum(1 for c in ds.colorinterp if c != ColorInterp.alpha)
+                ev.append(d.evidence(rel))
+            except (OrthospecError, OSError):
+                continue
+    return out, ev
+
+
 @provider(scope="delivery", measures=PANSHARPENED)
 def pansharpened(ctx: ProviderContext) -> list[Measured]:
     """The delivered product is pan-sharpened (JRC §10.5), computed from bands and pixel sizes.
 
-    Per image: true when the product is multispectral (>= 2 bands: ``images.bands``, else
-    ``product.bands``) at a pixel size (``images.gsd``, else ``product.gsd``) at most the native
+    Per image: true when the product is multispectral (>= 2 colour bands: in the delivered file,
+    else ``images.bands``, else ``product.bands``) at a pixel size (``images.gsd``, else ``product.gsd``) at most the native
     multispectral pixel of its scene (``scenes.ms_pixel_size``) divided by 1.5. Resampling the MS
     bands alone to a grid a little finer than their own pixel (1.24 m -> 1.0 m for a round output
     pixel) is ordinary resampling, not fusion; but a product 1.5 x finer than the MS bands carries
@@ -363,6 +393,9 @@ def pansharpened(ctx: ProviderContext) -> list[Measured]:
                 bands[i] = len(parts)
     ms = (_table_metres(scenes, "ms_pixel_size").reindex(ids) if scenes is not None and "ms_pixel_size" in scenes.df
           else pd.Series(np.nan, index=ids, dtype=float))
+    file_bands, file_ev = _file_band_counts(ctx, [i for i in ids if np.isfinite(ms[i])])
+    ev += file_ev
+    bands.update(file_bands)
     per = {i: _image_pansharpened(bands[i], float(gsd[i]), float(ms[i]), declared) for i in ids}
     yes = [i for i, (v, _) in per.items() if v is True]
     undecided = [i for i, (v, _) in per.items() if v is None]
