@@ -135,7 +135,7 @@ def test_edge_target_without_roi_and_no_edge_is_missing_never_pass(tmp_path):
     r = next(iter(recs(doc, "USGS-RER-COMBINED").values()))
     assert r["verdict"] == "missing"
     per = recs(doc, "USGS-RER")
-    assert set(per) == {"E9"} and per["E9"]["verdict"] not in ("pass", "n/a")
+    assert set(per) == {"E9"} and per["E9"]["verdict"] == "missing"
     assert "no straight edge found" in per["E9"]["message"]
 
 
@@ -152,4 +152,16 @@ def test_edge_target_with_roi_keeps_one_item(tmp_path):
     assert per["E9"]["measured"]["value"] == pytest.approx(
         edge_truth(sigma_px=SIGMA_PX, angle_deg=ANGLE_DEG).rer, abs=0.02)
     # one direction only: the combined RER cannot be formed
+    assert next(iter(recs(doc, "USGS-RER-COMBINED").values()))["verdict"] == "missing"
+
+
+def test_edge_target_without_roi_on_a_whole_tile_is_refused_with_the_reason(tmp_path):
+    """The automatic search reads the whole band: an orthophoto-sized image needs an ROI."""
+    from orthospec.engine.providers.edge import MAX_AUTO_PIXELS
+
+    n = int(np.sqrt(MAX_AUTO_PIXELS)) + 1
+    root, _ = delivery(tmp_path, np.full((n, n), 120, dtype=np.uint8))
+    doc = check(root, "usgs-insitu", date="2026-06-30").document
+    per = recs(doc, "USGS-RER")["E9"]
+    assert per["verdict"] not in ("pass", "n/a") and "give the target an roi" in per["message"]
     assert next(iter(recs(doc, "USGS-RER-COMBINED").values()))["verdict"] == "missing"

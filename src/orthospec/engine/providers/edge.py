@@ -140,7 +140,7 @@ def _measure_all(ctx: ProviderContext) -> dict[str, Any]:
 
 
 def _measure_targets(ctx: ProviderContext) -> dict[str, Any]:
-    """Target id -> record (``result`` or ``error``, ``evidence``, ``file``).
+    """Target id -> record (``result``, ``error`` or ``missing``, ``evidence``, ``file``).
 
     A target without an ROI (issue 16 item 2) is searched for straight edges
     (:func:`_auto_target`); its record adds ``edges`` (every edge found) and ``found`` (their
@@ -193,6 +193,11 @@ def _auto_target(d: Any, t: Any, rel: str, ds: Any) -> dict[str, Any]:
     """
     from ...measures.edge_detect import measure_target
 
+    if ds.width * ds.height > MAX_AUTO_PIXELS:
+        raise OrthospecError(
+            f"{rel}: edge target {t.id} has no ROI and its image is {ds.width} x {ds.height} px; the "
+            f"automatic edge search reads the whole band and is limited to {MAX_AUTO_PIXELS} px: "
+            "give the target an roi [x0, y0, x1, y1] around its edges")
     band = ds.read(t.band, masked=True)
     masked = np.ma.isMaskedArray(band) and bool(np.ma.getmaskarray(band).any())
     arr = band.filled(np.nan).astype(float) if np.ma.isMaskedArray(band) else band.astype(float)
@@ -201,7 +206,7 @@ def _auto_target(d: Any, t: Any, rel: str, ds: Any) -> dict[str, Any]:
     found = [e for e in target.edges if e.result is not None]
     if not found:
         return {"file": rel, "evidence": ev,
-                "error": f"{rel}: no straight edge found in band {t.band} (edge target {t.id} has "
+                "missing": f"{rel}: no straight edge found in band {t.band} (edge target {t.id} has "
                          "no ROI, so its edges are searched automatically)"}
     valid = [e for e in found if e.result.valid and e.result.rer is not None]
     pick = min(valid, key=lambda e: e.result.rer) if valid else found[0]
@@ -212,6 +217,9 @@ def _auto_target(d: Any, t: Any, rel: str, ds: Any) -> dict[str, Any]:
                       "choice": "the valid edge with the lowest RER (else the first edge found)"}}
 
 
+# a target without ROI is read whole (float64 plus the Canny/Hough work arrays): a target chip,
+# not an orthophoto tile; 2048 x 2048 px keeps it to ~100 MB and a few seconds
+MAX_AUTO_PIXELS = 2048 * 2048
 _FOUND_KEYS = ("segment", "line_angle_deg", "axis", "direction", "roi", "half_width_px", "valid", "rer",
                "fwhm_px", "mtf_nyquist", "angle_deg", "reasons")
 
@@ -228,7 +236,11 @@ def edge_measures(ctx: ProviderContext) -> list[Measured]:
     for name, unit in MEASURES.items():
         vals: dict[str, Any] = {}
         errs: dict[str, str] = {}
+        why: dict[str, str] = {}
         for tid, rec in got.items():
+            if "missing" in rec:  # nothing to measure (no edge found): missing, not an input error
+                vals[tid], why[tid] = None, rec["missing"]
+                continue
             if "error" in rec:
                 vals[tid], errs[tid] = None, rec["error"]
                 continue
@@ -247,7 +259,8 @@ def edge_measures(ctx: ProviderContext) -> list[Measured]:
                     vals[tid] = None if e is None else e.value
         out.append(Measured(name, "edge", unit, pd.Series(vals, dtype=object), ev,
                             detail={"edges": detail} if name == "edge.valid" and detail else None,
-                            errors=pd.Series(errs, dtype=object) if errs else None))
+                            errors=pd.Series(errs, dtype=object) if errs else None,
+                            notes=pd.Series(why, dtype=object) if why else None))
     return out
 
 
