@@ -130,3 +130,27 @@ def test_one_checkpoint_map_page_per_block_with_outline_and_scales(passed: dict[
         assert re.search(r"\)\d+(\.\d+)?m", page) and "blockoutline" in page  # ground scale bar, outline
         map_pages.append(hits[0])
     assert map_pages == sorted(set(map_pages))
+
+
+def _splits(text: str, name: str) -> list[str]:
+    """Places where ``name`` appears in ``text`` broken by a line end/space at a non-separator."""
+    pat = "(?<![\\w.-])" + "".join(re.escape(c) + (r"(\s*)" if k < len(name) - 1 else "")
+                                   for k, c in enumerate(name))
+    return [f"{name[:k + 1]}|{name[k + 1:]}" for m in re.finditer(pat, text)
+            for k, g in enumerate(m.groups()) if g and name[k] not in "-_."]
+
+
+def test_identifiers_break_only_after_separators(fail: dict[str, Any], passed: dict[str, Any]) -> None:
+    """Issue 13: `reported_rmse_toler ance`. Rule ids, measure and parameter names break only after _ . -"""
+    for run in (fail, passed):
+        doc, text = run["doc"], "\n".join(run["pages"])
+        names = {r["rule"] for r in doc["records"]} | {r["measure"] for r in doc["records"] if r.get("measure")}
+        names |= set(doc["profile"].get("parameters") or {})
+        assert {"camera_calibration_max_age_digital", "reported_rmse_tolerance"} <= names
+        bad = [s for n in sorted(names) if len(n) > 3 for s in _splits(text, n)]
+        assert not bad, bad
+        # every rule id of the findings is printed (whole, or split only at a separator)
+        flat = re.sub(r"\s+", "", text)
+        for f in findings(doc["records"]):
+            for rule in f.rules[:8]:
+                assert rule in flat, rule

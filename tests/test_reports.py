@@ -420,8 +420,8 @@ def test_bounded_report_folds_quiet_rules_into_one_table(checked: dict[str, Any]
     quiet = [r["rule"] for r in checked["doc"]["rules"] if r["verdict"] in ("pass", "not_applicable")]
     assert "R-NPTS" in quiet
     table = short[short.index("Blocks: rules passed"):]
-    table = table[:table.index("</table>")]
-    assert '<span class="mono">R-NPTS</span>' in table and "pass: 2" in table
+    table = table[:table.index("</table>")].replace("<wbr>", "")  # identifiers carry break hints
+    assert '<span class="mono ident">R-NPTS</span>' in table and "pass: 2" in table
     assert "R-RMSEX" not in table  # a failing rule keeps its full block
     assert "rules passed</h4>" not in full
 
@@ -446,3 +446,12 @@ def test_block_polygon_is_stored_and_drawn(tmp_path: Path) -> None:
     out2 = run_check(tmp_path / "again", write_delivery(tmp_path / "again" / "delivery", blocks=blocks),
                      fmts="json")
     assert (out2 / "qcr.json").read_bytes() == (out / "qcr.json").read_bytes()
+
+
+def test_ident_filter_escapes_and_breaks_only_after_separators() -> None:
+    from orthospec.reports.html import ident
+
+    assert str(ident("JRC-12.7-RMSEY")) == "JRC-<wbr>12.<wbr>7-<wbr>RMSEY"
+    assert str(ident("reported_rmse_tolerance")) == "reported_<wbr>rmse_<wbr>tolerance"
+    assert str(ident("<b>a_b</b>")) == "&lt;b&gt;a_<wbr>b&lt;/b&gt;"  # delivery text stays text
+    assert str(ident("x - y")) == "x - y" and str(ident(None)) == ""

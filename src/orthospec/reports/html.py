@@ -10,11 +10,13 @@ from __future__ import annotations
 
 import hashlib
 import math
+import re
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
 import jinja2
+import markupsafe
 
 from ..qcr import dumps, natural_key
 from ..resources import templates_dir
@@ -152,6 +154,19 @@ def fmt_rows(rows: Iterable[int] | None) -> str:
     return ", ".join(out)
 
 
+_IDENT_BREAK = re.compile(r"(?<=[_.\-])(?=[^\s_.\-])")
+
+
+def ident(v: Any) -> markupsafe.Markup:
+    """Escaped identifier (rule id, measure or parameter name) breakable only after ``_``, ``.``, ``-``.
+
+    Paired with the ``ident`` CSS class (no break anywhere else, no hyphenation): a PDF table never
+    shows ``reported_rmse_toler ance``. Applied to free text it only adds break opportunities.
+    """
+    text = str(markupsafe.escape("" if v is None else v))
+    return markupsafe.Markup(_IDENT_BREAK.sub("<wbr>", text))
+
+
 def environment() -> jinja2.Environment:
     """Jinja2 over the templates folder with autoescaping on: delivery text is always text."""
     env = jinja2.Environment(
@@ -164,7 +179,7 @@ def environment() -> jinja2.Environment:
     )
     env.filters.update(value=fmt_value, fixed=fmt_fixed, measured=fmt_measured, clause=fmt_clause,
                        rows=fmt_rows, short=lambda s, n=12: (s or "")[:n], blank=blank,
-                       source=param_source)
+                       source=param_source, ident=ident)
     return env
 
 
