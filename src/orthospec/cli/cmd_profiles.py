@@ -225,15 +225,19 @@ def _evidence_hint(measure: str) -> str:
 @main.command("measures")
 def measures_cmd() -> None:
     """List the measures rules may read (besides the generic <table>.<column> ones)."""
-    from ..engine.registry import ROLLUP, known_measures
+    from ..engine.registry import ROLLUP, describe, known_measures
 
+    cols = ("measure", "scope", "unit", "provider", "description")
+    rows = [(name, specx.scope, specx.measures[name], specx.fn.__module__.rsplit(".", 1)[-1], describe(name))
+            for name, specx in known_measures().items()]
+    rows += [(name, scope, unit, "evaluator roll-up", describe(name)) for name, (scope, unit) in ROLLUP.items()]
     t = Table(box=None, header_style="bold")
-    for col in ("measure", "scope", "unit", "provider"):
+    for col in cols:
         t.add_column(col, no_wrap=True, overflow="fold")  # names are copied from here: never cut
-    for name, specx in known_measures().items():
-        t.add_row(name, specx.scope, specx.measures[name], specx.fn.__module__.rsplit(".", 1)[-1])
-    for name, (scope, unit) in ROLLUP.items():
-        t.add_row(name, scope, unit, "evaluator roll-up (second phase)")
-    Console(highlight=False, width=max(160, Console().width), soft_wrap=True).print(t)
+    for row in rows:
+        t.add_row(*row)
+    # one line per measure, never cut: the table is as wide as its widest row (pad 1 each side)
+    need = sum(max(len(c), *(len(r[i]) for r in rows)) + 2 for i, c in enumerate(cols))
+    Console(highlight=False, width=max(need, Console().width), soft_wrap=True).print(t)
     click.echo("plus <table>.<column>, <table>.present, <table>.count, <table>.count_per_block, "
                "<table>.<column>.complete and manifest.<path> for every table in specs/delivery-tables.yaml")
