@@ -251,32 +251,37 @@ class PlainProgress:
 
 
 class RichProgress:
-    """A rich progress bar with files, bytes and ETA (interactive terminals)."""
+    """One rich progress line: ``scanning [bar] 2/3 files  2.1/3.1 MB  5.0 MB/s  0:00:01``.
 
-    def __init__(self) -> None:
+    A single task counts bytes (the bar and the ETA follow the data read); the file count is a
+    field of that task, so each number carries its own unit (two tasks with shared columns
+    printed ``2/3 files 2/3 bytes``).
+    """
+
+    def __init__(self, console: Any = None) -> None:
         from rich.progress import (
             BarColumn,
             DownloadColumn,
-            MofNCompleteColumn,
             Progress,
             TextColumn,
             TimeRemainingColumn,
             TransferSpeedColumn,
         )
 
-        self._p = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-                           TextColumn("files"), DownloadColumn(), TransferSpeedColumn(),
-                           TimeRemainingColumn())
-        self._files = self._bytes = None
+        self._p = Progress(TextColumn("{task.description}"), BarColumn(),
+                           TextColumn("{task.fields[files_done]}/{task.fields[files]} files"),
+                           DownloadColumn(), TransferSpeedColumn(), TimeRemainingColumn(),
+                           console=console)
+        self._task: Any = None
+        self._done = 0
 
     def start(self, files: int, total_bytes: int) -> None:
         self._p.start()
-        self._files = self._p.add_task("files", total=files)
-        self._bytes = self._p.add_task("bytes", total=total_bytes)
+        self._task = self._p.add_task("scanning", total=total_bytes, files=files, files_done=0)
 
     def advance(self, report: ImageReport) -> None:
-        self._p.advance(self._files)  # type: ignore[arg-type]
-        self._p.advance(self._bytes, report.bytes or 0)  # type: ignore[arg-type]
+        self._done += 1
+        self._p.update(self._task, advance=report.bytes or 0, files_done=self._done)
 
     def close(self) -> None:
         self._p.stop()
