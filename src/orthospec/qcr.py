@@ -78,7 +78,7 @@ class _RuleRecords:
     """Builds the records of one rule result; everything constant per rule is computed once."""
 
     def __init__(self, r: RuleResult) -> None:
-        from .engine.evaluator import requirement_text
+        from .spec.wording import requirement_text
 
         self.r = r
         rule = r.rule

@@ -41,6 +41,7 @@ from ..provenance import Evidence
 from ..spec import expr
 from ..spec.loader import ResolvedProfile
 from ..spec.models import Requirement, Rule
+from ..spec.wording import requirement_text
 from ..units import NON_NUMERIC, Q_, canonical, convert, parse_unit, ureg
 from .builtin import BUILTIN_RULES, ITT_DECLARED, parameter_findings
 from .params import ParamValue
@@ -50,7 +51,6 @@ PASS, FAIL, WARN, NA, MISSING, ERROR, WAIVED = range(7)
 VERDICTS = ("pass", "fail", "warn", "not_applicable", "missing", "error", "waived")
 #: worst first, for a rule's overall verdict
 SEVERITY = (ERROR, FAIL, MISSING, WARN, WAIVED, PASS, NA)
-_OP_TEXT = {"<": "<", "<=": "<=", ">": ">", ">=": ">=", "==": "=", "!=": "!="}
 
 
 @dataclass
@@ -291,14 +291,6 @@ def _threshold_value(v: Any, names: _Names) -> Any:
     if isinstance(v, str):
         return expr.parse(v).evaluate(names)
     return v
-
-
-def _fmt(x: Any) -> str:
-    if isinstance(x, float):
-        if math.isnan(x):
-            return "n/a"
-        return f"{x:.6g}"
-    return str(x)
 
 
 class _Undecidable(OrthospecError):
@@ -1004,61 +996,3 @@ class Evaluator:
             reasons.append(f"{scope} item(s) {shown} rejected and no roll-up rule covers the {scope} scope: "
                            "a rejected item returns the delivery")
         return ("rejected" if reasons else "accepted"), reasons
-
-
-#: requirement texts already built: (id of the requirement, resolved unit and bounds) -> (requirement, text)
-_TEXT_MEMO: dict[tuple[Any, ...], tuple[Requirement, str]] = {}
-
-
-def _memo_part(v: Any) -> Any:
-    """A key part that tells 0.0 from -0.0 (they print differently) and types apart (1 vs 1.0 vs True)."""
-    if isinstance(v, float):
-        return (float, v, math.copysign(1.0, v))
-    return (type(v), v)
-
-
-def requirement_text(req: Requirement, resolved: dict[str, Any]) -> str:
-    """The requirement as text, e.g. ``<= tolerance_xy (2.5 m)``.
-
-    Records call this once per item with the item's resolved threshold; the text depends only on
-    the requirement and those resolved values, so it is built once per distinct value (a rule
-    with one threshold for 1,000,000 check points builds it once).
-    """
-    try:
-        key = (id(req), _memo_part(resolved.get("unit")), _memo_part(resolved.get("min")),
-               _memo_part(resolved.get("max")), _memo_part(resolved.get("value")))
-        hit = _TEXT_MEMO.get(key)
-    except TypeError:  # an unhashable resolved value: build the text directly
-        return _requirement_text(req, resolved)
-    if hit is not None and hit[0] is req:
-        return hit[1]
-    text = _requirement_text(req, resolved)
-    if len(_TEXT_MEMO) >= 4096:
-        _TEXT_MEMO.clear()
-    _TEXT_MEMO[key] = (req, text)
-    return text
-
-
-def _requirement_text(req: Requirement, resolved: dict[str, Any]) -> str:
-    u = f" {resolved['unit']}" if resolved.get("unit") and resolved["unit"] not in ("1",) else ""
-
-    def show(spec: Any, val: Any) -> str:
-        if isinstance(spec, str) and val is not None and not isinstance(val, str):
-            return f"{spec} ({_fmt(val)}{u})"
-        if isinstance(spec, str):
-            return spec
-        return f"{_fmt(spec)}{u}"
-
-    if req.op == "between":
-        lo = show(req.min, resolved.get("min")) if req.min is not None else "-inf"
-        hi = show(req.max, resolved.get("max")) if req.max is not None else "+inf"
-        lb = "[" if req.min_inclusive else "("
-        rb = "]" if req.max_inclusive else ")"
-        return f"in {lb}{lo}, {hi}{rb}"
-    if req.op == "in":
-        return "one of " + ", ".join(map(str, req.values or []))
-    if req.op == "present":
-        return "present"
-    if req.op in ("true", "false"):
-        return f"is {req.op}"
-    return f"{_OP_TEXT[req.op]} {show(req.value, resolved.get('value'))}"
