@@ -12,7 +12,7 @@ with advice) instead of producing ``error`` records later.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any, Literal
 
@@ -82,36 +82,41 @@ def _bool(raw: Any) -> bool | None:
     return None
 
 
-def _from_cli(name: str, text: str, p: Parameter) -> Any:
-    """``--param NAME=TEXT``: the one number parser (no decimal comma, finite, unit converted)."""
-    unit = p.unit or "1"
-    if unit == "bool":
-        b = _bool(text)
-        if b is None:
-            raise ParameterError(f"--param {name}: expects true or false, got {text!r}")
-        return b
-    if unit in ("text", "date"):
-        return str(text)
-    try:
-        return parse_number_text(text, unit)
-    except UnitError as exc:
-        raise ParameterError(f"--param {name}={text}: {exc}") from None
-
-
-def _from_profile(name: str, raw: Any, p: Parameter, profile: ResolvedProfile) -> Any:
-    """A profile `value`/`default` (validated at load; re-checked so no path can skip it)."""
+def _typed(raw: Any, p: Parameter, bool_error: str, number: Callable[[Any, str], float]) -> Any:
+    """A parameter value in its kind: bool, text/date, or a number read by ``number(raw, unit)``."""
     unit = p.unit or "1"
     if unit == "bool":
         b = _bool(raw)
         if b is None:
-            raise ParameterError(f"profile {profile.id}: parameter {name} expects true or false, got {raw!r}")
+            raise ParameterError(f"{bool_error}, got {raw!r}")
         return b
     if unit in ("text", "date"):
         return str(raw)
-    why = number_problem(raw)
-    if why:
-        raise ParameterError(f"profile {profile.id}: parameter {name}: {why}")
-    return float(raw)
+    return number(raw, unit)
+
+
+def _from_cli(name: str, text: str, p: Parameter) -> Any:
+    """``--param NAME=TEXT``: the one number parser (no decimal comma, finite, unit converted)."""
+
+    def number(raw: Any, unit: str) -> float:
+        try:
+            return parse_number_text(raw, unit)
+        except UnitError as exc:
+            raise ParameterError(f"--param {name}={raw}: {exc}") from None
+
+    return _typed(text, p, f"--param {name}: expects true or false", number)
+
+
+def _from_profile(name: str, raw: Any, p: Parameter, profile: ResolvedProfile) -> Any:
+    """A profile `value`/`default` (validated at load; re-checked so no path can skip it)."""
+
+    def number(value: Any, _unit: str) -> float:
+        why = number_problem(value)
+        if why:
+            raise ParameterError(f"profile {profile.id}: parameter {name}: {why}")
+        return float(value)
+
+    return _typed(raw, p, f"profile {profile.id}: parameter {name} expects true or false", number)
 
 
 def _declared(name: str, raw: Any, p: Parameter) -> tuple[Any, str | None]:
