@@ -197,10 +197,8 @@ class _Names(Mapping[str, Any]):
                  scope: str, items: list[str], *, scalar: bool = False) -> None:
         self.params, self.manifest, self.cache = params, manifest, cache
         self.scope, self.items, self.scalar = scope, items, scalar
-        self.fill = {}
-
-    #: name -> value substituted where that fact or measure is missing (applicability probing)
-    fill: dict[str, Any]
+        #: name -> value substituted where that fact or measure is missing (applicability probing)
+        self.fill: dict[str, Any] = {}
 
     def __getitem__(self, key: str) -> Any:
         if key in self.params:
