@@ -19,7 +19,7 @@ $(VENV)/bin/activate:
 venv: $(VENV)/bin/activate
 
 install: sysdeps venv
-	$(PIP) install -q -e .
+	$(PIP) install -q -e ".[all]"
 
 install-test: sysdeps venv
 	$(PIP) install -q -e ".[test]"
