@@ -17,6 +17,7 @@ import pytest
 from click.testing import CliRunner
 
 from orthospec.cli.main import cli
+from orthospec.qcr import all_records
 from orthospec.reports.findings import findings
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -64,9 +65,9 @@ def test_failures_table_states_values_and_one_root_cause(fail: dict[str, Any]) -
     # the missing image F03_0202 is one finding naming the checks it affects, not nine error rows
     flat = re.sub(r"\s+", "", section)
     assert flat.count("images/F03_0202.tif") == 1, section
-    recs = [r for r in fail["doc"]["records"] if r["item"] == "F03_0202" and "not found" in r["message"]]
+    recs = [r for r in list(all_records(fail["doc"])) if r["item"] == "F03_0202" and "not found" in r["message"]]
     assert len(recs) >= 5
-    root = [f for f in findings(fail["doc"]["records"]) if "F03_0202" in f.items and "not found" in f.what]
+    root = [f for f in findings(list(all_records(fail["doc"]))) if "F03_0202" in f.items and "not found" in f.what]
     assert len(root) == 1 and set(root[0].rules) == {r["rule"] for r in recs}
 
 
@@ -144,13 +145,13 @@ def test_identifiers_break_only_after_separators(fail: dict[str, Any], passed: d
     """Issue 13: `reported_rmse_toler ance`. Rule ids, measure and parameter names break only after _ . -"""
     for run in (fail, passed):
         doc, text = run["doc"], "\n".join(run["pages"])
-        names = {r["rule"] for r in doc["records"]} | {r["measure"] for r in doc["records"] if r.get("measure")}
+        names = {r["rule"] for r in all_records(doc)} | {r["measure"] for r in all_records(doc) if r.get("measure")}
         names |= set(doc["profile"].get("parameters") or {})
         assert {"camera_calibration_max_age_digital", "reported_rmse_tolerance"} <= names
         bad = [s for n in sorted(names) if len(n) > 3 for s in _splits(text, n)]
         assert not bad, bad
         # every rule id of the findings is printed (whole, or split only at a separator)
         flat = re.sub(r"\s+", "", text)
-        for f in findings(doc["records"]):
+        for f in findings(list(all_records(doc))):
             for rule in f.rules[:8]:
                 assert rule in flat, rule

@@ -21,6 +21,7 @@ from pypdf import PdfReader
 
 from orthospec.cli.main import cli
 from orthospec.errors import ReportError
+from orthospec.qcr import all_records
 from orthospec.reports import document as reportdoc
 from orthospec.reports.fetcher import SafeFetcher, data_uri
 from orthospec.reports.html import ReportOptions, document_sha256, render_html
@@ -168,7 +169,7 @@ def test_pdf_states_verdict_failures_and_clauses(checked: dict[str, Any]) -> Non
     doc, text = checked["doc"], checked["text"]
     assert doc["verdict"] == "rejected"
     assert "REJECTED" in text
-    failing = {r["rule"]: r for r in doc["records"] if r["verdict"] in ("fail", "missing", "error")}
+    failing = {r["rule"]: r for r in all_records(doc) if r["verdict"] in ("fail", "missing", "error")}
     assert {"R-ROLL", "R-SEAM"} <= set(failing)  # the fixture does fail and lack evidence
     for rid, rec in failing.items():
         assert rid in text
@@ -273,7 +274,7 @@ def test_signoffs_appear_in_countersignature_without_changing_checksum(checked: 
 
 def test_bounded_report_summarises_passing_items(checked: dict[str, Any]) -> None:
     doc = checked["doc"]
-    passing = [r for r in doc["records"] if r["verdict"] == "pass" and r["scope"] == "image"]
+    passing = [r for r in all_records(doc) if r["verdict"] == "pass" and r["scope"] == "image"]
     assert passing
     full = render_html(doc, ReportOptions(bounded=False, figures=False))
     short = render_html(doc, ReportOptions(bounded=True, figures=False))

@@ -10,13 +10,14 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import heapq
 import io
 import json
 import math
 import os
 import re
 import tempfile
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 from xml.sax.saxutils import escape as _escape
@@ -29,6 +30,7 @@ from .engine.evaluator import (
     ERROR,
     FAIL,
     MISSING,
+    NA,
     PASS,
     VERDICTS,
     WAIVED,
@@ -37,8 +39,11 @@ from .engine.evaluator import (
     RuleResult,
 )
 from .engine.registry import SCOPES
+from .provenance import Evidence
 
-SCHEMA_ID = "orthospec.qcr/1"
+SCHEMA_ID = "orthospec.qcr/1"  # "/2" once ledger/store.py accepts SCHEMA_IDS (request to F)
+#: earlier document versions :func:`all_records` still reads
+SCHEMA_IDS = ("orthospec.qcr/1", "orthospec.qcr/2")
 SIG_DIGITS = 10
 _SCOPE_ORDER = {s: i for i, s in enumerate(SCOPES)}
 
@@ -63,7 +68,86 @@ def stable(x: Any) -> Any:
         return [stable(v) for v in x]
     if isinstance(x, np.ndarray):
         return [stable(v) for v in x.tolist()]
+    if _is_frame(x):
+        return frame_table(x)
     return x
+
+
+def _is_frame(x: Any) -> bool:
+    """A pandas DataFrame, without importing pandas for documents that hold none."""
+    return type(x).__name__ == "DataFrame" and type(x).__module__.startswith("pandas")
+
+
+def round_sig(values: np.ndarray) -> np.ndarray:
+    """Floats rounded to SIG_DIGITS significant digits, vectorised: the value ``float(f"{v:.10g}")``
+    gives (n / 10**k with both exact is one correctly rounded division), NaN/inf kept."""
+    v = np.asarray(values, dtype=np.float64)
+    out = v.copy()
+    ok = np.isfinite(v) & (v != 0)
+    if not ok.any():
+        return out
+    x = v[ok]
+    k = (SIG_DIGITS - 1) - np.floor(np.log10(np.abs(x))).astype(np.int64)
+    r = np.empty_like(x)
+    pos = (k >= 0) & (k <= 22)
+    neg = (k < 0) & (k >= -22)
+    r[pos] = np.rint(x[pos] * 10.0 ** k[pos]) / 10.0 ** k[pos]
+    r[neg] = np.rint(x[neg] / 10.0 ** -k[neg]) * 10.0 ** -k[neg]
+    rest = ~(pos | neg)
+    r[rest] = [float(f"{f:.{SIG_DIGITS}g}") for f in x[rest].tolist()]
+    out[ok] = r
+    return out
+
+
+def _stable_column(values: np.ndarray) -> list[Any]:
+    """One column, vectorised where it is numeric: 10 significant digits, NaN/inf -> None."""
+    if values.dtype.kind == "f":
+        finite = np.isfinite(values)
+        r = round_sig(values)
+        return [f if ok else None for f, ok in zip(r.tolist(), finite.tolist(), strict=True)]
+    if values.dtype.kind in "iu":
+        return values.tolist()
+    if values.dtype.kind == "b":
+        return values.tolist()
+    return [stable(v) for v in values.tolist()]
+
+
+def frame_table(frame: Any) -> dict[str, Any]:
+    """A DataFrame as the column table qcr.json stores (INTERFACES item 3):
+    ``{"columns": [names...], "data": {name: [values...]}}``, rows in frame order."""
+    cols = [str(c) for c in frame.columns if not str(c).startswith("_")]
+    data = {}
+    for c in cols:
+        col = frame[c]
+        data[c] = _stable_column(col.to_numpy())
+    return {"columns": cols, "data": data}
+
+
+def point_rows(table: Any) -> list[dict[str, Any]]:
+    """Rows (dicts) of a per-point table: a column table, a DataFrame or the old list of dicts."""
+    if table is None:
+        return []
+    if _is_frame(table):
+        table = frame_table(table)
+    if isinstance(table, dict):
+        cols = list(table.get("columns") or [])
+        data = table.get("data") or {}
+        n = max((len(data.get(c) or []) for c in cols), default=0)
+        return [{c: (data[c][i] if c in data and i < len(data[c]) else None) for c in cols} for i in range(n)]
+    return [dict(p) for p in table]
+
+
+def point_frame(table: Any) -> Any:
+    """A per-point table as a pandas DataFrame (column table, DataFrame or list of dicts)."""
+    import pandas as pd
+
+    if _is_frame(table):
+        return table
+    if isinstance(table, dict):
+        cols = list(table.get("columns") or [])
+        data = table.get("data") or {}
+        return pd.DataFrame({c: data.get(c, []) for c in cols}, columns=cols)
+    return pd.DataFrame(list(table or []))
 
 
 def _fmt(v: Any) -> str:
@@ -72,6 +156,45 @@ def _fmt(v: Any) -> str:
     if isinstance(v, float):
         return f"{v:.6g}"
     return str(v)
+
+
+#: verdicts recorded compactly (columnar, per rule); every other verdict is a record in full
+COMPACT_VERDICTS = ("pass", "not_applicable")
+_COMPACT_CODES = (PASS, NA)
+
+
+class _Interner:
+    """Evidence entries of compact records, each stored once in ``doc["evidence"]``."""
+
+    def __init__(self) -> None:
+        self.index: dict[Evidence, int] = {}
+        self.table: list[dict[str, Any]] = []
+
+    def ids(self, ev: tuple[Evidence, ...] | list[Evidence]) -> list[int]:
+        out = []
+        for e in (sorted(set(ev)) if len(ev) > 1 else ev):
+            k = self.index.get(e)
+            if k is None:
+                k = self.index[e] = len(self.table)
+                self.table.append(e.to_dict())
+            out.append(k)
+        return out
+
+
+def _column(values: list[Any]) -> list[Any] | dict[str, Any]:
+    """A compact column: ``{"all": v}`` when every item has the same value, else the list."""
+    if len(values) > 1 and all(v == values[0] for v in values[1:]):
+        return {"all": values[0]}
+    return values
+
+
+def _pass_message(measure: str, measured: Any, shown_unit: str, req_text: str) -> str:
+    """The message of a pass/fail/warn record whose rule gave no note (one wording, two callers)."""
+    return f"{measure} = {_fmt(measured)}{shown_unit}; required {req_text}"
+
+
+def _shown_unit(unit: str | None) -> str:
+    return f" {unit}" if unit and unit not in ("1", "bool", "text", "date") else ""
 
 
 class _RuleRecords:
@@ -83,10 +206,9 @@ class _RuleRecords:
         self.r = r
         rule = r.rule
         self.text = requirement_text
+        self.clause = rule.clause.model_dump(mode="json", exclude_none=True)
         self.base: dict[str, Any] = {
-            "rule": rule.id, "title": rule.title,
-            "clause": rule.clause.model_dump(mode="json", exclude_none=True),
-            "quote": rule.quote, "scope": rule.scope,
+            "rule": rule.id, "title": rule.title, "clause": self.clause, "quote": rule.quote, "scope": rule.scope,
         }
         self.tail: dict[str, Any] = {
             "level": rule.level, "consequence": rule.consequence, "manual": rule.manual,
@@ -94,28 +216,43 @@ class _RuleRecords:
         self.req = stable({k: v for k, v in r.threshold.items() if not k.startswith("_")})
         self.arrays = r.threshold.get("_arrays")
         self.unit = r.unit if r.unit not in ("", "any") else None
-        self.shown_unit = f" {self.unit}" if self.unit and self.unit not in ("1", "bool", "text", "date") else ""
+        self.shown_unit = _shown_unit(self.unit)
         self.audit = rule.audit.model_dump(mode="json", exclude_none=True) if rule.audit is not None else None
+
+    def summary_fields(self) -> dict[str, Any]:
+        """What every record of this rule shares: compact records take it from the rule summary."""
+        out = {"citation": self.clause, "quote": self.r.rule.quote, "manual": self.r.rule.manual,
+               "measure": self.r.rule.measure, "unit": self.unit, "requirement": self.req}
+        if self.audit is not None:
+            out["audit"] = self.audit
+        return out
+
+    def _measured(self, i: int) -> Any:
+        measured = self.r.measured[i]
+        if isinstance(measured, np.generic):
+            measured = measured.item()
+        return stable(measured)
+
+    def _requirement(self, i: int) -> dict[str, Any]:
+        req = self.req
+        if self.arrays is not None:
+            req = dict(req)
+            if self.r.rule.requirement.op == "between":
+                req["min"], req["max"] = stable(float(self.arrays[0][i])), stable(float(self.arrays[1][i]))
+            else:
+                req["value"] = stable(float(self.arrays[0][i]))
+            req["text"] = self.text(self.r.rule.requirement, req)
+        return req
 
     def record(self, i: int) -> dict[str, Any]:
         r, rule = self.r, self.r.rule
         v = int(r.verdict[i])
         item = str(r.items[i])
-        measured = r.measured[i]
-        if isinstance(measured, np.generic):
-            measured = measured.item()
-        measured = stable(measured)
-        req = self.req
-        if self.arrays is not None:
-            req = dict(req)
-            if rule.requirement.op == "between":
-                req["min"], req["max"] = stable(float(self.arrays[0][i])), stable(float(self.arrays[1][i]))
-            else:
-                req["value"] = stable(float(self.arrays[0][i]))
-            req["text"] = self.text(rule.requirement, req)
+        measured = self._measured(i)
+        req = self._requirement(i)
         note = r.notes[i]
         if v in (PASS, FAIL, WARN) and note is None:
-            note = f"{rule.measure} = {_fmt(measured)}{self.shown_unit}; required {req.get('text', '')}"
+            note = _pass_message(rule.measure, measured, self.shown_unit, req.get("text", ""))
         elif v == WAIVED and r.original is not None:
             w = r.waivers.get(item, {})
             note = (f"{VERDICTS[int(r.original[i])]} waived: {w.get('justification', '')} "
@@ -139,6 +276,95 @@ class _RuleRecords:
             rec["audit"] = self.audit
         return rec
 
+    def compact(self, idx: np.ndarray, interner: _Interner) -> dict[str, Any]:
+        """The pass / not-applicable records at ``idx`` (item order) as columns (see docs/QCR.md)."""
+        r = self.r
+        items = [str(x) for x in r.items[idx].tolist()]
+        verdicts = [VERDICTS[int(v)] for v in r.verdict[idx].tolist()]
+        measured = [self._measured(int(i)) for i in idx]
+        notes = r.notes[idx].tolist()
+        messages: list[str | None] = []
+        for v, note in zip(verdicts, notes, strict=True):
+            # None: the default wording, rebuilt from measure, value and requirement on reading
+            messages.append(None if note is None and v == "pass" else ("" if note is None else str(note)))
+        out: dict[str, Any] = {"items": items, "verdict": _column(verdicts), "measured": _column(measured)}
+        if self.arrays is not None:
+            out["requirement"] = _column([self._requirement(int(i)) for i in idx])
+        out["evidence"] = _column([interner.ids(r.evidence[int(i)]) for i in idx])
+        out["message"] = _column(messages)
+        return out
+
+
+def _column_values(col: Any, n: int) -> list[Any]:
+    if isinstance(col, dict):
+        return [col.get("all")] * n
+    return list(col) if col is not None else [None] * n
+
+
+def _expand(rule: dict[str, Any], block: dict[str, Any], evidence: list[dict[str, Any]]) -> Iterator[dict[str, Any]]:
+    """The full records of one rule's compact block (same keys and values as a record in full)."""
+    items = block["items"]
+    n = len(items)
+    verdicts = _column_values(block.get("verdict"), n)
+    measured = _column_values(block.get("measured"), n)
+    reqs = _column_values(block["requirement"], n) if "requirement" in block else [rule.get("requirement") or {}] * n
+    evs = _column_values(block.get("evidence"), n)
+    msgs = _column_values(block.get("message"), n)
+    unit = rule.get("unit")
+    shown = _shown_unit(unit)
+    head = {"rule": rule["rule"], "title": rule.get("title", ""), "clause": rule.get("citation") or {},
+            "quote": rule.get("quote", ""), "scope": rule.get("scope", "")}
+    tail = {"level": rule.get("level"), "consequence": rule.get("consequence"), "manual": rule.get("manual", False)}
+    measure = rule.get("measure", "")
+    audit = rule.get("audit")
+    for k in range(n):
+        rec = dict(head)
+        rec["item"] = items[k]
+        rec.update(tail)
+        rec["verdict"] = verdicts[k]
+        rec["measure"] = measure
+        rec["measured"] = {"value": measured[k], "unit": unit}
+        req = reqs[k]
+        rec["requirement"] = req
+        rec["evidence"] = [evidence[e] for e in (evs[k] or [])]
+        msg = msgs[k]
+        rec["message"] = _pass_message(measure, measured[k], shown, req.get("text", "")) if msg is None else msg
+        rec["waiver"] = None
+        if audit is not None:
+            rec["audit"] = audit
+        yield rec
+
+
+def all_records(doc: Mapping[str, Any]) -> Iterator[dict[str, Any]]:
+    """Every record of a QCR document, in document order (scope, rule id, item in natural order).
+
+    The one way to read records (INTERFACES item 2): ``doc["records"]`` holds only the records
+    in full (every verdict but pass and not applicable); the others are columns per rule in
+    ``doc["compact"]`` and are expanded here into the same dicts. Documents without
+    ``compact`` (qcr.json written before) are read as they are.
+    """
+    records = doc.get("records") or []
+    compact = doc.get("compact")
+    if not compact:
+        yield from records
+        return
+    full: dict[str, list[dict[str, Any]]] = {}
+    for rec in records:
+        full.setdefault(rec["rule"], []).append(rec)
+    evidence = doc.get("evidence") or []
+    for summary in doc.get("rules") or []:
+        rid = summary["rule"]
+        mine = full.pop(rid, [])
+        block = compact.get(rid)
+        if not block:
+            yield from mine
+        elif not mine:
+            yield from _expand(summary, block, evidence)
+        else:
+            yield from heapq.merge(mine, _expand(summary, block, evidence), key=lambda r: natural_key(r["item"]))
+    for rest in full.values():
+        yield from rest
+
 
 _DIGITS = re.compile(r"(\d+)")
 
@@ -160,10 +386,14 @@ def _order(items: np.ndarray, cache: dict[Any, Any]) -> np.ndarray:
     return order
 
 
+def _sorted_results(ev: Evaluation) -> list[RuleResult]:
+    return sorted(ev.results, key=lambda r: (_SCOPE_ORDER.get(r.rule.scope, 99), r.rule.id))
+
+
 def iter_records(ev: Evaluation) -> Iterable[dict[str, Any]]:
-    """Records sorted by (scope order, rule id, item in natural order)."""
+    """Every record in full, sorted by (scope order, rule id, item in natural order)."""
     cache: dict[Any, Any] = {}
-    for r in sorted(ev.results, key=lambda r: (_SCOPE_ORDER.get(r.rule.scope, 99), r.rule.id)):
+    for r in _sorted_results(ev):
         rb = _RuleRecords(r)
         for i in _order(r.items, cache):
             yield rb.record(int(i))
@@ -171,22 +401,34 @@ def iter_records(ev: Evaluation) -> Iterable[dict[str, Any]]:
 
 def build_document(ev: Evaluation, *, date: str, operator: str | None = None,
                    delivery_path: str | None = None) -> dict[str, Any]:
-    """The QCR document (see specs/schema/qcr.schema.json)."""
+    """The QCR document (see docs/QCR.md and specs/schema/qcr.schema.json)."""
     d, p = ev.delivery, ev.profile
-    records = list(iter_records(ev))
     summary = {k: 0 for k in VERDICTS}
-    for rec in records:
-        summary[rec["verdict"]] += 1
     rules = []
-    for r in sorted(ev.results, key=lambda r: (_SCOPE_ORDER.get(r.rule.scope, 99), r.rule.id)):
+    records: list[dict[str, Any]] = []
+    compact: dict[str, Any] = {}
+    interner = _Interner()
+    cache: dict[Any, Any] = {}
+    n_records = 0
+    for r in _sorted_results(ev):
+        rb = _RuleRecords(r)
         offending = sorted((str(x) for x in r.items[np.isin(r.verdict, (FAIL, WARN, MISSING, ERROR))]),
                            key=natural_key)
-        rules.append({
+        rules.append(stable({
             "rule": r.rule.id, "title": r.rule.title, "scope": r.rule.scope, "level": r.rule.level,
             "consequence": r.rule.consequence, "clause": r.rule.clause.text(), "clause_ref": r.rule.clause.ref(),
             "verdict": VERDICTS[r.worst], "counts": {k: v for k, v in r.counts().items() if v},
-            "offending": offending, "error": r.error,
-        })
+            "offending": offending, "error": r.error, **rb.summary_fields(),
+        }))
+        order = _order(r.items, cache)
+        codes = np.asarray(r.verdict)[order]
+        for code, count in zip(*np.unique(codes, return_counts=True), strict=True):
+            summary[VERDICTS[int(code)]] += int(count)
+        n_records += len(order)
+        is_compact = np.isin(codes, _COMPACT_CODES)
+        if is_compact.any():
+            compact[r.rule.id] = rb.compact(order[is_compact], interner)
+        records.extend(rb.record(int(i)) for i in order[~is_compact])
     man = d.manifest
     doc: dict[str, Any] = {
         "schema": SCHEMA_ID,
@@ -213,31 +455,50 @@ def build_document(ev: Evaluation, *, date: str, operator: str | None = None,
         },
         "verdict": ev.verdict,
         "fail_on": ev.fail_on,
-        "summary": {"rules": len(ev.results), "records": len(records), **summary},
+        "summary": {"rules": len(ev.results), "records": n_records, **summary},
         "rollup": {"rejected": ev.rejected, "reasons": ev.reasons},
         "waivers_unused": ev.unused_waivers,
-        "rules": rules,
+        "rules": [],
         "records": [],
+        "compact": {},
+        "evidence": [],
         "details": ev.details,
     }
     doc = stable(doc)
-    doc["records"] = records  # already JSON-safe, field by field
+    # already JSON-safe, field by field
+    doc["rules"] = rules
+    doc["records"] = records
+    doc["compact"] = compact
+    doc["evidence"] = interner.table
     return doc
 
 
-def dumps(doc: dict[str, Any]) -> str:
-    """qcr.json text: readable header, then one record per line (greppable, diffable, streamable)."""
+def dumps(doc: Mapping[str, Any]) -> str:
+    """qcr.json text: readable header, then one record (or one rule's compact block) per line."""
     return "".join(iter_dumps(doc))
 
 
-def iter_dumps(doc: dict[str, Any]) -> Iterable[str]:
-    head = {k: v for k, v in doc.items() if k != "records"}
-    text = json.dumps(head, indent=1, ensure_ascii=False, allow_nan=False)
-    yield text[:-2] + ',\n "records": ['
+def iter_dumps(doc: Mapping[str, Any]) -> Iterator[str]:
+    """qcr.json as a stream of pieces (written to the file one by one; same bytes as :func:`dumps`).
+
+    Every top-level key as ``json.dumps(doc, indent=1)`` would write it, except ``records`` (one
+    record per line) and ``compact`` (one rule's columns per line): greppable, diffable, and no
+    piece larger than one rule."""
     enc = json.JSONEncoder(ensure_ascii=False, allow_nan=False, separators=(",", ":")).encode
-    for n, rec in enumerate(doc["records"]):
-        yield ("\n  " if n == 0 else ",\n  ") + enc(rec)
-    yield "\n ]\n}\n"
+    yield "{"
+    for n, (key, value) in enumerate(doc.items()):
+        yield ("\n " if n == 0 else ",\n ") + enc(str(key)) + ": "
+        if key == "records" and isinstance(value, list) and value:
+            for k, rec in enumerate(value):
+                yield ("[\n  " if k == 0 else ",\n  ") + enc(rec)
+            yield "\n ]"
+        elif key == "compact" and isinstance(value, dict) and value:
+            for k, (rid, block) in enumerate(value.items()):
+                yield ("{\n  " if k == 0 else ",\n  ") + enc(str(rid)) + ": " + enc(block)
+            yield "\n }"
+        else:
+            yield json.dumps(value, indent=1, ensure_ascii=False, allow_nan=False).replace("\n", "\n ")
+    yield "\n}\n"
 
 
 # --- writers --------------------------------------------------------------------------------
@@ -279,7 +540,7 @@ def to_csv(doc: dict[str, Any]) -> str:
     buf = io.StringIO()
     w = _SafeWriter(buf)
     w.writerow(CSV_COLUMNS)
-    for r in doc["records"]:
+    for r in all_records(doc):
         c = r["clause"]
         clause = ", ".join(str(c[k]) for k in ("document", "section", "table", "row") if c.get(k))
         ev = "; ".join(f"{e['file']}" + (f"#rows={','.join(map(str, e['rows']))}" if e.get("rows") else "")
@@ -301,7 +562,7 @@ def to_junit(doc: dict[str, Any]) -> str:
         return _escape(xml_text(v))
 
     by_rule: dict[str, list[dict[str, Any]]] = {}
-    for r in doc["records"]:
+    for r in all_records(doc):
         by_rule.setdefault(r["rule"], []).append(r)
     s = doc["summary"]
     out = ['<?xml version="1.0" encoding="UTF-8"?>',

@@ -15,7 +15,7 @@ from collections.abc import Iterable
 from typing import Any
 
 from ..errors import ReportError
-from ..qcr import csv_safe, natural_key
+from ..qcr import csv_safe, natural_key, point_rows
 from ..resources import templates_dir
 from .fetcher import SafeFetcher, data_uri
 from .html import ReportOptions, canonical_qcr, document_sha256, render_html
@@ -34,7 +34,7 @@ def checkpoints_csv(doc: dict[str, Any]) -> str:
     w.writerow(CHECKPOINT_COLUMNS)
     cps = (doc.get("details") or {}).get("checkpoints") or {}
     for bid in sorted(cps, key=natural_key):
-        for p in (cps[bid] or {}).get("points") or []:
+        for p in point_rows((cps[bid] or {}).get("points")):
             w.writerow([csv_safe(bid), *(csv_safe("" if p.get(k) is None else p.get(k))
                                          for k in CHECKPOINT_COLUMNS[1:])])
     return buf.getvalue()

@@ -18,7 +18,7 @@ from typing import Any
 import jinja2
 import markupsafe
 
-from ..qcr import dumps, natural_key
+from ..qcr import all_records, dumps, natural_key, point_rows
 from ..resources import templates_dir
 from .findings import findings as find_problems
 from .findings import not_applicable_summary
@@ -254,7 +254,7 @@ def _problem_rules(records: list[dict[str, Any]], max_items: int) -> list[dict[s
 
 def _rule_views(doc: dict[str, Any], opts: ReportOptions) -> list[RuleView]:
     by_rule: dict[str, list[dict[str, Any]]] = {}
-    for rec in doc.get("records", []):
+    for rec in all_records(doc):
         by_rule.setdefault(rec["rule"], []).append(rec)
     meta = {r["rule"]: r for r in doc.get("rules", [])}
     order = list(meta) + [r for r in by_rule if r not in meta]
@@ -306,7 +306,7 @@ def _checkpoint_blocks(doc: dict[str, Any], opts: ReportOptions,
         b = cps[bid]
         if not isinstance(b, dict):
             continue
-        pts = list(b.get("points") or [])
+        pts = point_rows(b.get("points"))
         has_z = any(p.get("dz") is not None for p in pts)
         n_fail = sum(p.get("status") == "fail" for p in pts)
         shown = pts
@@ -338,7 +338,7 @@ def _block_figures(b: dict[str, Any], bid: str) -> list[dict[str, str]]:
     from ..figures import accuracy as figs  # matplotlib: imported only when figures are drawn
     from ..measures.distribution import checkpoint_distribution
 
-    pts = [p for p in b.get("points") or []
+    pts = [p for p in point_rows(b.get("points"))
            if all(_numeric(p.get(k)) for k in ("x_ref", "y_ref", "dx", "dy"))]
     if not pts:
         return []
@@ -430,7 +430,7 @@ def _edge_targets(doc: dict[str, Any], opts: ReportOptions | None = None,
                     "checks": checks, "estimates": estimates,
                     "has_curves": isinstance(d.get("curves"), dict), "figures": []})
     if figure is not None and opts.figures:
-        bad = {r["item"] for r in doc.get("records", [])
+        bad = {r["item"] for r in all_records(doc)
                if r.get("scope") == "edge" and r.get("verdict") in ("fail", "error")}
         ranked = sorted((e for e in out if e["has_curves"]), key=lambda e: e["id"] not in bad)  # stable
         for e in ranked[: opts.max_figure_edges]:
@@ -520,7 +520,7 @@ def report_context(doc: dict[str, Any], opts: ReportOptions | None = None, *,
     fetcher); ``None`` draws no figures. ``cache`` keeps drawn SVGs between HTML and PDF renders.
     """
     opts = opts or ReportOptions()
-    records = doc.get("records", [])
+    records = list(all_records(doc))
     problems = _problem_rules(records, 30 if opts.bounded else 10**9)
     rules = _rule_views(doc, opts)
     scopes: list[dict[str, Any]] = []

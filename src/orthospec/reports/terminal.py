@@ -13,6 +13,7 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
+from ..qcr import all_records
 from .findings import clean_text, findings
 
 MAX_ITEMS = 8
@@ -45,7 +46,7 @@ def render(doc: dict[str, Any], console: Console, *, max_items: int = MAX_ITEMS,
     sample = doc.get("sample")
     if isinstance(sample, dict) and sample.get("statement"):
         console.print(f"sample: {_t(sample['statement'])}", overflow="fold")
-    found = findings(doc["records"])
+    found = findings(list(all_records(doc)))
     if found:
         t = Table(show_header=True, header_style="bold", box=None, pad_edge=False)
         t.add_column("verdict", no_wrap=True, min_width=7)

@@ -1,0 +1,106 @@
+"""qcr.json records: compact pass / not-applicable columns, every other record in full (issue 14 item 2).
+
+The expected records come from the evaluation itself (its verdict arrays, counted with numpy) and
+from :func:`orthospec.qcr.iter_records`, the record-by-record writer the compact form replaces;
+the document is read back from the bytes written, never from the dict in memory.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from orthospec import api
+from orthospec.engine.evaluator import VERDICTS
+from orthospec.qcr import (
+    all_records,
+    dumps,
+    iter_dumps,
+    iter_records,
+    point_frame,
+    point_rows,
+    stable,
+)
+
+ROOT = Path(__file__).resolve().parents[1]
+EXAMPLES = ROOT / "examples" / "deliveries"
+
+
+@pytest.fixture(scope="module")
+def fail_check() -> api.CheckResult:
+    return api.check(EXAMPLES / "aerial-fail", "jrc-v3", date="2026-11-21")
+
+
+def _json(x):
+    return json.loads(json.dumps(x))
+
+
+def test_every_non_pass_record_is_in_full(fail_check: api.CheckResult) -> None:
+    doc = json.loads(dumps(fail_check.document))
+    expected = sum(int(np.count_nonzero(~np.isin(np.asarray(r.verdict), (0, 3))))  # not pass, not n/a
+                   for r in fail_check.evaluation.results)
+    assert expected > 0
+    assert len(doc["records"]) == expected
+    assert all(r["verdict"] not in ("pass", "not_applicable") for r in doc["records"])
+    counts = {v: 0 for v in VERDICTS}
+    for r in fail_check.evaluation.results:
+        for code in np.asarray(r.verdict).tolist():
+            counts[VERDICTS[code]] += 1
+    got = {v: 0 for v in VERDICTS}
+    for rec in all_records(doc):
+        got[rec["verdict"]] += 1
+    assert got == counts
+    assert doc["summary"] == {"rules": len(fail_check.evaluation.results), "records": sum(counts.values()), **counts}
+
+
+def test_expanded_records_equal_the_records_in_full(fail_check: api.CheckResult) -> None:
+    doc = json.loads(dumps(fail_check.document))
+    full = _json(list(iter_records(fail_check.evaluation)))
+    assert list(all_records(doc)) == full
+    # a record does not repeat its rule's text: quotes live in the rule summaries only
+    text = dumps(fail_check.document)
+    quote = next(r["quote"] for r in full if r["verdict"] == "pass" and len(r["quote"]) > 40)
+    assert text.count(json.dumps(quote, ensure_ascii=False)) <= 1 + sum(
+        1 for r in doc["records"] if r["quote"] == quote)
+
+
+def test_stream_equals_text_and_is_deterministic(fail_check: api.CheckResult, tmp_path: Path) -> None:
+    text = "".join(iter_dumps(fail_check.document))
+    assert text == dumps(fail_check.document)
+    again = api.check(EXAMPLES / "aerial-fail", "jrc-v3", date="2026-11-21")
+    assert dumps(again.document) == text
+    # the header is indented like json.dumps(indent=1) would write it
+    doc = json.loads(text)
+    assert json.dumps(doc["summary"], indent=1).replace("\n", "\n ") in text
+
+
+def test_old_documents_are_read_as_they_are() -> None:
+    recs = [{"rule": "R", "item": "a", "verdict": "pass"}, {"rule": "R", "item": "b", "verdict": "fail"}]
+    assert list(all_records({"schema": "orthospec.qcr/1", "records": recs})) == recs
+
+
+def test_point_tables_in_every_form() -> None:
+    pd = pytest.importorskip("pandas")
+    frame = pd.DataFrame({"point_id": ["P1", "P2"], "dx": [0.1234567890123, float("nan")], "n": [1, 2]})
+    table = stable({"points": frame})["points"]
+    assert table == {"columns": ["point_id", "dx", "n"],
+                     "data": {"point_id": ["P1", "P2"], "dx": [0.123456789, None], "n": [1, 2]}}
+    rows = [{"point_id": "P1", "dx": 0.123456789, "n": 1}, {"point_id": "P2", "dx": None, "n": 2}]
+    assert point_rows(table) == rows
+    assert point_rows(rows) == rows
+    assert point_rows(None) == []
+    back = point_frame(table)
+    assert list(back.columns) == ["point_id", "dx", "n"] and back["n"].tolist() == [1, 2]
+    assert point_frame(rows)["point_id"].tolist() == ["P1", "P2"]
+
+
+def test_vectorised_rounding_equals_the_scalar_rule() -> None:
+    from orthospec.qcr import round_sig
+
+    rng = np.random.default_rng(7)
+    x = np.concatenate([rng.normal(0, 1, 20000) * 10.0 ** rng.integers(-25, 25, 20000),
+                        [0.3, 1 / 3, 2.5e-30, 5e25, 123456789012345.0]])
+    assert round_sig(x).tolist() == [stable(float(v)) for v in x]
