@@ -239,8 +239,9 @@ def _check_open(ds: rasterio.io.DatasetReader, base: dict[str, Any], *, expect_e
         return FileChecks(error=f"{p}: no georeference (identity geotransform)", **base,
                           **facts)
     try:
-        crs_text, epsg, unit, crs_ok = _crs_facts(ds.crs.to_wkt(), expect_epsg)
-    except Exception as exc:  # pyproj raises CRSError, plus odd ValueErrors on broken WKT
+        with gdal_errors(file=p, what="CRS"):
+            crs_text, epsg, unit, crs_ok = _crs_facts(ds.crs.to_wkt(), expect_epsg)
+    except MeasureError as exc:  # pyproj's CRSError, mapped by the one boundary
         return FileChecks(error=f"{p}: unparseable CRS: {exc}", **base, **facts)
     t = ds.transform
     px, py = math.hypot(t.a, t.d), math.hypot(t.b, t.e)
@@ -305,9 +306,10 @@ def check_vector(path: str | Path, *, expect_epsg: int | None = None) -> VectorC
             from pyproj import CRS
 
             try:
-                crs_ok = CRS.from_user_input(crs_text).equals(CRS.from_epsg(int(expect_epsg)),
-                                                              ignore_axis_order=True)
-            except Exception:  # unparseable CRS: not equal
+                with gdal_errors(file=p, what="CRS"):
+                    crs_ok = CRS.from_user_input(crs_text).equals(CRS.from_epsg(int(expect_epsg)),
+                                                                  ignore_axis_order=True)
+            except MeasureError:  # pyproj's CRSError, mapped by the one boundary: not equal
                 crs_ok = False
     return VectorCheck(path=str(p), features=int(info.get("features", 0)),
                        geometry_type=info.get("geometry_type"), crs=crs_text, crs_ok=crs_ok,

@@ -172,7 +172,7 @@ def scan_image(path: str | Path, options: ScanOptions | None = None, *,
     if cloud_mask is not None and rep.error is None:
         try:
             rep.cloud_cover_pct = mask_share(cloud_mask, settings=o.settings).percent
-        except (OrthospecError, rasterio.errors.RasterioError) as exc:
+        except OrthospecError as exc:  # refused or unreadable (reading.gdal_errors maps GDAL's)
             rep.error = f"{cloud_mask}: cloud mask unreadable: {exc}"
     rep.seconds = time.perf_counter() - t0
     return rep
@@ -191,9 +191,12 @@ def _measure_pixels(rep: ImageReport, p: str, o: ScanOptions) -> None:
         with warnings.catch_warnings():  # a missing georeference is already a file-check finding
             warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
             rep.radiometry = scan_raster(p, o.settings).to_dict()
-    except (OrthospecError, rasterio.errors.RasterioError, ValueError) as exc:
+    except OrthospecError as exc:  # refused or unreadable: reading.gdal_errors maps GDAL's errors
         rep.error = str(exc) if p in str(exc) else f"{p}: {exc}"
-    except Exception as exc:  # GDAL CPLE_* and friends: one bad file never stops a batch
+    except Exception as exc:
+        # Deliberately broad, documented: a GDAL driver or numpy can still surprise us on one
+        # exotic file, and one file must not stop a national batch. Never swallowed: the
+        # exception's type and text become this image's error, which reaches its records.
         rep.error = f"{p}: cannot read pixels: {type(exc).__name__}: {exc}"
 
 
@@ -377,7 +380,11 @@ def scan_images(
     ------
     MeasureError
         when ``cache_dir`` lies inside an image's folder.
+    OrthospecError
+        when ``scheduler`` is given and the ``[dask]`` extra is not installed.
     """
+    if scheduler is not None:
+        require_dask()
     p_list = [str(p) for p in paths]
     s = settings or ScanSettings()
     if bit_depth is not None:
@@ -454,14 +461,33 @@ def tune_allocator(trim_threshold: int = 1 << 30) -> bool:
     name = ctypes.util.find_library("c")
     if not name:
         return False
-    libc = ctypes.CDLL(name)
+    try:
+        libc = ctypes.CDLL(name)
+    except OSError:  # a C library that cannot be loaded: keep the allocator as it is
+        return False
     if not hasattr(libc, "mallopt"):
         return False
     return bool(libc.mallopt(_M_TRIM_THRESHOLD, int(trim_threshold)))
 
 
+DASK_MISSING = ("running on a Dask cluster (--scheduler) needs Dask, an optional extra: "
+                "install it with  pip install 'orthospec[dask]'")
+
+
+def require_dask() -> None:
+    """Raise OrthospecError saying which extra to install when Dask distributed is missing.
+
+    Callers with a scheduler option call it before any work starts (``check --scheduler``).
+    """
+    try:
+        import distributed  # noqa: F401
+    except ImportError:
+        raise OrthospecError(DASK_MISSING) from None
+
+
 def _run_dask(scheduler: Any, paths: list[str], opts: ScanOptions, masks: dict[str, str],
               done: Callable[[int, ImageReport], None]) -> None:
+    require_dask()
     from distributed import Client
     from distributed import as_completed as dask_completed
 
@@ -471,8 +497,7 @@ def _run_dask(scheduler: Any, paths: list[str], opts: ScanOptions, masks: dict[s
     else:
         client = Client(getattr(scheduler, "scheduler_address", scheduler))
     try:
-        with suppress(Exception):  # best effort: a worker without glibc keeps its allocator
-            client.run(tune_allocator)
+        client.run(tune_allocator)  # False on a worker without glibc: it keeps its allocator
         futs = [client.submit(scan_image, p, opts, cloud_mask=masks.get(p), pure=False)
                 for p in paths]
         index = {f.key: i for i, f in enumerate(futs)}

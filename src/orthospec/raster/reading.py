@@ -21,6 +21,7 @@ import math
 import os
 import shutil
 import stat
+import sys
 import tempfile
 from collections.abc import Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
@@ -61,9 +62,6 @@ _MAGIC = (
     (b"\x00\x00\x00\x0cjP  \r\n\x87\n", "JP2OpenJPEG"),   # JPEG 2000 (JP2)
     (b"\xff\x4f\xff\x51", "JP2OpenJPEG"),                  # JPEG 2000 codestream (J2K)
 )
-_THIRD_PARTY = ("rasterio", "pyogrio", "osgeo", "fiona")
-
-
 
 
 @dataclass(frozen=True)
@@ -90,20 +88,43 @@ def _clean(exc: BaseException, path: str, name: str) -> str:
     return text.replace(f"{path}: ", "").replace(path, name)
 
 
+#: What the raster and vector libraries raise when a file cannot be read (httpx's
+#: ``map_exceptions`` is the model): one table, mapped to MeasureError in one place,
+#: :func:`gdal_errors`. A module not imported yet cannot have raised, so it is not imported.
+LIBRARY_ERRORS: tuple[tuple[str, str], ...] = (
+    ("rasterio.errors", "RasterioError"),            # RasterioIOError, WindowError, ...
+    ("rasterio.errors", "CRSError"),                 # a ValueError in rasterio
+    ("rasterio.errors", "DriverRegistrationError"),  # a ValueError in rasterio
+    ("rasterio._err", "CPLE_BaseError"),             # GDAL's CPLE_* errors, raised by rasterio
+    ("pyogrio.errors", "DataSourceError"),
+    ("pyogrio.errors", "DataLayerError"),            # CRSError, FeatureError, FieldError, GeometryError
+    ("pyproj.exceptions", "ProjError"),              # CRSError
+)
+
+
+def library_errors() -> tuple[type[BaseException], ...]:
+    """The exception classes of :data:`LIBRARY_ERRORS` whose modules are loaded."""
+    out = []
+    for module, name in LIBRARY_ERRORS:
+        cls = getattr(sys.modules.get(module), name, None)
+        if isinstance(cls, type) and issubclass(cls, BaseException):
+            out.append(cls)
+    return tuple(out)
+
+
 @contextmanager
 def gdal_errors(*, file: str | Path, path: str | Path | None = None, what: str = "raster") -> Iterator[None]:
-    """The one boundary where GDAL / rasterio / pyogrio exceptions become MeasureError naming the file.
+    """The one boundary where rasterio / GDAL / pyogrio / pyproj errors become MeasureError naming the file.
 
     ``file`` is what the message shows (relative to the delivery when known); ``path`` the path
     GDAL was given, removed from GDAL's text so messages do not depend on the working folder.
+    Anything else (our own errors, bugs) passes through unchanged.
     """
     try:
         yield
     except OrthospecError:
         raise
-    except Exception as exc:
-        if type(exc).__module__.split(".")[0] not in _THIRD_PARTY:
-            raise
+    except library_errors() as exc:
         raise MeasureError(f"{file}: not a readable {what}: {_clean(exc, str(path or file), str(file))}") from exc
 
 
@@ -341,19 +362,11 @@ def scan_raster(path: str | Path, settings: ScanSettings | None = None) -> Raste
 
 def _scan(ds: rasterio.io.DatasetReader, s: ScanSettings) -> RasterStats:
     infos = band_infos(ds, s.bit_depth)
-    exact = [rad.histogram_layout(b.dtype) is not None for b in infos]
-    hists = {b.index: rad.HistogramAccumulator.for_dtype(b.dtype)
-             for b, ex in zip(infos, exact, strict=True) if ex}
-    moms = {b.index: rad.Moments() for b, ex in zip(infos, exact, strict=True) if not ex}
-    edge_counts = {b.index: [0, 0, 0] for b in infos if b.index in moms}  # low, high, outside
-    noise = {b.index: rad.NoiseAccumulator() for b in infos} if s.noise else {}
-    rgb = _rgb_bands(infos) if s.luminosity else None
-    if rgb is not None and not all(exact[i - 1] for i in rgb):
-        rgb = None
-    lum = rad.HistogramAccumulator.for_dtype(infos[rgb[0] - 1].dtype) if rgb else None
+    acc = _Accumulators.for_bands(infos, s)
+    capture = _MisregistrationWindows.plan(ds, infos) if s.misregistration and ds.count >= 2 else None
     wins = list(chunk_windows(ds, s.chunk_bytes))
     stride = 1
-    if noise and s.noise_max_pixels:
+    if acc.noise and s.noise_max_pixels:
         stride = max(1, math.ceil(ds.width * ds.height / s.noise_max_pixels))
     mask_band = next((b.index for b in infos if b.use_mask), None)
 
@@ -362,30 +375,29 @@ def _scan(ds: rasterio.io.DatasetReader, s: ScanSettings) -> RasterStats:
         mask = ds.read_masks(mask_band, window=win) if mask_band is not None else None
         return ds.read(window=win), mask
 
-    chunks = 0
-    # one reader thread decodes the next chunk (GDAL releases the GIL) while this one counts;
+    def feed(k: int, win: Window, data: np.ndarray, mask: np.ndarray | None) -> None:
+        acc.add(data, mask, noise=k % stride == 0)
+        if capture is not None:
+            capture.take(win, data, mask)
+
+    # the one read of the pixels: every accumulator and the misregistration windows are fed from
+    # it. A reader thread decodes the next chunk (GDAL releases the GIL) while this one counts;
     # the dataset is only ever touched by that thread inside the loop
     if len(wins) <= 1:  # one chunk (a small image): no reader thread to start and hand off to
         for k, win in enumerate(wins):
-            data, shared_mask = fetch(win)
-            chunks += 1
-            _accumulate(data, shared_mask, infos, hists, moms, edge_counts, noise if k % stride == 0 else {},
-                        rgb, lum)
-        wins = []
-    with ThreadPoolExecutor(max_workers=1) as reader:
-        pending = reader.submit(fetch, wins[0]) if wins else None
-        for k in range(len(wins)):
-            assert pending is not None
-            data, shared_mask = pending.result()
-            if k + 1 < len(wins):
-                pending = reader.submit(fetch, wins[k + 1])
-            chunks += 1
-            _accumulate(data, shared_mask, infos, hists, moms, edge_counts,
-                        noise if k % stride == 0 else {}, rgb, lum)
+            feed(k, win, *fetch(win))
+    else:
+        with ThreadPoolExecutor(max_workers=1) as reader:
+            pending = reader.submit(fetch, wins[0])
+            for k, win in enumerate(wins):
+                data, shared_mask = pending.result()
+                if k + 1 < len(wins):
+                    pending = reader.submit(fetch, wins[k + 1])
+                feed(k, win, data, shared_mask)
     # floats / 32-bit: second pass for the binned histogram between exact min and max
     binned: dict[int, rad.BinnedHistogramAccumulator] = {}
-    if moms:
-        for idx, m in moms.items():
+    if acc.moms:
+        for idx, m in acc.moms.items():
             if m.n:
                 binned[idx] = rad.BinnedHistogramAccumulator(m.vmin, m.vmax)
         for win in chunk_windows(ds, s.chunk_bytes):
@@ -398,67 +410,115 @@ def _scan(ds: rasterio.io.DatasetReader, s: ScanSettings) -> RasterStats:
                 binned[idx].add(data[k], _valid(data[k], b, mask))
     bands: list[rad.BandStats] = []
     for b in infos:
-        nz = noise.get(b.index)
-        if b.index in hists:
-            acc = hists[b.index]
+        nz = acc.noise.get(b.index)
+        if b.index in acc.hists:
+            h = acc.hists[b.index]
             if not b.use_mask:
-                acc.exclude_value(b.nodata)
-            bands.append(rad.band_stats_from_histogram(str(b.index), b.dtype, acc, b.grey,
+                h.exclude_value(b.nodata)
+            bands.append(rad.band_stats_from_histogram(str(b.index), b.dtype, h, b.grey,
                                                        noise=nz, nodata=b.nodata))
         else:
-            ec = edge_counts[b.index]
+            ec = acc.edge_counts[b.index]
             bands.append(rad.band_stats_from_moments(
-                str(b.index), b.dtype, ds.width * ds.height, moms[b.index], b.grey,
+                str(b.index), b.dtype, ds.width * ds.height, acc.moms[b.index], b.grey,
                 histogram=binned.get(b.index), noise=nz, count_low=ec[0], count_high=ec[1],
                 above_range=ec[2], nodata=b.nodata))
     lum_stats = None
-    if lum is not None and rgb is not None:
-        lum_stats = rad.band_stats_from_histogram("luminosity", infos[rgb[0] - 1].dtype, lum,
-                                                  infos[rgb[0] - 1].grey)
-    out = RasterStats(bands=bands, luminosity=lum_stats, chunks=chunks)
-    if s.misregistration and ds.count >= 2:
-        out.reference_band, out.misregistration, out.misregistration_spread = _misregistration(ds, infos)
+    if acc.lum is not None and acc.rgb is not None:
+        first = infos[acc.rgb[0] - 1]
+        lum_stats = rad.band_stats_from_histogram("luminosity", first.dtype, acc.lum, first.grey)
+    out = RasterStats(bands=bands, luminosity=lum_stats, chunks=len(wins))
+    if capture is not None:
+        out.reference_band, out.misregistration, out.misregistration_spread = capture.result()
     return out
 
 
-def _accumulate(data: np.ndarray, shared_mask: np.ndarray | None, infos: Sequence[BandInfo],
-                hists: dict[int, rad.HistogramAccumulator], moms: dict[int, rad.Moments],
-                edge_counts: dict[int, list[int]], noise: dict[int, rad.NoiseAccumulator],
-                rgb: tuple[int, int, int] | None,
-                lum: rad.HistogramAccumulator | None) -> None:
-    """Feed one chunk (bands, rows, cols) to every accumulator."""
-    need_valid = bool(noise) or rgb is not None or bool(moms)
-    valids: dict[int, np.ndarray | None] = {}
-    for b in infos:
-        band = data[b.index - 1]
-        mask = shared_mask if b.use_mask else None
-        if b.index in hists:
-            hists[b.index].add(band, None if mask is None else mask != 0)
-        valid = _valid(band, b, mask) if need_valid else None
-        valids[b.index] = valid
-        if b.index in moms:
-            moms[b.index].add(band, valid)
-            g = b.grey
-            if g.bit_depth is not None:
-                vals = band if valid is None else band[valid]
-                ec = edge_counts[b.index]
-                ec[0] += int(np.count_nonzero(vals == g.low))
-                ec[1] += int(np.count_nonzero(vals == g.high))
-                ec[2] += int(np.count_nonzero((vals < g.low) | (vals > g.high)))
-        if b.index in noise:
-            noise[b.index].add(band, valid)
-    if rgb is not None and lum is not None:
-        r, g_, bl = (data[i - 1] for i in rgb)
-        y = np.empty(r.shape, dtype=data.dtype)
-        step = max(1, rad.SLAB_PIXELS // max(r.shape[1], 1))  # cache-sized temporaries
-        for r0 in range(0, r.shape[0], step):
-            sl = slice(r0, r0 + step)
-            y[sl] = rad.luminosity(r[sl], g_[sl], bl[sl], data.dtype)
-        v = None
-        for part in (valids.get(i) for i in rgb):
-            if part is not None:
-                v = part if v is None else v & part
-        lum.add(y, v)
+def _nodata_bin(info: BandInfo, hist: rad.HistogramAccumulator) -> int | None:
+    """Histogram bin of the band's nodata value, None when the value excludes no pixel."""
+    nd = info.nodata
+    if info.use_mask or nd is None or not math.isfinite(nd) or nd != int(nd):
+        return None
+    i = int(nd) - hist.offset
+    return i if 0 <= i < hist.counts.size else None
+
+
+@dataclass
+class _Accumulators:
+    """Every per-band accumulator of one scan, fed chunk by chunk by :meth:`add`."""
+
+    infos: Sequence[BandInfo]
+    hists: dict[int, rad.HistogramAccumulator]
+    moms: dict[int, rad.Moments]
+    edge_counts: dict[int, list[int]]  # low, high, outside the grey range (moments bands)
+    noise: dict[int, rad.NoiseAccumulator]
+    rgb: tuple[int, int, int] | None
+    lum: rad.HistogramAccumulator | None
+
+    @classmethod
+    def for_bands(cls, infos: Sequence[BandInfo], s: ScanSettings) -> _Accumulators:
+        exact = [rad.histogram_layout(b.dtype) is not None for b in infos]
+        rgb = _rgb_bands(infos) if s.luminosity else None
+        if rgb is not None and not all(exact[i - 1] for i in rgb):
+            rgb = None
+        return cls(
+            infos=infos,
+            hists={b.index: rad.HistogramAccumulator.for_dtype(b.dtype)
+                   for b, ex in zip(infos, exact, strict=True) if ex},
+            moms={b.index: rad.Moments() for b, ex in zip(infos, exact, strict=True) if not ex},
+            edge_counts={b.index: [0, 0, 0] for b, ex in zip(infos, exact, strict=True) if not ex},
+            noise={b.index: rad.NoiseAccumulator() for b in infos} if s.noise else {},
+            rgb=rgb,
+            lum=rad.HistogramAccumulator.for_dtype(infos[rgb[0] - 1].dtype) if rgb else None)
+
+    def add(self, data: np.ndarray, shared_mask: np.ndarray | None, *, noise: bool) -> None:
+        """Feed one chunk (bands, rows, cols); ``noise`` False skips the noise estimators.
+
+        Validity masks cost as much as a histogram: they are built only where a pixel can be
+        invalid (a GDAL mask with zeros, or a chunk whose histogram counted the nodata value)
+        and only for the accumulators that need them (moments, noise, luminosity).
+        """
+        mask_valid = None
+        if shared_mask is not None:
+            mask_valid = shared_mask != 0
+            if np.count_nonzero(mask_valid) == mask_valid.size:
+                mask_valid = None
+        need = set(self.moms) | (set(self.noise) if noise else set()) | set(self.rgb or ())
+        valids: dict[int, np.ndarray | None] = {}
+        for b in self.infos:
+            band = data[b.index - 1]
+            hist = self.hists.get(b.index)
+            if hist is None:
+                valid = _valid(band, b, mask_valid if b.use_mask else None)
+                self._add_moments(band, b, valid)
+            elif b.use_mask:
+                hist.add(band, mask_valid)
+                valid = mask_valid
+            else:
+                nd = _nodata_bin(b, hist)
+                before = int(hist.counts[nd]) if nd is not None else 0
+                hist.add(band)  # the nodata bin is dropped once at the end (exclude_value)
+                has_nodata = nd is not None and int(hist.counts[nd]) != before
+                valid = _valid(band, b, None) if has_nodata and b.index in need else None
+            valids[b.index] = valid
+            if noise and b.index in self.noise:
+                self.noise[b.index].add(band, valid)
+        if self.rgb is not None and self.lum is not None:
+            r, g, bl = (data[i - 1] for i in self.rgb)
+            v = None
+            for part in (valids[i] for i in self.rgb):
+                if part is not None:
+                    v = part if v is None else v & part
+            self.lum.add(rad.luminosity_block(r, g, bl, data.dtype), v)
+
+    def _add_moments(self, band: np.ndarray, b: BandInfo, valid: np.ndarray | None) -> None:
+        self.moms[b.index].add(band, valid)
+        g = b.grey
+        if g.bit_depth is not None:
+            vals = band if valid is None else band[valid]
+            ec = self.edge_counts[b.index]
+            ec[0] += int(np.count_nonzero(vals == g.low))
+            ec[1] += int(np.count_nonzero(vals == g.high))
+            ec[2] += int(np.count_nonzero((vals < g.low) | (vals > g.high)))
 
 
 #: Sub-pixel resolution of the band misregistration, 1/20 px (1/10 px was 0.1 px off
@@ -466,47 +526,82 @@ def _accumulate(data: np.ndarray, shared_mask: np.ndarray | None, infos: Sequenc
 MISREGISTRATION_UPSAMPLE = 20
 
 
-def _misregistration(ds: rasterio.io.DatasetReader, infos: Sequence[BandInfo], *,
-                     size: int = 256) -> tuple[int, dict[int, rad.Shift], dict[int, float]]:
-    """Band-to-band shift vs the green (else first) band: median over up to 5 windows."""
-    colour = {b.colour: b.index for b in infos}
-    ref = colour.get("green", 1)
-    others = [b for b in infos if b.index != ref and b.colour != "alpha"]
-    n = min(size, ds.height, ds.width)
-    if n < 32 or not others:
-        return ref, {}, {}
-    centres = [(0.5, 0.5), (0.25, 0.25), (0.25, 0.75), (0.75, 0.25), (0.75, 0.75)]
-    found: dict[int, list[rad.Shift]] = {b.index: [] for b in others}
-    spreads: dict[int, float] = {}
-    seen = set()
-    for fy, fx in centres:
-        row = int(min(max(fy * ds.height - n / 2, 0), ds.height - n))
-        col = int(min(max(fx * ds.width - n / 2, 0), ds.width - n))
-        if (row, col) in seen:
-            continue
-        seen.add((row, col))
-        win = Window(col, row, n, n)
-        data = ds.read(window=win)
-        ref_info = infos[ref - 1]
-        a = _filled(data[ref - 1], _valid(data[ref - 1], ref_info, _mask(ds, ref_info, win)))
-        if a is None:
-            continue
-        f_ref = rad.tapered_spectrum(a)
-        for b in others:
-            m = _filled(data[b.index - 1], _valid(data[b.index - 1], b, _mask(ds, b, win)))
-            if m is None:
+@dataclass
+class _MisregistrationWindows:
+    """Band-to-band shift vs the green (else first) band: median over up to 5 square windows.
+
+    The windows are copied out of the chunks of the one streaming read as they pass (no second
+    read of the file), then phase-correlated at the end.
+    """
+
+    infos: Sequence[BandInfo]
+    ref: int
+    others: list[BandInfo]
+    windows: list[Window]
+    data: list[np.ndarray]
+    masks: list[np.ndarray | None]
+
+    @classmethod
+    def plan(cls, ds: rasterio.io.DatasetReader, infos: Sequence[BandInfo], *,
+             size: int = 256) -> _MisregistrationWindows:
+        colour = {b.colour: b.index for b in infos}
+        ref = colour.get("green", 1)
+        others = [b for b in infos if b.index != ref and b.colour != "alpha"]
+        n = min(size, ds.height, ds.width)
+        wins: list[Window] = []
+        if n >= 32 and others:
+            for fy, fx in ((0.5, 0.5), (0.25, 0.25), (0.25, 0.75), (0.75, 0.25), (0.75, 0.75)):
+                row = int(min(max(fy * ds.height - n / 2, 0), ds.height - n))
+                col = int(min(max(fx * ds.width - n / 2, 0), ds.width - n))
+                w = Window(col, row, n, n)
+                if w not in wins:
+                    wins.append(w)
+        use_mask = any(b.use_mask for b in infos)
+        dtype = np.result_type(*ds.dtypes)
+        return cls(infos=infos, ref=ref, others=others, windows=wins,
+                   data=[np.zeros((ds.count, n, n), dtype=dtype) for _ in wins],
+                   masks=[np.zeros((n, n), dtype=np.uint8) if use_mask else None for _ in wins])
+
+    def take(self, win: Window, data: np.ndarray, mask: np.ndarray | None) -> None:
+        """Copy the part of each window that this chunk (at ``win``) holds."""
+        c0, r0 = int(win.col_off), int(win.row_off)
+        c1, r1 = c0 + int(win.width), r0 + int(win.height)
+        for w, buf, mbuf in zip(self.windows, self.data, self.masks, strict=True):
+            wc0, wr0 = int(w.col_off), int(w.row_off)
+            ic0, ic1 = max(c0, wc0), min(c1, wc0 + int(w.width))
+            ir0, ir1 = max(r0, wr0), min(r1, wr0 + int(w.height))
+            if ic0 >= ic1 or ir0 >= ir1:
                 continue
-            found[b.index].append(rad.phase_correlation_spectra(
-                f_ref, rad.tapered_spectrum(m), upsample=MISREGISTRATION_UPSAMPLE))
-    result = {}
-    for idx, shifts in found.items():
-        if shifts:
-            dy = float(np.median([s.dy for s in shifts]))
-            dx = float(np.median([s.dx for s in shifts]))
-            spread = max(float(np.hypot(s.dy - dy, s.dx - dx)) for s in shifts)
-            result[idx] = rad.Shift(dy=dy, dx=dx, peak=float(np.median([s.peak for s in shifts])))
-            spreads[idx] = spread
-    return ref, result, spreads
+            dst = (slice(ir0 - wr0, ir1 - wr0), slice(ic0 - wc0, ic1 - wc0))
+            src = (slice(ir0 - r0, ir1 - r0), slice(ic0 - c0, ic1 - c0))
+            buf[(slice(None), *dst)] = data[(slice(None), *src)]
+            if mbuf is not None and mask is not None:
+                mbuf[dst] = mask[src]
+
+    def result(self) -> tuple[int, dict[int, rad.Shift], dict[int, float]]:
+        found: dict[int, list[rad.Shift]] = {b.index: [] for b in self.others}
+        ref_info = self.infos[self.ref - 1]
+        for data, mask in zip(self.data, self.masks, strict=True):
+            a = _filled(data[self.ref - 1], _valid(data[self.ref - 1], ref_info,
+                                                   mask if ref_info.use_mask else None))
+            if a is None:
+                continue
+            f_ref = rad.tapered_spectrum(a)
+            for b in self.others:
+                m = _filled(data[b.index - 1], _valid(data[b.index - 1], b,
+                                                      mask if b.use_mask else None))
+                if m is None:
+                    continue
+                found[b.index].append(rad.phase_correlation_spectra(
+                    f_ref, rad.tapered_spectrum(m), upsample=MISREGISTRATION_UPSAMPLE))
+        result, spreads = {}, {}
+        for idx, shifts in found.items():
+            if shifts:
+                dy = float(np.median([s.dy for s in shifts]))
+                dx = float(np.median([s.dx for s in shifts]))
+                spreads[idx] = max(float(np.hypot(s.dy - dy, s.dx - dx)) for s in shifts)
+                result[idx] = rad.Shift(dy=dy, dx=dx, peak=float(np.median([s.peak for s in shifts])))
+        return self.ref, result, spreads
 
 
 #: A band shift is trusted only when the phase-correlation peak stands out and the windows agree:
@@ -542,7 +637,7 @@ def mask_share(path: str | Path, *, settings: ScanSettings | None = None) -> rad
     """Share of non-zero pixels of band 1 of a delivered mask raster (nodata excluded)."""
     s = settings or ScanSettings()
     acc = rad.MaskShareAccumulator()
-    with read_only_env(s), open_read_only(path) as ds:
+    with read_only_env(s), open_read_only(path) as ds, gdal_errors(file=path, what="mask raster"):
         info = band_infos(ds, None)[0]
         for win in chunk_windows(ds, s.chunk_bytes):
             band = ds.read(1, window=win)
@@ -630,7 +725,8 @@ def overlap_means(path_a: str | Path, path_b: str | Path, *, bands: Sequence[int
     pixels of the common extent. Pixels valid in both (GDAL masks) are averaged.
     """
     s = settings or ScanSettings()
-    with read_only_env(s), open_read_only(path_a) as a, open_read_only(path_b) as b:
+    with read_only_env(s), open_read_only(path_a) as a, open_read_only(path_b) as b, gdal_errors(
+            file=f"{path_a} / {path_b}", what="overlap of two rasters"):
         if a.crs != b.crs:
             raise MeasureError(f"{path_a} and {path_b} have different CRS ({a.crs} vs {b.crs})")
         left = max(a.bounds.left, b.bounds.left)
@@ -668,7 +764,7 @@ def read_window_array(path: str | Path, *, size: int = 1024, bands: Sequence[int
                       bounds: tuple[float, float, float, float] | None = None,
                       out_shape: tuple[int, int] | None = None) -> np.ndarray:
     """A central (or given-bounds) window as float64, for sharpness comparisons."""
-    with read_only_env(), open_read_only(path) as ds:
+    with read_only_env(), open_read_only(path) as ds, gdal_errors(file=path, what="raster (pixels)"):
         idx = list(bands or range(1, ds.count + 1))
         if bounds is not None:
             win = ds.window(*bounds)

@@ -16,6 +16,7 @@ import pandas as pd
 from pyproj import CRS
 from pyproj.exceptions import CRSError
 
+from ...errors import OrthospecError
 from ...provenance import Evidence
 from ...raster.filechecks import check_name, listing_consistency
 from ...raster.parallel import ImageReport, make_progress, scan_images
@@ -74,7 +75,7 @@ def _scan(ctx: ProviderContext) -> dict[str, Any]:
     for i, f in zip(ids, files, strict=True):
         try:
             paths[i] = d.path(f, what=f"images row for {i}")
-        except Exception as exc:  # path escaping the delivery: an error for that image only
+        except OrthospecError as exc:  # path escaping the delivery: an error for that image only
             paths[i] = exc
     existing = {i: p for i, p in paths.items() if not isinstance(p, Exception) and p.is_file()}
     product = d.manifest.product
