@@ -2,10 +2,12 @@ import json
 
 import pytest
 from click.testing import CliRunner
+from tests.checking import write_checker
 from tests.conftest import MANIFEST
 
 from orthospec.cli.main import cli
 from orthospec.provenance import sha256_file
+from orthospec.qcr import all_records
 
 
 def run(*args):
@@ -39,6 +41,7 @@ def test_rejected_delivery_exits_1_and_writes_outputs(make_delivery, mini_profil
 def test_accepted_delivery_exits_0(make_delivery, mini_profile, tmp_path, capsys):
     images = "image_id,file,block,roll,flying_height,std_dn\nI1,a.tif,B1,0.5,1000,30\n"
     code, stdout, _ = run_main(["check", make_delivery(images=images), "-p", mini_profile,
+                                "--checker", write_checker(tmp_path),
                                 "--out", tmp_path / "o", "--date", "2026-01-01"], capsys)
     assert code == 0 and "ACCEPTED" in stdout
 
@@ -95,8 +98,9 @@ def test_terminal_caps_items_but_json_lists_all(make_delivery, mini_profile, tmp
     rows = "\n".join(f"I{i},f{i}.tif,B1,5,1000,30" for i in range(30))
     _, stdout, _ = run_main(["check", make_delivery(images="image_id,file,block,roll,flying_height,std_dn\n"
                                                                 + rows + "\n"), "-p", mini_profile,
-                                "--out", tmp_path / "o", "--max-items", "3"], capsys)
-    assert "I0, I1, I2 … (+26 more)" in stdout  # I3 is waived; natural order
+                                "--out", tmp_path / "o", "--max-items", "3", "--checker", write_checker(tmp_path)],
+                            capsys)
+    assert "I0, I1, I2 … (+26 more)" in stdout  # I3 is waived by the checker; natural order
     doc = json.loads((tmp_path / "o" / "qcr.json").read_text())
     roll = next(r for r in doc["rules"] if r["rule"] == "R-ROLL")
     assert len(roll["offending"]) == 29
@@ -248,3 +252,46 @@ def test_qcr_json_does_not_depend_on_the_working_folder(tmp_path, monkeypatch, c
     assert img.stem in doc["rollup"]["rejected"]["image"]  # the unreadable image itself is rejected
     assert str(tmp_path) not in text
     assert f"images/{img.name}" in text  # the error names the file relative to the delivery
+
+
+def test_without_a_checker_manual_rules_are_missing_and_the_contractors_waiver_is_a_request(
+        make_delivery, mini_profile, tmp_path, capsys):
+    """INTERFACES item 4: the delivery's manual_checks and waivers never decide a verdict."""
+    images = "image_id,file,block,roll,flying_height,std_dn\nI1,a.tif,B1,0.5,1000,30\nI3,c.tif,B2,4,1100,20\n"
+    root = make_delivery(images=images)
+    code, _, _ = run_main(["check", root, "-p", mini_profile, "--out", tmp_path / "o", "--date", "2026-01-01",
+                           "--format", "json"], capsys)
+    doc = json.loads((tmp_path / "o" / "qcr.json").read_text())
+    got = {(r["rule"], r["item"]): r for r in all_records(doc)}
+    assert code == 1 and doc["checker"] is None
+    assert got[("R-VIS", "D1")]["verdict"] == "missing"
+    assert got[("R-ROLL", "I3")]["verdict"] == "fail" and got[("R-ROLL", "I3")]["waiver_requested"]
+    code, _, _ = run_main(["check", root, "-p", mini_profile, "--out", tmp_path / "o2", "--date", "2026-01-01",
+                           "--format", "json", "--checker", write_checker(tmp_path)], capsys)
+    doc = json.loads((tmp_path / "o2" / "qcr.json").read_text())
+    got = {(r["rule"], r["item"]): r for r in all_records(doc)}
+    assert code == 0 and doc["checker"]["name"] == "Eva External"
+    assert got[("R-VIS", "D1")]["verdict"] == "pass" and got[("R-ROLL", "I3")]["verdict"] == "waived"
+
+
+def test_a_checker_file_inside_the_delivery_is_refused(make_delivery, mini_profile, tmp_path, capsys):
+    root = make_delivery()
+    code, _, err = run_main(["check", root, "-p", mini_profile, "--out", tmp_path / "o",
+                             "--checker", write_checker(root)], capsys)
+    assert code == 2 and "checker.yaml" in err and not (tmp_path / "o").exists()
+
+
+def test_check_options_are_typed(make_delivery, mini_profile):
+    from orthospec.api import CheckOptions, check
+    from orthospec.errors import OrthospecError
+
+    with pytest.raises(OrthospecError, match="fail_on"):
+        CheckOptions(fail_on="fial")
+    with pytest.raises(OrthospecError, match="workers"):
+        CheckOptions(workers=0)
+    with pytest.raises(OrthospecError, match="unknown check option.*wokers"):
+        CheckOptions.of({"wokers": 2})
+    opts = CheckOptions.of({"workers": 1, "fail_on": "warn"})
+    assert opts == CheckOptions(workers=1, fail_on="warn")
+    # fail_on=warn makes the recommended R-FH warning blocking, through the options object alone
+    assert check(make_delivery(), mini_profile, options=opts, date="2026-01-01").document["fail_on"] == "warn"

@@ -8,10 +8,11 @@ import re
 import shutil
 import tempfile
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import Any
 
+from . import verdicts as V
 from .delivery.reader import Delivery, open_delivery
 from .engine.evaluator import Evaluation, Evaluator
 from .engine.params import parse_cli_params, resolve_parameters
@@ -27,7 +28,62 @@ class CheckResult:
 
     @property
     def accepted(self) -> bool:
-        return self.document["verdict"] == "accepted"
+        return self.document["verdict"] == V.ACCEPTED
+
+
+@dataclass(frozen=True)
+class CheckOptions:
+    """How a check runs (typed: issue 15 item 4). Of these only ``checker`` (the checker's manual
+    verdicts and waivers in force), ``sample`` (which items are checked) and ``fail_on`` (whether
+    warnings block) can change a verdict."""
+
+    #: worker processes for raster checks (None: the engine decides, at most the cores)
+    workers: int | None = None
+    #: Dask distributed scheduler address (``check --scheduler``)
+    scheduler: str | None = None
+    #: show a progress line on stderr while rasters are scanned
+    progress: bool = False
+    #: ``(scope, items)`` from :func:`orthospec.engine.sample.read_sample`: only those are checked
+    sample: tuple[str, frozenset[str] | set[str]] | None = None
+    #: the checker's file (YAML, outside the delivery): manual-check verdicts and waivers in force
+    checker: Path | None = None
+    #: "fail", or "warn" to make recommended-level rules blocking
+    fail_on: str = V.FAIL
+    #: raster result cache folder (results keyed by file SHA-256)
+    cache_dir: Path | None = None
+
+    def __post_init__(self) -> None:
+        if self.fail_on not in (V.FAIL, V.WARN):
+            raise OrthospecError(f"fail_on must be 'fail' or 'warn', got {self.fail_on!r}")
+        if self.workers is not None and (isinstance(self.workers, bool) or not isinstance(self.workers, int)
+                                         or self.workers < 1):
+            raise OrthospecError(f"workers must be a whole number >= 1, got {self.workers!r}")
+
+    @classmethod
+    def of(cls, options: CheckOptions | Mapping[str, Any] | None) -> CheckOptions:
+        """Options as given: a CheckOptions, or a mapping of its field names (unknown names refused)."""
+        if options is None:
+            return cls()
+        if isinstance(options, CheckOptions):
+            return options
+        known = {f.name for f in fields(cls)}
+        bad = sorted(set(options) - known)
+        if bad:
+            raise OrthospecError(f"unknown check option(s) {', '.join(bad)}; known: {', '.join(sorted(known))}")
+        given = {k: v for k, v in options.items() if v is not None}
+        for k in ("checker", "cache_dir"):
+            if k in given:
+                given[k] = Path(given[k])
+        return cls(**given)
+
+    def engine_options(self) -> dict[str, Any]:
+        """What the evaluator and its providers read (a plain mapping: they sit below this layer)."""
+        out: dict[str, Any] = {"workers": self.workers, "scheduler": self.scheduler, "progress": self.progress}
+        if self.sample is not None:
+            out["sample"] = self.sample
+        if self.cache_dir is not None:
+            out["cache_dir"] = str(self.cache_dir)
+        return out
 
 
 def parse_date(text: str | None) -> str:
@@ -41,18 +97,28 @@ def parse_date(text: str | None) -> str:
 
 def check(delivery: str | Path | Delivery, profile: str | Path | ResolvedProfile, *,
           params: Mapping[str, str] | list[str] | tuple[str, ...] = (), date: str | None = None,
-          fail_on: str = "fail", operator: str | None = None,
-          options: Mapping[str, Any] | None = None) -> CheckResult:
-    """Check a delivery against a profile; bad input raises OrthospecError, failures are QCRs."""
-    if fail_on not in ("fail", "warn"):
-        raise OrthospecError(f"fail_on must be 'fail' or 'warn', got {fail_on!r}")
+          fail_on: str | None = None, operator: str | None = None, checker: str | Path | None = None,
+          options: CheckOptions | Mapping[str, Any] | None = None) -> CheckResult:
+    """Check a delivery against a profile; bad input raises OrthospecError, failures are QCRs.
+
+    ``fail_on`` and ``checker`` given here win over the same fields of ``options``."""
+    opts = CheckOptions.of(options)
+    if fail_on is not None:
+        opts = replace(opts, fail_on=fail_on)
+    if checker is not None:
+        opts = replace(opts, checker=Path(checker))
     prof = profile if isinstance(profile, ResolvedProfile) else load_profile(profile)
     d = delivery if isinstance(delivery, Delivery) else open_delivery(delivery)
+    chk = None
+    if opts.checker is not None:
+        from .delivery.checker import load_checker
+
+        chk = load_checker(opts.checker, delivery_root=d.root)
     d.load_all_tables()
     cli = dict(params) if isinstance(params, Mapping) else parse_cli_params(list(params))
     values = resolve_parameters(prof, dict(d.manifest.tender.parameters) if d.manifest.tender else {}, cli,
                                 manifest=d.flat_manifest())
-    ev = Evaluator(prof, d, values, fail_on=fail_on, options=options).run()
+    ev = Evaluator(prof, d, values, fail_on=opts.fail_on, options=opts.engine_options(), checker=chk).run()
     # the delivery folder's own name: the same bytes whatever the working folder or the path typed
     doc = build_document(ev, date=parse_date(date), operator=operator, delivery_path=d.root.name)
     return CheckResult(doc, ev)

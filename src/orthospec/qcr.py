@@ -32,7 +32,6 @@ from .engine.evaluator import (
     MISSING,
     NA,
     PASS,
-    VERDICTS,
     WAIVED,
     WARN,
     Evaluation,
@@ -40,10 +39,14 @@ from .engine.evaluator import (
 )
 from .engine.registry import SCOPES
 from .provenance import Evidence
+from .qcr_model import SCHEMA_IDS, qcr_schema
+from .verdicts import VERDICTS
+
+__all__ = ["SCHEMA_IDS", "all_records", "build_document", "dumps", "iter_dumps", "point_frame",
+           "point_rows", "qcr_schema", "render_all", "stable"]
 
 SCHEMA_ID = "orthospec.qcr/1"  # "/2" once ledger/store.py accepts SCHEMA_IDS (request to F)
-#: earlier document versions :func:`all_records` still reads
-SCHEMA_IDS = ("orthospec.qcr/1", "orthospec.qcr/2")
+
 SIG_DIGITS = 10
 _SCOPE_ORDER = {s: i for i, s in enumerate(SCOPES)}
 
@@ -270,6 +273,7 @@ class _RuleRecords:
         rec["evidence"] = [e.to_dict() for e in (sorted(set(ev)) if len(ev) > 1 else ev)]
         rec["message"] = str(note)
         rec["waiver"] = r.waivers.get(item) if v == WAIVED else None
+        rec["waiver_requested"] = r.requested.get(item)
         if v == WAIVED and r.original is not None:
             rec["waived_verdict"] = VERDICTS[int(r.original[i])]
         if self.audit is not None:
@@ -292,6 +296,10 @@ class _RuleRecords:
             out["requirement"] = _column([self._requirement(int(i)) for i in idx])
         out["evidence"] = _column([interner.ids(r.evidence[int(i)]) for i in idx])
         out["message"] = _column(messages)
+        if r.requested:
+            asked = [r.requested.get(item) for item in items]
+            if any(a is not None for a in asked):
+                out["waiver_requested"] = _column(asked)
         return out
 
 
@@ -309,6 +317,7 @@ def _expand(rule: dict[str, Any], block: dict[str, Any], evidence: list[dict[str
     measured = _column_values(block.get("measured"), n)
     reqs = _column_values(block["requirement"], n) if "requirement" in block else [rule.get("requirement") or {}] * n
     evs = _column_values(block.get("evidence"), n)
+    asked = _column_values(block.get("waiver_requested"), n)
     msgs = _column_values(block.get("message"), n)
     unit = rule.get("unit")
     shown = _shown_unit(unit)
@@ -330,6 +339,7 @@ def _expand(rule: dict[str, Any], block: dict[str, Any], evidence: list[dict[str
         msg = msgs[k]
         rec["message"] = _pass_message(measure, measured[k], shown, req.get("text", "")) if msg is None else msg
         rec["waiver"] = None
+        rec["waiver_requested"] = asked[k]
         if audit is not None:
             rec["audit"] = audit
         yield rec
@@ -436,6 +446,8 @@ def build_document(ev: Evaluation, *, date: str, operator: str | None = None,
         "date": date,
         # the checker (--operator); the contractor's QA operator stays in delivery.operator
         "operator": operator or None,
+        # the checker's file (check --checker): who decided the manual checks and waivers in force
+        "checker": ev.checker,
         "profile": {
             "id": p.id, "version": p.version, "title": p.title, "sha256": p.sha256,
             "source": p.source.model_dump(mode="json", exclude_none=True),
@@ -458,6 +470,8 @@ def build_document(ev: Evaluation, *, date: str, operator: str | None = None,
         "summary": {"rules": len(ev.results), "records": n_records, **summary},
         "rollup": {"rejected": ev.rejected, "reasons": ev.reasons},
         "waivers_unused": ev.unused_waivers,
+        # the contractor's waiver requests (delivery.yaml): evidence, in force only when granted
+        "waiver_requests": ev.waiver_requests,
         "rules": [],
         "records": [],
         "compact": {},
@@ -630,56 +644,3 @@ def render_all(doc: dict[str, Any], formats: Iterable[str]) -> dict[str, str | b
     if "junit" in fmts:
         out["junit.xml"] = to_junit(doc)
     return out
-
-
-def qcr_schema() -> dict[str, Any]:
-    """JSON Schema of qcr.json (hand-written: the document is plain data, not a model)."""
-    verdict = {"enum": list(VERDICTS)}
-    ev = {"type": "object", "required": ["file", "sha256"], "properties": {
-        "file": {"type": "string"}, "sha256": {"type": "string", "pattern": "^[0-9a-f]{64}$"},
-        "rows": {"type": "array", "items": {"type": "integer", "minimum": 0}},
-        "path": {"type": "string"}}, "additionalProperties": False}
-    record = {"type": "object", "required": [
-        "rule", "clause", "title", "scope", "item", "level", "verdict", "measured", "requirement",
-        "evidence", "message", "quote", "consequence"], "properties": {
-        "rule": {"type": "string"}, "title": {"type": "string"}, "quote": {"type": "string"},
-        "clause": {"type": "object", "required": ["document"]},
-        "scope": {"type": "string"}, "item": {"type": "string"},
-        "level": {"enum": ["mandatory", "recommended"]},
-        "consequence": {"enum": ["reject_item", "reject_block", "return_delivery", "warn"]},
-        "manual": {"type": "boolean"}, "verdict": verdict, "measure": {"type": "string"},
-        "measured": {"type": "object", "required": ["value", "unit"]},
-        "requirement": {"type": "object", "required": ["op", "text"]},
-        "evidence": {"type": "array", "items": ev}, "message": {"type": "string"},
-        "waiver": {"type": ["object", "null"]}, "waived_verdict": verdict, "audit": {"type": "object"}}}
-    return {
-        "$schema": "https://json-schema.org/draft/2020-12/schema",
-        "$id": "https://orthospec.dev/schema/qcr.schema.json",
-        "title": "orthospec quality control records (qcr.json)",
-        "type": "object",
-        "required": ["schema", "tool", "date", "profile", "delivery", "verdict", "summary", "records", "rules"],
-        "properties": {
-            "schema": {"const": SCHEMA_ID},
-            "tool": {"type": "object", "required": ["name", "version"]},
-            "date": {"type": "string", "pattern": r"^\d{4}-\d{2}-\d{2}$"},
-            "operator": {"type": ["string", "null"],
-                         "description": "The checker who ran orthospec (--operator); null when not named. "
-                                        "The contractor's QA operator is delivery.operator."},
-            "ledger_head": {"type": "object", "required": ["seq", "hash"], "properties": {
-                "seq": {"type": "integer", "minimum": 0},
-                "hash": {"type": "string", "pattern": "^[0-9a-f]{64}$"}},
-                "description": "The QCR ledger's chain head just before this run was recorded "
-                               "(check --ledger); `orthospec ledger verify --head` checks it later."},
-            "sample": {"type": "object", "description": "The sample checked (check --sample)."},
-            "profile": {"type": "object", "required": ["id", "version", "sha256", "parameters"], "properties": {
-                "sha256": {"type": "string", "pattern": "^[0-9a-f]{64}$"}}},
-            "delivery": {"type": "object", "required": ["id", "path", "manifest_sha256", "files"]},
-            "verdict": {"enum": ["accepted", "rejected"]},
-            "fail_on": {"enum": ["fail", "warn"]},
-            "summary": {"type": "object", "required": ["rules", "records", *VERDICTS]},
-            "rollup": {"type": "object"},
-            "rules": {"type": "array"},
-            "records": {"type": "array", "items": record},
-            "details": {"type": "object"},
-        },
-    }

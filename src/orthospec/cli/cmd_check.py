@@ -9,7 +9,8 @@ from pathlib import Path
 import click
 from rich.console import Console
 
-from ..api import check, default_output_dir, refuse_inside_delivery, write_outputs
+from .. import verdicts as V
+from ..api import CheckOptions, check, default_output_dir, refuse_inside_delivery, write_outputs
 from ..qcr import render_all
 from ..reports.terminal import render as render_terminal
 from .groups import main
@@ -38,7 +39,11 @@ def render_documents(doc: dict, fmts: list[str], *, extra: dict | None = None) -
 @click.option("--format", "formats", default="terminal,json,csv,junit", show_default=True,
               help="Comma-separated: " + ", ".join(FORMATS) + ".")
 @date_option
-@click.option("--fail-on", type=click.Choice(["fail", "warn"]), default="fail", show_default=True,
+@click.option("--checker", "checker_file", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="The checker's file (YAML, outside the delivery): manual-check verdicts and waivers in "
+                   "force (JRC §2 external QC). Without it manual rules are missing and the delivery's own "
+                   "waivers are only requests.")
+@click.option("--fail-on", type=click.Choice([V.FAIL, V.WARN]), default="fail", show_default=True,
               help="'warn' makes recommended-level rules blocking.")
 @click.option("--operator", default=None, help="Name of the person running the check (recorded in QCRs).")
 @click.option("--workers", type=int, default=None,
@@ -55,7 +60,7 @@ def render_documents(doc: dict, fmts: list[str], *, extra: dict | None = None) -
 def check_cmd(delivery: Path, profile: str, params: tuple[str, ...], out_dir: Path | None, formats: str,
               date: str | None, fail_on: str, operator: str | None, workers: int | None,
               scheduler: str | None, sample_file: Path | None, max_items: int, verbose: bool,
-              ledger_target: str | None = None) -> None:
+              ledger_target: str | None = None, checker_file: Path | None = None) -> None:
     """Check DELIVERY against a spec profile; exit 0 accepted, 1 rejected, 2 could not evaluate."""
     fmts = split_formats(formats, FORMATS)
     workers = _workers(workers)
@@ -64,18 +69,19 @@ def check_cmd(delivery: Path, profile: str, params: tuple[str, ...], out_dir: Pa
                            what="--out" if out_dir is not None else "the default output folder (run from "
                            "outside the delivery or give --out)")
     ledger_head = _ledger_usable(ledger_target, delivery) if ledger_target is not None else None
-    options = {"workers": workers, "scheduler": scheduler, "progress": sys.stderr.isatty()}
+    sample = None
     if sample_file is not None:
         from ..engine.sample import read_sample
 
-        options["sample"] = read_sample(sample_file)
-    result = check(delivery, profile, params=params, date=date, fail_on=fail_on, operator=operator,
-                   options=options)
+        sample = read_sample(sample_file)
+    options = CheckOptions(workers=workers, scheduler=scheduler, progress=sys.stderr.isatty(), sample=sample,
+                           checker=checker_file, fail_on=fail_on)
+    result = check(delivery, profile, params=params, date=date, operator=operator, options=options)
     doc = result.document
     if ledger_head is not None:
         doc["ledger_head"] = ledger_head  # the chain head this run extends (issue 13 item 5)
     if sample_file is not None:
-        doc["sample"] = _sample_block(options["sample"], result, sample_file)
+        doc["sample"] = _sample_block(sample, result, sample_file)
     shown = doc
     if ledger_target is not None and ("html" in fmts or "pdf" in fmts):
         shown = {**doc, "history": _history_with_this_run(ledger_target, doc)}

@@ -1,0 +1,236 @@
+"""The QCR document (qcr.json) as pydantic models: the typed boundary of issue 15 item 4.
+
+``specs/schema/qcr.schema.json`` is generated from :class:`QcrDocument` (``qcr_schema()``, written
+by ``python -m orthospec.spec.schema``; a test fails when the committed file is stale), and
+``QcrDocument.model_validate(json.loads(text))`` checks a stored document. The writer
+(:mod:`orthospec.qcr`) builds plain dicts for speed; these models describe exactly what it writes.
+See docs/QCR.md for the meaning of every field, the compact columns and the parquet table.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from .verdicts import VERDICTS
+
+SCHEMA_IDS = ("orthospec.qcr/1", "orthospec.qcr/2")
+SCHEMA_BASE = "https://orthospec.dev/schema/"
+
+Verdict = Literal["pass", "fail", "warn", "not_applicable", "missing", "error", "waived"]
+CompactVerdict = Literal["pass", "not_applicable"]
+Level = Literal["mandatory", "recommended"]
+Consequence = Literal["reject_item", "reject_block", "return_delivery", "warn"]
+Sha256 = Field(pattern="^[0-9a-f]{64}$")
+
+assert set(Verdict.__args__) == set(VERDICTS)  # type: ignore[attr-defined]  # one vocabulary
+
+
+class _Closed(BaseModel):
+    model_config = ConfigDict(extra="forbid", populate_by_name=True)
+
+
+class _Open(BaseModel):
+    model_config = ConfigDict(extra="allow", populate_by_name=True)
+
+
+class EvidenceRef(_Closed):
+    """One piece of evidence: a delivered file (its SHA-256), CSV data rows (1-based), a YAML path."""
+
+    file: str = Field(description="Path relative to the delivery root (POSIX separators).")
+    sha256: str = Sha256
+    rows: list[int] | None = Field(None, description="1-based data rows of a CSV table (header = row 0).")
+    path: str | None = Field(None, description="Dotted YAML path of a manifest value.")
+
+
+class Citation(_Open):
+    """Where the requirement is written (the profile rule's clause)."""
+
+    document: str
+    section: str | None = None
+    table: str | None = None
+    row: str | None = None
+    figure: str | None = None
+    seed: str | None = None
+
+
+class Measured(_Closed):
+    value: float | int | bool | str | None
+    unit: str | None
+
+
+class Requirement(_Open):
+    """The requirement as applied: operator, threshold(s) resolved to numbers where known, and
+    the wording (``text``) shared with ``orthospec explain`` and the tender annex."""
+
+    op: str
+    text: str
+    unit: str | None = None
+
+
+class Record(_Closed):
+    """One quality control record: one rule applied to one item."""
+
+    rule: str
+    title: str
+    clause: Citation
+    quote: str
+    scope: str
+    item: str
+    level: Level
+    consequence: Consequence
+    manual: bool = False
+    verdict: Verdict
+    measure: str = ""
+    measured: Measured
+    requirement: Requirement
+    evidence: list[EvidenceRef]
+    message: str
+    waiver: dict[str, Any] | None = Field(None, description="The waiver in force (checker file or tender profile).")
+    waiver_requested: dict[str, Any] | None = Field(
+        None, description="The contractor's waiver request (delivery.yaml): evidence, never in force by itself.")
+    waived_verdict: Verdict | None = Field(None, description="The verdict a waiver replaced.")
+    audit: dict[str, Any] | None = None
+
+
+class AllSame(_Closed):
+    """A compact column whose value is the same for every item of the block."""
+
+    all: Any
+
+
+class AllVerdict(_Closed):
+    all: CompactVerdict
+
+
+class CompactBlock(_Closed):
+    """A rule's pass and not-applicable records as columns, one entry per item (item order).
+
+    Every column is a list as long as ``items`` or ``{"all": value}``. A ``message`` of null is
+    the default wording rebuilt on reading (``<measure> = <value> <unit>; required <text>``);
+    ``evidence`` entries index the document's ``evidence`` table; without ``requirement`` the
+    rule summary's requirement applies to every item."""
+
+    items: list[str]
+    verdict: list[CompactVerdict] | AllVerdict
+    measured: list[Any] | AllSame
+    requirement: list[Requirement] | AllSame | None = None
+    evidence: list[list[int]] | AllSame
+    message: list[str | None] | AllSame
+    waiver_requested: list[dict[str, Any] | None] | AllSame | None = None
+
+
+class RuleSummary(_Closed):
+    """One rule's outcome and everything its records share (compact records take it from here)."""
+
+    rule: str
+    title: str
+    scope: str
+    level: Level
+    consequence: Consequence
+    clause: str = Field(description="The clause as a reader cites it, e.g. 'JRC EUR 23638 EN, §12.7'.")
+    clause_ref: str | None = None
+    verdict: Verdict = Field(description="The worst verdict over the rule's items.")
+    counts: dict[Verdict, int]
+    offending: list[str] = Field(description="Items that failed, warned, lack evidence or erred.")
+    error: str | None = None
+    citation: Citation | None = None
+    quote: str = ""
+    manual: bool = False
+    measure: str = ""
+    unit: str | None = None
+    requirement: Requirement | None = None
+    audit: dict[str, Any] | None = None
+
+
+class Summary(_Closed):
+    rules: int = Field(ge=0)
+    records: int = Field(ge=0)
+    pass_: int = Field(alias="pass", ge=0)
+    fail: int = Field(ge=0)
+    warn: int = Field(ge=0)
+    not_applicable: int = Field(ge=0)
+    missing: int = Field(ge=0)
+    error: int = Field(ge=0)
+    waived: int = Field(ge=0)
+
+
+class Rollup(_Open):
+    rejected: dict[str, list[str]] = Field(description="Rejected items per scope (block, image...).")
+    reasons: list[str]
+
+
+class Tool(_Closed):
+    name: str
+    version: str
+
+
+class ProfileRef(_Open):
+    id: str
+    version: str
+    title: str | None = None
+    sha256: str = Sha256
+    source: dict[str, Any] | None = None
+    extends: list[dict[str, str]] = []
+    parameters: dict[str, dict[str, Any]]
+
+
+class DeliveredFile(_Open):
+    path: str
+    sha256: str = Sha256
+    bytes: int | None = None
+
+
+class DeliveryRef(_Open):
+    id: str
+    path: str
+    manifest_sha256: str = Sha256
+    files: list[DeliveredFile]
+
+
+class LedgerHead(_Closed):
+    seq: int = Field(ge=0)
+    hash: str = Sha256
+
+
+class QcrDocument(_Open):
+    """qcr.json: what `orthospec check` decided, why, on which evidence (docs/QCR.md)."""
+
+    schema_: Literal["orthospec.qcr/1", "orthospec.qcr/2"] = Field(alias="schema")
+    tool: Tool
+    date: str = Field(pattern=r"^\d{4}-\d{2}-\d{2}$")
+    operator: str | None = Field(
+        None, description="The checker who ran orthospec (--operator); null when not named. "
+                          "The contractor's QA operator is delivery.operator.")
+    checker: dict[str, Any] | None = Field(
+        None, description="The checker's file (check --checker): party, file name and SHA-256.")
+    profile: ProfileRef
+    delivery: DeliveryRef
+    verdict: Literal["accepted", "rejected"]
+    fail_on: Literal["fail", "warn"] = "fail"
+    summary: Summary
+    rollup: Rollup
+    waivers_unused: list[dict[str, Any]] = []
+    waiver_requests: list[dict[str, Any]] = Field(
+        [], description="The contractor's waiver requests and whether the checker granted them.")
+    rules: list[RuleSummary]
+    records: list[Record] = Field(description="Every record whose verdict is not pass or not_applicable, "
+                                              "in full (version 1: every record).")
+    compact: dict[str, CompactBlock] = Field(
+        {}, description="Rule id -> its pass / not_applicable records as columns (version 2).")
+    evidence: list[EvidenceRef] = Field([], description="Evidence entries the compact columns index.")
+    details: dict[str, Any] = {}
+    ledger_head: LedgerHead | None = Field(
+        None, description="The QCR ledger's chain head just before this run was recorded (check --ledger); "
+                          "`orthospec ledger verify --head` checks it later.")
+    sample: dict[str, Any] | None = Field(None, description="The sample checked (check --sample).")
+
+
+def qcr_schema() -> dict[str, Any]:
+    """JSON Schema of qcr.json, generated from :class:`QcrDocument`."""
+    s = QcrDocument.model_json_schema(mode="validation", by_alias=True)
+    s["$schema"] = "https://json-schema.org/draft/2020-12/schema"
+    s["$id"] = SCHEMA_BASE + "qcr.schema.json"
+    s["title"] = "orthospec quality control records (qcr.json)"
+    return s
