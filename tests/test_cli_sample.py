@@ -4,6 +4,7 @@ from click.testing import CliRunner
 
 from orthospec.cli.main import cli
 from orthospec.provenance import sha256_file
+from orthospec.qcr import all_records
 
 
 def run(*args):
@@ -30,10 +31,10 @@ def test_check_with_sample_only_judges_sampled_images(make_delivery, mini_profil
     res = run("check", root, "-p", mini_profile, "--sample", sample, "--out", tmp_path / "o",
               "--date", "2026-01-01", "--format", "json")
     doc = json.loads((tmp_path / "o" / "qcr.json").read_text())
-    fh = {r["item"]: r for r in doc["records"] if r["rule"] == "R-FH"}
+    fh = {r["item"]: r for r in all_records(doc) if r["rule"] == "R-FH"}
     assert fh["I2"]["verdict"] == "not_applicable"
     assert "not in the external QC sample" in fh["I2"]["message"]
-    share = next(r for r in doc["records"] if r["rule"] == "R-ROLLUP")
+    share = next(r for r in all_records(doc) if r["rule"] == "R-ROLLUP")
     assert share["measured"]["value"] == 0.0  # I2 (the failing one) was not sampled
     assert res.exit_code == 0
 

@@ -21,6 +21,7 @@ from scipy import ndimage
 
 from orthospec.api import check
 from orthospec.measures.synthetic import edge_truth
+from orthospec.qcr import all_records
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "deliveries" / "aerial-pass"
 SIGMA_PX, ANGLE_DEG, DARK, BRIGHT = 1.0, 8.0, 40.0, 200.0
@@ -70,7 +71,7 @@ def delivery(tmp_path: Path, arr: np.ndarray, *, rer_min: float = 0.3) -> tuple[
 
 
 def recs(doc: dict, rid: str) -> dict:
-    return {r["item"]: r for r in doc["records"] if r["rule"] == rid}
+    return {r["item"]: r for r in all_records(doc) if r["rule"] == rid}
 
 
 @pytest.mark.parametrize("snr", [None, 100.0])

@@ -26,7 +26,7 @@ from orthospec.cli.main import cli
 from orthospec.engine.providers.edge import MAX_ESF_SAMPLES, MAX_FIT_POINTS, MAX_LINES
 from orthospec.measures.edge import PSF_FITS, measure_edge
 from orthospec.measures.synthetic import slanted_edge
-from orthospec.qcr import dumps
+from orthospec.qcr import all_records, dumps
 from orthospec.reports.fetcher import data_uri
 from orthospec.reports.html import ReportOptions, render_html
 
@@ -198,7 +198,7 @@ def test_rerender_from_qcr_json_is_identical(checked: dict[str, Any], tmp_path: 
 
 def test_edge_figures_are_bounded_failing_first(checked: dict[str, Any]) -> None:
     doc = checked["doc"]
-    verdicts = {r["item"]: r["verdict"] for r in doc["records"] if r["rule"] == "E-RER"}
+    verdicts = {r["item"]: r["verdict"] for r in all_records(doc) if r["rule"] == "E-RER"}
     assert verdicts == {"E1": "pass", "E2": "fail", "E3": "error"}  # E2 is blurred below RER 0.3
     html = render_html(doc, ReportOptions(max_figure_edges=2), figure=data_uri)
     section = html[html.index('id="edges"'):html.index('id="manual"')]
@@ -260,7 +260,7 @@ def test_delivery_combined_rer_is_the_usgs_geometric_mean(tmp_path: Path) -> Non
                                      "--out", str(out), "--date", "2026-01-01", "--format", "json"])
     assert res.exit_code in (0, 1), res.output + str(res.exception)
     doc = json.loads((out / "qcr.json").read_text(encoding="utf-8"))
-    rec = {r["rule"]: r for r in doc["records"]}
+    rec = {r["rule"]: r for r in all_records(doc)}
     e1 = measure_edge(rasterio.open(delivery / "images" / "E1.tif").read(1), gsd=0.25)
     e2 = measure_edge(rasterio.open(delivery / "images" / "E2.tif").read(1), gsd=0.25)
     assert (e1.direction, e2.direction) == ("across", "along")

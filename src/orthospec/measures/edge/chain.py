@@ -1,0 +1,144 @@
+"""The CEOS 12-step edge chain on one ROI: :func:`measure_edge`, one named call per seed step."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from ...errors import MeasureError
+from .bins import smoothing_spline, within_bin_std
+from .esf import Areas, EsfSamples, esf_samples, saturation_levels, uniform_areas
+from .estimators import PRIMARY, estimate_all
+from .fits import fermi_fit, spline_fit
+from .health import health_checks
+from .limits import EdgeLimits
+from .locate import locate_line, orient
+from .model import psf_fit
+from .result import SPLINE, EdgeFit, EdgeResult
+
+
+def measure_edge(
+    roi: np.ndarray,
+    *,
+    gsd: float | None = None,
+    nodata: float | None = None,
+    bit_depth: int | None = None,
+    saturation_dn: tuple[float | None, float | None] | None = None,
+    limits: EdgeLimits | None = None,
+    primary: str = "auto",
+    **overrides: Any,
+) -> EdgeResult:
+    """Run the CEOS 12-step edge chain on one ROI.
+
+    Parameters
+    ----------
+    roi
+        2-D array (rows, columns) holding one straight edge; NaN (or ``nodata``)
+        pixels are ignored.
+    gsd
+        Ground sample distance in metres per pixel; adds metre-valued estimators.
+    bit_depth, saturation_dn
+        Saturation levels (low, high) in DN. Default: low 0 and high
+        ``2**bit_depth - 1``, or the integer dtype's maximum.
+    limits
+        Health-check limits and method settings (:class:`EdgeLimits`, each with its source);
+        default the seed's.
+    primary
+        Which fit gives the reported estimators: ``"auto"`` (the physical PSF model when
+        its chi2 test says it describes the ESF, else the spline), ``"spline"`` (always
+        the model-free fit) or ``"model"`` (the PSF model even when the test rejects it).
+    **overrides
+        Single fields of :class:`EdgeLimits` (``min_snr=45``, ``fermi_terms=1``...) replacing
+        those of ``limits``; any other name is a ``TypeError``.
+
+    Returns
+    -------
+    EdgeResult
+
+    Raises
+    ------
+    MeasureError
+        When ``roi`` is not a 2-D numeric array of at least 5 x 5 pixels with finite values.
+    """
+    lim = EdgeLimits.merged(limits, overrides)
+    if primary not in PRIMARY:
+        raise MeasureError(f"primary must be one of {', '.join(PRIMARY)}, got {primary!r}")
+    arr, img, quant = _prepare(roi, nodata, bit_depth, gsd)
+    sat = saturation_levels(arr.dtype, bit_depth, saturation_dn)
+    frame = orient(img)                                           # step 4
+    line = locate_line(frame.work, refine=lim.refine_line)         # step 5
+    samples = esf_samples(frame.work, line)                        # step 6
+    areas = uniform_areas(samples, lim.bin_px, lim.plateau_px, sat)  # step 7
+    fits = fit_esf(samples, areas, lim, line.angle_deg, quant)    # step 8
+    checks = health_checks(line, areas, fits, quant, lim)          # step 3
+    valid, reasons, chosen, estimates = estimate_all(checks, fits, primary, gsd)  # steps 9-12
+    rows = line.rows.astype(float)
+    lx, ly = frame.to_roi(rows, line.locs)
+    fx, fy = frame.to_roi(rows, line.fitted_cols())
+    return EdgeResult(
+        valid=valid, reasons=reasons, checks=checks, direction=frame.direction,
+        transposed=frame.transposed, polarity=frame.polarity, angle_deg=line.angle_deg,
+        shape=(int(arr.shape[0]), int(arr.shape[1])),
+        line_x=lx, line_y=ly, line_kept=line.kept, fitted_x=fx, fitted_y=fy,
+        residual_rms_px=line.residual_rms_px if line.ok else None,
+        esf_d=samples.d, esf_dn=samples.v,
+        dark_level=_opt(areas.levels[0]), bright_level=_opt(areas.levels[1]),
+        dark_std=_opt(areas.stds[0]), bright_std=_opt(areas.stds[1]),
+        dark_start_px=_opt(areas.dark_start), bright_start_px=_opt(areas.bright_start),
+        window_px=areas.window, fits=fits, primary_fit=chosen, estimates=estimates, gsd_m=gsd,
+    )
+
+
+def fit_esf(s: EsfSamples, areas: Areas, lim: EdgeLimits, angle_deg: float | None,
+            quant: float) -> dict[str, EdgeFit]:
+    """Step 8 on the trimmed ESF: Fermi-Dirac, smoothing spline and (with an angle) the PSF
+    model; none without a window and ordered levels."""
+    fits: dict[str, EdgeFit] = {}
+    if not areas.fittable or areas.window is None or areas.uniform is None:
+        return fits
+    lo, hi = areas.window
+    bw = lim.bin_px
+    sel = (s.d >= lo) & (s.d <= hi)
+    d, v = s.d[sel], s.v[sel]
+    fermi = fermi_fit(d, v, bw, lo, hi, areas.levels, lim.fermi_terms)
+    if fermi is not None:
+        fits[fermi.fit] = fermi
+    local = within_bin_std(s.d[areas.uniform], s.v[areas.uniform], bw)
+    spl = smoothing_spline(d, v, bw, lo, hi, noise=local)
+    if spl is not None:
+        fits[SPLINE] = spline_fit(spl, lo, hi, areas.levels, bw)
+    if angle_deg is not None:
+        model = psf_fit(d, v, bw, lo, hi, areas.levels, angle_deg,
+                        sigma0=0.5 * (areas.bright_start - areas.dark_start), quant=quant)
+        if model is not None:
+            fits[model.fit] = model
+    return fits
+
+
+def _prepare(roi: np.ndarray, nodata: float | None, bit_depth: int | None,
+             gsd: float | None) -> tuple[np.ndarray, np.ndarray, float]:
+    """Malformed input raises; returns the array, its float copy with ``nodata`` as NaN, and
+    the DN step of quantised data (integer DNs: its noise floor q / sqrt(12) never averages out)."""
+    arr = np.asarray(roi)
+    if arr.ndim != 2:
+        raise MeasureError(f"edge ROI must be a 2-D array, got {arr.ndim} dimension(s) {arr.shape}")
+    if min(arr.shape) < 5:
+        raise MeasureError(f"edge ROI {arr.shape[1]} x {arr.shape[0]} px is too small; "
+                           "expected at least 5 x 5 px (and > 20 lines to pass the checks)")
+    if not (np.issubdtype(arr.dtype, np.number) or arr.dtype == bool):
+        raise MeasureError(f"edge ROI must be numeric, got dtype {arr.dtype}")
+    quant = 1.0 if (bit_depth is not None or np.issubdtype(arr.dtype, np.integer)) else 0.0
+    img = arr.astype(float)
+    if nodata is not None:
+        img[img == nodata] = np.nan
+    if not np.isfinite(img).any():
+        raise MeasureError("edge ROI has no finite pixels")
+    if gsd is not None and not (math.isfinite(gsd) and gsd > 0):
+        raise MeasureError(f"gsd must be a positive number of metres per pixel, got {gsd!r}")
+    return arr, img, quant
+
+
+def _opt(x: float) -> float | None:
+    return None if x is None or not math.isfinite(x) else float(x)

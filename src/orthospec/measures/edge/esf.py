@@ -1,0 +1,208 @@
+"""Seed steps 6-7: the ESF samples, their bins, and the uniform dark and bright areas.
+
+Step 6 places every pixel of the kept lines at its *perpendicular* distance
+``d = (x - x_edge(y)) cos(theta)`` from the fitted line. Step 7 finds the plateau starts as
+the LSF's inflection points on a first smoothing-spline fit, the uniform areas beyond them,
+the trimmed window the fits use, and the dark/bright levels and noise of the uniform areas.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .bins import coverage, smoothing_spline
+from .locate import EdgeLine
+from .result import GRID
+
+_NAN2 = (math.nan, math.nan)
+
+
+@dataclass(frozen=True, eq=False)
+class EsfSamples:
+    """Step 6: pixel samples sorted by perpendicular distance (px, dark < 0 < bright)."""
+
+    d: np.ndarray
+    v: np.ndarray  # DN
+    row_dmin: np.ndarray  # per kept line: nearest and farthest finite pixel (plateau widths)
+    row_dmax: np.ndarray
+
+
+def esf_samples(work: np.ndarray, line: EdgeLine) -> EsfSamples:
+    """Step 6a-c: every finite pixel of the kept lines at its perpendicular distance."""
+    if not line.ok:
+        return EsfSamples(np.empty(0), np.empty(0), np.empty(0), np.empty(0))
+    kr = line.rows[line.kept]
+    cols = np.arange(work.shape[1], dtype=float)
+    dd = (cols[None, :] - (line.c0 + line.c1 * kr[:, None])) * math.cos(line.theta)
+    vv = work[kr, :]
+    fin = np.isfinite(vv)
+    d, v = dd[fin], vv[fin]
+    row_dmin = np.where(fin, dd, np.inf).min(axis=1)
+    row_dmax = np.where(fin, dd, -np.inf).max(axis=1)
+    order = np.argsort(d, kind="stable")
+    return EsfSamples(d[order], v[order], row_dmin, row_dmax)
+
+
+@dataclass(frozen=True, eq=False)
+class Areas:
+    """Step 7: plateau starts, the trimmed window, and the uniform areas' statistics (NaN when
+    not found)."""
+
+    coverage: float = math.nan  # share of ESF bins within +-2 px holding samples
+    dark_start: float = math.nan
+    bright_start: float = math.nan
+    window: tuple[float, float] | None = None  # trimmed ESF (lo, hi) px
+    levels: tuple[float, float] = _NAN2  # dark, bright DN
+    stds: tuple[float, float] = _NAN2
+    saturated: float = math.nan  # largest share of a side's pixels at a saturation level
+    widths: tuple[float, float] = _NAN2  # median dark / bright width beyond the starts, px
+    uniform: np.ndarray | None = None  # samples in the uniform areas inside the window
+
+    @property
+    def fittable(self) -> bool:
+        """The step-8 fits need a window and ordered, finite levels."""
+        lv = self.levels
+        return self.window is not None and all(math.isfinite(x) for x in lv) and lv[1] > lv[0]
+
+
+def uniform_areas(s: EsfSamples, bw: float, plateau_px: float,
+                  sat: tuple[float | None, float | None]) -> Areas:
+    """Step 7a-c on the ESF samples ``s`` binned at ``bw`` px; ``sat`` the saturation levels."""
+    d, v = s.d, s.v
+    if d.size < 20:
+        return Areas()
+    cover = coverage(d, bw, 2.0)
+    first = smoothing_spline(d, v, bw, -12.0, 12.0)
+    if first is None:
+        return Areas(cover)
+    dark_start, bright_start = _plateau_starts(first, d)
+    if not (math.isfinite(dark_start) and math.isfinite(bright_start)):
+        return Areas(cover, dark_start, bright_start)
+    dark_edge, bright_edge, lo, hi = _trim(first, d, dark_start, bright_start, plateau_px)
+    dark_side = d <= dark_edge
+    bright_side = d >= bright_edge
+    dsel = dark_side & (d >= lo)
+    bsel = bright_side & (d <= hi)
+    levels = stds = _NAN2
+    sat_frac = math.nan
+    if dsel.any() and bsel.any():
+        levels = (float(v[dsel].mean()), float(v[bsel].mean()))
+    if dark_side.sum() > 1 and bright_side.sum() > 1:
+        stds = (float(v[dark_side].std(ddof=1)), float(v[bright_side].std(ddof=1)))
+        sat_frac = max(saturated(v[dark_side], *sat), saturated(v[bright_side], *sat))
+    widths = (float(np.median(dark_start - s.row_dmin)), float(np.median(s.row_dmax - bright_start)))
+    return Areas(cover, dark_start, bright_start, (lo, hi), levels, stds, sat_frac, widths,
+                 dsel | bsel)
+
+
+def _trim(first: Any, d: np.ndarray, dark_start: float, bright_start: float,
+          plateau_px: float) -> tuple[float, float, float, float]:
+    """Step 7b-c: where the uniform areas begin (dark_edge, bright_edge) and the trimmed window.
+
+    The uniform areas begin at 3x the start's distance from the centre (>= 1 px beyond it; at
+    the LSF inflection a Gaussian's ESF tail still holds ~16 % of the step, at 3 sigma 0.1 %),
+    or further out where the LSF has a long tail (below 2 % of its peak only there). The trim
+    keeps at least ``plateau_px`` beyond each start, at least 4x the start's distance from the
+    centre, and 1 px of uniform area (tails not cut).
+    """
+    centre = 0.5 * (dark_start + bright_start)
+    tail_d, tail_b = _tail_ends(first, d, dark_start, bright_start)
+    dark_edge = centre + min(3.0 * (dark_start - centre), dark_start - centre - 1.0)
+    bright_edge = centre + max(3.0 * (bright_start - centre), bright_start - centre + 1.0)
+    if math.isfinite(tail_d):
+        dark_edge = min(dark_edge, tail_d)
+    if math.isfinite(tail_b):
+        bright_edge = max(bright_edge, tail_b)
+    lo = max(min(dark_start - plateau_px, centre + 4.0 * (dark_start - centre),
+                 dark_edge - 1.0), float(d[0]))
+    hi = min(max(bright_start + plateau_px, centre + 4.0 * (bright_start - centre),
+                 bright_edge + 1.0), float(d[-1]))
+    return dark_edge, bright_edge, lo, hi
+
+
+_TAIL = 0.02  # the uniform areas begin where the LSF is below 2 % of its peak
+
+def _plateau_starts(spl: Any, d: np.ndarray) -> tuple[float, float]:
+    """Seed 7a: LSF inflection points (extrema of ESF'') either side of the LSF peak."""
+    lo, hi = max(float(d[0]), -12.0), min(float(d[-1]), 12.0)
+    x = np.arange(lo, hi + GRID / 2, GRID)
+    lsf = spl.derivative(1)(x)
+    near = np.abs(x) <= 3.0
+    if not near.any():
+        return math.nan, math.nan
+    ip = int(np.flatnonzero(near)[np.argmax(lsf[near])])
+    peak = x[ip]
+    d2 = spl.derivative(2)(x)
+    left = (x >= peak - 6.0) & (x < peak)
+    right = (x > peak) & (x <= peak + 6.0)
+    if not left.any() or not right.any():
+        return math.nan, math.nan
+    return float(x[left][np.argmax(d2[left])]), float(x[right][np.argmin(d2[right])])
+
+
+def _tail_ends(spl: Any, d: np.ndarray, dark_start: float, bright_start: float,
+               frac: float = _TAIL) -> tuple[float, float]:
+    """First points beyond the plateau starts where the first-pass LSF falls below ``frac``
+    of its peak (NaN if it never does within the data / 12 px)."""
+    lo, hi = max(float(d[0]), -12.0), min(float(d[-1]), 12.0)
+    x = np.arange(lo, hi + GRID / 2, GRID)
+    lsf = spl.derivative(1)(x)
+    between = (x >= dark_start) & (x <= bright_start)
+    if not between.any():
+        return math.nan, math.nan
+    thr = frac * float(lsf[between].max())
+    left = np.flatnonzero((x < dark_start) & (lsf < thr))
+    right = np.flatnonzero((x > bright_start) & (lsf < thr))
+    # a sharpened edge rings: a negative LSF lobe (over/undershoot) right after the
+    # transition is part of the edge response, not of the uniform area
+    reach = round(3.0 / GRID)
+    tail_b = math.nan
+    if right.size:
+        i = int(right[0])
+        neg = np.flatnonzero(lsf[i:i + reach] < -thr)
+        if neg.size:
+            j = i + int(neg[0])
+            while j + 1 < x.size and lsf[j + 1] < -thr:
+                j += 1
+            i = j + 1 if j + 1 < x.size else j
+        tail_b = float(x[i])
+    tail_d = math.nan
+    if left.size:
+        i = int(left[-1])
+        neg = np.flatnonzero(lsf[max(i - reach, 0):i + 1][::-1] < -thr)
+        if neg.size:
+            j = i - int(neg[0])
+            while j - 1 >= 0 and lsf[j - 1] < -thr:
+                j -= 1
+            i = j - 1 if j > 0 else j
+        tail_d = float(x[i])
+    return tail_d, tail_b
+
+
+def saturation_levels(dtype: np.dtype, bit_depth: int | None,
+                      given: tuple[float | None, float | None] | None) -> tuple[float | None, float | None]:
+    """Saturation levels (low, high) in DN: ``given``, else 0 and 2**bit_depth - 1, or the
+    integer dtype's range (0 low for unsigned data: zero fill counts as saturated)."""
+    if given is not None:
+        return given
+    hi: float | None = None
+    if bit_depth is not None:
+        hi = float(2**bit_depth - 1)
+    elif np.issubdtype(dtype, np.integer):
+        hi = float(np.iinfo(dtype).max)
+    lo = 0.0 if (bit_depth is not None or np.issubdtype(dtype, np.unsignedinteger)) else None
+    return lo, hi
+
+
+def saturated(vals: np.ndarray, lo: float | None, hi: float | None) -> float:
+    """Share of one side's pixels at (or beyond) a saturation level."""
+    sat = np.zeros(vals.size, dtype=bool)
+    if lo is not None:
+        sat |= vals <= lo
+    if hi is not None:
+        sat |= vals >= hi
+    return float(sat.mean()) if vals.size else math.nan
