@@ -108,7 +108,12 @@ def test_profile_text_is_escaped_in_html_and_markdown(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize(("req", "expected"), [
     (Requirement(op="<=", value="tol", unit="m"), "≤ 0.5 m"),
-    (Requirement(op="<=", value="tol / 3", unit="m"), "≤ 0.167 m"),  # evaluated: 0.5 / 3
+    # evaluated: 0.5 / 3, printed to 6 significant digits as the QCR prints the threshold it
+    # applied (3 digits, "0.167 m", told bidders a looser threshold than the one checked)
+    (Requirement(op="<=", value="tol / 3", unit="m"), "≤ 0.166667 m"),
+    # 0.5 * 0.999 and 0.5 * 1.001: at 3 digits both sides read 0.5 m, a range of no width
+    (Requirement(op="between", min="tol * 0.999", max="tol * 1.001", unit="m"),
+     "between 0.4995 m (incl.) and 0.5005 m (incl.)"),
     (Requirement(op=">=", value=20, unit="1"), "≥ 20"),
     (Requirement(op="<", value=2.5, unit="m"), "< 2.5 m"),
     (Requirement(op="between", min=0, max=3, unit="deg"), "between 0 deg (incl.) and 3 deg (incl.)"),
@@ -166,7 +171,7 @@ def test_tender_annex_is_procurement_grade() -> None:
     assert "| ≤ 0.5 m |" in rmsey
     # GCPs three times more precise than 0.5 m: 0.167 m, not a formula
     gcp = next(line for line in md.splitlines() if line.startswith("| `JRC-7.1-GCP-ACCURACY-3X`"))
-    assert "0.167 m" in gcp and "gcp_accuracy_factor" not in gcp
+    assert "0.166667 m" in gcp and "gcp_accuracy_factor" not in gcp
     # an aerial digital ITT: satellite and film rules are in Appendix A, not in the requirements
     body, appendix = md.split("## Appendix A.")
     sat = [r.id for r in prof.rules if r.when and "manifest.sensor.type == 'satellite'" in r.when

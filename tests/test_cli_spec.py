@@ -52,7 +52,7 @@ rules:
 def test_explain(mini_profile):
     res = run("explain", "R-ROLL", "--profile", mini_profile)
     assert res.exit_code == 0
-    assert "§5.2.4" in res.output and "images.roll" in res.output and "<= max_roll" in res.output
+    assert "§5.2.4" in res.output and "images.roll" in res.output and "≤ 3 deg" in res.output and "max_roll" in res.output
     miss = run("explain", "R-RO", "--profile", mini_profile)
     assert miss.exit_code != 0 and "did you mean R-ROLL" in miss.output
 
@@ -97,7 +97,7 @@ def test_spec_diff_shows_effective_values_with_units_and_warns_on_same_version(t
     assert "~ parameter tolerance_xy: effective — -> 0.5 m" in res.output
     assert "None" not in res.output and ": '" not in res.output  # YAML-like values, not Python reprs
     # 0.5 m / gcp_accuracy_factor 3 (JRC §7.1) = 0.167 m
-    assert "JRC-7.1-GCP-ACCURACY-3X: requirement" in res.output and "-> ≤ 0.167 m" in res.output
+    assert "JRC-7.1-GCP-ACCURACY-3X: requirement" in res.output and "-> ≤ 0.166667 m" in res.output
     edited = tmp_path / "tender-edited.yaml"
     edited.write_text(tender.read_text(encoding="utf-8").replace("value: 0.5\n", "value: 0.4\n", 1),
                       encoding="utf-8")

@@ -10,6 +10,7 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
+from ..errors import OrthospecError
 from ..spec.diff import diff_profiles
 from ..spec.loader import available, load_profile, validate_file
 from .groups import main, spec
@@ -30,7 +31,7 @@ def profiles_cmd(paths: tuple[Path, ...]) -> None:
     for pid, ver, title, path in rows:
         try:
             n = str(len(load_profile(path).rules))
-        except Exception as exc:  # list broken profiles too, saying why
+        except (OrthospecError, OSError) as exc:  # list broken profiles too, saying why
             n = f"invalid ({type(exc).__name__})"
         t.add_row(escape(pid), escape(ver), n, escape(title), escape(_short(path)))
     Console(highlight=False).print(t)
@@ -107,7 +108,8 @@ def diff_cmd(a: str, b: str, as_json: bool, show_all: bool) -> None:
     """
     import json
 
-    from ..reports.annex import param_value, requirement_text
+    from ..reports.annex import requirement_text
+    from ..spec.wording import param_value
 
     pa, pb = load_profile(a), load_profile(b)
     d = diff_profiles(pa, pb)
@@ -179,7 +181,7 @@ def diff_cmd(a: str, b: str, as_json: bool, show_all: bool) -> None:
 def explain_cmd(rule_id: str, profile: str) -> None:
     """Clause, quote, requirement and the evidence a rule reads."""
     from ..spec.catalog import measure_info  # the shipped catalog: no engine import
-    from ..spec.wording import requirement_text
+    from ..spec.wording import profile_requirement_text
 
     p = load_profile(profile)
     try:
@@ -196,7 +198,13 @@ def explain_cmd(rule_id: str, profile: str) -> None:
     c.print(f"scope:       {r.scope}" + (f"   when: {escape(r.when)}" if r.when else ""))
     c.print(f"measure:     {escape(r.measure)}" + (f" ({info[1]})" if info else "")
             + ("  [manual: recorded human verdict]" if r.manual else ""))
-    c.print(f"requirement: {escape(requirement_text(r.requirement, {'unit': r.requirement.unit}))}")
+    # worded as the QCR and the annex word it; thresholds from the profile's parameters (an
+    # expression is shown as written: evaluating it would import numpy for one line)
+    req = r.requirement
+    text = profile_requirement_text(req, p.parameters)
+    written = [f"{k}: {v}" for k, v in (("value", req.value), ("min", req.min), ("max", req.max))
+               if isinstance(v, str) and v not in text]
+    c.print(f"requirement: {escape(text)}" + (f"   ({escape(', '.join(written))})" if written else ""))
     c.print(f"level:       {r.level}   consequence: {r.consequence}")
     if r.audit:
         c.print(f"audit:       {escape(str(r.audit.model_dump(exclude_none=True)))}")

@@ -24,6 +24,7 @@ from ..resources import templates_dir
 from ..spec.expr import parse
 from ..spec.loader import ResolvedProfile
 from ..spec.models import Parameter, Requirement, Rule
+from ..spec.wording import fmt_value, param_value, profile_requirement_text
 from .findings import condition_prose
 from .html import environment
 
@@ -38,70 +39,46 @@ CONSEQUENCES = {
 }
 LEVELS = {"mandatory": "must be met (\"shall\", \"must\", \"will\")",
           "recommended": "should be met; failing it is reported as a warning"}
-_NAME = re.compile(r"[a-z][a-z0-9_]*")
-_OPS = {"<": "<", "<=": "≤", ">": ">", ">=": "≥", "==": "=", "!=": "≠"}
-
-
-def _num(v: Any) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, float):
-        return f"{v:g}"
-    return str(v)
-
-
-def param_value(p: Parameter) -> Any:
-    """The value a tender fixes, else the standard's default (None: the ITT must fix it)."""
-    return p.value if p.value is not None else p.default
-
-
 _NO_UNIT = ("", "1", "text", "bool", "date", None)
 
 
-def _threshold(v: Any, req: Requirement, params: dict[str, Parameter]) -> str:
-    """One threshold as a number with its unit: a parameter's value, or an expression evaluated
-    over the parameters' values (``tolerance_xy / gcp_accuracy_factor`` -> ``0.333 m``)."""
-    unit = req.unit if req.unit not in _NO_UNIT else ""
-    if not isinstance(v, str):
-        return f"{_num(v)}{' ' + unit if unit else ''}"
-    if _NAME.fullmatch(v) and v in params:
-        p = params[v]
-        val = param_value(p)
-        pu = p.unit if p.unit not in _NO_UNIT else unit
-        return f"{_num(val)}{' ' + pu if pu else ''}" if val is not None else "the value fixed in the ITT"
+def _num(v: Any) -> str:
+    """A number or word in a table cell (template filter), printed as the requirement prints it."""
+    return fmt_value(v) if isinstance(v, bool | float) else str(v)
+
+
+def _evaluate(source: str, values: dict[str, Any]) -> Any:
+    """An expression over the parameters' values (``tolerance_xy / gcp_accuracy_factor``), or None
+    when it names anything else or cannot be computed: the annex then prints it as written."""
     try:
-        expr = parse(v)
-    except ExpressionError:
-        return v
-    names = {n: param_value(params[n]) for n in expr.names if n in params}
-    units = {params[n].unit for n in names} - set(_NO_UNIT)
-    if len(names) == len(expr.names) and all(x is not None for x in names.values()) and units <= {req.unit}:
-        try:
-            out = expr.evaluate(names)
-        except Exception:  # an expression the annex cannot evaluate stays readable as text
-            out = None
-        if isinstance(out, int | float) and not isinstance(out, bool):
-            return f"{float(out):.3g}{' ' + unit if unit else ''}"
-    return condition_prose(v) if "manifest." in v else v
+        e = parse(source)
+        if not e.names or not e.names <= values.keys() or any(values[n] is None for n in e.names):
+            return None
+        return e.evaluate({n: values[n] for n in e.names})
+    except (ExpressionError, ArithmeticError, TypeError, ValueError):
+        return None
+
+
+def _words(source: str) -> str:
+    """A threshold the annex cannot compute, in words (manifest facts as prose)."""
+    return condition_prose(source) if "manifest." in source else source
 
 
 def requirement_text(req: Requirement, params: dict[str, Parameter]) -> str:
-    """'≤ 0.333 m': the operator and the threshold evaluated to a number with its unit."""
-    def show(v: Any) -> str:
-        return _threshold(v, req, params)
+    """'≤ 0.166667 m': the requirement as the QCR words it (``spec.wording``), with the thresholds
+    the profile's parameters fix, expressions evaluated over them."""
+    units = {params[n].unit for n in params if n in _names(req)} - set(_NO_UNIT)
+    evaluate = _evaluate if units <= {req.unit} else None  # a unit change is the checker's to make
+    return profile_requirement_text(req, params, evaluate=evaluate, words=_words)
 
-    if req.op == "between":
-        lo = show(req.min) if req.min is not None else "−∞"
-        hi = show(req.max) if req.max is not None else "+∞"
-        return f"between {lo} {'(incl.)' if req.min_inclusive else '(excl.)'} and {hi} " \
-               f"{'(incl.)' if req.max_inclusive else '(excl.)'}"
-    if req.op == "in":
-        return "one of " + ", ".join(_num(v) for v in req.values or [])
-    if req.op == "present":
-        return "present (recorded for every item)"
-    if req.op in ("true", "false"):
-        return "met (yes)" if req.op == "true" else "not the case (no)"
-    return f"{_OPS.get(req.op, req.op)} {show(req.value)}"
+
+def _names(req: Requirement) -> set[str]:
+    out: set[str] = set()
+    for v in (req.value, req.min, req.max):
+        if isinstance(v, str):
+            with contextlib.suppress(ExpressionError):
+                out |= set(parse(v).names)
+    return out
 
 
 _AUTHOR = re.compile(r"\b(seed|seeds|verbatim|U\+[0-9A-F]{4}|LaTeX|\.ya?ml|\.txt|orthospec|rule author|"
@@ -249,10 +226,8 @@ def _parent(profile: ResolvedProfile) -> ResolvedProfile | None:
         return None
     from ..spec.loader import load_profile
 
-    try:
-        return load_profile(profile.chain[1][2], check_measures=False)
-    except Exception:  # the annex still renders; it just cannot mark the changes
-        return None
+    # the parent was resolved to load this profile: an error here is real and reaches the user
+    return load_profile(profile.chain[1][2], check_measures=False)
 
 
 def _changed_keys(a: Rule, b: Rule) -> list[str]:

@@ -1,20 +1,30 @@
-"""How a requirement is worded: one text for the QCR records, the terminal, reports and `explain`.
+"""How a requirement is worded: one text for the QCR records, the terminal, reports, `explain` and
+the tender annex (the annex the buyer publishes and the QCR the contractor receives state a
+requirement the same way).
 
-Pure (no numpy, no pint), so the commands that only word a rule do not import the engine.
+The sentence of each operator lives with the operator (``spec/operators.py``); this module formats
+the thresholds (number, unit) it is given. Pure (no numpy, no pint), so the commands that only word
+a rule do not import the engine.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Mapping
 from typing import Any
 
 from .models import Requirement
+from .operators import operator
 
-_OP_TEXT = {"<": "<", "<=": "<=", ">": ">", ">=": ">=", "==": "=", "!=": "!="}
+#: units not printed after a number (dimensionless and the non-numeric kinds)
+_NO_UNIT = frozenset({"", "1", "text", "bool", "date", "any"})
 
 
 def fmt_value(x: Any) -> str:
-    """A measured or threshold value as printed: 6 significant digits, NaN as n/a."""
+    """A measured or threshold value as printed: 6 significant digits, NaN as n/a, booleans as
+    true/false (as a profile writes them)."""
+    if isinstance(x, bool):
+        return "true" if x else "false"
     if isinstance(x, float):
         if math.isnan(x):
             return "n/a"
@@ -34,7 +44,11 @@ def _memo_part(v: Any) -> Any:
 
 
 def requirement_text(req: Requirement, resolved: dict[str, Any]) -> str:
-    """The requirement as text, e.g. ``<= tolerance_xy (2.5 m)``.
+    """The requirement as text, e.g. ``≤ 2.5 m`` for ``{op: "<=", value: tolerance_xy, unit: m}``.
+
+    ``resolved`` gives the threshold(s) in force (``value``, ``min``, ``max``): a number is printed
+    with the requirement's unit; None words the threshold as the profile writes it; a string is
+    printed as given (the annex passes its words for a threshold nobody has fixed yet).
 
     Records call this once per item with the item's resolved threshold; the text depends only on
     the requirement and those resolved values, so it is built once per distinct value (a rule
@@ -56,25 +70,68 @@ def requirement_text(req: Requirement, resolved: dict[str, Any]) -> str:
 
 
 def _requirement_text(req: Requirement, resolved: dict[str, Any]) -> str:
-    u = f" {resolved['unit']}" if resolved.get("unit") and resolved["unit"] not in ("1",) else ""
+    unit = req.unit if req.unit is not None else resolved.get("unit")
+    suffix = f" {unit}" if unit and unit not in _NO_UNIT else ""
 
-    def show(spec: Any, val: Any) -> str:
-        if isinstance(spec, str) and val is not None and not isinstance(val, str):
-            return f"{spec} ({fmt_value(val)}{u})"
-        if isinstance(spec, str):
-            return spec
-        return f"{fmt_value(spec)}{u}"
+    def show(key: str) -> str:
+        """A threshold: its resolved number with the unit; text (a literal, an expression whose value
+        varies per item or is not known, or the caller's words for it) as given."""
+        spec = getattr(req, key)
+        if spec is None:  # no such threshold (an open side of `between`)
+            return ""
+        val = resolved.get(key)
+        if val is None:
+            val = spec
+        if isinstance(val, str):
+            return val
+        if isinstance(val, bool):
+            return fmt_value(val)
+        return f"{fmt_value(val)}{suffix}"
 
-    if req.op == "between":
-        lo = show(req.min, resolved.get("min")) if req.min is not None else "-inf"
-        hi = show(req.max, resolved.get("max")) if req.max is not None else "+inf"
-        lb = "[" if req.min_inclusive else "("
-        rb = "]" if req.max_inclusive else ")"
-        return f"in {lb}{lo}, {hi}{rb}"
-    if req.op == "in":
-        return "one of " + ", ".join(map(str, req.values or []))
-    if req.op == "present":
-        return "present"
-    if req.op in ("true", "false"):
-        return f"is {req.op}"
-    return f"{_OP_TEXT[req.op]} {show(req.value, resolved.get('value'))}"
+    op = operator(req.op)
+    return op.text(show("value"), lo=show("min"), hi=show("max"), min_inclusive=req.min_inclusive,
+                   max_inclusive=req.max_inclusive, values=[fmt_value(v) for v in req.values or []])
+
+
+# --- the requirement in force before a delivery is read (annex, `explain`, `spec diff`) -----------
+
+#: how a threshold reads while its parameter waits for the tender to fix it
+UNFIXED = "the value fixed in the ITT"
+
+
+def param_value(p: Any) -> Any:
+    """The value a tender fixes, else the standard's default (None: the ITT must fix it)."""
+    return p.value if p.value is not None else p.default
+
+
+def profile_thresholds(req: Requirement, params: Mapping[str, Any], *,
+                       evaluate: Callable[[str, dict[str, Any]], Any] | None = None,
+                       words: Callable[[str], str] | None = None) -> dict[str, Any]:
+    """The thresholds of ``req`` as the profile's parameters fix them, as ``requirement_text`` takes
+    them: a bare parameter name gives its value (or :data:`UNFIXED`); an expression over parameters
+    gives ``evaluate(source, {name: value})`` when the caller passes an evaluator (the annex does;
+    `explain` does not, to stay free of numpy) and that returns a plain number; anything else is
+    ``words(source)``, or the source as written."""
+    out: dict[str, Any] = {"unit": req.unit}
+    for key in ("value", "min", "max"):
+        spec = getattr(req, key)
+        if not isinstance(spec, str):
+            continue
+        if spec in params:
+            v = param_value(params[spec])
+            out[key] = UNFIXED if v is None else v
+            continue
+        got: Any = None
+        if evaluate is not None:
+            got = evaluate(spec, {n: param_value(p) for n, p in params.items()})
+        if isinstance(got, int | float) and not isinstance(got, bool) and math.isfinite(got):
+            out[key] = float(got)
+        elif words is not None:
+            out[key] = words(spec)
+    return out
+
+
+def profile_requirement_text(req: Requirement, params: Mapping[str, Any], **kw: Any) -> str:
+    """``requirement_text`` with the thresholds the profile's parameters fix (see
+    :func:`profile_thresholds`): what the tender annex, `spec diff` and `explain` print."""
+    return requirement_text(req, profile_thresholds(req, params, **kw))
