@@ -521,7 +521,9 @@ def build(scn: Scenario) -> Built:
                                                    "cameras", "aerotriangulation", "manual_checks")},
         "units": {"checkpoints": "m", "gcps": "m"},
         "documents": {k: f"documents/{v}" for k, v in DOCUMENTS.items()},
-        "waivers": scn.waivers,
+        # waivers in force come from the checker's file (examples/checker/<name>.yaml): a waiver
+        # the contractor writes here is only a request and never changes a verdict
+        "waivers": [],
     }
 
     cameras = [{"camera_id": "UCE-01", "model": CAMERA["model"],
@@ -764,9 +766,16 @@ MANUAL_CHECKS: tuple[tuple[str, str, str], ...] = (
 NOT_INSPECTED = "File not on the delivery medium; could not be inspected."
 
 
+#: The external QC of the aerial examples: the checker's file (examples/checker/<name>.yaml).
+AERIAL_CHECKER = {"name": "M. Keller (fictional)", "role": "external QC",
+                  "organisation": "paying agency's control contractor (fictional)"}
+
+
 def manual_checks(scn: Scenario, images: list[dict[str, Any]]) -> list[dict[str, Any]]:
-    """Recorded human verdicts for the visual and procedural checks (rule ids: MANUAL_CHECKS)."""
-    inspector, day = "M. Keller, external QC (fictional)", (scn.dates["delivered"] + timedelta(days=9)).isoformat()
+    """The external QC's verdicts on the visual and procedural checks (rule ids: MANUAL_CHECKS);
+    they go to the checker's file, not into the delivery (JRC §2: external quality control)."""
+    inspector = f"{AERIAL_CHECKER['name']}, {AERIAL_CHECKER['role']}"
+    day = (scn.dates["delivered"] + timedelta(days=9)).isoformat()
     rows = []
     for check, scope, ok_note in MANUAL_CHECKS:
         items = {"delivery": ["*"], "camera": ["UCE-01"], "block": [bp.id for bp in scn.blocks],
@@ -782,6 +791,25 @@ def manual_checks(scn: Scenario, images: list[dict[str, Any]]) -> list[dict[str,
             rows.append({"check": check, "item": item, "inspector": inspector, "date": day,
                          "verdict": verdict, "note": note})
     return rows
+
+
+def internal_qc(verdicts: list[dict[str, Any]], operator: dict[str, str], delivered: date,
+                notes: dict[str, str]) -> list[dict[str, Any]]:
+    """The contractor's own internal-QC statements (the delivery's manual_checks table, JRC §2.5):
+    one row per check the external QC signs, by the contractor's QA manager before delivery, all
+    'pass' - evidence the checker reads, never a verdict (tests/test_verdict_regressions.py)."""
+    who, day = f"{operator['name']}, {operator['role']}", (delivered - timedelta(days=2)).isoformat()
+    return [{"check": r["check"], "item": r["item"], "inspector": who, "date": day, "verdict": "pass",
+             "note": notes.get(r["check"], "Checked in our internal QC; no defect found.")} for r in verdicts]
+
+
+def checker_file(party: dict[str, str], verdicts: list[dict[str, Any]],
+                 waivers: list[dict[str, Any]]) -> dict[str, Any]:
+    """The checker's file for ``check --checker``: who checked, their manual verdicts, waivers in force."""
+    return {"orthospec_checker": 1, "checker": party,
+            "manual_checks": [{"check": r["check"], "item": r["item"], "date": r["date"],
+                               "verdict": r["verdict"], "note": r["note"]} for r in verdicts],
+            "waivers": waivers}
 
 
 def check_invariants(b: Built) -> None:
@@ -966,8 +994,8 @@ def describe_fail_defects(b: Built) -> None:
       raster=cloud["file"])
     manual_row = next(i for i, m in enumerate(b.manual, start=1)
                       if m["item"] == "F01_0202" and m["verdict"] == "fail")
-    d("manual_check_fail", "6.3", "image", ["F01_0202"], "tables/manual_checks.csv", [manual_row],
-      ["verdict"], "fail", "text", "visual check passed (haze, artefacts, colour seams)",
+    d("manual_check_fail", "6.3", "image", ["F01_0202"], f"../../checker/{scn.name}.yaml", [manual_row],
+      [f"manual_checks[{manual_row - 1}].verdict"], "fail", "text", "visual check passed (haze, artefacts, colour seams)",
       "reject_item", f"Inspector verdict 'fail' for F01_0202: {scn.manual_fail['F01_0202']}")
 
     b.consequences = [
@@ -1017,6 +1045,14 @@ def _plain(data: Any) -> Any:
     return data.item() if isinstance(data, np.generic) else data
 
 
+def write_checker(path: Path, data: dict[str, Any], delivery_id: str) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    _yaml(path, data, HEADER + f"# The external QC's file for delivery {delivery_id} (JRC §2): "
+          f"`orthospec check examples/deliveries/{path.stem} --profile jrc-v3 --checker examples/checker/{path.name}`\n"
+          "# Manual-check verdicts and waivers in force; it lies outside the delivery (schema: "
+          "specs/schema/checker.schema.json).\n")
+
+
 def _yaml(path: Path, data: Any, header: str) -> None:
     text = yaml.safe_dump(_plain(data), sort_keys=False, default_flow_style=None, allow_unicode=True, width=100)
     path.write_text(header + text, encoding="utf-8")
@@ -1025,8 +1061,8 @@ def _yaml(path: Path, data: Any, header: str) -> None:
 HEADER = "# Generated by examples/generate.py: do not edit by hand, run `python examples/generate.py`.\n"
 
 
-def write(b: Built, root: Path) -> None:
-    """Write one delivery folder from scratch."""
+def write(b: Built, root: Path, checker_dir: Path) -> None:
+    """Write one delivery folder from scratch, and the checker's file for it."""
     scn = b.scenario
     if root.exists():
         shutil.rmtree(root)
@@ -1075,7 +1111,9 @@ def write(b: Built, root: Path) -> None:
         (root / "documents").mkdir(exist_ok=True)
         (root / "documents" / name).write_text(text, encoding="utf-8")
     _csv(root / "tables/manual_checks.csv", ["check", "item", "inspector", "date", "verdict", "note"],
-         b.manual)
+         internal_qc(b.manual, b.manifest["operator"], scn.dates["delivered"], {}))
+    write_checker(checker_dir / f"{scn.name}.yaml", checker_file(AERIAL_CHECKER, b.manual, scn.waivers),
+                  scn.delivery_id)
 
     for r in b.images:
         if r["image_id"] == scn.missing_file:
@@ -1087,6 +1125,7 @@ def write(b: Built, root: Path) -> None:
 
     expected = {
         "delivery": scn.delivery_id,
+        "checker": f"../../checker/{scn.name}.yaml",
         "verdict": "rejected" if b.defects else "accepted",
         "parameters": {"tolerance_xy": {"value": TOLERANCE_XY_M, "unit": "m"}},
         "recomputed": {k: {"rmse_x": round(v["rmse_x"], 3), "rmse_y": round(v["rmse_y"], 3), "n": v["n"]}
@@ -1163,8 +1202,11 @@ def readme(b: Built) -> str:
         f"(`tender.parameters.tolerance_xy`).",
         "",
         "Evidence carried for the full `jrc-v3` profile: flight, camera, aerotriangulation, GCP and "
-        "check point tables with the columns the profile reads, signed manual checks for every "
-        "applicable manual rule, and the reports under `documents/` (manifest `documents:`): "
+        "check point tables with the columns the profile reads, the contractor's internal-QC "
+        "statement for every applicable manual rule (`tables/manual_checks.csv`, evidence only: the "
+        "verdicts and the waiver are the external QC's, in `../../checker/` - without `--checker` every "
+        "manual rule is `missing` and the delivery is not accepted), and the reports under `documents/` "
+        "(manifest `documents:`): "
         + ", ".join(f"`{k}`" for k in DOCUMENTS) + ". GCP sketches and site pictures are "
         "described in `documents/gcp_monographs.md` (the pictures themselves are not on this "
         "small medium).",
@@ -1177,13 +1219,14 @@ def readme(b: Built) -> str:
         lines.append(f"| {bp.id} | {bp.flight} | {rec['n']} | {rec['rmse_x']:.3f} | {rec['rmse_y']:.3f} | "
                      f"{rep['rmse_x']['value']:.2f} / {rep['rmse_y']['value']:.2f} |")
     lines.append("")
-    check = f"`orthospec check examples/deliveries/{scn.name} --profile jrc-v3`"
+    check = (f"`orthospec check examples/deliveries/{scn.name} --profile jrc-v3 "
+             f"--checker examples/checker/{scn.name}.yaml`")
     if not b.defects:
         lines += [
             f"Expected verdict: **accepted** ({check} exits 0). Every block meets the tolerance "
             "with at least 20 check points, reported RMSEs agree with the recomputation within "
             "0.01 m, every image has saturation < 0.5 %, contrast (CV) 10-20 %, cloud cover <= 5 %, "
-            "sun elevation >= 30° and roll <= 3°, and every manual check is signed 'pass'.",
+            "sun elevation >= 30° and roll <= 3°, and the external QC signed every manual check 'pass'.",
             "",
             "Deliberate details:",
             "",
@@ -1193,7 +1236,8 @@ def readme(b: Built) -> str:
                      f"beyond 3 x RMSE) with a documented justification (JRC §12.6); the block RMSE "
                      "is computed without it.")
         for w in scn.waivers:
-            lines.append(f"- Waiver `{w['rule']}` for {', '.join(w['items'])}: {w['justification']}")
+            lines.append(f"- Waiver `{w['rule']}` for {', '.join(w['items'])}, granted in the checker's file "
+                         f"by {w['approver']}: {w['justification']}")
         lines.append("- Two images carry small clouds (cloud cover reported from the pixels, <= 5 %); "
                      "F02_0202 has sun glint on a glass roof (a few saturated pixels, well under "
                      "0.5 %).")
@@ -1417,7 +1461,7 @@ def build_satellite(scn: SatScenario) -> dict[str, Any]:
     }
     dem = [{"dem_id": "DEM-10M", "block": s.id, "file": "", "source": "national DEM 10 m (fictional)",
             "grid_spacing": "10", "rmse_z": "1.5", "checkpoints": "120"} for s in scn.sites[:1]]
-    inspector = "P. Novak, external QC (fictional)"
+    inspector = f"{SAT_CHECKER['name']}, {SAT_CHECKER['role']}"
     day = (scn.dates["delivered"] + timedelta(days=7)).isoformat()
     manual = []
     for check, scope, note in SAT_MANUAL_CHECKS:
@@ -1427,6 +1471,11 @@ def build_satellite(scn: SatScenario) -> dict[str, Any]:
                     "note": note} for it in items]
     return {"scenario": scn, "images": images, "scenes": scenes, "gcps": gcps, "checkpoints": cps,
             "arrays": arrays, "manifest": manifest, "recomputed": recomputed, "dem": dem, "manual": manual}
+
+
+#: The external QC of the satellite examples: the checker's file (examples/checker/<name>.yaml).
+SAT_CHECKER = {"name": "P. Novak (fictional)", "role": "external QC",
+               "organisation": "paying agency's control contractor (fictional)"}
 
 
 def satellite_documents(b: dict[str, Any]) -> dict[str, str]:
@@ -1479,7 +1528,7 @@ def satellite_expected(b: dict[str, Any]) -> dict[str, Any]:
     scn = b["scenario"]
     warn = [{"rule": "ORTHOSPEC-ITT-SOURCE", "items": ["tolerance_xy"],
              "why": "ITT value taken from the contractor's manifest; confirm against the ITT"}]
-    out: dict[str, Any] = {"delivery": scn.delivery_id,
+    out: dict[str, Any] = {"delivery": scn.delivery_id, "checker": f"../../checker/{scn.name}.yaml",
                            "parameters": {"tolerance_xy": {"value": SAT_TOLERANCE_XY_M, "unit": "m"}},
                            "recomputed": {k: {"rmse_x": round(v["rmse_x"], 3), "rmse_y": round(v["rmse_y"], 3),
                                               "n": v["n"]} for k, v in b["recomputed"].items()}}
@@ -1524,12 +1573,14 @@ def satellite_readme(b: dict[str, Any], exp: dict[str, Any]) -> str:
              "extracts), vendor RPCs refined on GCPs - site S01 by RPC block adjustment, site S02 scene by "
              f"scene; master image S01_SC1. ITT tolerance RMSEx, RMSEy <= {SAT_TOLERANCE_XY_M} m per site. "
              "Tables: images, scenes (JRC §9.5 metadata, Table 9 records), GCPs with residuals, independent "
-             "check points, the DEM used, signed manual checks; documents as for the aerial examples.", "",
+             "check points, the DEM used, the contractor's internal-QC statements (the external QC's verdicts "
+             "are in `../../checker/`); documents as for the aerial examples.", "",
              "| site | method | check points | RMSEx (m) | RMSEy (m) |", "|---|---|---|---|---|"]
     for s in scn.sites:
         r = b["recomputed"][s.id]
         lines.append(f"| {s.id} | {s.method} | {r['n']} | {r['rmse_x']:.3f} | {r['rmse_y']:.3f} |")
-    check = f"`orthospec check examples/deliveries/{scn.name} --profile jrc-v3`"
+    check = (f"`orthospec check examples/deliveries/{scn.name} --profile jrc-v3 "
+             f"--checker examples/checker/{scn.name}.yaml`")
     if scn is SAT_PASS:
         lines += ["", f"Expected verdict: **accepted** ({check} exits 0). No aerial-only rule applies "
                   "(they are `not_applicable`); the only warning is that the tolerance comes from the "
@@ -1545,15 +1596,18 @@ def satellite_readme(b: dict[str, Any], exp: dict[str, Any]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write_satellite(b: dict[str, Any], root: Path) -> None:
+def write_satellite(b: dict[str, Any], root: Path, checker_dir: Path) -> None:
     scn = b["scenario"]
     if root.exists():
         shutil.rmtree(root)
     (root / "tables").mkdir(parents=True)
     _yaml(root / "delivery.yaml", b["manifest"], HEADER + "# Delivery convention: docs/ARCHITECTURE.md.\n")
     for name, rows in (("images", b["images"]), ("scenes", b["scenes"]), ("gcps", b["gcps"]),
-                       ("checkpoints", b["checkpoints"]), ("dem", b["dem"]), ("manual_checks", b["manual"])):
+                       ("checkpoints", b["checkpoints"]), ("dem", b["dem"]),
+                       ("manual_checks", internal_qc(b["manual"], b["manifest"]["operator"], scn.dates["delivered"],
+                                                     {}))):
         _csv(root / f"tables/{name}.csv", list(rows[0]), rows)
+    write_checker(checker_dir / f"{scn.name}.yaml", checker_file(SAT_CHECKER, b["manual"], []), scn.delivery_id)
     for name, text in sorted(satellite_documents(b).items()):
         (root / "documents").mkdir(exist_ok=True)
         (root / "documents" / name).write_text(text, encoding="utf-8")
@@ -1567,16 +1621,18 @@ def write_satellite(b: dict[str, Any], root: Path) -> None:
     del scn
 
 
-def generate(out: Path = DEFAULT_OUT) -> list[Path]:
-    """Write the example deliveries (aerial and satellite) under ``out``; return their folders."""
+def generate(out: Path = DEFAULT_OUT, checker_out: Path | None = None) -> list[Path]:
+    """Write the example deliveries (aerial and satellite) under ``out`` and their checker files
+    under ``checker_out`` (default: ``checker/`` beside ``out``); return the delivery folders."""
     roots = []
+    checker_dir = Path(checker_out) if checker_out is not None else Path(out).parent / "checker"
     for scn in SCENARIOS:
         root = Path(out) / scn.name
-        write(build(scn), root)
+        write(build(scn), root, checker_dir)
         roots.append(root)
     for sat in SAT_SCENARIOS:
         root = Path(out) / sat.name
-        write_satellite(build_satellite(sat), root)
+        write_satellite(build_satellite(sat), root, checker_dir)
         roots.append(root)
     return roots
 

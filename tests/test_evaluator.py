@@ -2,6 +2,7 @@ import json
 
 import numpy as np
 import pytest
+from tests.checking import check_with, records, write_checker
 from tests.conftest import MANIFEST
 
 from orthospec.api import check
@@ -9,15 +10,19 @@ from orthospec.engine.params import ParameterError
 
 
 def recs(doc, rule):
-    return {r["item"]: r for r in doc["records"] if r["rule"] == rule}
+    return {r["item"]: r for r in records(doc) if r["rule"] == rule}
 
 
-def test_verdicts_per_item(make_delivery, mini_profile):
-    doc = check(make_delivery(), mini_profile, date="2026-01-01").document
+def test_verdicts_per_item(make_delivery, mini_profile, tmp_path):
+    # the waiver of I3 and the R-VIS verdict come from the checker's file (the same waiver in the
+    # delivery.yaml is only the contractor's request: tests/test_verdict_regressions.py)
+    doc = check_with(make_delivery(), mini_profile, checker=write_checker(tmp_path)).document
     roll = recs(doc, "R-ROLL")
     assert {k: v["verdict"] for k, v in roll.items()} == {"I1": "pass", "I2": "pass", "I3": "waived"}
     assert roll["I3"]["waived_verdict"] == "fail"
     assert roll["I3"]["waiver"]["approver"] == "Chief"
+    assert roll["I3"]["waiver"]["declared_in"] == "checker"
+    assert roll["I3"]["waiver"]["granted_by"] == "Eva External (external QC, Paying Agency)"
     assert roll["I1"]["requirement"]["value"] == 3.0 and roll["I1"]["requirement"]["unit"] == "deg"
     assert roll["I1"]["evidence"][0]["rows"] == [1]
     fh = recs(doc, "R-FH")
@@ -28,8 +33,8 @@ def test_verdicts_per_item(make_delivery, mini_profile):
     assert recs(doc, "R-VIS")["D1"]["verdict"] == "pass"
 
 
-def test_rollup_counts_rejected_images(make_delivery, mini_profile):
-    doc = check(make_delivery(), mini_profile, date="2026-01-01").document
+def test_rollup_counts_rejected_images(make_delivery, mini_profile, tmp_path):
+    doc = check_with(make_delivery(), mini_profile, checker=write_checker(tmp_path)).document
     assert doc["rollup"]["rejected"] == {"image": ["I2"]}  # I3 is waived, not rejected
     share = recs(doc, "R-ROLLUP")["D1"]
     assert share["measured"]["value"] == pytest.approx(100 / 3)
@@ -37,21 +42,23 @@ def test_rollup_counts_rejected_images(make_delivery, mini_profile):
     assert doc["verdict"] == "rejected"
 
 
-def test_fixing_the_data_accepts(make_delivery, mini_profile):
+def test_fixing_the_data_accepts(make_delivery, mini_profile, tmp_path):
     images = "image_id,file,block,roll,flying_height,std_dn\nI1,a.tif,B1,0.5,1000,30\nI2,b.tif,B1,1,900,40\n"
-    doc = check(make_delivery(images=images), mini_profile, date="2026-01-01").document
+    doc = check_with(make_delivery(images=images), mini_profile, checker=write_checker(tmp_path)).document
     assert doc["verdict"] == "accepted"
     assert doc["summary"]["fail"] == 0
     assert doc["waivers_unused"] and doc["waivers_unused"][0]["rule"] == "R-ROLL"
+    assert doc["waivers_unused"][0]["declared_in"] == "checker"
 
 
-def test_fail_on_warn_makes_recommended_blocking(make_delivery, mini_profile):
+def test_fail_on_warn_makes_recommended_blocking(make_delivery, mini_profile, tmp_path):
     images = "image_id,file,block,roll,flying_height,std_dn\nI1,a.tif,B1,0.5,1000,5\n"
     # tolerance_xy given by the checker, so the only warning is R-CV's (not the ITT-source one)
-    soft = check(make_delivery("a", images=images), mini_profile, date="2026-01-01",
-                 params=["tolerance_xy=0.5m"]).document
-    hard = check(make_delivery("b", images=images), mini_profile, date="2026-01-01", fail_on="warn",
-                 params=["tolerance_xy=0.5m"]).document
+    chk = write_checker(tmp_path)
+    soft = check_with(make_delivery("a", images=images), mini_profile, checker=chk,
+                      params=["tolerance_xy=0.5m"]).document
+    hard = check_with(make_delivery("b", images=images), mini_profile, fail_on="warn", checker=chk,
+                      params=["tolerance_xy=0.5m"]).document
     assert soft["verdict"] == "accepted" and soft["summary"]["warn"] == 1
     assert hard["verdict"] == "rejected"
 

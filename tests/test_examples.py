@@ -1,6 +1,7 @@
 """The bundled example deliveries: up to date, deterministic, and saying what they claim.
 
-``examples/generate.py`` writes ``examples/deliveries/aerial-{pass,fail}``. These tests
+``examples/generate.py`` writes ``examples/deliveries/*`` and the external QC's file for each,
+``examples/checker/<name>.yaml`` (manual-check verdicts and waivers in force). These tests
 regenerate them into a temporary folder and compare every file's SHA-256 with the committed
 ones, then check the committed data against the convention (specs/delivery-tables.yaml) and
 against the claims of each delivery's ``expected.yaml``: the pass example meets the JRC
@@ -26,6 +27,7 @@ from shapely.geometry import Point, Polygon
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "examples" / "deliveries"
+CHECKERS = ROOT / "examples" / "checker"
 NAMES = ("aerial-pass", "aerial-fail")
 SATELLITE = ("satellite-pass", "satellite-fail")
 SPEC = yaml.safe_load((ROOT / "specs" / "delivery-tables.yaml").read_text(encoding="utf-8"))["tables"]
@@ -51,9 +53,13 @@ def _digests(root: Path) -> dict[str, str]:
 
 @pytest.fixture(scope="module")
 def regenerated(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    out = tmp_path_factory.mktemp("examples")
-    _generator().generate(out)
+    out = tmp_path_factory.mktemp("examples") / "deliveries"
+    _generator().generate(out)  # checker files into out/../checker, as examples/checker
     return out
+
+
+def _checker(name: str) -> dict[str, Any]:
+    return yaml.safe_load((CHECKERS / f"{name}.yaml").read_text(encoding="utf-8"))
 
 
 def _manifest(name: str) -> dict[str, Any]:
@@ -82,10 +88,32 @@ def test_committed_example_equals_a_fresh_generation(regenerated: Path, name: st
     assert not stale, f"stale files {stale}: run `python examples/generate.py`"
 
 
+def test_committed_checker_files_equal_a_fresh_generation(regenerated: Path) -> None:
+    fresh, committed = _digests(regenerated.parent / "checker"), _digests(CHECKERS)
+    assert sorted(fresh) == sorted(committed) == sorted(f"{n}.yaml" for n in NAMES + SATELLITE)
+    assert fresh == committed, "stale checker files: run `python examples/generate.py`"
+
+
 def test_generation_is_byte_identical_twice(regenerated: Path, tmp_path: Path) -> None:
-    _generator().generate(tmp_path)
+    _generator().generate(tmp_path / "deliveries")
     for name in NAMES + SATELLITE:
-        assert _digests(tmp_path / name) == _digests(regenerated / name)
+        assert _digests(tmp_path / "deliveries" / name) == _digests(regenerated / name)
+    assert _digests(tmp_path / "checker") == _digests(regenerated.parent / "checker")
+
+
+@pytest.mark.parametrize("name", NAMES + SATELLITE)
+def test_the_delivery_holds_statements_and_the_checker_file_the_verdicts(name: str) -> None:
+    """JRC §2: the contractor's internal QC (the delivery's manual_checks, by its own QA manager)
+    is evidence; the external QC's verdicts and waivers are in the checker's file, outside it."""
+    from orthospec.delivery.checker import load_checker
+
+    m, own = _manifest(name), _table(name, "manual_checks")
+    assert not m.get("waivers")  # the snow waiver of aerial-pass is granted by the checker
+    assert set(own["inspector"]) == {f"{m['operator']['name']}, {m['operator']['role']}"}
+    chk = load_checker(CHECKERS / f"{name}.yaml", delivery_root=EXAMPLES / name)
+    assert chk.party.role == "external QC" and chk.party.name not in m["operator"]["name"]
+    assert {(r.check, r.item) for r in chk.model.manual_checks} == set(zip(own["check"], own["item"], strict=True))
+    assert _expected(name)["checker"] == f"../../checker/{name}.yaml"
 
 
 def test_examples_stay_small() -> None:
@@ -288,11 +316,11 @@ def _findings(name: str) -> set[tuple[str, str]]:
             "file_name_space": " " in row["file"],
         }
         found |= {(kind, item) for kind, hit in checks.items() if hit}
-    manual = _table(name, "manual_checks")
+    manual = _checker(name)["manual_checks"]  # the external QC's verdicts
     absent = {i for kind, i in found if kind == "file_missing"}  # its 'fail' row is a consequence
-    found |= {("manual_check_fail", r["item"]) for _, r in manual.iterrows()
+    found |= {("manual_check_fail", r["item"]) for r in manual
               if r["verdict"] == "fail" and r["item"] not in absent}
-    assert set(manual["verdict"]) <= {"pass", "fail"}
+    assert {r["verdict"] for r in manual} <= {"pass", "fail"}
     cp = _table(name, "checkpoints")
     found |= {("unjustified_exclusion", r["point_id"]) for _, r in cp.iterrows()
               if r["excluded"] == "true" and not r["exclusion_reason"].strip()}
@@ -309,7 +337,7 @@ def _findings(name: str) -> set[tuple[str, str]]:
 
 
 def test_pass_example_meets_the_guidelines_except_its_waiver() -> None:
-    waived = {("contrast_out_of_range", i) for w in _manifest("aerial-pass")["waivers"] for i in w["items"]}
+    waived = {("contrast_out_of_range", i) for w in _checker("aerial-pass")["waivers"] for i in w["items"]}
     assert _findings("aerial-pass") == waived
     assert _expected("aerial-pass")["verdict"] == "accepted" and not _expected("aerial-pass")["defects"]
 

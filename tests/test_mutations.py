@@ -30,14 +30,15 @@ import pytest
 import rasterio
 import yaml
 from rasterio.transform import Affine
+from tests.checking import check_with, records
 
 from mutation_coverage import PLUGIN_NAME, CoverageReport, mandatory_automatic
-from orthospec import api
 from orthospec.errors import OrthospecError
 from orthospec.spec.loader import ResolvedProfile, load_profile
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "examples" / "deliveries"
+CHECKERS = ROOT / "examples" / "checker"
 TABLE = yaml.safe_load((Path(__file__).parent / "data" / "mutations.yaml").read_text(encoding="utf-8"))
 SHIPPED = {name: ROOT / "specs" / f"{name}.yaml" for name in TABLE["profiles"]}
 BAD = ("fail", "missing", "error")
@@ -185,7 +186,24 @@ def _derive_table(root: Path, m: dict[str, Any]) -> None:
     _mutate_manifest(root, {"set": {f"tables.{m['table']}": m["path"]}})
 
 
-OPS = {"derive": _derive_table, "csv": _mutate_csv, "manifest": _mutate_manifest, "raster": _mutate_raster, "delete": _delete_file,
+def checker_for(root: Path) -> Path:
+    """The checker's file for a copied example: a mutated copy beside the delivery, else the shipped one."""
+    mutated = root.parent / "checker.yaml"
+    return mutated if mutated.is_file() else CHECKERS / f"{root.name}.yaml"
+
+
+def _mutate_checker(root: Path, m: dict[str, Any]) -> None:
+    """Change the external QC's verdicts (the checker's file, outside the delivery) for matching entries."""
+    path = checker_for(root)
+    doc = yaml.safe_load(path.read_text(encoding="utf-8"))
+    hits = [e for e in doc["manual_checks"] if all(e.get(k) == v for k, v in m["where"].items())]
+    assert hits, f"no checker entry matches {m['where']}"
+    for e in hits:
+        e.update(m["set"])
+    (root.parent / "checker.yaml").write_text(yaml.safe_dump(doc, sort_keys=False), encoding="utf-8")
+
+
+OPS = {"checker": _mutate_checker, "derive": _derive_table, "csv": _mutate_csv, "manifest": _mutate_manifest, "raster": _mutate_raster, "delete": _delete_file,
        "write": _write_file}
 
 
@@ -203,9 +221,10 @@ def _profile(name: str) -> ResolvedProfile:
 
 def _run(root: Path, profile: str, params: dict[str, Any], cache: Path | None = None) -> dict[str, Any]:
     """One check through the library; ``cache`` is orthospec's raster result cache (by SHA-256), so
-    the unchanged images of a copied delivery are not scanned again."""
-    res = api.check(root, _profile(profile), params={k: str(v) for k, v in params.items()}, date=DATE,
-                    options={"workers": 1, "cache_dir": str(cache) if cache else None})
+    the unchanged images of a copied delivery are not scanned again. The example's checker file signs
+    its manual checks, so the baseline is accepted and only the planted violation can reject."""
+    res = check_with(root, _profile(profile), params={k: str(v) for k, v in params.items()}, date=DATE,
+                     checker=checker_for(root), options={"workers": 1, "cache_dir": str(cache) if cache else None})
     return res.document
 
 
@@ -215,7 +234,7 @@ def raster_cache(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def _bad(doc: dict[str, Any]) -> dict[tuple[str, str], str]:
-    return {(r["rule"], r["item"]): r["verdict"] for r in doc["records"]
+    return {(r["rule"], r["item"]): r["verdict"] for r in records(doc)
             if r["verdict"] in BAD and r["level"] == "mandatory"}
 
 
@@ -311,7 +330,7 @@ def test_uniform_shift_under_the_tolerance_raises_a_visible_finding(tmp_path: Pa
     assert 0.4 < dx.mean() < 0.5 and np.sqrt(np.mean(dx**2)) < 0.5 and t_expected > 10
 
     doc = _run(root, "jrc-v3", {}, raster_cache)
-    rec = {(r["rule"], r["item"]): r for r in doc["records"]}
+    rec = {(r["rule"], r["item"]): r for r in records(doc)}
     assert rec[("JRC-12.7-RMSEX", "B01")]["verdict"] == "pass"
     guard = rec[("JRC-12.4-SYSTEMATIC-X", "B01")]
     assert guard["verdict"] == "warn" and guard["measured"]["value"] == pytest.approx(t_expected, rel=1e-3)
@@ -341,8 +360,7 @@ OBSERVED = {
     # §10.5 rules were gated on that flag (not applicable, ACCEPTED). Now derived.pansharpened decides.
     "satellite: pan-sharpened product declared pansharpened: false, §10.5.1 record failed": (
         [{"manifest": {"set": {"product.pansharpened": False}}},
-         {"csv": {"table": "manual_checks", "where": {"check": "JRC-10.5.1-SAME-MODEL-GCPS"},
-                  "set": {"verdict": "fail"}}}],
+         {"checker": {"where": {"check": "JRC-10.5.1-SAME-MODEL-GCPS"}, "set": {"verdict": "fail"}}}],
         {("JRC-10.5.1-SAME-MODEL-GCPS", "D-2026-031")}),
 }
 

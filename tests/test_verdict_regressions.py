@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 import pytest
 import yaml
+from tests.checking import records as all_records
 
 from orthospec.api import check
 from orthospec.engine.params import ParameterError
@@ -79,7 +80,7 @@ def profile(tmp_path: Path, rules: str, *, parameters: str = TOLERANCE_FROM_ITT,
 
 
 def records(doc: dict[str, Any], rule: str) -> dict[str, dict[str, Any]]:
-    return {r["item"]: r for r in doc["records"] if r["rule"] == rule}
+    return {r["item"]: r for r in all_records(doc) if r["rule"] == rule}
 
 
 def reasons(doc: dict[str, Any]) -> str:
@@ -632,3 +633,104 @@ def test_a_when_that_tests_an_unset_parameter_is_not_applicable_not_missing(tmp_
     for block in ("B01", "B02", "B03"):  # the bias test picks one of the two CE90s per block
         assert {formula[block]["verdict"], empirical[block]["verdict"]} == {"fail", "not_applicable"}, block
     assert tight["verdict"] == "rejected"
+
+
+# --- the contractor's delivery is evidence, never authority (INTERFACES item 4, JRC §2) ----------
+# A waiver written in the contractor's delivery.yaml and a verdict in the delivery's own
+# manual_checks table used to change the verdict: a contractor could waive a failing mandatory
+# rule with an approver name it typed and be ACCEPTED. Now they are a request and a statement.
+
+from tests.checking import check_with, write_checker  # noqa: E402
+
+from orthospec.delivery.checker import load_checker  # noqa: E402
+
+#: one failing image (I3, roll 4 deg > 3 deg) under the mini profile's mandatory R-ROLL
+_ONE_BAD_ROLL = "image_id,file,block,roll,flying_height,std_dn\nI1,a.tif,B1,0.5,1000,30\nI3,c.tif,B2,4,1100,30\n"
+_SIGN_ONLY = """\
+orthospec_checker: 1
+checker: {name: Eva External, role: external QC}
+manual_checks:
+  - {check: R-VIS, item: "*", date: 2026-01-02, verdict: pass}
+"""
+
+
+def _rec(doc: dict[str, Any], rule: str, item: str) -> dict[str, Any]:
+    return next(r for r in all_records(doc) if r["rule"] == rule and r["item"] == item)
+
+
+def test_a_contractor_waiver_of_a_failing_mandatory_rule_is_only_a_request(make_delivery, mini_profile,
+                                                                           tmp_path: Path) -> None:
+    # delivery.yaml (tests/conftest.py MANIFEST) waives R-ROLL for I3, "approver: Chief" typed by the contractor
+    root = make_delivery(images=_ONE_BAD_ROLL)
+    res = check_with(root, mini_profile, checker=write_checker(tmp_path, _SIGN_ONLY))
+    doc = res.document
+    assert _rec(doc, "R-ROLL", "I3")["verdict"] == "fail"
+    assert doc["verdict"] == "rejected" and doc["rollup"]["rejected"] == {"image": ["I3"]}
+    roll = next(r for r in res.evaluation.results if r.rule.id == "R-ROLL")
+    assert roll.requested["I3"]["approver"] == "Chief" and roll.requested["I3"]["requested_by"] == "ACME Mapping"
+    (req,) = res.evaluation.waiver_requests
+    assert req["status"] == "requested by the contractor, not granted"
+    assert req["matched"] == [{"item": "I3", "verdict": "fail"}]
+    assert not doc["waivers_unused"]  # a request is not a waiver: nothing granted went unused
+
+
+def test_a_contractor_waiver_of_a_failing_block_in_aerial_fail_stays_a_fail(tmp_path: Path) -> None:
+    d = tmp_path / "aerial-fail"
+    shutil.copytree(ROOT / "examples" / "deliveries" / "aerial-fail", d)
+    text = (d / "delivery.yaml").read_text(encoding="utf-8")
+    assert "\nwaivers: []\n" in text
+    (d / "delivery.yaml").write_text(text.replace("\nwaivers: []\n", (
+        "\nwaivers:\n- {rule: JRC-12.7-RMSEY, items: [B02], justification: within our own QC, "
+        "approver: 'Paying agency (typed by the contractor)'}\n")), encoding="utf-8")
+    res = check_with(d, "jrc-v3", checker=ROOT / "examples" / "checker" / "aerial-fail.yaml", date=DATE)
+    rec = _rec(res.document, "JRC-12.7-RMSEY", "B02")
+    assert rec["verdict"] == "fail" and "B02" in res.document["rollup"]["rejected"]["block"]
+    rmsey = next(r for r in res.evaluation.results if r.rule.id == "JRC-12.7-RMSEY")
+    assert set(rmsey.requested) == {"B02"}
+
+
+def test_the_contractors_own_manual_pass_alone_is_missing(make_delivery, mini_profile) -> None:
+    # the delivery's manual_checks row "R-VIS,*,Joe Bloggs,2026-01-01,pass" is the contractor's statement
+    root = make_delivery(images=_ONE_BAD_ROLL.replace(",4,", ",1,"))
+    doc = check_with(root, mini_profile).document
+    vis = _rec(doc, "R-VIS", "D1")
+    assert vis["verdict"] == "missing"
+    assert "Joe Bloggs" in vis["message"] and "not a verdict" in vis["message"]
+    assert vis["evidence"][0]["file"] == "tables/manual.csv" and vis["evidence"][0]["rows"] == [1]
+    assert doc["verdict"] == "rejected"
+
+
+def test_the_checkers_manual_verdict_decides_and_names_both_parties(make_delivery, mini_profile,
+                                                                    tmp_path: Path) -> None:
+    root = make_delivery(images=_ONE_BAD_ROLL.replace(",4,", ",1,"))
+    fail = _SIGN_ONLY.replace("verdict: pass", "verdict: fail, note: haze on I1")
+    doc = check_with(root, mini_profile, checker=write_checker(tmp_path, fail)).document
+    vis = _rec(doc, "R-VIS", "D1")
+    assert vis["verdict"] == "fail" and doc["verdict"] == "rejected"
+    assert "Eva External (external QC)" in vis["message"] and "Joe Bloggs" in vis["message"]
+    assert {e["file"] for e in vis["evidence"]} == {"tables/manual.csv", "checker:checker.yaml"}
+    ok = check_with(root, mini_profile, checker=write_checker(tmp_path, _SIGN_ONLY, "ok.yaml")).document
+    assert _rec(ok, "R-VIS", "D1")["verdict"] == "pass" and ok["verdict"] == "accepted"
+
+
+def test_the_same_waiver_in_the_checker_file_is_in_force(make_delivery, mini_profile, tmp_path: Path) -> None:
+    root = make_delivery(images=_ONE_BAD_ROLL)
+    res = check_with(root, mini_profile, checker=write_checker(tmp_path))  # tests/checking.py MINI_CHECKER
+    rec = _rec(res.document, "R-ROLL", "I3")
+    assert rec["verdict"] == "waived" and rec["waived_verdict"] == "fail"
+    assert rec["waiver"]["approver"] == "Chief" and rec["waiver"]["declared_in"] == "checker"
+    assert rec["waiver"]["granted_by"] == "Eva External (external QC, Paying Agency)"
+    assert res.document["verdict"] == "accepted"
+    (req,) = res.evaluation.waiver_requests  # the contractor asked for it too: granted by the checker
+    assert req["matched"] == [{"item": "I3", "verdict": "waived"}] and "not granted" not in req["status"]
+
+
+def test_a_checker_file_inside_the_delivery_is_refused(make_delivery, mini_profile, tmp_path: Path) -> None:
+    root = make_delivery()
+    inside = write_checker(root / "tables", name="checker.yaml")
+    with pytest.raises(OrthospecError, match="inside the delivery"):
+        check_with(root, mini_profile, checker=inside)
+    link = tmp_path / "looks-outside.yaml"  # a link outside that leads into the delivery
+    link.symlink_to(inside)
+    with pytest.raises(OrthospecError, match="inside the delivery"):
+        load_checker(link, delivery_root=root)

@@ -28,8 +28,9 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from ..delivery.checker import Checker
 from ..delivery.convention import table_specs
-from ..delivery.reader import MANIFEST, Delivery
+from ..delivery.reader import Delivery
 from ..errors import ExpressionError, OrthospecError, UnitError
 from ..measures.acceptance import (
     DeliveryVerdict,
@@ -43,6 +44,7 @@ from ..spec.loader import ResolvedProfile
 from ..spec.models import Requirement, Rule
 from ..spec.wording import requirement_text
 from ..units import NON_NUMERIC, Q_, canonical, convert, parse_unit, ureg
+from . import waivers
 from .builtin import BUILTIN_RULES, ITT_DECLARED, parameter_findings
 from .params import ParamValue
 from .registry import ROLLUP, MeasureCache, Measured, ProviderContext, measure_info
@@ -67,6 +69,8 @@ class RuleResult:
     notes: np.ndarray
     original: np.ndarray | None = None
     waivers: dict[str, dict[str, Any]] = field(default_factory=dict)
+    #: item -> the contractor's waiver request (delivery.yaml): evidence, never in force
+    requested: dict[str, dict[str, Any]] = field(default_factory=dict)
     error: str | None = None
 
     @property
@@ -94,6 +98,10 @@ class Evaluation:
     fail_on: str
     details: dict[str, Any]
     unused_waivers: list[dict[str, Any]]
+    #: the contractor's waiver requests, each with the items it matched and whether it was granted
+    waiver_requests: list[dict[str, Any]] = field(default_factory=list)
+    #: who checked (the checker file's party, file name and hash), None without a checker file
+    checker: dict[str, Any] | None = None
 
 
 # --- helpers --------------------------------------------------------------------------------
@@ -299,8 +307,11 @@ class _Undecidable(OrthospecError):
 
 class Evaluator:
     def __init__(self, profile: ResolvedProfile, delivery: Delivery, parameters: dict[str, ParamValue],
-                 *, fail_on: str = "fail", options: Mapping[str, Any] | None = None) -> None:
+                 *, fail_on: str = "fail", options: Mapping[str, Any] | None = None,
+                 checker: Checker | None = None) -> None:
         self.profile, self.d, self.params = profile, delivery, parameters
+        self.checker = checker
+        self._granted = waivers.granted(profile, checker)
         self.fail_on = fail_on
         self.options = dict(options or {})
         ctx = ProviderContext(delivery, {k: v.quantity() for k, v in parameters.items()}, dict(options or {}),
@@ -314,13 +325,14 @@ class Evaluator:
         first = [r for r in self.profile.rules if not r.measure.startswith("rollup.")]
         second = [r for r in self.profile.rules if r.measure.startswith("rollup.")]
         results = [self._safe(r) for r in first] + self._builtin()
-        used = self._apply_waivers(results)
+        used = waivers.apply_granted(results, self._granted)
         rejected, reasons = self._rollup_items(results)
         self._rollup_values = self._rollup_measures(rejected)
         later = [self._safe(r) for r in second]
-        used |= self._apply_waivers(later)
+        used |= waivers.apply_granted(later, self._granted)
         results += later
-        waived_unused = self._unused_waivers(used)
+        waived_unused = waivers.unused(self._granted, used)
+        requests = waivers.mark_requested(results, waivers.requested(self.d))
         # only a MANDATORY roll-up rule replaces the default "any rejected item returns the delivery":
         # a recommended one cannot change the verdict, so it must not switch the default off
         verdict, reasons2 = self._overall(results, rejected, has_block_rollup=any(
@@ -330,7 +342,8 @@ class Evaluator:
                                  and r.level == "mandatory" for r in second))
         details = self.cache.details()
         return Evaluation(self.profile, self.d, self.params, results, rejected, reasons + reasons2,
-                          verdict, self.fail_on, details, waived_unused)
+                          verdict, self.fail_on, details, waived_unused, requests,
+                          self.checker.summary() if self.checker is not None else None)
 
     def _builtin(self) -> list[RuleResult]:
         """The engine's own rules every profile gets (engine/builtin.py: parameter authority)."""
@@ -735,34 +748,64 @@ class Evaluator:
         t = self.d.table("manual_checks")
         return None if t is None else t.df.assign(_file=t.file, _sha=t.sha256)
 
+    def _signed(self, rule_id: str) -> dict[str, tuple[int, Any]]:
+        """item -> (entry index, entry) of the checker file's verdicts on ``rule_id``."""
+        if self.checker is None:
+            return {}
+        return {m.item: (i, m) for i, m in enumerate(self.checker.model.manual_checks) if m.check == rule_id}
+
+    def _stated(self, rule_id: str) -> dict[str, tuple[str, Evidence]]:
+        """item -> (quoted statement, evidence) of the contractor's manual_checks rows on ``rule_id``."""
+        df = self._manual
+        if df is None:
+            return {}
+        out: dict[str, tuple[str, Evidence]] = {}
+        for _, h in df[df["check"] == rule_id].iterrows():
+            row = int(h["_row"])
+            extra = h.get("note")
+            text = (f"the contractor's internal QC statement (evidence, not a verdict): "
+                    f"{str(h['verdict']).strip()!r} by {h['inspector']} on {h['date']} "
+                    f"({h['_file']} row {row})" + (f": {extra}" if not _is_missing(extra) else ""))
+            out[str(h["item"])] = (text, Evidence(str(h["_file"]), str(h["_sha"]), (row,)))
+        return out
+
     def _manual_rule(self, rule: Rule, items: list[str]) -> RuleResult:
+        """A human verdict: the checker file's ``manual_checks`` decide; the delivery's own
+        manual_checks table is the contractor's internal-QC statement (JRC §2), quoted as evidence."""
         if not items:
             items = [self.d.id]
         n = len(items)
         verdict = np.full(n, MISSING, dtype=np.int8)
         measured = np.full(n, None, dtype=object)
-        notes = np.full(n, "manual check: no recorded verdict (inspector, date, pass/fail) in "
-                           "the delivery's manual_checks table", dtype=object)
+        notes = np.full(n, None, dtype=object)
         evidence: list[tuple[Evidence, ...]] = [()] * n
-        df = self._manual
-        if df is not None:
-            rows = df[df["check"] == rule.id]
-            for i, item in enumerate(items):
-                hit = rows[(rows["item"] == item) | (rows["item"] == "*")]
-                if len(hit):
-                    h = hit.iloc[-1]
-                    v = str(h["verdict"]).strip().lower()
-                    evidence[i] = (Evidence(str(h["_file"]), str(h["_sha"]), (int(h["_row"]),)),)
-                    measured[i] = v
-                    if v == "pass":
-                        verdict[i] = PASS
-                        notes[i] = f"signed by {h['inspector']} on {h['date']}"
-                    elif v == "fail":
-                        verdict[i] = FAIL if rule.level == "mandatory" else WARN
-                        notes[i] = f"judged failing by {h['inspector']} on {h['date']}"
-                    else:
-                        verdict[i] = ERROR
-                        notes[i] = f"manual_checks verdict must be pass or fail, got {v!r}"
+        signed = self._signed(rule.id)
+        stated = self._stated(rule.id)
+        for i, item in enumerate(items):
+            k = signed.get(item, signed.get("*"))
+            c = stated.get(item, stated.get("*"))
+            ev: list[Evidence] = []
+            if k is None:
+                note = ("manual check: no recorded verdict from the checker (check --checker FILE, "
+                        "manual_checks: check, item, date, verdict)")
+            else:
+                idx, entry = k
+                ev.append(self.checker.evidence("manual_checks", idx))  # type: ignore[union-attr]
+                measured[i] = entry.verdict
+                who = entry.inspector or self.checker.who()  # type: ignore[union-attr]
+                if entry.verdict == "pass":
+                    verdict[i] = PASS
+                    note = f"signed by {who} on {entry.date}"
+                else:
+                    verdict[i] = FAIL if rule.level == "mandatory" else WARN
+                    note = f"judged failing by {who} on {entry.date}"
+                note += f" (checker file {self.checker.name})" + (  # type: ignore[union-attr]
+                    f": {entry.note}" if entry.note else "")
+            if c is not None:
+                ev.insert(0, c[1])
+                note += f"; {c[0]}"
+            notes[i] = note
+            evidence[i] = tuple(ev)
         if rule.when:
             applicable, unknown, unknown_note = self._applicable(rule, items)
             na = ~applicable & ~unknown
@@ -773,38 +816,6 @@ class Evaluator:
                 notes[unsigned] = unknown_note
         return RuleResult(rule, np.array(items, dtype=object), verdict, measured, "text",
                           self._req_dict(rule.requirement, None), evidence, notes)
-
-    # --- waivers
-    def _waivers(self) -> list[tuple[str, dict[str, Any]]]:
-        waivers = [("delivery", w.model_dump(mode="json")) for w in self.d.manifest.waivers]
-        return waivers + [("profile", w.model_dump(mode="json")) for w in self.profile.waivers]
-
-    def _unused_waivers(self, used: set[int]) -> list[dict[str, Any]]:
-        return [dict(w, declared_in=src) for i, (src, w) in enumerate(self._waivers()) if i not in used]
-
-    def _apply_waivers(self, results: list[RuleResult]) -> set[int]:
-        """Waived items keep their original verdict beside `waived`; returns the waivers used."""
-        waivers = self._waivers()
-        by_rule: dict[str, list[tuple[int, str, dict[str, Any]]]] = {}
-        for i, (src, w) in enumerate(waivers):
-            by_rule.setdefault(w["rule"], []).append((i, src, w))
-        used: set[int] = set()
-        for r in results:
-            ws = by_rule.get(r.rule.id)
-            if not ws:
-                continue
-            for idx, src, w in ws:
-                items = set(map(str, w["items"]))
-                match = np.ones(len(r.items), dtype=bool) if "*" in items else np.isin(r.items, list(items))
-                target = match & np.isin(r.verdict, (FAIL, WARN, MISSING))
-                if target.any():
-                    used.add(idx)
-                    if r.original is None:
-                        r.original = r.verdict.copy()
-                    for it in r.items[target]:
-                        r.waivers[str(it)] = {**w, "declared_in": src if src == "profile" else MANIFEST}
-                    r.verdict[target] = WAIVED
-        return used
 
     # --- roll-up
     def _blocking(self, r: RuleResult) -> np.ndarray:

@@ -1,0 +1,170 @@
+"""The checker's file (``check --checker FILE``): who checks, their manual verdicts, their waivers.
+
+JRC §2 separates the contractor's internal quality control from the external quality control the
+buyer commissions. The delivery is the contractor's evidence, never authority: waivers written in
+its delivery.yaml are only *requests*, and its ``manual_checks`` table is the contractor's own
+internal-QC statement. A manual rule's verdict and a waiver in force come from the checker's side:
+the tender profile's ``waivers:`` or this file, which must therefore lie outside the delivery
+(a file the contractor ships cannot grant the contractor anything).
+
+Format (schema: specs/schema/checker.schema.json)::
+
+    orthospec_checker: 1
+    checker: {name: "M. Keller (fictional)", role: external QC, organisation: ...}
+    manual_checks:
+      - {check: JRC-5.3-IDQA, item: "*", date: 2026-06-21, verdict: pass, note: "..."}
+    waivers:
+      - {rule: JRC-6.3-CV, items: [F03_0104], justification: "...", approver: "..."}
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from ..errors import OrthospecError
+from ..provenance import Evidence, sha256_file
+from ..spec.yamlio import YamlError, load_file
+
+
+class _Closed(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class CheckerParty(_Closed):
+    """The person (or unit) performing the external quality control."""
+
+    name: str = Field(min_length=1)
+    role: str | None = Field(None, description="e.g. external QC, paying agency GIS unit.")
+    organisation: str | None = None
+    contact: str | None = None
+
+
+class CheckerManualCheck(_Closed):
+    """One human verdict on a manual rule (``manual: true``) for one item or ``*`` (all items)."""
+
+    check: str = Field(min_length=1, description="The manual rule's id, e.g. JRC-5.3-IDQA.")
+    item: str = Field("*", min_length=1, description="Item id in the rule's scope, or * for all.")
+    date: dt.date
+    verdict: Literal["pass", "fail"]
+    inspector: str | None = Field(None, description="Who inspected, when not the checker named above.")
+    note: str | None = None
+
+
+class CheckerWaiver(_Closed):
+    """A waiver granted by the checker: the listed items of ``rule`` are ``waived``."""
+
+    rule: str = Field(min_length=1)
+    items: list[str] = Field(default_factory=lambda: ["*"], min_length=1)
+    justification: str = Field(min_length=1)
+    approver: str = Field(min_length=1, description="Who, on the buyer's side, granted the waiver.")
+    date: dt.date | None = None
+
+
+class CheckerModel(_Closed):
+    orthospec_checker: Literal[1]
+    checker: CheckerParty
+    manual_checks: list[CheckerManualCheck] = Field(default_factory=list)
+    waivers: list[CheckerWaiver] = Field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class Checker:
+    """A loaded checker file: the model, its display name, its SHA-256 and entry lines."""
+
+    model: CheckerModel
+    name: str
+    sha256: str
+    lines: dict[tuple[str, int], int]
+
+    @property
+    def party(self) -> CheckerParty:
+        return self.model.checker
+
+    def who(self) -> str:
+        """``name (role, organisation)`` as a report states who signed or granted."""
+        p = self.model.checker
+        extra = ", ".join(x for x in (p.role, p.organisation) if x)
+        return f"{p.name} ({extra})" if extra else p.name
+
+    def evidence(self, section: str, index: int) -> Evidence:
+        """Where an entry stands: the file by name (never its absolute path), its YAML path and line."""
+        line = self.lines.get((section, index))
+        return Evidence(f"checker:{self.name}", self.sha256, (),
+                        f"{section}[{index}]" + (f" (line {line})" if line else ""))
+
+    def summary(self) -> dict[str, Any]:
+        """For the QCR document: who checked, from which file (name and hash)."""
+        return {**self.model.checker.model_dump(mode="json", exclude_none=True),
+                "file": self.name, "sha256": self.sha256}
+
+
+def _refuse_inside(path: Path, delivery_root: Path | None) -> None:
+    if delivery_root is None:
+        return
+    if path.resolve().is_relative_to(Path(delivery_root).resolve()):
+        raise OrthospecError(
+            f"checker file {str(path)!r} lies inside the delivery {str(delivery_root)!r}: the checker's "
+            "verdicts and waivers cannot travel with the contractor's delivery (JRC §2, external quality "
+            "control); keep the file outside the delivery folder")
+
+
+def _duplicates(model: CheckerModel, display: str, lines: dict[tuple[str, int], int]) -> None:
+    seen: dict[tuple[str, str], int] = {}
+    for i, m in enumerate(model.manual_checks):
+        key = (m.check, m.item)
+        if key in seen:
+            raise OrthospecError(f"{display}:{lines.get(('manual_checks', i), '?')}: manual_checks: "
+                                 f"{m.check} item {m.item!r} is given twice (first at entry {seen[key] + 1}); "
+                                 "one verdict per check and item")
+        seen[key] = i
+
+
+def load_checker(path: str | Path, *, delivery_root: str | Path | None = None) -> Checker:
+    """Read and validate a checker file; refuse one inside ``delivery_root``.
+
+    Raises
+    ------
+    OrthospecError
+        (exit 2) naming ``file:line:col`` and what was expected, or why the place is refused.
+    """
+    p = Path(path)
+    _refuse_inside(p, Path(delivery_root) if delivery_root is not None else None)
+    display = str(path)
+    try:
+        doc = load_file(p, display=display)
+    except YamlError as exc:
+        raise OrthospecError(f"checker file {exc}") from None
+    if not isinstance(doc.data, dict):
+        raise OrthospecError(f"{display}:1:1: a checker file must be a YAML mapping "
+                             "(orthospec_checker: 1, checker: {name: ...}, manual_checks, waivers)")
+    try:
+        model = CheckerModel.model_validate(doc.data)
+    except ValidationError as exc:
+        lines = []
+        for e in exc.errors()[:20]:
+            loc = tuple(e["loc"])
+            line, col = doc.where(loc)
+            where = f"{display}:{line}:{col}" if line else display
+            lines.append(f"{where}: {'.'.join(map(str, loc)) or '(document)'}: {e['msg']}")
+        raise OrthospecError("invalid checker file:\n  " + "\n  ".join(lines)) from None
+    marks = {(sec, i): doc.where((sec, i))[0] or 0
+             for sec in ("manual_checks", "waivers") for i in range(len(doc.data.get(sec) or []))}
+    _duplicates(model, display, marks)
+    return Checker(model, p.name, sha256_file(p), marks)
+
+
+def checker_schema() -> dict[str, Any]:
+    """The published JSON Schema of the checker file (specs/schema/checker.schema.json)."""
+    s = CheckerModel.model_json_schema(mode="validation")
+    s["$schema"] = "https://json-schema.org/draft/2020-12/schema"
+    s["$id"] = "https://orthospec.dev/schema/checker.schema.json"
+    s["title"] = "orthospec checker file (check --checker FILE)"
+    s["description"] = ("The external quality control's manual-check verdicts and waivers in force "
+                        "(JRC §2). Kept outside the delivery; the delivery's own waivers are requests "
+                        "and its manual_checks table is the contractor's internal-QC statement.")
+    return s

@@ -1,0 +1,63 @@
+"""Run `check` with a checker file (``check --checker FILE``) from the tests.
+
+Until ``orthospec.api.check`` takes ``checker=`` (helper A, INTERFACES item 4) this does the same
+steps as ``api.check`` and hands the loaded checker file to the Evaluator; afterwards it simply
+calls ``api.check``. Real components only: the checker file is a real YAML file on disk.
+"""
+
+from __future__ import annotations
+
+import inspect
+from pathlib import Path
+from typing import Any
+
+from orthospec import api
+from orthospec.delivery.checker import load_checker
+from orthospec.delivery.reader import open_delivery
+from orthospec.engine.evaluator import Evaluator
+from orthospec.engine.params import parse_cli_params, resolve_parameters
+from orthospec.qcr import build_document
+from orthospec.spec.loader import ResolvedProfile, load_profile
+
+#: a checker file for the tests' mini delivery (tests/conftest.py MANIFEST, tests/data/profiles/mini.yaml)
+MINI_CHECKER = """\
+orthospec_checker: 1
+checker: {name: Eva External, role: external QC, organisation: Paying Agency}
+manual_checks:
+  - {check: R-VIS, item: "*", date: 2026-01-02, verdict: pass, note: looked at every image}
+waivers:
+  - {rule: R-ROLL, items: [I3], justification: turbulence over the ridge, approver: Chief}
+"""
+
+
+def records(doc: dict[str, Any]) -> list[dict[str, Any]]:
+    """Every record of a QCR document (through qcr.all_records when it exists)."""
+    try:
+        from orthospec.qcr import all_records
+    except ImportError:  # pragma: no cover - before helper A's records accessor
+        return list(doc["records"])
+    return list(all_records(doc))
+
+
+def write_checker(folder: Path, text: str = MINI_CHECKER, name: str = "checker.yaml") -> Path:
+    path = folder / name
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def check_with(delivery: str | Path, profile: str | Path | ResolvedProfile, *, checker: str | Path | None = None,
+               date: str = "2026-01-01", params: list[str] | tuple[str, ...] | dict[str, str] = (),
+               fail_on: str = "fail", options: dict[str, Any] | None = None) -> api.CheckResult:
+    """`orthospec check DELIVERY --profile PROFILE [--checker FILE]` as a library call."""
+    if "checker" in inspect.signature(api.check).parameters:
+        return api.check(delivery, profile, checker=checker, date=date, params=params, fail_on=fail_on,
+                         options=options)
+    prof = profile if isinstance(profile, ResolvedProfile) else load_profile(profile)
+    d = open_delivery(delivery)
+    d.load_all_tables()
+    chk = load_checker(checker, delivery_root=d.root) if checker is not None else None
+    values = resolve_parameters(prof, dict(d.manifest.tender.parameters) if d.manifest.tender else {},
+                                                dict(params) if isinstance(params, dict) else parse_cli_params(list(params)),
+                                manifest=d.flat_manifest())
+    ev = Evaluator(prof, d, values, fail_on=fail_on, options=options, checker=chk).run()
+    return api.CheckResult(build_document(ev, date=api.parse_date(date), delivery_path=d.root.name), ev)
