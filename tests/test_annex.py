@@ -163,13 +163,17 @@ def test_tender_annex_is_procurement_grade() -> None:
     md = out[annex_filename(prof, "md")]
     with pdfplumber.open(io.BytesIO(out[annex_filename(prof, "pdf")])) as pdf:
         text = "\n".join(p.extract_text() or "" for p in pdf.pages)
-    for body in (md, text):
+    jrc = load_profile("jrc-v3")
+    jrc_md = render_annex(jrc, formats=["md"], day="2026-11-23")[annex_filename(jrc, "md")]
+    for body in (md, text, jrc_md):
         for word in ("seed", "Trap", "manifest.", "**"):
             assert word not in body, word
+        # the rule authors' remarks on how the source was transcribed are not for bidders
+        assert not re.search(r"\b(OCR|trap)\b", body), re.search(r".{60}\b(OCR|trap)\b.{20}", body)
     # the block tolerance of the ITT (tolerance_xy = 0.5 m) as a number with its unit
     rmsey = next(line for line in md.splitlines() if line.startswith("| `JRC-12.7-RMSEY`"))
     assert "| ≤ 0.5 m |" in rmsey
-    # GCPs three times more precise than 0.5 m: 0.167 m, not a formula
+    # GCPs three times more precise than 0.5 m: 0.5 / 3 m, not a formula
     gcp = next(line for line in md.splitlines() if line.startswith("| `JRC-7.1-GCP-ACCURACY-3X`"))
     assert "0.166667 m" in gcp and "gcp_accuracy_factor" not in gcp
     # an aerial digital ITT: satellite and film rules are in Appendix A, not in the requirements

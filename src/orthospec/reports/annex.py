@@ -82,7 +82,7 @@ def _names(req: Requirement) -> set[str]:
 
 
 _AUTHOR = re.compile(r"\b(seed|seeds|verbatim|U\+[0-9A-F]{4}|LaTeX|\.ya?ml|\.txt|orthospec|rule author|"
-                     r"markers?|issue \d+)\b", re.I)
+                     r"markers?|issue \d+|OCR|traps?)\b", re.I)  # sentences about the transcription
 
 
 def plain_note(note: str | None) -> str:
