@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import hashlib
 import json
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -61,3 +63,22 @@ def test_the_published_schema_is_the_models() -> None:
     committed = json.loads((ROOT / "specs" / "schema" / "checker.schema.json").read_text(encoding="utf-8"))
     assert committed == json.loads(json.dumps(checker_schema()))
     assert committed["properties"]["manual_checks"]["items"]["$ref"].endswith("CheckerManualCheck")
+
+
+def test_check_with_a_checker_file_inside_the_delivery_exits_2(make_delivery, mini_profile, tmp_path: Path) -> None:
+    """`orthospec check D --checker D/x.yaml`: exit 2, a one-line message, no traceback, nothing written."""
+    root = make_delivery()
+    inside = write_checker(root, name="my-own-verdicts.yaml")
+    out = tmp_path / "out"
+    proc = subprocess.run([sys.executable, "-m", "orthospec.cli.main", "check", str(root), "--profile",
+                           str(mini_profile), "--checker", str(inside), "--out", str(out)],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2, proc.stderr
+    assert "inside the delivery" in proc.stderr and "Traceback" not in proc.stderr
+    assert not out.exists()
+    ok = subprocess.run([sys.executable, "-m", "orthospec.cli.main", "check", str(root), "--profile",
+                         str(mini_profile), "--checker", str(write_checker(tmp_path)), "--out", str(out),
+                         "--date", "2026-01-01", "--format", "json"], capture_output=True, text=True, timeout=120)
+    assert ok.returncode in (0, 1), ok.stderr
+    doc = json.loads((out / "qcr.json").read_text(encoding="utf-8"))
+    assert doc["checker"]["name"] == "Eva External" and doc["checker"]["file"] == "checker.yaml"

@@ -664,7 +664,10 @@ def test_a_contractor_waiver_of_a_failing_mandatory_rule_is_only_a_request(make_
     root = make_delivery(images=_ONE_BAD_ROLL)
     res = check_with(root, mini_profile, checker=write_checker(tmp_path, _SIGN_ONLY))
     doc = res.document
-    assert _rec(doc, "R-ROLL", "I3")["verdict"] == "fail"
+    rec = _rec(doc, "R-ROLL", "I3")
+    assert rec["verdict"] == "fail" and rec["waiver"] is None
+    assert rec["waiver_requested"]["approver"] == "Chief" and rec["waiver_requested"]["declared_in"] == "delivery.yaml"
+    assert doc["waiver_requests"][0]["status"] == "requested by the contractor, not granted"
     assert doc["verdict"] == "rejected" and doc["rollup"]["rejected"] == {"image": ["I3"]}
     roll = next(r for r in res.evaluation.results if r.rule.id == "R-ROLL")
     assert roll.requested["I3"]["approver"] == "Chief" and roll.requested["I3"]["requested_by"] == "ACME Mapping"
