@@ -24,6 +24,8 @@ from __future__ import annotations
 import math
 import os
 import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -121,9 +123,21 @@ def _helper_pool() -> Any:
     return _helper["pool"]
 
 
+@contextmanager
+def serial_counting() -> Iterator[None]:
+    """Count without the helper thread in this thread (its caller already runs in parallel)."""
+    before = getattr(_buffers, "serial", False)
+    _buffers.serial = True
+    try:
+        yield
+    finally:
+        _buffers.serial = before
+
+
 def _bincount_into(out: np.ndarray, values: np.ndarray) -> None:
     """Add the counts of ``values`` to ``out`` (integer counts: any split gives the same sum)."""
-    if values.size < PARALLEL_BINCOUNT_MIN or (os.cpu_count() or 1) < 2:
+    if (values.size < PARALLEL_BINCOUNT_MIN or (os.cpu_count() or 1) < 2
+            or getattr(_buffers, "serial", False)):
         _bincount_serial(out, values)
         return
     half = values.size // 2 // _BINCOUNT_SLICE * _BINCOUNT_SLICE or values.size // 2

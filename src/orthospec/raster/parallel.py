@@ -423,9 +423,11 @@ def scan_images(
                     done(i, scan_image(p, opts, cloud_mask=masks.get(p)))
             else:
                 ctx = _mp_context()
+                # one counting thread per worker process: the processes already fill the cores
+                one = replace(opts, settings=replace(opts.settings, threads=1))
                 with ProcessPoolExecutor(max_workers=n, mp_context=ctx) as pool:
                     with _one_thread_per_worker():  # workers (and the forkserver) start here
-                        futs = {pool.submit(scan_image, p, opts, cloud_mask=masks.get(p)): i
+                        futs = {pool.submit(scan_image, p, one, cloud_mask=masks.get(p)): i
                                 for i, p in enumerate(p_list)}
                     for fut in as_completed(futs):
                         done(futs[fut], fut.result())

@@ -24,8 +24,8 @@ import stat
 import sys
 import tempfile
 from collections.abc import Iterator, Sequence
-from concurrent.futures import ThreadPoolExecutor
-from contextlib import contextmanager
+from concurrent.futures import Future, ThreadPoolExecutor
+from contextlib import ExitStack, contextmanager, nullcontext
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -187,12 +187,16 @@ class ScanSettings:
     noise_max_pixels: int = 4 * 2**20
     chunk_bytes: int = 8 * 2**20
     gdal_cachemax_mb: int = 32
+    #: threads counting the chunks of one image (besides the reader thread); the results do not
+    #: depend on it (chunks always go to the same two accumulator sets, merged in one order)
+    threads: int = 2
 
     def key(self) -> str:
         """Stable text key of the settings that change results (not of performance knobs)."""
         d = asdict(self)
         d.pop("chunk_bytes")
         d.pop("gdal_cachemax_mb")
+        d.pop("threads")
         return ";".join(f"{k}={d[k]}" for k in sorted(d))
 
 
@@ -375,25 +379,40 @@ def _scan(ds: rasterio.io.DatasetReader, s: ScanSettings) -> RasterStats:
         mask = ds.read_masks(mask_band, window=win) if mask_band is not None else None
         return ds.read(window=win), mask
 
+    # chunk k goes to accumulator set k % 2, whatever the number of threads, so that the
+    # floating-point sums (noise, float moments) do not depend on the machine's cores
+    accs = (acc, _Accumulators.for_bands(infos, s))
+    threads = max(1, min(s.threads, os.cpu_count() or 1, len(accs), len(wins)))
+
     def feed(k: int, win: Window, data: np.ndarray, mask: np.ndarray | None) -> None:
-        acc.add(data, mask, noise=k % stride == 0)
+        with rad.serial_counting() if threads > 1 else nullcontext():
+            accs[k % len(accs)].add(data, mask, noise=k % stride == 0)
         if capture is not None:
-            capture.take(win, data, mask)
+            capture.take(win, data, mask)  # disjoint parts of the windows: safe in threads
 
     # the one read of the pixels: every accumulator and the misregistration windows are fed from
-    # it. A reader thread decodes the next chunk (GDAL releases the GIL) while this one counts;
-    # the dataset is only ever touched by that thread inside the loop
-    if len(wins) <= 1:  # one chunk (a small image): no reader thread to start and hand off to
+    # it. A reader thread decodes the next chunk (GDAL releases the GIL) while up to ``threads``
+    # threads count the previous ones (numpy releases it too); only the reader touches the dataset
+    if len(wins) <= 1:  # one chunk (a small image): no thread to start and hand off to
         for k, win in enumerate(wins):
             feed(k, win, *fetch(win))
     else:
-        with ThreadPoolExecutor(max_workers=1) as reader:
+        with ThreadPoolExecutor(max_workers=1) as reader, ExitStack() as stack:
+            counters = [stack.enter_context(ThreadPoolExecutor(max_workers=1)) for _ in range(threads)]
+            running: list[Future[None] | None] = [None] * threads
             pending = reader.submit(fetch, wins[0])
             for k, win in enumerate(wins):
                 data, shared_mask = pending.result()
                 if k + 1 < len(wins):
                     pending = reader.submit(fetch, wins[k + 1])
-                feed(k, win, data, shared_mask)
+                j = k % threads
+                if running[j] is not None:
+                    running[j].result()  # at most one chunk per counting thread in memory
+                running[j] = counters[j].submit(feed, k, win, data, shared_mask)
+            for fut in running:
+                if fut is not None:
+                    fut.result()
+    acc.merge(accs[1])
     # floats / 32-bit: second pass for the binned histogram between exact min and max
     binned: dict[int, rad.BinnedHistogramAccumulator] = {}
     if acc.moms:
@@ -509,6 +528,20 @@ class _Accumulators:
                 if part is not None:
                     v = part if v is None else v & part
             self.lum.add(rad.luminosity_block(r, g, bl, data.dtype), v)
+
+    def merge(self, other: _Accumulators) -> _Accumulators:
+        """Add another set's counts and sums (same bands); integer counts merge exactly."""
+        for idx, h in self.hists.items():
+            h.merge(other.hists[idx])
+        for idx, m in self.moms.items():
+            m.merge(other.moms[idx])
+            self.edge_counts[idx] = [a + b for a, b in zip(self.edge_counts[idx], other.edge_counts[idx],
+                                                          strict=True)]
+        for idx, nz in self.noise.items():
+            nz.merge(other.noise[idx])
+        if self.lum is not None and other.lum is not None:
+            self.lum.merge(other.lum)
+        return self
 
     def _add_moments(self, band: np.ndarray, b: BandInfo, valid: np.ndarray | None) -> None:
         self.moms[b.index].add(band, valid)
