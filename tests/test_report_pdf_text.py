@@ -27,7 +27,8 @@ def _check(tmp: Path, name: str, *extra: str) -> dict[str, Any]:
     out = tmp / name
     res = CliRunner().invoke(cli(), ["check", str(ROOT / "examples" / "deliveries" / name), "--profile", "jrc-v3",
                                      "--out", str(out), "--date", "2026-11-21", "--format",
-                                     "terminal,json,pdf,csv,junit", *extra])
+                                     "terminal,json,pdf,csv,junit", "--checker",
+                                     str(ROOT / "examples" / "checker" / f"{name}.yaml"), *extra])
     assert res.exit_code in (0, 1), res.output + repr(res.exception)
     with pdfplumber.open(io.BytesIO((out / "report.pdf").read_bytes())) as pdf:
         pages = [p.extract_text() or "" for p in pdf.pages]

@@ -7,7 +7,7 @@ import os
 import re
 import shutil
 import tempfile
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import Any
@@ -157,12 +157,13 @@ def default_output_dir(delivery_id: str, *, base: str | Path = "reports") -> Pat
     return Path(base) / safe_segment(delivery_id)
 
 
-def write_outputs(target: str | Path, files: Mapping[str, str | bytes]) -> list[str]:
+def write_outputs(target: str | Path, files: Mapping[str, str | bytes | Iterable[str]]) -> list[str]:
     """Write every output or none: render into a temporary folder inside ``target``, then move.
 
     A destination that exists and is not a regular file (a folder named ``junit.xml``, a
     symlink) refuses the whole set before anything is written; if a move still fails, the files
-    already moved are put back as they were. Returns the names written.
+    already moved are put back as they were. An output may be a stream of text pieces (qcr.json:
+    ``qcr.iter_dumps``), written as it is produced. Returns the names written.
 
     Raises
     ------
@@ -190,7 +191,11 @@ def write_outputs(target: str | Path, files: Mapping[str, str | bytes]) -> list[
             current = name
             staged = tmp / f"new-{i}"
             with open(staged, "wb") as fh:
-                fh.write(data.encode("utf-8") if isinstance(data, str) else data)
+                if isinstance(data, str | bytes):
+                    fh.write(data.encode("utf-8") if isinstance(data, str) else data)
+                else:
+                    for piece in data:
+                        fh.write(piece.encode("utf-8"))
                 fh.flush()
                 os.fsync(fh.fileno())
             os.chmod(staged, 0o666 & ~mask)

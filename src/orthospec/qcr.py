@@ -38,6 +38,7 @@ from .engine.evaluator import (
     RuleResult,
 )
 from .engine.registry import SCOPES
+from .errors import OrthospecError
 from .provenance import Evidence
 from .qcr_model import SCHEMA_IDS, qcr_schema
 from .verdicts import VERDICTS
@@ -555,14 +556,90 @@ def to_csv(doc: dict[str, Any]) -> str:
     w = _SafeWriter(buf)
     w.writerow(CSV_COLUMNS)
     for r in all_records(doc):
-        c = r["clause"]
-        clause = ", ".join(str(c[k]) for k in ("document", "section", "table", "row") if c.get(k))
+        clause = _clause_text(r["clause"])
         ev = "; ".join(f"{e['file']}" + (f"#rows={','.join(map(str, e['rows']))}" if e.get("rows") else "")
                        + (f"#{e['path']}" if e.get("path") else "") for e in r["evidence"])
         w.writerow([r["rule"], clause, r["scope"], r["item"], r["level"], r["consequence"], r["verdict"],
                     r["measure"], "" if r["measured"]["value"] is None else r["measured"]["value"],
                     r["measured"]["unit"] or "", r["requirement"].get("text", ""), ev, r["message"]])
     return buf.getvalue()
+
+
+#: the columns of qcr.parquet, in order (docs/QCR.md "Parquet table"); one row per record
+PARQUET_COLUMNS: tuple[tuple[str, str], ...] = (
+    ("rule", "string"), ("title", "string"), ("clause", "string"), ("scope", "string"), ("item", "string"),
+    ("level", "string"), ("consequence", "string"), ("manual", "bool"), ("verdict", "string"),
+    ("measure", "string"), ("measured_value", "float64"), ("measured_text", "string"),
+    ("measured_unit", "string"), ("requirement_op", "string"), ("requirement_value", "float64"),
+    ("requirement_min", "float64"), ("requirement_max", "float64"), ("requirement_unit", "string"),
+    ("requirement_text", "string"), ("message", "string"), ("evidence", "string"),
+    ("waiver", "string"), ("waiver_requested", "string"), ("waived_verdict", "string"),
+)
+
+
+def _number(v: Any) -> float | None:
+    return float(v) if isinstance(v, int | float) and not isinstance(v, bool) else None
+
+
+def _text(v: Any) -> str | None:
+    if v is None or _number(v) is not None:
+        return None
+    return ("true" if v else "false") if isinstance(v, bool) else str(v)
+
+
+def _json_or_none(v: Any) -> str | None:
+    return None if v is None else json.dumps(v, ensure_ascii=False, sort_keys=True, separators=(",", ":"))
+
+
+def _clause_text(c: Mapping[str, Any]) -> str:
+    return ", ".join(str(c[k]) for k in ("document", "section", "table", "row") if c.get(k))
+
+
+def require_pyarrow() -> None:
+    """OrthospecError (exit 2) before any work when ``--format parquet`` cannot be written."""
+    try:
+        import pyarrow.parquet  # noqa: F401
+    except ImportError:
+        raise OrthospecError("--format parquet needs pyarrow: install orthospec[parquet]") from None
+
+
+def to_parquet(doc: Mapping[str, Any]) -> bytes:
+    """Every record (expanded) as one Parquet table, one row per record, typed columns
+    (:data:`PARQUET_COLUMNS`); the same document gives the same bytes (no timestamps written).
+
+    Raises OrthospecError when pyarrow is not installed (the ``[parquet]`` extra)."""
+    require_pyarrow()
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    cols: dict[str, list[Any]] = {name: [] for name, _ in PARQUET_COLUMNS}
+    for r in all_records(doc):
+        req = r.get("requirement") or {}
+        value = r["measured"].get("value")
+        row = {
+            "rule": r["rule"], "title": r.get("title"), "clause": _clause_text(r.get("clause") or {}),
+            "scope": r.get("scope"), "item": r["item"], "level": r.get("level"),
+            "consequence": r.get("consequence"), "manual": bool(r.get("manual", False)), "verdict": r["verdict"],
+            "measure": r.get("measure"), "measured_value": _number(value), "measured_text": _text(value),
+            "measured_unit": r["measured"].get("unit"), "requirement_op": req.get("op"),
+            "requirement_value": _number(req.get("value")), "requirement_min": _number(req.get("min")),
+            "requirement_max": _number(req.get("max")), "requirement_unit": req.get("unit"),
+            "requirement_text": req.get("text"), "message": r.get("message"),
+            "evidence": _json_or_none(r.get("evidence") or []), "waiver": _json_or_none(r.get("waiver")),
+            "waiver_requested": _json_or_none(r.get("waiver_requested")), "waived_verdict": r.get("waived_verdict"),
+        }
+        for name, values in cols.items():
+            values.append(row[name])
+    schema = pa.schema([pa.field(name, pa.bool_() if t == "bool" else pa.float64() if t == "float64"
+                                 else pa.string()) for name, t in PARQUET_COLUMNS],
+                       metadata={"orthospec.qcr.schema": str(doc.get("schema")),
+                                 "orthospec.qcr.date": str(doc.get("date")),
+                                 "orthospec.delivery": str((doc.get("delivery") or {}).get("id"))})
+    table = pa.table({name: pa.array(values, type=schema.field(name).type) for name, values in cols.items()},
+                     schema=schema)
+    buf = pa.BufferOutputStream()
+    pq.write_table(table, buf, compression="zstd", store_schema=True)
+    return buf.getvalue().to_pybytes()
 
 
 def to_junit(doc: dict[str, Any]) -> str:
@@ -633,14 +710,22 @@ def _umask() -> int:
     return mask
 
 
-def render_all(doc: dict[str, Any], formats: Iterable[str]) -> dict[str, str | bytes]:
-    """Every requested machine output in memory first, so nothing partial is ever written."""
-    out: dict[str, str | bytes] = {}
+Output = str | bytes | Iterable[str]
+
+
+def render_all(doc: dict[str, Any], formats: Iterable[str]) -> dict[str, Output]:
+    """Every requested machine output, written by ``api.write_outputs`` all or none.
+
+    qcr.json is a stream of pieces (:func:`iter_dumps`), written to its temporary file piece by
+    piece; the other outputs are rendered in memory first."""
+    out: dict[str, Output] = {}
     fmts = set(formats)
     if "json" in fmts:
-        out["qcr.json"] = dumps(doc)
+        out["qcr.json"] = iter_dumps(doc)
     if "csv" in fmts:
         out["qcr.csv"] = to_csv(doc)
     if "junit" in fmts:
         out["junit.xml"] = to_junit(doc)
+    if "parquet" in fmts:
+        out["qcr.parquet"] = to_parquet(doc)
     return out

@@ -11,21 +11,23 @@ from rich.console import Console
 
 from .. import verdicts as V
 from ..api import CheckOptions, check, default_output_dir, refuse_inside_delivery, write_outputs
-from ..qcr import render_all
+from ..qcr import Output, render_all, require_pyarrow
 from ..reports.terminal import render as render_terminal
 from .groups import main
 from .options import date_option, param_option, profile_option, split_formats
 
-FORMATS = ("terminal", "json", "csv", "junit", "html", "pdf")
+FORMATS = ("terminal", "json", "csv", "junit", "parquet", "html", "pdf")
 
 
-def render_documents(doc: dict, fmts: list[str], *, extra: dict | None = None) -> dict[str, str | bytes]:
-    """Machine outputs plus HTML/PDF reports, all in memory (nothing partial is ever written)."""
+def render_documents(doc: dict, fmts: list[str], *, shown: dict | None = None) -> dict[str, Output]:
+    """Machine outputs of ``doc`` plus HTML/PDF reports of ``shown`` (``doc`` with the ledger's
+    history for the reader; qcr.json never carries it), written later all or none."""
     out = render_all(doc, fmts)
     if "html" in fmts or "pdf" in fmts:
         from ..reports import document as reportdoc  # heavy imports only when asked for
 
-        out.update(reportdoc.render(doc, formats=[f for f in fmts if f in ("html", "pdf")], extra=extra))
+        out.update(reportdoc.render(shown if shown is not None else doc,
+                                    formats=[f for f in fmts if f in ("html", "pdf")]))
     return out
 
 
@@ -63,6 +65,8 @@ def check_cmd(delivery: Path, profile: str, params: tuple[str, ...], out_dir: Pa
               ledger_target: str | None = None, checker_file: Path | None = None) -> None:
     """Check DELIVERY against a spec profile; exit 0 accepted, 1 rejected, 2 could not evaluate."""
     fmts = split_formats(formats, FORMATS)
+    if "parquet" in fmts:
+        require_pyarrow()  # exit 2 before the check, not after it
     workers = _workers(workers)
     # refuse what would write into the delivery, and a ledger that cannot be used, before the check
     refuse_inside_delivery(out_dir if out_dir is not None else Path("reports"), delivery,
@@ -85,8 +89,7 @@ def check_cmd(delivery: Path, profile: str, params: tuple[str, ...], out_dir: Pa
     shown = doc
     if ledger_target is not None and ("html" in fmts or "pdf" in fmts):
         shown = {**doc, "history": _history_with_this_run(ledger_target, doc)}
-    files = render_documents(shown, [f for f in fmts if f != "terminal"],
-                             extra={"evaluation": result.evaluation})
+    files = render_documents(doc, [f for f in fmts if f != "terminal"], shown=shown)
     target = out_dir if out_dir is not None else default_output_dir(doc["delivery"]["id"])
     refuse_inside_delivery(target, delivery, what="output folder")
     write_outputs(target, files)
