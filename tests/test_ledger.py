@@ -16,6 +16,7 @@ from alembic.config import Config
 from alembic.runtime.migration import MigrationContext
 
 import pg
+from checking import MINI_CHECKER
 from conftest import DATA, IMAGES, MANIFEST, MANUAL
 from orthospec.api import check
 from orthospec.errors import LedgerError
@@ -32,7 +33,7 @@ from orthospec.ledger import (
 from orthospec.ledger import models as m
 from orthospec.ledger.audit import RunRecords, audit_states
 from orthospec.ledger.history import classify
-from orthospec.qcr import dumps
+from orthospec.qcr import all_records, dumps
 
 IMAGES_OK = """\
 image_id,file,block,roll,flying_height,std_dn
@@ -66,9 +67,11 @@ def docs(tmp_path_factory: pytest.TempPathFactory) -> list[dict[str, Any]]:
         (root / "tables" / "manual.csv").write_text(MANUAL, encoding="utf-8")
         roots.append(root)
     profile = DATA / "profiles" / "mini.yaml"
-    return [check(roots[0], profile, date="2026-01-01").document,
-            check(roots[1], profile, date="2026-01-10").document,
-            check(roots[1], profile, date="2026-01-11").document]
+    checker = base / "checker.yaml"  # the checker's manual verdict and waiver (INTERFACES item 4)
+    checker.write_text(MINI_CHECKER, encoding="utf-8")
+    return [check(roots[0], profile, date="2026-01-01", checker=checker).document,
+            check(roots[1], profile, date="2026-01-10", checker=checker).document,
+            check(roots[1], profile, date="2026-01-11", checker=checker).document]
 
 
 def _engine(url: str) -> sa.Engine:
@@ -123,8 +126,9 @@ def test_record_keeps_every_qcr_and_the_document(ledger_url: str, docs: list[dic
         assert run.manifest_sha256 == doc["delivery"]["manifest_sha256"]
         assert dict(run.files) == {f["path"]: f["sha256"] for f in doc["delivery"]["files"]}
         rows = led.qcrs(rid)
-        assert len(rows) == run.n_records == len(doc["records"])
-        for row, rec in zip(rows, doc["records"], strict=True):
+        records = list(all_records(doc))
+        assert len(rows) == run.n_records == len(records)
+        for row, rec in zip(rows, records, strict=True):
             assert (row["rule"], row["item"], row["verdict"]) == (rec["rule"], rec["item"], rec["verdict"])
             assert row["measured"] == rec["measured"]["value"]
             assert row["requirement_text"] == rec["requirement"]["text"]

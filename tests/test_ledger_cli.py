@@ -84,6 +84,21 @@ blocks: [{{id: B1}}, {{id: B2}}]
 tables: {{images: tables/images.csv, manual_checks: tables/manual.csv}}
 """
 MANUAL = "check,item,inspector,date,verdict\nR-VIS,*,Joe Bloggs,2026-01-01,pass\n"
+#: the checker's verdict of the manual rule (the delivery's table above is only the contractor's
+#: statement, INTERFACES item 4); a file outside every delivery
+CHECKER = """\
+orthospec_checker: 1
+checker: {name: Carla Checker (fictional), role: external QC}
+manual_checks:
+  - {check: R-VIS, item: "*", date: 2026-01-01, verdict: pass, note: visual check of every image}
+"""
+
+
+@pytest.fixture(scope="module")
+def checker_file(tmp_path_factory: pytest.TempPathFactory) -> str:
+    p = tmp_path_factory.mktemp("checker") / "checker.yaml"
+    p.write_text(CHECKER, encoding="utf-8")
+    return str(p)
 
 
 @pytest.fixture(params=["sqlite", pytest.param("postgres", marks=pytest.mark.postgres)])
@@ -119,14 +134,19 @@ def run(*args: str) -> Result:
     return CliRunner().invoke(cli(), list(args), catch_exceptions=False)
 
 
-def test_three_rounds_until_accepted(tmp_path: Path, profile: Path, ledger_url: str) -> None:
+def check(checker: str, *args: str) -> Result:
+    """``orthospec check ARGS --checker CHECKER``."""
+    return run("check", *args, "--checker", checker)
+
+
+def test_three_rounds_until_accepted(tmp_path: Path, profile: Path, ledger_url: str, checker_file: str) -> None:
     """JRC §12.8: fail, partial fix (tightened audit), pass; history shows the sequence."""
     rounds = [("D1", {"I3": 5.0, "I14": 6.0}), ("D1-R1", {"I14": 4.0}), ("D1-R2", {})]
     outputs = []
     for k, (did, rolls) in enumerate(rounds, start=1):
         deliv = write_delivery(tmp_path / did, did, rolls)
-        res = run("check", str(deliv), "-p", str(profile), "--format", "json", "--out",
-                  str(tmp_path / "out" / did), "--date", f"2026-0{k}-01", "--ledger", ledger_url)
+        res = check(checker_file, str(deliv), "-p", str(profile), "--format", "json", "--out",
+                    str(tmp_path / "out" / did), "--date", f"2026-0{k}-01", "--ledger", ledger_url)
         assert f"recorded run #{k} in ledger" in res.output, res.output
         assert res.exit_code == (1 if k < 3 else 0)
         outputs.append(json.loads((tmp_path / "out" / did / "qcr.json").read_text()))
@@ -240,10 +260,10 @@ def _in_transaction(url: str) -> bool:
 
 @pytest.mark.slow
 def test_check_killed_mid_write_leaves_the_ledger_intact(tmp_path: Path, profile: Path,
-                                                         ledger_url: str) -> None:
+                                                         ledger_url: str, checker_file: str) -> None:
     small = write_delivery(tmp_path / "small", "D0", {})
-    assert run("check", str(small), "-p", str(profile), "--format", "json", "--out",
-               str(tmp_path / "o0"), "--ledger", ledger_url).exit_code == 0
+    assert check(checker_file, str(small), "-p", str(profile), "--format", "json", "--out",
+                 str(tmp_path / "o0"), "--ledger", ledger_url).exit_code == 0
     with open_ledger(ledger_url, create=False) as led:
         before = led.verify()
     big = write_delivery(tmp_path / "big", "D-BIG", {"I7": 8.0}, n=3000)
@@ -251,7 +271,7 @@ def test_check_killed_mid_write_leaves_the_ledger_intact(tmp_path: Path, profile
     env = {**os.environ, "ORTHOSPEC_LEDGER_PAUSE": "60", "ORTHOSPEC_LEDGER_PAUSE_MARKER": str(marker)}
     proc = subprocess.Popen(
         [sys.executable, "-m", "orthospec.cli.main", "check", str(big), "-p", str(profile), "--format",
-         "json", "--out", str(tmp_path / "o1"), "--ledger", ledger_url],
+         "json", "--out", str(tmp_path / "o1"), "--ledger", ledger_url, "--checker", checker_file],
         env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     try:
         deadline = time.monotonic() + 60
@@ -278,8 +298,8 @@ def test_check_killed_mid_write_leaves_the_ledger_intact(tmp_path: Path, profile
         assert conn.execute(sa.text("SELECT count(*) FROM qcrs WHERE run_id <> 1")).scalar_one() == 0
     eng.dispose()
     # the ledger is writable again: the killed writer's lock is gone
-    res = run("check", str(small), "-p", str(profile), "--format", "json", "--out",
-              str(tmp_path / "o2"), "--ledger", ledger_url)
+    res = check(checker_file, str(small), "-p", str(profile), "--format", "json", "--out",
+                str(tmp_path / "o2"), "--ledger", ledger_url)
     assert "recorded run #2" in res.output
     with open_ledger(ledger_url, create=False) as led:
         assert led.verify().ok and led.runs()[-1].delivery_id == "D0"

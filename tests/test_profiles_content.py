@@ -413,7 +413,7 @@ def test_profile_validates_except_pending_measures(name: str) -> None:
 @loader_ready
 def test_pending_measures_are_still_pending() -> None:
     """When a provider lands, drop its measure from PENDING_MEASURES (keeps the list honest)."""
-    from orthospec.engine.registry import measure_info
+    from orthospec.engine.catalog import measure_info
 
     landed = sorted(m for m in PENDING_MEASURES if measure_info(m) is not None)
     assert not landed, f"providers now exist for {landed}: remove them from PENDING_MEASURES"
@@ -434,7 +434,7 @@ def test_tender_example_resolves_with_overrides() -> None:
 
 
 def measure_info_missing() -> list[str]:
-    from orthospec.engine.registry import measure_info
+    from orthospec.engine.catalog import measure_info
 
     return [m for m in PENDING_MEASURES if measure_info(m) is None]
 

@@ -11,6 +11,7 @@ from tests.conftest import EXAMPLES
 
 from orthospec.api import check
 from orthospec.measures.synthetic import slanted_edge
+from orthospec.qcr import all_records
 
 PROFILE_HEAD = """\
 orthospec_profile: 1
@@ -45,7 +46,7 @@ def rule(rid, scope, measure, req, consequence="reject_item", extra=""):
 
 
 def recs(doc, rid):
-    return {r["item"]: r for r in doc["records"] if r["rule"] == rid}
+    return {r["item"]: r for r in all_records(doc) if r["rule"] == rid}
 
 
 def test_block_rmse_equals_numpy_on_the_example(tmp_path):

@@ -9,7 +9,7 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
-from ..delivery.template import write_template
+from ..spec.template import write_template
 from .groups import main
 
 
@@ -31,7 +31,7 @@ def init_cmd(folder: Path, profile: str | None, sensor: str) -> None:
 @click.argument("profile")
 def verify_cmd(profile: str) -> None:
     """Run a profile's own test deliveries against the verdicts they expect, per rule."""
-    from ..spec.verify import verify_profile
+    from ..verify import verify_profile
 
     outcomes = verify_profile(profile)
     t = Table("test", "expected", "got", "result", box=None, header_style="bold")

@@ -16,6 +16,7 @@ from typing import Any
 
 import click
 
+from .. import verdicts as V
 from ..errors import LedgerError
 from ..ledger import MARGIN, ROLES, Ledger, open_ledger
 from ..ledger.history import History
@@ -27,8 +28,8 @@ ledger_option = click.option(
          "(default $ORTHOSPEC_LEDGER, else ./orthospec-ledger.sqlite).")
 json_option = click.option("--json", "as_json", is_flag=True, help="Print JSON instead of text.")
 
-_SHORT = {"pass": "pass", "fail": "FAIL", "warn": "warn", "missing": "MISS", "error": "ERR",
-          "waived": "wvd", "not_applicable": "n/a", "rejected": "REJ"}
+_SHORT = {V.PASS: "pass", V.FAIL: "FAIL", V.WARN: "warn", V.MISSING: "MISS", V.ERROR: "ERR",
+          V.WAIVED: "wvd", V.NOT_APPLICABLE: "n/a", V.REJECTED: "REJ"}
 
 
 def _open(target: str | None) -> Ledger:
@@ -54,7 +55,7 @@ def _grid(title: str, rows: dict[str, dict[int, str]], run_ids: list[int]) -> li
     return lines
 
 
-_QUIET = frozenset({"pass", "not_applicable"})
+_QUIET = frozenset({V.PASS, V.NOT_APPLICABLE})
 
 
 def _changing(rows: dict[str, dict[int, str]]) -> dict[str, dict[int, str]]:
@@ -166,7 +167,7 @@ def _manual(values: tuple[str, ...]) -> dict[str, str]:
     out = {}
     for v in values:
         rule, sep, verdict = v.partition("=")
-        if not sep or verdict.strip().lower() not in ("pass", "fail") or not rule.strip():
+        if not sep or verdict.strip().lower() not in (V.PASS, V.FAIL) or not rule.strip():
             raise click.BadParameter(f"{v!r}: expected RULE=pass or RULE=fail", param_hint="--manual")
         out[rule.strip()] = verdict.strip().lower()
     return out

@@ -8,6 +8,7 @@ from typing import Literal
 
 import yaml
 
+from ..errors import SpecError
 from ..resources import specs_dir
 
 ColumnType = Literal["text", "number", "bool", "date", "datetime"]
@@ -29,6 +30,7 @@ class TableSpec:
     id: str | None
     description: str
     columns: dict[str, ColumnSpec]
+    items: bool = False  # its rows are the items of its scope (`items: true` in the YAML)
 
     @property
     def required(self) -> list[str]:
@@ -45,5 +47,33 @@ def table_specs() -> dict[str, TableSpec]:
                           s.get("description", ""))
             for c, s in t["columns"].items()
         }
-        out[name] = TableSpec(name, t["scope"], t.get("id"), t.get("description", ""), cols)
+        out[name] = TableSpec(name, t["scope"], t.get("id"), t.get("description", ""), cols,
+                              bool(t.get("items", False)))
     return out
+
+
+@lru_cache(maxsize=1)
+def _scope_tables() -> dict[str, str]:
+    out: dict[str, str] = {}
+    for name, spec in table_specs().items():
+        if spec.items:
+            if spec.scope in out or spec.id is None:
+                raise SpecError(f"specs/delivery-tables.yaml: table {name!r}: `items: true` needs an id "
+                                 f"column and one table per scope (scope {spec.scope!r})")
+            out[spec.scope] = name
+    return out
+
+
+def table_of_scope(scope: str) -> str | None:
+    """The table whose rows are the items of ``scope`` (``image`` -> ``images``), else None.
+
+    The one scope -> table map (issue 15): read from ``items: true`` in specs/delivery-tables.yaml.
+    Scopes whose items come from the manifest (delivery, project, block, edge) have none.
+    """
+    return _scope_tables().get(scope)
+
+
+def scope_of_table(table: str) -> str | None:
+    """The scope of a known table (any table, not only the items tables), else None."""
+    spec = table_specs().get(table)
+    return spec.scope if spec is not None else None

@@ -1,9 +1,13 @@
-"""Measure providers: adapt a delivery to named measure columns, once per run, lazily.
+"""Measure providers register here: ``@provider(scope=..., measures={name: unit})``.
 
 A provider is a function ``fn(ctx: ProviderContext) -> Iterable[Measured]`` registered for one
-scope and a fixed set of measure names with their units. The evaluator asks the registry for
-the provider of a measure only when a rule needs it, so a profile that never reads rasters
-never opens one.
+scope and a fixed set of measure names with their units. This module holds only what a provider
+needs (the decorator, ``Measured``, ``ProviderContext``, ``RowEvidence``, the scopes) and imports
+no provider: finding the providers (built-in modules, plugins), looking a measure up and calling
+each provider once per run live one level up, in engine/catalog.py. So a provider module (built-in
+or plugin) imports this module, and nothing here imports a provider (no cycle, issue 15 item 2).
+A registered measure is announced to spec/catalog.py, so profile validation knows plugin measures
+without importing the engine.
 """
 
 from __future__ import annotations
@@ -15,8 +19,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pandas as pd
 
-from ..errors import MeasureError, OrthospecError
+from ..errors import MeasureError
 from ..provenance import Evidence
+from ..spec import catalog as spec_catalog
 
 if TYPE_CHECKING:
     from ..delivery.reader import Delivery
@@ -123,41 +128,10 @@ def provider(*, scope: str, measures: Mapping[str, str]) -> Callable[[ProviderFn
             if name in _PROVIDERS and _PROVIDERS[name].fn is not fn:
                 raise ValueError(f"measure {name!r} is provided twice")
             _PROVIDERS[name] = spec
+            spec_catalog.announce(name, scope, spec.measures[name])
         return fn
 
     return deco
-
-
-def _load_builtin() -> None:
-    import importlib
-    import pkgutil
-
-    from . import providers
-
-    for info in sorted(pkgutil.iter_modules(providers.__path__), key=lambda i: i.name):
-        importlib.import_module(f"{providers.__name__}.{info.name}")
-
-
-def known_measures() -> dict[str, ProviderSpec]:
-    _load_builtin()
-    return dict(sorted(_PROVIDERS.items()))
-
-
-def lookup(name: str) -> ProviderSpec | None:
-    _load_builtin()
-    return _PROVIDERS.get(name)
-
-
-def measure_info(name: str) -> tuple[str, str] | None:
-    """(scope, unit) of any measure a rule may name, or None if nobody provides it."""
-    spec = lookup(name)
-    if spec is not None:
-        return spec.scope, spec.measures[name]
-    if name.startswith("rollup."):
-        return ROLLUP.get(name)
-    from . import generic
-
-    return generic.info(name)
 
 
 #: Measures the evaluator computes itself in its second phase, from item verdicts.
@@ -335,55 +309,13 @@ class UnknownMeasure(MeasureError, KeyError):
         return f"no provider for measure {self.args[0]!r}"
 
 
-class MeasureCache:
-    """Calls each provider at most once per run; remembers failures as per-measure errors."""
+_MOVED = ("MeasureCache", "known_measures", "lookup", "measure_info")
 
-    def __init__(self, ctx: ProviderContext) -> None:
-        self.ctx = ctx
-        self._done: dict[int, dict[str, Measured] | Exception] = {}
-        self._generic: dict[tuple[str, str], Measured | Exception] = {}
 
-    def get(self, name: str) -> Measured:
-        spec = lookup(name)
-        if spec is None:
-            from . import generic
+def __getattr__(name: str) -> Any:
+    """Moved to engine/catalog.py; kept until every importer uses the new home (issue 15)."""
+    if name in _MOVED:
+        from . import catalog
 
-            if generic.info(name) is None:
-                raise UnknownMeasure(name)
-            gkey = ("generic", name)
-            if gkey not in self._generic:
-                try:
-                    self._generic[gkey] = generic.compute(name, self.ctx.delivery)
-                except Exception as exc:
-                    self._generic[gkey] = exc
-            got_g = self._generic[gkey]
-            if isinstance(got_g, Exception):
-                raise got_g
-            return got_g
-        key = id(spec.fn)
-        if key not in self._done:
-            try:
-                out = {m.name: m for m in spec.fn(self.ctx)}
-                self._done[key] = out
-            except OrthospecError as exc:
-                self._done[key] = exc
-            except Exception as exc:  # a provider bug must not stop other rules
-                self._done[key] = exc
-        got = self._done[key]
-        if isinstance(got, Exception):
-            raise got
-        if name not in got:
-            raise UnknownMeasure(name)
-        return got[name]
-
-    def details(self) -> dict[str, Any]:
-        """Per-provider extras for reports (e.g. the checkpoint table), from providers that ran."""
-        out: dict[str, Any] = {}
-        for got in self._done.values():
-            if isinstance(got, Exception):
-                continue
-            for m in got.values():
-                if m.detail:
-                    for k, v in m.detail.items():
-                        out.setdefault(k, v)
-        return dict(sorted(out.items()))
+        return getattr(catalog, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

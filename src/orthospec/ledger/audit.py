@@ -24,12 +24,14 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+from .. import verdicts as V
+
 NORMAL, TIGHTENED = "normal", "tightened"
 #: default relative distance to a threshold under which a pass counts as marginal
 MARGIN = 0.05
-FAILING = frozenset({"fail", "missing", "error"})
+FAILING = V.FAILING
 #: verdicts that say nothing about the family's performance
-NEUTRAL = frozenset({"not_applicable", "waived"})
+NEUTRAL = V.NEUTRAL
 
 
 @dataclass(frozen=True)
@@ -88,11 +90,11 @@ def outcome(verdict: str, measured: Any, requirement: Mapping[str, Any], *,
     if verdict in NEUTRAL:
         return None
     if verdict in FAILING:
-        return "fail"
-    if verdict == "warn":
+        return V.FAIL
+    if verdict == V.WARN:
         return "marginal"
-    if verdict == "pass":
-        return "marginal" if is_marginal(measured, requirement, margin=margin) else "pass"
+    if verdict == V.PASS:
+        return "marginal" if is_marginal(measured, requirement, margin=margin) else V.PASS
     return None
 
 
@@ -133,10 +135,10 @@ def audit_states(runs: Iterable[RunRecords], *, margin: float = MARGIN) -> dict[
                 continue
             per_family.setdefault(rec["family"], []).append((out, rec["rule"], rec["item"]))
         for fam, outs in sorted(per_family.items()):
-            bad = [(o, r, i) for o, r, i in outs if o != "pass"]
+            bad = [(o, r, i) for o, r, i in outs if o != V.PASS]
             prev = states.get(fam)
             if bad:
-                n_fail = sum(o == "fail" for o, _, _ in bad)
+                n_fail = sum(o == V.FAIL for o, _, _ in bad)
                 n_marg = len(bad) - n_fail
                 rules = sorted({r for _, r, _ in bad})
                 what = ", ".join(p for p in (f"{n_fail} failing" if n_fail else "",

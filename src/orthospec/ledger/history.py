@@ -8,23 +8,15 @@ redelivery (new manifest or file checksums); a run over content already seen is 
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from .store import RunInfo
+from ..verdicts import FAILING, REJECTED, worst
+from .runs import RunInfo, document_content_key
 
-#: worst first (same order as the evaluator's roll-up)
-SEVERITY = ("error", "fail", "missing", "warn", "waived", "pass", "not_applicable")
-FAILING = frozenset({"fail", "missing", "error"})
-
-
-def worst(verdicts: Sequence[str] | set[str]) -> str:
-    present = set(verdicts)
-    for v in SEVERITY:
-        if v in present:
-            return v
-    return "not_applicable"
+#: the kinds of run in a project's sequence (JRC §12.8)
+DELIVERY, REDELIVERY, RECHECK = "delivery", "redelivery", "recheck"
 
 
 @dataclass(frozen=True)
@@ -45,20 +37,37 @@ class History:
     blocks: dict[str, dict[int, str]]
 
 
-def rounds(runs: Sequence[RunInfo]) -> list[tuple[str, int]]:
-    """(kind, round) per run, oldest first, counted per project."""
+def rounds_of(runs: Iterable[tuple[str, str]]) -> list[tuple[str, int]]:
+    """(kind, round) per (project id, content key), oldest first, counted per project.
+
+    The one redelivery-round computation (issue 15): a run over content the project already had
+    is a re-check of that content's round; new content (manifest or any file checksum differs,
+    whatever the delivery id says) opens the next round.
+    """
     seen: dict[str, dict[str, int]] = {}
     count: dict[str, int] = {}
     out = []
-    for r in runs:
-        keys = seen.setdefault(r.project_id, {})
-        if r.content_key in keys:
-            out.append(("recheck", keys[r.content_key]))
+    for project, key in runs:
+        keys = seen.setdefault(project, {})
+        if key in keys:
+            out.append((RECHECK, keys[key]))
             continue
-        count[r.project_id] = count.get(r.project_id, 0) + 1
-        keys[r.content_key] = count[r.project_id]
-        out.append(("delivery" if count[r.project_id] == 1 else "redelivery", count[r.project_id]))
+        count[project] = count.get(project, 0) + 1
+        keys[key] = count[project]
+        out.append((DELIVERY if count[project] == 1 else REDELIVERY, count[project]))
     return out
+
+
+def rounds(runs: Sequence[RunInfo]) -> list[tuple[str, int]]:
+    """(kind, round) per recorded run, oldest first, counted per project."""
+    return rounds_of((r.project_id, r.content_key) for r in runs)
+
+
+def round_of_document(runs: Sequence[RunInfo], doc: Mapping[str, Any]) -> tuple[str, int]:
+    """(kind, round) the QCR document ``doc`` gets when recorded after ``runs`` (its project's)."""
+    project = str((doc["delivery"].get("project") or {}).get("id") or "")
+    pairs = [(r.project_id, r.content_key) for r in runs]
+    return rounds_of([*pairs, (project, document_content_key(doc))])[-1]
 
 
 def build_history(project: str | None, runs: Sequence[RunInfo],
@@ -77,9 +86,9 @@ def build_history(project: str | None, runs: Sequence[RunInfo],
             if q["scope"] == "block":
                 blocks.setdefault(q["item"], {}).setdefault(r.id, set()).add(v)
         for b in (r.summary.get("rejected") or {}).get("block", []):
-            blocks.setdefault(str(b), {}).setdefault(r.id, set()).add("rejected")
+            blocks.setdefault(str(b), {}).setdefault(r.id, set()).add(REJECTED)
     rule_view = {k: {rid: worst(vs) for rid, vs in per.items()} for k, per in sorted(rules.items())}
-    block_view = {k: {rid: ("rejected" if "rejected" in vs else worst(vs)) for rid, vs in per.items()}
+    block_view = {k: {rid: (REJECTED if REJECTED in vs else worst(vs)) for rid, vs in per.items()}
                   for k, per in sorted(blocks.items())}
     return History(project, entries, rule_view, block_view)
 
@@ -138,3 +147,15 @@ def history_rows(entries: Sequence[HistoryEntry], *, current_run: int | None = N
              "delivery": e.run.delivery_id, "verdict": e.run.verdict, "signoffs": e.signoffs,
              "profile": f"{e.run.profile_id} {e.run.profile_version}", "current": e.run.id == current_run}
             for e in entries]
+
+
+def history_rows_before_recording(entries: Sequence[HistoryEntry], doc: Mapping[str, Any]) -> list[dict[str, Any]]:
+    """The project's recorded runs, then the row ``doc`` (checked now, recorded right after its
+    reports are rendered) will have: the report archived at check time states the same round as
+    ``orthospec report --ledger --run N`` later does."""
+    rows = history_rows(entries)
+    kind, n = round_of_document([e.run for e in entries], doc)
+    rows.append({"run": "new", "round": n, "kind": kind, "date": doc["date"], "delivery": doc["delivery"]["id"],
+                 "verdict": doc["verdict"], "signoffs": 0,
+                 "profile": f"{doc['profile']['id']} {doc['profile']['version']}", "current": True})
+    return rows

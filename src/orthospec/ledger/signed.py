@@ -16,6 +16,8 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+from .. import verdicts as V
+
 __all__ = ["after_signoff", "apply_manual"]
 
 _REJECTING = ("reject_item", "reject_block", "return_delivery")
@@ -37,20 +39,20 @@ def apply_manual(records: Sequence[Mapping[str, Any]], decided: Mapping[str, Map
     out = []
     for r in records:
         d = decided.get(r["rule"])
-        if d is None or not r.get("manual") or r["verdict"] == "not_applicable":
+        if d is None or not r.get("manual") or r["verdict"] == V.NOT_APPLICABLE:
             out.append(dict(r))
             continue
         v = d["verdict"]
-        if v == "fail" and r.get("level") == "recommended":
-            v = "warn"
+        if v == V.FAIL and r.get("level") == "recommended":
+            v = V.WARN
         out.append({**r, "verdict": v, "signed_verdict": d["verdict"],
                     "message": f"signed {d['verdict']} by {d['by']} ({d['role']}) on {d['date']}"})
     return out
 
 
 def _blocking(r: Mapping[str, Any], fail_on: str) -> bool:
-    bad = ("fail", "missing", "error") + (("warn",) if fail_on == "warn" else ())
-    if r.get("level") == "recommended" and fail_on != "warn":
+    bad = V.FAILING | ({V.WARN} if fail_on == V.WARN else set())
+    if r.get("level") == "recommended" and fail_on != V.WARN:
         return False
     return r["verdict"] in bad and r.get("consequence") in _REJECTING
 
@@ -60,30 +62,32 @@ def after_signoff(doc: Mapping[str, Any], signoffs: Sequence[Mapping[str, Any]])
     decided = decisions(signoffs)
     if not decided:
         return None
-    fail_on = str(doc.get("fail_on", "fail"))
-    records = doc.get("records") or []
+    from ..qcr import all_records  # the QCR model is only needed once a run has signed verdicts
+
+    fail_on = str(doc.get("fail_on", V.FAIL))
+    records = list(all_records(doc))
     applied = apply_manual(records, decided)
     summary = dict(doc.get("summary") or {})
-    for k in ("pass", "fail", "warn", "missing", "error", "waived", "not_applicable"):
+    for k in V.VERDICTS:
         summary[k] = sum(r["verdict"] == k for r in applied)
-    signed_fail = any(r.get("signed_verdict") == "fail" and _blocking(r, fail_on) for r in applied)
+    signed_fail = any(r.get("signed_verdict") == V.FAIL and _blocking(r, fail_on) for r in applied)
     if signed_fail:
-        verdict, basis = "rejected", "a manual check that can reject was signed fail"
-    elif doc.get("verdict") == "accepted":
-        verdict, basis = "accepted", "the run was accepted and no manual check was signed failing"
+        verdict, basis = V.REJECTED, "a manual check that can reject was signed fail"
+    elif doc.get("verdict") == V.ACCEPTED:
+        verdict, basis = V.ACCEPTED, "the run was accepted and no manual check was signed failing"
     else:
         open_ = [r for r in records if _blocking(r, fail_on)
-                 and not (r.get("manual") and (decided.get(r["rule"]) or {}).get("verdict") == "pass")]
+                 and not (r.get("manual") and (decided.get(r["rule"]) or {}).get("verdict") == V.PASS)]
         if open_:
             rules = sorted({r["rule"] for r in open_})
-            verdict = "rejected"
+            verdict = V.REJECTED
             basis = (f"{len(open_)} rejecting record(s) are not manual checks signed pass "
                      f"({', '.join(rules[:4])}{', …' if len(rules) > 4 else ''})")
         else:
-            verdict, basis = "accepted", "every rejecting record was a manual check signed pass"
+            verdict, basis = V.ACCEPTED, "every rejecting record was a manual check signed pass"
     counts: dict[str, int] = {}
     for r in records:
-        if r.get("manual") and r["rule"] in decided and r["verdict"] != "not_applicable":
+        if r.get("manual") and r["rule"] in decided and r["verdict"] != V.NOT_APPLICABLE:
             counts[r["rule"]] = counts.get(r["rule"], 0) + 1
     rows = [{**d, "records": counts.get(rule, 0)} for rule, d in sorted(decided.items())]
     return {"verdict": verdict, "basis": basis, "summary": summary, "decisions": rows}

@@ -21,21 +21,28 @@ import os
 import time
 from collections.abc import Iterable, Iterator, Mapping
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from sqlalchemy import Connection, Engine, create_engine, event, func, select, text, update
 from sqlalchemy.engine import make_url
 from sqlalchemy.exc import ArgumentError, DBAPIError, NoSuchModuleError, OperationalError
 
+from .. import verdicts as V
 from ..errors import LedgerError
 from . import models as m
 from .audit import MARGIN, NORMAL, TIGHTENED, FamilyState, RunRecords, audit_states, family_of
 from .chain import canonical, run_hash, sha256_text, signoff_hash
-
-if TYPE_CHECKING:
-    from .history import Diff, History
+from .history import (
+    Diff,
+    History,
+    build_history,
+    diff_verdicts,
+    history_rows,
+    history_rows_before_recording,
+)
+from .runs import RunInfo
 
 #: the file used when neither ``--ledger`` nor ``ORTHOSPEC_LEDGER`` names one
 DEFAULT_LEDGER = "orthospec-ledger.sqlite"
@@ -61,35 +68,6 @@ def to_url(target: str | os.PathLike[str]) -> str:
     if s.startswith(("postgresql://", "postgres://")):
         return "postgresql+psycopg://" + s.split("://", 1)[1]
     return s
-
-
-@dataclass(frozen=True)
-class RunInfo:
-    """One recorded check run (the row, without its QCRs and document)."""
-
-    id: int
-    seq: int
-    recorded_at: str
-    date: str
-    project_id: str
-    delivery_id: str
-    delivery_path: str | None
-    manifest_sha256: str
-    profile_id: str
-    profile_version: str
-    profile_sha256: str
-    verdict: str
-    fail_on: str
-    operator: str | None
-    n_records: int
-    summary: dict[str, Any]
-    hash: str
-    files: tuple[tuple[str, str], ...] = field(default=())   # (path, sha256)
-
-    @property
-    def content_key(self) -> str:
-        """Identity of what was delivered: manifest and every file checksum."""
-        return sha256_text(canonical([self.manifest_sha256, sorted(self.files)]))
 
 
 @dataclass(frozen=True)
@@ -173,7 +151,10 @@ class Ledger:
 
     def record(self, document: Mapping[str, Any], *, recorded_at: str | None = None) -> int:
         """Record one check run (its qcr.json document) and return the new run id."""
-        from ..qcr import dumps  # the exact qcr.json text: its sha256 matches the file's
+        from ..qcr import (  # the exact qcr.json text: its sha256 matches the file's
+            all_records,
+            dumps,
+        )
 
         if not isinstance(document, Mapping) or document.get("schema") != QCR_SCHEMA:
             got = document.get("schema") if isinstance(document, Mapping) else type(document).__name__
@@ -189,13 +170,13 @@ class Ledger:
             files = [{"path": str(f["path"]), "sha256": str(f["sha256"]),
                       "bytes": None if f.get("bytes") is None else int(f["bytes"])}
                      for f in d.get("files", [])]
-            qrows = [_qcr_row(i, rec) for i, rec in enumerate(document["records"])]
+            qrows = [_qcr_row(i, rec) for i, rec in enumerate(all_records(document))]
             fields: dict[str, Any] = {
                 "date": str(document["date"]), "project_id": project, "delivery_id": str(d["id"]),
                 "delivery_path": d.get("path"), "manifest_sha256": str(d["manifest_sha256"]),
                 "profile_id": str(p["id"]), "profile_version": str(p["version"]),
                 "profile_sha256": str(p["sha256"]), "verdict": str(document["verdict"]),
-                "fail_on": str(document.get("fail_on", "fail")), "operator": document.get("operator"),
+                "fail_on": str(document.get("fail_on", V.FAIL)), "operator": document.get("operator"),
                 "n_records": len(qrows), "summary": canonical(summary), "document": doc_text,
                 "document_sha256": sha256_text(doc_text),
             }
@@ -239,7 +220,7 @@ class Ledger:
         except ValueError:
             raise LedgerError(f"sign-off date {day!r}: expected YYYY-MM-DD") from None
         verdicts = dict(manual or {})
-        bad = {k: v for k, v in verdicts.items() if v not in ("pass", "fail")}
+        bad = {k: v for k, v in verdicts.items() if v not in (V.PASS, V.FAIL)}
         if bad:
             raise LedgerError(f"manual verdicts {bad}: each must be 'pass' or 'fail'")
         with self._write() as (conn, seq, prev):
@@ -262,7 +243,7 @@ class Ledger:
             if run.operator and _same_person(run.operator, by) and role != "operator":
                 raise LedgerError(f"{by.strip()} ran check run {run_id} (its checker) and cannot countersign "
                                   f"it as {role}: JRC §2.4 asks for an independent countersignature")
-            if run.verdict == "rejected" and not acknowledge_rejection:
+            if run.verdict == V.REJECTED and not acknowledge_rejection:
                 raise LedgerError(f"run {run_id} was REJECTED; signing it records that you accept that "
                                   "verdict: repeat with --acknowledge-rejection (CLI) to sign anyway")
             earlier = conn.execute(select(m.signoffs.c.by_name, m.signoffs.c.role, m.signoffs.c.manual,
@@ -274,7 +255,7 @@ class Ledger:
                     if not verdicts or all(signed.get(k) == v for k, v in verdicts.items()):
                         raise LedgerError(f"{by.strip()} already signed run {run_id} as {role} on {e.date}: "
                                           "a duplicate sign-off is refused")
-            if acknowledge_rejection and run.verdict == "rejected":
+            if acknowledge_rejection and run.verdict == V.REJECTED:
                 note = ACK_PREFIX + (f" {note}" if note else "")
             sid = int(conn.execute(select(func.coalesce(func.max(m.signoffs.c.id), 0))).scalar_one()) + 1
             row: dict[str, Any] = {
@@ -340,7 +321,6 @@ class Ledger:
     def report_document(self, run_id: int) -> dict[str, Any]:
         """What a report of ``run_id`` shows: its document, sign-offs and the project's sequence of
         deliveries, redeliveries and verdicts up to that run (JRC §12.8: redeliver until acceptable)."""
-        from .history import history_rows
         from .signed import after_signoff
 
         doc = self.document_with_signoffs(run_id)
@@ -399,8 +379,6 @@ class Ledger:
 
     def history(self, project: str | None = None) -> History:
         """Deliveries, redeliveries and re-checks with verdicts per run, rule and block."""
-        from .history import build_history
-
         runs = self.runs(project)
         ids = [r.id for r in runs]
         qrows: dict[int, list[Mapping[str, Any]]] = {i: [] for i in ids}
@@ -416,10 +394,14 @@ class Ledger:
             counts[s["run"]] = counts.get(s["run"], 0) + 1
         return build_history(project, runs, qrows, manual, counts)
 
+    def history_before_recording(self, doc: Mapping[str, Any]) -> list[dict[str, Any]]:
+        """The JRC §12.8 sequence a report rendered *before* ``record(doc)`` shows: the project's
+        recorded runs, then this run (``"run": "new"``) with the round it will be recorded with."""
+        project = str((doc["delivery"].get("project") or {}).get("id") or "")
+        return history_rows_before_recording(self.history(project).entries, doc)
+
     def diff(self, run_a: int, run_b: int) -> Diff:
         """Per (rule, item): fixed, newly failing, still failing, changed, added, removed."""
-        from .history import diff_verdicts
-
         self.run(run_a), self.run(run_b)  # a clear error for an unknown id
         return diff_verdicts(run_a, run_b, self.effective_verdicts(run_a), self.effective_verdicts(run_b))
 

@@ -19,10 +19,9 @@ import os
 import tempfile
 from functools import lru_cache
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-if TYPE_CHECKING:
-    from .loader import ResolvedProfile
+from ..yamlio import YamlError, read_regular
 
 FORMAT = 1
 _PKG = Path(__file__).resolve().parent.parent
@@ -46,7 +45,8 @@ def code_fingerprint() -> str:
     from .catalog import fingerprint as measures_fingerprint
 
     h = hashlib.sha256(f"{FORMAT}|{__version__}|{measures_fingerprint()}".encode())
-    files = [*sorted((_PKG / "spec").glob("*.py")), _PKG / "units.py", _PKG / "delivery" / "manifest.py"]
+    files = [*sorted((_PKG / "spec").glob("*.py")), _PKG / "units.py", _PKG / "yamlio.py",
+             _PKG / "delivery" / "manifest.py"]
     for p in files:
         h.update(p.name.encode() + b"\0")
         try:
@@ -68,9 +68,6 @@ def key(path: Path, sha256: str) -> str:
 
 
 def _sha(path: str) -> str | None:
-    from .loader import read_regular
-    from .yamlio import YamlError
-
     try:
         return hashlib.sha256(read_regular(Path(path))).hexdigest()
     except (OSError, YamlError):
@@ -82,8 +79,12 @@ def chain_current(chain_shas: list[tuple[str, str]] | tuple[tuple[str, str], ...
     return bool(chain_shas) and all(_sha(f) == sha for f, sha in chain_shas)
 
 
-def get(k: str) -> tuple[ResolvedProfile, list[tuple[str, str]]] | None:
-    """The cached profile for key ``k`` and its chain hashes, or None (miss, stale or unreadable)."""
+def get(k: str) -> tuple[dict[str, Any], list[tuple[str, str]]] | None:
+    """The cached payload for key ``k`` and its chain hashes, or None (miss, stale or unreadable).
+
+    The payload is the JSON the loader wrote (``loader.dump_resolved``); the loader rebuilds the
+    profile from it (and treats a payload it cannot rebuild as a miss), so this module never
+    imports the loader."""
     d = cache_dir()
     if d is None:
         return None
@@ -98,18 +99,20 @@ def get(k: str) -> tuple[ResolvedProfile, list[tuple[str, str]]] | None:
         chain_shas = [(str(a), str(b)) for a, b in doc["files"]]
         if not chain_current(chain_shas):
             return None
-        prof = _rebuild(doc["profile"])
-    except Exception:  # a damaged entry is a miss, never an error
+        payload = doc["profile"]
+        if not isinstance(payload, dict):
+            return None
+    except (KeyError, TypeError, ValueError, AttributeError):  # a damaged entry is a miss, never an error
         return None
-    return prof, chain_shas
+    return payload, chain_shas
 
 
-def put(k: str, prof: ResolvedProfile, chain_shas: list[tuple[str, str]]) -> None:
+def put(k: str, payload: dict[str, Any], chain_shas: list[tuple[str, str]]) -> None:
     """Write an entry atomically; a cache that cannot be written is silently skipped."""
     d = cache_dir()
     if d is None:
         return
-    doc = {"format": FORMAT, "key": k, "files": [list(t) for t in chain_shas], "profile": _dump(prof)}
+    doc = {"format": FORMAT, "key": k, "files": [list(t) for t in chain_shas], "profile": payload}
     try:
         d.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(prefix=".tmp-", suffix=".json", dir=d)
@@ -122,40 +125,3 @@ def put(k: str, prof: ResolvedProfile, chain_shas: list[tuple[str, str]]) -> Non
             raise
     except (OSError, ValueError, TypeError):
         return
-
-
-def _dump(p: ResolvedProfile) -> dict[str, Any]:
-    return {
-        "canonical": p.canonical,
-        "sha256": p.sha256,
-        "description": p.description,
-        "tests": [t.model_dump(mode="json") for t in p.tests],
-        "path": str(p.path),
-        "chain": [list(c) for c in p.chain],
-        "allow_no_mandatory": p.allow_no_mandatory,
-        "overridden": {k: list(v) for k, v in p.overridden.items()},
-    }
-
-
-def _rebuild(d: dict[str, Any]) -> ResolvedProfile:
-    from .loader import Removal, ResolvedProfile, canonical_dumps
-    from .models import ClassSet, LookupTable, Parameter, ProfileTest, ProfileWaiver, Rule, Source
-
-    c = d["canonical"]
-    sha = hashlib.sha256(canonical_dumps(c).encode("utf-8")).hexdigest()
-    if sha != d["sha256"]:
-        raise ValueError("cache entry does not hash to its recorded sha256")
-    return ResolvedProfile(
-        id=c["id"], version=c["version"], title=c["title"], description=d.get("description"),
-        source=Source.model_validate(c["source"]),
-        parameters={k: Parameter.model_validate(v) for k, v in c["parameters"].items()},
-        tables={k: LookupTable.model_validate(v) for k, v in c["tables"].items()},
-        classes={k: ClassSet.model_validate(v) for k, v in c["classes"].items()},
-        rules=tuple(Rule.model_validate(r) for r in c["rules"]),
-        tests=tuple(ProfileTest.model_validate(t) for t in d.get("tests", [])),
-        waivers=tuple(ProfileWaiver.model_validate(w) for w in c["waivers"]),
-        path=Path(d["path"]), chain=tuple((a, b, f) for a, b, f in d["chain"]),
-        canonical=c, sha256=sha, allow_no_mandatory=bool(d.get("allow_no_mandatory")),
-        removed=tuple(Removal(x["id"], x["justification"], x["profile"]) for x in c.get("removed_rules", [])),
-        overridden={k: tuple(v) for k, v in d.get("overridden", {}).items()},
-    )

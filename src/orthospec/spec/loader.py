@@ -15,9 +15,7 @@ from __future__ import annotations
 import difflib
 import hashlib
 import json
-import os
 import re
-import stat
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import lru_cache
@@ -28,8 +26,8 @@ from pydantic import BaseModel, ValidationError
 
 from ..errors import ExpressionError, SpecError, UnitError
 from ..resources import specs_dir
+from ..yamlio import Located, YamlError, load_text, read_regular
 from .models import Parameter, Profile, Rule, RuleOverride
-from .yamlio import Located, YamlError, YamlLimits, load_text
 
 if TYPE_CHECKING:
     from . import expr
@@ -148,28 +146,6 @@ def _rules_of(doc: Located) -> list[Any]:
 # --- reading files: one parse per file per process -------------------------------------------
 
 _DOCS: dict[tuple[str, str], Located] = {}
-
-
-def read_regular(path: Path, limit: int | None = None) -> bytes:
-    """The bytes of a regular file, at most ``limit`` (default: the YAML size limit).
-
-    Opened without blocking and checked with fstat, so a FIFO or device named like a profile is
-    refused instead of waited on or read forever (issue 17).
-    """
-    lim = YamlLimits.from_env().bytes if limit is None else limit
-    try:
-        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
-    except FileNotFoundError:
-        raise YamlError(f"{path}: file not found") from None
-    except OSError as exc:
-        raise YamlError(f"{path}: cannot read: {exc.strerror}") from None
-    with os.fdopen(fd, "rb") as fh:
-        st = os.fstat(fh.fileno())
-        if not stat.S_ISREG(st.st_mode):
-            raise YamlError(f"{path}: not a regular file")
-        if limit is None and st.st_size > lim:
-            raise YamlError(f"{path}: {st.st_size:,} bytes exceed the limit of {lim:,} (ORTHOSPEC_MAX_YAML_BYTES)")
-        return fh.read(lim)
 
 
 def _file_bytes(path: Path) -> bytes:
@@ -450,11 +426,24 @@ def find_profile(ref: str | Path, *, near: Path | None = None, version: str | No
     return find_by_id(str(ref), version=version, near=near)
 
 
+def plugin_profiles() -> list[tuple[str, str, str, Path]]:
+    """Profiles installed plugins ship (``orthospec.profiles`` entry points), as ``available``."""
+    from .. import plugins
+
+    dirs = list(plugins.profile_dirs())
+    if not dirs:
+        return []
+    inside = {d.resolve() for d in dirs}
+    return [t for t in available(dirs) if t[3].parent.resolve() in inside]
+
+
 def find_by_id(pid: str, *, version: str | None = None, near: Path | None = None) -> Path:
-    """A profile by id (and pinned version): shipped profiles first, then ``near``'s folder.
+    """A profile by id (and pinned version): shipped profiles first, then ``near``'s folder, then
+    the profiles of installed plugins (orthospec/plugins.py).
 
     An id is never a path: ``extends: {id: evil.yaml}`` does not open a file of that name. The
-    shipped profiles win, so a file in the tender's folder cannot stand in for a shipped standard.
+    shipped profiles win, so a file in the tender's folder (or a plugin) cannot stand in for a
+    shipped standard.
     """
     def match(rows: list[tuple[str, str, str, Path]]) -> list[tuple[str, str, str, Path]]:
         return [t for t in rows if t[0] == pid and (version is None or t[1] == version)]
@@ -467,9 +456,14 @@ def find_by_id(pid: str, *, version: str | None = None, near: Path | None = None
         if version is not None and len(hits) > 1:
             files = ", ".join(str(t[3]) for t in hits)
             raise SpecError(f"profile {pid!r} version {version} is defined by several files: {files}")
+    if not hits:  # plugins are looked for only when needed: importlib.metadata costs ~0.1 s
+        hits = match(plugin_profiles())
+        if version is not None and len(hits) > 1:
+            files = ", ".join(str(t[3]) for t in hits)
+            raise SpecError(f"profile {pid!r} version {version} is shipped by several plugins: {files}")
     if hits:
         return sorted(hits, key=lambda t: _semver_key(t[1]))[-1][3]
-    have = available([near] if near else None)
+    have = sorted({*available([near] if near else None), *plugin_profiles()}, key=lambda t: (t[0], t[1]))
     known = ", ".join(f"{i} {v}" for i, v, _, _ in have) or "none"
     pin = f" version {version}" if version else ""
     close = difflib.get_close_matches(pid, sorted({i for i, _, _, _ in have}), n=1, cutoff=0.6)
@@ -524,8 +518,13 @@ def _load(path: Path, *, check_measures: bool) -> tuple[ResolvedProfile | None, 
             return hit[0], []
     got = cache.get(k)
     if got is not None:
-        _RESOLVED[k] = got
-        return got[0], []
+        try:
+            rebuilt = (_rebuild(got[0]), got[1])
+        except (KeyError, TypeError, ValueError):  # a damaged entry is a miss, never an error
+            rebuilt = None
+        if rebuilt is not None:
+            _RESOLVED[k] = rebuilt
+            return rebuilt[0], []
     problems: list[Problem] = []
     resolved = _resolve(path, problems, depth=0, seen=())
     if resolved is not None and not problems:
@@ -539,10 +538,51 @@ def _load(path: Path, *, check_measures: bool) -> tuple[ResolvedProfile | None, 
         _RESOLVED.clear()
     if check_measures:
         _RESOLVED[k] = (resolved, shas)
-        cache.put(k, resolved, shas)
+        from .catalog import extended_by_plugins
+
+        if not extended_by_plugins():  # validity then depends on installed plugins: not cached on disk
+            cache.put(k, _dump(resolved), shas)
     else:
         _RESOLVED[k + ":nomeasures"] = (resolved, shas)
     return resolved, []
+
+
+def _dump(p: ResolvedProfile) -> dict[str, Any]:
+    """The JSON payload spec/cache.py stores for a resolved profile (_rebuild reads it back)."""
+    return {
+        "canonical": p.canonical,
+        "sha256": p.sha256,
+        "description": p.description,
+        "tests": [t.model_dump(mode="json") for t in p.tests],
+        "path": str(p.path),
+        "chain": [list(c) for c in p.chain],
+        "allow_no_mandatory": p.allow_no_mandatory,
+        "overridden": {k: list(v) for k, v in p.overridden.items()},
+    }
+
+
+def _rebuild(d: dict[str, Any]) -> ResolvedProfile:
+    """The profile from a cache payload (raises KeyError/TypeError/ValueError when damaged)."""
+    from .models import ClassSet, LookupTable, ProfileTest, ProfileWaiver, Source
+
+    c = d["canonical"]
+    sha = hashlib.sha256(canonical_dumps(c).encode("utf-8")).hexdigest()
+    if sha != d["sha256"]:
+        raise ValueError("cache entry does not hash to its recorded sha256")
+    return ResolvedProfile(
+        id=c["id"], version=c["version"], title=c["title"], description=d.get("description"),
+        source=Source.model_validate(c["source"]),
+        parameters={k: Parameter.model_validate(v) for k, v in c["parameters"].items()},
+        tables={k: LookupTable.model_validate(v) for k, v in c["tables"].items()},
+        classes={k: ClassSet.model_validate(v) for k, v in c["classes"].items()},
+        rules=tuple(Rule.model_validate(r) for r in c["rules"]),
+        tests=tuple(ProfileTest.model_validate(t) for t in d.get("tests", [])),
+        waivers=tuple(ProfileWaiver.model_validate(w) for w in c["waivers"]),
+        path=Path(d["path"]), chain=tuple((a, b, f) for a, b, f in d["chain"]),
+        canonical=c, sha256=sha, allow_no_mandatory=bool(d.get("allow_no_mandatory")),
+        removed=tuple(Removal(x["id"], x["justification"], x["profile"]) for x in c.get("removed_rules", [])),
+        overridden={k: tuple(v) for k, v in d.get("overridden", {}).items()},
+    )
 
 
 def _format(problems: list[Problem]) -> str:

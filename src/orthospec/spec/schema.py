@@ -1,14 +1,13 @@
-"""Generate the published JSON Schemas (profile, delivery manifest, QCR) from the models.
+"""The profile JSON Schema, generated from the pydantic models of spec/models.py.
 
-`python -m orthospec.spec.schema` rewrites specs/schema/*.json (and the measure catalog
-measures.json, see spec/catalog.py); a test fails when they are stale.
+Writing every published schema (profile, delivery manifest, QCR, measure catalog) needs the
+QCR model and the engine, which sit above spec/: that is orthospec/schemas.py
+(``python -m orthospec.schemas``).
 """
 
 from __future__ import annotations
 
 import json
-import sys
-from pathlib import Path
 from typing import Any
 
 from .models import Profile
@@ -33,35 +32,9 @@ def profile_schema() -> dict[str, Any]:
     return s
 
 
-def all_schemas() -> dict[str, dict[str, Any]]:
-    from ..delivery.manifest import manifest_schema
-    from ..qcr import qcr_schema
-
-    return {
-        "profile.schema.json": profile_schema(),
-        "delivery.schema.json": manifest_schema(),
-        "qcr.schema.json": qcr_schema(),
-    }
-
-
 def dumps(schema: dict[str, Any]) -> str:
     return json.dumps(schema, indent=2, sort_keys=True, ensure_ascii=False) + "\n"
 
 
-def write(folder: Path) -> list[Path]:
-    folder.mkdir(parents=True, exist_ok=True)
-    out = []
-    for name, schema in all_schemas().items():
-        p = folder / name
-        p.write_text(dumps(schema), encoding="utf-8")
-        out.append(p)
-    from .catalog import write as write_catalog
-
-    out.append(write_catalog(folder))
-    return out
-
-
 if __name__ == "__main__":  # pragma: no cover
-    target = Path(sys.argv[1]) if len(sys.argv) > 1 else Path("specs/schema")
-    for p in write(target):
-        print(p)
+    raise SystemExit("moved: run `python -m orthospec.schemas` (it writes every published schema)")

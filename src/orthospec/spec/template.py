@@ -1,5 +1,5 @@
 """`orthospec init DIR [--profile ID --sensor aerial|satellite]`: a delivery template that validates
-as written. With a profile, it holds every table, column and document that profile reads for that
+as written (in spec/: it is what a profile reads, written in the delivery convention). With a profile, it holds every table, column and document that profile reads for that
 sensor (required and optional marked in TEMPLATE.md and in the manifest's comments); the manifest
 points at a local copy of the JSON Schema (an editor validates it offline)."""
 
@@ -7,8 +7,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from ..delivery.convention import table_of_scope, table_specs
 from ..errors import DeliveryError
-from .convention import table_specs
+from .applicability import cannot_apply
+from .catalog import measure_info
+from .loader import load_profile
 
 MANIFEST_TEMPLATE = """\
 # yaml-language-server: $schema=./delivery.schema.json
@@ -51,16 +54,18 @@ waivers: []                         # - {{rule: RULE-ID, items: [ITEM], justific
 """
 
 
-_HEAD_TABLE = {"raster": "images", "camera": "cameras", "flight": "flights", "checkpoint": "checkpoints",
-               "manual": "manual_checks", "derived": "images", "geometry": "images", "mosaic": "images"}
+def _table_read(head: str, col: str) -> str | None:
+    """The delivery table a measure reference reads: the table it names, else the items table of
+    the measure's scope (``raster.gsd`` is an image measure: images)."""
+    if head in table_specs():
+        return head
+    info = measure_info(f"{head}.{col}")
+    return table_of_scope(info[0]) if info is not None else None
 
 
 def profile_needs(profile: str, sensor: str) -> tuple[dict[str, dict[str, list[str]]], dict[str, str]]:
     """What ``profile`` reads for ``sensor``: {table: {column: [rule ids]}} and {document: level}."""
     import re
-
-    from ..reports.annex import cannot_apply
-    from ..spec.loader import load_profile
 
     prof = load_profile(profile)
     specs = table_specs()
@@ -75,7 +80,7 @@ def profile_needs(profile: str, sensor: str) -> tuple[dict[str, dict[str, list[s
                 head, col = ref
                 if head == "manifest":
                     continue
-                table = head if head in specs else _HEAD_TABLE.get(head)
+                table = _table_read(head, col)
                 if table is None:
                     continue
                 cols = tables.setdefault(table, {})

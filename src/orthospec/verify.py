@@ -1,12 +1,15 @@
-"""Run a profile's own `tests:` (delivery + params + expected verdicts) so tender authors can test specs."""
+"""Run a profile's own `tests:` (delivery + params + expected verdicts) so tender authors can test specs.
+
+At the api level (it runs checks), not in spec/ (issue 15 item 2)."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..errors import SpecError
-from .loader import load_profile
+from .api import check
+from .errors import SpecError
+from .spec.loader import load_profile
 
 
 @dataclass(frozen=True)
@@ -23,8 +26,6 @@ class Outcome:
 
 
 def verify_profile(ref: str | Path) -> list[Outcome]:
-    from ..api import check
-
     prof = load_profile(ref)
     outcomes = []
     for i, t in enumerate(prof.tests):
