@@ -20,8 +20,12 @@ from .groups import main, spec
 @click.argument("paths", nargs=-1, type=click.Path(exists=True, path_type=Path))
 def profiles_cmd(paths: tuple[Path, ...]) -> None:
     """List shipped profiles (and those in PATHS: files or folders) with version."""
+    from ..spec.loader import plugin_profiles
+
     extra = [p for p in paths if p.is_dir()]
     rows = available(extra)
+    seen = {r[3].resolve() for r in rows}
+    rows += [r for r in plugin_profiles() if r[3].resolve() not in seen]  # profiles installed plugins ship
     for p in paths:
         if p.is_file():
             prof = load_profile(p, check_measures=False)
@@ -233,7 +237,8 @@ def _evidence_hint(measure: str) -> str:
 @main.command("measures")
 def measures_cmd() -> None:
     """List the measures rules may read (besides the generic <table>.<column> ones)."""
-    from ..engine.registry import ROLLUP, describe, known_measures
+    from ..engine.catalog import known_measures
+    from ..engine.registry import ROLLUP, describe
 
     cols = ("measure", "scope", "unit", "provider", "description")
     rows = [(name, specx.scope, specx.measures[name], specx.fn.__module__.rsplit(".", 1)[-1], describe(name))

@@ -21,6 +21,7 @@ from markupsafe import Markup, escape
 from ..errors import ExpressionError, ReportError
 from ..qcr import natural_key
 from ..resources import templates_dir
+from ..spec.applicability import cannot_apply
 from ..spec.expr import parse
 from ..spec.loader import ResolvedProfile
 from ..spec.models import Parameter, Requirement, Rule
@@ -196,28 +197,6 @@ def tender_sensor(profile: ResolvedProfile) -> tuple[set[str], bool | None]:
     return types, digital
 
 
-_TYPE_EQ = re.compile(r"manifest\.sensor\.type\s*(==|!=)\s*['\"](\w+)['\"]")
-_DIGITAL_EQ = re.compile(r"manifest\.sensor\.digital\s*==\s*(true|false)")
-SATELLITE_TABLES = ("scenes.",)
-
-
-def cannot_apply(rule: Rule, sensors: set[str], digital: bool | None) -> str | None:
-    """Why ``rule`` cannot apply under the tender's sensor, or None. Only conjunctive conditions
-    are read (a condition with 'or' is kept: it might apply)."""
-    when = " ".join((rule.when or "").split())
-    if when and " or " not in when:
-        for op, val in _TYPE_EQ.findall(when):
-            if sensors and op == "==" and val not in sensors:
-                return f"applies to {val} sensors only"
-            if sensors and op == "!=" and sensors == {val}:
-                return f"does not apply to {val} sensors"
-        for val in _DIGITAL_EQ.findall(when):
-            if digital is not None and (val == "true") != digital:
-                return "applies to film cameras only" if val == "false" else "applies to digital sensors only"
-    if sensors and "satellite" not in sensors and (
-            rule.measure.startswith(SATELLITE_TABLES) or any(t in when for t in SATELLITE_TABLES)):
-        return "reads the satellite scenes table"
-    return None
 
 
 def _parent(profile: ResolvedProfile) -> ResolvedProfile | None:
