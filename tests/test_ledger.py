@@ -189,6 +189,22 @@ def test_history_rounds_and_diff(ledger_url: str, docs: list[dict[str, Any]]) ->
             led.diff(ids[0], 42)
 
 
+def test_round_before_recording_is_the_round_recorded(ledger_url: str, docs: list[dict[str, Any]]) -> None:
+    """The row a report shows for a run not yet recorded (check time) has the kind and round the
+    ledger gives that run once recorded; keyed on content, not on the delivery id (all three
+    documents say D1: the second has different images, the third is a re-check of it)."""
+    assert {d["delivery"]["id"] for d in docs} == {"D1"}
+    with open_ledger(ledger_url) as led:
+        for n, doc in enumerate(docs, start=1):
+            before = led.history_before_recording(doc)
+            assert [r["run"] for r in before] == [*range(1, n), "new"] and before[-1]["current"]
+            rid = led.record(doc)
+            after = led.report_document(rid)["history"]
+            assert [(r["kind"], r["round"]) for r in after] == [(r["kind"], r["round"]) for r in before]
+            assert after[-1]["current"] and after[-1]["run"] == rid
+        assert [(r["kind"], r["round"]) for r in after] == [("delivery", 1), ("redelivery", 2), ("recheck", 2)]
+
+
 @pytest.mark.parametrize(("before", "after", "status"), [
     ("fail", "pass", "fixed"), ("missing", "waived", "fixed"), ("pass", "fail", "newly_failing"),
     (None, "error", "newly_failing"), ("fail", "fail", "still_failing"), ("fail", "missing", "still_failing"),
