@@ -75,7 +75,12 @@ def test_init_writes_a_valid_template(tmp_path):
 def test_verify_runs_profile_tests(mini_profile, make_delivery, tmp_path):
     root = make_delivery()
     prof = tmp_path / "v.yaml"
+    # the waiver in force comes from the profile (the delivery's own waiver is only a request);
+    # the second expectation is the planted mismatch: with no checker's file the manual check R-VIS
+    # is unsigned (missing), so the delivery cannot be accepted whatever max_roll is
     prof.write_text(mini_profile.read_text() + f"""
+waivers:
+  - {{rule: R-ROLL, items: [I3], justification: turbulence over the ridge, approver: ITT board}}
 tests:
   - delivery: {root}
     expect: {{verdict: rejected, rules: {{R-ROLL: waived, R-FH: fail}}}}
@@ -86,7 +91,7 @@ tests:
     res = run("verify", prof)
     assert "3 of 4 expectations met" in res.output, res.output
     assert res.exit_code == 1
-    assert "MISMATCH" in res.output
+    assert "tests[1] d: verdict      accepted  rejected  MISMATCH" in res.output, res.output
 
 
 def test_spec_diff_shows_effective_values_with_units_and_warns_on_same_version(tmp_path):
