@@ -153,8 +153,10 @@ def fast_bincount(values: np.ndarray, bins: int) -> np.ndarray:
     arrays go through bincount in slices converted into one reused intp buffer.
     """
     v = np.ascontiguousarray(values).ravel()
+    if v.size <= _BINCOUNT_SLICE:  # a small block: the 65536 pair bins would cost more than they save
+        return np.bincount(v, minlength=bins).astype(np.int64, copy=False)
     out = np.zeros(bins, dtype=np.int64)
-    if v.dtype.itemsize == 1 and bins == 256 and v.size >= 2:
+    if v.dtype.itemsize == 1 and bins == 256:
         if v.size % 2:
             out[int(v[-1])] += 1
             v = v[:-1]

@@ -13,7 +13,8 @@ import re
 import stat
 import warnings
 from collections import Counter
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
+from contextlib import ExitStack, contextmanager
 from dataclasses import asdict, dataclass, field
 from functools import lru_cache
 from pathlib import Path, PurePath
@@ -23,7 +24,7 @@ import numpy as np
 import rasterio
 
 from ..errors import MeasureError
-from .reading import gdal_errors, open_read_only, read_only_env, readable_vector
+from .reading import ScanSettings, gdal_errors, open_read_only, read_only_env, readable_vector
 
 #: Compression names (GDAL ``COMPRESSION`` tag / driver) that are always lossless.
 LOSSLESS = {"NONE", "LZW", "DEFLATE", "ZSTD", "PACKBITS", "LZMA", "CCITTRLE", "CCITTFAX3",
@@ -182,29 +183,52 @@ def check_file(path: str | Path, *, expect_epsg: int | None = None,
     ``expect_gsd`` is in the CRS's linear unit (metres for projected EPSG codes);
     ``gsd_tolerance`` is relative (0.01 = pixel size within 1 % of the specified GSD).
     """
+    with checked_file(path, expect_epsg=expect_epsg, expect_gsd=expect_gsd,
+                      gsd_tolerance=gsd_tolerance, min_bits=min_bits,
+                      recommended_bits=recommended_bits) as (checks, _ds):
+        return checks
+
+
+@contextmanager
+def checked_file(path: str | Path, *, expect_epsg: int | None = None,
+                 expect_gsd: float | None = None, gsd_tolerance: float = 0.01,
+                 min_bits: int = 8, recommended_bits: int = 11,
+                 settings: ScanSettings | None = None,
+                 ) -> Iterator[tuple[FileChecks, rasterio.io.DatasetReader | None]]:
+    """:func:`check_file`, keeping the dataset open (read-only) for a pixel scan.
+
+    Yields the checks and the open dataset, or None when it could not be opened: one open and
+    one GDAL environment per image instead of two (about 3 ms of a tiny image's budget).
+    A missing georeference is reported in ``error``, never printed as a warning.
+    """
     p = Path(path)
     name = check_name(p.name)
     base: dict[str, Any] = {"path": str(p), "name_ok": name.ok, "name_problems": name.problems}
     try:
         st = p.stat()
     except OSError as exc:
-        return FileChecks(error=f"{p}: cannot stat file: {exc.strerror or exc}", **base)
+        yield FileChecks(error=f"{p}: cannot stat file: {exc.strerror or exc}", **base), None
+        return
     if not stat.S_ISREG(st.st_mode):  # a FIFO or device would block or never end
-        return FileChecks(error=f"{p}: not a regular file", **base)
-    size = st.st_size
-    base["bytes"] = size
-    if size == 0:
-        return FileChecks(error=f"{p}: zero-size file", **base)
-    try:
-        with warnings.catch_warnings():
-            # reported as an error below; not a warning to print
-            warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
-            with read_only_env(), open_read_only(p) as ds, gdal_errors(file=p, what="raster header"):
-                return _check_open(ds, base, expect_epsg=expect_epsg,
-                                   expect_gsd=expect_gsd, gsd_tolerance=gsd_tolerance,
-                                   min_bits=min_bits, recommended_bits=recommended_bits)
-    except MeasureError as exc:  # refused (format, declared size) or GDAL could not read it
-        return FileChecks(error=str(exc), **base)
+        yield FileChecks(error=f"{p}: not a regular file", **base), None
+        return
+    base["bytes"] = st.st_size
+    if st.st_size == 0:
+        yield FileChecks(error=f"{p}: zero-size file", **base), None
+        return
+    with ExitStack() as stack, warnings.catch_warnings():
+        warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
+        ds = None
+        try:
+            stack.enter_context(read_only_env(settings))
+            ds = stack.enter_context(open_read_only(p))
+            with gdal_errors(file=p, what="raster header"):
+                checks = _check_open(ds, base, expect_epsg=expect_epsg, expect_gsd=expect_gsd,
+                                     gsd_tolerance=gsd_tolerance, min_bits=min_bits,
+                                     recommended_bits=recommended_bits)
+        except MeasureError as exc:  # refused (format, declared size) or GDAL could not read it
+            checks = FileChecks(error=str(exc), **base)
+        yield checks, ds
 
 
 def _check_open(ds: rasterio.io.DatasetReader, base: dict[str, Any], *, expect_epsg: int | None,

@@ -12,7 +12,6 @@ import multiprocessing
 import os
 import sys
 import time
-import warnings
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor, as_completed
 from contextlib import contextmanager, nullcontext, suppress
@@ -25,8 +24,8 @@ import rasterio
 from ..errors import MeasureError, OrthospecError
 from ..provenance import sha256_file
 from .cache import ResultCache
-from .filechecks import check_file
-from .reading import ScanSettings, mask_share, scan_raster
+from .filechecks import checked_file
+from .reading import ScanSettings, mask_share, scan_dataset
 
 STATISTICS_NOTE = "exact, population std, nodata excluded per band, as GDAL"
 
@@ -141,34 +140,34 @@ def scan_image(path: str | Path, options: ScanOptions | None = None, *,
     o = options or ScanOptions()
     t0 = time.perf_counter()
     p = str(path)
-    checks = check_file(p, expect_epsg=o.expect_epsg, expect_gsd=o.expect_gsd,
-                        gsd_tolerance=o.gsd_tolerance)
-    rep = ImageReport(path=p, bytes=checks.bytes, checks=checks.to_dict(), error=checks.error)
-    if checks.error is not None and checks.bytes in (None, 0):
-        rep.seconds = time.perf_counter() - t0
-        return rep
-    raster = not (checks.error is not None and checks.driver is None)
-    # With a result cache the hash decides whether to scan at all: compute it first. Without
-    # one, hash a big file in a thread while its pixels are scanned (one pass of wall time).
-    alongside = raster and not o.cache_dir and (checks.bytes or 0) >= HASH_THREAD_BYTES
-    with ThreadPoolExecutor(max_workers=1) if alongside else nullcontext() as pool:
-        hashing = pool.submit(_file_hash, p, o) if pool is not None else None
-        if hashing is None:
-            try:
-                rep.sha256 = _file_hash(p, o)
-            except OSError as exc:
-                rep.error = f"{p}: cannot read file: {exc.strerror or exc}"
-                return rep
-        if not raster:
+    with checked_file(p, expect_epsg=o.expect_epsg, expect_gsd=o.expect_gsd,
+                      gsd_tolerance=o.gsd_tolerance, settings=o.settings) as (checks, ds):
+        rep = ImageReport(path=p, bytes=checks.bytes, checks=checks.to_dict(), error=checks.error)
+        if checks.error is not None and checks.bytes in (None, 0):
             rep.seconds = time.perf_counter() - t0
-            return rep  # not a raster at all: nothing more to measure
-        _measure_pixels(rep, p, o)
-        if hashing is not None:
-            try:
-                rep.sha256 = hashing.result()
-            except OSError as exc:
-                rep.error, rep.radiometry = f"{p}: cannot read file: {exc.strerror or exc}", None
-                return rep
+            return rep
+        raster = ds is not None and not (checks.error is not None and checks.driver is None)
+        # With a result cache the hash decides whether to scan at all: compute it first. Without
+        # one, hash a big file in a thread while its pixels are scanned (one pass of wall time).
+        alongside = raster and not o.cache_dir and (checks.bytes or 0) >= HASH_THREAD_BYTES
+        with ThreadPoolExecutor(max_workers=1) if alongside else nullcontext() as pool:
+            hashing = pool.submit(_file_hash, p, o) if pool is not None else None
+            if hashing is None:
+                try:
+                    rep.sha256 = _file_hash(p, o)
+                except OSError as exc:
+                    rep.error = f"{p}: cannot read file: {exc.strerror or exc}"
+                    return rep
+            if not raster or ds is None:
+                rep.seconds = time.perf_counter() - t0
+                return rep  # not a raster at all: nothing more to measure
+            _measure_pixels(rep, p, o, ds)
+            if hashing is not None:
+                try:
+                    rep.sha256 = hashing.result()
+                except OSError as exc:
+                    rep.error, rep.radiometry = f"{p}: cannot read file: {exc.strerror or exc}", None
+                    return rep
     if cloud_mask is not None and rep.error is None:
         try:
             rep.cloud_cover_pct = mask_share(cloud_mask, settings=o.settings).percent
@@ -178,8 +177,8 @@ def scan_image(path: str | Path, options: ScanOptions | None = None, *,
     return rep
 
 
-def _measure_pixels(rep: ImageReport, p: str, o: ScanOptions) -> None:
-    """Radiometry from the cache (by SHA-256 and settings) or from one scan of the pixels."""
+def _measure_pixels(rep: ImageReport, p: str, o: ScanOptions, ds: rasterio.io.DatasetReader) -> None:
+    """Radiometry from the cache (by SHA-256 and settings) or from one scan of the open dataset."""
     cached = None
     if o.cache_dir and rep.sha256:
         with ResultCache(o.cache_dir, read_only=True) as cache:
@@ -188,9 +187,7 @@ def _measure_pixels(rep: ImageReport, p: str, o: ScanOptions) -> None:
         rep.radiometry, rep.cached = cached, True
         return
     try:
-        with warnings.catch_warnings():  # a missing georeference is already a file-check finding
-            warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
-            rep.radiometry = scan_raster(p, o.settings).to_dict()
+        rep.radiometry = scan_dataset(ds, o.settings, file=p).to_dict()
     except OrthospecError as exc:  # refused or unreadable: reading.gdal_errors maps GDAL's errors
         rep.error = str(exc) if p in str(exc) else f"{p}: {exc}"
     except Exception as exc:

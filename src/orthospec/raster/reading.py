@@ -359,9 +359,22 @@ def scan_raster(path: str | Path, settings: ScanSettings | None = None) -> Raste
         when the raster cannot be read to the end (truncated or corrupt blocks).
     """
     s = settings or ScanSettings()
+    with read_only_env(s), open_read_only(path) as ds:
+        return scan_dataset(ds, s, file=path)
+
+
+def scan_dataset(ds: rasterio.io.DatasetReader, settings: ScanSettings | None = None, *,
+                 file: str | Path | None = None) -> RasterStats:
+    """:func:`scan_raster` of a dataset already opened with :func:`open_read_only`.
+
+    Raises
+    ------
+    MeasureError
+        naming ``file`` (default the dataset's name) when the pixels cannot be read to the end.
+    """
     SCAN_COUNT["scans"] += 1
-    with read_only_env(s), open_read_only(path) as ds, gdal_errors(file=path, what="raster (pixels)"):
-        return _scan(ds, s)
+    with gdal_errors(file=file or ds.name, what="raster (pixels)"):
+        return _scan(ds, settings or ScanSettings())
 
 
 def _scan(ds: rasterio.io.DatasetReader, s: ScanSettings) -> RasterStats:
@@ -381,7 +394,7 @@ def _scan(ds: rasterio.io.DatasetReader, s: ScanSettings) -> RasterStats:
 
     # chunk k goes to accumulator set k % 2, whatever the number of threads, so that the
     # floating-point sums (noise, float moments) do not depend on the machine's cores
-    accs = (acc, _Accumulators.for_bands(infos, s))
+    accs = (acc, _Accumulators.for_bands(infos, s)) if len(wins) > 1 else (acc,)
     threads = max(1, min(s.threads, os.cpu_count() or 1, len(accs), len(wins)))
 
     def feed(k: int, win: Window, data: np.ndarray, mask: np.ndarray | None) -> None:
@@ -412,7 +425,8 @@ def _scan(ds: rasterio.io.DatasetReader, s: ScanSettings) -> RasterStats:
             for fut in running:
                 if fut is not None:
                     fut.result()
-    acc.merge(accs[1])
+    for other in accs[1:]:
+        acc.merge(other)
     # floats / 32-bit: second pass for the binned histogram between exact min and max
     binned: dict[int, rad.BinnedHistogramAccumulator] = {}
     if acc.moms:
