@@ -113,7 +113,7 @@ def diff_cmd(a: str, b: str, as_json: bool, show_all: bool) -> None:
     import json
 
     from ..reports.annex import requirement_text
-    from ..spec.wording import param_value
+    from ..spec.wording import param_value, unit_suffix
 
     pa, pb = load_profile(a), load_profile(b)
     d = diff_profiles(pa, pb)
@@ -142,9 +142,8 @@ def diff_cmd(a: str, b: str, as_json: bool, show_all: bool) -> None:
         par = p.parameters.get(name)  # type: ignore[attr-defined]
         if par is None:
             return "—"
-        unit = f" {par.unit}" if par.unit and par.unit not in ("1", "text", "bool", "date") else ""
         v = param_value(par)
-        return "—" if v is None else f"{_show(v)}{unit}"
+        return "—" if v is None else f"{_show(v)}{unit_suffix(par.unit)}"
 
     for kind in ("parameters", "rules"):
         for name in d[kind]["added"]:

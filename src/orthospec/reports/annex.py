@@ -25,7 +25,7 @@ from ..spec.applicability import cannot_apply
 from ..spec.expr import parse
 from ..spec.loader import ResolvedProfile
 from ..spec.models import Parameter, Requirement, Rule
-from ..spec.wording import fmt_value, param_value, profile_requirement_text
+from ..spec.wording import NO_UNIT, fmt_value, param_value, profile_requirement_text
 from .findings import condition_prose
 from .html import environment
 
@@ -40,7 +40,6 @@ CONSEQUENCES = {
 }
 LEVELS = {"mandatory": "must be met (\"shall\", \"must\", \"will\")",
           "recommended": "should be met; failing it is reported as a warning"}
-_NO_UNIT = ("", "1", "text", "bool", "date", None)
 
 
 def _num(v: Any) -> str:
@@ -68,7 +67,7 @@ def _words(source: str) -> str:
 def requirement_text(req: Requirement, params: dict[str, Parameter]) -> str:
     """'≤ 0.166667 m': the requirement as the QCR words it (``spec.wording``), with the thresholds
     the profile's parameters fix, expressions evaluated over them."""
-    units = {params[n].unit for n in params if n in _names(req)} - set(_NO_UNIT)
+    units = {params[n].unit for n in params if n in _names(req)} - NO_UNIT - {None}
     evaluate = _evaluate if units <= {req.unit} else None  # a unit change is the checker's to make
     return profile_requirement_text(req, params, evaluate=evaluate, words=_words)
 

@@ -17,7 +17,12 @@ from .models import Requirement
 from .operators import operator
 
 #: units not printed after a number (dimensionless and the non-numeric kinds)
-_NO_UNIT = frozenset({"", "1", "text", "bool", "date", "any"})
+NO_UNIT = frozenset({"", "1", "text", "bool", "date", "any"})
+
+
+def unit_suffix(unit: str | None) -> str:
+    """What follows a number: ``" m"``, or nothing for a dimensionless or non-numeric unit."""
+    return f" {unit}" if unit and unit not in NO_UNIT else ""
 
 
 def fmt_value(x: Any) -> str:
@@ -70,8 +75,7 @@ def requirement_text(req: Requirement, resolved: dict[str, Any]) -> str:
 
 
 def _requirement_text(req: Requirement, resolved: dict[str, Any]) -> str:
-    unit = req.unit if req.unit is not None else resolved.get("unit")
-    suffix = f" {unit}" if unit and unit not in _NO_UNIT else ""
+    suffix = unit_suffix(req.unit if req.unit is not None else resolved.get("unit"))
 
     def show(key: str) -> str:
         """A threshold: its resolved number with the unit; text (a literal, an expression whose value
