@@ -192,6 +192,31 @@ def _column(values: list[Any]) -> list[Any] | dict[str, Any]:
     return values
 
 
+class _Shared:
+    """A compact column equal to one written before (rules over the same images share their item
+    list, often their evidence) is written as ``{"ref": [rule, column]}`` to that first one."""
+
+    MIN_LEN = 4
+    COLUMNS = ("items", "measured", "requirement", "evidence", "message", "waiver_requested")
+
+    def __init__(self) -> None:
+        self.seen: dict[str, list[str]] = {}
+        self.enc = json.JSONEncoder(ensure_ascii=False, allow_nan=False, separators=(",", ":")).encode
+
+    def apply(self, rule_id: str, block: dict[str, Any]) -> dict[str, Any]:
+        for col in self.COLUMNS:
+            values = block.get(col)
+            if not isinstance(values, list) or len(values) < self.MIN_LEN:
+                continue
+            key = self.enc(values)
+            first = self.seen.get(key)
+            if first is None:
+                self.seen[key] = [rule_id, col]
+            else:
+                block[col] = {"ref": first}
+        return block
+
+
 def _pass_message(measure: str, measured: Any, shown_unit: str, req_text: str) -> str:
     """The message of a pass/fail/warn record whose rule gave no note (one wording, two callers)."""
     return f"{measure} = {_fmt(measured)}{shown_unit}; required {req_text}"
@@ -199,6 +224,24 @@ def _pass_message(measure: str, measured: Any, shown_unit: str, req_text: str) -
 
 def _shown_unit(unit: str | None) -> str:
     return f" {unit}" if unit and unit not in ("1", "bool", "text", "date") else ""
+
+
+def _full(rule: Mapping[str, Any], item: str, verdict: str, measured: Any, requirement: dict[str, Any],
+          evidence: list[dict[str, Any]], message: str, waiver: Any = None, waiver_requested: Any = None,
+          waived_verdict: str | None = None) -> dict[str, Any]:
+    """A record as readers see it: what is particular to the item, plus what its rule summary
+    holds for every item (title, clause, quote, level, consequence, measure, unit, audit)."""
+    rec = {"rule": rule["rule"], "title": rule.get("title", ""), "clause": rule.get("citation") or {},
+           "quote": rule.get("quote", ""), "scope": rule.get("scope", ""), "item": item,
+           "level": rule.get("level"), "consequence": rule.get("consequence"), "manual": rule.get("manual", False),
+           "verdict": verdict, "measure": rule.get("measure", ""),
+           "measured": {"value": measured, "unit": rule.get("unit")}, "requirement": requirement,
+           "evidence": evidence, "message": message, "waiver": waiver, "waiver_requested": waiver_requested}
+    if waived_verdict is not None:
+        rec["waived_verdict"] = waived_verdict
+    if rule.get("audit") is not None:
+        rec["audit"] = rule["audit"]
+    return rec
 
 
 class _RuleRecords:
@@ -210,26 +253,23 @@ class _RuleRecords:
         self.r = r
         rule = r.rule
         self.text = requirement_text
-        self.clause = rule.clause.model_dump(mode="json", exclude_none=True)
-        self.base: dict[str, Any] = {
-            "rule": rule.id, "title": rule.title, "clause": self.clause, "quote": rule.quote, "scope": rule.scope,
-        }
-        self.tail: dict[str, Any] = {
-            "level": rule.level, "consequence": rule.consequence, "manual": rule.manual,
-        }
         self.req = stable({k: v for k, v in r.threshold.items() if not k.startswith("_")})
         self.arrays = r.threshold.get("_arrays")
         self.unit = r.unit if r.unit not in ("", "any") else None
         self.shown_unit = _shown_unit(self.unit)
-        self.audit = rule.audit.model_dump(mode="json", exclude_none=True) if rule.audit is not None else None
+        self.summary: dict[str, Any] = {
+            "rule": rule.id, "title": rule.title, "scope": rule.scope, "level": rule.level,
+            "consequence": rule.consequence, "citation": rule.clause.model_dump(mode="json", exclude_none=True),
+            "quote": rule.quote, "manual": rule.manual, "measure": rule.measure, "unit": self.unit,
+            "requirement": self.req,
+        }
+        if rule.audit is not None:
+            self.summary["audit"] = rule.audit.model_dump(mode="json", exclude_none=True)
 
     def summary_fields(self) -> dict[str, Any]:
-        """What every record of this rule shares: compact records take it from the rule summary."""
-        out = {"citation": self.clause, "quote": self.r.rule.quote, "manual": self.r.rule.manual,
-               "measure": self.r.rule.measure, "unit": self.unit, "requirement": self.req}
-        if self.audit is not None:
-            out["audit"] = self.audit
-        return out
+        """What every record of this rule shares: records take it from the rule summary."""
+        return {k: v for k, v in self.summary.items()
+                if k not in ("rule", "title", "scope", "level", "consequence")}
 
     def _measured(self, i: int) -> Any:
         measured = self.r.measured[i]
@@ -248,7 +288,9 @@ class _RuleRecords:
             req["text"] = self.text(self.r.rule.requirement, req)
         return req
 
-    def record(self, i: int) -> dict[str, Any]:
+    def stored(self, i: int) -> dict[str, Any]:
+        """A record in full as qcr.json stores it: only what is particular to the item (its rule's
+        text is in the rule summary; :func:`all_records` puts them together)."""
         r, rule = self.r, self.r.rule
         v = int(r.verdict[i])
         item = str(r.items[i])
@@ -263,23 +305,23 @@ class _RuleRecords:
                     f"(approved by {w.get('approver', '?')})")
         elif note is None:
             note = ""
-        rec = dict(self.base)
-        rec["item"] = item
-        rec.update(self.tail)
-        rec["verdict"] = VERDICTS[v]
-        rec["measure"] = rule.measure
-        rec["measured"] = {"value": measured, "unit": self.unit}
-        rec["requirement"] = req
         ev = r.evidence[i]
+        rec: dict[str, Any] = {"rule": rule.id, "item": item, "verdict": VERDICTS[v], "measured": measured}
+        if self.arrays is not None:
+            rec["requirement"] = req
         rec["evidence"] = [e.to_dict() for e in (sorted(set(ev)) if len(ev) > 1 else ev)]
         rec["message"] = str(note)
-        rec["waiver"] = r.waivers.get(item) if v == WAIVED else None
-        rec["waiver_requested"] = r.requested.get(item)
-        if v == WAIVED and r.original is not None:
-            rec["waived_verdict"] = VERDICTS[int(r.original[i])]
-        if self.audit is not None:
-            rec["audit"] = self.audit
+        if v == WAIVED:
+            rec["waiver"] = r.waivers.get(item)
+            if r.original is not None:
+                rec["waived_verdict"] = VERDICTS[int(r.original[i])]
+        if r.requested.get(item) is not None:
+            rec["waiver_requested"] = r.requested.get(item)
         return rec
+
+    def record(self, i: int) -> dict[str, Any]:
+        """The record as readers see it (what :func:`all_records` yields)."""
+        return _expand_stored(self.summary, self.stored(i))
 
     def compact(self, idx: np.ndarray, interner: _Interner) -> dict[str, Any]:
         """The pass / not-applicable records at ``idx`` (item order) as columns (see docs/QCR.md)."""
@@ -304,77 +346,74 @@ class _RuleRecords:
         return out
 
 
-def _column_values(col: Any, n: int) -> list[Any]:
+def _expand_stored(rule: Mapping[str, Any], rec: Mapping[str, Any]) -> dict[str, Any]:
+    """A stored record in full (version 2) as readers see it."""
+    return _full(rule, rec["item"], rec["verdict"], rec.get("measured"),
+                 rec.get("requirement") or rule.get("requirement") or {}, rec.get("evidence") or [],
+                 rec.get("message", ""), rec.get("waiver"), rec.get("waiver_requested"), rec.get("waived_verdict"))
+
+
+def _column_values(col: Any, n: int, compact: Mapping[str, Any]) -> list[Any]:
     if isinstance(col, dict):
+        if "ref" in col:
+            rule_id, name = col["ref"]
+            return _column_values(compact[rule_id][name], n, compact)
         return [col.get("all")] * n
     return list(col) if col is not None else [None] * n
 
 
-def _expand(rule: dict[str, Any], block: dict[str, Any], evidence: list[dict[str, Any]]) -> Iterator[dict[str, Any]]:
-    """The full records of one rule's compact block (same keys and values as a record in full)."""
-    items = block["items"]
+def _expand(rule: Mapping[str, Any], block: Mapping[str, Any], evidence: list[dict[str, Any]],
+            compact: Mapping[str, Any]) -> Iterator[dict[str, Any]]:
+    """The records of one rule's compact block (the same dicts as records in full)."""
+    items = _column_values(block["items"], 0, compact)
     n = len(items)
-    verdicts = _column_values(block.get("verdict"), n)
-    measured = _column_values(block.get("measured"), n)
-    reqs = _column_values(block["requirement"], n) if "requirement" in block else [rule.get("requirement") or {}] * n
-    evs = _column_values(block.get("evidence"), n)
-    asked = _column_values(block.get("waiver_requested"), n)
-    msgs = _column_values(block.get("message"), n)
-    unit = rule.get("unit")
-    shown = _shown_unit(unit)
-    head = {"rule": rule["rule"], "title": rule.get("title", ""), "clause": rule.get("citation") or {},
-            "quote": rule.get("quote", ""), "scope": rule.get("scope", "")}
-    tail = {"level": rule.get("level"), "consequence": rule.get("consequence"), "manual": rule.get("manual", False)}
+    verdicts = _column_values(block.get("verdict"), n, compact)
+    measured = _column_values(block.get("measured"), n, compact)
+    reqs = (_column_values(block["requirement"], n, compact) if "requirement" in block
+            else [rule.get("requirement") or {}] * n)
+    evs = _column_values(block.get("evidence"), n, compact)
+    msgs = _column_values(block.get("message"), n, compact)
+    asked = _column_values(block.get("waiver_requested"), n, compact)
+    shown = _shown_unit(rule.get("unit"))
     measure = rule.get("measure", "")
-    audit = rule.get("audit")
     for k in range(n):
-        rec = dict(head)
-        rec["item"] = items[k]
-        rec.update(tail)
-        rec["verdict"] = verdicts[k]
-        rec["measure"] = measure
-        rec["measured"] = {"value": measured[k], "unit": unit}
         req = reqs[k]
-        rec["requirement"] = req
-        rec["evidence"] = [evidence[e] for e in (evs[k] or [])]
         msg = msgs[k]
-        rec["message"] = _pass_message(measure, measured[k], shown, req.get("text", "")) if msg is None else msg
-        rec["waiver"] = None
-        rec["waiver_requested"] = asked[k]
-        if audit is not None:
-            rec["audit"] = audit
-        yield rec
+        if msg is None:
+            msg = _pass_message(measure, measured[k], shown, req.get("text", ""))
+        yield _full(rule, items[k], verdicts[k], measured[k], req, [evidence[e] for e in (evs[k] or [])], msg,
+                    None, asked[k])
 
 
 def all_records(doc: Mapping[str, Any]) -> Iterator[dict[str, Any]]:
     """Every record of a QCR document, in document order (scope, rule id, item in natural order).
 
-    The one way to read records (INTERFACES item 2): ``doc["records"]`` holds only the records
-    in full (every verdict but pass and not applicable); the others are columns per rule in
-    ``doc["compact"]`` and are expanded here into the same dicts. Documents without
-    ``compact`` (qcr.json written before) are read as they are.
+    The one way to read records (INTERFACES item 2). Version 2 documents store each record once,
+    without its rule's text: ``doc["records"]`` holds the records whose verdict is not pass or
+    not applicable (item, verdict, measured value, evidence, message...), ``doc["compact"]`` the
+    others as columns per rule; both are expanded here with the rule summary into the same dicts.
+    Version 1 documents (every record in full in ``records``) are read as they are.
     """
     records = doc.get("records") or []
-    compact = doc.get("compact")
-    if not compact:
+    if "compact" not in doc:
         yield from records
         return
-    full: dict[str, list[dict[str, Any]]] = {}
+    compact = doc["compact"] or {}
+    full: dict[str, list[Mapping[str, Any]]] = {}
     for rec in records:
         full.setdefault(rec["rule"], []).append(rec)
     evidence = doc.get("evidence") or []
     for summary in doc.get("rules") or []:
         rid = summary["rule"]
-        mine = full.pop(rid, [])
+        mine = (_expand_stored(summary, rec) for rec in full.pop(rid, []))
         block = compact.get(rid)
         if not block:
             yield from mine
-        elif not mine:
-            yield from _expand(summary, block, evidence)
         else:
-            yield from heapq.merge(mine, _expand(summary, block, evidence), key=lambda r: natural_key(r["item"]))
-    for rest in full.values():
-        yield from rest
+            yield from heapq.merge(mine, _expand(summary, block, evidence, compact),
+                                   key=lambda r: natural_key(r["item"]))
+    for rest in full.values():  # a record without a rule summary: as stored
+        yield from (dict(r) for r in rest)
 
 
 _DIGITS = re.compile(r"(\d+)")
@@ -419,6 +458,7 @@ def build_document(ev: Evaluation, *, date: str, operator: str | None = None,
     records: list[dict[str, Any]] = []
     compact: dict[str, Any] = {}
     interner = _Interner()
+    shared = _Shared()
     cache: dict[Any, Any] = {}
     n_records = 0
     for r in _sorted_results(ev):
@@ -438,8 +478,8 @@ def build_document(ev: Evaluation, *, date: str, operator: str | None = None,
         n_records += len(order)
         is_compact = np.isin(codes, _COMPACT_CODES)
         if is_compact.any():
-            compact[r.rule.id] = rb.compact(order[is_compact], interner)
-        records.extend(rb.record(int(i)) for i in order[~is_compact])
+            compact[r.rule.id] = shared.apply(r.rule.id, rb.compact(order[is_compact], interner))
+        records.extend(rb.stored(int(i)) for i in order[~is_compact])
     man = d.manifest
     doc: dict[str, Any] = {
         "schema": SCHEMA_ID,

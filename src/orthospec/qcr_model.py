@@ -94,6 +94,30 @@ class Record(_Closed):
     audit: dict[str, Any] | None = None
 
 
+class StoredRecord(_Closed):
+    """A record in full as version 2 stores it: only what is particular to the item. The rule's
+    title, clause, quote, level, consequence, measure, unit, audit (and requirement, unless it
+    varies by item) are in its rule summary; ``orthospec.qcr.all_records`` puts them together
+    into a :class:`Record`."""
+
+    rule: str
+    item: str
+    verdict: Verdict
+    measured: float | int | bool | str | None
+    requirement: Requirement | None = None
+    evidence: list[EvidenceRef]
+    message: str
+    waiver: dict[str, Any] | None = None
+    waived_verdict: Verdict | None = None
+    waiver_requested: dict[str, Any] | None = None
+
+
+class ColumnRef(_Closed):
+    """A compact column equal to one written before: ``[rule id, column name]`` of that column."""
+
+    ref: tuple[str, str]
+
+
 class AllSame(_Closed):
     """A compact column whose value is the same for every item of the block."""
 
@@ -110,15 +134,16 @@ class CompactBlock(_Closed):
     Every column is a list as long as ``items`` or ``{"all": value}``. A ``message`` of null is
     the default wording rebuilt on reading (``<measure> = <value> <unit>; required <text>``);
     ``evidence`` entries index the document's ``evidence`` table; without ``requirement`` the
-    rule summary's requirement applies to every item."""
+    rule summary's requirement applies to every item; ``{"ref": [rule, column]}`` is the same
+    column of an earlier rule (rules over the same images share their item list)."""
 
-    items: list[str]
+    items: list[str] | ColumnRef
     verdict: list[CompactVerdict] | AllVerdict
-    measured: list[Any] | AllSame
-    requirement: list[Requirement] | AllSame | None = None
-    evidence: list[list[int]] | AllSame
-    message: list[str | None] | AllSame
-    waiver_requested: list[dict[str, Any] | None] | AllSame | None = None
+    measured: list[Any] | AllSame | ColumnRef
+    requirement: list[Requirement] | AllSame | ColumnRef | None = None
+    evidence: list[list[int]] | AllSame | ColumnRef
+    message: list[str | None] | AllSame | ColumnRef
+    waiver_requested: list[dict[str, Any] | None] | AllSame | ColumnRef | None = None
 
 
 class RuleSummary(_Closed):
@@ -215,8 +240,9 @@ class QcrDocument(_Open):
     waiver_requests: list[dict[str, Any]] = Field(
         [], description="The contractor's waiver requests and whether the checker granted them.")
     rules: list[RuleSummary]
-    records: list[Record] = Field(description="Every record whose verdict is not pass or not_applicable, "
-                                              "in full (version 1: every record).")
+    records: list[StoredRecord] | list[Record] = Field(
+        description="Version 2: every record whose verdict is not pass or not_applicable, each once, without "
+                    "its rule's text (StoredRecord). Version 1: every record, in full (Record).")
     compact: dict[str, CompactBlock] = Field(
         {}, description="Rule id -> its pass / not_applicable records as columns (version 2).")
     evidence: list[EvidenceRef] = Field([], description="Evidence entries the compact columns index.")
