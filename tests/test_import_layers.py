@@ -40,7 +40,6 @@ LAYERS: tuple[tuple[str, ...], ...] = (
 
 #: (importer, imported) -> who was asked to remove it; see the module docstring
 PENDING: dict[tuple[str, str], str] = {
-    ("orthospec.delivery.checker", "orthospec.spec.yamlio"): "E1: import orthospec.yamlio (moved down)",
     ("orthospec.delivery.reader", "orthospec.spec.yamlio"): "reader's owner: import orthospec.yamlio",
 }
 
