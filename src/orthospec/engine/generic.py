@@ -14,6 +14,7 @@ import pandas as pd
 
 from ..delivery.convention import table_specs
 from ..delivery.reader import MANIFEST, Delivery
+from ..errors import OrthospecError
 from ..provenance import Evidence
 from ..units import canonical
 from .registry import Measured, RowEvidence
@@ -137,7 +138,7 @@ def _manifest(name: str, d: Delivery) -> Measured:
         # a document or vector file counts only when it is really in the delivery
         try:
             exists = d.path(v, what=path).is_file()
-        except Exception:
+        except (OrthospecError, OSError):  # outside the delivery root or unreadable: not delivered
             exists = False
         if not exists:
             return _one(name, "delivery", "text", d.id, None, ev,

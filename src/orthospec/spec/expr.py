@@ -267,8 +267,10 @@ class _Eval:
             raise
         except ZeroDivisionError:
             raise ExpressionError(f"division by zero in {self.src!r}") from None
-        except Exception as exc:  # pint DimensionalityError, TypeError on str vs number
-            raise ExpressionError(f"cannot combine {_show(a)} and {_show(b)} in {self.src!r}: {exc}") from None
+        except (TypeError, ValueError, ArithmeticError, AttributeError) as exc:
+            # pint's DimensionalityError/OffsetUnitCalculusError are TypeErrors, UndefinedUnitError an
+            # AttributeError; str vs number a TypeError: all become one ExpressionError (cause kept)
+            raise ExpressionError(f"cannot combine {_show(a)} and {_show(b)} in {self.src!r}: {exc}") from exc
 
 
     def _bounded(self, fn: Callable[[Any, Any], Any], a: Any, b: Any) -> None:
