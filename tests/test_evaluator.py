@@ -107,6 +107,51 @@ def test_a_crashing_rule_is_error_and_others_still_run(make_delivery, tmp_path, 
     assert recs(doc, "R-ROLL")["I1"]["verdict"] == "pass"
 
 
+def _overflowing_checkpoints(tmp_path):
+    """A copy of aerial-pass whose first two check points lie at x = 1e308 and -1e308 (a corrupt
+    table: finite numbers the CSV reader accepts, whose squares overflow in the checkpoints provider)."""
+    import shutil
+
+    from tests.conftest import EXAMPLES
+
+    d = tmp_path / "aerial-pass"
+    shutil.copytree(EXAMPLES / "aerial-pass", d)
+    lines = (d / "tables" / "checkpoints.csv").read_text(encoding="utf-8").splitlines()
+    col = lines[0].split(",").index("x")
+    for i, v in ((1, "1e308"), (2, "-1e308")):
+        cells = lines[i].split(",")
+        cells[col] = v
+        lines[i] = ",".join(cells)
+    (d / "tables" / "checkpoints.csv").write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return d
+
+
+@pytest.mark.filterwarnings("ignore::RuntimeWarning")
+def test_a_crashing_rule_keeps_its_traceback_under_debug(tmp_path, monkeypatch):
+    """Issue 15 item 6: a rule whose provider crashes on a real input is `error` (so the delivery is
+    never accepted) and, with `orthospec --debug`, the record detail keeps the traceback."""
+    import subprocess
+    import sys
+
+    d = _overflowing_checkpoints(tmp_path)
+    monkeypatch.delenv("ORTHOSPEC_DEBUG", raising=False)
+    plain = check(d, "jrc-v3", date="2026-11-21", options={"workers": 1}).document
+    rec = recs(plain, "JRC-12.7-RMSEX")["B01"]
+    assert rec["verdict"] == "error" and plain["verdict"] == "rejected"
+    assert rec["message"].startswith("internal error in rule: OverflowError") and "--debug" in rec["message"]
+    assert "tracebacks" not in plain["details"]
+    out = tmp_path / "out"
+    proc = subprocess.run([sys.executable, "-W", "ignore", "-m", "orthospec.cli.main", "--debug", "check", str(d),
+                           "--profile", "jrc-v3", "--out", str(out), "--date", "2026-11-21", "--format", "json",
+                           "--workers", "1"], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 1, proc.stderr
+    doc = json.loads((out / "qcr.json").read_text(encoding="utf-8"))
+    tb = doc["details"]["tracebacks"]["JRC-12.7-RMSEX"]
+    assert tb.startswith("Traceback (most recent call last)") and "OverflowError" in tb
+    assert "providers/checkpoints.py" in tb  # the provider's own frame, not just the evaluator's
+    assert "internal error in rule: OverflowError" in recs(doc, "JRC-12.7-RMSEX")["B01"]["message"]
+
+
 def test_deterministic_json(make_delivery, mini_profile):
     from orthospec.qcr import dumps
 

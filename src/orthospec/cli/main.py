@@ -5,6 +5,7 @@ Exit codes: 0 accepted / success, 1 rejected, 2 could not evaluate (bad input or
 
 from __future__ import annotations
 
+import os
 import sys
 
 import click
@@ -39,6 +40,10 @@ def cli() -> click.Group:
 def main(argv: list[str] | None = None) -> None:
     """The ``orthospec`` executable: only the invoked command's module is imported."""
     debug = "--debug" in (argv if argv is not None else sys.argv[1:])
+    if debug:
+        # the engine keeps the traceback of a crashing rule in its records (engine/rules.py safe());
+        # an environment switch, so that `--help` still imports no engine
+        os.environ["ORTHOSPEC_DEBUG"] = "1"
     try:
         rv = groups.main.main(args=argv, prog_name="orthospec", standalone_mode=False)
     except OrthospecError as exc:
@@ -55,7 +60,8 @@ def main(argv: list[str] | None = None) -> None:
     except KeyboardInterrupt:
         click.echo("interrupted", err=True)
         sys.exit(2)
-    except Exception as exc:  # an internal bug: say so plainly, never a traceback unless --debug
+    except Exception as exc:  # documented broad catch, never swallowing: an internal bug is reported
+        # plainly (exit 2) instead of a traceback, and re-raised with its traceback under --debug
         if debug:
             raise
         click.echo(f"internal error: {type(exc).__name__}: {exc} (run with --debug for details)",

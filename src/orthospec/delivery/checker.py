@@ -28,7 +28,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from ..errors import OrthospecError
 from ..provenance import Evidence, sha256_file
-from ..spec.yamlio import YamlError, load_file
+from ..yamlio import YamlError, load_file
 
 
 class _Closed(BaseModel):

@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from .. import verdicts as V
 from ..spec.models import Clause, Requirement, Rule
 
 if TYPE_CHECKING:
@@ -84,39 +85,37 @@ def _show(v: Any, unit: str) -> str:
 
 
 def parameter_findings(params: dict[str, ParamValue], d: Delivery
-                       ) -> dict[str, list[tuple[str, str, str | None, int]]]:
-    """Per built-in rule id: (item, measured text, note, verdict code) rows.
-
-    Verdict codes are the evaluator's (imported there); here 0 pass, 1 fail, 2 warn, 3 n/a.
-    """
+                       ) -> dict[str, list[tuple[str, str, str | None, str]]]:
+    """Per built-in rule id: (item, measured text, note, verdict) rows (verdict names of
+    orthospec.verdicts)."""
     declared_raw = dict(d.manifest.tender.parameters) if d.manifest.tender else {}
-    source_rows: list[tuple[str, str, str | None, int]] = []
-    declared_rows: list[tuple[str, str, str | None, int]] = []
+    source_rows: list[tuple[str, str, str | None, str]] = []
+    declared_rows: list[tuple[str, str, str | None, str]] = []
     for name, p in sorted(params.items()):
         src = getattr(p, "source", "")
         declared = getattr(p, "declared", None)
         if src == "manifest":
             source_rows.append((name, src, "ITT value taken from the contractor's manifest; confirm against "
                                 f"the ITT ({name} = {_show(p.value, p.unit)} from delivery.yaml "
-                                "tender.parameters)", 2))
+                                "tender.parameters)", V.WARN))
         if src == "manifest" or name not in declared_raw:
             continue
         if declared is None:
             why = getattr(p, "note", None) or "the declared value cannot be read in the parameter's unit"
             declared_rows.append((name, str(declared_raw[name]), f"delivery.yaml tender.parameters.{name}: "
-                                  f"{why}", 1))
+                                  f"{why}", V.FAIL))
         elif p.value is None or not _same(declared, p.value):
             declared_rows.append((name, _show(declared, p.unit),
                                   f"delivery.yaml declares {name} = {_show(declared, p.unit)}, the value in force "
                                   f"is {_show(p.value, p.unit)} (source: {src}); the contractor's QC used "
-                                  "other numbers than the contract", 1))
+                                  "other numbers than the contract", V.FAIL))
         else:
             declared_rows.append((name, _show(declared, p.unit),
-                                  f"declared {_show(declared, p.unit)} = value in force (source: {src})", 0))
+                                  f"declared {_show(declared, p.unit)} = value in force (source: {src})", V.PASS))
     if not source_rows:
-        source_rows.append((d.id, "", "no ITT parameter was taken from the contractor's manifest", 3))
+        source_rows.append((d.id, "", "no ITT parameter was taken from the contractor's manifest", V.NOT_APPLICABLE))
     if not declared_rows:
         declared_rows.append((d.id, "", "no contract value declared in delivery.yaml to cross-check against a "
                               "tender profile, --param or the standard (values used from it: "
-                              "ORTHOSPEC-ITT-SOURCE)", 3))
+                              "ORTHOSPEC-ITT-SOURCE)", V.NOT_APPLICABLE))
     return {ITT_SOURCE.id: source_rows, ITT_DECLARED.id: declared_rows}

@@ -23,7 +23,7 @@ from ..delivery.reader import MANIFEST, Delivery
 if TYPE_CHECKING:
     from ..delivery.checker import Checker
     from ..spec.loader import ResolvedProfile
-    from .evaluator import RuleResult
+    from .context import RuleResult
 
 WAIVABLE = (V.CODE[V.FAIL], V.CODE[V.WARN], V.CODE[V.MISSING])
 NOT_GRANTED = "requested by the contractor, not granted"

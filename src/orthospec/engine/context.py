@@ -1,0 +1,122 @@
+"""What every phase of an evaluation reads: the profile, the delivery, the parameters in force,
+the measure cache, the checker's file, and the integer verdict codes of the columnar results.
+
+A rule's verdicts are an ``int8`` column (one code per item, ``orthospec.verdicts.CODE``) so that
+the decision stays vectorised; :class:`RuleResult` is that columnar outcome of one rule.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .. import verdicts as V
+from ..delivery.checker import Checker
+from ..delivery.convention import table_of_scope
+from ..delivery.reader import Delivery
+from ..provenance import Evidence
+from ..spec.loader import ResolvedProfile
+from ..spec.models import Rule
+from .catalog import MeasureCache
+from .params import ParamValue
+from .registry import ProviderContext
+
+PASS, FAIL, WARN, NA, MISSING, ERROR, WAIVED = (V.CODE[v] for v in (
+    V.PASS, V.FAIL, V.WARN, V.NOT_APPLICABLE, V.MISSING, V.ERROR, V.WAIVED))
+VERDICTS = V.VERDICTS
+#: worst first, for a rule's overall verdict (as codes)
+SEVERITY = tuple(V.CODE[v] for v in V.SEVERITY)
+
+
+@dataclass
+class RuleResult:
+    """The columnar outcome of one rule over its items."""
+
+    rule: Rule
+    items: np.ndarray
+    verdict: np.ndarray
+    measured: np.ndarray
+    unit: str
+    threshold: dict[str, Any]
+    evidence: list[tuple[Evidence, ...]]
+    notes: np.ndarray
+    original: np.ndarray | None = None
+    waivers: dict[str, dict[str, Any]] = field(default_factory=dict)
+    #: item -> the contractor's waiver request (delivery.yaml): evidence, never in force
+    requested: dict[str, dict[str, Any]] = field(default_factory=dict)
+    error: str | None = None
+    #: the traceback of a rule that crashed, kept only under --debug (ORTHOSPEC_DEBUG=1)
+    traceback: str | None = None
+
+    @property
+    def worst(self) -> int:
+        present = set(self.verdict.tolist())
+        for v in SEVERITY:
+            if v in present:
+                return v
+        return NA
+
+    def counts(self) -> dict[str, int]:
+        bc = np.bincount(self.verdict.astype(np.int64), minlength=len(VERDICTS))
+        return {VERDICTS[i]: int(bc[i]) for i in range(len(VERDICTS))}
+
+
+def debug_enabled() -> bool:
+    """`orthospec --debug` (cli/main.py sets ORTHOSPEC_DEBUG=1): keep tracebacks of crashing rules."""
+    return os.environ.get("ORTHOSPEC_DEBUG") == "1"
+
+
+@dataclass
+class Context:
+    """The inputs of one evaluation, shared by rules, manual rules, waivers and the roll-up."""
+
+    profile: ResolvedProfile
+    d: Delivery
+    params: dict[str, ParamValue]
+    options: dict[str, Any]
+    checker: Checker | None
+    cache: MeasureCache
+    manifest: dict[str, Any]
+    fail_on: str
+    debug: bool
+
+    @classmethod
+    def build(cls, profile: ResolvedProfile, delivery: Delivery, parameters: dict[str, ParamValue], *,
+              fail_on: str, options: Mapping[str, Any] | None, checker: Checker | None,
+              debug: bool | None) -> Context:
+        opts = dict(options or {})
+        pctx = ProviderContext(delivery, {k: v.quantity() for k, v in parameters.items()}, dict(opts),
+                               classes=dict(getattr(profile, "classes", {}) or {}))
+        return cls(profile, delivery, parameters, opts, checker, MeasureCache(pctx), delivery.flat_manifest(),
+                   fail_on, debug_enabled() if debug is None else debug)
+
+    def universe(self, scope: str) -> tuple[list[str] | None, str | None]:
+        """The items a rule at ``scope`` must judge; None = take the measure's own items."""
+        d = self.d
+        if scope == "delivery":
+            return [d.id], None
+        if scope == "project":
+            return [d.project_id], None
+        if scope == "block":
+            ids = d.block_ids
+            return ids, None if ids else "the delivery declares no blocks"
+        if scope == "edge":
+            return [e.id for e in d.manifest.edge_targets], "the manifest lists no edge_targets"
+        table = table_of_scope(scope)
+        if table is None:
+            return None, None
+        t = d.table(table)
+        if t is None:
+            return [], f"the manifest declares no '{table}' table"
+        return t.ids.tolist(), None
+
+    def sample_mask(self, scope: str, items: list[str]) -> np.ndarray | None:
+        """With `check --sample`, items of the sampled scope outside the sample are not checked."""
+        sample = self.options.get("sample")
+        if not sample or sample[0] != scope:
+            return None
+        return np.isin(np.asarray(items, dtype=object), list(sample[1]))

@@ -1,0 +1,188 @@
+"""One rule over every item of its scope: applicability, measured values, the comparison.
+
+One vectorised comparison per rule (numpy over the scope's items), never a Python loop per item
+for the decision itself. Failures are results: a rule that crashes yields ``error`` records (with
+its traceback under ``--debug``) and the other rules still run. Nothing that was not measured
+passes (engine/compare.py); a `when` over a fact the delivery does not give is ``missing``
+(engine/applicability.py); manual rules are judged in engine/manual.py.
+"""
+
+from __future__ import annotations
+
+import traceback
+from typing import Any
+
+import numpy as np
+
+from .. import verdicts as V
+from ..errors import OrthospecError
+from ..provenance import Evidence
+from ..spec.models import Rule
+from .applicability import applicable, scalar_condition
+from .builtin import BUILTIN_RULES, ITT_DECLARED, parameter_findings
+from .compare import Comparison, Undecidable, req_dict
+from .context import ERROR, FAIL, MISSING, NA, PASS, WARN, Context, RuleResult
+from .manual import manual_rule
+from .names import Names, missing_mask
+from .registry import Measured
+
+
+def all_items(ctx: Context, rule: Rule, verdict: int, note: str, items: list[str] | None = None,
+              evidence: tuple[Evidence, ...] = (), tb: str | None = None) -> RuleResult:
+    """One verdict for every item of the rule (``*`` when the items are unknown)."""
+    its = items if items else ["*"]
+    n = len(its)
+    return RuleResult(rule, np.array(its, dtype=object), np.full(n, verdict, dtype=np.int8),
+                      np.full(n, None, dtype=object), "", req_dict(rule.requirement, None),
+                      [evidence] * n, np.full(n, note, dtype=object),
+                      error=note if verdict == ERROR else None, traceback=tb)
+
+
+def _items_or_none(ctx: Context, rule: Rule) -> list[str] | None:
+    """The rule's items when they are known, so a broken rule still judges each one (not `*`)."""
+    try:
+        items, _ = ctx.universe(rule.scope)
+    except OrthospecError:  # the table naming the items is itself unreadable: judge `*`
+        return None
+    return items or None
+
+
+def safe(ctx: Context, rule: Rule, rollup: dict[str, Measured] | None = None) -> RuleResult:
+    """Evaluate ``rule``; a failure is a result (``missing``/``error``), never a stopped run."""
+    try:
+        return evaluate(ctx, rule, rollup)
+    except Undecidable as exc:
+        return all_items(ctx, rule, MISSING, str(exc), items=_items_or_none(ctx, rule))
+    except OrthospecError as exc:
+        return all_items(ctx, rule, ERROR, str(exc), items=_items_or_none(ctx, rule))
+    except Exception as exc:  # documented broad catch, never swallowing: a crashing
+        # rule (a bug, or input no check anticipated) is `error` - which rejects - never `fail` or
+        # `pass`, its message is in every record, and under --debug its traceback is kept too
+        tb = "".join(traceback.format_exception(exc)) if ctx.debug else None
+        note = f"internal error in rule: {type(exc).__name__}: {exc}" + (
+            "" if tb else " (run with --debug to keep the traceback)")
+        return all_items(ctx, rule, ERROR, note, items=_items_or_none(ctx, rule), tb=tb)
+
+
+def builtin(ctx: Context) -> list[RuleResult]:
+    """The engine's own rules every profile gets (engine/builtin.py: parameter authority)."""
+    out = []
+    rows_by_rule = parameter_findings(ctx.params, ctx.d)
+    ev = (ctx.d.manifest_evidence("tender.parameters"),)
+    for rule in BUILTIN_RULES:
+        rows = rows_by_rule[rule.id]
+        text = ("declared value = value in force" if rule.id == ITT_DECLARED.id
+                else "set by a tender profile, --param or the standard")
+        out.append(RuleResult(
+            rule, np.array([r[0] for r in rows], dtype=object),
+            np.array([V.CODE[r[3]] for r in rows], dtype=np.int8),
+            np.array([r[1] or None for r in rows], dtype=object), "text",
+            {"op": rule.requirement.op, "unit": None, "text": text},
+            [ev] * len(rows), np.array([r[2] for r in rows], dtype=object)))
+    return out
+
+
+def evaluate(ctx: Context, rule: Rule, rollup: dict[str, Measured] | None = None) -> RuleResult:
+    cond, unknown_why = scalar_condition(ctx, rule)
+    when_ev = (ctx.d.manifest_evidence("(when)"),)
+    if cond is False:
+        items0, _ = ctx.universe(rule.scope)
+        return all_items(ctx, rule, NA, f"not applicable: {rule.when} is false for this delivery",
+                         items=items0 or None, evidence=when_ev)
+    items, why = ctx.universe(rule.scope)
+    if unknown_why is not None:
+        return all_items(ctx, rule, MISSING, unknown_why, items=items or None, evidence=when_ev)
+    if rule.manual:
+        return manual_rule(ctx, rule, items if items is not None else [ctx.d.id])
+    m = rollup[rule.measure] if rule.measure.startswith("rollup.") and rollup else ctx.cache.get(rule.measure)
+    if items is None:
+        items = sorted(map(str, m.values.index))
+        if not items and m.notes is not None and len(m.notes):
+            why = str(m.notes.iloc[0])
+    if not items:
+        return all_items(ctx, rule, MISSING, f"no items to check at scope {rule.scope}: {why or 'none delivered'}",
+                         evidence=(ctx.d.manifest_evidence("tables"),))
+    return _judge(ctx, rule, m, items)
+
+
+class _Column:
+    """The measure's column for the rule's items, with the provider's notes, errors and n/a."""
+
+    def __init__(self, rule: Rule, m: Measured, items: list[str], applies: np.ndarray, notes: np.ndarray
+                 ) -> None:
+        n = len(items)
+        values = m.values.reindex(items)
+        self.evidence = m.evidence_for(items)
+        self.raw = values.to_numpy()
+        self.missing = missing_mask(self.raw) & (rule.requirement.op != "present") | (
+            ~values.index.isin(m.values.index))
+        self.notes = notes
+        self.applies = applies
+        if m.notes is not None:
+            nn = m.notes.reindex(items)
+            self.notes = np.where(nn.notna().to_numpy(), nn.to_numpy(dtype=object), self.notes)
+            if "*" in m.notes.index and not len(m.values):
+                self.notes[:] = m.notes["*"]
+        self.errs = np.zeros(n, dtype=bool)
+        if m.errors is not None and len(m.errors):
+            ee = m.errors.reindex(items)
+            self.errs = ee.notna().to_numpy() & ee.astype(object).map(bool).to_numpy()
+            self.notes = np.where(self.errs, ee.to_numpy(dtype=object), self.notes)
+        if m.na is not None and len(m.na):
+            nav = m.na.reindex(items)
+            na_mask = nav.notna().to_numpy()
+            self.applies = self.applies & ~na_mask
+            self.notes = np.where(na_mask, nav.to_numpy(dtype=object), self.notes)
+
+
+def _sampled(ctx: Context, rule: Rule, items: list[str], applies: np.ndarray, notes: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray | None]:
+    """With `check --sample`: items outside the external QC sample are not checked (noted)."""
+    sampled = ctx.sample_mask(rule.scope, items)
+    if sampled is None:
+        return applies, None
+    for i in np.flatnonzero(applies & ~sampled):
+        notes[i] = f"not in the external QC sample ({rule.scope})"
+    return applies & sampled, sampled
+
+
+def _judge(ctx: Context, rule: Rule, m: Measured, items: list[str]) -> RuleResult:
+    """Compare the measure with the requirement per item and apply the missing/error/n-a policy."""
+    n = len(items)
+    applies, unknown, unknown_note = applicable(ctx, rule, items)
+    applies, sampled = _sampled(ctx, rule, items, applies, notes := np.full(n, None, dtype=object))
+    col = _Column(rule, m, items, applies, notes)
+    notes = col.notes
+    names = Names(ctx.params, ctx.manifest, ctx.cache, rule.scope, items)
+    try:
+        ok, measured, thr, unit, undecided = Comparison(
+            ctx, rule, col.raw, m.unit, col.missing | col.errs, names, items).run()
+    except Undecidable as exc:
+        # an unset parameter the threshold needs: `missing` only where the rule applies (a `when`
+        # such as `tolerance_ce90 != null` makes the rule not applicable instead)
+        ok, measured, thr, unit = np.ones(n, dtype=bool), col.raw, req_dict(rule.requirement, None), m.unit
+        undecided = [(MISSING, np.ones(n, dtype=bool), str(exc))]
+    verdict = np.full(n, PASS, dtype=np.int8)
+    verdict[~ok] = FAIL if rule.level == "mandatory" else WARN
+    verdict[col.missing] = MISSING
+    for code, mask, why in undecided:
+        mask = mask & ~col.missing & ~col.errs
+        verdict[mask] = code
+        notes[mask] = why
+    _note_missing(rule, col, notes)
+    verdict[col.errs] = ERROR
+    verdict[~col.applies] = NA
+    if unknown.any():
+        in_sample = unknown if sampled is None else unknown & sampled
+        verdict[in_sample] = MISSING
+        notes[in_sample] = unknown_note
+    return RuleResult(rule, np.array(items, dtype=object), verdict, measured, unit, thr, col.evidence, notes)
+
+
+def _note_missing(rule: Rule, col: _Column, notes: np.ndarray) -> None:
+    """A missing value without a provider note says which file and row lacks it."""
+    for i in np.flatnonzero(col.missing):
+        if notes[i] is None:
+            ev: Any = col.evidence[i]
+            notes[i] = f"no value for {rule.measure}" + (
+                f" in {ev[0].file} row {ev[0].rows[0]}" if ev and ev[0].rows else "")
