@@ -87,6 +87,11 @@ class Block(_Closed):
 
 
 class Waiver(_Closed):
+    """A waiver the contractor *requests* (delivery.yaml ``waivers:``). Evidence, never authority:
+    it never changes a verdict; the record carries it as ``waiver_requested`` and the report lists
+    it as requested, not granted. Waivers in force come from the tender profile or the checker's
+    file (``check --checker FILE``, delivery/checker.py)."""
+
     rule: str
     items: list[str] = Field(default_factory=lambda: ["*"])
     justification: str = Field(min_length=1)
@@ -132,7 +137,10 @@ class Manifest(_Closed):
         description="Reports the standard requires (internal_qcr, gcp_report, geodetic_control...): "
                     "name -> file in the delivery. A listed file that is absent counts as not delivered.")
     units: dict[str, str] = Field(default_factory=dict, description="Length unit per table (m default).")
-    waivers: list[Waiver] = Field(default_factory=list)
+    waivers: list[Waiver] = Field(
+        default_factory=list,
+        description="Waiver requests of the contractor (never in force: the tender profile or the checker's "
+                    "file grants waivers; see specs/schema/checker.schema.json).")
     edge_targets: list[EdgeTarget] = Field(default_factory=list)
     notes: str | None = None
 
