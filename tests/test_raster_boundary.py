@@ -162,3 +162,27 @@ def test_require_dask_passes_when_dask_is_installed():
 
     require_dask()  # no error
     assert issubclass(MeasureError, OrthospecError)
+
+
+def test_on_report_streams_each_image_once_and_keeps_none(tmp_path):
+    """National scale (issue 14 item 3): reports are handed over as they complete, not kept;
+    each index arrives once with the same measurements as the kept-list mode."""
+    from orthospec.raster.parallel import scan_images
+
+    rng = np.random.default_rng(2)
+    paths = [_write(tmp_path / f"i{k}.tif", rng.integers(1, 255, (3, 40, 50), dtype=np.uint8))
+             for k in range(5)]
+    paths.append(tmp_path / "absent.tif")
+    kept = scan_images(paths, workers=1)
+    got: dict[int, object] = {}
+
+    def take(i: int, rep) -> None:
+        assert i not in got
+        got[i] = rep
+
+    assert scan_images(paths, workers=1, on_report=take) == []
+    assert sorted(got) == list(range(len(paths)))
+    for i, rep in got.items():
+        assert rep.path == str(paths[i]) and rep.sha256 == kept[i].sha256
+        assert rep.radiometry == kept[i].radiometry and rep.error == kept[i].error
+    assert got[5].error is not None and "absent.tif" in got[5].error

@@ -346,6 +346,7 @@ def scan_images(
     expect_gsd: float | None = None, gsd_tolerance: float = 0.01,
     cloud_masks: Mapping[str, str | Path] | None = None,
     settings: ScanSettings | None = None, trust_mtime: bool = True,
+    on_report: Callable[[int, ImageReport], None] | None = None,
 ) -> list[ImageReport]:
     """Check and measure many images; results in input order, bad files as ``error``.
 
@@ -367,11 +368,15 @@ def scan_images(
     trust_mtime
         with a cache, reuse the SHA-256 of a file whose absolute path, size and modification
         time are unchanged instead of reading it again (False: hash every file every run).
+    on_report
+        called with (index in ``paths``, report) as each image completes (completion order);
+        the reports are then not kept, so memory does not grow with the number of images.
 
     Returns
     -------
     list[ImageReport]
-        one per path, in input order; unreadable files have ``error`` set.
+        one per path, in input order; unreadable files have ``error`` set. Empty when
+        ``on_report`` is given.
 
     Raises
     ------
@@ -388,7 +393,6 @@ def scan_images(
         s = replace(s, bit_depth=bit_depth)
     if cache_dir is not None:
         _check_cache_outside(Path(cache_dir), p_list)
-        ResultCache(cache_dir).close()  # create the schema before workers read it
     opts = ScanOptions(settings=s, expect_epsg=expect_epsg, expect_gsd=expect_gsd,
                        gsd_tolerance=gsd_tolerance,
                        cache_dir=None if cache_dir is None else str(cache_dir),
@@ -402,10 +406,17 @@ def scan_images(
             sizes.append(0)
     if progress:
         progress.start(len(p_list), sum(sizes))
-    results: list[ImageReport | None] = [None] * len(p_list)
+    results: list[ImageReport | None] = [None] * (0 if on_report else len(p_list))
+    # results enter the cache as they come (only this process writes it; workers read it)
+    cache = ResultCache(cache_dir) if cache_dir is not None else None
 
     def done(i: int, rep: ImageReport) -> None:
-        results[i] = rep
+        if cache is not None:
+            _remember(cache, rep, opts)
+        if on_report is not None:
+            on_report(i, rep)
+        else:
+            results[i] = rep
         if progress:
             progress.advance(rep)
 
@@ -431,16 +442,18 @@ def scan_images(
     finally:
         if progress:
             progress.close()
-    reports = [r for r in results if r is not None]
-    if cache_dir is not None:
-        with ResultCache(cache_dir) as cache:
-            for r in reports:
-                if r.sha256 and r.radiometry is not None and not r.cached:
-                    cache.put(r.sha256, opts.key(), r.radiometry)
-                if r.sha256 and trust_mtime:
-                    with suppress(OSError):  # the file vanished meanwhile: nothing to keep
-                        cache.put_hash(*_stat_key(r.path), r.sha256)
-    return reports
+        if cache is not None:
+            cache.close()
+    return [r for r in results if r is not None]
+
+
+def _remember(cache: ResultCache, r: ImageReport, opts: ScanOptions) -> None:
+    """Put a fresh result and the file's hash (by path, size and mtime) into the cache."""
+    if r.sha256 and r.radiometry is not None and not r.cached:
+        cache.put(r.sha256, opts.key(), r.radiometry)
+    if r.sha256 and opts.trust_mtime:
+        with suppress(OSError):  # the file vanished meanwhile: nothing to keep
+            cache.put_hash(*_stat_key(r.path), r.sha256)
 
 
 #: glibc mallopt parameter: bytes of free heap kept before memory is returned to the OS

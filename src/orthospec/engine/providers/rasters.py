@@ -62,6 +62,11 @@ def _pooled(bands: list[dict[str, Any]]) -> tuple[float | None, float | None]:
 
 
 def _scan(ctx: ProviderContext) -> dict[str, Any]:
+    """Scan every listed image once; keep only each image's measure values (one table).
+
+    Each report is reduced to its row of measure values as it arrives (scan_images' on_report)
+    and dropped: the run holds one small row per image, not its checks, histograms and bands.
+    """
     if "rasters" in ctx.memo:
         return ctx.memo["rasters"]
     d = ctx.delivery
@@ -71,42 +76,69 @@ def _scan(ctx: ProviderContext) -> dict[str, Any]:
         return ctx.memo["rasters"]
     ids = t.ids.tolist()
     files = t.df["file"].astype(str).tolist()
-    paths = {}
+    paths: dict[str, Path | OrthospecError] = {}
     for i, f in zip(ids, files, strict=True):
         try:
             paths[i] = d.path(f, what=f"images row for {i}")
         except OrthospecError as exc:  # path escaping the delivery: an error for that image only
             paths[i] = exc
-    existing = {i: p for i, p in paths.items() if not isinstance(p, Exception) and p.is_file()}
+    existing = {i: p for i, p in paths.items() if not isinstance(p, OrthospecError) and p.is_file()}
+    scanned = list(existing)
     product = d.manifest.product
     opts = ctx.options
     progress = make_progress() if opts.get("progress") else None
     workers = opts.get("workers")
     if workers is None and sum(p.stat().st_size for p in existing.values()) < SMALL_DELIVERY_BYTES:
         workers = 1  # process start-up costs more than it saves on a small delivery
-    reports = scan_images(
-        [str(p) for p in existing.values()], workers=workers or None,
-        scheduler=opts.get("scheduler"), cache_dir=opts.get("cache_dir"), bit_depth=product.bit_depth,
-        progress=progress, expect_epsg=_epsg(d.manifest.project.crs), expect_gsd=d.gsd_m,
-    )
-    by_id: dict[str, ImageReport | str] = dict(zip(existing, reports, strict=True))
+    reported = {k: t.df[k].tolist() for k in ("mean_dn", "std_dn") if k in t.df.columns}
+    where = dict(zip(ids, range(len(ids)), strict=True))
+    gsd = d.gsd_m
+    rows: list[tuple[Any, ...] | None] = [None] * len(scanned)
+    errors: dict[str, str] = {}
+    sha: dict[str, str] = {}
     # scans run (possibly in other processes) on absolute paths; what enters the QCR is relative
     # to the delivery root, so qcr.json does not depend on where the delivery or the caller is
     root_prefix = f"{d.root}{os.sep}"
-    for rep in reports:
+
+    def collect(k: int, rep: ImageReport) -> None:
+        item = scanned[k]
         if rep.sha256:
             d.remember_sha256(Path(rep.path).relative_to(d.root).as_posix(), rep.sha256)
-        if rep.error:
-            rep.error = rep.error.replace(root_prefix, "")
-    for i, p in paths.items():
-        if i not in by_id:
-            by_id[i] = (str(p) if isinstance(p, Exception) else
-                        f"{files[ids.index(i)]}: listed in {t.file} but not found in the delivery")
+            sha[item] = rep.sha256
+        rep_reported = {}
+        for key, column in reported.items():
+            v = column[where[item]]
+            if v is not None and not pd.isna(v):
+                rep_reported[key] = v
+        vals = _values(rep, rep_reported, gsd)
+        if rep.error is not None:
+            errors[item] = rep.error.replace(root_prefix, "")
+            vals = {n: None for n in IMAGE_MEASURES} | {"raster.exists": True, "raster.readable": False,
+                                                        "raster.name_ok": vals["raster.name_ok"]}
+        rows[k] = tuple(vals.get(n) for n in IMAGE_MEASURES)
+
+    scan_images(
+        [str(p) for p in existing.values()], workers=workers or None,
+        scheduler=opts.get("scheduler"), cache_dir=opts.get("cache_dir"), bit_depth=product.bit_depth,
+        progress=progress, expect_epsg=_epsg(d.manifest.project.crs), expect_gsd=gsd, on_report=collect,
+    )
+    absent = [i for i in ids if i not in existing]
+    for i in absent:
+        p = paths[i]
+        errors[i] = (str(p) if isinstance(p, OrthospecError) else
+                     f"{files[where[i]]}: listed in {t.file} but not found in the delivery")
+        rows.append(tuple(False if n in ("raster.exists", "raster.readable") else None
+                          for n in IMAGE_MEASURES))
+    # dtype object keeps each value as measured (an int stays an int, None stays None)
+    frame = pd.DataFrame(rows, index=pd.Index(scanned + absent, dtype=object),
+                         columns=list(IMAGE_MEASURES), dtype=object)
+    errors = {i: errors[i] for i in frame.index if i in errors}  # table order, not completion order
     on_disk = sorted(p.relative_to(d.root).as_posix() for p in d.root.rglob("*")
                      if p.is_file() and p.suffix.lower() in _IMAGE_EXT)
     listing = listing_consistency(files, on_disk)
-    ctx.memo["rasters"] = {"reports": by_id, "rows": dict(zip(ids, t.df["_row"], strict=True)),
-                           "table": t, "listing": listing}
+    ctx.memo["rasters"] = {"frame": frame, "errors": errors, "sha256": sha,
+                           "rows": dict(zip(ids, t.df["_row"], strict=True)), "table": t,
+                           "listing": listing}
     return ctx.memo["rasters"]
 
 
@@ -163,37 +195,25 @@ def raster_measures(ctx: ProviderContext) -> list[Measured]:
         return [Measured(n, "image", u, pd.Series(dtype=object), pd.Series(dtype=object),
                          notes=pd.Series({"*": got["missing"]}, dtype=object)) for n, u in IMAGE_MEASURES.items()]
     t = got["table"]
-    df = t.df.set_index(t.ids)
-    values: dict[str, dict[str, Any]] = {n: {} for n in IMAGE_MEASURES}
+    frame: pd.DataFrame = got["frame"]
+    errors: dict[str, str] = got["errors"]
+    listed_files = dict(zip(t.ids.tolist(), t.df["file"].tolist(), strict=True))
     evidence: dict[str, tuple[Evidence, ...]] = {}
-    errors: dict[str, str] = {}
     name_notes: dict[str, str] = {}
-    for item, rep in got["reports"].items():
-        row = int(got["rows"][item])
-        listed = Evidence(t.file, t.sha256, (row,))
-        name = check_name(str(df.loc[item, "file"]).replace("\\", "/").rsplit("/", 1)[-1])
+    names_ok: dict[str, bool] = {}
+    for item in frame.index:
+        listed = Evidence(t.file, t.sha256, (int(got["rows"][item]),))
+        rel = listed_files[item]
+        name = check_name(str(rel).replace("\\", "/").rsplit("/", 1)[-1])
         if not name.ok:
             name_notes[item] = f"file name {name.name!r}: " + "; ".join(name.problems)
-        if isinstance(rep, str):
-            errors[item] = rep
+        if frame.at[item, "raster.exists"] is False:  # listed, not in the delivery: no file evidence
             evidence[item] = (listed,)
-            for n in IMAGE_MEASURES:
-                values[n][item] = None
-            values["raster.exists"][item] = False
-            values["raster.readable"][item] = False
-            values["raster.name_ok"][item] = name.ok
-            continue
-        rel = df.loc[item, "file"]
-        evidence[item] = (listed, Evidence(str(rel), rep.sha256 or "", ()))
-        reported = {k: df.loc[item, k] for k in ("mean_dn", "std_dn") if k in df.columns
-                    and df.loc[item, k] is not None and not pd.isna(df.loc[item, k])}
-        vals = _values(rep, reported, ctx.delivery.gsd_m)
-        if rep.error is not None:
-            errors[item] = rep.error
-            vals = {n: None for n in IMAGE_MEASURES} | {"raster.exists": True, "raster.readable": False,
-                                                        "raster.name_ok": vals["raster.name_ok"]}
-        for n in IMAGE_MEASURES:
-            values[n][item] = vals.get(n)
+            names_ok[item] = name.ok
+        else:
+            evidence[item] = (listed, Evidence(str(rel), got["sha256"].get(item, ""), ()))
+    values = {n: frame[n].to_dict() for n in IMAGE_MEASURES}
+    values["raster.name_ok"].update(names_ok)
     out = []
     ev = pd.Series(evidence, dtype=object)
     for n, u in IMAGE_MEASURES.items():
