@@ -295,3 +295,24 @@ def test_check_options_are_typed(make_delivery, mini_profile):
     assert opts == CheckOptions(workers=1, fail_on="warn")
     # fail_on=warn makes the recommended R-FH warning blocking, through the options object alone
     assert check(make_delivery(), mini_profile, options=opts, date="2026-01-01").document["fail_on"] == "warn"
+
+
+def test_scheduler_without_dask_exits_2_before_checking(make_delivery, mini_profile, tmp_path):
+    """A missing optional extra is a clear exit 2 up front, not an error record per image."""
+    import subprocess
+    import sys
+
+    code = ("import sys; sys.modules['distributed'] = None; sys.modules['dask'] = None; "
+            "from orthospec.cli.main import main; main(sys.argv[1:])")
+    res = subprocess.run([sys.executable, "-c", code, "check", str(make_delivery()), "-p", str(mini_profile),
+                          "--out", str(tmp_path / "o"), "--scheduler", "tcp://127.0.0.1:1"],
+                         capture_output=True, text=True)
+    assert res.returncode == 2, res.stderr
+    assert "orthospec[dask]" in res.stderr and "Traceback" not in res.stderr
+    assert not (tmp_path / "o").exists()
+
+
+def test_an_unknown_format_is_refused(make_delivery, mini_profile, tmp_path, capsys):
+    code, _, err = run_main(["check", make_delivery(), "-p", mini_profile, "--out", tmp_path / "o",
+                             "--format", "json,yaml-ish"], capsys)
+    assert code == 2 and "yaml-ish" in err and not (tmp_path / "o").exists()

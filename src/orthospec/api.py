@@ -107,6 +107,10 @@ def check(delivery: str | Path | Delivery, profile: str | Path | ResolvedProfile
         opts = replace(opts, fail_on=fail_on)
     if checker is not None:
         opts = replace(opts, checker=Path(checker))
+    if opts.scheduler is not None:
+        from .raster.parallel import require_dask
+
+        require_dask()  # a missing extra is exit 2 before any work, not an error record per image
     prof = profile if isinstance(profile, ResolvedProfile) else load_profile(profile)
     d = delivery if isinstance(delivery, Delivery) else open_delivery(delivery)
     chk = None

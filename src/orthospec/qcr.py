@@ -26,6 +26,7 @@ from xml.sax.saxutils import quoteattr as _quoteattr
 import numpy as np
 
 from . import __version__
+from . import verdicts as V
 from .engine.evaluator import (
     ERROR,
     FAIL,
@@ -163,7 +164,7 @@ def _fmt(v: Any) -> str:
 
 
 #: verdicts recorded compactly (columnar, per rule); every other verdict is a record in full
-COMPACT_VERDICTS = ("pass", "not_applicable")
+COMPACT_VERDICTS = (V.PASS, V.NOT_APPLICABLE)
 _COMPACT_CODES = (PASS, NA)
 
 
@@ -223,7 +224,9 @@ def _pass_message(measure: str, measured: Any, shown_unit: str, req_text: str) -
 
 
 def _shown_unit(unit: str | None) -> str:
-    return f" {unit}" if unit and unit not in ("1", "bool", "text", "date") else ""
+    from .spec.wording import unit_suffix
+
+    return unit_suffix(unit)
 
 
 def _full(rule: Mapping[str, Any], item: str, verdict: str, measured: Any, requirement: dict[str, Any],
@@ -333,7 +336,7 @@ class _RuleRecords:
         messages: list[str | None] = []
         for v, note in zip(verdicts, notes, strict=True):
             # None: the default wording, rebuilt from measure, value and requirement on reading
-            messages.append(None if note is None and v == "pass" else ("" if note is None else str(note)))
+            messages.append(None if note is None and v == V.PASS else ("" if note is None else str(note)))
         out: dict[str, Any] = {"items": items, "verdict": _column(verdicts), "measured": _column(measured)}
         if self.arrays is not None:
             out["requirement"] = _column([self._requirement(int(i)) for i in idx])
@@ -698,12 +701,12 @@ def to_junit(doc: dict[str, Any]) -> str:
     s = doc["summary"]
     out = ['<?xml version="1.0" encoding="UTF-8"?>',
            f'<testsuites name={quoteattr("orthospec " + doc["profile"]["id"])} tests="{s["records"]}" '
-           f'failures="{s["fail"] + s["missing"] + (s["warn"] if doc["fail_on"] == "warn" else 0)}" '
-           f'errors="{s["error"]}" skipped="{s["not_applicable"] + s["waived"]}">']
+           f'failures="{s[V.FAIL] + s[V.MISSING] + (s[V.WARN] if doc["fail_on"] == V.WARN else 0)}" '
+           f'errors="{s[V.ERROR]}" skipped="{s[V.NOT_APPLICABLE] + s[V.WAIVED]}">']
     for rid, recs in by_rule.items():
-        fails = sum(r["verdict"] in ("fail", "missing") for r in recs)
-        errs = sum(r["verdict"] == "error" for r in recs)
-        skipped = sum(r["verdict"] in ("not_applicable", "waived") for r in recs)
+        fails = sum(r["verdict"] in (V.FAIL, V.MISSING) for r in recs)
+        errs = sum(r["verdict"] == V.ERROR for r in recs)
+        skipped = sum(r["verdict"] in V.NEUTRAL for r in recs)
         out.append(f'  <testsuite name={quoteattr(rid)} tests="{len(recs)}" failures="{fails}" '
                    f'errors="{errs}" skipped="{skipped}">')
         for r in recs:
@@ -712,13 +715,13 @@ def to_junit(doc: dict[str, Any]) -> str:
             msg = quoteattr(r["message"])
             body = escape(f"{r['title']} — {r['requirement'].get('text', '')}")
             v = r["verdict"]
-            if v in ("fail", "missing") or (v == "warn" and doc["fail_on"] == "warn"):
+            if v in (V.FAIL, V.MISSING) or (v == V.WARN and doc["fail_on"] == V.WARN):
                 out.append(f'    <testcase name={name} classname={cls}><failure message={msg} '
                            f'type="{v}">{body}</failure></testcase>')
-            elif v == "error":
+            elif v == V.ERROR:
                 out.append(f'    <testcase name={name} classname={cls}><error message={msg} '
                            f'type="error">{body}</error></testcase>')
-            elif v in ("not_applicable", "waived"):
+            elif v in V.NEUTRAL:
                 out.append(f'    <testcase name={name} classname={cls}><skipped message={msg}/></testcase>')
             else:
                 out.append(f'    <testcase name={name} classname={cls}/>')
@@ -768,4 +771,13 @@ def render_all(doc: dict[str, Any], formats: Iterable[str]) -> dict[str, Output]
         out["junit.xml"] = to_junit(doc)
     if "parquet" in fmts:
         out["qcr.parquet"] = to_parquet(doc)
+    own = {"json", "csv", "junit", "parquet", "terminal", "html", "pdf"}
+    for name in sorted(fmts - own):
+        from . import plugins  # lazy: only when a format a plugin adds is asked for
+
+        fmt = plugins.output_format(name)
+        if fmt is None:
+            raise OrthospecError(f"unknown output format {name!r}: neither orthospec's nor a plugin's "
+                                 "(orthospec.formats entry point)")
+        out[f"qcr{fmt.suffix}"] = fmt.render(doc)
     return out

@@ -39,7 +39,8 @@ def render_documents(doc: dict, fmts: list[str], *, shown: dict | None = None) -
               help="Folder for qcr.json, qcr.csv, junit.xml and reports (default reports/<delivery id>); "
                    "never inside the delivery.")
 @click.option("--format", "formats", default="terminal,json,csv,junit", show_default=True,
-              help="Comma-separated: " + ", ".join(FORMATS) + ".")
+              help="Comma-separated: " + ", ".join(FORMATS) + ", or a format a plugin adds "
+                   "(orthospec.formats entry point). parquet needs orthospec[parquet].")
 @date_option
 @click.option("--checker", "checker_file", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="The checker's file (YAML, outside the delivery): manual-check verdicts and waivers in "
@@ -64,7 +65,7 @@ def check_cmd(delivery: Path, profile: str, params: tuple[str, ...], out_dir: Pa
               scheduler: str | None, sample_file: Path | None, max_items: int, verbose: bool,
               ledger_target: str | None = None, checker_file: Path | None = None) -> None:
     """Check DELIVERY against a spec profile; exit 0 accepted, 1 rejected, 2 could not evaluate."""
-    fmts = split_formats(formats, FORMATS)
+    fmts = split_formats(formats, _known_formats(formats))
     if "parquet" in fmts:
         require_pyarrow()  # exit 2 before the check, not after it
     workers = _workers(workers)
@@ -108,6 +109,16 @@ def check_cmd(delivery: Path, profile: str, params: tuple[str, ...], out_dir: Pa
     click.get_current_context().exit(0 if result.accepted else 1)
 
 
+def _known_formats(formats: str) -> tuple[str, ...]:
+    """Ours, plus the formats plugins add when a name is not ours (only then are plugins loaded)."""
+    asked = {f.strip().lower() for f in formats.split(",") if f.strip()}
+    if asked <= set(FORMATS):
+        return FORMATS
+    from .. import plugins
+
+    return FORMATS + tuple(sorted(plugins.formats()))
+
+
 def _workers(workers: int | None) -> int | None:
     """``--workers`` at least 1 and at most the cores (more only costs memory)."""
     if workers is None:
@@ -139,18 +150,10 @@ def _sample_block(sample: tuple[str, set[str]], result: object, sample_file: Pat
 
 
 def _history_with_this_run(ledger_target: str, doc: dict) -> list[dict]:
-    """The project's earlier runs from the ledger, then this one (recorded right after rendering)."""
+    """The project's earlier runs from the ledger, then this one (recorded right after rendering),
+    its redelivery round computed as ``orthospec report --ledger --run N`` will state it (content-keyed,
+    ledger/history.py: one computation, INTERFACES item 9)."""
     from ..ledger import open_ledger
-    from ..ledger.history import history_rows
 
-    project = doc["delivery"]["project"].get("id")
     with open_ledger(ledger_target) as led:
-        rows = history_rows(led.history(project).entries)
-    last_round = rows[-1]["round"] if rows else 0
-    redelivery = bool(rows) and rows[-1]["delivery"] != doc["delivery"]["id"]
-    rows.append({"run": "new", "round": last_round + 1 if redelivery or not rows else last_round,
-                 "kind": "delivery" if not rows else ("redelivery" if redelivery else "recheck"),
-                 "date": doc["date"], "delivery": doc["delivery"]["id"], "verdict": doc["verdict"],
-                 "signoffs": 0, "profile": f"{doc['profile']['id']} {doc['profile']['version']}",
-                 "current": True})
-    return rows
+        return led.history_before_recording(doc)

@@ -18,11 +18,12 @@ import re
 from dataclasses import dataclass, field
 from typing import Any
 
+from .. import verdicts as V
 from ..qcr import natural_key
 
 __all__ = ["Finding", "clean_text", "findings", "fmt_number", "not_applicable_summary", "stated"]
 
-PROBLEMS = ("fail", "missing", "error", "warn")
+PROBLEMS = V.PROBLEMS
 _CONSEQUENCE_RANK = {"return_delivery": 0, "reject_block": 1, "reject_item": 2}
 RANK_LABELS = ("returns the delivery", "rejects a block", "rejects an item", "fails (no rejection)",
                "missing evidence", "could not be evaluated", "warning")
@@ -119,9 +120,9 @@ def _clause(rec: dict[str, Any]) -> str:
 
 def rank(verdict: str, consequence: str | None) -> int:
     """Consequence order: return delivery, reject block, reject item, other fail, missing, error, warn."""
-    if verdict == "fail":
+    if verdict == V.FAIL:
         return _CONSEQUENCE_RANK.get(consequence or "", 3)
-    return {"missing": 4, "error": 5, "warn": 6}.get(verdict, 7)
+    return {V.MISSING: 4, V.ERROR: 5, V.WARN: 6}.get(verdict, 7)
 
 
 @dataclass
@@ -169,13 +170,13 @@ def _what(rec: dict[str, Any]) -> str:
     s = stated(rec)
     if s is not None:
         return s
-    if (rec.get("requirement") or {}).get("op") == "present" and rec["verdict"] in ("fail", "warn"):
+    if (rec.get("requirement") or {}).get("op") == "present" and rec["verdict"] in (V.FAIL, V.WARN):
         return f"{rec.get('measure') or 'value'} not given, required for every item"
     msg = clean_text(rec.get("message")).strip()
     v = rec["verdict"]
-    if v == "missing":
+    if v == V.MISSING:
         return f"not measured: {msg}" if msg else "not measured (evidence missing)"
-    if v == "error":
+    if v == V.ERROR:
         return f"could not be evaluated: {msg}" if msg else "could not be evaluated"
     return msg or f"{v}, required {(rec.get('requirement') or {}).get('text', '')}".strip()
 
@@ -257,7 +258,7 @@ def not_applicable_summary(records: list[dict[str, Any]]) -> list[dict[str, Any]
     """Not-applicable records per condition: {condition, prose, rules, records} (records stay in qcr.json)."""
     groups: dict[str, dict[str, Any]] = {}
     for r in records:
-        if r.get("verdict") != "not_applicable":
+        if r.get("verdict") != V.NOT_APPLICABLE:
             continue
         msg = clean_text(r.get("message")).strip()
         m = _NA.match(msg)

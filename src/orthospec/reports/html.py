@@ -18,17 +18,18 @@ from typing import Any
 import jinja2
 import markupsafe
 
+from .. import verdicts as V
 from ..qcr import all_records, dumps, natural_key, point_rows
 from ..resources import templates_dir
+from ..spec.wording import unit_suffix
 from .findings import findings as find_problems
 from .findings import not_applicable_summary
 
 __all__ = ["ReportOptions", "document_sha256", "environment", "render_html", "report_context"]
 
 # verdicts the auditor must read first, worst first
-PROBLEM_VERDICTS = ("error", "fail", "missing", "warn")
-VERDICT_ORDER = {v: i for i, v in enumerate(("error", "fail", "missing", "warn", "waived", "pass",
-                                              "not_applicable"))}
+PROBLEM_VERDICTS = V.PROBLEMS
+VERDICT_ORDER = {v: i for i, v in enumerate(V.SEVERITY)}
 SCOPE_TITLES = {"delivery": "Delivery", "project": "Project", "block": "Blocks", "image": "Images",
                 "band": "Bands", "checkpoint": "Checkpoints", "gcp": "Ground control points",
                 "flight": "Flights", "camera": "Cameras", "scanner": "Scanners", "dem": "DEM",
@@ -118,7 +119,7 @@ def fmt_measured(m: dict[str, Any] | None) -> str:
         return "—"
     unit = m.get("unit")
     text = fmt_value(m.get("value"))
-    if text != "—" and unit and unit not in ("1", "text", "bool", "date"):
+    if text != "—" and unit_suffix(unit):
         text += f" {unit}"
     return text
 
@@ -269,13 +270,13 @@ def _rule_views(doc: dict[str, Any], opts: ReportOptions) -> list[RuleView]:
             clause=fmt_clause(first.get("clause") or m.get("clause")), quote=first.get("quote", ""),
             scope=m.get("scope") or first.get("scope", ""), level=m.get("level") or first.get("level", ""),
             consequence=m.get("consequence") or first.get("consequence", ""),
-            measure=first.get("measure", ""), verdict=m.get("verdict", "not_applicable"),
+            measure=first.get("measure", ""), verdict=m.get("verdict", V.NOT_APPLICABLE),
             counts=m.get("counts", {}), requirement=next(iter(reqs)) if len(reqs) == 1 else "per item",
             error=m.get("error"), clause_ref=m.get("clause_ref") or "",
         )
-        passing = [r for r in recs if r["verdict"] == "pass"]
-        v.na_count = sum(r["verdict"] == "not_applicable" for r in recs)
-        shown = [r for r in recs if r["verdict"] not in ("pass", "not_applicable")]
+        passing = [r for r in recs if r["verdict"] == V.PASS]
+        v.na_count = sum(r["verdict"] == V.NOT_APPLICABLE for r in recs)
+        shown = [r for r in recs if r["verdict"] not in (V.PASS, V.NOT_APPLICABLE)]
         shown.sort(key=lambda r: VERDICT_ORDER.get(r["verdict"], 9))  # stable: item order kept
         v.shown = group_rows(shown)
         v.n_shown = len(shown)
@@ -286,7 +287,7 @@ def _rule_views(doc: dict[str, Any], opts: ReportOptions) -> list[RuleView]:
         nums = [r["measured"]["value"] for r in passing if _numeric(r["measured"].get("value"))]
         if nums:
             unit = passing[0]["measured"].get("unit")
-            u = f" {unit}" if unit and unit not in ("1", "text", "bool", "date") else ""
+            u = unit_suffix(unit)
             lo, hi = min(nums), max(nums)
             v.pass_range = fmt_value(lo) + u if lo == hi else f"{fmt_value(lo)} to {fmt_value(hi)}{u}"
         if not opts.bounded:
@@ -372,13 +373,16 @@ def _block_figures(b: dict[str, Any], bid: str) -> list[dict[str, str]]:
                            f"(black) and ±RMSE (red dashed)."})
     if len(pts) >= 4:
         outline = polygon if polygon and len(polygon) >= 3 else None
-        try:
-            from shapely.geometry import Polygon
+        from shapely.errors import ShapelyError
+        from shapely.geometry import Polygon
 
+        from ..errors import MeasureError
+
+        try:
             dist = checkpoint_distribution(x, y, ids=ids, min_count=0,
                                            area=Polygon(outline) if outline else None)
-        except Exception:  # a degenerate layout (collinear points): the map above still shows it
-            dist = None
+        except (MeasureError, ShapelyError, ValueError):  # a degenerate layout (collinear points,
+            dist = None                                    # an empty polygon): the map above shows it
         if dist is not None:
             svg = figs.quadrant_distribution_svg(x, y, centre=dist.centre, shares=dist.quadrant_shares,
                                                  area=outline, unit=unit,
@@ -431,7 +435,7 @@ def _edge_targets(doc: dict[str, Any], opts: ReportOptions | None = None,
                     "has_curves": isinstance(d.get("curves"), dict), "figures": []})
     if figure is not None and opts.figures:
         bad = {r["item"] for r in all_records(doc)
-               if r.get("scope") == "edge" and r.get("verdict") in ("fail", "error")}
+               if r.get("scope") == "edge" and r.get("verdict") in (V.FAIL, V.ERROR)}
         ranked = sorted((e for e in out if e["has_curves"]), key=lambda e: e["id"] not in bad)  # stable
         for e in ranked[: opts.max_figure_edges]:
             key = f"edge:{e['id']}"  # block ids share the cache
@@ -533,17 +537,17 @@ def report_context(doc: dict[str, Any], opts: ReportOptions | None = None, *,
         if quiet and not v.pass_count and not v.counts.get("waived"):
             continue  # not applicable throughout: summarised per condition, never row by row
         scopes[-1]["quiet" if quiet else "rules"].append(v)
-    failing_rules = [v for v in rules if v.verdict in ("error", "fail")]
+    failing_rules = [v for v in rules if v.verdict in (V.ERROR, V.FAIL)]
     manual = [r for r in records if r.get("manual")]
     to_sign: dict[str, dict[str, Any]] = {}
     for r in manual:
-        if r["verdict"] == "missing":
+        if r["verdict"] == V.MISSING:
             to_sign.setdefault(r["rule"], {**r, "item_list": []})["item_list"].append(r["item"])
     decided = {d["rule"] for d in (doc.get("after_signoff") or {}).get("decisions", [])}
     to_sign = {k: v for k, v in to_sign.items() if k not in decided}
     signed_groups: dict[tuple[str, str, str], dict[str, Any]] = {}
     for r in manual:
-        if r["verdict"] in ("missing", "not_applicable"):
+        if r["verdict"] in (V.MISSING, V.NOT_APPLICABLE):
             continue
         key = (r["rule"], r["verdict"], r["message"])
         signed_groups.setdefault(key, {**r, "item_list": []})["item_list"].append(r["item"])
@@ -555,7 +559,7 @@ def report_context(doc: dict[str, Any], opts: ReportOptions | None = None, *,
     return {
         "doc": doc, "opts": opts, "sha256": sha256 or document_sha256(doc),
         "delivery": d, "profile": p, "summary": doc.get("summary", {}),
-        "verdict": doc.get("verdict", "rejected"),
+        "verdict": doc.get("verdict", V.REJECTED),
         "reasons": (doc.get("rollup") or {}).get("reasons", []),
         "rejected": (doc.get("rollup") or {}).get("rejected", {}),
         "problems": problems, "failing_rules": failing_rules,
@@ -563,8 +567,8 @@ def report_context(doc: dict[str, Any], opts: ReportOptions | None = None, *,
         "not_applicable": not_applicable_summary(records),
         "checker": doc.get("operator"), "qa_operator": d.get("operator") or {},
         "after_signoff": doc.get("after_signoff"),
-        "missing": [r for r in records if r["verdict"] == "missing"],
-        "waived": [r for r in records if r["verdict"] == "waived"],
+        "missing": [r for r in records if r["verdict"] == V.MISSING],
+        "waived": [r for r in records if r["verdict"] == V.WAIVED],
         "waivers_unused": doc.get("waivers_unused") or [],
         "scopes": scopes,
         "checkpoints": _checkpoint_blocks(doc, opts, figure, {} if cache is None else cache),

@@ -78,5 +78,6 @@ def write_pdf(html: str, *, fetcher: SafeFetcher, day: str, identifier: str,
         with _source_date_epoch(moment):
             return doc.write_pdf(pdf_variant=PDF_VARIANT, attachments=files, pdf_identifier=pdf_id,
                                  uncompressed_pdf=False, custom_metadata=False)
-    except Exception as exc:  # WeasyPrint raises many kinds; the CLI wants one error class
+    except Exception as exc:  # WeasyPrint raises many kinds; never swallowed: one error class, chained
+        # (the original traceback stays on __cause__ for --debug)
         raise ReportError(f"PDF rendering failed: {type(exc).__name__}: {exc}") from exc

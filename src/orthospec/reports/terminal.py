@@ -13,12 +13,13 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
+from .. import verdicts as V
 from ..qcr import all_records
 from .findings import clean_text, findings
 
 MAX_ITEMS = 8
-_STYLE = {"pass": "green", "fail": "bold red", "warn": "yellow", "missing": "magenta",
-          "error": "bold red", "waived": "cyan", "not_applicable": "dim"}
+_STYLE = {V.PASS: "green", V.FAIL: "bold red", V.WARN: "yellow", V.MISSING: "magenta",
+          V.ERROR: "bold red", V.WAIVED: "cyan", V.NOT_APPLICABLE: "dim"}
 
 
 def _t(text: Any) -> str:
@@ -35,7 +36,7 @@ def summary_line(doc: dict[str, Any]) -> str:
 def render(doc: dict[str, Any], console: Console, *, max_items: int = MAX_ITEMS, verbose: bool = False) -> None:
     p, d = doc["profile"], doc["delivery"]
     verdict = doc["verdict"].upper()
-    colour = "green" if doc["verdict"] == "accepted" else "red"
+    colour = "green" if doc["verdict"] == V.ACCEPTED else "red"
     console.print(f"[bold]orthospec[/] {_t(d['path'])} against {_t(p['id'])} {_t(p['version'])} "
                   f"(sha256 {p['sha256'][:12]}…), {doc['date']}", overflow="fold")
     checker = doc.get("operator")
@@ -65,7 +66,7 @@ def render(doc: dict[str, Any], console: Console, *, max_items: int = MAX_ITEMS,
         console.print(t)
     if verbose:
         for r in doc["rules"]:
-            if r["verdict"] in ("pass", "waived"):
+            if r["verdict"] in (V.PASS, V.WAIVED):
                 console.print(f"  [{_STYLE.get(r['verdict'], '')}]{r['verdict']}[/] {_t(r['rule'])} "
                               f"{_t(r['title'])}", overflow="fold")
     for reason in doc["rollup"]["reasons"]:
