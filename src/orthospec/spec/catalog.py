@@ -12,8 +12,8 @@ measures. Three sources, in order:
    :func:`announce`), which is how plugin measures are known: a name found nowhere else makes
    the installed ``orthospec.providers`` plugins load (orthospec/plugins.py);
 3. the snapshot. A stale one (a provider was edited in a source checkout and the snapshot not
-   regenerated) is still used, with a warning naming the command that regenerates it; a test
-   keeps the shipped snapshot current.
+   regenerated) is still used; an unknown measure then says so and names the command that
+   regenerates it (:func:`stale_hint`). A test keeps the shipped snapshot current.
 
 This module imports nothing above spec/.
 """
@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import warnings
 from collections.abc import Callable
 from functools import lru_cache
 from pathlib import Path
@@ -108,14 +107,16 @@ def _read_snapshot() -> tuple[bool, dict[str, tuple[str, str]]]:
     return doc.get("fingerprint") == fingerprint(), names
 
 
-@lru_cache(maxsize=1)
 def _snapshot() -> dict[str, tuple[str, str]]:
-    current, names = _read_snapshot()
-    if not current:
-        warnings.warn(f"{specs_dir() / 'schema' / CATALOG_NAME} does not match the measure providers "
-                      "(edited in this checkout): measure names are checked against the old list until "
-                      "`python -m orthospec.schemas` rewrites it", stacklevel=3)
-    return names
+    return _read_snapshot()[1]
+
+
+def stale_hint() -> str:
+    """What an unknown-measure message adds when the names came from a stale snapshot, else ''."""
+    if _LIVE or is_current():
+        return ""
+    return (f" ({specs_dir() / 'schema' / CATALOG_NAME} does not match the measure providers edited in this "
+            "checkout: run `python -m orthospec.schemas`)")
 
 
 def is_current() -> bool:

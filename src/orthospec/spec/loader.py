@@ -1043,10 +1043,10 @@ def _check_dimensions(r: Rule, key: str, text: str, e: expr.Expression, used: se
 
 
 def _near_measure(name: str) -> str:
-    from .catalog import all_names
+    from .catalog import all_names, stale_hint
 
     near = difflib.get_close_matches(name, all_names(), n=1, cutoff=0.8)
-    return f"; did you mean {near[0]!r}?" if near else ""
+    return (f"; did you mean {near[0]!r}?" if near else "") + stale_hint()
 
 
 def _looks_like_expr(text: str, known: set[str]) -> bool:
