@@ -3,7 +3,6 @@
 import re
 
 import pdfplumber
-import pytest
 from click.testing import CliRunner
 from tests.conftest import MANIFEST
 
@@ -92,8 +91,6 @@ def _this_run(pdf):
     return run_, int(rnd), kind, did
 
 
-@pytest.mark.xfail(strict=True, reason="until cli/cmd_check.py _history_with_this_run calls "
-                   "Ledger.history_before_recording (helper A, /tmp/team/requests-A.md)")
 def test_round_at_check_time_equals_the_ledger_report(make_delivery, mini_profile, tmp_path):
     """Issue 15: the PDF archived at check time states the same JRC §12.8 round as
     `orthospec report --ledger --run N` does later, for a delivery, a re-check of the same content

@@ -105,8 +105,6 @@ def test_plugin_format_renders_the_document(site: Path, checked: dict, tmp_path:
     assert all(RULE not in r["failing_rules"] for i, r in table.items() if i != RENAMED)
 
 
-@pytest.mark.xfail(strict=True, reason="until qcr.render_all / cmd_check --format ask orthospec.plugins for "
-                                       "unknown format names (helper A, /tmp/team/requests-A.md)")
 def test_check_writes_the_plugin_format(site: Path, delivery: Path, tmp_path: Path) -> None:
     res = orthospec(site, "check", str(delivery), "--profile", "example-agency", "--checker", str(CHECKER),
                     "--format", "example-tiles", "--out", str(tmp_path), "--date", "2026-07-01")

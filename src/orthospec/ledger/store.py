@@ -50,7 +50,6 @@ ENV_LEDGER = "ORTHOSPEC_LEDGER"
 #: an append-only file outside the ledger that receives every new chain head ("seq hash" lines);
 #: `verify` then checks that each head in it is still in the chain (an external anchor)
 ENV_ANCHOR = "ORTHOSPEC_LEDGER_ANCHOR"
-QCR_SCHEMA = "orthospec.qcr/1"
 ROLES = ("supervisor", "inspector", "auditor", "operator")
 _PG_LOCK_KEY = 0x6F72_7468  # advisory lock serialising schema upgrades on a shared server
 
@@ -151,14 +150,13 @@ class Ledger:
 
     def record(self, document: Mapping[str, Any], *, recorded_at: str | None = None) -> int:
         """Record one check run (its qcr.json document) and return the new run id."""
-        from ..qcr import (  # the exact qcr.json text: its sha256 matches the file's
-            all_records,
-            dumps,
-        )
+        # dumps: the exact qcr.json text (its sha256 matches the file's); every QCR version it reads
+        from ..qcr import SCHEMA_IDS, all_records, dumps
 
-        if not isinstance(document, Mapping) or document.get("schema") != QCR_SCHEMA:
+        if not isinstance(document, Mapping) or document.get("schema") not in SCHEMA_IDS:
             got = document.get("schema") if isinstance(document, Mapping) else type(document).__name__
-            raise LedgerError(f"not a QCR document: schema {got!r}, expected {QCR_SCHEMA!r} (qcr.json)")
+            raise LedgerError(f"not a QCR document: schema {got!r}, expected one of "
+                              f"{', '.join(map(repr, SCHEMA_IDS))} (qcr.json)")
         try:
             d = document["delivery"]
             p = document["profile"]
