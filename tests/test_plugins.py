@@ -135,3 +135,25 @@ def test_no_plugin_is_looked_for_by_help() -> None:
             "print(sorted(m for m in sys.modules if m in ('importlib.metadata', 'orthospec.plugins')))")
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert res.stdout.strip().splitlines()[-1] == "[]"
+
+
+def test_a_tender_extends_a_plugin_profile(site: Path, tmp_path: Path) -> None:
+    """`extends` finds a profile a plugin ships (after the shipped ones and the tender's folder),
+    and the plugin's measure validates in the extending file."""
+    tender = tmp_path / "tender.yaml"
+    tender.write_text("""\
+orthospec_profile: 1
+id: tender-on-plugin
+version: 0.1.0
+title: A tender adopting the example agency profile
+source: {title: ITT (test)}
+extends: {id: example-agency, version: 1.0.0}
+parameters:
+  tolerance_xy: {unit: m, value: 0.5, description: ITT 4.1}
+""", encoding="utf-8")
+    res = orthospec(site, "spec", "show", str(tender))
+    assert res.returncode == 0, res.stderr
+    assert "EXAMPLE-5.3-SELF-DOCUMENTING-NAME" in res.stdout and "example-agency" in res.stdout
+    bare = subprocess.run([sys.executable, "-m", "orthospec.cli.main", "spec", "validate", str(tender)],
+                          capture_output=True, text=True, timeout=300, env={**os.environ, "ORTHOSPEC_CACHE_DIR": "off"})
+    assert bare.returncode == 2 and "unknown profile 'example-agency'" in bare.stderr + bare.stdout
