@@ -52,6 +52,7 @@ def cache_dir(tmp_path, monkeypatch) -> Path:
     # the key includes a fingerprint of the code; recompute it so a subprocess agrees with us
     cache.code_fingerprint.cache_clear()
     catalog.fingerprint.cache_clear()
+    catalog._read_snapshot.cache_clear()
     return d / "profiles"
 
 

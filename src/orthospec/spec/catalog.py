@@ -61,17 +61,6 @@ def fingerprint() -> str:
     return h.hexdigest()
 
 
-@lru_cache(maxsize=1)
-def _snapshot() -> dict[str, tuple[str, str]] | None:
-    try:
-        doc = json.loads((specs_dir() / "schema" / CATALOG_NAME).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return None
-    if not isinstance(doc, dict) or doc.get("fingerprint") != fingerprint():
-        return None
-    return {n: (v[0], v[1]) for n, v in doc.get("measures", {}).items()}
-
-
 def dumps(doc: dict[str, object]) -> str:
     """The snapshot file's text (engine/catalog.snapshot() gives ``doc``)."""
     return json.dumps(doc, indent=1, sort_keys=True, ensure_ascii=False) + "\n"
