@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import math
-import warnings
 from pathlib import Path
 from typing import Any
 
@@ -40,30 +39,6 @@ def _parse_roi(text: str | None) -> tuple[int, int, int, int] | None:
     return x0, y0, x1, y1
 
 
-def _read_roi(path: str, roi: tuple[int, int, int, int] | None, band: int) -> tuple[Any, Any]:
-    """Windowed read of one band; returns (array, dataset nodata)."""
-    import rasterio
-    from rasterio.errors import NotGeoreferencedWarning, RasterioIOError
-    from rasterio.windows import Window
-
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", NotGeoreferencedWarning)
-            ds = rasterio.open(path)
-    except RasterioIOError as exc:
-        raise MeasureError(f"{path}: cannot be opened as a raster ({exc})") from exc
-    with ds:
-        if not 1 <= band <= ds.count:
-            raise MeasureError(f"{path}: band {band} does not exist; the file has "
-                               f"{ds.count} band(s) (1..{ds.count})")
-        x0, y0, x1, y1 = roi if roi is not None else (0, 0, ds.width, ds.height)
-        if x1 > ds.width or y1 > ds.height:
-            raise MeasureError(f"{path}: ROI {x0},{y0},{x1},{y1} exceeds the image "
-                               f"({ds.width} x {ds.height} px)")
-        arr = ds.read(band, window=Window(x0, y0, x1 - x0, y1 - y0))
-        return arr, ds.nodata
-
-
 def _fmt(value: Any) -> str:
     if value is None:
         return "n/a"
@@ -78,8 +53,9 @@ def _fmt(value: Any) -> str:
               "Default: find the straight edges automatically and measure each one.")
 @click.option("--whole", is_flag=True, help="Measure the whole image as one ROI (no edge search).")
 @click.option("--band", type=int, default=1, show_default=True, help="Band to read (1-based).")
-@click.option("--gsd", type=float, help="Ground sample distance (m/px): adds metre values.")
-@click.option("--nodata", type=float, help="DN to ignore (default: the file's nodata).")
+@click.option("--gsd", type=float, help="Ground sample distance (m/px): adds metre values "
+              "(default: the pixel size of a projected raster, as `check` uses it).")
+@click.option("--nodata", type=float, help="DN to ignore (default: the file's nodata, mask or alpha band).")
 @click.option("--bit-depth", type=int, help="Radiometric depth for the saturation check.")
 @click.option("--min-snr", type=float, default=50.0, show_default=True,
               help="Health check: SNR = dDN / mean(std) must exceed this (seed: 50).")
@@ -99,25 +75,26 @@ def edge_command(image: str, roi: str | None, whole: bool, band: int, gsd: float
     one found edge) is valid, 1 when the health checks fail, 2 when IMAGE, --roi
     or --band cannot be used.
     """
-    from ..measures.edge import measure_edge
+    from ..measures.edge import EdgeLimits, measure_edge
+    from ..raster.roi import PixelWindow, read_roi
 
+    limits = EdgeLimits(min_snr=min_snr)
     try:
         window = _parse_roi(roi)
-        arr, file_nodata = _read_roi(image, window, band)
+        got = read_roi(image, window=PixelWindow(*window) if window else None, band=band, nodata=nodata)
+        gsd = gsd if gsd is not None else got.gsd_m
         if window is None and not whole:
-            _auto(image, band, arr, gsd=gsd,
-                  nodata=nodata if nodata is not None else file_nodata,
-                  bit_depth=bit_depth, min_snr=min_snr, as_json=as_json, plots=plots)
+            _auto(image, band, got.data, gsd=gsd, bit_depth=bit_depth, limits=limits, as_json=as_json,
+                  plots=plots)
             return
-        result = measure_edge(arr, gsd=gsd, nodata=nodata if nodata is not None else file_nodata,
-                              bit_depth=bit_depth, min_snr=min_snr)
+        result = measure_edge(got.data, gsd=gsd, bit_depth=bit_depth, limits=limits)
         written: list[str] = []
         if plots:
             from ..figures.edge import edge_figures
 
             out = Path(plots)
             out.mkdir(parents=True, exist_ok=True)
-            for stem, svg in edge_figures(arr, result).items():
+            for stem, svg in edge_figures(got.values, result).items():
                 target = out / f"edge_{stem}.svg"
                 target.write_text(svg, encoding="utf-8")
                 written.append(str(target))
@@ -136,12 +113,12 @@ def edge_command(image: str, roi: str | None, whole: bool, band: int, gsd: float
         click.get_current_context().exit(1)
 
 
-def _auto(image: str, band: int, arr: Any, *, gsd: float | None, nodata: float | None,
-          bit_depth: int | None, min_snr: float, as_json: bool, plots: str | None) -> None:
+def _auto(image: str, band: int, arr: Any, *, gsd: float | None, bit_depth: int | None, limits: Any,
+          as_json: bool, plots: str | None) -> None:
     """No ROI: find the edges, measure each, print them and the combined RER."""
     from ..measures.edge_detect import measure_target
 
-    target = measure_target(arr, nodata=nodata, gsd=gsd, bit_depth=bit_depth, min_snr=min_snr)
+    target = measure_target(arr, gsd=gsd, bit_depth=bit_depth, limits=limits)
     ok = any(e.result is not None and e.result.valid for e in target.edges)
     written: list[str] = []
     if plots:

@@ -11,7 +11,7 @@ from shapely.geometry import Polygon
 
 from ..delivery.convention import ColumnSpec, TableSpec
 from ..delivery.reader import Delivery, parse_csv
-from ..errors import DeliveryError
+from ..errors import DeliveryError, OrthospecError
 from ..measures.sampling import Sample, select_sample
 
 SAMPLE_SPEC = TableSpec(
@@ -34,24 +34,29 @@ class DrawnSample:
 
 
 def _image_centres(d: Delivery) -> tuple[list[str], np.ndarray, np.ndarray, pd.DataFrame]:
+    """Each image's position: its exposure centre from the table, else its footprint's centre.
+
+    The spread of the systematic part of the sample depends on these positions, so an image
+    that cannot be read is an error naming it (never placed at an invented position).
+    """
     t = d.require_table("images")
     df = t.df
     ids = t.ids.tolist()
     if {"exposure_x", "exposure_y"} <= set(df.columns) and df["exposure_x"].notna().all():
         return ids, df["exposure_x"].to_numpy(float), df["exposure_y"].to_numpy(float), df
-    from ..raster.reading import open_read_only, read_only_env
+    from ..raster.roi import raster_bounds
 
     xs, ys = [], []
-    for i, f in zip(ids, df["file"], strict=True):
+    for i, f, row in zip(ids, df["file"].astype(str), df["_row"], strict=True):
+        path = d.path(f, what="image file", file=t.file, row=int(row))
         try:
-            with read_only_env(), open_read_only(d.path(str(f))) as ds:
-                b = ds.bounds
-                xs.append((b.left + b.right) / 2)
-                ys.append((b.bottom + b.top) / 2)
-        except Exception:  # unreadable image: place it at the origin; it still can be drawn at random
-            xs.append(0.0)
-            ys.append(0.0)
-            del i
+            left, bottom, right, top = raster_bounds(path, name=f)
+        except OrthospecError as exc:
+            raise DeliveryError(f"image {i} cannot be placed for the sample: {exc}; give its "
+                                "exposure_x / exposure_y in the images table or deliver a readable image",
+                                file=t.file, row=int(row)) from None
+        xs.append((left + right) / 2)
+        ys.append((bottom + top) / 2)
     return ids, np.asarray(xs), np.asarray(ys), df
 
 

@@ -265,11 +265,18 @@ def measure_target(image: np.ndarray, *, nodata: float | None = None, gsd: float
                    **measure_kw: Any) -> TargetEdges:
     """Find every straight edge of a target image, grow a passing ROI around each, measure it.
 
-    ``measure_kw`` goes to :func:`orthospec.measures.edge.measure_edge` (health-check limits).
+    ``measure_kw`` goes to :func:`orthospec.measures.edge.measure_edge` (``limits=EdgeLimits(...)``
+    or single limits). ``image`` may be a ``numpy.ma`` array (as :func:`orthospec.raster.roi.read_roi`
+    returns it): its masked pixels are invalid like ``nodata``, and when any pixel is masked no
+    zero fill is searched for (the file declares its invalid pixels).
     """
-    img = np.asarray(image, dtype=float)
+    img = np.asarray(np.ma.getdata(image), dtype=float)
+    masked = np.ma.getmaskarray(image) if np.ma.isMaskedArray(image) else None
+    declared = masked is not None and bool(masked.any())
+    if declared:
+        img = np.where(masked, np.nan, img)
     fill = None
-    if nodata is None:
+    if nodata is None and not declared:
         nodata = fill = zero_fill(img)
     found = find_edges(img, nodata=nodata, min_length_px=min_length_px)
     valid = ndimage.binary_erosion(_valid_mask(img, nodata), iterations=2)

@@ -1,7 +1,8 @@
 """Edge-target measures (CEOS WGCV IVOS 12 steps, USGS RER, Passini/Jacobsen effective resolution).
 
 Edge targets are listed in the manifest (`edge_targets: [{id, image, roi, band}]`); each ROI is
-read with one windowed rasterio read and measured by :func:`orthospec.measures.edge.measure_edge`.
+read by :func:`orthospec.raster.roi.read_roi` (as `orthospec measure edge` reads it) and measured
+by :func:`orthospec.measures.edge.measure_edge`.
 A target without an ROI is searched for straight edges (issue 16 item 2,
 :func:`orthospec.measures.edge_detect.measure_target`): every edge found feeds the USGS
 combined RER, and the target's item reports its least sharp valid edge.
@@ -19,12 +20,10 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-import rasterio
-from rasterio.windows import Window
 
 from ...errors import OrthospecError
 from ...measures.edge import NYQUIST, PSF_FITS, EdgeResult, measure_edge
-from ...raster.reading import open_read_only, read_only_env
+from ...raster.roi import PixelWindow, RasterRoi, read_roi
 from ..registry import Measured, ProviderContext, provider
 
 HEALTH = {  # measure -> health check name in EdgeResult
@@ -142,6 +141,9 @@ def _measure_all(ctx: ProviderContext) -> dict[str, Any]:
 def _measure_targets(ctx: ProviderContext) -> dict[str, Any]:
     """Target id -> record (``result``, ``error`` or ``missing``, ``evidence``, ``file``).
 
+    Each target is read by :func:`orthospec.raster.roi.read_roi`, as ``orthospec measure edge``
+    reads it (validity from the file's nodata, mask or alpha band; GSD from a projected raster's
+    transform, else the delivery's declared GSD), so both report the same numbers for one ROI.
     A target without an ROI (issue 16 item 2) is searched for straight edges
     (:func:`_auto_target`); its record adds ``edges`` (every edge found) and ``found`` (their
     summary, stored in the detail); no edge found is an error with the reason.
@@ -155,37 +157,30 @@ def _measure_targets(ctx: ProviderContext) -> dict[str, Any]:
         rec: dict[str, Any] = {"file": rel}
         try:
             path = d.path(rel, what=f"edge target {t.id}")
-            with read_only_env(), open_read_only(path, name=rel) as ds:
-                if not 1 <= t.band <= ds.count:
-                    raise OrthospecError(f"{rel}: band {t.band} does not exist ({ds.count} bands)")
-                if t.roi is None:
-                    out[t.id] = _auto_target(d, t, rel, ds)
-                    continue
-                x0, y0, x1, y1 = t.roi
-                if not (0 <= x0 < x1 <= ds.width and 0 <= y0 < y1 <= ds.height):
-                    raise OrthospecError(f"{rel}: ROI {t.roi} is outside the image ({ds.width} x {ds.height})")
-                roi = ds.read(t.band, window=Window(x0, y0, x1 - x0, y1 - y0), masked=True)
-                gsd = _gsd(ds, d)
-            arr = roi.filled(np.nan).astype(float) if np.ma.isMaskedArray(roi) else roi.astype(float)
-            rec["result"] = measure_edge(arr, gsd=gsd)
+            window = PixelWindow(*t.roi) if t.roi is not None else None
+            got = read_roi(path, window=window, band=t.band, name=rel,
+                           max_pixels=None if window is not None else MAX_AUTO_PIXELS,
+                           too_large=f"edge target {t.id} has no ROI and the automatic edge search "
+                                     "reads the whole band: give the target an roi [x0, y0, x1, y1] "
+                                     "around its edges")
+            gsd = got.gsd_m if got.gsd_m is not None else d.gsd_m
+            if window is None:
+                out[t.id] = _auto_target(d, t, rel, got, gsd)
+                continue
+            rec["result"] = measure_edge(got.data, gsd=gsd)
             rec["evidence"] = (d.manifest_evidence(f"edge_targets.{t.id}"), d.evidence(rel))
-        except (OrthospecError, OSError, rasterio.errors.RasterioError) as exc:
+        except (OrthospecError, OSError) as exc:
             rec["error"] = str(exc)
             rec["evidence"] = (d.manifest_evidence(f"edge_targets.{t.id}"),)
         out[t.id] = rec
     return out
 
 
-def _gsd(ds: Any, d: Any) -> float | None:
-    """Pixel size of a projected raster, else the delivery's declared GSD."""
-    return abs(ds.transform.a) if ds.crs is not None and ds.crs.is_projected else d.gsd_m
-
-
-def _auto_target(d: Any, t: Any, rel: str, ds: Any) -> dict[str, Any]:
+def _auto_target(d: Any, t: Any, rel: str, got: RasterRoi, gsd: float | None) -> dict[str, Any]:
     """The record of a target image without an ROI: its edges found and measured.
 
-    The whole band is read masked (declared nodata and masks become NaN, so they bound the
-    search); without any, :func:`measure_target` detects a zero fill connected to the border.
+    The whole band is read masked (declared nodata and masks bound the search); without any,
+    :func:`measure_target` detects a zero fill connected to the border.
     Every edge found is kept in ``edges`` (the USGS combined RER uses them all); the target's
     own item reports the valid edge with the lowest RER (the least sharp edge: a per-target
     ``>=`` RER or ``<=`` width rule then judges the worst edge, never a flattering one), or,
@@ -193,15 +188,7 @@ def _auto_target(d: Any, t: Any, rel: str, ds: Any) -> dict[str, Any]:
     """
     from ...measures.edge_detect import measure_target
 
-    if ds.width * ds.height > MAX_AUTO_PIXELS:
-        raise OrthospecError(
-            f"{rel}: edge target {t.id} has no ROI and its image is {ds.width} x {ds.height} px; the "
-            f"automatic edge search reads the whole band and is limited to {MAX_AUTO_PIXELS} px: "
-            "give the target an roi [x0, y0, x1, y1] around its edges")
-    band = ds.read(t.band, masked=True)
-    masked = np.ma.isMaskedArray(band) and bool(np.ma.getmaskarray(band).any())
-    arr = band.filled(np.nan).astype(float) if np.ma.isMaskedArray(band) else band.astype(float)
-    target = measure_target(arr, nodata=float("nan") if masked else None, gsd=_gsd(ds, d))
+    target = measure_target(got.data, gsd=gsd)
     ev = (d.manifest_evidence(f"edge_targets.{t.id}"), d.evidence(rel))
     found = [e for e in target.edges if e.result is not None]
     if not found:

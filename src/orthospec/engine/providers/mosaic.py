@@ -10,13 +10,13 @@ import math
 from typing import Any
 
 import pandas as pd
-import rasterio
 import shapely
 from shapely.geometry import Polygon, box
 
 from ...errors import MeasureError, OrthospecError
 from ...measures.mosaic import seamline_coverage
-from ...raster.reading import open_read_only, read_only_env, read_vector
+from ...raster.reading import read_vector
+from ...raster.roi import raster_bounds
 from ..registry import Measured, ProviderContext, provider
 
 MEASURES = {"mosaic.aoi_coverage": "%", "mosaic.seamline_coverage": "%", "mosaic.seamline_overlap": "%",
@@ -43,18 +43,18 @@ def _aoi(ctx: ProviderContext) -> tuple[Any, tuple[Any, ...], str]:
 
 
 def _footprints(ctx: ProviderContext) -> tuple[list[Any], list[str]]:
+    """Image footprints (:func:`orthospec.raster.roi.raster_bounds`) and the images that could not
+    be read (named in the coverage note: an unreadable image covers nothing)."""
     d = ctx.delivery
     t = d.table("images")
     if t is None:
         return [], []
     out, bad = [], []
-    with read_only_env():
-        for rel in t.df["file"].astype(str):
-            try:
-                with open_read_only(d.path(rel)) as ds:
-                    out.append(box(*ds.bounds))
-            except (OrthospecError, OSError, rasterio.errors.RasterioError):
-                bad.append(rel)
+    for rel in t.df["file"].astype(str):
+        try:
+            out.append(box(*raster_bounds(d.path(rel), name=rel)))
+        except (OrthospecError, OSError):
+            bad.append(rel)
     return out, bad
 
 
@@ -94,7 +94,7 @@ def mosaic_measures(ctx: ProviderContext) -> list[Measured]:
                                                      f"{source}")
                 for n in ("mosaic.seamline_coverage", "mosaic.seamline_overlap", "mosaic.seamlines_invalid"):
                     evs[n] = (*aoi_ev, d.evidence(seam))
-            except (OrthospecError, OSError, Exception) as exc:  # unreadable vector: error, not a crash
+            except (OrthospecError, OSError, shapely.errors.ShapelyError) as exc:  # unreadable vector: error
                 for n in ("mosaic.seamline_coverage", "mosaic.seamline_overlap", "mosaic.seamlines_invalid"):
                     errors[n] = f"{seam}: cannot read seamlines: {exc}"
         else:

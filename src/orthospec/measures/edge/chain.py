@@ -35,8 +35,9 @@ def measure_edge(
     Parameters
     ----------
     roi
-        2-D array (rows, columns) holding one straight edge; NaN (or ``nodata``)
-        pixels are ignored.
+        2-D array (rows, columns) holding one straight edge; NaN (or ``nodata``, or masked:
+        a ``numpy.ma`` array as :func:`orthospec.raster.roi.read_roi` returns) pixels are
+        ignored. The data type sets the saturation levels and the quantisation noise floor.
     gsd
         Ground sample distance in metres per pixel; adds metre-valued estimators.
     bit_depth, saturation_dn
@@ -117,11 +118,14 @@ def fit_esf(s: EsfSamples, areas: Areas, lim: EdgeLimits, angle_deg: float | Non
     return fits
 
 
-def _prepare(roi: np.ndarray, nodata: float | None, bit_depth: int | None,
+def _prepare(roi: np.ndarray | np.ma.MaskedArray, nodata: float | None, bit_depth: int | None,
              gsd: float | None) -> tuple[np.ndarray, np.ndarray, float]:
-    """Malformed input raises; returns the array, its float copy with ``nodata`` as NaN, and
-    the DN step of quantised data (integer DNs: its noise floor q / sqrt(12) never averages out)."""
-    arr = np.asarray(roi)
+    """Malformed input raises; returns the array, its float copy with ``nodata`` and masked
+    pixels as NaN, and the DN step of quantised data (integer DNs: its noise floor q / sqrt(12)
+    never averages out)."""
+    masked = np.ma.isMaskedArray(roi)
+    invalid = np.ma.getmaskarray(roi) if masked else None
+    arr = np.asarray(np.ma.getdata(roi) if masked else roi)
     if arr.ndim != 2:
         raise MeasureError(f"edge ROI must be a 2-D array, got {arr.ndim} dimension(s) {arr.shape}")
     if min(arr.shape) < 5:
@@ -133,6 +137,8 @@ def _prepare(roi: np.ndarray, nodata: float | None, bit_depth: int | None,
     img = arr.astype(float)
     if nodata is not None:
         img[img == nodata] = np.nan
+    if invalid is not None:
+        img[invalid] = np.nan
     if not np.isfinite(img).any():
         raise MeasureError("edge ROI has no finite pixels")
     if gsd is not None and not (math.isfinite(gsd) and gsd > 0):
