@@ -27,12 +27,11 @@ _LOADED: list[bool] = []
 
 def _load() -> None:
     """Import the built-in provider modules, then the plugins' (once)."""
-    if _LOADED:
-        return
-    for info in sorted(pkgutil.iter_modules(providers.__path__), key=lambda i: i.name):
-        importlib.import_module(f"{providers.__name__}.{info.name}")
-    _LOADED.append(True)
-    plugins.load_providers()
+    if not _LOADED:
+        for info in sorted(pkgutil.iter_modules(providers.__path__), key=lambda i: i.name):
+            importlib.import_module(f"{providers.__name__}.{info.name}")
+        _LOADED.append(True)
+    plugins.load_providers()  # once loaded a no-op; a broken plugin raises again on every lookup
 
 
 def known_measures() -> dict[str, ProviderSpec]:
