@@ -79,12 +79,20 @@ def radiometry_cmd(ctx: click.Context, image: str, as_json: bool, bit_depth: int
     as GDAL computes them. Radiometry needs no georeference: a missing or unparseable CRS is
     reported as a file-check finding, not refused. Exit code 2 when the pixels cannot be read.
     """
-    from ..raster.parallel import ScanOptions, scan_image
-    from ..raster.reading import ScanSettings
+    from concurrent.futures import ThreadPoolExecutor
 
-    opts = ScanOptions(settings=ScanSettings(bit_depth=bit_depth), expect_epsg=expect_epsg,
-                       expect_gsd=expect_gsd, gsd_tolerance=gsd_tolerance)
-    rep = scan_image(image, opts, cloud_mask=cloud_mask)
+    from ..provenance import sha256_file
+
+    # the file's SHA-256 is computed while the raster stack is imported and the pixels scanned
+    # (hashlib releases the GIL): it adds no wall time
+    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="orthospec-sha256") as pool:
+        hashing = pool.submit(sha256_file, image)
+        from ..raster.parallel import ScanOptions, scan_image
+        from ..raster.reading import ScanSettings
+
+        opts = ScanOptions(settings=ScanSettings(bit_depth=bit_depth), expect_epsg=expect_epsg,
+                           expect_gsd=expect_gsd, gsd_tolerance=gsd_tolerance)
+        rep = scan_image(image, opts, cloud_mask=cloud_mask, sha256=hashing)
     if rep.error and rep.radiometry is None:
         click.echo(f"error: {rep.error}", err=True)
         ctx.exit(2)

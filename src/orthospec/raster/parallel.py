@@ -13,7 +13,7 @@ import os
 import sys
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
-from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor, as_completed
+from concurrent.futures import Future, ProcessPoolExecutor, ThreadPoolExecutor, as_completed
 from contextlib import contextmanager, nullcontext, suppress
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -130,12 +130,14 @@ HASH_THREAD_BYTES = 4 * 2**20
 
 
 def scan_image(path: str | Path, options: ScanOptions | None = None, *,
-               cloud_mask: str | Path | None = None) -> ImageReport:
+               cloud_mask: str | Path | None = None, sha256: Future[str] | None = None) -> ImageReport:
     """Check and measure one image; never raises for a bad file.
 
     A header problem that leaves the pixels readable (no CRS, identity geotransform) is kept in
     ``error`` but the pixels are still measured: ``radiometry`` is set (callers that need no
     georeference, such as ``measure radiometry``, report it as a file-check finding).
+    ``sha256`` is the file's hash already being computed by the caller (``measure radiometry``
+    starts it before importing the raster stack, so the hash costs no wall time at all).
     """
     o = options or ScanOptions()
     t0 = time.perf_counter()
@@ -149,15 +151,18 @@ def scan_image(path: str | Path, options: ScanOptions | None = None, *,
         raster = ds is not None and not (checks.error is not None and checks.driver is None)
         # With a result cache the hash decides whether to scan at all: compute it first. Without
         # one, hash a big file in a thread while its pixels are scanned (one pass of wall time).
-        alongside = raster and not o.cache_dir and (checks.bytes or 0) >= HASH_THREAD_BYTES
+        alongside = (sha256 is None and raster and not o.cache_dir
+                     and (checks.bytes or 0) >= HASH_THREAD_BYTES)
         with ThreadPoolExecutor(max_workers=1) if alongside else nullcontext() as pool:
-            hashing = pool.submit(_file_hash, p, o) if pool is not None else None
-            if hashing is None:
+            hashing = sha256 if sha256 is not None else (
+                pool.submit(_file_hash, p, o) if pool is not None else None)
+            if hashing is None or not raster or o.cache_dir:  # the hash is needed first
                 try:
-                    rep.sha256 = _file_hash(p, o)
+                    rep.sha256 = _file_hash(p, o) if hashing is None else hashing.result()
                 except OSError as exc:
                     rep.error = f"{p}: cannot read file: {exc.strerror or exc}"
                     return rep
+                hashing = None
             if not raster or ds is None:
                 rep.seconds = time.perf_counter() - t0
                 return rep  # not a raster at all: nothing more to measure

@@ -5,7 +5,12 @@ Why this shape:
 * windows are unions of whole internal blocks (``ds.block_shapes``: tiles or strips), so GDAL
   decodes every block once and memory stays bounded by ``ScanSettings.chunk_bytes`` (8 MB) whatever
   the image size;
+* every pixel is read once: statistics, histograms, noise, luminosity and the misregistration
+  windows are all fed from the same chunks (floats add one pass for their binned histogram), and
+  the chunks are counted in two threads while a third decodes the next one;
 * overviews are never used for statistics (plain full-resolution ``read``);
+* GDAL / rasterio / pyogrio / pyproj errors become MeasureError naming the file in one place,
+  :func:`gdal_errors` (the table :data:`LIBRARY_ERRORS`);
 * the delivery is never written: datasets are opened read-only inside ``rasterio.Env`` with
   ``GDAL_PAM_ENABLED=NO`` so GDAL creates no ``.aux.xml`` next to the file, and
   ``GDAL_CACHEMAX`` is kept small because each block is read once anyway.
