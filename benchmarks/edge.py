@@ -38,7 +38,7 @@ import time
 import numpy as np
 from scipy.signal import fftconvolve
 
-from orthospec.measures.edge import measure_edge
+from orthospec.measures.edge import EdgeLimits, measure_edge
 from orthospec.measures.synthetic import (
     EdgeTruth,
     edge_truth,
@@ -108,7 +108,7 @@ def run(size: int, lines: int, repeats: int, quick: bool) -> int:
                                psf_step_px=1 / S, snr=snr, supersample=S, offset_px=0.137 * seed,
                                rng=np.random.default_rng(seed))
             t0 = time.process_time()
-            r = measure_edge(img, min_snr=45)
+            r = measure_edge(img, limits=EdgeLimits(min_snr=45))
             dt.append(time.process_time() - t0)
             if not r.valid:
                 continue
@@ -200,7 +200,7 @@ def run_families(repeats: int = 3) -> list[float]:
                 for seed in range(repeats):
                     img = _family_image(name, angle, snr, seed, kernels)
                     t0 = time.process_time()
-                    r = measure_edge(img, min_snr=25)
+                    r = measure_edge(img, limits=EdgeLimits(min_snr=25))
                     dt.append(time.process_time() - t0)
                     n += 1
                     if not r.valid:

@@ -137,3 +137,19 @@ def test_no_roi_writes_figures_per_found_edge(edge_tif, tmp_path):
     assert {Path(p).name.split("_", 2)[2] for p in first} == {"detection.svg", "esf.svg", "lsf.svg",
                                                              "mtf.svg"}
     assert all(Path(p).read_text(encoding="utf-8").lstrip().startswith("<?xml") for p in doc["plots"])
+
+
+def test_map_roi_reads_the_same_pixels_and_gsd_comes_from_the_transform(edge_tif):
+    """The fixture's transform: 0.2 m pixels from (500000, 5600000); pixels 20,10,100,110 are
+    x 500004..500020, y 5599978..5599998. Without --gsd the metre values use the 0.2 m pixel."""
+    px = json.loads(_run(str(edge_tif), "--roi", "20,10,100,110", "--band", "2", "--json").output)
+    res = _run(str(edge_tif), "--map-roi", "500004,5599978,500020,5599998", "--band", "2", "--json")
+    assert res.exit_code == 0, res.output
+    mp = json.loads(res.output)
+    assert mp["roi"] == px["roi"] == [20, 10, 100, 110]
+    assert mp["fwhm_px"] == px["fwhm_px"] and mp["rer"] == px["rer"]
+    assert px["gsd_m"] == pytest.approx(0.2) and px["fwhm_m"] == pytest.approx(px["fwhm_px"] * 0.2)
+    both = _run(str(edge_tif), "--roi", "20,10,100,110", "--map-roi", "500004,5599978,500020,5599998")
+    assert both.exit_code == 2 and "not both" in both.output
+    bad = _run(str(edge_tif), "--map-roi", "1,2,3")
+    assert bad.exit_code == 2 and "four numbers" in bad.output

@@ -22,7 +22,21 @@ class _CouldNotRun(click.ClickException):
         click.echo(f"error: {self.message}", err=True)
 
 
-def _parse_roi(text: str | None) -> tuple[int, int, int, int] | None:
+def _parse_map_roi(text: str, pixel_roi: str | None) -> Any:
+    from ..raster.roi import MapWindow
+
+    if pixel_roi is not None:
+        raise MeasureError("give --roi (pixels) or --map-roi (map coordinates), not both")
+    try:
+        vals = [float(p) for p in text.split(",")]
+    except ValueError:
+        vals = []
+    if len(vals) != 4:
+        raise MeasureError(f"--map-roi {text!r}: expected four numbers xmin,ymin,xmax,ymax in the raster's CRS")
+    return MapWindow(*vals)
+
+
+def _parse_roi(text: str | None) -> Any:
     if text is None:
         return None
     parts = [p.strip() for p in text.split(",")]
@@ -36,7 +50,9 @@ def _parse_roi(text: str | None) -> tuple[int, int, int, int] | None:
     x0, y0, x1, y1 = vals
     if x1 <= x0 or y1 <= y0 or x0 < 0 or y0 < 0:
         raise MeasureError(f"--roi {text!r}: expected 0 <= x0 < x1 and 0 <= y0 < y1")
-    return x0, y0, x1, y1
+    from ..raster.roi import PixelWindow
+
+    return PixelWindow(x0, y0, x1, y1)
 
 
 def _fmt(value: Any) -> str:
@@ -51,6 +67,8 @@ def _fmt(value: Any) -> str:
 @click.argument("image", type=click.Path(dir_okay=False))
 @click.option("--roi", help="Pixel window x0,y0,x1,y1 (x1, y1 exclusive) holding one edge. "
               "Default: find the straight edges automatically and measure each one.")
+@click.option("--map-roi", help="The window in the raster's CRS instead: xmin,ymin,xmax,ymax (read as the "
+              "pixels it touches).")
 @click.option("--whole", is_flag=True, help="Measure the whole image as one ROI (no edge search).")
 @click.option("--band", type=int, default=1, show_default=True, help="Band to read (1-based).")
 @click.option("--gsd", type=float, help="Ground sample distance (m/px): adds metre values "
@@ -62,26 +80,29 @@ def _fmt(value: Any) -> str:
 @click.option("--json", "as_json", is_flag=True, help="Print the flat JSON result.")
 @click.option("--plots", type=click.Path(file_okay=False),
               help="Write detection/ESF/LSF/MTF SVGs into this directory.")
-def edge_command(image: str, roi: str | None, whole: bool, band: int, gsd: float | None,
+def edge_command(image: str, roi: str | None, map_roi: str | None, whole: bool, band: int, gsd: float | None,
                  nodata: float | None, bit_depth: int | None, min_snr: float, as_json: bool,
                  plots: str | None) -> None:
     """Measure RER, FWHM, MTF at Nyquist and effective resolution on an edge target.
 
     Runs the CEOS 12-step edge method (health checks first: an ROI that fails
-    them reports the measured values and why, and no estimator). Without --roi
-    (and without --whole) the straight edges are found automatically, an ROI that
+    them reports the measured values and why, and no estimator). The window is read
+    as `orthospec check` reads an edge target (nodata, mask, GSD from the transform).
+    Without --roi or --map-roi (and without --whole) the straight edges are found
+    automatically, an ROI that
     passes the health checks is grown around each, and the USGS combined
     RER = sqrt(RER_x * RER_y) is reported. Exit code 0 when the edge (or at least
     one found edge) is valid, 1 when the health checks fail, 2 when IMAGE, --roi
     or --band cannot be used.
     """
     from ..measures.edge import EdgeLimits, measure_edge
-    from ..raster.roi import PixelWindow, read_roi
+    from ..raster.roi import read_roi
 
     limits = EdgeLimits(min_snr=min_snr)
     try:
-        window = _parse_roi(roi)
-        got = read_roi(image, window=PixelWindow(*window) if window else None, band=band, nodata=nodata)
+        wanted = _parse_map_roi(map_roi, roi) if map_roi is not None else _parse_roi(roi)
+        got = read_roi(image, window=wanted, band=band, nodata=nodata)
+        window = got.window if wanted is not None else None
         gsd = gsd if gsd is not None else got.gsd_m
         if window is None and not whole:
             _auto(image, band, got.data, gsd=gsd, bit_depth=bit_depth, limits=limits, as_json=as_json,
