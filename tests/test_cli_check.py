@@ -1,4 +1,5 @@
 import json
+from html import unescape
 
 import pytest
 from click.testing import CliRunner
@@ -316,3 +317,19 @@ def test_an_unknown_format_is_refused(make_delivery, mini_profile, tmp_path, cap
     code, _, err = run_main(["check", make_delivery(), "-p", mini_profile, "--out", tmp_path / "o",
                              "--format", "json,yaml-ish"], capsys)
     assert code == 2 and "yaml-ish" in err and not (tmp_path / "o").exists()
+
+
+def test_unsigned_manual_checks_are_named_on_the_terminal_and_page_1(make_delivery, mini_profile, tmp_path,
+                                                                     capsys):
+    """mini.yaml has one manual rule (R-VIS, delivery scope): without the checker's file it has no verdict."""
+    root = make_delivery()
+    note = "1 manual check has no verdict from the checker: give the checker's file with --checker FILE"
+    _, stdout, _ = run_main(["check", root, "-p", mini_profile, "--out", tmp_path / "o", "--format",
+                             "terminal,html"], capsys)
+    assert note in " ".join(stdout.split())
+    html = unescape((tmp_path / "o" / "report.html").read_text(encoding="utf-8"))
+    assert note in html and html.index(note) < html.index("Findings, most consequential first")
+    _, stdout, _ = run_main(["check", root, "-p", mini_profile, "--out", tmp_path / "o2", "--format",
+                             "terminal,html", "--checker", write_checker(tmp_path)], capsys)
+    assert "no verdict from the checker" not in stdout
+    assert "no verdict from the checker" not in (tmp_path / "o2" / "report.html").read_text(encoding="utf-8")

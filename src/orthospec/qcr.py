@@ -47,7 +47,7 @@ from .verdicts import VERDICTS
 __all__ = ["SCHEMA_IDS", "all_records", "build_document", "dumps", "iter_dumps", "point_frame",
            "point_rows", "qcr_schema", "render_all", "stable"]
 
-SCHEMA_ID = "orthospec.qcr/1"  # "/2" once ledger/store.py accepts SCHEMA_IDS (request to F)
+SCHEMA_ID = "orthospec.qcr/2"  # version 2: records once, without their rule's text; compact columns
 
 SIG_DIGITS = 10
 _SCOPE_ORDER = {s: i for i, s in enumerate(SCOPES)}
@@ -108,7 +108,7 @@ def _stable_column(values: np.ndarray) -> list[Any]:
     """One column, vectorised where it is numeric: 10 significant digits, NaN/inf -> None."""
     if values.dtype.kind == "f":
         finite = np.isfinite(values)
-        r = round_sig(values)
+        r = round_sig(values) + 0.0  # -0.0 -> 0.0, as stable() writes it
         return [f if ok else None for f, ok in zip(r.tolist(), finite.tolist(), strict=True)]
     if values.dtype.kind in "iu":
         return values.tolist()
@@ -331,7 +331,8 @@ class _RuleRecords:
         r = self.r
         items = [str(x) for x in r.items[idx].tolist()]
         verdicts = [VERDICTS[int(v)] for v in r.verdict[idx].tolist()]
-        measured = [self._measured(int(i)) for i in idx]
+        m = np.asarray(r.measured)[idx]
+        measured = _stable_column(m) if m.dtype.kind in "fiub" else [self._measured(int(i)) for i in idx]
         notes = r.notes[idx].tolist()
         messages: list[str | None] = []
         for v, note in zip(verdicts, notes, strict=True):

@@ -15,13 +15,15 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
 from .. import verdicts as V
 from ..qcr import natural_key
 
-__all__ = ["Finding", "clean_text", "findings", "fmt_number", "not_applicable_summary", "stated"]
+__all__ = ["Finding", "clean_text", "findings", "fmt_number", "not_applicable_summary", "stated",
+           "unsigned_manual_note"]
 
 PROBLEMS = V.PROBLEMS
 _CONSEQUENCE_RANK = {"return_delivery": 0, "reject_block": 1, "reject_item": 2}
@@ -32,6 +34,16 @@ _NEGATED = {"<=": ">", "<": "≥", ">=": "<", ">": "≤", "==": "≠", "!=": "="
 _NO_UNIT = (None, "", "1", "text", "bool", "date", "any")
 # ANSI CSI/OSC sequences and C0/C1 control characters (delivery text must not drive a terminal)
 _ESCAPES = re.compile(r"\x1b\][^\x07\x1b]*(?:\x07|\x1b\\)?|\x1b\[[0-?]*[ -/]*[@-~]|\x1b[@-_]?|[\x00-\x08\x0b-\x1f\x7f-\x9f]")
+
+
+def unsigned_manual_note(records: Iterable[dict[str, Any]]) -> str | None:
+    """The one line terminal and page 1 show when manual checks have no checker verdict
+    (INTERFACES item 4: the contractor's statements are evidence, never verdicts)."""
+    n = sum(1 for r in records if r.get("manual") and r.get("verdict") == V.MISSING)
+    if not n:
+        return None
+    return (f"{n} manual check{'s have' if n > 1 else ' has'} no verdict from the checker: give the checker's "
+            "file with --checker FILE (the contractor's manual_checks are evidence, not verdicts)")
 
 
 def clean_text(text: Any) -> str:

@@ -23,7 +23,7 @@ from ..qcr import all_records, dumps, natural_key, point_rows
 from ..resources import templates_dir
 from ..spec.wording import unit_suffix
 from .findings import findings as find_problems
-from .findings import not_applicable_summary
+from .findings import not_applicable_summary, unsigned_manual_note
 
 __all__ = ["ReportOptions", "document_sha256", "environment", "render_html", "report_context"]
 
@@ -565,6 +565,7 @@ def report_context(doc: dict[str, Any], opts: ReportOptions | None = None, *,
         "problems": problems, "failing_rules": failing_rules,
         "findings": found, "page1_findings": found[:PAGE1_FINDINGS],
         "not_applicable": not_applicable_summary(records),
+        "unsigned_manual": unsigned_manual_note(records),
         "checker": doc.get("operator"), "qa_operator": d.get("operator") or {},
         "after_signoff": doc.get("after_signoff"),
         "missing": [r for r in records if r["verdict"] == V.MISSING],

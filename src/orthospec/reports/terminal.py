@@ -15,7 +15,7 @@ from rich.table import Table
 
 from .. import verdicts as V
 from ..qcr import all_records
-from .findings import clean_text, findings
+from .findings import clean_text, findings, unsigned_manual_note
 
 MAX_ITEMS = 8
 _STYLE = {V.PASS: "green", V.FAIL: "bold red", V.WARN: "yellow", V.MISSING: "magenta",
@@ -47,7 +47,8 @@ def render(doc: dict[str, Any], console: Console, *, max_items: int = MAX_ITEMS,
     sample = doc.get("sample")
     if isinstance(sample, dict) and sample.get("statement"):
         console.print(f"sample: {_t(sample['statement'])}", overflow="fold")
-    found = findings(list(all_records(doc)))
+    records = list(all_records(doc))
+    found = findings(records)
     if found:
         t = Table(show_header=True, header_style="bold", box=None, pad_edge=False)
         t.add_column("verdict", no_wrap=True, min_width=7)
@@ -72,4 +73,7 @@ def render(doc: dict[str, Any], console: Console, *, max_items: int = MAX_ITEMS,
     for reason in doc["rollup"]["reasons"]:
         console.print(f"  [red]•[/] {_t(reason)}", overflow="fold")
     console.print(summary_line(doc))
+    unsigned = unsigned_manual_note(records)
+    if unsigned:
+        console.print(f"[magenta]{_t(unsigned)}[/]", overflow="fold")
     console.print(f"verdict: [bold {colour}]{verdict}[/]")
