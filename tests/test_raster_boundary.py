@@ -72,24 +72,26 @@ def test_misregistration_from_the_streamed_chunks_finds_a_known_shift(tmp_path):
     assert stats.misregistration[3].magnitude < 0.1
 
 
-def test_nodata_in_a_few_chunks_only_is_excluded_everywhere(tmp_path):
+@pytest.mark.parametrize("nodata", [0, 255])  # the darkest value (fast path) and another one
+def test_nodata_in_a_few_chunks_only_is_excluded_everywhere(tmp_path, nodata):
     """Validity masks are built only for chunks that hold the nodata value: statistics and the
     luminosity histogram still equal numpy's over the valid pixels (known truth)."""
     rng = np.random.default_rng(11)
-    a = rng.integers(1, 256, (3, 512, 512), dtype=np.uint8)
-    a[:, 300:340, 10:50] = 0          # nodata in every band, one chunk
-    a[1, 5, 5] = 0                    # nodata in band 2 only, another chunk
-    f = _write(tmp_path / "nd.tif", a, photometric="RGB", nodata=0, tiled=True, blockxsize=64,
+    a = rng.integers(1, 255, (3, 512, 512), dtype=np.uint8)
+    a[:, 300:340, 10:50] = nodata     # nodata in every band, one chunk
+    a[1, 5, 5] = nodata               # nodata in band 2 only, another chunk
+    a[2, 400, 500] = nodata           # and in band 3 only, a third
+    f = _write(tmp_path / "nd.tif", a, photometric="RGB", nodata=nodata, tiled=True, blockxsize=64,
                blockysize=64)
     stats = scan_raster(f, ScanSettings(chunk_bytes=40_000))
     assert stats.chunks > 10
     for k, b in enumerate(stats.bands):
-        v = a[k][a[k] != 0].astype(np.float64)
+        v = a[k][a[k] != nodata].astype(np.float64)
         assert (b.valid, b.min, b.max) == (v.size, v.min(), v.max())
         assert b.mean == pytest.approx(v.mean(), rel=1e-12) and b.std == pytest.approx(v.std(), rel=1e-12)
     ai = a.astype(np.int64)
     y = (299 * ai[0] + 587 * ai[1] + 114 * ai[2] + 500) // 1000  # Rec. 601, ties round up
-    valid = (a != 0).all(axis=0)
+    valid = (a != nodata).all(axis=0)
     lum = stats.luminosity
     assert lum is not None and lum.valid == int(valid.sum())
     expected = np.bincount(y[valid], minlength=256)

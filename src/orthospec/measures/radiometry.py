@@ -203,6 +203,15 @@ class HistogramAccumulator:
         if values.size:
             self.counts += fast_bincount(_as_bin_index(values), self.counts.size)
 
+    def add_excluding(self, data: np.ndarray, invalid: np.ndarray) -> None:
+        """Add a block except the pixels at the flat indices ``invalid`` (few, e.g. nodata)."""
+        self.total += int(data.size)
+        flat = data.ravel()
+        counts = fast_bincount(_as_bin_index(flat), self.counts.size)
+        if invalid.size:
+            counts -= fast_bincount(_as_bin_index(flat[invalid]), self.counts.size)
+        self.counts += counts
+
     def merge(self, other: HistogramAccumulator) -> HistogramAccumulator:
         if other.offset != self.offset or other.counts.size != self.counts.size:
             raise MeasureError("cannot merge histograms of different layouts")

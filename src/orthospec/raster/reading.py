@@ -520,8 +520,9 @@ class _Accumulators:
             mask_valid = shared_mask != 0
             if np.count_nonzero(mask_valid) == mask_valid.size:
                 mask_valid = None
-        need = set(self.moms) | (set(self.noise) if noise else set()) | set(self.rgb or ())
+        need = set(self.moms) | (set(self.noise) if noise else set())
         valids: dict[int, np.ndarray | None] = {}
+        with_nodata: set[int] = set()  # bands whose nodata value occurs in this chunk
         for b in self.infos:
             band = data[b.index - 1]
             hist = self.hists.get(b.index)
@@ -535,18 +536,43 @@ class _Accumulators:
                 nd = _nodata_bin(b, hist)
                 before = int(hist.counts[nd]) if nd is not None else 0
                 hist.add(band)  # the nodata bin is dropped once at the end (exclude_value)
-                has_nodata = nd is not None and int(hist.counts[nd]) != before
-                valid = _valid(band, b, None) if has_nodata and b.index in need else None
+                if nd is not None and int(hist.counts[nd]) != before:
+                    with_nodata.add(b.index)
+                valid = _valid(band, b, None) if b.index in with_nodata and b.index in need else None
             valids[b.index] = valid
             if noise and b.index in self.noise:
                 self.noise[b.index].add(band, valid)
         if self.rgb is not None and self.lum is not None:
-            r, g, bl = (data[i - 1] for i in self.rgb)
-            v = None
-            for part in (valids[i] for i in self.rgb):
-                if part is not None:
-                    v = part if v is None else v & part
-            self.lum.add(rad.luminosity_block(r, g, bl, data.dtype), v)
+            self._add_luminosity(data, mask_valid, valids, with_nodata)
+
+    def _add_luminosity(self, data: np.ndarray, mask_valid: np.ndarray | None,
+                        valids: dict[int, np.ndarray | None], with_nodata: set[int]) -> None:
+        """Luminosity of the pixels valid in all three colour bands."""
+        assert self.rgb is not None and self.lum is not None
+        rgb = [self.infos[i - 1] for i in self.rgb]
+        r, g, bl = (data[i - 1] for i in self.rgb)
+        y = rad.luminosity_block(r, g, bl, data.dtype)
+        nodata = {b.nodata for b in rgb}
+        if not with_nodata & set(self.rgb) and not any(b.use_mask and mask_valid is not None for b in rgb):
+            self.lum.add(y)  # every pixel of the chunk is valid in all three bands
+            return
+        low = np.iinfo(data.dtype).min if data.dtype.kind in "ui" else None
+        if len(nodata) == 1 and low is not None and nodata == {float(low)} and not any(
+                b.use_mask for b in rgb):
+            # the usual case (nodata 0 in every band): a pixel is invalid where the darkest of its
+            # three values is the nodata value; two np.minimum beat three masks by about 3x
+            darkest = np.minimum(r, g)
+            np.minimum(darkest, bl, out=darkest)
+            self.lum.add_excluding(y, np.flatnonzero(darkest == low))
+            return
+        v = None
+        for b in rgb:
+            part = valids.get(b.index)
+            if part is None and (b.index in with_nodata or (b.use_mask and mask_valid is not None)):
+                part = _valid(data[b.index - 1], b, mask_valid if b.use_mask else None)
+            if part is not None:
+                v = part if v is None else v & part
+        self.lum.add(y, v)
 
     def merge(self, other: _Accumulators) -> _Accumulators:
         """Add another set's counts and sums (same bands); integer counts merge exactly."""
