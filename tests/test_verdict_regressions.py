@@ -710,10 +710,13 @@ def test_the_checkers_manual_verdict_decides_and_names_both_parties(make_deliver
     doc = check_with(root, mini_profile, checker=write_checker(tmp_path, fail)).document
     vis = _rec(doc, "R-VIS", "D1")
     assert vis["verdict"] == "fail" and doc["verdict"] == "rejected"
-    assert "Eva External (external QC)" in vis["message"] and "Joe Bloggs" in vis["message"]
+    assert vis["message"].startswith("judged failing by Eva External, external QC on 2026-01-02: haze on I1")
+    assert "contractor's internal QC: 'pass' (tables/manual.csv row 1)" in vis["message"]
     assert {e["file"] for e in vis["evidence"]} == {"tables/manual.csv", "checker:checker.yaml"}
     ok = check_with(root, mini_profile, checker=write_checker(tmp_path, _SIGN_ONLY, "ok.yaml")).document
-    assert _rec(ok, "R-VIS", "D1")["verdict"] == "pass" and ok["verdict"] == "accepted"
+    signed = _rec(ok, "R-VIS", "D1")
+    assert signed["verdict"] == "pass" and ok["verdict"] == "accepted"
+    assert signed["message"].startswith("signed by Eva External, external QC on 2026-01-02")
 
 
 def test_the_same_waiver_in_the_checker_file_is_in_force(make_delivery, mini_profile, tmp_path: Path) -> None:

@@ -10,7 +10,7 @@ checker's entry the rule is ``missing`` ("still to be signed"). The record names
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -32,33 +32,42 @@ def signed(ctx: Context, rule_id: str) -> dict[str, tuple[int, Any]]:
     return {m.item: (i, m) for i, m in enumerate(ctx.checker.model.manual_checks) if m.check == rule_id}
 
 
-def stated(ctx: Context, rule_id: str) -> dict[str, tuple[str, Evidence]]:
-    """item -> (quoted statement, evidence) of the contractor's manual_checks rows on ``rule_id``."""
+class Statement(NamedTuple):
+    """One row of the contractor's manual_checks table, as evidence."""
+
+    full: str  # quoted in full where no checker verdict exists
+    short: str  # "contractor's internal QC: '<verdict>' (<file> row <n>)"
+    said: str  # the contractor's verdict word, lower case
+    evidence: Evidence
+
+
+def stated(ctx: Context, rule_id: str) -> dict[str, Statement]:
+    """item -> the contractor's statement (manual_checks row) on ``rule_id``."""
     t = ctx.d.table("manual_checks")
     if t is None:
         return {}
     df = t.df
-    out: dict[str, tuple[str, Evidence]] = {}
+    out: dict[str, Statement] = {}
     for _, h in df[df["check"] == rule_id].iterrows():
         row = int(h["_row"])
+        said, where = str(h["verdict"]).strip(), f"{t.file} row {row}"
         extra = h.get("note")
-        text = (f"the contractor's internal QC statement (evidence, not a verdict): "
-                f"{str(h['verdict']).strip()!r} by {h['inspector']} on {h['date']} "
-                f"({t.file} row {row})" + (f": {extra}" if not is_missing(extra) else ""))
-        out[str(h["item"])] = (text, Evidence(t.file, t.sha256, (row,)))
+        full = (f"the contractor's internal QC statement (evidence, not a verdict): {said!r} by "
+                f"{h['inspector']} on {h['date']} ({where})" + (f": {extra}" if not is_missing(extra) else ""))
+        out[str(h["item"])] = Statement(full, f"contractor's internal QC: {said!r} ({where})", said.lower(),
+                                        Evidence(t.file, t.sha256, (row,)))
     return out
 
 
 def _signed_note(ctx: Context, rule: Rule, idx: int, entry: Any) -> tuple[int, str, Evidence]:
-    """(verdict code, note, evidence) of one checker entry."""
+    """(verdict code, note, evidence) of one checker entry; a failing verdict carries its reason."""
     chk = ctx.checker
     assert chk is not None  # signed() found the entry in it
-    who = entry.inspector or chk.who()
+    who = entry.inspector or ", ".join(x for x in (chk.party.name, chk.party.role) if x)
     if entry.verdict == "pass":
-        code, note = PASS, f"signed by {who} on {entry.date}"
-    else:
-        code, note = (FAIL if rule.level == "mandatory" else WARN), f"judged failing by {who} on {entry.date}"
-    note += f" (checker file {chk.name})" + (f": {entry.note}" if entry.note else "")
+        return PASS, f"signed by {who} on {entry.date}", chk.evidence("manual_checks", idx)
+    code = FAIL if rule.level == "mandatory" else WARN
+    note = f"judged failing by {who} on {entry.date}" + (f": {entry.note}" if entry.note else "")
     return code, note, chk.evidence("manual_checks", idx)
 
 
@@ -74,13 +83,16 @@ def manual_rule(ctx: Context, rule: Rule, items: list[str]) -> RuleResult:
     for i, item in enumerate(items):
         k = by_checker.get(item, by_checker.get("*"))
         c = by_contractor.get(item, by_contractor.get("*"))
-        ev: list[Evidence] = [] if c is None else [c[1]]
-        note = UNSIGNED
-        if k is not None:
+        ev: list[Evidence] = [] if c is None else [c.evidence]
+        if k is None:  # unsigned: the contractor's statement is quoted in full
+            notes[i] = UNSIGNED if c is None else f"{UNSIGNED}; {c.full}"
+        else:
             verdict[i], note, kev = _signed_note(ctx, rule, *k)
             measured[i] = k[1].verdict
             ev.append(kev)
-        notes[i] = note if c is None else f"{note}; {c[0]}"
+            # the contractor's statement stays in the evidence; the message names it where it disagrees
+            differs = c is not None and c.said != k[1].verdict
+            notes[i] = f"{note}; {c.short}" if differs else note
         evidence[i] = tuple(ev)
     if rule.when:
         ok, unknown, unknown_note = applicable(ctx, rule, items)
