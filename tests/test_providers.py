@@ -221,7 +221,12 @@ def test_manual_rule_applies_per_item(make_delivery, tmp_path):
     root = make_delivery(images=images, manual="check,item,inspector,date,verdict\nM,I2,Ann,2026-01-02,pass\n")
     p = profile(tmp_path, rule("M", "image", "manual.M", '{op: "==", value: pass}',
                                extra="  manual: true\n  when: 'images.roll > 1'\n"))
-    doc = check(root, p, date="2026-01-01").document
+    # the delivery's own table is the contractor's statement: without the checker's verdict, missing
+    assert recs(check(root, p, date="2026-01-01").document, "M")["I2"]["verdict"] == "missing"
+    checker = tmp_path / "checker.yaml"
+    checker.write_text("orthospec_checker: 1\nchecker: {name: Ann Checker, role: external QC}\nmanual_checks:\n"
+                       "  - {check: M, item: I2, date: 2026-01-02, verdict: pass, note: looked}\n", encoding="utf-8")
+    doc = check(root, p, date="2026-01-01", checker=checker).document
     m = recs(doc, "M")
     assert m["I1"]["verdict"] == "not_applicable"  # condition false for I1: no signature asked for
     assert m["I2"]["verdict"] == "pass" and "Ann" in m["I2"]["message"]
