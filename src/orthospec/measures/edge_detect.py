@@ -164,16 +164,23 @@ def _sample(img: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
 def find_edges(image: np.ndarray, *, nodata: float | None = None, sigma: float = 1.5,
                min_length_px: float = 20.0) -> list[tuple[np.ndarray, np.ndarray, float, float]]:
     """Straight edge segments: (point, unit direction, t_start, t_end) along each line."""
-    from skimage.feature import canny
-    from skimage.transform import probabilistic_hough_line
-
     img = np.asarray(image, dtype=float)
     if img.ndim != 2 or min(img.shape) < 10:
         raise MeasureError(f"target image must be 2-D and at least 10 x 10 px, got {img.shape}")
     valid = _valid_mask(img, nodata)
     if valid.sum() < 100:
         raise MeasureError("target image has fewer than 100 valid (finite, not nodata) pixels")
-    work = np.where(valid, img, np.nan)
+    lines = _edge_lines(img, valid, sigma, min_length_px)
+    return _segments(np.where(valid, img, np.nan), lines, min_length_px)
+
+
+def _edge_lines(img: np.ndarray, valid: np.ndarray, sigma: float,
+                min_length_px: float) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Canny edges inside the target, probabilistic Hough segments merged into lines, each line
+    refitted on the Canny pixels near it: (point, unit direction) per distinct line."""
+    from skimage.feature import canny
+    from skimage.transform import probabilistic_hough_line
+
     inner = ndimage.binary_erosion(valid, iterations=3)
     filled = np.where(valid, img, float(np.median(img[valid])))
     # hysteresis thresholds relative to the strongest gradient inside the target
@@ -203,9 +210,15 @@ def find_edges(image: np.ndarray, *, nodata: float | None = None, sigma: float =
         if not any(abs(float(u @ u2)) > math.cos(math.radians(4)) and
                    abs(float((c - c2) @ np.array([-u2[1], u2[0]]))) < 3.0 for c2, u2 in lines):
             lines.append((c, u))
+    return lines
 
+
+def _segments(work: np.ndarray, lines: list[tuple[np.ndarray, np.ndarray]],
+              min_length_px: float) -> list[tuple[np.ndarray, np.ndarray, float, float]]:
+    """The runs of each line where the two sides differ (2-4 px either side, one sign, more than
+    half the line's median contrast) for at least ``min_length_px``: the edge segments."""
     out = []
-    h, w = img.shape
+    h, w = work.shape
     reach = math.hypot(h, w)
     for c, u in lines:
         n = np.array([-u[1], u[0]])
@@ -287,33 +300,49 @@ def measure_target(image: np.ndarray, *, nodata: float | None = None, gsd: float
     edges: list[FoundEdge] = []
     for c, u, t0, t1 in found:
         others = [(c2, u2) for c2, u2 in lines if c2 is not c]
-        best: FoundEdge | None = None
-        for half in half_widths:
-            band = _band_mask(img.shape, c, u, t0 + 2.0, t1 - 2.0, half, others) & valid
-            if band.sum() < 50:
-                continue
-            rows, cols = np.nonzero(band)
-            y0, y1, x0, x1 = int(rows.min()), int(rows.max()) + 1, int(cols.min()), int(cols.max()) + 1
-            roi = np.where(band, img, np.nan)[y0:y1, x0:x1]
-            try:
-                res = measure_edge(roi, gsd=gsd, **measure_kw)
-            except MeasureError:
-                continue
-            axis = "y" if res.transposed else "x"
-            p0, p1 = c + t0 * u, c + t1 * u
-            cand = FoundEdge(float(p0[0]), float(p0[1]), float(p1[0]), float(p1[1]),
-                             math.degrees(math.atan2(u[1], u[0])) % 180.0, axis,
-                             (x0, y0, x1, y1), half, res, roi)
-            if res.valid or best is None or not (best.result and best.result.valid):
-                best = cand
-            elif best.result is not None and best.result.valid:
-                break  # grown past the widest passing band
-            failed = {c.name for c in res.checks if not c.passed}
-            if not res.valid and not failed <= _WIDTH_CHECKS:
-                break  # a wider band does not fix the angle, straightness or sampling
+        best = _grow(img, valid, (c, u, t0, t1), others, half_widths, gsd, measure_kw)
         if best is not None:
             edges.append(best)
     edges.sort(key=lambda e: (e.axis, e.y0, e.x0))
+    return _combined(tuple(edges), nodata, fill is not None)
+
+
+def _grow(img: np.ndarray, valid: np.ndarray, seg: tuple[np.ndarray, np.ndarray, float, float],
+          others: list[tuple[np.ndarray, np.ndarray]], half_widths: tuple[float, ...],
+          gsd: float | None, measure_kw: dict[str, Any]) -> FoundEdge | None:
+    """The ROI of one edge segment: bands of growing half width around it (away from the other
+    lines), measured until one passes and the next no longer does; the widest passing one, else
+    the last tried."""
+    c, u, t0, t1 = seg
+    best: FoundEdge | None = None
+    for half in half_widths:
+        band = _band_mask(img.shape, c, u, t0 + 2.0, t1 - 2.0, half, others) & valid
+        if band.sum() < 50:
+            continue
+        rows, cols = np.nonzero(band)
+        y0, y1, x0, x1 = int(rows.min()), int(rows.max()) + 1, int(cols.min()), int(cols.max()) + 1
+        roi = np.where(band, img, np.nan)[y0:y1, x0:x1]
+        try:
+            res = measure_edge(roi, gsd=gsd, **measure_kw)
+        except MeasureError:
+            continue
+        axis = "y" if res.transposed else "x"
+        p0, p1 = c + t0 * u, c + t1 * u
+        cand = FoundEdge(float(p0[0]), float(p0[1]), float(p1[0]), float(p1[1]),
+                         math.degrees(math.atan2(u[1], u[0])) % 180.0, axis,
+                         (x0, y0, x1, y1), half, res, roi)
+        if res.valid or best is None or not (best.result and best.result.valid):
+            best = cand
+        elif best.result is not None and best.result.valid:
+            break  # grown past the widest passing band
+        failed = {c.name for c in res.checks if not c.passed}
+        if not res.valid and not failed <= _WIDTH_CHECKS:
+            break  # a wider band does not fix the angle, straightness or sampling
+    return best
+
+
+def _combined(edges: tuple[FoundEdge, ...], nodata: float | None, fill: bool) -> TargetEdges:
+    """USGS two-direction RER over the valid edges: median RER_x, RER_y, sqrt of their product."""
     per_axis: dict[str, list[float]] = {"x": [], "y": []}
     for e in edges:
         if e.result is not None and e.result.valid and e.result.rer is not None:
@@ -327,4 +356,4 @@ def measure_target(image: np.ndarray, *, nodata: float | None = None, gsd: float
     else:
         missing = [a for a, v in (("X (easting)", rx), ("Y (northing)", ry)) if v is None]
         reason = f"no valid edge profiled along {' and '.join(missing)}"
-    return TargetEdges(tuple(edges), rx, ry, combined, reason, nodata, fill is not None)
+    return TargetEdges(edges, rx, ry, combined, reason, nodata, fill)
