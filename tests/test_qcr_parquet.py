@@ -61,10 +61,11 @@ def test_the_table_round_trips_every_record(written: Path) -> None:
     assert counts == {k: v for k, v in doc["summary"].items() if k not in ("rules", "records") and v}
 
 
-def test_same_inputs_and_date_give_the_same_bytes(written: Path, tmp_path: Path) -> None:
-    res = _check(tmp_path / "again", "parquet")
+def test_same_inputs_and_date_give_the_same_bytes_in_another_process(written: Path, tmp_path: Path) -> None:
+    res = _check(tmp_path / "again", "json,parquet")
     assert res.returncode == 1, res.stderr
     assert (tmp_path / "again" / "qcr.parquet").read_bytes() == (written / "qcr.parquet").read_bytes()
+    assert (tmp_path / "again" / "qcr.json").read_bytes() == (written / "qcr.json").read_bytes()
     meta = pq.ParquetFile(written / "qcr.parquet").metadata
     assert b"orthospec.qcr.date" in meta.metadata and meta.metadata[b"orthospec.qcr.date"] == b"2026-11-21"
 

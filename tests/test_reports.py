@@ -182,7 +182,7 @@ def test_pdf_states_verdict_failures_and_clauses(checked: dict[str, Any]) -> Non
 def test_pdf_lists_manual_checks_to_sign(checked: dict[str, Any]) -> None:
     text = checked["text"]
     section = text[text.index("4. Manual checks"):]
-    assert "still to be signed" in section
+    assert "have no verdict from the checker" in section
     assert "R-SEAM" in section and "Seamlines visually" in section
 
 

@@ -514,6 +514,25 @@ def _edge_figures(d: dict[str, Any], tid: str) -> list[dict[str, str]]:
     return out
 
 
+def _bounded_signed(groups: list[dict[str, Any]], max_rows: int) -> list[dict[str, Any]]:
+    """PDF: a rule whose signed records carry more than ``max_rows`` different messages (one per
+    item) becomes one row per verdict listing every item, quoting the first message; the HTML
+    report and qcr.json keep each one."""
+    by_key: dict[tuple[str, str], list[dict[str, Any]]] = {}
+    for g in groups:
+        by_key.setdefault((g["rule"], g["verdict"]), []).append(g)
+    out: list[dict[str, Any]] = []
+    for gs in by_key.values():
+        if len(gs) <= max_rows:
+            out.extend(gs)
+            continue
+        items = [i for g in gs for i in g["item_list"]]
+        out.append({**gs[0], "item_list": items,
+                    "message": f"{len(gs)} different statements, each in qcr.json and the HTML report; "
+                               f"the first: {gs[0]['message']}"})
+    return out
+
+
 def report_context(doc: dict[str, Any], opts: ReportOptions | None = None, *,
                    figure: Callable[[str, str], str] | None = None,
                    cache: dict[str, list[dict[str, str]]] | None = None,
@@ -552,6 +571,8 @@ def report_context(doc: dict[str, Any], opts: ReportOptions | None = None, *,
         key = (r["rule"], r["verdict"], r["message"])
         signed_groups.setdefault(key, {**r, "item_list": []})["item_list"].append(r["item"])
     signed = list(signed_groups.values())
+    if opts.bounded:
+        signed = _bounded_signed(signed, opts.max_rule_rows)
     found = [f.as_dict() for f in find_problems(records)]
     scopes = [s for s in scopes if s["rules"] or s["quiet"]]
     d = doc.get("delivery", {})
