@@ -21,8 +21,7 @@ from .applicability import applicable
 from .compare import req_dict
 from .context import FAIL, MISSING, NA, PASS, WARN, Context, RuleResult
 
-UNSIGNED = ("manual check: no recorded verdict from the checker (check --checker FILE, "
-            "manual_checks: check, item, date, verdict)")
+UNSIGNED = "manual check: no recorded verdict from the checker (check --checker FILE, manual_checks:)"
 
 
 def signed(ctx: Context, rule_id: str) -> dict[str, tuple[int, Any]]:
@@ -52,8 +51,8 @@ def stated(ctx: Context, rule_id: str) -> dict[str, Statement]:
         row = int(h["_row"])
         said, where = str(h["verdict"]).strip(), f"{t.file} row {row}"
         extra = h.get("note")
-        full = (f"the contractor's internal QC statement (evidence, not a verdict): {said!r} by "
-                f"{h['inspector']} on {h['date']} ({where})" + (f": {extra}" if not is_missing(extra) else ""))
+        full = (f"the contractor's internal QC statement (evidence, not a verdict): {said!r}, {h['inspector']}, "
+                f"{h['date']} ({where})" + (f": {extra}" if not is_missing(extra) else ""))
         out[str(h["item"])] = Statement(full, f"contractor's internal QC: {said!r} ({where})", said.lower(),
                                         Evidence(t.file, t.sha256, (row,)))
     return out
