@@ -1,8 +1,9 @@
 """Write the published JSON Schemas and the measure catalog: ``python -m orthospec.schemas``.
 
 Rewrites ``specs/schema/``: profile.schema.json (spec/models.py), delivery.schema.json
-(delivery/manifest.py), qcr.schema.json (qcr.py) and measures.json (engine/catalog.py, the
-snapshot spec/catalog.py reads). Tests fail when a shipped file differs from what this writes.
+(delivery/manifest.py), qcr.schema.json (qcr.py), checker.schema.json (delivery/checker.py) and
+measures.json (engine/catalog.py, the snapshot spec/catalog.py reads). Tests fail when a shipped
+file differs from what this writes.
 It sits at the api level because it reads every layer below.
 """
 
@@ -12,6 +13,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from .delivery.checker import checker_schema
 from .delivery.manifest import manifest_schema
 from .engine import catalog as engine_catalog
 from .qcr import qcr_schema
@@ -24,6 +26,7 @@ def all_schemas() -> dict[str, dict[str, Any]]:
         "profile.schema.json": profile_schema(),
         "delivery.schema.json": manifest_schema(),
         "qcr.schema.json": qcr_schema(),
+        "checker.schema.json": checker_schema(),
     }
 
 

@@ -239,6 +239,9 @@ class ProfileTest(_Strict):
     params: dict[str, Scalar] = Field(default_factory=dict)
     expect: dict[str, Any] = Field(default_factory=dict)
     description: str | None = None
+    checker: str | None = Field(None, description=(
+        "The checker's file (check --checker), relative to the profile file: the manual-check verdicts "
+        "and waivers in force for this test delivery (a delivery's own manual_checks are only evidence)."))
 
 
 class ProfileWaiver(_Strict):
