@@ -27,6 +27,7 @@ import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -792,8 +793,16 @@ def tapered_spectrum(image: np.ndarray) -> np.ndarray:
     a = np.asarray(image, dtype=np.float64)
     if a.ndim != 2 or min(a.shape) < 8:
         raise MeasureError(f"phase correlation needs a 2-D array of at least 8x8, got {a.shape}")
-    win = np.outer(np.hanning(a.shape[0]), np.hanning(a.shape[1]))
-    return np.fft.fft2((a - a.mean()) * win)
+    return np.fft.fft2((a - a.mean()) * _hann2d(*a.shape))
+
+
+@lru_cache(maxsize=8)
+def _hann2d(rows: int, cols: int) -> np.ndarray:
+    """The 2-D Hann taper of a window shape (every window of an image, every image of a tile
+    delivery has the same shape: built once)."""
+    win = np.outer(np.hanning(rows), np.hanning(cols))
+    win.flags.writeable = False
+    return win
 
 
 def phase_correlation(reference: np.ndarray, moving: np.ndarray, *,
@@ -816,12 +825,13 @@ def phase_correlation_spectra(f_ref: np.ndarray, f_mov: np.ndarray, *,
     """:func:`phase_correlation` from :func:`tapered_spectrum` s (reuse the reference's)."""
     product = f_ref * f_mov.conj()
     product /= np.maximum(np.abs(product), 1e-12)
-    cc = np.fft.ifft2(product)
-    peak_idx = np.unravel_index(int(np.argmax(np.abs(cc))), cc.shape)
+    cc = np.abs(np.fft.ifft2(product))
+    top = int(np.argmax(cc))
+    peak_idx = np.unravel_index(top, cc.shape)
     shape = np.array(cc.shape)
     shifts = np.array(peak_idx, dtype=np.float64)
     shifts[shifts > shape // 2] -= shape[shifts > shape // 2]
-    peak = float(np.abs(cc).max())
+    peak = float(cc.flat[top])
     if upsample > 1:
         shifts = np.round(shifts * upsample) / upsample
         region = math.ceil(upsample * 1.5)
@@ -829,9 +839,11 @@ def phase_correlation_spectra(f_ref: np.ndarray, f_mov: np.ndarray, *,
         offsets = centre - shifts * upsample
         up = _upsampled_dft(product.conj(), region, upsample,
                             (float(offsets[0]), float(offsets[1]))).conj()
-        m = np.unravel_index(int(np.argmax(np.abs(up))), up.shape)
+        mag = np.abs(up)
+        best = int(np.argmax(mag))
+        m = np.unravel_index(best, up.shape)
         shifts = shifts + (np.array(m, dtype=np.float64) - centre) / upsample
-        peak = float(np.abs(up).max()) / product.size
+        peak = float(mag.flat[best]) / product.size
     # ``shifts`` registers moving onto reference; the displacement of moving is its negative
     return Shift(dy=float(-shifts[0]), dx=float(-shifts[1]), peak=peak)
 
