@@ -3,6 +3,7 @@ from pathlib import Path
 
 from click.testing import CliRunner
 
+from checking import write_checker
 from orthospec.cli.main import cli
 from orthospec.delivery.reader import open_delivery
 
@@ -75,14 +76,14 @@ def test_init_writes_a_valid_template(tmp_path):
 def test_verify_runs_profile_tests(mini_profile, make_delivery, tmp_path):
     root = make_delivery()
     prof = tmp_path / "v.yaml"
-    # the waiver in force comes from the profile (the delivery's own waiver is only a request);
-    # the second expectation is the planted mismatch: with no checker's file the manual check R-VIS
-    # is unsigned (missing), so the delivery cannot be accepted whatever max_roll is
+    # the waiver in force and the manual verdict come from the checker's file (the delivery's own
+    # waiver is only a request); the second entry is the planted mismatch: without the checker's file
+    # the manual check R-VIS is unsigned (missing), so the delivery cannot be accepted
+    write_checker(tmp_path)
     prof.write_text(mini_profile.read_text() + f"""
-waivers:
-  - {{rule: R-ROLL, items: [I3], justification: turbulence over the ridge, approver: ITT board}}
 tests:
   - delivery: {root}
+    checker: checker.yaml
     expect: {{verdict: rejected, rules: {{R-ROLL: waived, R-FH: fail}}}}
   - delivery: {root}
     params: {{max_roll: 10}}
