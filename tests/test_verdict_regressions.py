@@ -740,3 +740,32 @@ def test_a_checker_file_inside_the_delivery_is_refused(make_delivery, mini_profi
     link.symlink_to(inside)
     with pytest.raises(OrthospecError, match="inside the delivery"):
         load_checker(link, delivery_root=root)
+
+
+def test_a_waiver_in_the_tender_profile_is_in_force(make_delivery, mini_profile, tmp_path: Path) -> None:
+    """The buyer's own tender profile may grant a waiver (the checker's side, like the checker's file)."""
+    text = mini_profile.read_text(encoding="utf-8") + textwrap.dedent("""\
+        waivers:
+          - {rule: R-ROLL, items: [I3], justification: ridge turbulence accepted in the ITT, approver: Tender board}
+        """)
+    prof = tmp_path / "tender.yaml"
+    prof.write_text(text, encoding="utf-8")
+    res = check_with(make_delivery(images=_ONE_BAD_ROLL), prof, checker=write_checker(tmp_path, _SIGN_ONLY))
+    rec = _rec(res.document, "R-ROLL", "I3")
+    assert rec["verdict"] == "waived" and rec["waived_verdict"] == "fail"
+    assert rec["waiver"]["declared_in"] == "profile" and rec["waiver"]["granted_by"] == "tender profile mini 1.0.0"
+    assert res.document["verdict"] == "accepted"
+    # the contractor's own request for the same item is listed as matched by a granted waiver
+    assert res.evaluation.waiver_requests[0]["matched"] == [{"item": "I3", "verdict": "waived"}]
+
+
+def test_a_granted_waiver_never_turns_an_error_into_waived(make_delivery, mini_profile, tmp_path: Path) -> None:
+    """A broken check is not waivable: R-CV reading a text column is `error` whatever the checker waives."""
+    prof = tmp_path / "p.yaml"
+    prof.write_text(mini_profile.read_text(encoding="utf-8").replace("measure: images.std_dn", "measure: images.bands"),
+                    encoding="utf-8")
+    waive = _SIGN_ONLY + "waivers:\n  - {rule: R-CV, justification: all of them, approver: Eva}\n"
+    res = check_with(make_delivery(images=_ONE_BAD_ROLL.replace(",4,", ",1,")), prof,
+                     checker=write_checker(tmp_path, waive, "w.yaml"))
+    assert {r["verdict"] for r in all_records(res.document) if r["rule"] == "R-CV"} == {"error"}
+    assert res.document["waivers_unused"][0]["rule"] == "R-CV"
