@@ -28,6 +28,7 @@ import shutil
 import stat
 import sys
 import tempfile
+import threading
 from collections.abc import Iterator, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from contextlib import ExitStack, contextmanager, nullcontext
@@ -609,7 +610,8 @@ class _MisregistrationWindows:
     """Band-to-band shift vs the green (else first) band: median over up to 5 square windows.
 
     The windows are copied out of the chunks of the one streaming read as they pass (no second
-    read of the file), then phase-correlated at the end.
+    read of the file); a window is phase-correlated by the counting thread that completes it,
+    so that work overlaps the rest of the scan (the results are the same in any thread).
     """
 
     infos: Sequence[BandInfo]
@@ -618,6 +620,9 @@ class _MisregistrationWindows:
     windows: list[Window]
     data: list[np.ndarray]
     masks: list[np.ndarray | None]
+    filled: list[int] = field(default_factory=list)
+    shifts: list[dict[int, rad.Shift] | None] = field(default_factory=list)
+    lock: threading.Lock = field(default_factory=threading.Lock)
 
     @classmethod
     def plan(cls, ds: rasterio.io.DatasetReader, infos: Sequence[BandInfo], *,
@@ -638,13 +643,15 @@ class _MisregistrationWindows:
         dtype = np.result_type(*ds.dtypes)
         return cls(infos=infos, ref=ref, others=others, windows=wins,
                    data=[np.zeros((ds.count, n, n), dtype=dtype) for _ in wins],
-                   masks=[np.zeros((n, n), dtype=np.uint8) if use_mask else None for _ in wins])
+                   masks=[np.zeros((n, n), dtype=np.uint8) if use_mask else None for _ in wins],
+                   filled=[0] * len(wins), shifts=[None] * len(wins))
 
     def take(self, win: Window, data: np.ndarray, mask: np.ndarray | None) -> None:
-        """Copy the part of each window that this chunk (at ``win``) holds."""
+        """Copy the part of each window that this chunk (at ``win``) holds; correlate the
+        windows this chunk completes (chunks are disjoint and cover the image)."""
         c0, r0 = int(win.col_off), int(win.row_off)
         c1, r1 = c0 + int(win.width), r0 + int(win.height)
-        for w, buf, mbuf in zip(self.windows, self.data, self.masks, strict=True):
+        for i, (w, buf, mbuf) in enumerate(zip(self.windows, self.data, self.masks, strict=True)):
             wc0, wr0 = int(w.col_off), int(w.row_off)
             ic0, ic1 = max(c0, wc0), min(c1, wc0 + int(w.width))
             ir0, ir1 = max(r0, wr0), min(r1, wr0 + int(w.height))
@@ -655,23 +662,38 @@ class _MisregistrationWindows:
             buf[(slice(None), *dst)] = data[(slice(None), *src)]
             if mbuf is not None and mask is not None:
                 mbuf[dst] = mask[src]
+            with self.lock:
+                self.filled[i] += (ir1 - ir0) * (ic1 - ic0)
+                complete = self.filled[i] == int(w.width) * int(w.height)
+            if complete:
+                self.shifts[i] = self._correlate(i)
+
+    def _correlate(self, i: int) -> dict[int, rad.Shift]:
+        """Shift of every other band vs the reference band in window ``i`` (none if too few
+        valid pixels or a flat band)."""
+        data, mask = self.data[i], self.masks[i]
+        ref_info = self.infos[self.ref - 1]
+        a = _filled(data[self.ref - 1], _valid(data[self.ref - 1], ref_info,
+                                               mask if ref_info.use_mask else None))
+        if a is None:
+            return {}
+        f_ref = rad.tapered_spectrum(a)
+        out = {}
+        for b in self.others:
+            m = _filled(data[b.index - 1], _valid(data[b.index - 1], b, mask if b.use_mask else None))
+            if m is not None:
+                out[b.index] = rad.phase_correlation_spectra(
+                    f_ref, rad.tapered_spectrum(m), upsample=MISREGISTRATION_UPSAMPLE)
+        return out
 
     def result(self) -> tuple[int, dict[int, rad.Shift], dict[int, float]]:
         found: dict[int, list[rad.Shift]] = {b.index: [] for b in self.others}
-        ref_info = self.infos[self.ref - 1]
-        for data, mask in zip(self.data, self.masks, strict=True):
-            a = _filled(data[self.ref - 1], _valid(data[self.ref - 1], ref_info,
-                                                   mask if ref_info.use_mask else None))
-            if a is None:
-                continue
-            f_ref = rad.tapered_spectrum(a)
-            for b in self.others:
-                m = _filled(data[b.index - 1], _valid(data[b.index - 1], b,
-                                                      mask if b.use_mask else None))
-                if m is None:
-                    continue
-                found[b.index].append(rad.phase_correlation_spectra(
-                    f_ref, rad.tapered_spectrum(m), upsample=MISREGISTRATION_UPSAMPLE))
+        for i in range(len(self.windows)):  # window order: the same medians in any thread
+            got = self.shifts[i]
+            if got is None:  # not completed by the chunks (cannot happen; stay exact anyway)
+                got = self.shifts[i] = self._correlate(i)
+            for idx, shift in got.items():
+                found[idx].append(shift)
         result, spreads = {}, {}
         for idx, shifts in found.items():
             if shifts:
