@@ -333,3 +333,23 @@ def test_unsigned_manual_checks_are_named_on_the_terminal_and_page_1(make_delive
                              "terminal,html", "--checker", write_checker(tmp_path)], capsys)
     assert "no verdict from the checker" not in stdout
     assert "no verdict from the checker" not in (tmp_path / "o2" / "report.html").read_text(encoding="utf-8")
+
+
+def test_a_stream_failing_while_written_leaves_nothing(tmp_path):
+    from orthospec.api import write_outputs
+    from orthospec.errors import OrthospecError
+
+    def broken():
+        yield "{\n"
+        raise OrthospecError("plugin format failed half way")
+
+    out = tmp_path / "new" / "out"
+    with pytest.raises(OrthospecError, match="half way"):
+        write_outputs(out, {"qcr.csv": "a,b\n", "qcr.json": broken()})
+    assert not (tmp_path / "new").exists()
+    (tmp_path / "kept").mkdir()
+    (tmp_path / "kept" / "qcr.json").write_text("old")
+    with pytest.raises(OrthospecError):
+        write_outputs(tmp_path / "kept", {"qcr.json": broken()})
+    assert [p.name for p in (tmp_path / "kept").iterdir()] == ["qcr.json"]
+    assert (tmp_path / "kept" / "qcr.json").read_text() == "old"

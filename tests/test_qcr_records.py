@@ -109,3 +109,25 @@ def test_vectorised_rounding_equals_the_scalar_rule() -> None:
     x = np.concatenate([rng.normal(0, 1, 20000) * 10.0 ** rng.integers(-25, 25, 20000),
                         [0.3, 1 / 3, 2.5e-30, 5e25, 123456789012345.0]])
     assert round_sig(x).tolist() == [stable(float(v)) for v in x]
+
+
+def test_problems_only_reading_and_streamed_csv_junit(fail_check: api.CheckResult) -> None:
+    import csv
+    import io
+    import xml.etree.ElementTree as ET
+
+    from orthospec.qcr import iter_csv, iter_junit
+
+    doc = json.loads(dumps(fail_check.document))
+    every = list(all_records(doc))
+    assert list(all_records(doc, compact=False)) == [r for r in every
+                                                      if r["verdict"] not in ("pass", "not_applicable")]
+    rows = list(csv.reader(io.StringIO("".join(iter_csv(doc, rows_per_piece=7)))))
+    assert len(rows) == 1 + len(every) == 1 + doc["summary"]["records"]
+    assert [(r[0], r[3], r[6]) for r in rows[1:]] == [(r["rule"], r["item"], r["verdict"]) for r in every]
+    root = ET.fromstring("".join(iter_junit(doc)))
+    cases = root.findall("./testsuite/testcase")
+    assert len(cases) == len(every)
+    assert len(root.findall("./testsuite/testcase/failure")) == sum(r["verdict"] in ("fail", "missing")
+                                                                     for r in every)
+    assert int(root.get("failures")) == doc["summary"]["fail"] + doc["summary"]["missing"]

@@ -212,7 +212,7 @@ def write_outputs(target: str | Path, files: Mapping[str, str | bytes | Iterable
                 os.link(dest, backup)
             os.replace(tmp / f"new-{i}", dest)
             moved.append((dest, backup))
-    except OSError as exc:
+    except BaseException as exc:  # never swallowed: undone, then re-raised (an OSError as OrthospecError)
         for dest, backup in reversed(moved):
             if backup is not None:
                 os.replace(backup, dest)
@@ -224,7 +224,9 @@ def write_outputs(target: str | Path, files: Mapping[str, str | bytes | Iterable
                 p.rmdir()
             except OSError:
                 break
-        raise OrthospecError(f"cannot write {current} to {out}/: {exc.strerror or exc}; "
-                             "no output written") from None
+        if isinstance(exc, OSError):
+            raise OrthospecError(f"cannot write {current} to {out}/: {exc.strerror or exc}; "
+                                 "no output written") from None
+        raise  # a stream that fails while it is written (e.g. a plugin format): nothing is left behind
     shutil.rmtree(tmp, ignore_errors=True)
     return list(files)

@@ -12,6 +12,7 @@ import contextlib
 import csv
 import heapq
 import io
+import itertools
 import json
 import math
 import os
@@ -389,7 +390,7 @@ def _expand(rule: Mapping[str, Any], block: Mapping[str, Any], evidence: list[di
                     None, asked[k])
 
 
-def all_records(doc: Mapping[str, Any]) -> Iterator[dict[str, Any]]:
+def all_records(doc: Mapping[str, Any], *, compact: bool = True) -> Iterator[dict[str, Any]]:
     """Every record of a QCR document, in document order (scope, rule id, item in natural order).
 
     The one way to read records (INTERFACES item 2). Version 2 documents store each record once,
@@ -397,12 +398,15 @@ def all_records(doc: Mapping[str, Any]) -> Iterator[dict[str, Any]]:
     not applicable (item, verdict, measured value, evidence, message...), ``doc["compact"]`` the
     others as columns per rule; both are expanded here with the rule summary into the same dicts.
     Version 1 documents (every record in full in ``records``) are read as they are.
+
+    ``compact=False`` leaves out the pass and not-applicable records (what the terminal needs, at
+    the cost of the problems only, whatever the size of the delivery).
     """
     records = doc.get("records") or []
     if "compact" not in doc:
-        yield from records
+        yield from (records if compact else (r for r in records if r.get("verdict") not in COMPACT_VERDICTS))
         return
-    compact = doc["compact"] or {}
+    blocks = (doc["compact"] or {}) if compact else {}
     full: dict[str, list[Mapping[str, Any]]] = {}
     for rec in records:
         full.setdefault(rec["rule"], []).append(rec)
@@ -410,11 +414,11 @@ def all_records(doc: Mapping[str, Any]) -> Iterator[dict[str, Any]]:
     for summary in doc.get("rules") or []:
         rid = summary["rule"]
         mine = (_expand_stored(summary, rec) for rec in full.pop(rid, []))
-        block = compact.get(rid)
+        block = blocks.get(rid)
         if not block:
             yield from mine
         else:
-            yield from heapq.merge(mine, _expand(summary, block, evidence, compact),
+            yield from heapq.merge(mine, _expand(summary, block, evidence, blocks),
                                    key=lambda r: natural_key(r["item"]))
     for rest in full.values():  # a record without a rule summary: as stored
         yield from (dict(r) for r in rest)
@@ -595,18 +599,28 @@ def xml_text(v: Any) -> str:
     return _XML_BAD.sub(lambda m: f"\\x{ord(m.group(0)):02x}", str(v))
 
 
-def to_csv(doc: dict[str, Any]) -> str:
+def to_csv(doc: Mapping[str, Any]) -> str:
+    """qcr.csv: one row per record (expanded), spreadsheet-safe."""
+    return "".join(iter_csv(doc))
+
+
+def iter_csv(doc: Mapping[str, Any], *, rows_per_piece: int = 2000) -> Iterator[str]:
+    """qcr.csv as a stream of pieces (a few thousand rows each)."""
     buf = io.StringIO()
     w = _SafeWriter(buf)
     w.writerow(CSV_COLUMNS)
-    for r in all_records(doc):
+    for n, r in enumerate(all_records(doc), start=1):
+        if n % rows_per_piece == 0:
+            yield buf.getvalue()
+            buf.seek(0)
+            buf.truncate()
         clause = _clause_text(r["clause"])
         ev = "; ".join(f"{e['file']}" + (f"#rows={','.join(map(str, e['rows']))}" if e.get("rows") else "")
                        + (f"#{e['path']}" if e.get("path") else "") for e in r["evidence"])
         w.writerow([r["rule"], clause, r["scope"], r["item"], r["level"], r["consequence"], r["verdict"],
                     r["measure"], "" if r["measured"]["value"] is None else r["measured"]["value"],
                     r["measured"]["unit"] or "", r["requirement"].get("text", ""), ev, r["message"]])
-    return buf.getvalue()
+    yield buf.getvalue()
 
 
 #: the columns of qcr.parquet, in order (docs/QCR.md "Parquet table"); one row per record
@@ -686,8 +700,13 @@ def to_parquet(doc: Mapping[str, Any]) -> bytes:
     return buf.getvalue().to_pybytes()
 
 
-def to_junit(doc: dict[str, Any]) -> str:
-    """One testsuite per rule, one testcase per item: CI systems render it natively.
+def to_junit(doc: Mapping[str, Any]) -> str:
+    """junit.xml: one testsuite per rule, one testcase per item (CI systems render it natively)."""
+    return "".join(iter_junit(doc))
+
+
+def iter_junit(doc: Mapping[str, Any]) -> Iterator[str]:
+    """junit.xml as a stream of pieces, one rule (testsuite) at a time.
 
     Every text passes :func:`xml_text`, so control characters in delivery ids keep it well-formed."""
     def quoteattr(v: Any) -> str:
@@ -696,15 +715,14 @@ def to_junit(doc: dict[str, Any]) -> str:
     def escape(v: Any) -> str:
         return _escape(xml_text(v))
 
-    by_rule: dict[str, list[dict[str, Any]]] = {}
-    for r in all_records(doc):
-        by_rule.setdefault(r["rule"], []).append(r)
     s = doc["summary"]
-    out = ['<?xml version="1.0" encoding="UTF-8"?>',
+    yield "\n".join(['<?xml version="1.0" encoding="UTF-8"?>',
            f'<testsuites name={quoteattr("orthospec " + doc["profile"]["id"])} tests="{s["records"]}" '
            f'failures="{s[V.FAIL] + s[V.MISSING] + (s[V.WARN] if doc["fail_on"] == V.WARN else 0)}" '
-           f'errors="{s[V.ERROR]}" skipped="{s[V.NOT_APPLICABLE] + s[V.WAIVED]}">']
-    for rid, recs in by_rule.items():
+           f'errors="{s[V.ERROR]}" skipped="{s[V.NOT_APPLICABLE] + s[V.WAIVED]}">']) + "\n"
+    for rid, group in itertools.groupby(all_records(doc), key=lambda r: r["rule"]):
+        recs = list(group)  # records of one rule are consecutive: one rule in memory at a time
+        out: list[str] = []
         fails = sum(r["verdict"] in (V.FAIL, V.MISSING) for r in recs)
         errs = sum(r["verdict"] == V.ERROR for r in recs)
         skipped = sum(r["verdict"] in V.NEUTRAL for r in recs)
@@ -727,8 +745,8 @@ def to_junit(doc: dict[str, Any]) -> str:
             else:
                 out.append(f'    <testcase name={name} classname={cls}/>')
         out.append("  </testsuite>")
-    out.append("</testsuites>")
-    return "\n".join(out) + "\n"
+        yield "\n".join(out) + "\n"
+    yield "</testsuites>\n"
 
 
 def atomic_write(path: Path, data: str | bytes) -> None:
@@ -760,16 +778,17 @@ Output = str | bytes | Iterable[str]
 def render_all(doc: dict[str, Any], formats: Iterable[str]) -> dict[str, Output]:
     """Every requested machine output, written by ``api.write_outputs`` all or none.
 
-    qcr.json is a stream of pieces (:func:`iter_dumps`), written to its temporary file piece by
-    piece; the other outputs are rendered in memory first."""
+    qcr.json, qcr.csv and junit.xml are streams of pieces (:func:`iter_dumps`, :func:`iter_csv`,
+    :func:`iter_junit`), written to their temporary files piece by piece; the others are rendered
+    in memory first."""
     out: dict[str, Output] = {}
     fmts = set(formats)
     if "json" in fmts:
         out["qcr.json"] = iter_dumps(doc)
     if "csv" in fmts:
-        out["qcr.csv"] = to_csv(doc)
+        out["qcr.csv"] = iter_csv(doc)
     if "junit" in fmts:
-        out["junit.xml"] = to_junit(doc)
+        out["junit.xml"] = iter_junit(doc)
     if "parquet" in fmts:
         out["qcr.parquet"] = to_parquet(doc)
     own = {"json", "csv", "junit", "parquet", "terminal", "html", "pdf"}

@@ -47,7 +47,7 @@ def render(doc: dict[str, Any], console: Console, *, max_items: int = MAX_ITEMS,
     sample = doc.get("sample")
     if isinstance(sample, dict) and sample.get("statement"):
         console.print(f"sample: {_t(sample['statement'])}", overflow="fold")
-    records = list(all_records(doc))
+    records = list(all_records(doc, compact=False))  # problems only: bounded by them, not by the delivery
     found = findings(records)
     if found:
         t = Table(show_header=True, header_style="bold", box=None, pad_edge=False)
