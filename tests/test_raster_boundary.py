@@ -188,3 +188,21 @@ def test_on_report_streams_each_image_once_and_keeps_none(tmp_path):
         assert rep.path == str(paths[i]) and rep.sha256 == kept[i].sha256
         assert rep.radiometry == kept[i].radiometry and rep.error == kept[i].error
     assert got[5].error is not None and "absent.tif" in got[5].error
+
+
+def test_check_scheduler_without_dask_exits_2_naming_the_extra(tmp_path):
+    """`orthospec check --scheduler` in an install without the [dask] extra: exit 2 before any
+    work, the message says what to install (no error record per image, no traceback)."""
+    delivery = Path(__file__).resolve().parents[1] / "examples" / "deliveries" / "aerial-pass"
+    code = (
+        "import sys\n"
+        "sys.modules['distributed'] = None\n"
+        "from orthospec.cli.main import main\n"
+        f"main(['check', {str(delivery)!r}, '-p', 'jrc-v3', '--scheduler', 'tcp://127.0.0.1:1',"
+        f" '--out', {str(tmp_path / 'out')!r}, '--format', 'json'])\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300,
+                         cwd=tmp_path)
+    assert out.returncode == 2, out.stderr
+    assert "orthospec[dask]" in out.stderr and "Traceback" not in out.stderr
+    assert not (tmp_path / "out" / "qcr.json").exists()
