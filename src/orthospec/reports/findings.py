@@ -22,7 +22,7 @@ from typing import Any
 from .. import verdicts as V
 from ..qcr import natural_key
 
-__all__ = ["Finding", "clean_text", "findings", "fmt_number", "not_applicable_summary", "stated",
+__all__ = ["Finding", "NotApplicableSummary", "clean_text", "findings", "fmt_number", "not_applicable_summary", "stated",
            "unsigned_manual_note"]
 
 PROBLEMS = V.PROBLEMS
@@ -266,18 +266,36 @@ def condition_prose(cond: str) -> str:
     return text
 
 
-def not_applicable_summary(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
-    """Not-applicable records per condition: {condition, prose, rules, records} (records stay in qcr.json)."""
-    groups: dict[str, dict[str, Any]] = {}
-    for r in records:
+class NotApplicableSummary:
+    """Not-applicable records per condition, accumulated one record at a time (reports stream
+    the records; the records themselves stay in qcr.json)."""
+
+    def __init__(self) -> None:
+        self.groups: dict[str, dict[str, Any]] = {}
+        self._seen: dict[str, tuple[str, str]] = {}  # message -> (condition, prose): parsed once
+
+    def add(self, r: dict[str, Any]) -> None:
         if r.get("verdict") != V.NOT_APPLICABLE:
-            continue
+            return
         msg = clean_text(r.get("message")).strip()
-        m = _NA.match(msg)
-        cond = m.group("cond") if m else (msg or "not applicable to this delivery")
-        prose = f"applies only when {condition_prose(cond)}" if m else cond
-        g = groups.setdefault(cond, {"condition": cond, "prose": prose, "rules": [], "records": 0})
+        hit = self._seen.get(msg)
+        if hit is None:
+            m = _NA.match(msg)
+            cond = m.group("cond") if m else (msg or "not applicable to this delivery")
+            hit = self._seen[msg] = (cond, f"applies only when {condition_prose(cond)}" if m else cond)
+        cond, prose = hit
+        g = self.groups.setdefault(cond, {"condition": cond, "prose": prose, "rules": [], "records": 0})
         g["records"] += 1
         if r["rule"] not in g["rules"]:
             g["rules"].append(r["rule"])
-    return sorted(groups.values(), key=lambda g: (-g["records"], g["condition"]))
+
+    def result(self) -> list[dict[str, Any]]:
+        return sorted(self.groups.values(), key=lambda g: (-g["records"], g["condition"]))
+
+
+def not_applicable_summary(records: Iterable[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Not-applicable records per condition: {condition, prose, rules, records} (records stay in qcr.json)."""
+    acc = NotApplicableSummary()
+    for r in records:
+        acc.add(r)
+    return acc.result()

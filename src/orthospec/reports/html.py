@@ -22,8 +22,8 @@ from .. import verdicts as V
 from ..qcr import all_records, dumps, natural_key, point_rows
 from ..resources import templates_dir
 from ..spec.wording import unit_suffix
+from .findings import NotApplicableSummary, unsigned_manual_note
 from .findings import findings as find_problems
-from .findings import not_applicable_summary, unsigned_manual_note
 
 __all__ = ["ReportOptions", "document_sha256", "environment", "render_html", "report_context"]
 
@@ -253,18 +253,76 @@ def _problem_rules(records: list[dict[str, Any]], max_items: int) -> list[dict[s
     return sorted(out.values(), key=lambda x: VERDICT_ORDER.get(x["verdict"], 9))
 
 
-def _rule_views(doc: dict[str, Any], opts: ReportOptions) -> list[RuleView]:
-    by_rule: dict[str, list[dict[str, Any]]] = {}
-    for rec in all_records(doc):
-        by_rule.setdefault(rec["rule"], []).append(rec)
+@dataclass
+class _RuleRecords:
+    """What the report keeps of one rule's records while they stream past: the problems in full,
+    the passing ones as a count, a value range and (HTML) the first rows."""
+
+    first: dict[str, Any] | None = None
+    reqs: set[str] = field(default_factory=set)
+    others: list[dict[str, Any]] = field(default_factory=list)
+    passing: list[dict[str, Any]] = field(default_factory=list)
+    pass_count: int = 0
+    pass_unit: str | None = None
+    lo: float | None = None
+    hi: float | None = None
+    na_count: int = 0
+
+
+@dataclass
+class _Collected:
+    """One pass over :func:`~orthospec.qcr.all_records`: memory bounded by the problems and the
+    manual records, not by the number of passing items (national deliveries)."""
+
+    by_rule: dict[str, _RuleRecords]
+    kept: list[dict[str, Any]]     # every record that is not pass / not applicable
+    manual: list[dict[str, Any]]   # every record of a manual rule
+    not_applicable: list[dict[str, Any]]
+
+
+def _collect(doc: dict[str, Any], opts: ReportOptions) -> _Collected:
+    by_rule: dict[str, _RuleRecords] = {}
+    kept: list[dict[str, Any]] = []
+    manual: list[dict[str, Any]] = []
+    na = NotApplicableSummary()
+    for r in all_records(doc):
+        acc = by_rule.get(r["rule"])
+        if acc is None:
+            acc = by_rule[r["rule"]] = _RuleRecords(first=r)
+        acc.reqs.add(r["requirement"].get("text", ""))
+        v = r["verdict"]
+        if r.get("manual"):
+            manual.append(r)
+        if v == V.PASS:
+            acc.pass_count += 1
+            value = r["measured"].get("value")
+            if _numeric(value):
+                if acc.lo is None:
+                    acc.pass_unit = r["measured"].get("unit")
+                    acc.lo = acc.hi = value
+                else:
+                    acc.lo, acc.hi = min(acc.lo, value), max(acc.hi, value)  # type: ignore[type-var]
+            if not opts.bounded and len(acc.passing) < opts.max_pass_rows:
+                acc.passing.append(r)
+        elif v == V.NOT_APPLICABLE:
+            acc.na_count += 1
+            na.add(r)
+        else:
+            acc.others.append(r)
+            kept.append(r)
+    return _Collected(by_rule, kept, manual, na.result())
+
+
+def _rule_views(doc: dict[str, Any], opts: ReportOptions, collected: _Collected | None = None) -> list[RuleView]:
+    by_rule = (collected or _collect(doc, opts)).by_rule
     meta = {r["rule"]: r for r in doc.get("rules", [])}
     order = list(meta) + [r for r in by_rule if r not in meta]
     views = []
     for rid in order:
-        recs = by_rule.get(rid, [])
+        acc = by_rule.get(rid) or _RuleRecords()
         m = meta.get(rid, {})
-        first = recs[0] if recs else {}
-        reqs = {r["requirement"].get("text", "") for r in recs}
+        first = acc.first or {}
+        reqs = acc.reqs
         v = RuleView(
             rule=rid, title=m.get("title") or first.get("title", ""),
             clause=fmt_clause(first.get("clause") or m.get("clause")), quote=first.get("quote", ""),
@@ -274,25 +332,21 @@ def _rule_views(doc: dict[str, Any], opts: ReportOptions) -> list[RuleView]:
             counts=m.get("counts", {}), requirement=next(iter(reqs)) if len(reqs) == 1 else "per item",
             error=m.get("error"), clause_ref=m.get("clause_ref") or "",
         )
-        passing = [r for r in recs if r["verdict"] == V.PASS]
-        v.na_count = sum(r["verdict"] == V.NOT_APPLICABLE for r in recs)
-        shown = [r for r in recs if r["verdict"] not in (V.PASS, V.NOT_APPLICABLE)]
-        shown.sort(key=lambda r: VERDICT_ORDER.get(r["verdict"], 9))  # stable: item order kept
+        v.na_count = acc.na_count
+        shown = sorted(acc.others, key=lambda r: VERDICT_ORDER.get(r["verdict"], 9))  # stable: item order kept
         v.shown = group_rows(shown)
         v.n_shown = len(shown)
         if opts.bounded and len(v.shown) > opts.max_rule_rows:
             v.rows_hidden = len(v.shown) - opts.max_rule_rows
             v.shown = v.shown[: opts.max_rule_rows]
-        v.pass_count = len(passing)
-        nums = [r["measured"]["value"] for r in passing if _numeric(r["measured"].get("value"))]
-        if nums:
-            unit = passing[0]["measured"].get("unit")
-            u = unit_suffix(unit)
-            lo, hi = min(nums), max(nums)
+        v.pass_count = acc.pass_count
+        if acc.lo is not None:
+            u = unit_suffix(acc.pass_unit)
+            lo, hi = acc.lo, acc.hi
             v.pass_range = fmt_value(lo) + u if lo == hi else f"{fmt_value(lo)} to {fmt_value(hi)}{u}"
         if not opts.bounded:
-            v.passing = [{**r, "item_list": [r["item"]]} for r in passing[: opts.max_pass_rows]]
-            v.pass_hidden = len(passing) - len(v.passing)
+            v.passing = [{**r, "item_list": [r["item"]]} for r in acc.passing]
+            v.pass_hidden = acc.pass_count - len(v.passing)
         views.append(v)
     return views
 
@@ -434,7 +488,7 @@ def _edge_targets(doc: dict[str, Any], opts: ReportOptions | None = None,
                     "checks": checks, "estimates": estimates,
                     "has_curves": isinstance(d.get("curves"), dict), "figures": []})
     if figure is not None and opts.figures:
-        bad = {r["item"] for r in all_records(doc)
+        bad = {r["item"] for r in all_records(doc, compact=False)
                if r.get("scope") == "edge" and r.get("verdict") in (V.FAIL, V.ERROR)}
         ranked = sorted((e for e in out if e["has_curves"]), key=lambda e: e["id"] not in bad)  # stable
         for e in ranked[: opts.max_figure_edges]:
@@ -543,9 +597,10 @@ def report_context(doc: dict[str, Any], opts: ReportOptions | None = None, *,
     fetcher); ``None`` draws no figures. ``cache`` keeps drawn SVGs between HTML and PDF renders.
     """
     opts = opts or ReportOptions()
-    records = list(all_records(doc))
+    collected = _collect(doc, opts)
+    records = collected.kept  # the problems (every verdict but pass / not applicable)
     problems = _problem_rules(records, 30 if opts.bounded else 10**9)
-    rules = _rule_views(doc, opts)
+    rules = _rule_views(doc, opts, collected)
     scopes: list[dict[str, Any]] = []
     for v in rules:
         if not scopes or scopes[-1]["scope"] != v.scope:
@@ -557,7 +612,7 @@ def report_context(doc: dict[str, Any], opts: ReportOptions | None = None, *,
             continue  # not applicable throughout: summarised per condition, never row by row
         scopes[-1]["quiet" if quiet else "rules"].append(v)
     failing_rules = [v for v in rules if v.verdict in (V.ERROR, V.FAIL)]
-    manual = [r for r in records if r.get("manual")]
+    manual = collected.manual
     to_sign: dict[str, dict[str, Any]] = {}
     for r in manual:
         if r["verdict"] == V.MISSING:
@@ -585,7 +640,7 @@ def report_context(doc: dict[str, Any], opts: ReportOptions | None = None, *,
         "rejected": (doc.get("rollup") or {}).get("rejected", {}),
         "problems": problems, "failing_rules": failing_rules,
         "findings": found, "page1_findings": found[:PAGE1_FINDINGS],
-        "not_applicable": not_applicable_summary(records),
+        "not_applicable": collected.not_applicable,
         "unsigned_manual": unsigned_manual_note(records),
         "checker": doc.get("operator"), "qa_operator": d.get("operator") or {},
         "after_signoff": doc.get("after_signoff"),
