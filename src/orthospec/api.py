@@ -51,6 +51,8 @@ class CheckOptions:
     fail_on: str = V.FAIL
     #: raster result cache folder (results keyed by file SHA-256)
     cache_dir: Path | None = None
+    #: offending items the terminal summary lists per rule (qcr.json lists all)
+    max_items: int = 8
 
     def __post_init__(self) -> None:
         if self.fail_on not in (V.FAIL, V.WARN):
@@ -58,6 +60,8 @@ class CheckOptions:
         if self.workers is not None and (isinstance(self.workers, bool) or not isinstance(self.workers, int)
                                          or self.workers < 1):
             raise OrthospecError(f"workers must be a whole number >= 1, got {self.workers!r}")
+        if isinstance(self.max_items, bool) or not isinstance(self.max_items, int) or self.max_items < 1:
+            raise OrthospecError(f"max_items must be a whole number >= 1, got {self.max_items!r}")
 
     @classmethod
     def of(cls, options: CheckOptions | Mapping[str, Any] | None) -> CheckOptions:

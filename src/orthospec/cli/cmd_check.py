@@ -80,7 +80,7 @@ def check_cmd(delivery: Path, profile: str, params: tuple[str, ...], out_dir: Pa
 
         sample = read_sample(sample_file)
     options = CheckOptions(workers=workers, scheduler=scheduler, progress=sys.stderr.isatty(), sample=sample,
-                           checker=checker_file, fail_on=fail_on)
+                           checker=checker_file, fail_on=fail_on, max_items=max_items)
     result = check(delivery, profile, params=params, date=date, operator=operator, options=options)
     doc = result.document
     if ledger_head is not None:
@@ -97,7 +97,7 @@ def check_cmd(delivery: Path, profile: str, params: tuple[str, ...], out_dir: Pa
     if "terminal" in fmts:
         console = Console(highlight=False) if sys.stdout.isatty() else Console(
             highlight=False, width=120, soft_wrap=False)
-        render_terminal(doc, console, max_items=max_items, verbose=verbose)
+        render_terminal(doc, console, max_items=options.max_items, verbose=verbose)
         if files:
             click.echo(f"wrote {', '.join(sorted(files))} to {target}/")
     if ledger_target is not None:  # after the outputs: the ledger records what was written
