@@ -8,7 +8,7 @@ from typing import Any
 
 import click
 
-from ..delivery.points import read_points_csv
+from ..delivery.points import PointTable, point_table, read_point_file
 from ..errors import OrthospecError
 from ..measures.accuracy import AccuracyStats, BlunderResult, detect_blunders
 from .groups import measure
@@ -134,10 +134,9 @@ def accuracy_cmd(ctx: click.Context, points: str, gsd: float | None, units: str 
     Example: orthospec measure accuracy examples/deliveries/aerial-fail/tables/checkpoints.csv
     """
     try:
-        groups, ignored = _split(points)
+        tables, ignored = _split(points, units)
         payloads = {}
-        for block, path in groups.items():
-            table = read_points_csv(path, units=units)
+        for block, table in tables.items():
             res = detect_blunders(
                 table.dx, table.dy, table.dz, ids=table.ids, basis=blunder_basis,  # type: ignore[arg-type]
                 target_rmse_xy=target_rmse, target_rmse_z=target_rmse_z,
@@ -161,54 +160,17 @@ def accuracy_cmd(ctx: click.Context, points: str, gsd: float | None, units: str 
             _render(payload)
 
 
-_KNOWN = ("id", "point_id", "x", "y", "z", "x_ref", "y_ref", "z_ref", "dx", "dy", "dz", "unit", "excluded",
-          "exclusion_reason")
+def _split(points: str, units: str | None) -> tuple[dict[str | None, PointTable], list[str]]:
+    """{block or None: its points}, and the columns ignored (a delivery's table has image_id,
+    source, ...). The file is read once by the one table parser; the whole file is validated
+    first (a duplicate id across blocks, mixed units), so every error names the file's own row."""
+    import numpy as np
 
-
-def _split(points: str) -> tuple[dict[str | None, str], list[str]]:
-    """{block or None: CSV path with the known columns only}, and the columns ignored.
-
-    The whole file is validated first (so an error names the row of the file as given); then
-    each block's rows are written to a private temporary file (never beside the input).
-    """
-    import atexit
-    import csv
-    import shutil
-    import tempfile
-
-    from ..errors import DeliveryError
-
-    try:
-        with open(points, newline="", encoding="utf-8-sig") as fh:
-            reader = csv.reader(fh)
-            header = [h.strip() for h in next(reader, [])]
-            rows = list(reader)
-    except FileNotFoundError:
-        raise DeliveryError("file not found", file=points) from None
-    except (OSError, UnicodeDecodeError, csv.Error) as exc:
-        raise DeliveryError(f"cannot read CSV: {exc}", file=points) from None
-    keep = [i for i, h in enumerate(header) if h in _KNOWN]
-    ignored = [h for h in header if h not in _KNOWN and h != "block"]
-    block_col = header.index("block") if "block" in header else None
-    if not ignored and block_col is None:
-        return {None: points}, []
-    tmp = tempfile.mkdtemp(prefix="orthospec-accuracy-")
-    atexit.register(shutil.rmtree, tmp, True)
-
-    def write(name: str, subset: list[list[str]]) -> str:
-        path = f"{tmp}/{name}.csv"
-        with open(path, "w", newline="", encoding="utf-8") as fh:
-            w = csv.writer(fh)
-            w.writerow([header[i] for i in keep])
-            for r in subset:
-                w.writerow([r[i] if i < len(r) else "" for i in keep])
-        return path
-
-    whole = write("all", rows)
-    read_points_csv(whole)  # row numbers of errors are the file's own
-    if block_col is None:
+    pf = read_point_file(points)
+    whole = point_table(pf, units=units)
+    ignored = [c for c in pf.ignored if c != "block"]
+    if "block" not in pf.df:
         return {None: whole}, ignored
-    blocks: dict[str, list[list[str]]] = {}
-    for r in rows:
-        blocks.setdefault(r[block_col].strip() if block_col < len(r) else "", []).append(r)
-    return {b: write(f"block-{n}", sub) for n, (b, sub) in enumerate(sorted(blocks.items()))}, ignored
+    blocks = pf.df["block"].fillna("").to_numpy(dtype=object)
+    return {str(b): point_table(pf, np.flatnonzero(blocks == b), units=units)
+            for b in sorted(set(blocks.tolist()))}, ignored

@@ -183,8 +183,10 @@ def check_tree(root: str | Path) -> list[str]:
                 raise DeliveryError(f"is {kind}, not a regular file; a delivery holds files only",
                                     file=rel)
     return sorted(files)
-_TRUE = {"true", "yes", "y", "1", "t"}
-_FALSE = {"false", "no", "n", "0", "f"}
+#: The one set of boolean words of every orthospec table (delivery tables and ``measure accuracy``
+#: point files alike, issue 15), compared case-insensitively after stripping; an empty cell is unset.
+BOOL_TRUE = ("true", "yes", "y", "1", "t")
+BOOL_FALSE = ("false", "no", "n", "0", "f")
 
 
 @dataclass(frozen=True)
@@ -343,38 +345,18 @@ class Delivery:
             raise DeliveryError(f"table '{name}' is a folder, not a file: {rel}", file=MANIFEST, line=line)
         if not p.is_file():
             raise DeliveryError(f"table '{name}' file not found: {rel}", file=MANIFEST, line=line)
-        try:
-            with open(p, "rb") as fh:
-                size = os.fstat(fh.fileno()).st_size
-                if size > self.limits.table_bytes:
-                    raise DeliveryError(
-                        f"table of {size:,} bytes exceeds the limit of {self.limits.table_bytes:,} bytes "
-                        "(ORTHOSPEC_MAX_TABLE_BYTES)", file=rel)
-                check_csv_bounds(fh, file=rel, limits=self.limits)
-                fh.seek(0)
-                data = fh.read()
-        except OSError as exc:
-            raise DeliveryError(f"cannot read table: {exc.strerror or exc}", file=rel) from None
+        data = read_table_bytes(p, file=rel, limits=self.limits)
         sha = sha256_bytes(data)
         self._sha[rel] = sha
-        try:
-            text = data.decode("utf-8-sig")
-        except UnicodeDecodeError as exc:
-            raise DeliveryError(f"not UTF-8 text (byte {exc.start})", file=rel) from None
+        body = utf8_body(data, file=rel)
+        del data  # the table is held once (as LF-terminated UTF-8 bytes) while it is parsed
         length_unit = self.manifest.units.get(name, "m")
         try:
             parse_unit(length_unit)
         except UnitError as exc:
             raise DeliveryError(f"units.{name}: {exc}", file=MANIFEST,
                                 line=self.where(("units", name))) from None
-        if "\r" in text:  # CR-only or CRLF line ends: one convention for both parsers below
-            text = text.replace("\r\n", "\n").replace("\r", "\n")
-        if csv.field_size_limit() < self.limits.cell_bytes:
-            csv.field_size_limit(self.limits.cell_bytes)  # the bound is check_csv_bounds's, not csv's
-        try:
-            df = parse_csv(text, spec, file=rel)
-        except csv.Error as exc:  # the csv module's own complaints (NUL bytes, stray quotes...)
-            raise DeliveryError(f"not a valid CSV table: {exc}", file=rel) from None
+        df = parse_csv(body, spec, file=rel, cell_bytes=self.limits.cell_bytes)
         for col in PATH_COLUMNS & set(df.columns):
             for r, v in zip(df["_row"].tolist(), df[col].tolist(), strict=True):
                 if v is not None:
@@ -385,6 +367,21 @@ class Delivery:
             if cs.type == "number" and col in df:
                 units[col] = canonical(length_unit if cs.unit == "length" else cs.unit)
         return Table(name, spec, rel, sha, df, units)
+
+
+def read_table_bytes(path: Path, *, file: str, limits: Limits) -> bytes:
+    """The bytes of a table file, refused (file named) when they break ``limits``, before parsing."""
+    try:
+        with open(path, "rb") as fh:
+            size = os.fstat(fh.fileno()).st_size
+            if size > limits.table_bytes:
+                raise DeliveryError(f"table of {size:,} bytes exceeds the limit of {limits.table_bytes:,} bytes "
+                                    "(ORTHOSPEC_MAX_TABLE_BYTES)", file=file)
+            check_csv_bounds(fh, file=file, limits=limits)
+            fh.seek(0)
+            return fh.read()
+    except OSError as exc:
+        raise DeliveryError(f"cannot read table: {exc.strerror or exc}", file=file) from None
 
 
 def check_csv_bounds(fh: Any, *, file: str, limits: Limits, chunk: int = 16 * 2**20) -> None:
@@ -468,14 +465,93 @@ def _to_m(value: float, unit: str) -> float:
     return float(convert([value], unit, "m")[0])
 
 
-def parse_csv(text: str, spec: TableSpec, *, file: str) -> pd.DataFrame:
+_BOM = b"\xef\xbb\xbf"
+
+
+def utf8_body(data: bytes, *, file: str, chunk: int = 1 << 24) -> bytes:
+    """A table's bytes as the parser reads them: UTF-8 checked, no BOM, LF line ends.
+
+    UTF-8 is checked in chunks (an incremental decoder), so a table is never held as a Python
+    string beside its bytes; the byte offset of a bad sequence counts after a BOM, as
+    ``bytes.decode("utf-8-sig")`` reports it. CR-only and CRLF line ends become LF (one
+    convention for the parsers below); ``\\r`` is one byte in UTF-8, so this is exact on bytes.
+    """
+    import codecs
+
+    if data.startswith(_BOM):
+        data = data[len(_BOM):]
+    view = memoryview(data)
+    dec = codecs.getincrementaldecoder("utf-8")()
+    for start in range(0, max(len(data), 1), chunk):
+        pending = len(dec.getstate()[0])
+        try:
+            dec.decode(view[start:start + chunk], final=start + chunk >= len(data))
+        except UnicodeDecodeError as exc:
+            raise DeliveryError(f"not UTF-8 text (byte {start - pending + exc.start})", file=file) from None
+    if b"\r" in data:
+        data = data.replace(b"\r\n", b"\n").replace(b"\r", b"\n")
+    return data
+
+
+def parse_csv(text: str | bytes, spec: TableSpec, *, file: str, cell_bytes: int | None = None) -> pd.DataFrame:
     """Parse and type a CSV table against its spec; every problem names file, row and column.
 
-    pandas' C parser reads every cell as text (empty cells stay ''), so a national table of a
-    million rows parses in seconds; types are then converted column by column, vectorised.
+    The one CSV table parser of orthospec (delivery tables, the external-QC sample, the point
+    files of ``measure accuracy``). ``text`` is the table (``bytes``: as :func:`utf8_body` gives
+    them). pandas' C parser reads number columns straight to float64 and the others as text;
+    a table whose numbers it cannot read takes the exact path (every cell as text, converted
+    column by column) that names the first bad cell. Cells are stripped of surrounding
+    whitespace. Everything is vectorised: a million-row table parses in about the time of
+    ``pandas.read_csv``.
+
+    Raises
+    ------
+    DeliveryError
+        A bad header, a row with the wrong number of fields, an empty required cell, a cell
+        that is not of its column's type, a duplicate id: file, row and column named.
     """
-    first = text.split("\n", 1)[0]
-    header = [h.strip() for h in next(csv.reader([first]))] if first.strip() else []
+    body = text.encode("utf-8") if isinstance(text, str) else text
+    header = _header(body, spec, file)
+    if cell_bytes is not None and csv.field_size_limit() < cell_bytes:
+        csv.field_size_limit(cell_bytes)  # the bound is check_csv_bounds's, not csv's
+    try:
+        frame = _read_typed(body, header, spec, file)
+        exact = frame is None
+        if frame is None:
+            frame = _read_cells(body, header, file)
+        shape = _records(body)
+    except csv.Error as exc:  # the csv module's own complaints (NUL bytes, stray quotes...)
+        raise DeliveryError(f"not a valid CSV table: {exc}", file=file) from None
+    cols = _columns(frame, header, strip=exact or shape.padded)
+    rows = np.arange(1, len(frame) + 1, dtype=np.int64)
+    del frame
+    if len(rows):
+        rows, cols = _drop_blank_rows(rows, cols, shape.widths, len(header), file)
+    df = pd.DataFrame({"_row": rows})
+    for col in header:
+        cs = spec.columns[col]
+        df[col] = _convert_column(cols.pop(col), rows, cs.type, col, file, cs.required)
+    if spec.id and spec.id in df:
+        ids = df[spec.id]
+        dups = ids.duplicated(keep=False).to_numpy()
+        if dups.any():
+            first_dup = ids.iloc[int(np.argmax(dups))]
+            where = df.loc[ids == first_dup, "_row"].tolist()
+            raise DeliveryError(f"duplicate id {first_dup!r} in rows {', '.join(map(str, where))}",
+                                file=file, field=spec.id)
+    return df
+
+
+def header_names(body: bytes) -> list[str]:
+    """The stripped column names of a table's first line ([] for an empty table)."""
+    nl = body.find(b"\n")
+    first = (body if nl < 0 else body[:nl]).decode("utf-8")
+    return [h.strip() for h in next(csv.reader([first]))] if first.strip() else []
+
+
+def _header(body: bytes, spec: TableSpec, file: str) -> list[str]:
+    """The stripped column names, checked against the spec (line 1 named in every complaint)."""
+    header = header_names(body)
     if not header:
         raise DeliveryError("empty table: expected a header row with columns "
                             + ", ".join(spec.columns), file=file)
@@ -495,76 +571,232 @@ def parse_csv(text: str, spec: TableSpec, *, file: str) -> pd.DataFrame:
             + ", ".join(spec.required) + "; optional "
             + ", ".join(c for c in spec.columns if c not in spec.required),
             file=file, line=1)
+    return header
+
+
+def _read_csv(body: bytes, header: list[str], file: str, **kw: Any) -> pd.DataFrame:
+    """pandas' C parser over the table; a row with too many fields is named by its data row."""
     try:
-        raw = pd.read_csv(io.StringIO(text), dtype=str, keep_default_na=False, skip_blank_lines=False,
-                          skipinitialspace=False, engine="c")
+        return pd.read_csv(io.BytesIO(body), header=0, names=header, keep_default_na=False,
+                           na_values={c: [""] for c in header}, skip_blank_lines=False,
+                           skipinitialspace=False, engine="c", **kw)
     except pd.errors.ParserError as exc:
         m = re.search(r"Expected (\d+) fields in line (\d+), saw (\d+)", str(exc))
         if m:
             raise DeliveryError(f"has {m.group(3)} fields, the header has {m.group(1)}", file=file,
                                 row=int(m.group(2)) - 1) from None
         raise DeliveryError(f"not a valid CSV table: {exc}", file=file) from None
-    raw.columns = header
-    rows = np.arange(1, len(raw) + 1, dtype=np.int64)
-    cells = {c: np.strings.strip(raw[c].to_numpy(dtype=str)) for c in header}
-    if len(raw):
-        blank = np.logical_and.reduce([cells[c] == "" for c in header])
-        # pandas pads short rows silently; the csv module (C) counts the fields of every record
-        counts = np.fromiter((len(r) for r in csv.reader(io.StringIO(text))), dtype=np.int64)[1:]
-        counts = counts[: len(raw)] if len(counts) >= len(raw) else np.pad(counts, (0, len(raw) - len(counts)))
-        short = (counts != len(header)) & ~blank & (counts > 0)
-        if short.any():
-            i = int(np.flatnonzero(short)[0])
-            raise DeliveryError(f"has {int(counts[i])} fields, the header has {len(header)}", file=file,
-                                row=int(rows[i]))
-        if blank.any():
-            rows = rows[~blank]
-            cells = {c: v[~blank] for c, v in cells.items()}
-    df = pd.DataFrame({"_row": rows})
-    for col in header:
-        cs = spec.columns[col]
-        df[col] = _convert_column(cells[col], rows, cs.type, col, file, cs.required)
-    if spec.id and spec.id in df:
-        ids = df[spec.id]
-        dups = ids[ids.duplicated(keep=False)]
-        if len(dups):
-            first_dup = dups.iloc[0]
-            where = df.loc[ids == first_dup, "_row"].tolist()
-            raise DeliveryError(f"duplicate id {first_dup!r} in rows {', '.join(map(str, where))}",
-                                file=file, field=spec.id)
-    return df
 
 
-_NONFINITE = ["nan", "inf", "-inf", "+inf", "infinity", "-infinity", "+infinity"]
+def _read_typed(body: bytes, header: list[str], spec: TableSpec, file: str) -> pd.DataFrame | None:
+    """Number columns read by the C parser as float64; None when a cell needs the exact path.
+
+    The C parser and ``pandas.to_numeric`` (the exact path) agree on every number they both
+    read; the fast result is refused when the parser refuses a cell (words, ``nan``, a blank of
+    spaces...) or read an infinity, and a column holding an exact 0 or 1 is re-read as text
+    (the parser reads a column of only boolean words as 0/1).
+    """
+    nums = [c for c in header if spec.columns[c].type == "number"]
+    dtype = {c: ("float64" if c in nums else object) for c in header}
+    try:
+        frame = _read_csv(body, header, file, dtype=dtype)
+    except ValueError:
+        return None
+    guard = []
+    for c in nums:
+        v = frame[c].to_numpy()
+        if np.isinf(v).any():
+            return None
+        if ((v == 0.0) | (v == 1.0)).any():
+            guard.append(c)
+    if guard:
+        text = _read_cells(body, header, file, usecols=guard)
+        for c in guard:
+            frame[c] = text[c]
+    return frame
 
 
-def _convert_column(cells: np.ndarray, rows: np.ndarray, kind: str, col: str, file: str,
+def _read_cells(body: bytes, header: list[str], file: str, usecols: list[str] | None = None) -> pd.DataFrame:
+    """Every cell as text (empty cells NaN): the exact path."""
+    return _read_csv(body, header, file, dtype=object, usecols=usecols)
+
+
+def _columns(frame: pd.DataFrame, header: list[str], *, strip: bool) -> dict[str, Any]:
+    """Per column: the float64 values the C parser read, or the text cells (an object Series,
+    stripped when a cell may need it) and the mask of empty ones."""
+    out: dict[str, Any] = {}
+    for c in header:
+        s = frame[c]
+        if s.dtype.kind == "f":
+            out[c] = s.to_numpy()
+            continue
+        s = s.astype(object)
+        empty = s.isna().to_numpy()
+        if strip:
+            s = s.str.strip()
+            empty = empty | (s == "").to_numpy(bool)
+        out[c] = (s, empty)
+    return out
+
+
+def _drop_blank_rows(rows: np.ndarray, cols: dict[str, Any], widths: np.ndarray, width: int,
+                     file: str) -> tuple[np.ndarray, dict[str, Any]]:
+    """Refuse a short row (pandas pads it silently; the csv module's count decides); drop rows
+    whose every cell is empty (blank lines)."""
+    blank = np.logical_and.reduce([np.isnan(v) if isinstance(v, np.ndarray) else v[1] for v in cols.values()])
+    counts = widths[1:]  # the header is record 0
+    n = len(rows)
+    counts = counts[:n] if len(counts) >= n else np.pad(counts, (0, n - len(counts)))
+    short = (counts != width) & ~blank & (counts > 0)
+    if short.any():
+        i = int(np.flatnonzero(short)[0])
+        raise DeliveryError(f"has {int(counts[i])} fields, the header has {width}", file=file, row=int(rows[i]))
+    if blank.any():
+        keep = ~blank
+        cols = {c: v[keep] if isinstance(v, np.ndarray) else (v[0][keep].reset_index(drop=True), v[1][keep])
+                for c, v in cols.items()}
+        rows = rows[keep]
+    return rows, cols
+
+
+@dataclass(frozen=True)
+class _Shape:
+    """What the bytes say about the records: fields per record (header first), and whether a
+    cell may begin or end with whitespace (else nothing needs stripping)."""
+
+    widths: np.ndarray
+    padded: bool
+
+
+#: Whitespace str.strip() removes that is rare in tables (tabs, \v, \f, the separators
+#: \x1c-\x1f): a table holding one is stripped cell by cell.
+_RARE_SPACE = tuple(bytes([c]) for c in (9, 11, 12, 28, 29, 30, 31))
+
+
+def _records(body: bytes) -> _Shape:
+    """Fields per CSV record exactly as the ``csv`` module counts them, from a vectorised pass
+    over the bytes when every quote is a plain one (:func:`_records_fast`), else the csv module."""
+    fast = _records_fast(body)
+    if fast is not None:
+        return fast
+    widths = np.fromiter(map(len, csv.reader(io.StringIO(body.decode("utf-8")))), dtype=np.int64)
+    return _Shape(widths, True)
+
+
+def _records_fast(body: bytes, chunk: int = 1 << 20) -> _Shape | None:
+    """Record widths from the positions of quotes, delimiters and line ends (no per-byte state).
+
+    Quotes alternate open/close (a doubled quote closes and reopens); delimiters and line ends
+    between an open and its close are content. None when a quote opens mid-field or closes
+    before the field ends (the csv module's state machine decides those) or stays open, or the
+    table holds a NUL byte (the csv module refuses it, and says so). ``padded``: a space or a
+    non-ASCII byte (Unicode spaces) sits beside a delimiter or line end, or inside a quote's
+    edge (there a line end too), or the table holds a rare whitespace byte.
+    """
+    if b"\x00" in body:
+        return None
+    n = len(body)
+    parity, carry, prev = 0, 0, 10
+    padded = any(c in body for c in _RARE_SPACE)
+    widths: list[np.ndarray] = []
+    for start in range(0, n, chunk):
+        view = np.frombuffer(body, dtype=np.uint8, count=min(chunk + 1, n - start), offset=start)
+        m = min(chunk, n - start)
+        ext = np.empty(m + 2, dtype=np.uint8)  # the chunk with its neighbouring bytes
+        ext[0], ext[1:-1], ext[-1] = prev, view[:m], view[m] if len(view) > m else 10
+        arr = ext[1:-1]
+        is44 = arr == 44
+        is10 = arr == 10
+        ends = np.flatnonzero(is10)
+        qi = np.flatnonzero(arr == 34)
+        if parity:
+            qi = np.concatenate([[-1], qi])  # the chunk starts inside a quoted field
+        opens, closes = qi[0::2], qi[1::2]
+        parity = len(qi) % 2
+        if parity:
+            closes = np.append(closes, m)  # still open at the chunk's end
+        real_opens, real_closes = opens[opens >= 0], closes[closes < m]
+        if not (np.isin(ext[real_opens], (44, 10, 34)).all() and np.isin(ext[real_closes + 2], (44, 10, 34)).all()):
+            return None
+        if not padded:
+            sp = (ext == 32) | (ext >= 0x80)
+            near = np.flatnonzero((sp[:-2] | sp[2:]) & (is44 | is10))
+            if opens.size:
+                near = near[~_quoted(near, opens, closes)]
+            edges = np.concatenate([ext[real_opens + 2], ext[real_closes]])
+            padded = bool(near.size) or bool(((edges == 32) | (edges == 10) | (edges >= 0x80)).any())
+        commas = np.zeros(m + 1, dtype=np.int32)  # commas[p]: delimiters before byte p
+        np.cumsum(is44, dtype=np.int32, out=commas[1:])
+        if opens.size:
+            ends = ends[~_quoted(ends, opens, closes)]
+        per = np.diff(commas[ends], prepend=0).astype(np.int64)
+        tail = int(commas[m] - (commas[ends[-1]] if ends.size else 0))
+        if opens.size:
+            inside = (commas[closes] - commas[opens + 1]).astype(np.int64)
+            bucket = np.bincount(np.searchsorted(ends, opens), weights=inside,
+                                 minlength=len(ends) + 1).astype(np.int64)
+            per -= bucket[:-1]
+            tail -= int(bucket[-1])
+        if ends.size:
+            per[0] += carry
+            widths.append(per + 1)
+            carry = tail
+        else:
+            carry += tail
+        prev = int(arr[-1])
+    if parity:
+        return None
+    if n and body[-1:] != b"\n":
+        widths.append(np.array([carry + 1], dtype=np.int64))
+    if n and not padded:
+        first, last = body[0], body[-1]
+        padded = first == 32 or first >= 0x80 or last == 32 or last >= 0x80
+    out = np.concatenate(widths).astype(np.int64, copy=False) if widths else np.zeros(0, dtype=np.int64)
+    return _Shape(out, padded)
+
+
+def _quoted(pos: np.ndarray, opens: np.ndarray, closes: np.ndarray) -> np.ndarray:
+    """Mask of the positions (never a quote) that lie between an open quote and its close."""
+    j = np.searchsorted(closes, pos)
+    inside = j < len(opens)
+    inside[inside] = opens[j[inside]] < pos[inside]
+    return inside
+
+
+_NONFINITE = ("nan", "inf", "-inf", "+inf", "infinity", "-infinity", "+infinity")
+
+
+def _convert_column(cells: Any, rows: np.ndarray, kind: str, col: str, file: str,
                     required: bool) -> pd.Series:
-    """Vectorised type conversion of one column of stripped text cells."""
-    empty = cells == ""
+    """Vectorised type conversion of one column: stripped text cells, or float64 already read."""
+    if isinstance(cells, np.ndarray):  # a number column the C parser read (empty cells are NaN)
+        empty = np.isnan(cells)
+        if required and empty.any():
+            raise DeliveryError("required value is empty", file=file, row=int(rows[empty][0]), field=col)
+        return pd.Series(cells, dtype=float)
+    cells, empty = cells
     if required and empty.any():
         raise DeliveryError("required value is empty", file=file, row=int(rows[empty][0]), field=col)
 
     def bad(mask: np.ndarray, what: str) -> DeliveryError:
         i = int(np.flatnonzero(mask)[0])
-        return DeliveryError(f"expected {what}, got {str(cells[i])!r}", file=file, row=int(rows[i]), field=col)
+        return DeliveryError(f"expected {what}, got {str(cells.iloc[i])!r}", file=file, row=int(rows[i]),
+                             field=col)
 
     if kind == "text":
-        out = cells.astype(object)
-        out[empty] = None
-        return pd.Series(out, dtype=object)
+        return pd.Series(_objects(cells, empty), dtype=object)
     if kind == "number":
-        num = pd.to_numeric(pd.Series(np.where(empty, "nan", cells)), errors="coerce").to_numpy(dtype=float)
+        num = pd.to_numeric(cells.where(~empty, "nan"), errors="coerce").to_numpy(dtype=float)
         suspect = ~np.isfinite(num) & ~empty
         if suspect.any():
-            nonfinite = suspect & (np.isin(np.strings.lower(cells), _NONFINITE) | np.isinf(num))
+            nonfinite = suspect & (cells.str.lower().isin(_NONFINITE).to_numpy(bool) | np.isinf(num))
             if nonfinite.any():
                 raise bad(nonfinite, "a finite number (leave the cell empty when the value is unknown)")
             raise bad(suspect, "a number")
         return pd.Series(num, dtype=float)
     if kind == "bool":
-        lowered = np.strings.lower(cells)
-        t, f = np.isin(lowered, list(_TRUE)), np.isin(lowered, list(_FALSE))
+        lowered = cells.str.lower()
+        t, f = lowered.isin(BOOL_TRUE).to_numpy(bool), lowered.isin(BOOL_FALSE).to_numpy(bool)
         wrong = ~(t | f | empty)
         if wrong.any():
             raise bad(wrong, "true/false")
@@ -572,19 +804,24 @@ def _convert_column(cells: np.ndarray, rows: np.ndarray, kind: str, col: str, fi
         out[t], out[f] = True, False
         return pd.Series(out, dtype=object)
     if kind in ("date", "datetime"):
-        text = pd.Series(np.where(empty, "", cells), dtype=object)
-        parsed = pd.to_datetime(text.where(~empty, None), format="ISO8601", errors="coerce", utc=False) \
+        text = pd.Series(_objects(cells, empty), dtype=object)
+        parsed = pd.to_datetime(text, format="ISO8601", errors="coerce", utc=False) \
             if len(text) else pd.Series([], dtype="datetime64[ns]")
         wrong = parsed.isna().to_numpy() & ~empty
         if kind == "date":
-            wrong |= ~empty & (np.strings.str_len(cells) != 10)
+            wrong |= ~empty & (cells.str.len().to_numpy() != 10)
         if wrong.any():
             fmt = "YYYY-MM-DD" if kind == "date" else "ISO 8601 (YYYY-MM-DDTHH:MM:SS)"
             raise bad(wrong, f"a {kind} {fmt}")
-        out = cells.astype(object)
-        out[empty] = None
-        return pd.Series(out, dtype=object)
+        return text
     raise AssertionError(kind)
+
+
+def _objects(cells: pd.Series, empty: np.ndarray) -> np.ndarray:
+    """Python strings, None where empty (the parser already shares one object per repeated text)."""
+    out = cells.to_numpy(dtype=object, copy=True)
+    out[empty] = None
+    return out
 
 
 def _suggest_key(loc: tuple[Any, ...]) -> str:

@@ -3,10 +3,17 @@
 Adapts the delivery's checkpoints (and GCPs, block polygons, contractor-reported values) to the pure
 functions of :mod:`orthospec.measures.accuracy` and :mod:`orthospec.measures.distribution`.
 Official block statistics drop only *justified* blunder exclusions (§12.6); ``*_all`` keep every point.
+
+Each block's results are one typed :class:`BlockAccuracy` (issue 15); every block measure is a
+small function of it (:data:`_MEASURES`). Per-point results stay arrays (a national delivery has
+millions of points): one :class:`BlockPoints` per block, and the report detail per block holds
+the points as a pandas DataFrame (INTERFACES item 3), capped at :data:`DETAIL_POINTS_MAX` rows.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -14,8 +21,14 @@ import pandas as pd
 from shapely.geometry import Polygon
 
 from ...errors import MeasureError
-from ...measures.accuracy import AccuracyStats, bias_significance, detect_blunders
-from ...measures.distribution import checkpoint_distribution
+from ...measures.accuracy import (
+    EXCLUDED,
+    AccuracyStats,
+    BlunderResult,
+    bias_significance,
+    detect_blunders,
+)
+from ...measures.distribution import DistributionResult, checkpoint_distribution
 from ...provenance import Evidence
 from ...units import convert
 from ..registry import Measured, ProviderContext, RowEvidence, provider
@@ -48,6 +61,84 @@ POINT_MEASURES = {
     "checkpoint.dx": "m", "checkpoint.dy": "m", "checkpoint.dz": "m", "checkpoint.dr": "m",
     "checkpoint.blunder_ok": "bool", "checkpoint.decision": "text",
 }
+#: Rows of the per-point table a block's report detail holds: every flagged point (a blunder
+#: candidate or an exclusion request) and the largest residuals up to this many; beyond it the
+#: detail says how many points it leaves out (``points_total``, ``points_omitted``). The QCR
+#: records and the statistics always use every point.
+DETAIL_POINTS_MAX = 10_000
+_DETAIL_STATS = ("n", "mean_x", "mean_y", "std_x", "std_y", "rmse_x", "rmse_y", "rmse_z", "max_abs_dx",
+                 "max_abs_dy", "max_dr")
+
+
+@dataclass(frozen=True)
+class Settings:
+    """The profile parameters the check-point measures read, in metres."""
+
+    basis: str
+    factor: float
+    target_xy: float | None
+    target_z: float | None
+    min_gcp: float
+    min_count: int
+    survey_h: float
+    survey_v: float
+    gsd: float | None
+
+    @classmethod
+    def of(cls, ctx: ProviderContext) -> Settings:
+        basis = str(_param(ctx, "blunder_basis", "calculated"))
+        return cls(basis=basis if basis in ("calculated", "target") else "calculated",
+                   factor=float(_param(ctx, "blunder_factor", 3.0)),
+                   target_xy=_param(ctx, "tolerance_xy", None, "m"), target_z=_param(ctx, "tolerance_z", None, "m"),
+                   min_gcp=float(_param(ctx, "min_checkpoint_gcp_distance", 0.0, "m") or 0.0),
+                   min_count=int(_param(ctx, "min_checkpoints", 20)),
+                   survey_h=float(_param(ctx, "survey_rmse_h", 0.0, "m") or 0.0),
+                   survey_v=float(_param(ctx, "survey_rmse_v", 0.0, "m") or 0.0), gsd=ctx.delivery.gsd_m)
+
+
+@dataclass(frozen=True)
+class BlockPoints:
+    """One block's points (arrays in file-row order, lengths in metres)."""
+
+    ids: np.ndarray
+    rows: np.ndarray
+    dx: np.ndarray
+    dy: np.ndarray
+    dz: np.ndarray | None
+    x_ref: np.ndarray
+    y_ref: np.ndarray
+    exclusions: dict[str, str | None]
+
+
+@dataclass(frozen=True)
+class BlockAccuracy:
+    """One block's check-point results: what every block measure is computed from."""
+
+    block: str
+    evidence: tuple[Evidence, ...]
+    settings: Settings
+    error: str | None = None  # the block cannot be checked (broken outline, invalid points)
+    blunders: BlunderResult | None = None
+    distribution: DistributionResult | None = None
+    distribution_error: str | None = None
+    outline: Polygon | None = None
+    reported: dict[str, float] = field(default_factory=dict)  # axis -> contractor's RMSE (m)
+
+    @property
+    def stats(self) -> AccuracyStats:
+        """The official statistics: justified exclusions dropped (all points if none remain)."""
+        assert self.blunders is not None
+        return self.blunders.stats_kept or self.blunders.stats_all
+
+
+@dataclass
+class Results:
+    """Every block's results, the per-point arrays for the checkpoint scope, the report detail."""
+
+    blocks: dict[str, BlockAccuracy] = field(default_factory=dict)
+    points: list[tuple[BlockPoints, BlunderResult]] = field(default_factory=list)
+    detail: dict[str, dict[str, Any]] = field(default_factory=dict)
+    missing: str | None = None
 
 
 def _param(ctx: ProviderContext, name: str, default: Any, unit: str | None = None) -> Any:
@@ -59,168 +150,247 @@ def _param(ctx: ProviderContext, name: str, default: Any, unit: str | None = Non
     return getattr(v, "magnitude", v)
 
 
-def _compute(ctx: ProviderContext) -> dict[str, Any]:
+def _compute(ctx: ProviderContext) -> Results:
     if "checkpoints" not in ctx.memo:
         ctx.memo["checkpoints"] = _compute_once(ctx)
     return ctx.memo["checkpoints"]
 
 
-def _compute_once(ctx: ProviderContext) -> dict[str, Any]:
+def _compute_once(ctx: ProviderContext) -> Results:
     d = ctx.delivery
     t = d.table("checkpoints")
     if t is None:
-        return {"missing": "the manifest declares no 'checkpoints' table"}
+        return Results(missing="the manifest declares no 'checkpoints' table")
+    to_m = float(convert([1.0], t.units.get("x", "m"), "m")[0])
+    outlines, broken = _outlines(ctx, to_m)
+    settings = Settings.of(ctx)
+    gcps = _gcps(ctx)
+    out = Results()
     df = t.df
-    unit = t.units.get("x", "m")
-    to_m = float(convert([1.0], unit, "m")[0])
-    gcps = d.table("gcps")
-    polys = {}
-    bad_polygon: dict[str, str] = {}
-    for b in d.manifest.blocks:
-        if b.polygon and len(b.polygon) >= 3:
-            xy = np.asarray(b.polygon, dtype=float)
-            if not np.isfinite(xy).all():
-                row = int(np.flatnonzero(~np.isfinite(xy).all(axis=1))[0])
-                # a broken outline makes the block's statistics untrustworthy: error, never a pass
-                bad_polygon[b.id] = (f"delivery.yaml blocks[{b.id}].polygon vertex {row + 1} is not a finite "
-                                     f"number ({b.polygon[row]}): the block cannot be checked")
-                continue
-            polys[b.id] = Polygon([(float(x) * to_m, float(y) * to_m) for x, y in b.polygon])
-    basis = str(_param(ctx, "blunder_basis", "calculated"))
-    factor = float(_param(ctx, "blunder_factor", 3.0))
-    target = _param(ctx, "tolerance_xy", None, "m")
-    target_z = _param(ctx, "tolerance_z", None, "m")
-    min_gcp = float(_param(ctx, "min_checkpoint_gcp_distance", 0.0, "m") or 0.0)
-    min_count = int(_param(ctx, "min_checkpoints", 20))
-    gsd = d.gsd_m
-    blocks: dict[str, dict[str, Any]] = {}
-    # per-point results as arrays, one entry per block in block order (no Python object per point)
-    points: list[dict[str, Any]] = []
-    table_detail: dict[str, list[dict[str, Any]]] = {}
-    for block, g in df.groupby(df["block"].astype(str), sort=True):
-        row_arr = g["_row"].to_numpy()
-        rows = tuple(row_arr.astype(np.int64).tolist())
-        ev = (Evidence(t.file, t.sha256, rows),)
-        ids = g["point_id"].astype(str).to_numpy()
-        dx = (g["x"].to_numpy(float) - g["x_ref"].to_numpy(float)) * to_m
-        dy = (g["y"].to_numpy(float) - g["y_ref"].to_numpy(float)) * to_m
-        dz = None
-        if "z" in g and "z_ref" in g:
-            zz = (g["z"].astype(float) - g["z_ref"].astype(float)).to_numpy(float) * to_m
-            dz = None if np.isnan(zz).all() else zz
-        excl: dict[str, str | None] = {}
-        if "excluded" in g:
-            flags = _is_true(g["excluded"])
-            if flags.any():
-                whys = (g["exclusion_reason"][flags].tolist() if "exclusion_reason" in g
-                        else [None] * int(flags.sum()))
-                excl = dict(zip(ids[flags].tolist(), whys, strict=True))
-        out: dict[str, Any] = {"evidence": ev}
-        if block in bad_polygon:
-            out["error"] = bad_polygon[block]
-            blocks[block] = out
+    for block, rows in sorted(df.groupby(df["block"].astype(str)).indices.items()):
+        pts = _block_points(df, rows, to_m)
+        ev = (Evidence(t.file, t.sha256, tuple(pts.rows.tolist())),)
+        if block in broken:
+            out.blocks[block] = BlockAccuracy(block, ev, settings, error=broken[block])
             continue
         try:
-            br = detect_blunders(dx, dy, dz, ids=ids, basis=basis if basis in ("calculated", "target")
-                                 else "calculated", factor=factor, target_rmse_xy=target,
-                                 target_rmse_z=target_z, exclusions=excl, gsd=gsd, unit="m")
+            br = detect_blunders(pts.dx, pts.dy, pts.dz, ids=pts.ids, basis=settings.basis,  # type: ignore[arg-type]
+                                 factor=settings.factor, target_rmse_xy=settings.target_xy,
+                                 target_rmse_z=settings.target_z, exclusions=pts.exclusions, gsd=settings.gsd,
+                                 unit="m")
         except MeasureError as exc:
-            out["error"] = f"{t.file}: block {block}: {exc}"
-            blocks[block] = out
+            out.blocks[block] = BlockAccuracy(block, ev, settings, error=f"{t.file}: block {block}: {exc}")
             continue
-        st: AccuracyStats = br.stats_kept or br.stats_all
-        for k in _STATS:
-            out[f"checkpoints.{k}"] = getattr(st, k) if k in st.__dataclass_fields__ else st.to_dict().get(k)
-        out["checkpoints.ce90_selected"] = st.ce90_selected
-        out["checkpoints.ce95_selected"] = st.ce95_selected
-        out["checkpoints.bias_negligible"] = st.bias_negligible
-        out["checkpoints.nssda_approximation_holds"] = st.nssda_approximation_holds
-        for axis in ("x", "y", "z"):
-            t_stat, p_val = bias_significance(getattr(st, f"mean_{axis}"), getattr(st, f"std_{axis}"), st.n)
-            out[f"checkpoints.bias_t_{axis}"], out[f"checkpoints.bias_p_{axis}"] = t_stat, p_val
-        out["checkpoints.rmse_x_all"] = br.stats_all.rmse_x
-        out["checkpoints.rmse_y_all"] = br.stats_all.rmse_y
-        out["checkpoints.rmse_z_all"] = br.stats_all.rmse_z
-        out["checkpoints.n_all"] = br.stats_all.n
-        out["checkpoints.excluded"] = len(br.excluded)
-        out["checkpoints.blunders"] = len(br.candidates)
-        out["checkpoints.blunders_unjustified"] = len(br.error_ids)
-        # a candidate excluded with a documented justification has been inspected (§12.6)
-        out["checkpoints.blunders_uninspected"] = len(set(br.candidates) - set(br.excluded))
-        # ASPRS Ed. 2: product accuracy combines the checkpoint survey's own error (RMSE_H2, RMSE_V2)
-        survey_h = float(_param(ctx, "survey_rmse_h", 0.0, "m") or 0.0)
-        survey_v = float(_param(ctx, "survey_rmse_v", 0.0, "m") or 0.0)
-        out["checkpoints.asprs_rmse_h"] = float(np.sqrt(st.rmse_x ** 2 + st.rmse_y ** 2 + survey_h ** 2))
-        out["checkpoints.asprs_rmse_v"] = (None if st.rmse_z is None
-                                           else float(np.sqrt(st.rmse_z ** 2 + survey_v ** 2)))
-        if gsd:
-            out["checkpoints.rmse_x_gsd"] = st.rmse_x / gsd
-            out["checkpoints.rmse_y_gsd"] = st.rmse_y / gsd
-        gx = gy = gids = None
-        if gcps is not None:
-            gg = gcps.df[gcps.df["block"].astype(str) == block]
-            gunit = float(convert([1.0], gcps.units.get("x", "m"), "m")[0])
-            gx, gy = gg["x"].to_numpy(float) * gunit, gg["y"].to_numpy(float) * gunit
-            gids = gg["point_id"].astype(str).to_numpy()
-        try:
-            dist = checkpoint_distribution(
-                g["x_ref"].to_numpy(float) * to_m, g["y_ref"].to_numpy(float) * to_m, ids=ids,
-                area=polys.get(block), gcp_x=gx, gcp_y=gy, gcp_ids=gids, min_gcp_distance=min_gcp,
-                footprint=polys.get(block), min_count=min_count)
-            out["checkpoints.quadrant_min_share"] = dist.min_quadrant_share * 100.0
-            out["checkpoints.spacing_ratio"] = dist.nn_min_ratio
-            out["checkpoints.min_gcp_distance"] = dist.gcp_min_distance
-            out["checkpoints.near_gcp"] = len(dist.too_close_to_gcp) + len(dist.identical_to_gcp)
-            out["checkpoints.outside_block"] = len(dist.outside_footprint) if polys.get(block) else None
-            out["distribution_source"] = dist.split_source
-        except MeasureError as exc:
-            out["distribution_error"] = str(exc)
-        limit = (br.limit_x, br.limit_y)
-        points.append({"ids": ids, "dx": dx, "dy": dy, "dz": dz, "dr": br.dr, "ok": ~br.is_error,
-                       "decision": br.decision, "reason": br.reasons, "rows": row_arr})
-        xr = (g["x_ref"].to_numpy(float) * to_m).tolist()
-        yr = (g["y_ref"].to_numpy(float) * to_m).tolist()
-        dzl = [None] * len(ids) if dz is None else dz.tolist()
-        status = np.where(br.candidate, "fail", "pass").tolist()
-        detail = [
-            {"point_id": pid, "dx": a, "dy": b, "dz": c, "dr": r, "x_ref": xx, "y_ref": yy, "status": st_,
-             "decision": dec, "row": row}
-            for pid, a, b, c, r, xx, yy, st_, dec, row in zip(
-                ids.tolist(), dx.tolist(), dy.tolist(), dzl, br.dr.tolist(), xr, yr, status,
-                br.decision.tolist(), row_arr.tolist(), strict=True)]
-        table_detail[block] = {
-            "points": detail,
-            "limit_x": limit[0], "limit_y": limit[1], "basis": br.basis, "unit": "m",
-            "stats": {k: out.get(f"checkpoints.{k}") for k in ("n", "mean_x", "mean_y", "std_x", "std_y",
-                                                               "rmse_x", "rmse_y", "rmse_z", "max_abs_dx",
-                                                               "max_abs_dy", "max_dr")},
-            "gcps": [] if gx is None else [{"point_id": str(a), "x": float(b), "y": float(c)}
-                                           for a, b, c in zip(gids, gx, gy, strict=True)],
-            "area_source": out.get("distribution_source"),
-            # the block outline (manifest blocks[].polygon, same units as x_ref/y_ref) for the report's map
-            "polygon": ([[float(px), float(py)] for px, py in polys[block].exterior.coords[:-1]]
-                        if block in polys else None),
-        }
-        # reported vs recomputed (a disagreement is itself a finding)
-        rep = next((b.reported for b in d.manifest.blocks if b.id == block and b.reported), None)
-        for axis in ("x", "y", "z"):
-            key = f"rmse_{axis}"
-            if rep and key in rep and getattr(st, key) is not None:
-                rv = float(convert([rep[key].value], rep[key].unit, "m")[0])
-                out[f"checkpoints.reported_diff_{axis}"] = abs(rv - float(getattr(st, key)))
-                out[f"reported_{axis}"] = rv
-        blocks[block] = out
-    return {"blocks": blocks, "points": points, "detail": table_detail}
+        outline = outlines.get(block)
+        dist, dist_error = _distribution(pts, outline, gcps.get(block), settings)
+        res = BlockAccuracy(block, ev, settings, blunders=br, distribution=dist, distribution_error=dist_error,
+                            outline=outline, reported=_reported(ctx, block))
+        out.blocks[block] = res
+        out.points.append((pts, br))
+        out.detail[block] = _block_detail(res, pts, gcps.get(block))
+    return out
 
 
-def _is_true(col: pd.Series) -> np.ndarray:
+def _outlines(ctx: ProviderContext, to_m: float) -> tuple[dict[str, Polygon], dict[str, str]]:
+    """Block polygons from the manifest (in metres), and the blocks whose outline is broken."""
+    polys: dict[str, Polygon] = {}
+    broken: dict[str, str] = {}
+    for b in ctx.delivery.manifest.blocks:
+        if not (b.polygon and len(b.polygon) >= 3):
+            continue
+        xy = np.asarray(b.polygon, dtype=float)
+        if not np.isfinite(xy).all():
+            row = int(np.flatnonzero(~np.isfinite(xy).all(axis=1))[0])
+            # a broken outline makes the block's statistics untrustworthy: error, never a pass
+            broken[b.id] = (f"delivery.yaml blocks[{b.id}].polygon vertex {row + 1} is not a finite "
+                            f"number ({b.polygon[row]}): the block cannot be checked")
+            continue
+        polys[b.id] = Polygon([(float(x) * to_m, float(y) * to_m) for x, y in b.polygon])
+    return polys, broken
+
+
+def _gcps(ctx: ProviderContext) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """Block -> (ids, x, y) of the delivery's GCPs, in metres."""
+    g = ctx.delivery.table("gcps")
+    if g is None:
+        return {}
+    unit = float(convert([1.0], g.units.get("x", "m"), "m")[0])
+    df = g.df
+    out = {}
+    for block, rows in sorted(df.groupby(df["block"].astype(str)).indices.items()):
+        part = df.iloc[rows]
+        out[block] = (part["point_id"].astype(str).to_numpy(), part["x"].to_numpy(float) * unit,
+                      part["y"].to_numpy(float) * unit)
+    return out
+
+
+def _block_points(df: pd.DataFrame, rows: np.ndarray, to_m: float) -> BlockPoints:
+    """One block's points (``rows``: positions in the table) as metre arrays."""
+    def col(name: str) -> np.ndarray:
+        return df[name].to_numpy(float)[rows]
+
+    ids = df["point_id"].to_numpy(dtype=object)[rows]
+    dz = None
+    if "z" in df and "z_ref" in df:
+        zz = (col("z") - col("z_ref")) * to_m
+        dz = None if np.isnan(zz).all() else zz
+    exclusions: dict[str, str | None] = {}
+    if "excluded" in df:
+        flags = _is_true(df["excluded"].to_numpy()[rows])
+        if flags.any():
+            whys = (df["exclusion_reason"].to_numpy(dtype=object)[rows][flags].tolist()
+                    if "exclusion_reason" in df else [None] * int(flags.sum()))
+            exclusions = dict(zip(ids[flags].tolist(), whys, strict=True))
+    return BlockPoints(ids=ids, rows=df["_row"].to_numpy(np.int64)[rows],
+                       dx=(col("x") - col("x_ref")) * to_m, dy=(col("y") - col("y_ref")) * to_m, dz=dz,
+                       x_ref=col("x_ref") * to_m, y_ref=col("y_ref") * to_m, exclusions=exclusions)
+
+
+def _distribution(pts: BlockPoints, outline: Polygon | None, gcps: tuple[np.ndarray, ...] | None,
+                  s: Settings) -> tuple[DistributionResult | None, str | None]:
+    gids, gx, gy = gcps if gcps is not None else (None, None, None)
+    try:
+        return checkpoint_distribution(pts.x_ref, pts.y_ref, ids=pts.ids, area=outline, gcp_x=gx, gcp_y=gy,
+                                       gcp_ids=gids, min_gcp_distance=s.min_gcp, footprint=outline,
+                                       min_count=s.min_count), None
+    except MeasureError as exc:
+        return None, str(exc)
+
+
+def _reported(ctx: ProviderContext, block: str) -> dict[str, float]:
+    """The contractor's reported RMSE per axis for ``block`` (manifest blocks[].reported), in metres."""
+    rep = next((b.reported for b in ctx.delivery.manifest.blocks if b.id == block and b.reported), None)
+    return {axis: float(convert([rep[f"rmse_{axis}"].value], rep[f"rmse_{axis}"].unit, "m")[0])
+            for axis in ("x", "y", "z") if rep and f"rmse_{axis}" in rep}
+
+
+def _block_detail(res: BlockAccuracy, pts: BlockPoints, gcps: tuple[np.ndarray, ...] | None) -> dict[str, Any]:
+    """The report's detail of one block: the points table (a DataFrame), limits, stats, GCPs, outline."""
+    br = res.blunders
+    assert br is not None
+    n = len(pts.ids)
+    frame = pd.DataFrame({
+        "point_id": pts.ids, "dx": pts.dx, "dy": pts.dy,
+        "dz": np.full(n, np.nan) if pts.dz is None else pts.dz, "dr": br.dr, "x_ref": pts.x_ref,
+        "y_ref": pts.y_ref, "status": np.where(br.candidate, "fail", "pass").astype(object),
+        "decision": br.decision, "row": pts.rows})
+    detail: dict[str, Any] = {"points": frame}
+    if n > DETAIL_POINTS_MAX:
+        flagged = br.candidate | (br.decision != "kept")
+        rank = np.argsort(-br.dr, kind="stable")
+        keep = flagged.copy()
+        keep[rank[:max(DETAIL_POINTS_MAX - int(flagged.sum()), 0)]] = True
+        detail = {"points": frame[keep].reset_index(drop=True), "points_total": n,
+                  "points_omitted": int(n - keep.sum())}
+    gids, gx, gy = gcps if gcps is not None else ((), (), ())
+    detail.update({
+        "limit_x": br.limit_x, "limit_y": br.limit_y, "basis": br.basis, "unit": "m",
+        "stats": {k: _MEASURES[f"checkpoints.{k}"](res) for k in _DETAIL_STATS},
+        "gcps": [{"point_id": str(a), "x": float(b), "y": float(c)} for a, b, c in zip(gids, gx, gy, strict=True)],
+        "area_source": None if res.distribution is None else res.distribution.split_source,
+        # the block outline (manifest blocks[].polygon, same units as x_ref/y_ref) for the report's map
+        "polygon": (None if res.outline is None
+                    else [[float(px), float(py)] for px, py in res.outline.exterior.coords[:-1]]),
+    })
+    return detail
+
+
+def _is_true(v: np.ndarray) -> np.ndarray:
     """Mask of cells that are the boolean True (the table parser's value), never a truthy string."""
-    v = col.to_numpy()
     if v.dtype.kind == "b":
         return v.astype(bool, copy=False)
     if v.dtype == object:
         return np.fromiter((f is True or f is np.True_ for f in v), dtype=bool, count=len(v))
     return np.zeros(len(v), dtype=bool)
+
+
+# --- block measures: each a function of one block's typed results ------------------------------
+
+def _stat(name: str) -> Callable[[BlockAccuracy], Any]:
+    return lambda r: getattr(r.stats, name)
+
+
+def _all(name: str) -> Callable[[BlockAccuracy], Any]:
+    """A statistic over every point, justified exclusions included."""
+    return lambda r: getattr(r.blunders.stats_all, name)  # type: ignore[union-attr]
+
+
+def _bias(axis: str, which: int) -> Callable[[BlockAccuracy], Any]:
+    def f(r: BlockAccuracy) -> Any:
+        st = r.stats
+        return bias_significance(getattr(st, f"mean_{axis}"), getattr(st, f"std_{axis}"), st.n)[which]
+    return f
+
+
+def _dist(get: Callable[[DistributionResult], Any]) -> Callable[[BlockAccuracy], Any]:
+    return lambda r: None if r.distribution is None else get(r.distribution)
+
+
+def _reported_diff(axis: str) -> Callable[[BlockAccuracy], Any]:
+    def f(r: BlockAccuracy) -> Any:
+        mine = getattr(r.stats, f"rmse_{axis}")
+        return None if axis not in r.reported or mine is None else abs(r.reported[axis] - float(mine))
+    return f
+
+
+def _gsd_units(axis: str) -> Callable[[BlockAccuracy], Any]:
+    return lambda r: getattr(r.stats, f"rmse_{axis}") / r.settings.gsd if r.settings.gsd else None
+
+
+def _count(mask: Callable[[BlunderResult], np.ndarray]) -> Callable[[BlockAccuracy], Any]:
+    return lambda r: int(np.count_nonzero(mask(r.blunders)))  # type: ignore[arg-type]
+
+
+def _asprs_v(r: BlockAccuracy) -> float | None:
+    st = r.stats
+    return None if st.rmse_z is None else float(np.sqrt(st.rmse_z ** 2 + r.settings.survey_v ** 2))
+
+
+_MEASURES: dict[str, Callable[[BlockAccuracy], Any]] = {f"checkpoints.{k}": _stat(k) for k in _STATS}
+_MEASURES.update({
+    "checkpoints.bias_negligible": _stat("bias_negligible"),
+    "checkpoints.nssda_approximation_holds": _stat("nssda_approximation_holds"),
+    **{f"checkpoints.bias_{w}_{a}": _bias(a, i) for a in "xyz" for i, w in enumerate("tp")},
+    **{f"checkpoints.rmse_{a}_all": _all(f"rmse_{a}") for a in "xyz"},
+    "checkpoints.n_all": _all("n"),
+    "checkpoints.excluded": _count(lambda b: b.decision == EXCLUDED),
+    "checkpoints.blunders": _count(lambda b: b.candidate),
+    "checkpoints.blunders_unjustified": _count(lambda b: b.is_error),
+    # a candidate excluded with a documented justification has been inspected (§12.6)
+    "checkpoints.blunders_uninspected": _count(lambda b: b.candidate & (b.decision != EXCLUDED)),
+    # ASPRS Ed. 2: product accuracy combines the checkpoint survey's own error (RMSE_H2, RMSE_V2)
+    "checkpoints.asprs_rmse_h": lambda r: float(np.sqrt(r.stats.rmse_x ** 2 + r.stats.rmse_y ** 2
+                                                        + r.settings.survey_h ** 2)),
+    "checkpoints.asprs_rmse_v": _asprs_v,
+    "checkpoints.rmse_x_gsd": _gsd_units("x"), "checkpoints.rmse_y_gsd": _gsd_units("y"),
+    "checkpoints.quadrant_min_share": _dist(lambda d: d.min_quadrant_share * 100.0),
+    "checkpoints.spacing_ratio": _dist(lambda d: d.nn_min_ratio),
+    "checkpoints.min_gcp_distance": _dist(lambda d: d.gcp_min_distance),
+    "checkpoints.near_gcp": _dist(lambda d: len(d.too_close_to_gcp) + len(d.identical_to_gcp)),
+    "checkpoints.outside_block": lambda r: (None if r.distribution is None or r.outline is None
+                                            else len(r.distribution.outside_footprint)),
+    **{f"checkpoints.reported_diff_{a}": _reported_diff(a) for a in "xyz"},
+})
+assert set(_MEASURES) == set(BLOCK_MEASURES)
+
+
+def _note(name: str, r: BlockAccuracy, value: Any) -> tuple[str, str] | None:
+    """("note" | "na", text) explaining a block value, or None."""
+    if name.startswith("checkpoints.reported_diff_"):
+        axis = name[-1]
+        if value is None and axis in ("x", "y"):
+            # the checkpoint RMSE is a QCR field the contractor must record (JRC §9.5): not
+            # reporting it must not switch the cross-check off - missing evidence
+            return "note", (f"delivery.yaml blocks[{r.block}].reported gives no rmse_{axis}: the contractor's "
+                            "QCR value to cross-check is missing")
+        if value is None:
+            return "na", f"block {r.block} reports no rmse_{axis}"
+        return "note", (f"reported RMSE_{axis} {r.reported[axis]:.4g} m vs recomputed "
+                        f"{getattr(r.stats, f'rmse_{axis}'):.4g} m")
+    if value is None and r.distribution_error and name in ("checkpoints.quadrant_min_share",
+                                                            "checkpoints.spacing_ratio"):
+        return "note", r.distribution_error
+    return None
 
 
 @provider(scope="block", measures=BLOCK_MEASURES)
@@ -229,83 +399,69 @@ def block_checkpoint_stats(ctx: ProviderContext) -> list[Measured]:
     got = _compute(ctx)
     d = ctx.delivery
     items = d.block_ids
-    out = []
-    if "missing" in got:
-        note = pd.Series({b: got["missing"] for b in items}, dtype=object)
-        for name, unit in BLOCK_MEASURES.items():
-            out.append(Measured(name, "block", unit, pd.Series({b: None for b in items}, dtype=object),
-                                pd.Series({b: (d.manifest_evidence("tables"),) for b in items}, dtype=object),
-                                notes=note))
-        return out
-    blocks = got["blocks"]
-    for name, unit in BLOCK_MEASURES.items():
-        vals, evs, notes, errs, na = {}, {}, {}, {}, {}
-        for b in items:
-            rec = blocks.get(b)
-            if rec is None:
-                vals[b], evs[b] = None, (d.manifest_evidence("blocks"),)
-                notes[b] = f"no checkpoints for block {b}"
-                continue
-            evs[b] = rec["evidence"]
-            if "error" in rec:
-                vals[b], errs[b] = None, rec["error"]
-                continue
-            vals[b] = rec.get(name)
-            if name.startswith("checkpoints.reported_diff_"):
-                axis = name[-1]
-                if vals[b] is None and axis in ("x", "y"):
-                    # the checkpoint RMSE is a QCR field the contractor must record (JRC §9.5): not
-                    # reporting it must not switch the cross-check off - missing evidence
-                    notes[b] = (f"delivery.yaml blocks[{b}].reported gives no rmse_{axis}: the contractor's "
-                                "QCR value to cross-check is missing")
-                elif vals[b] is None:
-                    na[b] = f"block {b} reports no rmse_{axis}"
-                else:
-                    notes[b] = (f"reported RMSE_{axis} {rec[f'reported_{axis}']:.4g} m vs recomputed "
-                                f"{rec[f'checkpoints.rmse_{axis}']:.4g} m")
-            elif vals[b] is None and "distribution_error" in rec and name in (
-                    "checkpoints.quadrant_min_share", "checkpoints.spacing_ratio"):
-                notes[b] = rec["distribution_error"]
-        out.append(Measured(
-            name, "block", unit, pd.Series(vals, dtype=object), pd.Series(evs, dtype=object),
-            detail={"checkpoints": got["detail"]} if name == "checkpoints.rmse_x" else None,
-            notes=pd.Series(notes, dtype=object) if notes else None,
-            errors=pd.Series(errs, dtype=object) if errs else None,
-            na=pd.Series(na, dtype=object) if na else None))
-    return out
+    if got.missing is not None:
+        note = pd.Series({b: got.missing for b in items}, dtype=object)
+        return [Measured(name, "block", unit, pd.Series({b: None for b in items}, dtype=object),
+                         pd.Series({b: (d.manifest_evidence("tables"),) for b in items}, dtype=object), notes=note)
+                for name, unit in BLOCK_MEASURES.items()]
+    return [_block_measure(ctx, got, name, unit) for name, unit in BLOCK_MEASURES.items()]
+
+
+def _block_measure(ctx: ProviderContext, got: Results, name: str, unit: str) -> Measured:
+    d = ctx.delivery
+    vals: dict[str, Any] = {}
+    evs: dict[str, Any] = {}
+    notes: dict[str, str] = {}
+    errs: dict[str, str] = {}
+    na: dict[str, str] = {}
+    for b in d.block_ids:
+        r = got.blocks.get(b)
+        if r is None:
+            vals[b], evs[b] = None, (d.manifest_evidence("blocks"),)
+            notes[b] = f"no checkpoints for block {b}"
+            continue
+        evs[b] = r.evidence
+        if r.error is not None:
+            vals[b], errs[b] = None, r.error
+            continue
+        vals[b] = _MEASURES[name](r)
+        why = _note(name, r, vals[b])
+        if why is not None:
+            (na if why[0] == "na" else notes)[b] = why[1]
+    return Measured(
+        name, "block", unit, pd.Series(vals, dtype=object), pd.Series(evs, dtype=object),
+        detail={"checkpoints": got.detail} if name == "checkpoints.rmse_x" else None,
+        notes=pd.Series(notes, dtype=object) if notes else None,
+        errors=pd.Series(errs, dtype=object) if errs else None,
+        na=pd.Series(na, dtype=object) if na else None)
 
 
 @provider(scope="checkpoint", measures=POINT_MEASURES)
 def point_decisions(ctx: ProviderContext) -> list[Measured]:
     """Per-checkpoint discrepancies and blunder/exclusion decisions (one QCR per point, §12.6)."""
-    got = _compute(ctx)
-    parts: list[dict[str, Any]] = got.get("points", [])
-    ids = _cat([p["ids"] for p in parts], object)
+    parts = _compute(ctx).points
+    ids = _cat([p.ids for p, _ in parts], object)
+    rows = _cat([p.rows for p, _ in parts], np.int64)
+    if all(p.dz is not None for p, _ in parts):
+        dz = _cat([p.dz for p, _ in parts], float)  # type: ignore[misc]
+    else:
+        dz = _cat([np.full(len(p.ids), None, dtype=object) if p.dz is None else p.dz.astype(object)
+                   for p, _ in parts], object)
+    cols: dict[str, np.ndarray] = {
+        "checkpoint.dx": _cat([p.dx for p, _ in parts], float),
+        "checkpoint.dy": _cat([p.dy for p, _ in parts], float),
+        "checkpoint.dz": dz,
+        "checkpoint.dr": _cat([b.dr for _, b in parts], float),
+        # Python booleans, as the rules' `true`/`false` comparisons and the records expect
+        "checkpoint.blunder_ok": _cat([~b.is_error for _, b in parts], bool).astype(object),
+        "checkpoint.decision": _cat([b.decision for _, b in parts], object),
+    }
+    reason = _cat([b.reasons for _, b in parts], object)
     # a point id repeated across blocks: one item, at its first position, with the last block's values
-    keep = None
     if len(ids) and pd.Index(ids).has_duplicates:
         idx = pd.Index(ids)
         last = np.flatnonzero(~idx.duplicated(keep="last"))
-        first_ids = idx[~idx.duplicated(keep="first")]
-        keep = last[pd.Index(ids[last]).get_indexer(first_ids)]
-    rows = _cat([p["rows"] for p in parts], np.int64)
-    dz_parts = [p["dz"] for p in parts]
-    if all(z is not None for z in dz_parts):
-        dz = _cat(dz_parts, float)
-    else:
-        dz = _cat([np.full(len(p["ids"]), None, dtype=object) if p["dz"] is None
-                   else p["dz"].astype(object) for p in parts], object)
-    cols: dict[str, np.ndarray] = {
-        "checkpoint.dx": _cat([p["dx"] for p in parts], float),
-        "checkpoint.dy": _cat([p["dy"] for p in parts], float),
-        "checkpoint.dz": dz,
-        "checkpoint.dr": _cat([p["dr"] for p in parts], float),
-        # Python booleans, as the rules' `true`/`false` comparisons and the records expect
-        "checkpoint.blunder_ok": _cat([p["ok"] for p in parts], bool).astype(object),
-        "checkpoint.decision": _cat([p["decision"] for p in parts], object),
-    }
-    reason = _cat([p["reason"] for p in parts], object)
-    if keep is not None:
+        keep = last[pd.Index(ids[last]).get_indexer(idx[~idx.duplicated(keep="first")])]
         ids, rows, reason = ids[keep], rows[keep], reason[keep]
         cols = {k: v[keep] for k, v in cols.items()}
     index = pd.Index(ids, dtype=object)
@@ -318,5 +474,5 @@ def point_decisions(ctx: ProviderContext) -> list[Measured]:
             for name, unit in POINT_MEASURES.items()]
 
 
-def _cat(arrays: list[np.ndarray], dtype: Any) -> np.ndarray:
+def _cat(arrays: list[Any], dtype: Any) -> np.ndarray:
     return np.concatenate(arrays).astype(dtype, copy=False) if arrays else np.empty(0, dtype=dtype)
