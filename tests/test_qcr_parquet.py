@@ -78,3 +78,17 @@ def test_without_pyarrow_the_check_refuses_before_running(tmp_path: Path) -> Non
     assert res.returncode == 2
     assert "install orthospec[parquet]" in res.stderr and "Traceback" not in res.stderr
     assert not (tmp_path / "o").exists()
+
+
+def test_row_groups_hold_a_bounded_batch_and_read_back_whole(written: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import io
+
+    from orthospec import qcr
+
+    doc = json.loads((written / "qcr.json").read_text(encoding="utf-8"))
+    monkeypatch.setattr(qcr, "PARQUET_ROWS", 100)
+    data = qcr.to_parquet(doc)
+    meta = pq.ParquetFile(io.BytesIO(data)).metadata
+    assert meta.num_row_groups == -(-doc["summary"]["records"] // 100)
+    table = pq.read_table(io.BytesIO(data))
+    assert table.column("item").to_pylist() == [r["item"] for r in all_records(doc)]

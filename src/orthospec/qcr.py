@@ -635,6 +635,10 @@ PARQUET_COLUMNS: tuple[tuple[str, str], ...] = (
 )
 
 
+#: records per Parquet row group (and per batch of Python values held while writing)
+PARQUET_ROWS = 50_000
+
+
 def _number(v: Any) -> float | None:
     return float(v) if isinstance(v, int | float) and not isinstance(v, bool) else None
 
@@ -670,33 +674,45 @@ def to_parquet(doc: Mapping[str, Any]) -> bytes:
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    cols: dict[str, list[Any]] = {name: [] for name, _ in PARQUET_COLUMNS}
-    for r in all_records(doc):
-        req = r.get("requirement") or {}
-        value = r["measured"].get("value")
-        row = {
-            "rule": r["rule"], "title": r.get("title"), "clause": _clause_text(r.get("clause") or {}),
-            "scope": r.get("scope"), "item": r["item"], "level": r.get("level"),
-            "consequence": r.get("consequence"), "manual": bool(r.get("manual", False)), "verdict": r["verdict"],
-            "measure": r.get("measure"), "measured_value": _number(value), "measured_text": _text(value),
-            "measured_unit": r["measured"].get("unit"), "requirement_op": req.get("op"),
-            "requirement_value": _number(req.get("value")), "requirement_min": _number(req.get("min")),
-            "requirement_max": _number(req.get("max")), "requirement_unit": req.get("unit"),
-            "requirement_text": req.get("text"), "message": r.get("message"),
-            "evidence": _json_or_none(r.get("evidence") or []), "waiver": _json_or_none(r.get("waiver")),
-            "waiver_requested": _json_or_none(r.get("waiver_requested")), "waived_verdict": r.get("waived_verdict"),
-        }
-        for name, values in cols.items():
-            values.append(row[name])
     schema = pa.schema([pa.field(name, pa.bool_() if t == "bool" else pa.float64() if t == "float64"
                                  else pa.string()) for name, t in PARQUET_COLUMNS],
                        metadata={"orthospec.qcr.schema": str(doc.get("schema")),
                                  "orthospec.qcr.date": str(doc.get("date")),
                                  "orthospec.delivery": str((doc.get("delivery") or {}).get("id"))})
-    table = pa.table({name: pa.array(values, type=schema.field(name).type) for name, values in cols.items()},
-                     schema=schema)
     buf = pa.BufferOutputStream()
-    pq.write_table(table, buf, compression="zstd", store_schema=True)
+    cols: dict[str, list[Any]] = {name: [] for name, _ in PARQUET_COLUMNS}
+
+    def flush(writer: Any) -> None:
+        """One row group per PARQUET_ROWS records: Python objects held for one group only."""
+        writer.write_table(pa.table({name: pa.array(values, type=schema.field(name).type)
+                                     for name, values in cols.items()}, schema=schema))
+        for values in cols.values():
+            values.clear()
+
+    n = 0
+    with pq.ParquetWriter(buf, schema, compression="zstd", store_schema=True) as writer:
+        for n, r in enumerate(all_records(doc), start=1):
+            req = r.get("requirement") or {}
+            value = r["measured"].get("value")
+            row = {
+                "rule": r["rule"], "title": r.get("title"), "clause": _clause_text(r.get("clause") or {}),
+                "scope": r.get("scope"), "item": r["item"], "level": r.get("level"),
+                "consequence": r.get("consequence"), "manual": bool(r.get("manual", False)),
+                "verdict": r["verdict"], "measure": r.get("measure"), "measured_value": _number(value),
+                "measured_text": _text(value), "measured_unit": r["measured"].get("unit"),
+                "requirement_op": req.get("op"), "requirement_value": _number(req.get("value")),
+                "requirement_min": _number(req.get("min")), "requirement_max": _number(req.get("max")),
+                "requirement_unit": req.get("unit"), "requirement_text": req.get("text"),
+                "message": r.get("message"), "evidence": _json_or_none(r.get("evidence") or []),
+                "waiver": _json_or_none(r.get("waiver")), "waiver_requested": _json_or_none(r.get("waiver_requested")),
+                "waived_verdict": r.get("waived_verdict"),
+            }
+            for name, values in cols.items():
+                values.append(row[name])
+            if n % PARQUET_ROWS == 0:
+                flush(writer)
+        if cols["rule"] or n == 0:
+            flush(writer)
     return buf.getvalue().to_pybytes()
 
 
