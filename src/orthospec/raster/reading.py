@@ -387,6 +387,40 @@ def _scan(ds: rasterio.io.DatasetReader, s: ScanSettings) -> RasterStats:
     infos = band_infos(ds, s.bit_depth)
     acc = _Accumulators.for_bands(infos, s)
     capture = _MisregistrationWindows.plan(ds, infos) if s.misregistration and ds.count >= 2 else None
+    chunks = _stream(ds, infos, s, acc, capture)
+    binned = _binned_histograms(ds, infos, acc, s)  # floats / 32-bit only
+    bands: list[rad.BandStats] = []
+    for b in infos:
+        nz = acc.noise.get(b.index)
+        if b.index in acc.hists:
+            h = acc.hists[b.index]
+            if not b.use_mask:
+                h.exclude_value(b.nodata)
+            bands.append(rad.band_stats_from_histogram(str(b.index), b.dtype, h, b.grey,
+                                                       noise=nz, nodata=b.nodata))
+        else:
+            ec = acc.edge_counts[b.index]
+            bands.append(rad.band_stats_from_moments(
+                str(b.index), b.dtype, ds.width * ds.height, acc.moms[b.index], b.grey,
+                histogram=binned.get(b.index), noise=nz, count_low=ec[0], count_high=ec[1],
+                above_range=ec[2], nodata=b.nodata))
+    lum_stats = None
+    if acc.lum is not None and acc.rgb is not None:
+        first = infos[acc.rgb[0] - 1]
+        lum_stats = rad.band_stats_from_histogram("luminosity", first.dtype, acc.lum, first.grey)
+    out = RasterStats(bands=bands, luminosity=lum_stats, chunks=chunks)
+    if capture is not None:
+        out.reference_band, out.misregistration, out.misregistration_spread = capture.result()
+    return out
+
+
+def _stream(ds: rasterio.io.DatasetReader, infos: Sequence[BandInfo], s: ScanSettings,
+            acc: _Accumulators, capture: _MisregistrationWindows | None) -> int:
+    """The one read of the pixels: feed every chunk to ``acc`` and ``capture``; the chunk count.
+
+    A reader thread decodes the next chunk (GDAL releases the GIL) while up to ``s.threads``
+    threads count the previous ones (numpy releases it too); only the reader touches the dataset.
+    """
     wins = list(chunk_windows(ds, s.chunk_bytes))
     stride = 1
     if acc.noise and s.noise_max_pixels:
@@ -409,9 +443,6 @@ def _scan(ds: rasterio.io.DatasetReader, s: ScanSettings) -> RasterStats:
         if capture is not None:
             capture.take(win, data, mask)  # disjoint parts of the windows: safe in threads
 
-    # the one read of the pixels: every accumulator and the misregistration windows are fed from
-    # it. A reader thread decodes the next chunk (GDAL releases the GIL) while up to ``threads``
-    # threads count the previous ones (numpy releases it too); only the reader touches the dataset
     if len(wins) <= 1:  # one chunk (a small image): no thread to start and hand off to
         for k, win in enumerate(wins):
             feed(k, win, *fetch(win))
@@ -425,51 +456,33 @@ def _scan(ds: rasterio.io.DatasetReader, s: ScanSettings) -> RasterStats:
                 if k + 1 < len(wins):
                     pending = reader.submit(fetch, wins[k + 1])
                 j = k % threads
-                if running[j] is not None:
-                    running[j].result()  # at most one chunk per counting thread in memory
+                previous = running[j]
+                if previous is not None:
+                    previous.result()  # at most one chunk per counting thread in memory
                 running[j] = counters[j].submit(feed, k, win, data, shared_mask)
             for fut in running:
                 if fut is not None:
                     fut.result()
     for other in accs[1:]:
         acc.merge(other)
-    # floats / 32-bit: second pass for the binned histogram between exact min and max
-    binned: dict[int, rad.BinnedHistogramAccumulator] = {}
-    if acc.moms:
-        for idx, m in acc.moms.items():
-            if m.n:
-                binned[idx] = rad.BinnedHistogramAccumulator(m.vmin, m.vmax)
-        for win in chunk_windows(ds, s.chunk_bytes):
-            data = ds.read(indexes=sorted(binned), window=win) if binned else None
-            if data is None:
-                break
-            for k, idx in enumerate(sorted(binned)):
-                b = infos[idx - 1]
-                mask = ds.read_masks(idx, window=win) if b.use_mask else None
-                binned[idx].add(data[k], _valid(data[k], b, mask))
-    bands: list[rad.BandStats] = []
-    for b in infos:
-        nz = acc.noise.get(b.index)
-        if b.index in acc.hists:
-            h = acc.hists[b.index]
-            if not b.use_mask:
-                h.exclude_value(b.nodata)
-            bands.append(rad.band_stats_from_histogram(str(b.index), b.dtype, h, b.grey,
-                                                       noise=nz, nodata=b.nodata))
-        else:
-            ec = acc.edge_counts[b.index]
-            bands.append(rad.band_stats_from_moments(
-                str(b.index), b.dtype, ds.width * ds.height, acc.moms[b.index], b.grey,
-                histogram=binned.get(b.index), noise=nz, count_low=ec[0], count_high=ec[1],
-                above_range=ec[2], nodata=b.nodata))
-    lum_stats = None
-    if acc.lum is not None and acc.rgb is not None:
-        first = infos[acc.rgb[0] - 1]
-        lum_stats = rad.band_stats_from_histogram("luminosity", first.dtype, acc.lum, first.grey)
-    out = RasterStats(bands=bands, luminosity=lum_stats, chunks=len(wins))
-    if capture is not None:
-        out.reference_band, out.misregistration, out.misregistration_spread = capture.result()
-    return out
+    return len(wins)
+
+
+def _binned_histograms(ds: rasterio.io.DatasetReader, infos: Sequence[BandInfo], acc: _Accumulators,
+                       s: ScanSettings) -> dict[int, rad.BinnedHistogramAccumulator]:
+    """Float and 32-bit bands: a second pass for the equal-bin histogram between the exact
+    min and max (only known after the first); integer bands up to 16 bits need none."""
+    binned = {idx: rad.BinnedHistogramAccumulator(m.vmin, m.vmax) for idx, m in acc.moms.items() if m.n}
+    if not binned:
+        return binned
+    idxs = sorted(binned)
+    for win in chunk_windows(ds, s.chunk_bytes):
+        data = ds.read(indexes=idxs, window=win)
+        for k, idx in enumerate(idxs):
+            b = infos[idx - 1]
+            mask = ds.read_masks(idx, window=win) if b.use_mask else None
+            binned[idx].add(data[k], _valid(data[k], b, mask))
+    return binned
 
 
 def _nodata_bin(info: BandInfo, hist: rad.HistogramAccumulator) -> int | None:
