@@ -1,0 +1,387 @@
+"""Red team: a dishonest or careless contractor edits only what it controls, and must not get a
+defective delivery ACCEPTED (INTERFACES item 4: the delivery is evidence, never authority).
+
+Each case copies a shipped example delivery into tmp_path, makes real file edits there (manifest,
+CSV tables, images), and runs the real check with the checker's own fixed file
+(``examples/checker/<example>.yaml``), profile jrc-v3 and ``--date 2026-11-21``. Exit codes are those
+of ``orthospec check``: 1 rejected, 2 could not evaluate (an ``OrthospecError``).
+
+Most checkpoint cases start from ``aerial-pass`` with one planted defect (``_plant_rmse``): block
+B02's northing residuals scaled by 2.2, giving RMSEy = 0.627 m over 24 check points against the
+0.5 m tolerance (JRC EUR 23638 EN §12.7: "The planimetric threshold will be applied independently
+in X, and Y"), its reported RMSEy set to match so that JRC-12.7-RMSEY is the only block finding.
+The contractor's trick then tries to hide it. Cases marked xfail(strict) are wrong ACCEPTED verdicts
+written up in /tmp/team/redteam.md; they flip (and fail as XPASS) once fixed.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import shutil
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+from tests.checking import check_with
+from tests.checking import records as all_records
+
+from orthospec.errors import OrthospecError
+
+ROOT = Path(__file__).resolve().parents[1]
+EXAMPLES = ROOT / "examples" / "deliveries"
+CHECKERS = ROOT / "examples" / "checker"
+DATE = "2026-11-21"
+#: the fixed checker's name in examples/checker/*.yaml (aerial-*)
+CHECKER_NAME = "M. Keller (fictional)"
+
+Edit = Callable[[Path], None]
+
+
+# --- file edits ------------------------------------------------------------------------------
+
+def _manifest(d: Path) -> dict[str, Any]:
+    return yaml.safe_load((d / "delivery.yaml").read_text(encoding="utf-8"))
+
+
+def _write_manifest(d: Path, m: dict[str, Any]) -> None:
+    (d / "delivery.yaml").write_text(yaml.safe_dump(m, sort_keys=False, allow_unicode=True), encoding="utf-8")
+
+
+def _read(d: Path, name: str) -> tuple[list[str], list[dict[str, str]]]:
+    with (d / "tables" / f"{name}.csv").open(encoding="utf-8", newline="") as f:
+        r = csv.DictReader(f)
+        return list(r.fieldnames or []), list(r)
+
+
+def _write(d: Path, name: str, header: list[str], rows: list[dict[str, str]]) -> None:
+    with (d / "tables" / f"{name}.csv").open("w", encoding="utf-8", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=header, lineterminator="\n")
+        w.writeheader()
+        w.writerows(rows)
+
+
+def _manifest_edit(fn: Callable[[dict[str, Any]], None]) -> Edit:
+    def edit(d: Path) -> None:
+        m = _manifest(d)
+        fn(m)
+        _write_manifest(d, m)
+    return edit
+
+
+def _table_edit(name: str, fn: Callable[[list[str], list[dict[str, str]]], list[dict[str, str]] | None]) -> Edit:
+    def edit(d: Path) -> None:
+        header, rows = _read(d, name)
+        out = fn(header, rows)
+        _write(d, name, header, rows if out is None else out)
+    return edit
+
+
+def _chain(*edits: Edit) -> Edit:
+    def edit(d: Path) -> None:
+        for e in edits:
+            e(d)
+    return edit
+
+
+def _worst(rows: list[dict[str, str]], k: int, block: str = "B02") -> list[dict[str, str]]:
+    """The block's k check points with the largest northing residual (the ones a cheat hides)."""
+    rs = [r for r in rows if r["block"] == block]
+    return sorted(rs, key=lambda r: -abs(float(r["y"]) - float(r["y_ref"])))[:k]
+
+
+def _fix_reported(d: Path) -> None:
+    """Set every block's reported RMSE to what its non-excluded check points give (in metres), so
+    JRC-9.5-REPORTED-RMSE-* cannot be what catches a trick."""
+    _, rows = _read(d, "checkpoints")
+    m = _manifest(d)
+    factor = {"m": 1.0, "ft": 0.3048, "usft": 1200 / 3937}[(m.get("units") or {}).get("checkpoints", "m")]
+    for b in m["blocks"]:
+        pts = [r for r in rows if r["block"] == b["id"] and r.get("excluded", "false") != "true"]
+        for ax in ("x", "y"):
+            v = math.sqrt(sum((float(r[ax]) - float(r[f"{ax}_ref"])) ** 2 for r in pts) / len(pts)) * factor
+            b["reported"][f"rmse_{ax}"] = {"value": round(v, 3), "unit": "m"}
+    _write_manifest(d, m)
+
+
+def _scale_b02_dy(header: list[str], rows: list[dict[str, str]]) -> None:
+    for r in rows:
+        if r["block"] == "B02":
+            r["y"] = f"{float(r['y_ref']) + 2.2 * (float(r['y']) - float(r['y_ref'])):.3f}"
+
+
+#: the planted defect: B02 RMSEy 0.627 m > 0.5 m, reported values consistent
+_plant_rmse = _chain(_table_edit("checkpoints", _scale_b02_dy), _fix_reported)
+
+
+def _planted(*tricks: Edit) -> Edit:
+    return _chain(_plant_rmse, *tricks)
+
+
+# the contractor's tricks
+
+def _sensor(kind: str) -> Edit:
+    return _manifest_edit(lambda m: m["sensor"].update(type=kind))
+
+
+def _declare_tolerance(value: float) -> Edit:
+    return _manifest_edit(lambda m: m["tender"]["parameters"].update(tolerance_xy={"value": value, "unit": "m"}))
+
+
+def _units_ft(m: dict[str, Any]) -> None:
+    m["units"] = {"checkpoints": "ft", "gcps": "m"}
+
+
+def _exclude_worst(header: list[str], rows: list[dict[str, str]]) -> None:
+    for r in _worst(rows, 4):
+        r["excluded"] = "true"
+        r["exclusion_reason"] = "blunder: target not identifiable on the image"
+
+
+def _move_worst(block: str, k: int) -> Edit:
+    def fn(header: list[str], rows: list[dict[str, str]]) -> None:
+        for r in _worst(rows, k):
+            r["block"] = block
+    return _table_edit("checkpoints", fn)
+
+
+def _delete_worst(header: list[str], rows: list[dict[str, str]]) -> list[dict[str, str]]:
+    drop = {r["point_id"] for r in _worst(rows, 4)}
+    return [r for r in rows if r["point_id"] not in drop]
+
+
+def _duplicate_ids(header: list[str], rows: list[dict[str, str]]) -> list[dict[str, str]]:
+    best = sorted((r for r in rows if r["block"] == "B02"), key=lambda r: abs(float(r["y"]) - float(r["y_ref"])))
+    return rows + [dict(r) for r in best[:10] for _ in range(3)]
+
+
+def _fabricated_copies(header: list[str], rows: list[dict[str, str]]) -> list[dict[str, str]]:
+    best = sorted((r for r in rows if r["block"] == "B02"), key=lambda r: abs(float(r["y"]) - float(r["y_ref"])))
+    return rows + [{**r, "point_id": f"B02-X{i:02d}"} for i, r in enumerate(best[:10] * 3)]
+
+
+def _set_worst_y(value: str) -> Edit:
+    def fn(header: list[str], rows: list[dict[str, str]]) -> None:
+        for r in _worst(rows, 6):
+            r["y"] = value
+    return _table_edit("checkpoints", fn)
+
+
+def _gcps_as_checkpoints(d: Path) -> None:
+    _, gcps = _read(d, "gcps")
+    header, rows = _read(d, "checkpoints")
+    for g in gcps:
+        if g["block"] == "B02":
+            rows.append({**dict.fromkeys(header, ""), "point_id": g["point_id"], "block": "B02", "x": g["x"],
+                         "y": g["y"], "x_ref": g["x"], "y_ref": g["y"], "excluded": "false",
+                         "source": "GNSS RTK", "precision_xy": "0.02"})
+    _write(d, "checkpoints", header, rows)
+
+
+def _self_granted_waiver(d: Path) -> None:
+    """Waiver request in delivery.yaml, 'waived'/'pass' rows signed with the checker's name in the
+    delivery's manual_checks table, and the checker named as the delivery's operator."""
+    m = _manifest(d)
+    m["waivers"] = [{"rule": "JRC-12.7-RMSEY", "items": ["B02"], "justification": "haze over B02",
+                     "approver": CHECKER_NAME}]
+    m["operator"] = {"name": CHECKER_NAME, "role": "external QC"}
+    _write_manifest(d, m)
+    header, rows = _read(d, "manual_checks")
+    for verdict in ("waived", "pass"):
+        rows.append({**dict.fromkeys(header, ""), "check": "JRC-12.7-RMSEY", "item": "B02",
+                     "inspector": f"{CHECKER_NAME}, external QC", "date": "2026-06-21", "verdict": verdict,
+                     "note": "waiver granted by the external QC"})
+    _write(d, "manual_checks", header, rows)
+
+
+def _second_checkpoints_entry(d: Path) -> None:
+    """A second `checkpoints:` key in the manifest's tables, pointing at a cleaned copy."""
+    header, rows = _read(d, "checkpoints")
+    drop = {r["point_id"] for r in _worst(rows, 6)}
+    _write(d, "checkpoints_clean", header, [r for r in rows if r["point_id"] not in drop])
+    text = (d / "delivery.yaml").read_text(encoding="utf-8")
+    line = "  checkpoints: tables/checkpoints.csv\n"
+    assert line in text
+    (d / "delivery.yaml").write_text(text.replace(line, line + "  checkpoints: tables/checkpoints_clean.csv\n"),
+                                     encoding="utf-8")
+
+
+def _drop_reported(m: dict[str, Any]) -> None:
+    for b in m["blocks"]:
+        b.pop("reported", None)
+
+
+def _rename_block_everywhere(d: Path, old: str = "B02", new: str = "B99") -> None:
+    text = (d / "delivery.yaml").read_text(encoding="utf-8")
+    (d / "delivery.yaml").write_text(text.replace(f"id: {old}", f"id: {new}"), encoding="utf-8")
+    for name in ("checkpoints", "gcps", "images", "aerotriangulation"):
+        header, rows = _read(d, name)
+        for r in rows:
+            if r.get("block") == old:
+                r["block"] = new
+        _write(d, name, header, rows)
+
+
+def _drop_failing_scenes(header: list[str], rows: list[dict[str, str]]) -> list[dict[str, str]]:
+    return [r for r in rows if r["image_id"] not in ("S01_SC1", "S01_SC3", "S02_SC2")]
+
+
+# --- running ---------------------------------------------------------------------------------
+
+def _run(example: str, edit: Edit, tmp_path: Path) -> tuple[int, dict[str, Any] | None, str]:
+    """(exit code, qcr document or None, error text) of `orthospec check` on an edited copy."""
+    d = tmp_path / example
+    shutil.copytree(EXAMPLES / example, d)
+    edit(d)
+    try:
+        result = check_with(d, "jrc-v3", checker=CHECKERS / f"{example}.yaml", date=DATE)
+    except OrthospecError as exc:
+        return 2, None, str(exc)
+    return (0 if result.accepted else 1), result.document, ""
+
+
+def _verdicts(doc: dict[str, Any], rule: str) -> dict[str, str]:
+    return {r["item"]: r["verdict"] for r in all_records(doc) if r["rule"] == rule}
+
+
+def _rejects(doc: dict[str, Any], rule: str, item: str, verdict: str = "fail") -> None:
+    got = _verdicts(doc, rule)
+    assert got.get(item) == verdict, f"{rule} {item}: {got}"
+    assert any(reason.startswith(rule) for reason in doc["rollup"]["reasons"]), doc["rollup"]["reasons"]
+
+
+# --- cases -----------------------------------------------------------------------------------
+
+def _check_planted_alone(code: int, doc: dict[str, Any] | None, err: str) -> None:
+    assert code == 1 and doc is not None
+    _rejects(doc, "JRC-12.7-RMSEY", "B02")
+    assert doc["rollup"]["rejected"] == {"block": ["B02"]}
+
+
+def _check_sensor_satellite(code: int, doc: dict[str, Any] | None, err: str) -> None:
+    # §12.7 applies to every sensor; the aerial rules switched off, the satellite ones lack their evidence
+    assert code == 1 and doc is not None
+    _rejects(doc, "JRC-12.7-RMSEY", "B02")
+    assert _verdicts(doc, "JRC-9.2-T7-ORIENTATION-DATA")["F01_0101"] == "missing"
+
+
+def _check_rename(code: int, doc: dict[str, Any] | None, err: str) -> None:
+    assert code == 1 and doc is not None
+    _rejects(doc, "JRC-12.7-RMSEY", "B99")
+    assert "B99" in doc["rollup"]["rejected"]["block"]
+
+
+def _check_excluded(code: int, doc: dict[str, Any] | None, err: str) -> None:
+    # §12.6: only a point beyond 3 x RMSE may be excluded as a blunder
+    assert code == 1 and doc is not None
+    _rejects(doc, "JRC-12.6-BLUNDER-EXCLUSIONS", "B02")
+    _rejects(doc, "JRC-12.7-RMSEY", "B02")
+
+
+def _check_moved_to_b01(code: int, doc: dict[str, Any] | None, err: str) -> None:
+    assert code == 1 and doc is not None
+    _rejects(doc, "JRC-12.7-RMSEY", "B01")
+    _rejects(doc, "JRC-12.4-T12-MIN-CHECKPOINTS", "B02")
+
+
+def _check_gcps(code: int, doc: dict[str, Any] | None, err: str) -> None:
+    # §12.5: check points independent of the GCPs
+    assert code == 1 and doc is not None
+    _rejects(doc, "JRC-12.5-INDEPENDENT-CHECKPOINTS", "B02")
+
+
+def _check_self_waiver(code: int, doc: dict[str, Any] | None, err: str) -> None:
+    # INTERFACES 4: waivers and manual verdicts only from the checker's file or the tender profile
+    assert code == 1 and doc is not None
+    _rejects(doc, "JRC-12.7-RMSEY", "B02")
+    assert "waived" not in _verdicts(doc, "JRC-12.7-RMSEY").values()
+    assert [w["rule"] for w in doc["waiver_requests"]] == ["JRC-12.7-RMSEY"]
+
+
+def _check_no_reported(code: int, doc: dict[str, Any] | None, err: str) -> None:
+    # Table 6 QCR 11 / §9.5: no reported RMSE, nothing to compare: missing, never pass
+    assert code == 1 and doc is not None
+    assert set(_verdicts(doc, "JRC-9.5-REPORTED-RMSE-Y").values()) == {"missing"}
+
+
+def _check_satellite_as_aerial(code: int, doc: dict[str, Any] | None, err: str) -> None:
+    assert code == 1 and doc is not None
+    _rejects(doc, "JRC-12.7-RMSEX", "S02")
+    _rejects(doc, "JRC-12.7-RMSEY", "S02")
+    _rejects(doc, "JRC-5.2.2-COVERAGE", doc["delivery"]["id"], "missing")
+
+
+def _check_scenes_dropped(code: int, doc: dict[str, Any] | None, err: str) -> None:
+    assert code == 1 and doc is not None
+    for item in ("S01_SC1", "S01_SC3", "S02_SC2"):
+        assert _verdicts(doc, "JRC-T9-ORBIT-MODEL")[item] == "missing"
+    assert {"S01_SC1", "S01_SC3", "S02_SC2"} <= set(doc["rollup"]["rejected"]["image"])
+
+
+def _refused(*words: str) -> Callable[[int, dict[str, Any] | None, str], None]:
+    def check(code: int, doc: dict[str, Any] | None, err: str) -> None:
+        assert code == 2, doc and doc["verdict"]
+        for w in words:
+            assert w in err, err
+    return check
+
+
+def _not_accepted(code: int, doc: dict[str, Any] | None, err: str) -> None:
+    assert code in (1, 2), "ACCEPTED a delivery whose B02 RMSEy exceeds the tolerance"
+
+
+def _xfail(finding: str) -> pytest.MarkDecorator:
+    return pytest.mark.xfail(strict=True, reason=f"/tmp/team/redteam.md {finding}")
+
+
+CASES = [
+    pytest.param("aerial-pass", _plant_rmse, _check_planted_alone, id="planted-defect-alone"),
+    pytest.param("aerial-fail", _sensor("satellite"), _check_sensor_satellite, id="aerial-declared-satellite"),
+    pytest.param("aerial-fail", _rename_block_everywhere, _check_rename, id="failing-block-renamed"),
+    pytest.param("aerial-pass", _planted(_table_edit("checkpoints", _exclude_worst)), _check_excluded,
+                 id="worst-points-excluded-with-reason"),
+    pytest.param("aerial-pass", _planted(_move_worst("B01", 6)), _check_moved_to_b01, id="worst-points-moved-to-B01"),
+    pytest.param("aerial-pass", _planted(_gcps_as_checkpoints), _check_gcps, id="gcps-as-checkpoints"),
+    pytest.param("aerial-pass", _planted(_self_granted_waiver), _check_self_waiver, id="self-granted-waiver"),
+    pytest.param("aerial-pass", _manifest_edit(_drop_reported), _check_no_reported, id="reported-rmse-removed"),
+    pytest.param("satellite-fail", _sensor("aerial"), _check_satellite_as_aerial, id="satellite-declared-aerial"),
+    pytest.param("satellite-fail", _table_edit("scenes", _drop_failing_scenes), _check_scenes_dropped,
+                 id="failing-scenes-rows-deleted"),
+    # refused before any rule runs (exit 2, file/row/column named)
+    pytest.param("aerial-pass", _planted(_table_edit("checkpoints", _duplicate_ids)),
+                 _refused("checkpoints.csv", "duplicate id"), id="good-points-duplicated"),
+    pytest.param("aerial-pass", _planted(_set_worst_y("")), _refused("checkpoints.csv", "'y'", "empty"),
+                 id="worst-y-blank"),
+    pytest.param("aerial-pass", _planted(_set_worst_y("nan")), _refused("checkpoints.csv", "'y'", "finite"),
+                 id="worst-y-nan"),
+    pytest.param("aerial-pass", _planted(_set_worst_y("inf")), _refused("checkpoints.csv", "'y'", "finite"),
+                 id="worst-y-inf"),
+    pytest.param("aerial-pass", _planted(_second_checkpoints_entry), _refused("delivery.yaml", "duplicate key"),
+                 id="second-checkpoints-table-entry"),
+    # wrongly ACCEPTED today (findings R1-R5 in /tmp/team/redteam.md)
+    pytest.param("aerial-pass", _planted(_declare_tolerance(1.0)), _not_accepted, id="R1-tolerance-declared-1m",
+                 marks=_xfail("R1: the contractor's tender.parameters sets tolerance_xy (warn only)")),
+    pytest.param("aerial-pass", _planted(_manifest_edit(_units_ft), _fix_reported), _not_accepted,
+                 id="R2-units-ft-in-metre-crs",
+                 marks=_xfail("R2: units {checkpoints: ft} shrinks residuals x0.3048 in an EPSG:25832 (metre) "
+                              "delivery")),
+    pytest.param("aerial-pass", _planted(_move_worst("B99", 4), _fix_reported), _not_accepted,
+                 id="R3-worst-points-to-unknown-block",
+                 marks=_xfail("R3: check-point rows whose block is not a manifest block are silently dropped")),
+    pytest.param("aerial-pass", _planted(_table_edit("checkpoints", _fabricated_copies), _fix_reported),
+                 _not_accepted, id="R4-fabricated-copies-new-ids",
+                 marks=_xfail("R4: 30 copies of good points under new ids (same coordinates) dilute RMSEy")),
+    pytest.param("aerial-pass", _planted(_table_edit("checkpoints", _delete_worst), _fix_reported), _not_accepted,
+                 id="R5-worst-points-deleted",
+                 marks=_xfail("R5: the checker's file does not pin the check points it vouches for")),
+]
+
+
+@pytest.mark.parametrize(("example", "edit", "expect"), CASES)
+def test_contractor_cannot_get_defect_accepted(example: str, edit: Edit,
+                                               expect: Callable[[int, dict[str, Any] | None, str], None],
+                                               tmp_path: Path) -> None:
+    code, doc, err = _run(example, edit, tmp_path)
+    expect(code, doc, err)
