@@ -26,6 +26,7 @@ from functools import cached_property
 from typing import Any, Literal
 
 import numpy as np
+import pandas as pd
 
 from ..errors import MeasureError
 
@@ -129,9 +130,13 @@ def empirical_percentile(values: Any, q: float, *, method: PercentileMethod = "l
 
 
 def _as_ids(ids: Sequence[Any] | np.ndarray | None, n: int) -> np.ndarray:
+    """Point ids as an object array of str (``map`` in C: no Python frame per point)."""
     if ids is None:
-        return np.array([str(i) for i in range(n)], dtype=object)
-    arr = np.asarray([str(i) for i in ids], dtype=object)
+        return np.arange(n).astype(str).astype(object)
+    if isinstance(ids, np.ndarray) and ids.dtype == object and ids.ndim == 1:
+        arr = np.fromiter(map(str, ids), dtype=object, count=ids.size)
+    else:
+        arr = np.asarray([str(i) for i in ids], dtype=object)
     if arr.shape != (n,):
         raise MeasureError(f"{arr.size} point ids given for {n} points")
     return arr
@@ -149,9 +154,9 @@ def _validate(
             raise MeasureError(f"{name} has shape {arr.shape}; expected ({n},) like the point ids")
     if n < min_points:
         raise MeasureError(f"{n} point(s) given; at least {min_points} are needed for statistics")
-    uniq, counts = np.unique(ids.astype(str), return_counts=True)
-    if (counts > 1).any():
-        dup = ", ".join(uniq[counts > 1][:20])
+    repeated = pd.Index(ids).duplicated()  # hashing, not sorting a fixed-width copy
+    if repeated.any():
+        dup = ", ".join(sorted(set(ids[repeated].tolist()))[:20])
         raise MeasureError(f"duplicate point ids: {dup}")
     for name, arr in arrays.items():
         if arr is None:
@@ -612,7 +617,8 @@ def detect_blunders(
     lr = math.hypot(lx, ly)
 
     requests = {str(k): (v or "").strip() for k, v in (exclusions or {}).items()}
-    unknown = sorted(set(requests) - set(id_arr.tolist()))
+    pos = pd.Index(id_arr).get_indexer(list(requests)) if requests else np.zeros(0, dtype=np.intp)
+    unknown = sorted(pid for pid, i in zip(requests, pos.tolist(), strict=True) if i < 0)
     if unknown:
         raise MeasureError(f"exclusion requested for unknown point id(s): {', '.join(unknown)}")
 
@@ -624,10 +630,8 @@ def detect_blunders(
     requested = np.zeros(ax.size, bool)
     justified = np.zeros(ax.size, bool)
     if requests:
-        pos = {pid: i for i, pid in enumerate(id_arr.tolist())}
-        for pid, just in requests.items():
-            requested[pos[pid]] = True
-            justified[pos[pid]] = bool(just)
+        requested[pos] = True
+        justified[pos] = [bool(just) for just in requests.values()]
     decision = np.select(
         [~cand & ~requested, ~cand & requested, cand & ~requested, cand & ~justified],
         [KEPT, ERROR_WITHIN_TOLERANCE, CANDIDATE_KEPT, ERROR_NO_JUSTIFICATION],

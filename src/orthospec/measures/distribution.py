@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+import pandas as pd
 import shapely
 from scipy.spatial import cKDTree
 from shapely.geometry.base import BaseGeometry
@@ -71,8 +72,10 @@ class DistributionResult:
 
 
 def _ids(ids: Sequence[Any] | np.ndarray | None, n: int, what: str) -> np.ndarray:
-    arr = np.asarray([str(i) for i in ids], dtype=object) if ids is not None else \
-        np.asarray([str(i) for i in range(n)], dtype=object)
+    """Ids as an object array of str (``map`` in C: no Python frame per point)."""
+    if ids is None:
+        return np.arange(n).astype(str).astype(object)
+    arr = np.fromiter(map(str, ids), dtype=object, count=len(ids))
     if arr.size != n:
         raise MeasureError(f"{arr.size} {what} ids given for {n} points")
     return arr
@@ -151,8 +154,12 @@ def checkpoint_distribution(
 
     ref = diagonal / 10.0
     if n >= 2:
-        dist, _ = cKDTree(pts).query(pts, k=2)
-        nn = dist[:, 1]
+        # queried in the tree's own order (neighbouring queries walk the same nodes: about 2.5x
+        # faster on a national set than the file order), then put back in point order
+        tree = cKDTree(pts)
+        dist, _ = tree.query(tree.data[tree.indices], k=2)
+        nn = np.empty(n)
+        nn[tree.indices] = dist[:, 1]
     else:
         nn = np.full(1, np.inf)
     finite_nn = nn[np.isfinite(nn)]
@@ -173,7 +180,7 @@ def checkpoint_distribution(
             gdist, _ = cKDTree(gpts).query(pts, k=1)
             gmin = float(gdist.min())
             too_close = tuple(cp_ids[gdist < min_gcp_distance].tolist())
-            same = (gdist <= identical_tol) | np.isin(cp_ids.astype(str), g_ids.astype(str))
+            same = (gdist <= identical_tol) | pd.Index(cp_ids).isin(g_ids.tolist())
             identical = tuple(cp_ids[same].tolist())
 
     outside: tuple[str, ...] = ()

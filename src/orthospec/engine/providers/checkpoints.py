@@ -277,9 +277,10 @@ def _block_detail(res: BlockAccuracy, pts: BlockPoints, gcps: tuple[np.ndarray, 
     detail: dict[str, Any] = {"points": frame}
     if n > DETAIL_POINTS_MAX:
         flagged = br.candidate | (br.decision != "kept")
-        rank = np.argsort(-br.dr, kind="stable")
+        room = max(DETAIL_POINTS_MAX - int(flagged.sum()), 0)
         keep = flagged.copy()
-        keep[rank[:max(DETAIL_POINTS_MAX - int(flagged.sum()), 0)]] = True
+        if room:
+            keep[np.argpartition(-br.dr, room - 1)[:room]] = True  # the largest residuals
         detail = {"points": frame[keep].reset_index(drop=True), "points_total": n,
                   "points_omitted": int(n - keep.sum())}
     gids, gx, gy = gcps if gcps is not None else ((), (), ())
@@ -300,7 +301,10 @@ def _is_true(v: np.ndarray) -> np.ndarray:
     if v.dtype.kind == "b":
         return v.astype(bool, copy=False)
     if v.dtype == object:
-        return np.fromiter((f is True or f is np.True_ for f in v), dtype=bool, count=len(v))
+        out = np.zeros(len(v), dtype=bool)
+        hits = np.flatnonzero(v == True)  # noqa: E712 (elementwise); then only real booleans
+        out[hits] = [v[i] is True or v[i] is np.True_ for i in hits.tolist()]
+        return out
     return np.zeros(len(v), dtype=bool)
 
 
@@ -464,7 +468,7 @@ def point_decisions(ctx: ProviderContext) -> list[Measured]:
         keep = last[pd.Index(ids[last]).get_indexer(idx[~idx.duplicated(keep="first")])]
         ids, rows, reason = ids[keep], rows[keep], reason[keep]
         cols = {k: v[keep] for k, v in cols.items()}
-    index = pd.Index(ids, dtype=object)
+    index = pd.Index(ids, dtype=object).astype(str)  # once: Measured would convert it per measure
     t = ctx.delivery.table("checkpoints")
     ev = RowEvidence(t.file, t.sha256, pd.Series(rows, index=index)) if t is not None else \
         pd.Series([], dtype=object)
