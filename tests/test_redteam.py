@@ -224,6 +224,37 @@ def _rename_block_everywhere(d: Path, old: str = "B02", new: str = "B99") -> Non
         _write(d, name, header, rows)
 
 
+def _scene(image_id: str, **values: str) -> Edit:
+    def fn(header: list[str], rows: list[dict[str, str]]) -> None:
+        for r in rows:
+            if r["image_id"] == image_id:
+                r.update(values)
+    return _table_edit("scenes", fn)
+
+
+def _precision_b02(value: str) -> Edit:
+    def fn(header: list[str], rows: list[dict[str, str]]) -> None:
+        for r in rows:
+            if r["block"] == "B02":
+                r["precision_xy"] = value
+    return _table_edit("checkpoints", fn)
+
+
+def _drop_strip_f02_02(d: Path) -> None:
+    """Remove the second strip of flight F02 (five photos: rows and files), a hole in the coverage."""
+    header, rows = _read(d, "images")
+    gone = [r for r in rows if r["image_id"].startswith("F02_02")]
+    for r in gone:
+        (d / r["file"]).unlink()
+    _write(d, "images", header, [r for r in rows if r not in gone])
+
+
+def _inflate_f02_01_heights(header: list[str], rows: list[dict[str, str]]) -> None:
+    for r in rows:
+        if r["image_id"].startswith("F02_01"):
+            r["flying_height"] = f"{float(r['flying_height']) * 2.5:.1f}"
+
+
 def _drop_failing_scenes(header: list[str], rows: list[dict[str, str]]) -> list[dict[str, str]]:
     return [r for r in rows if r["image_id"] not in ("S01_SC1", "S01_SC3", "S02_SC2")]
 
@@ -320,6 +351,37 @@ def _check_scenes_dropped(code: int, doc: dict[str, Any] | None, err: str) -> No
     assert {"S01_SC1", "S01_SC3", "S02_SC2"} <= set(doc["rollup"]["rejected"]["image"])
 
 
+def _check_coverage_hole(code: int, doc: dict[str, Any] | None, err: str) -> None:
+    # §5.2.2, Table 1 "Completeness": 100 % coverage, computed from the lay-down even for extracts
+    assert code == 1 and doc is not None
+    _rejects(doc, "JRC-5.2.2-COVERAGE", doc["delivery"]["id"])
+
+
+def _check_reference_accuracy(verdict: str) -> Callable[[int, dict[str, Any] | None, str], None]:
+    # Definitions, "Check Point": reference coordinates at least 3x more accurate than the tolerance
+    def check(code: int, doc: dict[str, Any] | None, err: str) -> None:
+        assert code == 1 and doc is not None
+        got = _verdicts(doc, "JRC-DEF-CHECKPOINT-ACCURACY")
+        assert {v for k, v in got.items() if k.startswith("B02-")} == {verdict}
+        assert doc["rollup"]["rejected"]["block"] == ["B02"]
+    return check
+
+
+def _check_scene_controls(code: int, doc: dict[str, Any] | None, err: str) -> None:
+    # Table 9: PRESS and the scene's check-point RMSE below the tolerance (1.0 m in satellite-fail)
+    assert code == 1 and doc is not None
+    assert _verdicts(doc, "JRC-T9-PRESS")["S02_SC1"] == "fail"
+    assert _verdicts(doc, "JRC-T9-CHECKPOINT-RMSE")["S02_SC3"] == "fail"
+    assert {"S02_SC1", "S02_SC3"} <= set(doc["rollup"]["rejected"]["image"])
+
+
+def _scene_rejected(image_id: str) -> Callable[[int, dict[str, Any] | None, str], None]:
+    def check(code: int, doc: dict[str, Any] | None, err: str) -> None:
+        assert code == 2 or (doc is not None and image_id in doc["rollup"]["rejected"].get("image", [])), \
+            f"{image_id}'s Table 9 defect is hidden"
+    return check
+
+
 def _refused(*words: str) -> Callable[[int, dict[str, Any] | None, str], None]:
     def check(code: int, doc: dict[str, Any] | None, err: str) -> None:
         assert code == 2, doc and doc["verdict"]
@@ -349,6 +411,14 @@ CASES = [
     pytest.param("satellite-fail", _sensor("aerial"), _check_satellite_as_aerial, id="satellite-declared-aerial"),
     pytest.param("satellite-fail", _table_edit("scenes", _drop_failing_scenes), _check_scenes_dropped,
                  id="failing-scenes-rows-deleted"),
+    pytest.param("aerial-pass", _precision_b02("0.5"), _check_reference_accuracy("fail"),
+                 id="careless-reference-precision-0.5m"),
+    pytest.param("aerial-pass", _precision_b02(""), _check_reference_accuracy("missing"),
+                 id="careless-reference-precision-blank"),
+    pytest.param("aerial-pass", _drop_strip_f02_02, _check_coverage_hole, id="strip-removed-extracts-declared"),
+    pytest.param("satellite-fail", _chain(_scene("S02_SC1", press_sqrt="1.5"),
+                                          _scene("S02_SC3", checkpoint_rmse="1.3", checkpoint_count="8")),
+                 _check_scene_controls, id="scene-press-and-rmse-planted"),
     # refused before any rule runs (exit 2, file/row/column named)
     pytest.param("aerial-pass", _planted(_table_edit("checkpoints", _duplicate_ids)),
                  _refused("checkpoints.csv", "duplicate id"), id="good-points-duplicated"),
@@ -376,6 +446,22 @@ CASES = [
     pytest.param("aerial-pass", _planted(_table_edit("checkpoints", _delete_worst), _fix_reported), _not_accepted,
                  id="R5-worst-points-deleted",
                  marks=_xfail("R5: the checker's file does not pin the check points it vouches for")),
+    pytest.param("aerial-pass", _planted(_move_worst("B01", 4), _fix_reported), _not_accepted,
+                 id="R6-worst-points-moved-outside-into-B01",
+                 marks=_xfail("R6: no jrc-v3 rule reads checkpoints.outside_block")),
+    pytest.param("aerial-pass", _chain(_drop_strip_f02_02, _table_edit("images", _inflate_f02_01_heights)),
+                 _not_accepted, id="R7-strip-removed-heights-inflated",
+                 marks=_xfail("R7: coverage trusts flying heights that JRC-5.2.1 shows are inconsistent")),
+    # item-level: satellite-fail stays rejected for its other defects, but the planted scene defect is hidden
+    pytest.param("satellite-fail", _scene("S01_SC1", is_master="false"), _scene_rejected("S01_SC1"),
+                 id="R8-master-declared-not-master",
+                 marks=_xfail("R8: a self-declared is_master=false switches the Table 9 master rules off")),
+    pytest.param("satellite-fail", _scene("S02_SC1", press_sqrt="-1.5"), _scene_rejected("S02_SC1"),
+                 id="R9-negative-press",
+                 marks=_xfail("R9: a negative PRESS makes JRC-T9-PRESS not applicable")),
+    pytest.param("satellite-fail", _scene("S02_SC1", checkpoint_rmse="1.3", checkpoint_count="0"),
+                 _scene_rejected("S02_SC1"), id="R10-checkpoint-count-zero",
+                 marks=_xfail("R10: checkpoint_count 0 next to an RMSE switches JRC-T9-CHECKPOINT-RMSE off")),
 ]
 
 
