@@ -10,9 +10,12 @@ page cache, then runs each tool in its own subprocess (fair: the same interprete
 cost for orthospec is included) and reads wall time and peak RSS of that very child with
 ``os.wait4``. orthospec runs three ways: ``stats`` (min/max/mean/std + full histogram, what
 gdalinfo computes) and ``full`` (plus luminosity, both noise estimators, misregistration), both
-as a bare library scan, and ``command``: the whole ``orthospec measure radiometry --json`` (CLI
-start-up, file checks, full scan and the file's SHA-256). Issue 14 targets, in one run on the
-same file: command <= 1.0x gdalinfo, full <= 1.5x, peak memory < 300 MB.
+as a bare library scan, and as whole commands (CLI start-up, file checks, scan and the file's
+SHA-256): ``command`` is ``orthospec measure radiometry --json`` (by default the job of
+``gdalinfo -stats -hist``: exact statistics and histograms) and ``command_full`` adds ``--full``
+(the whole JRC §6.3 scan). Issue 14 targets, in one run on the same file: command <= 1.0x
+gdalinfo, command_full <= 1.5x, peak memory < 300 MB. Wall and CPU ratios are both printed:
+on a machine shared with other work, wall time favours the tool that uses more threads.
 Needs ``gdalinfo`` (Debian: ``apt-get install gdal-bin``).
 """
 
@@ -127,7 +130,7 @@ def main() -> None:
             while fh.read(1 << 24):
                 pass
         results: dict[str, list[tuple[float, float]]] = {"gdal": [], "stats": [], "full": [],
-                                                           "command": []}
+                                                           "command": [], "command_full": []}
         cpu: dict[str, list[float]] = {k: [] for k in results}
         orthospec = str(Path(sys.executable).parent / "orthospec")
         inner: dict[str, list[tuple[float, float]]] = {}
@@ -144,9 +147,10 @@ def main() -> None:
                 cpu[mode].append(c)
                 imp, scan = (float(v) for v in out.split())
                 inner.setdefault(mode, []).append((imp, scan))
-            w, m, _, c = run([orthospec, "measure", "radiometry", "--json", str(img)])
-            results["command"].append((w, m))
-            cpu["command"].append(c)
+            for key, extra in (("command", []), ("command_full", ["--full"])):
+                w, m, _, c = run([orthospec, "measure", "radiometry", "--json", *extra, str(img)])
+                results[key].append((w, m))
+                cpu[key].append(c)
         best = {k: (min(w for w, _ in v), max(m for _, m in v)) for k, v in results.items()}
         print(f"gdalinfo -stats -hist ({gdal_version}): {best['gdal'][0]:.2f} s, "
               f"peak {best['gdal'][1]:.0f} MB")
@@ -158,11 +162,13 @@ def main() -> None:
                   f"time ratio orthospec/gdal = {w / best['gdal'][0]:.2f}  "
                   f"(of which import {imp:.2f} s, scan {scan:.2f} s: scan/gdal = "
                   f"{scan / best['gdal'][0]:.2f})")
-        w, m = best["command"]
-        print(f"orthospec measure radiometry (whole command, full scan + SHA-256): {w:.2f} s, "
-              f"peak {m:.0f} MB, time ratio command/gdal = {w / best['gdal'][0]:.2f} "
-              f"(target <= 1.0x; full scan target <= 1.5x, peak < 300 MB)")
         g_cpu = min(cpu["gdal"])
+        for key, what, target in (("command", "statistics + histograms", "1.0"),
+                                  ("command_full", "--full, the JRC §6.3 scan", "1.5")):
+            w, m = best[key]
+            print(f"orthospec measure radiometry (whole command, {what} + file checks + SHA-256): "
+                  f"{w:.2f} s, peak {m:.0f} MB, {key}/gdal = {w / best['gdal'][0]:.2f} wall, "
+                  f"{min(cpu[key]) / g_cpu:.2f} CPU (target <= {target}x, peak < 300 MB)")
         print("CPU seconds (user+system, least of the rounds): " + ", ".join(
             f"{k} {min(v):.2f} s ({min(v) / g_cpu:.2f}x gdal)" for k, v in cpu.items()))
         print(f"throughput orthospec stats: {size / 1e6 / best['stats'][0]:.0f} MB/s; "

@@ -6,6 +6,7 @@ import json
 import shutil
 from pathlib import Path
 
+import pytest
 from click.testing import CliRunner
 
 from orthospec.cli.main import cli
@@ -18,7 +19,7 @@ BAND_KEYS = {"min", "max", "mean", "std", "histogram", "saturation_low_pct",
 
 def test_json_has_band_measures_and_file_checks(tmp_path):
     img = Path(shutil.copy(RGB, tmp_path / "rgb.tif"))
-    res = CliRunner().invoke(cli(), ["measure", "radiometry", str(img), "--json",
+    res = CliRunner().invoke(cli(), ["measure", "radiometry", str(img), "--json", "--full",
                                      "--expect-epsg", "32618", "--expect-gsd", "300"])
     assert res.exit_code == 0, res.output
     doc = json.loads(res.output)
@@ -43,10 +44,78 @@ def test_bit_depth_option_and_epsg_mismatch(tmp_path):
 
 
 def test_terminal_table():
-    res = CliRunner().invoke(cli(), ["measure", "radiometry", str(RGB)], terminal_width=120)
+    res = CliRunner().invoke(cli(), ["measure", "radiometry", str(RGB), "--full"],
+                             terminal_width=120)
     assert res.exit_code == 0, res.output
     assert "saturation high pct" in res.output and "luminosity" in res.output
     assert "nodata excluded per band, as GDAL" in res.output
+    plain = CliRunner().invoke(cli(), ["measure", "radiometry", str(RGB)], terminal_width=120)
+    assert plain.exit_code == 0, plain.output
+    assert "saturation high pct" in plain.output and "luminosity" not in plain.output
+
+
+def _gdalinfo_stats_hist(path: Path) -> list[dict]:
+    """GDAL's own ``gdalinfo -stats -hist`` bands (run on a copy: it may write .aux.xml)."""
+    import subprocess
+
+    out = subprocess.run(["gdalinfo", "-stats", "-hist", "-json", str(path)],
+                         capture_output=True, text=True, check=True).stdout
+    return json.loads(out)["bands"]
+
+
+@pytest.mark.skipif(shutil.which("gdalinfo") is None, reason="gdalinfo (gdal-bin) not installed")
+def test_default_is_the_job_of_gdalinfo_stats_hist_and_full_adds_the_6_3_scan(tmp_path):
+    """Issue 14: by default exactly ``gdalinfo -stats -hist`` (+ file checks, SHA-256);
+    ``--full`` adds noise, luminosity and misregistration without changing those numbers."""
+    import hashlib
+
+    import numpy as np
+    import rasterio
+    from affine import Affine
+
+    # textured RGB with nodata 0 in a corner (no statistics tags: gdalinfo must compute them)
+    rng = np.random.default_rng(3)
+    yy, xx = np.mgrid[0:300, 0:420]
+    base = (np.sin(xx / 17.0) + np.cos(yy / 11.0) + 2) * 55
+    data = np.clip(base[None] * [[[0.8]], [[0.9]], [[1.0]]]
+                   + rng.normal(0, 6, (3, 300, 420)) + 8, 1, 255).astype(np.uint8)
+    data[:, :20, :30] = 0
+    img = tmp_path / "rgb.tif"
+    with rasterio.open(img, "w", driver="GTiff", width=420, height=300, count=3, dtype="uint8",
+                       nodata=0, tiled=True, blockxsize=128, blockysize=128, crs="EPSG:25832",
+                       transform=Affine(0.2, 0, 500000, 0, -0.2, 5600000)) as ds:
+        ds.write(data)
+    res = CliRunner().invoke(cli(), ["measure", "radiometry", str(img), "--json"])
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.output)
+    assert doc["sha256"] == hashlib.sha256(img.read_bytes()).hexdigest()
+    assert doc["checks"]["width"] == 420 and doc["checks"]["crs"] and doc["findings"] == []
+    rad = doc["radiometry"]
+    assert rad["luminosity"] is None and rad["misregistration"] == {}
+    assert all(b["noise_sigma_immerkaer"] is None for b in rad["bands"])
+    (tmp_path / "gdal").mkdir()
+    gdal_copy = Path(shutil.copy(img, tmp_path / "gdal" / "rgb.tif"))
+    for ours, gb in zip(rad["bands"], _gdalinfo_stats_hist(gdal_copy), strict=True):
+        md = gb["metadata"][""]  # full precision (the top-level keys are rounded)
+        assert (ours["min"], ours["max"]) == (float(md["STATISTICS_MINIMUM"]),
+                                              float(md["STATISTICS_MAXIMUM"]))
+        assert ours["mean"] == pytest.approx(float(md["STATISTICS_MEAN"]), rel=1e-12)
+        assert ours["std"] == pytest.approx(float(md["STATISTICS_STDDEV"]), rel=1e-12)
+        h, hist = gb["histogram"], ours["histogram"]
+        assert (h["count"], h["min"], h["max"]) == (256, -0.5, 255.5)  # one bucket per DN
+        buckets = [0] * 256
+        buckets[hist["first_dn"]:hist["first_dn"] + len(hist["counts"])] = hist["counts"]
+        assert buckets == h["buckets"] and buckets[0] == 0  # nodata excluded
+    full = CliRunner().invoke(cli(), ["measure", "radiometry", str(img), "--json", "--full"])
+    assert full.exit_code == 0, full.output
+    frad = json.loads(full.output)["radiometry"]
+    assert frad["luminosity"]["valid"] == 300 * 420 - 20 * 30
+    assert set(frad["misregistration"]) == {"1", "3"}  # against the green band
+    assert all(b["noise_sigma_immerkaer"] > 0 for b in frad["bands"])
+    for b, fb in zip(rad["bands"], frad["bands"], strict=True):
+        assert {k: b[k] for k in ("min", "max", "mean", "std", "histogram")} == {
+            k: fb[k] for k in ("min", "max", "mean", "std", "histogram")}
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["gdal", "rgb.tif"]  # nothing written
 
 
 def test_bad_file_exits_2_with_clear_error(tmp_path):

@@ -59,6 +59,9 @@ def _render(rep: ImageReport, findings: list[str]) -> None:
 @measure.command("radiometry")
 @click.argument("image", type=click.Path(dir_okay=False))
 @click.option("--json", "as_json", is_flag=True, help="Print the full report as JSON.")
+@click.option("--full", is_flag=True,
+              help="Also the rest of the JRC §6.3 scan: noise (two estimators), luminosity "
+                   "and band misregistration (same single read; slower).")
 @click.option("--bit-depth", type=click.IntRange(1, 32), default=None,
               help="Real radiometric resolution (e.g. 11 for 11-bit data in 16-bit files); "
                    "default: the NBITS tag, else the data type.")
@@ -70,14 +73,17 @@ def _render(rep: ImageReport, findings: list[str]) -> None:
 @click.option("--cloud-mask", type=click.Path(dir_okay=False), default=None,
               help="Delivered cloud mask raster (non-zero = cloud).")
 @click.pass_context
-def radiometry_cmd(ctx: click.Context, image: str, as_json: bool, bit_depth: int | None,
+def radiometry_cmd(ctx: click.Context, image: str, as_json: bool, full: bool, bit_depth: int | None,
                    expect_epsg: int | None, expect_gsd: float | None, gsd_tolerance: float,
                    cloud_mask: str | None) -> None:
-    """Exact per-band statistics, histograms and JRC §6.3 measures plus file checks of IMAGE.
+    """Exact per-band statistics and histograms, file checks and SHA-256 of IMAGE.
 
-    Statistics are exact (no overviews), with population std and nodata excluded per band,
-    as GDAL computes them. Radiometry needs no georeference: a missing or unparseable CRS is
-    reported as a file-check finding, not refused. Exit code 2 when the pixels cannot be read.
+    By default the job of ``gdalinfo -stats -hist``: statistics are exact (no overviews), with
+    population std and nodata excluded per band, as GDAL computes them, plus the saturation
+    shares the histograms give. ``--full`` adds the rest of the JRC §6.3 scan (noise,
+    luminosity, band misregistration) to the same single read of the pixels. Radiometry needs
+    no georeference: a missing or unparseable CRS is reported as a file-check finding, not
+    refused. Exit code 2 when the pixels cannot be read.
     """
     from concurrent.futures import ThreadPoolExecutor
 
@@ -90,7 +96,9 @@ def radiometry_cmd(ctx: click.Context, image: str, as_json: bool, bit_depth: int
         from ..raster.parallel import ScanOptions, scan_image
         from ..raster.reading import ScanSettings
 
-        opts = ScanOptions(settings=ScanSettings(bit_depth=bit_depth), expect_epsg=expect_epsg,
+        settings = ScanSettings(bit_depth=bit_depth, noise=full, luminosity=full,
+                                misregistration=full)
+        opts = ScanOptions(settings=settings, expect_epsg=expect_epsg,
                            expect_gsd=expect_gsd, gsd_tolerance=gsd_tolerance)
         rep = scan_image(image, opts, cloud_mask=cloud_mask, sha256=hashing)
     if rep.error and rep.radiometry is None:
