@@ -708,23 +708,11 @@ def _records_fast(body: bytes, chunk: int = 1 << 20) -> _Shape | None:
         is44 = arr == 44
         is10 = arr == 10
         ends = np.flatnonzero(is10)
-        qi = np.flatnonzero(arr == 34)
-        if parity:
-            qi = np.concatenate([[-1], qi])  # the chunk starts inside a quoted field
-        opens, closes = qi[0::2], qi[1::2]
-        parity = len(qi) % 2
-        if parity:
-            closes = np.append(closes, m)  # still open at the chunk's end
-        real_opens, real_closes = opens[opens >= 0], closes[closes < m]
-        if not (np.isin(ext[real_opens], (44, 10, 34)).all() and np.isin(ext[real_closes + 2], (44, 10, 34)).all()):
+        quotes = _quotes(ext, parity)
+        if quotes is None:
             return None
-        if not padded:
-            sp = (ext == 32) | (ext >= 0x80)
-            near = np.flatnonzero((sp[:-2] | sp[2:]) & (is44 | is10))
-            if opens.size:
-                near = near[~_quoted(near, opens, closes)]
-            edges = np.concatenate([ext[real_opens + 2], ext[real_closes]])
-            padded = bool(near.size) or bool(((edges == 32) | (edges == 10) | (edges >= 0x80)).any())
+        opens, closes, parity = quotes
+        padded = padded or _padded(ext, is44 | is10, opens, closes)
         commas = np.zeros(m + 1, dtype=np.int32)  # commas[p]: delimiters before byte p
         np.cumsum(is44, dtype=np.int32, out=commas[1:])
         if opens.size:
@@ -753,6 +741,36 @@ def _records_fast(body: bytes, chunk: int = 1 << 20) -> _Shape | None:
         padded = first == 32 or first >= 0x80 or last == 32 or last >= 0x80
     out = np.concatenate(widths).astype(np.int64, copy=False) if widths else np.zeros(0, dtype=np.int64)
     return _Shape(out, padded)
+
+
+def _quotes(ext: np.ndarray, parity: int) -> tuple[np.ndarray, np.ndarray, int] | None:
+    """Open and close positions of the quotes of one chunk (``ext``: the chunk with its
+    neighbouring bytes), a virtual open at -1 / close at the end when a quote spans the edge, and
+    the parity carried on; None when a quote is not at a field's edge (or doubling a quote)."""
+    m = len(ext) - 2
+    qi = np.flatnonzero(ext[1:-1] == 34)
+    if parity:
+        qi = np.concatenate([[-1], qi])  # the chunk starts inside a quoted field
+    opens, closes = qi[0::2], qi[1::2]
+    parity = len(qi) % 2
+    if parity:
+        closes = np.append(closes, m)  # still open at the chunk's end
+    real_opens, real_closes = opens[opens >= 0], closes[closes < m]
+    if not (np.isin(ext[real_opens], (44, 10, 34)).all() and np.isin(ext[real_closes + 2], (44, 10, 34)).all()):
+        return None
+    return opens, closes, parity
+
+
+def _padded(ext: np.ndarray, structure: np.ndarray, opens: np.ndarray, closes: np.ndarray) -> bool:
+    """A space or non-ASCII byte beside a delimiter or line end outside quotes, or a space, line
+    end or non-ASCII byte just inside a quote: a cell there may need stripping."""
+    m = len(ext) - 2
+    sp = (ext == 32) | (ext >= 0x80)
+    near = np.flatnonzero((sp[:-2] | sp[2:]) & structure)
+    if opens.size:
+        near = near[~_quoted(near, opens, closes)]
+    edges = np.concatenate([ext[opens[opens >= 0] + 2], ext[closes[closes < m]]])
+    return bool(near.size) or bool(((edges == 32) | (edges == 10) | (edges >= 0x80)).any())
 
 
 def _quoted(pos: np.ndarray, opens: np.ndarray, closes: np.ndarray) -> np.ndarray:

@@ -277,10 +277,10 @@ def _block_detail(res: BlockAccuracy, pts: BlockPoints, gcps: tuple[np.ndarray, 
     detail: dict[str, Any] = {"points": frame}
     if n > DETAIL_POINTS_MAX:
         flagged = br.candidate | (br.decision != "kept")
-        room = max(DETAIL_POINTS_MAX - int(flagged.sum()), 0)
+        room = min(max(DETAIL_POINTS_MAX - int(flagged.sum()), 0), n - int(flagged.sum()))
         keep = flagged.copy()
-        if room:
-            keep[np.argpartition(-br.dr, room - 1)[:room]] = True  # the largest residuals
+        if room:  # and the largest residuals among the others
+            keep[np.argpartition(np.where(flagged, np.inf, -br.dr), room - 1)[:room]] = True
         detail = {"points": frame[keep].reset_index(drop=True), "points_total": n,
                   "points_omitted": int(n - keep.sum())}
     gids, gx, gy = gcps if gcps is not None else ((), (), ())
