@@ -232,11 +232,12 @@ def _scene(image_id: str, **values: str) -> Edit:
     return _table_edit("scenes", fn)
 
 
-def _precision_b02(value: str) -> Edit:
+def _precision(values: dict[str, str]) -> Edit:
+    """Set the reference precision of every check point of the given blocks."""
     def fn(header: list[str], rows: list[dict[str, str]]) -> None:
         for r in rows:
-            if r["block"] == "B02":
-                r["precision_xy"] = value
+            if r["block"] in values:
+                r["precision_xy"] = values[r["block"]]
     return _table_edit("checkpoints", fn)
 
 
@@ -253,6 +254,28 @@ def _inflate_f02_01_heights(header: list[str], rows: list[dict[str, str]]) -> No
     for r in rows:
         if r["image_id"].startswith("F02_01"):
             r["flying_height"] = f"{float(r['flying_height']) * 2.5:.1f}"
+
+
+def _manual_rows_as_checker(check: str, verdict: str = "pass") -> Edit:
+    """Rows in the delivery's manual_checks table signed with the checker's name (evidence only)."""
+    def fn(header: list[str], rows: list[dict[str, str]]) -> list[dict[str, str]]:
+        return [*rows, {**dict.fromkeys(header, ""), "check": check, "item": "*",
+                        "inspector": f"{CHECKER_NAME}, external QC", "date": "2026-06-21", "verdict": verdict,
+                        "note": "inspected by the external QC"}]
+    return _table_edit("manual_checks", fn)
+
+
+def _empty_document(d: Path) -> None:
+    (d / "documents" / "internal_qcr.md").write_text("", encoding="utf-8")
+
+
+def _remove_document(d: Path) -> None:
+    (d / "documents" / "internal_qcr.md").unlink()
+
+
+def _copy_image_over_missing(d: Path) -> None:
+    """aerial-fail's F03_0202 is not on the medium: deliver a copy of its neighbour F03_0201 instead."""
+    shutil.copyfile(d / "images" / "F03_0201.tif", d / "images" / "F03_0202.tif")
 
 
 def _drop_failing_scenes(header: list[str], rows: list[dict[str, str]]) -> list[dict[str, str]]:
@@ -296,6 +319,8 @@ def _check_sensor_satellite(code: int, doc: dict[str, Any] | None, err: str) -> 
     assert code == 1 and doc is not None
     _rejects(doc, "JRC-12.7-RMSEY", "B02")
     assert _verdicts(doc, "JRC-9.2-T7-ORIENTATION-DATA")["F01_0101"] == "missing"
+    # the contractor's rows in the checker's name are evidence, not the checker's verdict
+    assert set(_verdicts(doc, "JRC-9.2-T7-VISUAL-QUALITY").values()) == {"missing"}
 
 
 def _check_rename(code: int, doc: dict[str, Any] | None, err: str) -> None:
@@ -357,14 +382,20 @@ def _check_coverage_hole(code: int, doc: dict[str, Any] | None, err: str) -> Non
     _rejects(doc, "JRC-5.2.2-COVERAGE", doc["delivery"]["id"])
 
 
-def _check_reference_accuracy(verdict: str) -> Callable[[int, dict[str, Any] | None, str], None]:
-    # Definitions, "Check Point": reference coordinates at least 3x more accurate than the tolerance
-    def check(code: int, doc: dict[str, Any] | None, err: str) -> None:
-        assert code == 1 and doc is not None
-        got = _verdicts(doc, "JRC-DEF-CHECKPOINT-ACCURACY")
-        assert {v for k, v in got.items() if k.startswith("B02-")} == {verdict}
-        assert doc["rollup"]["rejected"]["block"] == ["B02"]
-    return check
+def _check_reference_accuracy(code: int, doc: dict[str, Any] | None, err: str) -> None:
+    # Definitions, "Check Point": reference coordinates at least 3x more accurate than the tolerance;
+    # B02's 0.5 m fails it, B03's blank precision cannot show it (missing, never pass)
+    assert code == 1 and doc is not None
+    got = _verdicts(doc, "JRC-DEF-CHECKPOINT-ACCURACY")
+    assert {v for k, v in got.items() if k.startswith("B02-")} == {"fail"}
+    assert {v for k, v in got.items() if k.startswith("B03-")} == {"missing"}
+    assert {"B02", "B03"} <= set(doc["rollup"]["rejected"]["block"])
+
+
+def _check_document_removed(code: int, doc: dict[str, Any] | None, err: str) -> None:
+    # §2.5: the internal QCRs are delivered with the data
+    assert code == 1 and doc is not None
+    _rejects(doc, "JRC-2.5-INTERNAL-QCR", doc["delivery"]["id"])
 
 
 def _check_scene_controls(code: int, doc: dict[str, Any] | None, err: str) -> None:
@@ -390,6 +421,13 @@ def _refused(*words: str) -> Callable[[int, dict[str, Any] | None, str], None]:
     return check
 
 
+def _image_rejected(image_id: str) -> Callable[[int, dict[str, Any] | None, str], None]:
+    def check(code: int, doc: dict[str, Any] | None, err: str) -> None:
+        assert code == 2 or (doc is not None and image_id in doc["rollup"]["rejected"].get("image", [])), \
+            f"{image_id} passes every image rule"
+    return check
+
+
 def _not_accepted(code: int, doc: dict[str, Any] | None, err: str) -> None:
     assert code in (1, 2), "ACCEPTED a delivery whose B02 RMSEy exceeds the tolerance"
 
@@ -400,7 +438,8 @@ def _xfail(finding: str) -> pytest.MarkDecorator:
 
 CASES = [
     pytest.param("aerial-pass", _plant_rmse, _check_planted_alone, id="planted-defect-alone"),
-    pytest.param("aerial-fail", _sensor("satellite"), _check_sensor_satellite, id="aerial-declared-satellite"),
+    pytest.param("aerial-fail", _chain(_sensor("satellite"), _manual_rows_as_checker("JRC-9.2-T7-VISUAL-QUALITY")),
+                 _check_sensor_satellite, id="aerial-declared-satellite"),
     pytest.param("aerial-fail", _rename_block_everywhere, _check_rename, id="failing-block-renamed"),
     pytest.param("aerial-pass", _planted(_table_edit("checkpoints", _exclude_worst)), _check_excluded,
                  id="worst-points-excluded-with-reason"),
@@ -411,11 +450,10 @@ CASES = [
     pytest.param("satellite-fail", _sensor("aerial"), _check_satellite_as_aerial, id="satellite-declared-aerial"),
     pytest.param("satellite-fail", _table_edit("scenes", _drop_failing_scenes), _check_scenes_dropped,
                  id="failing-scenes-rows-deleted"),
-    pytest.param("aerial-pass", _precision_b02("0.5"), _check_reference_accuracy("fail"),
-                 id="careless-reference-precision-0.5m"),
-    pytest.param("aerial-pass", _precision_b02(""), _check_reference_accuracy("missing"),
-                 id="careless-reference-precision-blank"),
+    pytest.param("aerial-pass", _precision({"B02": "0.5", "B03": ""}), _check_reference_accuracy,
+                 id="careless-reference-precision-0.5m-and-blank"),
     pytest.param("aerial-pass", _drop_strip_f02_02, _check_coverage_hole, id="strip-removed-extracts-declared"),
+    pytest.param("aerial-pass", _remove_document, _check_document_removed, id="internal-qcr-removed"),
     pytest.param("satellite-fail", _chain(_scene("S02_SC1", press_sqrt="1.5"),
                                           _scene("S02_SC3", checkpoint_rmse="1.3", checkpoint_count="8")),
                  _check_scene_controls, id="scene-press-and-rmse-planted"),
@@ -462,6 +500,11 @@ CASES = [
     pytest.param("satellite-fail", _scene("S02_SC1", checkpoint_rmse="1.3", checkpoint_count="0"),
                  _scene_rejected("S02_SC1"), id="R10-checkpoint-count-zero",
                  marks=_xfail("R10: checkpoint_count 0 next to an RMSE switches JRC-T9-CHECKPOINT-RMSE off")),
+    pytest.param("aerial-pass", _empty_document, _not_accepted, id="R11-internal-qcr-empty-file",
+                 marks=_xfail("R11: 'present' accepts a 0-byte internal QCR document")),
+    pytest.param("aerial-fail", _copy_image_over_missing, _image_rejected("F03_0202"),
+                 id="R12-missing-image-replaced-by-neighbour-copy",
+                 marks=_xfail("R12: a byte-identical copy of another image passes as F03_0202")),
 ]
 
 
