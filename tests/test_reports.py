@@ -21,7 +21,7 @@ from pypdf import PdfReader
 
 from orthospec.cli.main import cli
 from orthospec.errors import ReportError
-from orthospec.qcr import all_records
+from orthospec.qcr import all_records, point_rows
 from orthospec.reports import document as reportdoc
 from orthospec.reports.fetcher import SafeFetcher, data_uri
 from orthospec.reports.html import ReportOptions, document_sha256, render_html
@@ -194,11 +194,11 @@ def test_pdf_checkpoint_table_matches_json(checked: dict[str, Any]) -> None:
         assert f"Block {bid}" in text
         assert f"{st['rmse_x']:.3f}" in text and f"{st['rmse_y']:.3f}" in text
         assert f"{st['mean_x']:.3f}" in text and f"{st['max_dr']:.3f}" in text
-        for p in block["points"]:  # the PDF lists the failing points (all are in checkpoints.csv)
+        for p in point_rows(block["points"]):  # the PDF lists the failing points (all are in checkpoints.csv)
             if p["status"] == "fail":
                 assert re.search(rf"{re.escape(p['point_id'])} .*{p['dx']:.3f} {p['dy']:.3f}", text), p
             assert f">{p['point_id']}<" in checked["html"]  # the HTML lists every point
-    statuses = [p["status"] for b in doc["details"]["checkpoints"].values() for p in b["points"]]
+    statuses = [p["status"] for b in doc["details"]["checkpoints"].values() for p in point_rows(b["points"])]
     assert "fail" in statuses and "Fail" in text  # the B1 blunder is flagged
 
 
@@ -225,7 +225,7 @@ def test_embedded_qcr_json_equals_the_file_beside_it(checked: dict[str, Any]) ->
     att = attachments(checked["pdf"])
     assert att["qcr.json"] == (checked["out"] / "qcr.json").read_bytes()
     rows = att["checkpoints.csv"].decode().splitlines()
-    n = sum(len(b["points"]) for b in checked["doc"]["details"]["checkpoints"].values())
+    n = sum(len(point_rows(b["points"])) for b in checked["doc"]["details"]["checkpoints"].values())
     assert len(rows) == n + 1 and rows[0].startswith("block,point_id,")
 
 

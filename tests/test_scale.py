@@ -67,26 +67,35 @@ def test_checkpoint_generator_writes_the_delivery_table_columns(tmp_path):
 
 
 def test_point_csv_reader_keeps_row_semantics_when_vectorised(tmp_path):
-    """Column-wise reading (issue 14) keeps what the row-wise reader did: blank lines skipped,
-    a missing trailing cell is empty, extra cells dropped, cells stripped, errors name the row."""
+    """Column-wise reading (issue 14) on the one delivery CSV parser (issue 15): cells stripped,
+    blank lines skipped, row N is line N+1 of the file (as evidence rows are), a row with more
+    or fewer cells than the header and a number with a separator are refused naming the row."""
     from orthospec.delivery.points import read_points_csv
     from orthospec.errors import DeliveryError
 
     path = tmp_path / "p.csv"
     path.write_text("id, x ,y,x_ref,y_ref,exclusion_reason\n"
-                    " A ,10.5,20,10,20.25\n"
+                    " A ,10.5,20,10,20.25,\n"
                     "\n"
-                    "B,1_000,5,999.5,4,blunder: cone moved,extra cell\n"
+                    "B,1000,5,999.5,4,blunder: cone moved\n"
                     "C,3,3,3,3,\n", encoding="utf-8")
     t = read_points_csv(path)
-    assert t.ids.tolist() == ["A", "B", "C"] and t.rows.tolist() == [1, 2, 3]
+    assert t.ids.tolist() == ["A", "B", "C"] and t.rows.tolist() == [1, 3, 4]
     np.testing.assert_array_equal(t.dx, [0.5, 0.5, 0.0])
     np.testing.assert_array_equal(t.dy, [-0.25, 1.0, 0.0])
     assert t.exclusions == {"B": "blunder: cone moved"}
-    path.write_text("id,x,y,x_ref,y_ref\nA,1,2,1,2\nB,1,2,1,2\nC,1,two,1,2\nD,1,inf,1,2\n")
-    with pytest.raises(DeliveryError, match="expected a number, got 'two'") as exc:
+    path.write_text("id,x,y,x_ref,y_ref\nA,1,2,1,2\n\nB,1,2,1,2,extra\n")
+    with pytest.raises(DeliveryError, match="row 3: has 6 fields, the header has 5"):
         read_points_csv(path)
-    assert "row 3" in str(exc.value) and "y" in str(exc.value)
+    path.write_text("id,x,y,x_ref,y_ref\nA,1_000,2,1,2\n")
+    with pytest.raises(DeliveryError, match="row 1: column 'x': expected a number, got '1_000'"):
+        read_points_csv(path)
+    path.write_text("id,x,y,x_ref,y_ref\nA,1,2,1,2\nB,1,2,1,2\nC,1,two,1,2\n")
+    with pytest.raises(DeliveryError, match="row 3: column 'y': expected a number, got 'two'"):
+        read_points_csv(path)
+    path.write_text("id,x,y,x_ref,y_ref\nA,1,2,1,2\nB,1,2,1,2\nD,1,inf,1,2\n")
+    with pytest.raises(DeliveryError, match="row 3: column 'y': expected a finite number"):
+        read_points_csv(path)
     path.write_text("id,x,y,x_ref,y_ref\nA,1,2,1,2\nB,1,2,1,2\nA,1,2,1,2\n")
     with pytest.raises(DeliveryError, match=r"duplicate point id 'A' \(first on row 1\)"):
         read_points_csv(path)
