@@ -131,3 +131,27 @@ def test_problems_only_reading_and_streamed_csv_junit(fail_check: api.CheckResul
     assert len(root.findall("./testsuite/testcase/failure")) == sum(r["verdict"] in ("fail", "missing")
                                                                      for r in every)
     assert int(root.get("failures")) == doc["summary"]["fail"] + doc["summary"]["missing"]
+
+
+def test_a_version_1_document_reads_and_renders_as_version_2(fail_check: api.CheckResult) -> None:
+    """qcr.json files written before the compact form (every record in full) give the same CSV and
+    terminal summary: readers go through all_records, whatever the version."""
+    import io
+
+    from rich.console import Console
+
+    from orthospec.qcr import to_csv
+    from orthospec.reports.terminal import render
+
+    v2 = json.loads(dumps(fail_check.document))
+    v1 = {k: v for k, v in v2.items() if k not in ("compact", "evidence")}
+    v1["schema"] = "orthospec.qcr/1"
+    v1["records"] = _json(list(iter_records(fail_check.evaluation)))
+    assert to_csv(v1) == to_csv(v2)
+
+    def terminal(doc: dict) -> str:
+        buf = io.StringIO()
+        render(doc, Console(file=buf, width=120, highlight=False, soft_wrap=False))
+        return buf.getvalue()
+
+    assert terminal(v1) == terminal(v2)
