@@ -76,14 +76,14 @@ def _render(rep: ImageReport, findings: list[str]) -> None:
 def radiometry_cmd(ctx: click.Context, image: str, as_json: bool, full: bool, bit_depth: int | None,
                    expect_epsg: int | None, expect_gsd: float | None, gsd_tolerance: float,
                    cloud_mask: str | None) -> None:
-    """Exact per-band statistics and histograms, file checks and SHA-256 of IMAGE.
+    """Exact per-band statistics, histograms and JRC §6.3 measures plus file checks of IMAGE.
 
-    By default the job of ``gdalinfo -stats -hist``: statistics are exact (no overviews), with
-    population std and nodata excluded per band, as GDAL computes them, plus the saturation
-    shares the histograms give. ``--full`` adds the rest of the JRC §6.3 scan (noise,
-    luminosity, band misregistration) to the same single read of the pixels. Radiometry needs
-    no georeference: a missing or unparseable CRS is reported as a file-check finding, not
-    refused. Exit code 2 when the pixels cannot be read.
+    By default the job of ``gdalinfo -stats -hist`` plus the file's SHA-256: statistics are
+    exact (no overviews), with population std and nodata excluded per band, as GDAL computes
+    them, and the §6.3 measures the histograms give (saturation, margins, CV). ``--full`` adds
+    the rest of the JRC §6.3 scan (noise, luminosity, band misregistration) to the same single
+    read of the pixels. Radiometry needs no georeference: a missing or unparseable CRS is
+    reported as a file-check finding, not refused. Exit code 2 when the pixels cannot be read.
     """
     from concurrent.futures import ThreadPoolExecutor
 
