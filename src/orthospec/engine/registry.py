@@ -218,6 +218,7 @@ MEASURE_DESCRIPTIONS: dict[str, str] = {
     "checkpoints.std_z": "standard deviation of the z discrepancies of the kept points",
     # derived
     "derived.dem_blocks": "blocks each DEM serves: its block value, else its footprint over the block polygons",
+    "derived.master_images": "number of scenes declared master image (scenes.is_master, JRC Table 9)",
     "derived.orthorectification": "how the orthoimages were produced, from the blocks' methods and the manifest",
     "derived.pansharpened": "the product is pan-sharpened, computed from the bands table (JRC §10.5)",
     "derived.pansharpened_agrees": "the computed pan-sharpening agrees with the manifest's declaration",
