@@ -278,6 +278,20 @@ def _copy_image_over_missing(d: Path) -> None:
     shutil.copyfile(d / "images" / "F03_0201.tif", d / "images" / "F03_0202.tif")
 
 
+def _shrink_b02_to_first_strip(m: dict[str, Any]) -> None:
+    """Redraw B02's outline around what the remaining strip F02_01 covers (x <= 511,500 m)."""
+    for b in m["blocks"]:
+        if b["id"] == "B02":
+            b["polygon"] = [[507500.0, 5403000.0], [511500.0, 5403000.0], [511500.0, 5410200.0],
+                            [507500.0, 5410200.0], [507500.0, 5403000.0]]
+
+
+def _negative_precision_b02(header: list[str], rows: list[dict[str, str]]) -> None:
+    for r in rows:
+        if r["block"] == "B02":
+            r["precision_xy"] = "-0.5"
+
+
 def _drop_failing_scenes(header: list[str], rows: list[dict[str, str]]) -> list[dict[str, str]]:
     return [r for r in rows if r["image_id"] not in ("S01_SC1", "S01_SC3", "S02_SC2")]
 
@@ -505,6 +519,15 @@ CASES = [
     pytest.param("aerial-fail", _copy_image_over_missing, _image_rejected("F03_0202"),
                  id="R12-missing-image-replaced-by-neighbour-copy",
                  marks=_xfail("R12: a byte-identical copy of another image passes as F03_0202")),
+    pytest.param("aerial-pass", _chain(_drop_strip_f02_02, _manifest_edit(_shrink_b02_to_first_strip)),
+                 _not_accepted, id="R13-strip-removed-block-outline-shrunk",
+                 marks=_xfail("R13: the surveyed area (block polygons) is the contractor's to redraw")),
+    pytest.param("aerial-pass", _table_edit("checkpoints", _negative_precision_b02), _not_accepted,
+                 id="R14-negative-reference-precision",
+                 marks=_xfail("R14: a negative precision_xy passes JRC-DEF-CHECKPOINT-ACCURACY")),
+    pytest.param("satellite-fail", _scene("S02_SC1", checkpoint_rmse="-1.3", checkpoint_count="8"),
+                 _scene_rejected("S02_SC1"), id="R14-negative-scene-checkpoint-rmse",
+                 marks=_xfail("R14: a negative scenes.checkpoint_rmse passes JRC-T9-CHECKPOINT-RMSE")),
 ]
 
 
