@@ -121,11 +121,11 @@ def check(delivery: str | Path | Delivery, profile: str | Path | ResolvedProfile
     if opts.checker is not None:
         from .delivery.checker import load_checker
 
-        chk = load_checker(opts.checker, delivery_root=d.root)
+        chk = load_checker(opts.checker, delivery_root=d.root, delivery=d)  # bound to this delivery
     d.load_all_tables()
     cli = dict(params) if isinstance(params, Mapping) else parse_cli_params(list(params))
     values = resolve_parameters(prof, dict(d.manifest.tender.parameters) if d.manifest.tender else {}, cli,
-                                manifest=d.flat_manifest())
+                                manifest=d.flat_manifest(), checker=chk)
     ev = Evaluator(prof, d, values, fail_on=opts.fail_on, options=opts.engine_options(), checker=chk).run()
     # the delivery folder's own name: the same bytes whatever the working folder or the path typed
     doc = build_document(ev, date=parse_date(date), operator=operator, delivery_path=d.root.name)
