@@ -97,7 +97,7 @@ def _fix_reported(d: Path) -> None:
     JRC-9.5-REPORTED-RMSE-* cannot be what catches a trick."""
     _, rows = _read(d, "checkpoints")
     m = _manifest(d)
-    factor = {"m": 1.0, "ft": 0.3048, "usft": 1200 / 3937}[(m.get("units") or {}).get("checkpoints", "m")]
+    factor = {"m": 1.0, "ft": 0.3048, "usft": 1200 / 3937, "mm": 0.001}[(m.get("units") or {}).get("checkpoints", "m")]
     for b in m["blocks"]:
         pts = [r for r in rows if r["block"] == b["id"] and r.get("excluded", "false") != "true"]
         for ax in ("x", "y"):
@@ -130,8 +130,8 @@ def _declare_tolerance(value: float) -> Edit:
     return _manifest_edit(lambda m: m["tender"]["parameters"].update(tolerance_xy={"value": value, "unit": "m"}))
 
 
-def _units_ft(m: dict[str, Any]) -> None:
-    m["units"] = {"checkpoints": "ft", "gcps": "m"}
+def _units(unit: str) -> Edit:
+    return _manifest_edit(lambda m: m.update(units={"checkpoints": unit, "gcps": "m"}))
 
 
 def _exclude_worst(header: list[str], rows: list[dict[str, str]]) -> None:
@@ -485,10 +485,13 @@ CASES = [
     # wrongly ACCEPTED today (findings R1-R5 in /tmp/team/redteam.md)
     pytest.param("aerial-pass", _planted(_declare_tolerance(1.0)), _not_accepted, id="R1-tolerance-declared-1m",
                  marks=_xfail("R1: the contractor's tender.parameters sets tolerance_xy (warn only)")),
-    pytest.param("aerial-pass", _planted(_manifest_edit(_units_ft), _fix_reported), _not_accepted,
+    pytest.param("aerial-pass", _planted(_units("ft"), _fix_reported), _not_accepted,
                  id="R2-units-ft-in-metre-crs",
                  marks=_xfail("R2: units {checkpoints: ft} shrinks residuals x0.3048 in an EPSG:25832 (metre) "
                               "delivery")),
+    pytest.param("aerial-pass", _planted(_units("mm"), _fix_reported), _not_accepted,
+                 id="R2-units-mm-in-metre-crs",
+                 marks=_xfail("R2: units {checkpoints: mm} (not even m/ft/usft) shrinks residuals x0.001")),
     pytest.param("aerial-pass", _planted(_move_worst("B99", 4), _fix_reported), _not_accepted,
                  id="R3-worst-points-to-unknown-block",
                  marks=_xfail("R3: check-point rows whose block is not a manifest block are silently dropped")),
