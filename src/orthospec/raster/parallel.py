@@ -8,24 +8,27 @@ the result for the file's SHA-256 and the same settings.
 
 from __future__ import annotations
 
-import multiprocessing
 import os
 import sys
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
-from concurrent.futures import Future, ProcessPoolExecutor, ThreadPoolExecutor, as_completed
+from concurrent.futures import Future, ThreadPoolExecutor
 from contextlib import contextmanager, nullcontext, suppress
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Protocol, TextIO
+from typing import TYPE_CHECKING, Any, Protocol, TextIO
 
 import rasterio
 
 from ..errors import MeasureError, OrthospecError
 from ..provenance import sha256_file
-from .cache import ResultCache
 from .filechecks import checked_file
 from .reading import ScanSettings, mask_share, scan_dataset
+
+if TYPE_CHECKING:  # imported where used: `measure radiometry` needs neither processes nor the cache
+    import multiprocessing.context
+
+    from .cache import ResultCache
 
 STATISTICS_NOTE = "exact, population std, nodata excluded per band, as GDAL"
 
@@ -186,6 +189,8 @@ def _measure_pixels(rep: ImageReport, p: str, o: ScanOptions, ds: rasterio.io.Da
     """Radiometry from the cache (by SHA-256 and settings) or from one scan of the open dataset."""
     cached = None
     if o.cache_dir and rep.sha256:
+        from .cache import ResultCache
+
         with ResultCache(o.cache_dir, read_only=True) as cache:
             cached = cache.get(rep.sha256, o.key())
     if cached is not None:
@@ -214,6 +219,8 @@ def _stat_key(path: str) -> tuple[str, int, int]:
 def _file_hash(path: str, o: ScanOptions) -> str:
     """SHA-256 of the file, or the one remembered for the same path, size and mtime."""
     if o.cache_dir and o.trust_mtime:
+        from .cache import ResultCache
+
         with ResultCache(o.cache_dir, read_only=True) as cache:
             known = cache.get_hash(*_stat_key(path))
         if known:
@@ -327,6 +334,8 @@ def _one_thread_per_worker() -> Iterator[None]:
 def _mp_context() -> multiprocessing.context.BaseContext:
     """forkserver where available: workers fork from a clean server that has already
     imported orthospec (fast start, no inherited threads or GDAL handles); else spawn."""
+    import multiprocessing
+
     if "forkserver" in multiprocessing.get_all_start_methods():
         ctx = multiprocessing.get_context("forkserver")
         ctx.set_forkserver_preload(["orthospec.raster.parallel", "pyproj"])
@@ -412,6 +421,11 @@ def scan_images(
     if progress:
         progress.start(len(p_list), sum(sizes))
     results: list[ImageReport | None] = [None] * (0 if on_report else len(p_list))
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    from .cache import ResultCache
+
     # results enter the cache as they come (only this process writes it; workers read it)
     cache = ResultCache(cache_dir) if cache_dir is not None else None
 
