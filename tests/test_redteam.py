@@ -17,6 +17,7 @@ written up in /tmp/team/redteam.md; they flip (and fail as XPASS) once fixed.
 from __future__ import annotations
 
 import csv
+import json
 import math
 import shutil
 from collections.abc import Callable
@@ -292,6 +293,10 @@ def _negative_precision_b02(header: list[str], rows: list[dict[str, str]]) -> No
             r["precision_xy"] = "-0.5"
 
 
+def _drop_image_row(image_id: str) -> Edit:
+    return _table_edit("images", lambda header, rows: [r for r in rows if r["image_id"] != image_id])
+
+
 def _drop_failing_scenes(header: list[str], rows: list[dict[str, str]]) -> list[dict[str, str]]:
     return [r for r in rows if r["image_id"] not in ("S01_SC1", "S01_SC3", "S02_SC2")]
 
@@ -442,6 +447,12 @@ def _image_rejected(image_id: str) -> Callable[[int, dict[str, Any] | None, str]
     return check
 
 
+def _named_in_result(item: str) -> Callable[[int, dict[str, Any] | None, str], None]:
+    def check(code: int, doc: dict[str, Any] | None, err: str) -> None:
+        assert code == 2 or item in json.dumps(doc), f"the checker's verdicts on {item} vanish without a trace"
+    return check
+
+
 def _not_accepted(code: int, doc: dict[str, Any] | None, err: str) -> None:
     assert code in (1, 2), "ACCEPTED a delivery whose B02 RMSEy exceeds the tolerance"
 
@@ -522,6 +533,9 @@ CASES = [
     pytest.param("aerial-fail", _copy_image_over_missing, _image_rejected("F03_0202"),
                  id="R12-missing-image-replaced-by-neighbour-copy",
                  marks=_xfail("R12: a byte-identical copy of another image passes as F03_0202")),
+    pytest.param("aerial-fail", _drop_image_row("F03_0202"), _named_in_result("F03_0202"),
+                 id="R15-checker-rejected-image-row-deleted",
+                 marks=_xfail("R15: checker verdicts on an item the delivery no longer lists are dropped silently")),
     pytest.param("aerial-pass", _chain(_drop_strip_f02_02, _manifest_edit(_shrink_b02_to_first_strip)),
                  _not_accepted, id="R13-strip-removed-block-outline-shrunk",
                  marks=_xfail("R13: the surveyed area (block polygons) is the contractor's to redraw")),
