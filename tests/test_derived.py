@@ -7,11 +7,14 @@ import math
 import numpy as np
 import pytest
 import shapely
+from tests.checking import records
 from tests.conftest import EXAMPLES
 
 from orthospec.api import check
 from orthospec.errors import MeasureError
 from orthospec.measures.mosaic import photo_footprints, strip_headings
+
+CHECKERS = EXAMPLES.parent / "checker"
 
 
 def test_two_photos_of_one_strip_cover_their_hand_computed_union():
@@ -56,7 +59,7 @@ def test_photo_coverage_without_a_camera_format_is_missing_with_the_reason(tmp_p
     p = tmp_path / "p.yaml"
     p.write_text(COVERAGE_PROFILE)
     doc = check(d, p, date="2026-01-01").document
-    rec = next(r for r in doc["records"] if r["rule"] == "COV")
+    rec = next(r for r in records(doc) if r["rule"] == "COV")
     assert rec["verdict"] == "missing" and "format_across_px" in rec["message"]
     assert doc["verdict"] == "rejected"
 
@@ -96,13 +99,13 @@ def test_photo_coverage_of_the_example_lay_down(tmp_path):
     p = tmp_path / "p.yaml"
     p.write_text(COVERAGE_PROFILE)
     doc = check(d, p, date="2026-01-01").document
-    rec = next(r for r in doc["records"] if r["rule"] == "COV")
+    rec = next(r for r in records(doc) if r["rule"] == "COV")
     assert rec["verdict"] == "pass" and rec["measured"]["value"] == pytest.approx(100.0)
     img = pd.read_csv(d / "tables" / "images.csv", dtype=str, keep_default_na=False)
     img = img[~img["image_id"].str.startswith("F01_01")]  # drop one strip of block B01
     img.to_csv(d / "tables" / "images.csv", index=False)
     doc2 = check(d, p, date="2026-01-01").document
-    rec2 = next(r for r in doc2["records"] if r["rule"] == "COV")
+    rec2 = next(r for r in records(doc2) if r["rule"] == "COV")
     assert rec2["verdict"] == "fail" and rec2["measured"]["value"] < 100.0
 
 
@@ -170,7 +173,7 @@ def _ps(tmp_path, d):
     p = tmp_path / "p.yaml"
     p.write_text(PANSHARPENED_PROFILE)
     doc = check(d, p, date="2026-08-01").document
-    return {r["rule"]: r for r in doc["records"] if r["item"] == SAT_ID}
+    return {r["rule"]: r for r in records(doc) if r["item"] == SAT_ID}
 
 
 def test_pansharpened_from_bands_and_pixel_sizes_of_satellite_pass(tmp_path):
@@ -225,6 +228,7 @@ def test_a_declared_false_does_not_switch_off_the_pan_sharpening_rules(tmp_path)
     """MS bands at 0.5 m from 1.24 m scenes declared `pansharpened: false`: jrc-v3 §10.5 still applies,
     and without the inspector's record of JRC-10.5.1-SAME-MODEL-GCPS the delivery is not accepted."""
     import pandas as pd
+    import yaml
 
     d = _sat_copy(tmp_path, product={"pansharpened": False})
     rec = _ps(tmp_path, d)
@@ -233,14 +237,117 @@ def test_a_declared_false_does_not_switch_off_the_pan_sharpening_rules(tmp_path)
     f = d / "tables" / "manual_checks.csv"
     mc = pd.read_csv(f, dtype=str, keep_default_na=False)
     mc[mc["check"] != "JRC-10.5.1-SAME-MODEL-GCPS"].to_csv(f, index=False)
-    doc = check(d, "jrc-v3", date="2026-08-01").document
-    recs = {r["rule"]: r for r in doc["records"] if r["rule"].startswith("JRC-10.")}
+    # the external QC's file (INTERFACES 4) without its §10.5.1 verdict
+    checker = yaml.safe_load((CHECKERS / "satellite-pass.yaml").read_text(encoding="utf-8"))
+    checker["manual_checks"] = [e for e in checker["manual_checks"] if e["check"] != "JRC-10.5.1-SAME-MODEL-GCPS"]
+    (tmp_path / "checker.yaml").write_text(yaml.safe_dump(checker, sort_keys=False), encoding="utf-8")
+    doc = check(d, "jrc-v3", date="2026-08-01", checker=tmp_path / "checker.yaml").document
+    recs = {r["rule"]: r for r in records(doc) if r["rule"].startswith("JRC-10.")}
     assert recs["JRC-10.5.1-SAME-MODEL-GCPS"]["verdict"] == "missing"
     assert recs["JRC-10.5.2-EXCLUDE-ZERO"]["verdict"] == "pass"  # applies: the inspector's record is there
     assert doc["verdict"] == "rejected"
 
 
 def test_pan_sharpening_rules_do_not_apply_to_an_aerial_delivery():
-    doc = check(EXAMPLES / "aerial-pass", "jrc-v3", date="2026-08-01").document
-    recs = [r for r in doc["records"] if r["rule"].startswith(("JRC-10.5", "JRC-10.3"))]
+    doc = check(EXAMPLES / "aerial-pass", "jrc-v3", date="2026-08-01", checker=CHECKERS / "aerial-pass.yaml").document
+    recs = [r for r in records(doc) if r["rule"].startswith(("JRC-10.5", "JRC-10.3"))]
     assert len(recs) == 4 and all(r["verdict"] == "not_applicable" for r in recs)
+
+
+# ---------------------------------------------------------------- red team R7: inflated flying heights
+def _aerial_copy_without_strip_f02_02(tmp_path, height_factor):
+    """aerial-pass without strip F02_02 (rows and image files), F02_01 flying heights x height_factor
+    (the reproducer of /tmp/team/redteam.md R7)."""
+    import shutil
+
+    import pandas as pd
+
+    d = tmp_path / "d"
+    shutil.copytree(EXAMPLES / "aerial-pass", d)
+    f = d / "tables" / "images.csv"
+    img = pd.read_csv(f, dtype=str, keep_default_na=False)
+    for rel in img.loc[img["image_id"].str.startswith("F02_02"), "file"]:
+        (d / rel).unlink()
+    img = img[~img["image_id"].str.startswith("F02_02")].copy()
+    strip = img["image_id"].str.startswith("F02_01")
+    img.loc[strip, "flying_height"] = [f"{float(h) * height_factor:.1f}" for h in img.loc[strip, "flying_height"]]
+    img.to_csv(f, index=False)
+    return d
+
+
+def _cov(tmp_path, d):
+    p = tmp_path / "p.yaml"
+    p.write_text(COVERAGE_PROFILE)
+    doc = check(d, p, date="2026-01-01").document
+    return doc, next(r for r in records(doc) if r["rule"] == "COV")
+
+
+def test_inflated_flying_heights_cannot_hide_a_missing_strip(tmp_path):
+    """Red team R7: F02_01 heights x2.5 give H/f x pixel = 3688 m x 2.5 x 5.2 µm / 80 mm = 0.60 m
+    against the rows' own acquisition_gsd 0.24 m (JRC §3.1 GSD = H/f x CCD): those footprints are
+    not evidence, and without them the strip gap stays open, so coverage is missing, never 100 %."""
+    d = _aerial_copy_without_strip_f02_02(tmp_path, 2.5)
+    doc, rec = _cov(tmp_path, d)
+    assert rec["verdict"] == "missing", rec
+    assert "F02_0101" in rec["message"] and "acquisition_gsd" in rec["message"]
+    assert doc["verdict"] == "rejected"
+
+
+def test_heights_within_the_gsd_tolerance_still_count(tmp_path):
+    """Control: heights x1.1 (GSD 0.264 m, 10 % over the 0.24 m acquisition GSD, within 20 %) are
+    counted, and the strip gap is then a plain coverage failure measured below 100 %."""
+    d = _aerial_copy_without_strip_f02_02(tmp_path, 1.1)
+    _, rec = _cov(tmp_path, d)
+    assert rec["verdict"] == "fail" and rec["measured"]["value"] < 100.0
+    assert "acquisition_gsd" not in rec["message"]
+
+
+def test_inflated_heights_not_needed_for_full_coverage_are_named_but_do_not_block(tmp_path):
+    """With every strip delivered, one photo's inflated height (x2.5) is left out and the rest still
+    cover 100 %: pass, with the photo named in the note."""
+    import shutil
+
+    import pandas as pd
+
+    d = tmp_path / "d"
+    shutil.copytree(EXAMPLES / "aerial-pass", d)
+    f = d / "tables" / "images.csv"
+    img = pd.read_csv(f, dtype=str, keep_default_na=False)
+    row = img["image_id"] == "F01_0103"
+    img.loc[row, "flying_height"] = f"{float(img.loc[row, 'flying_height'].iloc[0]) * 2.5:.1f}"
+    img.to_csv(f, index=False)
+    _, rec = _cov(tmp_path, d)
+    assert rec["verdict"] == "pass" and rec["measured"]["value"] == pytest.approx(100.0)
+
+
+# ---------------------------------------------------------------- red team R8: derived.master_images
+MASTER_PROFILE = """\
+orthospec_profile: 1
+id: t
+version: 1.0.0
+title: master
+source: {title: JRC EUR 23638 EN}
+parameters:
+  tolerance_xy: {unit: m, default: 1.0}
+rules:
+  - id: MASTER
+    title: master declared
+    clause: {document: JRC EUR 23638 EN, section: "9.4", table: "9"}
+    quote: "Record result in metadata and identify as master image."
+    scope: delivery
+    measure: derived.master_images
+    requirement: {op: ">=", value: 1, unit: "1"}
+    consequence: return_delivery
+"""
+
+
+@pytest.mark.parametrize(("flags", "expected"), [(None, 1.0), ("false", 0.0), ("true", 6.0)])
+def test_master_images_counts_the_scenes_flagged_master(tmp_path, flags, expected):
+    """satellite-pass flags one master (S01_SC1); un-declaring it leaves 0 (the rule fails)."""
+    d = _sat_copy(tmp_path, scenes=None if flags is None else {"is_master": flags})
+    p = tmp_path / "p.yaml"
+    p.write_text(MASTER_PROFILE)
+    doc = check(d, p, date="2026-08-01").document
+    rec = next(r for r in records(doc) if r["rule"] == "MASTER")
+    assert rec["measured"]["value"] == expected
+    assert rec["verdict"] == ("fail" if expected == 0 else "pass")

@@ -14,6 +14,11 @@
   length, pixel size and format (JRC §5.2.2 "Side overlap must ensure that all the surveyed area
   will be covered with imagery"). It does not depend on the delivered orthoimages, so a delivery
   of extracts (§12.4) cannot switch the coverage check off by declaring ``product.extracts``.
+  A photo whose lay-down GSD (H/f x pixel size) is more than ``GSD_TOLERANCE`` coarser than its
+  own recorded GSD counts toward no coverage (red team R7: inflated flying heights hid a strip).
+* ``derived.master_images`` (delivery): number of scenes declared master image
+  (``scenes.is_master``), so that un-declaring the master cannot switch the Table 9 master-image
+  rules off unseen (red team R8).
 * ``derived.dem_blocks`` (dem): the blocks a DEM serves (';'-separated), from the dem table's
   ``block`` column, else from the delivered DEM file's footprint against the block polygons. A
   failing DEM then rejects those blocks only (JRC Table 5, §12.7 "will reject all products for
@@ -39,6 +44,15 @@ from ..registry import Measured, ProviderContext, RowEvidence, provider
 
 DELIVERY = {"derived.orthorectification": "text"}
 COVERAGE = {"derived.photo_coverage": "%"}
+MASTER = {"derived.master_images": "1"}
+#: A photo counts toward coverage only when its lay-down GSD (H/f x pixel size, the scale of its
+#: footprint) is at most this factor times its reference GSD (``images.acquisition_gsd``, and the
+#: delivered GSD: ``images.gsd``, else ``product.gsd``). 20 %: the ground-pixel size of one photo
+#: varies with the terrain under it (H is above mean ground) and §5.2.1 only asks for the
+#: "predefined GSD" (should, no tolerance); aerial-pass agrees within 0.1 %, the red team's
+#: inflated heights were 150 % too coarse. Only a coarser (larger) footprint is refused: a smaller
+#: one can only lower the coverage, never hide a gap.
+GSD_TOLERANCE = 1.2
 DEM = {"derived.dem_blocks": "text"}
 #: camera format columns (pixels across and along track) the photo lay-down needs
 FORMAT_COLUMNS = ("format_across_px", "format_along_px")
@@ -196,15 +210,43 @@ def _lay_down(ctx: ProviderContext) -> tuple[list[Any], list[Any], str | None]:
     scale = hgt * (pix * 1e-6) / (focal * 1e-3)  # ground metres per pixel = H/f x pixel size
     across, along = across_px * scale, along_px * scale
     ok = np.isfinite(np.column_stack([x, y, across, along])).all(axis=1) & (across > 0) & (along > 0)
+    ref = _reference_gsd(ctx, imgs)
+    inflated = ok & np.isfinite(ref) & (scale > GSD_TOLERANCE * ref)
+    ids = imgs.ids.astype(str).to_numpy()
+    ctx.memo["derived.lay_down_inflated"] = [f"{i} ({g:.3g} m vs {r:.3g} m)" for i, g, r
+                                             in zip(ids[inflated], scale[inflated], ref[inflated], strict=True)]
+    ok &= ~inflated
     if not ok.any():
         return [], ev, ("no image has an exposure station, flying height and a camera with format, focal "
-                        "length and pixel size: the photo lay-down cannot be computed")
-    ctx.memo["derived.lay_down_incomplete"] = imgs.ids.astype(str).to_numpy()[~ok].tolist()
+                        "length and pixel size consistent with its GSD: the photo lay-down cannot be computed")
+    ctx.memo["derived.lay_down_incomplete"] = ids[~ok & ~inflated].tolist()
     heading = strip_headings(x[ok], y[ok], df["flight_id"].astype(str).to_numpy()[ok].tolist())
     try:
         return photo_footprints(x[ok], y[ok], across[ok], along[ok], heading), ev, None
     except MeasureError as exc:
         return [], ev, str(exc)
+
+
+def _reference_gsd(ctx: ProviderContext, imgs: Any) -> np.ndarray:
+    """Per images row, in metres: the finer of its recorded acquisition GSD and the delivered GSD
+    (``images.gsd``, else ``product.gsd``); NaN when neither is given. A lay-down GSD much coarser
+    than both is a flying height the delivery's own numbers contradict (see ``GSD_TOLERANCE``)."""
+    n = len(imgs.df)
+    delivered = np.full(n, ctx.delivery.gsd_m if ctx.delivery.gsd_m is not None else np.nan, dtype=float)
+    cands = [delivered]
+    for col in ("gsd", "acquisition_gsd"):
+        if col in imgs.df:
+            v = convert(pd.to_numeric(imgs.df[col], errors="coerce").to_numpy(float), imgs.units.get(col, "m"), "m")
+            if col == "gsd":
+                delivered = np.where(np.isfinite(v), v, delivered)
+                cands[0] = delivered
+            else:
+                cands.append(v)
+    stack = np.column_stack(cands)
+    out = np.full(n, np.nan)
+    have = np.isfinite(stack).any(axis=1)
+    out[have] = np.nanmin(stack[have], axis=1)
+    return out
 
 
 @provider(scope="delivery", measures=COVERAGE)
@@ -229,17 +271,48 @@ def photo_coverage(ctx: ProviderContext) -> list[Measured]:
         else:
             share = float(shapely.union_all(feet).intersection(aoi).area / aoi.area * 100.0)
             skipped = ctx.memo.get("derived.lay_down_incomplete") or []
+            inflated = ctx.memo.get("derived.lay_down_inflated") or []
             note = f"{len(feet)} photo footprints (H/f x pixel size x format) cover {share:.3f} % of the {source}"
-            if skipped and share < 100.0:
-                # the photos without data might cover the gap: a lower bound below 100 % decides nothing
-                note += (f"; image(s) {', '.join(skipped[:5])} lack an exposure station or flying height, so "
-                         "full coverage can be neither shown nor refuted")
+            if (skipped or inflated) and share < 100.0:
+                # the photos left out might cover the gap: a lower bound below 100 % decides nothing
+                if skipped:
+                    note += (f"; image(s) {', '.join(skipped[:5])} lack an exposure station or flying height, "
+                             "so full coverage can be neither shown nor refuted")
+                if inflated:
+                    note += (f"; image(s) {', '.join(inflated[:5])}{' ...' if len(inflated) > 5 else ''} "
+                             f"have a flying height whose H/f x pixel GSD is more than "
+                             f"{(GSD_TOLERANCE - 1) * 100:.0f} % coarser than their acquisition_gsd or "
+                             "delivered GSD, so their footprints are not evidence of coverage (JRC §3.1, "
+                             "§5.2.1): full coverage is not shown")
             else:
                 value = share
                 if skipped:
                     note += f" even without image(s) {', '.join(skipped[:5])} (no exposure station or height)"
+                if inflated:
+                    note += (f" even without image(s) {', '.join(inflated[:5])} (flying height inconsistent "
+                             "with the GSD)")
     return [Measured("derived.photo_coverage", "delivery", "%", pd.Series({d.id: value}, dtype=object),
                      pd.Series({d.id: (*aoi_ev, *ev)}, dtype=object), notes=pd.Series({d.id: note}, dtype=object))]
+
+
+@provider(scope="delivery", measures=MASTER)
+def master_images(ctx: ProviderContext) -> list[Measured]:
+    """Number of scenes declared master image (JRC Table 9 "identify as master image")."""
+    d = ctx.delivery
+    t = d.table("scenes")
+    if t is None:
+        value, ev, note = None, (d.manifest_evidence("tables"),), "the manifest declares no 'scenes' table"
+    elif "is_master" not in t.df:
+        value, ev, note = 0.0, t.evidence(t.df["_row"]), f"column 'is_master' absent from {t.file}: no master image"
+    else:
+        flag = t.df["is_master"].map(lambda v: v is True or (isinstance(v, (int, float, np.bool_)) and v == 1))
+        masters = t.ids.astype(str)[flag.to_numpy(bool)].tolist()
+        value = float(len(masters))
+        ev = t.evidence(t.df["_row"][flag] if masters else t.df["_row"])
+        note = (f"master image(s) {', '.join(masters[:5])} ({t.file} is_master)" if masters
+                else f"no row of {t.file} has is_master true")
+    return [Measured("derived.master_images", "delivery", "1", pd.Series({d.id: value}, dtype=object),
+                     pd.Series({d.id: ev}, dtype=object), notes=pd.Series({d.id: note}, dtype=object))]
 
 
 @provider(scope="dem", measures=DEM)
