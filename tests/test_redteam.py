@@ -297,6 +297,19 @@ def _drop_image_row(image_id: str) -> Edit:
     return _table_edit("images", lambda header, rows: [r for r in rows if r["image_id"] != image_id])
 
 
+def _reproject_label_everything(d: Path) -> None:
+    """Every image re-labelled EPSG:25833 (same numbers: ~500 km off) and project.crs declared to match."""
+    import rasterio
+    from rasterio.crs import CRS
+
+    for tif in sorted((d / "images").glob("*.tif")):
+        with rasterio.open(tif, "r+") as ds:
+            ds.crs = CRS.from_epsg(25833)
+    text = (d / "delivery.yaml").read_text(encoding="utf-8")
+    assert "EPSG:25832" in text
+    (d / "delivery.yaml").write_text(text.replace("EPSG:25832", "EPSG:25833"), encoding="utf-8")
+
+
 def _drop_failing_scenes(header: list[str], rows: list[dict[str, str]]) -> list[dict[str, str]]:
     return [r for r in rows if r["image_id"] not in ("S01_SC1", "S01_SC3", "S02_SC2")]
 
@@ -536,6 +549,9 @@ CASES = [
     pytest.param("aerial-fail", _drop_image_row("F03_0202"), _named_in_result("F03_0202"),
                  id="R15-checker-rejected-image-row-deleted",
                  marks=_xfail("R15: checker verdicts on an item the delivery no longer lists are dropped silently")),
+    pytest.param("aerial-pass", _reproject_label_everything, _not_accepted,
+                 id="R16-all-images-and-project-crs-relabelled",
+                 marks=_xfail("R16: project.crs, the CRS every image must match, is the contractor's")),
     pytest.param("aerial-pass", _chain(_drop_strip_f02_02, _manifest_edit(_shrink_b02_to_first_strip)),
                  _not_accepted, id="R13-strip-removed-block-outline-shrunk",
                  marks=_xfail("R13: the surveyed area (block polygons) is the contractor's to redraw")),
