@@ -203,8 +203,10 @@ class Table:
     def evidence(self, rows: Any = ()) -> tuple[Evidence, ...]:
         return (Evidence(self.file, self.sha256, tuple(int(r) for r in rows)),)
 
-    @property
+    @cached_property
     def ids(self) -> pd.Series:
+        """Item ids as text (the id column, else the row number); built once per table (a national
+        table has a million rows and every measure of its scope asks)."""
         col = self.spec.id
         if col is None:
             return self.df["_row"].astype(str)
