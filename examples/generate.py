@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import hashlib
 import itertools
 import math
 import shutil
@@ -803,10 +804,20 @@ def internal_qc(verdicts: list[dict[str, Any]], operator: dict[str, str], delive
              "note": notes.get(r["check"], "Checked in our internal QC; no defect found.")} for r in verdicts]
 
 
-def checker_file(party: dict[str, str], verdicts: list[dict[str, Any]],
-                 waivers: list[dict[str, Any]]) -> dict[str, Any]:
-    """The checker's file for ``check --checker``: who checked, their manual verdicts, waivers in force."""
+#: The evidence each example checker file pins (red team R5): the check points whose independent
+#: source (JRC §12.4, Table 12) the checker vouches for; a changed table makes the file not apply.
+PINNED = ("tables/checkpoints.csv",)
+
+
+def checker_file(party: dict[str, str], verdicts: list[dict[str, Any]], waivers: list[dict[str, Any]], *,
+                 delivery_id: str, root: Path, tolerance_xy_m: float) -> dict[str, Any]:
+    """The checker's file for ``check --checker``: who checked, on which content, the ITT value in
+    force, their manual verdicts, waivers in force. ``root`` is the written delivery (for the pins)."""
+    pins = {rel: hashlib.sha256((root / rel).read_bytes()).hexdigest() for rel in PINNED}
     return {"orthospec_checker": 1, "checker": party,
+            "delivery": {"id": delivery_id, "files": pins},
+            # the ITT's tolerance, stated by the checker (JRC §2.5); the manifest only declares it
+            "parameters": {"tolerance_xy": {"value": tolerance_xy_m, "unit": "m"}},
             "manual_checks": [{"check": r["check"], "item": r["item"], "date": r["date"],
                                "verdict": r["verdict"], "note": r["note"]} for r in verdicts],
             "waivers": waivers}
@@ -1049,7 +1060,8 @@ def write_checker(path: Path, data: dict[str, Any], delivery_id: str) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     _yaml(path, data, HEADER + f"# The external QC's file for delivery {delivery_id} (JRC §2): "
           f"`orthospec check examples/deliveries/{path.stem} --profile jrc-v3 --checker examples/checker/{path.name}`\n"
-          "# Manual-check verdicts and waivers in force; it lies outside the delivery (schema: "
+          "# ITT values, manual-check verdicts and waivers in force, given on the content pinned under\n"
+          "# `delivery:`; it lies outside the delivery (schema: "
           "specs/schema/checker.schema.json).\n")
 
 
@@ -1112,8 +1124,9 @@ def write(b: Built, root: Path, checker_dir: Path) -> None:
         (root / "documents" / name).write_text(text, encoding="utf-8")
     _csv(root / "tables/manual_checks.csv", ["check", "item", "inspector", "date", "verdict", "note"],
          internal_qc(b.manual, b.manifest["operator"], scn.dates["delivered"], {}))
-    write_checker(checker_dir / f"{scn.name}.yaml", checker_file(AERIAL_CHECKER, b.manual, scn.waivers),
-                  scn.delivery_id)
+    write_checker(checker_dir / f"{scn.name}.yaml",
+                  checker_file(AERIAL_CHECKER, b.manual, scn.waivers, delivery_id=scn.delivery_id, root=root,
+                               tolerance_xy_m=TOLERANCE_XY_M), scn.delivery_id)
 
     for r in b.images:
         if r["image_id"] == scn.missing_file:
@@ -1150,12 +1163,6 @@ def write(b: Built, root: Path, checker_dir: Path) -> None:
 KNOWN_NON_BLOCKING: tuple[tuple[str, str, str], ...] = ()
 
 
-#: The tolerance comes from the delivery's own tender.parameters (no tender profile, no --param):
-#: the engine says so with a visible warning (issue 12 item 1).
-ITT_WARNING = {"rule": "ORTHOSPEC-ITT-SOURCE", "items": ["tolerance_xy"],
-               "why": "ITT value taken from the contractor's manifest; confirm against the ITT"}
-
-
 def jrc_v3_outcome(b: Built) -> dict[str, Any]:
     """What `orthospec check --profile jrc-v3` concludes (asserted by tests/test_examples_jrc.py)."""
     known = [{"rule": r, "verdict": v, "level": "recommended", "why": why}
@@ -1164,7 +1171,7 @@ def jrc_v3_outcome(b: Built) -> dict[str, Any]:
         bl = next(c for c in b.checkpoints if c["excluded"])
         return {"verdict": "accepted", "exit_code": 0, "rejected": {},
                 "waived": [{"rule": w["rule"], "items": w["items"]} for w in b.scenario.waivers],
-                "expected_warnings": [ITT_WARNING],
+                "expected_warnings": [],
                 "inspected_blunder": {"point": bl["point_id"], "block": bl["block"],
                                       "why": "exceeds 3 x RMSE; excluded with a documented justification, "
                                              "so JRC-12.6-BLUNDER-EXCLUSIONS and -CANDIDATES pass"},
@@ -1173,7 +1180,7 @@ def jrc_v3_outcome(b: Built) -> dict[str, Any]:
     mandatory = sorted({(e["rule"], i) for d in b.defects for e in d["jrc_v3"]["rules"]
                         if e["level"] == "mandatory" and e["verdict"] in ("fail", "missing", "error")
                         for i in e["items"]} | {(rule, i) for i in items})
-    return {"verdict": JRC_V3_OUTCOME["verdict"], "exit_code": 1, "expected_warnings": [ITT_WARNING],
+    return {"verdict": JRC_V3_OUTCOME["verdict"], "exit_code": 1, "expected_warnings": [],
             "rejected": JRC_V3_OUTCOME["rejected"],
             "mandatory_failing": [{"rule": r, "item": i} for r, i in mandatory],
             "project": [{"rule": rule, "verdict": verdict, "level": level, "consequence": cons,
@@ -1526,8 +1533,7 @@ SAT_DEFECTS = (
 
 def satellite_expected(b: dict[str, Any]) -> dict[str, Any]:
     scn = b["scenario"]
-    warn = [{"rule": "ORTHOSPEC-ITT-SOURCE", "items": ["tolerance_xy"],
-             "why": "ITT value taken from the contractor's manifest; confirm against the ITT"}]
+    warn: list[dict[str, Any]] = []
     out: dict[str, Any] = {"delivery": scn.delivery_id, "checker": f"../../checker/{scn.name}.yaml",
                            "parameters": {"tolerance_xy": {"value": SAT_TOLERANCE_XY_M, "unit": "m"}},
                            "recomputed": {k: {"rmse_x": round(v["rmse_x"], 3), "rmse_y": round(v["rmse_y"], 3),
@@ -1583,8 +1589,9 @@ def satellite_readme(b: dict[str, Any], exp: dict[str, Any]) -> str:
              f"--checker examples/checker/{scn.name}.yaml`")
     if scn is SAT_PASS:
         lines += ["", f"Expected verdict: **accepted** ({check} exits 0). No aerial-only rule applies "
-                  "(they are `not_applicable`); the only warning is that the tolerance comes from the "
-                  "manifest's tender parameters (ORTHOSPEC-ITT-SOURCE)."]
+                  "(they are `not_applicable`) and no rule warns. The tolerance in force is the checker's "
+                  "(`parameters:` in its file); the manifest's tender.parameters only declares it "
+                  "(ORTHOSPEC-ITT-DECLARED compares the two)."]
     else:
         lines += ["", f"Expected verdict: **rejected** ({check} exits 1), for exactly these planted reasons:", "",
                   "| # | JRC clause | item(s) | jrc-v3 rule | defect |", "|---|---|---|---|---|"]
@@ -1607,7 +1614,9 @@ def write_satellite(b: dict[str, Any], root: Path, checker_dir: Path) -> None:
                        ("manual_checks", internal_qc(b["manual"], b["manifest"]["operator"], scn.dates["delivered"],
                                                      {}))):
         _csv(root / f"tables/{name}.csv", list(rows[0]), rows)
-    write_checker(checker_dir / f"{scn.name}.yaml", checker_file(SAT_CHECKER, b["manual"], []), scn.delivery_id)
+    write_checker(checker_dir / f"{scn.name}.yaml",
+                  checker_file(SAT_CHECKER, b["manual"], [], delivery_id=scn.delivery_id, root=root,
+                               tolerance_xy_m=SAT_TOLERANCE_XY_M), scn.delivery_id)
     for name, text in sorted(satellite_documents(b).items()):
         (root / "documents").mkdir(exist_ok=True)
         (root / "documents" / name).write_text(text, encoding="utf-8")

@@ -7,9 +7,12 @@ calls ``api.check``. Real components only: the checker file is a real YAML file 
 
 from __future__ import annotations
 
+import hashlib
 import inspect
 from pathlib import Path
 from typing import Any
+
+import yaml
 
 from orthospec import api
 from orthospec.delivery.checker import load_checker
@@ -23,6 +26,8 @@ from orthospec.spec.loader import ResolvedProfile, load_profile
 MINI_CHECKER = """\
 orthospec_checker: 1
 checker: {name: Eva External, role: external QC, organisation: Paying Agency}
+delivery: {id: D1}
+parameters: {tolerance_xy: {value: 0.5, unit: m}}
 manual_checks:
   - {check: R-VIS, item: "*", date: 2026-01-02, verdict: pass, note: looked at every image}
 waivers:
@@ -45,6 +50,20 @@ def write_checker(folder: Path, text: str = MINI_CHECKER, name: str = "checker.y
     return path
 
 
+def resigned(checker: str | Path, delivery: str | Path, out: str | Path, **top: Any) -> Path:
+    """A copy of ``checker`` re-signed on ``delivery`` as it is now (each pinned file's SHA-256
+    recomputed; ``top`` replaces top-level keys, e.g. ``parameters={}``): the checker's verdicts
+    given on the planted content a test checks, written to ``out`` (outside the delivery)."""
+    doc = yaml.safe_load(Path(checker).read_text(encoding="utf-8"))
+    root = Path(delivery)
+    doc["delivery"]["files"] = {rel: hashlib.sha256((root / rel).read_bytes()).hexdigest()
+                                for rel in doc["delivery"].get("files") or {}}
+    doc.update(top)
+    path = Path(out)
+    path.write_text(yaml.safe_dump(doc, sort_keys=False, allow_unicode=True), encoding="utf-8")
+    return path
+
+
 def check_with(delivery: str | Path, profile: str | Path | ResolvedProfile, *, checker: str | Path | None = None,
                date: str = "2026-01-01", params: list[str] | tuple[str, ...] | dict[str, str] = (),
                fail_on: str = "fail", options: dict[str, Any] | None = None) -> api.CheckResult:
@@ -55,9 +74,9 @@ def check_with(delivery: str | Path, profile: str | Path | ResolvedProfile, *, c
     prof = profile if isinstance(profile, ResolvedProfile) else load_profile(profile)
     d = open_delivery(delivery)
     d.load_all_tables()
-    chk = load_checker(checker, delivery_root=d.root) if checker is not None else None
+    chk = load_checker(checker, delivery=d) if checker is not None else None
     values = resolve_parameters(prof, dict(d.manifest.tender.parameters) if d.manifest.tender else {},
                                                 dict(params) if isinstance(params, dict) else parse_cli_params(list(params)),
-                                manifest=d.flat_manifest())
+                                manifest=d.flat_manifest(), checker=chk)
     ev = Evaluator(prof, d, values, fail_on=fail_on, options=options, checker=chk).run()
     return api.CheckResult(build_document(ev, date=api.parse_date(date), delivery_path=d.root.name), ev)

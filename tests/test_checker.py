@@ -26,18 +26,22 @@ def test_a_valid_checker_file_loads_with_its_lines_and_hash(tmp_path: Path) -> N
     chk = load_checker(path, delivery_root=tmp_path / "d")
     assert chk.who() == "Eva External (external QC, Paying Agency)"
     assert [m.check for m in chk.model.manual_checks] == ["R-VIS"]
-    assert chk.lines[("manual_checks", 0)] == 4 and chk.lines[("waivers", 0)] == 6  # MINI_CHECKER's lines
+    assert chk.lines[("manual_checks", 0)] == 6 and chk.lines[("waivers", 0)] == 8  # MINI_CHECKER's lines
     ev = chk.evidence("waivers", 0)
-    assert ev.file == "checker:checker.yaml" and ev.path == "waivers[0] (line 6)"
+    assert ev.file == "checker:checker.yaml" and ev.path == "waivers[0] (line 8)"
+    assert chk.model.delivery.id == "D1" and chk.at("delivery", "id") == f"{path}:3"
     assert chk.sha256 == hashlib.sha256(MINI_CHECKER.encode()).hexdigest()
 
 
 @pytest.mark.parametrize("text, where, what", [
-    (MINI_CHECKER.replace("verdict: pass", "verdict: ok"), ":4:", "verdict"),
-    (MINI_CHECKER.replace("approver: Chief", "approver: ''"), ":6:", "approver"),
+    (MINI_CHECKER.replace("verdict: pass", "verdict: ok"), ":6:", "verdict"),
+    (MINI_CHECKER.replace("approver: Chief", "approver: ''"), ":8:", "approver"),
     (MINI_CHECKER.replace("orthospec_checker: 1", "orthospec_checker: 2"), ":1:", "orthospec_checker"),
     (MINI_CHECKER.replace("checker: {name", "checkr: {name"), ":2:", "checkr"),
-    (MINI_CHECKER.replace("date: 2026-01-02", "date: 2026-02-30"), ":4:", "invalid value|date"),
+    (MINI_CHECKER.replace("date: 2026-01-02", "date: 2026-02-30"), ":6:", "invalid value|date"),
+    (MINI_CHECKER.replace("delivery: {id: D1}\n", ""), "", "delivery"),  # required: what was signed
+    (MINI_CHECKER.replace("{id: D1}", "{id: D1, manifest_sha256: abc}"), ":3:", "manifest_sha256"),
+    (MINI_CHECKER.replace("{id: D1}", "{id: D1, files: {tables/manual.csv: 12}}"), ":3:", "files"),
     ("[1, 2]\n", ":1:1:", "mapping"),
     ("a: [\n", ":", "invalid YAML"),
 ])
@@ -50,7 +54,7 @@ def test_a_bad_checker_file_names_file_line_and_column(tmp_path: Path, text: str
 
 def test_the_same_check_and_item_twice_is_refused(tmp_path: Path) -> None:
     text = MINI_CHECKER.replace("waivers:\n", "  - {check: R-VIS, item: '*', date: 2026-01-03, verdict: fail}\nwaivers:\n")
-    with pytest.raises(OrthospecError, match=r"checker.yaml:5: manual_checks: R-VIS item '\*' is given twice"):
+    with pytest.raises(OrthospecError, match=r"checker.yaml:7: manual_checks: R-VIS item '\*' is given twice"):
         load_checker(write_checker(tmp_path, text))
 
 
@@ -82,3 +86,77 @@ def test_check_with_a_checker_file_inside_the_delivery_exits_2(make_delivery, mi
     assert ok.returncode in (0, 1), ok.stderr
     doc = json.loads((out / "qcr.json").read_text(encoding="utf-8"))
     assert doc["checker"]["name"] == "Eva External" and doc["checker"]["file"] == "checker.yaml"
+
+
+# --- the checker file is bound to what it signed (lead 14:30; red team R5) -----------------------
+
+def _bind(root: Path, text: str, tmp_path: Path):
+    from orthospec.delivery.reader import open_delivery
+
+    return load_checker(write_checker(tmp_path, text), delivery=open_delivery(root))
+
+
+def test_a_checker_file_for_another_delivery_is_refused(make_delivery, tmp_path: Path) -> None:
+    root = make_delivery()  # tests/conftest.py MANIFEST: id D1
+    assert _bind(root, MINI_CHECKER, tmp_path).model.delivery.id == "D1"
+    with pytest.raises(OrthospecError) as exc:
+        _bind(root, MINI_CHECKER.replace("{id: D1}", "{id: D-2026-014}"), tmp_path)
+    msg = str(exc.value)
+    assert f"{tmp_path / 'checker.yaml'}:3 is for delivery D-2026-014; this delivery is D1" in msg
+    assert "the checker's verdicts were given on other content" in msg
+
+
+def test_a_checker_file_pinning_another_manifest_is_refused(make_delivery, tmp_path: Path) -> None:
+    root = make_delivery()
+    real = hashlib.sha256((root / "delivery.yaml").read_bytes()).hexdigest()
+    ok = MINI_CHECKER.replace("{id: D1}", f"{{id: D1, manifest_sha256: {real.upper()}}}")
+    assert _bind(root, ok, tmp_path).model.delivery.manifest_sha256 == real.upper()  # case is no difference
+    other = "0" * 64
+    with pytest.raises(OrthospecError, match=f"checker.yaml:3 pins delivery.yaml sha256 {other}, the "
+                                             f"delivery's is {real}: the checker's verdicts were given on other"):
+        _bind(root, MINI_CHECKER.replace("{id: D1}", f"{{id: D1, manifest_sha256: '{other}'}}"), tmp_path)
+
+
+def test_a_pinned_file_changed_after_signing_is_refused(make_delivery, tmp_path: Path) -> None:
+    """R5: the checker signed the check points' independent source; the table is then edited."""
+    root = make_delivery()
+    table = root / "tables" / "manual.csv"
+    signed = hashlib.sha256(table.read_bytes()).hexdigest()
+    text = MINI_CHECKER.replace("delivery: {id: D1}\n",
+                                f"delivery:\n  id: D1\n  files:\n    tables/manual.csv: {signed}\n")
+    assert _bind(root, text, tmp_path).model.delivery.files == {"tables/manual.csv": signed}
+    table.write_text(table.read_text(encoding="utf-8") + "R-X,*,Joe,2026-01-01,pass\n", encoding="utf-8")
+    now = hashlib.sha256(table.read_bytes()).hexdigest()
+    with pytest.raises(OrthospecError) as exc:
+        _bind(root, text, tmp_path)
+    assert (f"checker.yaml:6 pins tables/manual.csv sha256 {signed}, the delivery's is {now}: the checker's "
+            "verdicts were given on other content") in str(exc.value)
+    table.unlink()
+    with pytest.raises(OrthospecError, match="checker.yaml:6 pins tables/manual.csv, which the delivery does not"):
+        _bind(root, text, tmp_path)
+    with pytest.raises(OrthospecError, match=r"checker.yaml:6: .*\.\./outside"):
+        _bind(root, text.replace("tables/manual.csv", "../outside"), tmp_path)
+
+
+def test_check_refuses_a_checker_file_for_other_content_with_exit_2(make_delivery, mini_profile,
+                                                                    tmp_path: Path) -> None:
+    """Through `orthospec check`: exit 2, one message naming the checker file, nothing written."""
+    root = make_delivery()
+    other = write_checker(tmp_path, MINI_CHECKER.replace("{id: D1}", "{id: D2}"), "other.yaml")
+    out = tmp_path / "out"
+    proc = subprocess.run([sys.executable, "-m", "orthospec.cli.main", "check", str(root), "--profile",
+                           str(mini_profile), "--checker", str(other), "--out", str(out)],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2, proc.stderr
+    assert "other.yaml:3 is for delivery D2; this delivery is D1" in proc.stderr and "Traceback" not in proc.stderr
+    assert not out.exists()
+
+
+def test_the_example_checker_files_pin_the_check_points(tmp_path: Path) -> None:
+    """examples/generate.py signs each example's tables/checkpoints.csv (JRC §12.4: the checker
+    vouches for the check points' independent source)."""
+    for name in ("aerial-pass", "aerial-fail", "satellite-pass", "satellite-fail"):
+        chk = load_checker(ROOT / "examples" / "checker" / f"{name}.yaml")
+        table = ROOT / "examples" / "deliveries" / name / "tables" / "checkpoints.csv"
+        assert chk.model.delivery.files == {"tables/checkpoints.csv": hashlib.sha256(table.read_bytes()).hexdigest()}
+        assert chk.model.delivery.manifest_sha256 is None  # the README's redelivery edits delivery.yaml

@@ -86,7 +86,7 @@ tests:
     checker: checker.yaml
     expect: {{verdict: rejected, rules: {{R-ROLL: waived, R-FH: fail}}}}
   - delivery: {root}
-    params: {{max_roll: 10}}
+    params: {{max_roll: 10, tolerance_xy: 0.5}}
     expect: {{verdict: accepted}}
 """)
     res = run("verify", prof)

@@ -71,9 +71,13 @@ def jrc():
 
 # --- the manifest never sets the standard's numbers -------------------------------------------
 
+#: the ITT's tolerance as the checker states it (--param); the manifest's declaration is only evidence
+ITT = {"tolerance_xy": "0.5 m"}
+
+
 def test_manifest_cannot_set_standard_thresholds(tmp_path):
     d = copy_pass(tmp_path, "tolerance_xy: {value: 0.5, unit: m}\nmin_checkpoints: 5\nfail_share_max: 50 %")
-    vals = resolve_parameters(jrc(), declared(d), {})
+    vals = resolve_parameters(jrc(), declared(d), ITT)
     # JRC §12.4 Table 12: at least 20 check points; §12.8: at most 5 % failing
     assert vals["min_checkpoints"].source == "standard" and vals["min_checkpoints"].value == 20
     assert vals["fail_share_max"].source == "standard" and vals["fail_share_max"].value == 5
@@ -86,7 +90,7 @@ def test_manifest_cannot_set_standard_thresholds(tmp_path):
 def test_manifest_cannot_set_standard_thresholds_in_the_report(tmp_path):
     d = copy_pass(tmp_path, "tolerance_xy: {value: 0.5, unit: m}\nmin_checkpoints: 5\nfail_share_max: 50 %")
     out = tmp_path / "out"
-    res = run("check", d, "--profile", "jrc-v3", "--out", out, "--date", "2026-01-01")
+    res = run("check", d, "--profile", "jrc-v3", "--out", out, "--date", "2026-01-01", "--param", "tolerance_xy=0.5m")
     assert res.exit_code in (0, 1), res.output
     params = json.loads((out / "qcr.json").read_text())["profile"]["parameters"]
     assert params["min_checkpoints"]["value"] == 20 and params["min_checkpoints"]["source"] == "standard"
@@ -94,24 +98,65 @@ def test_manifest_cannot_set_standard_thresholds_in_the_report(tmp_path):
     assert params["fail_share_max"]["declared"] == 50
 
 
-def test_itt_parameter_falls_back_to_the_manifest_with_source_manifest(tmp_path):
+def test_the_manifest_never_sets_an_itt_parameter(tmp_path):
+    """Red team R1: the brief's "evidence, never authority: it cannot set or loosen a threshold".
+    tolerance_xy is left to the ITT (JRC §2.5 "the tolerance stated in the ITT"); a manifest value
+    alone stops the run with advice naming every checker-side place to state it."""
     d = copy_pass(tmp_path, "tolerance_xy: 50 cm")
     p = jrc().parameters["tolerance_xy"]
-    assert p.default is None and p.authority() == "itt"
-    v = resolve_parameters(jrc(), declared(d), {})["tolerance_xy"]
-    assert (v.value, v.source, v.declared, v.unit) == (0.5, "manifest", 0.5, "m")
+    assert p.default is None and p.value is None and p.authority() == "itt"
+    with pytest.raises(ParameterError) as ei:
+        resolve_parameters(jrc(), declared(d), {})
+    msg = str(ei.value)
+    assert "tolerance_xy (m): read by JRC-" in msg
+    assert "--param" in msg and "checker file" in msg and "tender profile" in msg
+    assert "manifest" not in SOURCES
+
+
+def _checker(tmp_path, parameters: str, name: str = "checker.yaml"):
+    from tests.checking import MINI_CHECKER, write_checker
+
+    from orthospec.delivery.checker import load_checker
+
+    text = MINI_CHECKER.replace("parameters: {tolerance_xy: {value: 0.5, unit: m}}", f"parameters: {parameters}")
+    return load_checker(write_checker(tmp_path, text, name))
+
+
+def test_the_checker_file_states_an_itt_parameter(tmp_path):
+    d = copy_pass(tmp_path, "tolerance_xy: {value: 1.0, unit: m}")  # the contractor declares 1 m
+    chk = _checker(tmp_path, "{tolerance_xy: {value: 50, unit: cm}}")
+    v = resolve_parameters(jrc(), declared(d), {}, checker=chk)["tolerance_xy"]
+    assert (v.value, v.source, v.declared, v.unit) == (0.5, "checker", 1.0, "m")  # 50 cm = 0.5 m
+    # --param wins over the checker file, the checker file over a tender profile's value
+    assert resolve_parameters(jrc(), declared(d), {"tolerance_xy": "0.4"}, checker=chk)["tolerance_xy"].source == "cli"
+    prof = load_profile(ROOT / "examples" / "specs" / "tender-example.yaml")  # ITT §4.1: 0.5 m
+    assert (resolve_parameters(prof, {}, {})["tolerance_xy"].source) == "tender"
+    w = resolve_parameters(prof, {}, {}, checker=_checker(tmp_path, "{tolerance_xy: 40 cm}", "c2.yaml"))
+    assert (w["tolerance_xy"].value, w["tolerance_xy"].source) == (0.4, "checker")
+
+
+@pytest.mark.parametrize("parameters, match", [
+    ("{tolerance_xy: {value: 0.5, unit: s}}", r"checker.yaml:4: parameters.tolerance_xy: "),
+    ("{tolerance_xy: '0,5'}", r"checker.yaml:4: parameters.tolerance_xy: .*decimal comma"),
+    ("{tolerance_xy: {value: .nan, unit: m}}", r"checker.yaml:4: parameters.tolerance_xy: "),
+    ("{tolerance_xyz: {value: 0.5, unit: m}}", r"checker.yaml:4: parameters.tolerance_xyz: profile jrc-v3 has no"),
+    ("{systematic_error_level: sometimes}", r"checker file .*checker.yaml:4: parameter systematic_error_level="),
+])
+def test_a_bad_checker_parameter_names_file_and_line(tmp_path, parameters, match):
+    with pytest.raises(ParameterError, match=match):
+        resolve_parameters(jrc(), {}, ITT, checker=_checker(tmp_path, parameters))
 
 
 def test_cli_wins_and_keeps_the_declared_value_for_the_cross_check(tmp_path):
     d = copy_pass(tmp_path, "tolerance_xy: {value: 0.5, unit: m}")
     v = resolve_parameters(jrc(), declared(d), {"tolerance_xy": "0.4"})["tolerance_xy"]
     assert (v.value, v.source, v.declared) == (0.4, "cli", 0.5)
-    assert all(pv.source in SOURCES for pv in resolve_parameters(jrc(), declared(d), {}).values())
+    assert all(pv.source in SOURCES for pv in resolve_parameters(jrc(), declared(d), ITT).values())
 
 
 def test_unreadable_declared_value_is_noted_not_fatal(tmp_path):
     d = copy_pass(tmp_path, "tolerance_xy: {value: 0.5, unit: m}\nmin_checkpoints: '0,5'\ncloud_cover_max: lots")
-    vals = resolve_parameters(jrc(), declared(d), {})
+    vals = resolve_parameters(jrc(), declared(d), ITT)
     assert vals["min_checkpoints"].declared is None and "decimal comma" in vals["min_checkpoints"].note
     assert vals["cloud_cover_max"].declared is None and vals["cloud_cover_max"].note
     assert "declared" not in vals["min_checkpoints"].to_dict()
@@ -121,7 +166,7 @@ def test_unreadable_declared_value_is_noted_not_fatal(tmp_path):
 
 def test_unknown_manifest_parameter_is_ignored_here(tmp_path):
     d = copy_pass(tmp_path, "tolerance_xy: {value: 0.5, unit: m}\nno_such_thing: 3")
-    assert "no_such_thing" not in resolve_parameters(jrc(), declared(d), {})
+    assert "no_such_thing" not in resolve_parameters(jrc(), declared(d), ITT)
 
 
 # --- one number parser for --param ---------------------------------------------------------------

@@ -21,7 +21,7 @@ import pytest
 import yaml
 from tests.checking import records as all_records
 
-from orthospec.api import check
+from orthospec.api import check as _check
 from orthospec.engine.params import ParameterError
 from orthospec.errors import OrthospecError
 
@@ -31,6 +31,22 @@ DATE = "2026-11-21"
 
 
 # --- helpers ---------------------------------------------------------------------------------
+
+#: The ITT's tolerance for the aerial examples, stated by the checker (--param): the manifest's
+#: tender.parameters only declares it (evidence, never a value in force; red team R1).
+ITT_XY = ["tolerance_xy=0.5m"]
+
+
+def check(d: Path, prof: Any, *, params: Any = None, **kw: Any) -> Any:
+    """``api.check`` with the ITT tolerance given by the checker (--param) when the profile leaves
+    tolerance_xy unset and the test gives no parameters of its own."""
+    if params is None:
+        from orthospec.spec.loader import ResolvedProfile, load_profile
+
+        prof = prof if isinstance(prof, ResolvedProfile) else load_profile(prof)
+        p = prof.parameters.get("tolerance_xy")
+        params = ITT_XY if p is not None and p.value is None and p.default is None else []
+    return _check(d, prof, params=params, **kw)
 
 def copy_pass(tmp_path: Path, name: str = "d") -> Path:
     dst = tmp_path / name
@@ -395,17 +411,70 @@ def test_deleting_all_check_points_of_a_failing_block_is_not_accepted(tmp_path: 
 
 # --- parameter authority (built-in rules) -------------------------------------------------------
 
-def test_an_itt_value_taken_from_the_manifest_gives_a_visible_warning(tmp_path: Path) -> None:
+def _planted_rmsey(d: Path) -> None:
+    """Red team R1's defect: B02's northing residuals x2.2 (RMSEy about 0.63 m > 0.5 m, JRC §12.7),
+    the block's reported RMSEs set to what the edited table gives (so only §12.7 can catch it)."""
+    header, rows = read_table(d, "checkpoints")
+    for r in rows:
+        if r["block"] == "B02":
+            r["y"] = f"{float(r['y_ref']) + 2.2 * (float(r['y']) - float(r['y_ref'])):.3f}"
+    write_table(d, "checkpoints", header, rows)
+    used = [r for r in rows if r["block"] == "B02" and r["excluded"] != "true"]
+    ex = [float(r["x"]) - float(r["x_ref"]) for r in used]
+    ey = [float(r["y"]) - float(r["y_ref"]) for r in used]
+    rmse = {"rmse_x": math.sqrt(sum(e * e for e in ex) / len(ex)), "rmse_y": math.sqrt(sum(e * e for e in ey) / len(ey))}
+    assert rmse["rmse_y"] > 0.5  # the planted defect: §12.7 fails at the ITT's 0.5 m
+    m = manifest(d)
+    m["tender"]["parameters"]["tolerance_xy"] = {"value": 1.0, "unit": "m"}  # the contractor's own "ITT"
+    for b in m["blocks"]:
+        if b["id"] == "B02":
+            b["reported"] = {k: {"value": round(v, 3), "unit": "m"} for k, v in rmse.items()}
+    write_manifest(d, m)
+
+
+def test_r1_a_manifest_tolerance_never_decides_acceptance(tmp_path: Path) -> None:
+    """Red team R1 (wrong ACCEPTED): the manifest's tender.parameters.tolerance_xy 1.0 m used to fill
+    the ITT tolerance and accept a 0.63 m RMSEy. The brief: the manifest "is evidence, never
+    authority: it cannot set or loosen a threshold"; JRC §2.5 "the tolerance stated in the ITT"."""
+    from tests.checking import check_with, resigned
+
     d = copy_pass(tmp_path)
-    doc = check(d, "jrc-v3", date=DATE, options={"workers": 1}).document
-    assert doc["profile"]["parameters"]["tolerance_xy"]["source"] == "manifest"
-    rec = records(doc, "ORTHOSPEC-ITT-SOURCE")["tolerance_xy"]
-    assert rec["verdict"] == "warn" and rec["clause"]["section"] == "2.5"
-    assert "ITT value taken from the contractor's manifest; confirm against the ITT" in rec["message"]
-    # the checker's own value removes the warning, and agrees with the declaration
-    doc2 = check(d, "jrc-v3", date=DATE, params=["tolerance_xy=0.5m"], options={"workers": 1}).document
-    assert set(records(doc2, "ORTHOSPEC-ITT-SOURCE")) == {doc2["delivery"]["id"]}
-    assert records(doc2, "ORTHOSPEC-ITT-DECLARED")["tolerance_xy"]["verdict"] == "pass"
+    _planted_rmsey(d)
+    shipped = ROOT / "examples" / "checker" / "aerial-pass.yaml"
+    # nobody on the checker's side states the tolerance: exit 2 with the advice, never a verdict
+    silent = resigned(shipped, d, tmp_path / "silent.yaml", parameters={})
+    with pytest.raises(ParameterError) as ei:
+        check_with(d, "jrc-v3", checker=silent, date=DATE)
+    msg = str(ei.value)
+    assert "tolerance_xy (m)" in msg and "--param" in msg and "checker file" in msg and "tender profile" in msg
+    # the checker's file states the ITT's 0.5 m: rejected on §12.7, and the contractor's 1.0 m is a finding
+    doc = check_with(d, "jrc-v3", checker=resigned(shipped, d, tmp_path / "signed.yaml"), date=DATE).document
+    assert doc["profile"]["parameters"]["tolerance_xy"] == {"value": 0.5, "unit": "m", "source": "checker",
+                                                            "declared": 1.0}
+    assert records(doc, "JRC-12.7-RMSEY")["B02"]["verdict"] == "fail"
+    declared = records(doc, "ORTHOSPEC-ITT-DECLARED")["tolerance_xy"]
+    assert declared["verdict"] == "fail" and "declares tolerance_xy = 1 m" in declared["message"]
+    assert "source: checker" in declared["message"]
+    assert doc["verdict"] == "rejected"
+    assert "JRC-12.7-RMSEY" in reasons(doc) and "ORTHOSPEC-ITT-DECLARED" in reasons(doc)
+    assert not [r for r in all_records(doc) if r["rule"] == "ORTHOSPEC-ITT-SOURCE"]  # nothing to warn about
+
+
+def test_r5_check_points_edited_after_the_checker_signed_exit_2(tmp_path: Path) -> None:
+    """Red team R5: the contractor deletes the worst check points after the checker signed their
+    source (JRC §12.4): the example checker file pins tables/checkpoints.csv, so it no longer applies."""
+    from tests.checking import check_with
+
+    d = copy_pass(tmp_path)
+    header, rows = read_table(d, "checkpoints")
+    write_table(d, "checkpoints", header, rows[:-1])
+    shipped = ROOT / "examples" / "checker" / "aerial-pass.yaml"
+    with pytest.raises(OrthospecError) as ei:
+        check_with(d, "jrc-v3", checker=shipped, date=DATE)
+    assert "aerial-pass.yaml:10 pins tables/checkpoints.csv sha256" in str(ei.value)
+    assert "the checker's verdicts were given on other content" in str(ei.value)
+    # the shipped example, unchanged, is what the checker signed
+    assert check_with(AERIAL_PASS, "jrc-v3", checker=shipped, date=DATE).document["verdict"] == "accepted"
 
 
 def test_a_manifest_value_different_from_the_tender_is_a_finding(tmp_path: Path) -> None:
@@ -649,6 +718,8 @@ _ONE_BAD_ROLL = "image_id,file,block,roll,flying_height,std_dn\nI1,a.tif,B1,0.5,
 _SIGN_ONLY = """\
 orthospec_checker: 1
 checker: {name: Eva External, role: external QC}
+delivery: {id: D1}
+parameters: {tolerance_xy: {value: 0.5, unit: m}}
 manual_checks:
   - {check: R-VIS, item: "*", date: 2026-01-02, verdict: pass}
 """
@@ -695,7 +766,7 @@ def test_a_contractor_waiver_of_a_failing_block_in_aerial_fail_stays_a_fail(tmp_
 def test_the_contractors_own_manual_pass_alone_is_missing(make_delivery, mini_profile) -> None:
     # the delivery's manual_checks row "R-VIS,*,Joe Bloggs,2026-01-01,pass" is the contractor's statement
     root = make_delivery(images=_ONE_BAD_ROLL.replace(",4,", ",1,"))
-    doc = check_with(root, mini_profile).document
+    doc = check_with(root, mini_profile, params=ITT_XY).document  # tolerance_xy stated by the checker (--param)
     vis = _rec(doc, "R-VIS", "D1")
     assert vis["verdict"] == "missing"
     assert "Joe Bloggs" in vis["message"] and "not a verdict" in vis["message"]

@@ -11,6 +11,8 @@ Format (schema: specs/schema/checker.schema.json)::
 
     orthospec_checker: 1
     checker: {name: "M. Keller (fictional)", role: external QC, organisation: ...}
+    delivery: {id: D-2026-014, files: {tables/checkpoints.csv: <sha256>}}   # what was signed
+    parameters: {tolerance_xy: {value: 0.5, unit: m}}                      # ITT values in force
     manual_checks:
       - {check: JRC-5.3-IDQA, item: "*", date: 2026-06-21, verdict: pass, note: "..."}
     waivers:
@@ -22,13 +24,19 @@ from __future__ import annotations
 import datetime as dt
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, StringConstraints, ValidationError
 
 from ..errors import OrthospecError
 from ..provenance import Evidence, sha256_file
 from ..yamlio import YamlError, load_file
+from .manifest import QuantityIn, Scalar
+
+if TYPE_CHECKING:
+    from .reader import Delivery
+
+Sha256 = Annotated[str, StringConstraints(pattern=r"^[0-9a-fA-F]{64}$")]
 
 
 class _Closed(BaseModel):
@@ -65,9 +73,26 @@ class CheckerWaiver(_Closed):
     date: dt.date | None = None
 
 
+class CheckerDelivery(_Closed):
+    """The delivery the checker's verdicts were given on: a checker file signs content, not a folder name.
+
+    A different delivery id, manifest or pinned file at check time is exit 2 (the verdicts and
+    waivers of this file were given on other content)."""
+
+    id: str = Field(min_length=1, description="The delivery id (delivery.yaml `id`) this file was written for.")
+    manifest_sha256: Sha256 | None = Field(None, description="SHA-256 of the delivery.yaml the checker read.")
+    files: dict[str, Sha256] = Field(default_factory=dict, description=(
+        "Evidence the checker signed: path inside the delivery -> SHA-256 (e.g. tables/checkpoints.csv, "
+        "whose independence JRC §12.4 asks the checker to vouch for)."))
+
+
 class CheckerModel(_Closed):
     orthospec_checker: Literal[1]
     checker: CheckerParty
+    delivery: CheckerDelivery
+    parameters: dict[str, QuantityIn | Scalar] = Field(default_factory=dict, description=(
+        "ITT values in force (JRC §2.5 \"the tolerance stated in the ITT\"), same shape as the manifest's "
+        "tender.parameters; --param wins over them, they win over the tender profile and the standard."))
     manual_checks: list[CheckerManualCheck] = Field(default_factory=list)
     waivers: list[CheckerWaiver] = Field(default_factory=list)
 
@@ -79,7 +104,15 @@ class Checker:
     model: CheckerModel
     name: str
     sha256: str
-    lines: dict[tuple[str, int], int]
+    lines: dict[tuple[Any, ...], int]
+    #: the path as the user typed it, for messages
+    display: str = ""
+
+    def at(self, *path: Any) -> str:
+        """``file:line`` of a YAML path (``("delivery", "id")``), or the file alone."""
+        line = self.lines.get(tuple(path))
+        shown = self.display or self.name
+        return f"{shown}:{line}" if line else shown
 
     @property
     def party(self) -> CheckerParty:
@@ -124,8 +157,10 @@ def _duplicates(model: CheckerModel, display: str, lines: dict[tuple[str, int], 
         seen[key] = i
 
 
-def load_checker(path: str | Path, *, delivery_root: str | Path | None = None) -> Checker:
-    """Read and validate a checker file; refuse one inside ``delivery_root``.
+def load_checker(path: str | Path, *, delivery_root: str | Path | None = None,
+                 delivery: Delivery | None = None) -> Checker:
+    """Read and validate a checker file; refuse one inside ``delivery_root`` (or ``delivery``'s root),
+    and one written for another delivery or other content than ``delivery`` (:func:`bind`).
 
     Raises
     ------
@@ -133,6 +168,8 @@ def load_checker(path: str | Path, *, delivery_root: str | Path | None = None) -
         (exit 2) naming ``file:line:col`` and what was expected, or why the place is refused.
     """
     p = Path(path)
+    if delivery_root is None and delivery is not None:
+        delivery_root = delivery.root
     _refuse_inside(p, Path(delivery_root) if delivery_root is not None else None)
     display = str(path)
     try:
@@ -141,7 +178,8 @@ def load_checker(path: str | Path, *, delivery_root: str | Path | None = None) -
         raise OrthospecError(f"checker file {exc}") from None
     if not isinstance(doc.data, dict):
         raise OrthospecError(f"{display}:1:1: a checker file must be a YAML mapping "
-                             "(orthospec_checker: 1, checker: {name: ...}, manual_checks, waivers)")
+                             "(orthospec_checker: 1, checker: {name: ...}, delivery: {id: ...}, parameters, "
+                             "manual_checks, waivers)")
     try:
         model = CheckerModel.model_validate(doc.data)
     except ValidationError as exc:
@@ -152,10 +190,46 @@ def load_checker(path: str | Path, *, delivery_root: str | Path | None = None) -
             where = f"{display}:{line}:{col}" if line else display
             lines.append(f"{where}: {'.'.join(map(str, loc)) or '(document)'}: {e['msg']}")
         raise OrthospecError("invalid checker file:\n  " + "\n  ".join(lines)) from None
-    marks = {(sec, i): doc.where((sec, i))[0] or 0
-             for sec in ("manual_checks", "waivers") for i in range(len(doc.data.get(sec) or []))}
+    marks: dict[tuple[Any, ...], int] = {
+        (sec, i): doc.where((sec, i))[0] or 0
+        for sec in ("manual_checks", "waivers") for i in range(len(doc.data.get(sec) or []))}
+    extra = [("delivery",), ("delivery", "id"), ("delivery", "manifest_sha256"),
+             *(("delivery", "files", k) for k in model.delivery.files),
+             ("parameters",), *(("parameters", k) for k in model.parameters)]
+    marks.update({k: doc.where(k)[0] or 0 for k in extra})
     _duplicates(model, display, marks)
-    return Checker(model, p.name, sha256_file(p), marks)
+    chk = Checker(model, p.name, sha256_file(p), marks, display)
+    if delivery is not None:
+        bind(chk, delivery)
+    return chk
+
+
+def bind(chk: Checker, d: Delivery) -> None:
+    """Refuse (exit 2) a checker file written for another delivery, manifest or evidence content.
+
+    The checker's manual verdicts and waivers vouch for what the checker saw; applied to other
+    content they would grant the contractor verdicts nobody gave (red team R5: check points deleted
+    after the checker signed their source)."""
+    b = chk.model.delivery
+    other = "the checker's verdicts were given on other content"
+    if b.id != d.id:
+        raise OrthospecError(f"checker file {chk.at('delivery', 'id')} is for delivery {b.id}; this delivery "
+                             f"is {d.id}: {other}")
+    if b.manifest_sha256 and b.manifest_sha256.lower() != d.manifest_sha256.lower():
+        raise OrthospecError(f"checker file {chk.at('delivery', 'manifest_sha256')} pins delivery.yaml sha256 "
+                             f"{b.manifest_sha256.lower()}, the delivery's is {d.manifest_sha256}: {other}")
+    for rel, want in sorted(b.files.items()):
+        where = chk.at("delivery", "files", rel)
+        try:
+            path = d.path(rel, what=f"delivery.files.{rel}", file=None)
+        except OrthospecError as exc:
+            raise OrthospecError(f"checker file {where}: {exc}") from None
+        if not path.is_file():
+            raise OrthospecError(f"checker file {where} pins {rel}, which the delivery does not contain: {other}")
+        got = d.sha256(rel)
+        if got.lower() != want.lower():
+            raise OrthospecError(f"checker file {where} pins {rel} sha256 {want.lower()}, the delivery's is "
+                                 f"{got}: {other}")
 
 
 def checker_schema() -> dict[str, Any]:

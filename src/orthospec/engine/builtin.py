@@ -1,21 +1,19 @@
-"""Rules the engine adds to every profile: who set each threshold (parameter authority).
+"""Rules the engine adds to every profile: the contract values the contractor declares.
 
 JRC EUR 23638 EN §2.5: "The acceptance criterion for this check is the tolerance stated in the
-ITT." The ITT's numbers therefore come from a tender profile or the checker's ``--param``; the
-contractor's manifest only *declares* them (``tender.parameters``). Two built-in rules make that
-visible in qcr.json, the terminal and the reports, like any profile rule:
+ITT." The ITT's numbers therefore come from the checker's side only: ``--param``, the checker's
+file (``parameters:``), a tender profile, or the standard's own value (engine/params.py). The
+contractor's manifest only *declares* them (``tender.parameters``): evidence, never authority,
+never a value in force (red team R1). One built-in rule makes the declaration visible:
 
-* ``ORTHOSPEC-ITT-SOURCE`` (recommended, warn): a parameter the standard leaves to the ITT had no
-  value from a tender profile or ``--param``, so the manifest's declared value was used. The
-  verdict is ``warn`` per such parameter: "ITT value taken from the contractor's manifest;
-  confirm against the ITT".
 * ``ORTHOSPEC-ITT-DECLARED`` (mandatory, return_delivery): the manifest declares a value that
-  differs from the one in force (tender profile, ``--param`` or the standard's own number), or
-  declares one that cannot be read. Why return the delivery: §2.5 makes the contractor's
-  internal QC and its QCRs part of what the Commission audits; a delivery whose own record of
-  the contract differs from the contract documents a QC made against other numbers, so the
-  record is not evidence of conformity and goes back for correction. The products themselves
-  are still judged against the value in force by the other rules.
+  differs from the one in force, or declares one that cannot be read. Why return the delivery:
+  §2.5 makes the contractor's internal QC and its QCRs part of what the Commission audits; a
+  delivery whose own record of the contract differs from the contract documents a QC made against
+  other numbers, so the record is not evidence of conformity and goes back for correction. The
+  products themselves are still judged against the value in force by the other rules.
+
+(ORTHOSPEC-ITT-SOURCE, which warned when a manifest value was used, is gone: none is used.)
 """
 
 from __future__ import annotations
@@ -33,23 +31,6 @@ if TYPE_CHECKING:
 
 _CLAUSE = Clause(document="JRC EUR 23638 EN", section="2.5")
 
-ITT_SOURCE = Rule(
-    id="ORTHOSPEC-ITT-SOURCE",
-    title="ITT parameter taken from the contractor's manifest",
-    clause=_CLAUSE,
-    quote="The acceptance criterion for this check is the tolerance stated in the ITT.",
-    scope="delivery",
-    measure="engine.parameter_source",
-    requirement=Requirement(op="in", values=["cli", "tender", "standard", "unset"]),
-    level="recommended",
-    consequence="warn",
-    note=("Built into the engine. A parameter the standard leaves to the ITT had no value from a tender "
-          "profile or --param; the manifest's declared value was used and must be confirmed against the "
-          "ITT. Recommended/warn: the value may well be right, but nobody independent of the contractor "
-          "has stated it."),
-    tags=["engine", "parameters"],
-)
-
 ITT_DECLARED = Rule(
     id="ORTHOSPEC-ITT-DECLARED",
     title="Manifest-declared contract value agrees with the value in force",
@@ -61,13 +42,14 @@ ITT_DECLARED = Rule(
     level="mandatory",
     consequence="return_delivery",
     note=("Built into the engine. tender.parameters in delivery.yaml is evidence, never authority; a "
-          "declared value different from the tender profile's, the checker's (--param) or the standard's "
+          "declared value different from the one in force (--param, the checker's file, the tender "
+          "profile or the standard) "
           "means the contractor's internal QC was run against other numbers, so its QCRs do not show "
           "conformity with the ITT (JRC §2.5): the delivery is returned for correction of the record."),
     tags=["engine", "parameters"],
 )
 
-BUILTIN_RULES: tuple[Rule, ...] = (ITT_DECLARED, ITT_SOURCE)
+BUILTIN_RULES: tuple[Rule, ...] = (ITT_DECLARED,)
 
 
 def _same(a: Any, b: Any) -> bool:
@@ -89,16 +71,11 @@ def parameter_findings(params: dict[str, ParamValue], d: Delivery
     """Per built-in rule id: (item, measured text, note, verdict) rows (verdict names of
     orthospec.verdicts)."""
     declared_raw = dict(d.manifest.tender.parameters) if d.manifest.tender else {}
-    source_rows: list[tuple[str, str, str | None, str]] = []
     declared_rows: list[tuple[str, str, str | None, str]] = []
     for name, p in sorted(params.items()):
         src = getattr(p, "source", "")
         declared = getattr(p, "declared", None)
-        if src == "manifest":
-            source_rows.append((name, src, "ITT value taken from the contractor's manifest; confirm against "
-                                f"the ITT ({name} = {_show(p.value, p.unit)} from delivery.yaml "
-                                "tender.parameters)", V.WARN))
-        if src == "manifest" or name not in declared_raw:
+        if name not in declared_raw:
             continue
         if declared is None:
             why = getattr(p, "note", None) or "the declared value cannot be read in the parameter's unit"
@@ -112,10 +89,7 @@ def parameter_findings(params: dict[str, ParamValue], d: Delivery
         else:
             declared_rows.append((name, _show(declared, p.unit),
                                   f"declared {_show(declared, p.unit)} = value in force (source: {src})", V.PASS))
-    if not source_rows:
-        source_rows.append((d.id, "", "no ITT parameter was taken from the contractor's manifest", V.NOT_APPLICABLE))
     if not declared_rows:
-        declared_rows.append((d.id, "", "no contract value declared in delivery.yaml to cross-check against a "
-                              "tender profile, --param or the standard (values used from it: "
-                              "ORTHOSPEC-ITT-SOURCE)", V.NOT_APPLICABLE))
-    return {ITT_SOURCE.id: source_rows, ITT_DECLARED.id: declared_rows}
+        declared_rows.append((d.id, "", "no contract value declared in delivery.yaml to cross-check against "
+                              "--param, the checker's file, a tender profile or the standard", V.NOT_APPLICABLE))
+    return {ITT_DECLARED.id: declared_rows}

@@ -1,10 +1,10 @@
 """Resolve profile parameters, and record who set each one.
 
-Order: ``--param`` (source ``cli``, the checker's) > a profile's ``value`` (``tender``) > the
-shipped default (``standard``). The delivery manifest's ``tender.parameters`` is *evidence*, not
-authority: its declared value is kept (``declared``) so the evaluator can cross-check it, and it
-is used only for a parameter the standard leaves to the ITT (``set_by: itt``) that has no value
-from anywhere else (source ``manifest``; the evaluator turns that into a visible warning).
+Order: ``--param`` (source ``cli``) > the checker file's ``parameters:`` (``checker``) > a
+profile's ``value`` (``tender``) > the shipped default (``standard``). The delivery manifest's
+``tender.parameters`` is *evidence*, never authority: it cannot set or loosen a threshold. Its
+declared value is kept (``declared``) only so ORTHOSPEC-ITT-DECLARED can compare it with the value
+in force (red team R1: a manifest tolerance of 1.0 m used to accept a 0.63 m RMSEy).
 
 A parameter with no value that an applicable rule's requirement reads stops the run here (exit 2
 with advice) instead of producing ``error`` records later.
@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 from ..errors import ExpressionError, OrthospecError, UnitError
 from ..spec import expr
@@ -22,8 +22,11 @@ from ..spec.loader import ResolvedProfile, params_named
 from ..spec.models import Parameter
 from ..units import NON_NUMERIC, Q_, canonical, number_problem, parse_number_text, parse_unit
 
-Source = Literal["cli", "tender", "standard", "manifest", "unset"]
-SOURCES: tuple[str, ...] = ("cli", "tender", "standard", "manifest", "unset")
+if TYPE_CHECKING:
+    from ..delivery.checker import Checker
+
+Source = Literal["cli", "checker", "tender", "standard", "unset"]
+SOURCES: tuple[str, ...] = ("cli", "checker", "tender", "standard", "unset")
 
 
 class ParameterError(OrthospecError, ValueError):
@@ -119,46 +122,65 @@ def _from_profile(name: str, raw: Any, p: Parameter, profile: ResolvedProfile) -
     return _typed(raw, p, f"profile {profile.id}: parameter {name} expects true or false", number)
 
 
-def _declared(name: str, raw: Any, p: Parameter) -> tuple[Any, str | None]:
-    """The manifest's declared value in the parameter's unit, or (None, why it cannot be read)."""
-    if raw is None:
-        return None, None
+def _read_value(raw: Any, p: Parameter, what: str) -> Any:
+    """A ``tender.parameters``-shaped value (``{value, unit}``, a number, text, true/false) in the
+    parameter's unit; UnitError saying why it cannot be read. One reader for the manifest's
+    declaration and the checker file's ``parameters:``."""
     if hasattr(raw, "model_dump"):
         raw = raw.model_dump()
     unit = p.unit or "1"
     if unit == "bool":
         b = _bool(raw)
-        return (b, None) if b is not None else (None, f"the manifest declares {name}: {raw!r}, not true/false")
+        if b is None:
+            raise UnitError(f"{what}: {raw!r}, not true/false")
+        return b
     if unit in ("text", "date"):
-        return str(raw), None
+        return str(raw)
+    if isinstance(raw, dict) and set(raw) == {"value", "unit"}:
+        why = number_problem(raw["value"])
+        if why:
+            raise UnitError(why)
+        text = f"{float(raw['value'])!r} {raw['unit']}"
+    elif isinstance(raw, int | float) and not isinstance(raw, bool):
+        why = number_problem(raw)
+        if why:
+            raise UnitError(why)
+        return float(raw)
+    elif isinstance(raw, str):
+        text = raw
+    else:
+        raise UnitError(f"expected a number in {canonical(unit)}, got {raw!r}")
+    return parse_number_text(text, unit)
+
+
+def _declared(name: str, raw: Any, p: Parameter) -> tuple[Any, str | None]:
+    """The manifest's declared value in the parameter's unit, or (None, why it cannot be read)."""
+    if raw is None:
+        return None, None
     try:
-        if isinstance(raw, dict) and set(raw) == {"value", "unit"}:
-            why = number_problem(raw["value"])
-            if why:
-                raise UnitError(why)
-            text = f"{float(raw['value'])!r} {raw['unit']}"
-        elif isinstance(raw, int | float) and not isinstance(raw, bool):
-            why = number_problem(raw)
-            if why:
-                raise UnitError(why)
-            return float(raw), None
-        elif isinstance(raw, str):
-            text = raw
-        else:
-            raise UnitError(f"expected a number in {canonical(unit)}, got {raw!r}")
-        return parse_number_text(text, unit), None
+        return _read_value(raw, p, f"the manifest declares {name}"), None
     except UnitError as exc:
         return None, f"the manifest's tender.parameters.{name} cannot be read ({exc}); ignored"
 
 
+def _from_checker(name: str, raw: Any, p: Parameter, checker: Checker) -> Any:
+    """The checker file's ``parameters.NAME`` (exit 2 naming file and line when unreadable)."""
+    try:
+        return _read_value(raw, p, f"parameter {name}")
+    except UnitError as exc:
+        raise ParameterError(f"checker file {checker.at('parameters', name)}: parameters.{name}: {exc}") from None
+
+
 def resolve_parameters(profile: ResolvedProfile, delivery_params: Mapping[str, Any],
                        cli: Mapping[str, str], *,
-                       manifest: Mapping[str, Any] | None = None) -> dict[str, ParamValue]:
+                       manifest: Mapping[str, Any] | None = None,
+                       checker: Checker | None = None) -> dict[str, ParamValue]:
     """Every parameter's value with its source; raise ParameterError (exit 2) with advice.
 
-    ``delivery_params`` is the manifest's ``tender.parameters`` (evidence); ``manifest`` the flat
-    manifest (``manifest.<path>`` -> value), used to tell whether a rule gated on a manifest fact
-    applies to this delivery when deciding that an unset parameter is needed.
+    ``delivery_params`` is the manifest's ``tender.parameters`` (evidence only: never a value);
+    ``manifest`` the flat manifest (``manifest.<path>`` -> value), used to tell whether a rule gated
+    on a manifest fact applies to this delivery when deciding that an unset parameter is needed;
+    ``checker`` the checker's file, whose ``parameters:`` are values in force (source ``checker``).
     """
     unknown = sorted(set(cli) - set(profile.parameters))
     if unknown:
@@ -168,6 +190,12 @@ def resolve_parameters(profile: ResolvedProfile, delivery_params: Mapping[str, A
         hint = f"; did you mean {near[0]!r}?" if near else ""
         raise ParameterError(f"--param {unknown[0]}: profile {profile.id} has no such parameter{hint} "
                              f"(known: {', '.join(sorted(profile.parameters)) or 'none'})")
+    from_checker = dict(checker.model.parameters) if checker is not None else {}
+    stray = sorted(set(from_checker) - set(profile.parameters))
+    if stray and checker is not None:
+        raise ParameterError(f"checker file {checker.at('parameters', stray[0])}: parameters.{stray[0]}: profile "
+                             f"{profile.id} has no such parameter (known: "
+                             f"{', '.join(sorted(profile.parameters)) or 'none'})")
     out: dict[str, ParamValue] = {}
     missing = []
     for name, p in sorted(profile.parameters.items()):
@@ -176,27 +204,26 @@ def resolve_parameters(profile: ResolvedProfile, delivery_params: Mapping[str, A
         declared, note = _declared(name, delivery_params.get(name), p)
         val: Any
         src: str
+        # the checker's value is read even when --param wins: a bad entry is never silently ignored
+        stated = (_from_checker(name, from_checker[name], p, checker)
+                  if name in from_checker and checker is not None else None)
         if name in cli:
             val, src = _from_cli(name, cli[name], p), "cli"
+        elif stated is not None:
+            val, src = stated, "checker"
         elif p.value is not None:
             val, src = _from_profile(name, p.value, p, profile), "tender"
         elif p.default is not None:
             val, src = _from_profile(name, p.default, p, profile), "standard"
-        elif authority == "itt" and declared is not None:
-            val, src = declared, "manifest"
-        else:
+        else:  # the manifest's declaration never fills the gap (evidence, not authority)
             val, src = None, "unset"
             if p.required:
                 missing.append(name)
         if p.choices is not None and val is not None and val not in p.choices:
-            if src == "manifest":
-                note = f"the manifest declares {name}={val!r}, not one of {p.choices}; ignored"
-                val, src = None, "unset"
-                if p.required:
-                    missing.append(name)
-            else:
-                where = {"cli": "--param", "tender": f"profile {profile.id}"}.get(src, f"profile {profile.id}")
-                raise ParameterError(f"{where}: parameter {name}={val!r} is not one of {p.choices}")
+            where = {"cli": "--param",
+                     "checker": f"checker file {checker.at('parameters', name) if checker else ''}"}.get(
+                src, f"profile {profile.id}")
+            raise ParameterError(f"{where}: parameter {name}={val!r} is not one of {p.choices}")
         out[name] = ParamValue(name, val, unit, src, declared=declared, set_by=authority,
                                justification=p.justification, note=note)
     needed, all_off = _needed(profile, out, manifest)
@@ -221,10 +248,11 @@ def _advice(profile: ResolvedProfile, needed: dict[str, list[str]], all_off: boo
                if rules else "required by the profile")
         lines.append(f"  {name} ({unit}): {who}")
     first = sorted(needed)[0]
-    lines.append(f"set them with --param NAME=VALUE (e.g. --param {first}=...), or in a tender profile "
-                 f"that extends {profile.id} (parameters: {{{first}: {{value: ...}}}}); a value the "
-                 "delivery manifest declares is evidence, used only for a parameter the standard leaves "
-                 "to the ITT")
+    lines.append(f"set them with --param NAME=VALUE (e.g. --param {first}=...), in the checker file "
+                 f"(check --checker FILE; parameters: {{{first}: {{value: ..., unit: ...}}}}), or in a tender "
+                 f"profile that extends {profile.id} (parameters: {{{first}: {{value: ...}}}}); the value "
+                 "the delivery manifest declares (tender.parameters) is the contractor's evidence, never "
+                 "the value in force")
     return "\n".join(lines)
 
 
