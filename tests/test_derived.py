@@ -341,13 +341,21 @@ rules:
 """
 
 
-@pytest.mark.parametrize(("flags", "expected"), [(None, 1.0), ("false", 0.0), ("true", 6.0)])
-def test_master_images_counts_the_scenes_flagged_master(tmp_path, flags, expected):
-    """satellite-pass flags one master (S01_SC1); un-declaring it leaves 0 (the rule fails)."""
-    d = _sat_copy(tmp_path, scenes=None if flags is None else {"is_master": flags})
+@pytest.mark.parametrize(("scenes", "expected", "verdict"), [
+    (None, 1.0, "pass"),
+    # R8: the master un-declared, but S01_SC1 still records its master check date (Table 9 dated record)
+    ({"is_master": "false"}, 0.0, "fail"),
+    # no trace of a master-image workflow: absolute correction (JRC §9.4 "only in rare cases")
+    ({"is_master": "false", "master_check_date": ""}, None, "not_applicable"),
+    ({"is_master": "true"}, 6.0, "pass"),
+])
+def test_master_images_counts_the_scenes_flagged_master(tmp_path, scenes, expected, verdict):
+    """satellite-pass flags one master (S01_SC1, with its master_check_date)."""
+    d = _sat_copy(tmp_path, scenes=scenes)
     p = tmp_path / "p.yaml"
     p.write_text(MASTER_PROFILE)
     doc = check(d, p, date="2026-08-01").document
     rec = next(r for r in records(doc) if r["rule"] == "MASTER")
-    assert rec["measured"]["value"] == expected
-    assert rec["verdict"] == ("fail" if expected == 0 else "pass")
+    assert rec["verdict"] == verdict, rec
+    if expected is not None:
+        assert rec["measured"]["value"] == expected

@@ -17,8 +17,9 @@
   A photo whose lay-down GSD (H/f x pixel size) is more than ``GSD_TOLERANCE`` coarser than its
   own recorded GSD counts toward no coverage (red team R7: inflated flying heights hid a strip).
 * ``derived.master_images`` (delivery): number of scenes declared master image
-  (``scenes.is_master``), so that un-declaring the master cannot switch the Table 9 master-image
-  rules off unseen (red team R8).
+  (``scenes.is_master``), so that un-declaring a master that the scenes still record (its check
+  date, or another scene's ``master_image_id``) cannot switch the Table 9 master-image rules off
+  unseen (red team R8); not applicable when no scene shows a master-image workflow (§9.4).
 * ``derived.dem_blocks`` (dem): the blocks a DEM serves (';'-separated), from the dem table's
   ``block`` column, else from the delivered DEM file's footprint against the block polygons. A
   failing DEM then rejects those blocks only (JRC Table 5, §12.7 "will reject all products for
@@ -295,24 +296,52 @@ def photo_coverage(ctx: ProviderContext) -> list[Measured]:
                      pd.Series({d.id: (*aoi_ev, *ev)}, dtype=object), notes=pd.Series({d.id: note}, dtype=object))]
 
 
+#: scenes columns that show a master-image workflow (JRC Table 9 "Accuracy of the master image")
+MASTER_EVIDENCE = ("master_image_id", "master_pixel_size", "master_check_date")
+
+
+def _filled(v: Any) -> bool:
+    return v is not None and not (isinstance(v, float) and np.isnan(v)) and bool(str(v).strip())
+
+
 @provider(scope="delivery", measures=MASTER)
 def master_images(ctx: ProviderContext) -> list[Measured]:
-    """Number of scenes declared master image (JRC Table 9 "identify as master image")."""
+    """Number of scenes declared master image (JRC Table 9 "identify as master image").
+
+    Not applicable when no scene shows a master-image workflow: §9.4 "only in rare cases will
+    images be corrected to a "master image"", so a delivery corrected to absolute positions needs
+    none. Any trace of one (a scene flagged ``is_master``, or ``master_image_id``,
+    ``master_pixel_size`` or ``master_check_date`` filled) makes the declaration required, so
+    clearing ``is_master`` on a checked master (red team R8) gives 0, not "not applicable"."""
     d = ctx.delivery
     t = d.table("scenes")
+    na = None
     if t is None:
         value, ev, note = None, (d.manifest_evidence("tables"),), "the manifest declares no 'scenes' table"
-    elif "is_master" not in t.df:
-        value, ev, note = 0.0, t.evidence(t.df["_row"]), f"column 'is_master' absent from {t.file}: no master image"
+        na = pd.Series({d.id: "no scenes table: no satellite master image to identify"}, dtype=object)
     else:
-        flag = t.df["is_master"].map(lambda v: v is True or (isinstance(v, (int, float, np.bool_)) and v == 1))
+        flag = (t.df["is_master"].map(lambda v: v is True or (isinstance(v, (int, float, np.bool_)) and v == 1))
+                if "is_master" in t.df else pd.Series(False, index=t.df.index))
         masters = t.ids.astype(str)[flag.to_numpy(bool)].tolist()
+        traces = pd.Series(False, index=t.df.index)
+        for col in MASTER_EVIDENCE:
+            if col in t.df:
+                traces |= t.df[col].map(_filled).astype(bool)
+        traced = t.ids.astype(str)[traces.to_numpy(bool)].tolist()
         value = float(len(masters))
-        ev = t.evidence(t.df["_row"][flag] if masters else t.df["_row"])
-        note = (f"master image(s) {', '.join(masters[:5])} ({t.file} is_master)" if masters
-                else f"no row of {t.file} has is_master true")
+        ev = t.evidence(t.df["_row"][flag | traces] if masters or traced else t.df["_row"])
+        if masters:
+            note = f"master image(s) {', '.join(masters[:5])} ({t.file} is_master)"
+        elif traced:
+            note = (f"no row of {t.file} has is_master true, but scene(s) {', '.join(traced[:5])} record a master "
+                    f"image ({'/'.join(MASTER_EVIDENCE)})")
+        else:
+            note = f"no scene of {t.file} is or refers to a master image"
+            na = pd.Series({d.id: "no master-image workflow: no scene has is_master, master_image_id, "
+                                  "master_pixel_size or master_check_date (JRC §9.4: absolute correction)"},
+                           dtype=object)
     return [Measured("derived.master_images", "delivery", "1", pd.Series({d.id: value}, dtype=object),
-                     pd.Series({d.id: ev}, dtype=object), notes=pd.Series({d.id: note}, dtype=object))]
+                     pd.Series({d.id: ev}, dtype=object), notes=pd.Series({d.id: note}, dtype=object), na=na)]
 
 
 @provider(scope="dem", measures=DEM)
