@@ -99,7 +99,7 @@ def main() -> None:
                       flush=True)
             out = Path(tmp) / f"out-{n}"
             cmd = [orthospec, "check", str(delivery), "-p", args.profile, "--out", str(out),
-                   "--format", "json", "--date", "2026-11-21"]
+                   "--format", "json", "--date", "2026-11-21", "--param", "tolerance_xy=0.5m"]
             if args.workers:
                 cmd += ["--workers", str(args.workers)]
             wall, rss, code, err = run(cmd)

@@ -10,9 +10,20 @@ from orthospec.cli.main import cli
 from orthospec.provenance import sha256_file
 from orthospec.qcr import all_records
 
+#: the ITT tolerance the mini profile requires: the manifest's declared value is the contractor's
+#: evidence, never the value in force (INTERFACES 4), so a check states it as the checker would
+ITT = ["--param", "tolerance_xy=0.5m"]
+
+
+def _with_itt(args):
+    args = list(map(str, args))
+    if args[:1] == ["check"] and "--param" not in args and "--checker" not in args:
+        args += ITT
+    return args
+
 
 def run(*args):
-    return CliRunner().invoke(cli(), list(map(str, args)), catch_exceptions=False)
+    return CliRunner().invoke(cli(), _with_itt(args), catch_exceptions=False)
 
 
 def run_main(args, capsys):
@@ -20,7 +31,7 @@ def run_main(args, capsys):
     from orthospec.cli.main import main
 
     with pytest.raises(SystemExit) as exc:
-        main(list(map(str, args)))
+        main(_with_itt(args))
     out = capsys.readouterr()
     return exc.value.code, out.out, out.err
 
@@ -31,7 +42,9 @@ def test_rejected_delivery_exits_1_and_writes_outputs(make_delivery, mini_profil
                                 "--date", "2026-01-01"], capsys)
     assert code == 1
     assert "REJECTED" in stdout and "R-ROLLUP" in stdout
-    assert "rules, 13 records" in stdout  # 11 profile records + 2 built-in ORTHOSPEC-ITT-* rules
+    # 11 profile records (R-ROLLUP, R-VIS: 1 each; R-CV, R-FH, R-ROLL: 3 images each) + the built-in
+    # ORTHOSPEC-ITT-DECLARED record of tolerance_xy (given with --param)
+    assert "rules, 12 records" in stdout
     doc = json.loads((out / "qcr.json").read_text())
     assert doc["verdict"] == "rejected"
     assert (out / "qcr.csv").read_text().startswith("rule,clause,scope,item")
@@ -295,7 +308,8 @@ def test_check_options_are_typed(make_delivery, mini_profile):
     opts = CheckOptions.of({"workers": 1, "fail_on": "warn"})
     assert opts == CheckOptions(workers=1, fail_on="warn")
     # fail_on=warn makes the recommended R-FH warning blocking, through the options object alone
-    assert check(make_delivery(), mini_profile, options=opts, date="2026-01-01").document["fail_on"] == "warn"
+    doc = check(make_delivery(), mini_profile, options=opts, date="2026-01-01", params=["tolerance_xy=0.5m"]).document
+    assert doc["fail_on"] == "warn"
 
 
 def test_scheduler_without_dask_exits_2_before_checking(make_delivery, mini_profile, tmp_path):

@@ -33,7 +33,8 @@ def test_hostile_ids_are_neutralised_in_csv_junit_and_terminal(make_delivery, mi
     root = make_delivery("h", images="image_id,file,block,roll,flying_height,std_dn\n" + rows + "\n")
     out = tmp_path / "out"
     res = CliRunner().invoke(cli(), ["check", str(root), "-p", str(mini_profile), "--out", str(out),
-                                     "--date", "2026-01-01", "--format", "terminal,json,csv,junit"])
+                                     "--date", "2026-01-01", "--format", "terminal,json,csv,junit",
+                                     "--param", "tolerance_xy=0.5m"])
     assert res.exit_code in (0, 1), res.output + repr(res.exception)
     cells = [c for row in csv.reader(io.StringIO((out / "qcr.csv").read_text(encoding="utf-8"))) for c in row]
     items = [c for c in cells if "HYPERLINK" in c or "SUM(" in c or "cmd|" in c]

@@ -18,12 +18,14 @@ pd = pytest.importorskip("pandas")
 
 ROOT = Path(__file__).resolve().parents[1]
 FAIL = ROOT / "examples" / "deliveries" / "aerial-fail"
+CHECKER = ROOT / "examples" / "checker" / "aerial-fail.yaml"  # the ITT tolerance and manual verdicts
 ORTHOSPEC = [sys.executable, "-m", "orthospec.cli.main"]
 
 
 def _check(out: Path, fmt: str = "json,parquet") -> subprocess.CompletedProcess[str]:
     return subprocess.run([*ORTHOSPEC, "check", str(FAIL), "-p", "jrc-v3", "--out", str(out), "--format", fmt,
-                           "--date", "2026-11-21"], capture_output=True, text=True, cwd=ROOT)
+                           "--date", "2026-11-21", "--checker", str(CHECKER)], capture_output=True, text=True,
+                          cwd=ROOT)
 
 
 @pytest.fixture(scope="module")

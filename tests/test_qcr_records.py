@@ -27,11 +27,12 @@ from orthospec.qcr import (
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "examples" / "deliveries"
+CHECKER = ROOT / "examples" / "checker" / "aerial-fail.yaml"  # the ITT tolerance and manual verdicts
 
 
 @pytest.fixture(scope="module")
 def fail_check() -> api.CheckResult:
-    return api.check(EXAMPLES / "aerial-fail", "jrc-v3", date="2026-11-21")
+    return api.check(EXAMPLES / "aerial-fail", "jrc-v3", date="2026-11-21", checker=CHECKER)
 
 
 def _json(x):
@@ -75,7 +76,7 @@ def test_expanded_records_equal_the_records_in_full(fail_check: api.CheckResult)
 def test_stream_equals_text_and_is_deterministic(fail_check: api.CheckResult, tmp_path: Path) -> None:
     text = "".join(iter_dumps(fail_check.document))
     assert text == dumps(fail_check.document)
-    again = api.check(EXAMPLES / "aerial-fail", "jrc-v3", date="2026-11-21")
+    again = api.check(EXAMPLES / "aerial-fail", "jrc-v3", date="2026-11-21", checker=CHECKER)
     assert dumps(again.document) == text
     # the header is indented like json.dumps(indent=1) would write it
     doc = json.loads(text)

@@ -38,7 +38,8 @@ def test_example_documents_pass_the_schema_and_the_model(name: str) -> None:
 
 
 def test_the_schema_refuses_what_the_writer_never_writes() -> None:
-    res = api.check(EXAMPLES / "aerial-fail", "jrc-v3", date="2026-11-21")
+    res = api.check(EXAMPLES / "aerial-fail", "jrc-v3", date="2026-11-21",
+                    checker=ROOT / "examples" / "checker" / "aerial-fail.yaml")
     doc = json.loads(dumps(res.document))
     schema = json.loads(COMMITTED.read_text(encoding="utf-8"))
     bad = json.loads(json.dumps(doc))

@@ -133,7 +133,8 @@ def run_check(tmp: Path, delivery: Path, fmts: str = "json,html,pdf") -> Path:
     profile.write_text(PROFILE, encoding="utf-8")
     out = tmp / "out"
     res = CliRunner().invoke(cli(), ["check", str(delivery), "--profile", str(profile), "--out", str(out),
-                                     "--date", "2026-01-01", "--format", fmts])
+                                     "--date", "2026-01-01", "--format", fmts,
+                                     "--param", "tolerance_xy=0.5m"])  # the ITT value (manifest: evidence only)
     assert res.exit_code in (0, 1), res.output + str(res.exception)
     return out
 
