@@ -139,12 +139,20 @@ def test_the_checker_file_states_an_itt_parameter(tmp_path):
     ("{tolerance_xy: {value: 0.5, unit: s}}", r"checker.yaml:4: parameters.tolerance_xy: "),
     ("{tolerance_xy: '0,5'}", r"checker.yaml:4: parameters.tolerance_xy: .*decimal comma"),
     ("{tolerance_xy: {value: .nan, unit: m}}", r"checker.yaml:4: parameters.tolerance_xy: "),
-    ("{tolerance_xyz: {value: 0.5, unit: m}}", r"checker.yaml:4: parameters.tolerance_xyz: profile jrc-v3 has no"),
+    ("{tolerance_xyz: {value: 0.5, unit: m}}", r"checker.yaml:4: parameters.tolerance_xyz: profile jrc-v3 has no "
+                                               r"such parameter; did you mean 'tolerance_xy'\?"),
     ("{systematic_error_level: sometimes}", r"checker file .*checker.yaml:4: parameter systematic_error_level="),
 ])
 def test_a_bad_checker_parameter_names_file_and_line(tmp_path, parameters, match):
     with pytest.raises(ParameterError, match=match):
         resolve_parameters(jrc(), {}, ITT, checker=_checker(tmp_path, parameters))
+
+
+def test_a_checker_parameter_another_profile_reads_is_ignored(tmp_path):
+    """One checker file may serve several profiles: jrc-v3's tolerance_xy is nothing to asprs-2023."""
+    vals = resolve_parameters(load_profile("asprs-2023"), {}, {},
+                              checker=_checker(tmp_path, "{tolerance_xy: {value: 0.5, unit: m}}"))
+    assert "tolerance_xy" not in vals and all(v.source != "checker" for v in vals.values())
 
 
 def test_cli_wins_and_keeps_the_declared_value_for_the_cross_check(tmp_path):

@@ -191,11 +191,8 @@ def resolve_parameters(profile: ResolvedProfile, delivery_params: Mapping[str, A
         raise ParameterError(f"--param {unknown[0]}: profile {profile.id} has no such parameter{hint} "
                              f"(known: {', '.join(sorted(profile.parameters)) or 'none'})")
     from_checker = dict(checker.model.parameters) if checker is not None else {}
-    stray = sorted(set(from_checker) - set(profile.parameters))
-    if stray and checker is not None:
-        raise ParameterError(f"checker file {checker.at('parameters', stray[0])}: parameters.{stray[0]}: profile "
-                             f"{profile.id} has no such parameter (known: "
-                             f"{', '.join(sorted(profile.parameters)) or 'none'})")
+    if checker is not None:
+        _refuse_misspelt(from_checker, profile, checker)
     out: dict[str, ParamValue] = {}
     missing = []
     for name, p in sorted(profile.parameters.items()):
@@ -232,6 +229,19 @@ def resolve_parameters(profile: ResolvedProfile, delivery_params: Mapping[str, A
     if needed:
         raise ParameterError(_advice(profile, needed, all_off))
     return out
+
+
+def _refuse_misspelt(given: Mapping[str, Any], profile: ResolvedProfile, checker: Checker) -> None:
+    """A checker-file parameter this profile lacks but spells almost like one of its own is a typo
+    (it would leave a default in force unnoticed): exit 2. Other unknown names are ignored, as one
+    checker file may serve several profiles (jrc-v3's tolerance_xy means nothing to asprs-2023)."""
+    import difflib
+
+    for name in sorted(set(given) - set(profile.parameters)):
+        near = difflib.get_close_matches(name, list(profile.parameters), n=1, cutoff=0.8)
+        if near:
+            raise ParameterError(f"checker file {checker.at('parameters', name)}: parameters.{name}: profile "
+                                 f"{profile.id} has no such parameter; did you mean {near[0]!r}?")
 
 
 def _advice(profile: ResolvedProfile, needed: dict[str, list[str]], all_off: bool = False) -> str:
