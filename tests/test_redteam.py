@@ -26,7 +26,7 @@ from typing import Any
 
 import pytest
 import yaml
-from tests.checking import check_with
+from tests.checking import check_with, resigned
 from tests.checking import records as all_records
 
 from orthospec.errors import OrthospecError
@@ -316,13 +316,30 @@ def _drop_failing_scenes(header: list[str], rows: list[dict[str, str]]) -> list[
 
 # --- running ---------------------------------------------------------------------------------
 
+def _after_signing(edit: Edit) -> Edit:
+    """Mark an edit as made *after* the checker signed: the shipped checker file is used as it is.
+    Every other edit is made before delivery, so the checker's file pins the content as delivered."""
+    edit.after_signing = True  # type: ignore[attr-defined]
+    return edit
+
+
+def _checker_for(example: str, delivery: Path, tmp_path: Path, edit: Edit) -> Path:
+    """The checker's fixed file. An edit made before delivery is what the checker received and signed:
+    its pins are re-taken on the delivered content (tests/checking.py ``resigned``), written outside
+    the delivery. An edit made after signing meets the shipped file as it is."""
+    shipped = CHECKERS / f"{example}.yaml"
+    if getattr(edit, "after_signing", False):
+        return shipped
+    return resigned(shipped, delivery, tmp_path / f"checker-{example}.yaml")
+
+
 def _run(example: str, edit: Edit, tmp_path: Path) -> tuple[int, dict[str, Any] | None, str]:
     """(exit code, qcr document or None, error text) of `orthospec check` on an edited copy."""
     d = tmp_path / example
     shutil.copytree(EXAMPLES / example, d)
     edit(d)
     try:
-        result = check_with(d, "jrc-v3", checker=CHECKERS / f"{example}.yaml", date=DATE)
+        result = check_with(d, "jrc-v3", checker=_checker_for(example, d, tmp_path, edit), date=DATE)
     except OrthospecError as exc:
         return 2, None, str(exc)
     return (0 if result.accepted else 1), result.document, ""
@@ -438,11 +455,42 @@ def _check_scene_controls(code: int, doc: dict[str, Any] | None, err: str) -> No
     assert {"S02_SC1", "S02_SC3"} <= set(doc["rollup"]["rejected"]["image"])
 
 
-def _scene_rejected(image_id: str) -> Callable[[int, dict[str, Any] | None, str], None]:
+def _check_outside_block(block: str) -> Callable[[int, dict[str, Any] | None, str], None]:
+    # R6/R13 (fixed by d44b081): §12.4 "QC is well distributed within the block/site area"
     def check(code: int, doc: dict[str, Any] | None, err: str) -> None:
-        assert code == 2 or (doc is not None and image_id in doc["rollup"]["rejected"].get("image", [])), \
-            f"{image_id}'s Table 9 defect is hidden"
+        assert code == 1 and doc is not None
+        _rejects(doc, "JRC-12.4-CHECKPOINTS-IN-BLOCK", block)
     return check
+
+
+def _check_inflated_heights(code: int, doc: dict[str, Any] | None, err: str) -> None:
+    # R7 (fixed by d44b081): photos whose H/f x pixel contradicts their GSD cover nothing -> missing
+    assert code == 1 and doc is not None
+    _rejects(doc, "JRC-5.2.2-COVERAGE", doc["delivery"]["id"], "missing")
+    assert "F02_0101" in next(r["message"] for r in all_records(doc) if r["rule"] == "JRC-5.2.2-COVERAGE")
+
+
+def _check_master_declared(code: int, doc: dict[str, Any] | None, err: str) -> None:
+    # R8 (fixed by d44b081): Table 9 "identify as master image"; the delivery is returned
+    assert code == 1 and doc is not None
+    _rejects(doc, "JRC-T9-MASTER-DECLARED", doc["delivery"]["id"])
+
+
+def _check_scene_rule(rule: str, image_id: str) -> Callable[[int, dict[str, Any] | None, str], None]:
+    # R9/R10/R14 (fixed by d44b081): a recorded PRESS / check-point RMSE is judged, a negative one fails
+    def check(code: int, doc: dict[str, Any] | None, err: str) -> None:
+        assert code == 1 and doc is not None
+        assert _verdicts(doc, rule)[image_id] == "fail"
+        assert image_id in doc["rollup"]["rejected"]["image"]
+    return check
+
+
+def _check_itt_declared(code: int, doc: dict[str, Any] | None, err: str) -> None:
+    # R1 (fixed by b333f7a): the tolerance in force is the checker's (JRC §2.5 "the tolerance stated in
+    # the ITT"); the contractor's other number is itself a finding
+    assert code == 1 and doc is not None
+    _rejects(doc, "JRC-12.7-RMSEY", "B02")
+    _rejects(doc, "ORTHOSPEC-ITT-DECLARED", "tolerance_xy")
 
 
 def _refused(*words: str) -> Callable[[int, dict[str, Any] | None, str], None]:
@@ -507,8 +555,7 @@ CASES = [
     pytest.param("aerial-pass", _planted(_second_checkpoints_entry), _refused("delivery.yaml", "duplicate key"),
                  id="second-checkpoints-table-entry"),
     # wrongly ACCEPTED today (findings R1-R5 in /tmp/team/redteam.md)
-    pytest.param("aerial-pass", _planted(_declare_tolerance(1.0)), _not_accepted, id="R1-tolerance-declared-1m",
-                 marks=_xfail("R1: the contractor's tender.parameters sets tolerance_xy (warn only)")),
+    pytest.param("aerial-pass", _planted(_declare_tolerance(1.0)), _check_itt_declared, id="R1-tolerance-declared-1m"),
     pytest.param("aerial-pass", _planted(_units("ft"), _fix_reported), _not_accepted,
                  id="R2-units-ft-in-metre-crs",
                  marks=_xfail("R2: units {checkpoints: ft} shrinks residuals x0.3048 in an EPSG:25832 (metre) "
@@ -522,25 +569,19 @@ CASES = [
     pytest.param("aerial-pass", _planted(_table_edit("checkpoints", _fabricated_copies), _fix_reported),
                  _not_accepted, id="R4-fabricated-copies-new-ids",
                  marks=_xfail("R4: 30 copies of good points under new ids (same coordinates) dilute RMSEy")),
-    pytest.param("aerial-pass", _planted(_table_edit("checkpoints", _delete_worst), _fix_reported), _not_accepted,
-                 id="R5-worst-points-deleted",
-                 marks=_xfail("R5: the checker's file does not pin the check points it vouches for")),
-    pytest.param("aerial-pass", _planted(_move_worst("B01", 4), _fix_reported), _not_accepted,
-                 id="R6-worst-points-moved-outside-into-B01",
-                 marks=_xfail("R6: no jrc-v3 rule reads checkpoints.outside_block")),
+    pytest.param("aerial-pass", _after_signing(_planted(_table_edit("checkpoints", _delete_worst), _fix_reported)),
+                 _refused("pins tables/checkpoints.csv", "other content"), id="R5-worst-points-deleted-after-signing"),
+    pytest.param("aerial-pass", _planted(_move_worst("B01", 4), _fix_reported), _check_outside_block("B01"),
+                 id="R6-worst-points-moved-outside-into-B01"),
     pytest.param("aerial-pass", _chain(_drop_strip_f02_02, _table_edit("images", _inflate_f02_01_heights)),
-                 _not_accepted, id="R7-strip-removed-heights-inflated",
-                 marks=_xfail("R7: coverage trusts flying heights that JRC-5.2.1 shows are inconsistent")),
+                 _check_inflated_heights, id="R7-strip-removed-heights-inflated"),
     # item-level: satellite-fail stays rejected for its other defects, but the planted scene defect is hidden
-    pytest.param("satellite-fail", _scene("S01_SC1", is_master="false"), _scene_rejected("S01_SC1"),
-                 id="R8-master-declared-not-master",
-                 marks=_xfail("R8: a self-declared is_master=false switches the Table 9 master rules off")),
-    pytest.param("satellite-fail", _scene("S02_SC1", press_sqrt="-1.5"), _scene_rejected("S02_SC1"),
-                 id="R9-negative-press",
-                 marks=_xfail("R9: a negative PRESS makes JRC-T9-PRESS not applicable")),
+    pytest.param("satellite-fail", _scene("S01_SC1", is_master="false"), _check_master_declared,
+                 id="R8-master-declared-not-master"),
+    pytest.param("satellite-fail", _scene("S02_SC1", press_sqrt="-1.5"),
+                 _check_scene_rule("JRC-T9-PRESS-VALID", "S02_SC1"), id="R9-negative-press"),
     pytest.param("satellite-fail", _scene("S02_SC1", checkpoint_rmse="1.3", checkpoint_count="0"),
-                 _scene_rejected("S02_SC1"), id="R10-checkpoint-count-zero",
-                 marks=_xfail("R10: checkpoint_count 0 next to an RMSE switches JRC-T9-CHECKPOINT-RMSE off")),
+                 _check_scene_rule("JRC-T9-CHECKPOINT-RMSE", "S02_SC1"), id="R10-checkpoint-count-zero"),
     pytest.param("aerial-pass", _empty_document, _not_accepted, id="R11-internal-qcr-empty-file",
                  marks=_xfail("R11: 'present' accepts a 0-byte internal QCR document")),
     pytest.param("aerial-fail", _copy_image_over_missing, _image_rejected("F03_0202"),
@@ -553,14 +594,12 @@ CASES = [
                  id="R16-all-images-and-project-crs-relabelled",
                  marks=_xfail("R16: project.crs, the CRS every image must match, is the contractor's")),
     pytest.param("aerial-pass", _chain(_drop_strip_f02_02, _manifest_edit(_shrink_b02_to_first_strip)),
-                 _not_accepted, id="R13-strip-removed-block-outline-shrunk",
-                 marks=_xfail("R13: the surveyed area (block polygons) is the contractor's to redraw")),
+                 _check_outside_block("B02"), id="R13-strip-removed-block-outline-shrunk"),
     pytest.param("aerial-pass", _table_edit("checkpoints", _negative_precision_b02), _not_accepted,
                  id="R14-negative-reference-precision",
                  marks=_xfail("R14: a negative precision_xy passes JRC-DEF-CHECKPOINT-ACCURACY")),
     pytest.param("satellite-fail", _scene("S02_SC1", checkpoint_rmse="-1.3", checkpoint_count="8"),
-                 _scene_rejected("S02_SC1"), id="R14-negative-scene-checkpoint-rmse",
-                 marks=_xfail("R14: a negative scenes.checkpoint_rmse passes JRC-T9-CHECKPOINT-RMSE")),
+                 _check_scene_rule("JRC-T9-CHECKPOINT-RMSE-VALID", "S02_SC1"), id="R14-negative-scene-checkpoint-rmse"),
 ]
 
 
