@@ -147,3 +147,19 @@ def test_bad_utf8_names_the_byte_after_a_bom():
     with pytest.raises(DeliveryError, match=r"byte 3\)"):
         reader.utf8_body(bad_in_second_chunk, file="cp.csv", chunk=4)
     assert reader.utf8_body(b"a\r\nb\rc\n", file="x") == b"a\nb\nc\n"
+
+
+@pytest.mark.parametrize("chunk", [7, 64, 1 << 20])
+def test_csv_bounds_skip_short_lines_but_still_find_the_long_one(chunk):
+    """Chunks whose lines are all shorter than the limits are passed over without counting
+    delimiters; the carried state still places a too-wide line or too-long cell at its row."""
+    short = b"".join(b"P%d,B1,1,2,1,2\n" % i for i in range(500))
+    limits = reader.Limits(table_bytes=2**30, columns=8, cell_bytes=40)
+    reader.check_csv_bounds(io.BytesIO(b"point_id,block,x,y,x_ref,y_ref\n" + short), file="cp.csv",
+                            limits=limits, chunk=chunk)
+    wide = b"point_id,block,x,y,x_ref,y_ref\n" + short + b"P,B," + b"1," * 9 + b"1\n" + short
+    with pytest.raises(DeliveryError, match=r"cp.csv: row 501: \d+\+ fields on one line exceed the limit of 8"):
+        reader.check_csv_bounds(io.BytesIO(wide), file="cp.csv", limits=limits, chunk=chunk)
+    long_cell = b"point_id,block,x,y,x_ref,y_ref\n" + short + b"P," + b"x" * 50 + b",1,2,1,2\n" + short
+    with pytest.raises(DeliveryError, match=r"cp.csv: row 501: a cell longer than 40 bytes"):
+        reader.check_csv_bounds(io.BytesIO(long_cell), file="cp.csv", limits=limits, chunk=chunk)

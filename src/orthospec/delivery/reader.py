@@ -398,6 +398,7 @@ def check_csv_bounds(fh: Any, *, file: str, limits: Limits, chunk: int = 16 * 2*
 
     run = 0           # bytes since the last delimiter, carried across chunks
     commas = 0        # commas on the current physical line so far
+    line_len = 0      # bytes of the current physical line so far
     line = 1          # physical line of the chunk start
     header_done = False
     while True:
@@ -420,7 +421,24 @@ def check_csv_bounds(fh: Any, *, file: str, limits: Limits, chunk: int = 16 * 2*
                     raise DeliveryError("the header row has an unclosed quote or a quoted line break; "
                                         "column names are single-line text", file=file, line=1)
         # a line ends at LF, or at a CR not followed by LF (old Mac files); CRLF counts once
-        ends = (arr == 10) | ((arr == 13) & (np.append(arr[1:], 0) != 10))
+        ends = (arr == 10) | ((arr == 13) & (np.append(arr[1:], 0) != 10)) if b"\r" in data else arr == 10
+        nl = np.flatnonzero(ends)
+        longest = line_len + len(data)
+        if nl.size:
+            lens = np.diff(nl, prepend=-1) - 1
+            lens[0] += line_len
+            line_len = len(data) - 1 - int(nl[-1])
+            longest = max(int(lens.max()), line_len)
+        else:
+            line_len = longest
+        if longest <= min(limits.cell_bytes, limits.columns - 1):
+            # no line is longer than a cell may be or has more bytes than columns: nothing to refuse
+            # here, only the carried state (bytes since the last delimiter, commas on the open line)
+            last = max(data.rfind(b","), int(nl[-1]) if nl.size else -1)
+            run = len(data) - 1 - last if last >= 0 else run + len(data)
+            commas = data.count(b",", int(nl[-1]) + 1) if nl.size else commas + data.count(b",")
+            line += int(nl.size)
+            continue
         delim = np.flatnonzero((arr == 44) | ends)
         if delim.size == 0:
             run += len(data)
