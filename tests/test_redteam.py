@@ -310,6 +310,24 @@ def _reproject_label_everything(d: Path) -> None:
     (d / "delivery.yaml").write_text(text.replace("EPSG:25832", "EPSG:25833"), encoding="utf-8")
 
 
+def _b01_outline_swallows_b02(m: dict[str, Any]) -> None:
+    """Redraw B01's outline as B01 + B02 (+ the 500 m gap between them): overlapping blocks."""
+    for b in m["blocks"]:
+        if b["id"] == "B01":
+            b["polygon"] = [[500000.0, 5400000.0], [507000.0, 5400000.0], [507000.0, 5403000.0],
+                            [514500.0, 5403000.0], [514500.0, 5409000.0], [513500.0, 5410200.0],
+                            [507500.0, 5410200.0], [507500.0, 5406000.0], [507000.0, 5406000.0],
+                            [506000.0, 5407200.0], [500000.0, 5407200.0], [500000.0, 5400000.0]]
+
+
+def _inflate_f02_01_heights_and_gsds(header: list[str], rows: list[dict[str, str]]) -> None:
+    """R7's trick again, with the rows' declared GSDs inflated to agree (the rasters stay 0.25 m)."""
+    for r in rows:
+        if r["image_id"].startswith("F02_01"):
+            for col, fmt in (("flying_height", "{:.1f}"), ("acquisition_gsd", "{:.4f}"), ("gsd", "{:.2f}")):
+                r[col] = fmt.format(float(r[col]) * 2.5)
+
+
 def _drop_failing_scenes(header: list[str], rows: list[dict[str, str]]) -> list[dict[str, str]]:
     return [r for r in rows if r["image_id"] not in ("S01_SC1", "S01_SC3", "S02_SC2")]
 
@@ -595,6 +613,12 @@ CASES = [
                  marks=_xfail("R16: project.crs, the CRS every image must match, is the contractor's")),
     pytest.param("aerial-pass", _chain(_drop_strip_f02_02, _manifest_edit(_shrink_b02_to_first_strip)),
                  _check_outside_block("B02"), id="R13-strip-removed-block-outline-shrunk"),
+    pytest.param("aerial-pass", _planted(_move_worst("B01", 4), _manifest_edit(_b01_outline_swallows_b02),
+                                         _fix_reported), _not_accepted, id="R17-B01-outline-redrawn-over-B02",
+                 marks=_xfail("R17: overlapping block outlines let R6's moved points count as inside B01")),
+    pytest.param("aerial-pass", _chain(_drop_strip_f02_02, _table_edit("images", _inflate_f02_01_heights_and_gsds)),
+                 _not_accepted, id="R18-heights-and-declared-gsds-inflated",
+                 marks=_xfail("R18: R7's reference GSD is the declared column, not the raster's pixel size")),
     pytest.param("aerial-pass", _table_edit("checkpoints", _negative_precision_b02), _not_accepted,
                  id="R14-negative-reference-precision",
                  marks=_xfail("R14: a negative precision_xy passes JRC-DEF-CHECKPOINT-ACCURACY")),
