@@ -457,3 +457,21 @@ def test_ident_filter_escapes_and_breaks_only_after_separators() -> None:
     assert str(ident("reported_rmse_tolerance")) == "reported_<wbr>rmse_<wbr>tolerance"
     assert str(ident("<b>a_b</b>")) == "&lt;b&gt;a_<wbr>b&lt;/b&gt;"  # delivery text stays text
     assert str(ident("x - y")) == "x - y" and str(ident(None)) == ""
+
+
+def test_a_capped_point_table_is_labelled_and_draws_no_distribution(checked: dict[str, Any]) -> None:
+    """B's cap (flagged points + largest residuals) is not a sample: no histogram/quadrants from it."""
+    import copy
+
+    from orthospec.qcr import point_rows
+
+    doc = copy.deepcopy(checked["doc"])
+    blocks = doc["details"]["checkpoints"]
+    capped, other = sorted(blocks)[:2]
+    n = len(point_rows(blocks[capped]["points"]))
+    blocks[capped].update(points_total=n + 1000, points_omitted=1000)
+    html = render_html(doc, ReportOptions(bounded=False), figure=data_uri)
+    assert f"Shown: {n} of {n + 1000} points" in html
+    assert "1000 point(s) with small residuals are not in qcr.json" in html
+    assert f"Block {capped}: distribution of the discrepancies" not in html
+    assert f"Block {other}: distribution of the discrepancies" in html

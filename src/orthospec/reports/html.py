@@ -368,7 +368,8 @@ def _checkpoint_blocks(doc: dict[str, Any], opts: ReportOptions,
         if opts.bounded and len(pts) > opts.max_points:
             shown = [p for p in pts if p.get("status") == "fail" or p.get("decision") not in (None, "kept")]
         blocks.append({
-            "id": bid, "points": shown, "n_points": len(pts), "n_hidden": len(pts) - len(shown),
+            "id": bid, "points": shown, "n_points": b.get("points_total") or len(pts),
+            "n_hidden": len(pts) - len(shown), "n_omitted": b.get("points_omitted") or 0,
             "n_fail": n_fail, "has_z": has_z, "stats": b.get("stats") or {}, "unit": b.get("unit", "m"),
             "limit_x": b.get("limit_x"), "limit_y": b.get("limit_y"), "basis": b.get("basis"),
             "n_gcps": len(b.get("gcps") or []), "rejected": bid in failing_blocks,
@@ -414,10 +415,17 @@ def _block_figures(b: dict[str, Any], bid: str) -> list[dict[str, str]]:
         x, y, dx, dy, ids=ids, gcp_x=[g["x"] for g in gcps] or None, gcp_y=[g["y"] for g in gcps] or None,
         unit=unit, flagged=flagged, title=f"Block {bid}: check points and discrepancies",
         polygon=polygon if polygon and len(polygon) >= 3 else None)
+    omitted = b.get("points_omitted")
+    # a capped point table (B: flagged points + the largest residuals) is not a sample of the block:
+    # say so on the map, and draw no distribution from it (the block statistics cover every point)
+    subset = (f" Shown: {len(pts)} of {b.get('points_total', '?')} points, the flagged ones and the largest "
+              f"residuals; the statistics cover every point." if omitted else "")
     out.append({"svg": svg, "kind": "map",
                 "caption": f"Block {bid}: check points (blue; red = above the maximum tolerable "
                            f"discrepancy), discrepancy vectors (exaggerated, see scale arrow) and GCPs "
-                           f"(green triangles), as JRC Figure 5."})
+                           f"(green triangles), as JRC Figure 5.{subset}"})
+    if omitted:
+        return out
     dz = [p.get("dz") for p in pts]
     dz_ok = all(_numeric(v) for v in dz)
     svg = figs.residual_histograms_svg(dx, dy, dz if dz_ok else None, unit=unit,
