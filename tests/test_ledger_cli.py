@@ -84,21 +84,21 @@ blocks: [{{id: B1}}, {{id: B2}}]
 tables: {{images: tables/images.csv, manual_checks: tables/manual.csv}}
 """
 MANUAL = "check,item,inspector,date,verdict\nR-VIS,*,Joe Bloggs,2026-01-01,pass\n"
-#: the checker's verdict of the manual rule (the delivery's table above is only the contractor's
-#: statement, INTERFACES item 4); a file outside every delivery
+#: the checker's file of each delivery (INTERFACES item 4): the ITT value in force and the verdict of
+#: the manual rule (the delivery's own table above and its tender.parameters are only the
+#: contractor's statements); written next to, never inside, the delivery
 CHECKER = """\
 orthospec_checker: 1
-checker: {name: Carla Checker (fictional), role: external QC}
+checker: {{name: Carla Checker (fictional), role: external QC}}
+delivery: {{id: {id}}}
+parameters: {{tolerance_xy: {{value: 0.5, unit: m}}}}
 manual_checks:
-  - {check: R-VIS, item: "*", date: 2026-01-01, verdict: pass, note: visual check of every image}
+  - {{check: R-VIS, item: "*", date: 2026-01-01, verdict: pass, note: visual check of every image}}
 """
 
 
-@pytest.fixture(scope="module")
-def checker_file(tmp_path_factory: pytest.TempPathFactory) -> str:
-    p = tmp_path_factory.mktemp("checker") / "checker.yaml"
-    p.write_text(CHECKER, encoding="utf-8")
-    return str(p)
+def checker_of(root: Path) -> Path:
+    return root.parent / f"{root.name}.checker.yaml"
 
 
 @pytest.fixture(params=["sqlite", pytest.param("postgres", marks=pytest.mark.postgres)])
@@ -127,6 +127,7 @@ def write_delivery(root: Path, delivery_id: str, rolls: dict[str, float], n: int
                      f"{rolls.get(iid, 0.5)},1000,30")
     (root / "tables" / "images.csv").write_text("\n".join(lines) + "\n", encoding="utf-8")
     (root / "tables" / "manual.csv").write_text(MANUAL, encoding="utf-8")
+    checker_of(root).write_text(CHECKER.format(id=delivery_id), encoding="utf-8")
     return root
 
 
@@ -134,18 +135,18 @@ def run(*args: str) -> Result:
     return CliRunner().invoke(cli(), list(args), catch_exceptions=False)
 
 
-def check(checker: str, *args: str) -> Result:
-    """``orthospec check ARGS --checker CHECKER``."""
-    return run("check", *args, "--checker", checker)
+def check(delivery: str, *args: str) -> Result:
+    """``orthospec check DELIVERY ARGS --checker <the delivery's checker file>``."""
+    return run("check", delivery, *args, "--checker", str(checker_of(Path(delivery))))
 
 
-def test_three_rounds_until_accepted(tmp_path: Path, profile: Path, ledger_url: str, checker_file: str) -> None:
+def test_three_rounds_until_accepted(tmp_path: Path, profile: Path, ledger_url: str) -> None:
     """JRC §12.8: fail, partial fix (tightened audit), pass; history shows the sequence."""
     rounds = [("D1", {"I3": 5.0, "I14": 6.0}), ("D1-R1", {"I14": 4.0}), ("D1-R2", {})]
     outputs = []
     for k, (did, rolls) in enumerate(rounds, start=1):
         deliv = write_delivery(tmp_path / did, did, rolls)
-        res = check(checker_file, str(deliv), "-p", str(profile), "--format", "json", "--out",
+        res = check(str(deliv), "-p", str(profile), "--format", "json", "--out",
                     str(tmp_path / "out" / did), "--date", f"2026-0{k}-01", "--ledger", ledger_url)
         assert f"recorded run #{k} in ledger" in res.output, res.output
         assert res.exit_code == (1 if k < 3 else 0)
@@ -216,8 +217,8 @@ def test_three_rounds_until_accepted(tmp_path: Path, profile: Path, ledger_url: 
 def test_verify_exit_codes(tmp_path: Path, profile: Path, ledger_url: str) -> None:
     deliv = write_delivery(tmp_path / "d", "D1", {"I2": 9.0})
     for _ in range(2):
-        run("check", str(deliv), "-p", str(profile), "--format", "json", "--out", str(tmp_path / "o"),
-            "--ledger", ledger_url)
+        check(str(deliv), "-p", str(profile), "--format", "json", "--out", str(tmp_path / "o"),
+              "--ledger", ledger_url)
     ok = run("ledger", "verify", "--ledger", ledger_url)
     assert ok.exit_code == 0
     head = ok.output.split("head ")[-1].strip()
@@ -260,9 +261,9 @@ def _in_transaction(url: str) -> bool:
 
 @pytest.mark.slow
 def test_check_killed_mid_write_leaves_the_ledger_intact(tmp_path: Path, profile: Path,
-                                                         ledger_url: str, checker_file: str) -> None:
+                                                         ledger_url: str) -> None:
     small = write_delivery(tmp_path / "small", "D0", {})
-    assert check(checker_file, str(small), "-p", str(profile), "--format", "json", "--out",
+    assert check(str(small), "-p", str(profile), "--format", "json", "--out",
                  str(tmp_path / "o0"), "--ledger", ledger_url).exit_code == 0
     with open_ledger(ledger_url, create=False) as led:
         before = led.verify()
@@ -271,7 +272,7 @@ def test_check_killed_mid_write_leaves_the_ledger_intact(tmp_path: Path, profile
     env = {**os.environ, "ORTHOSPEC_LEDGER_PAUSE": "60", "ORTHOSPEC_LEDGER_PAUSE_MARKER": str(marker)}
     proc = subprocess.Popen(
         [sys.executable, "-m", "orthospec.cli.main", "check", str(big), "-p", str(profile), "--format",
-         "json", "--out", str(tmp_path / "o1"), "--ledger", ledger_url, "--checker", checker_file],
+         "json", "--out", str(tmp_path / "o1"), "--ledger", ledger_url, "--checker", str(checker_of(big))],
         env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     try:
         deadline = time.monotonic() + 60
@@ -298,7 +299,7 @@ def test_check_killed_mid_write_leaves_the_ledger_intact(tmp_path: Path, profile
         assert conn.execute(sa.text("SELECT count(*) FROM qcrs WHERE run_id <> 1")).scalar_one() == 0
     eng.dispose()
     # the ledger is writable again: the killed writer's lock is gone
-    res = check(checker_file, str(small), "-p", str(profile), "--format", "json", "--out",
+    res = check(str(small), "-p", str(profile), "--format", "json", "--out",
                 str(tmp_path / "o2"), "--ledger", ledger_url)
     assert "recorded run #2" in res.output
     with open_ledger(ledger_url, create=False) as led:

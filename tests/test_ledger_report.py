@@ -8,13 +8,16 @@ from tests.conftest import MANIFEST
 
 from orthospec.cli.main import cli
 
-#: the checker's verdict of the mini profile's manual rule (INTERFACES item 4: the delivery's own
-#: manual_checks table is the contractor's statement, not a verdict)
+#: the checker's file for delivery ID (INTERFACES item 4): the ITT value in force and the verdict of
+#: the mini profile's manual rule (the delivery's own manual_checks and tender.parameters are the
+#: contractor's statements, not values in force)
 CHECKER = """\
 orthospec_checker: 1
-checker: {name: Carla Checker (fictional), role: external QC}
+checker: {{name: Carla Checker (fictional), role: external QC}}
+delivery: {{id: {id}}}
+parameters: {{tolerance_xy: {{value: 0.5, unit: m}}}}
 manual_checks:
-  - {check: R-VIS, item: "*", date: 2026-01-01, verdict: pass, note: visual check of every image}
+  - {{check: R-VIS, item: "*", date: 2026-01-01, verdict: pass, note: visual check of every image}}
 """
 
 
@@ -29,15 +32,14 @@ def delivery(make_delivery, name, did, rolls):
         images="image_id,file,block,roll,flying_height,std_dn,exposure_x,exposure_y\n" + rows + "\n")
 
 
-def checker_file(tmp_path):
-    p = tmp_path / "checker.yaml"
-    p.write_text(CHECKER, encoding="utf-8")
+def checker_file(tmp_path, did):
+    p = tmp_path / f"checker-{did}.yaml"
+    p.write_text(CHECKER.format(id=did), encoding="utf-8")
     return p
 
 
 def test_three_rounds_history_signoff_and_pdf(make_delivery, mini_profile, tmp_path):
     ledger = tmp_path / "ledger.sqlite"
-    checker = checker_file(tmp_path)
     bad = [0.5] * 20
     bad[3] = bad[7] = bad[11] = 5.0
     partial = [0.5] * 20
@@ -47,7 +49,7 @@ def test_three_rounds_history_signoff_and_pdf(make_delivery, mini_profile, tmp_p
     for n, (did, rolls) in enumerate((("D1", bad), ("D2", partial), ("D3", good)), start=1):
         root = delivery(make_delivery, f"r{n}", did, rolls)
         res = run("check", root, "-p", mini_profile, "--out", tmp_path / f"o{n}", "--ledger", ledger,
-                  "--date", f"2026-0{n}-01", "--format", "json", "--checker", checker)
+                  "--date", f"2026-0{n}-01", "--format", "json", "--checker", checker_file(tmp_path, did))
         codes.append(res.exit_code)
         assert f"recorded run #{n}" in res.output
         if n == 2:  # after a failing round the family is tightened: a larger sample with the suspect image
@@ -97,7 +99,7 @@ def test_round_at_check_time_equals_the_ledger_report(make_delivery, mini_profil
     and a redelivery of different content under the same delivery id (the round is content-keyed:
     "Redelivery of products will be followed by a further independent check on a new sample")."""
     ledger = tmp_path / "ledger.sqlite"
-    checker = checker_file(tmp_path)
+    checker = checker_file(tmp_path, "D1")
     first = delivery(make_delivery, "first", "D1", [0.5] * 19 + [5.0])
     fixed = delivery(make_delivery, "fixed", "D1", [0.5] * 20)   # same id, one image corrected
     expected = [(first, 1, "delivery"), (first, 1, "recheck"), (fixed, 2, "redelivery")]

@@ -11,7 +11,7 @@ from tests.conftest import EXAMPLES
 
 from orthospec.api import check
 from orthospec.measures.synthetic import slanted_edge
-from orthospec.qcr import all_records
+from orthospec.qcr import all_records, point_rows
 
 PROFILE_HEAD = """\
 orthospec_profile: 1
@@ -65,7 +65,7 @@ def test_block_rmse_equals_numpy_on_the_example(tmp_path):
         assert len(got["evidence"][0]["rows"]) == len(g)
         assert recs(doc, "RD")[block]["verdict"] == "pass"  # reported values agree within 1 cm
     table = doc["details"]["checkpoints"]
-    assert set(table) == {"B01", "B02", "B03"} and table["B01"]["points"][0]["point_id"]
+    assert set(table) == {"B01", "B02", "B03"} and point_rows(table["B01"]["points"])[0]["point_id"]
 
 
 def test_reported_rmse_that_disagrees_is_a_finding(tmp_path):
@@ -224,7 +224,8 @@ def test_manual_rule_applies_per_item(make_delivery, tmp_path):
     # the delivery's own table is the contractor's statement: without the checker's verdict, missing
     assert recs(check(root, p, date="2026-01-01").document, "M")["I2"]["verdict"] == "missing"
     checker = tmp_path / "checker.yaml"
-    checker.write_text("orthospec_checker: 1\nchecker: {name: Ann Checker, role: external QC}\nmanual_checks:\n"
+    checker.write_text("orthospec_checker: 1\nchecker: {name: Ann Checker, role: external QC}\ndelivery: {id: D1}\n"
+                       "manual_checks:\n"
                        "  - {check: M, item: I2, date: 2026-01-02, verdict: pass, note: looked}\n", encoding="utf-8")
     doc = check(root, p, date="2026-01-01", checker=checker).document
     m = recs(doc, "M")
@@ -339,7 +340,7 @@ def test_per_point_decisions_values_and_rows_on_a_copied_example(tmp_path):
     assert {dec[k]["measured"]["value"] for k in kept} == {"kept"}
     assert {ok[k]["message"] for k in kept} == {"within the maximum tolerable discrepancy"}
     # the figure's per-point detail keeps its keys and the excluded blunder is drawn as failing
-    pts = {q["point_id"]: q for q in doc["details"]["checkpoints"]["B01"]["points"]}
+    pts = {q["point_id"]: q for q in point_rows(doc["details"]["checkpoints"]["B01"]["points"])}
     assert set(pts["B01-C05"]) == {"point_id", "dx", "dy", "dz", "dr", "x_ref", "y_ref", "status", "decision",
                                    "row"}
     b5 = cp[cp["point_id"] == "B01-C05"].iloc[0]

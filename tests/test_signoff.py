@@ -38,8 +38,9 @@ def unsigned(make_delivery, mini_profile, tmp_path: Path) -> dict[str, Path]:
     root = make_delivery("d", manifest=MANIFEST.replace(NO_WAIVER, ""), images=GOOD,
                          manual="check,item,inspector,date,verdict\n")
     ledger = tmp_path / "ledger.sqlite"
-    res = run("check", root, "-p", mini_profile, "--out", tmp_path / "o1", "--ledger", ledger,
-              "--date", "2026-03-01", "--format", "json", "--operator", "Carl Checker")
+    # the ITT value comes from the checker's side (--param), never from the delivery (INTERFACES 4)
+    res = run("check", root, "-p", mini_profile, "--param", "tolerance_xy=0.5", "--out", tmp_path / "o1",
+              "--ledger", ledger, "--date", "2026-03-01", "--format", "json", "--operator", "Carl Checker")
     assert res.exit_code == 1, res.output
     assert "recorded run #1" in res.output
     return {"ledger": ledger, "tmp": tmp_path}
@@ -144,8 +145,8 @@ def test_anchor_file_catches_a_recomputed_chain(make_delivery, mini_profile, tmp
     root = make_delivery("d", manifest=MANIFEST.replace(NO_WAIVER, ""), images=GOOD)
     ledger = tmp_path / "anchored.sqlite"
     for day in ("2026-03-01", "2026-03-02"):
-        res = run("check", root, "-p", mini_profile, "--out", tmp_path / day, "--ledger", ledger, "--date", day,
-                  "--format", "json")
+        res = run("check", root, "-p", mini_profile, "--param", "tolerance_xy=0.5", "--out", tmp_path / day,
+                  "--ledger", ledger, "--date", day, "--format", "json")
         assert res.exit_code in (0, 1), res.output
     lines = anchor.read_text(encoding="utf-8").splitlines()
     assert [ln.split()[0] for ln in lines] == ["1", "2"]
