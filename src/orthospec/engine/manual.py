@@ -6,6 +6,11 @@ verdict of a manual rule comes from the checker's file (``check --checker FILE``
 statement, quoted in the record's message and listed as evidence, never a verdict. Without the
 checker's entry the rule is ``missing`` ("still to be signed"). The record names who signed
 (the checker file's inspector or party) and, separately, who stated what for the contractor.
+
+A checker verdict on an item the delivery no longer lists (the contractor deleted the row after
+the checker judged it) never vanishes: the rule's record keeps that item with the checker's
+verdict, the roll-up returns the delivery naming it (engine/rollup.py), and ``unused`` lists
+the checker entries that judged nothing delivered (red team R15; JRC §2.4, §12.3).
 """
 
 from __future__ import annotations
@@ -22,6 +27,50 @@ from .compare import req_dict
 from .context import FAIL, MISSING, NA, PASS, WARN, Context, RuleResult
 
 UNSIGNED = "manual check: no recorded verdict from the checker (check --checker FILE, manual_checks:)"
+
+
+def gone_reason(item: str) -> str:
+    """Why a checker verdict on an item missing from the delivery is a finding (one wording)."""
+    return f"the checker's verdict on {item} refers to an item the delivery no longer lists"
+
+
+def vanished(ctx: Context, rule: Rule, items: list[str]) -> list[str]:
+    """The items the checker judged on ``rule`` that are not among the delivery's ``items``."""
+    have = set(map(str, items))
+    return sorted(i for i in signed(ctx, rule.id) if i != "*" and i not in have)
+
+
+def vanished_in(ctx: Context, r: RuleResult) -> list[str]:
+    """The items of a manual rule's record the checker judged but the delivery no longer lists."""
+    if not r.rule.manual or ctx.checker is None:
+        return []
+    listed, _ = ctx.universe(r.rule.scope)
+    if listed is None:
+        listed = [ctx.d.id]
+    return vanished(ctx, r.rule, listed)
+
+
+def unused(ctx: Context, results: list[RuleResult]) -> list[dict[str, Any]]:
+    """Checker entries that judged nothing the delivery lists (like ``waivers.unused``), each with why.
+
+    An entry is unused when the profile has no manual rule of its ``check``, or its item is not
+    listed by the delivery (the record still carries it, see ``vanished``).
+    """
+    if ctx.checker is None:
+        return []
+    manual = {r.rule.id: r for r in results if r.rule.manual}
+    out = []
+    for i, m in enumerate(ctx.checker.model.manual_checks):
+        r = manual.get(m.check)
+        if r is None:
+            why = f"the profile {ctx.profile.id} has no manual rule {m.check}"
+        elif m.item != "*" and m.item in vanished_in(ctx, r):
+            why = gone_reason(m.item)
+        else:
+            continue
+        out.append({**m.model_dump(mode="json", exclude_none=True), "entry": i + 1,
+                    "checker_file": ctx.checker.name, "reason": why})
+    return out
 
 
 def signed(ctx: Context, rule_id: str) -> dict[str, tuple[int, Any]]:
@@ -73,6 +122,8 @@ def _signed_note(ctx: Context, rule: Rule, idx: int, entry: Any) -> tuple[int, s
 def manual_rule(ctx: Context, rule: Rule, items: list[str]) -> RuleResult:
     """Judge a manual rule per item from the checker's verdicts; quote the contractor's statements."""
     items = items or [ctx.d.id]
+    gone = vanished(ctx, rule, items)
+    items = list(items) + gone
     n = len(items)
     verdict = np.full(n, MISSING, dtype=np.int8)
     measured = np.full(n, None, dtype=object)
@@ -92,13 +143,19 @@ def manual_rule(ctx: Context, rule: Rule, items: list[str]) -> RuleResult:
             # the contractor's statement stays in the evidence; the message names it where it disagrees
             differs = c is not None and c.said != k[1].verdict
             notes[i] = f"{note}; {c.short}" if differs else note
+            if item in gone:
+                notes[i] = f"{gone_reason(item)} ({notes[i]}); the delivery is returned"
         evidence[i] = tuple(ev)
-    if rule.when:
-        ok, unknown, unknown_note = applicable(ctx, rule, items)
-        na = ~ok & ~unknown
+    listed = n - len(gone)  # a vanished item has no facts for `when`: it keeps the checker's verdict
+    if rule.when and listed:
+        ok, unknown, unknown_note = applicable(ctx, rule, items[:listed])
+        na = np.zeros(n, dtype=bool)
+        na[:listed] = ~ok & ~unknown
         verdict[na] = NA
         notes[na] = f"not applicable: {rule.when} is false"
         if unknown.any():
-            notes[unknown & (verdict == MISSING)] = unknown_note
+            unk = np.zeros(n, dtype=bool)
+            unk[:listed] = unknown
+            notes[unk & (verdict == MISSING)] = unknown_note
     return RuleResult(rule, np.array(items, dtype=object), verdict, measured, "text",
                       req_dict(rule.requirement, None), evidence, notes)

@@ -30,6 +30,7 @@ from ..measures.acceptance import (
 from ..spec.models import Rule
 from ..spec.operators import is_missing
 from .context import ERROR, FAIL, MISSING, VERDICTS, WARN, Context, RuleResult
+from .manual import gone_reason, vanished_in
 from .registry import ROLLUP, Measured
 
 BLOCK_ROLLUPS = ("rollup.block_rejected_share", "rollup.blocks_rejected")
@@ -250,10 +251,22 @@ class Rollup:
                            "a rejected item returns the delivery")
         return reasons
 
+    def _vanished(self, results: list[RuleResult]) -> list[str]:
+        """A checker verdict on an item the delivery no longer lists returns the delivery (red team
+        R15): what the checker inspected, and perhaps rejected, cannot leave the delivery unseen."""
+        by_item: dict[str, list[str]] = {}
+        for r in results:
+            for item in vanished_in(self.ctx, r):
+                hit = np.flatnonzero(r.items.astype(str) == item)
+                v = VERDICTS[int(r.verdict[hit[0]])] if len(hit) else "not evaluated"
+                by_item.setdefault(item, []).append(f"{r.rule.id} {v}")
+        return [f"{gone_reason(item)} ({', '.join(rules)}): the delivery is returned"
+                for item, rules in sorted(by_item.items())]
+
     def overall(self, results: list[RuleResult], rejected: dict[str, list[str]], second: list[Rule]
                 ) -> tuple[str, list[str]]:
         """The delivery's verdict and why (no reason = accepted)."""
-        reasons: list[str] = list(self.scope_wide)
+        reasons: list[str] = list(self.scope_wide) + self._vanished(results)
         for r in results:
             mask = self.blocking(r)
             if mask.any() and (why := self._rule_reasons(r, mask)) is not None:

@@ -38,6 +38,7 @@ IMAGE_MEASURES: dict[str, str] = {
     "raster.reported_std_diff": "DN",
 }
 DELIVERY_MEASURES = {"raster.unlisted_files": "1", "raster.listed_missing": "1"}
+DUPLICATE_MEASURES = {"raster.file_unique": "bool"}
 SMALL_DELIVERY_BYTES = 64 << 20
 _IMAGE_EXT = {".tif", ".tiff", ".jp2", ".j2k", ".img", ".vrt", ".png", ".jpg", ".jpeg", ".ecw", ".sid"}
 
@@ -136,7 +137,7 @@ def _scan(ctx: ProviderContext) -> dict[str, Any]:
     on_disk = sorted(p.relative_to(d.root).as_posix() for p in d.root.rglob("*")
                      if p.is_file() and p.suffix.lower() in _IMAGE_EXT)
     listing = listing_consistency(files, on_disk)
-    ctx.memo["rasters"] = {"frame": frame, "errors": errors, "sha256": sha,
+    ctx.memo["rasters"] = {"frame": frame, "errors": errors, "sha256": sha, "paths": paths,
                            "rows": dict(zip(ids, t.df["_row"], strict=True)), "table": t,
                            "listing": listing}
     return ctx.memo["rasters"]
@@ -225,6 +226,61 @@ def raster_measures(ctx: ProviderContext) -> list[Measured]:
             notes = pd.Series(name_notes, dtype=object)
         out.append(Measured(n, "image", u, pd.Series(values[n], dtype=object), ev, notes=notes, errors=errs))
     return out
+
+
+def _shared(ids: list[str], key: dict[str, Any]) -> dict[str, list[str]]:
+    """item -> the other items with the same key (same file, or same content)."""
+    groups: dict[Any, list[str]] = {}
+    for i in ids:
+        if key.get(i) is not None:
+            groups.setdefault(key[i], []).append(i)
+    return {i: [j for j in g if j != i] for g in groups.values() if len(g) > 1 for i in g}
+
+
+@provider(scope="image", measures=DUPLICATE_MEASURES)
+def duplicate_measures(ctx: ProviderContext) -> list[Measured]:
+    """Each image row has a file of its own (red team R12; JRC §12.4 Table 12, §6.4).
+
+    Two rows naming one file, or two files with the same SHA-256 (a missing image replaced by a
+    copy of its neighbour), cannot both be the ortho-image of their own ground: ``False`` on
+    every such row, the note naming the other image(s). A file that is absent or was not hashed
+    (empty, unreadable) has no content to compare: ``None`` (the rule is ``missing``), unless
+    its row names the same file as another row.
+    """
+    got = _scan(ctx)
+    if "missing" in got:
+        return [Measured(n, "image", u, pd.Series(dtype=object), pd.Series(dtype=object),
+                         notes=pd.Series({"*": got["missing"]}, dtype=object)) for n, u in DUPLICATE_MEASURES.items()]
+    t = got["table"]
+    ids = [str(i) for i in t.ids.tolist()]
+    paths = {str(i): p for i, p in got["paths"].items() if isinstance(p, Path)}
+    same_file = _shared(ids, {i: p.resolve() for i, p in paths.items()})
+    same_sha = _shared(ids, got["sha256"])
+    files = dict(zip(ids, t.df["file"].astype(str).tolist(), strict=True))
+    values: dict[str, bool | None] = {}
+    notes: dict[str, str] = {}
+    evidence: dict[str, tuple[Evidence, ...]] = {}
+    for i in ids:
+        listed = Evidence(t.file, t.sha256, (int(got["rows"][i]),))
+        digest = got["sha256"].get(i)
+        evidence[i] = (listed,) + ((Evidence(files[i], digest, ()),) if digest else ())
+        why = []
+        if same_file.get(i):
+            why.append(f"names the same file {files[i]} as image(s) {', '.join(same_file[i])}")
+        others = [j for j in same_sha.get(i, []) if j not in same_file.get(i, [])]
+        if others:
+            why.append(f"its file {files[i]} has the same content (SHA-256 {digest}) as the file of image(s) "
+                       + ", ".join(f"{j} ({files[j]})" for j in others))
+        if why:
+            values[i] = False
+            notes[i] = "; ".join(why)
+        elif digest is None:
+            values[i] = None
+            notes[i] = f"{files[i]}: no file content to compare (absent, empty or unreadable)"
+        else:
+            values[i] = True
+    return [Measured("raster.file_unique", "image", "bool", pd.Series(values, dtype=object),
+                     pd.Series(evidence, dtype=object), notes=pd.Series(notes, dtype=object) if notes else None)]
 
 
 @provider(scope="delivery", measures=DELIVERY_MEASURES)
