@@ -475,3 +475,16 @@ def test_a_capped_point_table_is_labelled_and_draws_no_distribution(checked: dic
     assert "1000 point(s) with small residuals are not in qcr.json" in html
     assert f"Block {capped}: distribution of the discrepancies" not in html
     assert f"Block {other}: distribution of the discrepancies" in html
+
+
+def test_checker_verdicts_on_nothing_delivered_are_listed(checked: dict[str, Any]) -> None:
+    import copy
+
+    doc = copy.deepcopy(checked["doc"])
+    assert doc["manual_unused"] == []  # qcr.json always carries the list (red team R15)
+    doc["manual_unused"] = [{"check": "R-SEAM", "item": "IMG_GONE", "date": "2026-01-02", "verdict": "pass",
+                             "entry": 3, "checker_file": "checker.yaml",
+                             "reason": "the delivery no longer lists IMG_GONE"}]
+    html = render_html(doc, ReportOptions(bounded=True, figures=False))
+    assert "Checker verdicts on nothing delivered" in html
+    assert "IMG_GONE" in html and "the delivery no longer lists IMG_GONE" in html

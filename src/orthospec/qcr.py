@@ -519,6 +519,8 @@ def build_document(ev: Evaluation, *, date: str, operator: str | None = None,
         "summary": {"rules": len(ev.results), "records": n_records, **summary},
         "rollup": {"rejected": ev.rejected, "reasons": ev.reasons},
         "waivers_unused": ev.unused_waivers,
+        # checker-file verdicts that judged nothing the delivery lists (red team R15)
+        "manual_unused": list(getattr(ev, "manual_unused", None) or []),
         # the contractor's waiver requests (delivery.yaml): evidence, in force only when granted
         "waiver_requests": ev.waiver_requests,
         "rules": [],

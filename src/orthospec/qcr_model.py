@@ -237,6 +237,9 @@ class QcrDocument(_Open):
     summary: Summary
     rollup: Rollup
     waivers_unused: list[dict[str, Any]] = []
+    manual_unused: list[dict[str, Any]] = Field(
+        [], description="Checker-file manual verdicts that judged nothing the delivery lists "
+                        "(check, item, date, verdict, note, inspector, entry, checker_file, reason).")
     waiver_requests: list[dict[str, Any]] = Field(
         [], description="The contractor's waiver requests and whether the checker granted them.")
     rules: list[RuleSummary]
