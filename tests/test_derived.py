@@ -255,9 +255,9 @@ def test_pan_sharpening_rules_do_not_apply_to_an_aerial_delivery():
 
 
 # ---------------------------------------------------------------- red team R7: inflated flying heights
-def _aerial_copy_without_strip_f02_02(tmp_path, height_factor):
-    """aerial-pass without strip F02_02 (rows and image files), F02_01 flying heights x height_factor
-    (the reproducer of /tmp/team/redteam.md R7)."""
+def _aerial_copy_without_strip_f02_02(tmp_path, height_factor, columns=("flying_height",)):
+    """aerial-pass without strip F02_02 (rows and image files), F02_01 ``columns`` (flying heights)
+    x height_factor (the reproducer of /tmp/team/redteam.md R7, R18)."""
     import shutil
 
     import pandas as pd
@@ -270,7 +270,8 @@ def _aerial_copy_without_strip_f02_02(tmp_path, height_factor):
         (d / rel).unlink()
     img = img[~img["image_id"].str.startswith("F02_02")].copy()
     strip = img["image_id"].str.startswith("F02_01")
-    img.loc[strip, "flying_height"] = [f"{float(h) * height_factor:.1f}" for h in img.loc[strip, "flying_height"]]
+    for col in columns:
+        img.loc[strip, col] = [f"{float(h) * height_factor:.4f}" for h in img.loc[strip, col]]
     img.to_csv(f, index=False)
     return d
 
@@ -291,6 +292,20 @@ def test_inflated_flying_heights_cannot_hide_a_missing_strip(tmp_path):
     assert rec["verdict"] == "missing", rec
     assert "F02_0101" in rec["message"] and "acquisition_gsd" in rec["message"]
     assert doc["verdict"] == "rejected"
+
+
+def test_inflating_the_declared_gsds_too_does_not_help_the_rasters_keep_their_pixel(tmp_path):
+    """Red team R18: heights, acquisition_gsd and gsd of F02_01 all x2.5 (0.60 m) agree with each
+    other, but the delivered rasters still have 0.25 m pixels (read from the GeoTIFFs): the
+    footprints are still not evidence and coverage stays missing."""
+    import rasterio
+
+    d = _aerial_copy_without_strip_f02_02(tmp_path, 2.5, ("flying_height", "acquisition_gsd", "gsd"))
+    with rasterio.open(d / "images" / "F02_0101.tif") as ds:
+        assert ds.res[0] == pytest.approx(0.25)
+    doc, rec = _cov(tmp_path, d)
+    assert rec["verdict"] == "missing", rec
+    assert "F02_0101" in rec["message"] and doc["verdict"] == "rejected"
 
 
 def test_heights_within_the_gsd_tolerance_still_count(tmp_path):

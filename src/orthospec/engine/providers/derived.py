@@ -47,8 +47,8 @@ DELIVERY = {"derived.orthorectification": "text"}
 COVERAGE = {"derived.photo_coverage": "%"}
 MASTER = {"derived.master_images": "1"}
 #: A photo counts toward coverage only when its lay-down GSD (H/f x pixel size, the scale of its
-#: footprint) is at most this factor times its reference GSD (``images.acquisition_gsd``, and the
-#: delivered GSD: ``images.gsd``, else ``product.gsd``). 20 %: the ground-pixel size of one photo
+#: footprint) is at most this factor times its reference GSD (the finest of ``images.acquisition_gsd``,
+#: ``images.gsd``, ``product.gsd`` and its delivered raster's measured pixel size). 20 %: the ground-pixel size of one photo
 #: varies with the terrain under it (H is above mean ground) and §5.2.1 only asks for the
 #: "predefined GSD" (should, no tolerance); aerial-pass agrees within 0.1 %, the red team's
 #: inflated heights were 150 % too coarse. Only a coarser (larger) footprint is refused: a smaller
@@ -229,24 +229,46 @@ def _lay_down(ctx: ProviderContext) -> tuple[list[Any], list[Any], str | None]:
 
 
 def _reference_gsd(ctx: ProviderContext, imgs: Any) -> np.ndarray:
-    """Per images row, in metres: the finer of its recorded acquisition GSD and the delivered GSD
-    (``images.gsd``, else ``product.gsd``); NaN when neither is given. A lay-down GSD much coarser
-    than both is a flying height the delivery's own numbers contradict (see ``GSD_TOLERANCE``)."""
+    """Per images row, in metres: the finest of its recorded acquisition GSD, the delivered GSD
+    (``images.gsd``, ``product.gsd``) and the pixel size of its delivered raster as measured; NaN
+    when none is known. A lay-down GSD much coarser than that is a flying height the delivery
+    contradicts (see ``GSD_TOLERANCE``). The raster's own pixel size counts because every other
+    number here is declared: inflating heights and declared GSDs together (red team R18) leaves
+    the delivered 0.25 m pixels as they are."""
     n = len(imgs.df)
-    delivered = np.full(n, ctx.delivery.gsd_m if ctx.delivery.gsd_m is not None else np.nan, dtype=float)
-    cands = [delivered]
+    cands = [np.full(n, ctx.delivery.gsd_m if ctx.delivery.gsd_m is not None else np.nan, dtype=float),
+             _raster_pixel_sizes(ctx, imgs)]
     for col in ("gsd", "acquisition_gsd"):
         if col in imgs.df:
-            v = convert(pd.to_numeric(imgs.df[col], errors="coerce").to_numpy(float), imgs.units.get(col, "m"), "m")
-            if col == "gsd":
-                delivered = np.where(np.isfinite(v), v, delivered)
-                cands[0] = delivered
-            else:
-                cands.append(v)
+            cands.append(convert(pd.to_numeric(imgs.df[col], errors="coerce").to_numpy(float),
+                                 imgs.units.get(col, "m"), "m"))
     stack = np.column_stack(cands)
     out = np.full(n, np.nan)
     have = np.isfinite(stack).any(axis=1)
     out[have] = np.nanmin(stack[have], axis=1)
+    return out
+
+
+def _raster_pixel_sizes(ctx: ProviderContext, imgs: Any) -> np.ndarray:
+    """Pixel size in metres of each images row's delivered file (header only); NaN where the file is
+    absent, unreadable or not in a metre CRS (its own raster rules report that)."""
+    from ...raster.reading import open_read_only, read_only_env
+
+    d = ctx.delivery
+    out = np.full(len(imgs.df), np.nan)
+    if "file" not in imgs.df:
+        return out
+    with read_only_env():
+        for k, rel in enumerate(imgs.df["file"].tolist()):
+            if not isinstance(rel, str) or not rel.strip():
+                continue
+            try:
+                with open_read_only(d.path(rel, what="images row"), name=rel) as ds:
+                    units = (ds.crs.linear_units or "").lower() if ds.crs is not None else ""
+                    if units in ("metre", "meter", "m"):
+                        out[k] = float(max(abs(ds.res[0]), abs(ds.res[1])))
+            except (OrthospecError, OSError):
+                continue
     return out
 
 
@@ -282,8 +304,8 @@ def photo_coverage(ctx: ProviderContext) -> list[Measured]:
                 if inflated:
                     note += (f"; image(s) {', '.join(inflated[:5])}{' ...' if len(inflated) > 5 else ''} "
                              f"have a flying height whose H/f x pixel GSD is more than "
-                             f"{(GSD_TOLERANCE - 1) * 100:.0f} % coarser than their acquisition_gsd or "
-                             "delivered GSD, so their footprints are not evidence of coverage (JRC §3.1, "
+                             f"{(GSD_TOLERANCE - 1) * 100:.0f} % coarser than their acquisition_gsd, "
+                             "declared GSD or delivered raster pixel, so their footprints are not evidence of coverage (JRC §3.1, "
                              "§5.2.1): full coverage is not shown")
             else:
                 value = share
