@@ -157,3 +157,40 @@ def test_r12_unique_files_and_absent_file(tmp_path: Path) -> None:
     vals = {str(k): v for k, v in m.values.items()}
     assert vals.pop("F03_0202") is None
     assert set(vals.values()) == {True}
+
+
+OWN_FILE_RULE = {
+    "id": "JRC-12.4-T12-ORTHO-OWN-FILE",
+    "title": "Each ortho-image is its own file, not a copy of another image",
+    "clause": {"document": "JRC EUR 23638 EN", "section": "12.4", "table": 12, "row": "Ortho-image"},
+    "quote": "Selected extracts from the final products, georeferenced to the (national) map projection.",
+    "scope": "image", "measure": "raster.file_unique", "requirement": {"op": "true"},
+    "level": "mandatory", "consequence": "reject_item", "tags": ["external-qc", "files"],
+}
+
+
+def _jrc_with_own_file_rule(tmp_path: Path) -> Path:
+    """jrc-v3 with the rule requested from the profile owner (kept as is once the profile has it)."""
+    import yaml
+
+    doc = yaml.safe_load((ROOT / "specs" / "jrc-v3.yaml").read_text(encoding="utf-8"))
+    if not any(r["id"] == OWN_FILE_RULE["id"] for r in doc["rules"]):
+        doc["rules"].append(OWN_FILE_RULE)
+    out = tmp_path / "jrc-v3.yaml"
+    out.write_text(yaml.safe_dump(doc, sort_keys=False, allow_unicode=True), encoding="utf-8")
+    return out
+
+
+def test_r12_neighbour_copy_rejects_both_images(tmp_path: Path) -> None:
+    """aerial-pass (ACCEPTED as shipped) with F02_0105.tif replaced by F02_0104.tif's bytes: both images
+    are rejected by the mandatory rule, each record naming the other, and 2 of 30 images (6.7 % > 5 %,
+    JRC §12.3) return the delivery."""
+    d = _copy("aerial-pass", tmp_path)
+    shutil.copyfile(d / "images" / "F02_0104.tif", d / "images" / "F02_0105.tif")
+    res = check_with(d, _jrc_with_own_file_rule(tmp_path), checker=CHECKERS / "aerial-pass.yaml", date=DATE)
+    got = {r["item"]: r for r in records(res.document) if r["rule"] == OWN_FILE_RULE["id"]}
+    assert got["F02_0105"]["verdict"] == "fail" and "F02_0104" in got["F02_0105"]["message"]
+    assert got["F02_0104"]["verdict"] == "fail" and "F02_0105" in got["F02_0104"]["message"]
+    assert sorted(i for i, r in got.items() if r["verdict"] != "pass") == ["F02_0104", "F02_0105"]
+    assert {"F02_0104", "F02_0105"} <= set(res.document["rollup"]["rejected"]["image"])
+    assert not res.accepted
