@@ -10,14 +10,15 @@ Most checkpoint cases start from ``aerial-pass`` with one planted defect (``_pla
 B02's northing residuals scaled by 2.2, giving RMSEy = 0.627 m over 24 check points against the
 0.5 m tolerance (JRC EUR 23638 EN §12.7: "The planimetric threshold will be applied independently
 in X, and Y"), its reported RMSEy set to match so that JRC-12.7-RMSEY is the only block finding.
-The contractor's trick then tries to hide it. Cases marked xfail(strict) are wrong ACCEPTED verdicts
-written up in /tmp/team/redteam.md; they flip (and fail as XPASS) once fixed.
+The contractor's trick then tries to hide it. The checker's file is re-signed (tests/checking.py ``resigned``) on what the contractor delivers: the
+checker signs what it receives; ``_signed_then`` edits the delivery after signing. Cases marked
+xfail(strict) are wrong ACCEPTED verdicts written up in /tmp/team/redteam.md; they flip (and fail
+as XPASS) once fixed.
 """
 
 from __future__ import annotations
 
 import csv
-import json
 import math
 import shutil
 from collections.abc import Callable
@@ -93,10 +94,10 @@ def _worst(rows: list[dict[str, str]], k: int, block: str = "B02") -> list[dict[
     return sorted(rs, key=lambda r: -abs(float(r["y"]) - float(r["y_ref"])))[:k]
 
 
-def _fix_reported(d: Path) -> None:
+def _fix_reported(d: Path, table: str = "checkpoints") -> None:
     """Set every block's reported RMSE to what its non-excluded check points give (in metres), so
     JRC-9.5-REPORTED-RMSE-* cannot be what catches a trick."""
-    _, rows = _read(d, "checkpoints")
+    _, rows = _read(d, table)
     m = _manifest(d)
     factor = {"m": 1.0, "ft": 0.3048, "usft": 1200 / 3937, "mm": 0.001}[(m.get("units") or {}).get("checkpoints", "m")]
     for b in m["blocks"]:
@@ -328,27 +329,51 @@ def _inflate_f02_01_heights_and_gsds(header: list[str], rows: list[dict[str, str
                 r[col] = fmt.format(float(r[col]) * 2.5)
 
 
+def _swap_in_cleaned_table(d: Path) -> None:
+    """The pinned tables/checkpoints.csv stays untouched; the manifest names another file without the
+    4 worst B02 points, reported RMSEs to match."""
+    header, rows = _read(d, "checkpoints")
+    drop = {r["point_id"] for r in _worst(rows, 4)}
+    _write(d, "checkpoints_v2", header, [r for r in rows if r["point_id"] not in drop])
+    m = _manifest(d)
+    m["tables"]["checkpoints"] = "tables/checkpoints_v2.csv"
+    _write_manifest(d, m)
+    _fix_reported(d, "checkpoints_v2")
+
+
 def _drop_failing_scenes(header: list[str], rows: list[dict[str, str]]) -> list[dict[str, str]]:
     return [r for r in rows if r["image_id"] not in ("S01_SC1", "S01_SC3", "S02_SC2")]
 
 
 # --- running ---------------------------------------------------------------------------------
 
-def _after_signing(edit: Edit) -> Edit:
-    """Mark an edit as made *after* the checker signed: the shipped checker file is used as it is.
-    Every other edit is made before delivery, so the checker's file pins the content as delivered."""
-    edit.after_signing = True  # type: ignore[attr-defined]
+def _signed_then(before: Edit, after: Edit) -> Edit:
+    """``before`` is what the contractor delivers and the checker signs (its file re-signed on that
+    content); ``after`` is changed in the delivery once the checker's file exists."""
+    def edit(d: Path) -> None:
+        before(d)
+    edit.after_signing = after  # type: ignore[attr-defined]
     return edit
 
 
-def _checker_for(example: str, delivery: Path, tmp_path: Path, edit: Edit) -> Path:
-    """The checker's fixed file. An edit made before delivery is what the checker received and signed:
-    its pins are re-taken on the delivered content (tests/checking.py ``resigned``), written outside
-    the delivery. An edit made after signing meets the shipped file as it is."""
-    shipped = CHECKERS / f"{example}.yaml"
-    if getattr(edit, "after_signing", False):
-        return shipped
-    return resigned(shipped, delivery, tmp_path / f"checker-{example}.yaml")
+def _delivered_items(d: Path) -> set[str]:
+    """Every item id the delivery lists: manifest blocks and the id column of each CSV table."""
+    items = {b["id"] for b in _manifest(d)["blocks"]}
+    for table in (d / "tables").glob("*.csv"):
+        with table.open(encoding="utf-8", newline="") as f:
+            items.update(row[0] for row in list(csv.reader(f))[1:] if row)
+    return items
+
+
+def _checker_for(example: str, delivery: Path, tmp_path: Path) -> Path:
+    """The checker's fixed file re-signed on the delivered content (tests/checking.py ``resigned``): the
+    checker signs what it receives and judges only the items it received. Written outside the delivery."""
+    path = resigned(CHECKERS / f"{example}.yaml", delivery, tmp_path / f"checker-{example}.yaml")
+    doc = yaml.safe_load(path.read_text(encoding="utf-8"))
+    items = _delivered_items(delivery)
+    doc["manual_checks"] = [m for m in doc.get("manual_checks") or [] if m["item"] == "*" or m["item"] in items]
+    path.write_text(yaml.safe_dump(doc, sort_keys=False, allow_unicode=True), encoding="utf-8")
+    return path
 
 
 def _run(example: str, edit: Edit, tmp_path: Path) -> tuple[int, dict[str, Any] | None, str]:
@@ -356,8 +381,12 @@ def _run(example: str, edit: Edit, tmp_path: Path) -> tuple[int, dict[str, Any] 
     d = tmp_path / example
     shutil.copytree(EXAMPLES / example, d)
     edit(d)
+    checker = _checker_for(example, d, tmp_path)
+    after = getattr(edit, "after_signing", None)
+    if after is not None:
+        after(d)
     try:
-        result = check_with(d, "jrc-v3", checker=_checker_for(example, d, tmp_path, edit), date=DATE)
+        result = check_with(d, "jrc-v3", checker=checker, date=DATE)
     except OrthospecError as exc:
         return 2, None, str(exc)
     return (0 if result.accepted else 1), result.document, ""
@@ -482,10 +511,12 @@ def _check_outside_block(block: str) -> Callable[[int, dict[str, Any] | None, st
 
 
 def _check_inflated_heights(code: int, doc: dict[str, Any] | None, err: str) -> None:
-    # R7 (fixed by d44b081): photos whose H/f x pixel contradicts their GSD cover nothing -> missing
+    # R7 (fixed by d44b081), R18 (helper I, after 543dba9): photos whose H/f x pixel contradicts the
+    # raster's 0.25 m pixels cover nothing -> coverage missing, naming them
     assert code == 1 and doc is not None
     _rejects(doc, "JRC-5.2.2-COVERAGE", doc["delivery"]["id"], "missing")
-    assert "F02_0101" in next(r["message"] for r in all_records(doc) if r["rule"] == "JRC-5.2.2-COVERAGE")
+    message = next(r["message"] for r in all_records(doc) if r["rule"] == "JRC-5.2.2-COVERAGE")
+    assert "F02_0101 (0.6 m vs 0.2" in message, message  # vs 0.24 m acquisition / 0.25 m raster
 
 
 def _check_master_declared(code: int, doc: dict[str, Any] | None, err: str) -> None:
@@ -519,17 +550,28 @@ def _refused(*words: str) -> Callable[[int, dict[str, Any] | None, str], None]:
     return check
 
 
-def _image_rejected(image_id: str) -> Callable[[int, dict[str, Any] | None, str], None]:
+def _check_item_vanished(item: str) -> Callable[[int, dict[str, Any] | None, str], None]:
+    # R15 (fixed by 904bfe5): the checker's verdicts on an item the delivery no longer lists return it
     def check(code: int, doc: dict[str, Any] | None, err: str) -> None:
-        assert code == 2 or (doc is not None and image_id in doc["rollup"]["rejected"].get("image", [])), \
-            f"{image_id} passes every image rule"
+        assert code == 1 and doc is not None
+        assert any(f"the checker's verdict on {item} refers to an item the delivery no longer lists" in r
+                   for r in doc["rollup"]["reasons"]), doc["rollup"]["reasons"]
+        assert {r["rule"] for r in all_records(doc) if r["item"] == item} >= {"JRC-T6-ORTHO-INSPECTION"}
     return check
 
 
-def _named_in_result(item: str) -> Callable[[int, dict[str, Any] | None, str], None]:
-    def check(code: int, doc: dict[str, Any] | None, err: str) -> None:
-        assert code == 2 or item in json.dumps(doc), f"the checker's verdicts on {item} vanish without a trace"
-    return check
+def _check_negative_precision(code: int, doc: dict[str, Any] | None, err: str) -> None:
+    # R14: a precision is an RMSE, >= 0 (Definitions, "Check Point")
+    assert code == 1 and doc is not None
+    _rejects(doc, "JRC-DEF-CHECKPOINT-ACCURACY", "B02-C01")
+    assert doc["rollup"]["rejected"]["block"] == ["B02"]
+
+
+def _check_own_file(code: int, doc: dict[str, Any] | None, err: str) -> None:
+    # R12: §12.4 Table 12 "Ortho-image": each image its own raster; the copy rejects both
+    assert code == 1 and doc is not None
+    assert _verdicts(doc, "JRC-12.4-T12-ORTHO-OWN-FILE")["F03_0202"] == "fail"
+    assert {"F03_0201", "F03_0202"} <= set(doc["rollup"]["rejected"]["image"])
 
 
 def _not_accepted(code: int, doc: dict[str, Any] | None, err: str) -> None:
@@ -574,20 +616,19 @@ CASES = [
                  id="second-checkpoints-table-entry"),
     # wrongly ACCEPTED today (findings R1-R5 in /tmp/team/redteam.md)
     pytest.param("aerial-pass", _planted(_declare_tolerance(1.0)), _check_itt_declared, id="R1-tolerance-declared-1m"),
-    pytest.param("aerial-pass", _planted(_units("ft"), _fix_reported), _not_accepted,
-                 id="R2-units-ft-in-metre-crs",
-                 marks=_xfail("R2: units {checkpoints: ft} shrinks residuals x0.3048 in an EPSG:25832 (metre) "
-                              "delivery")),
-    pytest.param("aerial-pass", _planted(_units("mm"), _fix_reported), _not_accepted,
-                 id="R2-units-mm-in-metre-crs",
-                 marks=_xfail("R2: units {checkpoints: mm} (not even m/ft/usft) shrinks residuals x0.001")),
-    pytest.param("aerial-pass", _planted(_move_worst("B99", 4), _fix_reported), _not_accepted,
-                 id="R3-worst-points-to-unknown-block",
-                 marks=_xfail("R3: check-point rows whose block is not a manifest block are silently dropped")),
+    pytest.param("aerial-pass", _planted(_units("ft"), _fix_reported),
+                 _refused("delivery.yaml", "units.checkpoints is ft", "EPSG:25832", "in m"),
+                 id="R2-units-ft-in-metre-crs"),
+    pytest.param("aerial-pass", _planted(_units("mm"), _fix_reported),
+                 _refused("delivery.yaml", "units.checkpoints is mm", "EPSG:25832"), id="R2-units-mm-in-metre-crs"),
+    pytest.param("aerial-pass", _planted(_move_worst("B99", 4), _fix_reported),
+                 _refused("tables/checkpoints.csv", "column 'block'", "'B99' is not a block of the manifest"),
+                 id="R3-worst-points-to-unknown-block"),
     pytest.param("aerial-pass", _planted(_table_edit("checkpoints", _fabricated_copies), _fix_reported),
                  _not_accepted, id="R4-fabricated-copies-new-ids",
                  marks=_xfail("R4: 30 copies of good points under new ids (same coordinates) dilute RMSEy")),
-    pytest.param("aerial-pass", _after_signing(_planted(_table_edit("checkpoints", _delete_worst), _fix_reported)),
+    pytest.param("aerial-pass", _signed_then(_plant_rmse, _chain(_table_edit("checkpoints", _delete_worst),
+                                                                _fix_reported)),
                  _refused("pins tables/checkpoints.csv", "other content"), id="R5-worst-points-deleted-after-signing"),
     pytest.param("aerial-pass", _planted(_move_worst("B01", 4), _fix_reported), _check_outside_block("B01"),
                  id="R6-worst-points-moved-outside-into-B01"),
@@ -602,12 +643,10 @@ CASES = [
                  _check_scene_rule("JRC-T9-CHECKPOINT-RMSE", "S02_SC1"), id="R10-checkpoint-count-zero"),
     pytest.param("aerial-pass", _empty_document, _not_accepted, id="R11-internal-qcr-empty-file",
                  marks=_xfail("R11: 'present' accepts a 0-byte internal QCR document")),
-    pytest.param("aerial-fail", _copy_image_over_missing, _image_rejected("F03_0202"),
-                 id="R12-missing-image-replaced-by-neighbour-copy",
-                 marks=_xfail("R12: a byte-identical copy of another image passes as F03_0202")),
-    pytest.param("aerial-fail", _drop_image_row("F03_0202"), _named_in_result("F03_0202"),
-                 id="R15-checker-rejected-image-row-deleted",
-                 marks=_xfail("R15: checker verdicts on an item the delivery no longer lists are dropped silently")),
+    pytest.param("aerial-fail", _copy_image_over_missing, _check_own_file,
+                 id="R12-missing-image-replaced-by-neighbour-copy"),
+    pytest.param("aerial-fail", _signed_then(_chain(), _drop_image_row("F03_0202")), _check_item_vanished("F03_0202"),
+                 id="R15-checker-rejected-image-row-deleted"),
     pytest.param("aerial-pass", _reproject_label_everything, _not_accepted,
                  id="R16-all-images-and-project-crs-relabelled",
                  marks=_xfail("R16: project.crs, the CRS every image must match, is the contractor's")),
@@ -617,11 +656,12 @@ CASES = [
                                          _fix_reported), _not_accepted, id="R17-B01-outline-redrawn-over-B02",
                  marks=_xfail("R17: overlapping block outlines let R6's moved points count as inside B01")),
     pytest.param("aerial-pass", _chain(_drop_strip_f02_02, _table_edit("images", _inflate_f02_01_heights_and_gsds)),
-                 _not_accepted, id="R18-heights-and-declared-gsds-inflated",
-                 marks=_xfail("R18: R7's reference GSD is the declared column, not the raster's pixel size")),
-    pytest.param("aerial-pass", _table_edit("checkpoints", _negative_precision_b02), _not_accepted,
-                 id="R14-negative-reference-precision",
-                 marks=_xfail("R14: a negative precision_xy passes JRC-DEF-CHECKPOINT-ACCURACY")),
+                 _check_inflated_heights, id="R18-heights-and-declared-gsds-inflated"),
+    pytest.param("aerial-pass", _signed_then(_plant_rmse, _swap_in_cleaned_table), _not_accepted,
+                 id="R19-after-signing-manifest-names-another-checkpoint-file",
+                 marks=_xfail("R19: the pin binds the path tables/checkpoints.csv, not the table the manifest uses")),
+    pytest.param("aerial-pass", _table_edit("checkpoints", _negative_precision_b02), _check_negative_precision,
+                 id="R14-negative-reference-precision"),
     pytest.param("satellite-fail", _scene("S02_SC1", checkpoint_rmse="-1.3", checkpoint_count="8"),
                  _check_scene_rule("JRC-T9-CHECKPOINT-RMSE-VALID", "S02_SC1"), id="R14-negative-scene-checkpoint-rmse"),
 ]
