@@ -47,11 +47,7 @@ PENDING: dict[tuple[str, str], str] = {
 }
 
 #: cycles (sorted member tuples) asked for and not landed yet
-PENDING_CYCLES: dict[tuple[str, ...], str] = {
-    # engine/registry.py re-exports MeasureCache/measure_info/known_measures from engine/catalog.py
-    # until the evaluator modules (E1) and cmd_profiles (E2) import them from engine/catalog.py
-    ("orthospec.engine.catalog", "orthospec.engine.generic", "orthospec.engine.registry"): "E1, E2",
-}
+PENDING_CYCLES: dict[tuple[str, ...], str] = {}
 
 
 def _module_name(path: Path) -> str:

@@ -7,7 +7,8 @@ import re
 from click.testing import CliRunner
 
 from orthospec.cli.main import cli
-from orthospec.engine.registry import MEASURE_DESCRIPTIONS, ROLLUP, describe, known_measures
+from orthospec.engine.catalog import known_measures
+from orthospec.engine.registry import MEASURE_DESCRIPTIONS, ROLLUP, describe
 
 
 def test_every_registered_measure_has_a_description() -> None:

@@ -35,7 +35,7 @@ def site(tmp_path_factory: pytest.TempPathFactory) -> Path:
     target = tmp_path_factory.mktemp("site")
     build = tmp_path_factory.mktemp("plugin-src") / "p"
     shutil.copytree(PLUGIN, build)  # pip may write build files next to the sources: not into the repo
-    proc = subprocess.run([sys.executable, "-m", "pip", "install", "--no-deps", "--quiet", "--target",
+    proc = subprocess.run([sys.executable, "-m", "pip", "install", "--no-deps", "--no-build-isolation", "--quiet", "--target",
                            str(target), str(build)], capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, f"pip could not install the example plugin:\n{proc.stderr[-3000:]}"
     eps = next(target.glob("orthospec_example_plugin-*.dist-info")) / "entry_points.txt"

@@ -14,7 +14,7 @@ __version__ = "0.1.0"
 # Names load on first use: worker processes that import orthospec.raster.* must not pay for
 # the whole engine (pydantic models, pint, the CLI) at start-up.
 _LAZY = {
-    "CheckResult": "api", "check": "api",
+    "CheckOptions": "api", "CheckResult": "api", "check": "api",
     "Delivery": "delivery.reader", "open_delivery": "delivery.reader",
     "DeliveryError": "errors", "ExpressionError": "errors", "LedgerError": "errors",
     "MeasureError": "errors", "OrthospecError": "errors", "ReportError": "errors",
@@ -38,6 +38,7 @@ def __dir__() -> list[str]:
 
 
 __all__ = [
+    "CheckOptions",
     "CheckResult",
     "Delivery",
     "DeliveryError",

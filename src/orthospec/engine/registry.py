@@ -263,6 +263,7 @@ MEASURE_DESCRIPTIONS: dict[str, str] = {
     "raster.cv_percent_min": "smallest per-band coefficient of variation (std / mean), in %",
     "raster.dark_margin": "gap between the darkest DN and the bottom of the range, % of the range (worst band)",
     "raster.exists": "the listed image file exists in the delivery",
+    "raster.file_unique": "the image row names its own file: no other row names the same file or a file with the same SHA-256",
     "raster.format": "file format of the image (GDAL driver)",
     "raster.georeferenced": "the image carries a geotransform",
     "raster.listed_missing": "images listed in the images table but not found on disk",
@@ -308,15 +309,3 @@ class UnknownMeasure(MeasureError, KeyError):
 
     def __str__(self) -> str:
         return f"no provider for measure {self.args[0]!r}"
-
-
-_MOVED = ("MeasureCache", "known_measures", "lookup", "measure_info")
-
-
-def __getattr__(name: str) -> Any:
-    """Moved to engine/catalog.py; kept until every importer uses the new home (issue 15)."""
-    if name in _MOVED:
-        from . import catalog
-
-        return getattr(catalog, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
