@@ -358,7 +358,10 @@ class Delivery:
         except UnitError as exc:
             raise DeliveryError(f"units.{name}: {exc}", file=MANIFEST,
                                 line=self.where(("units", name))) from None
+        if any(cs.unit == "length" for cs in spec.columns.values()):
+            self._check_length_unit(name, length_unit)
         df = parse_csv(body, spec, file=rel, cell_bytes=self.limits.cell_bytes)
+        self._check_blocks(df, rel)
         for col in PATH_COLUMNS & set(df.columns):
             for r, v in zip(df["_row"].tolist(), df[col].tolist(), strict=True):
                 if v is not None:
@@ -369,6 +372,78 @@ class Delivery:
             if cs.type == "number" and col in df:
                 units[col] = canonical(length_unit if cs.unit == "length" else cs.unit)
         return Table(name, spec, rel, sha, df, units)
+
+
+    @cached_property
+    def crs_unit(self) -> str | None:
+        """The canonical length unit of the first axis of ``project.crs`` (``m``, ``ft``, ``usft``),
+        its pyproj name when that is no length (``degree``), or None when no CRS is declared.
+
+        Coordinates in the tables and the block polygons are in this unit (red team R2).
+        pyproj is imported here, lazily: a delivery without a CRS never loads it.
+        """
+        crs = self.manifest.project.crs
+        if not crs:
+            return None
+        from pyproj import CRS
+        from pyproj.exceptions import CRSError
+
+        try:
+            axes = CRS.from_user_input(crs).axis_info
+        except CRSError as exc:
+            raise DeliveryError(f"project.crs {crs!r} is not a coordinate reference system pyproj can read "
+                                f"({exc})", file=MANIFEST, line=self.where(("project", "crs"))) from None
+        if not axes:
+            raise DeliveryError(f"project.crs {crs!r} has no axes", file=MANIFEST, line=self.where(("project", "crs")))
+        name = axes[0].unit_name
+        key = {"metre": "m", "meter": "m", "foot": "ft", "US survey foot": "usft"}.get(name)
+        return key if key is not None else name
+
+    def _check_length_unit(self, name: str, unit: str) -> None:
+        """A table's coordinate unit is the unit of the project CRS (red team R2).
+
+        ``units: {checkpoints: ft}`` in a metre CRS would shrink every residual by 0.3048 (``mm``
+        by 1000) and turn a failing block into a passing one; the coordinates are positions in
+        the project CRS, so the unit is not the contractor's to choose. Without ``project.crs``
+        there is nothing to compare with.
+        """
+        crs_unit = self.crs_unit
+        if crs_unit is None or canonical(unit) == crs_unit:
+            return
+        given = (f"units.{name} is {unit}" if name in self.manifest.units
+                 else f"units.{name} is not given (m is assumed)")
+        crs = self.manifest.project.crs
+        if crs_unit in ("m", "ft", "usft"):
+            why = (f"the coordinates of table '{name}' are in project.crs {crs}, whose axes are in "
+                   f"{crs_unit}: set units.{name}: {crs_unit}")
+        else:
+            why = (f"project.crs {crs} has its axes in {crs_unit}, not a length: the coordinates of "
+                   f"table '{name}' cannot be read in a length unit")
+        raise DeliveryError(f"{given}, but {why}", file=MANIFEST,
+                            line=self.where(("units", name)) or self.where(("project", "crs")))
+
+    def _check_blocks(self, df: pd.DataFrame, rel: str) -> None:
+        """Every ``block`` cell names a manifest block (red team R3).
+
+        Rows of an undeclared block would be computed for no item and judged by no rule: four
+        check points moved to ``B99`` would silently leave their block (JRC §12.5 uses all
+        independent check points). This is where the manifest and every table with a ``block``
+        column meet, so it is checked here once. A manifest without ``blocks:`` names its blocks
+        through the tables (:attr:`block_ids`).
+        """
+        known = [b.id for b in self.manifest.blocks]
+        if not known or "block" not in df or not len(df):
+            return
+        cells = df["block"]
+        other = cells[~cells.isin(known) & cells.notna()]  # a ';'-separated list serves several (dem)
+        if not len(other):
+            return
+        parts = other.astype(str).str.split(";").explode().str.strip()
+        bad = parts[(parts != "") & ~parts.isin(known)]
+        if len(bad):
+            raise DeliveryError(f"block {bad.iloc[0]!r} is not a block of the manifest "
+                                f"(blocks: {', '.join(known)})", file=rel, row=int(df.at[bad.index[0], "_row"]),
+                                field="block")
 
 
 def read_table_bytes(path: Path, *, file: str, limits: Limits) -> bytes:

@@ -46,6 +46,7 @@ __all__ = [
     "ce95_formula",
     "deltas_from_coordinates",
     "detect_blunders",
+    "duplicate_locations",
     "empirical_percentile",
     "nssda_horizontal",
     "rmse_net",
@@ -75,6 +76,19 @@ _LENGTH_FIELDS = (
 
 
 # --------------------------------------------------------------------------- formulas
+
+
+def duplicate_locations(x: Any, y: Any, *, tolerance: float = 0.001) -> np.ndarray:
+    """Mask of the points whose (x, y) repeats another point's, on a grid of ``tolerance`` (1 mm in
+    metres): every member of a repeated position is flagged.
+
+    JRC §12.5 assesses accuracy with "independent measurements": one reference position entered
+    under several ids is one measurement counted many times, and its copies dilute the RMSE
+    (red team R4). Vectorised (rounding and :meth:`pandas.DataFrame.duplicated`).
+    """
+    xy = pd.DataFrame({"x": np.round(np.asarray(x, dtype=float) / tolerance),
+                       "y": np.round(np.asarray(y, dtype=float) / tolerance)})
+    return xy.duplicated(keep=False).to_numpy()
 
 
 def rmse_net(rmse_x: Any, rmse_y: Any) -> Any:

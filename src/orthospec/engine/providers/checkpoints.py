@@ -27,11 +27,12 @@ from ...measures.accuracy import (
     BlunderResult,
     bias_significance,
     detect_blunders,
+    duplicate_locations,
 )
 from ...measures.distribution import DistributionResult, checkpoint_distribution
 from ...provenance import Evidence
 from ...units import convert
-from ..registry import Measured, ProviderContext, RowEvidence, provider
+from ..registry import MEASURE_DESCRIPTIONS, Measured, ProviderContext, RowEvidence, provider
 
 _STATS = {
     "n": "1", "rmse_x": "L", "rmse_y": "L", "rmse_z": "L", "rmse_r": "L", "mean_x": "L", "mean_y": "L",
@@ -50,6 +51,7 @@ BLOCK_MEASURES.update({
     "checkpoints.rmse_x_gsd": "px", "checkpoints.rmse_y_gsd": "px",
     "checkpoints.quadrant_min_share": "%", "checkpoints.spacing_ratio": "1",
     "checkpoints.min_gcp_distance": "m", "checkpoints.near_gcp": "1", "checkpoints.outside_block": "1",
+    "checkpoints.duplicate_locations": "1",
     "checkpoints.reported_diff_x": "m", "checkpoints.reported_diff_y": "m",
     "checkpoints.reported_diff_z": "m",
     "checkpoints.asprs_rmse_h": "m", "checkpoints.asprs_rmse_v": "m",
@@ -57,6 +59,10 @@ BLOCK_MEASURES.update({
     "checkpoints.bias_t_x": "1", "checkpoints.bias_t_y": "1", "checkpoints.bias_t_z": "1",
     "checkpoints.bias_p_x": "1", "checkpoints.bias_p_y": "1", "checkpoints.bias_p_z": "1",
 })
+# declared beside the measure (the provider's own table of descriptions is engine/registry.py)
+MEASURE_DESCRIPTIONS.setdefault(
+    "checkpoints.duplicate_locations",
+    "check points whose reference x, y repeat another point's of the block within 1 mm (JRC §12.5)")
 POINT_MEASURES = {
     "checkpoint.dx": "m", "checkpoint.dy": "m", "checkpoint.dz": "m", "checkpoint.dr": "m",
     "checkpoint.blunder_ok": "bool", "checkpoint.decision": "text",
@@ -123,6 +129,8 @@ class BlockAccuracy:
     distribution_error: str | None = None
     outline: Polygon | None = None
     reported: dict[str, float] = field(default_factory=dict)  # axis -> contractor's RMSE (m)
+    #: ids of the points whose reference position repeats another point's (JRC §12.5, red team R4)
+    duplicates: tuple[str, ...] = ()
 
     @property
     def stats(self) -> AccuracyStats:
@@ -162,7 +170,7 @@ def _compute_once(ctx: ProviderContext) -> Results:
     if t is None:
         return Results(missing="the manifest declares no 'checkpoints' table")
     to_m = float(convert([1.0], t.units.get("x", "m"), "m")[0])
-    outlines, broken = _outlines(ctx, to_m)
+    outlines, broken = _outlines(ctx)
     settings = Settings.of(ctx)
     gcps = _gcps(ctx)
     out = Results()
@@ -183,16 +191,23 @@ def _compute_once(ctx: ProviderContext) -> Results:
             continue
         outline = outlines.get(block)
         dist, dist_error = _distribution(pts, outline, gcps.get(block), settings)
+        dups = tuple(pts.ids[duplicate_locations(pts.x_ref, pts.y_ref)].astype(str).tolist())
         res = BlockAccuracy(block, ev, settings, blunders=br, distribution=dist, distribution_error=dist_error,
-                            outline=outline, reported=_reported(ctx, block))
+                            outline=outline, reported=_reported(ctx, block), duplicates=dups)
         out.blocks[block] = res
         out.points.append((pts, br))
         out.detail[block] = _block_detail(res, pts, gcps.get(block))
     return out
 
 
-def _outlines(ctx: ProviderContext, to_m: float) -> tuple[dict[str, Polygon], dict[str, str]]:
-    """Block polygons from the manifest (in metres), and the blocks whose outline is broken."""
+def _outlines(ctx: ProviderContext) -> tuple[dict[str, Polygon], dict[str, str]]:
+    """Block polygons from the manifest (in metres), and the blocks whose outline is broken.
+
+    A polygon is in the unit of ``project.crs`` (metres when none is declared), never in the check
+    points' ``units`` (red team R2: scaling it with the points kept mis-scaled points inside it).
+    """
+    unit = ctx.delivery.crs_unit
+    to_m = float(convert([1.0], unit, "m")[0]) if unit in ("m", "ft", "usft") else 1.0
     polys: dict[str, Polygon] = {}
     broken: dict[str, str] = {}
     for b in ctx.delivery.manifest.blocks:
@@ -374,6 +389,7 @@ _MEASURES.update({
     "checkpoints.outside_block": lambda r: (None if r.distribution is None or r.outline is None
                                             else len(r.distribution.outside_footprint)),
     **{f"checkpoints.reported_diff_{a}": _reported_diff(a) for a in "xyz"},
+    "checkpoints.duplicate_locations": lambda r: len(r.duplicates),
 })
 assert set(_MEASURES) == set(BLOCK_MEASURES)
 
@@ -391,6 +407,10 @@ def _note(name: str, r: BlockAccuracy, value: Any) -> tuple[str, str] | None:
             return "na", f"block {r.block} reports no rmse_{axis}"
         return "note", (f"reported RMSE_{axis} {r.reported[axis]:.4g} m vs recomputed "
                         f"{getattr(r.stats, f'rmse_{axis}'):.4g} m")
+    if name == "checkpoints.duplicate_locations" and value:
+        shown = ", ".join(r.duplicates[:10]) + (" ..." if len(r.duplicates) > 10 else "")
+        return "note", (f"{value} check points of block {r.block} share a reference position (x_ref, y_ref "
+                        f"within 1 mm) with another point: {shown}; JRC §12.5 asks for independent measurements")
     if value is None and r.distribution_error and name in ("checkpoints.quadrant_min_share",
                                                             "checkpoints.spacing_ratio"):
         return "note", r.distribution_error
