@@ -65,7 +65,7 @@ def test_fail_on_warn_makes_recommended_blocking(make_delivery, mini_profile, tm
 
 def test_manual_check_without_record_is_missing(make_delivery, mini_profile):
     doc = check(make_delivery(manual="check,item,inspector,date,verdict\n"), mini_profile,
-                date="2026-01-01").document
+                date="2026-01-01", params=["tolerance_xy=0.5m"]).document
     vis = recs(doc, "R-VIS")["D1"]
     assert vis["verdict"] == "missing" and "no recorded verdict" in vis["message"]
     assert doc["verdict"] == "rejected"
@@ -73,10 +73,12 @@ def test_manual_check_without_record_is_missing(make_delivery, mini_profile):
 
 def test_cli_param_overrides_and_unit_conversion(make_delivery, mini_profile):
     # 100 cm = 1 deg? no: max_roll is in degrees; 0.6 deg makes I2 (2.5 deg) fail
-    doc = check(make_delivery(), mini_profile, date="2026-01-01", params=["max_roll=0.6deg"]).document
+    doc = check(make_delivery(), mini_profile, date="2026-01-01",
+                params=["max_roll=0.6deg", "tolerance_xy=0.5m"]).document
     assert recs(doc, "R-ROLL")["I2"]["verdict"] == "fail"
     assert doc["profile"]["parameters"]["max_roll"] == {"value": 0.6, "unit": "deg", "source": "cli"}
-    assert doc["profile"]["parameters"]["tolerance_xy"]["source"] == "manifest"
+    # the manifest's declared 0.5 m is evidence only: the value in force is the checker's --param
+    assert doc["profile"]["parameters"]["tolerance_xy"]["source"] == "cli"
 
 
 @pytest.mark.parametrize("param, message", [
@@ -100,7 +102,7 @@ def test_a_crashing_rule_is_error_and_others_still_run(make_delivery, tmp_path, 
     text = mini_profile.read_text().replace("measure: images.std_dn", "measure: images.bands")
     p = tmp_path / "p.yaml"
     p.write_text(text)
-    doc = check(make_delivery(), p, date="2026-01-01").document
+    doc = check(make_delivery(), p, date="2026-01-01", params=["tolerance_xy=0.5m"]).document
     cv = recs(doc, "R-CV")
     assert {r["verdict"] for r in cv.values()} == {"error"}
     assert "text" in next(iter(cv.values()))["message"]
@@ -135,7 +137,7 @@ def test_a_crashing_rule_keeps_its_traceback_under_debug(tmp_path, monkeypatch):
 
     d = _overflowing_checkpoints(tmp_path)
     monkeypatch.delenv("ORTHOSPEC_DEBUG", raising=False)
-    plain = check(d, "jrc-v3", date="2026-11-21", options={"workers": 1}).document
+    plain = check(d, "jrc-v3", date="2026-11-21", options={"workers": 1}, params=["tolerance_xy=0.5m"]).document
     rec = recs(plain, "JRC-12.7-RMSEX")["B01"]
     assert rec["verdict"] == "error" and plain["verdict"] == "rejected"
     assert rec["message"].startswith("internal error in rule: OverflowError") and "--debug" in rec["message"]
@@ -143,7 +145,7 @@ def test_a_crashing_rule_keeps_its_traceback_under_debug(tmp_path, monkeypatch):
     out = tmp_path / "out"
     proc = subprocess.run([sys.executable, "-W", "ignore", "-m", "orthospec.cli.main", "--debug", "check", str(d),
                            "--profile", "jrc-v3", "--out", str(out), "--date", "2026-11-21", "--format", "json",
-                           "--workers", "1"], capture_output=True, text=True, timeout=300)
+                           "--workers", "1", "--param", "tolerance_xy=0.5m"], capture_output=True, text=True, timeout=300)
     assert proc.returncode == 1, proc.stderr
     doc = json.loads((out / "qcr.json").read_text(encoding="utf-8"))
     tb = doc["details"]["tracebacks"]["JRC-12.7-RMSEX"]
@@ -156,8 +158,8 @@ def test_deterministic_json(make_delivery, mini_profile):
     from orthospec.qcr import dumps
 
     root = make_delivery()
-    a = dumps(check(root, mini_profile, date="2026-01-01").document)
-    b = dumps(check(root, mini_profile, date="2026-01-01").document)
+    a = dumps(check(root, mini_profile, date="2026-01-01", params=["tolerance_xy=0.5m"]).document)
+    b = dumps(check(root, mini_profile, date="2026-01-01", params=["tolerance_xy=0.5m"]).document)
     assert a == b
     json.loads(a)
 
@@ -167,7 +169,7 @@ def test_records_are_schema_valid(make_delivery, mini_profile):
 
     from orthospec.qcr import qcr_schema
 
-    doc = check(make_delivery(), mini_profile, date="2026-01-01").document
+    doc = check(make_delivery(), mini_profile, date="2026-01-01", params=["tolerance_xy=0.5m"]).document
     jsonschema.validate(doc, qcr_schema())
 
 
@@ -177,7 +179,7 @@ def test_vectorised_over_many_items(make_delivery, mini_profile):
     rolls = rng.uniform(0, 4, n)
     rows = "\n".join(f"I{i},f{i}.tif,B1,{r:.3f},1000,30" for i, r in enumerate(rolls))
     doc = check(make_delivery(images="image_id,file,block,roll,flying_height,std_dn\n" + rows + "\n"),
-                mini_profile, date="2026-01-01").document
+                mini_profile, date="2026-01-01", params=["tolerance_xy=0.5m"]).document
     roll = recs(doc, "R-ROLL")
     failing = {k for k, v in roll.items() if v["verdict"] in ("fail", "waived")}
     expected = {f"I{i}" for i, r in enumerate(np.round(rolls, 3)) if r > 3}

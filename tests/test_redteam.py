@@ -494,6 +494,15 @@ def _check_document_removed(code: int, doc: dict[str, Any] | None, err: str) -> 
     _rejects(doc, "JRC-2.5-INTERNAL-QCR", doc["delivery"]["id"])
 
 
+def _check_document_empty(code: int, doc: dict[str, Any] | None, err: str) -> None:
+    # §2.5: a 0-byte file is no internal QCR (R11)
+    _check_document_removed(code, doc, err)
+    from orthospec.qcr import all_records
+
+    msgs = [r["message"] for r in all_records(doc) if r["rule"] == "JRC-2.5-INTERNAL-QCR"]
+    assert any("0 bytes" in m for m in msgs), msgs
+
+
 def _check_scene_controls(code: int, doc: dict[str, Any] | None, err: str) -> None:
     # Table 9: PRESS and the scene's check-point RMSE below the tolerance (1.0 m in satellite-fail)
     assert code == 1 and doc is not None
@@ -641,8 +650,7 @@ CASES = [
                  _check_scene_rule("JRC-T9-PRESS-VALID", "S02_SC1"), id="R9-negative-press"),
     pytest.param("satellite-fail", _scene("S02_SC1", checkpoint_rmse="1.3", checkpoint_count="0"),
                  _check_scene_rule("JRC-T9-CHECKPOINT-RMSE", "S02_SC1"), id="R10-checkpoint-count-zero"),
-    pytest.param("aerial-pass", _empty_document, _not_accepted, id="R11-internal-qcr-empty-file",
-                 marks=_xfail("R11: 'present' accepts a 0-byte internal QCR document")),
+    pytest.param("aerial-pass", _empty_document, _check_document_empty, id="R11-internal-qcr-empty-file"),
     pytest.param("aerial-fail", _copy_image_over_missing, _check_own_file,
                  id="R12-missing-image-replaced-by-neighbour-copy"),
     pytest.param("aerial-fail", _signed_then(_chain(), _drop_image_row("F03_0202")), _check_item_vanished("F03_0202"),

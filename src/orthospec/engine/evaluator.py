@@ -26,7 +26,7 @@ from typing import Any
 from ..delivery.checker import Checker
 from ..delivery.reader import Delivery
 from ..spec.loader import ResolvedProfile
-from . import waivers
+from . import manual, waivers
 from .context import (  # re-exported: the QCR writer reads the codes and the result type from here
     ERROR,
     FAIL,
@@ -64,6 +64,8 @@ class Evaluation:
     waiver_requests: list[dict[str, Any]] = field(default_factory=list)
     #: who checked (the checker file's party, file name and hash), None without a checker file
     checker: dict[str, Any] | None = None
+    #: checker entries that judged nothing the delivery lists (unknown rule, or an item it no longer lists)
+    manual_unused: list[dict[str, Any]] = field(default_factory=list)
 
 
 class Evaluator:
@@ -101,4 +103,5 @@ class Evaluator:
             details["tracebacks"] = dict(sorted(crashed.items()))
         return Evaluation(ctx.profile, ctx.d, ctx.params, results, rejected, reasons + more, verdict,
                           ctx.fail_on, details, waivers.unused(self.granted, used), requests,
-                          ctx.checker.summary() if ctx.checker is not None else None)
+                          ctx.checker.summary() if ctx.checker is not None else None,
+                          manual.unused(ctx, results))

@@ -135,14 +135,18 @@ def _manifest(name: str, d: Delivery) -> Measured:
         return _one(name, "delivery", "any", d.id, None, ev, note=f"{MANIFEST} has no {path}")
     v = flat[name]
     if path.startswith(("documents.", "vectors.")) and isinstance(v, str):
-        # a document or vector file counts only when it is really in the delivery
+        # a document or vector file counts only when it is really in the delivery, and not empty
         try:
-            exists = d.path(v, what=path).is_file()
+            p = d.path(v, what=path)
+            size = p.stat().st_size if p.is_file() else None
         except (OrthospecError, OSError):  # outside the delivery root or unreadable: not delivered
-            exists = False
-        if not exists:
+            size = None
+        if size is None:
             return _one(name, "delivery", "text", d.id, None, ev,
                         note=f"{MANIFEST} lists {path}: {v}, but the file is not in the delivery")
+        if size == 0:  # JRC §2.5: the internal QCRs are delivered; an empty file is no document
+            return _one(name, "delivery", "text", d.id, None, (*ev, d.evidence(v)),
+                        note=f"{MANIFEST} lists {path}: {v}, but the file is empty (0 bytes): no document delivered")
         return _one(name, "delivery", "text", d.id, v, (*ev, d.evidence(v)))
     if isinstance(v, dict) and set(v) == {"value", "unit"}:
         return _one(name, "delivery", canonical(v["unit"]), d.id, float(v["value"]), ev)
