@@ -1,5 +1,6 @@
 """Red team findings fixed where the delivery is read (/tmp/team/redteam.md R2, R3, R4).
 
+R14: a number outside its column's min/max is refused where the table is read.
 R3: a row naming a block the manifest does not declare is refused (exit 2), in every table with a
 block column. R2: a table's coordinate unit is the project CRS's axis unit (pyproj), and block
 polygons are read in the CRS unit, never in the points' unit. R4: distinct ids at one reference
@@ -8,11 +9,14 @@ position are counted (checkpoints.duplicate_locations).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import pytest
 from tests.conftest import MANIFEST
 
-from orthospec.delivery.reader import open_delivery
+from orthospec.delivery.convention import ColumnSpec, TableSpec
+from orthospec.delivery.reader import open_delivery, parse_csv
 from orthospec.engine.providers import checkpoints as cp
 from orthospec.engine.registry import ProviderContext, describe
 from orthospec.errors import DeliveryError
@@ -151,3 +155,38 @@ def test_a_block_list_names_only_manifest_blocks(make_delivery):
                                       extra={"tables/dem.csv": "dem_id,block\nD1,B1\nD2,B2;B7\n"}))
     with pytest.raises(DeliveryError, match=r"tables/dem.csv: row 2: column 'block': block 'B7'"):
         bad.table("dem")
+
+
+# --- R14 ------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class _Bounded(ColumnSpec):
+    """A column spec with the `min:`/`max:` keys of specs/delivery-tables.yaml (convention.ColumnSpec
+    gains them on request, /tmp/team/requests-B2 R14)."""
+
+    min: float | None = None
+    max: float | None = None
+
+
+_BOUNDED = TableSpec("t", "image", "id", "", {
+    "id": ColumnSpec("id", "text", None, True, ""),
+    "rmse": _Bounded("rmse", "number", "m", False, "", min=0.0),
+    "share": _Bounded("share", "number", "%", False, "", min=0.0, max=100.0),
+})
+
+
+@pytest.mark.parametrize(("text", "message"), [
+    ("id,rmse,share\nA,0.3,5\nB,-0.5,5\n", "t.csv: row 2: column 'rmse': -0.5 is below the minimum 0 of this column"),
+    ("id,rmse,share\nA,0,100.5\n", "t.csv: row 1: column 'share': 100.5 is above the maximum 100 of this column"),
+    ("id,rmse,share\nA,1,2\nB,2,-1e-9\n", "t.csv: row 2: column 'share': -1e-09 is below the minimum 0 of this column"),
+])
+def test_number_outside_its_column_bounds_is_refused(text, message):
+    with pytest.raises(DeliveryError) as err:
+        parse_csv(text, _BOUNDED, file="t.csv")
+    assert str(err.value) == message
+
+
+def test_bounds_are_inclusive_and_blank_cells_unbounded():
+    df = parse_csv("id,rmse,share\nA,0,0\nB,,100\nC,2.5,\n", _BOUNDED, file="t.csv")
+    assert df["rmse"].tolist()[0] == 0.0 and np.isnan(df["rmse"].tolist()[1])
+    assert df["share"].tolist()[:2] == [0.0, 100.0]

@@ -626,6 +626,8 @@ def parse_csv(text: str | bytes, spec: TableSpec, *, file: str, cell_bytes: int 
     for col in header:
         cs = spec.columns[col]
         df[col] = _convert_column(cols.pop(col), rows, cs.type, col, file, cs.required)
+        if cs.type == "number":
+            _check_bounds(df[col].to_numpy(float), rows, cs, file)
     if spec.id and spec.id in df:
         ids = df[spec.id]
         dups = ids.duplicated(keep=False).to_numpy()
@@ -635,6 +637,23 @@ def parse_csv(text: str | bytes, spec: TableSpec, *, file: str, cell_bytes: int 
             raise DeliveryError(f"duplicate id {first_dup!r} in rows {', '.join(map(str, where))}",
                                 file=file, field=spec.id)
     return df
+
+
+def _check_bounds(values: np.ndarray, rows: np.ndarray, cs: Any, file: str) -> None:
+    """A number outside its column's ``min:``/``max:`` (specs/delivery-tables.yaml) is refused.
+
+    An RMSE, a precision, a square root of PRESS is >= 0 and a share <= 100 % by definition: a
+    negative one passes every ``<=`` threshold (red team R14), so it is refused where the table is
+    read, once for every table, rather than per rule. Empty cells (NaN) are not compared.
+    """
+    for bound, below in ((getattr(cs, "min", None), True), (getattr(cs, "max", None), False)):
+        if bound is None:
+            continue
+        out = values < bound if below else values > bound
+        if out.any():
+            i = int(np.argmax(out))
+            raise DeliveryError(f"{values[i]:g} is {'below the minimum' if below else 'above the maximum'} "
+                                f"{bound:g} of this column", file=file, row=int(rows[i]), field=cs.name)
 
 
 def header_names(body: bytes) -> list[str]:
