@@ -114,8 +114,10 @@ class _Column:
         values = m.values.reindex(items)
         self.evidence = m.evidence_for(items)
         self.raw = values.to_numpy()
+        # items the measure has no value for; get_indexer is hashed (isin is per-object Python for string
+        # ids at 1M points), and its index is unique (reindex above refuses duplicate labels)
         self.missing = missing_mask(self.raw) & (rule.requirement.op != "present") | (
-            ~values.index.isin(m.values.index))
+            m.values.index.get_indexer(values.index) < 0)
         self.notes = notes
         self.applies = applies
         if m.notes is not None:
