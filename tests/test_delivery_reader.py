@@ -267,14 +267,14 @@ def test_manifest_alias_bomb_is_refused_fast(make_delivery):
     ("a: 1\nb: [1, 2\n", "f.yaml:3:1: invalid YAML"),
 ])
 def test_yaml_limits_and_positions(text, message):
-    from orthospec.spec.yamlio import YamlError, load_text
+    from orthospec.yamlio import YamlError, load_text
 
     with pytest.raises(YamlError, match=message):
         load_text(text, "f.yaml")
 
 
 def test_yaml_file_size_limit(tmp_path):
-    from orthospec.spec.yamlio import YamlError, YamlLimits, load_file
+    from orthospec.yamlio import YamlError, YamlLimits, load_file
 
     f = tmp_path / "p.yaml"
     f.write_text("notes: '" + "a" * 1000 + "'\n")
@@ -299,7 +299,7 @@ def test_cr_only_and_crlf_tables_read_like_lf(make_delivery):
 def test_yaml_error_carries_file_line_column_and_deep_flow_is_refused_fast():
     import time
 
-    from orthospec.spec.yamlio import YamlError, load_text
+    from orthospec.yamlio import YamlError, load_text
 
     with pytest.raises(YamlError) as info:
         load_text("a: 1\nb: [1, 2\n", "dir/p.yaml")

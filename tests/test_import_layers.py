@@ -42,9 +42,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
 )
 
 #: (importer, imported) -> who was asked to remove it; see the module docstring
-PENDING: dict[tuple[str, str], str] = {
-    ("orthospec.delivery.reader", "orthospec.spec.yamlio"): "reader's owner: import orthospec.yamlio",
-}
+PENDING: dict[tuple[str, str], str] = {}
 
 #: cycles (sorted member tuples) asked for and not landed yet
 PENDING_CYCLES: dict[tuple[str, ...], str] = {}

@@ -30,7 +30,7 @@ import pytest
 import rasterio
 import yaml
 from rasterio.transform import Affine
-from tests.checking import check_with, records
+from tests.checking import check_with, records, resigned
 
 from mutation_coverage import PLUGIN_NAME, CoverageReport, mandatory_automatic
 from orthospec.errors import OrthospecError
@@ -186,6 +186,14 @@ def _derive_table(root: Path, m: dict[str, Any]) -> None:
     _mutate_manifest(root, {"set": {f"tables.{m['table']}": m["path"]}})
 
 
+def _signed(root: Path) -> Path:
+    """The checker signs what it receives: a copied (planted) example gets its pins re-signed (the
+    test is about the rule catching the defect, not the checker file's binding)."""
+    if root.parent == EXAMPLES:  # the shipped example, unchanged: its own checker file
+        return checker_for(root)
+    return resigned(checker_for(root), root, root.parent / "signed.yaml")
+
+
 def checker_for(root: Path) -> Path:
     """The checker's file for a copied example: a mutated copy beside the delivery, else the shipped one."""
     mutated = root.parent / "checker.yaml"
@@ -224,7 +232,7 @@ def _run(root: Path, profile: str, params: dict[str, Any], cache: Path | None = 
     the unchanged images of a copied delivery are not scanned again. The example's checker file signs
     its manual checks, so the baseline is accepted and only the planted violation can reject."""
     res = check_with(root, _profile(profile), params={k: str(v) for k, v in params.items()}, date=DATE,
-                     checker=checker_for(root), options={"workers": 1, "cache_dir": str(cache) if cache else None})
+                     checker=_signed(root), options={"workers": 1, "cache_dir": str(cache) if cache else None})
     return res.document
 
 

@@ -551,6 +551,12 @@ def _check_itt_declared(code: int, doc: dict[str, Any] | None, err: str) -> None
     _rejects(doc, "ORTHOSPEC-ITT-DECLARED", "tolerance_xy")
 
 
+def _check_distinct_points(code: int, doc: dict[str, Any] | None, err: str) -> None:
+    # §12.5 "independent measurements": copies of good points under new ids reject the block (R4)
+    assert code == 1 and doc is not None
+    _rejects(doc, "JRC-12.5-DISTINCT-CHECKPOINTS", "B02")
+
+
 def _refused(*words: str) -> Callable[[int, dict[str, Any] | None, str], None]:
     def check(code: int, doc: dict[str, Any] | None, err: str) -> None:
         assert code == 2, doc and doc["verdict"]
@@ -567,13 +573,6 @@ def _check_item_vanished(item: str) -> Callable[[int, dict[str, Any] | None, str
                    for r in doc["rollup"]["reasons"]), doc["rollup"]["reasons"]
         assert {r["rule"] for r in all_records(doc) if r["item"] == item} >= {"JRC-T6-ORTHO-INSPECTION"}
     return check
-
-
-def _check_negative_precision(code: int, doc: dict[str, Any] | None, err: str) -> None:
-    # R14: a precision is an RMSE, >= 0 (Definitions, "Check Point")
-    assert code == 1 and doc is not None
-    _rejects(doc, "JRC-DEF-CHECKPOINT-ACCURACY", "B02-C01")
-    assert doc["rollup"]["rejected"]["block"] == ["B02"]
 
 
 def _check_own_file(code: int, doc: dict[str, Any] | None, err: str) -> None:
@@ -634,8 +633,7 @@ CASES = [
                  _refused("tables/checkpoints.csv", "column 'block'", "'B99' is not a block of the manifest"),
                  id="R3-worst-points-to-unknown-block"),
     pytest.param("aerial-pass", _planted(_table_edit("checkpoints", _fabricated_copies), _fix_reported),
-                 _not_accepted, id="R4-fabricated-copies-new-ids",
-                 marks=_xfail("R4: 30 copies of good points under new ids (same coordinates) dilute RMSEy")),
+                 _check_distinct_points, id="R4-fabricated-copies-new-ids"),
     pytest.param("aerial-pass", _signed_then(_plant_rmse, _chain(_table_edit("checkpoints", _delete_worst),
                                                                 _fix_reported)),
                  _refused("pins tables/checkpoints.csv", "other content"), id="R5-worst-points-deleted-after-signing"),
@@ -665,10 +663,11 @@ CASES = [
                  marks=_xfail("R17: overlapping block outlines let R6's moved points count as inside B01")),
     pytest.param("aerial-pass", _chain(_drop_strip_f02_02, _table_edit("images", _inflate_f02_01_heights_and_gsds)),
                  _check_inflated_heights, id="R18-heights-and-declared-gsds-inflated"),
-    pytest.param("aerial-pass", _signed_then(_plant_rmse, _swap_in_cleaned_table), _not_accepted,
-                 id="R19-after-signing-manifest-names-another-checkpoint-file",
-                 marks=_xfail("R19: the pin binds the path tables/checkpoints.csv, not the table the manifest uses")),
-    pytest.param("aerial-pass", _table_edit("checkpoints", _negative_precision_b02), _check_negative_precision,
+    pytest.param("aerial-pass", _signed_then(_plant_rmse, _swap_in_cleaned_table),
+                 _refused("pins tables/checkpoints.csv", "no longer uses for any table"),
+                 id="R19-after-signing-manifest-names-another-checkpoint-file"),
+    pytest.param("aerial-pass", _table_edit("checkpoints", _negative_precision_b02),
+                 _refused("tables/checkpoints.csv", "'precision_xy'", "below the minimum 0"),
                  id="R14-negative-reference-precision"),
     pytest.param("satellite-fail", _scene("S02_SC1", checkpoint_rmse="-1.3", checkpoint_count="8"),
                  _check_scene_rule("JRC-T9-CHECKPOINT-RMSE-VALID", "S02_SC1"), id="R14-negative-scene-checkpoint-rmse"),

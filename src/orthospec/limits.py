@@ -1,6 +1,6 @@
 """Resource limits set through ``ORTHOSPEC_MAX_*`` environment variables: one parser for all.
 
-The YAML, CSV and raster guards (spec/yamlio.py, delivery/reader.py, raster/reading.py) each have
+The YAML, CSV and raster guards (yamlio.py, delivery/reader.py, raster/reading.py) each have
 defaults far above any real delivery; an operator may raise or lower them per process.
 """
 

@@ -22,6 +22,7 @@ Format (schema: specs/schema/checker.schema.json)::
 from __future__ import annotations
 
 import datetime as dt
+import posixpath
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, Literal
@@ -218,8 +219,14 @@ def bind(chk: Checker, d: Delivery) -> None:
     if b.manifest_sha256 and b.manifest_sha256.lower() != d.manifest_sha256.lower():
         raise OrthospecError(f"checker file {chk.at('delivery', 'manifest_sha256')} pins delivery.yaml sha256 "
                              f"{b.manifest_sha256.lower()}, the delivery's is {d.manifest_sha256}: {other}")
+    m = d.manifest
+    used = {posixpath.normpath(v) for v in (*m.tables.values(), *m.vectors.values(), *m.documents.values())}
     for rel, want in sorted(b.files.items()):
         where = chk.at("delivery", "files", rel)
+        if rel.lower().endswith(".csv") and posixpath.normpath(rel) not in used:
+            # red team R19: the manifest re-pointed the table at another file after the checker signed
+            raise OrthospecError(f"checker file {where} pins {rel}, which delivery.yaml no longer uses for any "
+                                 f"table: {other}")
         try:
             path = d.path(rel, what=f"delivery.files.{rel}", file=None)
         except OrthospecError as exc:

@@ -21,6 +21,10 @@ class ColumnSpec:
     unit: str | None  # for numbers: a unit, or "length" = the delivery's coordinate unit
     required: bool
     description: str
+    #: bounds a number must respect (an RMSE or a precision is >= 0, a share <= 100 %): the one CSV
+    #: reader refuses a value outside them (red team R14)
+    min: float | None = None
+    max: float | None = None
 
 
 @dataclass(frozen=True)
@@ -44,7 +48,7 @@ def table_specs() -> dict[str, TableSpec]:
     for name, t in raw["tables"].items():
         cols = {
             c: ColumnSpec(c, s.get("type", "text"), s.get("unit"), bool(s.get("required", False)),
-                          s.get("description", ""))
+                          s.get("description", ""), s.get("min"), s.get("max"))
             for c, s in t["columns"].items()
         }
         out[name] = TableSpec(name, t["scope"], t.get("id"), t.get("description", ""), cols,

@@ -29,9 +29,9 @@ from pydantic import ValidationError
 from ..errors import DeliveryError, UnitError
 from ..limits import env_limit
 from ..provenance import Evidence, sha256_bytes, sha256_file
-from ..spec.yamlio import YamlError, load_file
 from ..units import canonical, parse_unit
-from .convention import TableSpec, table_specs
+from ..yamlio import YamlError, load_file
+from .convention import ColumnSpec, TableSpec, table_specs
 from .manifest import Manifest
 
 MANIFEST = "delivery.yaml"
@@ -639,14 +639,14 @@ def parse_csv(text: str | bytes, spec: TableSpec, *, file: str, cell_bytes: int 
     return df
 
 
-def _check_bounds(values: np.ndarray, rows: np.ndarray, cs: Any, file: str) -> None:
+def _check_bounds(values: np.ndarray, rows: np.ndarray, cs: ColumnSpec, file: str) -> None:
     """A number outside its column's ``min:``/``max:`` (specs/delivery-tables.yaml) is refused.
 
     An RMSE, a precision, a square root of PRESS is >= 0 and a share <= 100 % by definition: a
     negative one passes every ``<=`` threshold (red team R14), so it is refused where the table is
     read, once for every table, rather than per rule. Empty cells (NaN) are not compared.
     """
-    for bound, below in ((getattr(cs, "min", None), True), (getattr(cs, "max", None), False)):
+    for bound, below in ((cs.min, True), (cs.max, False)):
         if bound is None:
             continue
         out = values < bound if below else values > bound
