@@ -11,6 +11,8 @@ from orthospec.qcr import all_records
 CHECKER = """\
 orthospec_checker: 1
 checker: {name: A. Checker (fictional), role: external QC}
+delivery: {id: D1}
+parameters: {tolerance_xy: {value: 0.5, unit: m}}
 manual_checks:
   - {check: R-VIS, item: "*", date: 2026-01-01, verdict: pass, note: visual check done}
 waivers:
