@@ -70,6 +70,16 @@ def delivery(tmp_path: Path, arr: np.ndarray, *, rer_min: float = 0.3) -> tuple[
     return root, hashlib.sha256(path.read_bytes()).hexdigest()
 
 
+def _params(root: Path) -> list[str]:
+    """The checker states the ITT values (the manifest's tender.parameters are evidence only): the
+    ones this delivery's manifest declares, as --param."""
+    import yaml
+
+    declared = yaml.safe_load((root / "delivery.yaml").read_text(encoding="utf-8"))["tender"]["parameters"]
+    return [f"{k}={v['value']}{v.get('unit', '')}" if isinstance(v, dict) else f"{k}={v}"
+            for k, v in declared.items()]
+
+
 def recs(doc: dict, rid: str) -> dict:
     return {r["item"]: r for r in all_records(doc) if r["rule"] == rid}
 
@@ -78,7 +88,7 @@ def recs(doc: dict, rid: str) -> dict:
 def test_edge_target_without_roi_gives_the_usgs_combined_rer(tmp_path, snr):
     root, sha = delivery(tmp_path, rotated_square(snr=snr))
     truth = edge_truth(sigma_px=SIGMA_PX, angle_deg=ANGLE_DEG).rer
-    doc = check(root, "usgs-insitu", date="2026-06-30").document
+    doc = check(root, "usgs-insitu", date="2026-06-30", params=_params(root)).document
     comb = recs(doc, "USGS-RER-COMBINED")
     assert len(comb) == 1
     r = next(iter(comb.values()))
@@ -102,7 +112,7 @@ def test_edge_target_without_roi_gives_the_usgs_combined_rer(tmp_path, snr):
 def test_combined_rer_below_the_tender_minimum_is_flagged(tmp_path):
     """Both RER rules are recommended with consequence warn: below rer_min the verdict is warn."""
     root, _ = delivery(tmp_path, rotated_square(snr=100.0), rer_min=0.45)  # truth 0.369
-    doc = check(root, "usgs-insitu", date="2026-06-30").document
+    doc = check(root, "usgs-insitu", date="2026-06-30", params=_params(root)).document
     assert next(iter(recs(doc, "USGS-RER-COMBINED").values()))["verdict"] == "warn"
     assert recs(doc, "USGS-RER")["E9"]["verdict"] == "warn"
 
@@ -119,7 +129,7 @@ def test_real_baotou_target_without_roi_in_a_delivery(tmp_path):
     with rasterio.open(BAOTOU) as ds:
         arr = ds.read(1)
     root, sha = delivery(tmp_path, arr)
-    doc = check(root, "usgs-insitu", date="2026-06-30").document
+    doc = check(root, "usgs-insitu", date="2026-06-30", params=_params(root)).document
     r = next(iter(recs(doc, "USGS-RER-COMBINED").values()))
     assert r["verdict"] != "missing", r
     # the hand-picked window of docs/edge-method.md measured RER 0.42 on this target
@@ -132,7 +142,7 @@ def test_real_baotou_target_without_roi_in_a_delivery(tmp_path):
 
 def test_edge_target_without_roi_and_no_edge_is_missing_never_pass(tmp_path):
     root, _ = delivery(tmp_path, np.full((200, 200), 120, dtype=np.uint8))
-    doc = check(root, "usgs-insitu", date="2026-06-30").document
+    doc = check(root, "usgs-insitu", date="2026-06-30", params=_params(root)).document
     r = next(iter(recs(doc, "USGS-RER-COMBINED").values()))
     assert r["verdict"] == "missing"
     per = recs(doc, "USGS-RER")
@@ -147,7 +157,7 @@ def test_edge_target_with_roi_keeps_one_item(tmp_path):
     # the left edge of the square: x about 45, rows 70..130 (the square spans ~ 45..155)
     man.write_text(man.read_text(encoding="utf-8").replace(
         "{id: E9, image: E9_TARGET}", "{id: E9, image: E9_TARGET, roi: [25, 70, 70, 130]}"), encoding="utf-8")
-    doc = check(root, "usgs-insitu", date="2026-06-30").document
+    doc = check(root, "usgs-insitu", date="2026-06-30", params=_params(root)).document
     per = recs(doc, "USGS-RER")
     assert set(per) == {"E9"}
     assert per["E9"]["measured"]["value"] == pytest.approx(
@@ -162,7 +172,7 @@ def test_edge_target_without_roi_on_a_whole_tile_is_refused_with_the_reason(tmp_
 
     n = int(np.sqrt(MAX_AUTO_PIXELS)) + 1
     root, _ = delivery(tmp_path, np.full((n, n), 120, dtype=np.uint8))
-    doc = check(root, "usgs-insitu", date="2026-06-30").document
+    doc = check(root, "usgs-insitu", date="2026-06-30", params=_params(root)).document
     per = recs(doc, "USGS-RER")["E9"]
     assert per["verdict"] not in ("pass", "n/a") and "give the target an roi" in per["message"]
     assert next(iter(recs(doc, "USGS-RER-COMBINED").values()))["verdict"] == "missing"

@@ -154,7 +154,8 @@ def test_check_through_dask_gives_byte_identical_qcr_json(tmp_path):
     from orthospec.cli.main import main
 
     example = Path(__file__).resolve().parents[1] / "examples" / "deliveries" / "aerial-pass"
-    common = ["check", str(example), "-p", "jrc-v3", "--format", "json", "--date", "2026-11-21"]
+    common = ["check", str(example), "-p", "jrc-v3", "--format", "json", "--date", "2026-11-21",
+              "--param", "tolerance_xy=0.5m"]
 
     def run(*extra: str) -> int:
         with pytest.raises(SystemExit) as exc:
