@@ -7,6 +7,7 @@ calls ``api.check``. Real components only: the checker file is a real YAML file 
 
 from __future__ import annotations
 
+import csv
 import hashlib
 import inspect
 from pathlib import Path
@@ -80,3 +81,26 @@ def check_with(delivery: str | Path, profile: str | Path | ResolvedProfile, *, c
                                 manifest=d.flat_manifest(), checker=chk)
     ev = Evaluator(prof, d, values, fail_on=fail_on, options=options, checker=chk).run()
     return api.CheckResult(build_document(ev, date=api.parse_date(date), delivery_path=d.root.name), ev)
+
+
+# --- editing a copied delivery (the red-team and regression tests plant defects with these) ---
+
+def manifest(d: Path) -> dict[str, Any]:
+    return yaml.safe_load((d / "delivery.yaml").read_text(encoding="utf-8"))
+
+
+def write_manifest(d: Path, m: dict[str, Any]) -> None:
+    (d / "delivery.yaml").write_text(yaml.safe_dump(m, sort_keys=False, allow_unicode=True), encoding="utf-8")
+
+
+def read_table(d: Path, name: str) -> tuple[list[str], list[dict[str, str]]]:
+    with (d / "tables" / f"{name}.csv").open(encoding="utf-8", newline="") as f:
+        r = csv.DictReader(f)
+        return list(r.fieldnames or []), list(r)
+
+
+def write_table(d: Path, name: str, header: list[str], rows: list[dict[str, str]]) -> None:
+    with (d / "tables" / f"{name}.csv").open("w", encoding="utf-8", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=header, lineterminator="\n")
+        w.writeheader()
+        w.writerows(rows)

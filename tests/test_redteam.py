@@ -27,7 +27,7 @@ from typing import Any
 
 import pytest
 import yaml
-from tests.checking import check_with, resigned
+from tests.checking import check_with, manifest, read_table, resigned, write_manifest, write_table
 from tests.checking import records as all_records
 
 from orthospec.errors import OrthospecError
@@ -44,40 +44,27 @@ Edit = Callable[[Path], None]
 
 # --- file edits ------------------------------------------------------------------------------
 
-def _manifest(d: Path) -> dict[str, Any]:
-    return yaml.safe_load((d / "delivery.yaml").read_text(encoding="utf-8"))
 
 
-def _write_manifest(d: Path, m: dict[str, Any]) -> None:
-    (d / "delivery.yaml").write_text(yaml.safe_dump(m, sort_keys=False, allow_unicode=True), encoding="utf-8")
 
 
-def _read(d: Path, name: str) -> tuple[list[str], list[dict[str, str]]]:
-    with (d / "tables" / f"{name}.csv").open(encoding="utf-8", newline="") as f:
-        r = csv.DictReader(f)
-        return list(r.fieldnames or []), list(r)
 
 
-def _write(d: Path, name: str, header: list[str], rows: list[dict[str, str]]) -> None:
-    with (d / "tables" / f"{name}.csv").open("w", encoding="utf-8", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=header, lineterminator="\n")
-        w.writeheader()
-        w.writerows(rows)
 
 
 def _manifest_edit(fn: Callable[[dict[str, Any]], None]) -> Edit:
     def edit(d: Path) -> None:
-        m = _manifest(d)
+        m = manifest(d)
         fn(m)
-        _write_manifest(d, m)
+        write_manifest(d, m)
     return edit
 
 
 def _table_edit(name: str, fn: Callable[[list[str], list[dict[str, str]]], list[dict[str, str]] | None]) -> Edit:
     def edit(d: Path) -> None:
-        header, rows = _read(d, name)
+        header, rows = read_table(d, name)
         out = fn(header, rows)
-        _write(d, name, header, rows if out is None else out)
+        write_table(d, name, header, rows if out is None else out)
     return edit
 
 
@@ -97,15 +84,15 @@ def _worst(rows: list[dict[str, str]], k: int, block: str = "B02") -> list[dict[
 def _fix_reported(d: Path, table: str = "checkpoints") -> None:
     """Set every block's reported RMSE to what its non-excluded check points give (in metres), so
     JRC-9.5-REPORTED-RMSE-* cannot be what catches a trick."""
-    _, rows = _read(d, table)
-    m = _manifest(d)
+    _, rows = read_table(d, table)
+    m = manifest(d)
     factor = {"m": 1.0, "ft": 0.3048, "usft": 1200 / 3937, "mm": 0.001}[(m.get("units") or {}).get("checkpoints", "m")]
     for b in m["blocks"]:
         pts = [r for r in rows if r["block"] == b["id"] and r.get("excluded", "false") != "true"]
         for ax in ("x", "y"):
             v = math.sqrt(sum((float(r[ax]) - float(r[f"{ax}_ref"])) ** 2 for r in pts) / len(pts)) * factor
             b["reported"][f"rmse_{ax}"] = {"value": round(v, 3), "unit": "m"}
-    _write_manifest(d, m)
+    write_manifest(d, m)
 
 
 def _scale_b02_dy(header: list[str], rows: list[dict[str, str]]) -> None:
@@ -172,37 +159,37 @@ def _set_worst_y(value: str) -> Edit:
 
 
 def _gcps_as_checkpoints(d: Path) -> None:
-    _, gcps = _read(d, "gcps")
-    header, rows = _read(d, "checkpoints")
+    _, gcps = read_table(d, "gcps")
+    header, rows = read_table(d, "checkpoints")
     for g in gcps:
         if g["block"] == "B02":
             rows.append({**dict.fromkeys(header, ""), "point_id": g["point_id"], "block": "B02", "x": g["x"],
                          "y": g["y"], "x_ref": g["x"], "y_ref": g["y"], "excluded": "false",
                          "source": "GNSS RTK", "precision_xy": "0.02"})
-    _write(d, "checkpoints", header, rows)
+    write_table(d, "checkpoints", header, rows)
 
 
 def _self_granted_waiver(d: Path) -> None:
     """Waiver request in delivery.yaml, 'waived'/'pass' rows signed with the checker's name in the
     delivery's manual_checks table, and the checker named as the delivery's operator."""
-    m = _manifest(d)
+    m = manifest(d)
     m["waivers"] = [{"rule": "JRC-12.7-RMSEY", "items": ["B02"], "justification": "haze over B02",
                      "approver": CHECKER_NAME}]
     m["operator"] = {"name": CHECKER_NAME, "role": "external QC"}
-    _write_manifest(d, m)
-    header, rows = _read(d, "manual_checks")
+    write_manifest(d, m)
+    header, rows = read_table(d, "manual_checks")
     for verdict in ("waived", "pass"):
         rows.append({**dict.fromkeys(header, ""), "check": "JRC-12.7-RMSEY", "item": "B02",
                      "inspector": f"{CHECKER_NAME}, external QC", "date": "2026-06-21", "verdict": verdict,
                      "note": "waiver granted by the external QC"})
-    _write(d, "manual_checks", header, rows)
+    write_table(d, "manual_checks", header, rows)
 
 
 def _second_checkpoints_entry(d: Path) -> None:
     """A second `checkpoints:` key in the manifest's tables, pointing at a cleaned copy."""
-    header, rows = _read(d, "checkpoints")
+    header, rows = read_table(d, "checkpoints")
     drop = {r["point_id"] for r in _worst(rows, 6)}
-    _write(d, "checkpoints_clean", header, [r for r in rows if r["point_id"] not in drop])
+    write_table(d, "checkpoints_clean", header, [r for r in rows if r["point_id"] not in drop])
     text = (d / "delivery.yaml").read_text(encoding="utf-8")
     line = "  checkpoints: tables/checkpoints.csv\n"
     assert line in text
@@ -219,11 +206,11 @@ def _rename_block_everywhere(d: Path, old: str = "B02", new: str = "B99") -> Non
     text = (d / "delivery.yaml").read_text(encoding="utf-8")
     (d / "delivery.yaml").write_text(text.replace(f"id: {old}", f"id: {new}"), encoding="utf-8")
     for name in ("checkpoints", "gcps", "images", "aerotriangulation"):
-        header, rows = _read(d, name)
+        header, rows = read_table(d, name)
         for r in rows:
             if r.get("block") == old:
                 r["block"] = new
-        _write(d, name, header, rows)
+        write_table(d, name, header, rows)
 
 
 def _scene(image_id: str, **values: str) -> Edit:
@@ -245,11 +232,11 @@ def _precision(values: dict[str, str]) -> Edit:
 
 def _drop_strip_f02_02(d: Path) -> None:
     """Remove the second strip of flight F02 (five photos: rows and files), a hole in the coverage."""
-    header, rows = _read(d, "images")
+    header, rows = read_table(d, "images")
     gone = [r for r in rows if r["image_id"].startswith("F02_02")]
     for r in gone:
         (d / r["file"]).unlink()
-    _write(d, "images", header, [r for r in rows if r not in gone])
+    write_table(d, "images", header, [r for r in rows if r not in gone])
 
 
 def _inflate_f02_01_heights(header: list[str], rows: list[dict[str, str]]) -> None:
@@ -332,12 +319,12 @@ def _inflate_f02_01_heights_and_gsds(header: list[str], rows: list[dict[str, str
 def _swap_in_cleaned_table(d: Path) -> None:
     """The pinned tables/checkpoints.csv stays untouched; the manifest names another file without the
     4 worst B02 points, reported RMSEs to match."""
-    header, rows = _read(d, "checkpoints")
+    header, rows = read_table(d, "checkpoints")
     drop = {r["point_id"] for r in _worst(rows, 4)}
-    _write(d, "checkpoints_v2", header, [r for r in rows if r["point_id"] not in drop])
-    m = _manifest(d)
+    write_table(d, "checkpoints_v2", header, [r for r in rows if r["point_id"] not in drop])
+    m = manifest(d)
     m["tables"]["checkpoints"] = "tables/checkpoints_v2.csv"
-    _write_manifest(d, m)
+    write_manifest(d, m)
     _fix_reported(d, "checkpoints_v2")
 
 
@@ -358,7 +345,7 @@ def _signed_then(before: Edit, after: Edit) -> Edit:
 
 def _delivered_items(d: Path) -> set[str]:
     """Every item id the delivery lists: manifest blocks and the id column of each CSV table."""
-    items = {b["id"] for b in _manifest(d)["blocks"]}
+    items = {b["id"] for b in manifest(d)["blocks"]}
     for table in (d / "tables").glob("*.csv"):
         with table.open(encoding="utf-8", newline="") as f:
             items.update(row[0] for row in list(csv.reader(f))[1:] if row)

@@ -9,7 +9,6 @@ where the engine alone decides (fail-open cases, built-in rules).
 
 from __future__ import annotations
 
-import csv
 import math
 import shutil
 import textwrap
@@ -18,7 +17,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-import yaml
+from tests.checking import manifest, read_table, write_manifest, write_table
 from tests.checking import records as all_records
 
 from orthospec.api import check as _check
@@ -54,25 +53,12 @@ def copy_pass(tmp_path: Path, name: str = "d") -> Path:
     return dst
 
 
-def manifest(d: Path) -> dict[str, Any]:
-    return yaml.safe_load((d / "delivery.yaml").read_text(encoding="utf-8"))
 
 
-def write_manifest(d: Path, m: dict[str, Any]) -> None:
-    (d / "delivery.yaml").write_text(yaml.safe_dump(m, sort_keys=False, allow_unicode=True), encoding="utf-8")
 
 
-def read_table(d: Path, name: str) -> tuple[list[str], list[dict[str, str]]]:
-    with (d / "tables" / f"{name}.csv").open(encoding="utf-8", newline="") as f:
-        r = csv.DictReader(f)
-        return list(r.fieldnames or []), list(r)
 
 
-def write_table(d: Path, name: str, header: list[str], rows: list[dict[str, str]]) -> None:
-    with (d / "tables" / f"{name}.csv").open("w", encoding="utf-8", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=header, lineterminator="\n")
-        w.writeheader()
-        w.writerows(rows)
 
 
 TOLERANCE_FROM_ITT = "tolerance_xy: {unit: m, required: true, description: tolerance from the ITT}\n"

@@ -141,6 +141,20 @@ class Located:
             p = p[:-1]
         return self.marks.get((), (None, None))
 
+    def located_errors(self, errors: list[dict[str, Any]], display: str,
+                       hint: Any = None) -> list[str]:
+        """``file:line:col: dotted.path: message`` for (at most 20 of) a pydantic validation's
+        errors, so the manifest and the checker's file word their mistakes alike; ``hint(error)``
+        may append advice (a did-you-mean)."""
+        lines = []
+        for e in errors[:20]:
+            loc = tuple(e["loc"])
+            line, col = self.where(loc)
+            where = f"{display}:{line}:{col}" if line else display
+            extra = hint(e) if hint else ""
+            lines.append(f"{where}: {'.'.join(map(str, loc)) or '(document)'}: {e['msg']}{extra}")
+        return lines
+
 
 class _Loader(getattr(yaml, "CSafeLoader", yaml.SafeLoader)):  # type: ignore[misc]
     """libyaml's parser and composer when available (10x faster, same nodes and marks)."""

@@ -184,12 +184,7 @@ def load_checker(path: str | Path, *, delivery_root: str | Path | None = None,
     try:
         model = CheckerModel.model_validate(doc.data)
     except ValidationError as exc:
-        lines = []
-        for e in exc.errors()[:20]:
-            loc = tuple(e["loc"])
-            line, col = doc.where(loc)
-            where = f"{display}:{line}:{col}" if line else display
-            lines.append(f"{where}: {'.'.join(map(str, loc)) or '(document)'}: {e['msg']}")
+        lines = doc.located_errors(exc.errors(), display)
         raise OrthospecError("invalid checker file:\n  " + "\n  ".join(lines)) from None
     marks: dict[tuple[Any, ...], int] = {
         (sec, i): doc.where((sec, i))[0] or 0

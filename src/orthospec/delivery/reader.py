@@ -985,13 +985,8 @@ def open_delivery(path: str | Path) -> Delivery:
     try:
         manifest = Manifest.model_validate(doc.data)
     except ValidationError as exc:
-        lines = []
-        for e in exc.errors()[:20]:
-            loc = tuple(e["loc"])
-            line, col = doc.where(loc)
-            where = f"{MANIFEST}:{line}:{col}" if line else MANIFEST
-            hint = _suggest_key(loc) if e["type"] == "extra_forbidden" else ""
-            lines.append(f"{where}: {'.'.join(map(str, loc)) or '(document)'}: {e['msg']}{hint}")
+        lines = doc.located_errors(exc.errors(), MANIFEST, hint=lambda e: _suggest_key(tuple(e["loc"]))
+                                   if e["type"] == "extra_forbidden" else "")
         raise DeliveryError("invalid manifest:\n  " + "\n  ".join(lines)) from None
     for name in manifest.tables:
         if name not in table_specs():
