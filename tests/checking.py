@@ -57,8 +57,12 @@ def resigned(checker: str | Path, delivery: str | Path, out: str | Path, **top: 
     given on the planted content a test checks, written to ``out`` (outside the delivery)."""
     doc = yaml.safe_load(Path(checker).read_text(encoding="utf-8"))
     root = Path(delivery)
+    m = yaml.safe_load((root / "delivery.yaml").read_text(encoding="utf-8")) or {}
+    used = {v for k in ("tables", "vectors", "documents") for v in (m.get(k) or {}).values()}
+    # the checker pins what it received: a table the planted delivery no longer has is not pinned
     doc["delivery"]["files"] = {rel: hashlib.sha256((root / rel).read_bytes()).hexdigest()
-                                for rel in doc["delivery"].get("files") or {}}
+                                for rel in doc["delivery"].get("files") or {}
+                                if rel in used and (root / rel).is_file()}
     doc.update(top)
     path = Path(out)
     path.write_text(yaml.safe_dump(doc, sort_keys=False, allow_unicode=True), encoding="utf-8")
