@@ -36,6 +36,18 @@ waivers:
 """
 
 
+#: a checker's file template for the mini-profile deliveries of the ledger tests (``.format(id=...)``):
+#: the ITT value in force and the verdict of the manual rule R-VIS
+LEDGER_CHECKER = """\
+orthospec_checker: 1
+checker: {{name: Carla Checker (fictional), role: external QC}}
+delivery: {{id: {id}}}
+parameters: {{tolerance_xy: {{value: 0.5, unit: m}}}}
+manual_checks:
+  - {{check: R-VIS, item: "*", date: 2026-01-01, verdict: pass, note: visual check of every image}}
+"""
+
+
 def records(doc: dict[str, Any]) -> list[dict[str, Any]]:
     """Every record of a QCR document (through qcr.all_records when it exists)."""
     try:

@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 import sqlalchemy as sa
 from click.testing import CliRunner, Result
+from tests.checking import LEDGER_CHECKER
 
 import pg
 from orthospec.cli.main import cli
@@ -87,14 +88,7 @@ MANUAL = "check,item,inspector,date,verdict\nR-VIS,*,Joe Bloggs,2026-01-01,pass\
 #: the checker's file of each delivery (INTERFACES item 4): the ITT value in force and the verdict of
 #: the manual rule (the delivery's own table above and its tender.parameters are only the
 #: contractor's statements); written next to, never inside, the delivery
-CHECKER = """\
-orthospec_checker: 1
-checker: {{name: Carla Checker (fictional), role: external QC}}
-delivery: {{id: {id}}}
-parameters: {{tolerance_xy: {{value: 0.5, unit: m}}}}
-manual_checks:
-  - {{check: R-VIS, item: "*", date: 2026-01-01, verdict: pass, note: visual check of every image}}
-"""
+CHECKER = LEDGER_CHECKER
 
 
 def checker_of(root: Path) -> Path:

@@ -4,6 +4,7 @@ import re
 
 import pdfplumber
 from click.testing import CliRunner
+from tests.checking import LEDGER_CHECKER
 from tests.conftest import MANIFEST
 
 from orthospec.cli.main import cli
@@ -11,14 +12,7 @@ from orthospec.cli.main import cli
 #: the checker's file for delivery ID (INTERFACES item 4): the ITT value in force and the verdict of
 #: the mini profile's manual rule (the delivery's own manual_checks and tender.parameters are the
 #: contractor's statements, not values in force)
-CHECKER = """\
-orthospec_checker: 1
-checker: {{name: Carla Checker (fictional), role: external QC}}
-delivery: {{id: {id}}}
-parameters: {{tolerance_xy: {{value: 0.5, unit: m}}}}
-manual_checks:
-  - {{check: R-VIS, item: "*", date: 2026-01-01, verdict: pass, note: visual check of every image}}
-"""
+CHECKER = LEDGER_CHECKER
 
 
 def run(*args):
