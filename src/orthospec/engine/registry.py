@@ -181,6 +181,7 @@ MEASURE_DESCRIPTIONS: dict[str, str] = {
     "checkpoints.ce90_selected": "ce90 when the bias test allows the model, else ce90_empirical",
     "checkpoints.ce95": "CE95 from the RMSE under the circular-normal model (NGA/USGS formula)",
     "checkpoints.ce95_empirical": "95th percentile of the radial discrepancies (linear percentile, no model)",
+    "checkpoints.duplicate_locations": "check points whose reference x, y repeat another point's of the block within 1 mm (JRC §12.5)",
     "checkpoints.ce95_selected": "ce95 when the bias test allows the model, else ce95_empirical",
     "checkpoints.excluded": "check points excluded from the statistics (with a reason)",
     "checkpoints.max_abs_dx": "largest absolute x discrepancy of the kept points",

@@ -32,7 +32,7 @@ from ...measures.accuracy import (
 from ...measures.distribution import DistributionResult, checkpoint_distribution
 from ...provenance import Evidence
 from ...units import convert
-from ..registry import MEASURE_DESCRIPTIONS, Measured, ProviderContext, RowEvidence, provider
+from ..registry import Measured, ProviderContext, RowEvidence, provider
 
 _STATS = {
     "n": "1", "rmse_x": "L", "rmse_y": "L", "rmse_z": "L", "rmse_r": "L", "mean_x": "L", "mean_y": "L",
@@ -59,10 +59,6 @@ BLOCK_MEASURES.update({
     "checkpoints.bias_t_x": "1", "checkpoints.bias_t_y": "1", "checkpoints.bias_t_z": "1",
     "checkpoints.bias_p_x": "1", "checkpoints.bias_p_y": "1", "checkpoints.bias_p_z": "1",
 })
-# declared beside the measure (the provider's own table of descriptions is engine/registry.py)
-MEASURE_DESCRIPTIONS.setdefault(
-    "checkpoints.duplicate_locations",
-    "check points whose reference x, y repeat another point's of the block within 1 mm (JRC §12.5)")
 POINT_MEASURES = {
     "checkpoint.dx": "m", "checkpoint.dy": "m", "checkpoint.dz": "m", "checkpoint.dr": "m",
     "checkpoint.blunder_ok": "bool", "checkpoint.decision": "text",
