@@ -212,11 +212,71 @@ def test_chi_factor_constant_matches_scipy():
                                              ("uint16", rad.PARALLEL_BINCOUNT_MIN * 2 + 7),
                                              ("uint8", rad.PARALLEL_BINCOUNT_MIN - 1)])
 def test_fast_bincount_split_over_threads_equals_numpy(dtype, size):
-    """Big arrays are counted in two halves (one in a helper thread): the counts are numpy's."""
+    """Big arrays are counted in two halves (one in a helper thread): the counts are numpy's,
+    through Pillow (bytes) and through numpy alone (the path without Pillow, 16-bit values)."""
     a = np.random.default_rng(size).integers(0, np.iinfo(dtype).max, size, endpoint=True,
                                              dtype=dtype)
     bins = np.iinfo(dtype).max + 1
-    assert np.array_equal(rad.fast_bincount(a, bins), np.bincount(a, minlength=bins))
+    want = np.bincount(a, minlength=bins)
+    assert np.array_equal(rad.fast_bincount(a, bins), want)
+    assert np.array_equal(rad.numpy_bincount(a, bins), want)
+
+
+@settings(max_examples=60, deadline=None)
+@given(arrays(np.uint8, st.integers(1, 5000)), st.floats(0.0, 1.0), st.integers(0, 2**32 - 1))
+def test_pillow_byte_counts_equal_numpy_with_and_without_mask(a, invalid_share, seed):
+    """Pillow's C histogram of a zero-copy view counts exactly what np.bincount counts, and
+    under a mask exactly the selected pixels."""
+    pytest.importorskip("PIL")
+    mask = np.random.default_rng(seed).random(a.size) >= invalid_share
+    assert np.array_equal(rad._pillow_counts(a), np.bincount(a, minlength=256))
+    assert np.array_equal(rad._pillow_counts(a, mask), np.bincount(a[mask], minlength=256))
+
+
+@pytest.mark.parametrize("dtype", ["uint8", "int8", "bool", "uint16"])
+@pytest.mark.parametrize("invalid_share", [0.0, 0.1, 0.6])
+def test_histogram_accumulator_of_every_small_dtype_with_mask_equals_numpy(dtype, invalid_share):
+    """Every per-DN path (Pillow for bytes, signed via offset binary, numpy for 16 bits) counts
+    the valid pixels of a 2-D block (non-contiguous too) exactly as numpy does."""
+    rng = np.random.default_rng(5)
+    if dtype == "bool":
+        data = rng.random((90, 140)) > 0.3
+    else:
+        info = np.iinfo(dtype)
+        data = rng.integers(info.min, info.max, (90, 140), endpoint=True, dtype=dtype)
+    data = data[:, 10:130]  # a strided view, as a band sliced out of a chunk can be
+    valid = rng.random(data.shape) >= invalid_share
+    acc = rad.HistogramAccumulator.for_dtype(dtype)
+    acc.add(data, valid)
+    offset, bins = rad.histogram_layout(dtype)
+    want = np.bincount(data[valid].astype(np.int64) - offset, minlength=bins)
+    assert np.array_equal(acc.counts, want)
+    assert acc.total == data.size
+
+
+@pytest.mark.parametrize("dtype", ["uint8", "bool", "int8", "uint16", "int16"])
+def test_noise_of_integers_equals_the_float_path(dtype):
+    """The integer Immerkaer sums and byte window stds give the same sigmas, to the last bit,
+    as the float32 / float64 arithmetic of the same values (exact integers either way)."""
+    rng = np.random.default_rng(9)
+    if dtype == "bool":
+        data = rng.random((200, 333)) > 0.5
+    else:
+        info = np.iinfo(dtype)
+        data = rng.integers(info.min, info.max, (200, 333), endpoint=True, dtype=dtype)
+    valid = np.ones(data.shape, bool)
+    valid[50:70, 100:140] = False
+    for v in (None, valid):
+        ints, floats = rad.NoiseAccumulator(), rad.NoiseAccumulator()
+        ints.add(data, v)
+        floats.add(data.astype(np.float32), v)  # float32 holds every 16-bit integer exactly
+        assert (ints.sum_abs, ints.n_lap) == (floats.sum_abs, floats.n_lap)
+        assert ints.immerkaer_sigma == floats.immerkaer_sigma
+    k = rad.NOISE_WINDOW
+    if data.dtype.itemsize == 1 and dtype != "int8":  # the byte path vs the float64 path
+        wide = data[:192, :328].astype(np.uint16)
+        assert np.array_equal(rad._window_std_exact(data[:192, :328], k),
+                              rad._window_std_exact(wide, k))
 
 
 @pytest.mark.parametrize("invalid_share", [0.0, 1e-4, 0.2, 0.7, 1.0])
