@@ -94,10 +94,10 @@ def main() -> None:
         for r in range(args.rounds):
             peer = min(peer, run([sys.executable, "-c", READ_CSV, str(csv)])[0])
             out = Path(tmp) / f"out-{r}"
-            # the ITT tolerance the example's checker file gives (a manifest's value is evidence only)
+            # the ITT tolerance and map projection the example's checker file gives (a manifest's value is evidence only)
             wall, mb, code = run([orthospec, "check", str(delivery), "-p", args.profile, "--out",
                                   str(out), "--format", "json", "--date", "2026-11-21",
-                                  "--param", "tolerance_xy=0.5"])
+                                  "--param", "tolerance_xy=0.5", "--param", "map_crs=EPSG:25832"])
             check, rss = min(check, wall), max(rss, mb)
         print(f"pandas.read_csv: {peer:.2f} s")
         print(f"orthospec check: {check:.2f} s, peak {rss:.0f} MB, exit {code}; "

@@ -8,8 +8,10 @@ wall-clock time, no absolute paths).
 
 from __future__ import annotations
 
+import bisect
 import contextlib
 import csv
+import hashlib
 import heapq
 import io
 import itertools
@@ -45,10 +47,10 @@ from .provenance import Evidence
 from .qcr_model import SCHEMA_IDS, qcr_schema
 from .verdicts import VERDICTS
 
-__all__ = ["SCHEMA_IDS", "all_records", "build_document", "dumps", "iter_dumps", "point_frame",
-           "point_rows", "qcr_schema", "render_all", "stable"]
+__all__ = ["SCHEMA_IDS", "all_records", "build_document", "dumps", "evidence_rows", "evidence_text",
+           "iter_dumps", "natural_order", "point_frame", "point_rows", "qcr_schema", "render_all", "stable"]
 
-SCHEMA_ID = "orthospec.qcr/2"  # version 2: records once, without their rule's text; compact columns
+SCHEMA_ID = "orthospec.qcr/3"  # version 3: version 2 + evidence selectors and row columns (docs/QCR.md)
 
 SIG_DIGITS = 10
 _SCOPE_ORDER = {s: i for i, s in enumerate(SCOPES)}
@@ -169,22 +171,105 @@ COMPACT_VERDICTS = (V.PASS, V.NOT_APPLICABLE)
 _COMPACT_CODES = (PASS, NA)
 
 
-class _Interner:
-    """Evidence entries of compact records, each stored once in ``doc["evidence"]``."""
+#: an evidence entry lists its CSV rows up to this many; beyond, a selector stands for them when one
+#: reproduces them exactly (``where``: column = value, or every row), else the rows are listed
+ROWS_LISTED_MAX = 1000
 
-    def __init__(self) -> None:
-        self.index: dict[Evidence, int] = {}
+
+class _Evidence:
+    """Evidence as qcr.json writes it, and the document's ``evidence`` table (what compact columns index).
+
+    An entry with more than :data:`ROWS_LISTED_MAX` rows of a delivered table is written as a
+    selector ``{"file", "sha256", "where": {column: value}, "rows_count"}`` when exactly those rows
+    of the table carry that value in that column (``where: {}``: every data row), checked here on
+    the parsed table before it is written; otherwise its rows are listed (docs/QCR.md)."""
+
+    def __init__(self, delivery: Any = None) -> None:
+        self.d = delivery
+        self.index: dict[Any, int] = {}
         self.table: list[dict[str, Any]] = []
+        self._long: dict[int, tuple[Evidence, dict[str, Any]]] = {}  # id(e) -> (e kept alive, entry)
+
+    def entry(self, e: Evidence) -> dict[str, Any]:
+        """One evidence entry as written (rows listed, or a selector for many rows)."""
+        if len(e.rows) <= ROWS_LISTED_MAX:
+            return e.to_dict()
+        hit = self._long.get(id(e))
+        if hit is None:
+            hit = self._long[id(e)] = (e, _selector(self.d, e) or e.to_dict())
+        return hit[1]
+
+    def _intern(self, key: Any, entry: dict[str, Any]) -> int:
+        k = self.index.get(key)
+        if k is None:
+            k = self.index[key] = len(self.table)
+            self.table.append(entry)
+        return k
 
     def ids(self, ev: tuple[Evidence, ...] | list[Evidence]) -> list[int]:
         out = []
         for e in (sorted(set(ev)) if len(ev) > 1 else ev):
-            k = self.index.get(e)
-            if k is None:
-                k = self.index[e] = len(self.table)
-                self.table.append(e.to_dict())
-            out.append(k)
+            if len(e.rows) <= ROWS_LISTED_MAX:
+                k = self.index.get(e)
+                out.append(k if k is not None else self._intern(e, e.to_dict()))
+            else:
+                entry = self.entry(e)
+                out.append(self._intern(_canonical(entry), entry))
         return out
+
+    def file_id(self, file: str, sha256: str) -> int:
+        """The table entry ``{file, sha256}`` a row column points to."""
+        e = Evidence(file, sha256)
+        k = self.index.get(e)
+        return k if k is not None else self._intern(e, e.to_dict())
+
+    def records(self, ev: Any) -> list[dict[str, Any]]:
+        """A record's evidence entries (sorted, each once)."""
+        return [self.entry(e) for e in (sorted(set(ev)) if len(ev) > 1 else ev)]
+
+
+def _canonical(entry: Mapping[str, Any]) -> str:
+    return json.dumps(entry, sort_keys=True, ensure_ascii=False, separators=(",", ":"))
+
+
+def _selector(d: Any, e: Evidence) -> dict[str, Any] | None:
+    """``{file, sha256, where, rows_count}`` standing for exactly ``e.rows`` of a delivered table, or
+    None: the rows must be increasing and be every row of the table (``where: {}``) or every row
+    whose cell in one text column (stripped, as the reader parsed it) equals one value."""
+    rows = np.asarray(e.rows, dtype=np.int64)
+    if d is None or e.path or len(rows) < 2 or not bool((np.diff(rows) > 0).all()):
+        return None
+    table = None
+    for name, rel in (getattr(d.manifest, "tables", None) or {}).items():
+        if rel == e.file:
+            try:
+                table = d.table(name)
+            except OrthospecError:
+                return None
+            break
+    if table is None or table.sha256 != e.sha256:
+        return None
+    df = table.df
+    all_rows = df["_row"].to_numpy(np.int64)
+
+    def found(where: dict[str, str]) -> dict[str, Any]:
+        return {"file": e.file, "sha256": e.sha256, "where": where, "rows_count": len(rows)}
+
+    if len(rows) == len(all_rows) and np.array_equal(rows, all_rows):
+        return found({})
+    at = np.searchsorted(all_rows, rows[0])
+    if at >= len(all_rows) or all_rows[at] != rows[0]:
+        return None
+    texts = [c for c, cs in table.spec.columns.items() if cs.type == "text" and c in df and c != table.spec.id]
+    for col in sorted(texts, key=lambda c: c != "block"):  # the block column first: the usual grouping
+        cells = df[col].to_numpy(dtype=object)
+        value = cells[at]
+        if not isinstance(value, str):
+            continue
+        mask = cells == value
+        if int(np.count_nonzero(mask)) == len(rows) and np.array_equal(all_rows[mask], rows):
+            return found({col: value})
+    return None
 
 
 def _column(values: list[Any]) -> list[Any] | dict[str, Any]:
@@ -202,15 +287,17 @@ class _Shared:
     COLUMNS = ("items", "measured", "requirement", "evidence", "message", "waiver_requested")
 
     def __init__(self) -> None:
-        self.seen: dict[str, list[str]] = {}
+        self.seen: dict[bytes, list[str]] = {}  # SHA-256 of the column's JSON -> first [rule, column]
         self.enc = json.JSONEncoder(ensure_ascii=False, allow_nan=False, separators=(",", ":")).encode
 
     def apply(self, rule_id: str, block: dict[str, Any]) -> dict[str, Any]:
         for col in self.COLUMNS:
             values = block.get(col)
-            if not isinstance(values, list) or len(values) < self.MIN_LEN:
+            size = (len(values) if isinstance(values, list) else
+                    len(values["rows"]) if isinstance(values, dict) and "entry" in values else 0)
+            if size < self.MIN_LEN:
                 continue
-            key = self.enc(values)
+            key = hashlib.sha256(self.enc(values).encode("utf-8")).digest()
             first = self.seen.get(key)
             if first is None:
                 self.seen[key] = [rule_id, col]
@@ -251,10 +338,11 @@ def _full(rule: Mapping[str, Any], item: str, verdict: str, measured: Any, requi
 class _RuleRecords:
     """Builds the records of one rule result; everything constant per rule is computed once."""
 
-    def __init__(self, r: RuleResult) -> None:
+    def __init__(self, r: RuleResult, evidence: _Evidence) -> None:
         from .spec.wording import requirement_text
 
         self.r = r
+        self.ev = evidence
         rule = r.rule
         self.text = requirement_text
         self.req = stable({k: v for k, v in r.threshold.items() if not k.startswith("_")})
@@ -281,16 +369,42 @@ class _RuleRecords:
             measured = measured.item()
         return stable(measured)
 
-    def _requirement(self, i: int) -> dict[str, Any]:
-        req = self.req
-        if self.arrays is not None:
-            req = dict(req)
-            if self.r.rule.requirement.op == "between":
-                req["min"], req["max"] = stable(float(self.arrays[0][i])), stable(float(self.arrays[1][i]))
-            else:
-                req["value"] = stable(float(self.arrays[0][i]))
-            req["text"] = self.text(self.r.rule.requirement, req)
+    def _with_thresholds(self, values: tuple[Any, ...]) -> dict[str, Any]:
+        """The requirement with this item's resolved threshold(s) (already stable) and its wording."""
+        req = dict(self.req)
+        if self.r.rule.requirement.op == "between":
+            req["min"], req["max"] = values
+        else:
+            req["value"] = values[0]
+        req["text"] = self.text(self.r.rule.requirement, req)
         return req
+
+    def _requirement(self, i: int) -> dict[str, Any]:
+        if self.arrays is None:
+            return self.req
+        n = 2 if self.r.rule.requirement.op == "between" else 1
+        return self._with_thresholds(tuple(stable(float(a[i])) for a in self.arrays[:n]))
+
+    def _requirement_column(self, idx: np.ndarray) -> list[Any] | dict[str, Any] | None:
+        """Per-item requirements of the compact records at ``idx``, vectorised: the text is computed
+        once per distinct threshold; None when every item has the rule summary's requirement."""
+        n = 2 if self.r.rule.requirement.op == "between" else 1
+        cols = []
+        for a in self.arrays[:n]:  # type: ignore[index]
+            v = np.asarray(a, dtype=np.float64)[idx]
+            cols.append(np.where(np.isfinite(v), round_sig(v) + 0.0, np.inf))  # non-finite: null
+        stack = np.column_stack(cols)
+        if len(stack) and bool((stack == stack[0]).all()):
+            uniq, inverse = stack[:1], np.zeros(len(stack), dtype=np.int64)
+        else:
+            uniq, inverse = np.unique(stack, axis=0, return_inverse=True)
+        reqs = [self._with_thresholds(tuple(None if math.isinf(x) else x for x in row))
+                for row in uniq.tolist()]
+        if len(reqs) == 1 and reqs[0] == self.req:
+            return None
+        if len(reqs) == 1:
+            return _column([reqs[0]] * len(idx))
+        return [reqs[k] for k in inverse.ravel().tolist()]
 
     def stored(self, i: int) -> dict[str, Any]:
         """A record in full as qcr.json stores it: only what is particular to the item (its rule's
@@ -309,11 +423,10 @@ class _RuleRecords:
                     f"(approved by {w.get('approver', '?')})")
         elif note is None:
             note = ""
-        ev = r.evidence[i]
         rec: dict[str, Any] = {"rule": rule.id, "item": item, "verdict": VERDICTS[v], "measured": measured}
         if self.arrays is not None:
             rec["requirement"] = req
-        rec["evidence"] = [e.to_dict() for e in (sorted(set(ev)) if len(ev) > 1 else ev)]
+        rec["evidence"] = self.ev.records(r.evidence[i])
         rec["message"] = str(note)
         if v == WAIVED:
             rec["waiver"] = r.waivers.get(item)
@@ -327,28 +440,78 @@ class _RuleRecords:
         """The record as readers see it (what :func:`all_records` yields)."""
         return _expand_stored(self.summary, self.stored(i))
 
-    def compact(self, idx: np.ndarray, interner: _Interner) -> dict[str, Any]:
-        """The pass / not-applicable records at ``idx`` (item order) as columns (see docs/QCR.md)."""
+    def compact(self, idx: np.ndarray) -> dict[str, Any]:
+        """The pass / not-applicable records at ``idx`` (item order) as columns (see docs/QCR.md).
+
+        Vectorised over the items: a rule over a million check points costs numpy passes and one
+        list per column, no Python object per item beyond the values written."""
         r = self.r
-        items = [str(x) for x in r.items[idx].tolist()]
-        verdicts = [VERDICTS[int(v)] for v in r.verdict[idx].tolist()]
+        n = len(idx)
+        items = list(map(str, np.asarray(r.items, dtype=object)[idx].tolist()))
+        codes = np.asarray(r.verdict)[idx]
+        if n > 1 and bool((codes == codes[0]).all()):
+            verdict: Any = {"all": VERDICTS[int(codes[0])]}
+        else:
+            verdict = [VERDICTS[int(c)] for c in codes.tolist()]
         m = np.asarray(r.measured)[idx]
-        measured = _stable_column(m) if m.dtype.kind in "fiub" else [self._measured(int(i)) for i in idx]
-        notes = r.notes[idx].tolist()
-        messages: list[str | None] = []
-        for v, note in zip(verdicts, notes, strict=True):
-            # None: the default wording, rebuilt from measure, value and requirement on reading
-            messages.append(None if note is None and v == V.PASS else ("" if note is None else str(note)))
-        out: dict[str, Any] = {"items": items, "verdict": _column(verdicts), "measured": _column(measured)}
+        measured = _numeric_column(m) if m.dtype.kind in "fiub" else _column([self._measured(int(i)) for i in idx])
+        out: dict[str, Any] = {"items": items, "verdict": verdict, "measured": measured}
         if self.arrays is not None:
-            out["requirement"] = _column([self._requirement(int(i)) for i in idx])
-        out["evidence"] = _column([interner.ids(r.evidence[int(i)]) for i in idx])
-        out["message"] = _column(messages)
+            req = self._requirement_column(idx)
+            if req is not None:
+                out["requirement"] = req
+        out["evidence"] = self._evidence_column(idx)
+        out["message"] = self._message_column(idx, codes)
         if r.requested:
             asked = [r.requested.get(item) for item in items]
             if any(a is not None for a in asked):
                 out["waiver_requested"] = _column(asked)
         return out
+
+    def _evidence_column(self, idx: np.ndarray) -> Any:
+        """Evidence per item: one row of one file per item (a provider's row evidence) as a row column
+        ``{"entry": k, "rows": [...]}``, else indices into the evidence table per item."""
+        evs = self.r.evidence
+        rows = getattr(evs, "rows", None)
+        file, sha = getattr(evs, "file", None), getattr(evs, "sha256", None)
+        if isinstance(rows, np.ndarray) and isinstance(file, str) and isinstance(sha, str):
+            picked = np.asarray(rows, dtype=np.float64)[idx]
+            have = ~np.isnan(picked)
+            if not have.any():
+                return _column([[] for _ in range(len(idx))])
+            ints = np.where(have, picked, 0).astype(np.int64).tolist()
+            col = ints if have.all() else [x if h else None for x, h in zip(ints, have.tolist(), strict=True)]
+            return {"entry": self.ev.file_id(file, sha), "rows": col}
+        return _column([self.ev.ids(evs[int(i)]) for i in idx])
+
+    def _message_column(self, idx: np.ndarray, codes: np.ndarray) -> Any:
+        """None: the default wording (rebuilt on reading) of a pass without a note; "" for a
+        not-applicable record without one; else the note."""
+        notes = np.asarray(self.r.notes, dtype=object)[idx]
+        none = np.equal(notes, None).astype(bool)
+        if len(idx) > 1 and none.all():
+            if (codes == PASS).all():
+                return {"all": None}
+            if (codes == NA).all():
+                return {"all": ""}
+        return _column([None if nn and c == PASS else ("" if nn else str(note))
+                        for note, nn, c in zip(notes.tolist(), none.tolist(), codes.tolist(), strict=True)])
+
+
+def _numeric_column(values: np.ndarray) -> list[Any] | dict[str, Any]:
+    """A numeric compact column (stable values), ``{"all": v}`` when every item has the same one."""
+    n = len(values)
+    if n > 1:
+        if values.dtype.kind == "f":
+            r = round_sig(values) + 0.0
+            finite = np.isfinite(r)
+            if not finite.any():
+                return {"all": None}
+            if finite.all() and bool((r == r[0]).all()):
+                return {"all": float(r[0])}
+        elif bool((values == values[0]).all()):
+            return {"all": values[:1].tolist()[0]}
+    return _stable_column(values)
 
 
 def _expand_stored(rule: Mapping[str, Any], rec: Mapping[str, Any]) -> dict[str, Any]:
@@ -367,6 +530,21 @@ def _column_values(col: Any, n: int, compact: Mapping[str, Any]) -> list[Any]:
     return list(col) if col is not None else [None] * n
 
 
+def _evidence_values(col: Any, n: int, compact: Mapping[str, Any], table: list[dict[str, Any]]
+                     ) -> Iterator[list[dict[str, Any]]]:
+    """Each item's evidence entries from a compact ``evidence`` column (any of its forms)."""
+    while isinstance(col, dict) and "ref" in col:
+        rule_id, name = col["ref"]
+        col = compact[rule_id][name]
+    if isinstance(col, dict) and "entry" in col:  # one row of one file per item
+        base = table[col["entry"]]
+        for row in col["rows"]:
+            yield [] if row is None else [{**base, "rows": [row]}]
+        return
+    for ids in _column_values(col, n, compact):
+        yield [table[e] for e in (ids or [])]
+
+
 def _expand(rule: Mapping[str, Any], block: Mapping[str, Any], evidence: list[dict[str, Any]],
             compact: Mapping[str, Any]) -> Iterator[dict[str, Any]]:
     """The records of one rule's compact block (the same dicts as records in full)."""
@@ -376,18 +554,17 @@ def _expand(rule: Mapping[str, Any], block: Mapping[str, Any], evidence: list[di
     measured = _column_values(block.get("measured"), n, compact)
     reqs = (_column_values(block["requirement"], n, compact) if "requirement" in block
             else [rule.get("requirement") or {}] * n)
-    evs = _column_values(block.get("evidence"), n, compact)
+    evs = _evidence_values(block.get("evidence"), n, compact, evidence)
     msgs = _column_values(block.get("message"), n, compact)
     asked = _column_values(block.get("waiver_requested"), n, compact)
     shown = _shown_unit(rule.get("unit"))
     measure = rule.get("measure", "")
-    for k in range(n):
+    for k, ev in zip(range(n), evs, strict=True):
         req = reqs[k]
         msg = msgs[k]
         if msg is None:
             msg = _pass_message(measure, measured[k], shown, req.get("text", ""))
-        yield _full(rule, items[k], verdicts[k], measured[k], req, [evidence[e] for e in (evs[k] or [])], msg,
-                    None, asked[k])
+        yield _full(rule, items[k], verdicts[k], measured[k], req, ev, msg, None, asked[k])
 
 
 def all_records(doc: Mapping[str, Any], *, compact: bool = True) -> Iterator[dict[str, Any]]:
@@ -429,7 +606,81 @@ _DIGITS = re.compile(r"(\d+)")
 
 def natural_key(text: str) -> tuple[Any, ...]:
     """IMG_2 before IMG_10: digits compare as numbers, the rest as text (total order, stable)."""
-    return tuple((0, int(p), p) if p.isdigit() else (1, 0, p) for p in _DIGITS.split(text))
+    return tuple((0, int(p), p) if p.isdecimal() else (1, 0, p) for p in _DIGITS.split(text))
+
+
+#: digit runs longer than this (leading zeros included) take the exact path (int64 holds 18 digits)
+_FAST_DIGITS = 18
+
+
+def natural_order(items: Any) -> np.ndarray:
+    """Indices that sort ``items`` by :func:`natural_key` (ties in item order), vectorised.
+
+    Ids of the form ``<text without digits><ASCII digits>`` (``P0000001``, ``IMG_12``) or without
+    digits sort by numpy keys: the text's rank, digits or not, the number, then its leading zeros
+    (what ``natural_key`` compares after the number: ``'0' < '00'`` but ``'001' < '01'``); any
+    other id (several digit runs, non-ASCII, NUL) takes ``natural_key`` and is merged in by
+    binary search. The same order as ``sorted(..., key=natural_key)`` (tests/test_qcr_scale.py)."""
+    strs = [x if type(x) is str else str(x) for x in (items.tolist() if isinstance(items, np.ndarray) else items)]
+    n = len(strs)
+    if n < 256 or "\x00" in "".join(strs):
+        return _slow_order(strs, np.arange(n))
+    a = np.array(strs, dtype=str)
+    width = a.dtype.itemsize // 4
+    if width == 0:
+        return np.arange(n, dtype=np.int64)
+    codes = a.view(np.uint32).reshape(n, width)
+    length = np.char.str_len(a)
+    isdig = (codes >= 48) & (codes <= 57)
+    ndig = isdig.sum(axis=1)
+    first = np.where(ndig > 0, isdig.argmax(axis=1), length)
+    fast = (ndig == length - first) & (ndig <= _FAST_DIGITS) & ~(codes >= 128).any(axis=1)
+    if not fast.any():
+        return _slow_order(strs, np.arange(n))
+    fi = np.flatnonzero(fast)
+    c, dg = codes[fi], isdig[fi]
+    value = np.zeros(len(fi), dtype=np.int64)
+    zeros = np.zeros(len(fi), dtype=np.int64)
+    started = np.zeros(len(fi), dtype=bool)
+    for j in range(width):  # Horner over the columns: the digits are the id's last characters
+        d, digit = dg[:, j], c[:, j].astype(np.int64) - 48
+        value = np.where(d, value * 10 + digit, value)
+        zeros += d & (digit == 0) & ~started
+        started |= d & (digit != 0)
+    text = np.where(dg, 0, c).view(f"<U{width}").ravel()  # the text before the digits
+    if bool((text == text[0]).all()):
+        rank = np.zeros(len(fi), dtype=np.int64)
+    else:
+        rank = np.unique(text, return_inverse=True)[1].ravel()
+    has = ndig[fi] > 0
+    tie = np.where(value == 0, zeros, -zeros)
+    order = fi[np.lexsort((tie, value, has, rank))]
+    if len(fi) == n:
+        return order.astype(np.int64)
+    slow = _slow_order(strs, np.flatnonzero(~fast))
+    fast_keys = _Keys(strs, order)
+    at = [bisect.bisect_left(fast_keys, natural_key(strs[i])) for i in slow.tolist()]
+    return np.insert(order, at, slow).astype(np.int64)
+
+
+class _Keys:
+    """natural_key of the fast-sorted ids, computed only where a binary search looks."""
+
+    def __init__(self, strs: list[str], order: np.ndarray) -> None:
+        self.strs, self.order = strs, order
+
+    def __len__(self) -> int:
+        return len(self.order)
+
+    def __getitem__(self, k: int) -> tuple[Any, ...]:
+        return natural_key(self.strs[int(self.order[k])])
+
+
+def _slow_order(strs: list[str], idx: np.ndarray) -> np.ndarray:
+    """``idx`` sorted by natural_key of its ids (stable)."""
+    keys = [natural_key(strs[i]) for i in idx.tolist()]
+    return idx[np.array(sorted(range(len(keys)), key=keys.__getitem__), dtype=np.int64)] if len(keys) \
+        else idx.astype(np.int64)
 
 
 def _order(items: np.ndarray, cache: dict[Any, Any]) -> np.ndarray:
@@ -438,8 +689,7 @@ def _order(items: np.ndarray, cache: dict[Any, Any]) -> np.ndarray:
     hit = cache.get(key)
     if hit is not None and (hit[1] is items or np.array_equal(hit[1], items)):
         return hit[0]
-    keys = [natural_key(str(x)) for x in items]
-    order = np.array(sorted(range(len(items)), key=keys.__getitem__), dtype=np.int64)
+    order = natural_order(items)
     cache[key] = (order, items)
     return order
 
@@ -451,8 +701,9 @@ def _sorted_results(ev: Evaluation) -> list[RuleResult]:
 def iter_records(ev: Evaluation) -> Iterable[dict[str, Any]]:
     """Every record in full, sorted by (scope order, rule id, item in natural order)."""
     cache: dict[Any, Any] = {}
+    evidence = _Evidence(ev.delivery)
     for r in _sorted_results(ev):
-        rb = _RuleRecords(r)
+        rb = _RuleRecords(r, evidence)
         for i in _order(r.items, cache):
             yield rb.record(int(i))
 
@@ -465,14 +716,14 @@ def build_document(ev: Evaluation, *, date: str, operator: str | None = None,
     rules = []
     records: list[dict[str, Any]] = []
     compact: dict[str, Any] = {}
-    interner = _Interner()
+    evidence = _Evidence(d)
     shared = _Shared()
     cache: dict[Any, Any] = {}
     n_records = 0
     for r in _sorted_results(ev):
-        rb = _RuleRecords(r)
-        offending = sorted((str(x) for x in r.items[np.isin(r.verdict, (FAIL, WARN, MISSING, ERROR))]),
-                           key=natural_key)
+        rb = _RuleRecords(r, evidence)
+        bad = np.asarray(r.items, dtype=object)[np.isin(r.verdict, (FAIL, WARN, MISSING, ERROR))]
+        offending = [str(bad[i]) for i in natural_order(bad).tolist()]
         rules.append(stable({
             "rule": r.rule.id, "title": r.rule.title, "scope": r.rule.scope, "level": r.rule.level,
             "consequence": r.rule.consequence, "clause": r.rule.clause.text(), "clause_ref": r.rule.clause.ref(),
@@ -486,7 +737,7 @@ def build_document(ev: Evaluation, *, date: str, operator: str | None = None,
         n_records += len(order)
         is_compact = np.isin(codes, _COMPACT_CODES)
         if is_compact.any():
-            compact[r.rule.id] = shared.apply(r.rule.id, rb.compact(order[is_compact], interner))
+            compact[r.rule.id] = shared.apply(r.rule.id, rb.compact(order[is_compact]))
         records.extend(rb.stored(int(i)) for i in order[~is_compact])
     man = d.manifest
     doc: dict[str, Any] = {
@@ -534,7 +785,7 @@ def build_document(ev: Evaluation, *, date: str, operator: str | None = None,
     doc["rules"] = rules
     doc["records"] = records
     doc["compact"] = compact
-    doc["evidence"] = interner.table
+    doc["evidence"] = evidence.table
     return doc
 
 
@@ -543,23 +794,30 @@ def dumps(doc: Mapping[str, Any]) -> str:
     return "".join(iter_dumps(doc))
 
 
+#: top-level keys written one element per line (a list's items, a mapping's entries) through the C
+#: encoder; the other keys are small and written as ``json.dumps(value, indent=1)`` would
+_PER_LINE = ("rules", "records", "compact", "evidence", "details")
+
+
 def iter_dumps(doc: Mapping[str, Any]) -> Iterator[str]:
     """qcr.json as a stream of pieces (written to the file one by one; same bytes as :func:`dumps`).
 
-    Every top-level key as ``json.dumps(doc, indent=1)`` would write it, except ``records`` (one
-    record per line) and ``compact`` (one rule's columns per line): greppable, diffable, and no
-    piece larger than one rule."""
+    The header keys as ``json.dumps(doc, indent=1)`` would write them; ``rules``, ``records``,
+    ``compact``, ``evidence`` and ``details`` one element per line (a rule summary, a record, one
+    rule's columns, an evidence entry, one measure's detail), each compact: greppable, diffable,
+    no piece larger than one element, and every large value goes through json's C encoder (the
+    pure-Python one that ``indent`` needs took most of the time at a million check points)."""
     enc = json.JSONEncoder(ensure_ascii=False, allow_nan=False, separators=(",", ":")).encode
     yield "{"
     for n, (key, value) in enumerate(doc.items()):
         yield ("\n " if n == 0 else ",\n ") + enc(str(key)) + ": "
-        if key == "records" and isinstance(value, list) and value:
-            for k, rec in enumerate(value):
-                yield ("[\n  " if k == 0 else ",\n  ") + enc(rec)
+        if key in _PER_LINE and isinstance(value, list) and value:
+            for k, item in enumerate(value):
+                yield ("[\n  " if k == 0 else ",\n  ") + enc(item)
             yield "\n ]"
-        elif key == "compact" and isinstance(value, dict) and value:
-            for k, (rid, block) in enumerate(value.items()):
-                yield ("{\n  " if k == 0 else ",\n  ") + enc(str(rid)) + ": " + enc(block)
+        elif key in _PER_LINE and isinstance(value, dict) and value:
+            for k, (name, item) in enumerate(value.items()):
+                yield ("{\n  " if k == 0 else ",\n  ") + enc(str(name)) + ": " + enc(item)
             yield "\n }"
         else:
             yield json.dumps(value, indent=1, ensure_ascii=False, allow_nan=False).replace("\n", "\n ")
@@ -601,6 +859,51 @@ def xml_text(v: Any) -> str:
     return _XML_BAD.sub(lambda m: f"\\x{ord(m.group(0)):02x}", str(v))
 
 
+def evidence_text(e: Mapping[str, Any]) -> str:
+    """One evidence entry on one line: ``file#rows=1,2``, ``file#where=block=B02 (333412 rows)``,
+    ``file#every row (n rows)``, ``file#yaml.path``."""
+    out = str(e.get("file", ""))
+    if e.get("rows"):
+        out += "#rows=" + ",".join(map(str, e["rows"]))
+    elif "where" in e:
+        out += "#" + where_text(e)
+    if e.get("path"):
+        out += f"#{e['path']}"
+    return out
+
+
+def where_text(e: Mapping[str, Any]) -> str:
+    """The rows a selector stands for, in words: ``where block = B02 (333412 rows)``."""
+    where = e.get("where") or {}
+    cond = " and ".join(f"{k} = {v}" for k, v in where.items())
+    return (f"where {cond}" if cond else "every row") + f" ({e.get('rows_count', '?')} rows)"
+
+
+def evidence_rows(entry: Mapping[str, Any], root: str | Path) -> list[int]:
+    """The 1-based data rows an evidence entry stands for, re-read from the delivered file under
+    ``root``: its listed ``rows``, or its ``where`` selector applied to the CSV table (cells
+    stripped of surrounding whitespace, blank lines counted but never selected). The file must
+    still have the entry's SHA-256 (OrthospecError otherwise): what an auditor re-applies."""
+    if "where" not in entry:
+        return list(entry.get("rows") or [])
+    from .provenance import sha256_file
+
+    path = Path(root) / str(entry["file"])
+    if sha256_file(path) != entry.get("sha256"):
+        raise OrthospecError(f"{entry['file']}: the file has changed since the check (SHA-256 differs)")
+    import pandas as pd
+
+    t = pd.read_csv(path, dtype=str, keep_default_na=False, skip_blank_lines=False, encoding="utf-8-sig")
+    keep = ~(t.apply(lambda c: c.str.strip() == "").all(axis=1)).to_numpy(bool)
+    for col, value in (entry["where"] or {}).items():
+        keep &= (t[col].str.strip() == value).to_numpy(bool)
+    rows = (np.flatnonzero(keep) + 1).tolist()
+    if len(rows) != entry.get("rows_count", len(rows)):
+        raise OrthospecError(f"{entry['file']}: the selector gives {len(rows)} rows, the record says "
+                             f"{entry.get('rows_count')}")
+    return rows
+
+
 def to_csv(doc: Mapping[str, Any]) -> str:
     """qcr.csv: one row per record (expanded), spreadsheet-safe."""
     return "".join(iter_csv(doc))
@@ -617,8 +920,7 @@ def iter_csv(doc: Mapping[str, Any], *, rows_per_piece: int = 2000) -> Iterator[
             buf.seek(0)
             buf.truncate()
         clause = _clause_text(r["clause"])
-        ev = "; ".join(f"{e['file']}" + (f"#rows={','.join(map(str, e['rows']))}" if e.get("rows") else "")
-                       + (f"#{e['path']}" if e.get("path") else "") for e in r["evidence"])
+        ev = "; ".join(evidence_text(e) for e in r["evidence"])
         w.writerow([r["rule"], clause, r["scope"], r["item"], r["level"], r["consequence"], r["verdict"],
                     r["measure"], "" if r["measured"]["value"] is None else r["measured"]["value"],
                     r["measured"]["unit"] or "", r["requirement"].get("text", ""), ev, r["message"]])

@@ -15,7 +15,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from .verdicts import VERDICTS
 
-SCHEMA_IDS = ("orthospec.qcr/1", "orthospec.qcr/2")
+SCHEMA_IDS = ("orthospec.qcr/1", "orthospec.qcr/2", "orthospec.qcr/3")
 SCHEMA_BASE = "https://orthospec.dev/schema/"
 
 Verdict = Literal["pass", "fail", "warn", "not_applicable", "missing", "error", "waived"]
@@ -36,11 +36,19 @@ class _Open(BaseModel):
 
 
 class EvidenceRef(_Closed):
-    """One piece of evidence: a delivered file (its SHA-256), CSV data rows (1-based), a YAML path."""
+    """One piece of evidence: a delivered file (its SHA-256), CSV data rows (1-based), a YAML path.
+
+    Many rows (more than 1,000) are written as a selector when one stands for exactly them:
+    ``where`` (column -> value; ``{}`` = every data row) and ``rows_count`` (version 3)."""
 
     file: str = Field(description="Path relative to the delivery root (POSIX separators).")
     sha256: str = Sha256
     rows: list[int] | None = Field(None, description="1-based data rows of a CSV table (header = row 0).")
+    where: dict[str, str] | None = Field(
+        None, description="Selector standing for the rows: the data rows of the CSV table whose cell in each "
+                          "named column (surrounding whitespace stripped) equals the value; {} = every data "
+                          "row (blank lines are no rows). Exact: checked against the parsed table when written.")
+    rows_count: int | None = Field(None, ge=0, description="How many rows the selector stands for.")
     path: str | None = Field(None, description="Dotted YAML path of a manifest value.")
 
 
@@ -124,6 +132,15 @@ class AllSame(_Closed):
     all: Any
 
 
+class RowColumn(_Closed):
+    """Evidence of a compact block whose every item is one row of one file (version 3): ``entry``
+    indexes the document's ``evidence`` table (``{file, sha256}``), ``rows[i]`` is item i's 1-based
+    data row (null: no evidence)."""
+
+    entry: int = Field(ge=0)
+    rows: list[int | None]
+
+
 class AllVerdict(_Closed):
     all: CompactVerdict
 
@@ -133,7 +150,8 @@ class CompactBlock(_Closed):
 
     Every column is a list as long as ``items`` or ``{"all": value}``. A ``message`` of null is
     the default wording rebuilt on reading (``<measure> = <value> <unit>; required <text>``);
-    ``evidence`` entries index the document's ``evidence`` table; without ``requirement`` the
+    ``evidence`` entries index the document's ``evidence`` table (or, as a :class:`RowColumn`, give
+    one row per item of one file); without ``requirement`` the
     rule summary's requirement applies to every item; ``{"ref": [rule, column]}`` is the same
     column of an earlier rule (rules over the same images share their item list)."""
 
@@ -141,7 +159,7 @@ class CompactBlock(_Closed):
     verdict: list[CompactVerdict] | AllVerdict
     measured: list[Any] | AllSame | ColumnRef
     requirement: list[Requirement] | AllSame | ColumnRef | None = None
-    evidence: list[list[int]] | AllSame | ColumnRef
+    evidence: list[list[int]] | AllSame | ColumnRef | RowColumn
     message: list[str | None] | AllSame | ColumnRef
     waiver_requested: list[dict[str, Any] | None] | AllSame | ColumnRef | None = None
 
@@ -222,7 +240,7 @@ class LedgerHead(_Closed):
 class QcrDocument(_Open):
     """qcr.json: what `orthospec check` decided, why, on which evidence (docs/QCR.md)."""
 
-    schema_: Literal["orthospec.qcr/1", "orthospec.qcr/2"] = Field(alias="schema")
+    schema_: Literal["orthospec.qcr/1", "orthospec.qcr/2", "orthospec.qcr/3"] = Field(alias="schema")
     tool: Tool
     date: str = Field(pattern=r"^\d{4}-\d{2}-\d{2}$")
     operator: str | None = Field(
@@ -244,10 +262,10 @@ class QcrDocument(_Open):
         [], description="The contractor's waiver requests and whether the checker granted them.")
     rules: list[RuleSummary]
     records: list[StoredRecord] | list[Record] = Field(
-        description="Version 2: every record whose verdict is not pass or not_applicable, each once, without "
+        description="Versions 2 and 3: every record whose verdict is not pass or not_applicable, each once, without "
                     "its rule's text (StoredRecord). Version 1: every record, in full (Record).")
     compact: dict[str, CompactBlock] = Field(
-        {}, description="Rule id -> its pass / not_applicable records as columns (version 2).")
+        {}, description="Rule id -> its pass / not_applicable records as columns (versions 2 and 3).")
     evidence: list[EvidenceRef] = Field([], description="Evidence entries the compact columns index.")
     details: dict[str, Any] = {}
     ledger_head: LedgerHead | None = Field(
