@@ -103,7 +103,8 @@ def compute(name: str, d: Delivery) -> Measured:
             share = 0.0 if len(df) else None
             rows: Any = []
         else:
-            filled = df[col].map(lambda v: v is not None and not (isinstance(v, float) and np.isnan(v)))
+            # None, NaN (and pandas' NA) are what a blank cell reads as: not filled
+            filled = df[col].notna()
             share = float(filled.mean() * 100.0) if len(df) else None
             rows = df.loc[~filled, "_row"] if len(df) else []
         return _one(name, "delivery", "%", d.id, share, t.evidence(rows if len(rows) else df["_row"]),
