@@ -816,8 +816,9 @@ def checker_file(party: dict[str, str], verdicts: list[dict[str, Any]], waivers:
     pins = {rel: hashlib.sha256((root / rel).read_bytes()).hexdigest() for rel in PINNED}
     return {"orthospec_checker": 1, "checker": party,
             "delivery": {"id": delivery_id, "files": pins},
-            # the ITT's tolerance, stated by the checker (JRC §2.5); the manifest only declares it
-            "parameters": {"tolerance_xy": {"value": tolerance_xy_m, "unit": "m"}},
+            # the ITT's tolerance (JRC §2.5) and map projection (§12.4 Table 12), stated by the checker;
+            # the manifest only declares them (tender.parameters, project.crs; red team R1, R16)
+            "parameters": {"tolerance_xy": {"value": tolerance_xy_m, "unit": "m"}, "map_crs": f"EPSG:{EPSG}"},
             "manual_checks": [{"check": r["check"], "item": r["item"], "date": r["date"],
                                "verdict": r["verdict"], "note": r["note"]} for r in verdicts],
             "waivers": waivers}

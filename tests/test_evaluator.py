@@ -137,7 +137,8 @@ def test_a_crashing_rule_keeps_its_traceback_under_debug(tmp_path, monkeypatch):
 
     d = _overflowing_checkpoints(tmp_path)
     monkeypatch.delenv("ORTHOSPEC_DEBUG", raising=False)
-    plain = check(d, "jrc-v3", date="2026-11-21", options={"workers": 1}, params=["tolerance_xy=0.5m"]).document
+    plain = check(d, "jrc-v3", date="2026-11-21", options={"workers": 1},
+                  params=["tolerance_xy=0.5m", "map_crs=EPSG:25832"]).document
     rec = recs(plain, "JRC-12.7-RMSEX")["B01"]
     assert rec["verdict"] == "error" and plain["verdict"] == "rejected"
     assert rec["message"].startswith("internal error in rule: OverflowError") and "--debug" in rec["message"]
@@ -145,7 +146,8 @@ def test_a_crashing_rule_keeps_its_traceback_under_debug(tmp_path, monkeypatch):
     out = tmp_path / "out"
     proc = subprocess.run([sys.executable, "-W", "ignore", "-m", "orthospec.cli.main", "--debug", "check", str(d),
                            "--profile", "jrc-v3", "--out", str(out), "--date", "2026-11-21", "--format", "json",
-                           "--workers", "1", "--param", "tolerance_xy=0.5m"], capture_output=True, text=True, timeout=300)
+                           "--workers", "1", "--param", "tolerance_xy=0.5m", "--param", "map_crs=EPSG:25832"],
+                          capture_output=True, text=True, timeout=300)
     assert proc.returncode == 1, proc.stderr
     doc = json.loads((out / "qcr.json").read_text(encoding="utf-8"))
     tb = doc["details"]["tracebacks"]["JRC-12.7-RMSEX"]

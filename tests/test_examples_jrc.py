@@ -44,7 +44,7 @@ def _check(name: str, out: Path, *, checker: bool = True) -> tuple[int, dict[str
     # same value as the file's `parameters:`): the manifest only declares it (red team R1)
     tol = yaml.safe_load((CHECKERS / f"{name}.yaml").read_text(encoding="utf-8"))["parameters"]["tolerance_xy"]
     extra = (["--checker", str(CHECKERS / f"{name}.yaml")] if checker
-             else ["--param", f"tolerance_xy={tol['value']}{tol['unit']}"])
+             else ["--param", f"tolerance_xy={tol['value']}{tol['unit']}", "--param", "map_crs=EPSG:25832"])
     if checker and not _has_checker_option():  # until cmd_check gains --checker (helper A)
         res = check_with(EXAMPLES / name, "jrc-v3", checker=CHECKERS / f"{name}.yaml", date="2026-11-21")
         out.mkdir(parents=True, exist_ok=True)

@@ -151,7 +151,7 @@ def test_annex_and_qcr_state_every_jrc_requirement_the_same_way() -> None:
 
     prof = load_profile(ROOT / "specs" / "jrc-v3.yaml")
     res = check(ROOT / "examples" / "deliveries" / "aerial-pass", prof, date="2026-11-21",
-                params={"tolerance_xy": "0.5m", "tolerance_z": "1m"})
+                params={"tolerance_xy": "0.5m", "tolerance_z": "1m", "map_crs": "EPSG:25832"})
     in_force = res.document["profile"]["parameters"]
     params = {n: p.model_copy(update={"value": in_force[n]["value"]}) if in_force.get(n, {}).get("value")
               is not None else p for n, p in prof.parameters.items()}

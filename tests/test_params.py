@@ -72,7 +72,7 @@ def jrc():
 # --- the manifest never sets the standard's numbers -------------------------------------------
 
 #: the ITT's tolerance as the checker states it (--param); the manifest's declaration is only evidence
-ITT = {"tolerance_xy": "0.5 m"}
+ITT = {"tolerance_xy": "0.5 m", "map_crs": "EPSG:25832"}
 
 
 def test_manifest_cannot_set_standard_thresholds(tmp_path):
@@ -90,7 +90,8 @@ def test_manifest_cannot_set_standard_thresholds(tmp_path):
 def test_manifest_cannot_set_standard_thresholds_in_the_report(tmp_path):
     d = copy_pass(tmp_path, "tolerance_xy: {value: 0.5, unit: m}\nmin_checkpoints: 5\nfail_share_max: 50 %")
     out = tmp_path / "out"
-    res = run("check", d, "--profile", "jrc-v3", "--out", out, "--date", "2026-01-01", "--param", "tolerance_xy=0.5m")
+    res = run("check", d, "--profile", "jrc-v3", "--out", out, "--date", "2026-01-01", "--param", "tolerance_xy=0.5m",
+              "--param", "map_crs=EPSG:25832")
     assert res.exit_code in (0, 1), res.output
     params = json.loads((out / "qcr.json").read_text())["profile"]["parameters"]
     assert params["min_checkpoints"]["value"] == 20 and params["min_checkpoints"]["source"] == "standard"
@@ -124,11 +125,11 @@ def _checker(tmp_path, parameters: str, name: str = "checker.yaml"):
 
 def test_the_checker_file_states_an_itt_parameter(tmp_path):
     d = copy_pass(tmp_path, "tolerance_xy: {value: 1.0, unit: m}")  # the contractor declares 1 m
-    chk = _checker(tmp_path, "{tolerance_xy: {value: 50, unit: cm}}")
+    chk = _checker(tmp_path, "{tolerance_xy: {value: 50, unit: cm}, map_crs: 'EPSG:25832'}")
     v = resolve_parameters(jrc(), declared(d), {}, checker=chk)["tolerance_xy"]
     assert (v.value, v.source, v.declared, v.unit) == (0.5, "checker", 1.0, "m")  # 50 cm = 0.5 m
     # --param wins over the checker file, the checker file over a tender profile's value
-    assert resolve_parameters(jrc(), declared(d), {"tolerance_xy": "0.4"}, checker=chk)["tolerance_xy"].source == "cli"
+    assert resolve_parameters(jrc(), declared(d), {**ITT, "tolerance_xy": "0.4"}, checker=chk)["tolerance_xy"].source == "cli"
     prof = load_profile(ROOT / "examples" / "specs" / "tender-example.yaml")  # ITT §4.1: 0.5 m
     assert (resolve_parameters(prof, {}, {})["tolerance_xy"].source) == "tender"
     w = resolve_parameters(prof, {}, {}, checker=_checker(tmp_path, "{tolerance_xy: 40 cm}", "c2.yaml"))
@@ -157,7 +158,7 @@ def test_a_checker_parameter_another_profile_reads_is_ignored(tmp_path):
 
 def test_cli_wins_and_keeps_the_declared_value_for_the_cross_check(tmp_path):
     d = copy_pass(tmp_path, "tolerance_xy: {value: 0.5, unit: m}")
-    v = resolve_parameters(jrc(), declared(d), {"tolerance_xy": "0.4"})["tolerance_xy"]
+    v = resolve_parameters(jrc(), declared(d), {**ITT, "tolerance_xy": "0.4"})["tolerance_xy"]
     assert (v.value, v.source, v.declared) == (0.4, "cli", 0.5)
     assert all(pv.source in SOURCES for pv in resolve_parameters(jrc(), declared(d), ITT).values())
 
@@ -181,7 +182,7 @@ def test_unknown_manifest_parameter_is_ignored_here(tmp_path):
 
 @pytest.mark.parametrize("text", ["0.5", "0.5m", "0.5 m", "50 cm", "500 mm", ".5"])
 def test_cli_param_numbers_with_units(text):
-    v = resolve_parameters(jrc(), {}, {"tolerance_xy": text})["tolerance_xy"]
+    v = resolve_parameters(jrc(), {}, {**ITT, "tolerance_xy": text})["tolerance_xy"]
     assert v.value == pytest.approx(0.5) and v.source == "cli"
 
 
@@ -235,6 +236,7 @@ source: {{title: ITT}}
 extends: {{id: jrc-v3, version: 3.0.0}}
 parameters:
   tolerance_xy: {{value: 0.5}}
+  map_crs: {{value: "EPSG:25832"}}
 rules:
   - id: ITT-DEM
     title: DEM accuracy
@@ -269,11 +271,11 @@ def test_rule_that_tests_the_parameter_is_optional(tmp_path):
 def test_manifest_gated_rule_needs_its_parameter_only_when_it_applies():
     # JRC-12.7-RMSEZ: "Where the DEM is also a deliverable ... checked using the Z threshold"
     base = {"manifest.sensor.type": "aerial"}
-    ok = resolve_parameters(jrc(), {}, {"tolerance_xy": "0.5"},
+    ok = resolve_parameters(jrc(), {}, ITT,
                             manifest={**base, "manifest.product.dem_delivered": False})
     assert ok["tolerance_z"].source == "unset"
     with pytest.raises(ParameterError, match="JRC-12.7-RMSEZ"):
-        resolve_parameters(jrc(), {}, {"tolerance_xy": "0.5"},
+        resolve_parameters(jrc(), {}, ITT,
                            manifest={**base, "manifest.product.dem_delivered": True})
 
 
@@ -281,3 +283,65 @@ def test_param_value_quantity_and_dict():
     v = ParamValue("t", 0.5, "m", "tender", justification="ITT 4.1")
     assert str(v.quantity().units) == "meter" and v.quantity().magnitude == 0.5
     assert v.to_dict() == {"value": 0.5, "unit": "m", "source": "tender", "justification": "ITT 4.1"}
+
+
+# --- map_crs: the ITT's map projection (red team R16) ---------------------------------------------
+# JRC §12.4 Table 12 "Ortho-image: ... georeferenced to the (national) map projection": the projection
+# is the ITT's, stated on the checker's side; the manifest's project.crs only declares it.
+
+def test_map_crs_is_an_itt_parameter_the_run_cannot_do_without():
+    p = jrc().parameters["map_crs"]
+    assert p.default is None and p.required and p.authority() == "itt" and p.unit == "text"
+    with pytest.raises(ParameterError) as ei:
+        resolve_parameters(jrc(), {}, {"tolerance_xy": "0.5"})
+    msg = str(ei.value)
+    assert "map_crs (text): required by the profile" in msg
+    assert "--param map_crs=" in msg and "parameters: {map_crs: ...}" in msg
+
+
+@pytest.mark.parametrize("text", ["EPSG:25832", "epsg:25832", "urn:ogc:def:crs:EPSG::25832",
+                                  "+proj=utm +zone=32 +ellps=GRS80 +units=m +no_defs"])
+def test_map_crs_is_read_with_pyproj_and_held_as_its_epsg_code(text):
+    # EPSG:25832 = ETRS89 / UTM zone 32N = UTM zone 32 on GRS80 (the EPSG registry's definition)
+    v = resolve_parameters(jrc(), {}, {**ITT, "map_crs": text})["map_crs"]
+    assert (v.value, v.source, v.unit) == ("EPSG:25832", "cli", "text")
+
+
+def test_map_crs_from_the_checker_file_and_a_tender_profile(tmp_path):
+    chk = _checker(tmp_path, "{tolerance_xy: 0.5 m, map_crs: 'urn:ogc:def:crs:EPSG::25833'}")
+    v = resolve_parameters(jrc(), {}, {}, checker=chk)["map_crs"]
+    assert (v.value, v.source) == ("EPSG:25833", "checker")
+    prof = load_profile(ROOT / "examples" / "specs" / "tender-example.yaml")
+    assert (resolve_parameters(prof, {}, {})["map_crs"].source, resolve_parameters(prof, {}, {})["map_crs"].value) \
+        == ("tender", "EPSG:25832")
+    # the checker's file wins over the tender profile, --param over both
+    both = resolve_parameters(prof, {}, {}, checker=chk)["map_crs"]
+    assert (both.value, both.source) == ("EPSG:25833", "checker")
+    assert resolve_parameters(prof, {}, {"map_crs": "EPSG:3035"}, checker=chk)["map_crs"].value == "EPSG:3035"
+
+
+@pytest.mark.parametrize("text, why", [
+    ("garbage", "is not a coordinate reference system pyproj can read"),
+    ("EPSG:99999999", "is not a coordinate reference system pyproj can read"),
+    ("+proj=tmerc +lat_0=0 +lon_0=10.3 +k=1 +x_0=0 +y_0=0 +ellps=GRS80", "has no EPSG code"),
+])
+def test_a_map_crs_pyproj_cannot_name_stops_the_run_naming_its_source(tmp_path, text, why):
+    with pytest.raises(ParameterError, match=re.escape(f"--param map_crs={text}: ") + ".*" + re.escape(why)):
+        resolve_parameters(jrc(), {}, {**ITT, "map_crs": text})
+    chk = _checker(tmp_path, f"{{tolerance_xy: 0.5 m, map_crs: '{text}'}}")
+    with pytest.raises(ParameterError, match=r"checker.yaml:4: parameters.map_crs: .*" + re.escape(why)):
+        resolve_parameters(jrc(), {}, {}, checker=chk)
+    f = tmp_path / "t.yaml"
+    f.write_text(TENDER_UNSET.format(when="").replace('map_crs: {value: "EPSG:25832"}',
+                                                        f"map_crs: {{value: '{text}'}}"))
+    with pytest.raises(ParameterError, match=r"t.yaml:9: parameter map_crs: .*" + re.escape(why)):
+        resolve_parameters(load_profile(f), {}, {"tolerance_z": "1"})
+
+
+def test_a_declared_map_crs_is_compared_as_a_crs(tmp_path):
+    d = copy_pass(tmp_path, "tolerance_xy: {value: 0.5, unit: m}\nmap_crs: 'epsg:25832'")
+    v = resolve_parameters(jrc(), declared(d), ITT)["map_crs"]
+    assert (v.value, v.declared) == ("EPSG:25832", "EPSG:25832")  # same CRS, other spelling: no finding
+    d2 = copy_pass(tmp_path / "2", "tolerance_xy: {value: 0.5, unit: m}\nmap_crs: 'UTM 32'")
+    v2 = resolve_parameters(jrc(), declared(d2), ITT)["map_crs"]
+    assert v2.declared is None and "cannot be read" in v2.note

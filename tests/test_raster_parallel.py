@@ -155,7 +155,7 @@ def test_check_through_dask_gives_byte_identical_qcr_json(tmp_path):
 
     example = Path(__file__).resolve().parents[1] / "examples" / "deliveries" / "aerial-pass"
     common = ["check", str(example), "-p", "jrc-v3", "--format", "json", "--date", "2026-11-21",
-              "--param", "tolerance_xy=0.5m"]
+              "--param", "tolerance_xy=0.5m", "--param", "map_crs=EPSG:25832"]
 
     def run(*extra: str) -> int:
         with pytest.raises(SystemExit) as exc:

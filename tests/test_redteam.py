@@ -308,6 +308,24 @@ def _b01_outline_swallows_b02(m: dict[str, Any]) -> None:
                             [506000.0, 5407200.0], [500000.0, 5407200.0], [500000.0, 5400000.0]]
 
 
+def _b02_outline_bowtie(m: dict[str, Any]) -> None:
+    """B02's outline drawn as a self-intersecting ring (its two top vertices swapped)."""
+    for b in m["blocks"]:
+        if b["id"] == "B02":
+            b["polygon"] = [[507500.0, 5403000.0], [514500.0, 5403000.0], [507500.0, 5410200.0],
+                            [514500.0, 5410200.0], [507500.0, 5403000.0]]
+
+
+def _project_crs(value: str | None) -> Edit:
+    """The manifest's project.crs set to ``value`` (None: removed); the images are left as delivered."""
+    def fn(m: dict[str, Any]) -> None:
+        if value is None:
+            m["project"].pop("crs", None)
+        else:
+            m["project"]["crs"] = value
+    return _manifest_edit(fn)
+
+
 def _inflate_f02_01_heights_and_gsds(header: list[str], rows: list[dict[str, str]]) -> None:
     """R7's trick again, with the rows' declared GSDs inflated to agree (the rasters stay 0.25 m)."""
     for r in rows:
@@ -538,6 +556,17 @@ def _check_itt_declared(code: int, doc: dict[str, Any] | None, err: str) -> None
     _rejects(doc, "ORTHOSPEC-ITT-DECLARED", "tolerance_xy")
 
 
+def _check_map_projection(images_rejected: bool) -> Callable[[int, dict[str, Any] | None, str], None]:
+    # R16: §12.4 Table 12 "georeferenced to the (national) map projection": the projection is the ITT's
+    # (map_crs, stated in the checker's file), the manifest's project.crs only a declaration compared with it
+    def check(code: int, doc: dict[str, Any] | None, err: str) -> None:
+        assert code == 1 and doc is not None
+        _rejects(doc, "JRC-12.4-T12-MAP-PROJECTION", doc["delivery"]["id"])
+        georef = _verdicts(doc, "JRC-12.4-T12-ORTHO-GEOREFERENCED")
+        assert set(georef.values()) == ({"fail"} if images_rejected else {"pass"}), georef
+    return check
+
+
 def _check_distinct_points(code: int, doc: dict[str, Any] | None, err: str) -> None:
     # §12.5 "independent measurements": copies of good points under new ids reject the block (R4)
     assert code == 1 and doc is not None
@@ -640,14 +669,23 @@ CASES = [
                  id="R12-missing-image-replaced-by-neighbour-copy"),
     pytest.param("aerial-fail", _signed_then(_chain(), _drop_image_row("F03_0202")), _check_item_vanished("F03_0202"),
                  id="R15-checker-rejected-image-row-deleted"),
-    pytest.param("aerial-pass", _reproject_label_everything, _not_accepted,
-                 id="R16-all-images-and-project-crs-relabelled",
-                 marks=_xfail("R16: project.crs, the CRS every image must match, is the contractor's")),
+    pytest.param("aerial-pass", _reproject_label_everything, _check_map_projection(images_rejected=True),
+                 id="R16-all-images-and-project-crs-relabelled"),
+    pytest.param("aerial-pass", _project_crs("EPSG:25833"), _check_map_projection(images_rejected=False),
+                 id="R16-project-crs-relabelled-images-right"),
+    # without project.crs the coordinate unit has nothing to be checked against (R2): the ft trick
+    # is then caught by the missing declaration of the ITT's projection
+    pytest.param("aerial-pass", _planted(_project_crs(None), _units("ft"), _fix_reported),
+                 _check_map_projection(images_rejected=False), id="R16-project-crs-removed-units-ft"),
     pytest.param("aerial-pass", _chain(_drop_strip_f02_02, _manifest_edit(_shrink_b02_to_first_strip)),
                  _check_outside_block("B02"), id="R13-strip-removed-block-outline-shrunk"),
     pytest.param("aerial-pass", _planted(_move_worst("B01", 4), _manifest_edit(_b01_outline_swallows_b02),
-                                         _fix_reported), _not_accepted, id="R17-B01-outline-redrawn-over-B02",
-                 marks=_xfail("R17: overlapping block outlines let R6's moved points count as inside B01")),
+                                         _fix_reported),
+                 _refused("delivery.yaml:", "blocks[1] (B02)", "overlaps the outline of block B01"),
+                 id="R17-B01-outline-redrawn-over-B02"),
+    pytest.param("aerial-pass", _manifest_edit(_b02_outline_bowtie),
+                 _refused("delivery.yaml:", "blocks[1] (B02)", "not a valid block outline", "Self-intersection"),
+                 id="R17-self-intersecting-block-outline"),
     pytest.param("aerial-pass", _chain(_drop_strip_f02_02, _table_edit("images", _inflate_f02_01_heights_and_gsds)),
                  _check_inflated_heights, id="R18-heights-and-declared-gsds-inflated"),
     pytest.param("aerial-pass", _signed_then(_plant_rmse, _swap_in_cleaned_table),

@@ -194,3 +194,96 @@ def test_r12_neighbour_copy_rejects_both_images(tmp_path: Path) -> None:
     assert sorted(i for i, r in got.items() if r["verdict"] != "pass") == ["F02_0104", "F02_0105"]
     assert {"F02_0104", "F02_0105"} <= set(res.document["rollup"]["rejected"]["image"])
     assert not res.accepted
+
+
+# --- R16: the map projection is the ITT's (map_crs), project.crs only the contractor's declaration ----
+
+def _set_project_crs(d: Path, old: str, new: str) -> None:
+    path = d / "delivery.yaml"
+    text = path.read_text(encoding="utf-8")
+    assert old in text
+    path.write_text(text.replace(old, new, 1), encoding="utf-8")
+
+
+def _checker_stating(example: str, d: Path, tmp_path: Path, **parameters: Any) -> Path:
+    """The example's checker file with its ``parameters:`` entries replaced (re-signed on ``d``)."""
+    import yaml
+    from tests.checking import resigned
+
+    base = yaml.safe_load((CHECKERS / f"{example}.yaml").read_text(encoding="utf-8"))["parameters"]
+    return resigned(CHECKERS / f"{example}.yaml", d, tmp_path / "checker.yaml", parameters={**base, **parameters})
+
+
+def test_r16_project_crs_spelled_otherwise_is_the_same_projection(tmp_path: Path) -> None:
+    # urn:ogc:def:crs:EPSG::25832 is EPSG:25832 (OGC URN for the EPSG code): the same CRS, no finding
+    d = _copy("aerial-pass", tmp_path)
+    _set_project_crs(d, "crs: 'EPSG:25832'", "crs: 'urn:ogc:def:crs:EPSG::25832'")
+    res = check_with(d, "jrc-v3", checker=CHECKERS / "aerial-pass.yaml", date=DATE)
+    got = _rows(res.document, res.document["delivery"]["id"])["JRC-12.4-T12-MAP-PROJECTION"]
+    assert got["verdict"] == "pass", got
+    assert res.accepted
+
+
+def test_r16_images_are_compared_with_the_itt_projection_not_the_manifest(tmp_path: Path) -> None:
+    """The ITT names EPSG:25833 while the delivery (images and project.crs) is in EPSG:25832 (written
+    so by examples/generate.py): every image fails §12.4 Table 12 and the declaration is a finding."""
+    d = _copy("aerial-pass", tmp_path)
+    res = check_with(d, "jrc-v3", checker=_checker_stating("aerial-pass", d, tmp_path, map_crs="EPSG:25833"),
+                     date=DATE)
+    doc = res.document
+    images = {r["item"]: r["verdict"] for r in records(doc) if r["rule"] == "JRC-12.4-T12-ORTHO-GEOREFERENCED"}
+    assert len(images) == 30 and set(images.values()) == {"fail"}
+    decl = _rows(doc, doc["delivery"]["id"])["JRC-12.4-T12-MAP-PROJECTION"]
+    assert decl["verdict"] == "fail"
+    assert "project.crs is EPSG:25832, the map projection in force is EPSG:25833" in decl["message"]
+    assert doc["profile"]["parameters"]["map_crs"] == {"value": "EPSG:25833", "unit": "text", "source": "checker"}
+    assert not res.accepted
+
+
+def test_r16_a_delivery_without_project_crs_is_returned(tmp_path: Path) -> None:
+    d = _copy("aerial-pass", tmp_path)
+    _set_project_crs(d, ", crs: 'EPSG:25832'", "")
+    res = check_with(d, "jrc-v3", checker=CHECKERS / "aerial-pass.yaml", date=DATE)
+    decl = _rows(res.document, res.document["delivery"]["id"])["JRC-12.4-T12-MAP-PROJECTION"]
+    assert decl["verdict"] == "fail" and "states no project.crs" in decl["message"], decl
+    assert any(r.startswith("JRC-12.4-T12-MAP-PROJECTION") for r in res.document["rollup"]["reasons"])
+    assert not res.accepted
+
+
+# --- R17: block outlines are valid and do not overlap (JRC §12.4, §12.8: blocks are the units) ---------
+
+def _move_b02_west_edge(d: Path, x: str) -> None:
+    """B02's west edge (x = 507,500 m in aerial-pass) moved to ``x``; B01's east edge is x = 507,000 m."""
+    path = d / "delivery.yaml"
+    text = path.read_text(encoding="utf-8")
+    for y in ("5403000.0", "5410200.0"):
+        assert text.count(f"[507500.0, {y}]") >= 1
+        text = text.replace(f"[507500.0, {y}]", f"[{x}, {y}]")
+    path.write_text(text, encoding="utf-8")
+
+
+def _line_of_b02_polygon(d: Path) -> int:
+    lines = (d / "delivery.yaml").read_text(encoding="utf-8").splitlines()
+    start = lines.index("- id: B02")
+    return next(i for i in range(start, len(lines)) if lines[i].startswith("  - [")) + 1
+
+
+def test_r17_touching_block_outlines_are_fine(tmp_path: Path) -> None:
+    d = _copy("aerial-pass", tmp_path)
+    _move_b02_west_edge(d, "507000.0")  # shares B01's east edge from y 5,403,000 to 5,406,000: no area
+    assert [b.id for b in open_delivery(d).manifest.blocks] == ["B01", "B02", "B03"]
+
+
+def test_r17_overlapping_block_outlines_are_refused_naming_both_and_the_line(tmp_path: Path) -> None:
+    from orthospec.errors import DeliveryError
+
+    d = _copy("aerial-pass", tmp_path)
+    _move_b02_west_edge(d, "506999.0")  # 1 m over B01's east edge
+    with pytest.raises(DeliveryError) as ei:
+        open_delivery(d)
+    msg = str(ei.value)
+    assert msg.startswith(f"delivery.yaml:{_line_of_b02_polygon(d)}: blocks[1] (B02): ")
+    assert "overlaps the outline of block B01 (blocks[0])" in msg
+    # B01's east edge is x = 507,000 up to y = 5,406,000, then its cut corner runs to (506,000, 5,407,200)
+    # (1 m west per 1.2 m north): the 1 m strip inside B01 is 1 x 3,000 m2 plus a 1 x 1.2 / 2 m2 triangle
+    assert "over an area of 3000.6 (project.crs units squared)" in msg

@@ -58,7 +58,7 @@ class World:
     def args(self, *extra: str, out: bool = True, profile: str = PROFILE) -> list[str]:
         # the checker states the ITT tolerance (the manifest's declared value is evidence only)
         a = ["check", str(self.delivery), "--profile", profile, "--date", "2026-07-01",
-             "--param", "tolerance_xy=0.5m"]
+             "--param", "tolerance_xy=0.5m", *(["--param", "map_crs=EPSG:25832"] if profile == PROFILE else [])]
         if out:
             a += ["--out", str(self.out)]
         return a + list(extra)

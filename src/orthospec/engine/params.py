@@ -221,6 +221,9 @@ def resolve_parameters(profile: ResolvedProfile, delivery_params: Mapping[str, A
                      "checker": f"checker file {checker.at('parameters', name) if checker else ''}"}.get(
                 src, f"profile {profile.id}")
             raise ParameterError(f"{where}: parameter {name}={val!r} is not one of {p.choices}")
+        if is_crs(name, p):
+            val = _crs_in_force(name, val, src, profile, checker)
+            declared, note = _crs_declared(name, declared, note)
         out[name] = ParamValue(name, val, unit, src, declared=declared, set_by=authority,
                                justification=p.justification, note=note)
     needed, all_off = _needed(profile, out, manifest)
@@ -229,6 +232,47 @@ def resolve_parameters(profile: ResolvedProfile, delivery_params: Mapping[str, A
     if needed:
         raise ParameterError(_advice(profile, needed, all_off))
     return out
+
+
+def is_crs(name: str, p: Parameter) -> bool:
+    """A text parameter named ``*_crs`` is a coordinate reference system: ``map_crs``, the map
+    projection the ITT fixes (JRC §12.4 Table 12 "georeferenced to the (national) map projection",
+    red team R16). It is read with pyproj when the run starts and held as ``EPSG:<code>``."""
+    return (p.unit or "") == "text" and name.endswith("_crs")
+
+
+def _crs_in_force(name: str, val: Any, src: str, profile: ResolvedProfile, checker: Checker | None) -> Any:
+    """The CRS value in force as ``EPSG:<code>``; exit 2 naming its source (and line) when pyproj
+    cannot read it or it has no EPSG code."""
+    from ..delivery.crs import CrsProblem, epsg_name
+
+    if val is None:
+        return None
+    try:
+        return epsg_name(val)
+    except CrsProblem as exc:
+        if src == "cli":
+            where = f"--param {name}={val}"
+        elif src == "checker" and checker is not None:
+            where = f"checker file {checker.at('parameters', name)}: parameters.{name}"
+        else:
+            file, line, _col = (profile.sites.param_where(name, "value" if src == "tender" else "default")
+                                if profile.sites is not None else (f"profile {profile.id}", None, None))
+            where = f"{file}:{line}: parameter {name}" if line else f"{file}: parameter {name}"
+        raise ParameterError(f"{where}: {exc}") from None
+
+
+def _crs_declared(name: str, declared: Any, note: str | None) -> tuple[Any, str | None]:
+    """The manifest's declared CRS as ``EPSG:<code>`` (so ``epsg:25832`` equals ``EPSG:25832`` for
+    ORTHOSPEC-ITT-DECLARED), or None with why it cannot be read."""
+    from ..delivery.crs import CrsProblem, epsg_name
+
+    if declared is None:
+        return None, note
+    try:
+        return epsg_name(declared), note
+    except CrsProblem as exc:
+        return None, f"the manifest's tender.parameters.{name} cannot be read ({exc}); ignored"
 
 
 def _refuse_misspelt(given: Mapping[str, Any], profile: ResolvedProfile, checker: Checker) -> None:
@@ -258,8 +302,10 @@ def _advice(profile: ResolvedProfile, needed: dict[str, list[str]], all_off: boo
                if rules else "required by the profile")
         lines.append(f"  {name} ({unit}): {who}")
     first = sorted(needed)[0]
+    p = profile.parameters[first]
+    shape = "..." if p.unit in NON_NUMERIC else "{value: ..., unit: ...}"
     lines.append(f"set them with --param NAME=VALUE (e.g. --param {first}=...), in the checker file "
-                 f"(check --checker FILE; parameters: {{{first}: {{value: ..., unit: ...}}}}), or in a tender "
+                 f"(check --checker FILE; parameters: {{{first}: {shape}}}), or in a tender "
                  f"profile that extends {profile.id} (parameters: {{{first}: {{value: ...}}}}); the value "
                  "the delivery manifest declares (tender.parameters) is the contractor's evidence, never "
                  "the value in force")

@@ -24,6 +24,10 @@
   ``block`` column, else from the delivered DEM file's footprint against the block polygons. A
   failing DEM then rejects those blocks only (JRC Table 5, §12.7 "will reject all products for
   the block"), never every block of the delivery.
+* ``derived.project_crs_agrees`` (delivery): the manifest's ``project.crs`` (the CRS its
+  coordinates and block outlines are written in) names the map projection in force, the ITT
+  parameter ``map_crs`` (JRC §12.4 Table 12; red team R16: the contractor relabelled every image
+  and project.crs alike). Absent or unreadable is False, never "not applicable".
 * ``derived.pansharpened`` (delivery): the product is pan-sharpened, computed from the bands and
   pixel sizes (a multispectral product finer than the scenes' native multispectral pixel), so a
   declared ``product.pansharpened: false`` cannot switch off JRC §10.5 ("Pan-sharpening of
@@ -46,6 +50,7 @@ from ..registry import Measured, ProviderContext, RowEvidence, provider
 DELIVERY = {"derived.orthorectification": "text"}
 COVERAGE = {"derived.photo_coverage": "%"}
 MASTER = {"derived.master_images": "1"}
+PROJECT_CRS = {"derived.project_crs_agrees": "bool"}
 #: A photo counts toward coverage only when its lay-down GSD (H/f x pixel size, the scale of its
 #: footprint) is at most this factor times its reference GSD (the finest of ``images.acquisition_gsd``,
 #: ``images.gsd``, ``product.gsd`` and its delivered raster's measured pixel size). 20 %: the ground-pixel size of one photo
@@ -363,6 +368,36 @@ def master_images(ctx: ProviderContext) -> list[Measured]:
                                   "master_pixel_size or master_check_date (JRC §9.4: absolute correction)"},
                            dtype=object)
     return [Measured("derived.master_images", "delivery", "1", pd.Series({d.id: value}, dtype=object),
+                     pd.Series({d.id: ev}, dtype=object), notes=pd.Series({d.id: note}, dtype=object), na=na)]
+
+
+@provider(scope="delivery", measures=PROJECT_CRS)
+def project_crs_agrees(ctx: ProviderContext) -> list[Measured]:
+    """The manifest's project.crs is the map projection in force (parameter map_crs, JRC Table 12)."""
+    from ...delivery.crs import CrsProblem, same_crs
+
+    d = ctx.delivery
+    in_force = ctx.parameters.get("map_crs")
+    declared = d.manifest.project.crs
+    ev = (d.manifest_evidence("project.crs"),)
+    na = None
+    value: bool | None
+    if in_force is None:
+        value, note = None, "no map projection in force (the profile's parameter map_crs has no value)"
+        na = pd.Series({d.id: note}, dtype=object)
+    elif not declared:
+        value, note = False, (f"delivery.yaml states no project.crs: the CRS of its coordinates and block "
+                              f"outlines is not stated; the map projection in force is {in_force}")
+    else:
+        try:
+            value = same_crs(declared, in_force)
+        except CrsProblem as exc:
+            value, note = False, f"delivery.yaml project.crs: {exc}"
+        else:
+            note = (f"delivery.yaml project.crs {declared} is the map projection in force {in_force}" if value else
+                    f"delivery.yaml project.crs is {declared}, the map projection in force is {in_force}: the "
+                    "delivery's coordinates and block outlines are not in the ITT's projection")
+    return [Measured("derived.project_crs_agrees", "delivery", "bool", pd.Series({d.id: value}, dtype=object),
                      pd.Series({d.id: ev}, dtype=object), notes=pd.Series({d.id: note}, dtype=object), na=na)]
 
 

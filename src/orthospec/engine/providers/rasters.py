@@ -13,9 +13,8 @@ from pathlib import Path
 from typing import Any
 
 import pandas as pd
-from pyproj import CRS
-from pyproj.exceptions import CRSError
 
+from ...delivery.crs import CrsProblem, epsg_name
 from ...errors import OrthospecError
 from ...provenance import Evidence
 from ...raster.filechecks import check_name, listing_consistency
@@ -44,11 +43,14 @@ _IMAGE_EXT = {".tif", ".tiff", ".jp2", ".j2k", ".img", ".vrt", ".png", ".jpg", "
 
 
 def _epsg(text: str | None) -> int | None:
+    """EPSG code of the map projection in force (parameter ``map_crs``), or None when the profile
+    states none: ``raster.crs_ok`` is then unknown (missing), never a comparison with the manifest's
+    ``project.crs``, which is the contractor's (red team R16)."""
     if not text:
         return None
     try:
-        return CRS.from_user_input(text).to_epsg()
-    except CRSError:
+        return int(epsg_name(text).split(":", 1)[1])
+    except CrsProblem:
         return None
 
 
@@ -121,7 +123,7 @@ def _scan(ctx: ProviderContext) -> dict[str, Any]:
     scan_images(
         [str(p) for p in existing.values()], workers=workers or None,
         scheduler=opts.get("scheduler"), cache_dir=opts.get("cache_dir"), bit_depth=product.bit_depth,
-        progress=progress, expect_epsg=_epsg(d.manifest.project.crs), expect_gsd=gsd, on_report=collect,
+        progress=progress, expect_epsg=_epsg(ctx.parameters.get("map_crs")), expect_gsd=gsd, on_report=collect,
     )
     absent = [i for i in ids if i not in existing]
     for i in absent:
