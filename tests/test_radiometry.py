@@ -252,6 +252,11 @@ def test_histogram_accumulator_of_every_small_dtype_with_mask_equals_numpy(dtype
     want = np.bincount(data[valid].astype(np.int64) - offset, minlength=bins)
     assert np.array_equal(acc.counts, want)
     assert acc.total == data.size
+    # a uint8 selector (non-zero = count), as the luminosity passes its darkest colour value
+    selector = np.where(valid, rng.integers(1, 256, valid.shape), 0).astype(np.uint8)
+    by_selector = rad.HistogramAccumulator.for_dtype(dtype)
+    by_selector.add_where(data, selector)
+    assert np.array_equal(by_selector.counts, want) and by_selector.total == data.size
 
 
 @pytest.mark.parametrize("dtype", ["uint8", "bool", "int8", "uint16", "int16"])

@@ -213,18 +213,21 @@ def test_chunks_are_whole_blocks_and_bounded(tmp_path, rng):
         assert (s.mean, s.std, s.histogram) == (b.mean, b.std, b.histogram)
 
 
-def test_luminosity_histogram_of_rgb(tmp_path, rng):
-    a = rng.integers(1, 256, (3, 64, 64), dtype=np.uint8)
+@pytest.mark.parametrize("dtype", ["uint8", "uint16"])
+def test_luminosity_histogram_of_rgb(tmp_path, rng, dtype):
+    top = 255 if dtype == "uint8" else 4095
+    a = rng.integers(1, top, (3, 64, 64), endpoint=True, dtype=dtype)
     a[:, 0, 0] = 0  # nodata in all bands at one pixel, in band 1 only at another
     a[0, 0, 1] = 0
+    a[2, 5, 7] = 0  # and in band 3 only at a third
     f = write_tif(tmp_path / "rgb.tif", a, photometric="RGB", nodata=0)
     lum = scan_raster(f).luminosity
     ai = a.astype(np.int64)
     y = (299 * ai[0] + 587 * ai[1] + 114 * ai[2] + 500) // 1000  # exact, ties round up
     valid = (a != 0).all(axis=0)
-    assert lum.valid == valid.sum() == 64 * 64 - 2
+    assert lum.valid == valid.sum() == 64 * 64 - 3
     assert lum.mean == pytest.approx(y[valid].mean(), rel=1e-12)
-    expected = np.bincount(y[valid], minlength=256)
+    expected = np.bincount(y[valid], minlength=top + 1)
     assert list(lum.histogram.counts) == expected[lum.histogram.offset:int(lum.max) + 1].tolist()
 
 

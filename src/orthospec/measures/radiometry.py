@@ -162,7 +162,8 @@ def _pillow_image() -> Any:
 
 
 def _pillow_counts(v: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray | None:
-    """Counts of the 256 byte values of a contiguous 1-D uint8 array (where ``mask`` is True).
+    """Counts of the 256 byte values of a contiguous 1-D uint8 array where ``mask`` (bool or
+    uint8, same size) is non-zero.
 
     Pillow's C ``Image.histogram`` of a zero-copy ``"L"`` view of the bytes (``frombuffer``
     maps the array's memory, no copy): a plain count loop over the bytes, about 3x less CPU
@@ -177,7 +178,7 @@ def _pillow_counts(v: np.ndarray, mask: np.ndarray | None = None) -> np.ndarray 
     if mask is None:
         counts = im.histogram()
     else:
-        m = np.ascontiguousarray(mask).ravel().view(np.uint8)  # bool: 1 = count this pixel
+        m = np.ascontiguousarray(mask).ravel().view(np.uint8)  # non-zero: count this pixel
         counts = im.histogram(image.frombuffer("L", size, m, "raw", "L", 0, 1))
     return np.array(counts, dtype=np.int64)
 
@@ -259,6 +260,21 @@ class HistogramAccumulator:
             return None
         values = _as_bin_index(np.ascontiguousarray(data).ravel())
         return _pillow_counts(values, valid)
+
+    def add_where(self, data: np.ndarray, selector: np.ndarray) -> None:
+        """Add the pixels of a block where ``selector`` (uint8 or bool, same shape) is non-zero.
+
+        For bytes the selector is Pillow's histogram mask as it is: the luminosity passes the
+        darkest of the three colour values, non-zero exactly where no band holds nodata 0,
+        without a comparison pass or a list of the invalid pixels.
+        """
+        if self.counts.size == 256 and data.dtype.itemsize == 1 and data.shape == selector.shape:
+            counts = _pillow_counts(_as_bin_index(np.ascontiguousarray(data).ravel()), selector)
+            if counts is not None:
+                self.total += int(data.size)
+                self.counts += counts
+                return
+        self.add(data, selector != 0)
 
     def add_excluding(self, data: np.ndarray, invalid: np.ndarray) -> None:
         """Add a block except the pixels at the flat indices ``invalid`` (few, e.g. nodata)."""

@@ -577,7 +577,10 @@ class _Accumulators:
             # three values is the nodata value; two np.minimum beat three masks by about 3x
             darkest = np.minimum(r, g)
             np.minimum(darkest, bl, out=darkest)
-            self.lum.add_excluding(y, np.flatnonzero(darkest == low))
+            if low == 0:  # darkest != 0 exactly where the pixel is valid: the mask as it is
+                self.lum.add_where(y, darkest)
+            else:
+                self.lum.add_excluding(y, np.flatnonzero(darkest == low))
             return
         v = None
         for b in rgb:
