@@ -576,7 +576,8 @@ def utf8_body(data: bytes, *, file: str, chunk: int = 1 << 24) -> bytes:
         data = data[len(_BOM):]
     view = memoryview(data)
     dec = codecs.getincrementaldecoder("utf-8")()
-    for start in range(0, max(len(data), 1), chunk):
+    # ASCII is UTF-8: one C scan instead of decoding (a national check-point table is plain ASCII)
+    for start in range(0, max(len(data), 1) if not data.isascii() else 0, chunk):
         pending = len(dec.getstate()[0])
         try:
             dec.decode(view[start:start + chunk], final=start + chunk >= len(data))
@@ -627,7 +628,7 @@ def parse_csv(text: str | bytes, spec: TableSpec, *, file: str, cell_bytes: int 
         df[col] = _convert_column(cols.pop(col), rows, cs.type, col, file, cs.required)
         if cs.type == "number":
             _check_bounds(df[col].to_numpy(float), rows, cs, file)
-    if spec.id and spec.id in df:
+    if spec.id and spec.id in df and not df[spec.id].is_unique:  # one hashed pass when all are distinct
         ids = df[spec.id]
         dups = ids.duplicated(keep=False).to_numpy()
         if dups.any():
@@ -826,14 +827,13 @@ def _records_fast(body: bytes, chunk: int = 1 << 20) -> _Shape | None:
             return None
         opens, closes, parity = quotes
         padded = padded or _padded(ext, is44 | is10, opens, closes)
-        commas = np.zeros(m + 1, dtype=np.int32)  # commas[p]: delimiters before byte p
-        np.cumsum(is44, dtype=np.int32, out=commas[1:])
+        cpos = np.flatnonzero(is44)  # searchsorted(cpos, p): the delimiters before byte p
         if opens.size:
             ends = ends[~_quoted(ends, opens, closes)]
-        per = np.diff(commas[ends], prepend=0).astype(np.int64)
-        tail = int(commas[m] - (commas[ends[-1]] if ends.size else 0))
+        per = np.diff(np.searchsorted(cpos, ends), prepend=0).astype(np.int64)
+        tail = int(len(cpos) - (np.searchsorted(cpos, ends[-1]) if ends.size else 0))
         if opens.size:
-            inside = (commas[closes] - commas[opens + 1]).astype(np.int64)
+            inside = (np.searchsorted(cpos, closes) - np.searchsorted(cpos, opens + 1)).astype(np.int64)
             bucket = np.bincount(np.searchsorted(ends, opens), weights=inside,
                                  minlength=len(ends) + 1).astype(np.int64)
             per -= bucket[:-1]
