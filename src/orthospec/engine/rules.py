@@ -111,13 +111,16 @@ class _Column:
     def __init__(self, rule: Rule, m: Measured, items: list[str], applies: np.ndarray, notes: np.ndarray
                  ) -> None:
         n = len(items)
-        values = m.values.reindex(items)
         self.evidence = m.evidence_for(items)
-        self.raw = values.to_numpy()
-        # items the measure has no value for; get_indexer is hashed (isin is per-object Python for string
-        # ids at 1M points), and its index is unique (reindex above refuses duplicate labels)
-        self.missing = missing_mask(self.raw) & (rule.requirement.op != "present") | (
-            m.values.index.get_indexer(values.index) < 0)
+        # items the measure has no value for: one hashed lookup of the items (isin is per-object
+        # Python for string ids at 1M points); a duplicate label is refused, as reindex refuses it
+        if not m.values.index.is_unique:
+            raise ValueError(f"measure {m.name} gives two values for one item")
+        pos = m.values.index.get_indexer(items)
+        absent = pos < 0
+        self.raw = (m.values.to_numpy()[pos] if not absent.any()
+                    else m.values.reindex(items).to_numpy())  # reindex: NaN (and its dtype) where absent
+        self.missing = missing_mask(self.raw) & (rule.requirement.op != "present") | absent
         self.notes = notes
         self.applies = applies
         if m.notes is not None:
