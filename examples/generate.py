@@ -810,15 +810,20 @@ PINNED = ("tables/checkpoints.csv",)
 
 
 def checker_file(party: dict[str, str], verdicts: list[dict[str, Any]], waivers: list[dict[str, Any]], *,
-                 delivery_id: str, root: Path, tolerance_xy_m: float) -> dict[str, Any]:
-    """The checker's file for ``check --checker``: who checked, on which content, the ITT value in
-    force, their manual verdicts, waivers in force. ``root`` is the written delivery (for the pins)."""
+                 delivery_id: str, root: Path, tolerance_xy_m: float,
+                 master_images: list[str] | None = None) -> dict[str, Any]:
+    """The checker's file for ``check --checker``: who checked, on which content, the ITT values in
+    force, their manual verdicts, waivers in force. ``root`` is the written delivery (for the pins);
+    ``master_images`` the satellite scenes the checker knows to be masters (JRC Table 9)."""
     pins = {rel: hashlib.sha256((root / rel).read_bytes()).hexdigest() for rel in PINNED}
+    # the ITT's tolerance (JRC §2.5) and map projection (§12.4 Table 12), stated by the checker;
+    # the manifest only declares them (tender.parameters, project.crs; red team R1, R16)
+    parameters: dict[str, Any] = {"tolerance_xy": {"value": tolerance_xy_m, "unit": "m"}, "map_crs": f"EPSG:{EPSG}"}
+    if master_images:  # which scene is the master is the checker's knowledge, not a flag (red team R8)
+        parameters["master_images"] = ";".join(master_images)
     return {"orthospec_checker": 1, "checker": party,
             "delivery": {"id": delivery_id, "files": pins},
-            # the ITT's tolerance (JRC §2.5) and map projection (§12.4 Table 12), stated by the checker;
-            # the manifest only declares them (tender.parameters, project.crs; red team R1, R16)
-            "parameters": {"tolerance_xy": {"value": tolerance_xy_m, "unit": "m"}, "map_crs": f"EPSG:{EPSG}"},
+            "parameters": parameters,
             "manual_checks": [{"check": r["check"], "item": r["item"], "date": r["date"],
                                "verdict": r["verdict"], "note": r["note"]} for r in verdicts],
             "waivers": waivers}
@@ -1617,7 +1622,9 @@ def write_satellite(b: dict[str, Any], root: Path, checker_dir: Path) -> None:
         _csv(root / f"tables/{name}.csv", list(rows[0]), rows)
     write_checker(checker_dir / f"{scn.name}.yaml",
                   checker_file(SAT_CHECKER, b["manual"], [], delivery_id=scn.delivery_id, root=root,
-                               tolerance_xy_m=SAT_TOLERANCE_XY_M), scn.delivery_id)
+                               tolerance_xy_m=SAT_TOLERANCE_XY_M,
+                               master_images=[r["image_id"] for r in b["scenes"] if r["is_master"] == "true"]),
+                  scn.delivery_id)
     for name, text in sorted(satellite_documents(b).items()):
         (root / "documents").mkdir(exist_ok=True)
         (root / "documents" / name).write_text(text, encoding="utf-8")

@@ -539,6 +539,15 @@ def _check_master_declared(code: int, doc: dict[str, Any] | None, err: str) -> N
     _rejects(doc, "JRC-T9-MASTER-DECLARED", doc["delivery"]["id"])
 
 
+def _check_master_identified(code: int, doc: dict[str, Any] | None, err: str) -> None:
+    # R8 with every trace erased: the checker names the master (master_images), so Table 9's master rules
+    # still judge S01_SC1 (12 check points < 20) and the flags' disagreement returns the delivery
+    assert code == 1 and doc is not None
+    _rejects(doc, "JRC-T9-MASTER-IDENTIFIED", doc["delivery"]["id"])
+    assert _verdicts(doc, "JRC-T9-MASTER-CHECKPOINTS")["S01_SC1"] == "fail"
+    assert "S01_SC1" in doc["rollup"]["rejected"]["image"]
+
+
 def _check_scene_rule(rule: str, image_id: str) -> Callable[[int, dict[str, Any] | None, str], None]:
     # R9/R10/R14 (fixed by d44b081): a recorded PRESS / check-point RMSE is judged, a negative one fails
     def check(code: int, doc: dict[str, Any] | None, err: str) -> None:
@@ -660,6 +669,8 @@ CASES = [
     # item-level: satellite-fail stays rejected for its other defects, but the planted scene defect is hidden
     pytest.param("satellite-fail", _scene("S01_SC1", is_master="false"), _check_master_declared,
                  id="R8-master-declared-not-master"),
+    pytest.param("satellite-fail", _scene("S01_SC1", is_master="false", master_check_date=""),
+                 _check_master_identified, id="R8-master-unflagged-every-trace-erased"),
     pytest.param("satellite-fail", _scene("S02_SC1", press_sqrt="-1.5"),
                  _check_scene_rule("JRC-T9-PRESS-VALID", "S02_SC1"), id="R9-negative-press"),
     pytest.param("satellite-fail", _scene("S02_SC1", checkpoint_rmse="1.3", checkpoint_count="0"),

@@ -287,3 +287,52 @@ def test_r17_overlapping_block_outlines_are_refused_naming_both_and_the_line(tmp
     # B01's east edge is x = 507,000 up to y = 5,406,000, then its cut corner runs to (506,000, 5,407,200)
     # (1 m west per 1.2 m north): the 1 m strip inside B01 is 1 x 3,000 m2 plus a 1 x 1.2 / 2 m2 triangle
     assert "over an area of 3000.6 (project.crs units squared)" in msg
+
+
+# --- R8: which scene is the master image is the checker's knowledge (parameter master_images) ----------
+
+def _master_rules(doc: dict[str, Any]) -> dict[str, dict[str, str]]:
+    out: dict[str, dict[str, str]] = {}
+    for r in records(doc):
+        if r["rule"].startswith("JRC-T9-MASTER-"):
+            out.setdefault(r["rule"], {})[r["item"]] = r["verdict"]
+    return out
+
+
+def test_r8_the_checkers_master_is_judged_and_the_flags_compared(tmp_path: Path) -> None:
+    """satellite-pass flags S01_SC1 (20 check points); the checker names S02_SC1 (10 check points, written
+    so by examples/generate.py) and S99 (no such scene): S02_SC1 is judged as a master, S01_SC1 is not."""
+    d = _copy("satellite-pass", tmp_path)
+    res = check_with(d, "jrc-v3", checker=_checker_stating("satellite-pass", d, tmp_path,
+                                                            master_images="S02_SC1; S99"), date=DATE)
+    rules = _master_rules(res.document)
+    assert rules["JRC-T9-MASTER-CHECKPOINTS"]["S02_SC1"] == "fail"  # 10 < 20 (Table 9)
+    assert rules["JRC-T9-MASTER-CHECKPOINTS"]["S01_SC1"] == "not_applicable"
+    assert rules["JRC-T9-MASTER-IDENTIFIED"] == {"D-2026-031": "fail"}
+    msg = _rows(res.document, "D-2026-031")["JRC-T9-MASTER-IDENTIFIED"]["message"]
+    for part in ("no row of the scenes table: S99", "not flagged is_master: S02_SC1",
+                 "flagged is_master but not named by the checker: S01_SC1"):
+        assert part in msg, msg
+    assert not res.accepted
+
+
+def test_r8_without_the_checkers_master_the_flags_decide(tmp_path: Path) -> None:
+    import yaml
+    from tests.checking import resigned
+
+    d = _copy("satellite-pass", tmp_path)
+    params = yaml.safe_load((CHECKERS / "satellite-pass.yaml").read_text(encoding="utf-8"))["parameters"]
+    assert params.pop("master_images") == "S01_SC1"
+    res = check_with(d, "jrc-v3", checker=resigned(CHECKERS / "satellite-pass.yaml", d, tmp_path / "c.yaml",
+                                                    parameters=params), date=DATE)
+    rules = _master_rules(res.document)
+    assert rules["JRC-T9-MASTER-IDENTIFIED"] == {"D-2026-031": "not_applicable"}
+    assert rules["JRC-T9-MASTER-CHECKPOINTS"]["S01_SC1"] == "pass"  # flagged, 20 check points
+    assert rules["JRC-T9-MASTER-CHECKPOINTS"]["S02_SC1"] == "not_applicable"
+    assert res.accepted
+
+
+def test_r8_the_shipped_satellite_checker_names_the_flagged_master() -> None:
+    res = check_with(EXAMPLES / "satellite-pass", "jrc-v3", checker=CHECKERS / "satellite-pass.yaml", date=DATE)
+    assert _master_rules(res.document)["JRC-T9-MASTER-IDENTIFIED"] == {"D-2026-031": "pass"}
+    assert res.accepted
