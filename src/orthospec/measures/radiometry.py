@@ -446,15 +446,19 @@ class NoiseAccumulator:
         if src.dtype.kind in "uib" and src.dtype.itemsize <= 2:
             a = src.astype(np.int16 if src.dtype.itemsize == 1 else np.int32)
             total_dtype: type = np.int64
-        else:
+            d = a[:, :-2] + a[:, 2:]
+            d -= a[:, 1:-1]  # twice instead of 2 * a: no temporary (exact in integers)
+            d -= a[:, 1:-1]
+            lap = d[:-2] + d[2:]
+            lap -= d[1:-1]
+            lap -= d[1:-1]
+        else:  # float32 exactly as before (x - 2a rounds differently from (x - a) - a)
             a = src.astype(np.float32)
             total_dtype = np.float64
-        d = a[:, :-2] + a[:, 2:]
-        d -= a[:, 1:-1]
-        d -= a[:, 1:-1]
-        lap = d[:-2] + d[2:]
-        lap -= d[1:-1]
-        lap -= d[1:-1]
+            d = a[:, :-2] + a[:, 2:]
+            d -= 2.0 * a[:, 1:-1]
+            lap = d[:-2] + d[2:]
+            lap -= 2.0 * d[1:-1]
         np.abs(lap, out=lap)
         if valid is None:
             self.sum_abs += float(lap.sum(dtype=total_dtype))

@@ -29,6 +29,7 @@ import stat
 import sys
 import tempfile
 import threading
+from collections import deque
 from collections.abc import Iterator, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from contextlib import ExitStack, contextmanager, nullcontext
@@ -414,12 +415,20 @@ def _scan(ds: rasterio.io.DatasetReader, s: ScanSettings) -> RasterStats:
     return out
 
 
+#: Chunks read but not yet counted, at most (memory: this many x ``ScanSettings.chunk_bytes``).
+#: More than one per counting thread, so that a slow chunk (the noise estimators' sample, a
+#: completed misregistration window, Pillow's first import) delays only its own thread: the
+#: reader and the other thread go on with the next chunks meanwhile.
+CHUNKS_IN_FLIGHT = 6
+
+
 def _stream(ds: rasterio.io.DatasetReader, infos: Sequence[BandInfo], s: ScanSettings,
             acc: _Accumulators, capture: _MisregistrationWindows | None) -> int:
     """The one read of the pixels: feed every chunk to ``acc`` and ``capture``; the chunk count.
 
-    A reader thread decodes the next chunk (GDAL releases the GIL) while up to ``s.threads``
-    threads count the previous ones (numpy releases it too); only the reader touches the dataset.
+    A reader thread decodes the next chunks (GDAL releases the GIL) while up to ``s.threads``
+    threads count the previous ones (numpy and Pillow release it too); only the reader touches
+    the dataset. At most :data:`CHUNKS_IN_FLIGHT` chunks are in memory at once.
     """
     wins = list(chunk_windows(ds, s.chunk_bytes))
     stride = 1
@@ -432,37 +441,42 @@ def _stream(ds: rasterio.io.DatasetReader, infos: Sequence[BandInfo], s: ScanSet
         mask = ds.read_masks(mask_band, window=win) if mask_band is not None else None
         return ds.read(window=win), mask
 
-    # chunk k goes to accumulator set k % 2, whatever the number of threads, so that the
-    # floating-point sums (noise, float moments) do not depend on the machine's cores
+    # chunk k goes to accumulator set k % 2 and is counted by thread k % threads, in chunk
+    # order within each set, whatever the number of threads: the floating-point sums (noise,
+    # float moments) do not depend on the machine's cores or on timing
     accs = (acc, _Accumulators.for_bands(infos, s)) if len(wins) > 1 else (acc,)
     threads = max(1, min(s.threads, os.cpu_count() or 1, len(accs), len(wins)))
+    slots = threading.Semaphore(max(CHUNKS_IN_FLIGHT, threads + 1))
 
     def feed(k: int, win: Window, data: np.ndarray, mask: np.ndarray | None) -> None:
-        with rad.serial_counting() if threads > 1 else nullcontext():
-            accs[k % len(accs)].add(data, mask, noise=k % stride == 0)
-        if capture is not None:
-            capture.take(win, data, mask)  # disjoint parts of the windows: safe in threads
+        try:
+            with rad.serial_counting() if threads > 1 else nullcontext():
+                accs[k % len(accs)].add(data, mask, noise=k % stride == 0)
+            if capture is not None:
+                capture.take(win, data, mask)  # disjoint parts of the windows: safe in threads
+        finally:
+            slots.release()
 
     if len(wins) <= 1:  # one chunk (a small image): no thread to start and hand off to
         for k, win in enumerate(wins):
+            slots.acquire()
             feed(k, win, *fetch(win))
     else:
         with ThreadPoolExecutor(max_workers=1) as reader, ExitStack() as stack:
             counters = [stack.enter_context(ThreadPoolExecutor(max_workers=1)) for _ in range(threads)]
-            running: list[Future[None] | None] = [None] * threads
+            queued: deque[Future[None]] = deque()
+            slots.acquire()
             pending = reader.submit(fetch, wins[0])
             for k, win in enumerate(wins):
                 data, shared_mask = pending.result()
                 if k + 1 < len(wins):
+                    slots.acquire()  # waits while CHUNKS_IN_FLIGHT chunks are not counted yet
                     pending = reader.submit(fetch, wins[k + 1])
-                j = k % threads
-                previous = running[j]
-                if previous is not None:
-                    previous.result()  # at most one chunk per counting thread in memory
-                running[j] = counters[j].submit(feed, k, win, data, shared_mask)
-            for fut in running:
-                if fut is not None:
-                    fut.result()
+                queued.append(counters[k % threads].submit(feed, k, win, data, shared_mask))
+                while queued and queued[0].done():
+                    queued.popleft().result()  # a counting error stops the scan early
+            for fut in queued:
+                fut.result()
     for other in accs[1:]:
         acc.merge(other)
     return len(wins)
