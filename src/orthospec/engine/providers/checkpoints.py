@@ -280,20 +280,24 @@ def _block_detail(res: BlockAccuracy, pts: BlockPoints, gcps: tuple[np.ndarray, 
     br = res.blunders
     assert br is not None
     n = len(pts.ids)
-    frame = pd.DataFrame({
-        "point_id": pts.ids, "dx": pts.dx, "dy": pts.dy,
-        "dz": np.full(n, np.nan) if pts.dz is None else pts.dz, "dr": br.dr, "x_ref": pts.x_ref,
-        "y_ref": pts.y_ref, "status": np.where(br.candidate, "fail", "pass").astype(object),
-        "decision": br.decision, "row": pts.rows})
-    detail: dict[str, Any] = {"points": frame}
+    keep: Any = slice(None)
     if n > DETAIL_POINTS_MAX:
         flagged = br.candidate | (br.decision != "kept")
         room = min(max(DETAIL_POINTS_MAX - int(flagged.sum()), 0), n - int(flagged.sum()))
         keep = flagged.copy()
         if room:  # and the largest residuals among the others
             keep[np.argpartition(np.where(flagged, np.inf, -br.dr), room - 1)[:room]] = True
-        detail = {"points": frame[keep].reset_index(drop=True), "points_total": n,
-                  "points_omitted": int(n - keep.sum())}
+    # the kept rows only, text columns as Python objects (pandas' string inference would convert
+    # every id of the block first)
+    cols = {"point_id": pts.ids, "dx": pts.dx, "dy": pts.dy,
+            "dz": np.full(n, np.nan) if pts.dz is None else pts.dz, "dr": br.dr, "x_ref": pts.x_ref,
+            "y_ref": pts.y_ref, "status": np.where(br.candidate, "fail", "pass").astype(object),
+            "decision": br.decision, "row": pts.rows}
+    frame = pd.DataFrame({k: pd.Series(np.asarray(v)[keep], dtype=object if np.asarray(v).dtype == object else None)
+                          for k, v in cols.items()})
+    detail: dict[str, Any] = {"points": frame}
+    if n > DETAIL_POINTS_MAX:
+        detail.update({"points_total": n, "points_omitted": int(n - np.count_nonzero(keep))})
     gids, gx, gy = gcps if gcps is not None else ((), (), ())
     detail.update({
         "limit_x": br.limit_x, "limit_y": br.limit_y, "basis": br.basis, "unit": "m",
