@@ -336,3 +336,16 @@ def test_r8_the_shipped_satellite_checker_names_the_flagged_master() -> None:
     res = check_with(EXAMPLES / "satellite-pass", "jrc-v3", checker=CHECKERS / "satellite-pass.yaml", date=DATE)
     assert _master_rules(res.document)["JRC-T9-MASTER-IDENTIFIED"] == {"D-2026-031": "pass"}
     assert res.accepted
+
+
+def test_r17_a_vertex_that_is_not_a_pair_is_refused_naming_it(tmp_path: Path) -> None:
+    from orthospec.errors import DeliveryError
+
+    d = _copy("aerial-pass", tmp_path)
+    path = d / "delivery.yaml"
+    text = path.read_text(encoding="utf-8")
+    assert "  - [514500.0, 5403000.0]\n" in text
+    path.write_text(text.replace("  - [514500.0, 5403000.0]\n", "  - [514500.0]\n", 1), encoding="utf-8")
+    with pytest.raises(DeliveryError, match=r"^delivery.yaml:\d+: blocks\[1\] \(B02\): polygon vertex 2 is \[514500.0\], "
+                                            r"expected \[x, y\]"):
+        open_delivery(d)
