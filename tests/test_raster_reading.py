@@ -253,10 +253,20 @@ def test_cloud_mask_share(tmp_path):
     assert acc.valid == 9000 and acc.percent == pytest.approx(100 * 500 / 9000)
 
 
-def test_truncated_file_raises_measure_error(tmp_path, rng):
-    a = rng.integers(0, 256, (1, 512, 512), dtype=np.uint8)
-    f = write_tif(tmp_path / "trunc.tif", a, compress="deflate", tiled=True, blockxsize=128,
-                  blockysize=128)
+@pytest.mark.parametrize("layout", [
+    dict(compress="deflate", tiled=True, blockxsize=128, blockysize=128),
+    dict(tiled=True, blockxsize=128, blockysize=128),  # uncompressed: GDAL's direct I/O path
+    dict(blockysize=16),                               # uncompressed strips
+])
+@pytest.mark.parametrize("user_env", [{}, {"GTIFF_DIRECT_IO": "YES"},
+                                      {"GTIFF_VIRTUAL_MEM_IO": "YES"}])
+def test_truncated_file_raises_measure_error(tmp_path, rng, layout, user_env, monkeypatch):
+    """Never zeros for missing pixels: also not when the environment asks GDAL for direct I/O
+    (which then fills the missing strips of an uncompressed file with zeros, silently)."""
+    for k, v in user_env.items():
+        monkeypatch.setenv(k, v)
+    a = rng.integers(0, 256, (3, 512, 512), dtype=np.uint8)
+    f = write_tif(tmp_path / "trunc.tif", a, **layout)
     data = f.read_bytes()
     f.write_bytes(data[: len(data) // 2])
     with pytest.raises(MeasureError, match=r"trunc\.tif"):

@@ -209,10 +209,17 @@ class ScanSettings:
 
 @contextmanager
 def read_only_env(settings: ScanSettings | None = None) -> Iterator[None]:
-    """GDAL configuration that writes nothing next to the input and caches little."""
+    """GDAL configuration that writes nothing next to the input and caches little.
+
+    ``GTIFF_DIRECT_IO`` and ``GTIFF_VIRTUAL_MEM_IO`` are forced off, even when the user's
+    environment sets them: direct I/O saves about 15 % of a scan's read CPU on uncompressed
+    files, but GDAL 3.10 then returns zeros, without an error, for the missing strips of a
+    truncated striped file (``test_truncated_file_raises_measure_error``).
+    """
     s = settings or ScanSettings()
     with rasterio.Env(GDAL_PAM_ENABLED="NO", GDAL_CACHEMAX=s.gdal_cachemax_mb,
-                      GDAL_DISABLE_READDIR_ON_OPEN="EMPTY_DIR", **_SAFE_GDAL):
+                      GDAL_DISABLE_READDIR_ON_OPEN="EMPTY_DIR", GTIFF_DIRECT_IO="NO",
+                      GTIFF_VIRTUAL_MEM_IO="NO", **_SAFE_GDAL):
         yield
 
 
