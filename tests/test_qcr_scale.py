@@ -174,3 +174,19 @@ def test_natural_order_on_known_cases() -> None:
         "", "9", "10", "F01_0002", "F01_0101", "P", "P0", "P00", "P1a", "P009", "P09", "P9", "P10", "Q1"]
     big = [f"P{i:07d}" for i in range(50_000)][::-1]
     assert natural_order(big).tolist() == list(range(50_000))[::-1]
+
+
+def test_reports_and_csv_name_the_selected_rows(checked: api.CheckResult) -> None:
+    """A record whose evidence is a selector still says which rows: HTML and qcr.csv name the
+    column, the value and the count (JRC §2.4: a record traces to its evidence)."""
+    from orthospec.qcr import to_csv
+    from orthospec.reports.html import ReportOptions, render_html
+
+    doc = json.loads(dumps(checked.document))
+    selected = [(r["item"], e) for r in all_records(doc, compact=False) for e in r["evidence"] if "where" in e]
+    assert selected  # block-level findings over thousands of points
+    item, entry = next((i, e) for i, e in selected if e["where"])
+    shown = f"where block = {entry['where']['block']} ({entry['rows_count']} rows)"
+    assert item == entry["where"]["block"]
+    assert shown in render_html(doc, ReportOptions(bounded=False, figures=False))
+    assert f"tables/checkpoints.csv#{shown}" in to_csv(doc)

@@ -11,7 +11,7 @@ from __future__ import annotations
 import hashlib
 import math
 import re
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -19,7 +19,7 @@ import jinja2
 import markupsafe
 
 from .. import verdicts as V
-from ..qcr import all_records, dumps, natural_key, point_rows
+from ..qcr import all_records, dumps, natural_key, point_rows, where_text
 from ..resources import templates_dir
 from ..spec.wording import unit_suffix
 from .findings import NotApplicableSummary, unsigned_manual_note
@@ -141,8 +141,11 @@ def fmt_clause(c: dict[str, Any] | str | None) -> str:
     return ", ".join(p for p in parts if p)
 
 
-def fmt_rows(rows: Iterable[int] | None) -> str:
-    """[1,2,3,7] -> '1–3, 7' (evidence row lists can be long)."""
+def fmt_rows(rows: Iterable[int] | Mapping[str, Any] | None) -> str:
+    """[1,2,3,7] -> '1–3, 7' (evidence row lists can be long); a selector standing for many rows
+    (qcr.json version 3) -> 'where block = B02 (333412 rows)'."""
+    if isinstance(rows, Mapping):
+        return where_text(rows)
     rs = sorted(set(rows or ()))
     out: list[str] = []
     i = 0
@@ -286,6 +289,8 @@ def _collect(doc: dict[str, Any], opts: ReportOptions) -> _Collected:
     manual: list[dict[str, Any]] = []
     na = NotApplicableSummary()
     for r in all_records(doc):
+        if any("where" in e for e in r["evidence"]):
+            r["evidence"] = [_shown_evidence(e) for e in r["evidence"]]
         acc = by_rule.get(r["rule"])
         if acc is None:
             acc = by_rule[r["rule"]] = _RuleRecords(first=r)
@@ -311,6 +316,13 @@ def _collect(doc: dict[str, Any], opts: ReportOptions) -> _Collected:
             acc.others.append(r)
             kept.append(r)
     return _Collected(by_rule, kept, manual, na.result())
+
+
+def _shown_evidence(e: dict[str, Any]) -> dict[str, Any]:
+    """An evidence entry as the report shows it: a selector's rows in words (the ``rows`` filter)."""
+    if "where" not in e or e.get("rows"):
+        return e
+    return {**e, "rows": {"where": e["where"], "rows_count": e.get("rows_count")}}
 
 
 def _rule_views(doc: dict[str, Any], opts: ReportOptions, collected: _Collected | None = None) -> list[RuleView]:
