@@ -213,6 +213,21 @@ def test_chunks_are_whole_blocks_and_bounded(tmp_path, rng):
         assert (s.mean, s.std, s.histogram) == (b.mean, b.std, b.histogram)
 
 
+@pytest.mark.parametrize("dtype", ["uint8", "float32"])
+def test_scan_results_do_not_depend_on_the_counting_threads(tmp_path, rng, dtype):
+    """Chunks queue up per counting thread (a slow chunk does not stall the others), yet each
+    accumulator set still takes its chunks in order: one thread or two, the same bits, also
+    for floating-point sums (float moments, noise)."""
+    a = rng.normal(120, 30, (3, 600, 700)).clip(1, 255).astype(dtype)
+    a[:, :40] = 0
+    f = write_tif(tmp_path / "t.tif", a, tiled=True, blockxsize=64, blockysize=64, nodata=0,
+                  photometric="RGB")
+    runs = [scan_raster(f, ScanSettings(chunk_bytes=64 * 64 * 3 * 4 * 2, noise_max_pixels=0,
+                                        threads=t)) for t in (1, 2, 2)]
+    assert runs[0].chunks >= 20
+    assert runs[0].to_dict() == runs[1].to_dict() == runs[2].to_dict()
+
+
 @pytest.mark.parametrize("dtype", ["uint8", "uint16"])
 def test_luminosity_histogram_of_rgb(tmp_path, rng, dtype):
     top = 255 if dtype == "uint8" else 4095
