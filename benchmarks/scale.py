@@ -99,7 +99,8 @@ def main() -> None:
                       flush=True)
             out = Path(tmp) / f"out-{n}"
             cmd = [orthospec, "check", str(delivery), "-p", args.profile, "--out", str(out),
-                   "--format", "json", "--date", "2026-11-21", "--param", "tolerance_xy=0.5m"]
+                   "--format", "json", "--date", "2026-11-21", "--param", "tolerance_xy=0.5m",
+                   "--param", "map_crs=EPSG:25832"]
             if args.workers:
                 cmd += ["--workers", str(args.workers)]
             wall, rss, code, err = run(cmd)

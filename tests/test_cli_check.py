@@ -19,6 +19,8 @@ def _with_itt(args):
     args = list(map(str, args))
     if args[:1] == ["check"] and "--param" not in args and "--checker" not in args:
         args += ITT
+        if "jrc-v3" in args:
+            args += ["--param", "map_crs=EPSG:25832"]  # the ITT's map projection (red team R16)
     return args
 
 

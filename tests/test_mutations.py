@@ -138,7 +138,8 @@ def _mutate_manifest(root: Path, m: dict[str, Any]) -> None:
     for dotted, n in (m.get("copy_blocks") or {}).items():  # append n copies of a block, new ids
         src = next(b for b in doc["blocks"] if b["id"] == dotted)
         for i in range(n):
-            doc["blocks"].append({**src, "id": f"{dotted}-X{i + 1:02d}", "reported": {}})
+            # without an outline: copies of B01's polygon would overlap B01 (refused at read, red team R17)
+            doc["blocks"].append({**src, "id": f"{dotted}-X{i + 1:02d}", "reported": {}, "polygon": None})
     path.write_text(yaml.safe_dump(doc, sort_keys=False, allow_unicode=True), encoding="utf-8")
 
 

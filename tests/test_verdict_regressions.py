@@ -45,6 +45,9 @@ def check(d: Path, prof: Any, *, params: Any = None, **kw: Any) -> Any:
         prof = prof if isinstance(prof, ResolvedProfile) else load_profile(prof)
         p = prof.parameters.get("tolerance_xy")
         params = ITT_XY if p is not None and p.value is None and p.default is None else []
+        crs = prof.parameters.get("map_crs")
+        if crs is not None and crs.value is None:
+            params = [*params, "map_crs=EPSG:25832"]  # the ITT's map projection (red team R16)
     return _check(d, prof, params=params, **kw)
 
 def copy_pass(tmp_path: Path, name: str = "d") -> Path:

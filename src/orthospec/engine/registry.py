@@ -219,6 +219,9 @@ MEASURE_DESCRIPTIONS: dict[str, str] = {
     "checkpoints.std_z": "standard deviation of the z discrepancies of the kept points",
     # derived
     "derived.dem_blocks": "blocks each DEM serves: its block value, else its footprint over the block polygons",
+    "derived.project_crs_agrees": "the manifest's project.crs names the map projection in force (parameter map_crs, JRC §12.4 Table 12)",
+    "derived.is_master": "the scene is a master image: named in the checker's master_images, else flagged scenes.is_master (JRC Table 9)",
+    "derived.master_images_agree": "the scenes flagged is_master are exactly the checker's master_images (JRC Table 9 \"identify as master image\")",
     "derived.master_images": "number of scenes declared master image (scenes.is_master, JRC Table 9)",
     "derived.orthorectification": "how the orthoimages were produced, from the blocks' methods and the manifest",
     "derived.pansharpened": "the product is pan-sharpened, computed from the bands table (JRC §10.5)",
@@ -258,7 +261,7 @@ MEASURE_DESCRIPTIONS: dict[str, str] = {
     "raster.bright_margin": "gap between the brightest DN and the top of the range, % of the range (worst band)",
     "raster.compression": "compression of the image file",
     "raster.crs_epsg": "EPSG code of the image's coordinate reference system",
-    "raster.crs_ok": "the image's CRS is the project CRS",
+    "raster.crs_ok": "the image's CRS is the map projection in force (parameter map_crs; missing when the profile states none)",
     "raster.cv_percent": "coefficient of variation (std / mean) of the luminosity, else of the flattest band, %",
     "raster.cv_percent_max": "largest per-band coefficient of variation (std / mean), in %",
     "raster.cv_percent_min": "smallest per-band coefficient of variation (std / mean), in %",

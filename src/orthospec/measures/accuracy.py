@@ -168,7 +168,7 @@ def _validate(
             raise MeasureError(f"{name} has shape {arr.shape}; expected ({n},) like the point ids")
     if n < min_points:
         raise MeasureError(f"{n} point(s) given; at least {min_points} are needed for statistics")
-    repeated = pd.Index(ids).duplicated()  # hashing, not sorting a fixed-width copy
+    repeated = pd.Index(ids, dtype=object).duplicated()  # hashing, not sorting a fixed-width copy
     if repeated.any():
         dup = ", ".join(sorted(set(ids[repeated].tolist()))[:20])
         raise MeasureError(f"duplicate point ids: {dup}")
@@ -631,7 +631,7 @@ def detect_blunders(
     lr = math.hypot(lx, ly)
 
     requests = {str(k): (v or "").strip() for k, v in (exclusions or {}).items()}
-    pos = pd.Index(id_arr).get_indexer(list(requests)) if requests else np.zeros(0, dtype=np.intp)
+    pos = pd.Index(id_arr, dtype=object).get_indexer(list(requests)) if requests else np.zeros(0, dtype=np.intp)
     unknown = sorted(pid for pid, i in zip(requests, pos.tolist(), strict=True) if i < 0)
     if unknown:
         raise MeasureError(f"exclusion requested for unknown point id(s): {', '.join(unknown)}")

