@@ -12,7 +12,7 @@ Format (schema: specs/schema/checker.schema.json)::
     orthospec_checker: 1
     checker: {name: "M. Keller (fictional)", role: external QC, organisation: ...}
     delivery: {id: D-2026-014, files: {tables/checkpoints.csv: <sha256>}}   # what was signed
-    parameters: {tolerance_xy: {value: 0.5, unit: m}}                      # ITT values in force
+    parameters: {tolerance_xy: {value: 0.5, unit: m}, map_crs: EPSG:25832}  # ITT values in force
     manual_checks:
       - {check: JRC-5.3-IDQA, item: "*", date: 2026-06-21, verdict: pass, note: "..."}
     waivers:

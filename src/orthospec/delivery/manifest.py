@@ -31,7 +31,10 @@ Scalar = float | int | str | bool | dt.date | None
 class Project(_Open):
     id: str
     name: str | None = None
-    crs: str | None = Field(None, description="National projection, e.g. 'EPSG:25832'.")
+    crs: str | None = Field(None, description=(
+        "The CRS the delivery's coordinates and block outlines are written in, e.g. 'EPSG:25832'. A "
+        "declaration: it must name the map projection the ITT fixes (the checker's parameter map_crs, "
+        "JRC §12.4 Table 12), else the delivery is returned (JRC-12.4-T12-MAP-PROJECTION)."))
     area_of_interest: str | None = Field(None, description="Vector file with the area of interest.")
 
 
@@ -77,7 +80,9 @@ class Product(_Open):
 
 class Block(_Closed):
     id: str
-    polygon: list[list[float]] | None = Field(None, description="Block outline [[x, y], ...] in project CRS.")
+    polygon: list[list[float]] | None = Field(None, description=(
+        "Block outline [[x, y], ...] in project CRS: a simple ring; outlines of two blocks may touch but "
+        "not overlap (a check point belongs to one block)."))
     polygon_file: str | None = None
     method: str | None = Field(None, description="aerotriangulation, space_resection, rpc, polynomial...")
     reported: dict[str, QuantityIn] | None = Field(
