@@ -85,10 +85,16 @@ def radiometry_cmd(ctx: click.Context, image: str, as_json: bool, full: bool, bi
     read of the pixels. Radiometry needs no georeference: a missing or unparseable CRS is
     reported as a file-check finding, not refused. Exit code 2 when the pixels cannot be read.
     """
+    import os
+    import sys
     from concurrent.futures import ThreadPoolExecutor
 
     from ..provenance import sha256_file
 
+    if "numpy" not in sys.modules:
+        # nothing here multiplies large matrices (the misregistration DFTs use einsum, not
+        # BLAS): OpenBLAS need not start a thread per core when numpy loads (start-up time)
+        os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     # the file's SHA-256 is computed while the raster stack is imported and the pixels scanned
     # (hashlib releases the GIL): it adds no wall time
     with ThreadPoolExecutor(max_workers=1, thread_name_prefix="orthospec-sha256") as pool:
