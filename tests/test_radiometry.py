@@ -314,6 +314,28 @@ def test_window_std_of_integers_equals_numpy_float64(dtype):
     np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-9)
 
 
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.tuples(st.integers(0, 65535), st.integers(1, 2**40)), min_size=1,
+                max_size=40))
+def test_histogram_variance_is_the_exact_rational_rounded_once(bins):
+    """Population variance from the histogram: (n * S2 - S1^2) / n^2 in exact integers,
+    rounded once (independent check: fractions.Fraction), so no BLAS summation order or
+    thread count can change a bit."""
+    from fractions import Fraction
+
+    acc = rad.HistogramAccumulator.for_dtype("uint16")
+    for dn, count in bins:
+        acc.counts[dn] += count
+    n = sum(int(c) for c in acc.counts)
+    s1 = sum(int(c) * v for v, c in enumerate(acc.counts.tolist()))
+    s2 = sum(int(c) * v * v for v, c in enumerate(acc.counts.tolist()))
+    var = float(Fraction(n * s2 - s1 * s1, n * n))
+    m = acc.moments()
+    assert m.mean == float(Fraction(s1, n))
+    assert m.m2 == var * n
+    assert m.std == math.sqrt(var * n / n)
+
+
 @pytest.mark.parametrize("big", [3, 2**50])
 def test_histogram_mean_is_the_exact_integer_mean(big):
     """The mean from the histogram is sum(count * DN) / n done in exact integers, also when the

@@ -304,23 +304,29 @@ class HistogramAccumulator:
         return n
 
     def moments(self) -> Moments:
-        """Exact count, min, max, mean and population std from the histogram."""
+        """Exact count, min, max, mean and population std from the histogram.
+
+        The sums S1 = sum(count * DN) and S2 = sum(count * DN^2) are exact integers, so the
+        mean S1 / n and the variance (n * S2 - S1^2) / n^2 are the exact rationals, each
+        rounded once to a float: no cancellation, and the same bits on every machine (a float
+        dot product through BLAS summed in an order that depends on its thread count).
+        """
         n = int(self.counts.sum())
         if n == 0:
             return Moments()
         nz = np.flatnonzero(self.counts)
-        values = nz.astype(np.float64) + self.offset
-        weights = self.counts[nz]
-        # exact integer sum, then a second, centred pass: no cancellation. int64 is exact while
-        # n * max|DN| < 2^63 (any image below 1.4e14 pixels); Python ints beyond that
+        weights = self.counts[nz].astype(np.int64)
         dn = nz.astype(np.int64) + self.offset
-        if n * max(abs(int(dn[0])), abs(int(dn[-1])), 1) < 2**63:
-            total = int(np.dot(weights.astype(np.int64), dn))
+        # int64 is exact while n * max|DN|^2 < 2^63 (a 16-bit image below 2.1e9 pixels);
+        # Python ints beyond that
+        top = max(abs(int(dn[0])), abs(int(dn[-1])), 1)
+        if n * top * top < 2**63:
+            s1, s2 = int(np.dot(weights, dn)), int(np.dot(weights, dn * dn))
         else:
-            total = int(np.dot(weights.astype(object), dn.astype(object)))
-        mean = total / n
-        var = float(np.dot(weights.astype(np.float64), (values - mean) ** 2)) / n
-        return Moments(n=n, mean=mean, m2=var * n, vmin=float(values[0]), vmax=float(values[-1]))
+            w, d = weights.astype(object), dn.astype(object)
+            s1, s2 = int(np.dot(w, d)), int(np.dot(w, d * d))
+        var = (n * s2 - s1 * s1) / (n * n)  # int / int: Python rounds the exact quotient once
+        return Moments(n=n, mean=s1 / n, m2=var * n, vmin=float(dn[0]), vmax=float(dn[-1]))
 
 
 @dataclass
