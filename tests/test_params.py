@@ -295,8 +295,8 @@ def test_map_crs_is_an_itt_parameter_the_run_cannot_do_without():
     with pytest.raises(ParameterError) as ei:
         resolve_parameters(jrc(), {}, {"tolerance_xy": "0.5"})
     msg = str(ei.value)
-    assert "map_crs (text): required by the profile" in msg
-    assert "--param map_crs=" in msg and "parameters: {map_crs: ...}" in msg
+    assert "map_crs (text): required by the profile (a coordinate reference system: EPSG:<code>)" in msg
+    assert "--param map_crs=EPSG:<code>" in msg and "parameters: {map_crs: EPSG:<code>}" in msg
 
 
 @pytest.mark.parametrize("text", ["EPSG:25832", "epsg:25832", "urn:ogc:def:crs:EPSG::25832",

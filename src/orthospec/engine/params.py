@@ -300,13 +300,16 @@ def _advice(profile: ResolvedProfile, needed: dict[str, list[str]], all_off: boo
         rules = needed[name]
         who = (f"read by {', '.join(rules[:6])}" + (f" and {len(rules) - 6} more" if len(rules) > 6 else "")
                if rules else "required by the profile")
+        if is_crs(name, p):
+            who += " (a coordinate reference system: EPSG:<code>)"
         lines.append(f"  {name} ({unit}): {who}")
     first = sorted(needed)[0]
     p = profile.parameters[first]
-    shape = "..." if p.unit in NON_NUMERIC else "{value: ..., unit: ...}"
-    lines.append(f"set them with --param NAME=VALUE (e.g. --param {first}=...), in the checker file "
+    example = "EPSG:<code>" if is_crs(first, p) else "..."
+    shape = example if p.unit in NON_NUMERIC else "{value: ..., unit: ...}"
+    lines.append(f"set them with --param NAME=VALUE (e.g. --param {first}={example}), in the checker file "
                  f"(check --checker FILE; parameters: {{{first}: {shape}}}), or in a tender "
-                 f"profile that extends {profile.id} (parameters: {{{first}: {{value: ...}}}}); the value "
+                 f"profile that extends {profile.id} (parameters: {{{first}: {{value: {example}}}}}); the value "
                  "the delivery manifest declares (tender.parameters) is the contractor's evidence, never "
                  "the value in force")
     return "\n".join(lines)
