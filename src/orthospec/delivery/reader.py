@@ -201,8 +201,20 @@ class Table:
     units: dict[str, str]
 
     def evidence(self, rows: Any = ()) -> tuple[Evidence, ...]:
-        # numpy's tolist builds the ints in C (a million-row table asks for every row)
-        return (Evidence(self.file, self.sha256, tuple(np.asarray(rows, dtype=np.int64).tolist())),)
+        # numpy's tolist builds the ints in C; "every row" is one shared entry (a million-row table
+        # is asked for it by every whole-table measure)
+        arr = np.asarray(rows, dtype=np.int64)
+        if len(arr) == len(self.df) and len(arr) > 1 and np.array_equal(arr, self._all_rows):
+            return self._every_row
+        return (Evidence(self.file, self.sha256, tuple(arr.tolist())),)
+
+    @cached_property
+    def _all_rows(self) -> np.ndarray:
+        return self.df["_row"].to_numpy(np.int64)
+
+    @cached_property
+    def _every_row(self) -> tuple[Evidence, ...]:
+        return (Evidence(self.file, self.sha256, tuple(self._all_rows.tolist())),)
 
     @cached_property
     def ids(self) -> pd.Series:

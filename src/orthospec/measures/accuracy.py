@@ -646,11 +646,14 @@ def detect_blunders(
     if requests:
         requested[pos] = True
         justified[pos] = [bool(just) for just in requests.values()]
-    decision = np.select(
+    # codes, then one shared str object per decision (not a fixed-width copy and a str per point)
+    choice = np.select(
         [~cand & ~requested, ~cand & requested, cand & ~requested, cand & ~justified],
-        [KEPT, ERROR_WITHIN_TOLERANCE, CANDIDATE_KEPT, ERROR_NO_JUSTIFICATION],
-        default=EXCLUDED,
-    ).astype(object)
+        [0, 1, 2, 3],
+        default=4,
+    )
+    decision = np.array([KEPT, ERROR_WITHIN_TOLERANCE, CANDIDATE_KEPT, ERROR_NO_JUSTIFICATION, EXCLUDED],
+                        dtype=object)[choice]
     keep = decision != EXCLUDED
 
     note = ""
