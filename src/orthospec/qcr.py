@@ -391,11 +391,14 @@ class _RuleRecords:
         n = 2 if self.r.rule.requirement.op == "between" else 1
         cols = []
         for a in self.arrays[:n]:  # type: ignore[index]
-            v = np.asarray(a, dtype=np.float64)[idx]
+            a = np.asarray(a, dtype=np.float64)
+            # one threshold for every item (a stride-0 view): one value, not one per item
+            v = a[:1] if a.ndim == 1 and a.size and a.strides[0] == 0 and len(idx) else a[idx]
             cols.append(np.where(np.isfinite(v), round_sig(v) + 0.0, np.inf))  # non-finite: null
-        stack = np.column_stack(cols)
+        rows = max(len(c) for c in cols)  # 1 when every threshold is one value
+        stack = np.column_stack([np.broadcast_to(c, (rows,)) for c in cols])
         if len(stack) and bool((stack == stack[0]).all()):
-            uniq, inverse = stack[:1], np.zeros(len(stack), dtype=np.int64)
+            uniq, inverse = stack[:1], np.zeros(len(idx), dtype=np.int64)
         else:
             uniq, inverse = np.unique(stack, axis=0, return_inverse=True)
         reqs = [self._with_thresholds(tuple(None if math.isinf(x) else x for x in row))

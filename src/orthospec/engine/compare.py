@@ -50,7 +50,8 @@ def item_gsd(ctx: Context, scope: str, items: list[str]) -> np.ndarray | None:
 
 
 def magnitudes(v: Any, unit: str | None, n: int, gsd: np.ndarray | None, what: str) -> np.ndarray:
-    """A threshold as float magnitudes in ``unit`` (broadcast to n items)."""
+    """A threshold as float magnitudes in ``unit`` (broadcast to n items: one value is a read-only
+    view of stride 0, not n copies of it - a million check points share one threshold)."""
     if hasattr(v, "units"):
         mag = np.asarray(v.magnitude, dtype=float)
         src = str(v.units)
@@ -58,13 +59,24 @@ def magnitudes(v: Any, unit: str | None, n: int, gsd: np.ndarray | None, what: s
             raise UnitError(f"{what}: the expression has unit {canonical(src)!r}; give the requirement a unit")
         if v.units == ureg.dimensionless:
             # a pure number (e.g. "0.1 * 256") means "in the requirement's unit"
-            return np.broadcast_to(mag, (n,)).astype(float)
-        return np.broadcast_to(convert(mag, src, unit, gsd_m=gsd, what=what), (n,)).astype(float)
+            return _broadcast(mag, n)
+        return _broadcast(convert(mag, src, unit, gsd_m=gsd, what=what), n)
     if v is None:
         raise Undecidable(f"{what}: the threshold has no value (a fact or parameter it names is not given)")
     if isinstance(v, bool):
         raise UnitError(f"{what}: expected a number, got {v!r}")
-    return np.broadcast_to(np.asarray(v, dtype=float), (n,)).astype(float)
+    return _broadcast(v, n)
+
+
+def _broadcast(v: Any, n: int) -> np.ndarray:
+    """Float values for n items: one value as a stride-0 view, per-item values as their own array."""
+    arr = np.asarray(v, dtype=float)
+    return np.broadcast_to(arr, (n,)) if arr.ndim == 0 or arr.size == 1 else np.broadcast_to(arr, (n,)).astype(float)
+
+
+def constant(arr: np.ndarray) -> bool:
+    """One value for every item (a stride-0 threshold from :func:`magnitudes`)."""
+    return arr.ndim == 1 and arr.size > 0 and arr.strides[0] == 0
 
 
 def threshold_value(v: Any, names: Names) -> Any:
@@ -102,7 +114,10 @@ def req_dict(req: Requirement, resolved: tuple[np.ndarray, ...] | None) -> dict[
     def one(spec: Any, arr: np.ndarray | None) -> Any:
         if arr is None:
             return spec
-        uniq = np.unique(arr[~np.isnan(arr)]) if arr.dtype.kind == "f" else arr
+        if constant(arr):
+            uniq = arr[:1][~np.isnan(arr[:1])] if arr.dtype.kind == "f" else arr[:1]
+        else:
+            uniq = np.unique(arr[~np.isnan(arr)]) if arr.dtype.kind == "f" else arr
         if len(uniq) == 1:
             return float(uniq[0])
         return None  # varies per item; see the record's own threshold
@@ -185,7 +200,8 @@ class Comparison:
             lo = magnitudes(threshold_value(req.min, names), req.unit, n, gsd, what) if req.min is not None else None
             hi = magnitudes(threshold_value(req.max, names), req.unit, n, gsd, what) if req.max is not None else None
             # an open side is written as no bound (-inf/+inf): only a given bound must be finite
-            shown = (np.full(n, -np.inf) if lo is None else lo, np.full(n, np.inf) if hi is None else hi)
+            shown = (np.broadcast_to(-np.inf, (n,)) if lo is None else lo,
+                     np.broadcast_to(np.inf, (n,)) if hi is None else hi)
             return Thresholds(min=lo, max=hi, min_inclusive=req.min_inclusive,
                               max_inclusive=req.max_inclusive), shown
         if req.op == "in":
