@@ -19,6 +19,7 @@ import json
 import math
 import os
 import re
+import sys
 import tempfile
 from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
@@ -116,6 +117,10 @@ def _stable_column(values: np.ndarray) -> list[Any]:
     if values.dtype.kind in "iu":
         return values.tolist()
     if values.dtype.kind == "b":
+        return values.tolist()
+    from pandas.api.types import infer_dtype  # only reached for frames: pandas is loaded
+
+    if infer_dtype(values, skipna=False) == "string":  # text only (ids, decisions): as it is
         return values.tolist()
     return [stable(v) for v in values.tolist()]
 
@@ -624,7 +629,8 @@ def natural_order(items: Any) -> np.ndarray:
     (what ``natural_key`` compares after the number: ``'0' < '00'`` but ``'001' < '01'``); any
     other id (several digit runs, non-ASCII, NUL) takes ``natural_key`` and is merged in by
     binary search. The same order as ``sorted(..., key=natural_key)`` (tests/test_qcr_scale.py)."""
-    strs = [x if type(x) is str else str(x) for x in (items.tolist() if isinstance(items, np.ndarray) else items)]
+    listed = items.tolist() if isinstance(items, np.ndarray) else list(items)
+    strs = listed if _all_text(listed) else [x if type(x) is str else str(x) for x in listed]
     n = len(strs)
     if n < 256 or "\x00" in "".join(strs):
         return _slow_order(strs, np.arange(n))
@@ -656,14 +662,26 @@ def natural_order(items: Any) -> np.ndarray:
     else:
         rank = np.unique(text, return_inverse=True)[1].ravel()
     has = ndig[fi] > 0
-    tie = np.where(value == 0, zeros, -zeros)
-    order = fi[np.lexsort((tie, value, has, rank))]
+    if bool((rank == rank[0]).all() & has.all()) and bool((np.diff(value) > 0).all()):
+        order = fi  # one prefix and increasing numbers: already in order (ids in file order)
+    else:
+        tie = np.where(value == 0, zeros, -zeros)
+        order = fi[np.lexsort((tie, value, has, rank))]
     if len(fi) == n:
         return order.astype(np.int64)
     slow = _slow_order(strs, np.flatnonzero(~fast))
     fast_keys = _Keys(strs, order)
     at = [bisect.bisect_left(fast_keys, natural_key(strs[i])) for i in slow.tolist()]
     return np.insert(order, at, slow).astype(np.int64)
+
+
+def _all_text(values: list[Any]) -> bool:
+    """Every value is a str (checked in C when pandas is loaded, as it is in a check)."""
+    if "pandas" not in sys.modules:
+        return all(type(x) is str for x in values)
+    from pandas.api.types import infer_dtype
+
+    return infer_dtype(values, skipna=False) == "string"
 
 
 class _Keys:
