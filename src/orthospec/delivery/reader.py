@@ -838,8 +838,8 @@ def _records_fast(body: bytes, chunk: int = 1 << 20) -> _Shape | None:
         if quotes is None:
             return None
         opens, closes, parity = quotes
-        padded = padded or _padded(ext, is44 | is10, opens, closes)
         cpos = np.flatnonzero(is44)  # searchsorted(cpos, p): the delimiters before byte p
+        padded = padded or _padded(ext, np.concatenate([cpos, ends]), opens, closes)
         if opens.size:
             ends = ends[~_quoted(ends, opens, closes)]
         per = np.diff(np.searchsorted(cpos, ends), prepend=0).astype(np.int64)
@@ -888,10 +888,11 @@ def _quotes(ext: np.ndarray, parity: int) -> tuple[np.ndarray, np.ndarray, int] 
 
 def _padded(ext: np.ndarray, structure: np.ndarray, opens: np.ndarray, closes: np.ndarray) -> bool:
     """A space or non-ASCII byte beside a delimiter or line end outside quotes, or a space, line
-    end or non-ASCII byte just inside a quote: a cell there may need stripping."""
+    end or non-ASCII byte just inside a quote: a cell there may need stripping. ``structure``:
+    the positions of the delimiters and line ends (only their neighbours are looked at)."""
     m = len(ext) - 2
-    sp = (ext == 32) | (ext >= 0x80)
-    near = np.flatnonzero((sp[:-2] | sp[2:]) & structure)
+    before, after = ext[structure], ext[structure + 2]  # ext is the chunk shifted by one byte
+    near = structure[(before == 32) | (before >= 0x80) | (after == 32) | (after >= 0x80)]
     if opens.size:
         near = near[~_quoted(near, opens, closes)]
     edges = np.concatenate([ext[opens[opens >= 0] + 2], ext[closes[closes < m]]])
