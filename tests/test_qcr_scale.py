@@ -190,3 +190,14 @@ def test_reports_and_csv_name_the_selected_rows(checked: api.CheckResult) -> Non
     assert item == entry["where"]["block"]
     assert shown in render_html(doc, ReportOptions(bounded=False, figures=False))
     assert f"tables/checkpoints.csv#{shown}" in to_csv(doc)
+
+
+def test_block_distributions_in_threads_give_the_same_document(many: Path, checked: api.CheckResult,
+                                                                monkeypatch: pytest.MonkeyPatch) -> None:
+    """Above PARALLEL_POINTS the blocks' distributions run in threads: the same bytes as one by one."""
+    from orthospec.engine.providers import checkpoints
+
+    monkeypatch.setattr(checkpoints, "PARALLEL_POINTS", 0)
+    monkeypatch.setattr(checkpoints.os, "cpu_count", lambda: 2)
+    threaded = api.check(many, "jrc-v3", params=PARAMS, date="2026-11-21")
+    assert dumps(threaded.document) == dumps(checked.document)

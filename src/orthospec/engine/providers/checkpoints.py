@@ -12,7 +12,9 @@ the points as a pandas DataFrame (INTERFACES item 3), capped at :data:`DETAIL_PO
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -171,6 +173,7 @@ def _compute_once(ctx: ProviderContext) -> Results:
     gcps = _gcps(ctx)
     out = Results()
     df = t.df
+    checked: list[tuple[str, BlockPoints, BlunderResult, tuple[Evidence, ...]]] = []
     for block, rows in sorted(df.groupby(df["block"].astype(str)).indices.items()):
         pts = _block_points(df, rows, to_m)
         ev = (Evidence(t.file, t.sha256, tuple(pts.rows.tolist())),)
@@ -185,15 +188,37 @@ def _compute_once(ctx: ProviderContext) -> Results:
         except MeasureError as exc:
             out.blocks[block] = BlockAccuracy(block, ev, settings, error=f"{t.file}: block {block}: {exc}")
             continue
+        checked.append((block, pts, br, ev))
+    dists = _distributions([(pts, outlines.get(block), gcps.get(block)) for block, pts, _, _ in checked], settings)
+    for (block, pts, br, ev), (dist, dist_error) in zip(checked, dists, strict=True):
         outline = outlines.get(block)
-        dist, dist_error = _distribution(pts, outline, gcps.get(block), settings)
         dups = tuple(pts.ids[duplicate_locations(pts.x_ref, pts.y_ref)].astype(str).tolist())
         res = BlockAccuracy(block, ev, settings, blunders=br, distribution=dist, distribution_error=dist_error,
                             outline=outline, reported=_reported(ctx, block), duplicates=dups)
         out.blocks[block] = res
         out.points.append((pts, br))
         out.detail[block] = _block_detail(res, pts, gcps.get(block))
+    out.blocks = dict(sorted(out.blocks.items()))  # block order, whichever blocks erred
     return out
+
+
+#: points from which the blocks' distributions are computed in threads (the KD-tree queries of
+#: scipy release the GIL); below, one after the other
+PARALLEL_POINTS = 100_000
+
+
+def _distributions(jobs: list[tuple[BlockPoints, Polygon | None, tuple[np.ndarray, ...] | None]],
+                   s: Settings) -> list[tuple[DistributionResult | None, str | None]]:
+    """Each block's distribution (independent blocks: the same results in any order of work)."""
+    def one(job: tuple[BlockPoints, Polygon | None, tuple[np.ndarray, ...] | None]
+            ) -> tuple[DistributionResult | None, str | None]:
+        return _distribution(job[0], job[1], job[2], s)
+
+    workers = min(len(jobs), os.cpu_count() or 1, 4)
+    if workers < 2 or sum(len(j[0].ids) for j in jobs) < PARALLEL_POINTS:
+        return [one(j) for j in jobs]
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        return list(pool.map(one, jobs))
 
 
 def _outlines(ctx: ProviderContext) -> tuple[dict[str, Polygon], dict[str, str]]:
