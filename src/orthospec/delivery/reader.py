@@ -939,8 +939,12 @@ def _convert_column(cells: Any, rows: np.ndarray, kind: str, col: str, file: str
             raise bad(suspect, "a number")
         return pd.Series(num, dtype=float)
     if kind == "bool":
-        lowered = cells.str.lower()
-        t, f = lowered.isin(BOOL_TRUE).to_numpy(bool), lowered.isin(BOOL_FALSE).to_numpy(bool)
+        # a handful of distinct words: each lowered and looked up once, then spread by its code
+        codes, words = pd.factorize(cells.to_numpy(dtype=object))
+        lowered = pd.Series(words, dtype=object).str.lower()
+        is_t = np.append(lowered.isin(BOOL_TRUE).to_numpy(bool), False)  # code -1 (empty): neither
+        is_f = np.append(lowered.isin(BOOL_FALSE).to_numpy(bool), False)
+        t, f = is_t[codes], is_f[codes]
         wrong = ~(t | f | empty)
         if wrong.any():
             raise bad(wrong, "true/false")
