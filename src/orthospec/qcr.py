@@ -193,16 +193,19 @@ class _Evidence:
         self.d = delivery
         self.index: dict[Any, int] = {}
         self.table: list[dict[str, Any]] = []
-        self._long: dict[int, tuple[Evidence, dict[str, Any]]] = {}  # id(e) -> (e kept alive, entry)
+        #: id(e) -> (e, kept alive so the id stays its own; its entry; the entry's canonical text)
+        self._long: dict[int, tuple[Evidence, dict[str, Any], str]] = {}
+
+    def _long_entry(self, e: Evidence) -> tuple[Evidence, dict[str, Any], str]:
+        hit = self._long.get(id(e))
+        if hit is None:
+            entry = _selector(self.d, e) or e.to_dict()
+            hit = self._long[id(e)] = (e, entry, _canonical(entry))
+        return hit
 
     def entry(self, e: Evidence) -> dict[str, Any]:
         """One evidence entry as written (rows listed, or a selector for many rows)."""
-        if len(e.rows) <= ROWS_LISTED_MAX:
-            return e.to_dict()
-        hit = self._long.get(id(e))
-        if hit is None:
-            hit = self._long[id(e)] = (e, _selector(self.d, e) or e.to_dict())
-        return hit[1]
+        return e.to_dict() if len(e.rows) <= ROWS_LISTED_MAX else self._long_entry(e)[1]
 
     def _intern(self, key: Any, entry: dict[str, Any]) -> int:
         k = self.index.get(key)
@@ -218,8 +221,8 @@ class _Evidence:
                 k = self.index.get(e)
                 out.append(k if k is not None else self._intern(e, e.to_dict()))
             else:
-                entry = self.entry(e)
-                out.append(self._intern(_canonical(entry), entry))
+                _, entry, key = self._long_entry(e)
+                out.append(self._intern(key, entry))
         return out
 
     def file_id(self, file: str, sha256: str) -> int:
