@@ -811,19 +811,23 @@ PINNED = ("tables/checkpoints.csv",)
 
 def checker_file(party: dict[str, str], verdicts: list[dict[str, Any]], waivers: list[dict[str, Any]], *,
                  delivery_id: str, root: Path, tolerance_xy_m: float,
-                 master_images: list[str] | None = None) -> dict[str, Any]:
+                 master_images: list[str] | None = None,
+                 blocks: list[dict[str, Any]] | None = None) -> dict[str, Any]:
     """The checker's file for ``check --checker``: who checked, on which content, the ITT values in
     force, their manual verdicts, waivers in force. ``root`` is the written delivery (for the pins);
-    ``master_images`` the satellite scenes the checker knows to be masters (JRC Table 9)."""
+    ``master_images`` the satellite scenes the checker knows to be masters (JRC Table 9); ``blocks``
+    the block outlines in force (JRC §12.4 "block/site"; the manifest's are then declarations,
+    red team R13/R17)."""
     pins = {rel: hashlib.sha256((root / rel).read_bytes()).hexdigest() for rel in PINNED}
     # the ITT's tolerance (JRC §2.5) and map projection (§12.4 Table 12), stated by the checker;
     # the manifest only declares them (tender.parameters, project.crs; red team R1, R16)
     parameters: dict[str, Any] = {"tolerance_xy": {"value": tolerance_xy_m, "unit": "m"}, "map_crs": f"EPSG:{EPSG}"}
     if master_images:  # which scene is the master is the checker's knowledge, not a flag (red team R8)
         parameters["master_images"] = ";".join(master_images)
+    outlines = {"blocks": [{"id": b["id"], "polygon": b["polygon"]} for b in blocks]} if blocks else {}
     return {"orthospec_checker": 1, "checker": party,
             "delivery": {"id": delivery_id, "files": pins},
-            "parameters": parameters,
+            "parameters": parameters, **outlines,
             "manual_checks": [{"check": r["check"], "item": r["item"], "date": r["date"],
                                "verdict": r["verdict"], "note": r["note"]} for r in verdicts],
             "waivers": waivers}
@@ -1132,7 +1136,7 @@ def write(b: Built, root: Path, checker_dir: Path) -> None:
          internal_qc(b.manual, b.manifest["operator"], scn.dates["delivered"], {}))
     write_checker(checker_dir / f"{scn.name}.yaml",
                   checker_file(AERIAL_CHECKER, b.manual, scn.waivers, delivery_id=scn.delivery_id, root=root,
-                               tolerance_xy_m=TOLERANCE_XY_M), scn.delivery_id)
+                               tolerance_xy_m=TOLERANCE_XY_M, blocks=b.manifest["blocks"]), scn.delivery_id)
 
     for r in b.images:
         if r["image_id"] == scn.missing_file:

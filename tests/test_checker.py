@@ -160,3 +160,50 @@ def test_the_example_checker_files_pin_the_check_points(tmp_path: Path) -> None:
         table = ROOT / "examples" / "deliveries" / name / "tables" / "checkpoints.csv"
         assert chk.model.delivery.files == {"tables/checkpoints.csv": hashlib.sha256(table.read_bytes()).hexdigest()}
         assert chk.model.delivery.manifest_sha256 is None  # the README's redelivery edits delivery.yaml
+
+
+# --- block outlines and area of interest in force (red team R13/R17) ------------------------------
+
+#: two touching 1 km squares (x 0..1000 and 1000..2000) and an area of interest over both
+OUTLINES = """\
+blocks:
+  - id: B1
+    polygon: [[0, 0], [1000, 0], [1000, 1000], [0, 1000]]
+  - id: B2
+    polygon: [[1000, 0], [2000, 0], [2000, 1000], [1000, 1000]]
+area_of_interest: [[0, 0], [2000, 0], [2000, 1000], [0, 1000]]
+"""
+
+
+def test_the_checker_states_block_outlines_and_an_area_of_interest(tmp_path: Path) -> None:
+    chk = load_checker(write_checker(tmp_path, MINI_CHECKER + OUTLINES), delivery_root=tmp_path / "d")
+    assert [b.id for b in chk.model.blocks] == ["B1", "B2"]
+    assert chk.model.blocks[1].polygon[0] == (1000.0, 0.0)
+    assert len(chk.model.area_of_interest or []) == 4
+    assert chk.evidence("blocks", 1).path == "blocks[1] (line 12)"  # MINI_CHECKER has 8 lines
+
+
+@pytest.mark.parametrize("change, where, what", [
+    # a bow tie: B2's two top vertices swapped, its edges cross
+    (("[[1000, 0], [2000, 0], [2000, 1000], [1000, 1000]]", "[[1000, 0], [2000, 0], [1000, 1000], [2000, 1000]]"),
+     ":13", r"blocks\[1\] \(B2\): the polygon is not a valid block outline \(Self-intersection"),
+    # B2 starts 10 m inside B1: 10 m x 1000 m shared
+    (("[[1000, 0], [2000, 0], [2000, 1000], [1000, 1000]]", "[[990, 0], [2000, 0], [2000, 1000], [990, 1000]]"),
+     ":13", r"blocks\[1\] \(B2\): the polygon overlaps the outline of block B1 \(blocks\[0\]\) over an area of 10000"),
+    (("id: B2", "id: B1"), ":12", r"blocks\[1\]: block B1 is given twice"),
+    (("[2000, 0], [2000, 1000], [1000", "[2000, 0, 5], [2000, 1000], [1000"), ":13", "at most 2 items"),
+    (("[2000, 0], [2000, 1000], [1000", "[2000, .inf], [2000, 1000], [1000"), ":13", "finite number"),
+    (("[2000, 0], [2000, 1000], [1000", "[2000, east], [2000, 1000], [1000"), ":13", "valid number"),
+    (("[[1000, 0], [2000, 0], [2000, 1000], [1000, 1000]]", "[[1000, 0], [2000, 0]]"), ":13", "at least 3 items"),
+    (("area_of_interest: [[0, 0], [2000, 0], [2000, 1000], [0, 1000]]",
+      "area_of_interest: [[0, 0], [2000, 1000], [2000, 0], [0, 1000]]"),
+     ":14", r"area_of_interest is not a valid outline \(Self-intersection"),
+    (("id: B2\n", "id: B2\n    method: aerotriangulation\n"), ":13", "method"),  # the outline only, closed
+])
+def test_a_bad_outline_in_the_checker_file_is_refused_naming_file_and_line(
+        tmp_path: Path, change: tuple[str, str], where: str, what: str) -> None:
+    assert change[0] in OUTLINES
+    path = write_checker(tmp_path, MINI_CHECKER + OUTLINES.replace(*change))
+    with pytest.raises(OrthospecError, match=what) as exc:
+        load_checker(path, delivery_root=tmp_path / "d")
+    assert f"{path}{where}" in str(exc.value)

@@ -316,6 +316,79 @@ def _b02_outline_bowtie(m: dict[str, Any]) -> None:
                             [514500.0, 5410200.0], [507500.0, 5403000.0]]
 
 
+#: the example's true outlines (examples/generate.py, also stated in examples/checker/aerial-*.yaml)
+_B01 = [[500000.0, 5400000.0], [507000.0, 5400000.0], [507000.0, 5406000.0], [506000.0, 5407200.0],
+        [500000.0, 5407200.0], [500000.0, 5400000.0]]
+_B02 = [[507500.0, 5403000.0], [514500.0, 5403000.0], [514500.0, 5409000.0], [513500.0, 5410200.0],
+        [507500.0, 5410200.0], [507500.0, 5403000.0]]
+
+
+def _snake_b01_around_its_strays(d: Path) -> None:
+    """B01's outline snaked around the B02 points relabelled B01: 2 m corridors from each point west
+    into the 500 m gap, a spine down the gap and a link into B01; B02's outline notched by the same
+    corridors, so no two outlines share area (R17's refusal does not apply). Integer vertices: the
+    union and difference are exact."""
+    import shapely
+    from shapely.geometry import Point, Polygon, box
+
+    b01, b02 = Polygon(_B01), Polygon(_B02)
+    _, rows = read_table(d, "checkpoints")
+    strays = [(float(r["x_ref"]), float(r["y_ref"])) for r in rows
+              if r["block"] == "B01" and not b01.covers(Point(float(r["x_ref"]), float(r["y_ref"])))]
+    assert strays, "no B02 point relabelled B01"
+    low = min(math.floor(min(y for _, y in strays)) - 1, 5404990)
+    top = max(math.ceil(max(y for _, y in strays)) + 1, 5405010)
+    parts = [box(507240, low, 507260, top), box(506990, 5404990, 507260, 5405010)]
+    parts += [box(507240, math.floor(y) - 1, math.ceil(x) + 1, math.ceil(y) + 1) for x, y in strays]
+    snake = shapely.union_all(parts)
+    new01, new02 = b01.union(snake), b02.difference(snake)
+    assert new01.geom_type == new02.geom_type == "Polygon" and new01.intersection(new02).area == 0
+    assert all(new01.covers(Point(p)) for p in strays)
+    m = manifest(d)
+    for b in m["blocks"]:
+        if b["id"] in ("B01", "B02"):
+            b["polygon"] = [[float(x), float(y)] for x, y in (new01 if b["id"] == "B01" else new02).exterior.coords]
+    write_manifest(d, m)
+
+
+def _aoi_file_without_strip_f02_02(d: Path) -> None:
+    """Strip F02_02 removed, and an area of interest declared (vectors/aoi.gpkg) as B01, B03 and B02 cut
+    at x = 511,500 m, what the remaining strip F02_01 covers (R13 with the area instead of the block)."""
+    import numpy as np
+    import pyogrio
+    import shapely
+    from shapely.geometry import Polygon, box
+
+    _drop_strip_f02_02(d)
+    m = manifest(d)
+    polys = {b["id"]: Polygon(b["polygon"]) for b in m["blocks"]}
+    area = [polys["B01"], polys["B02"].intersection(box(507000, 5400000, 511500, 5420000)), polys["B03"]]
+    (d / "vectors").mkdir(exist_ok=True)
+    pyogrio.raw.write(str(d / "vectors" / "aoi.gpkg"), geometry=np.array(shapely.to_wkb(area), dtype=object),
+                      field_data=[], fields=[], driver="GPKG", crs="EPSG:25832", geometry_type="Polygon")
+    m["project"]["area_of_interest"] = "vectors/aoi.gpkg"
+    write_manifest(d, m)
+
+
+def _checker_states(edit: Edit, fn: Callable[[dict[str, Any]], None]) -> Edit:
+    """``edit``, with the checker's file changed by ``fn`` (the checker's side, not the contractor's)."""
+    def wrapped(d: Path) -> None:
+        edit(d)
+    wrapped.checker_edit = fn  # type: ignore[attr-defined]
+    return wrapped
+
+
+def _no_outlines(doc: dict[str, Any]) -> None:
+    """A checker's file that states no block outlines or area: the manifest's are in force."""
+    doc.pop("blocks", None)
+    doc.pop("area_of_interest", None)
+
+
+def _aoi_is_b02(doc: dict[str, Any]) -> None:
+    """The checker states the area of interest (here B02's true outline, where strip F02_02 lies)."""
+    doc["area_of_interest"] = _B02[:-1]
+
+
 def _project_crs(value: str | None) -> Edit:
     """The manifest's project.crs set to ``value`` (None: removed); the images are left as delivered."""
     def fn(m: dict[str, Any]) -> None:
@@ -370,13 +443,16 @@ def _delivered_items(d: Path) -> set[str]:
     return items
 
 
-def _checker_for(example: str, delivery: Path, tmp_path: Path) -> Path:
+def _checker_for(example: str, delivery: Path, tmp_path: Path,
+                 checker_edit: Callable[[dict[str, Any]], None] | None = None) -> Path:
     """The checker's fixed file re-signed on the delivered content (tests/checking.py ``resigned``): the
     checker signs what it receives and judges only the items it received. Written outside the delivery."""
     path = resigned(CHECKERS / f"{example}.yaml", delivery, tmp_path / f"checker-{example}.yaml")
     doc = yaml.safe_load(path.read_text(encoding="utf-8"))
     items = _delivered_items(delivery)
     doc["manual_checks"] = [m for m in doc.get("manual_checks") or [] if m["item"] == "*" or m["item"] in items]
+    if checker_edit is not None:
+        checker_edit(doc)
     path.write_text(yaml.safe_dump(doc, sort_keys=False, allow_unicode=True), encoding="utf-8")
     return path
 
@@ -386,7 +462,7 @@ def _run(example: str, edit: Edit, tmp_path: Path) -> tuple[int, dict[str, Any] 
     d = tmp_path / example
     shutil.copytree(EXAMPLES / example, d)
     edit(d)
-    checker = _checker_for(example, d, tmp_path)
+    checker = _checker_for(example, d, tmp_path, getattr(edit, "checker_edit", None))
     after = getattr(edit, "after_signing", None)
     if after is not None:
         after(d)
@@ -522,6 +598,42 @@ def _check_outside_block(block: str) -> Callable[[int, dict[str, Any] | None, st
         assert code == 1 and doc is not None
         _rejects(doc, "JRC-12.4-CHECKPOINTS-IN-BLOCK", block)
     return check
+
+
+def _check_outlines_in_force(*, redrawn: bool, stray: str | None = None, coverage: bool = False,
+                             aoi: bool = False) -> Callable[[int, dict[str, Any] | None, str], None]:
+    # R13/R17 with the checker's outlines in force (examples/checker/aerial-*.yaml `blocks:`): a redrawn
+    # declaration is itself a finding, and the true outlines decide the in-block test (``stray``: the
+    # block holding points outside its true outline) and the area the photos must cover (JRC §12.4
+    # "within the block/site area", §5.2.2)
+    def check(code: int, doc: dict[str, Any] | None, err: str) -> None:
+        assert code == 1 and doc is not None
+        did = doc["delivery"]["id"]
+        if redrawn:
+            _rejects(doc, "JRC-12.4-BLOCK-OUTLINES-AGREE", did)
+        else:
+            assert _verdicts(doc, "JRC-12.4-BLOCK-OUTLINES-AGREE")[did] == "pass"
+        in_block = _verdicts(doc, "JRC-12.4-CHECKPOINTS-IN-BLOCK")
+        if stray is not None:
+            _rejects(doc, "JRC-12.4-CHECKPOINTS-IN-BLOCK", stray)
+        assert {b for b, v in in_block.items() if v != "pass"} == ({stray} if stray else set()), in_block
+        if coverage:
+            _rejects(doc, "JRC-5.2.2-COVERAGE", did)
+            message = next(r["message"] for r in all_records(doc) if r["rule"] == "JRC-5.2.2-COVERAGE")
+            assert "of the checker file" in message, message
+        if aoi:
+            _rejects(doc, "JRC-5.2.2-AOI-AGREES", did)
+    return check
+
+
+def _check_outlines_unused(code: int, doc: dict[str, Any] | None, err: str) -> None:
+    # (c) the checker's file states no outlines: the manifest's are in force, as before (R6's rule
+    # catches the shrunk B02), and the agreement rules are not applicable
+    assert code == 1 and doc is not None
+    _rejects(doc, "JRC-12.4-CHECKPOINTS-IN-BLOCK", "B02")
+    did = doc["delivery"]["id"]
+    assert _verdicts(doc, "JRC-12.4-BLOCK-OUTLINES-AGREE")[did] == "not_applicable"
+    assert _verdicts(doc, "JRC-5.2.2-AOI-AGREES")[did] == "not_applicable"
 
 
 def _check_inflated_heights(code: int, doc: dict[str, Any] | None, err: str) -> None:
@@ -689,7 +801,25 @@ CASES = [
     pytest.param("aerial-pass", _planted(_project_crs(None), _units("ft"), _fix_reported),
                  _check_map_projection(images_rejected=False), id="R16-project-crs-removed-units-ft"),
     pytest.param("aerial-pass", _chain(_drop_strip_f02_02, _manifest_edit(_shrink_b02_to_first_strip)),
-                 _check_outside_block("B02"), id="R13-strip-removed-block-outline-shrunk"),
+                 _check_outlines_in_force(redrawn=True, coverage=True, aoi=True), id="R13-strip-removed-block-outline-shrunk"),
+    pytest.param("aerial-pass", _checker_states(_chain(_drop_strip_f02_02, _manifest_edit(_shrink_b02_to_first_strip)),
+                                                _no_outlines),
+                 _check_outlines_unused, id="R13-block-outline-shrunk-checker-states-no-outlines"),
+    pytest.param("aerial-pass", _planted(_move_worst("B01", 4), _snake_b01_around_its_strays, _fix_reported),
+                 _check_outlines_in_force(redrawn=True, stray="B01"), id="R13-B01-outline-snaked-around-B02-points"),
+    pytest.param("aerial-pass", _checker_states(_planted(_move_worst("B01", 4), _snake_b01_around_its_strays,
+                                                         _fix_reported), _no_outlines),
+                 _not_accepted, id="R13-B01-outline-snaked-checker-states-no-outlines",
+                 marks=_xfail("R13: without the checker's outlines a snaked (non-overlapping) outline is the "
+                              "contractor's to draw; stating them in the checker's file closes it")),
+    pytest.param("aerial-pass", _aoi_file_without_strip_f02_02, _check_outlines_in_force(redrawn=False, coverage=True, aoi=True),
+                 id="R13-area-of-interest-shrunk-checker-states-blocks"),
+    pytest.param("aerial-pass", _checker_states(_aoi_file_without_strip_f02_02, _aoi_is_b02),
+                 _check_outlines_in_force(redrawn=False, coverage=True, aoi=True), id="R13-area-of-interest-shrunk-checker-states-it"),
+    pytest.param("aerial-pass", _checker_states(_aoi_file_without_strip_f02_02, _no_outlines),
+                 _not_accepted, id="R13-area-of-interest-shrunk-checker-states-no-outlines",
+                 marks=_xfail("R13: without the checker's outlines the area of interest is the contractor's "
+                              "project.area_of_interest; stating it in the checker's file closes it")),
     pytest.param("aerial-pass", _planted(_move_worst("B01", 4), _manifest_edit(_b01_outline_swallows_b02),
                                          _fix_reported),
                  _refused("delivery.yaml:", "blocks[1] (B02)", "overlaps the outline of block B01"),

@@ -13,6 +13,8 @@ Format (schema: specs/schema/checker.schema.json)::
     checker: {name: "M. Keller (fictional)", role: external QC, organisation: ...}
     delivery: {id: D-2026-014, files: {tables/checkpoints.csv: <sha256>}}   # what was signed
     parameters: {tolerance_xy: {value: 0.5, unit: m}, map_crs: EPSG:25832}  # ITT values in force
+    blocks: [{id: B01, polygon: [[x, y], ...]}]      # block outlines in force (map_crs), optional
+    area_of_interest: [[x, y], ...]                  # area the photos must cover (map_crs), optional
     manual_checks:
       - {check: JRC-5.3-IDQA, item: "*", date: 2026-06-21, verdict: pass, note: "..."}
     waivers:
@@ -33,11 +35,14 @@ from ..errors import OrthospecError
 from ..provenance import Evidence, sha256_file
 from ..yamlio import YamlError, load_file
 from .manifest import QuantityIn, Scalar
+from .outlines import StatedOutlines, first_overlap, invalid_reason, ring_polygon
 
 if TYPE_CHECKING:
     from .reader import Delivery
 
 Sha256 = Annotated[str, StringConstraints(pattern=r"^[0-9a-fA-F]{64}$")]
+#: one vertex of an outline: [x, y] in the ITT's map projection (parameter map_crs), finite
+Vertex = tuple[Annotated[float, Field(allow_inf_nan=False)], Annotated[float, Field(allow_inf_nan=False)]]
 
 
 class _Closed(BaseModel):
@@ -87,6 +92,15 @@ class CheckerDelivery(_Closed):
         "whose independence JRC §12.4 asks the checker to vouch for)."))
 
 
+class CheckerBlock(_Closed):
+    """A block outline in force (JRC §12.4 "block/site", the unit of acceptance of §12.7/§12.8)."""
+
+    id: str = Field(min_length=1, description="The block id (delivery.yaml blocks[].id).")
+    polygon: list[Vertex] = Field(min_length=3, description=(
+        "The outline as one ring of [x, y] vertices in the ITT's map projection (parameter map_crs); "
+        "a simple ring, not overlapping another block's."))
+
+
 class CheckerModel(_Closed):
     orthospec_checker: Literal[1]
     checker: CheckerParty
@@ -94,6 +108,12 @@ class CheckerModel(_Closed):
     parameters: dict[str, QuantityIn | Scalar] = Field(default_factory=dict, description=(
         "ITT values in force (JRC §2.5 \"the tolerance stated in the ITT\"), same shape as the manifest's "
         "tender.parameters; --param wins over them, they win over the tender profile and the standard."))
+    blocks: list[CheckerBlock] = Field(default_factory=list, description=(
+        "Block outlines in force (JRC §12.4, §12.7): when given, check points count for a block by these "
+        "outlines, and the manifest's blocks[].polygon are declarations compared with them."))
+    area_of_interest: list[Vertex] | None = Field(None, min_length=3, description=(
+        "The area the photo lay-down must cover (JRC §5.2.2 \"all the surveyed area\"), one ring of [x, y] in "
+        "map_crs; when given it is in force and the manifest's project.area_of_interest is a declaration."))
     manual_checks: list[CheckerManualCheck] = Field(default_factory=list)
     waivers: list[CheckerWaiver] = Field(default_factory=list)
 
@@ -158,6 +178,52 @@ def _duplicates(model: CheckerModel, display: str, lines: dict[tuple[str, int], 
         seen[key] = i
 
 
+def _check_outlines(chk: Checker) -> None:
+    """The outlines the checker states are valid rings, blocks named once and not overlapping (the
+    same test as the manifest's, delivery/outlines.py); exit 2 naming the file and line otherwise."""
+    m = chk.model
+    seen: dict[str, int] = {}
+    polys = []
+    for i, b in enumerate(m.blocks):
+        if b.id in seen:
+            raise OrthospecError(f"checker file {chk.at('blocks', i)}: blocks[{i}]: block {b.id} is given twice "
+                                 f"(first at blocks[{seen[b.id]}]); one outline per block")
+        seen[b.id] = i
+        poly = ring_polygon(b.polygon)
+        why = invalid_reason(poly)
+        if why:
+            raise OrthospecError(f"checker file {chk.at('blocks', i, 'polygon')}: blocks[{i}] ({b.id}): the polygon "
+                                 f"is not a valid block outline ({why}); a block outline is a simple ring whose "
+                                 "edges do not cross")
+        polys.append(poly)
+    hit = first_overlap(polys)
+    if hit is not None:
+        i, j, area = hit
+        raise OrthospecError(f"checker file {chk.at('blocks', j, 'polygon')}: blocks[{j}] ({m.blocks[j].id}): the "
+                             f"polygon overlaps the outline of block {m.blocks[i].id} (blocks[{i}]) over an area of "
+                             f"{area:.6g} (map_crs units squared); blocks are the units of acceptance (JRC §12.4, "
+                             "§12.8) and a check point cannot belong to two: outlines may touch but not overlap")
+    if m.area_of_interest is not None:
+        why = invalid_reason(ring_polygon(m.area_of_interest))
+        if why:
+            raise OrthospecError(f"checker file {chk.at('area_of_interest')}: area_of_interest is not a valid "
+                                 f"outline ({why}); give one simple ring of [x, y] vertices in map_crs")
+
+
+def stated_outlines(chk: Checker) -> StatedOutlines | None:
+    """The outlines this checker file puts in force, with evidence naming it; None when it states none."""
+    m = chk.model
+    if not m.blocks and m.area_of_interest is None:
+        return None
+    blocks = {b.id: (tuple(b.polygon), chk.evidence("blocks", i)) for i, b in enumerate(m.blocks)}
+    aoi = None
+    if m.area_of_interest is not None:
+        line = chk.lines.get(("area_of_interest",))
+        aoi = (tuple(m.area_of_interest), Evidence(f"checker:{chk.name}", chk.sha256, (),
+                                                   "area_of_interest" + (f" (line {line})" if line else "")))
+    return StatedOutlines(f"checker file {chk.name}", blocks, aoi)
+
+
 def load_checker(path: str | Path, *, delivery_root: str | Path | None = None,
                  delivery: Delivery | None = None) -> Checker:
     """Read and validate a checker file; refuse one inside ``delivery_root`` (or ``delivery``'s root),
@@ -192,9 +258,13 @@ def load_checker(path: str | Path, *, delivery_root: str | Path | None = None,
     extra = [("delivery",), ("delivery", "id"), ("delivery", "manifest_sha256"),
              *(("delivery", "files", k) for k in model.delivery.files),
              ("parameters",), *(("parameters", k) for k in model.parameters)]
+    extra += [("area_of_interest",), *(("blocks", i, "polygon") for i in range(len(model.blocks))),
+              *(("blocks", i, "polygon", k) for i, b in enumerate(model.blocks) for k in range(len(b.polygon)))]
     marks.update({k: doc.where(k)[0] or 0 for k in extra})
+    marks.update({("blocks", i): doc.where(("blocks", i))[0] or 0 for i in range(len(model.blocks))})
     _duplicates(model, display, marks)
     chk = Checker(model, p.name, sha256_file(p), marks, display)
+    _check_outlines(chk)
     if delivery is not None:
         bind(chk, delivery)
     return chk
@@ -232,6 +302,8 @@ def bind(chk: Checker, d: Delivery) -> None:
         if got.lower() != want.lower():
             raise OrthospecError(f"checker file {where} pins {rel} sha256 {want.lower()}, the delivery's is "
                                  f"{got}: {other}")
+    # the outlines the checker states are the ones in force for this delivery (red team R13/R17)
+    d.stated_outlines = stated_outlines(chk)
 
 
 def checker_schema() -> dict[str, Any]:

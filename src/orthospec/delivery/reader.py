@@ -33,6 +33,7 @@ from ..units import canonical, parse_unit
 from ..yamlio import YamlError, load_file
 from .convention import ColumnSpec, TableSpec, table_specs
 from .manifest import Manifest
+from .outlines import StatedOutlines, first_overlap, invalid_reason, ring_polygon
 
 MANIFEST = "delivery.yaml"
 #: Columns that hold a path relative to the delivery root, in any table.
@@ -237,6 +238,8 @@ class Delivery:
     limits: Limits = field(default_factory=Limits, repr=False)
     _tables: dict[str, Table] = field(default_factory=dict, repr=False)
     _sha: dict[str, str] = field(default_factory=dict, repr=False)
+    #: outlines the checker's file states (delivery/checker.py ``bind``); None: the manifest's are in force
+    stated_outlines: StatedOutlines | None = field(default=None, repr=False)
 
     # --- paths and checksums -----------------------------------------------------------
     def path(self, rel: str, *, what: str = "file", file: str | None = MANIFEST,
@@ -258,6 +261,21 @@ class Delivery:
 
     def manifest_evidence(self, path: str) -> Evidence:
         return Evidence(MANIFEST, self.manifest_sha256, (), path)
+
+    def block_outlines(self) -> dict[str, tuple[Any, Evidence]]:
+        """Block id -> (ring of [x, y], evidence) of the outlines in force: the checker's file's when it
+        states blocks (the manifest's are then declarations, red team R13/R17), else the manifest's
+        (blocks without a polygon are left out; a non-finite vertex is the caller's to report)."""
+        if self.stated_outlines is not None and self.stated_outlines.blocks:
+            return dict(self.stated_outlines.blocks)
+        return {b.id: (b.polygon, self.manifest_evidence(f"blocks[{i}].polygon"))
+                for i, b in enumerate(self.manifest.blocks) if b.polygon}
+
+    def area_of_interest_in_force(self) -> tuple[Any, Evidence] | None:
+        """(ring of [x, y], evidence) of the area of interest the checker's file states, or None: then
+        the manifest's is in force (project.area_of_interest, a vector file the engine reads, else
+        the union of the block outlines in force)."""
+        return self.stated_outlines.area_of_interest if self.stated_outlines is not None else None
 
     def where(self, path: tuple[Any, ...]) -> int | None:
         p = tuple(path)
@@ -1049,26 +1067,19 @@ def _check_block_outlines(manifest: Manifest, line_of: Any) -> None:
                 and np.isfinite(np.asarray(b.polygon, dtype=float)).all()]
     if not outlines:
         return
-    from shapely import STRtree
-    from shapely.geometry import Polygon
-    from shapely.validation import explain_validity
-
     polys = []
     for i, b in outlines:
-        poly = Polygon([(float(x), float(y)) for x, y in b.polygon])
-        if not poly.is_valid or poly.area <= 0:
-            why = explain_validity(poly) if not poly.is_valid else "it encloses no area"
+        poly = ring_polygon(b.polygon)
+        why = invalid_reason(poly)
+        if why:
             raise DeliveryError(f"blocks[{i}] ({b.id}): the polygon is not a valid block outline ({why}); a "
                                 "block outline is a simple ring whose edges do not cross",
                                 file=MANIFEST, line=line_of(("blocks", i, "polygon")))
         polys.append(poly)
-    left, right = STRtree(polys).query(polys, predicate="intersects")
-    overlaps = sorted((int(b), int(a)) for a, b in zip(left.tolist(), right.tolist(), strict=True)
-                      if a < b and polys[a].intersection(polys[b]).area > 0)
-    if overlaps:
-        second, first = overlaps[0]
+    hit = first_overlap(polys)
+    if hit is not None:
+        first, second, area = hit
         (i, a), (j, b) = outlines[first], outlines[second]
-        area = polys[first].intersection(polys[second]).area
         raise DeliveryError(f"blocks[{j}] ({b.id}): the polygon overlaps the outline of block {a.id} "
                             f"(blocks[{i}]) over an area of {area:.6g} (project.crs units squared); blocks are the units "
                             "of acceptance (JRC §12.4, §12.8) and a check point cannot belong to two: "

@@ -222,26 +222,30 @@ def _distributions(jobs: list[tuple[BlockPoints, Polygon | None, tuple[np.ndarra
 
 
 def _outlines(ctx: ProviderContext) -> tuple[dict[str, Polygon], dict[str, str]]:
-    """Block polygons from the manifest (in metres), and the blocks whose outline is broken.
+    """Block polygons in force (in metres), and the blocks whose outline is broken.
 
-    A polygon is in the unit of ``project.crs`` (metres when none is declared), never in the check
-    points' ``units`` (red team R2: scaling it with the points kept mis-scaled points inside it).
+    The outlines in force are the checker's file's when it states blocks, else the manifest's
+    (``Delivery.block_outlines``; red team R13/R17: the contractor's outline decides nothing the
+    checker has drawn). A polygon is in the unit of ``project.crs`` (metres when none is declared;
+    the checker's are in map_crs, and a project.crs other than map_crs returns the delivery,
+    JRC-12.4-T12-MAP-PROJECTION), never in the check points' ``units`` (red team R2: scaling it
+    with the points kept mis-scaled points inside it).
     """
     unit = ctx.delivery.crs_unit
     to_m = float(convert([1.0], unit, "m")[0]) if unit in ("m", "ft", "usft") else 1.0
     polys: dict[str, Polygon] = {}
     broken: dict[str, str] = {}
-    for b in ctx.delivery.manifest.blocks:
-        if not (b.polygon and len(b.polygon) >= 3):
+    for block, (ring, ev) in ctx.delivery.block_outlines().items():
+        if len(ring) < 3:
             continue
-        xy = np.asarray(b.polygon, dtype=float)
+        xy = np.asarray(ring, dtype=float)
         if not np.isfinite(xy).all():
             row = int(np.flatnonzero(~np.isfinite(xy).all(axis=1))[0])
             # a broken outline makes the block's statistics untrustworthy: error, never a pass
-            broken[b.id] = (f"delivery.yaml blocks[{b.id}].polygon vertex {row + 1} is not a finite "
-                            f"number ({b.polygon[row]}): the block cannot be checked")
+            broken[block] = (f"{ev.file} {ev.path or 'blocks'} ({block}) vertex {row + 1} is not a finite "
+                             f"number ({list(ring[row])}): the block cannot be checked")
             continue
-        polys[b.id] = Polygon([(float(x) * to_m, float(y) * to_m) for x, y in b.polygon])
+        polys[block] = Polygon([(float(x) * to_m, float(y) * to_m) for x, y in ring])
     return polys, broken
 
 

@@ -33,6 +33,13 @@
   coordinates and block outlines are written in) names the map projection in force, the ITT
   parameter ``map_crs`` (JRC §12.4 Table 12; red team R16: the contractor relabelled every image
   and project.crs alike). Absent or unreadable is False, never "not applicable".
+* ``derived.block_outlines_agree`` and ``derived.area_of_interest_agrees`` (delivery): when the
+  checker's file states block outlines / an area of interest (delivery/checker.py), those are in
+  force (``Delivery.block_outlines``: the check points' blocks, the DEM's blocks, the area the
+  photos must cover) and the manifest's are declarations compared with them (red team R13: B02's
+  outline shrunk to hide a coverage hole; R17: B01's redrawn over B02's worst points). A declared
+  outline agrees within ``OUTLINE_TOLERANCE``; a block only one side lists is a disagreement. Not
+  applicable when the checker's file states none (the manifest's are then in force).
 * ``derived.pansharpened`` (delivery): the product is pan-sharpened, computed from the bands and
   pixel sizes (a multispectral product finer than the scenes' native multispectral pixel), so a
   declared ``product.pansharpened: false`` cannot switch off JRC §10.5 ("Pan-sharpening of
@@ -58,6 +65,15 @@ MASTER = {"derived.master_images": "1"}
 MASTER_FLAG = {"derived.is_master": "bool"}
 MASTER_AGREE = {"derived.master_images_agree": "bool"}
 PROJECT_CRS = {"derived.project_crs_agrees": "bool"}
+OUTLINES_AGREE = {"derived.block_outlines_agree": "bool"}
+AOI_AGREE = {"derived.area_of_interest_agrees": "bool"}
+#: A declared outline agrees with the one in force when the area between them (symmetric difference)
+#: is at most this share of the in-force outline's area, and no point of one lies farther from the
+#: other (Hausdorff distance) than this share of the square root of that area. Both relative, so the
+#: test reads the same in any map unit; 1 % admits rounded coordinates, a ring started at another
+#: vertex or densified, not a redrawn boundary (a corridor reaching 1 % of a 6 x 7 km block's size,
+#: 65 m, into its neighbour already fails the distance test whatever its area).
+OUTLINE_TOLERANCE = 0.01
 #: A photo counts toward coverage only when its lay-down GSD (H/f x pixel size, the scale of its
 #: footprint) is at most this factor times its reference GSD (the finest of ``images.acquisition_gsd``,
 #: ``images.gsd``, ``product.gsd`` and its delivered raster's measured pixel size). 20 %: the ground-pixel size of one photo
@@ -289,12 +305,10 @@ def photo_coverage(ctx: ProviderContext) -> list[Measured]:
     """Share of the area of interest the photo lay-down covers (JRC §5.2.2)."""
     import shapely
 
-    from .mosaic import _aoi
-
     d = ctx.delivery
     value: float | None = None
     try:
-        aoi, aoi_ev, source = _aoi(ctx)
+        aoi, aoi_ev, source = _aoi_in_force(ctx)
     except (OrthospecError, OSError) as exc:
         aoi, aoi_ev, source, note = None, (d.manifest_evidence("project.area_of_interest"),), "", str(exc)
     else:
@@ -328,6 +342,128 @@ def photo_coverage(ctx: ProviderContext) -> list[Measured]:
                              "with the GSD)")
     return [Measured("derived.photo_coverage", "delivery", "%", pd.Series({d.id: value}, dtype=object),
                      pd.Series({d.id: (*aoi_ev, *ev)}, dtype=object), notes=pd.Series({d.id: note}, dtype=object))]
+
+
+def _aoi_in_force(ctx: ProviderContext) -> tuple[Any, tuple[Any, ...], str]:
+    """(area, evidence, wording) the photo lay-down must cover (JRC §5.2.2 "all the surveyed area").
+
+    The checker's ``area_of_interest`` when its file states one, else the union of the checker's
+    block outlines when it states those (red team R13: the area is the buyer's, not what the
+    contractor redraws); else the manifest's: project.area_of_interest, else the union of its
+    block polygons (``mosaic._aoi``). The same order on both sides: an area, else its blocks."""
+    import shapely
+
+    from ...delivery.outlines import ring_polygon
+    from .mosaic import _aoi
+
+    d = ctx.delivery
+    stated = d.stated_outlines
+    in_force = d.area_of_interest_in_force()
+    if stated is not None and in_force is not None:
+        ring, ev = in_force
+        return ring_polygon(ring), (ev,), f"area of interest of the {stated.source}"
+    if stated is not None and stated.blocks:
+        return (shapely.union_all([ring_polygon(r) for r, _ in stated.blocks.values()]),
+                tuple(e for _, e in stated.blocks.values()), f"union of the block outlines of the {stated.source}")
+    return _aoi(ctx)
+
+
+def _disagreement(declared: Any, in_force: Any) -> str | None:
+    """None when ``declared`` agrees with ``in_force`` within ``OUTLINE_TOLERANCE``, else how far apart."""
+    import math
+
+    area = float(in_force.area)
+    sym = float(declared.symmetric_difference(in_force).area)
+    far = float(declared.hausdorff_distance(in_force))
+    limit = OUTLINE_TOLERANCE * math.sqrt(area)
+    if sym <= OUTLINE_TOLERANCE * area and far <= limit:
+        return None
+    return (f"differs by {sym / area * 100:.3g} % of the area in force (symmetric difference; at most "
+            f"{OUTLINE_TOLERANCE * 100:g} %) and by up to {far:.6g} map units (Hausdorff distance; at most {limit:.6g})")
+
+
+def _ring_ok(ring: Any) -> bool:
+    return ring is not None and len(ring) >= 3 and bool(np.isfinite(np.asarray(ring, dtype=float)).all())
+
+
+@provider(scope="delivery", measures=OUTLINES_AGREE)
+def block_outlines_agree(ctx: ProviderContext) -> list[Measured]:
+    """The manifest's block outlines are the ones the checker's file puts in force (JRC §12.4 "block/site")."""
+    from ...delivery.outlines import ring_polygon
+
+    d = ctx.delivery
+    stated = d.stated_outlines
+    ev: tuple[Any, ...] = (d.manifest_evidence("blocks"),)
+    na = None
+    value: bool | None
+    if stated is None or not stated.blocks:
+        value, note = None, "the checker's file states no block outlines: the manifest's are in force"
+        na = pd.Series({d.id: note}, dtype=object)
+    else:
+        ev += tuple(e for _, e in stated.blocks.values())
+        declared = {b.id: (i, b.polygon) for i, b in enumerate(d.manifest.blocks)}
+        problems = []
+        for block in sorted(set(declared) | set(stated.blocks)):
+            if block not in declared:
+                problems.append(f"block {block}: the {stated.source} gives its outline, delivery.yaml lists no "
+                                "such block")
+            elif block not in stated.blocks:
+                problems.append(f"block {block} (delivery.yaml blocks[{declared[block][0]}]): the {stated.source} "
+                                "gives no outline for it, so none of its check points lies in a block in force")
+            elif not _ring_ok(declared[block][1]):
+                problems.append(f"block {block}: delivery.yaml blocks[{declared[block][0]}] declares no valid polygon")
+            else:
+                why = _disagreement(ring_polygon(declared[block][1]), ring_polygon(stated.blocks[block][0]))
+                if why:
+                    problems.append(f"block {block}: delivery.yaml blocks[{declared[block][0]}].polygon {why}")
+        value = not problems
+        note = ("; ".join(problems[:5]) + (f"; and {len(problems) - 5} more" if len(problems) > 5 else "")
+                if problems else f"the {len(stated.blocks)} block outline(s) of delivery.yaml agree with the "
+                f"{stated.source} (within {OUTLINE_TOLERANCE * 100:g} %)")
+    return [Measured("derived.block_outlines_agree", "delivery", "bool", pd.Series({d.id: value}, dtype=object),
+                     pd.Series({d.id: ev}, dtype=object), notes=pd.Series({d.id: note}, dtype=object), na=na)]
+
+
+@provider(scope="delivery", measures=AOI_AGREE)
+def area_of_interest_agrees(ctx: ProviderContext) -> list[Measured]:
+    """The manifest's area of interest is the one the checker's file puts in force (JRC §5.2.2).
+
+    Declared: project.area_of_interest, else the union of the manifest's block polygons; in force:
+    the checker's area_of_interest, else the union of its block outlines (``_aoi_in_force``).
+    Not applicable when the checker states neither, or when it states an area and the manifest
+    declares no area file (the union of blocks is then no statement about the area)."""
+    d = ctx.delivery
+    stated = d.stated_outlines
+    rel = d.manifest.project.area_of_interest
+    ev: tuple[Any, ...] = (d.manifest_evidence("project.area_of_interest"),)
+    na: str | None = None
+    value: bool | None = None
+    if stated is None:
+        note = na = "the checker's file states no area of interest or block outlines: the manifest's are in force"
+    elif stated.area_of_interest is not None and not rel:
+        note = na = (f"delivery.yaml declares no project.area_of_interest; the {stated.source}'s is in force "
+                     "and nothing is declared to compare with it")
+    else:
+        from .mosaic import _aoi
+
+        try:
+            in_force, in_force_ev, in_force_what = _aoi_in_force(ctx)
+            declared, declared_ev, declared_what = _aoi(ctx)
+        except (OrthospecError, OSError) as exc:
+            note = f"cannot form the declared area of interest: {exc}"
+        else:
+            ev = (*declared_ev, *in_force_ev)
+            if declared is None:
+                note = na = "delivery.yaml declares no area of interest and no block polygon"
+            else:
+                why = _disagreement(declared, in_force)
+                value = why is None
+                note = (f"the {declared_what} (delivery.yaml) is not the {in_force_what}: it {why}" if why else
+                        f"the {declared_what} (delivery.yaml) agrees with the {in_force_what} "
+                        f"(within {OUTLINE_TOLERANCE * 100:g} %)")
+    return [Measured("derived.area_of_interest_agrees", "delivery", "bool", pd.Series({d.id: value}, dtype=object),
+                     pd.Series({d.id: ev}, dtype=object), notes=pd.Series({d.id: note}, dtype=object),
+                     na=None if na is None else pd.Series({d.id: na}, dtype=object))]
 
 
 #: scenes columns that show a master-image workflow (JRC Table 9 "Accuracy of the master image")
@@ -494,10 +630,8 @@ def dem_blocks(ctx: ProviderContext) -> list[Measured]:
     if t is None:
         return [Measured("derived.dem_blocks", "dem", "text", pd.Series(dtype=object), pd.Series(dtype=object),
                          notes=pd.Series({"*": "the manifest declares no 'dem' table"}, dtype=object))]
-    polys = {}
-    for b in d.manifest.blocks:
-        if b.polygon and len(b.polygon) >= 3 and np.isfinite(np.asarray(b.polygon, dtype=float)).all():
-            polys[b.id] = Polygon(b.polygon)
+    # the outlines in force: the checker's file's when it states blocks (red team R13), else the manifest's
+    polys = {block: Polygon(ring) for block, (ring, _) in d.block_outlines().items() if _ring_ok(ring)}
     ids = t.ids.astype(str).tolist()
     vals: dict[str, Any] = {}
     notes: dict[str, str] = {}
