@@ -10,7 +10,8 @@ generated rows (the columns of specs/delivery-tables.yaml: points spread over th
 rectangles, image minus reference errors ~ N(0, 0.15 m), every other column filled as in the
 example). Then, in one run and each in its own subprocess, best of ``--rounds``:
 ``pandas.read_csv`` of that file (the peer) and ``orthospec check`` of the delivery. Prints
-both times, their ratio (issue 14 target: <= 10x) and the check's peak RSS (target < 1 GB).
+both times, their ratio (issue 14 target: <= 10x), the check's peak RSS (target < 1 GB) and
+the size of the qcr.json it wrote.
 """
 
 from __future__ import annotations
@@ -90,7 +91,7 @@ def main() -> None:
         csv = delivery / "tables" / "checkpoints.csv"
         print(f"delivery: {delivery.name}, checkpoints.csv {args.points:,} rows, "
               f"{csv.stat().st_size / 1e6:.0f} MB")
-        peer, check, rss, code = 1e9, 1e9, 0.0, 0
+        peer, check, rss, code, qcr_mb = 1e9, 1e9, 0.0, 0, 0.0
         for r in range(args.rounds):
             peer = min(peer, run([sys.executable, "-c", READ_CSV, str(csv)])[0])
             out = Path(tmp) / f"out-{r}"
@@ -99,9 +100,10 @@ def main() -> None:
                                   str(out), "--format", "json", "--date", "2026-11-21",
                                   "--param", "tolerance_xy=0.5", "--param", "map_crs=EPSG:25832"])
             check, rss = min(check, wall), max(rss, mb)
+            qcr_mb = (out / "qcr.json").stat().st_size / 1e6
         print(f"pandas.read_csv: {peer:.2f} s")
         print(f"orthospec check: {check:.2f} s, peak {rss:.0f} MB, exit {code}; "
-              f"ratio check/read_csv = {check / peer:.1f}x (target <= 10x, < 1024 MB)")
+              f"ratio check/read_csv = {check / peer:.1f}x (target <= 10x, < 1024 MB); qcr.json {qcr_mb:.1f} MB")
         print(f"load average: {os.getloadavg()[0]:.2f} on {os.cpu_count()} cpus")
 
 
