@@ -201,3 +201,17 @@ def test_block_distributions_in_threads_give_the_same_document(many: Path, check
     monkeypatch.setattr(checkpoints.os, "cpu_count", lambda: 2)
     threaded = api.check(many, "jrc-v3", params=PARAMS, date="2026-11-21")
     assert dumps(threaded.document) == dumps(checked.document)
+
+
+def test_a_selector_is_not_reapplied_to_a_changed_file(many: Path, checked: api.CheckResult, tmp_path: Path) -> None:
+    from orthospec.errors import OrthospecError
+
+    doc = json.loads(dumps(checked.document))
+    entry = next(e for e in doc["evidence"] if e.get("where"))
+    copy = tmp_path / "d"
+    (copy / "tables").mkdir(parents=True)
+    text = (many / entry["file"]).read_text(encoding="utf-8")
+    (copy / entry["file"]).write_text(text.replace(",B02,", ",B01,", 1), encoding="utf-8")
+    with pytest.raises(OrthospecError, match="SHA-256 differs"):
+        evidence_rows(entry, copy)
+    assert evidence_rows({"file": "x.csv", "sha256": "0" * 64, "rows": [3, 4]}, copy) == [3, 4]
