@@ -275,7 +275,8 @@ def bind(chk: Checker, d: Delivery) -> None:
 
     The checker's manual verdicts and waivers vouch for what the checker saw; applied to other
     content they would grant the contractor verdicts nobody gave (red team R5: check points deleted
-    after the checker signed their source)."""
+    after the checker signed their source). Once bound, the outlines the file states are the ones
+    in force for ``d`` (``d.stated_outlines``, read by ``Delivery.block_outlines``)."""
     b = chk.model.delivery
     other = "the checker's verdicts were given on other content"
     if b.id != d.id:

@@ -9,8 +9,8 @@
   (``scenes.input_pixel_size``, else ``images.acquisition_gsd``, else ``images.gsd``) and the
   profile's ``classes: resolution``; the contractor's own label (``scenes.resolution_class``) is
   checked against it by ``derived.resolution_class_agrees``.
-* ``derived.photo_coverage`` (delivery): share of the area of interest covered by the photo
-  lay-down - footprints from the exposure stations, flying heights and the camera's focal
+* ``derived.photo_coverage`` (delivery): share of the area of interest in force (``_aoi_in_force``)
+  covered by the photo lay-down - footprints from the exposure stations, flying heights and the camera's focal
   length, pixel size and format (JRC §5.2.2 "Side overlap must ensure that all the surveyed area
   will be covered with imagery"). It does not depend on the delivered orthoimages, so a delivery
   of extracts (§12.4) cannot switch the coverage check off by declaring ``product.extracts``.
