@@ -109,3 +109,37 @@ def test_a_declaration_within_the_tolerance_agrees(tmp_path: Path, shift: float,
     assert result.accepted == (verdict == "pass")
     got = {r["item"]: r["verdict"] for r in records(result.document) if r["rule"] == "JRC-12.4-BLOCK-OUTLINES-AGREE"}
     assert got == {"D-2026-014": verdict}
+
+
+def test_a_dem_serves_the_blocks_in_force(tmp_path: Path) -> None:
+    """derived.dem_blocks from the DEM file's footprint: B02 declared cut at x = 511,500 m (R13) misses a
+    DEM over x 512-514 km; the checker's true B02 (to x = 514,500 m) contains it."""
+    import numpy as np
+    import rasterio
+    from rasterio.transform import from_origin
+
+    from orthospec.engine.providers.derived import dem_blocks
+    from orthospec.engine.registry import ProviderContext
+
+    d = tmp_path / "aerial-pass"
+    shutil.copytree(EXAMPLE, d)
+    with rasterio.open(d / "images" / "dem.tif", "w", driver="GTiff", width=20, height=20, count=1,
+                       dtype="float32", crs="EPSG:25832",
+                       transform=from_origin(512000, 5406000, 100, 100)) as ds:  # x 512-514 km, y 5404-5406 km
+        ds.write(np.zeros((1, 20, 20), dtype="float32"))
+    (d / "tables" / "dem.csv").write_text("dem_id,file\nDEM-1,images/dem.tif\n", encoding="utf-8")
+    m = yaml.safe_load((d / "delivery.yaml").read_text(encoding="utf-8"))
+    m["tables"]["dem"] = "tables/dem.csv"
+    m["blocks"][1]["polygon"] = [[507500.0, 5403000.0], [511500.0, 5403000.0], [511500.0, 5410200.0],
+                                 [507500.0, 5410200.0], [507500.0, 5403000.0]]
+    (d / "delivery.yaml").write_text(yaml.safe_dump(m, sort_keys=False), encoding="utf-8")
+
+    def served(checker: Path | None) -> Any:
+        delivery = open_delivery(d)
+        if checker is not None:
+            load_checker(checker, delivery=delivery)
+        (got,) = dem_blocks(ProviderContext(delivery=delivery, parameters={}))
+        return got.values["DEM-1"]
+
+    assert served(None) is None  # the manifest's outlines: the footprint overlaps no block
+    assert served(resigned(CHECKER, d, tmp_path / "checker.yaml")) == "B02"
