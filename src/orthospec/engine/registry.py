@@ -219,6 +219,8 @@ MEASURE_DESCRIPTIONS: dict[str, str] = {
     "checkpoints.std_z": "standard deviation of the z discrepancies of the kept points",
     # derived
     "derived.dem_blocks": "blocks each DEM serves: its block value, else its footprint over the block polygons",
+    "derived.block_outlines_agree": "delivery.yaml's block outlines agree with those of the checker's file (within 1 %, same blocks; JRC §12.4)",
+    "derived.area_of_interest_agrees": "the declared area of interest agrees with the one in force from the checker's file (within 1 %; JRC §5.2.2)",
     "derived.project_crs_agrees": "the manifest's project.crs names the map projection in force (parameter map_crs, JRC §12.4 Table 12)",
     "derived.is_master": "the scene is a master image: named in the checker's master_images, else flagged scenes.is_master (JRC Table 9)",
     "derived.master_images_agree": "the scenes flagged is_master are exactly the checker's master_images (JRC Table 9 \"identify as master image\")",
