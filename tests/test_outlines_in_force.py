@@ -143,3 +143,46 @@ def test_a_dem_serves_the_blocks_in_force(tmp_path: Path) -> None:
 
     assert served(None) is None  # the manifest's outlines: the footprint overlaps no block
     assert served(resigned(CHECKER, d, tmp_path / "checker.yaml")) == "B02"
+
+
+def test_the_mosaic_measures_the_area_in_force(tmp_path: Path) -> None:
+    """mosaic.aoi_coverage (JRC §5.2.2) measures the checker's area of interest, as photo coverage does;
+    without the checker's file, the union of the manifest's block polygons. Expected shares: the
+    images' bounds read with rasterio, unioned and intersected with each area by shapely."""
+    import rasterio
+    import shapely
+    from shapely.geometry import Polygon
+
+    from orthospec.engine.providers.mosaic import mosaic_measures
+    from orthospec.engine.registry import ProviderContext
+
+    d = tmp_path / "aerial-pass"
+    shutil.copytree(EXAMPLE, d)
+    path = resigned(CHECKER, d, tmp_path / "checker.yaml")
+    doc = yaml.safe_load(path.read_text(encoding="utf-8"))
+    ring = [[500000, 5400000], [520500, 5400000], [520500, 5418000], [500000, 5418000]]
+    doc["area_of_interest"] = ring
+    path.write_text(yaml.safe_dump(doc, sort_keys=False), encoding="utf-8")
+    feet = []
+    for tif in sorted((d / "images").glob("*.tif")):
+        with rasterio.open(tif) as ds:
+            feet.append(box(*ds.bounds))
+    covered = shapely.union_all(feet)
+    manifest = yaml.safe_load((d / "delivery.yaml").read_text(encoding="utf-8"))
+    blocks = shapely.union_all([Polygon(b["polygon"]) for b in manifest["blocks"]])
+
+    def coverage(checker: Path | None) -> tuple[float, Any]:
+        delivery = open_delivery(d)
+        if checker is not None:
+            load_checker(checker, delivery=delivery)
+        got = {m.name: m for m in mosaic_measures(ProviderContext(delivery=delivery, parameters={}))}
+        m = got["mosaic.aoi_coverage"]
+        return m.values[delivery.id], m.evidence[delivery.id]
+
+    share, ev = coverage(path)
+    aoi = Polygon(ring)
+    assert share == pytest.approx(covered.intersection(aoi).area / aoi.area * 100.0, rel=1e-9)
+    assert ev[0].file == "checker:checker.yaml"
+    share, ev = coverage(None)
+    assert share == pytest.approx(covered.intersection(blocks).area / blocks.area * 100.0, rel=1e-9)
+    assert ev[0].file == "delivery.yaml" and ev[0].path == "blocks"

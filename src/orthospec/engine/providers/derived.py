@@ -9,7 +9,7 @@
   (``scenes.input_pixel_size``, else ``images.acquisition_gsd``, else ``images.gsd``) and the
   profile's ``classes: resolution``; the contractor's own label (``scenes.resolution_class``) is
   checked against it by ``derived.resolution_class_agrees``.
-* ``derived.photo_coverage`` (delivery): share of the area of interest in force (``_aoi_in_force``)
+* ``derived.photo_coverage`` (delivery): share of the area of interest in force (``mosaic.aoi_in_force``)
   covered by the photo lay-down - footprints from the exposure stations, flying heights and the camera's focal
   length, pixel size and format (JRC §5.2.2 "Side overlap must ensure that all the surveyed area
   will be covered with imagery"). It does not depend on the delivered orthoimages, so a delivery
@@ -308,7 +308,9 @@ def photo_coverage(ctx: ProviderContext) -> list[Measured]:
     d = ctx.delivery
     value: float | None = None
     try:
-        aoi, aoi_ev, source = _aoi_in_force(ctx)
+        from .mosaic import aoi_in_force
+
+        aoi, aoi_ev, source = aoi_in_force(ctx)
     except (OrthospecError, OSError) as exc:
         aoi, aoi_ev, source, note = None, (d.manifest_evidence("project.area_of_interest"),), "", str(exc)
     else:
@@ -342,30 +344,6 @@ def photo_coverage(ctx: ProviderContext) -> list[Measured]:
                              "with the GSD)")
     return [Measured("derived.photo_coverage", "delivery", "%", pd.Series({d.id: value}, dtype=object),
                      pd.Series({d.id: (*aoi_ev, *ev)}, dtype=object), notes=pd.Series({d.id: note}, dtype=object))]
-
-
-def _aoi_in_force(ctx: ProviderContext) -> tuple[Any, tuple[Any, ...], str]:
-    """(area, evidence, wording) the photo lay-down must cover (JRC §5.2.2 "all the surveyed area").
-
-    The checker's ``area_of_interest`` when its file states one, else the union of the checker's
-    block outlines when it states those (red team R13: the area is the buyer's, not what the
-    contractor redraws); else the manifest's: project.area_of_interest, else the union of its
-    block polygons (``mosaic._aoi``). The same order on both sides: an area, else its blocks."""
-    import shapely
-
-    from ...delivery.outlines import ring_polygon
-    from .mosaic import _aoi
-
-    d = ctx.delivery
-    stated = d.stated_outlines
-    in_force = d.area_of_interest_in_force()
-    if stated is not None and in_force is not None:
-        ring, ev = in_force
-        return ring_polygon(ring), (ev,), f"area of interest of the {stated.source}"
-    if stated is not None and stated.blocks:
-        return (shapely.union_all([ring_polygon(r) for r, _ in stated.blocks.values()]),
-                tuple(e for _, e in stated.blocks.values()), f"union of the block outlines of the {stated.source}")
-    return _aoi(ctx)
 
 
 def _disagreement(declared: Any, in_force: Any) -> str | None:
@@ -429,7 +407,7 @@ def area_of_interest_agrees(ctx: ProviderContext) -> list[Measured]:
     """The manifest's area of interest is the one the checker's file puts in force (JRC §5.2.2).
 
     Declared: project.area_of_interest, else the union of the manifest's block polygons; in force:
-    the checker's area_of_interest, else the union of its block outlines (``_aoi_in_force``).
+    the checker's area_of_interest, else the union of its block outlines (``mosaic.aoi_in_force``).
     Not applicable when the checker states neither, or when it states an area and the manifest
     declares no area file (the union of blocks is then no statement about the area)."""
     d = ctx.delivery
@@ -444,11 +422,11 @@ def area_of_interest_agrees(ctx: ProviderContext) -> list[Measured]:
         note = na = (f"delivery.yaml declares no project.area_of_interest; the {stated.source}'s is in force "
                      "and nothing is declared to compare with it")
     else:
-        from .mosaic import _aoi
+        from .mosaic import aoi_in_force, declared_aoi
 
         try:
-            in_force, in_force_ev, in_force_what = _aoi_in_force(ctx)
-            declared, declared_ev, declared_what = _aoi(ctx)
+            in_force, in_force_ev, in_force_what = aoi_in_force(ctx)
+            declared, declared_ev, declared_what = declared_aoi(ctx)
         except (OrthospecError, OSError) as exc:
             note = f"cannot form the declared area of interest: {exc}"
         else:

@@ -1,7 +1,8 @@
 """Mosaic measures (JRC §5.2.2 coverage, §11 and Table 11 seamlines) from delivered vectors and image footprints.
 
-The area of interest is the project's `area_of_interest` vector file, else the union of the block
-polygons of the manifest; the evidence says which.
+The area of interest in force (:func:`aoi_in_force`, also photo coverage's) is the checker's when its
+file states one (its area, else the union of its block outlines), else the manifest's: the project's
+`area_of_interest` vector file, else the union of the block polygons; the evidence says which.
 """
 
 from __future__ import annotations
@@ -23,7 +24,8 @@ MEASURES = {"mosaic.aoi_coverage": "%", "mosaic.seamline_coverage": "%", "mosaic
             "mosaic.seamlines_invalid": "1"}
 
 
-def _aoi(ctx: ProviderContext) -> tuple[Any, tuple[Any, ...], str]:
+def declared_aoi(ctx: ProviderContext) -> tuple[Any, tuple[Any, ...], str]:
+    """(area, evidence, wording) of the area of interest the manifest declares."""
     d = ctx.delivery
     rel = d.manifest.project.area_of_interest
     if rel:
@@ -40,6 +42,27 @@ def _aoi(ctx: ProviderContext) -> tuple[Any, tuple[Any, ...], str]:
     if not polys:
         return None, (d.manifest_evidence("project.area_of_interest"),), ""
     return shapely.union_all(polys), (d.manifest_evidence("blocks"),), "union of the block polygons"
+
+
+def aoi_in_force(ctx: ProviderContext) -> tuple[Any, tuple[Any, ...], str]:
+    """(area, evidence, wording) the photo lay-down must cover (JRC §5.2.2 "all the surveyed area").
+
+    The checker's ``area_of_interest`` when its file states one, else the union of the checker's
+    block outlines when it states those (red team R13: the area is the buyer's, not what the
+    contractor redraws); else the manifest's: project.area_of_interest, else the union of its
+    block polygons (:func:`declared_aoi`). The same order on both sides: an area, else its blocks."""
+    from ...delivery.outlines import ring_polygon
+
+    d = ctx.delivery
+    stated = d.stated_outlines
+    in_force = d.area_of_interest_in_force()
+    if stated is not None and in_force is not None:
+        ring, ev = in_force
+        return ring_polygon(ring), (ev,), f"area of interest of the {stated.source}"
+    if stated is not None and stated.blocks:
+        return (shapely.union_all([ring_polygon(r) for r, _ in stated.blocks.values()]),
+                tuple(e for _, e in stated.blocks.values()), f"union of the block outlines of the {stated.source}")
+    return declared_aoi(ctx)
 
 
 def _footprints(ctx: ProviderContext) -> tuple[list[Any], list[str]]:
@@ -68,7 +91,7 @@ def mosaic_measures(ctx: ProviderContext) -> list[Measured]:
     errors: dict[str, str] = {}
     evs: dict[str, tuple[Any, ...]] = {}
     try:
-        aoi, aoi_ev, source = _aoi(ctx)
+        aoi, aoi_ev, source = aoi_in_force(ctx)
     except (OrthospecError, OSError) as exc:
         aoi, aoi_ev, source = None, (d.manifest_evidence("project.area_of_interest"),), ""
         for n in MEASURES:
