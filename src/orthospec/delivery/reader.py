@@ -738,15 +738,21 @@ def _read_typed(body: bytes, header: list[str], spec: TableSpec, file: str) -> p
     The C parser and ``pandas.to_numeric`` (the exact path) agree on every number they both
     read; the fast result is refused when the parser refuses a cell (words, ``nan``, a blank of
     spaces...) or read an infinity, and a column holding an exact 0 or 1 is re-read as text
-    (the parser reads a column of only boolean words as 0/1).
+    (the parser reads a column of only boolean words as 0/1). Text columns other than the id
+    are read as categories (one string object per distinct text, its cells codes: 0.45 s less
+    at a million rows, and the repeated block / image / source texts shared); pandas converts
+    categories that all read as numbers, booleans or dates, so such a column is re-read as
+    text; :func:`_columns` turns the categories back into text cells.
     """
     nums = [c for c in header if spec.columns[c].type == "number"]
-    dtype = {c: ("float64" if c in nums else object) for c in header}
+    cats = [c for c in header if spec.columns[c].type == "text" and c != spec.id]
+    dtype = {c: ("float64" if c in nums else "category" if c in cats else object) for c in header}
     try:
         frame = _read_csv(body, header, file, dtype=dtype)
     except ValueError:
         return None
-    guard = []
+    guard = [c for c in cats if pd.api.types.infer_dtype(frame[c].cat.categories, skipna=False)
+             not in ("string", "empty")]
     for c in nums:
         v = frame[c].to_numpy()
         if np.isinf(v).any():
@@ -774,7 +780,7 @@ def _columns(frame: pd.DataFrame, header: list[str], *, strip: bool) -> dict[str
         if s.dtype.kind == "f":
             out[c] = s.to_numpy()
             continue
-        s = s.astype(object)
+        s = s.astype(object)  # a category column: its texts by code (NaN where empty)
         empty = s.isna().to_numpy()
         if strip:
             s = s.str.strip()
