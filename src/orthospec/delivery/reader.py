@@ -739,7 +739,7 @@ def _read_typed(body: bytes, header: list[str], spec: TableSpec, file: str) -> p
     read; the fast result is refused when the parser refuses a cell (words, ``nan``, a blank of
     spaces...) or read an infinity, and a column holding an exact 0 or 1 is re-read as text
     (the parser reads a column of only boolean words as 0/1). Text columns other than the id
-    are read as categories (one string object per distinct text, its cells codes: 0.45 s less
+    are read as categories (one string object per distinct text, its cells codes: about 0.25 s less
     at a million rows, and the repeated block / image / source texts shared); pandas converts
     categories that all read as numbers, booleans or dates, so such a column is re-read as
     text; :func:`_columns` turns the categories back into text cells.
