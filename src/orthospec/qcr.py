@@ -11,7 +11,6 @@ from __future__ import annotations
 import bisect
 import contextlib
 import csv
-import hashlib
 import heapq
 import io
 import itertools
@@ -195,11 +194,12 @@ class _Evidence:
         self.table: list[dict[str, Any]] = []
         #: id(e) -> (e, kept alive so the id stays its own; its entry; the entry's canonical text)
         self._long: dict[int, tuple[Evidence, dict[str, Any], str]] = {}
+        self._columns: dict[Any, Any] = {}  # (file, column) -> codes and distinct values (selectors)
 
     def _long_entry(self, e: Evidence) -> tuple[Evidence, dict[str, Any], str]:
         hit = self._long.get(id(e))
         if hit is None:
-            entry = _selector(self.d, e) or e.to_dict()
+            entry = _selector(self.d, e, self._columns) or e.to_dict()
             hit = self._long[id(e)] = (e, entry, _canonical(entry))
         return hit
 
@@ -240,7 +240,7 @@ def _canonical(entry: Mapping[str, Any]) -> str:
     return json.dumps(entry, sort_keys=True, ensure_ascii=False, separators=(",", ":"))
 
 
-def _selector(d: Any, e: Evidence) -> dict[str, Any] | None:
+def _selector(d: Any, e: Evidence, cache: dict[Any, Any]) -> dict[str, Any] | None:
     """``{file, sha256, where, rows_count}`` standing for exactly ``e.rows`` of a delivered table, or
     None: the rows must be increasing and be every row of the table (``where: {}``) or every row
     whose cell in one text column (stripped, as the reader parsed it) equals one value."""
@@ -270,14 +270,27 @@ def _selector(d: Any, e: Evidence) -> dict[str, Any] | None:
         return None
     texts = [c for c, cs in table.spec.columns.items() if cs.type == "text" and c in df and c != table.spec.id]
     for col in sorted(texts, key=lambda c: c != "block"):  # the block column first: the usual grouping
-        cells = df[col].to_numpy(dtype=object)
-        value = cells[at]
-        if not isinstance(value, str):
+        codes, values = _factorized(table, col, cache)
+        k = int(codes[at])
+        if k < 0 or not isinstance(values[k], str):
             continue
-        mask = cells == value
+        mask = codes == k
         if int(np.count_nonzero(mask)) == len(rows) and np.array_equal(all_rows[mask], rows):
-            return found({col: value})
+            return found({col: values[k]})
     return None
+
+
+def _factorized(table: Any, col: str, cache: dict[Any, Any]) -> tuple[np.ndarray, list[Any]]:
+    """A text column as codes and distinct values, once per document, table and column (each
+    block's selector then costs an integer comparison, not a text comparison over every row)."""
+    key = (table.file, col)
+    hit = cache.get(key)
+    if hit is None:
+        import pandas as pd  # a selector is only built for a delivered table: pandas is loaded
+
+        codes, values = pd.factorize(table.df[col].to_numpy(dtype=object))
+        hit = cache[key] = (np.asarray(codes), list(values))
+    return hit
 
 
 def _column(values: list[Any]) -> list[Any] | dict[str, Any]:
@@ -295,8 +308,18 @@ class _Shared:
     COLUMNS = ("items", "measured", "requirement", "evidence", "message", "waiver_requested")
 
     def __init__(self) -> None:
-        self.seen: dict[bytes, list[str]] = {}  # SHA-256 of the column's JSON -> first [rule, column]
-        self.enc = json.JSONEncoder(ensure_ascii=False, allow_nan=False, separators=(",", ":")).encode
+        #: a cheap fingerprint of a column -> the columns written with it ([rule, column], value)
+        self.seen: dict[tuple[Any, ...], list[tuple[list[str], Any]]] = {}
+
+    @staticmethod
+    def _fingerprint(values: Any) -> tuple[Any, ...]:
+        """Length and a few elements (in their JSON text, so 1 and 1.0 or True stay apart): equal
+        columns share it; candidates are then compared in full."""
+        seq = values if isinstance(values, list) else values["rows"]
+        n = len(seq)
+        probe = [seq[i] for i in sorted({0, n // 3, n // 2, (2 * n) // 3, n - 1})]
+        return (type(values).__name__, n, json.dumps(probe, sort_keys=True, ensure_ascii=False),
+                json.dumps(values.get("entry") if isinstance(values, dict) else None))
 
     def apply(self, rule_id: str, block: dict[str, Any]) -> dict[str, Any]:
         for col in self.COLUMNS:
@@ -305,13 +328,23 @@ class _Shared:
                     len(values["rows"]) if isinstance(values, dict) and "entry" in values else 0)
             if size < self.MIN_LEN:
                 continue
-            key = hashlib.sha256(self.enc(values).encode("utf-8")).digest()
-            first = self.seen.get(key)
+            known = self.seen.setdefault(self._fingerprint(values), [])
+            first = next((ref for ref, v in known if _same(v, values)), None)
             if first is None:
-                self.seen[key] = [rule_id, col]
+                known.append(([rule_id, col], values))
             else:
                 block[col] = {"ref": first}
         return block
+
+
+def _same(a: Any, b: Any) -> bool:
+    """Equal as JSON would write them: 1 == 1.0 == True in Python, not in the file."""
+    if a is b:
+        return True
+    if a != b:
+        return False
+    enc = json.JSONEncoder(ensure_ascii=False, allow_nan=False, separators=(",", ":")).encode
+    return bool(enc(a) == enc(b))
 
 
 def _pass_message(measure: str, measured: Any, shown_unit: str, req_text: str) -> str:
