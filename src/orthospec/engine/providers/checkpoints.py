@@ -173,26 +173,21 @@ def _compute_once(ctx: ProviderContext) -> Results:
     gcps = _gcps(ctx)
     out = Results()
     df = t.df
-    checked: list[tuple[str, BlockPoints, BlunderResult, tuple[Evidence, ...]]] = []
+    todo: list[tuple[str, BlockPoints, tuple[Evidence, ...]]] = []
     for block, rows in sorted(df.groupby(df["block"].astype(str)).indices.items()):
         pts = _block_points(df, rows, to_m)
         ev = (Evidence(t.file, t.sha256, tuple(pts.rows.tolist())),)
         if block in broken:
             out.blocks[block] = BlockAccuracy(block, ev, settings, error=broken[block])
             continue
-        try:
-            br = detect_blunders(pts.dx, pts.dy, pts.dz, ids=pts.ids, basis=settings.basis,  # type: ignore[arg-type]
-                                 factor=settings.factor, target_rmse_xy=settings.target_xy,
-                                 target_rmse_z=settings.target_z, exclusions=pts.exclusions, gsd=settings.gsd,
-                                 unit="m")
-        except MeasureError as exc:
-            out.blocks[block] = BlockAccuracy(block, ev, settings, error=f"{t.file}: block {block}: {exc}")
+        todo.append((block, pts, ev))
+    done = _per_block([(pts, outlines.get(block), gcps.get(block)) for block, pts, _ in todo], settings)
+    for (block, pts, ev), got in zip(todo, done, strict=True):
+        if isinstance(got, str):
+            out.blocks[block] = BlockAccuracy(block, ev, settings, error=f"{t.file}: block {block}: {got}")
             continue
-        checked.append((block, pts, br, ev))
-    dists = _distributions([(pts, outlines.get(block), gcps.get(block)) for block, pts, _, _ in checked], settings)
-    for (block, pts, br, ev), (dist, dist_error) in zip(checked, dists, strict=True):
+        br, dist, dist_error, dups = got
         outline = outlines.get(block)
-        dups = tuple(pts.ids[duplicate_locations(pts.x_ref, pts.y_ref)].astype(str).tolist())
         res = BlockAccuracy(block, ev, settings, blunders=br, distribution=dist, distribution_error=dist_error,
                             outline=outline, reported=_reported(ctx, block), duplicates=dups)
         out.blocks[block] = res
@@ -202,23 +197,36 @@ def _compute_once(ctx: ProviderContext) -> Results:
     return out
 
 
-#: points from which the blocks' distributions are computed in threads (the KD-tree queries of
-#: scipy release the GIL); below, one after the other
+#: points from which the blocks are computed in threads (numpy's sorts and scipy's KD-tree
+#: queries release the GIL); below, one after the other
 PARALLEL_POINTS = 100_000
 
+_Job = tuple[BlockPoints, Polygon | None, tuple[np.ndarray, ...] | None]
+_Done = tuple[BlunderResult, DistributionResult | None, str | None, tuple[str, ...]] | str
 
-def _distributions(jobs: list[tuple[BlockPoints, Polygon | None, tuple[np.ndarray, ...] | None]],
-                   s: Settings) -> list[tuple[DistributionResult | None, str | None]]:
-    """Each block's distribution (independent blocks: the same results in any order of work)."""
-    def one(job: tuple[BlockPoints, Polygon | None, tuple[np.ndarray, ...] | None]
-            ) -> tuple[DistributionResult | None, str | None]:
-        return _distribution(job[0], job[1], job[2], s)
 
+def _block_results(job: _Job, s: Settings) -> _Done:
+    """One block's blunders, distribution and repeated positions; the blunder screening's
+    complaint (a MeasureError: invalid points) as text."""
+    pts, outline, gcps = job
+    try:
+        br = detect_blunders(pts.dx, pts.dy, pts.dz, ids=pts.ids, basis=s.basis,  # type: ignore[arg-type]
+                             factor=s.factor, target_rmse_xy=s.target_xy, target_rmse_z=s.target_z,
+                             exclusions=pts.exclusions, gsd=s.gsd, unit="m")
+    except MeasureError as exc:
+        return str(exc)
+    dist, dist_error = _distribution(pts, outline, gcps, s)
+    dups = tuple(pts.ids[duplicate_locations(pts.x_ref, pts.y_ref)].astype(str).tolist())
+    return br, dist, dist_error, dups
+
+
+def _per_block(jobs: list[_Job], s: Settings) -> list[_Done]:
+    """Every block's results (independent blocks: the same results in any order of work)."""
     workers = min(len(jobs), os.cpu_count() or 1, 4)
     if workers < 2 or sum(len(j[0].ids) for j in jobs) < PARALLEL_POINTS:
-        return [one(j) for j in jobs]
+        return [_block_results(j, s) for j in jobs]
     with ThreadPoolExecutor(max_workers=workers) as pool:
-        return list(pool.map(one, jobs))
+        return list(pool.map(lambda j: _block_results(j, s), jobs))
 
 
 def _outlines(ctx: ProviderContext) -> tuple[dict[str, Polygon], dict[str, str]]:
