@@ -16,7 +16,9 @@ SHA-256): ``command`` is ``orthospec measure radiometry --json`` (by default the
 ``gdalinfo -stats -hist``: exact statistics and histograms) and ``command_full`` adds ``--full``
 (the whole JRC §6.3 scan). Issue 14 targets, in one run on the same file: command <= 1.0x
 gdalinfo, command_full <= 1.5x, peak memory < 300 MB. Wall and CPU ratios are both printed:
-on a machine shared with other work, wall time favours the tool that uses more threads.
+wall time favours the tool that uses more threads while cores are free (orthospec hashes and
+counts in threads; gdalinfo is single-threaded) and the single-threaded tool while other work
+takes the cores; CPU seconds say how much work each tool does. Report the load average.
 
 The Python children run byte-compiled, as an installed package does (pip compiles every module
 at install): bytecode goes to a private ``PYTHONPYCACHEPREFIX`` in the temporary directory and
