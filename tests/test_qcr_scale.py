@@ -215,3 +215,14 @@ def test_a_selector_is_not_reapplied_to_a_changed_file(many: Path, checked: api.
     with pytest.raises(OrthospecError, match="SHA-256 differs"):
         evidence_rows(entry, copy)
     assert evidence_rows({"file": "x.csv", "sha256": "0" * 64, "rows": [3, 4]}, copy) == [3, 4]
+
+
+def test_csv_and_junit_by_block_same_bytes(checked: api.CheckResult) -> None:
+    """qcr.csv and junit.xml written per compact block give the bytes of the record-by-record
+    writers (every record expanded through all_records) for 12,000 check points."""
+    from orthospec.qcr import _iter_csv_records, _iter_junit_records, iter_csv, iter_junit
+
+    doc = checked.document
+    assert max(len(b["items"]) for b in doc["compact"].values() if isinstance(b["items"], list)) >= POINTS
+    assert "".join(iter_csv(doc)) == "".join(_iter_csv_records(doc))
+    assert "".join(iter_junit(doc)) == "".join(_iter_junit_records(doc))

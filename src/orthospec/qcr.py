@@ -20,6 +20,7 @@ import os
 import re
 import sys
 import tempfile
+from collections import Counter as _Counter
 from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
@@ -966,8 +967,17 @@ def to_csv(doc: Mapping[str, Any]) -> str:
     return "".join(iter_csv(doc))
 
 
-def iter_csv(doc: Mapping[str, Any], *, rows_per_piece: int = 2000) -> Iterator[str]:
-    """qcr.csv as a stream of pieces (a few thousand rows each)."""
+def _csv_row(r: Mapping[str, Any]) -> list[Any]:
+    """One record's qcr.csv cells (before :func:`csv_safe`)."""
+    ev = "; ".join(evidence_text(e) for e in r["evidence"])
+    return [r["rule"], _clause_text(r["clause"]), r["scope"], r["item"], r["level"], r["consequence"],
+            r["verdict"], r["measure"], "" if r["measured"]["value"] is None else r["measured"]["value"],
+            r["measured"]["unit"] or "", r["requirement"].get("text", ""), ev, r["message"]]
+
+
+def _iter_csv_records(doc: Mapping[str, Any], *, rows_per_piece: int = 2000) -> Iterator[str]:
+    """qcr.csv record by record through :func:`all_records`: the reference the block writer
+    (:func:`iter_csv`) matches byte for byte, and the path for version 1 documents."""
     buf = io.StringIO()
     w = _SafeWriter(buf)
     w.writerow(CSV_COLUMNS)
@@ -976,11 +986,244 @@ def iter_csv(doc: Mapping[str, Any], *, rows_per_piece: int = 2000) -> Iterator[
             yield buf.getvalue()
             buf.seek(0)
             buf.truncate()
-        clause = _clause_text(r["clause"])
-        ev = "; ".join(evidence_text(e) for e in r["evidence"])
-        w.writerow([r["rule"], clause, r["scope"], r["item"], r["level"], r["consequence"], r["verdict"],
-                    r["measure"], "" if r["measured"]["value"] is None else r["measured"]["value"],
-                    r["measured"]["unit"] or "", r["requirement"].get("text", ""), ev, r["message"]])
+        w.writerow(_csv_row(r))
+    yield buf.getvalue()
+
+
+#: compact items written per piece by the block writers (bounds the strings held at once)
+BLOCK_CHUNK = 50_000
+
+
+def _resolve(col: Any, compact: Mapping[str, Any]) -> Any:
+    """A compact column with its ``{"ref": ...}`` followed to the column written."""
+    while isinstance(col, dict) and "ref" in col:
+        rule_id, name = col["ref"]
+        col = compact[rule_id][name]
+    return col
+
+
+class _Col:
+    """A compact column as a list (per item) or one value for every item, as :func:`_column_values`
+    reads it, without building a list of n equal values."""
+
+    def __init__(self, col: Any, compact: Mapping[str, Any]) -> None:
+        col = _resolve(col, compact)
+        self.values: list[Any] | None = col if isinstance(col, list) else None
+        self.const: Any = col.get("all") if isinstance(col, dict) else None
+
+    def part(self, a: int, b: int) -> list[Any] | None:
+        """Items a..b-1 as a list, or None when the column is one value."""
+        return None if self.values is None else self.values[a:b]
+
+    def get(self, a: int, b: int) -> Iterable[Any]:
+        return itertools.repeat(self.const, b - a) if self.values is None else self.values[a:b]
+
+
+class _Block:
+    """One rule's compact block for the csv/junit writers: its columns resolved once, its rows
+    built per slice of items with list operations (what :func:`_expand` yields as dicts, without
+    a dict per item)."""
+
+    def __init__(self, rule: Mapping[str, Any], block: Mapping[str, Any], evidence: list[dict[str, Any]],
+                 compact: Mapping[str, Any]) -> None:
+        self.rule = rule
+        items = _resolve(block["items"], compact)
+        self.items: list[Any] = list(items) if isinstance(items, list) else []  # as _expand: n = len(items)
+        self.n = len(self.items)
+        self.verdict = _Col(block.get("verdict"), compact)
+        self.measured = _Col(block.get("measured"), compact)
+        self.req = _Col(block["requirement"], compact) if "requirement" in block else None
+        self.req_const = rule.get("requirement") or {}
+        self.message = _Col(block.get("message"), compact)
+        self.evidence = _resolve(block.get("evidence"), compact)
+        self.table = evidence
+        self.compact = compact
+        self.shown = _shown_unit(rule.get("unit"))
+        self.measure = rule.get("measure", "")
+        self._etext: dict[int, str] = {}
+
+    def req_texts(self, a: int, b: int) -> Iterable[str]:
+        if self.req is None:
+            return itertools.repeat(self.req_const.get("text", ""), b - a)
+        part = self.req.part(a, b)
+        if part is None:
+            return itertools.repeat(self.req.const.get("text", ""), b - a)
+        return [q.get("text", "") for q in part]
+
+    def messages(self, a: int, b: int) -> list[str] | str:
+        """Each item's message: the column's, or the default wording (:func:`_pass_message`) for None;
+        one text when it is the same for every item (one measured value and one requirement)."""
+        if self.message.values is None and (self.req is None or self.req.values is None) and \
+                self.measured.values is None:
+            text = self.req_texts(a, b)
+            msg = self.message.const
+            return _pass_message(self.measure, self.measured.const, self.shown, next(iter(text), "")) \
+                if msg is None else msg
+        msgs = list(self.message.get(a, b))
+        todo = [k for k, m in enumerate(msgs) if m is None]
+        if not todo:
+            return msgs
+        head, tail = f"{self.measure} = ", f"{self.shown}; required "
+        measured = list(self.measured.get(a, b))
+        texts = self.req_texts(a, b)
+        texts = texts if isinstance(texts, list) else list(texts)
+        if len(todo) == len(msgs):
+            return [f"{head}{f'{v:.6g}' if type(v) is float else _fmt(v)}{tail}{t}"
+                    for v, t in zip(measured, texts, strict=True)]
+        for k in todo:
+            msgs[k] = f"{head}{_fmt(measured[k])}{tail}{texts[k]}"
+        return msgs
+
+    def evidence_texts(self, a: int, b: int) -> Iterable[str]:
+        """Each item's evidence as qcr.csv writes it (``"; "``-joined :func:`evidence_text`)."""
+        col = self.evidence
+        if isinstance(col, dict) and "entry" in col:  # one row of one file per item
+            base = self.table[col["entry"]]
+            head = str(base.get("file", "")) + "#rows="
+            tail = f"#{base['path']}" if base.get("path") else ""
+            return ["" if r is None else f"{head}{r}{tail}" for r in col["rows"][a:b]]
+        ids = _Col(col, self.compact)
+        if ids.values is None:
+            return itertools.repeat(self._ids_text(ids.const), b - a)
+        return [self._ids_text(x) for x in ids.values[a:b]]
+
+    def _ids_text(self, ids: Any) -> str:
+        out = []
+        for e in ids or []:
+            t = self._etext.get(e)
+            if t is None:
+                t = self._etext[e] = evidence_text(self.table[e])
+            out.append(t)
+        return "; ".join(out)
+
+    def csv_text(self, a: int, b: int) -> str:
+        """qcr.csv lines of items a..b-1: every cell through :func:`csv_safe` and encoded as
+        ``csv.writer`` writes it (:func:`_csv_cells`), constants once, lines joined in C."""
+        rule = self.rule
+        measured = self.measured.part(a, b)
+        verdict = self.verdict.part(a, b)
+        req = self.req_texts(a, b)
+        ev = self.evidence_texts(a, b)
+        items = self.items[a:b]
+        cols: list[Any] = [
+            rule["rule"], _clause_text(rule.get("citation") or {}), rule.get("scope", ""),
+            _csv_cells(items), rule.get("level"), rule.get("consequence"),
+            self.verdict.const if verdict is None else _csv_cells(verdict), self.measure,
+            ("" if self.measured.const is None else self.measured.const) if measured is None else
+            [repr(v) if type(v) is float else _csv_cell(v) for v in measured],
+            rule.get("unit") or "", _csv_cells(req) if isinstance(req, list) else next(iter(req), ""),
+            _csv_cells(ev) if isinstance(ev, list) else next(iter(ev), ""),
+            _csv_cells(msgs) if isinstance(msgs := self.messages(a, b), list) else msgs]
+        merged: list[Any] = []  # adjacent constant cells joined into one piece of each line
+        for c in cols:
+            if not isinstance(c, list):
+                c = _csv_cell(c)
+                if merged and isinstance(merged[-1], str):
+                    merged[-1] += "," + c
+                    continue
+            merged.append(c)
+        if not items:
+            return ""
+        lines = zip(*(c if isinstance(c, list) else itertools.repeat(c, len(items)) for c in merged), strict=True)
+        return "\n".join(map(",".join, lines)) + "\n"
+
+
+#: a cell holding one of these is quoted by csv.writer (a superset: such cells take csv.writer itself)
+_CSV_SPECIAL = re.compile('[\n\r,"]')
+_cell_buf = io.StringIO()
+_cell_writer = csv.writer(_cell_buf, lineterminator="\n")
+
+
+def _csv_cell(v: Any) -> str:
+    """One cell, :func:`csv_safe` then exactly as ``csv.writer`` (QUOTE_MINIMAL) writes it in a line of
+    several cells."""
+    v = csv_safe(v)
+    if type(v) is str and not _CSV_SPECIAL.search(v):
+        return v
+    _cell_buf.seek(0)
+    _cell_buf.truncate()
+    _cell_writer.writerow(["", v])
+    return _cell_buf.getvalue()[1:-1]
+
+
+def _csv_cells(values: list[Any]) -> list[str]:
+    """Cells of one column, as :func:`_csv_cell` writes each: text without a formula start or a
+    character to quote is kept as it is (checked over the column at once)."""
+    try:
+        safe = [("'" + v) if v.startswith(_FORMULA_START) else v for v in values]
+    except (AttributeError, TypeError):  # not text: cell by cell
+        safe = None
+    if safe is not None and not _CSV_SPECIAL.search("".join(safe)) and all(type(v) is str for v in values):
+        return safe
+    return [_csv_cell(v) for v in values]
+
+
+def _rule_parts(doc: Mapping[str, Any]) -> Iterator[tuple[Mapping[str, Any] | None, list[Mapping[str, Any]],
+                                                         _Block | None]]:
+    """Per rule summary, in document order: the rule, its stored full records, its compact block;
+    then the records without a rule summary (rule None) - what :func:`all_records` expands."""
+    blocks = doc["compact"] or {}
+    full: dict[str, list[Mapping[str, Any]]] = {}
+    for rec in doc.get("records") or []:
+        full.setdefault(rec["rule"], []).append(rec)
+    evidence = doc.get("evidence") or []
+    for summary in doc.get("rules") or []:
+        rid = summary["rule"]
+        block = blocks.get(rid)
+        yield summary, full.pop(rid, []), (_Block(summary, block, evidence, blocks) if block else None)
+    for rest in full.values():
+        yield None, rest, None
+
+
+def _merged(summary: Mapping[str, Any], full: list[Mapping[str, Any]], block: _Block | None
+            ) -> Iterator[tuple[int, int] | dict[str, Any]]:
+    """A rule's records in :func:`all_records` order: expanded full records (dicts) and slices
+    ``(a, b)`` of the compact items between them. The order ``heapq.merge`` gives on the natural
+    key (a full record before a compact item of the same key), found by binary search."""
+    n = block.n if block is not None else 0
+    at = 0
+    for rec in full:
+        pos = bisect.bisect_left(block.items, natural_key(rec["item"]), lo=at, key=natural_key) if n else 0
+        for a in range(at, pos, BLOCK_CHUNK):
+            yield a, min(pos, a + BLOCK_CHUNK)
+        at = pos
+        yield _expand_stored(summary, rec)
+    for a in range(at, n, BLOCK_CHUNK):
+        yield a, min(n, a + BLOCK_CHUNK)
+
+
+def iter_csv(doc: Mapping[str, Any], *, rows_per_piece: int = 2000) -> Iterator[str]:
+    """qcr.csv as a stream of pieces: records in full row by row, each rule's compact block a slice
+    of items at a time (:class:`_Block`), the same bytes as :func:`_iter_csv_records` without a dict
+    per record (issue 14: a million check points)."""
+    if "compact" not in doc:
+        yield from _iter_csv_records(doc, rows_per_piece=rows_per_piece)
+        return
+    buf = io.StringIO()
+    w = _SafeWriter(buf)
+    w.writerow(CSV_COLUMNS)
+    rows = 0
+    for summary, full, block in _rule_parts(doc):
+        if summary is None:
+            for r in full:
+                w.writerow(_csv_row(dict(r)))
+            continue
+        for part in _merged(summary, full, block):
+            if isinstance(part, dict):
+                w.writerow(_csv_row(part))
+                rows += 1
+            else:
+                assert block is not None
+                yield buf.getvalue()
+                buf.seek(0)
+                buf.truncate()
+                yield block.csv_text(*part)
+                rows += part[1] - part[0]
+            if rows >= rows_per_piece:
+                yield buf.getvalue()
+                buf.seek(0)
+                buf.truncate()
+                rows = 0
     yield buf.getvalue()
 
 
@@ -1082,47 +1325,145 @@ def to_junit(doc: Mapping[str, Any]) -> str:
     return "".join(iter_junit(doc))
 
 
-def iter_junit(doc: Mapping[str, Any]) -> Iterator[str]:
-    """junit.xml as a stream of pieces, one rule (testsuite) at a time.
-
-    Every text passes :func:`xml_text`, so control characters in delivery ids keep it well-formed."""
-    def quoteattr(v: Any) -> str:
-        return _quoteattr(xml_text(v))
-
-    def escape(v: Any) -> str:
-        return _escape(xml_text(v))
-
+def _junit_head(doc: Mapping[str, Any]) -> str:
     s = doc["summary"]
-    yield "\n".join(['<?xml version="1.0" encoding="UTF-8"?>',
-           f'<testsuites name={quoteattr("orthospec " + doc["profile"]["id"])} tests="{s["records"]}" '
+    return "\n".join(['<?xml version="1.0" encoding="UTF-8"?>',
+           f'<testsuites name={_xml_attr("orthospec " + doc["profile"]["id"])} tests="{s["records"]}" '
            f'failures="{s[V.FAIL] + s[V.MISSING] + (s[V.WARN] if doc["fail_on"] == V.WARN else 0)}" '
            f'errors="{s[V.ERROR]}" skipped="{s[V.NOT_APPLICABLE] + s[V.WAIVED]}">']) + "\n"
+
+
+def _xml_attr(v: Any) -> str:
+    return _quoteattr(xml_text(v))
+
+
+def _junit_suite(rid: str, tests: int, fails: int, errs: int, skipped: int) -> str:
+    return (f'  <testsuite name={_xml_attr(rid)} tests="{tests}" failures="{fails}" '
+            f'errors="{errs}" skipped="{skipped}">')
+
+
+def _junit_case(rid: str, r: Mapping[str, Any], fail_on: str) -> str:
+    """One record's testcase."""
+    name = _xml_attr(f"{rid}[{r['item']}]")
+    cls = _xml_attr(f"{r['scope']}.{rid}")
+    v = r["verdict"]
+    if v in (V.FAIL, V.MISSING) or (v == V.WARN and fail_on == V.WARN):
+        body = _escape(xml_text(f"{r['title']} — {r['requirement'].get('text', '')}"))
+        return (f'    <testcase name={name} classname={cls}><failure message={_xml_attr(r["message"])} '
+                f'type="{v}">{body}</failure></testcase>')
+    if v == V.ERROR:
+        body = _escape(xml_text(f"{r['title']} — {r['requirement'].get('text', '')}"))
+        return (f'    <testcase name={name} classname={cls}><error message={_xml_attr(r["message"])} '
+                f'type="error">{body}</error></testcase>')
+    if v in V.NEUTRAL:
+        return f'    <testcase name={name} classname={cls}><skipped message={_xml_attr(r["message"])}/></testcase>'
+    return f'    <testcase name={name} classname={cls}/>'
+
+
+def _counts(verdicts: Iterable[str]) -> tuple[int, int, int]:
+    """(failures, errors, skipped) of a testsuite, as JUnit counts them."""
+    fails = errs = skipped = 0
+    for v, k in _Counter(verdicts).items():
+        fails += k if v in (V.FAIL, V.MISSING) else 0
+        errs += k if v == V.ERROR else 0
+        skipped += k if v in V.NEUTRAL else 0
+    return fails, errs, skipped
+
+
+#: characters quoteattr/escape or xml_text would change: text without them is written as it is
+_XML_SPECIAL = re.compile("[&<>\"'\n\r\t\x00-\x08\x0b\x0c\x0e-\x1f\x7f-\x84\x86-\x9f\ud800-\udfff\ufffe\uffff]")
+
+
+def _junit_block_cases(rid: str, block: _Block, a: int, b: int, fail_on: str, plain: bool) -> list[str]:
+    """Testcases of compact items a..b-1: passes as one string operation per item when the rule id
+    and the ids need no escaping (``plain``), any other verdict through :func:`_junit_case`."""
+    rule = block.rule
+    items = block.items[a:b]
+    verdicts = block.verdict.part(a, b)
+    cls = _xml_attr(f"{rule.get('scope', '')}.{rid}")
+    if plain and verdicts is None and block.verdict.const == V.PASS:
+        head, tail = f'    <testcase name="{rid}[', f']" classname={cls}/>'
+        return [f"{head}{it}{tail}" for it in items]
+    vs = list(block.verdict.get(a, b))
+    need = [k for k, v in enumerate(vs) if v != V.PASS or not plain]
+    msgs: dict[int, str] = {}
+    if need:
+        allm = block.messages(a, b)
+        reqs = list(block.req_texts(a, b))
+        msgs = {k: allm if isinstance(allm, str) else allm[k] for k in need}
+    out = []
+    for k, (it, v) in enumerate(zip(items, vs, strict=True)):
+        if v == V.PASS and plain:
+            out.append(f'    <testcase name="{rid}[{it}]" classname={cls}/>')
+        else:
+            r = {"item": it, "scope": rule.get("scope", ""), "verdict": v, "message": msgs[k],
+                 "title": rule.get("title", ""), "requirement": {"text": reqs[k]}}
+            out.append(_junit_case(rid, r, fail_on))
+    return out
+
+
+def _iter_junit_records(doc: Mapping[str, Any]) -> Iterator[str]:
+    """junit.xml record by record through :func:`all_records`: the reference :func:`iter_junit`
+    matches byte for byte, and the path for version 1 documents."""
+    yield _junit_head(doc)
     for rid, group in itertools.groupby(all_records(doc), key=lambda r: r["rule"]):
-        recs = list(group)  # records of one rule are consecutive: one rule in memory at a time
-        out: list[str] = []
-        fails = sum(r["verdict"] in (V.FAIL, V.MISSING) for r in recs)
-        errs = sum(r["verdict"] == V.ERROR for r in recs)
-        skipped = sum(r["verdict"] in V.NEUTRAL for r in recs)
-        out.append(f'  <testsuite name={quoteattr(rid)} tests="{len(recs)}" failures="{fails}" '
-                   f'errors="{errs}" skipped="{skipped}">')
-        for r in recs:
-            name = quoteattr(f"{rid}[{r['item']}]")
-            cls = quoteattr(f"{r['scope']}.{rid}")
-            msg = quoteattr(r["message"])
-            body = escape(f"{r['title']} — {r['requirement'].get('text', '')}")
-            v = r["verdict"]
-            if v in (V.FAIL, V.MISSING) or (v == V.WARN and doc["fail_on"] == V.WARN):
-                out.append(f'    <testcase name={name} classname={cls}><failure message={msg} '
-                           f'type="{v}">{body}</failure></testcase>')
-            elif v == V.ERROR:
-                out.append(f'    <testcase name={name} classname={cls}><error message={msg} '
-                           f'type="error">{body}</error></testcase>')
-            elif v in V.NEUTRAL:
-                out.append(f'    <testcase name={name} classname={cls}><skipped message={msg}/></testcase>')
-            else:
-                out.append(f'    <testcase name={name} classname={cls}/>')
+        recs = list(group)
+        fails, errs, skipped = _counts(r["verdict"] for r in recs)
+        out = [_junit_suite(rid, len(recs), fails, errs, skipped)]
+        out.extend(_junit_case(rid, r, doc["fail_on"]) for r in recs)
         out.append("  </testsuite>")
         yield "\n".join(out) + "\n"
+    yield "</testsuites>\n"
+
+
+def iter_junit(doc: Mapping[str, Any]) -> Iterator[str]:
+    """junit.xml as a stream of pieces: one testsuite per rule, its counts from the stored records'
+    verdicts and the compact verdict column, its testcases a slice of items at a time (no list of
+    a rule's records; the same bytes as :func:`_iter_junit_records`).
+
+    Every text passes :func:`xml_text`, so control characters in delivery ids keep it well-formed."""
+    rids = [r["rule"] for r in doc.get("rules") or []]
+    if "compact" not in doc or len(set(rids)) != len(rids):
+        yield from _iter_junit_records(doc)
+        return
+    fail_on = doc["fail_on"]
+    yield _junit_head(doc)
+    rest: list[Mapping[str, Any]] = []
+    for summary, full, block in _rule_parts(doc):
+        if summary is None:
+            rest.extend(full)
+            continue
+        rid = summary["rule"]
+        n = block.n if block is not None else 0
+        if not full and not n:
+            continue
+        verdicts = [r["verdict"] for r in full]
+        if block is not None:
+            col = block.verdict.part(0, n)
+            verdicts.extend(col if col is not None else itertools.repeat(block.verdict.const, n))
+        fails, errs, skipped = _counts(verdicts)
+        del verdicts
+        out = [_junit_suite(rid, len(full) + n, fails, errs, skipped)]
+        plain = block is not None and not _XML_SPECIAL.search(rid) and all(
+            isinstance(it, str) for it in block.items) and not _XML_SPECIAL.search("".join(block.items))
+        for part in _merged(summary, full, block):
+            if isinstance(part, dict):
+                out.append(_junit_case(rid, part, fail_on))
+            else:
+                assert block is not None
+                out.extend(_junit_block_cases(rid, block, *part, fail_on, plain))
+                yield "\n".join(out) + "\n"
+                out = []
+        out.append("  </testsuite>")
+        yield "\n".join(out) + "\n"
+    if rest:
+        for rid, group in itertools.groupby((dict(r) for r in rest), key=lambda r: r["rule"]):
+            recs = list(group)
+            fails, errs, skipped = _counts(r["verdict"] for r in recs)
+            out = [_junit_suite(rid, len(recs), fails, errs, skipped)]
+            out.extend(_junit_case(rid, r, fail_on) for r in recs)
+            out.append("  </testsuite>")
+            yield "\n".join(out) + "\n"
     yield "</testsuites>\n"
 
 
