@@ -89,7 +89,8 @@ def _doc(seed: int) -> dict:
                 {"file": "tables/checkpoints.csv", "sha256": "a" * 64, "where": {}, "rows_count": 9},
                 {"file": "delivery.yaml", "sha256": "b" * 64, "path": "sensor.type"},
                 {"file": "=t,ab\"le.csv", "sha256": "c" * 64},
-                {"file": "imgs/a b.tif", "sha256": "d" * 64, "rows": [4]}]
+                {"file": "imgs/a b.tif", "sha256": "d" * 64, "rows": [4]},
+                {"file": "-cp.csv", "sha256": "e" * 64, "path": "x"}]
     rules, records, compact = [], [], {}
     verdict_counts = dict.fromkeys(("pass", "fail", "warn", "not_applicable", "missing", "error", "waived"), 0)
     fail_on = rng.choice(["fail", "warn"])
@@ -143,7 +144,7 @@ def _doc(seed: int) -> dict:
                 block["requirement"] = _column(rng, [{**req, "value": 0.1 * j, "text": texts[j % 3]} for j in range(n)])
             form = rng.randrange(3)
             if form == 0:
-                block["evidence"] = {"entry": rng.choice([1, 5]), "rows": [rng.choice([None, rng.randrange(1, 10**6)]) for _ in comp]}
+                block["evidence"] = {"entry": rng.choice([1, 5, 7]), "rows": [rng.choice([None, rng.randrange(1, 10**6)]) for _ in comp]}
             elif form == 1:
                 block["evidence"] = _column(rng, [sorted(rng.sample(range(len(evidence)), rng.randrange(0, 3))) for _ in comp])
             else:

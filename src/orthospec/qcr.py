@@ -1081,7 +1081,10 @@ class _Block:
             base = self.table[col["entry"]]
             head = str(base.get("file", "")) + "#rows="
             tail = f"#{base['path']}" if base.get("path") else ""
-            return ["" if r is None else f"{head}{r}{tail}" for r in col["rows"][a:b]]
+            cells = ["" if r is None else f"{head}{r}{tail}" for r in col["rows"][a:b]]
+            if not _CSV_SPECIAL.search(head + tail):  # the row numbers are digits: the cells as they are
+                return _Cells(cells) if csv_safe(head) == head else _Cells(map(csv_safe, cells))
+            return cells
         ids = _Col(col, self.compact)
         if ids.values is None:
             return itertools.repeat(self._ids_text(ids.const), b - a)
@@ -1112,7 +1115,7 @@ class _Block:
             ("" if self.measured.const is None else self.measured.const) if measured is None else
             [repr(v) if type(v) is float else _csv_cell(v) for v in measured],
             rule.get("unit") or "", _csv_cells(req) if isinstance(req, list) else next(iter(req), ""),
-            _csv_cells(ev) if isinstance(ev, list) else next(iter(ev), ""),
+            ev if isinstance(ev, _Cells) else _csv_cells(ev) if isinstance(ev, list) else next(iter(ev), ""),
             _csv_cells(msgs) if isinstance(msgs := self.messages(a, b), list) else msgs]
         merged: list[Any] = []  # adjacent constant cells joined into one piece of each line
         for c in cols:
@@ -1126,6 +1129,10 @@ class _Block:
             return ""
         lines = zip(*(c if isinstance(c, list) else itertools.repeat(c, len(items)) for c in merged), strict=True)
         return "\n".join(map(",".join, lines)) + "\n"
+
+
+class _Cells(list):
+    """Cells already as qcr.csv writes them (checked for the whole column at once)."""
 
 
 #: a cell holding one of these is quoted by csv.writer (a superset: such cells take csv.writer itself)
@@ -1150,12 +1157,18 @@ def _csv_cells(values: list[Any]) -> list[str]:
     """Cells of one column, as :func:`_csv_cell` writes each: text without a formula start or a
     character to quote is kept as it is (checked over the column at once)."""
     try:
-        safe = [("'" + v) if v.startswith(_FORMULA_START) else v for v in values]
-    except (AttributeError, TypeError):  # not text: cell by cell
-        safe = None
-    if safe is not None and not _CSV_SPECIAL.search("".join(safe)) and all(type(v) is str for v in values):
-        return safe
-    return [_csv_cell(v) for v in values]
+        joined = "\x00".join(values)  # text only (else TypeError); NUL is no csv special character
+    except TypeError:
+        return [_csv_cell(v) for v in values]
+    if _CSV_SPECIAL.search(joined):
+        return [_csv_cell(v) for v in values]
+    if _FORMULA_AT.search(joined):  # a formula start at the start of a cell (or after a NUL: harmless)
+        return [("'" + v) if v.startswith(_FORMULA_START) else v for v in values]
+    return values
+
+
+#: a cell (of a NUL-joined column) starting with one of :data:`_FORMULA_START`
+_FORMULA_AT = re.compile("(?:^|\x00)[" + re.escape("".join(_FORMULA_START)) + "]")
 
 
 def _rule_parts(doc: Mapping[str, Any]) -> Iterator[tuple[Mapping[str, Any] | None, list[Mapping[str, Any]],
