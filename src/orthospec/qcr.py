@@ -1403,7 +1403,7 @@ def _junit_block_cases(rid: str, block: _Block, a: int, b: int, fail_on: str, pl
     if need:
         allm = block.messages(a, b)
         reqs = list(block.req_texts(a, b))
-        msgs = {k: allm if isinstance(allm, str) else allm[k] for k in need}
+        msgs = {k: allm[k] if isinstance(allm, list) else allm for k in need}
     out = []
     for k, (it, v) in enumerate(zip(items, vs, strict=True)):
         if v == V.PASS and plain:
