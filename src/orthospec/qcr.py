@@ -1117,22 +1117,37 @@ class _Block:
             rule.get("unit") or "", _csv_cells(req) if isinstance(req, list) else next(iter(req), ""),
             ev if isinstance(ev, _Cells) else _csv_cells(ev) if isinstance(ev, list) else next(iter(ev), ""),
             _csv_cells(msgs) if isinstance(msgs := self.messages(a, b), list) else msgs]
-        merged: list[Any] = []  # adjacent constant cells joined into one piece of each line
-        for c in cols:
-            if not isinstance(c, list):
-                c = _csv_cell(c)
-                if merged and isinstance(merged[-1], str):
-                    merged[-1] += "," + c
-                    continue
-            merged.append(c)
-        if not items:
-            return ""
-        lines = zip(*(c if isinstance(c, list) else itertools.repeat(c, len(items)) for c in merged), strict=True)
-        return "\n".join(map(",".join, lines)) + "\n"
+        return _lines(cols, len(items))
 
 
 class _Cells(list):
     """Cells already as qcr.csv writes them (checked for the whole column at once)."""
+
+
+def _lines(cols: list[Any], n: int) -> str:
+    """``n`` csv lines from encoded columns (a list of cells, or one value for every line): the
+    separators and constant cells merged into pieces, the pieces of every line interleaved into one
+    list by slice assignment and joined once (a tenth of the time of a join per line)."""
+    pieces: list[Any] = []
+    for j, c in enumerate(cols):
+        seq = [",", c] if j and isinstance(c, list) else [("," if j else "") + _csv_cell(c)] if not isinstance(c, list) \
+            else [c]
+        for x in seq:
+            if isinstance(x, str) and pieces and isinstance(pieces[-1], str):
+                pieces[-1] += x
+            else:
+                pieces.append(x)
+    if isinstance(pieces[-1], str):
+        pieces[-1] += "\n"
+    else:
+        pieces.append("\n")
+    w = len(pieces)
+    flat: list[str] = [""] * (n * w)
+    for j, x in enumerate(pieces):
+        if isinstance(x, list) and len(x) != n:
+            raise ValueError(f"a compact column holds {len(x)} values for {n} items")
+        flat[j::w] = x if isinstance(x, list) else [x] * n
+    return "".join(flat)
 
 
 #: a cell holding one of these is quoted by csv.writer (a superset: such cells take csv.writer itself)
@@ -1387,16 +1402,21 @@ def _counts(verdicts: Iterable[str]) -> tuple[int, int, int]:
 _XML_SPECIAL = re.compile("[&<>\"'\n\r\t\x00-\x08\x0b\x0c\x0e-\x1f\x7f-\x84\x86-\x9f\ud800-\udfff\ufffe\uffff]")
 
 
-def _junit_block_cases(rid: str, block: _Block, a: int, b: int, fail_on: str, plain: bool) -> list[str]:
+def _junit_block_cases(rid: str, block: _Block, a: int, b: int, fail_on: str, plain: bool) -> list[str] | str:
     """Testcases of compact items a..b-1: passes as one string operation per item when the rule id
-    and the ids need no escaping (``plain``), any other verdict through :func:`_junit_case`."""
+    and the ids need no escaping (``plain``; every item a pass: the lines as one text, by slice
+    assignment), any other verdict through :func:`_junit_case`."""
     rule = block.rule
     items = block.items[a:b]
     verdicts = block.verdict.part(a, b)
     cls = _xml_attr(f"{rule.get('scope', '')}.{rid}")
     if plain and verdicts is None and block.verdict.const == V.PASS:
-        head, tail = f'    <testcase name="{rid}[', f']" classname={cls}/>'
-        return [f"{head}{it}{tail}" for it in items]
+        n = len(items)
+        flat: list[str] = [""] * (3 * n)
+        flat[0::3] = [f'    <testcase name="{rid}['] * n
+        flat[1::3] = items
+        flat[2::3] = [f']" classname={cls}/>\n'] * n
+        return "".join(flat)
     vs = list(block.verdict.get(a, b))
     need = [k for k, v in enumerate(vs) if v != V.PASS or not plain]
     msgs: dict[int, str] = {}
@@ -1464,8 +1484,14 @@ def iter_junit(doc: Mapping[str, Any]) -> Iterator[str]:
                 out.append(_junit_case(rid, part, fail_on))
             else:
                 assert block is not None
-                out.extend(_junit_block_cases(rid, block, *part, fail_on, plain))
-                yield "\n".join(out) + "\n"
+                cases = _junit_block_cases(rid, block, *part, fail_on, plain)
+                if isinstance(cases, str):  # whole lines already
+                    if out:
+                        yield "\n".join(out) + "\n"
+                    yield cases
+                else:
+                    out.extend(cases)
+                    yield "\n".join(out) + "\n"
                 out = []
         out.append("  </testsuite>")
         yield "\n".join(out) + "\n"
