@@ -21,7 +21,7 @@ HOSTILE = ['=HYPERLINK("http://evil.example/x","click")', "+cmd|' /C calc'!A0", 
 
 def test_csv_safe_prefixes_formulas_only() -> None:
     assert csv_safe("=1+1") == "'=1+1"
-    assert csv_safe("\tx") == "'\tx" and csv_safe("\rx") == "'\rx"
+    assert csv_safe("\tx") == "'\tx" and csv_safe("\rx") == "'\nx"  # a CR also becomes a quoted LF
     assert csv_safe("-0.25") == "'-0.25"  # text that a spreadsheet would evaluate
     assert csv_safe(-0.25) == -0.25       # a number stays a number
     assert csv_safe("B02") == "B02"
@@ -46,3 +46,19 @@ def test_hostile_ids_are_neutralised_in_csv_junit_and_terminal(make_delivery, mi
     assert b"\x07" not in junit and b"\x1b" not in junit
     assert "Ibellredlink" in res.output.replace("\n", "")  # shown, escapes stripped
     assert "\x1b" not in res.output and "\x07" not in res.output
+
+
+def test_a_carriage_return_in_a_csv_cell_cannot_split_the_row() -> None:
+    """csv.writer with lineterminator "\\n" leaves a lone CR unquoted; a spreadsheet (and Python's
+    csv.reader) would then see the row broken there. csv_safe turns it into a LF, which is quoted:
+    the row reads back whole, as the 3 cells written."""
+    import csv
+    import io
+
+    from orthospec.qcr import _csv_cells, csv_safe
+
+    buf = io.StringIO()
+    csv.writer(buf, lineterminator="\n").writerow([csv_safe("B01\rFAKE,pass"), csv_safe("\r=1+1"), "ok"])
+    assert list(csv.reader(io.StringIO(buf.getvalue()))) == [["B01\nFAKE,pass", "'\n=1+1", "ok"]]
+    # the per-block writer's column path gives the same cells as csv.writer
+    assert _csv_cells(["B01\rFAKE,pass", "plain"]) == ['"B01\nFAKE,pass"', "plain"]

@@ -893,9 +893,14 @@ _FORMULA_START = ("=", "+", "-", "@", "\t", "\r")
 
 def csv_safe(v: Any) -> Any:
     """Neutralise a spreadsheet formula (OWASP CSV injection): text starting with = + - @ tab CR
-    gets a leading single quote. Numbers stay numbers (a negative dx is not a formula)."""
-    if isinstance(v, str) and v.startswith(_FORMULA_START):
-        return "'" + v
+    gets a leading single quote. Numbers stay numbers (a negative dx is not a formula). A carriage
+    return becomes a line feed: ``csv.writer`` (lineterminator ``\n``) would leave a lone CR
+    unquoted, and a spreadsheet would split the row there; a LF is quoted."""
+    if isinstance(v, str):
+        if v.startswith(_FORMULA_START):
+            v = "'" + v
+        if "\r" in v:
+            v = v.replace("\r\n", "\n").replace("\r", "\n")
     return v
 
 
