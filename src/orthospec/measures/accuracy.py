@@ -394,10 +394,12 @@ def bias_significance(mean: float | None, std: float | None, n: int) -> tuple[fl
         return None, None
     if std == 0.0:
         return (0.0, 1.0) if mean == 0.0 else (math.inf, 0.0)
-    from scipy.stats import t as student_t
+    # Student's t survival function sf(t; k) = stdtr(k, -t), exactly what scipy.stats.t.sf
+    # computes, without importing scipy.stats (~0.25 s of every check's start-up)
+    from scipy.special import stdtr
 
     t = abs(mean) / (std / math.sqrt(n))
-    return float(t), float(2.0 * student_t.sf(t, n - 1))
+    return float(t), float(2.0 * stdtr(n - 1, -t))
 
 
 def _safe_ratio(num: float, den: float) -> float:

@@ -16,15 +16,17 @@ re-render from the stored document) while the document stays small (< ~30 kB per
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
 
 from ...errors import OrthospecError
-from ...measures.edge import NYQUIST, PSF_FITS, EdgeResult, measure_edge
 from ...raster.roi import PixelWindow, RasterRoi, read_roi
 from ..registry import Measured, ProviderContext, provider
+
+if TYPE_CHECKING:  # the edge chain (scipy's optimisers and splines, ~0.5 s) loads only to measure an edge
+    from ...measures.edge import EdgeResult
 
 HEALTH = {  # measure -> health check name in EdgeResult
     "edge.snr": ("snr", "1"), "edge.dn_difference": ("contrast", "DN"), "edge.angle": ("angle", "deg"),
@@ -105,6 +107,8 @@ def edge_curves(res: EdgeResult) -> dict[str, Any]:
         freq = np.round(np.arange(nf) * MTF_STEP, 10)
         out["mtf_freq"] = _r(freq)
         out["fits"] = {}
+        from ...measures.edge import NYQUIST
+
         for f in fits:
             grid = float(np.median(np.diff(f.x))) if f.x.size > 1 else FIT_STEP_PX
             stride = max(1, round(FIT_STEP_PX / grid))
@@ -124,6 +128,8 @@ def _curve_fits(res: EdgeResult) -> list[Any]:
     """The primary fit and one to compare it with: the model-free spline, or (when the
     spline is primary) the PSF model, else the Fermi-Dirac fit. Every fit's values stay in
     the estimates; only two sets of curves are stored, to keep qcr.json bounded."""
+    from ...measures.edge import PSF_FITS
+
     if res.primary_fit not in res.fits:
         return []
     order = ["spline", *PSF_FITS, *sorted(res.fits)]
@@ -167,6 +173,8 @@ def _measure_targets(ctx: ProviderContext) -> dict[str, Any]:
             if window is None:
                 out[t.id] = _auto_target(d, t, rel, got, gsd)
                 continue
+            from ...measures.edge import measure_edge
+
             rec["result"] = measure_edge(got.data, gsd=gsd)
             rec["evidence"] = (d.manifest_evidence(f"edge_targets.{t.id}"), d.evidence(rel))
         except (OrthospecError, OSError) as exc:
