@@ -233,17 +233,21 @@ def test_pillow_byte_counts_equal_numpy_with_and_without_mask(a, invalid_share, 
     assert np.array_equal(rad._pillow_counts(a, mask), np.bincount(a[mask], minlength=256))
 
 
+def _random_of(rng: np.random.Generator, dtype: str, shape: tuple[int, int], *, true_share: float) -> np.ndarray:
+    """Uniform values over the dtype's whole range (bool: True with probability ``true_share``)."""
+    if dtype == "bool":
+        return rng.random(shape) >= 1.0 - true_share
+    info = np.iinfo(dtype)
+    return rng.integers(info.min, info.max, shape, endpoint=True, dtype=dtype)
+
+
 @pytest.mark.parametrize("dtype", ["uint8", "int8", "bool", "uint16"])
 @pytest.mark.parametrize("invalid_share", [0.0, 0.1, 0.6])
 def test_histogram_accumulator_of_every_small_dtype_with_mask_equals_numpy(dtype, invalid_share):
     """Every per-DN path (Pillow for bytes, signed via offset binary, numpy for 16 bits) counts
     the valid pixels of a 2-D block (non-contiguous too) exactly as numpy does."""
     rng = np.random.default_rng(5)
-    if dtype == "bool":
-        data = rng.random((90, 140)) > 0.3
-    else:
-        info = np.iinfo(dtype)
-        data = rng.integers(info.min, info.max, (90, 140), endpoint=True, dtype=dtype)
+    data = _random_of(rng, dtype, (90, 140), true_share=0.7)
     data = data[:, 10:130]  # a strided view, as a band sliced out of a chunk can be
     valid = rng.random(data.shape) >= invalid_share
     acc = rad.HistogramAccumulator.for_dtype(dtype)
@@ -264,11 +268,7 @@ def test_noise_of_integers_equals_the_float_path(dtype):
     """The integer Immerkaer sums and byte window stds give the same sigmas, to the last bit,
     as the float32 / float64 arithmetic of the same values (exact integers either way)."""
     rng = np.random.default_rng(9)
-    if dtype == "bool":
-        data = rng.random((200, 333)) > 0.5
-    else:
-        info = np.iinfo(dtype)
-        data = rng.integers(info.min, info.max, (200, 333), endpoint=True, dtype=dtype)
+    data = _random_of(rng, dtype, (200, 333), true_share=0.5)
     valid = np.ones(data.shape, bool)
     valid[50:70, 100:140] = False
     for v in (None, valid):
