@@ -14,6 +14,7 @@ from typing import Any
 
 import pdfplumber
 import pytest
+import yaml
 from click.testing import CliRunner
 
 from orthospec.cli.main import cli
@@ -92,12 +93,18 @@ def test_checker_and_contractor_operator_are_separate(fail: dict[str, Any], pass
     page1 = fail["pages"][0]
     assert "A. Auditor (contractor QA manager)" not in page1.replace("\n", " ")
     assert re.search(r"Checker \(ran orthospec,.*A\. Auditor", page1.replace("\n", " "))
-    # without --operator the contractor's operator is not named as the checker
+    # without --operator the checker is the party of the checker's file (examples/checker/aerial-pass.yaml),
+    # named with that file and its SHA-256; the contractor's operator is never named as the checker
     assert passed["doc"]["operator"] is None
     p1 = passed["pages"][0].replace("\n", " ")
     contractor_op = passed["doc"]["delivery"]["operator"]["name"]
-    assert "not named" in p1 and contractor_op in p1
+    party = yaml.safe_load((ROOT / "examples" / "checker" / "aerial-pass.yaml").read_text(encoding="utf-8"))["checker"]
+    assert re.search(rf"Checker \(ran orthospec,.*{re.escape(party['name'])}.*checker's file aerial-pass\.yaml", p1)
+    assert contractor_op in p1 and contractor_op != party["name"]
     assert not re.search(rf"Checker \(generated the QCRs\) {re.escape(contractor_op)}", p1)
+    assert f"checker: {party['name']}" in passed["terminal"]
+    # with --operator both are named: who ran the check, and whose file decided the manual checks
+    assert f"A. Auditor; {party['name']}" in fail["pages"][0].replace("\n", " ")
 
 
 def test_terminal_states_reasons_and_is_not_cut(fail: dict[str, Any]) -> None:

@@ -22,7 +22,7 @@ from typing import Any
 from .. import verdicts as V
 from ..qcr import natural_key
 
-__all__ = ["Finding", "NotApplicableSummary", "clean_text", "findings", "fmt_number", "not_applicable_summary", "stated",
+__all__ = ["Finding", "NotApplicableSummary", "checker_text", "clean_text", "findings", "fmt_number", "not_applicable_summary", "stated",
            "unsigned_manual_note"]
 
 PROBLEMS = V.PROBLEMS
@@ -34,6 +34,22 @@ _NEGATED = {"<=": ">", "<": "≥", ">=": "<", ">": "≤", "==": "≠", "!=": "="
 _NO_UNIT = (None, "", "1", "text", "bool", "date", "any")
 # ANSI CSI/OSC sequences and C0/C1 control characters (delivery text must not drive a terminal)
 _ESCAPES = re.compile(r"\x1b\][^\x07\x1b]*(?:\x07|\x1b\\)?|\x1b\[[0-?]*[ -/]*[@-~]|\x1b[@-_]?|[\x00-\x08\x0b-\x1f\x7f-\x9f]")
+
+
+def checker_text(doc: dict[str, Any]) -> str | None:
+    """Who checked, as the reports name them: ``--operator`` (who ran the check), and the party of the
+    checker's file (who decided the manual verdicts, waivers and ITT values) with its name and SHA-256.
+    None when neither is known. The contractor's QA operator is never this (JRC §2: two parties)."""
+    operator = doc.get("operator")
+    chk = doc.get("checker") if isinstance(doc.get("checker"), dict) else None
+    party = None
+    if chk:
+        who = ", ".join(str(chk[k]) for k in ("name", "role", "organisation") if chk.get(k))
+        sha = str(chk.get("sha256") or "")[:12]
+        party = f"{who} (checker's file {chk.get('file', '?')}, sha256 {sha}…)"
+    if operator and party:
+        return f"{operator}; {party}"
+    return operator or party
 
 
 def unsigned_manual_note(records: Iterable[dict[str, Any]]) -> str | None:

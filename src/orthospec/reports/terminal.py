@@ -15,7 +15,7 @@ from rich.table import Table
 
 from .. import verdicts as V
 from ..qcr import all_records
-from .findings import clean_text, findings, unsigned_manual_note
+from .findings import checker_text, clean_text, findings, unsigned_manual_note
 
 MAX_ITEMS = 8
 _STYLE = {V.PASS: "green", V.FAIL: "bold red", V.WARN: "yellow", V.MISSING: "magenta",
@@ -39,9 +39,10 @@ def render(doc: dict[str, Any], console: Console, *, max_items: int = MAX_ITEMS,
     colour = "green" if doc["verdict"] == V.ACCEPTED else "red"
     console.print(f"[bold]orthospec[/] {_t(d['path'])} against {_t(p['id'])} {_t(p['version'])} "
                   f"(sha256 {p['sha256'][:12]}…), {doc['date']}", overflow="fold")
-    checker = doc.get("operator")
+    checker = checker_text(doc)
     qa = d.get("operator") or {}
-    console.print(f"checker: {_t(checker) if checker else '(not named: --operator NAME)'}; contractor QA "
+    console.print(f"checker: {_t(checker) if checker else '(not named: --operator NAME or --checker FILE)'}; "
+                  "contractor QA "
                   f"operator: {_t(qa.get('name', '')) or '-'}"
                   + (f" ({_t(qa['role'])})" if qa.get("role") else ""), overflow="fold")
     sample = doc.get("sample")
