@@ -69,20 +69,23 @@ def test_the_published_schema_is_the_models() -> None:
     assert committed["properties"]["manual_checks"]["items"]["$ref"].endswith("CheckerManualCheck")
 
 
+def _cli_check(root: Path, profile: Path, checker: Path, out: Path, *extra: str) -> subprocess.CompletedProcess[str]:
+    """`orthospec check ROOT --profile P --checker C --out O ...` as a user runs it (a new process)."""
+    return subprocess.run([sys.executable, "-m", "orthospec.cli.main", "check", str(root), "--profile", str(profile),
+                           "--checker", str(checker), "--out", str(out), *extra],
+                          capture_output=True, text=True, timeout=120)
+
+
 def test_check_with_a_checker_file_inside_the_delivery_exits_2(make_delivery, mini_profile, tmp_path: Path) -> None:
     """`orthospec check D --checker D/x.yaml`: exit 2, a one-line message, no traceback, nothing written."""
     root = make_delivery()
     inside = write_checker(root, name="my-own-verdicts.yaml")
     out = tmp_path / "out"
-    proc = subprocess.run([sys.executable, "-m", "orthospec.cli.main", "check", str(root), "--profile",
-                           str(mini_profile), "--checker", str(inside), "--out", str(out)],
-                          capture_output=True, text=True, timeout=120)
+    proc = _cli_check(root, mini_profile, inside, out)
     assert proc.returncode == 2, proc.stderr
     assert "inside the delivery" in proc.stderr and "Traceback" not in proc.stderr
     assert not out.exists()
-    ok = subprocess.run([sys.executable, "-m", "orthospec.cli.main", "check", str(root), "--profile",
-                         str(mini_profile), "--checker", str(write_checker(tmp_path)), "--out", str(out),
-                         "--date", "2026-01-01", "--format", "json"], capture_output=True, text=True, timeout=120)
+    ok = _cli_check(root, mini_profile, write_checker(tmp_path), out, "--date", "2026-01-01", "--format", "json")
     assert ok.returncode in (0, 1), ok.stderr
     doc = json.loads((out / "qcr.json").read_text(encoding="utf-8"))
     assert doc["checker"]["name"] == "Eva External" and doc["checker"]["file"] == "checker.yaml"
@@ -144,9 +147,7 @@ def test_check_refuses_a_checker_file_for_other_content_with_exit_2(make_deliver
     root = make_delivery()
     other = write_checker(tmp_path, MINI_CHECKER.replace("{id: D1}", "{id: D2}"), "other.yaml")
     out = tmp_path / "out"
-    proc = subprocess.run([sys.executable, "-m", "orthospec.cli.main", "check", str(root), "--profile",
-                           str(mini_profile), "--checker", str(other), "--out", str(out)],
-                          capture_output=True, text=True, timeout=120)
+    proc = _cli_check(root, mini_profile, other, out)
     assert proc.returncode == 2, proc.stderr
     assert "other.yaml:3 is for delivery D2; this delivery is D1" in proc.stderr and "Traceback" not in proc.stderr
     assert not out.exists()
