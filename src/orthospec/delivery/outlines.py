@@ -35,6 +35,14 @@ class StatedOutlines:
     area_of_interest: tuple[Ring, Evidence] | None = None
 
 
+def finite_ring(coords: Sequence[Sequence[float]] | None) -> bool:
+    """At least three vertices, every coordinate a finite number: a ring a polygon can be made of
+    (a non-finite vertex leaves its block unchecked, reported where the outline is used)."""
+    import math
+
+    return bool(coords) and len(coords) >= 3 and all(math.isfinite(float(v)) for xy in coords for v in xy)
+
+
 def ring_polygon(coords: Sequence[Sequence[float]]) -> Polygon:
     """A shapely polygon of one ring of ``[x, y]`` vertices (closed or not)."""
     from shapely.geometry import Polygon

@@ -33,7 +33,7 @@ from ..units import canonical, parse_unit
 from ..yamlio import YamlError, load_file
 from .convention import ColumnSpec, TableSpec, table_specs
 from .manifest import Manifest
-from .outlines import StatedOutlines, first_overlap, invalid_reason, ring_polygon
+from .outlines import StatedOutlines, finite_ring, first_overlap, invalid_reason, ring_polygon
 
 MANIFEST = "delivery.yaml"
 #: Columns that hold a path relative to the delivery root, in any table.
@@ -1068,9 +1068,7 @@ def _check_block_outlines(manifest: Manifest, line_of: Any) -> None:
             if len(vertex) != 2:
                 raise DeliveryError(f"blocks[{i}] ({b.id}): polygon vertex {k + 1} is {vertex}, expected [x, y]",
                                     file=MANIFEST, line=line_of(("blocks", i, "polygon", k)))
-    outlines = [(i, b) for i, b in enumerate(manifest.blocks)
-                if b.polygon and len(b.polygon) >= 3
-                and np.isfinite(np.asarray(b.polygon, dtype=float)).all()]
+    outlines = [(i, b) for i, b in enumerate(manifest.blocks) if finite_ring(b.polygon)]
     if not outlines:
         return
     polys = []

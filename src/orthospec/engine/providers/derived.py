@@ -53,6 +53,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from ...delivery.outlines import finite_ring
 from ...errors import MeasureError, OrthospecError
 from ...measures.classes import classify
 from ...measures.mosaic import photo_footprints, strip_headings
@@ -360,10 +361,6 @@ def _disagreement(declared: Any, in_force: Any) -> str | None:
             f"{OUTLINE_TOLERANCE * 100:g} %) and by up to {far:.6g} map units (Hausdorff distance; at most {limit:.6g})")
 
 
-def _ring_ok(ring: Any) -> bool:
-    return ring is not None and len(ring) >= 3 and bool(np.isfinite(np.asarray(ring, dtype=float)).all())
-
-
 @provider(scope="delivery", measures=OUTLINES_AGREE)
 def block_outlines_agree(ctx: ProviderContext) -> list[Measured]:
     """The manifest's block outlines are the ones the checker's file puts in force (JRC §12.4 "block/site")."""
@@ -388,7 +385,7 @@ def block_outlines_agree(ctx: ProviderContext) -> list[Measured]:
             elif block not in stated.blocks:
                 problems.append(f"block {block} (delivery.yaml blocks[{declared[block][0]}]): the {stated.source} "
                                 "gives no outline for it, so none of its check points lies in a block in force")
-            elif not _ring_ok(declared[block][1]):
+            elif not finite_ring(declared[block][1]):
                 problems.append(f"block {block}: delivery.yaml blocks[{declared[block][0]}] declares no valid polygon")
             else:
                 why = _disagreement(ring_polygon(declared[block][1]), ring_polygon(stated.blocks[block][0]))
@@ -609,7 +606,7 @@ def dem_blocks(ctx: ProviderContext) -> list[Measured]:
         return [Measured("derived.dem_blocks", "dem", "text", pd.Series(dtype=object), pd.Series(dtype=object),
                          notes=pd.Series({"*": "the manifest declares no 'dem' table"}, dtype=object))]
     # the outlines in force: the checker's file's when it states blocks (red team R13), else the manifest's
-    polys = {block: Polygon(ring) for block, (ring, _) in d.block_outlines().items() if _ring_ok(ring)}
+    polys = {block: Polygon(ring) for block, (ring, _) in d.block_outlines().items() if finite_ring(ring)}
     ids = t.ids.astype(str).tolist()
     vals: dict[str, Any] = {}
     notes: dict[str, str] = {}

@@ -7,13 +7,13 @@ file states one (its area, else the union of its block outlines), else the manif
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import pandas as pd
 import shapely
 from shapely.geometry import Polygon, box
 
+from ...delivery.outlines import finite_ring
 from ...errors import MeasureError, OrthospecError
 from ...measures.mosaic import seamline_coverage
 from ...raster.reading import read_vector
@@ -34,7 +34,7 @@ def declared_aoi(ctx: ProviderContext) -> tuple[Any, tuple[Any, ...], str]:
             raise MeasureError(f"{rel}: the area of interest has no geometry")
         return shapely.union_all(geoms), (d.evidence(rel),), f"area of interest {rel}"
     blocks = [b for b in d.manifest.blocks if b.polygon and len(b.polygon) >= 3]
-    broken = [b.id for b in blocks if not all(math.isfinite(float(v)) for xy in b.polygon for v in xy)]
+    broken = [b.id for b in blocks if not finite_ring(b.polygon)]
     if broken:
         raise MeasureError(f"delivery.yaml blocks {', '.join(broken)}: a polygon vertex is not a finite number, "
                            "so the area of interest cannot be formed")
