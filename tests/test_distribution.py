@@ -88,3 +88,20 @@ def test_footprint():
 def test_bad_input(kwargs, match):
     with pytest.raises(MeasureError, match=match):
         checkpoint_distribution(**kwargs)
+
+
+@pytest.mark.parametrize("workers", [1, 2, -1])
+def test_nearest_neighbour_distances_are_exact_whatever_the_threads(workers):
+    """The KD-tree's threaded queries (a national block) give every point's nearest-neighbour
+    distance, as the brute-force minimum over all pairs does; so does the GCP distance."""
+    rng = np.random.default_rng(7)
+    x, y = rng.random(1500) * 1000, rng.random(1500) * 1000
+    gx, gy = rng.random(40) * 1000, rng.random(40) * 1000
+    r = checkpoint_distribution(x, y, area=box(0, 0, 1000, 1000), gcp_x=gx, gcp_y=gy, workers=workers)
+    pair = np.hypot(x[:, None] - x[None, :], y[:, None] - y[None, :])
+    np.fill_diagonal(pair, np.inf)
+    np.testing.assert_allclose(r.nn_distance, pair.min(axis=1), rtol=1e-12, atol=0)
+    one = checkpoint_distribution(x, y, area=box(0, 0, 1000, 1000), gcp_x=gx, gcp_y=gy, workers=1)
+    np.testing.assert_array_equal(r.nn_distance, one.nn_distance)  # bit for bit: same bytes in qcr.json
+    to_gcp = np.hypot(x[:, None] - gx[None, :], y[:, None] - gy[None, :]).min(axis=1)
+    np.testing.assert_allclose(r.gcp_distance, to_gcp, rtol=0, atol=1e-9)
