@@ -190,6 +190,40 @@ def test_outputs_are_all_or_nothing(tmp_path):
     assert (out / "fresh" / "b.bin").read_bytes() == b"\x00" and len(list((out / "fresh").iterdir())) == 2
 
 
+WRITE_PAST_A_SIZE_LIMIT = """
+import resource, signal, sys
+from pathlib import Path
+from orthospec.api import write_outputs
+from orthospec.errors import OrthospecError
+signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a write past RLIMIT_FSIZE fails with EFBIG instead
+resource.setrlimit(resource.RLIMIT_FSIZE, (1 << 20, 1 << 20))
+out = Path(sys.argv[1])
+(out / "qcr.json").write_text("old")
+big = ("x" * 1000 + "\\n" for _ in range(5000))  # 5 MB, in pieces, past the 1 MB limit
+try:
+    write_outputs(out, {"qcr.json": "new", "qcr.csv": big, "junit.xml": "new"})
+except OrthospecError as exc:
+    print(exc)
+"""
+
+
+def test_a_write_that_fails_in_the_writer_thread_names_its_output_and_leaves_nothing(tmp_path):
+    """A real write error (a file-size limit: EFBIG), raised in the thread that writes while the
+    next piece is rendered: the message names the output being written, and the folder is as
+    it was (the all-or-nothing promise of write_outputs)."""
+    import subprocess
+    import sys
+
+    out = tmp_path / "out"
+    out.mkdir()
+    run = subprocess.run([sys.executable, "-c", WRITE_PAST_A_SIZE_LIMIT, str(out)], capture_output=True,
+                         text=True, timeout=120)
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.startswith("cannot write qcr.csv to ") and "no output written" in run.stdout
+    assert sorted(p.name for p in out.iterdir()) == ["qcr.json"]
+    assert (out / "qcr.json").read_text() == "old"
+
+
 @pytest.mark.parametrize("text, expected", [
     ("D-2026-014", "D-2026-014"), ("../../../escaped", "escaped"), ("/tmp/x/delivery", "tmp_x_delivery"),
     ("..", "delivery"), ("", "delivery"), ("a b/c", "a_b_c")])
