@@ -117,11 +117,15 @@ class _Column:
         # Python for string ids at 1M points); a duplicate label is refused, as reindex refuses it
         # (on a transient object index: pandas would keep the lookup's hash table and a Python
         # string per id on the measure's own index for the whole run - 65 MB at a million ids)
-        keys = pd.Index(m.values.index.to_numpy(dtype=object), dtype=object, copy=False)
+        labels = m.values.index.to_numpy(dtype=object)
+        keys = pd.Index(labels, dtype=object, copy=False)
         if not keys.is_unique:
             raise ValueError(f"measure {m.name} gives two values for one item")
-        pos = keys.get_indexer(items)
-        del keys
+        if len(labels) == n and n and bool((labels == np.asarray(items, dtype=object)).all()):
+            pos = np.arange(n)  # the items in the measure's own order (a point table): no hashed lookup
+        else:
+            pos = keys.get_indexer(items)
+        del keys, labels
         absent = pos < 0
         self.raw = (m.values.to_numpy()[pos] if not absent.any()
                     else m.values.reindex(items).to_numpy())  # reindex: NaN (and its dtype) where absent
