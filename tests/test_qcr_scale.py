@@ -194,11 +194,11 @@ def test_reports_and_csv_name_the_selected_rows(checked: api.CheckResult) -> Non
 
 def test_block_distributions_in_threads_give_the_same_document(many: Path, checked: api.CheckResult,
                                                                 monkeypatch: pytest.MonkeyPatch) -> None:
-    """Above PARALLEL_POINTS the blocks' distributions run in threads: the same bytes as one by one."""
+    """Above PARALLEL_POINTS each block's nearest-neighbour queries run in scipy's threads
+    (``workers=-1``): the same bytes as in one thread."""
     from orthospec.engine.providers import checkpoints
 
     monkeypatch.setattr(checkpoints, "PARALLEL_POINTS", 0)
-    monkeypatch.setattr(checkpoints.os, "cpu_count", lambda: 2)
     threaded = api.check(many, "jrc-v3", params=PARAMS, date="2026-11-21")
     assert dumps(threaded.document) == dumps(checked.document)
 

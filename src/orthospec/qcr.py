@@ -245,7 +245,7 @@ def _selector(d: Any, e: Evidence, cache: dict[Any, Any]) -> dict[str, Any] | No
     """``{file, sha256, where, rows_count}`` standing for exactly ``e.rows`` of a delivered table, or
     None: the rows must be increasing and be every row of the table (``where: {}``) or every row
     whose cell in one text column (stripped, as the reader parsed it) equals one value."""
-    rows = np.asarray(e.rows, dtype=np.int64)
+    rows = _int_array(e.rows)
     if d is None or e.path or len(rows) < 2 or not bool((np.diff(rows) > 0).all()):
         return None
     table = None
@@ -279,6 +279,13 @@ def _selector(d: Any, e: Evidence, cache: dict[Any, Any]) -> dict[str, Any] | No
         if int(np.count_nonzero(mask)) == len(rows) and np.array_equal(all_rows[mask], rows):
             return found({col: values[k]})
     return None
+
+
+def _int_array(values: Any) -> np.ndarray:
+    """Row numbers as int64 (a ``range``, as a provider may give every row, without one int per row)."""
+    if isinstance(values, range):
+        return np.arange(values.start, values.stop, values.step, dtype=np.int64)
+    return np.fromiter(values, dtype=np.int64, count=len(values))
 
 
 def _factorized(table: Any, col: str, cache: dict[Any, Any]) -> tuple[np.ndarray, list[Any]]:
@@ -436,6 +443,8 @@ class _RuleRecords:
             a = np.asarray(a, dtype=np.float64)
             # one threshold for every item (a stride-0 view): one value, not one per item
             v = a[:1] if a.ndim == 1 and a.size and a.strides[0] == 0 and len(idx) else a[idx]
+            if len(v) > 1 and bool((v == v[0]).all()):  # one threshold for every item (NaN never equals)
+                v = v[:1]
             cols.append(np.where(np.isfinite(v), round_sig(v) + 0.0, np.inf))  # non-finite: null
         rows = max(len(c) for c in cols)  # 1 when every threshold is one value
         stack = np.column_stack([np.broadcast_to(c, (rows,)) for c in cols])
@@ -492,35 +501,40 @@ class _RuleRecords:
         list per column, no Python object per item beyond the values written."""
         r = self.r
         n = len(idx)
-        items = list(map(str, np.asarray(r.items, dtype=object)[idx].tolist()))
-        codes = np.asarray(r.verdict)[idx]
+        every = _every(idx, len(r.items))  # every item, in the order given: no copy of the columns
+        ids = np.asarray(r.items, dtype=object)
+        items = (ids if every else ids[idx]).tolist()
+        if not _all_text(items):
+            items = list(map(str, items))
+        codes = np.asarray(r.verdict) if every else np.asarray(r.verdict)[idx]
         if n > 1 and bool((codes == codes[0]).all()):
             verdict: Any = {"all": VERDICTS[int(codes[0])]}
         else:
             verdict = [VERDICTS[int(c)] for c in codes.tolist()]
-        m = np.asarray(r.measured)[idx]
+        m = np.asarray(r.measured) if every else np.asarray(r.measured)[idx]
         measured = _numeric_column(m) if m.dtype.kind in "fiub" else _column([self._measured(int(i)) for i in idx])
         out: dict[str, Any] = {"items": items, "verdict": verdict, "measured": measured}
         if self.arrays is not None:
             req = self._requirement_column(idx)
             if req is not None:
                 out["requirement"] = req
-        out["evidence"] = self._evidence_column(idx)
-        out["message"] = self._message_column(idx, codes)
+        out["evidence"] = self._evidence_column(idx, every)
+        out["message"] = self._message_column(idx, codes, every)
         if r.requested:
             asked = [r.requested.get(item) for item in items]
             if any(a is not None for a in asked):
                 out["waiver_requested"] = _column(asked)
         return out
 
-    def _evidence_column(self, idx: np.ndarray) -> Any:
+    def _evidence_column(self, idx: np.ndarray, every: bool = False) -> Any:
         """Evidence per item: one row of one file per item (a provider's row evidence) as a row column
         ``{"entry": k, "rows": [...]}``, else indices into the evidence table per item."""
         evs = self.r.evidence
         rows = getattr(evs, "rows", None)
         file, sha = getattr(evs, "file", None), getattr(evs, "sha256", None)
         if isinstance(rows, np.ndarray) and isinstance(file, str) and isinstance(sha, str):
-            picked = np.asarray(rows, dtype=np.float64)[idx]
+            picked = np.asarray(rows, dtype=np.float64)
+            picked = picked if every else picked[idx]
             have = ~np.isnan(picked)
             if not have.any():
                 return _column([[] for _ in range(len(idx))])
@@ -529,10 +543,11 @@ class _RuleRecords:
             return {"entry": self.ev.file_id(file, sha), "rows": col}
         return _column([self.ev.ids(evs[int(i)]) for i in idx])
 
-    def _message_column(self, idx: np.ndarray, codes: np.ndarray) -> Any:
+    def _message_column(self, idx: np.ndarray, codes: np.ndarray, every: bool = False) -> Any:
         """None: the default wording (rebuilt on reading) of a pass without a note; "" for a
         not-applicable record without one; else the note."""
-        notes = np.asarray(self.r.notes, dtype=object)[idx]
+        notes = np.asarray(self.r.notes, dtype=object)
+        notes = notes if every else notes[idx]
         none = np.equal(notes, None).astype(bool)
         if len(idx) > 1 and none.all():
             if (codes == PASS).all():
@@ -543,10 +558,19 @@ class _RuleRecords:
                         for note, nn, c in zip(notes.tolist(), none.tolist(), codes.tolist(), strict=True)])
 
 
+def _every(idx: np.ndarray, n: int) -> bool:
+    """``idx`` is 0..n-1 in order (a rule whose items are all compact and already in natural order)."""
+    return len(idx) == n and (n == 0 or (int(idx[0]) == 0 and int(idx[-1]) == n - 1 and
+                                         bool((np.diff(idx) == 1).all())))
+
+
 def _numeric_column(values: np.ndarray) -> list[Any] | dict[str, Any]:
     """A numeric compact column (stable values), ``{"all": v}`` when every item has the same one."""
     n = len(values)
     if n > 1:
+        if values.dtype.kind == "f" and bool((values == values[0]).all()):  # one value (never NaN)
+            one = float(round_sig(values[:1])[0] + 0.0)
+            return {"all": one if math.isfinite(one) else None}
         if values.dtype.kind == "f":
             r = round_sig(values) + 0.0
             finite = np.isfinite(r)
@@ -667,6 +691,9 @@ def natural_order(items: Any) -> np.ndarray:
     other id (several digit runs, non-ASCII, NUL) takes ``natural_key`` and is merged in by
     binary search. The same order as ``sorted(..., key=natural_key)`` (tests/test_qcr_scale.py)."""
     listed = items.tolist() if isinstance(items, np.ndarray) else list(items)
+    uniform = _uniform_order(listed) if len(listed) >= 256 else None
+    if uniform is not None:
+        return uniform
     strs = listed if _all_text(listed) else [x if type(x) is str else str(x) for x in listed]
     n = len(strs)
     if n < 256 or "\x00" in "".join(strs):
@@ -710,6 +737,37 @@ def natural_order(items: Any) -> np.ndarray:
     fast_keys = _Keys(strs, order)
     at = [bisect.bisect_left(fast_keys, natural_key(strs[i])) for i in slow.tolist()]
     return np.insert(order, at, slow).astype(np.int64)
+
+
+def _uniform_order(strs: list[Any]) -> np.ndarray | None:
+    """The natural order of ids of one length, ASCII, without NUL, whose digits stand at the same
+    positions in every id (``P0000001``, ``F01_0101``), or None for any other list.
+
+    Such ids split into text and digit runs of the same widths at the same places, so comparing
+    their :func:`natural_key` part by part is comparing the ids byte by byte (equal-width digit
+    runs compare as their numbers, equal numbers are equal runs): a stable byte sort, over one
+    buffer of the ids (no Python object per id), and none at all when they are already in order."""
+    if not strs or type(strs[0]) is not str:
+        return None
+    n, width = len(strs), len(strs[0])
+    try:
+        joined = "\n".join(strs)
+    except TypeError:  # not text only
+        return None
+    if not width or len(joined) != n * (width + 1) - 1 or not joined.isascii() or "\x00" in joined \
+            or joined.count("\n") != n - 1:  # no line feed inside an id: the separators are the n - 1
+        return None
+    rows = np.frombuffer((joined + "\n").encode("ascii"), dtype=np.uint8).reshape(n, width + 1)
+    if not bool((rows[:, width] == 10).all()):  # the lengths differ
+        return None
+    chars = np.ascontiguousarray(rows[:, :width])
+    digit = (chars - np.uint8(48)) < 10  # '0'..'9' (below '0' wraps round to large values)
+    if not bool((digit == digit[0]).all()):
+        return None
+    keys = chars.view(f"S{width}").ravel()
+    if bool((keys[1:] >= keys[:-1]).all()):
+        return np.arange(n, dtype=np.int64)
+    return np.argsort(keys, kind="stable").astype(np.int64)
 
 
 def _all_text(values: list[Any]) -> bool:
@@ -1046,6 +1104,27 @@ class _Block:
         self.shown = _shown_unit(rule.get("unit"))
         self.measure = rule.get("measure", "")
         self._etext: dict[int, str] = {}
+        self._plain: dict[str, bool] = {}
+
+    def items_plain_csv(self) -> bool:
+        """Every id is a qcr.csv cell as it is (checked once for the block, not per slice)."""
+        hit = self._plain.get("csv")
+        if hit is None:
+            hit = self._plain["csv"] = _plain_cells(self.items)
+        return hit
+
+    def items_plain_xml(self) -> bool:
+        """Every id is text that junit.xml writes as it is (:data:`_XML_SPECIAL`), checked once."""
+        hit = self._plain.get("xml")
+        if hit is None:
+            try:
+                joined = "".join(self.items)  # text only (else TypeError)
+            except TypeError:
+                hit = False
+            else:
+                hit = not _xml_special(joined)
+            self._plain["xml"] = hit
+        return hit
 
     def req_texts(self, a: int, b: int) -> Iterable[str]:
         if self.req is None:
@@ -1086,8 +1165,12 @@ class _Block:
             base = self.table[col["entry"]]
             head = str(base.get("file", "")) + "#rows="
             tail = f"#{base['path']}" if base.get("path") else ""
-            cells = ["" if r is None else f"{head}{r}{tail}" for r in col["rows"][a:b]]
-            if not _CSV_SPECIAL.search(head + tail):  # the row numbers are digits: the cells as they are
+            rows = col["rows"][a:b]
+            plain = not _CSV_SPECIAL.search(head + tail)  # the row numbers are digits: the cells as they are
+            if plain and csv_safe(head) == head and None not in rows:
+                return _Parts((head, list(map(str, rows)), tail))  # the head and tail merged into the line
+            cells = ["" if r is None else f"{head}{r}{tail}" for r in rows]
+            if plain:
                 return _Cells(cells) if csv_safe(head) == head else _Cells(map(csv_safe, cells))
             return cells
         ids = _Col(col, self.compact)
@@ -1115,12 +1198,12 @@ class _Block:
         items = self.items[a:b]
         cols: list[Any] = [
             rule["rule"], _clause_text(rule.get("citation") or {}), rule.get("scope", ""),
-            _csv_cells(items), rule.get("level"), rule.get("consequence"),
+            items if self.items_plain_csv() else _csv_cells(items), rule.get("level"), rule.get("consequence"),
             self.verdict.const if verdict is None else _csv_cells(verdict), self.measure,
             ("" if self.measured.const is None else self.measured.const) if measured is None else
             [repr(v) if type(v) is float else _csv_cell(v) for v in measured],
             rule.get("unit") or "", _csv_cells(req) if isinstance(req, list) else next(iter(req), ""),
-            ev if isinstance(ev, _Cells) else _csv_cells(ev) if isinstance(ev, list) else next(iter(ev), ""),
+            ev if isinstance(ev, _Cells | _Parts) else _csv_cells(ev) if isinstance(ev, list) else next(iter(ev), ""),
             _csv_cells(msgs) if isinstance(msgs := self.messages(a, b), list) else msgs]
         return _lines(cols, len(items))
 
@@ -1129,14 +1212,20 @@ class _Cells(list):
     """Cells already as qcr.csv writes them (checked for the whole column at once)."""
 
 
+class _Parts(tuple):
+    """A column whose every cell is ``head + value + tail``: ``(head, values, tail)``, each already as
+    qcr.csv writes it, so the head and tail join the line's constant text (no string per cell)."""
+
+
 def _lines(cols: list[Any], n: int) -> str:
     """``n`` csv lines from encoded columns (a list of cells, or one value for every line): the
     separators and constant cells merged into pieces, the pieces of every line interleaved into one
     list by slice assignment and joined once (a tenth of the time of a join per line)."""
     pieces: list[Any] = []
     for j, c in enumerate(cols):
-        seq = [",", c] if j and isinstance(c, list) else [("," if j else "") + _csv_cell(c)] if not isinstance(c, list) \
-            else [c]
+        sep = "," if j else ""
+        seq = [sep + c[0], c[1], c[2]] if isinstance(c, _Parts) else ([sep, c] if sep else [c]) \
+            if isinstance(c, list) else [sep + _csv_cell(c)]
         for x in seq:
             if isinstance(x, str) and pieces and isinstance(pieces[-1], str):
                 pieces[-1] += x
@@ -1180,11 +1269,41 @@ def _csv_cells(values: list[Any]) -> list[str]:
         joined = "\x00".join(values)  # text only (else TypeError); NUL is no csv special character
     except TypeError:
         return [_csv_cell(v) for v in values]
-    if _CSV_SPECIAL.search(joined):
+    if _any_csv_special(joined):
         return [_csv_cell(v) for v in values]
-    if _FORMULA_AT.search(joined):  # a formula start at the start of a cell (or after a NUL: harmless)
+    if _formula_at(joined):  # a formula start at the start of a cell (or after a NUL: harmless)
         return [("'" + v) if v.startswith(_FORMULA_START) else v for v in values]
     return values
+
+
+def _plain_cells(values: list[Any]) -> bool:
+    """Every value is text that qcr.csv writes as it is (what :func:`_csv_cells` returns unchanged)."""
+    try:
+        joined = "\x00".join(values)
+    except TypeError:
+        return False
+    return not _any_csv_special(joined) and not _formula_at(joined)
+
+
+def _any_csv_special(text: str) -> bool:
+    """``_CSV_SPECIAL.search(text)``, one fast substring search per character."""
+    return any(c in text for c in '\n\r,"')
+
+
+#: the bytes of :data:`_FORMULA_START`, as a table over byte values
+_FORMULA_BYTE = np.zeros(256, dtype=bool)
+_FORMULA_BYTE[[ord(c) for c in _FORMULA_START]] = True
+
+
+def _formula_at(joined: str) -> bool:
+    """``_FORMULA_AT.search(joined)`` (a formula start at the start of a NUL-joined cell); for ASCII
+    text over the bytes, one pass, instead of the regular expression's match attempt per NUL."""
+    if not joined.isascii():
+        return bool(_FORMULA_AT.search(joined))
+    b = np.frombuffer(joined.encode("ascii"), dtype=np.uint8)
+    if not len(b):
+        return False
+    return bool(_FORMULA_BYTE[b[0]] or _FORMULA_BYTE[b[1:][b[:-1] == 0]].any())
 
 
 #: a cell (of a NUL-joined column) starting with one of :data:`_FORMULA_START`
@@ -1393,10 +1512,11 @@ def _junit_case(rid: str, r: Mapping[str, Any], fail_on: str) -> str:
     return f'    <testcase name={name} classname={cls}/>'
 
 
-def _counts(verdicts: Iterable[str]) -> tuple[int, int, int]:
-    """(failures, errors, skipped) of a testsuite, as JUnit counts them."""
+def _counts(verdicts: Iterable[str] | _Counter[str]) -> tuple[int, int, int]:
+    """(failures, errors, skipped) of a testsuite, as JUnit counts them (from the verdicts, or
+    their counts)."""
     fails = errs = skipped = 0
-    for v, k in _Counter(verdicts).items():
+    for v, k in (verdicts if isinstance(verdicts, _Counter) else _Counter(verdicts)).items():
         fails += k if v in (V.FAIL, V.MISSING) else 0
         errs += k if v == V.ERROR else 0
         skipped += k if v in V.NEUTRAL else 0
@@ -1405,6 +1525,16 @@ def _counts(verdicts: Iterable[str]) -> tuple[int, int, int]:
 
 #: characters quoteattr/escape or xml_text would change: text without them is written as it is
 _XML_SPECIAL = re.compile("[&<>\"'\n\r\t\x00-\x08\x0b\x0c\x0e-\x1f\x7f-\x84\x86-\x9f\ud800-\udfff\ufffe\uffff]")
+#: the ASCII characters :data:`_XML_SPECIAL` matches (bytes.translate deletes them in one C pass)
+_XML_SPECIAL_ASCII = bytes(i for i in range(128) if _XML_SPECIAL.match(chr(i)))
+
+
+def _xml_special(text: str) -> bool:
+    """``_XML_SPECIAL.search(text)``; ASCII text by deleting those bytes (a tenth of the regex's time)."""
+    if not text.isascii():
+        return bool(_XML_SPECIAL.search(text))
+    b = text.encode("ascii")
+    return len(b.translate(None, _XML_SPECIAL_ASCII)) != len(b)
 
 
 def _junit_block_cases(rid: str, block: _Block, a: int, b: int, fail_on: str, plain: bool) -> list[str] | str:
@@ -1478,12 +1608,14 @@ def iter_junit(doc: Mapping[str, Any]) -> Iterator[str]:
         verdicts = [r["verdict"] for r in full]
         if block is not None:
             col = block.verdict.part(0, n)
-            verdicts.extend(col if col is not None else itertools.repeat(block.verdict.const, n))
-        fails, errs, skipped = _counts(verdicts)
-        del verdicts
+            verdicts.extend(col if col is not None else [block.verdict.const])  # one stands for n
+        counted = _Counter(verdicts)
+        if block is not None and block.verdict.values is None:
+            counted[block.verdict.const] += n - 1
+        fails, errs, skipped = _counts(counted)
+        del verdicts, counted
         out = [_junit_suite(rid, len(full) + n, fails, errs, skipped)]
-        plain = block is not None and not _XML_SPECIAL.search(rid) and all(
-            isinstance(it, str) for it in block.items) and not _XML_SPECIAL.search("".join(block.items))
+        plain = block is not None and not _XML_SPECIAL.search(rid) and block.items_plain_xml()
         for part in _merged(summary, full, block):
             if isinstance(part, dict):
                 out.append(_junit_case(rid, part, fail_on))
