@@ -116,6 +116,13 @@ def radiometry_cmd(ctx: click.Context, image: str, as_json: bool, full: bool, bi
                                expect_gsd=expect_gsd, gsd_tolerance=gsd_tolerance)
             rep = scan_image(image, opts, cloud_mask=cloud_mask, sha256=hashing)
     finally:
+        # Everything allocated so far (the modules of the raster stack, the report) lives until
+        # the process ends: frozen, no collection walks it again, neither the first one after
+        # re-enabling nor the interpreter's full collection at exit (about 40 ms of the
+        # command's wall time on a 2-core machine). Frozen objects are still freed by reference
+        # counting; an in-process caller (tests) keeps working, with these objects exempt from
+        # cycle collection.
+        gc.freeze()
         if collecting:
             gc.enable()
     if rep.error and rep.radiometry is None:

@@ -97,6 +97,25 @@ def _intp_buffer() -> np.ndarray:
     return buf
 
 
+def scratch(name: str, shape: tuple[int, ...], dtype: np.dtype | str) -> np.ndarray:
+    """This thread's reusable work array ``name`` of ``shape`` (contents undefined).
+
+    A streaming scan needs the same temporaries for every chunk (the luminosity, the darkest
+    colour value): a fresh multi-MB array per chunk is memory the kernel zeroes and maps page
+    by page and takes back on free, a few % of a full scan's CPU. One per thread, so the
+    counting threads never share one; it lives as long as its thread.
+    """
+    store: dict[str, np.ndarray] | None = getattr(_buffers, "scratch", None)
+    if store is None:
+        store = _buffers.scratch = {}
+    dt = np.dtype(dtype)
+    n = math.prod(shape)
+    buf = store.get(name)
+    if buf is None or buf.dtype != dt or buf.size < n:
+        buf = store[name] = np.empty(n, dtype=dt)
+    return buf[:n].reshape(shape)
+
+
 def _bincount_serial(out: np.ndarray, values: np.ndarray) -> np.ndarray:
     """``out += np.bincount(values, minlength=out.size)`` slice by slice through the buffer."""
     buf = _intp_buffer()
@@ -616,22 +635,24 @@ def luminosity(r: np.ndarray, g: np.ndarray, b: np.ndarray, dtype: np.dtype | st
     return yf.astype(dt)
 
 
-def luminosity_block(r: np.ndarray, g: np.ndarray, b: np.ndarray, dtype: np.dtype | str) -> np.ndarray:
+def luminosity_block(r: np.ndarray, g: np.ndarray, b: np.ndarray, dtype: np.dtype | str, *,
+                     out: np.ndarray | None = None) -> np.ndarray:
     """:func:`luminosity` of whole 2-D blocks, worked through in cache-sized slabs of rows.
 
     Same values; unsigned bands reuse two uint32 work buffers of ``SLAB_PIXELS`` (no fresh
     temporaries per operation), which made the luminosity histogram about 25 % cheaper.
+    ``out`` (the blocks' shape, ``dtype``) receives the values instead of a new array.
     """
     dt = np.dtype(dtype)
-    y = np.empty(r.shape, dtype=dt)
+    y = np.empty(r.shape, dtype=dt) if out is None else out
     step = max(1, SLAB_PIXELS // max(r.shape[-1], 1))
     if not (dt.kind == "u" and dt.itemsize <= 2 and r.ndim == 2):
         for r0 in range(0, r.shape[0], step):
             sl = slice(r0, r0 + step)
             y[sl] = luminosity(r[sl], g[sl], b[sl], dt)
         return y
-    a = np.empty((step, r.shape[1]), dtype=np.uint32)
-    t = np.empty_like(a)
+    a = scratch("luminosity-sum", (step, r.shape[1]), np.uint32)
+    t = scratch("luminosity-term", (step, r.shape[1]), np.uint32)
     for r0 in range(0, r.shape[0], step):
         sl = slice(r0, r0 + step)
         n = r[sl].shape[0]
