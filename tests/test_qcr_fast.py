@@ -7,6 +7,7 @@ head + row + tail against the record-by-record writer (``_iter_csv_records``).
 
 from __future__ import annotations
 
+import json
 import random
 
 import numpy as np
@@ -21,10 +22,12 @@ from orthospec.qcr import (
     _FORMULA_AT,
     _XML_SPECIAL,
     _any_csv_special,
+    _encode_columns,
     _formula_at,
     _int_array,
     _iter_csv_records,
     _iter_junit_records,
+    _json_texts,
     _numeric_column,
     _uniform_order,
     _xml_special,
@@ -154,3 +157,23 @@ def test_row_columns_without_gaps_same_bytes(seed: int, monkeypatch: pytest.Monk
         monkeypatch.setattr(qcr, "BLOCK_CHUNK", chunk)
         assert "".join(iter_csv(doc)) == "".join(_iter_csv_records(doc))
         assert "".join(iter_junit(doc)) == "".join(_iter_junit_records(doc))
+
+
+_json_text = st.text(alphabet=st.sampled_from(list('aP0 "\\\x00\x1f\x7f\n\té≤\u2028/')), max_size=5)
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.lists(_json_text, min_size=1, max_size=300), st.sampled_from([0, 1, 300]), st.booleans())
+def test_compact_columns_encode_as_json_does(texts: list[str], repeat: int, mixed: bool) -> None:
+    """A compact block written column by column (long text columns joined) is the JSON encoder's
+    text of the whole block, whatever the ids hold (quotes, backslashes, control characters)."""
+    enc = json.JSONEncoder(ensure_ascii=False, allow_nan=False, separators=(",", ":")).encode
+    ids = (texts * (1 + repeat))[: max(len(texts), 256 if repeat else 0)]
+    column: list = [*ids, 3] if mixed else ids
+    block = {"items": column, "verdict": {"all": "pass"}, "evidence": {"entry": 1, "rows": list(range(len(ids)))},
+             "message": ids[:3]}
+    assert _encode_columns(enc, block) == enc(block)
+    assert _encode_columns(enc, {1: ids}) == enc({1: ids}) and _encode_columns(enc, ids) == enc(ids)
+    if not mixed and len(ids) >= 256:
+        plain = all(not set(t) & set('"\\\x00\x1f\n\t') for t in ids)
+        assert (_json_texts(ids) is not None) == plain

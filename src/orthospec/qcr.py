@@ -933,11 +933,50 @@ def iter_dumps(doc: Mapping[str, Any]) -> Iterator[str]:
             yield "\n ]"
         elif key in _PER_LINE and isinstance(value, dict) and value:
             for k, (name, item) in enumerate(value.items()):
-                yield ("{\n  " if k == 0 else ",\n  ") + enc(str(name)) + ": " + enc(item)
+                yield ("{\n  " if k == 0 else ",\n  ") + enc(str(name)) + ": " + _encode_columns(enc, item)
             yield "\n }"
         else:
             yield json.dumps(value, indent=1, ensure_ascii=False, allow_nan=False).replace("\n", "\n ")
     yield "\n}\n"
+
+
+#: a list of at least this many texts is written by one join when none needs an escape
+_JSON_JOIN_MIN = 256
+
+
+def _encode_columns(enc: Any, value: Any) -> str:
+    """``enc(value)``; a mapping's long columns of text (a compact block's item ids) joined at once
+    when no text needs a JSON escape (a fifth of the encoder's time for a million ids)."""
+    if not isinstance(value, dict) or not all(type(k) is str for k in value):
+        return str(enc(value))
+    parts = []
+    for k, v in value.items():
+        text = _json_texts(v) if type(v) is list and len(v) >= _JSON_JOIN_MIN else None
+        parts.append(enc(k) + ":" + (enc(v) if text is None else text))
+    return "{" + ",".join(parts) + "}"
+
+
+#: what json escapes in a text besides the quote and the backslash (ensure_ascii=False)
+_JSON_CONTROL = re.compile("[\x00-\x1f]")
+_JSON_CONTROL_ASCII = bytes(range(32))
+
+
+def _json_texts(values: list[Any]) -> str | None:
+    """A list of texts as the JSON encoder writes it (``["a","b"]``), or None when one is not text
+    or needs an escape (a quote, a backslash, a control character)."""
+    try:
+        joined = '","'.join(values)
+    except TypeError:
+        return None
+    if joined.count('"') != 2 * (len(values) - 1) or "\\" in joined:
+        return None
+    if joined.isascii():
+        b = joined.encode("ascii")
+        if len(b.translate(None, _JSON_CONTROL_ASCII)) != len(b):
+            return None
+    elif _JSON_CONTROL.search(joined):
+        return None
+    return '["' + joined + '"]'
 
 
 # --- writers --------------------------------------------------------------------------------
