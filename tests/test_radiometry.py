@@ -284,6 +284,46 @@ def test_noise_of_integers_equals_the_float_path(dtype):
                               rad._window_std_exact(wide, k))
 
 
+def _noise_by_definition(img: np.ndarray, valid: np.ndarray) -> tuple[int, int, np.ndarray]:
+    """Immerkaer's sum |I * N| and count over fully valid 3x3 neighbourhoods, and the sample
+    stds of the fully valid 8x8 windows, straight from the definitions (scipy, numpy)."""
+    a = img.astype(np.int64)
+    kernel = np.array([[1, -2, 1], [-2, 4, -2], [1, -2, 1]])
+    lap = ndimage.correlate(a, kernel, mode="constant")[1:-1, 1:-1]
+    ok = ndimage.minimum_filter(valid.astype(np.uint8), size=3, mode="constant")[1:-1, 1:-1] == 1
+    k = rad.NOISE_WINDOW
+    h, w = (img.shape[0] // k) * k, (img.shape[1] // k) * k
+    tiles = a[:h, :w].reshape(h // k, k, w // k, k).transpose(0, 2, 1, 3).reshape(-1, k * k)
+    vt = valid[:h, :w].reshape(h // k, k, w // k, k).all(axis=(1, 3)).ravel()
+    return int(np.abs(lap[ok]).sum()), int(ok.sum()), tiles[vt].std(axis=1, ddof=1)
+
+
+@pytest.mark.parametrize("dtype", ["uint8", "uint16", "int16", "bool"])
+@pytest.mark.parametrize("where", ["scattered", "edges", "none", "dense"])
+def test_noise_with_few_invalid_pixels_equals_the_definition(dtype, where):
+    """Integer blocks with a few invalid pixels (scattered nodata DNs) are added whole and the
+    neighbourhoods and windows touching them taken out afterwards: the same sums, counts and
+    local-std histogram as masking, also for invalid pixels on the block's edges and corners."""
+    rng = np.random.default_rng(11)
+    data = _random_of(rng, dtype, (203, 333), true_share=0.5)
+    valid = np.ones(data.shape, bool)
+    if where == "scattered":
+        valid[rng.integers(0, 203, 40), rng.integers(0, 333, 40)] = False
+    elif where == "edges":
+        valid[[0, 0, 202, 202, 0, 100, 202, 5], [0, 332, 0, 332, 150, 0, 200, 332]] = False
+        valid[200:203, 320:333] = False  # rows and columns that no whole 8x8 window covers
+    elif where == "dense":  # above 1 in SPARSE_INVALID: the masked path
+        valid[rng.random(data.shape) < 0.05] = False
+    got = rad.NoiseAccumulator()
+    got.add(data, valid)
+    sum_abs, n_lap, stds = _noise_by_definition(data, valid)
+    assert (got.sum_abs, got.n_lap) == (float(sum_abs), n_lap)
+    want = rad.NoiseAccumulator()
+    want._bin_local_stds(stds)
+    assert np.array_equal(got.local_counts, want.local_counts) and got.n_flat == want.n_flat
+    assert got.homogeneous_sigma == want.homogeneous_sigma
+
+
 @pytest.mark.parametrize("invalid_share", [0.0, 1e-4, 0.2, 0.7, 1.0])
 def test_histogram_with_validity_mask_equals_numpy_of_the_valid_pixels(invalid_share):
     """Mostly valid blocks are counted whole minus the invalid pixels: same counts as selecting."""

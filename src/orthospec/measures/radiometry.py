@@ -49,6 +49,14 @@ NOISE_PERCENTILE = 10.0
 #: Tail share used for the robust DRA margins (0.1 % of the valid pixels at each side).
 ROBUST_TAIL = 0.001
 
+#: A noise block of integers whose invalid pixels are at most 1 in this many is added whole and
+#: the few neighbourhoods and windows touching them are taken out afterwards (same sums).
+SPARSE_INVALID = 64
+
+#: (dy, dx, weight) of Immerkaer's 3x3 difference-of-Laplacians kernel [[1,-2,1],[-2,4,-2],[1,-2,1]].
+_LAPLACIAN_TAPS = tuple((dy, dx, (1 if dy and dx else -2 if dy or dx else 4))
+                        for dy in (-1, 0, 1) for dx in (-1, 0, 1))
+
 # log-spaced bins for the histogram of local standard deviations (0.5 % relative resolution)
 _LOCAL_STD_EDGES = np.geomspace(1e-3, 1e6, 4201)
 _LOG_STEP = math.log(1e6 / 1e-3) / 4200
@@ -449,15 +457,59 @@ class NoiseAccumulator:
             raise MeasureError(f"noise needs a 2-D block, got shape {block.shape}")
         h, w = block.shape
         k = NOISE_WINDOW
+        invalid = None
+        if valid is not None and block.dtype.kind in "uib" and block.dtype.itemsize <= 2:
+            # integer sums are exact in any order: a few invalid pixels (scattered nodata DNs)
+            # are taken out afterwards instead of masking every neighbourhood and window
+            bad = np.flatnonzero(~valid)
+            if bad.size * SPARSE_INVALID <= valid.size:
+                invalid, valid = np.divmod(bad, w), None
         slab = max(k, (SLAB_PIXELS // max(w, 1)) // k * k)
         stds = []
         for r0 in range(0, h, slab):
             r1 = min(h, r0 + slab)
             self._laplacian(block, valid, max(r0, 1), min(r1, h - 1))
             stds.append(self._local_std(block, valid, r0, min(r1, (h // k) * k)))
+        sd = np.concatenate(stds) if len(stds) > 1 else stds[0] if stds else None
+        if invalid is not None and invalid[0].size:
+            sd = self._exclude_invalid(block, *invalid, sd)
         # binned once per block: a few numpy calls on 1/64 of the pixels, not per slab
-        if stds:
-            self._bin_local_stds(np.concatenate(stds) if len(stds) > 1 else stds[0])
+        if sd is not None:
+            self._bin_local_stds(sd)
+
+    def _exclude_invalid(self, block: np.ndarray, rows: np.ndarray, cols: np.ndarray,
+                         sd: np.ndarray | None) -> np.ndarray | None:
+        """Take the neighbourhoods and windows touching the invalid pixels (``rows``,
+        ``cols``) back out of an integer block added whole; the local stds that remain.
+
+        The same sums and windows as masking: the Immerkaer sums are exact integers (below
+        2^53, so their float total does not depend on the order), and the local stds are
+        binned into counts, so removing windows from the list equals never listing them.
+        """
+        h, w = block.shape
+        if h >= 3 and w >= 3:
+            # centres of the 3x3 neighbourhoods holding an invalid pixel, inside [1, h-2] x [1, w-2]
+            off = np.array([-1, 0, 1])
+            cy = (rows[:, None, None] + off[None, :, None]).repeat(3, axis=2).ravel()
+            cx = (cols[:, None, None] + off[None, None, :]).repeat(3, axis=1).ravel()
+            inside = (cy >= 1) & (cy <= h - 2) & (cx >= 1) & (cx <= w - 2)
+            centres = np.unique(cy[inside] * w + cx[inside])
+            cy, cx = np.divmod(centres, w)
+            lap = np.zeros(centres.size, dtype=np.int64)
+            for dy, dx, weight in _LAPLACIAN_TAPS:
+                lap += weight * block[cy + dy, cx + dx].astype(np.int64)
+            self.sum_abs -= float(np.abs(lap).sum(dtype=np.int64))
+            self.n_lap -= int(centres.size)
+        if sd is None:
+            return None
+        k = NOISE_WINDOW
+        th, tw = h // k, w // k
+        if not th or not tw:
+            return sd
+        keep = np.ones((th, tw), dtype=bool)
+        inside = (rows < th * k) & (cols < tw * k)
+        keep[rows[inside] // k, cols[inside] // k] = False
+        return sd[keep.ravel()]
 
     def _laplacian(self, block: np.ndarray, valid: np.ndarray | None, c0: int, c1: int) -> None:
         """Immerkær sums for the centre rows [c0, c1) (their 3x3 neighbourhoods)."""
