@@ -17,6 +17,8 @@ import io
 import os
 import re
 import stat
+import threading
+import warnings
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path, PurePosixPath
@@ -379,10 +381,18 @@ class Delivery:
         if not p.is_file():
             raise DeliveryError(f"table '{name}' file not found: {rel}", file=MANIFEST, line=line)
         data = read_table_bytes(p, file=rel, limits=self.limits)
-        sha = sha256_bytes(data)
-        self._sha[rel] = sha
-        body = utf8_body(data, file=rel)
-        del data  # the table is held once (as LF-terminated UTF-8 bytes) while it is parsed
+        digest = _Digest(data)  # hashed beside the parse (hashlib releases the GIL)
+        try:
+            body = utf8_body(data, file=rel)
+            del data  # the table is held once (as LF-terminated UTF-8 bytes) while it is parsed
+            df, units = self._parse_table(name, spec, rel, body)
+        finally:
+            self._sha[rel] = sha = digest.value()
+        return Table(name, spec, rel, sha, df, units)
+
+    def _parse_table(self, name: str, spec: TableSpec, rel: str,
+                     body: bytes) -> tuple[pd.DataFrame, dict[str, str]]:
+        """The typed frame of a table's body and the canonical unit of its number columns."""
         length_unit = self.manifest.units.get(name, "m")
         try:
             parse_unit(length_unit)
@@ -402,7 +412,7 @@ class Delivery:
         for col, cs in spec.columns.items():
             if cs.type == "number" and col in df:
                 units[col] = canonical(length_unit if cs.unit == "length" else cs.unit)
-        return Table(name, spec, rel, sha, df, units)
+        return df, units
 
 
     @cached_property
@@ -475,6 +485,29 @@ class Delivery:
                                 field="block")
 
 
+class _Digest:
+    """The SHA-256 of a table's bytes, computed in a thread beside the parse when the table is
+    large enough for that to pay (hashlib releases the GIL, and so does pandas' tokenizer)."""
+
+    def __init__(self, data: bytes, threshold: int = 4 << 20) -> None:
+        self._sha: str | None = None
+        self._thread: threading.Thread | None = None
+        if len(data) < threshold:
+            self._sha = sha256_bytes(data)
+        else:
+            self._thread = threading.Thread(target=self._run, args=(data,), daemon=True)
+            self._thread.start()
+
+    def _run(self, data: bytes) -> None:
+        self._sha = sha256_bytes(data)
+
+    def value(self) -> str:
+        if self._thread is not None:
+            self._thread.join()
+        assert self._sha is not None
+        return self._sha
+
+
 def read_table_bytes(path: Path, *, file: str, limits: Limits) -> bytes:
     """The bytes of a table file, refused (file named) when they break ``limits``, before parsing."""
     try:
@@ -483,11 +516,14 @@ def read_table_bytes(path: Path, *, file: str, limits: Limits) -> bytes:
             if size > limits.table_bytes:
                 raise DeliveryError(f"table of {size:,} bytes exceeds the limit of {limits.table_bytes:,} bytes "
                                     "(ORTHOSPEC_MAX_TABLE_BYTES)", file=file)
-            check_csv_bounds(fh, file=file, limits=limits)
-            fh.seek(0)
-            return fh.read()
+            data = fh.read(limits.table_bytes + 1)  # a file grown since fstat is still bounded
     except OSError as exc:
         raise DeliveryError(f"cannot read table: {exc.strerror or exc}", file=file) from None
+    if len(data) > limits.table_bytes:
+        raise DeliveryError(f"table of {len(data):,}+ bytes exceeds the limit of {limits.table_bytes:,} bytes "
+                            "(ORTHOSPEC_MAX_TABLE_BYTES)", file=file)
+    check_csv_bounds(io.BytesIO(data), file=file, limits=limits)  # one read; BytesIO shares the bytes
+    return data
 
 
 def check_csv_bounds(fh: Any, *, file: str, limits: Limits, chunk: int = 16 * 2**20) -> None:
@@ -524,6 +560,18 @@ def check_csv_bounds(fh: Any, *, file: str, limits: Limits, chunk: int = 16 * 2*
                 if head.count(b'"') % 2:
                     raise DeliveryError("the header row has an unclosed quote or a quoted line break; "
                                         "column names are single-line text", file=file, line=1)
+        limit = min(limits.cell_bytes, limits.columns - 1)
+        if b"\r" not in data and _short_lines(data, line_len, limit):
+            # no line is longer than a cell may be or has more bytes than columns (seen without
+            # scanning every byte): carry the state on, as below
+            last = max(data.rfind(b","), data.rfind(b"\n"))
+            run = len(data) - 1 - last if last >= 0 else run + len(data)
+            nls = int(np.count_nonzero(arr == 10))  # numpy counts faster than bytes.count
+            last_nl = data.rfind(b"\n")
+            commas = data.count(b",", last_nl + 1) if nls else commas + data.count(b",")
+            line_len = len(data) - 1 - last_nl if nls else line_len + len(data)
+            line += nls
+            continue
         # a line ends at LF, or at a CR not followed by LF (old Mac files); CRLF counts once
         ends = (arr == 10) | ((arr == 13) & (np.append(arr[1:], 0) != 10)) if b"\r" in data else arr == 10
         nl = np.flatnonzero(ends)
@@ -569,6 +617,22 @@ def check_csv_bounds(fh: Any, *, file: str, limits: Limits, chunk: int = 16 * 2*
         if commas + 1 > limits.columns:
             _refuse_columns(file, line + int(nl_idx.size), commas + 1, limits)
         line += int(nl_idx.size)
+
+
+def _short_lines(data: bytes, carried: int, limit: int) -> bool:
+    """True when no line of ``data`` (the first continuing a line of ``carried`` bytes) is longer
+    than ``limit`` bytes, told from one ``find`` per block of about ``limit / 2`` bytes: when every
+    block holds a line end, no two line ends are ``limit + 1`` bytes apart. False also when that
+    cannot be told so (short limits, a long line): the caller then counts every line."""
+    block = (limit + 2) // 2
+    if block < 256:
+        return False
+    first = data.find(b"\n")
+    if first < 0 or carried + first > limit or len(data) - 1 - data.rfind(b"\n") > limit:
+        return False
+    last = data.rfind(b"\n")
+    find = data.find
+    return all(find(b"\n", p, p + block) >= 0 for p in range(first + 1, last - block + 1, block))
 
 
 def _refuse_cell(file: str, line: int, limits: Limits) -> None:
@@ -640,25 +704,30 @@ def parse_csv(text: str | bytes, spec: TableSpec, *, file: str, cell_bytes: int 
     if cell_bytes is not None and csv.field_size_limit() < cell_bytes:
         csv.field_size_limit(cell_bytes)  # the bound is check_csv_bounds's, not csv's
     try:
-        frame = _read_typed(body, header, spec, file)
-        exact = frame is None
-        if frame is None:
-            frame = _read_cells(body, header, file)
-        shape = _records(body)
+        typed = _read_typed(body, header, spec, file)
+        exact = typed is None
+        frame = _read_cells(body, header, file) if typed is None else typed.frame
+        shape = None if typed is None else _shape_from_cells(body, typed, header)
+        if shape is None:
+            shape = _records(body)
     except csv.Error as exc:  # the csv module's own complaints (NUL bytes, stray quotes...)
         raise DeliveryError(f"not a valid CSV table: {exc}", file=file) from None
     cols = _columns(frame, header, strip=exact or shape.padded)
     rows = np.arange(1, len(frame) + 1, dtype=np.int64)
-    del frame
+    del frame, typed
     if len(rows):
         rows, cols = _drop_blank_rows(rows, cols, shape.widths, len(header), file)
     df = pd.DataFrame({"_row": rows})
+    distinct = spec.id in cols and spec.columns[spec.id].type == "text" and _distinct(cols[spec.id])
     for col in header:
         cs = spec.columns[col]
-        df[col] = _convert_column(cols.pop(col), rows, cs.type, col, file, cs.required)
+        if col == spec.id and distinct:  # different texts, none empty: nothing to share or refuse
+            df[col] = pd.Series(cols.pop(col)[0].to_numpy(dtype=object), dtype=object)
+        else:
+            df[col] = _convert_column(cols.pop(col), rows, cs.type, col, file, cs.required)
         if cs.type == "number":
             _check_bounds(df[col].to_numpy(float), rows, cs, file)
-    if spec.id and spec.id in df and not df[spec.id].is_unique:  # one hashed pass when all are distinct
+    if spec.id and spec.id in df and not distinct and not df[spec.id].is_unique:  # one hashed pass
         ids = df[spec.id]
         dups = ids.duplicated(keep=False).to_numpy()
         if dups.any():
@@ -732,38 +801,93 @@ def _read_csv(body: bytes, header: list[str], file: str, **kw: Any) -> pd.DataFr
         raise DeliveryError(f"not a valid CSV table: {exc}", file=file) from None
 
 
-def _read_typed(body: bytes, header: list[str], spec: TableSpec, file: str) -> pd.DataFrame | None:
-    """Number columns read by the C parser as float64; None when a cell needs the exact path.
+@dataclass(frozen=True)
+class _Typed:
+    """What the C parser's own type inference gave, checked against the spec: ``frame`` holds
+    float64 number columns and text columns whose cells are the delivered text (NaN where empty);
+    ``texts`` names the columns the parser inferred as text (their cells are what it read);
+    ``reread``: some column was read a second time as text, so the parser's cells are not all
+    from one pass (the record widths are then counted from the bytes)."""
+
+    frame: pd.DataFrame
+    texts: tuple[str, ...]
+    reread: bool
+
+
+def _read_typed(body: bytes, header: list[str], spec: TableSpec, file: str) -> _Typed | None:
+    """One pass of pandas' C parser, number columns as float64, the others as it infers them,
+    each checked against the spec; None when a number needs the exact path (every cell as text,
+    converted column by column, which names the first bad cell).
 
     The C parser and ``pandas.to_numeric`` (the exact path) agree on every number they both
     read; the fast result is refused when the parser refuses a cell (words, ``nan``, a blank of
-    spaces...) or read an infinity, and a column holding an exact 0 or 1 is re-read as text
-    (the parser reads a column of only boolean words as 0/1). Text columns other than the id
-    are read as categories (one string object per distinct text, its cells codes: about 0.25 s less
-    at a million rows, and the repeated block / image / source texts shared); pandas converts
-    categories that all read as numbers, booleans or dates, so such a column is re-read as
-    text; :func:`_columns` turns the categories back into text cells.
+    spaces...) or read an infinity, and a number column holding an exact 0 or 1 is re-read as
+    text (the parser reads a column, or a chunk of rows, of only boolean words as 0/1).
+
+    The other columns are inferred (pandas 3: the Arrow-backed ``str`` dtype, about twice as fast
+    as asking for object or category columns; pandas 2: object), and must come out as text, so
+    no cell's text changes ("001" read as 1, "false" as False). Two other shapes are exact
+    without the text: a column of empty cells (float NaN) and a bool column of the parser's
+    boolean words (True, TRUE, true and the False words, all boolean words of ours). Any other
+    column (numbers, or chunks of rows inferred differently: object of mixed types) is re-read
+    as text.
     """
     nums = [c for c in header if spec.columns[c].type == "number"]
-    cats = [c for c in header if spec.columns[c].type == "text" and c != spec.id]
-    dtype = {c: ("float64" if c in nums else "category" if c in cats else object) for c in header}
     try:
-        frame = _read_csv(body, header, file, dtype=dtype)
+        with warnings.catch_warnings():  # chunks inferred differently: checked below, column by column
+            warnings.simplefilter("ignore", pd.errors.DtypeWarning)
+            frame = _read_csv(body, header, file, dtype={c: "float64" for c in nums})
     except ValueError:
         return None
-    guard = [c for c in cats if pd.api.types.infer_dtype(frame[c].cat.categories, skipna=False)
-             not in ("string", "empty")]
-    for c in nums:
-        v = frame[c].to_numpy()
-        if np.isinf(v).any():
+    n = len(frame)
+    if not frame.index.equals(pd.RangeIndex(n)):  # a first record one field long made an index
+        return None
+    texts: list[str] = []
+    reread: list[str] = []
+    for c in header:
+        s = frame[c]
+        if c in nums:
+            v = s.to_numpy()
+            if np.isinf(v).any():
+                return None
+            if ((v == 0.0) | (v == 1.0)).any():
+                reread.append(c)
+        elif _is_text(s):
+            texts.append(c)
+        elif s.dtype == np.float64 and s.isna().all():  # a column of empty cells
+            frame[c] = pd.Categorical.from_codes(np.full(n, -1, dtype=np.int8), categories=_BOOL_WORDS)
+        elif spec.columns[c].type == "bool" and _parser_bools(s):
+            codes = (s.to_numpy(dtype=object) == True).astype(np.int8)  # noqa: E712
+            codes[s.isna().to_numpy()] = -1
+            frame[c] = pd.Categorical.from_codes(codes, categories=_BOOL_WORDS)
+        else:
+            reread.append(c)
+    if reread:
+        try:
+            text = _read_cells(body, header, file, usecols=reread)
+        except ValueError:  # pandas refuses usecols when the first record is one field long
             return None
-        if ((v == 0.0) | (v == 1.0)).any():
-            guard.append(c)
-    if guard:
-        text = _read_cells(body, header, file, usecols=guard)
-        for c in guard:
+        for c in reread:
             frame[c] = text[c]
-    return frame
+    return _Typed(frame, tuple(texts), bool(reread))
+
+
+#: The text a parser boolean stands for (category codes 0 and 1); both are boolean words of ours.
+_BOOL_WORDS = pd.Index(["false", "true"], dtype=object)
+
+
+def _is_text(s: pd.Series) -> bool:
+    """The column holds the cells' text (NaN where empty), as the parser inferred it."""
+    if isinstance(s.dtype, pd.StringDtype):
+        return True
+    return s.dtype == object and pd.api.types.infer_dtype(s, skipna=True) in ("string", "empty")
+
+
+def _parser_bools(s: pd.Series) -> bool:
+    """A column the parser read as booleans (bool dtype, or object of True/False and NaN)."""
+    if s.dtype == bool:
+        return True
+    return s.dtype == object and pd.api.types.infer_dtype(s, skipna=True) == "boolean"
 
 
 def _read_cells(body: bytes, header: list[str], file: str, usecols: list[str] | None = None) -> pd.DataFrame:
@@ -771,19 +895,110 @@ def _read_cells(body: bytes, header: list[str], file: str, usecols: list[str] | 
     return _read_csv(body, header, file, dtype=object, usecols=usecols)
 
 
+#: Bytes at a cell's edge that str.strip() may remove: ASCII whitespace and the \x1c-\x1f
+#: separators, and any non-ASCII byte (the Unicode spaces; letters are stripped of nothing).
+_EDGE = np.zeros(256, dtype=bool)
+_EDGE[[9, 10, 11, 12, 13, 28, 29, 30, 31, 32]] = True
+_EDGE[0x80:] = True
+
+
+def _shape_from_cells(body: bytes, typed: _Typed, header: list[str]) -> _Shape | None:
+    """The record widths and padding from the parsed cells, when that is exact; else None.
+
+    pandas pads a short record with empty cells and raises on a long one, except that a first
+    data record one field longer than the header becomes an index. So: when the first data
+    record has the header's width, every record has at most that width, and every comma of the
+    table is either a delimiter or inside a cell; the table has exactly ``width - 1`` delimiters
+    per record (no record short) iff its commas are ``(width - 1) * records`` plus the commas in
+    its cells. Only text columns can hold a comma. Needs the cells of one pass as Arrow arrays
+    (their bytes are counted, not the strings); a table with a NUL byte (the csv module refuses
+    it), an all-empty record (a blank line has no delimiters) or a re-read column goes by bytes.
+    """
+    frame = typed.frame
+    if typed.reread or b"\x00" in body or not len(frame):
+        return None
+    arrays = [_arrow_text(frame[c]) for c in typed.texts]
+    if any(a is None for a in arrays):
+        return None
+    if np.logical_and.reduce([frame[c].isna().to_numpy() for c in header]).any():
+        return None
+    if not _first_record_fits(body, len(header)):
+        return None
+    commas, padded = 0, False
+    for a in arrays:
+        for chunk in a.chunks:
+            c, p = _cell_bytes(chunk)
+            commas += c
+            padded = padded or p
+    if body.count(b",") != (len(header) - 1) * (len(frame) + 1) + commas:
+        return None
+    return _Shape(np.full(len(frame) + 1, len(header), dtype=np.int64), padded)
+
+
+def _arrow_text(s: pd.Series) -> Any:
+    """The pyarrow ChunkedArray behind an Arrow-backed text column (pandas 3's ``str``), else None."""
+    if isinstance(s.dtype, pd.StringDtype) and s.dtype.storage == "pyarrow":
+        return s.array.__arrow_array__()
+    return None
+
+
+def _cell_bytes(chunk: Any) -> tuple[int, bool]:
+    """Commas in the cells of one Arrow string array, and whether a cell begins or ends with a
+    byte str.strip() might remove (:data:`_EDGE`). Read from its offsets and data buffers."""
+    import pyarrow as pa
+
+    offset_type = np.int64 if pa.types.is_large_string(chunk.type) else np.int32
+    _, offsets_buf, data_buf = chunk.buffers()
+    if data_buf is None or len(chunk) == 0:
+        return 0, False
+    offsets = np.frombuffer(offsets_buf, dtype=offset_type)[chunk.offset:chunk.offset + len(chunk) + 1]
+    data = np.frombuffer(data_buf, dtype=np.uint8)
+    start, stop = offsets[:-1], offsets[1:]
+    full = stop > start
+    first, last = data[start[full]], data[stop[full] - 1]
+    padded = bool(_EDGE[first].any() or _EDGE[last].any())
+    commas = int(np.count_nonzero(data[int(offsets[0]):int(offsets[-1])] == 44))
+    return commas, padded
+
+
+def _first_record_fits(body: bytes, width: int) -> bool:
+    """The header and first data record have ``width`` fields each (counted on a prefix of the
+    bytes cut at a line end; False when the prefix cannot tell)."""
+    cut = body.find(b"\n", 1 << 16)
+    head = body if cut < 0 else body[:cut + 1]
+    shape = _records_fast(head)
+    return shape is not None and len(shape.widths) >= 2 and bool((shape.widths[:2] == width).all())
+
+
+def _distinct(cells: Any) -> bool:
+    """Text cells (Arrow-backed) that are all non-empty and all different, counted by Arrow's
+    hash (False when that cannot be told so cheaply: the caller then checks the objects)."""
+    if isinstance(cells, np.ndarray):
+        return False
+    s, empty = cells
+    arrow = _arrow_text(s)
+    if arrow is None or empty.any():
+        return False
+    if len(arrow) > 1:  # ids in order (the usual table) are distinct without hashing them
+        import pyarrow.compute as pc
+
+        if pc.all(pc.greater(arrow.slice(1), arrow.slice(0, len(arrow) - 1))).as_py():
+            return True
+    return len(arrow.unique()) == len(s)
+
+
 def _columns(frame: pd.DataFrame, header: list[str], *, strip: bool) -> dict[str, Any]:
-    """Per column: the float64 values the C parser read, or the text cells (an object Series,
-    stripped when a cell may need it) and the mask of empty ones."""
+    """Per column: the float64 values the C parser read, or the text cells (a Series, stripped
+    when a cell may need it) and the mask of empty ones."""
     out: dict[str, Any] = {}
     for c in header:
         s = frame[c]
         if s.dtype.kind == "f":
             out[c] = s.to_numpy()
             continue
-        s = s.astype(object)  # a category column: its texts by code (NaN where empty)
         empty = s.isna().to_numpy()
         if strip:
-            s = s.str.strip()
+            s = s.astype(object).str.strip()  # Python's strip, whatever the parser's dtype
             empty = empty | (s == "").to_numpy(bool)
         out[c] = (s, empty)
     return out
@@ -964,7 +1179,7 @@ def _convert_column(cells: Any, rows: np.ndarray, kind: str, col: str, file: str
         return pd.Series(num, dtype=float)
     if kind == "bool":
         # a handful of distinct words: each lowered and looked up once, then spread by its code
-        codes, words = pd.factorize(cells.to_numpy(dtype=object))
+        codes, words = pd.factorize(cells)
         lowered = pd.Series(words, dtype=object).str.lower()
         is_t = np.append(lowered.isin(BOOL_TRUE).to_numpy(bool), False)  # code -1 (empty): neither
         is_f = np.append(lowered.isin(BOOL_FALSE).to_numpy(bool), False)
@@ -990,8 +1205,13 @@ def _convert_column(cells: Any, rows: np.ndarray, kind: str, col: str, file: str
 
 
 def _objects(cells: pd.Series, empty: np.ndarray) -> np.ndarray:
-    """Python strings, None where empty (the parser already shares one object per repeated text)."""
-    out = cells.to_numpy(dtype=object, copy=True)
+    """Python strings, None where empty; one string object per distinct text (the C parser shares
+    them in object columns; Arrow text is factorized so repeated block / source texts are shared)."""
+    if cells.dtype == object:
+        out = cells.to_numpy(dtype=object, copy=True)
+    else:
+        codes, uniques = pd.factorize(cells)
+        out = np.append(np.asarray(uniques, dtype=object), None)[codes]  # code -1 (NaN): None
     out[empty] = None
     return out
 
