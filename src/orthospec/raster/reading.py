@@ -494,6 +494,8 @@ def _stream(ds: rasterio.io.DatasetReader, infos: Sequence[BandInfo], s: ScanSet
             feed(k, win, *fetch(win))
     else:
         with ThreadPoolExecutor(max_workers=1) as reader, ExitStack() as stack:
+            if capture is not None:  # shut down after the counting threads that feed it
+                capture.correlator = stack.enter_context(ThreadPoolExecutor(max_workers=1))
             counters = [stack.enter_context(ThreadPoolExecutor(max_workers=1)) for _ in range(threads)]
             queued: deque[Future[None]] = deque()
             slots.acquire()
@@ -685,6 +687,10 @@ class _MisregistrationWindows:
     filled: list[int] = field(default_factory=list)
     shifts: list[dict[int, rad.Shift] | None] = field(default_factory=list)
     lock: threading.Lock = field(default_factory=threading.Lock)
+    #: where completed windows are correlated (a thread of their own during a threaded scan);
+    #: None: by the thread that completes them
+    correlator: ThreadPoolExecutor | None = None
+    pending: dict[int, Future[dict[int, rad.Shift]]] = field(default_factory=dict)
 
     @classmethod
     def plan(cls, ds: rasterio.io.DatasetReader, infos: Sequence[BandInfo], *,
@@ -728,7 +734,12 @@ class _MisregistrationWindows:
                 self.filled[i] += (ir1 - ir0) * (ic1 - ic0)
                 complete = self.filled[i] == int(w.width) * int(w.height)
             if complete:
-                self.shifts[i] = self._correlate(i)
+                if self.correlator is not None:
+                    # not in the counting thread: its next chunks (and, through the chunks in
+                    # flight, the reader and the other counting thread) would wait ~16 ms
+                    self.pending[i] = self.correlator.submit(self._correlate, i)
+                else:
+                    self.shifts[i] = self._correlate(i)
 
     def _correlate(self, i: int) -> dict[int, rad.Shift]:
         """Shift of every other band vs the reference band in window ``i`` (none if too few
@@ -751,6 +762,8 @@ class _MisregistrationWindows:
     def result(self) -> tuple[int, dict[int, rad.Shift], dict[int, float]]:
         found: dict[int, list[rad.Shift]] = {b.index: [] for b in self.others}
         for i in range(len(self.windows)):  # window order: the same medians in any thread
+            if i in self.pending:
+                self.shifts[i] = self.pending.pop(i).result()
             got = self.shifts[i]
             if got is None:  # not completed by the chunks (cannot happen; stay exact anyway)
                 got = self.shifts[i] = self._correlate(i)
