@@ -1,6 +1,6 @@
-"""Text cells of a check-point table stay the text delivered (issue 14: text columns are parsed as
-pandas categories, which pandas would turn into numbers, booleans or dates when every value of a
-column reads as one)."""
+"""Text cells of a check-point table stay the text delivered (issue 14: the C parser infers the
+text columns, and would turn a column into numbers, booleans or NaN when every value of it reads
+as one; such a column is re-read as text)."""
 
 from __future__ import annotations
 

@@ -383,16 +383,17 @@ class Delivery:
         data = read_table_bytes(p, file=rel, limits=self.limits)
         digest = _Digest(data)  # hashed beside the parse (hashlib releases the GIL)
         try:
-            body = utf8_body(data, file=rel)
+            held = [utf8_body(data, file=rel)]
             del data  # the table is held once (as LF-terminated UTF-8 bytes) while it is parsed
-            df, units = self._parse_table(name, spec, rel, body)
+            df, units = self._parse_table(name, spec, rel, held)
         finally:
             self._sha[rel] = sha = digest.value()
         return Table(name, spec, rel, sha, df, units)
 
     def _parse_table(self, name: str, spec: TableSpec, rel: str,
-                     body: bytes) -> tuple[pd.DataFrame, dict[str, str]]:
-        """The typed frame of a table's body and the canonical unit of its number columns."""
+                     held: list[bytes]) -> tuple[pd.DataFrame, dict[str, str]]:
+        """The typed frame of a table's body (taken out of ``held``) and the canonical unit of
+        its number columns."""
         length_unit = self.manifest.units.get(name, "m")
         try:
             parse_unit(length_unit)
@@ -401,7 +402,7 @@ class Delivery:
                                 line=self.where(("units", name))) from None
         if any(cs.unit == "length" for cs in spec.columns.values()):
             self._check_length_unit(name, length_unit)
-        df = parse_csv(body, spec, file=rel, cell_bytes=self.limits.cell_bytes)
+        df = _parse_body(held, spec, file=rel, cell_bytes=self.limits.cell_bytes)
         self._check_blocks(df, rel)
         for col in PATH_COLUMNS & set(df.columns):
             for r, v in zip(df["_row"].tolist(), df[col].tolist(), strict=True):
@@ -687,11 +688,11 @@ def parse_csv(text: str | bytes, spec: TableSpec, *, file: str, cell_bytes: int 
 
     The one CSV table parser of orthospec (delivery tables, the external-QC sample, the point
     files of ``measure accuracy``). ``text`` is the table (``bytes``: as :func:`utf8_body` gives
-    them). pandas' C parser reads number columns straight to float64 and the others as text;
-    a table whose numbers it cannot read takes the exact path (every cell as text, converted
-    column by column) that names the first bad cell. Cells are stripped of surrounding
-    whitespace. Everything is vectorised: a million-row table parses in about the time of
-    ``pandas.read_csv``.
+    them). pandas' C parser reads number columns straight to float64 and infers the others,
+    each checked against the spec (:func:`_read_typed`); a table whose numbers it cannot read
+    takes the exact path (every cell as text, converted column by column) that names the first
+    bad cell. Cells are stripped of surrounding whitespace. Everything is vectorised: a
+    million-row table parses in a small multiple of the time of ``pandas.read_csv``.
 
     Raises
     ------
@@ -699,7 +700,15 @@ def parse_csv(text: str | bytes, spec: TableSpec, *, file: str, cell_bytes: int 
         A bad header, a row with the wrong number of fields, an empty required cell, a cell
         that is not of its column's type, a duplicate id: file, row and column named.
     """
-    body = text.encode("utf-8") if isinstance(text, str) else text
+    return _parse_body([text.encode("utf-8") if isinstance(text, str) else text], spec, file=file,
+                       cell_bytes=cell_bytes)
+
+
+def _parse_body(held: list[bytes], spec: TableSpec, *, file: str, cell_bytes: int | None) -> pd.DataFrame:
+    """:func:`parse_csv` of the body in ``held``, which it takes out: once the records are
+    counted the bytes are let go (when the caller holds no other reference), so a national
+    table is not held as bytes while its columns become Python objects."""
+    body = held.pop()
     header = _header(body, spec, file)
     if cell_bytes is not None and csv.field_size_limit() < cell_bytes:
         csv.field_size_limit(cell_bytes)  # the bound is check_csv_bounds's, not csv's
@@ -712,6 +721,7 @@ def parse_csv(text: str | bytes, spec: TableSpec, *, file: str, cell_bytes: int 
             shape = _records(body)
     except csv.Error as exc:  # the csv module's own complaints (NUL bytes, stray quotes...)
         raise DeliveryError(f"not a valid CSV table: {exc}", file=file) from None
+    del body
     cols = _columns(frame, header, strip=exact or shape.padded)
     rows = np.arange(1, len(frame) + 1, dtype=np.int64)
     del frame, typed
