@@ -136,7 +136,8 @@ def main() -> None:
     if args.make:
         make_image(Path(args.make), args.size_mb, args.dtype, args.compress)
         return
-    print(f"orthospec bench: parent peak RSS {_self_rss():.0f} MB (children inherit it)")
+    print(f"orthospec bench: parent peak RSS {_self_rss():.0f} MB (children inherit it); "
+          f"load average at start: {_load()}")
     with tempfile.TemporaryDirectory(prefix="orthospec-bench-") as tmp:
         img = Path(args.image) if args.image else Path(tmp) / "big.tif"
         t0 = time.perf_counter()
@@ -190,6 +191,7 @@ def main() -> None:
                 results[key].append((w, m))
                 cpu[key].append(c)
         best = {k: (min(w for w, _ in v), max(m for _, m in v)) for k, v in results.items()}
+        median = {k: sorted(w for w, _ in v)[len(v) // 2] for k, v in results.items()}
         print(f"gdalinfo -stats -hist ({gdal_version}): {best['gdal'][0]:.2f} s, "
               f"peak {best['gdal'][1]:.0f} MB")
         for mode in ("stats", "full"):
@@ -206,14 +208,21 @@ def main() -> None:
             w, m = best[key]
             print(f"orthospec measure radiometry (whole command, {what} + file checks + SHA-256): "
                   f"{w:.2f} s, peak {m:.0f} MB, {key}/gdal = {w / best['gdal'][0]:.2f} wall, "
-                  f"{min(cpu[key]) / g_cpu:.2f} CPU (target <= {target}x, peak < 300 MB)")
+                  f"{min(cpu[key]) / g_cpu:.2f} CPU (target <= {target}x, peak < 300 MB); "
+                  f"median of the rounds {median[key] / median['gdal']:.2f} wall")
         print("CPU seconds (user+system, least of the rounds): " + ", ".join(
             f"{k} {min(v):.2f} s ({min(v) / g_cpu:.2f}x gdal)" for k, v in cpu.items()))
         floor = min(cpu["stats"]) + min(cpu["sha256"]) - min(cpu["python"])
         print(f"command CPU without CLI and file checks (stats child + sha256 child - one python "
               f"start-up): {floor:.2f} s = {floor / g_cpu:.2f}x gdal")
         print(f"throughput orthospec stats: {size / 1e6 / best['stats'][0]:.0f} MB/s; "
-              f"load average: {os.getloadavg()[0]:.2f} on {os.cpu_count()} cpus")
+              f"load average at the end: {_load()} on {os.cpu_count()} cpus (other work on the "
+              "cores makes wall times noisy: compare the CPU ratios)")
+
+
+def _load() -> str:
+    """The 1, 5 and 15 minute load averages."""
+    return " ".join(f"{v:.2f}" for v in os.getloadavg())
 
 
 if __name__ == "__main__":
