@@ -177,3 +177,20 @@ def test_compact_columns_encode_as_json_does(texts: list[str], repeat: int, mixe
     if not mixed and len(ids) >= 256:
         plain = all(not set(t) & set('"\\\x00\x1f\n\t') for t in ids)
         assert (_json_texts(ids) is not None) == plain
+
+
+def test_heads_and_tails_known_cases() -> None:
+    """Ids as a head and trailing digits: heads with digits of their own (``B01_``), a head whose
+    key begins another's (``B01_`` and ``B01_2x``: merged in through natural_key), a head ending in
+    a non-ASCII digit (``x٣`` + ``5`` is one run), tails of more than 18 digits, NUL, non-text ids."""
+    rng = random.Random(7)
+    ids = [f"B{b:02d}_{rng.randrange(0, 3000)}" for b in (1, 2, 10) for _ in range(150)]
+    assert natural_order(ids).tolist() == _reference(ids)
+    for extra in (["B01_2x", "B01_"], ["5x", "12", "0012", "0"], ["x٣5", "x٣", "x4", "x٣٣", "x٣40"], ["P" + "9" * 25, "P" + "0" * 30],
+                  ["a\x001", "a\x00", "\x00"], ["é12", "e12", "E12"]):
+        mixed = ids + extra * 3
+        rng.shuffle(mixed)
+        assert natural_order(mixed).tolist() == _reference(mixed), extra
+    numbers = [rng.randrange(0, 10**6) for _ in range(400)] + [None, 2.5]
+    as_text = [str(x) for x in numbers]
+    assert natural_order(numbers).tolist() == _reference(as_text)

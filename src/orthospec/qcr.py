@@ -685,49 +685,34 @@ _FAST_DIGITS = 18
 def natural_order(items: Any) -> np.ndarray:
     """Indices that sort ``items`` by :func:`natural_key` (ties in item order), vectorised.
 
-    Ids of the form ``<text without digits><ASCII digits>`` (``P0000001``, ``IMG_12``) or without
-    digits sort by numpy keys: the text's rank, digits or not, the number, then its leading zeros
-    (what ``natural_key`` compares after the number: ``'0' < '00'`` but ``'001' < '01'``); any
-    other id (several digit runs, non-ASCII, NUL) takes ``natural_key`` and is merged in by
-    binary search. The same order as ``sorted(..., key=natural_key)`` (tests/test_qcr_scale.py)."""
+    Ids of one length and one digit layout (``P0000001``, ``F01_0101``) sort as bytes
+    (:func:`_uniform_order`). Otherwise each id is a head and its trailing ASCII digits
+    (``B01_`` + ``17``): the distinct heads (few) are ordered by ``natural_key``, and the ids by
+    numpy keys: the head's rank, digits or not, the number, then its leading zeros (what
+    ``natural_key`` compares after the number: ``'0' < '00'`` but ``'001' < '01'``). That is the
+    natural order when no head's key begins another's (checked; ``B01_`` and ``B01_2x`` would
+    not do). An id outside it (a head that begins another, more than 18 trailing digits) takes
+    ``natural_key`` and is merged in by binary search. The same order as ``sorted(...,
+    key=natural_key)`` (tests/test_qcr_scale.py, tests/test_qcr_fast.py)."""
     listed = items.tolist() if isinstance(items, np.ndarray) else list(items)
-    uniform = _uniform_order(listed) if len(listed) >= 256 else None
+    n = len(listed)
+    if n < 256:
+        return _slow_order(listed if _all_text(listed) else [str(x) for x in listed], np.arange(n))
+    uniform = _uniform_order(listed)
     if uniform is not None:
         return uniform
-    strs = listed if _all_text(listed) else [x if type(x) is str else str(x) for x in listed]
-    n = len(strs)
-    if n < 256 or "\x00" in "".join(strs):
-        return _slow_order(strs, np.arange(n))
-    a = np.array(strs, dtype=str)
-    width = a.dtype.itemsize // 4
-    if width == 0:
-        return np.arange(n, dtype=np.int64)
-    codes = a.view(np.uint32).reshape(n, width)
-    length = np.char.str_len(a)
-    isdig = (codes >= 48) & (codes <= 57)
-    ndig = isdig.sum(axis=1)
-    first = np.where(ndig > 0, isdig.argmax(axis=1), length)
-    fast = (ndig == length - first) & (ndig <= _FAST_DIGITS) & ~(codes >= 128).any(axis=1)
-    if not fast.any():
-        return _slow_order(strs, np.arange(n))
+    try:
+        strs = listed
+        fast, rank, value, zeros, has = _head_tail_keys(strs)  # str methods: TypeError unless text
+    except TypeError:
+        strs = [x if type(x) is str else str(x) for x in listed]
+        fast, rank, value, zeros, has = _head_tail_keys(strs)
     fi = np.flatnonzero(fast)
-    c, dg = codes[fi], isdig[fi]
-    value = np.zeros(len(fi), dtype=np.int64)
-    zeros = np.zeros(len(fi), dtype=np.int64)
-    started = np.zeros(len(fi), dtype=bool)
-    for j in range(width):  # Horner over the columns: the digits are the id's last characters
-        d, digit = dg[:, j], c[:, j].astype(np.int64) - 48
-        value = np.where(d, value * 10 + digit, value)
-        zeros += d & (digit == 0) & ~started
-        started |= d & (digit != 0)
-    text = np.where(dg, 0, c).view(f"<U{width}").ravel()  # the text before the digits
-    if bool((text == text[0]).all()):
-        rank = np.zeros(len(fi), dtype=np.int64)
-    else:
-        rank = np.unique(text, return_inverse=True)[1].ravel()
-    has = ndig[fi] > 0
+    if not len(fi):
+        return _slow_order(strs, np.arange(n))
+    rank, value, zeros, has = rank[fi], value[fi], zeros[fi], has[fi]
     if bool((rank == rank[0]).all() & has.all()) and bool((np.diff(value) > 0).all()):
-        order = fi  # one prefix and increasing numbers: already in order (ids in file order)
+        order = fi  # one head and increasing numbers: already in order (ids in file order)
     else:
         tie = np.where(value == 0, zeros, -zeros)
         order = fi[np.lexsort((tie, value, has, rank))]
@@ -737,6 +722,58 @@ def natural_order(items: Any) -> np.ndarray:
     fast_keys = _Keys(strs, order)
     at = [bisect.bisect_left(fast_keys, natural_key(strs[i])) for i in slow.tolist()]
     return np.insert(order, at, slow).astype(np.int64)
+
+
+_ASCII_DIGITS = "0123456789"
+
+
+def _head_tail_keys(strs: list[str]) -> tuple[np.ndarray, ...]:
+    """Per id: whether the head/tail keys order it (``fast``), its head's rank, its trailing number,
+    that number's leading zeros, and whether it has one. Python work per id is a few calls in C
+    (``rstrip``, ``len``, one join); per distinct head one ``natural_key``."""
+    n = len(strs)
+    heads = list(map(str.rstrip, strs, itertools.repeat(_ASCII_DIGITS, n)))
+    lens = np.fromiter(map(len, strs), dtype=np.int64, count=n)
+    tail = lens - np.fromiter(map(len, heads), dtype=np.int64, count=n)
+    codes, distinct = _factorize(heads)
+    del heads
+    keys = [natural_key(h) for h in distinct]
+    by_key = sorted(range(len(distinct)), key=keys.__getitem__)
+    usable = np.array([not h or not h[-1].isdecimal() for h in distinct], dtype=bool)  # '٣' + '5' is one run
+    for a, b in itertools.pairwise(by_key):
+        if keys[b][:len(keys[a])] == keys[a]:  # a's key begins b's (then it begins every key between)
+            usable[a] = False
+    rank = np.empty(len(distinct), dtype=np.int64)
+    rank[by_key] = np.arange(len(distinct))
+    fast = usable[codes] & (tail <= _FAST_DIGITS)
+    value = np.zeros(n, dtype=np.int64)
+    zeros = np.zeros(n, dtype=np.int64)
+    width = int(tail[fast].max()) if fast.any() else 0
+    if width:
+        # the ids' characters as code points, one buffer: the tail of id i ends at ends[i]
+        chars = np.frombuffer("".join(strs).encode("utf-32-le", "surrogatepass"), dtype=np.uint32)
+        ends = np.cumsum(lens)
+        started = np.zeros(n, dtype=bool)
+        for k in range(width):  # Horner over the tails' characters, left to right
+            on = fast & (k < tail)
+            at = np.where(on, ends - tail + k, 0)
+            digit = chars[at].astype(np.int64) - 48
+            value = np.where(on, value * 10 + digit, value)
+            zeros += on & (digit == 0) & ~started
+            started |= on & (digit != 0)
+    return fast, rank[codes], value, zeros, tail > 0
+
+
+def _factorize(values: list[str]) -> tuple[np.ndarray, list[str]]:
+    """Codes (into the distinct values, in order of first appearance) and the distinct values."""
+    if "pandas" in sys.modules:
+        import pandas as pd
+
+        codes, distinct = pd.factorize(np.array(values, dtype=object))
+        return np.asarray(codes, dtype=np.int64), list(distinct)
+    index: dict[str, int] = {}
+    out = np.fromiter((index.setdefault(v, len(index)) for v in values), dtype=np.int64, count=len(values))
+    return out, list(index)
 
 
 def _uniform_order(strs: list[Any]) -> np.ndarray | None:
@@ -750,6 +787,8 @@ def _uniform_order(strs: list[Any]) -> np.ndarray | None:
     if not strs or type(strs[0]) is not str:
         return None
     n, width = len(strs), len(strs[0])
+    if {len(x) if type(x) is str else -1 for x in strs[::max(1, n // 64)]} != {width}:
+        return None  # a sample of other lengths: no join of every id
     try:
         joined = "\n".join(strs)
     except TypeError:  # not text only
@@ -767,7 +806,13 @@ def _uniform_order(strs: list[Any]) -> np.ndarray | None:
     keys = chars.view(f"S{width}").ravel()
     if bool((keys[1:] >= keys[:-1]).all()):
         return np.arange(n, dtype=np.int64)
-    return np.argsort(keys, kind="stable").astype(np.int64)
+    # the bytes as big-endian 8-byte words (zero-padded): integer sorts, in the bytes' order
+    words = np.zeros((n, -(-width // 8) * 8), dtype=np.uint8)
+    words[:, :width] = chars
+    w = words.view(">u8")
+    if w.shape[1] == 1:
+        return np.argsort(w[:, 0], kind="stable").astype(np.int64)
+    return np.lexsort(w.T[::-1]).astype(np.int64)
 
 
 def _all_text(values: list[Any]) -> bool:
