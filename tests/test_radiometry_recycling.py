@@ -128,3 +128,34 @@ def test_scratch_arrays_are_per_thread_and_reused():
     t.start()
     t.join()
     assert not np.shares_memory(bigger, other[0])  # counting threads never share one
+
+
+@pytest.mark.parametrize("dtype", ["uint8", "uint16", "float32"])
+def test_noise_of_sampled_chunks_added_in_a_side_thread_equals_each_chunk_added_in_turn(
+        tmp_path, dtype):
+    """Integer bands' noise is added by a side thread, one accumulator per chunk merged at the
+    end (float bands stay in the counting thread, in order): the sigmas equal those of every
+    sampled chunk's pixels added one after the other, as read straight from the file."""
+    from orthospec.raster.reading import chunk_windows
+
+    rng = np.random.default_rng(21)
+    a = _textured(rng, "uint16", SHAPE).astype(dtype)
+    a[:, 100:104, 50:300] = 0  # a few nodata pixels: the validity path too
+    f = _write(tmp_path / "z.tif", a, nodata=0)
+    chunk = CHUNK * np.dtype(dtype).itemsize
+    stride = 3  # every third chunk, as noise_max_pixels samples a big image
+    settings = ScanSettings(chunk_bytes=chunk, noise_max_pixels=SHAPE[0] * SHAPE[1] // stride + 1,
+                            luminosity=False, misregistration=False)
+    got = scan_raster(f, settings)
+
+    with rasterio.open(f) as ds:
+        wins = list(chunk_windows(ds, chunk))
+    assert len(wins) > 2 * stride
+    want = {b: rad.NoiseAccumulator() for b in range(3)}
+    for w in wins[::stride]:
+        for b in range(3):
+            band = a[b, w.row_off:w.row_off + w.height, w.col_off:w.col_off + w.width]
+            want[b].add(band, band != 0)
+    for b in range(3):
+        assert got.bands[b].noise_sigma_immerkaer == want[b].immerkaer_sigma
+        assert got.bands[b].noise_sigma_homogeneous == want[b].homogeneous_sigma

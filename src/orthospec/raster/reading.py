@@ -475,18 +475,49 @@ def _stream(ds: rasterio.io.DatasetReader, infos: Sequence[BandInfo], s: ScanSet
     threads = max(1, min(s.threads, os.cpu_count() or 1, len(accs), len(wins)))
     slots = threading.Semaphore(max(CHUNKS_IN_FLIGHT, threads + 1))
 
+    def done(buf: np.ndarray | None) -> None:
+        """A chunk is counted: its buffer may take another chunk (nothing keeps a view of it:
+        the misregistration capture copies), its slot another read."""
+        if buf is not None:
+            with free_lock:
+                free.append(buf)
+        slots.release()
+
+    # The noise estimators of a sampled chunk take several times a chunk's counting: in the
+    # counting thread they would hold up its next chunks and, through the chunks in flight,
+    # the reader and the other thread. Integer bands' noise (exact integer sums) goes to a
+    # side thread instead, into one accumulator per chunk merged at the end.
+    side: list[ThreadPoolExecutor] = []  # the side thread of a threaded scan
+    noise_jobs: list[Future[list[tuple[int, rad.NoiseAccumulator]]]] = []
+
+    def noise_of(work: list[tuple[int, np.ndarray, np.ndarray | None]],
+                 buf: np.ndarray | None) -> list[tuple[int, rad.NoiseAccumulator]]:
+        try:
+            out = []
+            for idx, band, valid in work:
+                part = rad.NoiseAccumulator()
+                part.add(band, valid)
+                out.append((idx, part))
+            return out
+        finally:
+            done(buf)
+
     def feed(k: int, win: Window, data: np.ndarray, mask: np.ndarray | None,
              buf: np.ndarray | None) -> None:
+        later: list[tuple[int, np.ndarray, np.ndarray | None]] | None = [] if side else None
+        handed = False
         try:
             with rad.serial_counting() if threads > 1 else nullcontext():
-                accs[k % len(accs)].add(data, mask, noise=k % stride == 0)
+                accs[k % len(accs)].add(data, mask, noise=k % stride == 0, later=later)
             if capture is not None:
                 capture.take(win, data, mask)  # disjoint parts of the windows: safe in threads
-        finally:
-            if buf is not None:  # nothing keeps a view of a counted chunk (take copies)
+            if later:
                 with free_lock:
-                    free.append(buf)
-            slots.release()
+                    noise_jobs.append(side[0].submit(noise_of, later, buf))
+                handed = True  # the side thread releases the chunk
+        finally:
+            if not handed:
+                done(buf)
 
     if len(wins) <= 1:  # one chunk (a small image): no thread to start and hand off to
         for k, win in enumerate(wins):
@@ -494,8 +525,11 @@ def _stream(ds: rasterio.io.DatasetReader, infos: Sequence[BandInfo], s: ScanSet
             feed(k, win, *fetch(win))
     else:
         with ThreadPoolExecutor(max_workers=1) as reader, ExitStack() as stack:
-            if capture is not None:  # shut down after the counting threads that feed it
-                capture.correlator = stack.enter_context(ThreadPoolExecutor(max_workers=1))
+            # the side thread (noise, misregistration windows): shut down after the counting
+            # threads that feed it
+            side.append(stack.enter_context(ThreadPoolExecutor(max_workers=1)))
+            if capture is not None:
+                capture.correlator = side[0]
             counters = [stack.enter_context(ThreadPoolExecutor(max_workers=1)) for _ in range(threads)]
             queued: deque[Future[None]] = deque()
             slots.acquire()
@@ -510,6 +544,9 @@ def _stream(ds: rasterio.io.DatasetReader, infos: Sequence[BandInfo], s: ScanSet
                     queued.popleft().result()  # a counting error stops the scan early
             for fut in queued:
                 fut.result()
+            for job in noise_jobs:  # exact integer sums: any order gives the same bits
+                for idx, part in job.result():
+                    acc.noise[idx].merge(part)
     for other in accs[1:]:
         acc.merge(other)
     return len(wins)
@@ -569,12 +606,16 @@ class _Accumulators:
             rgb=rgb,
             lum=rad.HistogramAccumulator.for_dtype(infos[rgb[0] - 1].dtype) if rgb else None)
 
-    def add(self, data: np.ndarray, shared_mask: np.ndarray | None, *, noise: bool) -> None:
+    def add(self, data: np.ndarray, shared_mask: np.ndarray | None, *, noise: bool,
+            later: list[tuple[int, np.ndarray, np.ndarray | None]] | None = None) -> None:
         """Feed one chunk (bands, rows, cols); ``noise`` False skips the noise estimators.
 
         Validity masks cost as much as a histogram: they are built only where a pixel can be
         invalid (a GDAL mask with zeros, or a chunk whose histogram counted the nodata value)
         and only for the accumulators that need them (moments, noise, luminosity).
+        ``later`` (a list) receives (band index, band, validity) of the integer bands' noise
+        instead of adding it here: their sums are exact integers, the same in any order, so
+        another thread may add them (:func:`_stream`); float bands are added here, in order.
         """
         mask_valid = None
         if shared_mask is not None:
@@ -602,7 +643,10 @@ class _Accumulators:
                 valid = _valid(band, b, None) if b.index in with_nodata and b.index in need else None
             valids[b.index] = valid
             if noise and b.index in self.noise:
-                self.noise[b.index].add(band, valid)
+                if later is not None and band.dtype.kind in "uib" and band.dtype.itemsize <= 2:
+                    later.append((b.index, band, valid))
+                else:
+                    self.noise[b.index].add(band, valid)
         if self.rgb is not None and self.lum is not None:
             self._add_luminosity(data, mask_valid, valids, with_nodata)
 
