@@ -272,3 +272,16 @@ def test_table_checksum_is_the_files_sha256(make_delivery, rows):
     t = d.table("checkpoints")
     assert t.sha256 == hashlib.sha256(text.encode()).hexdigest() == d.sha256("tables/cp.csv")
     assert len(t.df) == rows
+
+
+@pytest.mark.parametrize("kind", ["string", "large_string"])
+def test_cell_bytes_count_the_commas_and_see_the_edges(kind):
+    pa = pytest.importorskip("pyarrow")
+    cells = ["a,b", None, "", " x", "plain", ",,", "y\u3000", "z"]
+    arr = pa.array(cells, type=getattr(pa, kind)())
+    for part in (arr, arr.slice(2), arr.slice(1, 3), arr.slice(4, 2), arr.slice(7)):
+        texts = [c for c in part.to_pylist() if c]
+        assert reader._cell_bytes(part) == (sum(c.count(",") for c in texts),
+                                            any(c != c.strip() for c in texts)), part.to_pylist()
+    if hasattr(pa, "string_view"):
+        assert reader._cell_bytes(pa.array(cells, type=pa.string_view())) is None

@@ -957,9 +957,11 @@ def _shape_from_cells(body: bytes, typed: _Typed, header: list[str]) -> _Shape |
     commas, padded = 0, False
     for a in arrays:
         for chunk in a.chunks:
-            c, p = _cell_bytes(chunk)
-            commas += c
-            padded = padded or p
+            counted = _cell_bytes(chunk)
+            if counted is None:
+                return None
+            commas += counted[0]
+            padded = padded or counted[1]
     if _count(np.frombuffer(body, dtype=np.uint8), 44) != (len(header) - 1) * (len(frame) + 1) + commas:
         return None
     return _Shape(np.full(len(frame) + 1, len(header), dtype=np.int64), padded)
@@ -972,11 +974,14 @@ def _arrow_text(s: pd.Series) -> Any:
     return None
 
 
-def _cell_bytes(chunk: Any) -> tuple[int, bool]:
+def _cell_bytes(chunk: Any) -> tuple[int, bool] | None:
     """Commas in the cells of one Arrow string array, and whether a cell begins or ends with a
-    byte str.strip() might remove (:data:`_EDGE`). Read from its offsets and data buffers."""
+    byte str.strip() might remove (:data:`_EDGE`). Read from its offsets and data buffers (None
+    for another layout than string / large_string)."""
     import pyarrow as pa
 
+    if not (pa.types.is_string(chunk.type) or pa.types.is_large_string(chunk.type)):
+        return None
     offset_type = np.int64 if pa.types.is_large_string(chunk.type) else np.int32
     _, offsets_buf, data_buf = chunk.buffers()
     if data_buf is None or len(chunk) == 0:
