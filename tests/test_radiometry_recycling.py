@@ -159,3 +159,23 @@ def test_noise_of_sampled_chunks_added_in_a_side_thread_equals_each_chunk_added_
     for b in range(3):
         assert got.bands[b].noise_sigma_immerkaer == want[b].immerkaer_sigma
         assert got.bands[b].noise_sigma_homogeneous == want[b].homogeneous_sigma
+
+
+def test_luminosity_of_stacked_planes_equals_the_formula_for_every_byte_triple():
+    """The one-pass (einsum) luminosity of consecutive R, G, B planes gives Rec. 601's
+    Y = (299 R + 587 G + 114 B + 500) // 1000 for all 2^24 byte triples, and for 16-bit
+    values up to 65535 (the uint32 sum cannot overflow)."""
+    v = np.arange(256, dtype=np.uint8)
+    for red in range(0, 256, 32):  # 32 red values at a time: 2 M triples, small arrays
+        planes = np.stack(np.meshgrid(v[red:red + 32], v, v, indexing="ij")).reshape(3, 2048, 1024)
+        wide = planes.astype(np.int32)
+        want = (299 * wide[0] + 587 * wide[1] + 114 * wide[2] + 500) // 1000
+        assert np.array_equal(rad.luminosity_block(*planes, np.uint8, planes=planes), want)
+
+    rng = np.random.default_rng(4)
+    planes16 = rng.integers(0, 65535, (3, 300, 500), endpoint=True, dtype=np.uint16)
+    planes16[:, 0, :3] = 65535
+    wide = planes16.astype(np.int64)
+    want16 = (299 * wide[0] + 587 * wide[1] + 114 * wide[2] + 500) // 1000
+    assert np.array_equal(rad.luminosity_block(*planes16, np.uint16, planes=planes16), want16)
+    assert np.array_equal(rad.luminosity_block(*planes16, np.uint16), want16)  # separate bands

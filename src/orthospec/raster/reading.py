@@ -656,7 +656,9 @@ class _Accumulators:
         assert self.rgb is not None and self.lum is not None
         rgb = [self.infos[i - 1] for i in self.rgb]
         r, g, bl = (data[i - 1] for i in self.rgb)
-        y = rad.luminosity_block(r, g, bl, data.dtype,
+        first = self.rgb[0] - 1
+        planes = data[first:first + 3] if self.rgb == (first + 1, first + 2, first + 3) else None
+        y = rad.luminosity_block(r, g, bl, data.dtype, planes=planes,
                                  out=rad.scratch("luminosity", r.shape, data.dtype))
         nodata = {b.nodata for b in rgb}
         if not with_nodata & set(self.rgb) and not any(b.use_mask and mask_valid is not None for b in rgb):
