@@ -7,7 +7,10 @@ Why this shape:
   the image size;
 * every pixel is read once: statistics, histograms, noise, luminosity and the misregistration
   windows are all fed from the same chunks (floats add one pass for their binned histogram), and
-  the chunks are counted in two threads while a third decodes the next one;
+  the chunks are counted in two threads while a third decodes the next one into a recycled
+  buffer; a side thread takes the slow, rare work (the noise of the sampled chunks' integer
+  bands, the phase correlation of completed misregistration windows) so that it never holds
+  up the counting of the next chunks;
 * overviews are never used for statistics (plain full-resolution ``read``);
 * GDAL / rasterio / pyogrio / pyproj errors become MeasureError naming the file in one place,
   :func:`gdal_errors` (the table :data:`LIBRARY_ERRORS`);
