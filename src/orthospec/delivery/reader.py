@@ -482,6 +482,8 @@ class Delivery:
         if not known or "block" not in df or not len(df):
             return
         cells = df["block"]
+        if all(u is None or u in known for u in pd.unique(cells.to_numpy())):  # a few distinct texts
+            return
         other = cells[~cells.isin(known) & cells.notna()]  # a ';'-separated list serves several (dem)
         if not len(other):
             return
