@@ -836,7 +836,8 @@ def _read_csv(body: bytes, header: list[str], file: str, **kw: Any) -> pd.DataFr
 @dataclass(frozen=True)
 class _Typed:
     """What the C parser's own type inference gave, checked against the spec: ``frame`` holds
-    float64 number columns and text columns whose cells are the delivered text (NaN where empty);
+    float64 number columns and text columns whose cells are the delivered text (NaN where empty;
+    as categories where the parser's booleans or empty cells stand for that text);
     ``texts`` names the columns the parser inferred as text (their cells are what it read);
     ``reread``: some column was read a second time as text, so the parser's cells are not all
     from one pass (the record widths are then counted from the bytes)."""
@@ -887,7 +888,7 @@ def _read_typed(body: bytes, header: list[str], spec: TableSpec, file: str) -> _
         elif _is_text(s):
             texts.append(c)
         elif s.dtype == np.float64 and s.isna().all():  # a column of empty cells
-            frame[c] = pd.Categorical.from_codes(np.full(n, -1, dtype=np.int8), categories=_BOOL_WORDS)
+            frame[c] = pd.Categorical.from_codes(np.full(n, -1, dtype=np.int8), categories=_NO_WORDS)
         elif spec.columns[c].type == "bool" and _parser_bools(s):
             codes = (s.to_numpy(dtype=object) == True).astype(np.int8)  # noqa: E712
             codes[s.isna().to_numpy()] = -1
@@ -906,6 +907,8 @@ def _read_typed(body: bytes, header: list[str], spec: TableSpec, file: str) -> _
 
 #: The text a parser boolean stands for (category codes 0 and 1); both are boolean words of ours.
 _BOOL_WORDS = pd.Index(["false", "true"], dtype=object)
+#: The categories of a column of empty cells (every code -1).
+_NO_WORDS = pd.Index([], dtype=object)
 
 
 def _is_text(s: pd.Series) -> bool:
@@ -943,8 +946,8 @@ def _shape_from_cells(body: bytes, typed: _Typed, header: list[str]) -> _Shape |
     table is either a delimiter or inside a cell; the table has exactly ``width - 1`` delimiters
     per record (no record short) iff its commas are ``(width - 1) * records`` plus the commas in
     its cells. Only text columns can hold a comma. Needs the cells of one pass as Arrow arrays
-    (their bytes are counted, not the strings); a table with a NUL byte (the csv module refuses
-    it), an all-empty record (a blank line has no delimiters) or a re-read column goes by bytes.
+    (their bytes are counted, not the strings); a table with a NUL byte (which the parser and
+    the csv module may read differently), an all-empty record (a blank line has no delimiters) or a re-read column goes by bytes.
     """
     frame = typed.frame
     if typed.reread or b"\x00" in body or not len(frame):
