@@ -688,8 +688,9 @@ def natural_order(items: Any) -> np.ndarray:
     Ids of one length and one digit layout (``P0000001``, ``F01_0101``) sort as bytes
     (:func:`_uniform_order`). Otherwise each id is a head and its trailing ASCII digits
     (``B01_`` + ``17``): the distinct heads (few) are ordered by ``natural_key``, and the ids by
-    numpy keys: the head's rank, digits or not, the number, then its leading zeros (what
-    ``natural_key`` compares after the number: ``'0' < '00'`` but ``'001' < '01'``). That is the
+    numpy keys: the head's rank, digits or not, the number, then its count of digits (among equal
+    numbers, its leading zeros: what ``natural_key`` compares after the number, ``'0' < '00'`` but
+    ``'001' < '01'``). That is the
     natural order when no head's key begins another's (checked; ``B01_`` and ``B01_2x`` would
     not do). An id outside it (a head that begins another, more than 18 trailing digits) takes
     ``natural_key`` and is merged in by binary search. The same order as ``sorted(...,
@@ -703,19 +704,23 @@ def natural_order(items: Any) -> np.ndarray:
         return uniform
     try:
         strs = listed
-        fast, rank, value, zeros, has = _head_tail_keys(strs)  # str methods: TypeError unless text
+        fast, rank, value, digits, has = _head_tail_keys(strs)  # str methods: TypeError unless text
     except TypeError:
         strs = [x if type(x) is str else str(x) for x in listed]
-        fast, rank, value, zeros, has = _head_tail_keys(strs)
+        fast, rank, value, digits, has = _head_tail_keys(strs)
     fi = np.flatnonzero(fast)
     if not len(fi):
         return _slow_order(strs, np.arange(n))
-    rank, value, zeros, has = rank[fi], value[fi], zeros[fi], has[fi]
+    rank, value, digits, has = rank[fi], value[fi], digits[fi], has[fi]
     if bool((rank == rank[0]).all() & has.all()) and bool((np.diff(value) > 0).all()):
         order = fi  # one head and increasing numbers: already in order (ids in file order)
     else:
-        tie = np.where(value == 0, zeros, -zeros)
-        order = fi[np.lexsort((tie, value, has, rank))]
+        # equal numbers: more digits are more leading zeros, first for a number > 0 ('01' < '1'),
+        # last for 0 ('0' < '00')
+        tie = np.where(value == 0, digits, -digits)
+        keys = [k for k in (tie, value, has, rank) if not bool((k == k[0]).all())]  # a constant key sorts nothing
+        order = fi[np.lexsort(keys) if len(keys) > 1 else np.argsort(keys[0], kind="stable") if keys else
+                   np.arange(len(fi))]
     if len(fi) == n:
         return order.astype(np.int64)
     slow = _slow_order(strs, np.flatnonzero(~fast))
@@ -729,13 +734,16 @@ _ASCII_DIGITS = "0123456789"
 
 def _head_tail_keys(strs: list[str]) -> tuple[np.ndarray, ...]:
     """Per id: whether the head/tail keys order it (``fast``), its head's rank, its trailing number,
-    that number's leading zeros, and whether it has one. Python work per id is a few calls in C
+    that number's count of digits, and whether it has one. Python work per id is a few calls in C
     (``rstrip``, ``len``, one join); per distinct head one ``natural_key``."""
     n = len(strs)
     heads = list(map(str.rstrip, strs, itertools.repeat(_ASCII_DIGITS, n)))
     lens = np.fromiter(map(len, strs), dtype=np.int64, count=n)
     tail = lens - np.fromiter(map(len, heads), dtype=np.int64, count=n)
-    codes, distinct = _factorize(heads)
+    if len(set(heads[::max(1, n // 64)])) == 1 and heads.count(heads[0]) == n:  # one head (P1, P2, ...)
+        codes, distinct = np.zeros(n, dtype=np.int64), [heads[0]]
+    else:
+        codes, distinct = _factorize(heads)
     del heads
     keys = [natural_key(h) for h in distinct]
     by_key = sorted(range(len(distinct)), key=keys.__getitem__)
@@ -747,21 +755,17 @@ def _head_tail_keys(strs: list[str]) -> tuple[np.ndarray, ...]:
     rank[by_key] = np.arange(len(distinct))
     fast = usable[codes] & (tail <= _FAST_DIGITS)
     value = np.zeros(n, dtype=np.int64)
-    zeros = np.zeros(n, dtype=np.int64)
-    width = int(tail[fast].max()) if fast.any() else 0
+    tail = np.where(fast, tail, 0)
+    width = int(tail.max()) if n else 0
     if width:
-        # the ids' characters as code points, one buffer: the tail of id i ends at ends[i]
+        # the ids' characters as code points, one buffer: id i ends at ends[i]
         chars = np.frombuffer("".join(strs).encode("utf-32-le", "surrogatepass"), dtype=np.uint32)
-        ends = np.cumsum(lens)
-        started = np.zeros(n, dtype=bool)
-        for k in range(width):  # Horner over the tails' characters, left to right
-            on = fast & (k < tail)
-            at = np.where(on, ends - tail + k, 0)
-            digit = chars[at].astype(np.int64) - 48
-            value = np.where(on, value * 10 + digit, value)
-            zeros += on & (digit == 0) & ~started
-            started |= on & (digit != 0)
-    return fast, rank[codes], value, zeros, tail > 0
+        last = np.cumsum(lens) - 1
+        for p in range(width):  # the digit p places from the end, times 10**p
+            on = p < tail
+            digit = chars[np.where(on, last - p, 0)].astype(np.int64) - 48
+            value += np.where(on, digit, 0) * 10 ** p
+    return fast, rank[codes], value, tail, tail > 0
 
 
 def _factorize(values: list[str]) -> tuple[np.ndarray, list[str]]:
