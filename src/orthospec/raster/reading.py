@@ -466,7 +466,7 @@ def _stream(ds: rasterio.io.DatasetReader, infos: Sequence[BandInfo], s: ScanSet
                 dtype.append(data.dtype)
                 flat = data.reshape(-1) if data.size == largest and data.flags.c_contiguous else None
                 return data, mask, flat
-            buf = np.empty(largest, dtype=dtype[0])  # one more chunk in flight than before
+            buf = np.empty(largest, dtype=dtype[0])  # none free yet: the pool grows by one
         shape = (ds.count, int(win.height), int(win.width))
         out = buf[:shape[0] * shape[1] * shape[2]].reshape(shape)
         return ds.read(window=win, out=out), mask, buf
