@@ -116,9 +116,12 @@ def test_uniform_order_known_cases() -> None:
                         max_size=6), max_size=12))
 def test_column_checks_equal_the_regular_expressions(cells: list[str]) -> None:
     joined = "\x00".join(cells)
-    assert _any_csv_special(joined) == bool(_CSV_SPECIAL.search(joined))
-    assert _formula_at(joined) == bool(_FORMULA_AT.search(joined))
-    assert _xml_special("".join(cells)) == bool(_XML_SPECIAL.search("".join(cells)))
+    with pytest.MonkeyPatch.context() as mp:
+        for large in (0, qcr._LARGE):  # the byte checks (any length) and the regex (short texts)
+            mp.setattr(qcr, "_LARGE", large)
+            assert _any_csv_special(joined) == bool(_CSV_SPECIAL.search(joined))
+            assert _formula_at(joined) == bool(_FORMULA_AT.search(joined))
+            assert _xml_special("".join(cells)) == bool(_XML_SPECIAL.search("".join(cells)))
 
 
 def test_row_numbers_from_a_range_or_a_tuple() -> None:
@@ -172,11 +175,14 @@ def test_compact_columns_encode_as_json_does(texts: list[str], repeat: int, mixe
     column: list = [*ids, 3] if mixed else ids
     block = {"items": column, "verdict": {"all": "pass"}, "evidence": {"entry": 1, "rows": list(range(len(ids)))},
              "message": ids[:3]}
-    assert _encode_columns(enc, block) == enc(block)
-    assert _encode_columns(enc, {1: ids}) == enc({1: ids}) and _encode_columns(enc, ids) == enc(ids)
-    if not mixed and len(ids) >= 256:
-        plain = all(not set(t) & set('"\\\x00\x1f\n\t') for t in ids)
-        assert (_json_texts(ids) is not None) == plain
+    with pytest.MonkeyPatch.context() as mp:
+        for large in (0, qcr._LARGE):  # control characters found in the bytes, or by the regex
+            mp.setattr(qcr, "_LARGE", large)
+            assert _encode_columns(enc, block) == enc(block)
+            assert _encode_columns(enc, {1: ids}) == enc({1: ids}) and _encode_columns(enc, ids) == enc(ids)
+            if not mixed and len(ids) >= 256:
+                plain = all(not set(t) & set('"\\\x00\x1f\n\t') for t in ids)
+                assert (_json_texts(ids) is not None) == plain
 
 
 def test_heads_and_tails_known_cases() -> None:

@@ -501,10 +501,11 @@ class _RuleRecords:
         list per column, no Python object per item beyond the values written."""
         r = self.r
         n = len(idx)
-        every = _every(idx, len(r.items))  # every item, in the order given: no copy of the columns
+        # a large rule whose every item is compact, in the order given: no copy of its columns
+        every = n >= _LARGE and _every(idx, len(r.items))
         ids = np.asarray(r.items, dtype=object)
         items = (ids if every else ids[idx]).tolist()
-        if not _all_text(items):
+        if n < _LARGE or not _all_text(items):
             items = list(map(str, items))
         codes = np.asarray(r.verdict) if every else np.asarray(r.verdict)[idx]
         if n > 1 and bool((codes == codes[0]).all()):
@@ -556,6 +557,11 @@ class _RuleRecords:
                 return {"all": ""}
         return _column([None if nn and c == PASS else ("" if nn else str(note))
                         for note, nn, c in zip(notes.tolist(), none.tolist(), codes.tolist(), strict=True)])
+
+
+#: from this many items on, a column takes the whole-column shortcuts (below, their fixed cost is
+#: more than the per-item work they save)
+_LARGE = 4096
 
 
 def _every(idx: np.ndarray, n: int) -> bool:
@@ -996,7 +1002,8 @@ _JSON_JOIN_MIN = 256
 def _encode_columns(enc: Any, value: Any) -> str:
     """``enc(value)``; a mapping's long columns of text (a compact block's item ids) joined at once
     when no text needs a JSON escape (a fifth of the encoder's time for a million ids)."""
-    if not isinstance(value, dict) or not all(type(k) is str for k in value):
+    if not isinstance(value, dict) or not all(type(k) is str for k in value) or \
+            not any(type(v) is list and len(v) >= _JSON_JOIN_MIN for v in value.values()):
         return str(enc(value))
     parts = []
     for k, v in value.items():
@@ -1019,7 +1026,7 @@ def _json_texts(values: list[Any]) -> str | None:
         return None
     if joined.count('"') != 2 * (len(values) - 1) or "\\" in joined:
         return None
-    if joined.isascii():
+    if len(joined) >= _LARGE and joined.isascii():
         b = joined.encode("ascii")
         if len(b.translate(None, _JSON_CONTROL_ASCII)) != len(b):
             return None
@@ -1386,7 +1393,7 @@ _FORMULA_BYTE[[ord(c) for c in _FORMULA_START]] = True
 def _formula_at(joined: str) -> bool:
     """``_FORMULA_AT.search(joined)`` (a formula start at the start of a NUL-joined cell); for ASCII
     text over the bytes, one pass, instead of the regular expression's match attempt per NUL."""
-    if not joined.isascii():
+    if len(joined) < _LARGE or not joined.isascii():
         return bool(_FORMULA_AT.search(joined))
     b = np.frombuffer(joined.encode("ascii"), dtype=np.uint8)
     if not len(b):
@@ -1619,7 +1626,7 @@ _XML_SPECIAL_ASCII = bytes(i for i in range(128) if _XML_SPECIAL.match(chr(i)))
 
 def _xml_special(text: str) -> bool:
     """``_XML_SPECIAL.search(text)``; ASCII text by deleting those bytes (a tenth of the regex's time)."""
-    if not text.isascii():
+    if len(text) < _LARGE or not text.isascii():
         return bool(_XML_SPECIAL.search(text))
     b = text.encode("ascii")
     return len(b.translate(None, _XML_SPECIAL_ASCII)) != len(b)
