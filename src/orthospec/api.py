@@ -123,7 +123,11 @@ def check(delivery: str | Path | Delivery, profile: str | Path | ResolvedProfile
         from .delivery.checker import load_checker
 
         chk = load_checker(opts.checker, delivery_root=d.root, delivery=d)  # bound to this delivery
+    from .engine import catalog
+
+    preloading = catalog.preload()
     d.load_all_tables()
+    preloading.join()
     cli = dict(params) if isinstance(params, Mapping) else parse_cli_params(list(params))
     values = resolve_parameters(prof, dict(d.manifest.tender.parameters) if d.manifest.tender else {}, cli,
                                 manifest=d.flat_manifest(), checker=chk)

@@ -11,11 +11,13 @@ spec/catalog.py asks it instead (never stale, plugins included).
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import pkgutil
+import threading
 from typing import Any
 
-from .. import plugins
+from .. import plugins, units
 from ..delivery.convention import table_specs
 from ..errors import OrthospecError
 from ..spec import catalog as spec_catalog
@@ -25,13 +27,32 @@ from .registry import _PROVIDERS, ROLLUP, Measured, ProviderContext, ProviderSpe
 _LOADED: list[bool] = []
 
 
+def _builtin_modules() -> None:
+    for info in sorted(pkgutil.iter_modules(providers.__path__), key=lambda i: i.name):
+        importlib.import_module(f"{providers.__name__}.{info.name}")
+
+
 def _load() -> None:
     """Import the built-in provider modules, then the plugins' (once)."""
     if not _LOADED:
-        for info in sorted(pkgutil.iter_modules(providers.__path__), key=lambda i: i.name):
-            importlib.import_module(f"{providers.__name__}.{info.name}")
+        _builtin_modules()
         _LOADED.append(True)
     plugins.load_providers()  # once loaded a no-op; a broken plugin raises again on every lookup
+
+
+def preload() -> threading.Thread:
+    """Import the built-in providers (scipy, rasterio, shapely: about 0.4 s) and build pint's unit
+    registry in a thread, while the caller reads the delivery's tables (pandas' C parser
+    releases the GIL while it tokenises). A failure is left to the first lookup, which imports
+    again and raises where it is reported; plugins load there too, never in this thread."""
+    def run() -> None:
+        with contextlib.suppress(Exception):  # raised again, and reported, by the first lookup()
+            _builtin_modules()
+            units.parse_unit("m")  # builds pint's registry
+
+    thread = threading.Thread(target=run, name="orthospec-preload", daemon=True)
+    thread.start()
+    return thread
 
 
 def known_measures() -> dict[str, ProviderSpec]:
