@@ -126,8 +126,10 @@ def check(delivery: str | Path | Delivery, profile: str | Path | ResolvedProfile
     from .engine import catalog
 
     preloading = catalog.preload()
-    d.load_all_tables()
-    preloading.join()
+    try:
+        d.load_all_tables()
+    finally:
+        preloading.join()  # never left importing while the interpreter exits on a bad table
     cli = dict(params) if isinstance(params, Mapping) else parse_cli_params(list(params))
     values = resolve_parameters(prof, dict(d.manifest.tender.parameters) if d.manifest.tender else {}, cli,
                                 manifest=d.flat_manifest(), checker=chk)
