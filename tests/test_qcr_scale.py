@@ -194,8 +194,8 @@ def test_reports_and_csv_name_the_selected_rows(checked: api.CheckResult) -> Non
 
 def test_block_distributions_in_threads_give_the_same_document(many: Path, checked: api.CheckResult,
                                                                 monkeypatch: pytest.MonkeyPatch) -> None:
-    """Above PARALLEL_POINTS each block's nearest-neighbour queries run in scipy's threads
-    (``workers=-1``): the same bytes as in one thread."""
+    """Above PARALLEL_POINTS the blocks' distributions (KD-trees) run in threads beside the
+    blunder screening: the same bytes as one block after the other."""
     from orthospec.engine.providers import checkpoints
 
     monkeypatch.setattr(checkpoints, "PARALLEL_POINTS", 0)
