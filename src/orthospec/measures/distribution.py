@@ -160,8 +160,9 @@ def checkpoint_distribution(
     if n >= 2:
         # queried in the tree's own order (neighbouring queries walk the same nodes: about 2.5x
         # faster on a national set than the file order), then put back in point order
-        # an unbalanced, non-compacted build: the same exact neighbours, about 2.5x faster to build
-        tree = cKDTree(pts, balanced_tree=False, compact_nodes=False)
+        # an unbalanced, non-compacted build: the same exact neighbours, about 2.5x faster to build;
+        # leaves of 8 points: build and queries 0.31 s instead of 0.37 s at 333,000 points
+        tree = cKDTree(pts, leafsize=8, balanced_tree=False, compact_nodes=False)
         dist, _ = tree.query(tree.data[tree.indices], k=2, workers=workers)
         nn = np.empty(n)
         nn[tree.indices] = dist[:, 1]
