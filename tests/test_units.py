@@ -80,3 +80,29 @@ def test_importing_units_does_not_load_pint():
     code = "import sys, orthospec.units as u; u.check_unit('µm'); print('pint' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "False"
+
+
+def test_one_registry_when_threads_race_to_build_it():
+    """`check` builds pint's registry in a thread while the main thread parses tables (and may
+    need a unit): every thread gets the same registry, and units from both compare (pint refuses
+    quantities of two registries)."""
+    import subprocess
+    import sys
+
+    code = (
+        "import threading\n"
+        "from orthospec import units\n"
+        "got = []\n"
+        "start = threading.Barrier(8)\n"
+        "def use():\n"
+        "    start.wait()\n"
+        "    got.append((units.ureg, units.parse_unit('m')))\n"
+        "threads = [threading.Thread(target=use) for _ in range(8)]\n"
+        "[t.start() for t in threads]\n"
+        "[t.join() for t in threads]\n"
+        "assert len({id(r) for r, _ in got}) == 1, 'two registries'\n"
+        "assert all(u == got[0][1] for _, u in got)\n"
+        "print(units.convert([1.0], 'cm', 'm')[0])\n")
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr
+    assert float(run.stdout) == 0.01

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import re
+import threading
 from functools import lru_cache
 from typing import TYPE_CHECKING, Any
 
@@ -21,17 +22,27 @@ if TYPE_CHECKING:
     import pint
 
 
-@lru_cache(maxsize=1)
-def _reg() -> pint.UnitRegistry:
-    """pint's registry, built on first use (importing pint and building it costs ~0.8 s, which
-    commands that only read a profile, such as `explain`, should not pay)."""
-    import pint
+_REGISTRY: list[pint.UnitRegistry] = []
+_BUILDING = threading.Lock()
 
-    ureg = pint.UnitRegistry(autoconvert_offset_to_baseunit=True, cache_folder=None)
-    ureg.define("grey_level = [grey_level] = DN = dn = GL")
-    ureg.define("US_survey_foot = 1200 / 3937 * meter = ftUS = us_ft")
-    ureg.define("fraction = [] = frac")
-    return ureg
+
+def _reg() -> pint.UnitRegistry:
+    """pint's registry, built once on first use (importing pint and building it costs ~0.4 s,
+    which commands that only read a profile, such as `explain`, should not pay).
+
+    Locked: `check` builds it in a thread while the tables parse, and two threads must never
+    build two registries (pint refuses to compare quantities of different registries)."""
+    if not _REGISTRY:
+        with _BUILDING:
+            if not _REGISTRY:
+                import pint
+
+                ureg = pint.UnitRegistry(autoconvert_offset_to_baseunit=True, cache_folder=None)
+                ureg.define("grey_level = [grey_level] = DN = dn = GL")
+                ureg.define("US_survey_foot = 1200 / 3937 * meter = ftUS = us_ft")
+                ureg.define("fraction = [] = frac")
+                _REGISTRY.append(ureg)
+    return _REGISTRY[0]
 
 
 def __getattr__(name: str) -> Any:

@@ -15,11 +15,12 @@ from typing import Any
 
 import numpy as np
 
+from .. import units
 from ..errors import OrthospecError
 from ..spec import expr
 from ..spec.models import Rule
 from ..spec.operators import is_missing
-from ..units import NON_NUMERIC, Q_, parse_unit
+from ..units import NON_NUMERIC, parse_unit
 from .catalog import measure_info
 from .context import Context
 from .names import NUMBER_LITERAL, STRING_LITERAL, Names, missing_mask, null_tested, param_key
@@ -70,7 +71,7 @@ def _probes(ctx: Context, name: str, when: str) -> list[Any]:
         p = ctx.params[key]
         if p.unit in NON_NUMERIC:
             return [True, False] if p.unit == "bool" else [*strings, "\x00absent"]
-        return [Q_(v, parse_unit(p.unit)) for v in (-1e12, 0.0, *numbers, 1e12)]
+        return [units.Q_(v, parse_unit(p.unit)) for v in (-1e12, 0.0, *numbers, 1e12)]
     info = measure_info(key)
     unit = info[1] if info else "any"
     if unit == "bool":

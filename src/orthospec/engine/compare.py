@@ -17,12 +17,13 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from .. import units
 from ..errors import ExpressionError, OrthospecError, UnitError
 from ..spec import expr
 from ..spec.models import Requirement, Rule
 from ..spec.operators import Decision, Thresholds, operator
 from ..spec.wording import requirement_text
-from ..units import NON_NUMERIC, canonical, convert, ureg
+from ..units import NON_NUMERIC, canonical, convert
 from .context import ERROR, MISSING, Context
 from .names import Names, null_tested, param_key
 
@@ -57,7 +58,7 @@ def magnitudes(v: Any, unit: str | None, n: int, gsd: np.ndarray | None, what: s
         src = str(v.units)
         if unit is None:
             raise UnitError(f"{what}: the expression has unit {canonical(src)!r}; give the requirement a unit")
-        if v.units == ureg.dimensionless:
+        if v.units == units.ureg.dimensionless:
             # a pure number (e.g. "0.1 * 256") means "in the requirement's unit"
             return _broadcast(mag, n)
         return _broadcast(convert(mag, src, unit, gsd_m=gsd, what=what), n)

@@ -16,8 +16,9 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from .. import units
 from ..spec.operators import is_missing
-from ..units import NON_NUMERIC, Q_, parse_unit
+from ..units import NON_NUMERIC, parse_unit
 from .catalog import MeasureCache, measure_info
 from .params import ParamValue
 from .registry import Measured
@@ -105,7 +106,7 @@ class Names(Mapping[str, Any]):
         if is_missing(v) and key in self.fill:
             return self.fill[key]
         if isinstance(v, dict) and set(v) == {"value", "unit"}:
-            return Q_(float(v["value"]), parse_unit(v["unit"]))
+            return units.Q_(float(v["value"]), parse_unit(v["unit"]))
         return v
 
     def broadcast(self, measure_scope: str) -> bool:
@@ -125,14 +126,14 @@ class Names(Mapping[str, Any]):
             return None
         if m.unit in NON_NUMERIC or m.unit == "any":
             return one
-        return Q_(float(one), parse_unit(m.unit))
+        return units.Q_(float(one), parse_unit(m.unit))
 
     @staticmethod
     def _column(m: Measured, vals: pd.Series) -> Any:
         if m.unit in NON_NUMERIC or m.unit == "any":
             return vals.to_numpy(dtype=object)
         arr = pd.to_numeric(vals, errors="coerce").to_numpy(dtype=float)
-        return Q_(arr, parse_unit(m.unit))
+        return units.Q_(arr, parse_unit(m.unit))
 
     def _filled(self, key: str, m: Measured, info: tuple[str, str]) -> Any:
         """The measure with its missing entries replaced by the probe value ``fill[key]``."""
@@ -146,7 +147,7 @@ class Names(Mapping[str, Any]):
         if m.unit in NON_NUMERIC or m.unit == "any":
             return raw[0] if self.scalar else raw
         arr = pd.to_numeric(pd.Series(raw), errors="coerce").to_numpy(dtype=float)
-        q = Q_(arr, parse_unit(m.unit))
+        q = units.Q_(arr, parse_unit(m.unit))
         return q[0] if self.scalar else q
 
     def __contains__(self, key: object) -> bool:

@@ -16,11 +16,12 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Literal
 
+from .. import units
 from ..errors import ExpressionError, OrthospecError, UnitError
 from ..spec import expr
 from ..spec.loader import ResolvedProfile, params_named
 from ..spec.models import Parameter
-from ..units import NON_NUMERIC, Q_, canonical, number_problem, parse_number_text, parse_unit
+from ..units import NON_NUMERIC, canonical, number_problem, parse_number_text, parse_unit
 
 if TYPE_CHECKING:
     from ..delivery.checker import Checker
@@ -51,7 +52,7 @@ class ParamValue:
     def quantity(self) -> Any:
         if self.unit in NON_NUMERIC or not isinstance(self.value, int | float) or isinstance(self.value, bool):
             return self.value
-        return Q_(float(self.value), parse_unit(self.unit))
+        return units.Q_(float(self.value), parse_unit(self.unit))
 
     def to_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {"value": self.value, "unit": self.unit, "source": self.source}
@@ -396,7 +397,7 @@ def _may_not_apply(when: str, names: set[str], values: Mapping[str, ParamValue],
             v = (manifest or {}).get(n)
             if isinstance(v, dict) and set(v) == {"value", "unit"}:
                 try:
-                    v = Q_(float(v["value"]), parse_unit(v["unit"]))
+                    v = units.Q_(float(v["value"]), parse_unit(v["unit"]))
                 except (UnitError, TypeError, ValueError):
                     v = None
             env[n] = v
