@@ -182,7 +182,7 @@ class _Stager:
     """
 
     PIECE = 1 << 20
-    QUEUE = 8
+    QUEUE = 2
 
     def __init__(self, tmp: Path) -> None:
         from concurrent.futures import ThreadPoolExecutor
