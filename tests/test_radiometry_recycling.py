@@ -17,24 +17,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 import rasterio
-from affine import Affine
 from rasterio.windows import Window
 from scipy import ndimage
+from tests.test_raster_reading import write_tif
 
 from orthospec.measures import radiometry as rad
 from orthospec.raster.reading import ScanSettings, _MisregistrationWindows, band_infos, scan_raster
 
 
 def _write(path: Path, data: np.ndarray, mask: np.ndarray | None = None, **profile) -> Path:
-    prof = dict(driver="GTiff", width=data.shape[2], height=data.shape[1], count=data.shape[0],
-                dtype=data.dtype, crs="EPSG:25832", photometric="RGB", tiled=True,
-                blockxsize=64, blockysize=64, transform=Affine(0.5, 0, 500000, 0, -0.5, 5600000))
-    prof.update(profile)
-    with rasterio.Env(GDAL_TIFF_INTERNAL_MASK=True), rasterio.open(path, "w", **prof) as ds:
-        ds.write(data)
-        if mask is not None:
-            ds.write_mask(mask)
-    return path
+    """An RGB GeoTIFF in 64 x 64 tiles (many chunks per scan)."""
+    return write_tif(path, data, mask=mask, **{"photometric": "RGB", "tiled": True, "blockxsize": 64,
+                                               "blockysize": 64, **profile})
 
 
 def _textured(rng: np.random.Generator, dtype: str, shape: tuple[int, int]) -> np.ndarray:
