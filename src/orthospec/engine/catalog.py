@@ -47,8 +47,8 @@ def preload() -> threading.Thread:
     again and raises where it is reported; plugins load there too, never in this thread."""
     def run() -> None:
         with contextlib.suppress(Exception):  # raised again, and reported, by the first lookup()
+            units.parse_unit("m")  # pint's registry first: the tables' units need it at once
             _builtin_modules()
-            units.parse_unit("m")  # builds pint's registry
 
     thread = threading.Thread(target=run, name="orthospec-preload", daemon=True)
     thread.start()
