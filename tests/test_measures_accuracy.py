@@ -415,3 +415,15 @@ def test_blunder_reasons_per_decision_class_and_axes_with_target_basis():
     np.testing.assert_array_equal(res.dr, np.hypot(dx, dy))
     # built once: the per-point objects are not rebuilt on every access
     assert res.decisions is res.decisions and res.reasons is res.reasons
+
+
+def test_ids_as_text_without_copying_a_table_column():
+    """A table's id column (an object array of str) is used as it is; anything else is each
+    converted with str(), as before."""
+    from orthospec.measures.accuracy import str_ids
+
+    column = np.array(["P1", "P2", "P10"], dtype=object)
+    assert str_ids(column) is column
+    mixed = np.array(["P1", 2, None], dtype=object)
+    assert str_ids(mixed).tolist() == ["P1", "2", "None"]
+    assert str_ids([3, "x"]).tolist() == ["3", "x"] and str_ids([3, "x"]).dtype == object

@@ -143,14 +143,21 @@ def empirical_percentile(values: Any, q: float, *, method: PercentileMethod = "l
 # --------------------------------------------------------------------------- validation
 
 
+def str_ids(ids: Sequence[Any] | np.ndarray) -> np.ndarray:
+    """Ids as a 1-D object array of str: an object array that holds only str already (a table's
+    id column) as it is (one C scan says so), else each converted (``map`` in C)."""
+    if isinstance(ids, np.ndarray) and ids.dtype == object and ids.ndim == 1:
+        if pd.api.types.infer_dtype(ids, skipna=False) in ("string", "empty"):
+            return ids
+        return np.fromiter(map(str, ids), dtype=object, count=ids.size)
+    return np.asarray([str(i) for i in ids], dtype=object)
+
+
 def _as_ids(ids: Sequence[Any] | np.ndarray | None, n: int) -> np.ndarray:
-    """Point ids as an object array of str (``map`` in C: no Python frame per point)."""
+    """Point ids as an object array of str."""
     if ids is None:
         return np.arange(n).astype(str).astype(object)
-    if isinstance(ids, np.ndarray) and ids.dtype == object and ids.ndim == 1:
-        arr = np.fromiter(map(str, ids), dtype=object, count=ids.size)
-    else:
-        arr = np.asarray([str(i) for i in ids], dtype=object)
+    arr = str_ids(ids)
     if arr.shape != (n,):
         raise MeasureError(f"{arr.size} point ids given for {n} points")
     return arr

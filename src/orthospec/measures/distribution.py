@@ -29,6 +29,7 @@ from scipy.spatial import cKDTree
 from shapely.geometry.base import BaseGeometry
 
 from ..errors import MeasureError
+from .accuracy import str_ids
 
 __all__ = ["QUADRANTS", "DistributionResult", "checkpoint_distribution"]
 
@@ -72,10 +73,10 @@ class DistributionResult:
 
 
 def _ids(ids: Sequence[Any] | np.ndarray | None, n: int, what: str) -> np.ndarray:
-    """Ids as an object array of str (``map`` in C: no Python frame per point)."""
+    """Ids as an object array of str."""
     if ids is None:
         return np.arange(n).astype(str).astype(object)
-    arr = np.fromiter(map(str, ids), dtype=object, count=len(ids))
+    arr = str_ids(ids)
     if arr.size != n:
         raise MeasureError(f"{arr.size} {what} ids given for {n} points")
     return arr
