@@ -50,6 +50,7 @@ __all__ = [
     "empirical_percentile",
     "nssda_horizontal",
     "rmse_net",
+    "str_ids",
 ]
 
 #: USGS/FGDC circular-error factors (seed 000: "These equations may be found in FGDC-STD-007.3-1998").
