@@ -176,7 +176,7 @@ class _Stager:
     """Writes the outputs' bytes in one background thread while the caller renders the next piece.
 
     Rendering a national qcr.csv or junit.xml holds the GIL; the writes and ``fsync`` do not, so
-    they overlap (about 1 s of a 1,000,000-point check, issue 14). One thread keeps every file's
+    they overlap (the 450 MB a 1,000,000-point check writes, issue 14). One thread keeps every file's
     pieces in order; at most ``QUEUE`` pieces of about ``PIECE`` bytes wait (bounded memory). An
     error in the thread is raised in the caller with the name of the output it was writing.
     """
