@@ -15,6 +15,7 @@ from typing import Any
 
 from . import verdicts as V
 from .delivery.reader import Delivery, open_delivery
+from .engine import catalog
 from .engine.evaluator import Evaluation, Evaluator
 from .engine.params import parse_cli_params, resolve_parameters
 from .errors import OrthospecError
@@ -123,8 +124,6 @@ def check(delivery: str | Path | Delivery, profile: str | Path | ResolvedProfile
         from .delivery.checker import load_checker
 
         chk = load_checker(opts.checker, delivery_root=d.root, delivery=d)  # bound to this delivery
-    from .engine import catalog
-
     preloading = catalog.preload()
     try:
         d.load_all_tables()
