@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 import collections
+import contextlib
 import datetime as dt
+import errno
+import mmap
 import os
 import re
 import shutil
@@ -171,6 +174,108 @@ def default_output_dir(delivery_id: str, *, base: str | Path = "reports") -> Pat
     return Path(base) / safe_segment(delivery_id)
 
 
+class _Synced:
+    """One output file, written in order and fsynced on close; large files bypass the page cache.
+
+    Every output is fsynced, so copying its bytes into the page cache first is pure cost, and a
+    high one where fresh memory is expensive (a VM that hands pages back to its host): 430 MB took
+    1.15-1.34 s buffered + fsync and 0.17-0.23 s with O_DIRECT on the 2-core VM (issue 14). Files
+    of ``SPAN`` bytes or more go out in whole 4 KiB blocks from an aligned buffer with O_DIRECT;
+    the tail, smaller files and every file on a file system that refuses O_DIRECT (tmpfs) are
+    written normally. The same bytes either way.
+    """
+
+    BLOCK = 4096
+    #: bytes gathered before a direct write; files smaller than this never use O_DIRECT
+    SPAN = 1 << 20
+
+    def __init__(self, path: Path) -> None:
+        self.fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0), 0o600)
+        self.buf: mmap.mmap | None = None  # page-aligned, as O_DIRECT requires
+        self.held = 0  # bytes waiting in buf
+        self.direct = bool(_O_DIRECT)  # until the file system refuses it
+        self.flushed = False  # blocks written from the buffer (a large file)
+
+    def write(self, data: bytes) -> None:
+        view = memoryview(data)
+        if not self.direct and not self.held:
+            self._write_all(view)  # (bytes still held go first, through the buffer)
+            return
+        if self.buf is None:
+            self.buf = mmap.mmap(-1, 2 * self.SPAN)
+        while len(view):
+            take = min(len(view), 2 * self.SPAN - self.held)
+            self.buf[self.held:self.held + take] = view[:take]
+            self.held += take
+            view = view[take:]
+            if self.held >= self.SPAN:
+                self._flush_blocks()
+
+    def _flush_blocks(self) -> None:
+        """Write the whole blocks held (directly, when the file system lets us); keep the rest."""
+        assert self.buf is not None
+        n = self.held - self.held % self.BLOCK
+        if self.direct and not self._set_direct(True):
+            self.direct = False
+        with memoryview(self.buf) as mv:
+            self._write_all(mv[:n])
+        self.flushed = True
+        self.held -= n
+        if self.held:
+            self.buf.move(0, n, self.held)
+
+    def _set_direct(self, on: bool) -> bool:
+        import fcntl  # POSIX only; reached only where os.O_DIRECT exists
+
+        flags = fcntl.fcntl(self.fd, fcntl.F_GETFL)
+        want = flags | _O_DIRECT if on else flags & ~_O_DIRECT
+        if want != flags:
+            try:
+                fcntl.fcntl(self.fd, fcntl.F_SETFL, want)
+            except OSError:  # EINVAL: no direct I/O on this file system
+                return False
+        return True
+
+    def _write_all(self, view: memoryview) -> None:
+        while len(view):
+            try:
+                done = os.write(self.fd, view)
+            except OSError as exc:
+                if exc.errno != errno.EINVAL or not self.direct:
+                    raise
+                self.direct = False  # direct I/O refused at write time: the same bytes, buffered
+                self._set_direct(False)
+                continue
+            view = view[done:]
+
+    def close_synced(self) -> None:
+        try:
+            if self.held:
+                assert self.buf is not None
+                if self.flushed:
+                    self._flush_blocks()  # a large file's last whole blocks, as the others
+                if self.direct:
+                    self._set_direct(False)  # the tail is not a whole block; a small file, no buffer games
+                with memoryview(self.buf) as mv:
+                    self._write_all(mv[:self.held])
+                self.held = 0
+            os.fsync(self.fd)
+        finally:
+            self.close()
+
+    def close(self) -> None:
+        if self.fd >= 0:
+            os.close(self.fd)
+            self.fd = -1
+        if self.buf is not None:
+            with contextlib.suppress(BufferError):  # a view held by a write error's traceback:
+                self.buf.close()  # the mapping goes with the last view
+            self.buf = None
+
+
+_O_DIRECT = getattr(os, "O_DIRECT", 0)
+
+
 class _Stager:
     """Writes the outputs' bytes in one background thread while the caller renders the next piece.
 
@@ -189,7 +294,7 @@ class _Stager:
         self.tmp = tmp
         self.pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="orthospec-write")
         self.pending: collections.deque[tuple[str, Any]] = collections.deque()
-        self.handles: list[Any] = []
+        self.handles: list[_Synced] = []
         self.failed = ""  # the output whose write failed
 
     def __enter__(self) -> _Stager:
@@ -216,7 +321,7 @@ class _Stager:
 
     def file(self, i: int, name: str, data: str | bytes | Iterable[str]) -> None:
         """Stage output ``name`` as ``new-<i>``: opened, written piece by piece, fsynced, closed."""
-        fh = open(self.tmp / f"new-{i}", "wb")  # noqa: SIM115 - closed in the thread (or by __exit__)
+        fh = _Synced(self.tmp / f"new-{i}")
         self.handles.append(fh)
         if isinstance(data, str | bytes):
             self._submit(name, fh.write, data.encode("utf-8") if isinstance(data, str) else data)
@@ -232,18 +337,12 @@ class _Stager:
                     buf, size = [], 0
             if buf:
                 self._submit(name, fh.write, b"".join(buf))
-        self._submit(name, _close_synced, fh)
+        self._submit(name, fh.close_synced)
 
     def finish(self) -> None:
         """Wait for every write."""
         while self.pending:
             self._wait_one()
-
-
-def _close_synced(fh: Any) -> None:
-    with fh:
-        fh.flush()
-        os.fsync(fh.fileno())
 
 
 def write_outputs(target: str | Path, files: Mapping[str, str | bytes | Iterable[str]]) -> list[str]:
