@@ -105,3 +105,64 @@ def test_nearest_neighbour_distances_are_exact_whatever_the_threads(workers):
     np.testing.assert_array_equal(r.nn_distance, one.nn_distance)  # bit for bit: same bytes in qcr.json
     to_gcp = np.hypot(x[:, None] - gx[None, :], y[:, None] - gy[None, :]).min(axis=1)
     np.testing.assert_allclose(r.gcp_distance, to_gcp, rtol=0, atol=1e-9)
+
+
+def _brute(x, y, gx, gy, ids, gids, min_gcp, tol=1e-6):
+    """Every figure from all pairs (numpy, no tree): the independent truth."""
+    pair = np.hypot(x[:, None] - x[None, :], y[:, None] - y[None, :])
+    np.fill_diagonal(pair, np.inf)
+    g = np.hypot(x[:, None] - gx[None, :], y[:, None] - gy[None, :]).min(axis=1)
+    ident = (g <= tol) | np.isin(ids, gids)
+    return pair.min(), g.min(), set(ids[g < min_gcp]), set(ids[ident])
+
+
+@pytest.mark.parametrize("layout", ["uniform", "cluster", "duplicates", "line", "grid", "two"])
+@pytest.mark.parametrize("min_gcp", [0.0, 3.0, 5000.0])
+def test_smallest_spacing_and_gcp_figures_match_brute_force(layout, min_gcp):
+    """The smallest spacing (bounded queries) and the GCP figures (asked from the GCPs' side) are
+    the all-pairs values, on layouts that defeat an estimate: a tight cluster off the probed
+    points, exact duplicates, a line, a regular grid (every spacing equal), two points; the
+    smallest spacing is bit for bit the minimum of every point's nearest-neighbour distance."""
+    rng = np.random.default_rng(hash(layout) % 1000)
+    n = 3000
+    x, y = rng.random(n) * 1000, rng.random(n) * 1000
+    if layout == "cluster":  # 400 points within 1 cm, at rows the evenly spread probes skip
+        x[1:401], y[1:401] = 500 + rng.random(400) * 0.01, 500 + rng.random(400) * 0.01
+    elif layout == "duplicates":
+        x[2500:], y[2500:] = x[:500], y[:500]
+    elif layout == "line":
+        x, y = np.arange(n) * 0.7, np.full(n, 3.0)
+    elif layout == "grid":
+        gx_, gy_ = np.meshgrid(np.arange(60) * 10.0, np.arange(50) * 10.0)
+        x, y = gx_.ravel(), gy_.ravel()
+    elif layout == "two":
+        x, y = np.array([1.0, 4.0]), np.array([2.0, 6.0])
+    ids = np.array([f"C{i}" for i in range(x.size)], dtype=object)
+    gx = np.r_[rng.random(30) * 1000, x[x.size // 2], x[-1] + 2.0]
+    gy = np.r_[rng.random(30) * 1000, y[y.size // 2], y[-1]]
+    gids = np.array([f"G{i}" for i in range(31)] + [str(ids[1])], dtype=object)
+    r = checkpoint_distribution(x, y, ids=ids, gcp_x=gx, gcp_y=gy, gcp_ids=gids, min_gcp_distance=min_gcp)
+    nn_min, g_min, near, ident = _brute(x, y, gx, gy, ids, gids, min_gcp)
+    assert r.nn_min == pytest.approx(nn_min, rel=1e-12, abs=0)
+    assert r.nn_min == r.nn_distance.min()  # bit for bit the per-point minimum
+    assert r.gcp_min_distance == pytest.approx(g_min, rel=1e-12, abs=1e-12)
+    assert r.gcp_min_distance == r.gcp_distance.min()
+    assert set(r.too_close_to_gcp) == near and set(r.identical_to_gcp) == ident
+    assert list(r.too_close_to_gcp) == [i for i in ids.tolist() if i in near]  # point order
+    assert list(r.identical_to_gcp) == [i for i in ids.tolist() if i in ident]
+
+
+def test_one_close_pair_among_many_is_found_wherever_it_is():
+    """22,500 points on a jittered 10 m grid (every spacing at least 6 m) and one pair 1 mm apart:
+    the smallest spacing is that pair's distance, known by construction, wherever the pair lies
+    (30 places: most points are never probed for the upper bound, so most of these pairs are not)."""
+    rng = np.random.default_rng(11)
+    gx_, gy_ = np.meshgrid(np.arange(150) * 10.0, np.arange(150) * 10.0)
+    x0 = gx_.ravel() + rng.uniform(-2, 2, 22500)
+    y0 = gy_.ravel() + rng.uniform(-2, 2, 22500)
+    for row in rng.choice(22499, 30, replace=False):
+        x, y = x0.copy(), y0.copy()
+        x[row + 1], y[row + 1] = x[row] + 0.0006, y[row] + 0.0008
+        r = checkpoint_distribution(x, y)
+        assert r.nn_min == pytest.approx(0.001, rel=1e-6), row
+        assert r.nn_min == r.nn_distance.min()
