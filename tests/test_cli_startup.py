@@ -123,3 +123,35 @@ def test_explain_words_a_rule_without_importing_the_engine(tmp_path, monkeypatch
     engine = [m for m in res["modules"] if m.split(".")[0] in ("pandas", "pint", "rasterio", "scipy",
                                                                 "sqlalchemy", "matplotlib", "weasyprint")]
     assert engine == [], f"explain imported {engine}"
+
+
+BLAS_PROBE = """
+import os, sys
+from orthospec.cli.main import main
+try:
+    main(["--version"])
+except SystemExit:
+    pass
+import numpy as np
+a = np.random.default_rng(0).random((300, 300))
+_ = a @ a  # OpenBLAS starts its threads on the first product
+tasks = os.listdir(f"/proc/{os.getpid()}/task")
+print(os.environ.get("OPENBLAS_NUM_THREADS"), len(tasks))
+"""
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="/proc/<pid>/task is Linux")
+@pytest.mark.parametrize("given, expected", [(None, "1"), ("3", "3")])
+def test_openblas_threads_are_not_started_beside_ours(given, expected):
+    """The CLI sets OPENBLAS_NUM_THREADS=1 unless the user set it: no BLAS worker threads spin
+    beside orthospec's own workers (counted from /proc: the process has one thread)."""
+    import os
+
+    env = {k: v for k, v in os.environ.items() if k not in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS")}
+    if given is not None:
+        env["OPENBLAS_NUM_THREADS"] = given
+    proc = subprocess.run([sys.executable, "-c", BLAS_PROBE], capture_output=True, text=True, timeout=120, env=env)
+    value, threads = proc.stdout.splitlines()[-1].split()
+    assert value == expected
+    if given is None:
+        assert int(threads) == 1, f"{threads} threads"
