@@ -13,6 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from tests.conftest import MANIFEST
 
 from orthospec.delivery.convention import ColumnSpec, TableSpec
@@ -130,6 +132,24 @@ def test_duplicate_locations_within_a_millimetre():
     y = np.array([50.0, 50.0, 60.0, 70.0, 70.0, 70.0, 70.0])
     assert duplicate_locations(x, y).tolist() == [True, True, False, True, True, True, False]
     assert not duplicate_locations(np.array([0.0, 0.01]), np.array([0.0, 0.0])).any()  # 1 cm apart
+
+
+@given(st.lists(st.tuples(st.sampled_from([0.0, 0.0004, 0.0011, 5.0, 1e6, 1e6 + 0.0004, float("nan")]),
+                          st.sampled_from([0.0, 0.0002, 3.0, 3.0009, 7e6, float("nan")])), max_size=40))
+@settings(max_examples=300, deadline=None)
+def test_duplicate_locations_is_the_all_pairs_definition(points):
+    """Every member of a position another point shares on the 1 mm grid, and no other point:
+    against the definition over all pairs (NaN on the grid equals NaN, as pandas counts it)."""
+    x = np.array([p[0] for p in points], dtype=float)
+    y = np.array([p[1] for p in points], dtype=float)
+    gx, gy = np.round(x / 0.001), np.round(y / 0.001)
+
+    def same(a, b):
+        return a == b or (np.isnan(a) and np.isnan(b))
+
+    truth = [any(j != i and same(gx[i], gx[j]) and same(gy[i], gy[j]) for j in range(len(x)))
+             for i in range(len(x))]
+    assert duplicate_locations(x, y).tolist() == truth
 
 
 def test_block_measure_counts_copies_under_new_ids(make_delivery):

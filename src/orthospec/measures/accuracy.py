@@ -85,11 +85,17 @@ def duplicate_locations(x: Any, y: Any, *, tolerance: float = 0.001) -> np.ndarr
 
     JRC §12.5 assesses accuracy with "independent measurements": one reference position entered
     under several ids is one measurement counted many times, and its copies dilute the RMSE
-    (red team R4). Vectorised (rounding and :meth:`pandas.DataFrame.duplicated`).
+    (red team R4). Vectorised (rounding and pandas' hashed ``duplicated``): a repeated position
+    repeats its x, so the pairs are looked for among the rows whose x repeats (a third of the
+    time of hashing both columns of every row at 333,000 points).
     """
-    xy = pd.DataFrame({"x": np.round(np.asarray(x, dtype=float) / tolerance),
-                       "y": np.round(np.asarray(y, dtype=float) / tolerance)})
-    return xy.duplicated(keep=False).to_numpy()
+    gx = np.round(np.asarray(x, dtype=float) / tolerance)
+    same_x = pd.Series(gx, copy=False).duplicated(keep=False).to_numpy()
+    out = np.zeros(gx.size, dtype=bool)
+    if same_x.any():
+        gy = np.round(np.asarray(y, dtype=float)[same_x] / tolerance)
+        out[same_x] = pd.DataFrame({"x": gx[same_x], "y": gy}).duplicated(keep=False).to_numpy()
+    return out
 
 
 def rmse_net(rmse_x: Any, rmse_y: Any) -> Any:
