@@ -5,6 +5,12 @@ rules x 1,000 images, block rules over 20 blocks with 25 check points each, ~2 %
 Prints seconds for HTML (every record, passing ones folded) and PDF (bounded tables), and sizes.
 
     .venv/bin/python benchmarks/report.py [--images 1000] [--rules 5] [--blocks 20] [--no-figures]
+                                          [--points N]
+
+``--points N`` spreads N check points over the blocks (default 25 per block): the figures draw
+at most ``figures.accuracy.MAX_MARKS`` of a block's points and the HTML table lists at most
+``ReportOptions.max_table_points``, so the cost should level off as N grows (issue 14). Peak RSS
+of the whole run is printed too.
 """
 
 from __future__ import annotations
@@ -12,6 +18,8 @@ from __future__ import annotations
 import argparse
 import hashlib
 import io
+import math
+import resource
 import time
 from typing import Any
 
@@ -140,10 +148,13 @@ def main() -> None:
     ap.add_argument("--rules", type=int, default=5)
     ap.add_argument("--blocks", type=int, default=20)
     ap.add_argument("--no-figures", action="store_true")
+    ap.add_argument("--points", type=int, default=None, help="check points in all (default 25 per block)")
     a = ap.parse_args()
-    doc = synthetic_document(a.images, a.rules, a.blocks)
+    per_block = 25 if a.points is None else max(1, math.ceil(a.points / a.blocks))
+    doc = synthetic_document(a.images, a.rules, a.blocks, per_block)
     s = doc["summary"]
-    print(f"document: {a.images} images, {s['records']} QCRs ({s['fail']} failing), {a.blocks} blocks")
+    print(f"document: {a.images} images, {s['records']} QCRs ({s['fail']} failing), {a.blocks} blocks "
+          f"of {per_block} check points")
     figs = not a.no_figures
     t = time.perf_counter()
     html = document.render(doc, formats=["html"], options=ReportOptions(bounded=False, figures=figs))
@@ -160,6 +171,7 @@ def main() -> None:
     print(f"html: {t_html:.2f} s, {len(html['report.html']) / 1e6:.2f} MB (figures {'on' if figs else 'off'})")
     print(f"pdf:  {t_pdf:.2f} s, {len(pdf['report.pdf']) / 1e6:.2f} MB, {pages} pages (bounded tables)")
     print(f"html+pdf together, default options (figures on, drawn once): {t_both:.2f} s")
+    print(f"peak RSS of this run: {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MB")
 
 
 if __name__ == "__main__":

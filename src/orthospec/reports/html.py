@@ -47,6 +47,8 @@ class ReportOptions:
     figure costs about a second, so a national delivery shows its worst blocks, and the attached
     checkpoints.csv holds every point. Edge targets likewise: the ESF/LSF/MTF figures of at most
     ``max_figure_edges`` targets (failing or erring targets first), their values all tabulated.
+    The HTML's checkpoint table of a block lists every point that did not pass and the first
+    passing ones up to ``max_table_points`` rows (30,000 rows were 8 MB of a 26 MB page).
     """
 
     bounded: bool = False
@@ -55,6 +57,7 @@ class ReportOptions:
     max_rule_rows: int = 8
     max_figure_blocks: int = 6
     max_figure_edges: int = 6
+    max_table_points: int = 1000
     figures: bool = True
 
 
@@ -378,7 +381,9 @@ def _checkpoint_blocks(doc: dict[str, Any], opts: ReportOptions,
         n_fail = sum(p.get("status") == "fail" for p in pts)
         shown = pts
         if opts.bounded and len(pts) > opts.max_points:
-            shown = [p for p in pts if p.get("status") == "fail" or p.get("decision") not in (None, "kept")]
+            shown = [p for p in pts if _point_flagged(p)]
+        elif not opts.bounded and len(pts) > opts.max_table_points:
+            shown = _first_points(pts, opts.max_table_points)
         blocks.append({
             "id": bid, "points": shown, "n_points": b.get("points_total") or len(pts),
             "n_hidden": len(pts) - len(shown), "n_omitted": b.get("points_omitted") or 0,
@@ -386,6 +391,7 @@ def _checkpoint_blocks(doc: dict[str, Any], opts: ReportOptions,
             "limit_x": b.get("limit_x"), "limit_y": b.get("limit_y"), "basis": b.get("basis"),
             "n_gcps": len(b.get("gcps") or []), "rejected": bid in failing_blocks,
             "area_source": b.get("area_source"), "figures": [],
+            "n_pass_shown": sum(not _point_flagged(p) for p in shown),
         })
     if figure is not None and opts.figures:
         def worst(b: dict[str, Any]) -> tuple[Any, ...]:
@@ -399,6 +405,25 @@ def _checkpoint_blocks(doc: dict[str, Any], opts: ReportOptions,
                 cache[b["id"]] = _block_figures(cps[b["id"]], b["id"])
             b["figures"] = [{**f, "uri": figure(f["svg"], "image/svg+xml")} for f in cache[b["id"]]]
     return blocks
+
+
+def _point_flagged(p: dict[str, Any]) -> bool:
+    """A point the auditor must see in every table: above the limit, or not simply kept."""
+    return p.get("status") == "fail" or p.get("decision") not in (None, "kept")
+
+
+def _first_points(pts: list[dict[str, Any]], cap: int) -> list[dict[str, Any]]:
+    """Every flagged point and the first passing ones, ``cap`` rows in all when the flagged leave
+    room; table order kept."""
+    room = max(cap - sum(_point_flagged(p) for p in pts), 0)
+    out = []
+    for p in pts:
+        if _point_flagged(p):
+            out.append(p)
+        elif room:
+            out.append(p)
+            room -= 1
+    return out
 
 
 def _block_figures(b: dict[str, Any], bid: str) -> list[dict[str, str]]:
@@ -419,6 +444,7 @@ def _block_figures(b: dict[str, Any], bid: str) -> list[dict[str, str]]:
     gcps = [g for g in b.get("gcps") or [] if _numeric(g.get("x")) and _numeric(g.get("y"))]
     out = []
     flagged = [str(p["point_id"]) for p in pts if p.get("status") == "fail"]
+    excluded = [str(p["point_id"]) for p in pts if p.get("decision") not in (None, "kept")]  # drawn always too
     poly = b.get("polygon")  # the block outline, when the provider stores it in qcr.json
     polygon = [(float(v[0]), float(v[1])) for v in poly
                if isinstance(v, list | tuple) and len(v) >= 2 and _numeric(v[0]) and _numeric(v[1])] \
@@ -426,12 +452,18 @@ def _block_figures(b: dict[str, Any], bid: str) -> list[dict[str, str]]:
     svg = figs.checkpoint_map_svg(
         x, y, dx, dy, ids=ids, gcp_x=[g["x"] for g in gcps] or None, gcp_y=[g["y"] for g in gcps] or None,
         unit=unit, flagged=flagged, title=f"Block {bid}: check points and discrepancies",
-        polygon=polygon if polygon and len(polygon) >= 3 else None)
+        polygon=polygon if polygon and len(polygon) >= 3 else None, always=excluded)
     omitted = b.get("points_omitted")
     # a capped point table (B: flagged points + the largest residuals) is not a sample of the block:
     # say so on the map, and draw no distribution from it (the block statistics cover every point)
     subset = (f" Shown: {len(pts)} of {b.get('points_total', '?')} points, the flagged ones and the largest "
               f"residuals; the statistics cover every point." if omitted else "")
+    must = {*flagged, *excluded}
+    drawn = figs.sample_points(x, y, ids, [i in must for i in ids])
+    if drawn.thinned:  # the figure draws a sample (issue 14): the caption counts what it drew
+        subset += (f" Drawn: {drawn.drawn:,} of {'these' if omitted else 'the'} {drawn.total:,} points, "
+                   f"all {drawn.must:,} flagged or excluded and 1 in {drawn.step:,} of the others (an even "
+                   f"spatial sample); qcr.json holds every one of the {drawn.total:,}.")
     out.append({"svg": svg, "kind": "map",
                 "caption": f"Block {bid}: check points (blue; red = above the maximum tolerable "
                            f"discrepancy), discrepancy vectors (exaggerated, see scale arrow) and GCPs "
@@ -444,7 +476,8 @@ def _block_figures(b: dict[str, Any], bid: str) -> list[dict[str, str]]:
                                        title=f"Block {bid}: discrepancies")
     out.append({"svg": svg, "kind": "hist",
                 "caption": f"Block {bid}: distribution of the discrepancies per axis with the mean "
-                           f"(black) and ±RMSE (red dashed)."})
+                           f"(black) and ±RMSE (red dashed)."
+                           + (f" Every one of the {len(pts):,} points is binned." if drawn.thinned else "")})
     if len(pts) >= 4:
         outline = polygon if polygon and len(polygon) >= 3 else None
         from shapely.errors import ShapelyError
@@ -459,14 +492,18 @@ def _block_figures(b: dict[str, Any], bid: str) -> list[dict[str, str]]:
             dist = None                                    # an empty polygon): the map above shows it
         if dist is not None:
             svg = figs.quadrant_distribution_svg(x, y, centre=dist.centre, shares=dist.quadrant_shares,
-                                                 area=outline, unit=unit,
+                                                 area=outline, unit=unit, ids=ids,
                                                  title=f"Block {bid}: distribution by quadrant")
+            spread = figs.sample_points(x, y, ids)
             where = ("the block polygon (grey)" if outline else
                      f"the points' {dist.split_source.replace('_', ' ')} (no block polygon in the "
                      f"delivery, so shares may differ slightly from the measured value, which used the "
                      f"{b.get('area_source') or 'block'})")
+            drawn_note = (f" Drawn: {spread.drawn:,} of the {spread.total:,} points, 1 in {spread.step:,} (an "
+                          f"even spatial sample); the shares count every point." if spread.thinned else "")
             out.append({"svg": svg, "kind": "dist",
-                        "caption": f"Block {bid}: check points per quadrant, split at the centre of {where}."})
+                        "caption": f"Block {bid}: check points per quadrant, split at the centre of {where}."
+                                   + drawn_note})
     return out
 
 
