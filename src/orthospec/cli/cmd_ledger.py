@@ -263,9 +263,8 @@ def verify_cmd(ledger_target: str | None, head: str | None, against: Path | None
             raise click.BadParameter(f"{against}: no ledger head hash found in it", param_hint="--against")
         heads += found
     with _open(ledger_target) as led:
-        reps = [led.verify(head=h) for h in heads] or [led.verify()]
-    rep = reps[0]
-    problems = list(dict.fromkeys(str(p) for r in reps for p in r.problems))
+        rep = led.verify(heads=heads)  # one pass over the ledger for every head given
+    problems = list(dict.fromkeys(str(p) for p in rep.problems))
     if expect_head is not None and not rep.head_hash.startswith(expect_head.lower()):
         problems.append(f"head hash {rep.head_hash} does not match the expected {expect_head}")
     if problems:

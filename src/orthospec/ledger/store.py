@@ -16,10 +16,11 @@ touching the file named by ``ORTHOSPEC_LEDGER_PAUSE_MARKER`` (if set), so a test
 from __future__ import annotations
 
 import datetime as dt
+import itertools
 import json
 import os
 import time
-from collections.abc import Iterable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -32,8 +33,8 @@ from sqlalchemy.exc import ArgumentError, DBAPIError, NoSuchModuleError, Operati
 from .. import verdicts as V
 from ..errors import LedgerError
 from . import models as m
-from .audit import MARGIN, NORMAL, TIGHTENED, FamilyState, RunRecords, audit_states, family_of
-from .chain import canonical, run_hash, sha256_text, signoff_hash
+from .audit import MARGIN, NORMAL, TIGHTENED, FamilyState, RunRecords, audit_states
+from .chain import RunHasher, canonical, sha256_text, signoff_hash
 from .history import (
     Diff,
     History,
@@ -42,6 +43,7 @@ from .history import (
     history_rows,
     history_rows_before_recording,
 )
+from .rows import QCR_COLUMNS, Row, canonical_texts, rows_with_text
 from .runs import RunInfo
 
 #: the file used when neither ``--ledger`` nor ``ORTHOSPEC_LEDGER`` names one
@@ -149,9 +151,15 @@ class Ledger:
     # --- writing -----------------------------------------------------------------------------
 
     def record(self, document: Mapping[str, Any], *, recorded_at: str | None = None) -> int:
-        """Record one check run (its qcr.json document) and return the new run id."""
+        """Record one check run (its qcr.json document) and return the new run id.
+
+        One transaction. The QCR rows are made from the document's compact columns a batch at a
+        time, inserted (executemany) and fed to the chain hash batch by batch: memory stays bounded
+        by the batch, whatever the number of check points. The run row goes in first (the QCR
+        rows refer to it) and gets its count and hash at the end, once every row is hashed.
+        """
         # dumps: the exact qcr.json text (its sha256 matches the file's); every QCR version it reads
-        from ..qcr import SCHEMA_IDS, all_records, dumps
+        from ..qcr import SCHEMA_IDS, dumps
 
         if not isinstance(document, Mapping) or document.get("schema") not in SCHEMA_IDS:
             got = document.get("schema") if isinstance(document, Mapping) else type(document).__name__
@@ -168,14 +176,13 @@ class Ledger:
             files = [{"path": str(f["path"]), "sha256": str(f["sha256"]),
                       "bytes": None if f.get("bytes") is None else int(f["bytes"])}
                      for f in d.get("files", [])]
-            qrows = [_qcr_row(i, rec) for i, rec in enumerate(all_records(document))]
             fields: dict[str, Any] = {
                 "date": str(document["date"]), "project_id": project, "delivery_id": str(d["id"]),
                 "delivery_path": d.get("path"), "manifest_sha256": str(d["manifest_sha256"]),
                 "profile_id": str(p["id"]), "profile_version": str(p["version"]),
                 "profile_sha256": str(p["sha256"]), "verdict": str(document["verdict"]),
                 "fail_on": str(document.get("fail_on", V.FAIL)), "operator": document.get("operator"),
-                "n_records": len(qrows), "summary": canonical(summary), "document": doc_text,
+                "n_records": 0, "summary": canonical(summary), "document": doc_text,
                 "document_sha256": sha256_text(doc_text),
             }
         except (KeyError, TypeError, AttributeError) as exc:
@@ -183,16 +190,24 @@ class Ledger:
         if not project:
             raise LedgerError(f"delivery {d.get('id')!r}: manifest has no project.id; "
                               "the ledger files runs by project")
+        rows = rows_with_text(document)
         with self._write() as (conn, seq, prev):
             run_id = int(conn.execute(select(func.coalesce(func.max(m.runs.c.id), 0))).scalar_one()) + 1
             row: dict[str, Any] = {"id": run_id, "seq": seq + 1, "recorded_at": recorded_at or _now(),
                                    **fields, "prev_hash": prev}
-            row["hash"] = run_hash(row, files, qrows, prev)
-            conn.execute(m.runs.insert(), row)
+            conn.execute(m.runs.insert(), {**row, "hash": ""})
             if files:
                 conn.execute(m.run_files.insert(), [{"run_id": run_id, **f} for f in files])
-            if qrows:
-                conn.execute(m.qcrs.insert(), [{"run_id": run_id, **q} for q in qrows])
+            hasher = RunHasher(files, prev)
+            insert = _qcr_writer(conn, run_id, self.display)
+            n = 0
+            while batch := _next_batch(rows):
+                hasher.qcr_texts([text for _, text in batch])
+                insert([values for values, _ in batch])
+                n += len(batch)
+            row["n_records"] = n
+            row["hash"] = hasher.hexdigest(row)
+            conn.execute(update(m.runs).where(m.runs.c.id == run_id).values(n_records=n, hash=row["hash"]))
             conn.execute(update(m.head).where(m.head.c.id == 1).values(seq=seq + 1, hash=row["hash"]))
             _maybe_pause()
         _anchor(seq + 1, row["hash"])
@@ -448,60 +463,62 @@ class Ledger:
             raise LedgerError(f"{self.display}: the chain head row is missing; run `orthospec ledger verify`")
         return int(row.seq), str(row.hash)
 
-    def verify(self, head: str | None = None) -> VerifyReport:
+    def verify(self, head: str | None = None, *, heads: Iterable[str] = ()) -> VerifyReport:
         """Recompute every hash and link; list each edited, deleted or reordered row.
 
-        ``head``: a chain hash noted outside the ledger earlier (printed on every report and in
-        qcr.json). The chain must still contain it; a ledger whose newest entries were deleted and
-        whose head row and links were rewritten to match is detected only this way.
+        ``head`` (and each of ``heads``): a chain hash noted outside the ledger earlier (printed on
+        every report and in qcr.json). The chain must still contain it; a ledger whose newest
+        entries were deleted and whose head row and links were rewritten to match is detected only
+        this way. One pass over the ledger whatever the number of heads.
+
+        Memory is bounded by one run's document and a batch of QCR rows: runs are read without
+        their documents, then each run's document and rows on their own, rows streamed in order.
         """
         problems: list[Problem] = []
+        run_cols = [c for c in m.runs.c if c.name != "document"]
         with self._read() as conn:
+            if conn.dialect.name == "postgresql":  # one snapshot for the whole pass (SQLite's read
+                conn.execution_options(isolation_level="REPEATABLE READ")  # transaction is one)
             head_rows = conn.execute(select(m.head)).mappings().all()
-            runs = [dict(r) for r in conn.execute(select(m.runs).order_by(m.runs.c.seq)).mappings()]
-            files: dict[int, list[dict[str, Any]]] = {}
-            for f in conn.execute(select(m.run_files)).mappings():
-                files.setdefault(f["run_id"], []).append(dict(f))
-            qcrs: dict[int, list[dict[str, Any]]] = {}
-            for q in conn.execute(select(m.qcrs)).mappings():
-                qcrs.setdefault(q["run_id"], []).append(dict(q))
+            # the run rows without their documents (each read on its own below), the sign-offs
+            runs = [dict(r) for r in conn.execute(select(*run_cols).order_by(m.runs.c.seq)).mappings()]
             signs = [dict(s) for s in conn.execute(select(m.signoffs).order_by(m.signoffs.c.seq)).mappings()]
-        run_ids = {r["id"] for r in runs}
-        for rid in sorted(set(files) - run_ids):
-            problems.append(Problem("run_files", f"run {rid}", "rows belong to no recorded run"))
-        for rid in sorted(set(qcrs) - run_ids):
-            problems.append(Problem("qcrs", f"run {rid}", "rows belong to no recorded run"))
-        entries = sorted([("run", r) for r in runs] + [("signoff", s) for s in signs],
-                         key=lambda e: e[1]["seq"])
-        run_hashes = {r["id"]: r["hash"] for r in runs}
-        prev, expected_seq = m.GENESIS, 1
-        for kind, row in entries:
-            key = f"{kind} {row['id']} (seq {row['seq']})"
-            table = "runs" if kind == "run" else "signoffs"
-            if row["seq"] != expected_seq:
-                problems.append(Problem(table, key, f"expected seq {expected_seq}: "
-                                        f"{row['seq'] - expected_seq} entr(y/ies) before it deleted"))
-            if row["prev_hash"] != prev:
-                problems.append(Problem(table, key, "prev_hash does not match the previous entry's hash "
-                                        "(an entry before it was deleted, edited or reordered)"))
-            if kind == "run":
-                if sha256_text(row["document"]) != row["document_sha256"]:
-                    problems.append(Problem("runs", key, "document does not match document_sha256"))
-                qs = qcrs.get(row["id"], [])
-                if len(qs) != row["n_records"]:
-                    problems.append(Problem("qcrs", key, f"{len(qs)} QCR rows, the run recorded "
-                                            f"{row['n_records']}"))
-                h = run_hash(row, files.get(row["id"], []), qs, row["prev_hash"])
-            else:
-                if run_hashes.get(row["run_id"]) != row["run_hash"]:
-                    problems.append(Problem("signoffs", key, f"signed run {row['run_id']} is missing or "
-                                            "its hash differs from the one signed"))
-                h = signoff_hash(row, row["prev_hash"])
-            if h != row["hash"]:
-                what = ("its row, file or QCR rows were edited or deleted" if kind == "run"
-                        else "its row was edited")
-                problems.append(Problem(table, key, f"content hash mismatch: {what}"))
-            prev, expected_seq = row["hash"], row["seq"] + 1
+            run_ids = {r["id"] for r in runs}
+            for table, t in (("run_files", m.run_files), ("qcrs", m.qcrs)):
+                owners = conn.execute(select(t.c.run_id).distinct().order_by(t.c.run_id)).scalars()
+                for rid in owners:
+                    if rid not in run_ids:
+                        problems.append(Problem(table, f"run {rid}", "rows belong to no recorded run"))
+            entries = sorted([("run", r) for r in runs] + [("signoff", s) for s in signs],
+                             key=lambda e: e[1]["seq"])
+            run_hashes = {r["id"]: r["hash"] for r in runs}
+            prev, expected_seq = m.GENESIS, 1
+            for kind, row in entries:
+                key = f"{kind} {row['id']} (seq {row['seq']})"
+                table = "runs" if kind == "run" else "signoffs"
+                if row["seq"] != expected_seq:
+                    problems.append(Problem(table, key, f"expected seq {expected_seq}: "
+                                            f"{row['seq'] - expected_seq} entr(y/ies) before it deleted"))
+                if row["prev_hash"] != prev:
+                    problems.append(Problem(table, key, "prev_hash does not match the previous entry's hash "
+                                            "(an entry before it was deleted, edited or reordered)"))
+                if kind == "run":
+                    h, n_qcrs, doc_ok = _rehash_run(conn, row)
+                    if not doc_ok:
+                        problems.append(Problem("runs", key, "document does not match document_sha256"))
+                    if n_qcrs != row["n_records"]:
+                        problems.append(Problem("qcrs", key, f"{n_qcrs} QCR rows, the run recorded "
+                                                f"{row['n_records']}"))
+                else:
+                    if run_hashes.get(row["run_id"]) != row["run_hash"]:
+                        problems.append(Problem("signoffs", key, f"signed run {row['run_id']} is missing or "
+                                                "its hash differs from the one signed"))
+                    h = signoff_hash(row, row["prev_hash"])
+                if h != row["hash"]:
+                    what = ("its row, file or QCR rows were edited or deleted" if kind == "run"
+                            else "its row was edited")
+                    problems.append(Problem(table, key, f"content hash mismatch: {what}"))
+                prev, expected_seq = row["hash"], row["seq"] + 1
         if len(head_rows) != 1:
             problems.append(Problem("ledger_head", "id 1", f"{len(head_rows)} head rows, expected 1"))
         else:
@@ -518,17 +535,78 @@ class Ledger:
                 problems.append(Problem("ledger_head", f"anchor line {line}",
                                         f"the head of seq {a_seq} ({a_hash[:16]}...) recorded in "
                                         f"${ENV_ANCHOR} is not in the chain: entries were deleted or rewritten"))
-        if head is not None:
-            want = head.strip().lower()
+        for noted in ([head] if head is not None else []) + list(heads):
+            want = noted.strip().lower()
             if len(want) < 12 or any(ch not in "0123456789abcdef" for ch in want):
-                problems.append(Problem("ledger_head", "anchor", f"{head!r} is not a chain hash (at least 12 "
+                problems.append(Problem("ledger_head", "anchor", f"{noted!r} is not a chain hash (at least 12 "
                                         "hex digits, as printed on a report)"))
-            elif not any(row["hash"].startswith(want) for _k, row in entries):
+            elif not any(h.startswith(want) for h in hashes):
                 problems.append(Problem(
                     "ledger_head", "anchor",
                     f"the head {want[:16]}... noted earlier is not in the chain: entries up to it were deleted "
                     f"and the chain rewritten (the chain now ends at seq {expected_seq - 1} hash {prev[:12]}...)"))
         return VerifyReport(len(entries), len(runs), len(signs), prev, tuple(problems))
+
+
+#: QCR rows per executemany and per hash update (a few MB of rows at a time)
+BATCH = 5000
+
+
+def _next_batch(rows: Iterator[Row]) -> list[Row]:
+    """The next rows of ``rows_with_text`` (empty at the end); a malformed document is a LedgerError."""
+    try:
+        return list(itertools.islice(rows, BATCH))
+    except (KeyError, TypeError, AttributeError) as exc:
+        raise LedgerError(f"not a QCR document (missing {exc}); expected qcr.json structure") from None
+
+
+def _qcr_writer(conn: Connection, run_id: int, display: str) -> Callable[[list[tuple[Any, ...]]], None]:
+    """Writes a batch of QCR rows (value tuples in :data:`QCR_COLUMNS` order) of run ``run_id`` in
+    the open transaction: PostgreSQL by COPY (one stream, not a statement per row), SQLite by
+    executemany of one INSERT with positional parameters (they bind faster than named ones)."""
+    q = conn.dialect.identifier_preparer.quote
+    columns = f"{q('run_id')}, {', '.join(q(c) for c in QCR_COLUMNS)}"
+    if conn.dialect.name == "postgresql":
+        import psycopg
+
+        copy = f"COPY {q(m.qcrs.name)} ({columns}) FROM STDIN"
+        dbapi: Any = conn.connection.dbapi_connection  # the transaction's own connection
+
+        def write_pg(batch: list[tuple[Any, ...]]) -> None:
+            try:
+                with dbapi.cursor() as cur, cur.copy(copy) as out:
+                    for values in batch:
+                        out.write_row((run_id, *values))
+            except psycopg.Error as exc:
+                raise LedgerError(f"{display}: write failed, nothing recorded: {str(exc).strip()}") from None
+
+        return write_pg
+    insert = f"INSERT INTO {q(m.qcrs.name)} ({columns}) VALUES ({int(run_id)}, {', '.join('?' for _ in QCR_COLUMNS)})"
+
+    def write_sqlite(batch: list[tuple[Any, ...]]) -> None:
+        conn.exec_driver_sql(insert, batch)
+
+    return write_sqlite
+
+
+def _rehash_run(conn: Connection, run: Mapping[str, Any]) -> tuple[str, int, bool]:
+    """(chain hash recomputed from the stored rows, QCR row count, document matches its sha256) of one
+    run: the document read on its own, the QCR rows streamed in ordinal order a batch at a time."""
+    rid = run["id"]
+    document = conn.execute(select(m.runs.c.document).where(m.runs.c.id == rid)).scalar_one()
+    doc_ok = sha256_text(document) == run["document_sha256"]
+    files = [dict(f) for f in conn.execute(select(m.run_files).where(m.run_files.c.run_id == rid)).mappings()]
+    hasher = RunHasher(files, run["prev_hash"])
+    cols = [m.qcrs.c[c] for c in QCR_COLUMNS]
+    result = conn.execute(select(*cols).where(m.qcrs.c.run_id == rid).order_by(m.qcrs.c.ordinal)
+                          .execution_options(yield_per=BATCH))  # PostgreSQL: a server-side cursor
+    n = 0
+    for part in result.partitions():
+        hasher.qcr_texts(canonical_texts(part))
+        n += len(part)
+    full = {**run, "document": document}
+    del document
+    return hasher.hexdigest(full), n, doc_ok
 
 
 def _anchor(seq: int, head: str) -> None:
@@ -571,26 +649,6 @@ ACK_PREFIX = "[signed acknowledging the REJECTED verdict]"
 
 def _same_person(a: str, b: str) -> bool:
     return " ".join(a.split()).casefold() == " ".join(b.split()).casefold()
-
-
-def _qcr_row(i: int, rec: Mapping[str, Any]) -> dict[str, Any]:
-    clause = rec.get("clause") or {}
-    measured = rec.get("measured") or {}
-    req = rec.get("requirement") or {}
-
-    def s(x: Any) -> str | None:
-        return None if x is None else str(x)
-
-    return {
-        "ordinal": i, "rule": str(rec["rule"]), "scope": str(rec["scope"]), "item": str(rec["item"]),
-        "verdict": str(rec["verdict"]), "family": family_of(rec), "level": rec.get("level"),
-        "consequence": rec.get("consequence"), "manual": bool(rec.get("manual", False)),
-        "measure": rec.get("measure"), "measured": canonical(measured.get("value")),
-        "unit": measured.get("unit"), "requirement": canonical(req), "requirement_text": req.get("text"),
-        "clause_document": s(clause.get("document")), "clause_section": s(clause.get("section")),
-        "clause_table": s(clause.get("table")), "clause_row": s(clause.get("row")),
-        "message": rec.get("message"),
-    }
 
 
 def _run_info(r: Mapping[str, Any], files: list[tuple[str, str]]) -> RunInfo:
