@@ -70,6 +70,9 @@ POINT_MEASURES = {
 #: detail says how many points it leaves out (``points_total``, ``points_omitted``). The QCR
 #: records and the statistics always use every point.
 DETAIL_POINTS_MAX = 10_000
+#: a point's status by whether it is a blunder candidate: two text objects referenced per point (not
+#: one new text per point, as ``np.where(..., "fail", "pass").astype(object)`` makes)
+_STATUS = np.array(["pass", "fail"], dtype=object)
 _DETAIL_STATS = ("n", "mean_x", "mean_y", "std_x", "std_y", "rmse_x", "rmse_y", "rmse_z", "max_abs_dx",
                  "max_abs_dy", "max_dr")
 
@@ -339,7 +342,7 @@ def _block_detail(res: BlockAccuracy, pts: BlockPoints, gcps: tuple[np.ndarray, 
     # every id of the block first)
     cols = {"point_id": pts.ids, "dx": pts.dx, "dy": pts.dy,
             "dz": np.full(n, np.nan) if pts.dz is None else pts.dz, "dr": br.dr, "x_ref": pts.x_ref,
-            "y_ref": pts.y_ref, "status": np.where(br.candidate, "fail", "pass").astype(object),
+            "y_ref": pts.y_ref, "status": _STATUS[br.candidate.astype(np.intp)],
             "decision": br.decision, "row": pts.rows}
     frame = pd.DataFrame({k: pd.Series(np.asarray(v)[keep], dtype=object if np.asarray(v).dtype == object else None)
                           for k, v in cols.items()})
