@@ -422,7 +422,8 @@ def scan_images(
         progress.start(len(p_list), sum(sizes))
     results: list[ImageReport | None] = [None] * (0 if on_report else len(p_list))
     import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor, as_completed
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+    from itertools import islice
 
     from .cache import ResultCache
 
@@ -452,12 +453,26 @@ def scan_images(
                 ctx = _mp_context()
                 # one counting thread per worker process: the processes already fill the cores
                 one = replace(opts, settings=replace(opts.settings, threads=1))
+                # a bounded window of tasks in flight: a finished future holds its report (the
+                # histograms: about 25 KB an image) for as long as something references it, so
+                # submitting every image up front kept every report until the last one finished
+                todo = iter(enumerate(p_list))
+                window = IN_FLIGHT_PER_WORKER * n
+                pending: dict[Future[ImageReport], int] = {}
+
+                def submit_more() -> None:
+                    for i, p in islice(todo, window - len(pending)):
+                        pending[pool.submit(scan_image, p, one, cloud_mask=masks.get(p))] = i
+
                 with ProcessPoolExecutor(max_workers=n, mp_context=ctx) as pool:
                     with _one_thread_per_worker():  # workers (and the forkserver) start here
-                        futs = {pool.submit(scan_image, p, one, cloud_mask=masks.get(p)): i
-                                for i, p in enumerate(p_list)}
-                    for fut in as_completed(futs):
-                        done(futs[fut], fut.result())
+                        submit_more()
+                    while pending:
+                        finished, _ = wait(pending, return_when=FIRST_COMPLETED)
+                        for fut in finished:
+                            done(pending.pop(fut), fut.result())
+                        del finished, fut
+                        submit_more()
     finally:
         if progress:
             progress.close()
@@ -473,6 +488,11 @@ def _remember(cache: ResultCache, r: ImageReport, opts: ScanOptions) -> None:
     if r.sha256 and opts.trust_mtime:
         with suppress(OSError):  # the file vanished meanwhile: nothing to keep
             cache.put_hash(*_stat_key(r.path), r.sha256)
+
+
+#: Tasks queued per worker process: enough that no worker waits for the next path, few enough that
+#: finished reports do not pile up (each is dropped once ``done`` has taken it).
+IN_FLIGHT_PER_WORKER = 4
 
 
 #: glibc mallopt parameter: bytes of free heap kept before memory is returned to the OS
@@ -532,7 +552,10 @@ def _run_dask(scheduler: Any, paths: list[str], opts: ScanOptions, masks: dict[s
         futs = [client.submit(scan_image, p, opts, cloud_mask=masks.get(p), pure=False)
                 for p in paths]
         index = {f.key: i for i, f in enumerate(futs)}
-        for fut in dask_completed(futs):
+        completed = dask_completed(futs)
+        del futs  # as_completed lets each future go once it is yielded: the cluster then releases
+        # that report once taken, instead of holding every one until the last image is done
+        for fut in completed:
             done(index[fut.key], fut.result())
     finally:
         if own:
