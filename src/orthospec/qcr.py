@@ -21,7 +21,7 @@ import re
 import sys
 import tempfile
 from collections import Counter as _Counter
-from collections.abc import Iterable, Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 from xml.sax.saxutils import escape as _escape
@@ -48,7 +48,7 @@ from .provenance import Evidence
 from .qcr_model import SCHEMA_IDS, qcr_schema
 from .verdicts import VERDICTS
 
-__all__ = ["SCHEMA_IDS", "all_records", "build_document", "dumps", "evidence_rows", "evidence_text",
+__all__ = ["SCHEMA_IDS", "all_records", "block_columns", "build_document", "dumps", "evidence_rows", "evidence_text",
            "iter_dumps", "natural_order", "point_frame", "point_rows", "qcr_schema", "render_all", "stable"]
 
 SCHEMA_ID = "orthospec.qcr/3"  # version 3: version 2 + evidence selectors and row columns (docs/QCR.md)
@@ -620,17 +620,26 @@ def _evidence_values(col: Any, n: int, compact: Mapping[str, Any], table: list[d
         yield [table[e] for e in (ids or [])]
 
 
-def _expand(rule: Mapping[str, Any], block: Mapping[str, Any], evidence: list[dict[str, Any]],
-            compact: Mapping[str, Any]) -> Iterator[dict[str, Any]]:
-    """The records of one rule's compact block (the same dicts as records in full)."""
+def block_columns(rule: Mapping[str, Any], block: Mapping[str, Any],
+                  compact: Mapping[str, Any]) -> tuple[Sequence[Any], ...]:
+    """A compact block's items, verdicts, measured values, requirements and messages, one value
+    per item each: the one reading of these columns (records here, the ledger's rows)."""
     items = _column_values(block["items"], 0, compact)
     n = len(items)
     verdicts = _column_values(block.get("verdict"), n, compact)
     measured = _column_values(block.get("measured"), n, compact)
     reqs = (_column_values(block["requirement"], n, compact) if "requirement" in block
             else [rule.get("requirement") or {}] * n)
-    evs = _evidence_values(block.get("evidence"), n, compact, evidence)
     msgs = _column_values(block.get("message"), n, compact)
+    return items, verdicts, measured, reqs, msgs
+
+
+def _expand(rule: Mapping[str, Any], block: Mapping[str, Any], evidence: list[dict[str, Any]],
+            compact: Mapping[str, Any]) -> Iterator[dict[str, Any]]:
+    """The records of one rule's compact block (the same dicts as records in full)."""
+    items, verdicts, measured, reqs, msgs = block_columns(rule, block, compact)
+    n = len(items)
+    evs = _evidence_values(block.get("evidence"), n, compact, evidence)
     asked = _column_values(block.get("waiver_requested"), n, compact)
     shown = _shown_unit(rule.get("unit"))
     measure = rule.get("measure", "")

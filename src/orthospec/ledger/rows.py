@@ -134,15 +134,10 @@ def _compact_rows(rule: Mapping[str, Any], block: Mapping[str, Any], compact: Ma
     item only what varies. With ``start`` (the first ordinal) each row comes with its canonical
     text, built from the rule's constant parts already encoded (the same text :func:`canonical`
     gives, tests/test_ledger_scale.py); without, ordinal 0 and no text (the caller merges them)."""
-    from ..qcr import _column_values, _full, _pass_message, _shown_unit
+    from ..qcr import _full, _pass_message, _shown_unit, block_columns
 
-    items = _column_values(block["items"], 0, compact)
+    items, verdicts, measured, reqs, msgs = block_columns(rule, block, compact)
     n = len(items)
-    verdicts = _column_values(block.get("verdict"), n, compact)
-    measured = _column_values(block.get("measured"), n, compact)
-    reqs = (_column_values(block["requirement"], n, compact) if "requirement" in block
-            else [rule.get("requirement") or {}] * n)
-    msgs = _column_values(block.get("message"), n, compact)
     const = qcr_row(0, _full(rule, "", "", None, {}, [], ""))  # what every record of the rule shares
     cd, crow, csec, ctab = const["clause_document"], const["clause_row"], const["clause_section"], \
         const["clause_table"]
