@@ -471,7 +471,7 @@ def test_a_capped_point_table_is_labelled_and_draws_no_distribution(checked: dic
     n = len(point_rows(blocks[capped]["points"]))
     blocks[capped].update(points_total=n + 1000, points_omitted=1000)
     html = render_html(doc, ReportOptions(bounded=False), figure=data_uri)
-    assert f"Shown: {n} of {n + 1000} points" in html
+    assert f"Shown: {n:,} of {n + 1000:,} points" in html
     assert "1000 point(s) with small residuals are not in qcr.json" in html
     assert f"Block {capped}: distribution of the discrepancies" not in html
     assert f"Block {other}: distribution of the discrepancies" in html

@@ -456,7 +456,8 @@ def _block_figures(b: dict[str, Any], bid: str) -> list[dict[str, str]]:
     omitted = b.get("points_omitted")
     # a capped point table (B: flagged points + the largest residuals) is not a sample of the block:
     # say so on the map, and draw no distribution from it (the block statistics cover every point)
-    subset = (f" Shown: {len(pts)} of {b.get('points_total', '?')} points, the flagged ones and the largest "
+    total = b.get("points_total")
+    subset = (f" Shown: {len(pts):,} of {f'{total:,}' if isinstance(total, int) else '?'} points, the flagged ones and the largest "
               f"residuals; the statistics cover every point." if omitted else "")
     must = {*flagged, *excluded}
     drawn = figs.sample_points(x, y, ids, [i in must for i in ids])
