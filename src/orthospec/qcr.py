@@ -49,7 +49,7 @@ from .qcr_model import SCHEMA_IDS, qcr_schema
 from .verdicts import VERDICTS
 
 __all__ = ["SCHEMA_IDS", "all_records", "block_columns", "build_document", "dumps", "evidence_rows", "evidence_text",
-           "iter_dumps", "natural_order", "point_frame", "point_rows", "qcr_schema", "render_all", "stable"]
+           "iter_dumps", "natural_order", "point_frame", "point_rows", "qcr_schema", "record_groups", "render_all", "stable"]
 
 SCHEMA_ID = "orthospec.qcr/3"  # version 3: version 2 + evidence selectors and row columns (docs/QCR.md)
 
@@ -667,22 +667,35 @@ def all_records(doc: Mapping[str, Any], *, compact: bool = True) -> Iterator[dic
     if "compact" not in doc:
         yield from (records if compact else (r for r in records if r.get("verdict") not in COMPACT_VERDICTS))
         return
-    blocks = (doc["compact"] or {}) if compact else {}
-    full: dict[str, list[Mapping[str, Any]]] = {}
-    for rec in records:
-        full.setdefault(rec["rule"], []).append(rec)
+    blocks = doc["compact"] or {}
     evidence = doc.get("evidence") or []
-    for summary in doc.get("rules") or []:
-        rid = summary["rule"]
-        mine = (_expand_stored(summary, rec) for rec in full.pop(rid, []))
-        block = blocks.get(rid)
+    for summary, stored, block in record_groups(doc, compact=compact):
+        if summary is None:  # records without a rule summary: as stored
+            yield from (dict(r) for r in stored)
+            continue
+        mine = (_expand_stored(summary, rec) for rec in stored)
         if not block:
             yield from mine
         else:
             yield from heapq.merge(mine, _expand(summary, block, evidence, blocks),
                                    key=lambda r: natural_key(r["item"]))
-    for rest in full.values():  # a record without a rule summary: as stored
-        yield from (dict(r) for r in rest)
+
+
+def record_groups(doc: Mapping[str, Any], *, compact: bool = True
+                  ) -> Iterator[tuple[Mapping[str, Any] | None, list[Mapping[str, Any]], Mapping[str, Any] | None]]:
+    """The walk of a version 2+ document in record order: per rule summary (summary, its records
+    stored in full, its compact block or None), then (None, records, None) per rule that has no
+    summary. The one walk behind :func:`all_records` and the ledger's rows; the stored records of a
+    rule merge with its compact block by :func:`natural_key` of the item, stored first."""
+    blocks = (doc["compact"] or {}) if compact else {}
+    full: dict[str, list[Mapping[str, Any]]] = {}
+    for rec in doc.get("records") or []:
+        full.setdefault(rec["rule"], []).append(rec)
+    for summary in doc.get("rules") or []:
+        rid = summary["rule"]
+        yield summary, full.pop(rid, []), blocks.get(rid) or None
+    for rest in full.values():
+        yield None, rest, None
 
 
 _DIGITS = re.compile(r"(\d+)")

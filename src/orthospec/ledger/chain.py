@@ -57,7 +57,7 @@ def _canonical_pieces(d: Mapping[str, Any]) -> Iterator[str]:
 
 class RunHasher:
     """The chain hash of a run, fed its files, then its QCR rows in ordinal order batch by batch,
-    then the run row: the same hex digest :func:`run_hash` gives for the whole at once."""
+    then the run row: the digest of the whole canonical text (module docstring) fed at once."""
 
     def __init__(self, files: Sequence[Mapping[str, Any]], prev: str) -> None:
         self._h = hashlib.sha256()
@@ -68,14 +68,6 @@ class RunHasher:
 
     def _update(self, text: str) -> None:
         self._h.update(text.encode("utf-8"))
-
-    def qcrs(self, rows: Sequence[Mapping[str, Any]]) -> None:
-        """The next QCR rows (ordinal order, after every earlier batch; without ``run_id``)."""
-        if not rows:
-            return
-        text = _ENC.encode(rows)  # one C call per batch: "[row,row,...]"
-        self._update(text[1:-1] if self._first else "," + text[1:-1])
-        self._first = False
 
     def qcr_texts(self, texts: Sequence[str]) -> None:
         """The next QCR rows as their canonical texts (``canonical(row)`` each, ordinal order)."""
@@ -91,14 +83,6 @@ class RunHasher:
             self._update(piece)
         self._update('},"kind":"run","prev":' + _ENC.encode(self._prev) + "}")
         return self._h.hexdigest()
-
-
-def run_hash(run: Mapping[str, Any], files: Sequence[Mapping[str, Any]],
-             qcrs: Sequence[Mapping[str, Any]], prev: str) -> str:
-    """Hash of a run row (without its own ``hash``), its files (by path) and QCRs (by ordinal)."""
-    h = RunHasher(files, prev)
-    h.qcrs(sorted(({k: v for k, v in q.items() if k != "run_id"} for q in qcrs), key=lambda q: q["ordinal"]))
-    return h.hexdigest(run)
 
 
 def signoff_hash(signoff: Mapping[str, Any], prev: str) -> str:

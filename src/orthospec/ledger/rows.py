@@ -188,10 +188,8 @@ def _compact_rows(rule: Mapping[str, Any], block: Mapping[str, Any], compact: Ma
 
 def rows_with_text(doc: Mapping[str, Any]) -> Iterator[Row]:
     """(values in QCR_COLUMNS order, canonical text) of every record's row, ordinal 0, 1, ... in
-    document order (``qcr.all_records``' walk: per rule summary, its stored records merged with
-    its compact block by natural item order, stored first among equal items; then records
-    without a summary)."""
-    from ..qcr import _expand_stored, all_records, natural_key
+    document order (``qcr.record_groups``, the walk ``all_records`` takes)."""
+    from ..qcr import _expand_stored, all_records, natural_key, record_groups
 
     n = 0
     if "compact" not in doc:  # version 1: every record in full
@@ -199,16 +197,13 @@ def rows_with_text(doc: Mapping[str, Any]) -> Iterator[Row]:
             yield _with_text(qcr_row(n, rec))
             n += 1
         return
-    records = doc.get("records") or []
     blocks = doc["compact"] or {}
-    full: dict[str, list[Mapping[str, Any]]] = {}
-    for rec in records:
-        full.setdefault(rec["rule"], []).append(rec)
-    for summary in doc.get("rules") or []:
-        rid = summary["rule"]
-        stored = full.pop(rid, [])
-        block = blocks.get(rid)
-        if not block:
+    for summary, stored, block in record_groups(doc):
+        if summary is None:  # records without a rule summary: as stored
+            for rec in stored:
+                yield _with_text(qcr_row(n, dict(rec)))
+                n += 1
+        elif not block:
             for rec in stored:
                 yield _with_text(qcr_row(n, _expand_stored(summary, rec)))
                 n += 1
@@ -224,13 +219,3 @@ def rows_with_text(doc: Mapping[str, Any]) -> Iterator[Row]:
                 row["ordinal"] = n
                 yield _with_text(row)
                 n += 1
-    for rest in full.values():  # a record without a rule summary: as stored
-        for rec in rest:
-            yield _with_text(qcr_row(n, dict(rec)))
-            n += 1
-
-
-def qcr_rows(doc: Mapping[str, Any]) -> Iterator[dict[str, Any]]:
-    """The ledger rows of every QCR record of ``doc`` as dicts, ordinal 0, 1, ... in document order."""
-    for values, _ in rows_with_text(doc):
-        yield dict(zip(QCR_COLUMNS, values, strict=True))
