@@ -257,7 +257,7 @@ def test_pan_sharpening_rules_do_not_apply_to_an_aerial_delivery():
 # ---------------------------------------------------------------- red team R7: inflated flying heights
 def _aerial_copy_without_strip_f02_02(tmp_path, height_factor, columns=("flying_height",)):
     """aerial-pass without strip F02_02 (rows and image files), F02_01 ``columns`` (flying heights)
-    x height_factor (the reproducer of /tmp/team/redteam.md R7, R18)."""
+    x height_factor (the reproducer of tests/REDTEAM.md R7, R18)."""
     import shutil
 
     import pandas as pd
