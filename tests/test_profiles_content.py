@@ -105,7 +105,7 @@ def test_rule_ids_unique_and_complete(name: str) -> None:
             assert r.get(key) not in (None, ""), f"{name} {r['id']}: missing {key}"
         assert r["clause"].get("document"), f"{name} {r['id']}: clause without document"
         assert r["level"] in ("mandatory", "recommended")
-        assert r["consequence"] in ("reject_item", "reject_block", "return_delivery", "warn")
+        assert r["consequence"] in ("reject_item", "reject_block", "return_delivery", "incomplete", "warn")
         if r.get("manual"):
             assert r["measure"] == f"manual.{r['id']}", r["id"]
 

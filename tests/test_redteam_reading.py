@@ -4,7 +4,8 @@ R14: a number outside its column's min/max is refused where the table is read.
 R3: a row naming a block the manifest does not declare is refused (exit 2), in every table with a
 block column. R2: a table's coordinate unit is the project CRS's axis unit (pyproj), and block
 polygons are read in the CRS unit, never in the points' unit. R4: distinct ids at one reference
-position are counted (checkpoints.duplicate_locations).
+position are counted (checkpoints.duplicate_locations) - since issue 25, positions nearer than the
+separation (max(tolerance, 2 px)), not a 1 mm grid, and only the repeats (the first point stays).
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from orthospec.delivery.reader import open_delivery, parse_csv
 from orthospec.engine.providers import checkpoints as cp
 from orthospec.engine.registry import ProviderContext, describe
 from orthospec.errors import DeliveryError
-from orthospec.measures.accuracy import duplicate_locations
+from orthospec.measures.independence import repeated_positions
 
 CP = "point_id,block,x,y,x_ref,y_ref\n"
 US_FT = 1200 / 3937  # the US survey foot in metres (NIST)
@@ -127,29 +128,34 @@ def test_block_polygon_is_in_the_crs_unit_not_the_points_unit(make_delivery):
 
 # --- R4 -------------------------------------------------------------------------------------------
 
-def test_duplicate_locations_within_a_millimetre():
-    x = np.array([100.0, 100.0004, 200.0, 300.0, 300.0, 300.0, 400.0])
-    y = np.array([50.0, 50.0, 60.0, 70.0, 70.0, 70.0, 70.0])
-    assert duplicate_locations(x, y).tolist() == [True, True, False, True, True, True, False]
-    assert not duplicate_locations(np.array([0.0, 0.01]), np.array([0.0, 0.0])).any()  # 1 cm apart
+def test_repeats_within_the_separation_keep_the_first_point():
+    x = np.array([100.0, 100.004, 200.0, 300.0, 300.3, 300.0, 400.0])
+    y = np.array([50.0, 50.0, 60.0, 70.0, 70.0, 70.2, 70.0])
+    # 0.5 m: the copy 4 mm off repeats point 0; 300.3 and (300, 70.2) repeat point 3
+    assert repeated_positions(x, y, 0.5).tolist() == [-1, 0, -1, -1, 3, 3, -1]
+    assert (repeated_positions(np.array([0.0, 0.6]), np.array([0.0, 0.0]), 0.5) == -1).all()  # 0.6 m apart
 
 
-@given(st.lists(st.tuples(st.sampled_from([0.0, 0.0004, 0.0011, 5.0, 1e6, 1e6 + 0.0004, float("nan")]),
-                          st.sampled_from([0.0, 0.0002, 3.0, 3.0009, 7e6, float("nan")])), max_size=40))
+@given(st.lists(st.tuples(st.sampled_from([0.0, 0.3, 0.45, 0.9, 5.0, 5.4, 1e6, float("nan")]),
+                          st.sampled_from([0.0, 0.2, 0.49, 3.0, 3.5, 7e6, float("nan")])), max_size=40))
 @settings(max_examples=300, deadline=None)
-def test_duplicate_locations_is_the_all_pairs_definition(points):
-    """Every member of a position another point shares on the 1 mm grid, and no other point:
-    against the definition over all pairs (NaN on the grid equals NaN, as pandas counts it)."""
+def test_repeated_positions_leave_a_separated_set(points):
+    """Against the definition over all pairs: no two kept points are nearer than the separation, every
+    repeat is near a point it was grouped with, the earliest point of each group is kept, and a point
+    with no neighbour within the separation (NaN positions included) is kept."""
     x = np.array([p[0] for p in points], dtype=float)
     y = np.array([p[1] for p in points], dtype=float)
-    gx, gy = np.round(x / 0.001), np.round(y / 0.001)
-
-    def same(a, b):
-        return a == b or (np.isnan(a) and np.isnan(b))
-
-    truth = [any(j != i and same(gx[i], gx[j]) and same(gy[i], gy[j]) for j in range(len(x)))
-             for i in range(len(x))]
-    assert duplicate_locations(x, y).tolist() == truth
+    sep = 0.5
+    rep = repeated_positions(x, y, sep)
+    kept = [i for i in range(len(x)) if rep[i] < 0]
+    ok = np.isfinite(x) & np.isfinite(y)
+    near = [[j for j in range(len(x)) if j != i and ok[i] and ok[j] and np.hypot(x[i] - x[j], y[i] - y[j]) < sep]
+            for i in range(len(x))]
+    assert all(not (set(near[i]) & set(kept)) for i in kept)   # the kept set is separated
+    assert all(rep[i] < i for i in range(len(x)) if rep[i] >= 0)  # a repeat names an earlier point...
+    assert all(rep[rep[i]] < 0 for i in range(len(x)) if rep[i] >= 0)  # ...that is kept
+    assert all(rep[i] < 0 for i in range(len(x)) if not near[i])    # alone: kept
+    assert all(rep[i] < 0 for i in range(len(x)) if near[i] and i < min(near[i]))  # earliest of its neighbours
 
 
 def test_block_measure_counts_copies_under_new_ids(make_delivery):
@@ -161,9 +167,10 @@ def test_block_measure_counts_copies_under_new_ids(make_delivery):
     got = {m.name: m for m in cp.block_checkpoint_stats(ProviderContext(d, {"tolerance_xy": 0.5}))}
     m = got["checkpoints.duplicate_locations"]
     assert m.unit == "1"
-    assert m.values.to_dict() == {"B1": 6, "B2": 0}  # P0-P2 and their copies X0-X2
-    assert "X0" in m.notes["B1"] and "JRC §12.5" in m.notes["B1"]
-    assert "within 1 mm" in describe("checkpoints.duplicate_locations")
+    assert m.values.to_dict() == {"B1": 3, "B2": 0}  # the copies X0-X2 (P0-P2 stay in the statistics)
+    assert "X0" in m.notes["B1"] and "JRC §12.5" in m.notes["B1"] and "P0" in m.notes["B1"]
+    assert got["checkpoints.n"].values["B1"] == 10  # the copies dilute nothing
+    assert "separation" in describe("checkpoints.duplicate_locations")
 
 
 def test_a_block_list_names_only_manifest_blocks(make_delivery):

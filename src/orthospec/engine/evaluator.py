@@ -94,7 +94,7 @@ class Evaluator:
         used = waivers.apply_granted(results, self.granted)
         roll = Rollup(ctx)
         rejected, reasons = roll.rejected_items(results)
-        measures = roll.measures(rejected)
+        measures = roll.measures(rejected, results)
         later = [safe(ctx, r, measures) for r in second]
         used |= waivers.apply_granted(later, self.granted)
         results += later

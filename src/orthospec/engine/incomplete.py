@@ -12,27 +12,40 @@ says what to add ("B03: 6 more check points"). A real failure elsewhere still re
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from .. import verdicts as V
-from .context import ERROR, MISSING, RuleResult
+
+if TYPE_CHECKING:
+    from .context import RuleResult
+
+#: the evaluator's integer codes (engine/context.py uses the same: ``VERDICTS[code]``); imported
+#: from the vocabulary so that ledger/signed.py can use this module without the engine
+MISSING, ERROR = V.CODE[V.MISSING], V.CODE[V.ERROR]
 
 #: lines listed per rule; the rest are counted ("+N more")
 MAX_LINES = 20
 
-#: what one unit of a count measure is, for "6 more check points" (singular, plural)
-NOUNS: dict[str, tuple[str, str]] = {
-    "checkpoints.n": ("check point", "check points"),
-    "checkpoints.count": ("check point", "check points"),
-    "scenes.checkpoint_count": ("check point", "check points"),
-    "checkpoints.duplicate_locations": ("duplicated check point", "duplicated check points"),
-    "checkpoints.blunders_unjustified": ("blunder kept without a decision", "blunders kept without a decision"),
-    "checkpoints.near_gcp": ("check point at a GCP", "check points at a GCP"),
-    "checkpoints.zero_residuals": ("check point with a zero residual", "check points with a zero residual"),
-    "checkpoints.block_cells_bad": ("check point with an unclear block", "check points with an unclear block"),
-    "checkpoints.outside_block": ("check point outside its block", "check points outside their block"),
+#: what one unit of a count measure is (singular, plural) and what the checker does with it
+NOUNS: dict[str, tuple[str, str, str]] = {
+    "checkpoints.n": ("check point", "check points", ""),
+    "checkpoints.count": ("check point", "check points", ""),
+    "checkpoints.duplicate_locations": ("check point repeating another", "check points repeating another",
+                                        "to replace by independent points"),
+    "checkpoints.blunders_unjustified": ("exclusion request", "exclusion requests",
+                                         "to justify as §12.6 asks or to withdraw"),
+    "checkpoints.near_gcp": ("check point at a GCP", "check points at a GCP",
+                             "to replace by points independent of the GCPs"),
+    "checkpoints.zero_residuals": ("check point with a zero residual", "check points with a zero residual",
+                                   "to measure on the image"),
+    "checkpoints.block_cells_bad": ("check point naming no single block", "check points naming no single block",
+                                    "to assign to one block"),
+    "checkpoints.outside_block": ("check point outside the block", "check points outside the block",
+                                  "to assign to their block or replace"),
+    "checkpoints.imprecise": ("check point with an imprecise reference", "check points with an imprecise reference",
+                              "to re-survey or replace"),
 }
 #: roll-up shares whose remedy is a number of items to add to the checker's sample
 SHARES: dict[str, tuple[str, str, str]] = {
@@ -46,17 +59,36 @@ REMEDY: dict[str, str] = {
 }
 
 
+#: measures computed from the external check's own measurements (the check points, the sample):
+#: a value they cannot give (no points for a block, too few to compute, a point table that does not
+#: parse) is a missing checker measurement, the checker's to add - never a rejection of the products
+CHECKER_MEASURES = ("checkpoints.", "checkpoint.", "rollup.images_sampled_share", "rollup.blocks_checked_share")
+#: ...except the contractor's own figures compared with them (JRC §9.5 QCR values)
+CONTRACTOR_MEASURES = ("checkpoints.reported_diff_",)
+
+
+def checker_measure(measure: str) -> bool:
+    """The measure is computed from the checker's measurements (:data:`CHECKER_MEASURES`)."""
+    return measure.startswith(CHECKER_MEASURES) and not measure.startswith(CONTRACTOR_MEASURES)
+
+
 def checker_mask(r: RuleResult, blocking: np.ndarray) -> np.ndarray:
     """The blocking items that are the checker's to fix: every one of a rule whose consequence is
-    ``incomplete``; of a manual rule, those without the checker's verdict (``missing``)."""
+    ``incomplete``; of a manual rule, those without the checker's verdict (``missing``); of a rule
+    over the checker's measurements, those the measurements cannot give (``missing``)."""
     if r.rule.consequence == V.INCOMPLETE:
         return blocking
+    mine = np.zeros(len(blocking), dtype=bool)
     if r.rule.manual:
-        return blocking & (r.verdict == MISSING)
-    return np.zeros(len(blocking), dtype=bool)
+        mine |= blocking & (r.verdict == MISSING)
+    if checker_measure(r.rule.measure):
+        # an error (a crash, a broken outline) is not the checker's omission, nor is a finding for the
+        # whole scope (item `*`: no items to measure at all): they keep their consequence
+        mine |= blocking & (r.verdict == MISSING) & (r.items.astype(str) != "*")
+    return mine
 
 
-def _plural(n: int, noun: tuple[str, str]) -> str:
+def _plural(n: int, noun: tuple[str, str, str]) -> str:
     return f"{n} {noun[0] if n == 1 else noun[1]}"
 
 
@@ -99,7 +131,7 @@ def _what(r: RuleResult, i: int, totals: dict[str, int]) -> str:
     if rule.manual and v == MISSING:
         return f"sign the manual check {rule.id} in the checker's file (manual_checks)"
     if v in (MISSING, ERROR):
-        return f"{rule.measure} not measured ({note[:160] or 'no evidence'}): measure it"
+        return f"not measured: {note[:160] or 'no evidence'}"
     measured = _number(r.measured[i])
     need = _threshold(r, i)
     op = rule.requirement.op
@@ -118,20 +150,39 @@ def _what(r: RuleResult, i: int, totals: dict[str, int]) -> str:
         if more is not None and noun is not None:
             return f"{more} more {noun[0] if more == 1 else noun[1]} ({said})"
     if measured is not None and rule.measure in NOUNS and op in ("==", "<=", "<") and measured == int(measured):
-        return f"{_plural(int(measured), NOUNS[rule.measure])} to drop or replace ({said})"
+        noun = NOUNS[rule.measure]
+        listed = f": {note[:200]}" if note else ""
+        return f"{_plural(int(measured), noun)} {noun[2]} ({said}){listed}"
     remedy = REMEDY.get(rule.measure, "re-measure it or replace it")
     return f"{said}: {remedy}"
 
 
-def todo(r: RuleResult, mask: np.ndarray, totals: dict[str, int]) -> list[str]:
-    """One line per item of ``r`` the checker must complete (at most :data:`MAX_LINES`)."""
+#: one thing the checker must do: (what it concerns, what to do, the rule and clause that ask it)
+Entry = tuple[str, str, str]
+
+
+def todo(r: RuleResult, mask: np.ndarray, totals: dict[str, int]) -> list[Entry]:
+    """What the checker must complete for the items of ``r`` (at most :data:`MAX_LINES` items)."""
     idx = np.flatnonzero(mask)
-    clause = r.rule.clause.text()
+    ref = f"{r.rule.id}, {r.rule.clause.text()}"
     if r.rule.manual and bool((r.verdict[idx] == MISSING).all()):
         items = [str(r.items[i]) for i in idx]
         shown = ", ".join(items[:8]) + (f" (+{len(items) - 8} more)" if len(items) > 8 else "")
-        return [f"{r.rule.id} ({clause}): sign the manual check for {shown} in the checker's file (manual_checks)"]
-    lines = [f"{r.items[i]}: {_what(r, int(i), totals)} ({r.rule.id}, {clause})" for i in idx[:MAX_LINES]]
+        return [(r.rule.id, f"sign the manual check for {shown} in the checker's file (manual_checks)",
+                 r.rule.clause.text())]
+    out = [(str(r.items[i]), _what(r, int(i), totals), ref) for i in idx[:MAX_LINES]]
     if len(idx) > MAX_LINES:
-        lines.append(f"{r.rule.id} ({clause}): +{len(idx) - MAX_LINES} more item(s) the checker must complete")
-    return lines
+        out.append((r.rule.id, f"+{len(idx) - MAX_LINES} more item(s) the checker must complete",
+                    r.rule.clause.text()))
+    return out
+
+
+def lines(entries: list[Entry]) -> list[str]:
+    """The entries as lines, one per (item, what): several rules asking the same of one item (a
+    block without check points) are one line naming them all, in first-seen order."""
+    merged: dict[tuple[str, str], list[str]] = {}
+    for item, what, ref in entries:
+        refs = merged.setdefault((item, what), [])
+        if ref not in refs:
+            refs.append(ref)
+    return [f"{item}: {what} ({'; '.join(refs)})" for (item, what), refs in merged.items()]

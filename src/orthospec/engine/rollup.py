@@ -17,6 +17,7 @@ verdict is ``incomplete`` unless a real failure rejects the delivery.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -35,12 +36,12 @@ from ..provenance import Evidence
 from ..spec.models import Rule
 from ..spec.operators import is_missing
 from .context import ERROR, FAIL, MISSING, VERDICTS, WARN, Context, RuleResult
-from .incomplete import checker_mask, todo
+from .incomplete import Entry, checker_mask, lines, todo
 from .manual import gone_reason, vanished_in
 from .registry import ROLLUP, Measured
 
 BLOCK_ROLLUPS = ("rollup.block_rejected_share", "rollup.blocks_rejected")
-IMAGE_ROLLUPS = ("rollup.image_rejected_share", "rollup.images_rejected")
+IMAGE_ROLLUPS = ("rollup.image_rejected_share", "rollup.image_failed_share", "rollup.images_rejected")
 
 
 def _every_row(t: Any) -> tuple[Evidence, ...]:
@@ -62,6 +63,7 @@ class Rollup:
         #: findings that could not be tied to items: they return the delivery
         self.scope_wide: list[str] = []
         self.image_verdict: DeliveryVerdict | None = None
+        self.image_failed_verdict: DeliveryVerdict | None = None
         self.block_verdict: ProjectVerdict | None = None
 
     def open_findings(self, r: RuleResult) -> np.ndarray:
@@ -81,12 +83,12 @@ class Rollup:
     def incomplete(self, results: list[RuleResult]) -> list[str]:
         """What the checker must still add or do, one line per open item (engine/incomplete.py)."""
         totals = self._totals()
-        lines: list[str] = []
+        entries: list[Entry] = []
         for r in results:
             mask = self.open_findings(r)
             if mask.any() and (mine := checker_mask(r, mask)).any():
-                lines += todo(r, mine, totals)
-        return lines
+                entries += todo(r, mine, totals)
+        return lines(entries)
 
     def _totals(self) -> dict[str, int]:
         """How many images and blocks a sample share is a share of."""
@@ -180,24 +182,53 @@ class Rollup:
             return [i for i in all_imgs if i in marked or i in failed]
         return all_imgs
 
-    def _image_shares(self, rejected: dict[str, list[str]], max_share: float
-                      ) -> tuple[float | None, float | None, set[str]]:
-        """(rejected-image share %, sampled share %, rejected sampled images) per JRC §12.3."""
+    def _image_shares(self, rejected: dict[str, list[str]], max_share: float, results: list[RuleResult]
+                      ) -> tuple[float | None, float | None, set[str], float | None]:
+        """(rejected-image share %, sampled share %, rejected sampled images, failed-image share %)
+        per JRC §12.3; an image fails when a rule rejects it or a rule of the criteria sections
+        (:meth:`_failing_images`) fails or warns for it."""
         imgs = self.ctx.d.table("images")
         if imgs is None:
-            return None, None, set()
+            return None, None, set(), None
         all_imgs = imgs.ids.astype(str).tolist()
         sampled = self._sampled_images(all_imgs, imgs, rejected)
         rej = set(rejected.get("image", [])) & set(sampled)
         samp = 100.0 * len(sampled) / len(all_imgs) if all_imgs else None
-        share = None
+        share = failed_share = None
         if sampled:
             action = getattr(self.ctx.params.get("image_fail_share_action"), "value", None)
             self.image_verdict = image_delivery_verdict(
                 len(all_imgs), [i in rej for i in sampled], sampled_ids=sampled,
                 max_failed_fraction=max_share, returns=action != "keep")
             share = 100.0 * self.image_verdict.failed_fraction
-        return share, samp, rej
+            failing = rej | self._failing_images(results)
+            self.image_failed_verdict = image_delivery_verdict(
+                len(all_imgs), [i in failing for i in sampled], sampled_ids=sampled,
+                max_failed_fraction=max_share, returns=action != "keep")
+            failed_share = 100.0 * self.image_failed_verdict.failed_fraction
+        return share, samp, rej, failed_share
+
+    def _criteria_sections(self) -> tuple[str, ...]:
+        """The clause sections whose image rules §12.3 checks (parameter image_criteria_sections)."""
+        v = getattr(self.ctx.params.get("image_criteria_sections"), "value", None)
+        return tuple(x.strip() for x in str(v).replace(";", ",").split(",") if x.strip()) if v else ()
+
+    def _failing_images(self, results: list[RuleResult]) -> set[str]:
+        """Images for which an image rule of the criteria sections fails or warns (JRC §12.3: "fail
+        on one or more of these specifications"; Chapter 6's criteria are mostly "should", so their
+        rules warn: a warning is a failed criterion here). Waived findings do not count."""
+        sections = self._criteria_sections()
+        out: set[str] = set()
+        if not sections:
+            return out
+        for r in results:
+            sec = str(r.rule.clause.section or "")
+            if r.rule.scope != "image" or not any(sec == x or sec.startswith(x + ".") for x in sections):
+                continue
+            bad = np.isin(r.verdict, (FAIL, WARN))
+            if bad.any():
+                out.update(str(i) for i in r.items[bad])
+        return out
 
     def _block_shares(self, rejected: dict[str, list[str]], max_share: float
                       ) -> tuple[float | None, float | None, set[str]]:
@@ -225,17 +256,18 @@ class Rollup:
             bshare = 0.0 if not brej else 100.0
         return bshare, (100.0 * len(with_points) / len(blocks) if blocks else None), brej
 
-    def measures(self, rejected: dict[str, list[str]]) -> dict[str, Measured]:
+    def measures(self, rejected: dict[str, list[str]], results: Sequence[RuleResult] = ()) -> dict[str, Measured]:
         """The ``rollup.*`` measures from the item verdicts of the first phase."""
         d = self.ctx.d
         max_share = self._param_number("fail_share_max", 5.0) / 100.0
         imgs, cps = d.table("images"), d.table("checkpoints")
         ev_img = _every_row(imgs) if imgs is not None else (d.manifest_evidence("tables"),)
         ev_blk = _every_row(cps) if cps is not None else (d.manifest_evidence("blocks"),)
-        share, samp, rej = self._image_shares(rejected, max_share)
+        share, samp, rej, failed = self._image_shares(rejected, max_share, list(results))
         bshare, bchecked, brej = self._block_shares(rejected, max_share)
         vals = {
             "rollup.image_rejected_share": (share, ev_img), "rollup.images_sampled_share": (samp, ev_img),
+            "rollup.image_failed_share": (failed, ev_img),
             "rollup.images_rejected": (float(len(rej)) if imgs is not None else None, ev_img),
             "rollup.block_rejected_share": (bshare, ev_blk), "rollup.blocks_checked_share": (bchecked, ev_blk),
             "rollup.blocks_rejected": (float(len(brej)), ev_blk),

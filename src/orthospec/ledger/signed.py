@@ -61,7 +61,10 @@ def _open(r: Mapping[str, Any], fail_on: str) -> bool:
 
 def _checkers(r: Mapping[str, Any]) -> bool:
     """An open record that is the checker's to complete (engine/incomplete.py), not a rejection."""
-    return r.get("consequence") == V.INCOMPLETE or bool(r.get("manual") and r["verdict"] == V.MISSING)
+    from ..engine.incomplete import checker_measure
+
+    return (r.get("consequence") == V.INCOMPLETE or bool(r.get("manual") and r["verdict"] == V.MISSING)
+            or (r["verdict"] == V.MISSING and checker_measure(str(r.get("measure") or ""))))
 
 
 def _blocking(r: Mapping[str, Any], fail_on: str) -> bool:

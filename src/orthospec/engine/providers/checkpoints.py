@@ -1,8 +1,13 @@
 """Block-level checkpoint statistics (JRC §12.5-§12.7, USGS, NSSDA) and per-point blunder decisions.
 
 Adapts the delivery's checkpoints (and GCPs, block polygons, contractor-reported values) to the pure
-functions of :mod:`orthospec.measures.accuracy` and :mod:`orthospec.measures.distribution`.
-Official block statistics drop only *justified* blunder exclusions (§12.6); ``*_all`` keep every point.
+functions of :mod:`orthospec.measures.accuracy`, :mod:`orthospec.measures.distribution` and
+:mod:`orthospec.measures.independence`. Official block statistics drop *justified* blunder
+exclusions (§12.6); ``*_all`` keep those. Points that are not independent measurements of the
+image (a repeat of another point, a GCP, a zero residual, outside the block's outline, a
+reference less precise than the tolerance allows, a block cell naming no single block) are
+screened out of every statistic before that (:func:`_screen`): they are the checker's to replace,
+counted by their own measures and listed in the notes and the report.
 
 Each block's results are one typed :class:`BlockAccuracy` (issue 15); every block measure is a
 small function of it (:data:`_MEASURES`). Per-point results stay arrays (a national delivery has
@@ -20,6 +25,7 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+import shapely
 from shapely.geometry import Polygon
 
 from ...errors import MeasureError
@@ -29,9 +35,9 @@ from ...measures.accuracy import (
     BlunderResult,
     bias_significance,
     detect_blunders,
-    duplicate_locations,
 )
 from ...measures.distribution import DistributionResult, checkpoint_distribution
+from ...measures.independence import nearest_gcp, repeated_positions, separation, zero_residuals
 from ...provenance import Evidence
 from ...units import convert
 from ..registry import Measured, ProviderContext, RowEvidence, provider
@@ -41,7 +47,7 @@ _STATS = {
     "mean_z": "L", "std_x": "L", "std_y": "L", "std_z": "L", "max_abs_dx": "L", "max_abs_dy": "L",
     "max_abs_dz": "L", "max_dr": "L", "ce90": "L", "ce95": "L", "ce90_selected": "L",
     "ce95_selected": "L", "ce90_empirical": "L", "ce95_empirical": "L", "nssda_horizontal_95": "L",
-    "nssda_vertical_95": "L", "nssda_ratio": "1", "bias_ratio": "1",
+    "nssda_vertical_95": "L", "nssda_ratio": "1", "bias_ratio": "1", "std_ratio": "1",
 }
 BLOCK_MEASURES: dict[str, str] = {f"checkpoints.{k}": ("m" if u == "L" else u) for k, u in _STATS.items()}
 BLOCK_MEASURES.update({
@@ -53,7 +59,9 @@ BLOCK_MEASURES.update({
     "checkpoints.rmse_x_gsd": "px", "checkpoints.rmse_y_gsd": "px",
     "checkpoints.quadrant_min_share": "%", "checkpoints.spacing_ratio": "1",
     "checkpoints.min_gcp_distance": "m", "checkpoints.near_gcp": "1", "checkpoints.outside_block": "1",
-    "checkpoints.duplicate_locations": "1",
+    "checkpoints.duplicate_locations": "1", "checkpoints.zero_residuals": "1",
+    "checkpoints.imprecise": "1", "checkpoints.block_cells_bad": "1", "checkpoints.screened": "1",
+    "checkpoints.separation": "m", "checkpoints.nssda_method": "text",
     "checkpoints.reported_diff_x": "m", "checkpoints.reported_diff_y": "m",
     "checkpoints.reported_diff_z": "m",
     "checkpoints.asprs_rmse_h": "m", "checkpoints.asprs_rmse_v": "m",
@@ -73,6 +81,8 @@ DETAIL_POINTS_MAX = 10_000
 #: a point's status by whether it is a blunder candidate: two text objects referenced per point (not
 #: one new text per point, as ``np.where(..., "fail", "pass").astype(object)`` makes)
 _STATUS = np.array(["pass", "fail"], dtype=object)
+#: the decision of a point screened out of the statistics (not an independent measurement)
+NOT_USED = "not_used"
 _DETAIL_STATS = ("n", "mean_x", "mean_y", "std_x", "std_y", "rmse_x", "rmse_y", "rmse_z", "max_abs_dx",
                  "max_abs_dy", "max_dr")
 
@@ -87,20 +97,35 @@ class Settings:
     target_z: float | None
     min_gcp: float
     min_count: int
-    survey_h: float
+    #: the checkpoint survey's horizontal RMSE (ASPRS RMSE_H2) when the profile states one;
+    #: None: from the points' own precision_xy
+    survey_h: float | None
     survey_v: float
     gsd: float | None
+    #: positions nearer than this are one point (measures/independence.py :func:`separation`)
+    separation: float = 0.001
+    #: a reference coordinate less precise than this is no check point (JRC Definitions: the
+    #: tolerance over checkpoint_accuracy_factor); None when the profile states no factor
+    precision_max: float | None = None
 
     @classmethod
     def of(cls, ctx: ProviderContext) -> Settings:
         basis = str(_param(ctx, "blunder_basis", "calculated"))
+        target_xy = _param(ctx, "tolerance_xy", None, "m")
+        gsd = ctx.delivery.gsd_m
+        acc = _param(ctx, "checkpoint_accuracy_factor", None)
+        survey_h = _param(ctx, "survey_rmse_h", None, "m")
         return cls(basis=basis if basis in ("calculated", "target") else "calculated",
                    factor=float(_param(ctx, "blunder_factor", 3.0)),
-                   target_xy=_param(ctx, "tolerance_xy", None, "m"), target_z=_param(ctx, "tolerance_z", None, "m"),
+                   target_xy=target_xy, target_z=_param(ctx, "tolerance_z", None, "m"),
                    min_gcp=float(_param(ctx, "min_checkpoint_gcp_distance", 0.0, "m") or 0.0),
                    min_count=int(_param(ctx, "min_checkpoints", 20)),
-                   survey_h=float(_param(ctx, "survey_rmse_h", 0.0, "m") or 0.0),
-                   survey_v=float(_param(ctx, "survey_rmse_v", 0.0, "m") or 0.0), gsd=ctx.delivery.gsd_m)
+                   survey_h=None if survey_h is None else float(survey_h),
+                   survey_v=float(_param(ctx, "survey_rmse_v", 0.0, "m") or 0.0), gsd=gsd,
+                   separation=separation(target_xy, gsd,
+                                         tolerance_factor=float(_param(ctx, "checkpoint_separation_factor", 1.0)),
+                                         gsd_px=float(_param(ctx, "checkpoint_separation_px", 2.0))),
+                   precision_max=(float(target_xy) / float(acc) if target_xy is not None and acc else None))
 
 
 @dataclass(frozen=True)
@@ -115,6 +140,36 @@ class BlockPoints:
     x_ref: np.ndarray
     y_ref: np.ndarray
     exclusions: dict[str, str | None]
+    #: the reference coordinates' documented planimetric accuracy (m; NaN where not given)
+    precision: np.ndarray | None = None
+
+    def subset(self, mask: np.ndarray) -> BlockPoints:
+        """The points where ``mask`` is true (exclusion requests of the others dropped)."""
+        ids = self.ids[mask]
+        keep = set(ids.tolist()) if self.exclusions else set()
+        return BlockPoints(ids=ids, rows=self.rows[mask], dx=self.dx[mask], dy=self.dy[mask],
+                           dz=None if self.dz is None else self.dz[mask], x_ref=self.x_ref[mask],
+                           y_ref=self.y_ref[mask],
+                           exclusions={k: v for k, v in self.exclusions.items() if k in keep},
+                           precision=None if self.precision is None else self.precision[mask])
+
+
+@dataclass(frozen=True)
+class Screen:
+    """Why points of one block are left out of its statistics (JRC §12.5-§12.7): the checker's to
+    replace. Each tuple holds point ids in file order; ``reasons`` has one text (or None) per point."""
+
+    reasons: np.ndarray
+    duplicates: tuple[str, ...] = ()
+    near_gcp: tuple[str, ...] = ()
+    zero: tuple[str, ...] = ()
+    outside: tuple[str, ...] = ()
+    imprecise: tuple[str, ...] = ()
+    gcp_min_distance: float | None = None
+
+    @property
+    def used(self) -> np.ndarray:
+        return np.equal(self.reasons, None)
 
 
 @dataclass(frozen=True)
@@ -125,13 +180,18 @@ class BlockAccuracy:
     evidence: tuple[Evidence, ...]
     settings: Settings
     error: str | None = None  # the block cannot be checked (broken outline, invalid points)
+    #: fewer than 2 points usable: no statistic can be computed - a missing checker measurement
+    missing: str | None = None
     blunders: BlunderResult | None = None
     distribution: DistributionResult | None = None
     distribution_error: str | None = None
     outline: Polygon | None = None
     reported: dict[str, float] = field(default_factory=dict)  # axis -> contractor's RMSE (m)
-    #: ids of the points whose reference position repeats another point's (JRC §12.5, red team R4)
-    duplicates: tuple[str, ...] = ()
+    #: the points left out as not independent measurements, and why (``screen_ids``: every point's id)
+    screen: Screen | None = None
+    screen_ids: np.ndarray | None = None
+    #: the checkpoint survey's horizontal RMSE over the points used (ASPRS RMSE_H2), m
+    survey_h: float | None = None
 
     @property
     def stats(self) -> AccuracyStats:
@@ -146,8 +206,12 @@ class Results:
 
     blocks: dict[str, BlockAccuracy] = field(default_factory=dict)
     points: list[tuple[BlockPoints, BlunderResult]] = field(default_factory=list)
+    #: the points screened out of the statistics, with why (one text per point)
+    screened: list[tuple[BlockPoints, np.ndarray]] = field(default_factory=list)
     detail: dict[str, dict[str, Any]] = field(default_factory=dict)
     missing: str | None = None
+    #: block -> ids of the points whose block cell names it but not it alone (e.g. "B02;B02")
+    bad_cells: dict[str, tuple[str, ...]] = field(default_factory=dict)
 
 
 def _param(ctx: ProviderContext, name: str, default: Any, unit: str | None = None) -> Any:
@@ -176,36 +240,148 @@ def _compute_once(ctx: ProviderContext) -> Results:
     gcps = _gcps(ctx)
     out = Results()
     df = t.df
-    todo: list[tuple[str, BlockPoints, tuple[Evidence, ...]]] = []
-    for block, rows in sorted(df.groupby(df["block"].astype(str)).indices.items()):
+    cells, out.bad_cells = _block_cells(df, d.block_ids)
+    todo: list[tuple[str, BlockPoints, tuple[Evidence, ...], Screen]] = []
+    for block, rows in sorted(pd.Series(cells, index=df.index).groupby(cells).indices.items()):
+        if block is None:
+            continue
         pts = _block_points(df, rows, to_m)
         ev = (Evidence(t.file, t.sha256, tuple(pts.rows.tolist())),)
         if block in broken:
             out.blocks[block] = BlockAccuracy(block, ev, settings, error=broken[block])
             continue
-        todo.append((block, pts, ev))
-    done = _per_block([(pts, outlines.get(block), gcps.get(block)) for block, pts, _ in todo], settings)
-    for (block, pts, ev), got in zip(todo, done, strict=True):
-        if isinstance(got, str):
-            out.blocks[block] = BlockAccuracy(block, ev, settings, error=f"{t.file}: block {block}: {got}")
+        screen = _screen(pts, outlines.get(block), gcps.get(block), settings)
+        n_used = int(np.count_nonzero(screen.used))
+        if n_used < 2:  # the checker's points give no statistic: missing, never an error or a rejection
+            out.blocks[block] = BlockAccuracy(block, ev, settings, screen=screen, screen_ids=pts.ids,
+                                              outline=outlines.get(block), missing=(
+                f"only {n_used} of block {block}'s {len(pts.ids)} check point(s) usable (the others are listed "
+                "as not independent measurements): at least 2 are needed for statistics"))
+            if not screen.used.all():
+                out.screened.append((pts.subset(~screen.used), screen.reasons[~screen.used]))
             continue
-        br, dist, dist_error, dups = got
+        todo.append((block, pts, ev, screen))
+    if out.bad_cells:
+        rows = np.flatnonzero(np.equal(cells, None))
+        pts = _block_points(df, rows, to_m)
+        why = np.array([f"block cell {str(c)!r} does not name exactly one block"
+                        for c in df["block"].to_numpy(dtype=object)[rows]], dtype=object)
+        out.screened.append((pts, why))
+    used = [(pts.subset(screen.used), outlines.get(block)) for block, pts, _, screen in todo]
+    done = _per_block(used, settings)
+    for (block, pts, ev, screen), (kept, _), got in zip(todo, used, done, strict=True):
+        if not screen.used.all():
+            out.screened.append((pts.subset(~screen.used), screen.reasons[~screen.used]))
+        if isinstance(got, str):
+            out.blocks[block] = BlockAccuracy(block, ev, settings, error=f"{t.file}: block {block}: {got}",
+                                              screen=screen, screen_ids=pts.ids, outline=outlines.get(block))
+            continue
+        br, dist, dist_error = got
         outline = outlines.get(block)
         res = BlockAccuracy(block, ev, settings, blunders=br, distribution=dist, distribution_error=dist_error,
-                            outline=outline, reported=_reported(ctx, block), duplicates=dups)
+                            outline=outline, reported=_reported(ctx, block), screen=screen, screen_ids=pts.ids,
+                            survey_h=_survey_h(kept, br, settings))
         out.blocks[block] = res
-        out.points.append((pts, br))
-        out.detail[block] = _block_detail(res, pts, gcps.get(block))
+        out.points.append((kept, br))
+        out.detail[block] = _block_detail(res, kept, gcps.get(block), pts.subset(~screen.used),
+                                          screen.reasons[~screen.used])
     out.blocks = dict(sorted(out.blocks.items()))  # block order, whichever blocks erred
     return out
+
+
+def _block_cells(df: pd.DataFrame, blocks: list[str]) -> tuple[np.ndarray, dict[str, tuple[str, ...]]]:
+    """Each point's block (None when its cell is not exactly one known block id) and, per block an
+    unclear cell names, those points' ids. JRC §12.7 computes the RMSE "of all check points in the
+    block/site": a point belongs to one block, and a cell such as "B02;B02" must neither make it
+    vanish from B02's statistics unseen nor count it twice - it is listed for the checker to fix."""
+    known = set(blocks)
+    text = df["block"].astype(str).to_numpy(dtype=object)
+    ok = pd.Index(text, dtype=object).isin(known)
+    out = np.where(ok, text, None).astype(object)
+    ids = df["point_id"].astype(str).to_numpy(dtype=object)
+    bad: dict[str, list[str]] = {}
+    for pos in np.flatnonzero(~ok).tolist():
+        for name in sorted({x.strip() for x in str(text[pos]).split(";")} & known):
+            bad.setdefault(name, []).append(ids[pos])
+    return out, {b: tuple(v) for b, v in sorted(bad.items())}
+
+
+def _listed(ids: tuple[str, ...] | list[str], n: int = 10) -> str:
+    return ", ".join(ids[:n]) + (f" (+{len(ids) - n} more)" if len(ids) > n else "")
+
+
+def _screen(pts: BlockPoints, outline: Polygon | None, gcps: tuple[np.ndarray, ...] | None,
+            s: Settings) -> Screen:
+    """Why each point is not an independent measurement of the image (None: it is one)."""
+    n = len(pts.ids)
+    parts: list[tuple[np.ndarray, Any]] = []
+    rep = repeated_positions(pts.x_ref, pts.y_ref, s.separation)
+    dup = rep >= 0
+    if dup.any():
+        gap = np.hypot(pts.x_ref[dup] - pts.x_ref[rep[dup]], pts.y_ref[dup] - pts.y_ref[rep[dup]])
+        parts.append((dup, [f"repeats the reference position of {a} ({g:.3f} m apart, closer than the "
+                            f"{s.separation:.3g} m that tells two points apart)"
+                            for a, g in zip(pts.ids[rep[dup]].tolist(), gap.tolist(), strict=True)]))
+    gmin = None
+    near = np.zeros(n, dtype=bool)
+    if gcps is not None and len(gcps[0]):
+        gids, gx, gy = gcps
+        dist, which = nearest_gcp(pts.x_ref, pts.y_ref, gx, gy)
+        gmin = float(dist.min()) if n and np.isfinite(dist).any() else None
+        limit = max(s.separation, s.min_gcp)
+        same_id = pd.Index(pts.ids.astype(str), dtype=object).isin(set(gids.astype(str).tolist()))
+        near = (dist < limit) | same_id
+        if near.any():
+            parts.append((near, [f"{d_:.3f} m from GCP {gids[w]} (closer than {limit:.3g} m): not independent "
+                                 "of the GCPs used for the correction" if w >= 0 else "has the id of a GCP"
+                                 for d_, w in zip(dist[near].tolist(), which[near].tolist(), strict=True)]))
+    zero = zero_residuals(pts.dx, pts.dy)
+    if zero.any():
+        parts.append((zero, "residual exactly 0 in x and y: the image position equals the reference, "
+                            "it was not measured on the image"))
+    outside = np.zeros(n, dtype=bool)
+    if outline is not None and n:
+        outside = ~shapely.intersects_xy(outline, pts.x_ref, pts.y_ref)
+        if outside.any():
+            parts.append((outside, "outside the block's outline"))
+    imprecise = np.zeros(n, dtype=bool)
+    if s.precision_max is not None and pts.precision is not None:
+        imprecise = pts.precision > s.precision_max  # NaN (not given): judged by its own rule
+        if imprecise.any():
+            parts.append((imprecise, [f"reference precision {p:.3g} m above {s.precision_max:.3g} m (the "
+                                      "tolerance over the checkpoint accuracy factor)"
+                                      for p in pts.precision[imprecise].tolist()]))
+    reasons = np.full(n, None, dtype=object)
+    for mask, why in parts:
+        pos = np.flatnonzero(mask)
+        texts = why if isinstance(why, list) else [why] * len(pos)
+        for i, text in zip(pos.tolist(), texts, strict=True):
+            reasons[i] = text if reasons[i] is None else f"{reasons[i]}; {text}"
+
+    def ids(mask: np.ndarray) -> tuple[str, ...]:
+        return tuple(pts.ids[mask].astype(str).tolist())
+
+    return Screen(reasons=reasons, duplicates=ids(dup), near_gcp=ids(near), zero=ids(zero),
+                  outside=ids(outside), imprecise=ids(imprecise), gcp_min_distance=gmin)
+
+
+def _survey_h(kept: BlockPoints, br: BlunderResult, s: Settings) -> float | None:
+    """RMSE_H2 of ASPRS Ed. 2: the profile's survey_rmse_h, else the RMSE of the points' documented
+    precision_xy over the points in the statistics (None when one of them gives none)."""
+    if s.survey_h is not None:
+        return s.survey_h
+    if kept.precision is None:
+        return None
+    p = kept.precision[br.decision != EXCLUDED]
+    return float(np.sqrt(np.mean(p * p))) if p.size and np.isfinite(p).all() else None
 
 
 #: points from which the blocks' distributions (KD-trees, which release the GIL) are computed in
 #: threads beside the blunder screening; below, everything one block after the other
 PARALLEL_POINTS = 100_000
 
-_Job = tuple[BlockPoints, Polygon | None, tuple[np.ndarray, ...] | None]
-_Done = tuple[BlunderResult, DistributionResult | None, str | None, tuple[str, ...]] | str
+_Job = tuple[BlockPoints, Polygon | None]
+_Done = tuple[BlunderResult, DistributionResult | None, str | None] | str
 
 
 def _blunders(pts: BlockPoints, s: Settings) -> BlunderResult | str:
@@ -218,12 +394,8 @@ def _blunders(pts: BlockPoints, s: Settings) -> BlunderResult | str:
         return str(exc)
 
 
-def _repeated(pts: BlockPoints) -> tuple[str, ...]:
-    return tuple(pts.ids[duplicate_locations(pts.x_ref, pts.y_ref)].astype(str).tolist())
-
-
 def _per_block(jobs: list[_Job], s: Settings) -> list[_Done]:
-    """Every block's blunders, distribution and repeated positions (a block whose screening
+    """Every block's blunders and distribution over the points it uses (a block whose screening
     refuses its points: the complaint as text).
 
     With many points the distributions (KD-tree builds and queries, most of the time, in C without
@@ -231,16 +403,16 @@ def _per_block(jobs: list[_Job], s: Settings) -> list[_Done]:
     of 333,000 points on the 2-core machine, 1.15 s against 1.27 s one block after the other with
     threaded queries (its cores gain little from threads). The same results in any order of work."""
     if sum(len(j[0].ids) for j in jobs) < PARALLEL_POINTS or (os.cpu_count() or 1) < 2:
-        dists = [_distribution(pts, outline, gcps, s) for pts, outline, gcps in jobs]
-        return [_done(_blunders(j[0], s), d, j[0]) for j, d in zip(jobs, dists, strict=True)]
+        dists = [_distribution(pts, outline, s) for pts, outline in jobs]
+        return [_done(_blunders(j[0], s), d) for j, d in zip(jobs, dists, strict=True)]
     with ThreadPoolExecutor(max_workers=min(len(jobs), os.cpu_count() or 1)) as pool:
-        futures = [pool.submit(_distribution, pts, outline, gcps, s) for pts, outline, gcps in jobs]
+        futures = [pool.submit(_distribution, pts, outline, s) for pts, outline in jobs]
         screened = [_blunders(j[0], s) for j in jobs]
-        return [_done(br, f.result(), j[0]) for j, br, f in zip(jobs, screened, futures, strict=True)]
+        return [_done(br, f.result()) for br, f in zip(screened, futures, strict=True)]
 
 
-def _done(br: BlunderResult | str, dist: tuple[DistributionResult | None, str | None], pts: BlockPoints) -> _Done:
-    return br if isinstance(br, str) else (br, dist[0], dist[1], _repeated(pts))
+def _done(br: BlunderResult | str, dist: tuple[DistributionResult | None, str | None]) -> _Done:
+    return br if isinstance(br, str) else (br, dist[0], dist[1])
 
 
 def _outlines(ctx: ProviderContext) -> tuple[dict[str, Polygon], dict[str, str]]:
@@ -305,15 +477,15 @@ def _block_points(df: pd.DataFrame, rows: np.ndarray, to_m: float) -> BlockPoint
             exclusions = dict(zip(ids[flags].tolist(), whys, strict=True))
     return BlockPoints(ids=ids, rows=df["_row"].to_numpy(np.int64)[rows],
                        dx=(col("x") - col("x_ref")) * to_m, dy=(col("y") - col("y_ref")) * to_m, dz=dz,
-                       x_ref=col("x_ref") * to_m, y_ref=col("y_ref") * to_m, exclusions=exclusions)
+                       x_ref=col("x_ref") * to_m, y_ref=col("y_ref") * to_m, exclusions=exclusions,
+                       precision=col("precision_xy") * to_m if "precision_xy" in df else None)
 
 
-def _distribution(pts: BlockPoints, outline: Polygon | None, gcps: tuple[np.ndarray, ...] | None,
-                  s: Settings) -> tuple[DistributionResult | None, str | None]:
-    gids, gx, gy = gcps if gcps is not None else (None, None, None)
+def _distribution(pts: BlockPoints, outline: Polygon | None, s: Settings
+                  ) -> tuple[DistributionResult | None, str | None]:
+    """Quadrants and spacing of the points used (GCP distances and the outline: :func:`_screen`)."""
     try:
-        return checkpoint_distribution(pts.x_ref, pts.y_ref, ids=pts.ids, area=outline, gcp_x=gx, gcp_y=gy,
-                                       gcp_ids=gids, min_gcp_distance=s.min_gcp, footprint=outline,
+        return checkpoint_distribution(pts.x_ref, pts.y_ref, ids=pts.ids, area=outline,
                                        min_count=s.min_count), None
     except MeasureError as exc:
         return None, str(exc)
@@ -326,8 +498,10 @@ def _reported(ctx: ProviderContext, block: str) -> dict[str, float]:
             for axis in ("x", "y", "z") if rep and f"rmse_{axis}" in rep}
 
 
-def _block_detail(res: BlockAccuracy, pts: BlockPoints, gcps: tuple[np.ndarray, ...] | None) -> dict[str, Any]:
-    """The report's detail of one block: the points table (a DataFrame), limits, stats, GCPs, outline."""
+def _block_detail(res: BlockAccuracy, pts: BlockPoints, gcps: tuple[np.ndarray, ...] | None,
+                  left: BlockPoints, why: np.ndarray) -> dict[str, Any]:
+    """The report's detail of one block: the points table (a DataFrame: the points used, then those
+    screened out with why), limits, stats, GCPs, outline."""
     br = res.blunders
     assert br is not None
     n = len(pts.ids)
@@ -346,9 +520,19 @@ def _block_detail(res: BlockAccuracy, pts: BlockPoints, gcps: tuple[np.ndarray, 
             "decision": br.decision, "row": pts.rows}
     frame = pd.DataFrame({k: pd.Series(np.asarray(v)[keep], dtype=object if np.asarray(v).dtype == object else None)
                           for k, v in cols.items()})
+    if len(left.ids):
+        m = min(len(left.ids), DETAIL_POINTS_MAX)  # every screened point up to the cap
+        out = pd.DataFrame({
+            "point_id": pd.Series(left.ids[:m], dtype=object), "dx": left.dx[:m], "dy": left.dy[:m],
+            "dz": np.full(m, np.nan) if left.dz is None else left.dz[:m], "dr": np.hypot(left.dx, left.dy)[:m],
+            "x_ref": left.x_ref[:m], "y_ref": left.y_ref[:m], "status": pd.Series(["screened"] * m, dtype=object),
+            "decision": pd.Series([f"not used: {w}" for w in why[:m].tolist()], dtype=object),
+            "row": left.rows[:m]})
+        frame = pd.concat([frame, out], ignore_index=True) if len(frame) else out
     detail: dict[str, Any] = {"points": frame}
-    if n > DETAIL_POINTS_MAX:
-        detail.update({"points_total": n, "points_omitted": int(n - np.count_nonzero(keep))})
+    if n > DETAIL_POINTS_MAX or len(left.ids) > DETAIL_POINTS_MAX:
+        total = n + len(left.ids)
+        detail.update({"points_total": total, "points_omitted": int(total - len(frame))})
     gids, gx, gy = gcps if gcps is not None else ((), (), ())
     detail.update({
         "limit_x": br.limit_x, "limit_y": br.limit_y, "basis": br.basis, "unit": "m",
@@ -428,21 +612,41 @@ _MEASURES.update({
     "checkpoints.blunders_unjustified": _count(lambda b: b.is_error),
     # a candidate excluded with a documented justification has been inspected (§12.6)
     "checkpoints.blunders_uninspected": _count(lambda b: b.candidate & (b.decision != EXCLUDED)),
-    # ASPRS Ed. 2: product accuracy combines the checkpoint survey's own error (RMSE_H2, RMSE_V2)
-    "checkpoints.asprs_rmse_h": lambda r: float(np.sqrt(r.stats.rmse_x ** 2 + r.stats.rmse_y ** 2
-                                                        + r.settings.survey_h ** 2)),
+    # ASPRS Ed. 2: product accuracy combines the checkpoint survey's own error (RMSE_H2, RMSE_V2);
+    # RMSE_H2 from the points' documented precision unless the profile states the survey's
+    "checkpoints.asprs_rmse_h": lambda r: (None if r.survey_h is None else float(np.sqrt(
+        r.stats.rmse_x ** 2 + r.stats.rmse_y ** 2 + r.survey_h ** 2))),
     "checkpoints.asprs_rmse_v": _asprs_v,
     "checkpoints.rmse_x_gsd": _gsd_units("x"), "checkpoints.rmse_y_gsd": _gsd_units("y"),
     "checkpoints.quadrant_min_share": _dist(lambda d: d.min_quadrant_share * 100.0),
     "checkpoints.spacing_ratio": _dist(lambda d: d.nn_min_ratio),
-    "checkpoints.min_gcp_distance": _dist(lambda d: d.gcp_min_distance),
-    "checkpoints.near_gcp": _dist(lambda d: len(d.too_close_to_gcp) + len(d.identical_to_gcp)),
-    "checkpoints.outside_block": lambda r: (None if r.distribution is None or r.outline is None
-                                            else len(r.distribution.outside_footprint)),
     **{f"checkpoints.reported_diff_{a}": _reported_diff(a) for a in "xyz"},
-    "checkpoints.duplicate_locations": lambda r: len(r.duplicates),
+    "checkpoints.nssda_method": _stat("nssda_method"),
 })
-assert set(_MEASURES) == set(BLOCK_MEASURES)
+#: measures of the points screened out (:class:`Screen`): given even when no statistic can be computed
+_SCREEN: dict[str, Callable[[Screen, BlockAccuracy], Any]] = {
+    "checkpoints.min_gcp_distance": lambda sc, r: sc.gcp_min_distance,
+    "checkpoints.near_gcp": lambda sc, r: len(sc.near_gcp),
+    "checkpoints.outside_block": lambda sc, r: None if r.outline is None and not sc.outside else len(sc.outside),
+    "checkpoints.duplicate_locations": lambda sc, r: len(sc.duplicates),
+    "checkpoints.zero_residuals": lambda sc, r: len(sc.zero),
+    "checkpoints.imprecise": lambda sc, r: None if r.settings.precision_max is None else len(sc.imprecise),
+    "checkpoints.screened": lambda sc, r: int(np.count_nonzero(~sc.used)),
+    "checkpoints.separation": lambda sc, r: r.settings.separation,
+}
+#: what each screen measure lists in its note: the points and the clause
+_SCREEN_NOTES: dict[str, tuple[str, str]] = {
+    "checkpoints.duplicate_locations": ("duplicates", "repeat another point's reference position (JRC §12.5: "
+                                        "independent measurements)"),
+    "checkpoints.near_gcp": ("near_gcp", "are not independent of the GCPs (JRC §12.5)"),
+    "checkpoints.zero_residuals": ("zero", "have a zero residual in x and y: not measured on the image (JRC §12.6)"),
+    "checkpoints.outside_block": ("outside", "lie outside the block's outline"),
+    "checkpoints.imprecise": ("imprecise", "have a reference less precise than the tolerance allows (JRC "
+                              "Definitions, Check Point)"),
+}
+#: the block cells measure (from :attr:`Results.bad_cells`, whichever block erred)
+_CELLS = "checkpoints.block_cells_bad"
+assert set(_MEASURES) | set(_SCREEN) | {_CELLS} == set(BLOCK_MEASURES)
 
 
 def _note(name: str, r: BlockAccuracy, value: Any) -> tuple[str, str] | None:
@@ -458,10 +662,19 @@ def _note(name: str, r: BlockAccuracy, value: Any) -> tuple[str, str] | None:
             return "na", f"block {r.block} reports no rmse_{axis}"
         return "note", (f"reported RMSE_{axis} {r.reported[axis]:.4g} m vs recomputed "
                         f"{getattr(r.stats, f'rmse_{axis}'):.4g} m")
-    if name == "checkpoints.duplicate_locations" and value:
-        shown = ", ".join(r.duplicates[:10]) + (" ..." if len(r.duplicates) > 10 else "")
-        return "note", (f"{value} check points of block {r.block} share a reference position (x_ref, y_ref "
-                        f"within 1 mm) with another point: {shown}; JRC §12.5 asks for independent measurements")
+    if name in _SCREEN_NOTES and value and r.screen is not None:
+        field_, what = _SCREEN_NOTES[name]
+        ids = getattr(r.screen, field_)
+        pos = pd.Index(r.screen_ids, dtype=object).get_indexer(list(ids[:5])) if r.screen_ids is not None else []
+        why = "; ".join(f"{i}: {r.screen.reasons[p]}" for i, p in zip(ids[:5], pos, strict=True) if p >= 0)
+        return "note", (f"{value} check point(s) of block {r.block} {what}, left out of its statistics: "
+                        f"{_listed(list(ids))}" + (f" ({why})" if why else ""))
+    if name == "checkpoints.asprs_rmse_h" and value is None and r.error is None and r.survey_h is None:
+        return "note", (f"the survey accuracy of block {r.block}'s check points is unknown: precision_xy is "
+                        "not given for every point used and the profile states no survey_rmse_h")
+    if name == "checkpoints.nssda_horizontal_95" and value is not None and r.stats.nssda_method == "elliptical":
+        return "note", (f"RMSEmin/RMSEmax = {r.stats.nssda_ratio:.3g} < 0.6: the closed form does not hold; the "
+                        "95 % radius of the elliptical normal error is computed instead (Greenwalt and Schultz)")
     if value is None and r.distribution_error and name in ("checkpoints.quadrant_min_share",
                                                             "checkpoints.spacing_ratio"):
         return "note", r.distribution_error
@@ -491,15 +704,28 @@ def _block_measure(ctx: ProviderContext, got: Results, name: str, unit: str) -> 
     na: dict[str, str] = {}
     for b in d.block_ids:
         r = got.blocks.get(b)
+        if name == _CELLS:
+            bad = got.bad_cells.get(b, ())
+            vals[b], evs[b] = len(bad), (r.evidence if r is not None else _table_evidence(ctx))
+            if bad:
+                notes[b] = (f"{len(bad)} check point(s) whose block cell names {b} but not exactly one block "
+                            f"(e.g. '{b};{b}'): {_listed(list(bad))}; left out of every block's statistics")
+            continue
         if r is None:
             vals[b], evs[b] = None, (d.manifest_evidence("blocks"),)
             notes[b] = f"no checkpoints for block {b}"
             continue
         evs[b] = r.evidence
-        if r.error is not None:
+        if name in _SCREEN and r.screen is not None:
+            vals[b] = _SCREEN[name](r.screen, r)
+        elif r.missing is not None:
+            vals[b], notes[b] = None, r.missing
+            continue
+        elif r.error is not None:
             vals[b], errs[b] = None, r.error
             continue
-        vals[b] = _MEASURES[name](r)
+        else:
+            vals[b] = _MEASURES[name](r)
         why = _note(name, r, vals[b])
         if why is not None:
             (na if why[0] == "na" else notes)[b] = why[1]
@@ -513,25 +739,31 @@ def _block_measure(ctx: ProviderContext, got: Results, name: str, unit: str) -> 
 
 @provider(scope="checkpoint", measures=POINT_MEASURES)
 def point_decisions(ctx: ProviderContext) -> list[Measured]:
-    """Per-checkpoint discrepancies and blunder/exclusion decisions (one QCR per point, §12.6)."""
-    parts = _compute(ctx).points
-    ids = _cat([p.ids for p, _ in parts], object)
-    rows = _cat([p.rows for p, _ in parts], np.int64)
-    if all(p.dz is not None for p, _ in parts):
-        dz = _cat([p.dz for p, _ in parts], float)  # type: ignore[misc]
+    """Per-checkpoint discrepancies and blunder/exclusion decisions (one QCR per point, §12.6);
+    a point screened out of the statistics has the decision ``not_used`` and says why."""
+    got = _compute(ctx)
+    parts = got.points
+    left = got.screened
+    every = [p for p, _ in parts] + [p for p, _ in left]
+    ids = _cat([p.ids for p in every], object)
+    rows = _cat([p.rows for p in every], np.int64)
+    if all(p.dz is not None for p in every):
+        dz = _cat([p.dz for p in every], float)  # type: ignore[misc]
     else:
         dz = _cat([np.full(len(p.ids), None, dtype=object) if p.dz is None else p.dz.astype(object)
-                   for p, _ in parts], object)
+                   for p in every], object)
     cols: dict[str, np.ndarray] = {
-        "checkpoint.dx": _cat([p.dx for p, _ in parts], float),
-        "checkpoint.dy": _cat([p.dy for p, _ in parts], float),
+        "checkpoint.dx": _cat([p.dx for p in every], float),
+        "checkpoint.dy": _cat([p.dy for p in every], float),
         "checkpoint.dz": dz,
-        "checkpoint.dr": _cat([b.dr for _, b in parts], float),
+        "checkpoint.dr": _cat([b.dr for _, b in parts] + [np.hypot(p.dx, p.dy) for p, _ in left], float),
         # Python booleans, as the rules' `true`/`false` comparisons and the records expect
-        "checkpoint.blunder_ok": _cat([~b.is_error for _, b in parts], bool).astype(object),
-        "checkpoint.decision": _cat([b.decision for _, b in parts], object),
+        "checkpoint.blunder_ok": _cat([~b.is_error for _, b in parts] + [np.ones(len(p.ids), bool) for p, _ in left],
+                                      bool).astype(object),
+        "checkpoint.decision": _cat([b.decision for _, b in parts]
+                                    + [np.full(len(p.ids), NOT_USED, dtype=object) for p, _ in left], object),
     }
-    reason = _cat([b.reasons for _, b in parts], object)
+    reason = _cat([b.reasons for _, b in parts] + [why for _, why in left], object)
     # a point id repeated across blocks: one item, at its first position, with the last block's values
     if len(ids) and pd.Index(ids).has_duplicates:
         idx = pd.Index(ids)
@@ -547,6 +779,11 @@ def point_decisions(ctx: ProviderContext) -> list[Measured]:
     return [Measured(name, "checkpoint", unit, pd.Series(cols[name], index=index), ev,
                      notes=notes if name in ("checkpoint.blunder_ok", "checkpoint.decision") else None)
             for name, unit in POINT_MEASURES.items()]
+
+
+def _table_evidence(ctx: ProviderContext) -> tuple[Evidence, ...]:
+    t = ctx.delivery.table("checkpoints")
+    return (Evidence(t.file, t.sha256, ()),) if t is not None else (ctx.delivery.manifest_evidence("tables"),)
 
 
 def _cat(arrays: list[Any], dtype: Any) -> np.ndarray:
