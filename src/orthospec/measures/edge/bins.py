@@ -53,6 +53,21 @@ def coverage(d: np.ndarray, bw: float, half: float) -> float:
     return float(np.unique(idx).size / nb)
 
 
+def sampling_gap(d: np.ndarray, half: float) -> float:
+    """Largest distance (px) between neighbouring ESF sample positions within +-half px of the
+    edge: the coarsest step at which the slanted edge samples its ESF there (issue 31).
+
+    An edge at 0 deg samples every line at the same phases (gap 1 px); a slope p/q (q lines
+    repeat the pattern) gives the lattice cos(theta) / q, and a slope near it fills the gaps
+    in proportion to the lines and the mismatch. The positions are those of the fitted line, so
+    the gap is measured, not inferred from the angle."""
+    sel = d[(d >= -half) & (d <= half)]
+    if sel.size < 2:
+        return math.inf
+    ends = np.concatenate([[-half], np.sort(sel), [half]])
+    return float(np.max(np.diff(ends)))
+
+
 _CHI2_TRIGGER = 0.1  # GCV fits below this interpolate noise (seen: 0.07; normal: 0.2-1)
 _CHI2_TARGET = 0.4  # where such a fit is moved to (typical chi2 / bins of good fits)
 

@@ -89,7 +89,17 @@ def measure_edge(
         dark_std=_opt(areas.stds[0]), bright_std=_opt(areas.stds[1]),
         dark_start_px=_opt(areas.dark_start), bright_start_px=_opt(areas.bright_start),
         window_px=areas.window, fits=fits, primary_fit=chosen, estimates=estimates, gsd_m=gsd,
+        warnings=_warnings(line.angle_deg, lim),
     )
+
+
+def _warnings(angle_deg: float | None, lim: EdgeLimits) -> tuple[str, ...]:
+    """Seed step 3d permits 0-30 deg (TBR); beyond it (up to ``max_angle_deg``) the edge is
+    measured as accurately (issue 31 benchmark) and the result says so."""
+    if angle_deg is not None and lim.standard_max_angle_deg < angle_deg <= lim.max_angle_deg:
+        return (f"edge angle {angle_deg:.2f} deg is beyond the 0-{lim.standard_max_angle_deg:g} deg "
+                "of CEOS step 3d (TBR); measured (the ESF is sampled as finely up to 45 deg)",)
+    return ()
 
 
 def fit_esf(s: EsfSamples, areas: Areas, lim: EdgeLimits, angle_deg: float | None,

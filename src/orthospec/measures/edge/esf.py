@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from .bins import coverage, smoothing_spline
+from .bins import coverage, sampling_gap, smoothing_spline
 from .locate import EdgeLine
 from .result import GRID
 
@@ -53,6 +53,7 @@ class Areas:
     not found)."""
 
     coverage: float = math.nan  # share of ESF bins within +-2 px holding samples
+    gap: float = math.nan  # largest step between ESF sample positions within +-2 px, px
     dark_start: float = math.nan
     bright_start: float = math.nan
     window: tuple[float, float] | None = None  # trimmed ESF (lo, hi) px
@@ -76,12 +77,13 @@ def uniform_areas(s: EsfSamples, bw: float, plateau_px: float,
     if d.size < 20:
         return Areas()
     cover = coverage(d, bw, 2.0)
+    gap = sampling_gap(d, 2.0)
     first = smoothing_spline(d, v, bw, -12.0, 12.0)
     if first is None:
-        return Areas(cover)
+        return Areas(cover, gap)
     dark_start, bright_start = _plateau_starts(first, d)
     if not (math.isfinite(dark_start) and math.isfinite(bright_start)):
-        return Areas(cover, dark_start, bright_start)
+        return Areas(cover, gap, dark_start, bright_start)
     dark_edge, bright_edge, lo, hi = _trim(first, d, dark_start, bright_start, plateau_px)
     dark_side = d <= dark_edge
     bright_side = d >= bright_edge
@@ -95,7 +97,7 @@ def uniform_areas(s: EsfSamples, bw: float, plateau_px: float,
         stds = (float(v[dark_side].std(ddof=1)), float(v[bright_side].std(ddof=1)))
         sat_frac = max(saturated(v[dark_side], *sat), saturated(v[bright_side], *sat))
     widths = (float(np.median(dark_start - s.row_dmin)), float(np.median(s.row_dmax - bright_start)))
-    return Areas(cover, dark_start, bright_start, (lo, hi), levels, stds, sat_frac, widths,
+    return Areas(cover, gap, dark_start, bright_start, (lo, hi), levels, stds, sat_frac, widths,
                  dsel | bsel)
 
 
@@ -121,7 +123,17 @@ def _trim(first: Any, d: np.ndarray, dark_start: float, bright_start: float,
                  dark_edge - 1.0), float(d[0]))
     hi = min(max(bright_start + plateau_px, centre + 4.0 * (bright_start - centre),
                  bright_edge + 1.0), float(d[-1]))
+    # issue 31: the window grows with the PSF's measured extent (5x the distance to where its
+    # LSF has fallen below 2 % of the peak) and reaches at least _MIN_REACH px on either side
+    # where the ROI has them: a halo or a diffraction tail below 2 % of the peak still holds
+    # 1-2 % of the step beyond 4 px, and the levels must come from beyond it (RER +0.02 else)
+    reach = max(_MIN_REACH, 5.0 * (bright_edge - centre), 5.0 * (centre - dark_edge))
+    lo = min(lo, max(centre - reach, float(d[0])))
+    hi = max(hi, min(centre + reach, float(d[-1])))
     return dark_edge, bright_edge, lo, hi
+
+
+_MIN_REACH = 20.0  # px
 
 
 _TAIL = 0.02  # the uniform areas begin where the LSF is below 2 % of its peak

@@ -16,7 +16,7 @@ NYQUIST = 0.5  # cycles per pixel
 SPLINE = "spline"
 GRID = 0.01  # px, evaluation grid of fitted curves
 MTF_FREQ = np.round(np.arange(0, 101) * 0.01, 10)  # reported MTF curve, cycles/px
-PSF_FITS = ("gauss", "gauss-box", "gauss2", "gauss-usm", "gauss-disk")  # the physical models
+PSF_FITS = ("gauss", "gauss-box", "gauss2", "gauss-usm", "gauss-disk", "airy")  # the physical models
 
 @dataclass(frozen=True)
 class HealthCheck:
@@ -120,6 +120,8 @@ class EdgeResult:
     primary_fit: str
     estimates: tuple[Estimate, ...]
     gsd_m: float | None = None
+    #: what a reader must know beside a valid result (e.g. an angle beyond the seed's 30 deg)
+    warnings: tuple[str, ...] = ()
 
     def estimate(self, name: str, fit: str | None = None) -> Estimate | None:
         """The estimator ``name`` from ``fit`` (primary fit by default); None if invalid."""
@@ -154,6 +156,7 @@ class EdgeResult:
         out: dict[str, Any] = {
             "valid": self.valid,
             "reasons": "; ".join(self.reasons),
+            "warnings": "; ".join(self.warnings) or None,
             "direction": self.direction,
             "transposed": self.transposed,
             "polarity": self.polarity,
