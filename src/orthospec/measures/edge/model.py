@@ -24,8 +24,8 @@ from scipy.interpolate import make_smoothing_spline
 from ..psf import footprint, gauss_boxes_esf, gauss_boxes_esf_dsigma, gauss_boxes_lsf
 from . import pupil
 from .bins import bin_index, bins
-from .estimators import make_fit
-from .result import GRID, EdgeFit
+from .estimators import fwhm_of, make_fit
+from .result import GRID, NYQUIST, EdgeFit
 
 _ADEQUATE_P = 1e-3  # lack-of-fit p-value below which the PSF model does not describe the ESF
 _RICHER_P = 1e-3  # likelihood-ratio p-value needed to prefer a richer PSF model
@@ -243,13 +243,14 @@ def psf_fit(d: np.ndarray, v: np.ndarray, bw: float, lo: float, hi: float,
     var_pe = prob.pure_error("gauss", p)
     if not var_pe > 0:
         return None
-    kind, p, _plausible = _select_model(prob, p, var_pe, lo, hi)
+    kind, p, plausible = _select_model(prob, p, var_pe, lo, hi)
     if kind != "gauss":
         var_pe = prob.pure_error(kind, p)
     test = _lack_of_fit(prob, kind, p, var_pe)
     if float(p[1]) <= 0:
         return None
-    return _model_fit(prob, kind, p, (lo, hi), bw, quant, var_pe, test)
+    unc = _uncertainty(prob, kind, p, var_pe, lo, hi, plausible)
+    return _model_fit(prob, kind, p, (lo, hi), bw, quant, var_pe, test, unc)
 
 
 def _select_model(prob: _Problem, p: np.ndarray, var_pe: float, lo: float,
@@ -309,13 +310,22 @@ def _lack_of_fit(prob: _Problem, kind: str, p: np.ndarray, var_pe: float) -> _Te
     return _Test(f_stat, dof, p_value, cv_model, cv_spline)
 
 
-def _model_fit(prob: _Problem, kind: str, p: np.ndarray, window: tuple[float, float], bw: float,
-               quant: float, var_pe: float, test: _Test) -> EdgeFit:
-    """The chosen model as an :class:`EdgeFit`: its exact ESF, LSF and MTF (no FFT of a window)."""
-    lo, hi = window
-    fp = prob.fp
+@dataclass(frozen=True, eq=False)
+class _Curves:
+    """A fitted model's normalised ESF (callable), LSF on the grid ``x``, MTF (callable), RER centre."""
+
+    x: np.ndarray
+    esf_at: Any
+    lsf: np.ndarray
+    mtf_at: Any
+    centre: float
+    comps: list[tuple[float, float, float, float]]
+
+
+def _curves(kind: str, p: np.ndarray, fp: tuple[float, float], lo: float, hi: float,
+            step: float = GRID) -> _Curves:
     a, b_tot, c = float(p[0]), float(p[1]), float(p[2])
-    x = np.arange(lo, hi + GRID / 2, GRID)
+    x = np.arange(lo, hi + step / 2, step)
 
     def esf_at(q: np.ndarray) -> np.ndarray:
         return (_model_esf(kind, np.asarray(q, dtype=float), p, fp) - a) / b_tot
@@ -345,7 +355,71 @@ def _model_fit(prob: _Problem, kind: str, p: np.ndarray, window: tuple[float, fl
             centre = float(optimize.brentq(lambda q: float(esf_at(np.array([q]))[0]) - 0.5, lo, hi))
         except ValueError:
             centre = c
-    return make_fit(kind, x, esf_at(x), lsf, centre, esf_at, (a, a + b_tot), {
+    return _Curves(x, esf_at, lsf, mtf_at, centre, comps)
+
+
+def _figures(kind: str, p: np.ndarray, fp: tuple[float, float], lo: float, hi: float) -> np.ndarray:
+    """(RER, FWHM px, MTF@Nyquist) of a model, on a 0.02-px grid within +-8 px of its centre
+    (for the uncertainty's derivatives and the candidates' spread)."""
+    c = float(p[2])
+    cv = _curves(kind, p, fp, max(lo, c - 8.0), min(hi, c + 8.0), step=0.02)
+    e = cv.esf_at(np.array([cv.centre - 0.5, cv.centre + 0.5]))
+    return np.array([float(e[1] - e[0]), fwhm_of(cv.x, cv.lsf), float(cv.mtf_at(np.array([NYQUIST]))[0])])
+
+
+def _uncertainty(prob: _Problem, kind: str, p: np.ndarray, var_pe: float, lo: float, hi: float,
+                 plausible: dict[str, np.ndarray]) -> dict[str, Any]:
+    """Standard uncertainties of RER, FWHM and MTF@Ny of the chosen model (issue 31).
+
+    * noise: the delta method, u^2 = g C g', C the parameters' covariance of the weighted fit
+      (bin variance var / n + q^2 / 12, scaled up by chi2 / dof when the model does not fit to
+      the noise), g the figures' derivatives by central differences;
+    * model: the largest difference between the chosen model's figures and those of every other
+      candidate whose out-of-sample error was within one standard error of the best (models
+      the data cannot tell apart).
+    Both are combined in quadrature; the parts are kept for the report.
+    """
+    fp = prob.fp
+    base = _figures(kind, p, fp, lo, hi)
+    var_b = var_pe / prob.nb + prob.qv
+    jac = _model_jac(kind, prob.xb, p, fp) / np.sqrt(var_b)[:, None]
+    r = (_model_esf(kind, prob.xb, p, fp) - prob.yb) / np.sqrt(var_b)
+    dof = max(prob.xb.size - p.size, 1)
+    scale = max(1.0, float(r @ r) / dof)
+    try:
+        cov = np.linalg.pinv(jac.T @ jac) * scale
+    except np.linalg.LinAlgError:
+        cov = np.full((p.size, p.size), np.nan)
+    grad = np.zeros((3, p.size))
+    for k in range(p.size):
+        h = 1e-4 * max(abs(float(p[k])), 1e-2) if k != 2 else 1e-4
+        up, dn = p.copy(), p.copy()
+        up[k] += h
+        dn[k] -= h
+        grad[:, k] = (_figures(kind, up, fp, lo, hi) - _figures(kind, dn, fp, lo, hi)) / (2 * h)
+    u_noise = np.sqrt(np.maximum(np.einsum("ik,kl,il->i", grad, cov, grad), 0.0))
+    others = {k: _figures(k, q, fp, lo, hi) for k, q in plausible.items() if k != kind}
+    u_model = np.zeros(3)
+    for fig in others.values():
+        u_model = np.maximum(u_model, np.abs(np.nan_to_num(fig - base, nan=0.0)))
+    total = np.hypot(u_noise, u_model)
+    names = ("rer", "fwhm_px", "mtf_nyquist")
+    return {"u": dict(zip(names, map(float, total), strict=True)),
+            "u_noise": dict(zip(names, map(float, u_noise), strict=True)),
+            "u_model": dict(zip(names, map(float, u_model), strict=True)),
+            "candidates": {k: dict(zip(names, map(float, v), strict=True)) for k, v in
+                           {kind: base, **others}.items()}}
+
+
+def _model_fit(prob: _Problem, kind: str, p: np.ndarray, window: tuple[float, float], bw: float,
+               quant: float, var_pe: float, test: _Test, unc: dict[str, Any]) -> EdgeFit:
+    """The chosen model as an :class:`EdgeFit`: its exact ESF, LSF and MTF (no FFT of a window)."""
+    lo, hi = window
+    fp = prob.fp
+    a, b_tot = float(p[0]), float(p[1])
+    cv = _curves(kind, p, fp, lo, hi)
+    comps = cv.comps
+    return make_fit(kind, cv.x, cv.esf_at(cv.x), cv.lsf, cv.centre, cv.esf_at, (a, a + b_tot), {
         "model": _MODEL_TEXT[kind],
         "sigma_px": [q[0] for q in comps], "weights": [q[1] for q in comps],
         "shift_px": [q[2] for q in comps], "box_px": [q[3] for q in comps],
@@ -357,7 +431,9 @@ def _model_fit(prob: _Problem, kind: str, p: np.ndarray, window: tuple[float, fl
         "lack_of_fit_f": test.f_stat, "dof": list(test.dof), "p_value": test.p_value,
         "adequate": test.p_value >= _ADEQUATE_P, "quantisation_dn": quant,
         "cv_error_model": test.cv_model, "cv_error_spline": test.cv_spline,
-    }, mtf_at=mtf_at)
+        "selection": "leave-one-out error over the ESF bins, simplest model within one SE",
+        **unc,
+    }, mtf_at=cv.mtf_at)
 
 
 _CV_FOLDS = 5

@@ -44,6 +44,7 @@ class Estimate:
     value: float
     unit: str
     fit: str
+    u: float | None = None  # standard uncertainty (same unit), when the fit states one
 
 
 @dataclass(frozen=True, eq=False)
@@ -183,6 +184,8 @@ class EdgeResult:
             out["psf_model.adequate"] = bool(q["adequate"])
             out["psf_model.cv_error"] = _f(q.get("cv_error_model"))
             out["spline.cv_error"] = _f(q.get("cv_error_spline"))
+            out["psf_model.selection"] = q.get("selection")
+            out["psf_model.candidates"] = ", ".join(sorted(q.get("candidates", {}))) or None
         for c in self.checks:
             out[f"check.{c.name}.value"] = _f(c.value)
             out[f"check.{c.name}.unit"] = c.unit
@@ -195,6 +198,7 @@ class EdgeResult:
             out[name] = None if prim is None else _f(prim.value)
             out[f"{name}.unit"] = unit
             out[f"{name}.fit"] = None if prim is None else prim.fit
+            out[f"{name}.u"] = None if prim is None else _f(prim.u)
             if prim is not None and out[name] is not None:
                 out[f"{name}.reason"] = None
             elif not self.valid:
