@@ -116,16 +116,17 @@ def fit_esf(s: EsfSamples, areas: Areas, lim: EdgeLimits, angle_deg: float | Non
     bw = lim.bin_px
     sel = (s.d >= lo) & (s.d <= hi)
     d, v = s.d[sel], s.v[sel]
-    fermi = fermi_fit(d, v, bw, lo, hi, areas.levels, lim.fermi_terms)
+    core = areas.core
+    fermi = fermi_fit(d, v, bw, lo, hi, areas.levels, lim.fermi_terms, core)
     if fermi is not None:
         fits[fermi.fit] = fermi
     local = within_bin_std(s.d[areas.uniform], s.v[areas.uniform], bw)
-    spl = smoothing_spline(d, v, bw, lo, hi, noise=local)
+    spl = smoothing_spline(d, v, bw, lo, hi, noise=local, core=core)
     if spl is not None:
         fits[SPLINE] = spline_fit(spl, lo, hi, areas.levels, bw)
     if angle_deg is not None:
         model = psf_fit(d, v, bw, lo, hi, areas.levels, angle_deg,
-                        sigma0=0.5 * (areas.bright_start - areas.dark_start), quant=quant)
+                        sigma0=0.5 * (areas.bright_start - areas.dark_start), quant=quant, core=core)
         if model is not None:
             fits[model.fit] = model
     return fits
@@ -139,7 +140,8 @@ def _with_spline_uncertainty(fits: dict[str, EdgeFit], s: EsfSamples, areas: Are
     model = next((fits[n] for n in PSF_FITS if n in fits), None)
     cands = model.params.get("candidates", {}) if model is not None else {}
     noise = within_bin_std(s.d[areas.uniform], s.v[areas.uniform], lim.bin_px)
-    unc = spline_uncertainty(s.d, s.v, lim.bin_px, lo, hi, areas.levels, noise, quant, spl, cands)
+    unc = spline_uncertainty(s.d, s.v, lim.bin_px, lo, hi, areas.levels, noise, quant, spl, cands,
+                             areas.core)
     return dataclasses.replace(spl, params={**spl.params, **unc})
 
 

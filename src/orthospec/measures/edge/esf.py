@@ -62,6 +62,7 @@ class Areas:
     saturated: float = math.nan  # largest share of a side's pixels at a saturation level
     widths: tuple[float, float] = _NAN2  # median dark / bright width beyond the starts, px
     uniform: np.ndarray | None = None  # samples in the uniform areas inside the window
+    core: tuple[float, float] | None = None  # the transition (finely binned): uniform areas' starts
 
     @property
     def fittable(self) -> bool:
@@ -78,7 +79,7 @@ def uniform_areas(s: EsfSamples, bw: float, plateau_px: float,
         return Areas()
     cover = coverage(d, bw, 2.0)
     gap = sampling_gap(d, 2.0)
-    first = smoothing_spline(d, v, bw, -12.0, 12.0)
+    first = smoothing_spline(d, v, bw, -12.0, 12.0, core=(-4.0, 4.0))
     if first is None:
         return Areas(cover, gap)
     dark_start, bright_start = _plateau_starts(first, d)
@@ -98,7 +99,7 @@ def uniform_areas(s: EsfSamples, bw: float, plateau_px: float,
         sat_frac = max(saturated(v[dark_side], *sat), saturated(v[bright_side], *sat))
     widths = (float(np.median(dark_start - s.row_dmin)), float(np.median(s.row_dmax - bright_start)))
     return Areas(cover, gap, dark_start, bright_start, (lo, hi), levels, stds, sat_frac, widths,
-                 dsel | bsel)
+                 dsel | bsel, (dark_edge - 1.0, bright_edge + 1.0))
 
 
 def _trim(first: Any, d: np.ndarray, dark_start: float, bright_start: float,

@@ -48,9 +48,10 @@ def _fermi(x: np.ndarray, p: np.ndarray) -> np.ndarray:
 
 
 def fermi_fit(d: np.ndarray, v: np.ndarray, bw: float, lo: float, hi: float,
-              levels: tuple[float, float], terms: int) -> EdgeFit | None:
+              levels: tuple[float, float], terms: int,
+              core: tuple[float, float] | None = None) -> EdgeFit | None:
     """Parametric ESF: a + sum_i b_i / (1 + exp(-(x - c_i) / s_i)) (Fermi-Dirac terms)."""
-    got = _fermi_params(*bins(d, v, bw), levels, lo, hi, terms)
+    got = _fermi_params(*bins(d, v, bw, core), levels, lo, hi, terms)
     if got is None:
         return None
     p, name = got
@@ -128,7 +129,8 @@ _BOOT = 12  # parametric bootstrap replicates of the spline (issue 31): u within
 
 def spline_uncertainty(d: np.ndarray, v: np.ndarray, bw: float, lo: float, hi: float,
                        levels: tuple[float, float], noise: float, quant: float, fit: EdgeFit,
-                       models: dict[str, dict[str, float]]) -> dict[str, Any]:
+                       models: dict[str, dict[str, float]],
+                       core: tuple[float, float] | None = None) -> dict[str, Any]:
     """Standard uncertainties of the spline's RER, FWHM and MTF@Ny (when it is the primary fit).
 
     Noise: a parametric bootstrap, the bin means redrawn about the fit with their variance
@@ -139,7 +141,7 @@ def spline_uncertainty(d: np.ndarray, v: np.ndarray, bw: float, lo: float, hi: f
     from scipy.interpolate import make_smoothing_spline
 
     sel = (d >= lo) & (d <= hi)
-    xb, yb, nb = bins(d[sel], v[sel], bw)
+    xb, yb, nb = bins(d[sel], v[sel], bw, core)
     dark, bright = levels
     span = bright - dark
     sd = np.sqrt((noise if np.isfinite(noise) else 0.0) ** 2 / nb + quant**2 / 12.0)

@@ -213,7 +213,7 @@ class _Test:
 
 def psf_fit(d: np.ndarray, v: np.ndarray, bw: float, lo: float, hi: float,
             levels: tuple[float, float], angle_deg: float, sigma0: float,
-            quant: float = 0.0) -> EdgeFit | None:
+            quant: float = 0.0, core: tuple[float, float] | None = None) -> EdgeFit | None:
     """Physical ESF model on the trimmed ESF samples, tested against the data.
 
     * the Gaussian is the null model; the box or the halo replaces it when the likelihood
@@ -226,8 +226,8 @@ def psf_fit(d: np.ndarray, v: np.ndarray, bw: float, lo: float, hi: float,
       within their bins), so no separate noise estimate is needed.
       ``params["adequate"]`` is p >= 0.001; only then may the model be the primary fit.
     """
-    xb, yb, nb = bins(d, v, bw)
-    idx = bin_index(d, bw)
+    xb, yb, nb = bins(d, v, bw, core)
+    idx = bin_index(d, bw, core)
     if xb.size < 12 or d.size - xb.size < 10:
         return None
     dark, bright = levels
