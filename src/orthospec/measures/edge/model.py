@@ -19,8 +19,8 @@ from typing import Any
 
 import numpy as np
 from scipy import optimize
-from scipy.special import fdtrc
 from scipy.interpolate import make_smoothing_spline
+from scipy.special import fdtrc
 
 from ..psf import footprint, gauss_boxes_esf, gauss_boxes_esf_dsigma, gauss_boxes_lsf
 from . import pupil
