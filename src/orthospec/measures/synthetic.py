@@ -469,7 +469,7 @@ def family_truth(fam: PsfFamily, *, angle_deg: float) -> FamilyTruth:
     esf -= esf[0]
     esf /= esf[-1]
     mid = float(np.interp(0.5, esf[(x > -8) & (x < 8)], x[(x > -8) & (x < 8)]))
-    core = np.abs(x) <= 40.0
+    core = np.abs(x) <= 100.0
     e = np.interp([mid - 0.5, mid + 0.5], x, esf)
     return FamilyTruth(family=fam, angle_deg=float(angle_deg), x=x[core], esf=esf[core], lsf=lsf[core],
                        fwhm_px=_level_width(x[core], lsf[core], 0.5), rer=float(e[1] - e[0]),
@@ -486,8 +486,8 @@ def family_edge(fam: PsfFamily, shape: tuple[int, int], *, angle_deg: float, dar
     (bright - dark) / snr, rounded and clipped to ``bit_depth`` (uint8 / uint16) when given.
 
     A 3-tap MTFC family is the sharpened product (the filter acts on the noise-free image; the
-    noise is the product's). The ESF far beyond the +-40 px kept in the truth is taken from the
-    truth's ends (below 1e-3 of the step for every family of the benchmark).
+    noise is the product's). Beyond the +-100 px kept in the truth the ESF is taken as its end
+    values (a diffraction tail still holds 1e-3 of the step there; nothing else does).
     """
     tr = truth if truth is not None else family_truth(fam, angle_deg=angle_deg)
     rows, cols = int(shape[0]), int(shape[1])
