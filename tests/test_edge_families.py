@@ -109,10 +109,11 @@ def test_diffraction_limited_edge_uses_the_pupil_model(snr, seed):
 
 
 def test_motion_across_the_edge_is_not_read_as_a_gaussian_at_snr_100():
-    """A 2.5-px smear across the edge: the flat-topped LSF is chosen by its out-of-sample error
-    (the likelihood ratio at p < 0.001 kept the Gaussian: FWHM -3 %)."""
-    for seed, angle in ((0, 5.0), (1, 14.036), (2, 33.0)):
-        r, t = _measure(PsfFamily("motion_x", length=2.5, sigma=0.4), angle, 100.0, seed)
+    """A 1.5-px smear across the edge: the flat-topped LSF is chosen by its out-of-sample error.
+    Before issue 31 (likelihood ratio at p < 0.001, then AIC) the 22-deg ROI kept the Gaussian
+    (FWHM -2.9 %) and the 9-deg one the unsharp-masked Gaussian (run on commit 95a2ffd)."""
+    for seed, angle in ((0, 5.0), (1, 9.0), (2, 22.0)):
+        r, t = _measure(PsfFamily("motion_x", length=1.5, sigma=0.45), angle, 100.0, seed)
         assert r.valid, r.reasons
         assert r.primary_fit in ("gauss-box", "gauss-disk"), r.primary_fit
         assert abs(r.fwhm_px / t.fwhm_px - 1) <= 0.02
