@@ -246,9 +246,10 @@ def _auto(image: str, band: int, arr: Any, *, gsd: float | None, bit_depth: int 
             tab.add_column(col)
         for e in target.edges:
             r = e.result
+            d = r.to_dict()
             tab.add_row(e.axis.upper(), f"{e.line_angle_deg:.2f}°", ",".join(map(str, e.window)),
-                        "yes" if r.valid else "no", _fmt(r.angle_deg), _fmt(r.rer),
-                        _fmt(r.fwhm_px), _fmt(r.mtf_nyquist), r.primary_fit if r.valid else "",
+                        "yes" if r.valid else "no", _fmt(r.angle_deg), _pm(d, "rer"),
+                        _pm(d, "fwhm_px"), _pm(d, "mtf_nyquist"), r.primary_fit if r.valid else "",
                         "; ".join(x.split(";")[0] for x in r.reasons))
         console.print(tab)
         console.print(f"RER_x {_fmt(target.rer_x)}, RER_y {_fmt(target.rer_y)}, combined "
