@@ -29,7 +29,6 @@ from .estimators import fwhm_of, make_fit
 from .result import GRID, NYQUIST, EdgeFit
 
 _ADEQUATE_P = 1e-3  # lack-of-fit p-value below which the PSF model does not describe the ESF
-_RICHER_P = 1e-3  # likelihood-ratio p-value needed to prefer a richer PSF model
 _MODEL_TEXT = {
     "gauss": "Gaussian PSF x square pixel at the edge angle",
     "gauss-box": "Gaussian PSF x box (defocus/motion smear) x square pixel at the edge angle",
@@ -218,11 +217,9 @@ def psf_fit(d: np.ndarray, v: np.ndarray, bw: float, lo: float, hi: float,
             quant: float = 0.0, core: tuple[float, float] | None = None) -> EdgeFit | None:
     """Physical ESF model on the trimmed ESF samples, tested against the data.
 
-    * the Gaussian is the null model; the box or the halo replaces it when the likelihood
-      ratio says so at p < 0.001 (the lower AIC if both do). A richer model fitted to a
-      Gaussian LSF is poorly determined (at SNR 50 a 5 % FWHM scatter instead of 1 %),
-      so it must earn its place; at p < 0.05 the Gaussian grid got worse and the
-      defocus/motion grid no better (docs/edge-method.md);
+    * every candidate PSF is fitted and the one chosen by its leave-one-out error, the
+      simplest within one standard error of the best (:func:`_select_model`; issue 31: the
+      likelihood ratio at p < 0.001 kept a Gaussian for motion-smeared edges);
     * the chosen model must pass the classical lack-of-fit F test: scatter of the bin
       means about the model against the pure error (scatter of the pixels' residuals
       within their bins), so no separate noise estimate is needed.
