@@ -433,7 +433,7 @@ def _report31(rec: dict[tuple[str, float], list[dict[str, Any]]], cpu_lib: list[
               f"{statistics.fmean(wall_mm):.3f} s, median {statistics.median(wall_mm):.3f} s")
     if timing:
         for k, v in timing.items():
-            print(f"  {k}: {v:.3f} s")
+            print(f"  {k}: {v:.3f}{'x' if k.startswith('ratio') else '' if k.startswith('ROIs') else ' s'}")
     print(f"load after: {_load()}")
     return 0
 

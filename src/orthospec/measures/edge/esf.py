@@ -169,9 +169,17 @@ def _tail_extent(d: np.ndarray, v: np.ndarray, centre: float, bw: float = 0.5) -
     ext = []
     for xs, vals, cs, level, spread in out:  # type: ignore[misc]
         tol = np.maximum(_TAIL_TOL * step, 3.0 * spread / np.sqrt(3.0) * np.sqrt(np.median(cs) / cs))
-        off = np.flatnonzero(np.abs(vals - level) > tol)
-        ext.append(float(np.max(np.abs(xs[off]))) if off.size else 0.0)
+        order = np.argsort(np.abs(xs))  # outward from the edge
+        off = (np.abs(vals - level) > tol)[order]
+        # settled: the first place from where 2 px (4 bins) in a row are within tolerance, so
+        # that a noise excursion far out does not count as tail
+        run = np.convolve(~off, np.ones(_SETTLE), mode="valid") == _SETTLE
+        first = int(np.argmax(run)) if run.any() else off.size - 1
+        ext.append(float(np.abs(xs[order][first])) if off[:first + 1].any() else 0.0)
     return ext[0], ext[1]
+
+
+_SETTLE = 4  # bins of 0.5 px
 
 
 _TAIL = 0.02  # the uniform areas begin where the LSF is below 2 % of its peak
