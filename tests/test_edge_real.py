@@ -93,7 +93,9 @@ def test_baotou_edge_window():
     assert r.bright_start_px < 1.0 and r.window_px[1] > 5.0  # the long bright tail is kept
     assert 16.0 < r.angle_deg < 17.5
     assert 1.5 < r.fwhm_px < 1.8
-    assert r.estimate("fwhm_px", "fermi3").value == pytest.approx(r.fwhm_px, rel=0.1)
+    # the Fermi-Dirac sum normalises by its own asymptotes, which the long bright tail pulls in
+    # now that the window reaches it (docs/edge-method.md, limitations): 10 % narrower
+    assert r.estimate("fwhm_px", "fermi3").value == pytest.approx(r.fwhm_px, rel=0.15)
     assert 0.35 < r.rer < 0.5
     assert 0.05 < r.mtf_nyquist < 0.15
     wider = measure_edge(img[12:42, 40:85], nodata=0)
@@ -103,10 +105,11 @@ def test_baotou_edge_window():
     # bright tail and the panels' texture are measured, not cut): on the narrow window the core
     # + shifted halo describes the edge (lack-of-fit passes); on the wider one the panels'
     # texture makes no model fit to the noise and the spline is primary. The two windows agree
-    # within 2 % (1.70 and 1.72 px), each within its stated uncertainty of the other.
+    # within 2 % (1.724 and 1.722 px), each within its stated uncertainty of the other, and the
+    # model-free spline within 2u of the model on the narrow window.
     assert r.primary_fit == "gauss2" and r.fits["gauss2"].params["adequate"]
     assert r.fits["gauss2"].params["shift_px"][1] != 0.0
-    assert r.fwhm_px == pytest.approx(r.estimate("fwhm_px", "spline").value, rel=0.04)
+    assert abs(r.fwhm_px - r.estimate("fwhm_px", "spline").value) <= 2 * r.estimate("fwhm_px").u
     assert wider.fwhm_px == pytest.approx(r.fwhm_px, rel=0.02)
     u = math.hypot(r.estimate("fwhm_px").u, wider.estimate("fwhm_px").u)
     assert abs(wider.fwhm_px - r.fwhm_px) <= 2 * u
