@@ -258,7 +258,8 @@ def test_added_tables_follow_convention_format() -> None:
         assert {"scope", "id", "description", "columns"} <= set(t)
         assert t["id"] in t["columns"] and t["columns"][t["id"]].get("required") is True
         for col, spec in t["columns"].items():
-            assert set(spec) <= {"type", "unit", "required", "description", "min", "max"}, (name, col)
+            assert set(spec) <= {"type", "unit", "required", "description", "min", "max", "values",
+                                 "synonyms"}, (name, col)
             assert spec["type"] in ("text", "number", "bool", "date", "datetime")
 
 
