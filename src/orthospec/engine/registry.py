@@ -149,6 +149,10 @@ ROLLUP: dict[str, tuple[str, str]] = {
 #: e.g. ``ce90``, ``ce90_empirical`` and ``ce90_selected`` can be told apart. One table for every
 #: provider; tests/test_measures_descriptions.py fails when a registered measure has none.
 MEASURE_DESCRIPTIONS: dict[str, str] = {
+    # acquisition (JRC §3.4)
+    "acquisition.date": "the image's acquisition date from its records (exposure time, scene date, else its flight's day)",
+    "acquisition.days_outside_window": "days the image was acquired before or after the ITT's acquisition window (0 inside)",
+    "acquisition.outside_declared_window": "images acquired outside the window delivery.yaml declares (dates.acquired_from/to)",
     # camera, flight, geometry
     "camera.calibration_age": "years from the camera calibration certificate to the start of acquisition (JRC §5.2.4)",
     "flight.images": "number of photos of the flight",
