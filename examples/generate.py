@@ -417,7 +417,7 @@ def plan_points(scn: Scenario, rng: np.random.Generator) -> tuple[list[dict[str,
                     "point_id": f"{bp.id}-G{i:02d}{twin}", "block": bp.id,
                     "x": p[0], "y": p[1], "z": terrain_m(*p) + 1.2,
                     "precision_xy": 0.02, "precision_z": 0.04,
-                    "source": "GNSS RTK (SAPOS HEPS), signalised, 2026-03",
+                    "source": "GNSS RTK (SAPOS HEPS), signalised, 2026-03", "source_type": "survey",
                 })
         g_xy_arr = np.array(g_xy)
         # stratified candidates: one per cell of a 6 x 6 grid, inside, >= 300 m from any GCP
@@ -804,6 +804,9 @@ def internal_qc(verdicts: list[dict[str, Any]], operator: dict[str, str], delive
              "note": notes.get(r["check"], "Checked in our internal QC; no defect found.")} for r in verdicts]
 
 
+#: The acquisition window every example ITT fixes (JRC §3.4 "Defining the window for the acquisition").
+ITT_ACQUISITION_WINDOW = {"acquisition_window_start": "2026-04-01", "acquisition_window_end": "2026-06-30"}
+
 #: The evidence each example checker file pins (red team R5): the check points whose independent
 #: source (JRC §12.4, Table 12) the checker vouches for; a changed table makes the file not apply.
 PINNED = ("tables/checkpoints.csv",)
@@ -822,6 +825,8 @@ def checker_file(party: dict[str, str], verdicts: list[dict[str, Any]], waivers:
     # the ITT's tolerance (JRC §2.5) and map projection (§12.4 Table 12), stated by the checker;
     # the manifest only declares them (tender.parameters, project.crs; red team R1, R16)
     parameters: dict[str, Any] = {"tolerance_xy": {"value": tolerance_xy_m, "unit": "m"}, "map_crs": f"EPSG:{EPSG}"}
+    # the ITT's acquisition window (JRC §3.4), never the manifest's declared dates (issue 25)
+    parameters.update(ITT_ACQUISITION_WINDOW)
     if master_images:  # which scene is the master is the checker's knowledge, not a flag (red team R8)
         parameters["master_images"] = ";".join(master_images)
     outlines = {"blocks": [{"id": b["id"], "polygon": b["polygon"]} for b in blocks]} if blocks else {}
@@ -1114,7 +1119,7 @@ def write(b: Built, root: Path, checker_dir: Path) -> None:
            "precision_xy": fmt(c["precision_xy"], 2)}
           for c in b.checkpoints))
     _csv(root / "tables/gcps.csv",
-         ["point_id", "block", "x", "y", "z", "precision_xy", "precision_z", "source",
+         ["point_id", "block", "x", "y", "z", "precision_xy", "precision_z", "source", "source_type",
           "images_measured", "sketch", "photo"],
          ({**g, "x": fmt(g["x"], 3), "y": fmt(g["y"], 3), "z": fmt(g["z"], 3),
            "precision_xy": fmt(g["precision_xy"], 2), "precision_z": fmt(g["precision_z"], 2)}
@@ -1428,7 +1433,8 @@ def build_satellite(scn: SatScenario) -> dict[str, Any]:
                 ge, gn = e + rng.uniform(-25, 25), n + rng.uniform(-25, 25)
                 gcps.append({"point_id": f"{sid}-G{g}", "block": site.id, "x": fmt(ge, 3), "y": fmt(gn, 3),
                              "z": fmt(terrain_m(ge, gn) + 0.2, 3), "precision_xy": "0.05", "precision_z": "0.08",
-                             "source": "GNSS RTK survey (fictional), 2026-04", "images_measured": "2",
+                             "source": "GNSS RTK survey (fictional), 2026-04", "source_type": "survey",
+                             "image_id": sid, "images_measured": "2",
                              "sketch": f"documents/gcp_monographs.md#{sid.lower()}-g{g}",
                              "photo": f"documents/gcp_monographs.md#{sid.lower()}-g{g}",
                              "residual_x": fmt(float(rng.normal(0, 0.3)), 2),

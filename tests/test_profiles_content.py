@@ -213,7 +213,7 @@ def test_table9_lookup_agrees_with_rules() -> None:
         rec = dict(zip(cols, row, strict=True))
         rule = by_id[rec["rule"]]
         req = rule["requirement"]
-        assert rule["measure"] == "scenes.gcp_count"
+        assert rule["measure"] == "scene.gcp_count"  # counted from gcps.csv (issue 26)
         least = req["value"] + 1 if req["op"] == ">" else req["value"]
         assert req["op"] in (">", ">=") and least == rec["gcps_min"], rec
         assert f"scenes.correction_method == '{rec['method']}'" in rule["when"], rec

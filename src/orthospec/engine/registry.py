@@ -153,6 +153,11 @@ MEASURE_DESCRIPTIONS: dict[str, str] = {
     "acquisition.date": "the image's acquisition date from its records (exposure time, scene date, else its flight's day)",
     "acquisition.days_outside_window": "days the image was acquired before or after the ITT's acquisition window (0 inside)",
     "acquisition.outside_declared_window": "images acquired outside the window delivery.yaml declares (dates.acquired_from/to)",
+    # satellite scenes (JRC Table 9)
+    "scene.area": "area of the scene's delivered orthoimage footprint, from the raster",
+    "scene.gcp_count": "GCPs of gcps.csv that controlled the scene (image_id naming it, else inside its footprint)",
+    "scene.gcp_count_agrees": "the meta-database's scenes.gcp_count equals the GCPs counted in gcps.csv",
+    "scene.gcp_strip_supplement": "GCPs Table 9 adds for a strip scene: 2 per additional 100 km² (parameters)",
     # camera, flight, geometry
     "camera.calibration_age": "years from the camera calibration certificate to the start of acquisition (JRC §5.2.4)",
     "flight.images": "number of photos of the flight",
