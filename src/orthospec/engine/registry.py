@@ -158,6 +158,17 @@ MEASURE_DESCRIPTIONS: dict[str, str] = {
     "scene.gcp_count": "GCPs of gcps.csv that controlled the scene (image_id naming it, else inside its footprint)",
     "scene.gcp_count_agrees": "the meta-database's scenes.gcp_count equals the GCPs counted in gcps.csv",
     "scene.gcp_strip_supplement": "GCPs Table 9 adds for a strip scene: 2 per additional 100 km² (parameters)",
+    "scene.gcp_quadrants": "quarters of the scene's orthoimage footprint holding one of its GCPs (Table 9 distribution)",
+    "scene.checkpoints_on_gcps": "check points measured on the scene that are GCPs of that scene (same id or position)",
+    # delivered DEM files (JRC Table 7)
+    "demfile.crs_ok": "the DEM file's CRS (horizontal part) is the map projection in force (map_crs)",
+    "demfile.nodata_share": "share of no-data cells of the DEM file inside the project's blocks",
+    "demfile.spikes": "DEM cells farther than dem_spike_height from the median of their 3 x 3 neighbourhood",
+    # sample, QCR set, GCP pattern, seamlines
+    "sample.strata_missed": "blocks, terrain tags, problem batches and high view angles the external-QC sample leaves out (JRC §12.4)",
+    "qcr.minimum_set_missing": "QCRs of JRC Table 6 (aerial) or Table 10 (satellite) with no record in the delivery",
+    "gcp_pattern.gaps": "places of the JRC Table 4 GCP pattern the block's GCPs leave empty",
+    "seamline.area_selection_faults": "seamline polygons outside their image's footprint or not from the most nadir image",
     # camera, flight, geometry
     "camera.calibration_age": "years from the camera calibration certificate to the start of acquisition (JRC §5.2.4)",
     "flight.images": "number of photos of the flight",

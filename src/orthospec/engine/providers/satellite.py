@@ -13,6 +13,13 @@ contractor's scenes.gcp_count, not counted from gcps.csv"). Here the GCP file de
 * ``scene.gcp_strip_supplement`` (image): the strip supplement of Table 9, "plus 2 per additional
   100km² of strip scene": ``per_area`` GCPs for each started ``base_area`` beyond the first (both
   parameters, ``gcp_strip_per_area`` 2 and ``gcp_strip_area`` 100 km²).
+* ``scene.gcp_quadrants`` (image): how many of the four quarters of the scene's orthoimage footprint
+  hold one of its GCPs (Table 9 "well distributed (in grid) with points as near as possible to each
+  corner/edge (no extrapolation)": 4 when every quarter is controlled).
+* ``scene.checkpoints_on_gcps`` (image): check points of checkpoints.csv measured on the scene
+  (``image_id``) that are GCPs of that scene: the same point id, or a reference position within
+  ``blunder_factor`` x the two points' combined precision of a GCP (Table 9 master image "check points
+  which were not used as GCPs"). Missing when no check point of the scene is listed.
 """
 
 from __future__ import annotations
@@ -23,14 +30,15 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ...errors import OrthospecError
 from ...provenance import Evidence
-from ...raster.roi import raster_bounds
+from ...raster.footprints import image_footprints
 from ...units import convert
 from ..registry import Measured, ProviderContext, provider
 
 MEASURES = {"scene.gcp_count": "1", "scene.gcp_count_agrees": "bool", "scene.area": "km²",
-            "scene.gcp_strip_supplement": "1"}
+            "scene.gcp_strip_supplement": "1", "scene.gcp_quadrants": "1", "scene.checkpoints_on_gcps": "1"}
+#: precision (m) assumed for a point whose precision_xy is not given, when telling a check point from a GCP
+DEFAULT_PRECISION_M = 0.05
 
 
 def strip_supplement(area_km2: float, *, base_area_km2: float = 100.0, per_area: float = 2.0) -> float:
@@ -43,23 +51,9 @@ def strip_supplement(area_km2: float, *, base_area_km2: float = 100.0, per_area:
 
 def footprints(ctx: ProviderContext) -> dict[str, tuple[tuple[float, float, float, float] | None, str | None]]:
     """Image id -> (left, bottom, right, top) of its delivered raster, or (None, why); once per run."""
-    if "scene.footprints" in ctx.memo:
-        return ctx.memo["scene.footprints"]  # type: ignore[no-any-return]
-    d = ctx.delivery
-    out: dict[str, tuple[Any, str | None]] = {}
-    imgs = d.table("images")
-    if imgs is not None and "file" in imgs.df:
-        for iid, rel, row in zip(imgs.ids.astype(str), imgs.df["file"].tolist(), imgs.df["_row"].tolist(),
-                                 strict=True):
-            if rel is None:
-                out[iid] = (None, f"{imgs.file} row {row} names no file")
-                continue
-            try:
-                out[iid] = (raster_bounds(d.path(str(rel), file=imgs.file, row=int(row)), name=str(rel)), None)
-            except (OrthospecError, OSError) as exc:
-                out[iid] = (None, f"{rel}: {exc}")
-    ctx.memo["scene.footprints"] = out
-    return out
+    if "image_footprints" not in ctx.memo:
+        ctx.memo["image_footprints"] = image_footprints(ctx.delivery)
+    return ctx.memo["image_footprints"]  # type: ignore[no-any-return]
 
 
 def _area_km2(bounds: tuple[float, float, float, float], unit: str | None) -> float | None:
@@ -91,6 +85,7 @@ def scene_gcps(ctx: ProviderContext) -> list[Measured]:
     count: dict[str, Any] = {}
     notes: dict[str, str] = {}
     ev: dict[str, tuple[Evidence, ...]] = {}
+    scene_rows: dict[str, np.ndarray] = {}  # scene -> mask of its GCP rows
     if gcps is None:
         for i in ids:
             count[i], notes[i], ev[i] = None, "the delivery has no GCP table (tables.gcps): nothing to count", ()
@@ -102,8 +97,13 @@ def scene_gcps(ctx: ProviderContext) -> list[Measured]:
         lists = [{p.strip() for p in str(v).split(";") if p.strip()} if v is not None else set() for v in named]
         unnamed = np.array([not s for s in lists], dtype=bool)
         unknown = sorted({p for s in lists for p in s} - set(ids))
+        rows_of: dict[str, list[int]] = {}
+        for k, named_scenes in enumerate(lists):
+            for sc in named_scenes:
+                rows_of.setdefault(sc, []).append(k)
         for i in ids:
-            by_name = np.array([i in s for s in lists], dtype=bool)
+            by_name = np.zeros(len(df), dtype=bool)
+            by_name[rows_of.get(i, [])] = True
             inside = np.zeros(len(df), dtype=bool)
             b, why = feet.get(i, (None, "no images row"))
             if b is not None and unnamed.any():
@@ -125,6 +125,7 @@ def scene_gcps(ctx: ProviderContext) -> list[Measured]:
             if unknown:
                 notes[i] += f" ({gcps.file} image_id names unknown scenes: {', '.join(unknown[:5])})"
             ev[i] = (Evidence(gcps.file, gcps.sha256, tuple(int(r) for r in rows[hit])),)
+            scene_rows[i] = hit
     declared: dict[str, Any] = {}
     decl_ev: dict[str, Evidence] = {}
     if scenes is not None and "gcp_count" in scenes.df:
@@ -163,8 +164,14 @@ def scene_gcps(ctx: ProviderContext) -> list[Measured]:
     if imgs is not None:
         img_ev = {str(i): (Evidence(imgs.file, imgs.sha256, (int(r),)),)
                   for i, r in zip(imgs.ids, imgs.df["_row"], strict=True)}
+    quads, quad_notes = _quadrants(ids, feet, gcps, scene_rows)
+    on_gcps, on_notes, on_ev = _checkpoints_on_gcps(ctx, ids, gcps, scene_rows)
     s = pd.Series
     return [
+        Measured("scene.gcp_quadrants", "image", "1", s(quads, dtype=object), s(ev, dtype=object),
+                 notes=s(quad_notes, dtype=object)),
+        Measured("scene.checkpoints_on_gcps", "image", "1", s(on_gcps, dtype=object), s(on_ev, dtype=object),
+                 notes=s(on_notes, dtype=object)),
         Measured("scene.gcp_count", "image", "1", s(count, dtype=object), s(ev, dtype=object),
                  notes=s(notes, dtype=object)),
         Measured("scene.gcp_count_agrees", "image", "bool", s(agrees, dtype=object), s(row_ev, dtype=object),
@@ -174,3 +181,81 @@ def scene_gcps(ctx: ProviderContext) -> list[Measured]:
         Measured("scene.gcp_strip_supplement", "image", "1", s(supp, dtype=object), s(img_ev, dtype=object),
                  notes=s(area_notes, dtype=object)),
     ]
+
+
+def _quadrants(ids: list[str], feet: dict[str, Any], gcps: Any, scene_rows: dict[str, np.ndarray]
+               ) -> tuple[dict[str, Any], dict[str, str]]:
+    """Per scene: quarters of its footprint holding one of its GCPs (None when either is unknown)."""
+    vals: dict[str, Any] = {}
+    notes: dict[str, str] = {}
+    for i in ids:
+        b, why = feet.get(i, (None, "no images row"))
+        if gcps is None or i not in scene_rows:
+            vals[i], notes[i] = None, "no GCP table"
+            continue
+        if b is None:
+            vals[i], notes[i] = None, f"no orthoimage footprint: {why}"
+            continue
+        hit = scene_rows[i]
+        xs, ys = gcps.df["x"].to_numpy(float)[hit], gcps.df["y"].to_numpy(float)[hit]
+        cx, cy = (b[0] + b[2]) / 2.0, (b[1] + b[3]) / 2.0
+        inside = (xs >= b[0]) & (xs <= b[2]) & (ys >= b[1]) & (ys <= b[3])
+        names = ("south-west", "south-east", "north-west", "north-east")
+        held = {names[int(x >= cx) + 2 * int(y >= cy)] for x, y in zip(xs[inside], ys[inside], strict=True)}
+        vals[i] = float(len(held))
+        empty = [q for q in names if q not in held]
+        notes[i] = (f"{int(inside.sum())} of its {int(hit.sum())} GCPs inside the footprint; "
+                    + (f"no GCP in the {', '.join(empty)} quarter(s)" if empty else "a GCP in every quarter"))
+    return vals, notes
+
+
+def _checkpoints_on_gcps(ctx: ProviderContext, ids: list[str], gcps: Any, scene_rows: dict[str, np.ndarray]
+                         ) -> tuple[dict[str, Any], dict[str, str], dict[str, tuple[Evidence, ...]]]:
+    """Per scene: its listed check points that are one of its GCPs (id, or position within
+    blunder_factor x the combined precision)."""
+    cps = ctx.delivery.table("checkpoints")
+    factor = _param(ctx, "blunder_factor", "1", 3.0)
+    vals: dict[str, Any] = {}
+    notes: dict[str, str] = {}
+    ev: dict[str, tuple[Evidence, ...]] = {}
+    if cps is None or "image_id" not in cps.df:
+        why = "no check point table" if cps is None else f"{cps.file} has no image_id column"
+        return dict.fromkeys(ids), dict.fromkeys(ids, why), {i: () for i in ids}
+    cdf = cps.df
+    c_img = cdf["image_id"].astype(str).to_numpy()
+    cx, cy = cdf["x_ref"].to_numpy(float), cdf["y_ref"].to_numpy(float)
+    cp_prec = (cdf["precision_xy"].to_numpy(float) if "precision_xy" in cdf
+               else np.full(len(cdf), np.nan))
+    cp_prec = np.where(np.isnan(cp_prec), DEFAULT_PRECISION_M, cp_prec)
+    cp_ids = cdf["point_id"].astype(str).to_numpy()
+    for i in ids:
+        mine = c_img == i
+        if not mine.any():
+            vals[i], notes[i], ev[i] = None, f"no check point of {cps.file} is measured on {i} (image_id)", ()
+            continue
+        if gcps is None or i not in scene_rows:
+            vals[i], notes[i], ev[i] = None, "no GCP table to compare with", ()
+            continue
+        g = gcps.df[scene_rows[i]]
+        gx, gy = g["x"].to_numpy(float), g["y"].to_numpy(float)
+        g_prec = g["precision_xy"].to_numpy(float) if "precision_xy" in g else np.full(len(g), np.nan)
+        g_prec = np.where(np.isnan(g_prec), DEFAULT_PRECISION_M, g_prec)
+        g_ids = set(g["point_id"].astype(str))
+        same: list[str] = []
+        for k in np.flatnonzero(mine):
+            if cp_ids[k] in g_ids:
+                same.append(f"{cp_ids[k]} (a GCP id)")
+                continue
+            if len(gx):
+                dist = np.hypot(gx - cx[k], gy - cy[k])
+                limit = factor * np.hypot(g_prec, cp_prec[k])
+                j = int(np.argmin(dist - limit))
+                if dist[j] <= limit[j]:
+                    same.append(f"{cp_ids[k]} ({dist[j]:.3f} m from GCP {g['point_id'].iloc[j]})")
+        vals[i] = float(len(same))
+        n = int(mine.sum())
+        notes[i] = (f"{len(same)} of its {n} check points are GCPs of the scene: {', '.join(same[:5])}" if same else
+                    f"none of its {n} check points is one of its {len(g)} GCPs")
+        ev[i] = (Evidence(cps.file, cps.sha256, tuple(int(r) for r in cdf["_row"].to_numpy()[mine])),
+                 Evidence(gcps.file, gcps.sha256, tuple(int(r) for r in g["_row"])))
+    return vals, notes, ev
