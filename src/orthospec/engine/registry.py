@@ -169,6 +169,10 @@ MEASURE_DESCRIPTIONS: dict[str, str] = {
     "qcr.minimum_set_missing": "QCRs of JRC Table 6 (aerial) or Table 10 (satellite) with no record in the delivery",
     "gcp_pattern.gaps": "places of the JRC Table 4 GCP pattern the block's GCPs leave empty",
     "seamline.area_selection_faults": "seamline polygons outside their image's footprint or not from the most nadir image",
+    "gcp.source_kind": "kind of source of the GCP (survey, map, photogrammetric, orthoimage): source_type, else read from source",
+    "points.shared_ids": "identifiers naming both a GCP and a check point (JRC §7.3 unique to project)",
+    "scanner.schedule_gaps": "ends of the scanning period (first, last scan date) without a scanner test (JRC §6.2.2)",
+    "block.space_resection_images": "images of a block produced by space resection (each should be its own block, §12.7)",
     # camera, flight, geometry
     "camera.calibration_age": "years from the camera calibration certificate to the start of acquisition (JRC §5.2.4)",
     "flight.images": "number of photos of the flight",

@@ -11,8 +11,8 @@ contractor's scenes.gcp_count, not counted from gcps.csv"). Here the GCP file de
   GCPs", a declaration) equals the count; not applicable where none is declared.
 * ``scene.area`` (image): area of the scene's orthoimage footprint in km² (from the raster).
 * ``scene.gcp_strip_supplement`` (image): the strip supplement of Table 9, "plus 2 per additional
-  100km² of strip scene": ``per_area`` GCPs for each started ``base_area`` beyond the first (both
-  parameters, ``gcp_strip_per_area`` 2 and ``gcp_strip_area`` 100 km²).
+  100km² of strip scene": ``per_area`` GCPs (parameter ``gcp_strip_per_area``, 2) for each started
+  100 km² (the text's step, ``STRIP_AREA_KM2``) beyond the first.
 * ``scene.gcp_quadrants`` (image): how many of the four quarters of the scene's orthoimage footprint
   hold one of its GCPs (Table 9 "well distributed (in grid) with points as near as possible to each
   corner/edge (no extrapolation)": 4 when every quarter is controlled).
@@ -37,6 +37,8 @@ from ..registry import Measured, ProviderContext, provider
 
 MEASURES = {"scene.gcp_count": "1", "scene.gcp_count_agrees": "bool", "scene.area": "km²",
             "scene.gcp_strip_supplement": "1", "scene.gcp_quadrants": "1", "scene.checkpoints_on_gcps": "1"}
+#: the strip step of Table 9 ("plus 2 per additional 100km² of strip scene")
+STRIP_AREA_KM2 = 100.0
 #: precision (m) assumed for a point whose precision_xy is not given, when telling a check point from a GCP
 DEFAULT_PRECISION_M = 0.05
 
@@ -146,7 +148,7 @@ def scene_gcps(ctx: ProviderContext) -> list[Measured]:
         else:
             agrees[i] = declared[i] == count[i]
             agree_notes[i] = f"declared {declared[i]:g} (scenes.gcp_count), counted {count[i]:g}: {notes[i]}"
-    base = _param(ctx, "gcp_strip_area", "km²", 100.0)
+    base = STRIP_AREA_KM2
     per = _param(ctx, "gcp_strip_per_area", "1", 2.0)
     area: dict[str, Any] = {}
     supp: dict[str, Any] = {}
