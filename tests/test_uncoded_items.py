@@ -1,6 +1,6 @@
 """JRC items that had no rule (issue 26 "Eleven mandatory checkable JRC items have no rule"), now encoded:
 §7.3 point identifier unique across GCPs and check points, §7.1 map digitisation error, §6.2.2 scanner
-test schedule, §12.7 space-resection images each a block, §11 tiles and radiometric-processing metadata.
+test schedule, §12.7 space-resection images each a block (and the §11 mosaic metadata rules, on a planted mosaic).
 
 Each is planted on a copy of a shipped example and run through the real check with the checker's
 file re-signed on the copy; expected values follow from the edit (which id, which scale, which date).
@@ -171,12 +171,12 @@ def test_a_mosaic_owes_its_tiles_layer_and_radiometric_processing(tmp_path: Path
     m["product"]["mosaic"] = True
     _write_manifest(d, m)
     doc = _check(d)
-    assert _rule(doc, "JRC-11-TILES-LAYER")[m["id"]]["verdict"] == "warn"
-    assert _rule(doc, "JRC-11-RADIOMETRIC-PROCESSING")[m["id"]]["verdict"] == "warn"
+    assert _rule(doc, "JRC-11-TILES-SHAPEFILE")[m["id"]]["verdict"] == "warn"
+    assert _rule(doc, "JRC-11-RADIOMETRIC-PROCESSING-INFO")[m["id"]]["verdict"] == "warn"
     (d / "documents" / "radiometry.md").write_text("# Radiometric processing\n\nHistogram matching per flight.\n",
                                                     encoding="utf-8")
     m["documents"]["radiometric_processing"] = "documents/radiometry.md"
     _write_manifest(d, m)
-    assert _rule(_check(d), "JRC-11-RADIOMETRIC-PROCESSING")[m["id"]]["verdict"] == "pass"
+    assert _rule(_check(d), "JRC-11-RADIOMETRIC-PROCESSING-INFO")[m["id"]]["verdict"] == "pass"
     shipped = _check(EXAMPLES / "aerial-pass")
-    assert _rule(shipped, "JRC-11-TILES-LAYER")["D-2026-014"]["verdict"] == "not_applicable"
+    assert _rule(shipped, "JRC-11-TILES-SHAPEFILE")["D-2026-014"]["verdict"] == "not_applicable"
