@@ -397,3 +397,16 @@ def test_a_film_delivery_owes_the_scanner_control_chart(tmp_path: Path) -> None:
     _write_manifest(d, m)
     got = _rule(_check(d), "JRC-2.4-QCR-MINIMUM-SET")["D-2026-014"]
     assert "Table 6 row 3 (Control chart for the scanner performance (geometric)): no scanner_tests table" in got["message"]
+
+
+def test_a_sample_leaving_out_blocks_leaves_the_check_incomplete_not_rejected(tmp_path: Path) -> None:
+    """A sample of 10 % (3 of 30) all from B01: the size is met (§12.3), the §12.4 strata are not. The
+    checker's to complete: the delivery is neither accepted nor rejected (overall verdict incomplete)."""
+    d = _copy("aerial-pass", tmp_path)
+    _mark(d, {"F01_0101", "F01_0102", "F01_0103"})
+    doc = _check(d)
+    got = _rule(doc, "JRC-12.4-SELECTION")["D-2026-014"]
+    assert got["verdict"] == "fail" and got["consequence"] == "incomplete"
+    assert doc["verdict"] == "incomplete"
+    todo = " ".join(doc["rollup"].get("incomplete") or [])
+    assert "JRC-12.4-SELECTION" in todo and "add to the sample" in todo
