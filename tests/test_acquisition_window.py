@@ -16,7 +16,16 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from tests.checking import check_with, manifest, read_table, records, write_manifest, write_table
+import yaml
+from tests.checking import (
+    check_with,
+    manifest,
+    read_table,
+    records,
+    resigned,
+    write_manifest,
+    write_table,
+)
 
 from orthospec.engine.providers.acquisition import days_outside
 
@@ -103,9 +112,17 @@ def test_the_itt_window_rejects_the_image_taken_outside_it(tmp_path: Path) -> No
     assert doc["verdict"] == "rejected"
 
 
-def test_without_an_itt_window_the_rule_is_not_applicable() -> None:
-    doc = _check(EXAMPLES / "satellite-pass")
+def test_without_an_itt_window_the_rule_is_not_applicable(tmp_path: Path) -> None:
+    """The shipped checker file states the ITT window; a checker file without it leaves the rule out."""
+    checker = CHECKERS / "satellite-pass.yaml"
+    params = yaml.safe_load(checker.read_text(encoding="utf-8"))["parameters"]
+    assert {"acquisition_window_start", "acquisition_window_end"} <= set(params)
+    bare = {k: v for k, v in params.items() if not k.startswith("acquisition_window")}
+    out = resigned(checker, EXAMPLES / "satellite-pass", tmp_path / "checker.yaml", parameters=bare)
+    doc = check_with(EXAMPLES / "satellite-pass", "jrc-v3", checker=out, date=DATE).document
     assert {r["verdict"] for r in _rule(doc, "JRC-3.4-ACQUISITION-WINDOW").values()} == {"not_applicable"}
+    shipped = _rule(_check(EXAMPLES / "satellite-pass"), "JRC-3.4-ACQUISITION-WINDOW")
+    assert {r["verdict"] for r in shipped.values()} == {"pass"}
 
 
 def test_records_that_disagree_leave_the_date_missing(tmp_path: Path) -> None:

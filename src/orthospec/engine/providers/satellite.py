@@ -83,6 +83,10 @@ def scene_gcps(ctx: ProviderContext) -> list[Measured]:
     ids: list[str] = imgs.ids.astype(str).tolist() if imgs is not None else []
     if scenes is not None:
         ids += [i for i in scenes.ids.astype(str).tolist() if i not in set(ids)]
+    if d.manifest.sensor.type != "satellite":  # Table 9 facts: no raster or GCP file is read for air photos
+        # (every rule reading these applies to satellite deliveries only: its `when` says why not here)
+        return [Measured(n, "image", u, pd.Series(dict.fromkeys(ids), dtype=object),
+                         pd.Series({i: () for i in ids}, dtype=object)) for n, u in MEASURES.items()]
     feet = footprints(ctx)
     count: dict[str, Any] = {}
     notes: dict[str, str] = {}
