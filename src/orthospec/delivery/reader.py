@@ -33,6 +33,7 @@ from ..limits import env_limit
 from ..provenance import Evidence, sha256_bytes, sha256_file
 from ..units import canonical, parse_unit
 from ..yamlio import YamlError, load_file
+from . import vocabulary
 from .convention import ColumnSpec, TableSpec, table_specs
 from .manifest import Manifest
 from .outlines import StatedOutlines, finite_ring, first_overlap, invalid_reason, ring_polygon
@@ -407,6 +408,7 @@ class Delivery:
             self._check_length_unit(name, length_unit)
         df = _parse_body(held, spec, file=rel, cell_bytes=self.limits.cell_bytes)
         self._check_blocks(df, rel)
+        vocabulary.apply(name, df, rel)  # closed vocabularies: normalised, an unknown word refused
         for col in PATH_COLUMNS & set(df.columns):
             rows, cells = df["_row"], df[col]
             if self.tree is not None:  # lexical checks only: plain relative paths pass in bulk

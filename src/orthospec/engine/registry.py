@@ -149,6 +149,30 @@ ROLLUP: dict[str, tuple[str, str]] = {
 #: e.g. ``ce90``, ``ce90_empirical`` and ``ce90_selected`` can be told apart. One table for every
 #: provider; tests/test_measures_descriptions.py fails when a registered measure has none.
 MEASURE_DESCRIPTIONS: dict[str, str] = {
+    # acquisition (JRC §3.4)
+    "acquisition.date": "the image's acquisition date from its records (exposure time, scene date, else its flight's day)",
+    "acquisition.days_outside_window": "days the image was acquired before or after the ITT's acquisition window (0 inside)",
+    "acquisition.outside_declared_window": "images acquired outside the window delivery.yaml declares (dates.acquired_from/to)",
+    # satellite scenes (JRC Table 9)
+    "scene.area": "area of the scene's delivered orthoimage footprint, from the raster",
+    "scene.gcp_count": "GCPs of gcps.csv that controlled the scene (image_id naming it, else inside its footprint)",
+    "scene.gcp_count_agrees": "the meta-database's scenes.gcp_count equals the GCPs counted in gcps.csv",
+    "scene.gcp_strip_supplement": "GCPs Table 9 adds for a strip scene: 2 per additional 100 km² (parameters)",
+    "scene.gcp_quadrants": "quarters of the scene's orthoimage footprint holding one of its GCPs (Table 9 distribution)",
+    "scene.checkpoints_on_gcps": "check points measured on the scene that are GCPs of that scene (same id or position)",
+    # delivered DEM files (JRC Table 7)
+    "demfile.crs_ok": "the DEM file's CRS (horizontal part) is the map projection in force (map_crs)",
+    "demfile.nodata_share": "share of no-data cells of the DEM file inside the project's blocks",
+    "demfile.spikes": "DEM cells farther than dem_spike_height from the median of their 3 x 3 neighbourhood",
+    # sample, QCR set, GCP pattern, seamlines
+    "sample.strata_missed": "blocks, terrain tags, problem batches and high view angles the external-QC sample leaves out (JRC §12.4)",
+    "qcr.minimum_set_missing": "QCRs of JRC Table 6 (aerial) or Table 10 (satellite) with no record in the delivery",
+    "gcp_pattern.gaps": "places of the JRC Table 4 GCP pattern the block's GCPs leave empty",
+    "seamline.area_selection_faults": "seamline polygons outside their image's footprint or not from the most nadir image",
+    "gcp.source_kind": "kind of source of the GCP (survey, map, photogrammetric, orthoimage): source_type, else read from source",
+    "points.shared_ids": "identifiers naming both a GCP and a check point (JRC §7.3 unique to project)",
+    "scanner.schedule_gaps": "ends of the scanning period (first, last scan date) without a scanner test (JRC §6.2.2)",
+    "block.space_resection_images": "images of a block produced by space resection (each should be its own block, §12.7)",
     # camera, flight, geometry
     "camera.calibration_age": "years from the camera calibration certificate to the start of acquisition (JRC §5.2.4)",
     "flight.images": "number of photos of the flight",
