@@ -275,8 +275,8 @@ def bind(chk: Checker, d: Delivery) -> None:
 
     The checker's manual verdicts and waivers vouch for what the checker saw; applied to other
     content they would grant the contractor verdicts nobody gave (red team R5: check points deleted
-    after the checker signed their source). Once bound, the outlines the file states are the ones
-    in force for ``d`` (``d.stated_outlines``, read by ``Delivery.block_outlines``)."""
+    after the checker signed their source). Nothing is written onto ``d``: the outlines the file states
+    are put in force by the evaluation (``stated_outlines``, held by the engine's context)."""
     b = chk.model.delivery
     other = "the checker's verdicts were given on other content"
     if b.id != d.id:
@@ -303,8 +303,6 @@ def bind(chk: Checker, d: Delivery) -> None:
         if got.lower() != want.lower():
             raise OrthospecError(f"checker file {where} pins {rel} sha256 {want.lower()}, the delivery's is "
                                  f"{got}: {other}")
-    # the outlines the checker states are the ones in force for this delivery (red team R13/R17)
-    d.stated_outlines = stated_outlines(chk)
 
 
 def checker_schema() -> dict[str, Any]:

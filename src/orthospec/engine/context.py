@@ -16,7 +16,7 @@ import numpy as np
 import pandas as pd
 
 from .. import verdicts as V
-from ..delivery.checker import Checker
+from ..delivery.checker import Checker, stated_outlines
 from ..delivery.convention import table_of_scope
 from ..delivery.reader import Delivery
 from ..provenance import Evidence
@@ -91,7 +91,8 @@ class Context:
               debug: bool | None) -> Context:
         opts = dict(options or {})
         pctx = ProviderContext(delivery, {k: v.quantity() for k, v in parameters.items()}, dict(opts),
-                               classes=dict(getattr(profile, "classes", {}) or {}))
+                               classes=dict(getattr(profile, "classes", {}) or {}), checker=checker,
+                               outlines=stated_outlines(checker) if checker is not None else None)
         return cls(profile, delivery, parameters, opts, checker, MeasureCache(pctx), delivery.flat_manifest(),
                    fail_on, debug_enabled() if debug is None else debug)
 

@@ -101,6 +101,20 @@ class ProviderContext:
     memo: dict[str, Any] = field(default_factory=dict)
     #: the profile's named classes (e.g. ``resolution`` of JRC §9.1), for computed class measures
     classes: Mapping[str, Any] = field(default_factory=dict)
+    #: the checker's evidence for this run (delivery/checker.py ``Checker``: its file, folder, tables), None
+    #: without one. It lives here, never on the ``Delivery`` (issue 26: no state carried to the next check)
+    checker: Any = None
+    #: the outlines the checker states (delivery/outlines.py ``StatedOutlines``), None: the manifest's are in force
+    outlines: Any = None
+
+    def block_outlines(self) -> dict[str, tuple[Any, Evidence]]:
+        """Block id -> (ring, evidence) of the outlines in force for this run: the checker's when it states
+        blocks, else the manifest's (``Delivery.block_outlines``; red team R13/R17)."""
+        return self.delivery.block_outlines(self.outlines)
+
+    def area_of_interest_in_force(self) -> tuple[Any, Evidence] | None:
+        """(ring, evidence) of the area of interest the checker states, or None: the manifest's is in force."""
+        return None if self.outlines is None else self.outlines.area_of_interest
 
 
 ProviderFn = Callable[[ProviderContext], Iterable[Measured]]

@@ -257,7 +257,7 @@ def _outlines(ctx: ProviderContext) -> tuple[dict[str, Polygon], dict[str, str]]
     to_m = float(convert([1.0], unit, "m")[0]) if unit in ("m", "ft", "usft") else 1.0
     polys: dict[str, Polygon] = {}
     broken: dict[str, str] = {}
-    for block, (ring, ev) in ctx.delivery.block_outlines().items():
+    for block, (ring, ev) in ctx.block_outlines().items():
         if len(ring) < 3:
             continue
         xy = np.asarray(ring, dtype=float)
