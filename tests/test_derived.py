@@ -238,7 +238,7 @@ def test_a_declared_false_does_not_switch_off_the_pan_sharpening_rules(tmp_path)
     mc = pd.read_csv(f, dtype=str, keep_default_na=False)
     mc[mc["check"] != "JRC-10.5.1-SAME-MODEL-GCPS"].to_csv(f, index=False)
     # the external QC's file (INTERFACES 4) without its §10.5.1 verdict
-    checker = yaml.safe_load((CHECKERS / "satellite-pass.yaml").read_text(encoding="utf-8"))
+    checker = yaml.safe_load((CHECKERS / "satellite-pass" / "checker.yaml").read_text(encoding="utf-8"))
     checker["manual_checks"] = [e for e in checker["manual_checks"] if e["check"] != "JRC-10.5.1-SAME-MODEL-GCPS"]
     (tmp_path / "checker.yaml").write_text(yaml.safe_dump(checker, sort_keys=False), encoding="utf-8")
     doc = check(d, "jrc-v3", date="2026-08-01", checker=tmp_path / "checker.yaml").document
@@ -249,7 +249,7 @@ def test_a_declared_false_does_not_switch_off_the_pan_sharpening_rules(tmp_path)
 
 
 def test_pan_sharpening_rules_do_not_apply_to_an_aerial_delivery():
-    doc = check(EXAMPLES / "aerial-pass", "jrc-v3", date="2026-08-01", checker=CHECKERS / "aerial-pass.yaml").document
+    doc = check(EXAMPLES / "aerial-pass", "jrc-v3", date="2026-08-01", checker=CHECKERS / "aerial-pass").document
     recs = [r for r in records(doc) if r["rule"].startswith(("JRC-10.5", "JRC-10.3"))]
     assert len(recs) == 4 and all(r["verdict"] == "not_applicable" for r in recs)
 

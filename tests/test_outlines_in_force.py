@@ -22,7 +22,7 @@ from orthospec.engine.providers.derived import OUTLINE_TOLERANCE, _disagreement
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "deliveries" / "aerial-pass"
-CHECKER = ROOT / "examples" / "checker" / "aerial-pass.yaml"
+CHECKER = ROOT / "examples" / "checker" / "aerial-pass"
 DATE = "2026-11-21"
 
 
@@ -53,7 +53,7 @@ def test_without_a_checker_the_manifest_outlines_are_in_force() -> None:
 
 
 def test_a_bound_checker_file_puts_its_outlines_in_force(tmp_path: Path) -> None:
-    doc = yaml.safe_load(CHECKER.read_text(encoding="utf-8"))
+    doc = yaml.safe_load((CHECKER / "checker.yaml").read_text(encoding="utf-8"))
     doc["blocks"][1]["polygon"] = [[507500, 5403000], [514000, 5403000], [514000, 5410200], [507500, 5410200]]
     doc["area_of_interest"] = doc["blocks"][1]["polygon"]
     path = tmp_path / "checker.yaml"

@@ -349,6 +349,11 @@ class Delivery:
     def has_table(self, name: str) -> bool:
         return name in self.manifest.tables
 
+    def table_absent_reason(self, name: str) -> str:
+        """Why :meth:`table` gives None for ``name`` (an evaluation's view words its own tables,
+        delivery/in_force.py)."""
+        return f"the manifest declares no '{name}' table"
+
     def table(self, name: str) -> Table | None:
         """The validated table, or None when the manifest does not declare it."""
         if name not in self.manifest.tables:
