@@ -57,6 +57,8 @@ class ImageReport:
     bytes: int | None = None
     error: str | None = None
     checks: dict[str, Any] = field(default_factory=dict)
+    #: the file's header facts (:class:`orthospec.raster.facts.RasterFacts`, ``to_dict``), its SHA-256 included
+    facts: dict[str, Any] | None = None
     radiometry: dict[str, Any] | None = None
     cloud_cover_pct: float | None = None
     cached: bool = False
@@ -147,7 +149,8 @@ def scan_image(path: str | Path, options: ScanOptions | None = None, *,
     p = str(path)
     with checked_file(p, expect_epsg=o.expect_epsg, expect_gsd=o.expect_gsd,
                       gsd_tolerance=o.gsd_tolerance, settings=o.settings) as (checks, ds):
-        rep = ImageReport(path=p, bytes=checks.bytes, checks=checks.to_dict(), error=checks.error)
+        rep = ImageReport(path=p, bytes=checks.bytes, checks=checks.to_dict(), error=checks.error,
+                          facts=None if checks.facts is None else checks.facts.to_dict())
         if checks.error is not None and checks.bytes in (None, 0):
             rep.seconds = time.perf_counter() - t0
             return rep
@@ -167,6 +170,8 @@ def scan_image(path: str | Path, options: ScanOptions | None = None, *,
                     return rep
                 hashing = None
             if not raster or ds is None:
+                if rep.facts is not None:
+                    rep.facts["sha256"] = rep.sha256
                 rep.seconds = time.perf_counter() - t0
                 return rep  # not a raster at all: nothing more to measure
             _measure_pixels(rep, p, o, ds)
@@ -176,6 +181,8 @@ def scan_image(path: str | Path, options: ScanOptions | None = None, *,
                 except OSError as exc:
                     rep.error, rep.radiometry = f"{p}: cannot read file: {exc.strerror or exc}", None
                     return rep
+    if rep.facts is not None:
+        rep.facts["sha256"] = rep.sha256
     if cloud_mask is not None and rep.error is None:
         try:
             rep.cloud_cover_pct = mask_share(cloud_mask, settings=o.settings).percent
