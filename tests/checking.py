@@ -75,6 +75,8 @@ def resigned(checker: str | Path, delivery: str | Path, out: str | Path, **top: 
     path of the copy's checker.yaml is returned (`--checker` reads DIR/checker.yaml as the folder DIR);
     a single checker file is written to ``out``."""
     src = Path(checker)
+    if not src.exists() and src.suffix == ".yaml" and src.with_suffix("").is_dir():
+        src = src.with_suffix("")  # examples/checker/<name>.yaml was the single file before the folders
     folder = src if src.is_dir() else (src.parent if src.name == "checker.yaml" else None)
     root = Path(delivery)
     if folder is not None:

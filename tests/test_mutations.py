@@ -12,7 +12,9 @@ neither, so the table cannot fall behind the profiles.
 Each case asserts three things: in the unmutated delivery the rule does not fail on the item (so the
 mutation, not the example, causes the finding), after the mutation the delivery is rejected (the
 exit code of ``orthospec check`` is 1), and the rule is among the mandatory fail/missing/error records
-for that item. The coverage line ("mutation coverage: N/M ...") is printed at the end of the run.
+for that item. A rule whose consequence is ``incomplete`` (the checker's fault, issue 26) is planted as
+such (``expect: incomplete``): the delivery is never accepted, the verdict is ``incomplete`` (exit 3)
+and ``rollup.incomplete`` names the item and the rule. The coverage line ("mutation coverage: N/M ...") is printed at the end of the run.
 """
 
 from __future__ import annotations
@@ -330,7 +332,12 @@ def test_planted_violation_rejects_for_the_rule(runs: Any, case: dict[str, Any])
         assert case["refused"] in str(doc), str(doc)
         return
     assert not isinstance(doc, OrthospecError), str(doc)
-    assert doc["verdict"] == "rejected", doc["rollup"]
+    if case.get("expect") == "incomplete":
+        assert doc["verdict"] == "incomplete", doc["rollup"]
+        said = [t for t in doc["rollup"]["incomplete"] if t.startswith(f"{case['item']}:") and case["rule"] in t]
+        assert said, (f"rollup.incomplete names no {case['item']} for {case['rule']}", doc["rollup"]["incomplete"])
+    else:
+        assert doc["verdict"] == "rejected", doc["rollup"]
     bad = _bad(doc)
     assert key in bad, (f"{case['rule']} does not fail on {case['item']} after the mutation; mandatory "
                         f"findings: {sorted({r for r, _ in bad})}")
@@ -340,7 +347,8 @@ def test_planted_violation_rejects_for_the_rule(runs: Any, case: dict[str, Any])
 
 @pytest.mark.parametrize("profile", sorted(SHIPPED))
 def test_every_mandatory_automatic_rule_has_a_case(profile: str) -> None:
-    """A new mandatory automatic rule must get a case or a listed reason (issue 12 item 7)."""
+    """A new mandatory automatic rule must get a case or a listed reason (issue 12 item 7); a rule
+    whose consequence is incomplete is planted as such, and only such a rule."""
     rules = mandatory_automatic(profile)
     cased = {c["rule"] for c in CASES if c["profile"] == profile}
     excepted = {r for p, r in EXCEPTIONS if p == profile}
@@ -349,6 +357,15 @@ def test_every_mandatory_automatic_rule_has_a_case(profile: str) -> None:
     stale = (cased | excepted) - rules
     assert not stale, f"table names rules that are not mandatory automatic rules of {profile}: {sorted(stale)}"
     assert all(len(EXCEPTIONS[(profile, r)]) > 20 for r in excepted), "each exception needs a reason"
+    spec = yaml.safe_load(SHIPPED[profile].read_text(encoding="utf-8"))["rules"]
+    incomplete = {r["id"] for r in spec if r.get("consequence") == "incomplete"}
+    for c in (c for c in CASES if c["profile"] == profile):
+        assert (c.get("expect") == "incomplete") == (c["rule"] in incomplete), (
+            f"{c['rule']}: consequence {'incomplete' if c['rule'] in incomplete else 'rejecting'} but the case "
+            f"expects {c.get('expect', 'rejected')}")
+    for g in (g for g in TABLE["groups"] if g["profile"] == profile):
+        kinds = {c.get("expect", "rejected") for c in g["cases"]}
+        assert len(kinds) == 1, f"group {g['id']} mixes incomplete and rejecting cases: each must set the verdict"
 
 
 @pytest.fixture(scope="module", autouse=True)

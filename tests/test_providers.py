@@ -9,11 +9,11 @@ import rasterio
 from rasterio.transform import from_origin
 from tests.conftest import EXAMPLES
 
-CHECKERS = EXAMPLES.parent / "checker"
-
 from orthospec.api import check
 from orthospec.measures.synthetic import slanted_edge
 from orthospec.qcr import all_records, point_rows
+
+CHECKERS = EXAMPLES.parent / "checker"
 
 PROFILE_HEAD = """\
 orthospec_profile: 1

@@ -85,8 +85,8 @@ class CheckerManualCheck(_Closed):
 
     ``file`` and ``sha256`` bind the verdict to the content judged (issue 29 item 4): `checker init`
     writes them for every item that is a delivered file (an image); at check time a verdict whose
-    file is no longer the item's, or whose content changed, is ``missing`` with the reason, never
-    carried over. An entry without ``verdict`` is still to be judged (the skeleton `checker init` writes)."""
+    item's file now holds other content (changed, or another file swapped in) is ``missing`` with the
+    reason, never carried over. An entry without ``verdict`` is still to be judged (the skeleton `checker init` writes)."""
 
     check: str = Field(min_length=1, description="The manual rule's id, e.g. JRC-5.3-IDQA.")
     item: str = Field("*", min_length=1, description="Item id in the rule's scope, or * for all.")

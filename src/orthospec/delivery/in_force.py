@@ -119,13 +119,16 @@ class DeliveryInForce(Delivery):
         if self.external:
             return ""
         if self.checker is None:
-            return ("no checker (check --checker DIR): the check point statistics are the contractor's own points "
-                    f"(internal QC, JRC §12.5); the checker must measure independent check points into "
-                    f"DIR/{CHECKPOINTS_TABLE} (orthospec measure checkpoints, JRC §12.4-§12.6)")
-        kind = "folder" if self.checker.folder is not None else "file (a single file holds no tables)"
-        return (f"the checker {kind} {self.checker.display} holds no {CHECKPOINTS_TABLE}: the check point "
-                "statistics are the contractor's own points (internal QC, JRC §12.5); the checker must measure "
-                "independent check points (orthospec measure checkpoints, JRC §12.4-§12.6)")
+            return (f"measure independent check points into CHECKER_DIR/{CHECKPOINTS_TABLE} and give --checker "
+                    "CHECKER_DIR (orthospec measure checkpoints, JRC §12.4-§12.6): without a checker the statistics "
+                    "are the contractor's own points (internal QC, JRC §12.5)")
+        if self.checker.folder is None:
+            return (f"measure independent check points into a checker folder's {CHECKPOINTS_TABLE} (orthospec "
+                    f"measure checkpoints, JRC §12.4-§12.6): the single checker file {self.checker.display} holds no "
+                    "tables, so the statistics are the contractor's own points (internal QC, JRC §12.5)")
+        return (f"measure independent check points into {self.checker.folder}/{CHECKPOINTS_TABLE} (orthospec measure "
+                "checkpoints, JRC §12.4-§12.6): the checker folder holds none, so the statistics are the "
+                "contractor's own points (internal QC, JRC §12.5)")
 
     def sha256(self, rel: str) -> str:
         if rel.startswith(EVIDENCE_PREFIX):

@@ -14,8 +14,9 @@ the checker entries that judged nothing delivered (red team R15; JRC §2.4, §12
 
 A verdict is bound to what was judged (issue 29 item 4). For an item that is a delivered file (an
 image), the checker's entry records that file and its SHA-256 (``file``, ``sha256``: `orthospec
-checker init` writes them); an entry whose file is no longer the item's, whose content changed since,
-or that records none is ``missing`` with the reason, never carried over to other pixels. An entry
+checker init` writes them); an entry whose item's file now has other content (changed, or another
+file swapped in), or that records none, is ``missing`` with the reason, never carried over to other
+pixels (the same content renamed is the same image). An entry
 without a verdict is still to be judged (the skeleton). The checker's marked inspection grid
 (inspection/grid.py) gives image verdicts of the rules specs/inspection.yaml names: the marked
 cells (ids, defect classes, comment) are the evidence; where the grid and an entry of the checker's
@@ -118,14 +119,15 @@ def unbound_reason(ctx: Context, entry: Any, item: str, now: str | None) -> str 
             return None
         return (f"the checker's verdict on {item} records no file and SHA-256 of what was judged ({now} now): "
                 "`orthospec checker init` writes them; a verdict is never carried over to unknown content")
-    if entry.file != now:
-        return f"the checker's verdict on {item} was given on {entry.file}; the delivery now gives {now}"
+    if sha is not None and sha.lower() == entry.sha256.lower():
+        return None  # the content judged, whatever the file is named now (a rename is not a change)
     if sha is None:
         return f"the checker's verdict on {item} was given on {entry.file}, which the delivery no longer holds"
-    if sha.lower() != entry.sha256.lower():
-        return (f"the checker's verdict on {item} was given on {entry.file} with SHA-256 {entry.sha256.lower()[:12]}…; "
-                f"the delivered file is {sha[:12]}… (changed or swapped since): judge it again")
-    return None
+    if entry.file != now:
+        return (f"the checker's verdict on {item} was given on {entry.file} (SHA-256 {entry.sha256.lower()[:12]}…); "
+                f"the delivery now gives {now} ({sha[:12]}…): judge it again")
+    return (f"the checker's verdict on {item} was given on {entry.file} with SHA-256 {entry.sha256.lower()[:12]}…; "
+            f"the delivered file is {sha[:12]}… (changed or swapped since): judge it again")
 
 
 class Statement(NamedTuple):

@@ -56,7 +56,7 @@ def chip_svg(point: dict[str, Any], *, unit: str = "m") -> str:
                 if (x, y) != (xr, yr):
                     arrow = ax.annotate("", xy=(x, y), xytext=(xr, yr),
                                         arrowprops={"arrowstyle": "->", "color": "tab:red", "lw": 1.2})
-                    arrow.set_gid("measured-shift")
+                    arrow.arrow_patch.set_gid("measured-shift")  # the Annotation itself writes no group
             ax.set_xlim(left, right)
             ax.set_ylim(bottom, top)
             ax.tick_params(labelsize=6)

@@ -416,10 +416,9 @@ def _bind(images: dict[str, tuple[str, str]], now: Mapping[str, GridImage | str]
             why = f"image {image_id} is no longer delivered"
         elif isinstance(cur, str):
             why = f"image {image_id} cannot be read ({cur})"
-        elif cur.file != file:
-            why = f"image {image_id} is now {cur.file}, the grid was written on {file}"
-        elif cur.sha256.lower() != sha.lower():
-            why = (f"image {image_id} ({file}) has SHA-256 {cur.sha256[:12]}…, the grid was written on "
+        elif cur.sha256.lower() != sha.lower():  # the content gridded, whatever the file is named now
+            now_file = cur.file if cur.file == file else f"now {cur.file}"
+            why = (f"image {image_id} ({now_file}) has SHA-256 {cur.sha256[:12]}…, the grid was written on {file} "
                    f"{sha[:12]}… (changed or swapped since)")
         else:
             why = None
