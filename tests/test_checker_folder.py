@@ -337,3 +337,50 @@ def test_a_pinned_item_whose_file_differs_from_the_one_pinned_is_refused(tmp_pat
     _write(d / "tables" / "images.csv", header, rows)
     with pytest.raises(OrthospecError, match="as images:F01_0101; the delivery now uses images/F01_0102.tif"):
         load_checker(pin, delivery=open_delivery(d))
+
+
+def _rename_image(d: Path, image: str) -> None:
+    (d / "images" / f"{image}.tif").rename(d / "images" / f"{image}_renamed.tif")
+    header, rows = _rows(d / "tables" / "images.csv")
+    for r in rows:
+        if r["image_id"] == image:
+            r["file"] = f"images/{image}_renamed.tif"
+    _write(d / "tables" / "images.csv", header, rows)
+
+
+@pytest.mark.parametrize("name, image, rules", [
+    ("aerial-pass", "F01_0103", ("JRC-T6-ORTHO-INSPECTION", "JRC-6.3-ARTEFACTS")),  # the marked grid's verdicts
+    ("satellite-pass", "S01_SC2", ("JRC-9.2-T7-VISUAL-QUALITY",)),  # checker.yaml entries with file and sha256
+])
+def test_a_renamed_image_with_the_same_content_keeps_its_verdicts(tmp_path: Path, name: str, image: str,
+                                                                  rules: tuple[str, ...]) -> None:
+    """Binding is to content: the same pixels under another file name are the image judged."""
+    d, c = _copy(tmp_path, name)
+    base = check_with(EXAMPLES / name, "jrc-v3", checker=CHECKERS / name, date=DATE).document
+    _rename_image(d, image)
+    doc = check_with(d, "jrc-v3", checker=resigned(c, d, c), date=DATE).document
+    for rule in rules:
+        assert _by(doc, rule)[image]["verdict"] == _by(base, rule)[image]["verdict"] == "pass", rule
+    assert doc["verdict"] == base["verdict"] == "accepted"
+    if name == "satellite-pass":  # the entry names the old file; its SHA-256 is the renamed file's
+        y = yaml.safe_load((c / "checker.yaml").read_text(encoding="utf-8"))
+        entry = next(e for e in y["manual_checks"] if e["item"] == image and e.get("file"))
+        assert entry["file"] == f"images/{image}.tif" and entry["sha256"] == _sha(d / "images" / f"{image}_renamed.tif")
+
+
+def _tree(root: Path) -> dict[str, str]:
+    return {str(p.relative_to(root)): _sha(p) for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+def test_a_check_with_the_checker_folder_writes_nothing_into_the_delivery_or_the_folder(tmp_path: Path) -> None:
+    from click.testing import CliRunner
+
+    from orthospec.cli.main import cli
+
+    d, c = _copy(tmp_path, "aerial-fail")
+    before, folder = _tree(d), _tree(c)
+    res = CliRunner().invoke(cli(), ["check", str(d), "-p", "jrc-v3", "--checker", str(c), "--out",
+                                     str(tmp_path / "out"), "--format", "json,html", "--date", DATE])
+    assert res.exit_code == 1, res.output
+    assert _tree(d) == before and _tree(c) == folder
+    assert (tmp_path / "out" / "report.html").is_file()

@@ -88,7 +88,10 @@ def manual_items(profile: ResolvedProfile, d: Delivery) -> list[dict[str, Any]]:
 
 def checker_skeleton(profile: ResolvedProfile, d: Delivery, *, name: str | None = None) -> Skeleton:
     """The checker.yaml skeleton of ``d`` under ``profile`` (see the module docstring)."""
+    from ..inspection.defects import catalogue
+
     entries = manual_items(profile, d)
+    grid_rules = set(catalogue().rules)
     roles = file_roles(d, tables=False)
     pins = {rel: {"sha256": d.sha256(rel), "role": role} for role, rel in sorted(roles.items())
             if d.path(rel, what=role).is_file()}
@@ -119,9 +122,12 @@ def checker_skeleton(profile: ResolvedProfile, d: Delivery, *, name: str | None 
         unit = p.unit or "1"
         said = declared.get(pname)
         hint = f"; the delivery declares {said.value:g} {said.unit} (evidence only)" if hasattr(said, "value") else ""
+        if pname == "map_crs" and d.manifest.project.crs:
+            hint = f"; the delivery declares project.crs {d.manifest.project.crs} (evidence only)"
         need = "required" if p.required else "optional"
         desc = " ".join((p.description or "").split())
-        desc = re.split(r"(?<=[a-z0-9)])\. (?=[A-Z])", desc)[0].rstrip(".")  # the first sentence only
+        # the first sentence only ("e.g." and "i.e." end none)
+        desc = re.split(r"(?<!\be\.g)(?<!\bi\.e)(?<=[a-z0-9)])\. (?=[A-Z])", desc)[0].rstrip(".")
         if unit in NON_NUMERIC:
             default = f", default {p.default}" if p.default is not None else ""
             body.append(f"  # {pname}: {_q(p.default) if p.default is not None else ''}   # {need}{default}: {desc}{hint}")
@@ -140,6 +146,8 @@ def checker_skeleton(profile: ResolvedProfile, d: Delivery, *, name: str | None 
             lines.append(f"    sha256: {e['sha256']}")
         if "when" in e:
             lines.append(f"    # applies when {e['when']} (the delivery does not say): judge whether it does")
+        if e["check"] in grid_rules and e["scope"] == "image":
+            lines.append(f"    # or mark the image's cells on {INSPECTION_GRID} (it answers this rule) and leave this null")
         lines += ["    verdict: null   # pass | fail", "    date: null   # YYYY-MM-DD", "    note: null"]
     lines += ["waivers: []", ""]
     text = "\n".join(lines)
