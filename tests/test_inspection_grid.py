@@ -87,6 +87,19 @@ def test_inspect_grid_writes_the_cells_over_the_images_deterministically(tmp_pat
     assert set(_cells(tmp_path / "s.gpkg")["image_id"]) == {"F01_0101", "F02_0203"}
 
 
+@pytest.mark.parametrize("cell", ["0.001", "1e-320", "0.0005px"])
+def test_a_cell_far_too_small_is_refused_before_any_cell_is_built(tmp_path: Path, cell: str) -> None:
+    """30 extracts of 32 m: at 1 mm that is about 3e10 cells; refused from the bounds alone, in well under a
+    second (the first version built the polygons of a whole image before counting)."""
+    import time
+
+    t0 = time.perf_counter()
+    res = CliRunner().invoke(cli(), ["inspect", "grid", str(EXAMPLES / "aerial-pass"), "--cell", cell, "--out",
+                                     str(tmp_path / "tiny.gpkg")])
+    assert res.exit_code != 0 and "more than 2,000,000 cells" in str(res.exception or res.output)
+    assert not (tmp_path / "tiny.gpkg").exists() and time.perf_counter() - t0 < 30
+
+
 def test_inspect_grid_never_writes_into_the_delivery(tmp_path: Path) -> None:
     d, _ = _folder(tmp_path)
     res = _grid(d, d / "inspection.gpkg")
@@ -157,6 +170,8 @@ def _rewrite(path: Path, change: Any) -> None:
         _, n, v, _ = layers[layer]
         if layer == "grid" and getattr(change, "delivery", None):
             v = [v[0], np.where(v[0] == "delivery", change.delivery, v[1]).astype(object)]
+        if layer == "grid" and getattr(change, "cell", None):
+            v = [v[0], np.where(v[0] == "cell", change.cell, v[1]).astype(object)]
         raw.write(path, None, v, n, driver="GPKG", layer=layer, append=True, geometry_type=None)
 
 
@@ -196,12 +211,28 @@ def _other_delivery(names: list[str], values: list[np.ndarray], geometry: np.nda
 _other_delivery.delivery = "D-2026-999"  # type: ignore[attr-defined]
 
 
+def _deleted_cell(names: list[str], values: list[np.ndarray], geometry: np.ndarray) -> Any:
+    """A cell the checker did not inspect, deleted (its area would vanish from the inspected share)."""
+    keep = np.ones(len(values[0]), dtype=bool)
+    keep[7] = False
+    return names, [v[keep] for v in values], geometry[keep]
+
+
+def _tiny_cell_size(names: list[str], values: list[np.ndarray], geometry: np.ndarray) -> Any:
+    return names, values, geometry
+
+
+_tiny_cell_size.cell = "0.0001m"  # type: ignore[attr-defined]
+
+
 @pytest.mark.parametrize("edit, words", [
     (_added_cell, ["layer cells: fid", "is not a cell of image", "added or moved"]),
     (_unknown_field, ["unknown field 'scratch'", "defect class of specs/inspection.yaml"]),
     (_bad_mark, ["fid 4: field 'haze'", "2 is not a mark of defect class haze", "unknown defect codes"]),
     (_other_image, ["fid 6: field 'image_id'", "F09_0909", "did not sample"]),
     (_other_delivery, ["written for delivery D-2026-999", "this delivery is D-2026-014"]),
+    (_deleted_cell, ["layer cells: cell", "is missing (1 of its", "cells deleted)"]),
+    (_tiny_cell_size, ["layer grid: cell size 0.0001m over image", "more than 2,000,000", "cell size was edited"]),
 ])
 def test_a_grid_edited_beyond_marks_is_refused_naming_file_cell_and_field(tmp_path: Path, edit: Any,
                                                                          words: list[str]) -> None:

@@ -83,36 +83,58 @@ class GridImage:
     crs_wkt: str | None
 
 
-def image_cells(img: GridImage, size: CellSize) -> list[tuple[int, int, Any]]:
-    """(col, row, polygon) of the cells over ``img``: squares on a grid anchored at the map origin
-    (``m``) or at the image's top-left pixel (``px``), clipped to the footprint; deterministic, so
-    ``check`` can recompute them to tell an edited or added cell."""
-    from shapely.geometry import box
-
+def cell_count(img: GridImage, size: CellSize) -> float:
+    """How many grid steps cover ``img`` (an upper bound of :func:`image_cells`' length, from its bounds
+    alone): checked against :data:`MAX_CELLS` before any cell is built (a hostile ``--cell`` or an
+    edited cell size in a grid file must not build a billion polygons). ``inf`` when it overflows."""
     left, bottom, right, top = img.bounds
     if size.unit == "px":
         sx, sy = size.value * abs(img.pixel[0]), size.value * abs(img.pixel[1])
-        ox, oy = left, top
-        cols = range(0, max(1, math.ceil((right - left) / sx - 1e-9)))
-        rows = range(0, max(1, math.ceil((top - bottom) / sy - 1e-9)))
-        out = []
-        for r in rows:
-            for c in cols:
-                cell = box(max(left, ox + c * sx), max(bottom, oy - (r + 1) * sy), min(right, ox + (c + 1) * sx),
-                           min(top, oy - r * sy))
-                if cell.area > 0:
-                    out.append((c, r, cell))
-        return out
+        with np.errstate(all="ignore"):
+            n = max(1.0, math.ceil((right - left) / sx - 1e-9) if sx > 0 else math.inf) * \
+                max(1.0, math.ceil((top - bottom) / sy - 1e-9) if sy > 0 else math.inf)
+        return float(n)
     s = size.value
-    c0, c1 = math.floor(left / s), math.ceil(right / s)
-    r0, r1 = math.floor(bottom / s), math.ceil(top / s)
-    out = []
-    for r in range(r1 - 1, r0 - 1, -1):  # north first, as the image is read
-        for c in range(c0, c1):
-            cell = box(max(left, c * s), max(bottom, r * s), min(right, (c + 1) * s), min(top, (r + 1) * s))
-            if cell.area > 0:
-                out.append((c, r, cell))
-    return out
+    with np.errstate(all="ignore"):
+        spans = [np.float64(v) / s for v in (left, right, bottom, top)]
+    if not all(np.isfinite(spans)):
+        return math.inf
+    return float((math.ceil(spans[1]) - math.floor(spans[0])) * (math.ceil(spans[3]) - math.floor(spans[2])))
+
+
+def image_cells(img: GridImage, size: CellSize, *, limit: float = MAX_CELLS) -> list[tuple[int, int, Any]]:
+    """(col, row, polygon) of the cells over ``img``: squares on a grid anchored at the map origin
+    (``m``) or at the image's top-left pixel (``px``), clipped to the footprint; deterministic, so
+    ``check`` can recompute them to tell an edited or added cell.
+
+    Raises
+    ------
+    OrthospecError
+        more than ``limit`` cells (:func:`cell_count`)."""
+    import shapely
+
+    n = cell_count(img, size)
+    if not n <= limit:
+        raise OrthospecError(f"cell size {size} over image {img.image_id} gives {n:,.0f} cells, more than "
+                             f"{limit:,.0f}: choose a larger cell")
+    left, bottom, right, top = img.bounds
+    if size.unit == "px":
+        sx, sy = size.value * abs(img.pixel[0]), size.value * abs(img.pixel[1])
+        ncol = max(1, math.ceil((right - left) / sx - 1e-9))
+        nrow = max(1, math.ceil((top - bottom) / sy - 1e-9))
+        rr, cc = np.meshgrid(np.arange(nrow), np.arange(ncol), indexing="ij")  # rows outer, columns inner
+        x0, x1 = np.maximum(left, left + cc * sx), np.minimum(right, left + (cc + 1) * sx)
+        y0, y1 = np.maximum(bottom, top - (rr + 1) * sy), np.minimum(top, top - rr * sy)
+    else:
+        s = size.value
+        c0, c1 = math.floor(left / s), math.ceil(right / s)
+        r0, r1 = math.floor(bottom / s), math.ceil(top / s)
+        rr, cc = np.meshgrid(np.arange(r1 - 1, r0 - 1, -1), np.arange(c0, c1), indexing="ij")  # north first
+        x0, x1 = np.maximum(left, cc * s), np.minimum(right, (cc + 1) * s)
+        y0, y1 = np.maximum(bottom, rr * s), np.minimum(top, (rr + 1) * s)
+    keep = ((x1 - x0) * (y1 - y0) > 0).ravel()
+    geoms = shapely.box(x0.ravel()[keep], y0.ravel()[keep], x1.ravel()[keep], y1.ravel()[keep])
+    return list(zip(cc.ravel()[keep].tolist(), rr.ravel()[keep].tolist(), geoms.tolist(), strict=True))
 
 
 def cell_id(image_id: str, col: int, row: int) -> str:
@@ -139,12 +161,15 @@ def write_grid(path: str | Path, images: Iterable[GridImage], size: CellSize, *,
     cols: dict[str, list[Any]] = {f: [] for f in fields()}
     geoms = []
     per_image = {}
+    budget = float(MAX_CELLS)
     for img in imgs:
-        cells = image_cells(img, size)
-        per_image[img.image_id] = len(cells)
-        if sum(per_image.values()) > MAX_CELLS:
+        try:
+            cells = image_cells(img, size, limit=budget)
+        except OrthospecError:
             raise OrthospecError(f"--cell {size}: more than {MAX_CELLS:,} cells over the sample; choose a larger "
-                                 "cell")
+                                 "cell") from None
+        per_image[img.image_id] = len(cells)
+        budget -= len(cells)
         for c, r, poly in cells:
             geoms.append(poly)
             for k, v in (("cell_id", cell_id(img.image_id, c, r)), ("image_id", img.image_id),
@@ -430,8 +455,11 @@ def _check_cells(df: pd.DataFrame, geoms: np.ndarray, images: dict[str, tuple[st
                  states: dict[str, ImageState], size: CellSize, now: Mapping[str, GridImage | str],
                  display: str) -> None:
     """Every cell is one the tool wrote: its image gridded, its index and outline those of the image's
-    grid (for an image still delivered as gridded), its id and hash unedited, no cell twice."""
+    grid (for an image still delivered as gridded), its id and hash unedited, no cell twice, and none
+    of an image's cells deleted (a deleted cell would leave its area out of the inspected share)."""
     expected: dict[str, dict[tuple[int, int], Any]] = {}
+    present: dict[str, set[tuple[int, int]]] = {}
+    budget = float(MAX_CELLS)
     seen: set[str] = set()
     for i, r in enumerate(df.itertuples(index=False)):
         fid = int(r.fid)
@@ -450,12 +478,23 @@ def _check_cells(df: pd.DataFrame, geoms: np.ndarray, images: dict[str, tuple[st
         img = now[r.image_id]
         assert isinstance(img, GridImage)
         if r.image_id not in expected:
-            expected[r.image_id] = {(c, w): poly for c, w, poly in image_cells(img, size)}
+            try:
+                expected[r.image_id] = {(c, w): poly for c, w, poly in image_cells(img, size, limit=budget)}
+            except OrthospecError as exc:
+                raise OrthospecError(f"{display}: layer {META}: {exc} (the grid's cell size was edited?)") from None
+            budget -= len(expected[r.image_id])
+        present.setdefault(r.image_id, set()).add((int(r.col), int(r.row)))
         want = expected[r.image_id].get((int(r.col), int(r.row)))
         g = geoms[i]
         if want is None or g is None or not _same(g, want):
             raise _bad(display, fid, None, f"cell {r.cell_id!r} is not a cell of image {r.image_id}'s grid (added "
                        "or moved): a cell outside the sample is not inspection evidence")
+    for image_id, cells in sorted(expected.items()):
+        gone = sorted(set(cells) - present[image_id], key=lambda k: (-k[1], k[0]))
+        if gone:
+            raise OrthospecError(f"{display}: layer {CELLS}: cell {cell_id(image_id, *gone[0])} of image {image_id} "
+                                 f"is missing ({len(gone)} of its {len(cells)} cells deleted): the cells are written "
+                                 "by the tool; leave a cell you did not inspect unmarked instead")
 
 
 def _bad(display: str, fid: int, name: str | None, message: str) -> OrthospecError:
