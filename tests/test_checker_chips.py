@@ -102,3 +102,19 @@ def test_a_flagged_point_gets_its_chips_and_the_grid_marks_show_on_the_block_map
     assert "2 cell(s) of the block marked with a defect" in html and "seam" in html
     other_map = next(s for alt, s in svgs.items() if alt.startswith("Block B02: check points"))
     assert 'id="inspection-defects"' not in other_map
+
+
+def test_a_reference_file_named_outside_the_checker_folder_is_not_read(tmp_path: Path) -> None:
+    """A provenance cell is data: it cannot make the check read a file outside the checker's folder."""
+    from tests.checking import check_with
+
+    d, c, _ = _setup(tmp_path)
+    shutil.copyfile(c / "chips" / "B01-C05.tif", tmp_path / "outside.tif")
+    table = c / "tables" / "checkpoints.csv"
+    for ref in ("../outside.tif", str(tmp_path / "outside.tif")):
+        text = table.read_text(encoding="utf-8")
+        table.write_text(re.sub(r"chips/B01-C05\.tif|\.\./outside\.tif", ref, text), encoding="utf-8")
+        doc = check_with(d, "jrc-v3", checker=c, date="2026-11-21").document
+        entry = next(p for p in doc["details"]["checker_chips"]["B01"]["points"] if p["point_id"] == "B01-C05")
+        assert "reference" not in entry and entry["reference_note"] == f"reference file {ref} is not in the checker folder"
+        assert "delivered" in entry

@@ -151,7 +151,9 @@ def _chips(ctx: ProviderContext, t: Any) -> dict[str, Any]:
                     got if isinstance(got, str) else got.to_dict())
             ref = None if pd.isna(r.get("reference_file")) else str(r.get("reference_file"))
             rp = chk.folder / ref if ref and chk is not None and chk.folder is not None else None
-            if rp is None or not rp.is_file() or rp.resolve().is_relative_to(d.root.resolve()):
+            # only a file of the checker folder (never one named outside it, never the delivery's)
+            if (rp is None or not rp.is_file() or not rp.resolve().is_relative_to(chk.folder.resolve())
+                    or rp.resolve().is_relative_to(d.root.resolve())):
                 entry["reference_note"] = (f"reference file {ref} is not in the checker folder" if ref
                                            else "the measurement names no reference file")
             else:
