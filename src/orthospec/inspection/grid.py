@@ -20,6 +20,7 @@ SHA-256) gives that image no verdict, with the reason (issue 29 item 4).
 
 from __future__ import annotations
 
+import itertools
 import math
 import os
 import re
@@ -256,6 +257,20 @@ class Grid:
     images: dict[str, ImageState]
     meta: dict[str, str]
     codes: tuple[str, ...] = field(default_factory=tuple)
+    #: image id -> row positions of its cells (built once: a rule asks per image, many rules per run)
+    _rows: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
+    _marks: np.ndarray = field(default_factory=lambda: np.zeros((0, 0), dtype=bool), repr=False)
+    _seen: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool), repr=False)
+
+    def __post_init__(self) -> None:
+        ids = self.cells["image_id"].to_numpy(dtype=object)
+        order = np.argsort(ids, kind="stable")
+        sorted_ids = ids[order]
+        starts = np.flatnonzero(np.r_[True, sorted_ids[1:] != sorted_ids[:-1]]) if len(ids) else np.zeros(0, int)
+        bounds = np.r_[starts, len(ids)]
+        self._rows = {str(sorted_ids[a]): np.sort(order[a:b]) for a, b in itertools.pairwise(bounds)}
+        self._marks = self.cells[list(self.codes)].to_numpy(dtype=bool) if self.codes else np.zeros((len(ids), 0), bool)
+        self._seen = self.cells["inspected"].to_numpy(dtype=bool) | self._marks.any(axis=1)
 
     def answers(self, rule: str) -> set[str]:
         """The images the grid gives ``rule`` a verdict on (none when the rule reads no defect class)."""
@@ -272,17 +287,19 @@ class Grid:
             return None
         if not state.bound and not gone:
             return GridVerdict("missing", f"inspection grid {self.path.name}: {state.reason}: its marks are not used")
-        mine = self.cells[self.cells["image_id"] == image_id]
-        marked = mine[mine[list(codes)].any(axis=1)]
-        if len(marked):
+        rows = self._rows.get(image_id, np.zeros(0, dtype=int))
+        cols = [self.codes.index(c) for c in codes]
+        hit = rows[self._marks[np.ix_(rows, cols)].any(axis=1)] if len(rows) and cols else rows[:0]
+        if len(hit):
+            marked = self.cells.iloc[hit]
             shown = [_cell_text(r, codes) for r in marked.itertuples(index=False)]
-            return GridVerdict("fail", f"inspection grid {self.path.name}: {len(marked)} of {len(mine)} cells of "
+            return GridVerdict("fail", f"inspection grid {self.path.name}: {len(marked)} of {len(rows)} cells of "
                                f"{image_id} marked: " + "; ".join(shown[:8])
                                + (f"; and {len(shown) - 8} more" if len(shown) > 8 else ""),
                                tuple(_cell_record(r, codes) for r in marked.itertuples(index=False)))
-        seen = mine["inspected"] | mine[list(self.codes)].any(axis=1)
-        if not seen.all():
-            return GridVerdict("missing", f"inspection grid {self.path.name}: {int((~seen).sum())} of {len(mine)} "
+        unseen = int((~self._seen[rows]).sum())
+        if unseen:
+            return GridVerdict("missing", f"inspection grid {self.path.name}: {unseen} of {len(rows)} "
                                f"cells of {image_id} not inspected yet")
         # one wording for every image: a report groups the passing images of a rule into one line
         return GridVerdict("pass", "inspection grid: every cell inspected, no defect of this rule marked")
