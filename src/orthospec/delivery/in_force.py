@@ -118,17 +118,14 @@ class DeliveryInForce(Delivery):
         """Why the check points in force are the contractor's (for JRC-12.4-EXTERNAL-CHECKPOINTS), '' if not."""
         if self.external:
             return ""
+        need = (f"the checker measured no check points of its own (CHECKER_DIR/{CHECKPOINTS_TABLE}: orthospec "
+                "measure checkpoints; JRC §12.4-§12.6)")
+        then = "so the statistics are the contractor's own points (internal QC, JRC §12.5)"
         if self.checker is None:
-            return (f"measure independent check points into CHECKER_DIR/{CHECKPOINTS_TABLE} and give --checker "
-                    "CHECKER_DIR (orthospec measure checkpoints, JRC §12.4-§12.6): without a checker the statistics "
-                    "are the contractor's own points (internal QC, JRC §12.5)")
+            return f"{need}: no checker folder was given (--checker), {then}"
         if self.checker.folder is None:
-            return (f"measure independent check points into a checker folder's {CHECKPOINTS_TABLE} (orthospec "
-                    f"measure checkpoints, JRC §12.4-§12.6): the single checker file {self.checker.display} holds no "
-                    "tables, so the statistics are the contractor's own points (internal QC, JRC §12.5)")
-        return (f"measure independent check points into {self.checker.folder}/{CHECKPOINTS_TABLE} (orthospec measure "
-                "checkpoints, JRC §12.4-§12.6): the checker folder holds none, so the statistics are the "
-                "contractor's own points (internal QC, JRC §12.5)")
+            return f"{need}: the single checker file {self.checker.display} holds no tables, {then}"
+        return f"{need}: the checker folder {self.checker.folder} holds no {CHECKPOINTS_TABLE}, {then}"
 
     def sha256(self, rel: str) -> str:
         if rel.startswith(EVIDENCE_PREFIX):
