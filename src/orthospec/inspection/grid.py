@@ -142,6 +142,35 @@ def cell_id(image_id: str, col: int, row: int) -> str:
     return f"{image_id}/{col}/{row}"
 
 
+def _write_gpkg(out: Path, layers: list[tuple[str, Any, list[Any], list[str], Any]], *, verb: str = "write") -> None:
+    """Write ``layers`` (name, WKB geometries or None, field values, field names, CRS) into the GeoPackage
+    ``out`` atomically: a temporary file beside it, renamed when whole (nothing half-written is left).
+    GeoPackage timestamps are pinned (``OGR_CURRENT_DATE``): same inputs, same bytes."""
+    from pyogrio import raw
+
+    fd, tmp = tempfile.mkstemp(prefix=".inspection-", suffix=".gpkg", dir=out.parent)
+    os.close(fd)
+    os.unlink(tmp)  # pyogrio creates the file; the name is ours
+    old = os.environ.get("OGR_CURRENT_DATE")
+    os.environ["OGR_CURRENT_DATE"] = "2000-01-01T00:00:00Z"
+    try:
+        for i, (layer, geometry, values, names, crs) in enumerate(layers):
+            raw.write(tmp, geometry, values, names, crs=crs, driver="GPKG", layer=layer, append=i > 0,
+                      geometry_type="Polygon" if geometry is not None else None)
+        os.replace(tmp, out)
+    except OSError as exc:
+        raise OrthospecError(f"cannot {verb} {out}: {exc.strerror or exc}") from None
+    except Exception as exc:  # pyogrio/GDAL errors: name the file, leave nothing behind
+        raise OrthospecError(f"cannot {verb} {out}: {exc}") from None
+    finally:
+        if old is None:
+            os.environ.pop("OGR_CURRENT_DATE", None)
+        else:
+            os.environ["OGR_CURRENT_DATE"] = old
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
 def write_grid(path: str | Path, images: Iterable[GridImage], size: CellSize, *,
                meta: Mapping[str, str]) -> dict[str, int]:
     """Write the grid atomically (a temporary file beside ``path``, then renamed); returns counts.
@@ -152,7 +181,6 @@ def write_grid(path: str | Path, images: Iterable[GridImage], size: CellSize, *,
         images in different CRS, more than :data:`MAX_CELLS` cells, or the file cannot be written.
     """
     import shapely
-    from pyogrio import raw
 
     imgs = list(images)
     crs = {i.crs_wkt for i in imgs}
@@ -189,36 +217,17 @@ def write_grid(path: str | Path, images: Iterable[GridImage], size: CellSize, *,
             data.append(np.asarray(cols[f], dtype=object))
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=".inspection-", suffix=".gpkg", dir=out.parent)
-    os.close(fd)
-    os.unlink(tmp)  # pyogrio creates the file; the name is ours
-    old = os.environ.get("OGR_CURRENT_DATE")
-    os.environ["OGR_CURRENT_DATE"] = "2000-01-01T00:00:00Z"  # same inputs, same bytes (GPKG timestamps)
-    try:
-        wkb = shapely.to_wkb(np.asarray(geoms, dtype=object)) if n else np.asarray([], dtype=object)
-        raw.write(tmp, wkb, data, list(fields()), crs=next(iter(crs)) if crs else None, geometry_type="Polygon",
-                  driver="GPKG", layer=CELLS)
-        raw.write(tmp, None, [np.asarray([i.image_id for i in imgs], dtype=object),
-                              np.asarray([i.file for i in imgs], dtype=object),
-                              np.asarray([i.sha256 for i in imgs], dtype=object),
-                              np.asarray([per_image[i.image_id] for i in imgs], dtype=np.int32)],
-                  ["image_id", "file", "sha256", "cells"], driver="GPKG", layer=IMAGES, append=True,
-                  geometry_type=None)
-        keys = {"format": FORMAT, "cell": str(size), **meta}
-        raw.write(tmp, None, [np.asarray(list(keys), dtype=object), np.asarray(list(keys.values()), dtype=object)],
-                  ["key", "value"], driver="GPKG", layer=META, append=True, geometry_type=None)
-        os.replace(tmp, out)
-    except OSError as exc:
-        raise OrthospecError(f"cannot write {out}: {exc.strerror or exc}") from None
-    except Exception as exc:  # pyogrio/GDAL errors: name the file, leave nothing behind
-        raise OrthospecError(f"cannot write {out}: {exc}") from None
-    finally:
-        if old is None:
-            os.environ.pop("OGR_CURRENT_DATE", None)
-        else:
-            os.environ["OGR_CURRENT_DATE"] = old
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+    wkb = shapely.to_wkb(np.asarray(geoms, dtype=object)) if n else np.asarray([], dtype=object)
+    keys = {"format": FORMAT, "cell": str(size), **meta}
+    _write_gpkg(out, [
+        (CELLS, wkb, data, list(fields()), next(iter(crs)) if crs else None),
+        (IMAGES, None, [np.asarray([i.image_id for i in imgs], dtype=object),
+                        np.asarray([i.file for i in imgs], dtype=object),
+                        np.asarray([i.sha256 for i in imgs], dtype=object),
+                        np.asarray([per_image[i.image_id] for i in imgs], dtype=np.int32)],
+         ["image_id", "file", "sha256", "cells"], None),
+        (META, None, [np.asarray(list(keys), dtype=object), np.asarray(list(keys.values()), dtype=object)],
+         ["key", "value"], None)])
     return {"images": len(imgs), "cells": n}
 
 
@@ -631,28 +640,9 @@ def mark_cells(path: str | Path, marks: Mapping[str, Mapping[str, Any]]) -> int:
             else:
                 col[f] = col[f].astype(object)
                 col[f][index[cid]] = v
-    fd, tmp = tempfile.mkstemp(prefix=".inspection-", suffix=".gpkg", dir=p.parent)
-    os.close(fd)
-    os.unlink(tmp)
-    old = os.environ.get("OGR_CURRENT_DATE")
-    os.environ["OGR_CURRENT_DATE"] = "2000-01-01T00:00:00Z"
-    try:
-        raw.write(tmp, geometry, [col[f] for f in names], names, crs=metas[CELLS].get("crs"),
-                  geometry_type="Polygon", driver="GPKG", layer=CELLS)
-        for layer in (IMAGES, META):
-            lmeta, (_, lvalues) = metas[layer], tables[layer]
-            raw.write(tmp, None, lvalues, [str(f) for f in lmeta["fields"]], driver="GPKG", layer=layer,
-                      append=True, geometry_type=None)
-        os.replace(tmp, p)
-    except Exception as exc:
-        raise OrthospecError(f"cannot rewrite {p}: {exc}") from None
-    finally:
-        if old is None:
-            os.environ.pop("OGR_CURRENT_DATE", None)
-        else:
-            os.environ["OGR_CURRENT_DATE"] = old
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+    _write_gpkg(p, [(CELLS, geometry, [col[f] for f in names], names, metas[CELLS].get("crs")),
+                    *((layer, None, tables[layer][1], [str(f) for f in metas[layer]["fields"]], None)
+                      for layer in (IMAGES, META))], verb="rewrite")
     return len(marks)
 
 
