@@ -42,10 +42,11 @@ def render_documents(doc: dict, fmts: list[str], *, shown: dict | None = None) -
               help="Comma-separated: " + ", ".join(FORMATS) + ", or a format a plugin adds "
                    "(orthospec.formats entry point). parquet needs orthospec[parquet].")
 @date_option
-@click.option("--checker", "checker_file", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="The checker's file (YAML, outside the delivery): manual-check verdicts and waivers in "
-                   "force (JRC §2 external QC). Without it manual rules are missing and the delivery's own "
-                   "waivers are only requests.")
+@click.option("--checker", "checker_file", type=click.Path(path_type=Path), default=None,
+              help="The checker's folder (or its checker.yaml alone), outside the delivery: manual-check "
+                   "verdicts, waivers in force, the checker's check point measurements and inspection grid "
+                   "(JRC §2 external QC; docs/CHECKER.md). Without it manual rules are missing, the delivery's "
+                   "own waivers are only requests and its check points are the contractor's internal QC.")
 @click.option("--fail-on", type=click.Choice([V.FAIL, V.WARN]), default="fail", show_default=True,
               help="'warn' makes recommended-level rules blocking.")
 @click.option("--operator", default=None, help="Name of the person running the check (recorded in QCRs).")

@@ -58,6 +58,14 @@ COMMANDS: dict[str, dict[str, tuple[str, str]]] = {
         "radiometry": ("cmd_measure_radiometry", "Exact per-band statistics, histograms and JRC "
                                                  "§6.3 measures plus file checks of IMAGE."),
     },
+    "checker": {
+        "init": ("cmd_checker", "Write the checker folder's skeleton for DELIVERY: ITT values to state and "
+                                "every manual check item to judge."),
+    },
+    "inspect": {
+        "grid": ("cmd_inspect", "Write the inspection grid (GeoPackage) over the sampled images of "
+                                "DELIVERY into the checker's folder."),
+    },
     "ledger": {
         "runs": ("cmd_ledger", "List recorded runs (oldest first)."),
         "state": ("cmd_ledger", "Normal/Tightened audit state per QCR family of PROJECT (JRC §2.3) "
@@ -122,6 +130,16 @@ def spec() -> None:
 @main.group(cls=LazyGroup, table="measure")
 def measure() -> None:
     """Standalone measures on one file (accuracy, radiometry, edge)."""
+
+
+@main.group(cls=LazyGroup, table="checker")
+def checker() -> None:
+    """The external QC's own folder (checker.yaml, its measurements, its inspection grid)."""
+
+
+@main.group(cls=LazyGroup, table="inspect")
+def inspect() -> None:
+    """The checker's visual inspection of the delivered images (JRC Table 6, §6.3)."""
 
 
 @main.group(cls=LazyGroup, table="ledger")

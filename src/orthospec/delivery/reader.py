@@ -244,8 +244,6 @@ class Delivery:
     limits: Limits = field(default_factory=Limits, repr=False)
     _tables: dict[str, Table] = field(default_factory=dict, repr=False)
     _sha: dict[str, str] = field(default_factory=dict, repr=False)
-    #: outlines the checker's file states (delivery/checker.py ``bind``); None: the manifest's are in force
-    stated_outlines: StatedOutlines | None = field(default=None, repr=False)
 
     # --- paths and checksums -----------------------------------------------------------
     def path(self, rel: str, *, what: str = "file", file: str | None = MANIFEST,
@@ -268,20 +266,16 @@ class Delivery:
     def manifest_evidence(self, path: str) -> Evidence:
         return Evidence(MANIFEST, self.manifest_sha256, (), path)
 
-    def block_outlines(self) -> dict[str, tuple[Any, Evidence]]:
-        """Block id -> (ring of [x, y], evidence) of the outlines in force: the checker's file's when it
-        states blocks (the manifest's are then declarations, red team R13/R17), else the manifest's
-        (blocks without a polygon are left out; a non-finite vertex is the caller's to report)."""
-        if self.stated_outlines is not None and self.stated_outlines.blocks:
-            return dict(self.stated_outlines.blocks)
+    def block_outlines(self, stated: StatedOutlines | None = None) -> dict[str, tuple[Any, Evidence]]:
+        """Block id -> (ring of [x, y], evidence) of the outlines in force: ``stated`` (the checker's,
+        delivery/checker.py ``stated_outlines``) when it states blocks (the manifest's are then
+        declarations, red team R13/R17), else the manifest's (blocks without a polygon are left out; a
+        non-finite vertex is the caller's to report). The checker's outlines are an argument, never
+        state of the delivery: an evaluation passes its own (``ProviderContext.block_outlines``)."""
+        if stated is not None and stated.blocks:
+            return dict(stated.blocks)
         return {b.id: (b.polygon, self.manifest_evidence(f"blocks[{i}].polygon"))
                 for i, b in enumerate(self.manifest.blocks) if b.polygon}
-
-    def area_of_interest_in_force(self) -> tuple[Any, Evidence] | None:
-        """(ring of [x, y], evidence) of the area of interest the checker's file states, or None: then
-        the manifest's is in force (project.area_of_interest, a vector file the engine reads, else
-        the union of the block outlines in force)."""
-        return self.stated_outlines.area_of_interest if self.stated_outlines is not None else None
 
     def where(self, path: tuple[Any, ...]) -> int | None:
         p = tuple(path)
@@ -355,6 +349,11 @@ class Delivery:
     # --- tables -----------------------------------------------------------------------
     def has_table(self, name: str) -> bool:
         return name in self.manifest.tables
+
+    def table_absent_reason(self, name: str) -> str:
+        """Why :meth:`table` gives None for ``name`` (an evaluation's view words its own tables,
+        delivery/in_force.py)."""
+        return f"the manifest declares no '{name}' table"
 
     def table(self, name: str) -> Table | None:
         """The validated table, or None when the manifest does not declare it."""

@@ -101,6 +101,22 @@ class ProviderContext:
     memo: dict[str, Any] = field(default_factory=dict)
     #: the profile's named classes (e.g. ``resolution`` of JRC §9.1), for computed class measures
     classes: Mapping[str, Any] = field(default_factory=dict)
+    #: the checker's evidence for this run (delivery/checker.py ``Checker``: its file, folder, tables), None
+    #: without one. It lives here, never on the ``Delivery`` (issue 26: no state carried to the next check)
+    checker: Any = None
+    #: the outlines the checker states (delivery/outlines.py ``StatedOutlines``), None: the manifest's are in force
+    outlines: Any = None
+    #: the checker's marked inspection grid (inspection/grid.py ``Grid``), None without one
+    inspection: Any = None
+
+    def block_outlines(self) -> dict[str, tuple[Any, Evidence]]:
+        """Block id -> (ring, evidence) of the outlines in force for this run: the checker's when it states
+        blocks, else the manifest's (``Delivery.block_outlines``; red team R13/R17)."""
+        return self.delivery.block_outlines(self.outlines)
+
+    def area_of_interest_in_force(self) -> tuple[Any, Evidence] | None:
+        """(ring, evidence) of the area of interest the checker states, or None: the manifest's is in force."""
+        return None if self.outlines is None else self.outlines.area_of_interest
 
 
 ProviderFn = Callable[[ProviderContext], Iterable[Measured]]
@@ -241,6 +257,18 @@ MEASURE_DESCRIPTIONS: dict[str, str] = {
     "checkpoints.std_x": "standard deviation of the x discrepancies of the kept points",
     "checkpoints.std_y": "standard deviation of the y discrepancies of the kept points",
     "checkpoints.std_z": "standard deviation of the z discrepancies of the kept points",
+    # the checker's evidence (engine/providers/checker_evidence.py) and the contractor's internal QC
+    "checker.external_checkpoints": "the check point statistics are the checker's measurements (its tables/checkpoints.csv), not the contractor's",
+    "checker.points_unbound": "the checker's check points left out: their image_sha256 is not that of the image delivered now",
+    "checker.points_unhashed": "the checker's check points that record no image_sha256 (not bound to the pixels measured)",
+    "inspection.inspected_share": "share of the inspection grid's area (the sampled images) whose cells the checker inspected, %",
+    "inspection.present": "the checker folder holds a marked inspection grid (inspection.gpkg)",
+    "internal_qc.agrees": "the contractor's internal-QC points and the checker's give the block the same RMSEx/RMSEy pass or fail",
+    "internal_qc.imprecise": "the contractor's internal-QC check points whose reference accuracy is blank or worse than tolerance_xy / 3",
+    "internal_qc.n": "the contractor's internal-QC check points used in its statistics (after exclusions)",
+    "internal_qc.rmse_x": "RMSE of the x discrepancies of the contractor's internal-QC check points (JRC §12.5)",
+    "internal_qc.rmse_y": "RMSE of the y discrepancies of the contractor's internal-QC check points (JRC §12.5)",
+    "internal_qc.rmse_z": "RMSE of the z discrepancies of the contractor's internal-QC check points",
     # derived
     "derived.dem_blocks": "blocks each DEM serves: its block value, else its footprint over the block polygons",
     "derived.block_outlines_agree": "delivery.yaml's block outlines agree with those of the checker's file (within 1 %, same blocks; JRC §12.4)",
