@@ -36,7 +36,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("orthospec.raster",),     # reading rasters (uses measures' pure statistics)
     ("orthospec.engine",),     # providers, evaluator
     ("orthospec.qcr",),        # the QCR document
-    ("orthospec.figures", "orthospec.reports", "orthospec.ledger"),
+    ("orthospec.figures", "orthospec.reports", "orthospec.ledger", "orthospec.ingest"),
     ("orthospec.api", "orthospec.verify", "orthospec.schemas"),
     ("orthospec.cli",),
 )

@@ -1,0 +1,237 @@
+"""TODO.md of a draft: what the files could not tell, each with the rules that stay ``missing``.
+
+Read from the profile alone (as ``orthospec init`` reads it for its template, spec/template.py):
+for every rule that can apply to the draft's sensor, the delivery facts it reads (its measure,
+its ``when``, the names in its threshold) and, for measures computed from tables, the tables
+behind them (:data:`NEEDS`). A rule reading a fact the draft leaves empty is listed under that
+fact's entry; the map rule -> line is written beside TODO.md (``draft.todo_rules``) and the
+evaluator appends "see TODO.md line N" to every ``missing`` record (engine/evaluator.py). A rule
+the map does not name cites the last entry, which says to read the record's own message.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from typing import Any
+
+from ..delivery.convention import table_specs
+from ..spec.applicability import cannot_apply
+
+#: measures computed from tables (not ``<table>.<column>``): what each reads. Prefix match, longest
+#: first. ("table", T), ("column", T, C), ("manifest", path), ("param", name), ("blocks",), ("checker", what)
+NEEDS: dict[str, tuple[tuple[str, ...], ...]] = {
+    "raster.reported_mean_diff": (("column", "images", "mean_dn"),),
+    "raster.stats_mean_diff": (("column", "images", "mean_dn"),),
+    "raster.crs_ok": (("param", "map_crs"),),
+    "raster.": (("table", "images"),),
+    "checkpoints.reported_diff": (("manifest", "blocks.reported"),),
+    "checkpoints.": (("table", "checkpoints"), ("blocks",)),
+    "gcps.": (("table", "gcps"), ("blocks",)),
+    "camera.": (("table", "cameras"),),
+    "flight.": (("table", "flights"), ("column", "images", "roll")),
+    "geometry.gsd_from_flying_height": (("column", "images", "flying_height"), ("table", "cameras"),
+                                        ("column", "images", "flight_id")),
+    "derived.photo_coverage": (("table", "flights"), ("table", "cameras"), ("column", "images", "exposure_x"),
+                               ("column", "images", "flying_height")),
+    "derived.area_of_interest_agrees": (("manifest", "project.area_of_interest"),
+                                        ("checker", "area_of_interest")),
+    "derived.block_outlines_agree": (("blocks",), ("checker", "blocks")),
+    "derived.project_crs_agrees": (("manifest", "project.crs"), ("param", "map_crs")),
+    "derived.resolution_class_agrees": (("table", "scenes"),),
+    "derived.master_images": (("table", "scenes"),),
+    "derived.orthorectification": (("blocks",), ("manifest", "blocks.method"),
+                                   ("manifest", "product.orthorectification")),
+    "derived.dem_blocks": (("table", "dem"),),
+    "derived.": (),
+    "mosaic.": (("manifest", "vectors.seamlines"), ("blocks",), ("manifest", "project.area_of_interest")),
+    "edge.": (("manifest", "edge_targets"),),
+    "rollup.block": (("blocks",),),
+    "rollup.": (),
+}
+_NAME = re.compile(r"\b([a-z_][a-z_0-9]*(?:\.[a-z_][a-z_0-9]*)+)\b")
+_WORD = re.compile(r"\b([a-z_][a-z_0-9]*)\b")
+
+#: what a TODO entry says about a manifest field (why the files cannot tell)
+MANIFEST_HELP = {
+    "id": "the delivery's identifier (the metadata states none)",
+    "project.id": "the project id, the same across redeliveries",
+    "dates.delivered": "the date the delivery was handed over",
+    "operator.name": "who produced the delivery's QC record (JRC §2.4)",
+    "contractor.name": "the contractor (the metadata names no originator)",
+    "product.gsd": "the delivered pixel size the contract fixes (the metadata states none; the images' "
+                   "own pixel size is measured by the check, never copied here)",
+    "product.mosaic": "whether the product is a mosaic (no seamlines delivered)",
+    "product.dem_delivered": "whether a DEM is delivered",
+    "product.accuracy_statement": "the producer's statement of positional accuracy",
+    "sensor.digital": "digital or film sensor (the metadata names no camera the draft knows)",
+    "project.crs": "the CRS the delivery's coordinates are written in (the metadata states none)",
+    "project.area_of_interest": "the area the images must cover",
+    "vectors.seamlines": "the mosaic's seamline polygons (not in the files)",
+    "edge_targets": "edge targets for the sharpness measurement (JRC §6.3; CEOS)",
+    "blocks.reported": "the RMSE per block the contractor's QC report states (blocks[].reported)",
+    "blocks.method": "how each block was oriented: aerotriangulation, space_resection, rpc... (blocks[].method)",
+    "product.orthorectification": "how the orthoimages were produced (the files do not say)",
+}
+
+
+@dataclass
+class Entry:
+    key: tuple[str, ...]
+    title: str
+    why: str
+    rules: list[str] = field(default_factory=list)
+    #: rules the draft's sensor excludes (not listed; mapped, in case the engine still reports them)
+    hidden: list[str] = field(default_factory=list)
+    line: int = 0
+
+
+@dataclass
+class DraftState:
+    """What the draft fills: manifest paths with a value, tables declared with their filled columns."""
+
+    filled: set[str]
+    tables: dict[str, set[str]]
+    blocks: bool
+    sensor: str
+    digital: bool | None
+    #: table -> why the files gave it but the draft could not declare it (e.g. points without blocks)
+    withheld: dict[str, str] = field(default_factory=dict)
+    #: parameters the draft's profile leaves to the ITT (the checker's to state)
+    itt_params: set[str] = field(default_factory=set)
+
+
+def rule_inputs(rule: Any, params: Iterable[str]) -> list[tuple[str, ...]]:
+    """The delivery facts a rule reads (see :data:`NEEDS`), in the order it reads them."""
+    specs = table_specs()
+    texts = [rule.when or "", rule.measure]
+    req = rule.requirement
+    texts += [str(v) for v in (req.value, req.min, req.max) if isinstance(v, str)]
+    out: list[tuple[str, ...]] = []
+    if rule.manual or rule.measure.startswith("manual."):
+        return [("checker", "manual_checks")]
+    for text in texts:
+        for name in _NAME.findall(text):
+            head, rest = name.split(".", 1)
+            if head == "manifest" and rest.startswith("tables."):
+                out.append(("table", rest.split(".", 1)[1]))
+            elif head == "manifest":
+                out.append(("manifest", rest))
+            elif head in specs and rest in specs[head].columns:
+                out.append(("column", head, rest))
+            else:
+                for prefix in sorted(NEEDS, key=len, reverse=True):
+                    if name.startswith(prefix):
+                        out.extend(NEEDS[prefix])
+                        break
+                else:
+                    if head in specs:
+                        out.append(("table", head))
+        for word in _WORD.findall(text):
+            if word in params:
+                out.append(("param", word))
+    if rule.scope == "block":
+        out.insert(0, ("blocks",))  # without blocks a block rule has no item at all
+    seen: list[tuple[str, ...]] = []
+    for x in out:
+        if x not in seen:
+            seen.append(x)
+    return seen
+
+
+def _empty(inp: tuple[str, ...], st: DraftState) -> bool:
+    kind = inp[0]
+    if kind == "manifest":
+        path = inp[1]
+        if path.startswith("tables."):
+            return path.split(".", 1)[1] not in st.tables
+        if path in ("sensor.type",):
+            return False
+        return not any(f == path or f.startswith(path + ".") for f in st.filled)
+    if kind == "table":
+        return inp[1] not in st.tables
+    if kind == "column":
+        return inp[1] not in st.tables or inp[2] not in st.tables[inp[1]]
+    if kind == "blocks":
+        return not st.blocks
+    if kind == "param":
+        return inp[1] in st.itt_params
+    return kind == "checker"
+
+
+def entries(profile: Any, st: DraftState) -> list[Entry]:
+    """TODO entries in a stable order (manifest fields, blocks, tables, columns, the checker's)."""
+    params = set(profile.parameters)
+    found: dict[tuple[str, ...], Entry] = {}
+    specs = table_specs()
+    for rule in profile.rules:
+        hidden = cannot_apply(rule, {st.sensor}, st.digital) is not None
+        for inp in rule_inputs(rule, params):
+            if not _empty(inp, st):
+                continue
+            if inp[0] == "column" and inp[1] not in st.tables:
+                inp = ("table", inp[1])
+            e = found.get(inp)
+            if e is None:
+                e = found[inp] = _entry(inp, st, specs, profile)
+            (e.hidden if hidden else e.rules).append(rule.id)
+            break  # one entry per rule: the first empty fact it reads
+    order = {"manifest": 0, "blocks": 1, "table": 2, "column": 3, "param": 4, "checker": 5}
+    out = sorted(found.values(), key=lambda e: (order[e.key[0]], e.key))
+    out.append(Entry(("other",), "anything else a record reports `missing`",
+                     "a value the check could not measure from the files (a broken image, a rule whose "
+                     "inputs are present but incomplete): the record's own message says which file and row"))
+    return out
+
+
+def _entry(inp: tuple[str, ...], st: DraftState, specs: dict[str, Any], profile: Any) -> Entry:
+    kind = inp[0]
+    if kind == "manifest" and inp[1].startswith("documents."):
+        return Entry(inp, f"delivery.yaml `{inp[1]}`",
+                     "a report the profile asks for; no file of the source is known to be it: name it under "
+                     "`documents:` (INGEST.md lists the files not read)")
+    if kind == "manifest":
+        return Entry(inp, f"delivery.yaml `{inp[1]}`", MANIFEST_HELP.get(inp[1], "not stated by the files"))
+    if kind == "blocks":
+        return Entry(inp, "blocks (delivery.yaml `blocks:` and the `block` column of the tables)",
+                     "the files give no block outlines: run `init` again with `--blocks FILE` (a vector file "
+                     "of the block outlines) or write the blocks and each point's block by hand")
+    if kind == "table":
+        why = st.withheld.get(inp[1]) or "not in the files"
+        return Entry(inp, f"table `{inp[1]}` (tables/{inp[1]}.csv): {specs[inp[1]].description}", why)
+    if kind == "column":
+        cs = specs[inp[1]].columns[inp[2]]
+        return Entry(inp, f"column `{inp[2]}` of tables/{inp[1]}.csv", f"{cs.description} Not in the files.")
+    if kind == "param":
+        p = profile.parameters.get(inp[1])
+        desc = p.description if p is not None else ""
+        return Entry(inp, f"for the checker: ITT parameter `{inp[1]}`",
+                     f"{desc} Stated in the checker's file (`parameters:`), by `--param` or a tender profile; "
+                     "never by the delivery.")
+    what = {"manual_checks": "manual checks: the checker's verdicts (`manual_checks:` in the checker's file)",
+            "blocks": "block outlines in force (`blocks:` in the checker's file)",
+            "area_of_interest": "the area of interest (`area_of_interest:` in the checker's file)"}
+    return Entry(inp, f"for the checker: {what.get(inp[1], inp[1])}",
+                 "the external QC's part (JRC §2, §12), outside the delivery")
+
+
+def render(entries_: list[Entry], *, head: list[str]) -> tuple[str, dict[str, list[Any]]]:
+    """TODO.md text and the rule -> [line, title] map (``*`` for the last entry)."""
+    lines = list(head)
+    rules: dict[str, list[Any]] = {}
+    for e in entries_:
+        e.line = len(lines) + 1
+        lines.append(f"- [ ] {e.title}: {e.why}")
+        if e.rules:
+            shown = ", ".join(sorted(set(e.rules)))
+            lines.append(f"  Rules `missing` until it is filled ({len(set(e.rules))}): {shown}")
+        for r in e.rules + e.hidden:
+            rules.setdefault(r, [e.line, _plain(e.title)])
+    last = entries_[-1]
+    rules["*"] = [last.line, _plain(last.title)]
+    return "\n".join(lines) + "\n", dict(sorted(rules.items()))
+
+
+def _plain(s: str) -> str:
+    return s.replace("`", "")
