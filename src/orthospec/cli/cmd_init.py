@@ -22,6 +22,8 @@ from .groups import main
                    "with --from, the profile TODO.md names the rules of (default jrc-v3).")
 @click.option("--sensor", type=click.Choice(["aerial", "satellite"]), default=None,
               help="Sensor type (template default: aerial; with --from only when no metadata states it).")
+@click.option("--id", "ident", default=None,
+              help="With --from: the delivery's identifier, when no metadata file states one.")
 @click.option("--blocks", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="With --from: a vector file of the block outlines (an id attribute per polygon); images and "
                    "points are assigned to blocks by location.")
@@ -30,7 +32,8 @@ from .groups import main
                    "for a layout init could not decide).")
 @click.option("--no-sha256", is_flag=True, help="With --from: do not hash the images (header facts only).")
 @click.option("--workers", type=int, default=None, help="With --from: worker processes (default: CPU count).")
-def init_cmd(folder: Path, source: Path | None, profile: str | None, sensor: str | None, blocks: Path | None,
+def init_cmd(folder: Path, source: Path | None, profile: str | None, sensor: str | None, ident: str | None,
+             blocks: Path | None,
              mapping: Path | None, no_sha256: bool, workers: int | None) -> None:
     """Write a commented delivery template (delivery.yaml, table headers, TEMPLATE.md) into FOLDER.
 
@@ -41,8 +44,8 @@ def init_cmd(folder: Path, source: Path | None, profile: str | None, sensor: str
     orthospec init draft --from /media/disk/lot3
     """
     if source is None:
-        if blocks or mapping or no_sha256 or workers:
-            raise click.UsageError("--blocks, --mapping, --no-sha256 and --workers go with --from SOURCE")
+        if blocks or mapping or no_sha256 or workers or ident:
+            raise click.UsageError("--id, --blocks, --mapping, --no-sha256 and --workers go with --from SOURCE")
         from ..spec.template import write_template
 
         for p in write_template(folder, profile=profile, sensor=sensor or "aerial"):
@@ -52,7 +55,7 @@ def init_cmd(folder: Path, source: Path | None, profile: str | None, sensor: str
 
     bar = _Bar()
     try:
-        draft = make_draft(folder, [source], Options(profile=profile or "jrc-v3", sensor=sensor, blocks=blocks,
+        draft = make_draft(folder, [source], Options(profile=profile or "jrc-v3", sensor=sensor, ident=ident, blocks=blocks,
                                                      mapping=mapping, sha256=not no_sha256, workers=workers,
                                                      progress=bar))
     finally:

@@ -62,6 +62,8 @@ FIELDS = ("id", "project.id", "project.name", "project.crs", "contractor.name", 
 class Options:
     profile: str = "jrc-v3"
     sensor: str | None = None
+    #: the delivery id when no metadata states one (``--id``)
+    ident: str | None = None
     blocks: Path | None = None
     mapping: Path | None = None
     sha256: bool = True
@@ -170,8 +172,10 @@ class _Scan:
             files, refused = walk_source(s)
             self.files += [(self._name(s, f.rel), f) for f in files]
             self.refused += [Refused(self._name(s, r.rel), r.why) for r in refused]
-        self._rasters()
         self._metadata()
+        self.sensor = self._sensor()  # refused before the long part when no file states it
+        self.ident = self._ident()
+        self._rasters()
         self._vectors()
         self._points()
 
@@ -311,8 +315,20 @@ class _Scan:
                                 "the platform or camera; give it with --sensor aerial|satellite")
         return str(s.value), s.where
 
+    def _ident(self) -> tuple[str, str]:
+        s = self.fields.get("id")
+        if self.opts.ident:
+            if s is not None and s.value != self.opts.ident:
+                self.notes.append(f"the metadata's identifier {s.value!r} ({s.where}) is not the delivery id "
+                                  f"given with --id ({self.opts.ident!r})")
+            return self.opts.ident, "--id"
+        if s is None:
+            raise DeliveryError("the files do not state the delivery's identifier (no metadata fileIdentifier); "
+                                "give it with --id (the checker's file binds to it)")
+        return str(s.value), s.where
+
     def write(self, tmp: Path) -> None:
-        sensor, sensor_src = self._sensor()
+        sensor, sensor_src = self.sensor
         ids = self._image_ids()
         (tmp / "tables").mkdir()
         (tmp / "ingest").mkdir()
@@ -374,7 +390,7 @@ class _Scan:
         (tmp / "ingest" / "todo-rules.json").write_text(json.dumps(rule_lines, indent=0, sort_keys=True) + "\n",
                                                         encoding="utf-8")
         self.result.todo = len(ents) - 1
-        self.result.missing_rules = len(rule_lines) - 1
+        self.result.missing_rules = len({r for e in ents for r in e.rules})
         (tmp / "delivery.yaml").write_text(_manifest_text(manifest, comments, self._src_texts()), encoding="utf-8")
         _write_csv(tmp / "ingest" / "evidence.csv", ["field", "value", "file", "line", "xpath"],
                    [{"field": s.field, "value": _scalar(s.value), "file": s.file, "line": s.line or "",
@@ -439,9 +455,11 @@ class _Scan:
             s = self.fields.get(key)
             if key == "sensor.type":
                 put(key, sensor, sensor_src)
+            elif key == "id":
+                put(key, *self.ident)
             elif s is not None:
                 put(key, s.value, s.where)
-            elif key in ("id", "project.id", "contractor.name"):
+            elif key in ("project.id", "contractor.name"):
                 put(key, "", "TODO (the files state none)")
         if any(lay.role == "seamlines" for lay in self.layers if lay.error is None):
             seam = next(lay for lay in self.layers if lay.role == "seamlines" and lay.error is None)

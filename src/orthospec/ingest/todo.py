@@ -3,7 +3,7 @@
 Read from the profile alone (as ``orthospec init`` reads it for its template, spec/template.py):
 for every rule that can apply to the draft's sensor, the delivery facts it reads (its measure,
 its ``when``, the names in its threshold) and, for measures computed from tables, the tables
-behind them (:data:`NEEDS`). A rule reading a fact the draft leaves empty is listed under that
+behind them (``spec.template.rule_inputs``, which ``orthospec init`` uses for its template too). A rule reading a fact the draft leaves empty is listed under that
 fact's entry; the map rule -> line is written beside TODO.md (``draft.todo_rules``) and the
 evaluator appends "see TODO.md line N" to every ``missing`` record (engine/evaluator.py). A rule
 the map does not name cites the last entry, which says to read the record's own message.
@@ -11,47 +11,12 @@ the map does not name cites the last entry, which says to read the record's own 
 
 from __future__ import annotations
 
-import re
-from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
 from ..delivery.convention import table_specs
 from ..spec.applicability import cannot_apply
-
-#: measures computed from tables (not ``<table>.<column>``): what each reads. Prefix match, longest
-#: first. ("table", T), ("column", T, C), ("manifest", path), ("param", name), ("blocks",), ("checker", what)
-NEEDS: dict[str, tuple[tuple[str, ...], ...]] = {
-    "raster.reported_mean_diff": (("column", "images", "mean_dn"),),
-    "raster.stats_mean_diff": (("column", "images", "mean_dn"),),
-    "raster.crs_ok": (("param", "map_crs"),),
-    "raster.": (("table", "images"),),
-    "checkpoints.reported_diff": (("manifest", "blocks.reported"),),
-    "checkpoints.": (("table", "checkpoints"), ("blocks",)),
-    "gcps.": (("table", "gcps"), ("blocks",)),
-    "camera.": (("table", "cameras"),),
-    "flight.": (("table", "flights"), ("column", "images", "roll")),
-    "geometry.gsd_from_flying_height": (("column", "images", "flying_height"), ("table", "cameras"),
-                                        ("column", "images", "flight_id")),
-    "derived.photo_coverage": (("table", "flights"), ("table", "cameras"), ("column", "images", "exposure_x"),
-                               ("column", "images", "flying_height")),
-    "derived.area_of_interest_agrees": (("manifest", "project.area_of_interest"),
-                                        ("checker", "area_of_interest")),
-    "derived.block_outlines_agree": (("blocks",), ("checker", "blocks")),
-    "derived.project_crs_agrees": (("manifest", "project.crs"), ("param", "map_crs")),
-    "derived.resolution_class_agrees": (("table", "scenes"),),
-    "derived.master_images": (("table", "scenes"),),
-    "derived.orthorectification": (("blocks",), ("manifest", "blocks.method"),
-                                   ("manifest", "product.orthorectification")),
-    "derived.dem_blocks": (("table", "dem"),),
-    "derived.": (),
-    "mosaic.": (("manifest", "vectors.seamlines"), ("blocks",), ("manifest", "project.area_of_interest")),
-    "edge.": (("manifest", "edge_targets"),),
-    "rollup.block": (("blocks",),),
-    "rollup.": (),
-}
-_NAME = re.compile(r"\b([a-z_][a-z_0-9]*(?:\.[a-z_][a-z_0-9]*)+)\b")
-_WORD = re.compile(r"\b([a-z_][a-z_0-9]*)\b")
+from ..spec.template import rule_inputs
 
 #: what a TODO entry says about a manifest field (why the files cannot tell)
 MANIFEST_HELP = {
@@ -100,44 +65,6 @@ class DraftState:
     withheld: dict[str, str] = field(default_factory=dict)
     #: parameters the draft's profile leaves to the ITT (the checker's to state)
     itt_params: set[str] = field(default_factory=set)
-
-
-def rule_inputs(rule: Any, params: Iterable[str]) -> list[tuple[str, ...]]:
-    """The delivery facts a rule reads (see :data:`NEEDS`), in the order it reads them."""
-    specs = table_specs()
-    texts = [rule.when or "", rule.measure]
-    req = rule.requirement
-    texts += [str(v) for v in (req.value, req.min, req.max) if isinstance(v, str)]
-    out: list[tuple[str, ...]] = []
-    if rule.manual or rule.measure.startswith("manual."):
-        return [("checker", "manual_checks")]
-    for text in texts:
-        for name in _NAME.findall(text):
-            head, rest = name.split(".", 1)
-            if head == "manifest" and rest.startswith("tables."):
-                out.append(("table", rest.split(".", 1)[1]))
-            elif head == "manifest":
-                out.append(("manifest", rest))
-            elif head in specs and rest in specs[head].columns:
-                out.append(("column", head, rest))
-            else:
-                for prefix in sorted(NEEDS, key=len, reverse=True):
-                    if name.startswith(prefix):
-                        out.extend(NEEDS[prefix])
-                        break
-                else:
-                    if head in specs:
-                        out.append(("table", head))
-        for word in _WORD.findall(text):
-            if word in params:
-                out.append(("param", word))
-    if rule.scope == "block":
-        out.insert(0, ("blocks",))  # without blocks a block rule has no item at all
-    seen: list[tuple[str, ...]] = []
-    for x in out:
-        if x not in seen:
-            seen.append(x)
-    return seen
 
 
 def _empty(inp: tuple[str, ...], st: DraftState) -> bool:
