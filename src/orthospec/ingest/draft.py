@@ -105,6 +105,7 @@ def make_draft(folder: str | Path, sources: Sequence[str | Path], opts: Options 
     _check_places(out, srcs)
     state = _Scan(out, srcs, opts)
     state.run()
+    out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent if out.parent.exists() else None))
     try:
         umask = os.umask(0)
@@ -125,9 +126,7 @@ def _check_places(out: Path, srcs: list[Path]) -> None:
         raise DeliveryError("no source given: `orthospec init DIR --from SOURCE`")
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         raise DeliveryError(f"{out} exists and is not an empty folder; refusing to overwrite it")
-    if not out.parent.exists():
-        raise DeliveryError(f"the folder {out.parent} does not exist")
-    real_out = out.parent.resolve() / out.name
+    real_out = out.absolute().resolve()
     for s in srcs:
         if not s.exists():
             raise DeliveryError(f"source {str(s)!r} not found")
@@ -389,7 +388,7 @@ class _Scan:
         (tmp / "TODO.md").write_text(todo_text, encoding="utf-8")
         (tmp / "ingest" / "todo-rules.json").write_text(json.dumps(rule_lines, indent=0, sort_keys=True) + "\n",
                                                         encoding="utf-8")
-        self.result.todo = len(ents) - 1
+        self.result.todo = sum(1 for e in ents if e.rules)
         self.result.missing_rules = len({r for e in ents for r in e.rules})
         (tmp / "delivery.yaml").write_text(_manifest_text(manifest, comments, self._src_texts()), encoding="utf-8")
         _write_csv(tmp / "ingest" / "evidence.csv", ["field", "value", "file", "line", "xpath"],
@@ -543,13 +542,17 @@ class _Scan:
             declared = [k for k, v in vectors.items() if v == lay.file]
             line = (f"- `{lay.file}` ({lay.role}, {lay.features} features, {lay.driver})"
                     + (f", declared as vectors.{declared[0]}" if declared else "")
-                    + (f", matched by {lay.matched_by}: {len(lay.matched)} images" if lay.matched_by else ""))
+                    + (f", matched by {lay.matched_by}: {len(lay.matched)} images"
+                       if lay.matched_by and lay.role != "blocks" else ""))
             lines.append(line)
             if lay.role == "blocks":
                 lines.append(f"  - blocks: {', '.join(sorted(lay.outlines))}")
             if lay.unmatched_features:
                 lines.append(f"  - features matching no image ({len(lay.unmatched_features)}): "
                              + ", ".join(lay.unmatched_features[:20]))
+            if lay.role == "seamlines" and lay.images_without_feature:
+                lines.append(f"  - **images not covered by the seamline polygons** ({len(lay.images_without_feature)}): "
+                             + ", ".join(lay.images_without_feature[:20]))
             if lay.role in ("tiles",) and lay.images_without_feature:
                 lines.append(f"  - images without a feature ({len(lay.images_without_feature)}): "
                              + ", ".join(lay.images_without_feature[:20]))

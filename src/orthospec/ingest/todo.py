@@ -105,11 +105,12 @@ def entries(profile: Any, st: DraftState) -> list[Entry]:
             (e.hidden if hidden else e.rules).append(rule.id)
             break  # one entry per rule: the first empty fact it reads
     order = {"manifest": 0, "blocks": 1, "table": 2, "column": 3, "param": 4, "checker": 5}
-    out = sorted(found.values(), key=lambda e: (order[e.key[0]], e.key))
+    ranked = sorted(found.values(), key=lambda e: (order[e.key[0]], e.key))
+    out = [e for e in ranked if e.rules]
     out.append(Entry(("other",), "anything else a record reports `missing`",
                      "a value the check could not measure from the files (a broken image, a rule whose "
                      "inputs are present but incomplete): the record's own message says which file and row"))
-    return out
+    return out + [e for e in ranked if not e.rules]  # read only by rules of the other sensor type
 
 
 def _entry(inp: tuple[str, ...], st: DraftState, specs: dict[str, Any], profile: Any) -> Entry:
@@ -144,10 +145,15 @@ def _entry(inp: tuple[str, ...], st: DraftState, specs: dict[str, Any], profile:
 
 
 def render(entries_: list[Entry], *, head: list[str]) -> tuple[str, dict[str, list[Any]]]:
-    """TODO.md text and the rule -> [line, title] map (``*`` for the last entry)."""
+    """TODO.md text and the rule -> [line, title] map (``*``: the "anything else" entry)."""
     lines = list(head)
     rules: dict[str, list[Any]] = {}
+    other = next(e for e in entries_ if e.key == ("other",))
+    headed = False
     for e in entries_:
+        if not e.rules and e.key != ("other",) and not headed:
+            lines += ["", "## Read only by rules of the other sensor type (not applicable to this draft)", ""]
+            headed = True
         e.line = len(lines) + 1
         lines.append(f"- [ ] {e.title}: {e.why}")
         if e.rules:
@@ -155,8 +161,7 @@ def render(entries_: list[Entry], *, head: list[str]) -> tuple[str, dict[str, li
             lines.append(f"  Rules `missing` until it is filled ({len(set(e.rules))}): {shown}")
         for r in e.rules + e.hidden:
             rules.setdefault(r, [e.line, _plain(e.title)])
-    last = entries_[-1]
-    rules["*"] = [last.line, _plain(last.title)]
+    rules["*"] = [other.line, _plain(other.title)]
     return "\n".join(lines) + "\n", dict(sorted(rules.items()))
 
 

@@ -91,7 +91,6 @@ def _read(path: Path, name: str) -> tuple[str, str | None, list[Any], dict[str, 
 def read_layer(path: Path, rel: str, *, images: dict[str, tuple[float, float, float, float]],
                image_crs: str | None, role: str | None = None) -> Layer:
     """Read one vector file and match it to the images (name -> footprint bounds in ``image_crs``)."""
-    import shapely
 
     lay = Layer(rel, role or role_of(rel) or "other")
     try:
@@ -105,10 +104,12 @@ def read_layer(path: Path, rel: str, *, images: dict[str, tuple[float, float, fl
     if lay.role == "blocks":
         _outlines(lay, geoms, cols)
         return lay
+    if lay.role == "seamlines":
+        _cover(lay, geoms, images)
+        return lay
     _match(lay, geoms, cols, images)
     if lay.role == "other" and lay.matched and len(lay.matched) >= 0.5 * max(1, lay.features):
         lay.role = "tiles"
-    del shapely
     return lay
 
 
@@ -187,6 +188,25 @@ def _match(lay: Layer, geoms: list[Any], cols: dict[str, list[Any]],
     else:
         lay.unmatched_features = [f"#{i + 1}" for i in range(len(geoms))]
     lay.images_without_feature = sorted(set(images) - set(lay.matched))
+
+
+def _cover(lay: Layer, geoms: list[Any], images: dict[str, tuple[float, float, float, float]]) -> None:
+    """Seamline polygons are cut along the source images, not the tiles: an image is matched when
+    the polygons cover its footprint (to 99 %), else listed as not covered."""
+    import shapely
+
+    lay.matched_by = "coverage of the footprints"
+    valid = [g for g in geoms if g is not None and not g.is_empty]
+    if not valid:
+        lay.images_without_feature = sorted(images)
+        return
+    union = shapely.union_all(valid)
+    for i, (img, b) in enumerate(sorted(images.items())):
+        box = shapely.box(*b)
+        if box.area > 0 and shapely.intersection(union, box).area / box.area >= 0.99:
+            lay.matched[img] = i
+        else:
+            lay.images_without_feature.append(img)
 
 
 def _outlines(lay: Layer, geoms: list[Any], cols: dict[str, list[Any]]) -> None:
