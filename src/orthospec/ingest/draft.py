@@ -23,7 +23,6 @@ renamed at the end), byte for byte the same for the same files:
 from __future__ import annotations
 
 import csv
-import io
 import json
 import os
 import shutil
@@ -347,11 +346,8 @@ class _Scan:
         units: dict[str, str] = {}
         for pr in self.points:
             t = pr.layout.table
-            body = pr.csv_text
-            reader = csv.DictReader(io.StringIO(body))
-            rows = list(reader)
-            filled = {c for c in (reader.fieldnames or []) if any(r.get(c) for r in rows)}
-            if "block" not in filled or any(not r.get("block") for r in rows):
+            body, filled = pr.csv_text, pr.filled
+            if pr.unblocked or not pr.rows:
                 (tmp / "ingest" / f"{t}.csv").write_text(body, encoding="utf-8")
                 withheld[t] = (f"read from {pr.file} into ingest/{t}.csv, but the points have no block (no "
                                "outlines given and no block column): add the blocks, then declare the table "
@@ -424,9 +420,7 @@ class _Scan:
     def _images_table(self, ids: dict[str, str], blocks: dict[str, str]) -> tuple[list[str], list[dict[str, Any]]]:
         cols = ["image_id", "file", "block", "gsd", "bit_depth", "bands"]
         rows = []
-        for f in self.facts:
-            if f.error is not None:
-                continue  # unreadable: listed in INGEST.md and ingest/rasters.csv, never an item
+        for f in self.facts:  # an unreadable one too: the check judges it (raster.readable), never dropped
             gsd = None
             ps = f.pixel_size_m
             if ps is not None and abs(ps[0] - ps[1]) <= 1e-9 * max(ps):

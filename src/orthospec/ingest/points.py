@@ -140,6 +140,10 @@ class PointsRead:
     csv_text: str
     notes: list[str]
     outside: list[str] = field(default_factory=list)
+    #: columns with a value in at least one row
+    filled: set[str] = field(default_factory=set)
+    #: rows written without a block
+    unblocked: int = 0
 
 
 def tokens(name: str) -> list[str]:
@@ -295,8 +299,8 @@ def _columns(names: list[str], data_rows: list[list[Cell]], decimal: str) -> lis
         present = [v for v in vals if v is not None]
         if not present:
             kind = "empty"
-        elif all(_is_number_like(v) for v in present):
-            kind = "number"
+        elif sum(_is_number_like(v) for v in present) >= 0.8 * len(present):
+            kind = "number"  # a stray word in a number column is refused later, naming its row
         else:
             kind = "text"
         out.append(Column(i, name or f"(column {i + 1})", kind, unit_of(name),
@@ -425,6 +429,9 @@ def _xy_order(coords: list[tuple[Column, str, str | None]], ctx: Context, sample
 
 
 def _on_images(e: np.ndarray, n: np.ndarray, ctx: Context) -> int:
+    """How many points (rows where both values are numbers) lie on an image's footprint."""
+    ok = np.isfinite(e) & np.isfinite(n)
+    e, n = e[ok], n[ok]
     hit = np.zeros(len(e), dtype=bool)
     for _, (left, bottom, right, top) in ctx.footprints:
         hit |= (e >= left) & (e <= right) & (n >= bottom) & (n <= top)
@@ -506,8 +513,7 @@ def read_points(path: Path, name: str, ctx: Context) -> PointsRead:
     def sample(c: Column) -> np.ndarray | None:
         vals = [parse_number(text_of(r[c.index]), decimal) if c.index < len(r) and r[c.index] is not None else None
                 for r in sample_rows]
-        v = np.array([x for x in vals if x is not None], dtype=float)
-        return v
+        return np.array([np.nan if x is None else x for x in vals], dtype=float)  # aligned on the rows
 
     if given is not None:
         layout = _layout_given(given, header, name, by_name)
@@ -525,8 +531,8 @@ def read_points(path: Path, name: str, ctx: Context) -> PointsRead:
     unused = [c.name for c in cols if c.kind != "empty" and c.name not in layout.roles.values()]
     if unused:
         notes.append("columns not used: " + ", ".join(repr(u) for u in unused))
-    body, n, outside = _write(layout, first[data_at:], rows, by_name, ctx, name)
-    return PointsRead(name, layout, n, body, notes + layout.said, outside)
+    body, n, outside, filled, unblocked = _write(layout, first[data_at:], rows, by_name, ctx, name)
+    return PointsRead(name, layout, n, body, notes + layout.said, outside, filled, unblocked)
 
 
 def _layout_given(given: dict[str, Any], header: list[str], file: str, by_name: dict[str, Column]) -> Layout:
@@ -570,9 +576,9 @@ def _unit(layout: Layout, by_name: dict[str, Column], ctx: Context, file: str, s
 
 
 def _write(layout: Layout, first: list[tuple[int, list[Cell]]], rest: Iterator[tuple[int, list[Cell]]],
-           by_name: dict[str, Column], ctx: Context, file: str) -> tuple[str, int, list[str]]:
-    """The convention CSV text of every data row (streamed, in chunks), the row count and the points
-    outside every block outline."""
+           by_name: dict[str, Column], ctx: Context, file: str) -> tuple[str, int, list[str], set[str], int]:
+    """The convention CSV text of every data row (streamed, in chunks), the row count, the points
+    outside every block outline, the columns filled and the rows without a block."""
     import csv
     import io
     import itertools
@@ -585,6 +591,8 @@ def _write(layout: Layout, first: list[tuple[int, list[Cell]]], rest: Iterator[t
     idx = {role: by_name[c].index for role, c in layout.roles.items()}
     seen: dict[str, int] = {}
     outside: list[str] = []
+    filled: set[str] = set()
+    unblocked = 0
     n = 0
     stream = itertools.chain(first, rest)
     while True:
@@ -625,9 +633,12 @@ def _write(layout: Layout, first: list[tuple[int, list[Cell]]], rest: Iterator[t
         for rec in recs:
             if rec.get("block") is None and ctx.outlines:
                 continue  # outside every outline: listed, not a point of any block
-            w.writerow([rec.get(c) or "" for c in cols])
+            cells = [rec.get(c) or "" for c in cols]
+            filled.update(c for c, v in zip(cols, cells, strict=True) if v)
+            unblocked += not rec.get("block")
+            w.writerow(cells)
             n += 1
-    return out.getvalue(), n, outside
+    return out.getvalue(), n, outside, filled, unblocked
 
 
 def _bool_text(v: Cell, file: str, row: int, col: str) -> str | None:
