@@ -9,12 +9,13 @@ import json
 import os
 import re
 import shutil
-from pathlib import Path
-
-import pytest
 import subprocess
 import sys
+from pathlib import Path
 from types import SimpleNamespace
+
+import pytest
+
 from orthospec.qcr import all_records
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -494,7 +494,8 @@ class _Scan:
                  f"through the links under `{LINKS}/`; nothing was copied or written into the source.", "",
                  "## Images", "",
                  f"{len(self.facts)} image files, {len(ok)} readable"
-                 + (f", {len(self.facts) - len(ok)} not readable (listed below, not in tables/images.csv)"
+                 + (f", {len(self.facts) - len(ok)} not readable (listed below; kept in tables/images.csv, where the check "
+                    "judges them)"
                     if len(ok) < len(self.facts) else "") + ". Facts of each: `ingest/rasters.csv`."]
         crs = Counter(f.crs_name or "(none)" for f in ok)
         if len(crs) > 1:

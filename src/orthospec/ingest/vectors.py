@@ -147,6 +147,19 @@ def _names(images: dict[str, tuple[float, float, float, float]]) -> dict[str, st
     return out
 
 
+def _lookup(v: Any, names: dict[str, str]) -> str | None:
+    """The image a text attribute names: as written, or its file name or stem (a gdaltindex
+    ``location`` holds the path the index was made from, e.g. ``/data/lot3/T0.tif``)."""
+    if not isinstance(v, str) or not v.strip():
+        return None
+    text = v.strip().lower()
+    base = text.replace("\\", "/").rsplit("/", 1)[-1]
+    for key in (text, base, os.path.splitext(base)[0]):
+        if key in names:
+            return names[key]
+    return None
+
+
 def _match(lay: Layer, geoms: list[Any], cols: dict[str, list[Any]],
            images: dict[str, tuple[float, float, float, float]]) -> None:
     import shapely
@@ -154,13 +167,13 @@ def _match(lay: Layer, geoms: list[Any], cols: dict[str, list[Any]],
     names = _names(images)
     best: tuple[int, str] | None = None
     for col, values in cols.items():
-        hits = sum(1 for v in values if isinstance(v, str) and v.strip().lower() in names)
+        hits = sum(1 for v in values if _lookup(v, names) is not None)
         if hits and (best is None or hits > best[0]):
             best = (hits, col)
     if best is not None:
         lay.matched_by = f"attribute {best[1]}"
         for i, v in enumerate(cols[best[1]]):
-            img = names.get(str(v).strip().lower()) if isinstance(v, str) else None
+            img = _lookup(v, names)
             if img is not None and img not in lay.matched:
                 lay.matched[img] = i
             else:
