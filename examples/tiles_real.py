@@ -471,7 +471,7 @@ read, decided and refused) and `TODO.md` (what the files do not tell, with the r
 `missing`). The check's verdict is **REJECTED** (exit 1): the files alone leave the rules listed in
 the draft's TODO.md `missing` (the satellite scene records, the delivery date, the operator, the
 contractor's reports, the checker's manual checks), and every `missing` record names its TODO.md
-line (`tests/test_ingest_example.py` checks both). Nothing was written by hand between the two
+line (`tests/test_ingest_draft.py` checks both). Nothing was written by hand between the two
 commands; the checker's file (`examples/checker/tiles-real.yaml`) states the ITT tolerance, the map
 projection and the block outlines in force.
 """
