@@ -270,3 +270,43 @@ def test_a_damaged_todo_map_stops_the_check(draft: Path, tmp_path: Path) -> None
     (draft / "ingest" / "todo-rules.json").write_text("{not json", encoding="utf-8")
     res = _check(draft, tmp_path)
     assert res.exit_code == 2 and "todo-rules.json" in res.output  # type: ignore[attr-defined]
+
+
+def test_mixed_crss_pixel_sizes_and_overlapping_tiles_are_reported(source: Path, tmp_path: Path) -> None:
+    import numpy as np
+    import rasterio
+    from rasterio.transform import from_origin
+
+    tiles = source / "tiles"
+    with rasterio.open(tiles / "LE07_L3_R1_C1.tif") as ds:
+        left, top = ds.bounds.left, ds.bounds.top
+    profile = {"driver": "GTiff", "width": 16, "height": 16, "count": 1, "dtype": "uint8"}
+    # 150 m pixels over the corner of R1_C1: another pixel size, overlapping a tile
+    with rasterio.open(tiles / "EXTRA_150.tif", "w", crs="EPSG:32618",
+                       transform=from_origin(left + 600, top - 600, 150, 150), **profile) as ds:
+        ds.write(np.ones((1, 16, 16), dtype="uint8"))
+    with rasterio.open(tiles / "EXTRA_19N.tif", "w", crs="EPSG:32619",
+                       transform=from_origin(200000, 2700000, 300, 300), **profile) as ds:
+        ds.write(np.ones((1, 16, 16), dtype="uint8"))
+    draft = tmp_path / "draft"
+    res = run("init", draft, "--from", source, "--workers", 1)
+    # the GCP file states no unit: with one CRS it is the CRS's; with two, it is asked for
+    assert res.exit_code == 2 and "source/survey/Passpunkte.csv: no unit stated" in res.output  # type: ignore[attr-defined]
+    assert "the images do not share one CRS" in res.output and "unit: '?'" in res.output  # type: ignore[attr-defined]
+    (source / "survey" / "Passpunkte.csv").unlink()
+    res = run("init", draft, "--from", source, "--workers", 1)
+    assert res.exit_code == 0, res.output  # type: ignore[attr-defined]
+    report = (draft / "INGEST.md").read_text(encoding="utf-8")
+    assert "- **Mixed CRSs**: EPSG:32618 (17 images), EPSG:32619 (1 images)" in report
+    # the Landsat tiles' pixels are not square (gdalinfo: 300.037926675 x -300.04178273)
+    assert ("- **Mixed pixel sizes**: 150 x 150 metre (1 images), 300 x 300 metre (1 images), "
+            "300.037926675 x 300.04178273 metre (16 images)") in report
+    assert "footprints compared in EPSG:32618, the CRS most images use" in report
+    # 16 x 150 m = 2400 m square from 600 m inside R1_C1 (38 400 m wide): 2400 x 2400 m over R1_C1 only
+    assert ("- **Overlapping images**: 1 pairs, e.g. `source/tiles/EXTRA_150.tif` / "
+            "`source/tiles/LE07_L3_R1_C1.tif` (5760000 sq. units)") in report
+    images = (draft / "tables/images.csv").read_text(encoding="utf-8")
+    assert "EXTRA_150,source/tiles/EXTRA_150.tif,B1,150,,PAN\n" in images  # no NBITS tag: bit depth not stated
+    # x = 200 km in zone 19N is x ~ 809 km in zone 18N, east of the outlines: in no block
+    # (compared as raw numbers it would fall in B1)
+    assert "EXTRA_19N,source/tiles/EXTRA_19N.tif,,300,,PAN\n" in images

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 import os
 import shutil
 import tempfile
@@ -160,6 +161,8 @@ class _Scan:
         self.notes: list[str] = []
         self.outlines: dict[str, Any] = {}
         self.outline_source: str | None = None
+        self._fps: dict[str, tuple[float, float, float, float]] | None = None
+        self._frame_wkt: str | None = None
 
     # names in the draft: source/<rel> for one source, source/<name>/<rel> for several
     def _name(self, src: Path, rel: str) -> str:
@@ -228,16 +231,60 @@ class _Scan:
         return out
 
     def _footprints(self) -> dict[str, tuple[float, float, float, float]]:
+        """Image id -> footprint in the frame CRS (:meth:`_frame`); an image in another CRS is
+        reprojected (its envelope), one whose CRS cannot be transformed is left out."""
+        if self._fps is not None:
+            return self._fps
         ids = self._image_ids()
-        return {ids[f.path]: f.bounds for f in self._readable() if f.bounds is not None}
+        frame = self._frame()
+        out: dict[str, tuple[float, float, float, float]] = {}
+        to_frame: dict[str, Any] = {}
+        for f in self._readable():
+            if f.bounds is None:
+                continue
+            if f.crs_name == frame:
+                out[ids[f.path]] = f.bounds
+                continue
+            if not (frame and f.crs_wkt and f.crs_name):
+                continue
+            t = to_frame.get(f.crs_name)
+            if t is None:
+                from pyproj import CRS, Transformer
+                from pyproj.exceptions import ProjError
+
+                try:
+                    t = Transformer.from_crs(CRS.from_wkt(f.crs_wkt), CRS.from_wkt(self._frame_wkt), always_xy=True)
+                except ProjError:
+                    t = False
+                to_frame[f.crs_name] = t
+            if t:
+                try:
+                    b = t.transform_bounds(*f.bounds, densify_pts=21)
+                except ProjError:
+                    continue
+                if all(math.isfinite(v) for v in b):
+                    out[ids[f.path]] = tuple(b)
+        self._fps = out
+        return out
 
     def _crs(self) -> str | None:
+        """The images' CRS when they share one (None when mixed: a unit is then never taken from it)."""
         epsgs = Counter(f.crs_name for f in self._readable() if f.crs_name)
         return epsgs.most_common(1)[0][0] if len(epsgs) == 1 else None
 
+    def _frame(self) -> str | None:
+        """The CRS footprints, layers and outlines are compared in: the images' one CRS, or with mixed
+        CRSs the one most images use (said in INGEST.md); a frame for geometry, never a declared value."""
+        c = Counter(f.crs_name for f in self._readable() if f.crs_name and f.crs_wkt)
+        if not c:
+            return None
+        name = sorted(c.items(), key=lambda kv: (-kv[1], kv[0]))[0][0]
+        self._frame_wkt = next(f.crs_wkt for f in self._readable() if f.crs_name == name)
+        return name
+
     def _vectors(self) -> None:
         fps = self._footprints()
-        crs = self._crs()
+        crs = self._frame()
         for name, f in self.files:
             if f.kind != "vector":
                 continue
@@ -337,7 +384,7 @@ class _Scan:
             p.parent.mkdir(parents=True, exist_ok=True)
             os.symlink(_link_target(f.path.resolve(), final.joinpath(*parts[:-1])), p)
         # --- images
-        image_blocks = self._image_blocks(ids)
+        image_blocks = self._image_blocks()
         img_cols, img_rows = self._images_table(ids, image_blocks)
         _write_csv(tmp / "tables" / "images.csv", img_cols, img_rows)
         _write_csv(tmp / "ingest" / "rasters.csv", *_facts_table(self.facts))
@@ -401,19 +448,17 @@ class _Scan:
     def _src_texts(self) -> list[str]:
         return [os.path.relpath(s.resolve(), self.out.parent.resolve() / self.out.name) for s in self.srcs]
 
-    def _image_blocks(self, ids: dict[str, str]) -> dict[str, str]:
+    def _image_blocks(self) -> dict[str, str]:
         if not self.outlines:
             return {}
         import shapely
 
         out = {}
-        for f in self._readable():
-            if f.bounds is None:
-                continue
-            c = shapely.box(*f.bounds).centroid
+        for image, bounds in sorted(self._footprints().items()):  # in the frame CRS, as the outlines
+            c = shapely.box(*bounds).centroid
             for bid in sorted(self.outlines):
                 if self.outlines[bid].covers(c):
-                    out[ids[f.path]] = bid
+                    out[image] = bid
                     break
         return out
 
@@ -511,7 +556,13 @@ class _Scan:
         nogeo = [f for f in ok if not f.georeferenced]
         for f in nogeo:
             lines.append(f"- `{f.path}`: {f.georeference}")
-        overlaps = _overlaps([(f.path, f.bounds) for f in ok if f.bounds and f.georeferenced])
+        frame = self._frame()
+        if len(crs) > 1 and frame:
+            lines.append(f"- footprints compared in {frame}, the CRS most images use (tile index, seamlines, block "
+                         "outlines and survey points are matched there); overlaps only between images of one CRS")
+        overlaps = sorted(o for c in sorted({f.crs_name or "" for f in ok})
+                          for o in _overlaps([(f.path, f.bounds) for f in ok
+                                              if f.bounds and f.georeferenced and (f.crs_name or "") == c]))
         if overlaps:
             lines.append(f"- **Overlapping images**: {len(overlaps)} pairs, e.g. "
                          + "; ".join(f"`{a}` / `{b}` ({_num(area)} sq. units)" for a, b, area in overlaps[:5]))

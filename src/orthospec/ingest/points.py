@@ -464,6 +464,17 @@ def proposal(file: str, cols: list[Column], header: list[str], table: str | None
             "orthospec_points_mapping: 1\nlayouts:\n" + "\n".join(lines))
 
 
+def _unit_proposal(layout: Layout) -> str:
+    """The mapping to write when only the unit is undecided: the layout as read, the unit asked."""
+    lines = [f"  - match: {_flow(layout.header)}", f"    table: {layout.table}", "    columns:"]
+    lines += [f"      {role}: {_quote(col)}" for role, col in layout.roles.items()]
+    lines += ["    unit: '?'                    # the survey's unit: m, ft or usft",
+              f"    decimal: {_quote(layout.decimal)}"]
+    return ("the columns were read as " + ", ".join(f"{r} <- {c!r}" for r, c in layout.roles.items())
+            + "; state the unit in a mapping file and run `orthospec init DIR --from SOURCE --mapping FILE`:\n"
+            "orthospec_points_mapping: 1\nlayouts:\n" + "\n".join(lines))
+
+
 def _quote(s: str) -> str:
     return "'" + s.replace("'", "''") + "'"
 
@@ -525,7 +536,10 @@ def read_points(path: Path, name: str, ctx: Context) -> PointsRead:
             raise Ambiguous(f"{exc}\n  {proposal(name, cols, header, _table_of(name, cols))}") from None
     layout.decimal = decimal
     layout.header_rows = data_at
-    layout.unit = _unit(layout, by_name, ctx, name, sample, given)
+    try:
+        layout.unit = _unit(layout, by_name, ctx, name, sample, given)
+    except Ambiguous as exc:
+        raise Ambiguous(f"{exc}\n  {_unit_proposal(layout)}") from None
     layout.said.insert(0, f"read as {layout.table}: " + ", ".join(
         f"{role} <- {col!r}" for role, col in layout.roles.items()))
     unused = [c.name for c in cols if c.kind != "empty" and c.name not in layout.roles.values()]
@@ -571,8 +585,10 @@ def _unit(layout: Layout, by_name: dict[str, Column], ctx: Context, file: str, s
             layout.said.append(f"no unit in the file: {ctx.crs_unit}, the axis unit of the images' CRS "
                                f"{ctx.crs_name or ''} (the points lie on the images)".replace("  ", " "))
             return ctx.crs_unit
-    raise Ambiguous("no unit stated for the coordinates (a header such as 'E [m]' or a unit row) and the "
-                    "points do not lie on the images to take their CRS's unit", file=file)
+    why = ("the images do not share one CRS to take its unit from" if ctx.crs_name is None
+           else "the points do not lie on the images to take their CRS's unit")
+    raise Ambiguous("no unit stated for the coordinates (a header such as 'E [m]' or a unit row) and " + why,
+                    file=file)
 
 
 def _write(layout: Layout, first: list[tuple[int, list[Cell]]], rest: Iterator[tuple[int, list[Cell]]],
