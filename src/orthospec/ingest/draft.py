@@ -668,15 +668,15 @@ def _overlaps(boxes: list[tuple[str, tuple[float, float, float, float] | None]])
     names = [n for n, b in boxes if b is not None]
     if len(geoms) < 2:
         return []
-    tree = shapely.STRtree(geoms)
-    left, right = tree.query(geoms, predicate="intersects")
-    out = []
-    for i, j in zip(left.tolist(), right.tolist(), strict=True):
-        if i < j:
-            area = shapely.intersection(geoms[i], geoms[j]).area
-            if area > 0:
-                out.append((names[i], names[j], float(area)))
-    return sorted(out)
+    import numpy as np
+
+    arr = np.array(geoms, dtype=object)
+    left, right = shapely.STRtree(arr).query(arr, predicate="intersects")
+    keep = left < right
+    left, right = left[keep], right[keep]
+    areas = shapely.area(shapely.intersection(arr[left], arr[right]))  # neighbours that only touch: 0
+    return sorted((names[i], names[j], float(a)) for i, j, a in zip(left.tolist(), right.tolist(), areas.tolist(),
+                                                                     strict=True) if a > 0)
 
 
 def _facts_table(facts: list[RasterFacts]) -> tuple[list[str], list[dict[str, Any]]]:
