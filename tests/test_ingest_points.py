@@ -263,6 +263,19 @@ def test_blocks_by_location_and_points_outside_every_outline(tmp_path: Path) -> 
     pr = P.read_points(_write(tmp_path, "checkpoints.csv", text), "checkpoints.csv", _ctx(outlines=outlines))
     assert [(r["point_id"], r["block"]) for r in _rows(pr)] == [("A", "W"), ("B", "E")]
     assert pr.outside == ["C"]
+    assert [r["image_id"] for r in _rows(pr)] == ["T1", "T1"]  # both on the one footprint
+    assert "image_id: the image whose footprint holds the point (2 points); 1 on no image" in "\n".join(pr.notes)
+
+
+def test_a_stated_block_the_location_contradicts_is_overruled_and_said(tmp_path: Path) -> None:
+    import shapely
+
+    outlines = {"W": shapely.box(1000, 5000, 1500, 6000), "E": shapely.box(1500, 5000, 2000, 6000)}
+    text = "id,Block,E img,N img,E ref,N ref\nA,W,1100,5100,1100,5100\nB,W,1900,5900,1900,5900\n"
+    pr = P.read_points(_write(tmp_path, "checkpoints.csv", text), "checkpoints.csv", _ctx(outlines=outlines))
+    assert [(r["point_id"], r["block"]) for r in _rows(pr)] == [("A", "W"), ("B", "E")]
+    assert any(n.startswith("block stated in the file differs from the outline the point lies in (1; the location "
+                            "decides): B (W -> E)") for n in pr.notes), pr.notes
 
 
 def test_duplicate_ids_and_bad_numbers_name_the_row(tmp_path: Path) -> None:

@@ -545,7 +545,15 @@ def read_points(path: Path, name: str, ctx: Context) -> PointsRead:
     unused = [c.name for c in cols if c.kind != "empty" and c.name not in layout.roles.values()]
     if unused:
         notes.append("columns not used: " + ", ".join(repr(u) for u in unused))
-    body, n, outside, filled, unblocked = _write(layout, first[data_at:], rows, by_name, ctx, name)
+    tally: dict[str, Any] = {"moved": [], "on_image": 0, "no_image": 0}
+    body, n, outside, filled, unblocked = _write(layout, first[data_at:], rows, by_name, ctx, name, tally)
+    if tally["moved"]:
+        moved = tally["moved"]
+        notes.append(f"block stated in the file differs from the outline the point lies in ({len(moved)}; the "
+                     "location decides): " + ", ".join(moved[:20]) + (" ..." if len(moved) > 20 else ""))
+    if tally["on_image"] or tally["no_image"]:
+        notes.append(f"image_id: the image whose footprint holds the point ({tally['on_image']} points)"
+                     + (f"; {tally['no_image']} on no image or on several, left empty" if tally["no_image"] else ""))
     return PointsRead(name, layout, n, body, notes + layout.said, outside, filled, unblocked)
 
 
@@ -592,7 +600,8 @@ def _unit(layout: Layout, by_name: dict[str, Column], ctx: Context, file: str, s
 
 
 def _write(layout: Layout, first: list[tuple[int, list[Cell]]], rest: Iterator[tuple[int, list[Cell]]],
-           by_name: dict[str, Column], ctx: Context, file: str) -> tuple[str, int, list[str], set[str], int]:
+           by_name: dict[str, Column], ctx: Context, file: str, tally: dict[str, Any]
+           ) -> tuple[str, int, list[str], set[str], int]:
     """The convention CSV text of every data row (streamed, in chunks), the row count, the points
     outside every block outline, the columns filled and the rows without a block."""
     import csv
@@ -645,7 +654,7 @@ def _write(layout: Layout, first: list[tuple[int, list[Cell]]], rest: Iterator[t
                                     row=row_no)
             seen[pid] = row_no
             recs.append(rec)
-        _place(recs, layout, ctx, outside)
+        _place(recs, layout, ctx, outside, tally)
         for rec in recs:
             if rec.get("block") is None and ctx.outlines:
                 continue  # outside every outline: listed, not a point of any block
@@ -672,8 +681,10 @@ def _bool_text(v: Cell, file: str, row: int, col: str) -> str | None:
     raise DeliveryError(f"column {col!r}: {text_of(v)!r} is not a yes/no word", file=file, row=row)
 
 
-def _place(recs: list[dict[str, str | None]], layout: Layout, ctx: Context, outside: list[str]) -> None:
-    """Blocks by location (outlines given) and, for check points, the image each lies on."""
+def _place(recs: list[dict[str, str | None]], layout: Layout, ctx: Context, outside: list[str],
+           tally: dict[str, Any]) -> None:
+    """Blocks by location (outlines given) and, for check points, the image each lies on (counted in
+    ``tally``: the points whose stated block the location overrules, those on one image or not)."""
     if not recs:
         return
     ex = "x_ref" if "x_ref" in layout.roles else "x"
@@ -689,8 +700,8 @@ def _place(recs: list[dict[str, str | None]], layout: Layout, ctx: Context, outs
             found[inside & (found == None)] = bid  # noqa: E711 (object array)
         for r, b in zip(recs, found.tolist(), strict=True):
             stated = r.get("block")
-            if stated and b is not None and stated != b:
-                r["block_stated"] = stated
+            if stated and stated != b:
+                tally["moved"].append(f"{r['point_id']} ({stated} -> {b or 'no block'})")
             if b is None:
                 outside.append(str(r["point_id"]))
             r["block"] = b
@@ -703,3 +714,4 @@ def _place(recs: list[dict[str, str | None]], layout: Layout, ctx: Context, outs
             hits += on
         for r, img, h in zip(recs, first.tolist(), hits.tolist(), strict=True):
             r["image_id"] = img if h == 1 else None
+            tally["on_image" if h == 1 else "no_image"] += 1
