@@ -200,6 +200,21 @@ def test_an_undecidable_survey_stops_with_its_columns_and_leaves_nothing(source:
     assert res.exit_code == 2 and "source/survey/messung.csv" in out and "orthospec_points_mapping: 1" in out  # type: ignore[attr-defined]
     assert "Traceback" not in out and not (tmp_path / "d").exists()
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".d.")]  # no temporary folder left
+    # the user fills the proposal: roles for the ?, the table; the unit is asked, never defaulted
+    mapping = out[out.index("orthospec_points_mapping: 1"):]
+    assert "decimal: ','" in mapping and "unit: '?'" in mapping
+    for role, col in (("point_id", "Nr"), ("x", "E"), ("y", "N")):
+        mapping = mapping.replace(f"?: '{col}'", f"{role}: '{col}'")
+    mapping = mapping.replace("table: checkpoints", "table: gcps")
+    (source / "survey" / "Passpunkte.csv").unlink()  # one GCP file per draft
+    (tmp_path / "m.yaml").write_text(mapping, encoding="utf-8")
+    res = run("init", tmp_path / "d", "--from", source, "--mapping", tmp_path / "m.yaml")
+    assert res.exit_code == 2 and "the mapping's unit '?' is not m, ft or usft" in res.output  # type: ignore[attr-defined]
+    (tmp_path / "m.yaml").write_text(mapping.replace("unit: '?'", "unit: m"), encoding="utf-8")
+    res = run("init", tmp_path / "d", "--from", source, "--mapping", tmp_path / "m.yaml")
+    assert res.exit_code == 0, res.output  # type: ignore[attr-defined]
+    gcps = (tmp_path / "d" / "tables" / "gcps.csv").read_text(encoding="utf-8")
+    assert gcps == "point_id,block,x,y\nA,B1,150000.5,2700000.5\nB,B1,160000.5,2710000.5\n"
 
 
 def test_the_sensor_type_is_never_guessed(source: Path, tmp_path: Path) -> None:

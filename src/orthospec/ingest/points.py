@@ -448,8 +448,9 @@ def _given(header: list[str], ctx: Context) -> dict[str, Any] | None:
     return None
 
 
-def proposal(file: str, cols: list[Column], header: list[str], table: str | None) -> str:
-    """The mapping to write for an undecided layout, with every column listed."""
+def proposal(file: str, cols: list[Column], header: list[str], table: str | None, decimal: str | None = None) -> str:
+    """The mapping to write for an undecided layout, with every column listed (the unit, and the
+    decimal mark when it was not detected, left as '?': the user states them, nothing defaults)."""
     lines = [f"  - match: {_flow(header)}",
              f"    table: {table or 'checkpoints'}          # checkpoints or gcps",
              "    columns:                     # role: column name as read (roles: point_id, block, x, y, "
@@ -457,7 +458,8 @@ def proposal(file: str, cols: list[Column], header: list[str], table: str | None
     for c in cols:
         if c.kind != "empty":
             lines.append(f"      ?: {_quote(c.name)}    # {c.kind}, e.g. {c.sample!r}")
-    lines += ["    unit: m                      # m, ft or usft", "    decimal: '.'                 # '.' or ','"]
+    lines += ["    unit: '?'                    # m, ft or usft",
+              f"    decimal: {_quote(decimal) if decimal else chr(39) + '?' + chr(39)}                 # '.' or ','"]
     return ("columns read:\n    " + "\n    ".join(c.describe() for c in cols) +
             "\n  name the mapping in a file (replace each ? by a role, delete the columns not used) and run "
             "`orthospec init DIR --from SOURCE --mapping FILE`:\n"
@@ -510,6 +512,8 @@ def read_points(path: Path, name: str, ctx: Context) -> PointsRead:
     texts = [str(c).strip() for r in sample_rows for c in r if isinstance(c, str)]
     if given is not None:
         decimal = str(given.get("decimal") or ".")
+        if decimal not in (".", ","):
+            raise Ambiguous(f"the mapping's decimal {decimal!r} is not '.' or ','", file=name)
     else:
         try:
             decimal, example = _decimal(texts, name)
@@ -533,7 +537,7 @@ def read_points(path: Path, name: str, ctx: Context) -> PointsRead:
         try:
             layout = detect(name, cols, ctx, sample)
         except Ambiguous as exc:
-            raise Ambiguous(f"{exc}\n  {proposal(name, cols, header, _table_of(name, cols))}") from None
+            raise Ambiguous(f"{exc}\n  {proposal(name, cols, header, _table_of(name, cols), decimal)}") from None
     layout.decimal = decimal
     layout.header_rows = data_at
     try:
@@ -560,14 +564,14 @@ def read_points(path: Path, name: str, ctx: Context) -> PointsRead:
 def _layout_given(given: dict[str, Any], header: list[str], file: str, by_name: dict[str, Column]) -> Layout:
     table = given.get("table")
     if table not in COLUMNS:
-        raise DeliveryError(f"the mapping's table {table!r} is not checkpoints or gcps", file=file)
+        raise Ambiguous(f"the mapping's table {table!r} is not checkpoints or gcps", file=file)
     roles = {str(k): str(v) for k, v in (given.get("columns") or {}).items()}
     for role, col in roles.items():
         if role not in COLUMNS[table]:
-            raise DeliveryError(f"the mapping names role {role!r}; {table} has {', '.join(COLUMNS[table])}",
-                                file=file)
+            raise Ambiguous(f"the mapping names role {role!r}; {table} has {', '.join(COLUMNS[table])}",
+                            file=file)
         if col not in by_name:
-            raise DeliveryError(f"the mapping names column {col!r}, not in the header", file=file)
+            raise Ambiguous(f"the mapping names column {col!r}, not in the header", file=file)
     return Layout(table, header, roles, given.get("unit"), str(given.get("decimal") or "."), 1, [])
 
 
@@ -576,7 +580,7 @@ def _unit(layout: Layout, by_name: dict[str, Column], ctx: Context, file: str, s
     if given is not None and given.get("unit"):
         u = str(given["unit"])
         if u not in ("m", "ft", "usft"):
-            raise DeliveryError(f"the mapping's unit {u!r} is not m, ft or usft", file=file)
+            raise Ambiguous(f"the mapping's unit {u!r} is not m, ft or usft", file=file)
         return u
     stated = {by_name[c].unit for r, c in layout.roles.items() if r in LENGTH_ROLES and by_name[c].unit}
     if len(stated) > 1:
