@@ -168,7 +168,8 @@ def unit_of(name: str) -> str | None:
     return None
 
 
-def parse_number(text: str, decimal: str) -> float | None:
+def _dotted(text: str, decimal: str) -> str | None:
+    """A number's text with a decimal point and no thousands separators, or None if not a number."""
     t = text.strip().replace("\u00a0", "").replace(" ", "").replace("'", "")
     if decimal == ",":
         if _THOUSANDS_DOT_COMMA.fullmatch(t):
@@ -176,7 +177,12 @@ def parse_number(text: str, decimal: str) -> float | None:
         t = t.replace(",", ".")
     elif _THOUSANDS_COMMA_DOT.fullmatch(t):
         t = t.replace(",", "")
-    if not _NUM_DOT.fullmatch(t):
+    return t if _NUM_DOT.fullmatch(t) else None
+
+
+def parse_number(text: str, decimal: str) -> float | None:
+    t = _dotted(text, decimal)
+    if t is None:
         return None
     v = float(t)
     return v if np.isfinite(v) else None
@@ -190,14 +196,7 @@ def number_text(v: Cell, decimal: str) -> str | None:
         return None
     if isinstance(v, int | float):
         return repr(float(v)) if isinstance(v, float) and not float(v).is_integer() else str(int(v))
-    t = str(v).strip().replace("\u00a0", "").replace(" ", "").replace("'", "")
-    if decimal == ",":
-        if _THOUSANDS_DOT_COMMA.fullmatch(t):
-            t = t.replace(".", "")
-        t = t.replace(",", ".")
-    elif _THOUSANDS_COMMA_DOT.fullmatch(t):
-        t = t.replace(",", "")
-    return t if _NUM_DOT.fullmatch(t) else None
+    return _dotted(str(v), decimal)
 
 
 def _decimal(samples: list[str], file: str) -> tuple[str, str | None]:
