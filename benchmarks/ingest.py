@@ -16,8 +16,8 @@ best of ``--rounds`` each, every command as a user runs it in its own process:
 - ``orthospec init DRAFT --from SOURCE`` (with the SHA-256 of every file, a full read of each).
 
 Prints each time, the ratio of init (no hashing) to gdaltindex (issue 27 target: <= 1.5x), and
-peak memory: the largest single process (the kernel's accounting of the reaped child, and of every
-worker sampled from /proc) and the peak of the whole process tree's proportional set size (PSS:
+peak memory: the largest single process (its own VmHWM, sampled from /proc: ru_maxrss would
+carry over this script's peak across fork + exec) and the peak of the whole process tree's proportional set size (PSS:
 shared pages divided among the processes sharing them), sampled every 20 ms (target < 500 MB). The load average is printed beside every figure: the machine is shared.
 """
 
@@ -63,6 +63,19 @@ def write_tiles(folder: Path, n: int, px: int, seed: int = 0) -> None:
             ds.write(np.roll(base, i, axis=2))
 
 
+def _hwm(pid: int) -> int:
+    """The process's own peak resident set (VmHWM), in bytes: unlike ru_maxrss it does not carry
+    over the forking parent's peak across exec."""
+    try:
+        with open(f"/proc/{pid}/status", "rb") as fh:
+            for line in fh:
+                if line.startswith(b"VmHWM:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        return 0
+    return 0
+
+
 def _pss(pid: int) -> int | None:
     """Proportional set size in bytes (shared pages divided among their users), from smaps_rollup."""
     try:
@@ -76,8 +89,9 @@ def _pss(pid: int) -> int | None:
 
 
 def _tree_mb(root: int) -> tuple[float, float]:
-    """(sum of PSS, largest RSS) of ``root`` and its descendants now, in MB (Linux /proc). The sum
-    is of proportional sizes: the workers' shared libraries are not counted once per worker."""
+    """(sum of PSS now, largest own peak RSS so far) of ``root`` and its descendants, in MB (Linux
+    /proc). The sum is of proportional sizes: the workers' shared libraries are not counted once per
+    worker."""
     parents: dict[int, int] = {}
     rss: dict[int, int] = {}
     for entry in os.scandir("/proc"):
@@ -98,12 +112,12 @@ def _tree_mb(root: int) -> tuple[float, float]:
         frontier += kids
     pss = [_pss(p) for p in tree]
     total = sum(v if v is not None else rss.get(p, 0) for p, v in zip(tree, pss, strict=True))
-    return total / 1e6, max((rss.get(p, 0) for p in tree), default=0) / 1e6
+    return total / 1e6, max((max(_hwm(p), rss.get(p, 0)) for p in tree), default=0) / 1e6
 
 
 def run(cmd: list[str], *, ok: tuple[int, ...] = (0,)) -> tuple[float, float, float]:
-    """Wall seconds, peak of the process tree's summed PSS (sampled) and the largest single
-    process's peak RSS (kernel accounting of the child, or the largest sampled), in MB."""
+    """Wall seconds, peak of the process tree's summed PSS (sampled every 20 ms) and the largest
+    single process's own peak RSS (VmHWM, sampled), in MB."""
     t0 = time.perf_counter()
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     peak_sum, peak_one, done = 0.0, 0.0, threading.Event()
@@ -118,14 +132,14 @@ def run(cmd: list[str], *, ok: tuple[int, ...] = (0,)) -> tuple[float, float, fl
     th = threading.Thread(target=sample, daemon=True)
     th.start()
     err = proc.stderr.read() if proc.stderr else b""
-    _pid, status, usage = os.wait4(proc.pid, 0)
+    _pid, status, _usage = os.wait4(proc.pid, 0)
     wall = time.perf_counter() - t0
     done.set()
     th.join()
     code = os.waitstatus_to_exitcode(status)
     if code not in ok:
         raise SystemExit(f"{' '.join(cmd[:4])} ... failed ({code}): {err.decode(errors='replace')[-800:]}")
-    return wall, peak_sum, max(peak_one, usage.ru_maxrss / 1024.0)
+    return wall, peak_sum, peak_one
 
 
 def load() -> str:
