@@ -1795,7 +1795,22 @@ def generate(out: Path = DEFAULT_OUT, checker_out: Path | None = None) -> list[P
         root = Path(out) / sat.name
         write_satellite(build_satellite(sat), root, checker_dir)
         roots.append(root)
+    roots.append(_tiles_real().generate(Path(out), checker_dir))  # issue 27: a delivery as it arrives
     return roots
+
+
+def _tiles_real() -> Any:
+    """examples/tiles_real.py (a module of its own: the tiles-real example, not in the convention)."""
+    import importlib.util
+    import sys
+
+    name = "orthospec_examples_tiles_real"
+    if name not in sys.modules:
+        spec = importlib.util.spec_from_file_location(name, HERE / "tiles_real.py")
+        assert spec is not None and spec.loader is not None
+        sys.modules[name] = module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+    return sys.modules[name]
 
 
 def main(argv: Sequence[str] | None = None) -> None:

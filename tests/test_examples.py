@@ -98,7 +98,7 @@ def _num(series: pd.Series) -> pd.Series:
 
 
 # --------------------------------------------------------------------------- up to date
-@pytest.mark.parametrize("name", NAMES + SATELLITE)
+@pytest.mark.parametrize("name", (*NAMES, *SATELLITE, "tiles-real"))
 def test_committed_example_equals_a_fresh_generation(regenerated: Path, name: str) -> None:
     fresh, committed = _digests(regenerated / name), _digests(EXAMPLES / name)
     assert sorted(fresh) == sorted(committed), "file lists differ: run `python examples/generate.py`"
@@ -109,13 +109,13 @@ def test_committed_example_equals_a_fresh_generation(regenerated: Path, name: st
 def test_committed_checker_files_equal_a_fresh_generation(regenerated: Path) -> None:
     fresh, committed = _digests(regenerated.parent / "checker"), _digests(CHECKERS)
     folders = {f"{n}/{f}" for n in NAMES + SATELLITE for f in ("checker.yaml", "tables/checkpoints.csv")}
-    assert sorted(fresh) == sorted(committed) == sorted(folders | {f"{n}/inspection.gpkg" for n in NAMES})
+    assert sorted(fresh) == sorted(committed) == sorted(folders | {f"{n}/inspection.gpkg" for n in NAMES} | {"tiles-real.yaml"})
     assert fresh == committed, "stale checker files: run `python examples/generate.py`"
 
 
 def test_generation_is_byte_identical_twice(regenerated: Path, tmp_path: Path) -> None:
     _generator().generate(tmp_path / "deliveries")
-    for name in NAMES + SATELLITE:
+    for name in (*NAMES, *SATELLITE, "tiles-real"):
         assert _digests(tmp_path / "deliveries" / name) == _digests(regenerated / name)
     assert _digests(tmp_path / "checker") == _digests(regenerated.parent / "checker")
 
