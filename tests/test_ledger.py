@@ -75,7 +75,7 @@ def docs(tmp_path_factory: pytest.TempPathFactory) -> list[dict[str, Any]]:
 
 
 def _engine(url: str) -> sa.Engine:
-    from orthospec.ledger.store import to_url
+    from orthospec.ledger.db import to_url
 
     return sa.create_engine(to_url(url))
 

@@ -26,7 +26,7 @@ from orthospec.errors import LedgerError
 from orthospec.ledger import models as m
 from orthospec.ledger import open_ledger
 from orthospec.ledger.audit import family_of
-from orthospec.ledger.store import to_url
+from orthospec.ledger.db import to_url
 from orthospec.qcr import all_records, dumps, natural_key
 
 RECORDED_AT = "2026-11-21T00:00:00+00:00"
