@@ -8,15 +8,18 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 from sqlalchemy import Connection, Engine, select
 
+from ..errors import LedgerError
 from . import models as m
 from .anchor import ENV_ANCHOR, read_anchors
 from .chain import RunHasher, sha256_text, signoff_hash
 from .db import BATCH
 from .rows import QCR_COLUMNS, canonical_texts
+from .signing import run_statement, signature_key, signoff_statement, verify_signature
 
 
 @dataclass(frozen=True)
@@ -44,8 +47,11 @@ class VerifyReport:
         return not self.problems
 
 
-def verify_chain(engine: Engine, head: str | None = None, *, heads: Iterable[str] = ()) -> VerifyReport:
-    """Recompute every hash and link; list each edited, deleted or reordered row.
+def verify_chain(engine: Engine, head: str | None = None, *, heads: Iterable[str] = (),
+                 allowed_signers: Path | None = None) -> VerifyReport:
+    """Recompute every hash and link and check every signature; list each edited, deleted or
+    reordered row, and each signature that does not verify (by the allowed-signers file when
+    given: the key must be registered to the name the entry records, at its recording date).
 
     ``head`` (and each of ``heads``): a chain hash noted outside the ledger earlier (printed on
     every report and in qcr.json). The chain must still contain it; a ledger whose newest
@@ -95,6 +101,7 @@ def verify_chain(engine: Engine, head: str | None = None, *, heads: Iterable[str
                     problems.append(Problem("signoffs", key, f"signed run {row['run_id']} is missing or "
                                             "its hash differs from the one signed"))
                 h = signoff_hash(row, row["prev_hash"])
+            problems += _signature_problems(kind, table, key, row, allowed_signers)
             if h != row["hash"]:
                 what = ("its row, file or QCR rows were edited or deleted" if kind == "run"
                         else "its row was edited")
@@ -127,6 +134,30 @@ def verify_chain(engine: Engine, head: str | None = None, *, heads: Iterable[str
                 f"the head {want[:16]}... noted earlier is not in the chain: entries up to it were deleted "
                 f"and the chain rewritten (the chain now ends at seq {expected_seq - 1} hash {prev[:12]}...)"))
     return VerifyReport(len(entries), len(runs), len(signs), prev, tuple(problems))
+
+
+def _signature_problems(kind: str, table: str, key: str, row: Mapping[str, Any],
+                        allowed_signers: Path | None) -> list[Problem]:
+    """The signature of a run or sign-off row, checked with ssh-keygen (:mod:`.signing`)."""
+    armored = row.get("signature")
+    if not armored:
+        return []
+    try:
+        fingerprint, _ = signature_key(armored)
+    except LedgerError as exc:
+        return [Problem(table, key, f"signature unreadable: {exc}")]
+    if fingerprint != row.get("key_fingerprint"):
+        return [Problem(table, key, f"signature made by key {fingerprint}, the row records {row.get('key_fingerprint')}")]
+    if kind == "run":
+        message, who = run_statement(row["document_sha256"]), row.get("signer")
+    else:
+        message, who = signoff_statement(row), row.get("by_name")
+    why = verify_signature(message, armored, principal=who, allowed_signers=allowed_signers,
+                           day=str(row.get("recorded_at") or "")[:10] or None)
+    if why is None:
+        return []
+    return [Problem(table, key, f"signature of {who or fingerprint} does not verify ({why}): the entry was "
+                                "changed after it was signed, or the key is not the one registered for that name")]
 
 
 def rehash_run(conn: Connection, run: Mapping[str, Any]) -> tuple[str, int, bool]:
