@@ -200,7 +200,7 @@ def test_three_rounds_until_accepted(tmp_path: Path, profile: Path, ledger_url: 
         doc = led.document_with_signoffs(3)
     assert doc["records"] == outputs[2]["records"]
     assert doc["signoffs"] == [{"by": "Ann Super", "role": "supervisor", "date": "2026-03-02",
-                                "note": "accepted", "manual": {"R-VIS": "pass"}}]
+                                "note": "accepted", "manual": {"R-VIS": "pass"}, "key": None}]
 
     ok = run("ledger", "verify", "--ledger", ledger_url)
     assert ok.exit_code == 0 and "intact, 4 entries (3 runs, 1 sign-offs)" in ok.output

@@ -346,28 +346,33 @@ class Ledger:
                  "date": r["date"], "note": r["note"], "manual": json.loads(r["manual"]),
                  "recorded_at": r["recorded_at"], "key": r["key_fingerprint"]} for r in rows]
 
-    def report_document(self, run_id: int) -> dict[str, Any]:
+    def report_document(self, run_id: int, *, heads: Iterable[str] = ()) -> dict[str, Any]:
         """What a report of ``run_id`` shows: its document, sign-offs and the project's sequence of
-        deliveries, redeliveries and verdicts up to that run (JRC §12.8: redeliver until acceptable)."""
+        deliveries, redeliveries and verdicts up to that run (JRC §12.8: redeliver until acceptable).
+        ``heads``: ledger heads printed earlier (e.g. on the run's own report): a chain that no longer
+        holds one of them is listed in ``ledger.problems``, and the report says TAMPERED."""
         from .signed import after_signoff
 
-        doc = self.document_with_signoffs(run_id)
+        doc = self.document_with_signoffs(run_id, heads=heads)
         run = self.run(run_id)
         signed = after_signoff(doc, self.signoffs(run_id))
         if signed is not None:
             doc["after_signoff"] = signed
-        entries = [e for e in self.history(run.project_id).entries if e.run.seq <= run.seq]
+        entries = [e for e in self.history(run.audit).entries if e.run.seq <= run.seq]
         doc["history"] = history_rows(entries, current_run=run_id)
         return doc
 
-    def document_with_signoffs(self, run_id: int) -> dict[str, Any]:
-        """The stored qcr document plus ``signoffs`` [{by, role, date, note, manual}] for reports."""
+    def document_with_signoffs(self, run_id: int, *, heads: Iterable[str] = ()) -> dict[str, Any]:
+        """The stored qcr document plus ``signoffs`` [{by, role, date, note, manual, key}] and ``ledger``
+        (the run's entry and signer, the head, what ``verify`` found) for reports."""
         doc = self.document(run_id)
-        doc["signoffs"] = [{k: s[k] for k in ("by", "role", "date", "note", "manual")}
+        doc["signoffs"] = [{k: s[k] for k in ("by", "role", "date", "note", "manual", "key")}
                            for s in self.signoffs(run_id)]
         seq, head = self.head()
-        rep = self.verify()
-        doc["ledger"] = {"run": run_id, "hash": self.run(run_id).hash, "head": head, "head_seq": seq,
+        rep = self.verify(heads=heads)
+        run = self.run(run_id)
+        doc["ledger"] = {"run": run_id, "hash": run.hash, "head": head, "head_seq": seq,
+                         "signer": run.signer, "key": run.key_fingerprint,
                          "problems": [str(p) for p in rep.problems]}
         return doc
 

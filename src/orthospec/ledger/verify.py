@@ -6,6 +6,9 @@ run's document and QCR rows on their own, the rows streamed in ordinal order a b
 
 from __future__ import annotations
 
+import io
+import json
+import re
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -178,3 +181,35 @@ def rehash_run(conn: Connection, run: Mapping[str, Any]) -> tuple[str, int, bool
     full = {**run, "document": document}
     del document
     return hasher.hexdigest(full), n, doc_ok
+
+
+_HEAD_TEXT = re.compile(r"ledger head[^0-9a-f]{0,80}?([0-9a-f]{64})", re.S)
+
+
+def heads_in_file(path: Path) -> list[str]:
+    """Ledger head hashes printed in a report (PDF metadata and page 1, HTML) or a qcr.json: what
+    ``ledger verify --against`` and ``report --against`` check the chain still holds."""
+    data = path.read_bytes()
+    texts: list[str] = []
+    if data[:5] == b"%PDF-":
+        from pypdf import PdfReader
+
+        reader = PdfReader(io.BytesIO(data))
+        meta = reader.metadata or {}
+        texts.append(str(meta.get("/Subject") or ""))
+        texts.append((reader.pages[0].extract_text() or "") if reader.pages else "")
+    else:
+        text = data.decode("utf-8", errors="replace")
+        try:
+            doc = json.loads(text)
+        except ValueError:
+            doc = None
+        if isinstance(doc, dict):
+            for key in ("ledger_head", "ledger"):
+                v = doc.get(key)
+                if isinstance(v, dict):
+                    h = v.get("hash") if key == "ledger_head" else v.get("head")
+                    if isinstance(h, str):
+                        texts.append(f"ledger head {h}")
+        texts.append(text)
+    return list(dict.fromkeys(m for t in texts for m in _HEAD_TEXT.findall(t.replace("\n", ""))))
