@@ -86,13 +86,16 @@ def stated_project(doc: Mapping[str, Any]) -> str | None:
 
 def lineage(runs: Sequence[RunInfo], key: str) -> list[RunInfo]:
     """The runs of one audit trail (oldest first): those kept under ``key`` and, transitively, every run
-    under a key that a run of the trail continues by content, or that continues one of its runs.
+    under a key that a run of the trail continues by content, or that continues one of its runs;
+    ``key`` may also be a manifest project id (the trails of the runs that carried it).
 
     A key is what the checker states, else what content continuity gave, else the manifest's
     project id: renaming ``project.id`` in a redelivery that continues earlier content, or under a
     checker file stating the contract, stays in the trail (issue 25 item 6)."""
     by_id = {r.id: r for r in runs}
-    keys, changed = {key}, True
+    # a manifest project id names the trails of the runs that carried it (a lookup by what the
+    # delivery says finds its trail; the trail itself is never split by it)
+    keys, changed = {key} | {r.audit for r in runs if r.project_id == key}, True
     while changed:
         changed = False
         for r in runs:
