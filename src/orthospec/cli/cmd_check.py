@@ -176,7 +176,14 @@ def _record_and_write(ledger_target: str, doc: dict, fmts: list[str], target: Pa
             write_outputs(target, written)
 
         run_id = led.record(doc, key=key, before_commit=write)
-        return written, run_id, led.display
+        r = led.run(run_id)
+    trail = f"audit trail {r.audit}"
+    if r.continues_run is not None:
+        trail += f", continuing run #{r.continues_run}"
+    elif not (doc.get("checker") or {}).get("project"):
+        trail += " (the manifest's project.id: the checker file's checker.project keys it by the contract)"
+    signed = f"signed by {r.signer or 'key'} {r.key_fingerprint}" if r.key_fingerprint else "unsigned"
+    return written, run_id, f"{led.display} ({trail}; {signed})"
 
 
 def _sample_block(sample: tuple[str, set[str]], result: object, sample_file: Path) -> dict:

@@ -300,8 +300,12 @@ def runs_cmd(project: str | None, ledger_target: str | None, as_json: bool) -> N
         click.echo(json.dumps([{"run": r.id, "seq": r.seq, "date": r.date, "recorded_at": r.recorded_at,
                                 "project": r.project_id, "delivery": r.delivery_id, "verdict": r.verdict,
                                 "profile": f"{r.profile_id}@{r.profile_version}", "operator": r.operator,
-                                "records": r.n_records, "hash": r.hash} for r in runs], indent=1))
+                                "records": r.n_records, "hash": r.hash, "audit_trail": r.audit,
+                                "continues_run": r.continues_run, "signer": r.signer,
+                                "key": r.key_fingerprint} for r in runs], indent=1))
         return
     for r in runs:
-        click.echo(f"#{r.id:<4} {r.date}  {r.project_id}  {r.delivery_id}  {r.verdict:<8}  "
-                   f"{r.profile_id}@{r.profile_version}  {r.n_records} QCRs  {r.hash[:12]}")
+        trail = f" (trail {r.audit})" if r.audit != r.project_id else ""
+        signed = f"  signed {r.key_fingerprint[:19]}" if r.key_fingerprint else "  unsigned"
+        click.echo(f"#{r.id:<4} {r.date}  {r.project_id}{trail}  {r.delivery_id}  {r.verdict:<8}  "
+                   f"{r.profile_id}@{r.profile_version}  {r.n_records} QCRs  {r.hash[:12]}{signed}")
