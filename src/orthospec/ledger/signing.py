@@ -45,8 +45,8 @@ ENV_ALLOWED = "ORTHOSPEC_ALLOWED_SIGNERS"
 #: seconds ssh-keygen may take (a passphrase prompt or a hardware token touch included)
 _TIMEOUT = 300
 
-__all__ = ["ENV_ALLOWED", "ENV_KEY", "NAMESPACE", "Signature", "allowed_signers_from_env", "key_from_env",
-           "sign", "signature_key", "statement", "verify_signature"]
+__all__ = ["ENV_ALLOWED", "ENV_KEY", "NAMESPACE", "Signature", "allowed_signers_from_env", "check_signature",
+           "key_from_env", "sign", "signature_key", "statement", "verify_signature"]
 
 
 @dataclass(frozen=True)
@@ -165,6 +165,23 @@ def sign(message: bytes, key: Path, *, allowed_signers: Path | None) -> Signatur
 def _check_allowed(path: Path) -> None:
     if not Path(path).is_file():
         raise LedgerError(f"allowed-signers file {path}: no such file (${ENV_ALLOWED} or --allowed-signers)")
+
+
+def check_signature(message: bytes, armored: str) -> str | None:
+    """None when ``armored`` is a valid ledger signature of ``message`` by the key it carries; else why not.
+
+    In-process through the ``sshsig`` package (Ed25519 and RSA keys: microseconds, so `verify` of a
+    long ledger stays fast); other key types (ECDSA, FIDO) through ``ssh-keygen -Y check-novalidate``.
+    Who the key is, is :func:`verify_signature`'s question."""
+    import sshsig
+
+    try:
+        sshsig.check_signature(message, armored, namespace=NAMESPACE)
+        return None
+    except sshsig.InvalidSignature as exc:
+        return f"invalid signature{f' ({exc})' if str(exc) else ''}"
+    except (NotImplementedError, ValueError):
+        return verify_signature(message, armored, principal=None, allowed_signers=None)
 
 
 def verify_signature(message: bytes, armored: str, *, principal: str | None, allowed_signers: Path | None,

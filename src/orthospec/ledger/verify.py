@@ -22,7 +22,13 @@ from .anchor import ENV_ANCHOR, read_anchors
 from .chain import RunHasher, sha256_text, signoff_hash
 from .db import BATCH
 from .rows import QCR_COLUMNS, canonical_texts
-from .signing import run_statement, signature_key, signoff_statement, verify_signature
+from .signing import (
+    check_signature,
+    run_statement,
+    signature_key,
+    signoff_statement,
+    verify_signature,
+)
 
 
 @dataclass(frozen=True)
@@ -65,6 +71,7 @@ def verify_chain(engine: Engine, head: str | None = None, *, heads: Iterable[str
     their documents, then each run's document and rows on their own, rows streamed in order.
     """
     problems: list[Problem] = []
+    who_checks: dict[tuple[str, str, str], list[tuple[str, str, bytes, str]]] = {}
     run_cols = [c for c in m.runs.c if c.name != "document"]
     with engine.connect() as conn:
         if conn.dialect.name == "postgresql":  # one snapshot for the whole pass (SQLite's read
@@ -104,12 +111,14 @@ def verify_chain(engine: Engine, head: str | None = None, *, heads: Iterable[str
                     problems.append(Problem("signoffs", key, f"signed run {row['run_id']} is missing or "
                                             "its hash differs from the one signed"))
                 h = signoff_hash(row, row["prev_hash"])
-            problems += _signature_problems(kind, table, key, row, allowed_signers)
+            problems += _signature_problems(kind, table, key, row, who_checks)
             if h != row["hash"]:
                 what = ("its row, file or QCR rows were edited or deleted" if kind == "run"
                         else "its row was edited")
                 problems.append(Problem(table, key, f"content hash mismatch: {what}"))
             prev, expected_seq = row["hash"], row["seq"] + 1
+    if allowed_signers is not None:
+        problems += _identity_problems(who_checks, allowed_signers)
     if len(head_rows) != 1:
         problems.append(Problem("ledger_head", "id 1", f"{len(head_rows)} head rows, expected 1"))
     else:
@@ -140,8 +149,10 @@ def verify_chain(engine: Engine, head: str | None = None, *, heads: Iterable[str
 
 
 def _signature_problems(kind: str, table: str, key: str, row: Mapping[str, Any],
-                        allowed_signers: Path | None) -> list[Problem]:
-    """The signature of a run or sign-off row, checked with ssh-keygen (:mod:`.signing`)."""
+                        who_checks: dict[tuple[str, str, str], list[tuple[str, str, bytes, str]]]) -> list[Problem]:
+    """The signature of a run or sign-off row: made by the key the row records, valid for what the
+    entry vouches for (:mod:`.signing`). Whether that key is the named person's is checked later, once
+    per (name, key, day), from ``who_checks``."""
     armored = row.get("signature")
     if not armored:
         return []
@@ -155,12 +166,29 @@ def _signature_problems(kind: str, table: str, key: str, row: Mapping[str, Any],
         message, who = run_statement(row["document_sha256"]), row.get("signer")
     else:
         message, who = signoff_statement(row), row.get("by_name")
-    why = verify_signature(message, armored, principal=who, allowed_signers=allowed_signers,
-                           day=str(row.get("recorded_at") or "")[:10] or None)
-    if why is None:
-        return []
-    return [Problem(table, key, f"signature of {who or fingerprint} does not verify ({why}): the entry was "
-                                "changed after it was signed, or the key is not the one registered for that name")]
+    why = check_signature(message, armored)
+    if why is not None:
+        return [Problem(table, key, f"signature of {who or fingerprint} does not verify ({why}): the entry was "
+                                    "changed after it was signed")]
+    day = str(row.get("recorded_at") or "")[:10]
+    who_checks.setdefault((str(who or ""), fingerprint, day), []).append((table, key, message, armored))
+    return []
+
+
+def _identity_problems(who_checks: Mapping[tuple[str, str, str], list[tuple[str, str, bytes, str]]],
+                       allowed_signers: Path) -> list[Problem]:
+    """Each (name, key, day) of the signed entries against the allowed-signers file: one ssh-keygen
+    run per combination (the signatures themselves are already checked), its verdict for all its entries."""
+    out = []
+    for (who, fingerprint, day), entries in who_checks.items():
+        _table, _key, message, armored = entries[0]
+        why = verify_signature(message, armored, principal=who or None, allowed_signers=allowed_signers,
+                               day=day or None)
+        if why is not None:
+            out += [Problem(table, key, f"signature of {who or fingerprint} does not verify against the allowed "
+                                        f"signers ({why}): the key {fingerprint} is not the one registered "
+                                        "for that name at that date") for table, key, _m, _a in entries]
+    return out
 
 
 def rehash_run(conn: Connection, run: Mapping[str, Any]) -> tuple[str, int, bool]:
