@@ -78,6 +78,10 @@ class CheckerParty(_Closed):
     role: str | None = Field(None, description="e.g. external QC, paying agency GIS unit.")
     organisation: str | None = None
     contact: str | None = None
+    project: str | None = Field(None, min_length=1, description=(
+        "The contract / project id this external QC works under, as the buyer names it (e.g. ITT 2026/CAP-ORTHO "
+        "lot 2). The ledger keeps the Normal/Tightened audit state and the §12.8 rounds under it, never under "
+        "the manifest's project.id, which the contractor writes."))
 
 
 class CheckerManualCheck(_Closed):
