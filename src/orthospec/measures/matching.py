@@ -172,16 +172,29 @@ def _hann(n: int) -> np.ndarray:
     return np.outer(w, w)
 
 
-def _patch(search: np.ndarray, top: float, left: float, t: int) -> np.ndarray:
-    """The ``t x t`` patch of ``search`` whose top-left corner is at (top, left), cubic spline
-    for a fractional position."""
-    if float(top).is_integer() and float(left).is_integer():
-        i, j = int(top), int(left)
-        return search[i:i + t, j:j + t]
-    from scipy.ndimage import map_coordinates
+#: pixels taken around a patch before its Fourier shift (the periodic wrap stays outside the crop)
+_FOURIER_PAD = 8
 
-    rr, cc = np.mgrid[0:t, 0:t].astype(np.float64)
-    return map_coordinates(search, [rr + top, cc + left], order=3, mode="nearest")
+
+def _patch(search: np.ndarray, top: float, left: float, t: int) -> np.ndarray:
+    """The ``t x t`` patch of ``search`` whose top-left corner is at (top, left).
+
+    A fractional position is resampled by the Fourier shift theorem (sinc interpolation) over the
+    patch plus a border, then cropped: polynomial kernels (cubic spline, cubic convolution) delay
+    the fine texture of a sharp image by a fraction-dependent amount, and iterating on patches
+    resampled with them converged 0.01-0.05 px off (benchmarks/matching.py)."""
+    i, j = math.floor(top), math.floor(left)
+    fi, fj = top - i, left - j
+    if fi == 0 and fj == 0 and i >= 0 and j >= 0:
+        return search[i:i + t, j:j + t]
+    from scipy.ndimage import fourier_shift
+
+    p = _FOURIER_PAD
+    padded = np.pad(search, p + 1, mode="reflect")
+    i0, j0 = i + 1, j + 1  # position in padded, minus the border p
+    region = padded[i0:i0 + t + 2 * p, j0:j0 + t + 2 * p]
+    moved = np.fft.ifft2(fourier_shift(np.fft.fft2(region), (-fi, -fj))).real
+    return moved[p:p + t, p:p + t]
 
 
 def _gauss_or_parabola(m1: float, c0: float, p1: float) -> float:

@@ -245,6 +245,9 @@ def locate(image_ds: DatasetReader, image: RasterHeader, chip_ds: DatasetReader,
         return Located(None, None, None, pair.chip_px, pair.problem,
                        pair.detail or "edge of image: the search window leaves the image")
     m = match_chip(pair.template, pair.search, search_valid=pair.search_valid, settings=settings)  # type: ignore[arg-type]
+    if pair.offset != (0.0, 0.0):
+        m = replace(m, dx_px=m.dx_px + pair.offset[0], dy_px=m.dy_px + pair.offset[1],
+                    other_dx_px=m.other_dx_px + pair.offset[0], other_dy_px=m.other_dy_px + pair.offset[1])
     if not (math.isfinite(m.dx_px) and math.isfinite(m.dy_px)):
         return Located(m, None, None, pair.chip_px)
     mx, my = image.transform * (col + m.dx_px, row + m.dy_px)
@@ -379,8 +382,10 @@ def measure_checkpoints(delivery: str | Path, reference: str | Path, survey: str
         res.image_id, res.block = iid, p.block or block or None
         todo.setdefault(k, []).append((p, res))
     if not todo:
+        listed = [w for w in warnings if w.startswith(f"{survey}: row ")]
+        rows = "; ".join(listed[:10]) + (f"; and {len(listed) - 10} more" if len(listed) > 10 else "")
         raise MeasureError(f"{survey}: none of its {len(points)} point(s) lies on a delivered image: "
-                           "nothing can be measured (check the survey's CRS, --crs, and the delivery)")
+                           f"nothing can be measured (check the survey's CRS, --crs, and the delivery): {rows}")
     images_open, chips_open = _Open(), _Open()
     try:
         with read_only_env():

@@ -4,8 +4,9 @@ The checker's reference is either a *chip library* (a folder of small GeoTIFFs a
 points, as the Landsat and Sentinel-2 geometric QA keep them) or one reference orthoimage. For a
 point, :func:`read_pair` reads
 
-* the reference around the point, only the window of the reference that covers the template,
-  resampled (``rasterio.warp.reproject``: Lanczos when the reference is as coarse as the image or
+* the reference around the point, only the window of the reference that covers the template:
+  taken as it is when its grid is the image's up to a translation (the fraction of a pixel is
+  added to the measured position instead), else resampled (``rasterio.warp.reproject``: Lanczos when the reference is as coarse as the image or
   coarser, area average when it is finer) onto the delivered image's own pixel grid, in
   the image's CRS: after that the two differ by the delivery's error only;
 * the delivered image's search window around the point (template plus the search range).
@@ -206,17 +207,41 @@ class Pair:
     template_origin: tuple[int, int]
     margin: int
     chip_px: int
+    #: add to a position measured with the template (columns, rows): the chip's own grid offset
+    offset: tuple[float, float] = (0.0, 0.0)
     problem: str = ""
     detail: str = ""
 
 
+def _same_grid(chip: RasterHeader, image: RasterHeader) -> bool:
+    """The chip's pixels are the image's up to a translation (same CRS, size and orientation)."""
+    a, b = chip.transform, image.transform
+    return chip.crs == image.crs and a.b == b.b == a.d == b.d == 0 and \
+        math.isclose(a.a, b.a, rel_tol=1e-9) and math.isclose(a.e, b.e, rel_tol=1e-9)
+
+
 def _reference_on_grid(ds: rasterio.io.DatasetReader, chip: RasterHeader, image: RasterHeader,
-                       origin: tuple[int, int], size: int) -> np.ndarray:
-    """The chip's luminance resampled onto ``size`` x ``size`` image pixels from ``origin``; NaN
-    where the chip has no valid pixel to give."""
+                       origin: tuple[int, int], size: int) -> tuple[np.ndarray, tuple[float, float]]:
+    """The chip's luminance on ``size`` x ``size`` image pixels from ``origin`` (NaN where the chip
+    has no valid pixel to give), and the offset (columns, rows) to add to a position measured
+    with it.
+
+    On the image's own grid up to a translation (a chip cut from a reference at the same pixel
+    size, the common case), the chip's pixels are taken as they are, at the nearest whole pixel,
+    and the fraction is the offset: no interpolation of the reference at all. Otherwise the chip
+    is resampled onto the image's grid (offset 0)."""
     from rasterio.warp import reproject, transform_bounds
 
     dst_transform = image.transform * Affine.translation(*origin)
+    out = np.full((len(chip.bands), size, size), np.nan, dtype=np.float64)
+    if _same_grid(chip, image):
+        u, v = ~chip.transform * (dst_transform.c, dst_transform.f)
+        cu, rv = round(u), round(v)
+        c0, r0, c1, r1 = max(cu, 0), max(rv, 0), min(cu + size, ds.width), min(rv + size, ds.height)
+        if c1 > c0 and r1 > r0:
+            src = ds.read(list(chip.bands), window=Window(c0, r0, c1 - c0, r1 - r0), masked=True)
+            out[:, r0 - rv:r1 - rv, c0 - cu:c1 - cu] = np.ma.filled(src.astype(np.float64), np.nan)
+        return luminance(out), (float(u - cu), float(v - rv))
     left, top = dst_transform * (0, 0)
     right, bottom = dst_transform * (size, size)
     bounds = (min(left, right), min(top, bottom), max(left, right), max(top, bottom))
@@ -227,9 +252,8 @@ def _reference_on_grid(ds: rasterio.io.DatasetReader, chip: RasterHeader, image:
     c0, r0 = math.floor(win.col_off) - pad, math.floor(win.row_off) - pad
     c1, r1 = math.ceil(win.col_off + win.width) + pad, math.ceil(win.row_off + win.height) + pad
     c0, r0, c1, r1 = max(c0, 0), max(r0, 0), min(c1, ds.width), min(r1, ds.height)
-    out = np.full((len(chip.bands), size, size), np.nan, dtype=np.float64)
     if c1 - c0 < 2 or r1 - r0 < 2:
-        return luminance(out)
+        return luminance(out), (0.0, 0.0)
     w = Window(c0, r0, c1 - c0, r1 - r0)
     src = ds.read(list(chip.bands), window=w, masked=True)
     arr = np.ma.filled(src.astype(np.float64), np.nan)
@@ -237,7 +261,7 @@ def _reference_on_grid(ds: rasterio.io.DatasetReader, chip: RasterHeader, image:
     reproject(arr, out, src_transform=ds.window_transform(w), src_crs=chip.crs, src_nodata=np.nan,
               dst_transform=dst_transform, dst_crs=image.crs, dst_nodata=np.nan,
               resampling=Resampling.average if finer else Resampling.lanczos)
-    return luminance(out)
+    return luminance(out), (0.0, 0.0)
 
 
 def _centred_square(valid: np.ndarray, centre: tuple[float, float], largest: int, smallest: int) -> int:
@@ -265,21 +289,21 @@ def read_pair(image_ds: rasterio.io.DatasetReader, image: RasterHeader, chip_ds:
     big = chip_px
     origin = (round(col - big / 2), round(row - big / 2))
     with gdal_errors(file=chip.name, path=chip.path):
-        ref = _reference_on_grid(chip_ds, chip, image, origin, big)
+        ref, offset = _reference_on_grid(chip_ds, chip, image, origin, big)
     valid = np.isfinite(ref)
     side = _centred_square(valid, (row - origin[1], col - origin[0]), big, min_template_px)
     if side == 0:
         got = int(valid.sum())
         what = "does not cover the point" if got == 0 else (
             f"covers too little around the point (a {min_template_px} px square is needed)")
-        return Pair(None, None, None, origin, margin, 0, "reference", f"{chip.name} {what}")
+        return Pair(None, None, None, origin, margin, 0, problem="reference", detail=f"{chip.name} {what}")
     t0 = (round(col - side / 2), round(row - side / 2))
     template = ref[t0[1] - origin[1]:t0[1] - origin[1] + side, t0[0] - origin[0]:t0[0] - origin[0] + side]
     s0c, s0r, size = t0[0] - margin, t0[1] - margin, side + 2 * margin
     if s0c < 0 or s0r < 0 or s0c + size > image.width or s0r + size > image.height:
-        return Pair(template, None, None, t0, margin, side, "edge", "")
+        return Pair(template, None, None, t0, margin, side, offset, "edge")
     with gdal_errors(file=image.name, path=image.path):
         data = image_ds.read(list(image.bands), window=Window(s0c, s0r, size, size), masked=True)
     mask = np.ma.getmaskarray(data).any(axis=0)
     search = luminance(np.ma.getdata(data))
-    return Pair(template, search, ~mask, t0, margin, side)
+    return Pair(template, search, ~mask, t0, margin, side, offset)
