@@ -53,6 +53,8 @@ COMMANDS: dict[str, dict[str, tuple[str, str]]] = {
     "measure": {
         "accuracy": ("cmd_measure_accuracy", "RMSE, NSSDA, CE90/CE95, bias test and blunder "
                                              "screening of checkpoint discrepancies."),
+        "checkpoints": ("cmd_measure_checkpoints", "Measure surveyed check points on the delivered "
+                                                   "orthoimages by subpixel image matching."),
         "edge": ("cmd_measure_edge", "Measure RER, FWHM, MTF at Nyquist and effective resolution on "
                                      "an edge target."),
         "radiometry": ("cmd_measure_radiometry", "Exact per-band statistics, histograms and JRC "
@@ -129,7 +131,7 @@ def spec() -> None:
 
 @main.group(cls=LazyGroup, table="measure")
 def measure() -> None:
-    """Standalone measures on one file (accuracy, radiometry, edge)."""
+    """Standalone measures on one file (accuracy, radiometry, edge) and check points on a delivery."""
 
 
 @main.group(cls=LazyGroup, table="checker")
