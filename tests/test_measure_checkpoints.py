@@ -243,7 +243,7 @@ def test_hand_list_as_csv(world: dict[str, Path], tmp_path: Path) -> None:
     assert code == 0, err
     p3 = {r["point_id"]: r for r in table(out)}["P3"]
     assert (p3["decision"], p3["x"], p3["y"]) == ("by_hand", "1000.5", "2000.25")
-    assert "accepted automatically; measured by hand: checked twice" == p3["reason"]
+    assert p3["reason"] == "accepted automatically; measured by hand: checked twice"
 
 
 @pytest.mark.parametrize(("text", "message"), [
