@@ -52,7 +52,6 @@ import argparse
 import json
 import math
 import os
-import resource
 import shutil
 import subprocess
 import sys
@@ -83,7 +82,23 @@ PSF_SIGMA = 0.5
 #: the scene window rendered around a point (scene px either way) and its Fourier upsampling: a
 #: cubic spline on the 4x band-limited upsampling renders a fractional shift within 0.001 px, on the
 #: raw pixels it was 0.04 px off (0.21 px for a 0.25 px shift)
-RENDER_HALF = 166  # largest half-window (image-1:2 family)
+#: the spline's reach and the largest displacement (5 image px = 10 scene px at 1:2) beyond the footprint
+RENDER_MARGIN = 12
+
+
+def render_half(ratio: str, rotated: bool) -> int:
+    """Half-side (scene px) of the scene window a delivered image is rendered from: its footprint
+    (x 1.05 when rotated by up to 1 deg) plus RENDER_MARGIN. The scene's valid area (a rotated
+    Landsat footprint) holds no axis-parallel square over about 300 px, so the margin is kept tight."""
+    scale = 2 if ratio == "image-1:2" else 1
+    return int(IMAGE_PX / 2 * scale * (1.05 if rotated else 1.0)) + RENDER_MARGIN
+
+
+def family_half(family: str) -> int:
+    """The largest render half-window a pair of this family may need (``centres`` keeps it valid)."""
+    if family in ("image-1:2", "combined"):
+        return render_half("image-1:2", family == "combined")
+    return render_half("1:1", family == "rotation-1deg")
 UPSAMPLE = 4
 
 
@@ -115,7 +130,8 @@ def scene() -> Scene:
     with rasterio.open(SCENE) as ds:
         raw = ds.read().astype(np.float64)
         t, crs = ds.transform, ds.crs.to_wkt()
-    valid = (raw > 0).all(axis=0)
+    # outside the footprint every band is 0; inside, a dark pixel may be 0 in one band
+    valid = (raw > 0).any(axis=0)
     bands = np.stack([ndimage.gaussian_filter(b, PSF_SIGMA) for b in raw])
     return Scene(bands, t, crs, valid)
 
@@ -135,12 +151,20 @@ class Pair:
     kind: str  # textured | flat | cloud
 
 
-def centres(sc: Scene, rng: np.random.Generator, n: int, *, half: int = RENDER_HALF + 8, min_std: float = 8.0) -> list[tuple[int, int]]:
-    """Scene pixels (row, col) whose surroundings are valid and whose 64 px chip is textured."""
+def centres(sc: Scene, rng: np.random.Generator, n: int, *, half: int, min_std: float = 8.0) -> list[tuple[int, int]]:
+    """Scene pixels (row, col) whose surroundings (``half`` px either way) are valid and whose 64 px
+    chip is textured. Raises when the scene has no such place (an endless draw otherwise)."""
     h, w = sc.valid.shape
+    if min(h, w) <= 2 * half:
+        raise ValueError(f"the scene ({w} x {h} px) is smaller than a {2 * half} px window")
     lum = sc.bands.mean(axis=0)
     out: list[tuple[int, int]] = []
+    tries = 0
     while len(out) < n:
+        tries += 1
+        if tries > 200 * n + 10_000:
+            raise RuntimeError(f"{len(out)} of {n} centres with a valid {2 * half} px window found in "
+                               f"{tries - 1} draws: the scene's valid area is too small for this window")
         r, c = int(rng.integers(half, h - half)), int(rng.integers(half, w - half))
         if not sc.valid[r - half:r + half, c - half:c + half].all():
             continue
@@ -201,7 +225,7 @@ def make_pair(folder: Path, sc: Scene, family: str, index: int, centre: tuple[in
     # the rendered window: the image's footprint (rotated) plus the spline's reach
     img_res = 2 * res if p["ratio"] == "image-1:2" else res
     ref_res = 2 * res if p["ratio"] == "ref-1:2" else res
-    h = int(IMAGE_PX / 2 * img_res / res * 1.05) + 24
+    h = render_half(str(p["ratio"]), float(p["theta"]) != 0.0)
     coef = _upsampled(bands[:, r0 - h:r0 + h, c0 - h:c0 + h])
     # the delivered image: pixel (i, j) centre q; content = scene at C + R (q - C) - d
     th = math.radians(float(p["theta"]))
@@ -266,7 +290,7 @@ def make_pairs(folder: Path, n: int, seed: int = 29, families: tuple[str, ...] =
     rng = np.random.default_rng(seed)
     pairs = []
     for family in families:
-        for i, c in enumerate(centres(sc, rng, n)):
+        for i, c in enumerate(centres(sc, rng, n, half=family_half(family) + 2)):
             pairs.append(make_pair(folder, sc, family, i, c, rng))
     return pairs
 
@@ -413,7 +437,11 @@ def _mirror(sc: Scene, rows: slice, cols: slice) -> np.ndarray:
     return core[:, r][:, :, c]
 
 
-def build_big(folder: Path, size: int, points: int, offset: tuple[float, float] = (0.30, -0.45),
+#: the delivered image's georeference error: true P's content sits at P + OFFSET (columns, rows)
+OFFSET = (0.30, -0.45)
+
+
+def build_big(folder: Path, size: int, points: int, offset: tuple[float, float] = OFFSET,
               seed: int = 7) -> tuple[Path, Path, Path]:
     """Delivery with one size x size image, a chip library and a survey (see the docstring)."""
     from rasterio.windows import Window
@@ -469,25 +497,39 @@ def throughput(size: int, points: int) -> list[str]:
         built = time.perf_counter() - t0
         out = Path(tmp) / "checker"
         exe = Path(sys.executable).with_name("orthospec")
-        before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
-        t0 = time.perf_counter()
-        r = subprocess.run([str(exe), "measure", "checkpoints", str(d), "--reference", str(chips),
-                            "--points", str(survey), "--out", str(out), "--json"],
+        cmd = [str(exe), "measure", "checkpoints", str(d), "--reference", str(chips),
+               "--points", str(survey), "--out", str(out), "--json"]
+        # a fresh parent whose only child is the command: RUSAGE_CHILDREN of this process would
+        # also hold earlier children (the AROSICS run), whose peak is not the command's
+        probe = ("import json, resource, subprocess, sys, time; t0 = time.perf_counter(); "
+                 "r = subprocess.run(sys.argv[1:], capture_output=True, text=True); "
+                 "sys.stderr.write(r.stderr); sys.stdout.write(r.stdout); "
+                 "open(%r, 'w').write(json.dumps({'rc': r.returncode, 'wall': time.perf_counter() - t0, "
+                 "'maxrss_kib': resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss}))")
+        stats_file = Path(tmp) / "probe.json"
+        r = subprocess.run([sys.executable, "-c", probe % str(stats_file), *cmd],
                            capture_output=True, text=True, check=False)
-        wall = time.perf_counter() - t0
-        rss = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
-        if r.returncode != 0:
-            return [f"throughput: the command failed (exit {r.returncode}): {r.stderr.strip()[-400:]}"]
+        stats = json.loads(stats_file.read_text())
+        wall, rss = float(stats["wall"]), int(stats["maxrss_kib"])
+        if stats["rc"] != 0:
+            return [f"throughput: the command failed (exit {stats['rc']}): {r.stderr.strip()[-400:]}"]
         doc = json.loads(r.stdout)
         acc = [p for p in doc["points"] if p["decision"] == "accepted"]
-        err = np.array([math.hypot(p["dx_px"] - 0.30, p["dy_px"] - 0.45) for p in acc])
+        # the truth: content at true P sits at P + OFFSET (image columns right, rows down)
+        err = np.array([math.hypot(p["dx_px"] - OFFSET[0], p["dy_px"] - OFFSET[1]) for p in acc])
+        reasons: dict[str, int] = {}
+        for p in doc["points"]:
+            if p["decision"] != "accepted":
+                key = str(p.get("reason_code") or p["decision"])
+                reasons[key] = reasons.get(key, 0) + 1
         mib = (d / "images" / "big.tif").stat().st_size / 2**20
         return [f"throughput: {points} points on a {size:,} x {size:,} px 3-band tiled deflate GeoTIFF "
                 f"({mib:,.0f} MiB; built in {built:.0f} s)",
                 f"  whole command {wall:.1f} s = {1000 * wall / points:.1f} ms per point (start-up, SHA-256 "
-                f"of the image and writing included); peak RSS {max(rss, before) / 1024:.0f} MiB; load {load()}",
+                f"of the image and writing included); peak RSS {rss / 1024:.0f} MiB; load {load()}",
                 f"  accepted {len(acc)} of {points}; |error| median {np.median(err):.3f} px, 95th percentile "
-                f"{np.percentile(err, 95):.3f} px, > 1 px {int((err > 1).sum())}"]
+                f"{np.percentile(err, 95):.3f} px, > 1 px {int((err > 1).sum())}; not accepted: "
+                f"{', '.join(f'{k} {v}' for k, v in sorted(reasons.items())) or '-'}"]
 
 
 def main(argv: list[str] | None = None) -> None:

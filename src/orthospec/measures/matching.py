@@ -249,19 +249,24 @@ def _cross_power_peak(f_ref: np.ndarray, f_mov: np.ndarray, *, upsample: int,
 
 
 def _phase_refine(template: np.ndarray, search: np.ndarray, top: float, left: float,
-                  upsample: int, iterations: int = 5) -> tuple[float, float]:
+                  upsample: int, iterations: int = 5) -> tuple[float, float] | None:
     """Iterated :func:`_cross_power_peak` of the Hann-tapered template and image patch, the patch
     resampled at each new estimate: first to 1/10 px over +-0.75 px around the integer peak, then
-    to 1/``upsample`` px over +-0.1 px, until the correction is below 1/1000 px."""
+    to 1/``upsample`` px over +-0.1 px, until the correction is below 1/1000 px. None when an
+    estimate leaves the search window (the iteration diverged: seen on a repetitive texture with
+    a large radiometric change, where it walked 17 px off the correlation peak and out)."""
     from .radiometry import tapered_spectrum
 
     t = template.shape[0]
+    last = search.shape[0] - t  # the largest top/left whose patch lies inside the window
     f_t = tapered_spectrum(template)
     factor, span = min(10, upsample), 0.75
     for _ in range(iterations):
         dy, dx = _cross_power_peak(f_t, tapered_spectrum(_patch(search, top, left, t)),
                                    upsample=factor, span_px=span)
         top, left = top + dy, left + dx
+        if not (0.0 <= top <= last and 0.0 <= left <= last):
+            return None
         if factor == upsample and abs(dy) < 1e-3 and abs(dx) < 1e-3:
             break
         factor, span = upsample, 0.1
@@ -374,7 +379,10 @@ def match_chip(template: np.ndarray, search: np.ndarray, *, search_valid: np.nda
     fj = _gauss_or_parabola(*(float(v) for v in surface[i0, j0 - 1:j0 + 2]))
     ncc_top, ncc_left = i0 + fi, j0 + fj
     # keep the refined patch inside the search window (a cubic spline needs one px beyond)
-    ph_top, ph_left = _phase_refine(template, search, float(i0), float(j0), s.upsample)
+    refined = _phase_refine(template, search, float(i0), float(j0), s.upsample)
+    if refined is None:  # the refinement left the window: the estimators cannot agree
+        return by_hand("unstable", score=peak, peak_ratio=ratio, texture=texture, obscured=obscured)
+    ph_top, ph_left = refined
     lim = 2 * margin - 1.0
     if not (1.0 <= ph_top <= lim and 1.0 <= ph_left <= lim):
         ph_top, ph_left = ncc_top, ncc_left
