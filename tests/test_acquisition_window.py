@@ -62,7 +62,7 @@ def _rule(doc: dict[str, Any], rule: str) -> dict[str, dict[str, Any]]:
 
 
 def _check(d: Path, params: list[str] | None = None) -> dict[str, Any]:
-    return check_with(d, "jrc-v3", checker=CHECKERS / f"{d.name}.yaml", date=DATE, params=params or []).document
+    return check_with(d, "jrc-v3", checker=CHECKERS / d.name, date=DATE, params=params or []).document
 
 
 @pytest.mark.parametrize(("day", "start", "end", "expected"), [
@@ -89,7 +89,7 @@ def test_images_15_months_outside_the_declared_window_are_a_finding(tmp_path: Pa
 
 def test_the_shipped_examples_keep_to_their_declared_windows() -> None:
     for example in ("aerial-pass", "satellite-pass"):
-        doc = check_with(EXAMPLES / example, "jrc-v3", checker=CHECKERS / f"{example}.yaml", date=DATE).document
+        doc = check_with(EXAMPLES / example, "jrc-v3", checker=CHECKERS / example, date=DATE).document
         got = _rule(doc, "JRC-3.4-DECLARED-WINDOW")
         assert [r["verdict"] for r in got.values()] == ["pass"], got
 
@@ -114,8 +114,8 @@ def test_the_itt_window_rejects_the_image_taken_outside_it(tmp_path: Path) -> No
 
 def test_without_an_itt_window_the_rule_is_not_applicable(tmp_path: Path) -> None:
     """The shipped checker file states the ITT window; a checker file without it leaves the rule out."""
-    checker = CHECKERS / "satellite-pass.yaml"
-    params = yaml.safe_load(checker.read_text(encoding="utf-8"))["parameters"]
+    checker = CHECKERS / "satellite-pass"
+    params = yaml.safe_load((checker / "checker.yaml").read_text(encoding="utf-8"))["parameters"]
     assert {"acquisition_window_start", "acquisition_window_end"} <= set(params)
     bare = {k: v for k, v in params.items() if not k.startswith("acquisition_window")}
     out = resigned(checker, EXAMPLES / "satellite-pass", tmp_path / "checker.yaml", parameters=bare)

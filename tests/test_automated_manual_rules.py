@@ -61,7 +61,7 @@ def _write_manifest(d: Path, m: dict[str, Any]) -> None:
 def _check(d: Path, params: list[str] | None = None) -> dict[str, Any]:
     """The real check with the example's checker file, re-signed on the copy when it was edited (the
     checker vouches for the check points it received)."""
-    checker = CHECKERS / f"{d.name}.yaml"
+    checker = CHECKERS / d.name
     if d.parent != EXAMPLES:
         checker = resigned(checker, d, d.parent / "checker.yaml")
     return check_with(d, "jrc-v3", checker=checker, date=DATE, params=params or []).document
@@ -162,12 +162,12 @@ def test_a_master_check_point_on_a_gcp_rejects_the_master(tmp_path: Path) -> Non
     _, gcps = read_table(d, "gcps")
     g = next(r for r in gcps if r["image_id"] == "S01_SC1")
     gx, gy = float(g["x"]), float(g["y"])
-    _edit(d, "checkpoints", "point_id", "S01-C01", x_ref=f"{gx + 0.01:.3f}", y_ref=f"{gy:.3f}",
+    _edit(d, "checkpoints", "point_id", "S01-Q01", x_ref=f"{gx + 0.01:.3f}", y_ref=f"{gy:.3f}",
           x=f"{gx + 0.05:.2f}", y=f"{gy - 0.04:.2f}")
     doc = _check(d)
     got = _rule(doc, "JRC-T9-MASTER-INDEPENDENT")["S01_SC1"]
     assert got["verdict"] == "fail" and got["measured"]["value"] == 1
-    assert f"S01-C01 (0.010 m from GCP {g['point_id']})" in got["message"]
+    assert f"S01-Q01 (0.010 m from GCP {g['point_id']})" in got["message"]
     assert "S01_SC1" in doc["rollup"]["rejected"]["image"]
 
 

@@ -129,10 +129,9 @@ def _bench():  # type: ignore[no-untyped-def]
     spec = importlib.util.spec_from_file_location("bench_matching", ROOT / "benchmarks" / "matching.py")
     assert spec is not None and spec.loader is not None
     mod = importlib.util.module_from_spec(spec)
-    # registered first: its dataclasses resolve their (postponed) annotations through sys.modules
-    sys.modules.setdefault("bench_matching", mod)
+    sys.modules[spec.name] = mod  # dataclasses look their module up by name
     spec.loader.exec_module(mod)
-    return sys.modules["bench_matching"]
+    return mod
 
 
 @pytest.mark.slow

@@ -54,7 +54,7 @@ def _set_scene(d: Path, scene: str, **cells: str) -> None:
 
 
 def _check(d: Path) -> dict[str, Any]:
-    return check_with(d, "jrc-v3", checker=CHECKERS / "satellite-pass.yaml", date=DATE).document
+    return check_with(d, "jrc-v3", checker=CHECKERS / "satellite-pass", date=DATE).document
 
 
 def _rule(doc: dict[str, Any], rule: str) -> dict[str, dict[str, Any]]:

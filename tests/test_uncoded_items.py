@@ -31,7 +31,7 @@ def _copy(example: str, tmp_path: Path) -> Path:
 
 
 def _check(d: Path) -> dict[str, Any]:
-    checker = CHECKERS / f"{d.name}.yaml"
+    checker = CHECKERS / d.name
     if d.parent != EXAMPLES:
         checker = resigned(checker, d, d.parent / "checker.yaml")
     return check_with(d, "jrc-v3", checker=checker, date=DATE).document
@@ -52,11 +52,13 @@ def _write_manifest(d: Path, m: dict[str, Any]) -> None:
 # --- §7.3 point identifier unique to project ----------------------------------------------------------
 
 def test_a_check_point_reusing_a_gcp_id_is_a_finding(tmp_path: Path) -> None:
-    """Issue 26: a check point reusing a GCP id was accepted."""
+    """Issue 26: a check point reusing a GCP id was accepted (here one of the contractor's internal-QC
+    check points, which the delivery's checkpoints table holds beside the checker's own)."""
     d = _copy("aerial-pass", tmp_path)
     header, rows = read_table(d, "checkpoints")
+    assert any(r["point_id"] == "B03-Q01" for r in rows)
     for r in rows:
-        if r["point_id"] == "B03-C01":
+        if r["point_id"] == "B03-Q01":
             r["point_id"] = "B03-G01a"
     write_table(d, "checkpoints", header, rows)
     doc = _check(d)

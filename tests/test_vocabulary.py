@@ -78,13 +78,19 @@ def test_cells_are_read_in_the_columns_vocabulary(table: str, column: str, cell:
     assert voc.normalise(cell) == expected
 
 
+def _profile_rules(doc: Any) -> list[dict[str, Any]]:
+    """A profile's rules; other YAML in specs/ (inspection.yaml maps rules to grid classes) has none."""
+    rules = doc.get("rules") if isinstance(doc, dict) else None
+    return rules if isinstance(rules, list) else []
+
+
 def test_every_literal_a_shipped_rule_compares_a_column_with_is_in_its_vocabulary() -> None:
     """The other side of the vocabulary: each word a shipped `when` or `in` requirement compares a
     vocabulary column with is one of its values (else the rule could never match a normalised cell)."""
     seen = 0
     for path in sorted(SPECS.glob("*.yaml")):
         doc = yaml.safe_load(path.read_text(encoding="utf-8"))
-        for r in doc.get("rules") or []:
+        for r in _profile_rules(doc):
             req = r.get("requirement") or {}
             values = req.get("values") or [] if req.get("op") == "in" else []
             problems = vocabulary.literal_problems(r.get("when") or "", extra=[(r["measure"], v) for v in values])
@@ -99,7 +105,7 @@ def test_every_column_a_shipped_when_compares_with_a_word_is_closed() -> None:
     open_columns = set()
     for path in sorted(SPECS.glob("*.yaml")):
         doc = yaml.safe_load(path.read_text(encoding="utf-8"))
-        for r in doc.get("rules") or []:
+        for r in _profile_rules(doc):
             for name, _ in vocabulary.compared_literals(r.get("when") or ""):
                 t, _, col = name.partition(".")
                 if t in tables and col in tables[t]["columns"] and vocabulary.of(t, col) is None:
@@ -149,7 +155,7 @@ def test_an_unknown_method_exits_2_from_the_command_line(tmp_path: Path, capsys:
     d = _copy("satellite-pass", tmp_path)
     _set(d, "scenes", "S02_SC1", correction_method="rpc_refined")
     with pytest.raises(SystemExit) as exc:
-        main(["check", str(d), "--profile", "jrc-v3", "--checker", str(CHECKERS / "satellite-pass.yaml"),
+        main(["check", str(d), "--profile", "jrc-v3", "--checker", str(CHECKERS / "satellite-pass"),
               "--out", str(tmp_path / "out")])
     err = capsys.readouterr().err
     assert exc.value.code == 2, err
@@ -171,7 +177,7 @@ def test_an_empty_method_leaves_the_gcp_minimum_missing_never_not_applicable(tmp
     """An unknown method must leave the minimum undecided (issue 25), whatever the GCP count."""
     d = _copy("satellite-pass", tmp_path)
     _set(d, "scenes", "S02_SC1", correction_method="")
-    doc = check_with(d, "jrc-v3", checker=CHECKERS / "satellite-pass.yaml", date=DATE).document
+    doc = check_with(d, "jrc-v3", checker=CHECKERS / "satellite-pass", date=DATE).document
     for rule in ("JRC-T9-GCP-VHR-RPC", "JRC-T9-GCP-VHR-PHYSICAL"):
         assert _verdicts(doc, rule)["S02_SC1"] == "missing", (rule, _verdicts(doc, rule))
     # the HR/MR/LR polynomial minimum is decided whatever the method: the scene is VHR
@@ -192,7 +198,7 @@ def test_a_profile_comparing_with_a_word_outside_the_vocabulary_is_missing(tmp_p
                    "scope": "image", "when": "scenes.correction_method == 'RPC'",
                    "measure": "scenes.gcp_count", "requirement": {"op": ">=", "value": 3, "unit": "1"},
                    "level": "mandatory", "consequence": "reject_item"}]}), encoding="utf-8")
-    doc = check_with(EXAMPLES / "satellite-pass", tender, checker=CHECKERS / "satellite-pass.yaml",
+    doc = check_with(EXAMPLES / "satellite-pass", tender, checker=CHECKERS / "satellite-pass",
                      date=DATE).document
     got = [r for r in records(doc) if r["rule"] == "ITT-1-RPC-GCPS"]
     assert got and {r["verdict"] for r in got} == {"missing"}

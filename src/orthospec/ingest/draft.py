@@ -40,6 +40,7 @@ from .. import __version__
 from ..delivery.convention import table_specs
 from ..errors import DeliveryError
 from ..raster.facts import RasterFacts
+from ..raster.footprints import IMAGE_FIELDS
 from . import points as P
 from .metadata import MetadataRead, Stated, read_metadata
 from .rasters import Job, read_all
@@ -416,6 +417,8 @@ class _Scan:
 
         profile = load_profile(self.opts.profile)
         filled = {k for k in _flat(manifest)}
+        if len(seam) == 1 and (seam[0].matched_by or "").lower().removeprefix("attribute ") in IMAGE_FIELDS:
+            filled.add("vectors.seamlines.image_id")  # the rules read each polygon's image from it
         digital = manifest.get("sensor", {}).get("digital")
         st = DraftState(filled=filled, tables=tables, blocks=bool(self.outlines), sensor=sensor,
                         digital=digital, withheld=withheld,

@@ -119,6 +119,10 @@ def _entry(inp: tuple[str, ...], st: DraftState, specs: dict[str, Any], profile:
         return Entry(inp, f"delivery.yaml `{inp[1]}`",
                      "a report the profile asks for; no file of the source is known to be it: name it under "
                      "`documents:` (INGEST.md lists the files not read)")
+    if inp == ("manifest", "vectors.seamlines.image_id"):
+        return Entry(inp, "attribute `image_id` of the seamline polygons (the file delivery.yaml `vectors.seamlines` "
+                          "names)", "each polygon names the image its pixels come from (JRC Table 11, area "
+                                    "selection); the source's seamlines carry no such attribute: add it in a GIS")
     if kind == "manifest":
         return Entry(inp, f"delivery.yaml `{inp[1]}`", MANIFEST_HELP.get(inp[1], "not stated by the files"))
     if kind == "blocks":

@@ -25,6 +25,7 @@ from typing import Any
 import pandas as pd
 
 from ...delivery import vocabulary
+from ...delivery.in_force import INTERNAL
 from ...provenance import Evidence
 from ..registry import Measured, ProviderContext, provider
 
@@ -48,22 +49,35 @@ def _one(name: str, unit: str, item: str, value: Any, ev: tuple[Evidence, ...], 
 
 @provider(scope="delivery", measures={"points.shared_ids": "1"})
 def shared_point_ids(ctx: ProviderContext) -> list[Measured]:
-    """Identifiers that name both a GCP and a check point."""
+    """Identifiers that name both a GCP and one of the contractor's check points: the delivery's own
+    table (``internal_checkpoints`` when the checker measured its own points, whose names are the
+    checker's and never reject the contractor's products)."""
     d = ctx.delivery
-    gcps, cps = d.table("gcps"), d.table("checkpoints")
+    gcps = d.table("gcps")
+    own = d.table(INTERNAL)
+    cp_tables = [own] if own is not None else [t for t in (d.table("checkpoints"),) if t is not None]
     name = "points.shared_ids"
-    if gcps is None or cps is None:
+    if gcps is None or not cp_tables:
         missing = "gcps" if gcps is None else "checkpoints"
         return [_one(name, "1", d.id, None, (d.manifest_evidence("tables"),), "",
                      na=f"no {missing} table: no identifier can be shared")]
-    g, c = gcps.ids.astype(str), cps.ids.astype(str)
-    both = sorted(set(g) & set(c))
-    ev = (Evidence(gcps.file, gcps.sha256, tuple(int(r) for r in gcps.df["_row"][g.isin(both).to_numpy()])),
-          Evidence(cps.file, cps.sha256, tuple(int(r) for r in cps.df["_row"][c.isin(both).to_numpy()])))
-    note = (f"{len(both)} identifier(s) name a GCP and a check point: {', '.join(both[:10])}"
-            + (f" and {len(both) - 10} more" if len(both) > 10 else "") if both else
-            f"the {len(g)} GCP and {len(c)} check point identifiers are distinct")
-    return [_one(name, "1", d.id, float(len(both)), ev, note)]
+    g = gcps.ids.astype(str)
+    both: set[str] = set()
+    ev_cps: list[Evidence] = []
+    n_cps = 0
+    for cps in cp_tables:
+        c = cps.ids.astype(str)
+        n_cps += len(c)
+        shared = set(g) & set(c)
+        both |= shared
+        ev_cps.append(Evidence(cps.file, cps.sha256, tuple(int(r) for r in cps.df["_row"][c.isin(shared).to_numpy()])))
+    ids = sorted(both)
+    ev = (Evidence(gcps.file, gcps.sha256, tuple(int(r) for r in gcps.df["_row"][g.isin(ids).to_numpy()])),
+          *ev_cps)
+    note = (f"{len(ids)} identifier(s) name a GCP and a check point: {', '.join(ids[:10])}"
+            + (f" and {len(ids) - 10} more" if len(ids) > 10 else "") if ids else
+            f"the {len(g)} GCP and {n_cps} check point identifiers are distinct")
+    return [_one(name, "1", d.id, float(len(ids)), ev, note)]
 
 
 def _days(values: list[Any]) -> list[dt.date]:

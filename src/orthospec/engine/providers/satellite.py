@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from ...delivery.in_force import INTERNAL
 from ...provenance import Evidence
 from ...raster.footprints import image_footprints
 from ...units import convert
@@ -218,8 +219,12 @@ def _quadrants(ids: list[str], feet: dict[str, Any], gcps: Any, scene_rows: dict
 def _checkpoints_on_gcps(ctx: ProviderContext, ids: list[str], gcps: Any, scene_rows: dict[str, np.ndarray]
                          ) -> tuple[dict[str, Any], dict[str, str], dict[str, tuple[Evidence, ...]]]:
     """Per scene: its listed check points that are one of its GCPs (id, or position within
-    blunder_factor x the combined precision)."""
-    cps = ctx.delivery.table("checkpoints")
+    blunder_factor x the combined precision). Table 9's master check is the contractor's production
+    record, so its points are the delivery's own table (``internal_checkpoints`` when the checker
+    measured its own points: those never reject the contractor's products)."""
+    cps = ctx.delivery.table(INTERNAL)
+    if cps is None:
+        cps = ctx.delivery.table("checkpoints")
     factor = _param(ctx, "blunder_factor", "1", 3.0)
     vals: dict[str, Any] = {}
     notes: dict[str, str] = {}
