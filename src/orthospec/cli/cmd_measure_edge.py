@@ -159,6 +159,7 @@ def _many(image: str, rois: tuple[str, ...], *, band: int, gsd: float | None, no
     from concurrent.futures import ProcessPoolExecutor
 
     from ..raster.roi import read_roi
+    from ..workers import die_with_parent, mp_context
 
     if map_roi is not None:
         raise _CouldNotRun("give several --roi or one --map-roi, not both")
@@ -174,7 +175,8 @@ def _many(image: str, rois: tuple[str, ...], *, band: int, gsd: float | None, no
     n = min(len(jobs), workers or os.cpu_count() or 1)
     try:
         if n > 1:
-            with ProcessPoolExecutor(max_workers=n) as pool:
+            with ProcessPoolExecutor(max_workers=n, mp_context=mp_context(),
+                                     initializer=die_with_parent, initargs=(os.getpid(),)) as pool:
                 docs = list(pool.map(_measure_one, jobs))
         else:
             docs = [_measure_one(j) for j in jobs]

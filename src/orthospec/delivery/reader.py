@@ -28,6 +28,7 @@ import numpy as np
 import pandas as pd
 from pydantic import ValidationError
 
+from .. import controls
 from ..errors import DeliveryError, UnitError
 from ..limits import env_limit
 from ..provenance import Evidence, sha256_bytes, sha256_file
@@ -744,6 +745,10 @@ def _parse_body(held: list[bytes], spec: TableSpec, *, file: str, cell_bytes: in
     counted the bytes are let go (when the caller holds no other reference), so a national
     table is not held as bytes while its columns become Python objects."""
     body = held.pop()
+    bad = controls.find_in_utf8(body)
+    if bad is not None:
+        raise DeliveryError(f"a control character ({controls.name(bad[1])}) in the table: a cell may not carry "
+                            "terminal or bidirectional-override controls", file=file, line=bad[0])
     header = _header(body, spec, file)
     if cell_bytes is not None and csv.field_size_limit() < cell_bytes:
         csv.field_size_limit(cell_bytes)  # the bound is check_csv_bounds's, not csv's

@@ -39,13 +39,9 @@ def _read_chunk(jobs: Sequence[Job], sha256: bool) -> list[RasterFacts]:
 
 def _context() -> object:
     """forkserver where available (workers fork from a server that imported the reader once)."""
-    import multiprocessing
+    from ..workers import mp_context
 
-    if "forkserver" in multiprocessing.get_all_start_methods():
-        ctx = multiprocessing.get_context("forkserver")
-        ctx.set_forkserver_preload(["orthospec.raster.facts"])
-        return ctx
-    return multiprocessing.get_context("spawn")
+    return mp_context(["orthospec.raster.facts"])
 
 
 def read_all(jobs: Sequence[Job], *, sha256: bool = True, workers: int | None = None,
@@ -71,9 +67,12 @@ def read_all(jobs: Sequence[Job], *, sha256: bool = True, workers: int | None = 
         return
     from concurrent.futures import ProcessPoolExecutor
 
+    from ..workers import die_with_parent
+
     chunks = (jobs[i:i + CHUNK] for i in range(0, len(jobs), CHUNK))
     pending: deque[Future[list[RasterFacts]]] = deque()
-    with ProcessPoolExecutor(max_workers=n, mp_context=_context()) as pool:  # type: ignore[arg-type]
+    with ProcessPoolExecutor(max_workers=n, mp_context=_context(),  # type: ignore[arg-type]
+                             initializer=die_with_parent, initargs=(os.getpid(),)) as pool:
         for chunk in chunks:
             pending.append(pool.submit(_read_chunk, chunk, sha256))
             if len(pending) >= WINDOW_PER_WORKER * n:

@@ -341,13 +341,9 @@ def _one_thread_per_worker() -> Iterator[None]:
 def _mp_context() -> multiprocessing.context.BaseContext:
     """forkserver where available: workers fork from a clean server that has already
     imported orthospec (fast start, no inherited threads or GDAL handles); else spawn."""
-    import multiprocessing
+    from ..workers import mp_context
 
-    if "forkserver" in multiprocessing.get_all_start_methods():
-        ctx = multiprocessing.get_context("forkserver")
-        ctx.set_forkserver_preload(["orthospec.raster.parallel", "pyproj"])
-        return ctx
-    return multiprocessing.get_context("spawn")
+    return mp_context(["orthospec.raster.parallel", "pyproj"])  # type: ignore[no-any-return]
 
 
 def _check_cache_outside(cache_dir: Path, paths: Sequence[str]) -> None:
@@ -432,6 +428,7 @@ def scan_images(
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
     from itertools import islice
 
+    from ..workers import die_with_parent
     from .cache import ResultCache
 
     # results enter the cache as they come (only this process writes it; workers read it)
@@ -471,7 +468,8 @@ def scan_images(
                     for i, p in islice(todo, window - len(pending)):
                         pending[pool.submit(scan_image, p, one, cloud_mask=masks.get(p))] = i
 
-                with ProcessPoolExecutor(max_workers=n, mp_context=ctx) as pool:
+                with ProcessPoolExecutor(max_workers=n, mp_context=ctx, initializer=die_with_parent,
+                                         initargs=(os.getpid(),)) as pool:
                     with _one_thread_per_worker():  # workers (and the forkserver) start here
                         submit_more()
                     while pending:
