@@ -84,36 +84,32 @@ POOL = textwrap.dedent("""
 """)
 
 
-@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL])
-def test_pool_workers_end_within_2_s_of_their_command(sig: signal.Signals) -> None:
-    proc = subprocess.Popen([sys.executable, "-c", POOL, "yes"], stdout=subprocess.PIPE)
+def _left_after(initializer: str, sig: signal.Signals) -> set[int]:
+    """The pool's processes still alive 2 s after ``sig`` ended the command that made them."""
+    proc = subprocess.Popen([sys.executable, "-c", POOL, initializer], stdout=subprocess.PIPE)
+    kids: set[int] = set()
     try:
         assert proc.stdout is not None and proc.stdout.readline().strip() == b"started"
         kids = _wait_for_workers(proc, 4, 20)  # the resource tracker, the forkserver, two workers
         os.kill(proc.pid, sig)
         proc.wait(5)
         time.sleep(2)
-        assert not _alive(kids), f"orphans after {sig.name}: {sorted(_alive(kids))}"
+        return _alive(kids)
     finally:
         proc.kill()
-        for p in _alive(_descendants(proc.pid)):
+        for p in _alive(kids | _descendants(proc.pid)):
             os.kill(p, signal.SIGKILL)
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL])
+def test_pool_workers_end_within_2_s_of_their_command(sig: signal.Signals) -> None:
+    left = _left_after("yes", sig)
+    assert not left, f"orphans after {sig.name}: {sorted(left)}"
 
 
 def test_without_the_initializer_the_workers_would_outlive_it() -> None:
     """The test above can fail: a pool without die_with_parent leaves its sleeping workers behind."""
-    proc = subprocess.Popen([sys.executable, "-c", POOL, "no"], stdout=subprocess.PIPE)
-    kids: set[int] = set()
-    try:
-        assert proc.stdout is not None and proc.stdout.readline().strip() == b"started"
-        kids = _wait_for_workers(proc, 4, 20)
-        os.kill(proc.pid, signal.SIGKILL)
-        proc.wait(5)
-        time.sleep(2)
-        assert _alive(kids), "the workers ended anyway: the test above proves nothing"
-    finally:
-        for p in _alive(kids):
-            os.kill(p, signal.SIGKILL)
+    assert _left_after("no", signal.SIGKILL), "the workers ended anyway: the test above proves nothing"
 
 
 def test_sigterm_to_check_leaves_no_worker(tmp_path: Path) -> None:
