@@ -70,3 +70,31 @@ def synthetic_clouds(rgb: np.ndarray, *, cover: float, seed: int, scale: float =
     truth = alpha >= 0.5
     return Labelled(pixels=out, truth=truth, scored=scored,
                     cover_pct=100.0 * float(truth[scored].mean()) if scored.any() else 0.0)
+
+
+@dataclass(frozen=True)
+class Score:
+    """The estimator against one labelled scene: cover (% of scored pixels) and per-pixel agreement."""
+
+    true_pct: float
+    estimated_pct: float
+    accuracy: float     # share of scored pixels classified right
+    precision: float    # of the pixels called cloud, the share that are
+    recall: float       # of the cloud pixels, the share called cloud
+
+    @property
+    def error_pct(self) -> float:
+        return self.estimated_pct - self.true_pct
+
+
+def score(labelled: Labelled, estimated: np.ndarray, estimated_pct: float | None = None) -> Score:
+    """Score a per-pixel cloud mask (and, when given, the cover the scan measured) on the scored pixels."""
+    t, e = labelled.truth[labelled.scored], estimated[labelled.scored]
+    tp = float(np.count_nonzero(t & e))
+    pct = 100.0 * float(e.mean()) if estimated_pct is None else float(estimated_pct)
+    return Score(true_pct=labelled.cover_pct, estimated_pct=pct, accuracy=float((t == e).mean()),
+                 precision=tp / max(float(np.count_nonzero(e)), 1.0), recall=tp / max(float(np.count_nonzero(t)), 1.0))
+
+
+#: the labelled set: (cover, seed) of each synthetic scene
+COVERS = (0.0, 0.01, 0.02, 0.05, 0.08, 0.10, 0.15, 0.20, 0.30, 0.50)

@@ -299,7 +299,9 @@ def _lay_down(ctx: ProviderContext) -> tuple[list[Any], list[Any], str | None]:
         return [], ev, ("no image has an exposure station, flying height and a camera with format, focal "
                         "length and pixel size consistent with its GSD: the photo lay-down cannot be computed")
     ctx.memo["derived.lay_down_incomplete"] = ids[~ok & ~inflated].tolist()
-    heading = strip_headings(x[ok], y[ok], df["flight_id"].astype(str).to_numpy()[ok].tolist())
+    # stations closer than 5 % of a footprint's length are one station recorded twice (a copied row)
+    same = 0.05 * float(np.nanmedian(np.minimum(across[ok], along[ok])))
+    heading = strip_headings(x[ok], y[ok], df["flight_id"].astype(str).to_numpy()[ok].tolist(), min_distance=same)
     try:
         return photo_footprints(x[ok], y[ok], across[ok], along[ok], heading), ev, None
     except MeasureError as exc:

@@ -47,6 +47,9 @@ IMAGE_MEASURES: dict[str, str] = {
 }
 DELIVERY_MEASURES = {"raster.unlisted_files": "1", "raster.listed_missing": "1"}
 CLOUD_MEAN = {"raster.cloud_cover_mean": "%"}
+#: measures whose rules judge delivered files only (`when: raster.exists == true`): an absent file's
+#: "not found" is JRC-9.2-T7-READABLE's finding, not an error of theirs
+EXISTING_ONLY = frozenset({"raster.gsd_declared_diff"})
 DUPLICATE_MEASURES = {"raster.file_unique": "bool"}
 CONTENT_MEASURES = {"raster.content_unique": "bool"}
 #: images.csv columns compared with what the file says (declared image values, issue 25)
@@ -356,6 +359,8 @@ def raster_measures(ctx: ProviderContext) -> list[Measured]:
         errs = None
         if errors and n not in ("raster.exists", "raster.readable", "raster.name_ok"):
             errs = pd.Series(errors, dtype=object)
+            if n in EXISTING_ONLY:  # its rule applies to delivered files only: an absent one is no error here
+                errs = errs[[frame.at[i, "raster.exists"] is not False for i in errs.index]]
         notes = pd.Series(errors, dtype=object) if errors and n in ("raster.exists", "raster.readable") else None
         if n == "raster.name_ok" and name_notes:
             notes = pd.Series(name_notes, dtype=object)
