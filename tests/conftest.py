@@ -19,8 +19,11 @@ EXAMPLES = ROOT / "examples" / "deliveries"
 
 
 
-# Resolved-profile cache of the test run: never the user's ~/.cache/orthospec (subprocesses inherit it)
-os.environ.setdefault("ORTHOSPEC_CACHE_DIR", tempfile.mkdtemp(prefix="orthospec-test-cache-"))
+# Resolved-profile cache of the test run: never the user's ~/.cache/orthospec. Made once, by the
+# first process (xdist workers and the CLI subprocesses inherit it), and removed by that process.
+_OWN_CACHE: str | None = None
+if "ORTHOSPEC_CACHE_DIR" not in os.environ:
+    _OWN_CACHE = os.environ["ORTHOSPEC_CACHE_DIR"] = tempfile.mkdtemp(prefix="orthospec-test-cache-")
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
@@ -41,16 +44,33 @@ def pytest_configure(config: pytest.Config) -> None:
         config.pluginmanager.register(CoverageReport(), PLUGIN_NAME)
 
 
-@pytest.hookimpl(hookwrapper=True)
-def pytest_runtest_makereport(item, call):
-    """With ORTHOSPEC_STRICT_SKIPS=1 (set by .ci/run) a skipped test fails: CI must not pass on a
-    machine that lacks what a test needs (../shared, gdalinfo, PostgreSQL, distributed)."""
-    outcome = yield
-    report = outcome.get_result()
+def pytest_unconfigure(config: pytest.Config) -> None:
+    """The test run's profile cache goes with the process that made it (no folder left in /tmp)."""
+    if _OWN_CACHE is not None and not hasattr(config, "workerinput"):
+        shutil.rmtree(_OWN_CACHE, ignore_errors=True)
+
+
+def _strict(report: pytest.TestReport | pytest.CollectReport) -> None:
+    """With ORTHOSPEC_STRICT_SKIPS=1 (set by .ci/run) a skip fails: CI must not pass on a machine
+    that lacks what a test needs (../shared, gdalinfo, PostgreSQL, distributed, pyarrow)."""
     if report.skipped and os.environ.get("ORTHOSPEC_STRICT_SKIPS") == "1" and not hasattr(report, "wasxfail"):
         reason = report.longrepr[-1] if isinstance(report.longrepr, tuple) else str(report.longrepr)
         report.outcome = "failed"
         report.longrepr = f"skipped under ORTHOSPEC_STRICT_SKIPS=1 (CI): {reason}"
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item, call):
+    """A test that skips itself (``pytest.skip``, ``importorskip`` inside it, a skip marker)."""
+    outcome = yield
+    _strict(outcome.get_result())
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_make_collect_report(collector):
+    """A module that skips itself while being collected (a module-level ``importorskip``)."""
+    outcome = yield
+    _strict(outcome.get_result())
 
 
 MANIFEST = """\

@@ -142,13 +142,15 @@ def test_plain_progress_lines(delivery):
     assert isinstance(make_progress(io.StringIO()), PlainProgress)
 
 
-def test_dask_local_cluster(delivery):
+def test_dask_local_cluster(delivery, tmp_path):
     distributed = pytest.importorskip("distributed")
+    from dask import config as dask_config
     files, bad = delivery
     paths = [*files, bad, RGB]
     local = scan_images(paths, workers=1)
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as cluster:
+    with (dask_config.set({"temporary-directory": str(tmp_path)}),  # no dask-scratch-space in /tmp
+          distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                   dashboard_address=None) as cluster):
         remote = scan_images(paths, scheduler=cluster.scheduler_address)
     assert _comparable(remote) == _comparable(local)
     assert remote[4].error is not None
@@ -174,6 +176,8 @@ def test_check_through_dask_gives_byte_identical_qcr_json(tmp_path):
     """Issue 14 item 5: `check --scheduler` (a distributed LocalCluster, in-process workers) writes
     the very bytes of the local run's qcr.json for the same delivery and --date."""
     distributed = pytest.importorskip("distributed")
+    from dask import config as dask_config
+
     from orthospec.cli.main import main
 
     example = Path(__file__).resolve().parents[1] / "examples" / "deliveries" / "aerial-pass"
@@ -186,7 +190,8 @@ def test_check_through_dask_gives_byte_identical_qcr_json(tmp_path):
         return int(exc.value.code)
 
     local_code = run("--out", str(tmp_path / "local"), "--workers", "1")
-    with (distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
+    with (dask_config.set({"temporary-directory": str(tmp_path)}),  # no dask-scratch-space in /tmp
+          distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
                                    dashboard_address=None) as cluster,
           distributed.Client(cluster) as client):
         dask_code = run("--out", str(tmp_path / "dask"), "--scheduler", cluster.scheduler_address)

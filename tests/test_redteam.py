@@ -12,7 +12,7 @@ B02's northing residuals scaled by 2.2, giving RMSEy = 0.627 m over 24 check poi
 in X, and Y"), its reported RMSEy set to match so that JRC-12.7-RMSEY is the only block finding.
 The contractor's trick then tries to hide it. The checker's file is re-signed (tests/checking.py ``resigned``) on what the contractor delivers: the
 checker signs what it receives; ``_signed_then`` edits the delivery after signing. Cases marked
-xfail(strict) are wrong ACCEPTED verdicts written up in /tmp/team/redteam.md; they flip (and fail
+xfail(strict) are wrong ACCEPTED verdicts written up in tests/REDTEAM.md; they flip (and fail
 as XPASS) once fixed.
 """
 
@@ -724,7 +724,7 @@ def _not_accepted(code: int, doc: dict[str, Any] | None, err: str) -> None:
 
 
 def _xfail(finding: str) -> pytest.MarkDecorator:
-    return pytest.mark.xfail(strict=True, reason=f"/tmp/team/redteam.md {finding}")
+    return pytest.mark.xfail(strict=True, reason=f"tests/REDTEAM.md {finding}")
 
 
 CASES = [
@@ -759,7 +759,7 @@ CASES = [
                  id="worst-y-inf"),
     pytest.param("aerial-pass", _planted(_second_checkpoints_entry), _refused("delivery.yaml", "duplicate key"),
                  id="second-checkpoints-table-entry"),
-    # wrongly ACCEPTED today (findings R1-R5 in /tmp/team/redteam.md)
+    # wrongly ACCEPTED today (findings R1-R5 in tests/REDTEAM.md)
     pytest.param("aerial-pass", _planted(_declare_tolerance(1.0)), _check_itt_declared, id="R1-tolerance-declared-1m"),
     pytest.param("aerial-pass", _planted(_units("ft"), _fix_reported),
                  _refused("delivery.yaml", "units.checkpoints is ft", "EPSG:25832", "in m"),

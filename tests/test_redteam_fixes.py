@@ -1,4 +1,4 @@
-"""Fixes for red-team findings (/tmp/team/redteam.md; the reproducers live in tests/test_redteam.py).
+"""Fixes for red-team findings (tests/REDTEAM.md; the reproducers live in tests/test_redteam.py).
 
 Each test edits a real copy of a shipped example delivery (never the shipped one) the way a contractor
 could, runs the real check with the checker's real file (tests/checking.py), and asserts the finding

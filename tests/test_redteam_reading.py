@@ -1,4 +1,4 @@
-"""Red team findings fixed where the delivery is read (/tmp/team/redteam.md R2, R3, R4).
+"""Red team findings fixed where the delivery is read (tests/REDTEAM.md R2, R3, R4).
 
 R14: a number outside its column's min/max is refused where the table is read.
 R3: a row naming a block the manifest does not declare is refused (exit 2), in every table with a
