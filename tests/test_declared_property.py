@@ -12,6 +12,7 @@ the declarations are re-read.
 
 from __future__ import annotations
 
+import os
 import shutil
 from collections.abc import Callable
 from pathlib import Path
@@ -63,7 +64,11 @@ def _applicable(d: Path, field: Any) -> bool:
     return field.needs_table is None or (d / "tables" / f"{field.needs_table}.csv").is_file()
 
 
-@settings(max_examples=16, deadline=None, derandomize=True,
+#: examples drawn per run (each is one check of a planted example: seconds); raise it for a deeper search
+EXAMPLES = int(os.environ.get("ORTHOSPEC_PROPERTY_EXAMPLES", "16"))
+
+
+@settings(max_examples=EXAMPLES, deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 @given(data=st.data())
 def test_an_edited_declaration_never_accepts_a_planted_example(planted: dict[str, tuple[Path, Path, Path]],

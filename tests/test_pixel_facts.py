@@ -20,7 +20,7 @@ from orthospec.measures.copies import (
     aligned_correlation,
     find_copies,
 )
-from orthospec.measures.signature import PixelHash, Thumbnail
+from orthospec.measures.signature import CloudCounter, PixelHash, Thumbnail, cloud_mask, thumbnail_geometry
 from orthospec.raster.reading import ScanSettings, scan_raster
 
 T0 = Affine(0.25, 0, 500_000.0, 0, -0.25, 5_400_000.0)
@@ -57,11 +57,12 @@ def test_hash_and_thumbnail_do_not_depend_on_the_file(tmp_path: Path, pixels: np
         r = scan_raster(_write(tmp_path / f"{k}.tif", pixels, transform=t, **opts), s)
         got.append((r.pixels_hash, r.thumbnail))
     assert len({h for h, _ in got}) == 1 and all(t == got[0][1] for _, t in got)
-    # the thumbnail is the band mean per cell, here 17 x 17 px cells sampled every 4th px
+    # the thumbnail is the band mean per cell, here 17 x 17 px cells sampled every 8th px
     thumb = np.array(got[0][1], dtype=float)
-    assert thumb.shape == (18, 31)
+    assert thumbnail_geometry(517, 301) == (17, 8, 18, 31) and thumb.shape == (18, 31)
     mean = pixels.astype(float).mean(axis=0)
-    assert thumb[0, 0] == pytest.approx(mean[0:17:4, 0:17:4].mean(), abs=1e-3)
+    assert thumb[0, 0] == pytest.approx(mean[0:17:8, 0:17:8].mean(), abs=1e-3)
+    assert thumb[17, 30] == pytest.approx(mean[296:301:8, 512:517:8].mean(), abs=1e-3)  # the global 8 px grid
 
 
 def test_one_changed_pixel_changes_the_hash(tmp_path: Path, pixels: np.ndarray) -> None:
@@ -99,6 +100,51 @@ def test_float_thumbnail_ignores_nan() -> None:
     th = Thumbnail(width=8, height=8, dtype="float32", cells=2)
     th.add(data, 0, 0)
     assert th.result() == [[None, 10.0], [10.0, 10.0]]
+
+
+@pytest.mark.parametrize("dtype", ["int16", "int8", "uint8", "uint16"])
+def test_integer_thumbnail_is_the_exact_mean_signed_too(dtype: str) -> None:
+    """Narrow integer sums: a negative DN must not wrap (int16 DEM-like data, uint8 imagery)."""
+    info = np.iinfo(dtype)
+    data = np.random.default_rng(5).integers(info.min, int(info.max) + 1, (3, 40, 37)).astype(dtype)
+    th = Thumbnail(width=37, height=40, dtype=dtype, cells=4)  # 10 px cells sampled every 5th px
+    for r0, r1 in [(0, 13), (13, 40)]:  # two chunks, the cut inside a cell
+        th.add(np.ascontiguousarray(data[:, r0:r1]), 0, r0)
+    mean = data.astype(float).mean(axis=0)
+    got = np.array(th.result(), dtype=float)
+    assert got.shape == (4, 4)
+    assert got[0, 0] == pytest.approx(mean[0:10:5, 0:10:5].mean(), abs=1e-3)
+    assert got[3, 3] == pytest.approx(mean[30:40:5, 30:37:5].mean(), abs=1e-3)
+
+
+@pytest.mark.parametrize(("dtype", "top"), [("uint8", 255.0), ("uint16", 4095.0), ("uint16", 65535.0)])
+def test_integer_cloud_test_decides_as_the_float_one(dtype: str, top: float) -> None:
+    """The integer path of CloudCounter gives the float cloud_mask's decisions, boundaries included."""
+    rng = np.random.default_rng(9)
+    base = rng.integers(int(0.6 * top), int(top) + 1, (1, 64, 64))
+    data = np.clip(base + rng.integers(-int(0.06 * top), int(0.06 * top) + 1, (3, 64, 64)), 0, top).astype(dtype)
+    data[:, 0, 0] = 0  # nodata
+    counts = []
+    for fast in (True, False):
+        cc = CloudCounter(rgb=(0, 1, 2), scale=(1.0 / top,) * 3, nodata=(0.0, 0.0, 0.0), sub=1)
+        if fast:
+            cc.add(data, 0, 0)
+        else:  # the float path: scales that differ in the last bit keep it off the integer branch
+            cc.scale = (1.0 / top, 1.0 / top, np.nextafter(1.0 / top, 1.0))
+            cc.add(data, 0, 0)
+        counts.append((cc.cloudy, cc.valid))
+    planes = data.astype(np.float32) / np.float32(top)
+    expected = int(np.count_nonzero(cloud_mask(*planes)))
+    assert counts[0][1] == 64 * 64 - 1
+    assert counts[0][0] == expected and 0 < expected < 64 * 64
+    assert abs(counts[1][0] - expected) <= 2  # the float path (last-bit scale) agrees
+
+
+def test_cloud_grey_range_beyond_the_type_is_never_bright() -> None:
+    data = np.full((3, 4, 4), 255, dtype=np.uint8)
+    cc = CloudCounter(rgb=(0, 1, 2), scale=(1.0 / 65535.0,) * 3, nodata=(None, None, None), sub=1)
+    cc.add(data, 0, 0)
+    assert (cc.cloudy, cc.valid) == (0, 16)
 
 
 # --------------------------------------------------------------------------- issue 26: DN 0 under nodata 0

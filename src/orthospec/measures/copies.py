@@ -16,7 +16,7 @@ An image is a copy of another when
 Flat images (thumbnail spread under ``flat_std`` DN: blank, all nodata, open water) are never
 called copies: equal pixels there say nothing. Images are compared only with images of the same
 band count and thumbnail cell size (the same scale). Screening: each image's best ``candidates``
-others by the zero-shift correlation of an 8 x 8 block-mean thumbnail (at least ``screen``)
+others by the zero-shift correlation of an 8 x 8 block-mean thumbnail (at least ``screen``, 0.9)
 are then aligned and tested; a copy shifted by more than about a quarter of the image can be
 missed (stated limitation).
 """
@@ -77,16 +77,21 @@ def _close(found: tuple[int, int], expected: tuple[float, float], tol: float = 1
 def _filled(stack: np.ndarray) -> np.ndarray:
     """Thumbnails (n, rows, cols) with empty cells set to the image's mean (so they add nothing)."""
     ok = np.isfinite(stack)
+    if ok.all():  # integer images: every cell has samples
+        return stack
     counts = ok.sum(axis=(1, 2))
     means = np.where(ok, stack, 0.0).sum(axis=(1, 2)) / np.maximum(counts, 1)
     return np.where(ok, stack, means[:, None, None])
 
 
 def _unit_rows(x: np.ndarray) -> np.ndarray:
-    """Each row minus its mean, divided by its norm (zero rows stay zero)."""
-    x = x - x.mean(axis=1, keepdims=True)
+    """Each row minus its mean, divided by its norm (zero rows stay zero); float64 for the sums."""
+    x = x.astype(np.float64)
+    x -= x.mean(axis=1, keepdims=True)
     norm = np.linalg.norm(x, axis=1, keepdims=True)
-    return np.divide(x, norm, out=np.zeros_like(x), where=norm > 0)
+    np.divide(x, norm, out=x, where=norm > 0)
+    x[(norm == 0).ravel()] = 0.0
+    return x
 
 
 def _coarse(stack: np.ndarray, n: int = 8) -> np.ndarray:
@@ -163,7 +168,7 @@ def _shared_ground(a: Content, b: Content) -> float:
 
 
 def find_copies(images: Sequence[Content], *, min_correlation: float = 0.99, min_overlap: float = 0.5,
-                same_ground: float = 0.9, flat_std: float = 0.5, screen: float = 0.8,
+                same_ground: float = 0.9, flat_std: float = 0.5, screen: float = 0.9,
                 candidates: int = 3) -> dict[str, list[Match]]:
     """image id -> the images it is a copy or near copy of (both directions listed)."""
     out: dict[str, list[Match]] = {}
@@ -182,7 +187,7 @@ def find_copies(images: Sequence[Content], *, min_correlation: float = 0.99, min
             groups.setdefault((c.bands, c.cell_px, c.thumbnail.shape), []).append(c)
     stacks: list[tuple[list[Content], np.ndarray]] = []
     for members in groups.values():
-        raw = np.stack([c.thumbnail for c in members]).astype(np.float32)  # type: ignore[misc]
+        raw = np.stack([c.thumbnail for c in members]).astype(np.float32, copy=False)  # type: ignore[misc]
         with np.errstate(invalid="ignore"):
             spread = np.nanstd(raw.reshape(len(members), -1), axis=1) if np.isfinite(raw).any() else \
                 np.zeros(len(members))
@@ -202,10 +207,12 @@ def find_copies(images: Sequence[Content], *, min_correlation: float = 0.99, min
                 done.add((a.id, b.id))
                 done.add((b.id, a.id))
     # near copies: screen by the coarse zero-shift correlation among images of one thumbnail geometry
-    for members, raw in stacks:
+    while stacks:  # popped, so each group's arrays are freed before the next is read
+        members, raw = stacks.pop()
         if len(members) < 2:
             continue
         stack = _filled(raw)
+        del raw
         coarse = _coarse(stack)
         pairs: set[tuple[int, int]] = set()
         for start in range(0, len(members), 512):
@@ -227,8 +234,11 @@ def find_copies(images: Sequence[Content], *, min_correlation: float = 0.99, min
         if not pairs:
             continue
         ij = np.array(sorted(pairs))
-        flat_rows = stack.reshape(len(members), -1).astype(np.float64)
-        zero = np.einsum("pk,pk->p", _unit_rows(flat_rows[ij[:, 0]]), _unit_rows(flat_rows[ij[:, 1]]))
+        rows, where = np.unique(ij, return_inverse=True)  # unit vectors of the screened images only
+        unit = _unit_rows(stack.reshape(len(members), -1)[rows])
+        del stack
+        where = where.reshape(ij.shape)
+        zero = np.einsum("pk,pk->p", unit[where[:, 0]], unit[where[:, 1]])
         for (i, j), r0 in zip(ij.tolist(), zero.tolist(), strict=True):
             a, b = members[i], members[j]
             if (a.id, b.id) in done:

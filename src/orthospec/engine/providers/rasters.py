@@ -129,6 +129,7 @@ def _scan(ctx: ProviderContext) -> dict[str, Any]:
     facts: dict[str, RasterFacts] = {}
     pixels: dict[str, dict[str, Any]] = {}
     notes: dict[str, dict[str, str]] = {}
+    wkts: dict[str, str] = {}
     declared = {"gsd": gsd, "bit_depth": product.bit_depth}
     # scans run (possibly in other processes) on absolute paths; what enters the QCR is relative
     # to the delivery root, so qcr.json does not depend on where the delivery or the caller is
@@ -146,7 +147,8 @@ def _scan(ctx: ProviderContext) -> dict[str, Any]:
                 rep_reported[key] = v
         if rep.facts is not None:
             f = RasterFacts.from_dict(rep.facts)
-            facts[item] = replace(f, path=Path(f.path).relative_to(d.root).as_posix()
+            wkt = f.crs_wkt if f.crs_wkt is None else wkts.setdefault(f.crs_wkt, f.crs_wkt)  # one copy per CRS
+            facts[item] = replace(f, crs_wkt=wkt, path=Path(f.path).relative_to(d.root).as_posix()
                                   if f.path.startswith(root_prefix) else f.path)
         radiometry = rep.radiometry or {}
         thumb = radiometry.get("thumbnail")
