@@ -33,10 +33,10 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("orthospec.delivery",),   # the delivery convention and its readers
     ("orthospec.spec",),       # profiles, written against the delivery convention
     ("orthospec.measures",),   # pure numbers
-    ("orthospec.raster",),     # reading rasters (uses measures' pure statistics)
+    ("orthospec.raster", "orthospec.inspection"),  # reading rasters; the inspection grid (reads rasters, vectors)
     ("orthospec.engine",),     # providers, evaluator
     ("orthospec.qcr",),        # the QCR document
-    ("orthospec.figures", "orthospec.reports", "orthospec.ledger"),
+    ("orthospec.figures", "orthospec.reports", "orthospec.ledger", "orthospec.ingest"),
     ("orthospec.api", "orthospec.verify", "orthospec.schemas"),
     ("orthospec.cli",),
 )

@@ -12,7 +12,9 @@ neither, so the table cannot fall behind the profiles.
 Each case asserts three things: in the unmutated delivery the rule does not fail on the item (so the
 mutation, not the example, causes the finding), after the mutation the delivery is rejected (the
 exit code of ``orthospec check`` is 1), and the rule is among the mandatory fail/missing/error records
-for that item. The coverage line ("mutation coverage: N/M ...") is printed at the end of the run.
+for that item. A rule whose consequence is ``incomplete`` (the checker's fault, issue 26) is planted as
+such (``expect: incomplete``): the delivery is never accepted, the verdict is ``incomplete`` (exit 3)
+and ``rollup.incomplete`` names the item and the rule. The coverage line ("mutation coverage: N/M ...") is printed at the end of the run.
 """
 
 from __future__ import annotations
@@ -85,7 +87,40 @@ def _table_path(root: Path, table: str) -> Path:
 
 
 def _mutate_csv(root: Path, m: dict[str, Any]) -> None:
-    path = _table_path(root, m["table"])
+    _edit_csv(_table_path(root, m["table"]), m)
+
+
+def _mutate_checker_csv(root: Path, m: dict[str, Any]) -> None:
+    """Edit a table of the checker folder (the external QC's measurements, e.g. its check points)."""
+    _edit_csv(_own_checker(root) / "tables" / f"{m['table']}.csv", m)
+
+
+def _delete_checker_file(root: Path, m: dict[str, Any]) -> None:
+    (_own_checker(root) / m["path"]).unlink()
+
+
+def _mutate_checker_grid(root: Path, m: dict[str, Any]) -> None:
+    """Change the marks of every cell of one image in the checker's inspection grid (as in QGIS)."""
+    from pyogrio import raw
+
+    from orthospec.inspection.grid import mark_cells
+
+    path = _own_checker(root) / "inspection.gpkg"
+    _, _, _, (ids, images) = raw.read(path, layer="cells", columns=["cell_id", "image_id"])
+    hits = [c for c, i in zip(ids.tolist(), images.tolist(), strict=True) if i == m["image"]]
+    assert hits, f"no cell of image {m['image']} in the grid"
+    mark_cells(path, {c: m["set"] for c in hits})
+
+
+def _own_checker(root: Path) -> Path:
+    """The checker folder of a copied example, copied beside it on its first mutation."""
+    mutated = root.parent / "checker"
+    if not mutated.is_dir():
+        shutil.copytree(CHECKERS / root.name, mutated)
+    return mutated
+
+
+def _edit_csv(path: Path, m: dict[str, Any]) -> None:
     columns, rows = _read_csv(path)
     hit = [r for r in rows if _match(r, m.get("where"))]
     assert hit, f"mutation matches no row: {m}"
@@ -193,30 +228,31 @@ def _derive_table(root: Path, m: dict[str, Any]) -> None:
 def _signed(root: Path) -> Path:
     """The checker signs what it receives: a copied (planted) example gets its pins re-signed (the
     test is about the rule catching the defect, not the checker file's binding)."""
-    if root.parent == EXAMPLES:  # the shipped example, unchanged: its own checker file
+    if root.parent == EXAMPLES:  # the shipped example, unchanged: its own checker folder
         return checker_for(root)
-    return resigned(checker_for(root), root, root.parent / "signed.yaml")
+    return resigned(checker_for(root), root, root.parent / "signed")
 
 
 def checker_for(root: Path) -> Path:
-    """The checker's file for a copied example: a mutated copy beside the delivery, else the shipped one."""
-    mutated = root.parent / "checker.yaml"
-    return mutated if mutated.is_file() else CHECKERS / f"{root.name}.yaml"
+    """The checker folder for a copied example: a mutated copy beside the delivery, else the shipped one."""
+    mutated = root.parent / "checker"
+    return mutated if mutated.is_dir() else CHECKERS / root.name
 
 
 def _mutate_checker(root: Path, m: dict[str, Any]) -> None:
     """Change the external QC's verdicts (the checker's file, outside the delivery) for matching entries."""
-    path = checker_for(root)
+    path = _own_checker(root) / "checker.yaml"
     doc = yaml.safe_load(path.read_text(encoding="utf-8"))
     hits = [e for e in doc["manual_checks"] if all(e.get(k) == v for k, v in m["where"].items())]
     assert hits, f"no checker entry matches {m['where']}"
     for e in hits:
         e.update(m["set"])
-    (root.parent / "checker.yaml").write_text(yaml.safe_dump(doc, sort_keys=False), encoding="utf-8")
+    path.write_text(yaml.safe_dump(doc, sort_keys=False), encoding="utf-8")
 
 
 OPS = {"checker": _mutate_checker, "derive": _derive_table, "csv": _mutate_csv, "manifest": _mutate_manifest, "raster": _mutate_raster, "delete": _delete_file,
-       "write": _write_file}
+       "write": _write_file, "checker_csv": _mutate_checker_csv, "checker_delete": _delete_checker_file,
+       "checker_grid": _mutate_checker_grid}
 
 
 def apply_mutations(root: Path, mutations: list[dict[str, Any]]) -> None:
@@ -299,7 +335,12 @@ def test_planted_violation_rejects_for_the_rule(runs: Any, case: dict[str, Any])
         assert case["refused"] in str(doc), str(doc)
         return
     assert not isinstance(doc, OrthospecError), str(doc)
-    assert doc["verdict"] == "rejected", doc["rollup"]
+    if case.get("expect") == "incomplete":
+        assert doc["verdict"] == "incomplete", doc["rollup"]
+        said = [t for t in doc["rollup"]["incomplete"] if t.startswith(f"{case['item']}:") and case["rule"] in t]
+        assert said, (f"rollup.incomplete names no {case['item']} for {case['rule']}", doc["rollup"]["incomplete"])
+    else:
+        assert doc["verdict"] == "rejected", doc["rollup"]
     bad = _bad(doc)
     assert key in bad, (f"{case['rule']} does not fail on {case['item']} after the mutation; mandatory "
                         f"findings: {sorted({r for r, _ in bad})}")
@@ -309,7 +350,8 @@ def test_planted_violation_rejects_for_the_rule(runs: Any, case: dict[str, Any])
 
 @pytest.mark.parametrize("profile", sorted(SHIPPED))
 def test_every_mandatory_automatic_rule_has_a_case(profile: str) -> None:
-    """A new mandatory automatic rule must get a case or a listed reason (issue 12 item 7)."""
+    """A new mandatory automatic rule must get a case or a listed reason (issue 12 item 7); a rule
+    whose consequence is incomplete is planted as such, and only such a rule."""
     rules = mandatory_automatic(profile)
     cased = {c["rule"] for c in CASES if c["profile"] == profile}
     excepted = {r for p, r in EXCEPTIONS if p == profile}
@@ -318,6 +360,15 @@ def test_every_mandatory_automatic_rule_has_a_case(profile: str) -> None:
     stale = (cased | excepted) - rules
     assert not stale, f"table names rules that are not mandatory automatic rules of {profile}: {sorted(stale)}"
     assert all(len(EXCEPTIONS[(profile, r)]) > 20 for r in excepted), "each exception needs a reason"
+    spec = yaml.safe_load(SHIPPED[profile].read_text(encoding="utf-8"))["rules"]
+    incomplete = {r["id"] for r in spec if r.get("consequence") == "incomplete"}
+    for c in (c for c in CASES if c["profile"] == profile):
+        assert (c.get("expect") == "incomplete") == (c["rule"] in incomplete), (
+            f"{c['rule']}: consequence {'incomplete' if c['rule'] in incomplete else 'rejecting'} but the case "
+            f"expects {c.get('expect', 'rejected')}")
+    for g in (g for g in TABLE["groups"] if g["profile"] == profile):
+        kinds = {c.get("expect", "rejected") for c in g["cases"]}
+        assert len(kinds) == 1, f"group {g['id']} mixes incomplete and rejecting cases: each must set the verdict"
 
 
 @pytest.fixture(scope="module", autouse=True)
@@ -334,9 +385,9 @@ def test_uniform_shift_under_the_tolerance_raises_a_visible_finding(tmp_path: Pa
     mandatory. The t value is recomputed here from the mutated CSV (one-sample t, s with n-1)."""
     root = tmp_path / "aerial-pass"
     shutil.copytree(EXAMPLES / "aerial-pass", root)
-    apply_mutations(root, [{"csv": {"table": "checkpoints", "where": {"block": "B01"}, "debias": {"x": "x_ref"},
-                                    "scale_error": {"x": ["x_ref", 0.3]}, "add": {"x": 0.45}}}])
-    _, rows = _read_csv(_table_path(root, "checkpoints"))
+    apply_mutations(root, [{"checker_csv": {"table": "checkpoints", "where": {"block": "B01"}, "debias": {"x": "x_ref"},
+                                            "scale_error": {"x": ["x_ref", 0.3]}, "add": {"x": 0.45}}}])
+    _, rows = _read_csv(checker_for(root) / "tables" / "checkpoints.csv")
     dx = np.array([float(r["x"]) - float(r["x_ref"]) for r in rows if r["block"] == "B01"])
     t_expected = abs(dx.mean()) / (dx.std(ddof=1) / np.sqrt(dx.size))
     assert 0.4 < dx.mean() < 0.5 and np.sqrt(np.mean(dx**2)) < 0.5 and t_expected > 10
@@ -356,7 +407,7 @@ def test_uniform_shift_under_the_tolerance_raises_a_visible_finding(tmp_path: Pa
 #: (all were ACCEPTED, exit 0, before).
 OBSERVED = {
     "block B01 cut to 8 check points": (
-        [{"csv": {"table": "checkpoints", "where": {"block": "B01"}, "keep": 8}}],
+        [{"checker_csv": {"table": "checkpoints", "where": {"block": "B01"}, "keep": 8}}],
         {("JRC-12.4-T12-MIN-CHECKPOINTS", "B01")}),
     "2 of 30 images truncated (6.7 % > 5 %)": (
         [{"raster": {"file": "images/F01_0101.tif", "truncate": True}},
@@ -364,9 +415,9 @@ OBSERVED = {
         {("JRC-9.2-T7-READABLE", "F01_0101"), ("JRC-9.2-T7-READABLE", "F02_0203"),
          ("JRC-12.3-IMAGE-FAIL-SHARE", "D-2026-014")}),
     "a check point on a GCP and every check point at 1.0 m precision": (
-        [{"csv": {"table": "checkpoints", "where": {"point_id": "B02-C01"},
-                  "set": {"x_ref": 507802.959, "y_ref": 5403235.439, "x": 507803.05, "y": 5403235.21}}},
-         {"csv": {"table": "checkpoints", "set": {"precision_xy": 1.0}}}],
+        [{"checker_csv": {"table": "checkpoints", "where": {"point_id": "B02-C01"},
+                          "set": {"x_ref": 507802.959, "y_ref": 5403235.439, "x": 507803.05, "y": 5403235.21}}},
+         {"checker_csv": {"table": "checkpoints", "set": {"precision_xy": 1.0}}}],
         {("JRC-12.5-INDEPENDENT-CHECKPOINTS", "B02"), ("JRC-DEF-CHECKPOINT-ACCURACY", "B01-C01")}),
     # satellite-pass: 4 bands at 0.5 m from 1.24 m multispectral scenes, declared not pan-sharpened; the
     # §10.5 rules were gated on that flag (not applicable, ACCEPTED). Now derived.pansharpened decides.

@@ -24,7 +24,7 @@ from orthospec.qcr import all_records
 
 ROOT = Path(__file__).resolve().parents[1]
 PLUGIN = ROOT / "examples" / "plugins" / "orthospec-example-plugin"
-CHECKER = ROOT / "examples" / "checker" / "aerial-pass.yaml"
+CHECKER = ROOT / "examples" / "checker" / "aerial-pass"
 RULE = "EXAMPLE-5.3-SELF-DOCUMENTING-NAME"
 RENAMED = "F01_0103"  # this image's file is renamed so that its name no longer documents flight and photo
 

@@ -13,6 +13,8 @@ from orthospec.api import check
 from orthospec.measures.synthetic import slanted_edge
 from orthospec.qcr import all_records, point_rows
 
+CHECKERS = EXAMPLES.parent / "checker"
+
 PROFILE_HEAD = """\
 orthospec_profile: 1
 id: t
@@ -71,7 +73,8 @@ def test_block_rmse_equals_numpy_on_the_example(tmp_path):
 def test_reported_rmse_that_disagrees_is_a_finding(tmp_path):
     p = profile(tmp_path, rule("RD", "block", "checkpoints.reported_diff_y", '{op: "<=", value: 0.01, unit: m}',
                                "reject_block"))
-    doc = check(EXAMPLES / "aerial-fail", p, date="2026-01-01").document
+    # the external statistics are the checker's measurements (its folder beside the examples)
+    doc = check(EXAMPLES / "aerial-fail", p, date="2026-01-01", checker=CHECKERS / "aerial-fail").document
     assert recs(doc, "RD")["B02"]["verdict"] == "fail"
     assert "reported RMSE_y" in recs(doc, "RD")["B02"]["message"]
 
@@ -314,7 +317,9 @@ def test_per_point_decisions_values_and_rows_on_a_copied_example(tmp_path):
 
     root = tmp_path / "d"
     shutil.copytree(EXAMPLES / "aerial-pass", root)
-    csv = root / "tables" / "checkpoints.csv"
+    folder = tmp_path / "checker"  # the checker's measurements are what the check point rules read
+    shutil.copytree(CHECKERS / "aerial-pass", folder)
+    csv = folder / "tables" / "checkpoints.csv"
     cp = pd.read_csv(csv, dtype={"exclusion_reason": object})
     cp.loc[cp["point_id"] == "B01-C05", "x"] += 5.0  # a 5 m blunder: 3 x RMSE_x of B01 is about 3 m
     cp.loc[cp["point_id"] == "B01-C05", ["excluded", "exclusion_reason"]] = [True, "target mis-identified"]
@@ -326,14 +331,14 @@ def test_per_point_decisions_values_and_rows_on_a_copied_example(tmp_path):
                 rule("DEC", "checkpoint", "checkpoint.decision", '{op: "present"}'),
                 rule("RX", "block", "checkpoints.rmse_x", '{op: "<=", value: tolerance_xy, unit: m}',
                      "reject_block"))
-    doc = check(root, p, date="2026-01-01").document
+    doc = check(root, p, date="2026-01-01", checker=folder).document
     sha = hashlib.sha256(csv.read_bytes()).hexdigest()
     dx, ok, dec = recs(doc, "DX"), recs(doc, "OK"), recs(doc, "DEC")
     assert set(dx) == set(cp["point_id"]) == set(ok) == set(dec)
     for row, pt in enumerate(cp.itertuples(index=False), start=1):
         rec = dx[pt.point_id]
         assert rec["measured"]["value"] == pytest.approx(pt.x - pt.x_ref, rel=1e-9, abs=1e-12)
-        assert rec["evidence"] == [{"file": "tables/checkpoints.csv", "sha256": sha, "rows": [row]}]
+        assert rec["evidence"] == [{"file": "checker:tables/checkpoints.csv", "sha256": sha, "rows": [row]}]
         assert ok[pt.point_id]["evidence"] == rec["evidence"]
     assert dec["B01-C05"]["measured"]["value"] == "excluded"
     assert ok["B01-C05"]["verdict"] == "pass"

@@ -46,7 +46,9 @@ def checker_text(doc: dict[str, Any]) -> str | None:
     if chk:
         who = ", ".join(str(chk[k]) for k in ("name", "role", "organisation") if chk.get(k))
         sha = str(chk.get("sha256") or "")[:12]
-        party = f"{who} (checker's file {chk.get('file', '?')}, sha256 {sha}…)"
+        where = (f"checker's folder {chk['folder']}, {chk.get('file', '?')}" if chk.get("folder")
+                 else f"checker's file {chk.get('file', '?')}")
+        party = f"{who} ({where}, sha256 {sha}…)"
     if operator and party:
         return f"{operator}; {party}"
     return operator or party

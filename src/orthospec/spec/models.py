@@ -240,8 +240,9 @@ class ProfileTest(_Strict):
     expect: dict[str, Any] = Field(default_factory=dict)
     description: str | None = None
     checker: str | None = Field(None, description=(
-        "The checker's file (check --checker), relative to the profile file: the manual-check verdicts "
-        "and waivers in force for this test delivery (a delivery's own manual_checks are only evidence)."))
+        "The checker's folder or file (check --checker), relative to the profile file: the manual-check "
+        "verdicts, waivers and check point measurements in force for this test delivery (a delivery's own "
+        "manual_checks and check points are only the contractor's evidence)."))
 
 
 class ProfileWaiver(_Strict):

@@ -432,7 +432,7 @@ def block_outlines_agree(ctx: ProviderContext) -> list[Measured]:
     from ...delivery.outlines import ring_polygon
 
     d = ctx.delivery
-    stated = d.stated_outlines
+    stated = ctx.outlines
     ev: tuple[Any, ...] = (d.manifest_evidence("blocks"),)
     na = None
     value: bool | None
@@ -473,7 +473,7 @@ def area_of_interest_agrees(ctx: ProviderContext) -> list[Measured]:
     Not applicable when the checker states neither, or when it states an area and the manifest
     declares no area file (the union of blocks is then no statement about the area)."""
     d = ctx.delivery
-    stated = d.stated_outlines
+    stated = ctx.outlines
     rel = d.manifest.project.area_of_interest
     ev: tuple[Any, ...] = (d.manifest_evidence("project.area_of_interest"),)
     na: str | None = None
@@ -671,7 +671,7 @@ def dem_blocks(ctx: ProviderContext) -> list[Measured]:
         return [Measured("derived.dem_blocks", "dem", "text", pd.Series(dtype=object), pd.Series(dtype=object),
                          notes=pd.Series({"*": "the manifest declares no 'dem' table"}, dtype=object))]
     # the outlines in force: the checker's file's when it states blocks (red team R13), else the manifest's
-    polys = {block: Polygon(ring) for block, (ring, _) in d.block_outlines().items() if finite_ring(ring)}
+    polys = {block: Polygon(ring) for block, (ring, _) in ctx.block_outlines().items() if finite_ring(ring)}
     ids = t.ids.astype(str).tolist()
     vals: dict[str, Any] = {}
     notes: dict[str, str] = {}

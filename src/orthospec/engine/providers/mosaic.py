@@ -53,9 +53,8 @@ def aoi_in_force(ctx: ProviderContext) -> tuple[Any, tuple[Any, ...], str]:
     block polygons (:func:`declared_aoi`). The same order on both sides: an area, else its blocks."""
     from ...delivery.outlines import ring_polygon
 
-    d = ctx.delivery
-    stated = d.stated_outlines
-    in_force = d.area_of_interest_in_force()
+    stated = ctx.outlines
+    in_force = ctx.area_of_interest_in_force()
     if stated is not None and in_force is not None:
         ring, ev = in_force
         return ring_polygon(ring), (ev,), f"area of interest of the {stated.source}"
