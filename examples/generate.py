@@ -145,7 +145,15 @@ PASS = Scenario(
                           "names large snowed areas as an exception. A re-flight before leaf-out "
                           "was not possible."),
         "approver": "A. Moreau, paying agency GIS unit (fictional)",
-    }],
+    }, *({
+        # issue 25: cloud cover is measured in the pixels, where snow is as bright and white as cloud
+        "rule": rule,
+        "items": ["F03_0104"],
+        "justification": ("The bright, white pixels measured in F03_0104 (about 60 % of the extract) are "
+                          "residual snow on the north-facing slope, not cloud (inspected on screen); the "
+                          "declared 0 % cloud cover is right."),
+        "approver": "A. Moreau, paying agency GIS unit (fictional)",
+    } for rule in ("JRC-6.3-CLOUD-COVER", "JRC-6.3-CLOUD-DECLARED"))],
 )
 
 FAIL = Scenario(
@@ -905,7 +913,11 @@ JRC_V3_RULES: dict[str, list[tuple[str, str, str, str, list[str] | None]]] = {
                      *((r, "error", "recommended", "warn", None) for r in (
                          "JRC-6.3-CV", "JRC-6.3-MISREGISTRATION", "JRC-6.3-NOISE",
                          "JRC-6.3-SATURATION-HIGH", "JRC-6.3-SATURATION-LOW",
-                         "JRC-6.4-METADATA-STATS-MATCH", "JRC-6.5-LOSSLESS")),
+                         "JRC-6.4-METADATA-STATS-MATCH", "JRC-6.5-LOSSLESS",
+                         # issue 25: declared values compared with the pixels, cloud measured in them
+                         "JRC-6.3-CLOUD-COVER", "JRC-6.3-CLOUD-DECLARED", "JRC-6.4-METADATA-STD-MATCH",
+                         "JRC-6.4-METADATA-MIN-MATCH", "JRC-6.4-METADATA-MAX-MATCH", "JRC-6.4-METADATA-BIT-DEPTH")),
+                     ("JRC-6.3-CLOUD-COVER-MEAN", "missing", "recommended", "warn", ["D-2026-021"]),
                      ("JRC-6.3-ARTEFACTS", "warn", "recommended", "warn", None),
                      ("JRC-T6-ORTHO-INSPECTION", "warn", "recommended", "warn", None)],
     "file_name_space": [("JRC-6.4-FILE-NAMING", "warn", "recommended", "warn", None)],

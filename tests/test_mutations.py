@@ -189,6 +189,9 @@ def _mutate_raster(root: Path, m: dict[str, Any]) -> None:
     if "pixel_size" in m:
         t = profile["transform"]
         profile["transform"] = Affine(m["pixel_size"], 0.0, t.c, 0.0, -m["pixel_size"], t.f)
+    if "shift" in m:  # the same pixels georeferenced elsewhere (map units east, north)
+        t = profile["transform"]
+        profile["transform"] = Affine(t.a, t.b, t.c + m["shift"][0], t.d, t.e, t.f + m["shift"][1])
     if "crs" in m:
         profile["crs"] = m["crs"]
     if "driver" in m:  # another format, same name: what a mislabelled file looks like

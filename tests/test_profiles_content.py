@@ -171,7 +171,9 @@ def test_per_axis_tolerance_and_block_rejection() -> None:
         assert r["measure"] == measure and r["requirement"] == {"op": "<=", "value": "tolerance_xy", "unit": "m"}
         assert (r["level"], r["consequence"]) == ("mandatory", "reject_block")
     z = by_id["JRC-12.7-RMSEZ"]
-    assert z["when"] == "manifest.product.dem_delivered == true" and z["requirement"]["value"] == "tolerance_z"
+    # issue 25: whether the DEM is a deliverable is read from the files, not from the flag alone
+    assert z["when"] == "manifest.product.dem_delivered == true or derived.dem_delivered == true"
+    assert z["requirement"]["value"] == "tolerance_z"
     assert by_id["JRC-12.8-BLOCK-FAIL-SHARE"]["level"] == "mandatory"
     # §12.3 "may be returned": mandatory, the "may" is a parameter with a documented default (issue 12)
     assert by_id["JRC-12.3-IMAGE-FAIL-SHARE"]["level"] == "mandatory"

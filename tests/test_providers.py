@@ -278,9 +278,16 @@ def test_resolution_class_is_computed_from_the_pixel_size(tmp_path):
     """JRC §9.1 classes from the profile's `classes:`; a gap of the text gives no class (missing)."""
     d = _copy(tmp_path)
     img = pd.read_csv(d / "tables" / "images.csv", dtype=str, keep_default_na=False)
-    img.loc[0, "acquisition_gsd"] = "5.0"   # HR: 3 <= 5 <= 8
-    img.loc[1, "acquisition_gsd"] = "9.0"   # in the 8-10 m gap of §9.1
-    img.to_csv(d / "tables" / "images.csv", index=False)
+    # issue 25: the class is read from the delivered file's pixel (a declared GSD is only evidence)
+    for k, pixel in ((0, 5.0), (1, 9.0)):   # HR: 3 <= 5 <= 8; 9 m lies in the 8-10 m gap of §9.1
+        path = d / img.loc[k, "file"]
+        with rasterio.open(path) as src:
+            profile, data = src.profile, src.read()
+        t = profile["transform"]
+        profile["transform"] = from_origin(t.c, t.f, pixel, pixel)
+        path.unlink()
+        with rasterio.open(path, "w", **profile) as dst:
+            dst.write(data)
     text = PROFILE_HEAD.replace("rules:\n", textwrap.dedent("""\
         classes:
           resolution:

@@ -84,9 +84,10 @@ def test_no_page_lists_not_applicable_rows(fail: dict[str, Any], passed: dict[st
         assert "applies only when the sensor type is 'satellite'" in text
 
 
-def test_aerial_pass_report_is_at_most_13_pages(passed: dict[str, Any]) -> None:
-    # 12 until issues 25/26 added rules (acquisition window, point ids, QCR set...) and their parameters
-    assert len(passed["pages"]) <= 13
+def test_aerial_pass_report_is_at_most_14_pages(passed: dict[str, Any]) -> None:
+    # 12 until issues 25/26 added rules (measured-vs-declared GSD, location, cloud, statistics, DEM, camera;
+    # acquisition window, point ids, QCR set...) and their parameters
+    assert len(passed["pages"]) <= 14  # 13 on each branch; 14 once both rule sets met on main
 
 
 def test_checker_and_contractor_operator_are_separate(fail: dict[str, Any], passed: dict[str, Any]) -> None:

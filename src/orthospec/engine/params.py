@@ -377,6 +377,14 @@ def _needed(profile: ResolvedProfile, values: Mapping[str, ParamValue],
     return needed, False
 
 
+def _fact_of_the_files(name: str) -> bool:
+    """A delivery-wide ``derived.*`` fact (one value per delivery, computed from the files)."""
+    from ..spec.catalog import measure_info
+
+    info = measure_info(name) if name.startswith("derived.") else None
+    return info is not None and info[0] in ("delivery", "project")
+
+
 def _may_not_apply(when: str, names: set[str], values: Mapping[str, ParamValue],
                    manifest: Mapping[str, Any] | None) -> bool:
     """True unless ``when`` surely holds: it reads only parameters and manifest facts and is true.
@@ -386,14 +394,21 @@ def _may_not_apply(when: str, names: set[str], values: Mapping[str, ParamValue],
     Without the manifest, a ``when`` that reads manifest facts cannot be decided: the rule may not
     apply, so the parameter is left to the evaluator (which must record ``missing``).
     """
-    if any(not (n in values or n.startswith(("param.", "manifest."))) for n in names):
+    measures = [n for n in names if not (n in values or n.startswith(("param.", "manifest.")))]
+    # issue 25 (helper facts): a delivery-wide fact computed from the files (derived.dem_delivered) is not
+    # known before the run: it is taken as false here, so only what the manifest alone makes apply
+    # needs its parameter now; otherwise the evaluator decides and records `missing` if it applies
+    files = set(measures) if measures and all(_fact_of_the_files(n) for n in measures) else set()
+    if measures and not files:
         return False  # reads measures: it may apply to some item, so the parameter is needed
     reads_manifest = any(n.startswith("manifest.") for n in names)
     if reads_manifest and manifest is None:
         return True
     env: dict[str, Any] = {}
     for n in names:
-        if n.startswith("manifest."):
+        if n in files:
+            env[n] = False
+        elif n.startswith("manifest."):
             v = (manifest or {}).get(n)
             if isinstance(v, dict) and set(v) == {"value", "unit"}:
                 try:

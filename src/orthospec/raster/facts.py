@@ -25,7 +25,7 @@ import stat
 import warnings
 from collections.abc import Iterator
 from contextlib import ExitStack, contextmanager
-from dataclasses import asdict, dataclass, replace
+from dataclasses import dataclass, replace
 from functools import lru_cache
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -126,11 +126,11 @@ class RasterFacts:
         return (self.pixel_size[0] * self.unit_metres, self.pixel_size[1] * self.unit_metres)
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-friendly: tuples become lists."""
-        d = asdict(self)
+        """JSON-friendly: tuples become lists (shallow: one per image of a national scan)."""
+        d = {k: getattr(self, k) for k in self.__dataclass_fields__}
         for k, v in d.items():
             if isinstance(v, tuple):
-                d[k] = [list(x) if isinstance(x, tuple) else x for x in v]
+                d[k] = [list(x) if isinstance(x, tuple) else (dict(x) if isinstance(x, dict) else x) for x in v]
         return d
 
     @classmethod
@@ -187,8 +187,11 @@ def compression_of(ds: rasterio.io.DatasetReader) -> tuple[str, bool | None]:
 
 def _stats(ds: rasterio.io.DatasetReader) -> tuple[dict[str, float] | None, ...]:
     out: list[dict[str, float] | None] = []
+    first = ds.tags(1) if ds.count else {}
+    if not any(k in first for k in STAT_TAGS):  # GDAL writes them for every band or for none
+        return (None,) * ds.count
     for i in range(1, ds.count + 1):
-        tags = ds.tags(i)
+        tags = first if i == 1 else ds.tags(i)
         got = {}
         for tag, key in STAT_TAGS.items():
             if tag in tags:
