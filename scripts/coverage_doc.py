@@ -182,7 +182,7 @@ UNCODED: list[tuple[str, int | None, str, str, tuple[str, ...], str]] = [
 #: checker's verdict on the table's own item and are not held to this.
 TABLE_DATA: dict[int, tuple[str, ...]] = {
     1: ("cameras.", "flights.", "images.exposure_", "images.flying_height", "derived.photo_coverage",
-        "derived.area_of_interest_agrees"),
+        "derived.area_of_interest_agrees", "derived.camera_agrees"),
     2: ("images.scan_resolution", "tables.scanning_resolutions"),
     3: ("scanner_tests.", "scanner.", "interior_orientation.", "images.scan_resolution", "images.acquisition_gsd"),
     4: ("gcps.", "gcp_pattern.", "aerotriangulation.configuration", "flights.gps_base_distance"),

@@ -87,7 +87,9 @@ def test_every_missing_record_names_its_todo_line(checked: tuple[Path, dict[str,
         m = re.search(r"see TODO\.md line (\d+): ", r["message"] or "")
         assert m, (r["rule"], r["message"])
         line = int(m.group(1))
-        assert line != other, (r["rule"], r["message"])  # a specific entry, not the catch-all
+        if line == other:  # the catch-all: only a value the pixels themselves cannot give, said why
+            assert str(r.get("measure", "")).startswith("raster."), (r["rule"], r["message"])
+            continue
         entry = todo[line - 1]
         assert entry.startswith("- [ ] ")
         listed = todo[line] if line < len(todo) else ""

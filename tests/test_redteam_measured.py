@@ -13,6 +13,7 @@ ACCEPTED there.
 
 from __future__ import annotations
 
+import csv
 import shutil
 from collections.abc import Callable
 from pathlib import Path
@@ -214,6 +215,24 @@ def _dem_delivered_declared_false(d: Path) -> None:
     write_table(d, "checkpoints", header, rows)
 
 
+def _checker_heights_1m_off_in_b01(folder: Path) -> None:
+    """The checker measured heights on its B01 check points: each 1 m above the reference (RMSEz 1 m)."""
+    table = folder / "tables" / "checkpoints.csv"
+    with table.open(encoding="utf-8", newline="") as f:
+        r = csv.DictReader(f)
+        header, rows = list(r.fieldnames or []), list(r)
+    header += [c for c in ("z", "z_ref") if c not in header]
+    for row in rows:
+        row.setdefault("z", "")
+        row.setdefault("z_ref", "")
+        if row["block"] == "B01":
+            row["z"], row["z_ref"] = "412.0", "411.0"
+    with table.open("w", encoding="utf-8", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=header, lineterminator="\n")
+        w.writeheader()
+        w.writerows(rows)
+
+
 def _dem_table_removed(d: Path) -> None:
     """The satellite dem table removed (manifest entry and file) while the scenes record dem_accuracy and
     dem_grid_size (the DEM they were orthorectified with)."""
@@ -259,11 +278,14 @@ def _delivered_items(d: Path) -> set[str]:
 
 
 def _run(example: str, edit: Edit, tmp_path: Path, *, profile: str | Path = "jrc-v3",
-         parameters: dict[str, Any] | None = None) -> tuple[int, dict[str, Any] | None, str]:
+         parameters: dict[str, Any] | None = None,
+         checker_edit: Edit | None = None) -> tuple[int, dict[str, Any] | None, str]:
     d = tmp_path / example
     shutil.copytree(EXAMPLES / example, d)
     edit(d)
     path = resigned(CHECKERS / f"{example}.yaml", d, tmp_path / f"checker-{example}.yaml")
+    if checker_edit is not None:
+        checker_edit(path.parent)  # the checker's own measurements (its folder's tables/checkpoints.csv)
     doc = yaml.safe_load(path.read_text(encoding="utf-8"))
     items = _delivered_items(d)
     doc["manual_checks"] = [m for m in doc.get("manual_checks") or [] if m["item"] == "*" or m["item"] in items]
@@ -392,7 +414,8 @@ def test_ten_padded_near_copies_do_not_dilute_the_rejected_share(tmp_path: Path)
 
 def test_dem_delivered_declared_false_beside_a_delivered_dem(tmp_path: Path) -> None:
     code, doc, err = _run("aerial-pass", _dem_delivered_declared_false, tmp_path,
-                          parameters={"tolerance_z": {"value": 0.5, "unit": "m"}})
+                          parameters={"tolerance_z": {"value": 0.5, "unit": "m"}},
+                          checker_edit=_checker_heights_1m_off_in_b01)
     assert code == 1 and doc is not None, err
     assert _verdicts(doc, "JRC-12.7-RMSEZ")["B01"] == "fail"
     assert "B01" in doc["rollup"]["rejected"]["block"]

@@ -62,6 +62,7 @@ NEEDS: dict[str, tuple[tuple[str, ...], ...]] = {
     "raster.reported_mean_diff": (("column", "images", "mean_dn"),),
     "raster.stats_mean_diff": (("column", "images", "mean_dn"),),
     "raster.crs_ok": (("param", "map_crs"),),
+    "raster.cloud_cover_declared": (("column", "images", "cloud_cover"),),
     "raster.": (("table", "images"),),
     "checkpoints.reported_diff": (("manifest", "blocks.reported"),),
     "checkpoints.": (("table", "checkpoints"), ("blocks",)),
