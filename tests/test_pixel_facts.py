@@ -20,7 +20,13 @@ from orthospec.measures.copies import (
     aligned_correlation,
     find_copies,
 )
-from orthospec.measures.signature import CloudCounter, PixelHash, Thumbnail, cloud_mask, thumbnail_geometry
+from orthospec.measures.signature import (
+    CloudCounter,
+    PixelHash,
+    Thumbnail,
+    cloud_mask,
+    thumbnail_geometry,
+)
 from orthospec.raster.reading import ScanSettings, scan_raster
 
 T0 = Affine(0.25, 0, 500_000.0, 0, -0.25, 5_400_000.0)
