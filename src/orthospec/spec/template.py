@@ -60,6 +60,9 @@ waivers: []                         # - {{rule: RULE-ID, items: [ITEM], justific
 #: first. ("table", T), ("column", T, C), ("manifest", path), ("param", name), ("blocks",), ("checker", what)
 NEEDS: dict[str, tuple[tuple[str, ...], ...]] = {
     "raster.reported_mean_diff": (("column", "images", "mean_dn"),),
+    "raster.reported_min_diff": (("column", "images", "min_dn"),),
+    "raster.reported_max_diff": (("column", "images", "max_dn"),),
+    "raster.reported_std_diff": (("column", "images", "std_dn"),),
     "raster.stats_mean_diff": (("column", "images", "mean_dn"),),
     "raster.crs_ok": (("param", "map_crs"),),
     "raster.cloud_cover_declared": (("column", "images", "cloud_cover"),),
