@@ -137,6 +137,9 @@ def diff_cmd(a: str, b: str, as_json: bool, show_all: bool) -> None:
     if warning:
         click.echo(warning, err=True)
     click.echo(f"{d['a']} -> {d['b']}")
+    for w in d["weakened"]:
+        why = w["justification"] or "no justification recorded"
+        click.echo(f"! mandatory rule {w['id']} checks less: {'; '.join(w['changes'])} (justification: {why})")
 
     def eff(p: object, name: str) -> str:
         par = p.parameters.get(name)  # type: ignore[attr-defined]

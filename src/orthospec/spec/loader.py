@@ -27,6 +27,7 @@ from pydantic import BaseModel, ValidationError
 from ..errors import ExpressionError, SpecError, UnitError
 from ..resources import specs_dir
 from ..yamlio import Located, YamlError, load_text, read_regular
+from .changes import Weakening, weakened_fields, weakening_changes
 from .models import Parameter, Profile, Rule, RuleOverride
 
 if TYPE_CHECKING:
@@ -78,6 +79,8 @@ class ResolvedProfile:
     removed: tuple[Removal, ...] = ()
     #: rule id -> keys changed by `override: true` along the chain
     overridden: dict[str, tuple[str, ...]] = field(default_factory=dict)
+    #: mandatory rules of a base that the chain removed or changed so they check less, justified
+    weakened: tuple[Weakening, ...] = ()
     #: where each rule / parameter was written (cold loads only; empty when served from the cache)
     sites: _Sites | None = field(default=None, repr=False, compare=False)
     _index: dict[str, int] = field(default_factory=dict, repr=False, compare=False)
@@ -135,6 +138,24 @@ class _Sites:
             if key is None or (isinstance(pd, dict) and key in pd):
                 return (doc.file, *doc.where(("parameters", name, *((key,) if key else ()))))
         return (self.top.file if self.top else "?", None, None)
+
+
+def param_location(p: ResolvedProfile, name: str, key: str | None = None) -> str:
+    """``file:line`` where the chain last wrote parameter ``name`` (its ``key``), for messages;
+    from the sites of a cold load, else by reading the chain's files again (error paths only)."""
+    if p.sites is not None:
+        file, line, _col = p.sites.param_where(name, key)
+        return f"{file}:{line}" if line else file
+    for _pid, _ver, f in p.chain:
+        try:
+            doc, _ = _load_doc(Path(f))
+        except (OSError, YamlError):
+            continue
+        pd = (doc.data.get("parameters") or {}).get(name) if isinstance(doc.data, dict) else None
+        if isinstance(pd, dict) and (key is None or key in pd):
+            line, _col = doc.where(("parameters", name, *((key,) if key else ())))
+            return f"{f}:{line}" if line else f
+    return str(p.path)
 
 
 def _rules_of(doc: Located) -> list[Any]:
@@ -582,6 +603,7 @@ def _rebuild(d: dict[str, Any]) -> ResolvedProfile:
         canonical=c, sha256=sha, allow_no_mandatory=bool(d.get("allow_no_mandatory")),
         removed=tuple(Removal(x["id"], x["justification"], x["profile"]) for x in c.get("removed_rules", [])),
         overridden={k: tuple(v) for k, v in d.get("overridden", {}).items()},
+        weakened=tuple(Weakening.from_dict(w) for w in c.get("weakened_rules", [])),
     )
 
 
@@ -627,7 +649,42 @@ def _resolve(path: Path, problems: list[Problem], *, depth: int,
                                     f"extends {prof.extends.id} {prof.extends.version}, but {parent_path} "
                                     f"is {base.id} {base.version}"))
             return None
-    return _merge(prof, base, path, doc, problems)
+    resolved = _merge(prof, base, path, doc, problems)
+    if resolved is not None:
+        claim = _claims_reserved_id(resolved, path)
+        if claim:
+            problems.append(Problem(doc.file, *doc.where(("id",)), claim))
+            return None
+    return resolved
+
+
+def _claims_reserved_id(p: ResolvedProfile, path: Path) -> str | None:
+    """Why ``p`` may not carry its id: the id of a shipped profile (or of one an installed plugin
+    ships) claimed by another file with other content, or None.
+
+    A report names the profile by id: "jrc-v3" must mean the published standard, never a local file
+    that switched a rule off under its name (issue 25). A copy whose resolved content is the
+    shipped profile's (same SHA-256) is the same profile and passes.
+    """
+    here = path.resolve()
+    owners = [t for t in available() if t[0] == p.id]
+    kind = "shipped"
+    if not owners:
+        owners = [t for t in plugin_profiles() if t[0] == p.id]
+        kind = "installed by a plugin"
+    if not owners or any(t[3].resolve() == here for t in owners):
+        return None
+    for _pid, ver, _title, owner in owners:
+        if ver == p.version:
+            try:
+                if load_profile(owner, check_measures=False).sha256 == p.sha256:
+                    return None
+            except SpecError:
+                pass
+    files = ", ".join(sorted({str(t[3]) for t in owners}))
+    return (f"id {p.id!r} is reserved: it names the profile {kind} in {files}, and this file is not that "
+            f"profile; give this profile its own id (e.g. '{p.id}-itt') and `extends: {{id: {owners[0][0]}, "
+            f"version: {owners[-1][1]}}}` to build on it")
 
 
 def _check_unique_ids(prof: Profile, doc: Located, problems: list[Problem]) -> None:
@@ -651,6 +708,50 @@ def _same_value(a: Any, b: Any) -> bool:
     if isinstance(a, int | float) and isinstance(b, int | float):
         return float(a) == float(b)
     return a == b
+
+
+def _unjustified(rule_id: str, changes: list[str], base: ResolvedProfile | None, how: str) -> str:
+    """One message for a mandatory rule of the base weakened without a justification."""
+    where = f"{base.id} {base.version}" if base is not None else "the base profile"
+    listed = "`spec diff`, the annex and every report checked under this profile list the change"
+    if how == "remove":
+        return (f"remove_rules: {rule_id} is a mandatory rule of {where}; removing it needs a justification: "
+                f"write `{{id: {rule_id}, justification: \"ITT §...: why it does not apply\"}}` ({listed})")
+    what = "; ".join(changes)
+    if how == "restate":
+        return (f"rule {rule_id} is mandatory in {where}, and this profile writes it again so that it checks less "
+                f"({what}): write only the keys that change under `override: true`, with `justification: "
+                f"\"ITT §...: why\"` ({listed})")
+    return (f"rule {rule_id} is mandatory in {where}, and this override makes it check less ({what}) without a "
+            f"justification: add `justification: \"ITT §...: why\"` to the override ({listed})")
+
+
+def _unit_change(name: str, old: Parameter, new: Parameter, base: ResolvedProfile | None) -> str:
+    """One message for an extending profile that gives an inherited parameter another unit.
+
+    The parameter keeps the unit of the profile that defines it (every rule reading it, the annex
+    and the QCR print that unit); without this the mistake surfaced as one dimension error per rule
+    reading the parameter, some of them located in the standard's own file."""
+    from ..units import profile_unit_problem
+
+    where = f"{base.id} {base.version}" if base is not None else "the profile that defines it"
+    spelled = profile_unit_problem(new.unit)
+    if spelled and f"write {old.unit!r}" in spelled:
+        return f"parameter {name}: {spelled}"
+    head = f"parameter {name}: unit {new.unit!r}, but {name} is in {old.unit!r} in {where}"
+    value = new.value if new.value is not None else None
+    if isinstance(value, int | float) and not isinstance(value, bool) and old.unit not in (None, "text", "bool",
+                                                                                             "date"):
+        try:
+            from ..units import convert
+
+            got = float(convert([float(value)], new.unit, old.unit)[0])
+            return (f"{head}: a tender gives the value in the parameter's unit: write `value: {got:g}` "
+                    f"({value:g} {new.unit}) and leave out `unit`")
+        except (UnitError, ValueError, TypeError):
+            pass
+    return (f"{head} (another kind of quantity): a tender gives the value in {old.unit!r} and leaves out "
+            f"`unit`")
 
 
 def _merge(prof: Profile, base: ResolvedProfile | None, path: Path, doc: Located,
@@ -679,6 +780,10 @@ def _merge(prof: Profile, base: ResolvedProfile | None, path: Path, doc: Located
             problems.append(Problem(doc.file, line, col, f"parameter {name}: set_by is {old.authority()!r} where "
                                     "the parameter is defined; an extending profile cannot change it"))
             continue
+        if "unit" in given and old.unit is not None and given["unit"] != old.unit:
+            line, col = doc.where(("parameters", name, "unit"))
+            problems.append(Problem(doc.file, line, col, _unit_change(name, old, p, base)))
+            continue
         if "default" in given and not _same_value(given["default"], old.default):
             line, col = doc.where(("parameters", name, "default"))
             problems.append(Problem(doc.file, line, col, f"parameter {name}: an extending profile sets `value:`, "
@@ -704,6 +809,7 @@ def _merge(prof: Profile, base: ResolvedProfile | None, path: Path, doc: Located
     classes = {**(base.classes if base else {}), **prof.classes}
     rules: dict[str, Rule] = dict((r.id, r) for r in base.rules) if base else {}
     removed = list(base.removed) if base else []
+    weakened = list(base.weakened) if base else []
     overridden = {k: tuple(v) for k, v in base.overridden.items()} if base else {}
     for i, item in enumerate(prof.remove_rules):
         rid = item if isinstance(item, str) else item.id
@@ -712,29 +818,53 @@ def _merge(prof: Profile, base: ResolvedProfile | None, path: Path, doc: Located
             problems.append(Problem(doc.file, line, col, f"remove_rules: no inherited rule {rid!r}"
                                     + _did_you_mean(rid, rules, "inherited")))
             continue
+        justification = None if isinstance(item, str) else item.justification
+        if rules[rid].level == "mandatory":
+            if justification is None:
+                line, col = doc.where(("remove_rules", i))
+                problems.append(Problem(doc.file, line, col, _unjustified(rid, ["removed"], base, "remove")))
+                continue
+            weakened.append(Weakening(rid, ("removed",), justification, prof.id, rules[rid].title))
         del rules[rid]
         sites.rules.pop(rid, None)
         overridden.pop(rid, None)
-        removed.append(Removal(rid, None if isinstance(item, str) else item.justification, prof.id))
+        removed.append(Removal(rid, justification, prof.id))
     for i, r in enumerate(prof.rules):
+        before = rules.get(r.id)
         if isinstance(r, RuleOverride):
-            if r.id not in rules:
+            if before is None:
                 line, col = doc.where(("rules", i))
                 problems.append(Problem(doc.file, line, col, f"override of unknown rule {r.id!r}"
                                         + _did_you_mean(r.id, rules, "inherited"), r.id))
                 continue
-            merged_r = rules[r.id].model_dump()
-            changed = {k: v for k, v in r.model_dump(exclude_unset=True).items() if k not in ("override", "id")}
+            merged_r = before.model_dump()
+            changed = {k: v for k, v in r.model_dump(exclude_unset=True).items()
+                       if k not in ("override", "id", "justification")}
             merged_r.update(changed)
-            overridden[r.id] = tuple(sorted({*overridden.get(r.id, ()), *changed}))
             try:
-                rules[r.id] = Rule.model_validate(merged_r)
+                after = Rule.model_validate(merged_r)
             except ValidationError as exc:
                 line, col = doc.where(("rules", i))
                 problems.append(Problem(doc.file, line, col, f"override invalid: {exc.errors()[0]['msg']}", r.id))
                 continue
+            weak = weakening_changes(before, after)
+            if weak and not r.justification:
+                key = weakened_fields(before, after)[0]
+                line, col = doc.where(("rules", i, key))
+                problems.append(Problem(doc.file, line, col, _unjustified(r.id, weak, base, "override"), r.id))
+                continue
+            if weak:
+                weakened.append(Weakening(r.id, tuple(weak), r.justification, prof.id, after.title))
+            overridden[r.id] = tuple(sorted({*overridden.get(r.id, ()), *changed}))
+            rules[r.id] = after
             sites.rules.setdefault(r.id, []).append((doc, i))
         else:
+            weak = weakening_changes(before, r) if before is not None else []
+            if weak:  # an inherited rule written again in full, checking less: say how to do it openly
+                key = weakened_fields(before, r)[0] if before is not None else "id"
+                line, col = doc.where(("rules", i, key))
+                problems.append(Problem(doc.file, line, col, _unjustified(r.id, weak, base, "restate"), r.id))
+                continue
             rules[r.id] = r
             sites.rules[r.id] = [(doc, i)]
             overridden.pop(r.id, None)
@@ -749,7 +879,7 @@ def _merge(prof: Profile, base: ResolvedProfile | None, path: Path, doc: Located
         "title": prof.title,
         "source": prof.source.model_dump(mode="json"),
         "extends": [{"id": c[0], "version": c[1]} for c in chain[1:]],
-        "parameters": {k: v.model_dump(mode="json") for k, v in sorted(params.items())},
+        "parameters": {k: _param_json(v) for k, v in sorted(params.items())},
         "tables": {k: (v.model_dump(mode="json") if hasattr(v, "model_dump") else v)
                    for k, v in sorted(tables.items())},
         "classes": {k: (v.model_dump(mode="json") if hasattr(v, "model_dump") else v)
@@ -762,6 +892,8 @@ def _merge(prof: Profile, base: ResolvedProfile | None, path: Path, doc: Located
     if removed:
         canonical["removed_rules"] = [{"id": x.id, "justification": x.justification, "profile": x.profile}
                                       for x in removed]
+    if weakened:
+        canonical["weakened_rules"] = [w.to_dict() for w in weakened]
     try:
         sha = hashlib.sha256(canonical_dumps(canonical).encode("utf-8")).hexdigest()
     except ValueError:  # nan or inf somewhere: say where (only on this failure path)
@@ -777,8 +909,21 @@ def _merge(prof: Profile, base: ResolvedProfile | None, path: Path, doc: Located
         source=prof.source, parameters=params, tables=tables, classes=classes, rules=final_rules,
         tests=tuple(prof.tests), waivers=waivers, path=path, chain=chain, canonical=canonical,
         sha256=sha, allow_no_mandatory=prof.allow_no_mandatory, sites=sites, removed=tuple(removed),
-        overridden=overridden,
+        overridden=overridden, weakened=tuple(weakened),
     )
+
+
+#: keys added to the models after profiles were published: written into the canonical form only when
+#: set, so a profile that does not use them keeps its SHA-256
+_NEW_KEYS = {"checker_may_set": False}
+
+
+def _param_json(p: Parameter) -> dict[str, Any]:
+    d = p.model_dump(mode="json")
+    for k, default in _NEW_KEYS.items():
+        if k in d and d[k] == default:
+            del d[k]
+    return d
 
 
 def _nonfinite(obj: Any, path: tuple[Any, ...]) -> list[tuple[Any, ...]]:
@@ -848,7 +993,7 @@ def _parse(text: str) -> expr.Expression:
 
 def semantic_problems(p: ResolvedProfile, *, check_measures: bool = True) -> list[Problem]:
     """Units, threshold numbers, expressions, manifest paths, measures, parameters: linear in rules."""
-    from ..units import NON_NUMERIC, number_problem
+    from ..units import NON_NUMERIC, number_problem, profile_unit_problem
     from ..units import check_unit as parse_unit  # the usual spellings without loading pint
     from .catalog import measure_info
 
@@ -869,6 +1014,10 @@ def semantic_problems(p: ResolvedProfile, *, check_measures: bool = True) -> lis
     numeric_units: dict[str, str] = {}
     for name, par in p.parameters.items():
         unit = par.unit
+        spelled = profile_unit_problem(unit)
+        if spelled:
+            add_param(name, "unit", f"parameter {name}: {spelled}")
+            continue
         if unit is None or unit in NON_NUMERIC:
             continue
         try:
@@ -889,6 +1038,9 @@ def semantic_problems(p: ResolvedProfile, *, check_measures: bool = True) -> lis
                 add_param(name, "choices", f"parameter {name}: choices[{i}]: {why}")
     for cname, cset in p.classes.items():
         try:
+            why = profile_unit_problem(cset.unit)
+            if why:
+                raise UnitError(why)
             parse_unit(cset.unit)
         except UnitError as exc:
             out.append(Problem(str(p.path), None, None, f"class set {cname}: {exc}"))
@@ -926,9 +1078,12 @@ def semantic_problems(p: ResolvedProfile, *, check_measures: bool = True) -> lis
         req_numeric = req.unit is not None and req.unit not in NON_NUMERIC and req.unit != "any"
         if req_numeric:
             try:
+                why = profile_unit_problem(req.unit)
+                if why:
+                    raise UnitError(why)
                 parse_unit(req.unit)
             except UnitError as exc:
-                add(r, ("requirement",), str(exc))
+                add(r, ("requirement", "unit"), str(exc))
                 req_numeric = False
         if req.op == "between" and (req.min is None and req.max is None):
             add(r, ("requirement",), "op 'between' needs min and/or max")

@@ -109,6 +109,12 @@ class Parameter(_Strict):
         None, min_length=1,
         description="Why an extending (tender) profile changes the value of an inherited 'standard' "
                     "parameter; required then, and printed in the report annex.")
+    checker_may_set: bool = Field(
+        False,
+        description="In a tender profile (one that extends another): the checker's file or --param may "
+                    "replace this parameter's value; every report prints the value in force beside the "
+                    "tender's. Without it the tender's value is the contract, and a different value from "
+                    "the checker's side stops the check (exit 2) naming both values.")
 
     def authority(self) -> str:
         """``set_by`` as written, else the documented default rule."""
@@ -182,6 +188,11 @@ class RuleOverride(_Strict):
     note: str | None = None
     audit: Audit | None = None
     tags: list[str] | None = None
+    justification: str | None = Field(
+        None, min_length=1,
+        description="Why the ITT changes a mandatory rule of the profile it extends so that it can check "
+                    "less (level, a lighter consequence, a new `when`, another measure, scope or requirement, "
+                    "manual): required then; `spec diff`, the annex and every report print it.")
 
 
 def _rule_kind(v: Any) -> str:
@@ -200,7 +211,8 @@ class RuleRemoval(_Strict):
     """An inherited rule a tender profile takes out, and why (the report annex prints it)."""
 
     id: Annotated[str, Field(pattern=RULE_ID)]
-    justification: str = Field(min_length=1, description="Why the ITT does not apply this rule.")
+    justification: str = Field(min_length=1, description="Why the ITT does not apply this rule (required "
+                               "for a mandatory rule; the annex and every report print it).")
 
 
 class Extends(_Strict):
@@ -269,8 +281,8 @@ class Profile(_Strict):
     rules: list[AnyRule] = Field(default_factory=list)
     remove_rules: list[str | RuleRemoval] = Field(
         default_factory=list,
-        description="Inherited rules this profile takes out: an id, or {id, justification} (preferred: "
-                    "the annex prints the justification).")
+        description="Inherited rules this profile takes out: {id, justification} (the annex and every "
+                    "report print it); a bare id only for a rule that is not mandatory.")
     waivers: list[ProfileWaiver] = Field(default_factory=list)
     tests: list[ProfileTest] = Field(default_factory=list)
     allow_no_mandatory: bool = Field(
