@@ -205,8 +205,9 @@ def _yaml_problem(path: Path, exc: YamlError) -> Problem:
     col = getattr(exc, "column", None)
     text = str(exc)
     if line is not None:
-        msg = getattr(exc, "problem", None) or text
-        return Problem(str(path), line, col, str(msg))
+        msg = str(getattr(exc, "problem", None) or text)
+        m = _YAML_POS.match(msg)  # the reader's message may already start with file:line:col
+        return Problem(str(path), line, col, m["msg"] if m else msg)
     m = _YAML_POS.match(text)
     if m:
         return Problem(m["file"], int(m["line"]), int(m["col"]), m["msg"])
@@ -330,12 +331,25 @@ def _pydantic_problems(doc: Located, exc: ValidationError) -> list[Problem]:
             if key.isdigit():  # `{value: 1,0}`: in a {flow mapping} the comma splits the number
                 hint = _split_number_hint(doc, path, key)
             msg = f"{loc}: unknown key {key!r}{hint}"
+        elif e["type"] == "missing" and path == ("extends", "version"):
+            msg = f"{loc}: extends pins the version it builds on{_versions_hint(doc)}"
         else:
             got = e.get("input")
             shown = "" if isinstance(got, dict | list) or got is None else f" (got {_short(repr(got))})"
             msg = f"{loc}: {e['msg']}{shown}"
         out.append(Problem(doc.file, line, col, msg, _rule_at(doc, path)))
     return out
+
+
+def _versions_hint(doc: Located) -> str:
+    """`: write extends: {id: jrc-v3, version: 3.0.0}` from the versions the id exists in."""
+    ext = doc.data.get("extends") if isinstance(doc.data, dict) else None
+    pid = ext.get("id") if isinstance(ext, dict) else None
+    versions = sorted({v for i, v, _, _ in available() if i == pid}, key=_semver_key) if pid else []
+    if not versions:
+        return " (write `extends: {id: ..., version: ...}`)"
+    return (f": write `extends: {{id: {pid}, version: {versions[-1]}}}` (a later {pid} is then never picked up "
+            "silently)")
 
 
 def _split_number_hint(doc: Located, path: tuple[Any, ...], key: str) -> str:
@@ -484,12 +498,28 @@ def find_by_id(pid: str, *, version: str | None = None, near: Path | None = None
             raise SpecError(f"profile {pid!r} version {version} is shipped by several plugins: {files}")
     if hits:
         return sorted(hits, key=lambda t: _semver_key(t[1]))[-1][3]
-    have = sorted({*available([near] if near else None), *plugin_profiles()}, key=lambda t: (t[0], t[1]))
-    known = ", ".join(f"{i} {v}" for i, v, _, _ in have) or "none"
+    raise SpecError(_unknown_profile(pid, version, near))
+
+
+def _unknown_profile(pid: str, version: str | None, near: Path | None) -> str:
+    """One short message for an id (and version) nobody has: the versions that exist, else the
+    nearest id; the shipped and plugin profiles by id, the local folder's files only counted (a
+    tender's folder of variants once made this message list the same id 23 times)."""
+    shared = sorted({(i, v) for i, v, _, _ in (*available(), *plugin_profiles())})
+    local = [] if near is None else sorted(
+        {(i, v) for i, v, _, f in available([near]) if f.parent.resolve() == near.resolve()} - set(shared))
     pin = f" version {version}" if version else ""
-    close = difflib.get_close_matches(pid, sorted({i for i, _, _, _ in have}), n=1, cutoff=0.6)
-    hint = f"; did you mean {close[0]!r}?" if close and close[0] != pid else ""
-    raise SpecError(f"unknown profile {pid!r}{pin}{hint}; available: {known}")
+    versions = sorted({v for i, v in (*shared, *local) if i == pid}, key=_semver_key)
+    if versions:
+        hint = f"; {pid} exists in version {', '.join(versions)}: pin one of them"
+    else:
+        close = difflib.get_close_matches(pid, sorted({i for i, _ in (*shared, *local)}), n=1, cutoff=0.6)
+        hint = f"; did you mean {close[0]!r}?" if close else ""
+    known = ", ".join(f"{i} {v}" for i, v in shared) or "none"
+    if local:
+        ids = sorted({i for i, _ in local})
+        known += (f"; and {len(local)} in {near}: " + ", ".join(ids[:5]) + (" ..." if len(ids) > 5 else ""))
+    return f"unknown profile {pid!r}{pin}{hint}; available: {known}"
 
 
 def _semver_key(v: str) -> tuple[Any, ...]:
@@ -516,12 +546,25 @@ def load_profile(ref: str | Path, *, check_measures: bool = True) -> ResolvedPro
 
 
 def validate_file(path: str | Path, *, check_measures: bool = True) -> list[Problem]:
-    """Every problem of a profile file (and what it extends), without raising."""
+    """Every problem of a profile file (and what it extends), without raising.
+
+    Besides what loading checks, the profile's own ``tests:`` (delivery folders, checker files,
+    rules and verdicts named): a tender author learns of a wrong path here, with its line, not at
+    ``verify``. Loading for a check does not look at them (the checker may not have the author's
+    test deliveries)."""
     try:
         p = find_profile(path)
     except SpecError as exc:
         return [Problem(str(path), None, None, str(exc))]
-    return _load(p, check_measures=check_measures)[1]
+    resolved, problems = _load(p, check_measures=check_measures)
+    if problems or resolved is None or not resolved.tests:
+        return problems
+    try:
+        doc, _ = _load_doc(p)
+    except YamlError as exc:
+        return [_yaml_problem(p, exc)]
+    shipped = p.resolve().parent == specs_dir().resolve()  # their tests point into the source checkout
+    return _test_problems(resolved, _Sites(top=doc), paths=not shipped)
 
 
 def _load(path: Path, *, check_measures: bool) -> tuple[ResolvedProfile | None, list[Problem]]:
@@ -884,7 +927,7 @@ def _merge(prof: Profile, base: ResolvedProfile | None, path: Path, doc: Located
                    for k, v in sorted(tables.items())},
         "classes": {k: (v.model_dump(mode="json") if hasattr(v, "model_dump") else v)
                     for k, v in sorted(classes.items())},
-        "rules": [r.model_dump(mode="json", exclude={"override"}) for r in final_rules],
+        "rules": [_rule_json(r) for r in final_rules],
         "waivers": [w.model_dump(mode="json") for w in waivers],
     }
     if prof.allow_no_mandatory:
@@ -916,6 +959,13 @@ def _merge(prof: Profile, base: ResolvedProfile | None, path: Path, doc: Located
 #: keys added to the models after profiles were published: written into the canonical form only when
 #: set, so a profile that does not use them keeps its SHA-256
 _NEW_KEYS = {"checker_may_set": False}
+
+
+def _rule_json(r: Rule) -> dict[str, Any]:
+    d = r.model_dump(mode="json", exclude={"override"})
+    if d.get("internal_note") is None:
+        d.pop("internal_note", None)
+    return d
 
 
 def _param_json(p: Parameter) -> dict[str, Any]:
@@ -979,8 +1029,16 @@ def manifest_path_problem(name: str) -> str | None:
     if path in exact or any(path.startswith(p) and len(path) > len(p) for p in open_):
         return None
     cands = sorted(exact | {p + "<key>" for p in open_})
+    parent = path.rsplit(".", 1)[0] if "." in path else ""
+    children = sorted(c[len(parent) + 1:] for c in exact if parent and c.startswith(parent + ".")
+                      and "." not in c[len(parent) + 1:])
     near = difflib.get_close_matches(path, cands, n=1, cutoff=0.6)
-    hint = f"; did you mean 'manifest.{near[0]}'?" if near else ""
+    if children:
+        near_child = difflib.get_close_matches(path.rsplit(".", 1)[1], children, n=1, cutoff=0.6)
+        hint = (f"; did you mean 'manifest.{parent}.{near_child[0]}'?" if near_child else
+                f"; manifest.{parent} has {', '.join(children)}")
+    else:
+        hint = f"; did you mean 'manifest.{near[0]}'?" if near else ""
     return (f"{name!r} is not a key the delivery manifest defines (specs/schema/delivery.schema.json): "
             f"a rule may read only what a delivery can state in its schema{hint}")
 
@@ -1018,6 +1076,15 @@ def semantic_problems(p: ResolvedProfile, *, check_measures: bool = True) -> lis
         if spelled:
             add_param(name, "unit", f"parameter {name}: {spelled}")
             continue
+        for key in ("value", "default"):
+            v = getattr(par, key)
+            if v is not None and par.choices is not None and v not in par.choices:
+                add_param(name, key, f"parameter {name}: {key} {v!r} is not one of "
+                          f"{', '.join(map(str, par.choices))}" + _did_you_mean(str(v), map(str, par.choices)))
+            elif isinstance(v, str) and unit == "text" and name.endswith("_crs"):
+                why = _crs_problem(v)
+                if why:
+                    add_param(name, key, f"parameter {name}: {why}")
         if unit is None or unit in NON_NUMERIC:
             continue
         try:
@@ -1072,8 +1139,8 @@ def semantic_problems(p: ResolvedProfile, *, check_measures: bool = True) -> lis
             if info is None:
                 add(r, ("measure",), f"unknown measure {r.measure!r}{_near_measure(r.measure)} "
                     "(see `orthospec measures`)")
-            elif info[0] != r.scope:
-                add(r, ("scope",), f"measure {r.measure!r} is at scope {info[0]!r}, rule says {r.scope!r}")
+            elif info[0] != r.scope:  # located at the measure: an override that swaps it is the cause
+                add(r, ("measure",), f"measure {r.measure!r} is at scope {info[0]!r}, rule says {r.scope!r}")
         req = r.requirement
         req_numeric = req.unit is not None and req.unit not in NON_NUMERIC and req.unit != "any"
         if req_numeric:
@@ -1095,8 +1162,10 @@ def semantic_problems(p: ResolvedProfile, *, check_measures: bool = True) -> lis
             try:
                 e = _parse(r.when)
             except ExpressionError as exc:
-                add(r, ("when",), str(exc))
+                add(r, ("when",), str(exc) + _single_equals(r.when))
             else:
+                if not e.names:
+                    add(r, ("when",), _constant_when(e, r.when))
                 _check_names(r, ("when",), e, known, check_measures, measure_info, add)
                 check_manifest_names(r, ("when",), e.names)
                 read_params |= params_named(e.names, p.parameters)
@@ -1123,7 +1192,7 @@ def semantic_problems(p: ResolvedProfile, *, check_measures: bool = True) -> lis
             except ExpressionError as exc:
                 hint = " (a threshold is a number such as 1.0, or an expression over parameters)" \
                     if numeric_threshold else ""
-                add(r, ("requirement", key), f"{exc}{hint}")
+                add(r, ("requirement", key), f"{exc}{hint}{_single_equals(v)}")
                 continue
             _check_names(r, ("requirement", key), e, known, check_measures, measure_info, add)
             check_manifest_names(r, ("requirement", key), e.names)
@@ -1145,6 +1214,91 @@ def semantic_problems(p: ResolvedProfile, *, check_measures: bool = True) -> lis
                            f"profile {p.id} has no mandatory rule, so it would accept every delivery; "
                            "add one, or say so explicitly with `allow_no_mandatory: true`"))
     return out
+
+
+def _crs_problem(text: str) -> str | None:
+    """Why a map projection value cannot be used (pyproj cannot read it, or it has no EPSG code)."""
+    from ..delivery.crs import CrsProblem, epsg_name
+
+    try:
+        epsg_name(text)
+    except CrsProblem as exc:
+        return str(exc)
+    return None
+
+
+_VERDICTS_EXPECTED = ("accepted", "rejected", "incomplete")
+
+
+def _test_problems(p: ResolvedProfile, sites: _Sites, *, paths: bool = True) -> list[Problem]:
+    """The profile's own `tests:`: every delivery folder and checker file exists (relative to the
+    profile file), every parameter and rule named exists, every verdict is one a check gives. Found
+    here with a line, not later by `orthospec verify`."""
+    from ..verdicts import VERDICTS
+
+    top = sites.top
+    out: list[Problem] = []
+
+    def add(i: int, key: tuple[Any, ...], msg: str) -> None:
+        line, col = top.where(("tests", i, *key)) if top is not None else (None, None)
+        out.append(Problem(top.file if top is not None else str(p.path), line, col, f"tests[{i}]: {msg}"))
+
+    here = p.path.parent
+    rule_ids = {r.id for r in p.rules}
+    for i, t in enumerate(p.tests):
+        folder = here / t.delivery
+        if not paths:
+            pass
+        elif not folder.is_dir():
+            add(i, ("delivery",), f"delivery folder {t.delivery!r} not found (paths are relative to the profile "
+                f"file's folder {str(here)!r}){_near_path(folder)}")
+        elif not (folder / "delivery.yaml").is_file():
+            add(i, ("delivery",), f"{t.delivery!r} is not a delivery (it has no delivery.yaml)")
+        if paths and t.checker is not None and not (here / t.checker).is_file():
+            add(i, ("checker",), f"checker file {t.checker!r} not found (relative to the profile file's folder)"
+                + _near_path(here / t.checker))
+        for name in t.params:
+            if name not in p.parameters:
+                add(i, ("params", name), f"params: profile {p.id} has no parameter {name!r}"
+                    + _did_you_mean(name, p.parameters))
+        extra = sorted(set(t.expect) - {"verdict", "rules"})
+        if extra:
+            add(i, ("expect", extra[0]), f"expect: unknown key {extra[0]!r}; expect holds verdict and rules")
+        verdict = t.expect.get("verdict")
+        if verdict is not None and verdict not in _VERDICTS_EXPECTED:
+            add(i, ("expect", "verdict"), f"expect: verdict {verdict!r} is not one of {', '.join(_VERDICTS_EXPECTED)}"
+                + _did_you_mean(str(verdict), _VERDICTS_EXPECTED))
+        rules = t.expect.get("rules") or {}
+        if not isinstance(rules, dict):
+            add(i, ("expect", "rules"), "expect: rules maps a rule id to the verdict expected, e.g. "
+                "{JRC-12.7-RMSEX: pass}")
+            continue
+        for rid, want in rules.items():
+            if rid not in rule_ids:
+                add(i, ("expect", "rules", rid), f"expect: profile {p.id} has no rule {rid!r}"
+                    + _did_you_mean(str(rid), rule_ids))
+            elif want not in VERDICTS:
+                add(i, ("expect", "rules", rid), f"expect: {rid}: verdict {want!r} is not one of "
+                    f"{', '.join(VERDICTS)}" + _did_you_mean(str(want), VERDICTS))
+    return out
+
+
+def _near_path(path: Path) -> str:
+    """`; did you mean '../x'?` for a missing path whose name exists in a nearby folder."""
+    parent = path.parent
+    for _ in range(4):
+        if parent.is_dir():
+            break
+        parent = parent.parent
+    else:
+        return ""
+    try:
+        names = [x.name for x in parent.iterdir()][:500]
+    except OSError:
+        return ""
+    near = difflib.get_close_matches(path.name, names, n=1, cutoff=0.8)
+    return f"; {str(parent / near[0])!r} exists" if near and parent != path.parent else (
+        f"; did you mean {near[0]!r}?" if near and near[0] != path.name else "")
 
 
 def params_named(names: Any, params: Mapping[str, Any]) -> set[str]:
@@ -1195,6 +1349,24 @@ def _check_dimensions(r: Rule, key: str, text: str, e: expr.Expression, used: se
         rfile, rline, _ = sites.rule_where(r.id, ("requirement",))
         out.append(Problem(file, line, col, f"parameter {name}: {memo[sig]} (rule {r.id} at "
                            f"{rfile}:{rline})"))
+
+
+def _constant_when(e: expr.Expression, text: str) -> str:
+    """A condition that reads no fact decides nothing: say what it always is and what to write."""
+    try:
+        value = bool(getattr(e.evaluate({}), "magnitude", e.evaluate({})))
+    except (ExpressionError, ArithmeticError, TypeError, ValueError):
+        value = None
+    if value is False:
+        return (f"condition {text!r} reads no fact and is always false: the rule would never apply; to take a rule "
+                "out, list it in remove_rules with a justification")
+    return f"condition {text!r} reads no fact and is always {'true' if value else 'the same'}: leave `when` out"
+
+
+def _single_equals(text: str) -> str:
+    """The hint for ``a = b`` written for ``a == b`` (the grammar has no assignment)."""
+    return "; compare with `==` (a single `=` is not an operator)" \
+        if re.search(r"(?<![=!<>])=(?!=)", text) else ""
 
 
 def _near_measure(name: str) -> str:

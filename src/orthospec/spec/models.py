@@ -164,7 +164,12 @@ class Rule(_Strict):
     level: Level = "mandatory"
     consequence: Consequence
     manual: bool = False
-    note: str | None = None
+    note: str | None = Field(None, description=(
+        "Public note: how the rule reads its clause, written for bidders and checkers (printed in the "
+        "annex and by `explain`)."))
+    internal_note: str | None = Field(None, description=(
+        "Internal note for the profile's maintainers (history, tests, tools, open questions): kept in the "
+        "profile, never printed in the annex, reports or `explain`."))
     audit: Audit | None = None
     tags: list[str] = Field(default_factory=list)
     override: Literal[False] = False
@@ -186,6 +191,7 @@ class RuleOverride(_Strict):
     consequence: Consequence | None = None
     manual: bool | None = None
     note: str | None = None
+    internal_note: str | None = None
     audit: Audit | None = None
     tags: list[str] | None = None
     justification: str | None = Field(
