@@ -18,6 +18,7 @@ from click.testing import CliRunner
 from orthospec.cli.main import cli, main
 from orthospec.delivery.reader import open_delivery
 from orthospec.engine.params import SOURCES, ParameterError, ParamValue, resolve_parameters
+from orthospec.errors import SpecError
 from orthospec.spec.loader import load_profile
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -341,8 +342,9 @@ def test_a_map_crs_pyproj_cannot_name_stops_the_run_naming_its_source(tmp_path, 
     f = tmp_path / "t.yaml"
     f.write_text(TENDER_UNSET.format(when="").replace('map_crs: {value: "EPSG:25832"}',
                                                         f"map_crs: {{value: '{text}'}}"))
-    with pytest.raises(ParameterError, match=r"t.yaml:9: parameter map_crs: .*" + re.escape(why)):
-        resolve_parameters(load_profile(f), {}, {"tolerance_z": "1"})
+    # a tender profile's map projection is read when the profile is validated (issue 26)
+    with pytest.raises(SpecError, match=r"t.yaml:9:\d+: parameter map_crs: .*" + re.escape(why)):
+        load_profile(f)
 
 
 def test_a_declared_map_crs_is_compared_as_a_crs(tmp_path):

@@ -426,3 +426,34 @@ def test_the_terminal_does_not_ask_for_the_checkers_file_when_one_was_given() ->
     assert given is not None and "give the checker's file" not in given
     assert "qc-lot2.yaml has no manual_checks entry" in given
     assert "give the checker's file with --checker FILE" in (unsigned_manual_note(records) or "")
+
+
+def test_the_guides_say_truly_which_parameters_need_a_justification(tmp_path: Path) -> None:
+    """Observation: docs/PROFILES.md said cloud_cover_max needs a justification to change; it does not
+    (jrc-v3 leaves it to the ITT). Every such remark in the guides names a parameter of that kind."""
+    import re
+
+    jrc = load_profile("jrc-v3")
+    seen = 0
+    for doc in (ROOT / "docs" / "PROFILES.md", ROOT / "README.md"):
+        for name, remark in re.findall(r"(?m)^\s+(\w+):[^#\n]*#\s*(.*)$", doc.read_text(encoding="utf-8")):
+            if name not in jrc.parameters:
+                continue
+            if "needs a justification" in remark:
+                assert jrc.parameters[name].authority() == "standard", (doc.name, name)
+                seen += 1
+            elif "left to the ITT" in remark:
+                assert jrc.parameters[name].authority() == "itt", (doc.name, name)
+                seen += 1
+    assert seen >= 3
+    # and validation agrees: a constant of the standard changed without a reason is refused, a value
+    # left to the ITT is not
+    from orthospec.spec.loader import validate_file
+
+    head = ("orthospec_profile: 1\nid: itt-j\nversion: 1.0.0\ntitle: t\nsource: {title: t}\n"
+            "extends: {id: jrc-v3, version: 3.0.0}\nparameters:\n  tolerance_xy: {value: 0.5}\n")
+    f = tmp_path / "j.yaml"
+    f.write_text(head + "  cloud_cover_max: {value: 5}\n", encoding="utf-8")
+    assert validate_file(f) == []
+    f.write_text(head + "  sun_elevation_min: {value: 35}\n", encoding="utf-8")
+    assert ["justification" in p.message for p in validate_file(f)] == [True]

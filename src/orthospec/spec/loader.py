@@ -958,7 +958,7 @@ def _merge(prof: Profile, base: ResolvedProfile | None, path: Path, doc: Located
 
 #: keys added to the models after profiles were published: written into the canonical form only when
 #: set, so a profile that does not use them keeps its SHA-256
-_NEW_KEYS = {"checker_may_set": False}
+_NEW_KEYS = {"checker_may_set": False, "internal_note": None}
 
 
 def _rule_json(r: Rule) -> dict[str, Any]:

@@ -94,7 +94,9 @@ class Parameter(_Strict):
                                    "for a numeric unit (write 1.0, not '1.0' or 1,0).")
     value: Scalar | None = Field(None, description="Value fixed by a tender profile (wins over defaults).")
     required: bool = False
-    description: str = ""
+    description: str = Field("", description="Public: what the value means and where the source fixes it "
+                                             "(the annex prints it).")
+    internal_note: str | None = Field(None, description="For the profile's maintainers; never printed.")
     choices: list[Scalar] | None = None
     set_by: SetBy | None = Field(
         None,
