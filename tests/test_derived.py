@@ -245,7 +245,9 @@ def test_a_declared_false_does_not_switch_off_the_pan_sharpening_rules(tmp_path)
     recs = {r["rule"]: r for r in records(doc) if r["rule"].startswith("JRC-10.")}
     assert recs["JRC-10.5.1-SAME-MODEL-GCPS"]["verdict"] == "missing"
     assert recs["JRC-10.5.2-EXCLUDE-ZERO"]["verdict"] == "pass"  # applies: the inspector's record is there
-    assert doc["verdict"] == "rejected"
+    # never accepted: the unsigned §10.5.1 check is the checker's open work (issue 26: incomplete)
+    assert doc["verdict"] == "incomplete"
+    assert [t.split(" ", 1)[0] for t in doc["rollup"]["incomplete"]] == ["JRC-10.5.1-SAME-MODEL-GCPS"]
 
 
 def test_pan_sharpening_rules_do_not_apply_to_an_aerial_delivery():

@@ -760,7 +760,9 @@ def test_the_contractors_own_manual_pass_alone_is_missing(make_delivery, mini_pr
     assert vis["verdict"] == "missing"
     assert "Joe Bloggs" in vis["message"] and "not a verdict" in vis["message"]
     assert vis["evidence"][0]["file"] == "tables/manual.csv" and vis["evidence"][0]["rows"] == [1]
-    assert doc["verdict"] == "rejected"
+    # never accepted: signing it is the checker's open work (issue 26: incomplete, not rejected)
+    assert doc["verdict"] == "incomplete" and doc["rollup"]["reasons"] == []
+    assert [t.split(" ", 1)[0] for t in doc["rollup"]["incomplete"]] == ["R-VIS"]
 
 
 def test_the_checkers_manual_verdict_decides_and_names_both_parties(make_delivery, mini_profile,

@@ -16,9 +16,11 @@ def test_names_are_the_plain_strings_of_the_qcr_format() -> None:
     # the strings documented in docs/ARCHITECTURE.md (qcr.json "verdict" and "summary" keys)
     assert (V.PASS, V.FAIL, V.WARN, V.NOT_APPLICABLE, V.MISSING, V.ERROR, V.WAIVED) == (
         "pass", "fail", "warn", "not_applicable", "missing", "error", "waived")
-    assert (V.ACCEPTED, V.REJECTED) == ("accepted", "rejected")
+    assert (V.ACCEPTED, V.REJECTED, V.INCOMPLETE) == ("accepted", "rejected", "incomplete")
     assert set(V.VERDICTS) == {"pass", "fail", "warn", "not_applicable", "missing", "error", "waived"}
-    assert len(V.VERDICTS) == 7 and V.OVERALL == ("accepted", "rejected")
+    assert len(V.VERDICTS) == 7 and V.OVERALL == ("accepted", "rejected", "incomplete")
+    assert V.CONSEQUENCES == ("reject_item", "reject_block", "return_delivery", "incomplete", "warn")
+    assert set(V.REJECTING) == {"reject_item", "reject_block", "return_delivery"}
 
 
 def test_names_serialise_as_plain_strings() -> None:
@@ -53,6 +55,13 @@ def test_worst() -> None:
     assert V.worst(["waived", "not_applicable"]) == "waived"
     assert V.worst([]) == "not_applicable"
     assert V.overall(True) == "rejected" and V.overall(False) == "accepted"
+    # a real failure rejects whatever the checker still has to do; open checker's work alone is incomplete
+    assert V.overall(True, True) == "rejected" and V.overall(False, True) == "incomplete"
+
+
+def test_exit_codes() -> None:
+    assert [V.exit_code(v) for v in ("accepted", "rejected", "incomplete")] == [0, 1, 3]
+    assert V.exit_code("no-such-verdict") == 1  # never 0 for a verdict we do not know
 
 
 def test_import_is_standard_library_only() -> None:

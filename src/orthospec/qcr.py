@@ -963,7 +963,8 @@ def build_document(ev: Evaluation, *, date: str, operator: str | None = None,
         "verdict": ev.verdict,
         "fail_on": ev.fail_on,
         "summary": {"rules": len(ev.results), "records": n_records, **summary},
-        "rollup": {"rejected": ev.rejected, "reasons": ev.reasons},
+        "rollup": {"rejected": ev.rejected, "reasons": ev.reasons,
+                   "incomplete": list(getattr(ev, "incomplete", None) or [])},
         "waivers_unused": ev.unused_waivers,
         # checker-file verdicts that judged nothing the delivery lists (red team R15)
         "manual_unused": list(getattr(ev, "manual_unused", None) or []),
@@ -1620,8 +1621,11 @@ def _junit_case(rid: str, r: Mapping[str, Any], fail_on: str) -> str:
     v = r["verdict"]
     if v in (V.FAIL, V.MISSING) or (v == V.WARN and fail_on == V.WARN):
         body = _escape(xml_text(f"{r['title']} — {r['requirement'].get('text', '')}"))
+        # the checker's own open work (consequence incomplete, an unsigned manual check) is told
+        # apart from a failure of the contractor's products
+        kind = V.INCOMPLETE if r.get("consequence") == V.INCOMPLETE or (r.get("manual") and v == V.MISSING) else v
         return (f'    <testcase name={name} classname={cls}><failure message={_xml_attr(r["message"])} '
-                f'type="{v}">{body}</failure></testcase>')
+                f'type="{kind}">{body}</failure></testcase>')
     if v == V.ERROR:
         body = _escape(xml_text(f"{r['title']} — {r['requirement'].get('text', '')}"))
         return (f'    <testcase name={name} classname={cls}><error message={_xml_attr(r["message"])} '

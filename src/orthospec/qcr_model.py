@@ -13,7 +13,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from .verdicts import VERDICTS
+from .verdicts import CONSEQUENCES, OVERALL, VERDICTS
 
 SCHEMA_IDS = ("orthospec.qcr/1", "orthospec.qcr/2", "orthospec.qcr/3")
 SCHEMA_BASE = "https://orthospec.dev/schema/"
@@ -21,10 +21,11 @@ SCHEMA_BASE = "https://orthospec.dev/schema/"
 Verdict = Literal["pass", "fail", "warn", "not_applicable", "missing", "error", "waived"]
 CompactVerdict = Literal["pass", "not_applicable"]
 Level = Literal["mandatory", "recommended"]
-Consequence = Literal["reject_item", "reject_block", "return_delivery", "warn"]
+Consequence = Literal["reject_item", "reject_block", "return_delivery", "incomplete", "warn"]
 Sha256 = Field(pattern="^[0-9a-f]{64}$")
 
 assert set(Verdict.__args__) == set(VERDICTS)  # type: ignore[attr-defined]  # one vocabulary
+assert set(Consequence.__args__) == set(CONSEQUENCES)  # type: ignore[attr-defined]
 
 
 class _Closed(BaseModel):
@@ -201,7 +202,11 @@ class Summary(_Closed):
 
 class Rollup(_Open):
     rejected: dict[str, list[str]] = Field(description="Rejected items per scope (block, image...).")
-    reasons: list[str]
+    reasons: list[str] = Field(description="Why the delivery is rejected (empty: nothing rejects it).")
+    incomplete: list[str] = Field(
+        [], description="What the checker must still add or do before the check is complete (findings with "
+                        "consequence `incomplete`, manual checks without the checker's verdict), e.g. "
+                        "'B03: 6 more check points'. Non-empty and no reason: the verdict is `incomplete`.")
 
 
 class Tool(_Closed):
@@ -253,7 +258,9 @@ class QcrDocument(_Open):
         None, description="The checker's file (check --checker): party, file name and SHA-256.")
     profile: ProfileRef
     delivery: DeliveryRef
-    verdict: Literal["accepted", "rejected"]
+    verdict: Literal["accepted", "rejected", "incomplete"] = Field(
+        description="accepted (exit 0), rejected (exit 1: a reason in rollup.reasons), or incomplete (exit 3: "
+                    "nothing rejects, but the checker's part is not complete: rollup.incomplete says what to add).")
     fail_on: Literal["fail", "warn"] = "fail"
     summary: Summary
     rollup: Rollup
@@ -284,3 +291,6 @@ def qcr_schema() -> dict[str, Any]:
     s["$id"] = SCHEMA_BASE + "qcr.schema.json"
     s["title"] = "orthospec quality control records (qcr.json)"
     return s
+
+
+assert set(QcrDocument.model_fields["verdict"].annotation.__args__) == set(OVERALL)  # type: ignore[union-attr]

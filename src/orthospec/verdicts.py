@@ -36,12 +36,30 @@ FAILING: Final[frozenset[str]] = frozenset({FAIL, MISSING, ERROR})
 #: verdicts that say nothing about how the item performed (JUnit "skipped", audit-neutral)
 NEUTRAL: Final[frozenset[str]] = frozenset({NOT_APPLICABLE, WAIVED})
 
+# --- rule consequences (what a blocking finding does) --------------------------------------------
+REJECT_ITEM: Final = "reject_item"
+REJECT_BLOCK: Final = "reject_block"
+RETURN_DELIVERY: Final = "return_delivery"
+#: the finding is the checker's to fix (too few or bad check points, a short sample, an unsigned
+#: manual check): the check is not complete, the contractor's products are not rejected for it
+INCOMPLETE: Final = "incomplete"
+Consequence = Literal["reject_item", "reject_block", "return_delivery", "incomplete", "warn"]
+#: every consequence a rule may state, in the order the schemas list them
+CONSEQUENCES: Final[tuple[str, ...]] = (REJECT_ITEM, REJECT_BLOCK, RETURN_DELIVERY, INCOMPLETE, WARN)
+#: consequences that reject the contractor's products
+REJECTING: Final[frozenset[str]] = frozenset({REJECT_ITEM, REJECT_BLOCK, RETURN_DELIVERY})
+
 # --- overall verdict of a delivery ---------------------------------------------------------------
 ACCEPTED: Final = "accepted"
 REJECTED: Final = "rejected"
-Overall = Literal["accepted", "rejected"]
+#: (and ``INCOMPLETE``, the same word as the consequence) the checker's part of the check is not
+#: complete - a finding with consequence ``incomplete``, or a manual check without the checker's
+#: verdict - and nothing rejects: never accepted, exit code 3
+Overall = Literal["accepted", "rejected", "incomplete"]
 #: the overall verdicts, in the order the QCR schema lists them
-OVERALL: Final[tuple[str, ...]] = (ACCEPTED, REJECTED)
+OVERALL: Final[tuple[str, ...]] = (ACCEPTED, REJECTED, INCOMPLETE)
+#: the CLI's exit code per overall verdict (2 is "could not evaluate", raised before any verdict)
+EXIT_CODES: Final[dict[str, int]] = {ACCEPTED: 0, REJECTED: 1, INCOMPLETE: 3}
 
 _RANK: Final[dict[str, int]] = {v: i for i, v in enumerate(SEVERITY)}
 
@@ -60,6 +78,14 @@ def worst(verdicts: Iterable[str]) -> str:
     return NOT_APPLICABLE
 
 
-def overall(rejected: bool) -> str:
-    """The delivery's overall verdict from whether any reason rejects it."""
-    return REJECTED if rejected else ACCEPTED
+def overall(rejected: bool, incomplete: bool = False) -> str:
+    """The delivery's overall verdict: any reason that rejects it wins (a real failure rejects
+    whatever the checker still has to do); else an open checker's finding makes it incomplete."""
+    if rejected:
+        return REJECTED
+    return INCOMPLETE if incomplete else ACCEPTED
+
+
+def exit_code(verdict: str) -> int:
+    """0 accepted, 1 rejected, 3 incomplete; anything else is treated as rejected (never 0)."""
+    return EXIT_CODES.get(verdict, 1)

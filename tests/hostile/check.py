@@ -41,7 +41,7 @@ def run_case(name: str, base: Path, *, timeout: float = 60.0) -> Outcome:
         problems.append("traceback in the output")
     if "internal error" in run.stderr:
         problems.append("internal error: " + run.stderr.strip().splitlines()[-1][:200])
-    if run.exit is not None and run.exit not in (0, 1, 2):
+    if run.exit is not None and run.exit not in (0, 1, 2, 3):
         problems.append(f"exit {run.exit} (killed by a signal or the memory cap?)")
     if run.exit == 2 and "error:" not in run.stderr and "Error:" not in run.stderr:
         problems.append("exit 2 without an error message")

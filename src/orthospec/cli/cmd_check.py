@@ -64,7 +64,10 @@ def check_cmd(delivery: Path, profile: str, params: tuple[str, ...], out_dir: Pa
               date: str | None, fail_on: str, operator: str | None, workers: int | None,
               scheduler: str | None, sample_file: Path | None, max_items: int, verbose: bool,
               ledger_target: str | None = None, checker_file: Path | None = None) -> None:
-    """Check DELIVERY against a spec profile; exit 0 accepted, 1 rejected, 2 could not evaluate."""
+    """Check DELIVERY against a spec profile; exit 0 accepted, 1 rejected, 2 could not evaluate, 3 incomplete.
+
+    Incomplete: nothing rejects the delivery, but the checker's part is not done; the output lists
+    what the checker must add."""
     fmts = split_formats(formats, _known_formats(formats))
     if "parquet" in fmts:
         require_pyarrow()  # exit 2 before the check, not after it
@@ -106,7 +109,7 @@ def check_cmd(delivery: Path, profile: str, params: tuple[str, ...], out_dir: Pa
         with open_ledger(ledger_target) as led:
             run_id = led.record(doc)
         click.echo(f"recorded run #{run_id} in ledger {led.display}")
-    click.get_current_context().exit(0 if result.accepted else 1)
+    click.get_current_context().exit(V.exit_code(doc["verdict"]))
 
 
 def _known_formats(formats: str) -> tuple[str, ...]:

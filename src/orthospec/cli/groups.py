@@ -21,7 +21,7 @@ from .. import __version__
 COMMANDS: dict[str, dict[str, tuple[str, str]]] = {
     "main": {
         "check": ("cmd_check", "Check DELIVERY against a spec profile; exit 0 accepted, 1 rejected, "
-                               "2 could not evaluate."),
+                               "2 could not evaluate, 3 incomplete."),
         "diff": ("cmd_ledger", "What changed between two runs per rule and item: fixed, newly "
                                "failing, still failing."),
         "explain": ("cmd_profiles", "Clause, quote, requirement and the evidence a rule reads."),

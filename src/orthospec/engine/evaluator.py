@@ -66,6 +66,9 @@ class Evaluation:
     checker: dict[str, Any] | None = None
     #: checker entries that judged nothing the delivery lists (unknown rule, or an item it no longer lists)
     manual_unused: list[dict[str, Any]] = field(default_factory=list)
+    #: what the checker must still add or do (findings with consequence ``incomplete``, unsigned
+    #: manual checks): the verdict is ``incomplete`` when these are open and nothing rejects
+    incomplete: list[str] = field(default_factory=list)
 
 
 class Evaluator:
@@ -96,7 +99,7 @@ class Evaluator:
         used |= waivers.apply_granted(later, self.granted)
         results += later
         requests = waivers.mark_requested(results, waivers.requested(ctx.d))
-        verdict, more = roll.overall(results, rejected, second)
+        verdict, more, todo = roll.overall(results, rejected, second)
         details = ctx.cache.details()
         crashed = {r.rule.id: r.traceback for r in results if r.traceback}
         if crashed:
@@ -104,4 +107,4 @@ class Evaluator:
         return Evaluation(ctx.profile, ctx.d, ctx.params, results, rejected, reasons + more, verdict,
                           ctx.fail_on, details, waivers.unused(self.granted, used), requests,
                           ctx.checker.summary() if ctx.checker is not None else None,
-                          manual.unused(ctx, results))
+                          manual.unused(ctx, results), todo)

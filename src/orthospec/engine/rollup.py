@@ -8,6 +8,10 @@ roll-up rule replaces the default "any rejected image/block returns the delivery
 mandatory rule with consequence ``warn`` returns the delivery; a finding for the whole scope
 (item ``*``) returns it. A block a rule rejected stays in the §12.8 denominator even without
 check points; images a rule rejected count as tested.
+
+Findings that are the checker's to fix (consequence ``incomplete``; a manual check the checker has
+not signed) reject nothing: they keep the check open (engine/incomplete.py says what to add), the
+verdict is ``incomplete`` unless a real failure rejects the delivery.
 """
 
 from __future__ import annotations
@@ -31,6 +35,7 @@ from ..provenance import Evidence
 from ..spec.models import Rule
 from ..spec.operators import is_missing
 from .context import ERROR, FAIL, MISSING, VERDICTS, WARN, Context, RuleResult
+from .incomplete import checker_mask, todo
 from .manual import gone_reason, vanished_in
 from .registry import ROLLUP, Measured
 
@@ -59,12 +64,35 @@ class Rollup:
         self.image_verdict: DeliveryVerdict | None = None
         self.block_verdict: ProjectVerdict | None = None
 
-    def blocking(self, r: RuleResult) -> np.ndarray:
-        """Per item: this verdict counts against the delivery (fail/missing/error; warn with --fail-on warn)."""
+    def open_findings(self, r: RuleResult) -> np.ndarray:
+        """Per item: this verdict keeps the delivery from acceptance (fail/missing/error; warn with
+        --fail-on warn), whether it rejects or leaves the check incomplete."""
         warn = self.ctx.fail_on == V.WARN
         if r.rule.level == "recommended" and not warn:
             return np.zeros(len(r.verdict), dtype=bool)
         return np.isin(r.verdict, (FAIL, MISSING, ERROR) + ((WARN,) if warn else ()))
+
+    def blocking(self, r: RuleResult) -> np.ndarray:
+        """Per item: this verdict rejects (its item, block or the delivery, by the rule's consequence);
+        the checker's own open findings (:func:`~.incomplete.checker_mask`) do not."""
+        mask = self.open_findings(r)
+        return mask & ~checker_mask(r, mask) if mask.any() else mask
+
+    def incomplete(self, results: list[RuleResult]) -> list[str]:
+        """What the checker must still add or do, one line per open item (engine/incomplete.py)."""
+        totals = self._totals()
+        lines: list[str] = []
+        for r in results:
+            mask = self.open_findings(r)
+            if mask.any() and (mine := checker_mask(r, mask)).any():
+                lines += todo(r, mine, totals)
+        return lines
+
+    def _totals(self) -> dict[str, int]:
+        """How many images and blocks a sample share is a share of."""
+        imgs = self.ctx.d.table("images")
+        return {"rollup.images_sampled_share": len(imgs.df) if imgs is not None else 0,
+                "rollup.blocks_checked_share": len(self.ctx.d.block_ids)}
 
     def blocks_of(self, scope: str) -> dict[str, set[str]] | None:
         """item -> blocks it belongs to / serves, from the scope's table `block` column
@@ -278,17 +306,19 @@ class Rollup:
                 for item, rules in sorted(by_item.items())]
 
     def overall(self, results: list[RuleResult], rejected: dict[str, list[str]], second: list[Rule]
-                ) -> tuple[str, list[str]]:
-        """The delivery's verdict and why (no reason = accepted)."""
+                ) -> tuple[str, list[str], list[str]]:
+        """The delivery's verdict, why it is rejected, and what the checker must still do (no
+        reason and nothing to do = accepted; nothing rejects but something to do = incomplete)."""
         reasons: list[str] = list(self.scope_wide) + self._vanished(results)
         for r in results:
             mask = self.blocking(r)
             if mask.any() and (why := self._rule_reasons(r, mask)) is not None:
                 reasons.append(why)
         if self.ctx.fail_on == V.WARN:
-            warned = [r.rule.id for r in results if (r.verdict == WARN).any()]
+            warned = [r.rule.id for r in results if (self.blocking(r) & (r.verdict == WARN)).any()]
             if warned:
                 reasons.append(f"--fail-on warn: recommended-level rule(s) not met: {', '.join(warned[:10])}"
                                + (f" (+{len(warned) - 10} more)" if len(warned) > 10 else ""))
         reasons += self._default_rollups(rejected, second)
-        return V.overall(bool(reasons)), reasons
+        todo_ = self.incomplete(results)
+        return V.overall(bool(reasons), bool(todo_)), reasons, todo_

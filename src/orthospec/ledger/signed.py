@@ -8,7 +8,8 @@ The after-sign-off verdict is conservative, because a wrong ACCEPTED is the wors
 ACCEPTED only when the run was accepted and no manual check was signed failing with a rejecting
 consequence, or when the run was rejected and every record that could reject it (a mandatory
 rule, or any rule under ``--fail-on warn``, not passing, with a rejecting consequence) belongs to
-a manual check that was signed ``pass``. Otherwise it is REJECTED.
+a manual check that was signed ``pass``. Otherwise it is REJECTED - or INCOMPLETE when what is
+still open is only the checker's (consequence ``incomplete``, or a manual check still unsigned).
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ from .. import verdicts as V
 
 __all__ = ["after_signoff", "apply_manual"]
 
-_REJECTING = ("reject_item", "reject_block", "return_delivery")
+_REJECTING = tuple(sorted(V.REJECTING))
 
 
 def decisions(signoffs: Sequence[Mapping[str, Any]]) -> dict[str, dict[str, Any]]:
@@ -50,11 +51,21 @@ def apply_manual(records: Sequence[Mapping[str, Any]], decided: Mapping[str, Map
     return out
 
 
-def _blocking(r: Mapping[str, Any], fail_on: str) -> bool:
+def _open(r: Mapping[str, Any], fail_on: str) -> bool:
+    """The record keeps the run from acceptance (it rejects, or leaves the check incomplete)."""
     bad = V.FAILING | ({V.WARN} if fail_on == V.WARN else set())
     if r.get("level") == "recommended" and fail_on != V.WARN:
         return False
-    return r["verdict"] in bad and r.get("consequence") in _REJECTING
+    return r["verdict"] in bad and r.get("consequence") in (*_REJECTING, V.INCOMPLETE)
+
+
+def _checkers(r: Mapping[str, Any]) -> bool:
+    """An open record that is the checker's to complete (engine/incomplete.py), not a rejection."""
+    return r.get("consequence") == V.INCOMPLETE or bool(r.get("manual") and r["verdict"] == V.MISSING)
+
+
+def _blocking(r: Mapping[str, Any], fail_on: str) -> bool:
+    return _open(r, fail_on) and not _checkers(r)
 
 
 def after_signoff(doc: Mapping[str, Any], signoffs: Sequence[Mapping[str, Any]]) -> dict[str, Any] | None:
@@ -76,12 +87,18 @@ def after_signoff(doc: Mapping[str, Any], signoffs: Sequence[Mapping[str, Any]])
     elif doc.get("verdict") == V.ACCEPTED:
         verdict, basis = V.ACCEPTED, "the run was accepted and no manual check was signed failing"
     else:
-        open_ = [r for r in records if _blocking(r, fail_on)
+        open_ = [r for r in records if _open(r, fail_on)
                  and not (r.get("manual") and (decided.get(r["rule"]) or {}).get("verdict") == V.PASS)]
-        if open_:
-            rules = sorted({r["rule"] for r in open_})
+        rejecting = [r for r in open_ if not _checkers(r)]
+        if rejecting:
+            rules = sorted({r["rule"] for r in rejecting})
             verdict = V.REJECTED
-            basis = (f"{len(open_)} rejecting record(s) are not manual checks signed pass "
+            basis = (f"{len(rejecting)} rejecting record(s) are not manual checks signed pass "
+                     f"({', '.join(rules[:4])}{', …' if len(rules) > 4 else ''})")
+        elif open_:
+            rules = sorted({r["rule"] for r in open_})
+            verdict = V.INCOMPLETE
+            basis = (f"{len(open_)} record(s) are still the checker's to complete "
                      f"({', '.join(rules[:4])}{', …' if len(rules) > 4 else ''})")
         else:
             verdict, basis = V.ACCEPTED, "every rejecting record was a manual check signed pass"

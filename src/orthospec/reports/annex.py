@@ -37,6 +37,8 @@ CONSEQUENCES = {
     "reject_item": "the item (image, point, ...) is rejected",
     "reject_block": "all products of the block are rejected",
     "return_delivery": "the whole delivery is returned to the contractor",
+    "incomplete": "the check is incomplete until the checker completes it (e.g. more check points); "
+                  "the contractor's products are not rejected for it",
     "warn": "recorded as a warning; not a ground for rejection by itself",
 }
 LEVELS = {"mandatory": "must be met (\"shall\", \"must\", \"will\")",

@@ -2,8 +2,8 @@
 
 A *finding* states one problem as measured against required, with the rule title, the item and
 the clause (``B02: Block RMSEy within the tolerance: 0.641 m > 0.5 m (JRC EUR 23638 EN, §12.7)``).
-Findings are ordered by consequence (return the delivery, reject a block, reject an item, then
-missing evidence, errors, warnings) and one root cause gives one finding: the records of several
+Findings are ordered by consequence (return the delivery, reject a block, reject an item, the
+checker's open work, then missing evidence, errors, warnings) and one root cause gives one finding: the records of several
 rules that fail for the same item with the same message (one missing file) become one finding
 that lists the rules affected. The terminal, page 1 of the PDF and the failures table all use
 :func:`findings`, so they never disagree.
@@ -27,8 +27,8 @@ __all__ = ["Finding", "NotApplicableSummary", "checker_text", "clean_text", "fin
 
 PROBLEMS = V.PROBLEMS
 _CONSEQUENCE_RANK = {"return_delivery": 0, "reject_block": 1, "reject_item": 2}
-RANK_LABELS = ("returns the delivery", "rejects a block", "rejects an item", "fails (no rejection)",
-               "missing evidence", "could not be evaluated", "warning")
+RANK_LABELS = ("returns the delivery", "rejects a block", "rejects an item", "check incomplete (checker's)",
+               "fails (no rejection)", "missing evidence", "could not be evaluated", "warning")
 #: the requirement violated, stated the other way round
 _NEGATED = {"<=": ">", "<": "≥", ">=": "<", ">": "≤", "==": "≠", "!=": "="}
 _NO_UNIT = (None, "", "1", "text", "bool", "date", "any")
@@ -152,11 +152,18 @@ def _clause(rec: dict[str, Any]) -> str:
     return ", ".join(p for p in parts if p)
 
 
-def rank(verdict: str, consequence: str | None) -> int:
-    """Consequence order: return delivery, reject block, reject item, other fail, missing, error, warn."""
+def rank(verdict: str, consequence: str | None, manual: bool = False) -> int:
+    """Consequence order: return delivery, reject block, reject item, the checker's open work
+    (consequence ``incomplete``, an unsigned manual check), other fail, missing, error, warn."""
+    if verdict in V.FAILING and (consequence == V.INCOMPLETE or (manual and verdict == V.MISSING)):
+        return 3
     if verdict == V.FAIL:
-        return _CONSEQUENCE_RANK.get(consequence or "", 3)
-    return {V.MISSING: 4, V.ERROR: 5, V.WARN: 6}.get(verdict, 7)
+        return _CONSEQUENCE_RANK.get(consequence or "", 4)
+    return {V.MISSING: 5, V.ERROR: 6, V.WARN: 7}.get(verdict, 8)
+
+
+def _rank(rec: dict[str, Any]) -> int:
+    return rank(rec["verdict"], rec.get("consequence"), bool(rec.get("manual")))
 
 
 @dataclass
@@ -229,10 +236,10 @@ def findings(records: list[dict[str, Any]]) -> list[Finding]:
     for (item, msg), recs in by_cause.items():
         if len({r["rule"] for r in recs}) < 2:
             continue
-        recs.sort(key=lambda r: (rank(r["verdict"], r.get("consequence")), r["rule"]))
+        recs.sort(key=lambda r: (_rank(r), r["rule"]))
         top = recs[0]
         grouped.update(id(r) for r in recs)
-        out.append(Finding(rank(top["verdict"], top.get("consequence")), top["verdict"],
+        out.append(Finding(_rank(top), top["verdict"],
                            top.get("consequence") or "", top["rule"], top.get("title", ""), _clause(top),
                            [item], clean_text(msg), rules=[r["rule"] for r in recs], n_records=len(recs)))
     # 2. the same rule and message for many items (no value): one finding listing the items
@@ -246,7 +253,7 @@ def findings(records: list[dict[str, Any]]) -> list[Finding]:
         by_rule.setdefault(key, []).append(r)
     for (_rid, _v, _k), recs in by_rule.items():
         top = recs[0]
-        out.append(Finding(rank(top["verdict"], top.get("consequence")), top["verdict"],
+        out.append(Finding(_rank(top), top["verdict"],
                            top.get("consequence") or "", top["rule"], top.get("title", ""), _clause(top),
                            sorted((str(r["item"]) for r in recs), key=natural_key), _what(top),
                            rules=[top["rule"]], n_records=len(recs)))

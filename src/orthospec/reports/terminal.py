@@ -21,6 +21,7 @@ from .findings import checker_text, clean_text, findings, unsigned_manual_note
 MAX_ITEMS = 8
 _STYLE = {V.PASS: "green", V.FAIL: "bold red", V.WARN: "yellow", V.MISSING: "magenta",
           V.ERROR: "bold red", V.WAIVED: "cyan", V.NOT_APPLICABLE: "dim"}
+_OVERALL_STYLE = {V.ACCEPTED: "green", V.INCOMPLETE: "magenta"}
 
 
 def _t(text: Any) -> str:
@@ -37,7 +38,7 @@ def summary_line(doc: dict[str, Any]) -> str:
 def render(doc: dict[str, Any], console: Console, *, max_items: int = MAX_ITEMS, verbose: bool = False) -> None:
     p, d = doc["profile"], doc["delivery"]
     verdict = doc["verdict"].upper()
-    colour = "green" if doc["verdict"] == V.ACCEPTED else "red"
+    colour = _OVERALL_STYLE.get(doc["verdict"], "red")
     console.print(f"[bold]orthospec[/] {_t(d['path'])} against {_t(p['id'])} {_t(p['version'])} "
                   f"(sha256 {p['sha256'][:12]}…), {doc['date']}", overflow="fold")
     checker = checker_text(doc)
@@ -79,6 +80,11 @@ def render(doc: dict[str, Any], console: Console, *, max_items: int = MAX_ITEMS,
                               f"{_t(r['title'])}", overflow="fold")
     for reason in doc["rollup"]["reasons"]:
         console.print(f"  [red]•[/] {_t(reason)}", overflow="fold")
+    todo = doc["rollup"].get("incomplete") or []
+    if todo:
+        console.print(f"[magenta]the check is incomplete: the checker must still ({len(todo)}):[/]")
+        for line in todo:
+            console.print(f"  [magenta]•[/] {_t(line)}", overflow="fold")
     console.print(summary_line(doc))
     unsigned = unsigned_manual_note(records, checker=doc.get("checker"))
     if unsigned:

@@ -16,7 +16,7 @@ Scope = Literal[
     "scanner", "dem", "mosaic", "edge",
 ]
 Level = Literal["mandatory", "recommended"]
-Consequence = Literal["reject_item", "reject_block", "return_delivery", "warn"]
+Consequence = Literal["reject_item", "reject_block", "return_delivery", "incomplete", "warn"]
 Op = Literal["<", "<=", ">", ">=", "==", "!=", "between", "in", "present", "true", "false"]
 Scalar = float | int | str | bool
 
