@@ -279,6 +279,16 @@ def check_unit(name: str | None) -> None:
     unit_signature(name)
 
 
+def same_value(a: Any, b: Any) -> bool:
+    """Two values of one parameter, in one unit, are the same contract value: numbers to 1e-9
+    relative (50 cm read as 0.5 m), booleans by identity, anything else as text."""
+    if isinstance(a, bool) or isinstance(b, bool):
+        return a is b
+    if isinstance(a, int | float) and isinstance(b, int | float):
+        return math.isclose(float(a), float(b), rel_tol=1e-9, abs_tol=0.0)
+    return str(a) == str(b)
+
+
 # --- the spellings a profile may write -------------------------------------------------------------
 # A profile is a contract: one spelling per unit, so the annex, `spec diff` and the QCR print what
 # the author wrote and a threshold is never a formula because `meters` is not `m`. pint reads far

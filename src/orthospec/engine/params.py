@@ -12,7 +12,6 @@ with advice) instead of producing ``error`` records later.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Literal
@@ -22,7 +21,14 @@ from ..errors import ExpressionError, OrthospecError, UnitError
 from ..spec import expr
 from ..spec.loader import ResolvedProfile, param_location, params_named
 from ..spec.models import Parameter
-from ..units import NON_NUMERIC, canonical, number_problem, parse_number_text, parse_unit
+from ..units import (
+    NON_NUMERIC,
+    canonical,
+    number_problem,
+    parse_number_text,
+    parse_unit,
+    same_value,
+)
 
 if TYPE_CHECKING:
     from ..delivery.checker import Checker
@@ -76,15 +82,6 @@ class ParamValue:
         if self.profile_value is not None:
             out["profile_value"] = self.profile_value
         return out
-
-
-def same_value(a: Any, b: Any) -> bool:
-    """Two parameter values in one unit are the same contract value (floats to 1e-9 relative)."""
-    if isinstance(a, bool) or isinstance(b, bool):
-        return a is b
-    if isinstance(a, int | float) and isinstance(b, int | float):
-        return math.isclose(float(a), float(b), rel_tol=1e-9, abs_tol=0.0)
-    return str(a) == str(b)
 
 
 def _shown(v: Any, unit: str) -> str:

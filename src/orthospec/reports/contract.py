@@ -13,6 +13,8 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from ..units import same_value
+
 __all__ = ["contract_lines", "parameter_lines", "weakened_lines"]
 
 _SOURCES = {"cli": "--param", "checker": "the checker's file"}
@@ -29,14 +31,6 @@ def _show(v: Any, unit: Any) -> str:
     return text if unit in _NO_UNIT else f"{text} {unit}"
 
 
-def _same(a: Any, b: Any) -> bool:
-    if isinstance(a, bool) or isinstance(b, bool):
-        return a is b
-    if isinstance(a, int | float) and isinstance(b, int | float):
-        return math.isclose(float(a), float(b), rel_tol=1e-9, abs_tol=0.0)
-    return str(a) == str(b)
-
-
 def parameter_lines(doc: dict[str, Any]) -> list[str]:
     """Parameters whose value in force does not come from the profile: one line per value that
     replaces the profile's (``cloud_cover_max = 10 % from the checker's file, instead of the tender's
@@ -51,7 +45,7 @@ def parameter_lines(doc: dict[str, Any]) -> list[str]:
         got = f"{name} = {_show(p['value'], p.get('unit'))}"
         if "profile_value" not in p:
             filled.setdefault(_SOURCES[p["source"]], []).append(got)
-        elif not _same(p["value"], p["profile_value"]):
+        elif not same_value(p["value"], p["profile_value"]):
             out.append(f"{got} from {_SOURCES[p['source']]}, instead of the {whose} "
                        f"{_show(p['profile_value'], p.get('unit'))}")
     for source, values in filled.items():
