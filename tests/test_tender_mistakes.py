@@ -3,7 +3,7 @@ message at its own file:line that says what to write.
 
 The corpus (tests/data/tender-mistakes/) is base.yaml, a valid tender profile, with one typical
 mistake per file; expected.yaml gives the line of each mistake and the fix its message must carry.
-Before this work `spec validate` caught 21 of these 34 and told a usable fix for 13 (units spelled
+Before this work `spec validate` caught 21 of these 35 and told a usable fix for 13 (units spelled
 `meters`, an inherited tolerance given in %, a bad `extends` listing the folder's files, test paths
 and expectations, unjustified weakening of mandatory rules and a claimed shipped id were missed or
 badly told); `python tests/tender_mistakes.py` prints the table.

@@ -216,6 +216,10 @@ def explain_cmd(rule_id: str, profile: str) -> None:
         c.print(f"audit:       {escape(str(r.audit.model_dump(exclude_none=True)))}")
     if r.note:
         c.print(f"note:        {escape(r.note)}")
+    for w in p.weakened:  # a mandatory rule of the standard this tender made check less
+        if w.id == r.id:
+            c.print(f"[yellow]weakened:[/]    {escape('; '.join(w.changes))} by {escape(w.profile)} "
+                    f"(justification: {escape(w.justification or 'none recorded')})")
     c.print(f"evidence:    {escape(_evidence_hint(r.measure))}")
 
 

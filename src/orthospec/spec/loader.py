@@ -1257,10 +1257,19 @@ def _test_problems(p: ResolvedProfile, sites: _Sites, *, paths: bool = True) -> 
         if paths and t.checker is not None and not (here / t.checker).is_file():
             add(i, ("checker",), f"checker file {t.checker!r} not found (relative to the profile file's folder)"
                 + _near_path(here / t.checker))
-        for name in t.params:
-            if name not in p.parameters:
+        for name, given in t.params.items():
+            par = p.parameters.get(name)
+            if par is None:
                 add(i, ("params", name), f"params: profile {p.id} has no parameter {name!r}"
                     + _did_you_mean(name, p.parameters))
+                continue
+            own = par.value if par.value is not None else par.default
+            if (len(p.chain) > 1 and not par.checker_may_set and own is not None
+                    and isinstance(given, int | float) and isinstance(own, int | float)
+                    and not isinstance(given, bool) and float(given) != float(own)):
+                add(i, ("params", name), f"params: {name} = {given} differs from {own}, the value this tender "
+                    "fixes; the check would stop (the contract wins): leave it out, or mark the parameter "
+                    "`checker_may_set: true`")
         extra = sorted(set(t.expect) - {"verdict", "rules"})
         if extra:
             add(i, ("expect", extra[0]), f"expect: unknown key {extra[0]!r}; expect holds verdict and rules")
