@@ -237,7 +237,7 @@ def _evidence_hint(measure: str) -> str:
         return "the image files listed in tables.images (read with rasterio)"
     if head == "rollup":
         return "the verdicts of the item-level rules of this run"
-    return "computed from the delivery by the measure provider"
+    return "computed from the delivered files and tables"
 
 
 @main.command("measures")

@@ -84,23 +84,20 @@ def _names(req: Requirement) -> set[str]:
     return out
 
 
-_AUTHOR = re.compile(r"\b(seed|seeds|verbatim|U\+[0-9A-F]{4}|LaTeX|\.ya?ml|\.txt|orthospec|rule author|"
-                     r"markers?|issue \d+|OCR|traps?)\b", re.I)  # sentences about the transcription
-
-
 def plain_note(note: str | None) -> str:
-    """A rule author's note in plain words for bidders: markup removed, author-only sentences
-    (source files, typography of the source) dropped, data names in words. Only the public
-    ``note`` comes here; ``internal_note`` is never printed."""
+    """A public note in plain words for bidders: markup removed, data names in words.
+
+    Rule notes are written in two parts: ``note`` (public: printed here and by ``explain``) and
+    ``internal_note`` (for the profile's maintainers, never printed). Nothing is filtered out of a
+    public note: a sentence that says what a rule measures or what failing it does reaches the
+    bidders whole (tests/test_annex_public.py keeps internal vocabulary out of every shipped annex).
+    """
     if not note:
         return ""
     text = re.sub(r"\*\*(.+?)\*\*", r"\1", " ".join(note.split()))
     text = re.sub(r"(?<![\w*])\*(\S.*?\S|\S)\*(?![\w*])", r"\1", text)
     text = text.replace("`", "").replace("**", "")
     text = re.sub(r"\bTrap:\s*", "Caution: ", text)
-    sentences = re.split(r"(?<=[.;])\s+(?=[A-Z(\"])", text)
-    kept = [x for x in sentences if not _AUTHOR.search(x)]
-    text = " ".join(kept)
     text = re.sub(r"\bmanifest\.[\w.]*\w", lambda m: condition_prose(m.group(0)), text)
     text = re.sub(r"\bmanifest\.", "manifest file.", text)
     return text.strip()
