@@ -62,3 +62,20 @@ def test_a_public_note_reaches_the_annex_whole() -> None:
     text = ("Decision: the noise std of homogeneous areas (the local-standard-deviation estimator), scaled to "
             "8 bits. A disagreement beyond 1 cm is a finding for the checker, never a rejection.")
     assert plain_note(text) == text
+
+
+@pytest.mark.parametrize(("pid", "rid", "words"), [
+    ("jrc-v3", "JRC-9.5-REPORTED-RMSE-X", "recomputed from the delivered points"),
+    ("jrc-v3", "JRC-6.3-MISREGISTRATION", "largest shift between a band and the reference band"),
+    ("jrc-v3", "JRC-6.3-NOISE", "noise standard deviation of homogeneous areas"),
+    ("jrc-v3", "JRC-12.5-DISTINCT-CHECKPOINTS", "sharing a reference position"),
+    ("ceos-edge", "CEOS-3B-SNR", "SNR = DN difference"),
+    ("usgs-insitu", "USGS-CE90-EMPIRICAL", "linear interpolation between order statistics"),
+])
+def test_the_annex_says_what_a_rule_measures(pid: str, rid: str, words: str) -> None:
+    """What a rule measures stays in its public note (the old filter dropped it with the word 'seed')."""
+    prof = load_profile(pid)
+    note = plain_note(next(r for r in prof.rules if r.id == rid).note)
+    assert words.lower() in note.lower(), note
+    md = render_annex(prof, formats=["md"], day="2026-01-01")[annex_filename(prof, "md")]
+    assert words.lower() in " ".join(md.split()).lower()
