@@ -27,7 +27,7 @@ install-test: sysdeps venv
 demo: install
 	@mkdir -p $(DEMO_OUT)
 	$(VENV)/bin/orthospec check examples/deliveries/aerial-pass --profile jrc-v3 \
-		--checker examples/checker/aerial-pass.yaml \
+		--checker examples/checker/aerial-pass \
 		--out $(DEMO_OUT) --date $(DEMO_DATE) --format terminal,json,csv,junit,html,pdf
 	@echo "demo reports written to $(DEMO_OUT)/"
 

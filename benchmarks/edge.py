@@ -31,9 +31,18 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
+import re
+import shutil
 import statistics
+import subprocess
 import sys
+import tempfile
 import time
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 from scipy.signal import fftconvolve
@@ -41,7 +50,11 @@ from scipy.signal import fftconvolve
 from orthospec.measures.edge import EdgeLimits, measure_edge
 from orthospec.measures.synthetic import (
     EdgeTruth,
+    FamilyTruth,
+    PsfFamily,
     edge_truth,
+    family_edge,
+    family_truth,
     kernel_truth,
     slanted_edge,
     unsharp_mask,
@@ -226,14 +239,270 @@ def run_families(repeats: int = 3) -> list[float]:
     return times
 
 
+# ---------------------------------------------------------------------------------------------
+# Issue 31: seven PSF families x SNR, refusals, uncertainty coverage, against MTF Mapper
+
+FAMILIES31 = {  # two systems per family (alternating over the ROIs)
+    "gauss": (PsfFamily("gauss", sigma=0.45), PsfFamily("gauss", sigma=0.8)),
+    "halo": (PsfFamily("halo", sigma=0.5, sigma2=2.0, weight=0.15),
+             PsfFamily("halo", sigma=0.55, sigma2=4.0, weight=0.1)),
+    "defocus": (PsfFamily("defocus", radius=1.5, sigma=0.4), PsfFamily("defocus", radius=2.0, sigma=0.5)),
+    "motion-across": (PsfFamily("motion_x", length=1.5, sigma=0.45), PsfFamily("motion_x", length=2.5, sigma=0.4)),
+    "motion-along": (PsfFamily("motion_y", length=1.5, sigma=0.45), PsfFamily("motion_y", length=3.0, sigma=0.4)),
+    "mtfc": (PsfFamily("mtfc", sigma=0.8, amount=0.25), PsfFamily("mtfc", sigma=0.6, amount=0.15)),
+    "diffraction": (PsfFamily("diffraction", cutoff=1.0, sigma=0.25, length=0.8),
+                    PsfFamily("diffraction", cutoff=0.8, sigma=0.3, length=1.0)),
+}
+# 2.5-40 deg, with the slopes 1/4, 1/3 and 1/2 (the old bin-occupancy check refused them)
+ANGLES31 = (2.5, 5.0, 9.0, math.degrees(math.atan(0.25)), math.degrees(math.atan(1 / 3)),
+            math.degrees(math.atan(0.5)), 33.0, 40.0)
+SHAPES31 = ((60, 60), (100, 100), (200, 120))  # (lines, px across)
+SNRS31 = (math.inf, 100.0, 50.0, 30.0)
+
+
+@dataclass(frozen=True)
+class Roi31:
+    family: str
+    psf: PsfFamily
+    snr: float
+    angle: float
+    bits: int
+    shape: tuple[int, int]
+    seed: int
+
+    def image(self, truth: FamilyTruth) -> np.ndarray:
+        dark, bright = (40.0, 200.0) if self.bits == 8 else (600.0, 3000.0)
+        return family_edge(self.psf, self.shape, angle_deg=self.angle, dark=dark, bright=bright,
+                           snr=self.snr, bit_depth=self.bits, offset_px=0.137 * self.seed,
+                           rng=np.random.default_rng(1000 + self.seed), truth=truth)
+
+
+def grid31(families: list[str] | None = None) -> list[Roi31]:
+    """16 ROIs per family x SNR: 8 angles x the family's two systems, 8 and 12 bit alternating,
+    60 x 60, 100 x 100 and 200 x 120 px in turn; 448 ROIs in all."""
+    out = []
+    for name, variants in FAMILIES31.items():
+        if families and name not in families:
+            continue
+        for snr in SNRS31:
+            for i, angle in enumerate(ANGLES31):
+                for j, psf in enumerate(variants):
+                    out.append(Roi31(name, psf, snr, angle, 8 if (i + j) % 2 == 0 else 12,
+                                     SHAPES31[(i + 2 * j) % 3], 2 * i + j))
+    return out
+
+
+def _mtf_mapper(path: str | None) -> tuple[str | None, str]:
+    exe = path or os.environ.get("MTF_MAPPER") or shutil.which("mtf_mapper")
+    if not exe or not Path(exe).exists():
+        return None, "not found (give --mtf-mapper PATH or set MTF_MAPPER)"
+    out = subprocess.run([exe, "--version"], capture_output=True, text=True, check=False).stdout
+    m = re.search(r"version:\s*([0-9.]+)", out)
+    return exe, (m.group(1) if m else "unknown version")
+
+
+def _write_tif(path: Path, img: np.ndarray) -> None:
+    import rasterio
+    from rasterio.errors import NotGeoreferencedWarning
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", NotGeoreferencedWarning)
+        with rasterio.open(path, "w", driver="GTiff", width=img.shape[1], height=img.shape[0], count=1,
+                           dtype=img.dtype.name) as ds:
+            ds.write(img, 1)
+
+
+def _run_mtf_mapper(exe: str, img_path: Path, bits: int, work: Path) -> tuple[float | None, float]:
+    """MTF@Nyquist by MTF Mapper on the whole image as one ROI, and the call's wall time (s).
+
+    ``--single-roi -f``: raw_sfr_values.txt holds the edge angle and the SFR at 64 frequencies
+    i/64 cycles/px (along the edge normal, pixel aperture included, as ours); 0.5 cycles/px is
+    sample 32. ``-l``: the 8-bit data are linear (no sRGB decoding). None when it reports no
+    edge (a refusal)."""
+    out = work / "mm"
+    if out.exists():
+        shutil.rmtree(out)
+    out.mkdir()
+    cmd = [exe, "--single-roi", "-f", *(["-l"] if bits == 8 else []), str(img_path), str(out)]
+    t0 = time.perf_counter()
+    subprocess.run(cmd, capture_output=True, check=False)
+    wall = time.perf_counter() - t0
+    sfr = out / "raw_sfr_values.txt"
+    rows = [ln.split() for ln in sfr.read_text().splitlines() if ln.strip()] if sfr.exists() else []
+    if not rows or len(rows[0]) < 1 + 33:
+        return None, wall
+    return float(rows[0][1 + 32]), wall
+
+
+def run31(args: argparse.Namespace) -> int:
+    rois = grid31(args.family or None)
+    exe, mm_version = _mtf_mapper(args.mtf_mapper)
+    print(f"issue 31 grid: {len(rois)} ROIs (7 PSF families x SNR inf/100/50/30 x 16: angles 2.5-40 deg "
+          "incl. slopes 1/4, 1/3, 1/2; 8/12 bit; 60-200 px), truth: synthetic.family_truth (2-D OTF, "
+          "Fourier slice); orthospec with the SNR health check at 25 (the seed's 50 would refuse "
+          "half of the SNR-50 ROIs by design)")
+    print(f"MTF Mapper: {exe or '-'} {mm_version}; load before: {_load()}")
+    truths: dict[tuple[PsfFamily, float], FamilyTruth] = {}
+    rec: dict[tuple[str, float], list[dict[str, Any]]] = {}
+    lim = EdgeLimits(min_snr=25)
+    cpu_lib: list[float] = []
+    wall_mm: list[float] = []
+    with tempfile.TemporaryDirectory(prefix="edge31-") as tmp:
+        work = Path(tmp)
+        for k, roi in enumerate(rois):
+            key = (roi.psf, roi.angle)
+            if key not in truths:
+                truths[key] = family_truth(roi.psf, angle_deg=roi.angle)
+            tr = truths[key]
+            img = roi.image(tr)
+            t0 = time.process_time()
+            r = measure_edge(img, limits=lim)
+            cpu_lib.append(time.process_time() - t0)
+            row: dict[str, Any] = {"valid": r.valid}
+            if r.valid:
+                for name, truth in (("fwhm", tr.fwhm_px), ("rer", tr.rer), ("mtf", tr.mtf_nyquist)):
+                    est = r.estimate({"fwhm": "fwhm_px", "mtf": "mtf_nyquist"}.get(name, name))
+                    row[name] = est.value - truth
+                    row[f"{name}_rel"] = est.value / truth - 1
+                    row[f"{name}_u"] = est.u if est.u is not None else math.nan
+            if exe:
+                path = work / f"roi{k}.tif"
+                _write_tif(path, img)
+                mm, wall = _run_mtf_mapper(exe, path, roi.bits, work)
+                wall_mm.append(wall)
+                row["mm"] = None if mm is None else mm - tr.mtf_nyquist
+            rec.setdefault((roi.family, roi.snr), []).append(row)
+        timing = _command_times(rois, truths, exe, work, args) if args.command_rois else None
+    return _report31(rec, cpu_lib, wall_mm, timing, bool(exe))
+
+
+def _report31(rec: dict[tuple[str, float], list[dict[str, Any]]], cpu_lib: list[float],
+              wall_mm: list[float], timing: dict[str, float] | None, have_mm: bool) -> int:
+    print()
+    head = (f"{'family':>13} {'SNR':>4} | {'n':>3} {'refused':>7} | {'FWHM2%':>6} {'RER.02':>6} "
+            f"{'MTF.01':>6} {'all3':>5} | {'MM MTF.01':>9} {'MM ref':>6} | "
+            f"{'cover 2u FWHM/RER/MTF':>21}")
+    print(head)
+    print("-" * len(head))
+    tot: dict[str, Any] = {}
+    for (fam, snr), rows in rec.items():
+        ok = [r for r in rows if r["valid"]]
+        n = len(rows)
+        fw = sum(abs(r["fwhm_rel"]) <= 0.02 for r in ok)
+        rr = sum(abs(r["rer"]) <= 0.02 for r in ok)
+        mt = sum(abs(r["mtf"]) <= 0.01 for r in ok)
+        al = sum(abs(r["fwhm_rel"]) <= 0.02 and abs(r["rer"]) <= 0.02 and abs(r["mtf"]) <= 0.01 for r in ok)
+        mm_ok = sum(r.get("mm") is not None and abs(r["mm"]) <= 0.01 for r in rows)
+        mm_ref = sum("mm" in r and r["mm"] is None for r in rows)
+        cov = [sum(abs(r[m]) <= 2 * r[f"{m}_u"] for r in ok) for m in ("fwhm", "rer", "mtf")]
+        print(f"{fam:>13} {snr:4.0f} | {n:3d} {n - len(ok):7d} | {fw:6d} {rr:6d} {mt:6d} {al:5d} | "
+              f"{(str(mm_ok) if have_mm else '-'):>9} {(str(mm_ref) if have_mm else '-'):>6} | "
+              f"{'/'.join(map(str, cov)):>21}")
+        t = tot.setdefault(snr, {"n": 0, "ng": 0, "ref": 0, "all_ng": 0, "fw_ng": 0, "fw": 0, "mt": 0,
+                                 "mm": 0, "cov": [0, 0, 0], "valid": 0})
+        t["n"] += n
+        t["ref"] += n - len(ok)
+        t["valid"] += len(ok)
+        t["mt"] += mt
+        t["mm"] += mm_ok
+        t["fw"] += fw
+        t["cov"] = [a + b for a, b in zip(t["cov"], cov, strict=True)]
+        if fam != "gauss":
+            t["ng"] += n
+            t["all_ng"] += al
+            t["fw_ng"] += fw
+    print("-" * len(head))
+    print("targets (issue 31):")
+    for snr, t in tot.items():
+        line = (f"  SNR {snr:>4.0f}: refused {t['ref']}/{t['n']}; non-Gaussian within all three "
+                f"{t['all_ng']}/{t['ng']} ({100 * t['all_ng'] / max(t['ng'], 1):.1f} %), within FWHM 2 % "
+                f"{t['fw_ng']}/{t['ng']} ({100 * t['fw_ng'] / max(t['ng'], 1):.1f} %); MTF@Ny within 0.01: "
+                f"orthospec {t['mt']}/{t['n']}" + (f", MTF Mapper {t['mm']}/{t['n']}" if have_mm else ""))
+        print(line)
+    print("  targets: no refusal at SNR >= 50; SNR 100 >= 95 % of non-Gaussian within all three; "
+          "SNR 50 >= 85 % within FWHM 2 %; MTF@Ny within 0.01 at least as often as MTF Mapper")
+    cov = [sum(t["cov"][i] for t in tot.values()) for i in range(3)]
+    nv = sum(t["valid"] for t in tot.values())
+    print(f"uncertainty coverage, |error| <= 2u (nominal 95 %): FWHM {cov[0]}/{nv} "
+          f"({100 * cov[0] / max(nv, 1):.1f} %), RER {cov[1]}/{nv} ({100 * cov[1] / max(nv, 1):.1f} %), "
+          f"MTF@Ny {cov[2]}/{nv} ({100 * cov[2] / max(nv, 1):.1f} %)")
+    print(f"library CPU per ROI: mean {statistics.fmean(cpu_lib):.3f} s, median "
+          f"{statistics.median(cpu_lib):.3f} s, max {max(cpu_lib):.3f} s")
+    if wall_mm:
+        print(f"MTF Mapper wall per ROI (one call per ROI, start-up included): mean "
+              f"{statistics.fmean(wall_mm):.3f} s, median {statistics.median(wall_mm):.3f} s")
+    if timing:
+        for k, v in timing.items():
+            print(f"  {k}: {v:.3f}{'x' if k.startswith('ratio') else '' if k.startswith('ROIs') else ' s'}")
+    print(f"load after: {_load()}")
+    return 0
+
+
+def _command_times(rois: list[Roi31], truths: dict[tuple[PsfFamily, float], FamilyTruth],
+                   exe: str | None, work: Path, args: argparse.Namespace) -> dict[str, float]:
+    """Whole commands, start-up included, in the same run: ``orthospec measure edge`` with one
+    ROI per call and with all of them in one call (``--roi`` repeated, ``--workers``), against
+    one MTF Mapper call per ROI, on the same ROIs (8-bit ones of 100 x 100 px, tiled)."""
+    pick = [r for r in rois if r.bits == 8 and r.shape == (100, 100)][: args.command_rois]
+    imgs = [r.image(truths[(r.psf, r.angle)]) for r in pick]
+    mosaic = np.full((100, 110 * len(imgs)), 120, dtype=np.uint8)
+    wins = []
+    for i, im in enumerate(imgs):
+        mosaic[:, 110 * i:110 * i + 100] = im
+        wins.append(f"{110 * i},0,{110 * i + 100},100")
+    tile = work / "mosaic.tif"
+    _write_tif(tile, mosaic)
+    ortho = str(Path(sys.executable).with_name("orthospec"))
+    out: dict[str, float] = {"ROIs timed as commands": float(len(imgs))}
+    t0 = time.perf_counter()
+    for w in wins:
+        subprocess.run([ortho, "measure", "edge", str(tile), "--roi", w, "--json"], capture_output=True,
+                       check=False)
+    out["orthospec measure edge, one ROI per call, wall per ROI"] = (time.perf_counter() - t0) / len(wins)
+    t0 = time.perf_counter()
+    subprocess.run([ortho, "measure", "edge", str(tile), *[a for w in wins for a in ("--roi", w)],
+                    "--workers", str(args.workers), "--json"], capture_output=True, check=False)
+    out[f"orthospec measure edge, {len(wins)} ROIs in one call ({args.workers} workers), wall per ROI"] = \
+        (time.perf_counter() - t0) / len(wins)
+    if exe:
+        paths = []
+        for i, im in enumerate(imgs):
+            paths.append(work / f"cmd{i}.tif")
+            _write_tif(paths[-1], im)
+        t0 = time.perf_counter()
+        for p in paths:
+            _run_mtf_mapper(exe, p, 8, work)
+        out["MTF Mapper, one call per ROI, wall per ROI"] = (time.perf_counter() - t0) / len(imgs)
+        k1 = "orthospec measure edge, one ROI per call, wall per ROI"
+        kn = next(k for k in out if "in one call" in k)
+        mm = out["MTF Mapper, one call per ROI, wall per ROI"]
+        out["ratio orthospec (one per call) / MTF Mapper"] = out[k1] / mm
+        out["ratio orthospec (all in one call) / MTF Mapper"] = out[kn] / mm
+    return out
+
+
+def _load() -> str:
+    return ", ".join(f"{x:.2f}" for x in os.getloadavg())
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--legacy", action="store_true",
+                    help="the issue-15/16 tables (Gaussian grid, four blur families) instead of issue 31's")
+    ap.add_argument("--family", action="append", choices=sorted(FAMILIES31),
+                    help="issue 31 grid: only these families (repeatable)")
+    ap.add_argument("--mtf-mapper", help="MTF Mapper executable (default $MTF_MAPPER or mtf_mapper on PATH)")
+    ap.add_argument("--command-rois", type=int, default=16,
+                    help="ROIs timed as whole commands (0: skip)")
+    ap.add_argument("--workers", type=int, default=2, help="workers of the many-ROI command")
     ap.add_argument("--size", type=int, default=100, help="ROI width (px across the edge)")
     ap.add_argument("--lines", type=int, default=100, help="ROI height (lines along the edge)")
     ap.add_argument("--repeats", type=int, default=5, help="noise seeds per configuration")
     ap.add_argument("--quick", action="store_true", help="3 angles instead of 5 for Gaussian PSFs")
     ap.add_argument("--families-only", action="store_true", help="only the blur-family table")
     args = ap.parse_args(argv)
+    if not args.legacy:
+        return run31(args)
     rc = 0 if args.families_only else run(args.size, args.lines, args.repeats, args.quick)
     run_families()
     return rc

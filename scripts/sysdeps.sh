@@ -18,6 +18,8 @@ command -v pdftoppm >/dev/null 2>&1 || need+=(poppler-utils)
 # gdalinfo: the radiometry tests compare with `gdalinfo -stats -hist`; the benchmark times it
 command -v gdalinfo >/dev/null 2>&1 || need+=(gdal-bin)
 [[ ${fonts,,} == *dejavu* ]] || need+=(fonts-dejavu-core fontconfig)
+# ledger signatures: ssh-keygen -Y sign / verify (OpenSSH 8.2+)
+command -v ssh-keygen >/dev/null 2>&1 || need+=(openssh-client)
 # ledger tests start a throw-away PostgreSQL server (initdb/pg_ctl) on 127.0.0.1
 compgen -G '/usr/lib/postgresql/*/bin/initdb' >/dev/null || need+=(postgresql)
 if [ ${#need[@]} -eq 0 ]; then exit 0; fi

@@ -10,6 +10,7 @@ from __future__ import annotations
 import csv
 import hashlib
 import inspect
+import shutil
 from pathlib import Path
 from typing import Any
 
@@ -64,21 +65,73 @@ def write_checker(folder: Path, text: str = MINI_CHECKER, name: str = "checker.y
 
 
 def resigned(checker: str | Path, delivery: str | Path, out: str | Path, **top: Any) -> Path:
-    """A copy of ``checker`` re-signed on ``delivery`` as it is now (each pinned file's SHA-256
-    recomputed; ``top`` replaces top-level keys, e.g. ``parameters={}``): the checker's verdicts
-    given on the planted content a test checks, written to ``out`` (outside the delivery)."""
-    doc = yaml.safe_load(Path(checker).read_text(encoding="utf-8"))
+    """A copy of ``checker`` re-signed on ``delivery`` as it is now: each pinned file's SHA-256 and each manual
+    verdict's image SHA-256 recomputed (``top`` replaces top-level keys of checker.yaml, e.g.
+    ``parameters={}``): the checker's verdicts given on the planted content a test checks, written outside
+    the delivery. The checker's measured check points keep their image_sha256: a point measured on an
+    image that was changed since is measured again, never re-signed (JRC-12.6-POINTS-BOUND).
+
+    A checker folder (or its checker.yaml) is copied whole to ``out`` without its ``.yaml`` suffix and the
+    path of the copy's checker.yaml is returned (`--checker` reads DIR/checker.yaml as the folder DIR);
+    a single checker file is written to ``out``."""
+    src = Path(checker)
+    if not src.exists() and src.suffix == ".yaml" and src.with_suffix("").is_dir():
+        src = src.with_suffix("")  # examples/checker/<name>.yaml was the single file before the folders
+    folder = src if src.is_dir() else (src.parent if src.name == "checker.yaml" else None)
     root = Path(delivery)
+    if folder is not None:
+        dst = Path(out).with_suffix("") if Path(out).suffix == ".yaml" else Path(out)
+        if dst.resolve() != folder.resolve():
+            shutil.rmtree(dst, ignore_errors=True)
+            shutil.copytree(folder, dst)
+        path = dst / "checker.yaml"
+    else:
+        path = Path(out)
+    doc = yaml.safe_load((folder / "checker.yaml" if folder is not None else src).read_text(encoding="utf-8"))
     m = yaml.safe_load((root / "delivery.yaml").read_text(encoding="utf-8")) or {}
     used = {v for k in ("tables", "vectors", "documents") for v in (m.get(k) or {}).values()}
     # the checker pins what it received: a table the planted delivery no longer has is not pinned
-    doc["delivery"]["files"] = {rel: hashlib.sha256((root / rel).read_bytes()).hexdigest()
-                                for rel in doc["delivery"].get("files") or {}
-                                if rel in used and (root / rel).is_file()}
+    pins = {}
+    for rel, pin in (doc["delivery"].get("files") or {}).items():
+        if rel in used and (root / rel).is_file():
+            sha = hashlib.sha256((root / rel).read_bytes()).hexdigest()
+            pins[rel] = {**pin, "sha256": sha} if isinstance(pin, dict) else sha
+    doc["delivery"]["files"] = pins
+    for entry in doc.get("manual_checks") or []:  # the checker judged the images as delivered now
+        rel = entry.get("file")
+        if rel and (root / rel).is_file():
+            entry["sha256"] = hashlib.sha256((root / rel).read_bytes()).hexdigest()
     doc.update(top)
-    path = Path(out)
     path.write_text(yaml.safe_dump(doc, sort_keys=False, allow_unicode=True), encoding="utf-8")
     return path
+
+
+def remeasured(folder: str | Path, delivery: str | Path) -> None:
+    """The checker measured its check points on the delivery as received: each point's image is the one
+    delivered now (a point whose image is not delivered goes to the nearest delivered image of its
+    block, by exposure position) and its image_sha256 that image's. For tests in which the contractor's
+    edits come before the checker's work (tests/test_redteam.py)."""
+    table = Path(folder) / "tables" / "checkpoints.csv"
+    root = Path(delivery)
+    with table.open(encoding="utf-8", newline="") as f:
+        r = csv.DictReader(f)
+        header, rows = list(r.fieldnames or []), list(r)
+    _, images = read_table(root, "images")
+    have = [i for i in images if i.get("file") and (root / i["file"]).is_file()]
+    by_id = {i["image_id"]: i for i in have}
+    for row in rows:
+        img = by_id.get(row.get("image_id") or "")
+        if img is None:
+            near = [i for i in have if i.get("block") == row["block"]] or have
+            x, y = float(row["x_ref"]), float(row["y_ref"])
+            img = min(near, key=lambda i: (float(i.get("exposure_x") or 0) - x) ** 2
+                      + (float(i.get("exposure_y") or 0) - y) ** 2)
+        row["image_id"] = img["image_id"]
+        row["image_sha256"] = hashlib.sha256((root / img["file"]).read_bytes()).hexdigest()
+    with table.open("w", encoding="utf-8", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=header, lineterminator="\n")
+        w.writeheader()
+        w.writerows(rows)
 
 
 def check_with(delivery: str | Path, profile: str | Path | ResolvedProfile, *, checker: str | Path | None = None,

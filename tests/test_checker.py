@@ -154,12 +154,14 @@ def test_check_refuses_a_checker_file_for_other_content_with_exit_2(make_deliver
 
 
 def test_the_example_checker_files_pin_the_check_points(tmp_path: Path) -> None:
-    """examples/generate.py signs each example's tables/checkpoints.csv (JRC §12.4: the checker
-    vouches for the check points' independent source)."""
+    """examples/generate.py signs each example's tables/checkpoints.csv, the contractor's internal-QC
+    table the checker read (JRC §12.5), with the role the delivery gives it (issue 29 item 4)."""
     for name in ("aerial-pass", "aerial-fail", "satellite-pass", "satellite-fail"):
-        chk = load_checker(ROOT / "examples" / "checker" / f"{name}.yaml")
+        chk = load_checker(ROOT / "examples" / "checker" / name)
         table = ROOT / "examples" / "deliveries" / name / "tables" / "checkpoints.csv"
-        assert chk.model.delivery.files == {"tables/checkpoints.csv": hashlib.sha256(table.read_bytes()).hexdigest()}
+        (rel, pin), = chk.model.delivery.files.items()
+        assert rel == "tables/checkpoints.csv" and not isinstance(pin, str)
+        assert (pin.sha256, pin.role) == (hashlib.sha256(table.read_bytes()).hexdigest(), "tables.checkpoints")
         assert chk.model.delivery.manifest_sha256 is None  # the README's redelivery edits delivery.yaml
 
 

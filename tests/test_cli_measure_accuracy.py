@@ -141,8 +141,9 @@ def test_help_text():
 
 
 def test_reads_a_delivery_checkpoints_table_per_block() -> None:
-    """The delivery's own table (extra columns image_id, source, ...) is accepted, per block; the
-    RMSE of each block recomputed here with numpy from x - x_ref (points excluded or not: all kept)."""
+    """A check point table of the convention (extra columns image_id, source, the checker's provenance
+    columns ...) is accepted, per block; the RMSE of each block recomputed here with numpy from
+    x - x_ref (points excluded or not: all kept). Here the checker's measurements of aerial-fail."""
     import csv as _csv
     import json as _json
     from pathlib import Path as _Path
@@ -152,7 +153,7 @@ def test_reads_a_delivery_checkpoints_table_per_block() -> None:
 
     from orthospec.cli.main import cli as _cli
 
-    path = _Path(__file__).resolve().parents[1] / "examples" / "deliveries" / "aerial-fail" / "tables" / "checkpoints.csv"
+    path = _Path(__file__).resolve().parents[1] / "examples" / "checker" / "aerial-fail" / "tables" / "checkpoints.csv"
     res = _Runner().invoke(_cli(), ["measure", "accuracy", str(path), "--json"])
     assert res.exit_code == 0, res.output
     out = _json.loads(res.stdout)

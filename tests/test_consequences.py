@@ -23,6 +23,7 @@ from tests.checking import (
     manifest,
     read_table,
     records,
+    remeasured,
     resigned,
     write_manifest,
     write_table,
@@ -39,19 +40,31 @@ DATE = "2026-11-21"
 # --- helpers --------------------------------------------------------------------------------------
 
 def _copy(example: str, tmp_path: Path) -> Path:
+    """A copy of the example and of its checker folder (whose tables/checkpoints.csv holds the external
+    QC's check points, the ones these rules judge) beside it."""
     d = tmp_path / example
     shutil.copytree(EXAMPLES / example, d)
+    shutil.copytree(CHECKERS / example, _checker(d))
     return d
 
 
+def _checker(d: Path) -> Path:
+    return d.parent / f"checker-{d.name}"
+
+
+def _points(d: Path) -> tuple[list[str], list[dict[str, str]]]:
+    """The checker's check points of the copy ``d``."""
+    return read_table(_checker(d), "checkpoints")
+
+
 def _edit_points(d: Path, edit: Any) -> None:
-    header, rows = read_table(d, "checkpoints")
-    write_table(d, "checkpoints", header, edit(rows))
+    header, rows = _points(d)
+    write_table(_checker(d), "checkpoints", header, edit(rows))
 
 
 def _check(d: Path, tmp_path: Path, profile: str = "jrc-v3", params: Any = (), **top: Any) -> dict[str, Any]:
-    """The check of the copy with the example's checker file re-signed on it."""
-    chk = resigned(CHECKERS / f"{d.name}.yaml", d, tmp_path / f"checker-{d.name}.yaml", **top)
+    """The check of the copy with its checker folder re-signed on it."""
+    chk = resigned(_checker(d), d, _checker(d), **top)
     return check_with(d, profile, checker=chk, params=params, date=DATE).document
 
 
@@ -84,7 +97,7 @@ def test_reported_rmse_disagreeing_by_3_cm_is_a_finding_not_a_rejection(tmp_path
     m = manifest(d)
     m["blocks"][0]["reported"]["rmse_x"]["value"] = 0.30
     write_manifest(d, m)
-    recomputed = _rmse(_used(read_table(d, "checkpoints")[1], "B01"), "x")
+    recomputed = _rmse(_used(_points(d)[1], "B01"), "x")
     assert abs(0.30 - recomputed) > 0.01  # beyond rounding: a real disagreement
     doc = _check(d, tmp_path)
     rec = _rec(doc, "JRC-9.5-REPORTED-RMSE-X", "B01")
@@ -104,7 +117,7 @@ def test_one_imprecise_point_of_25_is_the_checkers_and_leaves_the_statistics(tmp
     assert doc["verdict"] == V.INCOMPLETE and doc["rollup"]["reasons"] == []
     assert _rec(doc, "JRC-DEF-CHECKPOINT-ACCURACY", "B01-C07")["verdict"] == V.FAIL
     assert any(t.startswith("B01-C07:") for t in _todo(doc, "JRC-DEF-CHECKPOINT-ACCURACY"))
-    rows = [r for r in _used(read_table(d, "checkpoints")[1], "B01") if r["point_id"] != "B01-C07"]
+    rows = [r for r in _used(_points(d)[1], "B01") if r["point_id"] != "B01-C07"]
     assert _rec(doc, "JRC-12.7-RMSEX", "B01")["measured"]["value"] == pytest.approx(_rmse(rows, "x"), rel=1e-9)
     assert _rec(doc, "JRC-12.4-T12-MIN-CHECKPOINTS", "B01")["measured"]["value"] == len(rows)
 
@@ -117,7 +130,7 @@ def test_a_refused_exclusion_request_keeps_the_point_and_leaves_the_check_incomp
     assert _rec(doc, "JRC-12.6-BLUNDER-EXCLUSIONS", "B01")["verdict"] == V.FAIL
     assert doc["verdict"] == V.INCOMPLETE and doc["rollup"]["rejected"] == {}
     # refused: the point stays in the official RMSE, which still meets the tolerance
-    rows = [r for r in read_table(d, "checkpoints")[1] if r["block"] == "B01"]
+    rows = [r for r in _points(d)[1] if r["block"] == "B01"]
     assert _rec(doc, "JRC-12.7-RMSEX", "B01")["measured"]["value"] == pytest.approx(_rmse(rows, "x"), rel=1e-9)
     todo = _todo(doc, "JRC-12.6-BLUNDER-EXCLUSIONS")
     assert len(todo) == 1 and todo[0].startswith("B01: 1 exclusion request to justify")
@@ -169,7 +182,7 @@ def _anisotropic(d: Path, block: str, factor: float, factor_x: float = 1.0) -> N
 def test_usgs_ratio_below_0_6_switches_to_the_empirical_ce90(tmp_path: Path) -> None:
     d = _copy("aerial-pass", tmp_path)
     _anisotropic(d, "B01", 0.3)
-    rows = [r for r in read_table(d, "checkpoints")[1] if r["block"] == "B01"]
+    rows = [r for r in _points(d)[1] if r["block"] == "B01"]
     dx = np.array([float(r["x"]) - float(r["x_ref"]) for r in rows])
     dy = np.array([float(r["y"]) - float(r["y_ref"]) for r in rows])
     sx, sy = dx.std(ddof=1), dy.std(ddof=1)
@@ -220,14 +233,14 @@ def test_elliptical_radius_limits_and_a_simulation() -> None:
 def test_nssda_ratio_below_0_6_switches_the_method_and_can_still_reject(tmp_path: Path) -> None:
     d = _copy("aerial-pass", tmp_path)
     _anisotropic(d, "B02", 0.3, factor_x=2.0)  # B02's errors the largest, and far from isotropic
-    rows = _used(read_table(d, "checkpoints")[1], "B02")
+    rows = _used(_points(d)[1], "B02")
     rx, ry = _rmse(rows, "x"), _rmse(rows, "y")
     assert min(rx, ry) / max(rx, ry) < 0.6
     exact, approx = _ellipse_95_polar(rx, ry), 2.4477 * 0.5 * (rx + ry)
     assert exact > approx  # the closed form understates it here
     others = []
     for b in ("B01", "B03"):
-        orx, ory = _rmse(_used(read_table(d, "checkpoints")[1], b), "x"), _rmse(_used(read_table(d, "checkpoints")[1], b), "y")
+        orx, ory = _rmse(_used(_points(d)[1], b), "x"), _rmse(_used(_points(d)[1], b), "y")
         assert min(orx, ory) / max(orx, ory) >= 0.6
         others.append(2.4477 * 0.5 * (orx + ory))
     assert max(others) < approx  # the limit below judges B02 alone
@@ -260,15 +273,34 @@ def test_aerial_fail_counts_its_chapter_6_images_in_the_12_3_share(tmp_path: Pat
               for i in f["items"]}
     assert len(images) == 5
     n = len(read_table(EXAMPLES / "aerial-fail", "images")[1])
-    doc = check_with(EXAMPLES / "aerial-fail", "jrc-v3", checker=CHECKERS / "aerial-fail.yaml", date=DATE).document
+    doc = check_with(EXAMPLES / "aerial-fail", "jrc-v3", checker=CHECKERS / "aerial-fail", date=DATE).document
     share = _rec(doc, "JRC-12.3-IMAGE-FAIL-SHARE", "D-2026-021")
     assert share["measured"]["value"] == pytest.approx(100.0 * len(images) / n, rel=1e-9)
     assert share["verdict"] == V.FAIL and doc["verdict"] == V.REJECTED
 
 
 def _cloudy(d: Path, ids: list[str]) -> None:
+    """A white cloud (DN 240 in every band) over the top 20 % of each image's rows, in the pixels (cloud
+    cover is measured, not read from the table), with the row's statistics and cloud cover declared to
+    match (so that nothing but the cloud differs)."""
+    import rasterio
+
     header, rows = read_table(d, "images")
-    write_table(d, "images", header, [{**r, "cloud_cover": "14"} if r["image_id"] in ids else r for r in rows])
+    for r in rows:
+        if r["image_id"] not in ids:
+            continue
+        with rasterio.open(d / r["file"], "r+") as ds:
+            px = ds.read()
+            px[:, : ds.height // 5, :] = 240
+            ds.write(px)
+        v = px.astype(np.float64).ravel()
+        r.update(mean_dn=f"{v.mean():.2f}", std_dn=f"{v.std():.2f}", min_dn=f"{v.min():.0f}",
+                 max_dn=f"{v.max():.0f}", cloud_cover="20.0")
+    write_table(d, "images", header, rows)
+    # the checker measured and inspected the images as delivered now: its points re-bound to them, its
+    # grid (bound to the old pixels) left out, as in tests/test_redteam.py
+    remeasured(_checker(d), d)
+    (_checker(d) / "inspection.gpkg").unlink(missing_ok=True)
 
 
 @pytest.mark.parametrize(("cloudy", "verdict"), [(["F01_0101"], V.ACCEPTED), (["F01_0101", "F02_0101"], V.REJECTED)])
@@ -290,7 +322,7 @@ def test_chapter_6_warnings_count_in_the_share(tmp_path: Path, cloudy: list[str]
 
 def test_asprs_rmse_h_includes_the_points_precision_by_default(tmp_path: Path) -> None:
     d = _copy("aerial-pass", tmp_path)
-    rows = [r for r in read_table(d, "checkpoints")[1] if r["block"] == "B01"]
+    rows = [r for r in _points(d)[1] if r["block"] == "B01"]
     p = np.array([float(r["precision_xy"]) for r in rows])
     want = math.sqrt(_rmse(rows, "x") ** 2 + _rmse(rows, "y") ** 2 + float(np.mean(p * p)))
     doc = _check(d, tmp_path, "asprs-2023", params=["horizontal_class=1.0"])
@@ -309,7 +341,7 @@ def test_asprs_rmse_h_includes_the_points_precision_by_default(tmp_path: Path) -
 
 def test_copies_shifted_a_few_millimetres_are_caught_and_dilute_nothing(tmp_path: Path) -> None:
     d = _copy("aerial-pass", tmp_path)
-    orig = _used(read_table(d, "checkpoints")[1], "B01")
+    orig = _used(_points(d)[1], "B01")
 
     def copies(rows: list[dict[str, str]]) -> list[dict[str, str]]:
         extra = [{**r, "point_id": f"{r['point_id']}-X", "x_ref": f"{float(r['x_ref']) + 0.003:.3f}",
@@ -329,7 +361,7 @@ def test_copies_cannot_dilute_a_failing_block(tmp_path: Path) -> None:
     """aerial-fail B02 (RMSEy 0.641 m > 0.5 m) padded with 60 copies of its best point under new ids,
     1-5 mm apart: before, such copies diluted the RMSE; now they are left out and B02 is rejected."""
     d = _copy("aerial-fail", tmp_path)
-    rows = [r for r in read_table(d, "checkpoints")[1] if r["block"] == "B02"]
+    rows = [r for r in _points(d)[1] if r["block"] == "B02"]
     best = min(rows, key=lambda r: abs(float(r["y"]) - float(r["y_ref"])))
 
     def pad(rs: list[dict[str, str]]) -> list[dict[str, str]]:
@@ -345,7 +377,7 @@ def test_copies_cannot_dilute_a_failing_block(tmp_path: Path) -> None:
 def test_gcps_entered_as_check_points_1_cm_away_are_caught(tmp_path: Path) -> None:
     d = _copy("aerial-pass", tmp_path)
     gcps = [g for g in read_table(d, "gcps")[1] if g["block"] == "B02"][:3]
-    targets = [r["point_id"] for r in _used(read_table(d, "checkpoints")[1], "B02")[:3]]
+    targets = [r["point_id"] for r in _used(_points(d)[1], "B02")[:3]]
 
     def on_gcps(rows: list[dict[str, str]]) -> list[dict[str, str]]:
         out = []
@@ -361,20 +393,20 @@ def test_gcps_entered_as_check_points_1_cm_away_are_caught(tmp_path: Path) -> No
     rec = _rec(doc, "JRC-12.5-INDEPENDENT-CHECKPOINTS", "B02")
     assert rec["verdict"] == V.FAIL and rec["measured"]["value"] == 3
     assert all(t in rec["message"] for t in targets)
-    used = [r for r in _used(read_table(d, "checkpoints")[1], "B02") if r["point_id"] not in targets]
+    used = [r for r in _used(_points(d)[1], "B02") if r["point_id"] not in targets]
     assert _rec(doc, "JRC-12.7-RMSEY", "B02")["measured"]["value"] == pytest.approx(_rmse(used, "y"), rel=1e-9)
     assert doc["verdict"] == V.INCOMPLETE
 
 
 def test_zero_residuals_are_not_measurements(tmp_path: Path) -> None:
     d = _copy("aerial-pass", tmp_path)
-    zeroed = [r["point_id"] for r in _used(read_table(d, "checkpoints")[1], "B03")[:5]]
+    zeroed = [r["point_id"] for r in _used(_points(d)[1], "B03")[:5]]
     _edit_points(d, lambda rows: [{**r, "x": r["x_ref"], "y": r["y_ref"]} if r["point_id"] in zeroed else r
                                   for r in rows])
     doc = _check(d, tmp_path)
     rec = _rec(doc, "JRC-12.6-MEASURED-ON-IMAGE", "B03")
     assert rec["verdict"] == V.FAIL and rec["measured"]["value"] == 5
-    used = [r for r in _used(read_table(d, "checkpoints")[1], "B03") if r["point_id"] not in zeroed]
+    used = [r for r in _used(_points(d)[1], "B03") if r["point_id"] not in zeroed]
     assert _rec(doc, "JRC-12.7-RMSEX", "B03")["measured"]["value"] == pytest.approx(_rmse(used, "x"), rel=1e-9)
     assert doc["verdict"] == V.INCOMPLETE
     assert [t.split(":")[0] for t in _todo(doc, "JRC-12.6-MEASURED-ON-IMAGE")] == ["B03"]
@@ -384,7 +416,7 @@ def test_a_block_cell_naming_one_block_twice_is_listed_not_lost(tmp_path: Path) 
     """Before, `B02;B02` made the point vanish from B02's statistics unseen: now a finding (the
     checker's to correct), the point listed, and B02's count says one point is not used."""
     d = _copy("aerial-pass", tmp_path)
-    before = len(_used(read_table(d, "checkpoints")[1], "B02"))
+    before = len(_used(_points(d)[1], "B02"))
     _edit_points(d, lambda rows: [{**r, "block": "B02;B02"} if r["point_id"] == "B02-C03" else r for r in rows])
     doc = _check(d, tmp_path)
     rec = _rec(doc, "JRC-12.7-ONE-BLOCK-PER-POINT", "B02")
@@ -393,3 +425,4 @@ def test_a_block_cell_naming_one_block_twice_is_listed_not_lost(tmp_path: Path) 
     assert _rec(doc, "JRC-12.7-ONE-BLOCK-PER-POINT", "B01")["verdict"] == V.PASS
     assert doc["verdict"] == V.INCOMPLETE
     assert any(t.startswith("B02: 1 check point naming no single block") for t in doc["rollup"]["incomplete"])
+

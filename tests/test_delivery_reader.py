@@ -233,9 +233,9 @@ def test_table_size_limit_from_the_environment(make_delivery, monkeypatch):
 
 
 def test_a_128_kib_cell_is_just_text(make_delivery):
-    images = "image_id,file,block,resampling\nI1,a.tif,B1," + "c" * 2**17 + "\n"
+    images = "image_id,file,block,tags\nI1,a.tif,B1," + "c" * 2**17 + "\n"
     d = open_delivery(make_delivery(images=images))
-    assert len(d.table("images").df["resampling"][0]) == 2**17
+    assert len(d.table("images").df["tags"][0]) == 2**17
 
 
 def test_manifest_impossible_date_names_line(make_delivery):

@@ -227,6 +227,8 @@ def test_between_the_ms_pixel_and_the_margin_the_declaration_decides(tmp_path):
 def test_a_declared_false_does_not_switch_off_the_pan_sharpening_rules(tmp_path):
     """MS bands at 0.5 m from 1.24 m scenes declared `pansharpened: false`: jrc-v3 §10.5 still applies,
     and without the inspector's record of JRC-10.5.1-SAME-MODEL-GCPS the delivery is not accepted."""
+    import shutil
+
     import pandas as pd
     import yaml
 
@@ -237,11 +239,13 @@ def test_a_declared_false_does_not_switch_off_the_pan_sharpening_rules(tmp_path)
     f = d / "tables" / "manual_checks.csv"
     mc = pd.read_csv(f, dtype=str, keep_default_na=False)
     mc[mc["check"] != "JRC-10.5.1-SAME-MODEL-GCPS"].to_csv(f, index=False)
-    # the external QC's file (INTERFACES 4) without its §10.5.1 verdict
-    checker = yaml.safe_load((CHECKERS / "satellite-pass.yaml").read_text(encoding="utf-8"))
+    # the external QC's folder (INTERFACES 4, its measurements with it) without its §10.5.1 verdict
+    folder = tmp_path / "checker"
+    shutil.copytree(CHECKERS / "satellite-pass", folder)
+    checker = yaml.safe_load((folder / "checker.yaml").read_text(encoding="utf-8"))
     checker["manual_checks"] = [e for e in checker["manual_checks"] if e["check"] != "JRC-10.5.1-SAME-MODEL-GCPS"]
-    (tmp_path / "checker.yaml").write_text(yaml.safe_dump(checker, sort_keys=False), encoding="utf-8")
-    doc = check(d, "jrc-v3", date="2026-08-01", checker=tmp_path / "checker.yaml").document
+    (folder / "checker.yaml").write_text(yaml.safe_dump(checker, sort_keys=False), encoding="utf-8")
+    doc = check(d, "jrc-v3", date="2026-08-01", checker=folder).document
     recs = {r["rule"]: r for r in records(doc) if r["rule"].startswith("JRC-10.")}
     assert recs["JRC-10.5.1-SAME-MODEL-GCPS"]["verdict"] == "missing"
     assert recs["JRC-10.5.2-EXCLUDE-ZERO"]["verdict"] == "pass"  # applies: the inspector's record is there
@@ -251,7 +255,7 @@ def test_a_declared_false_does_not_switch_off_the_pan_sharpening_rules(tmp_path)
 
 
 def test_pan_sharpening_rules_do_not_apply_to_an_aerial_delivery():
-    doc = check(EXAMPLES / "aerial-pass", "jrc-v3", date="2026-08-01", checker=CHECKERS / "aerial-pass.yaml").document
+    doc = check(EXAMPLES / "aerial-pass", "jrc-v3", date="2026-08-01", checker=CHECKERS / "aerial-pass").document
     recs = [r for r in records(doc) if r["rule"].startswith(("JRC-10.5", "JRC-10.3"))]
     assert len(recs) == 4 and all(r["verdict"] == "not_applicable" for r in recs)
 

@@ -231,11 +231,18 @@ def test_low_snr():
     assert r.check("snr").value == pytest.approx(20, rel=0.15)
 
 
-def test_angle_out_of_range_and_zero_angle():
-    _invalid(measure_edge(_edge(38.0, 0.6, 300)), "angle")
+def test_angle_beyond_the_seed_range_is_measured_with_a_warning_and_zero_angle_refused():
+    """Issue 31: an edge at 38 deg is measured (as accurately, against the closed form) with a
+    warning, since the seed's step 3d permits 0-30 deg (TBR); at 0 deg every line samples the
+    ESF at the same phases, 1 px apart (the geometry), and the sampling check refuses it."""
+    r = measure_edge(_edge(38.0, 0.6, 300))
+    _assert_close_to_truth(r, 38.0, 0.6)
+    assert r.warnings and "0-30 deg of CEOS step 3d" in r.warnings[0]
+    assert r.to_dict()["warnings"] == r.warnings[0]
+    assert not measure_edge(_edge(20.0, 0.6, 300)).warnings
     r0 = measure_edge(_edge(0.0, 0.6, 300))
-    _invalid(r0, "supersampling")
-    assert r0.check("supersampling").value < 0.2
+    _invalid(r0, "sampling")
+    assert r0.check("sampling").value == pytest.approx(1.0, abs=0.02)
 
 
 def test_narrow_plateau():

@@ -26,7 +26,10 @@ def test_defaults_are_the_seed_limits():
     # > 10~20 pixels on the edge line (upper value), bright/dark width > 5 pixels;
     # TBD table D1 "straight line by one pixel"; step 7b "1 pixel (TBR)"
     lim = EdgeLimits()
-    assert (lim.min_snr, lim.min_contrast_dn, lim.max_angle_deg) == (50, 50, 30)
+    # issue 31: edges up to 45 deg are measured (as accurately); the seed's 30 deg is the
+    # warning limit standard_max_angle_deg
+    assert (lim.min_snr, lim.min_contrast_dn, lim.standard_max_angle_deg) == (50, 50, 30)
+    assert lim.max_angle_deg == 45
     assert (lim.min_edge_length_px, lim.min_plateau_width_px) == (20, 5)
     assert lim.max_straightness_px == 1 and lim.plateau_px == 1
     assert lim.bin_px == pytest.approx(1 / lim.oversample)

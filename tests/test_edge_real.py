@@ -92,19 +92,25 @@ def test_baotou_edge_window():
     assert 50 < r.check("snr").value < 150
     assert r.bright_start_px < 1.0 and r.window_px[1] > 5.0  # the long bright tail is kept
     assert 16.0 < r.angle_deg < 17.5
-    assert 1.4 < r.fwhm_px < 1.8
-    assert r.estimate("fwhm_px", "fermi3").value == pytest.approx(r.fwhm_px, rel=0.1)
+    assert 1.5 < r.fwhm_px < 1.8
+    # the Fermi-Dirac sum normalises by its own asymptotes, which the long bright tail pulls in
+    # now that the window reaches it (docs/edge-method.md, limitations): 10 % narrower
+    assert r.estimate("fwhm_px", "fermi3").value == pytest.approx(r.fwhm_px, rel=0.15)
     assert 0.35 < r.rer < 0.5
     assert 0.05 < r.mtf_nyquist < 0.15
     wider = measure_edge(img[12:42, 40:85], nodata=0)
     assert wider.valid
-    assert wider.fwhm_px == pytest.approx(r.fwhm_px, rel=0.05)
-    # the LSF is asymmetric (long bright tail): one Gaussian fails the likelihood ratio,
-    # the core + shifted halo passes the lack-of-fit test on both windows and agrees with
-    # the model-free spline (1.620 vs 1.630 px; 1.629 vs 1.613 px)
-    for res in (r, wider):
-        assert res.primary_fit == "gauss2" and res.fits["gauss2"].params["adequate"]
-        assert res.fits["gauss2"].params["shift_px"][1] != 0.0
-        assert res.fwhm_px == pytest.approx(res.estimate("fwhm_px", "spline").value, rel=0.02)
-    assert wider.fwhm_px == pytest.approx(r.fwhm_px, rel=0.01)
+    # Issue 31: the window choice moved FWHM by 4.5 % (1.558-1.629 px) when the ESF window ended
+    # 3-4 px from the edge. It now reaches out to where the ESF settles on its plateau (the long
+    # bright tail and the panels' texture are measured, not cut): on the narrow window the core
+    # + shifted halo describes the edge (lack-of-fit passes); on the wider one the panels'
+    # texture makes no model fit to the noise and the spline is primary. The two windows agree
+    # within 2 % (1.724 and 1.722 px), each within its stated uncertainty of the other, and the
+    # model-free spline within 2u of the model on the narrow window.
+    assert r.primary_fit == "gauss2" and r.fits["gauss2"].params["adequate"]
+    assert r.fits["gauss2"].params["shift_px"][1] != 0.0
+    assert abs(r.fwhm_px - r.estimate("fwhm_px", "spline").value) <= 2 * r.estimate("fwhm_px").u
+    assert wider.fwhm_px == pytest.approx(r.fwhm_px, rel=0.02)
+    u = math.hypot(r.estimate("fwhm_px").u, wider.estimate("fwhm_px").u)
+    assert abs(wider.fwhm_px - r.fwhm_px) <= 2 * u
     assert wider.angle_deg == pytest.approx(r.angle_deg, abs=0.2)

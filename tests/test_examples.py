@@ -58,8 +58,26 @@ def regenerated(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return out
 
 
+def _external(name: str) -> pd.DataFrame:
+    """The checker's own check point measurements (the checker folder's tables/checkpoints.csv): what the
+    external-accuracy rules read; the delivery's table is the contractor's internal QC (JRC §12.5)."""
+    return pd.read_csv(CHECKERS / name / "tables" / "checkpoints.csv", dtype=str, keep_default_na=False,
+                       encoding="utf-8")
+
+
+def _grid_cells(name: str) -> pd.DataFrame:
+    """The cells of the checker's marked inspection grid (empty when the example has none)."""
+    from pyogrio import raw
+
+    path = CHECKERS / name / "inspection.gpkg"
+    if not path.is_file():
+        return pd.DataFrame(columns=["cell_id", "image_id", "inspected", "haze", "comment"])
+    meta, _, _, values = raw.read(path, layer="cells")
+    return pd.DataFrame({str(f): v for f, v in zip(meta["fields"], values, strict=True)})
+
+
 def _checker(name: str) -> dict[str, Any]:
-    return yaml.safe_load((CHECKERS / f"{name}.yaml").read_text(encoding="utf-8"))
+    return yaml.safe_load((CHECKERS / name / "checker.yaml").read_text(encoding="utf-8"))
 
 
 def _manifest(name: str) -> dict[str, Any]:
@@ -80,7 +98,7 @@ def _num(series: pd.Series) -> pd.Series:
 
 
 # --------------------------------------------------------------------------- up to date
-@pytest.mark.parametrize("name", NAMES + SATELLITE)
+@pytest.mark.parametrize("name", (*NAMES, *SATELLITE, "tiles-real"))
 def test_committed_example_equals_a_fresh_generation(regenerated: Path, name: str) -> None:
     fresh, committed = _digests(regenerated / name), _digests(EXAMPLES / name)
     assert sorted(fresh) == sorted(committed), "file lists differ: run `python examples/generate.py`"
@@ -90,13 +108,14 @@ def test_committed_example_equals_a_fresh_generation(regenerated: Path, name: st
 
 def test_committed_checker_files_equal_a_fresh_generation(regenerated: Path) -> None:
     fresh, committed = _digests(regenerated.parent / "checker"), _digests(CHECKERS)
-    assert sorted(fresh) == sorted(committed) == sorted(f"{n}.yaml" for n in NAMES + SATELLITE)
+    folders = {f"{n}/{f}" for n in NAMES + SATELLITE for f in ("checker.yaml", "tables/checkpoints.csv")}
+    assert sorted(fresh) == sorted(committed) == sorted(folders | {f"{n}/inspection.gpkg" for n in NAMES} | {"tiles-real.yaml"})
     assert fresh == committed, "stale checker files: run `python examples/generate.py`"
 
 
 def test_generation_is_byte_identical_twice(regenerated: Path, tmp_path: Path) -> None:
     _generator().generate(tmp_path / "deliveries")
-    for name in NAMES + SATELLITE:
+    for name in (*NAMES, *SATELLITE, "tiles-real"):
         assert _digests(tmp_path / "deliveries" / name) == _digests(regenerated / name)
     assert _digests(tmp_path / "checker") == _digests(regenerated.parent / "checker")
 
@@ -110,10 +129,15 @@ def test_the_delivery_holds_statements_and_the_checker_file_the_verdicts(name: s
     m, own = _manifest(name), _table(name, "manual_checks")
     assert not m.get("waivers")  # the snow waiver of aerial-pass is granted by the checker
     assert set(own["inspector"]) == {f"{m['operator']['name']}, {m['operator']['role']}"}
-    chk = load_checker(CHECKERS / f"{name}.yaml", delivery_root=EXAMPLES / name)
+    chk = load_checker(CHECKERS / name, delivery_root=EXAMPLES / name)
     assert chk.party.role == "external QC" and chk.party.name not in m["operator"]["name"]
-    assert {(r.check, r.item) for r in chk.model.manual_checks} == set(zip(own["check"], own["item"], strict=True))
-    assert _expected(name)["checker"] == f"../../checker/{name}.yaml"
+    # the visual checks per image are answered by the checker's marked inspection grid, the rest are typed
+    gridded = {(rule, i) for rule in ("JRC-6.3-ARTEFACTS", "JRC-T6-ORTHO-INSPECTION")
+               for i in set(_grid_cells(name)["image_id"])}
+    signed = {(r.check, r.item) for r in chk.model.manual_checks}
+    assert not signed & gridded
+    assert signed | gridded == set(zip(own["check"], own["item"], strict=True))
+    assert _expected(name)["checker"] == f"../../checker/{name}"
 
 
 def test_examples_stay_small() -> None:
@@ -130,7 +154,7 @@ def test_satellite_example_is_a_vhr_delivery_with_its_records(name: str) -> None
     GCP residuals saved, independent check points >= 300 m from every GCP, rasters at 0.5 m."""
     m = _manifest(name)
     assert m["sensor"]["type"] == "satellite" and m["product"]["gsd"] == {"value": 0.5, "unit": "m"}
-    scenes, gcps, cps = _table(name, "scenes"), _table(name, "gcps"), _table(name, "checkpoints")
+    scenes, gcps, cps = _table(name, "scenes"), _table(name, "gcps"), _external(name)
     assert (_num(scenes["input_pixel_size"]) < 3).all() and set(scenes["resolution_class"]) == {"VHR"}
     assert set(scenes["correction_method"]) == {"rpc_block", "rpc"}
     per_scene = gcps["point_id"].str.rsplit("-", n=1).str[0].value_counts()
@@ -192,7 +216,8 @@ def test_flight_and_at_records_are_consistent(name: str) -> None:
     at = _table(name, "aerotriangulation")
     assert set(at["block"]) == {b["id"] for b in _manifest(name)["blocks"]}
     assert (_num(at["checkpoint_rmse_x"]) <= 0.5 / 3).all() and (_num(at["gcp_rmse_y"]) < 0.25).all()
-    assert (_num(_table(name, "checkpoints")["precision_xy"]) <= 0.5 / 3).all()
+    assert (_num(_table(name, "checkpoints")["precision_xy"]) <= 0.5 / 3).all()  # the contractor's (§7.2)
+    assert (_num(_external(name)["precision_xy"]) <= 0.5 / 3).all()  # the checker's
 
 
 
@@ -210,7 +235,8 @@ def test_manifest_follows_the_delivery_convention(name: str) -> None:
         assert (EXAMPLES / name / rel).is_file(), rel
     images = _table(name, "images")
     block_ids = [b["id"] for b in m["blocks"]]
-    assert set(images["block"]) == set(block_ids) == set(_table(name, "checkpoints")["block"])
+    assert set(images["block"]) == set(block_ids) == set(_table(name, "checkpoints")["block"]) == \
+        set(_external(name)["block"])
     assert 2 <= len(block_ids) <= 3 and 24 <= len(images) <= 36
     for b in m["blocks"]:
         assert Polygon(b["polygon"]).is_valid and Polygon(b["polygon"]).area > 1e7
@@ -274,8 +300,9 @@ def test_rasters_match_their_reported_statistics_and_location(name: str) -> None
 
 # --------------------------------------------------------------------------- what they claim
 def _block_rmse(name: str) -> dict[str, dict[str, float]]:
-    """Per block: RMSE with justified exclusions out, and as the contractor computed it."""
-    cp = _table(name, "checkpoints")
+    """Per block, from the checker's measurements: RMSE with justified exclusions out, and with every
+    requested exclusion out (as the contractor computed its reported figure)."""
+    cp = _external(name)
     dx = _num(cp["x"]) - _num(cp["x_ref"])
     dy = _num(cp["y"]) - _num(cp["y_ref"])
     excluded = cp["excluded"] == "true"
@@ -321,7 +348,11 @@ def _findings(name: str) -> set[tuple[str, str]]:
     found |= {("manual_check_fail", r["item"]) for r in manual
               if r["verdict"] == "fail" and r["item"] not in absent}
     assert {r["verdict"] for r in manual} <= {"pass", "fail"}
-    cp = _table(name, "checkpoints")
+    cells = _grid_cells(name)  # and its marks on the inspection grid (any defect class)
+    codes = [c for c in cells.columns if c not in ("cell_id", "image_id", "image_file", "image_sha256", "col",
+                                                  "row", "inspected", "comment", "inspector", "date")]
+    found |= {("manual_check_fail", i) for i in cells[cells[codes].astype(int).any(axis=1)]["image_id"]}
+    cp = _external(name)
     found |= {("unjustified_exclusion", r["point_id"]) for _, r in cp.iterrows()
               if r["excluded"] == "true" and not r["exclusion_reason"].strip()}
     reported = {b["id"]: b["reported"] for b in m["blocks"]}
@@ -333,6 +364,13 @@ def _findings(name: str) -> set[tuple[str, str]]:
         for axis in "xy":
             if abs(reported[block][f"rmse_{axis}"]["value"] - r[f"contractor_{axis}"]) > 0.005 + 1e-9:
                 found.add(("reported_rmse_mismatch", block))
+    own = _table(name, "checkpoints")  # the contractor's internal QC (JRC §12.5): does it see what we see?
+    for block in sorted(set(own["block"])):
+        inb = own[own["block"] == block]
+        rx, ry = (float(np.sqrt(np.mean((_num(inb[a]) - _num(inb[f"{a}_ref"])) ** 2))) for a in "xy")
+        ext = _block_rmse(name)[block]
+        if (rx <= tol and ry <= tol) != (ext["rmse_x"] <= tol and ext["rmse_y"] <= tol):
+            found.add(("internal_qc_disagrees", block))
     return found
 
 
@@ -343,7 +381,7 @@ def test_pass_example_meets_the_guidelines_except_its_waiver() -> None:
 
 
 def test_pass_example_blocks_use_realistic_accuracy_and_justified_blunders() -> None:
-    cp = _table("aerial-pass", "checkpoints")
+    cp = _external("aerial-pass")
     rmse = _block_rmse("aerial-pass")
     reported = {b["id"]: b["reported"] for b in _manifest("aerial-pass")["blocks"]}
     for block, r in rmse.items():
@@ -368,7 +406,8 @@ def test_fail_example_breaks_exactly_the_documented_rules() -> None:
     for d in expected["defects"]:
         assert d["clause"]["document"] == "JRC EUR 23638 EN" and d["clause"]["section"]
         assert (EXAMPLES / "aerial-fail" / d["file"]).is_file()
-        if d["file"].endswith(".csv") and d["kind"] not in ("rmse_above_tolerance", "too_few_checkpoints"):
+        if d["file"].endswith(".csv") and d["kind"] not in ("rmse_above_tolerance", "too_few_checkpoints",
+                                                             "internal_qc_disagrees"):  # whole blocks
             df = pd.read_csv(EXAMPLES / "aerial-fail" / d["file"], dtype=str, keep_default_na=False)
             id_col = "point_id" if "point_id" in df else ("item" if "item" in df else "image_id")
             assert sorted(df.iloc[[r - 1 for r in d["rows"]]][id_col]) == sorted(d["items"])

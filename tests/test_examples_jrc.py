@@ -42,11 +42,11 @@ def _check(name: str, out: Path, *, checker: bool = True) -> tuple[int, dict[str
     """`orthospec check examples/deliveries/NAME --profile jrc-v3 --checker examples/checker/NAME.yaml`."""
     # without the checker's file the ITT tolerance still comes from the checker's side (--param, the
     # same value as the file's `parameters:`): the manifest only declares it (red team R1)
-    tol = yaml.safe_load((CHECKERS / f"{name}.yaml").read_text(encoding="utf-8"))["parameters"]["tolerance_xy"]
-    extra = (["--checker", str(CHECKERS / f"{name}.yaml")] if checker
+    tol = yaml.safe_load((CHECKERS / name / "checker.yaml").read_text(encoding="utf-8"))["parameters"]["tolerance_xy"]
+    extra = (["--checker", str(CHECKERS / name)] if checker
              else ["--param", f"tolerance_xy={tol['value']}{tol['unit']}", "--param", "map_crs=EPSG:25832"])
     if checker and not _has_checker_option():  # until cmd_check gains --checker (helper A)
-        res = check_with(EXAMPLES / name, "jrc-v3", checker=CHECKERS / f"{name}.yaml", date="2026-11-21")
+        res = check_with(EXAMPLES / name, "jrc-v3", checker=CHECKERS / name, date="2026-11-21")
         out.mkdir(parents=True, exist_ok=True)
         (out / "qcr.json").write_text(dumps(res.document), encoding="utf-8")
         return (0 if res.accepted else 1), json.loads((out / "qcr.json").read_text(encoding="utf-8"))
@@ -164,7 +164,7 @@ def test_profile_tests_verify(profile: str) -> None:
 @pytest.mark.parametrize("name", ["aerial-pass", "aerial-fail", "satellite-pass", "satellite-fail"])
 def test_manual_checks_are_signed_for_every_applicable_manual_rule(runs: dict, name: str) -> None:
     _, doc = runs[name]
-    signed = yaml.safe_load((CHECKERS / f"{name}.yaml").read_text(encoding="utf-8"))["manual_checks"]
+    signed = yaml.safe_load((CHECKERS / name / "checker.yaml").read_text(encoding="utf-8"))["manual_checks"]
     checks = {m["check"] for m in signed}
     assert checks <= {rid for rid, r in RULES.items() if r.get("manual")}
     issues = {k["rule"] for k in _expected(name)["jrc_v3"]["known_engine_issues"]}

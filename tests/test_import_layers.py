@@ -29,14 +29,15 @@ SRC = Path(__file__).resolve().parents[1] / "src"
 LAYERS: tuple[tuple[str, ...], ...] = (
     # foundation: no orthospec import above it (the package root only holds __version__ and lazy names)
     ("orthospec", "orthospec.errors", "orthospec.units", "orthospec.provenance", "orthospec.limits",
-     "orthospec.resources", "orthospec.verdicts", "orthospec.yamlio", "orthospec.plugins"),
+     "orthospec.resources", "orthospec.verdicts", "orthospec.yamlio", "orthospec.plugins", "orthospec.controls",
+     "orthospec.workers", "orthospec._forkserver"),
     ("orthospec.delivery",),   # the delivery convention and its readers
     ("orthospec.spec",),       # profiles, written against the delivery convention
     ("orthospec.measures",),   # pure numbers
-    ("orthospec.raster",),     # reading rasters (uses measures' pure statistics)
+    ("orthospec.raster", "orthospec.inspection"),  # reading rasters; the inspection grid (reads rasters, vectors)
     ("orthospec.engine",),     # providers, evaluator
     ("orthospec.qcr",),        # the QCR document
-    ("orthospec.figures", "orthospec.reports", "orthospec.ledger"),
+    ("orthospec.figures", "orthospec.reports", "orthospec.ledger", "orthospec.ingest"),
     ("orthospec.api", "orthospec.verify", "orthospec.schemas"),
     ("orthospec.cli",),
 )

@@ -83,6 +83,11 @@ def _profile(tmp_path: Path) -> Path:
     return p
 
 
+def _unsigned(example: str, tmp_path: Path) -> Path:
+    """The example's checker folder (its check point measurements, ITT values) with no manual verdict."""
+    return resigned(CHECKERS / example, EXAMPLES / example, tmp_path / "unsigned", manual_checks=[])
+
+
 def _mandatory_manual_missing(doc: dict[str, Any]) -> set[str]:
     return {r["rule"] for r in records(doc)
             if r.get("manual") and r["level"] == "mandatory" and r["verdict"] == V.MISSING}
@@ -110,9 +115,10 @@ def test_too_few_checkpoints_is_incomplete_not_a_rejected_block(tmp_path: Path) 
 def test_a_real_failure_still_rejects_and_the_open_work_is_listed(tmp_path: Path) -> None:
     # aerial-fail: B02's RMSEy 0.641 m > 0.5 m; B03 has fewer than 20 check points (its README)
     d = _copy("aerial-fail", tmp_path)
-    n_b03 = sum(r["block"] == "B03" for r in read_table(d, "checkpoints")[1])
+    chk = resigned(CHECKERS / "aerial-fail", d, tmp_path / "chk")  # the external check points (issue 29)
+    n_b03 = sum(r["block"] == "B03" for r in read_table(chk.parent, "checkpoints")[1])
     assert n_b03 < 20
-    res = check_with(d, _profile(tmp_path), params=["tolerance_xy=0.5"], date=DATE)
+    res = check_with(d, _profile(tmp_path), checker=chk, params=["tolerance_xy=0.5"], date=DATE)
     doc = res.document
     assert doc["verdict"] == V.REJECTED
     assert doc["rollup"]["rejected"] == {"block": ["B02"]}
@@ -137,12 +143,16 @@ def test_unsigned_manual_checks_leave_the_check_incomplete() -> None:
     unsigned = _mandatory_manual_missing(doc)
     assert unsigned and doc["verdict"] == V.INCOMPLETE and doc["rollup"]["reasons"] == []
     todo = doc["rollup"]["incomplete"]
+    # and, without the checker's folder, its own check point measurements (issue 29)
+    external = [t for t in todo if "JRC-12.4-EXTERNAL-CHECKPOINTS" in t]
+    assert len(external) == 1 and "the checker measured no check points of its own" in external[0]
+    todo = [t for t in todo if t not in external]
     assert {t.split(":", 1)[0] for t in todo} == unsigned
     assert all("sign the manual check" in t for t in todo)
 
 
-def test_unsigned_manual_checks_do_not_hide_a_rejection() -> None:
-    res = check_with(EXAMPLES / "aerial-fail", "jrc-v3", params=PARAMS, date=DATE)
+def test_unsigned_manual_checks_do_not_hide_a_rejection(tmp_path: Path) -> None:
+    res = check_with(EXAMPLES / "aerial-fail", "jrc-v3", checker=_unsigned("aerial-fail", tmp_path), date=DATE)
     doc = res.document
     assert doc["verdict"] == V.REJECTED
     assert any("JRC-12.7-RMSEY" in r for r in doc["rollup"]["reasons"])
@@ -189,7 +199,7 @@ def test_cli_exit_code_3_terminal_junit_html(tmp_path: Path) -> None:
 def test_cli_exit_codes_0_and_1_unchanged(tmp_path: Path) -> None:
     for example, code in (("aerial-pass", 0), ("aerial-fail", 1)):
         res = CliRunner().invoke(main(), ["check", str(EXAMPLES / example), "-p", "jrc-v3", "--checker",
-                                        str(CHECKERS / f"{example}.yaml"), "--out", str(tmp_path / example),
+                                        str(CHECKERS / example), "--out", str(tmp_path / example),
                                         "--format", "json", "--date", DATE])
         assert res.exit_code == code, res.output
 
@@ -201,8 +211,8 @@ def _signoff(rules: set[str], verdict: str = "pass") -> list[dict[str, Any]]:
              "manual": dict.fromkeys(sorted(rules), verdict)}]
 
 
-def test_after_signoff_every_unsigned_manual_check_signed_pass_accepts() -> None:
-    doc = check_with(EXAMPLES / "aerial-pass", "jrc-v3", params=PARAMS, date=DATE).document
+def test_after_signoff_every_unsigned_manual_check_signed_pass_accepts(tmp_path: Path) -> None:
+    doc = check_with(EXAMPLES / "aerial-pass", "jrc-v3", checker=_unsigned("aerial-pass", tmp_path), date=DATE).document
     unsigned = _mandatory_manual_missing(doc)
     assert after_signoff(doc, _signoff(unsigned))["verdict"] == V.ACCEPTED
     some = set(sorted(unsigned)[:-1])
@@ -238,7 +248,7 @@ def test_an_incomplete_run_in_the_ledger_signs_without_acknowledging_a_rejection
 
     ledger = tmp_path / "qc.sqlite"
     run = CliRunner().invoke(main(), ["check", str(EXAMPLES / "aerial-pass"), "-p", "jrc-v3",
-                                      *[a for p in PARAMS for a in ("--param", p)], "--out", str(tmp_path / "o"),
+                                      "--checker", str(_unsigned("aerial-pass", tmp_path)), "--out", str(tmp_path / "o"),
                                       "--format", "json", "--date", DATE, "--ledger", str(ledger),
                                       "--operator", "A. Auditor"])
     assert run.exit_code == 3, run.output

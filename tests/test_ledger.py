@@ -75,7 +75,7 @@ def docs(tmp_path_factory: pytest.TempPathFactory) -> list[dict[str, Any]]:
 
 
 def _engine(url: str) -> sa.Engine:
-    from orthospec.ledger.store import to_url
+    from orthospec.ledger.db import to_url
 
     return sa.create_engine(to_url(url))
 
@@ -155,9 +155,9 @@ def test_signoff_is_shown_with_the_document(ledger_url: str, docs: list[dict[str
         assert doc["records"] == docs[0]["records"]
         assert doc["signoffs"] == [
             {"by": "Ann Super", "role": "supervisor", "date": "2026-01-02",
-             "note": "[signed acknowledging the REJECTED verdict] seen", "manual": {"R-VIS": "fail"}},
+             "note": "[signed acknowledging the REJECTED verdict] seen", "manual": {"R-VIS": "fail"}, "key": None},
             {"by": "Ian Spector", "role": "inspector", "date": "2026-01-03",
-             "note": "[signed acknowledging the REJECTED verdict]", "manual": {}}]
+             "note": "[signed acknowledging the REJECTED verdict]", "manual": {}, "key": None}]
         # a signed manual verdict overrides the table's for diff/history/audit state
         assert led.effective_verdicts(rid)[("R-VIS", "delivery")] == "fail"
         with pytest.raises(LedgerError, match="no manual rule R-ROLL"):

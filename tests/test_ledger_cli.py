@@ -22,7 +22,7 @@ from tests.checking import LEDGER_CHECKER
 import pg
 from orthospec.cli.main import cli
 from orthospec.ledger import open_ledger
-from orthospec.ledger.store import to_url
+from orthospec.ledger.db import to_url
 from orthospec.measures.sampling import select_sample
 
 PROFILE = """\
@@ -200,7 +200,7 @@ def test_three_rounds_until_accepted(tmp_path: Path, profile: Path, ledger_url: 
         doc = led.document_with_signoffs(3)
     assert doc["records"] == outputs[2]["records"]
     assert doc["signoffs"] == [{"by": "Ann Super", "role": "supervisor", "date": "2026-03-02",
-                                "note": "accepted", "manual": {"R-VIS": "pass"}}]
+                                "note": "accepted", "manual": {"R-VIS": "pass"}, "key": None}]
 
     ok = run("ledger", "verify", "--ledger", ledger_url)
     assert ok.exit_code == 0 and "intact, 4 entries (3 runs, 1 sign-offs)" in ok.output
@@ -253,6 +253,29 @@ def _in_transaction(url: str) -> bool:
     return n >= 1
 
 
+#: `orthospec` in a child process that, at the commit of a ledger write, writes its pid to the marker
+#: file (argv[1]) and sleeps, so the test can kill it inside the open write transaction (the hook lives
+#: here, not in the product: a SQLAlchemy event on every engine of that process)
+_PAUSE_BEFORE_COMMIT = """
+import os, sys, time
+from pathlib import Path
+from sqlalchemy import event
+from sqlalchemy.engine import Engine
+
+MARKER = Path(sys.argv[1])
+
+@event.listens_for(Engine, "commit")
+def _pause(conn):
+    if conn.get_execution_options().get("ledger_write"):
+        MARKER.write_text(str(os.getpid()))
+        time.sleep(60)
+
+from orthospec.cli.main import main
+sys.argv = ["orthospec", *sys.argv[2:]]
+main()
+"""
+
+
 @pytest.mark.slow
 def test_check_killed_mid_write_leaves_the_ledger_intact(tmp_path: Path, profile: Path,
                                                          ledger_url: str) -> None:
@@ -263,11 +286,11 @@ def test_check_killed_mid_write_leaves_the_ledger_intact(tmp_path: Path, profile
         before = led.verify()
     big = write_delivery(tmp_path / "big", "D-BIG", {"I7": 8.0}, n=3000)
     marker = tmp_path / "in-transaction"
-    env = {**os.environ, "ORTHOSPEC_LEDGER_PAUSE": "60", "ORTHOSPEC_LEDGER_PAUSE_MARKER": str(marker)}
     proc = subprocess.Popen(
-        [sys.executable, "-m", "orthospec.cli.main", "check", str(big), "-p", str(profile), "--format",
-         "json", "--out", str(tmp_path / "o1"), "--ledger", ledger_url, "--checker", str(checker_of(big))],
-        env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        [sys.executable, "-c", _PAUSE_BEFORE_COMMIT, str(marker), "check", str(big), "-p", str(profile),
+         "--format", "json", "--out", str(tmp_path / "o1"), "--ledger", ledger_url, "--checker",
+         str(checker_of(big))],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     try:
         deadline = time.monotonic() + 60
         while not marker.exists() and proc.poll() is None and time.monotonic() < deadline:

@@ -80,7 +80,7 @@ def _this_run(pdf):
     """(run, round, kind, delivery) of the history row marked "(this report)" in a report PDF."""
     with pdfplumber.open(pdf) as doc:
         text = "\n".join(p.extract_text() or "" for p in doc.pages)
-    # "(this report)" may wrap inside its cell: "new (this 1 delivery 2026-01-01 D1 ...\nreport)"
+    # "(this report)" may wrap inside its cell: "3 (this 1 delivery 2026-01-01 D1 ...\nreport)"
     rows = re.findall(r"(\S+) \(this(?: report\))? (\d+) (delivery|redelivery|recheck) \S+ (\S+)", text)
     assert len(rows) == 1, text
     run_, rnd, kind, did = rows[0]
@@ -103,7 +103,7 @@ def test_round_at_check_time_equals_the_ledger_report(make_delivery, mini_profil
                   "--date", f"2026-0{n}-01", "--format", "json,pdf")
         assert f"recorded run #{n}" in res.output, res.output
         at_check = _this_run(out / "report.pdf")
-        assert at_check == ("new", rnd, kind, "D1")
+        assert at_check == (str(n), rnd, kind, "D1")   # the run's own id: it is recorded as it is written
         rep = run("report", "--ledger", ledger, "--run", n, "--format", "pdf", "--out", tmp_path / f"rep{n}")
         assert rep.exit_code == 0, rep.output
         assert _this_run(tmp_path / f"rep{n}" / "report.pdf") == (str(n), rnd, kind, "D1")

@@ -26,7 +26,7 @@ from orthospec.errors import LedgerError
 from orthospec.ledger import models as m
 from orthospec.ledger import open_ledger
 from orthospec.ledger.audit import family_of
-from orthospec.ledger.store import to_url
+from orthospec.ledger.db import to_url
 from orthospec.qcr import all_records, dumps, natural_key
 
 RECORDED_AT = "2026-11-21T00:00:00+00:00"
@@ -59,7 +59,9 @@ def reference_row(i: int, rec: dict[str, Any]) -> dict[str, Any]:
 
 def reference_hash(run: dict[str, Any], files: list[dict[str, Any]], qcrs: list[dict[str, Any]], prev: str) -> str:
     """sha256 of canonical({"kind": "run", "content": {run, files by path, qcrs by ordinal}, "prev"})."""
-    content = {"run": {k: v for k, v in run.items() if k != "hash"},
+    # columns added by schema 0002 (audit key, signature) enter only when set: older runs keep their hash
+    added = {"audit_key", "continues_run", "signer", "key_fingerprint", "signature"}
+    content = {"run": {k: v for k, v in run.items() if k != "hash" and not (k in added and v is None)},
                "files": sorted(({k: v for k, v in f.items() if k != "run_id"} for f in files),
                                key=lambda f: f["path"]),
                "qcrs": sorted(({k: v for k, v in q.items() if k != "run_id"} for q in qcrs),

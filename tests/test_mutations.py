@@ -87,7 +87,40 @@ def _table_path(root: Path, table: str) -> Path:
 
 
 def _mutate_csv(root: Path, m: dict[str, Any]) -> None:
-    path = _table_path(root, m["table"])
+    _edit_csv(_table_path(root, m["table"]), m)
+
+
+def _mutate_checker_csv(root: Path, m: dict[str, Any]) -> None:
+    """Edit a table of the checker folder (the external QC's measurements, e.g. its check points)."""
+    _edit_csv(_own_checker(root) / "tables" / f"{m['table']}.csv", m)
+
+
+def _delete_checker_file(root: Path, m: dict[str, Any]) -> None:
+    (_own_checker(root) / m["path"]).unlink()
+
+
+def _mutate_checker_grid(root: Path, m: dict[str, Any]) -> None:
+    """Change the marks of every cell of one image in the checker's inspection grid (as in QGIS)."""
+    from pyogrio import raw
+
+    from orthospec.inspection.grid import mark_cells
+
+    path = _own_checker(root) / "inspection.gpkg"
+    _, _, _, (ids, images) = raw.read(path, layer="cells", columns=["cell_id", "image_id"])
+    hits = [c for c, i in zip(ids.tolist(), images.tolist(), strict=True) if i == m["image"]]
+    assert hits, f"no cell of image {m['image']} in the grid"
+    mark_cells(path, {c: m["set"] for c in hits})
+
+
+def _own_checker(root: Path) -> Path:
+    """The checker folder of a copied example, copied beside it on its first mutation."""
+    mutated = root.parent / "checker"
+    if not mutated.is_dir():
+        shutil.copytree(CHECKERS / root.name, mutated)
+    return mutated
+
+
+def _edit_csv(path: Path, m: dict[str, Any]) -> None:
     columns, rows = _read_csv(path)
     hit = [r for r in rows if _match(r, m.get("where"))]
     assert hit, f"mutation matches no row: {m}"
@@ -156,6 +189,9 @@ def _mutate_raster(root: Path, m: dict[str, Any]) -> None:
     if "pixel_size" in m:
         t = profile["transform"]
         profile["transform"] = Affine(m["pixel_size"], 0.0, t.c, 0.0, -m["pixel_size"], t.f)
+    if "shift" in m:  # the same pixels georeferenced elsewhere (map units east, north)
+        t = profile["transform"]
+        profile["transform"] = Affine(t.a, t.b, t.c + m["shift"][0], t.d, t.e, t.f + m["shift"][1])
     if "crs" in m:
         profile["crs"] = m["crs"]
     if "driver" in m:  # another format, same name: what a mislabelled file looks like
@@ -192,30 +228,31 @@ def _derive_table(root: Path, m: dict[str, Any]) -> None:
 def _signed(root: Path) -> Path:
     """The checker signs what it receives: a copied (planted) example gets its pins re-signed (the
     test is about the rule catching the defect, not the checker file's binding)."""
-    if root.parent == EXAMPLES:  # the shipped example, unchanged: its own checker file
+    if root.parent == EXAMPLES:  # the shipped example, unchanged: its own checker folder
         return checker_for(root)
-    return resigned(checker_for(root), root, root.parent / "signed.yaml")
+    return resigned(checker_for(root), root, root.parent / "signed")
 
 
 def checker_for(root: Path) -> Path:
-    """The checker's file for a copied example: a mutated copy beside the delivery, else the shipped one."""
-    mutated = root.parent / "checker.yaml"
-    return mutated if mutated.is_file() else CHECKERS / f"{root.name}.yaml"
+    """The checker folder for a copied example: a mutated copy beside the delivery, else the shipped one."""
+    mutated = root.parent / "checker"
+    return mutated if mutated.is_dir() else CHECKERS / root.name
 
 
 def _mutate_checker(root: Path, m: dict[str, Any]) -> None:
     """Change the external QC's verdicts (the checker's file, outside the delivery) for matching entries."""
-    path = checker_for(root)
+    path = _own_checker(root) / "checker.yaml"
     doc = yaml.safe_load(path.read_text(encoding="utf-8"))
     hits = [e for e in doc["manual_checks"] if all(e.get(k) == v for k, v in m["where"].items())]
     assert hits, f"no checker entry matches {m['where']}"
     for e in hits:
         e.update(m["set"])
-    (root.parent / "checker.yaml").write_text(yaml.safe_dump(doc, sort_keys=False), encoding="utf-8")
+    path.write_text(yaml.safe_dump(doc, sort_keys=False), encoding="utf-8")
 
 
 OPS = {"checker": _mutate_checker, "derive": _derive_table, "csv": _mutate_csv, "manifest": _mutate_manifest, "raster": _mutate_raster, "delete": _delete_file,
-       "write": _write_file}
+       "write": _write_file, "checker_csv": _mutate_checker_csv, "checker_delete": _delete_checker_file,
+       "checker_grid": _mutate_checker_grid}
 
 
 def apply_mutations(root: Path, mutations: list[dict[str, Any]]) -> None:
@@ -348,9 +385,9 @@ def test_uniform_shift_under_the_tolerance_raises_a_visible_finding(tmp_path: Pa
     mandatory. The t value is recomputed here from the mutated CSV (one-sample t, s with n-1)."""
     root = tmp_path / "aerial-pass"
     shutil.copytree(EXAMPLES / "aerial-pass", root)
-    apply_mutations(root, [{"csv": {"table": "checkpoints", "where": {"block": "B01"}, "debias": {"x": "x_ref"},
-                                    "scale_error": {"x": ["x_ref", 0.3]}, "add": {"x": 0.45}}}])
-    _, rows = _read_csv(_table_path(root, "checkpoints"))
+    apply_mutations(root, [{"checker_csv": {"table": "checkpoints", "where": {"block": "B01"}, "debias": {"x": "x_ref"},
+                                            "scale_error": {"x": ["x_ref", 0.3]}, "add": {"x": 0.45}}}])
+    _, rows = _read_csv(checker_for(root) / "tables" / "checkpoints.csv")
     dx = np.array([float(r["x"]) - float(r["x_ref"]) for r in rows if r["block"] == "B01"])
     t_expected = abs(dx.mean()) / (dx.std(ddof=1) / np.sqrt(dx.size))
     assert 0.4 < dx.mean() < 0.5 and np.sqrt(np.mean(dx**2)) < 0.5 and t_expected > 10
@@ -371,7 +408,7 @@ def test_uniform_shift_under_the_tolerance_raises_a_visible_finding(tmp_path: Pa
 #: defects, incomplete for the checker's (too few or bad check points, issue 26).
 OBSERVED = {
     "block B01 cut to 8 check points": (
-        [{"csv": {"table": "checkpoints", "where": {"block": "B01"}, "keep": 8}}],
+        [{"checker_csv": {"table": "checkpoints", "where": {"block": "B01"}, "keep": 8}}],
         {("JRC-12.4-T12-MIN-CHECKPOINTS", "B01")}, "incomplete"),
     "2 of 30 images truncated (6.7 % > 5 %)": (
         [{"raster": {"file": "images/F01_0101.tif", "truncate": True}},
@@ -379,9 +416,9 @@ OBSERVED = {
         {("JRC-9.2-T7-READABLE", "F01_0101"), ("JRC-9.2-T7-READABLE", "F02_0203"),
          ("JRC-12.3-IMAGE-FAIL-SHARE", "D-2026-014")}, "rejected"),
     "a check point on a GCP and every check point at 1.0 m precision": (
-        [{"csv": {"table": "checkpoints", "where": {"point_id": "B02-C01"},
-                  "set": {"x_ref": 507802.959, "y_ref": 5403235.439, "x": 507803.05, "y": 5403235.21}}},
-         {"csv": {"table": "checkpoints", "set": {"precision_xy": 1.0}}}],
+        [{"checker_csv": {"table": "checkpoints", "where": {"point_id": "B02-C01"},
+                          "set": {"x_ref": 507802.959, "y_ref": 5403235.439, "x": 507803.05, "y": 5403235.21}}},
+         {"checker_csv": {"table": "checkpoints", "set": {"precision_xy": 1.0}}}],
         {("JRC-12.5-INDEPENDENT-CHECKPOINTS", "B02"), ("JRC-DEF-CHECKPOINT-ACCURACY", "B01-C01")}, "incomplete"),
     # satellite-pass: 4 bands at 0.5 m from 1.24 m multispectral scenes, declared not pan-sharpened; the
     # §10.5 rules were gated on that flag (not applicable, ACCEPTED). Now derived.pansharpened decides.

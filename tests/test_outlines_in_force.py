@@ -16,13 +16,13 @@ import yaml
 from shapely.geometry import box
 from tests.checking import check_with, records, resigned
 
-from orthospec.delivery.checker import load_checker
+from orthospec.delivery.checker import load_checker, stated_outlines
 from orthospec.delivery.reader import open_delivery
 from orthospec.engine.providers.derived import OUTLINE_TOLERANCE, _disagreement
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "deliveries" / "aerial-pass"
-CHECKER = ROOT / "examples" / "checker" / "aerial-pass.yaml"
+CHECKER = ROOT / "examples" / "checker" / "aerial-pass"
 DATE = "2026-11-21"
 
 
@@ -48,24 +48,25 @@ def test_without_a_checker_the_manifest_outlines_are_in_force() -> None:
     ring, ev = got["B02"]
     assert [list(v) for v in ring] == manifest["blocks"][1]["polygon"]
     assert (ev.file, ev.path, ev.sha256) == ("delivery.yaml", "blocks[1].polygon", d.manifest_sha256)
-    assert d.area_of_interest_in_force() is None
     load_checker(CHECKER)  # loaded without a delivery: nothing is attached to any delivery
-    assert d.stated_outlines is None
+    assert d.block_outlines() == got
 
 
 def test_a_bound_checker_file_puts_its_outlines_in_force(tmp_path: Path) -> None:
-    doc = yaml.safe_load(CHECKER.read_text(encoding="utf-8"))
+    doc = yaml.safe_load((CHECKER / "checker.yaml").read_text(encoding="utf-8"))
     doc["blocks"][1]["polygon"] = [[507500, 5403000], [514000, 5403000], [514000, 5410200], [507500, 5410200]]
     doc["area_of_interest"] = doc["blocks"][1]["polygon"]
     path = tmp_path / "checker.yaml"
     path.write_text(yaml.safe_dump(doc, sort_keys=False), encoding="utf-8")
     d = open_delivery(EXAMPLE)
     chk = load_checker(path, delivery=d)
-    ring, ev = d.block_outlines()["B02"]
+    stated = stated_outlines(chk)
+    assert stated is not None
+    ring, ev = d.block_outlines(stated)["B02"]
     assert ring[1] == (514000.0, 5403000.0)  # the checker's, not the manifest's 514500
     assert ev.file == "checker:checker.yaml" and ev.sha256 == chk.sha256
     assert ev.path == f"blocks[1] (line {chk.lines[('blocks', 1)]})"
-    aoi, aoi_ev = d.area_of_interest_in_force() or ((), None)
+    aoi, aoi_ev = stated.area_of_interest or ((), None)
     assert len(aoi) == 4 and aoi_ev is not None and aoi_ev.path.startswith("area_of_interest (line ")
 
 
@@ -136,9 +137,8 @@ def test_a_dem_serves_the_blocks_in_force(tmp_path: Path) -> None:
 
     def served(checker: Path | None) -> Any:
         delivery = open_delivery(d)
-        if checker is not None:
-            load_checker(checker, delivery=delivery)
-        (got,) = dem_blocks(ProviderContext(delivery=delivery, parameters={}))
+        stated = stated_outlines(load_checker(checker, delivery=delivery)) if checker is not None else None
+        (got,) = dem_blocks(ProviderContext(delivery=delivery, parameters={}, outlines=stated))
         return got.values["DEM-1"]
 
     assert served(None) is None  # the manifest's outlines: the footprint overlaps no block
@@ -173,9 +173,8 @@ def test_the_mosaic_measures_the_area_in_force(tmp_path: Path) -> None:
 
     def coverage(checker: Path | None) -> tuple[float, Any]:
         delivery = open_delivery(d)
-        if checker is not None:
-            load_checker(checker, delivery=delivery)
-        got = {m.name: m for m in mosaic_measures(ProviderContext(delivery=delivery, parameters={}))}
+        stated = stated_outlines(load_checker(checker, delivery=delivery)) if checker is not None else None
+        got = {m.name: m for m in mosaic_measures(ProviderContext(delivery=delivery, parameters={}, outlines=stated))}
         m = got["mosaic.aoi_coverage"]
         return m.values[delivery.id], m.evidence[delivery.id]
 

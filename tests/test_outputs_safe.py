@@ -15,8 +15,9 @@ from click.testing import CliRunner
 from orthospec.cli.main import cli
 from orthospec.qcr import csv_safe
 
-HOSTILE = ['=HYPERLINK("http://evil.example/x","click")', "+cmd|' /C calc'!A0", "@SUM(1+1)", "-2+3",
-           "I\x07bell\x1b[31mred\x1b]8;;http://evil.example\x07link"]
+# Control characters (BEL, ESC ...) in an id are refused where the table is read (exit 2, issue 28:
+# tests/test_control_characters.py); the formula-like ids below are legal text and must reach the outputs harmless.
+HOSTILE = ['=HYPERLINK("http://evil.example/x","click")', "+cmd|' /C calc'!A0", "@SUM(1+1)", "-2+3"]
 
 
 def test_csv_safe_prefixes_formulas_only() -> None:
@@ -28,8 +29,8 @@ def test_csv_safe_prefixes_formulas_only() -> None:
 
 
 def test_hostile_ids_are_neutralised_in_csv_junit_and_terminal(make_delivery, mini_profile, tmp_path: Path) -> None:
-    rows = "\n".join(f'"{i.replace(chr(34), chr(34) * 2)}",f{n}.tif,B1,{9 if "bell" in i else 0.5},1000,30'
-                     for n, i in enumerate(HOSTILE))  # the escape-laden id fails roll: the terminal shows it
+    rows = "\n".join(f'"{i.replace(chr(34), chr(34) * 2)}",f{n}.tif,B1,{9 if "SUM" in i else 0.5},1000,30'
+                     for n, i in enumerate(HOSTILE))  # the @SUM id fails roll: the terminal shows it
     root = make_delivery("h", images="image_id,file,block,roll,flying_height,std_dn\n" + rows + "\n")
     out = tmp_path / "out"
     res = CliRunner().invoke(cli(), ["check", str(root), "-p", str(mini_profile), "--out", str(out),
@@ -42,10 +43,8 @@ def test_hostile_ids_are_neutralised_in_csv_junit_and_terminal(make_delivery, mi
     for c in cells:
         assert not c.startswith(("=", "+", "-", "@", "\t", "\r")), c
     junit = (out / "junit.xml").read_bytes()
-    xml.dom.minidom.parseString(junit)  # well-formed despite BEL and ESC in an id
-    assert b"\x07" not in junit and b"\x1b" not in junit
-    assert "Ibellredlink" in res.output.replace("\n", "")  # shown, escapes stripped
-    assert "\x1b" not in res.output and "\x07" not in res.output
+    xml.dom.minidom.parseString(junit)  # well-formed with the formula-like ids
+    assert "@SUM(1+1)" in res.output.replace("\n", "")  # shown as text
 
 
 def test_a_carriage_return_in_a_csv_cell_cannot_split_the_row() -> None:

@@ -105,7 +105,7 @@ def test_rule_ids_unique_and_complete(name: str) -> None:
             assert r.get(key) not in (None, ""), f"{name} {r['id']}: missing {key}"
         assert r["clause"].get("document"), f"{name} {r['id']}: clause without document"
         assert r["level"] in ("mandatory", "recommended")
-        assert r["consequence"] in ("reject_item", "reject_block", "return_delivery", "incomplete", "warn")
+        assert r["consequence"] in ("reject_item", "reject_block", "return_delivery", "warn", "incomplete")
         if r.get("manual"):
             assert r["measure"] == f"manual.{r['id']}", r["id"]
 
@@ -119,13 +119,14 @@ def test_rule_ids_unique_across_resolved_tender() -> None:
 
 def test_every_jrc_table_is_cited() -> None:
     cited = {str(r["clause"].get("table")) for r in JRC["rules"]}
-    missing = [t for t in range(1, 13) if str(t) not in cited]
+    # Table 2 holds indicative values, no requirement (specs/COVERAGE.md says so; no rule reads them)
+    missing = [t for t in range(1, 13) if str(t) not in cited and t != 2]
     assert not missing, f"JRC tables without a rule: {missing}"
 
 
 def test_jrc_size_and_levels() -> None:
     rules = JRC["rules"]
-    assert 80 <= len(rules) <= 260
+    assert 80 <= len(rules) <= 270
     manual = [r for r in rules if r.get("manual")]
     assert manual and all(r["requirement"]["op"] == "true" for r in manual)
     assert {r["level"] for r in rules} == {"mandatory", "recommended"}
@@ -170,7 +171,9 @@ def test_per_axis_tolerance_and_block_rejection() -> None:
         assert r["measure"] == measure and r["requirement"] == {"op": "<=", "value": "tolerance_xy", "unit": "m"}
         assert (r["level"], r["consequence"]) == ("mandatory", "reject_block")
     z = by_id["JRC-12.7-RMSEZ"]
-    assert z["when"] == "manifest.product.dem_delivered == true" and z["requirement"]["value"] == "tolerance_z"
+    # issue 25: whether the DEM is a deliverable is read from the files, not from the flag alone
+    assert z["when"] == "manifest.product.dem_delivered == true or derived.dem_delivered == true"
+    assert z["requirement"]["value"] == "tolerance_z"
     assert by_id["JRC-12.8-BLOCK-FAIL-SHARE"]["level"] == "mandatory"
     # §12.3 "may be returned": mandatory, the "may" is a parameter with a documented default (issue 12)
     assert by_id["JRC-12.3-IMAGE-FAIL-SHARE"]["level"] == "mandatory"
@@ -213,7 +216,7 @@ def test_table9_lookup_agrees_with_rules() -> None:
         rec = dict(zip(cols, row, strict=True))
         rule = by_id[rec["rule"]]
         req = rule["requirement"]
-        assert rule["measure"] == "scenes.gcp_count"
+        assert rule["measure"] == "scene.gcp_count"  # counted from gcps.csv (issue 26)
         least = req["value"] + 1 if req["op"] == ">" else req["value"]
         assert req["op"] in (">", ">=") and least == rec["gcps_min"], rec
         assert f"scenes.correction_method == '{rec['method']}'" in rule["when"], rec
@@ -258,7 +261,8 @@ def test_added_tables_follow_convention_format() -> None:
         assert {"scope", "id", "description", "columns"} <= set(t)
         assert t["id"] in t["columns"] and t["columns"][t["id"]].get("required") is True
         for col, spec in t["columns"].items():
-            assert set(spec) <= {"type", "unit", "required", "description", "min", "max"}, (name, col)
+            assert set(spec) <= {"type", "unit", "required", "description", "min", "max", "values",
+                                 "synonyms"}, (name, col)
             assert spec["type"] in ("text", "number", "bool", "date", "datetime")
 
 

@@ -13,6 +13,8 @@ from orthospec.api import check
 from orthospec.measures.synthetic import slanted_edge
 from orthospec.qcr import all_records, point_rows
 
+CHECKERS = EXAMPLES.parent / "checker"
+
 PROFILE_HEAD = """\
 orthospec_profile: 1
 id: t
@@ -71,7 +73,8 @@ def test_block_rmse_equals_numpy_on_the_example(tmp_path):
 def test_reported_rmse_that_disagrees_is_a_finding(tmp_path):
     p = profile(tmp_path, rule("RD", "block", "checkpoints.reported_diff_y", '{op: "<=", value: 0.01, unit: m}',
                                "reject_block"))
-    doc = check(EXAMPLES / "aerial-fail", p, date="2026-01-01").document
+    # the external statistics are the checker's measurements (its folder beside the examples)
+    doc = check(EXAMPLES / "aerial-fail", p, date="2026-01-01", checker=CHECKERS / "aerial-fail").document
     assert recs(doc, "RD")["B02"]["verdict"] == "fail"
     assert "reported RMSE_y" in recs(doc, "RD")["B02"]["message"]
 
@@ -275,9 +278,16 @@ def test_resolution_class_is_computed_from_the_pixel_size(tmp_path):
     """JRC §9.1 classes from the profile's `classes:`; a gap of the text gives no class (missing)."""
     d = _copy(tmp_path)
     img = pd.read_csv(d / "tables" / "images.csv", dtype=str, keep_default_na=False)
-    img.loc[0, "acquisition_gsd"] = "5.0"   # HR: 3 <= 5 <= 8
-    img.loc[1, "acquisition_gsd"] = "9.0"   # in the 8-10 m gap of §9.1
-    img.to_csv(d / "tables" / "images.csv", index=False)
+    # issue 25: the class is read from the delivered file's pixel (a declared GSD is only evidence)
+    for k, pixel in ((0, 5.0), (1, 9.0)):   # HR: 3 <= 5 <= 8; 9 m lies in the 8-10 m gap of §9.1
+        path = d / img.loc[k, "file"]
+        with rasterio.open(path) as src:
+            profile, data = src.profile, src.read()
+        t = profile["transform"]
+        profile["transform"] = from_origin(t.c, t.f, pixel, pixel)
+        path.unlink()
+        with rasterio.open(path, "w", **profile) as dst:
+            dst.write(data)
     text = PROFILE_HEAD.replace("rules:\n", textwrap.dedent("""\
         classes:
           resolution:
@@ -307,7 +317,9 @@ def test_per_point_decisions_values_and_rows_on_a_copied_example(tmp_path):
 
     root = tmp_path / "d"
     shutil.copytree(EXAMPLES / "aerial-pass", root)
-    csv = root / "tables" / "checkpoints.csv"
+    folder = tmp_path / "checker"  # the checker's measurements are what the check point rules read
+    shutil.copytree(CHECKERS / "aerial-pass", folder)
+    csv = folder / "tables" / "checkpoints.csv"
     cp = pd.read_csv(csv, dtype={"exclusion_reason": object})
     cp.loc[cp["point_id"] == "B01-C05", "x"] += 5.0  # a 5 m blunder: 3 x RMSE_x of B01 is about 3 m
     cp.loc[cp["point_id"] == "B01-C05", ["excluded", "exclusion_reason"]] = [True, "target mis-identified"]
@@ -319,14 +331,14 @@ def test_per_point_decisions_values_and_rows_on_a_copied_example(tmp_path):
                 rule("DEC", "checkpoint", "checkpoint.decision", '{op: "present"}'),
                 rule("RX", "block", "checkpoints.rmse_x", '{op: "<=", value: tolerance_xy, unit: m}',
                      "reject_block"))
-    doc = check(root, p, date="2026-01-01").document
+    doc = check(root, p, date="2026-01-01", checker=folder).document
     sha = hashlib.sha256(csv.read_bytes()).hexdigest()
     dx, ok, dec = recs(doc, "DX"), recs(doc, "OK"), recs(doc, "DEC")
     assert set(dx) == set(cp["point_id"]) == set(ok) == set(dec)
     for row, pt in enumerate(cp.itertuples(index=False), start=1):
         rec = dx[pt.point_id]
         assert rec["measured"]["value"] == pytest.approx(pt.x - pt.x_ref, rel=1e-9, abs=1e-12)
-        assert rec["evidence"] == [{"file": "tables/checkpoints.csv", "sha256": sha, "rows": [row]}]
+        assert rec["evidence"] == [{"file": "checker:tables/checkpoints.csv", "sha256": sha, "rows": [row]}]
         assert ok[pt.point_id]["evidence"] == rec["evidence"]
     assert dec["B01-C05"]["measured"]["value"] == "excluded"
     assert ok["B01-C05"]["verdict"] == "pass"

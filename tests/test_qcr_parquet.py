@@ -18,7 +18,7 @@ pd = pytest.importorskip("pandas")
 
 ROOT = Path(__file__).resolve().parents[1]
 FAIL = ROOT / "examples" / "deliveries" / "aerial-fail"
-CHECKER = ROOT / "examples" / "checker" / "aerial-fail.yaml"  # the ITT tolerance and manual verdicts
+CHECKER = ROOT / "examples" / "checker" / "aerial-fail"  # the ITT tolerance and manual verdicts
 ORTHOSPEC = [sys.executable, "-m", "orthospec.cli.main"]
 
 

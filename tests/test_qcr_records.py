@@ -27,7 +27,7 @@ from orthospec.qcr import (
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "examples" / "deliveries"
-CHECKER = ROOT / "examples" / "checker" / "aerial-fail.yaml"  # the ITT tolerance and manual verdicts
+CHECKER = ROOT / "examples" / "checker" / "aerial-fail"  # the ITT tolerance and manual verdicts
 
 
 @pytest.fixture(scope="module")

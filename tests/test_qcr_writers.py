@@ -42,7 +42,7 @@ def _same(doc) -> None:
 
 @pytest.mark.parametrize(("name", "kw"), [
     ("aerial-pass", {"params": ["tolerance_xy=0.5", "map_crs=EPSG:25832"]}),
-    ("aerial-fail", {"checker": ROOT / "examples" / "checker" / "aerial-fail.yaml"}),
+    ("aerial-fail", {"checker": ROOT / "examples" / "checker" / "aerial-fail"}),
 ])
 def test_examples_same_bytes(name: str, kw: dict) -> None:
     doc = api.check(EXAMPLES / name, "jrc-v3", date="2026-11-21", **kw).document

@@ -29,8 +29,10 @@ def test_readme_walkthrough_runs_as_written(tmp_path: Path) -> None:
     out = res.stdout
     assert re.search(r"B02: Block RMSEy within the tolerance: 0\.641 m > 0\.5 m", out.replace("\n", " "))
     assert "recorded run #1" in out and "recorded run #2" in out
-    assert "signed run #2 as supervisor (M. Rossi)" in out
-    assert re.search(r"intact, 3 entries \(2 runs, 1 sign-offs\).*contains the head", out)
+    assert re.search(r"signed run #2 as supervisor \(M\. Rossi, signed by key SHA256:\S+\)", out), out
+    # the checker's own key was refused before the supervisor signed
+    assert "cannot countersign it as supervisor" in res.stderr, res.stderr[-2000:]
+    assert len(re.findall(r"intact, 3 entries \(2 runs, 1 sign-offs\).*contains the head", out)) == 2, out
     assert (tmp_path / "qc" / "signed-2" / "report.pdf").is_file()
     # nothing was written into the shipped deliveries
     assert not (ROOT / "examples" / "deliveries" / "aerial-fail" / "qc").exists()

@@ -9,8 +9,11 @@ of ``orthospec check``: 1 rejected, 2 could not evaluate (an ``OrthospecError``)
 Most checkpoint cases start from ``aerial-pass`` with one planted defect (``_plant_rmse``): block
 B02's northing residuals scaled by 2.2, giving RMSEy = 0.627 m over 24 check points against the
 0.5 m tolerance (JRC EUR 23638 EN §12.7: "The planimetric threshold will be applied independently
-in X, and Y"), its reported RMSEy set to match so that JRC-12.7-RMSEY is the only block finding.
-The contractor's trick then tries to hide it. The checker's file is re-signed (tests/checking.py ``resigned``) on what the contractor delivers: the
+in X, and Y"), in the checker's measurements (the checker folder's tables/checkpoints.csv, what the
+external-accuracy rules read) and in the contractor's internal-QC table alike, its reported RMSEy set
+to match so that JRC-12.7-RMSEY is the only block finding. The contractor's trick then tries to hide
+it; a trick on the contractor's own check point table can no longer reach the external verdict
+(issue 29 item 1: ``_check_external_stands``). The checker's file is re-signed (tests/checking.py ``resigned``) on what the contractor delivers: the
 checker signs what it receives; ``_signed_then`` edits the delivery after signing. Cases marked
 xfail(strict) are wrong ACCEPTED verdicts written up in tests/REDTEAM.md; they flip (and fail
 as XPASS) once fixed.
@@ -27,7 +30,15 @@ from typing import Any
 
 import pytest
 import yaml
-from tests.checking import check_with, manifest, read_table, resigned, write_manifest, write_table
+from tests.checking import (
+    check_with,
+    manifest,
+    read_table,
+    remeasured,
+    resigned,
+    write_manifest,
+    write_table,
+)
 from tests.checking import records as all_records
 
 from orthospec.errors import OrthospecError
@@ -101,8 +112,29 @@ def _scale_b02_dy(header: list[str], rows: list[dict[str, str]]) -> None:
             r["y"] = f"{float(r['y_ref']) + 2.2 * (float(r['y']) - float(r['y_ref'])):.3f}"
 
 
-#: the planted defect: B02 RMSEy 0.627 m > 0.5 m, reported values consistent
-_plant_rmse = _chain(_table_edit("checkpoints", _scale_b02_dy), _fix_reported)
+def _external_edit(fn: Callable[[list[str], list[dict[str, str]]], list[dict[str, str]] | None]) -> Edit:
+    """Edit the checker's own check point table (its folder beside the delivery, see ``_run``)."""
+    def edit(d: Path) -> None:
+        path = _checker_folder(d) / "tables" / "checkpoints.csv"
+        with path.open(encoding="utf-8", newline="") as f:
+            r = csv.DictReader(f)
+            header, rows = list(r.fieldnames or []), list(r)
+        out = fn(header, rows)
+        with path.open("w", encoding="utf-8", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=header, lineterminator="\n")
+            w.writeheader()
+            w.writerows(rows if out is None else out)
+    return edit
+
+
+def _checker_folder(d: Path) -> Path:
+    """The copy of the example's checker folder a case runs with (made by ``_run`` before the edits)."""
+    return d.parent / f"checker-{d.name}"
+
+
+#: the planted defect: B02 RMSEy 0.627 m > 0.5 m in the checker's measurements and the contractor's own,
+#: reported values consistent
+_plant_rmse = _chain(_table_edit("checkpoints", _scale_b02_dy), _external_edit(_scale_b02_dy), _fix_reported)
 
 
 def _planted(*tricks: Edit) -> Edit:
@@ -445,9 +477,10 @@ def _delivered_items(d: Path) -> set[str]:
 
 def _checker_for(example: str, delivery: Path, tmp_path: Path,
                  checker_edit: Callable[[dict[str, Any]], None] | None = None) -> Path:
-    """The checker's fixed file re-signed on the delivered content (tests/checking.py ``resigned``): the
-    checker signs what it receives and judges only the items it received. Written outside the delivery."""
-    path = resigned(CHECKERS / f"{example}.yaml", delivery, tmp_path / f"checker-{example}.yaml")
+    """The checker's fixed folder re-signed on the delivered content (tests/checking.py ``resigned``): the
+    checker signs what it receives and judges only the items it received. Outside the delivery."""
+    remeasured(_checker_folder(delivery), delivery)
+    path = resigned(_checker_folder(delivery), delivery, _checker_folder(delivery))
     doc = yaml.safe_load(path.read_text(encoding="utf-8"))
     items = _delivered_items(delivery)
     doc["manual_checks"] = [m for m in doc.get("manual_checks") or [] if m["item"] == "*" or m["item"] in items]
@@ -461,6 +494,10 @@ def _run(example: str, edit: Edit, tmp_path: Path) -> tuple[int, dict[str, Any] 
     """(exit code, qcr document or None, error text) of `orthospec check` on an edited copy."""
     d = tmp_path / example
     shutil.copytree(EXAMPLES / example, d)
+    shutil.copytree(CHECKERS / example, _checker_folder(d))
+    # the red team is about the contractor's edits, not the checker's inspection grid (written for the
+    # images as shipped): its visual verdicts are then unsigned (recommended rules, a warning)
+    (_checker_folder(d) / "inspection.gpkg").unlink(missing_ok=True)
     edit(d)
     checker = _checker_for(example, d, tmp_path, getattr(edit, "checker_edit", None))
     after = getattr(edit, "after_signing", None)
@@ -501,28 +538,30 @@ def _check_sensor_satellite(code: int, doc: dict[str, Any] | None, err: str) -> 
 
 
 def _check_rename(code: int, doc: dict[str, Any] | None, err: str) -> None:
-    assert code == 1 and doc is not None
-    _rejects(doc, "JRC-12.7-RMSEY", "B99")
-    assert "B99" in doc["rollup"]["rejected"]["block"]
+    # the checker's measurements still name B02: the renamed delivery does not match them (exit 2)
+    assert code == 2 and doc is None
+    assert "tables/checkpoints.csv: row" in err and "'B02' is not a block of the manifest" in err, err
 
 
-def _check_excluded(code: int, doc: dict[str, Any] | None, err: str) -> None:
-    # §12.6: only a point beyond 3 x RMSE may be excluded as a blunder
-    assert code == 1 and doc is not None
-    _rejects(doc, "JRC-12.6-BLUNDER-EXCLUSIONS", "B02")
-    _rejects(doc, "JRC-12.7-RMSEY", "B02")
+def _check_external_stands(*untouched: str) -> Callable[[int, dict[str, Any] | None, str], None]:
+    """Issue 29 item 1: the trick edited the contractor's own check point table (its internal QC, JRC
+    §12.5); the external-accuracy rules read the checker's measurements, so the planted B02 failure
+    stands and the rules the trick aimed at (``untouched``) judge the checker's unchanged points."""
+    def check(code: int, doc: dict[str, Any] | None, err: str) -> None:
+        assert code == 1 and doc is not None
+        _rejects(doc, "JRC-12.7-RMSEY", "B02")
+        assert "B02" in doc["rollup"]["rejected"]["block"], doc["rollup"]["rejected"]
+        for rule in untouched:
+            assert set(_verdicts(doc, rule).values()) == {"pass"}, (rule, _verdicts(doc, rule))
+    return check
 
 
-def _check_moved_to_b01(code: int, doc: dict[str, Any] | None, err: str) -> None:
-    assert code == 1 and doc is not None
-    _rejects(doc, "JRC-12.7-RMSEY", "B01")
-    _rejects(doc, "JRC-12.4-T12-MIN-CHECKPOINTS", "B02")
-
-
-def _check_gcps(code: int, doc: dict[str, Any] | None, err: str) -> None:
-    # §12.5: check points independent of the GCPs
-    assert code == 1 and doc is not None
-    _rejects(doc, "JRC-12.5-INDEPENDENT-CHECKPOINTS", "B02")
+# §12.6 only a point beyond 3 x RMSE may be excluded: the contractor's exclusions touch its own table only
+_check_excluded = _check_external_stands("JRC-12.6-BLUNDER-EXCLUSIONS")
+# points relabelled to B01 in the contractor's table: the checker's B01 and B02 are unchanged
+_check_moved_to_b01 = _check_external_stands("JRC-12.4-T12-MIN-CHECKPOINTS", "JRC-12.4-CHECKPOINTS-IN-BLOCK")
+# §12.5 check points independent of the GCPs: GCPs added to the contractor's table are not the checker's
+_check_gcps = _check_external_stands("JRC-12.5-INDEPENDENT-CHECKPOINTS")
 
 
 def _check_self_waiver(code: int, doc: dict[str, Any] | None, err: str) -> None:
@@ -560,13 +599,13 @@ def _check_coverage_hole(code: int, doc: dict[str, Any] | None, err: str) -> Non
 
 
 def _check_reference_accuracy(code: int, doc: dict[str, Any] | None, err: str) -> None:
-    # Definitions, "Check Point": reference coordinates at least 3x more accurate than the tolerance;
-    # B02's 0.5 m fails it, B03's blank precision cannot show it (missing, never pass)
-    assert code == 1 and doc is not None
-    got = _verdicts(doc, "JRC-DEF-CHECKPOINT-ACCURACY")
-    assert {v for k, v in got.items() if k.startswith("B02-")} == {"fail"}
-    assert {v for k, v in got.items() if k.startswith("B03-")} == {"missing"}
-    assert {"B02", "B03"} <= set(doc["rollup"]["rejected"]["block"])
+    # Definitions, "Check Point": reference coordinates at least 3x more accurate than the tolerance.
+    # Careless precision in the contractor's internal-QC table (§7.2 "the same quality requirements
+    # apply"): a finding on B02 and B03; the checker's own points are judged by JRC-DEF-CHECKPOINT-ACCURACY
+    assert doc is not None
+    got = _verdicts(doc, "JRC-7.2-INTERNAL-QC-PRECISION")
+    assert (got["B01"], got["B02"], got["B03"]) == ("pass", "warn", "warn"), got
+    assert set(_verdicts(doc, "JRC-DEF-CHECKPOINT-ACCURACY").values()) == {"pass"}
 
 
 def _check_document_removed(code: int, doc: dict[str, Any] | None, err: str) -> None:
@@ -593,11 +632,9 @@ def _check_scene_controls(code: int, doc: dict[str, Any] | None, err: str) -> No
 
 
 def _check_outside_block(block: str) -> Callable[[int, dict[str, Any] | None, str], None]:
-    # R6/R13 (fixed by d44b081): §12.4 "QC is well distributed within the block/site area"
-    def check(code: int, doc: dict[str, Any] | None, err: str) -> None:
-        assert code == 1 and doc is not None
-        _rejects(doc, "JRC-12.4-CHECKPOINTS-IN-BLOCK", block)
-    return check
+    # R6/R13 (fixed by d44b081): §12.4 "QC is well distributed within the block/site area"; the points
+    # moved into B01 are the contractor's own (issue 29): the checker's B01 holds none of them
+    return _check_external_stands("JRC-12.4-CHECKPOINTS-IN-BLOCK")
 
 
 def _check_outlines_in_force(*, redrawn: bool, stray: str | None = None, coverage: bool = False,
@@ -688,10 +725,8 @@ def _check_map_projection(images_rejected: bool) -> Callable[[int, dict[str, Any
     return check
 
 
-def _check_distinct_points(code: int, doc: dict[str, Any] | None, err: str) -> None:
-    # §12.5 "independent measurements": copies of good points under new ids reject the block (R4)
-    assert code == 1 and doc is not None
-    _rejects(doc, "JRC-12.5-DISTINCT-CHECKPOINTS", "B02")
+# §12.5 "independent measurements": copies of good points under new ids (R4) in the contractor's table
+_check_distinct_points = _check_external_stands("JRC-12.5-DISTINCT-CHECKPOINTS")
 
 
 def _refused(*words: str) -> Callable[[int, dict[str, Any] | None, str], None]:
@@ -805,13 +840,16 @@ CASES = [
     pytest.param("aerial-pass", _checker_states(_chain(_drop_strip_f02_02, _manifest_edit(_shrink_b02_to_first_strip)),
                                                 _no_outlines),
                  _check_outlines_unused, id="R13-block-outline-shrunk-checker-states-no-outlines"),
+    # the points moved into the snaked B01 are the contractor's own (issue 29): the redrawn outline is the
+    # finding, the checker's points (none of them moved) lie in their true blocks
     pytest.param("aerial-pass", _planted(_move_worst("B01", 4), _snake_b01_around_its_strays, _fix_reported),
-                 _check_outlines_in_force(redrawn=True, stray="B01"), id="R13-B01-outline-snaked-around-B02-points"),
+                 _check_outlines_in_force(redrawn=True), id="R13-B01-outline-snaked-around-B02-points"),
+    # was xfail (R13: without the checker's outlines the snaked outline took B02's worst points into B01);
+    # closed by issue 29: the external statistics are the checker's measurements, the moved points the
+    # contractor's, so B02 stays rejected on its RMSEy
     pytest.param("aerial-pass", _checker_states(_planted(_move_worst("B01", 4), _snake_b01_around_its_strays,
                                                          _fix_reported), _no_outlines),
-                 _not_accepted, id="R13-B01-outline-snaked-checker-states-no-outlines",
-                 marks=_xfail("R13: without the checker's outlines a snaked (non-overlapping) outline is the "
-                              "contractor's to draw; stating them in the checker's file closes it")),
+                 _check_external_stands(), id="R13-B01-outline-snaked-checker-states-no-outlines"),
     pytest.param("aerial-pass", _aoi_file_without_strip_f02_02, _check_outlines_in_force(redrawn=False, coverage=True, aoi=True),
                  id="R13-area-of-interest-shrunk-checker-states-blocks"),
     pytest.param("aerial-pass", _checker_states(_aoi_file_without_strip_f02_02, _aoi_is_b02),
@@ -830,7 +868,8 @@ CASES = [
     pytest.param("aerial-pass", _chain(_drop_strip_f02_02, _table_edit("images", _inflate_f02_01_heights_and_gsds)),
                  _check_inflated_heights, id="R18-heights-and-declared-gsds-inflated"),
     pytest.param("aerial-pass", _signed_then(_plant_rmse, _swap_in_cleaned_table),
-                 _refused("pins tables/checkpoints.csv", "no longer uses for any table"),
+                 _refused("pins tables/checkpoints.csv as tables.checkpoints",
+                          "the delivery now uses tables/checkpoints_v2.csv for it"),
                  id="R19-after-signing-manifest-names-another-checkpoint-file"),
     pytest.param("aerial-pass", _table_edit("checkpoints", _negative_precision_b02),
                  _refused("tables/checkpoints.csv", "'precision_xy'", "below the minimum 0"),

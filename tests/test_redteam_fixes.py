@@ -64,7 +64,7 @@ def test_r15_checker_fail_on_deleted_image_stays_a_finding(tmp_path: Path) -> No
     the contractor deletes its row. The verdicts stay as records and page 1 names the item."""
     d = _copy("aerial-fail", tmp_path)
     _edit_images(d, _drop("F03_0202"))
-    res = check_with(d, "jrc-v3", checker=CHECKERS / "aerial-fail.yaml", date=DATE)
+    res = check_with(d, "jrc-v3", checker=CHECKERS / "aerial-fail", date=DATE)
     doc = res.document
     got = _rows(doc, "F03_0202")
     for rule in ("JRC-6.3-ARTEFACTS", "JRC-T6-ORTHO-INSPECTION"):
@@ -79,18 +79,18 @@ def test_r15_checker_fail_on_deleted_image_stays_a_finding(tmp_path: Path) -> No
 
 def test_r15_shipped_aerial_fail_has_no_vanished_reason() -> None:
     """Control: with every row in place no checker verdict refers to a vanished item."""
-    res = check_with(EXAMPLES / "aerial-fail", "jrc-v3", checker=CHECKERS / "aerial-fail.yaml", date=DATE)
+    res = check_with(EXAMPLES / "aerial-fail", "jrc-v3", checker=CHECKERS / "aerial-fail", date=DATE)
     assert not [r for r in res.document["rollup"]["reasons"] if "no longer lists" in r]
 
 
 def test_r15_deleted_image_alone_returns_an_accepted_delivery(tmp_path: Path) -> None:
     """aerial-pass is ACCEPTED; deleting one image row the checker inspected (overlap keeps coverage)
     returns it, with the reason naming the image - the delivery no longer is what the checker saw."""
-    base = check_with(EXAMPLES / "aerial-pass", "jrc-v3", checker=CHECKERS / "aerial-pass.yaml", date=DATE)
+    base = check_with(EXAMPLES / "aerial-pass", "jrc-v3", checker=CHECKERS / "aerial-pass", date=DATE)
     assert base.accepted, base.document["rollup"]["reasons"]
     d = _copy("aerial-pass", tmp_path)
     _edit_images(d, _drop("F02_0103"))
-    res = check_with(d, "jrc-v3", checker=CHECKERS / "aerial-pass.yaml", date=DATE)
+    res = check_with(d, "jrc-v3", checker=CHECKERS / "aerial-pass", date=DATE)
     assert not res.accepted
     assert any(r.startswith("the checker's verdict on F02_0103 refers to an item the delivery no longer lists")
                for r in res.document["rollup"]["reasons"]), res.document["rollup"]["reasons"]
@@ -101,7 +101,7 @@ def test_r15_unused_checker_entries_are_listed(tmp_path: Path) -> None:
     """`manual.unused` lists the checker entries that judged nothing delivered: the two F03_0202 entries."""
     d = _copy("aerial-fail", tmp_path)
     _edit_images(d, _drop("F03_0202"))
-    ev = _evaluator(d, CHECKERS / "aerial-fail.yaml")
+    ev = _evaluator(d, CHECKERS / "aerial-fail")
     out = manual.unused(ev.ctx, ev.run().results)
     assert sorted((u["check"], u["item"]) for u in out) == [
         ("JRC-6.3-ARTEFACTS", "F03_0202"), ("JRC-T6-ORTHO-INSPECTION", "F03_0202")]
@@ -142,7 +142,7 @@ def test_r12_duplicate_image_content_is_measured(how: str, tmp_path: Path) -> No
         assert _sha(d / "images" / "F03_0201.tif") == _sha(d / "images" / "F03_0202.tif")
     else:
         _edit_images(d, _point_row("F03_0202", "images/F03_0201.tif"))
-    m = _evaluator(d, CHECKERS / "aerial-fail.yaml").ctx.cache.get("raster.file_unique")
+    m = _evaluator(d, CHECKERS / "aerial-fail").ctx.cache.get("raster.file_unique")
     vals = {str(k): v for k, v in m.values.items()}
     assert vals["F03_0201"] is False and vals["F03_0202"] is False
     assert "F03_0202" in m.notes["F03_0201"] and "F03_0201" in m.notes["F03_0202"]
@@ -153,7 +153,7 @@ def test_r12_duplicate_image_content_is_measured(how: str, tmp_path: Path) -> No
 def test_r12_unique_files_and_absent_file(tmp_path: Path) -> None:
     """Control on the shipped aerial-fail: every present file is unique (True); F03_0202, whose file is
     absent, has nothing to compare (None: the rule reading it is missing, never pass)."""
-    m = _evaluator(EXAMPLES / "aerial-fail", CHECKERS / "aerial-fail.yaml").ctx.cache.get("raster.file_unique")
+    m = _evaluator(EXAMPLES / "aerial-fail", CHECKERS / "aerial-fail").ctx.cache.get("raster.file_unique")
     vals = {str(k): v for k, v in m.values.items()}
     assert vals.pop("F03_0202") is None
     assert set(vals.values()) == {True}
@@ -187,7 +187,7 @@ def test_r12_neighbour_copy_rejects_both_images(tmp_path: Path) -> None:
     JRC §12.3) return the delivery."""
     d = _copy("aerial-pass", tmp_path)
     shutil.copyfile(d / "images" / "F02_0104.tif", d / "images" / "F02_0105.tif")
-    res = check_with(d, _jrc_with_own_file_rule(tmp_path), checker=CHECKERS / "aerial-pass.yaml", date=DATE)
+    res = check_with(d, _jrc_with_own_file_rule(tmp_path), checker=CHECKERS / "aerial-pass", date=DATE)
     got = {r["item"]: r for r in records(res.document) if r["rule"] == OWN_FILE_RULE["id"]}
     assert got["F02_0105"]["verdict"] == "fail" and "F02_0104" in got["F02_0105"]["message"]
     assert got["F02_0104"]["verdict"] == "fail" and "F02_0105" in got["F02_0104"]["message"]
@@ -210,15 +210,15 @@ def _checker_stating(example: str, d: Path, tmp_path: Path, **parameters: Any) -
     import yaml
     from tests.checking import resigned
 
-    base = yaml.safe_load((CHECKERS / f"{example}.yaml").read_text(encoding="utf-8"))["parameters"]
-    return resigned(CHECKERS / f"{example}.yaml", d, tmp_path / "checker.yaml", parameters={**base, **parameters})
+    base = yaml.safe_load((CHECKERS / example / "checker.yaml").read_text(encoding="utf-8"))["parameters"]
+    return resigned(CHECKERS / example, d, tmp_path / "checker.yaml", parameters={**base, **parameters})
 
 
 def test_r16_project_crs_spelled_otherwise_is_the_same_projection(tmp_path: Path) -> None:
     # urn:ogc:def:crs:EPSG::25832 is EPSG:25832 (OGC URN for the EPSG code): the same CRS, no finding
     d = _copy("aerial-pass", tmp_path)
     _set_project_crs(d, "crs: 'EPSG:25832'", "crs: 'urn:ogc:def:crs:EPSG::25832'")
-    res = check_with(d, "jrc-v3", checker=CHECKERS / "aerial-pass.yaml", date=DATE)
+    res = check_with(d, "jrc-v3", checker=CHECKERS / "aerial-pass", date=DATE)
     got = _rows(res.document, res.document["delivery"]["id"])["JRC-12.4-T12-MAP-PROJECTION"]
     assert got["verdict"] == "pass", got
     assert res.accepted
@@ -243,7 +243,7 @@ def test_r16_images_are_compared_with_the_itt_projection_not_the_manifest(tmp_pa
 def test_r16_a_delivery_without_project_crs_is_returned(tmp_path: Path) -> None:
     d = _copy("aerial-pass", tmp_path)
     _set_project_crs(d, ", crs: 'EPSG:25832'", "")
-    res = check_with(d, "jrc-v3", checker=CHECKERS / "aerial-pass.yaml", date=DATE)
+    res = check_with(d, "jrc-v3", checker=CHECKERS / "aerial-pass", date=DATE)
     decl = _rows(res.document, res.document["delivery"]["id"])["JRC-12.4-T12-MAP-PROJECTION"]
     assert decl["verdict"] == "fail" and "states no project.crs" in decl["message"], decl
     assert any(r.startswith("JRC-12.4-T12-MAP-PROJECTION") for r in res.document["rollup"]["reasons"])
@@ -321,9 +321,9 @@ def test_r8_without_the_checkers_master_the_flags_decide(tmp_path: Path) -> None
     from tests.checking import resigned
 
     d = _copy("satellite-pass", tmp_path)
-    params = yaml.safe_load((CHECKERS / "satellite-pass.yaml").read_text(encoding="utf-8"))["parameters"]
+    params = yaml.safe_load((CHECKERS / "satellite-pass" / "checker.yaml").read_text(encoding="utf-8"))["parameters"]
     assert params.pop("master_images") == "S01_SC1"
-    res = check_with(d, "jrc-v3", checker=resigned(CHECKERS / "satellite-pass.yaml", d, tmp_path / "c.yaml",
+    res = check_with(d, "jrc-v3", checker=resigned(CHECKERS / "satellite-pass", d, tmp_path / "c.yaml",
                                                     parameters=params), date=DATE)
     rules = _master_rules(res.document)
     assert rules["JRC-T9-MASTER-IDENTIFIED"] == {"D-2026-031": "not_applicable"}
@@ -333,7 +333,7 @@ def test_r8_without_the_checkers_master_the_flags_decide(tmp_path: Path) -> None
 
 
 def test_r8_the_shipped_satellite_checker_names_the_flagged_master() -> None:
-    res = check_with(EXAMPLES / "satellite-pass", "jrc-v3", checker=CHECKERS / "satellite-pass.yaml", date=DATE)
+    res = check_with(EXAMPLES / "satellite-pass", "jrc-v3", checker=CHECKERS / "satellite-pass", date=DATE)
     assert _master_rules(res.document)["JRC-T9-MASTER-IDENTIFIED"] == {"D-2026-031": "pass"}
     assert res.accepted
 

@@ -29,7 +29,7 @@ def _check(tmp: Path, name: str, *extra: str) -> dict[str, Any]:
     res = CliRunner().invoke(cli(), ["check", str(ROOT / "examples" / "deliveries" / name), "--profile", "jrc-v3",
                                      "--out", str(out), "--date", "2026-11-21", "--format",
                                      "terminal,json,pdf,csv,junit", "--checker",
-                                     str(ROOT / "examples" / "checker" / f"{name}.yaml"), *extra])
+                                     str(ROOT / "examples" / "checker" / name), *extra])
     assert res.exit_code in (0, 1), res.output + repr(res.exception)
     with pdfplumber.open(io.BytesIO((out / "report.pdf").read_bytes())) as pdf:
         pages = [p.extract_text() or "" for p in pdf.pages]
@@ -67,7 +67,8 @@ def test_failures_table_states_values_and_one_root_cause(fail: dict[str, Any]) -
     # the missing image F03_0202 is one finding naming the checks it affects, not nine error rows
     flat = re.sub(r"\s+", "", section)
     assert flat.count("images/F03_0202.tif") == 1, section
-    recs = [r for r in list(all_records(fail["doc"])) if r["item"] == "F03_0202" and "not found" in r["message"]]
+    recs = [r for r in list(all_records(fail["doc"])) if r["item"] == "F03_0202" and "not found" in r["message"]
+            and r["verdict"] != "not_applicable"]  # an aerial item of a satellite-only rule is no finding
     assert len(recs) >= 5
     root = [f for f in findings(list(all_records(fail["doc"]))) if "F03_0202" in f.items and "not found" in f.what]
     assert len(root) == 1 and set(root[0].rules) == {r["rule"] for r in recs}
@@ -83,8 +84,10 @@ def test_no_page_lists_not_applicable_rows(fail: dict[str, Any], passed: dict[st
         assert "applies only when the sensor type is 'satellite'" in text
 
 
-def test_aerial_pass_report_is_at_most_12_pages(passed: dict[str, Any]) -> None:
-    assert len(passed["pages"]) <= 12
+def test_aerial_pass_report_is_at_most_14_pages(passed: dict[str, Any]) -> None:
+    # 12 until issues 25/26 added rules (measured-vs-declared GSD, location, cloud, statistics, DEM, camera;
+    # acquisition window, point ids, QCR set...) and their parameters
+    assert len(passed["pages"]) <= 14  # 13 on each branch; 14 once both rule sets met on main
 
 
 def test_checker_and_contractor_operator_are_separate(fail: dict[str, Any], passed: dict[str, Any]) -> None:
@@ -93,13 +96,14 @@ def test_checker_and_contractor_operator_are_separate(fail: dict[str, Any], pass
     page1 = fail["pages"][0]
     assert "A. Auditor (contractor QA manager)" not in page1.replace("\n", " ")
     assert re.search(r"Checker \(ran orthospec,.*A\. Auditor", page1.replace("\n", " "))
-    # without --operator the checker is the party of the checker's file (examples/checker/aerial-pass.yaml),
+    # without --operator the checker is the party of the checker's folder (examples/checker/aerial-pass/),
     # named with that file and its SHA-256; the contractor's operator is never named as the checker
     assert passed["doc"]["operator"] is None
     p1 = passed["pages"][0].replace("\n", " ")
     contractor_op = passed["doc"]["delivery"]["operator"]["name"]
-    party = yaml.safe_load((ROOT / "examples" / "checker" / "aerial-pass.yaml").read_text(encoding="utf-8"))["checker"]
-    assert re.search(rf"Checker \(ran orthospec,.*{re.escape(party['name'])}.*checker's file aerial-pass\.yaml", p1)
+    party = yaml.safe_load((ROOT / "examples" / "checker" / "aerial-pass" / "checker.yaml").read_text(encoding="utf-8"))["checker"]
+    assert re.search(rf"Checker \(ran orthospec,.*{re.escape(party['name'])}.*checker's folder aerial-pass, "
+                     r"checker\.yaml", p1)
     assert contractor_op in p1 and contractor_op != party["name"]
     assert not re.search(rf"Checker \(generated the QCRs\) {re.escape(contractor_op)}", p1)
     assert f"checker: {party['name']}" in passed["terminal"]

@@ -9,6 +9,7 @@ where the engine alone decides (fail-open cases, built-in rules).
 
 from __future__ import annotations
 
+import csv
 import math
 import shutil
 import textwrap
@@ -400,6 +401,20 @@ def test_deleting_all_check_points_of_a_failing_block_is_not_accepted(tmp_path: 
 
 # --- parameter authority (built-in rules) -------------------------------------------------------
 
+def _scale_b02_dy(table: Path) -> None:
+    """B02's northing residuals x2.2 in a check point table (the checker's, in its folder)."""
+    with table.open(encoding="utf-8", newline="") as f:
+        r = csv.DictReader(f)
+        header, rows = list(r.fieldnames or []), list(r)
+    for row in rows:
+        if row["block"] == "B02":
+            row["y"] = f"{float(row['y_ref']) + 2.2 * (float(row['y']) - float(row['y_ref'])):.3f}"
+    with table.open("w", encoding="utf-8", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=header, lineterminator="\n")
+        w.writeheader()
+        w.writerows(rows)
+
+
 def _planted_rmsey(d: Path) -> None:
     """Red team R1's defect: B02's northing residuals x2.2 (RMSEy about 0.63 m > 0.5 m, JRC §12.7),
     the block's reported RMSEs set to what the edited table gives (so only §12.7 can catch it)."""
@@ -429,15 +444,18 @@ def test_r1_a_manifest_tolerance_never_decides_acceptance(tmp_path: Path) -> Non
 
     d = copy_pass(tmp_path)
     _planted_rmsey(d)
-    shipped = ROOT / "examples" / "checker" / "aerial-pass.yaml"
+    shipped = ROOT / "examples" / "checker" / "aerial-pass"
     # nobody on the checker's side states the tolerance: exit 2 with the advice, never a verdict
     silent = resigned(shipped, d, tmp_path / "silent.yaml", parameters={})
     with pytest.raises(ParameterError) as ei:
         check_with(d, "jrc-v3", checker=silent, date=DATE)
     msg = str(ei.value)
     assert "tolerance_xy (m)" in msg and "--param" in msg and "checker file" in msg and "tender profile" in msg
-    # the checker's file states the ITT's 0.5 m: rejected on §12.7, and the contractor's 1.0 m is a finding
-    doc = check_with(d, "jrc-v3", checker=resigned(shipped, d, tmp_path / "signed.yaml"), date=DATE).document
+    # the checker's file states the ITT's 0.5 m: rejected on §12.7, and the contractor's 1.0 m is a finding;
+    # the checker's own measurements (its folder's table) show the same B02 defect
+    signed = resigned(shipped, d, tmp_path / "signed.yaml")
+    _scale_b02_dy(signed.parent / "tables" / "checkpoints.csv")
+    doc = check_with(d, "jrc-v3", checker=signed, date=DATE).document
     assert doc["profile"]["parameters"]["tolerance_xy"] == {"value": 0.5, "unit": "m", "source": "checker",
                                                             "declared": 1.0}
     assert records(doc, "JRC-12.7-RMSEY")["B02"]["verdict"] == "fail"
@@ -457,10 +475,10 @@ def test_r5_check_points_edited_after_the_checker_signed_exit_2(tmp_path: Path) 
     d = copy_pass(tmp_path)
     header, rows = read_table(d, "checkpoints")
     write_table(d, "checkpoints", header, rows[:-1])
-    shipped = ROOT / "examples" / "checker" / "aerial-pass.yaml"
+    shipped = ROOT / "examples" / "checker" / "aerial-pass"
     with pytest.raises(OrthospecError) as ei:
         check_with(d, "jrc-v3", checker=shipped, date=DATE)
-    assert "aerial-pass.yaml:10 pins tables/checkpoints.csv sha256" in str(ei.value)
+    assert "aerial-pass/checker.yaml:12 pins tables/checkpoints.csv sha256" in str(ei.value)
     assert "the checker's verdicts were given on other content" in str(ei.value)
     # the shipped example, unchanged, is what the checker signed
     assert check_with(AERIAL_PASS, "jrc-v3", checker=shipped, date=DATE).document["verdict"] == "accepted"
@@ -748,7 +766,7 @@ def test_a_contractor_waiver_of_a_failing_block_in_aerial_fail_stays_a_fail(tmp_
     (d / "delivery.yaml").write_text(text.replace("\nwaivers: []\n", (
         "\nwaivers:\n- {rule: JRC-12.7-RMSEY, items: [B02], justification: within our own QC, "
         "approver: 'Paying agency (typed by the contractor)'}\n")), encoding="utf-8")
-    res = check_with(d, "jrc-v3", checker=ROOT / "examples" / "checker" / "aerial-fail.yaml", date=DATE)
+    res = check_with(d, "jrc-v3", checker=ROOT / "examples" / "checker" / "aerial-fail", date=DATE)
     rec = _rec(res.document, "JRC-12.7-RMSEY", "B02")
     assert rec["verdict"] == "fail" and "B02" in res.document["rollup"]["rejected"]["block"]
     rmsey = next(r for r in res.evaluation.results if r.rule.id == "JRC-12.7-RMSEY")

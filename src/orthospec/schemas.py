@@ -1,8 +1,9 @@
 """Write the published JSON Schemas and the measure catalog: ``python -m orthospec.schemas``.
 
 Rewrites ``specs/schema/``: profile.schema.json (spec/models.py), delivery.schema.json
-(delivery/manifest.py), qcr.schema.json (qcr.py), checker.schema.json (delivery/checker.py) and
-measures.json (engine/catalog.py, the snapshot spec/catalog.py reads). Tests fail when a shipped
+(delivery/manifest.py), qcr.schema.json (qcr.py), checker.schema.json (delivery/checker.py), the
+checker folder's table and grid (checker-checkpoints.schema.json: delivery/checker_tables.py,
+checker-inspection.schema.json: inspection/grid.py) and measures.json (engine/catalog.py, the snapshot spec/catalog.py reads). Tests fail when a shipped
 file differs from what this writes.
 It sits at the api level because it reads every layer below.
 """
@@ -14,8 +15,10 @@ from pathlib import Path
 from typing import Any
 
 from .delivery.checker import checker_schema
+from .delivery.checker_tables import checkpoints_schema
 from .delivery.manifest import manifest_schema
 from .engine import catalog as engine_catalog
+from .inspection.grid import cells_schema
 from .qcr import qcr_schema
 from .spec import catalog as spec_catalog
 from .spec.schema import dumps, profile_schema
@@ -27,6 +30,8 @@ def all_schemas() -> dict[str, dict[str, Any]]:
         "delivery.schema.json": manifest_schema(),
         "qcr.schema.json": qcr_schema(),
         "checker.schema.json": checker_schema(),
+        "checker-checkpoints.schema.json": checkpoints_schema(),
+        "checker-inspection.schema.json": cells_schema(),
     }
 
 

@@ -34,8 +34,8 @@ def verify_profile(ref: str | Path) -> list[Outcome]:
         if not path.is_dir():
             raise SpecError(f"{prof.path}: tests[{i}]: delivery folder {t.delivery!r} not found")
         checker = (prof.path.parent / t.checker).resolve() if t.checker else None
-        if checker is not None and not checker.is_file():
-            raise SpecError(f"{prof.path}: tests[{i}]: checker file {t.checker!r} not found")
+        if checker is not None and not (checker.is_file() or checker.is_dir()):
+            raise SpecError(f"{prof.path}: tests[{i}]: checker folder or file {t.checker!r} not found")
         res = check(path, prof, params={k: str(v) for k, v in t.params.items()}, date="2000-01-01",
                     checker=checker)
         doc = res.document

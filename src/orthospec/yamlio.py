@@ -24,6 +24,7 @@ from typing import Any
 
 import yaml
 
+from . import controls
 from .errors import OrthospecError
 from .limits import env_limit
 
@@ -97,6 +98,11 @@ def _measure(root: yaml.Node, file: str, limits: YamlLimits) -> None:
             raise YamlError(f"{_at(file, n)}more than {limits.nodes:,} YAML nodes (ORTHOSPEC_MAX_YAML_NODES)")
         active.add(k)
         total = 1
+        if isinstance(n, yaml.ScalarNode) and isinstance(n.value, str):
+            at = controls.find_in_text(n.value)
+            if at is not None:
+                raise YamlError(f"{_at(file, n)}a control character ({controls.name(n.value[at])}) in a value: "
+                                "terminal and bidirectional-override controls are not allowed")
         if isinstance(n, yaml.MappingNode):
             for kn, vn in n.value:
                 total += size(kn, depth + 1) + size(vn, depth + 1)

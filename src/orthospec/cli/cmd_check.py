@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import click
 from rich.console import Console
@@ -14,7 +15,17 @@ from ..api import CheckOptions, check, default_output_dir, refuse_inside_deliver
 from ..qcr import Output, render_all, require_pyarrow
 from ..reports.terminal import render as render_terminal
 from .groups import main
-from .options import date_option, param_option, profile_option, split_formats
+from .options import (
+    allowed_signers_option,
+    date_option,
+    key_option,
+    param_option,
+    profile_option,
+    split_formats,
+)
+
+if TYPE_CHECKING:
+    from ..ledger.runs import RecordedRun
 
 FORMATS = ("terminal", "json", "csv", "junit", "parquet", "html", "pdf")
 
@@ -42,10 +53,11 @@ def render_documents(doc: dict, fmts: list[str], *, shown: dict | None = None) -
               help="Comma-separated: " + ", ".join(FORMATS) + ", or a format a plugin adds "
                    "(orthospec.formats entry point). parquet needs orthospec[parquet].")
 @date_option
-@click.option("--checker", "checker_file", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="The checker's file (YAML, outside the delivery): manual-check verdicts and waivers in "
-                   "force (JRC §2 external QC). Without it manual rules are missing and the delivery's own "
-                   "waivers are only requests.")
+@click.option("--checker", "checker_file", type=click.Path(path_type=Path), default=None,
+              help="The checker's folder (or its checker.yaml alone), outside the delivery: manual-check "
+                   "verdicts, waivers in force, the checker's check point measurements and inspection grid "
+                   "(JRC §2 external QC; docs/CHECKER.md). Without it manual rules are missing, the delivery's "
+                   "own waivers are only requests and its check points are the contractor's internal QC.")
 @click.option("--fail-on", type=click.Choice([V.FAIL, V.WARN]), default="fail", show_default=True,
               help="'warn' makes recommended-level rules blocking.")
 @click.option("--operator", default=None, help="Name of the person running the check (recorded in QCRs).")
@@ -60,10 +72,13 @@ def render_documents(doc: dict, fmts: list[str], *, shown: dict | None = None) -
 @click.option("--ledger", "ledger_target", metavar="PATH|URL", default=None,
               help="Record this run in a QCR ledger: SQLite file (e.g. ./orthospec-ledger.sqlite) "
                    "or postgresql+psycopg:// URL.")
+@key_option
+@allowed_signers_option
 def check_cmd(delivery: Path, profile: str, params: tuple[str, ...], out_dir: Path | None, formats: str,
               date: str | None, fail_on: str, operator: str | None, workers: int | None,
               scheduler: str | None, sample_file: Path | None, max_items: int, verbose: bool,
-              ledger_target: str | None = None, checker_file: Path | None = None) -> None:
+              ledger_target: str | None = None, checker_file: Path | None = None, key: Path | None = None,
+              allowed_signers: Path | None = None) -> None:
     """Check DELIVERY against a spec profile; exit 0 accepted, 1 rejected, 2 could not evaluate, 3 incomplete.
 
     Incomplete: nothing rejects the delivery, but the checker's part is not done; the output lists
@@ -76,7 +91,7 @@ def check_cmd(delivery: Path, profile: str, params: tuple[str, ...], out_dir: Pa
     refuse_inside_delivery(out_dir if out_dir is not None else Path("reports"), delivery,
                            what="--out" if out_dir is not None else "the default output folder (run from "
                            "outside the delivery or give --out)")
-    ledger_head = _ledger_usable(ledger_target, delivery) if ledger_target is not None else None
+    ledger_head = _ledger_usable(ledger_target, delivery, allowed_signers) if ledger_target is not None else None
     sample = None
     if sample_file is not None:
         from ..engine.sample import read_sample
@@ -90,25 +105,23 @@ def check_cmd(delivery: Path, profile: str, params: tuple[str, ...], out_dir: Pa
         doc["ledger_head"] = ledger_head  # the chain head this run extends (issue 13 item 5)
     if sample_file is not None:
         doc["sample"] = _sample_block(sample, result, sample_file)
-    shown = doc
-    if ledger_target is not None and ("html" in fmts or "pdf" in fmts):
-        shown = {**doc, "history": _history_with_this_run(ledger_target, doc)}
-    files = render_documents(doc, [f for f in fmts if f != "terminal"], shown=shown)
     target = out_dir if out_dir is not None else default_output_dir(doc["delivery"]["id"])
     refuse_inside_delivery(target, delivery, what="output folder")
-    write_outputs(target, files)
+    out_fmts = [f for f in fmts if f != "terminal"]
+    run_id = None
+    if ledger_target is None:
+        files = render_documents(doc, out_fmts)
+        write_outputs(target, files)
+    else:
+        files, run_id, display = _record_and_write(ledger_target, doc, out_fmts, target, key, allowed_signers)
     if "terminal" in fmts:
         console = Console(highlight=False) if sys.stdout.isatty() else Console(
             highlight=False, width=120, soft_wrap=False)
         render_terminal(doc, console, max_items=options.max_items, verbose=verbose)
         if files:
             click.echo(f"wrote {', '.join(sorted(files))} to {target}/")
-    if ledger_target is not None:  # after the outputs: the ledger records what was written
-        from ..ledger import open_ledger
-
-        with open_ledger(ledger_target) as led:
-            run_id = led.record(doc)
-        click.echo(f"recorded run #{run_id} in ledger {led.display}")
+    if run_id is not None:
+        click.echo(f"recorded run #{run_id} in ledger {display}")
     click.get_current_context().exit(V.exit_code(doc["verdict"]))
 
 
@@ -131,14 +144,47 @@ def _workers(workers: int | None) -> int | None:
     return min(workers, os.cpu_count() or 1)
 
 
-def _ledger_usable(ledger_target: str, delivery: Path) -> dict:
+def _ledger_usable(ledger_target: str, delivery: Path, allowed_signers: Path | None) -> dict:
     """Open and verify the ledger before the check, so a bad one fails before any output is
     written; its chain head goes into qcr.json (``ledger_head``)."""
     from ..ledger import head_for_check
 
     if "://" not in ledger_target:
         refuse_inside_delivery(Path(ledger_target), delivery, what="--ledger")
-    return head_for_check(ledger_target)
+    return head_for_check(ledger_target, allowed_signers=allowed_signers)
+
+
+def _record_and_write(ledger_target: str, doc: dict, fmts: list[str], target: Path, key: Path | None,
+                      allowed_signers: Path | None) -> tuple[dict[str, Output], int, str]:
+    """Record the run and write its outputs in one ledger transaction: the reports print the run's
+    own chain entry (the head that includes it, issue 29 item 5), so `ledger verify --against` the
+    report catches a chain rebuilt to rewrite this run. Rendering or writing failing records nothing;
+    the outputs are written (all or none) before the transaction commits."""
+    from ..ledger import open_ledger
+
+    reports = "html" in fmts or "pdf" in fmts
+    written: dict[str, Output] = {}
+    with open_ledger(ledger_target, allowed_signers=allowed_signers) as led:
+        history = led.history_before_recording(doc) if reports else None
+
+        def write(run: RecordedRun) -> None:
+            shown = None
+            if history is not None:
+                rows = [{**r, "run": run.id} if r.get("run") == "new" else r for r in history]
+                shown = {**doc, "history": rows, "ledger": {"run": run.id, "hash": run.hash, "head": run.hash,
+                                                            "head_seq": run.seq, "problems": []}}
+            written.update(render_documents(doc, fmts, shown=shown))
+            write_outputs(target, written)
+
+        run_id = led.record(doc, key=key, before_commit=write)
+        r = led.run(run_id)
+    trail = f"audit trail {r.audit}"
+    if r.continues_run is not None:
+        trail += f", continuing run #{r.continues_run}"
+    elif not (doc.get("checker") or {}).get("project"):
+        trail += " (the manifest's project.id: the checker file's checker.project keys it by the contract)"
+    signed = f"signed by {r.signer or 'key'} {r.key_fingerprint}" if r.key_fingerprint else "unsigned"
+    return written, run_id, f"{led.display} ({trail}; {signed})"
 
 
 def _sample_block(sample: tuple[str, set[str]], result: object, sample_file: Path) -> dict:
@@ -150,13 +196,3 @@ def _sample_block(sample: tuple[str, set[str]], result: object, sample_file: Pat
     clause = "§12.8" if scope == "block" else "§12.3"
     return {"kind": scope, "items": sorted(items),
             "statement": f"sample of {len(items)} of {total} {scope}s (file {sample_file.name}, JRC {clause})"}
-
-
-def _history_with_this_run(ledger_target: str, doc: dict) -> list[dict]:
-    """The project's earlier runs from the ledger, then this one (recorded right after rendering),
-    its redelivery round computed as ``orthospec report --ledger --run N`` will state it (content-keyed,
-    ledger/history.py: one computation, INTERFACES item 9)."""
-    from ..ledger import open_ledger
-
-    with open_ledger(ledger_target) as led:
-        return led.history_before_recording(doc)

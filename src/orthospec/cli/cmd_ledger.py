@@ -7,9 +7,7 @@ PostgreSQL URL (``postgresql+psycopg://user@host/db``). These commands only pars
 
 from __future__ import annotations
 
-import io
 import json
-import re
 from dataclasses import asdict
 from pathlib import Path
 from typing import Any
@@ -20,7 +18,9 @@ from .. import verdicts as V
 from ..errors import LedgerError
 from ..ledger import MARGIN, ROLES, Ledger, open_ledger
 from ..ledger.history import History
+from ..ledger.verify import heads_in_file
 from .groups import ledger, main
+from .options import allowed_signers_option, key_option
 
 ledger_option = click.option(
     "--ledger", "ledger_target", metavar="PATH|URL", envvar="ORTHOSPEC_LEDGER", default=None,
@@ -32,8 +32,8 @@ _SHORT = {V.PASS: "pass", V.FAIL: "FAIL", V.WARN: "warn", V.MISSING: "MISS", V.E
           V.WAIVED: "wvd", V.NOT_APPLICABLE: "n/a", V.REJECTED: "REJ"}
 
 
-def _open(target: str | None) -> Ledger:
-    return open_ledger(target, create=False)
+def _open(target: str | None, allowed_signers: Path | None = None) -> Ledger:
+    return open_ledger(target, create=False, allowed_signers=allowed_signers)
 
 
 def _run_id(text: str) -> int:
@@ -175,7 +175,9 @@ def _manual(values: tuple[str, ...]) -> dict[str, str]:
 
 @main.command("signoff")
 @click.argument("run")
-@click.option("--by", "by", required=True, help="Name of the person countersigning.")
+@click.option("--by", "by", default=None,
+              help="Name of the person countersigning (with --key and an allowed-signers file: the key's "
+                   "registered name, which --by must then match).")
 @click.option("--role", type=click.Choice(ROLES), default="supervisor", show_default=True)
 @click.option("--note", default=None, help="Free text recorded with the signature.")
 @click.option("--manual", "manual", multiple=True, metavar="RULE=pass|fail",
@@ -184,52 +186,27 @@ def _manual(values: tuple[str, ...]) -> dict[str, str]:
 @click.option("--acknowledge-rejection", is_flag=True,
               help="Needed to sign a REJECTED run: you sign that you have seen and accept the rejection.")
 @ledger_option
-def signoff_cmd(run: str, by: str, role: str, note: str | None, manual: tuple[str, ...],
-                date: str | None, acknowledge_rejection: bool, ledger_target: str | None) -> None:
+@key_option
+@allowed_signers_option
+def signoff_cmd(run: str, by: str | None, role: str, note: str | None, manual: tuple[str, ...],
+                date: str | None, acknowledge_rejection: bool, ledger_target: str | None, key: Path | None,
+                allowed_signers: Path | None) -> None:
     """Countersign RUN (JRC §2.4) and record manual-check verdicts.
 
-    The run's own checker cannot countersign it; a duplicate or a date before the run is refused.
-    Example: orthospec signoff 2 --by "M. Rossi" --manual JRC-6.3-ARTEFACTS=pass --ledger qc.sqlite
+    The run's own checker (the key that signed it, or its operator or checker-file name however
+    spelt) cannot countersign it; a duplicate or a date before the run is refused.
+    Example: orthospec signoff 2 --key ~/.ssh/id_ed25519 --manual JRC-6.3-ARTEFACTS=pass --ledger qc.sqlite
     """
     rid = _run_id(run)
     verdicts = _manual(manual)
-    with _open(ledger_target) as led:
+    with _open(ledger_target, allowed_signers) as led:
         _warn_if_tampered(led)
         sid = led.signoff(rid, by=by, role=role, note=note, manual=verdicts, date=date,
-                          acknowledge_rejection=acknowledge_rejection)
+                          acknowledge_rejection=acknowledge_rejection, key=key)
+        s = led.signoffs(rid)[-1]
     extra = f" with {len(verdicts)} manual verdict(s)" if verdicts else ""
-    click.echo(f"signed run #{rid} as {role} ({by}){extra}: sign-off {sid}")
-
-
-_HEAD_TEXT = re.compile(r"ledger head[^0-9a-f]{0,80}?([0-9a-f]{64})", re.S)
-
-
-def heads_in_file(path: Path) -> list[str]:
-    """Ledger head hashes printed in a report (PDF metadata and text, HTML) or a qcr.json."""
-    data = path.read_bytes()
-    texts: list[str] = []
-    if data[:5] == b"%PDF-":
-        from pypdf import PdfReader
-
-        reader = PdfReader(io.BytesIO(data))
-        meta = reader.metadata or {}
-        texts.append(str(meta.get("/Subject") or ""))
-        texts.append((reader.pages[0].extract_text() or "") if reader.pages else "")
-    else:
-        text = data.decode("utf-8", errors="replace")
-        try:
-            doc = json.loads(text)
-        except ValueError:
-            doc = None
-        if isinstance(doc, dict):
-            for key in ("ledger_head", "ledger"):
-                v = doc.get(key)
-                if isinstance(v, dict):
-                    h = v.get("hash") if key == "ledger_head" else v.get("head")
-                    if isinstance(h, str):
-                        texts.append(f"ledger head {h}")
-        texts.append(text)
-    return list(dict.fromkeys(m for t in texts for m in _HEAD_TEXT.findall(t.replace("\n", ""))))
+    signed = f", signed by key {s['key']}" if s.get("key") else ", unsigned (a typed name, no key)"
+    click.echo(f"signed run #{rid} as {role} ({s['by']}{signed}){extra}: sign-off {sid}")
 
 
 def _warn_if_tampered(led: Ledger) -> bool:
@@ -250,9 +227,13 @@ def _warn_if_tampered(led: Ledger) -> bool:
               default=None, help="A report.pdf, report.html or qcr.json: check the ledger head printed in it.")
 @click.option("--expect-head", metavar="HASH", default=None,
               help="The current head must be exactly this hash (nothing recorded since).")
+@allowed_signers_option
 def verify_cmd(ledger_target: str | None, head: str | None, against: Path | None,
-               expect_head: str | None) -> None:
+               expect_head: str | None, allowed_signers: Path | None) -> None:
     """Check the hash chain: exit 0 when intact, 1 (TAMPERED) listing every edited or deleted row.
+
+    Every signature is checked too (by the allowed-signers file when given): one that does not
+    verify is listed as well.
 
     Example: orthospec ledger verify --ledger qc.sqlite --against reports/run-2/report.pdf
     """
@@ -262,7 +243,7 @@ def verify_cmd(ledger_target: str | None, head: str | None, against: Path | None
         if not found:
             raise click.BadParameter(f"{against}: no ledger head hash found in it", param_hint="--against")
         heads += found
-    with _open(ledger_target) as led:
+    with _open(ledger_target, allowed_signers) as led:
         rep = led.verify(heads=heads)  # one pass over the ledger for every head given
     problems = list(dict.fromkeys(str(p) for p in rep.problems))
     if expect_head is not None and not rep.head_hash.startswith(expect_head.lower()):
@@ -319,8 +300,12 @@ def runs_cmd(project: str | None, ledger_target: str | None, as_json: bool) -> N
         click.echo(json.dumps([{"run": r.id, "seq": r.seq, "date": r.date, "recorded_at": r.recorded_at,
                                 "project": r.project_id, "delivery": r.delivery_id, "verdict": r.verdict,
                                 "profile": f"{r.profile_id}@{r.profile_version}", "operator": r.operator,
-                                "records": r.n_records, "hash": r.hash} for r in runs], indent=1))
+                                "records": r.n_records, "hash": r.hash, "audit_trail": r.audit,
+                                "continues_run": r.continues_run, "signer": r.signer,
+                                "key": r.key_fingerprint} for r in runs], indent=1))
         return
     for r in runs:
-        click.echo(f"#{r.id:<4} {r.date}  {r.project_id}  {r.delivery_id}  {r.verdict:<8}  "
-                   f"{r.profile_id}@{r.profile_version}  {r.n_records} QCRs  {r.hash[:12]}")
+        trail = f" (trail {r.audit})" if r.audit != r.project_id else ""
+        signed = f"  signed {r.key_fingerprint[:19]}" if r.key_fingerprint else "  unsigned"
+        click.echo(f"#{r.id:<4} {r.date}  {r.project_id}{trail}  {r.delivery_id}  {r.verdict:<8}  "
+                   f"{r.profile_id}@{r.profile_version}  {r.n_records} QCRs  {r.hash[:12]}{signed}")

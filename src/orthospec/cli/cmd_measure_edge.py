@@ -65,7 +65,8 @@ def _fmt(value: Any) -> str:
 
 @measure.command("edge")
 @click.argument("image", type=click.Path(dir_okay=False))
-@click.option("--roi", help="Pixel window x0,y0,x1,y1 (x1, y1 exclusive) holding one edge. "
+@click.option("--roi", multiple=True, help="Pixel window x0,y0,x1,y1 (x1, y1 exclusive) holding one edge; "
+              "repeat it to measure many ROIs in one call (in parallel with --workers). "
               "Default: find the straight edges automatically and measure each one.")
 @click.option("--map-roi", help="The window in the raster's CRS instead: xmin,ymin,xmax,ymax (read as the "
               "pixels it touches).")
@@ -80,9 +81,11 @@ def _fmt(value: Any) -> str:
 @click.option("--json", "as_json", is_flag=True, help="Print the flat JSON result.")
 @click.option("--plots", type=click.Path(file_okay=False),
               help="Write detection/ESF/LSF/MTF SVGs into this directory.")
-def edge_command(image: str, roi: str | None, map_roi: str | None, whole: bool, band: int, gsd: float | None,
-                 nodata: float | None, bit_depth: int | None, min_snr: float, as_json: bool,
-                 plots: str | None) -> None:
+@click.option("--workers", type=click.IntRange(1, 64), default=None,
+              help="Processes for several --roi (default: one per CPU, at most one per ROI).")
+def edge_command(image: str, roi: tuple[str, ...], map_roi: str | None, whole: bool, band: int,
+                 gsd: float | None, nodata: float | None, bit_depth: int | None, min_snr: float,
+                 as_json: bool, plots: str | None, workers: int | None) -> None:
     """Measure RER, FWHM, MTF at Nyquist and effective resolution on an edge target.
 
     Runs the CEOS 12-step edge method (health checks first: an ROI that fails
@@ -99,8 +102,13 @@ def edge_command(image: str, roi: str | None, map_roi: str | None, whole: bool, 
     from ..raster.roi import read_roi
 
     limits = EdgeLimits(min_snr=min_snr)
+    if len(roi) > 1:
+        _many(image, roi, band=band, gsd=gsd, nodata=nodata, bit_depth=bit_depth, limits=limits,
+              as_json=as_json, workers=workers, map_roi=map_roi)
+        return
+    roi1 = roi[0] if roi else None
     try:
-        wanted = _parse_map_roi(map_roi, roi) if map_roi is not None else _parse_roi(roi)
+        wanted = _parse_map_roi(map_roi, roi1) if map_roi is not None else _parse_roi(roi1)
         got = read_roi(image, window=wanted, band=band, nodata=nodata)
         window = got.window if wanted is not None else None
         gsd = gsd if gsd is not None else got.gsd_m
@@ -132,6 +140,75 @@ def edge_command(image: str, roi: str | None, map_roi: str | None, whole: bool, 
         _print_rich(image, window, band, result, written)
     if not result.valid:
         click.get_current_context().exit(1)
+
+
+def _measure_one(job: tuple[Any, dict[str, Any]]) -> dict[str, Any]:
+    """One ROI in a worker process: the flat JSON of its result (small to send back)."""
+    from ..measures.edge import measure_edge
+
+    data, kw = job
+    return measure_edge(data, **kw).to_dict()
+
+
+def _many(image: str, rois: tuple[str, ...], *, band: int, gsd: float | None, nodata: float | None,
+          bit_depth: int | None, limits: Any, as_json: bool, workers: int | None,
+          map_roi: str | None) -> None:
+    """Several ROIs of one image in one call: read in order, measured in parallel processes
+    (issue 31), reported in the order given."""
+    import os
+    from concurrent.futures import ProcessPoolExecutor
+
+    from ..raster.roi import read_roi
+    from ..workers import die_with_parent, mp_context
+
+    if map_roi is not None:
+        raise _CouldNotRun("give several --roi or one --map-roi, not both")
+    try:
+        windows = [_parse_roi(r) for r in rois]
+        got = [read_roi(image, window=w, band=band, nodata=nodata) for w in windows]
+    except OrthospecError as exc:
+        raise _CouldNotRun(str(exc)) from exc
+    except OSError as exc:
+        raise _CouldNotRun(f"{image}: {exc}") from exc
+    jobs = [(g.data, {"gsd": gsd if gsd is not None else g.gsd_m, "bit_depth": bit_depth,
+                      "limits": limits}) for g in got]
+    n = min(len(jobs), workers or os.cpu_count() or 1)
+    try:
+        if n > 1:
+            with ProcessPoolExecutor(max_workers=n, mp_context=mp_context(),
+                                     initializer=die_with_parent, initargs=(os.getpid(),)) as pool:
+                docs = list(pool.map(_measure_one, jobs))
+        else:
+            docs = [_measure_one(j) for j in jobs]
+    except OrthospecError as exc:
+        raise _CouldNotRun(str(exc)) from exc
+    windows = [g.window for g in got]
+    if as_json:
+        out = {"image": image, "band": band, "workers": n,
+               "rois": [{"roi": list(w), **d} for w, d in zip(windows, docs, strict=True)]}
+        click.echo(json.dumps(out, indent=2, sort_keys=True))
+    else:
+        from rich.console import Console
+        from rich.table import Table
+
+        tab = Table(title=f"{image} band {band}: {len(docs)} ROIs ({n} worker(s)); value ± standard uncertainty")
+        for col in ("ROI x0,y0,x1,y1", "valid", "angle", "RER", "FWHM px", "MTF@Ny", "fit", "why not valid"):
+            tab.add_column(col)
+        for w, d in zip(windows, docs, strict=True):
+            tab.add_row(",".join(map(str, w)), "yes" if d["valid"] else "no", _fmt(d["angle_deg"]),
+                        _pm(d, "rer"), _pm(d, "fwhm_px"), _pm(d, "mtf_nyquist"),
+                        d["primary_fit"] if d["valid"] else "", (d["reasons"] or "").split(";")[0])
+        Console(width=140).print(tab)
+    if not any(d["valid"] for d in docs):
+        click.get_current_context().exit(1)
+
+
+def _pm(d: dict[str, Any], name: str) -> str:
+    """value ± u of one estimator of a flat result."""
+    if d.get(name) is None:
+        return "n/a"
+    u = d.get(f"{name}.u")
+    return _fmt(d[name]) + ("" if u is None else f" ± {u:.2g}")
 
 
 def _auto(image: str, band: int, arr: Any, *, gsd: float | None, bit_depth: int | None, limits: Any,
@@ -171,9 +248,10 @@ def _auto(image: str, band: int, arr: Any, *, gsd: float | None, bit_depth: int 
             tab.add_column(col)
         for e in target.edges:
             r = e.result
+            d = r.to_dict()
             tab.add_row(e.axis.upper(), f"{e.line_angle_deg:.2f}°", ",".join(map(str, e.window)),
-                        "yes" if r.valid else "no", _fmt(r.angle_deg), _fmt(r.rer),
-                        _fmt(r.fwhm_px), _fmt(r.mtf_nyquist), r.primary_fit if r.valid else "",
+                        "yes" if r.valid else "no", _fmt(r.angle_deg), _pm(d, "rer"),
+                        _pm(d, "fwhm_px"), _pm(d, "mtf_nyquist"), r.primary_fit if r.valid else "",
                         "; ".join(x.split(";")[0] for x in r.reasons))
         console.print(tab)
         console.print(f"RER_x {_fmt(target.rer_x)}, RER_y {_fmt(target.rer_y)}, combined "
@@ -208,12 +286,16 @@ def _print_rich(image: str, window: Any, band: int, result: Any, written: list[s
     console.print(checks)
     for reason in result.reasons:
         console.print(f"[red]- {reason}[/red]")
+    for warning in result.warnings:
+        console.print(f"[yellow]warning: {escape(warning)}[/yellow]")
     if result.estimates:
         fits = [result.primary_fit, *sorted({e.fit for e in result.estimates} - {result.primary_fit})]
         est = Table(title="Estimators (seed 003 steps 9-12; effective resolution: seed 004)")
         est.add_column("estimator")
         for fit in fits:
             est.add_column(f"{fit}{' (primary)' if fit == result.primary_fit else ''}")
+            if fit == result.primary_fit:
+                est.add_column("± u (standard)")
         est.add_column("unit")
         for e in result.estimates:
             if e.fit != result.primary_fit:
@@ -222,6 +304,8 @@ def _print_rich(image: str, window: Any, band: int, result: Any, written: list[s
             for fit in fits:
                 other = result.estimate(e.name, fit)
                 row.append(_fmt(other.value) if other is not None else "n/a")
+                if fit == result.primary_fit:
+                    row.append("" if e.u is None else f"± {e.u:.2g}")
             est.add_row(*row, e.unit)
         console.print(est)
         model = next((result.fits[n] for n in PSF_FITS if n in result.fits), None)
@@ -236,5 +320,8 @@ def _print_rich(image: str, window: Any, band: int, result: Any, written: list[s
                 f"PSF model {model.fit}: {escape(q['model'])}; sigma {sig} px; lack-of-fit "
                 f"F = {q['lack_of_fit_f']:.3g}, p = {q['p_value']:.3g} "
                 f"({'adequate' if q['adequate'] else 'rejected (p < 0.001): the spline is primary'})")
+            if q.get("candidates"):
+                console.print("models the data cannot tell apart (leave-one-out error within one SE; "
+                              "their spread is part of u): " + ", ".join(sorted(q["candidates"])))
     for path in written:
         console.print(f"wrote {path}")

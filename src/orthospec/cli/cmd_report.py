@@ -11,7 +11,7 @@ import click
 from ..errors import ReportError, SpecError
 from ..qcr import atomic_write
 from .groups import main, spec
-from .options import split_formats
+from .options import allowed_signers_option, split_formats
 
 REPORT_FORMATS = ("html", "pdf")
 ANNEX_FORMATS = ("md", "html", "pdf")
@@ -36,8 +36,12 @@ def _read_qcr(path: Path) -> dict:
 @click.option("--ledger", "ledger_target", default=None, metavar="PATH|URL",
               help="Render a run stored in the QCR ledger, with its sign-offs and the project's history.")
 @click.option("--run", "run_id", type=int, default=None, help="Run id in the ledger (with --ledger).")
+@click.option("--against", "against", type=click.Path(dir_okay=False, exists=True, path_type=Path), default=None,
+              help="With --ledger: a report.pdf/report.html/qcr.json written earlier (e.g. the run's own report "
+                   "from check): warn when the chain no longer holds the ledger head printed in it.")
+@allowed_signers_option
 def report_cmd(qcr_json: Path | None, formats: str, out_dir: Path | None, ledger_target: str | None,
-               run_id: int | None) -> None:
+               run_id: int | None, against: Path | None = None, allowed_signers: Path | None = None) -> None:
     """Render the auditor's report (HTML, archival PDF/A-3b) from a stored QCR_JSON or a ledger run.
 
     Example: orthospec report --ledger qc.sqlite --run 2 --out reports/run-2
@@ -49,13 +53,21 @@ def report_cmd(qcr_json: Path | None, formats: str, out_dir: Path | None, ledger
         if ledger_target is None or run_id is None or qcr_json is not None:
             raise click.UsageError("give either QCR_JSON, or --ledger PATH|URL with --run N")
         from ..ledger import open_ledger
+        from ..ledger.verify import heads_in_file
 
-        with open_ledger(ledger_target, create=False) as led:
-            doc = led.report_document(run_id)
+        heads = []
+        if against is not None:
+            heads = heads_in_file(against)
+            if not heads:
+                raise click.BadParameter(f"{against}: no ledger head hash found in it", param_hint="--against")
+        with open_ledger(ledger_target, create=False, allowed_signers=allowed_signers) as led:
+            doc = led.report_document(run_id, heads=heads)
         if doc["ledger"]["problems"]:
             click.echo(f"WARNING: ledger {ledger_target} is TAMPERED ({doc['ledger']['problems'][0]}); "
                        "the report says so on page 1", err=True)
         default_target = Path(f"report-run-{run_id}")
+    elif against is not None:
+        raise click.UsageError("--against needs --ledger PATH|URL with --run N")
     elif qcr_json is None:
         raise click.UsageError("give QCR_JSON, or --ledger PATH|URL with --run N")
     else:
@@ -77,22 +89,25 @@ def report_cmd(qcr_json: Path | None, formats: str, out_dir: Path | None, ledger
 @click.argument("profile")
 @click.option("--format", "formats", default="pdf,html,md", show_default=True,
               help="Comma-separated: " + ", ".join(ANNEX_FORMATS) + ".")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), default=Path("."),
-              show_default=True, help="Folder for annex-<id>-<version>.<format>.")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), default=None,
+              help="Folder for annex-<id>-<version>.<format> (default: reports/annex/ under the current folder, "
+                   "or under the root of the orthospec checkout it is in; refused inside a delivery).")
 @click.option("--date", "day", metavar="YYYY-MM-DD", default=None,
               help="Date printed on the annex (default today); fix it for byte-identical output.")
 @click.option("--sensor", type=click.Choice(["aerial", "satellite"]), default=None,
               help="The tender's sensor (default: read from the profile's own sensor rules); requirements "
                    "that cannot apply to it move to an appendix.")
-def render_cmd(profile: str, formats: str, out_dir: Path, day: str | None, sensor: str | None) -> None:
+def render_cmd(profile: str, formats: str, out_dir: Path | None, day: str | None, sensor: str | None) -> None:
     """Render PROFILE as the technical-specification annex of an invitation to tender.
 
     Example: orthospec spec render examples/specs/tender-example.yaml --format md,pdf --out annex/
     """
-    from ..reports.annex import render_annex
+    from ..reports.annex import default_out_dir, render_annex
     from ..spec.loader import load_profile
 
     fmts = split_formats(formats, ANNEX_FORMATS)
+    if out_dir is None:
+        out_dir = default_out_dir()
     if day is not None:
         try:
             Date.fromisoformat(day)

@@ -26,12 +26,16 @@ from .groups import main
 @click.option("--ledger", "ledger_url", default=None, metavar="PATH|URL",
               help="QCR ledger: a tightened audit state (JRC Tables 6, 10) draws a larger sample and "
                    "adds every suspect item of the tightened families.")
+@click.option("--checker", "checker_file", type=click.Path(path_type=Path), default=None,
+              help="With --ledger: the checker's file or folder; the contract / project it states "
+                   "(checker.project) names the audit trail, not the manifest's project.id.")
 @click.option("--family", "families", multiple=True,
               help="Audit families to consult in the ledger (default: all of the project's).")
 @click.option("--out", "out", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="CSV to write (default sample-<scope>-r<round>.csv); give it to `check --sample`.")
 def sample_cmd(delivery: Path, profile: str, seed: int, round_: int, scope: str, fraction: float | None,
-               minimum: int, ledger_url: str | None, families: tuple[str, ...], out: Path | None) -> None:
+               minimum: int, ledger_url: str | None, families: tuple[str, ...], out: Path | None,
+               checker_file: Path | None = None) -> None:
     """Select images or blocks for external QC: systematic spread, every tag, problem batches, random part.
 
     Example: orthospec sample examples/deliveries/aerial-pass --seed 7 --out sample.csv
@@ -48,8 +52,16 @@ def sample_cmd(delivery: Path, profile: str, seed: int, round_: int, scope: str,
     if ledger_url is not None:
         from ..ledger import TIGHTENED, open_ledger
 
+        stated = None
+        if checker_file is not None:
+            from ..delivery.checker import load_checker
+
+            stated = load_checker(checker_file, delivery_root=d.root).party.project
         with open_ledger(ledger_url, create=False) as led:
-            states = led.audit_states(d.project_id)
+            # the audit trail: what the checker states, else the earlier run whose content this
+            # delivery continues, else the manifest's project id (issue 25 item 6)
+            trail = led.audit_key_for(stated, d.project_id, (f["sha256"] for f in d.files))
+            states = led.audit_states(trail)
             chosen = {f: st for f, st in states.items() if not families or f in families}
             tight = {f: st for f, st in chosen.items() if st.state == TIGHTENED}
             if tight:

@@ -53,10 +53,20 @@ COMMANDS: dict[str, dict[str, tuple[str, str]]] = {
     "measure": {
         "accuracy": ("cmd_measure_accuracy", "RMSE, NSSDA, CE90/CE95, bias test and blunder "
                                              "screening of checkpoint discrepancies."),
+        "checkpoints": ("cmd_measure_checkpoints", "Measure surveyed check points on the delivered "
+                                                   "orthoimages by subpixel image matching."),
         "edge": ("cmd_measure_edge", "Measure RER, FWHM, MTF at Nyquist and effective resolution on "
                                      "an edge target."),
         "radiometry": ("cmd_measure_radiometry", "Exact per-band statistics, histograms and JRC "
                                                  "§6.3 measures plus file checks of IMAGE."),
+    },
+    "checker": {
+        "init": ("cmd_checker", "Write the checker folder's skeleton for DELIVERY: ITT values to state and "
+                                "every manual check item to judge."),
+    },
+    "inspect": {
+        "grid": ("cmd_inspect", "Write the inspection grid (GeoPackage) over the sampled images of "
+                                "DELIVERY into the checker's folder."),
     },
     "ledger": {
         "runs": ("cmd_ledger", "List recorded runs (oldest first)."),
@@ -121,7 +131,17 @@ def spec() -> None:
 
 @main.group(cls=LazyGroup, table="measure")
 def measure() -> None:
-    """Standalone measures on one file (accuracy, radiometry, edge)."""
+    """Standalone measures on one file (accuracy, radiometry, edge) and check points on a delivery."""
+
+
+@main.group(cls=LazyGroup, table="checker")
+def checker() -> None:
+    """The external QC's own folder (checker.yaml, its measurements, its inspection grid)."""
+
+
+@main.group(cls=LazyGroup, table="inspect")
+def inspect() -> None:
+    """The checker's visual inspection of the delivered images (JRC Table 6, §6.3)."""
 
 
 @main.group(cls=LazyGroup, table="ledger")

@@ -124,6 +124,21 @@ class Tender(_Closed):
         description="Contract values for profile parameters; a tender profile or --param wins over them.")
 
 
+class Draft(_Closed):
+    """Written by ``orthospec init DIR --from SOURCE`` (delivery/draft.py, docs/INGEST.md): the
+    delivered files stay in ``source`` and are read in place through the links under ``links``."""
+
+    source: str = Field(description="The folder the delivered files were read from (relative to this "
+                                    "folder, or absolute); read in place, never written.")
+    links: str = Field("source", description="Folder of this draft holding one symbolic link per "
+                                             "delivered file, into source.")
+    todo: str = Field("TODO.md", description="What the files could not tell, with the rules that stay "
+                                             "missing until it is filled.")
+    todo_rules: str | None = Field(None, description="JSON map rule id -> [TODO line, what]: a missing "
+                                                     "record names its TODO line.")
+    made_by: str | None = None
+
+
 class Manifest(_Closed):
     orthospec_delivery: Literal[1]
     id: str
@@ -148,6 +163,7 @@ class Manifest(_Closed):
                     "file grants waivers; see specs/schema/checker.schema.json).")
     edge_targets: list[EdgeTarget] = Field(default_factory=list)
     notes: str | None = None
+    draft: Draft | None = Field(None, description="Present in a draft written by `orthospec init --from`.")
 
 
 def manifest_schema() -> dict[str, Any]:

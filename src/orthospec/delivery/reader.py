@@ -28,12 +28,15 @@ import numpy as np
 import pandas as pd
 from pydantic import ValidationError
 
+from .. import controls
 from ..errors import DeliveryError, UnitError
 from ..limits import env_limit
 from ..provenance import Evidence, sha256_bytes, sha256_file
 from ..units import canonical, parse_unit
 from ..yamlio import YamlError, load_file
+from . import vocabulary
 from .convention import ColumnSpec, TableSpec, table_specs
+from .draft import SourceLinks, draft_images_spec, source_links
 from .manifest import Manifest
 from .outlines import StatedOutlines, finite_ring, first_overlap, invalid_reason, ring_polygon
 
@@ -97,7 +100,7 @@ def _lexical(rel: str) -> tuple[PurePosixPath | None, str]:
 
 def contained(root: str | Path, rel: str, *, what: str = "file", file: str | None = MANIFEST,
               line: int | None = None, row: int | None = None, field: str | None = None,
-              follow: bool = True) -> Path:
+              follow: bool = True, links: SourceLinks | None = None) -> Path:
     """``root/rel`` if it names something inside the delivery; else a DeliveryError saying why.
 
     The one containment check of orthospec (issue 17): every path a delivery names and every file
@@ -106,6 +109,7 @@ def contained(root: str | Path, rel: str, *, what: str = "file", file: str | Non
     link (anywhere on the way) that leads out of the folder, a FIFO, device or socket. A path that
     does not exist is returned (callers report it as missing). ``follow=False`` skips the
     file-system part (for bulk table columns, after :func:`check_tree` vetted every link).
+    ``links``: a draft's links into its source folder (delivery/draft.py), the one exception.
 
     Raises
     ------
@@ -129,7 +133,7 @@ def contained(root: str | Path, rel: str, *, what: str = "file", file: str | Non
         real = p.resolve()
     except (OSError, RuntimeError) as exc:  # symlink loops (RuntimeError before Python 3.13)
         raise refuse(f"cannot be resolved ({exc})") from None
-    if not real.is_relative_to(real_root):
+    if not real.is_relative_to(real_root) and not (links is not None and links.allows(p, real)):
         raise refuse("is (or passes through) a symbolic link leading out of the delivery folder")
     try:
         st = os.stat(p)
@@ -143,7 +147,7 @@ def contained(root: str | Path, rel: str, *, what: str = "file", file: str | Non
     return p
 
 
-def check_tree(root: str | Path) -> list[str]:
+def check_tree(root: str | Path, links: SourceLinks | None = None) -> list[str]:
     """Vet every entry of the delivery folder; return its regular files (relative POSIX paths).
 
     Symbolic links that stay inside the folder are allowed (and not followed here); one that leads
@@ -169,13 +173,17 @@ def check_tree(root: str | Path) -> list[str]:
                 except (OSError, RuntimeError):
                     raise DeliveryError("is a symbolic link that cannot be resolved (a loop?)",
                                         file=rel) from None
-                if not real.is_relative_to(real_root):
+                if not real.is_relative_to(real_root) and not (links is not None and links.allows(
+                        Path(e.path), real)):
                     raise DeliveryError("is a symbolic link leading out of the delivery folder; "
                                         "orthospec reads nothing outside the delivery", file=rel)
                 try:
                     mode = os.stat(e.path).st_mode
                 except OSError:
                     continue  # dangling link inside the folder: reported as missing if listed
+                if links is not None and stat.S_ISREG(mode) and links.allows(Path(e.path), real):
+                    files.append(rel)  # a draft's delivered file, read in place
+                    continue
             elif e.is_dir(follow_symlinks=False):
                 stack.append(Path(e.path))
                 continue
@@ -240,17 +248,17 @@ class Delivery:
     manifest_sha256: str
     positions: dict[tuple[Any, ...], tuple[int, int]] = field(repr=False, default_factory=dict)
     tree: list[str] | None = field(default=None, repr=False)  # regular files, from check_tree
+    #: a draft's links into its source folder (delivery/draft.py); None for a delivery
+    links: SourceLinks | None = field(default=None, repr=False)
     limits: Limits = field(default_factory=Limits, repr=False)
     _tables: dict[str, Table] = field(default_factory=dict, repr=False)
     _sha: dict[str, str] = field(default_factory=dict, repr=False)
-    #: outlines the checker's file states (delivery/checker.py ``bind``); None: the manifest's are in force
-    stated_outlines: StatedOutlines | None = field(default=None, repr=False)
 
     # --- paths and checksums -----------------------------------------------------------
     def path(self, rel: str, *, what: str = "file", file: str | None = MANIFEST,
              row: int | None = None) -> Path:
         """Resolve ``rel`` inside the delivery; refuse anything that escapes it (:func:`contained`)."""
-        return contained(self.root, rel, what=what, file=file, row=row)
+        return contained(self.root, rel, what=what, file=file, row=row, links=self.links)
 
     def sha256(self, rel: str) -> str:
         if rel not in self._sha:
@@ -267,20 +275,16 @@ class Delivery:
     def manifest_evidence(self, path: str) -> Evidence:
         return Evidence(MANIFEST, self.manifest_sha256, (), path)
 
-    def block_outlines(self) -> dict[str, tuple[Any, Evidence]]:
-        """Block id -> (ring of [x, y], evidence) of the outlines in force: the checker's file's when it
-        states blocks (the manifest's are then declarations, red team R13/R17), else the manifest's
-        (blocks without a polygon are left out; a non-finite vertex is the caller's to report)."""
-        if self.stated_outlines is not None and self.stated_outlines.blocks:
-            return dict(self.stated_outlines.blocks)
+    def block_outlines(self, stated: StatedOutlines | None = None) -> dict[str, tuple[Any, Evidence]]:
+        """Block id -> (ring of [x, y], evidence) of the outlines in force: ``stated`` (the checker's,
+        delivery/checker.py ``stated_outlines``) when it states blocks (the manifest's are then
+        declarations, red team R13/R17), else the manifest's (blocks without a polygon are left out; a
+        non-finite vertex is the caller's to report). The checker's outlines are an argument, never
+        state of the delivery: an evaluation passes its own (``ProviderContext.block_outlines``)."""
+        if stated is not None and stated.blocks:
+            return dict(stated.blocks)
         return {b.id: (b.polygon, self.manifest_evidence(f"blocks[{i}].polygon"))
                 for i, b in enumerate(self.manifest.blocks) if b.polygon}
-
-    def area_of_interest_in_force(self) -> tuple[Any, Evidence] | None:
-        """(ring of [x, y], evidence) of the area of interest the checker's file states, or None: then
-        the manifest's is in force (project.area_of_interest, a vector file the engine reads, else
-        the union of the block outlines in force)."""
-        return self.stated_outlines.area_of_interest if self.stated_outlines is not None else None
 
     def where(self, path: tuple[Any, ...]) -> int | None:
         p = tuple(path)
@@ -294,7 +298,7 @@ class Delivery:
     def files(self) -> list[dict[str, Any]]:
         """Every file of the delivery with size and SHA-256, sorted (for the QCR appendix)."""
         out = []
-        for rel in self.tree if self.tree is not None else check_tree(self.root):
+        for rel in self.tree if self.tree is not None else check_tree(self.root, self.links):
             p = self.root.joinpath(*rel.split("/"))  # a real name: a backslash in it is no separator
             try:
                 if rel not in self._sha:
@@ -328,8 +332,10 @@ class Delivery:
             for name in ("images", "checkpoints"):
                 t = self.table(name)
                 if t is not None and "block" in t.df:
-                    ids = sorted(set(t.df["block"].astype(str)))
-                    break
+                    ids = sorted({str(b) for b in pd.unique(t.df["block"].to_numpy(dtype=object))
+                                  if b is not None and not pd.isna(b) and str(b).strip()})
+                    if ids:  # an images table without blocks (a draft's) names none
+                        break
         return ids
 
     def flat_manifest(self) -> dict[str, Any]:
@@ -355,6 +361,11 @@ class Delivery:
     def has_table(self, name: str) -> bool:
         return name in self.manifest.tables
 
+    def table_absent_reason(self, name: str) -> str:
+        """Why :meth:`table` gives None for ``name`` (an evaluation's view words its own tables,
+        delivery/in_force.py)."""
+        return f"the manifest declares no '{name}' table"
+
     def table(self, name: str) -> Table | None:
         """The validated table, or None when the manifest does not declare it."""
         if name not in self.manifest.tables:
@@ -377,8 +388,10 @@ class Delivery:
 
     def _read_table(self, name: str, rel: str) -> Table:
         spec = table_specs()[name]
+        if self.links is not None and name == "images":
+            spec = draft_images_spec(spec)  # a draft leaves an image's unknown block empty
         line = self.where(("tables", name))
-        p = contained(self.root, rel, what=f"table {name}", line=line)
+        p = contained(self.root, rel, what=f"table {name}", line=line, links=self.links)
         if p.is_dir():
             raise DeliveryError(f"table '{name}' is a folder, not a file: {rel}", file=MANIFEST, line=line)
         if not p.is_file():
@@ -407,6 +420,7 @@ class Delivery:
             self._check_length_unit(name, length_unit)
         df = _parse_body(held, spec, file=rel, cell_bytes=self.limits.cell_bytes)
         self._check_blocks(df, rel)
+        vocabulary.apply(name, df, rel)  # closed vocabularies: normalised, an unknown word refused
         for col in PATH_COLUMNS & set(df.columns):
             rows, cells = df["_row"], df[col]
             if self.tree is not None:  # lexical checks only: plain relative paths pass in bulk
@@ -415,7 +429,7 @@ class Delivery:
             for r, v in zip(rows.tolist(), cells.tolist(), strict=True):
                 if v is not None:
                     contained(self.root, v, what="path", file=rel, row=int(r), field=col,
-                              follow=self.tree is None)
+                              follow=self.tree is None, links=self.links)
         units = {}
         for col, cs in spec.columns.items():
             if cs.type == "number" and col in df:
@@ -731,6 +745,10 @@ def _parse_body(held: list[bytes], spec: TableSpec, *, file: str, cell_bytes: in
     counted the bytes are let go (when the caller holds no other reference), so a national
     table is not held as bytes while its columns become Python objects."""
     body = held.pop()
+    bad = controls.find_in_utf8(body)
+    if bad is not None:
+        raise DeliveryError(f"a control character ({controls.name(bad[1])}) in the table: a cell may not carry "
+                            "terminal or bidirectional-override controls", file=file, line=bad[0])
     header = _header(body, spec, file)
     if cell_bytes is not None and csv.field_size_limit() < cell_bytes:
         csv.field_size_limit(cell_bytes)  # the bound is check_csv_bounds's, not csv's
@@ -1292,22 +1310,23 @@ def open_delivery(path: str | Path) -> Delivery:
         if name not in table_specs():
             raise DeliveryError(f"unknown table {name!r}; known tables: {', '.join(sorted(table_specs()))}",
                                 file=MANIFEST, line=doc.where(("tables", name))[0])
+    links = source_links(root, manifest.draft, line=doc.where(("draft", "source"))[0])
     for key in _PATH_MAPPINGS:
         section = doc.data.get(key)
         if isinstance(section, dict):
             for name, rel in section.items():
                 if isinstance(rel, str):
-                    contained(root, rel, what=f"{key}.{name}", line=doc.where((key, name))[0])
+                    contained(root, rel, what=f"{key}.{name}", line=doc.where((key, name))[0], links=links)
     extra_paths = [(("project", "area_of_interest"), manifest.project.area_of_interest)]
     extra_paths += [(("blocks", i, "polygon_file"), b.polygon_file) for i, b in enumerate(manifest.blocks)]
     for where, rel in extra_paths:
         if rel:
-            contained(root, rel, what=".".join(map(str, where)), line=doc.where(where)[0])
+            contained(root, rel, what=".".join(map(str, where)), line=doc.where(where)[0], links=links)
     _check_block_outlines(manifest, lambda path: doc.where(path)[0])
-    tree = check_tree(root)
+    tree = check_tree(root, links)
     d = Delivery(root=root, manifest=manifest, raw=doc.data,
                  manifest_sha256=sha256_file(mpath), positions=doc.marks, tree=tree,
-                 limits=Limits.from_env())
+                 limits=Limits.from_env(), links=links)
     d._sha[MANIFEST] = d.manifest_sha256
     return d
 

@@ -11,17 +11,20 @@ from __future__ import annotations
 
 import itertools
 import math
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
 
 from .. import units
+from ..delivery import vocabulary
 from ..errors import OrthospecError
 from ..spec import expr
 from ..spec.models import Rule
 from ..spec.operators import is_missing
 from ..units import NON_NUMERIC, parse_unit
 from .catalog import measure_info
+from .compare import Undecidable
 from .context import Context
 from .names import NUMBER_LITERAL, STRING_LITERAL, Names, missing_mask, null_tested, param_key
 
@@ -59,7 +62,9 @@ def _missing_of(ctx: Context, name: str, names: Names, n: int) -> np.ndarray:
     if info is not None and names.broadcast(info[0]):
         one = m.values.iloc[0] if len(m.values) else None
         return np.full(n, is_missing(one))
-    return missing_mask(m.values.reindex(names.items).to_numpy(dtype=object))
+    vals = m.values.reindex(names.items).to_numpy(dtype=object)
+    # a word outside the column's closed vocabulary is an unknown fact, not a mismatch (issue 25)
+    return missing_mask(vals) | vocabulary.unknown_values(key, vals)
 
 
 def _probes(ctx: Context, name: str, when: str) -> list[Any]:
@@ -132,9 +137,26 @@ def when(ctx: Context, rule: Rule, items: list[str], *, scalar: bool = False
     return first & ~unknown, unknown, probe
 
 
+@lru_cache(maxsize=4096)
+def _vocabulary_problems(when: str, measure: str, values: tuple[Any, ...]) -> tuple[str, ...]:
+    return tuple(vocabulary.literal_problems(when, extra=[(measure, v) for v in values]))
+
+
+def check_vocabulary(rule: Rule) -> None:
+    """A `when` (or an ``in`` requirement) comparing a closed-vocabulary column with a word that is
+    not one of its values can never match a cell the reader normalised: the rule cannot be
+    decided (``missing``), never silently not applicable (issue 25 item 4)."""
+    values = tuple(rule.requirement.values or ()) if rule.requirement.op == "in" else ()
+    problems = _vocabulary_problems(rule.when or "", rule.measure, values)
+    if problems:
+        raise Undecidable(f"{rule.id} cannot be decided: " + "; ".join(problems)
+                          + " - the profile must use the column's values (specs/delivery-tables.yaml)")
+
+
 def applicable(ctx: Context, rule: Rule, items: list[str]) -> tuple[np.ndarray, np.ndarray, str | None]:
     """Per-item applicability from `when`: (applies, unknown, note for the unknown items)."""
     n = len(items)
+    check_vocabulary(rule)
     if not rule.when:
         return np.ones(n, dtype=bool), np.zeros(n, dtype=bool), None
     applies, unknown, absent = when(ctx, rule, items)
@@ -144,6 +166,7 @@ def applicable(ctx: Context, rule: Rule, items: list[str]) -> tuple[np.ndarray, 
 def scalar_condition(ctx: Context, rule: Rule) -> tuple[bool | None, str | None]:
     """A `when` over delivery-wide facts only, decided once: (True/False, None), (None, why
     unknown), or (None, None) when it reads per-item measures."""
+    check_vocabulary(rule)
     if not rule.when:
         return None, None
     e = expr.parse(rule.when)

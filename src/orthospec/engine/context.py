@@ -7,6 +7,7 @@ the decision stays vectorised; :class:`RuleResult` is that columnar outcome of o
 
 from __future__ import annotations
 
+import contextlib
 import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -16,9 +17,11 @@ import numpy as np
 import pandas as pd
 
 from .. import verdicts as V
-from ..delivery.checker import Checker
+from ..delivery.checker import Checker, stated_outlines
 from ..delivery.convention import table_of_scope
+from ..delivery.in_force import DeliveryInForce
 from ..delivery.reader import Delivery
+from ..errors import OrthospecError
 from ..provenance import Evidence
 from ..spec.loader import ResolvedProfile
 from ..spec.models import Rule
@@ -84,16 +87,39 @@ class Context:
     manifest: dict[str, Any]
     fail_on: str
     debug: bool
+    #: the images were scanned before a verdict was bound to one (``file_sha256``)
+    _scanned: bool = False
 
     @classmethod
     def build(cls, profile: ResolvedProfile, delivery: Delivery, parameters: dict[str, ParamValue], *,
               fail_on: str, options: Mapping[str, Any] | None, checker: Checker | None,
               debug: bool | None) -> Context:
         opts = dict(options or {})
+        # the delivery as this evaluation judges it: the checker's check points in force, nothing written onto
+        # the opened delivery (issue 26: a next check of the same object starts clean)
+        delivery = DeliveryInForce.of(delivery, checker)
         pctx = ProviderContext(delivery, {k: v.quantity() for k, v in parameters.items()}, dict(opts),
-                               classes=dict(getattr(profile, "classes", {}) or {}))
+                               classes=dict(getattr(profile, "classes", {}) or {}), checker=checker,
+                               outlines=stated_outlines(checker) if checker is not None else None,
+                               inspection=load_grid(checker, delivery) if checker is not None else None)
         return cls(profile, delivery, parameters, opts, checker, MeasureCache(pctx), delivery.flat_manifest(),
                    fail_on, debug_enabled() if debug is None else debug)
+
+    def file_sha256(self, rel: str) -> str | None:
+        """SHA-256 of a delivered file now, None when the delivery does not hold it (or refuses the path).
+
+        When the profile reads raster measures the images are scanned (and hashed in that one read) first,
+        so binding a verdict to an image never reads the image a second time."""
+        if not self._scanned:
+            self._scanned = True
+            if any(r.measure.startswith("raster.") for r in self.profile.rules):
+                with contextlib.suppress(Exception):  # reported by the rules that read it; hashing follows
+                    self.cache.get("raster.readable")
+        try:
+            p = self.d.path(rel)
+        except OrthospecError:
+            return None
+        return self.d.sha256(rel) if p.is_file() else None
 
     def universe(self, scope: str) -> tuple[list[str] | None, str | None]:
         """The items a rule at ``scope`` must judge; None = take the measure's own items."""
@@ -121,6 +147,35 @@ class Context:
         if not sample or sample[0] != scope:
             return None
         return np.isin(np.asarray(items, dtype=object), list(sample[1]))
+
+
+def load_grid(checker: Checker, d: Delivery) -> Any:
+    """The checker folder's marked inspection grid, read and checked now (bad input is exit 2 before any
+    rule runs), or None when the folder has none."""
+    from ..delivery.checker import INSPECTION_GRID
+
+    p = checker.file(INSPECTION_GRID)
+    if p is None:
+        return None
+    from ..inspection.grid import delivered_images, read_grid
+
+    shown = f"{checker.folder}/{INSPECTION_GRID}" if checker.folder is not None else INSPECTION_GRID
+    with_ids = _grid_image_ids(p, shown)
+    return read_grid(p, display=shown, delivery_id=d.id, now=delivered_images(d, with_ids))
+
+
+def _grid_image_ids(path: Any, shown: str) -> set[str]:
+    """The image ids a grid names (its images layer), so only those images are opened and hashed."""
+    from pyogrio import raw
+
+    from ..raster.reading import gdal_errors, readable_vector
+
+    with readable_vector(path, name=shown) as (local, _), gdal_errors(file=shown, path=local, what="inspection grid"):
+        try:
+            _, _, _, values = raw.read(local, layer="images", columns=["image_id"])
+        except Exception:  # no such layer: read_grid names what is missing
+            return set()
+    return {str(v) for v in values[0]} if values else set()
 
 
 def _item_ids(t: Any) -> list[str]:

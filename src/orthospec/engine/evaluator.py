@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ..delivery.checker import Checker
+from ..delivery.draft import todo_citations
 from ..delivery.reader import Delivery
 from ..spec.loader import ResolvedProfile
 from . import manual, waivers
@@ -101,6 +102,7 @@ class Evaluator:
         requests = waivers.mark_requested(results, waivers.requested(ctx.d))
         verdict, more, todo = roll.overall(results, rejected, second)
         details = ctx.cache.details()
+        cite_todo(ctx.d, results)
         crashed = {r.rule.id: r.traceback for r in results if r.traceback}
         if crashed:
             details["tracebacks"] = dict(sorted(crashed.items()))
@@ -108,3 +110,20 @@ class Evaluator:
                           ctx.fail_on, details, waivers.unused(self.granted, used), requests,
                           ctx.checker.summary() if ctx.checker is not None else None,
                           manual.unused(ctx, results), todo)
+
+
+def cite_todo(d: Delivery, results: list[RuleResult]) -> None:
+    """In a draft (``init --from``), every ``missing`` record names the TODO.md line whose value
+    would decide it (delivery/draft.py), and so does a ``present`` rule failing on a value the
+    draft left empty; the ``*`` entry of the map covers rules it does not name."""
+    cites = todo_citations(d.path, d.manifest.draft)
+    if not cites:
+        return
+    for r in results:
+        mask = r.verdict == MISSING
+        if r.rule.requirement.op == "present" and r.rule.id in cites:
+            mask = mask | (r.verdict == FAIL) | (r.verdict == WARN)
+        cite = cites.get(r.rule.id, cites.get("*"))
+        if cite and mask.any():
+            r.notes = r.notes.copy()
+            r.notes[mask] = [f"{n}; see {cite}" if n else f"see {cite}" for n in r.notes[mask]]

@@ -75,7 +75,7 @@ def compute(name: str, d: Delivery) -> Measured:
         ev = (d.evidence(t.file),) if t else (d.manifest_evidence(f"tables.{tname}"),)
         return _one(name, "delivery", "bool", d.id, t is not None, ev)
     if t is None:
-        note = f"the manifest declares no '{tname}' table"
+        note = d.table_absent_reason(tname)
         if scope == "delivery":
             return _one(name, scope, unit, d.id, None, (d.manifest_evidence("tables"),), note=note)
         return Measured(name, scope, unit, pd.Series(dtype=object), pd.Series(dtype=object),

@@ -56,6 +56,8 @@ SHARES: dict[str, tuple[str, str, str]] = {
 REMEDY: dict[str, str] = {
     "checkpoints.precision_xy": "re-survey it or replace it with a more precise point",
     "checkpoints.min_gcp_distance": "replace the check points that coincide with GCPs by independent ones",
+    "sample.strata_missed": "add to the sample an image of each block, tag, problem batch or high view angle "
+                            "the record of JRC-12.4-SELECTION names (orthospec sample draws them)",
 }
 
 

@@ -11,6 +11,16 @@ A checker verdict on an item the delivery no longer lists (the contractor delete
 the checker judged it) never vanishes: the rule's record keeps that item with the checker's
 verdict, the roll-up returns the delivery naming it (engine/rollup.py), and ``unused`` lists
 the checker entries that judged nothing delivered (red team R15; JRC §2.4, §12.3).
+
+A verdict is bound to what was judged (issue 29 item 4). For an item that is a delivered file (an
+image), the checker's entry records that file and its SHA-256 (``file``, ``sha256``: `orthospec
+checker init` writes them); an entry whose item's file now has other content (changed, or another
+file swapped in), or that records none, is ``missing`` with the reason, never carried over to other
+pixels (the same content renamed is the same image). An entry
+without a verdict is still to be judged (the skeleton). The checker's marked inspection grid
+(inspection/grid.py) gives image verdicts of the rules specs/inspection.yaml names: the marked
+cells (ids, defect classes, comment) are the evidence; where the grid and an entry of the checker's
+file disagree, the failing one stands and the record names both.
 """
 
 from __future__ import annotations
@@ -19,6 +29,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from ..delivery.convention import table_of_scope
 from ..provenance import Evidence
 from ..spec.models import Rule
 from ..spec.operators import is_missing
@@ -35,9 +46,12 @@ def gone_reason(item: str) -> str:
 
 
 def vanished(ctx: Context, rule: Rule, items: list[str]) -> list[str]:
-    """The items the checker judged on ``rule`` that are not among the delivery's ``items``."""
+    """The items the checker judged on ``rule`` (its file's entries, its inspection grid's images) that are
+    not among the delivery's ``items``."""
     have = set(map(str, items))
-    return sorted(i for i in signed(ctx, rule.id) if i != "*" and i not in have)
+    grid = ctx.cache.ctx.inspection if rule.scope == "image" else None
+    judged = set(signed(ctx, rule.id)) | (grid.answers(rule.id) if grid is not None else set())
+    return sorted(i for i in judged if i != "*" and i not in have)
 
 
 def vanished_in(ctx: Context, r: RuleResult) -> list[str]:
@@ -74,10 +88,46 @@ def unused(ctx: Context, results: list[RuleResult]) -> list[dict[str, Any]]:
 
 
 def signed(ctx: Context, rule_id: str) -> dict[str, tuple[int, Any]]:
-    """item -> (entry index, entry) of the checker file's verdicts on ``rule_id``."""
+    """item -> (entry index, entry) of the checker file's verdicts on ``rule_id`` (entries still to be
+    judged, without a verdict, are left out)."""
     if ctx.checker is None:
         return {}
-    return {m.item: (i, m) for i, m in enumerate(ctx.checker.model.manual_checks) if m.check == rule_id}
+    return {m.item: (i, m) for i, m in enumerate(ctx.checker.model.manual_checks)
+            if m.check == rule_id and m.verdict is not None}
+
+
+def item_files(ctx: Context, scope: str) -> dict[str, str]:
+    """item -> the file the delivery gives it now (the ``file`` column of the scope's table, e.g. an
+    image's), for binding the checker's verdicts to content; {} for scopes without files."""
+    name = table_of_scope(scope)
+    t = ctx.d.table(name) if name is not None else None
+    if t is None or "file" not in t.df:
+        return {}
+    cells = t.df["file"]
+    have = cells.notna().to_numpy()
+    return dict(zip(t.ids[have].tolist(), cells[have].astype(str).tolist(), strict=True))
+
+
+def unbound_reason(ctx: Context, entry: Any, item: str, now: str | None) -> str | None:
+    """Why the checker's ``entry`` on ``item`` (whose file is ``now``) is not bound to what the delivery
+    holds now, or None when it is (or when the item has no file to bind to)."""
+    if now is None:
+        return None
+    sha = ctx.file_sha256(now)
+    if entry.file is None:
+        if sha is None:  # the item's file is not delivered: no content to bind the verdict to
+            return None
+        return (f"the checker's verdict on {item} records no file and SHA-256 of what was judged ({now} now): "
+                "`orthospec checker init` writes them; a verdict is never carried over to unknown content")
+    if sha is not None and sha.lower() == entry.sha256.lower():
+        return None  # the content judged, whatever the file is named now (a rename is not a change)
+    if sha is None:
+        return f"the checker's verdict on {item} was given on {entry.file}, which the delivery no longer holds"
+    if entry.file != now:
+        return (f"the checker's verdict on {item} was given on {entry.file} (SHA-256 {entry.sha256.lower()[:12]}…); "
+                f"the delivery now gives {now} ({sha[:12]}…): judge it again")
+    return (f"the checker's verdict on {item} was given on {entry.file} with SHA-256 {entry.sha256.lower()[:12]}…; "
+            f"the delivered file is {sha[:12]}… (changed or swapped since): judge it again")
 
 
 class Statement(NamedTuple):
@@ -119,6 +169,14 @@ def _signed_note(ctx: Context, rule: Rule, idx: int, entry: Any) -> tuple[int, s
     return code, note, chk.evidence("manual_checks", idx)
 
 
+def _grid_evidence(grid: Any, g: Any) -> Evidence:
+    """The grid file (name and hash) and the cells behind a grid verdict (ids, defect classes, comment)."""
+    cells = "; ".join(f"{c['cell_id']}: {', '.join(c['defects'])}" + (f" \"{c['comment']}\"" if c.get("comment") else "")
+                      for c in g.cells[:20])
+    more = f"; and {len(g.cells) - 20} more" if len(g.cells) > 20 else ""
+    return Evidence(f"checker:{grid.path.name}", grid.sha256, (), f"cells: {cells}{more}" if cells else "cells")
+
+
 def manual_rule(ctx: Context, rule: Rule, items: list[str]) -> RuleResult:
     """Judge a manual rule per item from the checker's verdicts; quote the contractor's statements."""
     items = items or [ctx.d.id]
@@ -130,18 +188,44 @@ def manual_rule(ctx: Context, rule: Rule, items: list[str]) -> RuleResult:
     notes = np.full(n, None, dtype=object)
     evidence: list[tuple[Evidence, ...]] = [()] * n
     by_checker, by_contractor = signed(ctx, rule.id), stated(ctx, rule.id)
+    files = item_files(ctx, rule.scope)
+    grid = ctx.cache.ctx.inspection if rule.scope == "image" else None
     for i, item in enumerate(items):
         k = by_checker.get(item, by_checker.get("*"))
         c = by_contractor.get(item, by_contractor.get("*"))
+        g = grid.verdict(rule.id, item, gone=item in gone) if grid is not None else None
         ev: list[Evidence] = [] if c is None else [c.evidence]
-        if k is None:  # unsigned: the contractor's statement is quoted in full
-            notes[i] = UNSIGNED if c is None else f"{UNSIGNED}; {c.full}"
+        unbound = unbound_reason(ctx, k[1], item, files.get(item)) if k is not None and item not in gone else None
+        if unbound is not None:
+            ev.append(ctx.checker.evidence("manual_checks", k[0]))  # type: ignore[union-attr]
+            k = None
+        if g is not None:
+            ev.append(_grid_evidence(grid, g))
+        if k is None and g is None:  # unsigned: the contractor's statement is quoted in full
+            notes[i] = unbound or (UNSIGNED if c is None else f"{UNSIGNED}; {c.full}")
+            if unbound is not None and c is not None:
+                notes[i] = f"{unbound}; {c.short}"
+        elif k is None:  # the grid alone
+            assert g is not None
+            verdict[i] = {"pass": PASS, "fail": FAIL if rule.level == "mandatory" else WARN}.get(g.verdict, MISSING)
+            measured[i] = g.verdict if g.verdict != "missing" else None
+            notes[i] = g.note if unbound is None else f"{g.note}; {unbound}"
+            if c is not None and g.verdict != "missing" and c.said != g.verdict:
+                notes[i] = f"{notes[i]}; {c.short}"
+            if item in gone:
+                notes[i] = f"{gone_reason(item)} ({notes[i]}); the delivery is returned"
         else:
             verdict[i], note, kev = _signed_note(ctx, rule, *k)
             measured[i] = k[1].verdict
             ev.append(kev)
+            if g is not None and g.verdict == "fail" and k[1].verdict == "pass":
+                verdict[i] = FAIL if rule.level == "mandatory" else WARN
+                measured[i] = "fail"
+                note = f"{g.note} (the checker's file signs it pass: the marked grid stands)"
+            elif g is not None and g.verdict != k[1].verdict:
+                note = f"{note}; {g.note}"
             # the contractor's statement stays in the evidence; the message names it where it disagrees
-            differs = c is not None and c.said != k[1].verdict
+            differs = c is not None and c.said != measured[i]
             notes[i] = f"{note}; {c.short}" if differs else note
             if item in gone:
                 notes[i] = f"{gone_reason(item)} ({notes[i]}); the delivery is returned"

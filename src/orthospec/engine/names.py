@@ -17,6 +17,7 @@ import numpy as np
 import pandas as pd
 
 from .. import units
+from ..delivery import vocabulary
 from ..spec.operators import is_missing
 from ..units import NON_NUMERIC, parse_unit
 from .catalog import MeasureCache, measure_info
@@ -143,7 +144,7 @@ class Names(Mapping[str, Any]):
         else:
             vals = m.values.reindex(self.items)
         raw = vals.to_numpy(dtype=object).copy()
-        raw[missing_mask(raw)] = self.fill[key]
+        raw[missing_mask(raw) | vocabulary.unknown_values(key, raw)] = self.fill[key]
         if m.unit in NON_NUMERIC or m.unit == "any":
             return raw[0] if self.scalar else raw
         arr = pd.to_numeric(pd.Series(raw), errors="coerce").to_numpy(dtype=float)

@@ -201,7 +201,7 @@ def _judge(ctx: Context, rule: Rule, m: Measured, items: list[str]) -> RuleResul
     verdict[~ok] = FAIL if rule.level == "mandatory" else WARN
     verdict[col.missing] = MISSING
     for code, mask, why in undecided:
-        mask = mask & ~col.missing & ~col.errs
+        mask = mask & ~col.missing & ~col.errs & col.applies  # a not-applicable item keeps its `when` reason
         verdict[mask] = code
         notes[mask] = why
     _note_missing(rule, col, notes)

@@ -216,6 +216,7 @@ def checkpoint_map_svg(
     polygon: Sequence[tuple[float, float]] | None = None,
     always: Sequence[Any] = (),
     max_points: int = MAX_MARKS,
+    defect_cells: Sequence[tuple[Sequence[float], str]] = (),
 ) -> str:
     """Checkpoint map with discrepancy vectors (× ``scale``) and GCPs, as SVG text.
 
@@ -228,6 +229,8 @@ def checkpoint_map_svg(
     More than ``max_points`` points: :func:`sample_points` picks the drawn ones (every flagged
     and ``always`` id, e.g. exclusion requests, and an even sample of the rest), the figure states
     the counts (``sample-note``) and the extent, scale and scale arrow still come from every point.
+    ``defect_cells``: (left, bottom, right, top), label) of the inspection grid's marked cells in the
+    block (docs/CHECKER.md), drawn as orange hatched squares (``inspection-defects``).
     """
     ax_x = _arr("x", x)
     n = ax_x.size
@@ -266,6 +269,16 @@ def checkpoint_map_svg(
                               label="block outline", zorder=1)
             for o in outline:
                 o.set_gid("block-outline")
+        if defect_cells:
+            from matplotlib.collections import PatchCollection
+            from matplotlib.patches import Rectangle
+
+            rects = [Rectangle((b[0], b[1]), b[2] - b[0], b[3] - b[1]) for b, _ in defect_cells]
+            coll = PatchCollection(rects, facecolor="tab:orange", edgecolor="tab:orange", alpha=0.5,
+                                   hatch="////", zorder=2, label="inspection: marked cell")
+            coll.set_gid("inspection-defects")
+            ax.add_collection(coll)
+            ax.scatter([], [], marker="s", color="tab:orange", alpha=0.5, label="inspection: marked cell")
         pts = ax.scatter(ax_x, ax_y, s=18, c=np.where(red, "tab:red", "tab:blue"), zorder=3,
                          label="check point")
         pts.set_gid("checkpoints")

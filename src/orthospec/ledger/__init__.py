@@ -7,6 +7,8 @@ migrated by Alembic when the ledger is opened.
 
 from __future__ import annotations
 
+import os
+
 from .audit import (
     MARGIN,
     NORMAL,
@@ -73,7 +75,7 @@ def sample_fraction(ledger: Ledger | str | None, project: str, family: str, norm
         return led.sample_fraction(project, family, normal, tightened)
 
 
-def head_for_check(target: str | None) -> dict[str, object]:
+def head_for_check(target: str | None, *, allowed_signers: str | os.PathLike[str] | None = None) -> dict[str, object]:
     """Open (or create) the ledger a check will record into, refuse it when it does not verify,
     and return its chain head ``{"seq", "hash"}`` for qcr.json (``ledger_head``).
 
@@ -81,7 +83,7 @@ def head_for_check(target: str | None) -> dict[str, object]:
     """
     from ..errors import LedgerError
 
-    with open_ledger(target) as led:
+    with open_ledger(target, allowed_signers=allowed_signers) as led:
         rep = led.verify()
         if not rep.ok:
             raise LedgerError(f"ledger {led.display} does not verify ({rep.problems[0]}); "

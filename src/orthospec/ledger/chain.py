@@ -20,6 +20,9 @@ from collections.abc import Iterator, Mapping, Sequence
 from json.encoder import encode_basestring  # what the encoder below writes a text with
 from typing import Any
 
+#: columns added after schema 0001: they enter an entry's canonical text only when set, so an entry
+#: recorded before them (NULL there) keeps its hash
+ADDED_COLUMNS = frozenset({"audit_key", "continues_run", "signer", "key_fingerprint", "signature"})
 #: one encoder for every canonical text (``json.dumps`` with these options builds a new one per call)
 _ENC = json.JSONEncoder(sort_keys=True, separators=(",", ":"), ensure_ascii=False, allow_nan=False)
 #: a text value longer than this (a run's qcr.json document) is escaped and hashed in pieces of it
@@ -55,6 +58,11 @@ def _canonical_pieces(d: Mapping[str, Any]) -> Iterator[str]:
     yield "}"
 
 
+def _hashed(row: Mapping[str, Any]) -> dict[str, Any]:
+    """The columns of an entry's row its hash covers: all but ``hash``, added columns only when set."""
+    return {k: v for k, v in row.items() if k != "hash" and not (v is None and k in ADDED_COLUMNS)}
+
+
 class RunHasher:
     """The chain hash of a run, fed its files, then its QCR rows in ordinal order batch by batch,
     then the run row: the digest of the whole canonical text (module docstring) fed at once."""
@@ -79,7 +87,7 @@ class RunHasher:
     def hexdigest(self, run: Mapping[str, Any]) -> str:
         """Finish with the run row (its ``hash`` left out) and return the hash."""
         self._update('],"run":')
-        for piece in _canonical_pieces({k: v for k, v in run.items() if k != "hash"}):
+        for piece in _canonical_pieces(_hashed(run)):
             self._update(piece)
         self._update('},"kind":"run","prev":' + _ENC.encode(self._prev) + "}")
         return self._h.hexdigest()
@@ -87,5 +95,5 @@ class RunHasher:
 
 def signoff_hash(signoff: Mapping[str, Any], prev: str) -> str:
     """Hash of a sign-off row; it embeds the signed run's hash, binding the two."""
-    content = {k: v for k, v in signoff.items() if k != "hash"}
+    content = _hashed(signoff)
     return sha256_text(canonical({"kind": "signoff", "content": content, "prev": prev}))

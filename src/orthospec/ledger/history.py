@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ..verdicts import FAILING, REJECTED, worst
-from .runs import RunInfo, document_content_key
+from .runs import RunInfo, document_content_key, lineage
 
 #: the kinds of run in a project's sequence (JRC §12.8)
 DELIVERY, REDELIVERY, RECHECK = "delivery", "redelivery", "recheck"
@@ -58,16 +58,26 @@ def rounds_of(runs: Iterable[tuple[str, str]]) -> list[tuple[str, int]]:
     return out
 
 
+def trails(runs: Sequence[RunInfo]) -> list[str]:
+    """The audit trail of each run (:func:`.runs.lineage`), named by the audit key of its first run."""
+    label: dict[int, str] = {}
+    for r in runs:
+        if r.id not in label:
+            for x in lineage(runs, r.audit):
+                label.setdefault(x.id, r.audit)
+    return [label[r.id] for r in runs]
+
+
 def rounds(runs: Sequence[RunInfo]) -> list[tuple[str, int]]:
-    """(kind, round) per recorded run, oldest first, counted per project."""
-    return rounds_of((r.project_id, r.content_key) for r in runs)
+    """(kind, round) per recorded run, oldest first, counted per audit trail (not per manifest
+    project id: a renamed ``project.id`` does not start the rounds again, issue 25 item 6)."""
+    return rounds_of(zip(trails(runs), (r.content_key for r in runs), strict=True))
 
 
 def round_of_document(runs: Sequence[RunInfo], doc: Mapping[str, Any]) -> tuple[str, int]:
-    """(kind, round) the QCR document ``doc`` gets when recorded after ``runs`` (its project's)."""
-    project = str((doc["delivery"].get("project") or {}).get("id") or "")
-    pairs = [(r.project_id, r.content_key) for r in runs]
-    return rounds_of([*pairs, (project, document_content_key(doc))])[-1]
+    """(kind, round) the QCR document ``doc`` gets when recorded after ``runs`` (its audit trail's)."""
+    pairs = [("", r.content_key) for r in runs]
+    return rounds_of([*pairs, ("", document_content_key(doc))])[-1]
 
 
 def build_history(project: str | None, runs: Sequence[RunInfo],

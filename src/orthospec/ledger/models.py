@@ -20,7 +20,7 @@ from sqlalchemy import (
 )
 
 #: Alembic revision the current code expects (the newest file in migrations/versions).
-SCHEMA_REVISION = "0001"
+SCHEMA_REVISION = "0002"
 
 #: prev_hash of the first entry of every chain.
 GENESIS = "0" * 64
@@ -63,7 +63,15 @@ runs = Table(
     Column("document_sha256", String(64), nullable=False),
     Column("prev_hash", String(64), nullable=False),
     Column("hash", String(64), nullable=False),
+    # 0002: the key the audit state and rounds are kept under (what the checker states, else
+    # content continuity, else the manifest's project id); the checker's SSH signature
+    Column("audit_key", String(200), nullable=True),
+    Column("continues_run", Integer, nullable=True),
+    Column("signer", String(200), nullable=True),
+    Column("key_fingerprint", String(100), nullable=True),
+    Column("signature", Text, nullable=True),
     Index(None, "project_id", "seq"),
+    Index(None, "audit_key", "seq"),
 )
 
 run_files = Table(
@@ -72,6 +80,7 @@ run_files = Table(
     Column("path", String(1000), primary_key=True),
     Column("sha256", String(64), nullable=False),
     Column("bytes", BigInteger, nullable=True),
+    Index(None, "sha256"),   # 0002: content continuity (which earlier run a delivery continues)
 )
 
 qcrs = Table(
@@ -113,6 +122,9 @@ signoffs = Table(
     Column("manual", Text, nullable=False),
     Column("prev_hash", String(64), nullable=False),
     Column("hash", String(64), nullable=False),
+    # 0002: the countersigner's SSH signature (by_name is then the allowed-signers principal)
+    Column("key_fingerprint", String(100), nullable=True),
+    Column("signature", Text, nullable=True),
 )
 
 TABLES = ("ledger_head", "runs", "run_files", "qcrs", "signoffs")

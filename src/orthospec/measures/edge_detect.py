@@ -303,8 +303,52 @@ def measure_target(image: np.ndarray, *, nodata: float | None = None, gsd: float
         best = _grow(img, valid, (c, u, t0, t1), others, half_widths, gsd, measure_kw)
         if best is not None:
             edges.append(best)
+    edges = _one_per_edge(edges)
     edges.sort(key=lambda e: (e.axis, e.y0, e.x0))
     return _combined(tuple(edges), nodata, fill is not None)
+
+
+def _one_per_edge(edges: list[FoundEdge], max_dangle: float = 3.0, max_offset: float = 3.0) -> list[FoundEdge]:
+    """One measurement per physical edge (issue 31): found edges whose lines agree within
+    ``max_dangle`` deg and ``max_offset`` px and whose segments overlap along the line are the same
+    edge found twice (noise splits a line's Hough segments or its contrast run); the valid one
+    with the longest segment is kept. An invalid line whose ROI lies mostly inside a valid
+    edge's ROI is noise crossing that edge (seen at SNR 30), not another edge. Runs of a
+    checkerboard line on either side of the centre (opposite polarity, no overlap) stay apart."""
+    def seg(e: FoundEdge) -> tuple[np.ndarray, np.ndarray, float]:
+        p0, p1 = np.array([e.x0, e.y0]), np.array([e.x1, e.y1])
+        return p0, p1, float(np.hypot(*(p1 - p0)))
+
+    def same(a: FoundEdge, b: FoundEdge) -> bool:
+        dang = abs((a.line_angle_deg - b.line_angle_deg + 90.0) % 180.0 - 90.0)
+        if dang > max_dangle:
+            return False
+        a0, a1, la = seg(a)
+        b0, b1, _ = seg(b)
+        u = (a1 - a0) / max(la, 1e-9)
+        n = np.array([-u[1], u[0]])
+        if max(abs(float((b0 - a0) @ n)), abs(float((b1 - a0) @ n))) > max_offset:
+            return False
+        t = sorted([float((b0 - a0) @ u), float((b1 - a0) @ u)])
+        return t[1] > 0.0 and t[0] < la  # overlap along the line
+
+    def inside(a: FoundEdge, b: FoundEdge) -> bool:
+        """b is an invalid short line mostly inside a valid edge's ROI (noise crossing it)."""
+        if not (a.result is not None and a.result.valid) or (b.result is not None and b.result.valid):
+            return False
+        ax0, ay0, ax1, ay1 = a.window
+        bx0, by0, bx1, by1 = b.window
+        ov = max(0, min(ax1, bx1) - max(ax0, bx0)) * max(0, min(ay1, by1) - max(ay0, by0))
+        return ov >= 0.5 * max((bx1 - bx0) * (by1 - by0), 1)
+
+    def rank(e: FoundEdge) -> tuple[bool, float]:
+        return (bool(e.result is not None and e.result.valid), seg(e)[2])
+
+    kept: list[FoundEdge] = []
+    for e in sorted(edges, key=rank, reverse=True):
+        if not any(same(e, k) or inside(k, e) for k in kept):
+            kept.append(e)
+    return kept
 
 
 def _grow(img: np.ndarray, valid: np.ndarray, seg: tuple[np.ndarray, np.ndarray, float, float],

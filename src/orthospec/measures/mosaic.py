@@ -190,11 +190,15 @@ def photo_footprints(cx: Sequence[float], cy: Sequence[float], across: Sequence[
     return out
 
 
-def strip_headings(cx: Sequence[float], cy: Sequence[float], groups: Sequence[str]) -> np.ndarray:
+def strip_headings(cx: Sequence[float], cy: Sequence[float], groups: Sequence[str], *,
+                   min_distance: float = 0.0) -> np.ndarray:
     """Flight direction per photo: towards its nearest neighbour of the same flight (radians).
 
     Along-track photo spacing is shorter than the strip spacing, so the nearest exposure of the
-    same flight lies on the same strip; a photo alone in its flight gets heading 0 (x axis).
+    same flight lies on the same strip; a photo alone in its flight gets heading 0 (x axis). A
+    station recorded twice, or within ``min_distance`` (a row copied, with or without a nudge), is
+    the same station, not a neighbour: the next farther one is (a copied row otherwise turned both
+    footprints across the strip).
     """
     x, y = np.asarray(cx, dtype=float), np.asarray(cy, dtype=float)
     g = np.asarray([str(v) for v in groups], dtype=object)
@@ -205,7 +209,7 @@ def strip_headings(cx: Sequence[float], cy: Sequence[float], groups: Sequence[st
             continue
         px, py = x[idx], y[idx]
         d2 = (px[:, None] - px[None, :]) ** 2 + (py[:, None] - py[None, :]) ** 2
-        np.fill_diagonal(d2, np.inf)
+        d2[d2 <= min_distance * min_distance] = np.inf  # itself, and any copy of its station
         j = np.argmin(d2, axis=1)
         out[idx] = np.arctan2(py[j] - py, px[j] - px)
     return out

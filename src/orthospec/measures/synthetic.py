@@ -11,6 +11,7 @@ slanted-edge method samples.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -21,7 +22,11 @@ from .psf import gauss_pixel_esf, gauss_pixel_lsf, gauss_pixel_mtf
 
 __all__ = [
     "EdgeTruth",
+    "FamilyTruth",
+    "PsfFamily",
     "edge_truth",
+    "family_edge",
+    "family_truth",
     "kernel_truth",
     "slanted_edge",
     "truth_esf",
@@ -324,3 +329,176 @@ def unsharp_truth(*, sigma_px: float, angle_deg: float, amount: float, mask_sigm
         mtf_nyquist=float(gauss_pixel_mtf(np.array([0.5]), sigma_px, angle_deg)[0]) * gain,
         edge_slope_per_px=float(lsf.max()),
     )
+
+
+# ---------------------------------------------------------------------------------------------
+# PSF families by their optical transfer function (issue 31): truth and rendering from one 2-D OTF
+#
+# Why a second generator: the seven families of real systems (Gaussian, core + halo, defocus
+# disk, motion across and along the edge, 3-tap MTFC sharpening, diffraction x jitter x
+# along-track smear) are each known in closed form as an OTF, not as a kernel a supersampled
+# renderer could apply without error (a diffraction PSF's tails reach far, a 3-tap filter acts
+# on the pixel grid). The image of a straight edge depends on the perpendicular distance d of a
+# pixel centre only, so every pixel is dark + (bright - dark) ESF(d), where the system ESF along
+# the normal n = (cos t, -sin t) follows from the Fourier slice theorem:
+# T(f) = OTF(f cos t, -f sin t) sinc(f cos t) sinc(f sin t) [x H_mtfc(f cos t, -f sin t)],
+# inverted numerically on a fine grid. The truth (FWHM, RER, MTF@Ny = |T(0.5)|) comes from the
+# same T, computed here and never by the measuring chain's own formulas (measures/psf.py).
+
+_FAMILY_STEP = 1.0 / 128.0  # px, grid of the numerical ESF/LSF
+_FAMILY_N = 1 << 17  # samples: a 1,024-px period, so the tails of a diffraction PSF wrap < 1e-4
+
+
+def _disk_otf(r: np.ndarray, radius: float) -> np.ndarray:
+    """OTF of a uniform disk of ``radius`` px at radial frequency r: 2 J1(2 pi R r) / (2 pi R r)."""
+    from scipy.special import j1
+
+    z = 2.0 * np.pi * radius * np.asarray(r, dtype=float)
+    out = np.ones_like(z)
+    nz = np.abs(z) > 1e-12
+    out[nz] = 2.0 * j1(z[nz]) / z[nz]
+    return out
+
+
+def _airy_otf(r: np.ndarray, cutoff: float) -> np.ndarray:
+    """Diffraction OTF of a circular pupil with cut-off ``cutoff`` cycles/px (1 / (lambda N) in
+    pixel units): (2/pi)(acos v - v sqrt(1 - v^2)), v = r / cutoff, 0 beyond."""
+    v = np.clip(np.abs(np.asarray(r, dtype=float)) / cutoff, 0.0, 1.0)
+    return (2.0 / np.pi) * (np.arccos(v) - v * np.sqrt(1.0 - v * v))
+
+
+@dataclass(frozen=True)
+class PsfFamily:
+    """One system of the benchmark grid, given by its parameters (px, cycles/px).
+
+    ``kind``: ``gauss`` (sigma), ``halo`` (core sigma, halo sigma2, halo weight w), ``defocus``
+    (disk radius, sigma), ``motion_x`` / ``motion_y`` (box length along image x / y, sigma),
+    ``mtfc`` (sigma, 3-tap amount a: [-a, 1 + 2a, -a] along x and along y on the pixel grid),
+    ``diffraction`` (cut-off in cycles/px, jitter sigma, along-track smear length along y).
+    """
+
+    kind: str
+    sigma: float = 0.0
+    sigma2: float = 0.0
+    weight: float = 0.0
+    radius: float = 0.0
+    length: float = 0.0
+    amount: float = 0.0
+    cutoff: float = 0.0
+
+    def otf(self, fx: np.ndarray, fy: np.ndarray) -> np.ndarray:
+        """The PSF's 2-D OTF (pixel aperture excluded; the MTFC filter included)."""
+        r2 = fx * fx + fy * fy
+
+        def g(s: float) -> np.ndarray:
+            return np.exp(-2.0 * np.pi**2 * s * s * r2)
+
+        k = self.kind
+        if k == "gauss":
+            return g(self.sigma)
+        if k == "halo":
+            return (1.0 - self.weight) * g(self.sigma) + self.weight * g(self.sigma2)
+        if k == "defocus":
+            return _disk_otf(np.sqrt(r2), self.radius) * g(self.sigma)
+        if k == "motion_x":
+            return np.sinc(self.length * fx) * g(self.sigma)
+        if k == "motion_y":
+            return np.sinc(self.length * fy) * g(self.sigma)
+        if k == "mtfc":
+            a = self.amount
+            return (g(self.sigma) * (1 + 2 * a - 2 * a * np.cos(2 * np.pi * fx))
+                    * (1 + 2 * a - 2 * a * np.cos(2 * np.pi * fy)))
+        if k == "diffraction":
+            return _airy_otf(np.sqrt(r2), self.cutoff) * g(self.sigma) * np.sinc(self.length * fy)
+        raise MeasureError(f"unknown PSF family {k!r}")
+
+    def label(self) -> str:
+        k = self.kind
+        if k == "gauss":
+            return f"gauss s{self.sigma:g}"
+        if k == "halo":
+            return f"halo s{self.sigma:g}+{self.weight:g}*s{self.sigma2:g}"
+        if k == "defocus":
+            return f"defocus R{self.radius:g} s{self.sigma:g}"
+        if k in ("motion_x", "motion_y"):
+            return f"{k} L{self.length:g} s{self.sigma:g}"
+        if k == "mtfc":
+            return f"mtfc a{self.amount:g} s{self.sigma:g}"
+        return f"diffraction fc{self.cutoff:g} j{self.sigma:g} L{self.length:g}"
+
+
+@dataclass(frozen=True, eq=False)
+class FamilyTruth:
+    """The system response of a :class:`PsfFamily` along an edge normal, and its estimators."""
+
+    family: PsfFamily
+    angle_deg: float
+    x: np.ndarray  # px, perpendicular distance (bright side > 0)
+    esf: np.ndarray
+    lsf: np.ndarray
+    fwhm_px: float
+    rer: float
+    mtf_nyquist: float
+
+    def mtf(self, f: np.ndarray) -> np.ndarray:
+        """|T(f)| at ``f`` cycles/px along the normal."""
+        return np.abs(_normal_otf(self.family, self.angle_deg, np.asarray(f, dtype=float)))
+
+
+def _normal_otf(fam: PsfFamily, angle_deg: float, f: np.ndarray) -> np.ndarray:
+    t = np.deg2rad(angle_deg)
+    fx, fy = f * np.cos(t), -f * np.sin(t)
+    return fam.otf(fx, fy) * np.sinc(fx) * np.sinc(fy)
+
+
+def family_truth(fam: PsfFamily, *, angle_deg: float) -> FamilyTruth:
+    """ESF, LSF and the estimators of ``fam`` x square pixel along the normal of an edge at
+    ``angle_deg`` (numerical inverse of the 1-D OTF on a 1/128-px grid, 1,024-px period).
+
+    FWHM at half the LSF's peak (outermost crossings); RER = ESF(c + 0.5) - ESF(c - 0.5) about
+    the point c where the ESF is 0.5 (every family here is symmetric, so c is the LSF's centre);
+    MTF@Ny = |T(0.5)| exactly.
+    """
+    n, h = _FAMILY_N, _FAMILY_STEP
+    f = np.fft.rfftfreq(n, h)
+    spec = _normal_otf(fam, angle_deg, f).astype(complex)
+    lsf = np.fft.fftshift(np.fft.irfft(spec, n)) / h
+    x = (np.arange(n) - n // 2) * h
+    esf = np.cumsum(lsf) * h
+    esf = esf - 0.5 * lsf * h  # trapezoid: the value at x, not after it
+    esf -= esf[0]
+    esf /= esf[-1]
+    mid = float(np.interp(0.5, esf[(x > -8) & (x < 8)], x[(x > -8) & (x < 8)]))
+    core = np.abs(x) <= 100.0
+    e = np.interp([mid - 0.5, mid + 0.5], x, esf)
+    return FamilyTruth(family=fam, angle_deg=float(angle_deg), x=x[core], esf=esf[core], lsf=lsf[core],
+                       fwhm_px=_level_width(x[core], lsf[core], 0.5), rer=float(e[1] - e[0]),
+                       mtf_nyquist=float(np.abs(_normal_otf(fam, angle_deg, np.array([0.5])))[0]))
+
+
+def family_edge(fam: PsfFamily, shape: tuple[int, int], *, angle_deg: float, dark: float,
+                bright: float, snr: float | None = None, bit_depth: int | None = None,
+                offset_px: float = 0.0, rng: np.random.Generator | None = None,
+                truth: FamilyTruth | None = None) -> np.ndarray:
+    """Render an edge of ``fam``: every pixel is dark + (bright - dark) ESF(d) at the
+    perpendicular distance d of its centre (as :func:`slanted_edge`: the edge turned by
+    ``angle_deg`` from the columns, bright on the right), plus Gaussian noise of std
+    (bright - dark) / snr, rounded and clipped to ``bit_depth`` (uint8 / uint16) when given.
+
+    A 3-tap MTFC family is the sharpened product (the filter acts on the noise-free image; the
+    noise is the product's). Beyond the +-100 px kept in the truth the ESF is taken as its end
+    values (a diffraction tail still holds 1e-3 of the step there; nothing else does).
+    """
+    tr = truth if truth is not None else family_truth(fam, angle_deg=angle_deg)
+    rows, cols = int(shape[0]), int(shape[1])
+    yy, xx = np.mgrid[0:rows, 0:cols].astype(float)
+    t = np.deg2rad(angle_deg)
+    d = (xx - ((cols - 1) / 2.0 + offset_px)) * np.cos(t) - (yy - (rows - 1) / 2.0) * np.sin(t)
+    img = dark + (bright - dark) * np.interp(d, tr.x, tr.esf)
+    if snr is not None and math.isfinite(snr):
+        gen = rng if rng is not None else np.random.default_rng(0)
+        img = img + gen.normal(0.0, abs(bright - dark) / float(snr), size=img.shape)
+    if bit_depth:
+        full = float(2**bit_depth - 1)
+        return np.clip(np.rint(img), 0, full).astype(np.uint8 if bit_depth <= 8 else np.uint16)
+    return img

@@ -20,7 +20,7 @@ from .. import __version__
 
 CACHE_FILE = "orthospec-raster-cache.sqlite"
 #: Bump when the content of cached results changes meaning.
-CACHE_SCHEMA = 1
+CACHE_SCHEMA = 2
 
 
 class ResultCache:

@@ -1,36 +1,27 @@
 """File-level checks of delivered images (JRC EUR 23638 EN §3.1-3.2, §6.4-6.5, §9.2).
 
-Everything here reads only headers and tags, never pixels (except the nodata share, which
-comes from the radiometry scan). A file that cannot be opened, has no georeference or an
-unparseable CRS yields a :class:`FileChecks` with ``error`` set, never an exception, so a
-national batch never stops on one bad file.
+Everything here judges the header facts of :mod:`orthospec.raster.facts` (the one reader), never
+pixels (except the nodata share, which comes from the radiometry scan). A file that cannot be
+opened, has no georeference or an unparseable CRS yields a :class:`FileChecks` with ``error`` set,
+never an exception, so a national batch never stops on one bad file.
 """
 
 from __future__ import annotations
 
-import math
 import re
-import stat
-import warnings
 from collections import Counter
 from collections.abc import Iterable, Iterator
-from contextlib import ExitStack, contextmanager
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
 from functools import lru_cache
 from pathlib import Path, PurePath
 from typing import Any
 
-import numpy as np
 import rasterio
 
 from ..errors import MeasureError
-from .reading import ScanSettings, gdal_errors, open_read_only, read_only_env, readable_vector
-
-#: Compression names (GDAL ``COMPRESSION`` tag / driver) that are always lossless.
-LOSSLESS = {"NONE", "LZW", "DEFLATE", "ZSTD", "PACKBITS", "LZMA", "CCITTRLE", "CCITTFAX3",
-            "CCITTFAX4", "ADOBE_DEFLATE", "LERC_ZERO"}
-#: Compression names that are always lossy (unless GDAL reports COMPRESSION_REVERSIBILITY).
-LOSSY = {"JPEG", "OJPEG", "JXL_LOSSY", "ECW", "MRSID"}
+from .facts import RasterFacts, opened_facts
+from .reading import ScanSettings, gdal_errors, readable_vector
 
 _WINDOWS_FORBIDDEN = re.compile(r'[<>:"/\\|?*\x00-\x1f]')
 _WINDOWS_RESERVED = {"CON", "PRN", "AUX", "NUL", *(f"COM{i}" for i in range(1, 10)),
@@ -134,45 +125,15 @@ class FileChecks:
     name_ok: bool | None = None
     name_problems: tuple[str, ...] = field(default=())
     stored_statistics: bool | None = None  # STATISTICS_* tags present (never trusted)
+    #: what the file says about itself (the one reader); not part of :meth:`to_dict`
+    facts: RasterFacts | None = field(default=None, compare=False, repr=False)
 
     def to_dict(self) -> dict[str, Any]:
-        d = asdict(self)
+        d = {k: getattr(self, k) for k in self.__dataclass_fields__ if k != "facts"}
         for k, v in d.items():
             if isinstance(v, tuple):
                 d[k] = list(v)
         return d
-
-
-def _nbits(ds: rasterio.io.DatasetReader) -> int | None:
-    tag = ds.tags(1, ns="IMAGE_STRUCTURE").get("NBITS") or ds.tags(ns="IMAGE_STRUCTURE").get(
-        "NBITS")
-    return int(tag) if tag else None
-
-
-def _compression(ds: rasterio.io.DatasetReader) -> tuple[str, bool | None]:
-    ims = ds.tags(ns="IMAGE_STRUCTURE")
-    name = ims.get("COMPRESSION")
-    if name is None:
-        if ds.driver.startswith("JP2"):
-            name = "JPEG2000"
-        elif ds.driver in ("ECW", "MrSID", "JPEG", "WEBP"):
-            name = ds.driver.upper()
-        else:
-            name = "NONE"
-    name = name.upper()
-    rev = ims.get("COMPRESSION_REVERSIBILITY", "").upper()
-    if rev in ("LOSSLESS", "LOSSY"):
-        return name, rev == "LOSSLESS"
-    if name in LOSSLESS:
-        return name, True
-    if name in LOSSY:
-        return name, False
-    if name == "JPEG2000":
-        return name, None  # reversibility not reported by the driver
-    if name == "LERC":
-        err = ims.get("MAX_Z_ERROR")
-        return name, None if err is None else float(err) == 0.0
-    return name, None
 
 
 def check_file(path: str | Path, *, expect_epsg: int | None = None,
@@ -199,104 +160,63 @@ def checked_file(path: str | Path, *, expect_epsg: int | None = None,
 
     Yields the checks and the open dataset, or None when it could not be opened: one open and
     one GDAL environment per image instead of two (about 3 ms of a tiny image's budget).
-    A missing georeference is reported in ``error``, never printed as a warning.
+    A missing georeference is reported in ``error``, never printed as a warning. The facts
+    come from the one reader, :func:`orthospec.raster.facts.opened_facts`; ``FileChecks.facts``
+    keeps them.
     """
-    p = Path(path)
-    name = check_name(p.name)
-    base: dict[str, Any] = {"path": str(p), "name_ok": name.ok, "name_problems": name.problems}
-    try:
-        st = p.stat()
-    except OSError as exc:
-        yield FileChecks(error=f"{p}: cannot stat file: {exc.strerror or exc}", **base), None
-        return
-    if not stat.S_ISREG(st.st_mode):  # a FIFO or device would block or never end
-        yield FileChecks(error=f"{p}: not a regular file", **base), None
-        return
-    base["bytes"] = st.st_size
-    if st.st_size == 0:
-        yield FileChecks(error=f"{p}: zero-size file", **base), None
-        return
-    with ExitStack() as stack, warnings.catch_warnings():
-        warnings.simplefilter("ignore", rasterio.errors.NotGeoreferencedWarning)
-        ds = None
-        try:
-            stack.enter_context(read_only_env(settings))
-            ds = stack.enter_context(open_read_only(p))
-            with gdal_errors(file=p, what="raster header"):
-                checks = _check_open(ds, base, expect_epsg=expect_epsg, expect_gsd=expect_gsd,
-                                     gsd_tolerance=gsd_tolerance, min_bits=min_bits,
-                                     recommended_bits=recommended_bits)
-        except MeasureError as exc:  # refused (format, declared size) or GDAL could not read it
-            checks = FileChecks(error=str(exc), **base)
-        yield checks, ds
+    with opened_facts(path, settings=settings) as (facts, ds):
+        yield checks_of(facts, expect_epsg=expect_epsg, expect_gsd=expect_gsd, gsd_tolerance=gsd_tolerance,
+                        min_bits=min_bits, recommended_bits=recommended_bits), ds
 
 
-def _check_open(ds: rasterio.io.DatasetReader, base: dict[str, Any], *, expect_epsg: int | None,
-                expect_gsd: float | None, gsd_tolerance: float, min_bits: int,
-                recommended_bits: int) -> FileChecks:
-    p = base["path"]
-    comp, lossless = _compression(ds)
-    bh, bw = ds.block_shapes[0]
-    layout = "striped" if bw >= ds.width and ds.driver == "GTiff" else (
-        "tiled" if bw < ds.width or bh < ds.height else "single-block")
-    dtypes = tuple(ds.dtypes)
-    dt = np.dtype(dtypes[0])
-    container = 8 * dt.itemsize if dt.kind in "uib" else None
-    nbits = _nbits(ds)
-    depth = nbits or container
-    facts: dict[str, Any] = dict(
-        driver=ds.driver, compression=comp, lossless=lossless, layout=layout,
-        block_width=int(bw), block_height=int(bh), width=ds.width, height=ds.height,
-        band_count=ds.count, dtypes=dtypes, bit_depth_container=container, nbits=nbits,
+def checks_of(facts: RasterFacts, *, expect_epsg: int | None = None, expect_gsd: float | None = None,
+              gsd_tolerance: float = 0.01, min_bits: int = 8, recommended_bits: int = 11) -> FileChecks:
+    """The file checks (§3.2 bit depth, §6.4 name, CRS and pixel size against what is expected)
+    judged on one image's :class:`RasterFacts`."""
+    p = facts.path
+    name = check_name(Path(p).name)
+    base: dict[str, Any] = {"path": p, "name_ok": name.ok, "name_problems": name.problems,
+                            "bytes": facts.bytes, "facts": facts}
+    if facts.error is not None:
+        return FileChecks(error=facts.error, **base)
+    depth = facts.bit_depth
+    values: dict[str, Any] = dict(
+        driver=facts.driver, compression=facts.compression, lossless=facts.lossless, layout=facts.layout,
+        block_width=None if facts.block_shape is None else facts.block_shape[1],
+        block_height=None if facts.block_shape is None else facts.block_shape[0],
+        width=facts.width, height=facts.height, band_count=facts.count, dtypes=facts.dtypes,
+        bit_depth_container=facts.bit_depth_container, nbits=facts.nbits,
         bit_depth_ok=None if depth is None else depth >= min_bits,
         bit_depth_recommended=None if depth is None else depth >= recommended_bits,
-        colour_interpretation=tuple(c.name for c in ds.colorinterp),
-        nodata=tuple(None if v is None else float(v) for v in ds.nodatavals),
-        nodata_declared=any(v is not None for v in ds.nodatavals),
-        has_internal_mask=any(f.name == "per_dataset" for f in ds.mask_flag_enums[0]),
-        has_overviews=bool(ds.overviews(1)),
-        stored_statistics=any(k.startswith("STATISTICS_") for k in ds.tags(1)),
+        colour_interpretation=facts.colorinterp, nodata=facts.nodata,
+        nodata_declared=any(v is not None for v in facts.nodata), has_internal_mask=facts.internal_mask,
+        has_overviews=bool(facts.overviews), stored_statistics=any(s is not None for s in facts.stats),
     )
-    if ds.crs is None:
-        return FileChecks(error=f"{p}: no georeference (no CRS)", **base, **facts)
-    if ds.transform.is_identity and not ds.gcps[0] and ds.driver != "JP2OpenJPEG":
-        return FileChecks(error=f"{p}: no georeference (identity geotransform)", **base,
-                          **facts)
-    try:
-        with gdal_errors(file=p, what="CRS"):
-            crs_text, epsg, unit, crs_ok = _crs_facts(ds.crs.to_wkt(), expect_epsg)
-    except MeasureError as exc:  # rasterio's or pyproj's CRSError, mapped by the one boundary
-        return FileChecks(error=f"{p}: unparseable CRS: {exc}", **base, **facts)
-    t = ds.transform
-    px, py = math.hypot(t.a, t.d), math.hypot(t.b, t.e)
+    if facts.georeference is not None:
+        return FileChecks(error=f"{p}: {facts.georeference}", **base, **values)
+    crs_ok = None
+    if expect_epsg is not None and facts.crs_wkt is not None:
+        try:
+            with gdal_errors(file=p, what="CRS"):
+                crs_ok = _crs_equals(facts.crs_wkt, int(expect_epsg))
+        except MeasureError as exc:  # pyproj's CRSError, mapped by the one boundary
+            return FileChecks(error=f"{p}: unparseable CRS: {exc}", **base, **values)
+    assert facts.pixel_size is not None
+    px, py = facts.pixel_size
     gsd_ok = None
     if expect_gsd is not None:
         gsd_ok = all(abs(v - expect_gsd) <= gsd_tolerance * expect_gsd for v in (px, py))
-    return FileChecks(crs=crs_text, epsg=epsg, crs_ok=crs_ok, pixel_size_x=px,
-                      pixel_size_y=py, pixel_size_unit=unit, gsd_ok=gsd_ok,
-                      rotated=bool(t.b or t.d), **base, **facts)
+    return FileChecks(crs=facts.crs_name, epsg=facts.epsg, crs_ok=crs_ok, pixel_size_x=px, pixel_size_y=py,
+                      pixel_size_unit=facts.pixel_unit, gsd_ok=gsd_ok, rotated=facts.rotated, **base, **values)
 
 
 @lru_cache(maxsize=64)
-def _crs_facts(wkt: str, expect_epsg: int | None) -> tuple[str, int | None, str | None, bool | None]:
-    """(name, EPSG code, axis unit, equals the expected EPSG) of a CRS; parsed once per WKT, since
-    every image of a delivery shares one CRS.
+def _crs_equals(wkt: str, epsg: int) -> bool:
+    """The CRS equals the expected EPSG code, axis order ignored (as GIS software does); pyproj,
+    whose import alone costs about 0.1 s of ``measure radiometry``, only when a code is expected."""
+    from pyproj import CRS
 
-    Name, code and unit come from GDAL (rasterio, already loaded); pyproj, whose import alone
-    costs about 0.1 s of ``measure radiometry``, is imported only to compare with an expected
-    EPSG code (axis order ignored, as GIS software does).
-    """
-    crs = rasterio.crs.CRS.from_wkt(wkt)
-    ok = None
-    if expect_epsg is not None:
-        from pyproj import CRS
-
-        ok = CRS.from_user_input(wkt).equals(CRS.from_epsg(int(expect_epsg)), ignore_axis_order=True)
-    try:
-        unit: str | None = crs.units_factor[0]
-    except rasterio.errors.CRSError:  # no unit GDAL can name (e.g. an engineering CRS)
-        unit = None
-    return crs.to_string(), crs.to_epsg(), unit, ok
+    return bool(CRS.from_user_input(wkt).equals(CRS.from_epsg(epsg), ignore_axis_order=True))
 
 
 @dataclass(frozen=True)

@@ -57,6 +57,8 @@ class ImageReport:
     bytes: int | None = None
     error: str | None = None
     checks: dict[str, Any] = field(default_factory=dict)
+    #: the file's header facts (:class:`orthospec.raster.facts.RasterFacts`, ``to_dict``), its SHA-256 included
+    facts: dict[str, Any] | None = None
     radiometry: dict[str, Any] | None = None
     cloud_cover_pct: float | None = None
     cached: bool = False
@@ -147,7 +149,8 @@ def scan_image(path: str | Path, options: ScanOptions | None = None, *,
     p = str(path)
     with checked_file(p, expect_epsg=o.expect_epsg, expect_gsd=o.expect_gsd,
                       gsd_tolerance=o.gsd_tolerance, settings=o.settings) as (checks, ds):
-        rep = ImageReport(path=p, bytes=checks.bytes, checks=checks.to_dict(), error=checks.error)
+        rep = ImageReport(path=p, bytes=checks.bytes, checks=checks.to_dict(), error=checks.error,
+                          facts=None if checks.facts is None else checks.facts.to_dict())
         if checks.error is not None and checks.bytes in (None, 0):
             rep.seconds = time.perf_counter() - t0
             return rep
@@ -167,6 +170,8 @@ def scan_image(path: str | Path, options: ScanOptions | None = None, *,
                     return rep
                 hashing = None
             if not raster or ds is None:
+                if rep.facts is not None:
+                    rep.facts["sha256"] = rep.sha256
                 rep.seconds = time.perf_counter() - t0
                 return rep  # not a raster at all: nothing more to measure
             _measure_pixels(rep, p, o, ds)
@@ -176,6 +181,8 @@ def scan_image(path: str | Path, options: ScanOptions | None = None, *,
                 except OSError as exc:
                     rep.error, rep.radiometry = f"{p}: cannot read file: {exc.strerror or exc}", None
                     return rep
+    if rep.facts is not None:
+        rep.facts["sha256"] = rep.sha256
     if cloud_mask is not None and rep.error is None:
         try:
             rep.cloud_cover_pct = mask_share(cloud_mask, settings=o.settings).percent
@@ -334,13 +341,9 @@ def _one_thread_per_worker() -> Iterator[None]:
 def _mp_context() -> multiprocessing.context.BaseContext:
     """forkserver where available: workers fork from a clean server that has already
     imported orthospec (fast start, no inherited threads or GDAL handles); else spawn."""
-    import multiprocessing
+    from ..workers import mp_context
 
-    if "forkserver" in multiprocessing.get_all_start_methods():
-        ctx = multiprocessing.get_context("forkserver")
-        ctx.set_forkserver_preload(["orthospec.raster.parallel", "pyproj"])
-        return ctx
-    return multiprocessing.get_context("spawn")
+    return mp_context(["orthospec.raster.parallel", "pyproj"])  # type: ignore[no-any-return]
 
 
 def _check_cache_outside(cache_dir: Path, paths: Sequence[str]) -> None:
@@ -425,6 +428,7 @@ def scan_images(
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
     from itertools import islice
 
+    from ..workers import die_with_parent
     from .cache import ResultCache
 
     # results enter the cache as they come (only this process writes it; workers read it)
@@ -464,7 +468,8 @@ def scan_images(
                     for i, p in islice(todo, window - len(pending)):
                         pending[pool.submit(scan_image, p, one, cloud_mask=masks.get(p))] = i
 
-                with ProcessPoolExecutor(max_workers=n, mp_context=ctx) as pool:
+                with ProcessPoolExecutor(max_workers=n, mp_context=ctx, initializer=die_with_parent,
+                                         initargs=(os.getpid(),)) as pool:
                     with _one_thread_per_worker():  # workers (and the forkserver) start here
                         submit_more()
                     while pending:

@@ -48,6 +48,7 @@ from rasterio.windows import Window
 from ..errors import MeasureError, OrthospecError
 from ..limits import env_limit
 from ..measures import radiometry as rad
+from ..measures import signature as sig
 
 #: Counter of full raster scans in this process (tests use it to check the cache).
 SCAN_COUNT = {"scans": 0}
@@ -192,6 +193,9 @@ class ScanSettings:
     noise: bool = True
     luminosity: bool = True
     misregistration: bool = True
+    #: the pixel facts of issue 25 (measures/signature.py): content hash of the decoded pixels,
+    #: thumbnail for near copies, measured cloud cover
+    signature: bool = True
     #: noise estimators look at whole chunks spread evenly over the image, at most this many
     #: pixels per band (4 Mpx estimate sigma to better than 1 %); 0 = every chunk
     noise_max_pixels: int = 4 * 2**20
@@ -321,6 +325,14 @@ class RasterStats:
     misregistration_spread: dict[int, float] = field(default_factory=dict)
     reference_band: int | None = None
     chunks: int = 0
+    #: facts of the decoded pixels (measures/signature.py): content hash, thumbnail cell means,
+    #: measured cloud cover (None: no colour bands), DN-0 saturation under a nodata value of 0
+    pixels_hash: str | None = None
+    thumbnail: list[list[float | None]] | None = None
+    thumbnail_cell_px: int | None = None
+    cloud_pct: float | None = None
+    cloud_samples: int | None = None
+    low_nodata: dict[str, Any] | None = None
 
     def to_dict(self, *, histogram: bool = True) -> dict[str, Any]:
         return {
@@ -335,6 +347,9 @@ class RasterStats:
                          "reliable": misregistration_reliable(v.peak, self.misregistration_spread.get(k))}
                 for k, v in sorted(self.misregistration.items())},
             "misregistration_reference_band": self.reference_band,
+            "pixels_hash": self.pixels_hash, "thumbnail": self.thumbnail,
+            "thumbnail_cell_px": self.thumbnail_cell_px, "cloud_pct": self.cloud_pct,
+            "cloud_samples": self.cloud_samples, "low_nodata": self.low_nodata,
         }
 
 
@@ -396,7 +411,7 @@ def scan_dataset(ds: rasterio.io.DatasetReader, settings: ScanSettings | None = 
 
 def _scan(ds: rasterio.io.DatasetReader, s: ScanSettings) -> RasterStats:
     infos = band_infos(ds, s.bit_depth)
-    acc = _Accumulators.for_bands(infos, s)
+    acc = _Accumulators.for_bands(infos, s, ds)
     capture = _MisregistrationWindows.plan(ds, infos) if s.misregistration and ds.count >= 2 else None
     chunks = _stream(ds, infos, s, acc, capture)
     binned = _binned_histograms(ds, infos, acc, s)  # floats / 32-bit only
@@ -420,6 +435,7 @@ def _scan(ds: rasterio.io.DatasetReader, s: ScanSettings) -> RasterStats:
         first = infos[acc.rgb[0] - 1]
         lum_stats = rad.band_stats_from_histogram("luminosity", first.dtype, acc.lum, first.grey)
     out = RasterStats(bands=bands, luminosity=lum_stats, chunks=chunks)
+    acc.finish(out, ds)
     if capture is not None:
         out.reference_band, out.misregistration, out.misregistration_spread = capture.result()
     return out
@@ -474,7 +490,7 @@ def _stream(ds: rasterio.io.DatasetReader, infos: Sequence[BandInfo], s: ScanSet
     # chunk k goes to accumulator set k % 2 and is counted by thread k % threads, in chunk
     # order within each set, whatever the number of threads: the floating-point sums (noise,
     # float moments) do not depend on the machine's cores or on timing
-    accs = (acc, _Accumulators.for_bands(infos, s)) if len(wins) > 1 else (acc,)
+    accs = (acc, _Accumulators.for_bands(infos, s, ds)) if len(wins) > 1 else (acc,)
     threads = max(1, min(s.threads, os.cpu_count() or 1, len(accs), len(wins)))
     slots = threading.Semaphore(max(CHUNKS_IN_FLIGHT, threads + 1))
 
@@ -511,7 +527,7 @@ def _stream(ds: rasterio.io.DatasetReader, infos: Sequence[BandInfo], s: ScanSet
         handed = False
         try:
             with rad.serial_counting() if threads > 1 else nullcontext():
-                accs[k % len(accs)].add(data, mask, noise=k % stride == 0, later=later)
+                accs[k % len(accs)].add(data, mask, noise=k % stride == 0, later=later, win=win)
             if capture is not None:
                 capture.take(win, data, mask)  # disjoint parts of the windows: safe in threads
             if later:
@@ -592,14 +608,39 @@ class _Accumulators:
     noise: dict[int, rad.NoiseAccumulator]
     rgb: tuple[int, int, int] | None
     lum: rad.HistogramAccumulator | None
+    #: pixel facts (measures/signature.py), None when ScanSettings.signature is off
+    pixel_hash: sig.PixelHash | None = None
+    thumb: sig.Thumbnail | None = None
+    cloud: sig.CloudCounter | None = None
+    #: bands whose nodata value is their lowest grey level (DN-0 saturation hidden by nodata), and
+    #: per such band the pixels at that value while another band is valid (told apart), and the
+    #: pixels at nodata in every band (cannot be told apart)
+    hidden: tuple[int, ...] = ()
+    low_told: dict[int, int] = field(default_factory=dict)
+    all_nodata: int = 0
 
     @classmethod
-    def for_bands(cls, infos: Sequence[BandInfo], s: ScanSettings) -> _Accumulators:
+    def for_bands(cls, infos: Sequence[BandInfo], s: ScanSettings,
+                  ds: rasterio.io.DatasetReader | None = None) -> _Accumulators:
         exact = [rad.histogram_layout(b.dtype) is not None for b in infos]
         rgb = _rgb_bands(infos) if s.luminosity else None
         if rgb is not None and not all(exact[i - 1] for i in rgb):
             rgb = None
-        return cls(
+        hidden = tuple(b.index for b in infos if not b.use_mask and b.nodata is not None
+                       and b.grey.low is not None and b.nodata == b.grey.low)
+        extra: dict[str, Any] = {"hidden": hidden, "low_told": dict.fromkeys(hidden, 0)}
+        if s.signature and ds is not None:
+            dtype = str(np.result_type(*ds.dtypes))
+            extra["pixel_hash"] = sig.PixelHash(width=ds.width, height=ds.height, count=ds.count, dtype=dtype)
+            extra["thumb"] = sig.Thumbnail(width=ds.width, height=ds.height, dtype=dtype)
+            colour = _rgb_bands(infos)
+            if colour is not None and all(infos[i - 1].grey.high for i in colour):
+                extra["cloud"] = sig.CloudCounter.for_image(
+                    width=ds.width, height=ds.height, rgb=tuple(i - 1 for i in colour),  # type: ignore[arg-type]
+                    tops=tuple(float(infos[i - 1].grey.high) for i in colour),  # type: ignore[arg-type]
+                    nodata=tuple(None if infos[i - 1].use_mask else infos[i - 1].nodata  # type: ignore[arg-type]
+                                 for i in colour))
+        return cls(**extra,
             infos=infos,
             hists={b.index: rad.HistogramAccumulator.for_dtype(b.dtype)
                    for b, ex in zip(infos, exact, strict=True) if ex},
@@ -610,7 +651,8 @@ class _Accumulators:
             lum=rad.HistogramAccumulator.for_dtype(infos[rgb[0] - 1].dtype) if rgb else None)
 
     def add(self, data: np.ndarray, shared_mask: np.ndarray | None, *, noise: bool,
-            later: list[tuple[int, np.ndarray, np.ndarray | None]] | None = None) -> None:
+            later: list[tuple[int, np.ndarray, np.ndarray | None]] | None = None,
+            win: Window | None = None) -> None:
         """Feed one chunk (bands, rows, cols); ``noise`` False skips the noise estimators.
 
         Validity masks cost as much as a histogram: they are built only where a pixel can be
@@ -652,6 +694,55 @@ class _Accumulators:
                     self.noise[b.index].add(band, valid)
         if self.rgb is not None and self.lum is not None:
             self._add_luminosity(data, mask_valid, valids, with_nodata)
+        if with_nodata and self.hidden:
+            self._add_low_nodata(data, with_nodata)
+        if win is not None:
+            c0, r0 = int(win.col_off), int(win.row_off)
+            if self.pixel_hash is not None:
+                self.pixel_hash.add(data, c0, r0)
+            if self.thumb is not None:
+                self.thumb.add(data, c0, r0)
+            if self.cloud is not None:
+                self.cloud.add(data, c0, r0, shared_mask)
+
+    def _add_low_nodata(self, data: np.ndarray, with_nodata: set[int]) -> None:
+        """DN-0 saturation under a nodata value of 0 (issue 26): a band at its nodata value where
+        another band of the pixel is valid is saturated, not no-data; a pixel at nodata in every
+        band cannot be told apart. Only for chunks where a band's nodata value occurs."""
+        everywhere = None
+        for b in self.infos:
+            if b.use_mask or b.nodata is None or (isinstance(b.nodata, float) and math.isnan(b.nodata)):
+                everywhere = np.zeros(data.shape[1:], dtype=bool)  # a band without nodata: never all-nodata
+                break
+            at = data[b.index - 1] == np.asarray(b.nodata).astype(data.dtype)
+            everywhere = at if everywhere is None else everywhere & at
+        assert everywhere is not None
+        ambiguous = int(np.count_nonzero(everywhere))
+        self.all_nodata += ambiguous
+        for idx in self.hidden:
+            if idx in with_nodata:
+                b = self.infos[idx - 1]
+                at = data[idx - 1] == np.asarray(b.nodata).astype(data.dtype)
+                self.low_told[idx] += int(np.count_nonzero(at)) - ambiguous  # every-band pixels are not told apart
+
+    def finish(self, out: RasterStats, ds: rasterio.io.DatasetReader) -> None:
+        """Put the pixel facts into ``out`` (after every chunk was added and the sets merged)."""
+        if self.pixel_hash is not None:
+            out.pixels_hash = self.pixel_hash.hexdigest()
+        if self.thumb is not None:
+            out.thumbnail, out.thumbnail_cell_px = self.thumb.result(), self.thumb.cell
+        if self.cloud is not None:
+            out.cloud_pct, out.cloud_samples = self.cloud.percent, self.cloud.valid
+        if self.hidden:
+            total = ds.width * ds.height
+            rest = total - self.all_nodata
+            out.low_nodata = {
+                "bands": [str(i) for i in self.hidden],
+                "pixels_nodata_in_every_band": self.all_nodata,
+                "pixels_nodata_in_every_band_pct": 100.0 * self.all_nodata / total if total else None,
+                "saturation_low_told_pct": {str(i): (100.0 * self.low_told[i] / rest if rest else None)
+                                            for i in self.hidden},
+            }
 
     def _add_luminosity(self, data: np.ndarray, mask_valid: np.ndarray | None,
                         valids: dict[int, np.ndarray | None], with_nodata: set[int]) -> None:
@@ -700,6 +791,13 @@ class _Accumulators:
             nz.merge(other.noise[idx])
         if self.lum is not None and other.lum is not None:
             self.lum.merge(other.lum)
+        for mine, theirs in ((self.pixel_hash, other.pixel_hash), (self.thumb, other.thumb),
+                             (self.cloud, other.cloud)):
+            if mine is not None and theirs is not None:
+                mine.merge(theirs)  # type: ignore[arg-type]
+        for idx in self.hidden:
+            self.low_told[idx] += other.low_told.get(idx, 0)
+        self.all_nodata += other.all_nodata
         return self
 
     def _add_moments(self, band: np.ndarray, b: BandInfo, valid: np.ndarray | None) -> None:

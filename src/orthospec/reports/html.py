@@ -22,6 +22,7 @@ from .. import verdicts as V
 from ..qcr import all_records, dumps, natural_key, point_rows, where_text
 from ..resources import templates_dir
 from ..spec.wording import unit_suffix
+from .contract import contract_lines
 from .findings import NotApplicableSummary, checker_text, unsigned_manual_note
 from .findings import findings as find_problems
 
@@ -400,9 +401,11 @@ def _checkpoint_blocks(doc: dict[str, Any], opts: ReportOptions,
             return (not b["rejected"], -b["n_fail"], -rmse, natural_key(b["id"]))
 
         ranked = sorted(blocks, key=worst)
+        details = doc.get("details") or {}
         for b in ranked[: opts.max_figure_blocks]:
             if b["id"] not in cache:
-                cache[b["id"]] = _block_figures(cps[b["id"]], b["id"])
+                cache[b["id"]] = _block_figures(cps[b["id"]], b["id"], details.get("inspection"),
+                                                (details.get("checker_chips") or {}).get(b["id"]))
             b["figures"] = [{**f, "uri": figure(f["svg"], "image/svg+xml")} for f in cache[b["id"]]]
     return blocks
 
@@ -426,8 +429,11 @@ def _first_points(pts: list[dict[str, Any]], cap: int) -> list[dict[str, Any]]:
     return out
 
 
-def _block_figures(b: dict[str, Any], bid: str) -> list[dict[str, str]]:
-    """JRC §12.6 / Figure 5 graphics for one block, from the JSON point list (SVG data URIs)."""
+def _block_figures(b: dict[str, Any], bid: str, inspection: dict[str, Any] | None = None,
+                   chips: dict[str, Any] | None = None) -> list[dict[str, str]]:
+    """JRC §12.6 / Figure 5 graphics for one block, from the JSON point list (SVG data URIs); the checker's
+    marked inspection cells of the block on its map, and the image chips of its flagged or hand-measured
+    points (issue 29 item 6; details.inspection, details.checker_chips)."""
     from ..figures import accuracy as figs  # matplotlib: imported only when figures are drawn
     from ..measures.distribution import checkpoint_distribution
 
@@ -449,10 +455,13 @@ def _block_figures(b: dict[str, Any], bid: str) -> list[dict[str, str]]:
     polygon = [(float(v[0]), float(v[1])) for v in poly
                if isinstance(v, list | tuple) and len(v) >= 2 and _numeric(v[0]) and _numeric(v[1])] \
         if isinstance(poly, list) else None
+    cells = [(c["bounds"], ", ".join(c.get("defects") or [])) for c in (inspection or {}).get("cells") or []
+             if c.get("block") == bid and isinstance(c.get("bounds"), list) and len(c["bounds"]) == 4
+             and all(_numeric(v) for v in c["bounds"])]
     svg = figs.checkpoint_map_svg(
         x, y, dx, dy, ids=ids, gcp_x=[g["x"] for g in gcps] or None, gcp_y=[g["y"] for g in gcps] or None,
         unit=unit, flagged=flagged, title=f"Block {bid}: check points and discrepancies",
-        polygon=polygon if polygon and len(polygon) >= 3 else None, always=excluded)
+        polygon=polygon if polygon and len(polygon) >= 3 else None, always=excluded, defect_cells=cells)
     omitted = b.get("points_omitted")
     # a capped point table (B: flagged points + the largest residuals) is not a sample of the block:
     # say so on the map, and draw no distribution from it (the block statistics cover every point)
@@ -465,10 +474,14 @@ def _block_figures(b: dict[str, Any], bid: str) -> list[dict[str, str]]:
         subset += (f" Drawn: {drawn.drawn:,} of {'these' if omitted else 'the'} {drawn.total:,} points, "
                    f"all {drawn.must:,} flagged or excluded and 1 in {drawn.step:,} of the others (an even "
                    f"spatial sample); qcr.json holds every one of the {drawn.total:,}.")
+    marked = (f" Orange: the {len(cells)} cell(s) of the block marked with a defect on the checker's inspection "
+              f"grid ({(inspection or {}).get('file')}): " + "; ".join(sorted({lab for _, lab in cells})) + "."
+              if cells else "")
     out.append({"svg": svg, "kind": "map",
                 "caption": f"Block {bid}: check points (blue; red = above the maximum tolerable "
                            f"discrepancy), discrepancy vectors (exaggerated, see scale arrow) and GCPs "
-                           f"(green triangles), as JRC Figure 5.{subset}"})
+                           f"(green triangles), as JRC Figure 5.{subset}{marked}"})
+    out += _chip_figures(chips, bid, unit)
     if omitted:
         return out
     dz = [p.get("dz") for p in pts]
@@ -505,6 +518,32 @@ def _block_figures(b: dict[str, Any], bid: str) -> list[dict[str, str]]:
             out.append({"svg": svg, "kind": "dist",
                         "caption": f"Block {bid}: check points per quadrant, split at the centre of {where}."
                                    + drawn_note})
+    return out
+
+
+def _chip_figures(chips: dict[str, Any] | None, bid: str, unit: str) -> list[dict[str, str]]:
+    """The image chips of a block's flagged or hand-measured check points (details.checker_chips)."""
+    if not isinstance(chips, dict) or not chips.get("points"):
+        return []
+    from ..figures.chips import chip_svg
+
+    out = []
+    # a point no delivered image covers (the table says why in qcr.json) gets no figure
+    shown = [p for p in chips["points"] if isinstance(p, dict) and p.get("delivered")]
+    for p in shown:
+        try:
+            svg = chip_svg(p, unit=unit)
+        except (KeyError, TypeError, ValueError):  # a hand-edited document: the chip is left out
+            continue
+        why = "flagged" if p.get("flagged") else ("measured by hand" if p.get("decision") == "by_hand" else "")
+        out.append({"svg": svg, "kind": "chip",
+                    "caption": f"Block {bid}, check point {p.get('point_id')} ({why}): the delivered image around "
+                               "the measured position (red cross) and the reference chip around the 'true' "
+                               "position (green circle); the arrow is the measured shift, to scale."})
+    more = int(chips.get("eligible") or 0) - len(out)
+    if out and more > 0:
+        out[-1]["caption"] += f" Chips are drawn for {len(out)} of the block's {len(out) + more} flagged or " \
+                              "hand-measured points (flagged first, then the largest residuals)."
     return out
 
 
@@ -700,7 +739,8 @@ def report_context(doc: dict[str, Any], opts: ReportOptions | None = None, *,
         "problems": problems, "failing_rules": failing_rules,
         "findings": found, "page1_findings": found[:PAGE1_FINDINGS],
         "not_applicable": collected.not_applicable,
-        "unsigned_manual": unsigned_manual_note(records),
+        "unsigned_manual": unsigned_manual_note(records, checker=doc.get("checker")),
+        "contract": contract_lines(doc),
         "checker": checker_text(doc), "qa_operator": d.get("operator") or {},
         "after_signoff": doc.get("after_signoff"),
         "missing": [r for r in records if r["verdict"] == V.MISSING],

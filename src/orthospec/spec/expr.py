@@ -14,11 +14,18 @@ ever compiled or executed):
     power   := atom ('**' unary)?
     atom    := NUMBER | STRING | 'true' | 'false' | NAME ('.' NAME)* | call | '(' expr ')'
     call    := ('min'|'max'|'abs') '(' expr (',' expr)* ')'
+             | ('sin'|'cos'|'tan'|'atan') '(' expr ')' | 'atan2' '(' expr ',' expr ')'
 
 Names resolve through a caller-given mapping: parameters, manifest paths (``manifest.sensor.type``)
 and measures of the rule's scope. In comparisons and in + and -, a bare number takes the unit of
 the other side: ``images.roll > 1`` reads 1 deg, ``cloud_cover < 5`` reads 5 %. Values may be numbers, strings, booleans, numpy arrays or pint
 quantities, so one expression evaluates a whole column at once (vectorised).
+
+Trigonometry keeps its units (issue 26: JRC Figure 2, dx = dh x tan(off-nadir angle)):
+``sin``, ``cos`` and ``tan`` take an angle with its unit (a measure or parameter in deg or rad;
+a bare number or a length is refused, since nothing says whether 17 means degrees) and give a
+pure number; ``atan(ratio)`` and ``atan2(y, x)`` give an angle in degrees (``atan`` of a pure
+number or of a ratio whose units cancel, ``atan2`` of two values of one dimension).
 
 Limits (issue 17: a profile may come from anyone, and ``9**9**9`` or ``'a' * 10**10`` must not hang
 or exhaust memory). Checked when the expression is parsed, so ``spec validate`` refuses them with
@@ -61,7 +68,10 @@ _CMP: dict[type, Callable[[Any, Any], Any]] = {
     ast.NotEq: operator.ne,
 }
 _CMP_TEXT = {ast.Lt: "<", ast.LtE: "<=", ast.Gt: ">", ast.GtE: ">=", ast.Eq: "==", ast.NotEq: "!="}
-_FUNCS = {"min", "max", "abs"}
+_FUNCS = {"min", "max", "abs", "sin", "cos", "tan", "atan", "atan2"}
+#: functions of a fixed number of arguments (min and max take 1 to MAX_ARGS)
+_ARITY = {"abs": 1, "sin": 1, "cos": 1, "tan": 1, "atan": 1, "atan2": 2}
+_TRIG = {"sin": np.sin, "cos": np.cos, "tan": np.tan}
 _CONSTS = {"true": True, "false": False, "True": True, "False": False, "null": None, "None": None}
 MAX_LENGTH = 500
 MAX_DEPTH = 32
@@ -177,9 +187,11 @@ def _check_node(node: ast.AST, src: str, names: set[str], depth: int, bad: str) 
     elif isinstance(node, ast.Call):
         fname = node.func.id if isinstance(node.func, ast.Name) else None
         if fname not in _FUNCS or node.keywords or not node.args:
-            raise ExpressionError(f"only min(), max() and abs() calls are allowed in {src!r}")
-        if fname == "abs" and len(node.args) != 1:
-            raise ExpressionError(f"abs() takes one argument in {src!r}")
+            raise ExpressionError(f"only {', '.join(f + '()' for f in sorted(_FUNCS))} calls are allowed "
+                                  f"in {src!r}")
+        if fname in _ARITY and len(node.args) != _ARITY[fname]:
+            n = _ARITY[fname]
+            raise ExpressionError(f"{fname}() takes {n} argument{'s' if n > 1 else ''} in {src!r}")
         for a in node.args:
             if isinstance(a, ast.Starred):
                 raise ExpressionError(f"*args {bad}")
@@ -247,6 +259,10 @@ class _Eval:
             args = [self.visit(a) for a in node.args]
             if fname == "abs":
                 return abs(args[0])
+            if fname in _TRIG:
+                return _TRIG[fname](_radians(args[0], fname, self.src))
+            if fname in ("atan", "atan2"):
+                return _arctan(fname, args, self.src)
             out = args[0]
             for a in args[1:]:
                 pick = self._arith(operator.lt if fname == "min" else operator.gt, a, out)
@@ -329,6 +345,52 @@ def _where(cond: Any, a: Any, b: Any) -> Any:
         bm = b.to(unit).magnitude if hasattr(b, "units") else b
         return type(a if hasattr(a, "units") else b)(np.where(cond, am, bm), unit)
     return np.where(cond, a, b)
+
+
+def _radians(v: Any, fname: str, src: str) -> Any:
+    """An angle as radians (float or array); anything that is not an angle with a unit is refused."""
+    if v is None:
+        raise ExpressionError(f"{fname}() of a value that is not given in {src!r}")
+    if not hasattr(v, "units"):
+        raise ExpressionError(f"{fname}() needs an angle with its unit (deg or rad), got {_show(v)} in {src!r}: "
+                              "name a measure or parameter in degrees")
+    try:
+        return np.asarray(v.to("radian").magnitude, dtype=float)[()]
+    except Exception as exc:  # pint DimensionalityError (a TypeError) or an undefined unit
+        raise ExpressionError(f"{fname}() needs an angle (deg or rad), got {_show(v)} in {src!r}") from exc
+
+
+def _ratio(v: Any, fname: str, src: str) -> Any:
+    """A pure number: a bare number, or a quantity whose units cancel (m / m)."""
+    if v is None or isinstance(v, bool | str):
+        raise ExpressionError(f"{fname}() of {_show(v)} in {src!r}: expected a number")
+    if hasattr(v, "units"):
+        try:
+            return np.asarray(v.to("dimensionless").magnitude, dtype=float)[()]
+        except Exception as exc:
+            raise ExpressionError(f"{fname}() of {_show(v)} in {src!r}: expected a pure number (a ratio whose "
+                                  "units cancel)") from exc
+    return np.asarray(v, dtype=float)[()]
+
+
+def _arctan(fname: str, args: list[Any], src: str) -> Any:
+    """atan(ratio) or atan2(y, x), as an angle in degrees."""
+    from .. import units
+
+    if fname == "atan":
+        rad = np.arctan(_ratio(args[0], fname, src))
+    else:
+        y, x = args
+        if hasattr(y, "units") or hasattr(x, "units"):
+            try:
+                unit = (y if hasattr(y, "units") else x).units
+                y = np.asarray(y.to(unit).magnitude if hasattr(y, "units") else y, dtype=float)
+                x = np.asarray(x.to(unit).magnitude if hasattr(x, "units") else x, dtype=float)
+            except Exception as exc:
+                raise ExpressionError(f"atan2() of {_show(args[0])} and {_show(args[1])} in {src!r}: both "
+                                      "must have one dimension") from exc
+        rad = np.arctan2(_ratio(y, fname, src), _ratio(x, fname, src))
+    return units.Q_(np.degrees(rad), "degree")
 
 
 def _show(v: Any) -> str:

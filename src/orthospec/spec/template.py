@@ -5,12 +5,14 @@ points at a local copy of the JSON Schema (an editor validates it offline)."""
 
 from __future__ import annotations
 
+import re
+from collections.abc import Iterable
 from pathlib import Path
+from typing import Any
 
-from ..delivery.convention import table_of_scope, table_specs
+from ..delivery.convention import table_specs
 from ..errors import DeliveryError
 from .applicability import cannot_apply
-from .catalog import measure_info
 from .loader import load_profile
 
 MANIFEST_TEMPLATE = """\
@@ -54,40 +56,104 @@ waivers: []                         # - {{rule: RULE-ID, items: [ITEM], justific
 """
 
 
-def _table_read(head: str, col: str) -> str | None:
-    """The delivery table a measure reference reads: the table it names, else the items table of
-    the measure's scope (``raster.gsd`` is an image measure: images)."""
-    if head in table_specs():
-        return head
-    info = measure_info(f"{head}.{col}")
-    return table_of_scope(info[0]) if info is not None else None
+#: measures computed from tables (not ``<table>.<column>``): what each reads. Prefix match, longest
+#: first. ("table", T), ("column", T, C), ("manifest", path), ("param", name), ("blocks",), ("checker", what)
+NEEDS: dict[str, tuple[tuple[str, ...], ...]] = {
+    "raster.reported_mean_diff": (("column", "images", "mean_dn"),),
+    "raster.reported_min_diff": (("column", "images", "min_dn"),),
+    "raster.reported_max_diff": (("column", "images", "max_dn"),),
+    "raster.reported_std_diff": (("column", "images", "std_dn"),),
+    "raster.stats_mean_diff": (("column", "images", "mean_dn"),),
+    "raster.crs_ok": (("param", "map_crs"),),
+    "raster.cloud_cover_declared": (("column", "images", "cloud_cover"),),
+    "raster.": (("table", "images"),),
+    "checkpoints.reported_diff": (("manifest", "blocks.reported"),),
+    "checkpoints.": (("table", "checkpoints"), ("blocks",)),
+    "gcps.": (("table", "gcps"), ("blocks",)),
+    "camera.": (("table", "cameras"),),
+    "flight.": (("table", "flights"), ("column", "images", "roll")),
+    "geometry.gsd_from_flying_height": (("column", "images", "flying_height"), ("table", "cameras"),
+                                        ("column", "images", "flight_id")),
+    "derived.photo_coverage": (("table", "flights"), ("table", "cameras"), ("column", "images", "exposure_x"),
+                               ("column", "images", "flying_height")),
+    "derived.area_of_interest_agrees": (("manifest", "project.area_of_interest"),
+                                        ("checker", "area_of_interest")),
+    "derived.block_outlines_agree": (("blocks",), ("checker", "blocks")),
+    "derived.project_crs_agrees": (("manifest", "project.crs"), ("param", "map_crs")),
+    "derived.resolution_class_agrees": (("table", "scenes"),),
+    "derived.master_images": (("table", "scenes"),),
+    "derived.is_master": (("table", "scenes"),),
+    "demfile.": (("table", "dem"),),
+    "derived.orthorectification": (("blocks",), ("manifest", "blocks.method"),
+                                   ("manifest", "product.orthorectification")),
+    "derived.dem_blocks": (("table", "dem"),),
+    "derived.": (),
+    "mosaic.": (("manifest", "vectors.seamlines"), ("blocks",), ("manifest", "project.area_of_interest")),
+    "edge.": (("manifest", "edge_targets"),),
+    "seamline.": (("manifest", "vectors.seamlines"), ("manifest", "vectors.seamlines.image_id")),
+    "acquisition.": (("column", "images", "exposure_time"), ("manifest", "dates")),
+    "rollup.block": (("blocks",),),
+    "rollup.": (),
+}
+_NAME = re.compile(r"\b([a-z_][a-z_0-9]*(?:\.[a-z_][a-z_0-9]*)+)\b")
+_WORD = re.compile(r"\b([a-z_][a-z_0-9]*)\b")
+
+def rule_inputs(rule: Any, params: Iterable[str]) -> list[tuple[str, ...]]:
+    """The delivery facts a rule reads (see :data:`NEEDS`), in the order it reads them."""
+    specs = table_specs()
+    texts = [rule.when or "", rule.measure]
+    req = rule.requirement
+    texts += [str(v) for v in (req.value, req.min, req.max) if isinstance(v, str)]
+    out: list[tuple[str, ...]] = []
+    if rule.manual or rule.measure.startswith("manual."):
+        return [("checker", "manual_checks")]
+    for text in texts:
+        for name in _NAME.findall(text):
+            head, rest = name.split(".", 1)
+            if head == "manifest" and rest.startswith("tables."):
+                out.append(("table", rest.split(".", 1)[1]))
+            elif head == "manifest":
+                out.append(("manifest", rest))
+            elif head in specs and rest.split(".", 1)[0] in specs[head].columns:
+                out.append(("column", head, rest.split(".", 1)[0]))  # images.flight_id.complete too
+            else:
+                for prefix in sorted(NEEDS, key=len, reverse=True):
+                    if name.startswith(prefix):
+                        out.extend(NEEDS[prefix])
+                        break
+                else:
+                    if head in specs:
+                        out.append(("table", head))
+        for word in _WORD.findall(text):
+            if word in params:
+                out.append(("param", word))
+    if rule.scope == "block":
+        out.insert(0, ("blocks",))  # without blocks a block rule has no item at all
+    seen: list[tuple[str, ...]] = []
+    for x in out:
+        if x not in seen:
+            seen.append(x)
+    return seen
 
 
 def profile_needs(profile: str, sensor: str) -> tuple[dict[str, dict[str, list[str]]], dict[str, str]]:
-    """What ``profile`` reads for ``sensor``: {table: {column: [rule ids]}} and {document: level}."""
-    import re
-
+    """What ``profile`` reads for ``sensor``: {table: {column: [rule ids]}} and {document: level}
+    (from :func:`rule_inputs`, the reading ``init --from`` builds its TODO.md on)."""
     prof = load_profile(profile)
-    specs = table_specs()
+    params = set(prof.parameters)
     tables: dict[str, dict[str, list[str]]] = {}
     documents: dict[str, str] = {}
     for rule in prof.rules:
         if cannot_apply(rule, {sensor}, True if sensor == "aerial" else None):
             continue
-        texts = [rule.measure, rule.when or ""]
-        for text in texts:
-            for ref in re.findall(r"\b([a-z_]+)\.([a-z_]+)", text):
-                head, col = ref
-                if head == "manifest":
-                    continue
-                table = _table_read(head, col)
-                if table is None:
-                    continue
-                cols = tables.setdefault(table, {})
-                if table == head and col in specs[table].columns:
-                    cols.setdefault(col, []).append(rule.id)
         if rule.manual or rule.measure.startswith("manual."):
             tables.setdefault("manual_checks", {})
+            continue
+        for inp in rule_inputs(rule, params):
+            if inp[0] == "table":
+                tables.setdefault(inp[1], {})
+            elif inp[0] == "column":
+                tables.setdefault(inp[1], {}).setdefault(inp[2], []).append(rule.id)
         m = re.match(r"manifest\.documents\.(\w+)", rule.measure)
         if m:
             level = "required" if rule.level == "mandatory" else "recommended"

@@ -223,17 +223,24 @@ def _param(ctx: ProviderContext, name: str, default: Any, unit: str | None = Non
     return getattr(v, "magnitude", v)
 
 
-def _compute(ctx: ProviderContext) -> Results:
-    if "checkpoints" not in ctx.memo:
-        ctx.memo["checkpoints"] = _compute_once(ctx)
-    return ctx.memo["checkpoints"]
+def _compute(ctx: ProviderContext, table: str = "checkpoints") -> Results:
+    """The results of one check point table, computed once per run.
+
+    Where the points come from: ``checkpoints`` is the external QC's measurements in an evaluation
+    (the checker folder's table, delivery/in_force.py: JRC §12.4-§12.8 read only those);
+    ``internal_checkpoints`` the delivery's own table, the contractor's internal QC (§12.5), read by
+    engine/providers/internal_qc.py. Outside an evaluation (a plain Delivery) ``checkpoints`` is the
+    delivery's table."""
+    if table not in ctx.memo:
+        ctx.memo[table] = _compute_once(ctx, table)
+    return ctx.memo[table]
 
 
-def _compute_once(ctx: ProviderContext) -> Results:
+def _compute_once(ctx: ProviderContext, table: str = "checkpoints") -> Results:
     d = ctx.delivery
-    t = d.table("checkpoints")
+    t = d.table(table)
     if t is None:
-        return Results(missing="the manifest declares no 'checkpoints' table")
+        return Results(missing=d.table_absent_reason(table))
     to_m = float(convert([1.0], t.units.get("x", "m"), "m")[0])
     outlines, broken = _outlines(ctx)
     settings = Settings.of(ctx)
@@ -429,7 +436,7 @@ def _outlines(ctx: ProviderContext) -> tuple[dict[str, Polygon], dict[str, str]]
     to_m = float(convert([1.0], unit, "m")[0]) if unit in ("m", "ft", "usft") else 1.0
     polys: dict[str, Polygon] = {}
     broken: dict[str, str] = {}
-    for block, (ring, ev) in ctx.delivery.block_outlines().items():
+    for block, (ring, ev) in ctx.block_outlines().items():
         if len(ring) < 3:
             continue
         xy = np.asarray(ring, dtype=float)

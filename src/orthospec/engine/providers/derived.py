@@ -124,8 +124,32 @@ def orthorectification(ctx: ProviderContext) -> list[Measured]:
                      pd.Series({d.id: ev}, dtype=object), notes=pd.Series({d.id: note}, dtype=object))]
 
 
+def measured_pixel_m(ctx: ProviderContext) -> dict[str, float]:
+    """Per image id: the coarser axis of its delivered file's pixel, in metres (the one reading of the
+    files, raster/facts.py, through the run's scan); images whose file is absent, unreadable or not
+    in a length unit are left out (their own raster rules report them)."""
+    from .rasters import scanned
+
+    got = scanned(ctx)
+    if "missing" in got:
+        return {}
+    out = {}
+    for i, f in got["facts"].items():
+        size = f.pixel_size_m
+        if size is not None and i not in got["errors"]:
+            out[str(i)] = float(max(size))
+    return out
+
+
 def _pixel_sizes(ctx: ProviderContext) -> tuple[pd.Series, dict[str, str], Any]:
-    """Per image: pixel size in m, which column it came from, and the row evidence."""
+    """Per image: the pixel size its §9.1 class is read from, in m, where it came from, and the row
+    evidence.
+
+    Measured, not declared (issue 25): the delivered file's own pixel (its geotransform) decides,
+    or the scene's input pixel (``scenes.input_pixel_size``) when that is finer: the class is the
+    finest the evidence shows, so declaring a coarser input pixel (4 m for a 0.5 m raster) cannot
+    move a VHR scene into a class with fewer obligations. Without a readable file the declared
+    columns are used, in order: ``scenes.input_pixel_size``, ``images.acquisition_gsd``, ``images.gsd``."""
     d = ctx.delivery
     imgs = d.table("images")
     scenes = d.table("scenes")
@@ -134,6 +158,20 @@ def _pixel_sizes(ctx: ProviderContext) -> tuple[pd.Series, dict[str, str], Any]:
         ids = sorted(set(ids) | set(scenes.ids.astype(str).tolist()))
     size = pd.Series(np.nan, index=ids, dtype=float)
     source: dict[str, str] = {}
+    measured = measured_pixel_m(ctx) if imgs is not None else {}
+    if scenes is not None and "input_pixel_size" in scenes.df:
+        inp = _table_metres(scenes, "input_pixel_size")
+    else:
+        inp = pd.Series(dtype=float)
+    for i in ids:
+        if i not in measured:
+            continue
+        size[i] = measured[i]
+        source[i] = f"the file's pixel, {measured[i]:.4g} m"
+        v = inp.get(i)
+        if v is not None and np.isfinite(v) and v < measured[i]:
+            size[i] = float(v)
+            source[i] = f"scenes.input_pixel_size {v:.4g} m, finer than the file's pixel {measured[i]:.4g} m"
     candidates = [(scenes, "input_pixel_size"), (imgs, "acquisition_gsd"), (imgs, "gsd")]
     for t, col in candidates:
         if t is None or col not in t.df:
@@ -145,7 +183,7 @@ def _pixel_sizes(ctx: ProviderContext) -> tuple[pd.Series, dict[str, str], Any]:
         s = s[~s.index.duplicated()]
         fill = size.isna() & s.reindex(size.index).notna()
         for i in size.index[fill]:
-            source[i] = f"{t.file} {col}"
+            source[i] = f"{t.file} {col}, declared: the file's pixel is unknown"
         size[fill] = s.reindex(size.index)[fill]
     base = scenes if scenes is not None else imgs
     ev = (RowEvidence(base.file, base.sha256, pd.Series(base.df["_row"].to_numpy(),
@@ -237,6 +275,17 @@ def _lay_down(ctx: ProviderContext) -> tuple[list[Any], list[Any], str | None]:
         return v if unit is None else convert(v, cams.units.get(name, unit), unit)
     focal, pix = col("focal_length", "mm"), col("pixel_size", "µm")
     across_px, along_px = col(FORMAT_COLUMNS[0], None), col(FORMAT_COLUMNS[1], None)
+    # a camera model of the published table: its own format and pixel, not the declared ones (issue 25:
+    # a format declared 3 x larger hid a missing strip)
+    models = dict(zip(cams.ids.astype(str), cams.df["model"].tolist(), strict=True)) if "model" in cams.df else {}
+    for k, c in enumerate(cid):
+        known = known_camera(models.get(str(c)))
+        if known is None:
+            continue
+        big, small = max(known["pixels"]), min(known["pixels"])
+        wide = not (np.isfinite(along_px[k]) and np.isfinite(across_px[k]) and along_px[k] > across_px[k])
+        across_px[k], along_px[k] = (big, small) if wide else (small, big)
+        pix[k] = known["pixel_size_um"]
     scale = hgt * (pix * 1e-6) / (focal * 1e-3)  # ground metres per pixel = H/f x pixel size
     across, along = across_px * scale, along_px * scale
     ok = np.isfinite(np.column_stack([x, y, across, along])).all(axis=1) & (across > 0) & (along > 0)
@@ -250,11 +299,43 @@ def _lay_down(ctx: ProviderContext) -> tuple[list[Any], list[Any], str | None]:
         return [], ev, ("no image has an exposure station, flying height and a camera with format, focal "
                         "length and pixel size consistent with its GSD: the photo lay-down cannot be computed")
     ctx.memo["derived.lay_down_incomplete"] = ids[~ok & ~inflated].tolist()
-    heading = strip_headings(x[ok], y[ok], df["flight_id"].astype(str).to_numpy()[ok].tolist())
+    # stations closer than 5 % of a footprint's length are one station recorded twice (a copied row)
+    same = 0.05 * float(np.nanmedian(np.minimum(across[ok], along[ok])))
+    heading = strip_headings(x[ok], y[ok], df["flight_id"].astype(str).to_numpy()[ok].tolist(), min_distance=same)
     try:
         return photo_footprints(x[ok], y[ok], across[ok], along[ok], heading), ev, None
     except MeasureError as exc:
         return [], ev, str(exc)
+
+
+def _camera_key(model: Any) -> str:
+    import re
+
+    text = str(model or "").lower().replace("ultracam", "uc")
+    return re.sub(r"[^a-z0-9]", "", text)
+
+
+_CAMERAS: dict[str, dict[str, Any]] | None = None
+
+
+def known_camera(model: Any) -> dict[str, Any] | None:
+    """The published format of a large-format camera model (specs/cameras.yaml: Passini, Jacobsen & Day,
+    Table 1), or None for a model the table does not list. Names match without case, spaces or
+    punctuation, "UltraCam" read as "UC" (``UltraCam Eagle`` is ``UC Eagle``)."""
+    global _CAMERAS
+    if not model or not str(model).strip():
+        return None
+    if _CAMERAS is None:
+        import yaml
+
+        from ...resources import specs_dir
+
+        raw = yaml.safe_load((specs_dir() / "cameras.yaml").read_text(encoding="utf-8"))
+        _CAMERAS = {_camera_key(c["id"]): {"id": c["id"], "pixels": (int(c["pixels_x"]), int(c["pixels_y"])),
+                                           "pixel_size_um": float(c["pixel_size_um"]),
+                                           "focal_length_mm": tuple(float(f) for f in c["focal_length_mm"])}
+                    for c in raw["cameras"]}
+    return _CAMERAS.get(_camera_key(model))
 
 
 def _reference_gsd(ctx: ProviderContext, imgs: Any) -> np.ndarray:
@@ -279,26 +360,10 @@ def _reference_gsd(ctx: ProviderContext, imgs: Any) -> np.ndarray:
 
 
 def _raster_pixel_sizes(ctx: ProviderContext, imgs: Any) -> np.ndarray:
-    """Pixel size in metres of each images row's delivered file (header only); NaN where the file is
-    absent, unreadable or not in a metre CRS (its own raster rules report that)."""
-    from ...raster.reading import open_read_only, read_only_env
-
-    d = ctx.delivery
-    out = np.full(len(imgs.df), np.nan)
-    if "file" not in imgs.df:
-        return out
-    with read_only_env():
-        for k, rel in enumerate(imgs.df["file"].tolist()):
-            if not isinstance(rel, str) or not rel.strip():
-                continue
-            try:
-                with open_read_only(d.path(rel, what="images row"), name=rel) as ds:
-                    units = (ds.crs.linear_units or "").lower() if ds.crs is not None else ""
-                    if units in ("metre", "meter", "m"):
-                        out[k] = float(max(abs(ds.res[0]), abs(ds.res[1])))
-            except (OrthospecError, OSError):
-                continue
-    return out
+    """Pixel size in metres of each images row's delivered file (the run's one reading of the files);
+    NaN where the file is absent, unreadable or not in a length unit (its own raster rules report that)."""
+    measured = measured_pixel_m(ctx)
+    return np.array([measured.get(str(i), np.nan) for i in imgs.ids.tolist()], dtype=float)
 
 
 @provider(scope="delivery", measures=COVERAGE)
@@ -367,7 +432,7 @@ def block_outlines_agree(ctx: ProviderContext) -> list[Measured]:
     from ...delivery.outlines import ring_polygon
 
     d = ctx.delivery
-    stated = d.stated_outlines
+    stated = ctx.outlines
     ev: tuple[Any, ...] = (d.manifest_evidence("blocks"),)
     na = None
     value: bool | None
@@ -408,7 +473,7 @@ def area_of_interest_agrees(ctx: ProviderContext) -> list[Measured]:
     Not applicable when the checker states neither, or when it states an area and the manifest
     declares no area file (the union of blocks is then no statement about the area)."""
     d = ctx.delivery
-    stated = d.stated_outlines
+    stated = ctx.outlines
     rel = d.manifest.project.area_of_interest
     ev: tuple[Any, ...] = (d.manifest_evidence("project.area_of_interest"),)
     na: str | None = None
@@ -606,7 +671,7 @@ def dem_blocks(ctx: ProviderContext) -> list[Measured]:
         return [Measured("derived.dem_blocks", "dem", "text", pd.Series(dtype=object), pd.Series(dtype=object),
                          notes=pd.Series({"*": "the manifest declares no 'dem' table"}, dtype=object))]
     # the outlines in force: the checker's file's when it states blocks (red team R13), else the manifest's
-    polys = {block: Polygon(ring) for block, (ring, _) in d.block_outlines().items() if finite_ring(ring)}
+    polys = {block: Polygon(ring) for block, (ring, _) in ctx.block_outlines().items() if finite_ring(ring)}
     ids = t.ids.astype(str).tolist()
     vals: dict[str, Any] = {}
     notes: dict[str, str] = {}
@@ -673,29 +738,23 @@ def _file_band_counts(ctx: ProviderContext, ids: list[str]) -> tuple[dict[str, i
     """Colour bands (alpha excluded) of the delivered image files of ``ids``: the file, not the
     declared ``images.bands``, decides whether the product is multispectral. Unreadable files are
     left to the declared bands (their own rules report them)."""
-    from rasterio.enums import ColorInterp
-
-    from ...raster.reading import open_read_only, read_only_env
+    from .rasters import scanned
 
     d = ctx.delivery
     imgs = d.table("images")
     if imgs is None or "file" not in imgs.df or not ids:
         return {}, []
-    files = pd.Series(imgs.df["file"].to_numpy(), index=imgs.ids.astype(str).to_numpy())
-    files = files[~files.index.duplicated()]
+    got = scanned(ctx)
+    if "missing" in got:
+        return {}, []
     out: dict[str, int] = {}
     ev: list[Any] = []
-    with read_only_env():
-        for i in ids:
-            rel = files.get(i)
-            if not isinstance(rel, str) or not rel.strip():
-                continue
-            try:
-                with open_read_only(d.path(rel, what=f"images row for {i}"), name=rel) as ds:
-                    out[i] = sum(1 for c in ds.colorinterp if c != ColorInterp.alpha)
-                ev.append(d.evidence(rel))
-            except (OrthospecError, OSError):
-                continue
+    for i in ids:
+        f = got["facts"].get(i)
+        if f is None or not f.readable or i in got["errors"]:
+            continue
+        out[i] = sum(1 for c in f.colorinterp if c != "alpha")
+        ev.append(d.evidence(f.path))
     return out, ev
 
 
@@ -770,3 +829,126 @@ def pansharpened(ctx: ProviderContext) -> list[Measured]:
         Measured("derived.pansharpened_agrees", "delivery", "bool", pd.Series({d.id: agrees}, dtype=object),
                  evidence, notes=pd.Series({d.id: agree_note}, dtype=object), na=na),
     ]
+
+
+DEM_PRESENCE = {"derived.dem_delivered": "bool", "derived.dem_used": "bool", "derived.dem_delivered_agrees": "bool"}
+#: scenes columns that record a DEM used to orthorectify the scene (JRC Table 7 "DEM", §9.5)
+SCENE_DEM_COLUMNS = ("dem_grid_size", "dem_accuracy", "dem_qc_result")
+
+
+@provider(scope="delivery", measures=DEM_PRESENCE)
+def dem_presence(ctx: ProviderContext) -> list[Measured]:
+    """Whether a DEM is delivered and whether one was used, from the files (issue 25, "flags that switch
+    rules off"), never from ``product.dem_delivered`` alone.
+
+    * ``derived.dem_delivered``: the dem table names a DEM file (the delivery lists a DEM among its
+      files: JRC §12.7 "Where the DEM is also a deliverable"), or the manifest declares
+      ``product.dem_delivered: true`` (an admission is never ignored). The note says whether each named
+      file is present and readable.
+    * ``derived.dem_used``: a DEM is delivered, or the dem table has rows, or a scene records the DEM it
+      was orthorectified with (``scenes.dem_grid_size``, ``dem_accuracy``, ``dem_qc_result``): the
+      DEM checks of Tables 5 and 7 then apply, whatever tables the contractor removed.
+    * ``derived.dem_delivered_agrees``: the declared ``product.dem_delivered`` is the computed fact
+      (not applicable when nothing is declared).
+    """
+    from ...raster.facts import read_facts
+
+    d = ctx.delivery
+    t = d.table("dem")
+    scenes = d.table("scenes")
+    declared = getattr(d.manifest.product, "dem_delivered", None)
+    ev: list[Any] = [d.manifest_evidence("product.dem_delivered")]
+    named: list[str] = []
+    if t is not None:
+        ev += list(t.evidence(t.df["_row"]))
+        if "file" in t.df:
+            named = [str(v).strip() for v in t.df["file"].tolist() if _filled(v)]
+    states = []
+    for rel in named:
+        try:
+            f = read_facts(d.path(rel, what="dem file"), sha256=False, name=rel)
+        except OrthospecError as exc:
+            states.append(f"{rel}: {exc}")
+            continue
+        states.append(f"{rel} ({'readable' if f.readable else f.error})")
+    recorded: list[str] = []
+    if scenes is not None:
+        cols = [c for c in SCENE_DEM_COLUMNS if c in scenes.df]
+        for col in cols:
+            hit = scenes.df[col].map(_filled).astype(bool)
+            if hit.any():
+                recorded += scenes.ids.astype(str)[hit.to_numpy(bool)].tolist()
+                ev += list(scenes.evidence(scenes.df["_row"][hit]))
+    recorded = sorted(set(recorded))
+    delivered = bool(named) or declared is True
+    used = delivered or (t is not None and len(t.df) > 0) or bool(recorded)
+    parts = []
+    if named:
+        parts.append(f"the dem table names DEM file(s): {'; '.join(states[:5])}")
+    elif declared is True:
+        parts.append("delivery.yaml declares product.dem_delivered: true")
+    else:
+        parts.append("no DEM file is named in the delivery")
+    if t is not None and len(t.df):
+        parts.append(f"{t.file} records {len(t.df)} DEM(s)")
+    if recorded:
+        parts.append(f"scene(s) {', '.join(recorded[:5])} record the DEM they were orthorectified with "
+                     f"({'/'.join(SCENE_DEM_COLUMNS)})")
+    note = "; ".join(parts)
+    agrees = None if declared is None else bool(declared) == delivered
+    agree_note = ("product.dem_delivered not declared" if declared is None else
+                  f"declared {str(declared).lower()}, the files say {str(delivered).lower()} ({parts[0]})")
+    evidence = pd.Series({d.id: tuple(ev)}, dtype=object)
+    na = pd.Series({d.id: "the contractor declares no product.dem_delivered"}, dtype=object) if declared is None else None
+    return [
+        Measured("derived.dem_delivered", "delivery", "bool", pd.Series({d.id: delivered}, dtype=object), evidence,
+                 notes=pd.Series({d.id: note}, dtype=object)),
+        Measured("derived.dem_used", "delivery", "bool", pd.Series({d.id: used}, dtype=object), evidence,
+                 notes=pd.Series({d.id: note}, dtype=object)),
+        Measured("derived.dem_delivered_agrees", "delivery", "bool", pd.Series({d.id: agrees}, dtype=object),
+                 evidence, notes=pd.Series({d.id: agree_note}, dtype=object), na=na),
+    ]
+
+
+CAMERA = {"derived.camera_agrees": "bool"}
+
+
+@provider(scope="camera", measures=CAMERA)
+def camera_agrees(ctx: ProviderContext) -> list[Measured]:
+    """The declared format and pixel size of a camera are its model's published ones (specs/cameras.yaml,
+    Passini, Jacobsen & Day Table 1). The photo lay-down (derived.photo_coverage) uses the published
+    values for a listed model whatever the table declares (issue 25: a format declared 3 x larger hid a
+    missing strip); this measure reports the declaration the table contradicts. Not applicable to a
+    model the table does not list."""
+    t = ctx.delivery.table("cameras")
+    if t is None:
+        empty = pd.Series(dtype=object)
+        return [Measured("derived.camera_agrees", "camera", "bool", empty, empty.copy())]
+    ids = t.ids.astype(str).tolist()
+    values: dict[str, bool | None] = {}
+    notes: dict[str, str] = {}
+    na: dict[str, str] = {}
+    for k, i in enumerate(ids):
+        row = t.df.iloc[k]
+        model = row.get("model") if "model" in t.df else None
+        known = known_camera(model)
+        if known is None:
+            values[i] = None
+            na[i] = f"camera model {model!r} is not in the published table (specs/cameras.yaml)"
+            continue
+        problems = []
+        declared = sorted(float(row[c]) for c in FORMAT_COLUMNS if c in t.df and _filled(row[c]))
+        if len(declared) == 2 and declared != sorted(float(v) for v in known["pixels"]):
+            problems.append(f"format {declared[1]:.0f} x {declared[0]:.0f} px declared, the {known['id']}'s is "
+                            f"{max(known['pixels'])} x {min(known['pixels'])} px")
+        if "pixel_size" in t.df and _filled(row["pixel_size"]):
+            px = float(convert(np.array([float(row["pixel_size"])]), t.units.get("pixel_size", "µm"), "µm")[0])
+            if abs(px - known["pixel_size_um"]) > 0.01 * known["pixel_size_um"]:
+                problems.append(f"pixel {px:g} µm declared, the {known['id']}'s is {known['pixel_size_um']:g} µm")
+        values[i] = not problems
+        notes[i] = ("; ".join(problems) + " (Passini, Jacobsen & Day Table 1): the photo lay-down uses the "
+                    "published values") if problems else f"declared format and pixel are the {known['id']}'s"
+    rows = pd.Series(t.df["_row"].to_numpy(), index=ids)
+    return [Measured("derived.camera_agrees", "camera", "bool", pd.Series(values, dtype=object),
+                     RowEvidence(t.file, t.sha256, rows), notes=pd.Series(notes, dtype=object),
+                     na=pd.Series(na, dtype=object) if na else None)]

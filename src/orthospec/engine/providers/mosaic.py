@@ -13,11 +13,11 @@ import pandas as pd
 import shapely
 from shapely.geometry import Polygon, box
 
-from ...delivery.outlines import finite_ring
+from ...delivery.outlines import finite_ring, ring_polygon
 from ...errors import MeasureError, OrthospecError
 from ...measures.mosaic import seamline_coverage
+from ...provenance import Evidence
 from ...raster.reading import read_vector
-from ...raster.roi import raster_bounds
 from ..registry import Measured, ProviderContext, provider
 
 MEASURES = {"mosaic.aoi_coverage": "%", "mosaic.seamline_coverage": "%", "mosaic.seamline_overlap": "%",
@@ -53,9 +53,8 @@ def aoi_in_force(ctx: ProviderContext) -> tuple[Any, tuple[Any, ...], str]:
     block polygons (:func:`declared_aoi`). The same order on both sides: an area, else its blocks."""
     from ...delivery.outlines import ring_polygon
 
-    d = ctx.delivery
-    stated = d.stated_outlines
-    in_force = d.area_of_interest_in_force()
+    stated = ctx.outlines
+    in_force = ctx.area_of_interest_in_force()
     if stated is not None and in_force is not None:
         ring, ev = in_force
         return ring_polygon(ring), (ev,), f"area of interest of the {stated.source}"
@@ -66,18 +65,21 @@ def aoi_in_force(ctx: ProviderContext) -> tuple[Any, tuple[Any, ...], str]:
 
 
 def _footprints(ctx: ProviderContext) -> tuple[list[Any], list[str]]:
-    """Image footprints (:func:`orthospec.raster.roi.raster_bounds`) and the images that could not
-    be read (named in the coverage note: an unreadable image covers nothing)."""
-    d = ctx.delivery
-    t = d.table("images")
-    if t is None:
+    """Image footprints (the files' bounds, from the run's one reading of them: raster/facts.py) and
+    the images that could not be read (named in the coverage note: an unreadable image covers nothing)."""
+    from .rasters import scanned
+
+    got = scanned(ctx)
+    if "missing" in got:
         return [], []
+    t = got["table"]
     out, bad = [], []
-    for rel in t.df["file"].astype(str):
-        try:
-            out.append(box(*raster_bounds(d.path(rel), name=rel)))
-        except (OrthospecError, OSError):
+    for i, rel in zip(t.ids.astype(str).tolist(), t.df["file"].astype(str).tolist(), strict=True):
+        f = got["facts"].get(i)
+        if f is None or f.bounds is None:
             bad.append(rel)
+        else:
+            out.append(box(*f.bounds))
     return out, bad
 
 
@@ -133,3 +135,113 @@ def mosaic_measures(ctx: ProviderContext) -> list[Measured]:
                             notes=pd.Series({item: notes[n]}, dtype=object) if n in notes else None,
                             errors=pd.Series({item: errors[n]}, dtype=object) if n in errors else None))
     return out
+
+
+LOCATION = {"raster.in_area": "bool"}
+
+
+def outline_crs(ctx: ProviderContext) -> str | None:
+    """The CRS block outlines and the area of interest are written in: the map projection in force
+    (parameter ``map_crs``; the checker's outlines are in it), else the manifest's ``project.crs``."""
+    return ctx.parameters.get("map_crs") or ctx.delivery.manifest.project.crs or None
+
+
+def _footprint(f: Any, target: str | None, same: dict[str, bool | str]) -> tuple[Any, str | None]:
+    """The raster's bounds as a polygon in ``target`` CRS (reprojected when its own differs), or
+    (None, why). ``same`` caches, per CRS text, whether it is the target (every image of a delivery
+    usually shares one CRS; pyproj parses it once)."""
+    if f.bounds is None:
+        return None, f"the file has no georeference ({f.georeference or f.error})"
+    if target is None:
+        return None, "no map projection in force and no project.crs: the outlines' CRS is unknown"
+    if f.crs_wkt is None:
+        return None, "the file has no CRS"
+    from ...delivery.crs import CrsProblem, same_crs
+
+    if f.crs_wkt not in same:
+        try:
+            same[f.crs_wkt] = same_crs(f.crs_wkt, target)
+        except CrsProblem as exc:
+            same[f.crs_wkt] = f"cannot compare the file's CRS with {target}: {exc}"
+    known = same[f.crs_wkt]
+    if isinstance(known, str):
+        return None, known
+    if known:
+        return box(*f.bounds), None
+    from rasterio.warp import transform_bounds
+
+    from ...raster.reading import gdal_errors
+
+    try:
+        with gdal_errors(file=f.path, what="footprint"):
+            return box(*transform_bounds(f.crs_wkt, target, *f.bounds, densify_pts=21)), None
+    except MeasureError as exc:  # PROJ cannot place it (mapped by the one boundary)
+        return None, f"cannot reproject the footprint from {f.crs_name} to {target}: {exc}"
+
+
+@provider(scope="image", measures=LOCATION)
+def raster_location(ctx: ProviderContext) -> list[Measured]:
+    """Each delivered image lies where it claims (issue 25; JRC §12.4 Table 12 "Ortho-image ...
+    georeferenced to the (national) map projection").
+
+    True when the file's footprint (its own bounds, from :mod:`orthospec.raster.facts`, in the
+    outlines' CRS) overlaps the outline in force of its block (``images.block``), else the area of
+    interest in force; False when it lies wholly outside (the note gives the distance). Missing when
+    the footprint or the outline is unknown. The block column and the outlines are declarations or
+    the checker's; the footprint is the file's."""
+    from .rasters import scanned
+
+    d = ctx.delivery
+    got = scanned(ctx)
+    if "missing" in got:
+        return [Measured("raster.in_area", "image", "bool", pd.Series(dtype=object), pd.Series(dtype=object),
+                         notes=pd.Series({"*": got["missing"]}, dtype=object))]
+    t = got["table"]
+    ids = [str(i) for i in t.ids.tolist()]
+    blocks = dict(zip(ids, t.df["block"].tolist(), strict=True)) if "block" in t.df else {}
+    polys = {b: ring_polygon(r) for b, (r, _) in d.block_outlines().items() if finite_ring(r)}
+    outline_ev = {b: e for b, (_, e) in d.block_outlines().items()}
+    aoi_error = None
+    try:
+        aoi, aoi_ev, aoi_what = aoi_in_force(ctx)
+    except (OrthospecError, OSError) as exc:
+        aoi, aoi_ev, aoi_what, aoi_error = None, (), "", str(exc)
+    target = outline_crs(ctx)
+    same: dict[str, bool | str] = {}
+    values: dict[str, bool | None] = {}
+    notes: dict[str, str] = {}
+    evidence: dict[str, tuple[Any, ...]] = {}
+    rows = got["rows"]
+    for i in ids:
+        listed = Evidence(t.file, t.sha256, (int(rows[i]),))
+        f = got["facts"].get(i)
+        block = blocks.get(i)
+        block = None if block is None or (isinstance(block, float) and block != block) else str(block).strip()
+        if block in polys:
+            area, ev, what = polys[block], (outline_ev[block],), f"the outline of block {block}"
+        elif aoi is not None:
+            area, ev, what = aoi, aoi_ev, f"the {aoi_what}" + (f" (block {block} has no outline)" if block else "")
+        else:
+            area, ev, what = None, (), ""
+        file_ev = (Evidence(f.path, f.sha256 or got["sha256"].get(i, ""), ()),) if f is not None else ()
+        evidence[i] = (listed, *file_ev, *ev)
+        if f is None or i in got["errors"]:
+            values[i], notes[i] = None, "the file could not be read: its footprint is unknown"
+            continue
+        if area is None:
+            values[i] = None
+            notes[i] = aoi_error or f"no outline for block {block} and no area of interest: nothing to place it in"
+            continue
+        foot, why = _footprint(f, target, same)
+        if foot is None:
+            values[i], notes[i] = None, str(why)
+            continue
+        shared = float(foot.intersection(area).area)
+        values[i] = shared > 0.0
+        if shared > 0.0:
+            notes[i] = f"{100.0 * shared / foot.area:.1f} % of the file's footprint lies in {what}"
+        else:
+            notes[i] = (f"the file's footprint {tuple(round(v, 2) for v in foot.bounds)} lies "
+                        f"{float(foot.distance(area)):.1f} map units outside {what}")
+    return [Measured("raster.in_area", "image", "bool", pd.Series(values, dtype=object),
+                     pd.Series(evidence, dtype=object), notes=pd.Series(notes, dtype=object))]

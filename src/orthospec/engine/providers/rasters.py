@@ -9,16 +9,21 @@ from __future__ import annotations
 
 import math
 import os
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pandas as pd
 
 from ...delivery.crs import CrsProblem, epsg_name
 from ...errors import OrthospecError
+from ...measures.copies import Content, find_copies
 from ...provenance import Evidence
+from ...raster.facts import RasterFacts
 from ...raster.filechecks import check_name, listing_consistency
 from ...raster.parallel import ImageReport, make_progress, scan_images
+from ...units import convert
 from ..registry import Measured, ProviderContext, provider
 
 IMAGE_MEASURES: dict[str, str] = {
@@ -35,9 +40,20 @@ IMAGE_MEASURES: dict[str, str] = {
     "raster.dark_margin": "%", "raster.bright_margin": "%", "raster.misregistration": "px",
     "raster.mean_dn": "DN", "raster.std_dn": "DN", "raster.reported_mean_diff": "DN",
     "raster.reported_std_diff": "DN",
+    # issue 25: declared image values compared with what the file and its pixels say
+    "raster.gsd_declared_diff": "%", "raster.bit_depth_agrees": "bool",
+    "raster.reported_min_diff": "DN", "raster.reported_max_diff": "DN",
+    "raster.cloud_cover": "%", "raster.cloud_cover_declared_diff": "%",
 }
 DELIVERY_MEASURES = {"raster.unlisted_files": "1", "raster.listed_missing": "1"}
+CLOUD_MEAN = {"raster.cloud_cover_mean": "%"}
+#: measures whose rules judge delivered files only (`when: raster.exists == true`): an absent file's
+#: "not found" is JRC-9.2-T7-READABLE's finding, not an error of theirs
+EXISTING_ONLY = frozenset({"raster.gsd_declared_diff"})
 DUPLICATE_MEASURES = {"raster.file_unique": "bool"}
+CONTENT_MEASURES = {"raster.content_unique": "bool"}
+#: images.csv columns compared with what the file says (declared image values, issue 25)
+DECLARED_COLUMNS = ("mean_dn", "std_dn", "min_dn", "max_dn", "gsd", "bit_depth", "cloud_cover")
 SMALL_DELIVERY_BYTES = 64 << 20
 _IMAGE_EXT = {".tif", ".tiff", ".jp2", ".j2k", ".img", ".vrt", ".png", ".jpg", ".jpeg", ".ecw", ".sid"}
 
@@ -62,6 +78,14 @@ def _pooled(bands: list[dict[str, Any]]) -> tuple[float | None, float | None]:
     mean = sum((b["valid"] or 0) * b["mean"] for b in bands if b.get("mean") is not None) / n
     ex2 = sum((b["valid"] or 0) * (b["std"] ** 2 + b["mean"] ** 2) for b in bands if b.get("mean") is not None) / n
     return mean, math.sqrt(max(ex2 - mean * mean, 0.0))
+
+
+def scanned(ctx: ProviderContext) -> dict[str, Any]:
+    """The one scan of the listed images in this run (memoised): ``frame`` (measure values), ``facts``
+    (image id -> :class:`RasterFacts`), ``pixels`` (content hash, thumbnail), ``errors``, ``table``...;
+    ``{"missing": why}`` when the delivery has no images table. Other providers read the files'
+    facts here instead of opening the files again."""
+    return _scan(ctx)
 
 
 def _scan(ctx: ProviderContext) -> dict[str, Any]:
@@ -93,12 +117,20 @@ def _scan(ctx: ProviderContext) -> dict[str, Any]:
     workers = opts.get("workers")
     if workers is None and sum(p.stat().st_size for p in existing.values()) < SMALL_DELIVERY_BYTES:
         workers = 1  # process start-up costs more than it saves on a small delivery
-    reported = {k: t.df[k].tolist() for k in ("mean_dn", "std_dn") if k in t.df.columns}
+    reported = {k: t.df[k].tolist() for k in DECLARED_COLUMNS if k in t.df.columns}
+    if "gsd" in reported:  # in metres, like the pixel size it is compared with
+        reported["gsd"] = convert(pd.to_numeric(t.df["gsd"], errors="coerce").to_numpy(float),
+                                  t.units.get("gsd", "m"), "m").tolist()
     where = dict(zip(ids, range(len(ids)), strict=True))
     gsd = d.gsd_m
     rows: list[tuple[Any, ...] | None] = [None] * len(scanned)
     errors: dict[str, str] = {}
     sha: dict[str, str] = {}
+    facts: dict[str, RasterFacts] = {}
+    pixels: dict[str, dict[str, Any]] = {}
+    notes: dict[str, dict[str, str]] = {}
+    wkts: dict[str, str] = {}
+    declared = {"gsd": gsd, "bit_depth": product.bit_depth}
     # scans run (possibly in other processes) on absolute paths; what enters the QCR is relative
     # to the delivery root, so qcr.json does not depend on where the delivery or the caller is
     root_prefix = f"{d.root}{os.sep}"
@@ -113,7 +145,19 @@ def _scan(ctx: ProviderContext) -> dict[str, Any]:
             v = column[where[item]]
             if v is not None and not pd.isna(v):
                 rep_reported[key] = v
-        vals = _values(rep, rep_reported, gsd)
+        if rep.facts is not None:
+            f = RasterFacts.from_dict(rep.facts)
+            wkt = f.crs_wkt if f.crs_wkt is None else wkts.setdefault(f.crs_wkt, f.crs_wkt)  # one copy per CRS
+            facts[item] = replace(f, crs_wkt=wkt, path=Path(f.path).relative_to(d.root).as_posix()
+                                  if f.path.startswith(root_prefix) else f.path)
+        radiometry = rep.radiometry or {}
+        thumb = radiometry.get("thumbnail")
+        pixels[item] = {"hash": radiometry.get("pixels_hash"), "cell": radiometry.get("thumbnail_cell_px"),
+                        "thumb": None if thumb is None else np.array(
+                            [[np.nan if v is None else v for v in row] for row in thumb], dtype=np.float32)}
+        vals = _values(rep, rep_reported, declared)
+        for name, text in _value_notes(rep, rep_reported, declared, vals).items():
+            notes.setdefault(name, {})[item] = text
         if rep.error is not None:
             errors[item] = rep.error.replace(root_prefix, "")
             vals = {n: None for n in IMAGE_MEASURES} | {"raster.exists": True, "raster.readable": False,
@@ -141,12 +185,104 @@ def _scan(ctx: ProviderContext) -> dict[str, Any]:
     listing = listing_consistency(files, on_disk)
     ctx.memo["rasters"] = {"frame": frame, "errors": errors, "sha256": sha, "paths": paths,
                            "rows": dict(zip(ids, t.df["_row"], strict=True)), "table": t,
-                           "listing": listing}
+                           "listing": listing, "facts": facts, "pixels": pixels, "notes": notes}
     return ctx.memo["rasters"]
 
 
-def _values(rep: ImageReport, reported: dict[str, Any], gsd: float | None) -> dict[str, Any]:
+def _declared_vs_file(rep: ImageReport, reported: dict[str, Any], declared: dict[str, Any],
+                      bands: list[dict[str, Any]]) -> dict[str, Any]:
+    """The image values a row (else the manifest) declares, compared with what its file says."""
+    facts = rep.facts or {}
+    radiometry = rep.radiometry or {}
+    out: dict[str, Any] = {}
+    size, metres = facts.get("pixel_size"), facts.get("unit_metres")
+    said = reported.get("gsd", declared.get("gsd"))
+    if size and metres and said is not None and said > 0:
+        out["raster.gsd_declared_diff"] = max(abs(said - v * metres) / (v * metres) * 100.0 for v in size)
+    bits = reported.get("bit_depth", declared.get("bit_depth"))
+    if bits is not None and facts.get("bit_depth_container") is not None:
+        nbits, container = facts.get("nbits"), facts["bit_depth_container"]
+        used = max((b.get("used_bits") or 0 for b in bands), default=0)
+        out["raster.bit_depth_agrees"] = (int(bits) == nbits) if nbits else bool(used <= bits <= container)
+    lows = [b["min"] for b in bands if b.get("min") is not None]
+    highs = [b["max"] for b in bands if b.get("max") is not None]
+    if lows and reported.get("min_dn") is not None:
+        out["raster.reported_min_diff"] = abs(min(lows) - reported["min_dn"])
+    if highs and reported.get("max_dn") is not None:
+        out["raster.reported_max_diff"] = abs(max(highs) - reported["max_dn"])
+    cloud = radiometry.get("cloud_pct")
+    out["raster.cloud_cover"] = cloud
+    if cloud is not None and reported.get("cloud_cover") is not None:
+        out["raster.cloud_cover_declared_diff"] = abs(cloud - reported["cloud_cover"])
+    return out
+
+
+def _value_notes(rep: ImageReport, reported: dict[str, Any], declared: dict[str, Any],
+                 vals: dict[str, Any]) -> dict[str, str]:
+    """Why a declared-vs-file value is what it is (shown in the record)."""
+    out: dict[str, str] = {}
+    facts = rep.facts or {}
+    size, metres = facts.get("pixel_size"), facts.get("unit_metres")
+    said = reported.get("gsd", declared.get("gsd"))
+    source = "images.gsd" if "gsd" in reported else "delivery.yaml product.gsd"
+    if vals.get("raster.gsd_declared_diff") is not None:
+        px = " x ".join(f"{v * metres:.6g}" for v in size)
+        out["raster.gsd_declared_diff"] = f"declared {said:.6g} m ({source}), the file's pixel is {px} m"
+    elif size and not metres:
+        out["raster.gsd_declared_diff"] = f"the file's CRS has no length unit ({facts.get('pixel_unit')}): no pixel size in metres"
+    elif said is None:
+        out["raster.gsd_declared_diff"] = "no GSD declared (images.gsd or product.gsd)"
+    if vals.get("raster.bit_depth_agrees") is not None:
+        bits = reported.get("bit_depth", declared.get("bit_depth"))
+        nb = facts.get("nbits")
+        used = max((b.get("used_bits") or 0 for b in (rep.radiometry or {}).get("bands", [])), default=0)
+        out["raster.bit_depth_agrees"] = (
+            f"declared {bits:g} bits; the file states NBITS={nb}" if nb else
+            f"declared {bits:g} bits; the file holds {facts.get('dtypes', ['?'])[0]} samples "
+            f"({facts.get('bit_depth_container')}-bit container) using {used} bits")
+    cloud = vals.get("raster.cloud_cover")
+    radiometry = rep.radiometry or {}
+    if cloud is not None:
+        text = (f"measured {cloud:.2f} % bright, white pixels (cloud, or snow: red, green and blue cannot tell "
+                f"them apart) on {radiometry.get('cloud_samples')} sampled pixels")
+        if reported.get("cloud_cover") is not None:
+            text += f"; declared {reported['cloud_cover']:g} % (images.cloud_cover)"
+        out["raster.cloud_cover"] = out["raster.cloud_cover_declared_diff"] = text
+    elif radiometry:
+        out["raster.cloud_cover"] = "no red, green and blue bands with a known grey range: cloud cover not measured"
+    low = radiometry.get("low_nodata")
+    if low:
+        bands = ", ".join(low.get("bands") or [])
+        if low.get("pixels_nodata_in_every_band"):
+            told = [v for v in (low.get("saturation_low_told_pct") or {}).values() if v is not None]
+            out["raster.saturation_low_max_band"] = (
+                f"band(s) {bands}: the nodata value is the lowest grey level, and "
+                f"{low['pixels_nodata_in_every_band_pct']:.3f} % of the pixels are at it in every band: saturated "
+                "black and no-data cannot be told apart there (at least "
+                f"{max(told, default=0.0):.3f} % of the other pixels are saturated black in one band)")
+        else:
+            out["raster.saturation_low_max_band"] = (
+                f"band(s) {bands}: the nodata value is the lowest grey level; no pixel is at it in every band, so "
+                "each pixel at it is saturated black, not no-data (counted)")
+    return out
+
+
+def _saturation_low(d: dict[str, Any], low_nodata: dict[str, Any] | None) -> float | None:
+    """Worst band's dark-tail share; where a band's nodata is its lowest grey level (issue 26), the
+    share of pixels at that level while another band is valid; missing when some pixels are at
+    nodata in every band (saturated black and no-data cannot be told apart there)."""
+    worst = d.get("image.saturation_low_pct_max_band")
+    if not low_nodata:
+        return worst
+    if low_nodata.get("pixels_nodata_in_every_band"):
+        return None
+    told = [v for v in (low_nodata.get("saturation_low_told_pct") or {}).values() if v is not None]
+    return max([v for v in (worst, *told) if v is not None], default=None)
+
+
+def _values(rep: ImageReport, reported: dict[str, Any], declared: dict[str, Any]) -> dict[str, Any]:
     d = rep.to_dict()
+    gsd = declared.get("gsd")
     bands = (rep.radiometry or {}).get("bands", [])
     mean, std = _pooled(bands)
     bit_depth = max((b.get("bit_depth") or 0 for b in bands), default=None) or d.get("nbits") or d.get(
@@ -171,7 +307,7 @@ def _values(rep: ImageReport, reported: dict[str, Any], gsd: float | None) -> di
         "raster.name_ok": d.get("name_ok"),
         "raster.saturation_low": d.get("image.saturation_low_pct"),
         "raster.saturation_high": d.get("image.saturation_high_pct"),
-        "raster.saturation_low_max_band": d.get("image.saturation_low_pct_max_band"),
+        "raster.saturation_low_max_band": _saturation_low(d, (rep.radiometry or {}).get("low_nodata")),
         "raster.saturation_high_max_band": d.get("image.saturation_high_pct_max_band"),
         "raster.cv_percent_min": d.get("image.cv_percent_min"),
         "raster.cv_percent_max": d.get("image.cv_percent_max"),
@@ -187,6 +323,7 @@ def _values(rep: ImageReport, reported: dict[str, Any], gsd: float | None) -> di
         "raster.reported_std_diff": None if std is None or reported.get("std_dn") is None
         else abs(std - reported["std_dn"]),
     }
+    out.update(_declared_vs_file(rep, reported, declared, bands))
     return out
 
 
@@ -219,13 +356,18 @@ def raster_measures(ctx: ProviderContext) -> list[Measured]:
     values["raster.name_ok"].update(names_ok)
     out = []
     ev = pd.Series(evidence, dtype=object)
+    value_notes: dict[str, dict[str, str]] = got.get("notes", {})
     for n, u in IMAGE_MEASURES.items():
         errs = None
         if errors and n not in ("raster.exists", "raster.readable", "raster.name_ok"):
             errs = pd.Series(errors, dtype=object)
+            if n in EXISTING_ONLY:  # its rule applies to delivered files only: an absent one is no error here
+                errs = errs[[frame.at[i, "raster.exists"] is not False for i in errs.index]]
         notes = pd.Series(errors, dtype=object) if errors and n in ("raster.exists", "raster.readable") else None
         if n == "raster.name_ok" and name_notes:
             notes = pd.Series(name_notes, dtype=object)
+        elif n in value_notes:
+            notes = pd.Series(value_notes[n], dtype=object)
         out.append(Measured(n, "image", u, pd.Series(values[n], dtype=object), ev, notes=notes, errors=errs))
     return out
 
@@ -307,3 +449,94 @@ def listing_measures(ctx: ProviderContext) -> list[Measured]:
                  notes=pd.Series({d.id: "listed but absent: " + ", ".join(missing)}, dtype=object)
                  if missing else None),
     ]
+
+
+def _number(ctx: ProviderContext, name: str, default: float) -> float:
+    v = ctx.parameters.get(name)
+    v = getattr(v, "magnitude", v)
+    return float(v) if isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) else default
+
+
+@provider(scope="image", measures=CONTENT_MEASURES)
+def content_measures(ctx: ProviderContext) -> list[Measured]:
+    """Each image row holds a picture of its own (JRC §12.4 Table 12 "Ortho-image"; issue 25).
+
+    ``False`` when the row names the same file as another row, its file has the same SHA-256 as
+    another's (red team R12), its decoded pixels equal another image's whatever the file's
+    compression, tiling or georeference (one scene's pixels under another scene's georeference),
+    or it is a near copy of another image (thumbnail correlation of at least the profile's
+    ``copy_correlation_min`` after aligning a whole-cell shift, not explained by the two
+    georeferences: measures/copies.py). The note names the other image(s). ``None`` (missing)
+    when the file could not be read: there is no content to compare.
+    """
+    got = _scan(ctx)
+    if "missing" in got:
+        return [Measured(n, "image", u, pd.Series(dtype=object), pd.Series(dtype=object),
+                         notes=pd.Series({"*": got["missing"]}, dtype=object)) for n, u in CONTENT_MEASURES.items()]
+    t = got["table"]
+    ids = [str(i) for i in t.ids.tolist()]
+    paths = {str(i): p for i, p in got["paths"].items() if isinstance(p, Path)}
+    same_file = _shared(ids, {i: p.resolve() for i, p in paths.items()})
+    same_sha = _shared(ids, got["sha256"])
+    files = dict(zip(ids, t.df["file"].astype(str).tolist(), strict=True))
+    facts: dict[str, RasterFacts] = got["facts"]
+    pixels: dict[str, dict[str, Any]] = got["pixels"]
+    contents = []
+    for i in ids:
+        px, f = pixels.get(i), facts.get(i)
+        if px is None or f is None or i in got["errors"]:
+            continue
+        contents.append(Content(i, px["hash"], px["thumb"], px["cell"], f.count, f.bounds, f.pixel_size, f.crs_name))
+    copies = find_copies(contents, min_correlation=_number(ctx, "copy_correlation_min", 0.99))
+    cells = {i: (pixels.get(i) or {}).get("cell") for i in ids}
+    values: dict[str, bool | None] = {}
+    notes: dict[str, str] = {}
+    evidence: dict[str, tuple[Evidence, ...]] = {}
+    for i in ids:
+        listed = Evidence(t.file, t.sha256, (int(got["rows"][i]),))
+        digest = got["sha256"].get(i)
+        evidence[i] = (listed,) + ((Evidence(files[i], digest, ()),) if digest else ())
+        why = []
+        if same_file.get(i):
+            why.append(f"names the same file {files[i]} as image(s) {', '.join(same_file[i])}")
+        others = [j for j in same_sha.get(i, []) if j not in same_file.get(i, [])]
+        if others:
+            why.append(f"its file {files[i]} has the same content (SHA-256 {digest}) as the file of image(s) "
+                       + ", ".join(f"{j} ({files[j]})" for j in others))
+        known = set(same_file.get(i, [])) | set(others)
+        matches = [m for m in copies.get(i, []) if m.other not in known]
+        if matches:
+            shown = matches[:5]
+            why.append("its pixels are a copy of image(s) " + "; ".join(m.describe(cells.get(i)) for m in shown)
+                       + (f"; and {len(matches) - 5} more" if len(matches) > 5 else ""))
+        if why:
+            values[i] = False
+            notes[i] = "; ".join(why)
+        elif i not in pixels or pixels[i].get("hash") is None or i in got["errors"]:
+            values[i] = None
+            notes[i] = f"{files[i]}: no decoded pixels to compare (absent, empty or unreadable)"
+        else:
+            values[i] = True
+    return [Measured("raster.content_unique", "image", "bool", pd.Series(values, dtype=object),
+                     pd.Series(evidence, dtype=object), notes=pd.Series(notes, dtype=object) if notes else None)]
+
+
+@provider(scope="delivery", measures=CLOUD_MEAN)
+def cloud_mean(ctx: ProviderContext) -> list[Measured]:
+    """Mean of the measured cloud cover over the delivered images (JRC §6.3 "or/and in average")."""
+    got = _scan(ctx)
+    d = ctx.delivery
+    if "missing" in got:
+        return [Measured("raster.cloud_cover_mean", "delivery", "%", pd.Series({d.id: None}, dtype=object),
+                         pd.Series({d.id: (d.manifest_evidence("tables"),)}, dtype=object),
+                         notes=pd.Series({d.id: got["missing"]}, dtype=object))]
+    col = got["frame"]["raster.cloud_cover"]
+    t = got["table"]
+    measured = [float(v) for v in col.tolist() if v is not None and not (isinstance(v, float) and math.isnan(v))]
+    unmeasured = [str(i) for i, v in col.items() if v is None or (isinstance(v, float) and math.isnan(v))]
+    value = None if unmeasured or not measured else sum(measured) / len(measured)
+    note = (f"mean of the measured cloud cover of {len(measured)} image(s)" if value is not None else
+            f"cloud cover not measured for image(s) {', '.join(unmeasured[:5])}: the mean is unknown")
+    return [Measured("raster.cloud_cover_mean", "delivery", "%", pd.Series({d.id: value}, dtype=object),
+                     pd.Series({d.id: t.evidence(t.df["_row"])}, dtype=object),
+                     notes=pd.Series({d.id: note}, dtype=object))]

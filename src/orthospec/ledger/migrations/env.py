@@ -1,6 +1,6 @@
 """Alembic environment for the ledger.
 
-orthospec applies migrations itself (``store.upgrade``) and passes its open connection in
+orthospec applies migrations itself (``db.upgrade``) and passes its open connection in
 ``config.attributes["connection"]``; a developer running the ``alembic`` command instead sets
 ``sqlalchemy.url`` in the config.
 """

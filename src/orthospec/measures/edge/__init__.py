@@ -26,9 +26,11 @@ The chain (seed step in brackets) on a 2-D ROI holding one straight edge:
   the ESF is trimmed at max(``plateau_px``, 3x the start's distance, 1 px into
   the uniform area) beyond each start; the dark/bright levels and the
   uniformity (SNR) come from the uniform areas.
-* fits [8]: a physical model (added): the PSF (Gaussian, Gaussian x box, or core +
-  halo) integrated over the square pixel at the measured angle, primary when its
-  lack-of-fit F test passes (else the spline); non-parametric (scipy ``make_smoothing_spline``, GCV, on the ESF
+* fits [8]: a physical model (added): the PSF (Gaussian, x box, x disk, core + halo,
+  unsharp-masked, diffraction-limited pupil) integrated over the square pixel at the measured
+  angle, chosen by its leave-one-out error (issue 31), primary when its lack-of-fit F test
+  passes (else the better of it and the spline out of sample); every RER, FWHM and MTF@Ny
+  with a standard uncertainty (noise and the spread of the plausible models); non-parametric (scipy ``make_smoothing_spline``, GCV, on the ESF
   binned at 1/``oversample`` px, weighted by counts) and parametric (sum of
   Fermi-Dirac functions); both normalised 0..1.
 * RER [9] at +-0.5 px around the centre (LSF peak for the spline, ESF = 0.5
@@ -43,7 +45,8 @@ Layout (one module per group of steps; each imports only modules listed before i
 ``limits`` (:class:`EdgeLimits`: the step-3 limits and method settings, with sources),
 ``result`` (the returned types and shared constants), ``bins`` (binned ESF, smoothing
 spline), ``estimators`` (steps 9-12 on a fit, primary fit, USGS RER), ``fits`` (step 8:
-spline, Fermi-Dirac), ``model`` (step 8: the physical PSF model), ``locate`` (steps 4-5),
+spline, Fermi-Dirac), ``pupil`` (the diffraction-limited PSF), ``model`` (step 8: the physical
+PSF models, their choice and the uncertainty), ``locate`` (steps 4-5),
 ``esf`` (steps 6-7), ``health`` (step 3), ``chain`` (:func:`measure_edge`).
 """
 

@@ -27,15 +27,30 @@ def within_bin_std(d: np.ndarray, v: np.ndarray, bw: float) -> float:
     return float(np.sqrt(np.sum((v - mean[idx]) ** 2) / dof))
 
 
-def bin_index(d: np.ndarray, bw: float) -> np.ndarray:
-    """Bins of ``bw`` px centred on multiples of bw (symmetric about 0), counted from 0."""
+Core = tuple[float, float] | None
+COARSE = 5  # outside the core, bins are COARSE x bw wide
+
+
+def bin_index(d: np.ndarray, bw: float, core: Core = None) -> np.ndarray:
+    """Bins of ``bw`` px centred on multiples of bw (symmetric about 0), counted from 0.
+
+    With ``core`` (lo, hi) px, only the transition is binned finely: beyond it (the uniform
+    areas, where the ESF is flat) every COARSE fine bins form one (issue 31: the window reaches
+    20 px and more, and the GCV spline's cost grows with the number of bins)."""
     idx = np.floor(d / bw + 0.5).astype(np.int64)
+    if core is not None:
+        k_lo, k_hi = (int(np.floor(c / bw + 0.5)) for c in core)
+        lab = idx.copy()
+        left, right = idx < k_lo, idx > k_hi
+        lab[left] = k_lo - COARSE * ((k_lo - idx[left] + COARSE - 1) // COARSE)
+        lab[right] = k_hi + COARSE * ((idx[right] - k_hi + COARSE - 1) // COARSE)
+        return np.unique(lab, return_inverse=True)[1].astype(np.int64)
     return idx - idx.min()
 
 
-def bins(d: np.ndarray, v: np.ndarray, bw: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def bins(d: np.ndarray, v: np.ndarray, bw: float, core: Core = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Bin the ESF at ``bw`` px: mean distance, mean value and count of each non-empty bin."""
-    idx = bin_index(d, bw)
+    idx = bin_index(d, bw, core)
     n = np.bincount(idx)
     sd = np.bincount(idx, weights=d)
     sv = np.bincount(idx, weights=v)
@@ -53,12 +68,27 @@ def coverage(d: np.ndarray, bw: float, half: float) -> float:
     return float(np.unique(idx).size / nb)
 
 
+def sampling_gap(d: np.ndarray, half: float) -> float:
+    """Largest distance (px) between neighbouring ESF sample positions within +-half px of the
+    edge: the coarsest step at which the slanted edge samples its ESF there (issue 31).
+
+    An edge at 0 deg samples every line at the same phases (gap 1 px); a slope p/q (q lines
+    repeat the pattern) gives the lattice cos(theta) / q, and a slope near it fills the gaps
+    in proportion to the lines and the mismatch. The positions are those of the fitted line, so
+    the gap is measured, not inferred from the angle."""
+    sel = d[(d >= -half) & (d <= half)]
+    if sel.size < 2:
+        return math.inf
+    ends = np.concatenate([[-half], np.sort(sel), [half]])
+    return float(np.max(np.diff(ends)))
+
+
 _CHI2_TRIGGER = 0.1  # GCV fits below this interpolate noise (seen: 0.07; normal: 0.2-1)
 _CHI2_TARGET = 0.4  # where such a fit is moved to (typical chi2 / bins of good fits)
 
 
 def smoothing_spline(d: np.ndarray, v: np.ndarray, bw: float, lo: float, hi: float,
-            noise: float = math.nan) -> Any:
+            noise: float = math.nan, core: Core = None) -> Any:
     """GCV cubic smoothing spline of the binned ESF (weights = samples per bin).
 
     Guard against GCV's known occasional gross under-smoothing: with the pixel ``noise``
@@ -71,7 +101,7 @@ def smoothing_spline(d: np.ndarray, v: np.ndarray, bw: float, lo: float, hi: flo
     sel = (d >= lo) & (d <= hi)
     if sel.sum() < 10:
         return None
-    xb, yb, nb = bins(d[sel], v[sel], bw)
+    xb, yb, nb = bins(d[sel], v[sel], bw, core)
     if xb.size < 6:
         return None
     try:

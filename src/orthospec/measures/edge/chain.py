@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Any
 
@@ -10,13 +11,13 @@ import numpy as np
 from ...errors import MeasureError
 from .bins import smoothing_spline, within_bin_std
 from .esf import Areas, EsfSamples, esf_samples, saturation_levels, uniform_areas
-from .estimators import PRIMARY, estimate_all
-from .fits import fermi_fit, spline_fit
+from .estimators import PRIMARY, choose_primary, estimate_all
+from .fits import fermi_fit, spline_fit, spline_uncertainty
 from .health import health_checks
 from .limits import EdgeLimits
 from .locate import locate_line, orient
 from .model import psf_fit
-from .result import SPLINE, EdgeFit, EdgeResult
+from .result import PSF_FITS, SPLINE, EdgeFit, EdgeResult
 
 
 def measure_edge(
@@ -74,6 +75,8 @@ def measure_edge(
     areas = uniform_areas(samples, lim.bin_px, lim.plateau_px, sat)  # step 7
     fits = fit_esf(samples, areas, lim, line.angle_deg, quant)    # step 8
     checks = health_checks(line, areas, fits, quant, lim)          # step 3
+    if SPLINE in fits and choose_primary(fits, primary) == SPLINE and areas.window is not None:
+        fits[SPLINE] = _with_spline_uncertainty(fits, samples, areas, lim, quant)
     valid, reasons, chosen, estimates = estimate_all(checks, fits, primary, gsd)  # steps 9-12
     rows = line.rows.astype(float)
     lx, ly = frame.to_roi(rows, line.locs)
@@ -89,7 +92,17 @@ def measure_edge(
         dark_std=_opt(areas.stds[0]), bright_std=_opt(areas.stds[1]),
         dark_start_px=_opt(areas.dark_start), bright_start_px=_opt(areas.bright_start),
         window_px=areas.window, fits=fits, primary_fit=chosen, estimates=estimates, gsd_m=gsd,
+        warnings=_warnings(line.angle_deg, lim),
     )
+
+
+def _warnings(angle_deg: float | None, lim: EdgeLimits) -> tuple[str, ...]:
+    """Seed step 3d permits 0-30 deg (TBR); beyond it (up to ``max_angle_deg``) the edge is
+    measured as accurately (issue 31 benchmark) and the result says so."""
+    if angle_deg is not None and lim.standard_max_angle_deg < angle_deg <= lim.max_angle_deg:
+        return (f"edge angle {angle_deg:.2f} deg is beyond the 0-{lim.standard_max_angle_deg:g} deg "
+                "of CEOS step 3d (TBR); measured (the ESF is sampled as finely up to 45 deg)",)
+    return ()
 
 
 def fit_esf(s: EsfSamples, areas: Areas, lim: EdgeLimits, angle_deg: float | None,
@@ -103,19 +116,33 @@ def fit_esf(s: EsfSamples, areas: Areas, lim: EdgeLimits, angle_deg: float | Non
     bw = lim.bin_px
     sel = (s.d >= lo) & (s.d <= hi)
     d, v = s.d[sel], s.v[sel]
-    fermi = fermi_fit(d, v, bw, lo, hi, areas.levels, lim.fermi_terms)
+    core = areas.core
+    fermi = fermi_fit(d, v, bw, lo, hi, areas.levels, lim.fermi_terms, core)
     if fermi is not None:
         fits[fermi.fit] = fermi
     local = within_bin_std(s.d[areas.uniform], s.v[areas.uniform], bw)
-    spl = smoothing_spline(d, v, bw, lo, hi, noise=local)
+    spl = smoothing_spline(d, v, bw, lo, hi, noise=local, core=core)
     if spl is not None:
         fits[SPLINE] = spline_fit(spl, lo, hi, areas.levels, bw)
     if angle_deg is not None:
         model = psf_fit(d, v, bw, lo, hi, areas.levels, angle_deg,
-                        sigma0=0.5 * (areas.bright_start - areas.dark_start), quant=quant)
+                        sigma0=0.5 * (areas.bright_start - areas.dark_start), quant=quant, core=core)
         if model is not None:
             fits[model.fit] = model
     return fits
+
+
+def _with_spline_uncertainty(fits: dict[str, EdgeFit], s: EsfSamples, areas: Areas, lim: EdgeLimits,
+                             quant: float) -> EdgeFit:
+    """The spline fit with its standard uncertainties (only computed when it is the primary)."""
+    lo, hi = areas.window  # type: ignore[misc]
+    spl = fits[SPLINE]
+    model = next((fits[n] for n in PSF_FITS if n in fits), None)
+    cands = model.params.get("candidates", {}) if model is not None else {}
+    noise = within_bin_std(s.d[areas.uniform], s.v[areas.uniform], lim.bin_px)
+    unc = spline_uncertainty(s.d, s.v, lim.bin_px, lo, hi, areas.levels, noise, quant, spl, cands,
+                             areas.core)
+    return dataclasses.replace(spl, params={**spl.params, **unc})
 
 
 def _prepare(roi: np.ndarray | np.ma.MaskedArray, nodata: float | None, bit_depth: int | None,
@@ -133,8 +160,9 @@ def _prepare(roi: np.ndarray | np.ma.MaskedArray, nodata: float | None, bit_dept
                            "expected at least 5 x 5 px (and > 20 lines to pass the checks)")
     if not (np.issubdtype(arr.dtype, np.number) or arr.dtype == bool):
         raise MeasureError(f"edge ROI must be numeric, got dtype {arr.dtype}")
-    quant = 1.0 if (bit_depth is not None or np.issubdtype(arr.dtype, np.integer)) else 0.0
     img = arr.astype(float)
+    quant = 1.0 if (bit_depth is not None or np.issubdtype(arr.dtype, np.integer)
+                    or _integer_valued(img)) else 0.0
     if nodata is not None:
         img[img == nodata] = np.nan
     if invalid is not None:
@@ -144,6 +172,13 @@ def _prepare(roi: np.ndarray | np.ma.MaskedArray, nodata: float | None, bit_dept
     if gsd is not None and not (math.isfinite(gsd) and gsd > 0):
         raise MeasureError(f"gsd must be a positive number of metres per pixel, got {gsd!r}")
     return arr, img, quant
+
+
+def _integer_valued(img: np.ndarray) -> bool:
+    """A float band holding integer DNs (a uint band converted, or read masked as float): its
+    rounding noise q / sqrt(12), q = 1 DN, is as real as an integer band's (issue 31)."""
+    fin = img[np.isfinite(img)]
+    return bool(fin.size) and bool(np.all(fin == np.round(fin))) and float(np.ptp(fin)) >= 2.0
 
 
 def _opt(x: float) -> float | None:

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from .bins import coverage, smoothing_spline
+from .bins import coverage, sampling_gap, smoothing_spline
 from .locate import EdgeLine
 from .result import GRID
 
@@ -53,6 +53,7 @@ class Areas:
     not found)."""
 
     coverage: float = math.nan  # share of ESF bins within +-2 px holding samples
+    gap: float = math.nan  # largest step between ESF sample positions within +-2 px, px
     dark_start: float = math.nan
     bright_start: float = math.nan
     window: tuple[float, float] | None = None  # trimmed ESF (lo, hi) px
@@ -61,6 +62,7 @@ class Areas:
     saturated: float = math.nan  # largest share of a side's pixels at a saturation level
     widths: tuple[float, float] = _NAN2  # median dark / bright width beyond the starts, px
     uniform: np.ndarray | None = None  # samples in the uniform areas inside the window
+    core: tuple[float, float] | None = None  # the transition (finely binned): uniform areas' starts
 
     @property
     def fittable(self) -> bool:
@@ -76,13 +78,14 @@ def uniform_areas(s: EsfSamples, bw: float, plateau_px: float,
     if d.size < 20:
         return Areas()
     cover = coverage(d, bw, 2.0)
-    first = smoothing_spline(d, v, bw, -12.0, 12.0)
+    gap = sampling_gap(d, 2.0)
+    first = smoothing_spline(d, v, bw, -12.0, 12.0, core=(-4.0, 4.0))
     if first is None:
-        return Areas(cover)
+        return Areas(cover, gap)
     dark_start, bright_start = _plateau_starts(first, d)
     if not (math.isfinite(dark_start) and math.isfinite(bright_start)):
-        return Areas(cover, dark_start, bright_start)
-    dark_edge, bright_edge, lo, hi = _trim(first, d, dark_start, bright_start, plateau_px)
+        return Areas(cover, gap, dark_start, bright_start)
+    dark_edge, bright_edge, lo, hi = _trim(first, d, v, dark_start, bright_start, plateau_px)
     dark_side = d <= dark_edge
     bright_side = d >= bright_edge
     dsel = dark_side & (d >= lo)
@@ -95,11 +98,11 @@ def uniform_areas(s: EsfSamples, bw: float, plateau_px: float,
         stds = (float(v[dark_side].std(ddof=1)), float(v[bright_side].std(ddof=1)))
         sat_frac = max(saturated(v[dark_side], *sat), saturated(v[bright_side], *sat))
     widths = (float(np.median(dark_start - s.row_dmin)), float(np.median(s.row_dmax - bright_start)))
-    return Areas(cover, dark_start, bright_start, (lo, hi), levels, stds, sat_frac, widths,
-                 dsel | bsel)
+    return Areas(cover, gap, dark_start, bright_start, (lo, hi), levels, stds, sat_frac, widths,
+                 dsel | bsel, (dark_edge - 1.0, bright_edge + 1.0))
 
 
-def _trim(first: Any, d: np.ndarray, dark_start: float, bright_start: float,
+def _trim(first: Any, d: np.ndarray, v: np.ndarray, dark_start: float, bright_start: float,
           plateau_px: float) -> tuple[float, float, float, float]:
     """Step 7b-c: where the uniform areas begin (dark_edge, bright_edge) and the trimmed window.
 
@@ -121,7 +124,62 @@ def _trim(first: Any, d: np.ndarray, dark_start: float, bright_start: float,
                  dark_edge - 1.0), float(d[0]))
     hi = min(max(bright_start + plateau_px, centre + 4.0 * (bright_start - centre),
                  bright_edge + 1.0), float(d[-1]))
+    # issue 31: the window grows with the PSF's measured extent: twice the distance out to which
+    # the ESF still differs from the far plateau by more than the noise allows (a halo or a
+    # diffraction tail below 2 % of the LSF's peak still holds 1-2 % of the step beyond 4 px,
+    # and the levels must come from beyond it: RER +0.02 else)
+    ext_d, ext_b = _tail_extent(d, v, centre)
+    lo = min(lo, max(centre - 2.0 * ext_d - 1.0, float(d[0])))
+    hi = max(hi, min(centre + 2.0 * ext_b + 1.0, float(d[-1])))
+    dark_edge = min(dark_edge, centre - ext_d)
+    bright_edge = max(bright_edge, centre + ext_b)
     return dark_edge, bright_edge, lo, hi
+
+
+_TAIL_TOL = 0.005  # of the step: an ESF this close to its far plateau is in the uniform area
+
+
+def _tail_extent(d: np.ndarray, v: np.ndarray, centre: float, bw: float = 0.5) -> tuple[float, float]:
+    """Distances (px) from the centre beyond which the ESF, binned at ``bw`` and smoothed over
+    three bins, stays within max(0.5 % of the step, 3 standard errors) of its far plateau (the
+    median of the outer quarter of each side); 0 when it settles at once."""
+    idx = np.floor((d - centre) / bw).astype(np.int64)
+    idx -= idx.min()
+    n = np.bincount(idx)
+    ok = n > 0
+    x = (np.flatnonzero(ok) + 0.5) * bw + (float(d[0]) - centre) // bw * bw
+    y = np.bincount(idx, weights=v)[ok] / n[ok]
+    cnt = n[ok]
+    if x.size < 12:
+        return 0.0, 0.0
+    ys = np.convolve(np.pad(y, 1, mode="edge"), np.ones(3) / 3.0, mode="valid")
+    out = []
+    for side in (x < 0, x > 0):
+        xs, vals, cs = x[side], ys[side], cnt[side]
+        if xs.size < 8:
+            out.append(0.0)
+            continue
+        far = np.argsort(np.abs(xs))[-max(xs.size // 4, 2):]
+        level = float(np.median(vals[far]))
+        spread = 1.4826 * float(np.median(np.abs(y[side][far] - np.median(y[side][far]))))
+        out.append((xs, vals, cs, level, spread))
+    if any(isinstance(o, float) for o in out):
+        return 0.0, 0.0
+    step = abs(out[1][3] - out[0][3])
+    ext = []
+    for xs, vals, cs, level, spread in out:  # type: ignore[misc]
+        tol = np.maximum(_TAIL_TOL * step, 3.0 * spread / np.sqrt(3.0) * np.sqrt(np.median(cs) / cs))
+        order = np.argsort(np.abs(xs))  # outward from the edge
+        off = (np.abs(vals - level) > tol)[order]
+        # settled: the first place from where 2 px (4 bins) in a row are within tolerance, so
+        # that a noise excursion far out does not count as tail
+        run = np.convolve(~off, np.ones(_SETTLE), mode="valid") == _SETTLE
+        first = int(np.argmax(run)) if run.any() else off.size - 1
+        ext.append(float(np.abs(xs[order][first])) if off[:first + 1].any() else 0.0)
+    return ext[0], ext[1]
+
+
+_SETTLE = 4  # bins of 0.5 px
 
 
 _TAIL = 0.02  # the uniform areas begin where the LSF is below 2 % of its peak

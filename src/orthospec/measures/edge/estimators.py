@@ -98,6 +98,11 @@ def _overshoot(f: EdgeFit) -> float:
     return 0.5 * (bright + dark)
 
 
+def fwhm_of(x: np.ndarray, lsf: np.ndarray) -> float:
+    """FWHM (px) of an LSF sampled on ``x`` (nearest half-peak crossings either side of the peak)."""
+    return _width(x, lsf, int(np.argmax(lsf)), 0.5)
+
+
 def _width(x: np.ndarray, lsf: np.ndarray, ip: int, level: float) -> float:
     """Width of the LSF at ``level`` of its peak: nearest crossings either side, linear."""
     h = level * lsf[ip]
@@ -121,24 +126,27 @@ def _mtf(lsf: np.ndarray, dx: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _estimates_of(f: EdgeFit, gsd: float | None) -> list[Estimate]:
+    u = f.params.get("u", {})
+    uf = u.get("fwhm_px")
     out = [
-        Estimate("rer", f.rer, "1", f.fit),
-        Estimate("fwhm_px", f.fwhm_px, "px", f.fit),
+        Estimate("rer", f.rer, "1", f.fit, u.get("rer")),
+        Estimate("fwhm_px", f.fwhm_px, "px", f.fit, uf),
         Estimate("width25_px", f.width25_px, "px", f.fit),
         Estimate("width80_px", f.width80_px, "px", f.fit),
-        Estimate("mtf_nyquist", f.mtf_nyquist, "1", f.fit),
+        Estimate("mtf_nyquist", f.mtf_nyquist, "1", f.fit, u.get("mtf_nyquist")),
         Estimate("edge_slope_per_px", f.edge_slope_per_px, "1/px", f.fit),
-        Estimate("effective_resolution_factor", f.effective_resolution_factor, "1", f.fit),
+        Estimate("effective_resolution_factor", f.effective_resolution_factor, "1", f.fit, uf),
     ]
     if not f.fit.startswith("fermi"):  # H of the fits that can ring or follow the data
         out.append(Estimate("overshoot_h", _overshoot(f), "1", f.fit))
     if gsd is not None:
         out += [
-            Estimate("fwhm_m", f.fwhm_px * gsd, "m", f.fit),
+            Estimate("fwhm_m", f.fwhm_px * gsd, "m", f.fit, None if uf is None else uf * gsd),
             Estimate("width25_m", f.width25_px * gsd, "m", f.fit),
             Estimate("width80_m", f.width80_px * gsd, "m", f.fit),
             Estimate("edge_slope_per_m", f.edge_slope_per_px / gsd, "1/m", f.fit),
-            Estimate("effective_gsd_m", f.effective_resolution_factor * gsd, "m", f.fit),
+            Estimate("effective_gsd_m", f.effective_resolution_factor * gsd, "m", f.fit,
+                     None if uf is None else uf * gsd),
         ]
     return out
 

@@ -28,8 +28,9 @@ def health_checks(line: EdgeLine, areas: Areas, fits: dict[str, EdgeFit], quant:
              lim.max_outlier_fraction, "1", "too many lines rejected as outliers"),
         _chk("angle", line.angle_deg, "in", (0.0, lim.max_angle_deg), "deg",
              "edge angle to the along/across direction out of range"),
-        _chk("supersampling", areas.coverage, ">=", lim.min_supersampling, "1",
-             "ESF bins near the edge left empty (edge too close to 0 deg or too short)"),
+        _chk("sampling", areas.gap, "<=", lim.max_sampling_gap_px, "px",
+             "the lines sample the ESF too coarsely near the edge (edge too close to 0 or 45 deg, "
+             "or to a slope p/q repeated by too few lines)"),
         _chk("contrast", contrast, ">", lim.min_contrast_dn, "DN",
              "DN difference between bright and dark too small"),
         _chk("snr", snr(contrast, areas.stds, quant), ">", lim.min_snr, "1",

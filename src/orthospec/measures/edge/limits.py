@@ -29,8 +29,12 @@ class EdgeLimits:
     min_snr: float = 50.0
     #: DN: bright - dark level must exceed it; seed 3c "DN difference ... > 50 (TBR) (Helder, 2002)"
     min_contrast_dn: float = 50.0
-    #: deg: edge angle to the along/across direction in [0, max]; seed 3d "0 ~ 30 deg (TBR)"
-    max_angle_deg: float = 30.0
+    #: deg: edge angle to the along/across direction in [0, max]; the seed's 3d "0 ~ 30 deg
+    #: (TBR)" is ``standard_max_angle_deg`` (a warning beyond it); added (issue 31): up to 45 deg
+    #: the ESF is sampled as finely (``max_sampling_gap_px``) and measured as accurately
+    max_angle_deg: float = 45.0
+    #: deg: seed 3d "0 ~ 30 deg (TBR)": an edge beyond it is measured with a warning
+    standard_max_angle_deg: float = 30.0
     #: px (lines along the edge): kept lines at least this; seed 3e "> 10 ~ 20 pixels (TBR)",
     #: the upper value, for a stable line fit and ESF
     min_edge_length_px: int = 20
@@ -43,9 +47,12 @@ class EdgeLimits:
     #: 1: share of lines rejected as outliers by the step-5 line fit; added (a ROI where many
     #: lines miss the edge is not one straight edge)
     max_outlier_fraction: float = 0.2
-    #: 1: share of the 1/oversample-px ESF bins within +-2 px of the edge holding samples; added
-    #: (the seed allows 0 deg, where a slanted-edge ESF cannot be super-sampled)
-    min_supersampling: float = 0.8
+    #: px: largest step between the ESF's sample positions within +-2 px of the edge; added
+    #: (the seed allows 0 deg, where every line samples the same phases, 1 px apart). 0.5 px:
+    #: fewer than two phases per pixel cannot resolve the LSF of a sharp system (FWHM ~1 px)
+    #: and alias the MTF at Nyquist; a slope p/q samples at cos(theta)/q (1/2: 0.45 px, 1/3:
+    #: 0.32 px), which the fits resolve (issue 31: the bin-occupancy refusal there was unfounded)
+    max_sampling_gap_px: float = 0.5
     #: 1: largest share of a uniform area's pixels at a saturation level (zero fill counts);
     #: added (a saturated side has a tiny std and would pass the SNR check)
     max_saturated_fraction: float = 0.01

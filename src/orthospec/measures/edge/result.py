@@ -16,7 +16,7 @@ NYQUIST = 0.5  # cycles per pixel
 SPLINE = "spline"
 GRID = 0.01  # px, evaluation grid of fitted curves
 MTF_FREQ = np.round(np.arange(0, 101) * 0.01, 10)  # reported MTF curve, cycles/px
-PSF_FITS = ("gauss", "gauss-box", "gauss2", "gauss-usm", "gauss-disk")  # the physical models
+PSF_FITS = ("gauss", "gauss-box", "gauss2", "gauss-usm", "gauss-disk", "airy")  # the physical models
 
 @dataclass(frozen=True)
 class HealthCheck:
@@ -44,6 +44,7 @@ class Estimate:
     value: float
     unit: str
     fit: str
+    u: float | None = None  # standard uncertainty (same unit), when the fit states one
 
 
 @dataclass(frozen=True, eq=False)
@@ -120,6 +121,8 @@ class EdgeResult:
     primary_fit: str
     estimates: tuple[Estimate, ...]
     gsd_m: float | None = None
+    #: what a reader must know beside a valid result (e.g. an angle beyond the seed's 30 deg)
+    warnings: tuple[str, ...] = ()
 
     def estimate(self, name: str, fit: str | None = None) -> Estimate | None:
         """The estimator ``name`` from ``fit`` (primary fit by default); None if invalid."""
@@ -154,6 +157,7 @@ class EdgeResult:
         out: dict[str, Any] = {
             "valid": self.valid,
             "reasons": "; ".join(self.reasons),
+            "warnings": "; ".join(self.warnings) or None,
             "direction": self.direction,
             "transposed": self.transposed,
             "polarity": self.polarity,
@@ -180,6 +184,8 @@ class EdgeResult:
             out["psf_model.adequate"] = bool(q["adequate"])
             out["psf_model.cv_error"] = _f(q.get("cv_error_model"))
             out["spline.cv_error"] = _f(q.get("cv_error_spline"))
+            out["psf_model.selection"] = q.get("selection")
+            out["psf_model.candidates"] = ", ".join(sorted(q.get("candidates", {}))) or None
         for c in self.checks:
             out[f"check.{c.name}.value"] = _f(c.value)
             out[f"check.{c.name}.unit"] = c.unit
@@ -192,6 +198,7 @@ class EdgeResult:
             out[name] = None if prim is None else _f(prim.value)
             out[f"{name}.unit"] = unit
             out[f"{name}.fit"] = None if prim is None else prim.fit
+            out[f"{name}.u"] = None if prim is None else _f(prim.u)
             if prim is not None and out[name] is not None:
                 out[f"{name}.reason"] = None
             elif not self.valid:
