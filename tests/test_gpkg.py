@@ -21,9 +21,9 @@ import rasterio
 import shapely
 from click.testing import CliRunner
 from lxml import etree
+from tests.conftest import ROOT
 
 from orthospec.cli.main import cli
-from tests.conftest import ROOT
 
 SEVERITY = ("error", "fail", "missing", "warn", "waived", "pass", "not_applicable")
 STYLE_COLUMNS = ["id", "f_table_catalog", "f_table_schema", "f_table_name", "f_geometry_column", "styleName",
@@ -81,7 +81,7 @@ def test_layers_in_the_delivery_crs_and_nothing_written_into_the_delivery(checke
 @pytest.mark.parametrize(("name", "scope", "key"), [("images", "image", "id"), ("blocks", "block", "id")])
 def test_every_non_pass_record_is_on_its_feature_and_counts_agree(checked: dict[str, Any], name: str, scope: str,
                                                                  key: str) -> None:
-    geoms, cols = layer(checked["gpkg"], name)
+    _geoms, cols = layer(checked["gpkg"], name)
     by_item = records_by_item(checked["doc"], scope)
     ids = [str(v) for v in cols[key]]
     feature = {i: k for k, i in enumerate(ids)}
