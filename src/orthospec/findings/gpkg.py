@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import OrthospecError
-from .layers import FindingsLayers, Layer, build_layers
+from .layers import FindingsLayers, Layer, build_layers, visible
 from .styles import qml, sld
 
 __all__ = ["STYLE_COLUMNS", "to_gpkg", "write_gpkg"]
@@ -46,7 +46,7 @@ def _columns(layer: Layer) -> tuple[list[np.ndarray], list[np.ndarray | None]]:
             data.append(np.array([0 if v is None else int(v) for v in vals], dtype=np.int64))
             masks.append(np.array([v is None for v in vals], dtype=bool))
         else:
-            data.append(np.array([None if v is None else str(v) for v in vals], dtype=object))
+            data.append(np.array([None if v is None else visible(v) for v in vals], dtype=object))
             masks.append(None)
     return data, masks
 

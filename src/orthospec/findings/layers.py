@@ -17,10 +17,11 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from .. import verdicts as V
+from ..controls import _TEXT as _CONTROLS
 from ..qcr import all_records, evidence_text, natural_key, point_rows
 from .geometry import DeliveryGeometry
 
-__all__ = ["LAYER_NAMES", "FindingsLayers", "Layer", "build_layers", "nice_scale"]
+__all__ = ["LAYER_NAMES", "FindingsLayers", "Layer", "build_layers", "nice_scale", "visible"]
 
 LAYER_NAMES = ("blocks", "images", "seamlines", "inspection_cells", "checkpoints", "residuals", "rules")
 _CONSEQUENCE_RANK = {V.RETURN_DELIVERY: 0, V.REJECT_BLOCK: 1, V.REJECT_ITEM: 2, V.INCOMPLETE: 3, V.WARN: 4}
@@ -32,6 +33,13 @@ MAX_REASONS = 20  # reasons listed per feature; the count says how many there ar
 RESIDUAL_SHARE = 0.05
 ITEM_FIELDS = (("verdict", "str"), ("rule", "str"), ("consequence", "str"), ("clause", "str"),
                ("reasons", "str"), ("problems", "int"), ("evidence", "str"))
+
+
+def visible(v: Any) -> str:
+    """Text as every findings output shows it: control and bidi-override characters (U+202E) made
+    visible as ``[U+202E]``, never obeyed (the delivery's readers refuse them; a hand-made qcr.json
+    may still carry them)."""
+    return _CONTROLS.sub(lambda m: f"[U+{ord(m.group()):04X}]", "" if v is None else str(v))
 
 
 @dataclass

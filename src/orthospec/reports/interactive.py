@@ -18,8 +18,7 @@ from typing import Any
 import markupsafe
 
 from .. import verdicts as V
-from ..controls import _TEXT as _CONTROLS
-from ..findings.layers import FindingsLayers, Layer
+from ..findings.layers import FindingsLayers, Layer, visible
 from ..findings.styles import COLOURS, OTHER
 from ..resources import templates_dir
 
@@ -34,9 +33,7 @@ _LABEL = {"blocks": "blocks", "images": "image footprints", "seamlines": "seamli
           "inspection_cells": "inspection cells", "residuals": "residual vectors", "checkpoints": "check points"}
 
 
-def _text(v: Any) -> str:
-    """Delivery text as shown: controls and bidi overrides made visible, never obeyed."""
-    return _CONTROLS.sub(lambda m: f"[U+{ord(m.group()):04X}]", "" if v is None else str(v))
+_text = visible  # delivery text as shown: controls and bidi overrides made visible, never obeyed
 
 
 def _colour(verdict: Any) -> str:
