@@ -18,8 +18,7 @@ from tests.conftest import ROOT
 from tests.test_gpkg import layer, run
 
 from orthospec.cli.main import cli
-from orthospec.delivery.reader import open_delivery
-from orthospec.findings import build_layers, read_geometry, to_gpkg
+from orthospec.findings import build_layers, to_gpkg
 from orthospec.findings.layers import nice_scale
 from orthospec.reports.fetcher import data_uri
 from orthospec.reports.html import ReportOptions, render_html
@@ -45,8 +44,7 @@ def aerial_fail(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
 
 def test_static_pdf_map_html_map_and_gpkg_agree(aerial_fail: dict[str, Any]) -> None:
     out, doc = aerial_fail["out"], aerial_fail["doc"]
-    geometry = read_geometry(open_delivery(ROOT / "examples/deliveries/aerial-fail"))
-    static = render_html(doc, ReportOptions(bounded=True), figure=data_uri, pdf=True, geometry=geometry)
+    static = render_html(doc, ReportOptions(bounded=True), figure=data_uri, pdf=True)
     interactive = (out / "report.html").read_text(encoding="utf-8")
     assert "<script>" not in static[static.index('id="findings-map"'):static.index("</svg>")]  # static in the PDF
     pdf_map, html_map = drawn_counts(static), drawn_counts(interactive)
@@ -62,11 +60,23 @@ def test_static_pdf_map_html_map_and_gpkg_agree(aerial_fail: dict[str, Any]) -> 
     assert "Map of the findings" in text and "Residual vectors are drawn" in text
 
 
-def test_the_report_from_qcr_json_alone_still_maps_blocks_and_points(aerial_fail: dict[str, Any]) -> None:
-    html = render_html(aerial_fail["doc"], ReportOptions(), figure=data_uri)
-    counts = drawn_counts(html)
+def test_footprints_travel_in_qcr_json(aerial_fail: dict[str, Any], tmp_path: Path) -> None:
+    """The map re-renders from qcr.json alone: the footprints the check read are details.footprints."""
+    import rasterio
+
+    doc = aerial_fail["doc"]
+    feet = doc["details"]["footprints"]
+    with rasterio.open(ROOT / "examples/deliveries/aerial-fail/images/F01_0101.tif") as ds:
+        assert feet["F01_0101"] == pytest.approx(list(ds.bounds))
+    assert "F03_0202" not in feet  # listed, not delivered
+    html = render_html(doc, ReportOptions(), figure=data_uri)
+    assert drawn_counts(html) == drawn_counts((aerial_fail["out"] / "report.html").read_text(encoding="utf-8"))
+    run(tmp_path / "json", "json")  # no map asked for: no header read, no footprints
+    plain = json.loads((tmp_path / "json" / "qcr.json").read_text(encoding="utf-8"))
+    assert "footprints" not in plain["details"]
+    counts = drawn_counts(render_html(plain, ReportOptions(), figure=data_uri))
     assert sum(counts["blocks"].values()) == 3 and sum(counts["checkpoints"].values()) == 64
-    assert not counts["images"]  # footprints come from the delivery's rasters, not from qcr.json
+    assert not counts["images"]
 
 
 def test_nice_scale() -> None:

@@ -34,7 +34,7 @@ def render_documents(doc: dict, fmts: list[str], *, shown: dict | None = None,
                      geometry: object = None) -> dict[str, Output]:
     """Machine outputs of ``doc`` plus HTML/PDF reports of ``shown`` (``doc`` with the ledger's
     history for the reader; qcr.json never carries it), written later all or none. ``geometry``
-    (``findings.read_geometry``) adds the image footprints to the GeoPackage and the HTML map."""
+    (``findings.read_geometry``) adds the seamlines to the GeoPackage."""
     out = render_all(doc, [f for f in fmts if f != "gpkg"])
     if "gpkg" in fmts:
         from ..findings import to_gpkg
@@ -44,7 +44,7 @@ def render_documents(doc: dict, fmts: list[str], *, shown: dict | None = None,
         from ..reports import document as reportdoc  # heavy imports only when asked for
 
         out.update(reportdoc.render(shown if shown is not None else doc,
-                                    formats=[f for f in fmts if f in ("html", "pdf")], geometry=geometry))
+                                    formats=[f for f in fmts if f in ("html", "pdf")]))
     return out
 
 
@@ -116,10 +116,11 @@ def check_cmd(delivery: Path, profile: str, params: tuple[str, ...], out_dir: Pa
     out_fmts = [f for f in fmts if f != "terminal"]
     run_id = None
     geometry = None
-    if "gpkg" in out_fmts or "html" in out_fmts:
-        from ..findings import read_geometry
+    if {"gpkg", "html", "pdf"} & set(out_fmts):  # a map is asked for: its footprints go into qcr.json
+        from ..findings import read_geometry, with_footprints
 
         geometry = read_geometry(result.evaluation.delivery)  # type: ignore[attr-defined]
+        doc = with_footprints(doc, geometry)
     if ledger_target is None:
         files = render_documents(doc, out_fmts, geometry=geometry)
         write_outputs(target, files)

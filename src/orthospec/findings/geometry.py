@@ -46,3 +46,15 @@ def read_geometry(d: Delivery) -> DeliveryGeometry:
         except (OrthospecError, OSError) as exc:
             why["seamlines"] = f"{rel}: {exc}"
     return DeliveryGeometry(footprints=feet, seamlines=seams, seamlines_file=rel or None, why=why)
+
+
+def with_footprints(doc: dict[str, Any], geometry: DeliveryGeometry) -> dict[str, Any]:
+    """``doc`` with ``details.footprints`` (image id -> [left, bottom, right, top] of each readable
+    raster), so the map of the findings re-renders from qcr.json alone (``orthospec report``)."""
+    from ..qcr import natural_key
+
+    feet = {iid: list(b) for iid, b in sorted(geometry.footprints.items(), key=lambda kv: natural_key(kv[0]))
+            if b is not None}
+    if feet:
+        doc["details"] = dict(sorted({**(doc.get("details") or {}), "footprints": feet}.items()))
+    return doc

@@ -157,6 +157,9 @@ def build_layers(doc: Mapping[str, Any], geometry: DeliveryGeometry | None = Non
     details = doc.get("details") or {}
     cps = details.get("checkpoints") or {}
     geometry = geometry or DeliveryGeometry()
+    if not geometry.footprints and isinstance(details.get("footprints"), Mapping):  # qcr.json alone
+        geometry = DeliveryGeometry(footprints={str(k): v for k, v in details["footprints"].items()},
+                                    seamlines=geometry.seamlines, seamlines_file=geometry.seamlines_file)
     crs = ((doc.get("delivery") or {}).get("project") or {}).get("crs")
     recs: dict[str, dict[str, list[dict[str, Any]]]] = defaultdict(dict)
 

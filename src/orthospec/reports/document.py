@@ -51,10 +51,8 @@ def _check_doc(doc: Any) -> None:
 
 
 def render(doc: dict[str, Any], *, formats: Iterable[str] = FORMATS, extra: dict[str, Any] | None = None,
-           options: ReportOptions | None = None, geometry: Any = None) -> dict[str, str | bytes]:
-    """Render the requested report formats in memory: ``{"report.html": str, "report.pdf": bytes}``.
-
-    ``geometry`` (``findings.read_geometry``) adds the image footprints to the map of the findings."""
+           options: ReportOptions | None = None) -> dict[str, str | bytes]:
+    """Render the requested report formats in memory: ``{"report.html": str, "report.pdf": bytes}``."""
     del extra  # the report must be reproducible from qcr.json alone
     fmts = list(dict.fromkeys(formats))
     bad = [f for f in fmts if f not in FORMATS]
@@ -67,14 +65,14 @@ def render(doc: dict[str, Any], *, formats: Iterable[str] = FORMATS, extra: dict
     sha = hashlib.sha256(qcr_text.encode("utf-8")).hexdigest()
     if "html" in fmts:
         opts = options or ReportOptions(bounded=False)
-        out["report.html"] = render_html(doc, opts, figure=data_uri, cache=cache, sha256=sha, geometry=geometry)
+        out["report.html"] = render_html(doc, opts, figure=data_uri, cache=cache, sha256=sha)
     if "pdf" in fmts:
         from .pdf import FileAttachment, write_pdf
 
         opts = options or ReportOptions(bounded=True)
         fetcher = SafeFetcher(templates_dir())
         html = render_html(doc, opts, figure=lambda data, mime: fetcher.allow(data_uri(data, mime)),
-                           pdf=True, cache=cache, sha256=sha, geometry=geometry)
+                           pdf=True, cache=cache, sha256=sha)
         files = [FileAttachment("qcr.json", qcr_text.encode("utf-8"),
                                 f"The complete quality control records as orthospec check wrote them "
                                 f"(SHA-256 {sha}); sign-offs and history are in the report and the ledger")]

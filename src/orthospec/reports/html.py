@@ -761,14 +761,13 @@ def report_context(doc: dict[str, Any], opts: ReportOptions | None = None, *,
 
 def render_html(doc: dict[str, Any], opts: ReportOptions | None = None, *,
                 figure: Callable[[str, str], str] | None = None, pdf: bool = False,
-                cache: dict[str, list[dict[str, str]]] | None = None, sha256: str | None = None,
-                geometry: Any = None) -> str:
+                cache: dict[str, list[dict[str, str]]] | None = None, sha256: str | None = None) -> str:
     """The report as one self-contained HTML page (figures inlined as data: URIs)."""
     findings_map = None
     if figure is not None and (opts is None or opts.figures):  # the map of the findings (issue 30)
         from ..findings import build_layers
         from .interactive import map_html
 
-        findings_map = map_html(build_layers(doc, geometry), interactive=not pdf)
+        findings_map = map_html(build_layers(doc), interactive=not pdf)
     ctx = report_context(doc, opts, figure=figure, cache=cache, sha256=sha256, findings_map=findings_map)
     return environment().get_template("report.html.j2").render(**ctx, pdf=pdf)
