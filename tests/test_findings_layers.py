@@ -51,7 +51,7 @@ def test_static_pdf_map_html_map_and_gpkg_agree(aerial_fail: dict[str, Any]) -> 
     assert pdf_map == html_map
     for name in MAP_LAYERS:
         geoms, cols = layer(out / "findings.gpkg", name)
-        want = Counter("None" if v is None else str(v) for g, v in zip(geoms, cols["verdict"], strict=True)
+        want = Counter("" if v is None else str(v) for g, v in zip(geoms, cols["verdict"], strict=True)
                        if g is not None)
         assert pdf_map[name] == want, name
     assert sum(pdf_map["blocks"].values()) == 3 and pdf_map["blocks"]["fail"] == 3
@@ -140,3 +140,26 @@ def test_bidi_override_is_shown_never_obeyed(aerial_fail: dict[str, Any], tmp_pa
     gpkg.write_bytes(to_gpkg(doc))
     _, cols = layer(gpkg, "checkpoints")
     assert "[U+202E]evil" in list(cols["point_id"]) and not any("\u202e" in str(v) for v in cols["point_id"])
+
+
+def test_seamlines_carry_the_verdict_of_their_image(aerial_fail: dict[str, Any], tmp_path: Path) -> None:
+    import shapely
+
+    from orthospec.findings import DeliveryGeometry
+    from orthospec.qcr import all_records
+
+    doc = aerial_fail["doc"]
+    scopes = {r["rule"]: r["scope"] for r in doc["rules"]}
+    severity = ("error", "fail", "missing", "warn", "waived", "pass", "not_applicable")
+    verdicts = [r["verdict"] for r in all_records(doc) if scopes[r["rule"]] == "image" and r["item"] == "F01_0101"]
+    geometry = DeliveryGeometry(seamlines=[(shapely.box(506000, 5412000, 506100, 5412100), "F01_0101"),
+                                           (shapely.box(506100, 5412000, 506200, 5412100), None)],
+                                seamlines_file="vectors/seamlines.gpkg")
+    gpkg = tmp_path / "s.gpkg"
+    gpkg.write_bytes(to_gpkg(doc, geometry))
+    geoms, cols = layer(gpkg, "seamlines")
+    assert list(cols["image_id"]) == ["F01_0101", None]
+    assert cols["verdict"][0] == min(verdicts, key=severity.index) and cols["verdict"][1] is None
+    assert geoms[0].equals(shapely.box(506000, 5412000, 506100, 5412100))
+    assert drawn_counts(map_html(build_layers(doc, geometry), interactive=False))["seamlines"] == Counter(
+        {cols["verdict"][0]: 1, "": 1})  # not judged
