@@ -220,11 +220,12 @@ def build_layers(doc: Mapping[str, Any], geometry: DeliveryGeometry | None = Non
         for p in point_rows((cps[bid] or {}).get("points")):
             pid = str(p.get("point_id"))
             it = items["checkpoint"].get(pid) or _Item()
+            judged = it.props(rules)
             x, y = _num(p.get("x_ref")), _num(p.get("y_ref"))
             props = {"block": bid, "point_id": pid, **{k: _num(p.get(k)) for k in ("dx", "dy", "dz", "dr")},
                      "status": _point_status(p), "decision": p.get("decision"),
                      "row": p.get("row") if isinstance(p.get("row"), int) else None,
-                     "verdict": it.props(rules)["verdict"], "reasons": it.props(rules)["reasons"]}
+                     "verdict": judged["verdict"], "reasons": judged["reasons"]}
             points.features.append((None if x is None or y is None else shapely.Point(x, y), props))
             recs["checkpoints"][f"{bid}/{pid}"] = it.records
     geoms = [g for lay in (blocks, images, points) for g, _ in lay.features if g is not None]
