@@ -123,6 +123,7 @@ def test_blocks_carry_the_statistics_of_qcr_json(checked: dict[str, Any]) -> Non
         stats = cps[bid]["stats"]
         assert cols["rmse_x"][k] == pytest.approx(stats["rmse_x"]) and cols["rmse_y"][k] == pytest.approx(stats["rmse_y"])
         assert geoms[k].equals(shapely.Polygon(cps[bid]["polygon"]))
+        assert cols["rejected"][k] == (bid in rejected)  # the §12.8 roll-up of qcr.json
         if bid in rejected:
             assert cols["consequence"][k] in ("reject_block", "return_delivery")
 

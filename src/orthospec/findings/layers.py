@@ -31,7 +31,7 @@ BLOCK_MEASURES = ("checkpoints.ce90", "checkpoints.ce95", "checkpoints.nssda_hor
 MAX_REASONS = 20  # reasons listed per feature; the count says how many there are
 #: the residual arrows' longest vector as a share of the extent's diagonal
 RESIDUAL_SHARE = 0.05
-ITEM_FIELDS = (("verdict", "str"), ("rule", "str"), ("consequence", "str"), ("clause", "str"),
+ITEM_FIELDS = (("verdict", "str"), ("rejected", "int"), ("rule", "str"), ("consequence", "str"), ("clause", "str"),
                ("reasons", "str"), ("problems", "int"), ("evidence", "str"))
 
 
@@ -162,13 +162,16 @@ def build_layers(doc: Mapping[str, Any], geometry: DeliveryGeometry | None = Non
                                     seamlines=geometry.seamlines, seamlines_file=geometry.seamlines_file)
     crs = ((doc.get("delivery") or {}).get("project") or {}).get("crs")
     recs: dict[str, dict[str, list[dict[str, Any]]]] = defaultdict(dict)
+    rejected = {scope: {str(i) for i in ids} for scope, ids in
+                ((doc.get("rollup") or {}).get("rejected") or {}).items() if isinstance(ids, list)}
 
     def item_layer(name: str, gtype: str, scope: str, ids: Iterable[str], geom_of: Any,
                    extra: tuple[tuple[str, str], ...] = (), extra_of: Any = None, description: str = "") -> Layer:
         layer = Layer(name, gtype, (("id", "str"), *ITEM_FIELDS, *extra), description=description)
         for iid in sorted(set(ids), key=natural_key):
             it = items[scope].get(iid) or _Item()
-            props = {"id": iid, **it.props(rules), **(extra_of(iid) if extra_of else {})}
+            props = {"id": iid, **it.props(rules), "rejected": int(iid in rejected.get(scope, ())),
+                     **(extra_of(iid) if extra_of else {})}
             layer.features.append((geom_of(iid), props))
             recs[name][iid] = it.records
         return layer
