@@ -22,6 +22,9 @@ command -v gdalinfo >/dev/null 2>&1 || need+=(gdal-bin)
 command -v ssh-keygen >/dev/null 2>&1 || need+=(openssh-client)
 # ledger tests start a throw-away PostgreSQL server (initdb/pg_ctl) on 127.0.0.1
 compgen -G '/usr/lib/postgresql/*/bin/initdb' >/dev/null || need+=(postgresql)
+# the interactive report's browser test drives Debian's Chromium headless (issue 30)
+command -v chromium >/dev/null 2>&1 || need+=(chromium)
+command -v chromedriver >/dev/null 2>&1 || need+=(chromium-driver)
 if [ ${#need[@]} -eq 0 ]; then exit 0; fi
 # one name once, in a stable order
 mapfile -t need < <(printf '%s\n' "${need[@]}" | sort -u)

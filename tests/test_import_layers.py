@@ -37,7 +37,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("orthospec.raster", "orthospec.inspection"),  # reading rasters; the inspection grid (reads rasters, vectors)
     ("orthospec.engine",),     # providers, evaluator
     ("orthospec.qcr",),        # the QCR document
-    ("orthospec.figures", "orthospec.reports", "orthospec.ledger", "orthospec.ingest"),
+    ("orthospec.figures", "orthospec.reports", "orthospec.ledger", "orthospec.ingest", "orthospec.findings"),
     ("orthospec.api", "orthospec.verify", "orthospec.schemas"),
     ("orthospec.cli",),
 )

@@ -27,13 +27,19 @@ from .options import (
 if TYPE_CHECKING:
     from ..ledger.runs import RecordedRun
 
-FORMATS = ("terminal", "json", "csv", "junit", "parquet", "html", "pdf")
+FORMATS = ("terminal", "json", "csv", "junit", "parquet", "html", "pdf", "gpkg")
 
 
-def render_documents(doc: dict, fmts: list[str], *, shown: dict | None = None) -> dict[str, Output]:
+def render_documents(doc: dict, fmts: list[str], *, shown: dict | None = None,
+                     geometry: object = None) -> dict[str, Output]:
     """Machine outputs of ``doc`` plus HTML/PDF reports of ``shown`` (``doc`` with the ledger's
-    history for the reader; qcr.json never carries it), written later all or none."""
-    out = render_all(doc, fmts)
+    history for the reader; qcr.json never carries it), written later all or none. ``geometry``
+    (``findings.read_geometry``) adds the seamlines to the GeoPackage."""
+    out = render_all(doc, [f for f in fmts if f != "gpkg"])
+    if "gpkg" in fmts:
+        from ..findings import to_gpkg
+
+        out["findings.gpkg"] = to_gpkg(doc, geometry)
     if "html" in fmts or "pdf" in fmts:
         from ..reports import document as reportdoc  # heavy imports only when asked for
 
@@ -109,11 +115,18 @@ def check_cmd(delivery: Path, profile: str, params: tuple[str, ...], out_dir: Pa
     refuse_inside_delivery(target, delivery, what="output folder")
     out_fmts = [f for f in fmts if f != "terminal"]
     run_id = None
+    geometry = None
+    if {"gpkg", "html", "pdf"} & set(out_fmts):  # a map is asked for: its footprints go into qcr.json
+        from ..findings import read_geometry, with_footprints
+
+        geometry = read_geometry(result.evaluation.delivery)  # type: ignore[attr-defined]
+        doc = with_footprints(doc, geometry)
     if ledger_target is None:
-        files = render_documents(doc, out_fmts)
+        files = render_documents(doc, out_fmts, geometry=geometry)
         write_outputs(target, files)
     else:
-        files, run_id, display = _record_and_write(ledger_target, doc, out_fmts, target, key, allowed_signers)
+        files, run_id, display = _record_and_write(ledger_target, doc, out_fmts, target, key, allowed_signers,
+                                                   geometry)
     if "terminal" in fmts:
         console = Console(highlight=False) if sys.stdout.isatty() else Console(
             highlight=False, width=120, soft_wrap=False)
@@ -155,7 +168,7 @@ def _ledger_usable(ledger_target: str, delivery: Path, allowed_signers: Path | N
 
 
 def _record_and_write(ledger_target: str, doc: dict, fmts: list[str], target: Path, key: Path | None,
-                      allowed_signers: Path | None) -> tuple[dict[str, Output], int, str]:
+                      allowed_signers: Path | None, geometry: object = None) -> tuple[dict[str, Output], int, str]:
     """Record the run and write its outputs in one ledger transaction: the reports print the run's
     own chain entry (the head that includes it, issue 29 item 5), so `ledger verify --against` the
     report catches a chain rebuilt to rewrite this run. Rendering or writing failing records nothing;
@@ -173,7 +186,7 @@ def _record_and_write(ledger_target: str, doc: dict, fmts: list[str], target: Pa
                 rows = [{**r, "run": run.id} if r.get("run") == "new" else r for r in history]
                 shown = {**doc, "history": rows, "ledger": {"run": run.id, "hash": run.hash, "head": run.hash,
                                                             "head_seq": run.seq, "problems": []}}
-            written.update(render_documents(doc, fmts, shown=shown))
+            written.update(render_documents(doc, fmts, shown=shown, geometry=geometry))
             write_outputs(target, written)
 
         run_id = led.record(doc, key=key, before_commit=write)

@@ -687,7 +687,7 @@ def _bounded_signed(groups: list[dict[str, Any]], max_rows: int) -> list[dict[st
 def report_context(doc: dict[str, Any], opts: ReportOptions | None = None, *,
                    figure: Callable[[str, str], str] | None = None,
                    cache: dict[str, list[dict[str, str]]] | None = None,
-                   sha256: str | None = None) -> dict[str, Any]:
+                   sha256: str | None = None, findings_map: Any = None) -> dict[str, Any]:
     """Everything the template shows, computed from the QCR document alone.
 
     ``figure(svg_text, mime)`` turns a figure into a URI (the PDF registers data: URIs with its
@@ -757,6 +757,7 @@ def report_context(doc: dict[str, Any], opts: ReportOptions | None = None, *,
         "parameters": sorted((p.get("parameters") or {}).items()),
         "files": d.get("files") or [],
         "title": f"Quality control report — delivery {d.get('id', '?')}",
+        "findings_map": findings_map,
     }
 
 
@@ -764,5 +765,11 @@ def render_html(doc: dict[str, Any], opts: ReportOptions | None = None, *,
                 figure: Callable[[str, str], str] | None = None, pdf: bool = False,
                 cache: dict[str, list[dict[str, str]]] | None = None, sha256: str | None = None) -> str:
     """The report as one self-contained HTML page (figures inlined as data: URIs)."""
-    ctx = report_context(doc, opts, figure=figure, cache=cache, sha256=sha256)
+    findings_map = None
+    if figure is not None and (opts is None or opts.figures):  # the map of the findings (issue 30)
+        from ..findings import build_layers
+        from .interactive import map_html
+
+        findings_map = map_html(build_layers(doc), interactive=not pdf)
+    ctx = report_context(doc, opts, figure=figure, cache=cache, sha256=sha256, findings_map=findings_map)
     return environment().get_template("report.html.j2").render(**ctx, pdf=pdf)
