@@ -87,3 +87,19 @@ def test_inserted_into_copy_of_md_metadata(doc):
     assert root.find("gmd:dataQualityInfo/gmd:DQ_DataQuality/gmd:report", NS) is not None
     with pytest.raises(ValueError):
         iso19139_document(doc, b"<metadata/>")
+
+
+def test_cli_format_iso19157(tmp_path):
+    from click.testing import CliRunner
+
+    from orthospec.cli.groups import main
+
+    out = tmp_path / "out"
+    res = CliRunner().invoke(main, ["check", str(ROOT / "examples/deliveries/aerial-pass"), "--profile",
+                                    str(ROOT / "specs/fgdc-nssda-1998.yaml"), "--param", "accuracy_h95=1.0",
+                                    "--checker", str(ROOT / "examples/checker/aerial-pass"), "--out", str(out),
+                                    "--format", "iso19157"])
+    assert res.exit_code == 1, res.output  # rejected under the NSSDA: no §3.2.3 statement
+    root = etree.parse(str(out / "iso19157.xml")).getroot()
+    assert root.tag == f"{{{GMD}}}DQ_DataQuality"
+    assert sorted(p.name for p in out.iterdir()) == ["iso19157.xml"]

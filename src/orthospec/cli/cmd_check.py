@@ -27,13 +27,17 @@ from .options import (
 if TYPE_CHECKING:
     from ..ledger.runs import RecordedRun
 
-FORMATS = ("terminal", "json", "csv", "junit", "parquet", "html", "pdf")
+FORMATS = ("terminal", "json", "csv", "junit", "parquet", "html", "pdf", "iso19157")
 
 
 def render_documents(doc: dict, fmts: list[str], *, shown: dict | None = None) -> dict[str, Output]:
     """Machine outputs of ``doc`` plus HTML/PDF reports of ``shown`` (``doc`` with the ledger's
     history for the reader; qcr.json never carries it), written later all or none."""
-    out = render_all(doc, fmts)
+    out = render_all(doc, [f for f in fmts if f != "iso19157"])
+    if "iso19157" in fmts:  # issue 30 item 3: moves to qcr/iso19157.py once the qcr/ package lands
+        from ..metadata.iso19157 import iso19139_document
+
+        out["iso19157.xml"] = iso19139_document(doc)
     if "html" in fmts or "pdf" in fmts:
         from ..reports import document as reportdoc  # heavy imports only when asked for
 
