@@ -27,7 +27,7 @@ from .options import (
 if TYPE_CHECKING:
     from ..ledger.runs import RecordedRun
 
-FORMATS = ("terminal", "json", "csv", "junit", "parquet", "html", "pdf", "gpkg")
+FORMATS = ("terminal", "json", "csv", "junit", "parquet", "html", "pdf", "gpkg", "iso19157")
 
 
 def render_documents(doc: dict, fmts: list[str], *, shown: dict | None = None,
@@ -35,11 +35,15 @@ def render_documents(doc: dict, fmts: list[str], *, shown: dict | None = None,
     """Machine outputs of ``doc`` plus HTML/PDF reports of ``shown`` (``doc`` with the ledger's
     history for the reader; qcr.json never carries it), written later all or none. ``geometry``
     (``findings.read_geometry``) adds the seamlines to the GeoPackage."""
-    out = render_all(doc, [f for f in fmts if f != "gpkg"])
+    out = render_all(doc, [f for f in fmts if f not in ("gpkg", "iso19157")])
     if "gpkg" in fmts:
         from ..findings import to_gpkg
 
         out["findings.gpkg"] = to_gpkg(doc, geometry)
+    if "iso19157" in fmts:
+        from ..metadata.iso19157 import iso19139_document
+
+        out["iso19157.xml"] = iso19139_document(doc)
     if "html" in fmts or "pdf" in fmts:
         from ..reports import document as reportdoc  # heavy imports only when asked for
 
