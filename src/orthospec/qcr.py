@@ -9,17 +9,14 @@ wall-clock time, no absolute paths).
 from __future__ import annotations
 
 import bisect
-import contextlib
 import csv
 import heapq
 import io
 import itertools
 import json
 import math
-import os
 import re
 import sys
-import tempfile
 from collections import Counter as _Counter
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from pathlib import Path
@@ -44,6 +41,7 @@ from .engine.evaluator import (
 )
 from .engine.registry import SCOPES
 from .errors import OrthospecError
+from .outputs import atomic_write  # noqa: F401  (re-exported: the one atomic writer lives in outputs.py)
 from .provenance import Evidence
 from .qcr_model import SCHEMA_IDS, qcr_schema
 from .verdicts import VERDICTS
@@ -1764,29 +1762,6 @@ def iter_junit(doc: Mapping[str, Any]) -> Iterator[str]:
             out.append("  </testsuite>")
             yield "\n".join(out) + "\n"
     yield "</testsuites>\n"
-
-
-def atomic_write(path: Path, data: str | bytes) -> None:
-    """Write to a temp file in the same folder, fsync, then rename over the target."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        os.fchmod(fd, 0o666 & ~_umask())  # mkstemp makes 0600; a report is an ordinary file
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data.encode("utf-8") if isinstance(data, str) else data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
-        raise
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
 
 
 Output = str | bytes | Iterable[str]

@@ -9,7 +9,7 @@ from pathlib import Path
 import click
 
 from ..errors import ReportError, SpecError
-from ..qcr import atomic_write
+from ..outputs import atomic_write
 from .groups import main, spec
 from .options import allowed_signers_option, split_formats
 

@@ -20,11 +20,7 @@ delivery; nothing in the delivery is written.
 
 from __future__ import annotations
 
-import contextlib
 import math
-import os
-import tempfile
-from collections.abc import Iterator
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -37,6 +33,7 @@ from ..delivery.reader import Delivery, open_delivery
 from ..delivery.survey import HandEntry, SurveyPoint, hand_entries, read_hand_csv, read_survey
 from ..errors import DeliveryError, MeasureError, OrthospecError
 from ..measures.matching import Match, MatchSettings, match_chip
+from ..outputs import atomic_path
 from ..provenance import sha256_file
 from .chips import RasterHeader, Reference, open_reference, read_header, read_pair, transform_xy
 from .reading import gdal_errors, open_read_only, read_only_env, readable_vector
@@ -433,26 +430,10 @@ def _row(r: PointResult) -> list[str]:
             str(r.chip_px or ""), __version__]
 
 
-@contextlib.contextmanager
-def _atomic(path: Path) -> Iterator[Path]:
-    """A temporary path beside ``path``, renamed over it when the block ends without error."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix or ".tmp", dir=path.parent)
-    os.close(fd)
-    try:
-        yield Path(tmp)
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
-        raise
-
-
 def _write_table(path: Path, results: list[PointResult]) -> Path:
     lines = [",".join(COLUMNS)]
     lines += [",".join(_csv_cell(c) for c in _row(r)) for r in results if r.decision in ("accepted", "by_hand")]
-    with _atomic(path) as tmp:
+    with atomic_path(path, path.suffix) as tmp:
         tmp.write_text("\n".join(lines) + "\n", encoding="utf-8")
     return path
 
@@ -486,7 +467,7 @@ def _write_hand(path: Path, results: list[PointResult], crs: CRS) -> Path | None
     previous = pyogrio.get_gdal_config_option("OGR_CURRENT_DATE")
     pyogrio.set_gdal_config_options({"OGR_CURRENT_DATE": _GPKG_DATE})
     try:
-        with _atomic(path) as tmp, gdal_errors(file=str(path), path=tmp, what="hand list"):
+        with atomic_path(path, path.suffix) as tmp, gdal_errors(file=str(path), path=tmp, what="hand list"):
             tmp.unlink()
             pyogrio.raw.write(str(tmp), geoms, arrays, fields=fields, layer=HAND_LAYER, driver="GPKG",
                               crs=crs.to_wkt(), geometry_type="Point", promote_to_multi=False)
