@@ -669,7 +669,7 @@ class _Accumulators:
                 mask_valid = None
         need = set(self.moms) | (set(self.noise) if noise else set())
         valids: dict[int, np.ndarray | None] = {}
-        with_nodata: set[int] = set()  # bands whose nodata value occurs in this chunk
+        with_nodata: dict[int, int] = {}  # bands whose nodata value occurs in this chunk: how often
         for b in self.infos:
             band = data[b.index - 1]
             hist = self.hists.get(b.index)
@@ -684,7 +684,7 @@ class _Accumulators:
                 before = int(hist.counts[nd]) if nd is not None else 0
                 hist.add(band)  # the nodata bin is dropped once at the end (exclude_value)
                 if nd is not None and int(hist.counts[nd]) != before:
-                    with_nodata.add(b.index)
+                    with_nodata[b.index] = int(hist.counts[nd]) - before
                 valid = _valid(band, b, None) if b.index in with_nodata and b.index in need else None
             valids[b.index] = valid
             if noise and b.index in self.noise:
@@ -695,7 +695,7 @@ class _Accumulators:
         if self.rgb is not None and self.lum is not None:
             self._add_luminosity(data, mask_valid, valids, with_nodata)
         if with_nodata and self.hidden:
-            self._add_low_nodata(data, with_nodata)
+            self._add_low_nodata(data, with_nodata, valids)
         if win is not None:
             c0, r0 = int(win.col_off), int(win.row_off)
             if self.pixel_hash is not None:
@@ -705,25 +705,31 @@ class _Accumulators:
             if self.cloud is not None:
                 self.cloud.add(data, c0, r0, shared_mask)
 
-    def _add_low_nodata(self, data: np.ndarray, with_nodata: set[int]) -> None:
+    def _add_low_nodata(self, data: np.ndarray, with_nodata: dict[int, int],
+                        valids: dict[int, np.ndarray | None]) -> None:
         """DN-0 saturation under a nodata value of 0 (issue 26): a band at its nodata value where
         another band of the pixel is valid is saturated, not no-data; a pixel at nodata in every
-        band cannot be told apart. Only for chunks where a band's nodata value occurs."""
-        everywhere = None
+        band cannot be told apart. Only for chunks where a band's nodata value occurs. A band's
+        count at nodata is its histogram's (``with_nodata``), and a validity mask built for the
+        moments is reused: one comparison per band at most, none when a band has no nodata pixel
+        in the chunk (then no pixel is at nodata in every band)."""
+        everywhere: np.ndarray | None = None
         for b in self.infos:
-            if b.use_mask or b.nodata is None or (isinstance(b.nodata, float) and math.isnan(b.nodata)):
-                everywhere = np.zeros(data.shape[1:], dtype=bool)  # a band without nodata: never all-nodata
+            if (b.use_mask or b.nodata is None or (isinstance(b.nodata, float) and math.isnan(b.nodata))
+                    or (b.index in self.hists and b.index not in with_nodata)):
+                everywhere = None  # a band without nodata here: no pixel is nodata in every band
                 break
-            at = data[b.index - 1] == np.asarray(b.nodata).astype(data.dtype)
-            everywhere = at if everywhere is None else everywhere & at
-        assert everywhere is not None
-        ambiguous = int(np.count_nonzero(everywhere))
+            valid = valids.get(b.index)
+            at = (~valid if valid is not None and data.dtype.kind in "uib"
+                  else data[b.index - 1] == np.asarray(b.nodata).astype(data.dtype))
+            everywhere = at if everywhere is None else np.logical_and(everywhere, at, out=everywhere)
+        else:
+            assert everywhere is not None
+        ambiguous = int(np.count_nonzero(everywhere)) if everywhere is not None else 0
         self.all_nodata += ambiguous
         for idx in self.hidden:
             if idx in with_nodata:
-                b = self.infos[idx - 1]
-                at = data[idx - 1] == np.asarray(b.nodata).astype(data.dtype)
-                self.low_told[idx] += int(np.count_nonzero(at)) - ambiguous  # every-band pixels are not told apart
+                self.low_told[idx] += with_nodata[idx] - ambiguous  # every-band pixels are not told apart
 
     def finish(self, out: RasterStats, ds: rasterio.io.DatasetReader) -> None:
         """Put the pixel facts into ``out`` (after every chunk was added and the sets merged)."""
@@ -745,7 +751,7 @@ class _Accumulators:
             }
 
     def _add_luminosity(self, data: np.ndarray, mask_valid: np.ndarray | None,
-                        valids: dict[int, np.ndarray | None], with_nodata: set[int]) -> None:
+                        valids: dict[int, np.ndarray | None], with_nodata: dict[int, int]) -> None:
         """Luminosity of the pixels valid in all three colour bands."""
         assert self.rgb is not None and self.lum is not None
         rgb = [self.infos[i - 1] for i in self.rgb]
@@ -755,7 +761,7 @@ class _Accumulators:
         y = rad.luminosity_block(r, g, bl, data.dtype, planes=planes,
                                  out=rad.scratch("luminosity", r.shape, data.dtype))
         nodata = {b.nodata for b in rgb}
-        if not with_nodata & set(self.rgb) and not any(b.use_mask and mask_valid is not None for b in rgb):
+        if not with_nodata.keys() & set(self.rgb) and not any(b.use_mask and mask_valid is not None for b in rgb):
             self.lum.add(y)  # every pixel of the chunk is valid in all three bands
             return
         low = np.iinfo(data.dtype).min if data.dtype.kind in "ui" else None
