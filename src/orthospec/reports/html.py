@@ -737,7 +737,10 @@ def report_context(doc: dict[str, Any], opts: ReportOptions | None = None, *,
         "incomplete": (doc.get("rollup") or {}).get("incomplete", []),
         "rejected": (doc.get("rollup") or {}).get("rejected", {}),
         "problems": problems, "failing_rules": failing_rules,
-        "findings": found, "page1_findings": found[:PAGE1_FINDINGS],
+        "findings": found,
+        # the checker's open items are listed above the findings on page 1: not a second time there
+        "page1_findings": [f for f in found if f.get("consequence") != V.INCOMPLETE][
+            :max(3, PAGE1_FINDINGS - len((doc.get("rollup") or {}).get("incomplete", [])))],
         "not_applicable": collected.not_applicable,
         "unsigned_manual": unsigned_manual_note(records, checker=doc.get("checker")),
         "contract": contract_lines(doc),
