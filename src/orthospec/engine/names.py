@@ -18,6 +18,7 @@ import pandas as pd
 
 from .. import units
 from ..delivery import vocabulary
+from ..dotted import dotted_name
 from ..spec.operators import is_missing
 from ..units import NON_NUMERIC, parse_unit
 from .catalog import MeasureCache, measure_info
@@ -37,6 +38,10 @@ def missing_mask(values: np.ndarray) -> np.ndarray:
     return np.fromiter((is_missing(v) for v in values), dtype=bool, count=len(values))
 
 
+#: words of the expression grammar that look like names but are constants
+_NULLS = ("null", "None", "true", "false")
+
+
 def null_tested(when: str) -> set[str]:
     """Names a `when` compares with null: their absence is part of the condition, not missing evidence."""
     out: set[str] = set()
@@ -48,23 +53,13 @@ def null_tested(when: str) -> set[str]:
         if isinstance(node, ast.Compare):
             sides = [node.left, *node.comparators]
             if any(_is_null(x) for x in sides):
-                out.update(d for x in sides if (d := _dotted_name(x)) is not None)
+                out.update(d for x in sides if (d := dotted_name(x, reserved=_NULLS)) is not None)
     return out
 
 
 def _is_null(node: ast.AST) -> bool:
     return (isinstance(node, ast.Constant) and node.value is None) or (
         isinstance(node, ast.Name) and node.id in ("null", "None"))
-
-
-def _dotted_name(node: ast.AST) -> str | None:
-    parts: list[str] = []
-    while isinstance(node, ast.Attribute):
-        parts.append(node.attr)
-        node = node.value
-    if isinstance(node, ast.Name) and node.id not in ("null", "None", "true", "false"):
-        return ".".join([node.id, *reversed(parts)])
-    return None
 
 
 def param_key(name: str) -> str:
