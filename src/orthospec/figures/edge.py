@@ -9,16 +9,18 @@ from __future__ import annotations
 import io
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import matplotlib as mpl
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.axes import Axes
+from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
-from matplotlib.typing import RcKeyType
 
 from ..measures.edge import NYQUIST, EdgeResult
+
+if TYPE_CHECKING:
+    from matplotlib.typing import RcKeyType
 
 __all__ = ["FitCurves", "detection_svg", "detection_svg_from_arrays", "edge_figures", "esf_svg",
            "esf_svg_from_arrays", "lsf_svg", "lsf_svg_from_arrays", "mtf_svg", "mtf_svg_from_arrays"]

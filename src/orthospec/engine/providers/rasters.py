@@ -197,8 +197,8 @@ def _scan(ctx: ProviderContext) -> dict[str, Any]:
     )
     absent = [i for i in ids if i not in existing]
     for i in absent:
-        p = paths[i]
-        errors[i] = (str(p) if isinstance(p, OrthospecError) else
+        listed = paths[i]
+        errors[i] = (str(listed) if isinstance(listed, OrthospecError) else
                      f"{files[where[i]]}: listed in {t.file} but not found in the delivery")
         rows.append(tuple(False if n in ("raster.exists", "raster.readable") else None
                           for n in IMAGE_MEASURES))
@@ -252,7 +252,7 @@ def _value_notes(rep: ImageReport, reported: dict[str, Any], declared: dict[str,
     said = reported.get("gsd", declared.get("gsd"))
     source = "images.gsd" if "gsd" in reported else "delivery.yaml product.gsd"
     if vals.get("raster.gsd_declared_diff") is not None:
-        px = " x ".join(f"{v * metres:.6g}" for v in size)
+        px = " x ".join(f"{v * metres:.6g}" for v in size or ())
         out["raster.gsd_declared_diff"] = f"declared {said:.6g} m ({source}), the file's pixel is {px} m"
     elif size and not metres:
         out["raster.gsd_declared_diff"] = f"the file's CRS has no length unit ({facts.get('pixel_unit')}): no pixel size in metres"
