@@ -73,7 +73,7 @@ class Names(Mapping[str, Any]):
     def __init__(self, params: dict[str, ParamValue], manifest: dict[str, Any], cache: MeasureCache,
                  scope: str, items: list[str], *, scalar: bool = False) -> None:
         self.params, self.manifest, self.cache = params, manifest, cache
-        self.scope, self.items, self.scalar = scope, items, scalar
+        self.scope, self.item_ids, self.scalar = scope, items, scalar
         #: name -> value substituted where that fact or measure is missing (applicability probing)
         self.fill: dict[str, Any] = {}
 
@@ -112,15 +112,15 @@ class Names(Mapping[str, Any]):
     def _values(self, m: Measured, info: tuple[str, str]) -> pd.Series:
         if self.broadcast(info[0]):
             one = m.values.iloc[0] if len(m.values) else None
-            return pd.Series([one] * len(self.items), index=self.items, dtype=object)
-        return m.values.reindex(self.items)
+            return pd.Series([one] * len(self.item_ids), index=self.item_ids, dtype=object)
+        return m.values.reindex(self.item_ids)
 
     @staticmethod
     def _scalar(m: Measured) -> Any:
         one = m.values.iloc[0] if len(m.values) else None
         if is_missing(one):
             return None
-        if m.unit in NON_NUMERIC or m.unit == "any":
+        if m.unit in NON_NUMERIC or m.unit == "any" or one is None:
             return one
         return units.Q_(float(one), parse_unit(m.unit))
 
@@ -135,9 +135,9 @@ class Names(Mapping[str, Any]):
         """The measure with its missing entries replaced by the probe value ``fill[key]``."""
         if self.broadcast(info[0]):
             one = m.values.iloc[0] if len(m.values) else None
-            vals = pd.Series([one] * max(len(self.items), 1), dtype=object)
+            vals = pd.Series([one] * max(len(self.item_ids), 1), dtype=object)
         else:
-            vals = m.values.reindex(self.items)
+            vals = m.values.reindex(self.item_ids)
         raw = vals.to_numpy(dtype=object).copy()
         raw[missing_mask(raw) | vocabulary.unknown_values(key, raw)] = self.fill[key]
         if m.unit in NON_NUMERIC or m.unit == "any":
