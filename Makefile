@@ -36,6 +36,7 @@ test: install-test
 
 lint: install-test
 	$(VENV)/bin/ruff check src tests benchmarks examples scripts
+	MYPY=$(VENV)/bin/mypy bash scripts/typecheck.sh
 
 examples: install
 	$(PY) examples/generate.py

@@ -24,6 +24,20 @@ from orthospec.engine.params import parse_cli_params, resolve_parameters
 from orthospec.qcr import build_document
 from orthospec.spec.loader import ResolvedProfile, load_profile
 
+ROOT = Path(__file__).resolve().parents[1]
+EXAMPLES = ROOT / "examples" / "deliveries"
+CHECKERS = ROOT / "examples" / "checker"
+#: the check date the example deliveries and checker folders are generated for
+DATE = "2026-11-21"
+
+
+def copy_example(example: str, tmp_path: Path) -> Path:
+    """A copy of a shipped example delivery in ``tmp_path`` (tests edit the copy, never the original)."""
+    d = tmp_path / example
+    shutil.copytree(EXAMPLES / example, d)
+    return d
+
+
 #: a checker file for the tests' mini delivery (tests/conftest.py MANIFEST, tests/data/profiles/mini.yaml)
 MINI_CHECKER = """\
 orthospec_checker: 1

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import shutil
+import signal
 import tempfile
 import textwrap
 from collections.abc import Callable
@@ -24,6 +25,16 @@ EXAMPLES = ROOT / "examples" / "deliveries"
 _OWN_CACHE: str | None = None
 if "ORTHOSPEC_CACHE_DIR" not in os.environ:
     _OWN_CACHE = os.environ["ORTHOSPEC_CACHE_DIR"] = tempfile.mkdtemp(prefix="orthospec-test-cache-")
+
+
+def _terminated(signum: int, frame: object) -> None:
+    """SIGTERM (a CI timeout, `kill`) ends the run like Ctrl-C: pytest unwinds, so the cache above and
+    the PostgreSQL server of tests/pg.py (atexit) are removed instead of left in the temp folder."""
+    raise KeyboardInterrupt(f"signal {signum}")
+
+
+if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
+    signal.signal(signal.SIGTERM, _terminated)
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:

@@ -11,13 +11,15 @@ shipped examples; expected day counts come from ``datetime`` arithmetic on the p
 from __future__ import annotations
 
 import datetime as dt
-import shutil
 from pathlib import Path
 from typing import Any
 
 import pytest
 import yaml
 from tests.checking import (
+    CHECKERS,
+    DATE,
+    EXAMPLES,
     check_with,
     manifest,
     read_table,
@@ -26,21 +28,12 @@ from tests.checking import (
     write_manifest,
     write_table,
 )
+from tests.checking import copy_example as _copy
 
 from orthospec.engine.providers.acquisition import days_outside
 
-ROOT = Path(__file__).resolve().parents[1]
-EXAMPLES = ROOT / "examples" / "deliveries"
-CHECKERS = ROOT / "examples" / "checker"
-DATE = "2026-11-21"
 #: the satellite-pass scenes were taken 2026-05-21 and 2026-05-28
 WINDOW = ["acquisition_window_start=2026-05-01", "acquisition_window_end=2026-06-30"]
-
-
-def _copy(example: str, tmp_path: Path) -> Path:
-    d = tmp_path / example
-    shutil.copytree(EXAMPLES / example, d)
-    return d
 
 
 def _move_scene(d: Path, image_id: str, day: dt.date) -> None:

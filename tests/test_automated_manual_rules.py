@@ -10,7 +10,6 @@ expected values come from the planted edit and the formula (math), never from ou
 from __future__ import annotations
 
 import math
-import shutil
 from pathlib import Path
 from typing import Any
 
@@ -22,23 +21,22 @@ import shapely
 import yaml
 from rasterio.transform import from_origin
 from shapely.geometry import box
-from tests.checking import check_with, read_table, records, resigned, write_table
+from tests.checking import (
+    CHECKERS,
+    DATE,
+    EXAMPLES,
+    check_with,
+    read_table,
+    records,
+    resigned,
+    write_table,
+)
+from tests.checking import copy_example as _copy
 
 from orthospec.engine.providers.area_selection import faults
 from orthospec.engine.providers.gcp_pattern import dgps_gaps, no_dgps_gaps, strips
 from orthospec.raster import dem as dem_module
 from orthospec.raster.dem import dem_integrity
-
-ROOT = Path(__file__).resolve().parents[1]
-EXAMPLES = ROOT / "examples" / "deliveries"
-CHECKERS = ROOT / "examples" / "checker"
-DATE = "2026-11-21"
-
-
-def _copy(example: str, tmp_path: Path) -> Path:
-    d = tmp_path / example
-    shutil.copytree(EXAMPLES / example, d)
-    return d
 
 
 def _edit(d: Path, table: str, key: str, item: str, **cells: str) -> None:

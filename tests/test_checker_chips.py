@@ -19,14 +19,11 @@ import numpy as np
 import rasterio
 from click.testing import CliRunner
 from pyogrio import raw
+from tests.checking import CHECKERS, EXAMPLES
 
 from orthospec.cli.main import cli
 from orthospec.inspection.chips import CHIP_PX, Chip
 from orthospec.inspection.grid import mark_cells
-
-ROOT = Path(__file__).resolve().parents[1]
-EXAMPLES = ROOT / "examples" / "deliveries"
-CHECKERS = ROOT / "examples" / "checker"
 
 
 def _setup(tmp_path: Path) -> tuple[Path, Path, dict[str, float]]:

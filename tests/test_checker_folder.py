@@ -16,16 +16,12 @@ import numpy as np
 import pytest
 import rasterio
 import yaml
-from tests.checking import check_with, records, resigned
+from tests.checking import CHECKERS, DATE, EXAMPLES, check_with, records, resigned
 
 from orthospec.delivery.checker import load_checker
 from orthospec.delivery.reader import open_delivery
 from orthospec.errors import OrthospecError
 
-ROOT = Path(__file__).resolve().parents[1]
-EXAMPLES = ROOT / "examples" / "deliveries"
-CHECKERS = ROOT / "examples" / "checker"
-DATE = "2026-11-21"
 #: the rules that read the external check points (measures checkpoints.* / checkpoint.*)
 EXTERNAL = ("JRC-12.4-T12-MIN-CHECKPOINTS", "JRC-12.5-INDEPENDENT-CHECKPOINTS", "JRC-12.5-DISTINCT-CHECKPOINTS",
             "JRC-12.4-CHECKPOINTS-IN-BLOCK", "JRC-12.5-QUADRANTS", "JRC-12.6-BLUNDER-EXCLUSIONS",

@@ -15,15 +15,10 @@ from pathlib import Path
 import pytest
 import yaml
 from click.testing import CliRunner
-from tests.checking import check_with
+from tests.checking import CHECKERS, DATE, EXAMPLES, check_with
 
 from orthospec.cli.main import cli
 from orthospec.delivery.checker import load_checker
-
-ROOT = Path(__file__).resolve().parents[1]
-EXAMPLES = ROOT / "examples" / "deliveries"
-CHECKERS = ROOT / "examples" / "checker"
-DATE = "2026-11-21"
 
 
 def _init(delivery: Path, out: Path, *extra: str) -> object:

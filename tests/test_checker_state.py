@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 import yaml
-from tests.checking import check_with, records
+from tests.checking import DATE, check_with, records
 
 from orthospec.delivery.checker import load_checker
 from orthospec.delivery.reader import open_delivery
@@ -24,7 +24,6 @@ ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "deliveries" / "aerial-pass"
 CHECKER = ROOT / "examples" / "checker" / "aerial-pass"
 PARAMS = ["tolerance_xy=0.5", "map_crs=EPSG:25832"]
-DATE = "2026-11-21"
 OUTLINE_RULES = ("JRC-12.4-BLOCK-OUTLINES-AGREE", "JRC-5.2.2-AOI-AGREES")
 
 

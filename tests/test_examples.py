@@ -24,10 +24,8 @@ import pytest
 import rasterio
 import yaml
 from shapely.geometry import Point, Polygon
+from tests.checking import CHECKERS, EXAMPLES, ROOT
 
-ROOT = Path(__file__).resolve().parents[1]
-EXAMPLES = ROOT / "examples" / "deliveries"
-CHECKERS = ROOT / "examples" / "checker"
 NAMES = ("aerial-pass", "aerial-fail")
 SATELLITE = ("satellite-pass", "satellite-fail")
 SPEC = yaml.safe_load((ROOT / "specs" / "delivery-tables.yaml").read_text(encoding="utf-8"))["tables"]
@@ -220,7 +218,6 @@ def test_flight_and_at_records_are_consistent(name: str) -> None:
     assert (_num(at["checkpoint_rmse_x"]) <= 0.5 / 3).all() and (_num(at["gcp_rmse_y"]) < 0.25).all()
     assert (_num(_table(name, "checkpoints")["precision_xy"]) <= 0.5 / 3).all()  # the contractor's (§7.2)
     assert (_num(_external(name)["precision_xy"]) <= 0.5 / 3).all()  # the checker's
-
 
 
 @pytest.mark.parametrize("name", NAMES)

@@ -17,14 +17,11 @@ from typing import Any
 import pytest
 import yaml
 from click.testing import CliRunner
-from tests.checking import check_with, records
+from tests.checking import CHECKERS, EXAMPLES, ROOT, check_with, records
 
 from orthospec.cli.main import cli
 from orthospec.qcr import dumps
 
-ROOT = Path(__file__).resolve().parents[1]
-EXAMPLES = ROOT / "examples" / "deliveries"
-CHECKERS = ROOT / "examples" / "checker"
 PROFILE = yaml.safe_load((ROOT / "specs" / "jrc-v3.yaml").read_text(encoding="utf-8"))
 RULES = {r["id"]: r for r in PROFILE["rules"]}
 BAD = ("fail", "missing", "error")

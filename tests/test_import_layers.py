@@ -30,7 +30,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     # foundation: no orthospec import above it (the package root only holds __version__ and lazy names)
     ("orthospec", "orthospec.errors", "orthospec.units", "orthospec.provenance", "orthospec.limits",
      "orthospec.resources", "orthospec.verdicts", "orthospec.yamlio", "orthospec.plugins", "orthospec.controls",
-     "orthospec.workers", "orthospec._forkserver", "orthospec.outputs"),
+     "orthospec.workers", "orthospec._forkserver", "orthospec.outputs", "orthospec.dotted"),
     ("orthospec.delivery",),   # the delivery convention and its readers
     ("orthospec.spec",),       # profiles, written against the delivery convention
     ("orthospec.measures",),   # pure numbers

@@ -11,24 +11,29 @@ real failure elsewhere still rejects. Every expectation below follows from the e
 from __future__ import annotations
 
 import json
-import shutil
 from pathlib import Path
 from typing import Any
 
 import pytest
 import yaml
 from click.testing import CliRunner
-from tests.checking import check_with, read_table, records, resigned, write_table
+from tests.checking import (
+    CHECKERS,
+    DATE,
+    EXAMPLES,
+    check_with,
+    read_table,
+    records,
+    resigned,
+    write_table,
+)
+from tests.checking import copy_example as _copy
 
 from orthospec import verdicts as V
 from orthospec.cli.main import cli as main
 from orthospec.ledger.signed import after_signoff
 from orthospec.qcr_model import QcrDocument
 
-ROOT = Path(__file__).resolve().parents[1]
-EXAMPLES = ROOT / "examples" / "deliveries"
-CHECKERS = ROOT / "examples" / "checker"
-DATE = "2026-11-21"
 PARAMS = ["tolerance_xy=0.5", "map_crs=EPSG:25832"]
 
 #: a profile of two block rules: the count is the checker's (incomplete), the RMSE the contractor's
@@ -59,12 +64,6 @@ rules:
     requirement: {op: "<=", value: tolerance_xy, unit: m}
     consequence: reject_block
 """
-
-
-def _copy(example: str, tmp_path: Path) -> Path:
-    d = tmp_path / example
-    shutil.copytree(EXAMPLES / example, d)
-    return d
 
 
 def _keep_points(d: Path, block: str, n: int) -> int:

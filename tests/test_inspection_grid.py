@@ -19,17 +19,13 @@ import pytest
 import rasterio
 from click.testing import CliRunner
 from pyogrio import raw
-from tests.checking import check_with, records
+from tests.checking import CHECKERS, DATE, EXAMPLES, ROOT, check_with, records
 
 from orthospec.cli.main import cli
 from orthospec.errors import OrthospecError
 from orthospec.inspection.defects import catalogue
 from orthospec.inspection.grid import fields, mark_cells
 
-ROOT = Path(__file__).resolve().parents[1]
-EXAMPLES = ROOT / "examples" / "deliveries"
-CHECKERS = ROOT / "examples" / "checker"
-DATE = "2026-11-21"
 SEED = ROOT.parent / "shared" / "seeds" / "002_7421c4ca450e31c6.txt"
 
 

@@ -32,19 +32,15 @@ import pytest
 import rasterio
 import yaml
 from rasterio.transform import Affine
-from tests.checking import check_with, records, resigned
+from tests.checking import CHECKERS, DATE, EXAMPLES, ROOT, check_with, records, resigned
 
 from mutation_coverage import PLUGIN_NAME, CoverageReport, mandatory_automatic
 from orthospec.errors import OrthospecError
 from orthospec.spec.loader import ResolvedProfile, load_profile
 
-ROOT = Path(__file__).resolve().parents[1]
-EXAMPLES = ROOT / "examples" / "deliveries"
-CHECKERS = ROOT / "examples" / "checker"
 TABLE = yaml.safe_load((Path(__file__).parent / "data" / "mutations.yaml").read_text(encoding="utf-8"))
 SHIPPED = {name: ROOT / "specs" / f"{name}.yaml" for name in TABLE["profiles"]}
 BAD = ("fail", "missing", "error")
-DATE = "2026-11-21"
 
 
 # ---------------------------------------------------------------- the table

@@ -14,7 +14,7 @@ from typing import Any
 import pytest
 import yaml
 from shapely.geometry import box
-from tests.checking import check_with, records, resigned
+from tests.checking import DATE, check_with, records, resigned
 
 from orthospec.delivery.checker import load_checker, stated_outlines
 from orthospec.delivery.reader import open_delivery
@@ -23,7 +23,6 @@ from orthospec.engine.providers.derived import OUTLINE_TOLERANCE, _disagreement
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "deliveries" / "aerial-pass"
 CHECKER = ROOT / "examples" / "checker" / "aerial-pass"
-DATE = "2026-11-21"
 
 
 def test_the_tolerance_is_one_percent_of_area_and_of_size() -> None:

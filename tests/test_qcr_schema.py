@@ -4,19 +4,17 @@
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import jsonschema
 import pytest
 from pydantic import ValidationError
+from tests.checking import EXAMPLES, ROOT
 
 from orthospec import api
 from orthospec.qcr import dumps
 from orthospec.qcr_model import QcrDocument, qcr_schema
 from orthospec.spec import schema as schema_mod
 
-ROOT = Path(__file__).resolve().parents[1]
-EXAMPLES = ROOT / "examples" / "deliveries"
 COMMITTED = ROOT / "specs" / "schema" / "qcr.schema.json"
 
 

@@ -31,6 +31,9 @@ from typing import Any
 import pytest
 import yaml
 from tests.checking import (
+    CHECKERS,
+    DATE,
+    EXAMPLES,
     check_with,
     manifest,
     read_table,
@@ -43,10 +46,6 @@ from tests.checking import records as all_records
 
 from orthospec.errors import OrthospecError
 
-ROOT = Path(__file__).resolve().parents[1]
-EXAMPLES = ROOT / "examples" / "deliveries"
-CHECKERS = ROOT / "examples" / "checker"
-DATE = "2026-11-21"
 #: the fixed checker's name in examples/checker/*.yaml (aerial-*)
 CHECKER_NAME = "M. Keller (fictional)"
 
@@ -54,13 +53,6 @@ Edit = Callable[[Path], None]
 
 
 # --- file edits ------------------------------------------------------------------------------
-
-
-
-
-
-
-
 
 
 def _manifest_edit(fn: Callable[[dict[str, Any]], None]) -> Edit:

@@ -15,7 +15,8 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from tests.checking import check_with, records
+from tests.checking import CHECKERS, DATE, EXAMPLES, ROOT, check_with, records
+from tests.checking import copy_example as _copy
 
 from orthospec.delivery.checker import load_checker
 from orthospec.delivery.reader import open_delivery
@@ -23,17 +24,6 @@ from orthospec.engine import manual
 from orthospec.engine.evaluator import Evaluator
 from orthospec.engine.params import resolve_parameters
 from orthospec.spec.loader import load_profile
-
-ROOT = Path(__file__).resolve().parents[1]
-EXAMPLES = ROOT / "examples" / "deliveries"
-CHECKERS = ROOT / "examples" / "checker"
-DATE = "2026-11-21"
-
-
-def _copy(example: str, tmp_path: Path) -> Path:
-    d = tmp_path / example
-    shutil.copytree(EXAMPLES / example, d)
-    return d
 
 
 def _edit_images(d: Path, edit: Any) -> None:

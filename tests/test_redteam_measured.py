@@ -25,6 +25,10 @@ import rasterio
 import yaml
 from affine import Affine
 from tests.checking import (
+    CHECKERS,
+    DATE,
+    EXAMPLES,
+    ROOT,
     check_with,
     manifest,
     read_table,
@@ -36,11 +40,7 @@ from tests.checking import (
 
 from orthospec.errors import OrthospecError
 
-ROOT = Path(__file__).resolve().parents[1]
-EXAMPLES = ROOT / "examples" / "deliveries"
-CHECKERS = ROOT / "examples" / "checker"
 TENDER = ROOT / "examples" / "specs" / "tender-example.yaml"
-DATE = "2026-11-21"
 
 Edit = Callable[[Path], None]
 

@@ -15,14 +15,17 @@ from typing import Any
 import pytest
 import rasterio
 from affine import Affine
-from tests.checking import check_with, read_table, records, write_table
+from tests.checking import (
+    CHECKERS,
+    DATE,
+    EXAMPLES,
+    check_with,
+    read_table,
+    records,
+    write_table,
+)
 
 from orthospec.engine.providers.satellite import strip_supplement
-
-ROOT = Path(__file__).resolve().parents[1]
-EXAMPLES = ROOT / "examples" / "deliveries"
-CHECKERS = ROOT / "examples" / "checker"
-DATE = "2026-11-21"
 
 
 def _copy(tmp_path: Path) -> Path:

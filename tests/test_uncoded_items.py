@@ -8,26 +8,24 @@ file re-signed on the copy; expected values follow from the edit (which id, whic
 
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 from typing import Any
 
 import pytest
 import yaml
-from tests.checking import check_with, read_table, records, resigned, write_table
+from tests.checking import (
+    CHECKERS,
+    DATE,
+    EXAMPLES,
+    check_with,
+    read_table,
+    records,
+    resigned,
+    write_table,
+)
+from tests.checking import copy_example as _copy
 
 from orthospec.engine.providers.ground_reference import kind_of_text
-
-ROOT = Path(__file__).resolve().parents[1]
-EXAMPLES = ROOT / "examples" / "deliveries"
-CHECKERS = ROOT / "examples" / "checker"
-DATE = "2026-11-21"
-
-
-def _copy(example: str, tmp_path: Path) -> Path:
-    d = tmp_path / example
-    shutil.copytree(EXAMPLES / example, d)
-    return d
 
 
 def _check(d: Path) -> dict[str, Any]:

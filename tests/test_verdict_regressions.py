@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from tests.checking import manifest, read_table, write_manifest, write_table
+from tests.checking import DATE, manifest, read_table, write_manifest, write_table
 from tests.checking import records as all_records
 
 from orthospec.api import check as _check
@@ -27,7 +27,6 @@ from orthospec.errors import OrthospecError
 
 ROOT = Path(__file__).resolve().parents[1]
 AERIAL_PASS = ROOT / "examples" / "deliveries" / "aerial-pass"
-DATE = "2026-11-21"
 
 
 # --- helpers ---------------------------------------------------------------------------------
@@ -55,14 +54,6 @@ def copy_pass(tmp_path: Path, name: str = "d") -> Path:
     dst = tmp_path / name
     shutil.copytree(AERIAL_PASS, dst)
     return dst
-
-
-
-
-
-
-
-
 
 
 TOLERANCE_FROM_ITT = "tolerance_xy: {unit: m, required: true, description: tolerance from the ITT}\n"

@@ -11,29 +11,28 @@ Edits are made on copies of the shipped examples (the checker pins only checkpoi
 from __future__ import annotations
 
 import ast
-import shutil
 from pathlib import Path
 from typing import Any
 
 import pytest
 import yaml
-from tests.checking import check_with, read_table, records, write_table
+from tests.checking import (
+    CHECKERS,
+    DATE,
+    EXAMPLES,
+    ROOT,
+    check_with,
+    read_table,
+    records,
+    write_table,
+)
+from tests.checking import copy_example as _copy
 
 from orthospec.delivery import vocabulary
 from orthospec.delivery.reader import open_delivery
 from orthospec.errors import DeliveryError
 
-ROOT = Path(__file__).resolve().parents[1]
-EXAMPLES = ROOT / "examples" / "deliveries"
-CHECKERS = ROOT / "examples" / "checker"
 SPECS = ROOT / "specs"
-DATE = "2026-11-21"
-
-
-def _copy(example: str, tmp_path: Path) -> Path:
-    d = tmp_path / example
-    shutil.copytree(EXAMPLES / example, d)
-    return d
 
 
 def _set(d: Path, table: str, item: str, **cells: str) -> None:

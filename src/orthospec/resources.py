@@ -26,3 +26,20 @@ def specs_dir() -> Path:
 
 def templates_dir() -> Path:
     return data_dir("reports/templates")
+
+
+def shown(path: str | Path) -> str:
+    """How a message names a file: a shipped data file as ``specs/jrc-v3.yaml``, never by the absolute
+    folder it was installed in (which says nothing to the reader and differs between machines); any
+    other path as given."""
+    text = str(path)
+    try:
+        p = Path(path).resolve()
+    except (OSError, RuntimeError, ValueError):
+        return text
+    for name in ("specs", "reports/templates"):
+        try:
+            return f"{name}/{p.relative_to(data_dir(name).resolve()).as_posix()}"
+        except (ValueError, FileNotFoundError):
+            continue
+    return text

@@ -37,7 +37,7 @@ def _reg() -> pint.UnitRegistry:
             if not _REGISTRY:
                 import pint
 
-                ureg = pint.UnitRegistry(autoconvert_offset_to_baseunit=True, cache_folder=None)
+                ureg: pint.UnitRegistry = pint.UnitRegistry(autoconvert_offset_to_baseunit=True, cache_folder=None)
                 ureg.define("grey_level = [grey_level] = DN = dn = GL")
                 ureg.define("US_survey_foot = 1200 / 3937 * meter = ftUS = us_ft")
                 ureg.define("fraction = [] = frac")

@@ -18,6 +18,7 @@ from __future__ import annotations
 import os
 import re
 import stat
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -147,7 +148,7 @@ class Located:
             p = p[:-1]
         return self.marks.get((), (None, None))
 
-    def located_errors(self, errors: list[dict[str, Any]], display: str,
+    def located_errors(self, errors: Sequence[Mapping[str, Any]], display: str,
                        hint: Any = None) -> list[str]:
         """``file:line:col: dotted.path: message`` for (at most 20 of) a pydantic validation's
         errors, so the manifest and the checker's file word their mistakes alike; ``hint(error)``

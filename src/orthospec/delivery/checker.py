@@ -369,7 +369,7 @@ def load_checker(path: str | Path, *, delivery_root: str | Path | None = None,
         (sec, i): doc.where((sec, i))[0] or 0
         for sec in ("manual_checks", "waivers") for i in range(len(doc.data.get(sec) or []))}
     marks[("units",)] = doc.where(("units",))[0] or 0
-    extra = [("delivery",), ("delivery", "id"), ("delivery", "manifest_sha256"),
+    extra: list[tuple[Any, ...]] = [("delivery",), ("delivery", "id"), ("delivery", "manifest_sha256"),
              *(("delivery", "files", k) for k in model.delivery.files),
              ("parameters",), *(("parameters", k) for k in model.parameters)]
     extra += [("area_of_interest",), *(("blocks", i, "polygon") for i in range(len(model.blocks))),

@@ -40,7 +40,7 @@ def finite_ring(coords: Sequence[Sequence[float]] | None) -> bool:
     (a non-finite vertex leaves its block unchecked, reported where the outline is used)."""
     import math
 
-    return bool(coords) and len(coords) >= 3 and all(math.isfinite(float(v)) for xy in coords for v in xy)
+    return coords is not None and len(coords) >= 3 and all(math.isfinite(float(v)) for xy in coords for v in xy)
 
 
 def ring_polygon(coords: Sequence[Sequence[float]]) -> Polygon:

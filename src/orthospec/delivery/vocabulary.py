@@ -37,6 +37,7 @@ import numpy as np
 import pandas as pd
 import yaml
 
+from ..dotted import dotted_name as _dotted
 from ..errors import DeliveryError, SpecError
 from ..resources import specs_dir
 
@@ -143,16 +144,6 @@ def _shown(text: str, limit: int = 60) -> str:
 
 
 # --- the profile side: literals compared with a vocabulary column ------------------------------
-
-def _dotted(node: ast.AST) -> str | None:
-    parts: list[str] = []
-    while isinstance(node, ast.Attribute):
-        parts.append(node.attr)
-        node = node.value
-    if isinstance(node, ast.Name):
-        return ".".join([node.id, *reversed(parts)])
-    return None
-
 
 def compared_literals(source: str) -> list[tuple[str, str]]:
     """(measure name, literal) for every ``name == 'word'`` / ``!=`` comparison in an expression."""

@@ -62,7 +62,7 @@ def _missing_of(ctx: Context, name: str, names: Names, n: int) -> np.ndarray:
     if info is not None and names.broadcast(info[0]):
         one = m.values.iloc[0] if len(m.values) else None
         return np.full(n, is_missing(one))
-    vals = m.values.reindex(names.items).to_numpy(dtype=object)
+    vals = m.values.reindex(names.item_ids).to_numpy(dtype=object)
     # a word outside the column's closed vocabulary is an unknown fact, not a mismatch (issue 25)
     return missing_mask(vals) | vocabulary.unknown_values(key, vals)
 

@@ -18,6 +18,7 @@ import pandas as pd
 
 from .. import units
 from ..delivery import vocabulary
+from ..dotted import dotted_name
 from ..spec.operators import is_missing
 from ..units import NON_NUMERIC, parse_unit
 from .catalog import MeasureCache, measure_info
@@ -37,6 +38,10 @@ def missing_mask(values: np.ndarray) -> np.ndarray:
     return np.fromiter((is_missing(v) for v in values), dtype=bool, count=len(values))
 
 
+#: words of the expression grammar that look like names but are constants
+_NULLS = ("null", "None", "true", "false")
+
+
 def null_tested(when: str) -> set[str]:
     """Names a `when` compares with null: their absence is part of the condition, not missing evidence."""
     out: set[str] = set()
@@ -48,23 +53,13 @@ def null_tested(when: str) -> set[str]:
         if isinstance(node, ast.Compare):
             sides = [node.left, *node.comparators]
             if any(_is_null(x) for x in sides):
-                out.update(d for x in sides if (d := _dotted_name(x)) is not None)
+                out.update(d for x in sides if (d := dotted_name(x, reserved=_NULLS)) is not None)
     return out
 
 
 def _is_null(node: ast.AST) -> bool:
     return (isinstance(node, ast.Constant) and node.value is None) or (
         isinstance(node, ast.Name) and node.id in ("null", "None"))
-
-
-def _dotted_name(node: ast.AST) -> str | None:
-    parts: list[str] = []
-    while isinstance(node, ast.Attribute):
-        parts.append(node.attr)
-        node = node.value
-    if isinstance(node, ast.Name) and node.id not in ("null", "None", "true", "false"):
-        return ".".join([node.id, *reversed(parts)])
-    return None
 
 
 def param_key(name: str) -> str:
@@ -78,7 +73,7 @@ class Names(Mapping[str, Any]):
     def __init__(self, params: dict[str, ParamValue], manifest: dict[str, Any], cache: MeasureCache,
                  scope: str, items: list[str], *, scalar: bool = False) -> None:
         self.params, self.manifest, self.cache = params, manifest, cache
-        self.scope, self.items, self.scalar = scope, items, scalar
+        self.scope, self.item_ids, self.scalar = scope, items, scalar
         #: name -> value substituted where that fact or measure is missing (applicability probing)
         self.fill: dict[str, Any] = {}
 
@@ -117,15 +112,15 @@ class Names(Mapping[str, Any]):
     def _values(self, m: Measured, info: tuple[str, str]) -> pd.Series:
         if self.broadcast(info[0]):
             one = m.values.iloc[0] if len(m.values) else None
-            return pd.Series([one] * len(self.items), index=self.items, dtype=object)
-        return m.values.reindex(self.items)
+            return pd.Series([one] * len(self.item_ids), index=self.item_ids, dtype=object)
+        return m.values.reindex(self.item_ids)
 
     @staticmethod
     def _scalar(m: Measured) -> Any:
         one = m.values.iloc[0] if len(m.values) else None
         if is_missing(one):
             return None
-        if m.unit in NON_NUMERIC or m.unit == "any":
+        if m.unit in NON_NUMERIC or m.unit == "any" or one is None:
             return one
         return units.Q_(float(one), parse_unit(m.unit))
 
@@ -140,9 +135,9 @@ class Names(Mapping[str, Any]):
         """The measure with its missing entries replaced by the probe value ``fill[key]``."""
         if self.broadcast(info[0]):
             one = m.values.iloc[0] if len(m.values) else None
-            vals = pd.Series([one] * max(len(self.items), 1), dtype=object)
+            vals = pd.Series([one] * max(len(self.item_ids), 1), dtype=object)
         else:
-            vals = m.values.reindex(self.items)
+            vals = m.values.reindex(self.item_ids)
         raw = vals.to_numpy(dtype=object).copy()
         raw[missing_mask(raw) | vocabulary.unknown_values(key, raw)] = self.fill[key]
         if m.unit in NON_NUMERIC or m.unit == "any":

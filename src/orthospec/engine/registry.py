@@ -167,29 +167,37 @@ ROLLUP: dict[str, tuple[str, str]] = {
 #: provider; tests/test_measures_descriptions.py fails when a registered measure has none.
 MEASURE_DESCRIPTIONS: dict[str, str] = {
     # acquisition (JRC §3.4)
-    "acquisition.date": "the image's acquisition date from its records (exposure time, scene date, else its flight's day)",
-    "acquisition.days_outside_window": "days the image was acquired before or after the ITT's acquisition window (0 inside)",
-    "acquisition.outside_declared_window": "images acquired outside the window delivery.yaml declares (dates.acquired_from/to)",
+    "acquisition.date": ("the image's acquisition date from its records (exposure time, scene "
+                         "date, else its flight's day)"),
+    "acquisition.days_outside_window": ("days the image was acquired before or after the ITT's "
+                                        "acquisition window (0 inside)"),
+    "acquisition.outside_declared_window": ("images acquired outside the window delivery.yaml "
+                                            "declares (dates.acquired_from/to)"),
     # satellite scenes (JRC Table 9)
     "scene.area": "area of the scene's delivered orthoimage footprint, from the raster",
     "scene.gcp_count": "GCPs of gcps.csv that controlled the scene (image_id naming it, else inside its footprint)",
     "scene.gcp_count_agrees": "the meta-database's scenes.gcp_count equals the GCPs counted in gcps.csv",
     "scene.gcp_strip_supplement": "GCPs Table 9 adds for a strip scene: 2 per additional 100 km² (parameters)",
-    "scene.gcp_quadrants": "quarters of the scene's orthoimage footprint holding one of its GCPs (Table 9 distribution)",
+    "scene.gcp_quadrants": ("quarters of the scene's orthoimage footprint holding one of its GCPs "
+                            "(Table 9 distribution)"),
     "scene.checkpoints_on_gcps": "check points measured on the scene that are GCPs of that scene (same id or position)",
     # delivered DEM files (JRC Table 7)
     "demfile.crs_ok": "the DEM file's CRS (horizontal part) is the map projection in force (map_crs)",
     "demfile.nodata_share": "share of no-data cells of the DEM file inside the project's blocks",
     "demfile.spikes": "DEM cells farther than dem_spike_height from the median of their 3 x 3 neighbourhood",
     # sample, QCR set, GCP pattern, seamlines
-    "sample.strata_missed": "blocks, terrain tags, problem batches and high view angles the external-QC sample leaves out (JRC §12.4)",
+    "sample.strata_missed": ("blocks, terrain tags, problem batches and high view angles the "
+                             "external-QC sample leaves out (JRC §12.4)"),
     "qcr.minimum_set_missing": "QCRs of JRC Table 6 (aerial) or Table 10 (satellite) with no record in the delivery",
     "gcp_pattern.gaps": "places of the JRC Table 4 GCP pattern the block's GCPs leave empty",
-    "seamline.area_selection_faults": "seamline polygons outside their image's footprint or not from the most nadir image",
-    "gcp.source_kind": "kind of source of the GCP (survey, map, photogrammetric, orthoimage): source_type, else read from source",
+    "seamline.area_selection_faults": ("seamline polygons outside their image's footprint or not "
+                                       "from the most nadir image"),
+    "gcp.source_kind": ("kind of source of the GCP (survey, map, photogrammetric, orthoimage): "
+                        "source_type, else read from source"),
     "points.shared_ids": "identifiers naming both a GCP and a check point (JRC §7.3 unique to project)",
     "scanner.schedule_gaps": "ends of the scanning period (first, last scan date) without a scanner test (JRC §6.2.2)",
-    "block.space_resection_images": "images of a block produced by space resection (each should be its own block, §12.7)",
+    "block.space_resection_images": ("images of a block produced by space resection (each should "
+                                     "be its own block, §12.7)"),
     # camera, flight, geometry
     "camera.calibration_age": "years from the camera calibration certificate to the start of acquisition (JRC §5.2.4)",
     "flight.images": "number of photos of the flight",
@@ -206,7 +214,8 @@ MEASURE_DESCRIPTIONS: dict[str, str] = {
     # per block: check-point statistics
     "checkpoints.asprs_rmse_h": "ASPRS Ed. 2 horizontal accuracy: sqrt(RMSEx² + RMSEy² + survey RMSE_H²)",
     "checkpoints.asprs_rmse_v": "ASPRS Ed. 2 vertical accuracy: sqrt(RMSEz² + survey RMSE_V²)",
-    "checkpoints.bias_negligible": "the bias test (mean radial error / sigma_c) allows the circular-normal CE model (USGS)",
+    "checkpoints.bias_negligible": ("the bias test (mean radial error / sigma_c) allows the "
+                                    "circular-normal CE model (USGS)"),
     "checkpoints.bias_p_x": "two-sided p-value of the t-test that the mean x discrepancy is zero",
     "checkpoints.bias_p_y": "two-sided p-value of the t-test that the mean y discrepancy is zero",
     "checkpoints.bias_p_z": "two-sided p-value of the t-test that the mean z discrepancy is zero",
@@ -266,13 +275,19 @@ MEASURE_DESCRIPTIONS: dict[str, str] = {
     "checkpoints.std_y": "standard deviation of the y discrepancies of the kept points",
     "checkpoints.std_z": "standard deviation of the z discrepancies of the kept points",
     # the checker's evidence (engine/providers/checker_evidence.py) and the contractor's internal QC
-    "checker.external_checkpoints": "the check point statistics are the checker's measurements (its tables/checkpoints.csv), not the contractor's",
-    "checker.points_unbound": "the checker's check points left out: their image_sha256 is not that of the image delivered now",
-    "checker.points_unhashed": "the checker's check points that record no image_sha256 (not bound to the pixels measured)",
-    "inspection.inspected_share": "share of the inspection grid's area (the sampled images) whose cells the checker inspected, %",
+    "checker.external_checkpoints": ("the check point statistics are the checker's measurements "
+                                     "(its tables/checkpoints.csv), not the contractor's"),
+    "checker.points_unbound": ("the checker's check points left out: their image_sha256 is not "
+                               "that of the image delivered now"),
+    "checker.points_unhashed": ("the checker's check points that record no image_sha256 (not bound "
+                                "to the pixels measured)"),
+    "inspection.inspected_share": ("share of the inspection grid's area (the sampled images) whose "
+                                   "cells the checker inspected, %"),
     "inspection.present": "the checker folder holds a marked inspection grid (inspection.gpkg)",
-    "internal_qc.agrees": "the contractor's internal-QC points and the checker's give the block the same RMSEx/RMSEy pass or fail",
-    "internal_qc.imprecise": "the contractor's internal-QC check points whose reference accuracy is blank or worse than tolerance_xy / 3",
+    "internal_qc.agrees": ("the contractor's internal-QC points and the checker's give the block "
+                           "the same RMSEx/RMSEy pass or fail"),
+    "internal_qc.imprecise": ("the contractor's internal-QC check points whose reference accuracy "
+                              "is blank or worse than tolerance_xy / 3"),
     "internal_qc.n": "the contractor's internal-QC check points used in its statistics (after exclusions)",
     "internal_qc.rmse_x": "RMSE of the x discrepancies of the contractor's internal-QC check points (JRC §12.5)",
     "internal_qc.rmse_y": "RMSE of the y discrepancies of the contractor's internal-QC check points (JRC §12.5)",
@@ -280,13 +295,19 @@ MEASURE_DESCRIPTIONS: dict[str, str] = {
     # derived
     "derived.camera_agrees": "the declared camera format and pixel are the model's published ones (specs/cameras.yaml)",
     "derived.dem_blocks": "blocks each DEM serves: its block value, else its footprint over the block polygons",
-    "derived.block_outlines_agree": "delivery.yaml's block outlines agree with those of the checker's file (within 1 %, same blocks; JRC §12.4)",
-    "derived.area_of_interest_agrees": "the declared area of interest agrees with the one in force from the checker's file (within 1 %; JRC §5.2.2)",
-    "derived.project_crs_agrees": "the manifest's project.crs names the map projection in force (parameter map_crs, JRC §12.4 Table 12)",
-    "derived.dem_delivered": "a DEM is delivered: the dem table names a DEM file, or product.dem_delivered is true (JRC §12.7)",
+    "derived.block_outlines_agree": ("delivery.yaml's block outlines agree with those of the "
+                                     "checker's file (within 1 %, same blocks; JRC §12.4)"),
+    "derived.area_of_interest_agrees": ("the declared area of interest agrees with the one in "
+                                        "force from the checker's file (within 1 %; JRC §5.2.2)"),
+    "derived.project_crs_agrees": ("the manifest's project.crs names the map projection in force "
+                                   "(parameter map_crs, JRC §12.4 Table 12)"),
+    "derived.dem_delivered": ("a DEM is delivered: the dem table names a DEM file, or "
+                              "product.dem_delivered is true (JRC §12.7)"),
     "derived.dem_delivered_agrees": "the declared product.dem_delivered agrees with the delivered files",
-    "derived.dem_used": "a DEM was used: delivered, recorded in the dem table, or recorded by the scenes (dem_grid_size, dem_accuracy)",
-    "derived.is_master": "the scene is a master image: named in the checker's master_images, else flagged scenes.is_master (JRC Table 9)",
+    "derived.dem_used": ("a DEM was used: delivered, recorded in the dem table, or recorded by the "
+                         "scenes (dem_grid_size, dem_accuracy)"),
+    "derived.is_master": ("the scene is a master image: named in the checker's master_images, else "
+                          "flagged scenes.is_master (JRC Table 9)"),
     "derived.master_images_agree": "the scenes flagged is_master are exactly the checker's master_images (JRC Table 9 \"identify as master image\")",
     "derived.master_images": "number of scenes declared master image (scenes.is_master, JRC Table 9)",
     "derived.orthorectification": "how the orthoimages were produced, from the blocks' methods and the manifest",
@@ -324,25 +345,32 @@ MEASURE_DESCRIPTIONS: dict[str, str] = {
     "raster.bands": "band layout of the image (e.g. R,G,B,NIR)",
     "raster.bit_depth": "radiometric bit depth declared for the image (bits per sample)",
     "raster.bit_depth_container": "bits per sample of the file's data type (8, 16, ...)",
-    "raster.bit_depth_agrees": "the declared bit depth is the file's: its NBITS, else between the bits used and its sample type's",
+    "raster.bit_depth_agrees": ("the declared bit depth is the file's: its NBITS, else between the "
+                                "bits used and its sample type's"),
     "raster.bright_margin": "gap between the brightest DN and the top of the range, % of the range (worst band)",
-    "raster.cloud_cover": "measured cloud cover: share of bright, white pixels (red, green, blue; snow counts too), % (JRC §6.3)",
+    "raster.cloud_cover": ("measured cloud cover: share of bright, white pixels (red, green, blue; "
+                           "snow counts too), % (JRC §6.3)"),
     "raster.cloud_cover_declared_diff": "|declared images.cloud_cover - measured cloud cover|, percentage points",
     "raster.cloud_cover_mean": "mean of the measured cloud cover over the delivered images, % (JRC §6.3 \"in average\")",
     "raster.compression": "compression of the image file",
-    "raster.content_unique": "the image is no copy of another: not its file, SHA-256, decoded pixels or a near copy (JRC Table 12)",
+    "raster.content_unique": ("the image is no copy of another: not its file, SHA-256, decoded "
+                              "pixels or a near copy (JRC Table 12)"),
     "raster.crs_epsg": "EPSG code of the image's coordinate reference system",
-    "raster.crs_ok": "the image's CRS is the map projection in force (parameter map_crs; missing when the profile states none)",
+    "raster.crs_ok": ("the image's CRS is the map projection in force (parameter map_crs; missing "
+                      "when the profile states none)"),
     "raster.cv_percent": "coefficient of variation (std / mean) of the luminosity, else of the flattest band, %",
     "raster.cv_percent_max": "largest per-band coefficient of variation (std / mean), in %",
     "raster.cv_percent_min": "smallest per-band coefficient of variation (std / mean), in %",
     "raster.dark_margin": "gap between the darkest DN and the bottom of the range, % of the range (worst band)",
     "raster.exists": "the listed image file exists in the delivery",
-    "raster.file_unique": "the image row names its own file: no other row names the same file or a file with the same SHA-256",
+    "raster.file_unique": ("the image row names its own file: no other row names the same file or "
+                           "a file with the same SHA-256"),
     "raster.format": "file format of the image (GDAL driver)",
     "raster.georeferenced": "the image carries a geotransform",
-    "raster.gsd_declared_diff": "largest |declared GSD (images.gsd, else product.gsd) - the file's pixel size| / pixel size, in %",
-    "raster.in_area": "the file's footprint overlaps its block's outline in force, else the area of interest (JRC §12.4 Table 12)",
+    "raster.gsd_declared_diff": ("largest |declared GSD (images.gsd, else product.gsd) - the "
+                                 "file's pixel size| / pixel size, in %"),
+    "raster.in_area": ("the file's footprint overlaps its block's outline in force, else the area "
+                       "of interest (JRC §12.4 Table 12)"),
     "raster.listed_missing": "images listed in the images table but not found on disk",
     "raster.lossless": "the image's compression is lossless",
     "raster.mean_dn": "mean DN of the image (all bands)",

@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from ..delivery.checker import CHECKER_FILE, CHECKPOINTS_TABLE, INSPECTION_GRID, file_roles
+from ..delivery.manifest import QuantityIn
 from ..delivery.reader import Delivery
 from ..spec.loader import ResolvedProfile
 from ..units import NON_NUMERIC, canonical
@@ -121,7 +122,7 @@ def checker_skeleton(profile: ResolvedProfile, d: Delivery, *, name: str | None 
         open_params.append(pname)
         unit = p.unit or "1"
         said = declared.get(pname)
-        hint = f"; the delivery declares {said.value:g} {said.unit} (evidence only)" if hasattr(said, "value") else ""
+        hint = f"; the delivery declares {said.value:g} {said.unit} (evidence only)" if isinstance(said, QuantityIn) else ""
         if pname == "map_crs" and d.manifest.project.crs:
             hint = f"; the delivery declares project.crs {d.manifest.project.crs} (evidence only)"
         need = "required" if p.required else "optional"

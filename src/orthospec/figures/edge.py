@@ -9,18 +9,23 @@ from __future__ import annotations
 import io
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import matplotlib as mpl
 import numpy as np
+from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from ..measures.edge import NYQUIST, EdgeResult
 
+if TYPE_CHECKING:
+    from matplotlib.typing import RcKeyType
+
 __all__ = ["FitCurves", "detection_svg", "detection_svg_from_arrays", "edge_figures", "esf_svg",
            "esf_svg_from_arrays", "lsf_svg", "lsf_svg_from_arrays", "mtf_svg", "mtf_svg_from_arrays"]
 
-_RC = {"svg.hashsalt": "orthospec-edge", "svg.fonttype": "none", "font.size": 9,
+_RC: dict[RcKeyType, Any] = {"svg.hashsalt": "orthospec-edge", "svg.fonttype": "none", "font.size": 9,
        "axes.grid": True, "grid.alpha": 0.3}
 _COLOURS = {"spline": "tab:red", "fermi": "tab:blue"}
 _MAX_POINTS = 4000
@@ -38,7 +43,7 @@ def _svg(fig: Figure) -> str:
     return buf.getvalue()
 
 
-def _figure() -> tuple[Figure, object]:
+def _figure() -> tuple[Figure, Axes]:
     with mpl.rc_context(_RC):
         fig = Figure(figsize=(6.0, 4.0), dpi=100)
         ax = fig.add_subplot(1, 1, 1)
@@ -170,14 +175,14 @@ class FitCurves:
     mtf_nyquist: float | None = None
 
 
-def _small() -> tuple[Figure, object]:
+def _small() -> tuple[Figure, Axes]:
     with mpl.rc_context(_RC):
         fig = Figure(figsize=_SMALL, dpi=100, layout="constrained")
         ax = fig.add_subplot(1, 1, 1)
     return fig, ax
 
 
-def _finite(*arrays: Sequence[float | None]) -> list[np.ndarray]:
+def _finite(*arrays: Sequence[float | None] | np.ndarray) -> list[np.ndarray]:
     """Float arrays (None -> NaN) restricted to the positions where all are finite."""
     arrs = [np.array([np.nan if v is None else v for v in a], dtype=float) for a in arrays]
     ok = np.logical_and.reduce([np.isfinite(a) for a in arrs]) if arrs else np.zeros(0, bool)
@@ -223,11 +228,11 @@ def esf_svg_from_arrays(d: Sequence[float], v: Sequence[float], fits: Sequence[F
         for f in fits:
             x, e = _finite(f.x, f.esf)
             ax.plot(x, e, "-", lw=1.2, color=_colour(f.fit), label=f"{f.fit} fit")
-        for x, name, align in ((dark_start_px, "dark start ", "right"),
+        for start, name, align in ((dark_start_px, "dark start ", "right"),
                                (bright_start_px, " bright start", "left")):
-            if x is not None:
-                ax.axvline(x, ls=":", lw=0.8, color="k")
-                ax.text(x, 1.03, name, fontsize=6, ha=align)
+            if start is not None:
+                ax.axvline(start, ls=":", lw=0.8, color="k")
+                ax.text(start, 1.03, name, fontsize=6, ha=align)
         if dd.size or fits:
             ax.legend(loc="lower right", fontsize=6.5)
         ax.set_ylim(-0.12, 1.14)  # room for the plateau-start labels

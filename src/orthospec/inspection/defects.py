@@ -53,7 +53,7 @@ def catalogue() -> Catalogue:
     raw = yaml.safe_load(path.read_text(encoding="utf-8"))
     if not isinstance(raw, dict) or raw.get("orthospec_inspection") != 1:
         raise SpecError("expected orthospec_inspection: 1", file=str(path))
-    defects = []
+    defects: list[DefectClass] = []
     for d in raw.get("defects") or []:
         code = str(d["code"])
         if not _CODE.match(code) or code in {x.code for x in defects}:

@@ -297,8 +297,8 @@ class Grid:
         if not state.bound and not gone:
             return GridVerdict("missing", f"inspection grid {self.path.name}: {state.reason}: its marks are not used")
         rows = self._rows.get(image_id, np.zeros(0, dtype=int))
-        cols = [self.codes.index(c) for c in codes]
-        hit = rows[self._marks[np.ix_(rows, cols)].any(axis=1)] if len(rows) and cols else rows[:0]
+        cols = np.array([self.codes.index(c) for c in codes], dtype=int)
+        hit = rows[self._marks[np.ix_(rows, cols)].any(axis=1)] if len(rows) and len(cols) else rows[:0]
         if len(hit):
             marked = self.cells.iloc[hit]
             shown = [_cell_text(r, codes) for r in marked.itertuples(index=False)]
@@ -409,7 +409,8 @@ def read_grid(path: str | Path, *, display: str, delivery_id: str, now: Mapping[
         df[f] = _flags(col[f], f, fid, display)
     geoms = shapely.from_wkb(geometry) if geometry is not None else np.full(n, None, dtype=object)
     df["area"] = [0.0 if g is None else float(g.area) for g in geoms]
-    df["bounds"] = [None if g is None else tuple(float(v) for v in g.bounds) for g in geoms]
+    df["bounds"] = pd.Series([None if g is None else tuple(float(v) for v in g.bounds) for g in geoms],
+                             index=df.index, dtype=object)
     images = _table_images(ivalues)
     states = _bind(images, now)
     _check_cells(df, geoms, images, states, size, now, display)
@@ -487,7 +488,8 @@ def _check_cells(df: pd.DataFrame, geoms: np.ndarray, images: dict[str, tuple[st
     present: dict[str, set[tuple[int, int]]] = {}
     budget = float(MAX_CELLS)
     seen: set[str] = set()
-    for i, r in enumerate(df.itertuples(index=False)):
+    rows: Iterable[Any] = df.itertuples(index=False)  # the columns' types are checked where the table is read
+    for i, r in enumerate(rows):
         fid = int(r.fid)
         if r.image_id not in images:
             raise _bad(display, fid, "image_id", f"cell {r.cell_id!r} names image {r.image_id!r}, which the grid did "

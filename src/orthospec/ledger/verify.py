@@ -223,7 +223,7 @@ def heads_in_file(path: Path) -> list[str]:
         from pypdf import PdfReader
 
         reader = PdfReader(io.BytesIO(data))
-        meta = reader.metadata or {}
+        meta: Mapping[str, Any] = reader.metadata or {}
         texts.append(str(meta.get("/Subject") or ""))
         texts.append((reader.pages[0].extract_text() or "") if reader.pages else "")
     else:

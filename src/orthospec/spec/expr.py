@@ -49,6 +49,7 @@ from typing import Any
 
 import numpy as np
 
+from ..dotted import dotted_name as _dotted
 from ..errors import ExpressionError
 
 _BIN: dict[type, Callable[[Any, Any], Any]] = {
@@ -81,17 +82,6 @@ MAX_EXPONENT = 64
 MAX_INT_BITS = 256
 MAX_STEPS = 10_000
 MAX_SECONDS = 5.0
-
-
-def _dotted(node: ast.AST) -> str | None:
-    parts: list[str] = []
-    while isinstance(node, ast.Attribute):
-        parts.append(node.attr)
-        node = node.value
-    if isinstance(node, ast.Name):
-        parts.append(node.id)
-        return ".".join(reversed(parts))
-    return None
 
 
 @dataclass(frozen=True)

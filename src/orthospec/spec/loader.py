@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING, Any, Union, get_args, get_origin
 from pydantic import BaseModel, ValidationError
 
 from ..errors import ExpressionError, SpecError, UnitError
-from ..resources import specs_dir
+from ..resources import shown, specs_dir
 from ..yamlio import Located, YamlError, load_text, read_regular
 from .changes import Weakening, weakened_fields, weakening_changes
 from .models import Parameter, Profile, Rule, RuleOverride
@@ -188,7 +188,7 @@ def _load_doc(path: Path) -> tuple[Located, str]:
             text = raw.decode("utf-8").replace("\r\n", "\n").replace("\r", "\n")
         except UnicodeDecodeError as exc:
             raise YamlError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
-        doc = load_text(text, str(path))
+        doc = load_text(text, shown(path))  # specs/NAME, not the install path
         if len(_DOCS) > 64:
             _DOCS.clear()
         _DOCS[key] = doc

@@ -131,8 +131,8 @@ def space_resection_blocks(ctx: ProviderContext) -> list[Measured]:
     imgs = d.table("images")
     counts: dict[str, list[int]] = {}
     if imgs is not None:
-        for b, row in zip(imgs.df["block"].astype(str), imgs.df["_row"].tolist(), strict=True):
-            counts.setdefault(b, []).append(int(row))
+        for block, row in zip(imgs.df["block"].astype(str), imgs.df["_row"].tolist(), strict=True):
+            counts.setdefault(block, []).append(int(row))
     vals: dict[str, Any] = {}
     notes: dict[str, str] = {}
     na: dict[str, str] = {}

@@ -104,18 +104,32 @@ def _scan(ctx: ProviderContext) -> dict[str, Any]:
     ids = t.ids.tolist()
     files = t.df["file"].astype(str).tolist()
     paths: dict[str, Path | OrthospecError] = {}
+    jailed: dict[str, Path] = {}  # file text -> its checked path: each distinct text checked once
     for i, f in zip(ids, files, strict=True):
+        if f in jailed:
+            paths[i] = jailed[f]
+            continue
         try:
-            paths[i] = d.path(f, what=f"images row for {i}")
+            paths[i] = jailed[f] = d.path(f, what=f"images row for {i}")
         except OrthospecError as exc:  # path escaping the delivery: an error for that image only
             paths[i] = exc
-    existing = {i: p for i, p in paths.items() if not isinstance(p, OrthospecError) and p.is_file()}
+    is_file = {f: p.is_file() for f, p in jailed.items()}
+    text = dict(zip(ids, files, strict=True))
+    existing = {i: p for i, p in paths.items() if not isinstance(p, OrthospecError) and is_file[text[i]]}
     scanned = list(existing)
+    # one scan per file: rows naming one file (a table padded with 10^5 rows) share its report
+    resolved: dict[str, Path] = {}  # path text -> the file it names (rows often repeat one text)
+    by_file: dict[Path, list[int]] = {}
+    for k, p in enumerate(existing.values()):
+        key = resolved.get(str(p)) or resolved.setdefault(str(p), p.resolve())
+        by_file.setdefault(key, []).append(k)
+    scan_paths = [existing[scanned[ks[0]]] for ks in by_file.values()]
+    scan_rows = list(by_file.values())
     product = d.manifest.product
     opts = ctx.options
     progress = make_progress() if opts.get("progress") else None
     workers = opts.get("workers")
-    if workers is None and sum(p.stat().st_size for p in existing.values()) < SMALL_DELIVERY_BYTES:
+    if workers is None and sum(p.stat().st_size for p in scan_paths) < SMALL_DELIVERY_BYTES:
         workers = 1  # process start-up costs more than it saves on a small delivery
     reported = {k: t.df[k].tolist() for k in DECLARED_COLUMNS if k in t.df.columns}
     if "gsd" in reported:  # in metres, like the pixel size it is compared with
@@ -135,27 +149,39 @@ def _scan(ctx: ProviderContext) -> dict[str, Any]:
     # to the delivery root, so qcr.json does not depend on where the delivery or the caller is
     root_prefix = f"{d.root}{os.sep}"
 
-    def collect(k: int, rep: ImageReport) -> None:
-        item = scanned[k]
+    def collect(k_file: int, rep: ImageReport) -> None:
+        # what depends on the file only is built once per file, then shared by the rows naming it
+        fact = None
+        if rep.facts is not None:
+            f = RasterFacts.from_dict(rep.facts)
+            wkt = f.crs_wkt if f.crs_wkt is None else wkts.setdefault(f.crs_wkt, f.crs_wkt)  # one copy per CRS
+            fact = replace(f, crs_wkt=wkt, path=Path(f.path).relative_to(d.root).as_posix()
+                           if f.path.startswith(root_prefix) else f.path)
+        radiometry = rep.radiometry or {}
+        thumb = radiometry.get("thumbnail")
+        pixel = {"hash": radiometry.get("pixels_hash"), "cell": radiometry.get("thumbnail_cell_px"),
+                 "thumb": None if thumb is None else np.array(
+                     [[np.nan if v is None else v for v in row] for row in thumb], dtype=np.float32)}
+        flat = rep.to_dict()
         if rep.sha256:
             d.remember_sha256(Path(rep.path).relative_to(d.root).as_posix(), rep.sha256)
+        for k in scan_rows[k_file]:
+            collect_row(k, rep, fact, pixel, flat)
+
+    def collect_row(k: int, rep: ImageReport, fact: RasterFacts | None, pixel: dict[str, Any],
+                    flat: dict[str, Any]) -> None:
+        item = scanned[k]
+        if rep.sha256:
             sha[item] = rep.sha256
         rep_reported = {}
         for key, column in reported.items():
             v = column[where[item]]
             if v is not None and not pd.isna(v):
                 rep_reported[key] = v
-        if rep.facts is not None:
-            f = RasterFacts.from_dict(rep.facts)
-            wkt = f.crs_wkt if f.crs_wkt is None else wkts.setdefault(f.crs_wkt, f.crs_wkt)  # one copy per CRS
-            facts[item] = replace(f, crs_wkt=wkt, path=Path(f.path).relative_to(d.root).as_posix()
-                                  if f.path.startswith(root_prefix) else f.path)
-        radiometry = rep.radiometry or {}
-        thumb = radiometry.get("thumbnail")
-        pixels[item] = {"hash": radiometry.get("pixels_hash"), "cell": radiometry.get("thumbnail_cell_px"),
-                        "thumb": None if thumb is None else np.array(
-                            [[np.nan if v is None else v for v in row] for row in thumb], dtype=np.float32)}
-        vals = _values(rep, rep_reported, declared)
+        if fact is not None:
+            facts[item] = fact
+        pixels[item] = pixel
+        vals = _values(rep, rep_reported, declared, flat)
         for name, text in _value_notes(rep, rep_reported, declared, vals).items():
             notes.setdefault(name, {})[item] = text
         if rep.error is not None:
@@ -165,14 +191,14 @@ def _scan(ctx: ProviderContext) -> dict[str, Any]:
         rows[k] = tuple(vals.get(n) for n in IMAGE_MEASURES)
 
     scan_images(
-        [str(p) for p in existing.values()], workers=workers or None,
+        [str(p) for p in scan_paths], workers=workers or None,
         scheduler=opts.get("scheduler"), cache_dir=opts.get("cache_dir"), bit_depth=product.bit_depth,
         progress=progress, expect_epsg=_epsg(ctx.parameters.get("map_crs")), expect_gsd=gsd, on_report=collect,
     )
     absent = [i for i in ids if i not in existing]
     for i in absent:
-        p = paths[i]
-        errors[i] = (str(p) if isinstance(p, OrthospecError) else
+        listed = paths[i]
+        errors[i] = (str(listed) if isinstance(listed, OrthospecError) else
                      f"{files[where[i]]}: listed in {t.file} but not found in the delivery")
         rows.append(tuple(False if n in ("raster.exists", "raster.readable") else None
                           for n in IMAGE_MEASURES))
@@ -184,7 +210,7 @@ def _scan(ctx: ProviderContext) -> dict[str, Any]:
                      if p.is_file() and p.suffix.lower() in _IMAGE_EXT)
     listing = listing_consistency(files, on_disk)
     ctx.memo["rasters"] = {"frame": frame, "errors": errors, "sha256": sha, "paths": paths,
-                           "rows": dict(zip(ids, t.df["_row"], strict=True)), "table": t,
+                           "rows": dict(zip(ids, t.df["_row"], strict=True)), "table": t, "resolved": resolved,
                            "listing": listing, "facts": facts, "pixels": pixels, "notes": notes}
     return ctx.memo["rasters"]
 
@@ -226,7 +252,7 @@ def _value_notes(rep: ImageReport, reported: dict[str, Any], declared: dict[str,
     said = reported.get("gsd", declared.get("gsd"))
     source = "images.gsd" if "gsd" in reported else "delivery.yaml product.gsd"
     if vals.get("raster.gsd_declared_diff") is not None:
-        px = " x ".join(f"{v * metres:.6g}" for v in size)
+        px = " x ".join(f"{v * metres:.6g}" for v in size or ())
         out["raster.gsd_declared_diff"] = f"declared {said:.6g} m ({source}), the file's pixel is {px} m"
     elif size and not metres:
         out["raster.gsd_declared_diff"] = f"the file's CRS has no length unit ({facts.get('pixel_unit')}): no pixel size in metres"
@@ -280,8 +306,9 @@ def _saturation_low(d: dict[str, Any], low_nodata: dict[str, Any] | None) -> flo
     return max([v for v in (worst, *told) if v is not None], default=None)
 
 
-def _values(rep: ImageReport, reported: dict[str, Any], declared: dict[str, Any]) -> dict[str, Any]:
-    d = rep.to_dict()
+def _values(rep: ImageReport, reported: dict[str, Any], declared: dict[str, Any],
+            flat: dict[str, Any] | None = None) -> dict[str, Any]:
+    d = rep.to_dict() if flat is None else flat
     gsd = declared.get("gsd")
     bands = (rep.radiometry or {}).get("bands", [])
     mean, std = _pooled(bands)
@@ -372,13 +399,73 @@ def raster_measures(ctx: ProviderContext) -> list[Measured]:
     return out
 
 
-def _shared(ids: list[str], key: dict[str, Any]) -> dict[str, list[str]]:
-    """item -> the other items with the same key (same file, or same content)."""
-    groups: dict[Any, list[str]] = {}
+#: names a note lists of the other rows sharing a file or a content; the rest are counted
+NAMES_SHOWN = 5
+
+
+def _names(shown: list[str], total: int) -> str:
+    return ", ".join(shown) + (f" and {total - len(shown)} more" if total > len(shown) else "")
+
+
+def _sharing(ids: list[str], files: dict[str, str], file_key: dict[str, Any], sha: dict[str, str],
+             ) -> dict[str, list[str]]:
+    """item -> why its row is not its own file: the other rows naming the same file, the rows whose
+    file has the same content (SHA-256), each list capped at NAMES_SHOWN names and counted.
+
+    Linear in the rows: rows are grouped once by file and by content, and each row's note is drawn
+    from its groups' first members (a group of 10^5 rows naming one file costs 10^5, not 10^10).
+    """
+    by_file: dict[Any, list[str]] = {}
+    by_sha: dict[str, dict[Any, list[str]]] = {}  # content -> file -> rows, in table order
     for i in ids:
-        if key.get(i) is not None:
-            groups.setdefault(key[i], []).append(i)
-    return {i: [j for j in g if j != i] for g in groups.values() if len(g) > 1 for i in g}
+        k = file_key.get(i)
+        if k is not None:
+            by_file.setdefault(k, []).append(i)
+        if sha.get(i) is not None:
+            by_sha.setdefault(sha[i], {}).setdefault(k, []).append(i)
+    why: dict[str, list[str]] = {}
+    for i in ids:
+        k = file_key.get(i)
+        reasons = []
+        same = by_file.get(k, []) if k is not None else []
+        if len(same) > 1:
+            shown = [j for j in same[:NAMES_SHOWN + 1] if j != i][:NAMES_SHOWN]
+            reasons.append(f"names the same file {files[i]} as image(s) {_names(shown, len(same) - 1)}")
+        digest = sha.get(i)
+        if digest is not None:
+            groups = by_sha[digest]
+            total = sum(len(g) for g in groups.values()) - len(groups.get(k, []))
+            if total:
+                shown = []
+                for other, rows in groups.items():  # at most NAMES_SHOWN + 1 groups are visited
+                    if other == k:
+                        continue
+                    shown.extend(rows[:NAMES_SHOWN - len(shown)])
+                    if len(shown) == NAMES_SHOWN:
+                        break
+                reasons.append(f"its file {files[i]} has the same content (SHA-256 {digest}) as the file of "
+                               f"image(s) {_names([f'{j} ({files[j]})' for j in shown], total)}")
+        if reasons:
+            why[i] = reasons
+    return why
+
+
+def _unique_prefix(got: dict[str, Any]) -> tuple[list[str], dict[str, str], dict[str, Any],
+                                                   dict[str, tuple[Evidence, ...]], dict[str, list[str]]]:
+    """What file_unique and content_unique share: rows, files, file keys, evidence, same-file/content notes."""
+    t = got["table"]
+    ids = [str(i) for i in t.ids.tolist()]
+    resolved: dict[str, Path] = got["resolved"]
+    file_key = {str(i): resolved.get(str(p)) or resolved.setdefault(str(p), p.resolve())
+                for i, p in got["paths"].items() if isinstance(p, Path)}
+    files = dict(zip(ids, t.df["file"].astype(str).tolist(), strict=True))
+    sha: dict[str, str] = got["sha256"]
+    evidence: dict[str, tuple[Evidence, ...]] = {}
+    for i in ids:
+        listed = Evidence(t.file, t.sha256, (int(got["rows"][i]),))
+        digest = sha.get(i)
+        evidence[i] = (listed,) + ((Evidence(files[i], digest, ()),) if digest else ())
+    return ids, files, file_key, evidence, _sharing(ids, files, file_key, sha)
 
 
 @provider(scope="image", measures=DUPLICATE_MEASURES)
@@ -395,26 +482,12 @@ def duplicate_measures(ctx: ProviderContext) -> list[Measured]:
     if "missing" in got:
         return [Measured(n, "image", u, pd.Series(dtype=object), pd.Series(dtype=object),
                          notes=pd.Series({"*": got["missing"]}, dtype=object)) for n, u in DUPLICATE_MEASURES.items()]
-    t = got["table"]
-    ids = [str(i) for i in t.ids.tolist()]
-    paths = {str(i): p for i, p in got["paths"].items() if isinstance(p, Path)}
-    same_file = _shared(ids, {i: p.resolve() for i, p in paths.items()})
-    same_sha = _shared(ids, got["sha256"])
-    files = dict(zip(ids, t.df["file"].astype(str).tolist(), strict=True))
+    ids, files, _, evidence, sharing = _unique_prefix(got)
     values: dict[str, bool | None] = {}
     notes: dict[str, str] = {}
-    evidence: dict[str, tuple[Evidence, ...]] = {}
     for i in ids:
-        listed = Evidence(t.file, t.sha256, (int(got["rows"][i]),))
         digest = got["sha256"].get(i)
-        evidence[i] = (listed,) + ((Evidence(files[i], digest, ()),) if digest else ())
-        why = []
-        if same_file.get(i):
-            why.append(f"names the same file {files[i]} as image(s) {', '.join(same_file[i])}")
-        others = [j for j in same_sha.get(i, []) if j not in same_file.get(i, [])]
-        if others:
-            why.append(f"its file {files[i]} has the same content (SHA-256 {digest}) as the file of image(s) "
-                       + ", ".join(f"{j} ({files[j]})" for j in others))
+        why = sharing.get(i, [])
         if why:
             values[i] = False
             notes[i] = "; ".join(why)
@@ -473,42 +546,41 @@ def content_measures(ctx: ProviderContext) -> list[Measured]:
     if "missing" in got:
         return [Measured(n, "image", u, pd.Series(dtype=object), pd.Series(dtype=object),
                          notes=pd.Series({"*": got["missing"]}, dtype=object)) for n, u in CONTENT_MEASURES.items()]
-    t = got["table"]
-    ids = [str(i) for i in t.ids.tolist()]
-    paths = {str(i): p for i, p in got["paths"].items() if isinstance(p, Path)}
-    same_file = _shared(ids, {i: p.resolve() for i, p in paths.items()})
-    same_sha = _shared(ids, got["sha256"])
-    files = dict(zip(ids, t.df["file"].astype(str).tolist(), strict=True))
+    ids, files, file_key, evidence, sharing = _unique_prefix(got)
+    sha: dict[str, str] = got["sha256"]
     facts: dict[str, RasterFacts] = got["facts"]
     pixels: dict[str, dict[str, Any]] = got["pixels"]
     contents = []
+    seen: set[str] = set()
     for i in ids:
         px, f = pixels.get(i), facts.get(i)
         if px is None or f is None or i in got["errors"]:
             continue
+        if sha.get(i) in seen:  # one file content compared once: its other rows are flagged above
+            continue
+        if sha.get(i) is not None:
+            seen.add(sha[i])
         contents.append(Content(i, px["hash"], px["thumb"], px["cell"], f.count, f.bounds, f.pixel_size, f.crs_name))
     copies = find_copies(contents, min_correlation=_number(ctx, "copy_correlation_min", 0.99))
+    first = {}  # content -> the row compared for it
+    for c in contents:
+        if sha.get(c.id) is not None:
+            first[sha[c.id]] = c.id
     cells = {i: (pixels.get(i) or {}).get("cell") for i in ids}
     values: dict[str, bool | None] = {}
     notes: dict[str, str] = {}
-    evidence: dict[str, tuple[Evidence, ...]] = {}
     for i in ids:
-        listed = Evidence(t.file, t.sha256, (int(got["rows"][i]),))
-        digest = got["sha256"].get(i)
-        evidence[i] = (listed,) + ((Evidence(files[i], digest, ()),) if digest else ())
-        why = []
-        if same_file.get(i):
-            why.append(f"names the same file {files[i]} as image(s) {', '.join(same_file[i])}")
-        others = [j for j in same_sha.get(i, []) if j not in same_file.get(i, [])]
-        if others:
-            why.append(f"its file {files[i]} has the same content (SHA-256 {digest}) as the file of image(s) "
-                       + ", ".join(f"{j} ({files[j]})" for j in others))
-        known = set(same_file.get(i, [])) | set(others)
-        matches = [m for m in copies.get(i, []) if m.other not in known]
+        why = list(sharing.get(i, []))
+        compared = first.get(sha[i], i) if sha.get(i) is not None else i
+
+        def known(j: str, i: str = i) -> bool:  # already named as the same file or the same content
+            return (file_key.get(j) is not None and file_key.get(j) == file_key.get(i)) or \
+                (sha.get(j) is not None and sha.get(j) == sha.get(i))
+        matches = [m for m in copies.get(compared, []) if not known(m.other)]
         if matches:
-            shown = matches[:5]
+            shown = matches[:NAMES_SHOWN]
             why.append("its pixels are a copy of image(s) " + "; ".join(m.describe(cells.get(i)) for m in shown)
-                       + (f"; and {len(matches) - 5} more" if len(matches) > 5 else ""))
+                       + (f"; and {len(matches) - NAMES_SHOWN} more" if len(matches) > NAMES_SHOWN else ""))
         if why:
             values[i] = False
             notes[i] = "; ".join(why)

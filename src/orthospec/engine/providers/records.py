@@ -103,7 +103,9 @@ def gsd_from_height(ctx: ProviderContext) -> list[Measured]:
     if flights is not None:
         cam_of_flight = dict(zip(flights.ids, flights.df["camera_id"].astype(str), strict=True))
     df = imgs.df
-    vals, ev, notes = {}, {}, {}
+    vals: dict[str, float | None] = {}
+    ev: dict[str, tuple[Evidence, ...]] = {}
+    notes: dict[str, str] = {}
     only = cdf.index[0] if len(cdf) == 1 else None
     for iid, row, h, fl in zip(imgs.ids, df["_row"], df.get("flying_height", pd.Series([np.nan] * len(df))),
                                df.get("flight_id", pd.Series([None] * len(df))), strict=True):
