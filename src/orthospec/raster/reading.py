@@ -1041,17 +1041,37 @@ def readable_vector(path: str | Path, *, name: str | None = None) -> Iterator[tu
         yield str(local), driver
 
 
-def read_vector(path: str | Path, *, name: str | None = None) -> tuple[list[Any], str | None]:
-    """Geometries (shapely) and CRS (WKT/authority string) of a vector file, with pyogrio."""
+#: Features read at once by :func:`read_vector`: the WKB of one batch is in memory beside the
+#: geometries already made, never the whole layer's (a 150,000-polygon seamline layer).
+VECTOR_BATCH = 20_000
+
+
+def read_vector(path: str | Path, *, name: str | None = None,
+                batch: int = VECTOR_BATCH) -> tuple[list[Any], str | None]:
+    """Geometries (shapely) and CRS (WKT/authority string) of a vector file, with pyogrio, read in
+    batches of ``batch`` features (no attribute columns: only the geometries are measured)."""
     import pyogrio
     import shapely
 
     label = name or str(path)
+    geoms: list[Any] = []
+    crs = None
     with readable_vector(path, name=label) as (local, _driver), gdal_errors(
             file=label, path=local, what="vector file"):
-        meta, _fids, geometry, _fields = pyogrio.raw.read(local)
-        geoms = [] if geometry is None else list(shapely.from_wkb(geometry))
-    return [g for g in geoms if g is not None], meta.get("crs")
+        total = pyogrio.read_info(local).get("features", -1)
+        skip = 0
+        while True:
+            meta, _fids, geometry, _fields = pyogrio.raw.read(
+                local, columns=[], skip_features=skip, max_features=batch)
+            crs = meta.get("crs")
+            n = 0 if geometry is None else len(geometry)
+            if n:
+                geoms.extend(g for g in shapely.from_wkb(geometry) if g is not None)
+            del geometry
+            skip += n
+            if n < batch or (total >= 0 and skip >= total):
+                break
+    return geoms, crs
 
 
 @dataclass(frozen=True)
