@@ -41,6 +41,7 @@ rules:
   - id: R-ROLL
     override: true
     level: recommended
+    justification: "ITT §4: roll is advisory"
 """)
     (tmp_path / "mini.yaml").write_text(mini_profile.read_text())
     res = run("spec", "diff", tmp_path / "mini.yaml", tender)

@@ -76,7 +76,9 @@ def test_cli_param_overrides_and_unit_conversion(make_delivery, mini_profile):
     doc = check(make_delivery(), mini_profile, date="2026-01-01",
                 params=["max_roll=0.6deg", "tolerance_xy=0.5m"]).document
     assert recs(doc, "R-ROLL")["I2"]["verdict"] == "fail"
-    assert doc["profile"]["parameters"]["max_roll"] == {"value": 0.6, "unit": "deg", "source": "cli"}
+    # the profile's own value is recorded beside the one in force (issue 26: page 1 prints both)
+    assert doc["profile"]["parameters"]["max_roll"] == {"value": 0.6, "unit": "deg", "source": "cli",
+                                                        "profile_value": 3.0}
     # the manifest's declared 0.5 m is evidence only: the value in force is the checker's --param
     assert doc["profile"]["parameters"]["tolerance_xy"]["source"] == "cli"
 

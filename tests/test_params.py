@@ -18,6 +18,7 @@ from click.testing import CliRunner
 from orthospec.cli.main import cli, main
 from orthospec.delivery.reader import open_delivery
 from orthospec.engine.params import SOURCES, ParameterError, ParamValue, resolve_parameters
+from orthospec.errors import SpecError
 from orthospec.spec.loader import load_profile
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -132,8 +133,12 @@ def test_the_checker_file_states_an_itt_parameter(tmp_path):
     assert resolve_parameters(jrc(), declared(d), {**ITT, "tolerance_xy": "0.4"}, checker=chk)["tolerance_xy"].source == "cli"
     prof = load_profile(ROOT / "examples" / "specs" / "tender-example.yaml")  # ITT §4.1: 0.5 m
     assert (resolve_parameters(prof, {}, {})["tolerance_xy"].source) == "tender"
-    w = resolve_parameters(prof, {}, {}, checker=_checker(tmp_path, "{tolerance_xy: 40 cm}", "c2.yaml"))
-    assert (w["tolerance_xy"].value, w["tolerance_xy"].source) == (0.4, "checker")
+    # the tender's value is the contract (issue 26): the checker's file cannot replace it ...
+    with pytest.raises(ParameterError, match=r"c2.yaml:4: parameters.tolerance_xy: 0.4 m differs from 0.5 m"):
+        resolve_parameters(prof, {}, {}, checker=_checker(tmp_path, "{tolerance_xy: 40 cm}", "c2.yaml"))
+    # ... but states it again freely (50 cm is the tender's 0.5 m)
+    same = resolve_parameters(prof, {}, {}, checker=_checker(tmp_path, "{tolerance_xy: 50 cm}", "c3.yaml"))
+    assert (same["tolerance_xy"].value, same["tolerance_xy"].source) == (0.5, "checker")
 
 
 @pytest.mark.parametrize("parameters, match", [
@@ -314,10 +319,13 @@ def test_map_crs_from_the_checker_file_and_a_tender_profile(tmp_path):
     prof = load_profile(ROOT / "examples" / "specs" / "tender-example.yaml")
     assert (resolve_parameters(prof, {}, {})["map_crs"].source, resolve_parameters(prof, {}, {})["map_crs"].value) \
         == ("tender", "EPSG:25832")
-    # the checker's file wins over the tender profile, --param over both
-    both = resolve_parameters(prof, {}, {}, checker=chk)["map_crs"]
-    assert (both.value, both.source) == ("EPSG:25833", "checker")
-    assert resolve_parameters(prof, {}, {"map_crs": "EPSG:3035"}, checker=chk)["map_crs"].value == "EPSG:3035"
+    # the tender's map projection is the contract: another one from the checker's side stops the run,
+    # the same CRS however written passes
+    with pytest.raises(ParameterError, match=r"parameters.map_crs: EPSG:25833 differs from EPSG:25832"):
+        resolve_parameters(prof, {}, {}, checker=chk)
+    with pytest.raises(ParameterError, match=r"--param map_crs=EPSG:3035: EPSG:3035 differs from EPSG:25832"):
+        resolve_parameters(prof, {}, {"map_crs": "EPSG:3035"})
+    assert resolve_parameters(prof, {}, {"map_crs": "epsg:25832"})["map_crs"].value == "EPSG:25832"
 
 
 @pytest.mark.parametrize("text, why", [
@@ -334,8 +342,9 @@ def test_a_map_crs_pyproj_cannot_name_stops_the_run_naming_its_source(tmp_path, 
     f = tmp_path / "t.yaml"
     f.write_text(TENDER_UNSET.format(when="").replace('map_crs: {value: "EPSG:25832"}',
                                                         f"map_crs: {{value: '{text}'}}"))
-    with pytest.raises(ParameterError, match=r"t.yaml:9: parameter map_crs: .*" + re.escape(why)):
-        resolve_parameters(load_profile(f), {}, {"tolerance_z": "1"})
+    # a tender profile's map projection is read when the profile is validated (issue 26)
+    with pytest.raises(SpecError, match=r"t.yaml:9:\d+: parameter map_crs: .*" + re.escape(why)):
+        load_profile(f)
 
 
 def test_a_declared_map_crs_is_compared_as_a_crs(tmp_path):

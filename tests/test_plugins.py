@@ -157,3 +157,14 @@ parameters:
     bare = subprocess.run([sys.executable, "-m", "orthospec.cli.main", "spec", "validate", str(tender)],
                           capture_output=True, text=True, timeout=300, env={**os.environ, "ORTHOSPEC_CACHE_DIR": "off"})
     assert bare.returncode == 2 and "unknown profile 'example-agency'" in bare.stderr + bare.stdout
+
+
+def test_a_file_cannot_claim_the_id_of_a_profile_a_plugin_installs(site: Path, tmp_path: Path) -> None:
+    """Issue 25 item 7: ids are reserved for the profiles shipped or installed by a plugin."""
+    fake = tmp_path / "agency.yaml"
+    fake.write_text("orthospec_profile: 1\nid: example-agency\nversion: 1.0.0\ntitle: not the agency's\n"
+                    "source: {title: x}\nextends: {id: jrc-v3, version: 3.0.0}\n", encoding="utf-8")
+    res = orthospec(site, "spec", "validate", str(fake))
+    assert res.returncode == 2, res.stdout + res.stderr
+    assert "agency.yaml:2:5: id 'example-agency' is reserved" in res.stderr
+    assert "installed by a plugin" in res.stderr

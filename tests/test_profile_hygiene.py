@@ -242,7 +242,8 @@ def test_an_alias_bomb_next_to_the_tender_is_never_parsed(tmp_path):
 
 def test_a_profile_without_mandatory_rules_is_refused_unless_it_says_so(tmp_path):
     removes = "remove_rules: [" + ", ".join(
-        r.id for r in load_profile("jrc-v3").rules if r.level == "mandatory") + "]\n"
+        f"{{id: {r.id}, justification: 'ITT 1: informative only'}}"
+        for r in load_profile("jrc-v3").rules if r.level == "mandatory") + "]\n"
     code, out = validate(tmp_path, HEAD + removes)
     assert code == 2 and "no mandatory rule" in out and "allow_no_mandatory" in out
     code, out = validate(tmp_path, HEAD + "allow_no_mandatory: true\n" + removes)

@@ -72,14 +72,18 @@ extends: {id: base, version: 1.0.0}
 allow_no_mandatory: true  # the only rule left is made recommended
 parameters:
   tol: {value: 1.0, justification: "ITT 4.1 tightens the tolerance"}
-remove_rules: [B]
+remove_rules: [{id: B, justification: "ITT 2.1: no Y accuracy is contracted"}]
 rules:
   - id: A
     override: true
     level: recommended
+    justification: "ITT 4.2: X accuracy is advisory"
 """)
     p = load_profile(child)
     assert [r.id for r in p.rules] == ["A"]
+    assert [(w.id, w.changes, w.justification) for w in p.weakened] == [
+        ("B", ("removed",), "ITT 2.1: no Y accuracy is contracted"),
+        ("A", ("level mandatory -> recommended",), "ITT 4.2: X accuracy is advisory")]
     assert p.rule("A").level == "recommended"
     assert p.rule("A").requirement.op == "<="  # inherited keys kept
     assert p.parameters["tol"].value == 1.0 and p.parameters["tol"].unit == "m"

@@ -946,6 +946,8 @@ def build_document(ev: Evaluation, *, date: str, operator: str | None = None,
             "source": p.source.model_dump(mode="json", exclude_none=True),
             "extends": [{"id": c[0], "version": c[1]} for c in p.chain[1:]],
             "parameters": {k: v.to_dict() for k, v in sorted(ev.parameters.items())},
+            # mandatory rules of the standard the tender removed or weakened, with its justification
+            **({"weakened": [w.to_dict() for w in p.weakened]} if getattr(p, "weakened", ()) else {}),
         },
         "delivery": {
             "id": d.id,

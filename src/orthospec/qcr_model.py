@@ -222,6 +222,9 @@ class ProfileRef(_Open):
     source: dict[str, Any] | None = None
     extends: list[dict[str, str]] = []
     parameters: dict[str, dict[str, Any]]
+    weakened: list[dict[str, Any]] = Field([], description=(
+        "Mandatory rules of the extended standard that this (tender) profile removed or made check less, "
+        "each with its changes and justification (spec/changes.py)."))
 
 
 class DeliveredFile(_Open):

@@ -266,6 +266,72 @@ def check_unit(name: str | None) -> None:
     unit_signature(name)
 
 
+def same_value(a: Any, b: Any) -> bool:
+    """Two values of one parameter, in one unit, are the same contract value: numbers to 1e-9
+    relative (50 cm read as 0.5 m), booleans by identity, anything else as text."""
+    if isinstance(a, bool) or isinstance(b, bool):
+        return a is b
+    if isinstance(a, int | float) and isinstance(b, int | float):
+        return math.isclose(float(a), float(b), rel_tol=1e-9, abs_tol=0.0)
+    return str(a) == str(b)
+
+
+# --- the spellings a profile may write -------------------------------------------------------------
+# A profile is a contract: one spelling per unit, so the annex, `spec diff` and the QCR print what
+# the author wrote and a threshold is never a formula because `meters` is not `m`. pint reads far
+# more (`M` is molar, `metres` works), which is right for delivery tables and --param and wrong for
+# a contract document. Deliveries and the checker's file keep pint's reading (parse_unit).
+
+#: every unit a profile's parameters, requirements, classes and lookup tables may name
+PROFILE_UNITS: tuple[str, ...] = ("m", "cm", "mm", "µm", "um", "km", "ft", "usft", "px", "%", "deg", "DN",
+                                  "s", "h", "day", "year", "1")
+#: common other spellings -> the profile spelling (checked before any fuzzy match)
+_PROFILE_SPELLING = {
+    "meter": "m", "meters": "m", "metre": "m", "metres": "m", "M": "m", "mtr": "m",
+    "millimeter": "mm", "millimeters": "mm", "millimetre": "mm", "millimetres": "mm", "MM": "mm",
+    "centimeter": "cm", "centimeters": "cm", "centimetre": "cm", "centimetres": "cm",
+    "kilometer": "km", "kilometers": "km", "kilometre": "km", "kilometres": "km", "KM": "km", "Km": "km",
+    "micrometer": "µm", "micrometers": "µm", "micrometre": "µm", "micrometres": "µm", "μm": "µm",
+    "micron": "µm", "microns": "µm",
+    "foot": "ft", "feet": "ft", "us-ft": "usft", "ftUS": "usft", "us_ft": "usft", "US_survey_foot": "usft",
+    "pixel": "px", "pixels": "px", "pix": "px",
+    "percent": "%", "pct": "%", "per cent": "%", "percentage": "%",
+    "degree": "deg", "degrees": "deg", "°": "deg",
+    "dn": "DN", "GL": "DN", "grey_level": "DN", "digital number": "DN",
+    "second": "s", "seconds": "s", "sec": "s", "hour": "h", "hours": "h", "days": "day",
+    "years": "year", "yr": "year",
+    "": "1", "count": "1", "ratio": "1", "dimensionless": "1", "number": "1",
+    "string": "text", "str": "text", "boolean": "bool", "logical": "bool",
+}
+
+
+def profile_unit_problem(name: Any) -> str | None:
+    """Why ``name`` is not a unit a profile may write (None when it is), with the spelling to use.
+
+    One message per mistake: ``unit 'metres': write 'm' (a profile spells units m, mm, ...)``.
+    """
+    if name is None:
+        return None
+    if not isinstance(name, str):
+        return f"unit {name!r} must be text such as 'm' or '1' (quote '1' and '%')"
+    key = name.strip()
+    if key in PROFILE_UNITS or key in NON_NUMERIC:
+        return None
+    allowed = ", ".join(PROFILE_UNITS) + " (numbers); text, bool, date"
+    fix = _PROFILE_SPELLING.get(key) or _PROFILE_SPELLING.get(key.lower())
+    if fix is None:
+        lower = {u.lower(): u for u in (*PROFILE_UNITS, *NON_NUMERIC)}
+        fix = lower.get(key.lower())
+    if fix is None:
+        import difflib
+
+        near = difflib.get_close_matches(key, [*PROFILE_UNITS, *NON_NUMERIC], n=1, cutoff=0.7)
+        fix = near[0] if near else None
+    if fix is not None:
+        return f"unit {name!r}: write {fix!r} (a profile spells its units {allowed})"
+    return f"unknown unit {name!r}: a profile spells its units {allowed}"
+
+
 def _dims_meet(a: Dims, b: Dims) -> bool:
     if a == b:
         return True

@@ -137,6 +137,9 @@ def diff_cmd(a: str, b: str, as_json: bool, show_all: bool) -> None:
     if warning:
         click.echo(warning, err=True)
     click.echo(f"{d['a']} -> {d['b']}")
+    for w in d["weakened"]:
+        why = w["justification"] or "no justification recorded"
+        click.echo(f"! mandatory rule {w['id']} checks less: {'; '.join(w['changes'])} (justification: {why})")
 
     def eff(p: object, name: str) -> str:
         par = p.parameters.get(name)  # type: ignore[attr-defined]
@@ -213,6 +216,10 @@ def explain_cmd(rule_id: str, profile: str) -> None:
         c.print(f"audit:       {escape(str(r.audit.model_dump(exclude_none=True)))}")
     if r.note:
         c.print(f"note:        {escape(r.note)}")
+    for w in p.weakened:  # a mandatory rule of the standard this tender made check less
+        if w.id == r.id:
+            c.print(f"[yellow]weakened:[/]    {escape('; '.join(w.changes))} by {escape(w.profile)} "
+                    f"(justification: {escape(w.justification or 'none recorded')})")
     c.print(f"evidence:    {escape(_evidence_hint(r.measure))}")
 
 
@@ -230,7 +237,7 @@ def _evidence_hint(measure: str) -> str:
         return "the image files listed in tables.images (read with rasterio)"
     if head == "rollup":
         return "the verdicts of the item-level rules of this run"
-    return "computed from the delivery by the measure provider"
+    return "computed from the delivered files and tables"
 
 
 @main.command("measures")

@@ -89,22 +89,25 @@ def report_cmd(qcr_json: Path | None, formats: str, out_dir: Path | None, ledger
 @click.argument("profile")
 @click.option("--format", "formats", default="pdf,html,md", show_default=True,
               help="Comma-separated: " + ", ".join(ANNEX_FORMATS) + ".")
-@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), default=Path("."),
-              show_default=True, help="Folder for annex-<id>-<version>.<format>.")
+@click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), default=None,
+              help="Folder for annex-<id>-<version>.<format> (default: reports/annex/ under the current folder, "
+                   "or under the root of the orthospec checkout it is in; refused inside a delivery).")
 @click.option("--date", "day", metavar="YYYY-MM-DD", default=None,
               help="Date printed on the annex (default today); fix it for byte-identical output.")
 @click.option("--sensor", type=click.Choice(["aerial", "satellite"]), default=None,
               help="The tender's sensor (default: read from the profile's own sensor rules); requirements "
                    "that cannot apply to it move to an appendix.")
-def render_cmd(profile: str, formats: str, out_dir: Path, day: str | None, sensor: str | None) -> None:
+def render_cmd(profile: str, formats: str, out_dir: Path | None, day: str | None, sensor: str | None) -> None:
     """Render PROFILE as the technical-specification annex of an invitation to tender.
 
     Example: orthospec spec render examples/specs/tender-example.yaml --format md,pdf --out annex/
     """
-    from ..reports.annex import render_annex
+    from ..reports.annex import default_out_dir, render_annex
     from ..spec.loader import load_profile
 
     fmts = split_formats(formats, ANNEX_FORMATS)
+    if out_dir is None:
+        out_dir = default_out_dir()
     if day is not None:
         try:
             Date.fromisoformat(day)

@@ -19,9 +19,16 @@ from typing import TYPE_CHECKING, Any, Literal
 from .. import units
 from ..errors import ExpressionError, OrthospecError, UnitError
 from ..spec import expr
-from ..spec.loader import ResolvedProfile, params_named
+from ..spec.loader import ResolvedProfile, param_location, params_named
 from ..spec.models import Parameter
-from ..units import NON_NUMERIC, canonical, number_problem, parse_number_text, parse_unit
+from ..units import (
+    NON_NUMERIC,
+    canonical,
+    number_problem,
+    parse_number_text,
+    parse_unit,
+    same_value,
+)
 
 if TYPE_CHECKING:
     from ..delivery.checker import Checker
@@ -48,6 +55,16 @@ class ParamValue:
     justification: str | None = None
     #: why a declared value could not be read, or was not used
     note: str | None = None
+    #: the profile's own value (the tender's, else the standard's default) when --param or the
+    #: checker's file set this one; None when the profile leaves the parameter open
+    profile_value: Any = None
+
+    @property
+    def differs(self) -> bool:
+        """The value in force is not the profile's: set by --param or the checker's file to another
+        value, or to one the profile leaves open (printed on page 1 and in the terminal header)."""
+        return self.source in ("cli", "checker") and self.value is not None and (
+            self.profile_value is None or not same_value(self.value, self.profile_value))
 
     def quantity(self) -> Any:
         if self.unit in NON_NUMERIC or not isinstance(self.value, int | float) or isinstance(self.value, bool):
@@ -62,7 +79,33 @@ class ParamValue:
             out["justification"] = self.justification
         if self.note:
             out["note"] = self.note
+        if self.profile_value is not None:
+            out["profile_value"] = self.profile_value
         return out
+
+
+def _shown(v: Any, unit: str) -> str:
+    text = f"{v:g}" if isinstance(v, float) else str(v)
+    return f"{text} {unit}" if unit and unit not in ("1", *NON_NUMERIC) else text
+
+
+def _refuse_against_contract(name: str, p: Parameter, val: Any, src: str, own: Any, unit: str,
+                             profile: ResolvedProfile, checker: Checker | None, cli: Mapping[str, str]) -> None:
+    """A tender's value is the contract (issue 26): --param or the checker's file may replace it only
+    where the tender marks the parameter ``checker_may_set: true``. A standard profile checked on its
+    own has no tender: there the checker's value is allowed (and printed beside the profile's)."""
+    if len(profile.chain) < 2 or p.checker_may_set:
+        return
+    if src == "cli":
+        where = f"--param {name}={cli[name]}"
+    else:
+        where = f"checker file {checker.at('parameters', name) if checker else ''}: parameters.{name}"
+    at = param_location(profile, name, "value" if p.value is not None else "default")
+    raise ParameterError(
+        f"{where}: {_shown(val, unit)} differs from {_shown(own, unit)}, the value tender profile {profile.id} "
+        f"{profile.version} fixes for {name} ({at}); the contract wins: the checker's side may replace a "
+        f"tender's value only where the tender marks the parameter `checker_may_set: true`. Check with the "
+        f"tender's value, or publish a new tender version")
 
 
 def parse_cli_params(items: tuple[str, ...] | list[str]) -> dict[str, str]:
@@ -205,18 +248,20 @@ def resolve_parameters(profile: ResolvedProfile, delivery_params: Mapping[str, A
         # the checker's value is read even when --param wins: a bad entry is never silently ignored
         stated = (_from_checker(name, from_checker[name], p, checker)
                   if name in from_checker and checker is not None else None)
+        own: Any = None  # the profile's own value (a tender's value, else the standard's default)
+        own_src = "unset"
+        if p.value is not None:
+            own, own_src = _from_profile(name, p.value, p, profile), "tender"
+        elif p.default is not None:
+            own, own_src = _from_profile(name, p.default, p, profile), "standard"
         if name in cli:
             val, src = _from_cli(name, cli[name], p), "cli"
         elif stated is not None:
             val, src = stated, "checker"
-        elif p.value is not None:
-            val, src = _from_profile(name, p.value, p, profile), "tender"
-        elif p.default is not None:
-            val, src = _from_profile(name, p.default, p, profile), "standard"
-        else:  # the manifest's declaration never fills the gap (evidence, not authority)
-            val, src = None, "unset"
-            if p.required:
-                missing.append(name)
+        else:
+            val, src = own, own_src
+        if val is None and p.required:  # the manifest's declaration never fills the gap (evidence only)
+            missing.append(name)
         if p.choices is not None and val is not None and val not in p.choices:
             where = {"cli": "--param",
                      "checker": f"checker file {checker.at('parameters', name) if checker else ''}"}.get(
@@ -224,9 +269,14 @@ def resolve_parameters(profile: ResolvedProfile, delivery_params: Mapping[str, A
             raise ParameterError(f"{where}: parameter {name}={val!r} is not one of {p.choices}")
         if is_crs(name, p):
             val = _crs_in_force(name, val, src, profile, checker)
+            if src in ("cli", "checker"):
+                own = _crs_in_force(name, own, own_src, profile, checker)
             declared, note = _crs_declared(name, declared, note)
+        if src in ("cli", "checker") and own is not None and not same_value(val, own):
+            _refuse_against_contract(name, p, val, src, own, unit, profile, checker, cli)
         out[name] = ParamValue(name, val, unit, src, declared=declared, set_by=authority,
-                               justification=p.justification, note=note)
+                               justification=p.justification, note=note,
+                               profile_value=own if src in ("cli", "checker") else None)
     needed, all_off = _needed(profile, out, manifest)
     for name in missing:
         needed.setdefault(name, [])

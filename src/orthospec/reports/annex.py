@@ -13,6 +13,7 @@ import re
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from datetime import date as Date
+from pathlib import Path
 from typing import Any
 
 import jinja2
@@ -29,7 +30,7 @@ from ..spec.wording import NO_UNIT, fmt_value, param_value, profile_requirement_
 from .findings import condition_prose
 from .html import environment
 
-__all__ = ["ANNEX_FORMATS", "annex_context", "annex_filename", "render_annex"]
+__all__ = ["ANNEX_FORMATS", "annex_context", "annex_filename", "default_out_dir", "render_annex"]
 
 ANNEX_FORMATS = ("md", "html", "pdf")
 CONSEQUENCES = {
@@ -83,22 +84,20 @@ def _names(req: Requirement) -> set[str]:
     return out
 
 
-_AUTHOR = re.compile(r"\b(seed|seeds|verbatim|U\+[0-9A-F]{4}|LaTeX|\.ya?ml|\.txt|orthospec|rule author|"
-                     r"markers?|issue \d+|OCR|traps?)\b", re.I)  # sentences about the transcription
-
-
 def plain_note(note: str | None) -> str:
-    """A rule author's note in plain words for bidders: markup removed, author-only sentences
-    (source files, typography of the source) dropped, data names in words."""
+    """A public note in plain words for bidders: markup removed, data names in words.
+
+    Rule notes are written in two parts: ``note`` (public: printed here and by ``explain``) and
+    ``internal_note`` (for the profile's maintainers, never printed). Nothing is filtered out of a
+    public note: a sentence that says what a rule measures or what failing it does reaches the
+    bidders whole (tests/test_annex_public.py keeps internal vocabulary out of every shipped annex).
+    """
     if not note:
         return ""
     text = re.sub(r"\*\*(.+?)\*\*", r"\1", " ".join(note.split()))
     text = re.sub(r"(?<![\w*])\*(\S.*?\S|\S)\*(?![\w*])", r"\1", text)
     text = text.replace("`", "").replace("**", "")
     text = re.sub(r"\bTrap:\s*", "Caution: ", text)
-    sentences = re.split(r"(?<=[.;])\s+(?=[A-Z(\"])", text)
-    kept = [x for x in sentences if not _AUTHOR.search(x)]
-    text = " ".join(kept)
     text = re.sub(r"\bmanifest\.[\w.]*\w", lambda m: condition_prose(m.group(0)), text)
     text = re.sub(r"\bmanifest\.", "manifest file.", text)
     return text.strip()
@@ -185,17 +184,35 @@ def _html_markup(text: str | None) -> Markup:
     return Markup(t)
 
 
+SENSOR_TYPES = ("aerial", "satellite")
+
+
 def tender_sensor(profile: ResolvedProfile) -> tuple[set[str], bool | None]:
-    """The sensor types and digital/film the tender requires (from its own sensor rules)."""
-    types: set[str] = set()
+    """The sensor types and digital/film the tender requires, from its own mandatory rules on the
+    delivery's sensor that apply unconditionally (``in [satellite]``, ``== satellite``,
+    ``!= aerial``; ``sensor.digital`` true or false)."""
+    types: set[str] | None = None
     digital: bool | None = None
     for r in profile.rules:
-        if r.measure == "manifest.sensor.type" and r.requirement.op == "in" and r.level == "mandatory":
-            types |= {str(v) for v in r.requirement.values or []}
-        if r.measure == "manifest.sensor.digital" and r.requirement.op in ("true", "false") \
-                and r.level == "mandatory":
-            digital = r.requirement.op == "true"
-    return types, digital
+        if r.level != "mandatory" or r.when or r.manual:
+            continue
+        req = r.requirement
+        if r.measure == "manifest.sensor.type":
+            allowed: set[str] | None = None
+            if req.op == "in":
+                allowed = {str(v) for v in req.values or []}
+            elif req.op == "==" and isinstance(req.value, str):
+                allowed = {req.value}
+            elif req.op == "!=" and isinstance(req.value, str):
+                allowed = set(SENSOR_TYPES) - {req.value}
+            if allowed is not None:
+                types = allowed if types is None else types & allowed
+        if r.measure == "manifest.sensor.digital":
+            if req.op in ("true", "false"):
+                digital = req.op == "true"
+            elif req.op in ("==", "!=") and isinstance(req.value, bool):
+                digital = req.value if req.op == "==" else not req.value
+    return types or set(), digital
 
 
 
@@ -268,6 +285,12 @@ def annex_context(profile: ResolvedProfile, *, day: str, sensor: str | None = No
     ordered = sorted(groups.values(), key=lambda g: _group_order(g, members[g.key]))
     for g in ordered:
         g.rules.sort(key=lambda r: r["sort"])
+    body = [r for rules in members.values() for r in rules]
+    body_ids = {r.id for r in body}
+    unset = _unset_itt(params, body, [r for r in profile.rules if r.id not in body_ids])
+    weakened = [{**w.to_dict(), "changes_text": "; ".join(w.changes)} for w in getattr(profile, "weakened", ())]
+    sensor_unstated = parent is not None and not sensors and any(
+        cannot_apply(r, {t}, None) is not None for r in profile.rules for t in SENSOR_TYPES)
     src = profile.source
     n_rules = sum(len(g.rules) for g in ordered)
     return {
@@ -286,14 +309,89 @@ def annex_context(profile: ResolvedProfile, *, day: str, sensor: str | None = No
         "n_rules": n_rules, "n_manual": sum(r["manual"] for g in ordered for r in g.rules),
         "excluded": excluded, "changes": changes, "removed": removed, "notes": notes,
         "sensors": sorted(sensors), "digital": digital, "parent": parent,
+        "unset": unset, "weakened": weakened, "sensor_unstated": sensor_unstated,
         "title": f"Technical specification annex — {profile.title}",
     }
+
+
+def _unset_itt(params: dict[str, Parameter], rules: list[Rule], others: list[Rule]) -> list[dict[str, Any]]:
+    """Parameters left to the ITT that have no value and that the annex's requirements use: the ITT
+    must fix them before the call for tender is published (page 1 warns).
+
+    A requirement uses a parameter when its threshold or condition reads it, or when its notes name
+    it (a measure may read a parameter, e.g. the Table 9 master-image rules read ``master_images``).
+    A parameter only the requirements of another sensor use (``others``) is not the tender's to fix.
+    """
+    def users(rs: list[Rule], name: str) -> list[str]:
+        word = re.compile(rf"\b{re.escape(name)}\b")
+        out = []
+        for r in rs:
+            names: set[str] = set(_names(r.requirement))
+            if r.when:
+                with contextlib.suppress(ExpressionError):
+                    names |= set(parse(r.when).names)
+            if name in names or f"param.{name}" in names or any(
+                    word.search(t) for t in (r.note or "", r.internal_note or "")):
+                out.append(r.id)
+        return out
+
+    out = []
+    for name, p in sorted(params.items()):
+        if param_value(p) is not None or p.authority() != "itt":
+            continue
+        ids = users(rules, name)
+        if not ids and users(others, name):
+            continue  # only requirements that cannot apply to this tender use it
+        shown = ", ".join(ids[:6]) + (f" and {len(ids) - 6} more" if len(ids) > 6 else "")
+        unit = p.unit if p.unit and p.unit not in NO_UNIT else ""
+        out.append({"name": name, "unit": unit,
+                    "readers": f"used by {shown}" if ids else "used by no requirement of this annex"})
+    return out
 
 
 def human(name: Any) -> str:
     """snake_case column name -> 'Snake case' header."""
     text = str(name).replace("_", " ").strip()
     return text[:1].upper() + text[1:]
+
+
+#: where `spec render` writes without --out, relative to the folder chosen by :func:`default_out_dir`
+DEFAULT_OUT = Path("reports") / "annex"
+
+
+def _is_orthospec_checkout(d: Path) -> bool:
+    if not (d / ".git").exists():
+        return False
+    try:
+        head = (d / "pyproject.toml").read_text(encoding="utf-8", errors="replace")[:4096]
+    except OSError:
+        return False
+    return re.search(r'(?m)^name\s*=\s*"orthospec"', head) is not None
+
+
+def _is_delivery(d: Path) -> bool:
+    try:
+        with (d / "delivery.yaml").open("rb") as fh:
+            head = fh.read(4096).decode("utf-8", errors="replace")
+    except OSError:
+        return False
+    return re.search(r"(?m)^orthospec_delivery\s*:", head) is not None
+
+
+def default_out_dir(cwd: Path | None = None) -> Path:
+    """Where `spec render` writes without ``--out``: ``reports/annex/`` under the current folder,
+    or under the root of the orthospec checkout the current folder is in (its ``reports/`` is
+    ignored by git), never the current folder itself. Inside a delivery it raises ReportError
+    (orthospec never writes into a delivery): the user gives ``--out``."""
+    here = (cwd or Path.cwd()).resolve()
+    for d in (here, *here.parents):
+        if _is_delivery(d):
+            raise ReportError(f"the current folder is inside the delivery {str(d)!r}; orthospec never writes "
+                              "into a delivery: give --out DIR outside it")
+    for d in (here, *here.parents):
+        if _is_orthospec_checkout(d):
+            return d / DEFAULT_OUT
+    return here / DEFAULT_OUT
 
 
 def annex_filename(profile: ResolvedProfile, fmt: str) -> str:

@@ -54,14 +54,20 @@ def checker_text(doc: dict[str, Any]) -> str | None:
     return operator or party
 
 
-def unsigned_manual_note(records: Iterable[dict[str, Any]]) -> str | None:
+def unsigned_manual_note(records: Iterable[dict[str, Any]], *, checker: Any = None) -> str | None:
     """The one line terminal and page 1 show when manual checks have no checker verdict
-    (INTERFACES item 4: the contractor's statements are evidence, never verdicts)."""
+    (INTERFACES item 4: the contractor's statements are evidence, never verdicts). ``checker`` is
+    qcr.json's ``checker`` entry: when a checker's file was given, the advice is to complete it."""
     n = sum(1 for r in records if r.get("manual") and r.get("verdict") == V.MISSING)
     if not n:
         return None
-    return (f"{n} manual check{'s have' if n > 1 else ' has'} no verdict from the checker: give the checker's "
-            "file with --checker FILE (the contractor's manual_checks are evidence, not verdicts)")
+    head = f"{n} manual check{'s have' if n > 1 else ' has'} no verdict from the checker"
+    if isinstance(checker, dict) and checker.get("file"):
+        return (f"{head}: the checker's file {checker['file']} has no manual_checks entry for "
+                f"{'them' if n > 1 else 'it'}; add one per check (the contractor's manual_checks are evidence, "
+                "not verdicts)")
+    return (f"{head}: give the checker's file with --checker FILE (the contractor's manual_checks are "
+            "evidence, not verdicts)")
 
 
 def clean_text(text: Any) -> str:

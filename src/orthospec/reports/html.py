@@ -22,6 +22,7 @@ from .. import verdicts as V
 from ..qcr import all_records, dumps, natural_key, point_rows, where_text
 from ..resources import templates_dir
 from ..spec.wording import unit_suffix
+from .contract import contract_lines
 from .findings import NotApplicableSummary, checker_text, unsigned_manual_note
 from .findings import findings as find_problems
 
@@ -738,7 +739,8 @@ def report_context(doc: dict[str, Any], opts: ReportOptions | None = None, *,
         "problems": problems, "failing_rules": failing_rules,
         "findings": found, "page1_findings": found[:PAGE1_FINDINGS],
         "not_applicable": collected.not_applicable,
-        "unsigned_manual": unsigned_manual_note(records),
+        "unsigned_manual": unsigned_manual_note(records, checker=doc.get("checker")),
+        "contract": contract_lines(doc),
         "checker": checker_text(doc), "qa_operator": d.get("operator") or {},
         "after_signoff": doc.get("after_signoff"),
         "missing": [r for r in records if r["verdict"] == V.MISSING],

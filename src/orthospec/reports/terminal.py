@@ -15,6 +15,7 @@ from rich.table import Table
 
 from .. import verdicts as V
 from ..qcr import all_records
+from .contract import contract_lines
 from .findings import checker_text, clean_text, findings, unsigned_manual_note
 
 MAX_ITEMS = 8
@@ -46,6 +47,11 @@ def render(doc: dict[str, Any], console: Console, *, max_items: int = MAX_ITEMS,
                   "contractor QA "
                   f"operator: {_t(qa.get('name', '')) or '-'}"
                   + (f" ({_t(qa['role'])})" if qa.get("role") else ""), overflow="fold")
+    contract = contract_lines(doc)  # page 1 says the same (reports/contract.py)
+    for line in contract["parameters"]:
+        console.print(f"[yellow]values in force:[/] {_t(line)}", overflow="fold")
+    for line in contract["weakened"]:
+        console.print(f"[yellow]mandatory rule weakened by the tender:[/] {_t(line)}", overflow="fold")
     sample = doc.get("sample")
     if isinstance(sample, dict) and sample.get("statement"):
         console.print(f"sample: {_t(sample['statement'])}", overflow="fold")
@@ -80,7 +86,7 @@ def render(doc: dict[str, Any], console: Console, *, max_items: int = MAX_ITEMS,
         for line in todo:
             console.print(f"  [magenta]•[/] {_t(line)}", overflow="fold")
     console.print(summary_line(doc))
-    unsigned = unsigned_manual_note(records)
+    unsigned = unsigned_manual_note(records, checker=doc.get("checker"))
     if unsigned:
         console.print(f"[magenta]{_t(unsigned)}[/]", overflow="fold")
     console.print(f"verdict: [bold {colour}]{verdict}[/]")

@@ -27,6 +27,7 @@ from pydantic import BaseModel, ValidationError
 from ..errors import ExpressionError, SpecError, UnitError
 from ..resources import specs_dir
 from ..yamlio import Located, YamlError, load_text, read_regular
+from .changes import Weakening, weakened_fields, weakening_changes
 from .models import Parameter, Profile, Rule, RuleOverride
 
 if TYPE_CHECKING:
@@ -78,6 +79,8 @@ class ResolvedProfile:
     removed: tuple[Removal, ...] = ()
     #: rule id -> keys changed by `override: true` along the chain
     overridden: dict[str, tuple[str, ...]] = field(default_factory=dict)
+    #: mandatory rules of a base that the chain removed or changed so they check less, justified
+    weakened: tuple[Weakening, ...] = ()
     #: where each rule / parameter was written (cold loads only; empty when served from the cache)
     sites: _Sites | None = field(default=None, repr=False, compare=False)
     _index: dict[str, int] = field(default_factory=dict, repr=False, compare=False)
@@ -137,6 +140,24 @@ class _Sites:
         return (self.top.file if self.top else "?", None, None)
 
 
+def param_location(p: ResolvedProfile, name: str, key: str | None = None) -> str:
+    """``file:line`` where the chain last wrote parameter ``name`` (its ``key``), for messages;
+    from the sites of a cold load, else by reading the chain's files again (error paths only)."""
+    if p.sites is not None:
+        file, line, _col = p.sites.param_where(name, key)
+        return f"{file}:{line}" if line else file
+    for _pid, _ver, f in p.chain:
+        try:
+            doc, _ = _load_doc(Path(f))
+        except (OSError, YamlError):
+            continue
+        pd = (doc.data.get("parameters") or {}).get(name) if isinstance(doc.data, dict) else None
+        if isinstance(pd, dict) and (key is None or key in pd):
+            line, _col = doc.where(("parameters", name, *((key,) if key else ())))
+            return f"{f}:{line}" if line else f
+    return str(p.path)
+
+
 def _rules_of(doc: Located) -> list[Any]:
     d = doc.data if isinstance(doc.data, dict) else {}
     r = d.get("rules")
@@ -184,8 +205,9 @@ def _yaml_problem(path: Path, exc: YamlError) -> Problem:
     col = getattr(exc, "column", None)
     text = str(exc)
     if line is not None:
-        msg = getattr(exc, "problem", None) or text
-        return Problem(str(path), line, col, str(msg))
+        msg = str(getattr(exc, "problem", None) or text)
+        m = _YAML_POS.match(msg)  # the reader's message may already start with file:line:col
+        return Problem(str(path), line, col, m["msg"] if m else msg)
     m = _YAML_POS.match(text)
     if m:
         return Problem(m["file"], int(m["line"]), int(m["col"]), m["msg"])
@@ -288,12 +310,25 @@ def _pydantic_problems(doc: Located, exc: ValidationError) -> list[Problem]:
             if key.isdigit():  # `{value: 1,0}`: in a {flow mapping} the comma splits the number
                 hint = _split_number_hint(doc, path, key)
             msg = f"{loc}: unknown key {key!r}{hint}"
+        elif e["type"] == "missing" and path == ("extends", "version"):
+            msg = f"{loc}: extends pins the version it builds on{_versions_hint(doc)}"
         else:
             got = e.get("input")
             shown = "" if isinstance(got, dict | list) or got is None else f" (got {_short(repr(got))})"
             msg = f"{loc}: {e['msg']}{shown}"
         out.append(Problem(doc.file, line, col, msg, _rule_at(doc, path)))
     return out
+
+
+def _versions_hint(doc: Located) -> str:
+    """`: write extends: {id: jrc-v3, version: 3.0.0}` from the versions the id exists in."""
+    ext = doc.data.get("extends") if isinstance(doc.data, dict) else None
+    pid = ext.get("id") if isinstance(ext, dict) else None
+    versions = sorted({v for i, v, _, _ in available() if i == pid}, key=_semver_key) if pid else []
+    if not versions:
+        return " (write `extends: {id: ..., version: ...}`)"
+    return (f": write `extends: {{id: {pid}, version: {versions[-1]}}}` (a later {pid} is then never picked up "
+            "silently)")
 
 
 def _split_number_hint(doc: Located, path: tuple[Any, ...], key: str) -> str:
@@ -433,12 +468,28 @@ def find_by_id(pid: str, *, version: str | None = None, near: Path | None = None
             raise SpecError(f"profile {pid!r} version {version} is shipped by several plugins: {files}")
     if hits:
         return sorted(hits, key=lambda t: _semver_key(t[1]))[-1][3]
-    have = sorted({*available([near] if near else None), *plugin_profiles()}, key=lambda t: (t[0], t[1]))
-    known = ", ".join(f"{i} {v}" for i, v, _, _ in have) or "none"
+    raise SpecError(_unknown_profile(pid, version, near))
+
+
+def _unknown_profile(pid: str, version: str | None, near: Path | None) -> str:
+    """One short message for an id (and version) nobody has: the versions that exist, else the
+    nearest id; the shipped and plugin profiles by id, the local folder's files only counted (a
+    tender's folder of variants once made this message list the same id 23 times)."""
+    shared = sorted({(i, v) for i, v, _, _ in (*available(), *plugin_profiles())})
+    local = [] if near is None else sorted(
+        {(i, v) for i, v, _, f in available([near]) if f.parent.resolve() == near.resolve()} - set(shared))
     pin = f" version {version}" if version else ""
-    close = difflib.get_close_matches(pid, sorted({i for i, _, _, _ in have}), n=1, cutoff=0.6)
-    hint = f"; did you mean {close[0]!r}?" if close and close[0] != pid else ""
-    raise SpecError(f"unknown profile {pid!r}{pin}{hint}; available: {known}")
+    versions = sorted({v for i, v in (*shared, *local) if i == pid}, key=_semver_key)
+    if versions:
+        hint = f"; {pid} exists in version {', '.join(versions)}: pin one of them"
+    else:
+        close = difflib.get_close_matches(pid, sorted({i for i, _ in (*shared, *local)}), n=1, cutoff=0.6)
+        hint = f"; did you mean {close[0]!r}?" if close else ""
+    known = ", ".join(f"{i} {v}" for i, v in shared) or "none"
+    if local:
+        ids = sorted({i for i, _ in local})
+        known += (f"; and {len(local)} in {near}: " + ", ".join(ids[:5]) + (" ..." if len(ids) > 5 else ""))
+    return f"unknown profile {pid!r}{pin}{hint}; available: {known}"
 
 
 def _semver_key(v: str) -> tuple[Any, ...]:
@@ -465,12 +516,25 @@ def load_profile(ref: str | Path, *, check_measures: bool = True) -> ResolvedPro
 
 
 def validate_file(path: str | Path, *, check_measures: bool = True) -> list[Problem]:
-    """Every problem of a profile file (and what it extends), without raising."""
+    """Every problem of a profile file (and what it extends), without raising.
+
+    Besides what loading checks, the profile's own ``tests:`` (delivery folders, checker files,
+    rules and verdicts named): a tender author learns of a wrong path here, with its line, not at
+    ``verify``. Loading for a check does not look at them (the checker may not have the author's
+    test deliveries)."""
     try:
         p = find_profile(path)
     except SpecError as exc:
         return [Problem(str(path), None, None, str(exc))]
-    return _load(p, check_measures=check_measures)[1]
+    resolved, problems = _load(p, check_measures=check_measures)
+    if problems or resolved is None or not resolved.tests:
+        return problems
+    try:
+        doc, _ = _load_doc(p)
+    except YamlError as exc:
+        return [_yaml_problem(p, exc)]
+    shipped = p.resolve().parent == specs_dir().resolve()  # their tests point into the source checkout
+    return _test_problems(resolved, _Sites(top=doc), paths=not shipped)
 
 
 def _load(path: Path, *, check_measures: bool) -> tuple[ResolvedProfile | None, list[Problem]]:
@@ -552,6 +616,7 @@ def _rebuild(d: dict[str, Any]) -> ResolvedProfile:
         canonical=c, sha256=sha, allow_no_mandatory=bool(d.get("allow_no_mandatory")),
         removed=tuple(Removal(x["id"], x["justification"], x["profile"]) for x in c.get("removed_rules", [])),
         overridden={k: tuple(v) for k, v in d.get("overridden", {}).items()},
+        weakened=tuple(Weakening.from_dict(w) for w in c.get("weakened_rules", [])),
     )
 
 
@@ -597,7 +662,42 @@ def _resolve(path: Path, problems: list[Problem], *, depth: int,
                                     f"extends {prof.extends.id} {prof.extends.version}, but {parent_path} "
                                     f"is {base.id} {base.version}"))
             return None
-    return _merge(prof, base, path, doc, problems)
+    resolved = _merge(prof, base, path, doc, problems)
+    if resolved is not None:
+        claim = _claims_reserved_id(resolved, path)
+        if claim:
+            problems.append(Problem(doc.file, *doc.where(("id",)), claim))
+            return None
+    return resolved
+
+
+def _claims_reserved_id(p: ResolvedProfile, path: Path) -> str | None:
+    """Why ``p`` may not carry its id: the id of a shipped profile (or of one an installed plugin
+    ships) claimed by another file with other content, or None.
+
+    A report names the profile by id: "jrc-v3" must mean the published standard, never a local file
+    that switched a rule off under its name (issue 25). A copy whose resolved content is the
+    shipped profile's (same SHA-256) is the same profile and passes.
+    """
+    here = path.resolve()
+    owners = [t for t in available() if t[0] == p.id]
+    kind = "shipped"
+    if not owners:
+        owners = [t for t in plugin_profiles() if t[0] == p.id]
+        kind = "installed by a plugin"
+    if not owners or any(t[3].resolve() == here for t in owners):
+        return None
+    for _pid, ver, _title, owner in owners:
+        if ver == p.version:
+            try:
+                if load_profile(owner, check_measures=False).sha256 == p.sha256:
+                    return None
+            except SpecError:
+                pass
+    files = ", ".join(sorted({str(t[3]) for t in owners}))
+    return (f"id {p.id!r} is reserved: it names the profile {kind} in {files}, and this file is not that "
+            f"profile; give this profile its own id (e.g. '{p.id}-itt') and `extends: {{id: {owners[0][0]}, "
+            f"version: {owners[-1][1]}}}` to build on it")
 
 
 def _check_unique_ids(prof: Profile, doc: Located, problems: list[Problem]) -> None:
@@ -621,6 +721,50 @@ def _same_value(a: Any, b: Any) -> bool:
     if isinstance(a, int | float) and isinstance(b, int | float):
         return float(a) == float(b)
     return a == b
+
+
+def _unjustified(rule_id: str, changes: list[str], base: ResolvedProfile | None, how: str) -> str:
+    """One message for a mandatory rule of the base weakened without a justification."""
+    where = f"{base.id} {base.version}" if base is not None else "the base profile"
+    listed = "`spec diff`, the annex and every report checked under this profile list the change"
+    if how == "remove":
+        return (f"remove_rules: {rule_id} is a mandatory rule of {where}; removing it needs a justification: "
+                f"write `{{id: {rule_id}, justification: \"ITT §...: why it does not apply\"}}` ({listed})")
+    what = "; ".join(changes)
+    if how == "restate":
+        return (f"rule {rule_id} is mandatory in {where}, and this profile writes it again so that it checks less "
+                f"({what}): write only the keys that change under `override: true`, with `justification: "
+                f"\"ITT §...: why\"` ({listed})")
+    return (f"rule {rule_id} is mandatory in {where}, and this override makes it check less ({what}) without a "
+            f"justification: add `justification: \"ITT §...: why\"` to the override ({listed})")
+
+
+def _unit_change(name: str, old: Parameter, new: Parameter, base: ResolvedProfile | None) -> str:
+    """One message for an extending profile that gives an inherited parameter another unit.
+
+    The parameter keeps the unit of the profile that defines it (every rule reading it, the annex
+    and the QCR print that unit); without this the mistake surfaced as one dimension error per rule
+    reading the parameter, some of them located in the standard's own file."""
+    from ..units import profile_unit_problem
+
+    where = f"{base.id} {base.version}" if base is not None else "the profile that defines it"
+    spelled = profile_unit_problem(new.unit)
+    if spelled and f"write {old.unit!r}" in spelled:
+        return f"parameter {name}: {spelled}"
+    head = f"parameter {name}: unit {new.unit!r}, but {name} is in {old.unit!r} in {where}"
+    value = new.value if new.value is not None else None
+    if isinstance(value, int | float) and not isinstance(value, bool) and old.unit not in (None, "text", "bool",
+                                                                                             "date"):
+        try:
+            from ..units import convert
+
+            got = float(convert([float(value)], new.unit, old.unit)[0])
+            return (f"{head}: a tender gives the value in the parameter's unit: write `value: {got:g}` "
+                    f"({value:g} {new.unit}) and leave out `unit`")
+        except (UnitError, ValueError, TypeError):
+            pass
+    return (f"{head} (another kind of quantity): a tender gives the value in {old.unit!r} and leaves out "
+            f"`unit`")
 
 
 def _merge(prof: Profile, base: ResolvedProfile | None, path: Path, doc: Located,
@@ -649,6 +793,10 @@ def _merge(prof: Profile, base: ResolvedProfile | None, path: Path, doc: Located
             problems.append(Problem(doc.file, line, col, f"parameter {name}: set_by is {old.authority()!r} where "
                                     "the parameter is defined; an extending profile cannot change it"))
             continue
+        if "unit" in given and old.unit is not None and given["unit"] != old.unit:
+            line, col = doc.where(("parameters", name, "unit"))
+            problems.append(Problem(doc.file, line, col, _unit_change(name, old, p, base)))
+            continue
         if "default" in given and not _same_value(given["default"], old.default):
             line, col = doc.where(("parameters", name, "default"))
             problems.append(Problem(doc.file, line, col, f"parameter {name}: an extending profile sets `value:`, "
@@ -674,6 +822,7 @@ def _merge(prof: Profile, base: ResolvedProfile | None, path: Path, doc: Located
     classes = {**(base.classes if base else {}), **prof.classes}
     rules: dict[str, Rule] = dict((r.id, r) for r in base.rules) if base else {}
     removed = list(base.removed) if base else []
+    weakened = list(base.weakened) if base else []
     overridden = {k: tuple(v) for k, v in base.overridden.items()} if base else {}
     for i, item in enumerate(prof.remove_rules):
         rid = item if isinstance(item, str) else item.id
@@ -682,29 +831,53 @@ def _merge(prof: Profile, base: ResolvedProfile | None, path: Path, doc: Located
             problems.append(Problem(doc.file, line, col, f"remove_rules: no inherited rule {rid!r}"
                                     + _did_you_mean(rid, rules, "inherited")))
             continue
+        justification = None if isinstance(item, str) else item.justification
+        if rules[rid].level == "mandatory":
+            if justification is None:
+                line, col = doc.where(("remove_rules", i))
+                problems.append(Problem(doc.file, line, col, _unjustified(rid, ["removed"], base, "remove")))
+                continue
+            weakened.append(Weakening(rid, ("removed",), justification, prof.id, rules[rid].title))
         del rules[rid]
         sites.rules.pop(rid, None)
         overridden.pop(rid, None)
-        removed.append(Removal(rid, None if isinstance(item, str) else item.justification, prof.id))
+        removed.append(Removal(rid, justification, prof.id))
     for i, r in enumerate(prof.rules):
+        before = rules.get(r.id)
         if isinstance(r, RuleOverride):
-            if r.id not in rules:
+            if before is None:
                 line, col = doc.where(("rules", i))
                 problems.append(Problem(doc.file, line, col, f"override of unknown rule {r.id!r}"
                                         + _did_you_mean(r.id, rules, "inherited"), r.id))
                 continue
-            merged_r = rules[r.id].model_dump()
-            changed = {k: v for k, v in r.model_dump(exclude_unset=True).items() if k not in ("override", "id")}
+            merged_r = before.model_dump()
+            changed = {k: v for k, v in r.model_dump(exclude_unset=True).items()
+                       if k not in ("override", "id", "justification")}
             merged_r.update(changed)
-            overridden[r.id] = tuple(sorted({*overridden.get(r.id, ()), *changed}))
             try:
-                rules[r.id] = Rule.model_validate(merged_r)
+                after = Rule.model_validate(merged_r)
             except ValidationError as exc:
                 line, col = doc.where(("rules", i))
                 problems.append(Problem(doc.file, line, col, f"override invalid: {exc.errors()[0]['msg']}", r.id))
                 continue
+            weak = weakening_changes(before, after)
+            if weak and not r.justification:
+                key = weakened_fields(before, after)[0]
+                line, col = doc.where(("rules", i, key))
+                problems.append(Problem(doc.file, line, col, _unjustified(r.id, weak, base, "override"), r.id))
+                continue
+            if weak:
+                weakened.append(Weakening(r.id, tuple(weak), r.justification, prof.id, after.title))
+            overridden[r.id] = tuple(sorted({*overridden.get(r.id, ()), *changed}))
+            rules[r.id] = after
             sites.rules.setdefault(r.id, []).append((doc, i))
         else:
+            weak = weakening_changes(before, r) if before is not None else []
+            if weak:  # an inherited rule written again in full, checking less: say how to do it openly
+                key = weakened_fields(before, r)[0] if before is not None else "id"
+                line, col = doc.where(("rules", i, key))
+                problems.append(Problem(doc.file, line, col, _unjustified(r.id, weak, base, "restate"), r.id))
+                continue
             rules[r.id] = r
             sites.rules[r.id] = [(doc, i)]
             overridden.pop(r.id, None)
@@ -719,12 +892,12 @@ def _merge(prof: Profile, base: ResolvedProfile | None, path: Path, doc: Located
         "title": prof.title,
         "source": prof.source.model_dump(mode="json"),
         "extends": [{"id": c[0], "version": c[1]} for c in chain[1:]],
-        "parameters": {k: v.model_dump(mode="json") for k, v in sorted(params.items())},
+        "parameters": {k: _param_json(v) for k, v in sorted(params.items())},
         "tables": {k: (v.model_dump(mode="json") if hasattr(v, "model_dump") else v)
                    for k, v in sorted(tables.items())},
         "classes": {k: (v.model_dump(mode="json") if hasattr(v, "model_dump") else v)
                     for k, v in sorted(classes.items())},
-        "rules": [r.model_dump(mode="json", exclude={"override"}) for r in final_rules],
+        "rules": [_rule_json(r) for r in final_rules],
         "waivers": [w.model_dump(mode="json") for w in waivers],
     }
     if prof.allow_no_mandatory:
@@ -732,6 +905,8 @@ def _merge(prof: Profile, base: ResolvedProfile | None, path: Path, doc: Located
     if removed:
         canonical["removed_rules"] = [{"id": x.id, "justification": x.justification, "profile": x.profile}
                                       for x in removed]
+    if weakened:
+        canonical["weakened_rules"] = [w.to_dict() for w in weakened]
     try:
         sha = hashlib.sha256(canonical_dumps(canonical).encode("utf-8")).hexdigest()
     except ValueError:  # nan or inf somewhere: say where (only on this failure path)
@@ -747,8 +922,28 @@ def _merge(prof: Profile, base: ResolvedProfile | None, path: Path, doc: Located
         source=prof.source, parameters=params, tables=tables, classes=classes, rules=final_rules,
         tests=tuple(prof.tests), waivers=waivers, path=path, chain=chain, canonical=canonical,
         sha256=sha, allow_no_mandatory=prof.allow_no_mandatory, sites=sites, removed=tuple(removed),
-        overridden=overridden,
+        overridden=overridden, weakened=tuple(weakened),
     )
+
+
+#: keys added to the models after profiles were published: written into the canonical form only when
+#: set, so a profile that does not use them keeps its SHA-256
+_NEW_KEYS = {"checker_may_set": False, "internal_note": None}
+
+
+def _rule_json(r: Rule) -> dict[str, Any]:
+    d = r.model_dump(mode="json", exclude={"override"})
+    if d.get("internal_note") is None:
+        d.pop("internal_note", None)
+    return d
+
+
+def _param_json(p: Parameter) -> dict[str, Any]:
+    d = p.model_dump(mode="json")
+    for k, default in _NEW_KEYS.items():
+        if k in d and d[k] == default:
+            del d[k]
+    return d
 
 
 def _nonfinite(obj: Any, path: tuple[Any, ...]) -> list[tuple[Any, ...]]:
@@ -804,8 +999,16 @@ def manifest_path_problem(name: str) -> str | None:
     if path in exact or any(path.startswith(p) and len(path) > len(p) for p in open_):
         return None
     cands = sorted(exact | {p + "<key>" for p in open_})
+    parent = path.rsplit(".", 1)[0] if "." in path else ""
+    children = sorted(c[len(parent) + 1:] for c in exact if parent and c.startswith(parent + ".")
+                      and "." not in c[len(parent) + 1:])
     near = difflib.get_close_matches(path, cands, n=1, cutoff=0.6)
-    hint = f"; did you mean 'manifest.{near[0]}'?" if near else ""
+    if children:
+        near_child = difflib.get_close_matches(path.rsplit(".", 1)[1], children, n=1, cutoff=0.6)
+        hint = (f"; did you mean 'manifest.{parent}.{near_child[0]}'?" if near_child else
+                f"; manifest.{parent} has {', '.join(children)}")
+    else:
+        hint = f"; did you mean 'manifest.{near[0]}'?" if near else ""
     return (f"{name!r} is not a key the delivery manifest defines (specs/schema/delivery.schema.json): "
             f"a rule may read only what a delivery can state in its schema{hint}")
 
@@ -818,7 +1021,7 @@ def _parse(text: str) -> expr.Expression:
 
 def semantic_problems(p: ResolvedProfile, *, check_measures: bool = True) -> list[Problem]:
     """Units, threshold numbers, expressions, manifest paths, measures, parameters: linear in rules."""
-    from ..units import NON_NUMERIC, number_problem
+    from ..units import NON_NUMERIC, number_problem, profile_unit_problem
     from ..units import check_unit as parse_unit  # the usual spellings without loading pint
     from .catalog import measure_info
 
@@ -839,6 +1042,19 @@ def semantic_problems(p: ResolvedProfile, *, check_measures: bool = True) -> lis
     numeric_units: dict[str, str] = {}
     for name, par in p.parameters.items():
         unit = par.unit
+        spelled = profile_unit_problem(unit)
+        if spelled:
+            add_param(name, "unit", f"parameter {name}: {spelled}")
+            continue
+        for key in ("value", "default"):
+            v = getattr(par, key)
+            if v is not None and par.choices is not None and v not in par.choices:
+                add_param(name, key, f"parameter {name}: {key} {v!r} is not one of "
+                          f"{', '.join(map(str, par.choices))}" + _did_you_mean(str(v), map(str, par.choices)))
+            elif isinstance(v, str) and unit == "text" and name.endswith("_crs"):
+                why = _crs_problem(v)
+                if why:
+                    add_param(name, key, f"parameter {name}: {why}")
         if unit is None or unit in NON_NUMERIC:
             continue
         try:
@@ -859,6 +1075,9 @@ def semantic_problems(p: ResolvedProfile, *, check_measures: bool = True) -> lis
                 add_param(name, "choices", f"parameter {name}: choices[{i}]: {why}")
     for cname, cset in p.classes.items():
         try:
+            why = profile_unit_problem(cset.unit)
+            if why:
+                raise UnitError(why)
             parse_unit(cset.unit)
         except UnitError as exc:
             out.append(Problem(str(p.path), None, None, f"class set {cname}: {exc}"))
@@ -890,15 +1109,18 @@ def semantic_problems(p: ResolvedProfile, *, check_measures: bool = True) -> lis
             if info is None:
                 add(r, ("measure",), f"unknown measure {r.measure!r}{_near_measure(r.measure)} "
                     "(see `orthospec measures`)")
-            elif info[0] != r.scope:
-                add(r, ("scope",), f"measure {r.measure!r} is at scope {info[0]!r}, rule says {r.scope!r}")
+            elif info[0] != r.scope:  # located at the measure: an override that swaps it is the cause
+                add(r, ("measure",), f"measure {r.measure!r} is at scope {info[0]!r}, rule says {r.scope!r}")
         req = r.requirement
         req_numeric = req.unit is not None and req.unit not in NON_NUMERIC and req.unit != "any"
         if req_numeric:
             try:
+                why = profile_unit_problem(req.unit)
+                if why:
+                    raise UnitError(why)
                 parse_unit(req.unit)
             except UnitError as exc:
-                add(r, ("requirement",), str(exc))
+                add(r, ("requirement", "unit"), str(exc))
                 req_numeric = False
         if req.op == "between" and (req.min is None and req.max is None):
             add(r, ("requirement",), "op 'between' needs min and/or max")
@@ -910,8 +1132,10 @@ def semantic_problems(p: ResolvedProfile, *, check_measures: bool = True) -> lis
             try:
                 e = _parse(r.when)
             except ExpressionError as exc:
-                add(r, ("when",), str(exc))
+                add(r, ("when",), str(exc) + _single_equals(r.when))
             else:
+                if not e.names:
+                    add(r, ("when",), _constant_when(e, r.when))
                 _check_names(r, ("when",), e, known, check_measures, measure_info, add)
                 check_manifest_names(r, ("when",), e.names)
                 read_params |= params_named(e.names, p.parameters)
@@ -938,7 +1162,7 @@ def semantic_problems(p: ResolvedProfile, *, check_measures: bool = True) -> lis
             except ExpressionError as exc:
                 hint = " (a threshold is a number such as 1.0, or an expression over parameters)" \
                     if numeric_threshold else ""
-                add(r, ("requirement", key), f"{exc}{hint}")
+                add(r, ("requirement", key), f"{exc}{hint}{_single_equals(v)}")
                 continue
             _check_names(r, ("requirement", key), e, known, check_measures, measure_info, add)
             check_manifest_names(r, ("requirement", key), e.names)
@@ -960,6 +1184,103 @@ def semantic_problems(p: ResolvedProfile, *, check_measures: bool = True) -> lis
                            f"profile {p.id} has no mandatory rule, so it would accept every delivery; "
                            "add one, or say so explicitly with `allow_no_mandatory: true`"))
     return out
+
+
+def _crs_problem(text: str) -> str | None:
+    """Why a map projection value cannot be used (pyproj cannot read it, or it has no EPSG code)."""
+    from ..delivery.crs import CrsProblem, epsg_name
+
+    try:
+        epsg_name(text)
+    except CrsProblem as exc:
+        return str(exc)
+    return None
+
+
+_VERDICTS_EXPECTED = ("accepted", "rejected", "incomplete")
+
+
+def _test_problems(p: ResolvedProfile, sites: _Sites, *, paths: bool = True) -> list[Problem]:
+    """The profile's own `tests:`: every delivery folder and checker file exists (relative to the
+    profile file), every parameter and rule named exists, every verdict is one a check gives. Found
+    here with a line, not later by `orthospec verify`."""
+    from ..verdicts import VERDICTS
+
+    top = sites.top
+    out: list[Problem] = []
+
+    def add(i: int, key: tuple[Any, ...], msg: str) -> None:
+        line, col = top.where(("tests", i, *key)) if top is not None else (None, None)
+        out.append(Problem(top.file if top is not None else str(p.path), line, col, f"tests[{i}]: {msg}"))
+
+    here = p.path.parent
+    rule_ids = {r.id for r in p.rules}
+    for i, t in enumerate(p.tests):
+        folder = here / t.delivery
+        if not paths:
+            pass
+        elif not folder.is_dir():
+            add(i, ("delivery",), f"delivery folder {t.delivery!r} not found (paths are relative to the profile "
+                f"file's folder {str(here)!r}){_near_path(folder)}")
+        elif not (folder / "delivery.yaml").is_file():
+            add(i, ("delivery",), f"{t.delivery!r} is not a delivery (it has no delivery.yaml)")
+        checker = here / t.checker if t.checker is not None else None
+        if paths and checker is not None and not (
+            checker.is_file() or (checker / "checker.yaml").is_file()
+        ):
+            add(i, ("checker",), f"checker file or folder {t.checker!r} not found (relative to the profile file's folder)"
+                + _near_path(checker))
+        for name, given in t.params.items():
+            par = p.parameters.get(name)
+            if par is None:
+                add(i, ("params", name), f"params: profile {p.id} has no parameter {name!r}"
+                    + _did_you_mean(name, p.parameters))
+                continue
+            own = par.value if par.value is not None else par.default
+            if (len(p.chain) > 1 and not par.checker_may_set and own is not None
+                    and isinstance(given, int | float) and isinstance(own, int | float)
+                    and not isinstance(given, bool) and float(given) != float(own)):
+                add(i, ("params", name), f"params: {name} = {given} differs from {own}, the value this tender "
+                    "fixes; the check would stop (the contract wins): leave it out, or mark the parameter "
+                    "`checker_may_set: true`")
+        extra = sorted(set(t.expect) - {"verdict", "rules"})
+        if extra:
+            add(i, ("expect", extra[0]), f"expect: unknown key {extra[0]!r}; expect holds verdict and rules")
+        verdict = t.expect.get("verdict")
+        if verdict is not None and verdict not in _VERDICTS_EXPECTED:
+            add(i, ("expect", "verdict"), f"expect: verdict {verdict!r} is not one of {', '.join(_VERDICTS_EXPECTED)}"
+                + _did_you_mean(str(verdict), _VERDICTS_EXPECTED))
+        rules = t.expect.get("rules") or {}
+        if not isinstance(rules, dict):
+            add(i, ("expect", "rules"), "expect: rules maps a rule id to the verdict expected, e.g. "
+                "{JRC-12.7-RMSEX: pass}")
+            continue
+        for rid, want in rules.items():
+            if rid not in rule_ids:
+                add(i, ("expect", "rules", rid), f"expect: profile {p.id} has no rule {rid!r}"
+                    + _did_you_mean(str(rid), rule_ids))
+            elif want not in VERDICTS:
+                add(i, ("expect", "rules", rid), f"expect: {rid}: verdict {want!r} is not one of "
+                    f"{', '.join(VERDICTS)}" + _did_you_mean(str(want), VERDICTS))
+    return out
+
+
+def _near_path(path: Path) -> str:
+    """`; did you mean '../x'?` for a missing path whose name exists in a nearby folder."""
+    parent = path.parent
+    for _ in range(4):
+        if parent.is_dir():
+            break
+        parent = parent.parent
+    else:
+        return ""
+    try:
+        names = [x.name for x in parent.iterdir()][:500]
+    except OSError:
+        return ""
+    near = difflib.get_close_matches(path.name, names, n=1, cutoff=0.8)
+    return f"; {str(parent / near[0])!r} exists" if near and parent != path.parent else (
+        f"; did you mean {near[0]!r}?" if near and near[0] != path.name else "")
 
 
 def params_named(names: Any, params: Mapping[str, Any]) -> set[str]:
@@ -1010,6 +1331,24 @@ def _check_dimensions(r: Rule, key: str, text: str, e: expr.Expression, used: se
         rfile, rline, _ = sites.rule_where(r.id, ("requirement",))
         out.append(Problem(file, line, col, f"parameter {name}: {memo[sig]} (rule {r.id} at "
                            f"{rfile}:{rline})"))
+
+
+def _constant_when(e: expr.Expression, text: str) -> str:
+    """A condition that reads no fact decides nothing: say what it always is and what to write."""
+    try:
+        value = bool(getattr(e.evaluate({}), "magnitude", e.evaluate({})))
+    except (ExpressionError, ArithmeticError, TypeError, ValueError):
+        value = None
+    if value is False:
+        return (f"condition {text!r} reads no fact and is always false: the rule would never apply; to take a rule "
+                "out, list it in remove_rules with a justification")
+    return f"condition {text!r} reads no fact and is always {'true' if value else 'the same'}: leave `when` out"
+
+
+def _single_equals(text: str) -> str:
+    """The hint for ``a = b`` written for ``a == b`` (the grammar has no assignment)."""
+    return "; compare with `==` (a single `=` is not an operator)" \
+        if re.search(r"(?<![=!<>])=(?!=)", text) else ""
 
 
 def _near_measure(name: str) -> str:

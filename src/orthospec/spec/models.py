@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import datetime as _dt
 import re
 from typing import Annotated, Any, Literal
 
@@ -94,7 +95,9 @@ class Parameter(_Strict):
                                    "for a numeric unit (write 1.0, not '1.0' or 1,0).")
     value: Scalar | None = Field(None, description="Value fixed by a tender profile (wins over defaults).")
     required: bool = False
-    description: str = ""
+    description: str = Field("", description="Public: what the value means and where the source fixes it "
+                                             "(the annex prints it).")
+    internal_note: str | None = Field(None, description="For the profile's maintainers; never printed.")
     choices: list[Scalar] | None = None
     set_by: SetBy | None = Field(
         None,
@@ -109,6 +112,18 @@ class Parameter(_Strict):
         None, min_length=1,
         description="Why an extending (tender) profile changes the value of an inherited 'standard' "
                     "parameter; required then, and printed in the report annex.")
+    checker_may_set: bool = Field(
+        False,
+        description="In a tender profile (one that extends another): the checker's file or --param may "
+                    "replace this parameter's value; every report prints the value in force beside the "
+                    "tender's. Without it the tender's value is the contract, and a different value from "
+                    "the checker's side stops the check (exit 2) naming both values.")
+
+    @field_validator("default", "value", mode="before")
+    @classmethod
+    def _date_as_written(cls, v: Any) -> Any:
+        """YAML reads an unquoted 2026-04-01 as a date: a `unit: date` value is kept as its ISO text."""
+        return v.isoformat() if isinstance(v, _dt.date) else v
 
     def authority(self) -> str:
         """``set_by`` as written, else the documented default rule."""
@@ -158,7 +173,12 @@ class Rule(_Strict):
     level: Level = "mandatory"
     consequence: Consequence
     manual: bool = False
-    note: str | None = None
+    note: str | None = Field(None, description=(
+        "Public note: how the rule reads its clause, written for bidders and checkers (printed in the "
+        "annex and by `explain`)."))
+    internal_note: str | None = Field(None, description=(
+        "Internal note for the profile's maintainers (history, tests, tools, open questions): kept in the "
+        "profile, never printed in the annex, reports or `explain`."))
     audit: Audit | None = None
     tags: list[str] = Field(default_factory=list)
     override: Literal[False] = False
@@ -180,8 +200,14 @@ class RuleOverride(_Strict):
     consequence: Consequence | None = None
     manual: bool | None = None
     note: str | None = None
+    internal_note: str | None = None
     audit: Audit | None = None
     tags: list[str] | None = None
+    justification: str | None = Field(
+        None, min_length=1,
+        description="Why the ITT changes a mandatory rule of the profile it extends so that it can check "
+                    "less (level, a lighter consequence, a new `when`, another measure, scope or requirement, "
+                    "manual): required then; `spec diff`, the annex and every report print it.")
 
 
 def _rule_kind(v: Any) -> str:
@@ -200,7 +226,8 @@ class RuleRemoval(_Strict):
     """An inherited rule a tender profile takes out, and why (the report annex prints it)."""
 
     id: Annotated[str, Field(pattern=RULE_ID)]
-    justification: str = Field(min_length=1, description="Why the ITT does not apply this rule.")
+    justification: str = Field(min_length=1, description="Why the ITT does not apply this rule (required "
+                               "for a mandatory rule; the annex and every report print it).")
 
 
 class Extends(_Strict):
@@ -270,8 +297,8 @@ class Profile(_Strict):
     rules: list[AnyRule] = Field(default_factory=list)
     remove_rules: list[str | RuleRemoval] = Field(
         default_factory=list,
-        description="Inherited rules this profile takes out: an id, or {id, justification} (preferred: "
-                    "the annex prints the justification).")
+        description="Inherited rules this profile takes out: {id, justification} (the annex and every "
+                    "report print it); a bare id only for a rule that is not mandatory.")
     waivers: list[ProfileWaiver] = Field(default_factory=list)
     tests: list[ProfileTest] = Field(default_factory=list)
     allow_no_mandatory: bool = Field(
