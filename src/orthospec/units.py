@@ -113,10 +113,6 @@ def canonical(name: str | None) -> str:
     return {"pixel": "px", "°": "deg", "ftUS": "usft"}.get(text, text)
 
 
-def is_pixel(unit: str | None) -> bool:
-    return (unit or "").strip() not in NON_NUMERIC and parse_unit(unit).dimensionality == _reg().pixel.dimensionality
-
-
 def convert(
     values: Any,
     from_unit: str | None,
@@ -232,15 +228,6 @@ def parse_number_text(text: str, unit: str | None) -> float:
 def dimension_of(unit: str | None) -> Any:
     """The pint dimensionality of a unit name (raises UnitError for an unknown one)."""
     return parse_unit(unit).dimensionality
-
-
-def units_meet(a: str | None, b: str | None) -> bool:
-    """Whether values in ``a`` can be compared with a requirement in ``b`` (px meets lengths via GSD)."""
-    da, db = dimension_of(a), dimension_of(b)
-    if da == db:
-        return True
-    px, length = _reg().pixel.dimensionality, _reg().meter.dimensionality
-    return (da == px and db == length) or (da == length and db == px)
 
 
 # --- dimensions without pint (profile validation) -----------------------------------------------

@@ -75,9 +75,3 @@ def table_of_scope(scope: str) -> str | None:
     Scopes whose items come from the manifest (delivery, project, block, edge) have none.
     """
     return _scope_tables().get(scope)
-
-
-def scope_of_table(table: str) -> str | None:
-    """The scope of a known table (any table, not only the items tables), else None."""
-    spec = table_specs().get(table)
-    return spec.scope if spec is not None else None

@@ -368,12 +368,6 @@ def _advice(profile: ResolvedProfile, needed: dict[str, list[str]], all_off: boo
 
 
 
-def needed_unset(profile: ResolvedProfile, values: Mapping[str, ParamValue],
-                 manifest: Mapping[str, Any] | None = None) -> dict[str, list[str]]:
-    """Unset parameters an applicable rule's requirement reads: name -> rule ids (see _needed)."""
-    return _needed(profile, values, manifest)[0]
-
-
 def _needed(profile: ResolvedProfile, values: Mapping[str, ParamValue],
             manifest: Mapping[str, Any] | None = None) -> tuple[dict[str, list[str]], bool]:
     """Unset parameters an applicable rule's requirement reads: name -> rule ids.

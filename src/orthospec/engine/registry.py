@@ -378,6 +378,7 @@ MEASURE_DESCRIPTIONS: dict[str, str] = {
     "raster.name_ok": "the file name follows the naming convention (JRC §6.4)",
     "raster.nodata_declared": "the image declares a no-data value",
     "raster.nodata_share": "share of no-data pixels in the image",
+    "raster.nonfinite_pixels": "float-band pixels that are NaN or +/-Inf and not no-data (excluded from every statistic)",
     "raster.noise_std": "noise standard deviation estimated in homogeneous areas, in DN",
     "raster.noise_std_8bit": "noise_std rescaled to an 8-bit range",
     "raster.pixel_size": "ground pixel size of the image from its geotransform",

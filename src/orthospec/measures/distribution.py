@@ -104,10 +104,6 @@ class DistributionResult:
         return float(finite.mean()) if finite.size else float("inf")
 
     @cached_property
-    def nn_mean_ratio(self) -> float:
-        return self.nn_mean / self.nn_reference if self.nn_reference > 0 else float("inf")
-
-    @cached_property
     def closer_than_reference(self) -> tuple[str, ...]:
         """Ids of the points nearer than Δ/10 to another point."""
         if self.points is None or not self.nn_reference > 0:

@@ -64,19 +64,38 @@ def seamline_coverage(seamlines: Sequence[object], aoi: object, *,
     if a_area <= 0:
         raise MeasureError("area of interest has no area")
     tol = area_tolerance * a_area
-    union = shapely.union_all(geoms) if geoms else shapely.Polygon()
-    gap = float(aoi_g.difference(union).area)
-    gap = 0.0 if gap <= tol else gap
-    tree = STRtree(geoms)
+    arr = np.asarray(geoms, dtype=object)
+    try:
+        coverage = bool(arr.size) and bool(shapely.coverage_is_valid(arr))
+    except (shapely.errors.GEOSException, TypeError, ValueError):  # lines or collections in the layer
+        coverage = False
     pairs = []
     overlap = 0.0
-    left, right = tree.query(geoms, predicate="intersects")
-    for i, j in zip(left.tolist(), right.tolist(), strict=True):
-        if i < j:
+    if coverage:
+        # polygons that meet only along shared edges, vertex for vertex (the usual seamline
+        # mosaic; GEOS CoverageValidator): no two overlap, and GEOS's coverage union is exact and
+        # several times faster than a general union
+        union = shapely.coverage_union_all(arr)
+    else:
+        union = shapely.union_all(geoms) if geoms else shapely.Polygon()
+        tree = STRtree(geoms)
+        left, right = tree.query(geoms, predicate="intersects")
+        keep = left < right
+        left, right = left[keep], right[keep]
+        try:
+            # neighbours that only touch have no interior in common, so no overlap area: one
+            # vectorised DE-9IM test instead of an intersection each
+            inner = shapely.relate_pattern(arr[left], arr[right], "T********")
+            left, right = left[inner], right[inner]
+        except shapely.errors.GEOSException:  # a GEOS without relate on collections: intersect all
+            pass
+        for i, j in zip(left.tolist(), right.tolist(), strict=True):
             area = float(geoms[i].intersection(geoms[j]).area)
             if area > tol:
                 pairs.append((i, j))
                 overlap += area
+    gap = float(aoi_g.difference(union).area)
+    gap = 0.0 if gap <= tol else gap
     return SeamlineCoverage(aoi_area=a_area, covered_area=a_area - gap, gap_area=gap,
                             gap_pct=100.0 * gap / a_area, overlap_area=overlap,
                             overlap_pct=100.0 * overlap / a_area,

@@ -466,10 +466,13 @@ class NoiseAccumulator:
                 invalid, valid = np.divmod(bad, w), None
         slab = max(k, (SLAB_PIXELS // max(w, 1)) // k * k)
         stds = []
-        for r0 in range(0, h, slab):
-            r1 = min(h, r0 + slab)
-            self._laplacian(block, valid, max(r0, 1), min(r1, h - 1))
-            stds.append(self._local_std(block, valid, r0, min(r1, (h // k) * k)))
+        # a float block's invalid pixels (NaN, +/-Inf) enter the whole-block arithmetic and
+        # leave it through ``valid``: their inf - inf is no warning worth printing
+        with np.errstate(invalid="ignore", over="ignore"):
+            for r0 in range(0, h, slab):
+                r1 = min(h, r0 + slab)
+                self._laplacian(block, valid, max(r0, 1), min(r1, h - 1))
+                stds.append(self._local_std(block, valid, r0, min(r1, (h // k) * k)))
         sd = np.concatenate(stds) if len(stds) > 1 else stds[0] if stds else None
         if invalid is not None and invalid[0].size:
             sd = self._exclude_invalid(block, *invalid, sd)
@@ -821,6 +824,8 @@ class BandStats:
     noise_sigma_immerkaer: float | None = None
     noise_sigma_homogeneous: float | None = None
     nodata: float | None = None
+    #: float bands: NaN / +/-Inf pixels that are not no-data, excluded from every statistic
+    nonfinite: int | None = None
 
     @property
     def saturation_low_hidden(self) -> bool:
@@ -850,6 +855,8 @@ class BandStats:
             "noise_sigma_homogeneous": self.noise_sigma_homogeneous,
             "nodata": self.nodata, "saturation_low_hidden_by_nodata": self.saturation_low_hidden,
         }
+        if self.nonfinite is not None:
+            out["nonfinite_pixels"] = self.nonfinite
         if histogram:
             out["histogram"] = None if self.histogram is None else self.histogram.to_dict()
         return out

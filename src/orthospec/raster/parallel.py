@@ -126,6 +126,9 @@ def _aggregates(bands: list[dict[str, Any]], lum: dict[str, Any] | None,
         "image.saturation_low_hidden_by_nodata": any(
             bool(b.get("saturation_low_hidden_by_nodata")) for b in bands),
     }
+    nonfinite = vals("nonfinite_pixels")  # float bands only: integer images keep their keys
+    if nonfinite:
+        out["image.nonfinite_pixels"] = int(sum(nonfinite))
     return out
 
 

@@ -36,7 +36,7 @@ from collections import deque
 from collections.abc import Iterator, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from contextlib import ExitStack, contextmanager, nullcontext
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -369,7 +369,7 @@ def _valid(data: np.ndarray, info: BandInfo, mask: np.ndarray | None) -> np.ndar
     if info.use_mask and mask is not None:
         valid = mask != 0
     if np.dtype(info.dtype).kind == "f":
-        finite = ~np.isnan(data)
+        finite = np.isfinite(data)  # NaN and +/-Inf: never a value (counted by _nonfinite)
         valid = finite if valid is None else valid & finite
     if info.nodata is not None and not (isinstance(info.nodata, float) and math.isnan(info.nodata)):
         if data.dtype.kind in "ui":
@@ -380,6 +380,22 @@ def _valid(data: np.ndarray, info: BandInfo, mask: np.ndarray | None) -> np.ndar
         v = data != nd
         valid = v if valid is None else valid & v
     return valid
+
+
+def _nonfinite(data: np.ndarray, info: BandInfo, mask: np.ndarray | None) -> int:
+    """Pixels of a float band's block that are NaN or +/-Inf and not no-data (a NaN nodata value
+    makes NaN no-data; a GDAL mask's zeros are no-data): excluded from every statistic, counted."""
+    if data.dtype.kind != "f":
+        return 0
+    bad = ~np.isfinite(data)
+    if not bad.any():
+        return 0
+    nd = info.nodata
+    if nd is not None and not info.use_mask:
+        bad &= ~np.isnan(data) if math.isnan(nd) else data != np.asarray(nd).astype(data.dtype)
+    if info.use_mask and mask is not None:
+        bad &= mask
+    return int(np.count_nonzero(bad))
 
 
 def scan_raster(path: str | Path, settings: ScanSettings | None = None) -> RasterStats:
@@ -430,6 +446,8 @@ def _scan(ds: rasterio.io.DatasetReader, s: ScanSettings) -> RasterStats:
                 str(b.index), b.dtype, ds.width * ds.height, acc.moms[b.index], b.grey,
                 histogram=binned.get(b.index), noise=nz, count_low=ec[0], count_high=ec[1],
                 above_range=ec[2], nodata=b.nodata))
+        if b.index in acc.nonfinite:
+            bands[-1] = replace(bands[-1], nonfinite=acc.nonfinite[b.index])
     lum_stats = None
     if acc.lum is not None and acc.rgb is not None:
         first = infos[acc.rgb[0] - 1]
@@ -618,6 +636,8 @@ class _Accumulators:
     hidden: tuple[int, ...] = ()
     low_told: dict[int, int] = field(default_factory=dict)
     all_nodata: int = 0
+    #: per float band, its NaN / +/-Inf pixels that are not no-data (:func:`_nonfinite`)
+    nonfinite: dict[int, int] = field(default_factory=dict)
 
     @classmethod
     def for_bands(cls, infos: Sequence[BandInfo], s: ScanSettings,
@@ -628,7 +648,8 @@ class _Accumulators:
             rgb = None
         hidden = tuple(b.index for b in infos if not b.use_mask and b.nodata is not None
                        and b.grey.low is not None and b.nodata == b.grey.low)
-        extra: dict[str, Any] = {"hidden": hidden, "low_told": dict.fromkeys(hidden, 0)}
+        extra: dict[str, Any] = {"hidden": hidden, "low_told": dict.fromkeys(hidden, 0),
+                                 "nonfinite": {b.index: 0 for b in infos if np.dtype(b.dtype).kind == "f"}}
         if s.signature and ds is not None:
             dtype = str(np.result_type(*ds.dtypes))
             extra["pixel_hash"] = sig.PixelHash(width=ds.width, height=ds.height, count=ds.count, dtype=dtype)
@@ -676,6 +697,8 @@ class _Accumulators:
             if hist is None:
                 valid = _valid(band, b, mask_valid if b.use_mask else None)
                 self._add_moments(band, b, valid)
+                if b.index in self.nonfinite:
+                    self.nonfinite[b.index] += _nonfinite(band, b, mask_valid if b.use_mask else None)
             elif b.use_mask:
                 hist.add(band, mask_valid)
                 valid = mask_valid
@@ -804,6 +827,8 @@ class _Accumulators:
         for idx in self.hidden:
             self.low_told[idx] += other.low_told.get(idx, 0)
         self.all_nodata += other.all_nodata
+        for idx in self.nonfinite:
+            self.nonfinite[idx] += other.nonfinite.get(idx, 0)
         return self
 
     def _add_moments(self, band: np.ndarray, b: BandInfo, valid: np.ndarray | None) -> None:
@@ -1022,17 +1047,37 @@ def readable_vector(path: str | Path, *, name: str | None = None) -> Iterator[tu
         yield str(local), driver
 
 
-def read_vector(path: str | Path, *, name: str | None = None) -> tuple[list[Any], str | None]:
-    """Geometries (shapely) and CRS (WKT/authority string) of a vector file, with pyogrio."""
+#: Features read at once by :func:`read_vector`: the WKB of one batch is in memory beside the
+#: geometries already made, never the whole layer's (a 150,000-polygon seamline layer).
+VECTOR_BATCH = 20_000
+
+
+def read_vector(path: str | Path, *, name: str | None = None,
+                batch: int = VECTOR_BATCH) -> tuple[list[Any], str | None]:
+    """Geometries (shapely) and CRS (WKT/authority string) of a vector file, with pyogrio, read in
+    batches of ``batch`` features (no attribute columns: only the geometries are measured)."""
     import pyogrio
     import shapely
 
     label = name or str(path)
+    geoms: list[Any] = []
+    crs = None
     with readable_vector(path, name=label) as (local, _driver), gdal_errors(
             file=label, path=local, what="vector file"):
-        meta, _fids, geometry, _fields = pyogrio.raw.read(local)
-        geoms = [] if geometry is None else list(shapely.from_wkb(geometry))
-    return [g for g in geoms if g is not None], meta.get("crs")
+        total = pyogrio.read_info(local).get("features", -1)
+        skip = 0
+        while True:
+            meta, _fids, geometry, _fields = pyogrio.raw.read(
+                local, columns=[], skip_features=skip, max_features=batch)
+            crs = meta.get("crs")
+            n = 0 if geometry is None else len(geometry)
+            if n:
+                geoms.extend(g for g in shapely.from_wkb(geometry) if g is not None)
+            del geometry
+            skip += n
+            if n < batch or (total >= 0 and skip >= total):
+                break
+    return geoms, crs
 
 
 @dataclass(frozen=True)

@@ -216,27 +216,6 @@ def _yaml_problem(path: Path, exc: YamlError) -> Problem:
 
 # --- model validation ---------------------------------------------------------------------
 
-def schema_problems(doc: Located) -> list[Problem]:
-    """Problems the published JSON Schema finds (what editors see); kept for tools and tests."""
-    import jsonschema
-
-    validator = jsonschema.Draft202012Validator(_schema())
-    out = []
-    for err in sorted(validator.iter_errors(doc.data), key=lambda e: [str(p) for p in e.absolute_path]):
-        while err.context:  # anyOf/oneOf: report the most specific branch, where the mistake is
-            err = jsonschema.exceptions.best_match(err.context)
-        path = tuple(err.absolute_path)
-        line, col = doc.where(path)
-        loc = "/".join(str(p) for p in path) or "(document)"
-        out.append(Problem(doc.file, line, col, f"{loc}: {_short(err.message)}", _rule_at(doc, path)))
-    return out
-
-
-@lru_cache(maxsize=1)
-def _schema() -> dict[str, Any]:
-    return json.loads((specs_dir() / "schema" / "profile.schema.json").read_text(encoding="utf-8"))
-
-
 def _short(msg: str) -> str:
     return msg if len(msg) < 300 else msg[:297] + "..."
 
@@ -425,15 +404,6 @@ def read_header(path: Path) -> tuple[str, str, str] | None:
     if "orthospec_profile" not in found or "id" not in found:
         return None
     return found["id"], found.get("version", ""), found.get("title", "")
-
-
-def profile_files(extra: list[Path] | None = None) -> list[Path]:
-    dirs = [specs_dir(), *(extra or [])]
-    files: list[Path] = []
-    for d in dirs:
-        if d.is_dir():
-            files.extend(sorted(p for p in d.glob("*.yaml") if p.is_file() and read_header(p)))
-    return files
 
 
 def available(extra: list[Path] | None = None) -> list[tuple[str, str, str, Path]]:

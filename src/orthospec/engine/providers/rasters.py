@@ -44,6 +44,7 @@ IMAGE_MEASURES: dict[str, str] = {
     "raster.gsd_declared_diff": "%", "raster.bit_depth_agrees": "bool",
     "raster.reported_min_diff": "DN", "raster.reported_max_diff": "DN",
     "raster.cloud_cover": "%", "raster.cloud_cover_declared_diff": "%",
+    "raster.nonfinite_pixels": "1",
 }
 DELIVERY_MEASURES = {"raster.unlisted_files": "1", "raster.listed_missing": "1"}
 CLOUD_MEAN = {"raster.cloud_cover_mean": "%"}
@@ -332,6 +333,7 @@ def _values(rep: ImageReport, reported: dict[str, Any], declared: dict[str, Any]
         "raster.nodata_share": None if d.get("image.nodata_fraction") is None
         else 100.0 * d["image.nodata_fraction"],
         "raster.name_ok": d.get("name_ok"),
+        "raster.nonfinite_pixels": d.get("image.nonfinite_pixels", 0 if rep.radiometry else None),
         "raster.saturation_low": d.get("image.saturation_low_pct"),
         "raster.saturation_high": d.get("image.saturation_high_pct"),
         "raster.saturation_low_max_band": _saturation_low(d, (rep.radiometry or {}).get("low_nodata")),
