@@ -87,7 +87,8 @@ def test_no_page_lists_not_applicable_rows(fail: dict[str, Any], passed: dict[st
 def test_aerial_pass_report_is_at_most_14_pages(passed: dict[str, Any]) -> None:
     # 12 until issues 25/26 added rules (measured-vs-declared GSD, location, cloud, statistics, DEM, camera;
     # acquisition window, point ids, QCR set...) and their parameters
-    assert len(passed["pages"]) <= 14  # 13 on each branch; 14 once both rule sets met on main
+    # 14 once both rule sets met on main; 15 with the map of the findings (issue 30), one page of its own
+    assert len(passed["pages"]) <= 15
 
 
 def test_checker_and_contractor_operator_are_separate(fail: dict[str, Any], passed: dict[str, Any]) -> None:
