@@ -169,7 +169,7 @@ class Screen:
 
     @property
     def used(self) -> np.ndarray:
-        return np.equal(self.reasons, None)
+        return np.equal(self.reasons, None)  # type: ignore[call-overload]  # numpy's stubs take no None operand
 
 
 @dataclass(frozen=True)
@@ -249,11 +249,12 @@ def _compute_once(ctx: ProviderContext, table: str = "checkpoints") -> Results:
     df = t.df
     cells, out.bad_cells = _block_cells(df, d.block_ids)
     todo: list[tuple[str, BlockPoints, tuple[Evidence, ...], Screen]] = []
-    for block, rows in sorted(pd.Series(cells, index=df.index).groupby(cells).indices.items()):
-        if block is None:
+    for key, rows in sorted(pd.Series(cells, index=df.index).groupby(cells).indices.items()):
+        if key is None:
             continue
-        pts = _block_points(df, rows, to_m)
-        ev = (Evidence(t.file, t.sha256, tuple(pts.rows.tolist())),)
+        block = str(key)  # the cells hold block ids (str) or None
+        pts = _block_points(df, np.asarray(rows), to_m)
+        ev: tuple[Evidence, ...] = (Evidence(t.file, t.sha256, tuple(pts.rows.tolist())),)
         if block in broken:
             out.blocks[block] = BlockAccuracy(block, ev, settings, error=broken[block])
             continue
@@ -269,7 +270,7 @@ def _compute_once(ctx: ProviderContext, table: str = "checkpoints") -> Results:
             continue
         todo.append((block, pts, ev, screen))
     if out.bad_cells:
-        rows = np.flatnonzero(np.equal(cells, None))
+        rows = np.flatnonzero(np.equal(cells, None))  # type: ignore[call-overload]  # no None operand in the stubs
         pts = _block_points(df, rows, to_m)
         why = np.array([f"block cell {str(c)!r} does not name exactly one block"
                         for c in df["block"].to_numpy(dtype=object)[rows]], dtype=object)
@@ -304,7 +305,7 @@ def _block_cells(df: pd.DataFrame, blocks: list[str]) -> tuple[np.ndarray, dict[
     known = set(blocks)
     text = df["block"].astype(str).to_numpy(dtype=object)
     ok = pd.Index(text, dtype=object).isin(known)
-    out = np.where(ok, text, None).astype(object)
+    out = np.where(ok, text, None).astype(object)  # type: ignore[call-overload]  # no None operand in the stubs
     ids = df["point_id"].astype(str).to_numpy(dtype=object)
     bad: dict[str, list[str]] = {}
     for pos in np.flatnonzero(~ok).tolist():
