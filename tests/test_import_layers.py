@@ -37,7 +37,8 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("orthospec.raster", "orthospec.inspection"),  # reading rasters; the inspection grid (reads rasters, vectors)
     ("orthospec.engine",),     # providers, evaluator
     ("orthospec.qcr",),        # the QCR document
-    ("orthospec.figures", "orthospec.reports", "orthospec.ledger", "orthospec.ingest", "orthospec.findings"),
+    ("orthospec.figures", "orthospec.reports", "orthospec.ledger", "orthospec.ingest", "orthospec.findings",
+     "orthospec.metadata"),
     ("orthospec.api", "orthospec.verify", "orthospec.schemas"),
     ("orthospec.cli",),
 )
