@@ -311,7 +311,7 @@ class _Shared:
     list, often their evidence) is written as ``{"ref": [rule, column]}`` to that first one."""
 
     MIN_LEN = 4
-    COLUMNS = ("items", "measured", "requirement", "evidence", "message", "waiver_requested")
+    COLUMNS = ("items", "measured", "requirement", "evidence", "message", "waiver_requested", "reason")
 
     def __init__(self) -> None:
         #: a cheap fingerprint of a column -> the columns written with it ([rule, column], value)
@@ -366,7 +366,7 @@ def _shown_unit(unit: str | None) -> str:
 
 def _full(rule: Mapping[str, Any], item: str, verdict: str, measured: Any, requirement: dict[str, Any],
           evidence: list[dict[str, Any]], message: str, waiver: Any = None, waiver_requested: Any = None,
-          waived_verdict: str | None = None) -> dict[str, Any]:
+          waived_verdict: str | None = None, reason: str | None = None) -> dict[str, Any]:
     """A record as readers see it: what is particular to the item, plus what its rule summary
     holds for every item (title, clause, quote, level, consequence, measure, unit, audit)."""
     rec = {"rule": rule["rule"], "title": rule.get("title", ""), "clause": rule.get("citation") or {},
@@ -379,6 +379,7 @@ def _full(rule: Mapping[str, Any], item: str, verdict: str, measured: Any, requi
         rec["waived_verdict"] = waived_verdict
     if rule.get("audit") is not None:
         rec["audit"] = rule["audit"]
+    rec["reason"] = V.reason_of(verdict, reason)
     return rec
 
 
@@ -486,6 +487,7 @@ class _RuleRecords:
                 rec["waived_verdict"] = VERDICTS[int(r.original[i])]
         if r.requested.get(item) is not None:
             rec["waiver_requested"] = r.requested.get(item)
+        rec["reason"] = r.reason(i)
         return rec
 
     def record(self, i: int) -> dict[str, Any]:
@@ -523,6 +525,14 @@ class _RuleRecords:
             asked = [r.requested.get(item) for item in items]
             if any(a is not None for a in asked):
                 out["waiver_requested"] = _column(asked)
+        if r.reasons is not None:  # a column only where a reason is not its verdict's default
+            rs = np.asarray(r.reasons, dtype=object)
+            rs = rs if every else rs[idx]
+            other = (codes == NA) & (np.equal(rs, V.Reason.OUTSIDE_SAMPLE) |
+                                     np.equal(rs, V.Reason.PROVIDER_NOT_APPLICABLE)).astype(bool)
+            if other.any():
+                out["reason"] = _column([V.reason_of(VERDICTS[c], x) for c, x in zip(codes.tolist(), rs.tolist(),
+                                                                                    strict=True)])
         return out
 
     def _evidence_column(self, idx: np.ndarray, every: bool = False) -> Any:
@@ -591,7 +601,8 @@ def _expand_stored(rule: Mapping[str, Any], rec: Mapping[str, Any]) -> dict[str,
     """A stored record in full (version 2) as readers see it."""
     return _full(rule, rec["item"], rec["verdict"], rec.get("measured"),
                  rec.get("requirement") or rule.get("requirement") or {}, rec.get("evidence") or [],
-                 rec.get("message", ""), rec.get("waiver"), rec.get("waiver_requested"), rec.get("waived_verdict"))
+                 rec.get("message", ""), rec.get("waiver"), rec.get("waiver_requested"), rec.get("waived_verdict"),
+                 rec.get("reason"))
 
 
 def _column_values(col: Any, n: int, compact: Mapping[str, Any]) -> list[Any]:
@@ -639,6 +650,7 @@ def _expand(rule: Mapping[str, Any], block: Mapping[str, Any], evidence: list[di
     n = len(items)
     evs = _evidence_values(block.get("evidence"), n, compact, evidence)
     asked = _column_values(block.get("waiver_requested"), n, compact)
+    why = _column_values(block.get("reason"), n, compact)
     shown = _shown_unit(rule.get("unit"))
     measure = rule.get("measure", "")
     for k, ev in zip(range(n), evs, strict=True):
@@ -646,7 +658,7 @@ def _expand(rule: Mapping[str, Any], block: Mapping[str, Any], evidence: list[di
         msg = msgs[k]
         if msg is None:
             msg = _pass_message(measure, measured[k], shown, req.get("text", ""))
-        yield _full(rule, items[k], verdicts[k], measured[k], req, ev, msg, None, asked[k])
+        yield _full(rule, items[k], verdicts[k], measured[k], req, ev, msg, None, asked[k], None, why[k])
 
 
 def all_records(doc: Mapping[str, Any], *, compact: bool = True) -> Iterator[dict[str, Any]]:

@@ -13,7 +13,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from .verdicts import CONSEQUENCES, OVERALL, VERDICTS
+from .verdicts import CONSEQUENCES, OVERALL, VERDICTS, Reason
 
 SCHEMA_IDS = ("orthospec.qcr/1", "orthospec.qcr/2", "orthospec.qcr/3")
 SCHEMA_BASE = "https://orthospec.dev/schema/"
@@ -78,6 +78,10 @@ class Requirement(_Open):
     unit: str | None = None
 
 
+_REASON = ("Why the record is not a pass (orthospec.verdicts.Reason); absent for a pass, and for a compact "
+           "record whose reason is its verdict's default (not_applicable: condition_false).")
+
+
 class Record(_Closed):
     """One quality control record: one rule applied to one item."""
 
@@ -101,6 +105,7 @@ class Record(_Closed):
         None, description="The contractor's waiver request (delivery.yaml): evidence, never in force by itself.")
     waived_verdict: Verdict | None = Field(None, description="The verdict a waiver replaced.")
     audit: dict[str, Any] | None = None
+    reason: Reason | None = Field(None, description=_REASON)
 
 
 class StoredRecord(_Closed):
@@ -119,6 +124,7 @@ class StoredRecord(_Closed):
     waiver: dict[str, Any] | None = None
     waived_verdict: Verdict | None = None
     waiver_requested: dict[str, Any] | None = None
+    reason: Reason | None = Field(None, description=_REASON)
 
 
 class ColumnRef(_Closed):
@@ -163,6 +169,9 @@ class CompactBlock(_Closed):
     evidence: list[list[int]] | AllSame | ColumnRef | RowColumn
     message: list[str | None] | AllSame | ColumnRef
     waiver_requested: list[dict[str, Any] | None] | AllSame | ColumnRef | None = None
+    #: only when an item's reason is not its verdict's default (not applicable outside the sample,
+    #: or by the measure's provider)
+    reason: list[Reason | None] | AllSame | ColumnRef | None = None
 
 
 class RuleSummary(_Closed):

@@ -9,6 +9,7 @@ SQLite all keep working unchanged. Standard library only: the start-up-critical 
 from __future__ import annotations
 
 from collections.abc import Iterable
+from enum import StrEnum
 from typing import Final, Literal
 
 # --- item verdicts (one per rule x item record) --------------------------------------------------
@@ -89,3 +90,73 @@ def overall(rejected: bool, incomplete: bool = False) -> str:
 def exit_code(verdict: str) -> int:
     """0 accepted, 1 rejected, 3 incomplete; anything else is treated as rejected (never 0)."""
     return EXIT_CODES.get(verdict, 1)
+
+
+# --- reason codes (why a record is not a pass) ---------------------------------------------------
+class Reason(StrEnum):
+    """Why a record is not ``pass``: the cause beside the message (pandera's ``SchemaErrorReason``).
+
+    The message is for people; the reason is for grouping (reports, JUnit, the ledger audit), so
+    nothing reads a cause back from the message text. A ``str`` enum: it is written as its value
+    (``"unset_parameter"``) and compares equal to the string read back from a qcr.json."""
+
+    #: the measured value is outside the requirement (``fail``, or ``warn`` for a recommended rule)
+    NOT_MET = "not_met"
+    #: the requirement's threshold names a parameter nobody set (``missing``)
+    UNSET_PARAMETER = "unset_parameter"
+    #: a value in pixels cannot be converted without the item's GSD (``missing``)
+    NO_GSD = "no_gsd"
+    #: the threshold cannot be computed for the item (a measure it uses is missing) (``missing``)
+    NO_THRESHOLD = "no_threshold"
+    #: the threshold is not a finite number (``error``)
+    BAD_THRESHOLD = "bad_threshold"
+    #: the measure gives no value for the item (``missing``)
+    NO_VALUE = "no_value"
+    #: the rule has no item to judge at its scope (``missing``)
+    NO_ITEMS = "no_items"
+    #: the rule's `when` reads a fact the delivery does not give, and the condition depends on it
+    UNKNOWN_FACT = "unknown_fact"
+    #: the measure's provider could not read or compute the item's value (``error``)
+    PROVIDER_ERROR = "provider_error"
+    #: the rule crashed (an internal error of orthospec, never the delivery's fault) (``error``)
+    INTERNAL_ERROR = "internal_error"
+    #: a manual check without the checker's verdict for the item (or for this content) (``missing``)
+    UNSIGNED = "unsigned"
+    #: ``not_applicable``: the rule's `when` is false for the item
+    CONDITION_FALSE = "condition_false"
+    #: ``not_applicable``: the measure's provider says the rule does not apply to the item
+    PROVIDER_NOT_APPLICABLE = "provider_not_applicable"
+    #: ``not_applicable``: with ``check --sample``, the item is outside the external QC sample
+    OUTSIDE_SAMPLE = "outside_sample"
+    #: ``waived``: a waiver in force covers the finding
+    WAIVED = "waived"
+
+
+#: every reason code, in the order the schemas list them
+REASONS: Final[tuple[str, ...]] = tuple(r.value for r in Reason)
+
+#: the reason of a record whose rule gave none, by verdict (None: a pass needs no reason)
+DEFAULT_REASON: Final[dict[str, Reason | None]] = {
+    PASS: None, FAIL: Reason.NOT_MET, WARN: Reason.NOT_MET, NOT_APPLICABLE: Reason.CONDITION_FALSE,
+    MISSING: Reason.NO_VALUE, ERROR: Reason.PROVIDER_ERROR, WAIVED: Reason.WAIVED}
+
+
+#: the reasons a record of each verdict may carry (a rule's reason for another verdict - the verdict
+#: was changed after, by a waiver say - gives way to the verdict's default)
+ALLOWED_REASONS: Final[dict[str, frozenset[str]]] = {
+    PASS: frozenset(), FAIL: frozenset({Reason.NOT_MET}), WARN: frozenset({Reason.NOT_MET}),
+    NOT_APPLICABLE: frozenset({Reason.CONDITION_FALSE, Reason.PROVIDER_NOT_APPLICABLE, Reason.OUTSIDE_SAMPLE}),
+    MISSING: frozenset({Reason.UNSET_PARAMETER, Reason.NO_GSD, Reason.NO_THRESHOLD, Reason.NO_VALUE,
+                        Reason.NO_ITEMS, Reason.UNKNOWN_FACT, Reason.UNSIGNED}),
+    ERROR: frozenset({Reason.BAD_THRESHOLD, Reason.PROVIDER_ERROR, Reason.INTERNAL_ERROR}),
+    WAIVED: frozenset({Reason.WAIVED}),
+}
+
+
+def reason_of(verdict: str, given: object = None) -> str | None:
+    """The reason code a record of ``verdict`` carries: the rule's own (``given``) when it is one a
+    record of that verdict may carry, else the verdict's default; None for a pass."""
+    if given is not None and given in ALLOWED_REASONS.get(verdict, ()):
+        return str(given.value if isinstance(given, Reason) else given)
+    d = DEFAULT_REASON.get(verdict)
+    return d.value if d is not None else None

@@ -24,11 +24,12 @@ from ..spec.models import Requirement, Rule
 from ..spec.operators import Decision, Thresholds, operator
 from ..spec.wording import requirement_text
 from ..units import NON_NUMERIC, canonical, convert
+from ..verdicts import Reason
 from .context import ERROR, MISSING, Context
 from .names import Names, null_tested, param_key
 
 #: (verdict code, item mask, note) for items a comparison could not decide
-Undecided = list[tuple[int, np.ndarray, str]]
+Undecided = list[tuple[int, np.ndarray, str, Reason]]
 
 
 class Undecidable(OrthospecError):
@@ -192,7 +193,7 @@ class Comparison:
         lost = np.isnan(values) & ~before & ~self.skip
         if lost.any():
             self.undecided.append((MISSING, lost, f"{rule.measure} in {canonical(munit)} cannot be converted to "
-                                   f"{target_unit}: no GSD for this item (give images.gsd or product.gsd)"))
+                                   f"{target_unit}: no GSD for this item (give images.gsd or product.gsd)", Reason.NO_GSD))
         return values, target_unit, gsd, lost
 
     def _thresholds(self, n: int, gsd: np.ndarray | None) -> tuple[Thresholds, tuple[np.ndarray, ...] | None]:
@@ -219,9 +220,9 @@ class Comparison:
         thr = req_dict(self.req, shown)
         self.undecided.append((MISSING, d.no_threshold & ~skip, (
             f"the threshold of {rule.id} cannot be computed for this item (a px threshold without a GSD, "
-            "or a measure it uses is missing)")))
+            "or a measure it uses is missing)"), Reason.NO_THRESHOLD))
         self.undecided.append((ERROR, d.bad_threshold & ~skip, (
             f"the threshold of {rule.id} is not a finite number ({thr.get('text', '')}): a requirement must "
-            "be a finite value")))
-        self.undecided.append((MISSING, d.no_value & ~skip & ~lost, f"no numeric value for {rule.measure}"))
+            "be a finite value"), Reason.BAD_THRESHOLD))
+        self.undecided.append((MISSING, d.no_value & ~skip & ~lost, f"no numeric value for {rule.measure}", Reason.NO_VALUE))
         return d.ok | skip | d.no_value, values, thr, target_unit, self.undecided

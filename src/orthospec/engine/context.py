@@ -55,6 +55,12 @@ class RuleResult:
     error: str | None = None
     #: the traceback of a rule that crashed, kept only under --debug (ORTHOSPEC_DEBUG=1)
     traceback: str | None = None
+    #: per item, why it is not a pass (``orthospec.verdicts.Reason`` or None: the verdict's default)
+    reasons: np.ndarray | None = None
+
+    def reason(self, i: int) -> str | None:
+        """The reason code of item ``i`` (None for a pass): the rule's own, else its verdict's default."""
+        return V.reason_of(VERDICTS[int(self.verdict[i])], None if self.reasons is None else self.reasons[i])
 
     @property
     def worst(self) -> int:

@@ -33,6 +33,7 @@ from ..delivery.convention import table_of_scope
 from ..provenance import Evidence
 from ..spec.models import Rule
 from ..spec.operators import is_missing
+from ..verdicts import Reason
 from .applicability import applicable
 from .compare import req_dict
 from .context import FAIL, MISSING, NA, PASS, WARN, Context, RuleResult
@@ -186,6 +187,8 @@ def manual_rule(ctx: Context, rule: Rule, items: list[str]) -> RuleResult:
     verdict = np.full(n, MISSING, dtype=np.int8)
     measured = np.full(n, None, dtype=object)
     notes = np.full(n, None, dtype=object)
+    # a manual record is missing because nobody signed it (for this content), unless said otherwise
+    reasons = np.full(n, Reason.UNSIGNED, dtype=object)
     evidence: list[tuple[Evidence, ...]] = [()] * n
     by_checker, by_contractor = signed(ctx, rule.id), stated(ctx, rule.id)
     files = item_files(ctx, rule.scope)
@@ -237,9 +240,12 @@ def manual_rule(ctx: Context, rule: Rule, items: list[str]) -> RuleResult:
         na[:listed] = ~ok & ~unknown
         verdict[na] = NA
         notes[na] = f"not applicable: {rule.when} is false"
+        reasons[na] = Reason.CONDITION_FALSE
         if unknown.any():
             unk = np.zeros(n, dtype=bool)
             unk[:listed] = unknown
             notes[unk & (verdict == MISSING)] = unknown_note
+            reasons[unk & (verdict == MISSING)] = Reason.UNKNOWN_FACT
+    reasons[(verdict == FAIL) | (verdict == WARN)] = Reason.NOT_MET
     return RuleResult(rule, np.array(items, dtype=object), verdict, measured, "text",
-                      req_dict(rule.requirement, None), evidence, notes)
+                      req_dict(rule.requirement, None), evidence, notes, reasons=reasons)

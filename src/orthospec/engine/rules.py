@@ -20,6 +20,7 @@ from .. import verdicts as V
 from ..errors import OrthospecError
 from ..provenance import Evidence
 from ..spec.models import Rule
+from ..verdicts import Reason
 from .applicability import applicable, scalar_condition
 from .builtin import BUILTIN_RULES, ITT_DECLARED, parameter_findings
 from .compare import Comparison, Undecidable, req_dict
@@ -38,15 +39,15 @@ def _constant(n: int, value: object) -> np.ndarray:
     return out
 
 
-def all_items(ctx: Context, rule: Rule, verdict: int, note: str, items: list[str] | None = None,
+def all_items(ctx: Context, rule: Rule, verdict: int, note: str, reason: Reason, items: list[str] | None = None,
               evidence: tuple[Evidence, ...] = (), tb: str | None = None) -> RuleResult:
-    """One verdict for every item of the rule (``*`` when the items are unknown)."""
+    """One verdict (for one reason) for every item of the rule (``*`` when the items are unknown)."""
     its = items if items else ["*"]
     n = len(its)
     return RuleResult(rule, np.array(its, dtype=object), np.full(n, verdict, dtype=np.int8),
                       np.full(n, None, dtype=object), "", req_dict(rule.requirement, None),
                       [evidence] * n, _constant(n, note),
-                      error=note if verdict == ERROR else None, traceback=tb)
+                      error=note if verdict == ERROR else None, traceback=tb, reasons=_constant(n, reason))
 
 
 def _items_or_none(ctx: Context, rule: Rule) -> list[str] | None:
@@ -63,16 +64,16 @@ def safe(ctx: Context, rule: Rule, rollup: dict[str, Measured] | None = None) ->
     try:
         return evaluate(ctx, rule, rollup)
     except Undecidable as exc:
-        return all_items(ctx, rule, MISSING, str(exc), items=_items_or_none(ctx, rule))
+        return all_items(ctx, rule, MISSING, str(exc), Reason.UNSET_PARAMETER, items=_items_or_none(ctx, rule))
     except OrthospecError as exc:
-        return all_items(ctx, rule, ERROR, str(exc), items=_items_or_none(ctx, rule))
+        return all_items(ctx, rule, ERROR, str(exc), Reason.PROVIDER_ERROR, items=_items_or_none(ctx, rule))
     except Exception as exc:  # documented broad catch, never swallowing: a crashing
         # rule (a bug, or input no check anticipated) is `error` - which rejects - never `fail` or
         # `pass`, its message is in every record, and under --debug its traceback is kept too
         tb = "".join(traceback.format_exception(exc)) if ctx.debug else None
         note = f"internal error in rule: {type(exc).__name__}: {exc}" + (
             "" if tb else " (run with --debug to keep the traceback)")
-        return all_items(ctx, rule, ERROR, note, items=_items_or_none(ctx, rule), tb=tb)
+        return all_items(ctx, rule, ERROR, note, Reason.INTERNAL_ERROR, items=_items_or_none(ctx, rule), tb=tb)
 
 
 def builtin(ctx: Context) -> list[RuleResult]:
@@ -99,10 +100,10 @@ def evaluate(ctx: Context, rule: Rule, rollup: dict[str, Measured] | None = None
     if cond is False:
         items0, _ = ctx.universe(rule.scope)
         return all_items(ctx, rule, NA, f"not applicable: {rule.when} is false for this delivery",
-                         items=items0 or None, evidence=when_ev)
+                         Reason.CONDITION_FALSE, items=items0 or None, evidence=when_ev)
     items, why = ctx.universe(rule.scope)
     if unknown_why is not None:
-        return all_items(ctx, rule, MISSING, unknown_why, items=items or None, evidence=when_ev)
+        return all_items(ctx, rule, MISSING, unknown_why, Reason.UNKNOWN_FACT, items=items or None, evidence=when_ev)
     if rule.manual:
         return manual_rule(ctx, rule, items if items is not None else [ctx.d.id])
     m = rollup[rule.measure] if rule.measure.startswith("rollup.") and rollup else ctx.cache.get(rule.measure)
@@ -112,7 +113,7 @@ def evaluate(ctx: Context, rule: Rule, rollup: dict[str, Measured] | None = None
             why = str(m.notes.iloc[0])
     if not items:
         return all_items(ctx, rule, MISSING, f"no items to check at scope {rule.scope}: {why or 'none delivered'}",
-                         evidence=(ctx.d.manifest_evidence("tables"),))
+                         Reason.NO_ITEMS, evidence=(ctx.d.manifest_evidence("tables"),))
     return _judge(ctx, rule, m, items)
 
 
@@ -142,6 +143,8 @@ class _Column:
         self.evidence = _evidence_at(m, items, pos)
         self.notes = notes
         self.applies = applies
+        #: items the provider says the rule does not apply to
+        self.provider_na = np.zeros(n, dtype=bool)
         if m.notes is not None:
             nn = m.notes.reindex(items)
             self.notes = np.where(nn.notna().to_numpy(), nn.to_numpy(dtype=object), self.notes)
@@ -156,6 +159,7 @@ class _Column:
             nav = m.na.reindex(items)
             na_mask = nav.notna().to_numpy()
             self.applies = self.applies & ~na_mask
+            self.provider_na = na_mask & applies
             self.notes = np.where(na_mask, nav.to_numpy(dtype=object), self.notes)
 
 
@@ -185,6 +189,7 @@ def _judge(ctx: Context, rule: Rule, m: Measured, items: list[str]) -> RuleResul
     """Compare the measure with the requirement per item and apply the missing/error/n-a policy."""
     n = len(items)
     applies, unknown, unknown_note = applicable(ctx, rule, items)
+    applies_before_sample = applies
     applies, sampled = _sampled(ctx, rule, items, applies, notes := np.full(n, None, dtype=object))
     col = _Column(rule, m, items, applies, notes)
     notes = col.notes
@@ -196,22 +201,33 @@ def _judge(ctx: Context, rule: Rule, m: Measured, items: list[str]) -> RuleResul
         # an unset parameter the threshold needs: `missing` only where the rule applies (a `when`
         # such as `tolerance_ce90 != null` makes the rule not applicable instead)
         ok, measured, thr, unit = np.ones(n, dtype=bool), col.raw, req_dict(rule.requirement, None), m.unit
-        undecided = [(MISSING, np.ones(n, dtype=bool), str(exc))]
+        undecided = [(MISSING, np.ones(n, dtype=bool), str(exc), Reason.UNSET_PARAMETER)]
     verdict = np.full(n, PASS, dtype=np.int8)
+    reasons = np.full(n, None, dtype=object)
     verdict[~ok] = FAIL if rule.level == "mandatory" else WARN
+    reasons[~ok] = Reason.NOT_MET
     verdict[col.missing] = MISSING
-    for code, mask, why in undecided:
+    reasons[col.missing] = Reason.NO_VALUE
+    for code, mask, why, reason in undecided:
         mask = mask & ~col.missing & ~col.errs & col.applies  # a not-applicable item keeps its `when` reason
         verdict[mask] = code
         notes[mask] = why
+        reasons[mask] = reason
     _note_missing(rule, col, notes)
     verdict[col.errs] = ERROR
+    reasons[col.errs] = Reason.PROVIDER_ERROR
     verdict[~col.applies] = NA
+    reasons[~col.applies] = Reason.CONDITION_FALSE
+    reasons[col.provider_na] = Reason.PROVIDER_NOT_APPLICABLE
+    if sampled is not None:
+        reasons[applies_before_sample & ~sampled & ~col.provider_na] = Reason.OUTSIDE_SAMPLE
     if unknown.any():
         in_sample = unknown if sampled is None else unknown & sampled
         verdict[in_sample] = MISSING
         notes[in_sample] = unknown_note
-    return RuleResult(rule, np.array(items, dtype=object), verdict, measured, unit, thr, col.evidence, notes)
+        reasons[in_sample] = Reason.UNKNOWN_FACT
+    return RuleResult(rule, np.array(items, dtype=object), verdict, measured, unit, thr, col.evidence, notes,
+                      reasons=reasons)
 
 
 def _note_missing(rule: Rule, col: _Column, notes: np.ndarray) -> None:
