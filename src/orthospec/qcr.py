@@ -1073,7 +1073,7 @@ def _json_texts(values: list[Any]) -> str | None:
 # --- writers --------------------------------------------------------------------------------
 
 CSV_COLUMNS = ["rule", "clause", "scope", "item", "level", "consequence", "verdict", "measure",
-               "measured_value", "measured_unit", "requirement", "evidence", "message"]
+               "measured_value", "measured_unit", "requirement", "evidence", "message", "reason"]
 
 
 _FORMULA_START = ("=", "+", "-", "@", "\t", "\r")
@@ -1165,7 +1165,7 @@ def _csv_row(r: Mapping[str, Any]) -> list[Any]:
     ev = "; ".join(evidence_text(e) for e in r["evidence"])
     return [r["rule"], _clause_text(r["clause"]), r["scope"], r["item"], r["level"], r["consequence"],
             r["verdict"], r["measure"], "" if r["measured"]["value"] is None else r["measured"]["value"],
-            r["measured"]["unit"] or "", r["requirement"].get("text", ""), ev, r["message"]]
+            r["measured"]["unit"] or "", r["requirement"].get("text", ""), ev, r["message"], r.get("reason") or ""]
 
 
 def _iter_csv_records(doc: Mapping[str, Any], *, rows_per_piece: int = 2000) -> Iterator[str]:
@@ -1228,6 +1228,7 @@ class _Block:
         self.req = _Col(block["requirement"], compact) if "requirement" in block else None
         self.req_const = rule.get("requirement") or {}
         self.message = _Col(block.get("message"), compact)
+        self.reason = _Col(block["reason"], compact) if "reason" in block else None
         self.evidence = _resolve(block.get("evidence"), compact)
         self.table = evidence
         self.compact = compact
@@ -1288,6 +1289,19 @@ class _Block:
             msgs[k] = f"{head}{_fmt(measured[k])}{tail}{texts[k]}"
         return msgs
 
+    def reasons(self, a: int, b: int) -> list[str] | str:
+        """Each item's reason code as qcr.csv writes it ("" for a pass): the block's column, else
+        the verdict's default (what :func:`_expand` gives)."""
+        if self.reason is not None:
+            part = self.reason.part(a, b)
+            if part is None:
+                return V.reason_of(str(self.verdict.const), self.reason.const) or ""
+            return [V.reason_of(v, x) or "" for v, x in zip(self.verdict.get(a, b), part, strict=True)]
+        verdicts = self.verdict.part(a, b)
+        if verdicts is None:
+            return V.reason_of(str(self.verdict.const)) or ""
+        return [V.reason_of(v) or "" for v in verdicts]
+
     def evidence_texts(self, a: int, b: int) -> Iterable[str]:
         """Each item's evidence as qcr.csv writes it (``"; "``-joined :func:`evidence_text`)."""
         col = self.evidence
@@ -1334,7 +1348,8 @@ class _Block:
             [repr(v) if type(v) is float else _csv_cell(v) for v in measured],
             rule.get("unit") or "", _csv_cells(req) if isinstance(req, list) else next(iter(req), ""),
             ev if isinstance(ev, _Cells | _Parts) else _csv_cells(ev) if isinstance(ev, list) else next(iter(ev), ""),
-            _csv_cells(msgs) if isinstance(msgs := self.messages(a, b), list) else msgs]
+            _csv_cells(msgs) if isinstance(msgs := self.messages(a, b), list) else msgs,
+            _csv_cells(why) if isinstance(why := self.reasons(a, b), list) else why]
         return _lines(cols, len(items))
 
 
@@ -1517,7 +1532,7 @@ PARQUET_COLUMNS: tuple[tuple[str, str], ...] = (
     ("measured_unit", "string"), ("requirement_op", "string"), ("requirement_value", "float64"),
     ("requirement_min", "float64"), ("requirement_max", "float64"), ("requirement_unit", "string"),
     ("requirement_text", "string"), ("message", "string"), ("evidence", "string"),
-    ("waiver", "string"), ("waiver_requested", "string"), ("waived_verdict", "string"),
+    ("waiver", "string"), ("waiver_requested", "string"), ("waived_verdict", "string"), ("reason", "string"),
 )
 
 
@@ -1591,7 +1606,7 @@ def to_parquet(doc: Mapping[str, Any]) -> bytes:
                 "requirement_unit": req.get("unit"), "requirement_text": req.get("text"),
                 "message": r.get("message"), "evidence": _json_or_none(r.get("evidence") or []),
                 "waiver": _json_or_none(r.get("waiver")), "waiver_requested": _json_or_none(r.get("waiver_requested")),
-                "waived_verdict": r.get("waived_verdict"),
+                "waived_verdict": r.get("waived_verdict"), "reason": r.get("reason"),
             }
             for name, values in cols.items():
                 values.append(row[name])
@@ -1634,15 +1649,21 @@ def _junit_case(rid: str, r: Mapping[str, Any], fail_on: str) -> str:
         # the checker's own open work (consequence incomplete, an unsigned manual check) is told
         # apart from a failure of the contractor's products
         kind = V.INCOMPLETE if r.get("consequence") == V.INCOMPLETE or (r.get("manual") and v == V.MISSING) else v
-        return (f'    <testcase name={name} classname={cls}><failure message={_xml_attr(r["message"])} '
-                f'type="{kind}">{body}</failure></testcase>')
+        return (f'    <testcase name={name} classname={cls}>{_junit_reason(r)}<failure '
+                f'message={_xml_attr(r["message"])} type="{kind}">{body}</failure></testcase>')
     if v == V.ERROR:
         body = _escape(xml_text(f"{r['title']} — {r['requirement'].get('text', '')}"))
-        return (f'    <testcase name={name} classname={cls}><error message={_xml_attr(r["message"])} '
-                f'type="error">{body}</error></testcase>')
+        return (f'    <testcase name={name} classname={cls}>{_junit_reason(r)}<error '
+                f'message={_xml_attr(r["message"])} type="error">{body}</error></testcase>')
     if v in V.NEUTRAL:
         return f'    <testcase name={name} classname={cls}><skipped message={_xml_attr(r["message"])}/></testcase>'
     return f'    <testcase name={name} classname={cls}/>'
+
+
+def _junit_reason(r: Mapping[str, Any]) -> str:
+    """The record's reason code as a testcase property (CI tools group failures by it), "" without one."""
+    why = r.get("reason")
+    return f'<properties><property name="reason" value={_xml_attr(str(why))}/></properties>' if why else ""
 
 
 def _counts(verdicts: Iterable[str] | _Counter[str]) -> tuple[int, int, int]:
