@@ -118,6 +118,9 @@ class Reason(StrEnum):
     UNKNOWN_FACT = "unknown_fact"
     #: the measure's provider could not read or compute the item's value (``error``)
     PROVIDER_ERROR = "provider_error"
+    #: the requirement cannot be evaluated on the measure (units that do not convert, an expression
+    #: that cannot be computed) (``error``)
+    REQUIREMENT_ERROR = "requirement_error"
     #: the rule crashed (an internal error of orthospec, never the delivery's fault) (``error``)
     INTERNAL_ERROR = "internal_error"
     #: a manual check without the checker's verdict for the item (or for this content) (``missing``)
@@ -148,7 +151,8 @@ ALLOWED_REASONS: Final[dict[str, frozenset[str]]] = {
     NOT_APPLICABLE: frozenset({Reason.CONDITION_FALSE, Reason.PROVIDER_NOT_APPLICABLE, Reason.OUTSIDE_SAMPLE}),
     MISSING: frozenset({Reason.UNSET_PARAMETER, Reason.NO_GSD, Reason.NO_THRESHOLD, Reason.NO_VALUE,
                         Reason.NO_ITEMS, Reason.UNKNOWN_FACT, Reason.UNSIGNED}),
-    ERROR: frozenset({Reason.BAD_THRESHOLD, Reason.PROVIDER_ERROR, Reason.INTERNAL_ERROR}),
+    ERROR: frozenset({Reason.BAD_THRESHOLD, Reason.PROVIDER_ERROR, Reason.REQUIREMENT_ERROR,
+                      Reason.INTERNAL_ERROR}),
     WAIVED: frozenset({Reason.WAIVED}),
 }
 

@@ -17,7 +17,7 @@ import numpy as np
 import pandas as pd
 
 from .. import verdicts as V
-from ..errors import OrthospecError
+from ..errors import ExpressionError, OrthospecError, UnitError
 from ..provenance import Evidence
 from ..spec.models import Rule
 from ..verdicts import Reason
@@ -65,6 +65,8 @@ def safe(ctx: Context, rule: Rule, rollup: dict[str, Measured] | None = None) ->
         return evaluate(ctx, rule, rollup)
     except Undecidable as exc:
         return all_items(ctx, rule, MISSING, str(exc), Reason.UNSET_PARAMETER, items=_items_or_none(ctx, rule))
+    except (UnitError, ExpressionError) as exc:
+        return all_items(ctx, rule, ERROR, str(exc), Reason.REQUIREMENT_ERROR, items=_items_or_none(ctx, rule))
     except OrthospecError as exc:
         return all_items(ctx, rule, ERROR, str(exc), Reason.PROVIDER_ERROR, items=_items_or_none(ctx, rule))
     except Exception as exc:  # documented broad catch, never swallowing: a crashing

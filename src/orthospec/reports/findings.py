@@ -309,11 +309,13 @@ class NotApplicableSummary:
         if r.get("verdict") != V.NOT_APPLICABLE:
             return
         msg = clean_text(r.get("message")).strip()
-        hit = self._seen.get(msg)
+        why = r.get("reason") or V.Reason.CONDITION_FALSE  # a qcr.json written before reason codes
+        hit = self._seen.get(f"{why}\0{msg}")
         if hit is None:
-            m = _NA.match(msg)
+            # grouped by the reason code; only a false `when` has a condition to put in words
+            m = _NA.match(msg) if why == V.Reason.CONDITION_FALSE else None
             cond = m.group("cond") if m else (msg or "not applicable to this delivery")
-            hit = self._seen[msg] = (cond, f"applies only when {condition_prose(cond)}" if m else cond)
+            hit = self._seen[f"{why}\0{msg}"] = (cond, f"applies only when {condition_prose(cond)}" if m else cond)
         cond, prose = hit
         g = self.groups.setdefault(cond, {"condition": cond, "prose": prose, "rules": [], "records": 0})
         g["records"] += 1
