@@ -22,6 +22,7 @@ from .delivery.reader import Delivery, open_delivery
 from .engine import catalog
 from .engine.evaluator import Evaluation, Evaluator
 from .engine.params import parse_cli_params, resolve_parameters
+from .engine.registry import EngineOptions
 from .errors import OrthospecError
 from .qcr import build_document
 from .spec.loader import ResolvedProfile, load_profile
@@ -86,14 +87,10 @@ class CheckOptions:
                 given[k] = Path(given[k])
         return cls(**given)
 
-    def engine_options(self) -> dict[str, Any]:
-        """What the evaluator and its providers read (a plain mapping: they sit below this layer)."""
-        out: dict[str, Any] = {"workers": self.workers, "scheduler": self.scheduler, "progress": self.progress}
-        if self.sample is not None:
-            out["sample"] = self.sample
-        if self.cache_dir is not None:
-            out["cache_dir"] = str(self.cache_dir)
-        return out
+    def engine_options(self) -> EngineOptions:
+        """What the evaluator and its providers read (typed and frozen: engine/registry.py)."""
+        return EngineOptions(workers=self.workers, scheduler=self.scheduler, progress=self.progress,
+                             sample=self.sample, cache_dir=None if self.cache_dir is None else str(self.cache_dir))
 
 
 def parse_date(text: str | None) -> str:

@@ -27,7 +27,7 @@ from ..spec.loader import ResolvedProfile
 from ..spec.models import Rule
 from .catalog import MeasureCache
 from .params import ParamValue
-from .registry import ProviderContext
+from .registry import EngineOptions, ProviderContext
 
 PASS, FAIL, WARN, NA, MISSING, ERROR, WAIVED = (V.CODE[v] for v in (
     V.PASS, V.FAIL, V.WARN, V.NOT_APPLICABLE, V.MISSING, V.ERROR, V.WAIVED))
@@ -87,7 +87,7 @@ class Context:
     profile: ResolvedProfile
     d: Delivery
     params: dict[str, ParamValue]
-    options: dict[str, Any]
+    options: EngineOptions
     checker: Checker | None
     cache: MeasureCache
     manifest: dict[str, Any]
@@ -98,13 +98,13 @@ class Context:
 
     @classmethod
     def build(cls, profile: ResolvedProfile, delivery: Delivery, parameters: dict[str, ParamValue], *,
-              fail_on: str, options: Mapping[str, Any] | None, checker: Checker | None,
+              fail_on: str, options: EngineOptions | Mapping[str, Any] | None, checker: Checker | None,
               debug: bool | None) -> Context:
-        opts = dict(options or {})
+        opts = EngineOptions.of(options)
         # the delivery as this evaluation judges it: the checker's check points in force, nothing written onto
         # the opened delivery (issue 26: a next check of the same object starts clean)
         delivery = DeliveryInForce.of(delivery, checker)
-        pctx = ProviderContext(delivery, {k: v.quantity() for k, v in parameters.items()}, dict(opts),
+        pctx = ProviderContext(delivery, {k: v.quantity() for k, v in parameters.items()}, opts,
                                classes=dict(getattr(profile, "classes", {}) or {}), checker=checker,
                                outlines=stated_outlines(checker) if checker is not None else None,
                                inspection=load_grid(checker, delivery) if checker is not None else None)
@@ -149,7 +149,7 @@ class Context:
 
     def sample_mask(self, scope: str, items: list[str]) -> np.ndarray | None:
         """With `check --sample`, items of the sampled scope outside the sample are not checked."""
-        sample = self.options.get("sample")
+        sample = self.options.sample
         if not sample or sample[0] != scope:
             return None
         return np.isin(np.asarray(items, dtype=object), list(sample[1]))

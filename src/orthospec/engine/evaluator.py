@@ -42,6 +42,7 @@ from .context import (  # re-exported: the QCR writer reads the codes and the re
     RuleResult,
 )
 from .params import ParamValue
+from .registry import EngineOptions
 from .rollup import Rollup
 from .rules import builtin, safe
 
@@ -81,7 +82,7 @@ class Evaluator:
     """
 
     def __init__(self, profile: ResolvedProfile, delivery: Delivery, parameters: dict[str, ParamValue],
-                 *, fail_on: str = "fail", options: Mapping[str, Any] | None = None,
+                 *, fail_on: str = "fail", options: EngineOptions | Mapping[str, Any] | None = None,
                  checker: Checker | None = None, debug: bool | None = None) -> None:
         self.ctx = Context.build(profile, delivery, parameters, fail_on=fail_on, options=options,
                                  checker=checker, debug=debug)

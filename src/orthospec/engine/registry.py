@@ -13,7 +13,7 @@ without importing the engine.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -90,13 +90,51 @@ class _LazyEvidence(Sequence[tuple[Evidence, ...]]):
         return (Evidence(self.file, self.sha256, (int(r),)),)
 
 
+@dataclass(frozen=True)
+class EngineOptions:
+    """How the engine and its providers run (typed, frozen): what ``orthospec.api.CheckOptions``
+    hands down below the API layer. Only ``sample`` can change a verdict."""
+
+    #: worker processes for raster checks (None: the engine decides, at most the cores)
+    workers: int | None = None
+    #: Dask distributed scheduler address (``check --scheduler``)
+    scheduler: str | None = None
+    #: show a progress line on stderr while rasters are scanned
+    progress: bool = False
+    #: ``(scope, items)`` from ``orthospec.engine.sample.read_sample``: only those items are checked
+    sample: tuple[str, frozenset[str] | set[str]] | None = None
+    #: raster result cache folder (results keyed by file SHA-256)
+    cache_dir: str | None = None
+
+    @classmethod
+    def of(cls, options: EngineOptions | Mapping[str, Any] | None) -> EngineOptions:
+        """The options as given: an EngineOptions, or a mapping of its field names (None values are the
+        defaults; an unknown name is refused, never silently ignored)."""
+        if options is None:
+            return cls()
+        if isinstance(options, EngineOptions):
+            return options
+        known = {f.name for f in fields(cls)}
+        bad = sorted(set(options) - known)
+        if bad:
+            raise ValueError(f"unknown engine option(s) {', '.join(bad)}; known: {', '.join(sorted(known))}")
+        given = {k: v for k, v in options.items() if v is not None}
+        if "cache_dir" in given:
+            given["cache_dir"] = str(given["cache_dir"])
+        return cls(**given)
+
+    def get(self, name: str, default: Any = None) -> Any:
+        """Read an option by name, as providers written against the former string-keyed mapping do."""
+        return getattr(self, name, default) if name in {f.name for f in fields(self)} else default
+
+
 @dataclass
 class ProviderContext:
     """What a provider may read: the opened delivery, the resolved parameters, options."""
 
     delivery: Delivery
     parameters: Mapping[str, Any]  # name -> pint Quantity, str, bool, number
-    options: Mapping[str, Any] = field(default_factory=dict)  # workers, scheduler, cache...
+    options: EngineOptions = field(default_factory=EngineOptions)  # workers, scheduler, cache, sample
     #: shared work between providers of one run (e.g. one pass over the checkpoints)
     memo: dict[str, Any] = field(default_factory=dict)
     #: the profile's named classes (e.g. ``resolution`` of JRC §9.1), for computed class measures

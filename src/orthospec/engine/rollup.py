@@ -170,7 +170,7 @@ class Rollup:
             else default
 
     def _sampled_images(self, all_imgs: list[str], imgs: Any, rejected: dict[str, list[str]]) -> list[str]:
-        given = self.ctx.options.get("sample")
+        given = self.ctx.options.sample
         if given and given[0] == "image":
             return [i for i in all_imgs if i in given[1]]
         if "sample" in imgs.df and imgs.df["sample"].map(lambda v: v is True).any():
@@ -243,7 +243,7 @@ class Rollup:
         # a declared block without check points is missing evidence, never dropped from the share:
         # the blocks subjected to external QC are those with points plus those a rule rejected
         checked = sorted(with_points | brej)
-        given = self.ctx.options.get("sample")
+        given = self.ctx.options.sample
         if given and given[0] == "block":
             checked = [b for b in checked if b in given[1]]
         bshare = None

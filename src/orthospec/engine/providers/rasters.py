@@ -128,8 +128,8 @@ def _scan(ctx: ProviderContext) -> dict[str, Any]:
     scan_rows = list(by_file.values())
     product = d.manifest.product
     opts = ctx.options
-    progress = make_progress() if opts.get("progress") else None
-    workers = opts.get("workers")
+    progress = make_progress() if opts.progress else None
+    workers = opts.workers
     if workers is None and sum(p.stat().st_size for p in scan_paths) < SMALL_DELIVERY_BYTES:
         workers = 1  # process start-up costs more than it saves on a small delivery
     reported = {k: t.df[k].tolist() for k in DECLARED_COLUMNS if k in t.df.columns}
@@ -193,7 +193,7 @@ def _scan(ctx: ProviderContext) -> dict[str, Any]:
 
     scan_images(
         [str(p) for p in scan_paths], workers=workers or None,
-        scheduler=opts.get("scheduler"), cache_dir=opts.get("cache_dir"), bit_depth=product.bit_depth,
+        scheduler=opts.scheduler, cache_dir=opts.cache_dir, bit_depth=product.bit_depth,
         progress=progress, expect_epsg=_epsg(ctx.parameters.get("map_crs")), expect_gsd=gsd, on_report=collect,
     )
     absent = [i for i in ids if i not in existing]

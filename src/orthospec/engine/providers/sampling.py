@@ -32,7 +32,7 @@ NAME = "sample.strata_missed"
 
 def _sample(ctx: ProviderContext, ids: list[str], marked: list[bool]) -> tuple[str, set[str], str]:
     """(scope, sampled ids, where the sample comes from)."""
-    given = ctx.options.get("sample")
+    given = ctx.options.sample
     if given:
         return str(given[0]), set(map(str, given[1])), "the sample given with check --sample"
     if any(marked):
