@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import os
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -46,7 +46,7 @@ class RuleResult:
     measured: np.ndarray
     unit: str
     threshold: dict[str, Any]
-    evidence: list[tuple[Evidence, ...]]
+    evidence: Sequence[tuple[Evidence, ...]]
     notes: np.ndarray
     original: np.ndarray | None = None
     waivers: dict[str, dict[str, Any]] = field(default_factory=dict)

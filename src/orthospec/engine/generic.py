@@ -64,8 +64,9 @@ def _unit(kind: str, unit: str | None) -> str:
 
 
 def compute(name: str, d: Delivery) -> Measured:
-    scope, unit = info(name) or (None, None)
-    assert scope is not None
+    found = info(name)
+    assert found is not None
+    scope, unit = found
     if name.startswith("manifest."):
         return _manifest(name, d)
     parts = name.split(".")
@@ -87,14 +88,15 @@ def compute(name: str, d: Delivery) -> Measured:
         blocks = d.block_ids
         counts = df.groupby(df["block"].astype(str))["_row"].agg(list)
         vals = pd.Series({b: float(len(counts.get(b, []))) for b in blocks}, dtype=float)
-        ev = pd.Series({b: t.evidence(counts.get(b, [])) for b in blocks}, dtype=object)
-        return Measured(name, "block", "1", vals, ev)
+        per_block = pd.Series({b: t.evidence(counts.get(b, [])) for b in blocks}, dtype=object)
+        return Measured(name, "block", "1", vals, per_block)
     col = parts[1]
     if len(parts) == 3 and parts[2] in AGGREGATES:
         col = parts[1]
-        vals = df[col].to_numpy(float) if col in df else np.array([], dtype=float)
-        have = ~np.isnan(vals)
-        value = float(AGGREGATES[parts[2]](vals)) if have.any() else None
+        arr = df[col].to_numpy(float) if col in df else np.array([], dtype=float)
+        have = ~np.isnan(arr)
+        agg: Any = AGGREGATES[parts[2]]
+        value = float(agg(arr)) if have.any() else None
         u = (t.units.get(col) or canonical(d.manifest.units.get(tname, "m"))) if unit == "length" else unit
         return _one(name, "delivery", u, d.id, value, t.evidence(df["_row"][have] if have.any() else df["_row"]),
                     note=None if value is not None else f"no values in column {col!r} of {t.file}")
@@ -117,11 +119,11 @@ def compute(name: str, d: Delivery) -> Measured:
     else:
         vals = pd.Series(df[col].values, index=ids.values)
         notes = None
-    ev = RowEvidence(t.file, t.sha256, pd.Series(df["_row"].to_numpy(), index=ids.astype(str).values))
-    return Measured(name, scope, u, vals, ev, notes=notes)
+    rows_ev = RowEvidence(t.file, t.sha256, pd.Series(df["_row"].to_numpy(), index=ids.astype(str).values))
+    return Measured(name, scope, u, vals, rows_ev, notes=notes)
 
 
-def _one(name: str, scope: str, unit: str, item: str, value: Any, ev: tuple[Evidence, ...],
+def _one(name: str, scope: str, unit: str, item: str, value: Any, ev: tuple[Evidence, ...] | pd.Series,
          note: str | None = None) -> Measured:
     return Measured(name, scope, unit, pd.Series({item: value}, dtype=object),
                     pd.Series({item: ev}, dtype=object),

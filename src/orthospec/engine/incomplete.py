@@ -147,10 +147,10 @@ def _what(r: RuleResult, i: int, totals: dict[str, int]) -> str:
         more = max(1, math.ceil(need / 100.0 * n - 1e-9) - have)
         return f"{more} more {one if more == 1 else many} {purpose} ({said})"
     if measured is not None and need is not None and op in (">=", ">"):
-        more = _shortfall(op, measured, need)
+        short = _shortfall(op, measured, need)
         noun = NOUNS.get(rule.measure)
-        if more is not None and noun is not None:
-            return f"{more} more {noun[0] if more == 1 else noun[1]} ({said})"
+        if short is not None and noun is not None:
+            return f"{short} more {noun[0] if short == 1 else noun[1]} ({said})"
     if measured is not None and rule.measure in NOUNS and op in ("==", "<=", "<") and measured == int(measured):
         noun = NOUNS[rule.measure]
         listed = f": {note[:200]}" if note else ""

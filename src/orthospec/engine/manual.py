@@ -200,7 +200,8 @@ def manual_rule(ctx: Context, rule: Rule, items: list[str]) -> RuleResult:
         ev: list[Evidence] = [] if c is None else [c.evidence]
         unbound = unbound_reason(ctx, k[1], item, files.get(item)) if k is not None and item not in gone else None
         if unbound is not None:
-            ev.append(ctx.checker.evidence("manual_checks", k[0]))  # type: ignore[union-attr]
+            assert k is not None and ctx.checker is not None  # a verdict was signed in the checker's file
+            ev.append(ctx.checker.evidence("manual_checks", k[0]))
             k = None
         if g is not None:
             ev.append(_grid_evidence(grid, g))
@@ -229,7 +230,7 @@ def manual_rule(ctx: Context, rule: Rule, items: list[str]) -> RuleResult:
                 note = f"{note}; {g.note}"
             # the contractor's statement stays in the evidence; the message names it where it disagrees
             differs = c is not None and c.said != measured[i]
-            notes[i] = f"{note}; {c.short}" if differs else note
+            notes[i] = f"{note}; {c.short}" if c is not None and differs else note
             if item in gone:
                 notes[i] = f"{gone_reason(item)} ({notes[i]}); the delivery is returned"
         evidence[i] = tuple(ev)

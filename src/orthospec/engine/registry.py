@@ -41,7 +41,7 @@ class Measured:
     scope: str
     unit: str
     values: pd.Series
-    evidence: pd.Series
+    evidence: pd.Series | RowEvidence
     detail: dict[str, Any] | None = None
     #: per-item explanation when a value is missing or could not be computed (reason text)
     notes: pd.Series | None = None

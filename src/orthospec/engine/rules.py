@@ -236,6 +236,6 @@ def _note_missing(rule: Rule, col: _Column, notes: np.ndarray) -> None:
     """A missing value without a provider note says which file and row lacks it."""
     for i in np.flatnonzero(col.missing):
         if notes[i] is None:
-            ev: Any = col.evidence[i]
+            ev: Any = col.evidence[int(i)]
             notes[i] = f"no value for {rule.measure}" + (
                 f" in {ev[0].file} row {ev[0].rows[0]}" if ev and ev[0].rows else "")
