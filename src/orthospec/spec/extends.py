@@ -6,6 +6,7 @@ what every QCR cites."""
 from __future__ import annotations
 
 import hashlib
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -88,10 +89,36 @@ def _unit_change(name: str, old: Parameter, new: Parameter, base: ResolvedProfil
 
 def _merge(prof: Profile, base: ResolvedProfile | None, path: Path, doc: Located,
            problems: list[Problem]) -> ResolvedProfile | None:
+    """``prof`` (the file ``doc``) merged onto ``base``: its parameters, its removals, its rules
+    and overrides, each problem appended (in that order); None when there is any."""
     sites = _Sites(top=doc)
     if base is not None and base.sites is not None:
         sites.rules = {k: list(v) for k, v in base.sites.rules.items()}
         sites.params = {k: list(v) for k, v in base.sites.params.items()}
+    params = _merge_parameters(prof, base, doc, sites, problems)
+    m = _Rules(dict((r.id, r) for r in base.rules) if base else {}, list(base.removed) if base else [],
+               list(base.weakened) if base else [],
+               {k: tuple(v) for k, v in base.overridden.items()} if base else {})
+    _remove_rules(prof, base, doc, sites, m, problems)
+    _merge_rules(prof, base, doc, sites, m, problems)
+    if problems:
+        return None
+    return _resolved(prof, base, path, doc, params, m, sites, problems)
+
+
+@dataclass
+class _Rules:
+    """The rules of a profile being merged, and what the chain removed, weakened and overrode."""
+
+    rules: dict[str, Rule]
+    removed: list[Removal]
+    weakened: list[Weakening]
+    overridden: dict[str, tuple[str, ...]]
+
+
+def _merge_parameters(prof: Profile, base: ResolvedProfile | None, doc: Located, sites: _Sites,
+                      problems: list[Problem]) -> dict[str, Parameter]:
+    """The base's parameters with this profile's added or changed (authority and unit kept)."""
     params = dict(base.parameters) if base else {}
     sites.inherited_params = set(params)
     for name, p in prof.parameters.items():
@@ -137,37 +164,43 @@ def _merge(prof: Profile, base: ResolvedProfile | None, path: Path, doc: Located
                 f"a tender profile that changes it to {_effective(new)!r} must say why: add "
                 f"`justification: \"ITT §...: ...\"` to the parameter (the report annex prints it)"))
         params[name] = new
-    tables = {**(base.tables if base else {}), **prof.tables}
-    classes = {**(base.classes if base else {}), **prof.classes}
-    rules: dict[str, Rule] = dict((r.id, r) for r in base.rules) if base else {}
-    removed = list(base.removed) if base else []
-    weakened = list(base.weakened) if base else []
-    overridden = {k: tuple(v) for k, v in base.overridden.items()} if base else {}
+    return params
+
+
+def _remove_rules(prof: Profile, base: ResolvedProfile | None, doc: Located, sites: _Sites, m: _Rules,
+                  problems: list[Problem]) -> None:
+    """``remove_rules``: an inherited rule taken out (a mandatory one only with a justification)."""
     for i, item in enumerate(prof.remove_rules):
         rid = item if isinstance(item, str) else item.id
-        if rid not in rules:
+        if rid not in m.rules:
             line, col = doc.where(("remove_rules", i))
             problems.append(Problem(doc.file, line, col, f"remove_rules: no inherited rule {rid!r}"
-                                    + _did_you_mean(rid, rules, "inherited")))
+                                    + _did_you_mean(rid, m.rules, "inherited")))
             continue
         justification = None if isinstance(item, str) else item.justification
-        if rules[rid].level == "mandatory":
+        if m.rules[rid].level == "mandatory":
             if justification is None:
                 line, col = doc.where(("remove_rules", i))
                 problems.append(Problem(doc.file, line, col, _unjustified(rid, ["removed"], base, "remove")))
                 continue
-            weakened.append(Weakening(rid, ("removed",), justification, prof.id, rules[rid].title))
-        del rules[rid]
+            m.weakened.append(Weakening(rid, ("removed",), justification, prof.id, m.rules[rid].title))
+        del m.rules[rid]
         sites.rules.pop(rid, None)
-        overridden.pop(rid, None)
-        removed.append(Removal(rid, justification, prof.id))
+        m.overridden.pop(rid, None)
+        m.removed.append(Removal(rid, justification, prof.id))
+
+
+def _merge_rules(prof: Profile, base: ResolvedProfile | None, doc: Located, sites: _Sites, m: _Rules,
+                 problems: list[Problem]) -> None:
+    """This profile's rules: new ones, inherited ones written again, and overrides (one that
+    checks less only with a justification)."""
     for i, r in enumerate(prof.rules):
-        before = rules.get(r.id)
+        before = m.rules.get(r.id)
         if isinstance(r, RuleOverride):
             if before is None:
                 line, col = doc.where(("rules", i))
                 problems.append(Problem(doc.file, line, col, f"override of unknown rule {r.id!r}"
-                                        + _did_you_mean(r.id, rules, "inherited"), r.id))
+                                        + _did_you_mean(r.id, m.rules, "inherited"), r.id))
                 continue
             merged_r = before.model_dump()
             changed = {k: v for k, v in r.model_dump(exclude_unset=True).items()
@@ -186,9 +219,9 @@ def _merge(prof: Profile, base: ResolvedProfile | None, path: Path, doc: Located
                 problems.append(Problem(doc.file, line, col, _unjustified(r.id, weak, base, "override"), r.id))
                 continue
             if weak:
-                weakened.append(Weakening(r.id, tuple(weak), r.justification, prof.id, after.title))
-            overridden[r.id] = tuple(sorted({*overridden.get(r.id, ()), *changed}))
-            rules[r.id] = after
+                m.weakened.append(Weakening(r.id, tuple(weak), r.justification, prof.id, after.title))
+            m.overridden[r.id] = tuple(sorted({*m.overridden.get(r.id, ()), *changed}))
+            m.rules[r.id] = after
             sites.rules.setdefault(r.id, []).append((doc, i))
         else:
             weak = weakening_changes(before, r) if before is not None else []
@@ -197,12 +230,18 @@ def _merge(prof: Profile, base: ResolvedProfile | None, path: Path, doc: Located
                 line, col = doc.where(("rules", i, key))
                 problems.append(Problem(doc.file, line, col, _unjustified(r.id, weak, base, "restate"), r.id))
                 continue
-            rules[r.id] = r
+            m.rules[r.id] = r
             sites.rules[r.id] = [(doc, i)]
-            overridden.pop(r.id, None)
-    if problems:
-        return None
-    final_rules = tuple(rules.values())
+            m.overridden.pop(r.id, None)
+
+
+def _resolved(prof: Profile, base: ResolvedProfile | None, path: Path, doc: Located, params: dict[str, Parameter],
+              m: _Rules, sites: _Sites, problems: list[Problem]) -> ResolvedProfile | None:
+    """The resolved profile: its canonical form and SHA-256 (None, with the place of a value that
+    is not a finite number, when it cannot be hashed)."""
+    tables = {**(base.tables if base else {}), **prof.tables}
+    classes = {**(base.classes if base else {}), **prof.classes}
+    final_rules = tuple(m.rules.values())
     chain = ((prof.id, prof.version, str(path)), *(base.chain if base else ()))
     waivers = (*(base.waivers if base else ()), *prof.waivers)
     canonical: dict[str, Any] = {
@@ -221,11 +260,11 @@ def _merge(prof: Profile, base: ResolvedProfile | None, path: Path, doc: Located
     }
     if prof.allow_no_mandatory:
         canonical["allow_no_mandatory"] = True
-    if removed:
+    if m.removed:
         canonical["removed_rules"] = [{"id": x.id, "justification": x.justification, "profile": x.profile}
-                                      for x in removed]
-    if weakened:
-        canonical["weakened_rules"] = [w.to_dict() for w in weakened]
+                                      for x in m.removed]
+    if m.weakened:
+        canonical["weakened_rules"] = [w.to_dict() for w in m.weakened]
     try:
         sha = hashlib.sha256(canonical_dumps(canonical).encode("utf-8")).hexdigest()
     except ValueError:  # nan or inf somewhere: say where (only on this failure path)
@@ -240,8 +279,8 @@ def _merge(prof: Profile, base: ResolvedProfile | None, path: Path, doc: Located
         id=prof.id, version=prof.version, title=prof.title, description=prof.description,
         source=prof.source, parameters=params, tables=tables, classes=classes, rules=final_rules,
         tests=tuple(prof.tests), waivers=waivers, path=path, chain=chain, canonical=canonical,
-        sha256=sha, allow_no_mandatory=prof.allow_no_mandatory, sites=sites, removed=tuple(removed),
-        overridden=overridden, weakened=tuple(weakened),
+        sha256=sha, allow_no_mandatory=prof.allow_no_mandatory, sites=sites, removed=tuple(m.removed),
+        overridden=m.overridden, weakened=tuple(m.weakened),
     )
 
 

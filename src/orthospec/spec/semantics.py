@@ -8,6 +8,7 @@ from __future__ import annotations
 import difflib
 import re
 from collections.abc import Mapping
+from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, get_origin
@@ -81,8 +82,6 @@ def _parse(text: str) -> expr.Expression:
 
 def semantic_problems(p: ResolvedProfile, *, check_measures: bool = True) -> list[Problem]:
     """Units, threshold numbers, expressions, manifest paths, measures, parameters: linear in rules."""
-    from ..units import NON_NUMERIC, number_problem, profile_unit_problem
-    from ..units import check_unit as parse_unit  # the usual spellings without loading pint
     from .catalog import measure_info
 
     out: list[Problem] = []
@@ -98,6 +97,37 @@ def semantic_problems(p: ResolvedProfile, *, check_measures: bool = True) -> lis
     def add_param(name: str, key: str | None, msg: str) -> None:
         file, line, col = sites.param_where(name, key)
         out.append(Problem(file, line, col, msg))
+
+    numeric_units = _parameter_problems(p, add_param)
+    _class_problems(p, out)
+    checks = _RuleChecks(p, set(p.parameters) | {f"class.{c}" for c in p.classes}, check_measures,
+                         measure_info, add, numeric_units, out, sites)
+    read_params: set[str] = set()
+    mandatory = 0
+    for r in p.rules:
+        if r.level == "mandatory":
+            mandatory += 1
+        read_params |= _rule_problems(r, checks)
+    # a parameter an extending profile adds but no rule reads is almost always a misspelling
+    for name in sorted(sites.own_params - read_params):
+        if not sites.inherited_params:
+            break
+        near = difflib.get_close_matches(name, sorted(sites.inherited_params), n=1, cutoff=0.6)
+        hint = (f"; did you mean {near[0]!r} (inherited)? As written, the inherited {near[0]} keeps its "
+                "value") if near else ""
+        add_param(name, None, f"parameter {name} is defined here but no rule reads it{hint}")
+    if mandatory == 0 and not p.allow_no_mandatory:
+        top = sites.top
+        out.append(Problem(top.file if top else str(p.path), 1 if top else None, 1 if top else None,
+                           f"profile {p.id} has no mandatory rule, so it would accept every delivery; "
+                           "add one, or say so explicitly with `allow_no_mandatory: true`"))
+    return out
+
+
+def _parameter_problems(p: ResolvedProfile, add_param: Any) -> dict[str, str]:
+    """Units, choices, map projections and numbers of the parameters; the numeric ones' units."""
+    from ..units import NON_NUMERIC, number_problem, profile_unit_problem
+    from ..units import check_unit as parse_unit  # the usual spellings without loading pint
 
     numeric_units: dict[str, str] = {}
     for name, par in p.parameters.items():
@@ -133,6 +163,14 @@ def semantic_problems(p: ResolvedProfile, *, check_measures: bool = True) -> lis
             why = number_problem(c)
             if why:
                 add_param(name, "choices", f"parameter {name}: choices[{i}]: {why}")
+    return numeric_units
+
+
+def _class_problems(p: ResolvedProfile, out: list[Problem]) -> None:
+    """Each class set's unit is a unit."""
+    from ..units import check_unit as parse_unit
+    from ..units import profile_unit_problem
+
     for cname, cset in p.classes.items():
         try:
             why = profile_unit_problem(cset.unit)
@@ -141,109 +179,121 @@ def semantic_problems(p: ResolvedProfile, *, check_measures: bool = True) -> lis
             parse_unit(cset.unit)
         except UnitError as exc:
             out.append(Problem(str(p.path), None, None, f"class set {cname}: {exc}"))
-    known = set(p.parameters) | {f"class.{c}" for c in p.classes}
-    read_params: set[str] = set()
-    manifest_checked: dict[str, str | None] = {}
-    unit_ok: dict[tuple[str, str], str | None] = {}
-    mandatory = 0
 
-    def check_manifest_names(rule: Rule, key: tuple[str, ...], names: Any) -> None:
+
+@dataclass
+class _RuleChecks:
+    """What checking one rule needs of the profile, and the memos shared by every rule."""
+
+    p: ResolvedProfile
+    known: set[str]
+    check_measures: bool
+    measure_info: Any
+    add: Any
+    numeric_units: dict[str, str]
+    out: list[Problem]
+    sites: _Sites
+    manifest_checked: dict[str, str | None] = field(default_factory=dict)
+    unit_ok: dict[tuple[str, str], str | None] = field(default_factory=dict)
+
+    def manifest_names(self, rule: Rule, key: tuple[str, ...], names: Any) -> None:
         for n in names:
             if n.startswith("manifest."):
-                if n not in manifest_checked:
-                    manifest_checked[n] = manifest_path_problem(n)
-                if manifest_checked[n]:
-                    add(rule, key, str(manifest_checked[n]))
+                if n not in self.manifest_checked:
+                    self.manifest_checked[n] = manifest_path_problem(n)
+                if self.manifest_checked[n]:
+                    self.add(rule, key, str(self.manifest_checked[n]))
 
-    for r in p.rules:
-        if r.level == "mandatory":
-            mandatory += 1
-        info = None
-        if r.manual or r.measure.startswith("manual."):
-            if not r.measure.startswith("manual."):
-                add(r, ("measure",), f"a manual rule reads measure 'manual.{r.id}', not {r.measure!r}")
-        elif r.measure.startswith("manifest."):
-            check_manifest_names(r, ("measure",), (r.measure,))
-        elif check_measures:
-            info = measure_info(r.measure)
-            if info is None:
-                add(r, ("measure",), f"unknown measure {r.measure!r}{_near_measure(r.measure)} "
-                    "(see `orthospec measures`)")
-            elif info[0] != r.scope:  # located at the measure: an override that swaps it is the cause
-                add(r, ("measure",), f"measure {r.measure!r} is at scope {info[0]!r}, rule says {r.scope!r}")
-        req = r.requirement
-        req_numeric = req.unit is not None and req.unit not in NON_NUMERIC and req.unit != "any"
-        if req_numeric:
-            try:
-                why = profile_unit_problem(req.unit)
-                if why:
-                    raise UnitError(why)
-                parse_unit(req.unit)
-            except UnitError as exc:
-                add(r, ("requirement", "unit"), str(exc))
-                req_numeric = False
-        if req.op == "between" and (req.min is None and req.max is None):
-            add(r, ("requirement",), "op 'between' needs min and/or max")
-        if req.op == "in" and not req.values:
-            add(r, ("requirement",), "op 'in' needs values")
-        if req.op in ("<", "<=", ">", ">=", "==", "!=") and req.value is None:
-            add(r, ("requirement",), f"op {req.op!r} needs a value")
-        if r.when:
-            try:
-                e = _parse(r.when)
-            except ExpressionError as exc:
-                add(r, ("when",), str(exc) + _single_equals(r.when))
-            else:
-                if not e.names:
-                    add(r, ("when",), _constant_when(e, r.when))
-                _check_names(r, ("when",), e, known, check_measures, measure_info, add)
-                check_manifest_names(r, ("when",), e.names)
-                read_params |= params_named(e.names, p.parameters)
-        numeric_threshold = req_numeric or req.op in _ORDER_OPS
-        for key in ("value", "min", "max"):
-            v = getattr(req, key)
-            if v is None:
-                continue
-            if not isinstance(v, str):
-                if numeric_threshold:
-                    why = number_problem(v)
-                    if why:
-                        add(r, ("requirement", key), f"requirement {key}: {why}")
-                continue
+
+def _rule_problems(r: Rule, c: _RuleChecks) -> set[str]:
+    """One rule's measure, requirement and condition; the parameters it reads."""
+    from ..units import NON_NUMERIC, profile_unit_problem
+    from ..units import check_unit as parse_unit
+
+    add = c.add
+    if r.manual or r.measure.startswith("manual."):
+        if not r.measure.startswith("manual."):
+            add(r, ("measure",), f"a manual rule reads measure 'manual.{r.id}', not {r.measure!r}")
+    elif r.measure.startswith("manifest."):
+        c.manifest_names(r, ("measure",), (r.measure,))
+    elif c.check_measures:
+        info = c.measure_info(r.measure)
+        if info is None:
+            add(r, ("measure",), f"unknown measure {r.measure!r}{_near_measure(r.measure)} "
+                "(see `orthospec measures`)")
+        elif info[0] != r.scope:  # located at the measure: an override that swaps it is the cause
+            add(r, ("measure",), f"measure {r.measure!r} is at scope {info[0]!r}, rule says {r.scope!r}")
+    req = r.requirement
+    req_numeric = req.unit is not None and req.unit not in NON_NUMERIC and req.unit != "any"
+    if req_numeric:
+        try:
+            why = profile_unit_problem(req.unit)
+            if why:
+                raise UnitError(why)
+            parse_unit(req.unit)
+        except UnitError as exc:
+            add(r, ("requirement", "unit"), str(exc))
+            req_numeric = False
+    if req.op == "between" and (req.min is None and req.max is None):
+        add(r, ("requirement",), "op 'between' needs min and/or max")
+    if req.op == "in" and not req.values:
+        add(r, ("requirement",), "op 'in' needs values")
+    if req.op in ("<", "<=", ">", ">=", "==", "!=") and req.value is None:
+        add(r, ("requirement",), f"op {req.op!r} needs a value")
+    read: set[str] = set()
+    if r.when:
+        try:
+            e = _parse(r.when)
+        except ExpressionError as exc:
+            add(r, ("when",), str(exc) + _single_equals(r.when))
+        else:
+            if not e.names:
+                add(r, ("when",), _constant_when(e, r.when))
+            _check_names(r, ("when",), e, c.known, c.check_measures, c.measure_info, add)
+            c.manifest_names(r, ("when",), e.names)
+            read |= params_named(e.names, c.p.parameters)
+    return read | _threshold_problems(r, c, req_numeric)
+
+
+def _threshold_problems(r: Rule, c: _RuleChecks, req_numeric: bool) -> set[str]:
+    """A rule's threshold values (numbers, or expressions over parameters whose units must meet
+    the requirement's); the parameters they read."""
+    from ..units import number_problem
+
+    req, add = r.requirement, c.add
+    read: set[str] = set()
+    numeric_threshold = req_numeric or req.op in _ORDER_OPS
+    for key in ("value", "min", "max"):
+        v = getattr(req, key)
+        if v is None:
+            continue
+        if not isinstance(v, str):
             if numeric_threshold:
                 why = number_problem(v)
-                if why and "is not a number" not in why:
+                if why:
                     add(r, ("requirement", key), f"requirement {key}: {why}")
-                    continue
-            elif req.op in ("==", "!=", "in") and not _looks_like_expr(v, known):
+            continue
+        if numeric_threshold:
+            why = number_problem(v)
+            if why and "is not a number" not in why:
+                add(r, ("requirement", key), f"requirement {key}: {why}")
                 continue
-            try:
-                e = _parse(v)
-            except ExpressionError as exc:
-                hint = " (a threshold is a number such as 1.0, or an expression over parameters)" \
-                    if numeric_threshold else ""
-                add(r, ("requirement", key), f"{exc}{hint}{_single_equals(v)}")
-                continue
-            _check_names(r, ("requirement", key), e, known, check_measures, measure_info, add)
-            check_manifest_names(r, ("requirement", key), e.names)
-            used = params_named(e.names, p.parameters)
-            read_params |= used
-            if req_numeric and used and req.unit is not None:
-                _check_dimensions(r, key, v, e, used, numeric_units, req.unit, unit_ok, out, sites)
-    # a parameter an extending profile adds but no rule reads is almost always a misspelling
-    for name in sorted(sites.own_params - read_params):
-        if not sites.inherited_params:
-            break
-        near = difflib.get_close_matches(name, sorted(sites.inherited_params), n=1, cutoff=0.6)
-        hint = (f"; did you mean {near[0]!r} (inherited)? As written, the inherited {near[0]} keeps its "
-                "value") if near else ""
-        add_param(name, None, f"parameter {name} is defined here but no rule reads it{hint}")
-    if mandatory == 0 and not p.allow_no_mandatory:
-        top = sites.top
-        out.append(Problem(top.file if top else str(p.path), 1 if top else None, 1 if top else None,
-                           f"profile {p.id} has no mandatory rule, so it would accept every delivery; "
-                           "add one, or say so explicitly with `allow_no_mandatory: true`"))
-    return out
+        elif req.op in ("==", "!=", "in") and not _looks_like_expr(v, c.known):
+            continue
+        try:
+            e = _parse(v)
+        except ExpressionError as exc:
+            hint = " (a threshold is a number such as 1.0, or an expression over parameters)" \
+                if numeric_threshold else ""
+            add(r, ("requirement", key), f"{exc}{hint}{_single_equals(v)}")
+            continue
+        _check_names(r, ("requirement", key), e, c.known, c.check_measures, c.measure_info, add)
+        c.manifest_names(r, ("requirement", key), e.names)
+        used = params_named(e.names, c.p.parameters)
+        read |= used
+        if req_numeric and used and req.unit is not None:
+            _check_dimensions(r, key, v, e, used, c.numeric_units, req.unit, c.unit_ok, c.out, c.sites)
+    return read
 
 
 def _crs_problem(text: str) -> str | None:
