@@ -38,8 +38,8 @@ from .table_bounds import Limits, check_csv_bounds, read_table_bytes, utf8_body
 #: Re-exported: the path jail (:mod:`.paths`) and the table parser (:mod:`.table`,
 #: :mod:`.table_bounds`) were split out of this module; their public names stay importable here.
 __all__ = ["BOOL_FALSE", "BOOL_TRUE", "MANIFEST", "PATH_COLUMNS", "Delivery", "Limits", "Table",
-           "check_csv_bounds", "check_tree", "contained", "header_names", "open_delivery", "parse_csv",
-           "read_table_bytes", "rows_where", "utf8_body"]
+           "check_csv_bounds", "check_tree", "contained", "header_names", "open_delivery",
+           "parse_csv", "read_table_bytes", "rows_where", "utf8_body"]
 
 #: Columns that hold a path relative to the delivery root, in any table.
 PATH_COLUMNS = frozenset({"file"})
@@ -348,9 +348,9 @@ class Delivery:
         parts = other.astype(str).str.split(";").explode().str.strip()
         bad = parts[(parts != "") & ~parts.isin(known)]
         if len(bad):
+            row = int(df.loc[bad.index[:1], "_row"].to_numpy(np.int64)[0])
             raise DeliveryError(f"block {bad.iloc[0]!r} is not a block of the manifest "
-                                f"(blocks: {', '.join(known)})", file=rel, row=int(df.loc[bad.index[:1], "_row"].to_numpy(np.int64)[0]),
-                                field="block")
+                                f"(blocks: {', '.join(known)})", file=rel, row=row, field="block")
 
 
 class _Digest:

@@ -378,7 +378,8 @@ def _objects(cells: pd.Series, empty: np.ndarray) -> np.ndarray:
         out = cells.to_numpy(dtype=object, copy=True)
     else:
         codes, uniques = pd.factorize(cells)
-        out = np.append(np.asarray(uniques, dtype=object), np.array([None], dtype=object))[codes]  # code -1 (NaN): None
+        none = np.array([None], dtype=object)
+        out = np.append(np.asarray(uniques, dtype=object), none)[codes]  # code -1 (NaN): None
     out[empty] = None
     return out
 
@@ -408,8 +409,8 @@ def rows_where(path: str | Path, where: dict[str, str], *, file: str, sha256: st
     header = header_names(body)
     missing = [c for c in where if c not in header]
     if missing:
-        raise DeliveryError(f"no column {missing[0]!r} to select rows by (columns: {', '.join(header)})",
-                            file=file, line=1)
+        raise DeliveryError(f"no column {missing[0]!r} to select rows by "
+                            f"(columns: {', '.join(header)})", file=file, line=1)
     if not header:
         return []
     try:
@@ -427,7 +428,8 @@ def rows_where(path: str | Path, where: dict[str, str], *, file: str, sha256: st
     wrong = (counts != width) & (counts > 0) & (keep | (counts > width))
     if wrong.any():
         i = int(np.flatnonzero(wrong)[0])
-        raise DeliveryError(f"has {int(counts[i])} fields, the header has {width}", file=file, row=i + 1)
+        raise DeliveryError(f"has {int(counts[i])} fields, the header has {width}", file=file,
+                            row=i + 1)
     for col, value in where.items():
         keep &= (frame[col].fillna("").astype(object).str.strip() == value).to_numpy(bool)
     return (np.flatnonzero(keep) + 1).tolist()

@@ -200,8 +200,8 @@ def _refuse_cell(file: str, line: int, limits: Limits) -> None:
 
 def _refuse_columns(file: str, line: int, n: int, limits: Limits) -> None:
     raise DeliveryError(f"{n:,}+ fields on one line exceed the limit of {limits.columns:,} columns "
-                        "(ORTHOSPEC_MAX_CSV_COLUMNS); not read", file=file, row=line - 1 if line > 1 else None,
-                        line=None if line > 1 else 1)
+                        "(ORTHOSPEC_MAX_CSV_COLUMNS); not read", file=file,
+                        row=line - 1 if line > 1 else None, line=None if line > 1 else 1)
 
 
 

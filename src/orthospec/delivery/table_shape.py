@@ -80,8 +80,8 @@ def _cell_bytes(chunk: Any) -> tuple[int, bool] | None:
     _, offsets_buf, data_buf = chunk.buffers()
     if data_buf is None or len(chunk) == 0:
         return 0, False
-    offsets = np.frombuffer(offsets_buf, dtype=offset_type)[chunk.offset:chunk.offset + len(chunk) + 1].astype(
-        np.int64, copy=False)
+    stored = np.frombuffer(offsets_buf, dtype=offset_type)[chunk.offset:chunk.offset + len(chunk) + 1]
+    offsets = stored.astype(np.int64, copy=False)
     data = np.frombuffer(data_buf, dtype=np.uint8)
     start, stop = offsets[:-1], offsets[1:]
     full = stop > start

@@ -124,7 +124,7 @@ class Ledger:
             rollup = document.get("rollup") or {}
             summary = {"counts": document.get("summary", {}), "rejected": rollup.get("rejected", {}),
                        "reasons": rollup.get("reasons", [])}
-            files: list[dict[str, Any]] = [{"path": str(f["path"]), "sha256": str(f["sha256"]),
+            files = [{"path": str(f["path"]), "sha256": str(f["sha256"]),
                       "bytes": None if f.get("bytes") is None else int(f["bytes"])}
                      for f in d.get("files", [])]
             fields: dict[str, Any] = {
@@ -148,7 +148,8 @@ class Ledger:
         rows = rows_with_text(document)
         with write_transaction(self.engine, self.display) as (conn, seq, prev):
             run_id = int(conn.execute(select(func.coalesce(func.max(m.runs.c.id), 0))).scalar_one()) + 1
-            audit_key, continues = resolve_audit_key(conn, stated, project, [f["sha256"] for f in files])
+            shas = [str(f["sha256"]) for f in files]  # str already: typed for the checker
+            audit_key, continues = resolve_audit_key(conn, stated, project, shas)
             row: dict[str, Any] = {"id": run_id, "seq": seq + 1, "recorded_at": recorded_at or _now(),
                                    **fields, "audit_key": audit_key, "continues_run": continues,
                                    "prev_hash": prev}
@@ -550,9 +551,10 @@ def resolve_audit_key(conn: Connection, stated: str | None, project: str, shas: 
     best: tuple[int, int, str] | None = None   # (shared, seq, key) of the continued run
     cont: int | None = None
     if shared:
-        sizes: dict[Any, Any] = dict(conn.execute(select(m.run_files.c.run_id, func.count(func.distinct(m.run_files.c.sha256)))
-                                  .where(m.run_files.c.run_id.in_(list(shared)), m.run_files.c.sha256 != _EMPTY)
-                                  .group_by(m.run_files.c.run_id)).all())
+        counted = (select(m.run_files.c.run_id, func.count(func.distinct(m.run_files.c.sha256)))
+                   .where(m.run_files.c.run_id.in_(list(shared)), m.run_files.c.sha256 != _EMPTY)
+                   .group_by(m.run_files.c.run_id))
+        sizes: dict[Any, Any] = dict(conn.execute(counted).all())
         info = {int(r.id): r for r in conn.execute(select(m.runs.c.id, m.runs.c.seq, m.runs.c.audit_key,
                                                          m.runs.c.project_id).where(m.runs.c.id.in_(list(shared))))}
         for rid, n in shared.items():

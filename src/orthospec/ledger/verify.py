@@ -154,7 +154,8 @@ def _head_problems(head_rows: Sequence[Any], hashes: set[str], prev: str, last_s
             problems.append(Problem(
                 "ledger_head", "anchor",
                 f"the head {want[:16]}... noted earlier is not in the chain: entries up to it were deleted "
-                f"and the chain rewritten (the chain now ends at seq {last_seq} hash {prev[:12]}...)"))
+                f"and the chain rewritten (the chain now ends at seq {last_seq} hash "
+                f"{prev[:12]}...)"))
     return problems
 
 

@@ -96,8 +96,8 @@ def _merge(prof: Profile, base: ResolvedProfile | None, path: Path, doc: Located
         sites.rules = {k: list(v) for k, v in base.sites.rules.items()}
         sites.params = {k: list(v) for k, v in base.sites.params.items()}
     params = _merge_parameters(prof, base, doc, sites, problems)
-    m = _Rules(dict((r.id, r) for r in base.rules) if base else {}, list(base.removed) if base else [],
-               list(base.weakened) if base else [],
+    m = _Rules(dict((r.id, r) for r in base.rules) if base else {},
+               list(base.removed) if base else [], list(base.weakened) if base else [],
                {k: tuple(v) for k, v in base.overridden.items()} if base else {})
     _remove_rules(prof, base, doc, sites, m, problems)
     _merge_rules(prof, base, doc, sites, m, problems)
@@ -167,8 +167,8 @@ def _merge_parameters(prof: Profile, base: ResolvedProfile | None, doc: Located,
     return params
 
 
-def _remove_rules(prof: Profile, base: ResolvedProfile | None, doc: Located, sites: _Sites, m: _Rules,
-                  problems: list[Problem]) -> None:
+def _remove_rules(prof: Profile, base: ResolvedProfile | None, doc: Located, sites: _Sites,
+                  m: _Rules, problems: list[Problem]) -> None:
     """``remove_rules``: an inherited rule taken out (a mandatory one only with a justification)."""
     for i, item in enumerate(prof.remove_rules):
         rid = item if isinstance(item, str) else item.id
@@ -183,15 +183,16 @@ def _remove_rules(prof: Profile, base: ResolvedProfile | None, doc: Located, sit
                 line, col = doc.where(("remove_rules", i))
                 problems.append(Problem(doc.file, line, col, _unjustified(rid, ["removed"], base, "remove")))
                 continue
-            m.weakened.append(Weakening(rid, ("removed",), justification, prof.id, m.rules[rid].title))
+            m.weakened.append(Weakening(rid, ("removed",), justification, prof.id,
+                                        m.rules[rid].title))
         del m.rules[rid]
         sites.rules.pop(rid, None)
         m.overridden.pop(rid, None)
         m.removed.append(Removal(rid, justification, prof.id))
 
 
-def _merge_rules(prof: Profile, base: ResolvedProfile | None, doc: Located, sites: _Sites, m: _Rules,
-                 problems: list[Problem]) -> None:
+def _merge_rules(prof: Profile, base: ResolvedProfile | None, doc: Located, sites: _Sites,
+                 m: _Rules, problems: list[Problem]) -> None:
     """This profile's rules: new ones, inherited ones written again, and overrides (one that
     checks less only with a justification)."""
     for i, r in enumerate(prof.rules):
@@ -219,7 +220,8 @@ def _merge_rules(prof: Profile, base: ResolvedProfile | None, doc: Located, site
                 problems.append(Problem(doc.file, line, col, _unjustified(r.id, weak, base, "override"), r.id))
                 continue
             if weak:
-                m.weakened.append(Weakening(r.id, tuple(weak), r.justification, prof.id, after.title))
+                m.weakened.append(Weakening(r.id, tuple(weak), r.justification, prof.id,
+                                            after.title))
             m.overridden[r.id] = tuple(sorted({*m.overridden.get(r.id, ()), *changed}))
             m.rules[r.id] = after
             sites.rules.setdefault(r.id, []).append((doc, i))
@@ -235,8 +237,9 @@ def _merge_rules(prof: Profile, base: ResolvedProfile | None, doc: Located, site
             m.overridden.pop(r.id, None)
 
 
-def _resolved(prof: Profile, base: ResolvedProfile | None, path: Path, doc: Located, params: dict[str, Parameter],
-              m: _Rules, sites: _Sites, problems: list[Problem]) -> ResolvedProfile | None:
+def _resolved(prof: Profile, base: ResolvedProfile | None, path: Path, doc: Located,
+              params: dict[str, Parameter], m: _Rules, sites: _Sites,
+              problems: list[Problem]) -> ResolvedProfile | None:
     """The resolved profile: its canonical form and SHA-256 (None, with the place of a value that
     is not a finite number, when it cannot be hashed)."""
     tables = {**(base.tables if base else {}), **prof.tables}
@@ -279,8 +282,8 @@ def _resolved(prof: Profile, base: ResolvedProfile | None, path: Path, doc: Loca
         id=prof.id, version=prof.version, title=prof.title, description=prof.description,
         source=prof.source, parameters=params, tables=tables, classes=classes, rules=final_rules,
         tests=tuple(prof.tests), waivers=waivers, path=path, chain=chain, canonical=canonical,
-        sha256=sha, allow_no_mandatory=prof.allow_no_mandatory, sites=sites, removed=tuple(m.removed),
-        overridden=m.overridden, weakened=tuple(m.weakened),
+        sha256=sha, allow_no_mandatory=prof.allow_no_mandatory, sites=sites,
+        removed=tuple(m.removed), overridden=m.overridden, weakened=tuple(m.weakened),
     )
 
 

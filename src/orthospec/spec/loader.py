@@ -38,10 +38,11 @@ from .semantics import (
 #: messages (:mod:`.problems`), the resolved profile (:mod:`.resolved`), ``extends``
 #: (:mod:`.extends`) and the semantic checks (:mod:`.semantics`) were split out of this module;
 #: their public names stay importable here.
-__all__ = ["HEADER_BYTES", "MAX_EXTENDS_DEPTH", "Problem", "Removal", "ResolvedProfile", "available",
-           "canonical_dumps", "file_sha256", "find_by_id", "find_profile", "load_profile", "manifest_path_problem",
-           "manifest_paths", "param_location", "params_named", "parse_profile", "plugin_profiles", "read_header",
-           "semantic_problems", "validate_file"]
+__all__ = ["HEADER_BYTES", "MAX_EXTENDS_DEPTH", "Problem", "Removal", "ResolvedProfile",
+           "available", "canonical_dumps", "file_sha256", "find_by_id", "find_profile",
+           "load_profile", "manifest_path_problem", "manifest_paths", "param_location",
+           "params_named", "parse_profile", "plugin_profiles", "read_header", "semantic_problems",
+           "validate_file"]
 
 MAX_EXTENDS_DEPTH = 8
 

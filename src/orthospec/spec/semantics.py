@@ -292,7 +292,8 @@ def _threshold_problems(r: Rule, c: _RuleChecks, req_numeric: bool) -> set[str]:
         used = params_named(e.names, c.p.parameters)
         read |= used
         if req_numeric and used and req.unit is not None:
-            _check_dimensions(r, key, v, e, used, c.numeric_units, req.unit, c.unit_ok, c.out, c.sites)
+            _check_dimensions(r, key, v, e, used, c.numeric_units, req.unit, c.unit_ok, c.out,
+                              c.sites)
     return read
 
 
