@@ -219,3 +219,44 @@ def test_copy_names():
     assert copy_name("documents/../.hidden.xml") == "metadata-hidden.xml"
     assert copy_name("metadata/x.xml", {"metadata-x.xml"}) == "metadata-x-2.xml"
     assert copy_name("metadata/iso19157.xml") == "metadata-iso19157.xml"  # never the standalone output
+
+
+def test_a_documents_entry_naming_xml_metadata_is_found(tmp_path):
+    # a delivery that lists its record under documents: (not in metadata/) gets its copy too, and the
+    # extra entry changes no verdict (the metadata is read for the copy only)
+    delivery = copy_example("satellite-pass", tmp_path)
+    (delivery / "docs").mkdir()
+    (delivery / "metadata" / "D-2026-031_iso19139.xml").rename(delivery / "docs" / "record.xml")
+    (delivery / "metadata").rmdir()
+    text = (delivery / "delivery.yaml").read_text(encoding="utf-8")
+    assert "\ndocuments: {" in text
+    (delivery / "delivery.yaml").write_text(
+        text.replace("\ndocuments: {", "\ndocuments: {metadata_iso19139: docs/record.xml, "), encoding="utf-8")
+    out = tmp_path / "out"
+    code, output = _check(delivery, out, "--profile", "jrc-v3", "--format", "iso19157", example="satellite-pass")
+    assert code == 0, output  # accepted, as expected.yaml says of the unchanged delivery
+    assert sorted(p.name for p in out.iterdir()) == ["iso19157.xml", "metadata-record.xml"]
+    assert metadata_xsd.errors(metadata_xsd.iso19139(), (out / "metadata-record.xml").read_bytes()) == []
+
+
+def test_vertical_statement_goes_after_the_horizontal_one():
+    from orthospec.metadata import NssdaStatement
+    from orthospec.metadata.nssda import fgdc_with_statements
+
+    v = NssdaStatement(item="B1", axis="vertical", value_m=0.392, tested=True, valid=True, rule="NSSDA-V95")
+    h = NssdaStatement(item="B1", axis="horizontal", value_m=0.5, tested=True, valid=True, rule="NSSDA-H95")
+    src = b"<metadata><idinfo/><dataqual><logic>l</logic><complete>c</complete><lineage/></dataqual><metainfo/></metadata>"
+    root = etree.fromstring(fgdc_with_statements(src, [v, h]))
+    assert metadata_xsd.errors(metadata_xsd.csdgm(), root) == []
+    assert [c.tag for c in root.find("dataqual/posacc")] == ["horizpa", "vertpa"]
+    assert root.findtext("dataqual/posacc/vertpa/qvertpa/vertaccv") == "0.392"
+    assert root.findtext("dataqual/posacc/vertpa/vertaccr").endswith(
+        "Tested 0.392 meters vertical accuracy at 95% confidence level (block B1).")
+    # a producer's vertical report is kept when only a horizontal figure was measured; the
+    # horizontal one goes before it (FGDC-STD-001-1998 2.4: horizpa, then vertpa)
+    src = (b"<metadata><idinfo/><dataqual><logic>l</logic><complete>c</complete><posacc><vertpa><vertaccr>"
+           b"declared</vertaccr></vertpa></posacc><lineage/></dataqual><metainfo/></metadata>")
+    root = etree.fromstring(fgdc_with_statements(src, [h]))
+    assert metadata_xsd.errors(metadata_xsd.csdgm(), root) == []
+    assert [c.tag for c in root.find("dataqual/posacc")] == ["horizpa", "vertpa"]
+    assert root.findtext("dataqual/posacc/vertpa/vertaccr") == "declared"
