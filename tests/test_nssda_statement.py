@@ -100,6 +100,11 @@ def test_fgdc_copy_long_names_and_order(doc):
     vals = dq.findall("Positional_Accuracy/Horizontal_Positional_Accuracy/"
                       "Quantitative_Horizontal_Positional_Accuracy_Assessment/Horizontal_Positional_Accuracy_Value")
     assert sorted(v.text for v in vals) == sorted(f"{v:.3f}" for v in _by_hand().values())
+    root = etree.fromstring(fgdc_with_statements(
+        b"<metadata><Identification_Information/><Spatial_Reference_Information/>"
+        b"<Metadata_Reference_Information/></metadata>", nssda_statements(doc)))
+    assert [c.tag for c in root] == ["Identification_Information", "Data_Quality_Information",
+                                     "Spatial_Reference_Information", "Metadata_Reference_Information"]
     # no dataqual at all: it goes right after idinfo, before spdoinfo/metainfo
     root = etree.fromstring(fgdc_with_statements(b"<metadata><idinfo/><spdoinfo/><metainfo/></metadata>",
                                                  nssda_statements(doc)))

@@ -95,7 +95,9 @@ _LONG = {
     "vertaccv": "Vertical_Positional_Accuracy_Value", "vertacce": "Vertical_Positional_Accuracy_Explanation",
     "idinfo": "Identification_Information", "attracc": "Attribute_Accuracy",
     "logic": "Logical_Consistency_Report", "complete": "Completeness_Report", "lineage": "Lineage",
-    "cloud": "Cloud_Cover",
+    "cloud": "Cloud_Cover", "spdoinfo": "Spatial_Data_Organization_Information",
+    "spref": "Spatial_Reference_Information", "eainfo": "Entity_and_Attribute_Information",
+    "distinfo": "Distribution_Information", "metainfo": "Metadata_Reference_Information",
 }
 #: the sequences the elements sit in (FGDC-STD-001-1998 sections 0 and 2; the XML schema keeps the
 #: standard's order): a new element goes before the first sibling that follows it
