@@ -1809,11 +1809,15 @@ def generate(out: Path = DEFAULT_OUT, checker_out: Path | None = None) -> list[P
     checker_dir = Path(checker_out) if checker_out is not None else Path(out).parent / "checker"
     for scn in SCENARIOS:
         root = Path(out) / scn.name
-        write(build(scn), root, checker_dir)
+        built = build(scn)
+        write(built, root, checker_dir)
+        _metadata_xml().write_metadata(root, built.manifest)  # issue 30: the producer's metadata XML
         roots.append(root)
     for sat in SAT_SCENARIOS:
         root = Path(out) / sat.name
-        write_satellite(build_satellite(sat), root, checker_dir)
+        built_sat = build_satellite(sat)
+        write_satellite(built_sat, root, checker_dir)
+        _metadata_xml().write_metadata(root, built_sat["manifest"])
         roots.append(root)
     roots.append(_tiles_real().generate(Path(out), checker_dir))  # issue 27: a delivery as it arrives
     return roots
@@ -1827,6 +1831,20 @@ def _tiles_real() -> Any:
     name = "orthospec_examples_tiles_real"
     if name not in sys.modules:
         spec = importlib.util.spec_from_file_location(name, HERE / "tiles_real.py")
+        assert spec is not None and spec.loader is not None
+        sys.modules[name] = module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+    return sys.modules[name]
+
+
+def _metadata_xml() -> Any:
+    """examples/metadata_xml.py: the producer's metadata XML of each example delivery."""
+    import importlib.util
+    import sys
+
+    name = "orthospec_examples_metadata_xml"
+    if name not in sys.modules:
+        spec = importlib.util.spec_from_file_location(name, HERE / "metadata_xml.py")
         assert spec is not None and spec.loader is not None
         sys.modules[name] = module = importlib.util.module_from_spec(spec)
         spec.loader.exec_module(module)

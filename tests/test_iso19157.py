@@ -1,6 +1,7 @@
 """ISO 19157 quality elements as ISO 19139 XML (issue 30 item 3): a structural test of every element
-written (no ISO 19139 XSD package is installed here), the figures equal to the QCR's, hostile strings
-escaped, a copy of the delivery's MD_Metadata with orthospec's dataQualityInfo."""
+written and validation against the ISO/TS 19139:2007 schemas (tests/metadata_xsd.py), the figures equal
+to the QCR's, hostile strings escaped, a copy of the delivery's MD_Metadata with orthospec's
+dataQualityInfo."""
 
 from __future__ import annotations
 
@@ -9,9 +10,10 @@ from pathlib import Path
 
 import pytest
 from lxml import etree
+from tests import metadata_xsd
 
 from orthospec import api
-from orthospec.metadata.iso19157 import CODELISTS, GCO, GMD, iso19139_document
+from orthospec.metadata.iso19157 import CODELISTS, GCO, GMD, MARK, iso19139_document
 from orthospec.qcr import all_records
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -77,16 +79,50 @@ def test_hostile_strings_escaped(doc):
     assert any(t and t.startswith(evil) for t in texts)
 
 
+def test_standalone_validates_against_iso19139_schema(doc):
+    # ISO/TS 19139:2007 schemas (gmd/gco/GML 3.2.1), read locally: tests/metadata_xsd.py
+    assert metadata_xsd.errors(metadata_xsd.iso19139(), iso19139_document(doc)) == []
+    # the validation is not vacuous: an element out of ISO 19139's sequence is refused
+    root = etree.fromstring(iso19139_document(doc))
+    root.append(root[0])  # scope moved after the reports
+    assert metadata_xsd.errors(metadata_xsd.iso19139(), root)
+
+
 def test_inserted_into_copy_of_md_metadata(doc):
     src = (f'<gmd:MD_Metadata xmlns:gmd="{GMD}" xmlns:gco="{GCO}"><gmd:fileIdentifier><gco:CharacterString>id-1'
-           '</gco:CharacterString></gmd:fileIdentifier><gmd:dataQualityInfo><gmd:DQ_DataQuality/></gmd:dataQualityInfo>'
+           '</gco:CharacterString></gmd:fileIdentifier><gmd:dataQualityInfo><gmd:DQ_DataQuality><gmd:scope>'
+           '<gmd:DQ_Scope><gmd:level><gmd:MD_ScopeCode codeList="x" codeListValue="dataset">dataset'
+           '</gmd:MD_ScopeCode></gmd:level></gmd:DQ_Scope></gmd:scope><gmd:lineage><gmd:LI_Lineage>'
+           '<gmd:statement><gco:CharacterString>producer lineage</gco:CharacterString></gmd:statement>'
+           '</gmd:LI_Lineage></gmd:lineage></gmd:DQ_DataQuality></gmd:dataQualityInfo>'
            '<gmd:metadataMaintenance/></gmd:MD_Metadata>').encode()
-    root = etree.fromstring(iso19139_document(doc, src))
+    copy1 = iso19139_document(doc, src)
+    root = etree.fromstring(copy1)
     names = [etree.QName(c).localname for c in root]
-    assert names == ["fileIdentifier", "dataQualityInfo", "metadataMaintenance"]
-    assert root.find("gmd:dataQualityInfo/gmd:DQ_DataQuality/gmd:report", NS) is not None
+    # the producer's dataQualityInfo (their lineage) is kept; orthospec's follows it, before maintenance
+    assert names == ["fileIdentifier", "dataQualityInfo", "dataQualityInfo", "metadataMaintenance"]
+    dqs = root.findall("gmd:dataQualityInfo/gmd:DQ_DataQuality", NS)
+    assert dqs[0].findtext("gmd:lineage/gmd:LI_Lineage/gmd:statement/gco:CharacterString",
+                           namespaces=NS) == "producer lineage"
+    assert dqs[1].find("gmd:report", NS) is not None
+    assert dqs[1].findtext("gmd:lineage/gmd:LI_Lineage/gmd:statement/gco:CharacterString",
+                           namespaces=NS).startswith(MARK)
+    # a copy of the copy replaces orthospec's element instead of adding a second one
+    again = etree.fromstring(iso19139_document(doc, copy1))
+    assert [etree.QName(c).localname for c in again] == names
     with pytest.raises(ValueError):
         iso19139_document(doc, b"<metadata/>")
+
+
+def test_inserted_into_iso19115_2_mi_metadata(doc):
+    # gmi:MI_Metadata extends MD_Metadata: dataQualityInfo goes before its acquisitionInformation
+    gmi = "http://www.isotc211.org/2005/gmi"
+    src = (f'<gmi:MI_Metadata xmlns:gmi="{gmi}" xmlns:gmd="{GMD}" xmlns:gco="{GCO}"><gmd:fileIdentifier>'
+           '<gco:CharacterString>id-2</gco:CharacterString></gmd:fileIdentifier>'
+           '<gmi:acquisitionInformation/></gmi:MI_Metadata>').encode()
+    root = etree.fromstring(iso19139_document(doc, src))
+    assert [etree.QName(c).localname for c in root] == ["fileIdentifier", "dataQualityInfo",
+                                                        "acquisitionInformation"]
 
 
 def test_cli_format_iso19157(tmp_path):
@@ -102,4 +138,5 @@ def test_cli_format_iso19157(tmp_path):
     assert res.exit_code == 1, res.output  # rejected under the NSSDA: no §3.2.3 statement
     root = etree.parse(str(out / "iso19157.xml")).getroot()
     assert root.tag == f"{{{GMD}}}DQ_DataQuality"
-    assert sorted(p.name for p in out.iterdir()) == ["iso19157.xml"]
+    # with the updated copy of the delivery's CSDGM record (metadata/ folder of the delivery)
+    assert sorted(p.name for p in out.iterdir()) == ["iso19157.xml", "metadata-D-2026-014_fgdc.xml"]

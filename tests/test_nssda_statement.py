@@ -60,25 +60,55 @@ def test_tested_only_when_independence_passed(doc):
 
 
 def test_fgdc_copy(doc, tmp_path):
+    # CSDGM as its XML schema and the tools write it: short element names, FGDC-STD-001-1998 order
     src = tmp_path / "in.xml"
     src.write_bytes(b"<?xml version='1.0'?><metadata><idinfo><citation>x &amp; y</citation></idinfo>"
-                    b"<Data_Quality_Information><Positional_Accuracy><Horizontal_Positional_Accuracy>"
-                    b"<Horizontal_Positional_Accuracy_Report><Horizontal_Positional_Accuracy_Value>old"
-                    b"</Horizontal_Positional_Accuracy_Value></Horizontal_Positional_Accuracy_Report>"
-                    b"</Horizontal_Positional_Accuracy></Positional_Accuracy></Data_Quality_Information></metadata>")
+                    b"<dataqual><logic>l</logic><complete>c</complete><posacc><horizpa><horizpar>declared"
+                    b"</horizpar><qhorizpa><horizpav>0.1</horizpav><horizpae>old</horizpae></qhorizpa></horizpa>"
+                    b"</posacc><lineage><procstep><procdesc>p</procdesc></procstep></lineage></dataqual>"
+                    b"<metainfo/></metadata>")
     before = src.read_bytes()
     out = write_fgdc_copy(doc, tmp_path / "out", src)
     assert src.read_bytes() == before  # the delivery's file is only read
     root = etree.parse(str(out)).getroot()
     assert root.findtext("idinfo/citation") == "x & y"
-    reps = root.findall("Data_Quality_Information/Positional_Accuracy/Horizontal_Positional_Accuracy/"
-                        "Horizontal_Positional_Accuracy_Report")
+    assert [c.tag for c in root.find("dataqual")] == ["logic", "complete", "posacc", "lineage"]
+    hpa = root.find("dataqual/posacc/horizpa")
+    assert [c.tag for c in hpa] == ["horizpar", "qhorizpa", "qhorizpa", "qhorizpa"]  # the declared one replaced
     hand = _by_hand()
-    assert sorted(r.findtext("Horizontal_Positional_Accuracy_Value") for r in reps) == sorted(
-        f"{v:.3f}" for v in hand.values())
-    for r in reps:
-        assert "Compiled to meet" in r.findtext("Horizontal_Positional_Accuracy_Explanation")
+    qs = hpa.findall("qhorizpa")
+    assert sorted(q.findtext("horizpav") for q in qs) == sorted(f"{v:.3f}" for v in hand.values())
+    for q in qs:
+        assert [c.tag for c in q] == ["horizpav", "horizpae"]
+        # FGDC-STD-007.3-1998 §3.2.3: the explanation names the NSSDA; the statement follows
+        assert q.findtext("horizpae").startswith("National Standard for Spatial Data Accuracy. Compiled to meet ")
+    for v in hand.values():
+        assert f"Compiled to meet {v:.3f} meters horizontal accuracy at 95% confidence level" in hpa.findtext("horizpar")
     assert not list((tmp_path / "out").glob(".tmp-*"))
+
+
+def test_fgdc_copy_long_names_and_order(doc):
+    # a document written with the standard's long names gets long names; a missing posacc goes
+    # between Completeness_Report and Lineage (FGDC-STD-001-1998 section 2 order)
+    src = (b"<metadata><Identification_Information/><Data_Quality_Information><Logical_Consistency_Report>l"
+           b"</Logical_Consistency_Report><Completeness_Report>c</Completeness_Report><Lineage/>"
+           b"</Data_Quality_Information><Metadata_Reference_Information/></metadata>")
+    root = etree.fromstring(fgdc_with_statements(src, nssda_statements(doc)))
+    dq = root.find("Data_Quality_Information")
+    assert [c.tag for c in dq] == ["Logical_Consistency_Report", "Completeness_Report", "Positional_Accuracy",
+                                   "Lineage"]
+    vals = dq.findall("Positional_Accuracy/Horizontal_Positional_Accuracy/"
+                      "Quantitative_Horizontal_Positional_Accuracy_Assessment/Horizontal_Positional_Accuracy_Value")
+    assert sorted(v.text for v in vals) == sorted(f"{v:.3f}" for v in _by_hand().values())
+    root = etree.fromstring(fgdc_with_statements(
+        b"<metadata><Identification_Information/><Spatial_Reference_Information/>"
+        b"<Metadata_Reference_Information/></metadata>", nssda_statements(doc)))
+    assert [c.tag for c in root] == ["Identification_Information", "Data_Quality_Information",
+                                     "Spatial_Reference_Information", "Metadata_Reference_Information"]
+    # no dataqual at all: it goes right after idinfo, before spdoinfo/metainfo
+    root = etree.fromstring(fgdc_with_statements(b"<metadata><idinfo/><spdoinfo/><metainfo/></metadata>",
+                                                 nssda_statements(doc)))
+    assert [c.tag for c in root] == ["idinfo", "dataqual", "spdoinfo", "metainfo"]
 
 
 def test_fgdc_hostile_and_entities():
@@ -89,7 +119,8 @@ def test_fgdc_hostile_and_entities():
     xml = fgdc_with_statements(None, [s])
     assert b"<script>" not in xml
     root = etree.fromstring(xml)
-    assert 'B<script>"\u202e' in root.findtext(".//Horizontal_Positional_Accuracy_Explanation")
+    assert 'B<script>"\u202e' in root.findtext(".//horizpae")
+    assert 'B<script>"\u202e' in root.findtext(".//horizpar")
     evil = (b'<?xml version="1.0"?><!DOCTYPE m [<!ENTITY e SYSTEM "file:///etc/passwd">]>'
             b"<metadata><t>&e;</t></metadata>")
     assert b"root:" not in fgdc_with_statements(evil, [s])

@@ -31,19 +31,20 @@ FORMATS = ("terminal", "json", "csv", "junit", "parquet", "html", "pdf", "gpkg",
 
 
 def render_documents(doc: dict, fmts: list[str], *, shown: dict | None = None,
-                     geometry: object = None) -> dict[str, Output]:
+                     geometry: object = None, delivery: object = None) -> dict[str, Output]:
     """Machine outputs of ``doc`` plus HTML/PDF reports of ``shown`` (``doc`` with the ledger's
     history for the reader; qcr.json never carries it), written later all or none. ``geometry``
-    (``findings.read_geometry``) adds the seamlines to the GeoPackage."""
+    (``findings.read_geometry``) adds the seamlines to the GeoPackage; ``delivery`` (the checked
+    Delivery) adds the updated copies of its metadata XML to iso19157."""
     out = render_all(doc, [f for f in fmts if f not in ("gpkg", "iso19157")])
     if "gpkg" in fmts:
         from ..findings import to_gpkg
 
         out["findings.gpkg"] = to_gpkg(doc, geometry)
     if "iso19157" in fmts:
-        from ..metadata.iso19157 import iso19139_document
+        from ..metadata.copies import metadata_outputs
 
-        out["iso19157.xml"] = iso19139_document(doc)
+        out.update(metadata_outputs(doc, delivery))
     if "html" in fmts or "pdf" in fmts:
         from ..reports import document as reportdoc  # heavy imports only when asked for
 
@@ -126,11 +127,11 @@ def check_cmd(delivery: Path, profile: str, params: tuple[str, ...], out_dir: Pa
         geometry = read_geometry(result.evaluation.delivery)  # type: ignore[attr-defined]
         doc = with_footprints(doc, geometry)
     if ledger_target is None:
-        files = render_documents(doc, out_fmts, geometry=geometry)
+        files = render_documents(doc, out_fmts, geometry=geometry, delivery=result.evaluation.delivery)  # type: ignore[attr-defined]
         write_outputs(target, files)
     else:
         files, run_id, display = _record_and_write(ledger_target, doc, out_fmts, target, key, allowed_signers,
-                                                   geometry)
+                                                   geometry, result.evaluation.delivery)  # type: ignore[attr-defined]
     if "terminal" in fmts:
         console = Console(highlight=False) if sys.stdout.isatty() else Console(
             highlight=False, width=120, soft_wrap=False)
@@ -172,7 +173,8 @@ def _ledger_usable(ledger_target: str, delivery: Path, allowed_signers: Path | N
 
 
 def _record_and_write(ledger_target: str, doc: dict, fmts: list[str], target: Path, key: Path | None,
-                      allowed_signers: Path | None, geometry: object = None) -> tuple[dict[str, Output], int, str]:
+                      allowed_signers: Path | None, geometry: object = None,
+                      delivery: object = None) -> tuple[dict[str, Output], int, str]:
     """Record the run and write its outputs in one ledger transaction: the reports print the run's
     own chain entry (the head that includes it, issue 29 item 5), so `ledger verify --against` the
     report catches a chain rebuilt to rewrite this run. Rendering or writing failing records nothing;
@@ -190,7 +192,7 @@ def _record_and_write(ledger_target: str, doc: dict, fmts: list[str], target: Pa
                 rows = [{**r, "run": run.id} if r.get("run") == "new" else r for r in history]
                 shown = {**doc, "history": rows, "ledger": {"run": run.id, "hash": run.hash, "head": run.hash,
                                                             "head_seq": run.seq, "problems": []}}
-            written.update(render_documents(doc, fmts, shown=shown, geometry=geometry))
+            written.update(render_documents(doc, fmts, shown=shown, geometry=geometry, delivery=delivery))
             write_outputs(target, written)
 
         run_id = led.record(doc, key=key, before_commit=write)

@@ -101,30 +101,54 @@ def data_quality(doc: Mapping[str, Any]) -> etree._Element:
     for rule in doc.get("rules", []):
         if rule["verdict"] != "not_applicable":
             _conformance(dq, rule, profile, date)
+    lineage = etree.SubElement(etree.SubElement(dq, _q(GMD, "lineage")), _q(GMD, "LI_Lineage"))
+    who = f"{profile.get('title') or profile.get('id', '')}".strip()
+    _text(lineage, "statement", f"{MARK} of delivery {(doc.get('delivery') or {}).get('id', '')} against "
+                                f"{who} on {date}: verdict {doc.get('verdict', '')}")
     return dq
 
 
+#: ISO 19115-2 (gmi): MI_Metadata extends MD_Metadata; its own elements follow MD_Metadata's
+GMI = "http://www.isotc211.org/2005/gmi"
+ROOTS = (_q(GMD, "MD_Metadata"), _q(GMI, "MI_Metadata"))
+#: MD_Metadata's elements after dataQualityInfo (ISO 19139 sequence), then MI_Metadata's own
+_AFTER = tuple(_q(GMD, t) for t in ("portrayalCatalogueInfo", "metadataConstraints", "applicationSchemaInfo",
+                                    "metadataMaintenance", "series", "describes", "propertyType",
+                                    "featureType", "featureAttribute")) + tuple(
+    _q(GMI, t) for t in ("acquisitionInformation",))
+#: the title of orthospec's DQ_DataQuality (its lineage statement), so a copy of a copy replaces
+#: it rather than adding a second one
+MARK = "orthospec external quality control"
+
+
+def _ours(holder: etree._Element) -> bool:
+    return any(MARK in (t.text or "") for t in holder.iter(_q(GCO, "CharacterString"))
+               if t.getparent() is not None and t.getparent().tag == _q(GMD, "statement"))
+
+
 def iso19139_document(doc: Mapping[str, Any], source: bytes | None = None) -> bytes:
-    """A standalone DQ_DataQuality document, or the delivery's MD_Metadata (``source``) with its
-    ``gmd:dataQualityInfo`` replaced by orthospec's (placed where ISO 19139's sequence puts it:
-    before portrayal/application-schema/maintenance elements, else at the end)."""
+    """A standalone DQ_DataQuality document, or the delivery's metadata (``source``: a
+    ``gmd:MD_Metadata`` or ISO 19115-2 ``gmi:MI_Metadata`` document) with orthospec's
+    ``gmd:dataQualityInfo`` added after the producer's own (kept: their lineage and declared
+    figures are the producer's record; a catalogue shows both, orthospec's marked by its lineage
+    statement), in ISO 19139's sequence (before portrayal/application-schema/maintenance elements,
+    else at the end). An earlier orthospec dataQualityInfo (a copy of a copy) is replaced. The
+    parser resolves no entities, loads no DTD and reads nothing from the network."""
     dq = data_quality(doc)
     if source is None:
         return etree.tostring(dq, xml_declaration=True, encoding="UTF-8", pretty_print=True)
-    parser = etree.XMLParser(resolve_entities=False, no_network=True, remove_blank_text=True)
+    parser = etree.XMLParser(resolve_entities=False, no_network=True, load_dtd=False, remove_blank_text=True)
     root = etree.fromstring(source, parser)
-    if root.tag != _q(GMD, "MD_Metadata"):
+    if root.tag not in ROOTS:
         raise ValueError(f"not an ISO 19139 gmd:MD_Metadata document (root {root.tag!r})")
     for old in root.findall(_q(GMD, "dataQualityInfo")):
-        root.remove(old)
+        if _ours(old):
+            root.remove(old)
     holder = etree.Element(_q(GMD, "dataQualityInfo"))
     holder.append(dq)
-    after = [_q(GMD, t) for t in ("portrayalCatalogueInfo", "metadataConstraints", "applicationSchemaInfo",
-                                    "metadataMaintenance", "series", "describes", "propertyType",
-                                    "featureType", "featureAttribute")]
-    nxt = next((c for c in root if c.tag in after), None)
+    nxt = next((c for c in root if c.tag in _AFTER), None)
     if nxt is not None:
         nxt.addprevious(holder)
     else:
         root.append(holder)
-    return etree.tostring(root, xml_declaration=True, encoding="UTF-8", pretty_print=True)
+    return etree.tostring(root.getroottree(), xml_declaration=True, encoding="UTF-8", pretty_print=True)

@@ -82,39 +82,108 @@ def nssda_statements(doc: Mapping[str, Any]) -> list[NssdaStatement]:
     return out
 
 
-_PATHS = {
-    "horizontal": ("Horizontal_Positional_Accuracy", "Horizontal_Positional_Accuracy_Report",
-                   "Horizontal_Positional_Accuracy_Value", "Horizontal_Positional_Accuracy_Explanation"),
-    "vertical": ("Vertical_Positional_Accuracy", "Vertical_Positional_Accuracy_Report",
-                 "Vertical_Positional_Accuracy_Value", "Vertical_Positional_Accuracy_Explanation"),
+#: CSDGM (FGDC-STD-001-1998) elements written, as the XML schema names them (short names, as
+#: fgdc-std-001-1998.xsd and every CSDGM tool read) and as the standard's long names (a document
+#: whose root's children use long names gets long names)
+_LONG = {
+    "dataqual": "Data_Quality_Information", "posacc": "Positional_Accuracy",
+    "horizpa": "Horizontal_Positional_Accuracy", "horizpar": "Horizontal_Positional_Accuracy_Report",
+    "qhorizpa": "Quantitative_Horizontal_Positional_Accuracy_Assessment",
+    "horizpav": "Horizontal_Positional_Accuracy_Value", "horizpae": "Horizontal_Positional_Accuracy_Explanation",
+    "vertpa": "Vertical_Positional_Accuracy", "vertaccr": "Vertical_Positional_Accuracy_Report",
+    "qvertpa": "Quantitative_Vertical_Positional_Accuracy_Assessment",
+    "vertaccv": "Vertical_Positional_Accuracy_Value", "vertacce": "Vertical_Positional_Accuracy_Explanation",
+    "idinfo": "Identification_Information", "attracc": "Attribute_Accuracy",
+    "logic": "Logical_Consistency_Report", "complete": "Completeness_Report", "lineage": "Lineage",
+    "cloud": "Cloud_Cover", "spdoinfo": "Spatial_Data_Organization_Information",
+    "spref": "Spatial_Reference_Information", "eainfo": "Entity_and_Attribute_Information",
+    "distinfo": "Distribution_Information", "metainfo": "Metadata_Reference_Information",
 }
+#: the sequences the elements sit in (FGDC-STD-001-1998 sections 0 and 2; the XML schema keeps the
+#: standard's order): a new element goes before the first sibling that follows it
+_ORDER = {
+    "metadata": ("idinfo", "dataqual", "spdoinfo", "spref", "eainfo", "distinfo", "metainfo"),
+    "dataqual": ("attracc", "logic", "complete", "posacc", "lineage", "cloud"),
+    "posacc": ("horizpa", "vertpa"),
+}
+#: axis -> (holder, report, quantitative assessment, value, explanation)
+_AXES = {"horizontal": ("horizpa", "horizpar", "qhorizpa", "horizpav", "horizpae"),
+         "vertical": ("vertpa", "vertaccr", "qvertpa", "vertaccv", "vertacce")}
+#: FGDC-STD-007.3-1998 §3.2.3: the explanation of a value tested (or compiled) to the NSSDA
+NSSDA_NAME = "National Standard for Spatial Data Accuracy"
 
 
-def _child(parent: etree._Element, tag: str) -> etree._Element:
-    found = parent.find(tag)
-    return found if found is not None else etree.SubElement(parent, tag)
+class _Names:
+    """Short or long CSDGM element names, as the document in hand uses them."""
+
+    def __init__(self, root: etree._Element) -> None:
+        self.long = any(isinstance(c.tag, str) and c.tag in _LONG.values() for c in root)
+        self._order = {self(k): tuple(self(t) for t in v) for k, v in _ORDER.items()}
+
+    def __call__(self, short: str) -> str:
+        return _LONG.get(short, short) if self.long else short
+
+    def child(self, parent: etree._Element, short: str) -> etree._Element:
+        """The first ``short`` child of ``parent``, created at its place in the sequence if absent."""
+        tag = self(short)
+        found = parent.find(tag)
+        if found is not None:
+            return found
+        el = etree.Element(tag)
+        self.place(parent, el)
+        return el
+
+    def place(self, parent: etree._Element, el: etree._Element) -> None:
+        order = self._order.get(parent.tag)
+        if order and el.tag in order:
+            later = set(order[order.index(el.tag) + 1:])
+            nxt = next((c for c in parent if c.tag in later), None)
+            if nxt is not None:
+                nxt.addprevious(el)
+                return
+        parent.append(el)
+
+
+def _report_text(axis: str, mine: list[NssdaStatement]) -> str:
+    lines = [f"{s.text} (block {s.item})." for s in mine]
+    return (f"{NSSDA_NAME} (FGDC-STD-007.3-1998 §3.2.3), {axis} accuracy per block measured by the external "
+            "quality control: " + " ".join(lines))
 
 
 def fgdc_with_statements(source: bytes | None, statements: list[NssdaStatement]) -> bytes:
     """A CSDGM document (the delivery's bytes, or a minimal ``metadata`` root when None) with the
-    statements as Data_Quality_Information/Positional_Accuracy reports; earlier reports of the same
-    axis are replaced. The parser resolves no entities and reads nothing from the network."""
-    parser = etree.XMLParser(resolve_entities=False, no_network=True, remove_blank_text=True)
+    statements in Data_Quality_Information/Positional_Accuracy (``dataqual/posacc``): per axis, a
+    report worded as §3.2.3 and one quantitative assessment per block (value in metres, explanation
+    "National Standard for Spatial Data Accuracy" followed by the block's statement). The producer's
+    own positional accuracy of that axis is replaced (it is a declaration; the statement is the
+    measured figure); every other element is kept. New elements go where the standard's sequence
+    puts them. The parser resolves no entities, loads no DTD and reads nothing from the network."""
+    parser = etree.XMLParser(resolve_entities=False, no_network=True, load_dtd=False, remove_blank_text=True)
     root = etree.fromstring(source, parser) if source else etree.Element("metadata")
-    dq = _child(root, "Data_Quality_Information")
-    pa = _child(dq, "Positional_Accuracy")
-    for axis, (box, report, value, expl) in _PATHS.items():
+    names = _Names(root)
+    if not statements:
+        return _serialise(root)
+    dq = names.child(root, "dataqual")
+    pa = names.child(dq, "posacc")
+    for axis, (box, report, quant, value, expl) in _AXES.items():
         mine = [s for s in statements if s.axis == axis]
         if not mine:
             continue
-        holder = _child(pa, box)
-        for old in holder.findall(report):
-            holder.remove(old)
+        for old in pa.findall(names(box)):
+            pa.remove(old)
+        holder = etree.Element(names(box))
+        names.place(pa, holder)
+        etree.SubElement(holder, names(report)).text = _report_text(axis, mine)
         for s in mine:
-            rep = etree.SubElement(holder, report)
-            etree.SubElement(rep, value).text = f"{s.value_m:.3f}"
-            etree.SubElement(rep, expl).text = f"{s.text}. {s.explanation}"
-    return etree.tostring(root, xml_declaration=True, encoding="UTF-8", pretty_print=True)
+            q = etree.SubElement(holder, names(quant))
+            etree.SubElement(q, names(value)).text = f"{s.value_m:.3f}"
+            etree.SubElement(q, names(expl)).text = f"{NSSDA_NAME}. {s.text}. {s.explanation}"
+    return _serialise(root)
+
+
+def _serialise(root: etree._Element) -> bytes:
+    """The whole document (its DOCTYPE line and the comments around the root kept), UTF-8."""
+    return etree.tostring(root.getroottree(), xml_declaration=True, encoding="UTF-8", pretty_print=True)
 
 
 def write_fgdc_copy(doc: Mapping[str, Any], out_dir: str | Path, source: str | Path | None = None,

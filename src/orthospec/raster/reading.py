@@ -738,7 +738,7 @@ class _Accumulators:
         the fewest nodata pixels in the chunk is compared once, the others only at those positions
         (a chunk has few such pixels, except at an image's no-data rim); no comparison at all when a
         band has no nodata pixel in the chunk (then no pixel is at nodata in every band)."""
-        bands = []
+        bands: list[BandInfo] = []
         for b in self.infos:
             if (b.use_mask or b.nodata is None or (isinstance(b.nodata, float) and math.isnan(b.nodata))
                     or (b.index in self.hists and b.index not in with_nodata)):
