@@ -491,10 +491,13 @@ def _cv_errors(xb: np.ndarray, yb: np.ndarray, nb: np.ndarray, var_pe: float, qv
     for k in range(_CV_FOLDS):
         tr, te = fold != k, fold == k
         xt, yt, wt = xb[tr], yb[tr], sw[tr]
+
+        def resid(q: np.ndarray, xt: np.ndarray = xt, yt: np.ndarray = yt, wt: np.ndarray = wt) -> np.ndarray:
+            return (_model_esf(kind, xt, q, fp) - yt) * wt
+
         try:
             res = least_squares(
-                lambda q, xt=xt, yt=yt, wt=wt: (_model_esf(kind, xt, q, fp) - yt) * wt,
-                np.clip(p, lo_b, hi_b), bounds=(lo_b, hi_b), x_scale="jac", max_nfev=100)
+                resid, np.clip(p, lo_b, hi_b), bounds=(lo_b, hi_b), x_scale="jac", max_nfev=100)
             err_m[te] = (_model_esf(kind, xb[te], res.x, fp) - yb[te]) ** 2
         except (ValueError, np.linalg.LinAlgError):
             err_m[te] = np.inf
