@@ -11,7 +11,7 @@ import pandas as pd
 import pytest
 from tests.conftest import MANIFEST
 
-from orthospec.delivery import reader
+from orthospec.delivery import reader, table, table_shape
 from orthospec.delivery.convention import table_specs
 from orthospec.delivery.points import read_points_csv
 from orthospec.delivery.reader import open_delivery, parse_csv
@@ -90,9 +90,9 @@ def test_record_widths_are_the_csv_modules_on_random_tables():
     answered = 0
     for _ in range(20_000):
         text = "".join(rng.choice(alphabet) for _ in range(rng.randint(0, 14)))
-        fast = reader._records_fast(text.encode(), chunk=rng.choice([1, 2, 3, 7, 64]))
+        fast = table_shape._records_fast(text.encode(), chunk=rng.choice([1, 2, 3, 7, 64]))
         if fast is None:
-            assert reader._records(text.encode()).widths.tolist() == [len(r) for r in csv.reader(io.StringIO(text))]
+            assert table_shape._records(text.encode()).widths.tolist() == [len(r) for r in csv.reader(io.StringIO(text))]
             continue
         answered += 1
         assert fast.widths.tolist() == _csv_widths(text), text
@@ -112,12 +112,12 @@ TRICKY = (CP_HEADER
 def test_fast_path_equals_the_exact_path_and_the_csv_module():
     spec = table_specs()["checkpoints"]
     fast = parse_csv(TRICKY, spec, file="cp.csv")
-    exact_reader = reader._read_typed
+    exact_reader = table._read_typed
     try:
-        reader._read_typed = lambda *a: None  # every cell as text, converted column by column
+        table._read_typed = lambda *a: None  # every cell as text, converted column by column
         exact = parse_csv(TRICKY, spec, file="cp.csv")
     finally:
-        reader._read_typed = exact_reader
+        table._read_typed = exact_reader
     pd.testing.assert_frame_equal(fast, exact)
     rows = list(csv.DictReader(io.StringIO(TRICKY)))
     rows = [r for r in rows if any(v.strip() for v in r.values())]

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from orthospec.spec import cache, catalog, loader
+from orthospec.spec import cache, catalog, files, loader
 from orthospec.spec.loader import available, load_profile, validate_file
 
 BASE = """\
@@ -153,14 +153,14 @@ def test_cache_can_be_switched_off_and_deleted(tmp_path, monkeypatch):
 
 def test_one_parse_per_profile_file_per_process(tmp_path, cache_dir, monkeypatch):
     parsed: list[str] = []
-    real = loader.load_text
+    real = files.load_text
 
     def counting(text: str, file: str):
         parsed.append(Path(file).name)
         return real(text, file)
 
-    monkeypatch.setattr(loader, "load_text", counting)
-    loader._DOCS.clear()
+    monkeypatch.setattr(files, "load_text", counting)
+    files._DOCS.clear()
     monkeypatch.setenv("ORTHOSPEC_CACHE_DIR", "off")
     (tmp_path / "t.yaml").write_text(CHILD.replace("cbase", "jrc-v3").replace("1.0.0}", "3.0.0}").replace(
         "  tol: {value: 1.5, justification: \"ITT 4.1\"}", "  tolerance_xy: {value: 0.5}"))

@@ -19,7 +19,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from orthospec.delivery import reader
+from orthospec.delivery import reader, table_bounds, table_shape
+from orthospec.delivery import table as table_parser
 from orthospec.delivery.convention import ColumnSpec, TableSpec, table_specs
 from orthospec.delivery.reader import Limits, check_csv_bounds, parse_csv
 from orthospec.errors import DeliveryError
@@ -38,12 +39,12 @@ CP = table_specs()["checkpoints"]
 @contextlib.contextmanager
 def exact_path() -> Iterator[None]:
     """parse_csv with every cell read as text and converted column by column."""
-    saved = reader._read_typed
-    reader._read_typed = lambda *a: None
+    saved = table_parser._read_typed
+    table_parser._read_typed = lambda *a: None
     try:
         yield
     finally:
-        reader._read_typed = saved
+        table_parser._read_typed = saved
 
 
 @contextlib.contextmanager
@@ -260,10 +261,10 @@ def test_csv_bounds_on_long_limits_find_the_long_line(chunk):
 
 def test_short_lines_block_test():
     data = b"ab\n" * 1000
-    assert reader._short_lines(data, 0, 600)
-    assert not reader._short_lines(data, 599, 600)             # the carried line grows too long
-    assert not reader._short_lines(data[:1500] + b"y" * 700 + b"\n" + data, 0, 600)
-    assert not reader._short_lines(data, 0, 100)               # blocks too short to pay: count
+    assert table_bounds._short_lines(data, 0, 600)
+    assert not table_bounds._short_lines(data, 599, 600)             # the carried line grows too long
+    assert not table_bounds._short_lines(data[:1500] + b"y" * 700 + b"\n" + data, 0, 600)
+    assert not table_bounds._short_lines(data, 0, 100)               # blocks too short to pay: count
 
 
 @pytest.mark.parametrize("rows", [10, 300_000])  # hashed inline, and in a thread beside the parse
@@ -286,7 +287,7 @@ def test_cell_bytes_count_the_commas_and_see_the_edges(kind):
     arr = pa.array(cells, type=getattr(pa, kind)())
     for part in (arr, arr.slice(2), arr.slice(1, 3), arr.slice(4, 2), arr.slice(7)):
         texts = [c for c in part.to_pylist() if c]
-        assert reader._cell_bytes(part) == (sum(c.count(",") for c in texts),
+        assert table_shape._cell_bytes(part) == (sum(c.count(",") for c in texts),
                                             any(c != c.strip() for c in texts)), part.to_pylist()
     if hasattr(pa, "string_view"):
-        assert reader._cell_bytes(pa.array(cells, type=pa.string_view())) is None
+        assert table_shape._cell_bytes(pa.array(cells, type=pa.string_view())) is None

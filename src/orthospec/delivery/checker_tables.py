@@ -4,7 +4,7 @@
 delivered orthoimages: the columns of the delivery convention's ``checkpoints`` table
 (specs/delivery-tables.yaml) plus the measurement's provenance (issue 29: method, score, decision,
 reason, reference file and its SHA-256, the SHA-256 of the image measured, chip size, tool version).
-It is parsed by the one CSV table parser (``delivery.reader.parse_csv``), with the same limits,
+It is parsed by the one CSV table parser (``delivery.table.parse_csv``), with the same limits,
 types and messages naming file, row and column as a delivery table.
 
 The external-accuracy rules (JRC §12.4-§12.8, NSSDA, USGS, ASPRS) read these measurements; the

@@ -3,7 +3,7 @@
 A draft holds the manifest and the tables the files allowed to write, and reads the delivered
 files *in place*: nothing is copied. Under ``draft.links`` (default ``source/``) it keeps one
 symbolic link per delivered file, pointing into the source folder (``draft.source``). Those links
-lead out of the draft, which the containment rule (:func:`orthospec.delivery.reader.contained`)
+lead out of the draft, which the containment rule (:func:`orthospec.delivery.paths.contained`)
 refuses for any other delivery; :class:`SourceLinks` is the one exception it makes: a link under
 ``draft.links`` whose real target lies inside the real ``draft.source`` folder. Anything else
 that leads out (a link elsewhere in the draft, a link under ``source/`` into any other folder) is

@@ -11,7 +11,7 @@ table) and ``exclusion_reason`` (a blunder exclusion request and its justificati
 Rows are numbered 1-based after the header, as everywhere in orthospec. Values are returned in
 metres.
 
-The file is parsed by the one table parser of orthospec (:func:`orthospec.delivery.reader.parse_csv`,
+The file is parsed by the one table parser of orthospec (:func:`orthospec.delivery.table.parse_csv`,
 issue 15): the same limits, field counts, boolean words and messages naming file, row and column
 as a delivery table. This module only decides the layout and the point semantics.
 """
@@ -27,7 +27,8 @@ import pandas as pd
 from ..errors import DeliveryError, UnitError
 from ..units import canonical, convert, parse_unit
 from .convention import ColumnSpec, TableSpec
-from .reader import Limits, header_names, parse_csv, read_table_bytes, utf8_body
+from .table import header_names, parse_csv
+from .table_bounds import Limits, read_table_bytes, utf8_body
 
 __all__ = ["PointFile", "PointTable", "point_table", "read_point_file", "read_points_csv"]
 

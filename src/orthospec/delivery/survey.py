@@ -1,7 +1,7 @@
 """The checker's survey of check points and the hand list fed back, for ``measure checkpoints``.
 
 Both are the checker's files, outside the delivery, parsed by the one table parser of orthospec
-(:func:`orthospec.delivery.reader.parse_csv`: limits, field counts, number and boolean cells, and
+(:func:`orthospec.delivery.table.parse_csv`: limits, field counts, number and boolean cells, and
 every complaint naming file, row and column).
 
 * **Survey** (the "true" coordinates, JRC §12.6): ``point_id`` (or ``id``), ``x``, ``y``; optional
@@ -23,7 +23,8 @@ import numpy as np
 
 from ..errors import DeliveryError
 from .convention import ColumnSpec, TableSpec
-from .reader import Limits, header_names, parse_csv, read_table_bytes, utf8_body
+from .table import header_names, parse_csv
+from .table_bounds import Limits, read_table_bytes, utf8_body
 
 __all__ = ["HAND_STATUSES", "HandEntry", "SurveyPoint", "hand_entries", "read_hand_csv",
            "read_survey"]

@@ -154,7 +154,8 @@ def _compact_rows(rule: Mapping[str, Any], block: Mapping[str, Any], compact: Ma
     # its texts are made once; a column of distinct values costs one comparison per item more
     none: Any = object()
     last_v = last_req = last_msg = last_verdict = none
-    v_text = v_json = req_text = req_words = req_json = msg_json = verdict = verdict_json = pass_msg = ""
+    v_text = v_json = req_text = req_json = msg_json = verdict = verdict_json = pass_msg = ""
+    req_words: str | None = None
     pass_key: tuple[Any, Any] = (none, none)
     for k in range(n):
         v, req, msg = measured[k], reqs[k], msgs[k]
@@ -200,12 +201,12 @@ def rows_with_text(doc: Mapping[str, Any]) -> Iterator[Row]:
     blocks = doc["compact"] or {}
     for summary, stored, block in record_groups(doc):
         if summary is None:  # records without a rule summary: as stored
-            for rec in stored:
-                yield _with_text(qcr_row(n, dict(rec)))
+            for kept in stored:
+                yield _with_text(qcr_row(n, dict(kept)))
                 n += 1
         elif not block:
-            for rec in stored:
-                yield _with_text(qcr_row(n, _expand_stored(summary, rec)))
+            for kept in stored:
+                yield _with_text(qcr_row(n, _expand_stored(summary, kept)))
                 n += 1
         elif not stored:
             for row in cast(Iterator[Row], _compact_rows(summary, block, blocks, n)):  # numbered: with text
@@ -215,7 +216,7 @@ def rows_with_text(doc: Mapping[str, Any]) -> Iterator[Row]:
             mine = ((row_values(qcr_row(0, _expand_stored(summary, rec))), None) for rec in stored)
             for values, _ in heapq.merge(mine, _compact_rows(summary, block, blocks, None),
                                          key=lambda r: natural_key(r[0][_ITEM])):
-                row = dict(zip(QCR_COLUMNS, values, strict=True))
-                row["ordinal"] = n
-                yield _with_text(row)
+                merged = dict(zip(QCR_COLUMNS, values, strict=True))
+                merged["ordinal"] = n
+                yield _with_text(merged)
                 n += 1

@@ -148,7 +148,8 @@ class Ledger:
         rows = rows_with_text(document)
         with write_transaction(self.engine, self.display) as (conn, seq, prev):
             run_id = int(conn.execute(select(func.coalesce(func.max(m.runs.c.id), 0))).scalar_one()) + 1
-            audit_key, continues = resolve_audit_key(conn, stated, project, [f["sha256"] for f in files])
+            shas = [str(f["sha256"]) for f in files]  # str already: typed for the checker
+            audit_key, continues = resolve_audit_key(conn, stated, project, shas)
             row: dict[str, Any] = {"id": run_id, "seq": seq + 1, "recorded_at": recorded_at or _now(),
                                    **fields, "audit_key": audit_key, "continues_run": continues,
                                    "prev_hash": prev}
@@ -197,19 +198,7 @@ class Ledger:
         verdicts; a date before the run; a rejected run without ``acknowledge_rejection`` (recorded
         in the note, so it is part of the hashed entry).
         """
-        if role not in ROLES:
-            raise LedgerError(f"sign-off role {role!r}: expected one of {', '.join(ROLES)}")
-        day = date or dt.date.today().isoformat()
-        try:
-            dt.date.fromisoformat(day)
-        except ValueError:
-            raise LedgerError(f"sign-off date {day!r}: expected YYYY-MM-DD") from None
-        verdicts = dict(manual or {})
-        bad = {k: v for k, v in verdicts.items() if v not in (V.PASS, V.FAIL)}
-        if bad:
-            raise LedgerError(f"manual verdicts {bad}: each must be 'pass' or 'fail'")
-        if by is not None and not display_name(by):
-            raise LedgerError("sign-off needs the name of the person signing (--by)")
+        day, verdicts = _signoff_arguments(role, date, manual, by)
         run = self.run(run_id)
         if acknowledge_rejection and run.verdict == V.REJECTED:
             note = ACK_PREFIX + (f" {note}" if note else "")
@@ -231,14 +220,7 @@ class Ledger:
             if cur != run.hash:
                 raise LedgerError(f"run {run_id} changed while it was being signed; sign again")
             if verdicts:
-                manual_rules = set(conn.execute(
-                    select(m.qcrs.c.rule).where(m.qcrs.c.run_id == run_id, m.qcrs.c.manual.is_(True))
-                ).scalars())
-                unknown = sorted(set(verdicts) - manual_rules)
-                if unknown:
-                    raise LedgerError(
-                        f"run {run_id} has no manual rule {', '.join(unknown)}; manual rules of this run: "
-                        f"{', '.join(sorted(manual_rules)) or 'none'}")
+                _refuse_unknown_manual(conn, run_id, verdicts)
             if day < run.date:
                 raise LedgerError(f"sign-off date {day} is before run {run_id} ({run.date}): "
                                   "a run cannot be countersigned before it was made")
@@ -247,17 +229,7 @@ class Ledger:
             if run.verdict == V.REJECTED and not acknowledge_rejection:
                 raise LedgerError(f"run {run_id} was REJECTED; signing it records that you accept that "
                                   "verdict: repeat with --acknowledge-rejection (CLI) to sign anyway")
-            earlier = conn.execute(select(m.signoffs.c.by_name, m.signoffs.c.role, m.signoffs.c.manual,
-                                          m.signoffs.c.date, m.signoffs.c.key_fingerprint)
-                                   .where(m.signoffs.c.run_id == run_id)).all()
-            for e in earlier:
-                same = same_person(e.by_name, name) or (
-                    sig is not None and e.key_fingerprint is not None and e.key_fingerprint == sig.fingerprint)
-                if same and e.role == role:
-                    signed = json.loads(e.manual)
-                    if not verdicts or all(signed.get(k) == v for k, v in verdicts.items()):
-                        raise LedgerError(f"{name} already signed run {run_id} as {role} on {e.date}: "
-                                          "a duplicate sign-off is refused")
+            _refuse_duplicate(conn, run_id, name, sig, role, verdicts)
             sid = int(conn.execute(select(func.coalesce(func.max(m.signoffs.c.id), 0))).scalar_one()) + 1
             row: dict[str, Any] = {
                 "id": sid, "seq": seq + 1, "run_id": run_id, "recorded_at": recorded_at or _now(), **content,
@@ -498,6 +470,54 @@ class Ledger:
 ACK_PREFIX = "[signed acknowledging the REJECTED verdict]"
 
 
+def _signoff_arguments(role: str, date: str | None, manual: Mapping[str, str] | None,
+                       by: str | None) -> tuple[str, dict[str, str]]:
+    """A sign-off's day (today when not given) and manual verdicts, refused when malformed."""
+    if role not in ROLES:
+        raise LedgerError(f"sign-off role {role!r}: expected one of {', '.join(ROLES)}")
+    day = date or dt.date.today().isoformat()
+    try:
+        dt.date.fromisoformat(day)
+    except ValueError:
+        raise LedgerError(f"sign-off date {day!r}: expected YYYY-MM-DD") from None
+    verdicts = dict(manual or {})
+    bad = {k: v for k, v in verdicts.items() if v not in (V.PASS, V.FAIL)}
+    if bad:
+        raise LedgerError(f"manual verdicts {bad}: each must be 'pass' or 'fail'")
+    if by is not None and not display_name(by):
+        raise LedgerError("sign-off needs the name of the person signing (--by)")
+    return day, verdicts
+
+
+def _refuse_unknown_manual(conn: Connection, run_id: int, verdicts: Mapping[str, str]) -> None:
+    """Manual verdicts may name only the run's manual rules."""
+    manual_rules = set(conn.execute(
+        select(m.qcrs.c.rule).where(m.qcrs.c.run_id == run_id, m.qcrs.c.manual.is_(True))
+    ).scalars())
+    unknown = sorted(set(verdicts) - manual_rules)
+    if unknown:
+        raise LedgerError(
+            f"run {run_id} has no manual rule {', '.join(unknown)}; manual rules of this run: "
+            f"{', '.join(sorted(manual_rules)) or 'none'}")
+
+
+def _refuse_duplicate(conn: Connection, run_id: int, name: str, sig: Signature | None, role: str,
+                      verdicts: Mapping[str, str]) -> None:
+    """The same person (by name or key) signing the same run in the same role again, with no new
+    manual verdict, is refused."""
+    earlier = conn.execute(select(m.signoffs.c.by_name, m.signoffs.c.role, m.signoffs.c.manual,
+                                  m.signoffs.c.date, m.signoffs.c.key_fingerprint)
+                           .where(m.signoffs.c.run_id == run_id)).all()
+    for e in earlier:
+        same = same_person(e.by_name, name) or (
+            sig is not None and e.key_fingerprint is not None and e.key_fingerprint == sig.fingerprint)
+        if same and e.role == role:
+            signed = json.loads(e.manual)
+            if not verdicts or all(signed.get(k) == v for k, v in verdicts.items()):
+                raise LedgerError(f"{name} already signed run {run_id} as {role} on {e.date}: "
+                                  "a duplicate sign-off is refused")
+
+
 def _run_info(r: Mapping[str, Any], files: list[tuple[str, str]]) -> RunInfo:
     return RunInfo(
         id=r["id"], seq=r["seq"], recorded_at=r["recorded_at"], date=r["date"], project_id=r["project_id"],
@@ -531,9 +551,10 @@ def resolve_audit_key(conn: Connection, stated: str | None, project: str, shas: 
     best: tuple[int, int, str] | None = None   # (shared, seq, key) of the continued run
     cont: int | None = None
     if shared:
-        sizes = dict(conn.execute(select(m.run_files.c.run_id, func.count(func.distinct(m.run_files.c.sha256)))
-                                  .where(m.run_files.c.run_id.in_(list(shared)), m.run_files.c.sha256 != _EMPTY)
-                                  .group_by(m.run_files.c.run_id)).all())
+        counted = (select(m.run_files.c.run_id, func.count(func.distinct(m.run_files.c.sha256)))
+                   .where(m.run_files.c.run_id.in_(list(shared)), m.run_files.c.sha256 != _EMPTY)
+                   .group_by(m.run_files.c.run_id))
+        sizes: dict[Any, Any] = dict(conn.execute(counted).all())
         info = {int(r.id): r for r in conn.execute(select(m.runs.c.id, m.runs.c.seq, m.runs.c.audit_key,
                                                          m.runs.c.project_id).where(m.runs.c.id.in_(list(shared))))}
         for rid, n in shared.items():

@@ -9,7 +9,7 @@ from __future__ import annotations
 import io
 import json
 import re
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -119,23 +119,33 @@ def verify_chain(engine: Engine, head: str | None = None, *, heads: Iterable[str
             prev, expected_seq = row["hash"], row["seq"] + 1
     if allowed_signers is not None:
         problems += _identity_problems(who_checks, allowed_signers)
+    hashes = {row["hash"] for _k, row in entries}
+    noted = ([head] if head is not None else []) + list(heads)
+    problems += _head_problems(head_rows, hashes, prev, expected_seq - 1, noted)
+    return VerifyReport(len(entries), len(runs), len(signs), prev, tuple(problems))
+
+
+def _head_problems(head_rows: Sequence[Any], hashes: set[str], prev: str, last_seq: int,
+                   noted_heads: list[str]) -> list[Problem]:
+    """The head row ends the chain; every head in the anchor file and every head noted earlier
+    (``noted_heads``) is in it."""
+    problems: list[Problem] = []
     if len(head_rows) != 1:
         problems.append(Problem("ledger_head", "id 1", f"{len(head_rows)} head rows, expected 1"))
     else:
         hd = head_rows[0]
-        if hd["seq"] != expected_seq - 1 or hd["hash"] != prev:
+        if hd["seq"] != last_seq or hd["hash"] != prev:
             problems.append(Problem(
                 "ledger_head", "id 1",
                 f"head says seq {hd['seq']} hash {hd['hash'][:12]}..., the chain ends at seq "
-                f"{expected_seq - 1} hash {prev[:12]}... (newest entries deleted or head edited)"))
+                f"{last_seq} hash {prev[:12]}... (newest entries deleted or head edited)"))
     anchors = read_anchors()
-    hashes = {row["hash"] for _k, row in entries}
     for line, (a_seq, a_hash) in anchors:
         if a_hash not in hashes:
             problems.append(Problem("ledger_head", f"anchor line {line}",
                                     f"the head of seq {a_seq} ({a_hash[:16]}...) recorded in "
                                     f"${ENV_ANCHOR} is not in the chain: entries were deleted or rewritten"))
-    for noted in ([head] if head is not None else []) + list(heads):
+    for noted in noted_heads:
         want = noted.strip().lower()
         if len(want) < 12 or any(ch not in "0123456789abcdef" for ch in want):
             problems.append(Problem("ledger_head", "anchor", f"{noted!r} is not a chain hash (at least 12 "
@@ -144,8 +154,9 @@ def verify_chain(engine: Engine, head: str | None = None, *, heads: Iterable[str
             problems.append(Problem(
                 "ledger_head", "anchor",
                 f"the head {want[:16]}... noted earlier is not in the chain: entries up to it were deleted "
-                f"and the chain rewritten (the chain now ends at seq {expected_seq - 1} hash {prev[:12]}...)"))
-    return VerifyReport(len(entries), len(runs), len(signs), prev, tuple(problems))
+                f"and the chain rewritten (the chain now ends at seq {last_seq} hash "
+                f"{prev[:12]}...)"))
+    return problems
 
 
 def _signature_problems(kind: str, table: str, key: str, row: Mapping[str, Any],
