@@ -248,6 +248,8 @@ def _auto(image: str, band: int, arr: Any, *, gsd: float | None, bit_depth: int 
             tab.add_column(col)
         for e in target.edges:
             r = e.result
+            if r is None:
+                continue
             d = r.to_dict()
             tab.add_row(e.axis.upper(), f"{e.line_angle_deg:.2f}°", ",".join(map(str, e.window)),
                         "yes" if r.valid else "no", _fmt(r.angle_deg), _pm(d, "rer"),
@@ -257,8 +259,8 @@ def _auto(image: str, band: int, arr: Any, *, gsd: float | None, bit_depth: int 
         console.print(f"RER_x {_fmt(target.rer_x)}, RER_y {_fmt(target.rer_y)}, combined "
                       f"sqrt(RER_x RER_y) {_fmt(target.rer_combined)} (USGS, seed 000)"
                       + (f": {target.reason}" if target.reason else ""))
-        for path in written:
-            console.print(f"wrote {path}")
+        for plot in written:
+            console.print(f"wrote {plot}")
     if not ok:
         click.get_current_context().exit(1)
 

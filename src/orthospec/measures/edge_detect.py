@@ -286,14 +286,14 @@ def measure_target(image: np.ndarray, *, nodata: float | None = None, gsd: float
     img = np.asarray(np.ma.getdata(image), dtype=float)
     masked = np.ma.getmaskarray(image) if np.ma.isMaskedArray(image) else None
     declared = masked is not None and bool(masked.any())
-    if declared:
+    if masked is not None and declared:
         img = np.where(masked, np.nan, img)
     fill = None
     if nodata is None and not declared:
         nodata = fill = zero_fill(img)
     found = find_edges(img, nodata=nodata, min_length_px=min_length_px)
     valid = ndimage.binary_erosion(_valid_mask(img, nodata), iterations=2)
-    lines = []
+    lines: list[tuple[Any, Any]] = []
     for c, u, _, _ in found:
         if not any(c is c2 for c2, _ in lines):
             lines.append((c, u))

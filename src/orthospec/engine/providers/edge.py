@@ -25,8 +25,9 @@ from ...errors import OrthospecError
 from ...raster.roi import PixelWindow, RasterRoi, read_roi
 from ..registry import Measured, ProviderContext, provider
 
-if TYPE_CHECKING:  # the edge chain (scipy's optimisers and splines, ~0.5 s) loads only to measure an edge
+if TYPE_CHECKING:  # the edge chain loads only to measure an edge
     from ...measures.edge import EdgeResult
+    from ...measures.edge_detect import FoundEdge
 
 HEALTH = {  # measure -> health check name in EdgeResult
     "edge.snr": ("snr", "1"), "edge.dn_difference": ("contrast", "DN"), "edge.angle": ("angle", "deg"),
@@ -203,8 +204,11 @@ def _auto_target(d: Any, t: Any, rel: str, got: RasterRoi, gsd: float | None) ->
         return {"file": rel, "evidence": ev,
                 "missing": f"{rel}: no straight edge found in band {t.band} (edge target {t.id} has "
                          "no ROI, so its edges are searched automatically)"}
-    valid = [e for e in found if e.result.valid and e.result.rer is not None]
-    pick = min(valid, key=lambda e: e.result.rer) if valid else found[0]
+    def rer(e: FoundEdge) -> float:
+        return float(e.result.rer) if e.result is not None and e.result.rer is not None else float("inf")
+
+    valid = [e for e in found if e.result is not None and e.result.valid and e.result.rer is not None]
+    pick = min(valid, key=rer) if valid else found[0]
     summary = [{k: v for k, v in e.to_dict().items() if k in _FOUND_KEYS} for e in found]
     return {"file": rel, "evidence": ev, "result": pick.result, "edges": [e.result for e in found],
             "found": {"edges": summary, "reported": found.index(pick),

@@ -1,7 +1,7 @@
 """The binned, super-sampled ESF and its smoothing spline (used by steps 7 and 8).
 
 Bins are ``bw`` px wide and centred on multiples of ``bw`` (symmetric about the edge); the
-spline is scipy's GCV cubic smoothing spline of the bin means weighted by their counts.
+spline is the GCV cubic smoothing spline (scipy's criterion, :mod:`.numfit`) of the bin means weighted by their counts.
 """
 
 from __future__ import annotations
@@ -10,7 +10,8 @@ import math
 from typing import Any
 
 import numpy as np
-from scipy.interpolate import make_smoothing_spline
+
+from .numfit import make_smoothing_spline
 
 
 def within_bin_std(d: np.ndarray, v: np.ndarray, bw: float) -> float:

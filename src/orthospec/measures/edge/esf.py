@@ -153,7 +153,7 @@ def _tail_extent(d: np.ndarray, v: np.ndarray, centre: float, bw: float = 0.5) -
     if x.size < 12:
         return 0.0, 0.0
     ys = np.convolve(np.pad(y, 1, mode="edge"), np.ones(3) / 3.0, mode="valid")
-    out = []
+    out: list[Any] = []
     for side in (x < 0, x > 0):
         xs, vals, cs = x[side], ys[side], cnt[side]
         if xs.size < 8:
@@ -167,7 +167,7 @@ def _tail_extent(d: np.ndarray, v: np.ndarray, centre: float, bw: float = 0.5) -
         return 0.0, 0.0
     step = abs(out[1][3] - out[0][3])
     ext = []
-    for xs, vals, cs, level, spread in out:  # type: ignore[misc]
+    for xs, vals, cs, level, spread in out:
         tol = np.maximum(_TAIL_TOL * step, 3.0 * spread / np.sqrt(3.0) * np.sqrt(np.median(cs) / cs))
         order = np.argsort(np.abs(xs))  # outward from the edge
         off = (np.abs(vals - level) > tol)[order]

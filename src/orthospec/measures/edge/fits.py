@@ -11,10 +11,10 @@ import math
 from typing import Any
 
 import numpy as np
-from scipy import optimize
 
 from .bins import bins
 from .estimators import fwhm_of, make_fit
+from .numfit import brentq, least_squares, make_smoothing_spline
 from .result import GRID, NYQUIST, SPLINE, EdgeFit
 
 
@@ -72,7 +72,7 @@ def fermi_fit(d: np.ndarray, v: np.ndarray, bw: float, lo: float, hi: float,
     lsf /= b_tot
     # seed 9d: for a parametric ESF the RER centre is 0.5 on the normalised DN
     try:
-        centre = float(optimize.brentq(lambda q: float(esf_at(np.array([q]))[0]) - 0.5, lo, hi))
+        centre = float(brentq(lambda q: float(esf_at(np.array([q]))[0]) - 0.5, lo, hi))
     except ValueError:
         centre = float(x[np.argmax(lsf)])
     return make_fit(name, x, esf, lsf, centre, esf_at, (a, a + b_tot),
@@ -98,7 +98,7 @@ def _fermi_params(xb: np.ndarray, yb: np.ndarray, nb: np.ndarray, levels: tuple[
 
     def fit(p0: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray | None:
         try:
-            res = optimize.least_squares(
+            res = least_squares(
                 lambda p: (_fermi(xb, p) - yb) * sw, np.clip(p0, lower, upper),
                 jac=jac, bounds=(lower, upper), x_scale="jac", max_nfev=1000)
         except (ValueError, np.linalg.LinAlgError):
@@ -138,8 +138,6 @@ def spline_uncertainty(d: np.ndarray, v: np.ndarray, bw: float, lo: float, hi: f
     difference to the figures of the plausible PSF models (``models``), since the spline is
     chosen when no model describes the edge and the two bracket the truth. In quadrature.
     """
-    from scipy.interpolate import make_smoothing_spline
-
     sel = (d >= lo) & (d <= hi)
     xb, yb, nb = bins(d[sel], v[sel], bw, core)
     dark, bright = levels

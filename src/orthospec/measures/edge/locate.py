@@ -13,9 +13,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import optimize
 
 from .fits import logistic
+from .numfit import least_squares
 
 
 @dataclass(frozen=True, eq=False)
@@ -181,10 +181,19 @@ def _refine_line(work: np.ndarray, rows: np.ndarray, c0: float, c1: float,
         d = (xs - k0 - k1 * (ys - ym)) / math.sqrt(1.0 + k1 * k1)
         return a + b * logistic(d / s) - vs
 
+    def jac(p: np.ndarray) -> np.ndarray:
+        k0, k1, _, b, s = p
+        q = 1.0 + k1 * k1
+        d = (xs - k0 - k1 * (ys - ym)) / math.sqrt(q)
+        lg = logistic(d / s)
+        dz = b * lg * (1.0 - lg) / s  # d resid / d d
+        return np.column_stack([-dz / math.sqrt(q), dz * (-(ys - ym) / math.sqrt(q) - d * k1 / q),
+                                np.ones_like(d), lg, -dz * d / s])
+
     p0 = np.array([c0 + c1 * ym, c1, lo, hi - lo, 0.5])
     try:
-        res = optimize.least_squares(resid, p0, x_scale=np.array([1.0, 0.01, hi - lo, hi - lo, 0.5]),
-                                     max_nfev=200)
+        res = least_squares(resid, p0, jac=jac, x_scale=np.array([1.0, 0.01, hi - lo, hi - lo, 0.5]),
+                            max_nfev=200)
     except (ValueError, np.linalg.LinAlgError):
         return c0, c1
     k0, k1 = float(res.x[0]), float(res.x[1])

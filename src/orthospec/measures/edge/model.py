@@ -18,14 +18,12 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy import optimize
-from scipy.interpolate import make_smoothing_spline
-from scipy.special import fdtrc
 
 from ..psf import footprint, gauss_boxes_esf, gauss_boxes_esf_dsigma, gauss_boxes_lsf
 from . import pupil
 from .bins import bin_index, bins
 from .estimators import fwhm_of, make_fit
+from .numfit import brentq, fdtrc, least_squares, make_smoothing_spline
 from .result import GRID, NYQUIST, EdgeFit
 
 _ADEQUATE_P = 1e-3  # lack-of-fit p-value below which the PSF model does not describe the ESF
@@ -162,7 +160,7 @@ class _Problem:
         """Parameters and chi2 (2 x cost) of ``kind`` started at ``p0``; None if it fails."""
         lo_b, hi_b = np.array(self.base_lo + lower), np.array(self.base_hi + upper)
         try:
-            res = optimize.least_squares(
+            res = least_squares(
                 lambda p: (_model_esf(kind, self.xb, p, self.fp) - self.yb) * self.sw,
                 np.clip(np.array(p0, dtype=float), lo_b, hi_b),
                 jac=lambda p: _model_jac(kind, self.xb, p, self.fp) * self.sw[:, None],
@@ -313,7 +311,7 @@ def _lack_of_fit(prob: _Problem, kind: str, p: np.ndarray, var_pe: float) -> _Te
     needed (and paid for) only when the model fails it."""
     dof = (prob.xb.size - p.size, prob.d.size - prob.xb.size)
     f_stat = prob.chi(kind, p, var_pe) / dof[0]
-    p_value = float(fdtrc(dof[0], dof[1], f_stat))  # F survival (scipy.stats costs 0.2 s to import)
+    p_value = float(fdtrc(dof[0], dof[1], f_stat))  # F survival
     cv_model = cv_spline = None
     if p_value < _ADEQUATE_P:
         cv_model, cv_spline = _cv_errors(prob.xb, prob.yb, prob.nb, var_pe, prob.qv, kind, p, prob.fp,
@@ -379,7 +377,7 @@ def _curves(kind: str, p: np.ndarray, fp: tuple[float, float], lo: float, hi: fl
     centre = c
     if kind == "gauss2":
         try:
-            centre = float(optimize.brentq(lambda q: float(esf_at(np.array([q]))[0]) - 0.5, lo, hi))
+            centre = float(brentq(lambda q: float(esf_at(np.array([q]))[0]) - 0.5, lo, hi))
         except ValueError:
             centre = c
     return _Curves(x, esf_at, lsf, mtf_at, centre, comps)
@@ -493,10 +491,13 @@ def _cv_errors(xb: np.ndarray, yb: np.ndarray, nb: np.ndarray, var_pe: float, qv
     for k in range(_CV_FOLDS):
         tr, te = fold != k, fold == k
         xt, yt, wt = xb[tr], yb[tr], sw[tr]
+
+        def resid(q: np.ndarray, xt: np.ndarray = xt, yt: np.ndarray = yt, wt: np.ndarray = wt) -> np.ndarray:
+            return (_model_esf(kind, xt, q, fp) - yt) * wt
+
         try:
-            res = optimize.least_squares(
-                lambda q, xt=xt, yt=yt, wt=wt: (_model_esf(kind, xt, q, fp) - yt) * wt,
-                np.clip(p, lo_b, hi_b), bounds=(lo_b, hi_b), x_scale="jac", max_nfev=100)
+            res = least_squares(
+                resid, np.clip(p, lo_b, hi_b), bounds=(lo_b, hi_b), x_scale="jac", max_nfev=100)
             err_m[te] = (_model_esf(kind, xb[te], res.x, fp) - yb[te]) ** 2
         except (ValueError, np.linalg.LinAlgError):
             err_m[te] = np.inf

@@ -231,7 +231,7 @@ class EdgeResult:
         for axis, n in comps.items():
             ok = fit is not None and math.isfinite(n) and n > 1e-6
             fw = rer = mtf = None
-            if ok:
+            if ok and fit is not None:
                 fw = _f(fit.fwhm_px / n)
                 e = np.interp([fit.centre_px - 0.5 * n, fit.centre_px + 0.5 * n], fit.x, fit.esf)
                 rer = _f(e[1] - e[0])
