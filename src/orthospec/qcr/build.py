@@ -26,9 +26,9 @@ from xml.sax.saxutils import quoteattr as _quoteattr
 
 import numpy as np
 
-from . import __version__
-from . import verdicts as V
-from .engine.evaluator import (
+from .. import __version__
+from .. import verdicts as V
+from ..engine.evaluator import (
     ERROR,
     FAIL,
     MISSING,
@@ -39,12 +39,12 @@ from .engine.evaluator import (
     Evaluation,
     RuleResult,
 )
-from .engine.registry import SCOPES
-from .errors import OrthospecError
-from .outputs import atomic_write  # noqa: F401  (re-exported: the one atomic writer lives in outputs.py)
-from .provenance import Evidence
-from .qcr_model import SCHEMA_IDS, qcr_schema
-from .verdicts import VERDICTS
+from ..engine.registry import SCOPES
+from ..errors import OrthospecError
+from ..outputs import atomic_write  # noqa: F401  (re-exported: the one atomic writer lives in outputs.py)
+from ..provenance import Evidence
+from ..qcr_model import SCHEMA_IDS, qcr_schema
+from ..verdicts import VERDICTS
 
 __all__ = ["SCHEMA_IDS", "all_records", "block_columns", "build_document", "dumps", "evidence_rows", "evidence_text",
            "iter_dumps", "natural_order", "point_frame", "point_rows", "qcr_schema", "record_groups", "render_all", "stable"]
@@ -359,7 +359,7 @@ def _pass_message(measure: str, measured: Any, shown_unit: str, req_text: str) -
 
 
 def _shown_unit(unit: str | None) -> str:
-    from .spec.wording import unit_suffix
+    from ..spec.wording import unit_suffix
 
     return unit_suffix(unit)
 
@@ -386,7 +386,7 @@ class _RuleRecords:
     """Builds the records of one rule result; everything constant per rule is computed once."""
 
     def __init__(self, r: RuleResult, evidence: _Evidence) -> None:
-        from .spec.wording import requirement_text
+        from ..spec.wording import requirement_text
 
         self.r = r
         self.ev = evidence
@@ -1125,7 +1125,7 @@ def evidence_rows(entry: Mapping[str, Any], root: str | Path) -> list[int]:
     still have the entry's SHA-256 (OrthospecError otherwise): what an auditor re-applies."""
     if "where" not in entry:
         return list(entry.get("rows") or [])
-    from .provenance import sha256_file
+    from ..provenance import sha256_file
 
     path = Path(root) / str(entry["file"])
     if sha256_file(path) != entry.get("sha256"):
@@ -1785,7 +1785,7 @@ def render_all(doc: dict[str, Any], formats: Iterable[str]) -> dict[str, Output]
         out["qcr.parquet"] = to_parquet(doc)
     own = {"json", "csv", "junit", "parquet", "terminal", "html", "pdf"}
     for name in sorted(fmts - own):
-        from . import plugins  # lazy: only when a format a plugin adds is asked for
+        from .. import plugins  # lazy: only when a format a plugin adds is asked for
 
         fmt = plugins.output_format(name)
         if fmt is None:
