@@ -175,6 +175,22 @@ def test_a_master_check_point_on_a_gcp_rejects_the_master(tmp_path: Path) -> Non
     assert "S01_SC1" in doc["rollup"]["rejected"]["image"]
 
 
+def test_a_declared_tiny_precision_does_not_hide_a_gcp_reused_as_master_check_point(tmp_path: Path) -> None:
+    """The contractor's tables declare 0.1 mm precision for both points: "the same point" is still
+    at least the separation of the tolerance in force and 2 px (measures/independence.py), so a GCP
+    entered 1 cm away is still a GCP (before: 3 x hypot(0.0001, 0.0001) = 0.4 mm, and it passed)."""
+    d = _copy("satellite-pass", tmp_path)
+    gh, gcps = read_table(d, "gcps")
+    g = next(r for r in gcps if r["image_id"] == "S01_SC1")
+    gx, gy = float(g["x"]), float(g["y"])
+    assert "precision_xy" in gh
+    _edit(d, "gcps", "point_id", g["point_id"], precision_xy="0.0001")
+    _edit(d, "checkpoints", "point_id", "S01-Q01", x_ref=f"{gx + 0.01:.3f}", y_ref=f"{gy:.3f}",
+          x=f"{gx + 0.05:.2f}", y=f"{gy - 0.04:.2f}", precision_xy="0.0001")
+    got = _rule(_check(d), "JRC-T9-MASTER-INDEPENDENT")["S01_SC1"]
+    assert got["verdict"] == "fail" and got["measured"]["value"] == 1
+
+
 def test_master_independence_passes_on_the_shipped_example_and_is_missing_without_its_points(tmp_path: Path) -> None:
     got = _rule(_check(EXAMPLES / "satellite-pass"), "JRC-T9-MASTER-INDEPENDENT")["S01_SC1"]
     _, cps = read_table(EXAMPLES / "satellite-pass", "checkpoints")

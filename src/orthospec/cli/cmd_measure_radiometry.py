@@ -60,8 +60,10 @@ def _render(rep: ImageReport, findings: list[str]) -> None:
 @click.argument("image", type=click.Path(dir_okay=False))
 @click.option("--json", "as_json", is_flag=True, help="Print the full report as JSON.")
 @click.option("--full", is_flag=True,
-              help="Also the rest of the JRC §6.3 scan: noise (two estimators), luminosity "
-                   "and band misregistration (same single read; slower).")
+              help="Also the rest of the JRC §6.3 scan: noise (two estimators), luminosity, "
+                   "band misregistration, and the facts `check` compares declarations with "
+                   "(content hash of the decoded pixels, thumbnail, measured cloud cover); same "
+                   "single read, slower.")
 @click.option("--bit-depth", type=click.IntRange(1, 32), default=None,
               help="Real radiometric resolution (e.g. 11 for 11-bit data in 16-bit files); "
                    "default: the NBITS tag, else the data type.")
@@ -81,8 +83,9 @@ def radiometry_cmd(ctx: click.Context, image: str, as_json: bool, full: bool, bi
     By default the job of ``gdalinfo -stats -hist`` plus the file's SHA-256: statistics are
     exact (no overviews), with population std and nodata excluded per band, as GDAL computes
     them, and the §6.3 measures the histograms give (saturation, margins, CV). ``--full`` adds
-    the rest of the JRC §6.3 scan (noise, luminosity, band misregistration) to the same single
-    read of the pixels. Radiometry needs no georeference: a missing or unparseable CRS is
+    the rest of the JRC §6.3 scan (noise, luminosity, band misregistration) and the pixel facts
+    ``check`` measures (content hash, thumbnail, cloud cover) to the same single read of the
+    pixels. Radiometry needs no georeference: a missing or unparseable CRS is
     reported as a file-check finding, not refused. Exit code 2 when the pixels cannot be read.
     """
     import gc
@@ -116,7 +119,7 @@ def radiometry_cmd(ctx: click.Context, image: str, as_json: bool, full: bool, bi
             from ..raster.reading import ScanSettings
 
             settings = ScanSettings(bit_depth=bit_depth, noise=full, luminosity=full,
-                                    misregistration=full)
+                                    misregistration=full, signature=full)
             opts = ScanOptions(settings=settings, expect_epsg=expect_epsg,
                                expect_gsd=expect_gsd, gsd_tolerance=gsd_tolerance)
             rep = scan_image(image, opts, cloud_mask=cloud_mask, sha256=hashing)

@@ -734,21 +734,32 @@ class _Accumulators:
         another band of the pixel is valid is saturated, not no-data; a pixel at nodata in every
         band cannot be told apart. Only for chunks where a band's nodata value occurs. A band's
         count at nodata is its histogram's (``with_nodata``), and a validity mask built for the
-        moments is reused: one comparison per band at most, none when a band has no nodata pixel
-        in the chunk (then no pixel is at nodata in every band)."""
-        everywhere: np.ndarray | None = None
+        moments is reused. The pixels at nodata in every band are found by position: the band with
+        the fewest nodata pixels in the chunk is compared once, the others only at those positions
+        (a chunk has few such pixels, except at an image's no-data rim); no comparison at all when a
+        band has no nodata pixel in the chunk (then no pixel is at nodata in every band)."""
+        bands: list[BandInfo] = []
         for b in self.infos:
             if (b.use_mask or b.nodata is None or (isinstance(b.nodata, float) and math.isnan(b.nodata))
                     or (b.index in self.hists and b.index not in with_nodata)):
-                everywhere = None  # a band without nodata here: no pixel is nodata in every band
+                bands = []  # a band without nodata here: no pixel is nodata in every band
                 break
-            valid = valids.get(b.index)
-            at = (~valid if valid is not None and data.dtype.kind in "uib"
-                  else data[b.index - 1] == np.asarray(b.nodata).astype(data.dtype))
-            everywhere = at if everywhere is None else np.logical_and(everywhere, at, out=everywhere)
-        else:
-            assert everywhere is not None
-        ambiguous = int(np.count_nonzero(everywhere)) if everywhere is not None else 0
+            bands.append(b)
+        # fewest first: histogram bands by their count at nodata, the others (no count) last
+        bands.sort(key=lambda b: with_nodata.get(b.index, data[0].size + 1))
+        where: np.ndarray | None = None
+        for b in bands:
+            band = data[b.index - 1].reshape(-1)
+            nd = np.asarray(b.nodata).astype(data.dtype)
+            if where is None:
+                valid = valids.get(b.index)
+                at = ~valid.reshape(-1) if valid is not None and data.dtype.kind in "uib" else band == nd
+                where = np.flatnonzero(at)
+            else:
+                where = where[band[where] == nd]
+            if not where.size:
+                break
+        ambiguous = int(where.size) if where is not None else 0
         self.all_nodata += ambiguous
         for idx in self.hidden:
             if idx in with_nodata:

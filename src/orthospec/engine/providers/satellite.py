@@ -31,6 +31,7 @@ import numpy as np
 import pandas as pd
 
 from ...delivery.in_force import INTERNAL
+from ...measures.independence import separation
 from ...provenance import Evidence
 from ...raster.footprints import image_footprints
 from ...units import convert
@@ -219,13 +220,19 @@ def _quadrants(ids: list[str], feet: dict[str, Any], gcps: Any, scene_rows: dict
 def _checkpoints_on_gcps(ctx: ProviderContext, ids: list[str], gcps: Any, scene_rows: dict[str, np.ndarray]
                          ) -> tuple[dict[str, Any], dict[str, str], dict[str, tuple[Evidence, ...]]]:
     """Per scene: its listed check points that are one of its GCPs (id, or position within
-    blunder_factor x the combined precision). Table 9's master check is the contractor's production
+    blunder_factor x the combined precision, and never nearer than the distance that tells two points
+    apart whatever precision the tables declare: :func:`~orthospec.measures.independence.separation`
+    of the tolerance in force and the GSD). Table 9's master check is the contractor's production
     record, so its points are the delivery's own table (``internal_checkpoints`` when the checker
     measured its own points: those never reject the contractor's products)."""
     cps = ctx.delivery.table(INTERNAL)
     if cps is None:
         cps = ctx.delivery.table("checkpoints")
     factor = _param(ctx, "blunder_factor", "1", 3.0)
+    # a declared precision of 0.1 mm must not shrink "the same point" to nothing (a GCP moved 1 cm)
+    floor = separation(_param(ctx, "tolerance_xy", "m", math.nan), ctx.delivery.gsd_m,
+                       tolerance_factor=_param(ctx, "checkpoint_separation_factor", "1", 1.0),
+                       gsd_px=_param(ctx, "checkpoint_separation_px", "pixel", 2.0))
     vals: dict[str, Any] = {}
     notes: dict[str, str] = {}
     ev: dict[str, tuple[Evidence, ...]] = {}
@@ -259,7 +266,7 @@ def _checkpoints_on_gcps(ctx: ProviderContext, ids: list[str], gcps: Any, scene_
                 continue
             if len(gx):
                 dist = np.hypot(gx - cx[k], gy - cy[k])
-                limit = factor * np.hypot(g_prec, cp_prec[k])
+                limit = np.maximum(factor * np.hypot(g_prec, cp_prec[k]), floor)
                 j = int(np.argmin(dist - limit))
                 if dist[j] <= limit[j]:
                     same.append(f"{cp_ids[k]} ({dist[j]:.3f} m from GCP {g['point_id'].iloc[j]})")
