@@ -118,7 +118,7 @@ def test_column_checks_equal_the_regular_expressions(cells: list[str]) -> None:
     joined = "\x00".join(cells)
     with pytest.MonkeyPatch.context() as mp:
         for large in (0, qcr._LARGE):  # the byte checks (any length) and the regex (short texts)
-            mp.setattr(qcr, "_LARGE", large)
+            mp.setattr(qcr.cells, "_LARGE", large)
             assert _any_csv_special(joined) == bool(_CSV_SPECIAL.search(joined))
             assert _formula_at(joined) == bool(_FORMULA_AT.search(joined))
             assert _xml_special("".join(cells)) == bool(_XML_SPECIAL.search("".join(cells)))
@@ -157,7 +157,7 @@ def test_row_columns_without_gaps_same_bytes(seed: int, monkeypatch: pytest.Monk
             changed += 1
     assert changed
     for chunk in (1 + seed % 5, 50_000):
-        monkeypatch.setattr(qcr, "BLOCK_CHUNK", chunk)
+        monkeypatch.setattr(qcr.blocks, "BLOCK_CHUNK", chunk)
         assert "".join(iter_csv(doc)) == "".join(_iter_csv_records(doc))
         assert "".join(iter_junit(doc)) == "".join(_iter_junit_records(doc))
 
@@ -177,7 +177,7 @@ def test_compact_columns_encode_as_json_does(texts: list[str], repeat: int, mixe
              "message": ids[:3]}
     with pytest.MonkeyPatch.context() as mp:
         for large in (0, qcr._LARGE):  # control characters found in the bytes, or by the regex
-            mp.setattr(qcr, "_LARGE", large)
+            mp.setattr(qcr.json, "_LARGE", large)
             assert _encode_columns(enc, block) == enc(block)
             assert _encode_columns(enc, {1: ids}) == enc({1: ids}) and _encode_columns(enc, ids) == enc(ids)
             if not mixed and len(ids) >= 256:

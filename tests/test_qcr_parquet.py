@@ -88,7 +88,7 @@ def test_row_groups_hold_a_bounded_batch_and_read_back_whole(written: Path, monk
     from orthospec import qcr
 
     doc = json.loads((written / "qcr.json").read_text(encoding="utf-8"))
-    monkeypatch.setattr(qcr, "PARQUET_ROWS", 100)
+    monkeypatch.setattr(qcr.parquet, "PARQUET_ROWS", 100)
     data = qcr.to_parquet(doc)
     meta = pq.ParquetFile(io.BytesIO(data)).metadata
     assert meta.num_row_groups == -(-doc["summary"]["records"] // 100)

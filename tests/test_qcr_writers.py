@@ -170,9 +170,9 @@ def _doc(seed: int) -> dict:
 @pytest.mark.parametrize("seed", range(40))
 def test_generated_same_bytes(seed: int, monkeypatch: pytest.MonkeyPatch) -> None:
     doc = _doc(seed)
-    monkeypatch.setattr(qcr, "BLOCK_CHUNK", 1 + seed % 7)  # slices cut anywhere in a block
+    monkeypatch.setattr(qcr.blocks, "BLOCK_CHUNK", 1 + seed % 7)  # slices cut anywhere in a block
     _same(doc)
-    monkeypatch.setattr(qcr, "BLOCK_CHUNK", 50_000)
+    monkeypatch.setattr(qcr.blocks, "BLOCK_CHUNK", 50_000)
     _same(doc)
     text = "".join(iter_csv(doc))
     # every row reads back whole: a CR became a (quoted) LF (csv_safe), so no cell splits its row

@@ -13,7 +13,7 @@ import re
 import shutil
 import tempfile
 from collections.abc import Iterable, Iterator, Mapping
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -24,18 +24,63 @@ from .engine.evaluator import Evaluation, Evaluator
 from .engine.params import parse_cli_params, resolve_parameters
 from .engine.registry import EngineOptions
 from .errors import OrthospecError
-from .qcr import build_document
+from .qcr import Output, build_document, render_all
 from .spec.loader import ResolvedProfile, load_profile
+
+#: every output format orthospec itself writes (plugins add more: the orthospec.formats entry point)
+FORMATS = ("terminal", "json", "csv", "junit", "parquet", "html", "pdf", "gpkg", "iso19157")
+#: the formats drawing a map: their footprints go into qcr.json (``details.footprints``)
+MAP_FORMATS = frozenset({"gpkg", "html", "pdf"})
 
 
 @dataclass
 class CheckResult:
     document: dict[str, Any]
     evaluation: Evaluation
+    _geometry: Any = field(default=None, repr=False, compare=False)
 
     @property
     def accepted(self) -> bool:
         return self.document["verdict"] == V.ACCEPTED
+
+    def with_maps(self, formats: Iterable[str]) -> dict[str, Any]:
+        """The document as written with ``formats``: when one draws a map (gpkg, html, pdf) the
+        image footprints read from the raster headers go into it (``details.footprints``), so the
+        map re-renders from qcr.json alone. Done once; :attr:`document` is the result."""
+        if MAP_FORMATS & set(formats) and self._geometry is None:
+            from .findings import read_geometry, with_footprints
+
+            self._geometry = read_geometry(self.evaluation.delivery)
+            self.document = with_footprints(self.document, self._geometry)
+        return self.document
+
+    def outputs(self, formats: Iterable[str], *, shown: dict[str, Any] | None = None) -> dict[str, Output]:
+        """Every requested file (terminal left out), rendered but not written: machine outputs of
+        :attr:`document`, HTML/PDF reports of ``shown`` (the document with the ledger's history for
+        the reader; qcr.json never carries it), the GeoPackage of the findings, ISO 19139 XML and the updated copies of the delivery's metadata."""
+        fmts = [f for f in formats if f != "terminal"]
+        doc = self.with_maps(fmts)
+        out = render_all(doc, [f for f in fmts if f not in ("gpkg", "iso19157")])
+        if "gpkg" in fmts:
+            from .findings import to_gpkg
+
+            out["findings.gpkg"] = to_gpkg(doc, self._geometry)
+        if "iso19157" in fmts:  # the ISO 19157 document and updated copies of the delivery's metadata
+            from .metadata.copies import metadata_outputs
+
+            out.update(metadata_outputs(doc, self.evaluation.delivery))
+        if "html" in fmts or "pdf" in fmts:
+            from .reports import document as reportdoc  # heavy imports only when asked for
+
+            out.update(reportdoc.render(shown if shown is not None else doc,
+                                        formats=[f for f in fmts if f in ("html", "pdf")]))
+        return out
+
+    def render(self, formats: Iterable[str], out: str | Path) -> list[str]:
+        """Write the requested files into the folder ``out``, all or none (never into the
+        delivery); returns the names written."""
+        refuse_inside_delivery(out, self.evaluation.delivery.root, what="output folder")
+        return write_outputs(out, self.outputs(formats))
 
 
 @dataclass(frozen=True)
@@ -50,8 +95,10 @@ class CheckOptions:
     scheduler: str | None = None
     #: show a progress line on stderr while rasters are scanned
     progress: bool = False
-    #: ``(scope, items)`` from :func:`orthospec.engine.sample.read_sample`: only those are checked
-    sample: tuple[str, frozenset[str] | set[str]] | None = None
+    #: only those items are checked: the sample table's path (from ``orthospec sample``), or
+    #: ``(scope, items)`` as :func:`orthospec.engine.sample.read_sample` gives; qcr.json's ``sample``
+    #: block says what the check was restricted to
+    sample: tuple[str, frozenset[str] | set[str]] | str | Path | None = None
     #: the checker's file (YAML, outside the delivery): manual-check verdicts and waivers in force
     checker: Path | None = None
     #: "fail", or "warn" to make recommended-level rules blocking
@@ -89,6 +136,7 @@ class CheckOptions:
 
     def engine_options(self) -> EngineOptions:
         """What the evaluator and its providers read (typed and frozen: engine/registry.py)."""
+        assert self.sample is None or isinstance(self.sample, tuple), "check() reads a sample table's path first"
         return EngineOptions(workers=self.workers, scheduler=self.scheduler, progress=self.progress,
                              sample=self.sample, cache_dir=None if self.cache_dir is None else str(self.cache_dir))
 
@@ -105,11 +153,27 @@ def parse_date(text: str | None) -> str:
 def check(delivery: str | Path | Delivery, profile: str | Path | ResolvedProfile, *,
           params: Mapping[str, str] | list[str] | tuple[str, ...] = (), date: str | None = None,
           fail_on: str | None = None, operator: str | None = None, checker: str | Path | None = None,
-          options: CheckOptions | Mapping[str, Any] | None = None) -> CheckResult:
+          options: CheckOptions | Mapping[str, Any] | None = None, ledger: str | Path | None = None,
+          allowed_signers: str | Path | None = None) -> CheckResult:
     """Check a delivery against a profile; bad input raises OrthospecError, failures are QCRs.
 
-    ``fail_on`` and ``checker`` given here win over the same fields of ``options``."""
+    ``fail_on`` and ``checker`` given here win over the same fields of ``options``. ``ledger``
+    (SQLite path or PostgreSQL URL) is opened and verified before the check and its chain head goes
+    into the document (``ledger_head``: the head the run extends when it is recorded there)."""
     opts = CheckOptions.of(options)
+    ledger_head = None
+    if ledger is not None:
+        from .ledger import head_for_check
+
+        if "://" not in str(ledger) and not isinstance(delivery, Delivery):
+            refuse_inside_delivery(ledger, delivery, what="--ledger")
+        ledger_head = head_for_check(str(ledger), allowed_signers=allowed_signers)
+    sample_file = None
+    if isinstance(opts.sample, str | Path):
+        from .engine.sample import read_sample
+
+        sample_file = Path(opts.sample)
+        opts = replace(opts, sample=read_sample(sample_file))
     if fail_on is not None:
         opts = replace(opts, fail_on=fail_on)
     if checker is not None:
@@ -137,7 +201,24 @@ def check(delivery: str | Path | Delivery, profile: str | Path | ResolvedProfile
         ev = Evaluator(prof, d, values, fail_on=opts.fail_on, options=opts.engine_options(), checker=chk).run()
         # the delivery folder's own name: the same bytes whatever the working folder or the path typed
         doc = build_document(ev, date=parse_date(date), operator=operator, delivery_path=d.root.name)
+    if ledger_head is not None:
+        doc["ledger_head"] = ledger_head  # the chain head this run extends (issue 13 item 5)
+    if opts.sample is not None:
+        assert isinstance(opts.sample, tuple)
+        doc["sample"] = _sample_block(opts.sample, d, sample_file)
     return CheckResult(doc, ev)
+
+
+def _sample_block(sample: tuple[str, frozenset[str] | set[str]], d: Delivery, sample_file: Path | None
+                  ) -> dict[str, Any]:
+    """What the sample restricted the check to, for the QCR (JRC §12.3 / §12.8)."""
+    scope, items = sample
+    total = len(d.block_ids) if scope == "block" else (
+        len(d.table("images").df) if d.has_table("images") else 0)
+    clause = "§12.8" if scope == "block" else "§12.3"
+    source = f"file {sample_file.name}, " if sample_file is not None else ""
+    return {"kind": scope, "items": sorted(items),
+            "statement": f"sample of {len(items)} of {total} {scope}s ({source}JRC {clause})"}
 
 
 @contextlib.contextmanager

@@ -11,8 +11,16 @@ import click
 from rich.console import Console
 
 from .. import verdicts as V
-from ..api import CheckOptions, check, default_output_dir, refuse_inside_delivery, write_outputs
-from ..qcr import Output, render_all, require_pyarrow
+from ..api import (
+    FORMATS,
+    CheckOptions,
+    CheckResult,
+    check,
+    default_output_dir,
+    refuse_inside_delivery,
+    write_outputs,
+)
+from ..qcr import Output, require_pyarrow
 from ..reports.terminal import render as render_terminal
 from .groups import main
 from .options import (
@@ -26,32 +34,6 @@ from .options import (
 
 if TYPE_CHECKING:
     from ..ledger.runs import RecordedRun
-
-FORMATS = ("terminal", "json", "csv", "junit", "parquet", "html", "pdf", "gpkg", "iso19157")
-
-
-def render_documents(doc: dict, fmts: list[str], *, shown: dict | None = None,
-                     geometry: object = None, delivery: object = None) -> dict[str, Output]:
-    """Machine outputs of ``doc`` plus HTML/PDF reports of ``shown`` (``doc`` with the ledger's
-    history for the reader; qcr.json never carries it), written later all or none. ``geometry``
-    (``findings.read_geometry``) adds the seamlines to the GeoPackage; ``delivery`` (the checked
-    Delivery) adds the updated copies of its metadata XML to iso19157."""
-    out = render_all(doc, [f for f in fmts if f not in ("gpkg", "iso19157")])
-    if "gpkg" in fmts:
-        from ..findings import to_gpkg
-
-        out["findings.gpkg"] = to_gpkg(doc, geometry)
-    if "iso19157" in fmts:
-        from ..metadata.copies import metadata_outputs
-
-        out.update(metadata_outputs(doc, delivery))
-    if "html" in fmts or "pdf" in fmts:
-        from ..reports import document as reportdoc  # heavy imports only when asked for
-
-        out.update(reportdoc.render(shown if shown is not None else doc,
-                                    formats=[f for f in fmts if f in ("html", "pdf")]))
-    return out
-
 
 @main.command("check")
 @click.argument("delivery", type=click.Path(file_okay=False, path_type=Path))
@@ -102,36 +84,20 @@ def check_cmd(delivery: Path, profile: str, params: tuple[str, ...], out_dir: Pa
     refuse_inside_delivery(out_dir if out_dir is not None else Path("reports"), delivery,
                            what="--out" if out_dir is not None else "the default output folder (run from "
                            "outside the delivery or give --out)")
-    ledger_head = _ledger_usable(ledger_target, delivery, allowed_signers) if ledger_target is not None else None
-    sample = None
-    if sample_file is not None:
-        from ..engine.sample import read_sample
-
-        sample = read_sample(sample_file)
-    options = CheckOptions(workers=workers, scheduler=scheduler, progress=sys.stderr.isatty(), sample=sample,
+    options = CheckOptions(workers=workers, scheduler=scheduler, progress=sys.stderr.isatty(), sample=sample_file,
                            checker=checker_file, fail_on=fail_on, max_items=max_items)
-    result = check(delivery, profile, params=params, date=date, operator=operator, options=options)
-    doc = result.document
-    if ledger_head is not None:
-        doc["ledger_head"] = ledger_head  # the chain head this run extends (issue 13 item 5)
-    if sample_file is not None:
-        doc["sample"] = _sample_block(sample, result, sample_file)
-    target = out_dir if out_dir is not None else default_output_dir(doc["delivery"]["id"])
+    result = check(delivery, profile, params=params, date=date, operator=operator, options=options,
+                   ledger=ledger_target, allowed_signers=allowed_signers)
+    target = out_dir if out_dir is not None else default_output_dir(result.document["delivery"]["id"])
     refuse_inside_delivery(target, delivery, what="output folder")
     out_fmts = [f for f in fmts if f != "terminal"]
     run_id = None
-    geometry = None
-    if {"gpkg", "html", "pdf"} & set(out_fmts):  # a map is asked for: its footprints go into qcr.json
-        from ..findings import read_geometry, with_footprints
-
-        geometry = read_geometry(result.evaluation.delivery)  # type: ignore[attr-defined]
-        doc = with_footprints(doc, geometry)
+    doc = result.with_maps(out_fmts)
     if ledger_target is None:
-        files = render_documents(doc, out_fmts, geometry=geometry, delivery=result.evaluation.delivery)  # type: ignore[attr-defined]
-        write_outputs(target, files)
+        files = result.render(out_fmts, target)
     else:
-        files, run_id, display = _record_and_write(ledger_target, doc, out_fmts, target, key, allowed_signers,
-                                                   geometry, result.evaluation.delivery)  # type: ignore[attr-defined]
+        written, run_id, display = _record_and_write(ledger_target, result, out_fmts, target, key, allowed_signers)
+        files = sorted(written)
     if "terminal" in fmts:
         console = Console(highlight=False) if sys.stdout.isatty() else Console(
             highlight=False, width=120, soft_wrap=False)
@@ -162,25 +128,15 @@ def _workers(workers: int | None) -> int | None:
     return min(workers, os.cpu_count() or 1)
 
 
-def _ledger_usable(ledger_target: str, delivery: Path, allowed_signers: Path | None) -> dict:
-    """Open and verify the ledger before the check, so a bad one fails before any output is
-    written; its chain head goes into qcr.json (``ledger_head``)."""
-    from ..ledger import head_for_check
-
-    if "://" not in ledger_target:
-        refuse_inside_delivery(Path(ledger_target), delivery, what="--ledger")
-    return head_for_check(ledger_target, allowed_signers=allowed_signers)
-
-
-def _record_and_write(ledger_target: str, doc: dict, fmts: list[str], target: Path, key: Path | None,
-                      allowed_signers: Path | None, geometry: object = None,
-                      delivery: object = None) -> tuple[dict[str, Output], int, str]:
+def _record_and_write(ledger_target: str, result: CheckResult, fmts: list[str], target: Path, key: Path | None,
+                      allowed_signers: Path | None) -> tuple[dict[str, Output], int, str]:
     """Record the run and write its outputs in one ledger transaction: the reports print the run's
     own chain entry (the head that includes it, issue 29 item 5), so `ledger verify --against` the
     report catches a chain rebuilt to rewrite this run. Rendering or writing failing records nothing;
     the outputs are written (all or none) before the transaction commits."""
     from ..ledger import open_ledger
 
+    doc = result.document
     reports = "html" in fmts or "pdf" in fmts
     written: dict[str, Output] = {}
     with open_ledger(ledger_target, allowed_signers=allowed_signers) as led:
@@ -192,7 +148,7 @@ def _record_and_write(ledger_target: str, doc: dict, fmts: list[str], target: Pa
                 rows = [{**r, "run": run.id} if r.get("run") == "new" else r for r in history]
                 shown = {**doc, "history": rows, "ledger": {"run": run.id, "hash": run.hash, "head": run.hash,
                                                             "head_seq": run.seq, "problems": []}}
-            written.update(render_documents(doc, fmts, shown=shown, geometry=geometry, delivery=delivery))
+            written.update(result.outputs(fmts, shown=shown))
             write_outputs(target, written)
 
         run_id = led.record(doc, key=key, before_commit=write)
@@ -204,14 +160,3 @@ def _record_and_write(ledger_target: str, doc: dict, fmts: list[str], target: Pa
         trail += " (the manifest's project.id: the checker file's checker.project keys it by the contract)"
     signed = f"signed by {r.signer or 'key'} {r.key_fingerprint}" if r.key_fingerprint else "unsigned"
     return written, run_id, f"{led.display} ({trail}; {signed})"
-
-
-def _sample_block(sample: tuple[str, set[str]], result: object, sample_file: Path) -> dict:
-    """What ``--sample`` restricted the check to, for the QCR (JRC §12.3 / §12.8)."""
-    scope, items = sample
-    d = result.evaluation.delivery  # type: ignore[attr-defined]
-    total = len(d.block_ids) if scope == "block" else (
-        len(d.table("images").df) if d.has_table("images") else 0)
-    clause = "§12.8" if scope == "block" else "§12.3"
-    return {"kind": scope, "items": sorted(items),
-            "statement": f"sample of {len(items)} of {total} {scope}s (file {sample_file.name}, JRC {clause})"}

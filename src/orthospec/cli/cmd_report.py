@@ -13,7 +13,7 @@ from ..outputs import atomic_write
 from .groups import main, spec
 from .options import allowed_signers_option, split_formats
 
-REPORT_FORMATS = ("html", "pdf")
+REPORT_FORMATS = ("html", "pdf", "gpkg")
 ANNEX_FORMATS = ("md", "html", "pdf")
 
 
@@ -32,7 +32,9 @@ def _read_qcr(path: Path) -> dict:
 @click.option("--format", "formats", default="html,pdf", show_default=True,
               help="Comma-separated: " + ", ".join(REPORT_FORMATS) + ".")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False, path_type=Path), default=None,
-              help="Folder for report.html / report.pdf (default: beside QCR_JSON, or ./report-run-N).")
+              help="Folder for report.html / report.pdf / findings.gpkg (default: beside QCR_JSON, or "
+                   "./report-run-N). The GeoPackage re-rendered from qcr.json alone has no seamlines layer "
+                   "features (they are read from the delivery by `orthospec check --format gpkg`).")
 @click.option("--ledger", "ledger_target", default=None, metavar="PATH|URL",
               help="Render a run stored in the QCR ledger, with its sign-offs and the project's history.")
 @click.option("--run", "run_id", type=int, default=None, help="Run id in the ledger (with --ledger).")
@@ -73,7 +75,11 @@ def report_cmd(qcr_json: Path | None, formats: str, out_dir: Path | None, ledger
     else:
         doc = _read_qcr(qcr_json)
         default_target = qcr_json.parent
-    files = reportdoc.render(doc, formats=fmts)
+    files = reportdoc.render(doc, formats=[f for f in fmts if f != "gpkg"]) if set(fmts) - {"gpkg"} else {}
+    if "gpkg" in fmts:
+        from ..findings import to_gpkg
+
+        files["findings.gpkg"] = to_gpkg(doc)  # footprints from qcr.json (details.footprints)
     target = out_dir if out_dir is not None else default_target
     for name, data in files.items():
         atomic_write(target / name, data)
