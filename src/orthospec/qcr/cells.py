@@ -77,18 +77,10 @@ def evidence_rows(entry: Mapping[str, Any], root: str | Path) -> list[int]:
     still have the entry's SHA-256 (OrthospecError otherwise): what an auditor re-applies."""
     if "where" not in entry:
         return list(entry.get("rows") or [])
-    from ..provenance import sha256_file
+    from ..delivery.table import rows_where  # the delivered table's own bounded parser
 
-    path = Path(root) / str(entry["file"])
-    if sha256_file(path) != entry.get("sha256"):
-        raise OrthospecError(f"{entry['file']}: the file has changed since the check (SHA-256 differs)")
-    import pandas as pd
-
-    t = pd.read_csv(path, dtype=str, keep_default_na=False, skip_blank_lines=False, encoding="utf-8-sig")
-    keep = ~(t.apply(lambda c: c.str.strip() == "").all(axis=1)).to_numpy(bool)
-    for col, value in (entry["where"] or {}).items():
-        keep &= (t[col].str.strip() == value).to_numpy(bool)
-    rows = (np.flatnonzero(keep) + 1).tolist()
+    rows = rows_where(Path(root) / str(entry["file"]), entry["where"] or {},
+                      file=str(entry["file"]), sha256=entry.get("sha256"))
     if len(rows) != entry.get("rows_count", len(rows)):
         raise OrthospecError(f"{entry['file']}: the selector gives {len(rows)} rows, the record says "
                              f"{entry.get('rows_count')}")
