@@ -48,6 +48,30 @@ def test_statement_equals_hand_computation(doc):
     assert not [s for s in nssda_statements(doc) if s.axis == "vertical"]  # no heights: no Accuracy_z
 
 
+def test_statement_in_qcr_json_and_on_the_terminal(tmp_path):
+    """The statements are a field of qcr.json (the document the CLI writes) and a terminal line, with
+    the hand-computed values; a profile without NSSDA figures (jrc-v3) gets no field."""
+    import json
+
+    from click.testing import CliRunner
+
+    from orthospec.cli.main import cli
+
+    hand = _by_hand()
+    res = CliRunner().invoke(cli(), ["check", str(DELIVERY), "--profile", str(ROOT / "specs" / "fgdc-nssda-1998.yaml"),
+                                     "--param", "accuracy_h95=1.0", "--checker", str(CHECKER), "--out", str(tmp_path),
+                                     "--format", "json,terminal", "--date", "2026-01-01"])
+    assert res.exit_code in (0, 1, 3), res.output
+    field = json.loads((tmp_path / "qcr.json").read_text(encoding="utf-8"))["nssda"]
+    assert {f["item"]: f["value"] for f in field} == pytest.approx(hand, abs=5e-4)
+    assert all(f["axis"] == "horizontal" and f["unit"] == "m" and not f["tested"] for f in field)
+    for block, v in hand.items():
+        line = f"NSSDA §3.2.3, block {block}: Compiled to meet {v:.3f} meters horizontal accuracy at 95% confidence level"
+        assert line in " ".join(res.output.split()), res.output
+    jrc = api.check(DELIVERY, "jrc-v3", checker=CHECKER, date="2026-01-01").document
+    assert "nssda" not in jrc
+
+
 def test_tested_only_when_independence_passed(doc):
     import copy
 

@@ -201,12 +201,26 @@ def check(delivery: str | Path | Delivery, profile: str | Path | ResolvedProfile
         ev = Evaluator(prof, d, values, fail_on=opts.fail_on, options=opts.engine_options(), checker=chk).run()
         # the delivery folder's own name: the same bytes whatever the working folder or the path typed
         doc = build_document(ev, date=parse_date(date), operator=operator, delivery_path=d.root.name)
+    statements = _nssda(doc)
+    if statements:
+        doc["nssda"] = statements
     if ledger_head is not None:
         doc["ledger_head"] = ledger_head  # the chain head this run extends (issue 13 item 5)
     if opts.sample is not None:
         assert isinstance(opts.sample, tuple)
         doc["sample"] = _sample_block(opts.sample, d, sample_file)
     return CheckResult(doc, ev)
+
+
+def _nssda(doc: dict[str, Any]) -> list[dict[str, Any]]:
+    """FGDC-STD-007.3 §3.2.3 reporting statements ("Tested 0.683 meters horizontal accuracy at 95%
+    confidence level"), one per block and axis, when the profile judges an NSSDA figure; [] otherwise
+    (the records are only walked when a rule measures one)."""
+    from .metadata.nssda import H_MEASURE, V_MEASURE, nssda_statements
+
+    if not any(r.get("measure") in (H_MEASURE, V_MEASURE) for r in doc.get("rules") or ()):
+        return []
+    return [s.as_dict() for s in nssda_statements(doc)]
 
 
 def _sample_block(sample: tuple[str, frozenset[str] | set[str]], d: Delivery, sample_file: Path | None

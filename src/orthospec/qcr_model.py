@@ -254,6 +254,19 @@ class LedgerHead(_Closed):
     hash: str = Sha256
 
 
+class NssdaStatement(_Open):
+    """One §3.2.3 statement (orthospec.metadata.nssda): the figure judged by ``rule`` for ``item``."""
+
+    item: str
+    axis: Literal["horizontal", "vertical"]
+    value: float
+    unit: Literal["m"]
+    tested: bool = Field(description="'Tested' (independent reference confirmed) or 'Compiled to meet'.")
+    valid: bool = Field(description="False when RMSE_min/RMSE_max < 0.6: the horizontal approximation does not hold.")
+    rule: str
+    text: str
+
+
 class QcrDocument(_Open):
     """qcr.json: what `orthospec check` decided, why, on which evidence (docs/QCR.md)."""
 
@@ -291,6 +304,9 @@ class QcrDocument(_Open):
         None, description="The QCR ledger's chain head just before this run was recorded (check --ledger); "
                           "`orthospec ledger verify --head` checks it later.")
     sample: dict[str, Any] | None = Field(None, description="The sample checked (check --sample).")
+    nssda: list[NssdaStatement] | None = Field(
+        None, description="FGDC-STD-007.3-1998 §3.2.3 reporting statements, one per block and axis, when the "
+                          "profile judges an NSSDA figure ('Tested' only when the reference's independence passed).")
 
 
 def qcr_schema() -> dict[str, Any]:

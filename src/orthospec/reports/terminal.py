@@ -85,6 +85,9 @@ def render(doc: dict[str, Any], console: Console, *, max_items: int = MAX_ITEMS,
         console.print(f"[magenta]the check is incomplete: the checker must still ({len(todo)}):[/]")
         for line in todo:
             console.print(f"  [magenta]•[/] {_t(line)}", overflow="fold")
+    for st in doc.get("nssda") or ():
+        warn = "" if st.get("valid", True) else " (RMSE ratio below 0.6: the approximation does not hold)"
+        console.print(f"NSSDA §3.2.3, block {_t(st['item'])}: {_t(st['text'])}{warn}", overflow="fold")
     console.print(summary_line(doc))
     unsigned = unsigned_manual_note(records, checker=doc.get("checker"))
     if unsigned:
