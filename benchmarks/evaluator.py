@@ -22,8 +22,8 @@ import pandas as pd
 from orthospec.delivery.reader import open_delivery
 from orthospec.engine.evaluator import Evaluator
 from orthospec.engine.params import resolve_parameters
+from orthospec.profile.loader import load_profile
 from orthospec.qcr import build_document
-from orthospec.spec.loader import load_profile
 
 
 def peak_mb() -> float:

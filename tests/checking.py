@@ -21,8 +21,8 @@ from orthospec.delivery.checker import load_checker
 from orthospec.delivery.reader import open_delivery
 from orthospec.engine.evaluator import Evaluator
 from orthospec.engine.params import parse_cli_params, resolve_parameters
+from orthospec.profile.loader import ResolvedProfile, load_profile
 from orthospec.qcr import build_document
-from orthospec.spec.loader import ResolvedProfile, load_profile
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "examples" / "deliveries"

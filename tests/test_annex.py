@@ -13,9 +13,9 @@ from pypdf import PdfReader
 
 from orthospec.cli.main import cli
 from orthospec.errors import ReportError
+from orthospec.profile.loader import load_profile
+from orthospec.profile.models import Parameter, Requirement
 from orthospec.reports.annex import annex_filename, render_annex, requirement_text
-from orthospec.spec.loader import load_profile
-from orthospec.spec.models import Parameter, Requirement
 
 DATA = Path(__file__).resolve().parent / "data"
 
@@ -156,7 +156,7 @@ def test_tender_annex_is_procurement_grade() -> None:
     """Issue 13 item 6: evaluated thresholds, sensor filter, prose conditions, plain notes, ITT changes."""
     from pathlib import Path
 
-    from orthospec.spec.loader import load_profile
+    from orthospec.profile.loader import load_profile
 
     prof = load_profile(Path(__file__).resolve().parents[1] / "examples" / "specs" / "tender-example.yaml")
     out = render_annex(prof, formats=["md", "pdf"], day="2026-11-23")

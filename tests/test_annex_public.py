@@ -17,8 +17,8 @@ import pytest
 from click.testing import CliRunner
 
 from orthospec.cli.main import cli
+from orthospec.profile.loader import available, load_profile
 from orthospec.reports.annex import annex_filename, plain_note, render_annex
-from orthospec.spec.loader import available, load_profile
 
 #: words that belong to the tool's making, never to a contract document ("issue 3.0" of a source
 #: document and the delivery's own delivery.yaml are the reader's words, not ours)

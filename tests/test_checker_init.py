@@ -35,7 +35,7 @@ def test_the_skeleton_lists_every_manual_item_bound_to_the_images(tmp_path: Path
     assert res.exit_code == 0, res.output
     sk = yaml.safe_load((tmp_path / "qc" / "checker.yaml").read_text(encoding="utf-8"))
     shipped = yaml.safe_load((CHECKERS / "satellite-pass" / "checker.yaml").read_text(encoding="utf-8"))
-    from orthospec.spec.loader import load_profile
+    from orthospec.profile.loader import load_profile
 
     scope_of = {r.id: r.scope for r in load_profile("jrc-v3").rules}
     # the shipped file also signs JRC-T9-GCP-OVERLAP-ZONES on S02's scenes, which its `when` (RPC block

@@ -39,7 +39,7 @@ def test_the_evaluator_and_providers_read_the_typed_options(make_delivery, mini_
     assert fh["I2"]["verdict"] == "not_applicable" and fh["I2"]["reason"] == "outside_sample"
     from orthospec.delivery.reader import open_delivery
     from orthospec.engine.params import parse_cli_params, resolve_parameters
-    from orthospec.spec.loader import load_profile
+    from orthospec.profile.loader import load_profile
 
     prof = load_profile(mini_profile)
     dd = open_delivery(d)

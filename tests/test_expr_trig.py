@@ -14,7 +14,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from orthospec.errors import ExpressionError
-from orthospec.spec.expr import parse
+from orthospec.profile.expr import parse
 from orthospec.units import Q_
 
 

@@ -32,7 +32,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
      "orthospec.resources", "orthospec.verdicts", "orthospec.yamlio", "orthospec.plugins", "orthospec.controls",
      "orthospec.workers", "orthospec._forkserver", "orthospec.outputs", "orthospec.dotted"),
     ("orthospec.delivery",),   # the delivery convention and its readers
-    ("orthospec.spec",),       # profiles, written against the delivery convention
+    ("orthospec.profile", "orthospec.spec"),       # profiles, written against the delivery convention
     ("orthospec.measures",),   # pure numbers
     ("orthospec.raster", "orthospec.inspection"),  # reading rasters; the inspection grid (reads rasters, vectors)
     ("orthospec.engine",),     # providers, evaluator
@@ -223,7 +223,7 @@ def test_layers_only_look_down() -> None:
 
 
 @pytest.mark.parametrize(("mod", "layer"), [
-    ("orthospec.errors", 0), ("orthospec.delivery.reader", 1), ("orthospec.spec.loader", 2),
+    ("orthospec.errors", 0), ("orthospec.delivery.reader", 1), ("orthospec.profile.loader", 2),
     ("orthospec.engine.providers.checkpoints", 5), ("orthospec.cli.cmd_check", 9),
 ])
 def test_layer_of(mod: str, layer: int) -> None:

@@ -36,7 +36,7 @@ from tests.checking import CHECKERS, DATE, EXAMPLES, ROOT, check_with, records, 
 
 from mutation_coverage import PLUGIN_NAME, CoverageReport, mandatory_automatic
 from orthospec.errors import OrthospecError
-from orthospec.spec.loader import ResolvedProfile, load_profile
+from orthospec.profile.loader import ResolvedProfile, load_profile
 
 TABLE = yaml.safe_load((Path(__file__).parent / "data" / "mutations.yaml").read_text(encoding="utf-8"))
 SHIPPED = {name: ROOT / "specs" / f"{name}.yaml" for name in TABLE["profiles"]}

@@ -1,4 +1,4 @@
-"""Requirement operators (orthospec.spec.operators): comparison, missing-value policy and wording in
+"""Requirement operators (orthospec.profile.operators): comparison, missing-value policy and wording in
 one registered object per op; the annex and the QCR word a requirement with the same function.
 
 Expected verdicts are worked by hand from the operator's definition (ARCHITECTURE.md "Spec profile
@@ -17,9 +17,9 @@ import numpy as np
 import pytest
 
 from orthospec import verdicts as V
-from orthospec.spec.models import Op, Requirement
-from orthospec.spec.operators import OPERATORS, Thresholds, operator
-from orthospec.spec.wording import requirement_text
+from orthospec.profile.models import Op, Requirement
+from orthospec.profile.operators import OPERATORS, Thresholds, operator
+from orthospec.profile.wording import requirement_text
 
 ROOT = Path(__file__).resolve().parents[1]
 NAN, INF = math.nan, math.inf
@@ -144,10 +144,10 @@ def test_annex_and_qcr_state_every_jrc_requirement_the_same_way() -> None:
     for each rule whose thresholds the parameters fix (the QCR words per-item thresholds from the
     delivery, which the annex cannot know, so rules reading delivery facts are left out)."""
     from orthospec.api import check
+    from orthospec.profile.expr import parse
+    from orthospec.profile.loader import load_profile
     from orthospec.qcr import all_records
     from orthospec.reports.annex import requirement_text as annex_text
-    from orthospec.spec.expr import parse
-    from orthospec.spec.loader import load_profile
 
     prof = load_profile(ROOT / "specs" / "jrc-v3.yaml")
     res = check(ROOT / "examples" / "deliveries" / "aerial-pass", prof, date="2026-11-21",
@@ -175,7 +175,7 @@ def test_annex_and_qcr_state_every_jrc_requirement_the_same_way() -> None:
 
 def test_wording_imports_no_numpy() -> None:
     """`explain` and `spec validate` word requirements; numpy loads only when a comparison runs."""
-    code = ("import sys; import orthospec.spec.wording, orthospec.spec.operators; "
+    code = ("import sys; import orthospec.profile.wording, orthospec.profile.operators; "
             "print('numpy' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"

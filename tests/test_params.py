@@ -19,7 +19,7 @@ from orthospec.cli.main import cli, main
 from orthospec.delivery.reader import open_delivery
 from orthospec.engine.params import SOURCES, ParameterError, ParamValue, resolve_parameters
 from orthospec.errors import SpecError
-from orthospec.spec.loader import load_profile
+from orthospec.profile.loader import load_profile
 
 ROOT = Path(__file__).resolve().parent.parent
 AERIAL_PASS = ROOT / "examples" / "deliveries" / "aerial-pass"

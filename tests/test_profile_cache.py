@@ -11,8 +11,8 @@ from pathlib import Path
 
 import pytest
 
-from orthospec.spec import cache, catalog, files, loader
-from orthospec.spec.loader import available, load_profile, validate_file
+from orthospec.profile import cache, catalog, files, loader
+from orthospec.profile.loader import available, load_profile, validate_file
 
 BASE = """\
 orthospec_profile: 1
@@ -62,7 +62,7 @@ def entries(d: Path) -> list[Path]:
 
 def fresh_process_value(path: Path, env_dir: Path) -> tuple[float, bool]:
     """Load in a new process (empty memory): (tol value, served from the disk cache?)."""
-    code = ("import sys; from orthospec.spec.loader import load_profile; p = load_profile(sys.argv[1]); "
+    code = ("import sys; from orthospec.profile.loader import load_profile; p = load_profile(sys.argv[1]); "
             "print(p.parameters['tol'].value if p.parameters['tol'].value is not None "
             "else p.parameters['tol'].default, p.sites is None)")
     out = subprocess.run([sys.executable, "-c", code, str(path)], capture_output=True, text=True, check=True,

@@ -17,7 +17,7 @@ from click.testing import CliRunner
 
 from orthospec.cli.main import cli
 from orthospec.errors import SpecError
-from orthospec.spec.loader import load_profile, validate_file
+from orthospec.profile.loader import load_profile, validate_file
 
 
 @pytest.fixture(autouse=True)

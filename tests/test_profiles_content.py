@@ -402,7 +402,7 @@ loader_ready = pytest.mark.skipif(not (ROOT / "src" / "orthospec" / "spec" / "lo
 @loader_ready
 @pytest.mark.parametrize("name", list(PROFILE_FILES))
 def test_profile_validates_except_pending_measures(name: str) -> None:
-    from orthospec.spec.loader import validate_file
+    from orthospec.profile.loader import validate_file
 
     problems = validate_file(PROFILE_FILES[name])
     unexpected = []
@@ -425,7 +425,7 @@ def test_pending_measures_are_still_pending() -> None:
 
 @loader_ready
 def test_tender_example_resolves_with_overrides() -> None:
-    from orthospec.spec.loader import load_profile
+    from orthospec.profile.loader import load_profile
 
     if any(measure_info_missing()):
         pytest.skip("pending measures keep jrc-v3 from loading with measure checks")

@@ -11,16 +11,16 @@ from pydantic import ValidationError
 from tests.checking import EXAMPLES, ROOT
 
 from orthospec import api
+from orthospec.profile import schema as schema_mod
 from orthospec.qcr import dumps
 from orthospec.qcr_model import QcrDocument, qcr_schema
-from orthospec.spec import schema as schema_mod
 
 COMMITTED = ROOT / "specs" / "schema" / "qcr.schema.json"
 
 
 def test_committed_schema_is_the_generated_one() -> None:
     assert COMMITTED.read_text(encoding="utf-8") == schema_mod.dumps(qcr_schema()), (
-        "specs/schema/qcr.schema.json is stale: run `python -m orthospec.spec.schema`")
+        "specs/schema/qcr.schema.json is stale: run `python -m orthospec.profile.schema`")
     jsonschema.Draft202012Validator.check_schema(json.loads(COMMITTED.read_text(encoding="utf-8")))
 
 

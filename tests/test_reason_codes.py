@@ -122,7 +122,7 @@ def test_unset_parameter(make_delivery, profile):
     from orthospec.delivery.reader import open_delivery
     from orthospec.engine.evaluator import Evaluator
     from orthospec.engine.params import parse_cli_params, resolve_parameters
-    from orthospec.spec.loader import load_profile
+    from orthospec.profile.loader import load_profile
 
     prof = load_profile(profile)
     d = open_delivery(make_delivery(images=IMAGES))

@@ -23,7 +23,7 @@ from orthospec.delivery.reader import open_delivery
 from orthospec.engine import manual
 from orthospec.engine.evaluator import Evaluator
 from orthospec.engine.params import resolve_parameters
-from orthospec.spec.loader import load_profile
+from orthospec.profile.loader import load_profile
 
 
 def _edit_images(d: Path, edit: Any) -> None:

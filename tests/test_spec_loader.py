@@ -7,9 +7,9 @@ import pytest
 
 from orthospec import schemas as schema_mod
 from orthospec.errors import SpecError
+from orthospec.profile.loader import load_profile, validate_file
+from orthospec.profile.schema import dumps as schema_dumps
 from orthospec.resources import specs_dir
-from orthospec.spec.loader import load_profile, validate_file
-from orthospec.spec.schema import dumps as schema_dumps
 
 
 def write(tmp_path: Path, name: str, text: str) -> Path:
@@ -183,7 +183,7 @@ rules:
 
 def test_measure_catalog_is_up_to_date():
     from orthospec.engine import catalog as engine_catalog
-    from orthospec.spec import catalog
+    from orthospec.profile import catalog
 
     on_disk = json.loads((specs_dir() / "schema" / catalog.CATALOG_NAME).read_text(encoding="utf-8"))
     assert on_disk == json.loads(json.dumps(engine_catalog.snapshot())), \

@@ -29,9 +29,9 @@ import pytest
 import yaml
 
 from checking import resigned
+from orthospec.profile.loader import load_profile
 from orthospec.reports.annex import annex_filename, render_annex
 from orthospec.reports.findings import unsigned_manual_note
-from orthospec.spec.loader import load_profile
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "examples"
@@ -254,7 +254,7 @@ def test_spec_diff_lists_each_weakened_mandatory_rule_with_its_justification(tmp
 
 
 def test_an_unrelated_pair_is_compared_too_and_says_nobody_justified_it(tmp_path: Path) -> None:
-    from orthospec.spec.diff import weakened
+    from orthospec.profile.diff import weakened
 
     mini = load_profile(ROOT / "tests" / "data" / "profiles" / "mini.yaml")
     other = tmp_path / "mini2.yaml"
@@ -448,7 +448,7 @@ def test_the_guides_say_truly_which_parameters_need_a_justification(tmp_path: Pa
     assert seen >= 3
     # and validation agrees: a constant of the standard changed without a reason is refused, a value
     # left to the ITT is not
-    from orthospec.spec.loader import validate_file
+    from orthospec.profile.loader import validate_file
 
     head = ("orthospec_profile: 1\nid: itt-j\nversion: 1.0.0\ntitle: t\nsource: {title: t}\n"
             "extends: {id: jrc-v3, version: 3.0.0}\nparameters:\n  tolerance_xy: {value: 0.5}\n")

@@ -59,7 +59,7 @@ def test_static_unit_dimensions_agree_with_pint():
 
 
 def test_unit_probe_finds_the_unit_an_expression_yields():
-    from orthospec.spec import expr
+    from orthospec.profile import expr
     from orthospec.units import UnitProbe, probe_meets
 
     def yields(text, **units):

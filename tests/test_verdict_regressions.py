@@ -40,7 +40,7 @@ def check(d: Path, prof: Any, *, params: Any = None, **kw: Any) -> Any:
     """``api.check`` with the ITT tolerance given by the checker (--param) when the profile leaves
     tolerance_xy unset and the test gives no parameters of its own."""
     if params is None:
-        from orthospec.spec.loader import ResolvedProfile, load_profile
+        from orthospec.profile.loader import ResolvedProfile, load_profile
 
         prof = prof if isinstance(prof, ResolvedProfile) else load_profile(prof)
         p = prof.parameters.get("tolerance_xy")

@@ -24,8 +24,8 @@ from .engine.evaluator import Evaluation, Evaluator
 from .engine.params import parse_cli_params, resolve_parameters
 from .engine.registry import EngineOptions
 from .errors import OrthospecError
+from .profile.loader import ResolvedProfile, load_profile
 from .qcr import Output, build_document, render_all
-from .spec.loader import ResolvedProfile, load_profile
 
 #: every output format orthospec itself writes (plugins add more: the orthospec.formats entry point)
 FORMATS = ("terminal", "json", "csv", "junit", "parquet", "html", "pdf", "gpkg", "iso19157")

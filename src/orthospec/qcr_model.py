@@ -1,7 +1,7 @@
 """The QCR document (qcr.json) as pydantic models: the typed boundary of issue 15 item 4.
 
 ``specs/schema/qcr.schema.json`` is generated from :class:`QcrDocument` (``qcr_schema()``, written
-by ``python -m orthospec.spec.schema``; a test fails when the committed file is stale), and
+by ``python -m orthospec.profile.schema``; a test fails when the committed file is stale), and
 ``QcrDocument.model_validate(json.loads(text))`` checks a stored document. The writer
 (:mod:`orthospec.qcr`) builds plain dicts for speed; these models describe exactly what it writes.
 See docs/QCR.md for the meaning of every field, the compact columns and the parquet table.

@@ -19,9 +19,9 @@ from .delivery.checker_tables import checkpoints_schema
 from .delivery.manifest import manifest_schema
 from .engine import catalog as engine_catalog
 from .inspection.grid import cells_schema
+from .profile import catalog as spec_catalog
+from .profile.schema import dumps, profile_schema
 from .qcr import qcr_schema
-from .spec import catalog as spec_catalog
-from .spec.schema import dumps, profile_schema
 
 
 def all_schemas() -> dict[str, dict[str, Any]]:

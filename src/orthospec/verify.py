@@ -9,7 +9,7 @@ from pathlib import Path
 
 from .api import check
 from .errors import SpecError
-from .spec.loader import load_profile
+from .profile.loader import load_profile
 
 
 @dataclass(frozen=True)

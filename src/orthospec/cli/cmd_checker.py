@@ -31,7 +31,7 @@ def init_cmd(delivery: Path, profile: str, out: Path, name: str | None) -> None:
     from ..delivery.checker import CHECKER_FILE
     from ..delivery.reader import open_delivery
     from ..engine.skeleton import checker_skeleton
-    from ..spec.loader import load_profile
+    from ..profile.loader import load_profile
 
     refuse_inside_delivery(out, delivery, what="--out")
     if (out / CHECKER_FILE).exists():

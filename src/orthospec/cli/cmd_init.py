@@ -46,7 +46,7 @@ def init_cmd(folder: Path, source: Path | None, profile: str | None, sensor: str
     if source is None:
         if blocks or mapping or no_sha256 or workers or ident:
             raise click.UsageError("--id, --blocks, --mapping, --no-sha256 and --workers go with --from SOURCE")
-        from ..spec.template import write_template
+        from ..profile.template import write_template
 
         for p in write_template(folder, profile=profile, sensor=sensor or "aerial"):
             click.echo(f"wrote {p}")

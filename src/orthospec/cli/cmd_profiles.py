@@ -11,8 +11,8 @@ from rich.markup import escape
 from rich.table import Table
 
 from ..errors import OrthospecError
-from ..spec.diff import diff_profiles
-from ..spec.loader import available, load_profile, validate_file
+from ..profile.diff import diff_profiles
+from ..profile.loader import available, load_profile, validate_file
 from .groups import main, spec
 
 
@@ -20,7 +20,7 @@ from .groups import main, spec
 @click.argument("paths", nargs=-1, type=click.Path(exists=True, path_type=Path))
 def profiles_cmd(paths: tuple[Path, ...]) -> None:
     """List shipped profiles (and those in PATHS: files or folders) with version."""
-    from ..spec.loader import plugin_profiles
+    from ..profile.loader import plugin_profiles
 
     extra = [p for p in paths if p.is_dir()]
     rows = available(extra)
@@ -112,8 +112,8 @@ def diff_cmd(a: str, b: str, as_json: bool, show_all: bool) -> None:
     """
     import json
 
+    from ..profile.wording import param_value, unit_suffix
     from ..reports.annex import requirement_text
-    from ..spec.wording import param_value, unit_suffix
 
     pa, pb = load_profile(a), load_profile(b)
     d = diff_profiles(pa, pb)
@@ -186,8 +186,8 @@ def diff_cmd(a: str, b: str, as_json: bool, show_all: bool) -> None:
 @click.option("--profile", "-p", default="jrc-v3", show_default=True)
 def explain_cmd(rule_id: str, profile: str) -> None:
     """Clause, quote, requirement and the evidence a rule reads."""
-    from ..spec.catalog import measure_info  # the shipped catalog: no engine import
-    from ..spec.wording import profile_requirement_text
+    from ..profile.catalog import measure_info  # the shipped catalog: no engine import
+    from ..profile.wording import profile_requirement_text
 
     p = load_profile(profile)
     try:

@@ -108,8 +108,8 @@ def render_cmd(profile: str, formats: str, out_dir: Path | None, day: str | None
 
     Example: orthospec spec render examples/specs/tender-example.yaml --format md,pdf --out annex/
     """
+    from ..profile.loader import load_profile
     from ..reports.annex import default_out_dir, render_annex
-    from ..spec.loader import load_profile
 
     fmts = split_formats(formats, ANNEX_FORMATS)
     if out_dir is None:

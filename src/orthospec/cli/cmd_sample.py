@@ -9,7 +9,7 @@ import click
 from ..delivery.reader import open_delivery
 from ..engine.sample import draw
 from ..outputs import atomic_write
-from ..spec.loader import load_profile
+from ..profile.loader import load_profile
 from .groups import main
 
 

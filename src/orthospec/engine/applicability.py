@@ -19,9 +19,9 @@ import numpy as np
 from .. import units
 from ..delivery import vocabulary
 from ..errors import OrthospecError
-from ..spec import expr
-from ..spec.models import Rule
-from ..spec.operators import is_missing
+from ..profile import expr
+from ..profile.models import Rule
+from ..profile.operators import is_missing
 from ..units import NON_NUMERIC, parse_unit
 from .catalog import measure_info
 from .compare import Undecidable

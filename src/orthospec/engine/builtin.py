@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .. import verdicts as V
-from ..spec.models import Clause, Requirement, Rule
+from ..profile.models import Clause, Requirement, Rule
 
 if TYPE_CHECKING:
     from ..delivery.reader import Delivery

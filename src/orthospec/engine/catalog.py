@@ -20,7 +20,7 @@ from typing import Any
 from .. import plugins, units
 from ..delivery.convention import table_specs
 from ..errors import OrthospecError
-from ..spec import catalog as spec_catalog
+from ..profile import catalog as spec_catalog
 from . import generic, providers
 from .registry import _PROVIDERS, ROLLUP, Measured, ProviderContext, ProviderSpec, UnknownMeasure
 

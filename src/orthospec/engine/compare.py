@@ -19,10 +19,10 @@ import pandas as pd
 
 from .. import units
 from ..errors import ExpressionError, OrthospecError, UnitError
-from ..spec import expr
-from ..spec.models import Requirement, Rule
-from ..spec.operators import Decision, Thresholds, operator
-from ..spec.wording import requirement_text
+from ..profile import expr
+from ..profile.models import Requirement, Rule
+from ..profile.operators import Decision, Thresholds, operator
+from ..profile.wording import requirement_text
 from ..units import NON_NUMERIC, canonical, convert
 from ..verdicts import Reason
 from .context import ERROR, MISSING, Context

@@ -22,9 +22,9 @@ from ..delivery.convention import table_of_scope
 from ..delivery.in_force import DeliveryInForce
 from ..delivery.reader import Delivery
 from ..errors import OrthospecError
+from ..profile.loader import ResolvedProfile
+from ..profile.models import Rule
 from ..provenance import Evidence
-from ..spec.loader import ResolvedProfile
-from ..spec.models import Rule
 from .catalog import MeasureCache
 from .params import ParamValue
 from .registry import EngineOptions, ProviderContext

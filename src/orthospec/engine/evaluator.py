@@ -26,7 +26,7 @@ from typing import Any
 from ..delivery.checker import Checker
 from ..delivery.draft import todo_citations
 from ..delivery.reader import Delivery
-from ..spec.loader import ResolvedProfile
+from ..profile.loader import ResolvedProfile
 from . import manual, waivers
 from .context import (  # re-exported: the QCR writer reads the codes and the result type from here
     ERROR,

@@ -30,9 +30,9 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from ..delivery.convention import table_of_scope
+from ..profile.models import Rule
+from ..profile.operators import is_missing
 from ..provenance import Evidence
-from ..spec.models import Rule
-from ..spec.operators import is_missing
 from ..verdicts import Reason
 from .applicability import applicable
 from .compare import req_dict

@@ -19,7 +19,7 @@ import pandas as pd
 from .. import units
 from ..delivery import vocabulary
 from ..dotted import dotted_name
-from ..spec.operators import is_missing
+from ..profile.operators import is_missing
 from ..units import NON_NUMERIC, parse_unit
 from .catalog import MeasureCache, measure_info
 from .params import ParamValue

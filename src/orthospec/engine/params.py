@@ -18,9 +18,9 @@ from typing import TYPE_CHECKING, Any, Literal
 
 from .. import units
 from ..errors import ExpressionError, OrthospecError, UnitError
-from ..spec import expr
-from ..spec.loader import ResolvedProfile, param_location, params_named
-from ..spec.models import Parameter
+from ..profile import expr
+from ..profile.loader import ResolvedProfile, param_location, params_named
+from ..profile.models import Parameter
 from ..units import (
     NON_NUMERIC,
     canonical,
@@ -423,7 +423,7 @@ def _needed(profile: ResolvedProfile, values: Mapping[str, ParamValue],
 
 def _fact_of_the_files(name: str) -> bool:
     """A delivery-wide ``derived.*`` fact (one value per delivery, computed from the files)."""
-    from ..spec.catalog import measure_info
+    from ..profile.catalog import measure_info
 
     info = measure_info(name) if name.startswith("derived.") else None
     return info is not None and info[0] in ("delivery", "project")

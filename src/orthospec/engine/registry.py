@@ -20,8 +20,8 @@ import numpy as np
 import pandas as pd
 
 from ..errors import MeasureError
+from ..profile import catalog as spec_catalog
 from ..provenance import Evidence
-from ..spec import catalog as spec_catalog
 
 if TYPE_CHECKING:
     from ..delivery.reader import Delivery

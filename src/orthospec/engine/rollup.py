@@ -32,9 +32,9 @@ from ..measures.acceptance import (
     image_delivery_verdict,
     project_verdict,
 )
+from ..profile.models import Rule
+from ..profile.operators import is_missing
 from ..provenance import Evidence
-from ..spec.models import Rule
-from ..spec.operators import is_missing
 from .context import ERROR, FAIL, MISSING, VERDICTS, WARN, Context, RuleResult
 from .incomplete import Entry, checker_mask, lines, todo
 from .manual import gone_reason, vanished_in

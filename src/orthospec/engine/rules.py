@@ -18,8 +18,8 @@ import pandas as pd
 
 from .. import verdicts as V
 from ..errors import ExpressionError, OrthospecError, UnitError
+from ..profile.models import Rule
 from ..provenance import Evidence
-from ..spec.models import Rule
 from ..verdicts import Reason
 from .applicability import applicable, scalar_condition
 from .builtin import BUILTIN_RULES, ITT_DECLARED, parameter_findings

@@ -24,7 +24,7 @@ import numpy as np
 from ..delivery.checker import CHECKER_FILE, CHECKPOINTS_TABLE, INSPECTION_GRID, file_roles
 from ..delivery.manifest import QuantityIn
 from ..delivery.reader import Delivery
-from ..spec.loader import ResolvedProfile
+from ..profile.loader import ResolvedProfile
 from ..units import NON_NUMERIC, canonical
 from .applicability import applicable
 from .context import Context

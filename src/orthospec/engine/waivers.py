@@ -22,7 +22,7 @@ from ..delivery.reader import MANIFEST, Delivery
 
 if TYPE_CHECKING:
     from ..delivery.checker import Checker
-    from ..spec.loader import ResolvedProfile
+    from ..profile.loader import ResolvedProfile
     from .context import RuleResult
 
 WAIVABLE = (V.CODE[V.FAIL], V.CODE[V.WARN], V.CODE[V.MISSING])

@@ -413,7 +413,7 @@ class _Scan:
             vectors["tiles"] = tiles[0].file
         manifest, comments = self._manifest(sensor, sensor_src, tables, units, vectors, image_blocks)
         # --- TODO
-        from ..spec.loader import load_profile
+        from ..profile.loader import load_profile
 
         profile = load_profile(self.opts.profile)
         filled = {k for k in _flat(manifest)}

@@ -15,8 +15,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ..delivery.convention import table_specs
-from ..spec.applicability import cannot_apply
-from ..spec.template import rule_inputs
+from ..profile.applicability import cannot_apply
+from ..profile.template import rule_inputs
 
 #: what a TODO entry says about a manifest field (why the files cannot tell)
 MANIFEST_HELP = {

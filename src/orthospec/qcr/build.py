@@ -225,7 +225,7 @@ class _RuleRecords:
     """Builds the records of one rule result; everything constant per rule is computed once."""
 
     def __init__(self, r: RuleResult, evidence: _Evidence) -> None:
-        from ..spec.wording import requirement_text
+        from ..profile.wording import requirement_text
 
         self.r = r
         self.ev = evidence

@@ -152,7 +152,7 @@ def _pass_message(measure: str, measured: Any, shown_unit: str, req_text: str) -
 
 
 def _shown_unit(unit: str | None) -> str:
-    from ..spec.wording import unit_suffix
+    from ..profile.wording import unit_suffix
 
     return unit_suffix(unit)
 

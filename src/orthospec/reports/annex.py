@@ -20,13 +20,13 @@ import jinja2
 from markupsafe import Markup, escape
 
 from ..errors import ExpressionError, ReportError
+from ..profile.applicability import cannot_apply
+from ..profile.expr import parse
+from ..profile.loader import ResolvedProfile
+from ..profile.models import Parameter, Requirement, Rule
+from ..profile.wording import NO_UNIT, fmt_value, param_value, profile_requirement_text
 from ..qcr import natural_key
 from ..resources import templates_dir
-from ..spec.applicability import cannot_apply
-from ..spec.expr import parse
-from ..spec.loader import ResolvedProfile
-from ..spec.models import Parameter, Requirement, Rule
-from ..spec.wording import NO_UNIT, fmt_value, param_value, profile_requirement_text
 from .findings import condition_prose
 from .html import environment
 
@@ -221,7 +221,7 @@ def _parent(profile: ResolvedProfile) -> ResolvedProfile | None:
     """The profile this one extends, resolved (to mark what the ITT added, changed or removed)."""
     if len(profile.chain) < 2:
         return None
-    from ..spec.loader import load_profile
+    from ..profile.loader import load_profile
 
     # the parent was resolved to load this profile: an error here is real and reaches the user
     return load_profile(profile.chain[1][2], check_measures=False)

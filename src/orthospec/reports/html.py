@@ -19,9 +19,9 @@ import jinja2
 import markupsafe
 
 from .. import verdicts as V
+from ..profile.wording import unit_suffix
 from ..qcr import all_records, dumps, natural_key, point_rows, where_text
 from ..resources import templates_dir
-from ..spec.wording import unit_suffix
 from .contract import contract_lines
 from .findings import NotApplicableSummary, checker_text, unsigned_manual_note
 from .findings import findings as find_problems

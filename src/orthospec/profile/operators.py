@@ -3,7 +3,7 @@ policy and the wording, in one registered object.
 
 The evaluator decides a rule through :meth:`Operator.decide`; the QCR record, the terminal, `explain`
 and the tender annex word the requirement through :meth:`Operator.text` (via
-:func:`orthospec.spec.wording.requirement_text`), so the annex the buyer publishes and the QCR the
+:func:`orthospec.profile.wording.requirement_text`), so the annex the buyer publishes and the QCR the
 contractor receives state the same requirement the same way.
 
 Missing-value policy (nothing unmeasured passes, JRC §12): a missing measured value (None, NaN, an

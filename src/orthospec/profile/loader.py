@@ -7,7 +7,7 @@ measures and their scope, parameters nobody reads, who may change a standard val
 
 Cost stays linear in the number of rules, each file is parsed once per process, and a resolved,
 validated profile is cached on disk keyed by the SHA-256 of every file in its ``extends`` chain
-(see :mod:`orthospec.spec.cache`).
+(see :mod:`orthospec.profile.cache`).
 """
 
 from __future__ import annotations
