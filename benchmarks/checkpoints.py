@@ -100,19 +100,40 @@ def main() -> None:
             peer = min(peer, run([sys.executable, "-c", READ_CSV, str(csv)])[0])
             for k, (name, fmt) in enumerate(variants.items()):
                 out = Path(tmp) / f"out-{r}-{k}"
-                # the ITT tolerance and map projection the example's checker file gives (a manifest's value is evidence only)
-                wall, mb, code = run([orthospec, "check", str(delivery), "-p", args.profile, "--out", str(out), *fmt,
-                                      "--date", "2026-11-21", "--param", "tolerance_xy=0.5",
-                                      "--param", "map_crs=EPSG:25832"])
-                written = ", ".join(f"{f.name} {f.stat().st_size / 1e6:.1f} MB" for f in sorted(out.iterdir())
-                                    if f.is_file())
+                # the ITT tolerance and map projection the example's checker file gives (a
+                # manifest's value is evidence only)
+                wall, mb, code = run(
+                    [
+                        orthospec,
+                        "check",
+                        str(delivery),
+                        "-p",
+                        args.profile,
+                        "--out",
+                        str(out),
+                        *fmt,
+                        "--date",
+                        "2026-11-21",
+                        "--param",
+                        "tolerance_xy=0.5",
+                        "--param",
+                        "map_crs=EPSG:25832",
+                    ]
+                )
+                written = ", ".join(
+                    f"{f.name} {f.stat().st_size / 1e6:.1f} MB"
+                    for f in sorted(out.iterdir())
+                    if f.is_file()
+                )
                 shutil.rmtree(out, ignore_errors=True)
                 check, rss = best[name][:2]
                 best[name] = (min(check, wall), max(rss, mb), code, written)
         print(f"pandas.read_csv: {peer:.2f} s")
         for name, (check, rss, code, written) in best.items():
-            print(f"orthospec check ({name}): {check:.2f} s, peak {rss:.0f} MB, exit {code}; "
-                  f"ratio check/read_csv = {check / peer:.1f}x (target <= 10x, < 1024 MB); {written}")
+            print(
+                f"orthospec check ({name}): {check:.2f} s, peak {rss:.0f} MB, exit {code}; "
+                f"ratio check/read_csv = {check / peer:.1f}x (target <= 10x, < 1024 MB); {written}"
+            )
         print(f"load average: {os.getloadavg()[0]:.2f} on {os.cpu_count()} cpus")
 
 

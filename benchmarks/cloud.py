@@ -25,7 +25,9 @@ ROOT = Path(__file__).resolve().parents[1]
 REAL = ROOT.parent / "shared" / "data" / "real" / "RGB.byte.tif"
 
 
-def labelled_scores(image: Path, seeds: int = 3, workdir: Path | None = None) -> list[tuple[float, int, object]]:
+def labelled_scores(
+    image: Path, seeds: int = 3, workdir: Path | None = None
+) -> list[tuple[float, int, object]]:
     """(cover, seed, Score) for every scene of the labelled set, measured through the scan."""
     import numpy as np
     import rasterio
@@ -60,18 +62,26 @@ def main() -> None:
     if not Path(args.image).is_file():
         sys.exit(f"{args.image}: not found (../shared/data/real must be beside the checkout)")
     rows = labelled_scores(Path(args.image), args.seeds)
-    print(f"{'cover':>6} {'seed':>4} {'true %':>8} {'measured %':>10} {'error':>7} {'accuracy':>8} "
-          f"{'precision':>9} {'recall':>7}")
+    print(
+        f"{'cover':>6} {'seed':>4} {'true %':>8} {'measured %':>10} {'error':>7} {'accuracy':>8} "
+        f"{'precision':>9} {'recall':>7}"
+    )
     for cover, seed, s in rows:
-        print(f"{cover:6.2f} {seed:4d} {s.true_pct:8.2f} {s.estimated_pct:10.2f} {s.error_pct:7.2f} "  # type: ignore[attr-defined]
-              f"{s.accuracy:8.4f} {s.precision:9.3f} {s.recall:7.3f}")  # type: ignore[attr-defined]
+        print(
+            f"{cover:6.2f} {seed:4d} {s.true_pct:8.2f} {s.estimated_pct:10.2f} {s.error_pct:7.2f} "  # type: ignore[attr-defined]
+            f"{s.accuracy:8.4f} {s.precision:9.3f} {s.recall:7.3f}"
+        )  # type: ignore[attr-defined]
     errs = [s.error_pct for _, _, s in rows]  # type: ignore[attr-defined]
     upto20 = [s.error_pct for c, _, s in rows if c <= 0.20]  # type: ignore[attr-defined]
-    print(f"scenes: {len(rows)}; cover error (measured - true, percentage points): mean |e| "
-          f"{statistics.fmean(abs(e) for e in errs):.2f}, largest |e| {max(abs(e) for e in errs):.2f}, "
-          f"bias {statistics.fmean(errs):+.2f}; up to 20 % cover: largest |e| {max(abs(e) for e in upto20):.2f}")
-    print(f"pixel accuracy: mean {statistics.fmean(s.accuracy for _, _, s in rows):.4f}; precision on scenes "  # type: ignore[attr-defined]
-          f"with cloud: mean {statistics.fmean(s.precision for c, _, s in rows if c > 0):.3f}")  # type: ignore[attr-defined]
+    print(
+        f"scenes: {len(rows)}; cover error (measured - true, percentage points): mean |e| "
+        f"{statistics.fmean(abs(e) for e in errs):.2f}, largest |e| {max(abs(e) for e in errs):.2f}, "
+        f"bias {statistics.fmean(errs):+.2f}; up to 20 % cover: largest |e| {max(abs(e) for e in upto20):.2f}"
+    )
+    print(
+        f"pixel accuracy: mean {statistics.fmean(s.accuracy for _, _, s in rows):.4f}; precision on scenes "  # type: ignore[attr-defined]
+        f"with cloud: mean {statistics.fmean(s.precision for c, _, s in rows if c > 0):.3f}"
+    )  # type: ignore[attr-defined]
 
 
 if __name__ == "__main__":

@@ -144,17 +144,23 @@ def run(size: int, lines: int, repeats: int, quick: bool) -> int:
             w[k] = max(w[k], max(map(abs, vals)))
         for k, vals in (("mtf", mt), ("rer", rr), ("angle", an)):
             w[k] = max(w[k], max(vals))
-        print(f"{label:>9} {angle:5.1f} {snr:4.0f} | {''.join(prim):>7} | "
-              f"{100 * statistics.fmean(fw):+10.2f} {100 * max(map(abs, fw)):5.2f} | "
-              f"{100 * max(map(abs, sp)):11.2f} | {max(mt):7.4f} | {max(rr):7.4f} | "
-              f"{max(an):7.3f} | {statistics.fmean(dt):6.3f}")
+        print(
+            f"{label:>9} {angle:5.1f} {snr:4.0f} | {''.join(prim):>7} | "
+            f"{100 * statistics.fmean(fw):+10.2f} {100 * max(map(abs, fw)):5.2f} | "
+            f"{100 * max(map(abs, sp)):11.2f} | {max(mt):7.4f} | {max(rr):7.4f} | "
+            f"{max(an):7.3f} | {statistics.fmean(dt):6.3f}"
+        )
     print("-" * len(head))
-    print(f"CPU time per ROI: mean {statistics.fmean(times):.3f} s, median "
-          f"{statistics.median(times):.3f} s, max {max(times):.3f} s (target < 0.5 s)")
+    print(
+        f"CPU time per ROI: mean {statistics.fmean(times):.3f} s, median "
+        f"{statistics.median(times):.3f} s, max {max(times):.3f} s (target < 0.5 s)"
+    )
     print("worst errors (primary fit; spline alone in brackets):")
     for key, w in worst.items():
-        print(f"  {key:>18}: FWHM {100 * w['fwhm']:.2f} % ({100 * w['spline']:.2f} %), "
-              f"MTF@Ny {w['mtf']:.4f}, RER {w['rer']:.4f}, angle {w['angle']:.3f} deg")
+        print(
+            f"  {key:>18}: FWHM {100 * w['fwhm']:.2f} % ({100 * w['spline']:.2f} %), "
+            f"MTF@Ny {w['mtf']:.4f}, RER {w['rer']:.4f}, angle {w['angle']:.3f} deg"
+        )
     for group, (ok, n) in within.items():
         print(f"FWHM within 2 %: {ok}/{n} ROIs ({group} PSFs)")
     return 0
@@ -173,16 +179,25 @@ def _family_truth(name: str, angle: float, kernels: dict[str, np.ndarray]) -> Ed
     return kernel_truth(kernels[name], angle_deg=angle, psf_step_px=1 / S, supersample=S)
 
 
-def _family_image(name: str, angle: float, snr: float, seed: int,
-                  kernels: dict[str, np.ndarray]) -> np.ndarray:
+def _family_image(
+    name: str, angle: float, snr: float, seed: int, kernels: dict[str, np.ndarray]
+) -> np.ndarray:
     dark, bright = 51.0, 204.0
-    kw = {"angle_deg": angle, "dark": dark, "bright": bright, "supersample": S,
-          "offset_px": 0.137 * seed}
+    kw = {
+        "angle_deg": angle,
+        "dark": dark,
+        "bright": bright,
+        "supersample": S,
+        "offset_px": 0.137 * seed,
+    }
     if name == "gauss 0.8":
         img = slanted_edge((100, 100), sigma_px=0.8, **kw)
     elif name == "sharpened":
-        img = unsharp_mask(slanted_edge((100, 100), sigma_px=USM["sigma_px"], **kw),
-                           amount=USM["amount"], sigma_px=USM["mask_sigma_px"])
+        img = unsharp_mask(
+            slanted_edge((100, 100), sigma_px=USM["sigma_px"], **kw),
+            amount=USM["amount"],
+            sigma_px=USM["mask_sigma_px"],
+        )
     else:
         img = slanted_edge((100, 100), sigma_px=None, psf=kernels[name], psf_step_px=1 / S, **kw)
     if math.isfinite(snr):
@@ -196,11 +211,15 @@ def run_families(repeats: int = 3) -> list[float]:
     kernels = {"halo 15%": 0.85 * k["_g0.6"] + 0.15 * k["_g2.0"], "defocus R2": k["disk R2"]}
     names = ("gauss 0.8", "halo 15%", "defocus R2", "sharpened")
     print()
-    print("blur families, 8-bit 100 x 100 ROIs, angles 5/12/20 deg x "
-          f"{repeats} seeds; |error| median / worst; share within target")
-    head = (f"{'family':>10} {'SNR':>4} | {'primary':>9} | {'FWHM med%':>9} {'max%':>5} "
-            f"{'<=2%':>5} | {'RER med':>7} {'max':>6} {'<=.02':>5} | {'MTF med':>7} {'max':>6} "
-            f"{'ok':>5} | {'s/ROI':>5}")
+    print(
+        "blur families, 8-bit 100 x 100 ROIs, angles 5/12/20 deg x "
+        f"{repeats} seeds; |error| median / worst; share within target"
+    )
+    head = (
+        f"{'family':>10} {'SNR':>4} | {'primary':>9} | {'FWHM med%':>9} {'max%':>5} "
+        f"{'<=2%':>5} | {'RER med':>7} {'max':>6} {'<=.02':>5} | {'MTF med':>7} {'max':>6} "
+        f"{'ok':>5} | {'s/ROI':>5}"
+    )
     print(head)
     print("-" * len(head))
     times: list[float] = []
@@ -227,15 +246,19 @@ def run_families(repeats: int = 3) -> list[float]:
             if not fw:
                 print(f"{name:>10} {snr:4.0f} | (no valid ROI of {n})")
                 continue
-            print(f"{name:>10} {snr:4.0f} | {''.join(prim):>9} | "
-                  f"{100 * statistics.median(fw):9.2f} {100 * max(fw):5.2f} "
-                  f"{sum(e <= 0.02 for e in fw):>2}/{n:<2} | "
-                  f"{statistics.median(rr):7.4f} {max(rr):6.4f} {sum(e <= 0.02 for e in rr):>2}/{n:<2} | "
-                  f"{statistics.median(mt):7.4f} {max(mt):6.4f} {sum(e <= tol for e in mt):>2}/{n:<2} | "
-                  f"{statistics.fmean(dt):5.3f}")
+            print(
+                f"{name:>10} {snr:4.0f} | {''.join(prim):>9} | "
+                f"{100 * statistics.median(fw):9.2f} {100 * max(fw):5.2f} "
+                f"{sum(e <= 0.02 for e in fw):>2}/{n:<2} | "
+                f"{statistics.median(rr):7.4f} {max(rr):6.4f} {sum(e <= 0.02 for e in rr):>2}/{n:<2} | "
+                f"{statistics.median(mt):7.4f} {max(mt):6.4f} {sum(e <= tol for e in mt):>2}/{n:<2} | "
+                f"{statistics.fmean(dt):5.3f}"
+            )
     print("-" * len(head))
-    print(f"CPU time per ROI (families): mean {statistics.fmean(times):.3f} s, median "
-          f"{statistics.median(times):.3f} s, max {max(times):.3f} s (target < 0.3 s)")
+    print(
+        f"CPU time per ROI (families): mean {statistics.fmean(times):.3f} s, median "
+        f"{statistics.median(times):.3f} s, max {max(times):.3f} s (target < 0.3 s)"
+    )
     return times
 
 
@@ -244,18 +267,39 @@ def run_families(repeats: int = 3) -> list[float]:
 
 FAMILIES31 = {  # two systems per family (alternating over the ROIs)
     "gauss": (PsfFamily("gauss", sigma=0.45), PsfFamily("gauss", sigma=0.8)),
-    "halo": (PsfFamily("halo", sigma=0.5, sigma2=2.0, weight=0.15),
-             PsfFamily("halo", sigma=0.55, sigma2=4.0, weight=0.1)),
-    "defocus": (PsfFamily("defocus", radius=1.5, sigma=0.4), PsfFamily("defocus", radius=2.0, sigma=0.5)),
-    "motion-across": (PsfFamily("motion_x", length=1.5, sigma=0.45), PsfFamily("motion_x", length=2.5, sigma=0.4)),
-    "motion-along": (PsfFamily("motion_y", length=1.5, sigma=0.45), PsfFamily("motion_y", length=3.0, sigma=0.4)),
+    "halo": (
+        PsfFamily("halo", sigma=0.5, sigma2=2.0, weight=0.15),
+        PsfFamily("halo", sigma=0.55, sigma2=4.0, weight=0.1),
+    ),
+    "defocus": (
+        PsfFamily("defocus", radius=1.5, sigma=0.4),
+        PsfFamily("defocus", radius=2.0, sigma=0.5),
+    ),
+    "motion-across": (
+        PsfFamily("motion_x", length=1.5, sigma=0.45),
+        PsfFamily("motion_x", length=2.5, sigma=0.4),
+    ),
+    "motion-along": (
+        PsfFamily("motion_y", length=1.5, sigma=0.45),
+        PsfFamily("motion_y", length=3.0, sigma=0.4),
+    ),
     "mtfc": (PsfFamily("mtfc", sigma=0.8, amount=0.25), PsfFamily("mtfc", sigma=0.6, amount=0.15)),
-    "diffraction": (PsfFamily("diffraction", cutoff=1.0, sigma=0.25, length=0.8),
-                    PsfFamily("diffraction", cutoff=0.8, sigma=0.3, length=1.0)),
+    "diffraction": (
+        PsfFamily("diffraction", cutoff=1.0, sigma=0.25, length=0.8),
+        PsfFamily("diffraction", cutoff=0.8, sigma=0.3, length=1.0),
+    ),
 }
 # 2.5-40 deg, with the slopes 1/4, 1/3 and 1/2 (the old bin-occupancy check refused them)
-ANGLES31 = (2.5, 5.0, 9.0, math.degrees(math.atan(0.25)), math.degrees(math.atan(1 / 3)),
-            math.degrees(math.atan(0.5)), 33.0, 40.0)
+ANGLES31 = (
+    2.5,
+    5.0,
+    9.0,
+    math.degrees(math.atan(0.25)),
+    math.degrees(math.atan(1 / 3)),
+    math.degrees(math.atan(0.5)),
+    33.0,
+    40.0,
+)
 SHAPES31 = ((60, 60), (100, 100), (200, 120))  # (lines, px across)
 SNRS31 = (math.inf, 100.0, 50.0, 30.0)
 
@@ -272,9 +316,18 @@ class Roi31:
 
     def image(self, truth: FamilyTruth) -> np.ndarray:
         dark, bright = (40.0, 200.0) if self.bits == 8 else (600.0, 3000.0)
-        return family_edge(self.psf, self.shape, angle_deg=self.angle, dark=dark, bright=bright,
-                           snr=self.snr, bit_depth=self.bits, offset_px=0.137 * self.seed,
-                           rng=np.random.default_rng(1000 + self.seed), truth=truth)
+        return family_edge(
+            self.psf,
+            self.shape,
+            angle_deg=self.angle,
+            dark=dark,
+            bright=bright,
+            snr=self.snr,
+            bit_depth=self.bits,
+            offset_px=0.137 * self.seed,
+            rng=np.random.default_rng(1000 + self.seed),
+            truth=truth,
+        )
 
 
 def grid31(families: list[str] | None = None) -> list[Roi31]:
@@ -287,8 +340,17 @@ def grid31(families: list[str] | None = None) -> list[Roi31]:
         for snr in SNRS31:
             for i, angle in enumerate(ANGLES31):
                 for j, psf in enumerate(variants):
-                    out.append(Roi31(name, psf, snr, angle, 8 if (i + j) % 2 == 0 else 12,
-                                     SHAPES31[(i + 2 * j) % 3], 2 * i + j))
+                    out.append(
+                        Roi31(
+                            name,
+                            psf,
+                            snr,
+                            angle,
+                            8 if (i + j) % 2 == 0 else 12,
+                            SHAPES31[(i + 2 * j) % 3],
+                            2 * i + j,
+                        )
+                    )
     return out
 
 
@@ -307,8 +369,15 @@ def _write_tif(path: Path, img: np.ndarray) -> None:
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", NotGeoreferencedWarning)
-        with rasterio.open(path, "w", driver="GTiff", width=img.shape[1], height=img.shape[0], count=1,
-                           dtype=img.dtype.name) as ds:
+        with rasterio.open(
+            path,
+            "w",
+            driver="GTiff",
+            width=img.shape[1],
+            height=img.shape[0],
+            count=1,
+            dtype=img.dtype.name,
+        ) as ds:
             ds.write(img, 1)
 
 
@@ -337,10 +406,12 @@ def _run_mtf_mapper(exe: str, img_path: Path, bits: int, work: Path) -> tuple[fl
 def run31(args: argparse.Namespace) -> int:
     rois = grid31(args.family or None)
     exe, mm_version = _mtf_mapper(args.mtf_mapper)
-    print(f"issue 31 grid: {len(rois)} ROIs (7 PSF families x SNR inf/100/50/30 x 16: angles 2.5-40 deg "
-          "incl. slopes 1/4, 1/3, 1/2; 8/12 bit; 60-200 px), truth: synthetic.family_truth (2-D OTF, "
-          "Fourier slice); orthospec with the SNR health check at 25 (the seed's 50 would refuse "
-          "half of the SNR-50 ROIs by design)")
+    print(
+        f"issue 31 grid: {len(rois)} ROIs (7 PSF families x SNR inf/100/50/30 x 16: angles 2.5-40 deg "
+        "incl. slopes 1/4, 1/3, 1/2; 8/12 bit; 60-200 px), truth: synthetic.family_truth (2-D OTF, "
+        "Fourier slice); orthospec with the SNR health check at 25 (the seed's 50 would refuse "
+        "half of the SNR-50 ROIs by design)"
+    )
     print(f"MTF Mapper: {exe or '-'} {mm_version}; load before: {_load()}")
     truths: dict[tuple[PsfFamily, float], FamilyTruth] = {}
     rec: dict[tuple[str, float], list[dict[str, Any]]] = {}
@@ -376,12 +447,19 @@ def run31(args: argparse.Namespace) -> int:
     return _report31(rec, cpu_lib, wall_mm, timing, bool(exe))
 
 
-def _report31(rec: dict[tuple[str, float], list[dict[str, Any]]], cpu_lib: list[float],
-              wall_mm: list[float], timing: dict[str, float] | None, have_mm: bool) -> int:
+def _report31(
+    rec: dict[tuple[str, float], list[dict[str, Any]]],
+    cpu_lib: list[float],
+    wall_mm: list[float],
+    timing: dict[str, float] | None,
+    have_mm: bool,
+) -> int:
     print()
-    head = (f"{'family':>13} {'SNR':>4} | {'n':>3} {'refused':>7} | {'FWHM2%':>6} {'RER.02':>6} "
-            f"{'MTF.01':>6} {'all3':>5} | {'MM MTF.01':>9} {'MM ref':>6} | "
-            f"{'cover 2u FWHM/RER/MTF':>21}")
+    head = (
+        f"{'family':>13} {'SNR':>4} | {'n':>3} {'refused':>7} | {'FWHM2%':>6} {'RER.02':>6} "
+        f"{'MTF.01':>6} {'all3':>5} | {'MM MTF.01':>9} {'MM ref':>6} | "
+        f"{'cover 2u FWHM/RER/MTF':>21}"
+    )
     print(head)
     print("-" * len(head))
     tot: dict[str, Any] = {}
@@ -391,15 +469,33 @@ def _report31(rec: dict[tuple[str, float], list[dict[str, Any]]], cpu_lib: list[
         fw = sum(abs(r["fwhm_rel"]) <= 0.02 for r in ok)
         rr = sum(abs(r["rer"]) <= 0.02 for r in ok)
         mt = sum(abs(r["mtf"]) <= 0.01 for r in ok)
-        al = sum(abs(r["fwhm_rel"]) <= 0.02 and abs(r["rer"]) <= 0.02 and abs(r["mtf"]) <= 0.01 for r in ok)
+        al = sum(
+            abs(r["fwhm_rel"]) <= 0.02 and abs(r["rer"]) <= 0.02 and abs(r["mtf"]) <= 0.01
+            for r in ok
+        )
         mm_ok = sum(r.get("mm") is not None and abs(r["mm"]) <= 0.01 for r in rows)
         mm_ref = sum("mm" in r and r["mm"] is None for r in rows)
         cov = [sum(abs(r[m]) <= 2 * r[f"{m}_u"] for r in ok) for m in ("fwhm", "rer", "mtf")]
-        print(f"{fam:>13} {snr:4.0f} | {n:3d} {n - len(ok):7d} | {fw:6d} {rr:6d} {mt:6d} {al:5d} | "
-              f"{(str(mm_ok) if have_mm else '-'):>9} {(str(mm_ref) if have_mm else '-'):>6} | "
-              f"{'/'.join(map(str, cov)):>21}")
-        t = tot.setdefault(snr, {"n": 0, "ng": 0, "ref": 0, "all_ng": 0, "fw_ng": 0, "fw": 0, "mt": 0,
-                                 "mm": 0, "cov": [0, 0, 0], "valid": 0})
+        print(
+            f"{fam:>13} {snr:4.0f} | {n:3d} {n - len(ok):7d} | {fw:6d} {rr:6d} {mt:6d} {al:5d} | "
+            f"{(str(mm_ok) if have_mm else '-'):>9} {(str(mm_ref) if have_mm else '-'):>6} | "
+            f"{'/'.join(map(str, cov)):>21}"
+        )
+        t = tot.setdefault(
+            snr,
+            {
+                "n": 0,
+                "ng": 0,
+                "ref": 0,
+                "all_ng": 0,
+                "fw_ng": 0,
+                "fw": 0,
+                "mt": 0,
+                "mm": 0,
+                "cov": [0, 0, 0],
+                "valid": 0,
+            },
+        )
         t["n"] += n
         t["ref"] += n - len(ok)
         t["valid"] += len(ok)
@@ -414,32 +510,50 @@ def _report31(rec: dict[tuple[str, float], list[dict[str, Any]]], cpu_lib: list[
     print("-" * len(head))
     print("targets (issue 31):")
     for snr, t in tot.items():
-        line = (f"  SNR {snr:>4.0f}: refused {t['ref']}/{t['n']}; non-Gaussian within all three "
-                f"{t['all_ng']}/{t['ng']} ({100 * t['all_ng'] / max(t['ng'], 1):.1f} %), within FWHM 2 % "
-                f"{t['fw_ng']}/{t['ng']} ({100 * t['fw_ng'] / max(t['ng'], 1):.1f} %); MTF@Ny within 0.01: "
-                f"orthospec {t['mt']}/{t['n']}" + (f", MTF Mapper {t['mm']}/{t['n']}" if have_mm else ""))
+        line = (
+            f"  SNR {snr:>4.0f}: refused {t['ref']}/{t['n']}; non-Gaussian within all three "
+            f"{t['all_ng']}/{t['ng']} ({100 * t['all_ng'] / max(t['ng'], 1):.1f} %), within FWHM 2 % "
+            f"{t['fw_ng']}/{t['ng']} ({100 * t['fw_ng'] / max(t['ng'], 1):.1f} %); MTF@Ny within 0.01: "
+            f"orthospec {t['mt']}/{t['n']}"
+            + (f", MTF Mapper {t['mm']}/{t['n']}" if have_mm else "")
+        )
         print(line)
-    print("  targets: no refusal at SNR >= 50; SNR 100 >= 95 % of non-Gaussian within all three; "
-          "SNR 50 >= 85 % within FWHM 2 %; MTF@Ny within 0.01 at least as often as MTF Mapper")
+    print(
+        "  targets: no refusal at SNR >= 50; SNR 100 >= 95 % of non-Gaussian within all three; "
+        "SNR 50 >= 85 % within FWHM 2 %; MTF@Ny within 0.01 at least as often as MTF Mapper"
+    )
     cov = [sum(t["cov"][i] for t in tot.values()) for i in range(3)]
     nv = sum(t["valid"] for t in tot.values())
-    print(f"uncertainty coverage, |error| <= 2u (nominal 95 %): FWHM {cov[0]}/{nv} "
-          f"({100 * cov[0] / max(nv, 1):.1f} %), RER {cov[1]}/{nv} ({100 * cov[1] / max(nv, 1):.1f} %), "
-          f"MTF@Ny {cov[2]}/{nv} ({100 * cov[2] / max(nv, 1):.1f} %)")
-    print(f"library CPU per ROI: mean {statistics.fmean(cpu_lib):.3f} s, median "
-          f"{statistics.median(cpu_lib):.3f} s, max {max(cpu_lib):.3f} s")
+    print(
+        f"uncertainty coverage, |error| <= 2u (nominal 95 %): FWHM {cov[0]}/{nv} "
+        f"({100 * cov[0] / max(nv, 1):.1f} %), RER {cov[1]}/{nv} ({100 * cov[1] / max(nv, 1):.1f} %), "
+        f"MTF@Ny {cov[2]}/{nv} ({100 * cov[2] / max(nv, 1):.1f} %)"
+    )
+    print(
+        f"library CPU per ROI: mean {statistics.fmean(cpu_lib):.3f} s, median "
+        f"{statistics.median(cpu_lib):.3f} s, max {max(cpu_lib):.3f} s"
+    )
     if wall_mm:
-        print(f"MTF Mapper wall per ROI (one call per ROI, start-up included): mean "
-              f"{statistics.fmean(wall_mm):.3f} s, median {statistics.median(wall_mm):.3f} s")
+        print(
+            f"MTF Mapper wall per ROI (one call per ROI, start-up included): mean "
+            f"{statistics.fmean(wall_mm):.3f} s, median {statistics.median(wall_mm):.3f} s"
+        )
     if timing:
         for k, v in timing.items():
-            print(f"  {k}: {v:.3f}{'x' if k.startswith('ratio') else '' if k.startswith('ROIs') else ' s'}")
+            print(
+                f"  {k}: {v:.3f}{'x' if k.startswith('ratio') else '' if k.startswith('ROIs') else ' s'}"
+            )
     print(f"load after: {_load()}")
     return 0
 
 
-def _command_times(rois: list[Roi31], truths: dict[tuple[PsfFamily, float], FamilyTruth],
-                   exe: str | None, work: Path, args: argparse.Namespace) -> dict[str, float]:
+def _command_times(
+    rois: list[Roi31],
+    truths: dict[tuple[PsfFamily, float], FamilyTruth],
+    exe: str | None,
+    work: Path,
+    args: argparse.Namespace,
+) -> dict[str, float]:
     """Whole commands, start-up included, in the same run: ``orthospec measure edge`` with one
     ROI per call and with all of them in one call (``--roi`` repeated, ``--workers``), against
     one MTF Mapper call per ROI, on the same ROIs (8-bit ones of 100 x 100 px, tiled)."""
@@ -448,7 +562,7 @@ def _command_times(rois: list[Roi31], truths: dict[tuple[PsfFamily, float], Fami
     mosaic = np.full((100, 110 * len(imgs)), 120, dtype=np.uint8)
     wins = []
     for i, im in enumerate(imgs):
-        mosaic[:, 110 * i:110 * i + 100] = im
+        mosaic[:, 110 * i : 110 * i + 100] = im
         wins.append(f"{110 * i},0,{110 * i + 100},100")
     tile = work / "mosaic.tif"
     _write_tif(tile, mosaic)
@@ -456,14 +570,32 @@ def _command_times(rois: list[Roi31], truths: dict[tuple[PsfFamily, float], Fami
     out: dict[str, float] = {"ROIs timed as commands": float(len(imgs))}
     t0 = time.perf_counter()
     for w in wins:
-        subprocess.run([ortho, "measure", "edge", str(tile), "--roi", w, "--json"], capture_output=True,
-                       check=False)
-    out["orthospec measure edge, one ROI per call, wall per ROI"] = (time.perf_counter() - t0) / len(wins)
+        subprocess.run(
+            [ortho, "measure", "edge", str(tile), "--roi", w, "--json"],
+            capture_output=True,
+            check=False,
+        )
+    out["orthospec measure edge, one ROI per call, wall per ROI"] = (
+        time.perf_counter() - t0
+    ) / len(wins)
     t0 = time.perf_counter()
-    subprocess.run([ortho, "measure", "edge", str(tile), *[a for w in wins for a in ("--roi", w)],
-                    "--workers", str(args.workers), "--json"], capture_output=True, check=False)
-    out[f"orthospec measure edge, {len(wins)} ROIs in one call ({args.workers} workers), wall per ROI"] = \
-        (time.perf_counter() - t0) / len(wins)
+    subprocess.run(
+        [
+            ortho,
+            "measure",
+            "edge",
+            str(tile),
+            *[a for w in wins for a in ("--roi", w)],
+            "--workers",
+            str(args.workers),
+            "--json",
+        ],
+        capture_output=True,
+        check=False,
+    )
+    out[
+        f"orthospec measure edge, {len(wins)} ROIs in one call ({args.workers} workers), wall per ROI"
+    ] = (time.perf_counter() - t0) / len(wins)
     if exe:
         paths = []
         for i, im in enumerate(imgs):
@@ -487,13 +619,23 @@ def _load() -> str:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--legacy", action="store_true",
-                    help="the issue-15/16 tables (Gaussian grid, four blur families) instead of issue 31's")
-    ap.add_argument("--family", action="append", choices=sorted(FAMILIES31),
-                    help="issue 31 grid: only these families (repeatable)")
-    ap.add_argument("--mtf-mapper", help="MTF Mapper executable (default $MTF_MAPPER or mtf_mapper on PATH)")
-    ap.add_argument("--command-rois", type=int, default=16,
-                    help="ROIs timed as whole commands (0: skip)")
+    ap.add_argument(
+        "--legacy",
+        action="store_true",
+        help="the issue-15/16 tables (Gaussian grid, four blur families) instead of issue 31's",
+    )
+    ap.add_argument(
+        "--family",
+        action="append",
+        choices=sorted(FAMILIES31),
+        help="issue 31 grid: only these families (repeatable)",
+    )
+    ap.add_argument(
+        "--mtf-mapper", help="MTF Mapper executable (default $MTF_MAPPER or mtf_mapper on PATH)"
+    )
+    ap.add_argument(
+        "--command-rois", type=int, default=16, help="ROIs timed as whole commands (0: skip)"
+    )
     ap.add_argument("--workers", type=int, default=2, help="workers of the many-ROI command")
     ap.add_argument("--size", type=int, default=100, help="ROI width (px across the edge)")
     ap.add_argument("--lines", type=int, default=100, help="ROI height (lines along the edge)")

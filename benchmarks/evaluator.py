@@ -34,22 +34,29 @@ def write_delivery(root: Path, n: int, seed: int = 1) -> None:
     rng = np.random.default_rng(seed)
     (root / "tables").mkdir(parents=True)
     ids = np.char.add("IMG_", np.arange(n).astype(str))
-    df = pd.DataFrame({
-        "image_id": ids, "file": np.char.add(np.char.add("images/", ids), ".tif"),
-        "block": np.char.add("B", (np.arange(n) // 5000).astype(str)),
-        "flight_id": np.char.add("F", (np.arange(n) // 200).astype(str)),
-        "photo_number": np.arange(n).astype(str),
-        "flying_height": np.round(rng.normal(3800, 40, n), 1),
-        "exposure_x": np.round(rng.uniform(4e5, 6e5, n), 2), "exposure_y": np.round(rng.uniform(5e6, 6e6, n), 2),
-        "exposure_z": np.round(rng.normal(4100, 40, n), 2),
-        "exposure_time": "2026-04-10T10:00:00",
-        "gsd": 0.25, "bit_depth": 8,
-        "mean_dn": np.round(rng.normal(110, 10, n), 2), "std_dn": np.round(rng.normal(38, 4, n), 2),
-        "saturation_low": np.round(rng.exponential(0.05, n), 4),
-        "saturation_high": np.round(rng.exponential(0.05, n), 4),
-        "cloud_cover": np.round(rng.exponential(1.0, n), 2),
-        "sun_elevation": np.round(rng.normal(45, 5, n), 2), "roll": np.round(rng.normal(0, 0.8, n), 3),
-    })
+    df = pd.DataFrame(
+        {
+            "image_id": ids,
+            "file": np.char.add(np.char.add("images/", ids), ".tif"),
+            "block": np.char.add("B", (np.arange(n) // 5000).astype(str)),
+            "flight_id": np.char.add("F", (np.arange(n) // 200).astype(str)),
+            "photo_number": np.arange(n).astype(str),
+            "flying_height": np.round(rng.normal(3800, 40, n), 1),
+            "exposure_x": np.round(rng.uniform(4e5, 6e5, n), 2),
+            "exposure_y": np.round(rng.uniform(5e6, 6e6, n), 2),
+            "exposure_z": np.round(rng.normal(4100, 40, n), 2),
+            "exposure_time": "2026-04-10T10:00:00",
+            "gsd": 0.25,
+            "bit_depth": 8,
+            "mean_dn": np.round(rng.normal(110, 10, n), 2),
+            "std_dn": np.round(rng.normal(38, 4, n), 2),
+            "saturation_low": np.round(rng.exponential(0.05, n), 4),
+            "saturation_high": np.round(rng.exponential(0.05, n), 4),
+            "cloud_cover": np.round(rng.exponential(1.0, n), 2),
+            "sun_elevation": np.round(rng.normal(45, 5, n), 2),
+            "roll": np.round(rng.normal(0, 0.8, n), 3),
+        }
+    )
     df.to_csv(root / "tables" / "images.csv", index=False)
     (root / "delivery.yaml").write_text(f"""\
 orthospec_delivery: 1
@@ -71,8 +78,11 @@ def main() -> None:
     ap.add_argument("--records", action="store_true", help="also build the full QCR document")
     args = ap.parse_args()
     prof = load_profile(args.profile)
-    rules = tuple(r for r in prof.rules if r.scope == "image" and r.measure.startswith("images.")
-                  and not r.manual)
+    rules = tuple(
+        r
+        for r in prof.rules
+        if r.scope == "image" and r.measure.startswith("images.") and not r.manual
+    )
     prof = dataclasses.replace(prof, rules=rules)
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp) / "d"
@@ -95,7 +105,9 @@ def main() -> None:
         print(f"{'stage':<28}{'seconds':>10}{'records/s':>16}")
         print(f"{'pandas read_csv (peer)':<28}{peer:>10.2f}{args.rows / peer:>16,.0f}")
         print(f"{'open + validate tables':<28}{parse:>10.2f}{args.rows / parse:>16,.0f}")
-        print(f"{'evaluate rules':<28}{evaluate:>10.2f}{n_rec / evaluate:>16,.0f}  ({n_rec:,} QCRs)")
+        print(
+            f"{'evaluate rules':<28}{evaluate:>10.2f}{n_rec / evaluate:>16,.0f}  ({n_rec:,} QCRs)"
+        )
         if args.records:
             t0 = time.perf_counter()
             build_document(ev, date="2026-01-01")

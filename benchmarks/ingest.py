@@ -18,7 +18,8 @@ best of ``--rounds`` each, every command as a user runs it in its own process:
 Prints each time, the ratio of init (no hashing) to gdaltindex (issue 27 target: <= 1.5x), and
 peak memory: the largest single process (its own VmHWM, sampled from /proc: ru_maxrss would
 carry over this script's peak across fork + exec) and the peak of the whole process tree's proportional set size (PSS:
-shared pages divided among the processes sharing them), sampled every 20 ms (target < 500 MB). The load average is printed beside every figure: the machine is shared.
+shared pages divided among the processes sharing them), sampled every 20 ms (target < 500 MB). The
+load average is printed beside every figure: the machine is shared.
 """
 
 from __future__ import annotations
@@ -49,10 +50,19 @@ def write_tiles(folder: Path, n: int, px: int, seed: int = 0) -> None:
     base = rng.integers(0, 255, size=(3, px, px), dtype=np.uint8)
     base = (base // 16 * 16).astype(np.uint8)  # compressible, like an image, not noise
     size = px * GSD
-    profile = {"driver": "GTiff", "width": px, "height": px, "count": 3, "dtype": "uint8",
-               "crs": f"EPSG:{EPSG}", "tiled": True, "blockxsize": 256 if px >= 256 else 16 * (px // 16 or 1),
-               "blockysize": 256 if px >= 256 else 16 * (px // 16 or 1), "compress": "deflate",
-               "photometric": "RGB"}
+    profile = {
+        "driver": "GTiff",
+        "width": px,
+        "height": px,
+        "count": 3,
+        "dtype": "uint8",
+        "crs": f"EPSG:{EPSG}",
+        "tiled": True,
+        "blockxsize": 256 if px >= 256 else 16 * (px // 16 or 1),
+        "blockysize": 256 if px >= 256 else 16 * (px // 16 or 1),
+        "compress": "deflate",
+        "photometric": "RGB",
+    }
     for i in range(n):
         r, c = divmod(i, 100)
         name = folder / f"T_R{r:03d}_C{c:03d}.tif"
@@ -138,7 +148,9 @@ def run(cmd: list[str], *, ok: tuple[int, ...] = (0,)) -> tuple[float, float, fl
     th.join()
     code = os.waitstatus_to_exitcode(status)
     if code not in ok:
-        raise SystemExit(f"{' '.join(cmd[:4])} ... failed ({code}): {err.decode(errors='replace')[-800:]}")
+        raise SystemExit(
+            f"{' '.join(cmd[:4])} ... failed ({code}): {err.decode(errors='replace')[-800:]}"
+        )
     return wall, peak_sum, peak_one
 
 
@@ -151,13 +163,19 @@ def main() -> None:
     ap.add_argument("--tiles", type=int, default=10_000)
     ap.add_argument("--px", type=int, default=256, help="tile width and height in pixels")
     ap.add_argument("--rounds", type=int, default=2)
-    ap.add_argument("--workers", type=int, default=None, help="init --from --workers (default: CPU count)")
-    ap.add_argument("--keep", help="write the tiles in this folder and keep them (reused by the next run)")
+    ap.add_argument(
+        "--workers", type=int, default=None, help="init --from --workers (default: CPU count)"
+    )
+    ap.add_argument(
+        "--keep", help="write the tiles in this folder and keep them (reused by the next run)"
+    )
     args = ap.parse_args()
     orthospec = str(Path(sys.executable).parent / "orthospec")
     gdaltindex = shutil.which("gdaltindex")
     if gdaltindex is None:
-        raise SystemExit("gdaltindex not found (GDAL's command-line tools: apt-get install gdal-bin)")
+        raise SystemExit(
+            "gdaltindex not found (GDAL's command-line tools: apt-get install gdal-bin)"
+        )
     with tempfile.TemporaryDirectory(prefix="orthospec-ingest-") as tmp:
         work = Path(args.keep) if args.keep else Path(tmp)
         source = work / f"tiles-{args.tiles}-{args.px}px"
@@ -165,16 +183,39 @@ def main() -> None:
         write_tiles(source, args.tiles, args.px)
         files = sorted(p for p in source.iterdir() if p.suffix == ".tif")[: args.tiles]
         size = sum(p.stat().st_size for p in files)
-        print(f"source: {len(files):,} tiles of {args.px} x {args.px} px, {size / 1e6:.0f} MB "
-              f"({time.perf_counter() - t0:.0f} s to make or find); {os.cpu_count()} cpus, {load()}")
+        print(
+            f"source: {len(files):,} tiles of {args.px} x {args.px} px, {size / 1e6:.0f} MB "
+            f"({time.perf_counter() - t0:.0f} s to make or find); {os.cpu_count()} cpus, {load()}"
+        )
         peer_cmd = [gdaltindex, "-f", "GPKG", "INDEX", *map(str, files)]
         workers = ["--workers", str(args.workers)] if args.workers else []
         variants = {
             "gdaltindex": peer_cmd,
-            "init --from --no-sha256": [orthospec, "init", "DRAFT", "--from", str(source), "--sensor", "satellite",
-                                        "--id", "BENCH", "--no-sha256", *workers],
-            "init --from (SHA-256)": [orthospec, "init", "DRAFT", "--from", str(source), "--sensor", "satellite",
-                                      "--id", "BENCH", *workers],
+            "init --from --no-sha256": [
+                orthospec,
+                "init",
+                "DRAFT",
+                "--from",
+                str(source),
+                "--sensor",
+                "satellite",
+                "--id",
+                "BENCH",
+                "--no-sha256",
+                *workers,
+            ],
+            "init --from (SHA-256)": [
+                orthospec,
+                "init",
+                "DRAFT",
+                "--from",
+                str(source),
+                "--sensor",
+                "satellite",
+                "--id",
+                "BENCH",
+                *workers,
+            ],
         }
         best: dict[str, tuple[float, float, float, str]] = {}
         for r in range(args.rounds):
@@ -184,8 +225,10 @@ def main() -> None:
                 target = str(out / ("index.gpkg" if name == "gdaltindex" else "draft"))
                 wall, tree_mb, one_mb = run([target if c in ("INDEX", "DRAFT") else c for c in cmd])
                 shutil.rmtree(out, ignore_errors=True)
-                print(f"  round {r + 1} {name}: {wall:.2f} s, peak {one_mb:.0f} MB (one process), "
-                      f"{tree_mb:.0f} MB (process tree); {load()}")
+                print(
+                    f"  round {r + 1} {name}: {wall:.2f} s, peak {one_mb:.0f} MB (one process), "
+                    f"{tree_mb:.0f} MB (process tree); {load()}"
+                )
                 old = best.get(name)
                 if old is None or wall < old[0]:
                     best[name] = (wall, tree_mb, one_mb, load())
@@ -193,11 +236,15 @@ def main() -> None:
         print(f"best of {args.rounds}:")
         for name, (wall, tree_mb, one_mb, ld) in best.items():
             ratio = "" if name == "gdaltindex" else f"; {wall / peer:.2f}x gdaltindex"
-            print(f"  {name}: {wall:.2f} s{ratio}, peak {one_mb:.0f} MB (one process), {tree_mb:.0f} MB (tree); {ld}")
+            print(
+                f"  {name}: {wall:.2f} s{ratio}, peak {one_mb:.0f} MB (one process), {tree_mb:.0f} MB (tree); {ld}"
+            )
         nohash, hashed = best["init --from --no-sha256"][0], best["init --from (SHA-256)"][0]
         tree = max(v[1] for k, v in best.items() if k != "gdaltindex")
-        print(f"init --from without hashing: {nohash / peer:.2f}x gdaltindex (target <= 1.5x); with SHA-256: "
-              f"{hashed:.2f} s ({hashed / peer:.2f}x); peak memory {tree:.0f} MB, process tree (target < 500 MB)")
+        print(
+            f"init --from without hashing: {nohash / peer:.2f}x gdaltindex (target <= 1.5x); with SHA-256: "
+            f"{hashed:.2f} s ({hashed / peer:.2f}x); peak memory {tree:.0f} MB, process tree (target < 500 MB)"
+        )
 
 
 if __name__ == "__main__":

@@ -10,7 +10,8 @@ reference chip and a delivered image, both cut from ``../shared/data/real/RGB.by
 300 m, 3 bands). The reference chip is the scene's own pixels around the point, on the scene's own
 georeference; the delivered image (128 x 128 px, north-up, on the nominal grid) shows the scene
 displaced by a known amount: each image pixel samples the scene (interpolating cubic B-spline of
-the scene upsampled 4 times in the Fourier domain, i.e. band-limited) at ``C + R(theta) (q - C) - d``, so the point C appears at ``C + R(theta)^-1 d``, the
+the scene upsampled 4 times in the Fourier domain, i.e. band-limited) at ``C + R(theta) (q - C) -
+d``, so the point C appears at ``C + R(theta)^-1 d``, the
 truth. Families (``--n`` pairs each, points drawn on land where the clean chip's standard deviation
 is >= 8 DN, an independent texture criterion):
 
@@ -73,8 +74,19 @@ IMAGE_PX = 128
 CHIP_PX = 96
 TEMPLATE_PX = 64
 SEARCH_PX = 16
-FAMILIES = ("shift", "gain-offset", "gamma", "season", "snr-20", "ref-1:2", "image-1:2",
-            "rotation-1deg", "combined", "no-texture", "cloud")
+FAMILIES = (
+    "shift",
+    "gain-offset",
+    "gamma",
+    "season",
+    "snr-20",
+    "ref-1:2",
+    "image-1:2",
+    "rotation-1deg",
+    "combined",
+    "no-texture",
+    "cloud",
+)
 HAND_ONLY = ("no-texture", "cloud")
 #: Gaussian PSF (px) given to the scene first: the 300 m file was decimated and is aliased, and an
 #: aliased scene has no single truth at a fractional shift (a cubic-spline rendering moves its
@@ -100,6 +112,8 @@ def family_half(family: str) -> int:
     if family in ("image-1:2", "combined"):
         return render_half("image-1:2", family == "combined")
     return render_half("1:1", family == "rotation-1deg")
+
+
 UPSAMPLE = 4
 
 
@@ -112,6 +126,8 @@ def _upsampled(bands: np.ndarray) -> np.ndarray:
     for axis in (1, 2):
         up = resample(up, up.shape[axis] * UPSAMPLE, axis=axis)
     return np.stack([ndimage.spline_filter(b, order=3) for b in up])
+
+
 SEASON = np.array([[0.7, 0.3, 0.0], [0.1, 0.8, 0.1], [0.0, 0.4, 0.6]])
 
 
@@ -152,7 +168,9 @@ class Pair:
     kind: str  # textured | flat | cloud
 
 
-def centres(sc: Scene, rng: np.random.Generator, n: int, *, half: int, min_std: float = 8.0) -> list[tuple[int, int]]:
+def centres(
+    sc: Scene, rng: np.random.Generator, n: int, *, half: int, min_std: float = 8.0
+) -> list[tuple[int, int]]:
     """Scene pixels (row, col) whose surroundings (``half`` px either way) are valid and whose 64 px
     chip is textured. Raises when the scene has no such place (an endless draw otherwise)."""
     h, w = sc.valid.shape
@@ -164,12 +182,14 @@ def centres(sc: Scene, rng: np.random.Generator, n: int, *, half: int, min_std: 
     while len(out) < n:
         tries += 1
         if tries > 200 * n + 10_000:
-            raise RuntimeError(f"{len(out)} of {n} centres with a valid {2 * half} px window found in "
-                               f"{tries - 1} draws: the scene's valid area is too small for this window")
+            raise RuntimeError(
+                f"{len(out)} of {n} centres with a valid {2 * half} px window found in "
+                f"{tries - 1} draws: the scene's valid area is too small for this window"
+            )
         r, c = int(rng.integers(half, h - half)), int(rng.integers(half, w - half))
-        if not sc.valid[r - half:r + half, c - half:c + half].all():
+        if not sc.valid[r - half : r + half, c - half : c + half].all():
             continue
-        if lum[r - 32:r + 32, c - 32:c + 32].std() < min_std:
+        if lum[r - 32 : r + 32, c - 32 : c + 32].std() < min_std:
             continue
         out.append((r, c))
     return out
@@ -177,9 +197,19 @@ def centres(sc: Scene, rng: np.random.Generator, n: int, *, half: int, min_std: 
 
 def params(family: str, rng: np.random.Generator) -> dict[str, float | bool | str]:
     mag, ang = rng.uniform(0, 5), rng.uniform(0, 2 * math.pi)
-    p: dict[str, float | bool | str] = {"dx": mag * math.cos(ang), "dy": mag * math.sin(ang), "theta": 0.0,
-                                        "gain": 1.0, "offset": 0.0, "gamma": 1.0, "season": False,
-                                        "snr": 100.0, "ratio": "1:1", "cloud": 0.0, "flat": False}
+    p: dict[str, float | bool | str] = {
+        "dx": mag * math.cos(ang),
+        "dy": mag * math.sin(ang),
+        "theta": 0.0,
+        "gain": 1.0,
+        "offset": 0.0,
+        "gamma": 1.0,
+        "season": False,
+        "snr": 100.0,
+        "ratio": "1:1",
+        "cloud": 0.0,
+        "flat": False,
+    }
     if family == "gain-offset":
         p.update(gain=rng.uniform(0.6, 1.4), offset=rng.uniform(-30, 30))
     elif family == "gamma":
@@ -195,9 +225,15 @@ def params(family: str, rng: np.random.Generator) -> dict[str, float | bool | st
     elif family == "rotation-1deg":
         p.update(theta=float(rng.choice([-1.0, 1.0])) * rng.uniform(0.5, 1.0))
     elif family == "combined":
-        p.update(gain=rng.uniform(0.6, 1.4), offset=rng.uniform(-30, 30), gamma=rng.uniform(0.6, 1.6),
-                 season=bool(rng.integers(2)), snr=rng.uniform(20, 100), theta=rng.uniform(-1, 1),
-                 ratio=str(rng.choice(["1:1", "ref-1:2", "image-1:2"])))
+        p.update(
+            gain=rng.uniform(0.6, 1.4),
+            offset=rng.uniform(-30, 30),
+            gamma=rng.uniform(0.6, 1.6),
+            season=bool(rng.integers(2)),
+            snr=rng.uniform(20, 100),
+            theta=rng.uniform(-1, 1),
+            ratio=str(rng.choice(["1:1", "ref-1:2", "image-1:2"])),
+        )
     elif family == "no-texture":
         p.update(flat=True)
     elif family == "cloud":
@@ -206,13 +242,29 @@ def params(family: str, rng: np.random.Generator) -> dict[str, float | bool | st
 
 
 def _write(path: Path, arr: np.ndarray, transform: Affine, crs: str) -> None:
-    with rasterio.open(path, "w", driver="GTiff", width=arr.shape[2], height=arr.shape[1], count=arr.shape[0],
-                       dtype="uint8", crs=crs, transform=transform, photometric="RGB") as ds:
+    with rasterio.open(
+        path,
+        "w",
+        driver="GTiff",
+        width=arr.shape[2],
+        height=arr.shape[1],
+        count=arr.shape[0],
+        dtype="uint8",
+        crs=crs,
+        transform=transform,
+        photometric="RGB",
+    ) as ds:
         ds.write(arr)
 
 
-def make_pair(folder: Path, sc: Scene, family: str, index: int, centre: tuple[int, int],
-              rng: np.random.Generator) -> Pair:
+def make_pair(
+    folder: Path,
+    sc: Scene,
+    family: str,
+    index: int,
+    centre: tuple[int, int],
+    rng: np.random.Generator,
+) -> Pair:
     """Write one reference chip and one delivered image (see the module docstring)."""
     p = params(family, rng)
     t = sc.transform
@@ -227,7 +279,7 @@ def make_pair(folder: Path, sc: Scene, family: str, index: int, centre: tuple[in
     img_res = 2 * res if p["ratio"] == "image-1:2" else res
     ref_res = 2 * res if p["ratio"] == "ref-1:2" else res
     h = render_half(str(p["ratio"]), float(p["theta"]) != 0.0)
-    coef = _upsampled(bands[:, r0 - h:r0 + h, c0 - h:c0 + h])
+    coef = _upsampled(bands[:, r0 - h : r0 + h, c0 - h : c0 + h])
     # the delivered image: pixel (i, j) centre q; content = scene at C + R (q - C) - d
     th = math.radians(float(p["theta"]))
     cth, sth = math.cos(th), math.sin(th)
@@ -244,15 +296,19 @@ def make_pair(folder: Path, sc: Scene, family: str, index: int, centre: tuple[in
             sy = y + sth * qx + cth * qy - dmy
             col = ((sx - t.c) / t.a - 0.5 - (c0 - h)) * UPSAMPLE
             row = ((sy - t.f) / t.e - 0.5 - (r0 - h)) * UPSAMPLE
-            acc += np.stack([ndimage.map_coordinates(b, [row, col], order=3, prefilter=False, mode="nearest")
-                             for b in coef])
+            acc += np.stack(
+                [
+                    ndimage.map_coordinates(b, [row, col], order=3, prefilter=False, mode="nearest")
+                    for b in coef
+                ]
+            )
     img = acc / len(sub) ** 2
     # truth: R^-1 d in map units, to image px
     tx, ty = cth * dmx + sth * dmy, -sth * dmx + cth * dmy
     truth_dx, truth_dy = tx / img_res, -ty / img_res
     # the reference chip: the scene's own pixels (2 x 2 means for ref-1:2)
     half = CHIP_PX // 2
-    ref = bands[:, r0 - half:r0 + half, c0 - half:c0 + half].copy()
+    ref = bands[:, r0 - half : r0 + half, c0 - half : c0 + half].copy()
     if p["ratio"] == "ref-1:2":
         ref = ref.reshape(3, half, 2, half, 2).mean(axis=(2, 4))
     ref_t = Affine(ref_res, 0, t.c + (c0 - half) * res, 0, -ref_res, t.f - (r0 - half) * res)
@@ -264,7 +320,9 @@ def make_pair(folder: Path, sc: Scene, family: str, index: int, centre: tuple[in
     img = float(p["gain"]) * img + float(p["offset"])
     if float(p["cloud"]) > 0:
         blob = ndimage.gaussian_filter(rng.standard_normal((IMAGE_PX, IMAGE_PX)), 6)
-        core = blob[IMAGE_PX // 2 - 32:IMAGE_PX // 2 + 32, IMAGE_PX // 2 - 32:IMAGE_PX // 2 + 32]
+        core = blob[
+            IMAGE_PX // 2 - 32 : IMAGE_PX // 2 + 32, IMAGE_PX // 2 - 32 : IMAGE_PX // 2 + 32
+        ]
         thr = np.quantile(core, 1 - float(p["cloud"]))
         alpha = np.clip((blob - thr) / (blob.std() * 0.3), 0, 1)
         img = img * (1 - alpha) + 235 * alpha
@@ -282,11 +340,24 @@ def make_pair(folder: Path, sc: Scene, family: str, index: int, centre: tuple[in
     _write(ipath, img8, Affine(img_res, 0, x0, 0, -img_res, y0), sc.crs)
     _write(rpath, ref8, ref_t, sc.crs)
     kind = "flat" if p["flat"] else "cloud" if float(p["cloud"]) > 0 else "textured"
-    return Pair(family, index, str(ipath), str(rpath), float(x), float(y), truth_dx, truth_dy, img_res,
-                ref_res, kind)
+    return Pair(
+        family,
+        index,
+        str(ipath),
+        str(rpath),
+        float(x),
+        float(y),
+        truth_dx,
+        truth_dy,
+        img_res,
+        ref_res,
+        kind,
+    )
 
 
-def make_pairs(folder: Path, n: int, seed: int = 29, families: tuple[str, ...] = FAMILIES) -> list[Pair]:
+def make_pairs(
+    folder: Path, n: int, seed: int = 29, families: tuple[str, ...] = FAMILIES
+) -> list[Pair]:
     sc = scene()
     rng = np.random.default_rng(seed)
     pairs = []
@@ -316,8 +387,16 @@ def run_orthospec(pairs: list[Pair], method: str = "phase") -> list[dict[str, ob
             ok = m is not None and m.accepted
             dx = m.dx_px if m is not None else math.nan
             dy = m.dy_px if m is not None else math.nan
-            out.append({"accepted": ok, "dx": dx, "dy": dy, "seconds": dt, "cpu": cpu,
-                        "reason": (m.reason_code if m is not None else loc.problem) or ""})
+            out.append(
+                {
+                    "accepted": ok,
+                    "dx": dx,
+                    "dy": dy,
+                    "seconds": dt,
+                    "cpu": cpu,
+                    "reason": (m.reason_code if m is not None else loc.problem) or "",
+                }
+            )
     return out
 
 
@@ -355,26 +434,50 @@ def run_arosics(pairs: list[Pair], python: Path, folder: Path) -> list[dict[str,
     jobs = []
     for p in pairs:
         coarse = max(p.image_px, p.reference_px)
-        jobs.append({"reference": p.reference, "image": p.image, "x": p.x, "y": p.y,
-                     "ws": round(TEMPLATE_PX * p.image_px / coarse),
-                     "max_shift": max(5, round(SEARCH_PX * p.image_px / p.reference_px))})
+        jobs.append(
+            {
+                "reference": p.reference,
+                "image": p.image,
+                "x": p.x,
+                "y": p.y,
+                "ws": round(TEMPLATE_PX * p.image_px / coarse),
+                "max_shift": max(5, round(SEARCH_PX * p.image_px / p.reference_px)),
+            }
+        )
     (folder / "jobs.json").write_text(json.dumps(jobs))
     (folder / "driver.py").write_text(AROSICS_DRIVER)
-    r = subprocess.run([str(python), str(folder / "driver.py"), str(folder / "jobs.json"),
-                        str(folder / "arosics.json")], capture_output=True, text=True, check=False)
+    r = subprocess.run(
+        [
+            str(python),
+            str(folder / "driver.py"),
+            str(folder / "jobs.json"),
+            str(folder / "arosics.json"),
+        ],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
     if r.returncode != 0:
         return f"AROSICS failed: {r.stderr.strip()[-500:]}"
     return json.loads((folder / "arosics.json").read_text())
 
 
 def errors(pairs: list[Pair], res: list[dict[str, object]]) -> np.ndarray:
-    return np.array([math.hypot(float(r["dx"]) - p.truth_dx, float(r["dy"]) - p.truth_dy)  # type: ignore[arg-type]
-                     if r["accepted"] else math.nan for p, r in zip(pairs, res, strict=True)])
+    return np.array(
+        [
+            math.hypot(float(r["dx"]) - p.truth_dx, float(r["dy"]) - p.truth_dy)  # type: ignore[arg-type]
+            if r["accepted"]
+            else math.nan
+            for p, r in zip(pairs, res, strict=True)
+        ]
+    )
 
 
 def summary(pairs: list[Pair], results: dict[str, list[dict[str, object]]]) -> list[str]:
-    lines = [f"{'family':14s} {'tool':14s} {'accepted':>9s} {'median':>7s} {'p95':>7s} {'max':>7s} "
-             f"{'>1px':>5s} {'ms/pt':>7s}  hand-list reasons"]
+    lines = [
+        f"{'family':14s} {'tool':14s} {'accepted':>9s} {'median':>7s} {'p95':>7s} {'max':>7s} "
+        f"{'>1px':>5s} {'ms/pt':>7s}  hand-list reasons"
+    ]
     for family in FAMILIES:
         idx = [i for i, p in enumerate(pairs) if p.family == family]
         if not idx:
@@ -392,8 +495,10 @@ def summary(pairs: list[Pair], results: dict[str, list[dict[str, object]]]) -> l
             med = f"{np.median(e[acc]):7.3f}" if acc.any() else "      -"
             p95 = f"{np.percentile(e[acc], 95):7.3f}" if acc.any() else "      -"
             mx = f"{e[acc].max():7.3f}" if acc.any() else "      -"
-            lines.append(f"{family:14s} {tool:14s} {acc.mean():9.1%} {med} {p95} {mx} {int((e[acc] > 1).sum()):5d} "
-                         f"{ms:7.1f}  {', '.join(f'{k} {v}' for k, v in sorted(reasons.items()))}")
+            lines.append(
+                f"{family:14s} {tool:14s} {acc.mean():9.1%} {med} {p95} {mx} {int((e[acc] > 1).sum()):5d} "
+                f"{ms:7.1f}  {', '.join(f'{k} {v}' for k, v in sorted(reasons.items()))}"
+            )
     return lines
 
 
@@ -406,12 +511,14 @@ def targets(pairs: list[Pair], res: list[dict[str, object]]) -> list[str]:
     wrong = int((e[acc] > 1).sum())
     share = float(acc[textured].mean())
     hand = not bool(acc[~textured].any())
-    return [f"median |error| {med:.3f} px (target <= 0.1): {'met' if med <= 0.1 else 'MISSED'}",
-            f"95th percentile {p95:.3f} px (target <= 0.3): {'met' if p95 <= 0.3 else 'MISSED'}",
-            f"textured points accepted {share:.1%} (target >= 95 %): {'met' if share >= 0.95 else 'MISSED'}",
-            f"wrong accepted (> 1 px) {wrong} of {int(acc.sum())} = {wrong / max(int(acc.sum()), 1):.2%} "
-            f"(target <= 0.5 %): {'met' if wrong <= 0.005 * acc.sum() else 'MISSED'}",
-            f"no-texture and cloud pairs all on the hand list: {'met' if hand else 'MISSED'}"]
+    return [
+        f"median |error| {med:.3f} px (target <= 0.1): {'met' if med <= 0.1 else 'MISSED'}",
+        f"95th percentile {p95:.3f} px (target <= 0.3): {'met' if p95 <= 0.3 else 'MISSED'}",
+        f"textured points accepted {share:.1%} (target >= 95 %): {'met' if share >= 0.95 else 'MISSED'}",
+        f"wrong accepted (> 1 px) {wrong} of {int(acc.sum())} = {wrong / max(int(acc.sum()), 1):.2%} "
+        f"(target <= 0.5 %): {'met' if wrong <= 0.005 * acc.sum() else 'MISSED'}",
+        f"no-texture and cloud pairs all on the hand list: {'met' if hand else 'MISSED'}",
+    ]
 
 
 # --------------------------------------------------------------------------- throughput
@@ -443,8 +550,9 @@ def _mirror(sc: Scene, rows: slice, cols: slice) -> np.ndarray:
 OFFSET = (0.30, -0.45)
 
 
-def build_big(folder: Path, size: int, points: int, offset: tuple[float, float] = OFFSET,
-              seed: int = 7) -> tuple[Path, Path, Path]:
+def build_big(
+    folder: Path, size: int, points: int, offset: tuple[float, float] = OFFSET, seed: int = 7
+) -> tuple[Path, Path, Path]:
     """Delivery with one size x size image, a chip library and a survey (see the docstring)."""
     from rasterio.windows import Window
 
@@ -460,16 +568,32 @@ def build_big(folder: Path, size: int, points: int, offset: tuple[float, float] 
     (d / "delivery.yaml").write_text(MANIFEST.format(gsd=res))
     (d / "tables" / "images.csv").write_text("image_id,file,block\nBIG,images/big.tif,B1\n")
     block = 512
-    with rasterio.open(d / "images" / "big.tif", "w", driver="GTiff", width=size, height=size, count=3,
-                       dtype="uint8", crs=sc.crs, transform=deliv_t, tiled=True, blockxsize=block,
-                       blockysize=block, compress="deflate", zlevel=1, photometric="RGB",
-                       BIGTIFF="YES") as ds:
+    with rasterio.open(
+        d / "images" / "big.tif",
+        "w",
+        driver="GTiff",
+        width=size,
+        height=size,
+        count=3,
+        dtype="uint8",
+        crs=sc.crs,
+        transform=deliv_t,
+        tiled=True,
+        blockxsize=block,
+        blockysize=block,
+        compress="deflate",
+        zlevel=1,
+        photometric="RGB",
+        BIGTIFF="YES",
+    ) as ds:
         for r in range(0, size, 2048):
             h = min(2048, size - r)
             for c in range(0, size, 2048):
                 w = min(2048, size - c)
-                ds.write(np.clip(_mirror(sc, slice(r, r + h), slice(c, c + w)), 1, 255).astype(np.uint8),
-                         window=Window(c, r, w, h))
+                ds.write(
+                    np.clip(_mirror(sc, slice(r, r + h), slice(c, c + w)), 1, 255).astype(np.uint8),
+                    window=Window(c, r, w, h),
+                )
     chips = folder / "chips"
     chips.mkdir()
     rng = np.random.default_rng(seed)
@@ -479,14 +603,18 @@ def build_big(folder: Path, size: int, points: int, offset: tuple[float, float] 
     while n < points:
         r, c = int(rng.integers(200, size - 200)), int(rng.integers(200, size - 200))
         data = _mirror(sc, slice(r - half, r + half), slice(c - half, c + half))
-        if data.mean(axis=0)[half - 32:half + 32, half - 32:half + 32].std() < 8:
+        if data.mean(axis=0)[half - 32 : half + 32, half - 32 : half + 32].std() < 8:
             continue
         n += 1
         pid = f"P{n:05d}"
         x, y = true_t * (c + 0.5, r + 0.5)
         lines.append(f"{pid},{x:.3f},{y:.3f},benchmark")
-        _write(chips / f"{pid}.tif", np.clip(data, 1, 255).astype(np.uint8),
-               true_t * Affine.translation(c - half, r - half), sc.crs)
+        _write(
+            chips / f"{pid}.tif",
+            np.clip(data, 1, 255).astype(np.uint8),
+            true_t * Affine.translation(c - half, r - half),
+            sc.crs,
+        )
     survey = folder / "survey.csv"
     survey.write_text("\n".join(lines) + "\n")
     return d, chips, survey
@@ -499,22 +627,41 @@ def throughput(size: int, points: int) -> list[str]:
         built = time.perf_counter() - t0
         out = Path(tmp) / "checker"
         exe = Path(sys.executable).with_name("orthospec")
-        cmd = [str(exe), "measure", "checkpoints", str(d), "--reference", str(chips),
-               "--points", str(survey), "--out", str(out), "--json"]
+        cmd = [
+            str(exe),
+            "measure",
+            "checkpoints",
+            str(d),
+            "--reference",
+            str(chips),
+            "--points",
+            str(survey),
+            "--out",
+            str(out),
+            "--json",
+        ]
         # a fresh parent whose only child is the command: RUSAGE_CHILDREN of this process would
         # also hold earlier children (the AROSICS run), whose peak is not the command's
-        probe = ("import json, resource, subprocess, sys, time; t0 = time.perf_counter(); "
-                 "r = subprocess.run(sys.argv[1:], capture_output=True, text=True); "
-                 "sys.stderr.write(r.stderr); sys.stdout.write(r.stdout); "
-                 "open(%r, 'w').write(json.dumps({'rc': r.returncode, 'wall': time.perf_counter() - t0, "
-                 "'maxrss_kib': resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss}))")
+        probe = (
+            "import json, resource, subprocess, sys, time; t0 = time.perf_counter(); "
+            "r = subprocess.run(sys.argv[1:], capture_output=True, text=True); "
+            "sys.stderr.write(r.stderr); sys.stdout.write(r.stdout); "
+            "open(%r, 'w').write(json.dumps({'rc': r.returncode, 'wall': time.perf_counter() - t0, "
+            "'maxrss_kib': resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss}))"
+        )
         stats_file = Path(tmp) / "probe.json"
-        r = subprocess.run([sys.executable, "-c", probe % str(stats_file), *cmd],
-                           capture_output=True, text=True, check=False)
+        r = subprocess.run(
+            [sys.executable, "-c", probe % str(stats_file), *cmd],
+            capture_output=True,
+            text=True,
+            check=False,
+        )
         stats = json.loads(stats_file.read_text())
         wall, rss = float(stats["wall"]), int(stats["maxrss_kib"])
         if stats["rc"] != 0:
-            return [f"throughput: the command failed (exit {stats['rc']}): {r.stderr.strip()[-400:]}"]
+            return [
+                f"throughput: the command failed (exit {stats['rc']}): {r.stderr.strip()[-400:]}"
+            ]
         doc = json.loads(r.stdout)
         acc = [p for p in doc["points"] if p["decision"] == "accepted"]
         # the truth: content at true P sits at P + OFFSET (image columns right, rows down)
@@ -525,19 +672,23 @@ def throughput(size: int, points: int) -> list[str]:
                 key = str(p.get("reason_code") or p["decision"])
                 reasons[key] = reasons.get(key, 0) + 1
         mib = (d / "images" / "big.tif").stat().st_size / 2**20
-        return [f"throughput: {points} points on a {size:,} x {size:,} px 3-band tiled deflate GeoTIFF "
-                f"({mib:,.0f} MiB; built in {built:.0f} s)",
-                f"  whole command {wall:.1f} s = {1000 * wall / points:.1f} ms per point (start-up, SHA-256 "
-                f"of the image and writing included); peak RSS {rss / 1024:.0f} MiB; load {load()}",
-                f"  accepted {len(acc)} of {points}; |error| median {np.median(err):.3f} px, 95th percentile "
-                f"{np.percentile(err, 95):.3f} px, > 1 px {int((err > 1).sum())}; not accepted: "
-                f"{', '.join(f'{k} {v}' for k, v in sorted(reasons.items())) or '-'}"]
+        return [
+            f"throughput: {points} points on a {size:,} x {size:,} px 3-band tiled deflate GeoTIFF "
+            f"({mib:,.0f} MiB; built in {built:.0f} s)",
+            f"  whole command {wall:.1f} s = {1000 * wall / points:.1f} ms per point (start-up, SHA-256 "
+            f"of the image and writing included); peak RSS {rss / 1024:.0f} MiB; load {load()}",
+            f"  accepted {len(acc)} of {points}; |error| median {np.median(err):.3f} px, 95th percentile "
+            f"{np.percentile(err, 95):.3f} px, > 1 px {int((err > 1).sum())}; not accepted: "
+            f"{', '.join(f'{k} {v}' for k, v in sorted(reasons.items())) or '-'}",
+        ]
 
 
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--n", type=int, default=100, help="pairs per family")
-    ap.add_argument("--quick", action="store_true", help="20 pairs per family, 2,000 px, 100 points")
+    ap.add_argument(
+        "--quick", action="store_true", help="20 pairs per family, 2,000 px, 100 points"
+    )
     ap.add_argument("--peer-python", type=Path, default=PEER)
     ap.add_argument("--skip-throughput", action="store_true")
     ap.add_argument("--size", type=int, default=20000)
@@ -569,14 +720,17 @@ def main(argv: list[str] | None = None) -> None:
             print("  " + "\n  ".join(targets(pairs, res)))
         if "arosics" in results:
             o, p = results["orthospec-phase"], results["arosics"]
+
             def med(res: list[dict[str, object]], key: str) -> float:
                 return 1000 * float(np.median([float(x[key]) for x in res]))  # type: ignore[arg-type]
 
             # CPU time is what the comparison rests on: the two tools run one after the other and the
             # shared machine's load moves between them (wall time printed beside it)
-            print(f"\ntime per point (median): CPU orthospec {med(o, 'cpu'):.1f} ms, AROSICS {med(p, 'cpu'):.1f} ms, "
-                  f"ratio {med(p, 'cpu') / med(o, 'cpu'):.1f}x; wall {med(o, 'seconds'):.1f} / "
-                  f"{med(p, 'seconds'):.1f} ms; load {load()}")
+            print(
+                f"\ntime per point (median): CPU orthospec {med(o, 'cpu'):.1f} ms, AROSICS {med(p, 'cpu'):.1f} ms, "
+                f"ratio {med(p, 'cpu') / med(o, 'cpu'):.1f}x; wall {med(o, 'seconds'):.1f} / "
+                f"{med(p, 'seconds'):.1f} ms; load {load()}"
+            )
             worse = []
             for family in FAMILIES:
                 if family in HAND_ONLY:
@@ -584,10 +738,14 @@ def main(argv: list[str] | None = None) -> None:
                 idx = [i for i, q in enumerate(pairs) if q.family == family]
                 eo = errors([pairs[i] for i in idx], [o[i] for i in idx])
                 ep = errors([pairs[i] for i in idx], [p[i] for i in idx])
-                if np.isnan(eo).all() or (not np.isnan(ep).all() and np.nanmedian(eo) > np.nanmedian(ep)):
+                if np.isnan(eo).all() or (
+                    not np.isnan(ep).all() and np.nanmedian(eo) > np.nanmedian(ep)
+                ):
                     worse.append(family)
-            print("orthospec at least as accurate as AROSICS (median |error| on accepted points) on every "
-                  f"family: {'yes' if not worse else 'NO: ' + ', '.join(worse)}")
+            print(
+                "orthospec at least as accurate as AROSICS (median |error| on accepted points) on every "
+                f"family: {'yes' if not worse else 'NO: ' + ', '.join(worse)}"
+            )
         if os.environ.get("ORTHOSPEC_BENCH_KEEP"):
             keep = Path(os.environ["ORTHOSPEC_BENCH_KEEP"])
             keep.mkdir(parents=True, exist_ok=True)

@@ -56,9 +56,13 @@ def build(target: Path, n: int) -> None:
     for k in range(len(rows), n):
         row, profile, data, tags, colours = templates[k % len(templates)]
         image_id = f"{row['flight_id']}_c{k:05d}"
-        pixels, _cloud = render_image(np.random.default_rng([20261121, k]), "plain", n=data.shape[-1])
+        pixels, _cloud = render_image(
+            np.random.default_rng([20261121, k]), "plain", n=data.shape[-1]
+        )
         stats = {key: f"{v:.3f}" for key, v in image_stats(pixels).items() if key in row}
-        new = dict(row, image_id=image_id, file=f"images/{image_id}.tif", photo_number=f"{k:05d}", **stats)
+        new = dict(
+            row, image_id=image_id, file=f"images/{image_id}.tif", photo_number=f"{k:05d}", **stats
+        )
         with rasterio.open(target / new["file"], "w", **profile) as ds:
             ds.write(pixels)
             ds.update_tags(**dict(tags, IMAGE_ID=image_id, PHOTO_NUMBER=new["photo_number"]))
@@ -76,8 +80,12 @@ def run(cmd: list[str]) -> tuple[float, float, int, str]:
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     err = proc.stderr.read() if proc.stderr else b""
     _pid, status, usage = os.wait4(proc.pid, 0)
-    return (time.perf_counter() - t0, usage.ru_maxrss / 1024.0, os.waitstatus_to_exitcode(status),
-            err.decode(errors="replace")[-600:])
+    return (
+        time.perf_counter() - t0,
+        usage.ru_maxrss / 1024.0,
+        os.waitstatus_to_exitcode(status),
+        err.decode(errors="replace")[-600:],
+    )
 
 
 def main() -> None:
@@ -100,12 +108,28 @@ def main() -> None:
                 t0 = time.perf_counter()
                 shutil.rmtree(delivery, ignore_errors=True)
                 build(delivery, n)
-                print(f"built {delivery.name}: {n} images in {time.perf_counter() - t0:.0f} s",
-                      flush=True)
+                print(
+                    f"built {delivery.name}: {n} images in {time.perf_counter() - t0:.0f} s",
+                    flush=True,
+                )
             out = Path(tmp) / f"out-{n}"
-            cmd = [orthospec, "check", str(delivery), "-p", args.profile, "--out", str(out),
-                   "--format", "json", "--date", "2026-11-21", "--param", "tolerance_xy=0.5m",
-                   "--param", "map_crs=EPSG:25832"]
+            cmd = [
+                orthospec,
+                "check",
+                str(delivery),
+                "-p",
+                args.profile,
+                "--out",
+                str(out),
+                "--format",
+                "json",
+                "--date",
+                "2026-11-21",
+                "--param",
+                "tolerance_xy=0.5m",
+                "--param",
+                "map_crs=EPSG:25832",
+            ]
             if args.workers:
                 cmd += ["--workers", str(args.workers)]
             wall, rss, code, err = run(cmd)
@@ -113,18 +137,25 @@ def main() -> None:
                 raise SystemExit(f"check of {n} images failed ({code}): {err}")
             size = (out / "qcr.json").stat().st_size
             results.append((n, wall, rss, size))
-            print(f"{n:6d} images: {wall:7.1f} s ({wall / n * 1000:5.1f} ms/image, "
-                  f"{n / wall:5.1f} images/s), peak RSS {rss:6.0f} MB, qcr.json "
-                  f"{size / 1e6:7.1f} MB ({size / n / 1e3:5.1f} KB/image), exit {code}", flush=True)
+            print(
+                f"{n:6d} images: {wall:7.1f} s ({wall / n * 1000:5.1f} ms/image, "
+                f"{n / wall:5.1f} images/s), peak RSS {rss:6.0f} MB, qcr.json "
+                f"{size / 1e6:7.1f} MB ({size / n / 1e3:5.1f} KB/image), exit {code}",
+                flush=True,
+            )
     if len(results) >= 2:
         (n1, w1, r1, s1), (n2, w2, r2, s2) = results[-2], results[-1]
-        print(f"time {n2}/{n1} images = {w2 / w1:.2f}x for {n2 / n1:.1f}x the images "
-              f"(target <= {4.8 * n2 / n1 / 4:.1f}x); peak RSS {r2:.0f} MB (target < 1024 MB)")
+        print(
+            f"time {n2}/{n1} images = {w2 / w1:.2f}x for {n2 / n1:.1f}x the images "
+            f"(target <= {4.8 * n2 / n1 / 4:.1f}x); peak RSS {r2:.0f} MB (target < 1024 MB)"
+        )
         per_t, per_r, per_s = (w2 - w1) / (n2 - n1), (r2 - r1) / (n2 - n1), (s2 - s1) / (n2 - n1)
         big = 50_000
-        print(f"50,000 images (linear from the last two runs): about {w2 + per_t * (big - n2):.0f} s "
-              f"({per_t * 1000:.1f} ms/image), {r2 + per_r * (big - n2):.0f} MB peak RSS "
-              f"({per_r * 1000:.0f} KB/image), {(s2 + per_s * (big - n2)) / 1e9:.2f} GB of qcr.json")
+        print(
+            f"50,000 images (linear from the last two runs): about {w2 + per_t * (big - n2):.0f} s "
+            f"({per_t * 1000:.1f} ms/image), {r2 + per_r * (big - n2):.0f} MB peak RSS "
+            f"({per_r * 1000:.0f} KB/image), {(s2 + per_s * (big - n2)) / 1e9:.2f} GB of qcr.json"
+        )
     print(f"load average: {os.getloadavg()[0]:.2f} on {os.cpu_count()} cpus")
 
 

@@ -42,9 +42,20 @@ PEERS = {
 COMMANDS = [
     ("--help", ["--help"], "import click, yaml", 4.0, False),
     ("--version", ["--version"], "import click, yaml", 4.0, False),
-    ("spec validate jrc-v3", ["spec", "validate", str(PROFILE)], "yaml.safe_load(jrc-v3)", 3.0, True),
-    ("explain JRC-12.7-RMSEX", ["explain", "JRC-12.7-RMSEX", "--profile", "jrc-v3"],
-     "yaml.safe_load(jrc-v3)", 3.0, True),
+    (
+        "spec validate jrc-v3",
+        ["spec", "validate", str(PROFILE)],
+        "yaml.safe_load(jrc-v3)",
+        3.0,
+        True,
+    ),
+    (
+        "explain JRC-12.7-RMSEX",
+        ["explain", "JRC-12.7-RMSEX", "--profile", "jrc-v3"],
+        "yaml.safe_load(jrc-v3)",
+        3.0,
+        True,
+    ),
 ]
 
 
@@ -54,8 +65,10 @@ def timed(cmd: list[str], env: dict[str, str]) -> float:
     proc = subprocess.run(cmd, capture_output=True, env=env, cwd=ROOT)
     wall = time.perf_counter() - t0
     if proc.returncode not in (0, 1):
-        raise SystemExit(f"{' '.join(cmd)} failed ({proc.returncode}): "
-                         f"{proc.stderr.decode(errors='replace').strip()[-400:]}")
+        raise SystemExit(
+            f"{' '.join(cmd)} failed ({proc.returncode}): "
+            f"{proc.stderr.decode(errors='replace').strip()[-400:]}"
+        )
     return wall
 
 
@@ -82,8 +95,10 @@ def main() -> None:
                     env = warm_env if mode == "warm" else base | {"XDG_CACHE_HOME": str(cold)}
                     key = f"{label} ({mode} cache)" if cached else label
                     best[key] = min(best.get(key, 1e9), timed(ORTHOSPEC + argv, env))
-    print(f"orthospec start-up benchmark: best of {args.rounds}, load average "
-          f"{os.getloadavg()[0]:.2f} on {os.cpu_count()} cpus; {sys.version.split()[0]}")
+    print(
+        f"orthospec start-up benchmark: best of {args.rounds}, load average "
+        f"{os.getloadavg()[0]:.2f} on {os.cpu_count()} cpus; {sys.version.split()[0]}"
+    )
     for name in PEERS:
         print(f"  peer  {name:32s} {best[name]:6.3f} s")
     for label, _argv, peer, target, cached in COMMANDS:
@@ -91,8 +106,10 @@ def main() -> None:
             key = f"{label} ({mode} cache)" if cached else label
             ratio = best[key] / best[peer]
             flag = "ok" if ratio <= target else "OVER"
-            print(f"  {key:38s} {best[key]:6.3f} s  = {ratio:5.1f}x {peer:24s} "
-                  f"(target <= {target:g}x: {flag})")
+            print(
+                f"  {key:38s} {best[key]:6.3f} s  = {ratio:5.1f}x {peer:24s} "
+                f"(target <= {target:g}x: {flag})"
+            )
 
 
 if __name__ == "__main__":

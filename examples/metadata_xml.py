@@ -74,10 +74,18 @@ def fgdc_csdgm(manifest: dict[str, Any]) -> bytes:
     _sub(cite, "geoform", "remote-sensing image")
     descript = _sub(idinfo, "descript")
     gsd = manifest["product"]["gsd"]["value"]
-    _sub(descript, "abstract", f"Digital orthophotos, {gsd} m ground sample distance, bands "
-                               f"{', '.join(manifest['product']['bands'])}, {len(manifest['blocks'])} "
-                               f"aerotriangulation blocks, camera {manifest['sensor'].get('camera', '')}.")
-    _sub(descript, "purpose", "Orthoimagery for the control of area-based subsidies (fictional example).")
+    _sub(
+        descript,
+        "abstract",
+        f"Digital orthophotos, {gsd} m ground sample distance, bands "
+        f"{', '.join(manifest['product']['bands'])}, {len(manifest['blocks'])} "
+        f"aerotriangulation blocks, camera {manifest['sensor'].get('camera', '')}.",
+    )
+    _sub(
+        descript,
+        "purpose",
+        "Orthoimagery for the control of area-based subsidies (fictional example).",
+    )
     timeperd = _sub(idinfo, "timeperd")
     rng = _sub(_sub(timeperd, "timeinfo"), "rngdates")
     _sub(rng, "begdate", _day(dates["acquired_from"]).replace("-", ""))
@@ -100,23 +108,44 @@ def fgdc_csdgm(manifest: dict[str, Any]) -> bytes:
 
     dataqual = _sub(root, "dataqual")
     _sub(_sub(dataqual, "attracc"), "attraccr", "Not applicable: image data, no attributes.")
-    _sub(dataqual, "logic", "Every image delivered as one GeoTIFF in the project CRS; names match the image table.")
-    _sub(dataqual, "complete", "Full coverage of the area of interest (the contractor's declaration).")
+    _sub(
+        dataqual,
+        "logic",
+        "Every image delivered as one GeoTIFF in the project CRS; names match the image table.",
+    )
+    _sub(
+        dataqual,
+        "complete",
+        "Full coverage of the area of interest (the contractor's declaration).",
+    )
     horizpa = _sub(_sub(dataqual, "posacc"), "horizpa")
-    worst = max(max(b["reported"]["rmse_x"]["value"], b["reported"]["rmse_y"]["value"]) for b in manifest["blocks"])
-    _sub(horizpa, "horizpar", "Contractor's internal QC: RMSE x/y on independent GNSS check points per block "
-                              "(declared, not tested by the buyer).")
+    worst = max(
+        max(b["reported"]["rmse_x"]["value"], b["reported"]["rmse_y"]["value"])
+        for b in manifest["blocks"]
+    )
+    _sub(
+        horizpa,
+        "horizpar",
+        "Contractor's internal QC: RMSE x/y on independent GNSS check points per block "
+        "(declared, not tested by the buyer).",
+    )
     q = _sub(horizpa, "qhorizpa")
     _sub(q, "horizpav", f"{worst:.2f}")
     _sub(q, "horizpae", "Largest of the declared per-block RMSE x and RMSE y, metres.")
     step = _sub(_sub(dataqual, "lineage"), "procstep")
-    _sub(step, "procdesc", "Aerotriangulation with GNSS/IMU and ground control, orthorectification on the "
-                           "DTM with cubic resampling, radiometric balancing.")
+    _sub(
+        step,
+        "procdesc",
+        "Aerotriangulation with GNSS/IMU and ground control, orthorectification on the "
+        "DTM with cubic resampling, radiometric balancing.",
+    )
     _sub(step, "procdate", _day(dates["delivered"]).replace("-", ""))
 
     spdoinfo = _sub(root, "spdoinfo")
     _sub(spdoinfo, "direct", "Raster")
-    zone = int(str(manifest["project"]["crs"]).rsplit(":", 1)[1]) - 25800  # EPSG:258zz: ETRS89 / UTM zz N
+    zone = (
+        int(str(manifest["project"]["crs"]).rsplit(":", 1)[1]) - 25800
+    )  # EPSG:258zz: ETRS89 / UTM zz N
     horizsys = _sub(_sub(root, "spref"), "horizsys")
     planar = _sub(horizsys, "planar")
     grid = _sub(planar, "gridsys")
@@ -124,8 +153,13 @@ def fgdc_csdgm(manifest: dict[str, Any]) -> bytes:
     utm = _sub(grid, "utm")
     _sub(utm, "utmzone", str(zone))
     tm = _sub(utm, "transmer")
-    for tag, v in (("sfctrmer", "0.9996"), ("longcm", str(6 * zone - 183)), ("latprjo", "0"),
-                   ("feast", "500000"), ("fnorth", "0")):
+    for tag, v in (
+        ("sfctrmer", "0.9996"),
+        ("longcm", str(6 * zone - 183)),
+        ("latprjo", "0"),
+        ("feast", "500000"),
+        ("fnorth", "0"),
+    ):
         _sub(tm, tag, v)
     planci = _sub(planar, "planci")
     _sub(planci, "plance", "row and column")
@@ -151,7 +185,9 @@ def _g(ns: str, tag: str) -> str:
     return f"{{{ns}}}{tag}"
 
 
-def _cs(parent: etree._Element, tag: str, text: str, kind: str = "CharacterString") -> etree._Element:
+def _cs(
+    parent: etree._Element, tag: str, text: str, kind: str = "CharacterString"
+) -> etree._Element:
     el = etree.SubElement(parent, _g(GMD, tag))
     etree.SubElement(el, _g(GCO, kind)).text = text
     return el
@@ -176,7 +212,9 @@ def _party(parent: etree._Element, tag: str, manifest: dict[str, Any], role: str
 def iso19139(manifest: dict[str, Any]) -> bytes:
     """An ISO 19139 ``gmd:MD_Metadata`` record of a satellite delivery."""
     dates = manifest["dates"]
-    root = etree.Element(_g(GMD, "MD_Metadata"), nsmap={"gmd": GMD, "gco": GCO, "gml": GML, "xlink": XLINK})
+    root = etree.Element(
+        _g(GMD, "MD_Metadata"), nsmap={"gmd": GMD, "gco": GCO, "gml": GML, "xlink": XLINK}
+    )
     _cs(root, "fileIdentifier", manifest["id"])
     lang = etree.SubElement(etree.SubElement(root, _g(GMD, "language")), _g(GMD, "LanguageCode"))
     lang.set("codeList", "http://www.loc.gov/standards/iso639-2/")
@@ -188,24 +226,38 @@ def iso19139(manifest: dict[str, Any]) -> bytes:
     _cs(root, "dateStamp", _day(dates["delivered"]), "Date")
     _cs(root, "metadataStandardName", "ISO 19115:2003/19139")
     _cs(root, "metadataStandardVersion", "1.0")
-    rs = etree.SubElement(etree.SubElement(root, _g(GMD, "referenceSystemInfo")), _g(GMD, "MD_ReferenceSystem"))
-    rid = etree.SubElement(etree.SubElement(rs, _g(GMD, "referenceSystemIdentifier")), _g(GMD, "RS_Identifier"))
+    rs = etree.SubElement(
+        etree.SubElement(root, _g(GMD, "referenceSystemInfo")), _g(GMD, "MD_ReferenceSystem")
+    )
+    rid = etree.SubElement(
+        etree.SubElement(rs, _g(GMD, "referenceSystemIdentifier")), _g(GMD, "RS_Identifier")
+    )
     _cs(rid, "code", str(manifest["project"]["crs"]))
     _cs(rid, "codeSpace", "EPSG")
 
-    ident = etree.SubElement(etree.SubElement(root, _g(GMD, "identificationInfo")), _g(GMD, "MD_DataIdentification"))
+    ident = etree.SubElement(
+        etree.SubElement(root, _g(GMD, "identificationInfo")), _g(GMD, "MD_DataIdentification")
+    )
     cit = etree.SubElement(etree.SubElement(ident, _g(GMD, "citation")), _g(GMD, "CI_Citation"))
     _cs(cit, "title", f"{manifest['project']['name']}: orthoimages, delivery {manifest['id']}")
     cd = etree.SubElement(etree.SubElement(cit, _g(GMD, "date")), _g(GMD, "CI_Date"))
     _cs(cd, "date", _day(dates["delivered"]), "Date")
     _codev(cd, "dateType", "CI_DateTypeCode", "publication")
     gsd = manifest["product"]["gsd"]["value"]
-    _cs(ident, "abstract", f"Orthorectified {manifest['sensor']['platform']} imagery, {gsd} m pixels, "
-                           f"{len(manifest['blocks'])} control sites (fictional example).")
+    _cs(
+        ident,
+        "abstract",
+        f"Orthorectified {manifest['sensor']['platform']} imagery, {gsd} m pixels, "
+        f"{len(manifest['blocks'])} control sites (fictional example).",
+    )
     _party(ident, "pointOfContact", manifest, "originator")
     _codev(ident, "spatialRepresentationType", "MD_SpatialRepresentationTypeCode", "grid")
-    dist = etree.SubElement(etree.SubElement(etree.SubElement(ident, _g(GMD, "spatialResolution")),
-                                             _g(GMD, "MD_Resolution")), _g(GMD, "distance"))
+    dist = etree.SubElement(
+        etree.SubElement(
+            etree.SubElement(ident, _g(GMD, "spatialResolution")), _g(GMD, "MD_Resolution")
+        ),
+        _g(GMD, "distance"),
+    )
     d = etree.SubElement(dist, _g(GCO, "Distance"))
     d.set("uom", "m")
     d.text = str(gsd)
@@ -213,28 +265,45 @@ def iso19139(manifest: dict[str, Any]) -> bytes:
     lang2.set("codeList", "http://www.loc.gov/standards/iso639-2/")
     lang2.set("codeListValue", "eng")
     lang2.text = "eng"
-    etree.SubElement(etree.SubElement(ident, _g(GMD, "topicCategory")),
-                     _g(GMD, "MD_TopicCategoryCode")).text = "imageryBaseMapsEarthCover"
+    etree.SubElement(
+        etree.SubElement(ident, _g(GMD, "topicCategory")), _g(GMD, "MD_TopicCategoryCode")
+    ).text = "imageryBaseMapsEarthCover"
     ext = etree.SubElement(etree.SubElement(ident, _g(GMD, "extent")), _g(GMD, "EX_Extent"))
-    box = etree.SubElement(etree.SubElement(ext, _g(GMD, "geographicElement")), _g(GMD, "EX_GeographicBoundingBox"))
+    box = etree.SubElement(
+        etree.SubElement(ext, _g(GMD, "geographicElement")), _g(GMD, "EX_GeographicBoundingBox")
+    )
     west, east, south, north = _bbox(manifest)
-    for tag, v in (("westBoundLongitude", west), ("eastBoundLongitude", east),
-                   ("southBoundLatitude", south), ("northBoundLatitude", north)):
+    for tag, v in (
+        ("westBoundLongitude", west),
+        ("eastBoundLongitude", east),
+        ("southBoundLatitude", south),
+        ("northBoundLatitude", north),
+    ):
         _cs(box, tag, f"{v:.6f}", "Decimal")
-    tp = etree.SubElement(etree.SubElement(etree.SubElement(ext, _g(GMD, "temporalElement")),
-                                           _g(GMD, "EX_TemporalExtent")), _g(GMD, "extent"))
+    tp = etree.SubElement(
+        etree.SubElement(
+            etree.SubElement(ext, _g(GMD, "temporalElement")), _g(GMD, "EX_TemporalExtent")
+        ),
+        _g(GMD, "extent"),
+    )
     period = etree.SubElement(tp, _g(GML, "TimePeriod"))
     period.set(_g(GML, "id"), "acquisition")
     etree.SubElement(period, _g(GML, "beginPosition")).text = _day(dates["acquired_from"])
     etree.SubElement(period, _g(GML, "endPosition")).text = _day(dates["acquired_to"])
 
-    dq = etree.SubElement(etree.SubElement(root, _g(GMD, "dataQualityInfo")), _g(GMD, "DQ_DataQuality"))
+    dq = etree.SubElement(
+        etree.SubElement(root, _g(GMD, "dataQualityInfo")), _g(GMD, "DQ_DataQuality")
+    )
     scope = etree.SubElement(etree.SubElement(dq, _g(GMD, "scope")), _g(GMD, "DQ_Scope"))
     _codev(scope, "level", "MD_ScopeCode", "dataset")
     lin = etree.SubElement(etree.SubElement(dq, _g(GMD, "lineage")), _g(GMD, "LI_Lineage"))
-    _cs(lin, "statement", f"{manifest['sensor']['platform']} Ortho Ready scenes orthorectified with the vendor "
-                          "RPC model refined on ground control points, on a 10 m DEM; cubic resampling. "
-                          "Accuracy per site as declared by the producer's internal QC.")
+    _cs(
+        lin,
+        "statement",
+        f"{manifest['sensor']['platform']} Ortho Ready scenes orthorectified with the vendor "
+        "RPC model refined on ground control points, on a 10 m DEM; cubic resampling. "
+        "Accuracy per site as declared by the producer's internal QC.",
+    )
     return etree.tostring(root, xml_declaration=True, encoding="UTF-8", pretty_print=True)
 
 

@@ -60,23 +60,53 @@ def _tiles(root: Path) -> list[dict[str, Any]]:
     for r in range(n):
         for c in range(n):
             name = f"{PREFIX}_R{r + 1}_C{c + 1}"
-            block = data[:, r * TILE:(r + 1) * TILE, c * TILE:(c + 1) * TILE]
+            block = data[:, r * TILE : (r + 1) * TILE, c * TILE : (c + 1) * TILE]
             t = base * Affine.translation(c * TILE, r * TILE)
             path = root / "tiles" / f"{name}.tif"
-            with rasterio.open(path, "w", driver="GTiff", width=TILE, height=TILE, count=3, dtype="uint8",
-                               crs=crs, transform=t, nodata=nodata, compress="deflate", predictor=2,
-                               tiled=True, blockxsize=64, blockysize=64, interleave="pixel") as ds:
+            with rasterio.open(
+                path,
+                "w",
+                driver="GTiff",
+                width=TILE,
+                height=TILE,
+                count=3,
+                dtype="uint8",
+                crs=crs,
+                transform=t,
+                nodata=nodata,
+                compress="deflate",
+                predictor=2,
+                tiled=True,
+                blockxsize=64,
+                blockysize=64,
+                interleave="pixel",
+            ) as ds:
                 ds.write(block)
-                ds.colorinterp = [rasterio.enums.ColorInterp.red, rasterio.enums.ColorInterp.green,
-                                  rasterio.enums.ColorInterp.blue]
+                ds.colorinterp = [
+                    rasterio.enums.ColorInterp.red,
+                    rasterio.enums.ColorInterp.green,
+                    rasterio.enums.ColorInterp.blue,
+                ]
                 for b in range(3):  # what `gdalinfo -stats` stores: nodata excluded, population std
                     v = block[b][block[b] != nodata].astype(np.float64)
-                    ds.update_tags(b + 1, STATISTICS_MINIMUM=f"{v.min():.0f}", STATISTICS_MAXIMUM=f"{v.max():.0f}",
-                                   STATISTICS_MEAN=repr(float(v.mean())), STATISTICS_STDDEV=repr(float(v.std())))
+                    ds.update_tags(
+                        b + 1,
+                        STATISTICS_MINIMUM=f"{v.min():.0f}",
+                        STATISTICS_MAXIMUM=f"{v.max():.0f}",
+                        STATISTICS_MEAN=repr(float(v.mean())),
+                        STATISTICS_STDDEV=repr(float(v.std())),
+                    )
             with rasterio.open(path, "r+") as ds:
                 ds.build_overviews([2], rasterio.enums.Resampling.average)
             left, top = t.c, t.f
-            out.append({"name": name, "row": r, "col": c, "bounds": (left, top + TILE * t.e, left + TILE * t.a, top)})
+            out.append(
+                {
+                    "name": name,
+                    "row": r,
+                    "col": c,
+                    "bounds": (left, top + TILE * t.e, left + TILE * t.a, top),
+                }
+            )
     return out
 
 
@@ -89,8 +119,9 @@ def _blocks(tiles: list[dict[str, Any]]) -> dict[str, tuple[float, float, float,
     return {"B1": (left, bottom, mid, top), "B2": (mid, bottom, right, top)}
 
 
-def _write_vectors(root: Path, tiles: list[dict[str, Any]],
-                   blocks: dict[str, tuple[float, float, float, float]]) -> None:
+def _write_vectors(
+    root: Path, tiles: list[dict[str, Any]], blocks: dict[str, tuple[float, float, float, float]]
+) -> None:
     import shapely
 
     (root / "index").mkdir()
@@ -100,20 +131,34 @@ def _write_vectors(root: Path, tiles: list[dict[str, Any]],
     names = [t["name"] for t in tiles] + [f"{PREFIX}_R5_C1"]
     missing = tiles[-4]["bounds"]
     h = missing[3] - missing[1]
-    boxes = [shapely.box(*t["bounds"]) for t in tiles] + [shapely.box(missing[0], missing[1] - h, missing[2], missing[1])]
+    boxes = [shapely.box(*t["bounds"]) for t in tiles] + [
+        shapely.box(missing[0], missing[1] - h, missing[2], missing[1])
+    ]
     _write(root / "index" / "tile_index.shp", "ESRI Shapefile", boxes, {"TILE_NAME": names}, crs)
     # seamlines: the one source scene's valid area over the lot
     left = min(t["bounds"][0] for t in tiles)
     bottom = min(t["bounds"][1] for t in tiles)
     right = max(t["bounds"][2] for t in tiles)
     top = max(t["bounds"][3] for t in tiles)
-    _write(root / "index" / "seamlines.shp", "ESRI Shapefile", [shapely.box(left, bottom, right, top)],
-           {"SCENE": ["LE07_L1TP_014042_20021104"]}, crs)
-    _write(root / "index" / "blocks.geojson", "GeoJSON", [shapely.box(*b) for b in blocks.values()],
-           {"BLOCK": list(blocks)}, crs)
+    _write(
+        root / "index" / "seamlines.shp",
+        "ESRI Shapefile",
+        [shapely.box(left, bottom, right, top)],
+        {"SCENE": ["LE07_L1TP_014042_20021104"]},
+        crs,
+    )
+    _write(
+        root / "index" / "blocks.geojson",
+        "GeoJSON",
+        [shapely.box(*b) for b in blocks.values()],
+        {"BLOCK": list(blocks)},
+        crs,
+    )
 
 
-def _write(path: Path, driver: str, geoms: list[Any], fields: dict[str, list[str]], crs: str) -> None:
+def _write(
+    path: Path, driver: str, geoms: list[Any], fields: dict[str, list[str]], crs: str
+) -> None:
     import pyogrio.raw
     import shapely
 
@@ -121,13 +166,27 @@ def _write(path: Path, driver: str, geoms: list[Any], fields: dict[str, list[str
     names = list(fields)
     values = [np.array(v, dtype=object) for v in fields.values()]
     # a fixed DBF date (GDAL stamps today's otherwise): the same bytes on every run
-    layer_options = {"SPATIAL_INDEX": "NO", "DBF_DATE_LAST_UPDATE": "2026-05-02"} if driver == "ESRI Shapefile" else {}
-    pyogrio.raw.write(str(path), geometry, values, names, driver=driver, crs=crs, geometry_type="Polygon",
-                      layer=path.stem, layer_options=layer_options or None)
+    layer_options = (
+        {"SPATIAL_INDEX": "NO", "DBF_DATE_LAST_UPDATE": "2026-05-02"}
+        if driver == "ESRI Shapefile"
+        else {}
+    )
+    pyogrio.raw.write(
+        str(path),
+        geometry,
+        values,
+        names,
+        driver=driver,
+        crs=crs,
+        geometry_type="Polygon",
+        layer=path.stem,
+        layer_options=layer_options or None,
+    )
 
 
-def _points(tiles: list[dict[str, Any]], blocks: dict[str, tuple[float, float, float, float]]
-            ) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+def _points(
+    tiles: list[dict[str, Any]], blocks: dict[str, tuple[float, float, float, float]]
+) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
     """20 check points per block on valid pixels (image = reference + error) and 4 GCPs per block."""
     rng = np.random.default_rng(SEED)
     with rasterio.open(SOURCE) as src:
@@ -148,11 +207,20 @@ def _points(tiles: list[dict[str, Any]], blocks: dict[str, tuple[float, float, f
             z = float(rng.uniform(2.0, 40.0))
             if picked < 20:
                 dx, dy = rng.normal(0.0, 95.0, 2)
-                cps.append({"id": f"{b}-K{picked + 1:02d}", "x": x_ref + dx, "y": y_ref + dy, "x_ref": x_ref,
-                            "y_ref": y_ref, "z_ref": z})
+                cps.append(
+                    {
+                        "id": f"{b}-K{picked + 1:02d}",
+                        "x": x_ref + dx,
+                        "y": y_ref + dy,
+                        "x_ref": x_ref,
+                        "y_ref": y_ref,
+                        "z_ref": z,
+                    }
+                )
             else:
-                gcps.append({"id": f"{b}-P{picked - 19}", "x": x_ref, "y": y_ref, "z": z,
-                             "precision": 0.05})
+                gcps.append(
+                    {"id": f"{b}-P{picked - 19}", "x": x_ref, "y": y_ref, "z": z, "precision": 0.05}
+                )
             picked += 1
     return cps, gcps
 
@@ -171,12 +239,23 @@ def _xlsx(path: Path, cps: list[dict[str, Any]]) -> None:
     ws.title = "Kontrollpunkte"
     ws.append(["Kontrollpunkte Los 3, GNSS-Kampagne Oktober 2002 (fiktiv)"])
     ws.append(["Punkt", "Orthofoto", None, "GNSS-Messung", None, None, "Quelle"])
-    ws.append([None, "Rechtswert [m]", "Hochwert [m]", "Rechtswert [m]", "Hochwert [m]", "Höhe [m]", None])
+    ws.append(
+        [None, "Rechtswert [m]", "Hochwert [m]", "Rechtswert [m]", "Hochwert [m]", "Höhe [m]", None]
+    )
     ws.merge_cells("B2:C2")
     ws.merge_cells("D2:F2")
     for p in cps:
-        ws.append([p["id"], _comma(p["x"], 2), _comma(p["y"], 2), _comma(p["x_ref"], 3), _comma(p["y_ref"], 3),
-                   _comma(p["z_ref"], 3), "GNSS RTK, unabhängig vom Auftragnehmer (fiktiv)"])
+        ws.append(
+            [
+                p["id"],
+                _comma(p["x"], 2),
+                _comma(p["y"], 2),
+                _comma(p["x_ref"], 3),
+                _comma(p["y_ref"], 3),
+                _comma(p["z_ref"], 3),
+                "GNSS RTK, unabhängig vom Auftragnehmer (fiktiv)",
+            ]
+        )
     tmp = path.with_suffix(".tmp")
     wb.save(tmp)
     _normalise_zip(tmp, path)
@@ -192,7 +271,9 @@ def _normalise_zip(src: Path, dst: Path) -> None:
         for item in sorted(zin.infolist(), key=lambda i: i.filename):
             data = zin.read(item.filename)
             if item.filename == "docProps/core.xml":
-                data = re.sub(rb"\d{4}-\d{2}-\d{2}T\d{2}:\d{2}:\d{2}Z", b"2026-05-02T00:00:00Z", data)
+                data = re.sub(
+                    rb"\d{4}-\d{2}-\d{2}T\d{2}:\d{2}:\d{2}Z", b"2026-05-02T00:00:00Z", data
+                )
             info = zipfile.ZipInfo(item.filename, date_time=(2026, 5, 2, 0, 0, 0))
             info.compress_type = zipfile.ZIP_DEFLATED
             zout.writestr(info, data)
@@ -203,7 +284,15 @@ def _gcp_csv(path: Path, gcps: list[dict[str, Any]]) -> None:
         w = csv.writer(fh, delimiter=";", lineterminator="\r\n")
         w.writerow(["Pkt", "Rechtswert", "Hochwert", "Höhe", "Genauigkeit Lage"])
         for g in gcps:
-            w.writerow([g["id"], _comma(g["x"], 3), _comma(g["y"], 3), _comma(g["z"], 3), _comma(g["precision"], 2)])
+            w.writerow(
+                [
+                    g["id"],
+                    _comma(g["x"], 3),
+                    _comma(g["y"], 3),
+                    _comma(g["z"], 3),
+                    _comma(g["precision"], 2),
+                ]
+            )
 
 
 def _bbox_wgs84(tiles: list[dict[str, Any]]) -> tuple[float, float, float, float]:
@@ -496,17 +585,21 @@ def generate(out: Path, checker_dir: Path) -> Path:
     _gcp_csv(root / "survey" / "Passpunkte.csv", gcps)
     checker = _checker(root, blocks, checker_dir)
     checker_dir.mkdir(parents=True, exist_ok=True)
-    head = ("# Generated by examples/tiles_real.py: do not edit by hand, run `python examples/generate.py`.\n"
-            "# The external QC's file for the draft of tiles-real (`orthospec init DRAFT --from\n"
-            "# examples/deliveries/tiles-real`): the ITT values and the block outlines in force.\n")
-    (checker_dir / f"{NAME}.yaml").write_text(head + yaml.safe_dump(checker, sort_keys=False, width=100),
-                                             encoding="utf-8")
+    head = (
+        "# Generated by examples/tiles_real.py: do not edit by hand, run `python examples/generate.py`.\n"
+        "# The external QC's file for the draft of tiles-real (`orthospec init DRAFT --from\n"
+        "# examples/deliveries/tiles-real`): the ITT values and the block outlines in force.\n"
+    )
+    (checker_dir / f"{NAME}.yaml").write_text(
+        head + yaml.safe_dump(checker, sort_keys=False, width=100), encoding="utf-8"
+    )
     (root / "README.md").write_text(README.format(prefix=PREFIX), encoding="utf-8")
     return root
 
 
-def _checker(root: Path, blocks: dict[str, tuple[float, float, float, float]], checker_dir: Path
-             ) -> dict[str, Any]:
+def _checker(
+    root: Path, blocks: dict[str, tuple[float, float, float, float]], checker_dir: Path
+) -> dict[str, Any]:
     """The checker's file for the draft, pinned on the draft's check point table (drafted here with
     the library, as `orthospec init --from` does; the draft is byte-identical from run to run); and
     the checker folders whose check points `orthospec measure checkpoints` measured on the draft
@@ -519,13 +612,21 @@ def _checker(root: Path, blocks: dict[str, tuple[float, float, float, float]], c
         sha = hashlib.sha256((draft / "tables" / "checkpoints.csv").read_bytes()).hexdigest()
         ident = yaml.safe_load((draft / "delivery.yaml").read_text(encoding="utf-8"))["id"]
         checker = {
-        "orthospec_checker": 1,
-        "checker": {"name": "A. Weber (fictional)", "role": "external QC",
-                    "organisation": "the paying agency's control contractor (fictional)"},
-        "delivery": {"id": ident, "files": {"tables/checkpoints.csv": sha}},
-        "parameters": {"tolerance_xy": {"value": TOLERANCE_XY_M, "unit": "m"}, "map_crs": f"EPSG:{CRS_EPSG}"},
-        "blocks": [{"id": b, "polygon": [[x0, y0], [x1, y0], [x1, y1], [x0, y1], [x0, y0]]}
-                   for b, (x0, y0, x1, y1) in blocks.items()],
+            "orthospec_checker": 1,
+            "checker": {
+                "name": "A. Weber (fictional)",
+                "role": "external QC",
+                "organisation": "the paying agency's control contractor (fictional)",
+            },
+            "delivery": {"id": ident, "files": {"tables/checkpoints.csv": sha}},
+            "parameters": {
+                "tolerance_xy": {"value": TOLERANCE_XY_M, "unit": "m"},
+                "map_crs": f"EPSG:{CRS_EPSG}",
+            },
+            "blocks": [
+                {"id": b, "polygon": [[x0, y0], [x1, y0], [x1, y1], [x0, y1], [x0, y0]]}
+                for b, (x0, y0, x1, y1) in blocks.items()
+            ],
         }
         _measured_folders(draft, checker, checker_dir)
     return checker
@@ -536,8 +637,8 @@ def _checker(root: Path, blocks: dict[str, tuple[float, float, float, float]], c
 #: reference orthoimage is the same scene georeferenced (dx, dy) away, so every delivered feature
 #: lies at (true - shift); the measured image-minus-true offset must come out as -shift
 SHIFTS: dict[str, tuple[float, float]] = {
-    "tiles-real": (111.0, -63.0),            # 0.37 / -0.21 px: 128 m, within the 450 m tolerance
-    "tiles-real-fail": (480.0, -390.0),      # 1.6 / -1.3 px: 618 m, beyond it
+    "tiles-real": (111.0, -63.0),  # 0.37 / -0.21 px: 128 m, within the 450 m tolerance
+    "tiles-real-fail": (480.0, -390.0),  # 1.6 / -1.3 px: 618 m, beyond it
 }
 #: pixels (col, row) of the window where the reference orthophoto has a cloud (flat 250 DN over
 #: CLOUD_PX x CLOUD_PX): the points surveyed there go to the hand list (low texture)
@@ -561,13 +662,27 @@ def _reference(path: Path, shift: tuple[float, float], seed: int) -> None:
     lum = data.mean(axis=0) * 0.9 + 12.0 + np.random.default_rng(seed).normal(0.0, 2.0, valid.shape)
     for c, r in CLOUDS:
         h = CLOUD_PX // 2
-        lum[r - h:r + h, c - h:c + h] = 250.0
+        lum[r - h : r + h, c - h : c + h] = 250.0
     out = np.where(valid, np.clip(np.rint(lum), 1, 255), 0).astype(np.uint8)
     transform = Affine(t.a, t.b, t.c + shift[0], t.d, t.e, t.f + shift[1])
     path.parent.mkdir(parents=True, exist_ok=True)
-    with rasterio.open(path, "w", driver="GTiff", width=out.shape[1], height=out.shape[0], count=1, dtype="uint8",
-                       crs=crs, transform=transform, nodata=0, compress="deflate", predictor=2, tiled=True,
-                       blockxsize=256, blockysize=256) as ds:
+    with rasterio.open(
+        path,
+        "w",
+        driver="GTiff",
+        width=out.shape[1],
+        height=out.shape[0],
+        count=1,
+        dtype="uint8",
+        crs=crs,
+        transform=transform,
+        nodata=0,
+        compress="deflate",
+        predictor=2,
+        tiled=True,
+        blockxsize=256,
+        blockysize=256,
+    ) as ds:
         ds.write(out, 1)
         ds.colorinterp = [rasterio.enums.ColorInterp.gray]
 
@@ -635,13 +750,21 @@ def _measured_folders(draft: Path, checker: dict[str, Any], checker_dir: Path) -
         rel = Path("examples") / "checker" / name
         os.chdir(base)
         try:
-            measure_checkpoints(draft.resolve(), rel / "reference" / "reference.tif", rel / "survey.csv", rel,
-                                options=options)
+            measure_checkpoints(
+                draft.resolve(),
+                rel / "reference" / "reference.tif",
+                rel / "survey.csv",
+                rel,
+                options=options,
+            )
         finally:
             os.chdir(cwd)
-        head = (f"# Generated by examples/tiles_real.py: do not edit by hand, run `python examples/generate.py`.\n"
-                f"# The external QC's folder for the draft of tiles-real; tables/checkpoints.csv was written by\n"
-                f"# `orthospec measure checkpoints` from reference/reference.tif (the scene georeferenced\n"
-                f"# {shift[0]:g}, {shift[1]:g} m away: the planted error) and survey.csv (issue 29).\n")
-        (folder / "checker.yaml").write_text(head + yaml.safe_dump(checker, sort_keys=False, width=100),
-                                             encoding="utf-8")
+        head = (
+            f"# Generated by examples/tiles_real.py: do not edit by hand, run `python examples/generate.py`.\n"
+            f"# The external QC's folder for the draft of tiles-real; tables/checkpoints.csv was written by\n"
+            f"# `orthospec measure checkpoints` from reference/reference.tif (the scene georeferenced\n"
+            f"# {shift[0]:g}, {shift[1]:g} m away: the planted error) and survey.csv (issue 29).\n"
+        )
+        (folder / "checker.yaml").write_text(
+            head + yaml.safe_dump(checker, sort_keys=False, width=100), encoding="utf-8"
+        )

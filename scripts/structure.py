@@ -18,15 +18,22 @@ def facts(checkout: Path) -> dict[str, object]:
     sizes = {f: len(t.splitlines()) for f, t in texts.items()}
     largest = max(sizes, key=lambda f: sizes[f])
     long_functions = sum(
-        1 for t in texts.values() for n in ast.walk(ast.parse(t))
-        if isinstance(n, ast.FunctionDef | ast.AsyncFunctionDef) and (n.end_lineno or n.lineno) - n.lineno + 1 > 80)
+        1
+        for t in texts.values()
+        for n in ast.walk(ast.parse(t))
+        if isinstance(n, ast.FunctionDef | ast.AsyncFunctionDef)
+        and (n.end_lineno or n.lineno) - n.lineno + 1 > 80
+    )
     return {
-        "files": len(texts), "lines": sum(sizes.values()),
+        "files": len(texts),
+        "lines": sum(sizes.values()),
         "largest": f"{largest.relative_to(root)} {sizes[largest]}",
         "over_600": sorted((f"{f.relative_to(root)} {n}" for f, n in sizes.items() if n > 600)),
         "functions_over_80": long_functions,
         "dict_str_any": sum(t.count("dict[str, Any]") for t in texts.values()),
-        "lines_over_100": sum(1 for t in texts.values() for line in t.splitlines() if len(line) > 100),
+        "lines_over_100": sum(
+            1 for t in texts.values() for line in t.splitlines() if len(line) > 100
+        ),
     }
 
 

@@ -90,7 +90,9 @@ def resigned(checker: str | Path, delivery: str | Path, out: str | Path, **top: 
     a single checker file is written to ``out``."""
     src = Path(checker)
     if not src.exists() and src.suffix == ".yaml" and src.with_suffix("").is_dir():
-        src = src.with_suffix("")  # examples/checker/<name>.yaml was the single file before the folders
+        src = src.with_suffix(
+            ""
+        )  # examples/checker/<name>.yaml was the single file before the folders
     folder = src if src.is_dir() else (src.parent if src.name == "checker.yaml" else None)
     root = Path(delivery)
     if folder is not None:
@@ -101,7 +103,9 @@ def resigned(checker: str | Path, delivery: str | Path, out: str | Path, **top: 
         path = dst / "checker.yaml"
     else:
         path = Path(out)
-    doc = yaml.safe_load((folder / "checker.yaml" if folder is not None else src).read_text(encoding="utf-8"))
+    doc = yaml.safe_load(
+        (folder / "checker.yaml" if folder is not None else src).read_text(encoding="utf-8")
+    )
     m = yaml.safe_load((root / "delivery.yaml").read_text(encoding="utf-8")) or {}
     used = {v for k in ("tables", "vectors", "documents") for v in (m.get(k) or {}).values()}
     # the checker pins what it received: a table the planted delivery no longer has is not pinned
@@ -138,8 +142,13 @@ def remeasured(folder: str | Path, delivery: str | Path) -> None:
         if img is None:
             near = [i for i in have if i.get("block") == row["block"]] or have
             x, y = float(row["x_ref"]), float(row["y_ref"])
-            img = min(near, key=lambda i: (float(i.get("exposure_x") or 0) - x) ** 2
-                      + (float(i.get("exposure_y") or 0) - y) ** 2)
+            img = min(
+                near,
+                key=lambda i: (
+                    (float(i.get("exposure_x") or 0) - x) ** 2
+                    + (float(i.get("exposure_y") or 0) - y) ** 2
+                ),
+            )
         row["image_id"] = img["image_id"]
         row["image_sha256"] = hashlib.sha256((root / img["file"]).read_bytes()).hexdigest()
     with table.open("w", encoding="utf-8", newline="") as f:
@@ -148,32 +157,55 @@ def remeasured(folder: str | Path, delivery: str | Path) -> None:
         w.writerows(rows)
 
 
-def check_with(delivery: str | Path, profile: str | Path | ResolvedProfile, *, checker: str | Path | None = None,
-               date: str = "2026-01-01", params: list[str] | tuple[str, ...] | dict[str, str] = (),
-               fail_on: str = "fail", options: dict[str, Any] | None = None) -> api.CheckResult:
+def check_with(
+    delivery: str | Path,
+    profile: str | Path | ResolvedProfile,
+    *,
+    checker: str | Path | None = None,
+    date: str = "2026-01-01",
+    params: list[str] | tuple[str, ...] | dict[str, str] = (),
+    fail_on: str = "fail",
+    options: dict[str, Any] | None = None,
+) -> api.CheckResult:
     """`orthospec check DELIVERY --profile PROFILE [--checker FILE]` as a library call."""
     if "checker" in inspect.signature(api.check).parameters:
-        return api.check(delivery, profile, checker=checker, date=date, params=params, fail_on=fail_on,
-                         options=options)
+        return api.check(
+            delivery,
+            profile,
+            checker=checker,
+            date=date,
+            params=params,
+            fail_on=fail_on,
+            options=options,
+        )
     prof = profile if isinstance(profile, ResolvedProfile) else load_profile(profile)
     d = open_delivery(delivery)
     d.load_all_tables()
     chk = load_checker(checker, delivery=d) if checker is not None else None
-    values = resolve_parameters(prof, dict(d.manifest.tender.parameters) if d.manifest.tender else {},
-                                                dict(params) if isinstance(params, dict) else parse_cli_params(list(params)),
-                                manifest=d.flat_manifest(), checker=chk)
+    values = resolve_parameters(
+        prof,
+        dict(d.manifest.tender.parameters) if d.manifest.tender else {},
+        dict(params) if isinstance(params, dict) else parse_cli_params(list(params)),
+        manifest=d.flat_manifest(),
+        checker=chk,
+    )
     ev = Evaluator(prof, d, values, fail_on=fail_on, options=options, checker=chk).run()
-    return api.CheckResult(build_document(ev, date=api.parse_date(date), delivery_path=d.root.name), ev)
+    return api.CheckResult(
+        build_document(ev, date=api.parse_date(date), delivery_path=d.root.name), ev
+    )
 
 
 # --- editing a copied delivery (the red-team and regression tests plant defects with these) ---
+
 
 def manifest(d: Path) -> dict[str, Any]:
     return yaml.safe_load((d / "delivery.yaml").read_text(encoding="utf-8"))
 
 
 def write_manifest(d: Path, m: dict[str, Any]) -> None:
-    (d / "delivery.yaml").write_text(yaml.safe_dump(m, sort_keys=False, allow_unicode=True), encoding="utf-8")
+    (d / "delivery.yaml").write_text(
+        yaml.safe_dump(m, sort_keys=False, allow_unicode=True), encoding="utf-8"
+    )
 
 
 def read_table(d: Path, name: str) -> tuple[list[str], list[dict[str, str]]]:

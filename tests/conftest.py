@@ -24,7 +24,9 @@ EXAMPLES = ROOT / "examples" / "deliveries"
 # first process (xdist workers and the CLI subprocesses inherit it), and removed by that process.
 _OWN_CACHE: str | None = None
 if "ORTHOSPEC_CACHE_DIR" not in os.environ:
-    _OWN_CACHE = os.environ["ORTHOSPEC_CACHE_DIR"] = tempfile.mkdtemp(prefix="orthospec-test-cache-")
+    _OWN_CACHE = os.environ["ORTHOSPEC_CACHE_DIR"] = tempfile.mkdtemp(
+        prefix="orthospec-test-cache-"
+    )
 
 
 def _terminated(signum: int, frame: object) -> None:
@@ -64,7 +66,11 @@ def pytest_unconfigure(config: pytest.Config) -> None:
 def _strict(report: pytest.TestReport | pytest.CollectReport) -> None:
     """With ORTHOSPEC_STRICT_SKIPS=1 (set by .ci/run) a skip fails: CI must not pass on a machine
     that lacks what a test needs (../shared, gdalinfo, PostgreSQL, distributed, pyarrow)."""
-    if report.skipped and os.environ.get("ORTHOSPEC_STRICT_SKIPS") == "1" and not hasattr(report, "wasxfail"):
+    if (
+        report.skipped
+        and os.environ.get("ORTHOSPEC_STRICT_SKIPS") == "1"
+        and not hasattr(report, "wasxfail")
+    ):
         reason = report.longrepr[-1] if isinstance(report.longrepr, tuple) else str(report.longrepr)
         report.outcome = "failed"
         report.longrepr = f"skipped under ORTHOSPEC_STRICT_SKIPS=1 (CI): {reason}"
@@ -118,8 +124,14 @@ def mini_profile() -> Path:
 def make_delivery(tmp_path: Path) -> Callable[..., Path]:
     """Write a small delivery; keyword args replace the manifest or a table's text."""
 
-    def make(name: str = "d", *, manifest: str = MANIFEST, images: str | None = IMAGES,
-             manual: str | None = MANUAL, extra: dict[str, str] | None = None) -> Path:
+    def make(
+        name: str = "d",
+        *,
+        manifest: str = MANIFEST,
+        images: str | None = IMAGES,
+        manual: str | None = MANUAL,
+        extra: dict[str, str] | None = None,
+    ) -> Path:
         root = tmp_path / name
         (root / "tables").mkdir(parents=True)
         (root / "delivery.yaml").write_text(textwrap.dedent(manifest), encoding="utf-8")

@@ -31,7 +31,9 @@ class _LocalOnly(etree.Resolver):
 
     def resolve(self, url, pubid, context):  # type: ignore[no-untyped-def]
         path = Path(url[7:] if url.startswith("file://") else url)
-        if ("://" in url[:12] and not url.startswith("file://")) or not path.resolve().is_relative_to(XSD):
+        if (
+            "://" in url[:12] and not url.startswith("file://")
+        ) or not path.resolve().is_relative_to(XSD):
             raise OSError(f"schema import {url!r} is not a local file under {XSD}")
         return None  # libxml2 reads the local file itself
 

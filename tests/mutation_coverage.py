@@ -19,7 +19,9 @@ PLUGIN_NAME = "orthospec-mutation-coverage"
 
 def mandatory_automatic(profile: str) -> set[str]:
     """Ids of the mandatory, non-manual rules a shipped profile defines."""
-    rules = yaml.safe_load((ROOT / "specs" / f"{profile}.yaml").read_text(encoding="utf-8"))["rules"]
+    rules = yaml.safe_load((ROOT / "specs" / f"{profile}.yaml").read_text(encoding="utf-8"))[
+        "rules"
+    ]
     return {r["id"] for r in rules if r.get("level") == "mandatory" and not r.get("manual")}
 
 
@@ -30,9 +32,11 @@ def coverage_line() -> str:
     planted = len({(p, c["rule"]) for p, c in cases})
     refused = len({(p, c["rule"]) for p, c in cases if "refused" in c})
     exceptions = len(table.get("exceptions") or [])
-    return (f"mutation coverage: {planted}/{total} mandatory automatic rules planted "
-            f"({refused} of them refused at load, exit 2), {exceptions} listed exceptions "
-            "(tests/data/mutations.yaml)")
+    return (
+        f"mutation coverage: {planted}/{total} mandatory automatic rules planted "
+        f"({refused} of them refused at load, exit 2), {exceptions} listed exceptions "
+        "(tests/data/mutations.yaml)"
+    )
 
 
 class CoverageReport:

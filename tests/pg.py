@@ -28,9 +28,11 @@ USER = "orthospec"
 
 def find_bindir() -> Path | None:
     """Directory holding initdb and pg_ctl, newest major version first; None when absent."""
-    candidates = sorted(glob.glob("/usr/lib/postgresql/*/bin"),
-                        key=lambda p: int(Path(p).parent.name) if Path(p).parent.name.isdigit() else 0,
-                        reverse=True)
+    candidates = sorted(
+        glob.glob("/usr/lib/postgresql/*/bin"),
+        key=lambda p: int(Path(p).parent.name) if Path(p).parent.name.isdigit() else 0,
+        reverse=True,
+    )
     which = shutil.which("initdb")
     if which:
         candidates.append(str(Path(os.path.realpath(which)).parent))
@@ -61,18 +63,54 @@ class PgServer:
         return f"postgresql+psycopg://{USER}@127.0.0.1:{self.port}/{dbname}"
 
     def _pg(self, *args: str, check: bool = True) -> subprocess.CompletedProcess[str]:
-        return subprocess.run([str(self.bindir / args[0]), *args[1:]], cwd=self.base, user=self.run_as,
-                              capture_output=True, text=True, check=check, timeout=60)
+        return subprocess.run(
+            [str(self.bindir / args[0]), *args[1:]],
+            cwd=self.base,
+            user=self.run_as,
+            capture_output=True,
+            text=True,
+            check=check,
+            timeout=60,
+        )
 
     def start(self) -> None:
-        self._pg("initdb", "-D", str(self.data), "-U", USER, "-A", "trust", "-E", "UTF8",
-                 "--locale=C", "--no-sync")
-        opts = (f"-c listen_addresses=127.0.0.1 -p {self.port} -k {self.base} -c fsync=off "
-                "-c synchronous_commit=off -c full_page_writes=off -c max_connections=50")
-        res = self._pg("pg_ctl", "-D", str(self.data), "-l", str(self.base / "server.log"), "-w",
-                       "-t", "30", "-o", opts, "start", check=False)
+        self._pg(
+            "initdb",
+            "-D",
+            str(self.data),
+            "-U",
+            USER,
+            "-A",
+            "trust",
+            "-E",
+            "UTF8",
+            "--locale=C",
+            "--no-sync",
+        )
+        opts = (
+            f"-c listen_addresses=127.0.0.1 -p {self.port} -k {self.base} -c fsync=off "
+            "-c synchronous_commit=off -c full_page_writes=off -c max_connections=50"
+        )
+        res = self._pg(
+            "pg_ctl",
+            "-D",
+            str(self.data),
+            "-l",
+            str(self.base / "server.log"),
+            "-w",
+            "-t",
+            "30",
+            "-o",
+            opts,
+            "start",
+            check=False,
+        )
         if res.returncode != 0:
-            log = (self.base / "server.log").read_text(errors="replace") if (self.base / "server.log").exists() else ""
+            log = (
+                (self.base / "server.log").read_text(errors="replace")
+                if (self.base / "server.log").exists()
+                else ""
+            )
             raise RuntimeError(f"PostgreSQL did not start: {res.stdout}{res.stderr}\n{log[-2000:]}")
 
     def stop(self) -> None:
@@ -85,8 +123,9 @@ class PgServer:
         import psycopg
 
         name = "t_" + uuid.uuid4().hex[:12]
-        with psycopg.connect(host="127.0.0.1", port=self.port, user=USER, dbname="postgres",
-                             autocommit=True) as conn:
+        with psycopg.connect(
+            host="127.0.0.1", port=self.port, user=USER, dbname="postgres", autocommit=True
+        ) as conn:
             conn.execute(f'CREATE DATABASE "{name}"')
         return self.url(name)
 
@@ -122,9 +161,11 @@ def server() -> PgServer:
     global _server
     if _server is None:
         if find_bindir() is None:
-            pytest.skip("PostgreSQL SERVER BINARIES ABSENT (no initdb/pg_ctl in /usr/lib/postgresql/*/bin "
-                        "or PATH): the postgres variant of the ledger tests did NOT run; install them "
-                        "with `bash scripts/sysdeps.sh` (Debian package postgresql)")
+            pytest.skip(
+                "PostgreSQL SERVER BINARIES ABSENT (no initdb/pg_ctl in /usr/lib/postgresql/*/bin "
+                "or PATH): the postgres variant of the ledger tests did NOT run; install them "
+                "with `bash scripts/sysdeps.sh` (Debian package postgresql)"
+            )
         _server = start_server()
         atexit.register(_server.stop)
     return _server

@@ -3,7 +3,8 @@
 Each variant is base.yaml (a valid tender profile) with one typical mistake. A variant is *caught*
 when `spec validate` exits 2, and *usable* when, besides, it prints exactly one error, located at
 the variant's own file and the line of the mistake (never at a shipped profile), at most
-MAX_MESSAGE characters long, whose message contains the fix (``fix`` in expected.yaml: what to write instead, or the name that was meant).
+MAX_MESSAGE characters long, whose message contains the fix (``fix`` in expected.yaml: what to
+write instead, or the name that was meant).
 
 Run as a script for the before -> after counts (any orthospec on the path, old or new)::
 
@@ -47,8 +48,16 @@ def score(v: dict[str, Any]) -> dict[str, Any]:
     """One variant: caught, usable, and why not."""
     path = CORPUS / v["file"]
     code, errors = run_validate(path)
-    out = {"file": v["file"], "what": v["what"], "exit": code, "errors": len(errors),
-           "first": errors[0] if errors else "", "caught": code == 2, "usable": False, "why": ""}
+    out = {
+        "file": v["file"],
+        "what": v["what"],
+        "exit": code,
+        "errors": len(errors),
+        "first": errors[0] if errors else "",
+        "caught": code == 2,
+        "usable": False,
+        "why": "",
+    }
     if code != 2:
         out["why"] = "not caught"
         return out
@@ -76,8 +85,10 @@ def main() -> None:
         print(f"{flag:7s} {r['file']:40s} {r['why']}")
         if not r["usable"] and r["first"]:
             print(f"        {r['first'][:220]}")
-    print(f"{sum(r['caught'] for r in rows)} caught, {sum(r['usable'] for r in rows)} with a usable fix, "
-          f"of {len(rows)} variants")
+    print(
+        f"{sum(r['caught'] for r in rows)} caught, {sum(r['usable'] for r in rows)} with a usable fix, "
+        f"of {len(rows)} variants"
+    )
 
 
 if __name__ == "__main__":

@@ -51,12 +51,15 @@ def test_image_delivery_verdict():
         image_delivery_verdict(10, [])
 
 
-@pytest.mark.parametrize(("n", "failed", "returned"), [
-    (30, 1, False),   # 1/30 = 3.3 % <= 5 %: the failing image is reprocessed
-    (30, 2, True),    # 2/30 = 6.7 % > 5 % (§12.3 "more than 5%"): the delivery is returned
-    (20, 1, False),   # exactly 5 % is not "more than 5%"
-    (19, 1, True),    # 1/19 = 5.3 %: one image already returns a small delivery (the text, kept)
-])
+@pytest.mark.parametrize(
+    ("n", "failed", "returned"),
+    [
+        (30, 1, False),  # 1/30 = 3.3 % <= 5 %: the failing image is reprocessed
+        (30, 2, True),  # 2/30 = 6.7 % > 5 % (§12.3 "more than 5%"): the delivery is returned
+        (20, 1, False),  # exactly 5 % is not "more than 5%"
+        (19, 1, True),  # 1/19 = 5.3 %: one image already returns a small delivery (the text, kept)
+    ],
+)
 def test_image_share_follows_section_12_3(n, failed, returned):
     v = image_delivery_verdict(n, [True] * failed + [False] * (n - failed))
     assert v.failed_fraction == pytest.approx(failed / n)

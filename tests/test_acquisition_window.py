@@ -55,17 +55,24 @@ def _rule(doc: dict[str, Any], rule: str) -> dict[str, dict[str, Any]]:
 
 
 def _check(d: Path, params: list[str] | None = None) -> dict[str, Any]:
-    return check_with(d, "jrc-v3", checker=CHECKERS / d.name, date=DATE, params=params or []).document
+    return check_with(
+        d, "jrc-v3", checker=CHECKERS / d.name, date=DATE, params=params or []
+    ).document
 
 
-@pytest.mark.parametrize(("day", "start", "end", "expected"), [
-    (dt.date(2026, 5, 1), dt.date(2026, 5, 1), dt.date(2026, 6, 30), 0),    # first day inclusive
-    (dt.date(2026, 6, 30), dt.date(2026, 5, 1), dt.date(2026, 6, 30), 0),   # last day inclusive
-    (dt.date(2026, 4, 30), dt.date(2026, 5, 1), dt.date(2026, 6, 30), 1),
-    (dt.date(2027, 8, 28), dt.date(2026, 5, 1), dt.date(2026, 6, 30), 424),
-    (dt.date(2020, 1, 1), None, dt.date(2026, 6, 30), 0),                   # open start
-])
-def test_days_outside_the_window(day: dt.date, start: dt.date | None, end: dt.date | None, expected: int) -> None:
+@pytest.mark.parametrize(
+    ("day", "start", "end", "expected"),
+    [
+        (dt.date(2026, 5, 1), dt.date(2026, 5, 1), dt.date(2026, 6, 30), 0),  # first day inclusive
+        (dt.date(2026, 6, 30), dt.date(2026, 5, 1), dt.date(2026, 6, 30), 0),  # last day inclusive
+        (dt.date(2026, 4, 30), dt.date(2026, 5, 1), dt.date(2026, 6, 30), 1),
+        (dt.date(2027, 8, 28), dt.date(2026, 5, 1), dt.date(2026, 6, 30), 424),
+        (dt.date(2020, 1, 1), None, dt.date(2026, 6, 30), 0),  # open start
+    ],
+)
+def test_days_outside_the_window(
+    day: dt.date, start: dt.date | None, end: dt.date | None, expected: int
+) -> None:
     assert days_outside(day, start, end) == expected
 
 
@@ -76,13 +83,18 @@ def test_images_15_months_outside_the_declared_window_are_a_finding(tmp_path: Pa
     doc = _check(d)
     got = _rule(doc, "JRC-3.4-DECLARED-WINDOW")["D-2026-031"]
     assert got["verdict"] == "fail" and got["measured"]["value"] == 1
-    assert "S02_SC2 (2027-08-28)" in got["message"] and f"up to {(dt.date(2027, 8, 28) - dt.date(2026, 5, 28)).days} days" in got["message"]
+    assert (
+        "S02_SC2 (2027-08-28)" in got["message"]
+        and f"up to {(dt.date(2027, 8, 28) - dt.date(2026, 5, 28)).days} days" in got["message"]
+    )
     assert doc["verdict"] == "rejected"
 
 
 def test_the_shipped_examples_keep_to_their_declared_windows() -> None:
     for example in ("aerial-pass", "satellite-pass"):
-        doc = check_with(EXAMPLES / example, "jrc-v3", checker=CHECKERS / example, date=DATE).document
+        doc = check_with(
+            EXAMPLES / example, "jrc-v3", checker=CHECKERS / example, date=DATE
+        ).document
         got = _rule(doc, "JRC-3.4-DECLARED-WINDOW")
         assert [r["verdict"] for r in got.values()] == ["pass"], got
 
@@ -99,7 +111,8 @@ def test_the_itt_window_rejects_the_image_taken_outside_it(tmp_path: Path) -> No
     assert got["S02_SC2"]["verdict"] == "fail"
     assert got["S02_SC2"]["measured"]["value"] == (dt.date(2026, 7, 3) - dt.date(2026, 6, 30)).days
     assert {i: r["verdict"] for i, r in got.items() if i != "S02_SC2"} == dict.fromkeys(
-        ("S01_SC1", "S01_SC2", "S01_SC3", "S02_SC1", "S02_SC3"), "pass")
+        ("S01_SC1", "S01_SC2", "S01_SC3", "S02_SC1", "S02_SC3"), "pass"
+    )
     assert _rule(doc, "JRC-3.4-DECLARED-WINDOW")["D-2026-031"]["verdict"] == "pass"
     assert "S02_SC2" in doc["rollup"]["rejected"].get("image", [])
     assert doc["verdict"] == "rejected"
@@ -113,7 +126,9 @@ def test_without_an_itt_window_the_rule_is_not_applicable(tmp_path: Path) -> Non
     bare = {k: v for k, v in params.items() if not k.startswith("acquisition_window")}
     out = resigned(checker, EXAMPLES / "satellite-pass", tmp_path / "checker.yaml", parameters=bare)
     doc = check_with(EXAMPLES / "satellite-pass", "jrc-v3", checker=out, date=DATE).document
-    assert {r["verdict"] for r in _rule(doc, "JRC-3.4-ACQUISITION-WINDOW").values()} == {"not_applicable"}
+    assert {r["verdict"] for r in _rule(doc, "JRC-3.4-ACQUISITION-WINDOW").values()} == {
+        "not_applicable"
+    }
     shipped = _rule(_check(EXAMPLES / "satellite-pass"), "JRC-3.4-ACQUISITION-WINDOW")
     assert {r["verdict"] for r in shipped.values()} == {"pass"}
 
@@ -140,11 +155,19 @@ def test_a_photo_without_exposure_time_takes_its_flights_day(tmp_path: Path) -> 
     fday = next(f["start_time"][:10] for f in flights if f["flight_id"] == first["flight_id"])
     doc = _check(d, ["acquisition_window_start=2026-04-01", f"acquisition_window_end={fday}"])
     got = _rule(doc, "JRC-3.4-ACQUISITION-WINDOW")[first["image_id"]]
-    assert got["verdict"] == "pass" and f"acquired {fday} (flight {first['flight_id']}" in got["message"]
+    assert (
+        got["verdict"] == "pass"
+        and f"acquired {fday} (flight {first['flight_id']}" in got["message"]
+    )
 
 
 def test_a_window_bound_that_is_no_date_is_an_error(tmp_path: Path) -> None:
-    doc = _check(EXAMPLES / "satellite-pass", ["acquisition_window_start=spring", "acquisition_window_end=2026-06-30"])
+    doc = _check(
+        EXAMPLES / "satellite-pass",
+        ["acquisition_window_start=spring", "acquisition_window_end=2026-06-30"],
+    )
     got = _rule(doc, "JRC-3.4-ACQUISITION-WINDOW")
     assert {r["verdict"] for r in got.values()} == {"error"}
-    assert "acquisition_window_start = 'spring' is not a date" in next(iter(got.values()))["message"]
+    assert (
+        "acquisition_window_start = 'spring' is not a date" in next(iter(got.values()))["message"]
+    )

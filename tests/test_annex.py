@@ -61,15 +61,21 @@ def test_markdown_lists_parameters_and_every_rule_with_clause_and_quote(mini_ann
     for name, p in prof.parameters.items():
         assert f"`{name}`" in md and (p.unit or "") in md
     assert re.search(r"\| Max roll \(`max_roll`\) \| 3 \| deg \| standard \|", md)
-    assert re.search(r"\| Tolerance xy \(`tolerance_xy`\) \| — \| m \| to be fixed in the ITT \(required\) \|", md)
+    assert re.search(
+        r"\| Tolerance xy \(`tolerance_xy`\) \| — \| m \| to be fixed in the ITT \(required\) \|",
+        md,
+    )
     for rule in prof.rules:
         assert f"`{rule.id}`" in md
         assert rule.clause.text() in md
         assert rule.quote in md
     # grouped like the source: §5.x before §6.x before §12.x
     heads = re.findall(r"^### 2\.\d+ (.+)$", md, flags=re.M)
-    assert heads == ["JRC EUR 23638 EN — Section 5", "JRC EUR 23638 EN — Section 6",
-                     "JRC EUR 23638 EN — Section 12"]
+    assert heads == [
+        "JRC EUR 23638 EN — Section 5",
+        "JRC EUR 23638 EN — Section 6",
+        "JRC EUR 23638 EN — Section 12",
+    ]
     assert "≤ 3 deg" in md and "reject item" in md
 
 
@@ -106,33 +112,58 @@ def test_profile_text_is_escaped_in_html_and_markdown(tmp_path: Path) -> None:
     assert "## 2.2 DOC — Table 4" in md.replace("### ", "## ")
 
 
-@pytest.mark.parametrize(("req", "expected"), [
-    (Requirement(op="<=", value="tol", unit="m"), "≤ 0.5 m"),
-    # evaluated: 0.5 / 3, printed to 6 significant digits as the QCR prints the threshold it
-    # applied (3 digits, "0.167 m", told bidders a looser threshold than the one checked)
-    (Requirement(op="<=", value="tol / 3", unit="m"), "≤ 0.166667 m"),
-    # 0.5 * 0.999 and 0.5 * 1.001: at 3 digits both sides read 0.5 m, a range of no width
-    (Requirement(op="between", min="tol * 0.999", max="tol * 1.001", unit="m"),
-     "between 0.4995 m (incl.) and 0.5005 m (incl.)"),
-    (Requirement(op=">=", value=20, unit="1"), "≥ 20"),
-    (Requirement(op="<", value=2.5, unit="m"), "< 2.5 m"),
-    (Requirement(op="between", min=0, max=3, unit="deg"), "between 0 deg (incl.) and 3 deg (incl.)"),
-    (Requirement(op="in", values=["a", "b"]), "one of a, b"),
-    (Requirement(op="<=", value="free", unit="m"), "≤ the value fixed in the ITT"),
-    (Requirement(op="<=", value="2 * tol"), "≤ 2 * tol"),
-])
+@pytest.mark.parametrize(
+    ("req", "expected"),
+    [
+        (Requirement(op="<=", value="tol", unit="m"), "≤ 0.5 m"),
+        # evaluated: 0.5 / 3, printed to 6 significant digits as the QCR prints the threshold it
+        # applied (3 digits, "0.167 m", told bidders a looser threshold than the one checked)
+        (Requirement(op="<=", value="tol / 3", unit="m"), "≤ 0.166667 m"),
+        # 0.5 * 0.999 and 0.5 * 1.001: at 3 digits both sides read 0.5 m, a range of no width
+        (
+            Requirement(op="between", min="tol * 0.999", max="tol * 1.001", unit="m"),
+            "between 0.4995 m (incl.) and 0.5005 m (incl.)",
+        ),
+        (Requirement(op=">=", value=20, unit="1"), "≥ 20"),
+        (Requirement(op="<", value=2.5, unit="m"), "< 2.5 m"),
+        (
+            Requirement(op="between", min=0, max=3, unit="deg"),
+            "between 0 deg (incl.) and 3 deg (incl.)",
+        ),
+        (Requirement(op="in", values=["a", "b"]), "one of a, b"),
+        (Requirement(op="<=", value="free", unit="m"), "≤ the value fixed in the ITT"),
+        (Requirement(op="<=", value="2 * tol"), "≤ 2 * tol"),
+    ],
+)
 def test_requirement_text(req: Requirement, expected: str) -> None:
     params = {"tol": Parameter(unit="m", default=0.5), "free": Parameter(unit="m", required=True)}
     assert requirement_text(req, params) == expected
 
 
 def test_spec_render_command_writes_requested_formats(tmp_path: Path) -> None:
-    res = CliRunner().invoke(cli(), ["spec", "render", str(DATA / "profiles" / "mini.yaml"), "--format", "md,html",
-                                     "--out", str(tmp_path), "--date", "2026-01-01"])
+    res = CliRunner().invoke(
+        cli(),
+        [
+            "spec",
+            "render",
+            str(DATA / "profiles" / "mini.yaml"),
+            "--format",
+            "md,html",
+            "--out",
+            str(tmp_path),
+            "--date",
+            "2026-01-01",
+        ],
+    )
     assert res.exit_code == 0, res.output
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["annex-mini-1.0.0.html", "annex-mini-1.0.0.md"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "annex-mini-1.0.0.html",
+        "annex-mini-1.0.0.md",
+    ]
     assert "2026-01-01" in (tmp_path / "annex-mini-1.0.0.md").read_text(encoding="utf-8")
-    bad = CliRunner().invoke(cli(), ["spec", "render", str(DATA / "profiles" / "mini.yaml"), "--format", "docx"])
+    bad = CliRunner().invoke(
+        cli(), ["spec", "render", str(DATA / "profiles" / "mini.yaml"), "--format", "docx"]
+    )
     assert bad.exit_code == 2 and "unknown format" in bad.output
     with pytest.raises(ReportError, match="unknown annex format"):
         render_annex(load_profile(DATA / "profiles" / "mini.yaml"), formats=["rtf"])
@@ -140,15 +171,31 @@ def test_spec_render_command_writes_requested_formats(tmp_path: Path) -> None:
 
 def test_spec_render_publishes_profile_with_unimplemented_measures(tmp_path: Path) -> None:
     path = tmp_path / "future.yaml"
-    path.write_text(HOSTILE.replace("measure: images.roll", "measure: future.measure_x"), encoding="utf-8")
-    res = CliRunner().invoke(cli(), ["spec", "render", str(path), "--format", "md", "--out", str(tmp_path),
-                                     "--date", "2026-01-01"])
+    path.write_text(
+        HOSTILE.replace("measure: images.roll", "measure: future.measure_x"), encoding="utf-8"
+    )
+    res = CliRunner().invoke(
+        cli(),
+        [
+            "spec",
+            "render",
+            str(path),
+            "--format",
+            "md",
+            "--out",
+            str(tmp_path),
+            "--date",
+            "2026-01-01",
+        ],
+    )
     assert res.exit_code == 0, res.output
     assert "warning:" in res.output and "future.measure_x" in res.output
     assert "`H-2`" in (tmp_path / "annex-hostile-0.1.0.md").read_text(encoding="utf-8")
     broken = tmp_path / "broken.yaml"
     broken.write_text(HOSTILE.replace("scope: block", "scope: nowhere"), encoding="utf-8")
-    res = CliRunner().invoke(cli(), ["spec", "render", str(broken), "--format", "md", "--out", str(tmp_path)])
+    res = CliRunner().invoke(
+        cli(), ["spec", "render", str(broken), "--format", "md", "--out", str(tmp_path)]
+    )
     assert res.exit_code != 0 and not (tmp_path / "annex-hostile-0.1.0.html").exists()
 
 
@@ -158,7 +205,9 @@ def test_tender_annex_is_procurement_grade() -> None:
 
     from orthospec.profile.loader import load_profile
 
-    prof = load_profile(Path(__file__).resolve().parents[1] / "examples" / "specs" / "tender-example.yaml")
+    prof = load_profile(
+        Path(__file__).resolve().parents[1] / "examples" / "specs" / "tender-example.yaml"
+    )
     out = render_annex(prof, formats=["md", "pdf"], day="2026-11-23")
     md = out[annex_filename(prof, "md")]
     with pdfplumber.open(io.BytesIO(out[annex_filename(prof, "pdf")])) as pdf:
@@ -178,8 +227,11 @@ def test_tender_annex_is_procurement_grade() -> None:
     assert "0.166667 m" in gcp and "gcp_accuracy_factor" not in gcp
     # an aerial digital ITT: satellite and film rules are in Appendix A, not in the requirements
     body, appendix = md.split("## Appendix A.")
-    sat = [r.id for r in prof.rules if r.when and "manifest.sensor.type == 'satellite'" in r.when
-           and " or " not in r.when]
+    sat = [
+        r.id
+        for r in prof.rules
+        if r.when and "manifest.sensor.type == 'satellite'" in r.when and " or " not in r.when
+    ]
     assert sat
     for rid in sat:
         assert f"`{rid}`" not in body and f"`{rid}`" in appendix

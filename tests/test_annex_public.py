@@ -29,20 +29,26 @@ INTERNAL = re.compile(
     r"\bissues? \d+(?!\.\d)|\bseeds?\b|\bINTERFACES\b|\bmutation|\bxfail|\bTODO\b|\bFIXME\b|\bverbatim\b|\bOCR\b|"
     r"\bLaTeX\b|U\+[0-9A-F]{4}|\.py\b|(?<!delivery)\.ya?ml\b|\.txt\b|\b(?:specs|src|tests|scripts|benchmarks|docs)/|"
     r"\bevaluator\b|\bprovider\b|\bthe engine\b|\borthospec\b",
-    re.I)
+    re.I,
+)
 #: the annex's own sentences that name the tool (the template, not the profile)
 BOILERPLATE = re.compile(r"\*Rendered by orthospec from profile [^*]*\*")
 SHIPPED = sorted({pid for pid, _v, _t, _p in available()})
 
 
 def _hits(text: str) -> list[str]:
-    return [text[max(0, m.start() - 60):m.end() + 30].replace("\n", " ") for m in INTERNAL.finditer(text)]
+    return [
+        text[max(0, m.start() - 60) : m.end() + 30].replace("\n", " ")
+        for m in INTERNAL.finditer(text)
+    ]
 
 
 @pytest.mark.parametrize("pid", SHIPPED)
 def test_no_internal_vocabulary_in_the_annex_of_a_shipped_profile(pid: str) -> None:
     prof = load_profile(pid)
-    md = BOILERPLATE.sub("", render_annex(prof, formats=["md"], day="2026-01-01")[annex_filename(prof, "md")])
+    md = BOILERPLATE.sub(
+        "", render_annex(prof, formats=["md"], day="2026-01-01")[annex_filename(prof, "md")]
+    )
     assert not _hits(md), "\n".join(_hits(md)[:20])
 
 
@@ -59,19 +65,32 @@ def test_explain_prints_no_internal_vocabulary(pid: str) -> None:
 
 
 def test_a_public_note_reaches_the_annex_whole() -> None:
-    text = ("Decision: the noise std of homogeneous areas (the local-standard-deviation estimator), scaled to "
-            "8 bits. A disagreement beyond 1 cm is a finding for the checker, never a rejection.")
+    text = (
+        "Decision: the noise std of homogeneous areas (the local-standard-deviation estimator), scaled to "
+        "8 bits. A disagreement beyond 1 cm is a finding for the checker, never a rejection."
+    )
     assert plain_note(text) == text
 
 
-@pytest.mark.parametrize(("pid", "rid", "words"), [
-    ("jrc-v3", "JRC-9.5-REPORTED-RMSE-X", "recomputes the block RMSE_x from the external check points"),
-    ("jrc-v3", "JRC-6.3-MISREGISTRATION", "largest shift between a band and the reference band"),
-    ("jrc-v3", "JRC-6.3-NOISE", "noise standard deviation of homogeneous areas"),
-    ("jrc-v3", "JRC-12.5-DISTINCT-CHECKPOINTS", "reference position repeats another"),
-    ("ceos-edge", "CEOS-3B-SNR", "SNR = DN difference"),
-    ("usgs-insitu", "USGS-CE90-EMPIRICAL", "linear interpolation between order statistics"),
-])
+@pytest.mark.parametrize(
+    ("pid", "rid", "words"),
+    [
+        (
+            "jrc-v3",
+            "JRC-9.5-REPORTED-RMSE-X",
+            "recomputes the block RMSE_x from the external check points",
+        ),
+        (
+            "jrc-v3",
+            "JRC-6.3-MISREGISTRATION",
+            "largest shift between a band and the reference band",
+        ),
+        ("jrc-v3", "JRC-6.3-NOISE", "noise standard deviation of homogeneous areas"),
+        ("jrc-v3", "JRC-12.5-DISTINCT-CHECKPOINTS", "reference position repeats another"),
+        ("ceos-edge", "CEOS-3B-SNR", "SNR = DN difference"),
+        ("usgs-insitu", "USGS-CE90-EMPIRICAL", "linear interpolation between order statistics"),
+    ],
+)
 def test_the_annex_says_what_a_rule_measures(pid: str, rid: str, words: str) -> None:
     """What a rule measures stays in its public note (the old filter dropped it with the word 'seed')."""
     prof = load_profile(pid)

@@ -24,28 +24,57 @@ def _cli(*args: object) -> str:
     return res.output
 
 
-def test_library_document_equals_the_cli_qcr_json_with_sample_and_ledger(make_delivery, mini_profile,
-                                                                         tmp_path: Path) -> None:
+def test_library_document_equals_the_cli_qcr_json_with_sample_and_ledger(
+    make_delivery, mini_profile, tmp_path: Path
+) -> None:
     root = make_delivery()
     sample = tmp_path / "s.csv"
     sample.write_text(SAMPLE, encoding="utf-8")
-    _cli("check", root, "-p", mini_profile, "--sample", sample, "--ledger", tmp_path / "cli.sqlite",
-         "--out", tmp_path / "cli", "--date", "2026-01-01", "--format", "json,csv,junit", "--param", PARAMS[0])
-    result = api.check(root, mini_profile, params=PARAMS, date="2026-01-01", options=api.CheckOptions(sample=sample),
-                       ledger=tmp_path / "lib.sqlite")
+    _cli(
+        "check",
+        root,
+        "-p",
+        mini_profile,
+        "--sample",
+        sample,
+        "--ledger",
+        tmp_path / "cli.sqlite",
+        "--out",
+        tmp_path / "cli",
+        "--date",
+        "2026-01-01",
+        "--format",
+        "json,csv,junit",
+        "--param",
+        PARAMS[0],
+    )
+    result = api.check(
+        root,
+        mini_profile,
+        params=PARAMS,
+        date="2026-01-01",
+        options=api.CheckOptions(sample=sample),
+        ledger=tmp_path / "lib.sqlite",
+    )
     # independent of the library: the block as the schema documents it, the head of an empty chain
     assert result.document["sample"] == {
-        "kind": "image", "items": ["I1", "I3"],
+        "kind": "image",
+        "items": ["I1", "I3"],
         "statement": f"sample of 2 of {len(result.evaluation.delivery.table('images').df)} images "
-                     "(file s.csv, JRC §12.3)"}
+        "(file s.csv, JRC §12.3)",
+    }
     assert result.document["ledger_head"]["seq"] == 0
     written = result.render(["json", "csv", "junit"], tmp_path / "lib")
     assert sorted(written) == ["junit.xml", "qcr.csv", "qcr.json"]
     for name in written:
-        assert (tmp_path / "lib" / name).read_bytes() == (tmp_path / "cli" / name).read_bytes(), name
+        assert (tmp_path / "lib" / name).read_bytes() == (tmp_path / "cli" / name).read_bytes(), (
+            name
+        )
 
 
-def test_library_without_sample_or_ledger_has_neither_block(make_delivery, mini_profile, tmp_path: Path) -> None:
+def test_library_without_sample_or_ledger_has_neither_block(
+    make_delivery, mini_profile, tmp_path: Path
+) -> None:
     result = api.check(make_delivery(), mini_profile, params=PARAMS, date="2026-01-01")
     assert "sample" not in result.document and "ledger_head" not in result.document
     result.render(["json"], tmp_path / "o")
@@ -61,7 +90,12 @@ def test_render_refuses_a_folder_inside_the_delivery(make_delivery, mini_profile
 
 
 def test_sample_given_as_ids_has_a_statement_without_a_file(make_delivery, mini_profile) -> None:
-    result = api.check(make_delivery(), mini_profile, params=PARAMS, date="2026-01-01",
-                       options=api.CheckOptions(sample=("image", {"I1"})))
+    result = api.check(
+        make_delivery(),
+        mini_profile,
+        params=PARAMS,
+        date="2026-01-01",
+        options=api.CheckOptions(sample=("image", {"I1"})),
+    )
     assert result.document["sample"]["statement"].endswith("images (JRC §12.3)")
     assert result.document["sample"]["items"] == ["I1"]

@@ -75,9 +75,11 @@ def _not_manual(doc: dict[str, Any], rule: str) -> None:
 
 # --- JRC-9.2-DEM-OFF-NADIR: dx = dh x tan(θ) <= tolerance / 3 ---------------------------------------
 
+
 @pytest.mark.parametrize(("angle", "verdict"), [(18.0, "pass"), (18.9, "fail")])
-def test_dem_off_nadir_limit_is_atan_of_a_third_of_the_tolerance_over_dh(tmp_path: Path, angle: float,
-                                                                        verdict: str) -> None:
+def test_dem_off_nadir_limit_is_atan_of_a_third_of_the_tolerance_over_dh(
+    tmp_path: Path, angle: float, verdict: str
+) -> None:
     d = _copy("satellite-pass", tmp_path)
     _edit(d, "scenes", "image_id", "S01_SC2", view_angle=str(angle))
     _, scenes = read_table(d, "scenes")
@@ -101,6 +103,7 @@ def test_dem_off_nadir_without_the_dem_accuracy_is_missing(tmp_path: Path) -> No
 
 # --- JRC-T9-BI-CC-OUTPUT-PIXEL: the measured output pixel against the input pixel -------------------
 
+
 def test_output_pixel_is_measured_in_the_file_against_the_input_pixel(tmp_path: Path) -> None:
     doc = _check(EXAMPLES / "satellite-pass")
     got = _rule(doc, "JRC-T9-BI-CC-OUTPUT-PIXEL")
@@ -121,11 +124,17 @@ def test_output_pixel_is_measured_in_the_file_against_the_input_pixel(tmp_path: 
 
 # --- JRC-T9-GCP-DISTRIBUTION: a GCP in each quarter of an HR/MR/LR scene ----------------------------
 
+
 def _as_hr(d: Path) -> None:
     """HR scenes: 5 m pixels in the files (the class is measured from them, issue 25) and in the records."""
     header, rows = read_table(d, "scenes")
     for r in rows:
-        r.update(input_pixel_size="5", ms_pixel_size="20", resolution_class="HR", correction_method="ortho")
+        r.update(
+            input_pixel_size="5",
+            ms_pixel_size="20",
+            resolution_class="HR",
+            correction_method="ortho",
+        )
     write_table(d, "scenes", header, rows)
     _, images = read_table(d, "images")
     for img in images:
@@ -139,7 +148,12 @@ def test_gcps_in_every_quarter_of_an_hr_scene(tmp_path: Path) -> None:
     _as_hr(d)
     with rasterio.open(d / "images" / "S02_SC1.tif") as ds:
         left, bottom, right, top = ds.bounds
-    quarter = [(left + 5, bottom + 5), (right - 5, bottom + 5), (left + 5, top - 5), (right - 5, top - 5)]
+    quarter = [
+        (left + 5, bottom + 5),
+        (right - 5, bottom + 5),
+        (left + 5, top - 5),
+        (right - 5, top - 5),
+    ]
     header, rows = read_table(d, "gcps")
     mine = [r for r in rows if r["image_id"] == "S02_SC1"]
     assert len(mine) == 4
@@ -147,7 +161,10 @@ def test_gcps_in_every_quarter_of_an_hr_scene(tmp_path: Path) -> None:
         r["x"], r["y"] = f"{x:.3f}", f"{y:.3f}"
     write_table(d, "gcps", header, rows)
     assert _rule(_check(d), "JRC-T9-GCP-DISTRIBUTION")["S02_SC1"]["verdict"] == "pass"
-    mine[3]["x"], mine[3]["y"] = mine[0]["x"], mine[0]["y"]  # the north-east GCP moved to the south-west
+    mine[3]["x"], mine[3]["y"] = (
+        mine[0]["x"],
+        mine[0]["y"],
+    )  # the north-east GCP moved to the south-west
     write_table(d, "gcps", header, rows)
     got = _rule(_check(d), "JRC-T9-GCP-DISTRIBUTION")["S02_SC1"]
     assert got["verdict"] == "warn" and got["measured"]["value"] == 3
@@ -156,18 +173,29 @@ def test_gcps_in_every_quarter_of_an_hr_scene(tmp_path: Path) -> None:
 
 def test_gcp_distribution_is_not_applicable_to_vhr_scenes() -> None:
     doc = _check(EXAMPLES / "satellite-pass")
-    assert {r["verdict"] for r in _rule(doc, "JRC-T9-GCP-DISTRIBUTION").values()} == {"not_applicable"}
+    assert {r["verdict"] for r in _rule(doc, "JRC-T9-GCP-DISTRIBUTION").values()} == {
+        "not_applicable"
+    }
 
 
 # --- JRC-T9-MASTER-INDEPENDENT ----------------------------------------------------------------------
+
 
 def test_a_master_check_point_on_a_gcp_rejects_the_master(tmp_path: Path) -> None:
     d = _copy("satellite-pass", tmp_path)
     _, gcps = read_table(d, "gcps")
     g = next(r for r in gcps if r["image_id"] == "S01_SC1")
     gx, gy = float(g["x"]), float(g["y"])
-    _edit(d, "checkpoints", "point_id", "S01-Q01", x_ref=f"{gx + 0.01:.3f}", y_ref=f"{gy:.3f}",
-          x=f"{gx + 0.05:.2f}", y=f"{gy - 0.04:.2f}")
+    _edit(
+        d,
+        "checkpoints",
+        "point_id",
+        "S01-Q01",
+        x_ref=f"{gx + 0.01:.3f}",
+        y_ref=f"{gy:.3f}",
+        x=f"{gx + 0.05:.2f}",
+        y=f"{gy - 0.04:.2f}",
+    )
     doc = _check(d)
     got = _rule(doc, "JRC-T9-MASTER-INDEPENDENT")["S01_SC1"]
     assert got["verdict"] == "fail" and got["measured"]["value"] == 1
@@ -175,7 +203,9 @@ def test_a_master_check_point_on_a_gcp_rejects_the_master(tmp_path: Path) -> Non
     assert "S01_SC1" in doc["rollup"]["rejected"]["image"]
 
 
-def test_a_declared_tiny_precision_does_not_hide_a_gcp_reused_as_master_check_point(tmp_path: Path) -> None:
+def test_a_declared_tiny_precision_does_not_hide_a_gcp_reused_as_master_check_point(
+    tmp_path: Path,
+) -> None:
     """The contractor's tables declare 0.1 mm precision for both points: "the same point" is still
     at least the separation of the tolerance in force and 2 px (measures/independence.py), so a GCP
     entered 1 cm away is still a GCP (before: 3 x hypot(0.0001, 0.0001) = 0.4 mm, and it passed)."""
@@ -185,13 +215,24 @@ def test_a_declared_tiny_precision_does_not_hide_a_gcp_reused_as_master_check_po
     gx, gy = float(g["x"]), float(g["y"])
     assert "precision_xy" in gh
     _edit(d, "gcps", "point_id", g["point_id"], precision_xy="0.0001")
-    _edit(d, "checkpoints", "point_id", "S01-Q01", x_ref=f"{gx + 0.01:.3f}", y_ref=f"{gy:.3f}",
-          x=f"{gx + 0.05:.2f}", y=f"{gy - 0.04:.2f}", precision_xy="0.0001")
+    _edit(
+        d,
+        "checkpoints",
+        "point_id",
+        "S01-Q01",
+        x_ref=f"{gx + 0.01:.3f}",
+        y_ref=f"{gy:.3f}",
+        x=f"{gx + 0.05:.2f}",
+        y=f"{gy - 0.04:.2f}",
+        precision_xy="0.0001",
+    )
     got = _rule(_check(d), "JRC-T9-MASTER-INDEPENDENT")["S01_SC1"]
     assert got["verdict"] == "fail" and got["measured"]["value"] == 1
 
 
-def test_master_independence_passes_on_the_shipped_example_and_is_missing_without_its_points(tmp_path: Path) -> None:
+def test_master_independence_passes_on_the_shipped_example_and_is_missing_without_its_points(
+    tmp_path: Path,
+) -> None:
     got = _rule(_check(EXAMPLES / "satellite-pass"), "JRC-T9-MASTER-INDEPENDENT")["S01_SC1"]
     _, cps = read_table(EXAMPLES / "satellite-pass", "checkpoints")
     n = sum(r["image_id"] == "S01_SC1" for r in cps)
@@ -207,6 +248,7 @@ def test_master_independence_passes_on_the_shipped_example_and_is_missing_withou
 
 # --- JRC-T11-AREA-SELECTION ---------------------------------------------------------------------------
 
+
 def test_area_selection_faults_on_footprints_and_nadir_points() -> None:
     feet = {"A": ((0.0, 0.0, 100.0, 100.0), None), "B": ((50.0, 0.0, 150.0, 100.0), None)}
     nadir = {"A": (50.0, 50.0), "B": (100.0, 50.0)}
@@ -217,7 +259,9 @@ def test_area_selection_faults_on_footprints_and_nadir_points() -> None:
     got = faults(wrong, feet, nadir)
     assert len(got) == 1 and got[0].startswith("polygon 2 (B):") and "from A's" in got[0]
     outside = [(box(0, 0, 120, 100), "A")]
-    assert faults(outside, feet, nadir) == ["polygon 1 (A): 16.7 % of it outside its image's footprint"]
+    assert faults(outside, feet, nadir) == [
+        "polygon 1 (A): 16.7 % of it outside its image's footprint"
+    ]
     assert faults([(box(0, 0, 10, 10), None)], feet, nadir) == ["polygon 1 names no image"]
 
 
@@ -231,9 +275,15 @@ def test_seamlines_of_a_mosaic_are_checked_from_the_files(tmp_path: Path) -> Non
         ids.append(r["image_id"])
     ids[1], ids[0] = ids[0], ids[1]  # two polygons attributed to each other's image: both outside
     (d / "vectors").mkdir()
-    pyogrio.raw.write(str(d / "vectors" / "seamlines.gpkg"), geometry=np.array(shapely.to_wkb(polys)),
-                      field_data=[np.array(ids, dtype=object)], fields=["image_id"], geometry_type="Polygon",
-                      crs="EPSG:25832", driver="GPKG")
+    pyogrio.raw.write(
+        str(d / "vectors" / "seamlines.gpkg"),
+        geometry=np.array(shapely.to_wkb(polys)),
+        field_data=[np.array(ids, dtype=object)],
+        fields=["image_id"],
+        geometry_type="Polygon",
+        crs="EPSG:25832",
+        driver="GPKG",
+    )
     m = _manifest(d)
     m["product"]["mosaic"] = True
     m["vectors"] = {"seamlines": "vectors/seamlines.gpkg"}
@@ -245,16 +295,33 @@ def test_seamlines_of_a_mosaic_are_checked_from_the_files(tmp_path: Path) -> Non
 
 # --- JRC-9.2-T7 DEM file: complete, no spikes, georeferenced -------------------------------------------
 
-def _dem(path: Path, *, epsg: int = 25832, spikes: tuple[tuple[int, int], ...] = (), holes: int = 0,
-         origin: tuple[float, float] = (530500.0, 5421500.0)) -> np.ndarray:
+
+def _dem(
+    path: Path,
+    *,
+    epsg: int = 25832,
+    spikes: tuple[tuple[int, int], ...] = (),
+    holes: int = 0,
+    origin: tuple[float, float] = (530500.0, 5421500.0),
+) -> np.ndarray:
     """A 60 x 80 DEM of smooth terrain (10 m cells), ``spikes`` cells raised 80 m, ``holes`` no-data cells."""
     yy, xx = np.mgrid[0:60, 0:80]
     z = 400.0 + 0.8 * xx + 0.5 * yy + 3.0 * np.sin(xx / 7.0)
     for r, c in spikes:
         z[r, c] += 80.0
     z[0, :holes] = -9999.0
-    with rasterio.open(path, "w", driver="GTiff", width=80, height=60, count=1, dtype="float32",
-                       crs=f"EPSG:{epsg}", transform=from_origin(*origin, 10.0, 10.0), nodata=-9999.0) as ds:
+    with rasterio.open(
+        path,
+        "w",
+        driver="GTiff",
+        width=80,
+        height=60,
+        count=1,
+        dtype="float32",
+        crs=f"EPSG:{epsg}",
+        transform=from_origin(*origin, 10.0, 10.0),
+        nodata=-9999.0,
+    ) as ds:
         ds.write(z.astype("float32"), 1)
     return z
 
@@ -266,19 +333,29 @@ def _with_dem(d: Path) -> None:
 def test_dem_file_spikes_holes_and_crs_are_read(tmp_path: Path) -> None:
     d = _copy("satellite-pass", tmp_path)
     (d / "dem").mkdir()
-    planted = ((10, 10), (30, 41), (59, 79))  # the last on the file's corner: its window is not whole
+    planted = (
+        (10, 10),
+        (30, 41),
+        (59, 79),
+    )  # the last on the file's corner: its window is not whole
     _dem(d / "dem" / "dem.tif", spikes=planted, holes=6)
     _with_dem(d)
     doc = _check(d)
     spikes = _rule(doc, "JRC-9.2-T7-DEM-SPIKES")["DEM-10M"]
-    assert spikes["verdict"] == "warn" and spikes["measured"]["value"] == 2  # the corner cell cannot be judged
+    assert (
+        spikes["verdict"] == "warn" and spikes["measured"]["value"] == 2
+    )  # the corner cell cannot be judged
     assert "row 10, column 10: +" in spikes["message"]
     nodata = _rule(doc, "JRC-9.2-T7-DEM-INTEGRITY")["DEM-10M"]
-    assert nodata["verdict"] == "warn" and nodata["measured"]["value"] == pytest.approx(100.0 * 6 / (60 * 80))
+    assert nodata["verdict"] == "warn" and nodata["measured"]["value"] == pytest.approx(
+        100.0 * 6 / (60 * 80)
+    )
     assert _rule(doc, "JRC-9.2-T7-DEM-GEOREFERENCED")["DEM-10M"]["verdict"] == "pass"
     # recommended rules: warnings only, none of them among the reasons of the verdict (the delivered DEM
     # file makes JRC-12.7-RMSEZ apply, issue 25: the checker's points carry no heights, so it is missing)
-    assert not [r for r in doc["rollup"]["reasons"] if r.startswith("JRC-9.2-T7-DEM-")], doc["rollup"]["reasons"]
+    assert not [r for r in doc["rollup"]["reasons"] if r.startswith("JRC-9.2-T7-DEM-")], doc[
+        "rollup"
+    ]["reasons"]
     assert {r["verdict"] for r in _rule(doc, "JRC-12.7-RMSEZ").values()} == {"missing"}
 
 
@@ -288,7 +365,11 @@ def test_dem_file_in_another_crs_is_not_georeferenced_for_the_project(tmp_path: 
     _dem(d / "dem" / "dem.tif", epsg=25833)
     _with_dem(d)
     got = _rule(_check(d), "JRC-9.2-T7-DEM-GEOREFERENCED")["DEM-10M"]
-    assert got["verdict"] == "warn" and "EPSG:25833" in got["message"] and "EPSG:25832" in got["message"]
+    assert (
+        got["verdict"] == "warn"
+        and "EPSG:25833" in got["message"]
+        and "EPSG:25832" in got["message"]
+    )
 
 
 def test_dem_nodata_outside_the_blocks_does_not_count(tmp_path: Path) -> None:
@@ -306,7 +387,9 @@ def test_dem_nodata_outside_the_blocks_does_not_count(tmp_path: Path) -> None:
     assert inside.nodata_cells == 0 and inside.judged_cells == 60 * 50  # x from 530,000 to 530,500
 
 
-def test_dem_strips_do_not_change_the_counts(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_dem_strips_do_not_change_the_counts(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     path = tmp_path / "dem.tif"
     _dem(path, spikes=((6, 5), (7, 30), (13, 60), (20, 20)), holes=3)
     whole = dem_integrity(path)
@@ -316,6 +399,7 @@ def test_dem_strips_do_not_change_the_counts(tmp_path: Path, monkeypatch: pytest
 
 
 # --- JRC-T4-GCP-PATTERN-MANUAL (Table 4) ----------------------------------------------------------------
+
 
 def test_table4_dgps_pattern_on_the_shipped_blocks_and_a_corner_left_empty(tmp_path: Path) -> None:
     doc = _check(EXAMPLES / "aerial-pass")
@@ -349,8 +433,10 @@ def test_table4_without_dgps_five_base_lengths_on_the_perimeter_four_across_the_
     gy = np.array([p[1] for p in ring + inner], dtype=float)
     assert len(ring) == 9
     got = no_dgps_gaps(square, gx, gy, 1000.0, [9000.0, 9000.0, 9000.0])
-    assert got == ["across the strips: 5 GCP(s) inside the block, 6 needed (one per strip every four base "
-                   "lengths, 3 strip(s))"]
+    assert got == [
+        "across the strips: 5 GCP(s) inside the block, 6 needed (one per strip every four base "
+        "lengths, 3 strip(s))"
+    ]
     ex = np.array([0, 1000, 2000, 3000, 0, 1000, 2000, 3000], dtype=float)
     ey = np.array([0, 0, 0, 0, 800, 800, 800, 800], dtype=float)
     assert strips(ex, ey) == (1000.0, [3000.0, 3000.0])
@@ -358,24 +444,35 @@ def test_table4_without_dgps_five_base_lengths_on_the_perimeter_four_across_the_
 
 # --- JRC-12.4-SELECTION --------------------------------------------------------------------------------
 
+
 def _mark(d: Path, ids: set[str], **extra: dict[str, str]) -> None:
     header, rows = read_table(d, "images")
     for r in rows:
         r["sample"] = "true" if r["image_id"] in ids else ""
         r.update(extra.get(r["image_id"], {}))
-    write_table(d, "images", [*header, *[c for c in ("sample", "tags") if c not in header]],
-                [{"tags": "", **r} for r in rows])
+    write_table(
+        d,
+        "images",
+        [*header, *[c for c in ("sample", "tags") if c not in header]],
+        [{"tags": "", **r} for r in rows],
+    )
 
 
 def test_sample_must_hold_every_block_and_tag(tmp_path: Path) -> None:
     d = _copy("aerial-pass", tmp_path)
     _mark(d, {"F01_0101", "F02_0101", "F03_0101"})
     got = _rule(_check(d), "JRC-12.4-SELECTION")["D-2026-014"]
-    assert got["verdict"] == "pass" and "sample: 3 of 30 images (images marked in the sample column)" in got["message"]
+    assert (
+        got["verdict"] == "pass"
+        and "sample: 3 of 30 images (images marked in the sample column)" in got["message"]
+    )
     _mark(d, {"F01_0101", "F01_0102", "F02_0101"}, F03_0105={"tags": "forest"})
     got = _rule(_check(d), "JRC-12.4-SELECTION")["D-2026-014"]
     assert got["verdict"] == "fail" and got["measured"]["value"] == 2
-    assert "the checker must add: block B03: no image sampled; tag 'forest': no sampled image carries it" in got["message"]
+    assert (
+        "the checker must add: block B03: no image sampled; tag 'forest': no sampled image carries it"
+        in got["message"]
+    )
 
 
 def test_sample_must_hold_a_high_view_angle_scene(tmp_path: Path) -> None:
@@ -383,10 +480,14 @@ def test_sample_must_hold_a_high_view_angle_scene(tmp_path: Path) -> None:
     _edit(d, "scenes", "image_id", "S02_SC3", view_angle="21.0")
     _mark(d, {"S01_SC1", "S02_SC1"})
     got = _rule(_check(d), "JRC-12.4-SELECTION")["D-2026-031"]
-    assert got["verdict"] == "fail" and "high view angles: none of the 1 images beyond 15 deg sampled" in got["message"]
+    assert (
+        got["verdict"] == "fail"
+        and "high view angles: none of the 1 images beyond 15 deg sampled" in got["message"]
+    )
 
 
 # --- JRC-2.4-QCR-MINIMUM-SET (Tables 6 and 10) ----------------------------------------------------------
+
 
 def test_the_minimum_set_of_qcrs_is_looked_up_row_by_row(tmp_path: Path) -> None:
     doc = _check(EXAMPLES / "aerial-pass")
@@ -397,8 +498,10 @@ def test_the_minimum_set_of_qcrs_is_looked_up_row_by_row(tmp_path: Path) -> None
     _write_manifest(d, m)
     got = _rule(_check(d), "JRC-2.4-QCR-MINIMUM-SET")["D-2026-014"]
     assert got["verdict"] == "fail" and got["measured"]["value"] == 1
-    assert ("Table 6 row 7 (Number of items rejected/reprocessed at each stage of internal QC): "
-            "documents.rejected_items not delivered") in got["message"]
+    assert (
+        "Table 6 row 7 (Number of items rejected/reprocessed at each stage of internal QC): "
+        "documents.rejected_items not delivered"
+    ) in got["message"]
 
 
 def test_satellite_minimum_set_needs_the_gcp_residuals(tmp_path: Path) -> None:
@@ -409,8 +512,10 @@ def test_satellite_minimum_set_needs_the_gcp_residuals(tmp_path: Path) -> None:
     write_table(d, "gcps", header, rows)
     got = _rule(_check(d), "JRC-2.4-QCR-MINIMUM-SET")["D-2026-031"]
     assert got["verdict"] == "fail"
-    assert "Table 10 row 6 (File of GCPs, check points and residuals): tables/gcps.csv residual_y empty in 2 row(s)" \
+    assert (
+        "Table 10 row 6 (File of GCPs, check points and residuals): tables/gcps.csv residual_y empty in 2 row(s)"
         in got["message"]
+    )
 
 
 def test_a_film_delivery_owes_the_scanner_control_chart(tmp_path: Path) -> None:
@@ -419,10 +524,15 @@ def test_a_film_delivery_owes_the_scanner_control_chart(tmp_path: Path) -> None:
     m["sensor"]["digital"] = False
     _write_manifest(d, m)
     got = _rule(_check(d), "JRC-2.4-QCR-MINIMUM-SET")["D-2026-014"]
-    assert "Table 6 row 3 (Control chart for the scanner performance (geometric)): no scanner_tests table" in got["message"]
+    assert (
+        "Table 6 row 3 (Control chart for the scanner performance (geometric)): no scanner_tests table"
+        in got["message"]
+    )
 
 
-def test_a_sample_leaving_out_blocks_leaves_the_check_incomplete_not_rejected(tmp_path: Path) -> None:
+def test_a_sample_leaving_out_blocks_leaves_the_check_incomplete_not_rejected(
+    tmp_path: Path,
+) -> None:
     """A sample of 10 % (3 of 30) all from B01: the size is met (§12.3), the §12.4 strata are not. The
     checker's to complete: the delivery is neither accepted nor rejected (overall verdict incomplete)."""
     d = _copy("aerial-pass", tmp_path)

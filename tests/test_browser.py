@@ -22,22 +22,34 @@ import pytest
 from tests.test_gpkg import run
 
 CHROMIUM = "/usr/bin/chromium"
-ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-        "--disable-background-networking", "--disable-component-update", "--disable-sync"]
+ARGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+]
 
 
 def _need_chromium() -> None:
     if Path(CHROMIUM).exists() and shutil.which("chromium"):
         return
-    msg = ("Debian's Chromium is not installed (/usr/bin/chromium): `make test` installs it through "
-           "scripts/sysdeps.sh (apt-get install chromium chromium-driver)")
+    msg = (
+        "Debian's Chromium is not installed (/usr/bin/chromium): `make test` installs it through "
+        "scripts/sysdeps.sh (apt-get install chromium chromium-driver)"
+    )
     if os.environ.get("ORTHOSPEC_STRICT_SKIPS") == "1":
         pytest.fail(msg)
     pytest.skip(msg)
 
 
 @pytest.fixture(scope="module")
-def page_of_report(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Any, list[str], Path, dict]]:
+def page_of_report(
+    tmp_path_factory: pytest.TempPathFactory,
+) -> Iterator[tuple[Any, list[str], Path, dict]]:
     _need_chromium()
     from playwright.sync_api import sync_playwright
 
@@ -49,9 +61,14 @@ def page_of_report(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[A
     report_uri = (out / "report.html").as_uri()
     with sync_playwright() as pw:
         ctx = pw.chromium.launch_persistent_context(
-            str(base / "profile"), executable_path=CHROMIUM, headless=True, args=ARGS,
-            viewport={"width": 1280, "height": 1000})
+            str(base / "profile"),
+            executable_path=CHROMIUM,
+            headless=True,
+            args=ARGS,
+            viewport={"width": 1280, "height": 1000},
+        )
         try:
+
             def own(url: str) -> bool:  # the report itself, and its inlined data: figures
                 return url == report_uri or url.startswith("data:")
 
@@ -71,14 +88,16 @@ def page_of_report(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[A
             ctx.close()
 
 
-def test_click_a_check_point_reads_its_qcr(page_of_report: tuple[Any, list[str], Path, dict]) -> None:
+def test_click_a_check_point_reads_its_qcr(
+    page_of_report: tuple[Any, list[str], Path, dict],
+) -> None:
     page, requests, _, doc = page_of_report
     from orthospec.qcr import all_records
 
     dot = page.locator("#findings-map circle[data-k]").nth(3)
     title = dot.locator("title").text_content() or ""
     assert title.startswith("check points ")
-    key = title[len("check points "):].rsplit(":", 1)[0]  # block/point
+    key = title[len("check points ") :].rsplit(":", 1)[0]  # block/point
     block, point = key.split("/", 1)
     dot.click()
     text = page.locator("#map-panel").inner_text()
@@ -88,8 +107,13 @@ def test_click_a_check_point_reads_its_qcr(page_of_report: tuple[Any, list[str],
     assert mine, "aerial-fail judges every check point (JRC-DEF-CHECKPOINT-ACCURACY)"
     rows = page.locator("#map-panel table.map-records tr.qcr")
     assert rows.count() == len(mine)
-    shown = {(rows.nth(k).locator("td").nth(0).inner_text(), rows.nth(k).locator("td").nth(1).inner_text())
-             for k in range(rows.count())}
+    shown = {
+        (
+            rows.nth(k).locator("td").nth(0).inner_text(),
+            rows.nth(k).locator("td").nth(1).inner_text(),
+        )
+        for k in range(rows.count())
+    }
     assert shown == {(r["rule"], r["verdict"]) for r in mine}
     assert block in text  # the point's attributes: its block, dx, dy, status
     assert requests == []
@@ -122,7 +146,7 @@ def test_screenshot_of_the_map_is_drawn(page_of_report: tuple[Any, list[str], Pa
     img = np.asarray(Image.open(io.BytesIO(shot)).convert("RGB")).astype(int)
     h, w, _ = img.shape
     assert w >= 600 and h >= 200
-    background = np.array([0xfa, 0xfa, 0xfa])
+    background = np.array([0xFA, 0xFA, 0xFA])
     drawn = np.abs(img - background).sum(axis=2) > 30
     assert 0.02 < drawn.mean() < 0.9  # features drawn, not a blank or a solid box
     red = (img[..., 0] > 180) & (img[..., 1] < 90) & (img[..., 2] < 90)

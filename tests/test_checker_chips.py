@@ -36,7 +36,9 @@ def _setup(tmp_path: Path) -> tuple[Path, Path, dict[str, float]]:
     xr, yr = round((b.left + b.right) / 2 - 3.1, 3), round((b.bottom + b.top) / 2 + 2.2, 3)
     pt = {"x_ref": xr, "y_ref": yr, "x": round(xr + 2.0, 2), "y": round(yr - 1.0, 2)}
     (c / "chips").mkdir()
-    shutil.copyfile(tif, c / "chips" / "B01-C05.tif")  # the reference chip the point was matched against
+    shutil.copyfile(
+        tif, c / "chips" / "B01-C05.tif"
+    )  # the reference chip the point was matched against
     table = c / "tables" / "checkpoints.csv"
     with table.open(encoding="utf-8", newline="") as f:
         r = csv.DictReader(f)
@@ -45,9 +47,14 @@ def _setup(tmp_path: Path) -> tuple[Path, Path, dict[str, float]]:
     for row in rows:
         row["reference_file"] = ""
         if row["point_id"] == "B01-C05":
-            row.update({k: f"{v}" for k, v in pt.items()}, image_id="F01_0101",
-                       image_sha256=hashlib.sha256(tif.read_bytes()).hexdigest(), excluded="true",
-                       exclusion_reason="target mis-identified on the image", reference_file="chips/B01-C05.tif")
+            row.update(
+                {k: f"{v}" for k, v in pt.items()},
+                image_id="F01_0101",
+                image_sha256=hashlib.sha256(tif.read_bytes()).hexdigest(),
+                excluded="true",
+                exclusion_reason="target mis-identified on the image",
+                reference_file="chips/B01-C05.tif",
+            )
     with table.open("w", encoding="utf-8", newline="") as f:
         w = csv.DictWriter(f, fieldnames=header, lineterminator="\n")
         w.writeheader()
@@ -61,14 +68,34 @@ def _svgs(html: str) -> dict[str, str]:
     return {alt: base64.b64decode(data).decode("utf-8") for data, alt in found}
 
 
-def test_a_flagged_point_gets_its_chips_and_the_grid_marks_show_on_the_block_map(tmp_path: Path) -> None:
+def test_a_flagged_point_gets_its_chips_and_the_grid_marks_show_on_the_block_map(
+    tmp_path: Path,
+) -> None:
     d, c, pt = _setup(tmp_path)
     cells = raw.read(c / "inspection.gpkg", layer="cells", columns=["cell_id", "image_id"])[3]
     marked = [str(i) for i, img in zip(*cells, strict=True) if img == "F01_0103"][:2]
-    mark_cells(c / "inspection.gpkg", {i: {"seam": 1, "comment": "geometric break at the seam"} for i in marked})
+    mark_cells(
+        c / "inspection.gpkg",
+        {i: {"seam": 1, "comment": "geometric break at the seam"} for i in marked},
+    )
     out = tmp_path / "out"
-    res = CliRunner().invoke(cli(), ["check", str(d), "-p", "jrc-v3", "--checker", str(c), "--out", str(out),
-                                     "--format", "json,html", "--date", "2026-11-21"])
+    res = CliRunner().invoke(
+        cli(),
+        [
+            "check",
+            str(d),
+            "-p",
+            "jrc-v3",
+            "--checker",
+            str(c),
+            "--out",
+            str(out),
+            "--format",
+            "json,html",
+            "--date",
+            "2026-11-21",
+        ],
+    )
     assert res.exit_code in (0, 1), res.output
     import json
 
@@ -76,7 +103,11 @@ def test_a_flagged_point_gets_its_chips_and_the_grid_marks_show_on_the_block_map
     chips = doc["details"]["checker_chips"]["B01"]["points"]
     entry = next(p for p in chips if p["point_id"] == "B01-C05")
     assert entry["flagged"] and (entry["x"], entry["y"], entry["x_ref"], entry["y_ref"]) == (
-        pt["x"], pt["y"], pt["x_ref"], pt["y_ref"])
+        pt["x"],
+        pt["y"],
+        pt["x_ref"],
+        pt["y_ref"],
+    )
     chip = Chip.from_dict(entry["delivered"])
     left, bottom, right, top = chip.extent
     assert left < pt["x"] < right and bottom < pt["y"] < top
@@ -86,13 +117,23 @@ def test_a_flagged_point_gets_its_chips_and_the_grid_marks_show_on_the_block_map
         lum = ds.read([1, 2, 3], window=win).astype(float).mean(axis=0)
     assert np.corrcoef(lum.ravel(), chip.data.astype(float).ravel())[0, 1] > 0.99
     ref = Chip.from_dict(entry["reference"])
-    assert ref.extent[0] < pt["x_ref"] < ref.extent[2] and ref.extent[1] < pt["y_ref"] < ref.extent[3]
+    assert (
+        ref.extent[0] < pt["x_ref"] < ref.extent[2] and ref.extent[1] < pt["y_ref"] < ref.extent[3]
+    )
     # on the point's block page: the chips with the measured shift drawn, and the grid's marks on its map
     html = (out / "report.html").read_text(encoding="utf-8")
     svgs = _svgs(html)
     chip_svg = next(s for alt, s in svgs.items() if "check point B01-C05" in alt)
-    assert all(g in chip_svg for g in ('id="chip-delivered"', 'id="chip-reference"', 'id="measured-shift"',
-                                       'id="measured-position"', 'id="reference-position"'))
+    assert all(
+        g in chip_svg
+        for g in (
+            'id="chip-delivered"',
+            'id="chip-reference"',
+            'id="measured-shift"',
+            'id="measured-position"',
+            'id="reference-position"',
+        )
+    )
     assert "dx +2.000 m, dy -1.000 m" in chip_svg
     block_map = next(s for alt, s in svgs.items() if alt.startswith("Block B01: check points"))
     assert 'id="inspection-defects"' in block_map
@@ -110,8 +151,17 @@ def test_a_reference_file_named_outside_the_checker_folder_is_not_read(tmp_path:
     table = c / "tables" / "checkpoints.csv"
     for ref in ("../outside.tif", str(tmp_path / "outside.tif")):
         text = table.read_text(encoding="utf-8")
-        table.write_text(re.sub(r"chips/B01-C05\.tif|\.\./outside\.tif", ref, text), encoding="utf-8")
+        table.write_text(
+            re.sub(r"chips/B01-C05\.tif|\.\./outside\.tif", ref, text), encoding="utf-8"
+        )
         doc = check_with(d, "jrc-v3", checker=c, date="2026-11-21").document
-        entry = next(p for p in doc["details"]["checker_chips"]["B01"]["points"] if p["point_id"] == "B01-C05")
-        assert "reference" not in entry and entry["reference_note"] == f"reference file {ref} is not in the checker folder"
+        entry = next(
+            p
+            for p in doc["details"]["checker_chips"]["B01"]["points"]
+            if p["point_id"] == "B01-C05"
+        )
+        assert (
+            "reference" not in entry
+            and entry["reference_note"] == f"reference file {ref} is not in the checker folder"
+        )
         assert "delivered" in entry

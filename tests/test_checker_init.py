@@ -22,19 +22,25 @@ from orthospec.delivery.checker import load_checker
 
 
 def _init(delivery: Path, out: Path, *extra: str) -> object:
-    return CliRunner().invoke(cli(), ["checker", "init", str(delivery), "-p", "jrc-v3", "--out", str(out), *extra])
+    return CliRunner().invoke(
+        cli(), ["checker", "init", str(delivery), "-p", "jrc-v3", "--out", str(out), *extra]
+    )
 
 
 def _items(entries: list[dict], scope_of: dict[str, str]) -> set[tuple[str, str]]:
     # the shipped file judges a single DEM with "*"; the skeleton names it
-    return {(e["check"], "*" if scope_of.get(e["check"]) == "dem" else str(e["item"])) for e in entries}
+    return {
+        (e["check"], "*" if scope_of.get(e["check"]) == "dem" else str(e["item"])) for e in entries
+    }
 
 
 def test_the_skeleton_lists_every_manual_item_bound_to_the_images(tmp_path: Path) -> None:
     res = _init(EXAMPLES / "satellite-pass", tmp_path / "qc", "--name", "T. Tester")
     assert res.exit_code == 0, res.output
     sk = yaml.safe_load((tmp_path / "qc" / "checker.yaml").read_text(encoding="utf-8"))
-    shipped = yaml.safe_load((CHECKERS / "satellite-pass" / "checker.yaml").read_text(encoding="utf-8"))
+    shipped = yaml.safe_load(
+        (CHECKERS / "satellite-pass" / "checker.yaml").read_text(encoding="utf-8")
+    )
     from orthospec.profile.loader import load_profile
 
     scope_of = {r.id: r.scope for r in load_profile("jrc-v3").rules}
@@ -42,27 +48,43 @@ def test_the_skeleton_lists_every_manual_item_bound_to_the_images(tmp_path: Path
     # adjustment) leaves out: S02 is corrected scene by scene (scenes.csv correction_method)
     import csv
 
-    with (EXAMPLES / "satellite-pass" / "tables" / "scenes.csv").open(encoding="utf-8", newline="") as f:
+    with (EXAMPLES / "satellite-pass" / "tables" / "scenes.csv").open(
+        encoding="utf-8", newline=""
+    ) as f:
         single = {r["image_id"] for r in csv.DictReader(f) if r["correction_method"] != "rpc_block"}
     extra = {("JRC-T9-GCP-OVERLAP-ZONES", i) for i in single}
-    assert extra and _items(sk["manual_checks"], scope_of) == _items(shipped["manual_checks"], scope_of) - extra
+    assert (
+        extra
+        and _items(sk["manual_checks"], scope_of)
+        == _items(shipped["manual_checks"], scope_of) - extra
+    )
     images = [e for e in sk["manual_checks"] if scope_of[e["check"]] == "image"]
     assert images
     for e in images:
         item = e["item"]
         path = EXAMPLES / "satellite-pass" / e["file"]
-        assert e["file"] == f"images/{item}.tif" and e["sha256"] == hashlib.sha256(path.read_bytes()).hexdigest()
+        assert (
+            e["file"] == f"images/{item}.tif"
+            and e["sha256"] == hashlib.sha256(path.read_bytes()).hexdigest()
+        )
     assert all(e["verdict"] is None and e["date"] is None for e in sk["manual_checks"])
     # every table and document the delivery uses, pinned with its role
-    manifest = yaml.safe_load((EXAMPLES / "satellite-pass" / "delivery.yaml").read_text(encoding="utf-8"))
+    manifest = yaml.safe_load(
+        (EXAMPLES / "satellite-pass" / "delivery.yaml").read_text(encoding="utf-8")
+    )
     used = {f"tables.{k}": v for k, v in manifest["tables"].items()}
     used |= {f"documents.{k}": v for k, v in manifest["documents"].items()}
     assert {p["role"]: rel for rel, p in sk["delivery"]["files"].items()} == used
-    assert all(p["sha256"] == hashlib.sha256((EXAMPLES / "satellite-pass" / rel).read_bytes()).hexdigest()
-               for rel, p in sk["delivery"]["files"].items())
+    assert all(
+        p["sha256"] == hashlib.sha256((EXAMPLES / "satellite-pass" / rel).read_bytes()).hexdigest()
+        for rel, p in sk["delivery"]["files"].items()
+    )
     # the ITT values are the checker's to state: listed, commented out, never filled from the delivery
     text = (tmp_path / "qc" / "checker.yaml").read_text(encoding="utf-8")
-    assert "# tolerance_xy: {value: , unit: \"m\"}   # required" in text and "the delivery declares 1 m" in text
+    assert (
+        '# tolerance_xy: {value: , unit: "m"}   # required' in text
+        and "the delivery declares 1 m" in text
+    )
     assert "# map_crs:" in text and sk["parameters"] is None
     bound = sum(1 for e in sk["manual_checks"] if "sha256" in e)
     assert bound == sum(1 for e in sk["manual_checks"] if scope_of[e["check"]] == "image")
@@ -75,16 +97,24 @@ def test_the_skeleton_filled_in_gives_the_shipped_verdict(tmp_path: Path) -> Non
     assert _init(EXAMPLES / "satellite-pass", tmp_path / "qc", "--name", "T. Tester").exit_code == 0
     path = tmp_path / "qc" / "checker.yaml"
     sk = yaml.safe_load(path.read_text(encoding="utf-8"))
-    shipped = yaml.safe_load((CHECKERS / "satellite-pass" / "checker.yaml").read_text(encoding="utf-8"))
+    shipped = yaml.safe_load(
+        (CHECKERS / "satellite-pass" / "checker.yaml").read_text(encoding="utf-8")
+    )
     sk["parameters"] = shipped["parameters"]
     for e in sk["manual_checks"]:
         e.update(verdict="pass", date="2026-07-10")
     path.write_text(yaml.safe_dump(sk, sort_keys=False), encoding="utf-8")
     (tmp_path / "qc" / "tables").mkdir()
-    shutil.copyfile(CHECKERS / "satellite-pass" / "tables" / "checkpoints.csv",
-                    tmp_path / "qc" / "tables" / "checkpoints.csv")  # what `measure checkpoints` writes
-    got = check_with(EXAMPLES / "satellite-pass", "jrc-v3", checker=tmp_path / "qc", date=DATE).document
-    want = check_with(EXAMPLES / "satellite-pass", "jrc-v3", checker=CHECKERS / "satellite-pass", date=DATE).document
+    shutil.copyfile(
+        CHECKERS / "satellite-pass" / "tables" / "checkpoints.csv",
+        tmp_path / "qc" / "tables" / "checkpoints.csv",
+    )  # what `measure checkpoints` writes
+    got = check_with(
+        EXAMPLES / "satellite-pass", "jrc-v3", checker=tmp_path / "qc", date=DATE
+    ).document
+    want = check_with(
+        EXAMPLES / "satellite-pass", "jrc-v3", checker=CHECKERS / "satellite-pass", date=DATE
+    ).document
     assert got["verdict"] == want["verdict"] == "accepted"
     assert got["summary"] == want["summary"]
 

@@ -41,7 +41,12 @@ def _with_aoi(tmp_path: Path) -> Path:
         folder = path = tmp_path / "checker.yaml"
         shutil.copy(CHECKER.with_suffix(".yaml"), path)
     doc = yaml.safe_load(path.read_text(encoding="utf-8"))
-    doc["area_of_interest"] = [[500000, 5400000], [519500, 5400000], [519500, 5418200], [500000, 5418200]]
+    doc["area_of_interest"] = [
+        [500000, 5400000],
+        [519500, 5400000],
+        [519500, 5418200],
+        [500000, 5418200],
+    ]
     path.write_text(yaml.safe_dump(doc, sort_keys=False), encoding="utf-8")
     return folder
 

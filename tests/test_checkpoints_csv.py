@@ -38,31 +38,54 @@ def _points_flag(tmp_path, word: str) -> bool:
     return "B" in read_points_csv(path).exclusions
 
 
-@pytest.mark.parametrize("word, value", [
-    ("true", True), ("TRUE", True), ("Yes", True), ("y", True), ("1", True), ("t", True), (" T ", True),
-    ("false", False), ("No", False), ("n", False), ("0", False), ("f", False), ("", None),
-])
+@pytest.mark.parametrize(
+    "word, value",
+    [
+        ("true", True),
+        ("TRUE", True),
+        ("Yes", True),
+        ("y", True),
+        ("1", True),
+        ("t", True),
+        (" T ", True),
+        ("false", False),
+        ("No", False),
+        ("n", False),
+        ("0", False),
+        ("f", False),
+        ("", None),
+    ],
+)
 def test_both_former_paths_accept_the_same_boolean_words(make_delivery, tmp_path, word, value):
     assert _delivery_flag(make_delivery, word) is value
     assert _points_flag(tmp_path, word) is (value is True)
 
 
 @pytest.mark.parametrize("word", ["x", "maybe", "ja", "2", "-"])
-def test_both_former_paths_refuse_the_same_words_naming_file_row_column(make_delivery, tmp_path, word):
+def test_both_former_paths_refuse_the_same_words_naming_file_row_column(
+    make_delivery, tmp_path, word
+):
     with pytest.raises(DeliveryError) as delivery_err:
         _delivery_flag(make_delivery, word)
-    assert f"tables/cp.csv: row 2: column 'excluded': expected true/false, got {word!r}" in str(delivery_err.value)
+    assert f"tables/cp.csv: row 2: column 'excluded': expected true/false, got {word!r}" in str(
+        delivery_err.value
+    )
     with pytest.raises(DeliveryError) as points_err:
         _points_flag(tmp_path, word)
-    assert f".csv: row 2: column 'excluded': expected true/false, got {word!r}" in str(points_err.value)
+    assert f".csv: row 2: column 'excluded': expected true/false, got {word!r}" in str(
+        points_err.value
+    )
 
 
-@pytest.mark.parametrize("text, message", [
-    ("id,dx,dy\nA,1,2\nB,1\n", "row 2: has 2 fields, the header has 3"),
-    ("id,dx,dy\nA,1,2\nB,1,2,3\n", "row 2: has 4 fields, the header has 3"),
-    ("id,dx,dy\nA,1,2\nB,1_000,2\n", "row 2: column 'dx': expected a number, got '1_000'"),
-    ("id,dx,dy\nA,1,2\n,1,2\n", "row 2: column 'id': required value is empty"),
-])
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("id,dx,dy\nA,1,2\nB,1\n", "row 2: has 2 fields, the header has 3"),
+        ("id,dx,dy\nA,1,2\nB,1,2,3\n", "row 2: has 4 fields, the header has 3"),
+        ("id,dx,dy\nA,1,2\nB,1_000,2\n", "row 2: column 'dx': expected a number, got '1_000'"),
+        ("id,dx,dy\nA,1,2\n,1,2\n", "row 2: column 'id': required value is empty"),
+    ],
+)
 def test_point_files_are_refused_like_delivery_tables(tmp_path, text, message):
     """A ragged row is no longer padded or cut silently: the delivery table rule, with its row."""
     path = tmp_path / "p.csv"
@@ -74,7 +97,9 @@ def test_point_files_are_refused_like_delivery_tables(tmp_path, text, message):
 def test_point_file_rows_are_file_rows_after_blank_lines(tmp_path):
     path = tmp_path / "p.csv"
     path.write_text("id,dx,dy\nA,1,2\n\nB,3,4\nB,5,6\n", encoding="utf-8")
-    with pytest.raises(DeliveryError, match=r"row 4: column 'id': duplicate point id 'B' \(first on row 3\)"):
+    with pytest.raises(
+        DeliveryError, match=r"row 4: column 'id': duplicate point id 'B' \(first on row 3\)"
+    ):
         read_points_csv(path)
 
 
@@ -92,7 +117,9 @@ def test_record_widths_are_the_csv_modules_on_random_tables():
         text = "".join(rng.choice(alphabet) for _ in range(rng.randint(0, 14)))
         fast = table_shape._records_fast(text.encode(), chunk=rng.choice([1, 2, 3, 7, 64]))
         if fast is None:
-            assert table_shape._records(text.encode()).widths.tolist() == [len(r) for r in csv.reader(io.StringIO(text))]
+            assert table_shape._records(text.encode()).widths.tolist() == [
+                len(r) for r in csv.reader(io.StringIO(text))
+            ]
             continue
         answered += 1
         assert fast.widths.tolist() == _csv_widths(text), text
@@ -101,12 +128,14 @@ def test_record_widths_are_the_csv_modules_on_random_tables():
     assert answered > 5_000
 
 
-TRICKY = (CP_HEADER
-          + 'P1,B1,1.5,2,1,2,,\n'
-          + '"P2",B1, 3 ,4e0,3,4,yes,"moved, then ""re-set""\nby the crew"\n'
-          + '\n'
-          + 'P3,B2,-0.0,0,0,1,N,\n'
-          + 'P4, B2 ,1e-3,.5,+2,5.,,\n')
+TRICKY = (
+    CP_HEADER
+    + "P1,B1,1.5,2,1,2,,\n"
+    + '"P2",B1, 3 ,4e0,3,4,yes,"moved, then ""re-set""\nby the crew"\n'
+    + "\n"
+    + "P3,B2,-0.0,0,0,1,N,\n"
+    + "P4, B2 ,1e-3,.5,+2,5.,,\n"
+)
 
 
 def test_fast_path_equals_the_exact_path_and_the_csv_module():
@@ -141,7 +170,9 @@ def test_bad_utf8_names_the_byte_after_a_bom():
     data = b"\xef\xbb\xbfa,b\xff\n"
     with pytest.raises(UnicodeDecodeError) as plain:
         data.decode("utf-8-sig")
-    with pytest.raises(DeliveryError, match=rf"cp.csv: not UTF-8 text \(byte {plain.value.start}\)"):
+    with pytest.raises(
+        DeliveryError, match=rf"cp.csv: not UTF-8 text \(byte {plain.value.start}\)"
+    ):
         reader.utf8_body(data, file="cp.csv")
     bad_in_second_chunk = b"abc" + "é".encode()[:1] + b"z"
     with pytest.raises(DeliveryError, match=r"byte 3\)"):
@@ -155,11 +186,19 @@ def test_csv_bounds_skip_short_lines_but_still_find_the_long_one(chunk):
     delimiters; the carried state still places a too-wide line or too-long cell at its row."""
     short = b"".join(b"P%d,B1,1,2,1,2\n" % i for i in range(500))
     limits = reader.Limits(table_bytes=2**30, columns=8, cell_bytes=40)
-    reader.check_csv_bounds(io.BytesIO(b"point_id,block,x,y,x_ref,y_ref\n" + short), file="cp.csv",
-                            limits=limits, chunk=chunk)
+    reader.check_csv_bounds(
+        io.BytesIO(b"point_id,block,x,y,x_ref,y_ref\n" + short),
+        file="cp.csv",
+        limits=limits,
+        chunk=chunk,
+    )
     wide = b"point_id,block,x,y,x_ref,y_ref\n" + short + b"P,B," + b"1," * 9 + b"1\n" + short
-    with pytest.raises(DeliveryError, match=r"cp.csv: row 501: \d+\+ fields on one line exceed the limit of 8"):
+    with pytest.raises(
+        DeliveryError, match=r"cp.csv: row 501: \d+\+ fields on one line exceed the limit of 8"
+    ):
         reader.check_csv_bounds(io.BytesIO(wide), file="cp.csv", limits=limits, chunk=chunk)
-    long_cell = b"point_id,block,x,y,x_ref,y_ref\n" + short + b"P," + b"x" * 50 + b",1,2,1,2\n" + short
+    long_cell = (
+        b"point_id,block,x,y,x_ref,y_ref\n" + short + b"P," + b"x" * 50 + b",1,2,1,2\n" + short
+    )
     with pytest.raises(DeliveryError, match=r"cp.csv: row 501: a cell longer than 40 bytes"):
         reader.check_csv_bounds(io.BytesIO(long_cell), file="cp.csv", limits=limits, chunk=chunk)

@@ -31,13 +31,24 @@ def test_detail_points_are_a_frame_in_file_order_with_independent_values():
     for b, det in detail.items():
         frame = det["points"]
         assert isinstance(frame, pd.DataFrame) and "points_omitted" not in det
-        assert list(frame.columns) == ["point_id", "dx", "dy", "dz", "dr", "x_ref", "y_ref", "status",
-                                       "decision", "row"]
+        assert list(frame.columns) == [
+            "point_id",
+            "dx",
+            "dy",
+            "dz",
+            "dr",
+            "x_ref",
+            "y_ref",
+            "status",
+            "decision",
+            "row",
+        ]
         mine = src[src["block"] == b]
         assert frame["point_id"].tolist() == mine["point_id"].tolist()
         np.testing.assert_allclose(frame["dx"], mine["x"] - mine["x_ref"], atol=1e-9)
-        np.testing.assert_allclose(frame["dr"], np.hypot(mine["x"] - mine["x_ref"], mine["y"] - mine["y_ref"]),
-                                   atol=1e-9)
+        np.testing.assert_allclose(
+            frame["dr"], np.hypot(mine["x"] - mine["x_ref"], mine["y"] - mine["y_ref"]), atol=1e-9
+        )
         assert frame["row"].tolist() == [i + 1 for i in mine.index]
         # the block RMSE recomputed with numpy from the file (no exclusion is justified in aerial-fail B02)
         kept = frame["decision"] != "excluded"
@@ -67,4 +78,6 @@ def test_detail_is_capped_but_keeps_flagged_points_and_the_largest_residuals(mon
         left_out = others[others.index.str.startswith(b)]
         if (~flagged).any() and len(left_out):
             assert left_out.max() <= frame.loc[~flagged, "dr"].min()
-    assert n_points == len(pd.read_csv(EXAMPLE / "tables" / "checkpoints.csv"))  # every point keeps its own QCR measure
+    assert n_points == len(
+        pd.read_csv(EXAMPLE / "tables" / "checkpoints.csv")
+    )  # every point keeps its own QCR measure

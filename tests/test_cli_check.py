@@ -38,10 +38,13 @@ def run_main(args, capsys):
     return exc.value.code, out.out, out.err
 
 
-def test_rejected_delivery_exits_1_and_writes_outputs(make_delivery, mini_profile, tmp_path, capsys):
+def test_rejected_delivery_exits_1_and_writes_outputs(
+    make_delivery, mini_profile, tmp_path, capsys
+):
     out = tmp_path / "out"
-    code, stdout, _ = run_main(["check", make_delivery(), "-p", mini_profile, "--out", out,
-                                "--date", "2026-01-01"], capsys)
+    code, stdout, _ = run_main(
+        ["check", make_delivery(), "-p", mini_profile, "--out", out, "--date", "2026-01-01"], capsys
+    )
     assert code == 1
     assert "REJECTED" in stdout and "R-ROLLUP" in stdout
     # 11 profile records (R-ROLLUP, R-VIS: 1 each; R-CV, R-FH, R-ROLL: 3 images each) + the built-in
@@ -56,28 +59,66 @@ def test_rejected_delivery_exits_1_and_writes_outputs(make_delivery, mini_profil
 
 def test_accepted_delivery_exits_0(make_delivery, mini_profile, tmp_path, capsys):
     images = "image_id,file,block,roll,flying_height,std_dn\nI1,a.tif,B1,0.5,1000,30\n"
-    code, stdout, _ = run_main(["check", make_delivery(images=images), "-p", mini_profile,
-                                "--checker", write_checker(tmp_path),
-                                "--out", tmp_path / "o", "--date", "2026-01-01"], capsys)
+    code, stdout, _ = run_main(
+        [
+            "check",
+            make_delivery(images=images),
+            "-p",
+            mini_profile,
+            "--checker",
+            write_checker(tmp_path),
+            "--out",
+            tmp_path / "o",
+            "--date",
+            "2026-01-01",
+        ],
+        capsys,
+    )
     assert code == 0 and "ACCEPTED" in stdout
 
 
 def test_byte_identical_json_with_same_date(make_delivery, mini_profile, tmp_path, capsys):
     root = make_delivery()
     for o in ("a", "b"):
-        run_main(["check", root, "-p", mini_profile, "--out", tmp_path / o, "--date", "2026-02-03",
-                  "--format", "json"], capsys)
+        run_main(
+            [
+                "check",
+                root,
+                "-p",
+                mini_profile,
+                "--out",
+                tmp_path / o,
+                "--date",
+                "2026-02-03",
+                "--format",
+                "json",
+            ],
+            capsys,
+        )
     assert sha256_file(tmp_path / "a" / "qcr.json") == sha256_file(tmp_path / "b" / "qcr.json")
 
 
-@pytest.mark.parametrize("mutate, message", [
-    (lambda m: m.replace("sensor: {type: aerial", "sensor: {type: zeppelin"), "delivery.yaml:6"),
-    (lambda m: m.replace("images: tables/images.csv", "images: tables/nope.csv"), "file not found: tables/nope.csv"),
-])
-def test_bad_input_exit_2_no_traceback_no_outputs(make_delivery, mini_profile, tmp_path, capsys, mutate, message):
+@pytest.mark.parametrize(
+    "mutate, message",
+    [
+        (
+            lambda m: m.replace("sensor: {type: aerial", "sensor: {type: zeppelin"),
+            "delivery.yaml:6",
+        ),
+        (
+            lambda m: m.replace("images: tables/images.csv", "images: tables/nope.csv"),
+            "file not found: tables/nope.csv",
+        ),
+    ],
+)
+def test_bad_input_exit_2_no_traceback_no_outputs(
+    make_delivery, mini_profile, tmp_path, capsys, mutate, message
+):
     out = tmp_path / "out"
-    code, stdout, err = run_main(["check", make_delivery(manifest=mutate(MANIFEST)), "-p", mini_profile,
-                                  "--out", out], capsys)
+    code, stdout, err = run_main(
+        ["check", make_delivery(manifest=mutate(MANIFEST)), "-p", mini_profile, "--out", out],
+        capsys,
+    )
     assert code == 2
     assert message in err and err.startswith("error: ")
     assert "Traceback" not in err + stdout
@@ -86,8 +127,9 @@ def test_bad_input_exit_2_no_traceback_no_outputs(make_delivery, mini_profile, t
 
 def test_bad_csv_value_exit_2(make_delivery, mini_profile, tmp_path, capsys):
     images = "image_id,file,block,roll\nI1,a.tif,B1,1.5\nI2,b.tif,B1,x\n"
-    code, _, err = run_main(["check", make_delivery(images=images), "-p", mini_profile, "--out", tmp_path / "o"],
-                            capsys)
+    code, _, err = run_main(
+        ["check", make_delivery(images=images), "-p", mini_profile, "--out", tmp_path / "o"], capsys
+    )
     assert code == 2
     assert "tables/images.csv: row 2: column 'roll': expected a number, got 'x'" in err
 
@@ -98,7 +140,9 @@ def test_unknown_profile_lists_available(make_delivery, capsys):
 
 
 def test_unknown_format_is_a_usage_error(make_delivery, mini_profile, capsys):
-    code, _, err = run_main(["check", make_delivery(), "-p", mini_profile, "--format", "docx"], capsys)
+    code, _, err = run_main(
+        ["check", make_delivery(), "-p", mini_profile, "--format", "docx"], capsys
+    )
     assert code == 2 and "unknown format(s) docx" in err
 
 
@@ -112,10 +156,21 @@ def test_delivery_is_not_modified(make_delivery, mini_profile, tmp_path, capsys)
 
 def test_terminal_caps_items_but_json_lists_all(make_delivery, mini_profile, tmp_path, capsys):
     rows = "\n".join(f"I{i},f{i}.tif,B1,5,1000,30" for i in range(30))
-    _, stdout, _ = run_main(["check", make_delivery(images="image_id,file,block,roll,flying_height,std_dn\n"
-                                                                + rows + "\n"), "-p", mini_profile,
-                                "--out", tmp_path / "o", "--max-items", "3", "--checker", write_checker(tmp_path)],
-                            capsys)
+    _, stdout, _ = run_main(
+        [
+            "check",
+            make_delivery(images="image_id,file,block,roll,flying_height,std_dn\n" + rows + "\n"),
+            "-p",
+            mini_profile,
+            "--out",
+            tmp_path / "o",
+            "--max-items",
+            "3",
+            "--checker",
+            write_checker(tmp_path),
+        ],
+        capsys,
+    )
     assert "I0, I1, I2 … (+26 more)" in stdout  # I3 is waived by the checker; natural order
     doc = json.loads((tmp_path / "o" / "qcr.json").read_text())
     roll = next(r for r in doc["rules"] if r["rule"] == "R-ROLL")
@@ -139,7 +194,10 @@ def test_outputs_are_ordinary_files(make_delivery, mini_profile, tmp_path, capsy
     import os
     import stat
 
-    run_main(["check", make_delivery(), "-p", mini_profile, "--out", tmp_path / "o", "--format", "json"], capsys)
+    run_main(
+        ["check", make_delivery(), "-p", mini_profile, "--out", tmp_path / "o", "--format", "json"],
+        capsys,
+    )
     mode = stat.S_IMODE((tmp_path / "o" / "qcr.json").stat().st_mode)
     mask = os.umask(0)
     os.umask(mask)
@@ -160,8 +218,19 @@ def test_out_inside_the_delivery_is_refused_before_the_check(make_delivery, mini
 
 @pytest.mark.parametrize("workers, ok", [("0", False), ("-3", False), ("1", True)])
 def test_workers_must_be_positive(make_delivery, mini_profile, tmp_path, capsys, workers, ok):
-    code, _, err = run_main(["check", make_delivery(), "-p", mini_profile, "--out", tmp_path / "o",
-                             "--workers", workers], capsys)
+    code, _, err = run_main(
+        [
+            "check",
+            make_delivery(),
+            "-p",
+            mini_profile,
+            "--out",
+            tmp_path / "o",
+            "--workers",
+            workers,
+        ],
+        capsys,
+    )
     assert (code != 2) is ok, err
     if not ok:
         assert "--workers" in err
@@ -182,12 +251,16 @@ def test_outputs_are_all_or_nothing(tmp_path):
     out = tmp_path / "out"
     (out / "junit.xml").mkdir(parents=True)
     (out / "qcr.json").write_text("old")
-    with pytest.raises(OrthospecError, match="junit.xml exists and is not a regular file; no output written"):
+    with pytest.raises(
+        OrthospecError, match="junit.xml exists and is not a regular file; no output written"
+    ):
         write_outputs(out, {"qcr.json": "new", "qcr.csv": "new", "junit.xml": "new"})
     assert sorted(p.name for p in out.iterdir()) == ["junit.xml", "qcr.json"]
     assert (out / "qcr.json").read_text() == "old"
     assert write_outputs(out / "fresh", {"a.txt": "1", "b.bin": b"\x00"}) == ["a.txt", "b.bin"]
-    assert (out / "fresh" / "b.bin").read_bytes() == b"\x00" and len(list((out / "fresh").iterdir())) == 2
+    assert (out / "fresh" / "b.bin").read_bytes() == b"\x00" and len(
+        list((out / "fresh").iterdir())
+    ) == 2
 
 
 WRITE_PAST_A_SIZE_LIMIT = """
@@ -216,17 +289,29 @@ def test_a_write_that_fails_in_the_writer_thread_names_its_output_and_leaves_not
 
     out = tmp_path / "out"
     out.mkdir()
-    run = subprocess.run([sys.executable, "-c", WRITE_PAST_A_SIZE_LIMIT, str(out)], capture_output=True,
-                         text=True, timeout=120)
+    run = subprocess.run(
+        [sys.executable, "-c", WRITE_PAST_A_SIZE_LIMIT, str(out)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert run.returncode == 0, run.stderr
     assert run.stdout.startswith("cannot write qcr.csv to ") and "no output written" in run.stdout
     assert sorted(p.name for p in out.iterdir()) == ["qcr.json"]
     assert (out / "qcr.json").read_text() == "old"
 
 
-@pytest.mark.parametrize("text, expected", [
-    ("D-2026-014", "D-2026-014"), ("../../../escaped", "escaped"), ("/tmp/x/delivery", "tmp_x_delivery"),
-    ("..", "delivery"), ("", "delivery"), ("a b/c", "a_b_c")])
+@pytest.mark.parametrize(
+    "text, expected",
+    [
+        ("D-2026-014", "D-2026-014"),
+        ("../../../escaped", "escaped"),
+        ("/tmp/x/delivery", "tmp_x_delivery"),
+        ("..", "delivery"),
+        ("", "delivery"),
+        ("a b/c", "a_b_c"),
+    ],
+)
 def test_default_output_folder_is_one_safe_segment(text, expected):
     from orthospec.api import default_output_dir, safe_segment
 
@@ -234,7 +319,9 @@ def test_default_output_folder_is_one_safe_segment(text, expected):
     assert default_output_dir(text).parts == ("reports", expected)
 
 
-def test_junit_directory_in_out_exits_2_and_writes_nothing(make_delivery, mini_profile, tmp_path, capsys):
+def test_junit_directory_in_out_exits_2_and_writes_nothing(
+    make_delivery, mini_profile, tmp_path, capsys
+):
     out = tmp_path / "out"
     (out / "junit.xml").mkdir(parents=True)
     code, _, err = run_main(["check", make_delivery(), "-p", mini_profile, "--out", out], capsys)
@@ -242,24 +329,41 @@ def test_junit_directory_in_out_exits_2_and_writes_nothing(make_delivery, mini_p
     assert [p.name for p in out.iterdir()] == ["junit.xml"]
 
 
-def test_a_bad_ledger_fails_before_the_check_writes_anything(make_delivery, mini_profile, tmp_path, capsys):
+def test_a_bad_ledger_fails_before_the_check_writes_anything(
+    make_delivery, mini_profile, tmp_path, capsys
+):
     bad = tmp_path / "ledger.sqlite"
     bad.write_bytes(b"not a database " * 100)
-    code, _, err = run_main(["check", make_delivery(), "-p", mini_profile, "--out", tmp_path / "o",
-                             "--ledger", bad], capsys)
+    code, _, err = run_main(
+        ["check", make_delivery(), "-p", mini_profile, "--out", tmp_path / "o", "--ledger", bad],
+        capsys,
+    )
     assert code == 2 and "ledger" in err
     assert not (tmp_path / "o").exists()
 
 
 def test_a_ledger_inside_the_delivery_is_refused(make_delivery, mini_profile, tmp_path, capsys):
     root = make_delivery()
-    code, _, err = run_main(["check", root, "-p", mini_profile, "--out", tmp_path / "o",
-                             "--ledger", root / "ledger.sqlite"], capsys)
+    code, _, err = run_main(
+        [
+            "check",
+            root,
+            "-p",
+            mini_profile,
+            "--out",
+            tmp_path / "o",
+            "--ledger",
+            root / "ledger.sqlite",
+        ],
+        capsys,
+    )
     assert code == 2 and "--ledger" in err and not (root / "ledger.sqlite").exists()
     assert not (tmp_path / "o").exists()
 
 
-def test_cwd_inside_the_delivery_without_out_is_refused(make_delivery, mini_profile, capsys, monkeypatch):
+def test_cwd_inside_the_delivery_without_out_is_refused(
+    make_delivery, mini_profile, capsys, monkeypatch
+):
     root = make_delivery()
     monkeypatch.chdir(root)
     code, _, err = run_main(["check", ".", "-p", mini_profile], capsys)
@@ -292,8 +396,21 @@ def test_qcr_json_does_not_depend_on_the_working_folder(tmp_path, monkeypatch, c
     for cwd, target in ((tmp_path, "x/lot"), (img.parent, str(d))):
         monkeypatch.chdir(cwd)
         out = tmp_path / f"out{len(outs)}"
-        code, _, _ = run_main(["check", target, "-p", "jrc-v3", "--out", out, "--format", "json",
-                               "--date", "2026-11-21"], capsys)
+        code, _, _ = run_main(
+            [
+                "check",
+                target,
+                "-p",
+                "jrc-v3",
+                "--out",
+                out,
+                "--format",
+                "json",
+                "--date",
+                "2026-11-21",
+            ],
+            capsys,
+        )
         assert code in (0, 1, 3)
         outs.append((out / "qcr.json").read_bytes())
     assert outs[0] == outs[1]
@@ -305,29 +422,73 @@ def test_qcr_json_does_not_depend_on_the_working_folder(tmp_path, monkeypatch, c
 
 
 def test_without_a_checker_manual_rules_are_missing_and_the_contractors_waiver_is_a_request(
-        make_delivery, mini_profile, tmp_path, capsys):
+    make_delivery, mini_profile, tmp_path, capsys
+):
     """INTERFACES item 4: the delivery's manual_checks and waivers never decide a verdict."""
     images = "image_id,file,block,roll,flying_height,std_dn\nI1,a.tif,B1,0.5,1000,30\nI3,c.tif,B2,4,1100,20\n"
     root = make_delivery(images=images)
-    code, _, _ = run_main(["check", root, "-p", mini_profile, "--out", tmp_path / "o", "--date", "2026-01-01",
-                           "--format", "json"], capsys)
+    code, _, _ = run_main(
+        [
+            "check",
+            root,
+            "-p",
+            mini_profile,
+            "--out",
+            tmp_path / "o",
+            "--date",
+            "2026-01-01",
+            "--format",
+            "json",
+        ],
+        capsys,
+    )
     doc = json.loads((tmp_path / "o" / "qcr.json").read_text())
     got = {(r["rule"], r["item"]): r for r in all_records(doc)}
     assert code == 1 and doc["checker"] is None
     assert got[("R-VIS", "D1")]["verdict"] == "missing"
     assert got[("R-ROLL", "I3")]["verdict"] == "fail" and got[("R-ROLL", "I3")]["waiver_requested"]
-    code, _, _ = run_main(["check", root, "-p", mini_profile, "--out", tmp_path / "o2", "--date", "2026-01-01",
-                           "--format", "json", "--checker", write_checker(tmp_path)], capsys)
+    code, _, _ = run_main(
+        [
+            "check",
+            root,
+            "-p",
+            mini_profile,
+            "--out",
+            tmp_path / "o2",
+            "--date",
+            "2026-01-01",
+            "--format",
+            "json",
+            "--checker",
+            write_checker(tmp_path),
+        ],
+        capsys,
+    )
     doc = json.loads((tmp_path / "o2" / "qcr.json").read_text())
     got = {(r["rule"], r["item"]): r for r in all_records(doc)}
     assert code == 0 and doc["checker"]["name"] == "Eva External"
-    assert got[("R-VIS", "D1")]["verdict"] == "pass" and got[("R-ROLL", "I3")]["verdict"] == "waived"
+    assert (
+        got[("R-VIS", "D1")]["verdict"] == "pass" and got[("R-ROLL", "I3")]["verdict"] == "waived"
+    )
 
 
-def test_a_checker_file_inside_the_delivery_is_refused(make_delivery, mini_profile, tmp_path, capsys):
+def test_a_checker_file_inside_the_delivery_is_refused(
+    make_delivery, mini_profile, tmp_path, capsys
+):
     root = make_delivery()
-    code, _, err = run_main(["check", root, "-p", mini_profile, "--out", tmp_path / "o",
-                             "--checker", write_checker(root)], capsys)
+    code, _, err = run_main(
+        [
+            "check",
+            root,
+            "-p",
+            mini_profile,
+            "--out",
+            tmp_path / "o",
+            "--checker",
+            write_checker(root),
+        ],
+        capsys,
+    )
     assert code == 2 and "checker.yaml" in err and not (tmp_path / "o").exists()
 
 
@@ -344,7 +505,9 @@ def test_check_options_are_typed(make_delivery, mini_profile):
     opts = CheckOptions.of({"workers": 1, "fail_on": "warn"})
     assert opts == CheckOptions(workers=1, fail_on="warn")
     # fail_on=warn makes the recommended R-FH warning blocking, through the options object alone
-    doc = check(make_delivery(), mini_profile, options=opts, date="2026-01-01", params=["tolerance_xy=0.5m"]).document
+    doc = check(
+        make_delivery(), mini_profile, options=opts, date="2026-01-01", params=["tolerance_xy=0.5m"]
+    ).document
     assert doc["fail_on"] == "warn"
 
 
@@ -353,36 +516,81 @@ def test_scheduler_without_dask_exits_2_before_checking(make_delivery, mini_prof
     import subprocess
     import sys
 
-    code = ("import sys; sys.modules['distributed'] = None; sys.modules['dask'] = None; "
-            "from orthospec.cli.main import main; main(sys.argv[1:])")
-    res = subprocess.run([sys.executable, "-c", code, "check", str(make_delivery()), "-p", str(mini_profile),
-                          "--out", str(tmp_path / "o"), "--scheduler", "tcp://127.0.0.1:1"],
-                         capture_output=True, text=True)
+    code = (
+        "import sys; sys.modules['distributed'] = None; sys.modules['dask'] = None; "
+        "from orthospec.cli.main import main; main(sys.argv[1:])"
+    )
+    res = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            code,
+            "check",
+            str(make_delivery()),
+            "-p",
+            str(mini_profile),
+            "--out",
+            str(tmp_path / "o"),
+            "--scheduler",
+            "tcp://127.0.0.1:1",
+        ],
+        capture_output=True,
+        text=True,
+    )
     assert res.returncode == 2, res.stderr
     assert "orthospec[dask]" in res.stderr and "Traceback" not in res.stderr
     assert not (tmp_path / "o").exists()
 
 
 def test_an_unknown_format_is_refused(make_delivery, mini_profile, tmp_path, capsys):
-    code, _, err = run_main(["check", make_delivery(), "-p", mini_profile, "--out", tmp_path / "o",
-                             "--format", "json,yaml-ish"], capsys)
+    code, _, err = run_main(
+        [
+            "check",
+            make_delivery(),
+            "-p",
+            mini_profile,
+            "--out",
+            tmp_path / "o",
+            "--format",
+            "json,yaml-ish",
+        ],
+        capsys,
+    )
     assert code == 2 and "yaml-ish" in err and not (tmp_path / "o").exists()
 
 
-def test_unsigned_manual_checks_are_named_on_the_terminal_and_page_1(make_delivery, mini_profile, tmp_path,
-                                                                     capsys):
+def test_unsigned_manual_checks_are_named_on_the_terminal_and_page_1(
+    make_delivery, mini_profile, tmp_path, capsys
+):
     """mini.yaml has one manual rule (R-VIS, delivery scope): without the checker's file it has no verdict."""
     root = make_delivery()
     note = "1 manual check has no verdict from the checker: give the checker's file with --checker FILE"
-    _, stdout, _ = run_main(["check", root, "-p", mini_profile, "--out", tmp_path / "o", "--format",
-                             "terminal,html"], capsys)
+    _, stdout, _ = run_main(
+        ["check", root, "-p", mini_profile, "--out", tmp_path / "o", "--format", "terminal,html"],
+        capsys,
+    )
     assert note in " ".join(stdout.split())
     html = unescape((tmp_path / "o" / "report.html").read_text(encoding="utf-8"))
     assert note in html and html.index(note) < html.index("Findings, most consequential first")
-    _, stdout, _ = run_main(["check", root, "-p", mini_profile, "--out", tmp_path / "o2", "--format",
-                             "terminal,html", "--checker", write_checker(tmp_path)], capsys)
+    _, stdout, _ = run_main(
+        [
+            "check",
+            root,
+            "-p",
+            mini_profile,
+            "--out",
+            tmp_path / "o2",
+            "--format",
+            "terminal,html",
+            "--checker",
+            write_checker(tmp_path),
+        ],
+        capsys,
+    )
     assert "no verdict from the checker" not in stdout
-    assert "no verdict from the checker" not in (tmp_path / "o2" / "report.html").read_text(encoding="utf-8")
+    assert "no verdict from the checker" not in (tmp_path / "o2" / "report.html").read_text(
+        encoding="utf-8"
+    )
 
 
 def test_a_stream_failing_while_written_leaves_nothing(tmp_path):

@@ -153,7 +153,14 @@ def test_reads_a_delivery_checkpoints_table_per_block() -> None:
 
     from orthospec.cli.main import cli as _cli
 
-    path = _Path(__file__).resolve().parents[1] / "examples" / "checker" / "aerial-fail" / "tables" / "checkpoints.csv"
+    path = (
+        _Path(__file__).resolve().parents[1]
+        / "examples"
+        / "checker"
+        / "aerial-fail"
+        / "tables"
+        / "checkpoints.csv"
+    )
     res = _Runner().invoke(_cli(), ["measure", "accuracy", str(path), "--json"])
     assert res.exit_code == 0, res.output
     out = _json.loads(res.stdout)
@@ -163,5 +170,5 @@ def test_reads_a_delivery_checkpoints_table_per_block() -> None:
         sub = [r for r in rows if r["block"] == block]
         dy = _np.array([float(r["y"]) - float(r["y_ref"]) for r in sub])
         assert out["blocks"][block]["n"] == len(sub)
-        assert abs(out["blocks"][block]["rmse_y"] - float(_np.sqrt(_np.mean(dy ** 2)))) < 1e-6
+        assert abs(out["blocks"][block]["rmse_y"] - float(_np.sqrt(_np.mean(dy**2)))) < 1e-6
     assert round(out["blocks"]["B02"]["rmse_y"], 3) == 0.641  # the example's documented failure

@@ -149,7 +149,9 @@ def test_map_roi_reads_the_same_pixels_and_gsd_comes_from_the_transform(edge_tif
     assert mp["roi"] == px["roi"] == [20, 10, 100, 110]
     assert mp["fwhm_px"] == px["fwhm_px"] and mp["rer"] == px["rer"]
     assert px["gsd_m"] == pytest.approx(0.2) and px["fwhm_m"] == pytest.approx(px["fwhm_px"] * 0.2)
-    both = _run(str(edge_tif), "--roi", "20,10,100,110", "--map-roi", "500004,5599978,500020,5599998")
+    both = _run(
+        str(edge_tif), "--roi", "20,10,100,110", "--map-roi", "500004,5599978,500020,5599998"
+    )
     assert both.exit_code == 2 and "not both" in both.output
     bad = _run(str(edge_tif), "--map-roi", "1,2,3")
     assert bad.exit_code == 2 and "four numbers" in bad.output

@@ -35,10 +35,25 @@ def _checker(tmp_path):
 def test_sample_is_reproducible_and_rounds_differ(make_delivery, mini_profile, tmp_path):
     rows = "\n".join(f"I{i},f{i}.tif,B{i % 2 + 1},0.5,1000,30,{i * 100},{(i % 5) * 100}"
                      for i in range(40))
-    root = make_delivery(images="image_id,file,block,roll,flying_height,std_dn,exposure_x,exposure_y\n" + rows + "\n")
+    root = make_delivery(
+        images="image_id,file,block,roll,flying_height,std_dn,exposure_x,exposure_y\n" + rows + "\n"
+    )
     a, b, c = tmp_path / "a.csv", tmp_path / "b.csv", tmp_path / "c.csv"
     for out, rnd in ((a, 0), (b, 0), (c, 1)):
-        res = run("sample", root, "-p", mini_profile, "--seed", 11, "--round", rnd, "--fraction", 0.1, "--out", out)
+        res = run(
+            "sample",
+            root,
+            "-p",
+            mini_profile,
+            "--seed",
+            11,
+            "--round",
+            rnd,
+            "--fraction",
+            0.1,
+            "--out",
+            out,
+        )
         assert res.exit_code == 0, res.output
     assert sha256_file(a) == sha256_file(b)
     assert a.read_text() != c.read_text()
@@ -49,8 +64,22 @@ def test_check_with_sample_only_judges_sampled_images(make_delivery, mini_profil
     root = make_delivery()
     sample = tmp_path / "s.csv"
     sample.write_text("item,scope,reason,seed,round\nI1,image,random,1,0\nI3,image,random,1,0\n")
-    res = run("check", root, "-p", mini_profile, "--sample", sample, "--out", tmp_path / "o",
-              "--date", "2026-01-01", "--format", "json", "--checker", _checker(tmp_path))
+    res = run(
+        "check",
+        root,
+        "-p",
+        mini_profile,
+        "--sample",
+        sample,
+        "--out",
+        tmp_path / "o",
+        "--date",
+        "2026-01-01",
+        "--format",
+        "json",
+        "--checker",
+        _checker(tmp_path),
+    )
     doc = json.loads((tmp_path / "o" / "qcr.json").read_text())
     fh = {r["item"]: r for r in all_records(doc) if r["rule"] == "R-FH"}
     assert fh["I2"]["verdict"] == "not_applicable"
@@ -63,21 +92,65 @@ def test_check_with_sample_only_judges_sampled_images(make_delivery, mini_profil
 def test_bad_sample_table(make_delivery, mini_profile, tmp_path):
     sample = tmp_path / "s.csv"
     sample.write_text("item,scope\nI1,galaxy\n")
-    res = run("check", make_delivery(), "-p", mini_profile, "--sample", sample, "--out", tmp_path / "o")
+    res = run(
+        "check", make_delivery(), "-p", mini_profile, "--sample", sample, "--out", tmp_path / "o"
+    )
     assert res.exit_code != 0
 
 
-def test_tightened_ledger_state_draws_a_larger_sample_with_the_suspects(make_delivery, mini_profile, tmp_path):
-    rows = "\n".join(f"I{i},f{i}.tif,B1,{5 if i == 7 else 0.5},1000,30,{i * 100},{(i % 5) * 100}" for i in range(40))
-    root = make_delivery(images="image_id,file,block,roll,flying_height,std_dn,exposure_x,exposure_y\n" + rows + "\n")
+def test_tightened_ledger_state_draws_a_larger_sample_with_the_suspects(
+    make_delivery, mini_profile, tmp_path
+):
+    rows = "\n".join(
+        f"I{i},f{i}.tif,B1,{5 if i == 7 else 0.5},1000,30,{i * 100},{(i % 5) * 100}"
+        for i in range(40)
+    )
+    root = make_delivery(
+        images="image_id,file,block,roll,flying_height,std_dn,exposure_x,exposure_y\n" + rows + "\n"
+    )
     ledger = tmp_path / "ledger.sqlite"
-    res = run("check", root, "-p", mini_profile, "--out", tmp_path / "o", "--ledger", ledger, "--date", "2026-01-01",
-              "--checker", _checker(tmp_path))
+    res = run(
+        "check",
+        root,
+        "-p",
+        mini_profile,
+        "--out",
+        tmp_path / "o",
+        "--ledger",
+        ledger,
+        "--date",
+        "2026-01-01",
+        "--checker",
+        _checker(tmp_path),
+    )
     # 1 failing image in 40 (2.5 %) is within the §12.3 5 % rule: accepted, but its family turns tightened
     assert res.exit_code == 0, res.output
-    normal = run("sample", root, "-p", mini_profile, "--seed", 3, "--fraction", 0.1, "--out", tmp_path / "n.csv")
-    tight = run("sample", root, "-p", mini_profile, "--seed", 3, "--fraction", 0.1, "--ledger", ledger,
-                "--out", tmp_path / "t.csv")
+    normal = run(
+        "sample",
+        root,
+        "-p",
+        mini_profile,
+        "--seed",
+        3,
+        "--fraction",
+        0.1,
+        "--out",
+        tmp_path / "n.csv",
+    )
+    tight = run(
+        "sample",
+        root,
+        "-p",
+        mini_profile,
+        "--seed",
+        3,
+        "--fraction",
+        0.1,
+        "--ledger",
+        ledger,
+        "--out",
+        tmp_path / "t.csv",
+    )
     assert "audit level normal" in normal.output
     assert "audit level tightened" in tight.output, tight.output
     n_ids = (tmp_path / "n.csv").read_text().splitlines()[1:]
@@ -104,12 +177,25 @@ def test_sample_places_images_by_their_footprint(make_delivery, mini_profile, tm
     (root / "images").mkdir()
     for i in (1, 2, 3):
         (root / "images" / f"i{i}.tif").write_bytes(rgb.read_bytes())
-    res = run("sample", root, "-p", mini_profile, "--seed", 3, "--fraction", 0.5, "--out", tmp_path / "s.csv")
+    res = run(
+        "sample",
+        root,
+        "-p",
+        mini_profile,
+        "--seed",
+        3,
+        "--fraction",
+        0.5,
+        "--out",
+        tmp_path / "s.csv",
+    )
     assert res.exit_code == 0, res.output
     assert "selected 2 of 3 images" in res.output
 
 
-def test_sample_refuses_an_unreadable_image_naming_it(make_delivery, mini_profile, tmp_path, capsys):
+def test_sample_refuses_an_unreadable_image_naming_it(
+    make_delivery, mini_profile, tmp_path, capsys
+):
     """Issue 15 item 2: an unreadable image was placed at (0, 0) silently, which moves the
     systematic part of the sample. Now: exit 2, the file and its row in images.csv named."""
     data = _real_rgb().read_bytes()
@@ -119,9 +205,22 @@ def test_sample_refuses_an_unreadable_image_naming_it(make_delivery, mini_profil
         (root / "images" / f"i{i}.tif").write_bytes(data)
     (root / "images" / "i2.tif").write_bytes(data[: len(data) // 2])  # truncated: the IFD is lost
     with pytest.raises(SystemExit) as exc:  # the executable's error boundary: error line, exit 2
-        main(["sample", str(root), "-p", str(mini_profile), "--seed", "3", "--out", str(tmp_path / "s.csv")])
+        main(
+            [
+                "sample",
+                str(root),
+                "-p",
+                str(mini_profile),
+                "--seed",
+                "3",
+                "--out",
+                str(tmp_path / "s.csv"),
+            ]
+        )
     err = capsys.readouterr().err
     assert exc.value.code == 2, err
-    assert err.startswith("error: tables/images.csv: row 2: image I2 cannot be placed for the sample")
+    assert err.startswith(
+        "error: tables/images.csv: row 2: image I2 cannot be placed for the sample"
+    )
     assert "images/i2.tif: not a readable raster" in err
     assert "Traceback" not in err and not (tmp_path / "s.csv").exists()

@@ -48,13 +48,21 @@ rules:
     assert res.exit_code == 0, res.output
     assert "- rule R-CV" in res.output
     assert "~ rule R-ROLL" in res.output and "level: mandatory -> recommended" in res.output
-    assert "~ parameter max_roll: effective 3 deg -> 2 deg" in res.output and "value: — -> 2" in res.output
+    assert (
+        "~ parameter max_roll: effective 3 deg -> 2 deg" in res.output
+        and "value: — -> 2" in res.output
+    )
 
 
 def test_explain(mini_profile):
     res = run("explain", "R-ROLL", "--profile", mini_profile)
     assert res.exit_code == 0
-    assert "§5.2.4" in res.output and "images.roll" in res.output and "≤ 3 deg" in res.output and "max_roll" in res.output
+    assert (
+        "§5.2.4" in res.output
+        and "images.roll" in res.output
+        and "≤ 3 deg" in res.output
+        and "max_roll" in res.output
+    )
     miss = run("explain", "R-RO", "--profile", mini_profile)
     assert miss.exit_code != 0 and "did you mean R-ROLL" in miss.output
 
@@ -81,7 +89,9 @@ def test_verify_runs_profile_tests(mini_profile, make_delivery, tmp_path):
     # waiver is only a request); the second entry is the planted mismatch: without the checker's file
     # the manual check R-VIS is unsigned (missing), so the delivery cannot be accepted
     write_checker(tmp_path)
-    prof.write_text(mini_profile.read_text() + f"""
+    prof.write_text(
+        mini_profile.read_text()
+        + f"""
 tests:
   - delivery: {root}
     checker: checker.yaml
@@ -89,7 +99,8 @@ tests:
   - delivery: {root}
     params: {{max_roll: 10, tolerance_xy: 0.5}}
     expect: {{verdict: accepted}}
-""")
+"""
+    )
     res = run("verify", prof)
     assert "3 of 4 expectations met" in res.output, res.output
     assert res.exit_code == 1
@@ -102,12 +113,16 @@ def test_spec_diff_shows_effective_values_with_units_and_warns_on_same_version(t
     res = run("spec", "diff", "jrc-v3", tender)
     assert res.exit_code == 0, res.output
     assert "~ parameter tolerance_xy: effective — -> 0.5 m" in res.output
-    assert "None" not in res.output and ": '" not in res.output  # YAML-like values, not Python reprs
+    assert (
+        "None" not in res.output and ": '" not in res.output
+    )  # YAML-like values, not Python reprs
     # 0.5 m / gcp_accuracy_factor 3 (JRC §7.1) = 0.167 m
     assert "JRC-7.1-GCP-ACCURACY-3X: requirement" in res.output and "-> ≤ 0.166667 m" in res.output
     edited = tmp_path / "tender-edited.yaml"
-    edited.write_text(tender.read_text(encoding="utf-8").replace("value: 0.5\n", "value: 0.4\n", 1),
-                      encoding="utf-8")
+    edited.write_text(
+        tender.read_text(encoding="utf-8").replace("value: 0.5\n", "value: 0.4\n", 1),
+        encoding="utf-8",
+    )
     same = CliRunner().invoke(cli(), ["spec", "diff", str(tender), str(edited)])
     assert same.exit_code == 0
     assert "warning: both files say tender-example 1.0.0" in same.stderr
@@ -122,7 +137,10 @@ def test_init_for_a_profile_and_sensor_writes_what_it_reads(tmp_path):
         res = run("init", folder, "--profile", "jrc-v3", "--sensor", sensor)
         assert res.exit_code == 0, res.output
         manifest = (folder / "delivery.yaml").read_text(encoding="utf-8")
-        assert "$schema=./delivery.schema.json" in manifest and (folder / "delivery.schema.json").is_file()
+        assert (
+            "$schema=./delivery.schema.json" in manifest
+            and (folder / "delivery.schema.json").is_file()
+        )
         assert "documents:" in manifest and "internal_qcr" in manifest
         d = open_delivery(folder)
         d.load_all_tables()

@@ -13,8 +13,20 @@ from click.testing import CliRunner
 from orthospec.cli import groups
 from orthospec.cli.main import cli
 
-HEAVY = ("pandas", "pint", "sqlalchemy", "rasterio", "weasyprint", "numpy", "scipy", "matplotlib",
-         "pydantic", "pyarrow", "osgeo", "dask")
+HEAVY = (
+    "pandas",
+    "pint",
+    "sqlalchemy",
+    "rasterio",
+    "weasyprint",
+    "numpy",
+    "scipy",
+    "matplotlib",
+    "pydantic",
+    "pyarrow",
+    "osgeo",
+    "dask",
+)
 
 PROBE = """
 import json, sys
@@ -30,13 +42,18 @@ print(json.dumps({{"code": code, "modules": mods}}))
 
 def probe(*args: str) -> dict:
     """Run the real entry point in a fresh interpreter; report its exit code and heavy imports."""
-    proc = subprocess.run([sys.executable, "-c", PROBE.format(heavy=set(HEAVY)), *args],
-                          capture_output=True, text=True, timeout=120)
+    proc = subprocess.run(
+        [sys.executable, "-c", PROBE.format(heavy=set(HEAVY)), *args],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
-@pytest.mark.parametrize("args", [["--help"], ["--version"], ["spec", "--help"], ["measure", "-h"],
-                                  ["ledger", "--help"]])
+@pytest.mark.parametrize(
+    "args", [["--help"], ["--version"], ["spec", "--help"], ["measure", "-h"], ["ledger", "--help"]]
+)
 def test_help_and_version_import_no_engine(args: list[str]) -> None:
     res = probe(*args)
     assert res["code"] == 0
@@ -58,7 +75,10 @@ def test_lazy_table_matches_what_the_modules_register() -> None:
     """Every command a ``cmd_*`` module registers is in COMMANDS, under the module that registers
     it and with the first sentence of its own help; and nothing else is."""
     root = cli()  # imports every cmd_* module
-    lazy_groups = {"main": root, **{n: c for n, c in root.commands.items() if isinstance(c, click.Group)}}
+    lazy_groups = {
+        "main": root,
+        **{n: c for n, c in root.commands.items() if isinstance(c, click.Group)},
+    }
     assert set(lazy_groups) == set(groups.COMMANDS)
     for gname, group in lazy_groups.items():
         assert isinstance(group, groups.LazyGroup) and group.table == gname
@@ -71,7 +91,8 @@ def test_lazy_table_matches_what_the_modules_register() -> None:
             assert cmd.callback.__module__ == f"orthospec.cli.{module}", f"{gname} {name}: {fix}"
             now = cmd.get_short_help_str(10**6)
             assert click.Command(name, help=first).get_short_help_str(10**6) == now, (
-                f"{gname} {name}: help changed, {fix}: {name!r}: ({module!r}, {now!r})")
+                f"{gname} {name}: help changed, {fix}: {name!r}: ({module!r}, {now!r})"
+            )
 
 
 FRESH_HELP = """
@@ -84,13 +105,15 @@ print(json.dumps({"code": res.exit_code, "output": res.output,
 """
 
 
-@pytest.mark.parametrize("args", [["--help"], ["spec", "--help"], ["measure", "--help"],
-                                  ["ledger", "--help"]])
+@pytest.mark.parametrize(
+    "args", [["--help"], ["spec", "--help"], ["measure", "--help"], ["ledger", "--help"]]
+)
 def test_lazy_help_equals_help_of_the_loaded_tree(args: list[str]) -> None:
     """`--help` in a fresh process (no command module loaded) prints exactly what the fully
     loaded tree prints: every command, each with its one-line help."""
-    proc = subprocess.run([sys.executable, "-c", FRESH_HELP, *args], capture_output=True, text=True,
-                          timeout=120)
+    proc = subprocess.run(
+        [sys.executable, "-c", FRESH_HELP, *args], capture_output=True, text=True, timeout=120
+    )
     fresh = json.loads(proc.stdout)
     loaded = CliRunner().invoke(cli(), args, prog_name="orthospec", terminal_width=80)
     assert fresh["code"] == 0 and loaded.exit_code == 0
@@ -101,8 +124,12 @@ def test_lazy_help_equals_help_of_the_loaded_tree(args: list[str]) -> None:
 
 
 def test_unknown_command_is_a_usage_error() -> None:
-    fresh = subprocess.run([sys.executable, "-m", "orthospec.cli.main", "chek"], capture_output=True,
-                           text=True, timeout=120)
+    fresh = subprocess.run(
+        [sys.executable, "-m", "orthospec.cli.main", "chek"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert fresh.returncode == 2 and "No such command 'chek'" in fresh.stderr
 
 
@@ -120,8 +147,12 @@ def test_explain_words_a_rule_without_importing_the_engine(tmp_path, monkeypatch
     res = probe("explain", "JRC-12.7-RMSEX", "--profile", "jrc-v3")
     assert res["code"] == 0
     # numpy is allowed: a cold validation parses the rules' expressions (spec/expr.py uses it)
-    engine = [m for m in res["modules"] if m.split(".")[0] in ("pandas", "pint", "rasterio", "scipy",
-                                                                "sqlalchemy", "matplotlib", "weasyprint")]
+    engine = [
+        m
+        for m in res["modules"]
+        if m.split(".")[0]
+        in ("pandas", "pint", "rasterio", "scipy", "sqlalchemy", "matplotlib", "weasyprint")
+    ]
     assert engine == [], f"explain imported {engine}"
 
 
@@ -147,10 +178,14 @@ def test_openblas_threads_are_not_started_beside_ours(given, expected):
     beside orthospec's own workers (counted from /proc: the process has one thread)."""
     import os
 
-    env = {k: v for k, v in os.environ.items() if k not in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS")}
+    env = {
+        k: v for k, v in os.environ.items() if k not in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS")
+    }
     if given is not None:
         env["OPENBLAS_NUM_THREADS"] = given
-    proc = subprocess.run([sys.executable, "-c", BLAS_PROBE], capture_output=True, text=True, timeout=120, env=env)
+    proc = subprocess.run(
+        [sys.executable, "-c", BLAS_PROBE], capture_output=True, text=True, timeout=120, env=env
+    )
     value, threads = proc.stdout.splitlines()[-1].split()
     assert value == expected
     if given is None:

@@ -30,13 +30,17 @@ def scores(tmp_path_factory: pytest.TempPathFactory) -> list:
 def test_stated_accuracy_on_the_labelled_set(scores: list) -> None:
     errors = [s.error_pct for _, _, s in scores]
     upto20 = [abs(s.error_pct) for c, _, s in scores if c <= 0.20]
-    print(f"\ncloud estimator on {len(scores)} labelled scenes: mean |error| {statistics.fmean(map(abs, errors)):.2f} "
-          f"pp, largest {max(map(abs, errors)):.2f} pp, bias {statistics.fmean(errors):+.2f} pp; up to 20 % cover "
-          f"largest {max(upto20):.2f} pp; pixel accuracy {statistics.fmean(s.accuracy for _, _, s in scores):.4f}")
-    assert max(upto20) <= 1.5                       # the margin the profile's notes state
-    assert max(abs(e) for e in errors) <= 8.0       # at 50 % cover
-    assert abs(statistics.fmean(errors)) <= 1.5     # not biased low: an under-count would pass a cap
-    assert all(s.estimated_pct == 0.0 for c, _, s in scores if c == 0.0)  # no false cloud on clear ground
+    print(
+        f"\ncloud estimator on {len(scores)} labelled scenes: mean |error| {statistics.fmean(map(abs, errors)):.2f} "
+        f"pp, largest {max(map(abs, errors)):.2f} pp, bias {statistics.fmean(errors):+.2f} pp; up to 20 % cover "
+        f"largest {max(upto20):.2f} pp; pixel accuracy {statistics.fmean(s.accuracy for _, _, s in scores):.4f}"
+    )
+    assert max(upto20) <= 1.5  # the margin the profile's notes state
+    assert max(abs(e) for e in errors) <= 8.0  # at 50 % cover
+    assert abs(statistics.fmean(errors)) <= 1.5  # not biased low: an under-count would pass a cap
+    assert all(
+        s.estimated_pct == 0.0 for c, _, s in scores if c == 0.0
+    )  # no false cloud on clear ground
     assert min(s.precision for c, _, s in scores if c > 0) >= 0.99
     assert statistics.fmean(s.accuracy for _, _, s in scores) >= 0.95
 

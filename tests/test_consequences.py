@@ -62,7 +62,9 @@ def _edit_points(d: Path, edit: Any) -> None:
     write_table(_checker(d), "checkpoints", header, edit(rows))
 
 
-def _check(d: Path, tmp_path: Path, profile: str = "jrc-v3", params: Any = (), **top: Any) -> dict[str, Any]:
+def _check(
+    d: Path, tmp_path: Path, profile: str = "jrc-v3", params: Any = (), **top: Any
+) -> dict[str, Any]:
     """The check of the copy with its checker folder re-signed on it."""
     chk = resigned(_checker(d), d, _checker(d), **top)
     return check_with(d, profile, checker=chk, params=params, date=DATE).document
@@ -90,6 +92,7 @@ def _todo(doc: dict[str, Any], rule: str) -> list[str]:
 
 # --- issue 26: reported vs recomputed is a finding, never a rejection --------------------------------
 
+
 def test_reported_rmse_disagreeing_by_3_cm_is_a_finding_not_a_rejection(tmp_path: Path) -> None:
     """Contractor 0.30 m against the recomputed value (about 0.27 m), tolerance 0.5 m: before, B01 was
     rejected and §12.8 (1 of 3 blocks) returned the delivery. §9.5 asks that the RMSE be recorded."""
@@ -109,29 +112,47 @@ def test_reported_rmse_disagreeing_by_3_cm_is_a_finding_not_a_rejection(tmp_path
 
 # --- issue 26: faults in the checker's own check points leave the check incomplete --------------------
 
-def test_one_imprecise_point_of_25_is_the_checkers_and_leaves_the_statistics(tmp_path: Path) -> None:
+
+def test_one_imprecise_point_of_25_is_the_checkers_and_leaves_the_statistics(
+    tmp_path: Path,
+) -> None:
     d = _copy("aerial-pass", tmp_path)
-    _edit_points(d, lambda rows: [{**r, "precision_xy": "0.20"} if r["point_id"] == "B01-C07" else r
-                                  for r in rows])
+    _edit_points(
+        d,
+        lambda rows: [
+            {**r, "precision_xy": "0.20"} if r["point_id"] == "B01-C07" else r for r in rows
+        ],
+    )
     doc = _check(d, tmp_path)
     assert doc["verdict"] == V.INCOMPLETE and doc["rollup"]["reasons"] == []
     assert _rec(doc, "JRC-DEF-CHECKPOINT-ACCURACY", "B01-C07")["verdict"] == V.FAIL
     assert any(t.startswith("B01-C07:") for t in _todo(doc, "JRC-DEF-CHECKPOINT-ACCURACY"))
     rows = [r for r in _used(_points(d)[1], "B01") if r["point_id"] != "B01-C07"]
-    assert _rec(doc, "JRC-12.7-RMSEX", "B01")["measured"]["value"] == pytest.approx(_rmse(rows, "x"), rel=1e-9)
+    assert _rec(doc, "JRC-12.7-RMSEX", "B01")["measured"]["value"] == pytest.approx(
+        _rmse(rows, "x"), rel=1e-9
+    )
     assert _rec(doc, "JRC-12.4-T12-MIN-CHECKPOINTS", "B01")["measured"]["value"] == len(rows)
 
 
-def test_a_refused_exclusion_request_keeps_the_point_and_leaves_the_check_incomplete(tmp_path: Path) -> None:
+def test_a_refused_exclusion_request_keeps_the_point_and_leaves_the_check_incomplete(
+    tmp_path: Path,
+) -> None:
     d = _copy("aerial-pass", tmp_path)
-    _edit_points(d, lambda rows: [{**r, "excluded": "true", "exclusion_reason": ""} if r["point_id"] == "B01-C03"
-                                  else r for r in rows])
+    _edit_points(
+        d,
+        lambda rows: [
+            {**r, "excluded": "true", "exclusion_reason": ""} if r["point_id"] == "B01-C03" else r
+            for r in rows
+        ],
+    )
     doc = _check(d, tmp_path)
     assert _rec(doc, "JRC-12.6-BLUNDER-EXCLUSIONS", "B01")["verdict"] == V.FAIL
     assert doc["verdict"] == V.INCOMPLETE and doc["rollup"]["rejected"] == {}
     # refused: the point stays in the official RMSE, which still meets the tolerance
     rows = [r for r in _points(d)[1] if r["block"] == "B01"]
-    assert _rec(doc, "JRC-12.7-RMSEX", "B01")["measured"]["value"] == pytest.approx(_rmse(rows, "x"), rel=1e-9)
+    assert _rec(doc, "JRC-12.7-RMSEX", "B01")["measured"]["value"] == pytest.approx(
+        _rmse(rows, "x"), rel=1e-9
+    )
     todo = _todo(doc, "JRC-12.6-BLUNDER-EXCLUSIONS")
     assert len(todo) == 1 and todo[0].startswith("B01: 1 exclusion request to justify")
 
@@ -142,15 +163,23 @@ def test_a_short_image_sample_asks_for_the_missing_images(tmp_path: Path) -> Non
     header, rows = read_table(d, "images")
     if "sample" not in header:
         header.append("sample")
-    write_table(d, "images", header, [{**r, "sample": "true" if i == 0 else "false"} for i, r in enumerate(rows)])
+    write_table(
+        d,
+        "images",
+        header,
+        [{**r, "sample": "true" if i == 0 else "false"} for i, r in enumerate(rows)],
+    )
     doc = _check(d, tmp_path)
     assert doc["verdict"] == V.INCOMPLETE
     need = math.ceil(0.10 * len(rows)) - 1
     assert [t.split(" (")[0] for t in _todo(doc, "JRC-12.3-IMAGE-SAMPLE")] == [
-        f"D-2026-014: {need} more images to inspect in the sample"]
+        f"D-2026-014: {need} more images to inspect in the sample"
+    ]
 
 
-def test_a_missing_checker_measurement_is_incomplete_a_real_failure_still_rejects(tmp_path: Path) -> None:
+def test_a_missing_checker_measurement_is_incomplete_a_real_failure_still_rejects(
+    tmp_path: Path,
+) -> None:
     """B03 of aerial-fail loses every check point (the checker measured none there): its statistics are
     the checker's to add; B02's RMSEy 0.641 m > 0.5 m still rejects."""
     d = _copy("aerial-fail", tmp_path)
@@ -160,22 +189,29 @@ def test_a_missing_checker_measurement_is_incomplete_a_real_failure_still_reject
     assert _rec(doc, "JRC-12.7-RMSEX", "B03")["verdict"] == V.MISSING
     assert not any("B03" in r for r in doc["rollup"]["reasons"] if "12.7" in r)
     b03 = [t for t in doc["rollup"]["incomplete"] if t.startswith("B03: not measured")]
-    assert len(b03) == 1 and "JRC-12.7-RMSEX" in b03[0] and "JRC-12.7-RMSEY" in b03[0]  # one line, both rules
+    assert (
+        len(b03) == 1 and "JRC-12.7-RMSEX" in b03[0] and "JRC-12.7-RMSEY" in b03[0]
+    )  # one line, both rules
 
 
 # --- issue 26: closed-form guards switch the method ---------------------------------------------------
 
+
 def _anisotropic(d: Path, block: str, factor: float, factor_x: float = 1.0) -> None:
     """The block's y (and x) errors scaled by ``factor`` (``factor_x``) after removing both means
     (bias negligible)."""
+
     def edit(rows: list[dict[str, str]]) -> list[dict[str, str]]:
         mine = [r for r in rows if r["block"] == block]
         mx = np.mean([float(r["x"]) - float(r["x_ref"]) for r in mine])
         my = np.mean([float(r["y"]) - float(r["y_ref"]) for r in mine])
         for r in mine:
-            r["x"] = f"{float(r['x_ref']) + factor_x * (float(r['x']) - mx - float(r['x_ref'])):.3f}"
+            r["x"] = (
+                f"{float(r['x_ref']) + factor_x * (float(r['x']) - mx - float(r['x_ref'])):.3f}"
+            )
             r["y"] = f"{float(r['y_ref']) + factor * (float(r['y']) - my - float(r['y_ref'])):.3f}"
         return rows
+
     _edit_points(d, edit)
 
 
@@ -198,17 +234,25 @@ def test_usgs_ratio_below_0_6_switches_to_the_empirical_ce90(tmp_path: Path) -> 
     assert doc["verdict"] == V.ACCEPTED and not doc["rollup"]["rejected"]
     # a limit below the empirical CE90 rejects the block: the switch judges, it does not excuse
     strict = _check(d, tmp_path, "usgs-insitu", params=[f"tolerance_ce90={ce90 * 0.9:.4f}"])
-    assert _rec(strict, "USGS-CE90-EMPIRICAL", "B01")["verdict"] == V.FAIL and strict["verdict"] == V.REJECTED
+    assert (
+        _rec(strict, "USGS-CE90-EMPIRICAL", "B01")["verdict"] == V.FAIL
+        and strict["verdict"] == V.REJECTED
+    )
 
 
 def _ellipse_95_polar(sx: float, sy: float) -> float:
     """95 % radius of N(0, diag(sx², sy²)) by the polar form P(r) = 1/(2π sx sy) ∫ (1 - exp(-r² q/2)) / q dθ,
     q = cos²θ/sx² + sin²θ/sy² (adaptive quadrature): another derivation than the code's."""
+
     def p(r: float) -> float:
         def f(t: float) -> float:
-            q = math.cos(t) ** 2 / sx ** 2 + math.sin(t) ** 2 / sy ** 2
+            q = math.cos(t) ** 2 / sx**2 + math.sin(t) ** 2 / sy**2
             return (1 - math.exp(-r * r * q / 2)) / q
-        return integrate.quad(f, 0, 2 * math.pi, limit=200, epsabs=1e-12)[0] / (2 * math.pi * sx * sy)
+
+        return integrate.quad(f, 0, 2 * math.pi, limit=200, epsabs=1e-12)[0] / (
+            2 * math.pi * sx * sy
+        )
+
     return optimize.brentq(lambda r: p(r) - 0.95, 1e-9, 5 * max(sx, sy), xtol=1e-12)
 
 
@@ -244,8 +288,12 @@ def test_nssda_ratio_below_0_6_switches_the_method_and_can_still_reject(tmp_path
         assert min(orx, ory) / max(orx, ory) >= 0.6
         others.append(2.4477 * 0.5 * (orx + ory))
     assert max(others) < approx  # the limit below judges B02 alone
-    statement = {"product": {**manifest(d)["product"], "accuracy_statement": "Tested 0.8 meters horizontal "
-                                                                            "accuracy at 95% confidence level"}}
+    statement = {
+        "product": {
+            **manifest(d)["product"],
+            "accuracy_statement": "Tested 0.8 meters horizontal accuracy at 95% confidence level",
+        }
+    }
     m = manifest(d)
     m.update(statement)
     write_manifest(d, m)
@@ -264,16 +312,25 @@ def test_nssda_ratio_below_0_6_switches_the_method_and_can_still_reject(tmp_path
 
 # --- issue 26: chapter 6 counts in the §12.3 share ----------------------------------------------------
 
+
 def test_aerial_fail_counts_its_chapter_6_images_in_the_12_3_share(tmp_path: Path) -> None:
     """aerial-fail's expected.yaml plants Chapter 6 / §9.2 image defects on 5 of 30 images (its README:
     '5 of 30 images (17 %) break a Chapter 6 specification'); §12.3 counts them: 16.7 % > 5 %."""
     exp = yaml.safe_load((EXAMPLES / "aerial-fail" / "expected.yaml").read_text(encoding="utf-8"))
-    images = {i for f in exp["defects"] if f["scope"] == "image"
-              and (str(f["clause"]["section"]).split(".")[0] == "6" or str(f["clause"]["section"]) == "9.2")
-              for i in f["items"]}
+    images = {
+        i
+        for f in exp["defects"]
+        if f["scope"] == "image"
+        and (
+            str(f["clause"]["section"]).split(".")[0] == "6" or str(f["clause"]["section"]) == "9.2"
+        )
+        for i in f["items"]
+    }
     assert len(images) == 5
     n = len(read_table(EXAMPLES / "aerial-fail", "images")[1])
-    doc = check_with(EXAMPLES / "aerial-fail", "jrc-v3", checker=CHECKERS / "aerial-fail", date=DATE).document
+    doc = check_with(
+        EXAMPLES / "aerial-fail", "jrc-v3", checker=CHECKERS / "aerial-fail", date=DATE
+    ).document
     share = _rec(doc, "JRC-12.3-IMAGE-FAIL-SHARE", "D-2026-021")
     assert share["measured"]["value"] == pytest.approx(100.0 * len(images) / n, rel=1e-9)
     assert share["verdict"] == V.FAIL and doc["verdict"] == V.REJECTED
@@ -294,8 +351,13 @@ def _cloudy(d: Path, ids: list[str]) -> None:
             px[:, : ds.height // 5, :] = 240
             ds.write(px)
         v = px.astype(np.float64).ravel()
-        r.update(mean_dn=f"{v.mean():.2f}", std_dn=f"{v.std():.2f}", min_dn=f"{v.min():.0f}",
-                 max_dn=f"{v.max():.0f}", cloud_cover="20.0")
+        r.update(
+            mean_dn=f"{v.mean():.2f}",
+            std_dn=f"{v.std():.2f}",
+            min_dn=f"{v.min():.0f}",
+            max_dn=f"{v.max():.0f}",
+            cloud_cover="20.0",
+        )
     write_table(d, "images", header, rows)
     # the checker measured and inspected the images as delivered now: its points re-bound to them, its
     # grid (bound to the old pixels) left out, as in tests/test_redteam.py
@@ -303,8 +365,12 @@ def _cloudy(d: Path, ids: list[str]) -> None:
     (_checker(d) / "inspection.gpkg").unlink(missing_ok=True)
 
 
-@pytest.mark.parametrize(("cloudy", "verdict"), [(["F01_0101"], V.ACCEPTED), (["F01_0101", "F02_0101"], V.REJECTED)])
-def test_chapter_6_warnings_count_in_the_share(tmp_path: Path, cloudy: list[str], verdict: str) -> None:
+@pytest.mark.parametrize(
+    ("cloudy", "verdict"), [(["F01_0101"], V.ACCEPTED), (["F01_0101", "F02_0101"], V.REJECTED)]
+)
+def test_chapter_6_warnings_count_in_the_share(
+    tmp_path: Path, cloudy: list[str], verdict: str
+) -> None:
     """1 cloudy image of 30 (3.3 %) stays within 5 %; 2 (6.7 %) return the delivery (§12.3). The waived
     F03_0104 (contrast, snow: the checker's waiver) does not count."""
     d = _copy("aerial-pass", tmp_path)
@@ -320,6 +386,7 @@ def test_chapter_6_warnings_count_in_the_share(tmp_path: Path, cloudy: list[str]
 
 # --- issue 26: ASPRS Edition 2 includes the check points' survey accuracy -------------------------------
 
+
 def test_asprs_rmse_h_includes_the_points_precision_by_default(tmp_path: Path) -> None:
     d = _copy("aerial-pass", tmp_path)
     rows = [r for r in _points(d)[1] if r["block"] == "B01"]
@@ -329,8 +396,12 @@ def test_asprs_rmse_h_includes_the_points_precision_by_default(tmp_path: Path) -
     assert _rec(doc, "ASPRS2-RMSE-H", "B01")["measured"]["value"] == pytest.approx(want, rel=1e-9)
     stated = _check(d, tmp_path, "asprs-2023", params=["horizontal_class=1.0", "survey_rmse_h=0.2"])
     want2 = math.sqrt(_rmse(rows, "x") ** 2 + _rmse(rows, "y") ** 2 + 0.04)
-    assert _rec(stated, "ASPRS2-RMSE-H", "B01")["measured"]["value"] == pytest.approx(want2, rel=1e-9)
-    _edit_points(d, lambda rs: [{**r, "precision_xy": ""} if r["point_id"] == "B01-C02" else r for r in rs])
+    assert _rec(stated, "ASPRS2-RMSE-H", "B01")["measured"]["value"] == pytest.approx(
+        want2, rel=1e-9
+    )
+    _edit_points(
+        d, lambda rs: [{**r, "precision_xy": ""} if r["point_id"] == "B01-C02" else r for r in rs]
+    )
     unknown = _check(d, tmp_path, "asprs-2023", params=["horizontal_class=1.0"])
     rec = _rec(unknown, "ASPRS2-RMSE-H", "B01")
     assert rec["verdict"] == V.MISSING and "survey accuracy" in rec["message"]
@@ -339,20 +410,31 @@ def test_asprs_rmse_h_includes_the_points_precision_by_default(tmp_path: Path) -
 
 # --- issue 25 item 5: check points as independent measurements -----------------------------------------
 
+
 def test_copies_shifted_a_few_millimetres_are_caught_and_dilute_nothing(tmp_path: Path) -> None:
     d = _copy("aerial-pass", tmp_path)
     orig = _used(_points(d)[1], "B01")
 
     def copies(rows: list[dict[str, str]]) -> list[dict[str, str]]:
-        extra = [{**r, "point_id": f"{r['point_id']}-X", "x_ref": f"{float(r['x_ref']) + 0.003:.3f}",
-                  "y_ref": f"{float(r['y_ref']) - 0.002:.3f}"} for r in orig[:10]]
+        extra = [
+            {
+                **r,
+                "point_id": f"{r['point_id']}-X",
+                "x_ref": f"{float(r['x_ref']) + 0.003:.3f}",
+                "y_ref": f"{float(r['y_ref']) - 0.002:.3f}",
+            }
+            for r in orig[:10]
+        ]
         return rows + extra
+
     _edit_points(d, copies)
     doc = _check(d, tmp_path)
     dup = _rec(doc, "JRC-12.5-DISTINCT-CHECKPOINTS", "B01")
     assert dup["verdict"] == V.FAIL and dup["measured"]["value"] == 10
     assert "B01-C01-X" in dup["message"]
-    assert _rec(doc, "JRC-12.7-RMSEX", "B01")["measured"]["value"] == pytest.approx(_rmse(orig, "x"), rel=1e-9)
+    assert _rec(doc, "JRC-12.7-RMSEX", "B01")["measured"]["value"] == pytest.approx(
+        _rmse(orig, "x"), rel=1e-9
+    )
     assert _rec(doc, "JRC-12.4-T12-MIN-CHECKPOINTS", "B01")["measured"]["value"] == len(orig)
     assert doc["verdict"] == V.INCOMPLETE
 
@@ -365,8 +447,17 @@ def test_copies_cannot_dilute_a_failing_block(tmp_path: Path) -> None:
     best = min(rows, key=lambda r: abs(float(r["y"]) - float(r["y_ref"])))
 
     def pad(rs: list[dict[str, str]]) -> list[dict[str, str]]:
-        return rs + [{**best, "point_id": f"B02-P{i:02d}", "excluded": "false", "exclusion_reason": "",
-                      "x_ref": f"{float(best['x_ref']) + 0.001 * (1 + i % 5):.3f}"} for i in range(60)]
+        return rs + [
+            {
+                **best,
+                "point_id": f"B02-P{i:02d}",
+                "excluded": "false",
+                "exclusion_reason": "",
+                "x_ref": f"{float(best['x_ref']) + 0.001 * (1 + i % 5):.3f}",
+            }
+            for i in range(60)
+        ]
+
     _edit_points(d, pad)
     doc = _check(d, tmp_path)
     assert _rec(doc, "JRC-12.5-DISTINCT-CHECKPOINTS", "B02")["measured"]["value"] == 60
@@ -384,30 +475,44 @@ def test_gcps_entered_as_check_points_1_cm_away_are_caught(tmp_path: Path) -> No
         for r in rows:
             if r["point_id"] in targets:
                 g = gcps[targets.index(r["point_id"])]
-                r = {**r, "x_ref": f"{float(g['x']) + 0.01:.3f}", "y_ref": g["y"],
-                     "x": f"{float(g['x']) + 0.05:.3f}", "y": f"{float(g['y']) - 0.04:.3f}"}
+                r = {
+                    **r,
+                    "x_ref": f"{float(g['x']) + 0.01:.3f}",
+                    "y_ref": g["y"],
+                    "x": f"{float(g['x']) + 0.05:.3f}",
+                    "y": f"{float(g['y']) - 0.04:.3f}",
+                }
             out.append(r)
         return out
+
     _edit_points(d, on_gcps)
     doc = _check(d, tmp_path)
     rec = _rec(doc, "JRC-12.5-INDEPENDENT-CHECKPOINTS", "B02")
     assert rec["verdict"] == V.FAIL and rec["measured"]["value"] == 3
     assert all(t in rec["message"] for t in targets)
     used = [r for r in _used(_points(d)[1], "B02") if r["point_id"] not in targets]
-    assert _rec(doc, "JRC-12.7-RMSEY", "B02")["measured"]["value"] == pytest.approx(_rmse(used, "y"), rel=1e-9)
+    assert _rec(doc, "JRC-12.7-RMSEY", "B02")["measured"]["value"] == pytest.approx(
+        _rmse(used, "y"), rel=1e-9
+    )
     assert doc["verdict"] == V.INCOMPLETE
 
 
 def test_zero_residuals_are_not_measurements(tmp_path: Path) -> None:
     d = _copy("aerial-pass", tmp_path)
     zeroed = [r["point_id"] for r in _used(_points(d)[1], "B03")[:5]]
-    _edit_points(d, lambda rows: [{**r, "x": r["x_ref"], "y": r["y_ref"]} if r["point_id"] in zeroed else r
-                                  for r in rows])
+    _edit_points(
+        d,
+        lambda rows: [
+            {**r, "x": r["x_ref"], "y": r["y_ref"]} if r["point_id"] in zeroed else r for r in rows
+        ],
+    )
     doc = _check(d, tmp_path)
     rec = _rec(doc, "JRC-12.6-MEASURED-ON-IMAGE", "B03")
     assert rec["verdict"] == V.FAIL and rec["measured"]["value"] == 5
     used = [r for r in _used(_points(d)[1], "B03") if r["point_id"] not in zeroed]
-    assert _rec(doc, "JRC-12.7-RMSEX", "B03")["measured"]["value"] == pytest.approx(_rmse(used, "x"), rel=1e-9)
+    assert _rec(doc, "JRC-12.7-RMSEX", "B03")["measured"]["value"] == pytest.approx(
+        _rmse(used, "x"), rel=1e-9
+    )
     assert doc["verdict"] == V.INCOMPLETE
     assert [t.split(":")[0] for t in _todo(doc, "JRC-12.6-MEASURED-ON-IMAGE")] == ["B03"]
 
@@ -417,12 +522,19 @@ def test_a_block_cell_naming_one_block_twice_is_listed_not_lost(tmp_path: Path) 
     checker's to correct), the point listed, and B02's count says one point is not used."""
     d = _copy("aerial-pass", tmp_path)
     before = len(_used(_points(d)[1], "B02"))
-    _edit_points(d, lambda rows: [{**r, "block": "B02;B02"} if r["point_id"] == "B02-C03" else r for r in rows])
+    _edit_points(
+        d,
+        lambda rows: [{**r, "block": "B02;B02"} if r["point_id"] == "B02-C03" else r for r in rows],
+    )
     doc = _check(d, tmp_path)
     rec = _rec(doc, "JRC-12.7-ONE-BLOCK-PER-POINT", "B02")
-    assert rec["verdict"] == V.FAIL and rec["measured"]["value"] == 1 and "B02-C03" in rec["message"]
+    assert (
+        rec["verdict"] == V.FAIL and rec["measured"]["value"] == 1 and "B02-C03" in rec["message"]
+    )
     assert _rec(doc, "JRC-12.4-T12-MIN-CHECKPOINTS", "B02")["measured"]["value"] == before - 1
     assert _rec(doc, "JRC-12.7-ONE-BLOCK-PER-POINT", "B01")["verdict"] == V.PASS
     assert doc["verdict"] == V.INCOMPLETE
-    assert any(t.startswith("B02: 1 check point naming no single block") for t in doc["rollup"]["incomplete"])
-
+    assert any(
+        t.startswith("B02: 1 check point naming no single block")
+        for t in doc["rollup"]["incomplete"]
+    )

@@ -57,8 +57,9 @@ def test_a_control_character_in_a_table_cell_refuses_the_delivery_naming_file_an
     assert "control character (U+" in msg
 
 
-def test_the_command_exits_2_without_a_traceback_and_writes_nothing(tmp_path: Path,
-                                                                    capsys: pytest.CaptureFixture[str]) -> None:
+def test_the_command_exits_2_without_a_traceback_and_writes_nothing(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     d = _copy(tmp_path)
     _replace(d / "tables" / "images.csv", "F01_0103", "F01\x1b]0;owned\x07_0103")
     out = tmp_path / "out"
@@ -70,23 +71,38 @@ def test_the_command_exits_2_without_a_traceback_and_writes_nothing(tmp_path: Pa
     assert not out.exists() or not any(out.iterdir())
 
 
-def test_a_bidi_override_in_a_yaml_value_names_file_line_and_column(tmp_path: Path,
-                                                                    capsys: pytest.CaptureFixture[str]) -> None:
+def test_a_bidi_override_in_a_yaml_value_names_file_line_and_column(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     d = _copy(tmp_path)
     manifest = d / "delivery.yaml"
     line = _replace(manifest, "id: D-2026-014", 'id: "D-2026\\u202e-014"')
     with pytest.raises(SystemExit) as exc:
-        main(["check", str(d), "--profile", "jrc-v3", "--out", str(tmp_path / "out"), "--date", "2026-11-21"])
+        main(
+            [
+                "check",
+                str(d),
+                "--profile",
+                "jrc-v3",
+                "--out",
+                str(tmp_path / "out"),
+                "--date",
+                "2026-11-21",
+            ]
+        )
     err = capsys.readouterr().err
     assert exc.value.code == 2
     assert f"delivery.yaml:{line}:" in err and "U+202E" in err, err
     assert "\u202e" not in err
 
 
-def test_an_escape_in_a_profile_is_refused_at_spec_validate(tmp_path: Path,
-                                                            capsys: pytest.CaptureFixture[str]) -> None:
+def test_an_escape_in_a_profile_is_refused_at_spec_validate(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     profile = tmp_path / "tender.yaml"
-    profile.write_text('id: tender-esc\nversion: "1"\nextends: jrc-v3\ntitle: "Lot 1 \\e[31m"\n', encoding="utf-8")
+    profile.write_text(
+        'id: tender-esc\nversion: "1"\nextends: jrc-v3\ntitle: "Lot 1 \\e[31m"\n', encoding="utf-8"
+    )
     with pytest.raises(SystemExit) as exc:
         main(["spec", "validate", str(profile)])
     err = capsys.readouterr().err + capsys.readouterr().out

@@ -38,11 +38,18 @@ def test_no_shipped_rule_over_claims_a_table() -> None:
 
 def test_a_rule_citing_a_table_it_does_not_read_is_named() -> None:
     """The issue 26 over-claim: Table 2 "covered" by a rule reading the acquisition GSD and product GSD."""
-    rule = {"id": "X-T2", "clause": {"table": 2}, "measure": "images.acquisition_gsd", "level": "recommended",
-            "requirement": {"op": "<=", "value": "manifest.product.gsd / 1.5"},
-            "when": "manifest.sensor.type == 'aerial'"}
+    rule = {
+        "id": "X-T2",
+        "clause": {"table": 2},
+        "measure": "images.acquisition_gsd",
+        "level": "recommended",
+        "requirement": {"op": "<=", "value": "manifest.product.gsd / 1.5"},
+        "when": "manifest.sensor.type == 'aerial'",
+    }
     got = _module().claim_problems([rule])
-    assert got == ["X-T2 cites Table 2 but reads none of its data (images.acquisition_gsd, manifest.product.gsd)"]
+    assert got == [
+        "X-T2 cites Table 2 but reads none of its data (images.acquisition_gsd, manifest.product.gsd)"
+    ]
     reading = {**rule, "id": "X-T2b", "measure": "images.scan_resolution"}
     assert _module().claim_problems([reading]) == []
     assert _module().claim_problems([{**rule, "id": "X-M", "manual": True}]) == []
@@ -50,11 +57,28 @@ def test_a_rule_citing_a_table_it_does_not_read_is_named() -> None:
 
 def test_check_fails_on_an_over_claim(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     mod = _module()
-    bad = [*JRC["rules"], {"id": "X-T2", "title": "t", "quote": "q", "clause": {"section": "6.2.1", "table": 2},
-                           "measure": "images.gsd", "level": "recommended", "consequence": "warn",
-                           "requirement": {"op": "<=", "value": 1}}]
-    monkeypatch.setattr(mod, "_load", lambda name: {**JRC, "rules": bad} if name == "jrc-v3" else yaml.safe_load(
-        (ROOT / "specs" / f"{name}.yaml").read_text(encoding="utf-8")))
+    bad = [
+        *JRC["rules"],
+        {
+            "id": "X-T2",
+            "title": "t",
+            "quote": "q",
+            "clause": {"section": "6.2.1", "table": 2},
+            "measure": "images.gsd",
+            "level": "recommended",
+            "consequence": "warn",
+            "requirement": {"op": "<=", "value": 1},
+        },
+    ]
+    monkeypatch.setattr(
+        mod,
+        "_load",
+        lambda name: (
+            {**JRC, "rules": bad}
+            if name == "jrc-v3"
+            else yaml.safe_load((ROOT / "specs" / f"{name}.yaml").read_text(encoding="utf-8"))
+        ),
+    )
     assert mod.main(["--check"]) == 1
 
 
@@ -79,12 +103,16 @@ def test_counts_stated_are_the_profiles() -> None:
     mod = _module()
     c = mod.item_counts(JRC["rules"])
     text = (ROOT / "specs" / "COVERAGE.md").read_text(encoding="utf-8")
-    assert (f"Checkable items of the guidelines: {c['items']} - {c['automatic']} automatic, {c['manual']} manual, "
-            f"{c['none']} without a rule ({c['mandatory_none']} of them mandatory") in text
+    assert (
+        f"Checkable items of the guidelines: {c['items']} - {c['automatic']} automatic, {c['manual']} manual, "
+        f"{c['none']} without a rule ({c['mandatory_none']} of them mandatory"
+    ) in text
     assert c["automatic"] + c["manual"] + c["none"] == c["items"]
     listed = text.split("### Checkable statements without a rule")[1].split("###")[0]
     assert listed.count("\n| §") == c["none"]
-    out = subprocess.run([sys.executable, str(SCRIPT), "--counts"], capture_output=True, text=True, check=True)
+    out = subprocess.run(
+        [sys.executable, str(SCRIPT), "--counts"], capture_output=True, text=True, check=True
+    )
     assert json.loads(out.stdout) == c
 
 
@@ -105,5 +133,7 @@ def test_wording_is_current() -> None:
     assert "verified against public copies" not in asprs and "unverified" in asprs
     for r in JRC["rules"]:
         if not r.get("manual"):
-            assert not re.search(rf"\| {re.escape(r['id'])} \| [^|]*\| §", text.split("deliberately left manual")[1]
-                                 .split("###")[0]), r["id"]
+            assert not re.search(
+                rf"\| {re.escape(r['id'])} \| [^|]*\| §",
+                text.split("deliberately left manual")[1].split("###")[0],
+            ), r["id"]

@@ -52,9 +52,15 @@ def planted(tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[Path, P
         checker = resigned(rt.CHECKERS / f"{example}.yaml", d, root / name / "checker.yaml")
         doc = yaml.safe_load(checker.read_text(encoding="utf-8"))
         items = rt._delivered_items(d)
-        doc["manual_checks"] = [m for m in doc.get("manual_checks") or [] if m["item"] == "*" or m["item"] in items]
-        checker.write_text(yaml.safe_dump(doc, sort_keys=False, allow_unicode=True), encoding="utf-8")
-        res = check_with(d, "jrc-v3", checker=checker, date=rt.DATE, options={"cache_dir": str(cache)})
+        doc["manual_checks"] = [
+            m for m in doc.get("manual_checks") or [] if m["item"] == "*" or m["item"] in items
+        ]
+        checker.write_text(
+            yaml.safe_dump(doc, sort_keys=False, allow_unicode=True), encoding="utf-8"
+        )
+        res = check_with(
+            d, "jrc-v3", checker=checker, date=rt.DATE, options={"cache_dir": str(cache)}
+        )
         assert not res.accepted, f"{name}: the planted example must be rejected to start with"
         out[name] = (d, checker, cache)
     return out
@@ -68,12 +74,18 @@ def _applicable(d: Path, field: Any) -> bool:
 EXAMPLES = int(os.environ.get("ORTHOSPEC_PROPERTY_EXAMPLES", "16"))
 
 
-@settings(max_examples=EXAMPLES, deadline=None, derandomize=True,
-          suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+@settings(
+    max_examples=EXAMPLES,
+    deadline=None,
+    derandomize=True,
+    suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
+)
 @given(data=st.data())
-def test_an_edited_declaration_never_accepts_a_planted_example(planted: dict[str, tuple[Path, Path, Path]],
-                                                               tmp_path_factory: pytest.TempPathFactory,
-                                                               data: st.DataObject) -> None:
+def test_an_edited_declaration_never_accepts_a_planted_example(
+    planted: dict[str, tuple[Path, Path, Path]],
+    tmp_path_factory: pytest.TempPathFactory,
+    data: st.DataObject,
+) -> None:
     name = data.draw(st.sampled_from(sorted(planted)), label="planted example")
     base, checker, cache = planted[name]
     fields = [f for f in DECLARED_FIELDS if _applicable(base, f)]
@@ -83,7 +95,9 @@ def test_an_edited_declaration_never_accepts_a_planted_example(planted: dict[str
     shutil.copytree(base, d)
     field.write(d, value)
     try:
-        res = check_with(d, "jrc-v3", checker=checker, date=rt.DATE, options={"cache_dir": str(cache)})
+        res = check_with(
+            d, "jrc-v3", checker=checker, date=rt.DATE, options={"cache_dir": str(cache)}
+        )
     except OrthospecError:
         return  # refused (exit 2): never ACCEPTED
     assert not res.accepted, f"{name}: {field.name} = {value!r} turned REJECTED into ACCEPTED"
@@ -99,6 +113,13 @@ def test_every_declared_field_writes_something(tmp_path: Path) -> None:
         shutil.copytree(rt.EXAMPLES / example, d)
         value = field.sample
         field.write(d, value)
-        changed = [f for f in ("delivery.yaml", *(f"tables/{t}" for t in ("images.csv", "scenes.csv", "cameras.csv")))
-                   if (d / f).is_file() and not filecmp.cmp(d / f, rt.EXAMPLES / example / f, shallow=False)]
+        changed = [
+            f
+            for f in (
+                "delivery.yaml",
+                *(f"tables/{t}" for t in ("images.csv", "scenes.csv", "cameras.csv")),
+            )
+            if (d / f).is_file()
+            and not filecmp.cmp(d / f, rt.EXAMPLES / example / f, shallow=False)
+        ]
         assert changed, field.name

@@ -17,18 +17,27 @@ def test_opens_and_types_tables(make_delivery):
     assert d.block_ids == ["B1", "B2"]
 
 
-@pytest.mark.parametrize("images, message", [
-    ("image_id,file\nI1,a.tif\n", "missing required column(s) block"),
-    ("image_id,file,block,colour\nI1,a.tif,B1,red\n", "unexpected column(s) colour"),
-    ("image_id,file,block,roll\nI1,a.tif,B1,abc\n", "row 1: column 'roll': expected a number, got 'abc'"),
-    ("image_id,file,block,roll\nI1,a.tif,B1,1\nI2,b.tif,B1,NaN\n", "row 2: column 'roll': expected a finite"),
-    ("image_id,file,block,roll\nI1,a.tif,B1,inf\n", "expected a finite number"),
-    ("image_id,file,block\nI1,a.tif,B1\nI1,b.tif,B1\n", "duplicate id 'I1' in rows 1, 2"),
-    ("image_id,file,block\nI1,a.tif\n", "row 1: has 2 fields, the header has 3"),
-    ("image_id,file,block,exposure_time\nI1,a.tif,B1,yesterday\n", "expected a datetime"),
-    ("image_id,file,block\n,a.tif,B1\n", "row 1: column 'image_id': required value is empty"),
-    ("", "empty table"),
-])
+@pytest.mark.parametrize(
+    "images, message",
+    [
+        ("image_id,file\nI1,a.tif\n", "missing required column(s) block"),
+        ("image_id,file,block,colour\nI1,a.tif,B1,red\n", "unexpected column(s) colour"),
+        (
+            "image_id,file,block,roll\nI1,a.tif,B1,abc\n",
+            "row 1: column 'roll': expected a number, got 'abc'",
+        ),
+        (
+            "image_id,file,block,roll\nI1,a.tif,B1,1\nI2,b.tif,B1,NaN\n",
+            "row 2: column 'roll': expected a finite",
+        ),
+        ("image_id,file,block,roll\nI1,a.tif,B1,inf\n", "expected a finite number"),
+        ("image_id,file,block\nI1,a.tif,B1\nI1,b.tif,B1\n", "duplicate id 'I1' in rows 1, 2"),
+        ("image_id,file,block\nI1,a.tif\n", "row 1: has 2 fields, the header has 3"),
+        ("image_id,file,block,exposure_time\nI1,a.tif,B1,yesterday\n", "expected a datetime"),
+        ("image_id,file,block\n,a.tif,B1\n", "row 1: column 'image_id': required value is empty"),
+        ("", "empty table"),
+    ],
+)
 def test_bad_tables_name_file_row_and_column(make_delivery, images, message):
     d = open_delivery(make_delivery(images=images))
     with pytest.raises(DeliveryError) as err:
@@ -39,16 +48,21 @@ def test_bad_tables_name_file_row_and_column(make_delivery, images, message):
 
 def test_missing_column_message_lists_expected_columns(make_delivery):
     d = open_delivery(make_delivery(images="image_id,file\nI1,a.tif\n"))
-    with pytest.raises(DeliveryError, match="Expected columns for table 'images': required image_id, file, block"):
+    with pytest.raises(
+        DeliveryError, match="Expected columns for table 'images': required image_id, file, block"
+    ):
         d.table("images")
 
 
-@pytest.mark.parametrize("manifest, message", [
-    ("orthospec_delivery: 1\nid: x\n", "project: Field required"),
-    ("orthospec_delivery: 2\n", "orthospec_delivery"),
-    ("- a list\n", "must be a YAML mapping"),
-    ("id: [unclosed\n", "invalid YAML"),
-])
+@pytest.mark.parametrize(
+    "manifest, message",
+    [
+        ("orthospec_delivery: 1\nid: x\n", "project: Field required"),
+        ("orthospec_delivery: 2\n", "orthospec_delivery"),
+        ("- a list\n", "must be a YAML mapping"),
+        ("id: [unclosed\n", "invalid YAML"),
+    ],
+)
 def test_bad_manifest(make_delivery, manifest, message):
     root = make_delivery(manifest=manifest)
     with pytest.raises(DeliveryError, match=message.replace("(", r"\(")):
@@ -58,7 +72,9 @@ def test_bad_manifest(make_delivery, manifest, message):
 def test_manifest_error_has_line_numbers(make_delivery):
     from tests.conftest import MANIFEST
 
-    root = make_delivery(manifest=MANIFEST.replace("sensor: {type: aerial", "sensor: {type: balloon"))
+    root = make_delivery(
+        manifest=MANIFEST.replace("sensor: {type: aerial", "sensor: {type: balloon")
+    )
     with pytest.raises(DeliveryError, match=r"delivery.yaml:6:\d+: sensor.type"):
         open_delivery(root)
 
@@ -66,7 +82,9 @@ def test_manifest_error_has_line_numbers(make_delivery):
 def test_unknown_table_and_missing_file(make_delivery):
     from tests.conftest import MANIFEST
 
-    root = make_delivery(manifest=MANIFEST.replace("images: tables/images.csv", "pictures: tables/images.csv"))
+    root = make_delivery(
+        manifest=MANIFEST.replace("images: tables/images.csv", "pictures: tables/images.csv")
+    )
     with pytest.raises(DeliveryError, match="unknown table 'pictures'; known tables:"):
         open_delivery(root)
     root2 = make_delivery("d2", images=None)
@@ -78,7 +96,9 @@ def test_paths_cannot_escape_the_delivery(make_delivery):
     from tests.conftest import MANIFEST
 
     root = make_delivery(manifest=MANIFEST.replace("tables/images.csv", "../../etc/passwd"))
-    with pytest.raises(DeliveryError, match=r"delivery.yaml:10: tables.images '../../etc/passwd' contains '..'"):
+    with pytest.raises(
+        DeliveryError, match=r"delivery.yaml:10: tables.images '../../etc/passwd' contains '..'"
+    ):
         open_delivery(root)
 
 
@@ -111,19 +131,24 @@ def test_misspelt_manifest_key_gets_a_suggestion(make_delivery):
 # --------------------------------------------------------------------------- containment (issue 17)
 
 
-@pytest.mark.parametrize("rel, why", [
-    ("/etc/passwd", "absolute path"),
-    ("images/../../x.tif", "contains '..'"),
-    ("/vsicurl/http://example.com/x.tif", "GDAL virtual file system"),
-    ("http://example.com/x.tif", "URL"),
-    ("C:\\data\\x.tif", "URL or a drive-letter"),
-    ("images/a\x07.tif", "control characters"),
-    ("", "is empty"),
-])
+@pytest.mark.parametrize(
+    "rel, why",
+    [
+        ("/etc/passwd", "absolute path"),
+        ("images/../../x.tif", "contains '..'"),
+        ("/vsicurl/http://example.com/x.tif", "GDAL virtual file system"),
+        ("http://example.com/x.tif", "URL"),
+        ("C:\\data\\x.tif", "URL or a drive-letter"),
+        ("images/a\x07.tif", "control characters"),
+        ("", "is empty"),
+    ],
+)
 def test_contained_refuses_paths_that_leave_the_delivery(tmp_path, rel, why):
     from orthospec.delivery.reader import contained
 
-    with pytest.raises(DeliveryError, match=r"tables/images.csv: row 4: column 'file': path .*" + why):
+    with pytest.raises(
+        DeliveryError, match=r"tables/images.csv: row 4: column 'file': path .*" + why
+    ):
         contained(tmp_path, rel, what="path", file="tables/images.csv", row=4, field="file")
 
 
@@ -142,9 +167,14 @@ def test_contained_follows_links_but_only_inside(tmp_path):
     os.mkfifo(root / "images" / "pipe.tif")
     assert contained(root, "images/alias.tif") == root / "images" / "alias.tif"
     assert contained(root, "images\\a.tif") == root / "images" / "a.tif"  # Windows separators
-    assert contained(root, "images/missing.tif") == root / "images" / "missing.tif"  # reported later
-    for rel, why in [("images/out.tif", "symbolic link leading out"), ("linked/outside.tif", "out of"),
-                     ("images/pipe.tif", "FIFO")]:
+    assert (
+        contained(root, "images/missing.tif") == root / "images" / "missing.tif"
+    )  # reported later
+    for rel, why in [
+        ("images/out.tif", "symbolic link leading out"),
+        ("linked/outside.tif", "out of"),
+        ("images/pipe.tif", "FIFO"),
+    ]:
         with pytest.raises(DeliveryError, match=why):
             contained(root, rel)
 
@@ -173,16 +203,22 @@ def test_open_delivery_refuses_a_document_linked_outside(make_delivery, tmp_path
     root = make_delivery(manifest=MANIFEST_WITH_DOC)
     (root / "documents").mkdir()
     (root / "documents" / "qcr.md").symlink_to(tmp_path / "secret.txt")
-    with pytest.raises(DeliveryError, match=r"delivery.yaml:\d+: documents.internal_qcr 'documents/qcr.md' "
-                                            r"is \(or passes through\) a symbolic link"):
+    with pytest.raises(
+        DeliveryError,
+        match=r"delivery.yaml:\d+: documents.internal_qcr 'documents/qcr.md' "
+        r"is \(or passes through\) a symbolic link",
+    ):
         open_delivery(root)
 
 
 def test_file_column_outside_is_refused_with_row(make_delivery):
     images = "image_id,file,block\nI1,images/a.tif,B1\nI2,/vsicurl/http://x/y.tif,B1\n"
     d = open_delivery(make_delivery(images=images))
-    with pytest.raises(DeliveryError, match=r"tables/images.csv: row 2: column 'file': path "
-                                            r"'/vsicurl/http://x/y.tif' is a GDAL virtual"):
+    with pytest.raises(
+        DeliveryError,
+        match=r"tables/images.csv: row 2: column 'file': path "
+        r"'/vsicurl/http://x/y.tif' is a GDAL virtual",
+    ):
         d.load_all_tables()
 
 
@@ -201,12 +237,27 @@ MANIFEST_WITH_DOC = _manifest_with_doc()
 # --------------------------------------------------------------------------- bounded tables
 
 
-@pytest.mark.parametrize("text, limits, message", [
-    (b"a,b\n1," + b"x" * 200 + b"\n", {"cell_bytes": 100}, "row 1: a cell longer than 100 bytes"),
-    (b"a,b\n1,2\n3," + b"x" * 50 + b"," * 30 + b"\n", {"columns": 20}, r"row 2: \d+\+ fields on one line exceed the limit of 20"),
-    (b"a," + b",".join(b"c%d" % i for i in range(30)) + b"\n", {"columns": 20}, r"tables/t.csv:1: \d+\+ fields"),
-    (b'"image\nid",file\n1,2\n', {}, "tables/t.csv:1: the header row has an unclosed quote"),
-])
+@pytest.mark.parametrize(
+    "text, limits, message",
+    [
+        (
+            b"a,b\n1," + b"x" * 200 + b"\n",
+            {"cell_bytes": 100},
+            "row 1: a cell longer than 100 bytes",
+        ),
+        (
+            b"a,b\n1,2\n3," + b"x" * 50 + b"," * 30 + b"\n",
+            {"columns": 20},
+            r"row 2: \d+\+ fields on one line exceed the limit of 20",
+        ),
+        (
+            b"a," + b",".join(b"c%d" % i for i in range(30)) + b"\n",
+            {"columns": 20},
+            r"tables/t.csv:1: \d+\+ fields",
+        ),
+        (b'"image\nid",file\n1,2\n', {}, "tables/t.csv:1: the header row has an unclosed quote"),
+    ],
+)
 def test_csv_bounds_before_parsing(text, limits, message):
     import io
 
@@ -222,13 +273,17 @@ def test_csv_bounds_accept_a_normal_table_across_chunks():
     from orthospec.delivery.reader import Limits, check_csv_bounds
 
     text = IMAGES.encode() * 50
-    check_csv_bounds(io.BytesIO(text), file="t.csv", limits=Limits(cell_bytes=40, columns=6), chunk=5)
+    check_csv_bounds(
+        io.BytesIO(text), file="t.csv", limits=Limits(cell_bytes=40, columns=6), chunk=5
+    )
 
 
 def test_table_size_limit_from_the_environment(make_delivery, monkeypatch):
     monkeypatch.setenv("ORTHOSPEC_MAX_TABLE_BYTES", "50")
     d = open_delivery(make_delivery())
-    with pytest.raises(DeliveryError, match=r"tables/images.csv: table of \d+ bytes exceeds the limit of 50"):
+    with pytest.raises(
+        DeliveryError, match=r"tables/images.csv: table of \d+ bytes exceeds the limit of 50"
+    ):
         d.table("images")
 
 
@@ -242,7 +297,9 @@ def test_manifest_impossible_date_names_line(make_delivery):
     from tests.conftest import MANIFEST
 
     root = make_delivery(manifest=MANIFEST + "dates: {delivered: 2026-02-30}\n")
-    with pytest.raises(DeliveryError, match=r"delivery.yaml:\d+:\d+: invalid value '2026-02-30': day is out"):
+    with pytest.raises(
+        DeliveryError, match=r"delivery.yaml:\d+:\d+: invalid value '2026-02-30': day is out"
+    ):
         open_delivery(root)
 
 
@@ -252,20 +309,26 @@ def test_manifest_alias_bomb_is_refused_fast(make_delivery):
     from tests.conftest import MANIFEST
 
     bomb = "bomb:\n  l0: &l0 [lol]\n" + "".join(
-        f"  l{i}: &l{i} [{', '.join([f'*l{i - 1}'] * 9)}]\n" for i in range(1, 10))
+        f"  l{i}: &l{i} [{', '.join([f'*l{i - 1}'] * 9)}]\n" for i in range(1, 10)
+    )
     root = make_delivery(manifest=MANIFEST + bomb)
     t0 = time.perf_counter()
-    with pytest.raises(DeliveryError, match=r"aliases \(\*name\) expand the document to [\d,]+ nodes"):
+    with pytest.raises(
+        DeliveryError, match=r"aliases \(\*name\) expand the document to [\d,]+ nodes"
+    ):
         open_delivery(root)
     assert time.perf_counter() - t0 < 1.0
 
 
-@pytest.mark.parametrize("text, message", [
-    ("a: &a [*a]\n", "f.yaml:1:4: a recursive alias"),
-    ("x: " + "[" * 250 + "]" * 250 + "\n", "nested more than 200 levels"),
-    ("k: 1" + "0" * 5000 + "\n", "f.yaml:1:4: invalid value"),
-    ("a: 1\nb: [1, 2\n", "f.yaml:3:1: invalid YAML"),
-])
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("a: &a [*a]\n", "f.yaml:1:4: a recursive alias"),
+        ("x: " + "[" * 250 + "]" * 250 + "\n", "nested more than 200 levels"),
+        ("k: 1" + "0" * 5000 + "\n", "f.yaml:1:4: invalid value"),
+        ("a: 1\nb: [1, 2\n", "f.yaml:3:1: invalid YAML"),
+    ],
+)
 def test_yaml_limits_and_positions(text, message):
     from orthospec.yamlio import YamlError, load_text
 

@@ -48,7 +48,9 @@ def table(tmp_path: Path) -> Path:
 
 @pytest.mark.parametrize("where", [{}, {"block": "B01"}, {"block": "B02"}, {"block": "B03"},
                                    {"block": "B01", "point_id": "P3"}])
-def test_rows_where_selects_as_an_independent_csv_reader(table: Path, where: dict[str, str]) -> None:
+def test_rows_where_selects_as_an_independent_csv_reader(
+    table: Path, where: dict[str, str]
+) -> None:
     assert rows_where(table, where, file="cp.csv") == _by_csv(TEXT, where)
 
 
@@ -64,7 +66,9 @@ def test_rows_where_numbers_rows_as_the_parser(table: Path) -> None:
 def test_rows_where_checks_the_checksum_of_the_bytes_it_reads(table: Path) -> None:
     sha = hashlib.sha256(TEXT.encode()).hexdigest()
     assert rows_where(table, {"block": "B02"}, file="cp.csv", sha256=sha) == [2, 5]
-    with pytest.raises(DeliveryError, match=r"cp.csv: the file has changed since the check \(SHA-256 differs\)"):
+    with pytest.raises(
+        DeliveryError, match=r"cp.csv: the file has changed since the check \(SHA-256 differs\)"
+    ):
         rows_where(table, {"block": "B02"}, file="cp.csv", sha256="0" * 64)
 
 

@@ -23,7 +23,9 @@ def test_two_photos_of_one_strip_cover_their_hand_computed_union():
     assert np.allclose(np.abs(np.sin(h)), 1.0)  # flight direction is north-south
     feet = photo_footprints([0.0, 0.0], [0.0, 800.0], [1200.0] * 2, [1000.0] * 2, h)
     union = shapely.union_all(feet)
-    assert union.area == pytest.approx(1200.0 * (1000.0 + 800.0))  # x in [-600, 600], y in [-500, 1300]
+    assert union.area == pytest.approx(
+        1200.0 * (1000.0 + 800.0)
+    )  # x in [-600, 600], y in [-500, 1300]
     assert union.bounds == pytest.approx((-600.0, -500.0, 600.0, 1300.0))
 
 
@@ -55,7 +57,8 @@ def test_photo_coverage_without_a_camera_format_is_missing_with_the_reason(tmp_p
     shutil.copytree(EXAMPLES / "aerial-pass", d)
     cams = pd.read_csv(d / "tables" / "cameras.csv", dtype=str, keep_default_na=False)
     cams.drop(columns=["format_across_px", "format_along_px"], errors="ignore").to_csv(
-        d / "tables" / "cameras.csv", index=False)
+        d / "tables" / "cameras.csv", index=False
+    )
     p = tmp_path / "p.yaml"
     p.write_text(COVERAGE_PROFILE)
     doc = check(d, p, date="2026-01-01").document
@@ -197,7 +200,9 @@ def test_pansharpened_false_for_a_single_band_or_a_product_not_finer_than_the_ms
             dst.write(band, 1)
     rec = _ps(tmp_path / "a", d)
     assert rec["PS"]["verdict"] == "fail" and rec["PS"]["measured"]["value"] is False
-    assert any(e["file"] == "images/S01_SC1.tif" for e in rec["PS"]["evidence"])  # the file was read
+    assert any(
+        e["file"] == "images/S01_SC1.tif" for e in rec["PS"]["evidence"]
+    )  # the file was read
     assert rec["AG"]["verdict"] == "fail"  # the manifest still declares pansharpened: true
     # 4 bands at 1.24 m, the MS pixel itself: 1.24 >= 1.24 -> false
     rec = _ps(tmp_path / "b", _sat_copy(tmp_path / "b", images={"gsd": "1.24"}))
@@ -219,7 +224,10 @@ def test_between_the_ms_pixel_and_the_margin_the_declaration_decides(tmp_path):
     # 1.0 m: finer than 1.24 m but coarser than 1.24 / 1.5 = 0.827 m (plain resampling possible)
     rec = _ps(tmp_path / "a", _sat_copy(tmp_path / "a", images={"gsd": "1.0"}))
     assert rec["PS"]["measured"]["value"] is True and "declared" in rec["PS"]["message"]
-    rec = _ps(tmp_path / "b", _sat_copy(tmp_path / "b", images={"gsd": "1.0"}, product={"pansharpened": None}))
+    rec = _ps(
+        tmp_path / "b",
+        _sat_copy(tmp_path / "b", images={"gsd": "1.0"}, product={"pansharpened": None}),
+    )
     assert rec["PS"]["verdict"] == "missing"
     assert rec["AG"]["verdict"] == "not_applicable"
 
@@ -243,19 +251,27 @@ def test_a_declared_false_does_not_switch_off_the_pan_sharpening_rules(tmp_path)
     folder = tmp_path / "checker"
     shutil.copytree(CHECKERS / "satellite-pass", folder)
     checker = yaml.safe_load((folder / "checker.yaml").read_text(encoding="utf-8"))
-    checker["manual_checks"] = [e for e in checker["manual_checks"] if e["check"] != "JRC-10.5.1-SAME-MODEL-GCPS"]
+    checker["manual_checks"] = [
+        e for e in checker["manual_checks"] if e["check"] != "JRC-10.5.1-SAME-MODEL-GCPS"
+    ]
     (folder / "checker.yaml").write_text(yaml.safe_dump(checker, sort_keys=False), encoding="utf-8")
     doc = check(d, "jrc-v3", date="2026-08-01", checker=folder).document
     recs = {r["rule"]: r for r in records(doc) if r["rule"].startswith("JRC-10.")}
     assert recs["JRC-10.5.1-SAME-MODEL-GCPS"]["verdict"] == "missing"
-    assert recs["JRC-10.5.2-EXCLUDE-ZERO"]["verdict"] == "pass"  # applies: the inspector's record is there
+    assert (
+        recs["JRC-10.5.2-EXCLUDE-ZERO"]["verdict"] == "pass"
+    )  # applies: the inspector's record is there
     # never accepted: the unsigned §10.5.1 check is the checker's open work (issue 26: incomplete)
     assert doc["verdict"] == "incomplete"
-    assert [t.split(":", 1)[0] for t in doc["rollup"]["incomplete"]] == ["JRC-10.5.1-SAME-MODEL-GCPS"]
+    assert [t.split(":", 1)[0] for t in doc["rollup"]["incomplete"]] == [
+        "JRC-10.5.1-SAME-MODEL-GCPS"
+    ]
 
 
 def test_pan_sharpening_rules_do_not_apply_to_an_aerial_delivery():
-    doc = check(EXAMPLES / "aerial-pass", "jrc-v3", date="2026-08-01", checker=CHECKERS / "aerial-pass").document
+    doc = check(
+        EXAMPLES / "aerial-pass", "jrc-v3", date="2026-08-01", checker=CHECKERS / "aerial-pass"
+    ).document
     recs = [r for r in records(doc) if r["rule"].startswith(("JRC-10.5", "JRC-10.3"))]
     assert len(recs) == 4 and all(r["verdict"] == "not_applicable" for r in recs)
 
@@ -306,7 +322,9 @@ def test_inflating_the_declared_gsds_too_does_not_help_the_rasters_keep_their_pi
     footprints are still not evidence and coverage stays missing."""
     import rasterio
 
-    d = _aerial_copy_without_strip_f02_02(tmp_path, 2.5, ("flying_height", "acquisition_gsd", "gsd"))
+    d = _aerial_copy_without_strip_f02_02(
+        tmp_path, 2.5, ("flying_height", "acquisition_gsd", "gsd")
+    )
     with rasterio.open(d / "images" / "F02_0101.tif") as ds:
         assert ds.res[0] == pytest.approx(0.25)
     doc, rec = _cov(tmp_path, d)
@@ -362,14 +380,17 @@ rules:
 """
 
 
-@pytest.mark.parametrize(("scenes", "expected", "verdict"), [
-    (None, 1.0, "pass"),
-    # R8: the master un-declared, but S01_SC1 still records its master check date (Table 9 dated record)
-    ({"is_master": "false"}, 0.0, "fail"),
-    # no trace of a master-image workflow: absolute correction (JRC §9.4 "only in rare cases")
-    ({"is_master": "false", "master_check_date": ""}, None, "not_applicable"),
-    ({"is_master": "true"}, 6.0, "pass"),
-])
+@pytest.mark.parametrize(
+    ("scenes", "expected", "verdict"),
+    [
+        (None, 1.0, "pass"),
+        # R8: the master un-declared, but S01_SC1 still records its master check date (Table 9 dated record)
+        ({"is_master": "false"}, 0.0, "fail"),
+        # no trace of a master-image workflow: absolute correction (JRC §9.4 "only in rare cases")
+        ({"is_master": "false", "master_check_date": ""}, None, "not_applicable"),
+        ({"is_master": "true"}, 6.0, "pass"),
+    ],
+)
 def test_master_images_counts_the_scenes_flagged_master(tmp_path, scenes, expected, verdict):
     """satellite-pass flags one master (S01_SC1, with its master_check_date)."""
     d = _sat_copy(tmp_path, scenes=scenes)

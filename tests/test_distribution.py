@@ -97,12 +97,16 @@ def test_nearest_neighbour_distances_are_exact_whatever_the_threads(workers):
     rng = np.random.default_rng(7)
     x, y = rng.random(1500) * 1000, rng.random(1500) * 1000
     gx, gy = rng.random(40) * 1000, rng.random(40) * 1000
-    r = checkpoint_distribution(x, y, area=box(0, 0, 1000, 1000), gcp_x=gx, gcp_y=gy, workers=workers)
+    r = checkpoint_distribution(
+        x, y, area=box(0, 0, 1000, 1000), gcp_x=gx, gcp_y=gy, workers=workers
+    )
     pair = np.hypot(x[:, None] - x[None, :], y[:, None] - y[None, :])
     np.fill_diagonal(pair, np.inf)
     np.testing.assert_allclose(r.nn_distance, pair.min(axis=1), rtol=1e-12, atol=0)
     one = checkpoint_distribution(x, y, area=box(0, 0, 1000, 1000), gcp_x=gx, gcp_y=gy, workers=1)
-    np.testing.assert_array_equal(r.nn_distance, one.nn_distance)  # bit for bit: same bytes in qcr.json
+    np.testing.assert_array_equal(
+        r.nn_distance, one.nn_distance
+    )  # bit for bit: same bytes in qcr.json
     to_gcp = np.hypot(x[:, None] - gx[None, :], y[:, None] - gy[None, :]).min(axis=1)
     np.testing.assert_allclose(r.gcp_distance, to_gcp, rtol=0, atol=1e-9)
 
@@ -141,7 +145,9 @@ def test_smallest_spacing_and_gcp_figures_match_brute_force(layout, min_gcp):
     gx = np.r_[rng.random(30) * 1000, x[x.size // 2], x[-1] + 2.0]
     gy = np.r_[rng.random(30) * 1000, y[y.size // 2], y[-1]]
     gids = np.array([f"G{i}" for i in range(31)] + [str(ids[1])], dtype=object)
-    r = checkpoint_distribution(x, y, ids=ids, gcp_x=gx, gcp_y=gy, gcp_ids=gids, min_gcp_distance=min_gcp)
+    r = checkpoint_distribution(
+        x, y, ids=ids, gcp_x=gx, gcp_y=gy, gcp_ids=gids, min_gcp_distance=min_gcp
+    )
     nn_min, g_min, near, ident = _brute(x, y, gx, gy, ids, gids, min_gcp)
     assert r.nn_min == pytest.approx(nn_min, rel=1e-12, abs=0)
     assert r.nn_min == r.nn_distance.min()  # bit for bit the per-point minimum

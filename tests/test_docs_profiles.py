@@ -19,9 +19,18 @@ def test_profiles_guide_examples_run(tmp_path: Path) -> None:
         (tmp_path / name).write_text(body, encoding="utf-8")
     (tmp_path / "examples").symlink_to(ROOT / "examples")
     script = re.findall(r"```bash\n(.*?)```", text, re.S)[-1]
-    env = {**os.environ, "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ.get('PATH', '')}"}
-    res = subprocess.run(["bash", "-e", "-c", script], cwd=tmp_path, env=env, capture_output=True, text=True,
-                         timeout=600)
+    env = {
+        **os.environ,
+        "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ.get('PATH', '')}",
+    }
+    res = subprocess.run(
+        ["bash", "-e", "-c", script],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
     assert "valid (my-tender 1.0.0" in res.stdout
     assert "~ parameter cloud_cover_max: effective 10 % -> 5 %" in res.stdout

@@ -98,8 +98,9 @@ def test_fits_are_reported_with_their_names():
     model = r.fits["gauss"].params
     assert model["adequate"] and model["p_value"] > 1e-3 and model["sigma_px"] == [
         pytest.approx(0.7, rel=0.02)]
-    assert model["footprint_px"] == pytest.approx([math.cos(math.radians(8)), math.sin(math.radians(8))],
-                                                  abs=1e-3)
+    assert model["footprint_px"] == pytest.approx(
+        [math.cos(math.radians(8)), math.sin(math.radians(8))], abs=1e-3
+    )
     for fit in ("spline", "fermi3"):
         assert r.estimate("fwhm_px", fit).value == pytest.approx(t.fwhm_px, rel=0.03)
     d = r.to_dict()
@@ -113,13 +114,16 @@ def test_fits_are_reported_with_their_names():
         measure_edge(_edge(8.0, 0.7, 400), primary="fermi")
 
 
-@pytest.mark.parametrize("name,transform,direction,polarity", [
-    ("mirror", lambda a: a[:, ::-1], "across", "bright_to_dark"),
-    ("invert", lambda a: a.max() + a.min() - a, "across", "bright_to_dark"),
-    ("transpose", lambda a: a.T, "along", "dark_to_bright"),
-    ("rot90", np.rot90, "along", "bright_to_dark"),
-    ("flipud", lambda a: a[::-1], "across", "dark_to_bright"),
-])
+@pytest.mark.parametrize(
+    "name,transform,direction,polarity",
+    [
+        ("mirror", lambda a: a[:, ::-1], "across", "bright_to_dark"),
+        ("invert", lambda a: a.max() + a.min() - a, "across", "bright_to_dark"),
+        ("transpose", lambda a: a.T, "along", "dark_to_bright"),
+        ("rot90", np.rot90, "along", "bright_to_dark"),
+        ("flipud", lambda a: a[::-1], "across", "dark_to_bright"),
+    ],
+)
 def test_polarity_and_transpose_invariance(name, transform, direction, polarity):
     img = _edge(7.0, 0.7, 150, seed=3, shape=(90, 70))
     base = measure_edge(img)
@@ -147,7 +151,8 @@ def test_effective_resolution_and_metres():
     assert r.estimate("effective_gsd_m").value == pytest.approx(f * 0.25)
     assert r.estimate("fwhm_m").value == pytest.approx(r.fwhm_px * 0.25)
     assert r.estimate("edge_slope_per_m").value == pytest.approx(
-        r.estimate("edge_slope_per_px").value / 0.25)
+        r.estimate("edge_slope_per_px").value / 0.25
+    )
     # an ideal sampler (no blur beyond the pixel) has factor ~1: "should not be below 1.0"
     sharp = measure_edge(_edge(6.0, 0.05, None))
     assert sharp.effective_resolution_factor == pytest.approx(1.0, abs=0.05)
@@ -255,8 +260,16 @@ def test_limits_are_parameters():
     assert measure_edge(img, min_snr=30).valid
 
 
-@pytest.mark.parametrize("bad", [np.zeros(10), np.zeros((3, 20, 20)), np.zeros((4, 40)),
-                                 np.full((20, 20), np.nan), np.array([["a"] * 6] * 6)])
+@pytest.mark.parametrize(
+    "bad",
+    [
+        np.zeros(10),
+        np.zeros((3, 20, 20)),
+        np.zeros((4, 40)),
+        np.full((20, 20), np.nan),
+        np.array([["a"] * 6] * 6),
+    ],
+)
 def test_malformed_input_raises(bad):
     with pytest.raises(MeasureError):
         measure_edge(bad)
@@ -277,9 +290,18 @@ def test_rer_geometric_mean_against_usgs_table():
     mean to 0.1 in every row, and the geometric mean in 7 of 10 rows only (DAIS green,
     IKONOS pan and ADS40 green differ) - we implement the stated formula.
     """
-    rows = [(0.89, 0.8, 0.8), (0.88, 0.63, 0.8), (0.49, 0.44, 0.5), (0.64, 0.83, 0.7),
-            (0.85, 0.65, 0.8), (0.37, 0.41, 0.4), (0.53, 0.57, 0.6), (0.60, 0.48, 0.5),
-            (0.58, 0.65, 0.6), (0.47, 0.51, 0.5)]
+    rows = [
+        (0.89, 0.8, 0.8),
+        (0.88, 0.63, 0.8),
+        (0.49, 0.44, 0.5),
+        (0.64, 0.83, 0.7),
+        (0.85, 0.65, 0.8),
+        (0.37, 0.41, 0.4),
+        (0.53, 0.57, 0.6),
+        (0.60, 0.48, 0.5),
+        (0.58, 0.65, 0.6),
+        (0.47, 0.51, 0.5),
+    ]
     e, n, avg = (np.array(c) for c in zip(*rows, strict=True))
     geo = rer_two_directions(e, n)
     assert np.allclose(geo, np.sqrt(e * n))
@@ -321,15 +343,25 @@ def test_measured_psf_with_halo():
 
     angle, w, core, halo = 4.0, 0.2, 0.5, 1.5
     yy, xx = np.mgrid[-8:8.01:0.125, -8:8.01:0.125]  # sampled at the render's sub-pixel
-    kernel = (1 - w) * np.exp(-(xx**2 + yy**2) / (2 * core**2)) / core**2 \
-        + w * np.exp(-(xx**2 + yy**2) / (2 * halo**2)) / halo**2
-    img = slanted_edge((100, 100), angle_deg=angle, psf=kernel, psf_step_px=0.125, supersample=8,
-                       snr=300, rng=np.random.default_rng(0))
+    kernel = (1 - w) * np.exp(-(xx**2 + yy**2) / (2 * core**2)) / core**2 + w * np.exp(
+        -(xx**2 + yy**2) / (2 * halo**2)
+    ) / halo**2
+    img = slanted_edge(
+        (100, 100),
+        angle_deg=angle,
+        psf=kernel,
+        psf_step_px=0.125,
+        supersample=8,
+        snr=300,
+        rng=np.random.default_rng(0),
+    )
     r = measure_edge(img)
     assert r.valid, r.reasons
 
     def mix(fn, x):
-        return (1 - w) * fn(x, sigma_px=core, angle_deg=angle) + w * fn(x, sigma_px=halo, angle_deg=angle)
+        return (1 - w) * fn(x, sigma_px=core, angle_deg=angle) + w * fn(
+            x, sigma_px=halo, angle_deg=angle
+        )
 
     x = np.arange(0, 6, 0.001)
     lsf = mix(truth_lsf, x)
@@ -358,7 +390,7 @@ def test_json_contract_every_estimator_key_present():
     for d in (good, bad):
         for key in d:
             if key.startswith("check.") and key.endswith(".passed") and d[key]:
-                assert d[key[:-len(".passed")] + ".value"] is not None, key
+                assert d[key[: -len(".passed")] + ".value"] is not None, key
 
 
 def test_json_states_the_direction_and_row_equivalents():
@@ -370,7 +402,9 @@ def test_json_states_the_direction_and_row_equivalents():
     assert "normal" in d["direction_convention"]
     c = math.cos(math.radians(r.angle_deg))
     assert d["fwhm_px.along_row"] == pytest.approx(d["fwhm_px"] / c, rel=1e-9)
-    assert d["fwhm_px.along_column"] == pytest.approx(d["fwhm_px"] / math.sin(math.radians(r.angle_deg)))
+    assert d["fwhm_px.along_column"] == pytest.approx(
+        d["fwhm_px"] / math.sin(math.radians(r.angle_deg))
+    )
     # along the row the response is wider: lower RER and MTF than normal to the edge
     assert d["rer.along_row"] < d["rer"] and d["mtf_nyquist.along_row"] < d["mtf_nyquist"]
     t = r.transposed

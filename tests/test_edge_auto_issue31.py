@@ -28,19 +28,40 @@ def test_collinear_duplicates_are_merged():
                       snr=100, bit_depth=8, rng=np.random.default_rng(0))
     t = edge_detect.measure_target(img)
     (e,) = t.edges
-    twin = edge_detect.FoundEdge(e.x0 + 0.5, e.y0 + 10, e.x1 + 0.5, e.y1 - 5, e.line_angle_deg + 0.5,
-                                 e.axis, e.window, e.half_width_px, e.result, e.roi)
+    twin = edge_detect.FoundEdge(
+        e.x0 + 0.5,
+        e.y0 + 10,
+        e.x1 + 0.5,
+        e.y1 - 5,
+        e.line_angle_deg + 0.5,
+        e.axis,
+        e.window,
+        e.half_width_px,
+        e.result,
+        e.roi,
+    )
     assert edge_detect._one_per_edge([twin, e]) == [e]  # the longer one stays
-    other = edge_detect.FoundEdge(e.x0 + 20, e.y0, e.x1 + 20, e.y1, e.line_angle_deg, e.axis,
-                                  e.window, e.half_width_px, e.result, e.roi)
+    other = edge_detect.FoundEdge(
+        e.x0 + 20,
+        e.y0,
+        e.x1 + 20,
+        e.y1,
+        e.line_angle_deg,
+        e.axis,
+        e.window,
+        e.half_width_px,
+        e.result,
+        e.roi,
+    )
     assert len(edge_detect._one_per_edge([e, other])) == 2  # a parallel edge 20 px away stays
 
 
 def test_float_band_with_integer_dns_keeps_the_quantisation_floor():
     """A noise-free 8-bit edge read as float (as the automatic search and masked reads pass it)
     has the SNR floor dDN / (1 / sqrt(12)) of integer data, as the uint8 array itself does."""
-    img = family_edge(PsfFamily("gauss", sigma=0.7), (100, 100), angle_deg=7.0, dark=40, bright=200,
-                      bit_depth=8)
+    img = family_edge(
+        PsfFamily("gauss", sigma=0.7), (100, 100), angle_deg=7.0, dark=40, bright=200, bit_depth=8
+    )
     as_int = measure_edge(img)
     as_float = measure_edge(img.astype(np.float32))
     assert as_float.check("snr").value == pytest.approx(as_int.check("snr").value, rel=1e-9)

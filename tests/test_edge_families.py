@@ -41,24 +41,33 @@ def test_mtfc_family_is_the_3_tap_filter_on_the_pixel_grid():
     """The sharpened family's truth (OTF x (1 + 2a - 2a cos 2 pi f) per axis) equals the 3-tap
     filter [-a, 1 + 2a, -a] applied along x and y to the rendered unsharpened edge."""
     a, sigma, angle = 0.25, 0.8, 12.0
-    base = family_edge(PsfFamily("gauss", sigma=sigma), (60, 60), angle_deg=angle, dark=0.0, bright=1.0)
+    base = family_edge(
+        PsfFamily("gauss", sigma=sigma), (60, 60), angle_deg=angle, dark=0.0, bright=1.0
+    )
     taps = np.array([-a, 1 + 2 * a, -a])
     filt = ndimage.convolve1d(ndimage.convolve1d(base, taps, axis=1), taps, axis=0)
-    sharp = family_edge(PsfFamily("mtfc", sigma=sigma, amount=a), (60, 60), angle_deg=angle,
-                        dark=0.0, bright=1.0)
+    sharp = family_edge(
+        PsfFamily("mtfc", sigma=sigma, amount=a), (60, 60), angle_deg=angle, dark=0.0, bright=1.0
+    )
     assert np.abs(filt[2:-2, 2:-2] - sharp[2:-2, 2:-2]).max() < 1e-4
     assert sharp.max() > 1.0 and sharp.min() < 0.0  # it rings
 
 
 def test_family_truth_is_a_normalised_system():
     """Every family: LSF area 1, ESF from 0 to 1, MTF(0) = 1, MTF@Ny = |T(0.5)|."""
-    for fam in (PsfFamily("halo", sigma=0.5, sigma2=4.0, weight=0.1), PsfFamily("defocus", radius=2.0, sigma=0.5),
-                PsfFamily("motion_x", length=2.5, sigma=0.4), PsfFamily("motion_y", length=3.0, sigma=0.4),
-                PsfFamily("diffraction", cutoff=0.8, sigma=0.3, length=1.0)):
+    for fam in (
+        PsfFamily("halo", sigma=0.5, sigma2=4.0, weight=0.1),
+        PsfFamily("defocus", radius=2.0, sigma=0.5),
+        PsfFamily("motion_x", length=2.5, sigma=0.4),
+        PsfFamily("motion_y", length=3.0, sigma=0.4),
+        PsfFamily("diffraction", cutoff=0.8, sigma=0.3, length=1.0),
+    ):
         t = family_truth(fam, angle_deg=9.0)
         step = t.x[1] - t.x[0]
         assert np.sum(t.lsf) * step == pytest.approx(1.0, abs=2e-3)
-        assert t.esf[0] == pytest.approx(0.0, abs=3e-3) and t.esf[-1] == pytest.approx(1.0, abs=3e-3)
+        assert t.esf[0] == pytest.approx(0.0, abs=3e-3) and t.esf[-1] == pytest.approx(
+            1.0, abs=3e-3
+        )
         assert t.mtf(np.array([0.0]))[0] == pytest.approx(1.0)
         assert t.mtf(np.array([0.5]))[0] == pytest.approx(t.mtf_nyquist)
     # a box along x of length L projects to L cos(theta) on the normal; along y to L sin(theta)
@@ -76,8 +85,18 @@ def test_family_truth_is_a_normalised_system():
 def _measure(fam, angle, snr, seed=0, shape=(100, 100), bits=8):
     t = family_truth(fam, angle_deg=angle)
     dark, bright = (40.0, 200.0) if bits == 8 else (600.0, 3000.0)
-    img = family_edge(fam, shape, angle_deg=angle, dark=dark, bright=bright, snr=snr, bit_depth=bits,
-                      offset_px=0.137 * seed, rng=np.random.default_rng(seed), truth=t)
+    img = family_edge(
+        fam,
+        shape,
+        angle_deg=angle,
+        dark=dark,
+        bright=bright,
+        snr=snr,
+        bit_depth=bits,
+        offset_px=0.137 * seed,
+        rng=np.random.default_rng(seed),
+        truth=t,
+    )
     return measure_edge(img, min_snr=25), t
 
 
@@ -86,8 +105,13 @@ def test_wide_halo_tail_is_inside_the_window(angle):
     """A 10 % halo of sigma 4 px: its LSF is below 2 % of the peak beyond 1 px, yet 1 % of the
     step lies beyond 5 px. With the window ending 3-4 px from the edge RER read +0.024 and
     MTF@Ny +0.009 high (measured before issue 31); the window now reaches where the ESF settles."""
-    r, t = _measure(PsfFamily("halo", sigma=0.55, sigma2=4.0, weight=0.1), angle, None, bits=12,
-                    shape=(100, 100))
+    r, t = _measure(
+        PsfFamily("halo", sigma=0.55, sigma2=4.0, weight=0.1),
+        angle,
+        None,
+        bits=12,
+        shape=(100, 100),
+    )
     assert r.valid, r.reasons
     assert r.window_px[0] <= -10.0 and r.window_px[1] >= 10.0
     assert abs(r.rer - t.rer) <= 0.01
@@ -136,15 +160,23 @@ def test_noise_free_8bit_diffraction_edge_is_within_its_uncertainty():
 def test_every_figure_has_a_standard_uncertainty_that_covers_the_error():
     """RER, FWHM and MTF@Ny carry u (JSON: *.u); over these ROIs of four families at SNR 50 the
     error is within 2u for at least 90 % of the figures (nominal 95 %), and u shrinks with noise."""
-    fams = [PsfFamily("gauss", sigma=0.6), PsfFamily("defocus", radius=1.5, sigma=0.4),
-            PsfFamily("mtfc", sigma=0.8, amount=0.25), PsfFamily("motion_y", length=1.5, sigma=0.45)]
+    fams = [
+        PsfFamily("gauss", sigma=0.6),
+        PsfFamily("defocus", radius=1.5, sigma=0.4),
+        PsfFamily("mtfc", sigma=0.8, amount=0.25),
+        PsfFamily("motion_y", length=1.5, sigma=0.45),
+    ]
     inside, total = 0, 0
     for k, fam in enumerate(fams):
         for seed, angle in ((k, 7.0), (k + 10, 22.0)):
             r, t = _measure(fam, angle, 50.0, seed)
             assert r.valid, r.reasons
             d = r.to_dict()
-            for name, truth in (("rer", t.rer), ("fwhm_px", t.fwhm_px), ("mtf_nyquist", t.mtf_nyquist)):
+            for name, truth in (
+                ("rer", t.rer),
+                ("fwhm_px", t.fwhm_px),
+                ("mtf_nyquist", t.mtf_nyquist),
+            ):
                 u = d[f"{name}.u"]
                 assert u is not None and u > 0
                 inside += abs(d[name] - truth) <= 2 * u

@@ -17,8 +17,9 @@ EDGE_PKG = Path(__file__).resolve().parents[1] / "src" / "orthospec" / "measures
 
 
 def _edge(snr: float | None = 60.0) -> np.ndarray:
-    return slanted_edge((60, 60), angle_deg=7.0, sigma_px=0.8, snr=snr, supersample=9,
-                        rng=np.random.default_rng(3))
+    return slanted_edge(
+        (60, 60), angle_deg=7.0, sigma_px=0.8, snr=snr, supersample=9, rng=np.random.default_rng(3)
+    )
 
 
 def test_defaults_are_the_seed_limits():
@@ -69,7 +70,11 @@ def _code_lines(fn: ast.FunctionDef) -> int:
     """Lines of a function without its docstring."""
     n = fn.end_lineno - fn.lineno + 1
     first = fn.body[0]
-    if isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant) and isinstance(first.value.value, str):
+    if (
+        isinstance(first, ast.Expr)
+        and isinstance(first.value, ast.Constant)
+        and isinstance(first.value.value, str)
+    ):
         n -= first.end_lineno - first.lineno + 1
     return n
 

@@ -26,7 +26,9 @@ def test_spline_is_scipys_gcv_smoothing_spline(n):
     for nu in (0, 1, 2):
         a = ref(q) if nu == 0 else ref.derivative(nu)(q)
         b = ours(q) if nu == 0 else ours.derivative(nu)(q)
-        assert np.max(np.abs(a - b)) <= 1e-4 * np.max(np.abs(a)) + 1e-9  # GCV argmin to 1e-5, eigen-basis rounding
+        assert (
+            np.max(np.abs(a - b)) <= 1e-4 * np.max(np.abs(a)) + 1e-9
+        )  # GCV argmin to 1e-5, eigen-basis rounding
     fixed = scipy_spline(x, y, w=w, lam=0.5)(q)
     assert numfit.make_smoothing_spline(x, y, w=w, lam=0.5)(q) == pytest.approx(fixed, abs=1e-6)
 
@@ -41,9 +43,13 @@ def test_spline_rejects_what_scipy_rejects():
         numfit.make_smoothing_spline(x, x, w=np.zeros(6))
 
 
-@pytest.mark.parametrize("d1,d2,f", [(1, 10, 2.0), (3, 50, 0.5), (2, 200, 7.0), (5, 5, 1e-3), (40, 900, 1.3)])
+@pytest.mark.parametrize(
+    "d1,d2,f", [(1, 10, 2.0), (3, 50, 0.5), (2, 200, 7.0), (5, 5, 1e-3), (40, 900, 1.3)]
+)
 def test_f_survival_is_scipys(d1, d2, f):
-    assert numfit.fdtrc(d1, d2, f) == pytest.approx(float(special.fdtrc(d1, d2, f)), rel=1e-10, abs=1e-14)
+    assert numfit.fdtrc(d1, d2, f) == pytest.approx(
+        float(special.fdtrc(d1, d2, f)), rel=1e-10, abs=1e-14
+    )
 
 
 def test_brentq_is_scipys():
@@ -76,17 +82,31 @@ def test_least_squares_reaches_scipys_minimum_with_and_without_bounds():
 
 # one ROI of each family at SNR inf and 100 (issue 31's grid): the model selected is the same
 # and the figures within a small fraction of the issue's targets (FWHM 2 %, RER 0.02, MTF 0.01)
-FAMILIES = [PsfFamily("gauss", sigma=0.7), PsfFamily("halo", sigma=0.55, sigma2=4.0, weight=0.1),
-            PsfFamily("defocus", sigma=0.5, radius=1.5), PsfFamily("motion_x", sigma=0.5, length=2.0),
-            PsfFamily("mtfc", sigma=0.8, amount=0.3)]
+FAMILIES = [
+    PsfFamily("gauss", sigma=0.7),
+    PsfFamily("halo", sigma=0.55, sigma2=4.0, weight=0.1),
+    PsfFamily("defocus", sigma=0.5, radius=1.5),
+    PsfFamily("motion_x", sigma=0.5, length=2.0),
+    PsfFamily("mtfc", sigma=0.8, amount=0.3),
+]
 
 
 @pytest.mark.parametrize("fam", FAMILIES, ids=lambda f: f.kind)
 @pytest.mark.parametrize("snr", [None, 100.0])
 def test_chain_gives_scipys_figures(fam, snr):
     truth = family_truth(fam, angle_deg=8.0)
-    img = family_edge(fam, (100, 100), angle_deg=8.0, dark=40.0, bright=200.0, snr=snr, bit_depth=8,
-                      offset_px=0.3, rng=np.random.default_rng(5), truth=truth)
+    img = family_edge(
+        fam,
+        (100, 100),
+        angle_deg=8.0,
+        dark=40.0,
+        bright=200.0,
+        snr=snr,
+        bit_depth=8,
+        offset_px=0.3,
+        rng=np.random.default_rng(5),
+        truth=truth,
+    )
     lim = EdgeLimits(min_snr=25)
     ours = measure_edge(img, limits=lim)
     with numfit.use_scipy():
@@ -95,4 +115,6 @@ def test_chain_gives_scipys_figures(fam, snr):
     assert ours.angle_deg == pytest.approx(ref.angle_deg, abs=1e-6)
     assert ours.estimate("fwhm_px").value == pytest.approx(ref.estimate("fwhm_px").value, rel=0.002)
     assert ours.estimate("rer").value == pytest.approx(ref.estimate("rer").value, abs=0.002)
-    assert ours.estimate("mtf_nyquist").value == pytest.approx(ref.estimate("mtf_nyquist").value, abs=0.001)
+    assert ours.estimate("mtf_nyquist").value == pytest.approx(
+        ref.estimate("mtf_nyquist").value, abs=0.001
+    )

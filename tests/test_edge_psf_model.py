@@ -83,7 +83,9 @@ def test_model_mtf_is_the_closed_form():
     f = r.fits["gauss"]
     sig = f.params["sigma_px"][0]
     assert np.allclose(f.mtf, gauss_pixel_mtf(f.mtf_freq, sig, r.angle_deg), atol=1e-12)
-    assert f.mtf_nyquist == pytest.approx(float(gauss_pixel_mtf(np.array([0.5]), sig, r.angle_deg)[0]))
+    assert f.mtf_nyquist == pytest.approx(
+        float(gauss_pixel_mtf(np.array([0.5]), sig, r.angle_deg)[0])
+    )
 
 
 # ------------------------------------------------------------------ the lack-of-fit test
@@ -93,11 +95,21 @@ def test_lack_of_fit_test_is_calibrated_on_gaussian_edges():
     """Under a true model the F statistic averages 1 and its p-values are not small."""
     stats_, pvals = [], []
     for seed in range(12):
-        img = slanted_edge((100, 100), angle_deg=4.0 + 2 * seed, sigma_px=0.5 + 0.08 * seed,
-                           snr=80, supersample=9, offset_px=0.137 * seed,
-                           rng=np.random.default_rng(seed))
+        img = slanted_edge(
+            (100, 100),
+            angle_deg=4.0 + 2 * seed,
+            sigma_px=0.5 + 0.08 * seed,
+            snr=80,
+            supersample=9,
+            offset_px=0.137 * seed,
+            rng=np.random.default_rng(seed),
+        )
         r = measure_edge(img)
-        m = r.fits["gauss"] if "gauss" in r.fits else next(r.fits[f] for f in PSF_FITS if f in r.fits)
+        m = (
+            r.fits["gauss"]
+            if "gauss" in r.fits
+            else next(r.fits[f] for f in PSF_FITS if f in r.fits)
+        )
         stats_.append(m.params["lack_of_fit_f"])
         pvals.append(m.params["p_value"])
         assert m.params["noise_dn"] == pytest.approx(300 / 80, rel=0.08)  # pure error = pixel noise
@@ -113,8 +125,14 @@ def test_sharpened_edge_is_described_by_the_unsharp_mask_model():
 
     from orthospec.measures.synthetic import unsharp_truth
 
-    img = slanted_edge((100, 100), angle_deg=7.0, sigma_px=1.0, snr=400, supersample=9,
-                       rng=np.random.default_rng(0))
+    img = slanted_edge(
+        (100, 100),
+        angle_deg=7.0,
+        sigma_px=1.0,
+        snr=400,
+        supersample=9,
+        rng=np.random.default_rng(0),
+    )
     sharp = img + 1.5 * (img - ndimage.gaussian_filter(img, 1.5))  # unsharp mask
     t = unsharp_truth(sigma_px=1.0, angle_deg=7.0, amount=1.5, mask_sigma_px=1.5)
     r = measure_edge(sharp)
@@ -129,8 +147,14 @@ def test_model_rejected_when_it_cannot_describe_the_edge():
     """A clipped bright side (a saturating response) is no PSF blur: the model fails its
     lack-of-fit test, the cross-validated error prefers the spline, and the spline is
     primary, so no model value is passed off as the measurement."""
-    img = slanted_edge((100, 100), angle_deg=7.0, sigma_px=1.0, snr=400, supersample=9,
-                       rng=np.random.default_rng(0))
+    img = slanted_edge(
+        (100, 100),
+        angle_deg=7.0,
+        sigma_px=1.0,
+        snr=400,
+        supersample=9,
+        rng=np.random.default_rng(0),
+    )
     clipped = np.minimum(img, 330.0)
     r = measure_edge(clipped)
     assert r.valid, r.reasons
@@ -145,8 +169,9 @@ def test_model_rejected_when_it_cannot_describe_the_edge():
 # ------------------------------------------------------------------ measured PSFs
 
 
-@pytest.mark.parametrize("name,expect", [("halo", "gauss2"), ("defocus", "gauss-disk"),
-                                          ("motion", "gauss-box")])
+@pytest.mark.parametrize(
+    "name,expect", [("halo", "gauss2"), ("defocus", "gauss-disk"), ("motion", "gauss-box")]
+)
 def test_non_gaussian_psf_high_snr(name, expect):
     kernel = KERNELS[name]()
     for angle in (5.0, 20.0):
@@ -194,8 +219,18 @@ def test_noise_free_8bit_halo_edge_keeps_the_model(angle):
     must count the rounding (q^2/12 per bin mean) so the model is kept, not the spline that
     follows the quantisation steps (was MTF@Ny 0.0767 against truth 0.0919)."""
     k = 0.85 * _gauss(0.6) + 0.15 * _gauss(2.0)
-    img = _u8(slanted_edge((100, 100), angle_deg=angle, sigma_px=None, psf=k, psf_step_px=1 / S,
-                           dark=51, bright=204, supersample=S))
+    img = _u8(
+        slanted_edge(
+            (100, 100),
+            angle_deg=angle,
+            sigma_px=None,
+            psf=k,
+            psf_step_px=1 / S,
+            dark=51,
+            bright=204,
+            supersample=S,
+        )
+    )
     t = kernel_truth(k, angle_deg=angle, psf_step_px=1 / S, supersample=S)
     r = measure_edge(img)
     assert r.valid and r.primary_fit in PSF_FITS
@@ -215,8 +250,15 @@ def test_sharpened_edge_at_snr_30_within_3_percent(seed):
     from orthospec.measures.synthetic import unsharp_mask, unsharp_truth
 
     t = unsharp_truth(sigma_px=0.8, angle_deg=12.0, amount=1.0, mask_sigma_px=1.5)
-    base = slanted_edge((100, 100), angle_deg=12.0, sigma_px=0.8, dark=51, bright=204,
-                        supersample=S, offset_px=0.137 * seed)
+    base = slanted_edge(
+        (100, 100),
+        angle_deg=12.0,
+        sigma_px=0.8,
+        dark=51,
+        bright=204,
+        supersample=S,
+        offset_px=0.137 * seed,
+    )
     img = unsharp_mask(base, amount=1.0, sigma_px=1.5)
     img = _u8(img + np.random.default_rng(seed).normal(0, 153 / 30, img.shape))
     r = measure_edge(img, min_snr=25)
@@ -231,8 +273,16 @@ def test_model_choice_by_cross_validation_is_recorded():
     """When the model fails its lack-of-fit test, the choice is the lower out-of-sample
     (5-fold over the ESF bins) error, and both errors are in the JSON."""
     k = 0.85 * _gauss(0.6) + 0.15 * _gauss(2.0)
-    img = slanted_edge((100, 100), angle_deg=7.0, sigma_px=None, psf=k, psf_step_px=1 / S,
-                       supersample=S, snr=2000, rng=np.random.default_rng(0))
+    img = slanted_edge(
+        (100, 100),
+        angle_deg=7.0,
+        sigma_px=None,
+        psf=k,
+        psf_step_px=1 / S,
+        supersample=S,
+        snr=2000,
+        rng=np.random.default_rng(0),
+    )
     d = measure_edge(img, min_snr=45).to_dict()
     if d["psf_model.adequate"]:
         assert d["psf_model.cv_error"] is None and d["primary_fit"] == d["psf_model"]

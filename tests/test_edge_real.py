@@ -50,7 +50,9 @@ def test_myedge_matches_its_name():
     assert r.angle_deg == pytest.approx(NAME_ANGLE, abs=0.01)
     fwhm_perp = NAME_FWHM_ROW * math.cos(math.radians(NAME_ANGLE))  # 2.0119 px
     assert r.fwhm_px == pytest.approx(fwhm_perp, rel=0.005)
-    assert r.fwhm_px / math.cos(math.radians(r.angle_deg)) == pytest.approx(NAME_FWHM_ROW, rel=0.005)
+    assert r.fwhm_px / math.cos(math.radians(r.angle_deg)) == pytest.approx(
+        NAME_FWHM_ROW, rel=0.005
+    )
     # FWHM_row = FWHM_perp * cos(theta) would be 1.93 px: clearly rejected
     assert abs(r.fwhm_px - fwhm_perp * math.cos(math.radians(NAME_ANGLE))) > 0.05
     # a point-sampled Gaussian ESF: RER and MTF follow from sigma = FWHM_perp / 2.3548

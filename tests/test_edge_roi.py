@@ -30,7 +30,12 @@ from orthospec.raster.roi import MapWindow, PixelWindow, raster_bounds, read_roi
 REAL = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "real"
 BAOTOU = REAL / "baotou_CALVAL_L0R_000000_20200328T032332_202003T032334_MTF_12196_7333.tif"
 RGB = REAL / "RGB.byte.tif"
-BAOTOU_ROI = [40, 12, 85, 42]  # the near-vertical dark/bright edge with some zero fill (test_edge_real.py)
+BAOTOU_ROI = [
+    40,
+    12,
+    85,
+    42,
+]  # the near-vertical dark/bright edge with some zero fill (test_edge_real.py)
 
 
 def _real(path: Path) -> Path:
@@ -39,11 +44,28 @@ def _real(path: Path) -> Path:
     return path
 
 
-def _write(path: Path, arr: np.ndarray, *, crs: str | None = "EPSG:25832", size: float = 0.2,
-           nodata: float | None = None, mask: np.ndarray | None = None, transform=None) -> Path:
-    with rasterio.open(path, "w", driver="GTiff", width=arr.shape[1], height=arr.shape[0], count=1,
-                       dtype=arr.dtype, crs=crs, nodata=nodata,
-                       transform=transform or from_origin(500000.0, 5600000.0, size, size)) as ds:
+def _write(
+    path: Path,
+    arr: np.ndarray,
+    *,
+    crs: str | None = "EPSG:25832",
+    size: float = 0.2,
+    nodata: float | None = None,
+    mask: np.ndarray | None = None,
+    transform=None,
+) -> Path:
+    with rasterio.open(
+        path,
+        "w",
+        driver="GTiff",
+        width=arr.shape[1],
+        height=arr.shape[0],
+        count=1,
+        dtype=arr.dtype,
+        crs=crs,
+        nodata=nodata,
+        transform=transform or from_origin(500000.0, 5600000.0, size, size),
+    ) as ds:
         ds.write(arr, 1)
         if mask is not None:
             ds.write_mask(mask.astype(np.uint8) * 255)
@@ -74,14 +96,17 @@ def test_dataset_mask_marks_invalid_pixels(tmp_path):
     assert got.nodata is None and np.array_equal(np.ma.getmaskarray(got.data), ~valid)
 
 
-@pytest.mark.parametrize("crs,transform,want", [
-    ("EPSG:25832", from_origin(500000.0, 5600000.0, 0.25, 0.25), 0.25),
-    # NAD83 / New York Long Island (ftUS): 1 US survey foot = 1200/3937 m
-    ("EPSG:2263", from_origin(1000000.0, 200000.0, 1.0, 1.0), 1200 / 3937),
-    ("EPSG:4326", from_origin(10.0, 50.0, 1e-5, 1e-5), None),  # degrees are not a length
-    ("EPSG:25832", from_origin(500000.0, 5600000.0, 0.25, 0.5), None),  # not square
-    (None, None, None),
-])
+@pytest.mark.parametrize(
+    "crs,transform,want",
+    [
+        ("EPSG:25832", from_origin(500000.0, 5600000.0, 0.25, 0.25), 0.25),
+        # NAD83 / New York Long Island (ftUS): 1 US survey foot = 1200/3937 m
+        ("EPSG:2263", from_origin(1000000.0, 200000.0, 1.0, 1.0), 1200 / 3937),
+        ("EPSG:4326", from_origin(10.0, 50.0, 1e-5, 1e-5), None),  # degrees are not a length
+        ("EPSG:25832", from_origin(500000.0, 5600000.0, 0.25, 0.5), None),  # not square
+        (None, None, None),
+    ],
+)
 def test_gsd_from_the_transform(tmp_path, crs, transform, want):
     path = tmp_path / "g.tif"
     with warnings.catch_warnings():
@@ -105,11 +130,14 @@ def test_map_window_reads_the_pixels_it_touches(tmp_path):
         read_roi(path, window=MapWindow(0.0, 0.0, 1.0, 1.0))
 
 
-@pytest.mark.parametrize("kw,message", [
-    ({"band": 2}, "band 2 does not exist"),
-    ({"window": PixelWindow(0, 0, 11, 5)}, "exceeds the image"),
-    ({"max_pixels": 50, "too_large": "give the target an roi"}, "give the target an roi"),
-])
+@pytest.mark.parametrize(
+    "kw,message",
+    [
+        ({"band": 2}, "band 2 does not exist"),
+        ({"window": PixelWindow(0, 0, 11, 5)}, "exceeds the image"),
+        ({"max_pixels": 50, "too_large": "give the target an roi"}, "give the target an roi"),
+    ],
+)
 def test_bad_window_band_or_size_names_the_file(tmp_path, kw, message):
     path = _write(tmp_path / "s.tif", np.zeros((10, 10), dtype=np.uint8))
     with pytest.raises(MeasureError, match=message) as exc:
@@ -121,7 +149,10 @@ def test_truncated_real_geotiff_is_an_error_naming_the_file(tmp_path):
     data = _real(RGB).read_bytes()
     bad = tmp_path / "cut.tif"
     bad.write_bytes(data[: len(data) // 2])
-    for fn in (lambda: read_roi(bad, name="images/cut.tif"), lambda: raster_bounds(bad, name="images/cut.tif")):
+    for fn in (
+        lambda: read_roi(bad, name="images/cut.tif"),
+        lambda: raster_bounds(bad, name="images/cut.tif"),
+    ):
         with pytest.raises(MeasureError, match=r"^images/cut\.tif: not a readable raster"):
             fn()
 
@@ -173,21 +204,26 @@ def test_measure_edge_and_check_agree_on_a_real_chip(tmp_path):
     (root / "images").mkdir(parents=True)
     (root / "tables").mkdir()
     tif = _write(root / "images" / "baotou.tif", chip, nodata=0, size=0.5)
-    (root / "tables" / "images.csv").write_text("image_id,file,block\nBT,images/baotou.tif,B1\n",
-                                                encoding="utf-8")
+    (root / "tables" / "images.csv").write_text(
+        "image_id,file,block\nBT,images/baotou.tif,B1\n", encoding="utf-8"
+    )
     manifest = {
-        "orthospec_delivery": 1, "id": "D-ROI-1",
+        "orthospec_delivery": 1,
+        "id": "D-ROI-1",
         "project": {"id": "P1", "name": "Edge ROI", "crs": "EPSG:25832"},
-        "contractor": {"name": "ACME Mapping"}, "sensor": {"type": "satellite", "digital": True},
+        "contractor": {"name": "ACME Mapping"},
+        "sensor": {"type": "satellite", "digital": True},
         "product": {"gsd": {"value": 9.0, "unit": "m"}},  # not used: the transform gives 0.5 m
-        "blocks": [{"id": "B1"}], "tables": {"images": "tables/images.csv"},
+        "blocks": [{"id": "B1"}],
+        "tables": {"images": "tables/images.csv"},
         "edge_targets": [{"id": "E1", "image": "BT", "roi": BAOTOU_ROI, "band": 1}],
     }
     (root / "delivery.yaml").write_text(yaml.safe_dump(manifest, sort_keys=False), encoding="utf-8")
     (tmp_path / "profile.yaml").write_text(PROFILE, encoding="utf-8")
 
-    res = CliRunner().invoke(cli(), ["measure", "edge", str(tif), "--roi", ",".join(map(str, BAOTOU_ROI)),
-                                     "--json"])
+    res = CliRunner().invoke(
+        cli(), ["measure", "edge", str(tif), "--roi", ",".join(map(str, BAOTOU_ROI)), "--json"]
+    )
     assert res.exit_code == 0, res.output
     cli_doc = json.loads(res.output)
     assert cli_doc["valid"] and cli_doc["gsd_m"] == 0.5
@@ -203,6 +239,19 @@ def test_measure_edge_and_check_agree_on_a_real_chip(tmp_path):
     shutil.copy(tif, tmp_path / "plain.tif")
     with rasterio.open(tmp_path / "plain.tif", "r+") as ds:
         ds.nodata = None
-    plain = json.loads(CliRunner().invoke(cli(), ["measure", "edge", str(tmp_path / "plain.tif"), "--roi",
-                                                  ",".join(map(str, BAOTOU_ROI)), "--json"]).output)
+    plain = json.loads(
+        CliRunner()
+        .invoke(
+            cli(),
+            [
+                "measure",
+                "edge",
+                str(tmp_path / "plain.tif"),
+                "--roi",
+                ",".join(map(str, BAOTOU_ROI)),
+                "--json",
+            ],
+        )
+        .output
+    )
     assert plain["valid"] is False and plain["rer"] is None

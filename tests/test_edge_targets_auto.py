@@ -27,7 +27,9 @@ EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "deliveries" / "aer
 SIGMA_PX, ANGLE_DEG, DARK, BRIGHT = 1.0, 8.0, 40.0, 200.0
 
 
-def rotated_square(n: int = 200, side: float = 110.0, *, s: int = 8, snr: float | None = None) -> np.ndarray:
+def rotated_square(
+    n: int = 200, side: float = 110.0, *, s: int = 8, snr: float | None = None
+) -> np.ndarray:
     """Bright square turned by ANGLE_DEG, Gaussian PSF (sigma SIGMA_PX) and pixel integration
     rendered on an s x s sub-pixel grid, then 8-bit quantised (optional noise of std
     (bright - dark) / snr, the CEOS definition)."""
@@ -55,8 +57,17 @@ def delivery(tmp_path: Path, arr: np.ndarray, *, rer_min: float = 0.3) -> tuple[
         crs, tr = ref.crs, ref.transform
     (root / "targets").mkdir()
     path = root / "targets" / "E9.tif"
-    with rasterio.open(path, "w", driver="GTiff", width=arr.shape[1], height=arr.shape[0], count=1,
-                       dtype=arr.dtype.name, crs=crs, transform=from_origin(tr.c, tr.f, tr.a, -tr.e)) as ds:
+    with rasterio.open(
+        path,
+        "w",
+        driver="GTiff",
+        width=arr.shape[1],
+        height=arr.shape[0],
+        count=1,
+        dtype=arr.dtype.name,
+        crs=crs,
+        transform=from_origin(tr.c, tr.f, tr.a, -tr.e),
+    ) as ds:
         ds.write(arr, 1)
     table = root / "tables" / "images.csv"
     lines = table.read_text(encoding="utf-8").splitlines()
@@ -64,8 +75,10 @@ def delivery(tmp_path: Path, arr: np.ndarray, *, rer_min: float = 0.3) -> tuple[
     first[head.index("image_id")], first[head.index("file")] = "E9_TARGET", "targets/E9.tif"
     table.write_text("\n".join([*lines, ",".join(first)]) + "\n", encoding="utf-8")
     man = root / "delivery.yaml"
-    text = man.read_text(encoding="utf-8").replace("tolerance_xy: {value: 0.5, unit: m}",
-                                                   f"tolerance_xy: {{value: 0.5, unit: m}}\n    rer_min: {rer_min}")
+    text = man.read_text(encoding="utf-8").replace(
+        "tolerance_xy: {value: 0.5, unit: m}",
+        f"tolerance_xy: {{value: 0.5, unit: m}}\n    rer_min: {rer_min}",
+    )
     man.write_text(text + "edge_targets: [{id: E9, image: E9_TARGET}]\n", encoding="utf-8")
     return root, hashlib.sha256(path.read_bytes()).hexdigest()
 
@@ -75,9 +88,13 @@ def _params(root: Path) -> list[str]:
     ones this delivery's manifest declares, as --param."""
     import yaml
 
-    declared = yaml.safe_load((root / "delivery.yaml").read_text(encoding="utf-8"))["tender"]["parameters"]
-    return [f"{k}={v['value']}{v.get('unit', '')}" if isinstance(v, dict) else f"{k}={v}"
-            for k, v in declared.items()]
+    declared = yaml.safe_load((root / "delivery.yaml").read_text(encoding="utf-8"))["tender"][
+        "parameters"
+    ]
+    return [
+        f"{k}={v['value']}{v.get('unit', '')}" if isinstance(v, dict) else f"{k}={v}"
+        for k, v in declared.items()
+    ]
 
 
 def recs(doc: dict, rid: str) -> dict:
@@ -155,13 +172,18 @@ def test_edge_target_with_roi_keeps_one_item(tmp_path):
     root, _ = delivery(tmp_path, rotated_square())
     man = root / "delivery.yaml"
     # the left edge of the square: x about 45, rows 70..130 (the square spans ~ 45..155)
-    man.write_text(man.read_text(encoding="utf-8").replace(
-        "{id: E9, image: E9_TARGET}", "{id: E9, image: E9_TARGET, roi: [25, 70, 70, 130]}"), encoding="utf-8")
+    man.write_text(
+        man.read_text(encoding="utf-8").replace(
+            "{id: E9, image: E9_TARGET}", "{id: E9, image: E9_TARGET, roi: [25, 70, 70, 130]}"
+        ),
+        encoding="utf-8",
+    )
     doc = check(root, "usgs-insitu", date="2026-06-30", params=_params(root)).document
     per = recs(doc, "USGS-RER")
     assert set(per) == {"E9"}
     assert per["E9"]["measured"]["value"] == pytest.approx(
-        edge_truth(sigma_px=SIGMA_PX, angle_deg=ANGLE_DEG).rer, abs=0.02)
+        edge_truth(sigma_px=SIGMA_PX, angle_deg=ANGLE_DEG).rer, abs=0.02
+    )
     # one direction only: the combined RER cannot be formed
     assert next(iter(recs(doc, "USGS-RER-COMBINED").values()))["verdict"] == "missing"
 

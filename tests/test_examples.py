@@ -28,7 +28,9 @@ from tests.checking import CHECKERS, EXAMPLES, ROOT
 
 NAMES = ("aerial-pass", "aerial-fail")
 SATELLITE = ("satellite-pass", "satellite-fail")
-SPEC = yaml.safe_load((ROOT / "specs" / "delivery-tables.yaml").read_text(encoding="utf-8"))["tables"]
+SPEC = yaml.safe_load((ROOT / "specs" / "delivery-tables.yaml").read_text(encoding="utf-8"))[
+    "tables"
+]
 GSD = 0.25
 
 
@@ -45,8 +47,11 @@ def _generator() -> ModuleType:
 
 
 def _digests(root: Path) -> dict[str, str]:
-    return {p.relative_to(root).as_posix(): hashlib.sha256(p.read_bytes()).hexdigest()
-            for p in sorted(root.rglob("*")) if p.is_file()}
+    return {
+        p.relative_to(root).as_posix(): hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in sorted(root.rglob("*"))
+        if p.is_file()
+    }
 
 
 @pytest.fixture(scope="module")
@@ -59,8 +64,12 @@ def regenerated(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def _external(name: str) -> pd.DataFrame:
     """The checker's own check point measurements (the checker folder's tables/checkpoints.csv): what the
     external-accuracy rules read; the delivery's table is the contractor's internal QC (JRC §12.5)."""
-    return pd.read_csv(CHECKERS / name / "tables" / "checkpoints.csv", dtype=str, keep_default_na=False,
-                       encoding="utf-8")
+    return pd.read_csv(
+        CHECKERS / name / "tables" / "checkpoints.csv",
+        dtype=str,
+        keep_default_na=False,
+        encoding="utf-8",
+    )
 
 
 def _grid_cells(name: str) -> pd.DataFrame:
@@ -99,17 +108,36 @@ def _num(series: pd.Series) -> pd.Series:
 @pytest.mark.parametrize("name", (*NAMES, *SATELLITE, "tiles-real"))
 def test_committed_example_equals_a_fresh_generation(regenerated: Path, name: str) -> None:
     fresh, committed = _digests(regenerated / name), _digests(EXAMPLES / name)
-    assert sorted(fresh) == sorted(committed), "file lists differ: run `python examples/generate.py`"
+    assert sorted(fresh) == sorted(committed), (
+        "file lists differ: run `python examples/generate.py`"
+    )
     stale = [f for f in fresh if fresh[f] != committed[f]]
     assert not stale, f"stale files {stale}: run `python examples/generate.py`"
 
 
 def test_committed_checker_files_equal_a_fresh_generation(regenerated: Path) -> None:
     fresh, committed = _digests(regenerated.parent / "checker"), _digests(CHECKERS)
-    folders = {f"{n}/{f}" for n in NAMES + SATELLITE for f in ("checker.yaml", "tables/checkpoints.csv")}
-    measured = {f"{n}/{f}" for n in ("tiles-real", "tiles-real-fail") for f in (  # issue 29: measured by the tool
-        "checker.yaml", "tables/checkpoints.csv", "checkpoints-to-measure.gpkg", "reference/reference.tif", "survey.csv")}
-    assert sorted(fresh) == sorted(committed) == sorted(folders | {f"{n}/inspection.gpkg" for n in NAMES} | {"tiles-real.yaml"} | measured)
+    folders = {
+        f"{n}/{f}" for n in NAMES + SATELLITE for f in ("checker.yaml", "tables/checkpoints.csv")
+    }
+    measured = {
+        f"{n}/{f}"
+        for n in ("tiles-real", "tiles-real-fail")
+        for f in (  # issue 29: measured by the tool
+            "checker.yaml",
+            "tables/checkpoints.csv",
+            "checkpoints-to-measure.gpkg",
+            "reference/reference.tif",
+            "survey.csv",
+        )
+    }
+    assert (
+        sorted(fresh)
+        == sorted(committed)
+        == sorted(
+            folders | {f"{n}/inspection.gpkg" for n in NAMES} | {"tiles-real.yaml"} | measured
+        )
+    )
     assert fresh == committed, "stale checker files: run `python examples/generate.py`"
 
 
@@ -132,8 +160,11 @@ def test_the_delivery_holds_statements_and_the_checker_file_the_verdicts(name: s
     chk = load_checker(CHECKERS / name, delivery_root=EXAMPLES / name)
     assert chk.party.role == "external QC" and chk.party.name not in m["operator"]["name"]
     # the visual checks per image are answered by the checker's marked inspection grid, the rest are typed
-    gridded = {(rule, i) for rule in ("JRC-6.3-ARTEFACTS", "JRC-T6-ORTHO-INSPECTION")
-               for i in set(_grid_cells(name)["image_id"])}
+    gridded = {
+        (rule, i)
+        for rule in ("JRC-6.3-ARTEFACTS", "JRC-T6-ORTHO-INSPECTION")
+        for i in set(_grid_cells(name)["image_id"])
+    }
     signed = {(r.check, r.item) for r in chk.model.manual_checks}
     assert not signed & gridded
     assert signed | gridded == set(zip(own["check"], own["item"], strict=True))
@@ -155,10 +186,14 @@ def test_satellite_example_is_a_vhr_delivery_with_its_records(name: str) -> None
     m = _manifest(name)
     assert m["sensor"]["type"] == "satellite" and m["product"]["gsd"] == {"value": 0.5, "unit": "m"}
     scenes, gcps, cps = _table(name, "scenes"), _table(name, "gcps"), _external(name)
-    assert (_num(scenes["input_pixel_size"]) < 3).all() and set(scenes["resolution_class"]) == {"VHR"}
+    assert (_num(scenes["input_pixel_size"]) < 3).all() and set(scenes["resolution_class"]) == {
+        "VHR"
+    }
     assert set(scenes["correction_method"]) == {"rpc_block", "rpc"}
     per_scene = gcps["point_id"].str.rsplit("-", n=1).str[0].value_counts()
-    assert (per_scene.reindex(scenes["image_id"]).to_numpy() == _num(scenes["gcp_count"]).to_numpy()).all()
+    assert (
+        per_scene.reindex(scenes["image_id"]).to_numpy() == _num(scenes["gcp_count"]).to_numpy()
+    ).all()
     assert (gcps[["residual_x", "residual_y"]] != "").all().all()
     g = gcps[["x", "y"]].astype(float).to_numpy()
     for x, y in cps[["x_ref", "y_ref"]].astype(float).to_numpy():
@@ -183,11 +218,15 @@ def test_satellite_example_is_a_vhr_delivery_with_its_records(name: str) -> None
 def test_documents_are_delivered_and_consistent(name: str) -> None:
     """Every manifest document is a small text file in the delivery; GCP references resolve."""
     m, root = _manifest(name), EXAMPLES / name
-    assert {"internal_qcr", "gcp_report", "geodetic_control", "gcp_plot", "rejected_items"} <= set(m["documents"])
+    assert {"internal_qcr", "gcp_report", "geodetic_control", "gcp_plot", "rejected_items"} <= set(
+        m["documents"]
+    )
     texts = {}
     for rel in m["documents"].values():
         path = root / rel
-        assert path.is_file() and rel.startswith("documents/") and 100 < path.stat().st_size < 60_000, rel
+        assert (
+            path.is_file() and rel.startswith("documents/") and 100 < path.stat().st_size < 60_000
+        ), rel
         texts[rel] = path.read_text(encoding="utf-8")
     assert m["product"]["extracts"] is True
     gcp = _table(name, "gcps")
@@ -198,7 +237,9 @@ def test_documents_are_delivered_and_consistent(name: str) -> None:
         rel, anchor = ref.split("#")
         assert f"## {anchor}\n" in texts[rel], ref
     assert "EPSG:25832" in texts[m["documents"]["geodetic_control"]]
-    assert texts[m["documents"]["gcp_plot"]].startswith("<svg") and texts[m["documents"]["gcp_plot"]].count("<circle") == len(_table(name, "images"))
+    assert texts[m["documents"]["gcp_plot"]].startswith("<svg") and texts[
+        m["documents"]["gcp_plot"]
+    ].count("<circle") == len(_table(name, "images"))
 
 
 @pytest.mark.parametrize("name", NAMES)
@@ -212,11 +253,17 @@ def test_flight_and_at_records_are_consistent(name: str) -> None:
     assert np.allclose(gsd[ok], _num(img["acquisition_gsd"])[ok], atol=6e-5)
     assert (_num(img["acquisition_gsd"]) <= GSD).all()
     fl = _table(name, "flights")
-    assert (_num(fl["forward_overlap"]) >= 60).all() and _num(fl["side_overlap"]).between(15, 60).all()
+    assert (_num(fl["forward_overlap"]) >= 60).all() and _num(fl["side_overlap"]).between(
+        15, 60
+    ).all()
     at = _table(name, "aerotriangulation")
     assert set(at["block"]) == {b["id"] for b in _manifest(name)["blocks"]}
-    assert (_num(at["checkpoint_rmse_x"]) <= 0.5 / 3).all() and (_num(at["gcp_rmse_y"]) < 0.25).all()
-    assert (_num(_table(name, "checkpoints")["precision_xy"]) <= 0.5 / 3).all()  # the contractor's (§7.2)
+    assert (_num(at["checkpoint_rmse_x"]) <= 0.5 / 3).all() and (
+        _num(at["gcp_rmse_y"]) < 0.25
+    ).all()
+    assert (
+        _num(_table(name, "checkpoints")["precision_xy"]) <= 0.5 / 3
+    ).all()  # the contractor's (§7.2)
     assert (_num(_external(name)["precision_xy"]) <= 0.5 / 3).all()  # the checker's
 
 
@@ -234,8 +281,12 @@ def test_manifest_follows_the_delivery_convention(name: str) -> None:
         assert (EXAMPLES / name / rel).is_file(), rel
     images = _table(name, "images")
     block_ids = [b["id"] for b in m["blocks"]]
-    assert set(images["block"]) == set(block_ids) == set(_table(name, "checkpoints")["block"]) == \
-        set(_external(name)["block"])
+    assert (
+        set(images["block"])
+        == set(block_ids)
+        == set(_table(name, "checkpoints")["block"])
+        == set(_external(name)["block"])
+    )
     assert 2 <= len(block_ids) <= 3 and 24 <= len(images) <= 36
     for b in m["blocks"]:
         assert Polygon(b["polygon"]).is_valid and Polygon(b["polygon"]).area > 1e7
@@ -246,8 +297,10 @@ def test_manifest_follows_the_delivery_convention(name: str) -> None:
 
 
 @pytest.mark.parametrize("name", NAMES)
-@pytest.mark.parametrize("table", ["images", "checkpoints", "gcps", "flights", "cameras", "aerotriangulation",
-                                   "manual_checks"])
+@pytest.mark.parametrize(
+    "table",
+    ["images", "checkpoints", "gcps", "flights", "cameras", "aerotriangulation", "manual_checks"],
+)
 def test_table_has_only_spec_columns_and_its_required_ones(name: str, table: str) -> None:
     df = _table(name, table)
     allowed = SPEC[table]["columns"]
@@ -271,7 +324,9 @@ def test_table_has_only_spec_columns_and_its_required_ones(name: str, table: str
 def test_rasters_match_their_reported_statistics_and_location(name: str) -> None:
     images, root = _table(name, "images"), EXAMPLES / name
     polygons = {b["id"]: Polygon(b["polygon"]) for b in _manifest(name)["blocks"]}
-    missing = {i for d in _expected(name)["defects"] if d["kind"] == "file_missing" for i in d["items"]}
+    missing = {
+        i for d in _expected(name)["defects"] if d["kind"] == "file_missing" for i in d["items"]
+    }
     opened = 0
     for row in images.itertuples(index=False):
         path = root / row.file
@@ -344,16 +399,39 @@ def _findings(name: str) -> set[tuple[str, str]]:
         found |= {(kind, item) for kind, hit in checks.items() if hit}
     manual = _checker(name)["manual_checks"]  # the external QC's verdicts
     absent = {i for kind, i in found if kind == "file_missing"}  # its 'fail' row is a consequence
-    found |= {("manual_check_fail", r["item"]) for r in manual
-              if r["verdict"] == "fail" and r["item"] not in absent}
+    found |= {
+        ("manual_check_fail", r["item"])
+        for r in manual
+        if r["verdict"] == "fail" and r["item"] not in absent
+    }
     assert {r["verdict"] for r in manual} <= {"pass", "fail"}
     cells = _grid_cells(name)  # and its marks on the inspection grid (any defect class)
-    codes = [c for c in cells.columns if c not in ("cell_id", "image_id", "image_file", "image_sha256", "col",
-                                                  "row", "inspected", "comment", "inspector", "date")]
-    found |= {("manual_check_fail", i) for i in cells[cells[codes].astype(int).any(axis=1)]["image_id"]}
+    codes = [
+        c
+        for c in cells.columns
+        if c
+        not in (
+            "cell_id",
+            "image_id",
+            "image_file",
+            "image_sha256",
+            "col",
+            "row",
+            "inspected",
+            "comment",
+            "inspector",
+            "date",
+        )
+    ]
+    found |= {
+        ("manual_check_fail", i) for i in cells[cells[codes].astype(int).any(axis=1)]["image_id"]
+    }
     cp = _external(name)
-    found |= {("unjustified_exclusion", r["point_id"]) for _, r in cp.iterrows()
-              if r["excluded"] == "true" and not r["exclusion_reason"].strip()}
+    found |= {
+        ("unjustified_exclusion", r["point_id"])
+        for _, r in cp.iterrows()
+        if r["excluded"] == "true" and not r["exclusion_reason"].strip()
+    }
     reported = {b["id"]: b["reported"] for b in m["blocks"]}
     for block, r in _block_rmse(name).items():
         if max(r["rmse_x"], r["rmse_y"]) > tol:
@@ -361,12 +439,19 @@ def _findings(name: str) -> set[tuple[str, str]]:
         if r["n"] < 20:
             found.add(("too_few_checkpoints", block))
         for axis in "xy":
-            if abs(reported[block][f"rmse_{axis}"]["value"] - r[f"contractor_{axis}"]) > 0.005 + 1e-9:
+            if (
+                abs(reported[block][f"rmse_{axis}"]["value"] - r[f"contractor_{axis}"])
+                > 0.005 + 1e-9
+            ):
                 found.add(("reported_rmse_mismatch", block))
-    own = _table(name, "checkpoints")  # the contractor's internal QC (JRC §12.5): does it see what we see?
+    own = _table(
+        name, "checkpoints"
+    )  # the contractor's internal QC (JRC §12.5): does it see what we see?
     for block in sorted(set(own["block"])):
         inb = own[own["block"] == block]
-        rx, ry = (float(np.sqrt(np.mean((_num(inb[a]) - _num(inb[f"{a}_ref"])) ** 2))) for a in "xy")
+        rx, ry = (
+            float(np.sqrt(np.mean((_num(inb[a]) - _num(inb[f"{a}_ref"])) ** 2))) for a in "xy"
+        )
         ext = _block_rmse(name)[block]
         if (rx <= tol and ry <= tol) != (ext["rmse_x"] <= tol and ext["rmse_y"] <= tol):
             found.add(("internal_qc_disagrees", block))
@@ -374,9 +459,14 @@ def _findings(name: str) -> set[tuple[str, str]]:
 
 
 def test_pass_example_meets_the_guidelines_except_its_waiver() -> None:
-    waived = {("contrast_out_of_range", i) for w in _checker("aerial-pass")["waivers"] for i in w["items"]}
+    waived = {
+        ("contrast_out_of_range", i) for w in _checker("aerial-pass")["waivers"] for i in w["items"]
+    }
     assert _findings("aerial-pass") == waived
-    assert _expected("aerial-pass")["verdict"] == "accepted" and not _expected("aerial-pass")["defects"]
+    assert (
+        _expected("aerial-pass")["verdict"] == "accepted"
+        and not _expected("aerial-pass")["defects"]
+    )
 
 
 def test_pass_example_blocks_use_realistic_accuracy_and_justified_blunders() -> None:
@@ -405,8 +495,11 @@ def test_fail_example_breaks_exactly_the_documented_rules() -> None:
     for d in expected["defects"]:
         assert d["clause"]["document"] == "JRC EUR 23638 EN" and d["clause"]["section"]
         assert (EXAMPLES / "aerial-fail" / d["file"]).is_file()
-        if d["file"].endswith(".csv") and d["kind"] not in ("rmse_above_tolerance", "too_few_checkpoints",
-                                                             "internal_qc_disagrees"):  # whole blocks
+        if d["file"].endswith(".csv") and d["kind"] not in (
+            "rmse_above_tolerance",
+            "too_few_checkpoints",
+            "internal_qc_disagrees",
+        ):  # whole blocks
             df = pd.read_csv(EXAMPLES / "aerial-fail" / d["file"], dtype=str, keep_default_na=False)
             id_col = "point_id" if "point_id" in df else ("item" if "item" in df else "image_id")
             assert sorted(df.iloc[[r - 1 for r in d["rows"]]][id_col]) == sorted(d["items"])
@@ -415,12 +508,18 @@ def test_fail_example_breaks_exactly_the_documented_rules() -> None:
 def test_fail_example_measured_values_agree_with_the_data() -> None:
     defects = {d["kind"]: d for d in _expected("aerial-fail")["defects"]}
     rmse = _block_rmse("aerial-fail")
-    assert defects["rmse_above_tolerance"]["measured"]["value"] == pytest.approx(rmse["B02"]["rmse_y"], abs=5e-4)
+    assert defects["rmse_above_tolerance"]["measured"]["value"] == pytest.approx(
+        rmse["B02"]["rmse_y"], abs=5e-4
+    )
     assert defects["too_few_checkpoints"]["measured"]["value"] == rmse["B03"]["n"] < 20
     reported = {b["id"]: b["reported"] for b in _manifest("aerial-fail")["blocks"]}
     assert abs(reported["B02"]["rmse_y"]["value"] - rmse["B02"]["rmse_y"]) > 0.1
-    assert reported["B01"]["rmse_x"]["value"] == pytest.approx(rmse["B01"]["contractor_x"], abs=0.005)
+    assert reported["B01"]["rmse_x"]["value"] == pytest.approx(
+        rmse["B01"]["contractor_x"], abs=0.005
+    )
     with rasterio.open(EXAMPLES / "aerial-fail" / defects["saturation_high"]["raster"]) as ds:
         arr = ds.read()
     assert all(np.mean(band == 255) * 100 > 0.5 for band in arr)
-    assert defects["saturation_high"]["measured"]["value"] == pytest.approx(np.mean(arr == 255) * 100, abs=5e-4)
+    assert defects["saturation_high"]["measured"]["value"] == pytest.approx(
+        np.mean(arr == 255) * 100, abs=5e-4
+    )

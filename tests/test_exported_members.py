@@ -22,7 +22,11 @@ def test_importing_the_raster_layer_does_not_load_the_engine():
     import subprocess
     import sys
 
-    code = ("import sys, orthospec.raster.reading; "
-            "print(any(m.startswith(('orthospec.api', 'orthospec.engine', 'pydantic')) for m in sys.modules))")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    code = (
+        "import sys, orthospec.raster.reading; "
+        "print(any(m.startswith(('orthospec.api', 'orthospec.engine', 'pydantic')) for m in sys.modules))"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True
+    ).stdout
     assert out.strip() == "False"

@@ -26,15 +26,41 @@ from tests.conftest import ROOT
 from orthospec.cli.main import cli
 
 SEVERITY = ("error", "fail", "missing", "warn", "waived", "pass", "not_applicable")
-STYLE_COLUMNS = ["id", "f_table_catalog", "f_table_schema", "f_table_name", "f_geometry_column", "styleName",
-                 "styleQML", "styleSLD", "useAsDefault", "description", "owner", "ui", "update_time"]
+STYLE_COLUMNS = [
+    "id",
+    "f_table_catalog",
+    "f_table_schema",
+    "f_table_name",
+    "f_geometry_column",
+    "styleName",
+    "styleQML",
+    "styleSLD",
+    "useAsDefault",
+    "description",
+    "owner",
+    "ui",
+    "update_time",
+]
 
 
 def run(out: Path, fmts: str = "json,gpkg,html") -> Any:
-    res = CliRunner().invoke(cli(), [
-        "check", str(ROOT / "examples/deliveries/aerial-fail"), "--profile", "jrc-v3",
-        "--checker", str(ROOT / "examples/checker/aerial-fail"), "--format", fmts, "--out", str(out),
-        "--date", "2026-11-21"])
+    res = CliRunner().invoke(
+        cli(),
+        [
+            "check",
+            str(ROOT / "examples/deliveries/aerial-fail"),
+            "--profile",
+            "jrc-v3",
+            "--checker",
+            str(ROOT / "examples/checker/aerial-fail"),
+            "--format",
+            fmts,
+            "--out",
+            str(out),
+            "--date",
+            "2026-11-21",
+        ],
+    )
     assert res.exit_code == 1, res.output + repr(res.exception)  # aerial-fail is rejected
     return res
 
@@ -69,23 +95,44 @@ def worst(recs: list[dict[str, Any]]) -> str:
     return min((r["verdict"] for r in recs), key=SEVERITY.index)
 
 
-def test_layers_in_the_delivery_crs_and_nothing_written_into_the_delivery(checked: dict[str, Any]) -> None:
+def test_layers_in_the_delivery_crs_and_nothing_written_into_the_delivery(
+    checked: dict[str, Any],
+) -> None:
     names = {n for n, _ in pyogrio.list_layers(checked["gpkg"])}
-    assert {"blocks", "images", "seamlines", "inspection_cells", "checkpoints", "residuals", "rules",
-            "layer_styles"} <= names
+    assert {
+        "blocks",
+        "images",
+        "seamlines",
+        "inspection_cells",
+        "checkpoints",
+        "residuals",
+        "rules",
+        "layer_styles",
+    } <= names
     for name in ("blocks", "images", "checkpoints", "residuals", "inspection_cells"):
-        assert pyogrio.read_info(checked["gpkg"], layer=name)["crs"] == checked["doc"]["delivery"]["project"]["crs"]
+        assert (
+            pyogrio.read_info(checked["gpkg"], layer=name)["crs"]
+            == checked["doc"]["delivery"]["project"]["crs"]
+        )
     assert not list((ROOT / "examples/deliveries/aerial-fail").rglob("*.gpkg"))
 
 
-@pytest.mark.parametrize(("name", "scope", "key"), [("images", "image", "id"), ("blocks", "block", "id")])
-def test_every_non_pass_record_is_on_its_feature_and_counts_agree(checked: dict[str, Any], name: str, scope: str,
-                                                                 key: str) -> None:
+@pytest.mark.parametrize(
+    ("name", "scope", "key"), [("images", "image", "id"), ("blocks", "block", "id")]
+)
+def test_every_non_pass_record_is_on_its_feature_and_counts_agree(
+    checked: dict[str, Any], name: str, scope: str, key: str
+) -> None:
     _geoms, cols = layer(checked["gpkg"], name)
     by_item = records_by_item(checked["doc"], scope)
     ids = [str(v) for v in cols[key]]
     feature = {i: k for k, i in enumerate(ids)}
-    non_pass = [r for recs in by_item.values() for r in recs if r["verdict"] not in ("pass", "not_applicable")]
+    non_pass = [
+        r
+        for recs in by_item.values()
+        for r in recs
+        if r["verdict"] not in ("pass", "not_applicable")
+    ]
     assert non_pass, "aerial-fail has findings on this scope"
     for r in non_pass:
         k = feature[str(r["item"])]
@@ -107,7 +154,9 @@ def test_image_footprints_are_the_raster_bounds(checked: dict[str, Any]) -> None
     for iid, g in zip(cols["id"], geoms, strict=True):
         path = root / files[str(iid)]
         if not path.exists():
-            assert g is None  # F03_0202 is listed but not delivered: no footprint, the finding stays
+            assert (
+                g is None
+            )  # F03_0202 is listed but not delivered: no footprint, the finding stays
             continue
         with rasterio.open(path) as ds:
             assert g.bounds == pytest.approx(tuple(ds.bounds))
@@ -121,7 +170,9 @@ def test_blocks_carry_the_statistics_of_qcr_json(checked: dict[str, Any]) -> Non
     rejected = set(checked["doc"]["rollup"]["rejected"]["block"])
     for k, bid in enumerate(cols["id"]):
         stats = cps[bid]["stats"]
-        assert cols["rmse_x"][k] == pytest.approx(stats["rmse_x"]) and cols["rmse_y"][k] == pytest.approx(stats["rmse_y"])
+        assert cols["rmse_x"][k] == pytest.approx(stats["rmse_x"]) and cols["rmse_y"][
+            k
+        ] == pytest.approx(stats["rmse_y"])
         assert geoms[k].equals(shapely.Polygon(cps[bid]["polygon"]))
         assert cols["rejected"][k] == (bid in rejected)  # the §12.8 roll-up of qcr.json
         if bid in rejected:
@@ -132,7 +183,11 @@ def test_checkpoints_and_residuals(checked: dict[str, Any]) -> None:
     from orthospec.qcr import point_rows
 
     geoms, cols = layer(checked["gpkg"], "checkpoints")
-    points = [(b, p) for b, d in checked["doc"]["details"]["checkpoints"].items() for p in point_rows(d["points"])]
+    points = [
+        (b, p)
+        for b, d in checked["doc"]["details"]["checkpoints"].items()
+        for p in point_rows(d["points"])
+    ]
     assert len(geoms) == len(points)
     want = {(b, p["point_id"]): p for b, p in points}
     status = Counter()
@@ -161,16 +216,22 @@ def test_rules_table_joins_clause_and_quote(checked: dict[str, Any]) -> None:
     by_id = {r["rule"]: r for r in checked["doc"]["rules"]}
     assert sorted(rules["rule"]) == sorted(by_id)
     for k, rid in enumerate(rules["rule"]):
-        assert rules["quote"][k] == by_id[rid]["quote"] and rules["clause"][k] == by_id[rid]["clause"]
+        assert (
+            rules["quote"][k] == by_id[rid]["quote"] and rules["clause"][k] == by_id[rid]["clause"]
+        )
     assert {r for r in imgs["rule"] if r} <= set(rules["rule"])
 
 
 def test_qgis_styles_table(checked: dict[str, Any]) -> None:
     with closing(sqlite3.connect(checked["gpkg"])) as con:
         cols = [r[1] for r in con.execute("PRAGMA table_info(layer_styles)")]
-        rows = con.execute("SELECT f_table_name, f_geometry_column, styleQML, styleSLD, useAsDefault "
-                           "FROM layer_styles").fetchall()
-        geom_cols = dict(con.execute("SELECT table_name, column_name FROM gpkg_geometry_columns").fetchall())
+        rows = con.execute(
+            "SELECT f_table_name, f_geometry_column, styleQML, styleSLD, useAsDefault "
+            "FROM layer_styles"
+        ).fetchall()
+        geom_cols = dict(
+            con.execute("SELECT table_name, column_name FROM gpkg_geometry_columns").fetchall()
+        )
         contents = dict(con.execute("SELECT table_name, data_type FROM gpkg_contents").fetchall())
     assert cols == STYLE_COLUMNS
     assert contents["layer_styles"] == "attributes"
@@ -182,7 +243,9 @@ def test_qgis_styles_table(checked: dict[str, Any]) -> None:
         assert rend.get("type") == "categorizedSymbol" and rend.get("attr") == "verdict"
         values = {c.get("value") for c in rend.iter("category")}
         _, fc = layer(checked["gpkg"], table)
-        assert {str(v) for v in fc["verdict"] if v is not None} <= values  # every verdict present is coloured
+        assert {
+            str(v) for v in fc["verdict"] if v is not None
+        } <= values  # every verdict present is coloured
         colours = {c.get("value"): c.get("symbol") for c in rend.iter("category")}
         assert colours["fail"] != colours["pass"]
         etree.fromstring(s.encode())

@@ -28,17 +28,39 @@ SRC = Path(__file__).resolve().parents[1] / "src"
 #: lowest first; a module's layer is that of its longest matching prefix
 LAYERS: tuple[tuple[str, ...], ...] = (
     # foundation: no orthospec import above it (the package root only holds __version__ and lazy names)
-    ("orthospec", "orthospec.errors", "orthospec.units", "orthospec.provenance", "orthospec.limits",
-     "orthospec.resources", "orthospec.verdicts", "orthospec.yamlio", "orthospec.plugins", "orthospec.controls",
-     "orthospec.workers", "orthospec._forkserver", "orthospec.outputs", "orthospec.dotted"),
-    ("orthospec.delivery",),   # the delivery convention and its readers
-    ("orthospec.profile", "orthospec.spec"),       # profiles, written against the delivery convention
-    ("orthospec.measures",),   # pure numbers
-    ("orthospec.raster", "orthospec.inspection"),  # reading rasters; the inspection grid (reads rasters, vectors)
-    ("orthospec.engine",),     # providers, evaluator
-    ("orthospec.qcr",),        # the QCR document
-    ("orthospec.figures", "orthospec.reports", "orthospec.ledger", "orthospec.ingest", "orthospec.findings",
-     "orthospec.metadata"),
+    (
+        "orthospec",
+        "orthospec.errors",
+        "orthospec.units",
+        "orthospec.provenance",
+        "orthospec.limits",
+        "orthospec.resources",
+        "orthospec.verdicts",
+        "orthospec.yamlio",
+        "orthospec.plugins",
+        "orthospec.controls",
+        "orthospec.workers",
+        "orthospec._forkserver",
+        "orthospec.outputs",
+        "orthospec.dotted",
+    ),
+    ("orthospec.delivery",),  # the delivery convention and its readers
+    ("orthospec.profile", "orthospec.spec"),  # profiles, written against the delivery convention
+    ("orthospec.measures",),  # pure numbers
+    (
+        "orthospec.raster",
+        "orthospec.inspection",
+    ),  # reading rasters; the inspection grid (reads rasters, vectors)
+    ("orthospec.engine",),  # providers, evaluator
+    ("orthospec.qcr",),  # the QCR document
+    (
+        "orthospec.figures",
+        "orthospec.reports",
+        "orthospec.ledger",
+        "orthospec.ingest",
+        "orthospec.findings",
+        "orthospec.metadata",
+    ),
     ("orthospec.api", "orthospec.verify", "orthospec.schemas"),
     ("orthospec.cli",),
 )
@@ -65,7 +87,8 @@ def _modules() -> dict[str, Path]:
 def _is_type_checking(node: ast.If) -> bool:
     t = node.test
     return (isinstance(t, ast.Name) and t.id == "TYPE_CHECKING") or (
-        isinstance(t, ast.Attribute) and t.attr == "TYPE_CHECKING")
+        isinstance(t, ast.Attribute) and t.attr == "TYPE_CHECKING"
+    )
 
 
 def _imports(tree: ast.AST, typing: bool) -> list[ast.Import | ast.ImportFrom]:
@@ -103,12 +126,15 @@ def graph(typing: bool = False) -> dict[str, dict[str, int]]:
             else:
                 if node.level:
                     base = package.split(".")
-                    base = base[:len(base) - (node.level - 1)]
+                    base = base[: len(base) - (node.level - 1)]
                     origin = ".".join([*base, *([node.module] if node.module else [])])
                 else:
                     origin = node.module or ""
                 # `from pkg import submodule` imports the submodule
-                targets = [f"{origin}.{a.name}" if f"{origin}.{a.name}" in mods else origin for a in node.names]
+                targets = [
+                    f"{origin}.{a.name}" if f"{origin}.{a.name}" in mods else origin
+                    for a in node.names
+                ]
             for t in targets:
                 if t.split(".")[0] != "orthospec":
                     continue
@@ -222,10 +248,16 @@ def test_layers_only_look_down() -> None:
     assert not stale, f"PENDING entries that no longer occur (remove them): {stale}"
 
 
-@pytest.mark.parametrize(("mod", "layer"), [
-    ("orthospec.errors", 0), ("orthospec.delivery.reader", 1), ("orthospec.profile.loader", 2),
-    ("orthospec.engine.providers.checkpoints", 5), ("orthospec.cli.cmd_check", 9),
-])
+@pytest.mark.parametrize(
+    ("mod", "layer"),
+    [
+        ("orthospec.errors", 0),
+        ("orthospec.delivery.reader", 1),
+        ("orthospec.profile.loader", 2),
+        ("orthospec.engine.providers.checkpoints", 5),
+        ("orthospec.cli.cmd_check", 9),
+    ],
+)
 def test_layer_of(mod: str, layer: int) -> None:
     assert layer_of(mod) == layer
 
@@ -237,7 +269,13 @@ def test_cycle_finder_finds_a_planted_cycle() -> None:
 
 def test_providers_import_only_the_registry_of_the_engine() -> None:
     g = graph(typing=True)
-    bad = [_where(m, t) for m in sorted(g) if m.startswith("orthospec.engine.providers.")
-           for t in sorted(g[m]) if t.startswith("orthospec.engine.") and t != "orthospec.engine.registry"
-           and not t.startswith("orthospec.engine.providers")]
+    bad = [
+        _where(m, t)
+        for m in sorted(g)
+        if m.startswith("orthospec.engine.providers.")
+        for t in sorted(g[m])
+        if t.startswith("orthospec.engine.")
+        and t != "orthospec.engine.registry"
+        and not t.startswith("orthospec.engine.providers")
+    ]
     assert not bad, "providers reaching into the engine beyond registry.py:\n" + "\n".join(bad)

@@ -72,7 +72,9 @@ def _keep_points(d: Path, block: str, n: int) -> int:
     header, rows = read_table(d, "checkpoints")
     mine = [r for r in rows if r["block"] == block]
     keep = {r["point_id"] for r in mine[:n]}
-    write_table(d, "checkpoints", header, [r for r in rows if r["block"] != block or r["point_id"] in keep])
+    write_table(
+        d, "checkpoints", header, [r for r in rows if r["block"] != block or r["point_id"] in keep]
+    )
     return len(mine)
 
 
@@ -88,11 +90,15 @@ def _unsigned(example: str, tmp_path: Path) -> Path:
 
 
 def _mandatory_manual_missing(doc: dict[str, Any]) -> set[str]:
-    return {r["rule"] for r in records(doc)
-            if r.get("manual") and r["level"] == "mandatory" and r["verdict"] == V.MISSING}
+    return {
+        r["rule"]
+        for r in records(doc)
+        if r.get("manual") and r["level"] == "mandatory" and r["verdict"] == V.MISSING
+    }
 
 
 # --- the roll-up ----------------------------------------------------------------------------------
+
 
 def test_too_few_checkpoints_is_incomplete_not_a_rejected_block(tmp_path: Path) -> None:
     d = _copy("aerial-pass", tmp_path)
@@ -103,18 +109,23 @@ def test_too_few_checkpoints_is_incomplete_not_a_rejected_block(tmp_path: Path) 
     assert doc["verdict"] == V.INCOMPLETE and not res.accepted
     assert doc["rollup"]["reasons"] == [] and doc["rollup"]["rejected"] == {}
     todo = doc["rollup"]["incomplete"]
-    assert len(todo) == 1 and todo[0].startswith("B01: 6 more check points ("), todo   # 20 - 14
+    assert len(todo) == 1 and todo[0].startswith("B01: 6 more check points ("), todo  # 20 - 14
     assert "T-MIN-CP" in todo[0] and "§12.4" in todo[0]
     # the record itself stays a failure of the rule (what was measured is not hidden)
     rec = {(r["rule"], r["item"]): r for r in records(doc)}
-    assert rec[("T-MIN-CP", "B01")]["verdict"] == V.FAIL and rec[("T-MIN-CP", "B01")]["consequence"] == "incomplete"
+    assert (
+        rec[("T-MIN-CP", "B01")]["verdict"] == V.FAIL
+        and rec[("T-MIN-CP", "B01")]["consequence"] == "incomplete"
+    )
     QcrDocument.model_validate(json.loads(json.dumps(doc)))
 
 
 def test_a_real_failure_still_rejects_and_the_open_work_is_listed(tmp_path: Path) -> None:
     # aerial-fail: B02's RMSEy 0.641 m > 0.5 m; B03 has fewer than 20 check points (its README)
     d = _copy("aerial-fail", tmp_path)
-    chk = resigned(CHECKERS / "aerial-fail", d, tmp_path / "chk")  # the external check points (issue 29)
+    chk = resigned(
+        CHECKERS / "aerial-fail", d, tmp_path / "chk"
+    )  # the external check points (issue 29)
     n_b03 = sum(r["block"] == "B03" for r in read_table(chk.parent, "checkpoints")[1])
     assert n_b03 < 20
     res = check_with(d, _profile(tmp_path), checker=chk, params=["tolerance_xy=0.5"], date=DATE)
@@ -123,8 +134,8 @@ def test_a_real_failure_still_rejects_and_the_open_work_is_listed(tmp_path: Path
     assert doc["rollup"]["rejected"] == {"block": ["B02"]}
     assert any("T-RMSEY" in r for r in doc["rollup"]["reasons"])
     assert not any("T-MIN-CP" in r for r in doc["rollup"]["reasons"])
-    want = f"B03: {20 - n_b03} more check points ("   # issue 26's own example: "B03: 6 more check points"
-    assert [t[:len(want)] for t in doc["rollup"]["incomplete"]] == [want]
+    want = f"B03: {20 - n_b03} more check points ("  # issue 26's own example: "B03: 6 more check points"
+    assert [t[: len(want)] for t in doc["rollup"]["incomplete"]] == [want]
 
 
 def test_enough_points_and_a_pass_is_accepted(tmp_path: Path) -> None:
@@ -151,14 +162,18 @@ def test_unsigned_manual_checks_leave_the_check_incomplete() -> None:
 
 
 def test_unsigned_manual_checks_do_not_hide_a_rejection(tmp_path: Path) -> None:
-    res = check_with(EXAMPLES / "aerial-fail", "jrc-v3", checker=_unsigned("aerial-fail", tmp_path), date=DATE)
+    res = check_with(
+        EXAMPLES / "aerial-fail", "jrc-v3", checker=_unsigned("aerial-fail", tmp_path), date=DATE
+    )
     doc = res.document
     assert doc["verdict"] == V.REJECTED
     assert any("JRC-12.7-RMSEY" in r for r in doc["rollup"]["reasons"])
     # besides the unsigned checks, the checker's open work the example documents (expected.yaml)
     exp = yaml.safe_load((EXAMPLES / "aerial-fail" / "expected.yaml").read_text(encoding="utf-8"))
     documented = {x["item"] for x in exp["jrc_v3"]["incomplete"]}
-    assert {t.split(":", 1)[0] for t in doc["rollup"]["incomplete"]} == _mandatory_manual_missing(doc) | documented
+    assert {t.split(":", 1)[0] for t in doc["rollup"]["incomplete"]} == _mandatory_manual_missing(
+        doc
+    ) | documented
 
 
 def test_a_manual_check_signed_fail_still_rejects(tmp_path: Path) -> None:
@@ -176,11 +191,25 @@ def test_a_manual_check_signed_fail_still_rejects(tmp_path: Path) -> None:
 
 # --- what each output says --------------------------------------------------------------------------
 
+
 def test_cli_exit_code_3_terminal_junit_html(tmp_path: Path) -> None:
     out = tmp_path / "out"
-    res = CliRunner().invoke(main(), ["check", str(EXAMPLES / "aerial-pass"), "-p", "jrc-v3",
-                                    *[a for p in PARAMS for a in ("--param", p)], "--out", str(out),
-                                    "--format", "terminal,json,junit,html", "--date", DATE])
+    res = CliRunner().invoke(
+        main(),
+        [
+            "check",
+            str(EXAMPLES / "aerial-pass"),
+            "-p",
+            "jrc-v3",
+            *[a for p in PARAMS for a in ("--param", p)],
+            "--out",
+            str(out),
+            "--format",
+            "terminal,json,junit,html",
+            "--date",
+            DATE,
+        ],
+    )
     assert res.exit_code == 3, res.output
     assert "verdict: INCOMPLETE" in res.output
     assert "the check is incomplete: the checker must still" in res.output
@@ -192,26 +221,52 @@ def test_cli_exit_code_3_terminal_junit_html(tmp_path: Path) -> None:
     case = junit.split('name="JRC-5.3-IDQA[D-2026-014]"', 1)[1].split("</testcase>", 1)[0]
     assert 'type="incomplete"' in case
     html = (out / "report.html").read_text(encoding="utf-8")
-    assert 'class="banner incomplete"' in html and "The check is incomplete: the checker must still" in html
+    assert (
+        'class="banner incomplete"' in html
+        and "The check is incomplete: the checker must still" in html
+    )
 
 
 def test_cli_exit_codes_0_and_1_unchanged(tmp_path: Path) -> None:
     for example, code in (("aerial-pass", 0), ("aerial-fail", 1)):
-        res = CliRunner().invoke(main(), ["check", str(EXAMPLES / example), "-p", "jrc-v3", "--checker",
-                                        str(CHECKERS / example), "--out", str(tmp_path / example),
-                                        "--format", "json", "--date", DATE])
+        res = CliRunner().invoke(
+            main(),
+            [
+                "check",
+                str(EXAMPLES / example),
+                "-p",
+                "jrc-v3",
+                "--checker",
+                str(CHECKERS / example),
+                "--out",
+                str(tmp_path / example),
+                "--format",
+                "json",
+                "--date",
+                DATE,
+            ],
+        )
         assert res.exit_code == code, res.output
 
 
 # --- after sign-off (ledger/signed.py) ---------------------------------------------------------------
 
+
 def _signoff(rules: set[str], verdict: str = "pass") -> list[dict[str, Any]]:
-    return [{"by": "S. Upervisor", "role": "supervisor", "date": "2026-11-22",
-             "manual": dict.fromkeys(sorted(rules), verdict)}]
+    return [
+        {
+            "by": "S. Upervisor",
+            "role": "supervisor",
+            "date": "2026-11-22",
+            "manual": dict.fromkeys(sorted(rules), verdict),
+        }
+    ]
 
 
 def test_after_signoff_every_unsigned_manual_check_signed_pass_accepts(tmp_path: Path) -> None:
-    doc = check_with(EXAMPLES / "aerial-pass", "jrc-v3", checker=_unsigned("aerial-pass", tmp_path), date=DATE).document
+    doc = check_with(
+        EXAMPLES / "aerial-pass", "jrc-v3", checker=_unsigned("aerial-pass", tmp_path), date=DATE
+    ).document
     unsigned = _mandatory_manual_missing(doc)
     assert after_signoff(doc, _signoff(unsigned))["verdict"] == V.ACCEPTED
     some = set(sorted(unsigned)[:-1])
@@ -239,25 +294,70 @@ def test_schema_takes_each_overall_verdict(verdict: str) -> None:
         QcrDocument.model_validate({**json.loads(json.dumps(doc)), "verdict": "maybe"})
 
 
-def test_an_incomplete_run_in_the_ledger_signs_without_acknowledging_a_rejection(tmp_path: Path) -> None:
+def test_an_incomplete_run_in_the_ledger_signs_without_acknowledging_a_rejection(
+    tmp_path: Path,
+) -> None:
     """The ledger stores `incomplete` as the run's verdict; the supervisor signing the missing manual
     checks needs no --acknowledge-rejection (nothing was rejected), and the report of the signed run
     shows INCOMPLETE with ACCEPTED after sign-off."""
     import pdfplumber
 
     ledger = tmp_path / "qc.sqlite"
-    run = CliRunner().invoke(main(), ["check", str(EXAMPLES / "aerial-pass"), "-p", "jrc-v3",
-                                      "--checker", str(_unsigned("aerial-pass", tmp_path)), "--out", str(tmp_path / "o"),
-                                      "--format", "json", "--date", DATE, "--ledger", str(ledger),
-                                      "--operator", "A. Auditor"])
+    run = CliRunner().invoke(
+        main(),
+        [
+            "check",
+            str(EXAMPLES / "aerial-pass"),
+            "-p",
+            "jrc-v3",
+            "--checker",
+            str(_unsigned("aerial-pass", tmp_path)),
+            "--out",
+            str(tmp_path / "o"),
+            "--format",
+            "json",
+            "--date",
+            DATE,
+            "--ledger",
+            str(ledger),
+            "--operator",
+            "A. Auditor",
+        ],
+    )
     assert run.exit_code == 3, run.output
     doc = json.loads((tmp_path / "o" / "qcr.json").read_text(encoding="utf-8"))
     manual = [a for r in sorted(_mandatory_manual_missing(doc)) for a in ("--manual", f"{r}=pass")]
-    sign = CliRunner().invoke(main(), ["signoff", "1", "--by", "M. Rossi", "--role", "supervisor", "--date",
-                                       "2026-11-22", *manual, "--ledger", str(ledger)])
+    sign = CliRunner().invoke(
+        main(),
+        [
+            "signoff",
+            "1",
+            "--by",
+            "M. Rossi",
+            "--role",
+            "supervisor",
+            "--date",
+            "2026-11-22",
+            *manual,
+            "--ledger",
+            str(ledger),
+        ],
+    )
     assert sign.exit_code == 0, sign.output
-    rep = CliRunner().invoke(main(), ["report", "--ledger", str(ledger), "--run", "1", "--format", "pdf",
-                                      "--out", str(tmp_path / "rep")])
+    rep = CliRunner().invoke(
+        main(),
+        [
+            "report",
+            "--ledger",
+            str(ledger),
+            "--run",
+            "1",
+            "--format",
+            "pdf",
+            "--out",
+            str(tmp_path / "rep"),
+        ],
+    )
     assert rep.exit_code == 0, rep.output
     with pdfplumber.open(tmp_path / "rep" / "report.pdf") as pdf:
         flat = " ".join((pdf.pages[0].extract_text() or "").split())

@@ -38,11 +38,16 @@ def test_iso_19139_values_as_owslib_reads_them() -> None:
     assert got["project.name"] == ident.title
     assert got["contractor.name"] == originator.organization
     assert got["contractor.contact"] == originator.email
-    assert got["product.gsd"] == {"value": float(ident.distance[0]), "unit": ident.uom[0]} == {"value": 300.0,
-                                                                                                   "unit": "m"}
+    assert (
+        got["product.gsd"]
+        == {"value": float(ident.distance[0]), "unit": ident.uom[0]}
+        == {"value": 300.0, "unit": "m"}
+    )
     assert str(got["dates.acquired_from"]) == str(ident.temporalextent_start) == "2002-11-04"
     assert got["dates.acquired_to"] == dt.date(2002, 11, 4)
-    assert got["project.crs"] == "EPSG:" + ref.referencesystem.code.rsplit("/", 1)[-1] == "EPSG:32618"
+    assert (
+        got["project.crs"] == "EPSG:" + ref.referencesystem.code.rsplit("/", 1)[-1] == "EPSG:32618"
+    )
     assert got["lineage"] == ref.dataquality.lineage
     assert got["sensor.platform"] == "Landsat-7" and got["sensor.camera"] == "ETM+"
     assert got["sensor.type"] == "satellite" and got["sensor.digital"] is True
@@ -76,13 +81,19 @@ def test_every_value_carries_its_file_line_and_xpath() -> None:
 
     tree = etree.parse(str(ISO))
     for s in m.stated:
-        if " + " in s.xpath or s.field in ("product.gsd", "product.accuracy_statement", "project.crs"):
+        if " + " in s.xpath or s.field in (
+            "product.gsd",
+            "product.accuracy_statement",
+            "project.crs",
+        ):
             continue
         hits = tree.xpath(s.xpath, namespaces=NS)
         assert hits, s
         assert s.line == hits[0].sourceline
         text = " ".join("".join(hits[0].itertext()).split())
-        assert str(s.value) in text or s.field.startswith("dates.") or s.field == "product.bit_depth"
+        assert (
+            str(s.value) in text or s.field.startswith("dates.") or s.field == "product.bit_depth"
+        )
         assert s.file == "metadata/iso.xml"
 
 
@@ -91,17 +102,25 @@ def test_an_inspire_md_metadata_without_gmi(tmp_path: Path) -> None:
     p = tmp_path / "inspire.xml"
     p.write_text(text, encoding="utf-8")
     got = _stated(p)
-    assert got["id"] == "DE-L3-ORTHO-LS7-2026-01" and got["product.gsd"] == {"value": 300.0, "unit": "m"}
+    assert got["id"] == "DE-L3-ORTHO-LS7-2026-01" and got["product.gsd"] == {
+        "value": 300.0,
+        "unit": "m",
+    }
 
 
-@pytest.mark.parametrize("names, expected", [
-    (["Landsat-7", "ETM+"], ("satellite", True)),
-    (["Vulcanair P68 aircraft", "UltraCam Eagle"], ("aerial", True)),
-    (["Leica RC30"], ("aerial", False)),
-    (["WorldView-3", "UltraCam Eagle"], (None, True)),   # the names disagree: no type
-    (["Some platform"], (None, None)),
-])
-def test_sensor_type_only_from_names_that_say_it(names: list[str], expected: tuple[object, object]) -> None:
+@pytest.mark.parametrize(
+    "names, expected",
+    [
+        (["Landsat-7", "ETM+"], ("satellite", True)),
+        (["Vulcanair P68 aircraft", "UltraCam Eagle"], ("aerial", True)),
+        (["Leica RC30"], ("aerial", False)),
+        (["WorldView-3", "UltraCam Eagle"], (None, True)),  # the names disagree: no type
+        (["Some platform"], (None, None)),
+    ],
+)
+def test_sensor_type_only_from_names_that_say_it(
+    names: list[str], expected: tuple[object, object]
+) -> None:
     assert sensor_of(names) == expected
 
 
@@ -109,18 +128,21 @@ def test_sensor_type_only_from_names_that_say_it(names: list[str], expected: tup
 SECRET = "TOP-SECRET-CONTENT-7f3a"
 
 
-@pytest.mark.parametrize("doc", [
-    # billion laughs
-    """<?xml version="1.0"?><!DOCTYPE metadata [<!ENTITY a "aaaaaaaaaa"><!ENTITY b "&a;&a;&a;&a;&a;&a;&a;&a;">
+@pytest.mark.parametrize(
+    "doc",
+    [
+        # billion laughs
+        """<?xml version="1.0"?><!DOCTYPE metadata [<!ENTITY a "aaaaaaaaaa"><!ENTITY b "&a;&a;&a;&a;&a;&a;&a;&a;">
     <!ENTITY c "&b;&b;&b;&b;&b;&b;&b;&b;"><!ENTITY d "&c;&c;&c;&c;&c;&c;&c;&c;">]>
     <metadata><idinfo><citation><citeinfo><title>&d;</title></citeinfo></citation></idinfo></metadata>""",
-    # external entity reading a file outside the source
-    """<?xml version="1.0"?><!DOCTYPE metadata [<!ENTITY x SYSTEM "file://{secret}">]>
+        # external entity reading a file outside the source
+        """<?xml version="1.0"?><!DOCTYPE metadata [<!ENTITY x SYSTEM "file://{secret}">]>
     <metadata><idinfo><citation><citeinfo><title>&x;</title></citeinfo></citation></idinfo></metadata>""",
-    # parameter entity from the network
-    """<?xml version="1.0"?><!DOCTYPE metadata [<!ENTITY % p SYSTEM "http://127.0.0.1:9/evil.dtd"> %p;]>
+        # parameter entity from the network
+        """<?xml version="1.0"?><!DOCTYPE metadata [<!ENTITY % p SYSTEM "http://127.0.0.1:9/evil.dtd"> %p;]>
     <metadata><idinfo/></metadata>""",
-])
+    ],
+)
 def test_entities_are_refused_unread(tmp_path: Path, doc: str) -> None:
     secret = tmp_path / "outside.txt"
     secret.write_text(SECRET, encoding="utf-8")

@@ -17,54 +17,97 @@ from orthospec.metadata.iso19157 import CODELISTS, GCO, GMD, MARK, iso19139_docu
 from orthospec.qcr import all_records
 
 ROOT = Path(__file__).resolve().parents[1]
-NS = {"gmd": GMD, "gco": GCO, "xlink": "http://www.w3.org/1999/xlink",
-      "xsi": "http://www.w3.org/2001/XMLSchema-instance"}
+NS = {
+    "gmd": GMD,
+    "gco": GCO,
+    "xlink": "http://www.w3.org/1999/xlink",
+    "xsi": "http://www.w3.org/2001/XMLSchema-instance",
+}
 
 
 @pytest.fixture(scope="module")
 def doc():
-    return api.check(ROOT / "examples/deliveries/aerial-pass", ROOT / "specs/fgdc-nssda-1998.yaml",
-                     params=["accuracy_h95=1.0"], checker=ROOT / "examples/checker/aerial-pass",
-                     date="2026-01-01").document
+    return api.check(
+        ROOT / "examples/deliveries/aerial-pass",
+        ROOT / "specs/fgdc-nssda-1998.yaml",
+        params=["accuracy_h95=1.0"],
+        checker=ROOT / "examples/checker/aerial-pass",
+        date="2026-01-01",
+    ).document
 
 
 def test_standalone_structure(doc):
     root = etree.fromstring(iso19139_document(doc))
     assert root.tag == f"{{{GMD}}}DQ_DataQuality"
-    assert root.find("gmd:scope/gmd:DQ_Scope/gmd:level/gmd:MD_ScopeCode", NS).get("codeListValue") == "dataset"
-    for code in root.iter(f"{{{GMD}}}MD_ScopeCode", f"{{{GMD}}}DQ_EvaluationMethodTypeCode",
-                          f"{{{GMD}}}CI_DateTypeCode"):
+    assert (
+        root.find("gmd:scope/gmd:DQ_Scope/gmd:level/gmd:MD_ScopeCode", NS).get("codeListValue")
+        == "dataset"
+    )
+    for code in root.iter(
+        f"{{{GMD}}}MD_ScopeCode",
+        f"{{{GMD}}}DQ_EvaluationMethodTypeCode",
+        f"{{{GMD}}}CI_DateTypeCode",
+    ):
         assert code.get("codeList") == f"{CODELISTS}#{etree.QName(code).localname}"
         assert code.get("codeListValue") in {"dataset", "directExternal", "publication"}
     pos = root.findall("gmd:report/gmd:DQ_AbsoluteExternalPositionalAccuracy", NS)
-    expected = {(r["item"], r["measure"]): r["measured"]["value"] for r in all_records(doc)
-                if r["measure"].startswith("checkpoints.") and r["measured"]["unit"] == "m"
-                and isinstance(r["measured"]["value"], float)}
+    expected = {
+        (r["item"], r["measure"]): r["measured"]["value"]
+        for r in all_records(doc)
+        if r["measure"].startswith("checkpoints.")
+        and r["measured"]["unit"] == "m"
+        and isinstance(r["measured"]["value"], float)
+    }
     assert len(pos) == len(expected) >= 3
     for el in pos:
         assert [etree.QName(c).localname for c in el] == [
-            "nameOfMeasure", "measureIdentification", "measureDescription", "evaluationMethodType",
-            "evaluationMethodDescription", "result"]
+            "nameOfMeasure",
+            "measureIdentification",
+            "measureDescription",
+            "evaluationMethodType",
+            "evaluationMethodDescription",
+            "result",
+        ]
         res = el.find("gmd:result/gmd:DQ_QuantitativeResult", NS)
         assert res.find("gmd:valueUnit", NS).get(f"{{{NS['xlink']}}}href").endswith("/9001")
         value = res.find("gmd:value/gco:Record", NS)
         assert value.get(f"{{{NS['xsi']}}}type") == "xs:double"
-        code = el.findtext("gmd:measureIdentification/gmd:MD_Identifier/gmd:code/gco:CharacterString", namespaces=NS)
-        item = el.findtext("gmd:nameOfMeasure/gco:CharacterString", namespaces=NS).rsplit("(", 1)[1].rstrip(")")
+        code = el.findtext(
+            "gmd:measureIdentification/gmd:MD_Identifier/gmd:code/gco:CharacterString",
+            namespaces=NS,
+        )
+        item = (
+            el.findtext("gmd:nameOfMeasure/gco:CharacterString", namespaces=NS)
+            .rsplit("(", 1)[1]
+            .rstrip(")")
+        )
         assert float(value.text) == expected[(item, code)]
     conf = root.findall("gmd:report/gmd:DQ_DomainConsistency", NS)
     judged = {r["rule"]: r["verdict"] for r in doc["rules"] if r["verdict"] != "not_applicable"}
     assert len(conf) == len(judged)
     for el in conf:
-        rule = el.findtext("gmd:measureIdentification/gmd:MD_Identifier/gmd:code/gco:CharacterString", namespaces=NS)
+        rule = el.findtext(
+            "gmd:measureIdentification/gmd:MD_Identifier/gmd:code/gco:CharacterString",
+            namespaces=NS,
+        )
         cr = el.find("gmd:result/gmd:DQ_ConformanceResult", NS)
         assert [etree.QName(c).localname for c in cr] == ["specification", "explanation", "pass"]
         assert cr.find("gmd:specification/gmd:CI_Citation/gmd:title/gco:CharacterString", NS).text
-        assert cr.find("gmd:specification/gmd:CI_Citation/gmd:date/gmd:CI_Date/gmd:date/gco:Date", NS).text == "2026-01-01"
-        assert cr.findtext("gmd:pass/gco:Boolean", namespaces=NS) == ("true" if judged[rule] == "pass" else "false")
+        assert (
+            cr.find(
+                "gmd:specification/gmd:CI_Citation/gmd:date/gmd:CI_Date/gmd:date/gco:Date", NS
+            ).text
+            == "2026-01-01"
+        )
+        assert cr.findtext("gmd:pass/gco:Boolean", namespaces=NS) == (
+            "true" if judged[rule] == "pass" else "false"
+        )
     # the example is rejected under the NSSDA (no §3.2.3 statement): at least one false
-    assert any(c.findtext("gmd:result/gmd:DQ_ConformanceResult/gmd:pass/gco:Boolean", namespaces=NS) == "false"
-               for c in conf)
+    assert any(
+        c.findtext("gmd:result/gmd:DQ_ConformanceResult/gmd:pass/gco:Boolean", namespaces=NS)
+        == "false"
+        for c in conf
+    )
 
 
 def test_hostile_strings_escaped(doc):
@@ -89,24 +132,33 @@ def test_standalone_validates_against_iso19139_schema(doc):
 
 
 def test_inserted_into_copy_of_md_metadata(doc):
-    src = (f'<gmd:MD_Metadata xmlns:gmd="{GMD}" xmlns:gco="{GCO}"><gmd:fileIdentifier><gco:CharacterString>id-1'
-           '</gco:CharacterString></gmd:fileIdentifier><gmd:dataQualityInfo><gmd:DQ_DataQuality><gmd:scope>'
-           '<gmd:DQ_Scope><gmd:level><gmd:MD_ScopeCode codeList="x" codeListValue="dataset">dataset'
-           '</gmd:MD_ScopeCode></gmd:level></gmd:DQ_Scope></gmd:scope><gmd:lineage><gmd:LI_Lineage>'
-           '<gmd:statement><gco:CharacterString>producer lineage</gco:CharacterString></gmd:statement>'
-           '</gmd:LI_Lineage></gmd:lineage></gmd:DQ_DataQuality></gmd:dataQualityInfo>'
-           '<gmd:metadataMaintenance/></gmd:MD_Metadata>').encode()
+    src = (
+        f'<gmd:MD_Metadata xmlns:gmd="{GMD}" xmlns:gco="{GCO}"><gmd:fileIdentifier><gco:CharacterString>id-1'
+        "</gco:CharacterString></gmd:fileIdentifier><gmd:dataQualityInfo><gmd:DQ_DataQuality><gmd:scope>"
+        '<gmd:DQ_Scope><gmd:level><gmd:MD_ScopeCode codeList="x" codeListValue="dataset">dataset'
+        "</gmd:MD_ScopeCode></gmd:level></gmd:DQ_Scope></gmd:scope><gmd:lineage><gmd:LI_Lineage>"
+        "<gmd:statement><gco:CharacterString>producer lineage</gco:CharacterString></gmd:statement>"
+        "</gmd:LI_Lineage></gmd:lineage></gmd:DQ_DataQuality></gmd:dataQualityInfo>"
+        "<gmd:metadataMaintenance/></gmd:MD_Metadata>"
+    ).encode()
     copy1 = iso19139_document(doc, src)
     root = etree.fromstring(copy1)
     names = [etree.QName(c).localname for c in root]
     # the producer's dataQualityInfo (their lineage) is kept; orthospec's follows it, before maintenance
     assert names == ["fileIdentifier", "dataQualityInfo", "dataQualityInfo", "metadataMaintenance"]
     dqs = root.findall("gmd:dataQualityInfo/gmd:DQ_DataQuality", NS)
-    assert dqs[0].findtext("gmd:lineage/gmd:LI_Lineage/gmd:statement/gco:CharacterString",
-                           namespaces=NS) == "producer lineage"
+    assert (
+        dqs[0].findtext(
+            "gmd:lineage/gmd:LI_Lineage/gmd:statement/gco:CharacterString", namespaces=NS
+        )
+        == "producer lineage"
+    )
     assert dqs[1].find("gmd:report", NS) is not None
-    assert dqs[1].findtext("gmd:lineage/gmd:LI_Lineage/gmd:statement/gco:CharacterString",
-                           namespaces=NS).startswith(MARK)
+    assert (
+        dqs[1]
+        .findtext("gmd:lineage/gmd:LI_Lineage/gmd:statement/gco:CharacterString", namespaces=NS)
+        .startswith(MARK)
+    )
     # a copy of the copy replaces orthospec's element instead of adding a second one
     again = etree.fromstring(iso19139_document(doc, copy1))
     assert [etree.QName(c).localname for c in again] == names
@@ -117,12 +169,17 @@ def test_inserted_into_copy_of_md_metadata(doc):
 def test_inserted_into_iso19115_2_mi_metadata(doc):
     # gmi:MI_Metadata extends MD_Metadata: dataQualityInfo goes before its acquisitionInformation
     gmi = "http://www.isotc211.org/2005/gmi"
-    src = (f'<gmi:MI_Metadata xmlns:gmi="{gmi}" xmlns:gmd="{GMD}" xmlns:gco="{GCO}"><gmd:fileIdentifier>'
-           '<gco:CharacterString>id-2</gco:CharacterString></gmd:fileIdentifier>'
-           '<gmi:acquisitionInformation/></gmi:MI_Metadata>').encode()
+    src = (
+        f'<gmi:MI_Metadata xmlns:gmi="{gmi}" xmlns:gmd="{GMD}" xmlns:gco="{GCO}"><gmd:fileIdentifier>'
+        "<gco:CharacterString>id-2</gco:CharacterString></gmd:fileIdentifier>"
+        "<gmi:acquisitionInformation/></gmi:MI_Metadata>"
+    ).encode()
     root = etree.fromstring(iso19139_document(doc, src))
-    assert [etree.QName(c).localname for c in root] == ["fileIdentifier", "dataQualityInfo",
-                                                        "acquisitionInformation"]
+    assert [etree.QName(c).localname for c in root] == [
+        "fileIdentifier",
+        "dataQualityInfo",
+        "acquisitionInformation",
+    ]
 
 
 def test_cli_format_iso19157(tmp_path):
@@ -131,10 +188,23 @@ def test_cli_format_iso19157(tmp_path):
     from orthospec.cli.groups import main
 
     out = tmp_path / "out"
-    res = CliRunner().invoke(main, ["check", str(ROOT / "examples/deliveries/aerial-pass"), "--profile",
-                                    str(ROOT / "specs/fgdc-nssda-1998.yaml"), "--param", "accuracy_h95=1.0",
-                                    "--checker", str(ROOT / "examples/checker/aerial-pass"), "--out", str(out),
-                                    "--format", "iso19157"])
+    res = CliRunner().invoke(
+        main,
+        [
+            "check",
+            str(ROOT / "examples/deliveries/aerial-pass"),
+            "--profile",
+            str(ROOT / "specs/fgdc-nssda-1998.yaml"),
+            "--param",
+            "accuracy_h95=1.0",
+            "--checker",
+            str(ROOT / "examples/checker/aerial-pass"),
+            "--out",
+            str(out),
+            "--format",
+            "iso19157",
+        ],
+    )
     assert res.exit_code == 1, res.output  # rejected under the NSSDA: no §3.2.3 statement
     root = etree.parse(str(out / "iso19157.xml")).getroot()
     assert root.tag == f"{{{GMD}}}DQ_DataQuality"

@@ -114,22 +114,36 @@ def test_upgrade_of_empty_database_gives_the_expected_tables(ledger_url: str) ->
         assert led.verify().ok and led.verify().entries == 0
 
 
-def test_record_keeps_every_qcr_and_the_document(ledger_url: str, docs: list[dict[str, Any]]) -> None:
+def test_record_keeps_every_qcr_and_the_document(
+    ledger_url: str, docs: list[dict[str, Any]]
+) -> None:
     doc = docs[0]
     with open_ledger(ledger_url) as led:
         rid = led.record(doc)
         run = led.run(rid)
         assert (run.profile_id, run.profile_version, run.profile_sha256) == (
-            doc["profile"]["id"], doc["profile"]["version"], doc["profile"]["sha256"])
+            doc["profile"]["id"],
+            doc["profile"]["version"],
+            doc["profile"]["sha256"],
+        )
         assert (run.project_id, run.delivery_id, run.verdict, run.date, run.operator) == (
-            "P1", doc["delivery"]["id"], doc["verdict"], "2026-01-01", doc["operator"])
+            "P1",
+            doc["delivery"]["id"],
+            doc["verdict"],
+            "2026-01-01",
+            doc["operator"],
+        )
         assert run.manifest_sha256 == doc["delivery"]["manifest_sha256"]
         assert dict(run.files) == {f["path"]: f["sha256"] for f in doc["delivery"]["files"]}
         rows = led.qcrs(rid)
         records = list(all_records(doc))
         assert len(rows) == run.n_records == len(records)
         for row, rec in zip(rows, records, strict=True):
-            assert (row["rule"], row["item"], row["verdict"]) == (rec["rule"], rec["item"], rec["verdict"])
+            assert (row["rule"], row["item"], row["verdict"]) == (
+                rec["rule"],
+                rec["item"],
+                rec["verdict"],
+            )
             assert row["measured"] == rec["measured"]["value"]
             assert row["requirement_text"] == rec["requirement"]["text"]
             assert row["clause_section"] == rec["clause"]["section"]
@@ -148,16 +162,38 @@ def test_record_keeps_every_qcr_and_the_document(ledger_url: str, docs: list[dic
 def test_signoff_is_shown_with_the_document(ledger_url: str, docs: list[dict[str, Any]]) -> None:
     with open_ledger(ledger_url) as led:
         rid = led.record(docs[0])
-        led.signoff(rid, by="Ann Super", role="supervisor", note="seen", date="2026-01-02",
-                    manual={"R-VIS": "fail"}, acknowledge_rejection=True)
-        led.signoff(rid, by="Ian Spector", role="inspector", date="2026-01-03", acknowledge_rejection=True)
+        led.signoff(
+            rid,
+            by="Ann Super",
+            role="supervisor",
+            note="seen",
+            date="2026-01-02",
+            manual={"R-VIS": "fail"},
+            acknowledge_rejection=True,
+        )
+        led.signoff(
+            rid, by="Ian Spector", role="inspector", date="2026-01-03", acknowledge_rejection=True
+        )
         doc = led.document_with_signoffs(rid)
         assert doc["records"] == docs[0]["records"]
         assert doc["signoffs"] == [
-            {"by": "Ann Super", "role": "supervisor", "date": "2026-01-02",
-             "note": "[signed acknowledging the REJECTED verdict] seen", "manual": {"R-VIS": "fail"}, "key": None},
-            {"by": "Ian Spector", "role": "inspector", "date": "2026-01-03",
-             "note": "[signed acknowledging the REJECTED verdict]", "manual": {}, "key": None}]
+            {
+                "by": "Ann Super",
+                "role": "supervisor",
+                "date": "2026-01-02",
+                "note": "[signed acknowledging the REJECTED verdict] seen",
+                "manual": {"R-VIS": "fail"},
+                "key": None,
+            },
+            {
+                "by": "Ian Spector",
+                "role": "inspector",
+                "date": "2026-01-03",
+                "note": "[signed acknowledging the REJECTED verdict]",
+                "manual": {},
+                "key": None,
+            },
+        ]
         # a signed manual verdict overrides the table's for diff/history/audit state
         assert led.effective_verdicts(rid)[("R-VIS", "delivery")] == "fail"
         with pytest.raises(LedgerError, match="no manual rule R-ROLL"):
@@ -166,7 +202,7 @@ def test_signoff_is_shown_with_the_document(ledger_url: str, docs: list[dict[str
             led.signoff(99, by="X")
         with pytest.raises(LedgerError, match="role 'boss'"):
             led.signoff(rid, by="X", role="boss")
-        assert len(led.signoffs(rid)) == 2   # refused sign-offs wrote nothing
+        assert len(led.signoffs(rid)) == 2  # refused sign-offs wrote nothing
         assert led.verify().ok
 
 
@@ -174,22 +210,28 @@ def test_history_rounds_and_diff(ledger_url: str, docs: list[dict[str, Any]]) ->
     with open_ledger(ledger_url) as led:
         ids = [led.record(d) for d in docs]
         h = led.history("P1")
-        assert [(e.kind, e.round) for e in h.entries] == [("delivery", 1), ("redelivery", 2), ("recheck", 2)]
+        assert [(e.kind, e.round) for e in h.entries] == [
+            ("delivery", 1),
+            ("redelivery", 2),
+            ("recheck", 2),
+        ]
         assert [e.run.verdict for e in h.entries] == [d["verdict"] for d in docs]
         assert h.rules["R-FH"] == {ids[0]: "fail", ids[1]: "pass", ids[2]: "pass"}
         d = led.diff(ids[0], ids[1])
         by_key = {(c.rule, c.item): c for c in d.changes}
         assert by_key[("R-FH", "I2")].status == "fixed"
         assert by_key[("R-ROLLUP", "delivery")].status == "fixed"
-        assert ("R-ROLL", "I1") not in by_key           # pass -> pass is no change
-        assert led.diff(ids[1], ids[2]).changes == ()   # a re-check of the same content
+        assert ("R-ROLL", "I1") not in by_key  # pass -> pass is no change
+        assert led.diff(ids[1], ids[2]).changes == ()  # a re-check of the same content
         back = led.diff(ids[1], ids[0])
         assert {c.status for c in back.changes if c.rule == "R-FH"} == {"newly_failing"}
         with pytest.raises(LedgerError, match="no run 42"):
             led.diff(ids[0], 42)
 
 
-def test_round_before_recording_is_the_round_recorded(ledger_url: str, docs: list[dict[str, Any]]) -> None:
+def test_round_before_recording_is_the_round_recorded(
+    ledger_url: str, docs: list[dict[str, Any]]
+) -> None:
     """The row a report shows for a run not yet recorded (check time) has the kind and round the
     ledger gives that run once recorded; keyed on content, not on the delivery id (all three
     documents say D1: the second has different images, the third is a re-check of it)."""
@@ -200,50 +242,83 @@ def test_round_before_recording_is_the_round_recorded(ledger_url: str, docs: lis
             assert [r["run"] for r in before] == [*range(1, n), "new"] and before[-1]["current"]
             rid = led.record(doc)
             after = led.report_document(rid)["history"]
-            assert [(r["kind"], r["round"]) for r in after] == [(r["kind"], r["round"]) for r in before]
+            assert [(r["kind"], r["round"]) for r in after] == [
+                (r["kind"], r["round"]) for r in before
+            ]
             assert after[-1]["current"] and after[-1]["run"] == rid
-        assert [(r["kind"], r["round"]) for r in after] == [("delivery", 1), ("redelivery", 2), ("recheck", 2)]
+        assert [(r["kind"], r["round"]) for r in after] == [
+            ("delivery", 1),
+            ("redelivery", 2),
+            ("recheck", 2),
+        ]
 
 
-@pytest.mark.parametrize(("before", "after", "status"), [
-    ("fail", "pass", "fixed"), ("missing", "waived", "fixed"), ("pass", "fail", "newly_failing"),
-    (None, "error", "newly_failing"), ("fail", "fail", "still_failing"), ("fail", "missing", "still_failing"),
-    ("pass", "pass", None), ("pass", "warn", "changed"), (None, "pass", "added"), ("fail", None, "removed"),
-])
+@pytest.mark.parametrize(
+    ("before", "after", "status"),
+    [
+        ("fail", "pass", "fixed"),
+        ("missing", "waived", "fixed"),
+        ("pass", "fail", "newly_failing"),
+        (None, "error", "newly_failing"),
+        ("fail", "fail", "still_failing"),
+        ("fail", "missing", "still_failing"),
+        ("pass", "pass", None),
+        ("pass", "warn", "changed"),
+        (None, "pass", "added"),
+        ("fail", None, "removed"),
+    ],
+)
 def test_classify(before: str | None, after: str | None, status: str | None) -> None:
     assert classify(before, after) == status
 
 
-@pytest.mark.parametrize(("value", "req", "marginal"), [
-    (2.4, {"op": "<=", "value": 2.5}, True),      # 4 % below the tolerance
-    (2.0, {"op": "<=", "value": 2.5}, False),
-    (2.6, {"op": "<=", "value": 2.5}, True),      # just above (a fail elsewhere, still marginal)
-    (20.5, {"op": ">=", "value": 20}, True),
-    (26.0, {"op": "between", "min": 25.6, "max": 51.2}, True),
-    (30.0, {"op": "between", "min": 25.6, "max": 51.2}, False),
-    ("pass", {"op": "==", "value": "pass"}, False),
-    (True, {"op": "<=", "value": 1}, False),
-    (None, {"op": "<=", "value": 1}, False),
-])
+@pytest.mark.parametrize(
+    ("value", "req", "marginal"),
+    [
+        (2.4, {"op": "<=", "value": 2.5}, True),  # 4 % below the tolerance
+        (2.0, {"op": "<=", "value": 2.5}, False),
+        (2.6, {"op": "<=", "value": 2.5}, True),  # just above (a fail elsewhere, still marginal)
+        (20.5, {"op": ">=", "value": 20}, True),
+        (26.0, {"op": "between", "min": 25.6, "max": 51.2}, True),
+        (30.0, {"op": "between", "min": 25.6, "max": 51.2}, False),
+        ("pass", {"op": "==", "value": "pass"}, False),
+        (True, {"op": "<=", "value": 1}, False),
+        (None, {"op": "<=", "value": 1}, False),
+    ],
+)
 def test_is_marginal(value: Any, req: dict[str, Any], marginal: bool) -> None:
     assert is_marginal(value, req) is marginal
 
 
-def _rec(rule: str, item: str, verdict: str, value: float | None = 1.0, family: str = "geo") -> dict[str, Any]:
-    return {"rule": rule, "item": item, "verdict": verdict, "family": family, "measured": value,
-            "requirement": {"op": "<=", "value": 2.5}}
+def _rec(
+    rule: str, item: str, verdict: str, value: float | None = 1.0, family: str = "geo"
+) -> dict[str, Any]:
+    return {
+        "rule": rule,
+        "item": item,
+        "verdict": verdict,
+        "family": family,
+        "measured": value,
+        "requirement": {"op": "<=", "value": 2.5},
+    }
 
 
 def test_audit_state_machine() -> None:
     runs = [
         RunRecords(1, [_rec("A", "B1", "pass"), _rec("C", "x", "pass", family="meta")]),
-        RunRecords(2, [_rec("A", "B1", "pass", 2.45)]),                     # marginal pass
+        RunRecords(2, [_rec("A", "B1", "pass", 2.45)]),  # marginal pass
         RunRecords(3, [_rec("A", "B1", "fail", 3.0), _rec("A", "B2", "pass")]),
-        RunRecords(4, [_rec("A", "B1", "not_applicable", None)]),          # says nothing
+        RunRecords(4, [_rec("A", "B1", "not_applicable", None)]),  # says nothing
         RunRecords(5, [_rec("A", "B1", "pass"), _rec("A", "B2", "pass")]),
     ]
     states = [audit_states(runs[:n]) for n in range(1, 6)]
-    assert [s["geo"].state for s in states] == ["normal", "tightened", "tightened", "tightened", "normal"]
+    assert [s["geo"].state for s in states] == [
+        "normal",
+        "tightened",
+        "tightened",
+        "tightened",
+        "normal",
+    ]
     assert states[2]["geo"].since_run == 2 and states[2]["geo"].suspect_items == ("B1",)
     assert "1 failing" in states[2]["geo"].reason
     assert states[4]["geo"].since_run == 5 and "back from tightened" in states[4]["geo"].reason
@@ -253,33 +328,42 @@ def test_audit_state_machine() -> None:
     assert audit_states(signed)["geo"].state == TIGHTENED
 
 
-@pytest.mark.parametrize(("text", "expected"), [
-    ("Normal (10%) Tightened (100%)", {"normal": 0.10, "tightened": 1.0}),   # JRC Table 6 row 12
-    ("Normal (100%)", {"normal": 1.0}),
-    ("Normal (first few) Tightened (trail)", {}),
-    (None, {}),
-])
+@pytest.mark.parametrize(
+    ("text", "expected"),
+    [
+        ("Normal (10%) Tightened (100%)", {"normal": 0.10, "tightened": 1.0}),  # JRC Table 6 row 12
+        ("Normal (100%)", {"normal": 1.0}),
+        ("Normal (first few) Tightened (trail)", {}),
+        (None, {}),
+    ],
+)
 def test_inspection_fractions(text: str | None, expected: dict[str, float]) -> None:
     assert inspection_fractions(text) == expected
 
 
 def test_family_of() -> None:
-    assert family_of({"rule": "R", "audit": {"family": "metadata"}, "clause": {"section": "8.4"}}) == "metadata"
-    assert family_of({"rule": "R", "audit": {"inspection": "Normal"}, "clause": {"section": "8.4"}}) == "§8.4"
+    assert (
+        family_of({"rule": "R", "audit": {"family": "metadata"}, "clause": {"section": "8.4"}})
+        == "metadata"
+    )
+    assert (
+        family_of({"rule": "R", "audit": {"inspection": "Normal"}, "clause": {"section": "8.4"}})
+        == "§8.4"
+    )
     assert family_of({"rule": "R", "clause": {"document": "X"}}) == "R"
 
 
 def test_audit_state_from_the_ledger(ledger_url: str, docs: list[dict[str, Any]]) -> None:
     with open_ledger(ledger_url) as led:
-        assert led.audit_state("P1", "§5.3") == "normal"          # nothing recorded yet
-        led.record(docs[0])                                        # R-FH (§5.3) fails on I2
+        assert led.audit_state("P1", "§5.3") == "normal"  # nothing recorded yet
+        led.record(docs[0])  # R-FH (§5.3) fails on I2
         assert led.audit_state("P1", "§5.3") == "tightened"
         assert led.sample_fraction("P1", "§5.3") == 0.20
         assert led.suspect_items("P1", "§5.3") == ("I2",)
-        assert led.audit_state("P2", "§5.3") == "normal"          # per project
-        led.record(docs[1])                                        # fixed
+        assert led.audit_state("P2", "§5.3") == "normal"  # per project
+        led.record(docs[1])  # fixed
         assert led.audit_state("P1", "§5.3") == "normal"
-    assert audit_state(ledger_url, "P1", "§5.3") == "normal"      # module-level, by path/URL
+    assert audit_state(ledger_url, "P1", "§5.3") == "normal"  # module-level, by path/URL
     assert sample_fraction(ledger_url, "P1", "§5.3", 0.1, 0.5) == 0.1
     assert sample_fraction(ledger_url, "P1", "§12.3", 0.1, 0.5) == 0.1
 
@@ -294,19 +378,35 @@ def _tamper(url: str, sql: str) -> None:
         eng.dispose()
 
 
-@pytest.mark.parametrize(("sql", "table", "what"), [
-    ("UPDATE qcrs SET verdict = 'pass' WHERE run_id = 1 AND verdict = 'fail'", "runs", "hash mismatch"),
-    ("DELETE FROM qcrs WHERE run_id = 2 AND ordinal = 0", "qcrs", "QCR rows"),
-    ("UPDATE runs SET verdict = 'accepted' WHERE id = 1", "runs", "hash mismatch"),
-    ("UPDATE runs SET document = replace(document, 'rejected', 'accepted') WHERE id = 1", "runs",
-     "document_sha256"),
-    ("UPDATE run_files SET sha256 = '0000000000000000000000000000000000000000000000000000000000000000' WHERE run_id = 3", "runs", "hash mismatch"),
-    ("DELETE FROM signoffs WHERE id = 1", "runs", "prev_hash"),
-    ("UPDATE signoffs SET by_name = 'Mallory' WHERE id = 1", "signoffs", "hash mismatch"),
-    ("DELETE FROM ledger_head", "ledger_head", "head rows"),
-])
-def test_verify_detects_edits_and_deletions(ledger_url: str, docs: list[dict[str, Any]], sql: str,
-                                            table: str, what: str) -> None:
+@pytest.mark.parametrize(
+    ("sql", "table", "what"),
+    [
+        (
+            "UPDATE qcrs SET verdict = 'pass' WHERE run_id = 1 AND verdict = 'fail'",
+            "runs",
+            "hash mismatch",
+        ),
+        ("DELETE FROM qcrs WHERE run_id = 2 AND ordinal = 0", "qcrs", "QCR rows"),
+        ("UPDATE runs SET verdict = 'accepted' WHERE id = 1", "runs", "hash mismatch"),
+        (
+            "UPDATE runs SET document = replace(document, 'rejected', 'accepted') WHERE id = 1",
+            "runs",
+            "document_sha256",
+        ),
+        (
+            "UPDATE run_files SET sha256 = "
+            "'0000000000000000000000000000000000000000000000000000000000000000' WHERE run_id = 3",
+            "runs",
+            "hash mismatch",
+        ),
+        ("DELETE FROM signoffs WHERE id = 1", "runs", "prev_hash"),
+        ("UPDATE signoffs SET by_name = 'Mallory' WHERE id = 1", "signoffs", "hash mismatch"),
+        ("DELETE FROM ledger_head", "ledger_head", "head rows"),
+    ],
+)
+def test_verify_detects_edits_and_deletions(
+    ledger_url: str, docs: list[dict[str, Any]], sql: str, table: str, what: str
+) -> None:
     with open_ledger(ledger_url) as led:
         for d in docs:
             led.record(d)
@@ -321,7 +421,9 @@ def test_verify_detects_edits_and_deletions(ledger_url: str, docs: list[dict[str
 
 
 @pytest.mark.parametrize("victim", ["middle", "newest"])
-def test_verify_detects_deleted_runs(ledger_url: str, docs: list[dict[str, Any]], victim: str) -> None:
+def test_verify_detects_deleted_runs(
+    ledger_url: str, docs: list[dict[str, Any]], victim: str
+) -> None:
     with open_ledger(ledger_url) as led:
         ids = [led.record(d) for d in docs]
     rid = ids[1] if victim == "middle" else ids[2]

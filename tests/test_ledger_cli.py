@@ -117,8 +117,10 @@ def write_delivery(root: Path, delivery_id: str, rolls: dict[str, float], n: int
     for i in range(1, n + 1):
         iid = f"I{i}"
         block = "B1" if i <= n // 2 else "B2"
-        lines.append(f"{iid},images/{iid.lower()}.tif,{block},F{(i - 1) * 4 // n + 1},"
-                     f"{rolls.get(iid, 0.5)},1000,30")
+        lines.append(
+            f"{iid},images/{iid.lower()}.tif,{block},F{(i - 1) * 4 // n + 1},"
+            f"{rolls.get(iid, 0.5)},1000,30"
+        )
     (root / "tables" / "images.csv").write_text("\n".join(lines) + "\n", encoding="utf-8")
     (root / "tables" / "manual.csv").write_text(MANUAL, encoding="utf-8")
     checker_of(root).write_text(CHECKER.format(id=delivery_id), encoding="utf-8")
@@ -140,8 +142,19 @@ def test_three_rounds_until_accepted(tmp_path: Path, profile: Path, ledger_url: 
     outputs = []
     for k, (did, rolls) in enumerate(rounds, start=1):
         deliv = write_delivery(tmp_path / did, did, rolls)
-        res = check(str(deliv), "-p", str(profile), "--format", "json", "--out",
-                    str(tmp_path / "out" / did), "--date", f"2026-0{k}-01", "--ledger", ledger_url)
+        res = check(
+            str(deliv),
+            "-p",
+            str(profile),
+            "--format",
+            "json",
+            "--out",
+            str(tmp_path / "out" / did),
+            "--date",
+            f"2026-0{k}-01",
+            "--ledger",
+            ledger_url,
+        )
         assert f"recorded run #{k} in ledger" in res.output, res.output
         assert res.exit_code == (1 if k < 3 else 0)
         outputs.append(json.loads((tmp_path / "out" / did / "qcr.json").read_text()))
@@ -175,8 +188,11 @@ def test_three_rounds_until_accepted(tmp_path: Path, profile: Path, ledger_url: 
     assert hist.exit_code == 0, hist.output
     lines = hist.output.splitlines()
     runs_lines = [ln for ln in lines if ln.lstrip().startswith("#")]
-    assert [ln.split()[2:4] for ln in runs_lines[:3]] == [["1", "delivery"], ["2", "redelivery"],
-                                                          ["3", "redelivery"]]
+    assert [ln.split()[2:4] for ln in runs_lines[:3]] == [
+        ["1", "delivery"],
+        ["2", "redelivery"],
+        ["3", "redelivery"],
+    ]
     assert [ln.split()[5] for ln in runs_lines[:3]] == ["rejected", "rejected", "accepted"]
     roll_row = next(ln for ln in lines if ln.startswith("R-ROLL"))
     assert roll_row.split()[1:] == ["FAIL", "FAIL", "pass"]
@@ -191,16 +207,40 @@ def test_three_rounds_until_accepted(tmp_path: Path, profile: Path, ledger_url: 
     assert "fixed:\n  R-ROLL [I3]: fail -> pass" in d12.output
     assert "still failing:\n  R-ROLL [I14]: fail -> fail" in d12.output
     d23 = json.loads(run("diff", "#2", "#3", "--json", "--ledger", ledger_url).output)
-    assert [(c["rule"], c["item"], c["status"]) for c in d23["changes"]] == [("R-ROLL", "I14", "fixed")]
+    assert [(c["rule"], c["item"], c["status"]) for c in d23["changes"]] == [
+        ("R-ROLL", "I14", "fixed")
+    ]
 
-    signed = run("signoff", "3", "--by", "Ann Super", "--role", "supervisor", "--note", "accepted",
-                 "--manual", "R-VIS=pass", "--date", "2026-03-02", "--ledger", ledger_url)
+    signed = run(
+        "signoff",
+        "3",
+        "--by",
+        "Ann Super",
+        "--role",
+        "supervisor",
+        "--note",
+        "accepted",
+        "--manual",
+        "R-VIS=pass",
+        "--date",
+        "2026-03-02",
+        "--ledger",
+        ledger_url,
+    )
     assert signed.exit_code == 0 and "signed run #3 as supervisor" in signed.output
     with open_ledger(ledger_url, create=False) as led:
         doc = led.document_with_signoffs(3)
     assert doc["records"] == outputs[2]["records"]
-    assert doc["signoffs"] == [{"by": "Ann Super", "role": "supervisor", "date": "2026-03-02",
-                                "note": "accepted", "manual": {"R-VIS": "pass"}, "key": None}]
+    assert doc["signoffs"] == [
+        {
+            "by": "Ann Super",
+            "role": "supervisor",
+            "date": "2026-03-02",
+            "note": "accepted",
+            "manual": {"R-VIS": "pass"},
+            "key": None,
+        }
+    ]
 
     ok = run("ledger", "verify", "--ledger", ledger_url)
     assert ok.exit_code == 0 and "intact, 4 entries (3 runs, 1 sign-offs)" in ok.output
@@ -211,12 +251,23 @@ def test_three_rounds_until_accepted(tmp_path: Path, profile: Path, ledger_url: 
 def test_verify_exit_codes(tmp_path: Path, profile: Path, ledger_url: str) -> None:
     deliv = write_delivery(tmp_path / "d", "D1", {"I2": 9.0})
     for _ in range(2):
-        check(str(deliv), "-p", str(profile), "--format", "json", "--out", str(tmp_path / "o"),
-              "--ledger", ledger_url)
+        check(
+            str(deliv),
+            "-p",
+            str(profile),
+            "--format",
+            "json",
+            "--out",
+            str(tmp_path / "o"),
+            "--ledger",
+            ledger_url,
+        )
     ok = run("ledger", "verify", "--ledger", ledger_url)
     assert ok.exit_code == 0
     head = ok.output.split("head ")[-1].strip()
-    assert run("ledger", "verify", "--expect-head", head[:16], "--ledger", ledger_url).exit_code == 0
+    assert (
+        run("ledger", "verify", "--expect-head", head[:16], "--ledger", ledger_url).exit_code == 0
+    )
     eng = sa.create_engine(to_url(ledger_url))
     with eng.begin() as conn:
         conn.execute(sa.text("UPDATE qcrs SET verdict = 'pass' WHERE run_id = 1 AND item = 'I2'"))
@@ -224,7 +275,7 @@ def test_verify_exit_codes(tmp_path: Path, profile: Path, ledger_url: str) -> No
     bad = run("ledger", "verify", "--ledger", ledger_url)
     assert bad.exit_code == 1
     assert "runs run 1 (seq 1): content hash mismatch" in bad.output
-    assert "run 2" not in bad.output   # the later run is intact; only its link would be rewritten
+    assert "run 2" not in bad.output  # the later run is intact; only its link would be rewritten
 
 
 def test_cli_errors(tmp_path: Path) -> None:
@@ -232,8 +283,9 @@ def test_cli_errors(tmp_path: Path) -> None:
     res = CliRunner().invoke(cli(), ["history", "--ledger", missing])
     assert res.exit_code != 0 and "no ledger at" in str(res.exception)
     assert not Path(missing).exists()
-    res = CliRunner().invoke(cli(), ["signoff", "1", "--by", "X", "--manual", "R-VIS=maybe",
-                                     "--ledger", missing])
+    res = CliRunner().invoke(
+        cli(), ["signoff", "1", "--by", "X", "--manual", "R-VIS=maybe", "--ledger", missing]
+    )
     assert res.exit_code == 2 and "RULE=pass or RULE=fail" in res.output
     res = CliRunner().invoke(cli(), ["diff", "one", "2", "--ledger", missing])
     assert res.exit_code == 2 and "a run id is a number" in res.output
@@ -242,12 +294,16 @@ def test_cli_errors(tmp_path: Path) -> None:
 def _in_transaction(url: str) -> bool:
     """Whether another session holds an open write transaction on the ledger."""
     if "://" not in url:
-        return Path(url + "-journal").exists()    # rollback journal of an uncommitted write
+        return Path(url + "-journal").exists()  # rollback journal of an uncommitted write
     eng = sa.create_engine(to_url(url))
     try:
         with eng.connect() as conn:
-            n = conn.execute(sa.text("SELECT count(*) FROM pg_stat_activity WHERE datname = current_database() "
-                                     "AND state = 'idle in transaction'")).scalar_one()
+            n = conn.execute(
+                sa.text(
+                    "SELECT count(*) FROM pg_stat_activity WHERE datname = current_database() "
+                    "AND state = 'idle in transaction'"
+                )
+            ).scalar_one()
     finally:
         eng.dispose()
     return n >= 1
@@ -277,34 +333,64 @@ main()
 
 
 @pytest.mark.slow
-def test_check_killed_mid_write_leaves_the_ledger_intact(tmp_path: Path, profile: Path,
-                                                         ledger_url: str) -> None:
+def test_check_killed_mid_write_leaves_the_ledger_intact(
+    tmp_path: Path, profile: Path, ledger_url: str
+) -> None:
     small = write_delivery(tmp_path / "small", "D0", {})
-    assert check(str(small), "-p", str(profile), "--format", "json", "--out",
-                 str(tmp_path / "o0"), "--ledger", ledger_url).exit_code == 0
+    assert (
+        check(
+            str(small),
+            "-p",
+            str(profile),
+            "--format",
+            "json",
+            "--out",
+            str(tmp_path / "o0"),
+            "--ledger",
+            ledger_url,
+        ).exit_code
+        == 0
+    )
     with open_ledger(ledger_url, create=False) as led:
         before = led.verify()
     big = write_delivery(tmp_path / "big", "D-BIG", {"I7": 8.0}, n=3000)
     marker = tmp_path / "in-transaction"
     proc = subprocess.Popen(
-        [sys.executable, "-c", _PAUSE_BEFORE_COMMIT, str(marker), "check", str(big), "-p", str(profile),
-         "--format", "json", "--out", str(tmp_path / "o1"), "--ledger", ledger_url, "--checker",
-         str(checker_of(big))],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        [
+            sys.executable,
+            "-c",
+            _PAUSE_BEFORE_COMMIT,
+            str(marker),
+            "check",
+            str(big),
+            "-p",
+            str(profile),
+            "--format",
+            "json",
+            "--out",
+            str(tmp_path / "o1"),
+            "--ledger",
+            ledger_url,
+            "--checker",
+            str(checker_of(big)),
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
     try:
         deadline = time.monotonic() + 60
         while not marker.exists() and proc.poll() is None and time.monotonic() < deadline:
             time.sleep(0.05)
         assert marker.exists(), proc.communicate(timeout=5)
-        assert int(marker.read_text()) == proc.pid     # the pause ran in that process
-        assert _in_transaction(ledger_url)              # ... with its rows written, uncommitted
+        assert int(marker.read_text()) == proc.pid  # the pause ran in that process
+        assert _in_transaction(ledger_url)  # ... with its rows written, uncommitted
         os.kill(proc.pid, signal.SIGKILL)
     finally:
         if proc.poll() is None:
             proc.kill()
         proc.wait(timeout=30)
     assert proc.returncode == -signal.SIGKILL
-    assert (tmp_path / "o1" / "qcr.json").exists()     # outputs were written before recording
+    assert (tmp_path / "o1" / "qcr.json").exists()  # outputs were written before recording
 
     with open_ledger(ledger_url, create=False) as led:
         after = led.verify()
@@ -313,11 +399,22 @@ def test_check_killed_mid_write_leaves_the_ledger_intact(tmp_path: Path, profile
         assert [r.delivery_id for r in led.runs()] == ["D0"]
     eng = sa.create_engine(to_url(ledger_url))
     with eng.connect() as conn:
-        assert conn.execute(sa.text("SELECT count(*) FROM qcrs WHERE run_id <> 1")).scalar_one() == 0
+        assert (
+            conn.execute(sa.text("SELECT count(*) FROM qcrs WHERE run_id <> 1")).scalar_one() == 0
+        )
     eng.dispose()
     # the ledger is writable again: the killed writer's lock is gone
-    res = check(str(small), "-p", str(profile), "--format", "json", "--out",
-                str(tmp_path / "o2"), "--ledger", ledger_url)
+    res = check(
+        str(small),
+        "-p",
+        str(profile),
+        "--format",
+        "json",
+        "--out",
+        str(tmp_path / "o2"),
+        "--ledger",
+        ledger_url,
+    )
     assert "recorded run #2" in res.output
     with open_ledger(ledger_url, create=False) as led:
         assert led.verify().ok and led.runs()[-1].delivery_id == "D0"

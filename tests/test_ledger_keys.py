@@ -33,9 +33,11 @@ DATA = Path(__file__).parent / "data"
 GOOD = "image_id,file,block,roll,flying_height,std_dn,exposure_x,exposure_y\n" + "\n".join(
     f"I{i},f{i}.tif,B1,0.5,1000,30,{i * 100},{(i % 4) * 100}" for i in range(20)) + "\n"
 NO_WAIVER = "waivers: [{rule: R-ROLL, items: [I3], justification: turbulence over the ridge, approver: Chief}]\n"
-CHECKER = ("orthospec_checker: 1\nchecker: {name: Eva External, role: external QC}\n"
-           "delivery: {id: D1}\nmanual_checks:\n"
-           "  - {check: R-VIS, item: '*', date: 2026-02-28, verdict: pass, note: haze-free}\n")
+CHECKER = (
+    "orthospec_checker: 1\nchecker: {name: Eva External, role: external QC}\n"
+    "delivery: {id: D1}\nmanual_checks:\n"
+    "  - {check: R-VIS, item: '*', date: 2026-02-28, verdict: pass, note: haze-free}\n"
+)
 
 #: the four ways the run's checker "A. Auditor" countersigned its own run before (issue 29 item 5)
 TRICKS = {
@@ -52,7 +54,9 @@ def run(*args: object):
 
 def keygen(folder: Path, name: str) -> Path:
     key = folder / name
-    subprocess.run(["ssh-keygen", "-q", "-t", "ed25519", "-N", "", "-C", name, "-f", str(key)], check=True)
+    subprocess.run(
+        ["ssh-keygen", "-q", "-t", "ed25519", "-N", "", "-C", name, "-f", str(key)], check=True
+    )
     return key
 
 
@@ -68,17 +72,37 @@ def register(path: Path, people: dict[str, Path]) -> Path:
 
 @pytest.fixture
 def delivery(make_delivery, tmp_path: Path) -> dict[str, Path]:
-    root = make_delivery("d", manifest=MANIFEST.replace(NO_WAIVER, ""), images=GOOD,
-                         manual="check,item,inspector,date,verdict\n")
+    root = make_delivery(
+        "d",
+        manifest=MANIFEST.replace(NO_WAIVER, ""),
+        images=GOOD,
+        manual="check,item,inspector,date,verdict\n",
+    )
     checker = tmp_path / "checker.yaml"
     checker.write_text(CHECKER, encoding="utf-8")
     return {"root": root, "checker": checker, "ledger": tmp_path / "ledger.sqlite", "tmp": tmp_path}
 
 
 def check(d: dict[str, Path], mini_profile: Path, n: int, *extra: object, fmt: str = "json"):
-    return run("check", d["root"], "-p", mini_profile, "--param", "tolerance_xy=0.5", "--out", d["tmp"] / f"o{n}",
-               "--checker", d["checker"], "--ledger", d["ledger"], "--date", f"2026-03-0{n}", "--format", fmt,
-               *extra)
+    return run(
+        "check",
+        d["root"],
+        "-p",
+        mini_profile,
+        "--param",
+        "tolerance_xy=0.5",
+        "--out",
+        d["tmp"] / f"o{n}",
+        "--checker",
+        d["checker"],
+        "--ledger",
+        d["ledger"],
+        "--date",
+        f"2026-03-0{n}",
+        "--format",
+        fmt,
+        *extra,
+    )
 
 
 def page1(pdf: Path) -> str:
@@ -88,22 +112,41 @@ def page1(pdf: Path) -> str:
 
 # --- names --------------------------------------------------------------------------------------
 
+
 @pytest.mark.parametrize("trick", list(TRICKS.values()), ids=list(TRICKS))
 def test_the_four_name_tricks_are_the_same_person(trick: str) -> None:
     assert same_person("A. Auditor", trick)
-    assert display_name(trick) in ("A. Auditor", "A.Auditor", "\u0410. Auditor")  # invisible ones gone
+    assert display_name(trick) in (
+        "A. Auditor",
+        "A.Auditor",
+        "\u0410. Auditor",
+    )  # invisible ones gone
 
 
-@pytest.mark.parametrize(("a", "b"), [
-    ("A. Auditor", "auditor, a."), ("A. Auditor", "Ａ. Ａuditor"),          # word order, full-width
-    ("Ivan Petrov", "lvan Petrov"), ("Olga Ek", "0lga Ek"), ("Mary Rao", "rnary Rao"),   # I/l, 0/O, rn/m
-])
+@pytest.mark.parametrize(
+    ("a", "b"),
+    [
+        ("A. Auditor", "auditor, a."),
+        ("A. Auditor", "Ａ. Ａuditor"),  # word order, full-width
+        ("Ivan Petrov", "lvan Petrov"),
+        ("Olga Ek", "0lga Ek"),
+        ("Mary Rao", "rnary Rao"),  # I/l, 0/O, rn/m
+    ],
+)
 def test_look_alike_names_are_the_same_person(a: str, b: str) -> None:
     assert same_person(a, b)
 
 
-@pytest.mark.parametrize(("a", "b"), [("A. Auditor", "B. Auditor"), ("A. Auditor", "Anna Auditor"),
-                                      ("Maria Rossi", "Mario Rossi"), ("A. Auditor", ""), ("\u200b", "\u200b")])
+@pytest.mark.parametrize(
+    ("a", "b"),
+    [
+        ("A. Auditor", "B. Auditor"),
+        ("A. Auditor", "Anna Auditor"),
+        ("Maria Rossi", "Mario Rossi"),
+        ("A. Auditor", ""),
+        ("\u200b", "\u200b"),
+    ],
+)
 def test_different_people_stay_different(a: str, b: str) -> None:
     assert not same_person(a, b)
 
@@ -119,47 +162,81 @@ def test_the_checker_cannot_countersign_under_a_tricked_name(delivery, mini_prof
         assert led.signoffs(1)[-1]["id"] == sid and led.verify().ok
 
 
-def test_the_checker_named_in_the_checker_file_cannot_countersign_a_run_without_operator(delivery,
-                                                                                         mini_profile) -> None:
-    res = check(delivery, mini_profile, 1)          # no --operator: the checker file names Eva External
+def test_the_checker_named_in_the_checker_file_cannot_countersign_a_run_without_operator(
+    delivery, mini_profile
+) -> None:
+    res = check(delivery, mini_profile, 1)  # no --operator: the checker file names Eva External
     assert res.exit_code == 0, res.output
     for name in ("Eva External", "Eva\u2060External", "EVA EXTERNAL"):
-        refused = run("signoff", 1, "--by", name, "--date", "2026-03-02", "--ledger", delivery["ledger"])
+        refused = run(
+            "signoff", 1, "--by", name, "--date", "2026-03-02", "--ledger", delivery["ledger"]
+        )
         assert refused.exit_code != 0
         assert "checker named in the checker file" in str(refused.exception), refused.output
-    ok = run("signoff", 1, "--by", "Maria Rossi", "--date", "2026-03-02", "--ledger", delivery["ledger"])
+    ok = run(
+        "signoff", 1, "--by", "Maria Rossi", "--date", "2026-03-02", "--ledger", delivery["ledger"]
+    )
     assert ok.exit_code == 0 and "unsigned (a typed name, no key)" in ok.output, ok.output
 
 
 # --- keys ---------------------------------------------------------------------------------------
 
-def test_the_key_that_signed_the_run_cannot_countersign_it_under_any_name(delivery, mini_profile) -> None:
+
+def test_the_key_that_signed_the_run_cannot_countersign_it_under_any_name(
+    delivery, mini_profile
+) -> None:
     auditor = keygen(delivery["tmp"], "auditor")
-    res = check(delivery, mini_profile, 1, "--key", auditor)      # no register: the key is the identity
+    res = check(delivery, mini_profile, 1, "--key", auditor)  # no register: the key is the identity
     assert res.exit_code == 0, res.output
-    refused = run("signoff", 1, "--key", auditor, "--by", "Zoe Other", "--date", "2026-03-02",
-                  "--ledger", delivery["ledger"])
+    refused = run(
+        "signoff",
+        1,
+        "--key",
+        auditor,
+        "--by",
+        "Zoe Other",
+        "--date",
+        "2026-03-02",
+        "--ledger",
+        delivery["ledger"],
+    )
     assert refused.exit_code != 0 and "signed check run 1 (its checker)" in str(refused.exception)
     rossi = keygen(delivery["tmp"], "rossi")
-    ok = run("signoff", 1, "--key", rossi, "--by", "Maria Rossi", "--date", "2026-03-02", "--ledger",
-             delivery["ledger"])
+    ok = run(
+        "signoff",
+        1,
+        "--key",
+        rossi,
+        "--by",
+        "Maria Rossi",
+        "--date",
+        "2026-03-02",
+        "--ledger",
+        delivery["ledger"],
+    )
     assert ok.exit_code == 0 and "signed by key SHA256:" in ok.output, ok.output
     with open_ledger(delivery["ledger"], create=False) as led:
         assert led.verify().ok
         assert led.run(1).key_fingerprint != led.signoffs(1)[0]["key"] is not None
 
 
-def test_with_a_register_every_entry_is_signed_by_a_registered_key(delivery, mini_profile, monkeypatch) -> None:
+def test_with_a_register_every_entry_is_signed_by_a_registered_key(
+    delivery, mini_profile, monkeypatch
+) -> None:
     tmp = delivery["tmp"]
     auditor, rossi, stranger = keygen(tmp, "auditor"), keygen(tmp, "rossi"), keygen(tmp, "stranger")
-    monkeypatch.setenv("ORTHOSPEC_ALLOWED_SIGNERS", str(register(tmp / "allowed", {"A. Auditor": auditor,
-                                                                   "Maria Rossi": rossi})))
+    monkeypatch.setenv(
+        "ORTHOSPEC_ALLOWED_SIGNERS",
+        str(register(tmp / "allowed", {"A. Auditor": auditor, "Maria Rossi": rossi})),
+    )
     unsigned = check(delivery, mini_profile, 1, "--operator", "A. Auditor")
-    assert isinstance(unsigned.exception, LedgerError) and "must be signed" in str(unsigned.exception)
+    assert isinstance(unsigned.exception, LedgerError) and "must be signed" in str(
+        unsigned.exception
+    )
     outsider = check(delivery, mini_profile, 1, "--key", stranger)
     assert isinstance(outsider.exception, LedgerError)
     assert "not in the allowed-signers file" in str(outsider.exception)
-    assert not (tmp / "o1" / "qcr.json").exists()   # refused before anything was written
+    assert not (tmp / "o1" / "qcr.json").exists()  # refused before anything was written
     res = check(delivery, mini_profile, 1, "--key", auditor)
     assert res.exit_code == 0, res.output
     with open_ledger(delivery["ledger"], create=False) as led:
@@ -177,35 +254,54 @@ def test_with_a_register_every_entry_is_signed_by_a_registered_key(delivery, min
         con.execute("UPDATE signoffs SET by_name = 'A. Auditor'")
     rebuild(delivery["ledger"])
     bad = run("ledger", "verify", "--ledger", delivery["ledger"])
-    assert bad.exit_code == 1 and "signature of A. Auditor does not verify" in bad.output, bad.output
+    assert bad.exit_code == 1 and "signature of A. Auditor does not verify" in bad.output, (
+        bad.output
+    )
 
 
 # --- the run's own head in its report -----------------------------------------------------------
+
 
 def rebuild(ledger: Path) -> None:
     """What someone with write access does after editing rows: recompute every hash and link in
     chain order (document checksums, run and sign-off hashes, the head), so the chain verifies."""
     eng = sa.create_engine(to_url(ledger))
     with eng.begin() as conn:
-        runs = {r["id"]: dict(r) for r in conn.execute(sa.select(*[c for c in m.runs.c if c.name != "document"]))
-                .mappings()}
+        runs = {
+            r["id"]: dict(r)
+            for r in conn.execute(
+                sa.select(*[c for c in m.runs.c if c.name != "document"])
+            ).mappings()
+        }
         signs = [dict(s) for s in conn.execute(sa.select(m.signoffs)).mappings()]
-        entries = sorted([("run", r) for r in runs.values()] + [("signoff", s) for s in signs],
-                         key=lambda e: e[1]["seq"])
+        entries = sorted(
+            [("run", r) for r in runs.values()] + [("signoff", s) for s in signs],
+            key=lambda e: e[1]["seq"],
+        )
         prev = m.GENESIS
         for kind, row in entries:
             row["prev_hash"] = prev
             if kind == "run":
-                doc = conn.execute(sa.select(m.runs.c.document).where(m.runs.c.id == row["id"])).scalar_one()
+                doc = conn.execute(
+                    sa.select(m.runs.c.document).where(m.runs.c.id == row["id"])
+                ).scalar_one()
                 row["document_sha256"] = sha256_text(doc)
                 row["hash"] = rehash_run(conn, row)[0]
-                conn.execute(sa.update(m.runs).where(m.runs.c.id == row["id"]).values(
-                    prev_hash=prev, document_sha256=row["document_sha256"], hash=row["hash"]))
+                conn.execute(
+                    sa.update(m.runs)
+                    .where(m.runs.c.id == row["id"])
+                    .values(
+                        prev_hash=prev, document_sha256=row["document_sha256"], hash=row["hash"]
+                    )
+                )
             else:
                 row["run_hash"] = runs[row["run_id"]]["hash"]
                 row["hash"] = signoff_hash(row, prev)
-                conn.execute(sa.update(m.signoffs).where(m.signoffs.c.id == row["id"]).values(
-                    prev_hash=prev, run_hash=row["run_hash"], hash=row["hash"]))
+                conn.execute(
+                    sa.update(m.signoffs)
+                    .where(m.signoffs.c.id == row["id"])
+                    .values(prev_hash=prev, run_hash=row["run_hash"], hash=row["hash"])
+                )
             prev = row["hash"]
         conn.execute(sa.update(m.head).values(hash=prev))
     eng.dispose()
@@ -213,48 +309,84 @@ def rebuild(ledger: Path) -> None:
 
 def rewrite_verdict(ledger: Path, run_id: int, verdict: str) -> None:
     with sqlite3.connect(ledger) as con:
-        doc = json.loads(con.execute("SELECT document FROM runs WHERE id = ?", (run_id,)).fetchone()[0])
+        doc = json.loads(
+            con.execute("SELECT document FROM runs WHERE id = ?", (run_id,)).fetchone()[0]
+        )
         doc["verdict"] = verdict
-        con.execute("UPDATE runs SET document = ?, verdict = ? WHERE id = ?", (json.dumps(doc), verdict, run_id))
+        con.execute(
+            "UPDATE runs SET document = ?, verdict = ? WHERE id = ?",
+            (json.dumps(doc), verdict, run_id),
+        )
 
 
-def test_a_chain_rebuilt_to_rewrite_run_n_is_caught_against_run_ns_own_report(delivery, mini_profile) -> None:
-    delivery["checker"].write_text(CHECKER.replace("verdict: pass", "verdict: fail"), encoding="utf-8")
-    assert check(delivery, mini_profile, 1, "--operator", "A. Auditor", fmt="json,pdf").exit_code == 1
+def test_a_chain_rebuilt_to_rewrite_run_n_is_caught_against_run_ns_own_report(
+    delivery, mini_profile
+) -> None:
+    delivery["checker"].write_text(
+        CHECKER.replace("verdict: pass", "verdict: fail"), encoding="utf-8"
+    )
+    assert (
+        check(delivery, mini_profile, 1, "--operator", "A. Auditor", fmt="json,pdf").exit_code == 1
+    )
     res = check(delivery, mini_profile, 2, "--operator", "A. Auditor", fmt="json,pdf")
     assert res.exit_code == 1 and "recorded run #2" in res.output, res.output
     own = delivery["tmp"] / "o2" / "report.pdf"
     with open_ledger(delivery["ledger"], create=False) as led:
         run2 = led.run(2).hash
         assert led.head()[1] == run2
-    assert run2 in page1(own).replace(" ", "")            # the report of run 2 prints run 2's own entry
+    assert run2 in page1(own).replace(" ", "")  # the report of run 2 prints run 2's own entry
     ledger = delivery["ledger"]
     rewrite_verdict(ledger, 2, "accepted")
     rebuild(ledger)
     plain = run("ledger", "verify", "--ledger", ledger)
-    assert plain.exit_code == 0, plain.output              # the rebuilt chain is consistent in itself
+    assert plain.exit_code == 0, plain.output  # the rebuilt chain is consistent in itself
     caught = run("ledger", "verify", "--ledger", ledger, "--against", own)
-    assert caught.exit_code == 1 and "TAMPERED" in caught.output and run2[:16] in caught.output, caught.output
-    rep = run("report", "--ledger", ledger, "--run", 2, "--format", "pdf", "--out", delivery["tmp"] / "r2",
-              "--against", own)
+    assert caught.exit_code == 1 and "TAMPERED" in caught.output and run2[:16] in caught.output, (
+        caught.output
+    )
+    rep = run(
+        "report",
+        "--ledger",
+        ledger,
+        "--run",
+        2,
+        "--format",
+        "pdf",
+        "--out",
+        delivery["tmp"] / "r2",
+        "--against",
+        own,
+    )
     assert rep.exit_code == 0 and "TAMPERED" in rep.output, rep.output
     assert "LEDGER TAMPERED" in page1(delivery["tmp"] / "r2" / "report.pdf")
 
 
 def test_a_signed_run_rewritten_and_rebuilt_fails_its_signature(delivery, mini_profile) -> None:
-    delivery["checker"].write_text(CHECKER.replace("verdict: pass", "verdict: fail"), encoding="utf-8")
+    delivery["checker"].write_text(
+        CHECKER.replace("verdict: pass", "verdict: fail"), encoding="utf-8"
+    )
     key = keygen(delivery["tmp"], "auditor")
     assert check(delivery, mini_profile, 1, "--key", key).exit_code == 1
     rewrite_verdict(delivery["ledger"], 1, "accepted")
     rebuild(delivery["ledger"])
     bad = run("ledger", "verify", "--ledger", delivery["ledger"])
     assert bad.exit_code == 1 and "runs run 1 (seq 1): signature of" in bad.output, bad.output
-    rep = run("report", "--ledger", delivery["ledger"], "--run", 1, "--format", "html", "--out",
-              delivery["tmp"] / "r1")
+    rep = run(
+        "report",
+        "--ledger",
+        delivery["ledger"],
+        "--run",
+        1,
+        "--format",
+        "html",
+        "--out",
+        delivery["tmp"] / "r1",
+    )
     assert rep.exit_code == 0 and "TAMPERED" in rep.output
 
 
 # --- ledgers recorded before keys ---------------------------------------------------------------
+
 
 def test_a_ledger_recorded_before_keys_migrates_and_still_verifies(tmp_path: Path) -> None:
     """tests/data/ledger-0001.sqlite was recorded by orthospec at 95a2ffd (schema 0001: two runs of a
@@ -263,7 +395,9 @@ def test_a_ledger_recorded_before_keys_migrates_and_still_verifies(tmp_path: Pat
     old = tmp_path / "old.sqlite"
     shutil.copyfile(DATA / "ledger-0001.sqlite", old)
     with sqlite3.connect(old) as con:
-        before = con.execute("SELECT seq, hash FROM runs UNION SELECT seq, hash FROM signoffs ORDER BY 1").fetchall()
+        before = con.execute(
+            "SELECT seq, hash FROM runs UNION SELECT seq, hash FROM signoffs ORDER BY 1"
+        ).fetchall()
         assert con.execute("SELECT version_num FROM alembic_version").fetchone() == ("0001",)
     with open_ledger(old, create=False) as led:
         rep = led.verify()
@@ -274,10 +408,18 @@ def test_a_ledger_recorded_before_keys_migrates_and_still_verifies(tmp_path: Pat
         with pytest.raises(LedgerError, match="independent countersignature"):
             led.signoff(2, by="Carl\u00adChecker", date="2026-03-07", acknowledge_rejection=True)
         key = keygen(tmp_path, "inspector")
-        led.signoff(1, key=key, by="Ian Spector", role="inspector", date="2026-03-07",
-                    acknowledge_rejection=True)
+        led.signoff(
+            1,
+            key=key,
+            by="Ian Spector",
+            role="inspector",
+            date="2026-03-07",
+            acknowledge_rejection=True,
+        )
         assert led.verify().ok
     with sqlite3.connect(old) as con:
-        after = con.execute("SELECT seq, hash FROM runs UNION SELECT seq, hash FROM signoffs ORDER BY 1").fetchall()
+        after = con.execute(
+            "SELECT seq, hash FROM runs UNION SELECT seq, hash FROM signoffs ORDER BY 1"
+        ).fetchall()
         assert con.execute("SELECT version_num FROM alembic_version").fetchone() == ("0002",)
     assert after[:3] == before and len(after) == 4

@@ -20,10 +20,19 @@ def run(*args):
 
 
 def delivery(make_delivery, name, did, rolls):
-    rows = "\n".join(f"I{i},f{i}.tif,B1,{r},1000,30,{i * 100},{(i % 4) * 100}" for i, r in enumerate(rolls))
-    return make_delivery(name, manifest=MANIFEST.replace("id: D1", f"id: {did}").replace(
-        "waivers: [{rule: R-ROLL, items: [I3], justification: turbulence over the ridge, approver: Chief}]\n", ""),
-        images="image_id,file,block,roll,flying_height,std_dn,exposure_x,exposure_y\n" + rows + "\n")
+    rows = "\n".join(
+        f"I{i},f{i}.tif,B1,{r},1000,30,{i * 100},{(i % 4) * 100}" for i, r in enumerate(rolls)
+    )
+    return make_delivery(
+        name,
+        manifest=MANIFEST.replace("id: D1", f"id: {did}").replace(
+            "waivers: [{rule: R-ROLL, items: [I3], justification: turbulence over the ridge, approver: Chief}]\n",
+            "",
+        ),
+        images="image_id,file,block,roll,flying_height,std_dn,exposure_x,exposure_y\n"
+        + rows
+        + "\n",
+    )
 
 
 def checker_file(tmp_path, did):
@@ -42,25 +51,67 @@ def test_three_rounds_history_signoff_and_pdf(make_delivery, mini_profile, tmp_p
     codes = []
     for n, (did, rolls) in enumerate((("D1", bad), ("D2", partial), ("D3", good)), start=1):
         root = delivery(make_delivery, f"r{n}", did, rolls)
-        res = run("check", root, "-p", mini_profile, "--out", tmp_path / f"o{n}", "--ledger", ledger,
-                  "--date", f"2026-0{n}-01", "--format", "json", "--checker", checker_file(tmp_path, did))
+        res = run(
+            "check",
+            root,
+            "-p",
+            mini_profile,
+            "--out",
+            tmp_path / f"o{n}",
+            "--ledger",
+            ledger,
+            "--date",
+            f"2026-0{n}-01",
+            "--format",
+            "json",
+            "--checker",
+            checker_file(tmp_path, did),
+        )
         codes.append(res.exit_code)
         assert f"recorded run #{n}" in res.output
-        if n == 2:  # after a failing round the family is tightened: a larger sample with the suspect image
-            s = run("sample", root, "-p", mini_profile, "--seed", 1, "--fraction", 0.1, "--ledger", ledger,
-                    "--out", tmp_path / "s2.csv")
+        if (
+            n == 2
+        ):  # after a failing round the family is tightened: a larger sample with the suspect image
+            s = run(
+                "sample",
+                root,
+                "-p",
+                mini_profile,
+                "--seed",
+                1,
+                "--fraction",
+                0.1,
+                "--ledger",
+                ledger,
+                "--out",
+                tmp_path / "s2.csv",
+            )
             assert "audit level tightened" in s.output
-            assert any(line.startswith("I7,") for line in (tmp_path / "s2.csv").read_text().splitlines())
+            assert any(
+                line.startswith("I7,") for line in (tmp_path / "s2.csv").read_text().splitlines()
+            )
     assert codes == [1, 1, 0]  # 15 %, then 10 % of the images fail (> 5 %, §12.3), then none
     hist = run("history", "P1", "--ledger", ledger)
     assert hist.exit_code == 0
     out = hist.output
     assert out.index("D1") < out.index("D2") < out.index("D3")
     assert "redelivery" in out
-    sign = run("signoff", 3, "--by", "Maria Rossi", "--role", "supervisor", "--note", "accepted after 2nd redelivery",
-               "--ledger", ledger)
+    sign = run(
+        "signoff",
+        3,
+        "--by",
+        "Maria Rossi",
+        "--role",
+        "supervisor",
+        "--note",
+        "accepted after 2nd redelivery",
+        "--ledger",
+        ledger,
+    )
     assert sign.exit_code == 0, sign.output
-    rep = run("report", "--ledger", ledger, "--run", 3, "--format", "pdf", "--out", tmp_path / "rep")
+    rep = run(
+        "report", "--ledger", ledger, "--run", 3, "--format", "pdf", "--out", tmp_path / "rep"
+    )
     assert rep.exit_code == 0, rep.output
     with pdfplumber.open(tmp_path / "rep" / "report.pdf") as pdf:
         text = "\n".join(p.extract_text() or "" for p in pdf.pages[:3])
@@ -81,7 +132,9 @@ def _this_run(pdf):
     with pdfplumber.open(pdf) as doc:
         text = "\n".join(p.extract_text() or "" for p in doc.pages)
     # "(this report)" may wrap inside its cell: "3 (this 1 delivery 2026-01-01 D1 ...\nreport)"
-    rows = re.findall(r"(\S+) \(this(?: report\))? (\d+) (delivery|redelivery|recheck) \S+ (\S+)", text)
+    rows = re.findall(
+        r"(\S+) \(this(?: report\))? (\d+) (delivery|redelivery|recheck) \S+ (\S+)", text
+    )
     assert len(rows) == 1, text
     run_, rnd, kind, did = rows[0]
     return run_, int(rnd), kind, did
@@ -95,15 +148,44 @@ def test_round_at_check_time_equals_the_ledger_report(make_delivery, mini_profil
     ledger = tmp_path / "ledger.sqlite"
     checker = checker_file(tmp_path, "D1")
     first = delivery(make_delivery, "first", "D1", [0.5] * 19 + [5.0])
-    fixed = delivery(make_delivery, "fixed", "D1", [0.5] * 20)   # same id, one image corrected
+    fixed = delivery(make_delivery, "fixed", "D1", [0.5] * 20)  # same id, one image corrected
     expected = [(first, 1, "delivery"), (first, 1, "recheck"), (fixed, 2, "redelivery")]
     for n, (root, rnd, kind) in enumerate(expected, start=1):
         out = tmp_path / f"check{n}"
-        res = run("check", root, "-p", mini_profile, "--out", out, "--ledger", ledger, "--checker", checker,
-                  "--date", f"2026-0{n}-01", "--format", "json,pdf")
+        res = run(
+            "check",
+            root,
+            "-p",
+            mini_profile,
+            "--out",
+            out,
+            "--ledger",
+            ledger,
+            "--checker",
+            checker,
+            "--date",
+            f"2026-0{n}-01",
+            "--format",
+            "json,pdf",
+        )
         assert f"recorded run #{n}" in res.output, res.output
         at_check = _this_run(out / "report.pdf")
-        assert at_check == (str(n), rnd, kind, "D1")   # the run's own id: it is recorded as it is written
-        rep = run("report", "--ledger", ledger, "--run", n, "--format", "pdf", "--out", tmp_path / f"rep{n}")
+        assert at_check == (
+            str(n),
+            rnd,
+            kind,
+            "D1",
+        )  # the run's own id: it is recorded as it is written
+        rep = run(
+            "report",
+            "--ledger",
+            ledger,
+            "--run",
+            n,
+            "--format",
+            "pdf",
+            "--out",
+            tmp_path / f"rep{n}",
+        )
         assert rep.exit_code == 0, rep.output
         assert _this_run(tmp_path / f"rep{n}" / "report.pdf") == (str(n), rnd, kind, "D1")

@@ -29,18 +29,22 @@ def scene() -> np.ndarray:
     return ndimage.gaussian_filter(lum, 0.5)
 
 
-def _pair(scene: np.ndarray, r0: int, c0: int, dy: float, dx: float) -> tuple[np.ndarray, np.ndarray]:
+def _pair(
+    scene: np.ndarray, r0: int, c0: int, dy: float, dx: float
+) -> tuple[np.ndarray, np.ndarray]:
     """Template at (r0, c0) and a search window whose content is moved by (dy, dx): an exact,
     band-limited shift (Fourier shift theorem) of a larger window, cropped."""
-    big = scene[r0 - M - 32:r0 + T + M + 32, c0 - M - 32:c0 + T + M + 32]
+    big = scene[r0 - M - 32 : r0 + T + M + 32, c0 - M - 32 : c0 + T + M + 32]
     moved = np.fft.ifft2(ndimage.fourier_shift(np.fft.fft2(big), (dy, dx))).real
-    return scene[r0:r0 + T, c0:c0 + T], moved[32:-32, 32:-32]
+    return scene[r0 : r0 + T, c0 : c0 + T], moved[32:-32, 32:-32]
 
 
 CENTRES = [(250, 300), (320, 420), (400, 350), (200, 500), (450, 250)]
 
 
-@pytest.mark.parametrize(("dy", "dx"), [(0.0, 0.0), (0.25, -0.5), (-1.37, 2.81), (4.6, -3.05), (0.5, 0.5)])
+@pytest.mark.parametrize(
+    ("dy", "dx"), [(0.0, 0.0), (0.25, -0.5), (-1.37, 2.81), (4.6, -3.05), (0.5, 0.5)]
+)
 @pytest.mark.parametrize("method", ["phase", "ncc"])
 def test_known_subpixel_shift(scene: np.ndarray, dy: float, dx: float, method: str) -> None:
     errs = []
@@ -71,7 +75,7 @@ def test_flat_chip_goes_to_the_checker() -> None:
     rng = np.random.default_rng(1)
     field = 80 + ndimage.gaussian_filter(rng.standard_normal((T + 2 * M, T + 2 * M)), 12) * 36
     s = field + rng.normal(0, 1.5, field.shape)
-    t = field[M:M + T, M:M + T] + rng.normal(0, 1.5, (T, T))
+    t = field[M : M + T, M : M + T] + rng.normal(0, 1.5, (T, T))
     m = match_chip(t, s)
     assert m.decision == "by_hand"
     assert m.reason_code in ("low_texture", "ambiguous")
@@ -126,7 +130,9 @@ def test_bad_shapes_and_settings() -> None:
 
 
 def _bench():  # type: ignore[no-untyped-def]
-    spec = importlib.util.spec_from_file_location("bench_matching", ROOT / "benchmarks" / "matching.py")
+    spec = importlib.util.spec_from_file_location(
+        "bench_matching", ROOT / "benchmarks" / "matching.py"
+    )
     assert spec is not None and spec.loader is not None
     mod = importlib.util.module_from_spec(spec)
     sys.modules[spec.name] = mod  # dataclasses look their module up by name
@@ -147,7 +153,9 @@ def test_accuracy_targets_on_a_fixed_synthetic_set(tmp_path: Path) -> None:
     e = b.errors(pairs, res)
     textured = np.array([p.kind == "textured" for p in pairs])
     accepted = ~np.isnan(e)
-    assert not accepted[~textured].any(), [p.family for p, a in zip(pairs, accepted, strict=True) if a and p.kind != "textured"]
+    assert not accepted[~textured].any(), [
+        p.family for p, a in zip(pairs, accepted, strict=True) if a and p.kind != "textured"
+    ]
     assert accepted[textured].sum() >= textured.sum() - 1
     assert np.median(e[accepted]) <= 0.1
     assert np.percentile(e[accepted], 95) <= 0.3

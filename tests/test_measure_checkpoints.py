@@ -46,7 +46,16 @@ tables: {images: tables/images.csv}
 """
 
 # scene pixels (row, col) of surveyed points: textured land, 60+ px from the scene's no-data
-POINTS = [(532, 394), (351, 166), (545, 519), (346, 237), (454, 358), (281, 220), (598, 434), (471, 429)]
+POINTS = [
+    (532, 394),
+    (351, 166),
+    (545, 519),
+    (346, 237),
+    (454, 358),
+    (281, 220),
+    (598, 434),
+    (471, 429),
+]
 
 
 def _sha(path: Path) -> str:
@@ -54,7 +63,11 @@ def _sha(path: Path) -> str:
 
 
 def _snapshot(root: Path) -> dict[str, tuple[str, int]]:
-    return {str(p.relative_to(root)): (_sha(p), p.stat().st_mtime_ns) for p in sorted(root.rglob("*")) if p.is_file()}
+    return {
+        str(p.relative_to(root)): (_sha(p), p.stat().st_mtime_ns)
+        for p in sorted(root.rglob("*"))
+        if p.is_file()
+    }
 
 
 @pytest.fixture(scope="module")
@@ -64,8 +77,15 @@ def world(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
         data, prof, t = ds.read(), ds.profile, ds.transform
     # a camera's PSF (Gaussian, 0.5 px): the file was decimated and is aliased, and aliased texture
     # has no single position at a fractional offset (interpolators disagree by 0.04 px on it)
-    data = np.where(data > 0, np.clip(np.round(np.stack([ndimage.gaussian_filter(b.astype(float), 0.5)
-                                                         for b in data])), 1, 255), 0).astype(np.uint8)
+    data = np.where(
+        data > 0,
+        np.clip(
+            np.round(np.stack([ndimage.gaussian_filter(b.astype(float), 0.5) for b in data])),
+            1,
+            255,
+        ),
+        0,
+    ).astype(np.uint8)
     reference = base / "reference.tif"  # the checker's reference orthoimage
     with rasterio.open(reference, "w", **prof) as o:
         o.write(data)
@@ -74,8 +94,14 @@ def world(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     (d / "tables").mkdir()
     (d / "delivery.yaml").write_text(MANIFEST)
     (d / "tables" / "images.csv").write_text("image_id,file,block\nI1,images/i1.tif,B1\n")
-    moved = dict(prof, transform=Affine.translation(DX_M, DY_M) * t, tiled=True, blockxsize=256,
-                 blockysize=256, compress="deflate")
+    moved = dict(
+        prof,
+        transform=Affine.translation(DX_M, DY_M) * t,
+        tiled=True,
+        blockxsize=256,
+        blockysize=256,
+        compress="deflate",
+    )
     with rasterio.open(d / "images" / "i1.tif", "w", **moved) as o:
         o.write(data)
     chips = base / "chips"
@@ -87,14 +113,23 @@ def world(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
         w = Window(c - 48, r - 48, 96, 96)
         cp = dict(prof, width=96, height=96, transform=rasterio.windows.transform(w, t))
         with rasterio.open(chips / f"P{k}.tif", "w", **cp) as o:
-            o.write(data[:, r - 48:r + 48, c - 48:c + 48])
+            o.write(data[:, r - 48 : r + 48, c - 48 : c + 48])
     survey = base / "survey.csv"
     survey.write_text("\n".join(lines) + "\n")
-    return {"base": base, "reference": reference, "delivery": d, "chips": chips, "survey": survey, "image": d / "images" / "i1.tif"}
+    return {
+        "base": base,
+        "reference": reference,
+        "delivery": d,
+        "chips": chips,
+        "survey": survey,
+        "image": d / "images" / "i1.tif",
+    }
 
 
 def run(*args: str | Path) -> tuple[int, str, str]:
-    r = CliRunner().invoke(cli(), ["measure", "checkpoints", *map(str, args)], catch_exceptions=False)
+    r = CliRunner().invoke(
+        cli(), ["measure", "checkpoints", *map(str, args)], catch_exceptions=False
+    )
     assert "Traceback" not in r.output + r.stderr
     return r.exit_code, r.stdout, r.stderr
 
@@ -107,7 +142,9 @@ def table(out: Path) -> list[dict[str, str]]:
 def test_chip_library_measures_the_known_error(world: dict[str, Path], tmp_path: Path) -> None:
     before = _snapshot(world["delivery"])
     out = tmp_path / "checker"
-    code, _out, err = run(world["delivery"], "--reference", world["chips"], "--points", world["survey"], "--out", out)
+    code, _out, err = run(
+        world["delivery"], "--reference", world["chips"], "--points", world["survey"], "--out", out
+    )
     assert code == 0, err
     rows = table(out)
     with open(out / "tables" / "checkpoints.csv", encoding="utf-8") as fh:
@@ -137,15 +174,27 @@ def test_same_inputs_same_bytes(world: dict[str, Path], tmp_path: Path) -> None:
     outs = []
     for name in ("a", "b"):
         out = tmp_path / name
-        code, _o, err = run(world["delivery"], "--reference", world["chips"], "--points", survey, "--out", out)
+        code, _o, err = run(
+            world["delivery"], "--reference", world["chips"], "--points", survey, "--out", out
+        )
         assert code == 0, err
         outs.append(out)
-    assert _sha(outs[0] / "tables" / "checkpoints.csv") == _sha(outs[1] / "tables" / "checkpoints.csv")
+    assert _sha(outs[0] / "tables" / "checkpoints.csv") == _sha(
+        outs[1] / "tables" / "checkpoints.csv"
+    )
 
 
 def test_one_reference_orthoimage(world: dict[str, Path], tmp_path: Path) -> None:
     out = tmp_path / "checker"
-    code, _o, err = run(world["delivery"], "--reference", world["reference"], "--points", world["survey"], "--out", out)
+    code, _o, err = run(
+        world["delivery"],
+        "--reference",
+        world["reference"],
+        "--points",
+        world["survey"],
+        "--out",
+        out,
+    )
     assert code == 0, err
     rows = table(out)
     assert len(rows) >= len(POINTS) - 1
@@ -168,7 +217,9 @@ def test_reference_in_another_crs(world: dict[str, Path], tmp_path: Path) -> Non
             for b in range(1, 4):
                 reproject(rasterio.band(ds, b), rasterio.band(o, b), resampling=Resampling.lanczos)
     out = tmp_path / "checker"
-    code, _o, err = run(world["delivery"], "--reference", ref, "--points", world["survey"], "--out", out)
+    code, _o, err = run(
+        world["delivery"], "--reference", ref, "--points", world["survey"], "--out", out
+    )
     assert code == 0, err
     rows = table(out)
     assert len(rows) >= len(POINTS) - 2
@@ -193,7 +244,9 @@ def test_hand_list_round_trip(world: dict[str, Path], tmp_path: Path) -> None:
     _flat_chip(world, chips, 2)
     _flat_chip(world, chips, 5)
     out = tmp_path / "checker"
-    code, stdout, err = run(world["delivery"], "--reference", chips, "--points", world["survey"], "--out", out)
+    code, stdout, err = run(
+        world["delivery"], "--reference", chips, "--points", world["survey"], "--out", out
+    )
     assert code == 0, err
     assert "To measure by hand" in stdout
     assert {r["point_id"] for r in table(out)} == {f"P{k}" for k in range(1, 9)} - {"P2", "P5"}
@@ -205,20 +258,39 @@ def test_hand_list_round_trip(world: dict[str, Path], tmp_path: Path) -> None:
     assert all("low texture" in r for r in cols["reason"])
     assert meta["crs"] == "EPSG:32618"
     # the checker measures P2 in a GIS (moves the point, sets the status), finds P5 destroyed
-    survey = {line.split(",")[0]: line.split(",") for line in world["survey"].read_text().splitlines()[1:]}
+    survey = {
+        line.split(",")[0]: line.split(",") for line in world["survey"].read_text().splitlines()[1:]
+    }
     x2, y2 = float(survey["P2"][1]) + 100.0, float(survey["P2"][2]) - 350.0
-    status = np.array(["measured" if p == "P2" else "unusable" for p in cols["point_id"]], dtype=object)
-    comment = np.array(["on the road crossing" if p == "P2" else "mark destroyed" for p in cols["point_id"]], dtype=object)
-    pts = [shapely.Point(x2, y2) if p == "P2" else shapely.from_wkb(g) for p, g in zip(cols["point_id"], geom, strict=True)]
+    status = np.array(
+        ["measured" if p == "P2" else "unusable" for p in cols["point_id"]], dtype=object
+    )
+    comment = np.array(
+        ["on the road crossing" if p == "P2" else "mark destroyed" for p in cols["point_id"]],
+        dtype=object,
+    )
+    pts = [
+        shapely.Point(x2, y2) if p == "P2" else shapely.from_wkb(g)
+        for p, g in zip(cols["point_id"], geom, strict=True)
+    ]
     edited = tmp_path / "edited.gpkg"
-    pyogrio.raw.write(str(edited), shapely.to_wkb(pts), [np.asarray(cols["point_id"], dtype=object), status, comment],
-                      fields=["point_id", "status", "comment"], layer="checkpoints_to_measure", driver="GPKG",
-                      crs="EPSG:32618", geometry_type="Point")
+    pyogrio.raw.write(
+        str(edited),
+        shapely.to_wkb(pts),
+        [np.asarray(cols["point_id"], dtype=object), status, comment],
+        fields=["point_id", "status", "comment"],
+        layer="checkpoints_to_measure",
+        driver="GPKG",
+        crs="EPSG:32618",
+        geometry_type="Point",
+    )
     hand.unlink()
     edited.rename(hand)
     hand_sha = _sha(hand)
     # run again: the hand list in the checker folder is merged
-    code, _o, err = run(world["delivery"], "--reference", chips, "--points", world["survey"], "--out", out)
+    code, _o, err = run(
+        world["delivery"], "--reference", chips, "--points", world["survey"], "--out", out
+    )
     assert code == 0, err
     rows = {r["point_id"]: r for r in table(out)}
     assert "P5" not in rows  # unusable: not a check point
@@ -231,32 +303,62 @@ def test_hand_list_round_trip(world: dict[str, Path], tmp_path: Path) -> None:
     # the rewritten hand list keeps the checker's answers
     meta, _f, geom, fields = pyogrio.raw.read(out / HAND_FILE)
     cols = dict(zip(meta["fields"], fields, strict=True))
-    assert dict(zip(cols["point_id"], cols["status"], strict=True)) == {"P2": "measured", "P5": "unusable"}
+    assert dict(zip(cols["point_id"], cols["status"], strict=True)) == {
+        "P2": "measured",
+        "P5": "unusable",
+    }
 
 
 def test_hand_list_as_csv(world: dict[str, Path], tmp_path: Path) -> None:
     hand = tmp_path / "hand.csv"
     hand.write_text("point_id,status,x,y,comment\nP3,measured,1000.5,2000.25,checked twice\n")
     out = tmp_path / "checker"
-    code, _o, err = run(world["delivery"], "--reference", world["chips"], "--points", world["survey"], "--out", out,
-                        "--hand", hand)
+    code, _o, err = run(
+        world["delivery"],
+        "--reference",
+        world["chips"],
+        "--points",
+        world["survey"],
+        "--out",
+        out,
+        "--hand",
+        hand,
+    )
     assert code == 0, err
     p3 = {r["point_id"]: r for r in table(out)}["P3"]
     assert (p3["decision"], p3["x"], p3["y"]) == ("by_hand", "1000.5", "2000.25")
     assert p3["reason"] == "accepted automatically; measured by hand: checked twice"
 
 
-@pytest.mark.parametrize(("text", "message"), [
-    ("point_id,status,x,y\nP3,done,1,2\n", "row 1: column 'status': unknown status 'done'"),
-    ("point_id,status,x,y\nP3,measured,,2\n", "row 1: column 'x': a measured point needs a finite x"),
-    ("point_id,status,x,y\nP77,measured,1,2\n", "row 1: column 'point_id': point_id 'P77' is not in the survey"),
-])
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("point_id,status,x,y\nP3,done,1,2\n", "row 1: column 'status': unknown status 'done'"),
+        (
+            "point_id,status,x,y\nP3,measured,,2\n",
+            "row 1: column 'x': a measured point needs a finite x",
+        ),
+        (
+            "point_id,status,x,y\nP77,measured,1,2\n",
+            "row 1: column 'point_id': point_id 'P77' is not in the survey",
+        ),
+    ],
+)
 def test_bad_hand_list(world: dict[str, Path], tmp_path: Path, text: str, message: str) -> None:
     hand = tmp_path / "hand.csv"
     hand.write_text(text)
     out = tmp_path / "checker"
-    code, _o, err = run(world["delivery"], "--reference", world["chips"], "--points", world["survey"], "--out", out,
-                        "--hand", hand)
+    code, _o, err = run(
+        world["delivery"],
+        "--reference",
+        world["chips"],
+        "--points",
+        world["survey"],
+        "--out",
+        out,
+        "--hand",
+        hand,
+    )
     assert code == 2
     assert f"{hand}: {message}" in err
     assert not (out / "tables" / "checkpoints.csv").exists()
@@ -273,32 +375,67 @@ def _survey(tmp_path: Path, text: str) -> Path:
 
 def test_points_outside_every_image(world: dict[str, Path], tmp_path: Path) -> None:
     survey = _survey(tmp_path, "point_id,x,y\nA,100,200\nB,300,400\n")
-    code, _o, err = run(world["delivery"], "--reference", world["chips"], "--points", survey, "--out", tmp_path / "c")
+    code, _o, err = run(
+        world["delivery"],
+        "--reference",
+        world["chips"],
+        "--points",
+        survey,
+        "--out",
+        tmp_path / "c",
+    )
     assert code == 2
-    assert f"{survey}: none of its 2 point(s) lies on a delivered image: nothing can be measured" in err
-    assert f"{survey}: row 1: point A at (100.000, 200.000) lies outside every delivered image" in err
+    assert (
+        f"{survey}: none of its 2 point(s) lies on a delivered image: nothing can be measured"
+        in err
+    )
+    assert (
+        f"{survey}: row 1: point A at (100.000, 200.000) lies outside every delivered image" in err
+    )
     assert not (tmp_path / "c").exists()
 
 
 def test_some_points_outside(world: dict[str, Path], tmp_path: Path) -> None:
     survey = _survey(tmp_path, world["survey"].read_text() + "FAR,100,200,,,\n")
-    code, _o, err = run(world["delivery"], "--reference", world["chips"], "--points", survey, "--out", tmp_path / "c")
+    code, _o, err = run(
+        world["delivery"],
+        "--reference",
+        world["chips"],
+        "--points",
+        survey,
+        "--out",
+        tmp_path / "c",
+    )
     assert code == 0
-    assert f"warning: {survey}: row 9: point FAR at (100.000, 200.000) lies outside every delivered image" in err
+    assert (
+        f"warning: {survey}: row 9: point FAR at (100.000, 200.000) lies outside every delivered image"
+        in err
+    )
     assert "FAR" not in {r["point_id"] for r in table(tmp_path / "c")}
 
 
-@pytest.mark.parametrize(("text", "message"), [
-    ("point_id,x,y\nA,1,2\nA,3,4\n", "column 'point_id': duplicate id 'A' in rows 1, 2"),
-    ("point_id,x,y\nA,nan,2\n", "row 1: column 'x': expected a finite number"),
-    ("point_id,x,y\nA,1,\n", "row 1: column 'y': required value is empty"),
-    ("point_id,x\nA,1\n", "missing required column(s) y"),
-    ("point_id,x,y,colour\nA,1,2,red\n", "unexpected column(s) colour"),
-    ("point_id,x,y\n", "no survey point"),
-])
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("point_id,x,y\nA,1,2\nA,3,4\n", "column 'point_id': duplicate id 'A' in rows 1, 2"),
+        ("point_id,x,y\nA,nan,2\n", "row 1: column 'x': expected a finite number"),
+        ("point_id,x,y\nA,1,\n", "row 1: column 'y': required value is empty"),
+        ("point_id,x\nA,1\n", "missing required column(s) y"),
+        ("point_id,x,y,colour\nA,1,2,red\n", "unexpected column(s) colour"),
+        ("point_id,x,y\n", "no survey point"),
+    ],
+)
 def test_bad_survey(world: dict[str, Path], tmp_path: Path, text: str, message: str) -> None:
     survey = _survey(tmp_path, text)
-    code, _o, err = run(world["delivery"], "--reference", world["chips"], "--points", survey, "--out", tmp_path / "c")
+    code, _o, err = run(
+        world["delivery"],
+        "--reference",
+        world["chips"],
+        "--points",
+        survey,
+        "--out",
+        tmp_path / "c",
+    )
     assert code == 2
     assert err.startswith(f"error: {survey}")
     assert message in err
@@ -307,8 +444,15 @@ def test_bad_survey(world: dict[str, Path], tmp_path: Path, text: str, message: 
 
 def test_out_inside_the_delivery(world: dict[str, Path]) -> None:
     before = _snapshot(world["delivery"])
-    code, _o, err = run(world["delivery"], "--reference", world["chips"], "--points", world["survey"],
-                        "--out", world["delivery"] / "checker")
+    code, _o, err = run(
+        world["delivery"],
+        "--reference",
+        world["chips"],
+        "--points",
+        world["survey"],
+        "--out",
+        world["delivery"] / "checker",
+    )
     assert code == 2 and "lies inside the delivery" in err
     assert _snapshot(world["delivery"]) == before
 
@@ -320,7 +464,9 @@ def test_reference_without_overlap(world: dict[str, Path], tmp_path: Path) -> No
         data = ds.read()
     with rasterio.open(ref, "w", **prof) as o:
         o.write(data)
-    code, _o, err = run(world["delivery"], "--reference", ref, "--points", world["survey"], "--out", tmp_path / "c")
+    code, _o, err = run(
+        world["delivery"], "--reference", ref, "--points", world["survey"], "--out", tmp_path / "c"
+    )
     assert code == 2
     assert f"error: {ref}: the reference gives no usable chip for any surveyed point" in err
     assert "no reference chip covers the point" in err
@@ -331,7 +477,9 @@ def test_reference_without_crs(world: dict[str, Path], tmp_path: Path) -> None:
     ref = tmp_path / "nocrs.tif"
     with rasterio.open(ref, "w", driver="GTiff", width=50, height=50, count=1, dtype="uint8") as o:
         o.write(np.zeros((1, 50, 50), np.uint8))
-    code, _o, err = run(world["delivery"], "--reference", ref, "--points", world["survey"], "--out", tmp_path / "c")
+    code, _o, err = run(
+        world["delivery"], "--reference", ref, "--points", world["survey"], "--out", tmp_path / "c"
+    )
     assert code == 2
     assert f"{ref}: has no coordinate reference system" in err
 
@@ -345,25 +493,50 @@ def test_tiny_and_huge_chips(world: dict[str, Path], tmp_path: Path) -> None:
         (chips / f"P{k}.tif").write_bytes((world["chips"] / f"P{k}.tif").read_bytes())
     with rasterio.open(world["chips"] / "P2.tif") as ds:
         t2, crs = ds.transform, ds.crs
-    with rasterio.open(chips / "P2.tif", "w", driver="GTiff", width=1, height=1, count=1, dtype="uint8",
-                       crs=crs, transform=t2 * Affine.translation(48, 48)) as o:
+    with rasterio.open(
+        chips / "P2.tif",
+        "w",
+        driver="GTiff",
+        width=1,
+        height=1,
+        count=1,
+        dtype="uint8",
+        crs=crs,
+        transform=t2 * Affine.translation(48, 48),
+    ) as o:
         o.write(np.full((1, 1, 1), 90, np.uint8))
     huge = chips / "P3.tif"  # replaces P3: 10,000 x 10,000 px around P3, constant, tiled
     with rasterio.open(world["chips"] / "P3.tif") as ds:
         t3 = ds.transform * Affine.translation(48 - 5000, 48 - 5000)
-    with rasterio.open(huge, "w", driver="GTiff", width=10000, height=10000, count=1, dtype="uint8", crs=crs,
-                       transform=t3, tiled=True, compress="deflate", sparse_ok=True) as o:
+    with rasterio.open(
+        huge,
+        "w",
+        driver="GTiff",
+        width=10000,
+        height=10000,
+        count=1,
+        dtype="uint8",
+        crs=crs,
+        transform=t3,
+        tiled=True,
+        compress="deflate",
+        sparse_ok=True,
+    ) as o:
         o.write(np.full((1, 512, 512), 90, np.uint8), window=Window(4744, 4744, 512, 512))
     survey = _survey(tmp_path, "\n".join(world["survey"].read_text().splitlines()[:5]) + "\n")
     out = tmp_path / "c"
-    code, stdout, err = run(world["delivery"], "--reference", chips, "--points", survey, "--out", out, "--json")
+    code, stdout, err = run(
+        world["delivery"], "--reference", chips, "--points", survey, "--out", out, "--json"
+    )
     assert code == 0, err
     import json
 
     doc = {p["point_id"]: p for p in json.loads(stdout)["points"]}
     assert doc["P2"]["decision"] == "to_measure" and doc["P2"]["reason_code"] == "reference"
-    assert f"{chips}/P2.tif covers too little around the point" in doc["P2"]["reason"] or \
-        "does not cover the point" in doc["P2"]["reason"]
+    assert (
+        f"{chips}/P2.tif covers too little around the point" in doc["P2"]["reason"]
+        or "does not cover the point" in doc["P2"]["reason"]
+    )
     assert doc["P3"]["decision"] == "to_measure" and doc["P3"]["reason_code"] == "low_texture"
     assert doc["P1"]["decision"] == doc["P4"]["decision"] == "accepted"
 
@@ -373,11 +546,22 @@ def test_all_chips_too_small(world: dict[str, Path], tmp_path: Path) -> None:
     chips.mkdir()
     with rasterio.open(world["chips"] / "P1.tif") as ds:
         t1, crs = ds.transform, ds.crs
-    with rasterio.open(chips / "P1.tif", "w", driver="GTiff", width=1, height=1, count=1, dtype="uint8",
-                       crs=crs, transform=t1 * Affine.translation(48, 48)) as o:
+    with rasterio.open(
+        chips / "P1.tif",
+        "w",
+        driver="GTiff",
+        width=1,
+        height=1,
+        count=1,
+        dtype="uint8",
+        crs=crs,
+        transform=t1 * Affine.translation(48, 48),
+    ) as o:
         o.write(np.full((1, 1, 1), 90, np.uint8))
     survey = _survey(tmp_path, "\n".join(world["survey"].read_text().splitlines()[:2]) + "\n")
-    code, _o, err = run(world["delivery"], "--reference", chips, "--points", survey, "--out", tmp_path / "c")
+    code, _o, err = run(
+        world["delivery"], "--reference", chips, "--points", survey, "--out", tmp_path / "c"
+    )
     assert code == 2
     assert "the reference gives no usable chip for any surveyed point" in err
 
@@ -385,10 +569,25 @@ def test_all_chips_too_small(world: dict[str, Path], tmp_path: Path) -> None:
 def test_no_reference(world: dict[str, Path], tmp_path: Path) -> None:
     empty = tmp_path / "empty"
     empty.mkdir()
-    code, _o, err = run(world["delivery"], "--reference", empty, "--points", world["survey"], "--out", tmp_path / "c")
+    code, _o, err = run(
+        world["delivery"],
+        "--reference",
+        empty,
+        "--points",
+        world["survey"],
+        "--out",
+        tmp_path / "c",
+    )
     assert code == 2 and f"{empty}: no usable reference chip: no .tif/.tiff file in it" in err
-    code, _o, err = run(world["delivery"], "--reference", tmp_path / "nope.tif", "--points", world["survey"],
-                        "--out", tmp_path / "c")
+    code, _o, err = run(
+        world["delivery"],
+        "--reference",
+        tmp_path / "nope.tif",
+        "--points",
+        world["survey"],
+        "--out",
+        tmp_path / "c",
+    )
     assert code == 2 and "reference not found" in err
 
 
@@ -399,8 +598,27 @@ def test_subprocess_exit_codes(world: dict[str, Path], tmp_path: Path) -> None:
 
     exe = Path(sys.executable).with_name("orthospec")
     survey = _survey(tmp_path, "point_id,x,y\nA,1,2\nA,3,4\n")
-    r = subprocess.run([str(exe), "measure", "checkpoints", str(world["delivery"]), "--reference",
-                        str(world["chips"]), "--points", str(survey), "--out", str(tmp_path / "c")],
-                       capture_output=True, text=True, check=False, env={**os.environ, "COLUMNS": "200"})
+    r = subprocess.run(
+        [
+            str(exe),
+            "measure",
+            "checkpoints",
+            str(world["delivery"]),
+            "--reference",
+            str(world["chips"]),
+            "--points",
+            str(survey),
+            "--out",
+            str(tmp_path / "c"),
+        ],
+        capture_output=True,
+        text=True,
+        check=False,
+        env={**os.environ, "COLUMNS": "200"},
+    )
     assert r.returncode == 2
-    assert r.stderr.startswith("error: ") and "duplicate id 'A'" in r.stderr and "Traceback" not in r.stderr
+    assert (
+        r.stderr.startswith("error: ")
+        and "duplicate id 'A'" in r.stderr
+        and "Traceback" not in r.stderr
+    )

@@ -398,9 +398,16 @@ def test_blunder_reasons_per_decision_class_and_axes_with_target_basis():
     dy[[3, 4, 5]] = 2.0  # over 3 x 0.5 m in y
     dz[[5, 6]] = 1.0  # over 3 x 0.25 m in z
     ids = [f"Q{i}" for i in range(12)]
-    res = detect_blunders(dx, dy, dz, ids=ids, basis="target", target_rmse_xy=0.5, target_rmse_z=0.25,
-                          exclusions={"Q1": "target destroyed", "Q3": "mis-identified", "Q4": "",
-                                      "Q8": "looks odd"})
+    res = detect_blunders(
+        dx,
+        dy,
+        dz,
+        ids=ids,
+        basis="target",
+        target_rmse_xy=0.5,
+        target_rmse_z=0.25,
+        exclusions={"Q1": "target destroyed", "Q3": "mis-identified", "Q4": "", "Q8": "looks odd"},
+    )
     over = "exceeds the maximum tolerable discrepancy in "
     expected = {
         "Q0": "within the maximum tolerable discrepancy",
@@ -410,7 +417,7 @@ def test_blunder_reasons_per_decision_class_and_axes_with_target_basis():
         "Q5": over + "x, y, z; no exclusion requested, kept",
         "Q6": over + "z; no exclusion requested, kept",
         "Q8": "exclusion requested but the point is within the maximum tolerable discrepancy; it stays in "
-              "the sample (JRC §12.6)",
+        "the sample (JRC §12.6)",
     }
     got = dict(zip(ids, res.reasons.tolist(), strict=True))
     for pid, text in expected.items():

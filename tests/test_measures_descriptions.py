@@ -21,7 +21,11 @@ def test_every_registered_measure_has_a_description() -> None:
 def test_the_ce90_family_is_distinguishable() -> None:
     d = {n: describe(f"checkpoints.{n}") for n in ("ce90", "ce90_empirical", "ce90_selected")}
     assert len(set(d.values())) == 3
-    assert "percentile" in d["ce90_empirical"] and "model" in d["ce90"] and "bias" in d["ce90_selected"]
+    assert (
+        "percentile" in d["ce90_empirical"]
+        and "model" in d["ce90"]
+        and "bias" in d["ce90_selected"]
+    )
 
 
 def test_measures_command_prints_each_description_uncut() -> None:

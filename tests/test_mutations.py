@@ -14,7 +14,8 @@ mutation, not the example, causes the finding), after the mutation the delivery 
 exit code of ``orthospec check`` is 1), and the rule is among the mandatory fail/missing/error records
 for that item. A rule whose consequence is ``incomplete`` (the checker's fault, issue 26) is planted as
 such (``expect: incomplete``): the delivery is never accepted, the verdict is ``incomplete`` (exit 3)
-and ``rollup.incomplete`` names the item and the rule. The coverage line ("mutation coverage: N/M ...") is printed at the end of the run.
+and ``rollup.incomplete`` names the item and the rule. The coverage line ("mutation coverage: N/M
+...") is printed at the end of the run.
 """
 
 from __future__ import annotations
@@ -38,7 +39,9 @@ from mutation_coverage import PLUGIN_NAME, CoverageReport, mandatory_automatic
 from orthospec.errors import OrthospecError
 from orthospec.profile.loader import ResolvedProfile, load_profile
 
-TABLE = yaml.safe_load((Path(__file__).parent / "data" / "mutations.yaml").read_text(encoding="utf-8"))
+TABLE = yaml.safe_load(
+    (Path(__file__).parent / "data" / "mutations.yaml").read_text(encoding="utf-8")
+)
 SHIPPED = {name: ROOT / "specs" / f"{name}.yaml" for name in TABLE["profiles"]}
 BAD = ("fail", "missing", "error")
 
@@ -48,8 +51,15 @@ def _cases() -> list[dict[str, Any]]:
     out = []
     for g in TABLE["groups"]:
         for c in g["cases"]:
-            out.append({**c, "group": g["id"], "profile": g["profile"], "example": g["example"],
-                        "params": g.get("params") or {}})
+            out.append(
+                {
+                    **c,
+                    "group": g["id"],
+                    "profile": g["profile"],
+                    "example": g["example"],
+                    "params": g.get("params") or {},
+                }
+            )
     return out
 
 
@@ -121,7 +131,7 @@ def _edit_csv(path: Path, m: dict[str, Any]) -> None:
     hit = [r for r in rows if _match(r, m.get("where"))]
     assert hit, f"mutation matches no row: {m}"
     if "keep" in m:  # drop matching rows beyond the first `keep`
-        drop = {id(r) for r in hit[m["keep"]:]}
+        drop = {id(r) for r in hit[m["keep"] :]}
         rows = [r for r in rows if id(r) not in drop]
     for col, value in (m.get("set") or {}).items():
         if col not in columns:
@@ -134,7 +144,9 @@ def _edit_csv(path: Path, m: dict[str, Any]) -> None:
         mean = sum(float(r[col]) - float(r[ref]) for r in hit) / len(hit)
         for r in hit:
             r[col] = f"{float(r[col]) - mean:.3f}"
-    for col, (ref, factor) in (m.get("scale_error") or {}).items():  # col = ref + factor x (col - ref)
+    for col, (ref, factor) in (
+        m.get("scale_error") or {}
+    ).items():  # col = ref + factor x (col - ref)
         for r in hit:
             r[col] = f"{float(r[ref]) + float(factor) * (float(r[col]) - float(r[ref])):.3f}"
     for col, delta in (m.get("add") or {}).items():  # after debias and scale_error
@@ -170,7 +182,9 @@ def _mutate_manifest(root: Path, m: dict[str, Any]) -> None:
         src = next(b for b in doc["blocks"] if b["id"] == dotted)
         for i in range(n):
             # without an outline: copies of B01's polygon would overlap B01 (refused at read, red team R17)
-            doc["blocks"].append({**src, "id": f"{dotted}-X{i + 1:02d}", "reported": {}, "polygon": None})
+            doc["blocks"].append(
+                {**src, "id": f"{dotted}-X{i + 1:02d}", "reported": {}, "polygon": None}
+            )
     path.write_text(yaml.safe_dump(doc, sort_keys=False, allow_unicode=True), encoding="utf-8")
 
 
@@ -191,8 +205,11 @@ def _mutate_raster(root: Path, m: dict[str, Any]) -> None:
     if "crs" in m:
         profile["crs"] = m["crs"]
     if "driver" in m:  # another format, same name: what a mislabelled file looks like
-        profile = {k: v for k, v in profile.items() if k in ("width", "height", "count", "dtype", "crs",
-                                                            "transform")}
+        profile = {
+            k: v
+            for k, v in profile.items()
+            if k in ("width", "height", "count", "dtype", "crs", "transform")
+        }
         profile["driver"] = m["driver"]
     if "fill" in m:
         arr = np.full_like(arr, m["fill"])
@@ -215,8 +232,13 @@ def _derive_table(root: Path, m: dict[str, Any]) -> None:
     """A new table with one row per row of an existing one: copied id columns plus constant values."""
     _, rows = _read_csv(_table_path(root, m["from"]))
     columns = [*m["copy"], *m["set"]]
-    out = [{**{c: r[c] for c in m["copy"]}, **{k: "" if v is None else str(v) for k, v in m["set"].items()}}
-           for r in rows]
+    out = [
+        {
+            **{c: r[c] for c in m["copy"]},
+            **{k: "" if v is None else str(v) for k, v in m["set"].items()},
+        }
+        for r in rows
+    ]
     _write_csv(root / m["path"], columns, out)
     _mutate_manifest(root, {"set": {f"tables.{m['table']}": m["path"]}})
 
@@ -246,14 +268,23 @@ def _mutate_checker(root: Path, m: dict[str, Any]) -> None:
     path.write_text(yaml.safe_dump(doc, sort_keys=False), encoding="utf-8")
 
 
-OPS = {"checker": _mutate_checker, "derive": _derive_table, "csv": _mutate_csv, "manifest": _mutate_manifest, "raster": _mutate_raster, "delete": _delete_file,
-       "write": _write_file, "checker_csv": _mutate_checker_csv, "checker_delete": _delete_checker_file,
-       "checker_grid": _mutate_checker_grid}
+OPS = {
+    "checker": _mutate_checker,
+    "derive": _derive_table,
+    "csv": _mutate_csv,
+    "manifest": _mutate_manifest,
+    "raster": _mutate_raster,
+    "delete": _delete_file,
+    "write": _write_file,
+    "checker_csv": _mutate_checker_csv,
+    "checker_delete": _delete_checker_file,
+    "checker_grid": _mutate_checker_grid,
+}
 
 
 def apply_mutations(root: Path, mutations: list[dict[str, Any]]) -> None:
     for m in mutations:
-        (op, spec), = m.items()
+        ((op, spec),) = m.items()
         OPS[op](root, spec)
 
 
@@ -263,12 +294,20 @@ def _profile(name: str) -> ResolvedProfile:
     return load_profile(SHIPPED[name])
 
 
-def _run(root: Path, profile: str, params: dict[str, Any], cache: Path | None = None) -> dict[str, Any]:
+def _run(
+    root: Path, profile: str, params: dict[str, Any], cache: Path | None = None
+) -> dict[str, Any]:
     """One check through the library; ``cache`` is orthospec's raster result cache (by SHA-256), so
     the unchanged images of a copied delivery are not scanned again. The example's checker file signs
     its manual checks, so the baseline is accepted and only the planted violation can reject."""
-    res = check_with(root, _profile(profile), params={k: str(v) for k, v in params.items()}, date=DATE,
-                     checker=_signed(root), options={"workers": 1, "cache_dir": str(cache) if cache else None})
+    res = check_with(
+        root,
+        _profile(profile),
+        params={k: str(v) for k, v in params.items()},
+        date=DATE,
+        checker=_signed(root),
+        options={"workers": 1, "cache_dir": str(cache) if cache else None},
+    )
     return res.document
 
 
@@ -278,8 +317,11 @@ def raster_cache(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def _bad(doc: dict[str, Any]) -> dict[tuple[str, str], str]:
-    return {(r["rule"], r["item"]): r["verdict"] for r in records(doc)
-            if r["verdict"] in BAD and r["level"] == "mandatory"}
+    return {
+        (r["rule"], r["item"]): r["verdict"]
+        for r in records(doc)
+        if r["verdict"] in BAD and r["level"] == "mandatory"
+    }
 
 
 @pytest.fixture(scope="module")
@@ -318,28 +360,45 @@ def runs(tmp_path_factory: pytest.TempPathFactory, raster_cache: Path) -> Iterat
 @pytest.mark.parametrize("case", CASES, ids=[f"{c['profile']}:{c['rule']}" for c in CASES])
 def test_planted_violation_rejects_for_the_rule(runs: Any, case: dict[str, Any]) -> None:
     prepared = case["group"] if GROUPS[case["group"]].get("prepare") else None
-    base = runs(("base", case["profile"], case["example"], tuple(sorted(case["params"].items())), prepared))
+    base = runs(
+        ("base", case["profile"], case["example"], tuple(sorted(case["params"].items())), prepared)
+    )
     key = (case["rule"], str(case["item"]))
-    if case.get("baseline") == "missing":  # no evidence in the example: the mutation plants failing evidence
+    if (
+        case.get("baseline") == "missing"
+    ):  # no evidence in the example: the mutation plants failing evidence
         assert _bad(base).get(key) == "missing", _bad(base).get(key)
         case = {**case, "verdict": "fail"}
     else:
-        assert key not in _bad(base), f"the unmutated {case['example']} already fails {key}: not a planted case"
+        assert key not in _bad(base), (
+            f"the unmutated {case['example']} already fails {key}: not a planted case"
+        )
     doc = runs(case["group"])
     if "refused" in case:  # the delivery convention itself refuses the violation (exit 2)
-        assert isinstance(doc, OrthospecError), f"expected the delivery to be refused, got {doc['verdict']}"
+        assert isinstance(doc, OrthospecError), (
+            f"expected the delivery to be refused, got {doc['verdict']}"
+        )
         assert case["refused"] in str(doc), str(doc)
         return
     assert not isinstance(doc, OrthospecError), str(doc)
     if case.get("expect") == "incomplete":
         assert doc["verdict"] == "incomplete", doc["rollup"]
-        said = [t for t in doc["rollup"]["incomplete"] if t.startswith(f"{case['item']}:") and case["rule"] in t]
-        assert said, (f"rollup.incomplete names no {case['item']} for {case['rule']}", doc["rollup"]["incomplete"])
+        said = [
+            t
+            for t in doc["rollup"]["incomplete"]
+            if t.startswith(f"{case['item']}:") and case["rule"] in t
+        ]
+        assert said, (
+            f"rollup.incomplete names no {case['item']} for {case['rule']}",
+            doc["rollup"]["incomplete"],
+        )
     else:
         assert doc["verdict"] == "rejected", doc["rollup"]
     bad = _bad(doc)
-    assert key in bad, (f"{case['rule']} does not fail on {case['item']} after the mutation; mandatory "
-                        f"findings: {sorted({r for r, _ in bad})}")
+    assert key in bad, (
+        f"{case['rule']} does not fail on {case['item']} after the mutation; mandatory "
+        f"findings: {sorted({r for r, _ in bad})}"
+    )
     if case.get("verdict"):
         assert bad[key] == case["verdict"], (key, bad[key])
 
@@ -351,20 +410,29 @@ def test_every_mandatory_automatic_rule_has_a_case(profile: str) -> None:
     rules = mandatory_automatic(profile)
     cased = {c["rule"] for c in CASES if c["profile"] == profile}
     excepted = {r for p, r in EXCEPTIONS if p == profile}
-    assert not (rules - cased - excepted), f"mandatory automatic rules without a mutation case: {sorted(rules - cased - excepted)}"
+    assert not (rules - cased - excepted), (
+        f"mandatory automatic rules without a mutation case: {sorted(rules - cased - excepted)}"
+    )
     assert not (cased & excepted), f"both planted and excepted: {sorted(cased & excepted)}"
     stale = (cased | excepted) - rules
-    assert not stale, f"table names rules that are not mandatory automatic rules of {profile}: {sorted(stale)}"
-    assert all(len(EXCEPTIONS[(profile, r)]) > 20 for r in excepted), "each exception needs a reason"
+    assert not stale, (
+        f"table names rules that are not mandatory automatic rules of {profile}: {sorted(stale)}"
+    )
+    assert all(len(EXCEPTIONS[(profile, r)]) > 20 for r in excepted), (
+        "each exception needs a reason"
+    )
     spec = yaml.safe_load(SHIPPED[profile].read_text(encoding="utf-8"))["rules"]
     incomplete = {r["id"] for r in spec if r.get("consequence") == "incomplete"}
     for c in (c for c in CASES if c["profile"] == profile):
         assert (c.get("expect") == "incomplete") == (c["rule"] in incomplete), (
             f"{c['rule']}: consequence {'incomplete' if c['rule'] in incomplete else 'rejecting'} but the case "
-            f"expects {c.get('expect', 'rejected')}")
+            f"expects {c.get('expect', 'rejected')}"
+        )
     for g in (g for g in TABLE["groups"] if g["profile"] == profile):
         kinds = {c.get("expect", "rejected") for c in g["cases"]}
-        assert len(kinds) == 1, f"group {g['id']} mixes incomplete and rejecting cases: each must set the verdict"
+        assert len(kinds) == 1, (
+            f"group {g['id']} mixes incomplete and rejecting cases: each must set the verdict"
+        )
 
 
 @pytest.fixture(scope="module", autouse=True)
@@ -375,14 +443,28 @@ def _report_coverage(request: pytest.FixtureRequest) -> None:
         pm.register(CoverageReport(), PLUGIN_NAME)
 
 
-def test_uniform_shift_under_the_tolerance_raises_a_visible_finding(tmp_path: Path, raster_cache: Path) -> None:
+def test_uniform_shift_under_the_tolerance_raises_a_visible_finding(
+    tmp_path: Path, raster_cache: Path
+) -> None:
     """Issue 12 item 5: B01 shifted by 0.45 m in x under the 0.5 m tolerance. RMSEx still passes, the
     §12.4 systematic-error guard warns (default level) and rejects the block once a tender makes it
     mandatory. The t value is recomputed here from the mutated CSV (one-sample t, s with n-1)."""
     root = tmp_path / "aerial-pass"
     shutil.copytree(EXAMPLES / "aerial-pass", root)
-    apply_mutations(root, [{"checker_csv": {"table": "checkpoints", "where": {"block": "B01"}, "debias": {"x": "x_ref"},
-                                            "scale_error": {"x": ["x_ref", 0.3]}, "add": {"x": 0.45}}}])
+    apply_mutations(
+        root,
+        [
+            {
+                "checker_csv": {
+                    "table": "checkpoints",
+                    "where": {"block": "B01"},
+                    "debias": {"x": "x_ref"},
+                    "scale_error": {"x": ["x_ref", 0.3]},
+                    "add": {"x": 0.45},
+                }
+            }
+        ],
+    )
     _, rows = _read_csv(checker_for(root) / "tables" / "checkpoints.csv")
     dx = np.array([float(r["x"]) - float(r["x_ref"]) for r in rows if r["block"] == "B01"])
     t_expected = abs(dx.mean()) / (dx.std(ddof=1) / np.sqrt(dx.size))
@@ -392,7 +474,9 @@ def test_uniform_shift_under_the_tolerance_raises_a_visible_finding(tmp_path: Pa
     rec = {(r["rule"], r["item"]): r for r in records(doc)}
     assert rec[("JRC-12.7-RMSEX", "B01")]["verdict"] == "pass"
     guard = rec[("JRC-12.4-SYSTEMATIC-X", "B01")]
-    assert guard["verdict"] == "warn" and guard["measured"]["value"] == pytest.approx(t_expected, rel=1e-3)
+    assert guard["verdict"] == "warn" and guard["measured"]["value"] == pytest.approx(
+        t_expected, rel=1e-3
+    )
 
     strict = _run(root, "jrc-v3", {"systematic_error_level": "mandatory"}, raster_cache)
     assert strict["verdict"] == "rejected" and "B01" in strict["rollup"]["rejected"]["block"]
@@ -405,28 +489,62 @@ def test_uniform_shift_under_the_tolerance_raises_a_visible_finding(tmp_path: Pa
 OBSERVED = {
     "block B01 cut to 8 check points": (
         [{"checker_csv": {"table": "checkpoints", "where": {"block": "B01"}, "keep": 8}}],
-        {("JRC-12.4-T12-MIN-CHECKPOINTS", "B01")}, "incomplete"),
+        {("JRC-12.4-T12-MIN-CHECKPOINTS", "B01")},
+        "incomplete",
+    ),
     "2 of 30 images truncated (6.7 % > 5 %)": (
-        [{"raster": {"file": "images/F01_0101.tif", "truncate": True}},
-         {"raster": {"file": "images/F02_0203.tif", "truncate": True}}],
-        {("JRC-9.2-T7-READABLE", "F01_0101"), ("JRC-9.2-T7-READABLE", "F02_0203"),
-         ("JRC-12.3-IMAGE-FAIL-SHARE", "D-2026-014")}, "rejected"),
+        [
+            {"raster": {"file": "images/F01_0101.tif", "truncate": True}},
+            {"raster": {"file": "images/F02_0203.tif", "truncate": True}},
+        ],
+        {
+            ("JRC-9.2-T7-READABLE", "F01_0101"),
+            ("JRC-9.2-T7-READABLE", "F02_0203"),
+            ("JRC-12.3-IMAGE-FAIL-SHARE", "D-2026-014"),
+        },
+        "rejected",
+    ),
     "a check point on a GCP and every check point at 1.0 m precision": (
-        [{"checker_csv": {"table": "checkpoints", "where": {"point_id": "B02-C01"},
-                          "set": {"x_ref": 507802.959, "y_ref": 5403235.439, "x": 507803.05, "y": 5403235.21}}},
-         {"checker_csv": {"table": "checkpoints", "set": {"precision_xy": 1.0}}}],
-        {("JRC-12.5-INDEPENDENT-CHECKPOINTS", "B02"), ("JRC-DEF-CHECKPOINT-ACCURACY", "B01-C01")}, "incomplete"),
+        [
+            {
+                "checker_csv": {
+                    "table": "checkpoints",
+                    "where": {"point_id": "B02-C01"},
+                    "set": {
+                        "x_ref": 507802.959,
+                        "y_ref": 5403235.439,
+                        "x": 507803.05,
+                        "y": 5403235.21,
+                    },
+                }
+            },
+            {"checker_csv": {"table": "checkpoints", "set": {"precision_xy": 1.0}}},
+        ],
+        {("JRC-12.5-INDEPENDENT-CHECKPOINTS", "B02"), ("JRC-DEF-CHECKPOINT-ACCURACY", "B01-C01")},
+        "incomplete",
+    ),
     # satellite-pass: 4 bands at 0.5 m from 1.24 m multispectral scenes, declared not pan-sharpened; the
     # §10.5 rules were gated on that flag (not applicable, ACCEPTED). Now derived.pansharpened decides.
     "satellite: pan-sharpened product declared pansharpened: false, §10.5.1 record failed": (
-        [{"manifest": {"set": {"product.pansharpened": False}}},
-         {"checker": {"where": {"check": "JRC-10.5.1-SAME-MODEL-GCPS"}, "set": {"verdict": "fail"}}}],
-        {("JRC-10.5.1-SAME-MODEL-GCPS", "D-2026-031")}, "rejected"),
+        [
+            {"manifest": {"set": {"product.pansharpened": False}}},
+            {
+                "checker": {
+                    "where": {"check": "JRC-10.5.1-SAME-MODEL-GCPS"},
+                    "set": {"verdict": "fail"},
+                }
+            },
+        ],
+        {("JRC-10.5.1-SAME-MODEL-GCPS", "D-2026-031")},
+        "rejected",
+    ),
 }
 
 
 @pytest.mark.parametrize("case", sorted(OBSERVED))
-def test_observed_wrong_acceptances_are_no_longer_accepted(tmp_path: Path, raster_cache: Path, case: str) -> None:
+def test_observed_wrong_acceptances_are_no_longer_accepted(
+    tmp_path: Path, raster_cache: Path, case: str
+) -> None:
     mutations, expected, verdict = OBSERVED[case]
     example = "satellite-pass" if case.startswith("satellite:") else "aerial-pass"
     root = tmp_path / example

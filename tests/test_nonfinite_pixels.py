@@ -19,8 +19,15 @@ from orthospec.raster.reading import ScanSettings, scan_raster
 
 
 def _write(path: Path, a: np.ndarray, **profile: object) -> Path:
-    prof = dict(driver="GTiff", width=a.shape[2], height=a.shape[1], count=a.shape[0], dtype=a.dtype,
-                crs="EPSG:25832", transform=Affine(0.5, 0, 500000, 0, -0.5, 5600000))
+    prof = dict(
+        driver="GTiff",
+        width=a.shape[2],
+        height=a.shape[1],
+        count=a.shape[0],
+        dtype=a.dtype,
+        crs="EPSG:25832",
+        transform=Affine(0.5, 0, 500000, 0, -0.5, 5600000),
+    )
     prof.update(profile)
     with rasterio.open(path, "w", **prof) as ds:
         ds.write(a)
@@ -35,15 +42,21 @@ def inf_tif(tmp_path: Path) -> tuple[Path, np.ndarray]:
     a[1, 90, :3] = -np.inf
     a[2, 11, :4] = np.nan  # NaN while the nodata value is -9999: non-finite
     a[2, 12, :2] = np.inf
-    return _write(tmp_path / "inf.tif", a, nodata=-9999, tiled=True, blockxsize=64, blockysize=64), a
+    return _write(
+        tmp_path / "inf.tif", a, nodata=-9999, tiled=True, blockxsize=64, blockysize=64
+    ), a
 
 
 def test_inf_and_nan_are_counted_and_excluded(inf_tif):
     f, a = inf_tif
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # no RuntimeWarning (inf - inf) anywhere in the scan
-        stats = scan_raster(f, ScanSettings(noise=True, luminosity=True, misregistration=True,
-                                            chunk_bytes=64 * 64 * 3 * 4 * 2))
+        stats = scan_raster(
+            f,
+            ScanSettings(
+                noise=True, luminosity=True, misregistration=True, chunk_bytes=64 * 64 * 3 * 4 * 2
+            ),
+        )
     assert [b.nonfinite for b in stats.bands] == [7, 3, 6]
     for b, band in zip(stats.bands, a, strict=True):
         ok = band[np.isfinite(band) & (band != -9999)].astype(np.float64)
@@ -79,8 +92,21 @@ def test_image_report_has_the_measure_and_no_error(inf_tif):
 
 def test_measure_radiometry_command_is_silent_on_stderr(inf_tif):
     f, _ = inf_tif
-    run = subprocess.run([sys.executable, "-m", "orthospec.cli.main", "measure", "radiometry", "--full", "--json",
-                          str(f)], capture_output=True, text=True, timeout=120)
+    run = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "orthospec.cli.main",
+            "measure",
+            "radiometry",
+            "--full",
+            "--json",
+            str(f),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert run.returncode == 0, run.stderr
     assert run.stderr == ""
     bands = json.loads(run.stdout)["radiometry"]["bands"]

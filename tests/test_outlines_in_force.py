@@ -46,14 +46,23 @@ def test_without_a_checker_the_manifest_outlines_are_in_force() -> None:
     assert list(got) == ["B01", "B02", "B03"]
     ring, ev = got["B02"]
     assert [list(v) for v in ring] == manifest["blocks"][1]["polygon"]
-    assert (ev.file, ev.path, ev.sha256) == ("delivery.yaml", "blocks[1].polygon", d.manifest_sha256)
+    assert (ev.file, ev.path, ev.sha256) == (
+        "delivery.yaml",
+        "blocks[1].polygon",
+        d.manifest_sha256,
+    )
     load_checker(CHECKER)  # loaded without a delivery: nothing is attached to any delivery
     assert d.block_outlines() == got
 
 
 def test_a_bound_checker_file_puts_its_outlines_in_force(tmp_path: Path) -> None:
     doc = yaml.safe_load((CHECKER / "checker.yaml").read_text(encoding="utf-8"))
-    doc["blocks"][1]["polygon"] = [[507500, 5403000], [514000, 5403000], [514000, 5410200], [507500, 5410200]]
+    doc["blocks"][1]["polygon"] = [
+        [507500, 5403000],
+        [514000, 5403000],
+        [514000, 5410200],
+        [507500, 5410200],
+    ]
     doc["area_of_interest"] = doc["blocks"][1]["polygon"]
     path = tmp_path / "checker.yaml"
     path.write_text(yaml.safe_dump(doc, sort_keys=False), encoding="utf-8")
@@ -66,7 +75,9 @@ def test_a_bound_checker_file_puts_its_outlines_in_force(tmp_path: Path) -> None
     assert ev.file == "checker:checker.yaml" and ev.sha256 == chk.sha256
     assert ev.path == f"blocks[1] (line {chk.lines[('blocks', 1)]})"
     aoi, aoi_ev = stated.area_of_interest or ((), None)
-    assert len(aoi) == 4 and aoi_ev is not None and aoi_ev.path.startswith("area_of_interest (line ")
+    assert (
+        len(aoi) == 4 and aoi_ev is not None and aoi_ev.path.startswith("area_of_interest (line ")
+    )
 
 
 def _run(tmp_path: Path, change: Any) -> Any:
@@ -83,7 +94,10 @@ def _run(tmp_path: Path, change: Any) -> Any:
 def test_a_block_only_one_side_lists_is_a_finding(tmp_path: Path) -> None:
     def swap_b03_for_b04(doc: dict[str, Any]) -> None:
         # the checker knows B01, B02 and a B04 (east of everything); the manifest has B03 instead
-        doc["blocks"][2] = {"id": "B04", "polygon": [[530000, 5400000], [531000, 5400000], [531000, 5401000]]}
+        doc["blocks"][2] = {
+            "id": "B04",
+            "polygon": [[530000, 5400000], [531000, 5400000], [531000, 5401000]],
+        }
 
     result = _run(tmp_path, swap_b03_for_b04)
     assert not result.accepted
@@ -91,23 +105,35 @@ def test_a_block_only_one_side_lists_is_a_finding(tmp_path: Path) -> None:
     rec = {r["rule"] + "/" + r["item"]: r for r in records(doc)}
     agree = rec["JRC-12.4-BLOCK-OUTLINES-AGREE/D-2026-014"]
     assert agree["verdict"] == "fail"
-    assert "block B03 (delivery.yaml blocks[2]): the checker file checker.yaml gives no outline" in agree["message"]
-    assert "block B04: the checker file checker.yaml gives its outline, delivery.yaml lists no such block" \
+    assert (
+        "block B03 (delivery.yaml blocks[2]): the checker file checker.yaml gives no outline"
         in agree["message"]
+    )
+    assert (
+        "block B04: the checker file checker.yaml gives its outline, delivery.yaml lists no such block"
+        in agree["message"]
+    )
     # B03 has no outline in force: its points are in no block the checker drew - never a pass
     assert rec["JRC-12.4-CHECKPOINTS-IN-BLOCK/B03"]["verdict"] == "missing"
 
 
 @pytest.mark.parametrize("shift, verdict", [(0.4, "pass"), (300.0, "fail")])
-def test_a_declaration_within_the_tolerance_agrees(tmp_path: Path, shift: float, verdict: str) -> None:
+def test_a_declaration_within_the_tolerance_agrees(
+    tmp_path: Path, shift: float, verdict: str
+) -> None:
     """The checker's B03 moved 0.4 m north (about 0.4 x 7000 x 2 = 5600 m2 of 5.0e7 m2: 0.011 %, Hausdorff
     0.4 m) agrees; 300 m north (about 4.2e6 m2: 8.4 %, 300 m > 71 m) does not."""
+
     def move_b03(doc: dict[str, Any]) -> None:
         doc["blocks"][2]["polygon"] = [[x, y + shift] for x, y in doc["blocks"][2]["polygon"]]
 
     result = _run(tmp_path, move_b03)
     assert result.accepted == (verdict == "pass")
-    got = {r["item"]: r["verdict"] for r in records(result.document) if r["rule"] == "JRC-12.4-BLOCK-OUTLINES-AGREE"}
+    got = {
+        r["item"]: r["verdict"]
+        for r in records(result.document)
+        if r["rule"] == "JRC-12.4-BLOCK-OUTLINES-AGREE"
+    }
     assert got == {"D-2026-014": verdict}
 
 
@@ -123,20 +149,37 @@ def test_a_dem_serves_the_blocks_in_force(tmp_path: Path) -> None:
 
     d = tmp_path / "aerial-pass"
     shutil.copytree(EXAMPLE, d)
-    with rasterio.open(d / "images" / "dem.tif", "w", driver="GTiff", width=20, height=20, count=1,
-                       dtype="float32", crs="EPSG:25832",
-                       transform=from_origin(512000, 5406000, 100, 100)) as ds:  # x 512-514 km, y 5404-5406 km
+    with rasterio.open(
+        d / "images" / "dem.tif",
+        "w",
+        driver="GTiff",
+        width=20,
+        height=20,
+        count=1,
+        dtype="float32",
+        crs="EPSG:25832",
+        transform=from_origin(512000, 5406000, 100, 100),
+    ) as ds:  # x 512-514 km, y 5404-5406 km
         ds.write(np.zeros((1, 20, 20), dtype="float32"))
     (d / "tables" / "dem.csv").write_text("dem_id,file\nDEM-1,images/dem.tif\n", encoding="utf-8")
     m = yaml.safe_load((d / "delivery.yaml").read_text(encoding="utf-8"))
     m["tables"]["dem"] = "tables/dem.csv"
-    m["blocks"][1]["polygon"] = [[507500.0, 5403000.0], [511500.0, 5403000.0], [511500.0, 5410200.0],
-                                 [507500.0, 5410200.0], [507500.0, 5403000.0]]
+    m["blocks"][1]["polygon"] = [
+        [507500.0, 5403000.0],
+        [511500.0, 5403000.0],
+        [511500.0, 5410200.0],
+        [507500.0, 5410200.0],
+        [507500.0, 5403000.0],
+    ]
     (d / "delivery.yaml").write_text(yaml.safe_dump(m, sort_keys=False), encoding="utf-8")
 
     def served(checker: Path | None) -> Any:
         delivery = open_delivery(d)
-        stated = stated_outlines(load_checker(checker, delivery=delivery)) if checker is not None else None
+        stated = (
+            stated_outlines(load_checker(checker, delivery=delivery))
+            if checker is not None
+            else None
+        )
         (got,) = dem_blocks(ProviderContext(delivery=delivery, parameters={}, outlines=stated))
         return got.values["DEM-1"]
 
@@ -172,8 +215,17 @@ def test_the_mosaic_measures_the_area_in_force(tmp_path: Path) -> None:
 
     def coverage(checker: Path | None) -> tuple[float, Any]:
         delivery = open_delivery(d)
-        stated = stated_outlines(load_checker(checker, delivery=delivery)) if checker is not None else None
-        got = {m.name: m for m in mosaic_measures(ProviderContext(delivery=delivery, parameters={}, outlines=stated))}
+        stated = (
+            stated_outlines(load_checker(checker, delivery=delivery))
+            if checker is not None
+            else None
+        )
+        got = {
+            m.name: m
+            for m in mosaic_measures(
+                ProviderContext(delivery=delivery, parameters={}, outlines=stated)
+            )
+        }
         m = got["mosaic.aoi_coverage"]
         return m.values[delivery.id], m.evidence[delivery.id]
 

@@ -27,12 +27,26 @@ def _pieces(total: int, piece: int, seed: int) -> list[str]:
     return [text[i:i + piece] for i in range(0, total, piece)] or [""]
 
 
-@pytest.mark.parametrize("total, piece", [
-    (0, 1), (1, 1), (4095, 1000), (4096, 4096), (SPAN - 1, 300_000), (SPAN, SPAN), (SPAN + 1, 70_001),
-    (3 * SPAN + 123, 1 << 18), (5 * SPAN + 4097, 3 * SPAN)])
+@pytest.mark.parametrize(
+    "total, piece",
+    [
+        (0, 1),
+        (1, 1),
+        (4095, 1000),
+        (4096, 4096),
+        (SPAN - 1, 300_000),
+        (SPAN, SPAN),
+        (SPAN + 1, 70_001),
+        (3 * SPAN + 123, 1 << 18),
+        (5 * SPAN + 4097, 3 * SPAN),
+    ],
+)
 def test_any_size_in_any_pieces_is_written_as_given(tmp_path, total, piece):
     parts = _pieces(total, piece, total % 11)
-    write_outputs(tmp_path, {"qcr.csv": iter(parts), "whole.txt": "".join(parts), "b.bin": "".join(parts).encode()})
+    write_outputs(
+        tmp_path,
+        {"qcr.csv": iter(parts), "whole.txt": "".join(parts), "b.bin": "".join(parts).encode()},
+    )
     expected = "".join(parts).encode()
     for name in ("qcr.csv", "whole.txt", "b.bin"):
         assert (tmp_path / name).read_bytes() == expected, name
@@ -63,7 +77,9 @@ def _flags_of(path_suffix: str) -> int | None:
     return None
 
 
-@pytest.mark.skipif(not O_DIRECT or not Path("/proc/self/fdinfo").is_dir(), reason="Linux O_DIRECT only")
+@pytest.mark.skipif(
+    not O_DIRECT or not Path("/proc/self/fdinfo").is_dir(), reason="Linux O_DIRECT only"
+)
 def test_a_large_output_is_written_with_o_direct(tmp_path):
     """Seen from the kernel (/proc/self/fdinfo): the descriptor of a large output carries O_DIRECT
     while it is written, unless the file system refuses it (then the test says so and passes)."""
@@ -81,8 +97,9 @@ def test_a_large_output_is_written_with_o_direct(tmp_path):
         yield from _pieces(SPAN + 7, 1 << 18, 2)
 
     write_outputs(tmp_path, {"qcr.csv": stream()})
-    assert (tmp_path / "qcr.csv").read_bytes() == "".join(_pieces(3 * SPAN, 1 << 18, 1) +
-                                                            _pieces(SPAN + 7, 1 << 18, 2)).encode()
+    assert (tmp_path / "qcr.csv").read_bytes() == "".join(
+        _pieces(3 * SPAN, 1 << 18, 1) + _pieces(SPAN + 7, 1 << 18, 2)
+    ).encode()
     assert seen and seen[-1] is not None
     if _direct_ok(tmp_path / "probe"):
         assert seen[-1] & O_DIRECT, f"flags {seen[-1]:o} without O_DIRECT"

@@ -24,20 +24,44 @@ def test_csv_safe_prefixes_formulas_only() -> None:
     assert csv_safe("=1+1") == "'=1+1"
     assert csv_safe("\tx") == "'\tx" and csv_safe("\rx") == "'\nx"  # a CR also becomes a quoted LF
     assert csv_safe("-0.25") == "'-0.25"  # text that a spreadsheet would evaluate
-    assert csv_safe(-0.25) == -0.25       # a number stays a number
+    assert csv_safe(-0.25) == -0.25  # a number stays a number
     assert csv_safe("B02") == "B02"
 
 
-def test_hostile_ids_are_neutralised_in_csv_junit_and_terminal(make_delivery, mini_profile, tmp_path: Path) -> None:
-    rows = "\n".join(f'"{i.replace(chr(34), chr(34) * 2)}",f{n}.tif,B1,{9 if "SUM" in i else 0.5},1000,30'
-                     for n, i in enumerate(HOSTILE))  # the @SUM id fails roll: the terminal shows it
-    root = make_delivery("h", images="image_id,file,block,roll,flying_height,std_dn\n" + rows + "\n")
+def test_hostile_ids_are_neutralised_in_csv_junit_and_terminal(
+    make_delivery, mini_profile, tmp_path: Path
+) -> None:
+    rows = "\n".join(
+        f'"{i.replace(chr(34), chr(34) * 2)}",f{n}.tif,B1,{9 if "SUM" in i else 0.5},1000,30'
+        for n, i in enumerate(HOSTILE)
+    )  # the @SUM id fails roll: the terminal shows it
+    root = make_delivery(
+        "h", images="image_id,file,block,roll,flying_height,std_dn\n" + rows + "\n"
+    )
     out = tmp_path / "out"
-    res = CliRunner().invoke(cli(), ["check", str(root), "-p", str(mini_profile), "--out", str(out),
-                                     "--date", "2026-01-01", "--format", "terminal,json,csv,junit",
-                                     "--param", "tolerance_xy=0.5m"])
+    res = CliRunner().invoke(
+        cli(),
+        [
+            "check",
+            str(root),
+            "-p",
+            str(mini_profile),
+            "--out",
+            str(out),
+            "--date",
+            "2026-01-01",
+            "--format",
+            "terminal,json,csv,junit",
+            "--param",
+            "tolerance_xy=0.5m",
+        ],
+    )
     assert res.exit_code in (0, 1), res.output + repr(res.exception)
-    cells = [c for row in csv.reader(io.StringIO((out / "qcr.csv").read_text(encoding="utf-8"))) for c in row]
+    cells = [
+        c
+        for row in csv.reader(io.StringIO((out / "qcr.csv").read_text(encoding="utf-8")))
+        for c in row
+    ]
     items = [c for c in cells if "HYPERLINK" in c or "SUM(" in c or "cmd|" in c]
     assert items, "the hostile ids reached the CSV"
     for c in cells:
@@ -57,7 +81,9 @@ def test_a_carriage_return_in_a_csv_cell_cannot_split_the_row() -> None:
     from orthospec.qcr import _csv_cells, csv_safe
 
     buf = io.StringIO()
-    csv.writer(buf, lineterminator="\n").writerow([csv_safe("B01\rFAKE,pass"), csv_safe("\r=1+1"), "ok"])
+    csv.writer(buf, lineterminator="\n").writerow(
+        [csv_safe("B01\rFAKE,pass"), csv_safe("\r=1+1"), "ok"]
+    )
     assert list(csv.reader(io.StringIO(buf.getvalue()))) == [["B01\nFAKE,pass", "'\n=1+1", "ok"]]
     # the per-block writer's column path gives the same cells as csv.writer
     assert _csv_cells(["B01\rFAKE,pass", "plain"]) == ['"B01\nFAKE,pass"', "plain"]

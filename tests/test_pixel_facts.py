@@ -33,8 +33,18 @@ T0 = Affine(0.25, 0, 500_000.0, 0, -0.25, 5_400_000.0)
 
 
 def _write(path: Path, data: np.ndarray, *, transform: Affine = T0, **opts: object) -> Path:
-    with rasterio.open(path, "w", driver="GTiff", width=data.shape[2], height=data.shape[1], count=data.shape[0],
-                       dtype=data.dtype, crs="EPSG:25832", transform=transform, **opts) as ds:
+    with rasterio.open(
+        path,
+        "w",
+        driver="GTiff",
+        width=data.shape[2],
+        height=data.shape[1],
+        count=data.shape[0],
+        dtype=data.dtype,
+        crs="EPSG:25832",
+        transform=transform,
+        **opts,
+    ) as ds:
         ds.write(data)
     return path
 
@@ -53,7 +63,9 @@ LAYOUTS = [
 
 
 @pytest.mark.parametrize("chunk_bytes", [8 << 20, 40_000])
-def test_hash_and_thumbnail_do_not_depend_on_the_file(tmp_path: Path, pixels: np.ndarray, chunk_bytes: int) -> None:
+def test_hash_and_thumbnail_do_not_depend_on_the_file(
+    tmp_path: Path, pixels: np.ndarray, chunk_bytes: int
+) -> None:
     """Compression, tiling, interleave, nodata tag, georeference and chunking change every byte of the
     file and the windows of the scan, never the decoded-pixel facts."""
     s = ScanSettings(chunk_bytes=chunk_bytes)
@@ -68,13 +80,20 @@ def test_hash_and_thumbnail_do_not_depend_on_the_file(tmp_path: Path, pixels: np
     assert thumbnail_geometry(517, 301) == (17, 8, 18, 31) and thumb.shape == (18, 31)
     mean = pixels.astype(float).mean(axis=0)
     assert thumb[0, 0] == pytest.approx(mean[0:17:8, 0:17:8].mean(), abs=1e-3)
-    assert thumb[17, 30] == pytest.approx(mean[296:301:8, 512:517:8].mean(), abs=1e-3)  # the global 8 px grid
+    assert thumb[17, 30] == pytest.approx(
+        mean[296:301:8, 512:517:8].mean(), abs=1e-3
+    )  # the global 8 px grid
 
 
 def test_one_changed_pixel_changes_the_hash(tmp_path: Path, pixels: np.ndarray) -> None:
     base = scan_raster(_write(tmp_path / "a.tif", pixels)).pixels_hash
     seen = {base}
-    for band, row, col, delta in [(0, 0, 0, 1), (3, 300, 516, 1), (2, 150, 257, 128), (1, 7, 8, 255)]:
+    for band, row, col, delta in [
+        (0, 0, 0, 1),
+        (3, 300, 516, 1),
+        (2, 150, 257, 128),
+        (1, 7, 8, 255),
+    ]:
         changed = pixels.copy()
         changed[band, row, col] = np.uint8((int(changed[band, row, col]) + delta) % 256)
         seen.add(scan_raster(_write(tmp_path / f"c{band}.tif", changed)).pixels_hash)
@@ -123,12 +142,16 @@ def test_integer_thumbnail_is_the_exact_mean_signed_too(dtype: str) -> None:
     assert got[3, 3] == pytest.approx(mean[30:40:5, 30:37:5].mean(), abs=1e-3)
 
 
-@pytest.mark.parametrize(("dtype", "top"), [("uint8", 255.0), ("uint16", 4095.0), ("uint16", 65535.0)])
+@pytest.mark.parametrize(
+    ("dtype", "top"), [("uint8", 255.0), ("uint16", 4095.0), ("uint16", 65535.0)]
+)
 def test_integer_cloud_test_decides_as_the_float_one(dtype: str, top: float) -> None:
     """The integer path of CloudCounter gives the float cloud_mask's decisions, boundaries included."""
     rng = np.random.default_rng(9)
     base = rng.integers(int(0.6 * top), int(top) + 1, (1, 64, 64))
-    data = np.clip(base + rng.integers(-int(0.06 * top), int(0.06 * top) + 1, (3, 64, 64)), 0, top).astype(dtype)
+    data = np.clip(
+        base + rng.integers(-int(0.06 * top), int(0.06 * top) + 1, (3, 64, 64)), 0, top
+    ).astype(dtype)
     data[:, 0, 0] = 0  # nodata
     counts = []
     for fast in (True, False):
@@ -155,7 +178,10 @@ def test_cloud_grey_range_beyond_the_type_is_never_bright() -> None:
 
 # --------------------------------------------------------------------------- issue 26: DN 0 under nodata 0
 
-def _zeros(pixels: np.ndarray, share: float, bands: list[int], seed: int = 3) -> tuple[np.ndarray, float]:
+
+def _zeros(
+    pixels: np.ndarray, share: float, bands: list[int], seed: int = 3
+) -> tuple[np.ndarray, float]:
     rng = np.random.default_rng(seed)
     hit = rng.random(pixels.shape[1:]) < share
     out = pixels.copy()
@@ -176,7 +202,9 @@ def test_dark_saturation_told_apart_under_nodata_zero(tmp_path: Path, pixels: np
     assert r.bands[0].saturation_low_pct == 0.0
 
 
-def test_dark_saturation_ambiguous_where_every_band_is_zero(tmp_path: Path, pixels: np.ndarray) -> None:
+def test_dark_saturation_ambiguous_where_every_band_is_zero(
+    tmp_path: Path, pixels: np.ndarray
+) -> None:
     data, pct = _zeros(pixels, 0.05, [0, 1, 2, 3])
     data2, _ = _zeros(data, 0.03, [2], seed=9)
     r = scan_raster(_write(tmp_path / "z.tif", data2, nodata=0))
@@ -193,7 +221,9 @@ def test_dark_saturation_ambiguous_where_every_band_is_zero(tmp_path: Path, pixe
 def test_single_band_nodata_zero_cannot_be_told_apart(tmp_path: Path, pixels: np.ndarray) -> None:
     data, pct = _zeros(pixels[:1], 0.02, [0])
     r = scan_raster(_write(tmp_path / "p.tif", data, nodata=0))
-    assert r.low_nodata is not None and r.low_nodata["pixels_nodata_in_every_band_pct"] == pytest.approx(pct)
+    assert r.low_nodata is not None and r.low_nodata[
+        "pixels_nodata_in_every_band_pct"
+    ] == pytest.approx(pct)
 
 
 def test_no_nodata_means_no_hidden_saturation(tmp_path: Path, pixels: np.ndarray) -> None:
@@ -204,6 +234,7 @@ def test_no_nodata_means_no_hidden_saturation(tmp_path: Path, pixels: np.ndarray
 
 # --------------------------------------------------------------------------- copies (measures/copies.py)
 
+
 def _field(seed: int, n: int = 160, sigma: float = 6.0) -> np.ndarray:
     from scipy.ndimage import gaussian_filter
 
@@ -212,13 +243,21 @@ def _field(seed: int, n: int = 160, sigma: float = 6.0) -> np.ndarray:
 
 def _thumb(img: np.ndarray, cell: int = 4) -> np.ndarray:
     h, w = img.shape
-    return img[:h // cell * cell, :w // cell * cell].reshape(h // cell, cell, w // cell, cell).mean(axis=(1, 3))
+    return (
+        img[: h // cell * cell, : w // cell * cell]
+        .reshape(h // cell, cell, w // cell, cell)
+        .mean(axis=(1, 3))
+    )
 
 
-def _content(name: str, img: np.ndarray, left: float, top: float, *, h: str | None = None) -> Content:
+def _content(
+    name: str, img: np.ndarray, left: float, top: float, *, h: str | None = None
+) -> Content:
     th = _thumb(img)
     size = img.shape[0] * 0.25
-    return Content(name, h or name, th, 4, 4, (left, top - size, left + size, top), (0.25, 0.25), "EPSG:25832")
+    return Content(
+        name, h or name, th, 4, 4, (left, top - size, left + size, top), (0.25, 0.25), "EPSG:25832"
+    )
 
 
 def test_aligned_correlation_finds_the_shift() -> None:
@@ -237,13 +276,15 @@ def test_copies_equal_pixels_near_copies_and_legitimate_overlap() -> None:
     changed[60, 60] += 50  # one pixel changed
     imgs = [
         _content("A", a, 500_000, 5_400_032, h="same"),
-        _content("B", a, 510_000, 5_400_032, h="same"),                 # A's pixels, 10 km away
-        _content("C", changed, 520_000, 5_400_032),                     # one pixel changed, elsewhere
-        _content("D", big[8:136, 12:140], 500_003, 5_400_030),           # overlaps A where the maps say
-        _content("E", big[8:136, 12:140], 530_000, 5_400_032),           # A shifted, far away: a copy
-        _content("F", _field(2)[:128, :128], 540_000, 5_400_032),        # another picture
+        _content("B", a, 510_000, 5_400_032, h="same"),  # A's pixels, 10 km away
+        _content("C", changed, 520_000, 5_400_032),  # one pixel changed, elsewhere
+        _content("D", big[8:136, 12:140], 500_003, 5_400_030),  # overlaps A where the maps say
+        _content("E", big[8:136, 12:140], 530_000, 5_400_032),  # A shifted, far away: a copy
+        _content("F", _field(2)[:128, :128], 540_000, 5_400_032),  # another picture
         _content("G", np.full((128, 128), 7.0), 550_000, 5_400_032, h="flat"),
-        _content("H", np.full((128, 128), 7.0), 560_000, 5_400_032, h="flat"),  # equal but flat: no finding
+        _content(
+            "H", np.full((128, 128), 7.0), 560_000, 5_400_032, h="flat"
+        ),  # equal but flat: no finding
     ]
     got = find_copies(imgs)
     kinds = {k: {(m.other, m.kind) for m in v} for k, v in got.items()}
@@ -255,18 +296,30 @@ def test_copies_equal_pixels_near_copies_and_legitimate_overlap() -> None:
     assert "D" not in {o for o, _ in kinds["A"]} and {o for o, _ in kinds["D"]} == {"E"}
     assert "F" not in kinds and "G" not in kinds and "H" not in kinds
     # the same picture delivered twice on the same ground is a copy, not an overlap
-    twice = find_copies([_content("P", a, 500_000, 5_400_032), _content("Q", changed, 500_000, 5_400_032)])
+    twice = find_copies(
+        [_content("P", a, 500_000, 5_400_032), _content("Q", changed, 500_000, 5_400_032)]
+    )
     assert {m.other for m in twice["P"]} == {"Q"}
 
 
 def test_different_band_counts_are_not_compared() -> None:
     a = _field(1)[:128, :128]
     x = _content("X", a, 500_000, 5_400_032)
-    y = Content("Y", "y", _thumb(a + 0.1), 4, 1, (600_000, 5_400_000, 600_032, 5_400_032), (0.25, 0.25), "EPSG:25832")
+    y = Content(
+        "Y",
+        "y",
+        _thumb(a + 0.1),
+        4,
+        1,
+        (600_000, 5_400_000, 600_032, 5_400_032),
+        (0.25, 0.25),
+        "EPSG:25832",
+    )
     assert find_copies([x, y]) == {}
 
 
 # --------------------------------------------------------------------------- photo lay-down headings
+
 
 @pytest.mark.parametrize("nudge", [0.0, 0.5])
 def test_a_copied_station_does_not_turn_the_strip(nudge: float) -> None:

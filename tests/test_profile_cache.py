@@ -62,11 +62,18 @@ def entries(d: Path) -> list[Path]:
 
 def fresh_process_value(path: Path, env_dir: Path) -> tuple[float, bool]:
     """Load in a new process (empty memory): (tol value, served from the disk cache?)."""
-    code = ("import sys; from orthospec.profile.loader import load_profile; p = load_profile(sys.argv[1]); "
-            "print(p.parameters['tol'].value if p.parameters['tol'].value is not None "
-            "else p.parameters['tol'].default, p.sites is None)")
-    out = subprocess.run([sys.executable, "-c", code, str(path)], capture_output=True, text=True, check=True,
-                         env={"ORTHOSPEC_CACHE_DIR": str(env_dir), "PATH": "/usr/bin:/bin"}).stdout.split()
+    code = (
+        "import sys; from orthospec.profile.loader import load_profile; p = load_profile(sys.argv[1]); "
+        "print(p.parameters['tol'].value if p.parameters['tol'].value is not None "
+        "else p.parameters['tol'].default, p.sites is None)"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code, str(path)],
+        capture_output=True,
+        text=True,
+        check=True,
+        env={"ORTHOSPEC_CACHE_DIR": str(env_dir), "PATH": "/usr/bin:/bin"},
+    ).stdout.split()
     return float(out[0]), out[1] == "True"
 
 
@@ -79,8 +86,12 @@ def test_cold_load_writes_json_and_a_new_process_reuses_it(tmp_path, cache_dir):
     [entry] = entries(cache_dir)
     doc = json.loads(entry.read_text())  # JSON, not pickle
     recorded = dict(map(tuple, doc["files"]))
-    assert recorded == {str(child): hashlib.sha256(child.read_bytes()).hexdigest(),
-                        str(tmp_path / "base.yaml"): hashlib.sha256((tmp_path / "base.yaml").read_bytes()).hexdigest()}
+    assert recorded == {
+        str(child): hashlib.sha256(child.read_bytes()).hexdigest(),
+        str(tmp_path / "base.yaml"): hashlib.sha256(
+            (tmp_path / "base.yaml").read_bytes()
+        ).hexdigest(),
+    }
     value, from_cache = fresh_process_value(child, cache_dir.parent)
     assert value == 1.5 and from_cache
     # what the cache serves is the same profile, byte for byte
@@ -88,7 +99,9 @@ def test_cold_load_writes_json_and_a_new_process_reuses_it(tmp_path, cache_dir):
     warm = load_profile(child)
     assert warm.sites is None
     assert warm.canonical_json() == cold.canonical_json() and warm.sha256 == cold.sha256
-    assert warm.rules == cold.rules and warm.parameters == cold.parameters and warm.chain == cold.chain
+    assert (
+        warm.rules == cold.rules and warm.parameters == cold.parameters and warm.chain == cold.chain
+    )
     assert warm.removed == cold.removed and warm.overridden == cold.overridden
     assert not list(cache_dir.glob(".tmp-*"))  # written atomically
 
@@ -162,8 +175,11 @@ def test_one_parse_per_profile_file_per_process(tmp_path, cache_dir, monkeypatch
     monkeypatch.setattr(files, "load_text", counting)
     files._DOCS.clear()
     monkeypatch.setenv("ORTHOSPEC_CACHE_DIR", "off")
-    (tmp_path / "t.yaml").write_text(CHILD.replace("cbase", "jrc-v3").replace("1.0.0}", "3.0.0}").replace(
-        "  tol: {value: 1.5, justification: \"ITT 4.1\"}", "  tolerance_xy: {value: 0.5}"))
+    (tmp_path / "t.yaml").write_text(
+        CHILD.replace("cbase", "jrc-v3")
+        .replace("1.0.0}", "3.0.0}")
+        .replace('  tol: {value: 1.5, justification: "ITT 4.1"}', "  tolerance_xy: {value: 0.5}")
+    )
     # what `orthospec profiles` and a check with a tender profile do in one process
     rows = available([tmp_path])
     assert any(r[0] == "jrc-v3" for r in rows)

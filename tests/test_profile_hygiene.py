@@ -63,14 +63,18 @@ def line_col(text: str, needle: str) -> str:
 
 # --- threshold numbers ------------------------------------------------------------------------
 
-@pytest.mark.parametrize("written, hint", [
-    ("1,0", "write 1.0"),            # decimal comma as typed in DE/FR/IT/ES; YAML reads the text "1,0"
-    ("0,5", "write 0.5"),
-    ('"1.0"', "quoted number: write 1.0"),
-    ('"one metre"', "not a number"),
-    (".nan", "not a finite number"),
-    ("1.0e+999", "not a finite number"),  # YAML reads it as inf
-])
+
+@pytest.mark.parametrize(
+    "written, hint",
+    [
+        ("1,0", "write 1.0"),  # decimal comma as typed in DE/FR/IT/ES; YAML reads the text "1,0"
+        ("0,5", "write 0.5"),
+        ('"1.0"', "quoted number: write 1.0"),
+        ('"one metre"', "not a number"),
+        (".nan", "not a finite number"),
+        ("1.0e+999", "not a finite number"),  # YAML reads it as inf
+    ],
+)
 def test_parameter_value_must_be_a_plain_number(tmp_path, written, hint):
     text = HEAD + f"parameters:\n  tolerance_xy:\n    value: {written}\n"
     code, out = validate(tmp_path, text)
@@ -92,8 +96,10 @@ def test_good_tender_values_validate(tmp_path):
     assert code == 0, out
 
 
-@pytest.mark.parametrize("written, hint", [('"1,0"', "write 1.0"), ('"0.5"', "quoted number"),
-                                           (".inf", "not a finite number")])
+@pytest.mark.parametrize(
+    "written, hint",
+    [('"1,0"', "write 1.0"), ('"0.5"', "quoted number"), (".inf", "not a finite number")],
+)
 def test_requirement_literals_must_be_plain_numbers(tmp_path, written, hint):
     text = HEAD + RULE % written
     code, out = validate(tmp_path, text)
@@ -143,22 +149,34 @@ def test_yaml_syntax_error_has_line_and_column(tmp_path):
 
 # --- who may change a standard value ------------------------------------------------------------
 
+
 def test_changing_a_standard_value_needs_a_justification(tmp_path):
     text = HEAD + "parameters:\n  min_checkpoints: {value: 10}\n"
     code, out = validate(tmp_path, text)
     assert code == 2 and "justification" in out and "itt.yaml" + line_col(text, "10}") in out, out
-    ok = HEAD + 'parameters:\n  min_checkpoints: {value: 25, justification: "ITT 4.3: 25 points per block"}\n'
+    ok = (
+        HEAD
+        + 'parameters:\n  min_checkpoints: {value: 25, justification: "ITT 4.3: 25 points per block"}\n'
+    )
     f = tmp_path / "ok.yaml"
     f.write_text(ok)
     p = load_profile(f)
     par = p.parameters["min_checkpoints"]
-    assert par.value == 25 and par.justification.startswith("ITT 4.3") and par.authority() == "standard"
+    assert (
+        par.value == 25
+        and par.justification.startswith("ITT 4.3")
+        and par.authority() == "standard"
+    )
 
 
 def test_an_extending_profile_sets_value_not_default(tmp_path):
     text = HEAD + "parameters:\n  tolerance_xy: {default: 0.5}\n"
     code, out = validate(tmp_path, text)
-    assert code == 2 and "sets `value:`, not `default:`" in out and "itt.yaml" + line_col(text, "0.5}") in out
+    assert (
+        code == 2
+        and "sets `value:`, not `default:`" in out
+        and "itt.yaml" + line_col(text, "0.5}") in out
+    )
 
 
 def test_set_by_is_fixed_where_the_parameter_is_defined(tmp_path):
@@ -169,9 +187,11 @@ def test_set_by_is_fixed_where_the_parameter_is_defined(tmp_path):
 
 # --- manifest paths ------------------------------------------------------------------------
 
+
 def test_when_may_only_read_manifest_paths_the_schema_defines(tmp_path):
-    text = HEAD + (RULE % "0.5").replace("    scope: block\n",
-                                         '    scope: block\n    when: "manifest.sensor.typ == \'aerial\'"\n')
+    text = HEAD + (RULE % "0.5").replace(
+        "    scope: block\n", "    scope: block\n    when: \"manifest.sensor.typ == 'aerial'\"\n"
+    )
     code, out = validate(tmp_path, text)
     assert code == 2, out
     assert "itt.yaml" + line_col(text, '"manifest.sensor.typ') in out
@@ -180,18 +200,24 @@ def test_when_may_only_read_manifest_paths_the_schema_defines(tmp_path):
 
 def test_open_manifest_sections_accept_any_key(tmp_path):
     text = HEAD + (RULE % "0.5").replace(
-        "    scope: block\n", '    scope: block\n    when: "manifest.documents.gcp_report != null"\n')
+        "    scope: block\n",
+        '    scope: block\n    when: "manifest.documents.gcp_report != null"\n',
+    )
     code, out = validate(tmp_path, text)
     assert code == 0, out
 
 
 # --- profiles that accept anything --------------------------------------------------------------
 
+
 def test_extends_id_is_never_a_path(tmp_path, monkeypatch):
     evil = tmp_path / "cwd"
     evil.mkdir()
-    (evil / "evil.yaml").write_text(HEAD.replace("id: itt-test", "id: evil").replace(
-        "extends: {id: jrc-v3, version: 3.0.0}\n", "allow_no_mandatory: true\n"))
+    (evil / "evil.yaml").write_text(
+        HEAD.replace("id: itt-test", "id: evil").replace(
+            "extends: {id: jrc-v3, version: 3.0.0}\n", "allow_no_mandatory: true\n"
+        )
+    )
     monkeypatch.chdir(evil)
     tender = tmp_path / "tender"
     tender.mkdir()
@@ -233,17 +259,27 @@ i: &i [*h,*h,*h,*h,*h,*h,*h,*h,*h]
 
 def test_an_alias_bomb_next_to_the_tender_is_never_parsed(tmp_path):
     (tmp_path / "bomb.yaml").write_text(BOMB)
-    (tmp_path / "bomb2.yaml").write_text(BOMB.replace("orthospec_profile: 1\n", "orthospec_profile: 1\nid: x\n"))
+    (tmp_path / "bomb2.yaml").write_text(
+        BOMB.replace("orthospec_profile: 1\n", "orthospec_profile: 1\nid: x\n")
+    )
     start = time.perf_counter()
     code, out = validate(tmp_path, HEAD + "parameters:\n  tolerance_xy: {value: 0.5}\n")
     assert code == 0, out
-    assert time.perf_counter() - start < 60  # the bomb expands to 9**9 nodes: parsing it would never end
+    assert (
+        time.perf_counter() - start < 60
+    )  # the bomb expands to 9**9 nodes: parsing it would never end
 
 
 def test_a_profile_without_mandatory_rules_is_refused_unless_it_says_so(tmp_path):
-    removes = "remove_rules: [" + ", ".join(
-        f"{{id: {r.id}, justification: 'ITT 1: informative only'}}"
-        for r in load_profile("jrc-v3").rules if r.level == "mandatory") + "]\n"
+    removes = (
+        "remove_rules: ["
+        + ", ".join(
+            f"{{id: {r.id}, justification: 'ITT 1: informative only'}}"
+            for r in load_profile("jrc-v3").rules
+            if r.level == "mandatory"
+        )
+        + "]\n"
+    )
     code, out = validate(tmp_path, HEAD + removes)
     assert code == 2 and "no mandatory rule" in out and "allow_no_mandatory" in out
     code, out = validate(tmp_path, HEAD + "allow_no_mandatory: true\n" + removes)
@@ -252,12 +288,19 @@ def test_a_profile_without_mandatory_rules_is_refused_unless_it_says_so(tmp_path
 
 # --- linear in the number of rules ------------------------------------------------------------
 
+
 def _big(n: int) -> str:
-    rows = [HEAD.replace("extends: {id: jrc-v3, version: 3.0.0}\n", ""), "parameters:\n  tol: {unit: m, default: 1.0}\n",
-            "rules:\n"]
-    rows += [f"  - {{id: R{i}, title: t, clause: {{document: X, section: '1'}}, quote: q, scope: block, "
-             f"measure: checkpoints.rmse_x, requirement: {{op: '<=', value: tol, unit: m}}, "
-             f"consequence: reject_block}}\n" for i in range(n)]
+    rows = [
+        HEAD.replace("extends: {id: jrc-v3, version: 3.0.0}\n", ""),
+        "parameters:\n  tol: {unit: m, default: 1.0}\n",
+        "rules:\n",
+    ]
+    rows += [
+        f"  - {{id: R{i}, title: t, clause: {{document: X, section: '1'}}, quote: q, scope: block, "
+        f"measure: checkpoints.rmse_x, requirement: {{op: '<=', value: tol, unit: m}}, "
+        f"consequence: reject_block}}\n"
+        for i in range(n)
+    ]
     return "".join(rows)
 
 
@@ -283,7 +326,10 @@ def test_many_rules_validate_in_linear_time(tmp_path):
     small, _ = _time_validate(tmp_path, 1_000)
     big, big_yaml = _time_validate(tmp_path, 10_000)
     assert big <= 4 * big_yaml + 2, (big, big_yaml)
-    assert big <= 10 * 1.5 * max(small, 0.05) + 2, (small, big)  # 10x the rules, at most ~15x the time
+    assert big <= 10 * 1.5 * max(small, 0.05) + 2, (
+        small,
+        big,
+    )  # 10x the rules, at most ~15x the time
 
 
 @pytest.mark.opt_in  # minutes on a busy machine: deselected unless ORTHOSPEC_SLOW_TESTS=1 (tests/conftest.py)
@@ -297,8 +343,12 @@ def test_problems_are_still_located_in_a_big_profile(tmp_path):
     f = tmp_path / "big.yaml"
     f.write_text(text)
     problems = validate_file(f)
-    assert len(problems) == 1 and "unknown key 'titel'" in str(problems[0]) and "did you mean 'title'" in str(problems[0])
-    assert problems[0].line == text[:text.index("titel")].count("\n") + 1
+    assert (
+        len(problems) == 1
+        and "unknown key 'titel'" in str(problems[0])
+        and "did you mean 'title'" in str(problems[0])
+    )
+    assert problems[0].line == text[: text.index("titel")].count("\n") + 1
     with pytest.raises(SpecError):
         load_profile(f)
 

@@ -40,8 +40,9 @@ def test_shipped_files_are_named_relative_to_the_install() -> None:
     assert shown("tender.yaml") == "tender.yaml"  # the user's own path stays as typed
 
 
-def test_error_located_in_a_shipped_profile_names_no_install_path(tmp_path: Path, monkeypatch,
-                                                                  capsys: pytest.CaptureFixture[str]) -> None:
+def test_error_located_in_a_shipped_profile_names_no_install_path(
+    tmp_path: Path, monkeypatch, capsys: pytest.CaptureFixture[str]
+) -> None:
     monkeypatch.chdir(tmp_path)
     Path("tender.yaml").write_text(TENDER, encoding="utf-8")
     with pytest.raises(SystemExit) as exc:
@@ -49,8 +50,13 @@ def test_error_located_in_a_shipped_profile_names_no_install_path(tmp_path: Path
     assert exc.value.code == 2
     err = capsys.readouterr().err
     assert "parameter tolerance_xy" in err and "tender.yaml:14" in err  # the problem is reported...
-    line = next(n for n, t in enumerate((specs_dir() / "jrc-v3.yaml").read_text().splitlines(), 1)
-                if t.startswith("  tolerance_xy:"))
+    line = next(
+        n
+        for n, t in enumerate((specs_dir() / "jrc-v3.yaml").read_text().splitlines(), 1)
+        if t.startswith("  tolerance_xy:")
+    )
     at = re.search(r"specs/jrc-v3\.yaml:(\d+):\d+: parameter tolerance_xy", err)
-    assert at and line <= int(at[1]) <= line + 3, err  # ...at the shipped parameter, named as the docs do
+    assert at and line <= int(at[1]) <= line + 3, (
+        err
+    )  # ...at the shipped parameter, named as the docs do
     assert str(specs_dir()) not in err and str(specs_dir().resolve()) not in err

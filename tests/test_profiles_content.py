@@ -139,25 +139,41 @@ def test_modal_verb_decisions_are_documented() -> None:
     undocumented = []
     for r in JRC["rules"]:
         q = r["quote"]
-        implied = ("mandatory" if strong.search(q) and not weak.search(q)
-                   else "recommended" if weak.search(q) and not strong.search(q) else None)
-        if implied and implied != r["level"] and not re.search(r"mandatory|recommended", r.get("note") or ""):
+        implied = (
+            "mandatory"
+            if strong.search(q) and not weak.search(q)
+            else "recommended"
+            if weak.search(q) and not strong.search(q)
+            else None
+        )
+        if (
+            implied
+            and implied != r["level"]
+            and not re.search(r"mandatory|recommended", r.get("note") or "")
+        ):
             undocumented.append(r["id"])
     assert not undocumented, undocumented
 
 
 def test_known_traps_are_decided_in_notes() -> None:
     notes = {r["id"]: _norm(r.get("note") or "") for r in JRC["rules"]}
-    assert "not the statistical CV" in notes["JRC-6.3-CV"].lower() or "std/mean" in notes["JRC-6.3-CV"]
+    assert (
+        "not the statistical CV" in notes["JRC-6.3-CV"].lower() or "std/mean" in notes["JRC-6.3-CV"]
+    )
     assert "2047" in notes["JRC-6.3-CV"]
     assert "contradicts" in notes["JRC-6.3-NOISE"]
     assert "0.7 px" in notes["JRC-6.2.2-IO-RMSE"]
     assert "target" in notes["JRC-T9-MAX-RESIDUAL"] and "calculated" in notes["JRC-T9-MAX-RESIDUAL"]
     assert "fewer than 20" in notes["JRC-12.3-IMAGE-FAIL-SHARE"]
-    assert "may" in notes["JRC-12.3-IMAGE-FAIL-SHARE"] and "will" in notes["JRC-12.8-BLOCK-FAIL-SHARE"]
+    assert (
+        "may" in notes["JRC-12.3-IMAGE-FAIL-SHARE"] and "will" in notes["JRC-12.8-BLOCK-FAIL-SHARE"]
+    )
     assert "average" in notes["JRC-T9-PRESS"]
     assert "worse" in notes["JRC-T9-MASTER-ACCURACY"]
-    assert "80" in notes["JRC-5.2.6-GPS-BASE-DISTANCE"] and "100" in notes["JRC-5.2.6-GPS-BASE-DISTANCE"]
+    assert (
+        "80" in notes["JRC-5.2.6-GPS-BASE-DISTANCE"]
+        and "100" in notes["JRC-5.2.6-GPS-BASE-DISTANCE"]
+    )
     assert "(8, 10)" in notes["JRC-9.1-RESOLUTION-CLASS"]
     assert "independently" not in notes["JRC-12.7-RMSEX"] or "per axis" in notes["JRC-12.7-RMSEX"]
     usgs = {r["id"]: _norm(r["note"]) for r in PROFILES["usgs-insitu"]["rules"]}
@@ -166,9 +182,16 @@ def test_known_traps_are_decided_in_notes() -> None:
 
 def test_per_axis_tolerance_and_block_rejection() -> None:
     by_id = {r["id"]: r for r in JRC["rules"]}
-    for rid, measure in (("JRC-12.7-RMSEX", "checkpoints.rmse_x"), ("JRC-12.7-RMSEY", "checkpoints.rmse_y")):
+    for rid, measure in (
+        ("JRC-12.7-RMSEX", "checkpoints.rmse_x"),
+        ("JRC-12.7-RMSEY", "checkpoints.rmse_y"),
+    ):
         r = by_id[rid]
-        assert r["measure"] == measure and r["requirement"] == {"op": "<=", "value": "tolerance_xy", "unit": "m"}
+        assert r["measure"] == measure and r["requirement"] == {
+            "op": "<=",
+            "value": "tolerance_xy",
+            "unit": "m",
+        }
         assert (r["level"], r["consequence"]) == ("mandatory", "reject_block")
     z = by_id["JRC-12.7-RMSEZ"]
     # issue 25: whether the DEM is a deliverable is read from the files, not from the flag alone
@@ -185,8 +208,11 @@ def test_per_axis_tolerance_and_block_rejection() -> None:
 @pytest.mark.parametrize("name", SHIPPED)
 def test_no_mandatory_rule_has_consequence_warn(name: str) -> None:
     """Issue 12: every mandatory rule can change the verdict (warn never does)."""
-    bad = [r["id"] for r in PROFILES[name]["rules"]
-           if r.get("level") == "mandatory" and r.get("consequence") == "warn"]
+    bad = [
+        r["id"]
+        for r in PROFILES[name]["rules"]
+        if r.get("level") == "mandatory" and r.get("consequence") == "warn"
+    ]
     assert bad == []
 
 
@@ -199,11 +225,20 @@ def test_aerial_chapters_apply_to_aerial_deliveries_only() -> None:
     """JRC chapters 4 (airborne cameras), 5 (airborne acquisition), 6.2 (film scanning) and 8
     (airborne orthorectification) must not judge a satellite delivery (issue 12 item 4)."""
     for r in JRC["rules"]:
-        if AERIAL_ONLY_SECTIONS.match(str(r["clause"]["section"])) or r["scope"] in ("camera", "scanner", "flight"):
+        if AERIAL_ONLY_SECTIONS.match(str(r["clause"]["section"])) or r["scope"] in (
+            "camera",
+            "scanner",
+            "flight",
+        ):
             assert "manifest.sensor.type == 'aerial'" in (r.get("when") or ""), r["id"]
         if r["id"] in BOTH_SENSORS:
             assert re.search(r"aerial|all sensors", r["note"]), r["id"]  # the note says why
-        elif str(r["clause"]["section"]).startswith("9.") or str(r["clause"].get("table")) in ("7", "8", "9", "10"):
+        elif str(r["clause"]["section"]).startswith("9.") or str(r["clause"].get("table")) in (
+            "7",
+            "8",
+            "9",
+            "10",
+        ):
             w = r.get("when") or ""
             assert "satellite" in w or "scenes." in w or "derived.resolution_class" in w, r["id"]
 
@@ -243,12 +278,17 @@ def test_generic_measures_name_existing_columns() -> None:
             texts.append(r.get("measure") or "")
             texts.append(r.get("when") or "")
             req = r.get("requirement") or {}
-            texts += [v for v in (req.get("value"), req.get("min"), req.get("max")) if isinstance(v, str)]
+            texts += [
+                v for v in (req.get("value"), req.get("min"), req.get("max")) if isinstance(v, str)
+            ]
         for text in texts:
             for ref in re.findall(r"\b([a-z_]+)\.([a-z0-9_]+)(?:\.([a-z_]+))?", text):
                 table, col, sub = ref
-                if table not in tables or (table == "checkpoints" and col not in tables[table]["columns"]
-                                           and col not in special):
+                if table not in tables or (
+                    table == "checkpoints"
+                    and col not in tables[table]["columns"]
+                    and col not in special
+                ):
                     continue  # specialised families (checkpoints.rmse_x ...) are registry measures
                 assert col in special or col in tables[table]["columns"], f"{name}: {table}.{col}"
                 assert sub in ("", "complete", "mean"), f"{name}: {text}"
@@ -261,8 +301,16 @@ def test_added_tables_follow_convention_format() -> None:
         assert {"scope", "id", "description", "columns"} <= set(t)
         assert t["id"] in t["columns"] and t["columns"][t["id"]].get("required") is True
         for col, spec in t["columns"].items():
-            assert set(spec) <= {"type", "unit", "required", "description", "min", "max", "values",
-                                 "synonyms"}, (name, col)
+            assert set(spec) <= {
+                "type",
+                "unit",
+                "required",
+                "description",
+                "min",
+                "max",
+                "values",
+                "synonyms",
+            }, (name, col)
             assert spec["type"] in ("text", "number", "bool", "date", "datetime")
 
 
@@ -285,7 +333,10 @@ def test_usgs_ce90_ce95_from_profile_constants(sensor: str) -> None:
     assert round(p["ce90_factor"] / 2 * s, 2) == round(row["ce90"], 2)
     assert round(p["ce95_factor"] / 2 * s, 2) == round(row["ce95"], 2)
     if sensor == "DSS 300":  # the brief's worked example, three decimals as printed
-        assert (round(p["ce90_factor"] / 2 * s, 3), round(p["ce95_factor"] / 2 * s, 3)) == (0.476, 0.543)
+        assert (round(p["ce90_factor"] / 2 * s, 3), round(p["ce95_factor"] / 2 * s, 3)) == (
+            0.476,
+            0.543,
+        )
         assert round(math.hypot(row["rmse_x"], row["rmse_y"]), 3) == row["rmse_net"]
 
 
@@ -309,8 +360,18 @@ def test_usgs_table_rows_are_in_seed() -> None:
 
 def _fmt(v: float) -> str:
     """Numbers as the seed prints them (trailing zeros kept where the seed has them)."""
-    return {0.3: "0.3", 0.5: "0.5", 1.0: "1.0", 2.60: "2.60", 0.2: "0.2", 0.02: "0.02",
-            0.73: "0.73", 0.83: "0.83", 0.43: "0.43", 0.49: "0.49"}.get(v, repr(v))
+    return {
+        0.3: "0.3",
+        0.5: "0.5",
+        1.0: "1.0",
+        2.60: "2.60",
+        0.2: "0.2",
+        0.02: "0.02",
+        0.73: "0.73",
+        0.83: "0.83",
+        0.43: "0.43",
+        0.49: "0.49",
+    }.get(v, repr(v))
 
 
 CAMERAS = _yaml(SPECS / "cameras.yaml")["cameras"]
@@ -328,11 +389,18 @@ def test_passini_gsd_from_flying_height(flight: str) -> None:
 
 @pytest.mark.parametrize("cam", CAMERAS, ids=[c["id"] for c in CAMERAS])
 def test_camera_table_consistency_or_documented(cam: dict[str, Any]) -> None:
-    size = [cam["pixels_x"] * cam["pixel_size_um"] / 1000, cam["pixels_y"] * cam["pixel_size_um"] / 1000]
+    size = [
+        cam["pixels_x"] * cam["pixel_size_um"] / 1000,
+        cam["pixels_y"] * cam["pixel_size_um"] / 1000,
+    ]
     size_ok = all(abs(a - b) <= 0.06 for a, b in zip(size, cam["image_size_mm"], strict=True))
     mp_ok = abs(cam["pixels_x"] * cam["pixels_y"] / 1e6 - cam["megapixel"]) <= 1.0
-    fov = [2 * math.degrees(math.atan(cam["image_size_mm"][0] / 2 / f)) for f in cam["focal_length_mm"]]
-    fov_ok = all(abs(a - b) <= 0.15 for a, b in zip(fov, cam["field_of_view_base_deg"], strict=True))
+    fov = [
+        2 * math.degrees(math.atan(cam["image_size_mm"][0] / 2 / f)) for f in cam["focal_length_mm"]
+    ]
+    fov_ok = all(
+        abs(a - b) <= 0.15 for a, b in zip(fov, cam["field_of_view_base_deg"], strict=True)
+    )
     if size_ok and mp_ok and fov_ok:
         assert "ocr_note" not in cam, f"{cam['id']}: consistent row carries a stale ocr_note"
     else:
@@ -345,15 +413,20 @@ def test_camera_rows_transcribed_from_seed() -> None:
     for cam in CAMERAS:
         f = " / ".join(_num(v) for v in cam["focal_length_mm"])
         fov = " / ".join(f"{_num(v)}°" for v in cam["field_of_view_base_deg"])
-        line = (f"{cam['id']} {cam['pixels_x']} {cam['pixels_y']} {cam['pixel_size_um']:.1f} {f} "
-                f"{_num(cam['frame_interval_s'])} {cam['image_size_mm'][0]:.2f} "
-                f"{_num(cam['image_size_mm'][1])} {fov} {cam['megapixel']}")
+        line = (
+            f"{cam['id']} {cam['pixels_x']} {cam['pixels_y']} {cam['pixel_size_um']:.1f} {f} "
+            f"{_num(cam['frame_interval_s'])} {cam['image_size_mm'][0]:.2f} "
+            f"{_num(cam['image_size_mm'][1])} {fov} {cam['megapixel']}"
+        )
         assert line in text, line
 
 
 def _num(v: float) -> str:
-    return str(int(v)) if float(v).is_integer() and not isinstance(v, float) else (
-        str(v) if not float(v).is_integer() else str(int(v)))
+    return (
+        str(int(v))
+        if float(v).is_integer() and not isinstance(v, float)
+        else (str(v) if not float(v).is_integer() else str(int(v)))
+    )
 
 
 @needs_seeds
@@ -395,8 +468,10 @@ def test_coverage_md_lists_every_jrc_rule_and_manual_rule() -> None:
 
 
 # ---------------------------------------------------------------- loader / CLI
-loader_ready = pytest.mark.skipif(not (ROOT / "src" / "orthospec" / "spec" / "loader.py").exists(),
-                                  reason="profile loader not available")
+loader_ready = pytest.mark.skipif(
+    not (ROOT / "src" / "orthospec" / "spec" / "loader.py").exists(),
+    reason="profile loader not available",
+)
 
 
 @loader_ready

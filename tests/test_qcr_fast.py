@@ -85,7 +85,9 @@ _odd = st.text(alphabet=st.sampled_from(list("0123456789aP_-. ٣é\x00\n")), max
 
 @settings(max_examples=80, deadline=None)
 @given(_one_shape(), st.lists(_odd, min_size=1, max_size=8), st.integers(0, 2**32 - 1))
-def test_mixed_ids_sort_as_natural_key(case: tuple[list[str], str], odd: list[str], seed: int) -> None:
+def test_mixed_ids_sort_as_natural_key(
+    case: tuple[list[str], str], odd: list[str], seed: int
+) -> None:
     """Ids of one shape mixed with any others (other lengths, digit places, non-ASCII digits, NUL,
     line feeds): the shortcut steps aside when the ids are not all of one shape, and the order
     stays the reference's."""
@@ -112,8 +114,15 @@ def test_uniform_order_known_cases() -> None:
 
 
 @settings(max_examples=200, deadline=None)
-@given(st.lists(st.text(alphabet=st.sampled_from(list("ab1=+-@\t\r\n,\"'&<>\x00\x01\x7f\x85\x9fé≤\ufffe")),
-                        max_size=6), max_size=12))
+@given(
+    st.lists(
+        st.text(
+            alphabet=st.sampled_from(list("ab1=+-@\t\r\n,\"'&<>\x00\x01\x7f\x85\x9fé≤\ufffe")),
+            max_size=6,
+        ),
+        max_size=12,
+    )
+)
 def test_column_checks_equal_the_regular_expressions(cells: list[str]) -> None:
     joined = "\x00".join(cells)
     with pytest.MonkeyPatch.context() as mp:
@@ -153,7 +162,10 @@ def test_row_columns_without_gaps_same_bytes(seed: int, monkeypatch: pytest.Monk
             ev["rows"] = [rng.randrange(1, 10**6) for _ in ev["rows"]]
             changed += 1
         elif isinstance(block["items"], list) and block["items"]:
-            block["evidence"] = {"entry": rng.choice([0, 1, 6]), "rows": [rng.randrange(1, 99) for _ in block["items"]]}
+            block["evidence"] = {
+                "entry": rng.choice([0, 1, 6]),
+                "rows": [rng.randrange(1, 99) for _ in block["items"]],
+            }
             changed += 1
     assert changed
     for chunk in (1 + seed % 5, 50_000):
@@ -173,13 +185,19 @@ def test_compact_columns_encode_as_json_does(texts: list[str], repeat: int, mixe
     enc = json.JSONEncoder(ensure_ascii=False, allow_nan=False, separators=(",", ":")).encode
     ids = (texts * (1 + repeat))[: max(len(texts), 256 if repeat else 0)]
     column: list = [*ids, 3] if mixed else ids
-    block = {"items": column, "verdict": {"all": "pass"}, "evidence": {"entry": 1, "rows": list(range(len(ids)))},
-             "message": ids[:3]}
+    block = {
+        "items": column,
+        "verdict": {"all": "pass"},
+        "evidence": {"entry": 1, "rows": list(range(len(ids)))},
+        "message": ids[:3],
+    }
     with pytest.MonkeyPatch.context() as mp:
         for large in (0, qcr._LARGE):  # control characters found in the bytes, or by the regex
             mp.setattr(qcr.json, "_LARGE", large)
             assert _encode_columns(enc, block) == enc(block)
-            assert _encode_columns(enc, {1: ids}) == enc({1: ids}) and _encode_columns(enc, ids) == enc(ids)
+            assert _encode_columns(enc, {1: ids}) == enc({1: ids}) and _encode_columns(
+                enc, ids
+            ) == enc(ids)
             if not mixed and len(ids) >= 256:
                 plain = all(not set(t) & set('"\\\x00\x1f\n\t') for t in ids)
                 assert (_json_texts(ids) is not None) == plain
@@ -192,8 +210,14 @@ def test_heads_and_tails_known_cases() -> None:
     rng = random.Random(7)
     ids = [f"B{b:02d}_{rng.randrange(0, 3000)}" for b in (1, 2, 10) for _ in range(150)]
     assert natural_order(ids).tolist() == _reference(ids)
-    for extra in (["B01_2x", "B01_"], ["5x", "12", "0012", "0"], ["x٣5", "x٣", "x4", "x٣٣", "x٣40"], ["P" + "9" * 25, "P" + "0" * 30],
-                  ["a\x001", "a\x00", "\x00"], ["é12", "e12", "E12"]):
+    for extra in (
+        ["B01_2x", "B01_"],
+        ["5x", "12", "0012", "0"],
+        ["x٣5", "x٣", "x4", "x٣٣", "x٣40"],
+        ["P" + "9" * 25, "P" + "0" * 30],
+        ["a\x001", "a\x00", "\x00"],
+        ["é12", "e12", "E12"],
+    ):
         mixed = ids + extra * 3
         rng.shuffle(mixed)
         assert natural_order(mixed).tolist() == _reference(mixed), extra

@@ -41,8 +41,10 @@ def _json(x):
 
 def test_every_non_pass_record_is_in_full(fail_check: api.CheckResult) -> None:
     doc = json.loads(dumps(fail_check.document))
-    expected = sum(int(np.count_nonzero(~np.isin(np.asarray(r.verdict), (0, 3))))  # not pass, not n/a
-                   for r in fail_check.evaluation.results)
+    expected = sum(
+        int(np.count_nonzero(~np.isin(np.asarray(r.verdict), (0, 3))))  # not pass, not n/a
+        for r in fail_check.evaluation.results
+    )
     assert expected > 0
     assert len(doc["records"]) == expected
     assert all(r["verdict"] not in ("pass", "not_applicable") for r in doc["records"])
@@ -54,7 +56,11 @@ def test_every_non_pass_record_is_in_full(fail_check: api.CheckResult) -> None:
     for rec in all_records(doc):
         got[rec["verdict"]] += 1
     assert got == counts
-    assert doc["summary"] == {"rules": len(fail_check.evaluation.results), "records": sum(counts.values()), **counts}
+    assert doc["summary"] == {
+        "rules": len(fail_check.evaluation.results),
+        "records": sum(counts.values()),
+        **counts,
+    }
 
 
 def test_expanded_records_equal_the_records_in_full(fail_check: api.CheckResult) -> None:
@@ -67,13 +73,17 @@ def test_expanded_records_equal_the_records_in_full(fail_check: api.CheckResult)
         recs = [r for r in full if r["rule"] == rule]
         assert len(recs) > 1 and {r["verdict"] for r in recs} - {"pass", "not_applicable"}
         quote = recs[0]["quote"]
-        assert text.count(json.dumps(quote, ensure_ascii=False)) == sum(r["quote"] == quote for r in doc["rules"])
+        assert text.count(json.dumps(quote, ensure_ascii=False)) == sum(
+            r["quote"] == quote for r in doc["rules"]
+        )
     # rules over the same images share one item list
     refs = [b["items"]["ref"] for b in doc["compact"].values() if isinstance(b["items"], dict)]
     assert refs and all(isinstance(doc["compact"][rid][col], list) for rid, col in refs)
 
 
-def test_stream_equals_text_and_is_deterministic(fail_check: api.CheckResult, tmp_path: Path) -> None:
+def test_stream_equals_text_and_is_deterministic(
+    fail_check: api.CheckResult, tmp_path: Path
+) -> None:
     text = "".join(iter_dumps(fail_check.document))
     assert text == dumps(fail_check.document)
     again = api.check(EXAMPLES / "aerial-fail", "jrc-v3", date="2026-11-21", checker=CHECKER)
@@ -84,16 +94,23 @@ def test_stream_equals_text_and_is_deterministic(fail_check: api.CheckResult, tm
 
 
 def test_old_documents_are_read_as_they_are() -> None:
-    recs = [{"rule": "R", "item": "a", "verdict": "pass"}, {"rule": "R", "item": "b", "verdict": "fail"}]
+    recs = [
+        {"rule": "R", "item": "a", "verdict": "pass"},
+        {"rule": "R", "item": "b", "verdict": "fail"},
+    ]
     assert list(all_records({"schema": "orthospec.qcr/1", "records": recs})) == recs
 
 
 def test_point_tables_in_every_form() -> None:
     pd = pytest.importorskip("pandas")
-    frame = pd.DataFrame({"point_id": ["P1", "P2"], "dx": [0.1234567890123, float("nan")], "n": [1, 2]})
+    frame = pd.DataFrame(
+        {"point_id": ["P1", "P2"], "dx": [0.1234567890123, float("nan")], "n": [1, 2]}
+    )
     table = stable({"points": frame})["points"]
-    assert table == {"columns": ["point_id", "dx", "n"],
-                     "data": {"point_id": ["P1", "P2"], "dx": [0.123456789, None], "n": [1, 2]}}
+    assert table == {
+        "columns": ["point_id", "dx", "n"],
+        "data": {"point_id": ["P1", "P2"], "dx": [0.123456789, None], "n": [1, 2]},
+    }
     rows = [{"point_id": "P1", "dx": 0.123456789, "n": 1}, {"point_id": "P2", "dx": None, "n": 2}]
     assert point_rows(table) == rows
     assert point_rows(rows) == rows
@@ -107,8 +124,12 @@ def test_vectorised_rounding_equals_the_scalar_rule() -> None:
     from orthospec.qcr import round_sig
 
     rng = np.random.default_rng(7)
-    x = np.concatenate([rng.normal(0, 1, 20000) * 10.0 ** rng.integers(-25, 25, 20000),
-                        [0.3, 1 / 3, 2.5e-30, 5e25, 123456789012345.0]])
+    x = np.concatenate(
+        [
+            rng.normal(0, 1, 20000) * 10.0 ** rng.integers(-25, 25, 20000),
+            [0.3, 1 / 3, 2.5e-30, 5e25, 123456789012345.0],
+        ]
+    )
     assert round_sig(x).tolist() == [stable(float(v)) for v in x]
 
 
@@ -121,16 +142,20 @@ def test_problems_only_reading_and_streamed_csv_junit(fail_check: api.CheckResul
 
     doc = json.loads(dumps(fail_check.document))
     every = list(all_records(doc))
-    assert list(all_records(doc, compact=False)) == [r for r in every
-                                                      if r["verdict"] not in ("pass", "not_applicable")]
+    assert list(all_records(doc, compact=False)) == [
+        r for r in every if r["verdict"] not in ("pass", "not_applicable")
+    ]
     rows = list(csv.reader(io.StringIO("".join(iter_csv(doc, rows_per_piece=7)))))
     assert len(rows) == 1 + len(every) == 1 + doc["summary"]["records"]
-    assert [(r[0], r[3], r[6]) for r in rows[1:]] == [(r["rule"], r["item"], r["verdict"]) for r in every]
+    assert [(r[0], r[3], r[6]) for r in rows[1:]] == [
+        (r["rule"], r["item"], r["verdict"]) for r in every
+    ]
     root = ET.fromstring("".join(iter_junit(doc)))
     cases = root.findall("./testsuite/testcase")
     assert len(cases) == len(every)
-    assert len(root.findall("./testsuite/testcase/failure")) == sum(r["verdict"] in ("fail", "missing")
-                                                                     for r in every)
+    assert len(root.findall("./testsuite/testcase/failure")) == sum(
+        r["verdict"] in ("fail", "missing") for r in every
+    )
     assert int(root.get("failures")) == doc["summary"]["fail"] + doc["summary"]["missing"]
 
 

@@ -40,7 +40,9 @@ PARAMS = ["tolerance_xy=0.5", "map_crs=EPSG:25832"]
 
 
 def _bench_checkpoints():
-    spec = importlib.util.spec_from_file_location("bench_checkpoints_qcr", ROOT / "benchmarks" / "checkpoints.py")
+    spec = importlib.util.spec_from_file_location(
+        "bench_checkpoints_qcr", ROOT / "benchmarks" / "checkpoints.py"
+    )
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
     sys.modules[spec.name] = module
@@ -56,7 +58,9 @@ def many(tmp_path_factory) -> Path:
     table = root / "tables" / "checkpoints.csv"
     _bench_checkpoints().write_checkpoints(table, POINTS)
     lines = table.read_text(encoding="utf-8").splitlines(keepends=True)
-    for k in range(5, len(lines), 997):  # " B02 ,": the reader strips cells; selectors name the stripped value
+    for k in range(
+        5, len(lines), 997
+    ):  # " B02 ,": the reader strips cells; selectors name the stripped value
         head, block, rest = lines[k].split(",", 2)
         lines[k] = f"{head}, {block} ,{rest}"
     lines.insert(4001, "\n")  # a blank line: counted as a data row number, never selected
@@ -85,7 +89,9 @@ def _rows_by_csv(path: Path, where: dict[str, str]) -> list[int]:
     return out
 
 
-def test_selectors_resolve_to_exactly_the_rows_held_in_memory(many: Path, checked: api.CheckResult) -> None:
+def test_selectors_resolve_to_exactly_the_rows_held_in_memory(
+    many: Path, checked: api.CheckResult
+) -> None:
     doc = json.loads(dumps(checked.document))
     written = {(r["rule"], r["item"]): r["evidence"] for r in all_records(doc)}
     seen = set()
@@ -106,7 +112,9 @@ def test_selectors_resolve_to_exactly_the_rows_held_in_memory(many: Path, checke
                 if key not in seen:
                     independent = _rows_by_csv(many / e.file, entry["where"])
                     assert independent == list(e.rows)
-                    assert evidence_rows(entry, many) == independent  # the helper readers are offered
+                    assert (
+                        evidence_rows(entry, many) == independent
+                    )  # the helper readers are offered
                     seen.add(key)
     wheres = {k[1] for k in seen}
     # every row of the table (counts, completeness, roll-up shares) and each block's points
@@ -124,7 +132,9 @@ def test_evidence_does_not_grow_with_the_points(checked: api.CheckResult) -> Non
     assert longest < 4 * ROWS_LISTED_MAX  # no record lists a block's thousands of rows
 
 
-def test_many_points_same_bytes_schema_and_every_record(many: Path, checked: api.CheckResult) -> None:
+def test_many_points_same_bytes_schema_and_every_record(
+    many: Path, checked: api.CheckResult
+) -> None:
     jsonschema = pytest.importorskip("jsonschema")
     text = dumps(checked.document)
     again = api.check(many, "jrc-v3", params=PARAMS, date="2026-11-21")
@@ -134,8 +144,10 @@ def test_many_points_same_bytes_schema_and_every_record(many: Path, checked: api
     QcrDocument.model_validate(doc)
     schema = json.loads((ROOT / "specs" / "schema" / "qcr.schema.json").read_text(encoding="utf-8"))
     jsonschema.validate(doc, schema)
-    non_pass = sum(int(np.count_nonzero(~np.isin(np.asarray(r.verdict), (0, 3))))
-                   for r in checked.evaluation.results)
+    non_pass = sum(
+        int(np.count_nonzero(~np.isin(np.asarray(r.verdict), (0, 3))))
+        for r in checked.evaluation.results
+    )
     assert non_pass > 0 and len(doc["records"]) == non_pass
     # expanding the compact form gives every record exactly as written in full
     expanded = list(all_records(doc))
@@ -145,12 +157,16 @@ def test_many_points_same_bytes_schema_and_every_record(many: Path, checked: api
 
 # --- natural order ------------------------------------------------------------------------------
 
+
 def _expected(ids: list[str]) -> list[int]:
     return sorted(range(len(ids)), key=lambda i: natural_key(ids[i]))
 
 
-_fast_ids = st.builds(lambda p, d: p + d, st.sampled_from(["", "P", "IMG_", "p", "P-", "a b", "Z"]),
-                      st.text(alphabet="0123456789", max_size=22))
+_fast_ids = st.builds(
+    lambda p, d: p + d,
+    st.sampled_from(["", "P", "IMG_", "p", "P-", "a b", "Z"]),
+    st.text(alphabet="0123456789", max_size=22),
+)
 _any_ids = st.text(alphabet=st.sampled_from(list("0123456789aAP_-. ٣é\x00")), max_size=8)
 
 
@@ -159,8 +175,10 @@ _any_ids = st.text(alphabet=st.sampled_from(list("0123456789aAP_-. ٣é\x00")), 
 def test_natural_order_equals_natural_key(extra: list[str], seed: int) -> None:
     rng = np.random.default_rng(seed)
     # enough ids of the common shape for the vectorised path, plus the drawn ones (any shape)
-    base = [f"P{int(v):0{int(w)}d}" for v, w in zip(rng.integers(0, 5000, 300), rng.integers(1, 8, 300),
-                                                     strict=True)]
+    base = [
+        f"P{int(v):0{int(w)}d}"
+        for v, w in zip(rng.integers(0, 5000, 300), rng.integers(1, 8, 300), strict=True)
+    ]
     ids = base + extra
     perm = rng.permutation(len(ids))
     ids = [ids[i] for i in perm]
@@ -168,10 +186,39 @@ def test_natural_order_equals_natural_key(extra: list[str], seed: int) -> None:
 
 
 def test_natural_order_on_known_cases() -> None:
-    ids = ["P10", "P9", "P09", "P009", "P", "P0", "P00", "Q1", "", "10", "9", "F01_0101", "F01_0002", "P1a"] * 30
+    ids = [
+        "P10",
+        "P9",
+        "P09",
+        "P009",
+        "P",
+        "P0",
+        "P00",
+        "Q1",
+        "",
+        "10",
+        "9",
+        "F01_0101",
+        "F01_0002",
+        "P1a",
+    ] * 30
     assert natural_order(ids).tolist() == _expected(ids)
     assert [ids[i] for i in natural_order(ids)[::30]] == [
-        "", "9", "10", "F01_0002", "F01_0101", "P", "P0", "P00", "P1a", "P009", "P09", "P9", "P10", "Q1"]
+        "",
+        "9",
+        "10",
+        "F01_0002",
+        "F01_0101",
+        "P",
+        "P0",
+        "P00",
+        "P1a",
+        "P009",
+        "P09",
+        "P9",
+        "P10",
+        "Q1",
+    ]
     big = [f"P{i:07d}" for i in range(50_000)][::-1]
     assert natural_order(big).tolist() == list(range(50_000))[::-1]
 
@@ -183,7 +230,12 @@ def test_reports_and_csv_name_the_selected_rows(checked: api.CheckResult) -> Non
     from orthospec.reports.html import ReportOptions, render_html
 
     doc = json.loads(dumps(checked.document))
-    selected = [(r["item"], e) for r in all_records(doc, compact=False) for e in r["evidence"] if "where" in e]
+    selected = [
+        (r["item"], e)
+        for r in all_records(doc, compact=False)
+        for e in r["evidence"]
+        if "where" in e
+    ]
     assert selected  # block-level findings over thousands of points
     item, entry = next((i, e) for i, e in selected if e["where"])
     shown = f"where block = {entry['where']['block']} ({entry['rows_count']} rows)"
@@ -192,8 +244,9 @@ def test_reports_and_csv_name_the_selected_rows(checked: api.CheckResult) -> Non
     assert f"tables/checkpoints.csv#{shown}" in to_csv(doc)
 
 
-def test_block_distributions_in_threads_give_the_same_document(many: Path, checked: api.CheckResult,
-                                                                monkeypatch: pytest.MonkeyPatch) -> None:
+def test_block_distributions_in_threads_give_the_same_document(
+    many: Path, checked: api.CheckResult, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """Above PARALLEL_POINTS the blocks' distributions (KD-trees) run in threads beside the
     blunder screening: the same bytes as one block after the other."""
     from orthospec.engine.providers import checkpoints
@@ -203,7 +256,9 @@ def test_block_distributions_in_threads_give_the_same_document(many: Path, check
     assert dumps(threaded.document) == dumps(checked.document)
 
 
-def test_a_selector_is_not_reapplied_to_a_changed_file(many: Path, checked: api.CheckResult, tmp_path: Path) -> None:
+def test_a_selector_is_not_reapplied_to_a_changed_file(
+    many: Path, checked: api.CheckResult, tmp_path: Path
+) -> None:
     from orthospec.errors import OrthospecError
 
     doc = json.loads(dumps(checked.document))
@@ -223,6 +278,9 @@ def test_csv_and_junit_by_block_same_bytes(checked: api.CheckResult) -> None:
     from orthospec.qcr import _iter_csv_records, _iter_junit_records, iter_csv, iter_junit
 
     doc = checked.document
-    assert max(len(b["items"]) for b in doc["compact"].values() if isinstance(b["items"], list)) >= POINTS
+    assert (
+        max(len(b["items"]) for b in doc["compact"].values() if isinstance(b["items"], list))
+        >= POINTS
+    )
     assert "".join(iter_csv(doc)) == "".join(_iter_csv_records(doc))
     assert "".join(iter_junit(doc)) == "".join(_iter_junit_records(doc))

@@ -40,10 +40,13 @@ def _same(doc) -> None:
     assert "".join(iter_junit(doc)) == "".join(_iter_junit_records(doc))
 
 
-@pytest.mark.parametrize(("name", "kw"), [
-    ("aerial-pass", {"params": ["tolerance_xy=0.5", "map_crs=EPSG:25832"]}),
-    ("aerial-fail", {"checker": ROOT / "examples" / "checker" / "aerial-fail"}),
-])
+@pytest.mark.parametrize(
+    ("name", "kw"),
+    [
+        ("aerial-pass", {"params": ["tolerance_xy=0.5", "map_crs=EPSG:25832"]}),
+        ("aerial-fail", {"checker": ROOT / "examples" / "checker" / "aerial-fail"}),
+    ],
+)
 def test_examples_same_bytes(name: str, kw: dict) -> None:
     doc = api.check(EXAMPLES / name, "jrc-v3", date="2026-11-21", **kw).document
     assert doc["compact"] and doc["records"]  # both forms are exercised
@@ -53,10 +56,46 @@ def test_examples_same_bytes(name: str, kw: dict) -> None:
 
 # --- generated documents ----------------------------------------------------------------------
 
-_IDS = ["P{}", "A&{}", "A>{}", "A'{}", "P,{}", 'P"{}', "={}", "+{}", "-{}", "@{}", "\t{}", "x\x01{}", "a<b>&'{}", "l\n{}", "c\r{}",
-        "ü{}", "IMG_{}", "B{}_x{}", "{}", " {} ", "\x7f{}", 'q"\'{}']
-_TEXTS = ["", "fine", "x, y", 'say "hi"', "=SUM(A1)", "-3", "@me", "a\nb", "c\rd", "<&>", "tab\there",
-          "ctl\x02x", "≤ 0.5 m", "'single'"]
+_IDS = [
+    "P{}",
+    "A&{}",
+    "A>{}",
+    "A'{}",
+    "P,{}",
+    'P"{}',
+    "={}",
+    "+{}",
+    "-{}",
+    "@{}",
+    "\t{}",
+    "x\x01{}",
+    "a<b>&'{}",
+    "l\n{}",
+    "c\r{}",
+    "ü{}",
+    "IMG_{}",
+    "B{}_x{}",
+    "{}",
+    " {} ",
+    "\x7f{}",
+    "q\"'{}",
+]
+_TEXTS = [
+    "",
+    "fine",
+    "x, y",
+    'say "hi"',
+    "=SUM(A1)",
+    "-3",
+    "@me",
+    "a\nb",
+    "c\rd",
+    "<&>",
+    "tab\there",
+    "ctl\x02x",
+    "≤ 0.5 m",
+    "'single'",
+]
 
 
 def _ids(rng: random.Random, n: int) -> list[str]:
@@ -71,8 +110,17 @@ def _ids(rng: random.Random, n: int) -> list[str]:
 
 
 def _value(rng: random.Random):
-    return rng.choice([rng.uniform(-5, 5), rng.choice([0.0, 1e-7, 123456789.0, 2.5e20, -0.0]),
-                       rng.randrange(-9, 99), None, True, False, rng.choice(_TEXTS)])
+    return rng.choice(
+        [
+            rng.uniform(-5, 5),
+            rng.choice([0.0, 1e-7, 123456789.0, 2.5e20, -0.0]),
+            rng.randrange(-9, 99),
+            None,
+            True,
+            False,
+            rng.choice(_TEXTS),
+        ]
+    )
 
 
 def _column(rng: random.Random, values: list, allow_all: bool = True):
@@ -83,28 +131,55 @@ def _column(rng: random.Random, values: list, allow_all: bool = True):
 
 def _doc(seed: int) -> dict:
     rng = random.Random(seed)
-    evidence = [{"file": "tables/checkpoints.csv", "sha256": "a" * 64, "rows": [1, 2]},
-                {"file": "tables/checkpoints.csv", "sha256": "a" * 64},
-                {"file": "tables/checkpoints.csv", "sha256": "a" * 64, "where": {"block": "B02"}, "rows_count": 3},
-                {"file": "tables/checkpoints.csv", "sha256": "a" * 64, "where": {}, "rows_count": 9},
-                {"file": "delivery.yaml", "sha256": "b" * 64, "path": "sensor.type"},
-                {"file": "=t,ab\"le.csv", "sha256": "c" * 64},
-                {"file": "imgs/a b.tif", "sha256": "d" * 64, "rows": [4]},
-                {"file": "-cp.csv", "sha256": "e" * 64, "path": "x"}]
+    evidence = [
+        {"file": "tables/checkpoints.csv", "sha256": "a" * 64, "rows": [1, 2]},
+        {"file": "tables/checkpoints.csv", "sha256": "a" * 64},
+        {
+            "file": "tables/checkpoints.csv",
+            "sha256": "a" * 64,
+            "where": {"block": "B02"},
+            "rows_count": 3,
+        },
+        {"file": "tables/checkpoints.csv", "sha256": "a" * 64, "where": {}, "rows_count": 9},
+        {"file": "delivery.yaml", "sha256": "b" * 64, "path": "sensor.type"},
+        {"file": '=t,ab"le.csv', "sha256": "c" * 64},
+        {"file": "imgs/a b.tif", "sha256": "d" * 64, "rows": [4]},
+        {"file": "-cp.csv", "sha256": "e" * 64, "path": "x"},
+    ]
     rules, records, compact = [], [], {}
-    verdict_counts = dict.fromkeys(("pass", "fail", "warn", "not_applicable", "missing", "error", "waived"), 0)
+    verdict_counts = dict.fromkeys(
+        ("pass", "fail", "warn", "not_applicable", "missing", "error", "waived"), 0
+    )
     fail_on = rng.choice(["fail", "warn"])
     first_items = None
     for k in range(rng.randrange(3, 8)):
-        rid = rng.choice([f"R-{k}", f"R-{k}", f"R&{k}", f"R&<{k}>", f'R"{k}', f"R'{k}", f"R\x03{k}"]) + f"-{k}"
+        rid = (
+            rng.choice([f"R-{k}", f"R-{k}", f"R&{k}", f"R&<{k}>", f'R"{k}', f"R'{k}", f"R\x03{k}"])
+            + f"-{k}"
+        )
         unit = rng.choice(["m", None, "%", "deg"])
-        req = {"op": "<=", "value": 0.5, "unit": unit, "text": rng.choice(["≤ 0.5 m", "< 1", '"x"', "=1", "a,b"])}
-        summary = {"rule": rid, "title": rng.choice(["Title", "T, <&>", "=T"]), "scope": rng.choice(["image", "block", "checkpoint"]),
-                   "level": rng.choice(["mandatory", "recommended", None]), "consequence": rng.choice(["reject_block", "warn"]),
-                   "citation": rng.choice([{"document": "JRC EUR 23638 EN", "section": "12.7"}, {}]),
-                   "quote": "", "manual": False, "measure": rng.choice(["checkpoints.rmse_x", "=m", "a,b", ""]),
-                   "unit": unit, "requirement": req}
-        items = first_items if first_items and rng.random() < 0.3 else _ids(rng, rng.randrange(0, 60))
+        req = {
+            "op": "<=",
+            "value": 0.5,
+            "unit": unit,
+            "text": rng.choice(["≤ 0.5 m", "< 1", '"x"', "=1", "a,b"]),
+        }
+        summary = {
+            "rule": rid,
+            "title": rng.choice(["Title", "T, <&>", "=T"]),
+            "scope": rng.choice(["image", "block", "checkpoint"]),
+            "level": rng.choice(["mandatory", "recommended", None]),
+            "consequence": rng.choice(["reject_block", "warn"]),
+            "citation": rng.choice([{"document": "JRC EUR 23638 EN", "section": "12.7"}, {}]),
+            "quote": "",
+            "manual": False,
+            "measure": rng.choice(["checkpoints.rmse_x", "=m", "a,b", ""]),
+            "unit": unit,
+            "requirement": req,
+        }
+        items = (
+            first_items if first_items and rng.random() < 0.3 else _ids(rng, rng.randrange(0, 60))
+        )
         first_items = first_items or items
         full_mask = [rng.random() < 0.25 for _ in items]
         comp = [it for it, f in zip(items, full_mask, strict=True) if not f]
@@ -113,8 +188,14 @@ def _doc(seed: int) -> dict:
                 continue
             v = rng.choice(["fail", "warn", "missing", "error", "waived"])
             verdict_counts[v] += 1
-            rec = {"rule": rid, "item": it, "verdict": v, "measured": _value(rng),
-                   "evidence": rng.sample(evidence, rng.randrange(0, 3)), "message": rng.choice(_TEXTS)}
+            rec = {
+                "rule": rid,
+                "item": it,
+                "verdict": v,
+                "measured": _value(rng),
+                "evidence": rng.sample(evidence, rng.randrange(0, 3)),
+                "message": rng.choice(_TEXTS),
+            }
             if rng.random() < 0.3:
                 rec["requirement"] = {**req, "value": 0.7, "text": rng.choice(_TEXTS)}
             if v == "waived":
@@ -124,11 +205,17 @@ def _doc(seed: int) -> dict:
                 rec["waiver_requested"] = {"justification": rng.choice(_TEXTS)}
             records.append(rec)
         if comp and rng.random() < 0.3:  # an item in full and compact: the full record comes first
-            twin = {**records[-1], "item": rng.choice(comp)} if records and records[-1]["rule"] == rid else None
+            twin = (
+                {**records[-1], "item": rng.choice(comp)}
+                if records and records[-1]["rule"] == rid
+                else None
+            )
             if twin is not None:
                 verdict_counts[twin["verdict"]] += 1
                 mine = [r for r in records if r["rule"] == rid] + [twin]
-                records = [r for r in records if r["rule"] != rid] + sorted(mine, key=lambda r: natural_key(r["item"]))
+                records = [r for r in records if r["rule"] != rid] + sorted(
+                    mine, key=lambda r: natural_key(r["item"])
+                )
         if comp:
             n = len(comp)
             verdicts = [rng.choice(["pass", "pass", "not_applicable"]) for _ in comp]
@@ -136,35 +223,78 @@ def _doc(seed: int) -> dict:
                 verdicts = [rng.choice(["pass", "not_applicable"])] * n
             for v in verdicts:
                 verdict_counts[v] += 1
-            measured = [_value(rng) for _ in comp] if rng.random() < 0.7 else [rng.uniform(0, 1)] * n
-            block = {"items": comp if rng.random() < 0.8 or comp != first_items else {"ref": [rules[0]["rule"], "items"]},
-                     "verdict": _column(rng, verdicts), "measured": _column(rng, measured)}
+            measured = (
+                [_value(rng) for _ in comp] if rng.random() < 0.7 else [rng.uniform(0, 1)] * n
+            )
+            block = {
+                "items": comp
+                if rng.random() < 0.8 or comp != first_items
+                else {"ref": [rules[0]["rule"], "items"]},
+                "verdict": _column(rng, verdicts),
+                "measured": _column(rng, measured),
+            }
             if rng.random() < 0.4:
                 texts = [rng.choice(_TEXTS) for _ in range(3)]
-                block["requirement"] = _column(rng, [{**req, "value": 0.1 * j, "text": texts[j % 3]} for j in range(n)])
+                block["requirement"] = _column(
+                    rng, [{**req, "value": 0.1 * j, "text": texts[j % 3]} for j in range(n)]
+                )
             form = rng.randrange(3)
             if form == 0:
-                block["evidence"] = {"entry": rng.choice([1, 5, 7]), "rows": [rng.choice([None, rng.randrange(1, 10**6)]) for _ in comp]}
+                block["evidence"] = {
+                    "entry": rng.choice([1, 5, 7]),
+                    "rows": [rng.choice([None, rng.randrange(1, 10**6)]) for _ in comp],
+                }
             elif form == 1:
-                block["evidence"] = _column(rng, [sorted(rng.sample(range(len(evidence)), rng.randrange(0, 3))) for _ in comp])
+                block["evidence"] = _column(
+                    rng,
+                    [sorted(rng.sample(range(len(evidence)), rng.randrange(0, 3))) for _ in comp],
+                )
             else:
                 block["evidence"] = {"all": [2]}
-            block["message"] = _column(rng, [None if v == "pass" and rng.random() < 0.7 else rng.choice(_TEXTS) for v in verdicts])
+            block["message"] = _column(
+                rng,
+                [
+                    None if v == "pass" and rng.random() < 0.7 else rng.choice(_TEXTS)
+                    for v in verdicts
+                ],
+            )
             if rng.random() < 0.3:
                 block["message"] = {"all": None}
             if rng.random() < 0.3:
-                block["waiver_requested"] = _column(rng, [rng.choice([None, {"justification": "j"}]) for _ in comp])
+                block["waiver_requested"] = _column(
+                    rng, [rng.choice([None, {"justification": "j"}]) for _ in comp]
+                )
             compact[rid] = block
         rules.append(summary)
     if rng.random() < 0.5:  # a record whose rule has no summary: all_records yields it as stored
-        records.append({"rule": "ORPHAN", "item": "x,1", "verdict": "fail", "evidence": [],
-                        "measured": {"value": 1.0, "unit": None},
-                        "message": "m", "title": "t", "scope": "image", "clause": {}, "level": "mandatory",
-                        "consequence": "warn", "measure": "m", "requirement": {"text": "<1"}})
+        records.append(
+            {
+                "rule": "ORPHAN",
+                "item": "x,1",
+                "verdict": "fail",
+                "evidence": [],
+                "measured": {"value": 1.0, "unit": None},
+                "message": "m",
+                "title": "t",
+                "scope": "image",
+                "clause": {},
+                "level": "mandatory",
+                "consequence": "warn",
+                "measure": "m",
+                "requirement": {"text": "<1"},
+            }
+        )
     total = sum(verdict_counts.values())
-    return {"schema": "orthospec.qcr/3", "profile": {"id": "p&<1>"}, "fail_on": fail_on,
-            "summary": {"rules": len(rules), "records": total, **verdict_counts},
-            "rules": rules, "records": records, "compact": compact, "evidence": evidence}
+    return {
+        "schema": "orthospec.qcr/3",
+        "profile": {"id": "p&<1>"},
+        "fail_on": fail_on,
+        "summary": {"rules": len(rules), "records": total, **verdict_counts},
+        "rules": rules,
+        "records": records,
+        "compact": compact,
+        "evidence": evidence,
+    }
 
 
 @pytest.mark.parametrize("seed", range(40))
@@ -179,10 +309,15 @@ def test_generated_same_bytes(seed: int, monkeypatch: pytest.MonkeyPatch) -> Non
     rows = list(csv.reader(io.StringIO(text)))
     assert len(rows) == 1 + sum(1 for _ in all_records(doc))
     items = {r["item"] for r in all_records(doc)}
-    assert {row[3] for row in rows[1:]} <= {("'" + i if i.startswith(("=", "+", "-", "@", "\t", "\r")) else i)
-                                           .replace("\r\n", "\n").replace("\r", "\n")
-                                           for i in items}  # formulas neutralised
-    suites = ET.fromstring("".join(iter_junit(doc)).encode())  # well-formed, control characters escaped
+    assert {row[3] for row in rows[1:]} <= {
+        ("'" + i if i.startswith(("=", "+", "-", "@", "\t", "\r")) else i)
+        .replace("\r\n", "\n")
+        .replace("\r", "\n")
+        for i in items
+    }  # formulas neutralised
+    suites = ET.fromstring(
+        "".join(iter_junit(doc)).encode()
+    )  # well-formed, control characters escaped
     assert sum(int(s.get("tests")) for s in suites) == sum(1 for _ in all_records(doc))
 
 

@@ -280,8 +280,9 @@ def test_noise_of_integers_equals_the_float_path(dtype):
     k = rad.NOISE_WINDOW
     if data.dtype.itemsize == 1 and dtype != "int8":  # the byte path vs the float64 path
         wide = data[:192, :328].astype(np.uint16)
-        assert np.array_equal(rad._window_std_exact(data[:192, :328], k),
-                              rad._window_std_exact(wide, k))
+        assert np.array_equal(
+            rad._window_std_exact(data[:192, :328], k), rad._window_std_exact(wide, k)
+        )
 
 
 def _noise_by_definition(img: np.ndarray, valid: np.ndarray) -> tuple[int, int, np.ndarray]:
@@ -355,8 +356,7 @@ def test_window_std_of_integers_equals_numpy_float64(dtype):
 
 
 @settings(max_examples=60, deadline=None)
-@given(st.lists(st.tuples(st.integers(0, 65535), st.integers(1, 2**40)), min_size=1,
-                max_size=40))
+@given(st.lists(st.tuples(st.integers(0, 65535), st.integers(1, 2**40)), min_size=1, max_size=40))
 def test_histogram_variance_is_the_exact_rational_rounded_once(bins):
     """Population variance from the histogram: (n * S2 - S1^2) / n^2 in exact integers,
     rounded once (independent check: fractions.Fraction), so no BLAS summation order or

@@ -27,8 +27,12 @@ from orthospec.raster.reading import ScanSettings, _MisregistrationWindows, band
 
 def _write(path: Path, data: np.ndarray, mask: np.ndarray | None = None, **profile) -> Path:
     """An RGB GeoTIFF in 64 x 64 tiles (many chunks per scan)."""
-    return write_tif(path, data, mask=mask, **{"photometric": "RGB", "tiled": True, "blockxsize": 64,
-                                               "blockysize": 64, **profile})
+    return write_tif(
+        path,
+        data,
+        mask=mask,
+        **{"photometric": "RGB", "tiled": True, "blockxsize": 64, "blockysize": 64, **profile},
+    )
 
 
 def _textured(rng: np.random.Generator, dtype: str, shape: tuple[int, int]) -> np.ndarray:
@@ -52,8 +56,8 @@ def test_many_chunk_full_scan_equals_the_whole_image_at_once(tmp_path, dtype, in
     rng = np.random.default_rng(14)
     a = _textured(rng, dtype, SHAPE)
     if invalid == "nodata":
-        a[:, 100:130, 200:260] = 0          # nodata in all three bands
-        a[1, 300:310, 10:400] = 0           # and in the green band only
+        a[:, 100:130, 200:260] = 0  # nodata in all three bands
+        a[1, 300:310, 10:400] = 0  # and in the green band only
         f = _write(tmp_path / "n.tif", a, nodata=0)
         valid = a != 0
         lum_valid = valid.all(axis=0)
@@ -64,8 +68,9 @@ def test_many_chunk_full_scan_equals_the_whole_image_at_once(tmp_path, dtype, in
         valid = np.broadcast_to(mask != 0, a.shape)
         lum_valid = mask != 0
 
-    stats = scan_raster(f, ScanSettings(chunk_bytes=CHUNK * np.dtype(dtype).itemsize,
-                                        noise_max_pixels=0, threads=2))
+    stats = scan_raster(
+        f, ScanSettings(chunk_bytes=CHUNK * np.dtype(dtype).itemsize, noise_max_pixels=0, threads=2)
+    )
     assert stats.chunks >= 3 * 8  # many chunks, so buffers are recycled many times over
 
     for band, b in zip(stats.bands, range(3), strict=True):
@@ -101,8 +106,11 @@ def test_misregistration_windows_copied_from_recycled_chunks_equal_direct_reads(
             win = ds.read(window=Window(w.col_off, w.row_off, w.width, w.height)).astype(float)
             f_ref = rad.tapered_spectrum(win[1])
             for idx in (1, 3):
-                direct[idx].append(rad.phase_correlation_spectra(
-                    f_ref, rad.tapered_spectrum(win[idx - 1]), upsample=20))
+                direct[idx].append(
+                    rad.phase_correlation_spectra(
+                        f_ref, rad.tapered_spectrum(win[idx - 1]), upsample=20
+                    )
+                )
     assert len(plan.windows) == 5
     for idx, shifts in direct.items():
         got = stats.misregistration[idx]
@@ -126,7 +134,8 @@ def test_scratch_arrays_are_per_thread_and_reused():
 
 @pytest.mark.parametrize("dtype", ["uint8", "uint16", "float32"])
 def test_noise_of_sampled_chunks_added_in_a_side_thread_equals_each_chunk_added_in_turn(
-        tmp_path, dtype):
+    tmp_path, dtype
+):
     """Integer bands' noise is added by a side thread, one accumulator per chunk merged at the
     end (float bands stay in the counting thread, in order): the sigmas equal those of every
     sampled chunk's pixels added one after the other, as read straight from the file."""
@@ -138,8 +147,12 @@ def test_noise_of_sampled_chunks_added_in_a_side_thread_equals_each_chunk_added_
     f = _write(tmp_path / "z.tif", a, nodata=0)
     chunk = CHUNK * np.dtype(dtype).itemsize
     stride = 3  # every third chunk, as noise_max_pixels samples a big image
-    settings = ScanSettings(chunk_bytes=chunk, noise_max_pixels=SHAPE[0] * SHAPE[1] // stride + 1,
-                            luminosity=False, misregistration=False)
+    settings = ScanSettings(
+        chunk_bytes=chunk,
+        noise_max_pixels=SHAPE[0] * SHAPE[1] // stride + 1,
+        luminosity=False,
+        misregistration=False,
+    )
     got = scan_raster(f, settings)
 
     with rasterio.open(f) as ds:
@@ -148,7 +161,7 @@ def test_noise_of_sampled_chunks_added_in_a_side_thread_equals_each_chunk_added_
     want = {b: rad.NoiseAccumulator() for b in range(3)}
     for w in wins[::stride]:
         for b in range(3):
-            band = a[b, w.row_off:w.row_off + w.height, w.col_off:w.col_off + w.width]
+            band = a[b, w.row_off : w.row_off + w.height, w.col_off : w.col_off + w.width]
             want[b].add(band, band != 0)
     for b in range(3):
         assert got.bands[b].noise_sigma_immerkaer == want[b].immerkaer_sigma
@@ -161,7 +174,9 @@ def test_luminosity_of_stacked_planes_equals_the_formula_for_every_byte_triple()
     values up to 65535 (the uint32 sum cannot overflow)."""
     v = np.arange(256, dtype=np.uint8)
     for red in range(0, 256, 32):  # 32 red values at a time: 2 M triples, small arrays
-        planes = np.stack(np.meshgrid(v[red:red + 32], v, v, indexing="ij")).reshape(3, 2048, 1024)
+        planes = np.stack(np.meshgrid(v[red : red + 32], v, v, indexing="ij")).reshape(
+            3, 2048, 1024
+        )
         wide = planes.astype(np.int32)
         want = (299 * wide[0] + 587 * wide[1] + 114 * wide[2] + 500) // 1000
         assert np.array_equal(rad.luminosity_block(*planes, np.uint8, planes=planes), want)

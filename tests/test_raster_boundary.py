@@ -16,8 +16,15 @@ from orthospec.raster.reading import ScanSettings, gdal_errors, scan_raster
 
 
 def _write(path: Path, data: np.ndarray, **profile) -> Path:
-    prof = dict(driver="GTiff", width=data.shape[2], height=data.shape[1], count=data.shape[0],
-                dtype=data.dtype, crs="EPSG:25832", transform=Affine(0.5, 0, 500000, 0, -0.5, 5600000))
+    prof = dict(
+        driver="GTiff",
+        width=data.shape[2],
+        height=data.shape[1],
+        count=data.shape[0],
+        dtype=data.dtype,
+        crs="EPSG:25832",
+        transform=Affine(0.5, 0, 500000, 0, -0.5, 5600000),
+    )
     prof.update(profile)
     with rasterio.open(path, "w", **prof) as ds:
         ds.write(data)
@@ -37,8 +44,9 @@ def test_the_full_scan_reads_every_pixel_exactly_once(tmp_path, monkeypatch):
     """Statistics, histograms, noise, luminosity and misregistration come from one read: the
     pixels GDAL hands over (counted at rasterio's read) equal the image's, once."""
     data = _textured(np.random.default_rng(3), (3, 700, 900))
-    f = _write(tmp_path / "rgb.tif", data, photometric="RGB", tiled=True, blockxsize=128,
-               blockysize=128)
+    f = _write(
+        tmp_path / "rgb.tif", data, photometric="RGB", tiled=True, blockxsize=128, blockysize=128
+    )
     read_px = []
     original = rasterio.io.DatasetReader.read
 
@@ -78,24 +86,33 @@ def test_nodata_in_a_few_chunks_only_is_excluded_everywhere(tmp_path, nodata):
     luminosity histogram still equal numpy's over the valid pixels (known truth)."""
     rng = np.random.default_rng(11)
     a = rng.integers(1, 255, (3, 512, 512), dtype=np.uint8)
-    a[:, 300:340, 10:50] = nodata     # nodata in every band, one chunk
-    a[1, 5, 5] = nodata               # nodata in band 2 only, another chunk
-    a[2, 400, 500] = nodata           # and in band 3 only, a third
-    f = _write(tmp_path / "nd.tif", a, photometric="RGB", nodata=nodata, tiled=True, blockxsize=64,
-               blockysize=64)
+    a[:, 300:340, 10:50] = nodata  # nodata in every band, one chunk
+    a[1, 5, 5] = nodata  # nodata in band 2 only, another chunk
+    a[2, 400, 500] = nodata  # and in band 3 only, a third
+    f = _write(
+        tmp_path / "nd.tif",
+        a,
+        photometric="RGB",
+        nodata=nodata,
+        tiled=True,
+        blockxsize=64,
+        blockysize=64,
+    )
     stats = scan_raster(f, ScanSettings(chunk_bytes=40_000))
     assert stats.chunks > 10
     for k, b in enumerate(stats.bands):
         v = a[k][a[k] != nodata].astype(np.float64)
         assert (b.valid, b.min, b.max) == (v.size, v.min(), v.max())
-        assert b.mean == pytest.approx(v.mean(), rel=1e-12) and b.std == pytest.approx(v.std(), rel=1e-12)
+        assert b.mean == pytest.approx(v.mean(), rel=1e-12) and b.std == pytest.approx(
+            v.std(), rel=1e-12
+        )
     ai = a.astype(np.int64)
     y = (299 * ai[0] + 587 * ai[1] + 114 * ai[2] + 500) // 1000  # Rec. 601, ties round up
     valid = (a != nodata).all(axis=0)
     lum = stats.luminosity
     assert lum is not None and lum.valid == int(valid.sum())
     expected = np.bincount(y[valid], minlength=256)
-    assert list(lum.histogram.counts) == expected[lum.histogram.offset:int(lum.max) + 1].tolist()
+    assert list(lum.histogram.counts) == expected[lum.histogram.offset : int(lum.max) + 1].tolist()
 
 
 def test_library_errors_become_measure_errors_naming_the_file(tmp_path):
@@ -107,8 +124,10 @@ def test_library_errors_become_measure_errors_naming_the_file(tmp_path):
     assert str(info.value).startswith("images/a.tif: not a readable raster")
     assert str(tmp_path) not in str(info.value)
     assert isinstance(info.value.__cause__, rasterio.errors.RasterioError)
-    with pytest.raises(MeasureError, match=r"^f\.tif: not a readable CRS") as crs, gdal_errors(
-            file="f.tif", what="CRS"):
+    with (
+        pytest.raises(MeasureError, match=r"^f\.tif: not a readable CRS") as crs,
+        gdal_errors(file="f.tif", what="CRS"),
+    ):
         pyproj.CRS.from_user_input("EPSG:999999")
     assert isinstance(crs.value.__cause__, pyproj.exceptions.CRSError)
 
@@ -131,8 +150,15 @@ def test_a_corrupt_vector_file_is_a_measure_error(tmp_path):
 
     good = tmp_path / "good.gpkg"
     geoms = np.array([shapely.to_wkb(shapely.box(0, 0, 1, 1))], dtype=object)
-    pyogrio.raw.write(str(good), geometry=geoms, field_data=[np.array([1])], fields=["seam"],
-                      geometry_type="Polygon", crs="EPSG:25832", driver="GPKG")
+    pyogrio.raw.write(
+        str(good),
+        geometry=geoms,
+        field_data=[np.array([1])],
+        fields=["seam"],
+        geometry_type="Polygon",
+        crs="EPSG:25832",
+        driver="GPKG",
+    )
     bad = tmp_path / "bad.gpkg"
     bad.write_bytes(good.read_bytes()[:1024])  # GeoPackage header, truncated database
     with pytest.raises(MeasureError, match=r"bad\.gpkg: not a readable vector file"):
@@ -172,8 +198,10 @@ def test_on_report_streams_each_image_once_and_keeps_none(tmp_path):
     from orthospec.raster.parallel import scan_images
 
     rng = np.random.default_rng(2)
-    paths = [_write(tmp_path / f"i{k}.tif", rng.integers(1, 255, (3, 40, 50), dtype=np.uint8))
-             for k in range(5)]
+    paths = [
+        _write(tmp_path / f"i{k}.tif", rng.integers(1, 255, (3, 40, 50), dtype=np.uint8))
+        for k in range(5)
+    ]
     paths.append(tmp_path / "absent.tif")
     kept = scan_images(paths, workers=1)
     got: dict[int, object] = {}
@@ -201,8 +229,9 @@ def test_check_scheduler_without_dask_exits_2_naming_the_extra(tmp_path):
         f"main(['check', {str(delivery)!r}, '-p', 'jrc-v3', '--scheduler', 'tcp://127.0.0.1:1',"
         f" '--out', {str(tmp_path / 'out')!r}, '--format', 'json'])\n"
     )
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300,
-                         cwd=tmp_path)
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=300, cwd=tmp_path
+    )
     assert out.returncode == 2, out.stderr
     assert "orthospec[dask]" in out.stderr and "Traceback" not in out.stderr
     assert not (tmp_path / "out" / "qcr.json").exists()

@@ -406,11 +406,16 @@ def test_a_geotiff_named_vrt_is_refused_before_gdal_opens_it(tmp_path):
     outside = write_tif(tmp_path / "outside.tif", np.full((8, 8), 7, np.uint8))
     fake = tmp_path / "d" / "a.tif"
     fake.parent.mkdir()
-    fake.write_text(f'<VRTDataset rasterXSize="8" rasterYSize="8"><VRTRasterBand dataType="Byte" band="1">'
-                    f'<SimpleSource><SourceFilename>{outside}</SourceFilename><SourceBand>1</SourceBand>'
-                    f'</SimpleSource></VRTRasterBand></VRTDataset>')
-    with pytest.raises(MeasureError, match=r"a.tif: not a readable raster: not a GeoTIFF or JPEG 2000 file "
-                                           r"\(XML: a GDAL VRT\?\)"):
+    fake.write_text(
+        f'<VRTDataset rasterXSize="8" rasterYSize="8"><VRTRasterBand dataType="Byte" band="1">'
+        f"<SimpleSource><SourceFilename>{outside}</SourceFilename><SourceBand>1</SourceBand>"
+        f"</SimpleSource></VRTRasterBand></VRTDataset>"
+    )
+    with pytest.raises(
+        MeasureError,
+        match=r"a.tif: not a readable raster: not a GeoTIFF or JPEG 2000 file "
+        r"\(XML: a GDAL VRT\?\)",
+    ):
         open_read_only(fake, name="a.tif")
     with pytest.raises(MeasureError, match="not a GeoTIFF"):
         scan_raster(fake)
@@ -433,13 +438,29 @@ def test_declared_size_is_refused_before_reading(tmp_path):
     from orthospec.raster.reading import RasterLimits
 
     big = tmp_path / "big.tif"
-    with rasterio.open(big, "w", driver="GTiff", width=10**6, height=10**6, count=1, dtype="uint8",
-                       tiled=True, blockxsize=4096, blockysize=4096, BIGTIFF="YES", SPARSE_OK=True,
-                       crs="EPSG:25832", transform=Affine(0.5, 0, 500000, 0, -0.5, 5600000)):
+    with rasterio.open(
+        big,
+        "w",
+        driver="GTiff",
+        width=10**6,
+        height=10**6,
+        count=1,
+        dtype="uint8",
+        tiled=True,
+        blockxsize=4096,
+        blockysize=4096,
+        BIGTIFF="YES",
+        SPARSE_OK=True,
+        crs="EPSG:25832",
+        transform=Affine(0.5, 0, 500000, 0, -0.5, 5600000),
+    ):
         pass
     t0 = time.perf_counter()
-    with pytest.raises(MeasureError, match=r"declares 1,000,000 x 1,000,000 = 1,000,000,000,000 pixels, more "
-                                           r"than the limit of 4,294,967,296"):
+    with pytest.raises(
+        MeasureError,
+        match=r"declares 1,000,000 x 1,000,000 = 1,000,000,000,000 pixels, more "
+        r"than the limit of 4,294,967,296",
+    ):
         scan_raster(big)
     assert time.perf_counter() - t0 < 1.0
     bands = write_tif(tmp_path / "bands.tif", np.ones((70, 2, 2), np.uint8))
@@ -460,8 +481,15 @@ def test_wal_geopackage_is_read_without_touching_the_delivery(tmp_path):
 
     build = tmp_path / "build.gpkg"
     geoms = np.array([shapely.to_wkb(shapely.box(0, 0, 1, 1))], dtype=object)
-    pyogrio.raw.write(str(build), geometry=geoms, field_data=[np.array([1])], fields=["seam"],
-                      geometry_type="Polygon", crs="EPSG:25832", driver="GPKG")
+    pyogrio.raw.write(
+        str(build),
+        geometry=geoms,
+        field_data=[np.array([1])],
+        fields=["seam"],
+        geometry_type="Polygon",
+        crs="EPSG:25832",
+        driver="GPKG",
+    )
     con = sqlite3.connect(build)
     con.execute("PRAGMA journal_mode=WAL")
     con.execute("PRAGMA wal_autocheckpoint=0")
@@ -487,10 +515,15 @@ def test_an_ogr_vrt_named_gpkg_is_refused(tmp_path):
     from orthospec.raster.reading import read_vector
 
     f = tmp_path / "seamlines.gpkg"
-    f.write_text("<OGRVRTDataSource><OGRVRTLayer name='x'><SrcDataSource>/etc/passwd</SrcDataSource>"
-                 "</OGRVRTLayer></OGRVRTDataSource>")
-    with pytest.raises(MeasureError, match=r"not a readable vector file: not a GeoPackage or shapefile "
-                                           r"\(XML: an OGR VRT\?\)"):
+    f.write_text(
+        "<OGRVRTDataSource><OGRVRTLayer name='x'><SrcDataSource>/etc/passwd</SrcDataSource>"
+        "</OGRVRTLayer></OGRVRTDataSource>"
+    )
+    with pytest.raises(
+        MeasureError,
+        match=r"not a readable vector file: not a GeoPackage or shapefile "
+        r"\(XML: an OGR VRT\?\)",
+    ):
         read_vector(f, name="seamlines.gpkg")
 
 
@@ -502,7 +535,9 @@ def test_gdal_errors_carry_the_file_not_the_absolute_path(tmp_path):
     trunc.write_bytes(good.read_bytes()[:100])
     with pytest.raises(MeasureError) as info, gdal_errors(file="images/t.tif", path=trunc):
         rasterio.open(trunc)
-    assert str(info.value).startswith("images/t.tif: not a readable raster") and str(tmp_path) not in str(info.value)
+    assert str(info.value).startswith("images/t.tif: not a readable raster") and str(
+        tmp_path
+    ) not in str(info.value)
 
 
 def test_a_plain_sqlite_file_named_gpkg_is_refused(tmp_path):

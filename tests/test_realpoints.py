@@ -28,7 +28,9 @@ GSD = 300.0
 
 
 def _module() -> ModuleType:
-    spec = importlib.util.spec_from_file_location("orthospec_examples_tiles_real_rp", ROOT / "examples" / "tiles_real.py")
+    spec = importlib.util.spec_from_file_location(
+        "orthospec_examples_tiles_real_rp", ROOT / "examples" / "tiles_real.py"
+    )
     assert spec is not None and spec.loader is not None
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
@@ -72,24 +74,37 @@ def test_accepted_points_show_the_planted_shift(name: str) -> None:
     sx, sy = TR.SHIFTS[name]
     rows = _rows(CHECKERS / name / "tables" / "checkpoints.csv")
     survey = _rows(CHECKERS / name / "survey.csv")
-    assert len(rows) >= 0.7 * len(survey), "fewer than 70 % of the surveyed points were measured automatically"
+    assert len(rows) >= 0.7 * len(survey), (
+        "fewer than 70 % of the surveyed points were measured automatically"
+    )
     assert {r["decision"] for r in rows} == {"accepted"}
     ex = np.array([float(r["x"]) - float(r["x_ref"]) + sx for r in rows]) / GSD
     ey = np.array([float(r["y"]) - float(r["y_ref"]) + sy for r in rows]) / GSD
     err = np.hypot(ex, ey)
     assert float(np.median(err)) <= 0.1
-    assert float(err.max()) <= 0.3, [r["point_id"] for r, e in zip(rows, err, strict=True) if e > 0.3]
+    assert float(err.max()) <= 0.3, [
+        r["point_id"] for r, e in zip(rows, err, strict=True) if e > 0.3
+    ]
 
 
 @pytest.mark.parametrize("name", sorted(TR.SHIFTS))
 def test_every_record_carries_its_provenance(name: str) -> None:
     folder = CHECKERS / name
-    ref_sha = __import__("hashlib").sha256((folder / "reference" / "reference.tif").read_bytes()).hexdigest()
+    ref_sha = (
+        __import__("hashlib")
+        .sha256((folder / "reference" / "reference.tif").read_bytes())
+        .hexdigest()
+    )
     for r in _rows(folder / "tables" / "checkpoints.csv"):
         assert r["reference_file"] == f"examples/checker/{name}/reference/reference.tif"
         assert r["reference_sha256"] == ref_sha
         assert r["method"].startswith("phase-correlation")
-        assert r["chip_px"] == str(TR.CHIP_PX) and r["score"] and r["image_sha256"] and r["tool_version"]
+        assert (
+            r["chip_px"] == str(TR.CHIP_PX)
+            and r["score"]
+            and r["image_sha256"]
+            and r["tool_version"]
+        )
         assert r["source"] == TR.SURVEY_SOURCE
 
 
@@ -114,20 +129,49 @@ def test_the_committed_table_is_the_commands_output(name: str, draft: Path, tmp_
     table byte for byte (nothing typed by hand), and nothing into the draft."""
     rel = Path("examples") / "checker" / name
     out = tmp_path / name
-    r = run("measure", "checkpoints", draft, "--reference", rel / "reference" / "reference.tif",
-            "--points", rel / "survey.csv", "--out", out, "--chip", TR.CHIP_PX, "--search", TR.SEARCH_PX)
+    r = run(
+        "measure",
+        "checkpoints",
+        draft,
+        "--reference",
+        rel / "reference" / "reference.tif",
+        "--points",
+        rel / "survey.csv",
+        "--out",
+        out,
+        "--chip",
+        TR.CHIP_PX,
+        "--search",
+        TR.SEARCH_PX,
+    )
     assert r.returncode == 0, r.stdout + r.stderr
-    assert (out / "tables" / "checkpoints.csv").read_bytes() == (ROOT / rel / "tables" / "checkpoints.csv").read_bytes()
-    assert _hand(out / "checkpoints-to-measure.gpkg") == _hand(ROOT / rel / "checkpoints-to-measure.gpkg")
+    assert (out / "tables" / "checkpoints.csv").read_bytes() == (
+        ROOT / rel / "tables" / "checkpoints.csv"
+    ).read_bytes()
+    assert _hand(out / "checkpoints-to-measure.gpkg") == _hand(
+        ROOT / rel / "checkpoints-to-measure.gpkg"
+    )
 
 
 @pytest.fixture(scope="module")
-def verdicts(draft: Path, tmp_path_factory: pytest.TempPathFactory) -> dict[str, tuple[int, list[dict[str, object]]]]:
+def verdicts(
+    draft: Path, tmp_path_factory: pytest.TempPathFactory
+) -> dict[str, tuple[int, list[dict[str, object]]]]:
     out = {}
     for name in TR.SHIFTS:
         rep = tmp_path_factory.mktemp("rep") / name
-        r = run("check", draft, "--profile", "jrc-v3", "--checker", CHECKERS / name, "--out", rep,
-                "--date", "2026-05-20")
+        r = run(
+            "check",
+            draft,
+            "--profile",
+            "jrc-v3",
+            "--checker",
+            CHECKERS / name,
+            "--out",
+            rep,
+            "--date",
+            "2026-05-20",
+        )
         doc = json.loads((rep / "qcr.json").read_text(encoding="utf-8"))
         from orthospec.qcr import all_records
 
@@ -140,7 +184,8 @@ def _rule(records: list[dict[str, object]], rule: str) -> dict[str, str]:
 
 
 def test_check_gives_the_verdicts_the_planted_shifts_imply(
-        verdicts: dict[str, tuple[int, list[dict[str, object]]]]) -> None:
+    verdicts: dict[str, tuple[int, list[dict[str, object]]]],
+) -> None:
     """Within tolerance (128 m against 450 m): the external RMSE rules pass on both blocks; beyond it
     (618 m): RMSEx fails on both blocks. The draft's verdict is REJECTED (exit 1) either way for
     the rules the files leave missing (its TODO.md, tests/test_ingest_draft.py), not for accuracy."""
@@ -153,7 +198,9 @@ def test_check_gives_the_verdicts_the_planted_shifts_imply(
     # the checker's measured table is the evidence, not the contractor's
     assert {e["file"] for r in rmse for e in r["evidence"]} == {"checker:tables/checkpoints.csv"}  # type: ignore[attr-defined]
     rmse_x = {str(r["item"]): float(r["measured"]["value"]) for r in rmse}  # type: ignore[index]
-    assert all(abs(v - abs(TR.SHIFTS["tiles-real"][0])) < 0.1 * GSD for v in rmse_x.values()), rmse_x
+    assert all(abs(v - abs(TR.SHIFTS["tiles-real"][0])) < 0.1 * GSD for v in rmse_x.values()), (
+        rmse_x
+    )
     code, recs = verdicts["tiles-real-fail"]
     assert code == 1
     assert _rule(recs, "JRC-12.7-RMSEX") == {"B1": "fail", "B2": "fail"}

@@ -90,21 +90,42 @@ def by_rule(doc):
 @pytest.fixture
 def doc(make_delivery, profile):
     assert NO_GSD != MANIFEST
-    return check_with(make_delivery(manifest=NO_GSD, images=IMAGES), profile,
-                      params=["tolerance_xy=0.5m", "max_pitch=10deg"]).document
+    return check_with(
+        make_delivery(manifest=NO_GSD, images=IMAGES),
+        profile,
+        params=["tolerance_xy=0.5m", "max_pitch=10deg"],
+    ).document
 
 
 def test_each_cause_has_its_reason(doc):
-    got = {rule: {item: (r["verdict"], r["reason"]) for item, r in items.items()}
-           for rule, items in by_rule(doc).items()}
-    assert got["R-ROLL"] == {"I1": ("missing", "no_value"), "I2": ("pass", None), "I3": ("fail", "not_met")}
-    assert got["R-PX"] == {"I1": ("pass", None), "I2": ("missing", "no_value"), "I3": ("missing", "no_gsd")}
-    assert got["R-THR"] == {"I1": ("pass", None), "I2": ("pass", None), "I3": ("missing", "no_threshold")}
+    got = {
+        rule: {item: (r["verdict"], r["reason"]) for item, r in items.items()}
+        for rule, items in by_rule(doc).items()
+    }
+    assert got["R-ROLL"] == {
+        "I1": ("missing", "no_value"),
+        "I2": ("pass", None),
+        "I3": ("fail", "not_met"),
+    }
+    assert got["R-PX"] == {
+        "I1": ("pass", None),
+        "I2": ("missing", "no_value"),
+        "I3": ("missing", "no_gsd"),
+    }
+    assert got["R-THR"] == {
+        "I1": ("pass", None),
+        "I2": ("pass", None),
+        "I3": ("missing", "no_threshold"),
+    }
     assert got["R-WHEN"]["I2"] == ("missing", "unknown_fact")
     assert got["R-WHEN"]["I1"] == ("pass", None)
     assert got["R-SAT"] == {i: ("not_applicable", "condition_false") for i in ("I1", "I2", "I3")}
-    assert got["R-READ"] == {i: ("error", "provider_error") for i in ("I1", "I2", "I3")}  # no image on disk
-    assert got["R-WIN"] == {"D1": ("not_applicable", "provider_not_applicable")}  # no acquisition window
+    assert got["R-READ"] == {
+        i: ("error", "provider_error") for i in ("I1", "I2", "I3")
+    }  # no image on disk
+    assert got["R-WIN"] == {
+        "D1": ("not_applicable", "provider_not_applicable")
+    }  # no acquisition window
     assert got["R-VIS"] == {"D1": ("missing", "unsigned")}  # no checker's file
 
 
@@ -126,36 +147,62 @@ def test_unset_parameter(make_delivery, profile):
 
     prof = load_profile(profile)
     d = open_delivery(make_delivery(images=IMAGES))
-    values = resolve_parameters(prof, {}, parse_cli_params(["tolerance_xy=0.5m", "max_pitch=10deg"]),
-                                manifest=d.flat_manifest())
+    values = resolve_parameters(
+        prof,
+        {},
+        parse_cli_params(["tolerance_xy=0.5m", "max_pitch=10deg"]),
+        manifest=d.flat_manifest(),
+    )
     values["max_pitch"] = dataclasses.replace(values["max_pitch"], value=None, source="unset")
     ev = Evaluator(prof, d, values).run()
     unset = next(r for r in ev.results if r.rule.id == "R-UNSET")
-    assert [unset.reason(i) for i in range(len(unset.items))] == ["no_value", "unset_parameter", "unset_parameter"]
+    assert [unset.reason(i) for i in range(len(unset.items))] == [
+        "no_value",
+        "unset_parameter",
+        "unset_parameter",
+    ]
     assert "max_pitch is not set" in str(unset.notes[1])
 
 
 def test_requirement_error(make_delivery, profile):
     # no GSD at all (neither product.gsd nor images.gsd): metres cannot become pixels for any item
-    d = check_with(make_delivery(manifest=NO_GSD, images=IMAGES.replace(",0.25", ",")), profile,
-                   params=["tolerance_xy=0.5m", "max_pitch=10deg"]).document
-    assert {(r["verdict"], r["reason"]) for r in records(d) if r["rule"] == "R-PX"} == {("error", "requirement_error")}
+    d = check_with(
+        make_delivery(manifest=NO_GSD, images=IMAGES.replace(",0.25", ",")),
+        profile,
+        params=["tolerance_xy=0.5m", "max_pitch=10deg"],
+    ).document
+    assert {(r["verdict"], r["reason"]) for r in records(d) if r["rule"] == "R-PX"} == {
+        ("error", "requirement_error")
+    }
 
 
 def test_no_items_and_waived(make_delivery, profile, tmp_path):
     # a waiver in force (the checker's file) on I3's failing roll; an images table with no row
-    d = check_with(make_delivery("w", images=IMAGES), profile, params=["max_pitch=10deg"],
-                   checker=write_checker(tmp_path)).document
+    d = check_with(
+        make_delivery("w", images=IMAGES),
+        profile,
+        params=["max_pitch=10deg"],
+        checker=write_checker(tmp_path),
+    ).document
     assert by_rule(d)["R-ROLL"]["I3"]["verdict"] == "waived"
     assert by_rule(d)["R-ROLL"]["I3"]["reason"] == "waived"
-    empty = check_with(make_delivery("e", images="image_id,file,block,roll,flying_height,std_dn\n"),
-                       profile, params=["tolerance_xy=0.5m", "max_pitch=10deg"]).document
-    assert {(r["verdict"], r["reason"]) for r in records(empty) if r["rule"] == "R-ROLL"} == {("missing", "no_items")}
+    empty = check_with(
+        make_delivery("e", images="image_id,file,block,roll,flying_height,std_dn\n"),
+        profile,
+        params=["tolerance_xy=0.5m", "max_pitch=10deg"],
+    ).document
+    assert {(r["verdict"], r["reason"]) for r in records(empty) if r["rule"] == "R-ROLL"} == {
+        ("missing", "no_items")
+    }
 
 
 def test_outside_the_sample(make_delivery, profile):
-    d = check_with(make_delivery(images=IMAGES), profile, params=["tolerance_xy=0.5m", "max_pitch=10deg"],
-                   options={"sample": ("image", ["I1", "I3"])}).document
+    d = check_with(
+        make_delivery(images=IMAGES),
+        profile,
+        params=["tolerance_xy=0.5m", "max_pitch=10deg"],
+        options={"sample": ("image", ["I1", "I3"])},
+    ).document
     roll = by_rule(d)["R-ROLL"]
     assert (roll["I2"]["verdict"], roll["I2"]["reason"]) == ("not_applicable", "outside_sample")
     assert roll["I3"]["reason"] == "not_met"
@@ -172,7 +219,9 @@ def test_internal_error(make_delivery, profile, monkeypatch):
         raise RuntimeError("planted")
 
     monkeypatch.setattr(rules, "_judge", crash)
-    d = check_with(make_delivery(images=IMAGES), profile, params=["tolerance_xy=0.5m", "max_pitch=10deg"]).document
+    d = check_with(
+        make_delivery(images=IMAGES), profile, params=["tolerance_xy=0.5m", "max_pitch=10deg"]
+    ).document
     assert {r["reason"] for r in records(d) if r["rule"] == "R-ROLL"} == {"internal_error"}
 
 

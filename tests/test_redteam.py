@@ -13,7 +13,8 @@ in X, and Y"), in the checker's measurements (the checker folder's tables/checkp
 external-accuracy rules read) and in the contractor's internal-QC table alike, its reported RMSEy set
 to match so that JRC-12.7-RMSEY is the only block finding. The contractor's trick then tries to hide
 it; a trick on the contractor's own check point table can no longer reach the external verdict
-(issue 29 item 1: ``_check_external_stands``). The checker's file is re-signed (tests/checking.py ``resigned``) on what the contractor delivers: the
+(issue 29 item 1: ``_check_external_stands``). The checker's file is re-signed (tests/checking.py
+``resigned``) on what the contractor delivers: the
 checker signs what it receives; ``_signed_then`` edits the delivery after signing. Cases marked
 xfail(strict) are wrong ACCEPTED verdicts written up in tests/REDTEAM.md; they flip (and fail
 as XPASS) once fixed.
@@ -60,14 +61,18 @@ def _manifest_edit(fn: Callable[[dict[str, Any]], None]) -> Edit:
         m = manifest(d)
         fn(m)
         write_manifest(d, m)
+
     return edit
 
 
-def _table_edit(name: str, fn: Callable[[list[str], list[dict[str, str]]], list[dict[str, str]] | None]) -> Edit:
+def _table_edit(
+    name: str, fn: Callable[[list[str], list[dict[str, str]]], list[dict[str, str]] | None]
+) -> Edit:
     def edit(d: Path) -> None:
         header, rows = read_table(d, name)
         out = fn(header, rows)
         write_table(d, name, header, rows if out is None else out)
+
     return edit
 
 
@@ -75,6 +80,7 @@ def _chain(*edits: Edit) -> Edit:
     def edit(d: Path) -> None:
         for e in edits:
             e(d)
+
     return edit
 
 
@@ -89,11 +95,16 @@ def _fix_reported(d: Path, table: str = "checkpoints") -> None:
     JRC-9.5-REPORTED-RMSE-* cannot be what catches a trick."""
     _, rows = read_table(d, table)
     m = manifest(d)
-    factor = {"m": 1.0, "ft": 0.3048, "usft": 1200 / 3937, "mm": 0.001}[(m.get("units") or {}).get("checkpoints", "m")]
+    factor = {"m": 1.0, "ft": 0.3048, "usft": 1200 / 3937, "mm": 0.001}[
+        (m.get("units") or {}).get("checkpoints", "m")
+    ]
     for b in m["blocks"]:
         pts = [r for r in rows if r["block"] == b["id"] and r.get("excluded", "false") != "true"]
         for ax in ("x", "y"):
-            v = math.sqrt(sum((float(r[ax]) - float(r[f"{ax}_ref"])) ** 2 for r in pts) / len(pts)) * factor
+            v = (
+                math.sqrt(sum((float(r[ax]) - float(r[f"{ax}_ref"])) ** 2 for r in pts) / len(pts))
+                * factor
+            )
             b["reported"][f"rmse_{ax}"] = {"value": round(v, 3), "unit": "m"}
     write_manifest(d, m)
 
@@ -104,8 +115,11 @@ def _scale_b02_dy(header: list[str], rows: list[dict[str, str]]) -> None:
             r["y"] = f"{float(r['y_ref']) + 2.2 * (float(r['y']) - float(r['y_ref'])):.3f}"
 
 
-def _external_edit(fn: Callable[[list[str], list[dict[str, str]]], list[dict[str, str]] | None]) -> Edit:
+def _external_edit(
+    fn: Callable[[list[str], list[dict[str, str]]], list[dict[str, str]] | None],
+) -> Edit:
     """Edit the checker's own check point table (its folder beside the delivery, see ``_run``)."""
+
     def edit(d: Path) -> None:
         path = _checker_folder(d) / "tables" / "checkpoints.csv"
         with path.open(encoding="utf-8", newline="") as f:
@@ -116,6 +130,7 @@ def _external_edit(fn: Callable[[list[str], list[dict[str, str]]], list[dict[str
             w = csv.DictWriter(f, fieldnames=header, lineterminator="\n")
             w.writeheader()
             w.writerows(rows if out is None else out)
+
     return edit
 
 
@@ -126,7 +141,9 @@ def _checker_folder(d: Path) -> Path:
 
 #: the planted defect: B02 RMSEy 0.627 m > 0.5 m in the checker's measurements and the contractor's own,
 #: reported values consistent
-_plant_rmse = _chain(_table_edit("checkpoints", _scale_b02_dy), _external_edit(_scale_b02_dy), _fix_reported)
+_plant_rmse = _chain(
+    _table_edit("checkpoints", _scale_b02_dy), _external_edit(_scale_b02_dy), _fix_reported
+)
 
 
 def _planted(*tricks: Edit) -> Edit:
@@ -135,12 +152,15 @@ def _planted(*tricks: Edit) -> Edit:
 
 # the contractor's tricks
 
+
 def _sensor(kind: str) -> Edit:
     return _manifest_edit(lambda m: m["sensor"].update(type=kind))
 
 
 def _declare_tolerance(value: float) -> Edit:
-    return _manifest_edit(lambda m: m["tender"]["parameters"].update(tolerance_xy={"value": value, "unit": "m"}))
+    return _manifest_edit(
+        lambda m: m["tender"]["parameters"].update(tolerance_xy={"value": value, "unit": "m"})
+    )
 
 
 def _units(unit: str) -> Edit:
@@ -157,6 +177,7 @@ def _move_worst(block: str, k: int) -> Edit:
     def fn(header: list[str], rows: list[dict[str, str]]) -> None:
         for r in _worst(rows, k):
             r["block"] = block
+
     return _table_edit("checkpoints", fn)
 
 
@@ -166,12 +187,18 @@ def _delete_worst(header: list[str], rows: list[dict[str, str]]) -> list[dict[st
 
 
 def _duplicate_ids(header: list[str], rows: list[dict[str, str]]) -> list[dict[str, str]]:
-    best = sorted((r for r in rows if r["block"] == "B02"), key=lambda r: abs(float(r["y"]) - float(r["y_ref"])))
+    best = sorted(
+        (r for r in rows if r["block"] == "B02"),
+        key=lambda r: abs(float(r["y"]) - float(r["y_ref"])),
+    )
     return rows + [dict(r) for r in best[:10] for _ in range(3)]
 
 
 def _fabricated_copies(header: list[str], rows: list[dict[str, str]]) -> list[dict[str, str]]:
-    best = sorted((r for r in rows if r["block"] == "B02"), key=lambda r: abs(float(r["y"]) - float(r["y_ref"])))
+    best = sorted(
+        (r for r in rows if r["block"] == "B02"),
+        key=lambda r: abs(float(r["y"]) - float(r["y_ref"])),
+    )
     return rows + [{**r, "point_id": f"B02-X{i:02d}"} for i, r in enumerate(best[:10] * 3)]
 
 
@@ -179,6 +206,7 @@ def _set_worst_y(value: str) -> Edit:
     def fn(header: list[str], rows: list[dict[str, str]]) -> None:
         for r in _worst(rows, 6):
             r["y"] = value
+
     return _table_edit("checkpoints", fn)
 
 
@@ -187,9 +215,20 @@ def _gcps_as_checkpoints(d: Path) -> None:
     header, rows = read_table(d, "checkpoints")
     for g in gcps:
         if g["block"] == "B02":
-            rows.append({**dict.fromkeys(header, ""), "point_id": g["point_id"], "block": "B02", "x": g["x"],
-                         "y": g["y"], "x_ref": g["x"], "y_ref": g["y"], "excluded": "false",
-                         "source": "GNSS RTK", "precision_xy": "0.02"})
+            rows.append(
+                {
+                    **dict.fromkeys(header, ""),
+                    "point_id": g["point_id"],
+                    "block": "B02",
+                    "x": g["x"],
+                    "y": g["y"],
+                    "x_ref": g["x"],
+                    "y_ref": g["y"],
+                    "excluded": "false",
+                    "source": "GNSS RTK",
+                    "precision_xy": "0.02",
+                }
+            )
     write_table(d, "checkpoints", header, rows)
 
 
@@ -197,15 +236,29 @@ def _self_granted_waiver(d: Path) -> None:
     """Waiver request in delivery.yaml, 'waived'/'pass' rows signed with the checker's name in the
     delivery's manual_checks table, and the checker named as the delivery's operator."""
     m = manifest(d)
-    m["waivers"] = [{"rule": "JRC-12.7-RMSEY", "items": ["B02"], "justification": "haze over B02",
-                     "approver": CHECKER_NAME}]
+    m["waivers"] = [
+        {
+            "rule": "JRC-12.7-RMSEY",
+            "items": ["B02"],
+            "justification": "haze over B02",
+            "approver": CHECKER_NAME,
+        }
+    ]
     m["operator"] = {"name": CHECKER_NAME, "role": "external QC"}
     write_manifest(d, m)
     header, rows = read_table(d, "manual_checks")
     for verdict in ("waived", "pass"):
-        rows.append({**dict.fromkeys(header, ""), "check": "JRC-12.7-RMSEY", "item": "B02",
-                     "inspector": f"{CHECKER_NAME}, external QC", "date": "2026-06-21", "verdict": verdict,
-                     "note": "waiver granted by the external QC"})
+        rows.append(
+            {
+                **dict.fromkeys(header, ""),
+                "check": "JRC-12.7-RMSEY",
+                "item": "B02",
+                "inspector": f"{CHECKER_NAME}, external QC",
+                "date": "2026-06-21",
+                "verdict": verdict,
+                "note": "waiver granted by the external QC",
+            }
+        )
     write_table(d, "manual_checks", header, rows)
 
 
@@ -217,8 +270,9 @@ def _second_checkpoints_entry(d: Path) -> None:
     text = (d / "delivery.yaml").read_text(encoding="utf-8")
     line = "  checkpoints: tables/checkpoints.csv\n"
     assert line in text
-    (d / "delivery.yaml").write_text(text.replace(line, line + "  checkpoints: tables/checkpoints_clean.csv\n"),
-                                     encoding="utf-8")
+    (d / "delivery.yaml").write_text(
+        text.replace(line, line + "  checkpoints: tables/checkpoints_clean.csv\n"), encoding="utf-8"
+    )
 
 
 def _drop_reported(m: dict[str, Any]) -> None:
@@ -242,15 +296,18 @@ def _scene(image_id: str, **values: str) -> Edit:
         for r in rows:
             if r["image_id"] == image_id:
                 r.update(values)
+
     return _table_edit("scenes", fn)
 
 
 def _precision(values: dict[str, str]) -> Edit:
     """Set the reference precision of every check point of the given blocks."""
+
     def fn(header: list[str], rows: list[dict[str, str]]) -> None:
         for r in rows:
             if r["block"] in values:
                 r["precision_xy"] = values[r["block"]]
+
     return _table_edit("checkpoints", fn)
 
 
@@ -271,10 +328,21 @@ def _inflate_f02_01_heights(header: list[str], rows: list[dict[str, str]]) -> No
 
 def _manual_rows_as_checker(check: str, verdict: str = "pass") -> Edit:
     """Rows in the delivery's manual_checks table signed with the checker's name (evidence only)."""
+
     def fn(header: list[str], rows: list[dict[str, str]]) -> list[dict[str, str]]:
-        return [*rows, {**dict.fromkeys(header, ""), "check": check, "item": "*",
-                        "inspector": f"{CHECKER_NAME}, external QC", "date": "2026-06-21", "verdict": verdict,
-                        "note": "inspected by the external QC"}]
+        return [
+            *rows,
+            {
+                **dict.fromkeys(header, ""),
+                "check": check,
+                "item": "*",
+                "inspector": f"{CHECKER_NAME}, external QC",
+                "date": "2026-06-21",
+                "verdict": verdict,
+                "note": "inspected by the external QC",
+            },
+        ]
+
     return _table_edit("manual_checks", fn)
 
 
@@ -295,8 +363,13 @@ def _shrink_b02_to_first_strip(m: dict[str, Any]) -> None:
     """Redraw B02's outline around what the remaining strip F02_01 covers (x <= 511,500 m)."""
     for b in m["blocks"]:
         if b["id"] == "B02":
-            b["polygon"] = [[507500.0, 5403000.0], [511500.0, 5403000.0], [511500.0, 5410200.0],
-                            [507500.0, 5410200.0], [507500.0, 5403000.0]]
+            b["polygon"] = [
+                [507500.0, 5403000.0],
+                [511500.0, 5403000.0],
+                [511500.0, 5410200.0],
+                [507500.0, 5410200.0],
+                [507500.0, 5403000.0],
+            ]
 
 
 def _negative_precision_b02(header: list[str], rows: list[dict[str, str]]) -> None:
@@ -306,7 +379,9 @@ def _negative_precision_b02(header: list[str], rows: list[dict[str, str]]) -> No
 
 
 def _drop_image_row(image_id: str) -> Edit:
-    return _table_edit("images", lambda header, rows: [r for r in rows if r["image_id"] != image_id])
+    return _table_edit(
+        "images", lambda header, rows: [r for r in rows if r["image_id"] != image_id]
+    )
 
 
 def _reproject_label_everything(d: Path) -> None:
@@ -326,25 +401,52 @@ def _b01_outline_swallows_b02(m: dict[str, Any]) -> None:
     """Redraw B01's outline as B01 + B02 (+ the 500 m gap between them): overlapping blocks."""
     for b in m["blocks"]:
         if b["id"] == "B01":
-            b["polygon"] = [[500000.0, 5400000.0], [507000.0, 5400000.0], [507000.0, 5403000.0],
-                            [514500.0, 5403000.0], [514500.0, 5409000.0], [513500.0, 5410200.0],
-                            [507500.0, 5410200.0], [507500.0, 5406000.0], [507000.0, 5406000.0],
-                            [506000.0, 5407200.0], [500000.0, 5407200.0], [500000.0, 5400000.0]]
+            b["polygon"] = [
+                [500000.0, 5400000.0],
+                [507000.0, 5400000.0],
+                [507000.0, 5403000.0],
+                [514500.0, 5403000.0],
+                [514500.0, 5409000.0],
+                [513500.0, 5410200.0],
+                [507500.0, 5410200.0],
+                [507500.0, 5406000.0],
+                [507000.0, 5406000.0],
+                [506000.0, 5407200.0],
+                [500000.0, 5407200.0],
+                [500000.0, 5400000.0],
+            ]
 
 
 def _b02_outline_bowtie(m: dict[str, Any]) -> None:
     """B02's outline drawn as a self-intersecting ring (its two top vertices swapped)."""
     for b in m["blocks"]:
         if b["id"] == "B02":
-            b["polygon"] = [[507500.0, 5403000.0], [514500.0, 5403000.0], [507500.0, 5410200.0],
-                            [514500.0, 5410200.0], [507500.0, 5403000.0]]
+            b["polygon"] = [
+                [507500.0, 5403000.0],
+                [514500.0, 5403000.0],
+                [507500.0, 5410200.0],
+                [514500.0, 5410200.0],
+                [507500.0, 5403000.0],
+            ]
 
 
 #: the example's true outlines (examples/generate.py, also stated in examples/checker/aerial-*.yaml)
-_B01 = [[500000.0, 5400000.0], [507000.0, 5400000.0], [507000.0, 5406000.0], [506000.0, 5407200.0],
-        [500000.0, 5407200.0], [500000.0, 5400000.0]]
-_B02 = [[507500.0, 5403000.0], [514500.0, 5403000.0], [514500.0, 5409000.0], [513500.0, 5410200.0],
-        [507500.0, 5410200.0], [507500.0, 5403000.0]]
+_B01 = [
+    [500000.0, 5400000.0],
+    [507000.0, 5400000.0],
+    [507000.0, 5406000.0],
+    [506000.0, 5407200.0],
+    [500000.0, 5407200.0],
+    [500000.0, 5400000.0],
+]
+_B02 = [
+    [507500.0, 5403000.0],
+    [514500.0, 5403000.0],
+    [514500.0, 5409000.0],
+    [513500.0, 5410200.0],
+    [507500.0, 5410200.0],
+    [507500.0, 5403000.0],
+]
 
 
 def _snake_b01_around_its_strays(d: Path) -> None:
@@ -357,8 +459,11 @@ def _snake_b01_around_its_strays(d: Path) -> None:
 
     b01, b02 = Polygon(_B01), Polygon(_B02)
     _, rows = read_table(d, "checkpoints")
-    strays = [(float(r["x_ref"]), float(r["y_ref"])) for r in rows
-              if r["block"] == "B01" and not b01.covers(Point(float(r["x_ref"]), float(r["y_ref"])))]
+    strays = [
+        (float(r["x_ref"]), float(r["y_ref"]))
+        for r in rows
+        if r["block"] == "B01" and not b01.covers(Point(float(r["x_ref"]), float(r["y_ref"])))
+    ]
     assert strays, "no B02 point relabelled B01"
     low = min(math.floor(min(y for _, y in strays)) - 1, 5404990)
     top = max(math.ceil(max(y for _, y in strays)) + 1, 5405010)
@@ -371,7 +476,10 @@ def _snake_b01_around_its_strays(d: Path) -> None:
     m = manifest(d)
     for b in m["blocks"]:
         if b["id"] in ("B01", "B02"):
-            b["polygon"] = [[float(x), float(y)] for x, y in (new01 if b["id"] == "B01" else new02).exterior.coords]
+            b["polygon"] = [
+                [float(x), float(y)]
+                for x, y in (new01 if b["id"] == "B01" else new02).exterior.coords
+            ]
     write_manifest(d, m)
 
 
@@ -386,18 +494,31 @@ def _aoi_file_without_strip_f02_02(d: Path) -> None:
     _drop_strip_f02_02(d)
     m = manifest(d)
     polys = {b["id"]: Polygon(b["polygon"]) for b in m["blocks"]}
-    area = [polys["B01"], polys["B02"].intersection(box(507000, 5400000, 511500, 5420000)), polys["B03"]]
+    area = [
+        polys["B01"],
+        polys["B02"].intersection(box(507000, 5400000, 511500, 5420000)),
+        polys["B03"],
+    ]
     (d / "vectors").mkdir(exist_ok=True)
-    pyogrio.raw.write(str(d / "vectors" / "aoi.gpkg"), geometry=np.array(shapely.to_wkb(area), dtype=object),
-                      field_data=[], fields=[], driver="GPKG", crs="EPSG:25832", geometry_type="Polygon")
+    pyogrio.raw.write(
+        str(d / "vectors" / "aoi.gpkg"),
+        geometry=np.array(shapely.to_wkb(area), dtype=object),
+        field_data=[],
+        fields=[],
+        driver="GPKG",
+        crs="EPSG:25832",
+        geometry_type="Polygon",
+    )
     m["project"]["area_of_interest"] = "vectors/aoi.gpkg"
     write_manifest(d, m)
 
 
 def _checker_states(edit: Edit, fn: Callable[[dict[str, Any]], None]) -> Edit:
     """``edit``, with the checker's file changed by ``fn`` (the checker's side, not the contractor's)."""
+
     def wrapped(d: Path) -> None:
         edit(d)
+
     wrapped.checker_edit = fn  # type: ignore[attr-defined]
     return wrapped
 
@@ -415,11 +536,13 @@ def _aoi_is_b02(doc: dict[str, Any]) -> None:
 
 def _project_crs(value: str | None) -> Edit:
     """The manifest's project.crs set to ``value`` (None: removed); the images are left as delivered."""
+
     def fn(m: dict[str, Any]) -> None:
         if value is None:
             m["project"].pop("crs", None)
         else:
             m["project"]["crs"] = value
+
     return _manifest_edit(fn)
 
 
@@ -427,7 +550,11 @@ def _inflate_f02_01_heights_and_gsds(header: list[str], rows: list[dict[str, str
     """R7's trick again, with the rows' declared GSDs inflated to agree (the rasters stay 0.25 m)."""
     for r in rows:
         if r["image_id"].startswith("F02_01"):
-            for col, fmt in (("flying_height", "{:.1f}"), ("acquisition_gsd", "{:.4f}"), ("gsd", "{:.2f}")):
+            for col, fmt in (
+                ("flying_height", "{:.1f}"),
+                ("acquisition_gsd", "{:.4f}"),
+                ("gsd", "{:.2f}"),
+            ):
                 r[col] = fmt.format(float(r[col]) * 2.5)
 
 
@@ -449,11 +576,14 @@ def _drop_failing_scenes(header: list[str], rows: list[dict[str, str]]) -> list[
 
 # --- running ---------------------------------------------------------------------------------
 
+
 def _signed_then(before: Edit, after: Edit) -> Edit:
     """``before`` is what the contractor delivers and the checker signs (its file re-signed on that
     content); ``after`` is changed in the delivery once the checker's file exists."""
+
     def edit(d: Path) -> None:
         before(d)
+
     edit.after_signing = after  # type: ignore[attr-defined]
     return edit
 
@@ -467,15 +597,21 @@ def _delivered_items(d: Path) -> set[str]:
     return items
 
 
-def _checker_for(example: str, delivery: Path, tmp_path: Path,
-                 checker_edit: Callable[[dict[str, Any]], None] | None = None) -> Path:
+def _checker_for(
+    example: str,
+    delivery: Path,
+    tmp_path: Path,
+    checker_edit: Callable[[dict[str, Any]], None] | None = None,
+) -> Path:
     """The checker's fixed folder re-signed on the delivered content (tests/checking.py ``resigned``): the
     checker signs what it receives and judges only the items it received. Outside the delivery."""
     remeasured(_checker_folder(delivery), delivery)
     path = resigned(_checker_folder(delivery), delivery, _checker_folder(delivery))
     doc = yaml.safe_load(path.read_text(encoding="utf-8"))
     items = _delivered_items(delivery)
-    doc["manual_checks"] = [m for m in doc.get("manual_checks") or [] if m["item"] == "*" or m["item"] in items]
+    doc["manual_checks"] = [
+        m for m in doc.get("manual_checks") or [] if m["item"] == "*" or m["item"] in items
+    ]
     if checker_edit is not None:
         checker_edit(doc)
     path.write_text(yaml.safe_dump(doc, sort_keys=False, allow_unicode=True), encoding="utf-8")
@@ -509,10 +645,13 @@ def _verdicts(doc: dict[str, Any], rule: str) -> dict[str, str]:
 def _rejects(doc: dict[str, Any], rule: str, item: str, verdict: str = "fail") -> None:
     got = _verdicts(doc, rule)
     assert got.get(item) == verdict, f"{rule} {item}: {got}"
-    assert any(reason.startswith(rule) for reason in doc["rollup"]["reasons"]), doc["rollup"]["reasons"]
+    assert any(reason.startswith(rule) for reason in doc["rollup"]["reasons"]), doc["rollup"][
+        "reasons"
+    ]
 
 
 # --- cases -----------------------------------------------------------------------------------
+
 
 def _check_planted_alone(code: int, doc: dict[str, Any] | None, err: str) -> None:
     assert code == 1 and doc is not None
@@ -532,26 +671,32 @@ def _check_sensor_satellite(code: int, doc: dict[str, Any] | None, err: str) -> 
 def _check_rename(code: int, doc: dict[str, Any] | None, err: str) -> None:
     # the checker's measurements still name B02: the renamed delivery does not match them (exit 2)
     assert code == 2 and doc is None
-    assert "tables/checkpoints.csv: row" in err and "'B02' is not a block of the manifest" in err, err
+    assert "tables/checkpoints.csv: row" in err and "'B02' is not a block of the manifest" in err, (
+        err
+    )
 
 
 def _check_external_stands(*untouched: str) -> Callable[[int, dict[str, Any] | None, str], None]:
     """Issue 29 item 1: the trick edited the contractor's own check point table (its internal QC, JRC
     §12.5); the external-accuracy rules read the checker's measurements, so the planted B02 failure
     stands and the rules the trick aimed at (``untouched``) judge the checker's unchanged points."""
+
     def check(code: int, doc: dict[str, Any] | None, err: str) -> None:
         assert code == 1 and doc is not None
         _rejects(doc, "JRC-12.7-RMSEY", "B02")
         assert "B02" in doc["rollup"]["rejected"]["block"], doc["rollup"]["rejected"]
         for rule in untouched:
             assert set(_verdicts(doc, rule).values()) == {"pass"}, (rule, _verdicts(doc, rule))
+
     return check
 
 
 # §12.6 only a point beyond 3 x RMSE may be excluded: the contractor's exclusions touch its own table only
 _check_excluded = _check_external_stands("JRC-12.6-BLUNDER-EXCLUSIONS")
 # points relabelled to B01 in the contractor's table: the checker's B01 and B02 are unchanged
-_check_moved_to_b01 = _check_external_stands("JRC-12.4-T12-MIN-CHECKPOINTS", "JRC-12.4-CHECKPOINTS-IN-BLOCK")
+_check_moved_to_b01 = _check_external_stands(
+    "JRC-12.4-T12-MIN-CHECKPOINTS", "JRC-12.4-CHECKPOINTS-IN-BLOCK"
+)
 # §12.5 check points independent of the GCPs: GCPs added to the contractor's table are not the checker's
 _check_gcps = _check_external_stands("JRC-12.5-INDEPENDENT-CHECKPOINTS")
 
@@ -570,7 +715,9 @@ def _check_no_reported(code: int, doc: dict[str, Any] | None, err: str) -> None:
     # accuracy is judged on the checker's points (JRC-12.7), not on the contractor's figure
     assert doc is not None
     recs = [r for r in all_records(doc) if r["rule"] == "JRC-9.5-REPORTED-RMSE-Y"]
-    assert {r["verdict"] for r in recs} == {"missing"} and {r["level"] for r in recs} == {"recommended"}
+    assert {r["verdict"] for r in recs} == {"missing"} and {r["level"] for r in recs} == {
+        "recommended"
+    }
 
 
 def _check_satellite_as_aerial(code: int, doc: dict[str, Any] | None, err: str) -> None:
@@ -632,8 +779,9 @@ def _check_outside_block(block: str) -> Callable[[int, dict[str, Any] | None, st
     return _check_external_stands("JRC-12.4-CHECKPOINTS-IN-BLOCK")
 
 
-def _check_outlines_in_force(*, redrawn: bool, stray: str | None = None, coverage: bool = False,
-                             aoi: bool = False) -> Callable[[int, dict[str, Any] | None, str], None]:
+def _check_outlines_in_force(
+    *, redrawn: bool, stray: str | None = None, coverage: bool = False, aoi: bool = False
+) -> Callable[[int, dict[str, Any] | None, str], None]:
     # R13/R17 with the checker's outlines in force (examples/checker/aerial-*.yaml `blocks:`): a redrawn
     # declaration is itself a finding, and the true outlines decide the in-block test (``stray``: the
     # block holding points outside its true outline) and the area the photos must cover (JRC §12.4
@@ -648,13 +796,18 @@ def _check_outlines_in_force(*, redrawn: bool, stray: str | None = None, coverag
         in_block = _verdicts(doc, "JRC-12.4-CHECKPOINTS-IN-BLOCK")
         if stray is not None:
             _rejects(doc, "JRC-12.4-CHECKPOINTS-IN-BLOCK", stray)
-        assert {b for b, v in in_block.items() if v != "pass"} == ({stray} if stray else set()), in_block
+        assert {b for b, v in in_block.items() if v != "pass"} == ({stray} if stray else set()), (
+            in_block
+        )
         if coverage:
             _rejects(doc, "JRC-5.2.2-COVERAGE", did)
-            message = next(r["message"] for r in all_records(doc) if r["rule"] == "JRC-5.2.2-COVERAGE")
+            message = next(
+                r["message"] for r in all_records(doc) if r["rule"] == "JRC-5.2.2-COVERAGE"
+            )
             assert "of the checker file" in message, message
         if aoi:
             _rejects(doc, "JRC-5.2.2-AOI-AGREES", did)
+
     return check
 
 
@@ -665,7 +818,10 @@ def _check_outlines_unused(code: int, doc: dict[str, Any] | None, err: str) -> N
     # consequence incomplete): never accepted
     assert code == 1 and doc is not None and doc["verdict"] == "incomplete"
     assert _verdicts(doc, "JRC-12.4-CHECKPOINTS-IN-BLOCK")["B02"] == "fail"
-    assert any(t.startswith("B02: ") and "JRC-12.4-CHECKPOINTS-IN-BLOCK" in t for t in doc["rollup"]["incomplete"])
+    assert any(
+        t.startswith("B02: ") and "JRC-12.4-CHECKPOINTS-IN-BLOCK" in t
+        for t in doc["rollup"]["incomplete"]
+    )
     did = doc["delivery"]["id"]
     assert _verdicts(doc, "JRC-12.4-BLOCK-OUTLINES-AGREE")[did] == "not_applicable"
     assert _verdicts(doc, "JRC-5.2.2-AOI-AGREES")[did] == "not_applicable"
@@ -695,12 +851,15 @@ def _check_master_identified(code: int, doc: dict[str, Any] | None, err: str) ->
     assert "S01_SC1" in doc["rollup"]["rejected"]["image"]
 
 
-def _check_scene_rule(rule: str, image_id: str) -> Callable[[int, dict[str, Any] | None, str], None]:
+def _check_scene_rule(
+    rule: str, image_id: str
+) -> Callable[[int, dict[str, Any] | None, str], None]:
     # R9/R10/R14 (fixed by d44b081): a recorded PRESS / check-point RMSE is judged, a negative one fails
     def check(code: int, doc: dict[str, Any] | None, err: str) -> None:
         assert code == 1 and doc is not None
         assert _verdicts(doc, rule)[image_id] == "fail"
         assert image_id in doc["rollup"]["rejected"]["image"]
+
     return check
 
 
@@ -712,7 +871,9 @@ def _check_itt_declared(code: int, doc: dict[str, Any] | None, err: str) -> None
     _rejects(doc, "ORTHOSPEC-ITT-DECLARED", "tolerance_xy")
 
 
-def _check_map_projection(images_rejected: bool) -> Callable[[int, dict[str, Any] | None, str], None]:
+def _check_map_projection(
+    images_rejected: bool,
+) -> Callable[[int, dict[str, Any] | None, str], None]:
     # R16: §12.4 Table 12 "georeferenced to the (national) map projection": the projection is the ITT's
     # (map_crs, stated in the checker's file), the manifest's project.crs only a declaration compared with it
     def check(code: int, doc: dict[str, Any] | None, err: str) -> None:
@@ -720,6 +881,7 @@ def _check_map_projection(images_rejected: bool) -> Callable[[int, dict[str, Any
         _rejects(doc, "JRC-12.4-T12-MAP-PROJECTION", doc["delivery"]["id"])
         georef = _verdicts(doc, "JRC-12.4-T12-ORTHO-GEOREFERENCED")
         assert set(georef.values()) == ({"fail"} if images_rejected else {"pass"}), georef
+
     return check
 
 
@@ -732,6 +894,7 @@ def _refused(*words: str) -> Callable[[int, dict[str, Any] | None, str], None]:
         assert code == 2, doc and doc["verdict"]
         for w in words:
             assert w in err, err
+
     return check
 
 
@@ -739,9 +902,14 @@ def _check_item_vanished(item: str) -> Callable[[int, dict[str, Any] | None, str
     # R15 (fixed by 904bfe5): the checker's verdicts on an item the delivery no longer lists return it
     def check(code: int, doc: dict[str, Any] | None, err: str) -> None:
         assert code == 1 and doc is not None
-        assert any(f"the checker's verdict on {item} refers to an item the delivery no longer lists" in r
-                   for r in doc["rollup"]["reasons"]), doc["rollup"]["reasons"]
-        assert {r["rule"] for r in all_records(doc) if r["item"] == item} >= {"JRC-T6-ORTHO-INSPECTION"}
+        assert any(
+            f"the checker's verdict on {item} refers to an item the delivery no longer lists" in r
+            for r in doc["rollup"]["reasons"]
+        ), doc["rollup"]["reasons"]
+        assert {r["rule"] for r in all_records(doc) if r["item"] == item} >= {
+            "JRC-T6-ORTHO-INSPECTION"
+        }
+
     return check
 
 
@@ -762,124 +930,323 @@ def _xfail(finding: str) -> pytest.MarkDecorator:
 
 CASES = [
     pytest.param("aerial-pass", _plant_rmse, _check_planted_alone, id="planted-defect-alone"),
-    pytest.param("aerial-fail", _chain(_sensor("satellite"), _manual_rows_as_checker("JRC-9.2-T7-VISUAL-QUALITY")),
-                 _check_sensor_satellite, id="aerial-declared-satellite"),
-    pytest.param("aerial-fail", _rename_block_everywhere, _check_rename, id="failing-block-renamed"),
-    pytest.param("aerial-pass", _planted(_table_edit("checkpoints", _exclude_worst)), _check_excluded,
-                 id="worst-points-excluded-with-reason"),
-    pytest.param("aerial-pass", _planted(_move_worst("B01", 6)), _check_moved_to_b01, id="worst-points-moved-to-B01"),
-    pytest.param("aerial-pass", _planted(_gcps_as_checkpoints), _check_gcps, id="gcps-as-checkpoints"),
-    pytest.param("aerial-pass", _planted(_self_granted_waiver), _check_self_waiver, id="self-granted-waiver"),
-    pytest.param("aerial-pass", _manifest_edit(_drop_reported), _check_no_reported, id="reported-rmse-removed"),
-    pytest.param("satellite-fail", _sensor("aerial"), _check_satellite_as_aerial, id="satellite-declared-aerial"),
-    pytest.param("satellite-fail", _table_edit("scenes", _drop_failing_scenes), _check_scenes_dropped,
-                 id="failing-scenes-rows-deleted"),
-    pytest.param("aerial-pass", _precision({"B02": "0.5", "B03": ""}), _check_reference_accuracy,
-                 id="careless-reference-precision-0.5m-and-blank"),
-    pytest.param("aerial-pass", _drop_strip_f02_02, _check_coverage_hole, id="strip-removed-extracts-declared"),
-    pytest.param("aerial-pass", _remove_document, _check_document_removed, id="internal-qcr-removed"),
-    pytest.param("satellite-fail", _chain(_scene("S02_SC1", press_sqrt="1.5"),
-                                          _scene("S02_SC3", checkpoint_rmse="1.3", checkpoint_count="8")),
-                 _check_scene_controls, id="scene-press-and-rmse-planted"),
+    pytest.param(
+        "aerial-fail",
+        _chain(_sensor("satellite"), _manual_rows_as_checker("JRC-9.2-T7-VISUAL-QUALITY")),
+        _check_sensor_satellite,
+        id="aerial-declared-satellite",
+    ),
+    pytest.param(
+        "aerial-fail", _rename_block_everywhere, _check_rename, id="failing-block-renamed"
+    ),
+    pytest.param(
+        "aerial-pass",
+        _planted(_table_edit("checkpoints", _exclude_worst)),
+        _check_excluded,
+        id="worst-points-excluded-with-reason",
+    ),
+    pytest.param(
+        "aerial-pass",
+        _planted(_move_worst("B01", 6)),
+        _check_moved_to_b01,
+        id="worst-points-moved-to-B01",
+    ),
+    pytest.param(
+        "aerial-pass", _planted(_gcps_as_checkpoints), _check_gcps, id="gcps-as-checkpoints"
+    ),
+    pytest.param(
+        "aerial-pass", _planted(_self_granted_waiver), _check_self_waiver, id="self-granted-waiver"
+    ),
+    pytest.param(
+        "aerial-pass",
+        _manifest_edit(_drop_reported),
+        _check_no_reported,
+        id="reported-rmse-removed",
+    ),
+    pytest.param(
+        "satellite-fail",
+        _sensor("aerial"),
+        _check_satellite_as_aerial,
+        id="satellite-declared-aerial",
+    ),
+    pytest.param(
+        "satellite-fail",
+        _table_edit("scenes", _drop_failing_scenes),
+        _check_scenes_dropped,
+        id="failing-scenes-rows-deleted",
+    ),
+    pytest.param(
+        "aerial-pass",
+        _precision({"B02": "0.5", "B03": ""}),
+        _check_reference_accuracy,
+        id="careless-reference-precision-0.5m-and-blank",
+    ),
+    pytest.param(
+        "aerial-pass",
+        _drop_strip_f02_02,
+        _check_coverage_hole,
+        id="strip-removed-extracts-declared",
+    ),
+    pytest.param(
+        "aerial-pass", _remove_document, _check_document_removed, id="internal-qcr-removed"
+    ),
+    pytest.param(
+        "satellite-fail",
+        _chain(
+            _scene("S02_SC1", press_sqrt="1.5"),
+            _scene("S02_SC3", checkpoint_rmse="1.3", checkpoint_count="8"),
+        ),
+        _check_scene_controls,
+        id="scene-press-and-rmse-planted",
+    ),
     # refused before any rule runs (exit 2, file/row/column named)
-    pytest.param("aerial-pass", _planted(_table_edit("checkpoints", _duplicate_ids)),
-                 _refused("checkpoints.csv", "duplicate id"), id="good-points-duplicated"),
-    pytest.param("aerial-pass", _planted(_set_worst_y("")), _refused("checkpoints.csv", "'y'", "empty"),
-                 id="worst-y-blank"),
-    pytest.param("aerial-pass", _planted(_set_worst_y("nan")), _refused("checkpoints.csv", "'y'", "finite"),
-                 id="worst-y-nan"),
-    pytest.param("aerial-pass", _planted(_set_worst_y("inf")), _refused("checkpoints.csv", "'y'", "finite"),
-                 id="worst-y-inf"),
-    pytest.param("aerial-pass", _planted(_second_checkpoints_entry), _refused("delivery.yaml", "duplicate key"),
-                 id="second-checkpoints-table-entry"),
+    pytest.param(
+        "aerial-pass",
+        _planted(_table_edit("checkpoints", _duplicate_ids)),
+        _refused("checkpoints.csv", "duplicate id"),
+        id="good-points-duplicated",
+    ),
+    pytest.param(
+        "aerial-pass",
+        _planted(_set_worst_y("")),
+        _refused("checkpoints.csv", "'y'", "empty"),
+        id="worst-y-blank",
+    ),
+    pytest.param(
+        "aerial-pass",
+        _planted(_set_worst_y("nan")),
+        _refused("checkpoints.csv", "'y'", "finite"),
+        id="worst-y-nan",
+    ),
+    pytest.param(
+        "aerial-pass",
+        _planted(_set_worst_y("inf")),
+        _refused("checkpoints.csv", "'y'", "finite"),
+        id="worst-y-inf",
+    ),
+    pytest.param(
+        "aerial-pass",
+        _planted(_second_checkpoints_entry),
+        _refused("delivery.yaml", "duplicate key"),
+        id="second-checkpoints-table-entry",
+    ),
     # wrongly ACCEPTED today (findings R1-R5 in tests/REDTEAM.md)
-    pytest.param("aerial-pass", _planted(_declare_tolerance(1.0)), _check_itt_declared, id="R1-tolerance-declared-1m"),
-    pytest.param("aerial-pass", _planted(_units("ft"), _fix_reported),
-                 _refused("delivery.yaml", "units.checkpoints is ft", "EPSG:25832", "in m"),
-                 id="R2-units-ft-in-metre-crs"),
-    pytest.param("aerial-pass", _planted(_units("mm"), _fix_reported),
-                 _refused("delivery.yaml", "units.checkpoints is mm", "EPSG:25832"), id="R2-units-mm-in-metre-crs"),
-    pytest.param("aerial-pass", _planted(_move_worst("B99", 4), _fix_reported),
-                 _refused("tables/checkpoints.csv", "column 'block'", "'B99' is not a block of the manifest"),
-                 id="R3-worst-points-to-unknown-block"),
-    pytest.param("aerial-pass", _planted(_table_edit("checkpoints", _fabricated_copies), _fix_reported),
-                 _check_distinct_points, id="R4-fabricated-copies-new-ids"),
-    pytest.param("aerial-pass", _signed_then(_plant_rmse, _chain(_table_edit("checkpoints", _delete_worst),
-                                                                _fix_reported)),
-                 _refused("pins tables/checkpoints.csv", "other content"), id="R5-worst-points-deleted-after-signing"),
-    pytest.param("aerial-pass", _planted(_move_worst("B01", 4), _fix_reported), _check_outside_block("B01"),
-                 id="R6-worst-points-moved-outside-into-B01"),
-    pytest.param("aerial-pass", _chain(_drop_strip_f02_02, _table_edit("images", _inflate_f02_01_heights)),
-                 _check_inflated_heights, id="R7-strip-removed-heights-inflated"),
+    pytest.param(
+        "aerial-pass",
+        _planted(_declare_tolerance(1.0)),
+        _check_itt_declared,
+        id="R1-tolerance-declared-1m",
+    ),
+    pytest.param(
+        "aerial-pass",
+        _planted(_units("ft"), _fix_reported),
+        _refused("delivery.yaml", "units.checkpoints is ft", "EPSG:25832", "in m"),
+        id="R2-units-ft-in-metre-crs",
+    ),
+    pytest.param(
+        "aerial-pass",
+        _planted(_units("mm"), _fix_reported),
+        _refused("delivery.yaml", "units.checkpoints is mm", "EPSG:25832"),
+        id="R2-units-mm-in-metre-crs",
+    ),
+    pytest.param(
+        "aerial-pass",
+        _planted(_move_worst("B99", 4), _fix_reported),
+        _refused(
+            "tables/checkpoints.csv", "column 'block'", "'B99' is not a block of the manifest"
+        ),
+        id="R3-worst-points-to-unknown-block",
+    ),
+    pytest.param(
+        "aerial-pass",
+        _planted(_table_edit("checkpoints", _fabricated_copies), _fix_reported),
+        _check_distinct_points,
+        id="R4-fabricated-copies-new-ids",
+    ),
+    pytest.param(
+        "aerial-pass",
+        _signed_then(_plant_rmse, _chain(_table_edit("checkpoints", _delete_worst), _fix_reported)),
+        _refused("pins tables/checkpoints.csv", "other content"),
+        id="R5-worst-points-deleted-after-signing",
+    ),
+    pytest.param(
+        "aerial-pass",
+        _planted(_move_worst("B01", 4), _fix_reported),
+        _check_outside_block("B01"),
+        id="R6-worst-points-moved-outside-into-B01",
+    ),
+    pytest.param(
+        "aerial-pass",
+        _chain(_drop_strip_f02_02, _table_edit("images", _inflate_f02_01_heights)),
+        _check_inflated_heights,
+        id="R7-strip-removed-heights-inflated",
+    ),
     # item-level: satellite-fail stays rejected for its other defects, but the planted scene defect is hidden
-    pytest.param("satellite-fail", _scene("S01_SC1", is_master="false"), _check_master_declared,
-                 id="R8-master-declared-not-master"),
-    pytest.param("satellite-fail", _scene("S01_SC1", is_master="false", master_check_date=""),
-                 _check_master_identified, id="R8-master-unflagged-every-trace-erased"),
-    pytest.param("satellite-fail", _scene("S02_SC1", press_sqrt="-1.5"),
-                 _check_scene_rule("JRC-T9-PRESS-VALID", "S02_SC1"), id="R9-negative-press"),
-    pytest.param("satellite-fail", _scene("S02_SC1", checkpoint_rmse="1.3", checkpoint_count="0"),
-                 _check_scene_rule("JRC-T9-CHECKPOINT-RMSE", "S02_SC1"), id="R10-checkpoint-count-zero"),
-    pytest.param("aerial-pass", _empty_document, _check_document_empty, id="R11-internal-qcr-empty-file"),
-    pytest.param("aerial-fail", _copy_image_over_missing, _check_own_file,
-                 id="R12-missing-image-replaced-by-neighbour-copy"),
-    pytest.param("aerial-fail", _signed_then(_chain(), _drop_image_row("F03_0202")), _check_item_vanished("F03_0202"),
-                 id="R15-checker-rejected-image-row-deleted"),
-    pytest.param("aerial-pass", _reproject_label_everything, _check_map_projection(images_rejected=True),
-                 id="R16-all-images-and-project-crs-relabelled"),
-    pytest.param("aerial-pass", _project_crs("EPSG:25833"), _check_map_projection(images_rejected=False),
-                 id="R16-project-crs-relabelled-images-right"),
+    pytest.param(
+        "satellite-fail",
+        _scene("S01_SC1", is_master="false"),
+        _check_master_declared,
+        id="R8-master-declared-not-master",
+    ),
+    pytest.param(
+        "satellite-fail",
+        _scene("S01_SC1", is_master="false", master_check_date=""),
+        _check_master_identified,
+        id="R8-master-unflagged-every-trace-erased",
+    ),
+    pytest.param(
+        "satellite-fail",
+        _scene("S02_SC1", press_sqrt="-1.5"),
+        _check_scene_rule("JRC-T9-PRESS-VALID", "S02_SC1"),
+        id="R9-negative-press",
+    ),
+    pytest.param(
+        "satellite-fail",
+        _scene("S02_SC1", checkpoint_rmse="1.3", checkpoint_count="0"),
+        _check_scene_rule("JRC-T9-CHECKPOINT-RMSE", "S02_SC1"),
+        id="R10-checkpoint-count-zero",
+    ),
+    pytest.param(
+        "aerial-pass", _empty_document, _check_document_empty, id="R11-internal-qcr-empty-file"
+    ),
+    pytest.param(
+        "aerial-fail",
+        _copy_image_over_missing,
+        _check_own_file,
+        id="R12-missing-image-replaced-by-neighbour-copy",
+    ),
+    pytest.param(
+        "aerial-fail",
+        _signed_then(_chain(), _drop_image_row("F03_0202")),
+        _check_item_vanished("F03_0202"),
+        id="R15-checker-rejected-image-row-deleted",
+    ),
+    pytest.param(
+        "aerial-pass",
+        _reproject_label_everything,
+        _check_map_projection(images_rejected=True),
+        id="R16-all-images-and-project-crs-relabelled",
+    ),
+    pytest.param(
+        "aerial-pass",
+        _project_crs("EPSG:25833"),
+        _check_map_projection(images_rejected=False),
+        id="R16-project-crs-relabelled-images-right",
+    ),
     # without project.crs the coordinate unit has nothing to be checked against (R2): the ft trick
     # is then caught by the missing declaration of the ITT's projection
-    pytest.param("aerial-pass", _planted(_project_crs(None), _units("ft"), _fix_reported),
-                 _check_map_projection(images_rejected=False), id="R16-project-crs-removed-units-ft"),
-    pytest.param("aerial-pass", _chain(_drop_strip_f02_02, _manifest_edit(_shrink_b02_to_first_strip)),
-                 _check_outlines_in_force(redrawn=True, coverage=True, aoi=True), id="R13-strip-removed-block-outline-shrunk"),
-    pytest.param("aerial-pass", _checker_states(_chain(_drop_strip_f02_02, _manifest_edit(_shrink_b02_to_first_strip)),
-                                                _no_outlines),
-                 _check_outlines_unused, id="R13-block-outline-shrunk-checker-states-no-outlines"),
+    pytest.param(
+        "aerial-pass",
+        _planted(_project_crs(None), _units("ft"), _fix_reported),
+        _check_map_projection(images_rejected=False),
+        id="R16-project-crs-removed-units-ft",
+    ),
+    pytest.param(
+        "aerial-pass",
+        _chain(_drop_strip_f02_02, _manifest_edit(_shrink_b02_to_first_strip)),
+        _check_outlines_in_force(redrawn=True, coverage=True, aoi=True),
+        id="R13-strip-removed-block-outline-shrunk",
+    ),
+    pytest.param(
+        "aerial-pass",
+        _checker_states(
+            _chain(_drop_strip_f02_02, _manifest_edit(_shrink_b02_to_first_strip)), _no_outlines
+        ),
+        _check_outlines_unused,
+        id="R13-block-outline-shrunk-checker-states-no-outlines",
+    ),
     # the points moved into the snaked B01 are the contractor's own (issue 29): the redrawn outline is the
     # finding, the checker's points (none of them moved) lie in their true blocks
-    pytest.param("aerial-pass", _planted(_move_worst("B01", 4), _snake_b01_around_its_strays, _fix_reported),
-                 _check_outlines_in_force(redrawn=True), id="R13-B01-outline-snaked-around-B02-points"),
+    pytest.param(
+        "aerial-pass",
+        _planted(_move_worst("B01", 4), _snake_b01_around_its_strays, _fix_reported),
+        _check_outlines_in_force(redrawn=True),
+        id="R13-B01-outline-snaked-around-B02-points",
+    ),
     # was xfail (R13: without the checker's outlines the snaked outline took B02's worst points into B01);
     # closed by issue 29: the external statistics are the checker's measurements, the moved points the
     # contractor's, so B02 stays rejected on its RMSEy
-    pytest.param("aerial-pass", _checker_states(_planted(_move_worst("B01", 4), _snake_b01_around_its_strays,
-                                                         _fix_reported), _no_outlines),
-                 _check_external_stands(), id="R13-B01-outline-snaked-checker-states-no-outlines"),
-    pytest.param("aerial-pass", _aoi_file_without_strip_f02_02, _check_outlines_in_force(redrawn=False, coverage=True, aoi=True),
-                 id="R13-area-of-interest-shrunk-checker-states-blocks"),
-    pytest.param("aerial-pass", _checker_states(_aoi_file_without_strip_f02_02, _aoi_is_b02),
-                 _check_outlines_in_force(redrawn=False, coverage=True, aoi=True), id="R13-area-of-interest-shrunk-checker-states-it"),
-    pytest.param("aerial-pass", _checker_states(_aoi_file_without_strip_f02_02, _no_outlines),
-                 _not_accepted, id="R13-area-of-interest-shrunk-checker-states-no-outlines",
-                 marks=_xfail("R13: without the checker's outlines the area of interest is the contractor's "
-                              "project.area_of_interest; stating it in the checker's file closes it")),
-    pytest.param("aerial-pass", _planted(_move_worst("B01", 4), _manifest_edit(_b01_outline_swallows_b02),
-                                         _fix_reported),
-                 _refused("delivery.yaml:", "blocks[1] (B02)", "overlaps the outline of block B01"),
-                 id="R17-B01-outline-redrawn-over-B02"),
-    pytest.param("aerial-pass", _manifest_edit(_b02_outline_bowtie),
-                 _refused("delivery.yaml:", "blocks[1] (B02)", "not a valid block outline", "Self-intersection"),
-                 id="R17-self-intersecting-block-outline"),
-    pytest.param("aerial-pass", _chain(_drop_strip_f02_02, _table_edit("images", _inflate_f02_01_heights_and_gsds)),
-                 _check_inflated_heights, id="R18-heights-and-declared-gsds-inflated"),
-    pytest.param("aerial-pass", _signed_then(_plant_rmse, _swap_in_cleaned_table),
-                 _refused("pins tables/checkpoints.csv as tables.checkpoints",
-                          "the delivery now uses tables/checkpoints_v2.csv for it"),
-                 id="R19-after-signing-manifest-names-another-checkpoint-file"),
-    pytest.param("aerial-pass", _table_edit("checkpoints", _negative_precision_b02),
-                 _refused("tables/checkpoints.csv", "'precision_xy'", "below the minimum 0"),
-                 id="R14-negative-reference-precision"),
-    pytest.param("satellite-fail", _scene("S02_SC1", checkpoint_rmse="-1.3", checkpoint_count="8"),
-                 _check_scene_rule("JRC-T9-CHECKPOINT-RMSE-VALID", "S02_SC1"), id="R14-negative-scene-checkpoint-rmse"),
+    pytest.param(
+        "aerial-pass",
+        _checker_states(
+            _planted(_move_worst("B01", 4), _snake_b01_around_its_strays, _fix_reported),
+            _no_outlines,
+        ),
+        _check_external_stands(),
+        id="R13-B01-outline-snaked-checker-states-no-outlines",
+    ),
+    pytest.param(
+        "aerial-pass",
+        _aoi_file_without_strip_f02_02,
+        _check_outlines_in_force(redrawn=False, coverage=True, aoi=True),
+        id="R13-area-of-interest-shrunk-checker-states-blocks",
+    ),
+    pytest.param(
+        "aerial-pass",
+        _checker_states(_aoi_file_without_strip_f02_02, _aoi_is_b02),
+        _check_outlines_in_force(redrawn=False, coverage=True, aoi=True),
+        id="R13-area-of-interest-shrunk-checker-states-it",
+    ),
+    pytest.param(
+        "aerial-pass",
+        _checker_states(_aoi_file_without_strip_f02_02, _no_outlines),
+        _not_accepted,
+        id="R13-area-of-interest-shrunk-checker-states-no-outlines",
+        marks=_xfail(
+            "R13: without the checker's outlines the area of interest is the contractor's "
+            "project.area_of_interest; stating it in the checker's file closes it"
+        ),
+    ),
+    pytest.param(
+        "aerial-pass",
+        _planted(_move_worst("B01", 4), _manifest_edit(_b01_outline_swallows_b02), _fix_reported),
+        _refused("delivery.yaml:", "blocks[1] (B02)", "overlaps the outline of block B01"),
+        id="R17-B01-outline-redrawn-over-B02",
+    ),
+    pytest.param(
+        "aerial-pass",
+        _manifest_edit(_b02_outline_bowtie),
+        _refused(
+            "delivery.yaml:", "blocks[1] (B02)", "not a valid block outline", "Self-intersection"
+        ),
+        id="R17-self-intersecting-block-outline",
+    ),
+    pytest.param(
+        "aerial-pass",
+        _chain(_drop_strip_f02_02, _table_edit("images", _inflate_f02_01_heights_and_gsds)),
+        _check_inflated_heights,
+        id="R18-heights-and-declared-gsds-inflated",
+    ),
+    pytest.param(
+        "aerial-pass",
+        _signed_then(_plant_rmse, _swap_in_cleaned_table),
+        _refused(
+            "pins tables/checkpoints.csv as tables.checkpoints",
+            "the delivery now uses tables/checkpoints_v2.csv for it",
+        ),
+        id="R19-after-signing-manifest-names-another-checkpoint-file",
+    ),
+    pytest.param(
+        "aerial-pass",
+        _table_edit("checkpoints", _negative_precision_b02),
+        _refused("tables/checkpoints.csv", "'precision_xy'", "below the minimum 0"),
+        id="R14-negative-reference-precision",
+    ),
+    pytest.param(
+        "satellite-fail",
+        _scene("S02_SC1", checkpoint_rmse="-1.3", checkpoint_count="8"),
+        _check_scene_rule("JRC-T9-CHECKPOINT-RMSE-VALID", "S02_SC1"),
+        id="R14-negative-scene-checkpoint-rmse",
+    ),
 ]
 
 
 @pytest.mark.parametrize(("example", "edit", "expect"), CASES)
-def test_contractor_cannot_get_defect_accepted(example: str, edit: Edit,
-                                               expect: Callable[[int, dict[str, Any] | None, str], None],
-                                               tmp_path: Path) -> None:
+def test_contractor_cannot_get_defect_accepted(
+    example: str,
+    edit: Edit,
+    expect: Callable[[int, dict[str, Any] | None, str], None],
+    tmp_path: Path,
+) -> None:
     code, doc, err = _run(example, edit, tmp_path)
     expect(code, doc, err)

@@ -47,8 +47,14 @@ Edit = Callable[[Path], None]
 
 # --- edits ------------------------------------------------------------------------------------------
 
-def _rewrite(path: Path, *, pixels: np.ndarray | None = None, transform: Affine | None = None,
-             like: Path | None = None) -> None:
+
+def _rewrite(
+    path: Path,
+    *,
+    pixels: np.ndarray | None = None,
+    transform: Affine | None = None,
+    like: Path | None = None,
+) -> None:
     """Rewrite a GeoTIFF in place: new pixels and/or transform (profile of ``like`` or of itself)."""
     with rasterio.open(like or path) as src:
         profile, data, colours = src.profile, src.read(), src.colorinterp
@@ -67,11 +73,14 @@ def _read(path: Path) -> tuple[np.ndarray, Affine]:
         return src.read(), src.transform
 
 
-def _table(name: str, fn: Callable[[list[str], list[dict[str, str]]], list[dict[str, str]] | None]) -> Edit:
+def _table(
+    name: str, fn: Callable[[list[str], list[dict[str, str]]], list[dict[str, str]] | None]
+) -> Edit:
     def edit(d: Path) -> None:
         header, rows = read_table(d, name)
         out = fn(header, rows)
         write_table(d, name, header, rows if out is None else out)
+
     return edit
 
 
@@ -79,6 +88,7 @@ def _chain(*edits: Edit) -> Edit:
     def edit(d: Path) -> None:
         for e in edits:
             e(d)
+
     return edit
 
 
@@ -87,18 +97,23 @@ def _set(table: str, image: str, **values: str) -> Edit:
         for r in rows:
             if r[header[0]] == image:
                 r.update(values)
+
     return _table(table, fn)
 
 
 def _one_gcp(scene: str) -> Edit:
     """The scene keeps one GCP: its count declared 1 and one row left in gcps.csv (JRC Table 9 VHR/RPC: 2-4)."""
+
     def fn(header: list[str], rows: list[dict[str, str]]) -> list[dict[str, str]]:
         mine = [r for r in rows if r["point_id"].startswith(f"{scene}-")]
         return [r for r in rows if r not in mine[1:]]
+
     return _chain(_set("scenes", scene, gcp_count="1"), _table("gcps", fn))
 
 
-def _every_raster(fn: Callable[[np.ndarray, Affine], tuple[np.ndarray | None, Affine | None]]) -> Edit:
+def _every_raster(
+    fn: Callable[[np.ndarray, Affine], tuple[np.ndarray | None, Affine | None]],
+) -> Edit:
     def edit(d: Path) -> None:
         _, rows = read_table(d, "images")
         for r in rows:
@@ -106,11 +121,13 @@ def _every_raster(fn: Callable[[np.ndarray, Affine], tuple[np.ndarray | None, Af
             data, t = _read(path)
             pixels, transform = fn(data, t)
             _rewrite(path, pixels=pixels, transform=transform)
+
     return edit
 
 
 def _decimate_to(pixel: float) -> Edit:
-    """Every raster's geotransform says `pixel` m (the same pixels over a larger ground): the tables still say 0.25 m."""
+    """Every raster's geotransform says `pixel` m (the same pixels over a larger ground): the tables still
+    say 0.25 m."""
     return _every_raster(lambda data, t: (None, Affine(pixel, 0.0, t.c, 0.0, -pixel, t.f)))
 
 
@@ -120,7 +137,9 @@ def _shift_all(east: float) -> Edit:
 
 def _one_pixel_changed(data: np.ndarray, k: int = 0) -> np.ndarray:
     out = data.copy()
-    out[:, 64 + k % 7, 64] = np.clip(out[:, 64 + k % 7, 64].astype(int) + 9, 1, 254).astype(out.dtype)
+    out[:, 64 + k % 7, 64] = np.clip(out[:, 64 + k % 7, 64].astype(int) + 9, 1, 254).astype(
+        out.dtype
+    )
     return out
 
 
@@ -137,18 +156,26 @@ def _camera_format_times(factor: int) -> Edit:
         for r in rows:
             r["format_across_px"] = str(int(r["format_across_px"]) * factor)
             r["format_along_px"] = str(int(r["format_along_px"]) * factor)
+
     return _table("cameras", fn)
 
 
 def _strip_f02_02_as_copies(*, own_place: bool) -> Edit:
     """Keep strip F02_02's rows but deliver one-pixel-changed copies of strip F02_01's rasters as its files,
     georeferenced where F02_01's are (a plain copy) or where F02_02's were (``own_place``)."""
+
     def edit(d: Path) -> None:
         for k in range(1, 6):
             src, dst = d / f"images/F02_01{k:02d}.tif", d / f"images/F02_02{k:02d}.tif"
             data, t_src = _read(src)
             _, t_dst = _read(dst)
-            _rewrite(dst, pixels=_one_pixel_changed(data, k), transform=t_dst if own_place else t_src, like=src)
+            _rewrite(
+                dst,
+                pixels=_one_pixel_changed(data, k),
+                transform=t_dst if own_place else t_src,
+                like=src,
+            )
+
     return edit
 
 
@@ -162,7 +189,15 @@ def _scene_under_other_georeference(d: Path) -> None:
     sc1 = next(r for r in rows if r["image_id"] == "S01_SC1")
     for r in rows:
         if r["image_id"] == "S01_SC2":
-            for k in ("mean_dn", "std_dn", "min_dn", "max_dn", "saturation_low", "saturation_high", "cloud_cover"):
+            for k in (
+                "mean_dn",
+                "std_dn",
+                "min_dn",
+                "max_dn",
+                "saturation_low",
+                "saturation_high",
+                "cloud_cover",
+            ):
                 r[k] = sc1[k]
     write_table(d, "images", header, rows)
 
@@ -177,6 +212,7 @@ def _two_images_unreadable(d: Path) -> None:
 
 def _pad_with_copies(n: int) -> Edit:
     """Pad the images table with ``n`` one-pixel-changed copies of good images (own files, own rows)."""
+
     def edit(d: Path) -> None:
         header, rows = read_table(d, "images")
         good = [r for r in rows if r["image_id"].startswith("F03_")][:n]
@@ -186,9 +222,17 @@ def _pad_with_copies(n: int) -> Edit:
             data, t = _read(d / r["file"])
             shutil.copyfile(d / r["file"], d / rel)
             _rewrite(d / rel, pixels=_one_pixel_changed(data, k), transform=t, like=d / r["file"])
-            rows.append({**r, "image_id": new_id, "file": rel, "photo_number": f"{90 + k:04d}",
-                         "exposure_y": f"{float(r['exposure_y']) + 0.5:.2f}"})
+            rows.append(
+                {
+                    **r,
+                    "image_id": new_id,
+                    "file": rel,
+                    "photo_number": f"{90 + k:04d}",
+                    "exposure_y": f"{float(r['exposure_y']) + 0.5:.2f}",
+                }
+            )
         write_table(d, "images", header, rows)
+
     return edit
 
 
@@ -196,11 +240,23 @@ def _dem_delivered_declared_false(d: Path) -> None:
     """A DEM file and a dem table naming it are delivered; product.dem_delivered says false; B01's check point
     heights are 1 m off (RMSEz 1 m against tolerance_z 0.5 m)."""
     (d / "dem").mkdir()
-    with rasterio.open(d / "dem/dem_b01.tif", "w", driver="GTiff", width=70, height=72, count=1, dtype="float32",
-                       crs="EPSG:25832", transform=Affine(100.0, 0, 500_000.0, 0, -100.0, 5_407_200.0)) as dst:
+    with rasterio.open(
+        d / "dem/dem_b01.tif",
+        "w",
+        driver="GTiff",
+        width=70,
+        height=72,
+        count=1,
+        dtype="float32",
+        crs="EPSG:25832",
+        transform=Affine(100.0, 0, 500_000.0, 0, -100.0, 5_407_200.0),
+    ) as dst:
         dst.write(np.full((1, 72, 70), 411.0, dtype=np.float32))
-    (d / "tables/dem.csv").write_text("dem_id,block,file,source,grid_spacing,rmse_z,checkpoints\n"
-                                      "DEM-01,B01,dem/dem_b01.tif,contractor DEM 2026,5,0.3,25\n", encoding="utf-8")
+    (d / "tables/dem.csv").write_text(
+        "dem_id,block,file,source,grid_spacing,rmse_z,checkpoints\n"
+        "DEM-01,B01,dem/dem_b01.tif,contractor DEM 2026,5,0.3,25\n",
+        encoding="utf-8",
+    )
     m = manifest(d)
     m["tables"]["dem"] = "tables/dem.csv"
     m["product"]["dem_delivered"] = False
@@ -245,6 +301,7 @@ def _dem_table_removed(d: Path) -> None:
 def _clouds_in_pixels(image: str, share: float) -> Edit:
     """Paint a bright, white cloud over about ``share`` of ``image``'s pixels; its row keeps cloud_cover 0 and
     its statistics are updated to the new pixels (so nothing declared gives it away)."""
+
     def edit(d: Path) -> None:
         from scipy.ndimage import gaussian_filter
 
@@ -259,13 +316,19 @@ def _clouds_in_pixels(image: str, share: float) -> Edit:
         header, rows = read_table(d, "images")
         for r in rows:
             if r["image_id"] == image:
-                r.update(mean_dn=f"{valid.mean():.2f}", std_dn=f"{valid.std():.2f}", min_dn=f"{valid.min():.0f}",
-                         max_dn=f"{valid.max():.0f}")
+                r.update(
+                    mean_dn=f"{valid.mean():.2f}",
+                    std_dn=f"{valid.std():.2f}",
+                    min_dn=f"{valid.min():.0f}",
+                    max_dn=f"{valid.max():.0f}",
+                )
         write_table(d, "images", header, rows)
+
     return edit
 
 
 # --- running ----------------------------------------------------------------------------------------
+
 
 def _delivered_items(d: Path) -> set[str]:
     import csv
@@ -277,18 +340,28 @@ def _delivered_items(d: Path) -> set[str]:
     return items
 
 
-def _run(example: str, edit: Edit, tmp_path: Path, *, profile: str | Path = "jrc-v3",
-         parameters: dict[str, Any] | None = None,
-         checker_edit: Edit | None = None) -> tuple[int, dict[str, Any] | None, str]:
+def _run(
+    example: str,
+    edit: Edit,
+    tmp_path: Path,
+    *,
+    profile: str | Path = "jrc-v3",
+    parameters: dict[str, Any] | None = None,
+    checker_edit: Edit | None = None,
+) -> tuple[int, dict[str, Any] | None, str]:
     d = tmp_path / example
     shutil.copytree(EXAMPLES / example, d)
     edit(d)
     path = resigned(CHECKERS / f"{example}.yaml", d, tmp_path / f"checker-{example}.yaml")
     if checker_edit is not None:
-        checker_edit(path.parent)  # the checker's own measurements (its folder's tables/checkpoints.csv)
+        checker_edit(
+            path.parent
+        )  # the checker's own measurements (its folder's tables/checkpoints.csv)
     doc = yaml.safe_load(path.read_text(encoding="utf-8"))
     items = _delivered_items(d)
-    doc["manual_checks"] = [m for m in doc.get("manual_checks") or [] if m["item"] == "*" or m["item"] in items]
+    doc["manual_checks"] = [
+        m for m in doc.get("manual_checks") or [] if m["item"] == "*" or m["item"] in items
+    ]
     if parameters:
         doc.setdefault("parameters", {}).update(parameters)
     path.write_text(yaml.safe_dump(doc, sort_keys=False, allow_unicode=True), encoding="utf-8")
@@ -314,6 +387,7 @@ def _rejected_for(doc: dict[str, Any], rule: str, items: set[str], verdict: str 
 
 # --- the observations -------------------------------------------------------------------------------
 
+
 def test_planted_vhr_gcp_shortage_alone_is_rejected(tmp_path: Path) -> None:
     """Baseline of the class cases: S02_SC1 (VHR, vendor RPC) with one GCP breaks Table 9 (2-4 per scene)."""
     code, doc, err = _run("satellite-pass", _one_gcp("S02_SC1"), tmp_path)
@@ -321,12 +395,25 @@ def test_planted_vhr_gcp_shortage_alone_is_rejected(tmp_path: Path) -> None:
     assert _verdicts(doc, "JRC-T9-GCP-VHR-RPC")["S02_SC1"] == "fail"
 
 
-@pytest.mark.parametrize("declare", [
-    pytest.param(_chain(_set("scenes", "S02_SC1", input_pixel_size="4", resolution_class="HR")), id="input-pixel-4m"),
-    pytest.param(_chain(_set("scenes", "S02_SC1", input_pixel_size="", resolution_class="HR"),
-                        _set("images", "S02_SC1", gsd="3.5")), id="images-gsd-3.5m"),
-])
-def test_resolution_class_comes_from_the_raster_not_the_declaration(tmp_path: Path, declare: Edit) -> None:
+@pytest.mark.parametrize(
+    "declare",
+    [
+        pytest.param(
+            _chain(_set("scenes", "S02_SC1", input_pixel_size="4", resolution_class="HR")),
+            id="input-pixel-4m",
+        ),
+        pytest.param(
+            _chain(
+                _set("scenes", "S02_SC1", input_pixel_size="", resolution_class="HR"),
+                _set("images", "S02_SC1", gsd="3.5"),
+            ),
+            id="images-gsd-3.5m",
+        ),
+    ],
+)
+def test_resolution_class_comes_from_the_raster_not_the_declaration(
+    tmp_path: Path, declare: Edit
+) -> None:
     """Declaring 4 m input pixels (or a 3.5 m GSD) for a 0.5 m raster made the VHR scene HR and switched its
     GCP minimum off: ACCEPTED. The class is the file's (0.5 m: VHR, §9.1 "<3m"), so Table 9's VHR minimum
     still applies and fails."""
@@ -334,7 +421,9 @@ def test_resolution_class_comes_from_the_raster_not_the_declaration(tmp_path: Pa
     assert code == 1 and doc is not None, err
     assert _verdicts(doc, "JRC-T9-GCP-VHR-RPC")["S02_SC1"] == "fail"
     cls = _record(doc, "JRC-9.1-RESOLUTION-CLASS", "S02_SC1")
-    assert cls["verdict"] == "warn" and "VHR" in cls["message"]  # the declared HR contradicts the computed VHR
+    assert (
+        cls["verdict"] == "warn" and "VHR" in cls["message"]
+    )  # the declared HR contradicts the computed VHR
 
 
 def test_images_gsd_declared_beside_the_file_pixel_is_a_finding(tmp_path: Path) -> None:
@@ -350,7 +439,9 @@ def test_rasters_decimated_to_1m_under_tables_saying_025m(tmp_path: Path) -> Non
     assert code == 1 and doc is not None, err
     got = _verdicts(doc, "JRC-3.1-GSD-DECLARED")
     assert len(got) == 30 and set(got.values()) == {"fail"}
-    assert _record(doc, "JRC-3.1-GSD-DECLARED", "F01_0101")["measured"]["value"] == pytest.approx(75.0)
+    assert _record(doc, "JRC-3.1-GSD-DECLARED", "F01_0101")["measured"]["value"] == pytest.approx(
+        75.0
+    )
     assert len(doc["rollup"]["rejected"]["image"]) == 30
 
 
@@ -359,14 +450,19 @@ def test_rasters_georeferenced_20km_outside_every_block(tmp_path: Path) -> None:
     assert code == 1 and doc is not None, err
     got = _verdicts(doc, "JRC-12.4-T12-ORTHO-LOCATION")
     assert len(got) == 30 and set(got.values()) == {"fail"}
-    assert "outside the outline of block B01" in _record(doc, "JRC-12.4-T12-ORTHO-LOCATION", "F01_0101")["message"]
+    assert (
+        "outside the outline of block B01"
+        in _record(doc, "JRC-12.4-T12-ORTHO-LOCATION", "F01_0101")["message"]
+    )
     assert len(doc["rollup"]["rejected"]["image"]) == 30
 
 
 def test_missing_strip_hidden_by_a_camera_format_declared_3x_larger(tmp_path: Path) -> None:
     """Strip F02_02 removed (rows and files) and the UltraCam Eagle's format declared 3 x larger: the lay-down
     uses the camera's published format (Passini et al. Table 1), so the hole in B02 shows."""
-    code, doc, err = _run("aerial-pass", _chain(_drop_strip_f02_02, _camera_format_times(3)), tmp_path)
+    code, doc, err = _run(
+        "aerial-pass", _chain(_drop_strip_f02_02, _camera_format_times(3)), tmp_path
+    )
     assert code == 1 and doc is not None, err
     cov = _record(doc, "JRC-5.2.2-COVERAGE", doc["delivery"]["id"])
     assert cov["verdict"] == "fail" and cov["measured"]["value"] < 100.0
@@ -374,7 +470,9 @@ def test_missing_strip_hidden_by_a_camera_format_declared_3x_larger(tmp_path: Pa
     assert any(r.startswith("JRC-5.2.2-COVERAGE") for r in doc["rollup"]["reasons"])
 
 
-@pytest.mark.parametrize("own_place", [False, True], ids=["copies-where-the-originals-are", "copies-re-georeferenced"])
+@pytest.mark.parametrize(
+    "own_place", [False, True], ids=["copies-where-the-originals-are", "copies-re-georeferenced"]
+)
 def test_missing_strip_hidden_by_one_pixel_changed_copies(tmp_path: Path, own_place: bool) -> None:
     """Strip F02_02's rows kept, its files one-pixel-changed copies of strip F02_01's: near copies, both
     rejected (JRC Table 12, each image its own picture), 10 / 30 images: the delivery is returned."""
@@ -392,7 +490,9 @@ def test_one_scene_under_another_georeference_with_its_stats_row_copied(tmp_path
     code, doc, err = _run("satellite-pass", _scene_under_other_georeference, tmp_path)
     assert code == 1 and doc is not None, err
     _rejected_for(doc, "JRC-12.4-T12-ORTHO-OWN-FILE", {"S01_SC1", "S01_SC2"})
-    assert "equal decoded pixels" in _record(doc, "JRC-12.4-T12-ORTHO-OWN-FILE", "S01_SC2")["message"]
+    assert (
+        "equal decoded pixels" in _record(doc, "JRC-12.4-T12-ORTHO-OWN-FILE", "S01_SC2")["message"]
+    )
 
 
 def test_two_rejected_images_alone_return_the_delivery(tmp_path: Path) -> None:
@@ -404,7 +504,9 @@ def test_two_rejected_images_alone_return_the_delivery(tmp_path: Path) -> None:
 def test_ten_padded_near_copies_do_not_dilute_the_rejected_share(tmp_path: Path) -> None:
     """2 / 30 = 6.7 % rejected; ten one-pixel-changed copies of good images made it 2 / 40 = 5 %: ACCEPTED.
     The copies are not new images: each copy and its original fail JRC-12.4-T12-ORTHO-OWN-FILE."""
-    code, doc, err = _run("aerial-pass", _chain(_two_images_unreadable, _pad_with_copies(10)), tmp_path)
+    code, doc, err = _run(
+        "aerial-pass", _chain(_two_images_unreadable, _pad_with_copies(10)), tmp_path
+    )
     assert code == 1 and doc is not None, err
     pads = {f"F03_c{90 + k:04d}" for k in range(10)}
     _rejected_for(doc, "JRC-12.4-T12-ORTHO-OWN-FILE", pads)
@@ -413,9 +515,13 @@ def test_ten_padded_near_copies_do_not_dilute_the_rejected_share(tmp_path: Path)
 
 
 def test_dem_delivered_declared_false_beside_a_delivered_dem(tmp_path: Path) -> None:
-    code, doc, err = _run("aerial-pass", _dem_delivered_declared_false, tmp_path,
-                          parameters={"tolerance_z": {"value": 0.5, "unit": "m"}},
-                          checker_edit=_checker_heights_1m_off_in_b01)
+    code, doc, err = _run(
+        "aerial-pass",
+        _dem_delivered_declared_false,
+        tmp_path,
+        parameters={"tolerance_z": {"value": 0.5, "unit": "m"}},
+        checker_edit=_checker_heights_1m_off_in_b01,
+    )
     assert code == 1 and doc is not None, err
     assert _verdicts(doc, "JRC-12.7-RMSEZ")["B01"] == "fail"
     assert "B01" in doc["rollup"]["rejected"]["block"]

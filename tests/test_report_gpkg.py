@@ -16,19 +16,36 @@ from orthospec.cli.main import cli
 
 def _layer(path: Path, name: str) -> tuple[list[object], list[list[object]]]:
     meta, _fids, geom, fields = pyogrio.raw.read(path, layer=name)
-    cols = [[None if isinstance(v, float) and math.isnan(v) else v for v in f.tolist()] for f in fields]
+    cols = [
+        [None if isinstance(v, float) and math.isnan(v) else v for v in f.tolist()] for f in fields
+    ]
     return ([] if geom is None else list(geom)), [list(meta["fields"]), *cols]
 
 
 def test_report_renders_the_findings_gpkg_from_qcr_json(tmp_path: Path) -> None:
     out = tmp_path / "check"
-    res = CliRunner().invoke(cli(), [
-        "check", str(ROOT / "examples/deliveries/aerial-fail"), "--profile", "jrc-v3",
-        "--checker", str(ROOT / "examples/checker/aerial-fail"), "--format", "json,gpkg", "--out", str(out),
-        "--date", "2026-11-21"])
+    res = CliRunner().invoke(
+        cli(),
+        [
+            "check",
+            str(ROOT / "examples/deliveries/aerial-fail"),
+            "--profile",
+            "jrc-v3",
+            "--checker",
+            str(ROOT / "examples/checker/aerial-fail"),
+            "--format",
+            "json,gpkg",
+            "--out",
+            str(out),
+            "--date",
+            "2026-11-21",
+        ],
+    )
     assert res.exit_code == 1, res.output
     again = tmp_path / "report"
-    res = CliRunner().invoke(cli(), ["report", str(out / "qcr.json"), "--format", "gpkg", "--out", str(again)])
+    res = CliRunner().invoke(
+        cli(), ["report", str(out / "qcr.json"), "--format", "gpkg", "--out", str(again)]
+    )
     assert res.exit_code == 0, res.output
     assert "findings.gpkg" in res.output and not (again / "report.html").exists()
     names = [n for n, _ in pyogrio.list_layers(out / "findings.gpkg")]

@@ -26,15 +26,33 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def _check(tmp: Path, name: str, *extra: str) -> dict[str, Any]:
     out = tmp / name
-    res = CliRunner().invoke(cli(), ["check", str(ROOT / "examples" / "deliveries" / name), "--profile", "jrc-v3",
-                                     "--out", str(out), "--date", "2026-11-21", "--format",
-                                     "terminal,json,pdf,csv,junit", "--checker",
-                                     str(ROOT / "examples" / "checker" / name), *extra])
+    res = CliRunner().invoke(
+        cli(),
+        [
+            "check",
+            str(ROOT / "examples" / "deliveries" / name),
+            "--profile",
+            "jrc-v3",
+            "--out",
+            str(out),
+            "--date",
+            "2026-11-21",
+            "--format",
+            "terminal,json,pdf,csv,junit",
+            "--checker",
+            str(ROOT / "examples" / "checker" / name),
+            *extra,
+        ],
+    )
     assert res.exit_code in (0, 1), res.output + repr(res.exception)
     with pdfplumber.open(io.BytesIO((out / "report.pdf").read_bytes())) as pdf:
         pages = [p.extract_text() or "" for p in pdf.pages]
-    return {"out": out, "pages": pages, "doc": json.loads((out / "qcr.json").read_text(encoding="utf-8")),
-            "terminal": res.output}
+    return {
+        "out": out,
+        "pages": pages,
+        "doc": json.loads((out / "qcr.json").read_text(encoding="utf-8")),
+        "terminal": res.output,
+    }
 
 
 @pytest.fixture(scope="module")
@@ -57,20 +75,35 @@ def test_page1_states_b02_measured_against_required_before_any_error(fail: dict[
         if marker in page1:
             assert page1.index(marker) > b02
     # consequence order: the delivery-level return before the block, the block before an item
-    assert page1.index("returns the delivery") < page1.index("rejects a block") < page1.index("rejects an item")
+    assert (
+        page1.index("returns the delivery")
+        < page1.index("rejects a block")
+        < page1.index("rejects an item")
+    )
 
 
 def test_failures_table_states_values_and_one_root_cause(fail: dict[str, Any]) -> None:
     text = "\n".join(fail["pages"])
-    section = text[text.index("1. Failures and missing evidence"):text.index("2. Quality control records")]
+    section = text[
+        text.index("1. Failures and missing evidence") : text.index("2. Quality control records")
+    ]
     assert re.search(r"0\.64\d? m > 0\.5 m", section)
     # the missing image F03_0202 is one finding naming the checks it affects, not nine error rows
     flat = re.sub(r"\s+", "", section)
     assert flat.count("images/F03_0202.tif") == 1, section
-    recs = [r for r in list(all_records(fail["doc"])) if r["item"] == "F03_0202" and "not found" in r["message"]
-            and r["verdict"] != "not_applicable"]  # an aerial item of a satellite-only rule is no finding
+    recs = [
+        r
+        for r in list(all_records(fail["doc"]))
+        if r["item"] == "F03_0202"
+        and "not found" in r["message"]
+        and r["verdict"] != "not_applicable"
+    ]  # an aerial item of a satellite-only rule is no finding
     assert len(recs) >= 5
-    root = [f for f in findings(list(all_records(fail["doc"]))) if "F03_0202" in f.items and "not found" in f.what]
+    root = [
+        f
+        for f in findings(list(all_records(fail["doc"])))
+        if "F03_0202" in f.items and "not found" in f.what
+    ]
     assert len(root) == 1 and set(root[0].rules) == {r["rule"] for r in recs}
 
 
@@ -91,7 +124,9 @@ def test_aerial_pass_report_is_at_most_14_pages(passed: dict[str, Any]) -> None:
     assert len(passed["pages"]) <= 15
 
 
-def test_checker_and_contractor_operator_are_separate(fail: dict[str, Any], passed: dict[str, Any]) -> None:
+def test_checker_and_contractor_operator_are_separate(
+    fail: dict[str, Any], passed: dict[str, Any]
+) -> None:
     assert fail["doc"]["operator"] == "A. Auditor"
     assert fail["doc"]["delivery"]["operator"]["role"] == "contractor QA manager"
     page1 = fail["pages"][0]
@@ -102,9 +137,14 @@ def test_checker_and_contractor_operator_are_separate(fail: dict[str, Any], pass
     assert passed["doc"]["operator"] is None
     p1 = passed["pages"][0].replace("\n", " ")
     contractor_op = passed["doc"]["delivery"]["operator"]["name"]
-    party = yaml.safe_load((ROOT / "examples" / "checker" / "aerial-pass" / "checker.yaml").read_text(encoding="utf-8"))["checker"]
-    assert re.search(rf"Checker \(ran orthospec,.*{re.escape(party['name'])}.*checker's folder aerial-pass, "
-                     r"checker\.yaml", p1)
+    party = yaml.safe_load(
+        (ROOT / "examples" / "checker" / "aerial-pass" / "checker.yaml").read_text(encoding="utf-8")
+    )["checker"]
+    assert re.search(
+        rf"Checker \(ran orthospec,.*{re.escape(party['name'])}.*checker's folder aerial-pass, "
+        r"checker\.yaml",
+        p1,
+    )
     assert contractor_op in p1 and contractor_op != party["name"]
     assert not re.search(rf"Checker \(generated the QCRs\) {re.escape(contractor_op)}", p1)
     assert f"checker: {party['name']}" in passed["terminal"]
@@ -114,7 +154,9 @@ def test_checker_and_contractor_operator_are_separate(fail: dict[str, Any], pass
 
 def test_terminal_states_reasons_and_is_not_cut(fail: dict[str, Any]) -> None:
     out = fail["terminal"]
-    assert re.search(r"B02: Block RMSEy within the tolerance: 0\.64\d? m > 0\.5 m", out.replace("\n", " "))
+    assert re.search(
+        r"B02: Block RMSEy within the tolerance: 0\.64\d? m > 0\.5 m", out.replace("\n", " ")
+    )
     assert not re.search(r"…\s*$", out, re.M)  # nothing cut at the line end
 
 
@@ -141,24 +183,35 @@ def test_one_checkpoint_map_page_per_block_with_outline_and_scales(passed: dict[
         assert f"Block{b}" in page and "RMSE" in page  # the block's statistics on the same page
         assert not any(f"Block{o}:checkpointsanddiscrepancies" in page for o in blocks if o != b)
         assert re.search(r"\d+mdiscrepancy\(vectors×[\d.]+\)", page)  # vectors to a stated scale
-        assert re.search(r"\)\d+(\.\d+)?m", page) and "blockoutline" in page  # ground scale bar, outline
+        assert (
+            re.search(r"\)\d+(\.\d+)?m", page) and "blockoutline" in page
+        )  # ground scale bar, outline
         map_pages.append(hits[0])
     assert map_pages == sorted(set(map_pages))
 
 
 def _splits(text: str, name: str) -> list[str]:
     """Places where ``name`` appears in ``text`` broken by a line end/space at a non-separator."""
-    pat = "(?<![\\w.-])" + "".join(re.escape(c) + (r"(\s*)" if k < len(name) - 1 else "")
-                                   for k, c in enumerate(name))
-    return [f"{name[:k + 1]}|{name[k + 1:]}" for m in re.finditer(pat, text)
-            for k, g in enumerate(m.groups()) if g and name[k] not in "-_."]
+    pat = "(?<![\\w.-])" + "".join(
+        re.escape(c) + (r"(\s*)" if k < len(name) - 1 else "") for k, c in enumerate(name)
+    )
+    return [
+        f"{name[: k + 1]}|{name[k + 1 :]}"
+        for m in re.finditer(pat, text)
+        for k, g in enumerate(m.groups())
+        if g and name[k] not in "-_."
+    ]
 
 
-def test_identifiers_break_only_after_separators(fail: dict[str, Any], passed: dict[str, Any]) -> None:
+def test_identifiers_break_only_after_separators(
+    fail: dict[str, Any], passed: dict[str, Any]
+) -> None:
     """Issue 13: `reported_rmse_toler ance`. Rule ids, measure and parameter names break only after _ . -"""
     for run in (fail, passed):
         doc, text = run["doc"], "\n".join(run["pages"])
-        names = {r["rule"] for r in all_records(doc)} | {r["measure"] for r in all_records(doc) if r.get("measure")}
+        names = {r["rule"] for r in all_records(doc)} | {
+            r["measure"] for r in all_records(doc) if r.get("measure")
+        }
         names |= set(doc["profile"].get("parameters") or {})
         assert {"camera_calibration_max_age_digital", "reported_rmse_tolerance"} <= names
         bad = [s for n in sorted(names) if len(n) > 3 for s in _splits(text, n)]

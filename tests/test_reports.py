@@ -91,14 +91,23 @@ I3,images/i3.tif,B2,1.0
 
 def _manifest(**over: Any) -> dict[str, Any]:
     m: dict[str, Any] = {
-        "orthospec_delivery": 1, "id": "D-REP-1",
+        "orthospec_delivery": 1,
+        "id": "D-REP-1",
         "project": {"id": "P1", "name": "Report project", "crs": "EPSG:25832"},
-        "contractor": {"name": "ACME Mapping"}, "operator": {"name": "Jane Doe", "role": "QA"},
-        "sensor": {"type": "aerial", "digital": True}, "product": {"gsd": {"value": 0.25, "unit": "m"}},
-        "tender": {"reference": "ITT-1", "parameters": {"tolerance_xy": {"value": 0.5, "unit": "m"}}},
+        "contractor": {"name": "ACME Mapping"},
+        "operator": {"name": "Jane Doe", "role": "QA"},
+        "sensor": {"type": "aerial", "digital": True},
+        "product": {"gsd": {"value": 0.25, "unit": "m"}},
+        "tender": {
+            "reference": "ITT-1",
+            "parameters": {"tolerance_xy": {"value": 0.5, "unit": "m"}},
+        },
         "blocks": [{"id": "B1"}, {"id": "B2"}],
-        "tables": {"images": "tables/images.csv", "checkpoints": "tables/checkpoints.csv",
-                   "gcps": "tables/gcps.csv"},
+        "tables": {
+            "images": "tables/images.csv",
+            "checkpoints": "tables/checkpoints.csv",
+            "gcps": "tables/gcps.csv",
+        },
     }
     m.update(over)
     return m
@@ -108,8 +117,9 @@ def write_delivery(root: Path, **manifest: Any) -> Path:
     """Two blocks of 22 check points: B1 within 0.5 m with one blunder, B2 well outside."""
     rng = np.random.default_rng(7)
     (root / "tables").mkdir(parents=True)
-    (root / "delivery.yaml").write_text(yaml.safe_dump(_manifest(**manifest), sort_keys=False),
-                                        encoding="utf-8")
+    (root / "delivery.yaml").write_text(
+        yaml.safe_dump(_manifest(**manifest), sort_keys=False), encoding="utf-8"
+    )
     (root / "tables" / "images.csv").write_text(IMAGES, encoding="utf-8")
     cp = ["point_id,block,x,y,x_ref,y_ref"]
     gcp = ["point_id,block,x,y"]
@@ -120,7 +130,9 @@ def write_delivery(root: Path, **manifest: Any) -> Path:
         if b == "B1":
             dx[5] = 1.6  # a blunder: beyond three times the RMSE
         for i in range(22):
-            cp.append(f"{b}-C{i + 1:02d},{b},{xs[i] + dx[i]:.3f},{ys[i] + dy[i]:.3f},{xs[i]:.3f},{ys[i]:.3f}")
+            cp.append(
+                f"{b}-C{i + 1:02d},{b},{xs[i] + dx[i]:.3f},{ys[i] + dy[i]:.3f},{xs[i]:.3f},{ys[i]:.3f}"
+            )
         for j, (gx, gy) in enumerate([(0, 0), (5000, 0), (0, 5000), (5000, 5000)]):
             gcp.append(f"{b}-G{j + 1},{b},{x0 + gx:.3f},{5400000.0 + gy:.3f}")
     (root / "tables" / "checkpoints.csv").write_text("\n".join(cp) + "\n", encoding="utf-8")
@@ -132,9 +144,23 @@ def run_check(tmp: Path, delivery: Path, fmts: str = "json,html,pdf") -> Path:
     profile = tmp / "profile.yaml"
     profile.write_text(PROFILE, encoding="utf-8")
     out = tmp / "out"
-    res = CliRunner().invoke(cli(), ["check", str(delivery), "--profile", str(profile), "--out", str(out),
-                                     "--date", "2026-01-01", "--format", fmts,
-                                     "--param", "tolerance_xy=0.5m"])  # the ITT value (manifest: evidence only)
+    res = CliRunner().invoke(
+        cli(),
+        [
+            "check",
+            str(delivery),
+            "--profile",
+            str(profile),
+            "--out",
+            str(out),
+            "--date",
+            "2026-01-01",
+            "--format",
+            fmts,
+            "--param",
+            "tolerance_xy=0.5m",
+        ],
+    )  # the ITT value (manifest: evidence only)
     assert res.exit_code in (0, 1), res.output + str(res.exception)
     return out
 
@@ -160,17 +186,26 @@ def checked(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     doc = json.loads((out / "qcr.json").read_text(encoding="utf-8"))
     pdf = (out / "report.pdf").read_bytes()
     pages = pdf_pages(pdf)
-    return {"out": out, "doc": doc, "pdf": pdf, "pages": pages, "text": "\n".join(pages),
-            "html": (out / "report.html").read_text(encoding="utf-8")}
+    return {
+        "out": out,
+        "doc": doc,
+        "pdf": pdf,
+        "pages": pages,
+        "text": "\n".join(pages),
+        "html": (out / "report.html").read_text(encoding="utf-8"),
+    }
 
 
 # --- content --------------------------------------------------------------------------------------
+
 
 def test_pdf_states_verdict_failures_and_clauses(checked: dict[str, Any]) -> None:
     doc, text = checked["doc"], checked["text"]
     assert doc["verdict"] == "rejected"
     assert "REJECTED" in text
-    failing = {r["rule"]: r for r in all_records(doc) if r["verdict"] in ("fail", "missing", "error")}
+    failing = {
+        r["rule"]: r for r in all_records(doc) if r["verdict"] in ("fail", "missing", "error")
+    }
     assert {"R-ROLL", "R-SEAM"} <= set(failing)  # the fixture does fail and lack evidence
     for rid, rec in failing.items():
         assert rid in text
@@ -182,7 +217,7 @@ def test_pdf_states_verdict_failures_and_clauses(checked: dict[str, Any]) -> Non
 
 def test_pdf_lists_manual_checks_to_sign(checked: dict[str, Any]) -> None:
     text = checked["text"]
-    section = text[text.index("4. Manual checks"):]
+    section = text[text.index("4. Manual checks") :]
     assert "have no verdict from the checker" in section
     assert "R-SEAM" in section and "Seamlines visually" in section
 
@@ -195,11 +230,17 @@ def test_pdf_checkpoint_table_matches_json(checked: dict[str, Any]) -> None:
         assert f"Block {bid}" in text
         assert f"{st['rmse_x']:.3f}" in text and f"{st['rmse_y']:.3f}" in text
         assert f"{st['mean_x']:.3f}" in text and f"{st['max_dr']:.3f}" in text
-        for p in point_rows(block["points"]):  # the PDF lists the failing points (all are in checkpoints.csv)
+        for p in point_rows(
+            block["points"]
+        ):  # the PDF lists the failing points (all are in checkpoints.csv)
             if p["status"] == "fail":
-                assert re.search(rf"{re.escape(p['point_id'])} .*{p['dx']:.3f} {p['dy']:.3f}", text), p
+                assert re.search(
+                    rf"{re.escape(p['point_id'])} .*{p['dx']:.3f} {p['dy']:.3f}", text
+                ), p
             assert f">{p['point_id']}<" in checked["html"]  # the HTML lists every point
-    statuses = [p["status"] for b in doc["details"]["checkpoints"].values() for p in point_rows(b["points"])]
+    statuses = [
+        p["status"] for b in doc["details"]["checkpoints"].values() for p in point_rows(b["points"])
+    ]
     assert "fail" in statuses and "Fail" in text  # the B1 blunder is flagged
 
 
@@ -216,11 +257,14 @@ def test_pages_have_page_x_of_y_and_checksum_footer(checked: dict[str, Any]) -> 
 def test_figures_are_embedded_data_uris(checked: dict[str, Any]) -> None:
     html = checked["html"]
     n_blocks = len(checked["doc"]["details"]["checkpoints"])
-    assert html.count('src="data:image/svg+xml;base64,') == 3 * n_blocks  # map, histograms, quadrants
+    assert (
+        html.count('src="data:image/svg+xml;base64,') == 3 * n_blocks
+    )  # map, histograms, quadrants
     assert "http://" not in html.split("<body>", 1)[1].replace("http://www.w3.org", "")
 
 
 # --- archival PDF ----------------------------------------------------------------------------------
+
 
 def test_embedded_qcr_json_equals_the_file_beside_it(checked: dict[str, Any]) -> None:
     att = attachments(checked["pdf"])
@@ -239,11 +283,14 @@ def test_pdf_declares_pdfa_3b(checked: dict[str, Any]) -> None:
     assert "/OutputIntents" in reader.trailer["/Root"]
 
 
-def test_report_command_rerenders_stored_json_byte_identically(checked: dict[str, Any],
-                                                                tmp_path: Path) -> None:
+def test_report_command_rerenders_stored_json_byte_identically(
+    checked: dict[str, Any], tmp_path: Path
+) -> None:
     """Renderable from qcr.json alone, and deterministic: a second render (another process
     path, other temp folder) reproduces the check's report.pdf and report.html byte for byte."""
-    res = CliRunner().invoke(cli(), ["report", str(checked["out"] / "qcr.json"), "--out", str(tmp_path)])
+    res = CliRunner().invoke(
+        cli(), ["report", str(checked["out"] / "qcr.json"), "--out", str(tmp_path)]
+    )
     assert res.exit_code == 0, res.output
     assert (tmp_path / "report.pdf").read_bytes() == checked["pdf"]
     assert (tmp_path / "report.html").read_text(encoding="utf-8") == checked["html"]
@@ -263,13 +310,29 @@ def test_report_command_rejects_non_qcr_json(tmp_path: Path) -> None:
 
 # --- sign-offs and bounded tables -------------------------------------------------------------------
 
-def test_signoffs_appear_in_countersignature_without_changing_checksum(checked: dict[str, Any]) -> None:
-    doc = {**checked["doc"], "signoffs": [{"by": "Ada Inspector", "role": "EC auditor",
-                                           "date": "2026-01-05", "note": "countersigned after review"}]}
+
+def test_signoffs_appear_in_countersignature_without_changing_checksum(
+    checked: dict[str, Any],
+) -> None:
+    doc = {
+        **checked["doc"],
+        "signoffs": [
+            {
+                "by": "Ada Inspector",
+                "role": "EC auditor",
+                "date": "2026-01-05",
+                "note": "countersigned after review",
+            }
+        ],
+    }
     assert document_sha256(doc) == document_sha256(checked["doc"])
     html = render_html(doc, ReportOptions(figures=False))
-    block = html[html.index("Countersignature"):html.index("</table>", html.index("Countersignature"))]
-    assert "Ada Inspector" in block and "EC auditor" in block and "countersigned after review" in block
+    block = html[
+        html.index("Countersignature") : html.index("</table>", html.index("Countersignature"))
+    ]
+    assert (
+        "Ada Inspector" in block and "EC auditor" in block and "countersigned after review" in block
+    )
     assert "Ada Inspector" not in render_html(checked["doc"], ReportOptions(figures=False))
 
 
@@ -287,6 +350,7 @@ def test_bounded_report_summarises_passing_items(checked: dict[str, Any]) -> Non
 
 
 # --- safety -----------------------------------------------------------------------------------------
+
 
 class CountingServer:
     """A TCP listener on 127.0.0.1 that only counts connections (it must see none)."""
@@ -324,29 +388,43 @@ def server() -> Iterator[CountingServer]:
     s.close()
 
 
-def test_hostile_metadata_is_text_and_fetches_nothing(tmp_path: Path, server: CountingServer) -> None:
+def test_hostile_metadata_is_text_and_fetches_nothing(
+    tmp_path: Path, server: CountingServer
+) -> None:
     url = f"http://127.0.0.1:{server.port}"
     contractor = f'<img src="{url}/x.png">'
     project = "<script>alert(1)</script>"
     operator = f"<style>@import url({url}/i.css);</style>"
     delivery = write_delivery(
-        tmp_path / "d", contractor={"name": contractor},
+        tmp_path / "d",
+        contractor={"name": contractor},
         project={"id": "P1", "name": project, "crs": "EPSG:25832"},
         operator={"name": operator},
-        waivers=[{"rule": "R-ROLL", "items": ["I2"], "approver": "Chief",
-                  "justification": f'<link rel="stylesheet" href="{url}/s.css"><a href="{url}">x</a>'}])
+        waivers=[
+            {
+                "rule": "R-ROLL",
+                "items": ["I2"],
+                "approver": "Chief",
+                "justification": f'<link rel="stylesheet" href="{url}/s.css"><a href="{url}">x</a>',
+            }
+        ],
+    )
     out = run_check(tmp_path, delivery, "json")
     doc = json.loads((out / "qcr.json").read_text(encoding="utf-8"))
     assert doc["delivery"]["contractor"]["name"] == contractor
 
     html = render_html(doc, ReportOptions(figures=False))
-    assert "<script>" not in html and "<img src=\"http" not in html and "<link rel" not in html
+    assert "<script>" not in html and '<img src="http' not in html and "<link rel" not in html
     assert "&lt;script&gt;alert(1)&lt;/script&gt;" in html
     assert f"&lt;img src=&#34;{url}/x.png&#34;&gt;" in html
 
     fetcher = SafeFetcher(templates_dir())
-    pdf = write_pdf(render_html(doc, ReportOptions(figures=False), pdf=True), fetcher=fetcher,
-                    day=doc["date"], identifier="t")
+    pdf = write_pdf(
+        render_html(doc, ReportOptions(figures=False), pdf=True),
+        fetcher=fetcher,
+        day=doc["date"],
+        identifier="t",
+    )
     text = pdf_text(pdf)
     assert project in text and contractor in text  # shown literally, as text
     assert fetcher.calls == []  # no resource was even asked for
@@ -357,12 +435,18 @@ def test_fetcher_is_the_second_wall(tmp_path: Path, server: CountingServer) -> N
     """Even raw markup with external URLs (bypassing the templates) reaches no network or file."""
     secret = tmp_path / "secret.png"
     secret.write_bytes(b"not for the report")
-    mine = data_uri("<svg xmlns='http://www.w3.org/2000/svg' width='10' height='10'/>", "image/svg+xml")
-    foreign = data_uri("<svg xmlns='http://www.w3.org/2000/svg' width='9' height='9'/>", "image/svg+xml")
-    html = (f'<html><head><link rel="stylesheet" href="http://127.0.0.1:{server.port}/s.css"></head><body>'
-            f'<img src="http://127.0.0.1:{server.port}/a.png"><img src="https://127.0.0.1:{server.port}/b">'
-            f'<img src="{secret.as_uri()}"><img src="report.css"><img src="{mine}"><img src="{foreign}">'
-            f"</body></html>")
+    mine = data_uri(
+        "<svg xmlns='http://www.w3.org/2000/svg' width='10' height='10'/>", "image/svg+xml"
+    )
+    foreign = data_uri(
+        "<svg xmlns='http://www.w3.org/2000/svg' width='9' height='9'/>", "image/svg+xml"
+    )
+    html = (
+        f'<html><head><link rel="stylesheet" href="http://127.0.0.1:{server.port}/s.css"></head><body>'
+        f'<img src="http://127.0.0.1:{server.port}/a.png"><img src="https://127.0.0.1:{server.port}/b">'
+        f'<img src="{secret.as_uri()}"><img src="report.css"><img src="{mine}"><img src="{foreign}">'
+        f"</body></html>"
+    )
     fetcher = SafeFetcher(templates_dir())
     fetcher.allow(mine)
     write_pdf(html, fetcher=fetcher, day="2026-01-01", identifier="t")
@@ -371,7 +455,9 @@ def test_fetcher_is_the_second_wall(tmp_path: Path, server: CountingServer) -> N
     assert f"http://127.0.0.1:{server.port}/s.css" in refused
     assert f"http://127.0.0.1:{server.port}/a.png" in refused
     assert secret.as_uri() in refused and foreign in refused
-    assert mine not in refused and (templates_dir() / "report.css").resolve().as_uri() not in refused
+    assert (
+        mine not in refused and (templates_dir() / "report.css").resolve().as_uri() not in refused
+    )
     assert len(fetcher.calls) == 7
 
 
@@ -383,7 +469,7 @@ def test_edge_target_results_are_tabulated(checked: dict[str, Any]) -> None:
     result = stable(measure_edge(slanted_edge(angle_deg=5.0, sigma_px=0.7)).to_dict())
     doc = {**checked["doc"], "details": {**checked["doc"]["details"], "edges": {"E1": result}}}
     html = render_html(doc, ReportOptions(figures=False))
-    section = html[html.index('id="edges"'):html.index('id="manual"')]
+    section = html[html.index('id="edges"') : html.index('id="manual"')]
     assert "Edge target E1" in section and "valid" in section
     assert f">{result['rer']:.5g}<" in section and f">{result['rer.fermi3']:.5g}<" in section
     assert "fermi3" in section and "straightness" in section
@@ -391,25 +477,37 @@ def test_edge_target_results_are_tabulated(checked: dict[str, Any]) -> None:
 
 
 def _rec(item: str, verdict: str, value: Any, message: str) -> dict[str, Any]:
-    return {"rule": "R", "item": item, "verdict": verdict, "measured": {"value": value, "unit": "m"},
-            "requirement": {"text": "<= 1 m"}, "message": message,
-            "evidence": [{"file": "t.csv", "rows": [int(item[1:])], "sha256": "0" * 64}]}
+    return {
+        "rule": "R",
+        "item": item,
+        "verdict": verdict,
+        "measured": {"value": value, "unit": "m"},
+        "requirement": {"text": "<= 1 m"},
+        "message": message,
+        "evidence": [{"file": "t.csv", "rows": [int(item[1:])], "sha256": "0" * 64}],
+    }
 
 
 def test_rows_without_values_are_grouped_and_nothing_is_dropped() -> None:
     from orthospec.reports.html import group_rows
 
-    recs = [_rec("I1", "fail", 2.0, "x = 2"), _rec("I2", "missing", None, "no value"),
-            _rec("I3", "missing", None, "no value"), _rec("I4", "missing", None, "no file"),
-            _rec("I5", "fail", 3.0, "x = 3")]
+    recs = [
+        _rec("I1", "fail", 2.0, "x = 2"),
+        _rec("I2", "missing", None, "no value"),
+        _rec("I3", "missing", None, "no value"),
+        _rec("I4", "missing", None, "no file"),
+        _rec("I5", "fail", 3.0, "x = 3"),
+    ]
     rows = group_rows(recs)
     assert [r["item_list"] for r in rows] == [["I1"], ["I2", "I3"], ["I4"], ["I5"]]
     assert [e["rows"] for e in rows[1]["evidence"]] == [[2], [3]]
     assert sorted(i for r in rows for i in r["item_list"]) == [r["item"] for r in recs]
 
 
-@pytest.mark.parametrize(("rows", "text"), [([1, 2, 3, 7], "1–3, 7"), ([5], "5"), ([], ""),
-                                            ([4, 2, 3, 3, 9, 10], "2–4, 9–10")])
+@pytest.mark.parametrize(
+    ("rows", "text"),
+    [([1, 2, 3, 7], "1–3, 7"), ([5], "5"), ([], ""), ([4, 2, 3, 3, 9, 10], "2–4, 9–10")],
+)
 def test_evidence_rows_are_compressed_to_ranges(rows: list[int], text: str) -> None:
     from orthospec.reports.html import fmt_rows
 
@@ -419,10 +517,12 @@ def test_evidence_rows_are_compressed_to_ranges(rows: list[int], text: str) -> N
 def test_bounded_report_folds_quiet_rules_into_one_table(checked: dict[str, Any]) -> None:
     short = render_html(checked["doc"], ReportOptions(bounded=True, figures=False))
     full = render_html(checked["doc"], ReportOptions(bounded=False, figures=False))
-    quiet = [r["rule"] for r in checked["doc"]["rules"] if r["verdict"] in ("pass", "not_applicable")]
+    quiet = [
+        r["rule"] for r in checked["doc"]["rules"] if r["verdict"] in ("pass", "not_applicable")
+    ]
     assert "R-NPTS" in quiet
-    table = short[short.index("Blocks: rules passed"):]
-    table = table[:table.index("</table>")].replace("<wbr>", "")  # identifiers carry break hints
+    table = short[short.index("Blocks: rules passed") :]
+    table = table[: table.index("</table>")].replace("<wbr>", "")  # identifiers carry break hints
     assert '<span class="mono ident">R-NPTS</span>' in table and "pass: 2" in table
     assert "R-RMSEX" not in table  # a failing rule keeps its full block
     assert "rules passed</h4>" not in full
@@ -430,9 +530,16 @@ def test_bounded_report_folds_quiet_rules_into_one_table(checked: dict[str, Any]
 
 def test_block_polygon_is_stored_and_drawn(tmp_path: Path) -> None:
     """Issue 13 item 2: the manifest's block outline reaches qcr.json and the report's map."""
-    b1 = [[499900.0, 5399900.0], [505100.0, 5399900.0], [505100.0, 5405100.0], [499900.0, 5405100.0]]
+    b1 = [
+        [499900.0, 5399900.0],
+        [505100.0, 5399900.0],
+        [505100.0, 5405100.0],
+        [499900.0, 5405100.0],
+    ]
     blocks = [{"id": "B1", "polygon": b1}, {"id": "B2"}]
-    out = run_check(tmp_path, write_delivery(tmp_path / "delivery", blocks=blocks), fmts="json,html")
+    out = run_check(
+        tmp_path, write_delivery(tmp_path / "delivery", blocks=blocks), fmts="json,html"
+    )
     doc = json.loads((out / "qcr.json").read_text(encoding="utf-8"))
     cps = doc["details"]["checkpoints"]
     assert cps["B1"]["polygon"] == b1  # the manifest's vertices, unchanged (metres in, metres out)
@@ -440,13 +547,18 @@ def test_block_polygon_is_stored_and_drawn(tmp_path: Path) -> None:
     import base64
 
     html = (out / "report.html").read_text(encoding="utf-8")
-    svgs = [base64.b64decode(u).decode("utf-8")
-            for u in re.findall(r'src="data:image/svg\+xml;base64,([A-Za-z0-9+/=]+)"', html)]
+    svgs = [
+        base64.b64decode(u).decode("utf-8")
+        for u in re.findall(r'src="data:image/svg\+xml;base64,([A-Za-z0-9+/=]+)"', html)
+    ]
     maps = [s for s in svgs if 'id="checkpoints"' in s and 'id="discrepancy-vectors"' in s]
     assert sum('id="block-outline' in s for s in maps) == 1  # B1's map only
     # same inputs, same bytes
-    out2 = run_check(tmp_path / "again", write_delivery(tmp_path / "again" / "delivery", blocks=blocks),
-                     fmts="json")
+    out2 = run_check(
+        tmp_path / "again",
+        write_delivery(tmp_path / "again" / "delivery", blocks=blocks),
+        fmts="json",
+    )
     assert (out2 / "qcr.json").read_bytes() == (out / "qcr.json").read_bytes()
 
 
@@ -459,7 +571,9 @@ def test_ident_filter_escapes_and_breaks_only_after_separators() -> None:
     assert str(ident("x - y")) == "x - y" and str(ident(None)) == ""
 
 
-def test_a_capped_point_table_is_labelled_and_draws_no_distribution(checked: dict[str, Any]) -> None:
+def test_a_capped_point_table_is_labelled_and_draws_no_distribution(
+    checked: dict[str, Any],
+) -> None:
     """B's cap (flagged points + largest residuals) is not a sample: no histogram/quadrants from it."""
     import copy
 
@@ -482,9 +596,17 @@ def test_checker_verdicts_on_nothing_delivered_are_listed(checked: dict[str, Any
 
     doc = copy.deepcopy(checked["doc"])
     assert doc["manual_unused"] == []  # qcr.json always carries the list (red team R15)
-    doc["manual_unused"] = [{"check": "R-SEAM", "item": "IMG_GONE", "date": "2026-01-02", "verdict": "pass",
-                             "entry": 3, "checker_file": "checker.yaml",
-                             "reason": "the delivery no longer lists IMG_GONE"}]
+    doc["manual_unused"] = [
+        {
+            "check": "R-SEAM",
+            "item": "IMG_GONE",
+            "date": "2026-01-02",
+            "verdict": "pass",
+            "entry": 3,
+            "checker_file": "checker.yaml",
+            "reason": "the delivery no longer lists IMG_GONE",
+        }
+    ]
     html = render_html(doc, ReportOptions(bounded=True, figures=False))
     assert "Checker verdicts on nothing delivered" in html
     assert "IMG_GONE" in html and "the delivery no longer lists IMG_GONE" in html

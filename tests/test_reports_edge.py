@@ -63,25 +63,38 @@ def _delivery(root: Path) -> Path:
     rows = ["image_id,file,block"]
     targets = []
     for i, (tid, sigma) in enumerate(SIGMA.items()):
-        arr = slanted_edge((100, 120), angle_deg=7.0 + i, sigma_px=sigma, dark=40, bright=200, snr=200,
-                           bit_depth=8, rng=np.random.default_rng(11 + i))
+        arr = slanted_edge(
+            (100, 120),
+            angle_deg=7.0 + i,
+            sigma_px=sigma,
+            dark=40,
+            bright=200,
+            snr=200,
+            bit_depth=8,
+            rng=np.random.default_rng(11 + i),
+        )
         if i == 1:
             arr = np.ascontiguousarray(arr.T[::-1])  # a horizontal edge, bright on top
         _write_tif(root / "images" / f"{tid}.tif", arr)
         rows.append(f"{tid},images/{tid}.tif,B1")
-        targets.append({"id": tid, "image": tid, "roi": [0, 0, arr.shape[1], arr.shape[0]], "band": 1})
+        targets.append(
+            {"id": tid, "image": tid, "roi": [0, 0, arr.shape[1], arr.shape[0]], "band": 1}
+        )
     noise = np.random.default_rng(3).integers(100, 140, (60, 60)).astype(np.uint8)  # no edge at all
     _write_tif(root / "images" / "flat.tif", noise)
     rows.append("flat,images/flat.tif,B1")
     targets.append({"id": "E3", "image": "flat", "roi": [0, 0, 60, 60], "band": 1})
     (root / "tables" / "images.csv").write_text("\n".join(rows) + "\n", encoding="utf-8")
     manifest = {
-        "orthospec_delivery": 1, "id": "D-EDGE-1",
+        "orthospec_delivery": 1,
+        "id": "D-EDGE-1",
         "project": {"id": "P1", "name": "Edge project", "crs": "EPSG:25832"},
-        "contractor": {"name": "ACME Mapping"}, "operator": {"name": "Jane Doe", "role": "QA"},
+        "contractor": {"name": "ACME Mapping"},
+        "operator": {"name": "Jane Doe", "role": "QA"},
         "sensor": {"type": "aerial", "digital": True},
         "product": {"gsd": {"value": 0.25, "unit": "m"}, "bit_depth": 8},
-        "blocks": [{"id": "B1"}], "tables": {"images": "tables/images.csv"},
+        "blocks": [{"id": "B1"}],
+        "tables": {"images": "tables/images.csv"},
         "edge_targets": targets,
     }
     (root / "delivery.yaml").write_text(yaml.safe_dump(manifest, sort_keys=False), encoding="utf-8")
@@ -89,8 +102,10 @@ def _delivery(root: Path) -> Path:
 
 
 def _svgs(html: str) -> list[str]:
-    return [base64.b64decode(b).decode("utf-8")
-            for b in re.findall(r'src="data:image/svg\+xml;base64,([A-Za-z0-9+/=]+)"', html)]
+    return [
+        base64.b64decode(b).decode("utf-8")
+        for b in re.findall(r'src="data:image/svg\+xml;base64,([A-Za-z0-9+/=]+)"', html)
+    ]
 
 
 @pytest.fixture(scope="module")
@@ -99,16 +114,35 @@ def checked(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     delivery = _delivery(tmp / "delivery")
     (tmp / "profile.yaml").write_text(PROFILE, encoding="utf-8")
     out = tmp / "out"
-    res = CliRunner().invoke(cli(), ["check", str(delivery), "--profile", str(tmp / "profile.yaml"),
-                                     "--out", str(out), "--date", "2026-01-01",
-                                     "--format", "json,html,pdf"])
+    res = CliRunner().invoke(
+        cli(),
+        [
+            "check",
+            str(delivery),
+            "--profile",
+            str(tmp / "profile.yaml"),
+            "--out",
+            str(out),
+            "--date",
+            "2026-01-01",
+            "--format",
+            "json,html,pdf",
+        ],
+    )
     assert res.exit_code in (0, 1), res.output + str(res.exception)
     text = (out / "qcr.json").read_text(encoding="utf-8")
     pdf = (out / "report.pdf").read_bytes()
     with pdfplumber.open(io.BytesIO(pdf)) as p:
         pdf_text = "\n".join(page.extract_text() or "" for page in p.pages)
-    return {"out": out, "text": text, "doc": json.loads(text), "pdf": pdf, "pdf_text": pdf_text,
-            "html": (out / "report.html").read_text(encoding="utf-8"), "delivery": delivery}
+    return {
+        "out": out,
+        "text": text,
+        "doc": json.loads(text),
+        "pdf": pdf,
+        "pdf_text": pdf_text,
+        "html": (out / "report.html").read_text(encoding="utf-8"),
+        "delivery": delivery,
+    }
 
 
 def test_qcr_json_carries_bounded_curves(checked: dict[str, Any]) -> None:
@@ -117,7 +151,9 @@ def test_qcr_json_carries_bounded_curves(checked: dict[str, Any]) -> None:
     for tid in SIGMA:
         c = edges[tid]["curves"]
         assert edges[tid]["valid"] is True
-        assert 0 < len(c["esf"]["d"]) == len(c["esf"]["v"]) <= MAX_ESF_SAMPLES < c["esf"]["n_samples"]
+        assert (
+            0 < len(c["esf"]["d"]) == len(c["esf"]["v"]) <= MAX_ESF_SAMPLES < c["esf"]["n_samples"]
+        )
         assert 20 <= len(c["lines"]["kept_x"]) == len(c["lines"]["kept_y"]) <= MAX_LINES
         # primary first, then the model-free spline to compare it with
         assert list(c["fits"]) == [edges[tid]["primary_fit"], "spline"]
@@ -142,7 +178,9 @@ def test_qcr_json_carries_bounded_curves(checked: dict[str, Any]) -> None:
     c2 = edges["E2"]["curves"]
     assert c2["direction"] == "along" and c2["shape"] == [120, 100]
     assert np.ptp(c2["lines"]["fit_x"]) > 5 * np.ptp(c2["lines"]["fit_y"])
-    assert edges["E3"]["valid"] is False and edges["E3"]["curves"]["lines"]["kept_x"]  # drawn, marked invalid
+    assert (
+        edges["E3"]["valid"] is False and edges["E3"]["curves"]["lines"]["kept_x"]
+    )  # drawn, marked invalid
 
 
 def test_curves_cost_less_than_30_kb_per_edge(checked: dict[str, Any]) -> None:
@@ -158,8 +196,16 @@ def test_curves_cost_less_than_30_kb_per_edge(checked: dict[str, Any]) -> None:
 def test_curves_are_deterministic(checked: dict[str, Any]) -> None:
     from orthospec.engine.providers.edge import edge_curves
 
-    arr = slanted_edge((100, 120), angle_deg=7.0, sigma_px=0.7, dark=40, bright=200, snr=200, bit_depth=8,
-                       rng=np.random.default_rng(11))
+    arr = slanted_edge(
+        (100, 120),
+        angle_deg=7.0,
+        sigma_px=0.7,
+        dark=40,
+        bright=200,
+        snr=200,
+        bit_depth=8,
+        rng=np.random.default_rng(11),
+    )
     c = edge_curves(measure_edge(arr.astype(float), gsd=0.25))
     assert json.dumps(c) == json.dumps(edge_curves(measure_edge(arr.astype(float), gsd=0.25)))
     assert c == checked["doc"]["details"]["edges"]["E1"]["curves"]
@@ -167,11 +213,13 @@ def test_curves_are_deterministic(checked: dict[str, Any]) -> None:
 
 def test_html_shows_edge_figures(checked: dict[str, Any]) -> None:
     html = checked["html"]
-    section = html[html.index('id="edges"'):html.index('id="manual"')]
+    section = html[html.index('id="edges"') : html.index('id="manual"')]
     for tid in SIGMA:
         for what in ("edge detection", "ESF:", "LSF:", "MTF:"):
             assert f"Edge target {tid}, {what}" in section
-    assert "Edge target E3, edge detection" in section and "E3: edge detection" in "".join(_svgs(section))
+    assert "Edge target E3, edge detection" in section and "E3: edge detection" in "".join(
+        _svgs(section)
+    )
     svgs = _svgs(section)
     assert all(s.lstrip().startswith("<?xml") and "<svg" in s for s in svgs)
     joined = "".join(svgs)
@@ -190,7 +238,9 @@ def test_pdf_mentions_edge_figures(checked: dict[str, Any]) -> None:
 
 
 def test_rerender_from_qcr_json_is_identical(checked: dict[str, Any], tmp_path: Path) -> None:
-    res = CliRunner().invoke(cli(), ["report", str(checked["out"] / "qcr.json"), "--out", str(tmp_path)])
+    res = CliRunner().invoke(
+        cli(), ["report", str(checked["out"] / "qcr.json"), "--out", str(tmp_path)]
+    )
     assert res.exit_code == 0, res.output
     assert (tmp_path / "report.html").read_text(encoding="utf-8") == checked["html"]
     assert (tmp_path / "report.pdf").read_bytes() == checked["pdf"]
@@ -201,11 +251,16 @@ def test_edge_figures_are_bounded_failing_first(checked: dict[str, Any]) -> None
     verdicts = {r["item"]: r["verdict"] for r in all_records(doc) if r["rule"] == "E-RER"}
     assert verdicts == {"E1": "pass", "E2": "fail", "E3": "error"}  # E2 is blurred below RER 0.3
     html = render_html(doc, ReportOptions(max_figure_edges=2), figure=data_uri)
-    section = html[html.index('id="edges"'):html.index('id="manual"')]
-    assert "Edge figures are drawn for 2 of 3 edge targets (failing or erring targets first)" in section
+    section = html[html.index('id="edges"') : html.index('id="manual"')]
+    assert (
+        "Edge figures are drawn for 2 of 3 edge targets (failing or erring targets first)"
+        in section
+    )
     assert "Edge target E2, MTF" in section and "Edge target E3, edge detection" in section
     assert "Edge target E1, " not in section
-    full = checked["html"][checked["html"].index('id="edges"'):checked["html"].index('id="manual"')]
+    full = checked["html"][
+        checked["html"].index('id="edges"') : checked["html"].index('id="manual"')
+    ]
     assert len(_svgs(section)) == len(_svgs(full)) - 4  # E1's four figures left out
     assert "Edge figures are drawn" not in full
 
@@ -216,7 +271,7 @@ def test_document_without_curves_keeps_the_tables(checked: dict[str, Any]) -> No
     for d in doc["details"]["edges"].values():
         d.pop("curves")
     html = render_html(doc, ReportOptions(), figure=data_uri)
-    section = html[html.index('id="edges"'):html.index('id="manual"')]
+    section = html[html.index('id="edges"') : html.index('id="manual"')]
     assert "Edge target E1 " in section and "fwhm_px" in section
     assert not _svgs(section) and "Edge figures are drawn" not in section
 
@@ -256,8 +311,21 @@ def test_delivery_combined_rer_is_the_usgs_geometric_mean(tmp_path: Path) -> Non
     delivery = _delivery(tmp_path / "delivery")
     (tmp_path / "profile.yaml").write_text(COMBINED_PROFILE, encoding="utf-8")
     out = tmp_path / "out"
-    res = CliRunner().invoke(cli(), ["check", str(delivery), "--profile", str(tmp_path / "profile.yaml"),
-                                     "--out", str(out), "--date", "2026-01-01", "--format", "json"])
+    res = CliRunner().invoke(
+        cli(),
+        [
+            "check",
+            str(delivery),
+            "--profile",
+            str(tmp_path / "profile.yaml"),
+            "--out",
+            str(out),
+            "--date",
+            "2026-01-01",
+            "--format",
+            "json",
+        ],
+    )
     assert res.exit_code in (0, 1), res.output + str(res.exception)
     doc = json.loads((out / "qcr.json").read_text(encoding="utf-8"))
     rec = {r["rule"]: r for r in all_records(doc)}

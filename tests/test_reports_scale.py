@@ -73,7 +73,13 @@ def big_map() -> dict[str, Any]:
     dr = np.hypot(p["dx"], p["dy"])
     flagged = [ids[i] for i in np.flatnonzero(dr > 0.5)]  # blunder candidates, ~0.4 %
     excluded = [ids[i] for i in range(0, N, 9973)][:5]  # exclusion requests: drawn, not red
-    kw = {"ids": ids, "flagged": flagged, "always": excluded, "gcp_x": [500_100.0], "gcp_y": [5_400_100.0]}
+    kw = {
+        "ids": ids,
+        "flagged": flagged,
+        "always": excluded,
+        "gcp_x": [500_100.0],
+        "gcp_y": [5_400_100.0],
+    }
     svg = checkpoint_map_svg(p["x"], p["y"], p["dx"], p["dy"], **kw)
     return {**p, "flagged": flagged, "excluded": excluded, "kw": kw, "svg": svg}
 
@@ -119,8 +125,11 @@ def test_map_draws_flagged_and_excluded_points_where_they_are(big_map):
 def test_map_states_its_counts(big_map):
     marks = _marks(big_map["svg"])
     must = len(set(big_map["flagged"]) | set(big_map["excluded"]))
-    m = re.fullmatch(r"([\d,]+) of ([\d,]+) points drawn: all ([\d,]+) flagged or excluded, 1 in ([\d,]+) of the others "
-                     r"\(an even spatial sample\)", _note(big_map["svg"]))
+    m = re.fullmatch(
+        r"([\d,]+) of ([\d,]+) points drawn: all ([\d,]+) flagged or excluded, 1 in ([\d,]+) of the others "
+        r"\(an even spatial sample\)",
+        _note(big_map["svg"]),
+    )
     assert m, _note(big_map["svg"])
     drawn, total, k, step = (int(g.replace(",", "")) for g in m.groups())
     assert (drawn, total, k) == (len(marks), N, must)
@@ -131,7 +140,9 @@ def test_map_sample_is_evenly_spread(big_map):
     """Each cell of a 4 x 4 grid over the block holds about the share of the drawn (unflagged)
     points that it holds of all points."""
     ax_, bx, ay, by = _mapping(big_map)
-    drawn = np.array([((mx - bx) / ax_, (my - by) / ay) for mx, my, red in _marks(big_map["svg"]) if not red])
+    drawn = np.array(
+        [((mx - bx) / ax_, (my - by) / ay) for mx, my, red in _marks(big_map["svg"]) if not red]
+    )
     x, y = big_map["x"], big_map["y"]
     ex, ey = np.linspace(x.min(), x.max(), 5), np.linspace(y.min(), y.max(), 5)
     everyone, _, _ = np.histogram2d(x, y, bins=[ex, ey])
@@ -160,14 +171,24 @@ def test_small_map_draws_every_point_and_no_note():
 
 def test_quadrant_figure_is_capped_and_says_so():
     p = _points()
-    svg = quadrant_distribution_svg(p["x"], p["y"], centre=(503_000.0, 5_403_500.0), ids=p["ids"],
-                                    shares={"NE": 0.25, "NW": 0.25, "SW": 0.25, "SE": 0.25})
+    svg = quadrant_distribution_svg(
+        p["x"],
+        p["y"],
+        centre=(503_000.0, 5_403_500.0),
+        ids=p["ids"],
+        shares={"NE": 0.25, "NW": 0.25, "SW": 0.25, "SE": 0.25},
+    )
     marks = _marks(svg)
     assert len(marks) <= MAX_MARKS
     m = re.match(r"([\d,]+) of ([\d,]+) points drawn", _note(svg))
     assert m and int(m[1].replace(",", "")) == len(marks) and int(m[2].replace(",", "")) == N
-    assert svg == quadrant_distribution_svg(p["x"], p["y"], centre=(503_000.0, 5_403_500.0), ids=p["ids"],
-                                            shares={"NE": 0.25, "NW": 0.25, "SW": 0.25, "SE": 0.25})
+    assert svg == quadrant_distribution_svg(
+        p["x"],
+        p["y"],
+        centre=(503_000.0, 5_403_500.0),
+        ids=p["ids"],
+        shares={"NE": 0.25, "NW": 0.25, "SW": 0.25, "SE": 0.25},
+    )
 
 
 def _bar_heights(svg: str, gid: str) -> np.ndarray:
@@ -206,14 +227,40 @@ def _doc(n: int, n_fail: int) -> dict[str, Any]:
     status = ["fail" if i % (n // n_fail) == 0 else "pass" for i in range(n)]
     decision = ["candidate_kept" if s == "fail" else "kept" for s in status]
     decision[1] = "excluded"  # an exclusion request that is not a candidate
-    cols = {"point_id": p["ids"], "dx": p["dx"].tolist(), "dy": p["dy"].tolist(), "dz": [None] * n,
-            "dr": np.hypot(p["dx"], p["dy"]).tolist(), "x_ref": p["x"].tolist(), "y_ref": p["y"].tolist(),
-            "status": status, "decision": decision, "row": list(range(1, n + 1))}
-    block = {"points": {"columns": list(cols), "data": cols}, "unit": "m", "limit_x": 0.45, "limit_y": 0.45,
-             "basis": "calculated", "stats": {"n": n}, "gcps": [], "polygon": None, "area_source": None}
-    return {"schema": "orthospec.qcr/3", "date": "2026-11-21", "profile": {}, "delivery": {"id": "D"},
-            "verdict": "rejected", "summary": {}, "records": [], "rules": [],
-            "details": {"checkpoints": {"B01": block}}}
+    cols = {
+        "point_id": p["ids"],
+        "dx": p["dx"].tolist(),
+        "dy": p["dy"].tolist(),
+        "dz": [None] * n,
+        "dr": np.hypot(p["dx"], p["dy"]).tolist(),
+        "x_ref": p["x"].tolist(),
+        "y_ref": p["y"].tolist(),
+        "status": status,
+        "decision": decision,
+        "row": list(range(1, n + 1)),
+    }
+    block = {
+        "points": {"columns": list(cols), "data": cols},
+        "unit": "m",
+        "limit_x": 0.45,
+        "limit_y": 0.45,
+        "basis": "calculated",
+        "stats": {"n": n},
+        "gcps": [],
+        "polygon": None,
+        "area_source": None,
+    }
+    return {
+        "schema": "orthospec.qcr/3",
+        "date": "2026-11-21",
+        "profile": {},
+        "delivery": {"id": "D"},
+        "verdict": "rejected",
+        "summary": {},
+        "records": [],
+        "rules": [],
+        "details": {"checkpoints": {"B01": block}},
+    }
 
 
 def test_html_view_lists_every_flagged_point_and_counts_the_hidden_ones():
@@ -223,8 +270,11 @@ def test_html_view_lists_every_flagged_point_and_counts_the_hidden_ones():
     ctx = report_context(doc, opts, figure=data_uri)
     (b,) = ctx["checkpoints"]
     cols = doc["details"]["checkpoints"]["B01"]["points"]["data"]
-    must = {i for i, (s, d) in enumerate(zip(cols["status"], cols["decision"], strict=True))
-            if s == "fail" or d != "kept"}
+    must = {
+        i
+        for i, (s, d) in enumerate(zip(cols["status"], cols["decision"], strict=True))
+        if s == "fail" or d != "kept"
+    }
     shown = {p["row"] - 1 for p in b["points"]}
     assert must <= shown
     assert len(b["points"]) == opts.max_table_points
@@ -234,7 +284,10 @@ def test_html_view_lists_every_flagged_point_and_counts_the_hidden_ones():
     first_passing = [i for i in range(n) if i not in must][: len(passing_shown)]
     assert passing_shown == first_passing  # the first ones, in table order
     (cap_map, *_) = [f for f in b["figures"] if f["kind"] == "map"]
-    m = re.search(r"Drawn: ([\d,]+) of the ([\d,]+) points, all ([\d,]+) flagged or excluded", cap_map["caption"])
+    m = re.search(
+        r"Drawn: ([\d,]+) of the ([\d,]+) points, all ([\d,]+) flagged or excluded",
+        cap_map["caption"],
+    )
     assert m and int(m[2].replace(",", "")) == n and int(m[3].replace(",", "")) == len(must)
     assert int(m[1].replace(",", "")) == len(_marks(cap_map["svg"])) <= MAX_MARKS
     hist = [f for f in b["figures"] if f["kind"] == "hist"]
@@ -247,7 +300,9 @@ def test_pdf_view_still_lists_every_flagged_point():
     ctx = report_context(doc, ReportOptions(bounded=True))
     (b,) = ctx["checkpoints"]
     cols = doc["details"]["checkpoints"]["B01"]["points"]["data"]
-    must = sum(s == "fail" or d != "kept" for s, d in zip(cols["status"], cols["decision"], strict=True))
+    must = sum(
+        s == "fail" or d != "kept" for s, d in zip(cols["status"], cols["decision"], strict=True)
+    )
     assert len(b["points"]) == must and b["n_hidden"] == n - must
 
 

@@ -90,7 +90,10 @@ def test_a_scene_refined_on_one_gcp_while_declaring_four_is_rejected(tmp_path: P
     rpc = _rule(doc, "JRC-T9-GCP-VHR-RPC")["S02_SC1"]
     assert rpc["verdict"] == "fail" and rpc["measured"]["value"] == 1
     recorded = _rule(doc, "JRC-T9-GCP-COUNT-RECORDED")["S02_SC1"]
-    assert recorded["verdict"] == "warn" and "declared 4 (scenes.gcp_count), counted 1" in recorded["message"]
+    assert (
+        recorded["verdict"] == "warn"
+        and "declared 4 (scenes.gcp_count), counted 1" in recorded["message"]
+    )
     assert "S02_SC1" in doc["rollup"]["rejected"]["image"] and doc["verdict"] == "rejected"
 
 
@@ -119,7 +122,10 @@ def test_without_an_image_id_column_the_footprint_decides(tmp_path: Path) -> Non
     got = _rule(doc, "JRC-T9-GCP-COUNT-RECORDED")
     for scene, n in expected.items():
         assert got[scene]["verdict"] == "pass", got[scene]
-        assert f"{n} of the {len(rows)} rows naming no scene inside its orthoimage footprint" in got[scene]["message"]
+        assert (
+            f"{n} of the {len(rows)} rows naming no scene inside its orthoimage footprint"
+            in got[scene]["message"]
+        )
     assert doc["verdict"] == "accepted"
 
 

@@ -18,7 +18,9 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _bench(name: str):
-    spec = importlib.util.spec_from_file_location(f"bench_{name}", ROOT / "benchmarks" / f"{name}.py")
+    spec = importlib.util.spec_from_file_location(
+        f"bench_{name}", ROOT / "benchmarks" / f"{name}.py"
+    )
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
     sys.modules[spec.name] = module
@@ -40,10 +42,31 @@ def test_scale_builds_distinct_images_that_check_evaluates(tmp_path):
     from orthospec.cli.main import main
 
     with pytest.raises(SystemExit) as exc:
-        main(["check", str(delivery), "-p", "jrc-v3", "--out", str(tmp_path / "o"),
-              "--format", "json", "--date", "2026-11-21", "--workers", "1", "--param", "tolerance_xy=0.5m",
-              "--param", "map_crs=EPSG:25832"])
-    assert exc.value.code in (0, 1, 3)  # accepted, rejected, incomplete (the checker has not inspected the added images)
+        main(
+            [
+                "check",
+                str(delivery),
+                "-p",
+                "jrc-v3",
+                "--out",
+                str(tmp_path / "o"),
+                "--format",
+                "json",
+                "--date",
+                "2026-11-21",
+                "--workers",
+                "1",
+                "--param",
+                "tolerance_xy=0.5m",
+                "--param",
+                "map_crs=EPSG:25832",
+            ]
+        )
+    assert exc.value.code in (
+        0,
+        1,
+        3,
+    )  # accepted, rejected, incomplete (the checker has not inspected the added images)
     doc = json.loads((tmp_path / "o" / "qcr.json").read_text())
     per_image = [sum(r["counts"].values()) for r in doc["rules"] if r["scope"] == "image"]
     assert per_image and max(per_image) == n  # the rules saw every generated image
@@ -64,7 +87,7 @@ def test_checkpoint_generator_writes_the_delivery_table_columns(tmp_path):
         assert len(g) > 0
         assert g["x_ref"].between(x0, x1).all() and g["y_ref"].between(y0, y1).all()
     dx = (df["x"] - df["x_ref"]).to_numpy()
-    assert 0.1 < float(np.sqrt(np.mean(dx ** 2))) < 0.2  # N(0, 0.15 m) errors, as documented
+    assert 0.1 < float(np.sqrt(np.mean(dx**2))) < 0.2  # N(0, 0.15 m) errors, as documented
 
 
 def test_point_csv_reader_keeps_row_semantics_when_vectorised(tmp_path):
@@ -75,11 +98,14 @@ def test_point_csv_reader_keeps_row_semantics_when_vectorised(tmp_path):
     from orthospec.errors import DeliveryError
 
     path = tmp_path / "p.csv"
-    path.write_text("id, x ,y,x_ref,y_ref,exclusion_reason\n"
-                    " A ,10.5,20,10,20.25,\n"
-                    "\n"
-                    "B,1000,5,999.5,4,blunder: cone moved\n"
-                    "C,3,3,3,3,\n", encoding="utf-8")
+    path.write_text(
+        "id, x ,y,x_ref,y_ref,exclusion_reason\n"
+        " A ,10.5,20,10,20.25,\n"
+        "\n"
+        "B,1000,5,999.5,4,blunder: cone moved\n"
+        "C,3,3,3,3,\n",
+        encoding="utf-8",
+    )
     t = read_points_csv(path)
     assert t.ids.tolist() == ["A", "B", "C"] and t.rows.tolist() == [1, 3, 4]
     np.testing.assert_array_equal(t.dx, [0.5, 0.5, 0.0])

@@ -36,27 +36,63 @@ def page1(pdf: Path) -> str:
 def unsigned(make_delivery, mini_profile, tmp_path: Path) -> dict[str, Path]:
     """One run, rejected only because the checker's file judged the manual check R-VIS fail (a
     manual check with no verdict at all leaves the check incomplete, not rejected: issue 26)."""
-    root = make_delivery("d", manifest=MANIFEST.replace(NO_WAIVER, ""), images=GOOD,
-                         manual="check,item,inspector,date,verdict\n")
+    root = make_delivery(
+        "d",
+        manifest=MANIFEST.replace(NO_WAIVER, ""),
+        images=GOOD,
+        manual="check,item,inspector,date,verdict\n",
+    )
     ledger = tmp_path / "ledger.sqlite"
     checker = tmp_path / "checker.yaml"
-    checker.write_text("orthospec_checker: 1\nchecker: {name: Eva External, role: external QC}\n"
-                       "delivery: {id: D1}\nmanual_checks:\n"
-                       "  - {check: R-VIS, item: '*', date: 2026-02-28, verdict: fail, note: haze}\n",
-                       encoding="utf-8")
+    checker.write_text(
+        "orthospec_checker: 1\nchecker: {name: Eva External, role: external QC}\n"
+        "delivery: {id: D1}\nmanual_checks:\n"
+        "  - {check: R-VIS, item: '*', date: 2026-02-28, verdict: fail, note: haze}\n",
+        encoding="utf-8",
+    )
     # the ITT value comes from the checker's side (--param), never from the delivery (INTERFACES 4)
-    res = run("check", root, "-p", mini_profile, "--param", "tolerance_xy=0.5", "--out", tmp_path / "o1",
-              "--checker", checker, "--ledger", ledger, "--date", "2026-03-01", "--format", "json",
-              "--operator", "Carl Checker")
+    res = run(
+        "check",
+        root,
+        "-p",
+        mini_profile,
+        "--param",
+        "tolerance_xy=0.5",
+        "--out",
+        tmp_path / "o1",
+        "--checker",
+        checker,
+        "--ledger",
+        ledger,
+        "--date",
+        "2026-03-01",
+        "--format",
+        "json",
+        "--operator",
+        "Carl Checker",
+    )
     assert res.exit_code == 1, res.output
     assert "recorded run #1" in res.output
     return {"ledger": ledger, "tmp": tmp_path}
 
 
-def test_manual_verdicts_at_signoff_enter_page1_of_the_signed_report(unsigned: dict[str, Path]) -> None:
+def test_manual_verdicts_at_signoff_enter_page1_of_the_signed_report(
+    unsigned: dict[str, Path],
+) -> None:
     ledger, tmp = unsigned["ledger"], unsigned["tmp"]
-    sign = run("signoff", 1, "--by", "Maria Rossi", "--manual", "R-VIS=pass", "--date", "2026-03-02",
-               "--acknowledge-rejection", "--ledger", ledger)
+    sign = run(
+        "signoff",
+        1,
+        "--by",
+        "Maria Rossi",
+        "--manual",
+        "R-VIS=pass",
+        "--date",
+        "2026-03-02",
+        "--acknowledge-rejection",
+        "--ledger",
+        ledger,
+    )
     assert sign.exit_code == 0, sign.output
     rep = run("report", "--ledger", ledger, "--run", 1, "--format", "pdf", "--out", tmp / "rep")
     assert rep.exit_code == 0, rep.output
@@ -84,10 +120,24 @@ def test_signoff_refusals(unsigned: dict[str, Path]) -> None:
         assert led.signoffs(1)[0]["note"].startswith("[signed acknowledging the REJECTED verdict]")
 
 
-def test_deleted_newest_row_with_rewritten_head_is_caught_by_the_printed_head(unsigned: dict[str, Path]) -> None:
+def test_deleted_newest_row_with_rewritten_head_is_caught_by_the_printed_head(
+    unsigned: dict[str, Path],
+) -> None:
     ledger, tmp = unsigned["ledger"], unsigned["tmp"]
-    assert run("signoff", 1, "--by", "Maria Rossi", "--date", "2026-03-02", "--acknowledge-rejection",
-               "--ledger", ledger).exit_code == 0
+    assert (
+        run(
+            "signoff",
+            1,
+            "--by",
+            "Maria Rossi",
+            "--date",
+            "2026-03-02",
+            "--acknowledge-rejection",
+            "--ledger",
+            ledger,
+        ).exit_code
+        == 0
+    )
     rep = run("report", "--ledger", ledger, "--run", 1, "--format", "pdf", "--out", tmp / "rep")
     assert rep.exit_code == 0, rep.output
     flat = re.sub(r"\s+", "", page1(tmp / "rep" / "report.pdf"))
@@ -135,16 +185,20 @@ def test_history_shows_changes_by_default(unsigned: dict[str, Path]) -> None:
     full = run("history", "P1", "--ledger", ledger, "--all")
     assert short.exit_code == 0 and full.exit_code == 0
     assert "R-VIS" in short.output  # missing in the run: shown
-    passing = [line.split()[0] for line in full.output.splitlines()
-               if line.startswith("R-") and line.split()[-1] == "pass"]
+    passing = [
+        line.split()[0]
+        for line in full.output.splitlines()
+        if line.startswith("R-") and line.split()[-1] == "pass"
+    ]
     assert passing  # rules that passed in every run are listed with --all only
     for rid in passing:
         assert not re.search(rf"^{re.escape(rid)}\s", short.output, re.M)
     assert "--all shows them" in short.output
 
 
-def test_anchor_file_catches_a_recomputed_chain(make_delivery, mini_profile, tmp_path: Path,
-                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+def test_anchor_file_catches_a_recomputed_chain(
+    make_delivery, mini_profile, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """With $ORTHOSPEC_LEDGER_ANCHOR every new head is appended outside the ledger; deleting the
     newest entry and rewriting the head row then fails `ledger verify` without any --head."""
     anchor = tmp_path / "anchor.txt"
@@ -152,8 +206,22 @@ def test_anchor_file_catches_a_recomputed_chain(make_delivery, mini_profile, tmp
     root = make_delivery("d", manifest=MANIFEST.replace(NO_WAIVER, ""), images=GOOD)
     ledger = tmp_path / "anchored.sqlite"
     for day in ("2026-03-01", "2026-03-02"):
-        res = run("check", root, "-p", mini_profile, "--param", "tolerance_xy=0.5", "--out", tmp_path / day,
-                  "--ledger", ledger, "--date", day, "--format", "json")
+        res = run(
+            "check",
+            root,
+            "-p",
+            mini_profile,
+            "--param",
+            "tolerance_xy=0.5",
+            "--out",
+            tmp_path / day,
+            "--ledger",
+            ledger,
+            "--date",
+            day,
+            "--format",
+            "json",
+        )
         assert res.exit_code in (0, 1, 3), res.output
     lines = anchor.read_text(encoding="utf-8").splitlines()
     assert [ln.split()[0] for ln in lines] == ["1", "2"]

@@ -13,4 +13,6 @@ def test_old_module_names_are_the_new_modules() -> None:
 
     assert old_loader is new_loader
     assert old_name == "orthospec.profile.operators"
-    assert importlib.import_module("orthospec.spec.models") is importlib.import_module("orthospec.profile.models")
+    assert importlib.import_module("orthospec.spec.models") is importlib.import_module(
+        "orthospec.profile.models"
+    )

@@ -54,7 +54,9 @@ def test_mini_profile_loads_with_checksum(mini_profile):
 
 def test_checksum_ignores_formatting_but_not_content(tmp_path):
     a = load_profile(write(tmp_path, "a.yaml", BASE))
-    b = load_profile(write(tmp_path, "b.yaml", "# a comment\n" + BASE.replace("{title: JRC}", "{ title:  JRC }")))
+    b = load_profile(
+        write(tmp_path, "b.yaml", "# a comment\n" + BASE.replace("{title: JRC}", "{ title:  JRC }"))
+    )
     c = load_profile(write(tmp_path, "c.yaml", BASE.replace("default: 2.5", "default: 2.4")))
     assert a.sha256 == b.sha256
     assert a.sha256 != c.sha256
@@ -62,7 +64,10 @@ def test_checksum_ignores_formatting_but_not_content(tmp_path):
 
 def test_extends_overrides_and_removals(tmp_path):
     write(tmp_path, "base.yaml", BASE)
-    child = write(tmp_path, "child.yaml", """\
+    child = write(
+        tmp_path,
+        "child.yaml",
+        """\
 orthospec_profile: 1
 id: child
 version: 0.1.0
@@ -78,12 +83,14 @@ rules:
     override: true
     level: recommended
     justification: "ITT 4.2: X accuracy is advisory"
-""")
+""",
+    )
     p = load_profile(child)
     assert [r.id for r in p.rules] == ["A"]
     assert [(w.id, w.changes, w.justification) for w in p.weakened] == [
         ("B", ("removed",), "ITT 2.1: no Y accuracy is contracted"),
-        ("A", ("level mandatory -> recommended",), "ITT 4.2: X accuracy is advisory")]
+        ("A", ("level mandatory -> recommended",), "ITT 4.2: X accuracy is advisory"),
+    ]
     assert p.rule("A").level == "recommended"
     assert p.rule("A").requirement.op == "<="  # inherited keys kept
     assert p.parameters["tol"].value == 1.0 and p.parameters["tol"].unit == "m"
@@ -92,21 +99,31 @@ rules:
 
 def test_extends_pins_the_version(tmp_path):
     write(tmp_path, "base.yaml", BASE)
-    child = write(tmp_path, "child.yaml", """\
+    child = write(
+        tmp_path,
+        "child.yaml",
+        """\
 orthospec_profile: 1
 id: child
 version: 0.1.0
 title: Child
 source: {title: ITT}
 extends: {id: base, version: 9.9.9}
-""")
+""",
+    )
     with pytest.raises(SpecError, match="unknown profile 'base' version 9.9.9"):
         load_profile(child)
 
 
 def test_errors_name_file_line_and_column(tmp_path):
-    bad = write(tmp_path, "bad.yaml", BASE.replace("scope: block\n    measure: checkpoints.rmse_y",
-                                                   "scope: galaxy\n    measure: checkpoints.rmse_y"))
+    bad = write(
+        tmp_path,
+        "bad.yaml",
+        BASE.replace(
+            "scope: block\n    measure: checkpoints.rmse_y",
+            "scope: galaxy\n    measure: checkpoints.rmse_y",
+        ),
+    )
     problems = validate_file(bad)
     assert problems, "a bad scope must be reported"
     text = [str(p) for p in problems]
@@ -114,10 +131,17 @@ def test_errors_name_file_line_and_column(tmp_path):
 
 
 def test_unknown_measure_and_unit_and_expression(tmp_path):
-    bad = write(tmp_path, "bad.yaml", BASE.replace("checkpoints.rmse_y", "checkpoints.rmse_q")
-                .replace("value: tol, unit: m}\n    consequence: reject_block\n", "value: tol, unit: furlongz}\n"
-                         "    consequence: reject_block\n", 1)
-                .replace("value: tol, unit: m}", "value: \"tol + __x\", unit: m}"))
+    bad = write(
+        tmp_path,
+        "bad.yaml",
+        BASE.replace("checkpoints.rmse_y", "checkpoints.rmse_q")
+        .replace(
+            "value: tol, unit: m}\n    consequence: reject_block\n",
+            "value: tol, unit: furlongz}\n    consequence: reject_block\n",
+            1,
+        )
+        .replace("value: tol, unit: m}", 'value: "tol + __x", unit: m}'),
+    )
     msgs = " | ".join(str(p) for p in validate_file(bad))
     assert "unknown measure 'checkpoints.rmse_q'" in msgs
     assert "furlongz" in msgs
@@ -158,7 +182,10 @@ def test_suggestions_for_measures_and_profiles(tmp_path):
 
 def test_removals_and_overrides_are_recorded_with_their_justification(tmp_path):
     write(tmp_path, "base.yaml", BASE)
-    child = write(tmp_path, "child.yaml", """\
+    child = write(
+        tmp_path,
+        "child.yaml",
+        """\
 orthospec_profile: 1
 id: child
 version: 0.1.0
@@ -170,14 +197,21 @@ rules:
   - id: A
     override: true
     consequence: return_delivery
-""")
+""",
+    )
     p = load_profile(child)
     assert [(x.id, x.justification, x.profile) for x in p.removed] == [
-        ("B", "ITT 2.1: no Y accuracy is contracted", "child")]
+        ("B", "ITT 2.1: no Y accuracy is contracted", "child")
+    ]
     assert p.overridden == {"A": ("consequence",)}
     assert p.canonical["removed_rules"][0]["justification"].startswith("ITT 2.1")
-    bad = write(tmp_path, "bad.yaml", child.read_text().replace(', justification: "ITT 2.1: no Y accuracy is '
-                                                                 'contracted"', ", justification: ''"))
+    bad = write(
+        tmp_path,
+        "bad.yaml",
+        child.read_text().replace(
+            ', justification: "ITT 2.1: no Y accuracy is contracted"', ", justification: ''"
+        ),
+    )
     assert any("remove_rules/0" in str(x) for x in validate_file(bad))
 
 
@@ -185,7 +219,10 @@ def test_measure_catalog_is_up_to_date():
     from orthospec.engine import catalog as engine_catalog
     from orthospec.profile import catalog
 
-    on_disk = json.loads((specs_dir() / "schema" / catalog.CATALOG_NAME).read_text(encoding="utf-8"))
-    assert on_disk == json.loads(json.dumps(engine_catalog.snapshot())), \
+    on_disk = json.loads(
+        (specs_dir() / "schema" / catalog.CATALOG_NAME).read_text(encoding="utf-8")
+    )
+    assert on_disk == json.loads(json.dumps(engine_catalog.snapshot())), (
         "specs/schema/measures.json is stale: run python -m orthospec.schemas"
+    )
     assert catalog.is_current()

@@ -39,15 +39,22 @@ def _verdicts(doc: dict[str, Any], rule: str) -> dict[str, str]:
 
 @pytest.mark.parametrize("items", ['items: ["*"], ', "", "items: [I2, I3], "],
                          ids=["star", "items-omitted", "every-item-listed"])
-def test_a_waiver_of_every_item_waives_every_failing_item(make_delivery, mini_profile, tmp_path: Path,
-                                                          items: str) -> None:
+def test_a_waiver_of_every_item_waives_every_failing_item(
+    make_delivery, mini_profile, tmp_path: Path, items: str
+) -> None:
     root = make_delivery(images=_TWO_BAD_ROLLS)
-    plain = check_with(root, mini_profile, checker=write_checker(tmp_path, _CHECKER, "plain.yaml")).document
+    plain = check_with(
+        root, mini_profile, checker=write_checker(tmp_path, _CHECKER, "plain.yaml")
+    ).document
     assert _verdicts(plain, "R-ROLL") == {"I1": "pass", "I2": "fail", "I3": "fail"}
     assert plain["verdict"] == "rejected"
 
-    waiver = f"waivers:\n  - {{rule: R-ROLL, {items}justification: ridge turbulence, approver: Eva}}\n"
-    doc = check_with(root, mini_profile, checker=write_checker(tmp_path, _CHECKER + waiver)).document
+    waiver = (
+        f"waivers:\n  - {{rule: R-ROLL, {items}justification: ridge turbulence, approver: Eva}}\n"
+    )
+    doc = check_with(
+        root, mini_profile, checker=write_checker(tmp_path, _CHECKER + waiver)
+    ).document
     assert _verdicts(doc, "R-ROLL") == {"I1": "pass", "I2": "waived", "I3": "waived"}
     waived = [r for r in all_records(doc) if r["verdict"] == "waived"]
     assert {r["waived_verdict"] for r in waived} == {"fail"}
@@ -58,5 +65,11 @@ def test_a_waiver_of_every_item_waives_every_failing_item(make_delivery, mini_pr
 
 def test_a_recheck_of_older_content_keeps_that_contents_round() -> None:
     runs = [("P", "A"), ("P", "B"), ("P", "A"), ("P", "B"), ("P", "C"), ("Q", "A")]
-    assert rounds_of(runs) == [(DELIVERY, 1), (REDELIVERY, 2), (RECHECK, 1), (RECHECK, 2),
-                               (REDELIVERY, 3), (DELIVERY, 1)]
+    assert rounds_of(runs) == [
+        (DELIVERY, 1),
+        (REDELIVERY, 2),
+        (RECHECK, 1),
+        (RECHECK, 2),
+        (REDELIVERY, 3),
+        (DELIVERY, 1),
+    ]

@@ -44,8 +44,10 @@ def test_installed_packages_are_never_reported_missing(shims: tuple[dict[str, st
     if not _installed():
         pytest.skip("the system packages are not installed here (make test installs them)")
     env, log = shims
-    codes = [subprocess.run(["bash", str(SCRIPT)], env=env, capture_output=True, text=True).returncode
-             for _ in range(100)]
+    codes = [
+        subprocess.run(["bash", str(SCRIPT)], env=env, capture_output=True, text=True).returncode
+        for _ in range(100)
+    ]
     assert codes.count(0) == 100, f"exit codes: {sorted(set(codes))}"
     assert not log.exists(), f"apt-get was called: {log.read_text()[:300]}"
 
@@ -54,7 +56,9 @@ def test_a_missing_library_is_named(tmp_path: Path) -> None:
     """The decision is not always 'nothing to do': a machine whose library list lacks Pango gets it
     installed (here apt-get is the recording stand-in, so the script stops with its failure)."""
     log = tmp_path / "apt-get.log"
-    (tmp_path / "ldconfig").write_text("#!/bin/sh\necho 'libc.so.6 (libc6,x86-64) => /lib/libc.so.6'\n")
+    (tmp_path / "ldconfig").write_text(
+        "#!/bin/sh\necho 'libc.so.6 (libc6,x86-64) => /lib/libc.so.6'\n"
+    )
     (tmp_path / "apt-get").write_text(f"#!/bin/sh\necho \"$@\" >> '{log}'\nexit 0\n")
     (tmp_path / "id").write_text("#!/bin/sh\necho 0\n")
     for name in ("ldconfig", "apt-get", "id"):

@@ -94,31 +94,73 @@ def tender(folder: Path, *, checker_may_set: bool) -> Path:
 
 def checker_with_cloud(folder: Path, value: float) -> Path:
     """The aerial-fail checker's file stating a cloud cap (the ITT values it had, plus this one)."""
-    base = yaml.safe_load((EXAMPLES / "checker" / "aerial-fail" / "checker.yaml").read_text(encoding="utf-8"))
+    base = yaml.safe_load(
+        (EXAMPLES / "checker" / "aerial-fail" / "checker.yaml").read_text(encoding="utf-8")
+    )
     params = {**base["parameters"], "cloud_cover_max": {"value": value, "unit": "%"}}
-    return resigned(EXAMPLES / "checker" / "aerial-fail", EXAMPLES / "deliveries" / "aerial-fail",
-                    folder / "checker-cloud.yaml", parameters=params)
+    return resigned(
+        EXAMPLES / "checker" / "aerial-fail",
+        EXAMPLES / "deliveries" / "aerial-fail",
+        folder / "checker-cloud.yaml",
+        parameters=params,
+    )
 
 
 # --- the contract wins -------------------------------------------------------------------------------
+
 
 def test_the_checkers_file_cannot_loosen_a_tender_value(tmp_path: Path) -> None:
     """Observation: the tender made the 5 % cap mandatory; the checker's file said 10 % and the check
     ran at 10 % without a word. Now: exit 2 naming both values and the tender's line."""
     prof = tender(tmp_path, checker_may_set=False)
-    res = run("check", EXAMPLES / "deliveries" / "aerial-fail", "-p", prof, "--checker",
-              checker_with_cloud(tmp_path, 10), "--out", tmp_path / "out", "--date", DATE)
+    res = run(
+        "check",
+        EXAMPLES / "deliveries" / "aerial-fail",
+        "-p",
+        prof,
+        "--checker",
+        checker_with_cloud(tmp_path, 10),
+        "--out",
+        tmp_path / "out",
+        "--date",
+        DATE,
+    )
     assert res.exit_code == 2, res.output
     assert "parameters.cloud_cover_max: 10 % differs from 5 %" in res.output
     assert "itt-cloud.yaml:11" in res.output and "checker_may_set: true" in res.output
     assert not (tmp_path / "out").exists()
-    res = run("check", EXAMPLES / "deliveries" / "aerial-fail", "-p", prof, "--checker",
-              EXAMPLES / "checker" / "aerial-fail", "--param", "cloud_cover_max=10",
-              "--out", tmp_path / "out", "--date", DATE)
-    assert res.exit_code == 2 and "--param cloud_cover_max=10: 10 % differs from 5 %" in res.output, res.output
+    res = run(
+        "check",
+        EXAMPLES / "deliveries" / "aerial-fail",
+        "-p",
+        prof,
+        "--checker",
+        EXAMPLES / "checker" / "aerial-fail",
+        "--param",
+        "cloud_cover_max=10",
+        "--out",
+        tmp_path / "out",
+        "--date",
+        DATE,
+    )
+    assert (
+        res.exit_code == 2 and "--param cloud_cover_max=10: 10 % differs from 5 %" in res.output
+    ), res.output
     # the same value stated again is no conflict: 5 % from the checker's file runs
-    res = run("check", EXAMPLES / "deliveries" / "aerial-fail", "-p", prof, "--checker",
-              checker_with_cloud(tmp_path, 5.0), "--out", tmp_path / "same", "--date", DATE, "--format", "json")
+    res = run(
+        "check",
+        EXAMPLES / "deliveries" / "aerial-fail",
+        "-p",
+        prof,
+        "--checker",
+        checker_with_cloud(tmp_path, 5.0),
+        "--out",
+        tmp_path / "same",
+        "--date",
+        DATE,
+        "--format",
+        "json",
+    )
     assert res.exit_code == 1, res.output
 
 
@@ -129,18 +171,37 @@ def allowed(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     tmp = tmp_path_factory.mktemp("allowed")
     prof = tender(tmp, checker_may_set=True)
     out = tmp / "out"
-    res = run("check", EXAMPLES / "deliveries" / "aerial-fail", "-p", prof, "--checker",
-              checker_with_cloud(tmp, 10), "--out", out, "--date", DATE, "--format", "terminal,json,html,pdf")
+    res = run(
+        "check",
+        EXAMPLES / "deliveries" / "aerial-fail",
+        "-p",
+        prof,
+        "--checker",
+        checker_with_cloud(tmp, 10),
+        "--out",
+        out,
+        "--date",
+        DATE,
+        "--format",
+        "terminal,json,html,pdf",
+    )
     assert res.exit_code == 1, res.output + repr(res.exception)
     with pdfplumber.open(io.BytesIO((out / "report.pdf").read_bytes())) as pdf:
         pages = [p.extract_text() or "" for p in pdf.pages]
         words = [p.extract_words() for p in pdf.pages]
-    return {"terminal": res.output, "doc": json.loads((out / "qcr.json").read_text(encoding="utf-8")),
-            "pages": pages, "words": words, "html": (out / "report.html").read_text(encoding="utf-8"),
-            "profile": prof}
+    return {
+        "terminal": res.output,
+        "doc": json.loads((out / "qcr.json").read_text(encoding="utf-8")),
+        "pages": pages,
+        "words": words,
+        "html": (out / "report.html").read_text(encoding="utf-8"),
+        "profile": prof,
+    }
 
 
-def test_a_value_the_tender_leaves_to_the_checker_is_used_and_shown_beside_the_tenders(allowed: dict) -> None:
+def test_a_value_the_tender_leaves_to_the_checker_is_used_and_shown_beside_the_tenders(
+    allowed: dict,
+) -> None:
     p = allowed["doc"]["profile"]["parameters"]["cloud_cover_max"]
     assert (p["value"], p["source"], p["profile_value"]) == (10.0, "checker", 5.0)
     line = "cloud_cover_max = 10 % from the checker's file, instead of the tender's 5 %"
@@ -151,15 +212,22 @@ def test_a_value_the_tender_leaves_to_the_checker_is_used_and_shown_beside_the_t
     assert line in page1
 
 
-def test_mandatory_rules_the_tender_weakened_are_on_page_1_and_in_the_terminal(allowed: dict) -> None:
+def test_mandatory_rules_the_tender_weakened_are_on_page_1_and_in_the_terminal(
+    allowed: dict,
+) -> None:
     weakened = {w["id"]: w for w in allowed["doc"]["profile"]["weakened"]}
     assert weakened["JRC-12.4-T12-ORTHO-OWN-FILE"]["changes"] == ["removed"]
-    assert weakened["JRC-12.7-RMSEX"]["changes"] == ["condition added: when manifest.sensor.digital == true"]
+    assert weakened["JRC-12.7-RMSEX"]["changes"] == [
+        "condition added: when manifest.sensor.digital == true"
+    ]
     assert weakened["JRC-12.7-RMSEX"]["justification"].startswith("ITT §4.1")
     page1 = " ".join(allowed["pages"][0].split())
     terminal = " ".join(allowed["terminal"].split())
     for text in (page1, terminal):
-        assert "JRC-12.4-T12-ORTHO-OWN-FILE" in text and "tiles are checked by the agency's own tool" in text
+        assert (
+            "JRC-12.4-T12-ORTHO-OWN-FILE" in text
+            and "tiles are checked by the agency's own tool" in text
+        )
         assert "JRC-12.7-RMSEX" in text and "film imagery is not bought under this lot" in text
 
 
@@ -187,12 +255,24 @@ def test_qcr_names_the_profile_by_id_version_and_resolved_sha256(allowed: dict) 
 def test_without_a_tender_the_checkers_itt_values_are_shown_as_filled_in(tmp_path: Path) -> None:
     from orthospec.reports.contract import parameter_lines
 
-    doc = {"profile": {"parameters": {
-        "tolerance_xy": {"value": 0.5, "unit": "m", "source": "checker"},
-        "cloud_cover_max": {"value": 10.0, "unit": "%", "source": "standard"},
-        "min_checkpoints": {"value": 10.0, "unit": "1", "source": "cli", "profile_value": 20.0}}}}
-    assert parameter_lines(doc) == ["min_checkpoints = 10 from --param, instead of the profile's 20",
-                                    "tolerance_xy = 0.5 m from the checker's file (the profile leaves it to the ITT)"]
+    doc = {
+        "profile": {
+            "parameters": {
+                "tolerance_xy": {"value": 0.5, "unit": "m", "source": "checker"},
+                "cloud_cover_max": {"value": 10.0, "unit": "%", "source": "standard"},
+                "min_checkpoints": {
+                    "value": 10.0,
+                    "unit": "1",
+                    "source": "cli",
+                    "profile_value": 20.0,
+                },
+            }
+        }
+    }
+    assert parameter_lines(doc) == [
+        "min_checkpoints = 10 from --param, instead of the profile's 20",
+        "tolerance_xy = 0.5 m from the checker's file (the profile leaves it to the ITT)",
+    ]
 
 
 # --- weakening a mandatory rule: spec diff and the annex --------------------------------------------
@@ -226,7 +306,9 @@ rules:
 """
 
 
-def test_spec_diff_lists_each_weakened_mandatory_rule_with_its_justification(tmp_path: Path) -> None:
+def test_spec_diff_lists_each_weakened_mandatory_rule_with_its_justification(
+    tmp_path: Path,
+) -> None:
     f = tmp_path / "weak.yaml"
     f.write_text(WEAK, encoding="utf-8")
     text = run("spec", "diff", "jrc-v3", f)
@@ -236,16 +318,28 @@ def test_spec_diff_lists_each_weakened_mandatory_rule_with_its_justification(tmp
     assert any("JRC-12.7-RMSEY checks less: removed (justification: ITT §4.1" in x for x in lines)
     assert any("JRC-12.7-RMSEX checks less: level mandatory -> recommended" in x for x in lines)
     assert any("JRC-12.4-T12-ORTHO-OWN-FILE checks less: condition when " in x for x in lines)
-    assert any("JRC-DEF-CHECKPOINT-ACCURACY checks less: measure checkpoints.rmse_xy" in x
-               or "JRC-DEF-CHECKPOINT-ACCURACY checks less: measure " in x for x in lines)
+    assert any(
+        "JRC-DEF-CHECKPOINT-ACCURACY checks less: measure checkpoints.rmse_xy" in x
+        or "JRC-DEF-CHECKPOINT-ACCURACY checks less: measure " in x
+        for x in lines
+    )
     js = run("spec", "diff", "jrc-v3", f, "--json")
     got = {w["id"]: w for w in json.loads(js.output)["weakened"]}
-    assert set(got) == {"JRC-12.7-RMSEY", "JRC-12.7-RMSEX", "JRC-12.4-T12-ORTHO-OWN-FILE",
-                        "JRC-DEF-CHECKPOINT-ACCURACY"}
-    assert got["JRC-DEF-CHECKPOINT-ACCURACY"]["justification"] == "ITT §4.3: the checker's survey is trusted"
+    assert set(got) == {
+        "JRC-12.7-RMSEY",
+        "JRC-12.7-RMSEX",
+        "JRC-12.4-T12-ORTHO-OWN-FILE",
+        "JRC-DEF-CHECKPOINT-ACCURACY",
+    }
+    assert (
+        got["JRC-DEF-CHECKPOINT-ACCURACY"]["justification"]
+        == "ITT §4.3: the checker's survey is trusted"
+    )
     assert any(c.startswith("measure ") for c in got["JRC-DEF-CHECKPOINT-ACCURACY"]["changes"])
     # the annex's first page lists them (before the parameters chapter)
-    md = render_annex(load_profile(f), formats=["md"], day=DATE)[annex_filename(load_profile(f), "md")]
+    md = render_annex(load_profile(f), formats=["md"], day=DATE)[
+        annex_filename(load_profile(f), "md")
+    ]
     cover = md.split("## 1. Parameters")[0]
     assert "Mandatory requirements of the standard that this ITT removes or relaxes" in cover
     for rid in got:
@@ -258,33 +352,58 @@ def test_an_unrelated_pair_is_compared_too_and_says_nobody_justified_it(tmp_path
 
     mini = load_profile(ROOT / "tests" / "data" / "profiles" / "mini.yaml")
     other = tmp_path / "mini2.yaml"
-    other.write_text((ROOT / "tests" / "data" / "profiles" / "mini.yaml").read_text(encoding="utf-8")
-                     .replace("id: mini", "id: mini2").replace("    consequence: reject_item\n",
-                                                               "    level: recommended\n    consequence: warn\n"),
-                     encoding="utf-8")
+    other.write_text(
+        (ROOT / "tests" / "data" / "profiles" / "mini.yaml")
+        .read_text(encoding="utf-8")
+        .replace("id: mini", "id: mini2")
+        .replace(
+            "    consequence: reject_item\n", "    level: recommended\n    consequence: warn\n"
+        ),
+        encoding="utf-8",
+    )
     got = weakened(mini, load_profile(other, check_measures=False))
     assert got and all(w["justification"] is None for w in got)
-    assert [w["changes"] for w in got] == [["level mandatory -> recommended", "consequence reject_item -> warn"]] * 2
+    assert [w["changes"] for w in got] == [
+        ["level mandatory -> recommended", "consequence reject_item -> warn"]
+    ] * 2
 
 
 # --- reserved ids -------------------------------------------------------------------------------------
+
 
 def test_a_file_claiming_a_shipped_id_is_refused_naming_the_file(tmp_path: Path) -> None:
     """Observation (issue 25): `id: jrc-v3, version: 3.0.1` extending jrc-v3 with RMSEy switched off
     was reported as jrc-v3 and ACCEPTED."""
     fake = tmp_path / "fake.yaml"
-    fake.write_text("orthospec_profile: 1\nid: jrc-v3\nversion: 3.0.1\ntitle: JRC\nsource: {title: x}\n"
-                    "extends: {id: jrc-v3, version: 3.0.0}\nparameters:\n  tolerance_xy: {value: 0.5}\n"
-                    "remove_rules: [{id: JRC-12.7-RMSEY, justification: x}]\n", encoding="utf-8")
+    fake.write_text(
+        "orthospec_profile: 1\nid: jrc-v3\nversion: 3.0.1\ntitle: JRC\nsource: {title: x}\n"
+        "extends: {id: jrc-v3, version: 3.0.0}\nparameters:\n  tolerance_xy: {value: 0.5}\n"
+        "remove_rules: [{id: JRC-12.7-RMSEY, justification: x}]\n",
+        encoding="utf-8",
+    )
     res = run("spec", "validate", fake)
     assert res.exit_code == 2 and "fake.yaml:2:5: id 'jrc-v3' is reserved" in res.output, res.output
-    res = run("check", EXAMPLES / "deliveries" / "aerial-pass", "-p", fake, "--checker",
-              EXAMPLES / "checker" / "aerial-pass", "--out", tmp_path / "out")
+    res = run(
+        "check",
+        EXAMPLES / "deliveries" / "aerial-pass",
+        "-p",
+        fake,
+        "--checker",
+        EXAMPLES / "checker" / "aerial-pass",
+        "--out",
+        tmp_path / "out",
+    )
     assert res.exit_code == 2 and "fake.yaml" in res.output and "reserved" in res.output
     # a copy that is the shipped profile (same resolved content, other bytes) is that profile
     copy = tmp_path / "copy.yaml"
-    copy.write_text(yaml.safe_dump(yaml.safe_load((ROOT / "specs" / "jrc-v3.yaml").read_text(encoding="utf-8")),
-                                   sort_keys=False, allow_unicode=True), encoding="utf-8")
+    copy.write_text(
+        yaml.safe_dump(
+            yaml.safe_load((ROOT / "specs" / "jrc-v3.yaml").read_text(encoding="utf-8")),
+            sort_keys=False,
+            allow_unicode=True,
+        ),
+        encoding="utf-8",
+    )
     assert load_profile(copy).sha256 == load_profile("jrc-v3").sha256
 
 
@@ -323,7 +442,9 @@ def test_a_satellite_tender_annex_holds_satellite_rules_without_being_told(tmp_p
     untold = render_annex(prof, formats=["md"], day=DATE)[name]
     assert untold == told
     body = untold.split("## 2. Requirements")[1].split("## Appendix A")[0]
-    aerial_only = [r.id for r in prof.rules if r.when and "manifest.sensor.type == 'aerial'" in r.when]
+    aerial_only = [
+        r.id for r in prof.rules if r.when and "manifest.sensor.type == 'aerial'" in r.when
+    ]
     assert aerial_only and not [r for r in aerial_only if f"`{r}`" in body]
     assert "JRC-T9-MASTER-IDENTIFIED" in body
 
@@ -339,7 +460,11 @@ def test_annex_page_1_warns_about_itt_parameters_left_unset(tmp_path: Path) -> N
     assert "`tolerance_z` (m)" in cover and "`master_images`" in cover
     with pdfplumber.open(io.BytesIO(files[annex_filename(prof, "pdf")])) as pdf:
         page1 = " ".join((pdf.pages[0].extract_text() or "").split())
-    assert "the ITT must fix have no value" in page1 and "tolerance_z" in page1 and "master_images" in page1
+    assert (
+        "the ITT must fix have no value" in page1
+        and "tolerance_z" in page1
+        and "master_images" in page1
+    )
     # an aerial tender that fixed what it uses gets no warning, and master_images (satellite) is not its
     aerial = load_profile(ROOT / "examples" / "specs" / "tender-example.yaml")
     md = render_annex(aerial, formats=["md"], day=DATE)[annex_filename(aerial, "md")]
@@ -363,7 +488,9 @@ def _checkout(tmp_path: Path) -> Path:
     return root
 
 
-def test_spec_render_without_out_never_writes_into_the_current_folder(tmp_path: Path, monkeypatch) -> None:
+def test_spec_render_without_out_never_writes_into_the_current_folder(
+    tmp_path: Path, monkeypatch
+) -> None:
     """Observation: `spec render` without --out wrote into the current folder (a checkout)."""
     root = _checkout(tmp_path)
     monkeypatch.chdir(root / "specs")
@@ -407,7 +534,9 @@ rules:
 """
 
 
-def test_an_internal_note_is_never_printed_and_a_public_note_is_printed_whole(tmp_path: Path) -> None:
+def test_an_internal_note_is_never_printed_and_a_public_note_is_printed_whole(
+    tmp_path: Path,
+) -> None:
     f = tmp_path / "notes.yaml"
     f.write_text(NOTES, encoding="utf-8")
     prof = load_profile(f)
@@ -436,7 +565,9 @@ def test_the_guides_say_truly_which_parameters_need_a_justification(tmp_path: Pa
     jrc = load_profile("jrc-v3")
     seen = 0
     for doc in (ROOT / "docs" / "PROFILES.md", ROOT / "README.md"):
-        for name, remark in re.findall(r"(?m)^\s+(\w+):[^#\n]*#\s*(.*)$", doc.read_text(encoding="utf-8")):
+        for name, remark in re.findall(
+            r"(?m)^\s+(\w+):[^#\n]*#\s*(.*)$", doc.read_text(encoding="utf-8")
+        ):
             if name not in jrc.parameters:
                 continue
             if "needs a justification" in remark:
@@ -450,8 +581,10 @@ def test_the_guides_say_truly_which_parameters_need_a_justification(tmp_path: Pa
     # left to the ITT is not
     from orthospec.profile.loader import validate_file
 
-    head = ("orthospec_profile: 1\nid: itt-j\nversion: 1.0.0\ntitle: t\nsource: {title: t}\n"
-            "extends: {id: jrc-v3, version: 3.0.0}\nparameters:\n  tolerance_xy: {value: 0.5}\n")
+    head = (
+        "orthospec_profile: 1\nid: itt-j\nversion: 1.0.0\ntitle: t\nsource: {title: t}\n"
+        "extends: {id: jrc-v3, version: 3.0.0}\nparameters:\n  tolerance_xy: {value: 0.5}\n"
+    )
     f = tmp_path / "j.yaml"
     f.write_text(head + "  cloud_cover_max: {value: 5}\n", encoding="utf-8")
     assert validate_file(f) == []

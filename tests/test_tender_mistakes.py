@@ -24,7 +24,9 @@ def test_the_corpus_holds_at_least_23_variants_of_a_valid_tender() -> None:
     assert len(VARIANTS) >= 23
     assert len({v["file"] for v in VARIANTS}) == len(VARIANTS)
     res = CliRunner().invoke(cli(), ["spec", "validate", str(CORPUS / "base.yaml")])
-    assert res.exit_code == 0, res.output  # each variant differs from a valid profile by its one mistake
+    assert res.exit_code == 0, (
+        res.output
+    )  # each variant differs from a valid profile by its one mistake
 
 
 @pytest.mark.parametrize("v", VARIANTS, ids=[v["file"] for v in VARIANTS])

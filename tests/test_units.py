@@ -54,7 +54,9 @@ def test_static_unit_dimensions_agree_with_pint():
 
     for name, (dims, pure) in STATIC_UNITS.items():
         unit = parse_unit(name)
-        assert dict(dims) == {str(k): int(v) for k, v in dict(unit.dimensionality).items() if v}, name
+        assert dict(dims) == {str(k): int(v) for k, v in dict(unit.dimensionality).items() if v}, (
+            name
+        )
         assert pure == (unit == ureg.dimensionless), name
 
 
@@ -68,7 +70,9 @@ def test_unit_probe_finds_the_unit_an_expression_yields():
     assert probe_meets(yields("tol / factor", tol="m", factor="1"), "m")
     assert probe_meets(yields("2 * tol", tol="px"), "m")  # px meets lengths through the GSD
     assert not probe_meets(yields("tol", tol="%"), "m")
-    assert probe_meets(yields("factor", factor="1"), "m")  # a plain number is read in the rule's unit
+    assert probe_meets(
+        yields("factor", factor="1"), "m"
+    )  # a plain number is read in the rule's unit
     with pytest.raises(Exception, match="cannot add"):
         yields("a + b", a="m", b="%")
 
@@ -78,7 +82,9 @@ def test_importing_units_does_not_load_pint():
     import sys
 
     code = "import sys, orthospec.units as u; u.check_unit('µm'); print('pint' in sys.modules)"
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True
+    ).stdout
     assert out.strip() == "False"
 
 
@@ -102,7 +108,8 @@ def test_one_registry_when_threads_race_to_build_it():
         "[t.join() for t in threads]\n"
         "assert len({id(r) for r, _ in got}) == 1, 'two registries'\n"
         "assert all(u == got[0][1] for _, u in got)\n"
-        "print(units.convert([1.0], 'cm', 'm')[0])\n")
+        "print(units.convert([1.0], 'cm', 'm')[0])\n"
+    )
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert run.returncode == 0, run.stderr
     assert float(run.stdout) == 0.01

@@ -23,7 +23,11 @@ def _write(path: Path, geoms: list) -> Path:
 
 
 def _grid(nx: int, ny: int) -> list:
-    return [shapely.box(i * 10.0, j * 10.0, i * 10.0 + 10, j * 10.0 + 10) for j in range(ny) for i in range(nx)]
+    return [
+        shapely.box(i * 10.0, j * 10.0, i * 10.0 + 10, j * 10.0 + 10)
+        for j in range(ny)
+        for i in range(nx)
+    ]
 
 
 @pytest.mark.parametrize("batch", [1, 7, 50, 20_000])
@@ -64,7 +68,9 @@ def test_overlaps_still_found(monkeypatch, shift):
 
 def test_edges_not_vertex_for_vertex_take_the_general_path():
     geoms = _grid(2, 1)
-    geoms[1] = shapely.Polygon([(10, 0), (20, 0), (20, 10), (10, 10), (10, 5)])  # extra vertex on the shared edge
+    geoms[1] = shapely.Polygon(
+        [(10, 0), (20, 0), (20, 10), (10, 10), (10, 5)]
+    )  # extra vertex on the shared edge
     assert not shapely.coverage_is_valid(np.asarray(geoms, dtype=object))
     got = seamline_coverage(geoms, shapely.box(0, 0, 20, 10))
     assert (got.gap_area, got.overlap_area, got.overlapping_pairs) == (0.0, 0.0, ())

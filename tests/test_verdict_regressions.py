@@ -56,21 +56,28 @@ def copy_pass(tmp_path: Path, name: str = "d") -> Path:
     return dst
 
 
-TOLERANCE_FROM_ITT = "tolerance_xy: {unit: m, required: true, description: tolerance from the ITT}\n"
+TOLERANCE_FROM_ITT = (
+    "tolerance_xy: {unit: m, required: true, description: tolerance from the ITT}\n"
+)
 
 
-def profile(tmp_path: Path, rules: str, *, parameters: str = TOLERANCE_FROM_ITT,
-            name: str = "regress.yaml") -> Path:
+def profile(
+    tmp_path: Path, rules: str, *, parameters: str = TOLERANCE_FROM_ITT, name: str = "regress.yaml"
+) -> Path:
     """A small profile (format of tests/data/profiles/mini.yaml) with the given rules."""
-    text = textwrap.dedent("""\
+    text = (
+        textwrap.dedent("""\
         orthospec_profile: 1
         id: regress
         version: 1.0.0
         title: Regression profile
         source: {title: JRC, seed: 002_7421c4ca450e31c6.txt}
         parameters:
-        """) + textwrap.indent(textwrap.dedent(parameters), "  ") + "rules:\n" + \
-        textwrap.indent(textwrap.dedent(rules), "  ")
+        """)
+        + textwrap.indent(textwrap.dedent(parameters), "  ")
+        + "rules:\n"
+        + textwrap.indent(textwrap.dedent(rules), "  ")
+    )
     p = tmp_path / name
     p.write_text(text, encoding="utf-8")
     return p
@@ -121,6 +128,7 @@ def cloudy(d: Path, n: int) -> list[str]:
 
 # --- never pass what was not measured ----------------------------------------------------------
 
+
 def test_a_value_that_cannot_be_converted_is_missing_not_pass(tmp_path: Path) -> None:
     """Issue 12: a px requirement on an image without a GSD converted to NaN and passed."""
     d = copy_pass(tmp_path)
@@ -130,7 +138,9 @@ def test_a_value_that_cannot_be_converted_is_missing_not_pass(tmp_path: Path) ->
     header, rows = read_table(d, "images")
     rows[0]["gsd"] = ""
     write_table(d, "images", header, rows)
-    prof = profile(tmp_path, """\
+    prof = profile(
+        tmp_path,
+        """\
         - id: R-FH-PX
           title: flying height in pixels
           clause: {document: JRC EUR 23638 EN, section: "5.2.1"}
@@ -139,7 +149,8 @@ def test_a_value_that_cannot_be_converted_is_missing_not_pass(tmp_path: Path) ->
           measure: images.flying_height
           requirement: {op: "<=", value: 1000000000, unit: px}
           consequence: reject_item
-        """)
+        """,
+    )
     doc = check(d, prof, date=DATE).document
     recs = records(doc, "R-FH-PX")
     no_gsd, with_gsd = rows[0]["image_id"], rows[1]["image_id"]
@@ -200,7 +211,9 @@ def test_a_non_finite_threshold_is_an_error_never_a_pass(tmp_path: Path) -> None
     """Issue 17: `tolerance_xy=1e999` passed everything. The parameter is refused at resolution;
     a threshold expression that overflows to inf is `error` per item in the evaluator."""
     d = copy_pass(tmp_path)
-    prof = profile(tmp_path, """\
+    prof = profile(
+        tmp_path,
+        """\
         - id: R-RMSEX
           title: block RMSEx
           clause: {document: JRC EUR 23638 EN, section: "12.7"}
@@ -209,7 +222,8 @@ def test_a_non_finite_threshold_is_an_error_never_a_pass(tmp_path: Path) -> None
           measure: checkpoints.rmse_x
           requirement: {op: "<=", value: "tolerance_xy * 1e308 * 10", unit: m}
           consequence: reject_block
-        """)
+        """,
+    )
     doc = check(d, prof, date=DATE).document
     verdicts = {r["verdict"] for r in records(doc, "R-RMSEX").values()}
     assert verdicts == {"error"} and doc["verdict"] == "rejected"
@@ -218,6 +232,7 @@ def test_a_non_finite_threshold_is_an_error_never_a_pass(tmp_path: Path) -> None
 
 
 # --- every mandatory rule can change the verdict -----------------------------------------------
+
 
 def test_a_recommended_rollup_does_not_switch_off_the_default(tmp_path: Path) -> None:
     """Issue 12: §12.3 made `recommended` also disabled the default image roll-up -> ACCEPTED."""
@@ -228,9 +243,13 @@ def test_a_recommended_rollup_does_not_switch_off_the_default(tmp_path: Path) ->
     assert doc["verdict"] == "rejected"
     assert "any rejected image returns the delivery" in reasons(doc)
     # a MANDATORY roll-up rule does replace the default: 1 of 30 (3.3 %) is within §12.3
-    doc2 = check(d, profile(tmp_path, IMAGE_RULE + image_rollup("mandatory"), name="m.yaml"), date=DATE).document
+    doc2 = check(
+        d, profile(tmp_path, IMAGE_RULE + image_rollup("mandatory"), name="m.yaml"), date=DATE
+    ).document
     assert doc2["verdict"] == "accepted", reasons(doc2)
-    assert records(doc2, "R-IMAGE-SHARE")[doc2["delivery"]["id"]]["measured"]["value"] == pytest.approx(100 / 30)
+    assert records(doc2, "R-IMAGE-SHARE")[doc2["delivery"]["id"]]["measured"][
+        "value"
+    ] == pytest.approx(100 / 30)
 
 
 def test_two_of_thirty_images_unusable_is_more_than_five_percent(tmp_path: Path) -> None:
@@ -295,7 +314,11 @@ def test_a_failing_dem_rejects_only_the_blocks_it_serves(tmp_path: Path) -> None
     assert (recs["DEM-A"]["verdict"], recs["DEM-B"]["verdict"]) == ("pass", "fail")
     assert doc["rollup"]["rejected"] == {"block": ["B02", "B03"]}
     # 2 of 3 blocks rejected is above the profile's 50 %: returned, for the stated reason
-    assert doc["verdict"] == "rejected" and "R-DEM" in reasons(doc) and "B01" not in reasons(doc).split("R-DEM")[1]
+    assert (
+        doc["verdict"] == "rejected"
+        and "R-DEM" in reasons(doc)
+        and "B01" not in reasons(doc).split("R-DEM")[1]
+    )
 
 
 def test_a_failing_dem_with_unknown_blocks_is_a_delivery_level_finding(tmp_path: Path) -> None:
@@ -315,8 +338,17 @@ def test_a_dem_without_a_block_is_placed_by_its_footprint(tmp_path: Path) -> Non
     d = copy_pass(tmp_path)
     (d / "dem").mkdir()
     # 4 km x 6 km inside block B03 (x 512500-519500, y 5411000-5418200), away from B01 and B02
-    with rasterio.open(d / "dem" / "b03.tif", "w", driver="GTiff", width=10, height=10, count=1,
-                       dtype="float32", crs="EPSG:25832", transform=from_origin(515000, 5418000, 400, 600)) as ds:
+    with rasterio.open(
+        d / "dem" / "b03.tif",
+        "w",
+        driver="GTiff",
+        width=10,
+        height=10,
+        count=1,
+        dtype="float32",
+        crs="EPSG:25832",
+        transform=from_origin(515000, 5418000, 400, 600),
+    ) as ds:
         ds.write(np.full((1, 10, 10), 300.0, dtype="float32"))
     _with_dem(d, "dem_id,file,rmse_z\nDEM-F,dem/b03.tif,3.0\n")
     doc = check(d, profile(tmp_path, DEM_RULE), date=DATE).document
@@ -325,6 +357,7 @@ def test_a_dem_without_a_block_is_placed_by_its_footprint(tmp_path: Path) -> Non
 
 
 # --- fail-open by the contractor (issue 17) ----------------------------------------------------
+
 
 def test_a_nan_vertex_in_a_block_polygon_is_not_accepted(tmp_path: Path) -> None:
     d = copy_pass(tmp_path)
@@ -351,7 +384,9 @@ def test_an_error_for_the_whole_block_scope_returns_the_delivery(tmp_path: Path)
     write_manifest(d, m)
     header, _ = read_table(d, "checkpoints")
     write_table(d, "checkpoints", header, [])  # and the table gives none either
-    prof = profile(tmp_path, """\
+    prof = profile(
+        tmp_path,
+        """\
         - id: R-RMSEX
           title: block RMSEx
           clause: {document: JRC EUR 23638 EN, section: "12.7"}
@@ -368,7 +403,8 @@ def test_an_error_for_the_whole_block_scope_returns_the_delivery(tmp_path: Path)
           measure: rollup.block_rejected_share
           requirement: {op: "<=", value: 5, unit: "%"}
           consequence: return_delivery
-        """)
+        """,
+    )
     try:
         doc = check(d, prof, date=DATE).document
     except OrthospecError:
@@ -387,10 +423,14 @@ def test_deleting_all_check_points_of_a_failing_block_is_not_accepted(tmp_path: 
     doc = check(d, "jrc-v3", date=DATE, options={"workers": 1}).document
     assert records(doc, "JRC-12.7-RMSEX")["B02"]["verdict"] == "missing"
     assert doc["verdict"] == "incomplete"
-    assert any(t.startswith("B02: not measured") and "JRC-12.7-RMSEX" in t for t in doc["rollup"]["incomplete"])
+    assert any(
+        t.startswith("B02: not measured") and "JRC-12.7-RMSEX" in t
+        for t in doc["rollup"]["incomplete"]
+    )
 
 
 # --- parameter authority (built-in rules) -------------------------------------------------------
+
 
 def _scale_b02_dy(table: Path) -> None:
     """B02's northing residuals x2.2 in a check point table (the checker's, in its folder)."""
@@ -417,10 +457,16 @@ def _planted_rmsey(d: Path) -> None:
     used = [r for r in rows if r["block"] == "B02" and r["excluded"] != "true"]
     ex = [float(r["x"]) - float(r["x_ref"]) for r in used]
     ey = [float(r["y"]) - float(r["y_ref"]) for r in used]
-    rmse = {"rmse_x": math.sqrt(sum(e * e for e in ex) / len(ex)), "rmse_y": math.sqrt(sum(e * e for e in ey) / len(ey))}
+    rmse = {
+        "rmse_x": math.sqrt(sum(e * e for e in ex) / len(ex)),
+        "rmse_y": math.sqrt(sum(e * e for e in ey) / len(ey)),
+    }
     assert rmse["rmse_y"] > 0.5  # the planted defect: §12.7 fails at the ITT's 0.5 m
     m = manifest(d)
-    m["tender"]["parameters"]["tolerance_xy"] = {"value": 1.0, "unit": "m"}  # the contractor's own "ITT"
+    m["tender"]["parameters"]["tolerance_xy"] = {
+        "value": 1.0,
+        "unit": "m",
+    }  # the contractor's own "ITT"
     for b in m["blocks"]:
         if b["id"] == "B02":
             b["reported"] = {k: {"value": round(v, 3), "unit": "m"} for k, v in rmse.items()}
@@ -441,21 +487,32 @@ def test_r1_a_manifest_tolerance_never_decides_acceptance(tmp_path: Path) -> Non
     with pytest.raises(ParameterError) as ei:
         check_with(d, "jrc-v3", checker=silent, date=DATE)
     msg = str(ei.value)
-    assert "tolerance_xy (m)" in msg and "--param" in msg and "checker file" in msg and "tender profile" in msg
+    assert (
+        "tolerance_xy (m)" in msg
+        and "--param" in msg
+        and "checker file" in msg
+        and "tender profile" in msg
+    )
     # the checker's file states the ITT's 0.5 m: rejected on §12.7, and the contractor's 1.0 m is a finding;
     # the checker's own measurements (its folder's table) show the same B02 defect
     signed = resigned(shipped, d, tmp_path / "signed.yaml")
     _scale_b02_dy(signed.parent / "tables" / "checkpoints.csv")
     doc = check_with(d, "jrc-v3", checker=signed, date=DATE).document
-    assert doc["profile"]["parameters"]["tolerance_xy"] == {"value": 0.5, "unit": "m", "source": "checker",
-                                                            "declared": 1.0}
+    assert doc["profile"]["parameters"]["tolerance_xy"] == {
+        "value": 0.5,
+        "unit": "m",
+        "source": "checker",
+        "declared": 1.0,
+    }
     assert records(doc, "JRC-12.7-RMSEY")["B02"]["verdict"] == "fail"
     declared = records(doc, "ORTHOSPEC-ITT-DECLARED")["tolerance_xy"]
     assert declared["verdict"] == "fail" and "declares tolerance_xy = 1 m" in declared["message"]
     assert "source: checker" in declared["message"]
     assert doc["verdict"] == "rejected"
     assert "JRC-12.7-RMSEY" in reasons(doc) and "ORTHOSPEC-ITT-DECLARED" in reasons(doc)
-    assert not [r for r in all_records(doc) if r["rule"] == "ORTHOSPEC-ITT-SOURCE"]  # nothing to warn about
+    assert not [
+        r for r in all_records(doc) if r["rule"] == "ORTHOSPEC-ITT-SOURCE"
+    ]  # nothing to warn about
 
 
 def test_r5_check_points_edited_after_the_checker_signed_exit_2(tmp_path: Path) -> None:
@@ -472,12 +529,19 @@ def test_r5_check_points_edited_after_the_checker_signed_exit_2(tmp_path: Path) 
     assert "aerial-pass/checker.yaml:12 pins tables/checkpoints.csv sha256" in str(ei.value)
     assert "the checker's verdicts were given on other content" in str(ei.value)
     # the shipped example, unchanged, is what the checker signed
-    assert check_with(AERIAL_PASS, "jrc-v3", checker=shipped, date=DATE).document["verdict"] == "accepted"
+    assert (
+        check_with(AERIAL_PASS, "jrc-v3", checker=shipped, date=DATE).document["verdict"]
+        == "accepted"
+    )
 
 
 def test_a_manifest_value_different_from_the_tender_is_a_finding(tmp_path: Path) -> None:
     d = copy_pass(tmp_path)
-    tender = profile(tmp_path, IMAGE_RULE, parameters="tolerance_xy: {unit: m, value: 0.5, description: ITT §4.1}\n")
+    tender = profile(
+        tmp_path,
+        IMAGE_RULE,
+        parameters="tolerance_xy: {unit: m, value: 0.5, description: ITT §4.1}\n",
+    )
     m = manifest(d)
     m["tender"]["parameters"]["tolerance_xy"] = {"value": 1.0, "unit": "m"}  # the tender says 0.5 m
     write_manifest(d, m)
@@ -486,11 +550,14 @@ def test_a_manifest_value_different_from_the_tender_is_a_finding(tmp_path: Path)
     rec = records(doc, "ORTHOSPEC-ITT-DECLARED")["tolerance_xy"]
     assert rec["verdict"] == "fail" and rec["level"] == "mandatory"
     assert "declares tolerance_xy = 1 m" in rec["message"] and "0.5 m" in rec["message"]
-    assert doc["profile"]["parameters"]["tolerance_xy"]["value"] == 0.5  # the tender's value is used
+    assert (
+        doc["profile"]["parameters"]["tolerance_xy"]["value"] == 0.5
+    )  # the tender's value is used
     assert doc["verdict"] == "rejected" and "ORTHOSPEC-ITT-DECLARED" in reasons(doc)
 
 
 # --- systematic error (JRC §12.4; USGS bias, seed 000) -----------------------------------------
+
 
 def test_a_uniform_shift_under_the_tolerance_shows_as_a_significant_bias(tmp_path: Path) -> None:
     """A block shifted by 0.45 m (tolerance 0.5 m) passes RMSE but its mean error is significant."""
@@ -500,7 +567,9 @@ def test_a_uniform_shift_under_the_tolerance_shows_as_a_significant_bias(tmp_pat
         if r["block"] == "B01":
             r["x"] = f"{float(r['x']) + 0.45:.3f}"
     write_table(d, "checkpoints", header, rows)
-    prof = profile(tmp_path, """\
+    prof = profile(
+        tmp_path,
+        """\
         - id: R-BIAS-X
           title: no significant systematic error in X
           clause: {document: JRC EUR 23638 EN, section: "12.4"}
@@ -509,10 +578,15 @@ def test_a_uniform_shift_under_the_tolerance_shows_as_a_significant_bias(tmp_pat
           measure: checkpoints.bias_p_x
           requirement: {op: ">=", value: 0.05, unit: "1"}
           consequence: reject_block
-        """)
+        """,
+    )
     doc = check(d, prof, date=DATE).document
     # expected t by hand from the table: |mean(dx)| / (s(dx) / sqrt(n)), s with n - 1
-    b01 = [r for r in rows if r["block"] == "B01" and r.get("excluded", "").lower() not in ("true", "1")]
+    b01 = [
+        r
+        for r in rows
+        if r["block"] == "B01" and r.get("excluded", "").lower() not in ("true", "1")
+    ]
     dx = np.array([float(r["x"]) - float(r["x_ref"]) for r in b01])
     t = abs(dx.mean()) / (dx.std(ddof=1) / math.sqrt(dx.size))
     assert t > 4  # far beyond any usual critical value (t_0.975,24 = 2.064)
@@ -527,7 +601,9 @@ def test_not_reporting_the_block_rmse_does_not_switch_the_cross_check_off(tmp_pa
     m = manifest(d)
     del m["blocks"][0]["reported"]
     write_manifest(d, m)
-    prof = profile(tmp_path, """\
+    prof = profile(
+        tmp_path,
+        """\
         - id: R-REPORTED-X
           title: reported RMSEx agrees
           clause: {document: JRC EUR 23638 EN, section: "9.5"}
@@ -536,10 +612,13 @@ def test_not_reporting_the_block_rmse_does_not_switch_the_cross_check_off(tmp_pa
           measure: checkpoints.reported_diff_x
           requirement: {op: "<=", value: 0.01, unit: m}
           consequence: reject_block
-        """)
+        """,
+    )
     doc = check(d, prof, date=DATE).document
     recs = records(doc, "R-REPORTED-X")
-    assert recs["B01"]["verdict"] == "missing" and "reported gives no rmse_x" in recs["B01"]["message"]
+    assert (
+        recs["B01"]["verdict"] == "missing" and "reported gives no rmse_x" in recs["B01"]["message"]
+    )
     assert recs["B02"]["verdict"] == "pass"
     assert doc["verdict"] == "rejected" and "B01" in doc["rollup"]["rejected"]["block"]
 
@@ -563,7 +642,9 @@ def test_a_per_item_when_over_a_missing_value_is_missing_for_that_item(tmp_path:
     header, rows = read_table(d, "images")
     rows[0]["sun_elevation"] = ""
     write_table(d, "images", header, rows)
-    prof = profile(tmp_path, """\
+    prof = profile(
+        tmp_path,
+        """\
         - id: R-LOW-SUN-ROLL
           title: roll limit when the sun is low
           clause: {document: JRC EUR 23638 EN, section: "5.2.5"}
@@ -573,7 +654,8 @@ def test_a_per_item_when_over_a_missing_value_is_missing_for_that_item(tmp_path:
           measure: images.roll
           requirement: {op: "<=", value: 1, unit: deg}
           consequence: reject_item
-        """)
+        """,
+    )
     doc = check(d, prof, date=DATE).document
     recs = records(doc, "R-LOW-SUN-ROLL")
     first, second = rows[0]["image_id"], rows[1]["image_id"]
@@ -587,7 +669,9 @@ def test_a_mandatory_rule_with_consequence_warn_still_changes_the_verdict(tmp_pa
     header, rows = read_table(d, "checkpoints")
     b01 = [r for r in rows if r["block"] == "B01"][:8]
     write_table(d, "checkpoints", header, [r for r in rows if r["block"] != "B01"] + b01)
-    prof = profile(tmp_path, """\
+    prof = profile(
+        tmp_path,
+        """\
         - id: R-MIN-CHECKPOINTS
           title: at least 20 check points per block
           clause: {document: JRC EUR 23638 EN, section: "12.4", table: 12}
@@ -597,7 +681,8 @@ def test_a_mandatory_rule_with_consequence_warn_still_changes_the_verdict(tmp_pa
           requirement: {op: ">=", value: 20, unit: "1"}
           level: mandatory
           consequence: warn
-        """)
+        """,
+    )
     doc = check(d, prof, date=DATE).document
     assert records(doc, "R-MIN-CHECKPOINTS")["B01"]["verdict"] == "fail"
     assert doc["verdict"] == "rejected" and "R-MIN-CHECKPOINTS" in reasons(doc)
@@ -630,14 +715,22 @@ def test_the_contractor_cannot_set_the_standards_numbers(tmp_path: Path) -> None
     write_manifest(d, m)
     doc = check(d, "jrc-v3", date=DATE, options={"workers": 1}).document
     params = doc["profile"]["parameters"]
-    assert params["min_checkpoints"]["value"] == 20 and params["min_checkpoints"]["source"] == "standard"
+    assert (
+        params["min_checkpoints"]["value"] == 20
+        and params["min_checkpoints"]["source"] == "standard"
+    )
     declared = records(doc, "ORTHOSPEC-ITT-DECLARED")
-    assert declared["min_checkpoints"]["verdict"] == "fail" and declared["fail_share_max"]["verdict"] == "fail"
+    assert (
+        declared["min_checkpoints"]["verdict"] == "fail"
+        and declared["fail_share_max"]["verdict"] == "fail"
+    )
     assert records(doc, "JRC-12.4-T12-MIN-CHECKPOINTS")["B01"]["verdict"] == "fail"
     assert doc["verdict"] == "rejected" and "ORTHOSPEC-ITT-DECLARED" in reasons(doc)
 
 
-def test_a_check_point_on_a_gcp_and_imprecise_check_points_are_never_accepted_under_jrc_v3(tmp_path: Path) -> None:
+def test_a_check_point_on_a_gcp_and_imprecise_check_points_are_never_accepted_under_jrc_v3(
+    tmp_path: Path,
+) -> None:
     """Issue 12: one check point on a GCP and every check point at 1.0 m precision was ACCEPTED.
     Issue 26: both are the checker's to replace, so the check is incomplete, nothing rejected."""
     d = copy_pass(tmp_path)
@@ -701,7 +794,10 @@ def test_a_when_that_tests_an_unset_parameter_is_not_applicable_not_missing(tmp_
     tight = check(d, "usgs-insitu", params={"tolerance_ce90": "0.05 m"}, date=DATE).document
     formula, empirical = records(tight, "USGS-CE90"), records(tight, "USGS-CE90-EMPIRICAL")
     for block in ("B01", "B02", "B03"):  # the bias test picks one of the two CE90s per block
-        assert {formula[block]["verdict"], empirical[block]["verdict"]} == {"fail", "not_applicable"}, block
+        assert {formula[block]["verdict"], empirical[block]["verdict"]} == {
+            "fail",
+            "not_applicable",
+        }, block
     assert tight["verdict"] == "rejected"
 
 
@@ -730,19 +826,26 @@ def _rec(doc: dict[str, Any], rule: str, item: str) -> dict[str, Any]:
     return next(r for r in all_records(doc) if r["rule"] == rule and r["item"] == item)
 
 
-def test_a_contractor_waiver_of_a_failing_mandatory_rule_is_only_a_request(make_delivery, mini_profile,
-                                                                           tmp_path: Path) -> None:
+def test_a_contractor_waiver_of_a_failing_mandatory_rule_is_only_a_request(
+    make_delivery, mini_profile, tmp_path: Path
+) -> None:
     # delivery.yaml (tests/conftest.py MANIFEST) waives R-ROLL for I3, "approver: Chief" typed by the contractor
     root = make_delivery(images=_ONE_BAD_ROLL)
     res = check_with(root, mini_profile, checker=write_checker(tmp_path, _SIGN_ONLY))
     doc = res.document
     rec = _rec(doc, "R-ROLL", "I3")
     assert rec["verdict"] == "fail" and rec["waiver"] is None
-    assert rec["waiver_requested"]["approver"] == "Chief" and rec["waiver_requested"]["declared_in"] == "delivery.yaml"
+    assert (
+        rec["waiver_requested"]["approver"] == "Chief"
+        and rec["waiver_requested"]["declared_in"] == "delivery.yaml"
+    )
     assert doc["waiver_requests"][0]["status"] == "requested by the contractor, not granted"
     assert doc["verdict"] == "rejected" and doc["rollup"]["rejected"] == {"image": ["I3"]}
     roll = next(r for r in res.evaluation.results if r.rule.id == "R-ROLL")
-    assert roll.requested["I3"]["approver"] == "Chief" and roll.requested["I3"]["requested_by"] == "ACME Mapping"
+    assert (
+        roll.requested["I3"]["approver"] == "Chief"
+        and roll.requested["I3"]["requested_by"] == "ACME Mapping"
+    )
     (req,) = res.evaluation.waiver_requests
     assert req["status"] == "requested by the contractor, not granted"
     assert req["matched"] == [{"item": "I3", "verdict": "fail"}]
@@ -754,9 +857,16 @@ def test_a_contractor_waiver_of_a_failing_block_in_aerial_fail_stays_a_fail(tmp_
     shutil.copytree(ROOT / "examples" / "deliveries" / "aerial-fail", d)
     text = (d / "delivery.yaml").read_text(encoding="utf-8")
     assert "\nwaivers: []\n" in text
-    (d / "delivery.yaml").write_text(text.replace("\nwaivers: []\n", (
-        "\nwaivers:\n- {rule: JRC-12.7-RMSEY, items: [B02], justification: within our own QC, "
-        "approver: 'Paying agency (typed by the contractor)'}\n")), encoding="utf-8")
+    (d / "delivery.yaml").write_text(
+        text.replace(
+            "\nwaivers: []\n",
+            (
+                "\nwaivers:\n- {rule: JRC-12.7-RMSEY, items: [B02], justification: within our own QC, "
+                "approver: 'Paying agency (typed by the contractor)'}\n"
+            ),
+        ),
+        encoding="utf-8",
+    )
     res = check_with(d, "jrc-v3", checker=ROOT / "examples" / "checker" / "aerial-fail", date=DATE)
     rec = _rec(res.document, "JRC-12.7-RMSEY", "B02")
     assert rec["verdict"] == "fail" and "B02" in res.document["rollup"]["rejected"]["block"]
@@ -767,7 +877,9 @@ def test_a_contractor_waiver_of_a_failing_block_in_aerial_fail_stays_a_fail(tmp_
 def test_the_contractors_own_manual_pass_alone_is_missing(make_delivery, mini_profile) -> None:
     # the delivery's manual_checks row "R-VIS,*,Joe Bloggs,2026-01-01,pass" is the contractor's statement
     root = make_delivery(images=_ONE_BAD_ROLL.replace(",4,", ",1,"))
-    doc = check_with(root, mini_profile, params=ITT_XY).document  # tolerance_xy stated by the checker (--param)
+    doc = check_with(
+        root, mini_profile, params=ITT_XY
+    ).document  # tolerance_xy stated by the checker (--param)
     vis = _rec(doc, "R-VIS", "D1")
     assert vis["verdict"] == "missing"
     assert "Joe Bloggs" in vis["message"] and "not a verdict" in vis["message"]
@@ -777,35 +889,51 @@ def test_the_contractors_own_manual_pass_alone_is_missing(make_delivery, mini_pr
     assert [t.split(":", 1)[0] for t in doc["rollup"]["incomplete"]] == ["R-VIS"]
 
 
-def test_the_checkers_manual_verdict_decides_and_names_both_parties(make_delivery, mini_profile,
-                                                                    tmp_path: Path) -> None:
+def test_the_checkers_manual_verdict_decides_and_names_both_parties(
+    make_delivery, mini_profile, tmp_path: Path
+) -> None:
     root = make_delivery(images=_ONE_BAD_ROLL.replace(",4,", ",1,"))
     fail = _SIGN_ONLY.replace("verdict: pass", "verdict: fail, note: haze on I1")
     doc = check_with(root, mini_profile, checker=write_checker(tmp_path, fail)).document
     vis = _rec(doc, "R-VIS", "D1")
     assert vis["verdict"] == "fail" and doc["verdict"] == "rejected"
-    assert vis["message"].startswith("judged failing by Eva External, external QC on 2026-01-02: haze on I1")
+    assert vis["message"].startswith(
+        "judged failing by Eva External, external QC on 2026-01-02: haze on I1"
+    )
     assert "contractor's internal QC: 'pass' (tables/manual.csv row 1)" in vis["message"]
     assert {e["file"] for e in vis["evidence"]} == {"tables/manual.csv", "checker:checker.yaml"}
-    ok = check_with(root, mini_profile, checker=write_checker(tmp_path, _SIGN_ONLY, "ok.yaml")).document
+    ok = check_with(
+        root, mini_profile, checker=write_checker(tmp_path, _SIGN_ONLY, "ok.yaml")
+    ).document
     signed = _rec(ok, "R-VIS", "D1")
     assert signed["verdict"] == "pass" and ok["verdict"] == "accepted"
     assert signed["message"].startswith("signed by Eva External, external QC on 2026-01-02")
 
 
-def test_the_same_waiver_in_the_checker_file_is_in_force(make_delivery, mini_profile, tmp_path: Path) -> None:
+def test_the_same_waiver_in_the_checker_file_is_in_force(
+    make_delivery, mini_profile, tmp_path: Path
+) -> None:
     root = make_delivery(images=_ONE_BAD_ROLL)
-    res = check_with(root, mini_profile, checker=write_checker(tmp_path))  # tests/checking.py MINI_CHECKER
+    res = check_with(
+        root, mini_profile, checker=write_checker(tmp_path)
+    )  # tests/checking.py MINI_CHECKER
     rec = _rec(res.document, "R-ROLL", "I3")
     assert rec["verdict"] == "waived" and rec["waived_verdict"] == "fail"
     assert rec["waiver"]["approver"] == "Chief" and rec["waiver"]["declared_in"] == "checker"
     assert rec["waiver"]["granted_by"] == "Eva External (external QC, Paying Agency)"
     assert res.document["verdict"] == "accepted"
-    (req,) = res.evaluation.waiver_requests  # the contractor asked for it too: granted by the checker
-    assert req["matched"] == [{"item": "I3", "verdict": "waived"}] and "not granted" not in req["status"]
+    (req,) = (
+        res.evaluation.waiver_requests
+    )  # the contractor asked for it too: granted by the checker
+    assert (
+        req["matched"] == [{"item": "I3", "verdict": "waived"}]
+        and "not granted" not in req["status"]
+    )
 
 
-def test_a_checker_file_inside_the_delivery_is_refused(make_delivery, mini_profile, tmp_path: Path) -> None:
+def test_a_checker_file_inside_the_delivery_is_refused(
+    make_delivery, mini_profile, tmp_path: Path
+) -> None:
     root = make_delivery()
     inside = write_checker(root / "tables", name="checker.yaml")
     with pytest.raises(OrthospecError, match="inside the delivery"):
@@ -816,7 +944,9 @@ def test_a_checker_file_inside_the_delivery_is_refused(make_delivery, mini_profi
         load_checker(link, delivery_root=root)
 
 
-def test_a_waiver_in_the_tender_profile_is_in_force(make_delivery, mini_profile, tmp_path: Path) -> None:
+def test_a_waiver_in_the_tender_profile_is_in_force(
+    make_delivery, mini_profile, tmp_path: Path
+) -> None:
     """The buyer's own tender profile may grant a waiver (the checker's side, like the checker's file)."""
     text = mini_profile.read_text(encoding="utf-8") + textwrap.dedent("""\
         waivers:
@@ -824,22 +954,36 @@ def test_a_waiver_in_the_tender_profile_is_in_force(make_delivery, mini_profile,
         """)
     prof = tmp_path / "tender.yaml"
     prof.write_text(text, encoding="utf-8")
-    res = check_with(make_delivery(images=_ONE_BAD_ROLL), prof, checker=write_checker(tmp_path, _SIGN_ONLY))
+    res = check_with(
+        make_delivery(images=_ONE_BAD_ROLL), prof, checker=write_checker(tmp_path, _SIGN_ONLY)
+    )
     rec = _rec(res.document, "R-ROLL", "I3")
     assert rec["verdict"] == "waived" and rec["waived_verdict"] == "fail"
-    assert rec["waiver"]["declared_in"] == "profile" and rec["waiver"]["granted_by"] == "tender profile mini 1.0.0"
+    assert (
+        rec["waiver"]["declared_in"] == "profile"
+        and rec["waiver"]["granted_by"] == "tender profile mini 1.0.0"
+    )
     assert res.document["verdict"] == "accepted"
     # the contractor's own request for the same item is listed as matched by a granted waiver
     assert res.evaluation.waiver_requests[0]["matched"] == [{"item": "I3", "verdict": "waived"}]
 
 
-def test_a_granted_waiver_never_turns_an_error_into_waived(make_delivery, mini_profile, tmp_path: Path) -> None:
+def test_a_granted_waiver_never_turns_an_error_into_waived(
+    make_delivery, mini_profile, tmp_path: Path
+) -> None:
     """A broken check is not waivable: R-CV reading a text column is `error` whatever the checker waives."""
     prof = tmp_path / "p.yaml"
-    prof.write_text(mini_profile.read_text(encoding="utf-8").replace("measure: images.std_dn", "measure: images.bands"),
-                    encoding="utf-8")
+    prof.write_text(
+        mini_profile.read_text(encoding="utf-8").replace(
+            "measure: images.std_dn", "measure: images.bands"
+        ),
+        encoding="utf-8",
+    )
     waive = _SIGN_ONLY + "waivers:\n  - {rule: R-CV, justification: all of them, approver: Eva}\n"
-    res = check_with(make_delivery(images=_ONE_BAD_ROLL.replace(",4,", ",1,")), prof,
-                     checker=write_checker(tmp_path, waive, "w.yaml"))
+    res = check_with(
+        make_delivery(images=_ONE_BAD_ROLL.replace(",4,", ",1,")),
+        prof,
+        checker=write_checker(tmp_path, waive, "w.yaml"),
+    )
     assert {r["verdict"] for r in all_records(res.document) if r["rule"] == "R-CV"} == {"error"}
     assert res.document["waivers_unused"][0]["rule"] == "R-CV"

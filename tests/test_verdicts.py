@@ -15,11 +15,32 @@ from orthospec import verdicts as V
 def test_names_are_the_plain_strings_of_the_qcr_format() -> None:
     # the strings documented in docs/ARCHITECTURE.md (qcr.json "verdict" and "summary" keys)
     assert (V.PASS, V.FAIL, V.WARN, V.NOT_APPLICABLE, V.MISSING, V.ERROR, V.WAIVED) == (
-        "pass", "fail", "warn", "not_applicable", "missing", "error", "waived")
+        "pass",
+        "fail",
+        "warn",
+        "not_applicable",
+        "missing",
+        "error",
+        "waived",
+    )
     assert (V.ACCEPTED, V.REJECTED, V.INCOMPLETE) == ("accepted", "rejected", "incomplete")
-    assert set(V.VERDICTS) == {"pass", "fail", "warn", "not_applicable", "missing", "error", "waived"}
+    assert set(V.VERDICTS) == {
+        "pass",
+        "fail",
+        "warn",
+        "not_applicable",
+        "missing",
+        "error",
+        "waived",
+    }
     assert len(V.VERDICTS) == 7 and V.OVERALL == ("accepted", "rejected", "incomplete")
-    assert V.CONSEQUENCES == ("reject_item", "reject_block", "return_delivery", "incomplete", "warn")
+    assert V.CONSEQUENCES == (
+        "reject_item",
+        "reject_block",
+        "return_delivery",
+        "incomplete",
+        "warn",
+    )
     assert set(V.REJECTING) == {"reject_item", "reject_block", "return_delivery"}
 
 
@@ -40,8 +61,10 @@ def test_severity_covers_every_verdict_once_worst_first() -> None:
     assert sorted(V.SEVERITY) == sorted(V.VERDICTS)
     # an error (the check could not run) is worse than a measured failure, which is worse than
     # an unmeasured value; a waived finding is still worse than a clean pass
-    order = [V.severity_rank(v) for v in ("error", "fail", "missing", "warn", "waived", "pass",
-                                          "not_applicable")]
+    order = [
+        V.severity_rank(v)
+        for v in ("error", "fail", "missing", "warn", "waived", "pass", "not_applicable")
+    ]
     assert order == sorted(order) == list(range(7))
     assert V.severity_rank("no-such-verdict") == 7
     assert V.PROBLEMS == ("error", "fail", "missing", "warn")
@@ -65,8 +88,10 @@ def test_exit_codes() -> None:
 
 
 def test_import_is_standard_library_only() -> None:
-    code = ("import sys; import orthospec.verdicts; "
-            "bad = [m for m in ('numpy', 'pandas', 'pydantic', 'yaml', 'click') if m in sys.modules]; "
-            "print(bad)")
+    code = (
+        "import sys; import orthospec.verdicts; "
+        "bad = [m for m in ('numpy', 'pandas', 'pydantic', 'yaml', 'click') if m in sys.modules]; "
+        "print(bad)"
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"

@@ -20,7 +20,9 @@ import rasterio
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "deliveries" / "aerial-pass"
 
-pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="PR_SET_PDEATHSIG is Linux's")
+pytestmark = pytest.mark.skipif(
+    not sys.platform.startswith("linux"), reason="PR_SET_PDEATHSIG is Linux's"
+)
 
 
 def _descendants(pid: int) -> set[int]:
@@ -33,7 +35,7 @@ def _descendants(pid: int) -> set[int]:
             stat = (p / "stat").read_text()
         except OSError:
             continue
-        fields = stat[stat.rindex(")") + 2:].split()
+        fields = stat[stat.rindex(")") + 2 :].split()
         if fields[0] == "Z":
             continue
         kids.setdefault(int(fields[1]), []).append(int(p.name))
@@ -109,7 +111,9 @@ def test_pool_workers_end_within_2_s_of_their_command(sig: signal.Signals) -> No
 
 def test_without_the_initializer_the_workers_would_outlive_it() -> None:
     """The test above can fail: a pool without die_with_parent leaves its sleeping workers behind."""
-    assert _left_after("no", signal.SIGKILL), "the workers ended anyway: the test above proves nothing"
+    assert _left_after("no", signal.SIGKILL), (
+        "the workers ended anyway: the test above proves nothing"
+    )
 
 
 def test_sigterm_to_check_leaves_no_worker(tmp_path: Path) -> None:
@@ -120,13 +124,36 @@ def test_sigterm_to_check_leaves_no_worker(tmp_path: Path) -> None:
     big = rng.integers(0, 255, size=(4, 3000, 3000), dtype=np.uint8)
     for tif in sorted((d / "images").glob("*.tif"))[:8]:
         with rasterio.open(tif) as src:
-            profile = {**src.profile, "width": 3000, "height": 3000, "tiled": True, "blockxsize": 256,
-                       "blockysize": 256, "compress": "deflate"}
+            profile = {
+                **src.profile,
+                "width": 3000,
+                "height": 3000,
+                "tiled": True,
+                "blockxsize": 256,
+                "blockysize": 256,
+                "compress": "deflate",
+            }
         with rasterio.open(tif, "w", **profile) as dst:
             dst.write(big)
-    cmd = [str(Path(sys.executable).parent / "orthospec"), "check", str(d), "--profile", "jrc-v3", "--workers", "2",
-           "--param", "map_crs=EPSG:25832", "--param", "tolerance_xy=0.5",
-           "--out", str(tmp_path / "out"), "--date", "2026-11-21", "--format", "json"]
+    cmd = [
+        str(Path(sys.executable).parent / "orthospec"),
+        "check",
+        str(d),
+        "--profile",
+        "jrc-v3",
+        "--workers",
+        "2",
+        "--param",
+        "map_crs=EPSG:25832",
+        "--param",
+        "tolerance_xy=0.5",
+        "--out",
+        str(tmp_path / "out"),
+        "--date",
+        "2026-11-21",
+        "--format",
+        "json",
+    ]
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         kids = _wait_for_workers(proc, 3, 60)

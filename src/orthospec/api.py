@@ -54,10 +54,13 @@ class CheckResult:
             self.document = with_footprints(self.document, self._geometry)
         return self.document
 
-    def outputs(self, formats: Iterable[str], *, shown: dict[str, Any] | None = None) -> dict[str, Output]:
+    def outputs(
+        self, formats: Iterable[str], *, shown: dict[str, Any] | None = None
+    ) -> dict[str, Output]:
         """Every requested file (terminal left out), rendered but not written: machine outputs of
         :attr:`document`, HTML/PDF reports of ``shown`` (the document with the ledger's history for
-        the reader; qcr.json never carries it), the GeoPackage of the findings, ISO 19139 XML and the updated copies of the delivery's metadata."""
+        the reader; qcr.json never carries it), the GeoPackage of the findings, ISO 19139 XML and the
+        updated copies of the delivery's metadata."""
         fmts = [f for f in formats if f != "terminal"]
         doc = self.with_maps(fmts)
         out = render_all(doc, [f for f in fmts if f not in ("gpkg", "iso19157")])
@@ -65,15 +68,21 @@ class CheckResult:
             from .findings import to_gpkg
 
             out["findings.gpkg"] = to_gpkg(doc, self._geometry)
-        if "iso19157" in fmts:  # the ISO 19157 document and updated copies of the delivery's metadata
+        if (
+            "iso19157" in fmts
+        ):  # the ISO 19157 document and updated copies of the delivery's metadata
             from .metadata.copies import metadata_outputs
 
             out.update(metadata_outputs(doc, self.evaluation.delivery))
         if "html" in fmts or "pdf" in fmts:
             from .reports import document as reportdoc  # heavy imports only when asked for
 
-            out.update(reportdoc.render(shown if shown is not None else doc,
-                                        formats=[f for f in fmts if f in ("html", "pdf")]))
+            out.update(
+                reportdoc.render(
+                    shown if shown is not None else doc,
+                    formats=[f for f in fmts if f in ("html", "pdf")],
+                )
+            )
         return out
 
     def render(self, formats: Iterable[str], out: str | Path) -> list[str]:
@@ -111,10 +120,15 @@ class CheckOptions:
     def __post_init__(self) -> None:
         if self.fail_on not in (V.FAIL, V.WARN):
             raise OrthospecError(f"fail_on must be 'fail' or 'warn', got {self.fail_on!r}")
-        if self.workers is not None and (isinstance(self.workers, bool) or not isinstance(self.workers, int)
-                                         or self.workers < 1):
+        if self.workers is not None and (
+            isinstance(self.workers, bool) or not isinstance(self.workers, int) or self.workers < 1
+        ):
             raise OrthospecError(f"workers must be a whole number >= 1, got {self.workers!r}")
-        if isinstance(self.max_items, bool) or not isinstance(self.max_items, int) or self.max_items < 1:
+        if (
+            isinstance(self.max_items, bool)
+            or not isinstance(self.max_items, int)
+            or self.max_items < 1
+        ):
             raise OrthospecError(f"max_items must be a whole number >= 1, got {self.max_items!r}")
 
     @classmethod
@@ -127,7 +141,9 @@ class CheckOptions:
         known = {f.name for f in fields(cls)}
         bad = sorted(set(options) - known)
         if bad:
-            raise OrthospecError(f"unknown check option(s) {', '.join(bad)}; known: {', '.join(sorted(known))}")
+            raise OrthospecError(
+                f"unknown check option(s) {', '.join(bad)}; known: {', '.join(sorted(known))}"
+            )
         given = {k: v for k, v in options.items() if v is not None}
         for k in ("checker", "cache_dir"):
             if k in given:
@@ -136,9 +152,16 @@ class CheckOptions:
 
     def engine_options(self) -> EngineOptions:
         """What the evaluator and its providers read (typed and frozen: engine/registry.py)."""
-        assert self.sample is None or isinstance(self.sample, tuple), "check() reads a sample table's path first"
-        return EngineOptions(workers=self.workers, scheduler=self.scheduler, progress=self.progress,
-                             sample=self.sample, cache_dir=None if self.cache_dir is None else str(self.cache_dir))
+        assert self.sample is None or isinstance(self.sample, tuple), (
+            "check() reads a sample table's path first"
+        )
+        return EngineOptions(
+            workers=self.workers,
+            scheduler=self.scheduler,
+            progress=self.progress,
+            sample=self.sample,
+            cache_dir=None if self.cache_dir is None else str(self.cache_dir),
+        )
 
 
 def parse_date(text: str | None) -> str:
@@ -150,11 +173,19 @@ def parse_date(text: str | None) -> str:
         raise OrthospecError(f"--date {text!r}: expected YYYY-MM-DD") from None
 
 
-def check(delivery: str | Path | Delivery, profile: str | Path | ResolvedProfile, *,
-          params: Mapping[str, str] | list[str] | tuple[str, ...] = (), date: str | None = None,
-          fail_on: str | None = None, operator: str | None = None, checker: str | Path | None = None,
-          options: CheckOptions | Mapping[str, Any] | None = None, ledger: str | Path | None = None,
-          allowed_signers: str | Path | None = None) -> CheckResult:
+def check(
+    delivery: str | Path | Delivery,
+    profile: str | Path | ResolvedProfile,
+    *,
+    params: Mapping[str, str] | list[str] | tuple[str, ...] = (),
+    date: str | None = None,
+    fail_on: str | None = None,
+    operator: str | None = None,
+    checker: str | Path | None = None,
+    options: CheckOptions | Mapping[str, Any] | None = None,
+    ledger: str | Path | None = None,
+    allowed_signers: str | Path | None = None,
+) -> CheckResult:
     """Check a delivery against a profile; bad input raises OrthospecError, failures are QCRs.
 
     ``fail_on`` and ``checker`` given here win over the same fields of ``options``. ``ledger``
@@ -196,11 +227,20 @@ def check(delivery: str | Path | Delivery, profile: str | Path | ResolvedProfile
         finally:
             preloading.join()  # never left importing while the interpreter exits on a bad table
         cli = dict(params) if isinstance(params, Mapping) else parse_cli_params(list(params))
-        values = resolve_parameters(prof, dict(d.manifest.tender.parameters) if d.manifest.tender else {}, cli,
-                                    manifest=d.flat_manifest(), checker=chk)
-        ev = Evaluator(prof, d, values, fail_on=opts.fail_on, options=opts.engine_options(), checker=chk).run()
+        values = resolve_parameters(
+            prof,
+            dict(d.manifest.tender.parameters) if d.manifest.tender else {},
+            cli,
+            manifest=d.flat_manifest(),
+            checker=chk,
+        )
+        ev = Evaluator(
+            prof, d, values, fail_on=opts.fail_on, options=opts.engine_options(), checker=chk
+        ).run()
         # the delivery folder's own name: the same bytes whatever the working folder or the path typed
-        doc = build_document(ev, date=parse_date(date), operator=operator, delivery_path=d.root.name)
+        doc = build_document(
+            ev, date=parse_date(date), operator=operator, delivery_path=d.root.name
+        )
     statements = _nssda(doc)
     if statements:
         doc["nssda"] = statements
@@ -223,16 +263,23 @@ def _nssda(doc: dict[str, Any]) -> list[dict[str, Any]]:
     return [s.as_dict() for s in nssda_statements(doc)]
 
 
-def _sample_block(sample: tuple[str, frozenset[str] | set[str]], d: Delivery, sample_file: Path | None
-                  ) -> dict[str, Any]:
+def _sample_block(
+    sample: tuple[str, frozenset[str] | set[str]], d: Delivery, sample_file: Path | None
+) -> dict[str, Any]:
     """What the sample restricted the check to, for the QCR (JRC §12.3 / §12.8)."""
     scope, items = sample
-    total = len(d.block_ids) if scope == "block" else (
-        len(d.table("images").df) if d.has_table("images") else 0)
+    total = (
+        len(d.block_ids)
+        if scope == "block"
+        else (len(d.table("images").df) if d.has_table("images") else 0)
+    )
     clause = "§12.8" if scope == "block" else "§12.3"
     source = f"file {sample_file.name}, " if sample_file is not None else ""
-    return {"kind": scope, "items": sorted(items),
-            "statement": f"sample of {len(items)} of {total} {scope}s ({source}JRC {clause})"}
+    return {
+        "kind": scope,
+        "items": sorted(items),
+        "statement": f"sample of {len(items)} of {total} {scope}s ({source}JRC {clause})",
+    }
 
 
 @contextlib.contextmanager
@@ -274,8 +321,10 @@ def inside(path: str | Path, root: str | Path) -> bool:
 def refuse_inside_delivery(path: str | Path, delivery: str | Path, *, what: str) -> None:
     """Raise OrthospecError (exit 2) when an output path would land inside the delivery."""
     if Path(delivery).is_dir() and inside(path, delivery):
-        raise OrthospecError(f"{what} {str(path)!r} is inside the delivery {str(delivery)!r}; orthospec "
-                             "never writes into a delivery: choose a folder outside it")
+        raise OrthospecError(
+            f"{what} {str(path)!r} is inside the delivery {str(delivery)!r}; orthospec "
+            "never writes into a delivery: choose a folder outside it"
+        )
 
 
 def default_output_dir(delivery_id: str, *, base: str | Path = "reports") -> Path:
@@ -299,7 +348,9 @@ class _Synced:
     SPAN = 1 << 20
 
     def __init__(self, path: Path) -> None:
-        self.fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0), 0o600)
+        self.fd = os.open(
+            path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_CLOEXEC", 0), 0o600
+        )
         self.buf: mmap.mmap | None = None  # page-aligned, as O_DIRECT requires
         self.held = 0  # bytes waiting in buf
         self.direct = bool(_O_DIRECT)  # until the file system refuses it
@@ -314,7 +365,7 @@ class _Synced:
             self.buf = mmap.mmap(-1, 2 * self.SPAN)
         while len(view):
             take = min(len(view), 2 * self.SPAN - self.held)
-            self.buf[self.held:self.held + take] = view[:take]
+            self.buf[self.held : self.held + take] = view[:take]
             self.held += take
             view = view[take:]
             if self.held >= self.SPAN:
@@ -364,9 +415,11 @@ class _Synced:
                 if self.flushed:
                     self._flush_blocks()  # a large file's last whole blocks, as the others
                 if self.direct:
-                    self._set_direct(False)  # the tail is not a whole block; a small file, no buffer games
+                    self._set_direct(
+                        False
+                    )  # the tail is not a whole block; a small file, no buffer games
                 with memoryview(self.buf) as mv:
-                    self._write_all(mv[:self.held])
+                    self._write_all(mv[: self.held])
                 self.held = 0
             os.fsync(self.fd)
         finally:
@@ -454,7 +507,9 @@ class _Stager:
             self._wait_one()
 
 
-def write_outputs(target: str | Path, files: Mapping[str, str | bytes | Iterable[str]]) -> list[str]:
+def write_outputs(
+    target: str | Path, files: Mapping[str, str | bytes | Iterable[str]]
+) -> list[str]:
     """Write every output or none: render into a temporary folder inside ``target``, then move.
 
     A destination that exists and is not a regular file (a folder named ``junit.xml``, a
@@ -471,8 +526,10 @@ def write_outputs(target: str | Path, files: Mapping[str, str | bytes | Iterable
     for name in files:
         dest = out / name
         if dest.is_symlink() or (dest.exists() and not dest.is_file()):
-            raise OrthospecError(f"cannot write {name} to {out}/: {dest} exists and is not a regular "
-                                 "file; no output written")
+            raise OrthospecError(
+                f"cannot write {name} to {out}/: {dest} exists and is not a regular "
+                "file; no output written"
+            )
     created = [p for p in (out, *out.parents) if not p.exists()]
     try:
         out.mkdir(parents=True, exist_ok=True)
@@ -501,7 +558,9 @@ def write_outputs(target: str | Path, files: Mapping[str, str | bytes | Iterable
                 os.link(dest, backup)
             os.replace(tmp / f"new-{i}", dest)
             moved.append((dest, backup))
-    except BaseException as exc:  # never swallowed: undone, then re-raised (an OSError as OrthospecError)
+    except (
+        BaseException
+    ) as exc:  # never swallowed: undone, then re-raised (an OSError as OrthospecError)
         for dest, backup in reversed(moved):
             if backup is not None:
                 os.replace(backup, dest)
@@ -515,8 +574,9 @@ def write_outputs(target: str | Path, files: Mapping[str, str | bytes | Iterable
                 break
         if isinstance(exc, OSError):
             current = stage.failed or current  # a write in the stager's thread names its own output
-            raise OrthospecError(f"cannot write {current} to {out}/: {exc.strerror or exc}; "
-                                 "no output written") from None
+            raise OrthospecError(
+                f"cannot write {current} to {out}/: {exc.strerror or exc}; no output written"
+            ) from None
         raise  # a stream that fails while it is written (e.g. a plugin format): nothing is left behind
     shutil.rmtree(tmp, ignore_errors=True)
     return list(files)

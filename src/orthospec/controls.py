@@ -14,7 +14,9 @@ import re
 #: isolate controls (U+202A-U+202E, U+2066-U+2069)
 _TEXT = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f\x7f-\x9f\u202a-\u202e\u2066-\u2069]")
 #: the same characters as UTF-8 bytes (C1 as \xc2\x80-\xc2\x9f, the bidi controls as E2 80 AA-AE / E2 81 A6-A9)
-_UTF8 = re.compile(rb"[\x00-\x08\x0b\x0c\x0e-\x1f\x7f]|\xc2[\x80-\x9f]|\xe2\x80[\xaa-\xae]|\xe2\x81[\xa6-\xa9]")
+_UTF8 = re.compile(
+    rb"[\x00-\x08\x0b\x0c\x0e-\x1f\x7f]|\xc2[\x80-\x9f]|\xe2\x80[\xaa-\xae]|\xe2\x81[\xa6-\xa9]"
+)
 
 
 def name(ch: str) -> str:

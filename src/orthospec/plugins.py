@@ -77,7 +77,9 @@ def entry_points(group: str) -> tuple[EntryPoint, ...]:
 
 def installed() -> list[str]:
     """One line per installed orthospec entry point (for fingerprints and ``orthospec profiles``)."""
-    return [f"{ep.group} {ep.name} = {ep.value} [{_dist(ep)}]" for g in GROUPS for ep in entry_points(g)]
+    return [
+        f"{ep.group} {ep.name} = {ep.value} [{_dist(ep)}]" for g in GROUPS for ep in entry_points(g)
+    ]
 
 
 @lru_cache(maxsize=1)
@@ -91,7 +93,9 @@ def _load(ep: EntryPoint) -> Any:
         return ep.load()
     except OrthospecError as exc:
         raise OrthospecError(f"{origin(ep)}: {exc}") from exc
-    except Exception as exc:  # a third-party import can fail any way: name the plugin, keep the cause
+    except (
+        Exception
+    ) as exc:  # a third-party import can fail any way: name the plugin, keep the cause
         raise OrthospecError(f"{origin(ep)}: cannot load: {type(exc).__name__}: {exc}") from exc
 
 
@@ -118,12 +122,23 @@ def formats() -> dict[str, Format]:
     for ep in entry_points(FORMATS):
         fn = _load(ep)
         if not callable(fn):
-            raise OrthospecError(f"{origin(ep)}: not callable (expected render(doc) -> str | bytes)")
+            raise OrthospecError(
+                f"{origin(ep)}: not callable (expected render(doc) -> str | bytes)"
+            )
         suffix = getattr(fn, "suffix", None) or f".{ep.name}"
-        if not isinstance(suffix, str) or not suffix.startswith(".") or "/" in suffix or "\\" in suffix:
-            raise OrthospecError(f"{origin(ep)}: suffix {suffix!r} must be a file extension like '.csv'")
+        if (
+            not isinstance(suffix, str)
+            or not suffix.startswith(".")
+            or "/" in suffix
+            or "\\" in suffix
+        ):
+            raise OrthospecError(
+                f"{origin(ep)}: suffix {suffix!r} must be a file extension like '.csv'"
+            )
         if ep.name in out:
-            raise OrthospecError(f"{origin(ep)}: format {ep.name!r} is also declared by {out[ep.name].origin}")
+            raise OrthospecError(
+                f"{origin(ep)}: format {ep.name!r} is also declared by {out[ep.name].origin}"
+            )
         out[ep.name] = Format(ep.name, suffix, fn, origin(ep))
     return out
 
@@ -144,7 +159,9 @@ def _folder(ep: EntryPoint) -> Path:
     if spec is None:
         raise OrthospecError(f"{origin(ep)}: module {mod!r} is not installed")
     if attr:
-        raise OrthospecError(f"{origin(ep)}: name a package (a folder of profile YAML files), not {attr.strip()!r}")
+        raise OrthospecError(
+            f"{origin(ep)}: name a package (a folder of profile YAML files), not {attr.strip()!r}"
+        )
     if spec.submodule_search_locations:
         folder = Path(next(iter(spec.submodule_search_locations)))
     elif spec.origin:

@@ -44,11 +44,15 @@ class EvidenceRef(_Closed):
 
     file: str = Field(description="Path relative to the delivery root (POSIX separators).")
     sha256: str = Sha256
-    rows: list[int] | None = Field(None, description="1-based data rows of a CSV table (header = row 0).")
+    rows: list[int] | None = Field(
+        None, description="1-based data rows of a CSV table (header = row 0)."
+    )
     where: dict[str, str] | None = Field(
-        None, description="Selector standing for the rows: the data rows of the CSV table whose cell in each "
-                          "named column (surrounding whitespace stripped) equals the value; {} = every data "
-                          "row (blank lines are no rows). Exact: checked against the parsed table when written.")
+        None,
+        description="Selector standing for the rows: the data rows of the CSV table whose cell in each "
+        "named column (surrounding whitespace stripped) equals the value; {} = every data "
+        "row (blank lines are no rows). Exact: checked against the parsed table when written.",
+    )
     rows_count: int | None = Field(None, ge=0, description="How many rows the selector stands for.")
     path: str | None = Field(None, description="Dotted YAML path of a manifest value.")
 
@@ -78,8 +82,10 @@ class Requirement(_Open):
     unit: str | None = None
 
 
-_REASON = ("Why the record is not a pass (orthospec.verdicts.Reason); absent for a pass, and for a compact "
-           "record whose reason is its verdict's default (not_applicable: condition_false).")
+_REASON = (
+    "Why the record is not a pass (orthospec.verdicts.Reason); absent for a pass, and for a compact "
+    "record whose reason is its verdict's default (not_applicable: condition_false)."
+)
 
 
 class Record(_Closed):
@@ -100,9 +106,13 @@ class Record(_Closed):
     requirement: Requirement
     evidence: list[EvidenceRef]
     message: str
-    waiver: dict[str, Any] | None = Field(None, description="The waiver in force (checker file or tender profile).")
+    waiver: dict[str, Any] | None = Field(
+        None, description="The waiver in force (checker file or tender profile)."
+    )
     waiver_requested: dict[str, Any] | None = Field(
-        None, description="The contractor's waiver request (delivery.yaml): evidence, never in force by itself.")
+        None,
+        description="The contractor's waiver request (delivery.yaml): evidence, never in force by itself.",
+    )
     waived_verdict: Verdict | None = Field(None, description="The verdict a waiver replaced.")
     audit: dict[str, Any] | None = None
     reason: Reason | None = Field(None, description=_REASON)
@@ -182,7 +192,9 @@ class RuleSummary(_Closed):
     scope: str
     level: Level
     consequence: Consequence
-    clause: str = Field(description="The clause as a reader cites it, e.g. 'JRC EUR 23638 EN, §12.7'.")
+    clause: str = Field(
+        description="The clause as a reader cites it, e.g. 'JRC EUR 23638 EN, §12.7'."
+    )
     clause_ref: str | None = None
     verdict: Verdict = Field(description="The worst verdict over the rule's items.")
     counts: dict[Verdict, int]
@@ -210,12 +222,18 @@ class Summary(_Closed):
 
 
 class Rollup(_Open):
-    rejected: dict[str, list[str]] = Field(description="Rejected items per scope (block, image...).")
-    reasons: list[str] = Field(description="Why the delivery is rejected (empty: nothing rejects it).")
+    rejected: dict[str, list[str]] = Field(
+        description="Rejected items per scope (block, image...)."
+    )
+    reasons: list[str] = Field(
+        description="Why the delivery is rejected (empty: nothing rejects it)."
+    )
     incomplete: list[str] = Field(
-        [], description="What the checker must still add or do before the check is complete (findings with "
-                        "consequence `incomplete`, manual checks without the checker's verdict), e.g. "
-                        "'B03: 6 more check points'. Non-empty and no reason: the verdict is `incomplete`.")
+        [],
+        description="What the checker must still add or do before the check is complete (findings with "
+        "consequence `incomplete`, manual checks without the checker's verdict), e.g. "
+        "'B03: 6 more check points'. Non-empty and no reason: the verdict is `incomplete`.",
+    )
 
 
 class Tool(_Closed):
@@ -231,9 +249,13 @@ class ProfileRef(_Open):
     source: dict[str, Any] | None = None
     extends: list[dict[str, str]] = []
     parameters: dict[str, dict[str, Any]]
-    weakened: list[dict[str, Any]] = Field([], description=(
-        "Mandatory rules of the extended standard that this (tender) profile removed or made check less, "
-        "each with its changes and justification (spec/changes.py)."))
+    weakened: list[dict[str, Any]] = Field(
+        [],
+        description=(
+            "Mandatory rules of the extended standard that this (tender) profile removed or made check less, "
+            "each with its changes and justification (spec/changes.py)."
+        ),
+    )
 
 
 class DeliveredFile(_Open):
@@ -261,8 +283,12 @@ class NssdaStatement(_Open):
     axis: Literal["horizontal", "vertical"]
     value: float
     unit: Literal["m"]
-    tested: bool = Field(description="'Tested' (independent reference confirmed) or 'Compiled to meet'.")
-    valid: bool = Field(description="False when RMSE_min/RMSE_max < 0.6: the horizontal approximation does not hold.")
+    tested: bool = Field(
+        description="'Tested' (independent reference confirmed) or 'Compiled to meet'."
+    )
+    valid: bool = Field(
+        description="False when RMSE_min/RMSE_max < 0.6: the horizontal approximation does not hold."
+    )
     rule: str
     text: str
 
@@ -270,43 +296,61 @@ class NssdaStatement(_Open):
 class QcrDocument(_Open):
     """qcr.json: what `orthospec check` decided, why, on which evidence (docs/QCR.md)."""
 
-    schema_: Literal["orthospec.qcr/1", "orthospec.qcr/2", "orthospec.qcr/3"] = Field(alias="schema")
+    schema_: Literal["orthospec.qcr/1", "orthospec.qcr/2", "orthospec.qcr/3"] = Field(
+        alias="schema"
+    )
     tool: Tool
     date: str = Field(pattern=r"^\d{4}-\d{2}-\d{2}$")
     operator: str | None = Field(
-        None, description="The checker who ran orthospec (--operator); null when not named. "
-                          "The contractor's QA operator is delivery.operator.")
+        None,
+        description="The checker who ran orthospec (--operator); null when not named. "
+        "The contractor's QA operator is delivery.operator.",
+    )
     checker: dict[str, Any] | None = Field(
-        None, description="The checker's file (check --checker): party, file name and SHA-256.")
+        None, description="The checker's file (check --checker): party, file name and SHA-256."
+    )
     profile: ProfileRef
     delivery: DeliveryRef
     verdict: Literal["accepted", "rejected", "incomplete"] = Field(
         description="accepted (exit 0), rejected (exit 1: a reason in rollup.reasons), or incomplete (exit 3: "
-                    "nothing rejects, but the checker's part is not complete: rollup.incomplete says what to add).")
+        "nothing rejects, but the checker's part is not complete: rollup.incomplete says what to add)."
+    )
     fail_on: Literal["fail", "warn"] = "fail"
     summary: Summary
     rollup: Rollup
     waivers_unused: list[dict[str, Any]] = []
     manual_unused: list[dict[str, Any]] = Field(
-        [], description="Checker-file manual verdicts that judged nothing the delivery lists "
-                        "(check, item, date, verdict, note, inspector, entry, checker_file, reason).")
+        [],
+        description="Checker-file manual verdicts that judged nothing the delivery lists "
+        "(check, item, date, verdict, note, inspector, entry, checker_file, reason).",
+    )
     waiver_requests: list[dict[str, Any]] = Field(
-        [], description="The contractor's waiver requests and whether the checker granted them.")
+        [], description="The contractor's waiver requests and whether the checker granted them."
+    )
     rules: list[RuleSummary]
     records: list[StoredRecord] | list[Record] = Field(
         description="Versions 2 and 3: every record whose verdict is not pass or not_applicable, each once, without "
-                    "its rule's text (StoredRecord). Version 1: every record, in full (Record).")
+        "its rule's text (StoredRecord). Version 1: every record, in full (Record)."
+    )
     compact: dict[str, CompactBlock] = Field(
-        {}, description="Rule id -> its pass / not_applicable records as columns (versions 2 and 3).")
-    evidence: list[EvidenceRef] = Field([], description="Evidence entries the compact columns index.")
+        {},
+        description="Rule id -> its pass / not_applicable records as columns (versions 2 and 3).",
+    )
+    evidence: list[EvidenceRef] = Field(
+        [], description="Evidence entries the compact columns index."
+    )
     details: dict[str, Any] = {}
     ledger_head: LedgerHead | None = Field(
-        None, description="The QCR ledger's chain head just before this run was recorded (check --ledger); "
-                          "`orthospec ledger verify --head` checks it later.")
+        None,
+        description="The QCR ledger's chain head just before this run was recorded (check --ledger); "
+        "`orthospec ledger verify --head` checks it later.",
+    )
     sample: dict[str, Any] | None = Field(None, description="The sample checked (check --sample).")
     nssda: list[NssdaStatement] | None = Field(
-        None, description="FGDC-STD-007.3-1998 §3.2.3 reporting statements, one per block and axis, when the "
-                          "profile judges an NSSDA figure ('Tested' only when the reference's independence passed).")
+        None,
+        description="FGDC-STD-007.3-1998 §3.2.3 reporting statements, one per block and axis, when the "
+        "profile judges an NSSDA figure ('Tested' only when the reference's independence passed).",
+    )
 
 
 def qcr_schema() -> dict[str, Any]:

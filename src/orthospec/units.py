@@ -37,7 +37,9 @@ def _reg() -> pint.UnitRegistry:
             if not _REGISTRY:
                 import pint
 
-                ureg: pint.UnitRegistry = pint.UnitRegistry(autoconvert_offset_to_baseunit=True, cache_folder=None)
+                ureg: pint.UnitRegistry = pint.UnitRegistry(
+                    autoconvert_offset_to_baseunit=True, cache_folder=None
+                )
                 ureg.define("grey_level = [grey_level] = DN = dn = GL")
                 ureg.define("US_survey_foot = 1200 / 3937 * meter = ftUS = us_ft")
                 ureg.define("fraction = [] = frac")
@@ -52,6 +54,7 @@ def __getattr__(name: str) -> Any:
     if name == "Q_":
         return _reg().Quantity
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 def _pint_errors() -> Any:
     import pint
@@ -94,8 +97,13 @@ def parse_unit(name: str | None) -> pint.Unit:
     spelled = ALIASES.get(key, key)
     try:
         return _reg().Unit(spelled)
-    except (_pint_errors().UndefinedUnitError, _pint_errors().DefinitionSyntaxError, AttributeError,
-            TypeError, ValueError) as exc:
+    except (
+        _pint_errors().UndefinedUnitError,
+        _pint_errors().DefinitionSyntaxError,
+        AttributeError,
+        TypeError,
+        ValueError,
+    ) as exc:
         raise UnitError(
             f"unknown unit {name!r}; use e.g. m, mm, µm, ft, usft, px, %, deg, DN or 1"
         ) from exc
@@ -203,8 +211,10 @@ def parse_number_text(text: str, unit: str | None) -> float:
         raise NumberError(_comma_hint(raw))
     m = _WITH_UNIT_RE.fullmatch(raw)
     if not m:
-        raise NumberError(f"{raw!r} is not a number: write e.g. 0.5"
-                          + (f" or 0.5 {canonical(unit)}" if unit and unit not in NON_NUMERIC else ""))
+        raise NumberError(
+            f"{raw!r} is not a number: write e.g. 0.5"
+            + (f" or 0.5 {canonical(unit)}" if unit and unit not in NON_NUMERIC else "")
+        )
     value = float(m.group(1))
     if not math.isfinite(value):
         raise NumberError(f"{raw!r} is not a finite number")
@@ -218,8 +228,9 @@ def parse_number_text(text: str, unit: str | None) -> float:
     try:
         out = float(_reg().Quantity(value, src).to(dst).magnitude)
     except _pint_errors().DimensionalityError:
-        raise NumberError(f"{raw!r} is in {canonical(written)}, which does not convert to "
-                          f"{canonical(unit)}") from None
+        raise NumberError(
+            f"{raw!r} is in {canonical(written)}, which does not convert to {canonical(unit)}"
+        ) from None
     if not math.isfinite(out):
         raise NumberError(f"{raw!r} is not a finite number in {canonical(unit)}")
     return out
@@ -240,13 +251,39 @@ _LEN: Dims = (("[length]", 1),)
 _NONE: Dims = ()
 #: spelling -> (dimensions, pure): pure is the plain number unit ("1"); % and deg are scaled.
 STATIC_UNITS: dict[str, tuple[Dims, bool]] = {
-    **{u: (_LEN, False) for u in ("m", "meter", "metre", "mm", "cm", "km", "µm", "μm", "um", "micrometer",
-                                  "ft", "foot", "usft", "us-ft", "ftUS", "us_ft", "US_survey_foot")},
+    **{
+        u: (_LEN, False)
+        for u in (
+            "m",
+            "meter",
+            "metre",
+            "mm",
+            "cm",
+            "km",
+            "µm",
+            "μm",
+            "um",
+            "micrometer",
+            "ft",
+            "foot",
+            "usft",
+            "us-ft",
+            "ftUS",
+            "us_ft",
+            "US_survey_foot",
+        )
+    },
     **{u: ((("[printing_unit]", 1),), False) for u in ("px", "pixel", "pixels")},
     **{u: (_NONE, True) for u in ("1", "", "count", "ratio", "dimensionless")},
-    **{u: (_NONE, False) for u in ("%", "pct", "percent", "deg", "degree", "degrees", "°", "rad", "radian")},
+    **{
+        u: (_NONE, False)
+        for u in ("%", "pct", "percent", "deg", "degree", "degrees", "°", "rad", "radian")
+    },
     **{u: ((("[grey_level]", 1),), False) for u in ("DN", "dn", "GL", "grey_level")},
-    **{u: ((("[time]", 1),), False) for u in ("s", "second", "min", "minute", "h", "hour", "day", "year")},
+    **{
+        u: ((("[time]", 1),), False)
+        for u in ("s", "second", "min", "minute", "h", "hour", "day", "year")
+    },
 }
 
 
@@ -283,25 +320,92 @@ def same_value(a: Any, b: Any) -> bool:
 # a contract document. Deliveries and the checker's file keep pint's reading (parse_unit).
 
 #: every unit a profile's parameters, requirements, classes and lookup tables may name
-PROFILE_UNITS: tuple[str, ...] = ("m", "cm", "mm", "µm", "um", "km", "ft", "usft", "px", "%", "deg", "DN",
-                                  "s", "h", "day", "year", "1")
+PROFILE_UNITS: tuple[str, ...] = (
+    "m",
+    "cm",
+    "mm",
+    "µm",
+    "um",
+    "km",
+    "ft",
+    "usft",
+    "px",
+    "%",
+    "deg",
+    "DN",
+    "s",
+    "h",
+    "day",
+    "year",
+    "1",
+)
 #: common other spellings -> the profile spelling (checked before any fuzzy match)
 _PROFILE_SPELLING = {
-    "meter": "m", "meters": "m", "metre": "m", "metres": "m", "M": "m", "mtr": "m",
-    "millimeter": "mm", "millimeters": "mm", "millimetre": "mm", "millimetres": "mm", "MM": "mm",
-    "centimeter": "cm", "centimeters": "cm", "centimetre": "cm", "centimetres": "cm",
-    "kilometer": "km", "kilometers": "km", "kilometre": "km", "kilometres": "km", "KM": "km", "Km": "km",
-    "micrometer": "µm", "micrometers": "µm", "micrometre": "µm", "micrometres": "µm", "μm": "µm",
-    "micron": "µm", "microns": "µm",
-    "foot": "ft", "feet": "ft", "us-ft": "usft", "ftUS": "usft", "us_ft": "usft", "US_survey_foot": "usft",
-    "pixel": "px", "pixels": "px", "pix": "px",
-    "percent": "%", "pct": "%", "per cent": "%", "percentage": "%",
-    "degree": "deg", "degrees": "deg", "°": "deg",
-    "dn": "DN", "GL": "DN", "grey_level": "DN", "digital number": "DN",
-    "second": "s", "seconds": "s", "sec": "s", "hour": "h", "hours": "h", "days": "day",
-    "years": "year", "yr": "year",
-    "": "1", "count": "1", "ratio": "1", "dimensionless": "1", "number": "1",
-    "string": "text", "str": "text", "boolean": "bool", "logical": "bool",
+    "meter": "m",
+    "meters": "m",
+    "metre": "m",
+    "metres": "m",
+    "M": "m",
+    "mtr": "m",
+    "millimeter": "mm",
+    "millimeters": "mm",
+    "millimetre": "mm",
+    "millimetres": "mm",
+    "MM": "mm",
+    "centimeter": "cm",
+    "centimeters": "cm",
+    "centimetre": "cm",
+    "centimetres": "cm",
+    "kilometer": "km",
+    "kilometers": "km",
+    "kilometre": "km",
+    "kilometres": "km",
+    "KM": "km",
+    "Km": "km",
+    "micrometer": "µm",
+    "micrometers": "µm",
+    "micrometre": "µm",
+    "micrometres": "µm",
+    "μm": "µm",
+    "micron": "µm",
+    "microns": "µm",
+    "foot": "ft",
+    "feet": "ft",
+    "us-ft": "usft",
+    "ftUS": "usft",
+    "us_ft": "usft",
+    "US_survey_foot": "usft",
+    "pixel": "px",
+    "pixels": "px",
+    "pix": "px",
+    "percent": "%",
+    "pct": "%",
+    "per cent": "%",
+    "percentage": "%",
+    "degree": "deg",
+    "degrees": "deg",
+    "°": "deg",
+    "dn": "DN",
+    "GL": "DN",
+    "grey_level": "DN",
+    "digital number": "DN",
+    "second": "s",
+    "seconds": "s",
+    "sec": "s",
+    "hour": "h",
+    "hours": "h",
+    "days": "day",
+    "years": "year",
+    "yr": "year",
+    "": "1",
+    "count": "1",
+    "ratio": "1",
+    "dimensionless": "1",
+    "number": "1",
+    "string": "text",
+    "str": "text",
+    "boolean": "bool",
+    "logical": "bool",
 }
 
 
@@ -364,7 +468,10 @@ class ProbeUnits:
         if not self.dims:
             return "a plain number" if self.pure else "a dimensionless ratio (%, deg)"
         names = {"printing_unit": "pixel", "grey_level": "DN"}
-        return " ".join(names.get(k.strip("[]"), k.strip("[]")) + (f"^{v}" if v != 1 else "") for k, v in self.dims)
+        return " ".join(
+            names.get(k.strip("[]"), k.strip("[]")) + (f"^{v}" if v != 1 else "")
+            for k, v in self.dims
+        )
 
 
 class UnitProbe:
@@ -404,20 +511,30 @@ class UnitProbe:
 
     def __mul__(self, o: Any) -> UnitProbe:
         b = self._u(o)
-        return UnitProbe(1.0, ProbeUnits(_combine(self.units.dims, b.dims, 1), self.units.pure and b.pure))
+        return UnitProbe(
+            1.0, ProbeUnits(_combine(self.units.dims, b.dims, 1), self.units.pure and b.pure)
+        )
 
     __rmul__ = __mul__
 
     def __truediv__(self, o: Any) -> UnitProbe:
         b = self._u(o)
-        return UnitProbe(1.0, ProbeUnits(_combine(self.units.dims, b.dims, -1), self.units.pure and b.pure))
+        return UnitProbe(
+            1.0, ProbeUnits(_combine(self.units.dims, b.dims, -1), self.units.pure and b.pure)
+        )
 
     def __rtruediv__(self, o: Any) -> UnitProbe:
         return UnitProbe(1.0, ProbeUnits(_combine((), self.units.dims, -1), self.units.pure))
 
     def __pow__(self, o: Any) -> UnitProbe:
-        n = int(o) if isinstance(o, int | float) and not isinstance(o, bool) and float(o).is_integer() else 1
-        return UnitProbe(1.0, ProbeUnits(tuple((k, v * n) for k, v in self.units.dims), self.units.pure))
+        n = (
+            int(o)
+            if isinstance(o, int | float) and not isinstance(o, bool) and float(o).is_integer()
+            else 1
+        )
+        return UnitProbe(
+            1.0, ProbeUnits(tuple((k, v * n) for k, v in self.units.dims), self.units.pure)
+        )
 
     def __neg__(self) -> UnitProbe:
         return self

@@ -46,7 +46,13 @@ RETURN_DELIVERY: Final = "return_delivery"
 INCOMPLETE: Final = "incomplete"
 Consequence = Literal["reject_item", "reject_block", "return_delivery", "incomplete", "warn"]
 #: every consequence a rule may state, in the order the schemas list them
-CONSEQUENCES: Final[tuple[str, ...]] = (REJECT_ITEM, REJECT_BLOCK, RETURN_DELIVERY, INCOMPLETE, WARN)
+CONSEQUENCES: Final[tuple[str, ...]] = (
+    REJECT_ITEM,
+    REJECT_BLOCK,
+    RETURN_DELIVERY,
+    INCOMPLETE,
+    WARN,
+)
 #: consequences that reject the contractor's products
 REJECTING: Final[frozenset[str]] = frozenset({REJECT_ITEM, REJECT_BLOCK, RETURN_DELIVERY})
 
@@ -140,19 +146,44 @@ REASONS: Final[tuple[str, ...]] = tuple(r.value for r in Reason)
 
 #: the reason of a record whose rule gave none, by verdict (None: a pass needs no reason)
 DEFAULT_REASON: Final[dict[str, Reason | None]] = {
-    PASS: None, FAIL: Reason.NOT_MET, WARN: Reason.NOT_MET, NOT_APPLICABLE: Reason.CONDITION_FALSE,
-    MISSING: Reason.NO_VALUE, ERROR: Reason.PROVIDER_ERROR, WAIVED: Reason.WAIVED}
+    PASS: None,
+    FAIL: Reason.NOT_MET,
+    WARN: Reason.NOT_MET,
+    NOT_APPLICABLE: Reason.CONDITION_FALSE,
+    MISSING: Reason.NO_VALUE,
+    ERROR: Reason.PROVIDER_ERROR,
+    WAIVED: Reason.WAIVED,
+}
 
 
 #: the reasons a record of each verdict may carry (a rule's reason for another verdict - the verdict
 #: was changed after, by a waiver say - gives way to the verdict's default)
 ALLOWED_REASONS: Final[dict[str, frozenset[str]]] = {
-    PASS: frozenset(), FAIL: frozenset({Reason.NOT_MET}), WARN: frozenset({Reason.NOT_MET}),
-    NOT_APPLICABLE: frozenset({Reason.CONDITION_FALSE, Reason.PROVIDER_NOT_APPLICABLE, Reason.OUTSIDE_SAMPLE}),
-    MISSING: frozenset({Reason.UNSET_PARAMETER, Reason.NO_GSD, Reason.NO_THRESHOLD, Reason.NO_VALUE,
-                        Reason.NO_ITEMS, Reason.UNKNOWN_FACT, Reason.UNSIGNED}),
-    ERROR: frozenset({Reason.BAD_THRESHOLD, Reason.PROVIDER_ERROR, Reason.REQUIREMENT_ERROR,
-                      Reason.INTERNAL_ERROR}),
+    PASS: frozenset(),
+    FAIL: frozenset({Reason.NOT_MET}),
+    WARN: frozenset({Reason.NOT_MET}),
+    NOT_APPLICABLE: frozenset(
+        {Reason.CONDITION_FALSE, Reason.PROVIDER_NOT_APPLICABLE, Reason.OUTSIDE_SAMPLE}
+    ),
+    MISSING: frozenset(
+        {
+            Reason.UNSET_PARAMETER,
+            Reason.NO_GSD,
+            Reason.NO_THRESHOLD,
+            Reason.NO_VALUE,
+            Reason.NO_ITEMS,
+            Reason.UNKNOWN_FACT,
+            Reason.UNSIGNED,
+        }
+    ),
+    ERROR: frozenset(
+        {
+            Reason.BAD_THRESHOLD,
+            Reason.PROVIDER_ERROR,
+            Reason.REQUIREMENT_ERROR,
+            Reason.INTERNAL_ERROR,
+        }
+    ),
     WAIVED: frozenset({Reason.WAIVED}),
 }
 

@@ -35,9 +35,16 @@ def verify_profile(ref: str | Path) -> list[Outcome]:
             raise SpecError(f"{prof.path}: tests[{i}]: delivery folder {t.delivery!r} not found")
         checker = (prof.path.parent / t.checker).resolve() if t.checker else None
         if checker is not None and not (checker.is_file() or checker.is_dir()):
-            raise SpecError(f"{prof.path}: tests[{i}]: checker folder or file {t.checker!r} not found")
-        res = check(path, prof, params={k: str(v) for k, v in t.params.items()}, date="2000-01-01",
-                    checker=checker)
+            raise SpecError(
+                f"{prof.path}: tests[{i}]: checker folder or file {t.checker!r} not found"
+            )
+        res = check(
+            path,
+            prof,
+            params={k: str(v) for k, v in t.params.items()},
+            date="2000-01-01",
+            checker=checker,
+        )
         doc = res.document
         o = Outcome(name)
         if "verdict" in t.expect:

@@ -59,4 +59,4 @@ def _ended(pid: int) -> bool:
         stat = Path(f"/proc/{pid}/stat").read_text()
     except OSError:
         return True
-    return stat[stat.rindex(")") + 2:].startswith("Z")
+    return stat[stat.rindex(")") + 2 :].startswith("Z")

@@ -65,10 +65,12 @@ class YamlLimits:
     @classmethod
     def from_env(cls) -> YamlLimits:
         d = cls()
-        return cls(bytes=env_limit("ORTHOSPEC_MAX_YAML_BYTES", d.bytes, error=YamlError),
-                   nodes=env_limit("ORTHOSPEC_MAX_YAML_NODES", d.nodes, error=YamlError),
-                   alias_nodes=env_limit("ORTHOSPEC_MAX_YAML_ALIAS_NODES", d.alias_nodes, error=YamlError),
-                   depth=env_limit("ORTHOSPEC_MAX_YAML_DEPTH", d.depth, error=YamlError))
+        return cls(
+            bytes=env_limit("ORTHOSPEC_MAX_YAML_BYTES", d.bytes, error=YamlError),
+            nodes=env_limit("ORTHOSPEC_MAX_YAML_NODES", d.nodes, error=YamlError),
+            alias_nodes=env_limit("ORTHOSPEC_MAX_YAML_ALIAS_NODES", d.alias_nodes, error=YamlError),
+            depth=env_limit("ORTHOSPEC_MAX_YAML_DEPTH", d.depth, error=YamlError),
+        )
 
 
 def _at(file: str, node: yaml.Node) -> str:
@@ -91,19 +93,25 @@ def _measure(root: yaml.Node, file: str, limits: YamlLimits) -> None:
         if k in memo:
             return memo[k]
         if k in active:
-            raise YamlError(f"{_at(file, n)}a recursive alias (a node that contains itself) is not allowed")
+            raise YamlError(
+                f"{_at(file, n)}a recursive alias (a node that contains itself) is not allowed"
+            )
         if depth > limits.depth:
             raise YamlError(f"{_at(file, n)}nested more than {limits.depth} levels deep")
         unique += 1
         if unique > limits.nodes:
-            raise YamlError(f"{_at(file, n)}more than {limits.nodes:,} YAML nodes (ORTHOSPEC_MAX_YAML_NODES)")
+            raise YamlError(
+                f"{_at(file, n)}more than {limits.nodes:,} YAML nodes (ORTHOSPEC_MAX_YAML_NODES)"
+            )
         active.add(k)
         total = 1
         if isinstance(n, yaml.ScalarNode) and isinstance(n.value, str):
             at = controls.find_in_text(n.value)
             if at is not None:
-                raise YamlError(f"{_at(file, n)}a control character ({controls.name(n.value[at])}) in a value: "
-                                "terminal and bidirectional-override controls are not allowed")
+                raise YamlError(
+                    f"{_at(file, n)}a control character ({controls.name(n.value[at])}) in a value: "
+                    "terminal and bidirectional-override controls are not allowed"
+                )
         if isinstance(n, yaml.MappingNode):
             for kn, vn in n.value:
                 total += size(kn, depth + 1) + size(vn, depth + 1)
@@ -116,9 +124,11 @@ def _measure(root: yaml.Node, file: str, limits: YamlLimits) -> None:
 
     total = size(root, 0)
     if total - unique > limits.alias_nodes:
-        raise YamlError(f"{file}: aliases (*name) expand the document to {total:,} nodes, more than "
-                        f"{limits.alias_nodes:,} beyond its {unique:,} written ones (an alias bomb?); "
-                        "not expanded (ORTHOSPEC_MAX_YAML_ALIAS_NODES)")
+        raise YamlError(
+            f"{file}: aliases (*name) expand the document to {total:,} nodes, more than "
+            f"{limits.alias_nodes:,} beyond its {unique:,} written ones (an alias bomb?); "
+            "not expanded (ORTHOSPEC_MAX_YAML_ALIAS_NODES)"
+        )
 
 
 def _construct(loader: yaml.SafeLoader, node: yaml.Node, file: str) -> Any:
@@ -148,8 +158,9 @@ class Located:
             p = p[:-1]
         return self.marks.get((), (None, None))
 
-    def located_errors(self, errors: Sequence[Mapping[str, Any]], display: str,
-                       hint: Any = None) -> list[str]:
+    def located_errors(
+        self, errors: Sequence[Mapping[str, Any]], display: str, hint: Any = None
+    ) -> list[str]:
         """``file:line:col: dotted.path: message`` for (at most 20 of) a pydantic validation's
         errors, so the manifest and the checker's file word their mistakes alike; ``hint(error)``
         may append advice (a did-you-mean)."""
@@ -167,8 +178,9 @@ class _Loader(getattr(yaml, "CSafeLoader", yaml.SafeLoader)):  # type: ignore[mi
     """libyaml's parser and composer when available (10x faster, same nodes and marks)."""
 
 
-def _build(node: yaml.Node, path: Path_, marks: dict[Path_, tuple[int, int]],
-           loader: _Loader, file: str) -> Any:
+def _build(
+    node: yaml.Node, path: Path_, marks: dict[Path_, tuple[int, int]], loader: _Loader, file: str
+) -> Any:
     marks[path] = (node.start_mark.line + 1, node.start_mark.column + 1)
     if isinstance(node, yaml.MappingNode):
         loader.flatten_mapping(node)
@@ -178,11 +190,15 @@ def _build(node: yaml.Node, path: Path_, marks: dict[Path_, tuple[int, int]],
                 raise YamlError(f"{_at(file, knode)}mapping keys must be scalars")
             key = _construct(loader, knode, file)
             if not isinstance(key, str | int | float | bool) and key is not None:
-                raise YamlError(f"{file}:{knode.start_mark.line + 1}:{knode.start_mark.column + 1}: "
-                                f"mapping keys must be scalars")
+                raise YamlError(
+                    f"{file}:{knode.start_mark.line + 1}:{knode.start_mark.column + 1}: "
+                    f"mapping keys must be scalars"
+                )
             if key in out:
-                raise YamlError(f"{file}:{knode.start_mark.line + 1}:{knode.start_mark.column + 1}: "
-                                f"duplicate key {key!r}")
+                raise YamlError(
+                    f"{file}:{knode.start_mark.line + 1}:{knode.start_mark.column + 1}: "
+                    f"duplicate key {key!r}"
+                )
             skey = key if isinstance(key, str) else str(key)
             out[skey] = _build(vnode, (*path, skey), marks, loader, file)
         return out
@@ -211,8 +227,10 @@ def load_text(text: str, file: str, *, limits: YamlLimits | None = None) -> Loca
     """Parse one YAML document with the safe loader, keeping positions, within ``limits``."""
     lim = limits or YamlLimits.from_env()
     if len(text) > lim.bytes:
-        raise YamlError(f"{file}: {len(text):,} characters exceed the limit of {lim.bytes:,} "
-                        "(ORTHOSPEC_MAX_YAML_BYTES)")
+        raise YamlError(
+            f"{file}: {len(text):,} characters exceed the limit of {lim.bytes:,} "
+            "(ORTHOSPEC_MAX_YAML_BYTES)"
+        )
     _flow_depth(text, file, lim)
     loader = _Loader(text)
     try:
@@ -235,8 +253,9 @@ def load_text(text: str, file: str, *, limits: YamlLimits | None = None) -> Loca
     return Located(data, file, marks, text)
 
 
-def load_file(path: str | Path, *, display: str | None = None,
-              limits: YamlLimits | None = None) -> Located:
+def load_file(
+    path: str | Path, *, display: str | None = None, limits: YamlLimits | None = None
+) -> Located:
     """Read and parse a YAML file: a regular file, UTF-8, within the size limit."""
     p = Path(path)
     name = display or str(path)
@@ -247,8 +266,10 @@ def load_file(path: str | Path, *, display: str | None = None,
             if not stat.S_ISREG(st.st_mode):
                 raise YamlError(f"{name}: not a regular file")
             if st.st_size > lim.bytes:
-                raise YamlError(f"{name}: {st.st_size:,} bytes exceed the limit of {lim.bytes:,} "
-                                "(ORTHOSPEC_MAX_YAML_BYTES)")
+                raise YamlError(
+                    f"{name}: {st.st_size:,} bytes exceed the limit of {lim.bytes:,} "
+                    "(ORTHOSPEC_MAX_YAML_BYTES)"
+                )
             text = fh.read(lim.bytes + 1).decode("utf-8").replace("\r\n", "\n").replace("\r", "\n")
     except FileNotFoundError:
         raise YamlError(f"{name}: file not found") from None
@@ -277,7 +298,9 @@ def read_regular(path: Path, limit: int | None = None) -> bytes:
         if not stat.S_ISREG(st.st_mode):
             raise YamlError(f"{path}: not a regular file")
         if limit is None and st.st_size > lim:
-            raise YamlError(f"{path}: {st.st_size:,} bytes exceed the limit of {lim:,} (ORTHOSPEC_MAX_YAML_BYTES)")
+            raise YamlError(
+                f"{path}: {st.st_size:,} bytes exceed the limit of {lim:,} (ORTHOSPEC_MAX_YAML_BYTES)"
+            )
         return fh.read(lim)
 
 

@@ -26,8 +26,11 @@ def main() -> int:
         exit_text = "kill" if o.run.exit is None else str(o.run.exit)
         ok = "yes" if not o.problems else "NO"
         bad += bool(o.problems)
-        print(f"| {name:38} | {exit_text:>4} | {o.run.seconds:7.1f} | {o.run.peak_mb:7.0f} | {ok:3}| "
-              f"{'; '.join(o.problems)[:160]}", flush=True)
+        print(
+            f"| {name:38} | {exit_text:>4} | {o.run.seconds:7.1f} | {o.run.peak_mb:7.0f} | {ok:3}| "
+            f"{'; '.join(o.problems)[:160]}",
+            flush=True,
+        )
     print(f"{len(names) - bad}/{len(names)} cases as required")
     return 1 if bad else 0
 

@@ -49,7 +49,10 @@ class World:
         self.delivery = copy_example(self.work / "delivery")
         (self.outside / "marker.txt").write_text(MARKER_TEXT + "\n", encoding="utf-8")
         # a real GeoTIFF outside the delivery: an example image that is not in the small copy
-        src = Path(__file__).resolve().parents[2] / "examples/deliveries/aerial-pass/images/F03_0105.tif"
+        src = (
+            Path(__file__).resolve().parents[2]
+            / "examples/deliveries/aerial-pass/images/F03_0105.tif"
+        )
         (self.outside / "marker.tif").write_bytes(src.read_bytes())
 
     def markers(self) -> list[Path]:
@@ -57,8 +60,17 @@ class World:
 
     def args(self, *extra: str, out: bool = True, profile: str = PROFILE) -> list[str]:
         # the checker states the ITT tolerance (the manifest's declared value is evidence only)
-        a = ["check", str(self.delivery), "--profile", profile, "--date", "2026-07-01",
-             "--param", "tolerance_xy=0.5m", *(["--param", "map_crs=EPSG:25832"] if profile == PROFILE else [])]
+        a = [
+            "check",
+            str(self.delivery),
+            "--profile",
+            profile,
+            "--date",
+            "2026-07-01",
+            "--param",
+            "tolerance_xy=0.5m",
+            *(["--param", "map_crs=EPSG:25832"] if profile == PROFILE else []),
+        ]
         if out:
             a += ["--out", str(self.out)]
         return a + list(extra)
@@ -69,12 +81,14 @@ class World:
 
     def set_image_file(self, value: str, row: int = 1) -> None:
         """Put ``value`` in the ``file`` column of images.csv data row ``row``."""
+
         def fn(text: str) -> str:
             lines = text.splitlines(keepends=True)
             cells = lines[row].split(",")
             cells[1] = value
             lines[row] = ",".join(cells)
             return "".join(lines)
+
         self.edit("tables/images.csv", fn)
 
     def first_image(self) -> Path:
@@ -194,14 +208,21 @@ def file_column_url(w: World) -> Setup:
 @case
 def manifest_table_dotdot(w: World) -> Setup:
     (w.outside / "images.csv").write_text((w.delivery / "tables/images.csv").read_text())
-    w.edit("delivery.yaml", lambda t: t.replace("images: tables/images.csv", "images: ../../outside/images.csv"))
+    w.edit(
+        "delivery.yaml",
+        lambda t: t.replace("images: tables/images.csv", "images: ../../outside/images.csv"),
+    )
     return Setup(w.args(), "exit2", ("delivery.yaml",))
 
 
 @case
 def document_absolute(w: World) -> Setup:
-    w.edit("delivery.yaml", lambda t: t.replace("internal_qcr: documents/internal_qcr.md",
-                                                f"internal_qcr: {w.outside / 'marker.txt'}"))
+    w.edit(
+        "delivery.yaml",
+        lambda t: t.replace(
+            "internal_qcr: documents/internal_qcr.md", f"internal_qcr: {w.outside / 'marker.txt'}"
+        ),
+    )
     return Setup(w.args(), "exit2", ("delivery.yaml",))
 
 
@@ -239,11 +260,15 @@ def _vrt(source: Path, band: str) -> str:
 @case
 def images_are_vrts(w: World) -> Setup:
     """Three GeoTIFF-named GDAL VRTs: to a raster outside, a raw band on a text file, a URL."""
-    simple = ('<VRTRasterBand dataType="Byte" band="1"><SimpleSource><SourceFilename relativeToVRT="0">'
-              '{src}</SourceFilename><SourceBand>1</SourceBand></SimpleSource></VRTRasterBand>')
-    raw = ('<VRTRasterBand dataType="Byte" band="1" subClass="VRTRawRasterBand"><SourceFilename '
-           'relativetoVRT="0">{src}</SourceFilename><ImageOffset>0</ImageOffset><PixelOffset>1'
-           '</PixelOffset><LineOffset>1</LineOffset></VRTRasterBand>')
+    simple = (
+        '<VRTRasterBand dataType="Byte" band="1"><SimpleSource><SourceFilename relativeToVRT="0">'
+        "{src}</SourceFilename><SourceBand>1</SourceBand></SimpleSource></VRTRasterBand>"
+    )
+    raw = (
+        '<VRTRasterBand dataType="Byte" band="1" subClass="VRTRawRasterBand"><SourceFilename '
+        'relativetoVRT="0">{src}</SourceFilename><ImageOffset>0</ImageOffset><PixelOffset>1'
+        "</PixelOffset><LineOffset>1</LineOffset></VRTRasterBand>"
+    )
     images = sorted((w.delivery / "images").iterdir())
     images[0].write_text(_vrt(w.outside / "marker.tif", simple))
     images[1].write_text(_vrt(w.outside / "marker.txt", raw))
@@ -259,24 +284,31 @@ def _error_records_for(images: list[Path]) -> Callable[[World], None]:
         errs = json.dumps([r for r in doc["records"] if r["verdict"] == "error"])
         for p in images:
             assert p.stem in errs, f"no error record for {p.name}"
+
     return check
 
 
 def _add_seamlines(w: World, rel: str) -> None:
-    w.edit("delivery.yaml", lambda t: t.replace("\ndocuments:", f"\nvectors: {{seamlines: {rel}}}\ndocuments:"))
+    w.edit(
+        "delivery.yaml",
+        lambda t: t.replace("\ndocuments:", f"\nvectors: {{seamlines: {rel}}}\ndocuments:"),
+    )
 
 
 @case
 def seamlines_ogr_vrt(w: World) -> Setup:
     (w.outside / "seams.csv").write_text(
-        f'WKT,name\n"POLYGON((500000 5400000,520000 5400000,520000 5420000,500000 5400000))",{MARKER_TEXT}\n')
+        f'WKT,name\n"POLYGON((500000 5400000,520000 5400000,520000 5420000,500000 5400000))",{MARKER_TEXT}\n'
+    )
     (w.delivery / "vectors").mkdir()
-    (w.delivery / "vectors" / "seamlines.gpkg").write_text(textwrap.dedent(f"""\
+    (w.delivery / "vectors" / "seamlines.gpkg").write_text(
+        textwrap.dedent(f"""\
         <OGRVRTDataSource><OGRVRTLayer name="seams">
-          <SrcDataSource>{w.outside / 'seams.csv'}</SrcDataSource>
+          <SrcDataSource>{w.outside / "seams.csv"}</SrcDataSource>
           <GeometryType>wkbPolygon</GeometryType><GeometryField encoding="WKT" field="WKT"/>
         </OGRVRTLayer></OGRVRTDataSource>
-        """))
+        """)
+    )
     _add_seamlines(w, "vectors/seamlines.gpkg")
     return Setup(w.args(), "record", ("vectors/seamlines.gpkg",))
 
@@ -291,8 +323,15 @@ def seamlines_gpkg_wal_not_rewritten(w: World) -> Setup:
     build.mkdir()
     g = build / "seamlines.gpkg"
     geoms = np.array([shapely.to_wkb(shapely.box(500000, 5400000, 520000, 5420000))], dtype=object)
-    pyogrio.raw.write(str(g), geometry=geoms, field_data=[np.array([1])], fields=["seam"],
-                      geometry_type="Polygon", crs="EPSG:25832", driver="GPKG")
+    pyogrio.raw.write(
+        str(g),
+        geometry=geoms,
+        field_data=[np.array([1])],
+        fields=["seam"],
+        geometry_type="Polygon",
+        crs="EPSG:25832",
+        driver="GPKG",
+    )
     con = sqlite3.connect(g)
     con.execute("PRAGMA journal_mode=WAL")
     con.execute("PRAGMA wal_autocheckpoint=0")
@@ -300,7 +339,9 @@ def seamlines_gpkg_wal_not_rewritten(w: World) -> Setup:
     con.commit()
     (w.delivery / "vectors").mkdir()
     for suffix in ("", "-wal"):  # copied while the WAL is not checkpointed
-        (w.delivery / "vectors" / f"seamlines.gpkg{suffix}").write_bytes(Path(f"{g}{suffix}").read_bytes())
+        (w.delivery / "vectors" / f"seamlines.gpkg{suffix}").write_bytes(
+            Path(f"{g}{suffix}").read_bytes()
+        )
     con.close()
     _add_seamlines(w, "vectors/seamlines.gpkg")
     return Setup(w.args(), "clean")
@@ -316,8 +357,9 @@ def out_inside_delivery(w: World) -> Setup:
 
 @case
 def cwd_inside_delivery_no_out(w: World) -> Setup:
-    return Setup(["check", ".", "--profile", PROFILE, "--date", "2026-07-01"], "exit2", (),
-                 cwd=w.delivery)
+    return Setup(
+        ["check", ".", "--profile", PROFILE, "--date", "2026-07-01"], "exit2", (), cwd=w.delivery
+    )
 
 
 @case
@@ -327,8 +369,14 @@ def id_with_dotdot_default_out(w: World) -> Setup:
     def check(w: World) -> None:
         outs = sorted(p.relative_to(w.base).as_posix() for p in w.base.rglob("*qcr.json"))
         assert outs and all(o.startswith("work/reports/") and o.count("/") == 3 for o in outs), outs
-    return Setup(w.args(out=False, profile=MINI), "clean", cwd=w.work, extra_outputs=(w.work / "reports",),
-                 check=check)
+
+    return Setup(
+        w.args(out=False, profile=MINI),
+        "clean",
+        cwd=w.work,
+        extra_outputs=(w.work / "reports",),
+        check=check,
+    )
 
 
 @case
@@ -338,8 +386,14 @@ def id_absolute_into_delivery(w: World) -> Setup:
     def check(w: World) -> None:
         outs = sorted(p.relative_to(w.base).as_posix() for p in w.base.rglob("*qcr.json"))
         assert outs and all(o.startswith("work/reports/") and o.count("/") == 3 for o in outs), outs
-    return Setup(w.args(out=False, profile=MINI), "clean", cwd=w.work, extra_outputs=(w.work / "reports",),
-                 check=check)
+
+    return Setup(
+        w.args(out=False, profile=MINI),
+        "clean",
+        cwd=w.work,
+        extra_outputs=(w.work / "reports",),
+        check=check,
+    )
 
 
 @case
@@ -348,6 +402,7 @@ def junit_path_is_a_directory(w: World) -> Setup:
 
     def check(w: World) -> None:
         assert sorted(p.name for p in w.out.rglob("*")) == ["junit.xml"], list(w.out.rglob("*"))
+
     return Setup(w.args(profile=MINI), "exit2", ("junit.xml",), check=check)
 
 
@@ -363,6 +418,7 @@ def ledger_garbage(w: World) -> Setup:
 
     def check(w: World) -> None:
         assert not w.out.exists() or not any(w.out.iterdir())
+
     return Setup(w.args("--ledger", str(bad)), "exit2", ("ledger",), check=check)
 
 
@@ -380,11 +436,25 @@ def rasters_declare_too_much(w: World) -> Setup:
     for p in images:
         p.unlink()
     geo = {"crs": "EPSG:25832", "transform": from_origin(501700, 5401050, 0.25, 0.25)}
-    with rasterio.open(images[0], "w", driver="GTiff", width=10**6, height=10**6, count=1, dtype="uint8",
-                       tiled=True, blockxsize=4096, blockysize=4096, BIGTIFF="YES", SPARSE_OK=True, **geo):
+    with rasterio.open(
+        images[0],
+        "w",
+        driver="GTiff",
+        width=10**6,
+        height=10**6,
+        count=1,
+        dtype="uint8",
+        tiled=True,
+        blockxsize=4096,
+        blockysize=4096,
+        BIGTIFF="YES",
+        SPARSE_OK=True,
+        **geo,
+    ):
         pass
-    with rasterio.open(images[1], "w", driver="GTiff", width=2, height=2, count=5000, dtype="uint8",
-                       **geo) as ds:
+    with rasterio.open(
+        images[1], "w", driver="GTiff", width=2, height=2, count=5000, dtype="uint8", **geo
+    ) as ds:
         ds.write(np.ones((5000, 2, 2), dtype="uint8"))
     return Setup(w.args(), "record", ("F01_0101", "declares"), check=_error_records_for(images))
 
@@ -397,15 +467,19 @@ _BOMB = "".join(f"l{i}: &l{i} [{', '.join([f'*l{i - 1}'] * 9)}]\n" for i in rang
 
 @case
 def yaml_alias_bomb_manifest(w: World) -> Setup:
-    w.edit("delivery.yaml", lambda t: t + "notes_bomb:\n  l0: &l0 [lol]\n"
-           + textwrap.indent(_BOMB, "  "))
+    w.edit(
+        "delivery.yaml",
+        lambda t: t + "notes_bomb:\n  l0: &l0 [lol]\n" + textwrap.indent(_BOMB, "  "),
+    )
     return Setup(w.args(), "exit2", ("delivery.yaml",))
 
 
 @case
 def yaml_alias_bomb_profile(w: World) -> Setup:
     prof = w.work / "bomb.yaml"
-    prof.write_text(MINI_PROFILE.read_text() + "x_bomb:\n  l0: &l0 [lol]\n" + textwrap.indent(_BOMB, "  "))
+    prof.write_text(
+        MINI_PROFILE.read_text() + "x_bomb:\n  l0: &l0 [lol]\n" + textwrap.indent(_BOMB, "  ")
+    )
     return Setup(w.args(profile=str(prof)), "exit2", ("bomb.yaml",))
 
 
@@ -432,8 +506,11 @@ def manifest_date_feb_30(w: World) -> Setup:
 
 def _when(w: World, when: str) -> Setup:
     prof = w.work / "expr.yaml"
-    prof.write_text(MINI_PROFILE.read_text().replace(
-        "when: \"manifest.sensor.type == 'aerial'\"", f"when: \"{when}\""))
+    prof.write_text(
+        MINI_PROFILE.read_text().replace(
+            "when: \"manifest.sensor.type == 'aerial'\"", f'when: "{when}"'
+        )
+    )
     assert when in prof.read_text()
     return Setup(w.args(profile=str(prof)), "exit2", ("expr.yaml",))
 
@@ -498,8 +575,12 @@ def csv_million_extra_columns(w: World) -> Setup:
 
 @case
 def csv_header_million_columns(w: World) -> Setup:
-    w.edit("tables/images.csv", lambda t: t.replace("resampling\n", "resampling" + "".join(
-        f",c{i}" for i in range(10**6)) + "\n", 1))
+    w.edit(
+        "tables/images.csv",
+        lambda t: t.replace(
+            "resampling\n", "resampling" + "".join(f",c{i}" for i in range(10**6)) + "\n", 1
+        ),
+    )
     return Setup(w.args(), "exit2", ("tables/images.csv",))
 
 

@@ -69,7 +69,9 @@ def run_case(name: str, base: Path, *, timeout: float = 60.0) -> Outcome:
         problems.append(f"delivery tree changed: {changed[:5]}")
     if tree_state(w.outside) != outside_before:
         problems.append("the folder outside the delivery changed")
-    leaked = all_output_text(w.out, *setup.extra_outputs) + run.stdout.encode() + run.stderr.encode()
+    leaked = (
+        all_output_text(w.out, *setup.extra_outputs) + run.stdout.encode() + run.stderr.encode()
+    )
     if MARKER_TEXT.encode() in leaked:
         problems.append("marker text found in the outputs")
     for h in marker_hashes:

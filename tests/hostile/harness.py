@@ -70,16 +70,29 @@ def _vm_hwm_kb(pid: int) -> int:
         return 0
 
 
-def run_cli(args: list[str], *, cwd: Path, timeout: float = TIMEOUT_S, memory: int = MEMORY_LIMIT,
-            env: dict[str, str] | None = None) -> Run:
+def run_cli(
+    args: list[str],
+    *,
+    cwd: Path,
+    timeout: float = TIMEOUT_S,
+    memory: int = MEMORY_LIMIT,
+    env: dict[str, str] | None = None,
+) -> Run:
     """``python -m orthospec.cli.main ARGS`` with a time and memory cap; never raises on a hang."""
     fd, report = tempfile.mkstemp(prefix="orthospec-harness-rss-")
     os.close(fd)
     cmd = [sys.executable, "-c", _PRELUDE, str(memory), report, *args]
     full_env = {**os.environ, "PYTHONUNBUFFERED": "1", "COLUMNS": "120", **(env or {})}
     t0 = time.perf_counter()
-    proc = subprocess.Popen(cmd, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            stdin=subprocess.DEVNULL, env=full_env, start_new_session=True)
+    proc = subprocess.Popen(
+        cmd,
+        cwd=cwd,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        stdin=subprocess.DEVNULL,
+        env=full_env,
+        start_new_session=True,
+    )
     out, err = bytearray(), bytearray()
     sel = selectors.DefaultSelector()
     assert proc.stdout is not None and proc.stderr is not None
@@ -109,9 +122,13 @@ def run_cli(args: list[str], *, cwd: Path, timeout: float = TIMEOUT_S, memory: i
     proc.returncode = os.waitstatus_to_exitcode(status)
     proc.stdout.close()
     proc.stderr.close()
-    return Run(exit=None if killed else proc.returncode, seconds=seconds,
-               peak_mb=peak_kb / 1024, stdout=out.decode("utf-8", "replace"),
-               stderr=err.decode("utf-8", "replace"))
+    return Run(
+        exit=None if killed else proc.returncode,
+        seconds=seconds,
+        peak_mb=peak_kb / 1024,
+        stdout=out.decode("utf-8", "replace"),
+        stderr=err.decode("utf-8", "replace"),
+    )
 
 
 def tree_state(root: Path) -> dict[str, str]:

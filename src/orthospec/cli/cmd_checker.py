@@ -14,8 +14,14 @@ from .options import profile_option
 @checker.command("init")
 @click.argument("delivery", type=click.Path(file_okay=False, path_type=Path))
 @profile_option
-@click.option("--out", "out", type=click.Path(path_type=Path), required=True, metavar="CHECKER_DIR",
-              help="The checker folder to write (outside the delivery); its checker.yaml must not exist yet.")
+@click.option(
+    "--out",
+    "out",
+    type=click.Path(path_type=Path),
+    required=True,
+    metavar="CHECKER_DIR",
+    help="The checker folder to write (outside the delivery); its checker.yaml must not exist yet.",
+)
 @click.option("--name", default=None, help="The checker's name (else left for you to fill in).")
 def init_cmd(delivery: Path, profile: str, out: Path, name: str | None) -> None:
     """Write the checker folder's skeleton for DELIVERY: ITT values to state and every manual check item to judge.
@@ -35,13 +41,17 @@ def init_cmd(delivery: Path, profile: str, out: Path, name: str | None) -> None:
 
     refuse_inside_delivery(out, delivery, what="--out")
     if (out / CHECKER_FILE).exists():
-        raise OrthospecError(f"{out / CHECKER_FILE} exists: a checker's file is never overwritten; choose "
-                             "another --out or remove it")
+        raise OrthospecError(
+            f"{out / CHECKER_FILE} exists: a checker's file is never overwritten; choose "
+            "another --out or remove it"
+        )
     d = open_delivery(delivery)
     d.load_all_tables()
     sk = checker_skeleton(load_profile(profile), d, name=name)
     write_outputs(out, {CHECKER_FILE: sk.text})
     files = sum(1 for e in sk.entries if "file" in e)
-    click.echo(f"wrote {out / CHECKER_FILE}: {len(sk.entries)} manual check items to judge ({files} bound to "
-               f"an image's SHA-256), {len(sk.pins)} files pinned, {len(sk.open_parameters)} ITT parameters "
-               "to state")
+    click.echo(
+        f"wrote {out / CHECKER_FILE}: {len(sk.entries)} manual check items to judge ({files} bound to "
+        f"an image's SHA-256), {len(sk.pins)} files pinned, {len(sk.open_parameters)} ITT parameters "
+        "to state"
+    )

@@ -14,27 +14,64 @@ from .groups import main
 
 @main.command("init")
 @click.argument("folder", type=click.Path(file_okay=False, path_type=Path))
-@click.option("--from", "source", type=click.Path(path_type=Path), default=None,
-              help="Draft the delivery from this folder of real files (images, tile index, XML metadata, "
-                   "survey spreadsheets), read in place: nothing is copied or written into it.")
-@click.option("--profile", "-p", default=None,
-              help="Write only the tables, columns and documents this profile reads (listed in TEMPLATE.md); "
-                   "with --from, the profile TODO.md names the rules of (default jrc-v3).")
-@click.option("--sensor", type=click.Choice(["aerial", "satellite"]), default=None,
-              help="Sensor type (template default: aerial; with --from only when no metadata states it).")
-@click.option("--id", "ident", default=None,
-              help="With --from: the delivery's identifier, when no metadata file states one.")
-@click.option("--blocks", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="With --from: a vector file of the block outlines (an id attribute per polygon); images and "
-                   "points are assigned to blocks by location.")
-@click.option("--mapping", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="With --from: survey layouts to apply (a draft's ingest/points-mapping.yaml, or one written "
-                   "for a layout init could not decide).")
-@click.option("--no-sha256", is_flag=True, help="With --from: do not hash the images (header facts only).")
-@click.option("--workers", type=int, default=None, help="With --from: worker processes (default: CPU count).")
-def init_cmd(folder: Path, source: Path | None, profile: str | None, sensor: str | None, ident: str | None,
-             blocks: Path | None,
-             mapping: Path | None, no_sha256: bool, workers: int | None) -> None:
+@click.option(
+    "--from",
+    "source",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="Draft the delivery from this folder of real files (images, tile index, XML metadata, "
+    "survey spreadsheets), read in place: nothing is copied or written into it.",
+)
+@click.option(
+    "--profile",
+    "-p",
+    default=None,
+    help="Write only the tables, columns and documents this profile reads (listed in TEMPLATE.md); "
+    "with --from, the profile TODO.md names the rules of (default jrc-v3).",
+)
+@click.option(
+    "--sensor",
+    type=click.Choice(["aerial", "satellite"]),
+    default=None,
+    help="Sensor type (template default: aerial; with --from only when no metadata states it).",
+)
+@click.option(
+    "--id",
+    "ident",
+    default=None,
+    help="With --from: the delivery's identifier, when no metadata file states one.",
+)
+@click.option(
+    "--blocks",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="With --from: a vector file of the block outlines (an id attribute per polygon); images and "
+    "points are assigned to blocks by location.",
+)
+@click.option(
+    "--mapping",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="With --from: survey layouts to apply (a draft's ingest/points-mapping.yaml, or one written "
+    "for a layout init could not decide).",
+)
+@click.option(
+    "--no-sha256", is_flag=True, help="With --from: do not hash the images (header facts only)."
+)
+@click.option(
+    "--workers", type=int, default=None, help="With --from: worker processes (default: CPU count)."
+)
+def init_cmd(
+    folder: Path,
+    source: Path | None,
+    profile: str | None,
+    sensor: str | None,
+    ident: str | None,
+    blocks: Path | None,
+    mapping: Path | None,
+    no_sha256: bool,
+    workers: int | None,
+) -> None:
     """Write a commented delivery template (delivery.yaml, table headers, TEMPLATE.md) into FOLDER.
 
     With --from SOURCE: draft the delivery from the real files instead (delivery.yaml, tables/, TODO.md,
@@ -45,7 +82,9 @@ def init_cmd(folder: Path, source: Path | None, profile: str | None, sensor: str
     """
     if source is None:
         if blocks or mapping or no_sha256 or workers or ident:
-            raise click.UsageError("--id, --blocks, --mapping, --no-sha256 and --workers go with --from SOURCE")
+            raise click.UsageError(
+                "--id, --blocks, --mapping, --no-sha256 and --workers go with --from SOURCE"
+            )
         from ..profile.template import write_template
 
         for p in write_template(folder, profile=profile, sensor=sensor or "aerial"):
@@ -55,14 +94,27 @@ def init_cmd(folder: Path, source: Path | None, profile: str | None, sensor: str
 
     bar = _Bar()
     try:
-        draft = make_draft(folder, [source], Options(profile=profile or "jrc-v3", sensor=sensor, ident=ident, blocks=blocks,
-                                                     mapping=mapping, sha256=not no_sha256, workers=workers,
-                                                     progress=bar))
+        draft = make_draft(
+            folder,
+            [source],
+            Options(
+                profile=profile or "jrc-v3",
+                sensor=sensor,
+                ident=ident,
+                blocks=blocks,
+                mapping=mapping,
+                sha256=not no_sha256,
+                workers=workers,
+                progress=bar,
+            ),
+        )
     finally:
         bar.close()
-    click.echo(f"drafted {folder} from {source}: {draft.images} images"
-               + (f", {len(draft.unreadable)} unreadable (INGEST.md)" if draft.unreadable else "")
-               + f"; {draft.todo} TODO entries, {draft.missing_rules} rules `missing` until they are filled (TODO.md)")
+    click.echo(
+        f"drafted {folder} from {source}: {draft.images} images"
+        + (f", {len(draft.unreadable)} unreadable (INGEST.md)" if draft.unreadable else "")
+        + f"; {draft.todo} TODO entries, {draft.missing_rules} rules `missing` until they are filled (TODO.md)"
+    )
     click.echo(f"next: orthospec check {folder} --profile {profile or 'jrc-v3'} --checker CHECKER")
 
 
@@ -87,8 +139,13 @@ class _Bar:
                 TimeRemainingColumn,
             )
 
-            self.rich = Progress(TextColumn("reading images"), BarColumn(), MofNCompleteColumn(),
-                                 TimeRemainingColumn(), transient=True)
+            self.rich = Progress(
+                TextColumn("reading images"),
+                BarColumn(),
+                MofNCompleteColumn(),
+                TimeRemainingColumn(),
+                transient=True,
+            )
             self.rich.start()  # type: ignore[attr-defined]
             self.task = self.rich.add_task("scan", total=total)  # type: ignore[attr-defined]
         if self.rich is not None:
@@ -117,8 +174,12 @@ def verify_cmd(profile: str) -> None:
         for exp in o.checks:
             ok = exp.expected == exp.got
             bad += not ok
-            t.add_row(escape(f"{o.name}: {exp.what}"), escape(str(exp.expected)), escape(str(exp.got)),
-                      "[green]ok[/]" if ok else "[bold red]MISMATCH[/]")
+            t.add_row(
+                escape(f"{o.name}: {exp.what}"),
+                escape(str(exp.expected)),
+                escape(str(exp.got)),
+                "[green]ok[/]" if ok else "[bold red]MISMATCH[/]",
+            )
     Console(highlight=False).print(t)
     n = sum(len(o.checks) for o in outcomes)
     click.echo(f"{n - bad} of {n} expectations met in {len(outcomes)} test deliveries")

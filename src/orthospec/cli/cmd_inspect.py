@@ -11,13 +11,28 @@ from .groups import inspect
 
 @inspect.command("grid")
 @click.argument("delivery", type=click.Path(file_okay=False, path_type=Path))
-@click.option("--cell", required=True, metavar="SIZE",
-              help="Cell edge: metres in the images' map projection (250, 250m) or image pixels (512px).")
-@click.option("--sample", "sample", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="A sample table (`orthospec sample`): grid only those images (or the images of those "
-                   "blocks); every image without it.")
-@click.option("--out", "out", type=click.Path(dir_okay=False, path_type=Path), required=True,
-              metavar="CHECKER_DIR/inspection.gpkg", help="The GeoPackage to write (outside the delivery).")
+@click.option(
+    "--cell",
+    required=True,
+    metavar="SIZE",
+    help="Cell edge: metres in the images' map projection (250, 250m) or image pixels (512px).",
+)
+@click.option(
+    "--sample",
+    "sample",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="A sample table (`orthospec sample`): grid only those images (or the images of those "
+    "blocks); every image without it.",
+)
+@click.option(
+    "--out",
+    "out",
+    type=click.Path(dir_okay=False, path_type=Path),
+    required=True,
+    metavar="CHECKER_DIR/inspection.gpkg",
+    help="The GeoPackage to write (outside the delivery).",
+)
 def grid_cmd(delivery: Path, cell: str, sample: Path | None, out: Path) -> None:
     """Write the inspection grid (GeoPackage) over the sampled images of DELIVERY into the checker's folder.
 
@@ -39,7 +54,15 @@ def grid_cmd(delivery: Path, cell: str, sample: Path | None, out: Path) -> None:
     d = open_delivery(delivery)
     d.load_all_tables()
     picked = read_sample(sample) if sample is not None else None
-    got = make_grid(d, size, out, sample=picked, sample_name=sample.name if sample is not None else None,
-                    version=__version__)
-    click.echo(f"wrote {out}: {got['cells']} cells of {got['cell']} over {got['images']} images "
-               f"({got['sample']}); mark them (inspected, defect classes, comment) in a GIS")
+    got = make_grid(
+        d,
+        size,
+        out,
+        sample=picked,
+        sample_name=sample.name if sample is not None else None,
+        version=__version__,
+    )
+    click.echo(
+        f"wrote {out}: {got['cells']} cells of {got['cell']} over {got['images']} images "
+        f"({got['sample']}); mark them (inspected, defect classes, comment) in a GIS"
+    )

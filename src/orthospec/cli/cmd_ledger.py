@@ -50,7 +50,9 @@ def _grid(title: str, rows: dict[str, dict[int, str]], run_ids: list[int]) -> li
     head = " " * width + "  " + " ".join(f"{'#' + str(i):>5}" for i in run_ids)
     lines = [title, head]
     for key, per in rows.items():
-        cells = " ".join(f"{_SHORT.get(per.get(i, ''), '-') if i in per else '-':>5}" for i in run_ids)
+        cells = " ".join(
+            f"{_SHORT.get(per.get(i, ''), '-') if i in per else '-':>5}" for i in run_ids
+        )
         lines.append(f"{key:<{width}}  {cells}")
     return lines
 
@@ -60,31 +62,39 @@ _QUIET = frozenset({V.PASS, V.NOT_APPLICABLE})
 
 def _changing(rows: dict[str, dict[int, str]]) -> dict[str, dict[int, str]]:
     """Rows whose verdict differs between runs or is not pass / not applicable in some run."""
-    return {k: per for k, per in rows.items()
-            if len(set(per.values())) > 1 or not set(per.values()) <= _QUIET}
+    return {
+        k: per
+        for k, per in rows.items()
+        if len(set(per.values())) > 1 or not set(per.values()) <= _QUIET
+    }
 
 
 def _history_text(h: History, show_all: bool = False) -> str:
     out = []
     ids = [e.run.id for e in h.entries]
-    out.append(f"{'run':>5}  {'date':<10}  {'round':<14}  {'delivery':<16}  {'verdict':<8}  "
-               f"{'pass':>5} {'fail':>5} {'warn':>5} {'miss':>5}  sign-offs")
+    out.append(
+        f"{'run':>5}  {'date':<10}  {'round':<14}  {'delivery':<16}  {'verdict':<8}  "
+        f"{'pass':>5} {'fail':>5} {'warn':>5} {'miss':>5}  sign-offs"
+    )
     for e in h.entries:
         c = e.run.summary.get("counts", {})
         kind = f"{e.round} {e.kind}"
-        out.append(f"{'#' + str(e.run.id):>5}  {e.run.date:<10}  {kind:<14}  {e.run.delivery_id:<16}  "
-                   f"{e.run.verdict:<8}  {c.get('pass', 0):>5} {c.get('fail', 0):>5} "
-                   f"{c.get('warn', 0):>5} {c.get('missing', 0):>5}  {e.signoffs}")
-    for title, rows in (("per rule (worst verdict per run):", h.rules),
-                        ("per block:", h.blocks)):
+        out.append(
+            f"{'#' + str(e.run.id):>5}  {e.run.date:<10}  {kind:<14}  {e.run.delivery_id:<16}  "
+            f"{e.run.verdict:<8}  {c.get('pass', 0):>5} {c.get('fail', 0):>5} "
+            f"{c.get('warn', 0):>5} {c.get('missing', 0):>5}  {e.signoffs}"
+        )
+    for title, rows in (("per rule (worst verdict per run):", h.rules), ("per block:", h.blocks)):
         shown = rows if show_all else _changing(rows)
         grid = _grid(title, shown, ids)
         if grid:
             out += ["", *grid]
         hidden = len(rows) - len(shown)
         if hidden:
-            out.append(f"({hidden} {'rules' if 'rule' in title else 'blocks'} passing or not applicable in "
-                       "every run not shown; --all shows them)")
+            out.append(
+                f"({hidden} {'rules' if 'rule' in title else 'blocks'} passing or not applicable in "
+                "every run not shown; --all shows them)"
+            )
     return "\n".join(out)
 
 
@@ -93,7 +103,9 @@ def _history_text(h: History, show_all: bool = False) -> str:
 @click.option("--all", "show_all", is_flag=True, help="Also list rules that passed in every run.")
 @ledger_option
 @json_option
-def history_cmd(project: str | None, show_all: bool, ledger_target: str | None, as_json: bool) -> None:
+def history_cmd(
+    project: str | None, show_all: bool, ledger_target: str | None, as_json: bool
+) -> None:
     """Deliveries, redeliveries and their verdicts over time, per rule and per block.
 
     By default only rules and blocks that changed or did not pass are listed (--all for every one).
@@ -104,18 +116,44 @@ def history_cmd(project: str | None, show_all: bool, ledger_target: str | None, 
         projects = [project] if project is not None else led.projects()
         hists = [led.history(p) for p in projects]
     if project is not None and not hists[0].entries:
-        raise LedgerError(f"no runs of project {project!r} in the ledger (projects: "
-                          f"{', '.join(p for p in projects if p != project) or 'none'})")
+        raise LedgerError(
+            f"no runs of project {project!r} in the ledger (projects: "
+            f"{', '.join(p for p in projects if p != project) or 'none'})"
+        )
     if as_json:
-        click.echo(json.dumps([{
-            "project": h.project,
-            "runs": [{"run": e.run.id, "date": e.run.date, "recorded_at": e.run.recorded_at,
-                      "kind": e.kind, "round": e.round, "delivery": e.run.delivery_id,
-                      "verdict": e.run.verdict, "summary": e.run.summary.get("counts", {}),
-                      "signoffs": e.signoffs, "hash": e.run.hash} for e in h.entries],
-            "rules": {k: {str(i): v for i, v in per.items()} for k, per in h.rules.items()},
-            "blocks": {k: {str(i): v for i, v in per.items()} for k, per in h.blocks.items()},
-        } for h in hists], indent=1, ensure_ascii=False))
+        click.echo(
+            json.dumps(
+                [
+                    {
+                        "project": h.project,
+                        "runs": [
+                            {
+                                "run": e.run.id,
+                                "date": e.run.date,
+                                "recorded_at": e.run.recorded_at,
+                                "kind": e.kind,
+                                "round": e.round,
+                                "delivery": e.run.delivery_id,
+                                "verdict": e.run.verdict,
+                                "summary": e.run.summary.get("counts", {}),
+                                "signoffs": e.signoffs,
+                                "hash": e.run.hash,
+                            }
+                            for e in h.entries
+                        ],
+                        "rules": {
+                            k: {str(i): v for i, v in per.items()} for k, per in h.rules.items()
+                        },
+                        "blocks": {
+                            k: {str(i): v for i, v in per.items()} for k, per in h.blocks.items()
+                        },
+                    }
+                    for h in hists
+                ],
+                indent=1,
+                ensure_ascii=False,
+            )
+        )
         return
     for n, h in enumerate(hists):
         if n:
@@ -127,11 +165,17 @@ def history_cmd(project: str | None, show_all: bool, ledger_target: str | None, 
 @main.command("diff")
 @click.argument("run_a")
 @click.argument("run_b")
-@click.option("--all", "show_all", is_flag=True,
-              help="Also list records added or removed with a passing or not-applicable verdict.")
+@click.option(
+    "--all",
+    "show_all",
+    is_flag=True,
+    help="Also list records added or removed with a passing or not-applicable verdict.",
+)
 @ledger_option
 @json_option
-def diff_cmd(run_a: str, run_b: str, show_all: bool, ledger_target: str | None, as_json: bool) -> None:
+def diff_cmd(
+    run_a: str, run_b: str, show_all: bool, ledger_target: str | None, as_json: bool
+) -> None:
     """What changed between two runs per rule and item: fixed, newly failing, still failing.
 
     Example: orthospec diff 1 2 --ledger qc.sqlite
@@ -140,12 +184,26 @@ def diff_cmd(run_a: str, run_b: str, show_all: bool, ledger_target: str | None, 
     with _open(ledger_target) as led:
         d = led.diff(a, b)
     if as_json:
-        click.echo(json.dumps({"run_a": a, "run_b": b, "counts": d.counts,
-                               "changes": [asdict(c) for c in d.changes]}, indent=1))
+        click.echo(
+            json.dumps(
+                {
+                    "run_a": a,
+                    "run_b": b,
+                    "counts": d.counts,
+                    "changes": [asdict(c) for c in d.changes],
+                },
+                indent=1,
+            )
+        )
         return
     order = ("fixed", "newly_failing", "still_failing", "changed", "added", "removed")
-    click.echo(f"run #{a} -> run #{b}: " + (", ".join(f"{d.counts[k]} {k.replace('_', ' ')}"
-                                                      for k in order if k in d.counts) or "no changes"))
+    click.echo(
+        f"run #{a} -> run #{b}: "
+        + (
+            ", ".join(f"{d.counts[k]} {k.replace('_', ' ')}" for k in order if k in d.counts)
+            or "no changes"
+        )
+    )
     hidden = 0
     for status in order:
         group = [c for c in d.changes if c.status == status]
@@ -159,8 +217,10 @@ def diff_cmd(run_a: str, run_b: str, show_all: bool, ledger_target: str | None, 
         for c in group:
             click.echo(f"  {c.rule} [{c.item}]: {c.before or '-'} -> {c.after or '-'}")
     if hidden:
-        click.echo(f"({hidden} records added or removed with a passing or not-applicable verdict not shown; "
-                   "--all shows them)")
+        click.echo(
+            f"({hidden} records added or removed with a passing or not-applicable verdict not shown; "
+            "--all shows them)"
+        )
 
 
 def _manual(values: tuple[str, ...]) -> dict[str, str]:
@@ -168,29 +228,54 @@ def _manual(values: tuple[str, ...]) -> dict[str, str]:
     for v in values:
         rule, sep, verdict = v.partition("=")
         if not sep or verdict.strip().lower() not in (V.PASS, V.FAIL) or not rule.strip():
-            raise click.BadParameter(f"{v!r}: expected RULE=pass or RULE=fail", param_hint="--manual")
+            raise click.BadParameter(
+                f"{v!r}: expected RULE=pass or RULE=fail", param_hint="--manual"
+            )
         out[rule.strip()] = verdict.strip().lower()
     return out
 
 
 @main.command("signoff")
 @click.argument("run")
-@click.option("--by", "by", default=None,
-              help="Name of the person countersigning (with --key and an allowed-signers file: the key's "
-                   "registered name, which --by must then match).")
+@click.option(
+    "--by",
+    "by",
+    default=None,
+    help="Name of the person countersigning (with --key and an allowed-signers file: the key's "
+    "registered name, which --by must then match).",
+)
 @click.option("--role", type=click.Choice(ROLES), default="supervisor", show_default=True)
 @click.option("--note", default=None, help="Free text recorded with the signature.")
-@click.option("--manual", "manual", multiple=True, metavar="RULE=pass|fail",
-              help="Verdict of a manual check of this run (repeatable).")
-@click.option("--date", metavar="YYYY-MM-DD", default=None, help="Date of the signature (default today).")
-@click.option("--acknowledge-rejection", is_flag=True,
-              help="Needed to sign a REJECTED run: you sign that you have seen and accept the rejection.")
+@click.option(
+    "--manual",
+    "manual",
+    multiple=True,
+    metavar="RULE=pass|fail",
+    help="Verdict of a manual check of this run (repeatable).",
+)
+@click.option(
+    "--date", metavar="YYYY-MM-DD", default=None, help="Date of the signature (default today)."
+)
+@click.option(
+    "--acknowledge-rejection",
+    is_flag=True,
+    help="Needed to sign a REJECTED run: you sign that you have seen and accept the rejection.",
+)
 @ledger_option
 @key_option
 @allowed_signers_option
-def signoff_cmd(run: str, by: str | None, role: str, note: str | None, manual: tuple[str, ...],
-                date: str | None, acknowledge_rejection: bool, ledger_target: str | None, key: Path | None,
-                allowed_signers: Path | None) -> None:
+def signoff_cmd(
+    run: str,
+    by: str | None,
+    role: str,
+    note: str | None,
+    manual: tuple[str, ...],
+    date: str | None,
+    acknowledge_rejection: bool,
+    ledger_target: str | None,
+    key: Path | None,
+    allowed_signers: Path | None,
+) -> None:
     """Countersign RUN (JRC §2.4) and record manual-check verdicts.
 
     The run's own checker (the key that signed it, or its operator or checker-file name however
@@ -201,8 +286,16 @@ def signoff_cmd(run: str, by: str | None, role: str, note: str | None, manual: t
     verdicts = _manual(manual)
     with _open(ledger_target, allowed_signers) as led:
         _warn_if_tampered(led)
-        sid = led.signoff(rid, by=by, role=role, note=note, manual=verdicts, date=date,
-                          acknowledge_rejection=acknowledge_rejection, key=key)
+        sid = led.signoff(
+            rid,
+            by=by,
+            role=role,
+            note=note,
+            manual=verdicts,
+            date=date,
+            acknowledge_rejection=acknowledge_rejection,
+            key=key,
+        )
         s = led.signoffs(rid)[-1]
     extra = f" with {len(verdicts)} manual verdict(s)" if verdicts else ""
     signed = f", signed by key {s['key']}" if s.get("key") else ", unsigned (a typed name, no key)"
@@ -213,23 +306,45 @@ def _warn_if_tampered(led: Ledger) -> bool:
     rep = led.verify()
     if rep.ok:
         return False
-    click.echo(f"WARNING: ledger {led.display} is TAMPERED ({len(rep.problems)} problem(s), first: "
-               f"{rep.problems[0]}); run `orthospec ledger verify`", err=True)
+    click.echo(
+        f"WARNING: ledger {led.display} is TAMPERED ({len(rep.problems)} problem(s), first: "
+        f"{rep.problems[0]}); run `orthospec ledger verify`",
+        err=True,
+    )
     return True
 
 
 @ledger.command("verify")
 @ledger_option
-@click.option("--head", "head", metavar="HASH", default=None,
-              help="A ledger head hash printed earlier on a report or in qcr.json: the chain must still "
-                   "contain it (detects deleted newest entries even when the head row was rewritten).")
-@click.option("--against", "against", type=click.Path(dir_okay=False, exists=True, path_type=Path),
-              default=None, help="A report.pdf, report.html or qcr.json: check the ledger head printed in it.")
-@click.option("--expect-head", metavar="HASH", default=None,
-              help="The current head must be exactly this hash (nothing recorded since).")
+@click.option(
+    "--head",
+    "head",
+    metavar="HASH",
+    default=None,
+    help="A ledger head hash printed earlier on a report or in qcr.json: the chain must still "
+    "contain it (detects deleted newest entries even when the head row was rewritten).",
+)
+@click.option(
+    "--against",
+    "against",
+    type=click.Path(dir_okay=False, exists=True, path_type=Path),
+    default=None,
+    help="A report.pdf, report.html or qcr.json: check the ledger head printed in it.",
+)
+@click.option(
+    "--expect-head",
+    metavar="HASH",
+    default=None,
+    help="The current head must be exactly this hash (nothing recorded since).",
+)
 @allowed_signers_option
-def verify_cmd(ledger_target: str | None, head: str | None, against: Path | None,
-               expect_head: str | None, allowed_signers: Path | None) -> None:
+def verify_cmd(
+    ledger_target: str | None,
+    head: str | None,
+    against: Path | None,
+    expect_head: str | None,
+    allowed_signers: Path | None,
+) -> None:
     """Check the hash chain: exit 0 when intact, 1 (TAMPERED) listing every edited or deleted row.
 
     Every signature is checked too (by the allowed-signers file when given): one that does not
@@ -241,7 +356,9 @@ def verify_cmd(ledger_target: str | None, head: str | None, against: Path | None
     if against is not None:
         found = heads_in_file(against)
         if not found:
-            raise click.BadParameter(f"{against}: no ledger head hash found in it", param_hint="--against")
+            raise click.BadParameter(
+                f"{against}: no ledger head hash found in it", param_hint="--against"
+            )
         heads += found
     with _open(ledger_target, allowed_signers) as led:
         rep = led.verify(heads=heads)  # one pass over the ledger for every head given
@@ -253,39 +370,70 @@ def verify_cmd(ledger_target: str | None, head: str | None, against: Path | None
         for p in problems:
             click.echo(f"  {p}")
         click.get_current_context().exit(1)
-    checked = f"; contains the head{'s' if len(heads) > 1 else ''} {', '.join(h[:16] for h in heads)}" \
-        if heads else ""
-    click.echo(f"ledger {led.display}: intact, {rep.entries} entries ({rep.runs} runs, "
-               f"{rep.signoffs} sign-offs), head {rep.head_hash}{checked}")
+    checked = (
+        f"; contains the head{'s' if len(heads) > 1 else ''} {', '.join(h[:16] for h in heads)}"
+        if heads
+        else ""
+    )
+    click.echo(
+        f"ledger {led.display}: intact, {rep.entries} entries ({rep.runs} runs, "
+        f"{rep.signoffs} sign-offs), head {rep.head_hash}{checked}"
+    )
 
 
 @ledger.command("state")
 @click.argument("project")
-@click.option("--normal", type=float, default=0.10, show_default=True, help="Sample share when normal.")
-@click.option("--tightened", type=float, default=0.20, show_default=True, help="Sample share when tightened.")
-@click.option("--margin", type=float, default=MARGIN, show_default=True,
-              help="A pass this close (relative) to its threshold is marginal and tightens (JRC §12.7).")
+@click.option(
+    "--normal", type=float, default=0.10, show_default=True, help="Sample share when normal."
+)
+@click.option(
+    "--tightened", type=float, default=0.20, show_default=True, help="Sample share when tightened."
+)
+@click.option(
+    "--margin",
+    type=float,
+    default=MARGIN,
+    show_default=True,
+    help="A pass this close (relative) to its threshold is marginal and tightens (JRC §12.7).",
+)
 @ledger_option
 @json_option
-def state_cmd(project: str, normal: float, tightened: float, margin: float, ledger_target: str | None,
-              as_json: bool) -> None:
+def state_cmd(
+    project: str,
+    normal: float,
+    tightened: float,
+    margin: float,
+    ledger_target: str | None,
+    as_json: bool,
+) -> None:
     """Normal/Tightened audit state per QCR family of PROJECT (JRC §2.3) and the next sample share."""
     with _open(ledger_target) as led:
         states = led.audit_states(project, margin=margin)
     if not states:
         raise LedgerError(f"no runs of project {project!r} in the ledger")
     rows: list[dict[str, Any]] = [
-        {**asdict(s), "suspect_items": list(s.suspect_items),
-         "sample_fraction": tightened if s.state == "tightened" else normal} for s in states.values()]
+        {
+            **asdict(s),
+            "suspect_items": list(s.suspect_items),
+            "sample_fraction": tightened if s.state == "tightened" else normal,
+        }
+        for s in states.values()
+    ]
     if as_json:
         click.echo(json.dumps({"project": project, "families": rows}, indent=1, ensure_ascii=False))
         return
     width = max(len(r["family"]) for r in rows)
     for r in rows:
         suspects = r["suspect_items"]
-        trail = f"; trail: {', '.join(suspects[:8])}{' ...' if len(suspects) > 8 else ''}" if suspects else ""
-        click.echo(f"{r['family']:<{width}}  {r['state']:<9}  sample {100 * r['sample_fraction']:.0f} %  "
-                   f"since run #{r['since_run']}  ({r['reason']}{trail})")
+        trail = (
+            f"; trail: {', '.join(suspects[:8])}{' ...' if len(suspects) > 8 else ''}"
+            if suspects
+            else ""
+        )
+        click.echo(
+            f"{r['family']:<{width}}  {r['state']:<9}  sample {100 * r['sample_fraction']:.0f} %  "
+            f"since run #{r['since_run']}  ({r['reason']}{trail})"
+        )
 
 
 @ledger.command("runs")
@@ -297,15 +445,36 @@ def runs_cmd(project: str | None, ledger_target: str | None, as_json: bool) -> N
     with _open(ledger_target) as led:
         runs = led.runs(project)
     if as_json:
-        click.echo(json.dumps([{"run": r.id, "seq": r.seq, "date": r.date, "recorded_at": r.recorded_at,
-                                "project": r.project_id, "delivery": r.delivery_id, "verdict": r.verdict,
-                                "profile": f"{r.profile_id}@{r.profile_version}", "operator": r.operator,
-                                "records": r.n_records, "hash": r.hash, "audit_trail": r.audit,
-                                "continues_run": r.continues_run, "signer": r.signer,
-                                "key": r.key_fingerprint} for r in runs], indent=1))
+        click.echo(
+            json.dumps(
+                [
+                    {
+                        "run": r.id,
+                        "seq": r.seq,
+                        "date": r.date,
+                        "recorded_at": r.recorded_at,
+                        "project": r.project_id,
+                        "delivery": r.delivery_id,
+                        "verdict": r.verdict,
+                        "profile": f"{r.profile_id}@{r.profile_version}",
+                        "operator": r.operator,
+                        "records": r.n_records,
+                        "hash": r.hash,
+                        "audit_trail": r.audit,
+                        "continues_run": r.continues_run,
+                        "signer": r.signer,
+                        "key": r.key_fingerprint,
+                    }
+                    for r in runs
+                ],
+                indent=1,
+            )
+        )
         return
     for r in runs:
         trail = f" (trail {r.audit})" if r.audit != r.project_id else ""
         signed = f"  signed {r.key_fingerprint[:19]}" if r.key_fingerprint else "  unsigned"
-        click.echo(f"#{r.id:<4} {r.date}  {r.project_id}{trail}  {r.delivery_id}  {r.verdict:<8}  "
-                   f"{r.profile_id}@{r.profile_version}  {r.n_records} QCRs  {r.hash[:12]}{signed}")
+        click.echo(
+            f"#{r.id:<4} {r.date}  {r.project_id}{trail}  {r.delivery_id}  {r.verdict:<8}  "
+            f"{r.profile_id}@{r.profile_version}  {r.n_records} QCRs  {r.hash[:12]}{signed}"
+        )

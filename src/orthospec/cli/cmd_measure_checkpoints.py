@@ -43,9 +43,11 @@ def _render(run: Run) -> None:
 
     console = Console(highlight=False)
     counts = Counter(r.decision for r in run.results)
-    console.print(f"{len(run.results)} surveyed point(s): {counts['accepted']} measured automatically, "
-                  f"{counts['by_hand']} by hand, {counts['to_measure']} to measure by hand, "
-                  f"{counts['unusable']} unusable, {counts['outside']} outside every image")
+    console.print(
+        f"{len(run.results)} surveyed point(s): {counts['accepted']} measured automatically, "
+        f"{counts['by_hand']} by hand, {counts['to_measure']} to measure by hand, "
+        f"{counts['unusable']} unusable, {counts['outside']} outside every image"
+    )
     hand = [r for r in run.results if r.decision == "to_measure"]
     if hand:
         t = Table("point", "image", "reason", title="To measure by hand")
@@ -55,37 +57,87 @@ def _render(run: Run) -> None:
     if run.table:
         console.print(f"wrote {escape(str(run.table))}", soft_wrap=True)
     if run.hand_list:
-        console.print(f"wrote {escape(str(run.hand_list))} (move each point onto its mark in a GIS, set "
-                      "status to 'measured' or 'unusable', then run again)", soft_wrap=True)
+        console.print(
+            f"wrote {escape(str(run.hand_list))} (move each point onto its mark in a GIS, set "
+            "status to 'measured' or 'unusable', then run again)",
+            soft_wrap=True,
+        )
 
 
 @measure.command("checkpoints")
 @click.argument("delivery", type=click.Path(file_okay=False))
-@click.option("--reference", required=True, type=click.Path(),
-              help="The checker's reference: a folder of GeoTIFF chips around the points (named "
-                   "<point_id>.tif, or found by location), or one reference orthoimage.")
-@click.option("--points", "survey", required=True, type=click.Path(dir_okay=False),
-              help="Survey CSV: point_id, x, y (true coordinates) [, z, block, image_id, source, "
-                   "precision_xy, chip].")
-@click.option("--out", required=True, type=click.Path(file_okay=False),
-              help="The checker folder (outside the delivery): writes tables/checkpoints.csv and "
-                   "the hand list checkpoints-to-measure.gpkg.")
-@click.option("--hand", type=click.Path(dir_okay=False), default=None,
-              help="The completed hand list (GeoPackage written by this command, or CSV with "
-                   "point_id, status, x, y); default: the one in --out when present.")
-@click.option("--chip", "chip_px", type=click.IntRange(16, 512), default=64, show_default=True,
-              help="Template side in image pixels (smaller when the chip covers less).")
-@click.option("--search", "search_px", type=click.IntRange(1, 256), default=16, show_default=True,
-              help="Largest shift searched, in image pixels, either way.")
-@click.option("--method", type=click.Choice(["phase", "ncc"]), default="phase", show_default=True,
-              help="Subpixel estimator (benchmarks/matching.py compares them).")
-@click.option("--crs", default=None,
-              help="CRS of the survey coordinates (default: the delivered images' CRS).")
+@click.option(
+    "--reference",
+    required=True,
+    type=click.Path(),
+    help="The checker's reference: a folder of GeoTIFF chips around the points (named "
+    "<point_id>.tif, or found by location), or one reference orthoimage.",
+)
+@click.option(
+    "--points",
+    "survey",
+    required=True,
+    type=click.Path(dir_okay=False),
+    help="Survey CSV: point_id, x, y (true coordinates) [, z, block, image_id, source, "
+    "precision_xy, chip].",
+)
+@click.option(
+    "--out",
+    required=True,
+    type=click.Path(file_okay=False),
+    help="The checker folder (outside the delivery): writes tables/checkpoints.csv and "
+    "the hand list checkpoints-to-measure.gpkg.",
+)
+@click.option(
+    "--hand",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="The completed hand list (GeoPackage written by this command, or CSV with "
+    "point_id, status, x, y); default: the one in --out when present.",
+)
+@click.option(
+    "--chip",
+    "chip_px",
+    type=click.IntRange(16, 512),
+    default=64,
+    show_default=True,
+    help="Template side in image pixels (smaller when the chip covers less).",
+)
+@click.option(
+    "--search",
+    "search_px",
+    type=click.IntRange(1, 256),
+    default=16,
+    show_default=True,
+    help="Largest shift searched, in image pixels, either way.",
+)
+@click.option(
+    "--method",
+    type=click.Choice(["phase", "ncc"]),
+    default="phase",
+    show_default=True,
+    help="Subpixel estimator (benchmarks/matching.py compares them).",
+)
+@click.option(
+    "--crs",
+    default=None,
+    help="CRS of the survey coordinates (default: the delivered images' CRS).",
+)
 @click.option("--json", "as_json", is_flag=True, help="Print the per-point results as JSON.")
 @click.pass_context
-def checkpoints_cmd(ctx: click.Context, delivery: str, reference: str, survey: str, out: str,
-                    hand: str | None, chip_px: int, search_px: int, method: str, crs: str | None,
-                    as_json: bool) -> None:
+def checkpoints_cmd(
+    ctx: click.Context,
+    delivery: str,
+    reference: str,
+    survey: str,
+    out: str,
+    hand: str | None,
+    chip_px: int,
+    search_px: int,
+    method: str,
+    crs: str | None,
+    as_json: bool,
+) -> None:
     """Measure surveyed check points on the delivered orthoimages by subpixel image matching.
 
     For each point of the survey (true coordinates) the reference around it is resampled onto
@@ -103,8 +155,9 @@ def checkpoints_cmd(ctx: click.Context, delivery: str, reference: str, survey: s
     from ..raster.checkpoints import MeasureOptions, measure_checkpoints
 
     try:
-        options = MeasureOptions(chip_px=chip_px, crs=crs,
-                                 settings=MatchSettings(method=method, search_px=search_px))  # type: ignore[arg-type]
+        options = MeasureOptions(
+            chip_px=chip_px, crs=crs, settings=MatchSettings(method=method, search_px=search_px)  # type: ignore[arg-type]
+        )
         run = measure_checkpoints(delivery, reference, survey, out, hand=hand, options=options)
     except OrthospecError as exc:
         click.echo(f"error: {exc}", err=True)

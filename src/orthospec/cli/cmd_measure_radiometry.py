@@ -37,12 +37,26 @@ def _render(rep: ImageReport, findings: list[str]) -> None:
         f"(lossless: {c.get('lossless')})  {c.get('layout')} "
         f"{c.get('block_width')}x{c.get('block_height')}  CRS {c.get('crs')} (ok: {c.get('crs_ok')})"
         f"  pixel {_fmt(c.get('pixel_size_x'))} x {_fmt(c.get('pixel_size_y'))} "
-        f"{c.get('pixel_size_unit')} (gsd ok: {c.get('gsd_ok')})  name ok: {c.get('name_ok')}")
+        f"{c.get('pixel_size_unit')} (gsd ok: {c.get('gsd_ok')})  name ok: {c.get('name_ok')}"
+    )
     rad = rep.radiometry or {}
     console.print(f"statistics: {rad.get('statistics')}")
-    cols = ["band", "min", "max", "mean", "std", "bit_depth", "used_bits", "saturation_low_pct",
-            "saturation_high_pct", "dark_margin_pct", "bright_margin_pct", "cv_percent",
-            "nodata_fraction", "noise_sigma_homogeneous"]
+    cols = [
+        "band",
+        "min",
+        "max",
+        "mean",
+        "std",
+        "bit_depth",
+        "used_bits",
+        "saturation_low_pct",
+        "saturation_high_pct",
+        "dark_margin_pct",
+        "bright_margin_pct",
+        "cv_percent",
+        "nodata_fraction",
+        "noise_sigma_homogeneous",
+    ]
     bands = list(rad.get("bands", []))
     if rad.get("luminosity"):
         bands.append(rad["luminosity"])
@@ -51,33 +65,63 @@ def _render(rep: ImageReport, findings: list[str]) -> None:
         t.add_row(k.replace("_", " "), *[_fmt(b.get(k)) for b in bands])
     console.print(t)
     for idx, m in (rad.get("misregistration") or {}).items():
-        console.print(f"band {idx} vs band {rad.get('misregistration_reference_band')}: "
-                      f"misregistration {m['magnitude_px']:.2f} px "
-                      f"(dy {m['dy_px']:.2f}, dx {m['dx_px']:.2f})")
+        console.print(
+            f"band {idx} vs band {rad.get('misregistration_reference_band')}: "
+            f"misregistration {m['magnitude_px']:.2f} px "
+            f"(dy {m['dy_px']:.2f}, dx {m['dx_px']:.2f})"
+        )
 
 
 @measure.command("radiometry")
 @click.argument("image", type=click.Path(dir_okay=False))
 @click.option("--json", "as_json", is_flag=True, help="Print the full report as JSON.")
-@click.option("--full", is_flag=True,
-              help="Also the rest of the JRC §6.3 scan: noise (two estimators), luminosity, "
-                   "band misregistration, and the facts `check` compares declarations with "
-                   "(content hash of the decoded pixels, thumbnail, measured cloud cover); same "
-                   "single read, slower.")
-@click.option("--bit-depth", type=click.IntRange(1, 32), default=None,
-              help="Real radiometric resolution (e.g. 11 for 11-bit data in 16-bit files); "
-                   "default: the NBITS tag, else the data type.")
+@click.option(
+    "--full",
+    is_flag=True,
+    help="Also the rest of the JRC §6.3 scan: noise (two estimators), luminosity, "
+    "band misregistration, and the facts `check` compares declarations with "
+    "(content hash of the decoded pixels, thumbnail, measured cloud cover); same "
+    "single read, slower.",
+)
+@click.option(
+    "--bit-depth",
+    type=click.IntRange(1, 32),
+    default=None,
+    help="Real radiometric resolution (e.g. 11 for 11-bit data in 16-bit files); "
+    "default: the NBITS tag, else the data type.",
+)
 @click.option("--expect-epsg", type=int, default=None, help="EPSG code the CRS must equal.")
-@click.option("--expect-gsd", type=float, default=None,
-              help="Specified GSD in CRS units (m); pixel size must match within tolerance.")
-@click.option("--gsd-tolerance", type=float, default=0.01, show_default=True,
-              help="Relative tolerance of the pixel size against --expect-gsd.")
-@click.option("--cloud-mask", type=click.Path(dir_okay=False), default=None,
-              help="Delivered cloud mask raster (non-zero = cloud).")
+@click.option(
+    "--expect-gsd",
+    type=float,
+    default=None,
+    help="Specified GSD in CRS units (m); pixel size must match within tolerance.",
+)
+@click.option(
+    "--gsd-tolerance",
+    type=float,
+    default=0.01,
+    show_default=True,
+    help="Relative tolerance of the pixel size against --expect-gsd.",
+)
+@click.option(
+    "--cloud-mask",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="Delivered cloud mask raster (non-zero = cloud).",
+)
 @click.pass_context
-def radiometry_cmd(ctx: click.Context, image: str, as_json: bool, full: bool, bit_depth: int | None,
-                   expect_epsg: int | None, expect_gsd: float | None, gsd_tolerance: float,
-                   cloud_mask: str | None) -> None:
+def radiometry_cmd(
+    ctx: click.Context,
+    image: str,
+    as_json: bool,
+    full: bool,
+    bit_depth: int | None,
+    expect_epsg: int | None,
+    expect_gsd: float | None,
+    gsd_tolerance: float,
+    cloud_mask: str | None,
+) -> None:
     """Exact per-band statistics, histograms and JRC §6.3 measures plus file checks of IMAGE.
 
     By default the job of ``gdalinfo -stats -hist`` plus the file's SHA-256: statistics are
@@ -118,10 +162,19 @@ def radiometry_cmd(ctx: click.Context, image: str, as_json: bool, full: bool, bi
             from ..raster.parallel import ScanOptions, scan_image
             from ..raster.reading import ScanSettings
 
-            settings = ScanSettings(bit_depth=bit_depth, noise=full, luminosity=full,
-                                    misregistration=full, signature=full)
-            opts = ScanOptions(settings=settings, expect_epsg=expect_epsg,
-                               expect_gsd=expect_gsd, gsd_tolerance=gsd_tolerance)
+            settings = ScanSettings(
+                bit_depth=bit_depth,
+                noise=full,
+                luminosity=full,
+                misregistration=full,
+                signature=full,
+            )
+            opts = ScanOptions(
+                settings=settings,
+                expect_epsg=expect_epsg,
+                expect_gsd=expect_gsd,
+                gsd_tolerance=gsd_tolerance,
+            )
             rep = scan_image(image, opts, cloud_mask=cloud_mask, sha256=hashing)
     finally:
         # Everything allocated so far (the modules of the raster stack, the report) lives until
@@ -140,9 +193,15 @@ def radiometry_cmd(ctx: click.Context, image: str, as_json: bool, full: bool, bi
     # pixels measured despite a header error (no CRS...): that error is a finding on the file
     findings = [rep.error] if rep.error else []
     if as_json:
-        doc = {"path": rep.path, "sha256": rep.sha256, "bytes": rep.bytes,
-               "checks": rep.checks, "findings": findings, "radiometry": rep.radiometry,
-               "cloud_cover_pct": rep.cloud_cover_pct}
+        doc = {
+            "path": rep.path,
+            "sha256": rep.sha256,
+            "bytes": rep.bytes,
+            "checks": rep.checks,
+            "findings": findings,
+            "radiometry": rep.radiometry,
+            "cloud_cover_pct": rep.cloud_cover_pct,
+        }
         click.echo(json.dumps(doc, indent=2, sort_keys=True))
     else:
         _render(rep, findings)

@@ -25,7 +25,9 @@ def profiles_cmd(paths: tuple[Path, ...]) -> None:
     extra = [p for p in paths if p.is_dir()]
     rows = available(extra)
     seen = {r[3].resolve() for r in rows}
-    rows += [r for r in plugin_profiles() if r[3].resolve() not in seen]  # profiles installed plugins ship
+    rows += [
+        r for r in plugin_profiles() if r[3].resolve() not in seen
+    ]  # profiles installed plugins ship
     for p in paths:
         if p.is_file():
             prof = load_profile(p, check_measures=False)
@@ -102,7 +104,9 @@ def _show(v: object) -> str:
 @click.argument("a")
 @click.argument("b")
 @click.option("--json", "as_json", is_flag=True)
-@click.option("--all", "show_all", is_flag=True, help="Also show changed prose (descriptions, notes, titles).")
+@click.option(
+    "--all", "show_all", is_flag=True, help="Also show changed prose (descriptions, notes, titles)."
+)
 def diff_cmd(a: str, b: str, as_json: bool, show_all: bool) -> None:
     """What changed from profile A to profile B: rules and thresholds added, removed, changed.
 
@@ -128,8 +132,10 @@ def diff_cmd(a: str, b: str, as_json: bool, show_all: bool) -> None:
             d[kind]["changed"] = changed
     warning = None
     if (pa.id, pa.version) == (pb.id, pb.version) and pa.sha256 != pb.sha256:
-        warning = (f"warning: both files say {pa.id} {pa.version} but their contents differ (sha256 "
-                   f"{pa.sha256[:12]}… vs {pb.sha256[:12]}…): give the changed profile a new version")
+        warning = (
+            f"warning: both files say {pa.id} {pa.version} but their contents differ (sha256 "
+            f"{pa.sha256[:12]}… vs {pb.sha256[:12]}…): give the changed profile a new version"
+        )
         d["warning"] = warning
     if as_json:
         click.echo(json.dumps(d, indent=1, ensure_ascii=False))
@@ -139,7 +145,9 @@ def diff_cmd(a: str, b: str, as_json: bool, show_all: bool) -> None:
     click.echo(f"{d['a']} -> {d['b']}")
     for w in d["weakened"]:
         why = w["justification"] or "no justification recorded"
-        click.echo(f"! mandatory rule {w['id']} checks less: {'; '.join(w['changes'])} (justification: {why})")
+        click.echo(
+            f"! mandatory rule {w['id']} checks less: {'; '.join(w['changes'])} (justification: {why})"
+        )
 
     def eff(p: object, name: str) -> str:
         par = p.parameters.get(name)  # type: ignore[attr-defined]
@@ -150,8 +158,11 @@ def diff_cmd(a: str, b: str, as_json: bool, show_all: bool) -> None:
 
     for kind in ("parameters", "rules"):
         for name in d[kind]["added"]:
-            extra = f" = {eff(pb, name)}" if kind == "parameters" else \
-                f": {requirement_text(pb.rule(name).requirement, dict(pb.parameters))}"
+            extra = (
+                f" = {eff(pb, name)}"
+                if kind == "parameters"
+                else f": {requirement_text(pb.rule(name).requirement, dict(pb.parameters))}"
+            )
             click.echo(f"+ {kind[:-1]} {name}{extra}")
         for name in d[kind]["removed"]:
             click.echo(f"- {kind[:-1]} {name}")
@@ -194,23 +205,33 @@ def explain_cmd(rule_id: str, profile: str) -> None:
         r = p.rule(rule_id)
     except KeyError:
         near = [x.id for x in p.rules if rule_id.lower() in x.id.lower()][:10]
-        raise click.ClickException(f"no rule {rule_id!r} in {p.id} {p.version}"
-                                   + (f"; did you mean {', '.join(near)}?" if near else "")) from None
+        raise click.ClickException(
+            f"no rule {rule_id!r} in {p.id} {p.version}"
+            + (f"; did you mean {', '.join(near)}?" if near else "")
+        ) from None
     info = measure_info(r.measure)
     c = Console(highlight=False)
     c.print(f"[bold]{escape(r.id)}[/] {escape(r.title)}")
     c.print(f"clause:      {escape(r.clause.text())}")
     c.print(f"quote:       “{escape(r.quote)}”")
     c.print(f"scope:       {r.scope}" + (f"   when: {escape(r.when)}" if r.when else ""))
-    c.print(f"measure:     {escape(r.measure)}" + (f" ({info[1]})" if info else "")
-            + ("  [manual: recorded human verdict]" if r.manual else ""))
+    c.print(
+        f"measure:     {escape(r.measure)}"
+        + (f" ({info[1]})" if info else "")
+        + ("  [manual: recorded human verdict]" if r.manual else "")
+    )
     # worded as the QCR and the annex word it; thresholds from the profile's parameters (an
     # expression is shown as written: evaluating it would import numpy for one line)
     req = r.requirement
     text = profile_requirement_text(req, p.parameters)
-    written = [f"{k}: {v}" for k, v in (("value", req.value), ("min", req.min), ("max", req.max))
-               if isinstance(v, str) and v not in text]
-    c.print(f"requirement: {escape(text)}" + (f"   ({escape(', '.join(written))})" if written else ""))
+    written = [
+        f"{k}: {v}"
+        for k, v in (("value", req.value), ("min", req.min), ("max", req.max))
+        if isinstance(v, str) and v not in text
+    ]
+    c.print(
+        f"requirement: {escape(text)}" + (f"   ({escape(', '.join(written))})" if written else "")
+    )
     c.print(f"level:       {r.level}   consequence: {r.consequence}")
     if r.audit:
         c.print(f"audit:       {escape(str(r.audit.model_dump(exclude_none=True)))}")
@@ -218,8 +239,10 @@ def explain_cmd(rule_id: str, profile: str) -> None:
         c.print(f"note:        {escape(r.note)}")
     for w in p.weakened:  # a mandatory rule of the standard this tender made check less
         if w.id == r.id:
-            c.print(f"[yellow]weakened:[/]    {escape('; '.join(w.changes))} by {escape(w.profile)} "
-                    f"(justification: {escape(w.justification or 'none recorded')})")
+            c.print(
+                f"[yellow]weakened:[/]    {escape('; '.join(w.changes))} by {escape(w.profile)} "
+                f"(justification: {escape(w.justification or 'none recorded')})"
+            )
     c.print(f"evidence:    {escape(_evidence_hint(r.measure))}")
 
 
@@ -230,7 +253,7 @@ def _evidence_hint(measure: str) -> str:
     if head == "manual":
         return "tables.manual_checks (check, item, inspector, date, verdict)"
     if head == "manifest":
-        return f"delivery.yaml: {measure[len('manifest.'):]}"
+        return f"delivery.yaml: {measure[len('manifest.') :]}"
     if head in table_specs():
         return f"tables.{head} ({table_specs()[head].description})"
     if head == "raster":
@@ -247,9 +270,20 @@ def measures_cmd() -> None:
     from ..engine.registry import ROLLUP, describe
 
     cols = ("measure", "scope", "unit", "provider", "description")
-    rows = [(name, specx.scope, specx.measures[name], specx.fn.__module__.rsplit(".", 1)[-1], describe(name))
-            for name, specx in known_measures().items()]
-    rows += [(name, scope, unit, "evaluator roll-up", describe(name)) for name, (scope, unit) in ROLLUP.items()]
+    rows = [
+        (
+            name,
+            specx.scope,
+            specx.measures[name],
+            specx.fn.__module__.rsplit(".", 1)[-1],
+            describe(name),
+        )
+        for name, specx in known_measures().items()
+    ]
+    rows += [
+        (name, scope, unit, "evaluator roll-up", describe(name))
+        for name, (scope, unit) in ROLLUP.items()
+    ]
     t = Table(box=None, header_style="bold")
     for col in cols:
         t.add_column(col, no_wrap=True, overflow="fold")  # names are copied from here: never cut
@@ -258,5 +292,7 @@ def measures_cmd() -> None:
     # one line per measure, never cut: the table is as wide as its widest row (pad 1 each side)
     need = sum(max(len(c), *(len(r[i]) for r in rows)) + 2 for i, c in enumerate(cols))
     Console(highlight=False, width=max(need, Console().width), soft_wrap=True).print(t)
-    click.echo("plus <table>.<column>, <table>.present, <table>.count, <table>.count_per_block, "
-               "<table>.<column>.complete and manifest.<path> for every table in specs/delivery-tables.yaml")
+    click.echo(
+        "plus <table>.<column>, <table>.present, <table>.count, <table>.count_per_block, "
+        "<table>.<column>.complete and manifest.<path> for every table in specs/delivery-tables.yaml"
+    )

@@ -20,60 +20,112 @@ from .. import __version__
 # group name -> {command name: (module in orthospec.cli, first sentence of the command's help)}
 COMMANDS: dict[str, dict[str, tuple[str, str]]] = {
     "main": {
-        "check": ("cmd_check", "Check DELIVERY against a spec profile; exit 0 accepted, 1 rejected, "
-                               "2 could not evaluate, 3 incomplete."),
-        "diff": ("cmd_ledger", "What changed between two runs per rule and item: fixed, newly "
-                               "failing, still failing."),
+        "check": (
+            "cmd_check",
+            "Check DELIVERY against a spec profile; exit 0 accepted, 1 rejected, "
+            "2 could not evaluate, 3 incomplete.",
+        ),
+        "diff": (
+            "cmd_ledger",
+            "What changed between two runs per rule and item: fixed, newly failing, still failing.",
+        ),
         "explain": ("cmd_profiles", "Clause, quote, requirement and the evidence a rule reads."),
-        "history": ("cmd_ledger", "Deliveries, redeliveries and their verdicts over time, per rule "
-                                  "and per block."),
-        "init": ("cmd_init", "Write a commented delivery template (delivery.yaml, table headers, "
-                             "TEMPLATE.md) into FOLDER."),
-        "measures": ("cmd_profiles", "List the measures rules may read (besides the generic "
-                                     "<table>.<column> ones)."),
-        "profiles": ("cmd_profiles", "List shipped profiles (and those in PATHS: files or folders) "
-                                     "with version."),
-        "report": ("cmd_report", "Render the auditor's report (HTML, archival PDF/A-3b) from a "
-                                 "stored QCR_JSON or a ledger run."),
-        "sample": ("cmd_sample", "Select images or blocks for external QC: systematic spread, every "
-                                 "tag, problem batches, random part."),
+        "history": (
+            "cmd_ledger",
+            "Deliveries, redeliveries and their verdicts over time, per rule and per block.",
+        ),
+        "init": (
+            "cmd_init",
+            "Write a commented delivery template (delivery.yaml, table headers, "
+            "TEMPLATE.md) into FOLDER.",
+        ),
+        "measures": (
+            "cmd_profiles",
+            "List the measures rules may read (besides the generic <table>.<column> ones).",
+        ),
+        "profiles": (
+            "cmd_profiles",
+            "List shipped profiles (and those in PATHS: files or folders) with version.",
+        ),
+        "report": (
+            "cmd_report",
+            "Render the auditor's report (HTML, archival PDF/A-3b) from a "
+            "stored QCR_JSON or a ledger run.",
+        ),
+        "sample": (
+            "cmd_sample",
+            "Select images or blocks for external QC: systematic spread, every "
+            "tag, problem batches, random part.",
+        ),
         "signoff": ("cmd_ledger", "Countersign RUN (JRC §2.4) and record manual-check verdicts."),
-        "verify": ("cmd_init", "Run a profile's own test deliveries against the verdicts they "
-                               "expect, per rule."),
+        "verify": (
+            "cmd_init",
+            "Run a profile's own test deliveries against the verdicts they expect, per rule.",
+        ),
     },
     "spec": {
-        "diff": ("cmd_profiles", "What changed from profile A to profile B: rules and thresholds "
-                                 "added, removed, changed."),
-        "render": ("cmd_report", "Render PROFILE as the technical-specification annex of an "
-                                 "invitation to tender."),
+        "diff": (
+            "cmd_profiles",
+            "What changed from profile A to profile B: rules and thresholds "
+            "added, removed, changed.",
+        ),
+        "render": (
+            "cmd_report",
+            "Render PROFILE as the technical-specification annex of an invitation to tender.",
+        ),
         "show": ("cmd_profiles", "Print the resolved profile (extends applied) and its SHA-256."),
-        "validate": ("cmd_profiles", "Validate profile FILES (schema, models, units, expressions, "
-                                     "measures); exit 2 on problems."),
+        "validate": (
+            "cmd_profiles",
+            "Validate profile FILES (schema, models, units, expressions, "
+            "measures); exit 2 on problems.",
+        ),
     },
     "measure": {
-        "accuracy": ("cmd_measure_accuracy", "RMSE, NSSDA, CE90/CE95, bias test and blunder "
-                                             "screening of checkpoint discrepancies."),
-        "checkpoints": ("cmd_measure_checkpoints", "Measure surveyed check points on the delivered "
-                                                   "orthoimages by subpixel image matching."),
-        "edge": ("cmd_measure_edge", "Measure RER, FWHM, MTF at Nyquist and effective resolution on "
-                                     "an edge target."),
-        "radiometry": ("cmd_measure_radiometry", "Exact per-band statistics, histograms and JRC "
-                                                 "§6.3 measures plus file checks of IMAGE."),
+        "accuracy": (
+            "cmd_measure_accuracy",
+            "RMSE, NSSDA, CE90/CE95, bias test and blunder screening of checkpoint discrepancies.",
+        ),
+        "checkpoints": (
+            "cmd_measure_checkpoints",
+            "Measure surveyed check points on the delivered "
+            "orthoimages by subpixel image matching.",
+        ),
+        "edge": (
+            "cmd_measure_edge",
+            "Measure RER, FWHM, MTF at Nyquist and effective resolution on an edge target.",
+        ),
+        "radiometry": (
+            "cmd_measure_radiometry",
+            "Exact per-band statistics, histograms and JRC "
+            "§6.3 measures plus file checks of IMAGE.",
+        ),
     },
     "checker": {
-        "init": ("cmd_checker", "Write the checker folder's skeleton for DELIVERY: ITT values to state and "
-                                "every manual check item to judge."),
+        "init": (
+            "cmd_checker",
+            "Write the checker folder's skeleton for DELIVERY: ITT values to state and "
+            "every manual check item to judge.",
+        ),
     },
     "inspect": {
-        "grid": ("cmd_inspect", "Write the inspection grid (GeoPackage) over the sampled images of "
-                                "DELIVERY into the checker's folder."),
+        "grid": (
+            "cmd_inspect",
+            "Write the inspection grid (GeoPackage) over the sampled images of "
+            "DELIVERY into the checker's folder.",
+        ),
     },
     "ledger": {
         "runs": ("cmd_ledger", "List recorded runs (oldest first)."),
-        "state": ("cmd_ledger", "Normal/Tightened audit state per QCR family of PROJECT (JRC §2.3) "
-                                "and the next sample share."),
-        "verify": ("cmd_ledger", "Check the hash chain: exit 0 when intact, 1 (TAMPERED) listing "
-                                 "every edited or deleted row."),
+        "state": (
+            "cmd_ledger",
+            "Normal/Tightened audit state per QCR family of PROJECT (JRC §2.3) "
+            "and the next sample share.",
+        ),
+        "verify": (
+            "cmd_ledger",
+            "Check the hash chain: exit 0 when intact, 1 (TAMPERED) listing "
+            "every edited or deleted row.",
+        ),
     },
 }
 
@@ -96,8 +148,10 @@ class LazyGroup(click.Group):
         if cmd_name not in self.commands and cmd_name in self.lazy:
             importlib.import_module(f"{__package__}.{self.lazy[cmd_name][0]}")
             if cmd_name not in self.commands:  # the table lies: a bug, say which entry
-                raise RuntimeError(f"orthospec.cli.groups.COMMANDS[{self.table!r}][{cmd_name!r}]: "
-                                   f"module {self.lazy[cmd_name][0]} does not register it")
+                raise RuntimeError(
+                    f"orthospec.cli.groups.COMMANDS[{self.table!r}][{cmd_name!r}]: "
+                    f"module {self.lazy[cmd_name][0]} does not register it"
+                )
         return self.commands.get(cmd_name)
 
     def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
@@ -113,8 +167,11 @@ class LazyGroup(click.Group):
                 formatter.write_dl([(name, cmd.get_short_help_str(limit)) for name, cmd in rows])
 
 
-@click.group(cls=LazyGroup, table="main",
-             context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
+@click.group(
+    cls=LazyGroup,
+    table="main",
+    context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100},
+)
 @click.version_option(__version__, prog_name="orthospec")
 @click.option("--debug", is_flag=True, hidden=True, help="Show tracebacks for internal errors.")
 @click.pass_context

@@ -65,12 +65,15 @@ def main(argv: list[str] | None = None) -> None:
     except KeyboardInterrupt:
         click.echo("interrupted", err=True)
         sys.exit(2)
-    except Exception as exc:  # documented broad catch, never swallowing: an internal bug is reported
+    except (
+        Exception
+    ) as exc:  # documented broad catch, never swallowing: an internal bug is reported
         # plainly (exit 2) instead of a traceback, and re-raised with its traceback under --debug
         if debug:
             raise
-        click.echo(f"internal error: {type(exc).__name__}: {exc} (run with --debug for details)",
-                   err=True)
+        click.echo(
+            f"internal error: {type(exc).__name__}: {exc} (run with --debug for details)", err=True
+        )
         sys.exit(2)
     # the work is done and written: skip the interpreter's final collection of the whole heap
     # (numpy, rasterio, ... loaded), tens of ms at every exit (issue 14); teardown still runs

@@ -64,7 +64,9 @@ if TYPE_CHECKING:
 
 Sha256 = Annotated[str, StringConstraints(pattern=r"^[0-9a-fA-F]{64}$")]
 #: one vertex of an outline: [x, y] in the ITT's map projection (parameter map_crs), finite
-Vertex = tuple[Annotated[float, Field(allow_inf_nan=False)], Annotated[float, Field(allow_inf_nan=False)]]
+Vertex = tuple[
+    Annotated[float, Field(allow_inf_nan=False)], Annotated[float, Field(allow_inf_nan=False)]
+]
 
 
 class _Closed(BaseModel):
@@ -78,10 +80,15 @@ class CheckerParty(_Closed):
     role: str | None = Field(None, description="e.g. external QC, paying agency GIS unit.")
     organisation: str | None = None
     contact: str | None = None
-    project: str | None = Field(None, min_length=1, description=(
-        "The contract / project id this external QC works under, as the buyer names it (e.g. ITT 2026/CAP-ORTHO "
-        "lot 2). The ledger keeps the Normal/Tightened audit state and the §12.8 rounds under it, never under "
-        "the manifest's project.id, which the contractor writes."))
+    project: str | None = Field(
+        None,
+        min_length=1,
+        description=(
+            "The contract / project id this external QC works under, as the buyer names it (e.g. ITT 2026/CAP-ORTHO "
+            "lot 2). The ledger keeps the Normal/Tightened audit state and the §12.8 rounds under it, never under "
+            "the manifest's project.id, which the contractor writes."
+        ),
+    )
 
 
 class CheckerManualCheck(_Closed):
@@ -90,24 +97,40 @@ class CheckerManualCheck(_Closed):
     ``file`` and ``sha256`` bind the verdict to the content judged (issue 29 item 4): `checker init`
     writes them for every item that is a delivered file (an image); at check time a verdict whose
     item's file now holds other content (changed, or another file swapped in) is ``missing`` with the
-    reason, never carried over. An entry without ``verdict`` is still to be judged (the skeleton `checker init` writes)."""
+    reason, never carried over. An entry without ``verdict`` is still to be judged (the skeleton
+    `checker init` writes)."""
 
     check: str = Field(min_length=1, description="The manual rule's id, e.g. JRC-5.3-IDQA.")
     item: str = Field("*", min_length=1, description="Item id in the rule's scope, or * for all.")
-    date: dt.date | None = Field(None, description="When the verdict was given (required with a verdict).")
-    verdict: Literal["pass", "fail"] | None = Field(None, description="pass or fail; empty: still to be judged.")
-    inspector: str | None = Field(None, description="Who inspected, when not the checker named above.")
+    date: dt.date | None = Field(
+        None, description="When the verdict was given (required with a verdict)."
+    )
+    verdict: Literal["pass", "fail"] | None = Field(
+        None, description="pass or fail; empty: still to be judged."
+    )
+    inspector: str | None = Field(
+        None, description="Who inspected, when not the checker named above."
+    )
     note: str | None = None
-    file: str | None = Field(None, min_length=1, description=(
-        "The delivered file the verdict was given on (path inside the delivery), written by `checker init`."))
-    sha256: Sha256 | None = Field(None, description="That file's SHA-256 when it was judged (written by the tool).")
+    file: str | None = Field(
+        None,
+        min_length=1,
+        description=(
+            "The delivered file the verdict was given on (path inside the delivery), written by `checker init`."
+        ),
+    )
+    sha256: Sha256 | None = Field(
+        None, description="That file's SHA-256 when it was judged (written by the tool)."
+    )
 
     @model_validator(mode="after")
     def _dated(self) -> CheckerManualCheck:
         if self.verdict is not None and self.date is None:
             raise ValueError("a verdict needs its date (date: YYYY-MM-DD)")
         if (self.file is None) != (self.sha256 is None):
-            raise ValueError("file and sha256 go together: the file judged and its SHA-256 when judged")
+            raise ValueError(
+                "file and sha256 go together: the file judged and its SHA-256 when judged"
+            )
         return self
 
 
@@ -125,9 +148,14 @@ class PinnedFile(_Closed):
     """A pinned file with the role the delivery gave it when the checker signed (`checker init` writes it)."""
 
     sha256: Sha256
-    role: str | None = Field(None, min_length=1, description=(
-        "Where the delivery used the file: tables.<name>, documents.<name>, vectors.<name>, "
-        "project.area_of_interest, or <table>:<item id> for a table's file cell (images:F01_0101)."))
+    role: str | None = Field(
+        None,
+        min_length=1,
+        description=(
+            "Where the delivery used the file: tables.<name>, documents.<name>, vectors.<name>, "
+            "project.area_of_interest, or <table>:<item id> for a table's file cell (images:F01_0101)."
+        ),
+    )
 
 
 class CheckerDelivery(_Closed):
@@ -136,41 +164,70 @@ class CheckerDelivery(_Closed):
     A different delivery id, manifest or pinned file at check time is exit 2 (the verdicts and
     waivers of this file were given on other content)."""
 
-    id: str = Field(min_length=1, description="The delivery id (delivery.yaml `id`) this file was written for.")
-    manifest_sha256: Sha256 | None = Field(None, description="SHA-256 of the delivery.yaml the checker read.")
-    files: dict[str, Sha256 | PinnedFile] = Field(default_factory=dict, description=(
-        "Evidence the checker signed: path inside the delivery -> SHA-256, or {sha256, role}. Any extension; "
-        "refused at check time when the file changed, or the delivery no longer uses it (for that role, "
-        "when given): a pin cannot be dodged by re-pointing the manifest or a table's file cell."))
+    id: str = Field(
+        min_length=1, description="The delivery id (delivery.yaml `id`) this file was written for."
+    )
+    manifest_sha256: Sha256 | None = Field(
+        None, description="SHA-256 of the delivery.yaml the checker read."
+    )
+    files: dict[str, Sha256 | PinnedFile] = Field(
+        default_factory=dict,
+        description=(
+            "Evidence the checker signed: path inside the delivery -> SHA-256, or {sha256, role}. Any extension; "
+            "refused at check time when the file changed, or the delivery no longer uses it (for that role, "
+            "when given): a pin cannot be dodged by re-pointing the manifest or a table's file cell."
+        ),
+    )
 
 
 class CheckerBlock(_Closed):
     """A block outline in force (JRC §12.4 "block/site", the unit of acceptance of §12.7/§12.8)."""
 
     id: str = Field(min_length=1, description="The block id (delivery.yaml blocks[].id).")
-    polygon: list[Vertex] = Field(min_length=3, description=(
-        "The outline as one ring of [x, y] vertices in the ITT's map projection (parameter map_crs); "
-        "a simple ring, not overlapping another block's."))
+    polygon: list[Vertex] = Field(
+        min_length=3,
+        description=(
+            "The outline as one ring of [x, y] vertices in the ITT's map projection (parameter map_crs); "
+            "a simple ring, not overlapping another block's."
+        ),
+    )
 
 
 class CheckerModel(_Closed):
     orthospec_checker: Literal[1]
     checker: CheckerParty
     delivery: CheckerDelivery
-    parameters: dict[str, QuantityIn | Scalar] = Field(default_factory=dict, description=(
-        "ITT values in force (JRC §2.5 \"the tolerance stated in the ITT\"), same shape as the manifest's "
-        "tender.parameters; --param wins over them, they win over the tender profile and the standard."))
-    blocks: list[CheckerBlock] = Field(default_factory=list, description=(
-        "Block outlines in force (JRC §12.4, §12.7): when given, check points count for a block by these "
-        "outlines, and the manifest's blocks[].polygon are declarations compared with them."))
-    area_of_interest: list[Vertex] | None = Field(None, min_length=3, description=(
-        "The area the photo lay-down must cover (JRC §5.2.2 \"all the surveyed area\"), one ring of [x, y] in "
-        "map_crs; when given it is in force and the manifest's project.area_of_interest is a declaration."))
+    parameters: dict[str, QuantityIn | Scalar] = Field(
+        default_factory=dict,
+        description=(
+            'ITT values in force (JRC §2.5 "the tolerance stated in the ITT"), same shape as the manifest\'s '
+            "tender.parameters; --param wins over them, they win over the tender profile and the standard."
+        ),
+    )
+    blocks: list[CheckerBlock] = Field(
+        default_factory=list,
+        description=(
+            "Block outlines in force (JRC §12.4, §12.7): when given, check points count for a block by these "
+            "outlines, and the manifest's blocks[].polygon are declarations compared with them."
+        ),
+    )
+    area_of_interest: list[Vertex] | None = Field(
+        None,
+        min_length=3,
+        description=(
+            'The area the photo lay-down must cover (JRC §5.2.2 "all the surveyed area"), one ring of [x, y] in '
+            "map_crs; when given it is in force and the manifest's project.area_of_interest is a declaration."
+        ),
+    )
     manual_checks: list[CheckerManualCheck] = Field(default_factory=list)
     waivers: list[CheckerWaiver] = Field(default_factory=list)
-    units: dict[Literal["checkpoints"], Literal["m", "ft", "usft"]] = Field(default_factory=dict, description=(
-        "Length unit of the coordinate columns of the folder's tables/checkpoints.csv (m when not given); "
-        "it must be the unit of the delivery's project.crs axes, as the delivery's own tables."))
+    units: dict[Literal["checkpoints"], Literal["m", "ft", "usft"]] = Field(
+        default_factory=dict,
+        description=(
+            "Length unit of the coordinate columns of the folder's tables/checkpoints.csv (m when not given); "
+            "it must be the unit of the delivery's project.crs axes, as the delivery's own tables."
+        ),
+    )
 
     @field_validator("parameters", "blocks", "manual_checks", "waivers", "units", mode="before")
     @classmethod
@@ -222,18 +279,28 @@ class Checker:
     def evidence(self, section: str, index: int) -> Evidence:
         """Where an entry stands: the file by name (never its absolute path), its YAML path and line."""
         line = self.lines.get((section, index))
-        return Evidence(f"checker:{self.name}", self.sha256, (),
-                        f"{section}[{index}]" + (f" (line {line})" if line else ""))
+        return Evidence(
+            f"checker:{self.name}",
+            self.sha256,
+            (),
+            f"{section}[{index}]" + (f" (line {line})" if line else ""),
+        )
 
     def summary(self) -> dict[str, Any]:
         """For the QCR document: who checked, from which file (name and hash); with a folder, the folder's
         name and every file `check` read from it (path and hash), so the run names all its evidence."""
-        out = {**self.model.checker.model_dump(mode="json", exclude_none=True),
-               "file": self.name, "sha256": self.sha256}
+        out = {
+            **self.model.checker.model_dump(mode="json", exclude_none=True),
+            "file": self.name,
+            "sha256": self.sha256,
+        }
         if self.folder is not None:
             out["folder"] = self.folder.name
-            out["files"] = [{"path": rel, "sha256": sha256_file(self.folder / rel)}
-                            for rel in (CHECKPOINTS_TABLE, INSPECTION_GRID) if self.has(rel)]
+            out["files"] = [
+                {"path": rel, "sha256": sha256_file(self.folder / rel)}
+                for rel in (CHECKPOINTS_TABLE, INSPECTION_GRID)
+                if self.has(rel)
+            ]
         return out
 
     def has(self, rel: str) -> bool:
@@ -251,9 +318,11 @@ class Checker:
         if not p.is_file():
             raise OrthospecError(f"checker folder {self.display}: {rel} is not a regular file")
         if self.delivery_root is not None and p.resolve().is_relative_to(self.delivery_root):
-            raise OrthospecError(f"checker folder {self.display}: {rel} resolves to {p.resolve()}, inside the "
-                                 "delivery: the checker's evidence cannot be a file of the contractor's delivery "
-                                 "(JRC §2, §12.4 independent check points); copy what you measured into the folder")
+            raise OrthospecError(
+                f"checker folder {self.display}: {rel} resolves to {p.resolve()}, inside the "
+                "delivery: the checker's evidence cannot be a file of the contractor's delivery "
+                "(JRC §2, §12.4 independent check points); copy what you measured into the folder"
+            )
         return p
 
 
@@ -264,7 +333,8 @@ def _refuse_inside(path: Path, delivery_root: Path | None, what: str = "checker 
         raise OrthospecError(
             f"{what} {str(path)!r} lies inside the delivery {str(delivery_root)!r}: the checker's "
             "verdicts and waivers cannot travel with the contractor's delivery (JRC §2, external quality "
-            "control); keep it outside the delivery folder")
+            "control); keep it outside the delivery folder"
+        )
 
 
 def _duplicates(model: CheckerModel, display: str, lines: dict[tuple[str, int], int]) -> None:
@@ -272,9 +342,11 @@ def _duplicates(model: CheckerModel, display: str, lines: dict[tuple[str, int], 
     for i, m in enumerate(model.manual_checks):
         key = (m.check, m.item)
         if key in seen:
-            raise OrthospecError(f"{display}:{lines.get(('manual_checks', i), '?')}: manual_checks: "
-                                 f"{m.check} item {m.item!r} is given twice (first at entry {seen[key] + 1}); "
-                                 "one verdict per check and item")
+            raise OrthospecError(
+                f"{display}:{lines.get(('manual_checks', i), '?')}: manual_checks: "
+                f"{m.check} item {m.item!r} is given twice (first at entry {seen[key] + 1}); "
+                "one verdict per check and item"
+            )
         seen[key] = i
 
 
@@ -286,28 +358,36 @@ def _check_outlines(chk: Checker) -> None:
     polys = []
     for i, b in enumerate(m.blocks):
         if b.id in seen:
-            raise OrthospecError(f"checker file {chk.at('blocks', i)}: blocks[{i}]: block {b.id} is given twice "
-                                 f"(first at blocks[{seen[b.id]}]); one outline per block")
+            raise OrthospecError(
+                f"checker file {chk.at('blocks', i)}: blocks[{i}]: block {b.id} is given twice "
+                f"(first at blocks[{seen[b.id]}]); one outline per block"
+            )
         seen[b.id] = i
         poly = ring_polygon(b.polygon)
         why = invalid_reason(poly)
         if why:
-            raise OrthospecError(f"checker file {chk.at('blocks', i, 'polygon')}: blocks[{i}] ({b.id}): the polygon "
-                                 f"is not a valid block outline ({why}); a block outline is a simple ring whose "
-                                 "edges do not cross")
+            raise OrthospecError(
+                f"checker file {chk.at('blocks', i, 'polygon')}: blocks[{i}] ({b.id}): the polygon "
+                f"is not a valid block outline ({why}); a block outline is a simple ring whose "
+                "edges do not cross"
+            )
         polys.append(poly)
     hit = first_overlap(polys)
     if hit is not None:
         i, j, area = hit
-        raise OrthospecError(f"checker file {chk.at('blocks', j, 'polygon')}: blocks[{j}] ({m.blocks[j].id}): the "
-                             f"polygon overlaps the outline of block {m.blocks[i].id} (blocks[{i}]) over an area of "
-                             f"{area:.6g} (map_crs units squared); blocks are the units of acceptance (JRC §12.4, "
-                             "§12.8) and a check point cannot belong to two: outlines may touch but not overlap")
+        raise OrthospecError(
+            f"checker file {chk.at('blocks', j, 'polygon')}: blocks[{j}] ({m.blocks[j].id}): the "
+            f"polygon overlaps the outline of block {m.blocks[i].id} (blocks[{i}]) over an area of "
+            f"{area:.6g} (map_crs units squared); blocks are the units of acceptance (JRC §12.4, "
+            "§12.8) and a check point cannot belong to two: outlines may touch but not overlap"
+        )
     if m.area_of_interest is not None:
         why = invalid_reason(ring_polygon(m.area_of_interest))
         if why:
-            raise OrthospecError(f"checker file {chk.at('area_of_interest')}: area_of_interest is not a valid "
-                                 f"outline ({why}); give one simple ring of [x, y] vertices in map_crs")
+            raise OrthospecError(
+                f"checker file {chk.at('area_of_interest')}: area_of_interest is not a valid "
+                f"outline ({why}); give one simple ring of [x, y] vertices in map_crs"
+            )
 
 
 def stated_outlines(chk: Checker) -> StatedOutlines | None:
@@ -319,13 +399,21 @@ def stated_outlines(chk: Checker) -> StatedOutlines | None:
     aoi = None
     if m.area_of_interest is not None:
         line = chk.lines.get(("area_of_interest",))
-        aoi = (tuple(m.area_of_interest), Evidence(f"checker:{chk.name}", chk.sha256, (),
-                                                   "area_of_interest" + (f" (line {line})" if line else "")))
+        aoi = (
+            tuple(m.area_of_interest),
+            Evidence(
+                f"checker:{chk.name}",
+                chk.sha256,
+                (),
+                "area_of_interest" + (f" (line {line})" if line else ""),
+            ),
+        )
     return StatedOutlines(f"checker file {chk.name}", blocks, aoi)
 
 
-def load_checker(path: str | Path, *, delivery_root: str | Path | None = None,
-                 delivery: Delivery | None = None) -> Checker:
+def load_checker(
+    path: str | Path, *, delivery_root: str | Path | None = None, delivery: Delivery | None = None
+) -> Checker:
     """Read and validate a checker file; refuse one inside ``delivery_root`` (or ``delivery``'s root),
     and one written for another delivery or other content than ``delivery`` (:func:`bind`).
 
@@ -346,20 +434,28 @@ def load_checker(path: str | Path, *, delivery_root: str | Path | None = None,
         _refuse_inside(p, root, "checker folder")
         folder, p = p, p / CHECKER_FILE
         if not p.is_file():
-            raise OrthospecError(f"checker folder {str(folder)!r} holds no {CHECKER_FILE}: a checker folder is "
-                                 f"{CHECKER_FILE} (who checks, the ITT values, manual verdicts, waivers) plus the "
-                                 f"checker's tables ({CHECKPOINTS_TABLE}) and inspection grid ({INSPECTION_GRID}); "
-                                 "`orthospec checker init` writes one")
+            raise OrthospecError(
+                f"checker folder {str(folder)!r} holds no {CHECKER_FILE}: a checker folder is "
+                f"{CHECKER_FILE} (who checks, the ITT values, manual verdicts, waivers) plus the "
+                f"checker's tables ({CHECKPOINTS_TABLE}) and inspection grid ({INSPECTION_GRID}); "
+                "`orthospec checker init` writes one"
+            )
     _refuse_inside(p, root)
-    display = str(path) if folder is None or Path(path).name == CHECKER_FILE else str(Path(path) / CHECKER_FILE)
+    display = (
+        str(path)
+        if folder is None or Path(path).name == CHECKER_FILE
+        else str(Path(path) / CHECKER_FILE)
+    )
     try:
         doc = load_file(p, display=display)
     except YamlError as exc:
         raise OrthospecError(f"checker file {exc}") from None
     if not isinstance(doc.data, dict):
-        raise OrthospecError(f"{display}:1:1: a checker file must be a YAML mapping "
-                             "(orthospec_checker: 1, checker: {name: ...}, delivery: {id: ...}, parameters, "
-                             "manual_checks, waivers)")
+        raise OrthospecError(
+            f"{display}:1:1: a checker file must be a YAML mapping "
+            "(orthospec_checker: 1, checker: {name: ...}, delivery: {id: ...}, parameters, "
+            "manual_checks, waivers)"
+        )
     try:
         model = CheckerModel.model_validate(doc.data)
     except ValidationError as exc:
@@ -367,18 +463,41 @@ def load_checker(path: str | Path, *, delivery_root: str | Path | None = None,
         raise OrthospecError("invalid checker file:\n  " + "\n  ".join(lines)) from None
     marks: dict[tuple[Any, ...], int] = {
         (sec, i): doc.where((sec, i))[0] or 0
-        for sec in ("manual_checks", "waivers") for i in range(len(doc.data.get(sec) or []))}
+        for sec in ("manual_checks", "waivers")
+        for i in range(len(doc.data.get(sec) or []))
+    }
     marks[("units",)] = doc.where(("units",))[0] or 0
-    extra: list[tuple[Any, ...]] = [("delivery",), ("delivery", "id"), ("delivery", "manifest_sha256"),
-             *(("delivery", "files", k) for k in model.delivery.files),
-             ("parameters",), *(("parameters", k) for k in model.parameters)]
-    extra += [("area_of_interest",), *(("blocks", i, "polygon") for i in range(len(model.blocks))),
-              *(("blocks", i, "polygon", k) for i, b in enumerate(model.blocks) for k in range(len(b.polygon)))]
+    extra: list[tuple[Any, ...]] = [
+        ("delivery",),
+        ("delivery", "id"),
+        ("delivery", "manifest_sha256"),
+        *(("delivery", "files", k) for k in model.delivery.files),
+        ("parameters",),
+        *(("parameters", k) for k in model.parameters),
+    ]
+    extra += [
+        ("area_of_interest",),
+        *(("blocks", i, "polygon") for i in range(len(model.blocks))),
+        *(
+            ("blocks", i, "polygon", k)
+            for i, b in enumerate(model.blocks)
+            for k in range(len(b.polygon))
+        ),
+    ]
     marks.update({k: doc.where(k)[0] or 0 for k in extra})
-    marks.update({("blocks", i): doc.where(("blocks", i))[0] or 0 for i in range(len(model.blocks))})
+    marks.update(
+        {("blocks", i): doc.where(("blocks", i))[0] or 0 for i in range(len(model.blocks))}
+    )
     _duplicates(model, display, marks)
-    chk = Checker(model, p.name, sha256_file(p), marks, display, folder,
-                  Path(root).resolve() if root is not None else None)
+    chk = Checker(
+        model,
+        p.name,
+        sha256_file(p),
+        marks,
+        display,
+        folder,
+        Path(root).resolve() if root is not None else None,
+    )
     _check_outlines(chk)
     if delivery is not None:
         bind(chk, delivery)
@@ -395,11 +514,15 @@ def bind(chk: Checker, d: Delivery) -> None:
     b = chk.model.delivery
     other = "the checker's verdicts were given on other content"
     if b.id != d.id:
-        raise OrthospecError(f"checker file {chk.at('delivery', 'id')} is for delivery {b.id}; this delivery "
-                             f"is {d.id}: {other}")
+        raise OrthospecError(
+            f"checker file {chk.at('delivery', 'id')} is for delivery {b.id}; this delivery "
+            f"is {d.id}: {other}"
+        )
     if b.manifest_sha256 and b.manifest_sha256.lower() != d.manifest_sha256.lower():
-        raise OrthospecError(f"checker file {chk.at('delivery', 'manifest_sha256')} pins delivery.yaml sha256 "
-                             f"{b.manifest_sha256.lower()}, the delivery's is {d.manifest_sha256}: {other}")
+        raise OrthospecError(
+            f"checker file {chk.at('delivery', 'manifest_sha256')} pins delivery.yaml sha256 "
+            f"{b.manifest_sha256.lower()}, the delivery's is {d.manifest_sha256}: {other}"
+        )
     manifest_roles = file_roles(d, tables=False)
     table_roles: dict[str, str] | None = None
     for rel, pin in sorted(b.files.items()):
@@ -411,7 +534,9 @@ def bind(chk: Checker, d: Delivery) -> None:
             raise OrthospecError(f"checker file {where}: {exc}") from None
         norm = posixpath.normpath(rel)
         roles = manifest_roles
-        if (role is None and norm not in roles.values()) or (role is not None and role not in roles):
+        if (role is None and norm not in roles.values()) or (
+            role is not None and role not in roles
+        ):
             if table_roles is None:  # a table's file cells: read only when a pin needs them
                 table_roles = {**manifest_roles, **_table_file_roles(d)}
             roles = table_roles
@@ -421,16 +546,24 @@ def bind(chk: Checker, d: Delivery) -> None:
                 # red team R19 and issue 29 item 4: the manifest or a table re-pointed the role at another file
                 # after the checker signed, the pinned file left untouched
                 said = f"uses {now} for it" if now is not None else "no longer has it"
-                raise OrthospecError(f"checker file {where} pins {rel} as {role}; the delivery now {said}: {other}")
+                raise OrthospecError(
+                    f"checker file {where} pins {rel} as {role}; the delivery now {said}: {other}"
+                )
         elif norm not in roles.values():
-            raise OrthospecError(f"checker file {where} pins {rel}, which the delivery no longer uses (no table, "
-                                 f"document, vector, area of interest or table file cell names it): {other}")
+            raise OrthospecError(
+                f"checker file {where} pins {rel}, which the delivery no longer uses (no table, "
+                f"document, vector, area of interest or table file cell names it): {other}"
+            )
         if not path.is_file():
-            raise OrthospecError(f"checker file {where} pins {rel}, which the delivery does not contain: {other}")
+            raise OrthospecError(
+                f"checker file {where} pins {rel}, which the delivery does not contain: {other}"
+            )
         got = d.sha256(rel)
         if got.lower() != want.lower():
-            raise OrthospecError(f"checker file {where} pins {rel} sha256 {want.lower()}, the delivery's is "
-                                 f"{got}: {other}")
+            raise OrthospecError(
+                f"checker file {where} pins {rel} sha256 {want.lower()}, the delivery's is "
+                f"{got}: {other}"
+            )
 
 
 def file_roles(d: Delivery, *, tables: bool = True) -> dict[str, str]:
@@ -440,9 +573,15 @@ def file_roles(d: Delivery, *, tables: bool = True) -> dict[str, str]:
 
     What a pin's ``role`` names (`checker init` writes them); one place that knows where a delivery names files."""
     m = d.manifest
-    out = {f"{kind}.{name}": posixpath.normpath(v)
-           for kind, mapping in (("tables", m.tables), ("documents", m.documents), ("vectors", m.vectors))
-           for name, v in mapping.items()}
+    out = {
+        f"{kind}.{name}": posixpath.normpath(v)
+        for kind, mapping in (
+            ("tables", m.tables),
+            ("documents", m.documents),
+            ("vectors", m.vectors),
+        )
+        for name, v in mapping.items()
+    }
     if m.project.area_of_interest:
         out["project.area_of_interest"] = posixpath.normpath(m.project.area_of_interest)
     if tables:
@@ -472,7 +611,9 @@ def checker_schema() -> dict[str, Any]:
     s["$schema"] = "https://json-schema.org/draft/2020-12/schema"
     s["$id"] = "https://orthospec.dev/schema/checker.schema.json"
     s["title"] = "orthospec checker file (check --checker FILE)"
-    s["description"] = ("The external quality control's manual-check verdicts and waivers in force "
-                        "(JRC §2). Kept outside the delivery; the delivery's own waivers are requests "
-                        "and its manual_checks table is the contractor's internal-QC statement.")
+    s["description"] = (
+        "The external quality control's manual-check verdicts and waivers in force "
+        "(JRC §2). Kept outside the delivery; the delivery's own waivers are requests "
+        "and its manual_checks table is the contractor's internal-QC statement."
+    )
     return s

@@ -37,32 +37,75 @@ DECISIONS = ("accepted", "by_hand")
 _SHA = re.compile(r"^[0-9a-fA-F]{64}$")
 
 #: provenance of each measurement, beside the delivery convention's checkpoints columns
-PROVENANCE: dict[str, ColumnSpec] = {c.name: c for c in (
-    ColumnSpec("method", "text", None, False, "How the image position was measured (e.g. phase_correlation, ncc, "
-               "by_hand)."),
-    ColumnSpec("score", "number", "1", False, "Match-quality score of an automatic measurement (peak ratio or "
-               "correlation)."),
-    ColumnSpec("decision", "text", None, False, "accepted (automatic match kept) or by_hand (measured by the "
-               "checker)."),
-    ColumnSpec("reason", "text", None, False, "Why the point was measured by hand (low texture, cloud, change, "
-               "edge of image)."),
-    ColumnSpec("reference_file", "text", None, False, "The reference chip or orthoimage the point was matched "
-               "against (path in the checker folder, or as the checker keeps it)."),
-    ColumnSpec("reference_sha256", "text", None, False, "SHA-256 of the reference file."),
-    ColumnSpec("image_sha256", "text", None, False, "SHA-256 of the delivered image the point was measured on "
-               "(written by the tool): a different image at check time leaves the point unused."),
-    ColumnSpec("chip_px", "number", "1", False, "Chip size of the match, in pixels.", 0),
-    ColumnSpec("tool_version", "text", None, False, "orthospec version that measured the point."),
-)}
+PROVENANCE: dict[str, ColumnSpec] = {
+    c.name: c
+    for c in (
+        ColumnSpec(
+            "method",
+            "text",
+            None,
+            False,
+            "How the image position was measured (e.g. phase_correlation, ncc, by_hand).",
+        ),
+        ColumnSpec(
+            "score",
+            "number",
+            "1",
+            False,
+            "Match-quality score of an automatic measurement (peak ratio or correlation).",
+        ),
+        ColumnSpec(
+            "decision",
+            "text",
+            None,
+            False,
+            "accepted (automatic match kept) or by_hand (measured by the checker).",
+        ),
+        ColumnSpec(
+            "reason",
+            "text",
+            None,
+            False,
+            "Why the point was measured by hand (low texture, cloud, change, edge of image).",
+        ),
+        ColumnSpec(
+            "reference_file",
+            "text",
+            None,
+            False,
+            "The reference chip or orthoimage the point was matched "
+            "against (path in the checker folder, or as the checker keeps it).",
+        ),
+        ColumnSpec("reference_sha256", "text", None, False, "SHA-256 of the reference file."),
+        ColumnSpec(
+            "image_sha256",
+            "text",
+            None,
+            False,
+            "SHA-256 of the delivered image the point was measured on "
+            "(written by the tool): a different image at check time leaves the point unused.",
+        ),
+        ColumnSpec("chip_px", "number", "1", False, "Chip size of the match, in pixels.", 0),
+        ColumnSpec(
+            "tool_version", "text", None, False, "orthospec version that measured the point."
+        ),
+    )
+}
 
 
 @lru_cache(maxsize=1)
 def checkpoints_spec() -> TableSpec:
     """The checker's check point table: the delivery convention's columns plus :data:`PROVENANCE`."""
     base = table_specs()["checkpoints"]
-    return replace(base, name="checkpoints", description=(
-        "The external QC's check points measured on the delivered orthoimages (JRC §12.6), with the "
-        "provenance of each measurement (issue 29)."), columns={**base.columns, **PROVENANCE})
+    return replace(
+        base,
+        name="checkpoints",
+        description=(
+            "The external QC's check points measured on the delivered orthoimages (JRC §12.6), with the "
+            "provenance of each measurement (issue 29)."
+        ),
+        columns={**base.columns, **PROVENANCE},
+    )
 
 
 @dataclass(frozen=True)
@@ -100,11 +143,16 @@ def read_checker_points(chk: Checker, d: Delivery) -> CheckerPoints | None:
     unit = chk.model.units.get("checkpoints", "m")
     crs_unit = d.crs_unit
     if crs_unit is not None and canonical(unit) != crs_unit:
-        raise OrthospecError(f"checker file {chk.at('units')}: the coordinates of {CHECKPOINTS_TABLE} are in "
-                             f"{unit}, but the delivery's project.crs axes are in {crs_unit}: the check points "
-                             f"are positions in the map projection; set units: {{checkpoints: {crs_unit}}}")
-    units = {col: canonical(unit if cs.unit == "length" else cs.unit)
-             for col, cs in spec.columns.items() if cs.type == "number" and col in df and cs.unit}
+        raise OrthospecError(
+            f"checker file {chk.at('units')}: the coordinates of {CHECKPOINTS_TABLE} are in "
+            f"{unit}, but the delivery's project.crs axes are in {crs_unit}: the check points "
+            f"are positions in the map projection; set units: {{checkpoints: {crs_unit}}}"
+        )
+    units = {
+        col: canonical(unit if cs.unit == "length" else cs.unit)
+        for col, cs in spec.columns.items()
+        if cs.type == "number" and col in df and cs.unit
+    }
     table = Table("checkpoints", spec, EVIDENCE_PREFIX + CHECKPOINTS_TABLE, sha, df, units)
     return CheckerPoints(table, p)
 
@@ -116,8 +164,12 @@ def _check_cells(df: pd.DataFrame, file: str) -> None:
         bad = cells.notna() & ~cells.isin(DECISIONS)
         if bad.any():
             i = int(np.flatnonzero(bad.to_numpy())[0])
-            raise DeliveryError(f"decision {cells.iloc[i]!r} is not one of {', '.join(DECISIONS)}", file=file,
-                                row=int(df["_row"].iloc[i]), field="decision")
+            raise DeliveryError(
+                f"decision {cells.iloc[i]!r} is not one of {', '.join(DECISIONS)}",
+                file=file,
+                row=int(df["_row"].iloc[i]),
+                field="decision",
+            )
     for col in ("image_sha256", "reference_sha256"):
         if col not in df:
             continue
@@ -125,21 +177,35 @@ def _check_cells(df: pd.DataFrame, file: str) -> None:
         bad = cells.notna() & ~cells.astype(str).str.fullmatch(_SHA.pattern)
         if bad.any():
             i = int(np.flatnonzero(bad.to_numpy())[0])
-            raise DeliveryError(f"{cells.iloc[i]!r} is not a SHA-256 (64 hexadecimal digits)", file=file,
-                                row=int(df["_row"].iloc[i]), field=col)
+            raise DeliveryError(
+                f"{cells.iloc[i]!r} is not a SHA-256 (64 hexadecimal digits)",
+                file=file,
+                row=int(df["_row"].iloc[i]),
+                field=col,
+            )
 
 
 def checkpoints_schema() -> dict[str, object]:
     """The published JSON Schema of one row of CHECKER_DIR/tables/checkpoints.csv
     (specs/schema/checker-checkpoints.schema.json): columns, types, units, which are required."""
-    kinds = {"text": "string", "number": "number", "bool": "boolean", "date": "string", "datetime": "string"}
+    kinds = {
+        "text": "string",
+        "number": "number",
+        "bool": "boolean",
+        "date": "string",
+        "datetime": "string",
+    }
     spec = checkpoints_spec()
     props: dict[str, object] = {}
     for name, cs in spec.columns.items():
-        p: dict[str, object] = {"type": [kinds[cs.type], "null"] if not cs.required else kinds[cs.type],
-                                "description": cs.description}
+        p: dict[str, object] = {
+            "type": [kinds[cs.type], "null"] if not cs.required else kinds[cs.type],
+            "description": cs.description,
+        }
         if cs.unit:
-            p["x-unit"] = "the checker's units.checkpoints (m by default)" if cs.unit == "length" else cs.unit
+            p["x-unit"] = (
+                "the checker's units.checkpoints (m by default)" if cs.unit == "length" else cs.unit
+            )
         if cs.min is not None:
             p["minimum"] = cs.min
         if name == "decision":
@@ -151,8 +217,13 @@ def checkpoints_schema() -> dict[str, object]:
         "$schema": "https://json-schema.org/draft/2020-12/schema",
         "$id": "https://orthospec.dev/schema/checker-checkpoints.schema.json",
         "title": "orthospec checker folder: tables/checkpoints.csv (one row)",
-        "description": ("The external QC's check point measurements (JRC §12.6): a UTF-8 CSV with a header row, "
-                        "one row per point, read by the delivery convention's table parser. The columns of the "
-                        "delivery's checkpoints table plus each measurement's provenance (docs/CHECKER.md)."),
-        "type": "object", "additionalProperties": False, "required": spec.required, "properties": props,
+        "description": (
+            "The external QC's check point measurements (JRC §12.6): a UTF-8 CSV with a header row, "
+            "one row per point, read by the delivery convention's table parser. The columns of the "
+            "delivery's checkpoints table plus each measurement's provenance (docs/CHECKER.md)."
+        ),
+        "type": "object",
+        "additionalProperties": False,
+        "required": spec.required,
+        "properties": props,
     }

@@ -62,8 +62,10 @@ def _scope_tables() -> dict[str, str]:
     for name, spec in table_specs().items():
         if spec.items:
             if spec.scope in out or spec.id is None:
-                raise SpecError(f"specs/delivery-tables.yaml: table {name!r}: `items: true` needs an id "
-                                 f"column and one table per scope (scope {spec.scope!r})")
+                raise SpecError(
+                    f"specs/delivery-tables.yaml: table {name!r}: `items: true` needs an id "
+                    f"column and one table per scope (scope {spec.scope!r})"
+                )
             out[spec.scope] = name
     return out
 

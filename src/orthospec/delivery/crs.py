@@ -22,11 +22,15 @@ def read_crs(text: Any) -> Any:
     from pyproj.exceptions import CRSError
 
     if isinstance(text, bool) or not isinstance(text, str | int) or not str(text).strip():
-        raise CrsProblem(f"expected a coordinate reference system such as 'EPSG:25832', got {text!r}")
+        raise CrsProblem(
+            f"expected a coordinate reference system such as 'EPSG:25832', got {text!r}"
+        )
     try:
         return CRS.from_user_input(str(text).strip())
     except CRSError as exc:
-        raise CrsProblem(f"{text!r} is not a coordinate reference system pyproj can read ({exc})") from None
+        raise CrsProblem(
+            f"{text!r} is not a coordinate reference system pyproj can read ({exc})"
+        ) from None
 
 
 def epsg_name(text: Any) -> str:
@@ -36,7 +40,9 @@ def epsg_name(text: Any) -> str:
     crs = read_crs(text)
     code = crs.to_epsg()
     if code is None:
-        raise CrsProblem(f"{text!r} ({crs.name}) has no EPSG code; name the map projection as EPSG:<code>")
+        raise CrsProblem(
+            f"{text!r} ({crs.name}) has no EPSG code; name the map projection as EPSG:<code>"
+        )
     return f"EPSG:{code}"
 
 

@@ -58,12 +58,17 @@ def source_links(root: Path, draft: Any, *, line: int | None) -> SourceLinks | N
         return None
 
     def refuse(why: str) -> DeliveryError:
-        return DeliveryError(f"draft.source {draft.source!r} {why}", file="delivery.yaml", line=line)
+        return DeliveryError(
+            f"draft.source {draft.source!r} {why}", file="delivery.yaml", line=line
+        )
 
     name = PurePosixPath(draft.links)
     if len(name.parts) != 1 or name.parts[0] in (".", "..") or "\\" in draft.links:
-        raise DeliveryError(f"draft.links {draft.links!r} must be one folder name inside the draft",
-                            file="delivery.yaml", line=line)
+        raise DeliveryError(
+            f"draft.links {draft.links!r} must be one folder name inside the draft",
+            file="delivery.yaml",
+            line=line,
+        )
     src = Path(draft.source)
     if not src.is_absolute():
         src = root / src
@@ -107,9 +112,16 @@ def todo_citations(path_of: Callable[..., Path], draft: Any) -> dict[str, str]:
             raise DeliveryError(f"larger than {TODO_MAP_BYTES} bytes", file=draft.todo_rules)
         data = json.loads(p.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise DeliveryError(f"cannot be read as the draft's TODO map: {exc}", file=draft.todo_rules) from None
+        raise DeliveryError(
+            f"cannot be read as the draft's TODO map: {exc}", file=draft.todo_rules
+        ) from None
     if not isinstance(data, dict) or not all(
-            isinstance(k, str) and isinstance(v, list) and len(v) == 2 and isinstance(v[0], int)
-            and isinstance(v[1], str) for k, v in data.items()):
+        isinstance(k, str)
+        and isinstance(v, list)
+        and len(v) == 2
+        and isinstance(v[0], int)
+        and isinstance(v[1], str)
+        for k, v in data.items()
+    ):
         raise DeliveryError("expected {rule id: [line, what]}", file=draft.todo_rules)
     return {k: f"{draft.todo} line {v[0]}: {v[1]}" for k, v in data.items()}

@@ -109,8 +109,10 @@ class DeliveryInForce(Delivery):
     def table_absent_reason(self, name: str) -> str:
         if name == INTERNAL:
             if not self.external:
-                return ("the check point statistics are the contractor's own points (no checker's measurements): "
-                        "nothing independent to compare its internal QC with")
+                return (
+                    "the check point statistics are the contractor's own points (no checker's measurements): "
+                    "nothing independent to compare its internal QC with"
+                )
             return super().table_absent_reason("checkpoints")
         return super().table_absent_reason(name)
 
@@ -118,14 +120,18 @@ class DeliveryInForce(Delivery):
         """Why the check points in force are the contractor's (for JRC-12.4-EXTERNAL-CHECKPOINTS), '' if not."""
         if self.external:
             return ""
-        need = (f"the checker measured no check points of its own (CHECKER_DIR/{CHECKPOINTS_TABLE}: orthospec "
-                "measure checkpoints; JRC §12.4-§12.6)")
+        need = (
+            f"the checker measured no check points of its own (CHECKER_DIR/{CHECKPOINTS_TABLE}: orthospec "
+            "measure checkpoints; JRC §12.4-§12.6)"
+        )
         then = "so the statistics are the contractor's own points (internal QC, JRC §12.5)"
         if self.checker is None:
             return f"{need}: no checker folder was given (--checker), {then}"
         if self.checker.folder is None:
             return f"{need}: the single checker file {self.checker.display} holds no tables, {then}"
-        return f"{need}: the checker folder {self.checker.folder} holds no {CHECKPOINTS_TABLE}, {then}"
+        return (
+            f"{need}: the checker folder {self.checker.folder} holds no {CHECKPOINTS_TABLE}, {then}"
+        )
 
     def sha256(self, rel: str) -> str:
         if rel.startswith(EVIDENCE_PREFIX):
@@ -141,7 +147,9 @@ class DeliveryInForce(Delivery):
         self._resolved = True
         keep, self.unbound = self._binding(t)
         if not keep.all():
-            t = Table(t.name, t.spec, t.file, t.sha256, t.df.loc[keep].reset_index(drop=True), t.units)
+            t = Table(
+                t.name, t.spec, t.file, t.sha256, t.df.loc[keep].reset_index(drop=True), t.units
+            )
             self._external = t
         return t
 
@@ -155,15 +163,25 @@ class DeliveryInForce(Delivery):
         df = t.df
         n = len(df)
         keep = np.ones(n, dtype=bool)
-        ids = df["image_id"].to_numpy(dtype=object) if "image_id" in df else np.full(n, None, dtype=object)
-        shas = df["image_sha256"].to_numpy(dtype=object) if "image_sha256" in df else np.full(n, None, dtype=object)
+        ids = (
+            df["image_id"].to_numpy(dtype=object)
+            if "image_id" in df
+            else np.full(n, None, dtype=object)
+        )
+        shas = (
+            df["image_sha256"].to_numpy(dtype=object)
+            if "image_sha256" in df
+            else np.full(n, None, dtype=object)
+        )
         hashed = np.array([v is not None for v in shas], dtype=bool)
         self.unhashed = [str(v) for v in df["point_id"].to_numpy(dtype=object)[~hashed]]
         if not hashed.any():
             return keep, []
         files = self._image_files()
-        now = {image: (self._hash(files[image]) if image in files else None)
-               for image in sorted({str(ids[i]) for i in np.flatnonzero(hashed) if ids[i] is not None})}
+        now = {
+            image: (self._hash(files[image]) if image in files else None)
+            for image in sorted({str(ids[i]) for i in np.flatnonzero(hashed) if ids[i] is not None})
+        }
         out: list[Unbound] = []
         rows = df["_row"].to_numpy()
         for i in np.flatnonzero(hashed).tolist():
@@ -175,13 +193,22 @@ class DeliveryInForce(Delivery):
             elif now[str(image)] is None:
                 why = f"image {image}'s file {files[str(image)]} is not in the delivery"
             elif sha != now[str(image)]:
-                why = (f"measured on image {image} with SHA-256 {sha[:12]}…; the delivered {files[str(image)]} is "
-                       f"{now[str(image)][:12]}… (changed or swapped since): measure it again")
+                why = (
+                    f"measured on image {image} with SHA-256 {sha[:12]}…; the delivered {files[str(image)]} is "
+                    f"{now[str(image)][:12]}… (changed or swapped since): measure it again"
+                )
             else:
                 continue
             keep[i] = False
-            out.append(Unbound(str(df["point_id"].iat[i]), str(df["block"].iat[i]), int(rows[i]),
-                               None if image is None else str(image), why))
+            out.append(
+                Unbound(
+                    str(df["point_id"].iat[i]),
+                    str(df["block"].iat[i]),
+                    int(rows[i]),
+                    None if image is None else str(image),
+                    why,
+                )
+            )
         return keep, out
 
     def _image_files(self) -> dict[str, str]:
@@ -202,8 +229,10 @@ class DeliveryInForce(Delivery):
     def unbound_frame(self) -> pd.DataFrame:
         """The unbound points as a table (point_id, block, row, image_id, reason), in file order."""
         self.table("checkpoints")
-        return pd.DataFrame([vars(u) for u in self.unbound],
-                            columns=["point_id", "block", "row", "image_id", "reason"])
+        return pd.DataFrame(
+            [vars(u) for u in self.unbound],
+            columns=["point_id", "block", "row", "image_id", "reason"],
+        )
 
     def checker_evidence(self) -> dict[str, Any]:
         """The checker's files this view reads, by evidence name -> SHA-256."""

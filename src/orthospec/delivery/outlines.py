@@ -40,7 +40,11 @@ def finite_ring(coords: Sequence[Sequence[float]] | None) -> bool:
     (a non-finite vertex leaves its block unchecked, reported where the outline is used)."""
     import math
 
-    return coords is not None and len(coords) >= 3 and all(math.isfinite(float(v)) for xy in coords for v in xy)
+    return (
+        coords is not None
+        and len(coords) >= 3
+        and all(math.isfinite(float(v)) for xy in coords for v in xy)
+    )
 
 
 def ring_polygon(coords: Sequence[Sequence[float]]) -> Polygon:
@@ -70,8 +74,11 @@ def first_overlap(polys: Sequence[Any]) -> tuple[int, int, float] | None:
     from shapely import STRtree
 
     left, right = STRtree(list(polys)).query(list(polys), predicate="intersects")
-    pairs = sorted((int(b), int(a)) for a, b in zip(left.tolist(), right.tolist(), strict=True)
-                   if a < b and polys[a].intersection(polys[b]).area > 0)
+    pairs = sorted(
+        (int(b), int(a))
+        for a, b in zip(left.tolist(), right.tolist(), strict=True)
+        if a < b and polys[a].intersection(polys[b]).area > 0
+    )
     if not pairs:
         return None
     second, first = pairs[0]

@@ -22,8 +22,12 @@ MANIFEST = "delivery.yaml"
 #: no scheme or drive letter): a national images table's paths are vetted in bulk, the rest one by one.
 _PLAIN_PATH = r"[A-Za-z0-9_][A-Za-z0-9_.-]*(?:/[A-Za-z0-9_][A-Za-z0-9_.-]*)*"
 _SCHEME = re.compile(r"^[A-Za-z][A-Za-z0-9+.-]*:")
-_SPECIAL = {stat.S_IFIFO: "a FIFO (named pipe)", stat.S_IFCHR: "a character device",
-            stat.S_IFBLK: "a block device", stat.S_IFSOCK: "a socket"}
+_SPECIAL = {
+    stat.S_IFIFO: "a FIFO (named pipe)",
+    stat.S_IFCHR: "a character device",
+    stat.S_IFBLK: "a block device",
+    stat.S_IFSOCK: "a socket",
+}
 
 
 def _lexical(rel: str) -> tuple[PurePosixPath | None, str]:
@@ -35,9 +39,15 @@ def _lexical(rel: str) -> tuple[PurePosixPath | None, str]:
         return None, "contains control characters"
     posix = text.replace("\\", "/")
     if posix.lower().startswith("/vsi"):
-        return None, "is a GDAL virtual file system path (/vsi...); only files inside the delivery are read"
+        return (
+            None,
+            "is a GDAL virtual file system path (/vsi...); only files inside the delivery are read",
+        )
     if _SCHEME.match(posix):
-        return None, "is a URL or a drive-letter path; only relative paths inside the delivery are read"
+        return (
+            None,
+            "is a URL or a drive-letter path; only relative paths inside the delivery are read",
+        )
     pp = PurePosixPath(posix)
     if pp.is_absolute() or posix.startswith("//"):
         return None, "is an absolute path; paths are relative to the delivery folder"
@@ -48,9 +58,18 @@ def _lexical(rel: str) -> tuple[PurePosixPath | None, str]:
     return pp, ""
 
 
-def contained(root: str | Path, rel: str, *, what: str = "file", file: str | None = MANIFEST,
-              line: int | None = None, row: int | None = None, field: str | None = None,
-              follow: bool = True, links: SourceLinks | None = None) -> Path:
+def contained(
+    root: str | Path,
+    rel: str,
+    *,
+    what: str = "file",
+    file: str | None = MANIFEST,
+    line: int | None = None,
+    row: int | None = None,
+    field: str | None = None,
+    follow: bool = True,
+    links: SourceLinks | None = None,
+) -> Path:
     """``root/rel`` if it names something inside the delivery; else a DeliveryError saying why.
 
     The one containment check of orthospec (issue 17): every path a delivery names and every file
@@ -69,8 +88,9 @@ def contained(root: str | Path, rel: str, *, what: str = "file", file: str | Non
     pp, why = _lexical(rel)
 
     def refuse(reason: str) -> DeliveryError:
-        return DeliveryError(f"{what} {str(rel)[:300]!r} {reason}", file=file, line=line, row=row,
-                             field=field)
+        return DeliveryError(
+            f"{what} {str(rel)[:300]!r} {reason}", file=file, line=line, row=row, field=field
+        )
 
     if pp is None:
         raise refuse(why)
@@ -121,12 +141,17 @@ def check_tree(root: str | Path, links: SourceLinks | None = None) -> list[str]:
                 try:
                     real = Path(e.path).resolve()
                 except (OSError, RuntimeError):
-                    raise DeliveryError("is a symbolic link that cannot be resolved (a loop?)",
-                                        file=rel) from None
-                if not real.is_relative_to(real_root) and not (links is not None and links.allows(
-                        Path(e.path), real)):
-                    raise DeliveryError("is a symbolic link leading out of the delivery folder; "
-                                        "orthospec reads nothing outside the delivery", file=rel)
+                    raise DeliveryError(
+                        "is a symbolic link that cannot be resolved (a loop?)", file=rel
+                    ) from None
+                if not real.is_relative_to(real_root) and not (
+                    links is not None and links.allows(Path(e.path), real)
+                ):
+                    raise DeliveryError(
+                        "is a symbolic link leading out of the delivery folder; "
+                        "orthospec reads nothing outside the delivery",
+                        file=rel,
+                    )
                 try:
                     mode = os.stat(e.path).st_mode
                 except OSError:
@@ -144,6 +169,7 @@ def check_tree(root: str | Path, links: SourceLinks | None = None) -> list[str]:
                 mode = e.stat(follow_symlinks=False).st_mode
             kind = _SPECIAL.get(stat.S_IFMT(mode))
             if kind is not None:
-                raise DeliveryError(f"is {kind}, not a regular file; a delivery holds files only",
-                                    file=rel)
+                raise DeliveryError(
+                    f"is {kind}, not a regular file; a delivery holds files only", file=rel
+                )
     return sorted(files)

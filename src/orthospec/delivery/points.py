@@ -97,18 +97,24 @@ def read_point_file(path: str | Path, *, extra_ok: frozenset[str] | None = None)
     has_coord = any(c in cols for c in _COORD)
     has_delta = any(c in cols for c in _DELTA)
     if has_coord and has_delta:
-        raise DeliveryError(f"both coordinate and delta columns given; expected {_EXPECTED}", file=name)
+        raise DeliveryError(
+            f"both coordinate and delta columns given; expected {_EXPECTED}", file=name
+        )
     layout = "deltas" if has_delta else "coordinates"
     required = _DELTA if has_delta else _COORD
     missing = [c for c in required if c not in cols]
     if missing:
-        raise DeliveryError(f"missing column(s) {', '.join(missing)}; expected columns: {_EXPECTED}", file=name)
+        raise DeliveryError(
+            f"missing column(s) {', '.join(missing)}; expected columns: {_EXPECTED}", file=name
+        )
     allowed = {id_col, *required, *_OPTIONAL}
     allowed -= {"z", "z_ref"} if layout == "deltas" else {"dz"}
     ignored = [c for c in header if c not in allowed]
     unknown = [c for c in ignored if extra_ok is not None and c not in extra_ok]
     if unknown:
-        raise DeliveryError(f"unknown column(s) {', '.join(unknown)}; expected columns: {_EXPECTED}", file=name)
+        raise DeliveryError(
+            f"unknown column(s) {', '.join(unknown)}; expected columns: {_EXPECTED}", file=name
+        )
     if layout == "coordinates" and (("z" in cols) != ("z_ref" in cols)):
         raise DeliveryError("columns z and z_ref must be given together", file=name)
     df = parse_csv(body, _spec(header, id_col, required), file=name)
@@ -117,11 +123,20 @@ def read_point_file(path: str | Path, *, extra_ok: frozenset[str] | None = None)
 
 def _spec(header: list[str], id_col: str, required: tuple[str, ...]) -> TableSpec:
     """The table spec of one point file (ids are checked here, with the first row named)."""
+
     def kind(c: str) -> str:
         return "number" if c in _NUMBERS else "bool" if c == "excluded" else "text"
 
-    columns = {c: ColumnSpec(c, kind(c), "length" if c in _NUMBERS else None,  # type: ignore[arg-type]
-                             c == id_col or c in required, "") for c in header}
+    columns = {
+        c: ColumnSpec(
+            c,
+            kind(c),  # type: ignore[arg-type]
+            "length" if c in _NUMBERS else None,
+            c == id_col or c in required,
+            "",
+        )
+        for c in header
+    }
     return TableSpec("points", "checkpoint", None, "measure accuracy point file", columns)
 
 
@@ -141,7 +156,9 @@ def read_points_csv(path: str | Path, *, units: str | None = None) -> PointTable
     return point_table(read_point_file(path, extra_ok=frozenset()), units=units)
 
 
-def point_table(pf: PointFile, rows: np.ndarray | None = None, *, units: str | None = None) -> PointTable:
+def point_table(
+    pf: PointFile, rows: np.ndarray | None = None, *, units: str | None = None
+) -> PointTable:
     """The points of ``pf`` (or of its rows at positions ``rows``: one block), in metres."""
     df = pf.df if rows is None else pf.df.iloc[rows]
     name = pf.file
@@ -154,8 +171,12 @@ def point_table(pf: PointFile, rows: np.ndarray | None = None, *, units: str | N
     if dup.any():
         i = int(np.argmax(dup))
         first = int(row_no[int(np.argmax(ids == ids[i]))])
-        raise DeliveryError(f"duplicate point id {ids[i]!r} (first on row {first})", file=name,
-                            row=int(row_no[i]), field=pf.id_col)
+        raise DeliveryError(
+            f"duplicate point id {ids[i]!r} (first on row {first})",
+            file=name,
+            row=int(row_no[i]),
+            field=pf.id_col,
+        )
 
     def optional(col: str) -> np.ndarray | None:
         if col not in df:
@@ -165,8 +186,12 @@ def point_table(pf: PointFile, rows: np.ndarray | None = None, *, units: str | N
         if empty.all():
             return None
         if empty.any():
-            raise DeliveryError("empty cell in a partly filled column (fill all rows or none)",
-                                file=name, row=int(row_no[np.argmax(empty)]), field=col)
+            raise DeliveryError(
+                "empty cell in a partly filled column (fill all rows or none)",
+                file=name,
+                row=int(row_no[np.argmax(empty)]),
+                field=col,
+            )
         return v
 
     def number(col: str) -> np.ndarray:
@@ -186,8 +211,17 @@ def point_table(pf: PointFile, rows: np.ndarray | None = None, *, units: str | N
         dz = None if dz is None else convert(dz, unit, "m", what=name)
     except UnitError as exc:
         raise DeliveryError(str(exc), file=name, field="unit") from None
-    return PointTable(file=name, ids=ids, rows=row_no, dx=dx, dy=dy, dz=dz, source_unit=unit,
-                      layout=pf.layout, exclusions=_exclusions(df, ids))
+    return PointTable(
+        file=name,
+        ids=ids,
+        rows=row_no,
+        dx=dx,
+        dy=dy,
+        dz=dz,
+        source_unit=unit,
+        layout=pf.layout,
+        exclusions=_exclusions(df, ids),
+    )
 
 
 def _exclusions(df: pd.DataFrame, ids: np.ndarray) -> dict[str, str]:
@@ -200,7 +234,9 @@ def _exclusions(df: pd.DataFrame, ids: np.ndarray) -> dict[str, str]:
         chosen = np.flatnonzero(pd.notna(reasons))
     else:
         chosen = np.zeros(0, dtype=np.intp)
-    return {ids[i]: "" if reasons is None or reasons[i] is None else reasons[i] for i in chosen.tolist()}
+    return {
+        ids[i]: "" if reasons is None or reasons[i] is None else reasons[i] for i in chosen.tolist()
+    }
 
 
 def _resolve_unit(cells: pd.Series | None, rows: np.ndarray, units: str | None, name: str) -> str:
@@ -220,18 +256,30 @@ def _resolve_unit(cells: pd.Series | None, rows: np.ndarray, units: str | None, 
                 key = canonical(u)
                 ok = parse_unit(u).dimensionality == parse_unit("m").dimensionality
             except UnitError:
-                raise DeliveryError(f"unknown unit {u!r}; expected m, ft or usft", file=name,
-                                    row=int(rows[i]), field="unit") from None
+                raise DeliveryError(
+                    f"unknown unit {u!r}; expected m, ft or usft",
+                    file=name,
+                    row=int(rows[i]),
+                    field="unit",
+                ) from None
             if not ok:
-                raise DeliveryError(f"unit {u!r} is not a length; expected m, ft or usft",
-                                    file=name, row=int(rows[i]), field="unit")
+                raise DeliveryError(
+                    f"unit {u!r} is not a length; expected m, ft or usft",
+                    file=name,
+                    row=int(rows[i]),
+                    field="unit",
+                )
             found.setdefault(key, int(rows[i]))
         if len(found) > 1:
             listed = ", ".join(f"{k} (row {v})" for k, v in found.items())
-            raise DeliveryError(f"mixed units in one file: {listed}; use one unit", file=name, field="unit")
+            raise DeliveryError(
+                f"mixed units in one file: {listed}; use one unit", file=name, field="unit"
+            )
         column_unit = next(iter(found))
     if column_unit and units and canonical(units) != column_unit:
         raise DeliveryError(
             f"the unit column says {column_unit} but --units says {canonical(units)}",
-            file=name, field="unit")
+            file=name,
+            field="unit",
+        )
     return column_unit or (canonical(units) if units else "m")

@@ -119,7 +119,9 @@ class Delivery:
     def manifest_evidence(self, path: str) -> Evidence:
         return Evidence(MANIFEST, self.manifest_sha256, (), path)
 
-    def block_outlines(self, stated: StatedOutlines | None = None) -> dict[str, tuple[Any, Evidence]]:
+    def block_outlines(
+        self, stated: StatedOutlines | None = None
+    ) -> dict[str, tuple[Any, Evidence]]:
         """Block id -> (ring of [x, y], evidence) of the outlines in force: ``stated`` (the checker's,
         delivery/checker.py ``stated_outlines``) when it states blocks (the manifest's are then
         declarations, red team R13/R17), else the manifest's (blocks without a polygon are left out; a
@@ -127,8 +129,11 @@ class Delivery:
         state of the delivery: an evaluation passes its own (``ProviderContext.block_outlines``)."""
         if stated is not None and stated.blocks:
             return dict(stated.blocks)
-        return {b.id: (b.polygon, self.manifest_evidence(f"blocks[{i}].polygon"))
-                for i, b in enumerate(self.manifest.blocks) if b.polygon}
+        return {
+            b.id: (b.polygon, self.manifest_evidence(f"blocks[{i}].polygon"))
+            for i, b in enumerate(self.manifest.blocks)
+            if b.polygon
+        }
 
     def where(self, path: tuple[Any, ...]) -> int | None:
         p = tuple(path)
@@ -143,7 +148,9 @@ class Delivery:
         """Every file of the delivery with size and SHA-256, sorted (for the QCR appendix)."""
         out = []
         for rel in self.tree if self.tree is not None else check_tree(self.root, self.links):
-            p = self.root.joinpath(*rel.split("/"))  # a real name: a backslash in it is no separator
+            p = self.root.joinpath(
+                *rel.split("/")
+            )  # a real name: a backslash in it is no separator
             try:
                 if rel not in self._sha:
                     self._sha[rel] = sha256_file(p)
@@ -176,8 +183,13 @@ class Delivery:
             for name in ("images", "checkpoints"):
                 t = self.table(name)
                 if t is not None and "block" in t.df:
-                    ids = sorted({str(b) for b in pd.unique(t.df["block"].to_numpy(dtype=object))
-                                  if b is not None and not pd.isna(b) and str(b).strip()})
+                    ids = sorted(
+                        {
+                            str(b)
+                            for b in pd.unique(t.df["block"].to_numpy(dtype=object))
+                            if b is not None and not pd.isna(b) and str(b).strip()
+                        }
+                    )
                     if ids:  # an images table without blocks (a draft's) names none
                         break
         return ids
@@ -221,8 +233,9 @@ class Delivery:
     def require_table(self, name: str) -> Table:
         t = self.table(name)
         if t is None:
-            raise DeliveryError(f"the manifest declares no '{name}' table (tables: {name}: FILE)",
-                                file=MANIFEST)
+            raise DeliveryError(
+                f"the manifest declares no '{name}' table (tables: {name}: FILE)", file=MANIFEST
+            )
         return t
 
     def load_all_tables(self) -> None:
@@ -237,7 +250,9 @@ class Delivery:
         line = self.where(("tables", name))
         p = contained(self.root, rel, what=f"table {name}", line=line, links=self.links)
         if p.is_dir():
-            raise DeliveryError(f"table '{name}' is a folder, not a file: {rel}", file=MANIFEST, line=line)
+            raise DeliveryError(
+                f"table '{name}' is a folder, not a file: {rel}", file=MANIFEST, line=line
+            )
         if not p.is_file():
             raise DeliveryError(f"table '{name}' file not found: {rel}", file=MANIFEST, line=line)
         data = read_table_bytes(p, file=rel, limits=self.limits)
@@ -250,16 +265,18 @@ class Delivery:
             self._sha[rel] = sha = digest.value()
         return Table(name, spec, rel, sha, df, units)
 
-    def _parse_table(self, name: str, spec: TableSpec, rel: str,
-                     held: list[bytes]) -> tuple[pd.DataFrame, dict[str, str]]:
+    def _parse_table(
+        self, name: str, spec: TableSpec, rel: str, held: list[bytes]
+    ) -> tuple[pd.DataFrame, dict[str, str]]:
         """The typed frame of a table's body (taken out of ``held``) and the canonical unit of
         its number columns."""
         length_unit = self.manifest.units.get(name, "m")
         try:
             parse_unit(length_unit)
         except UnitError as exc:
-            raise DeliveryError(f"units.{name}: {exc}", file=MANIFEST,
-                                line=self.where(("units", name))) from None
+            raise DeliveryError(
+                f"units.{name}: {exc}", file=MANIFEST, line=self.where(("units", name))
+            ) from None
         if any(cs.unit == "length" for cs in spec.columns.values()):
             self._check_length_unit(name, length_unit)
         df = _parse_body(held, spec, file=rel, cell_bytes=self.limits.cell_bytes)
@@ -272,14 +289,21 @@ class Delivery:
                 rows, cells = rows[todo], cells[todo]
             for r, v in zip(rows.tolist(), cells.tolist(), strict=True):
                 if v is not None:
-                    contained(self.root, v, what="path", file=rel, row=int(r), field=col,
-                              follow=self.tree is None, links=self.links)
+                    contained(
+                        self.root,
+                        v,
+                        what="path",
+                        file=rel,
+                        row=int(r),
+                        field=col,
+                        follow=self.tree is None,
+                        links=self.links,
+                    )
         units = {}
         for col, cs in spec.columns.items():
             if cs.type == "number" and col in df:
                 units[col] = canonical(length_unit if cs.unit == "length" else cs.unit)
         return df, units
-
 
     @cached_property
     def crs_unit(self) -> str | None:
@@ -297,9 +321,15 @@ class Delivery:
         try:
             axes = read_crs(crs).axis_info
         except CrsProblem as exc:
-            raise DeliveryError(f"project.crs {exc}", file=MANIFEST, line=self.where(("project", "crs"))) from None
+            raise DeliveryError(
+                f"project.crs {exc}", file=MANIFEST, line=self.where(("project", "crs"))
+            ) from None
         if not axes:
-            raise DeliveryError(f"project.crs {crs!r} has no axes", file=MANIFEST, line=self.where(("project", "crs")))
+            raise DeliveryError(
+                f"project.crs {crs!r} has no axes",
+                file=MANIFEST,
+                line=self.where(("project", "crs")),
+            )
         name = axes[0].unit_name
         key = {"metre": "m", "meter": "m", "foot": "ft", "US survey foot": "usft"}.get(name)
         return key if key is not None else name
@@ -315,17 +345,27 @@ class Delivery:
         crs_unit = self.crs_unit
         if crs_unit is None or canonical(unit) == crs_unit:
             return
-        given = (f"units.{name} is {unit}" if name in self.manifest.units
-                 else f"units.{name} is not given (m is assumed)")
+        given = (
+            f"units.{name} is {unit}"
+            if name in self.manifest.units
+            else f"units.{name} is not given (m is assumed)"
+        )
         crs = self.manifest.project.crs
         if crs_unit in ("m", "ft", "usft"):
-            why = (f"the coordinates of table '{name}' are in project.crs {crs}, whose axes are in "
-                   f"{crs_unit}: set units.{name}: {crs_unit}")
+            why = (
+                f"the coordinates of table '{name}' are in project.crs {crs}, whose axes are in "
+                f"{crs_unit}: set units.{name}: {crs_unit}"
+            )
         else:
-            why = (f"project.crs {crs} has its axes in {crs_unit}, not a length: the coordinates of "
-                   f"table '{name}' cannot be read in a length unit")
-        raise DeliveryError(f"{given}, but {why}", file=MANIFEST,
-                            line=self.where(("units", name)) or self.where(("project", "crs")))
+            why = (
+                f"project.crs {crs} has its axes in {crs_unit}, not a length: the coordinates of "
+                f"table '{name}' cannot be read in a length unit"
+            )
+        raise DeliveryError(
+            f"{given}, but {why}",
+            file=MANIFEST,
+            line=self.where(("units", name)) or self.where(("project", "crs")),
+        )
 
     def _check_blocks(self, df: pd.DataFrame, rel: str) -> None:
         """Every ``block`` cell names a manifest block (red team R3).
@@ -340,17 +380,26 @@ class Delivery:
         if not known or "block" not in df or not len(df):
             return
         cells = df["block"]
-        if all(u is None or u in known for u in pd.unique(cells.to_numpy())):  # a few distinct texts
+        if all(
+            u is None or u in known for u in pd.unique(cells.to_numpy())
+        ):  # a few distinct texts
             return
-        other = cells[~cells.isin(known) & cells.notna()]  # a ';'-separated list serves several (dem)
+        other = cells[
+            ~cells.isin(known) & cells.notna()
+        ]  # a ';'-separated list serves several (dem)
         if not len(other):
             return
         parts = other.astype(str).str.split(";").explode().str.strip()
         bad = parts[(parts != "") & ~parts.isin(known)]
         if len(bad):
             row = int(df.loc[bad.index[:1], "_row"].to_numpy(np.int64)[0])
-            raise DeliveryError(f"block {bad.iloc[0]!r} is not a block of the manifest "
-                                f"(blocks: {', '.join(known)})", file=rel, row=row, field="block")
+            raise DeliveryError(
+                f"block {bad.iloc[0]!r} is not a block of the manifest "
+                f"(blocks: {', '.join(known)})",
+                file=rel,
+                row=row,
+                field="block",
+            )
 
 
 class _Digest:
@@ -398,10 +447,14 @@ def open_delivery(path: str | Path) -> Delivery:
     if not root.exists():
         raise DeliveryError(f"delivery folder {str(path)!r} not found")
     if not root.is_dir():
-        raise DeliveryError(f"{str(path)!r} is not a folder (a delivery is a folder with {MANIFEST})")
+        raise DeliveryError(
+            f"{str(path)!r} is not a folder (a delivery is a folder with {MANIFEST})"
+        )
     mpath = contained(root, MANIFEST, what="manifest", file=None)
     if not mpath.is_file():
-        raise DeliveryError(f"no {MANIFEST} in {str(path)!r}; `orthospec init DIR` writes a template")
+        raise DeliveryError(
+            f"no {MANIFEST} in {str(path)!r}; `orthospec init DIR` writes a template"
+        )
     try:
         doc = load_file(mpath, display=MANIFEST)
     except YamlError as exc:
@@ -411,31 +464,51 @@ def open_delivery(path: str | Path) -> Delivery:
     try:
         manifest = Manifest.model_validate(doc.data)
     except ValidationError as exc:
-        lines = doc.located_errors(exc.errors(), MANIFEST, hint=lambda e: _suggest_key(tuple(e["loc"]))
-                                   if e["type"] == "extra_forbidden" else "")
+        lines = doc.located_errors(
+            exc.errors(),
+            MANIFEST,
+            hint=lambda e: _suggest_key(tuple(e["loc"])) if e["type"] == "extra_forbidden" else "",
+        )
         raise DeliveryError("invalid manifest:\n  " + "\n  ".join(lines)) from None
     for name in manifest.tables:
         if name not in table_specs():
-            raise DeliveryError(f"unknown table {name!r}; known tables: {', '.join(sorted(table_specs()))}",
-                                file=MANIFEST, line=doc.where(("tables", name))[0])
+            raise DeliveryError(
+                f"unknown table {name!r}; known tables: {', '.join(sorted(table_specs()))}",
+                file=MANIFEST,
+                line=doc.where(("tables", name))[0],
+            )
     links = source_links(root, manifest.draft, line=doc.where(("draft", "source"))[0])
     for key in _PATH_MAPPINGS:
         section = doc.data.get(key)
         if isinstance(section, dict):
             for name, rel in section.items():
                 if isinstance(rel, str):
-                    contained(root, rel, what=f"{key}.{name}", line=doc.where((key, name))[0], links=links)
+                    contained(
+                        root, rel, what=f"{key}.{name}", line=doc.where((key, name))[0], links=links
+                    )
     extra_paths: list[tuple[tuple[Any, ...], str | None]] = [
-        (("project", "area_of_interest"), manifest.project.area_of_interest)]
-    extra_paths += [(("blocks", i, "polygon_file"), b.polygon_file) for i, b in enumerate(manifest.blocks)]
+        (("project", "area_of_interest"), manifest.project.area_of_interest)
+    ]
+    extra_paths += [
+        (("blocks", i, "polygon_file"), b.polygon_file) for i, b in enumerate(manifest.blocks)
+    ]
     for where, rel in extra_paths:
         if rel:
-            contained(root, rel, what=".".join(map(str, where)), line=doc.where(where)[0], links=links)
+            contained(
+                root, rel, what=".".join(map(str, where)), line=doc.where(where)[0], links=links
+            )
     _check_block_outlines(manifest, lambda path: doc.where(path)[0])
     tree = check_tree(root, links)
-    d = Delivery(root=root, manifest=manifest, raw=doc.data,
-                 manifest_sha256=sha256_file(mpath), positions=doc.marks, tree=tree,
-                 limits=Limits.from_env(), links=links)
+    d = Delivery(
+        root=root,
+        manifest=manifest,
+        raw=doc.data,
+        manifest_sha256=sha256_file(mpath),
+        positions=doc.marks,
+        tree=tree,
+        limits=Limits.from_env(),
+        links=links,
+    )
     d._sha[MANIFEST] = d.manifest_sha256
     return d
 
@@ -454,8 +527,11 @@ def _check_block_outlines(manifest: Manifest, line_of: Any) -> None:
     for i, b in enumerate(manifest.blocks):
         for k, vertex in enumerate(b.polygon or []):
             if len(vertex) != 2:
-                raise DeliveryError(f"blocks[{i}] ({b.id}): polygon vertex {k + 1} is {vertex}, expected [x, y]",
-                                    file=MANIFEST, line=line_of(("blocks", i, "polygon", k)))
+                raise DeliveryError(
+                    f"blocks[{i}] ({b.id}): polygon vertex {k + 1} is {vertex}, expected [x, y]",
+                    file=MANIFEST,
+                    line=line_of(("blocks", i, "polygon", k)),
+                )
     outlines = [(i, b) for i, b in enumerate(manifest.blocks) if finite_ring(b.polygon)]
     if not outlines:
         return
@@ -464,16 +540,22 @@ def _check_block_outlines(manifest: Manifest, line_of: Any) -> None:
         poly = ring_polygon(b.polygon or [])  # finite_ring: a list of vertices
         why = invalid_reason(poly)
         if why:
-            raise DeliveryError(f"blocks[{i}] ({b.id}): the polygon is not a valid block outline ({why}); a "
-                                "block outline is a simple ring whose edges do not cross",
-                                file=MANIFEST, line=line_of(("blocks", i, "polygon")))
+            raise DeliveryError(
+                f"blocks[{i}] ({b.id}): the polygon is not a valid block outline ({why}); a "
+                "block outline is a simple ring whose edges do not cross",
+                file=MANIFEST,
+                line=line_of(("blocks", i, "polygon")),
+            )
         polys.append(poly)
     hit = first_overlap(polys)
     if hit is not None:
         first, second, area = hit
         (i, a), (j, b) = outlines[first], outlines[second]
-        raise DeliveryError(f"blocks[{j}] ({b.id}): the polygon overlaps the outline of block {a.id} "
-                            f"(blocks[{i}]) over an area of {area:.6g} (project.crs units squared); blocks are the units "
-                            "of acceptance (JRC §12.4, §12.8) and a check point cannot belong to two: "
-                            "outlines may touch but not overlap", file=MANIFEST,
-                            line=line_of(("blocks", j, "polygon")))
+        raise DeliveryError(
+            f"blocks[{j}] ({b.id}): the polygon overlaps the outline of block {a.id} "
+            f"(blocks[{i}]) over an area of {area:.6g} (project.crs units squared); blocks are the units "
+            "of acceptance (JRC §12.4, §12.8) and a check point cannot belong to two: "
+            "outlines may touch but not overlap",
+            file=MANIFEST,
+            line=line_of(("blocks", j, "polygon")),
+        )

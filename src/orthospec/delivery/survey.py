@@ -39,7 +39,12 @@ _SURVEY_COLUMNS: dict[str, tuple[str, bool, str, float | None]] = {
     "y": ("number", True, "Surveyed ('true') northing.", None),
     "z": ("number", False, "Surveyed height.", None),
     "block": ("text", False, "Block or site of the point.", None),
-    "image_id": ("text", False, "Image to measure the point on (default: the image that holds it best).", None),
+    "image_id": (
+        "text",
+        False,
+        "Image to measure the point on (default: the image that holds it best).",
+        None,
+    ),
     "source": ("text", False, "How the coordinates were surveyed.", None),
     "precision_xy": ("number", False, "Planimetric accuracy (RMSE) of the survey.", 0.0),
     "chip": ("text", False, "Reference chip of the point in a chip library (file name).", None),
@@ -113,10 +118,15 @@ def read_survey(path: str | Path) -> list[SurveyPoint]:
     name, body = _read_body(path, "survey file")
     header = header_names(body)
     id_col = "id" if "id" in header and "point_id" not in header else "point_id"
-    cols = {("id" if c == "point_id" and id_col == "id" else c): ColumnSpec(
-        "id" if c == "point_id" and id_col == "id" else c, t, None, req, d, lo)  # type: ignore[arg-type]
-        for c, (t, req, d, lo) in _SURVEY_COLUMNS.items()}
-    df = parse_csv(body, TableSpec("survey", "checkpoint", id_col, "check point survey", cols), file=name)
+    cols = {
+        ("id" if c == "point_id" and id_col == "id" else c): ColumnSpec(
+            "id" if c == "point_id" and id_col == "id" else c, t, None, req, d, lo  # type: ignore[arg-type]
+        )
+        for c, (t, req, d, lo) in _SURVEY_COLUMNS.items()
+    }
+    df = parse_csv(
+        body, TableSpec("survey", "checkpoint", id_col, "check point survey", cols), file=name
+    )
     if df.empty:
         raise DeliveryError("no survey point (only a header)", file=name)
     rows = df["_row"].to_numpy(np.int64)
@@ -126,10 +136,33 @@ def read_survey(path: str | Path) -> list[SurveyPoint]:
 
     out = []
     for pid, x, y, z, block, image, source, prec, chip, row in zip(
-            col(id_col), col("x"), col("y"), col("z"), col("block"), col("image_id"), col("source"),
-            col("precision_xy"), col("chip"), rows.tolist(), strict=True):
-        out.append(SurveyPoint(str(pid), float(x), float(y), _number(z), _text(block),  # type: ignore[arg-type]
-                               _text(image), _text(source), _number(prec), _text(chip), name, int(row)))
+        col(id_col),
+        col("x"),
+        col("y"),
+        col("z"),
+        col("block"),
+        col("image_id"),
+        col("source"),
+        col("precision_xy"),
+        col("chip"),
+        rows.tolist(),
+        strict=True,
+    ):
+        out.append(
+            SurveyPoint(
+                str(pid),
+                float(x),
+                float(y),
+                _number(z),
+                _text(block),  # type: ignore[arg-type]
+                _text(image),
+                _text(source),
+                _number(prec),
+                _text(chip),
+                name,
+                int(row),
+            )
+        )
     return out
 
 
@@ -152,11 +185,21 @@ def read_hand_csv(path: str | Path) -> list[HandEntry]:
     xs = df["x"].tolist() if "x" in df else [None] * len(df)
     ys = df["y"].tolist() if "y" in df else [None] * len(df)
     comments = df["comment"].tolist() if "comment" in df else [None] * len(df)
-    return hand_entries(df["point_id"].tolist(), df["status"].tolist(), xs, ys, comments, file=name, rows=rows)
+    return hand_entries(
+        df["point_id"].tolist(), df["status"].tolist(), xs, ys, comments, file=name, rows=rows
+    )
 
 
-def hand_entries(ids: list[object], statuses: list[object], xs: list[object], ys: list[object],
-                 comments: list[object], *, file: str, rows: list[int]) -> list[HandEntry]:
+def hand_entries(
+    ids: list[object],
+    statuses: list[object],
+    xs: list[object],
+    ys: list[object],
+    comments: list[object],
+    *,
+    file: str,
+    rows: list[int],
+) -> list[HandEntry]:
     """Validated hand-list entries from columns (shared by the CSV and GeoPackage readers)."""
     out: list[HandEntry] = []
     seen: dict[str, int] = {}
@@ -165,17 +208,27 @@ def hand_entries(ids: list[object], statuses: list[object], xs: list[object], ys
         if not p:
             raise DeliveryError("empty point_id", file=file, row=row, field="point_id")
         if p in seen:
-            raise DeliveryError(f"duplicate point_id {p!r} (first on row {seen[p]})", file=file, row=row,
-                                field="point_id")
+            raise DeliveryError(
+                f"duplicate point_id {p!r} (first on row {seen[p]})",
+                file=file,
+                row=row,
+                field="point_id",
+            )
         seen[p] = row
         st = (_text(status) or "").strip().lower()
         if st not in HAND_STATUSES:
-            raise DeliveryError(f"unknown status {status!r}; expected one of: {', '.join(HAND_STATUSES)}",
-                                file=file, row=row, field="status")
+            raise DeliveryError(
+                f"unknown status {status!r}; expected one of: {', '.join(HAND_STATUSES)}",
+                file=file,
+                row=row,
+                field="status",
+            )
         fx, fy = _number(x), _number(y)
         if st == "measured":
             for c, v in (("x", fx), ("y", fy)):
                 if v is None or not np.isfinite(v):
-                    raise DeliveryError(f"a measured point needs a finite {c}", file=file, row=row, field=c)
+                    raise DeliveryError(
+                        f"a measured point needs a finite {c}", file=file, row=row, field=c
+                    )
         out.append(HandEntry(p, st, fx, fy, _text(comment) or "", file, row))
     return out

@@ -30,7 +30,9 @@ BOOL_TRUE = ("true", "yes", "y", "1", "t")
 BOOL_FALSE = ("false", "no", "n", "0", "f")
 
 
-def parse_csv(text: str | bytes, spec: TableSpec, *, file: str, cell_bytes: int | None = None) -> pd.DataFrame:
+def parse_csv(
+    text: str | bytes, spec: TableSpec, *, file: str, cell_bytes: int | None = None
+) -> pd.DataFrame:
     """Parse and type a CSV table against its spec; every problem names file, row and column.
 
     The one CSV table parser of orthospec (delivery tables, the external-QC sample, the point
@@ -47,19 +49,29 @@ def parse_csv(text: str | bytes, spec: TableSpec, *, file: str, cell_bytes: int 
         A bad header, a row with the wrong number of fields, an empty required cell, a cell
         that is not of its column's type, a duplicate id: file, row and column named.
     """
-    return _parse_body([text.encode("utf-8") if isinstance(text, str) else text], spec, file=file,
-                       cell_bytes=cell_bytes)
+    return _parse_body(
+        [text.encode("utf-8") if isinstance(text, str) else text],
+        spec,
+        file=file,
+        cell_bytes=cell_bytes,
+    )
 
 
-def _parse_body(held: list[bytes], spec: TableSpec, *, file: str, cell_bytes: int | None) -> pd.DataFrame:
+def _parse_body(
+    held: list[bytes], spec: TableSpec, *, file: str, cell_bytes: int | None
+) -> pd.DataFrame:
     """:func:`parse_csv` of the body in ``held``, which it takes out: once the records are
     counted the bytes are let go (when the caller holds no other reference), so a national
     table is not held as bytes while its columns become Python objects."""
     body = held.pop()
     bad = controls.find_in_utf8(body)
     if bad is not None:
-        raise DeliveryError(f"a control character ({controls.name(bad[1])}) in the table: a cell may not carry "
-                            "terminal or bidirectional-override controls", file=file, line=bad[0])
+        raise DeliveryError(
+            f"a control character ({controls.name(bad[1])}) in the table: a cell may not carry "
+            "terminal or bidirectional-override controls",
+            file=file,
+            line=bad[0],
+        )
     header = _header(body, spec, file)
     if cell_bytes is not None and csv.field_size_limit() < cell_bytes:
         csv.field_size_limit(cell_bytes)  # the bound is check_csv_bounds's, not csv's
@@ -94,8 +106,11 @@ def _parse_body(held: list[bytes], spec: TableSpec, *, file: str, cell_bytes: in
         if dups.any():
             first_dup = ids.iloc[int(np.argmax(dups))]
             where = df.loc[ids == first_dup, "_row"].tolist()
-            raise DeliveryError(f"duplicate id {first_dup!r} in rows {', '.join(map(str, where))}",
-                                file=file, field=spec.id)
+            raise DeliveryError(
+                f"duplicate id {first_dup!r} in rows {', '.join(map(str, where))}",
+                file=file,
+                field=spec.id,
+            )
     return df
 
 
@@ -112,8 +127,13 @@ def _check_bounds(values: np.ndarray, rows: np.ndarray, cs: ColumnSpec, file: st
         out = values < bound if below else values > bound
         if out.any():
             i = int(np.argmax(out))
-            raise DeliveryError(f"{values[i]:g} is {'below the minimum' if below else 'above the maximum'} "
-                                f"{bound:g} of this column", file=file, row=int(rows[i]), field=cs.name)
+            raise DeliveryError(
+                f"{values[i]:g} is {'below the minimum' if below else 'above the maximum'} "
+                f"{bound:g} of this column",
+                file=file,
+                row=int(rows[i]),
+                field=cs.name,
+            )
 
 
 def header_names(body: bytes) -> list[str]:
@@ -127,8 +147,9 @@ def _header(body: bytes, spec: TableSpec, file: str) -> list[str]:
     """The stripped column names, checked against the spec (line 1 named in every complaint)."""
     header = header_names(body)
     if not header:
-        raise DeliveryError("empty table: expected a header row with columns "
-                            + ", ".join(spec.columns), file=file)
+        raise DeliveryError(
+            "empty table: expected a header row with columns " + ", ".join(spec.columns), file=file
+        )
     dup = sorted({h for h in header if header.count(h) > 1})
     if dup:
         raise DeliveryError(f"duplicate column(s) {', '.join(dup)}", file=file, line=1)
@@ -141,24 +162,39 @@ def _header(body: bytes, spec: TableSpec, file: str) -> list[str]:
         if unknown:
             parts.append("unexpected column(s) " + ", ".join(unknown))
         raise DeliveryError(
-            "; ".join(parts) + f". Expected columns for table '{spec.name}': required "
-            + ", ".join(spec.required) + "; optional "
+            "; ".join(parts)
+            + f". Expected columns for table '{spec.name}': required "
+            + ", ".join(spec.required)
+            + "; optional "
             + ", ".join(c for c in spec.columns if c not in spec.required),
-            file=file, line=1)
+            file=file,
+            line=1,
+        )
     return header
 
 
 def _read_csv(body: bytes, header: list[str], file: str, **kw: Any) -> pd.DataFrame:
     """pandas' C parser over the table; a row with too many fields is named by its data row."""
     try:
-        return pd.read_csv(io.BytesIO(body), header=0, names=header, keep_default_na=False,
-                           na_values={c: [""] for c in header}, skip_blank_lines=False,
-                           skipinitialspace=False, engine="c", **kw)
+        return pd.read_csv(
+            io.BytesIO(body),
+            header=0,
+            names=header,
+            keep_default_na=False,
+            na_values={c: [""] for c in header},
+            skip_blank_lines=False,
+            skipinitialspace=False,
+            engine="c",
+            **kw,
+        )
     except pd.errors.ParserError as exc:
         m = re.search(r"Expected (\d+) fields in line (\d+), saw (\d+)", str(exc))
         if m:
-            raise DeliveryError(f"has {m.group(3)} fields, the header has {m.group(1)}", file=file,
-                                row=int(m.group(2)) - 1) from None
+            raise DeliveryError(
+                f"has {m.group(3)} fields, the header has {m.group(1)}",
+                file=file,
+                row=int(m.group(2)) - 1,
+            ) from None
         raise DeliveryError(f"not a valid CSV table: {exc}", file=file) from None
 
 
@@ -196,7 +232,9 @@ def _read_typed(body: bytes, header: list[str], spec: TableSpec, file: str) -> _
     """
     nums = [c for c in header if spec.columns[c].type == "number"]
     try:
-        with warnings.catch_warnings():  # chunks inferred differently: checked below, column by column
+        with (
+            warnings.catch_warnings()
+        ):  # chunks inferred differently: checked below, column by column
             warnings.simplefilter("ignore", pd.errors.DtypeWarning)
             frame = _read_csv(body, header, file, dtype={c: "float64" for c in nums})
     except ValueError:
@@ -217,7 +255,9 @@ def _read_typed(body: bytes, header: list[str], spec: TableSpec, file: str) -> _
         elif _is_text(s):
             texts.append(c)
         elif s.dtype == np.float64 and s.isna().all():  # a column of empty cells
-            frame[c] = pd.Categorical.from_codes(np.full(n, -1, dtype=np.int8), categories=_NO_WORDS)
+            frame[c] = pd.Categorical.from_codes(
+                np.full(n, -1, dtype=np.int8), categories=_NO_WORDS
+            )
         elif spec.columns[c].type == "bool" and _parser_bools(s):
             codes = (s.to_numpy(dtype=object) == True).astype(np.int8)  # noqa: E712
             codes[s.isna().to_numpy()] = -1
@@ -254,7 +294,9 @@ def _parser_bools(s: pd.Series) -> bool:
     return s.dtype == object and pd.api.types.infer_dtype(s, skipna=True) == "boolean"
 
 
-def _read_cells(body: bytes, header: list[str], file: str, usecols: list[str] | None = None) -> pd.DataFrame:
+def _read_cells(
+    body: bytes, header: list[str], file: str, usecols: list[str] | None = None
+) -> pd.DataFrame:
     """Every cell as text (empty cells NaN): the exact path."""
     return _read_csv(body, header, file, dtype=object, usecols=usecols)
 
@@ -293,22 +335,31 @@ def _columns(frame: pd.DataFrame, header: list[str], *, strip: bool) -> dict[str
     return out
 
 
-def _drop_blank_rows(rows: np.ndarray, cols: dict[str, Any], widths: np.ndarray, width: int,
-                     file: str) -> tuple[np.ndarray, dict[str, Any]]:
+def _drop_blank_rows(
+    rows: np.ndarray, cols: dict[str, Any], widths: np.ndarray, width: int, file: str
+) -> tuple[np.ndarray, dict[str, Any]]:
     """Refuse a short row (pandas pads it silently; the csv module's count decides); drop rows
     whose every cell is empty (blank lines)."""
-    blank = np.logical_and.reduce([np.isnan(v) if isinstance(v, np.ndarray) else v[1] for v in cols.values()])
+    blank = np.logical_and.reduce(
+        [np.isnan(v) if isinstance(v, np.ndarray) else v[1] for v in cols.values()]
+    )
     counts = widths[1:]  # the header is record 0
     n = len(rows)
     counts = counts[:n] if len(counts) >= n else np.pad(counts, (0, n - len(counts)))
     short = (counts != width) & ~blank & (counts > 0)
     if short.any():
         i = int(np.flatnonzero(short)[0])
-        raise DeliveryError(f"has {int(counts[i])} fields, the header has {width}", file=file, row=int(rows[i]))
+        raise DeliveryError(
+            f"has {int(counts[i])} fields, the header has {width}", file=file, row=int(rows[i])
+        )
     if blank.any():
         keep = ~blank
-        cols = {c: v[keep] if isinstance(v, np.ndarray) else (v[0][keep].reset_index(drop=True), v[1][keep])
-                for c, v in cols.items()}
+        cols = {
+            c: v[keep]
+            if isinstance(v, np.ndarray)
+            else (v[0][keep].reset_index(drop=True), v[1][keep])
+            for c, v in cols.items()
+        }
         rows = rows[keep]
     return rows, cols
 
@@ -316,22 +367,28 @@ def _drop_blank_rows(rows: np.ndarray, cols: dict[str, Any], widths: np.ndarray,
 _NONFINITE = ("nan", "inf", "-inf", "+inf", "infinity", "-infinity", "+infinity")
 
 
-def _convert_column(cells: Any, rows: np.ndarray, kind: str, col: str, file: str,
-                    required: bool) -> pd.Series:
+def _convert_column(
+    cells: Any, rows: np.ndarray, kind: str, col: str, file: str, required: bool
+) -> pd.Series:
     """Vectorised type conversion of one column: stripped text cells, or float64 already read."""
     if isinstance(cells, np.ndarray):  # a number column the C parser read (empty cells are NaN)
         empty = np.isnan(cells)
         if required and empty.any():
-            raise DeliveryError("required value is empty", file=file, row=int(rows[empty][0]), field=col)
+            raise DeliveryError(
+                "required value is empty", file=file, row=int(rows[empty][0]), field=col
+            )
         return pd.Series(cells, dtype=float)
     cells, empty = cells
     if required and empty.any():
-        raise DeliveryError("required value is empty", file=file, row=int(rows[empty][0]), field=col)
+        raise DeliveryError(
+            "required value is empty", file=file, row=int(rows[empty][0]), field=col
+        )
 
     def bad(mask: np.ndarray, what: str) -> DeliveryError:
         i = int(np.flatnonzero(mask)[0])
-        return DeliveryError(f"expected {what}, got {str(cells.iloc[i])!r}", file=file, row=int(rows[i]),
-                             field=col)
+        return DeliveryError(
+            f"expected {what}, got {str(cells.iloc[i])!r}", file=file, row=int(rows[i]), field=col
+        )
 
     if kind == "text":
         return pd.Series(_objects(cells, empty), dtype=object)
@@ -339,9 +396,13 @@ def _convert_column(cells: Any, rows: np.ndarray, kind: str, col: str, file: str
         num = pd.to_numeric(cells.where(~empty, "nan"), errors="coerce").to_numpy(dtype=float)
         suspect = ~np.isfinite(num) & ~empty
         if suspect.any():
-            nonfinite = suspect & (cells.str.lower().isin(_NONFINITE).to_numpy(bool) | np.isinf(num))
+            nonfinite = suspect & (
+                cells.str.lower().isin(_NONFINITE).to_numpy(bool) | np.isinf(num)
+            )
             if nonfinite.any():
-                raise bad(nonfinite, "a finite number (leave the cell empty when the value is unknown)")
+                raise bad(
+                    nonfinite, "a finite number (leave the cell empty when the value is unknown)"
+                )
             raise bad(suspect, "a number")
         return pd.Series(num, dtype=float)
     if kind == "bool":
@@ -359,8 +420,11 @@ def _convert_column(cells: Any, rows: np.ndarray, kind: str, col: str, file: str
         return pd.Series(out, dtype=object)
     if kind in ("date", "datetime"):
         text = pd.Series(_objects(cells, empty), dtype=object)
-        parsed = pd.to_datetime(text, format="ISO8601", errors="coerce", utc=False) \
-            if len(text) else pd.Series([], dtype="datetime64[ns]")
+        parsed = (
+            pd.to_datetime(text, format="ISO8601", errors="coerce", utc=False)
+            if len(text)
+            else pd.Series([], dtype="datetime64[ns]")
+        )
         wrong = parsed.isna().to_numpy() & ~empty
         if kind == "date":
             wrong |= ~empty & (cells.str.len().to_numpy() != 10)
@@ -384,8 +448,14 @@ def _objects(cells: pd.Series, empty: np.ndarray) -> np.ndarray:
     return out
 
 
-def rows_where(path: str | Path, where: dict[str, str], *, file: str, sha256: str | None = None,
-               limits: Limits | None = None) -> list[int]:
+def rows_where(
+    path: str | Path,
+    where: dict[str, str],
+    *,
+    file: str,
+    sha256: str | None = None,
+    limits: Limits | None = None,
+) -> list[int]:
     """The 1-based data rows of a delivered CSV table whose cells (stripped of surrounding
     whitespace) equal ``where``'s value in every named column (``{}``: every row); blank lines
     are counted but never selected, as :func:`parse_csv` numbers rows.
@@ -409,8 +479,11 @@ def rows_where(path: str | Path, where: dict[str, str], *, file: str, sha256: st
     header = header_names(body)
     missing = [c for c in where if c not in header]
     if missing:
-        raise DeliveryError(f"no column {missing[0]!r} to select rows by "
-                            f"(columns: {', '.join(header)})", file=file, line=1)
+        raise DeliveryError(
+            f"no column {missing[0]!r} to select rows by (columns: {', '.join(header)})",
+            file=file,
+            line=1,
+        )
     if not header:
         return []
     try:
@@ -428,8 +501,9 @@ def rows_where(path: str | Path, where: dict[str, str], *, file: str, sha256: st
     wrong = (counts != width) & (counts > 0) & (keep | (counts > width))
     if wrong.any():
         i = int(np.flatnonzero(wrong)[0])
-        raise DeliveryError(f"has {int(counts[i])} fields, the header has {width}", file=file,
-                            row=i + 1)
+        raise DeliveryError(
+            f"has {int(counts[i])} fields, the header has {width}", file=file, row=i + 1
+        )
     for col, value in where.items():
         keep &= (frame[col].fillna("").astype(object).str.strip() == value).to_numpy(bool)
     return (np.flatnonzero(keep) + 1).tolist()

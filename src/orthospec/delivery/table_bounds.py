@@ -36,9 +36,11 @@ class Limits:
     @classmethod
     def from_env(cls) -> Limits:
         d = cls()
-        return cls(table_bytes=env_limit("ORTHOSPEC_MAX_TABLE_BYTES", d.table_bytes, error=DeliveryError),
-                   columns=env_limit("ORTHOSPEC_MAX_CSV_COLUMNS", d.columns, error=DeliveryError),
-                   cell_bytes=env_limit("ORTHOSPEC_MAX_CSV_CELL_BYTES", d.cell_bytes, error=DeliveryError))
+        return cls(
+            table_bytes=env_limit("ORTHOSPEC_MAX_TABLE_BYTES", d.table_bytes, error=DeliveryError),
+            columns=env_limit("ORTHOSPEC_MAX_CSV_COLUMNS", d.columns, error=DeliveryError),
+            cell_bytes=env_limit("ORTHOSPEC_MAX_CSV_CELL_BYTES", d.cell_bytes, error=DeliveryError),
+        )
 
 
 def read_table_bytes(path: Path, *, file: str, limits: Limits) -> bytes:
@@ -47,15 +49,23 @@ def read_table_bytes(path: Path, *, file: str, limits: Limits) -> bytes:
         with open(path, "rb") as fh:
             size = os.fstat(fh.fileno()).st_size
             if size > limits.table_bytes:
-                raise DeliveryError(f"table of {size:,} bytes exceeds the limit of {limits.table_bytes:,} bytes "
-                                    "(ORTHOSPEC_MAX_TABLE_BYTES)", file=file)
+                raise DeliveryError(
+                    f"table of {size:,} bytes exceeds the limit of {limits.table_bytes:,} bytes "
+                    "(ORTHOSPEC_MAX_TABLE_BYTES)",
+                    file=file,
+                )
             data = fh.read(limits.table_bytes + 1)  # a file grown since fstat is still bounded
     except OSError as exc:
         raise DeliveryError(f"cannot read table: {exc.strerror or exc}", file=file) from None
     if len(data) > limits.table_bytes:
-        raise DeliveryError(f"table of {len(data):,}+ bytes exceeds the limit of {limits.table_bytes:,} bytes "
-                            "(ORTHOSPEC_MAX_TABLE_BYTES)", file=file)
-    check_csv_bounds(io.BytesIO(data), file=file, limits=limits)  # one read; BytesIO shares the bytes
+        raise DeliveryError(
+            f"table of {len(data):,}+ bytes exceeds the limit of {limits.table_bytes:,} bytes "
+            "(ORTHOSPEC_MAX_TABLE_BYTES)",
+            file=file,
+        )
+    check_csv_bounds(
+        io.BytesIO(data), file=file, limits=limits
+    )  # one read; BytesIO shares the bytes
     return data
 
 
@@ -67,10 +77,10 @@ def check_csv_bounds(fh: Any, *, file: str, limits: Limits, chunk: int = 16 * 2*
     the file-size limit is the hard one), the delimiters per physical line (columns) and a header
     whose quotes do not close on its own line. Row numbers count physical lines after the header.
     """
-    run = 0           # bytes since the last delimiter, carried across chunks
-    commas = 0        # commas on the current physical line so far
-    line_len = 0      # bytes of the current physical line so far
-    line = 1          # physical line of the chunk start
+    run = 0  # bytes since the last delimiter, carried across chunks
+    commas = 0  # commas on the current physical line so far
+    line_len = 0  # bytes of the current physical line so far
+    line = 1  # physical line of the chunk start
     header_done = False
     while True:
         data = _read_chunk(fh, chunk)
@@ -91,7 +101,11 @@ def check_csv_bounds(fh: Any, *, file: str, limits: Limits, chunk: int = 16 * 2*
             line += nls
             continue
         # a line ends at LF, or at a CR not followed by LF (old Mac files); CRLF counts once
-        ends = (arr == 10) | ((arr == 13) & (np.append(arr[1:], 0) != 10)) if b"\r" in data else arr == 10
+        ends = (
+            (arr == 10) | ((arr == 13) & (np.append(arr[1:], 0) != 10))
+            if b"\r" in data
+            else arr == 10
+        )
         nl = np.flatnonzero(ends)
         longest = line_len + len(data)
         if nl.size:
@@ -158,8 +172,12 @@ def _header_closed(data: bytes, chunk: int, file: str) -> bool:
         return False
     head = data if nl < 0 else data[:nl]
     if head.count(b'"') % 2:
-        raise DeliveryError("the header row has an unclosed quote or a quoted line break; "
-                            "column names are single-line text", file=file, line=1)
+        raise DeliveryError(
+            "the header row has an unclosed quote or a quoted line break; "
+            "column names are single-line text",
+            file=file,
+            line=1,
+        )
     return True
 
 
@@ -169,8 +187,8 @@ def _count(arr: np.ndarray, value: int, step: int = 1 << 18) -> int:
     mask = np.empty(min(step, len(arr)), dtype=bool)
     n = 0
     for i in range(0, len(arr), step):
-        window = arr[i:i + step]
-        out = mask[:len(window)]
+        window = arr[i : i + step]
+        out = mask[: len(window)]
         np.equal(window, value, out=out)
         n += int(np.count_nonzero(out))
     return n
@@ -193,16 +211,22 @@ def _short_lines(data: bytes, carried: int, limit: int) -> bool:
 
 
 def _refuse_cell(file: str, line: int, limits: Limits) -> None:
-    raise DeliveryError(f"a cell longer than {limits.cell_bytes:,} bytes (ORTHOSPEC_MAX_CSV_CELL_BYTES); "
-                        "not read", file=file, row=line - 1 if line > 1 else None,
-                        line=None if line > 1 else 1)
+    raise DeliveryError(
+        f"a cell longer than {limits.cell_bytes:,} bytes (ORTHOSPEC_MAX_CSV_CELL_BYTES); not read",
+        file=file,
+        row=line - 1 if line > 1 else None,
+        line=None if line > 1 else 1,
+    )
 
 
 def _refuse_columns(file: str, line: int, n: int, limits: Limits) -> None:
-    raise DeliveryError(f"{n:,}+ fields on one line exceed the limit of {limits.columns:,} columns "
-                        "(ORTHOSPEC_MAX_CSV_COLUMNS); not read", file=file,
-                        row=line - 1 if line > 1 else None, line=None if line > 1 else 1)
-
+    raise DeliveryError(
+        f"{n:,}+ fields on one line exceed the limit of {limits.columns:,} columns "
+        "(ORTHOSPEC_MAX_CSV_COLUMNS); not read",
+        file=file,
+        row=line - 1 if line > 1 else None,
+        line=None if line > 1 else 1,
+    )
 
 
 _BOM = b"\xef\xbb\xbf"
@@ -219,16 +243,18 @@ def utf8_body(data: bytes, *, file: str, chunk: int = 1 << 24) -> bytes:
     import codecs
 
     if data.startswith(_BOM):
-        data = data[len(_BOM):]
+        data = data[len(_BOM) :]
     view = memoryview(data)
     dec = codecs.getincrementaldecoder("utf-8")()
     # ASCII is UTF-8: one C scan instead of decoding (a national check-point table is plain ASCII)
     for start in range(0, max(len(data), 1) if not data.isascii() else 0, chunk):
         pending = len(dec.getstate()[0])
         try:
-            dec.decode(view[start:start + chunk], final=start + chunk >= len(data))
+            dec.decode(view[start : start + chunk], final=start + chunk >= len(data))
         except UnicodeDecodeError as exc:
-            raise DeliveryError(f"not UTF-8 text (byte {start - pending + exc.start})", file=file) from None
+            raise DeliveryError(
+                f"not UTF-8 text (byte {start - pending + exc.start})", file=file
+            ) from None
     if b"\r" in data:
         data = data.replace(b"\r\n", b"\n").replace(b"\r", b"\n")
     return data

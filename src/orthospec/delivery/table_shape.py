@@ -36,7 +36,8 @@ def _shape_from_cells(body: bytes, typed: _Typed, header: list[str]) -> _Shape |
     per record (no record short) iff its commas are ``(width - 1) * records`` plus the commas in
     its cells. Only text columns can hold a comma. Needs the cells of one pass as Arrow arrays
     (their bytes are counted, not the strings); a table with a NUL byte (which the parser and
-    the csv module may read differently), an all-empty record (a blank line has no delimiters) or a re-read column goes by bytes.
+    the csv module may read differently), an all-empty record (a blank line has no delimiters) or a
+    re-read column goes by bytes.
     """
     frame = typed.frame
     if typed.reread or b"\x00" in body or not len(frame):
@@ -56,7 +57,10 @@ def _shape_from_cells(body: bytes, typed: _Typed, header: list[str]) -> _Shape |
                 return None
             commas += counted[0]
             padded = padded or counted[1]
-    if _count(np.frombuffer(body, dtype=np.uint8), 44) != (len(header) - 1) * (len(frame) + 1) + commas:
+    if (
+        _count(np.frombuffer(body, dtype=np.uint8), 44)
+        != (len(header) - 1) * (len(frame) + 1) + commas
+    ):
         return None
     return _Shape(np.full(len(frame) + 1, len(header), dtype=np.int64), padded)
 
@@ -80,14 +84,16 @@ def _cell_bytes(chunk: Any) -> tuple[int, bool] | None:
     _, offsets_buf, data_buf = chunk.buffers()
     if data_buf is None or len(chunk) == 0:
         return 0, False
-    stored = np.frombuffer(offsets_buf, dtype=offset_type)[chunk.offset:chunk.offset + len(chunk) + 1]
+    stored = np.frombuffer(offsets_buf, dtype=offset_type)[
+        chunk.offset : chunk.offset + len(chunk) + 1
+    ]
     offsets = stored.astype(np.int64, copy=False)
     data = np.frombuffer(data_buf, dtype=np.uint8)
     start, stop = offsets[:-1], offsets[1:]
     full = stop > start
     first, last = data[start[full]], data[stop[full] - 1]
     padded = bool(_EDGE[first].any() or _EDGE[last].any())
-    commas = _count(data[int(offsets[0]):int(offsets[-1])], 44)
+    commas = _count(data[int(offsets[0]) : int(offsets[-1])], 44)
     return commas, padded
 
 
@@ -95,7 +101,7 @@ def _first_record_fits(body: bytes, width: int) -> bool:
     """The header and first data record have ``width`` fields each (counted on a prefix of the
     bytes cut at a line end; False when the prefix cannot tell)."""
     cut = body.find(b"\n", 1 << 16)
-    head = body if cut < 0 else body[:cut + 1]
+    head = body if cut < 0 else body[: cut + 1]
     shape = _records_fast(head)
     return shape is not None and len(shape.widths) >= 2 and bool((shape.widths[:2] == width).all())
 
@@ -160,9 +166,12 @@ def _records_fast(body: bytes, chunk: int = 1 << 20) -> _Shape | None:
         per = np.diff(np.searchsorted(cpos, ends), prepend=0).astype(np.int64)
         tail = int(len(cpos) - (np.searchsorted(cpos, ends[-1]) if ends.size else 0))
         if opens.size:
-            inside = (np.searchsorted(cpos, closes) - np.searchsorted(cpos, opens + 1)).astype(np.int64)
-            bucket = np.bincount(np.searchsorted(ends, opens), weights=inside,
-                                 minlength=len(ends) + 1).astype(np.int64)
+            inside = (np.searchsorted(cpos, closes) - np.searchsorted(cpos, opens + 1)).astype(
+                np.int64
+            )
+            bucket = np.bincount(
+                np.searchsorted(ends, opens), weights=inside, minlength=len(ends) + 1
+            ).astype(np.int64)
             per -= bucket[:-1]
             tail -= int(bucket[-1])
         if ends.size:
@@ -179,7 +188,11 @@ def _records_fast(body: bytes, chunk: int = 1 << 20) -> _Shape | None:
     if n and not padded:
         first, last = body[0], body[-1]
         padded = first == 32 or first >= 0x80 or last == 32 or last >= 0x80
-    out = np.concatenate(widths).astype(np.int64, copy=False) if widths else np.zeros(0, dtype=np.int64)
+    out = (
+        np.concatenate(widths).astype(np.int64, copy=False)
+        if widths
+        else np.zeros(0, dtype=np.int64)
+    )
     return _Shape(out, padded)
 
 
@@ -196,7 +209,10 @@ def _quotes(ext: np.ndarray, parity: int) -> tuple[np.ndarray, np.ndarray, int] 
     if parity:
         closes = np.append(closes, m)  # still open at the chunk's end
     real_opens, real_closes = opens[opens >= 0], closes[closes < m]
-    if not (np.isin(ext[real_opens], (44, 10, 34)).all() and np.isin(ext[real_closes + 2], (44, 10, 34)).all()):
+    if not (
+        np.isin(ext[real_opens], (44, 10, 34)).all()
+        and np.isin(ext[real_closes + 2], (44, 10, 34)).all()
+    ):
         return None
     return opens, closes, parity
 

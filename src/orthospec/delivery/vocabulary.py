@@ -70,7 +70,11 @@ class Vocabulary:
 
 def _build(table: str, column: str, values: Any, synonyms: Any) -> Vocabulary:
     where = f"specs/delivery-tables.yaml: {table}.{column}"
-    if not isinstance(values, list) or not values or not all(isinstance(v, str) and v.strip() for v in values):
+    if (
+        not isinstance(values, list)
+        or not values
+        or not all(isinstance(v, str) and v.strip() for v in values)
+    ):
         raise SpecError(f"{where}: `values:` must be a non-empty list of words")
     lookup: dict[str, str] = {}
     for v in values:
@@ -79,7 +83,9 @@ def _build(table: str, column: str, values: Any, synonyms: Any) -> Vocabulary:
         lookup[key(v)] = v
     for syn, canon in (synonyms or {}).items():
         if canon not in values:
-            raise SpecError(f"{where}: synonym {syn!r} maps to {canon!r}, which is not one of its values")
+            raise SpecError(
+                f"{where}: synonym {syn!r} maps to {canon!r}, which is not one of its values"
+            )
         if key(syn) in lookup and lookup[key(syn)] != canon:
             raise SpecError(f"{where}: synonym {syn!r} already means {lookup[key(syn)]!r}")
         lookup[key(syn)] = canon
@@ -95,10 +101,14 @@ def vocabularies() -> dict[tuple[str, str], Vocabulary]:
         for cname, c in t["columns"].items():
             if "values" in c:
                 if c.get("type", "text") != "text":
-                    raise SpecError(f"specs/delivery-tables.yaml: {tname}.{cname}: `values:` is for text columns")
+                    raise SpecError(
+                        f"specs/delivery-tables.yaml: {tname}.{cname}: `values:` is for text columns"
+                    )
                 out[(tname, cname)] = _build(tname, cname, c["values"], c.get("synonyms"))
             elif "synonyms" in c:
-                raise SpecError(f"specs/delivery-tables.yaml: {tname}.{cname}: `synonyms:` without `values:`")
+                raise SpecError(
+                    f"specs/delivery-tables.yaml: {tname}.{cname}: `synonyms:` without `values:`"
+                )
     return out
 
 
@@ -132,7 +142,11 @@ def apply(table: str, df: pd.DataFrame, file: str) -> None:
             row = int(df.loc[cells[filled].index[first][0], "_row"])
             raise DeliveryError(
                 f"{_shown(bad[0])} is not an allowed value; allowed: {voc.allowed()} (a closed vocabulary: the "
-                f"rules branch on this column, specs/delivery-tables.yaml)", file=file, row=row, field=col)
+                f"rules branch on this column, specs/delivery-tables.yaml)",
+                file=file,
+                row=row,
+                field=col,
+            )
         if any(k != v for k, v in mapping.items()):
             out = cells.to_numpy(dtype=object).copy()
             out[filled] = [mapping[str(v)] for v in out[filled]]
@@ -144,6 +158,7 @@ def _shown(text: str, limit: int = 60) -> str:
 
 
 # --- the profile side: literals compared with a vocabulary column ------------------------------
+
 
 def compared_literals(source: str) -> list[tuple[str, str]]:
     """(measure name, literal) for every ``name == 'word'`` / ``!=`` comparison in an expression."""
@@ -159,7 +174,11 @@ def compared_literals(source: str) -> list[tuple[str, str]]:
         for a, b in itertools.pairwise(sides):
             for n, lit in ((a, b), (b, a)):
                 name = _dotted(n)
-                if name is not None and isinstance(lit, ast.Constant) and isinstance(lit.value, str):
+                if (
+                    name is not None
+                    and isinstance(lit, ast.Constant)
+                    and isinstance(lit.value, str)
+                ):
                     out.append((name, lit.value))
     return out
 
@@ -174,7 +193,9 @@ def literal_problems(source: str, *, extra: Iterable[tuple[str, Any]] = ()) -> l
             continue
         near = voc.normalise(lit)
         hint = f" (write {near!r})" if near is not None else ""
-        out.append(f"{name} is compared with {lit!r}, which is not one of its values ({voc.allowed()}){hint}")
+        out.append(
+            f"{name} is compared with {lit!r}, which is not one of its values ({voc.allowed()}){hint}"
+        )
     return out
 
 
@@ -184,5 +205,8 @@ def unknown_values(name: str, values: np.ndarray) -> np.ndarray:
     voc = of_measure(name)
     if voc is None:
         return np.zeros(len(values), dtype=bool)
-    return np.fromiter((isinstance(v, str) and v.strip() != "" and v not in voc.values for v in values),
-                       dtype=bool, count=len(values))
+    return np.fromiter(
+        (isinstance(v, str) and v.strip() != "" and v not in voc.values for v in values),
+        dtype=bool,
+        count=len(values),
+    )

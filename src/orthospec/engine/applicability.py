@@ -94,11 +94,14 @@ def _truth(v: Any, n: int) -> np.ndarray:
         return np.zeros(n, dtype=bool)
     if np.ndim(v) == 0:
         return np.full(n, bool(v), dtype=bool)
-    return np.array([bool(c) if not is_missing(c) else False for c in np.asarray(v, dtype=object)], dtype=bool)
+    return np.array(
+        [bool(c) if not is_missing(c) else False for c in np.asarray(v, dtype=object)], dtype=bool
+    )
 
 
-def _probe_all(e: expr.Expression, names: Names, probe: list[str], cands: list[list[Any]], n: int
-               ) -> tuple[np.ndarray | None, np.ndarray]:
+def _probe_all(
+    e: expr.Expression, names: Names, probe: list[str], cands: list[list[Any]], n: int
+) -> tuple[np.ndarray | None, np.ndarray]:
     """Evaluate the `when` for every combination of stand-ins: (first outcome, items whose outcome varies)."""
     first: np.ndarray | None = None
     varies = np.zeros(n, dtype=bool)
@@ -117,8 +120,9 @@ def _probe_all(e: expr.Expression, names: Names, probe: list[str], cands: list[l
     return first, varies
 
 
-def when(ctx: Context, rule: Rule, items: list[str], *, scalar: bool = False
-         ) -> tuple[np.ndarray, np.ndarray, list[str]]:
+def when(
+    ctx: Context, rule: Rule, items: list[str], *, scalar: bool = False
+) -> tuple[np.ndarray, np.ndarray, list[str]]:
     """(applies, unknown, absent names) per item of a rule's `when`."""
     n = 1 if scalar else len(items)
     e = expr.parse(rule.when or "true")
@@ -130,7 +134,9 @@ def when(ctx: Context, rule: Rule, items: list[str], *, scalar: bool = False
     if not probe:
         return base, np.zeros(n, dtype=bool), []
     has_missing = np.logical_or.reduce([missing[k] for k in probe])
-    first, varies = _probe_all(e, names, probe, [_probes(ctx, k, rule.when or "") for k in probe], n)
+    first, varies = _probe_all(
+        e, names, probe, [_probes(ctx, k, rule.when or "") for k in probe], n
+    )
     if first is None:
         return base & ~has_missing, has_missing, probe
     unknown = varies & has_missing
@@ -149,11 +155,16 @@ def check_vocabulary(rule: Rule) -> None:
     values = tuple(rule.requirement.values or ()) if rule.requirement.op == "in" else ()
     problems = _vocabulary_problems(rule.when or "", rule.measure, values)
     if problems:
-        raise Undecidable(f"{rule.id} cannot be decided: " + "; ".join(problems)
-                          + " - the profile must use the column's values (specs/delivery-tables.yaml)")
+        raise Undecidable(
+            f"{rule.id} cannot be decided: "
+            + "; ".join(problems)
+            + " - the profile must use the column's values (specs/delivery-tables.yaml)"
+        )
 
 
-def applicable(ctx: Context, rule: Rule, items: list[str]) -> tuple[np.ndarray, np.ndarray, str | None]:
+def applicable(
+    ctx: Context, rule: Rule, items: list[str]
+) -> tuple[np.ndarray, np.ndarray, str | None]:
     """Per-item applicability from `when`: (applies, unknown, note for the unknown items)."""
     n = len(items)
     check_vocabulary(rule)

@@ -41,11 +41,13 @@ ITT_DECLARED = Rule(
     requirement=Requirement(op="==", value="value in force"),
     level="mandatory",
     consequence="return_delivery",
-    note=("Built into the engine. tender.parameters in delivery.yaml is evidence, never authority; a "
-          "declared value different from the one in force (--param, the checker's file, the tender "
-          "profile or the standard) "
-          "means the contractor's internal QC was run against other numbers, so its QCRs do not show "
-          "conformity with the ITT (JRC §2.5): the delivery is returned for correction of the record."),
+    note=(
+        "Built into the engine. tender.parameters in delivery.yaml is evidence, never authority; a "
+        "declared value different from the one in force (--param, the checker's file, the tender "
+        "profile or the standard) "
+        "means the contractor's internal QC was run against other numbers, so its QCRs do not show "
+        "conformity with the ITT (JRC §2.5): the delivery is returned for correction of the record."
+    ),
     tags=["engine", "parameters"],
 )
 
@@ -66,8 +68,9 @@ def _show(v: Any, unit: str) -> str:
     return f"{v} {unit}" if unit and unit not in ("1", "text", "bool", "date") else str(v)
 
 
-def parameter_findings(params: dict[str, ParamValue], d: Delivery
-                       ) -> dict[str, list[tuple[str, str, str | None, str]]]:
+def parameter_findings(
+    params: dict[str, ParamValue], d: Delivery
+) -> dict[str, list[tuple[str, str, str | None, str]]]:
     """Per built-in rule id: (item, measured text, note, verdict) rows (verdict names of
     orthospec.verdicts)."""
     declared_raw = dict(d.manifest.tender.parameters) if d.manifest.tender else {}
@@ -78,18 +81,46 @@ def parameter_findings(params: dict[str, ParamValue], d: Delivery
         if name not in declared_raw:
             continue
         if declared is None:
-            why = getattr(p, "note", None) or "the declared value cannot be read in the parameter's unit"
-            declared_rows.append((name, str(declared_raw[name]), f"delivery.yaml tender.parameters.{name}: "
-                                  f"{why}", V.FAIL))
+            why = (
+                getattr(p, "note", None)
+                or "the declared value cannot be read in the parameter's unit"
+            )
+            declared_rows.append(
+                (
+                    name,
+                    str(declared_raw[name]),
+                    f"delivery.yaml tender.parameters.{name}: {why}",
+                    V.FAIL,
+                )
+            )
         elif p.value is None or not _same(declared, p.value):
-            declared_rows.append((name, _show(declared, p.unit),
-                                  f"delivery.yaml declares {name} = {_show(declared, p.unit)}, the value in force "
-                                  f"is {_show(p.value, p.unit)} (source: {src}); the contractor's QC used "
-                                  "other numbers than the contract", V.FAIL))
+            declared_rows.append(
+                (
+                    name,
+                    _show(declared, p.unit),
+                    f"delivery.yaml declares {name} = {_show(declared, p.unit)}, the value in force "
+                    f"is {_show(p.value, p.unit)} (source: {src}); the contractor's QC used "
+                    "other numbers than the contract",
+                    V.FAIL,
+                )
+            )
         else:
-            declared_rows.append((name, _show(declared, p.unit),
-                                  f"declared {_show(declared, p.unit)} = value in force (source: {src})", V.PASS))
+            declared_rows.append(
+                (
+                    name,
+                    _show(declared, p.unit),
+                    f"declared {_show(declared, p.unit)} = value in force (source: {src})",
+                    V.PASS,
+                )
+            )
     if not declared_rows:
-        declared_rows.append((d.id, "", "no contract value declared in delivery.yaml to cross-check against "
-                              "--param, the checker's file, a tender profile or the standard", V.NOT_APPLICABLE))
+        declared_rows.append(
+            (
+                d.id,
+                "",
+                "no contract value declared in delivery.yaml to cross-check against "
+                "--param, the checker's file, a tender profile or the standard",
+                V.NOT_APPLICABLE,
+            )
+        )
     return {ITT_DECLARED.id: declared_rows}

@@ -83,12 +83,18 @@ def builtin(spec: ProviderSpec) -> bool:
 
 def snapshot() -> dict[str, Any]:
     """The content of specs/schema/measures.json: built-in, generic and roll-up measure names."""
-    names: dict[str, list[str]] = {n: [s.scope, s.measures[n]] for n, s in known_measures().items() if builtin(s)}
+    names: dict[str, list[str]] = {
+        n: [s.scope, s.measures[n]] for n, s in known_measures().items() if builtin(s)
+    }
     names.update({n: list(v) for n, v in ROLLUP.items()})
     for t, spec in table_specs().items():
         cands = [f"{t}.present", f"{t}.count", f"{t}.count_per_block"]
         for c in spec.columns:
-            cands += [f"{t}.{c}", f"{t}.{c}.complete", *(f"{t}.{c}.{a}" for a in generic.AGGREGATES)]
+            cands += [
+                f"{t}.{c}",
+                f"{t}.{c}.complete",
+                *(f"{t}.{c}.{a}" for a in generic.AGGREGATES),
+            ]
         for n in cands:
             got = generic.info(n)
             if got is not None and n not in names:
@@ -120,7 +126,9 @@ class MeasureCache:
             if gkey not in self._generic:
                 try:
                     self._generic[gkey] = generic.compute(name, self.ctx.delivery)
-                except Exception as exc:  # kept with its traceback and re-raised for every rule reading it
+                except (
+                    Exception
+                ) as exc:  # kept with its traceback and re-raised for every rule reading it
                     self._generic[gkey] = exc
             got_g = self._generic[gkey]
             if isinstance(got_g, Exception):

@@ -58,13 +58,17 @@ def magnitudes(v: Any, unit: str | None, n: int, gsd: np.ndarray | None, what: s
         mag = np.asarray(v.magnitude, dtype=float)
         src = str(v.units)
         if unit is None:
-            raise UnitError(f"{what}: the expression has unit {canonical(src)!r}; give the requirement a unit")
+            raise UnitError(
+                f"{what}: the expression has unit {canonical(src)!r}; give the requirement a unit"
+            )
         if v.units == units.ureg.dimensionless:
             # a pure number (e.g. "0.1 * 256") means "in the requirement's unit"
             return _broadcast(mag, n)
         return _broadcast(convert(mag, src, unit, gsd_m=gsd, what=what), n)
     if v is None:
-        raise Undecidable(f"{what}: the threshold has no value (a fact or parameter it names is not given)")
+        raise Undecidable(
+            f"{what}: the threshold has no value (a fact or parameter it names is not given)"
+        )
     if isinstance(v, bool):
         raise UnitError(f"{what}: expected a number, got {v!r}")
     return _broadcast(v, n)
@@ -73,7 +77,11 @@ def magnitudes(v: Any, unit: str | None, n: int, gsd: np.ndarray | None, what: s
 def _broadcast(v: Any, n: int) -> np.ndarray:
     """Float values for n items: one value as a stride-0 view, per-item values as their own array."""
     arr = np.asarray(v, dtype=float)
-    return np.broadcast_to(arr, (n,)) if arr.ndim == 0 or arr.size == 1 else np.broadcast_to(arr, (n,)).astype(float)
+    return (
+        np.broadcast_to(arr, (n,))
+        if arr.ndim == 0 or arr.size == 1
+        else np.broadcast_to(arr, (n,)).astype(float)
+    )
 
 
 def constant(arr: np.ndarray) -> bool:
@@ -93,7 +101,9 @@ def is_expr(ctx: Context, v: str) -> bool:
         e = expr.parse(v)
     except ExpressionError:
         return False
-    return bool(e.names) and all(n in ctx.params or n.startswith(("manifest.", "param.")) for n in e.names)
+    return bool(e.names) and all(
+        n in ctx.params or n.startswith(("manifest.", "param.")) for n in e.names
+    )
 
 
 def need_params(ctx: Context, rule: Rule, req: Requirement) -> None:
@@ -101,11 +111,16 @@ def need_params(ctx: Context, rule: Rule, req: Requirement) -> None:
     for spec in (req.value, req.min, req.max, *(req.values or [])):
         if not isinstance(spec, str) or not is_expr(ctx, spec):
             continue
-        unset = sorted(n for n in expr.parse(spec).names
-                       if param_key(n) in ctx.params and ctx.params[param_key(n)].value is None)
+        unset = sorted(
+            n
+            for n in expr.parse(spec).names
+            if param_key(n) in ctx.params and ctx.params[param_key(n)].value is None
+        )
         if unset and not null_tested(spec):
-            raise Undecidable(f"parameter {', '.join(unset)} is not set, so {rule.id} cannot be decided: "
-                              "set it in a tender profile or with --param NAME=VALUE")
+            raise Undecidable(
+                f"parameter {', '.join(unset)} is not set, so {rule.id} cannot be decided: "
+                "set it in a tender profile or with --param NAME=VALUE"
+            )
 
 
 def req_dict(req: Requirement, resolved: tuple[np.ndarray, ...] | None) -> dict[str, Any]:
@@ -147,8 +162,16 @@ def req_dict(req: Requirement, resolved: tuple[np.ndarray, ...] | None) -> dict[
 class Comparison:
     """One rule's comparison: ``run()`` -> (ok, measured, threshold, unit, undecided)."""
 
-    def __init__(self, ctx: Context, rule: Rule, raw: np.ndarray, munit: str, skip: np.ndarray,
-                 names: Names, items: list[str]) -> None:
+    def __init__(
+        self,
+        ctx: Context,
+        rule: Rule,
+        raw: np.ndarray,
+        munit: str,
+        skip: np.ndarray,
+        names: Names,
+        items: list[str],
+    ) -> None:
         self.ctx, self.rule, self.req = ctx, rule, rule.requirement
         self.raw, self.munit, self.skip, self.names, self.items = raw, munit, skip, names, items
         self.undecided: Undecided = []
@@ -161,21 +184,33 @@ class Comparison:
             ok = d.ok if op == "present" else d.ok | self.skip
             return ok, self.raw, thr, self.munit, self.undecided
         textual = self.munit in NON_NUMERIC or self.munit == "any"
-        if op in ("==", "!=", "in") and (textual or any(
-                isinstance(v, str) and not is_expr(self.ctx, v) for v in (req.value, *(req.values or [])))):
+        if op in ("==", "!=", "in") and (
+            textual
+            or any(
+                isinstance(v, str) and not is_expr(self.ctx, v)
+                for v in (req.value, *(req.values or []))
+            )
+        ):
             return self._text(thr)
         if textual:
-            raise UnitError(f"measure {self.rule.measure} is {self.munit}, the requirement {op} needs a number")
+            raise UnitError(
+                f"measure {self.rule.measure} is {self.munit}, the requirement {op} needs a number"
+            )
         return self._numeric()
 
-    def _text(self, thr: dict[str, Any]) -> tuple[np.ndarray, np.ndarray, dict[str, Any], str, Undecided]:
+    def _text(
+        self, thr: dict[str, Any]
+    ) -> tuple[np.ndarray, np.ndarray, dict[str, Any], str, Undecided]:
         """``==``, ``!=``, ``in`` against literal text (the value as written, or a text expression)."""
         req = self.req
         if req.op == "in":
             t = Thresholds(values=[str(v) for v in req.values or []])
         else:
-            target = (str(threshold_value(req.value, self.names))
-                      if isinstance(req.value, str) and is_expr(self.ctx, req.value) else str(req.value))
+            target = (
+                str(threshold_value(req.value, self.names))
+                if isinstance(req.value, str) and is_expr(self.ctx, req.value)
+                else str(req.value)
+            )
             t = Thresholds(value=target)
         d = operator(req.op).decide(self.raw, t)
         return d.ok | self.skip, d.measured, thr, self.munit, self.undecided
@@ -183,31 +218,60 @@ class Comparison:
     def _values(self) -> tuple[np.ndarray, str, np.ndarray | None, np.ndarray]:
         """Measured values as floats in the requirement's unit: (values, unit, gsd, lost in conversion)."""
         raw, munit, rule = self.raw, self.munit, self.rule
-        values = raw.astype(float) if raw.dtype.kind in "fiu" else \
-            pd.to_numeric(pd.Series(raw), errors="coerce").to_numpy(dtype=float)
+        values = (
+            raw.astype(float)
+            if raw.dtype.kind in "fiu"
+            else pd.to_numeric(pd.Series(raw), errors="coerce").to_numpy(dtype=float)
+        )
         target_unit = canonical(self.req.unit) if self.req.unit else munit
-        gsd = item_gsd(self.ctx, rule.scope, self.items) if "px" in (canonical(munit), target_unit) else None
+        gsd = (
+            item_gsd(self.ctx, rule.scope, self.items)
+            if "px" in (canonical(munit), target_unit)
+            else None
+        )
         before = np.isnan(values)
         if canonical(munit) != target_unit:
             values = convert(values, munit, target_unit, gsd_m=gsd, what=f"measure {rule.measure}")
         lost = np.isnan(values) & ~before & ~self.skip
         if lost.any():
-            self.undecided.append((MISSING, lost, f"{rule.measure} in {canonical(munit)} cannot be converted to "
-                                   f"{target_unit}: no GSD for this item (give images.gsd or product.gsd)", Reason.NO_GSD))
+            self.undecided.append(
+                (
+                    MISSING,
+                    lost,
+                    f"{rule.measure} in {canonical(munit)} cannot be converted to "
+                    f"{target_unit}: no GSD for this item (give images.gsd or product.gsd)",
+                    Reason.NO_GSD,
+                )
+            )
         return values, target_unit, gsd, lost
 
-    def _thresholds(self, n: int, gsd: np.ndarray | None) -> tuple[Thresholds, tuple[np.ndarray, ...] | None]:
+    def _thresholds(
+        self, n: int, gsd: np.ndarray | None
+    ) -> tuple[Thresholds, tuple[np.ndarray, ...] | None]:
         req, names, what = self.req, self.names, f"rule {self.rule.id} requirement"
         if req.op == "between":
-            lo = magnitudes(threshold_value(req.min, names), req.unit, n, gsd, what) if req.min is not None else None
-            hi = magnitudes(threshold_value(req.max, names), req.unit, n, gsd, what) if req.max is not None else None
+            lo = (
+                magnitudes(threshold_value(req.min, names), req.unit, n, gsd, what)
+                if req.min is not None
+                else None
+            )
+            hi = (
+                magnitudes(threshold_value(req.max, names), req.unit, n, gsd, what)
+                if req.max is not None
+                else None
+            )
             # an open side is written as no bound (-inf/+inf): only a given bound must be finite
-            shown = (np.broadcast_to(-np.inf, (n,)) if lo is None else lo,
-                     np.broadcast_to(np.inf, (n,)) if hi is None else hi)
-            return Thresholds(min=lo, max=hi, min_inclusive=req.min_inclusive,
-                              max_inclusive=req.max_inclusive), shown
+            shown = (
+                np.broadcast_to(-np.inf, (n,)) if lo is None else lo,
+                np.broadcast_to(np.inf, (n,)) if hi is None else hi,
+            )
+            return Thresholds(
+                min=lo, max=hi, min_inclusive=req.min_inclusive, max_inclusive=req.max_inclusive
+            ), shown
         if req.op == "in":
-            return Thresholds(values=[float(threshold_value(v, names)) for v in req.values or []]), None
+            return Thresholds(
+                values=[float(threshold_value(v, names)) for v in req.values or []]
+            ), None
         t = magnitudes(threshold_value(req.value, names), req.unit, n, gsd, what)
         return Thresholds(value=t), (t,)
 
@@ -218,11 +282,34 @@ class Comparison:
         t, shown = self._thresholds(len(values), gsd)
         d: Decision = operator(self.req.op).decide(values, t)
         thr = req_dict(self.req, shown)
-        self.undecided.append((MISSING, d.no_threshold & ~skip, (
-            f"the threshold of {rule.id} cannot be computed for this item (a px threshold without a GSD, "
-            "or a measure it uses is missing)"), Reason.NO_THRESHOLD))
-        self.undecided.append((ERROR, d.bad_threshold & ~skip, (
-            f"the threshold of {rule.id} is not a finite number ({thr.get('text', '')}): a requirement must "
-            "be a finite value"), Reason.BAD_THRESHOLD))
-        self.undecided.append((MISSING, d.no_value & ~skip & ~lost, f"no numeric value for {rule.measure}", Reason.NO_VALUE))
+        self.undecided.append(
+            (
+                MISSING,
+                d.no_threshold & ~skip,
+                (
+                    f"the threshold of {rule.id} cannot be computed for this item (a px threshold without a GSD, "
+                    "or a measure it uses is missing)"
+                ),
+                Reason.NO_THRESHOLD,
+            )
+        )
+        self.undecided.append(
+            (
+                ERROR,
+                d.bad_threshold & ~skip,
+                (
+                    f"the threshold of {rule.id} is not a finite number ({thr.get('text', '')}): a requirement must "
+                    "be a finite value"
+                ),
+                Reason.BAD_THRESHOLD,
+            )
+        )
+        self.undecided.append(
+            (
+                MISSING,
+                d.no_value & ~skip & ~lost,
+                f"no numeric value for {rule.measure}",
+                Reason.NO_VALUE,
+            )
+        )
         return d.ok | skip | d.no_value, values, thr, target_unit, self.undecided

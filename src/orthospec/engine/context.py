@@ -60,7 +60,9 @@ class RuleResult:
 
     def reason(self, i: int) -> str | None:
         """The reason code of item ``i`` (None for a pass): the rule's own, else its verdict's default."""
-        return V.reason_of(VERDICTS[int(self.verdict[i])], None if self.reasons is None else self.reasons[i])
+        return V.reason_of(
+            VERDICTS[int(self.verdict[i])], None if self.reasons is None else self.reasons[i]
+        )
 
     @property
     def worst(self) -> int:
@@ -97,19 +99,41 @@ class Context:
     _scanned: bool = False
 
     @classmethod
-    def build(cls, profile: ResolvedProfile, delivery: Delivery, parameters: dict[str, ParamValue], *,
-              fail_on: str, options: EngineOptions | Mapping[str, Any] | None, checker: Checker | None,
-              debug: bool | None) -> Context:
+    def build(
+        cls,
+        profile: ResolvedProfile,
+        delivery: Delivery,
+        parameters: dict[str, ParamValue],
+        *,
+        fail_on: str,
+        options: EngineOptions | Mapping[str, Any] | None,
+        checker: Checker | None,
+        debug: bool | None,
+    ) -> Context:
         opts = EngineOptions.of(options)
         # the delivery as this evaluation judges it: the checker's check points in force, nothing written onto
         # the opened delivery (issue 26: a next check of the same object starts clean)
         delivery = DeliveryInForce.of(delivery, checker)
-        pctx = ProviderContext(delivery, {k: v.quantity() for k, v in parameters.items()}, opts,
-                               classes=dict(getattr(profile, "classes", {}) or {}), checker=checker,
-                               outlines=stated_outlines(checker) if checker is not None else None,
-                               inspection=load_grid(checker, delivery) if checker is not None else None)
-        return cls(profile, delivery, parameters, opts, checker, MeasureCache(pctx), delivery.flat_manifest(),
-                   fail_on, debug_enabled() if debug is None else debug)
+        pctx = ProviderContext(
+            delivery,
+            {k: v.quantity() for k, v in parameters.items()},
+            opts,
+            classes=dict(getattr(profile, "classes", {}) or {}),
+            checker=checker,
+            outlines=stated_outlines(checker) if checker is not None else None,
+            inspection=load_grid(checker, delivery) if checker is not None else None,
+        )
+        return cls(
+            profile,
+            delivery,
+            parameters,
+            opts,
+            checker,
+            MeasureCache(pctx),
+            delivery.flat_manifest(),
+            fail_on,
+            debug_enabled() if debug is None else debug,
+        )
 
     def file_sha256(self, rel: str) -> str | None:
         """SHA-256 of a delivered file now, None when the delivery does not hold it (or refuses the path).
@@ -119,7 +143,9 @@ class Context:
         if not self._scanned:
             self._scanned = True
             if any(r.measure.startswith("raster.") for r in self.profile.rules):
-                with contextlib.suppress(Exception):  # reported by the rules that read it; hashing follows
+                with contextlib.suppress(
+                    Exception
+                ):  # reported by the rules that read it; hashing follows
                     self.cache.get("raster.readable")
         try:
             p = self.d.path(rel)
@@ -176,7 +202,10 @@ def _grid_image_ids(path: Any, shown: str) -> set[str]:
 
     from ..raster.reading import gdal_errors, readable_vector
 
-    with readable_vector(path, name=shown) as (local, _), gdal_errors(file=shown, path=local, what="inspection grid"):
+    with (
+        readable_vector(path, name=shown) as (local, _),
+        gdal_errors(file=shown, path=local, what="inspection grid"),
+    ):
         try:
             _, _, _, values = raw.read(local, layer="images", columns=["image_id"])
         except Exception:  # no such layer: read_grid names what is missing

@@ -46,8 +46,20 @@ from .registry import EngineOptions
 from .rollup import Rollup
 from .rules import builtin, safe
 
-__all__ = ["ERROR", "FAIL", "MISSING", "NA", "PASS", "SEVERITY", "VERDICTS", "WAIVED", "WARN", "Evaluation",
-           "Evaluator", "RuleResult"]
+__all__ = [
+    "ERROR",
+    "FAIL",
+    "MISSING",
+    "NA",
+    "PASS",
+    "SEVERITY",
+    "VERDICTS",
+    "WAIVED",
+    "WARN",
+    "Evaluation",
+    "Evaluator",
+    "RuleResult",
+]
 
 
 @dataclass
@@ -81,11 +93,26 @@ class Evaluator:
     records (default: ``ORTHOSPEC_DEBUG=1``, which ``orthospec --debug`` sets).
     """
 
-    def __init__(self, profile: ResolvedProfile, delivery: Delivery, parameters: dict[str, ParamValue],
-                 *, fail_on: str = "fail", options: EngineOptions | Mapping[str, Any] | None = None,
-                 checker: Checker | None = None, debug: bool | None = None) -> None:
-        self.ctx = Context.build(profile, delivery, parameters, fail_on=fail_on, options=options,
-                                 checker=checker, debug=debug)
+    def __init__(
+        self,
+        profile: ResolvedProfile,
+        delivery: Delivery,
+        parameters: dict[str, ParamValue],
+        *,
+        fail_on: str = "fail",
+        options: EngineOptions | Mapping[str, Any] | None = None,
+        checker: Checker | None = None,
+        debug: bool | None = None,
+    ) -> None:
+        self.ctx = Context.build(
+            profile,
+            delivery,
+            parameters,
+            fail_on=fail_on,
+            options=options,
+            checker=checker,
+            debug=debug,
+        )
         self.granted = waivers.granted(profile, checker)
 
     def run(self) -> Evaluation:
@@ -107,10 +134,22 @@ class Evaluator:
         crashed = {r.rule.id: r.traceback for r in results if r.traceback}
         if crashed:
             details["tracebacks"] = dict(sorted(crashed.items()))
-        return Evaluation(ctx.profile, ctx.d, ctx.params, results, rejected, reasons + more, verdict,
-                          ctx.fail_on, details, waivers.unused(self.granted, used), requests,
-                          ctx.checker.summary() if ctx.checker is not None else None,
-                          manual.unused(ctx, results), todo)
+        return Evaluation(
+            ctx.profile,
+            ctx.d,
+            ctx.params,
+            results,
+            rejected,
+            reasons + more,
+            verdict,
+            ctx.fail_on,
+            details,
+            waivers.unused(self.granted, used),
+            requests,
+            ctx.checker.summary() if ctx.checker is not None else None,
+            manual.unused(ctx, results),
+            todo,
+        )
 
 
 def cite_todo(d: Delivery, results: list[RuleResult]) -> None:

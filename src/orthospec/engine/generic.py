@@ -51,8 +51,13 @@ def info(name: str) -> tuple[str, str] | None:
 
 
 #: ``<table>.<column>.<aggregate>`` at delivery scope, over the table's non-empty values
-AGGREGATES = {"mean": np.nanmean, "max": np.nanmax, "min": np.nanmin,
-              "max_abs": lambda a: np.nanmax(np.abs(a)), "mean_abs": lambda a: np.nanmean(np.abs(a))}
+AGGREGATES = {
+    "mean": np.nanmean,
+    "max": np.nanmax,
+    "min": np.nanmin,
+    "max_abs": lambda a: np.nanmax(np.abs(a)),
+    "mean_abs": lambda a: np.nanmean(np.abs(a)),
+}
 
 
 def _unit(kind: str, unit: str | None) -> str:
@@ -79,8 +84,14 @@ def compute(name: str, d: Delivery) -> Measured:
         note = d.table_absent_reason(tname)
         if scope == "delivery":
             return _one(name, scope, unit, d.id, None, (d.manifest_evidence("tables"),), note=note)
-        return Measured(name, scope, unit, pd.Series(dtype=object), pd.Series(dtype=object),
-                        notes=pd.Series({"*": note}, dtype=object))
+        return Measured(
+            name,
+            scope,
+            unit,
+            pd.Series(dtype=object),
+            pd.Series(dtype=object),
+            notes=pd.Series({"*": note}, dtype=object),
+        )
     df = t.df
     if parts[1] == "count":
         return _one(name, scope, "1", d.id, float(len(df)), t.evidence(df["_row"]))
@@ -97,9 +108,20 @@ def compute(name: str, d: Delivery) -> Measured:
         have = ~np.isnan(arr)
         agg: Any = AGGREGATES[parts[2]]
         value = float(agg(arr)) if have.any() else None
-        u = (t.units.get(col) or canonical(d.manifest.units.get(tname, "m"))) if unit == "length" else unit
-        return _one(name, "delivery", u, d.id, value, t.evidence(df["_row"][have] if have.any() else df["_row"]),
-                    note=None if value is not None else f"no values in column {col!r} of {t.file}")
+        u = (
+            (t.units.get(col) or canonical(d.manifest.units.get(tname, "m")))
+            if unit == "length"
+            else unit
+        )
+        return _one(
+            name,
+            "delivery",
+            u,
+            d.id,
+            value,
+            t.evidence(df["_row"][have] if have.any() else df["_row"]),
+            note=None if value is not None else f"no values in column {col!r} of {t.file}",
+        )
     if len(parts) == 3:  # .complete
         if col not in df:
             share = 0.0 if len(df) else None
@@ -109,30 +131,57 @@ def compute(name: str, d: Delivery) -> Measured:
             filled = df[col].notna()
             share = float(filled.mean() * 100.0) if len(df) else None
             rows = df.loc[~filled, "_row"] if len(df) else []
-        return _one(name, "delivery", "%", d.id, share, t.evidence(rows if len(rows) else df["_row"]),
-                    note=None if col in df else f"column {col!r} absent from {t.file}")
+        return _one(
+            name,
+            "delivery",
+            "%",
+            d.id,
+            share,
+            t.evidence(rows if len(rows) else df["_row"]),
+            note=None if col in df else f"column {col!r} absent from {t.file}",
+        )
     ids = t.ids
-    u = (t.units.get(col) or canonical(d.manifest.units.get(tname, "m"))) if unit == "length" else unit
+    u = (
+        (t.units.get(col) or canonical(d.manifest.units.get(tname, "m")))
+        if unit == "length"
+        else unit
+    )
     if col not in df:
         vals = pd.Series([None] * len(df), index=ids.values, dtype=object)
-        notes = pd.Series([f"column {col!r} absent from {t.file}"] * len(df), index=ids.values, dtype=object)
+        notes = pd.Series(
+            [f"column {col!r} absent from {t.file}"] * len(df), index=ids.values, dtype=object
+        )
     else:
         vals = pd.Series(df[col].values, index=ids.values)
         notes = None
-    rows_ev = RowEvidence(t.file, t.sha256, pd.Series(df["_row"].to_numpy(), index=ids.astype(str).values))
+    rows_ev = RowEvidence(
+        t.file, t.sha256, pd.Series(df["_row"].to_numpy(), index=ids.astype(str).values)
+    )
     return Measured(name, scope, u, vals, rows_ev, notes=notes)
 
 
-def _one(name: str, scope: str, unit: str, item: str, value: Any, ev: tuple[Evidence, ...] | pd.Series,
-         note: str | None = None) -> Measured:
-    return Measured(name, scope, unit, pd.Series({item: value}, dtype=object),
-                    pd.Series({item: ev}, dtype=object),
-                    notes=pd.Series({item: note}, dtype=object) if note else None)
+def _one(
+    name: str,
+    scope: str,
+    unit: str,
+    item: str,
+    value: Any,
+    ev: tuple[Evidence, ...] | pd.Series,
+    note: str | None = None,
+) -> Measured:
+    return Measured(
+        name,
+        scope,
+        unit,
+        pd.Series({item: value}, dtype=object),
+        pd.Series({item: ev}, dtype=object),
+        notes=pd.Series({item: note}, dtype=object) if note else None,
+    )
 
 
 def _manifest(name: str, d: Delivery) -> Measured:
     flat = d.flat_manifest()
-    path = name[len("manifest."):]
+    path = name[len("manifest.") :]
     ev = (d.manifest_evidence(path),)
     if name not in flat:
         return _one(name, "delivery", "any", d.id, None, ev, note=f"{MANIFEST} has no {path}")
@@ -145,11 +194,25 @@ def _manifest(name: str, d: Delivery) -> Measured:
         except (OrthospecError, OSError):  # outside the delivery root or unreadable: not delivered
             size = None
         if size is None:
-            return _one(name, "delivery", "text", d.id, None, ev,
-                        note=f"{MANIFEST} lists {path}: {v}, but the file is not in the delivery")
+            return _one(
+                name,
+                "delivery",
+                "text",
+                d.id,
+                None,
+                ev,
+                note=f"{MANIFEST} lists {path}: {v}, but the file is not in the delivery",
+            )
         if size == 0:  # JRC §2.5: the internal QCRs are delivered; an empty file is no document
-            return _one(name, "delivery", "text", d.id, None, (*ev, d.evidence(v)),
-                        note=f"{MANIFEST} lists {path}: {v}, but the file is empty (0 bytes): no document delivered")
+            return _one(
+                name,
+                "delivery",
+                "text",
+                d.id,
+                None,
+                (*ev, d.evidence(v)),
+                note=f"{MANIFEST} lists {path}: {v}, but the file is empty (0 bytes): no document delivered",
+            )
         return _one(name, "delivery", "text", d.id, v, (*ev, d.evidence(v)))
     if isinstance(v, dict) and set(v) == {"value", "unit"}:
         return _one(name, "delivery", canonical(v["unit"]), d.id, float(v["value"]), ev)

@@ -32,20 +32,41 @@ MAX_LINES = 20
 NOUNS: dict[str, tuple[str, str, str]] = {
     "checkpoints.n": ("check point", "check points", ""),
     "checkpoints.count": ("check point", "check points", ""),
-    "checkpoints.duplicate_locations": ("check point repeating another", "check points repeating another",
-                                        "to replace by independent points"),
-    "checkpoints.blunders_unjustified": ("exclusion request", "exclusion requests",
-                                         "to justify as §12.6 asks or to withdraw"),
-    "checkpoints.near_gcp": ("check point at a GCP", "check points at a GCP",
-                             "to replace by points independent of the GCPs"),
-    "checkpoints.zero_residuals": ("check point with a zero residual", "check points with a zero residual",
-                                   "to measure on the image"),
-    "checkpoints.block_cells_bad": ("check point naming no single block", "check points naming no single block",
-                                    "to assign to one block"),
-    "checkpoints.outside_block": ("check point outside the block", "check points outside the block",
-                                  "to assign to their block or replace"),
-    "checkpoints.imprecise": ("check point with an imprecise reference", "check points with an imprecise reference",
-                              "to re-survey or replace"),
+    "checkpoints.duplicate_locations": (
+        "check point repeating another",
+        "check points repeating another",
+        "to replace by independent points",
+    ),
+    "checkpoints.blunders_unjustified": (
+        "exclusion request",
+        "exclusion requests",
+        "to justify as §12.6 asks or to withdraw",
+    ),
+    "checkpoints.near_gcp": (
+        "check point at a GCP",
+        "check points at a GCP",
+        "to replace by points independent of the GCPs",
+    ),
+    "checkpoints.zero_residuals": (
+        "check point with a zero residual",
+        "check points with a zero residual",
+        "to measure on the image",
+    ),
+    "checkpoints.block_cells_bad": (
+        "check point naming no single block",
+        "check points naming no single block",
+        "to assign to one block",
+    ),
+    "checkpoints.outside_block": (
+        "check point outside the block",
+        "check points outside the block",
+        "to assign to their block or replace",
+    ),
+    "checkpoints.imprecise": (
+        "check point with an imprecise reference",
+        "check points with an imprecise reference",
+        "to re-survey or replace",
+    ),
 }
 #: roll-up shares whose remedy is a number of items to add to the checker's sample
 SHARES: dict[str, tuple[str, str, str]] = {
@@ -57,14 +78,19 @@ REMEDY: dict[str, str] = {
     "checkpoints.precision_xy": "re-survey it or replace it with a more precise point",
     "checkpoints.min_gcp_distance": "replace the check points that coincide with GCPs by independent ones",
     "sample.strata_missed": "add to the sample an image of each block, tag, problem batch or high view angle "
-                            "the record of JRC-12.4-SELECTION names (orthospec sample draws them)",
+    "the record of JRC-12.4-SELECTION names (orthospec sample draws them)",
 }
 
 
 #: measures computed from the external check's own measurements (the check points, the sample):
 #: a value they cannot give (no points for a block, too few to compute, a point table that does not
 #: parse) is a missing checker measurement, the checker's to add - never a rejection of the products
-CHECKER_MEASURES = ("checkpoints.", "checkpoint.", "rollup.images_sampled_share", "rollup.blocks_checked_share")
+CHECKER_MEASURES = (
+    "checkpoints.",
+    "checkpoint.",
+    "rollup.images_sampled_share",
+    "rollup.blocks_checked_share",
+)
 #: ...except the contractor's own figures compared with them (JRC §9.5 QCR values)
 CONTRACTOR_MEASURES = ("checkpoints.reported_diff_",)
 
@@ -138,9 +164,17 @@ def _what(r: RuleResult, i: int, totals: dict[str, int]) -> str:
     need = _threshold(r, i)
     op = rule.requirement.op
     unit = "" if r.unit in ("1", "", None) else f" {r.unit}"
-    said = (f"{_fmt(measured)}{unit}, required {r.threshold.get('text', '')}".rstrip(", ")
-            if measured is not None else (note[:160] or "failed"))
-    if measured is not None and need is not None and rule.measure in SHARES and totals.get(rule.measure):
+    said = (
+        f"{_fmt(measured)}{unit}, required {r.threshold.get('text', '')}".rstrip(", ")
+        if measured is not None
+        else (note[:160] or "failed")
+    )
+    if (
+        measured is not None
+        and need is not None
+        and rule.measure in SHARES
+        and totals.get(rule.measure)
+    ):
         one, many, purpose = SHARES[rule.measure]
         n = totals[rule.measure]
         have = round(measured / 100.0 * n)
@@ -151,7 +185,12 @@ def _what(r: RuleResult, i: int, totals: dict[str, int]) -> str:
         noun = NOUNS.get(rule.measure)
         if short is not None and noun is not None:
             return f"{short} more {noun[0] if short == 1 else noun[1]} ({said})"
-    if measured is not None and rule.measure in NOUNS and op in ("==", "<=", "<") and measured == int(measured):
+    if (
+        measured is not None
+        and rule.measure in NOUNS
+        and op in ("==", "<=", "<")
+        and measured == int(measured)
+    ):
         noun = NOUNS[rule.measure]
         listed = f": {note[:200]}" if note else ""
         return f"{_plural(int(measured), noun)} {noun[2]} ({said}){listed}"
@@ -170,12 +209,22 @@ def todo(r: RuleResult, mask: np.ndarray, totals: dict[str, int]) -> list[Entry]
     if r.rule.manual and bool((r.verdict[idx] == MISSING).all()):
         items = [str(r.items[i]) for i in idx]
         shown = ", ".join(items[:8]) + (f" (+{len(items) - 8} more)" if len(items) > 8 else "")
-        return [(r.rule.id, f"sign the manual check for {shown} in the checker's file (manual_checks)",
-                 r.rule.clause.text())]
+        return [
+            (
+                r.rule.id,
+                f"sign the manual check for {shown} in the checker's file (manual_checks)",
+                r.rule.clause.text(),
+            )
+        ]
     out = [(str(r.items[i]), _what(r, int(i), totals), ref) for i in idx[:MAX_LINES]]
     if len(idx) > MAX_LINES:
-        out.append((r.rule.id, f"+{len(idx) - MAX_LINES} more item(s) the checker must complete",
-                    r.rule.clause.text()))
+        out.append(
+            (
+                r.rule.id,
+                f"+{len(idx) - MAX_LINES} more item(s) the checker must complete",
+                r.rule.clause.text(),
+            )
+        )
     return out
 
 

@@ -38,7 +38,9 @@ from .applicability import applicable
 from .compare import req_dict
 from .context import FAIL, MISSING, NA, PASS, WARN, Context, RuleResult
 
-UNSIGNED = "manual check: no recorded verdict from the checker (check --checker FILE, manual_checks:)"
+UNSIGNED = (
+    "manual check: no recorded verdict from the checker (check --checker FILE, manual_checks:)"
+)
 
 
 def gone_reason(item: str) -> str:
@@ -83,8 +85,14 @@ def unused(ctx: Context, results: list[RuleResult]) -> list[dict[str, Any]]:
             why = gone_reason(m.item)
         else:
             continue
-        out.append({**m.model_dump(mode="json", exclude_none=True), "entry": i + 1,
-                    "checker_file": ctx.checker.name, "reason": why})
+        out.append(
+            {
+                **m.model_dump(mode="json", exclude_none=True),
+                "entry": i + 1,
+                "checker_file": ctx.checker.name,
+                "reason": why,
+            }
+        )
     return out
 
 
@@ -93,8 +101,11 @@ def signed(ctx: Context, rule_id: str) -> dict[str, tuple[int, Any]]:
     judged, without a verdict, are left out)."""
     if ctx.checker is None:
         return {}
-    return {m.item: (i, m) for i, m in enumerate(ctx.checker.model.manual_checks)
-            if m.check == rule_id and m.verdict is not None}
+    return {
+        m.item: (i, m)
+        for i, m in enumerate(ctx.checker.model.manual_checks)
+        if m.check == rule_id and m.verdict is not None
+    }
 
 
 def item_files(ctx: Context, scope: str) -> dict[str, str]:
@@ -118,17 +129,23 @@ def unbound_reason(ctx: Context, entry: Any, item: str, now: str | None) -> str 
     if entry.file is None:
         if sha is None:  # the item's file is not delivered: no content to bind the verdict to
             return None
-        return (f"the checker's verdict on {item} records no file and SHA-256 of what was judged ({now} now): "
-                "`orthospec checker init` writes them; a verdict is never carried over to unknown content")
+        return (
+            f"the checker's verdict on {item} records no file and SHA-256 of what was judged ({now} now): "
+            "`orthospec checker init` writes them; a verdict is never carried over to unknown content"
+        )
     if sha is not None and sha.lower() == entry.sha256.lower():
         return None  # the content judged, whatever the file is named now (a rename is not a change)
     if sha is None:
         return f"the checker's verdict on {item} was given on {entry.file}, which the delivery no longer holds"
     if entry.file != now:
-        return (f"the checker's verdict on {item} was given on {entry.file} (SHA-256 {entry.sha256.lower()[:12]}…); "
-                f"the delivery now gives {now} ({sha[:12]}…): judge it again")
-    return (f"the checker's verdict on {item} was given on {entry.file} with SHA-256 {entry.sha256.lower()[:12]}…; "
-            f"the delivered file is {sha[:12]}… (changed or swapped since): judge it again")
+        return (
+            f"the checker's verdict on {item} was given on {entry.file} (SHA-256 {entry.sha256.lower()[:12]}…); "
+            f"the delivery now gives {now} ({sha[:12]}…): judge it again"
+        )
+    return (
+        f"the checker's verdict on {item} was given on {entry.file} with SHA-256 {entry.sha256.lower()[:12]}…; "
+        f"the delivered file is {sha[:12]}… (changed or swapped since): judge it again"
+    )
 
 
 class Statement(NamedTuple):
@@ -151,10 +168,16 @@ def stated(ctx: Context, rule_id: str) -> dict[str, Statement]:
         row = int(h["_row"])
         said, where = str(h["verdict"]).strip(), f"{t.file} row {row}"
         extra = h.get("note")
-        full = (f"the contractor's internal QC statement (evidence, not a verdict): {said!r}, {h['inspector']}, "
-                f"{h['date']} ({where})" + (f": {extra}" if not is_missing(extra) else ""))
-        out[str(h["item"])] = Statement(full, f"contractor's internal QC: {said!r} ({where})", said.lower(),
-                                        Evidence(t.file, t.sha256, (row,)))
+        full = (
+            f"the contractor's internal QC statement (evidence, not a verdict): {said!r}, {h['inspector']}, "
+            f"{h['date']} ({where})" + (f": {extra}" if not is_missing(extra) else "")
+        )
+        out[str(h["item"])] = Statement(
+            full,
+            f"contractor's internal QC: {said!r} ({where})",
+            said.lower(),
+            Evidence(t.file, t.sha256, (row,)),
+        )
     return out
 
 
@@ -172,10 +195,15 @@ def _signed_note(ctx: Context, rule: Rule, idx: int, entry: Any) -> tuple[int, s
 
 def _grid_evidence(grid: Any, g: Any) -> Evidence:
     """The grid file (name and hash) and the cells behind a grid verdict (ids, defect classes, comment)."""
-    cells = "; ".join(f"{c['cell_id']}: {', '.join(c['defects'])}" + (f" \"{c['comment']}\"" if c.get("comment") else "")
-                      for c in g.cells[:20])
+    cells = "; ".join(
+        f"{c['cell_id']}: {', '.join(c['defects'])}"
+        + (f' "{c["comment"]}"' if c.get("comment") else "")
+        for c in g.cells[:20]
+    )
     more = f"; and {len(g.cells) - 20} more" if len(g.cells) > 20 else ""
-    return Evidence(f"checker:{grid.path.name}", grid.sha256, (), f"cells: {cells}{more}" if cells else "cells")
+    return Evidence(
+        f"checker:{grid.path.name}", grid.sha256, (), f"cells: {cells}{more}" if cells else "cells"
+    )
 
 
 def manual_rule(ctx: Context, rule: Rule, items: list[str]) -> RuleResult:
@@ -198,9 +226,15 @@ def manual_rule(ctx: Context, rule: Rule, items: list[str]) -> RuleResult:
         c = by_contractor.get(item, by_contractor.get("*"))
         g = grid.verdict(rule.id, item, gone=item in gone) if grid is not None else None
         ev: list[Evidence] = [] if c is None else [c.evidence]
-        unbound = unbound_reason(ctx, k[1], item, files.get(item)) if k is not None and item not in gone else None
+        unbound = (
+            unbound_reason(ctx, k[1], item, files.get(item))
+            if k is not None and item not in gone
+            else None
+        )
         if unbound is not None:
-            assert k is not None and ctx.checker is not None  # a verdict was signed in the checker's file
+            assert (
+                k is not None and ctx.checker is not None
+            )  # a verdict was signed in the checker's file
             ev.append(ctx.checker.evidence("manual_checks", k[0]))
             k = None
         if g is not None:
@@ -211,7 +245,9 @@ def manual_rule(ctx: Context, rule: Rule, items: list[str]) -> RuleResult:
                 notes[i] = f"{unbound}; {c.short}"
         elif k is None:  # the grid alone
             assert g is not None
-            verdict[i] = {"pass": PASS, "fail": FAIL if rule.level == "mandatory" else WARN}.get(g.verdict, MISSING)
+            verdict[i] = {"pass": PASS, "fail": FAIL if rule.level == "mandatory" else WARN}.get(
+                g.verdict, MISSING
+            )
             measured[i] = g.verdict if g.verdict != "missing" else None
             notes[i] = g.note if unbound is None else f"{g.note}; {unbound}"
             if c is not None and g.verdict != "missing" and c.said != g.verdict:
@@ -234,7 +270,9 @@ def manual_rule(ctx: Context, rule: Rule, items: list[str]) -> RuleResult:
             if item in gone:
                 notes[i] = f"{gone_reason(item)} ({notes[i]}); the delivery is returned"
         evidence[i] = tuple(ev)
-    listed = n - len(gone)  # a vanished item has no facts for `when`: it keeps the checker's verdict
+    listed = n - len(
+        gone
+    )  # a vanished item has no facts for `when`: it keeps the checker's verdict
     if rule.when and listed:
         ok, unknown, unknown_note = applicable(ctx, rule, items[:listed])
         na = np.zeros(n, dtype=bool)
@@ -248,5 +286,14 @@ def manual_rule(ctx: Context, rule: Rule, items: list[str]) -> RuleResult:
             notes[unk & (verdict == MISSING)] = unknown_note
             reasons[unk & (verdict == MISSING)] = Reason.UNKNOWN_FACT
     reasons[(verdict == FAIL) | (verdict == WARN)] = Reason.NOT_MET
-    return RuleResult(rule, np.array(items, dtype=object), verdict, measured, "text",
-                      req_dict(rule.requirement, None), evidence, notes, reasons=reasons)
+    return RuleResult(
+        rule,
+        np.array(items, dtype=object),
+        verdict,
+        measured,
+        "text",
+        req_dict(rule.requirement, None),
+        evidence,
+        notes,
+        reasons=reasons,
+    )

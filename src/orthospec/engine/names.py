@@ -59,7 +59,8 @@ def null_tested(when: str) -> set[str]:
 
 def _is_null(node: ast.AST) -> bool:
     return (isinstance(node, ast.Constant) and node.value is None) or (
-        isinstance(node, ast.Name) and node.id in ("null", "None"))
+        isinstance(node, ast.Name) and node.id in ("null", "None")
+    )
 
 
 def param_key(name: str) -> str:
@@ -70,8 +71,16 @@ def param_key(name: str) -> str:
 class Names(Mapping[str, Any]):
     """Names an expression may use: parameters, manifest paths, measures of the rule's scope."""
 
-    def __init__(self, params: dict[str, ParamValue], manifest: dict[str, Any], cache: MeasureCache,
-                 scope: str, items: list[str], *, scalar: bool = False) -> None:
+    def __init__(
+        self,
+        params: dict[str, ParamValue],
+        manifest: dict[str, Any],
+        cache: MeasureCache,
+        scope: str,
+        items: list[str],
+        *,
+        scalar: bool = False,
+    ) -> None:
         self.params, self.manifest, self.cache = params, manifest, cache
         self.scope, self.item_ids, self.scalar = scope, items, scalar
         #: name -> value substituted where that fact or measure is missing (applicability probing)
@@ -107,7 +116,9 @@ class Names(Mapping[str, Any]):
 
     def broadcast(self, measure_scope: str) -> bool:
         """A delivery/project measure read from another scope (or scalar): one value for every item."""
-        return measure_scope in ("delivery", "project") and (self.scalar or self.scope != measure_scope)
+        return measure_scope in ("delivery", "project") and (
+            self.scalar or self.scope != measure_scope
+        )
 
     def _values(self, m: Measured, info: tuple[str, str]) -> pd.Series:
         if self.broadcast(info[0]):
@@ -149,8 +160,12 @@ class Names(Mapping[str, Any]):
     def __contains__(self, key: object) -> bool:
         if not isinstance(key, str):
             return False
-        return (key in self.params or key.startswith("manifest.") or key.startswith("param.")
-                or measure_info(key) is not None)
+        return (
+            key in self.params
+            or key.startswith("manifest.")
+            or key.startswith("param.")
+            or measure_info(key) is not None
+        )
 
     def __iter__(self) -> Iterator[str]:  # pragma: no cover - Mapping protocol; never enumerated
         return iter(self.params)

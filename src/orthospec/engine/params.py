@@ -63,11 +63,18 @@ class ParamValue:
     def differs(self) -> bool:
         """The value in force is not the profile's: set by --param or the checker's file to another
         value, or to one the profile leaves open (printed on page 1 and in the terminal header)."""
-        return self.source in ("cli", "checker") and self.value is not None and (
-            self.profile_value is None or not same_value(self.value, self.profile_value))
+        return (
+            self.source in ("cli", "checker")
+            and self.value is not None
+            and (self.profile_value is None or not same_value(self.value, self.profile_value))
+        )
 
     def quantity(self) -> Any:
-        if self.unit in NON_NUMERIC or not isinstance(self.value, int | float) or isinstance(self.value, bool):
+        if (
+            self.unit in NON_NUMERIC
+            or not isinstance(self.value, int | float)
+            or isinstance(self.value, bool)
+        ):
             return self.value
         return units.Q_(float(self.value), parse_unit(self.unit))
 
@@ -89,8 +96,17 @@ def _shown(v: Any, unit: str) -> str:
     return f"{text} {unit}" if unit and unit not in ("1", *NON_NUMERIC) else text
 
 
-def _refuse_against_contract(name: str, p: Parameter, val: Any, src: str, own: Any, unit: str,
-                             profile: ResolvedProfile, checker: Checker | None, cli: Mapping[str, str]) -> None:
+def _refuse_against_contract(
+    name: str,
+    p: Parameter,
+    val: Any,
+    src: str,
+    own: Any,
+    unit: str,
+    profile: ResolvedProfile,
+    checker: Checker | None,
+    cli: Mapping[str, str],
+) -> None:
     """A tender's value is the contract (issue 26): --param or the checker's file may replace it only
     where the tender marks the parameter ``checker_may_set: true``. A standard profile checked on its
     own has no tender: there the checker's value is allowed (and printed beside the profile's)."""
@@ -99,13 +115,16 @@ def _refuse_against_contract(name: str, p: Parameter, val: Any, src: str, own: A
     if src == "cli":
         where = f"--param {name}={cli[name]}"
     else:
-        where = f"checker file {checker.at('parameters', name) if checker else ''}: parameters.{name}"
+        where = (
+            f"checker file {checker.at('parameters', name) if checker else ''}: parameters.{name}"
+        )
     at = param_location(profile, name, "value" if p.value is not None else "default")
     raise ParameterError(
         f"{where}: {_shown(val, unit)} differs from {_shown(own, unit)}, the value tender profile {profile.id} "
         f"{profile.version} fixes for {name} ({at}); the contract wins: the checker's side may replace a "
         f"tender's value only where the tender marks the parameter `checker_may_set: true`. Check with the "
-        f"tender's value, or publish a new tender version")
+        f"tender's value, or publish a new tender version"
+    )
 
 
 def parse_cli_params(items: tuple[str, ...] | list[str]) -> dict[str, str]:
@@ -212,13 +231,19 @@ def _from_checker(name: str, raw: Any, p: Parameter, checker: Checker) -> Any:
     try:
         return _read_value(raw, p, f"parameter {name}")
     except UnitError as exc:
-        raise ParameterError(f"checker file {checker.at('parameters', name)}: parameters.{name}: {exc}") from None
+        raise ParameterError(
+            f"checker file {checker.at('parameters', name)}: parameters.{name}: {exc}"
+        ) from None
 
 
-def resolve_parameters(profile: ResolvedProfile, delivery_params: Mapping[str, Any],
-                       cli: Mapping[str, str], *,
-                       manifest: Mapping[str, Any] | None = None,
-                       checker: Checker | None = None) -> dict[str, ParamValue]:
+def resolve_parameters(
+    profile: ResolvedProfile,
+    delivery_params: Mapping[str, Any],
+    cli: Mapping[str, str],
+    *,
+    manifest: Mapping[str, Any] | None = None,
+    checker: Checker | None = None,
+) -> dict[str, ParamValue]:
     """Every parameter's value with its source; raise ParameterError (exit 2) with advice.
 
     ``delivery_params`` is the manifest's ``tender.parameters`` (evidence only: never a value);
@@ -232,8 +257,10 @@ def resolve_parameters(profile: ResolvedProfile, delivery_params: Mapping[str, A
 
         near = difflib.get_close_matches(unknown[0], list(profile.parameters), n=1, cutoff=0.6)
         hint = f"; did you mean {near[0]!r}?" if near else ""
-        raise ParameterError(f"--param {unknown[0]}: profile {profile.id} has no such parameter{hint} "
-                             f"(known: {', '.join(sorted(profile.parameters)) or 'none'})")
+        raise ParameterError(
+            f"--param {unknown[0]}: profile {profile.id} has no such parameter{hint} "
+            f"(known: {', '.join(sorted(profile.parameters)) or 'none'})"
+        )
     from_checker = dict(checker.model.parameters) if checker is not None else {}
     if checker is not None:
         _refuse_misspelt(from_checker, profile, checker)
@@ -246,8 +273,11 @@ def resolve_parameters(profile: ResolvedProfile, delivery_params: Mapping[str, A
         val: Any
         src: str
         # the checker's value is read even when --param wins: a bad entry is never silently ignored
-        stated = (_from_checker(name, from_checker[name], p, checker)
-                  if name in from_checker and checker is not None else None)
+        stated = (
+            _from_checker(name, from_checker[name], p, checker)
+            if name in from_checker and checker is not None
+            else None
+        )
         own: Any = None  # the profile's own value (a tender's value, else the standard's default)
         own_src = "unset"
         if p.value is not None:
@@ -260,12 +290,15 @@ def resolve_parameters(profile: ResolvedProfile, delivery_params: Mapping[str, A
             val, src = stated, "checker"
         else:
             val, src = own, own_src
-        if val is None and p.required:  # the manifest's declaration never fills the gap (evidence only)
+        if (
+            val is None and p.required
+        ):  # the manifest's declaration never fills the gap (evidence only)
             missing.append(name)
         if p.choices is not None and val is not None and val not in p.choices:
-            where = {"cli": "--param",
-                     "checker": f"checker file {checker.at('parameters', name) if checker else ''}"}.get(
-                src, f"profile {profile.id}")
+            where = {
+                "cli": "--param",
+                "checker": f"checker file {checker.at('parameters', name) if checker else ''}",
+            }.get(src, f"profile {profile.id}")
             raise ParameterError(f"{where}: parameter {name}={val!r} is not one of {p.choices}")
         if is_crs(name, p):
             val = _crs_in_force(name, val, src, profile, checker)
@@ -274,9 +307,17 @@ def resolve_parameters(profile: ResolvedProfile, delivery_params: Mapping[str, A
             declared, note = _crs_declared(name, declared, note)
         if src in ("cli", "checker") and own is not None and not same_value(val, own):
             _refuse_against_contract(name, p, val, src, own, unit, profile, checker, cli)
-        out[name] = ParamValue(name, val, unit, src, declared=declared, set_by=authority,
-                               justification=p.justification, note=note,
-                               profile_value=own if src in ("cli", "checker") else None)
+        out[name] = ParamValue(
+            name,
+            val,
+            unit,
+            src,
+            declared=declared,
+            set_by=authority,
+            justification=p.justification,
+            note=note,
+            profile_value=own if src in ("cli", "checker") else None,
+        )
     needed, all_off = _needed(profile, out, manifest)
     for name in missing:
         needed.setdefault(name, [])
@@ -292,7 +333,9 @@ def is_crs(name: str, p: Parameter) -> bool:
     return (p.unit or "") == "text" and name.endswith("_crs")
 
 
-def _crs_in_force(name: str, val: Any, src: str, profile: ResolvedProfile, checker: Checker | None) -> Any:
+def _crs_in_force(
+    name: str, val: Any, src: str, profile: ResolvedProfile, checker: Checker | None
+) -> Any:
     """The CRS value in force as ``EPSG:<code>``; exit 2 naming its source (and line) when pyproj
     cannot read it or it has no EPSG code."""
     from ..delivery.crs import CrsProblem, epsg_name
@@ -307,8 +350,11 @@ def _crs_in_force(name: str, val: Any, src: str, profile: ResolvedProfile, check
         elif src == "checker" and checker is not None:
             where = f"checker file {checker.at('parameters', name)}: parameters.{name}"
         else:
-            file, line, _col = (profile.sites.param_where(name, "value" if src == "tender" else "default")
-                                if profile.sites is not None else (f"profile {profile.id}", None, None))
+            file, line, _col = (
+                profile.sites.param_where(name, "value" if src == "tender" else "default")
+                if profile.sites is not None
+                else (f"profile {profile.id}", None, None)
+            )
             where = f"{file}:{line}: parameter {name}" if line else f"{file}: parameter {name}"
         raise ParameterError(f"{where}: {exc}") from None
 
@@ -335,22 +381,30 @@ def _refuse_misspelt(given: Mapping[str, Any], profile: ResolvedProfile, checker
     for name in sorted(set(given) - set(profile.parameters)):
         near = difflib.get_close_matches(name, list(profile.parameters), n=1, cutoff=0.8)
         if near:
-            raise ParameterError(f"checker file {checker.at('parameters', name)}: parameters.{name}: profile "
-                                 f"{profile.id} has no such parameter; did you mean {near[0]!r}?")
+            raise ParameterError(
+                f"checker file {checker.at('parameters', name)}: parameters.{name}: profile "
+                f"{profile.id} has no such parameter; did you mean {near[0]!r}?"
+            )
 
 
 def _advice(profile: ResolvedProfile, needed: dict[str, list[str]], all_off: bool = False) -> str:
     if all_off:
-        lines = [f"profile {profile.id} would check no mandatory requirement: every mandatory rule reads a "
-                 "parameter that has no value (set at least the ones the ITT fixes):"]
+        lines = [
+            f"profile {profile.id} would check no mandatory requirement: every mandatory rule reads a "
+            "parameter that has no value (set at least the ones the ITT fixes):"
+        ]
     else:
         lines = [f"profile {profile.id} needs parameter(s) that have no value:"]
     for name in sorted(needed):
         p = profile.parameters[name]
         unit = p.unit if p.unit in NON_NUMERIC else canonical(p.unit)
         rules = needed[name]
-        who = (f"read by {', '.join(rules[:6])}" + (f" and {len(rules) - 6} more" if len(rules) > 6 else "")
-               if rules else "required by the profile")
+        who = (
+            f"read by {', '.join(rules[:6])}"
+            + (f" and {len(rules) - 6} more" if len(rules) > 6 else "")
+            if rules
+            else "required by the profile"
+        )
         if is_crs(name, p):
             who += " (a coordinate reference system: EPSG:<code>)"
         lines.append(f"  {name} ({unit}): {who}")
@@ -358,18 +412,21 @@ def _advice(profile: ResolvedProfile, needed: dict[str, list[str]], all_off: boo
     p = profile.parameters[first]
     example = "EPSG:<code>" if is_crs(first, p) else "..."
     shape = example if p.unit in NON_NUMERIC else "{value: ..., unit: ...}"
-    lines.append(f"set them with --param NAME=VALUE (e.g. --param {first}={example}), in the checker file "
-                 f"(check --checker FILE; parameters: {{{first}: {shape}}}), or in a tender "
-                 f"profile that extends {profile.id} (parameters: {{{first}: {{value: {example}}}}}); the value "
-                 "the delivery manifest declares (tender.parameters) is the contractor's evidence, never "
-                 "the value in force")
+    lines.append(
+        f"set them with --param NAME=VALUE (e.g. --param {first}={example}), in the checker file "
+        f"(check --checker FILE; parameters: {{{first}: {shape}}}), or in a tender "
+        f"profile that extends {profile.id} (parameters: {{{first}: {{value: {example}}}}}); the value "
+        "the delivery manifest declares (tender.parameters) is the contractor's evidence, never "
+        "the value in force"
+    )
     return "\n".join(lines)
 
 
-
-
-def _needed(profile: ResolvedProfile, values: Mapping[str, ParamValue],
-            manifest: Mapping[str, Any] | None = None) -> tuple[dict[str, list[str]], bool]:
+def _needed(
+    profile: ResolvedProfile,
+    values: Mapping[str, ParamValue],
+    manifest: Mapping[str, Any] | None = None,
+) -> tuple[dict[str, list[str]], bool]:
     """Unset parameters an applicable rule's requirement reads: name -> rule ids.
 
     A rule whose ``when`` itself tests the parameter (``tolerance_z != null``) is written to be
@@ -429,8 +486,9 @@ def _fact_of_the_files(name: str) -> bool:
     return info is not None and info[0] in ("delivery", "project")
 
 
-def _may_not_apply(when: str, names: set[str], values: Mapping[str, ParamValue],
-                   manifest: Mapping[str, Any] | None) -> bool:
+def _may_not_apply(
+    when: str, names: set[str], values: Mapping[str, ParamValue], manifest: Mapping[str, Any] | None
+) -> bool:
     """True unless ``when`` surely holds: it reads only parameters and manifest facts and is true.
 
     A ``when`` that reads measures may hold for some items: it counts as applying (False here).

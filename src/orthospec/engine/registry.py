@@ -117,7 +117,9 @@ class EngineOptions:
         known = {f.name for f in fields(cls)}
         bad = sorted(set(options) - known)
         if bad:
-            raise ValueError(f"unknown engine option(s) {', '.join(bad)}; known: {', '.join(sorted(known))}")
+            raise ValueError(
+                f"unknown engine option(s) {', '.join(bad)}; known: {', '.join(sorted(known))}"
+            )
         given = {k: v for k, v in options.items() if v is not None}
         if "cache_dir" in given:
             given["cache_dir"] = str(given["cache_dir"])
@@ -134,7 +136,9 @@ class ProviderContext:
 
     delivery: Delivery
     parameters: Mapping[str, Any]  # name -> pint Quantity, str, bool, number
-    options: EngineOptions = field(default_factory=EngineOptions)  # workers, scheduler, cache, sample
+    options: EngineOptions = field(
+        default_factory=EngineOptions
+    )  # workers, scheduler, cache, sample
     #: shared work between providers of one run (e.g. one pass over the checkpoints)
     memo: dict[str, Any] = field(default_factory=dict)
     #: the profile's named classes (e.g. ``resolution`` of JRC §9.1), for computed class measures
@@ -205,37 +209,49 @@ ROLLUP: dict[str, tuple[str, str]] = {
 #: provider; tests/test_measures_descriptions.py fails when a registered measure has none.
 MEASURE_DESCRIPTIONS: dict[str, str] = {
     # acquisition (JRC §3.4)
-    "acquisition.date": ("the image's acquisition date from its records (exposure time, scene "
-                         "date, else its flight's day)"),
-    "acquisition.days_outside_window": ("days the image was acquired before or after the ITT's "
-                                        "acquisition window (0 inside)"),
-    "acquisition.outside_declared_window": ("images acquired outside the window delivery.yaml "
-                                            "declares (dates.acquired_from/to)"),
+    "acquisition.date": (
+        "the image's acquisition date from its records (exposure time, scene "
+        "date, else its flight's day)"
+    ),
+    "acquisition.days_outside_window": (
+        "days the image was acquired before or after the ITT's acquisition window (0 inside)"
+    ),
+    "acquisition.outside_declared_window": (
+        "images acquired outside the window delivery.yaml declares (dates.acquired_from/to)"
+    ),
     # satellite scenes (JRC Table 9)
     "scene.area": "area of the scene's delivered orthoimage footprint, from the raster",
     "scene.gcp_count": "GCPs of gcps.csv that controlled the scene (image_id naming it, else inside its footprint)",
     "scene.gcp_count_agrees": "the meta-database's scenes.gcp_count equals the GCPs counted in gcps.csv",
     "scene.gcp_strip_supplement": "GCPs Table 9 adds for a strip scene: 2 per additional 100 km² (parameters)",
-    "scene.gcp_quadrants": ("quarters of the scene's orthoimage footprint holding one of its GCPs "
-                            "(Table 9 distribution)"),
+    "scene.gcp_quadrants": (
+        "quarters of the scene's orthoimage footprint holding one of its GCPs "
+        "(Table 9 distribution)"
+    ),
     "scene.checkpoints_on_gcps": "check points measured on the scene that are GCPs of that scene (same id or position)",
     # delivered DEM files (JRC Table 7)
     "demfile.crs_ok": "the DEM file's CRS (horizontal part) is the map projection in force (map_crs)",
     "demfile.nodata_share": "share of no-data cells of the DEM file inside the project's blocks",
     "demfile.spikes": "DEM cells farther than dem_spike_height from the median of their 3 x 3 neighbourhood",
     # sample, QCR set, GCP pattern, seamlines
-    "sample.strata_missed": ("blocks, terrain tags, problem batches and high view angles the "
-                             "external-QC sample leaves out (JRC §12.4)"),
+    "sample.strata_missed": (
+        "blocks, terrain tags, problem batches and high view angles the "
+        "external-QC sample leaves out (JRC §12.4)"
+    ),
     "qcr.minimum_set_missing": "QCRs of JRC Table 6 (aerial) or Table 10 (satellite) with no record in the delivery",
     "gcp_pattern.gaps": "places of the JRC Table 4 GCP pattern the block's GCPs leave empty",
-    "seamline.area_selection_faults": ("seamline polygons outside their image's footprint or not "
-                                       "from the most nadir image"),
-    "gcp.source_kind": ("kind of source of the GCP (survey, map, photogrammetric, orthoimage): "
-                        "source_type, else read from source"),
+    "seamline.area_selection_faults": (
+        "seamline polygons outside their image's footprint or not from the most nadir image"
+    ),
+    "gcp.source_kind": (
+        "kind of source of the GCP (survey, map, photogrammetric, orthoimage): "
+        "source_type, else read from source"
+    ),
     "points.shared_ids": "identifiers naming both a GCP and a check point (JRC §7.3 unique to project)",
     "scanner.schedule_gaps": "ends of the scanning period (first, last scan date) without a scanner test (JRC §6.2.2)",
-    "block.space_resection_images": ("images of a block produced by space resection (each should "
-                                     "be its own block, §12.7)"),
+    "block.space_resection_images": (
+        "images of a block produced by space resection (each should be its own block, §12.7)"
+    ),
     # camera, flight, geometry
     "camera.calibration_age": "years from the camera calibration certificate to the start of acquisition (JRC §5.2.4)",
     "flight.images": "number of photos of the flight",
@@ -252,8 +268,9 @@ MEASURE_DESCRIPTIONS: dict[str, str] = {
     # per block: check-point statistics
     "checkpoints.asprs_rmse_h": "ASPRS Ed. 2 horizontal accuracy: sqrt(RMSEx² + RMSEy² + survey RMSE_H²)",
     "checkpoints.asprs_rmse_v": "ASPRS Ed. 2 vertical accuracy: sqrt(RMSEz² + survey RMSE_V²)",
-    "checkpoints.bias_negligible": ("the bias test (mean radial error / sigma_c) allows the "
-                                    "circular-normal CE model (USGS)"),
+    "checkpoints.bias_negligible": (
+        "the bias test (mean radial error / sigma_c) allows the circular-normal CE model (USGS)"
+    ),
     "checkpoints.bias_p_x": "two-sided p-value of the t-test that the mean x discrepancy is zero",
     "checkpoints.bias_p_y": "two-sided p-value of the t-test that the mean y discrepancy is zero",
     "checkpoints.bias_p_z": "two-sided p-value of the t-test that the mean z discrepancy is zero",
@@ -269,14 +286,20 @@ MEASURE_DESCRIPTIONS: dict[str, str] = {
     "checkpoints.ce90_selected": "ce90 when the bias test allows the model, else ce90_empirical",
     "checkpoints.ce95": "CE95 from the RMSE under the circular-normal model (NGA/USGS formula)",
     "checkpoints.ce95_empirical": "95th percentile of the radial discrepancies (linear percentile, no model)",
-    "checkpoints.duplicate_locations": "points repeating an earlier point's reference position (nearer than separation; JRC §12.5)",
-    "checkpoints.block_cells_bad": "points whose block cell names the block but not exactly one block, e.g. 'B02;B02' (§12.7)",
-    "checkpoints.imprecise": "points whose precision_xy exceeds tolerance_xy / checkpoint_accuracy_factor (JRC Definitions)",
-    "checkpoints.nssda_method": "how nssda_horizontal_95 was computed: equal, approximation or elliptical (ratio < 0.6)",
+    "checkpoints.duplicate_locations": "points repeating an earlier point's reference position "
+                                       "(nearer than separation; JRC §12.5)",
+    "checkpoints.block_cells_bad": "points whose block cell names the block but not exactly one "
+                                   "block, e.g. 'B02;B02' (§12.7)",
+    "checkpoints.imprecise": "points whose precision_xy exceeds tolerance_xy / "
+                             "checkpoint_accuracy_factor (JRC Definitions)",
+    "checkpoints.nssda_method": "how nssda_horizontal_95 was computed: equal, approximation or "
+                                "elliptical (ratio < 0.6)",
     "checkpoints.screened": "check points left out of the block's statistics as not independent measurements",
-    "checkpoints.separation": "distance below which two positions are one point: max(k x tolerance_xy, n px x GSD, 1 mm)",
+    "checkpoints.separation": "distance below which two positions are one point: max(k x "
+                              "tolerance_xy, n px x GSD, 1 mm)",
     "checkpoints.std_ratio": "min(std_x, std_y) / max(std_x, std_y) (seed 000 Standard Deviation Min/Max Ratio)",
-    "checkpoints.zero_residuals": "points with a residual of exactly 0 in x and y: not measured on the image (JRC §12.6)",
+    "checkpoints.zero_residuals": "points with a residual of exactly 0 in x and y: not measured on "
+                                  "the image (JRC §12.6)",
     "checkpoints.ce95_selected": "ce95 when the bias test allows the model, else ce95_empirical",
     "checkpoints.excluded": "check points excluded from the statistics (with a reason)",
     "checkpoints.max_abs_dx": "largest absolute x discrepancy of the kept points",
@@ -288,8 +311,10 @@ MEASURE_DESCRIPTIONS: dict[str, str] = {
     "checkpoints.mean_z": "mean z discrepancy of the kept points (systematic shift)",
     "checkpoints.min_gcp_distance": "smallest distance from a check point to a GCP (independence, JRC §12.4)",
     "checkpoints.n": "check points used in the statistics (after exclusions)",
-    "checkpoints.n_all": "check points in the block's statistics before blunder exclusions (screened points not counted)",
-    "checkpoints.near_gcp": "points nearer to a GCP than separation (or min_checkpoint_gcp_distance), or with a GCP's id",
+    "checkpoints.n_all": "check points in the block's statistics before blunder exclusions "
+                         "(screened points not counted)",
+    "checkpoints.near_gcp": "points nearer to a GCP than separation (or "
+                            "min_checkpoint_gcp_distance), or with a GCP's id",
     "checkpoints.nssda_approximation_holds": "RMSEmin/RMSEmax is within 0.6-1, where the NSSDA formula applies (FGDC)",
     "checkpoints.nssda_horizontal_95": "NSSDA horizontal accuracy at 95 % confidence (FGDC-STD-007.3-1998)",
     "checkpoints.nssda_ratio": "RMSEmin / RMSEmax of the two horizontal axes (NSSDA validity check)",
@@ -313,19 +338,30 @@ MEASURE_DESCRIPTIONS: dict[str, str] = {
     "checkpoints.std_y": "standard deviation of the y discrepancies of the kept points",
     "checkpoints.std_z": "standard deviation of the z discrepancies of the kept points",
     # the checker's evidence (engine/providers/checker_evidence.py) and the contractor's internal QC
-    "checker.external_checkpoints": ("the check point statistics are the checker's measurements "
-                                     "(its tables/checkpoints.csv), not the contractor's"),
-    "checker.points_unbound": ("the checker's check points left out: their image_sha256 is not "
-                               "that of the image delivered now"),
-    "checker.points_unhashed": ("the checker's check points that record no image_sha256 (not bound "
-                                "to the pixels measured)"),
-    "inspection.inspected_share": ("share of the inspection grid's area (the sampled images) whose "
-                                   "cells the checker inspected, %"),
+    "checker.external_checkpoints": (
+        "the check point statistics are the checker's measurements "
+        "(its tables/checkpoints.csv), not the contractor's"
+    ),
+    "checker.points_unbound": (
+        "the checker's check points left out: their image_sha256 is not "
+        "that of the image delivered now"
+    ),
+    "checker.points_unhashed": (
+        "the checker's check points that record no image_sha256 (not bound to the pixels measured)"
+    ),
+    "inspection.inspected_share": (
+        "share of the inspection grid's area (the sampled images) whose "
+        "cells the checker inspected, %"
+    ),
     "inspection.present": "the checker folder holds a marked inspection grid (inspection.gpkg)",
-    "internal_qc.agrees": ("the contractor's internal-QC points and the checker's give the block "
-                           "the same RMSEx/RMSEy pass or fail"),
-    "internal_qc.imprecise": ("the contractor's internal-QC check points whose reference accuracy "
-                              "is blank or worse than tolerance_xy / 3"),
+    "internal_qc.agrees": (
+        "the contractor's internal-QC points and the checker's give the block "
+        "the same RMSEx/RMSEy pass or fail"
+    ),
+    "internal_qc.imprecise": (
+        "the contractor's internal-QC check points whose reference accuracy "
+        "is blank or worse than tolerance_xy / 3"
+    ),
     "internal_qc.n": "the contractor's internal-QC check points used in its statistics (after exclusions)",
     "internal_qc.rmse_x": "RMSE of the x discrepancies of the contractor's internal-QC check points (JRC §12.5)",
     "internal_qc.rmse_y": "RMSE of the y discrepancies of the contractor's internal-QC check points (JRC §12.5)",
@@ -333,20 +369,33 @@ MEASURE_DESCRIPTIONS: dict[str, str] = {
     # derived
     "derived.camera_agrees": "the declared camera format and pixel are the model's published ones (specs/cameras.yaml)",
     "derived.dem_blocks": "blocks each DEM serves: its block value, else its footprint over the block polygons",
-    "derived.block_outlines_agree": ("delivery.yaml's block outlines agree with those of the "
-                                     "checker's file (within 1 %, same blocks; JRC §12.4)"),
-    "derived.area_of_interest_agrees": ("the declared area of interest agrees with the one in "
-                                        "force from the checker's file (within 1 %; JRC §5.2.2)"),
-    "derived.project_crs_agrees": ("the manifest's project.crs names the map projection in force "
-                                   "(parameter map_crs, JRC §12.4 Table 12)"),
-    "derived.dem_delivered": ("a DEM is delivered: the dem table names a DEM file, or "
-                              "product.dem_delivered is true (JRC §12.7)"),
+    "derived.block_outlines_agree": (
+        "delivery.yaml's block outlines agree with those of the "
+        "checker's file (within 1 %, same blocks; JRC §12.4)"
+    ),
+    "derived.area_of_interest_agrees": (
+        "the declared area of interest agrees with the one in "
+        "force from the checker's file (within 1 %; JRC §5.2.2)"
+    ),
+    "derived.project_crs_agrees": (
+        "the manifest's project.crs names the map projection in force "
+        "(parameter map_crs, JRC §12.4 Table 12)"
+    ),
+    "derived.dem_delivered": (
+        "a DEM is delivered: the dem table names a DEM file, or "
+        "product.dem_delivered is true (JRC §12.7)"
+    ),
     "derived.dem_delivered_agrees": "the declared product.dem_delivered agrees with the delivered files",
-    "derived.dem_used": ("a DEM was used: delivered, recorded in the dem table, or recorded by the "
-                         "scenes (dem_grid_size, dem_accuracy)"),
-    "derived.is_master": ("the scene is a master image: named in the checker's master_images, else "
-                          "flagged scenes.is_master (JRC Table 9)"),
-    "derived.master_images_agree": "the scenes flagged is_master are exactly the checker's master_images (JRC Table 9 \"identify as master image\")",
+    "derived.dem_used": (
+        "a DEM was used: delivered, recorded in the dem table, or recorded by the "
+        "scenes (dem_grid_size, dem_accuracy)"
+    ),
+    "derived.is_master": (
+        "the scene is a master image: named in the checker's master_images, else "
+        "flagged scenes.is_master (JRC Table 9)"
+    ),
+    "derived.master_images_agree": 'the scenes flagged is_master are exactly the checker\'s '
+                                   'master_images (JRC Table 9 "identify as master image")',
     "derived.master_images": "number of scenes declared master image (scenes.is_master, JRC Table 9)",
     "derived.orthorectification": "how the orthoimages were produced, from the blocks' methods and the manifest",
     "derived.pansharpened": "the product is pan-sharpened, computed from the bands table (JRC §10.5)",
@@ -383,32 +432,46 @@ MEASURE_DESCRIPTIONS: dict[str, str] = {
     "raster.bands": "band layout of the image (e.g. R,G,B,NIR)",
     "raster.bit_depth": "radiometric bit depth declared for the image (bits per sample)",
     "raster.bit_depth_container": "bits per sample of the file's data type (8, 16, ...)",
-    "raster.bit_depth_agrees": ("the declared bit depth is the file's: its NBITS, else between the "
-                                "bits used and its sample type's"),
+    "raster.bit_depth_agrees": (
+        "the declared bit depth is the file's: its NBITS, else between the "
+        "bits used and its sample type's"
+    ),
     "raster.bright_margin": "gap between the brightest DN and the top of the range, % of the range (worst band)",
-    "raster.cloud_cover": ("measured cloud cover: share of bright, white pixels (red, green, blue; "
-                           "snow counts too), % (JRC §6.3)"),
+    "raster.cloud_cover": (
+        "measured cloud cover: share of bright, white pixels (red, green, blue; "
+        "snow counts too), % (JRC §6.3)"
+    ),
     "raster.cloud_cover_declared_diff": "|declared images.cloud_cover - measured cloud cover|, percentage points",
-    "raster.cloud_cover_mean": "mean of the measured cloud cover over the delivered images, % (JRC §6.3 \"in average\")",
+    "raster.cloud_cover_mean": 'mean of the measured cloud cover over the delivered images, % (JRC §6.3 "in average")',
     "raster.compression": "compression of the image file",
-    "raster.content_unique": ("the image is no copy of another: not its file, SHA-256, decoded "
-                              "pixels or a near copy (JRC Table 12)"),
+    "raster.content_unique": (
+        "the image is no copy of another: not its file, SHA-256, decoded "
+        "pixels or a near copy (JRC Table 12)"
+    ),
     "raster.crs_epsg": "EPSG code of the image's coordinate reference system",
-    "raster.crs_ok": ("the image's CRS is the map projection in force (parameter map_crs; missing "
-                      "when the profile states none)"),
+    "raster.crs_ok": (
+        "the image's CRS is the map projection in force (parameter map_crs; missing "
+        "when the profile states none)"
+    ),
     "raster.cv_percent": "coefficient of variation (std / mean) of the luminosity, else of the flattest band, %",
     "raster.cv_percent_max": "largest per-band coefficient of variation (std / mean), in %",
     "raster.cv_percent_min": "smallest per-band coefficient of variation (std / mean), in %",
     "raster.dark_margin": "gap between the darkest DN and the bottom of the range, % of the range (worst band)",
     "raster.exists": "the listed image file exists in the delivery",
-    "raster.file_unique": ("the image row names its own file: no other row names the same file or "
-                           "a file with the same SHA-256"),
+    "raster.file_unique": (
+        "the image row names its own file: no other row names the same file or "
+        "a file with the same SHA-256"
+    ),
     "raster.format": "file format of the image (GDAL driver)",
     "raster.georeferenced": "the image carries a geotransform",
-    "raster.gsd_declared_diff": ("largest |declared GSD (images.gsd, else product.gsd) - the "
-                                 "file's pixel size| / pixel size, in %"),
-    "raster.in_area": ("the file's footprint overlaps its block's outline in force, else the area "
-                       "of interest (JRC §12.4 Table 12)"),
+    "raster.gsd_declared_diff": (
+        "largest |declared GSD (images.gsd, else product.gsd) - the "
+        "file's pixel size| / pixel size, in %"
+    ),
+    "raster.in_area": (
+        "the file's footprint overlaps its block's outline in force, else the area "
+        "of interest (JRC §12.4 Table 12)"
+    ),
     "raster.listed_missing": "images listed in the images table but not found on disk",
     "raster.lossless": "the image's compression is lossless",
     "raster.mean_dn": "mean DN of the image (all bands)",
@@ -416,7 +479,8 @@ MEASURE_DESCRIPTIONS: dict[str, str] = {
     "raster.name_ok": "the file name follows the naming convention (JRC §6.4)",
     "raster.nodata_declared": "the image declares a no-data value",
     "raster.nodata_share": "share of no-data pixels in the image",
-    "raster.nonfinite_pixels": "float-band pixels that are NaN or +/-Inf and not no-data (excluded from every statistic)",
+    "raster.nonfinite_pixels": "float-band pixels that are NaN or +/-Inf and not no-data (excluded "
+                               "from every statistic)",
     "raster.noise_std": "noise standard deviation estimated in homogeneous areas, in DN",
     "raster.noise_std_8bit": "noise_std rescaled to an 8-bit range",
     "raster.pixel_size": "ground pixel size of the image from its geotransform",
@@ -437,7 +501,8 @@ MEASURE_DESCRIPTIONS: dict[str, str] = {
     "raster.used_bits": "bits actually used by the DN values (largest over the bands)",
     # evaluator roll-ups
     "rollup.image_rejected_share": "share of the images that are rejected",
-    "rollup.image_failed_share": "share of tested images rejected, or failing/warning on a Chapter 6 or §9.2 rule (§12.3)",
+    "rollup.image_failed_share": "share of tested images rejected, or failing/warning on a Chapter "
+                                 "6 or §9.2 rule (§12.3)",
     "rollup.images_sampled_share": "share of the images in the checked sample",
     "rollup.block_rejected_share": "share of the blocks that are rejected",
     "rollup.blocks_checked_share": "share of the blocks that were checked",

@@ -41,7 +41,11 @@ from .manual import gone_reason, vanished_in
 from .registry import ROLLUP, Measured
 
 BLOCK_ROLLUPS = ("rollup.block_rejected_share", "rollup.blocks_rejected")
-IMAGE_ROLLUPS = ("rollup.image_rejected_share", "rollup.image_failed_share", "rollup.images_rejected")
+IMAGE_ROLLUPS = (
+    "rollup.image_rejected_share",
+    "rollup.image_failed_share",
+    "rollup.images_rejected",
+)
 
 
 def _every_row(t: Any) -> tuple[Evidence, ...]:
@@ -93,8 +97,10 @@ class Rollup:
     def _totals(self) -> dict[str, int]:
         """How many images and blocks a sample share is a share of."""
         imgs = self.ctx.d.table("images")
-        return {"rollup.images_sampled_share": len(imgs.df) if imgs is not None else 0,
-                "rollup.blocks_checked_share": len(self.ctx.d.block_ids)}
+        return {
+            "rollup.images_sampled_share": len(imgs.df) if imgs is not None else 0,
+            "rollup.blocks_checked_share": len(self.ctx.d.block_ids),
+        }
 
     def blocks_of(self, scope: str) -> dict[str, set[str]] | None:
         """item -> blocks it belongs to / serves, from the scope's table `block` column
@@ -105,7 +111,11 @@ class Rollup:
                 m = self.ctx.cache.get("derived.dem_blocks")
             except OrthospecError:
                 return None
-            return {str(k): {x for x in str(v).split(";") if x} for k, v in m.values.items() if not is_missing(v)}
+            return {
+                str(k): {x for x in str(v).split(";") if x}
+                for k, v in m.values.items()
+                if not is_missing(v)
+            }
         table = table_of_scope(scope)
         t = self.ctx.d.table(table) if table else None
         if t is None or "block" not in t.df:
@@ -134,7 +144,10 @@ class Rollup:
                 blocks = self._blocks_rejected(r.rule, items)
                 if blocks:
                     rejected.setdefault("block", set()).update(blocks)
-                    reasons.append(f"{r.rule.id} ({r.rule.clause.text()}) rejects block(s) " + ", ".join(sorted(blocks)))
+                    reasons.append(
+                        f"{r.rule.id} ({r.rule.clause.text()}) rejects block(s) "
+                        + ", ".join(sorted(blocks))
+                    )
         return {k: sorted(v) for k, v in sorted(rejected.items())}, reasons
 
     def _tied_items(self, r: RuleResult, mask: np.ndarray) -> list[str]:
@@ -143,8 +156,10 @@ class Rollup:
         if "*" in items and r.rule.consequence in ("reject_item", "reject_block"):
             v = VERDICTS[int(r.verdict[mask][0])]
             note = next((str(x) for x in r.notes[mask] if x), "")
-            self.scope_wide.append(f"{r.rule.id} ({r.rule.clause.text()}): {v} for the whole {r.rule.scope} "
-                                   f"scope, not for named items ({note[:160]}): the delivery is returned")
+            self.scope_wide.append(
+                f"{r.rule.id} ({r.rule.clause.text()}): {v} for the whole {r.rule.scope} "
+                f"scope, not for named items ({note[:160]}): the delivery is returned"
+            )
             items = [i for i in items if i != "*"]
         return items
 
@@ -159,17 +174,23 @@ class Rollup:
             self.scope_wide.append(
                 f"{rule.id} ({rule.clause.text()}) rejects {rule.scope} item(s) {', '.join(unmapped[:5])} but "
                 "the blocks they serve are unknown (no `block` column value for them): the finding stands at "
-                "delivery level and the delivery is returned")
+                "delivery level and the delivery is returned"
+            )
         return blocks
 
     # --- phase 2b: the roll-up measures (JRC §12.3 / §12.8, measures/acceptance)
     def _param_number(self, name: str, default: float) -> float:
         p = self.ctx.params.get(name)
         v = getattr(p, "value", None)
-        return float(v) if isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v) \
+        return (
+            float(v)
+            if isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
             else default
+        )
 
-    def _sampled_images(self, all_imgs: list[str], imgs: Any, rejected: dict[str, list[str]]) -> list[str]:
+    def _sampled_images(
+        self, all_imgs: list[str], imgs: Any, rejected: dict[str, list[str]]
+    ) -> list[str]:
         given = self.ctx.options.sample
         if given and given[0] == "image":
             return [i for i in all_imgs if i in given[1]]
@@ -182,8 +203,9 @@ class Rollup:
             return [i for i in all_imgs if i in marked or i in failed]
         return all_imgs
 
-    def _image_shares(self, rejected: dict[str, list[str]], max_share: float, results: list[RuleResult]
-                      ) -> tuple[float | None, float | None, set[str], float | None]:
+    def _image_shares(
+        self, rejected: dict[str, list[str]], max_share: float, results: list[RuleResult]
+    ) -> tuple[float | None, float | None, set[str], float | None]:
         """(rejected-image share %, sampled share %, rejected sampled images, failed-image share %)
         per JRC §12.3; an image fails when a rule rejects it or a rule of the criteria sections
         (:meth:`_failing_images`) fails or warns for it."""
@@ -198,20 +220,30 @@ class Rollup:
         if sampled:
             action = getattr(self.ctx.params.get("image_fail_share_action"), "value", None)
             self.image_verdict = image_delivery_verdict(
-                len(all_imgs), [i in rej for i in sampled], sampled_ids=sampled,
-                max_failed_fraction=max_share, returns=action != "keep")
+                len(all_imgs),
+                [i in rej for i in sampled],
+                sampled_ids=sampled,
+                max_failed_fraction=max_share,
+                returns=action != "keep",
+            )
             share = 100.0 * self.image_verdict.failed_fraction
             failing = rej | self._failing_images(results)
             self.image_failed_verdict = image_delivery_verdict(
-                len(all_imgs), [i in failing for i in sampled], sampled_ids=sampled,
-                max_failed_fraction=max_share, returns=action != "keep")
+                len(all_imgs),
+                [i in failing for i in sampled],
+                sampled_ids=sampled,
+                max_failed_fraction=max_share,
+                returns=action != "keep",
+            )
             failed_share = 100.0 * self.image_failed_verdict.failed_fraction
         return share, samp, rej, failed_share
 
     def _criteria_sections(self) -> tuple[str, ...]:
         """The clause sections whose image rules §12.3 checks (parameter image_criteria_sections)."""
         v = getattr(self.ctx.params.get("image_criteria_sections"), "value", None)
-        return tuple(x.strip() for x in str(v).replace(";", ",").split(",") if x.strip()) if v else ()
+        return (
+            tuple(x.strip() for x in str(v).replace(";", ",").split(",") if x.strip()) if v else ()
+        )
 
     def _failing_images(self, results: list[RuleResult]) -> set[str]:
         """Images for which an image rule of the criteria sections fails or warns (JRC §12.3: "fail
@@ -223,22 +255,28 @@ class Rollup:
             return out
         for r in results:
             sec = str(r.rule.clause.section or "")
-            if r.rule.scope != "image" or not any(sec == x or sec.startswith(x + ".") for x in sections):
+            if r.rule.scope != "image" or not any(
+                sec == x or sec.startswith(x + ".") for x in sections
+            ):
                 continue
             bad = np.isin(r.verdict, (FAIL, WARN))
             if bad.any():
                 out.update(str(i) for i in r.items[bad])
         return out
 
-    def _block_shares(self, rejected: dict[str, list[str]], max_share: float
-                      ) -> tuple[float | None, float | None, set[str]]:
+    def _block_shares(
+        self, rejected: dict[str, list[str]], max_share: float
+    ) -> tuple[float | None, float | None, set[str]]:
         """(rejected-block share %, blocks-with-points share %, rejected blocks) per JRC §12.8."""
         d = self.ctx.d
         blocks = d.block_ids
         cps = d.table("checkpoints")
         # distinct values first (vectorised), then text: a million points hold a handful of blocks
-        with_points = (set(map(str, pd.unique(cps.df["block"].to_numpy(dtype=object)).tolist())) & set(blocks)
-                       if cps is not None else set())
+        with_points = (
+            set(map(str, pd.unique(cps.df["block"].to_numpy(dtype=object)).tolist())) & set(blocks)
+            if cps is not None
+            else set()
+        )
         brej = set(rejected.get("block", [])) & set(blocks)
         # a declared block without check points is missing evidence, never dropped from the share:
         # the blocks subjected to external QC are those with points plus those a rule rejected
@@ -249,14 +287,20 @@ class Rollup:
         bshare = None
         if blocks and checked:
             self.block_verdict = project_verdict(
-                len(blocks), [b not in brej for b in checked], checked_ids=checked,
-                max_failed_fraction=max_share, space_resection=self._space_resection())
+                len(blocks),
+                [b not in brej for b in checked],
+                checked_ids=checked,
+                max_failed_fraction=max_share,
+                space_resection=self._space_resection(),
+            )
             bshare = 100.0 * self.block_verdict.failed_fraction
         elif blocks:
             bshare = 0.0 if not brej else 100.0
         return bshare, (100.0 * len(with_points) / len(blocks) if blocks else None), brej
 
-    def measures(self, rejected: dict[str, list[str]], results: Sequence[RuleResult] = ()) -> dict[str, Measured]:
+    def measures(
+        self, rejected: dict[str, list[str]], results: Sequence[RuleResult] = ()
+    ) -> dict[str, Measured]:
         """The ``rollup.*`` measures from the item verdicts of the first phase."""
         d = self.ctx.d
         max_share = self._param_number("fail_share_max", 5.0) / 100.0
@@ -266,18 +310,25 @@ class Rollup:
         share, samp, rej, failed = self._image_shares(rejected, max_share, list(results))
         bshare, bchecked, brej = self._block_shares(rejected, max_share)
         vals = {
-            "rollup.image_rejected_share": (share, ev_img), "rollup.images_sampled_share": (samp, ev_img),
+            "rollup.image_rejected_share": (share, ev_img),
+            "rollup.images_sampled_share": (samp, ev_img),
             "rollup.image_failed_share": (failed, ev_img),
             "rollup.images_rejected": (float(len(rej)) if imgs is not None else None, ev_img),
-            "rollup.block_rejected_share": (bshare, ev_blk), "rollup.blocks_checked_share": (bchecked, ev_blk),
+            "rollup.block_rejected_share": (bshare, ev_blk),
+            "rollup.blocks_checked_share": (bchecked, ev_blk),
             "rollup.blocks_rejected": (float(len(brej)), ev_blk),
         }
         out: dict[str, Measured] = {}
         for name, (v, ev) in vals.items():
             scope, unit = ROLLUP[name]
             item = d.id if scope == "delivery" else d.project_id
-            out[name] = Measured(name, scope, unit, pd.Series({item: v}, dtype=object),
-                                 pd.Series({item: ev}, dtype=object))
+            out[name] = Measured(
+                name,
+                scope,
+                unit,
+                pd.Series({item: v}, dtype=object),
+                pd.Series({item: ev}, dtype=object),
+            )
         return out
 
     def _space_resection(self) -> bool:
@@ -295,10 +346,13 @@ class Rollup:
         if r.rule.consequence == "warn" and r.rule.level == "mandatory":
             # every mandatory rule can change the verdict: `warn` cannot make a failing
             # mandatory requirement acceptable (issue 12); the finding returns the delivery
-            return (f"{r.rule.id} ({r.rule.clause.text()}): mandatory rule {v} for {items}; its consequence "
-                    "'warn' cannot accept a failing mandatory requirement")
+            return (
+                f"{r.rule.id} ({r.rule.clause.text()}): mandatory rule {v} for {items}; its consequence "
+                "'warn' cannot accept a failing mandatory requirement"
+            )
         if r.rule.consequence == "return_delivery" or (
-                r.rule.consequence == "reject_block" and r.rule.scope in ("delivery", "project")):
+            r.rule.consequence == "reject_block" and r.rule.scope in ("delivery", "project")
+        ):
             return f"{r.rule.id} ({r.rule.clause.text()}): {v} for {items}"
         return None
 
@@ -309,20 +363,26 @@ class Rollup:
         reasons = []
         if rejected.get("block") and not has & set(BLOCK_ROLLUPS):
             bv = self.block_verdict
-            reasons.append("block(s) " + ", ".join(rejected["block"]) + " rejected and the profile has no "
-                           "mandatory project-level roll-up rule: any rejected block returns the delivery"
-                           + (f" (JRC §12.8: {bv.reason})" if bv is not None else ""))
+            reasons.append(
+                "block(s) " + ", ".join(rejected["block"]) + " rejected and the profile has no "
+                "mandatory project-level roll-up rule: any rejected block returns the delivery"
+                + (f" (JRC §12.8: {bv.reason})" if bv is not None else "")
+            )
         if rejected.get("image") and not has & set(IMAGE_ROLLUPS):
             iv = self.image_verdict
-            reasons.append("image(s) rejected and the profile has no mandatory delivery-level roll-up rule: "
-                           "any rejected image returns the delivery"
-                           + (f" (JRC §12.3: {iv.reason})" if iv is not None else ""))
+            reasons.append(
+                "image(s) rejected and the profile has no mandatory delivery-level roll-up rule: "
+                "any rejected image returns the delivery"
+                + (f" (JRC §12.3: {iv.reason})" if iv is not None else "")
+            )
         for scope, items in rejected.items():
             if scope in ("image", "block") or not items:
                 continue  # these two have the JRC §12.3 / §12.8 roll-up rules above
             shown = ", ".join(items[:5]) + (f" (+{len(items) - 5} more)" if len(items) > 5 else "")
-            reasons.append(f"{scope} item(s) {shown} rejected and no roll-up rule covers the {scope} scope: "
-                           "a rejected item returns the delivery")
+            reasons.append(
+                f"{scope} item(s) {shown} rejected and no roll-up rule covers the {scope} scope: "
+                "a rejected item returns the delivery"
+            )
         return reasons
 
     def _vanished(self, results: list[RuleResult]) -> list[str]:
@@ -334,11 +394,14 @@ class Rollup:
                 hit = np.flatnonzero(r.items.astype(str) == item)
                 v = VERDICTS[int(r.verdict[hit[0]])] if len(hit) else "not evaluated"
                 by_item.setdefault(item, []).append(f"{r.rule.id} {v}")
-        return [f"{gone_reason(item)} ({', '.join(rules)}): the delivery is returned"
-                for item, rules in sorted(by_item.items())]
+        return [
+            f"{gone_reason(item)} ({', '.join(rules)}): the delivery is returned"
+            for item, rules in sorted(by_item.items())
+        ]
 
-    def overall(self, results: list[RuleResult], rejected: dict[str, list[str]], second: list[Rule]
-                ) -> tuple[str, list[str], list[str]]:
+    def overall(
+        self, results: list[RuleResult], rejected: dict[str, list[str]], second: list[Rule]
+    ) -> tuple[str, list[str], list[str]]:
         """The delivery's verdict, why it is rejected, and what the checker must still do (no
         reason and nothing to do = accepted; nothing rejects but something to do = incomplete)."""
         reasons: list[str] = list(self.scope_wide) + self._vanished(results)
@@ -349,8 +412,10 @@ class Rollup:
         if self.ctx.fail_on == V.WARN:
             warned = [r.rule.id for r in results if (self.blocking(r) & (r.verdict == WARN)).any()]
             if warned:
-                reasons.append(f"--fail-on warn: recommended-level rule(s) not met: {', '.join(warned[:10])}"
-                               + (f" (+{len(warned) - 10} more)" if len(warned) > 10 else ""))
+                reasons.append(
+                    f"--fail-on warn: recommended-level rule(s) not met: {', '.join(warned[:10])}"
+                    + (f" (+{len(warned) - 10} more)" if len(warned) > 10 else "")
+                )
         reasons += self._default_rollups(rejected, second)
         todo_ = self.incomplete(results)
         return V.overall(bool(reasons), bool(todo_)), reasons, todo_

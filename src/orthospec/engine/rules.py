@@ -39,15 +39,32 @@ def _constant(n: int, value: object) -> np.ndarray:
     return out
 
 
-def all_items(ctx: Context, rule: Rule, verdict: int, note: str, reason: Reason, items: list[str] | None = None,
-              evidence: tuple[Evidence, ...] = (), tb: str | None = None) -> RuleResult:
+def all_items(
+    ctx: Context,
+    rule: Rule,
+    verdict: int,
+    note: str,
+    reason: Reason,
+    items: list[str] | None = None,
+    evidence: tuple[Evidence, ...] = (),
+    tb: str | None = None,
+) -> RuleResult:
     """One verdict (for one reason) for every item of the rule (``*`` when the items are unknown)."""
     its = items if items else ["*"]
     n = len(its)
-    return RuleResult(rule, np.array(its, dtype=object), np.full(n, verdict, dtype=np.int8),
-                      np.full(n, None, dtype=object), "", req_dict(rule.requirement, None),
-                      [evidence] * n, _constant(n, note),
-                      error=note if verdict == ERROR else None, traceback=tb, reasons=_constant(n, reason))
+    return RuleResult(
+        rule,
+        np.array(its, dtype=object),
+        np.full(n, verdict, dtype=np.int8),
+        np.full(n, None, dtype=object),
+        "",
+        req_dict(rule.requirement, None),
+        [evidence] * n,
+        _constant(n, note),
+        error=note if verdict == ERROR else None,
+        traceback=tb,
+        reasons=_constant(n, reason),
+    )
 
 
 def _items_or_none(ctx: Context, rule: Rule) -> list[str] | None:
@@ -64,18 +81,27 @@ def safe(ctx: Context, rule: Rule, rollup: dict[str, Measured] | None = None) ->
     try:
         return evaluate(ctx, rule, rollup)
     except Undecidable as exc:
-        return all_items(ctx, rule, MISSING, str(exc), Reason.UNSET_PARAMETER, items=_items_or_none(ctx, rule))
+        return all_items(
+            ctx, rule, MISSING, str(exc), Reason.UNSET_PARAMETER, items=_items_or_none(ctx, rule)
+        )
     except (UnitError, ExpressionError) as exc:
-        return all_items(ctx, rule, ERROR, str(exc), Reason.REQUIREMENT_ERROR, items=_items_or_none(ctx, rule))
+        return all_items(
+            ctx, rule, ERROR, str(exc), Reason.REQUIREMENT_ERROR, items=_items_or_none(ctx, rule)
+        )
     except OrthospecError as exc:
-        return all_items(ctx, rule, ERROR, str(exc), Reason.PROVIDER_ERROR, items=_items_or_none(ctx, rule))
+        return all_items(
+            ctx, rule, ERROR, str(exc), Reason.PROVIDER_ERROR, items=_items_or_none(ctx, rule)
+        )
     except Exception as exc:  # documented broad catch, never swallowing: a crashing
         # rule (a bug, or input no check anticipated) is `error` - which rejects - never `fail` or
         # `pass`, its message is in every record, and under --debug its traceback is kept too
         tb = "".join(traceback.format_exception(exc)) if ctx.debug else None
         note = f"internal error in rule: {type(exc).__name__}: {exc}" + (
-            "" if tb else " (run with --debug to keep the traceback)")
-        return all_items(ctx, rule, ERROR, note, Reason.INTERNAL_ERROR, items=_items_or_none(ctx, rule), tb=tb)
+            "" if tb else " (run with --debug to keep the traceback)"
+        )
+        return all_items(
+            ctx, rule, ERROR, note, Reason.INTERNAL_ERROR, items=_items_or_none(ctx, rule), tb=tb
+        )
 
 
 def builtin(ctx: Context) -> list[RuleResult]:
@@ -85,14 +111,23 @@ def builtin(ctx: Context) -> list[RuleResult]:
     ev = (ctx.d.manifest_evidence("tender.parameters"),)
     for rule in BUILTIN_RULES:
         rows = rows_by_rule[rule.id]
-        text = ("declared value = value in force" if rule.id == ITT_DECLARED.id
-                else "set by a tender profile, --param or the standard")
-        out.append(RuleResult(
-            rule, np.array([r[0] for r in rows], dtype=object),
-            np.array([V.CODE[r[3]] for r in rows], dtype=np.int8),
-            np.array([r[1] or None for r in rows], dtype=object), "text",
-            {"op": rule.requirement.op, "unit": None, "text": text},
-            [ev] * len(rows), np.array([r[2] for r in rows], dtype=object)))
+        text = (
+            "declared value = value in force"
+            if rule.id == ITT_DECLARED.id
+            else "set by a tender profile, --param or the standard"
+        )
+        out.append(
+            RuleResult(
+                rule,
+                np.array([r[0] for r in rows], dtype=object),
+                np.array([V.CODE[r[3]] for r in rows], dtype=np.int8),
+                np.array([r[1] or None for r in rows], dtype=object),
+                "text",
+                {"op": rule.requirement.op, "unit": None, "text": text},
+                [ev] * len(rows),
+                np.array([r[2] for r in rows], dtype=object),
+            )
+        )
     return out
 
 
@@ -101,29 +136,55 @@ def evaluate(ctx: Context, rule: Rule, rollup: dict[str, Measured] | None = None
     when_ev = (ctx.d.manifest_evidence("(when)"),)
     if cond is False:
         items0, _ = ctx.universe(rule.scope)
-        return all_items(ctx, rule, NA, f"not applicable: {rule.when} is false for this delivery",
-                         Reason.CONDITION_FALSE, items=items0 or None, evidence=when_ev)
+        return all_items(
+            ctx,
+            rule,
+            NA,
+            f"not applicable: {rule.when} is false for this delivery",
+            Reason.CONDITION_FALSE,
+            items=items0 or None,
+            evidence=when_ev,
+        )
     items, why = ctx.universe(rule.scope)
     if unknown_why is not None:
-        return all_items(ctx, rule, MISSING, unknown_why, Reason.UNKNOWN_FACT, items=items or None, evidence=when_ev)
+        return all_items(
+            ctx,
+            rule,
+            MISSING,
+            unknown_why,
+            Reason.UNKNOWN_FACT,
+            items=items or None,
+            evidence=when_ev,
+        )
     if rule.manual:
         return manual_rule(ctx, rule, items if items is not None else [ctx.d.id])
-    m = rollup[rule.measure] if rule.measure.startswith("rollup.") and rollup else ctx.cache.get(rule.measure)
+    m = (
+        rollup[rule.measure]
+        if rule.measure.startswith("rollup.") and rollup
+        else ctx.cache.get(rule.measure)
+    )
     if items is None:
         items = sorted(map(str, m.values.index))
         if not items and m.notes is not None and len(m.notes):
             why = str(m.notes.iloc[0])
     if not items:
-        return all_items(ctx, rule, MISSING, f"no items to check at scope {rule.scope}: {why or 'none delivered'}",
-                         Reason.NO_ITEMS, evidence=(ctx.d.manifest_evidence("tables"),))
+        return all_items(
+            ctx,
+            rule,
+            MISSING,
+            f"no items to check at scope {rule.scope}: {why or 'none delivered'}",
+            Reason.NO_ITEMS,
+            evidence=(ctx.d.manifest_evidence("tables"),),
+        )
     return _judge(ctx, rule, m, items)
 
 
 class _Column:
     """The measure's column for the rule's items, with the provider's notes, errors and n/a."""
 
-    def __init__(self, rule: Rule, m: Measured, items: list[str], applies: np.ndarray, notes: np.ndarray
-                 ) -> None:
+    def __init__(
+        self, rule: Rule, m: Measured, items: list[str], applies: np.ndarray, notes: np.ndarray
+    ) -> None:
         n = len(items)
         # items the measure has no value for: one hashed lookup of the items (isin is per-object
         # Python for string ids at 1M points); a duplicate label is refused, as reindex refuses it
@@ -134,13 +195,16 @@ class _Column:
         if not keys.is_unique:
             raise ValueError(f"measure {m.name} gives two values for one item")
         if len(labels) == n and n and bool((labels == np.asarray(items, dtype=object)).all()):
-            pos = np.arange(n)  # the items in the measure's own order (a point table): no hashed lookup
+            pos = np.arange(
+                n
+            )  # the items in the measure's own order (a point table): no hashed lookup
         else:
             pos = keys.get_indexer(items)
         del keys, labels
         absent = pos < 0
-        self.raw = (m.values.to_numpy()[pos] if not absent.any()
-                    else m.values.reindex(items).to_numpy())  # reindex: NaN (and its dtype) where absent
+        self.raw = (
+            m.values.to_numpy()[pos] if not absent.any() else m.values.reindex(items).to_numpy()
+        )  # reindex: NaN (and its dtype) where absent
         self.missing = missing_mask(self.raw) & (rule.requirement.op != "present") | absent
         self.evidence = _evidence_at(m, items, pos)
         self.notes = notes
@@ -171,13 +235,18 @@ def _evidence_at(m: Measured, items: list[str], pos: np.ndarray) -> Sequence[tup
     ev = m.evidence
     if isinstance(ev, RowEvidence) and ev.rows.index.equals(m.values.index):
         rows = ev.rows.to_numpy(dtype=float)
-        picked = np.where(pos >= 0, rows[np.maximum(pos, 0)], np.nan) if len(rows) else np.full(len(pos), np.nan)
+        picked = (
+            np.where(pos >= 0, rows[np.maximum(pos, 0)], np.nan)
+            if len(rows)
+            else np.full(len(pos), np.nan)
+        )
         return _LazyEvidence(ev.file, ev.sha256, picked)  # what RowEvidence.take(items) builds
     return m.evidence_for(items)
 
 
-def _sampled(ctx: Context, rule: Rule, items: list[str], applies: np.ndarray, notes: np.ndarray
-             ) -> tuple[np.ndarray, np.ndarray | None]:
+def _sampled(
+    ctx: Context, rule: Rule, items: list[str], applies: np.ndarray, notes: np.ndarray
+) -> tuple[np.ndarray, np.ndarray | None]:
     """With `check --sample`: items outside the external QC sample are not checked (noted)."""
     sampled = ctx.sample_mask(rule.scope, items)
     if sampled is None:
@@ -198,11 +267,17 @@ def _judge(ctx: Context, rule: Rule, m: Measured, items: list[str]) -> RuleResul
     names = Names(ctx.params, ctx.manifest, ctx.cache, rule.scope, items)
     try:
         ok, measured, thr, unit, undecided = Comparison(
-            ctx, rule, col.raw, m.unit, col.missing | col.errs, names, items).run()
+            ctx, rule, col.raw, m.unit, col.missing | col.errs, names, items
+        ).run()
     except Undecidable as exc:
         # an unset parameter the threshold needs: `missing` only where the rule applies (a `when`
         # such as `tolerance_ce90 != null` makes the rule not applicable instead)
-        ok, measured, thr, unit = np.ones(n, dtype=bool), col.raw, req_dict(rule.requirement, None), m.unit
+        ok, measured, thr, unit = (
+            np.ones(n, dtype=bool),
+            col.raw,
+            req_dict(rule.requirement, None),
+            m.unit,
+        )
         undecided = [(MISSING, np.ones(n, dtype=bool), str(exc), Reason.UNSET_PARAMETER)]
     verdict = np.full(n, PASS, dtype=np.int8)
     reasons = np.full(n, None, dtype=object)
@@ -211,7 +286,9 @@ def _judge(ctx: Context, rule: Rule, m: Measured, items: list[str]) -> RuleResul
     verdict[col.missing] = MISSING
     reasons[col.missing] = Reason.NO_VALUE
     for code, mask, why, reason in undecided:
-        mask = mask & ~col.missing & ~col.errs & col.applies  # a not-applicable item keeps its `when` reason
+        mask = (
+            mask & ~col.missing & ~col.errs & col.applies
+        )  # a not-applicable item keeps its `when` reason
         verdict[mask] = code
         notes[mask] = why
         reasons[mask] = reason
@@ -228,8 +305,17 @@ def _judge(ctx: Context, rule: Rule, m: Measured, items: list[str]) -> RuleResul
         verdict[in_sample] = MISSING
         notes[in_sample] = unknown_note
         reasons[in_sample] = Reason.UNKNOWN_FACT
-    return RuleResult(rule, np.array(items, dtype=object), verdict, measured, unit, thr, col.evidence, notes,
-                      reasons=reasons)
+    return RuleResult(
+        rule,
+        np.array(items, dtype=object),
+        verdict,
+        measured,
+        unit,
+        thr,
+        col.evidence,
+        notes,
+        reasons=reasons,
+    )
 
 
 def _note_missing(rule: Rule, col: _Column, notes: np.ndarray) -> None:
@@ -238,4 +324,5 @@ def _note_missing(rule: Rule, col: _Column, notes: np.ndarray) -> None:
         if notes[i] is None:
             ev: Any = col.evidence[int(i)]
             notes[i] = f"no value for {rule.measure}" + (
-                f" in {ev[0].file} row {ev[0].rows[0]}" if ev and ev[0].rows else "")
+                f" in {ev[0].file} row {ev[0].rows[0]}" if ev and ev[0].rows else ""
+            )

@@ -52,24 +52,40 @@ def _image_centres(d: Delivery) -> tuple[list[str], np.ndarray, np.ndarray, pd.D
         try:
             left, bottom, right, top = raster_bounds(path, name=f)
         except OrthospecError as exc:
-            raise DeliveryError(f"image {i} cannot be placed for the sample: {exc}; give its "
-                                "exposure_x / exposure_y in the images table or deliver a readable image",
-                                file=t.file, row=int(row)) from None
+            raise DeliveryError(
+                f"image {i} cannot be placed for the sample: {exc}; give its "
+                "exposure_x / exposure_y in the images table or deliver a readable image",
+                file=t.file,
+                row=int(row),
+            ) from None
         xs.append((left + right) / 2)
         ys.append((bottom + top) / 2)
     return ids, np.asarray(xs), np.asarray(ys), df
 
 
-def draw(d: Delivery, *, scope: str = "image", seed: int, round: int = 0, fraction: float = 0.10,
-         minimum: int = 1, random_share: float = 0.2, must_include: set[str] | frozenset[str] = frozenset()
-         ) -> DrawnSample:
+def draw(
+    d: Delivery,
+    *,
+    scope: str = "image",
+    seed: int,
+    round: int = 0,
+    fraction: float = 0.10,
+    minimum: int = 1,
+    random_share: float = 0.2,
+    must_include: set[str] | frozenset[str] = frozenset(),
+) -> DrawnSample:
     """Images (§12.3/§12.4) or blocks (§12.8) for external QC; same seed+round, same sample."""
     if scope == "image":
         ids, x, y, df = _image_centres(d)
         tags = df["tags"].fillna("").astype(str).tolist() if "tags" in df else None
         batches = df["batch"].fillna("").astype(str).tolist() if "batch" in df else None
-        problem = sorted({b for b in (batches or []) if b and any(
-            blk.problem_batch and blk.id == b for blk in d.manifest.blocks)})
+        problem = sorted(
+            {
+                b
+                for b in (batches or [])
+                if b and any(blk.problem_batch and blk.id == b for blk in d.manifest.blocks)
+            }
+        )
     elif scope == "block":
         ids, xs, ys, tags = [], [], [], []
         for b in d.manifest.blocks:
@@ -90,14 +106,32 @@ def draw(d: Delivery, *, scope: str = "image", seed: int, round: int = 0, fracti
         batches = ids if problem else None
     else:
         raise DeliveryError(f"cannot sample scope {scope!r}; use image or block")
-    s = select_sample(ids, x, y, seed=seed, round=round, fraction=fraction, minimum=minimum,
-                      tags=tags, batches=batches, problem_batches=problem, random_share=random_share)
+    s = select_sample(
+        ids,
+        x,
+        y,
+        seed=seed,
+        round=round,
+        fraction=fraction,
+        minimum=minimum,
+        tags=tags,
+        batches=batches,
+        problem_batches=problem,
+        random_share=random_share,
+    )
     extra = sorted(set(must_include) & set(map(str, ids)) - set(s.ids))
     if extra:  # tightened audit: every suspect item of the last checks is drawn again
         reasons = {**s.reasons, **dict.fromkeys(extra, "tightened audit trail")}
         s = Sample(tuple(sorted((*s.ids, *extra))), reasons, s.target, s.n_items, s.seed, s.round)
-    table = pd.DataFrame({"item": list(s.ids), "scope": scope, "reason": [s.reasons[i] for i in s.ids],
-                          "seed": seed, "round": round})
+    table = pd.DataFrame(
+        {
+            "item": list(s.ids),
+            "scope": scope,
+            "reason": [s.reasons[i] for i in s.ids],
+            "seed": seed,
+            "round": round,
+        }
+    )
     return DrawnSample(scope, s, table)
 
 
@@ -111,6 +145,8 @@ def read_sample(path: str | Path) -> tuple[str, set[str]]:
     df = parse_csv(text, SAMPLE_SPEC, file=str(path))
     scopes = set(df["scope"].astype(str))
     if len(scopes) != 1 or not scopes <= {"image", "block"}:
-        raise DeliveryError(f"a sample table holds one scope (image or block), found {sorted(scopes)}",
-                            file=str(path))
+        raise DeliveryError(
+            f"a sample table holds one scope (image or block), found {sorted(scopes)}",
+            file=str(path),
+        )
     return scopes.pop(), set(df["item"].astype(str))

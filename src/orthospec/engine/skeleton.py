@@ -62,7 +62,9 @@ def manual_items(profile: ResolvedProfile, d: Delivery) -> list[dict[str, Any]]:
     """Every manual check item the profile applies to ``d``: check, item, scope, and for an item that is a
     delivered file its file and SHA-256; an item whose applicability the delivery does not decide is
     listed with ``when`` (the checker judges whether it applies)."""
-    ctx = Context.build(profile, d, _params(profile), fail_on="fail", options=None, checker=None, debug=False)
+    ctx = Context.build(
+        profile, d, _params(profile), fail_on="fail", options=None, checker=None, debug=False
+    )
     out: list[dict[str, Any]] = []
     for rule in profile.rules:
         if not rule.manual:
@@ -75,8 +77,13 @@ def manual_items(profile: ResolvedProfile, d: Delivery) -> list[dict[str, Any]]:
         for item, yes, unk in zip(items, ok.tolist(), np.asarray(unknown).tolist(), strict=True):
             if not yes and not unk:
                 continue
-            entry: dict[str, Any] = {"check": rule.id, "item": "*" if one else str(item), "scope": rule.scope,
-                                     "title": rule.title, "level": rule.level}
+            entry: dict[str, Any] = {
+                "check": rule.id,
+                "item": "*" if one else str(item),
+                "scope": rule.scope,
+                "title": rule.title,
+                "level": rule.level,
+            }
             rel = files.get(str(item))
             sha = ctx.file_sha256(rel) if rel is not None else None
             if sha is not None:
@@ -94,8 +101,11 @@ def checker_skeleton(profile: ResolvedProfile, d: Delivery, *, name: str | None 
     entries = manual_items(profile, d)
     grid_rules = set(catalogue().rules)
     roles = file_roles(d, tables=False)
-    pins = {rel: {"sha256": d.sha256(rel), "role": role} for role, rel in sorted(roles.items())
-            if d.path(rel, what=role).is_file()}
+    pins = {
+        rel: {"sha256": d.sha256(rel), "role": role}
+        for role, rel in sorted(roles.items())
+        if d.path(rel, what=role).is_file()
+    }
     declared = dict(d.manifest.tender.parameters) if d.manifest.tender else {}
     lines = [
         "# The checker folder's checker.yaml (docs/CHECKER.md), written by `orthospec checker init`.",
@@ -110,11 +120,16 @@ def checker_skeleton(profile: ResolvedProfile, d: Delivery, *, name: str | None 
         "  # what the checker received: a file changed, or re-pointed by the manifest or a table, is refused",
         "  files:" + ("" if pins else " {}"),
     ]
-    lines += [f"    {_q(rel)}: {{sha256: {p['sha256']}, role: {_q(p['role'])}}}" for rel, p in sorted(pins.items())]
+    lines += [
+        f"    {_q(rel)}: {{sha256: {p['sha256']}, role: {_q(p['role'])}}}"
+        for rel, p in sorted(pins.items())
+    ]
     open_params = []
-    lines += ["# the ITT values in force (JRC §2.5): uncomment and fill in; one left commented out stops a check",
-              "# that needs it (never guessed from the delivery's declaration)",
-              "parameters:"]
+    lines += [
+        "# the ITT values in force (JRC §2.5): uncomment and fill in; one left commented out stops a check",
+        "# that needs it (never guessed from the delivery's declaration)",
+        "parameters:",
+    ]
     body = []
     for pname, p in sorted(profile.parameters.items()):
         if p.authority() != "itt" or p.value is not None:
@@ -122,7 +137,11 @@ def checker_skeleton(profile: ResolvedProfile, d: Delivery, *, name: str | None 
         open_params.append(pname)
         unit = p.unit or "1"
         said = declared.get(pname)
-        hint = f"; the delivery declares {said.value:g} {said.unit} (evidence only)" if isinstance(said, QuantityIn) else ""
+        hint = (
+            f"; the delivery declares {said.value:g} {said.unit} (evidence only)"
+            if isinstance(said, QuantityIn)
+            else ""
+        )
         if pname == "map_crs" and d.manifest.project.crs:
             hint = f"; the delivery declares project.crs {d.manifest.project.crs} (evidence only)"
         need = "required" if p.required else "optional"
@@ -131,14 +150,23 @@ def checker_skeleton(profile: ResolvedProfile, d: Delivery, *, name: str | None 
         desc = re.split(r"(?<!\be\.g)(?<!\bi\.e)(?<=[a-z0-9)])\. (?=[A-Z])", desc)[0].rstrip(".")
         if unit in NON_NUMERIC:
             default = f", default {p.default}" if p.default is not None else ""
-            body.append(f"  # {pname}: {_q(p.default) if p.default is not None else ''}   # {need}{default}: {desc}{hint}")
+            body.append(
+                f"  # {pname}: {_q(p.default) if p.default is not None else ''}   # {need}{default}: {desc}{hint}"
+            )
         else:
-            default = f", default {p.default:g} {unit}" if isinstance(p.default, int | float) else ""
-            body.append(f"  # {pname}: {{value: , unit: {_q(unit)}}}   # {need}{default}: {desc}{hint}")
+            default = (
+                f", default {p.default:g} {unit}" if isinstance(p.default, int | float) else ""
+            )
+            body.append(
+                f"  # {pname}: {{value: , unit: {_q(unit)}}}   # {need}{default}: {desc}{hint}"
+            )
     lines += body
-    lines += ["# block outlines / area of interest in force (map_crs), when the checker states them:",
-              "# blocks: [{id: B01, polygon: [[x, y], ...]}]", "# area_of_interest: [[x, y], ...]",
-              "manual_checks:" + ("" if entries else " []")]
+    lines += [
+        "# block outlines / area of interest in force (map_crs), when the checker states them:",
+        "# blocks: [{id: B01, polygon: [[x, y], ...]}]",
+        "# area_of_interest: [[x, y], ...]",
+        "manual_checks:" + ("" if entries else " []"),
+    ]
     for e in entries:
         lines.append(f"  - check: {_q(e['check'])}   # {e['title']} ({e['level']}, {e['scope']})")
         lines.append(f"    item: {_q(e['item'])}")
@@ -146,10 +174,18 @@ def checker_skeleton(profile: ResolvedProfile, d: Delivery, *, name: str | None 
             lines.append(f"    file: {_q(e['file'])}")
             lines.append(f"    sha256: {e['sha256']}")
         if "when" in e:
-            lines.append(f"    # applies when {e['when']} (the delivery does not say): judge whether it does")
+            lines.append(
+                f"    # applies when {e['when']} (the delivery does not say): judge whether it does"
+            )
         if e["check"] in grid_rules and e["scope"] == "image":
-            lines.append(f"    # or mark the image's cells on {INSPECTION_GRID} (it answers this rule) and leave this null")
-        lines += ["    verdict: null   # pass | fail", "    date: null   # YYYY-MM-DD", "    note: null"]
+            lines.append(
+                f"    # or mark the image's cells on {INSPECTION_GRID} (it answers this rule) and leave this null"
+            )
+        lines += [
+            "    verdict: null   # pass | fail",
+            "    date: null   # YYYY-MM-DD",
+            "    note: null",
+        ]
     lines += ["waivers: []", ""]
     text = "\n".join(lines)
     return Skeleton(text, entries, open_params, pins)

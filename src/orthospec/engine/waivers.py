@@ -35,20 +35,38 @@ def granted(profile: ResolvedProfile, checker: Checker | None) -> list[dict[str,
     Each carries ``declared_in`` (``profile`` or ``checker``) and ``granted_by`` (who, on the
     buyer's side, stands behind it).
     """
-    out = [{**w.model_dump(mode="json"), "declared_in": "profile",
-            "granted_by": f"tender profile {profile.id} {profile.version}"} for w in profile.waivers]
+    out = [
+        {
+            **w.model_dump(mode="json"),
+            "declared_in": "profile",
+            "granted_by": f"tender profile {profile.id} {profile.version}",
+        }
+        for w in profile.waivers
+    ]
     if checker is not None:
-        out += [{**w.model_dump(mode="json", exclude_none=True), "declared_in": "checker",
-                 "checker_file": checker.name, "granted_by": checker.who()}
-                for w in checker.model.waivers]
+        out += [
+            {
+                **w.model_dump(mode="json", exclude_none=True),
+                "declared_in": "checker",
+                "checker_file": checker.name,
+                "granted_by": checker.who(),
+            }
+            for w in checker.model.waivers
+        ]
     return out
 
 
 def requested(delivery: Delivery) -> list[dict[str, Any]]:
     """The contractor's waiver requests from delivery.yaml (never in force)."""
     who = delivery.manifest.contractor.name
-    return [{**w.model_dump(mode="json", exclude_none=True), "declared_in": MANIFEST, "requested_by": who}
-            for w in delivery.manifest.waivers]
+    return [
+        {
+            **w.model_dump(mode="json", exclude_none=True),
+            "declared_in": MANIFEST,
+            "requested_by": who,
+        }
+        for w in delivery.manifest.waivers
+    ]
 
 
 def _match(items: np.ndarray, wanted: Iterable[str]) -> np.ndarray:
@@ -84,7 +102,9 @@ def unused(waivers: list[dict[str, Any]], used: set[int]) -> list[dict[str, Any]
     return [w for i, w in enumerate(waivers) if i not in used]
 
 
-def mark_requested(results: list[RuleResult], requests: list[dict[str, Any]]) -> list[dict[str, Any]]:
+def mark_requested(
+    results: list[RuleResult], requests: list[dict[str, Any]]
+) -> list[dict[str, Any]]:
     """Attach each request to the records it names (``RuleResult.requested``) and summarise them.
 
     The summary says, per request, the items it matched with their verdict in force, and whether
@@ -104,6 +124,13 @@ def mark_requested(results: list[RuleResult], requests: list[dict[str, Any]]) ->
     for w in requests:
         hits = matched[id(w)]
         grants = sorted({h["verdict"] for h in hits} & {V.WAIVED})
-        out.append({**w, "matched": hits,
-                    "status": "waived by a granted waiver (profile or checker)" if grants else NOT_GRANTED})
+        out.append(
+            {
+                **w,
+                "matched": hits,
+                "status": "waived by a granted waiver (profile or checker)"
+                if grants
+                else NOT_GRANTED,
+            }
+        )
     return out

@@ -258,15 +258,25 @@ def checkpoint_map_svg(
     if sample.thinned:  # extent and scale above came from every point
         idx, k = sample.index, sample.drawn - sample.must
         top = idx[k:]  # the must-draw points, largest discrepancy first: they get the forced labels
-        idx = np.concatenate([idx[:k], top[np.argsort(-np.hypot(vdx[top], vdy[top]), kind="stable")]])
+        idx = np.concatenate(
+            [idx[:k], top[np.argsort(-np.hypot(vdx[top], vdy[top]), kind="stable")]]
+        )
         ax_x, ax_y, vdx, vdy, red = ax_x[idx], ax_y[idx], vdx[idx], vdy[idx], red[idx]
         labels = [labels[i] for i in idx]
         n = idx.size
     with plt.rc_context(_RC):
         fig, ax = plt.subplots(figsize=(7, height))
         if polygon:
-            outline = ax.fill(px, py, facecolor="none", edgecolor="0.4", linestyle="--", linewidth=0.8,
-                              label="block outline", zorder=1)
+            outline = ax.fill(
+                px,
+                py,
+                facecolor="none",
+                edgecolor="0.4",
+                linestyle="--",
+                linewidth=0.8,
+                label="block outline",
+                zorder=1,
+            )
             for o in outline:
                 o.set_gid("block-outline")
         if defect_cells:
@@ -274,43 +284,98 @@ def checkpoint_map_svg(
             from matplotlib.patches import Rectangle
 
             rects = [Rectangle((b[0], b[1]), b[2] - b[0], b[3] - b[1]) for b, _ in defect_cells]
-            coll = PatchCollection(rects, facecolor="tab:orange", edgecolor="tab:orange", alpha=0.5,
-                                   hatch="////", zorder=2, label="inspection: marked cell")
+            coll = PatchCollection(
+                rects,
+                facecolor="tab:orange",
+                edgecolor="tab:orange",
+                alpha=0.5,
+                hatch="////",
+                zorder=2,
+                label="inspection: marked cell",
+            )
             coll.set_gid("inspection-defects")
             ax.add_collection(coll)
-            ax.scatter([], [], marker="s", color="tab:orange", alpha=0.5, label="inspection: marked cell")
-        pts = ax.scatter(ax_x, ax_y, s=18, c=np.where(red, "tab:red", "tab:blue"), zorder=3,
-                         label="check point")
+            ax.scatter(
+                [], [], marker="s", color="tab:orange", alpha=0.5, label="inspection: marked cell"
+            )
+        pts = ax.scatter(
+            ax_x, ax_y, s=18, c=np.where(red, "tab:red", "tab:blue"), zorder=3, label="check point"
+        )
         pts.set_gid("checkpoints")
-        q = ax.quiver(ax_x, ax_y, vdx * scale, vdy * scale, angles="xy", scale_units="xy",
-                      scale=1, color=np.where(red, "tab:red", "black"), width=0.003, zorder=4)
+        q = ax.quiver(
+            ax_x,
+            ax_y,
+            vdx * scale,
+            vdy * scale,
+            angles="xy",
+            scale_units="xy",
+            scale=1,
+            color=np.where(red, "tab:red", "black"),
+            width=0.003,
+            zorder=4,
+        )
         q.set_gid("discrepancy-vectors")
         min_gap = 0.045 * max(wx, wy)
-        for i in _uncrowded(ax_x, ax_y, red, min_gap, MAX_FLAGGED_LABELS if sample.thinned else None):
-            ax.annotate(labels[i], (float(ax_x[i]), float(ax_y[i])), xytext=(3, 3), textcoords="offset points",
-                        fontsize=6, color="tab:red" if red[i] else "black")
+        for i in _uncrowded(
+            ax_x, ax_y, red, min_gap, MAX_FLAGGED_LABELS if sample.thinned else None
+        ):
+            ax.annotate(
+                labels[i],
+                (float(ax_x[i]), float(ax_y[i])),
+                xytext=(3, 3),
+                textcoords="offset points",
+                fontsize=6,
+                color="tab:red" if red[i] else "black",
+            )
         if gcp_x is not None and gcp_y is not None:
             gx = _arr("gcp_x", gcp_x)
             gy = _arr("gcp_y", gcp_y, gx.size)
-            g = ax.scatter(gx, gy, marker="^", s=40, facecolors="none", edgecolors="tab:green",
-                           zorder=2, label="GCP")
+            g = ax.scatter(
+                gx,
+                gy,
+                marker="^",
+                s=40,
+                facecolors="none",
+                edgecolors="tab:green",
+                zorder=2,
+                label="GCP",
+            )
             g.set_gid("gcps")
         ref_len = _nice(dmax if dmax > 0 else 1.0)
         span = max(wx, wy)
         x0 = float(allx.min())
         y0 = float(ally.min()) - 0.08 * span  # below the points and the outline
-        arrow = FancyArrowPatch((x0, y0), (x0 + ref_len * scale, y0), arrowstyle="->",
-                                mutation_scale=12, color="black", gid="scale-arrow")
+        arrow = FancyArrowPatch(
+            (x0, y0),
+            (x0 + ref_len * scale, y0),
+            arrowstyle="->",
+            mutation_scale=12,
+            color="black",
+            gid="scale-arrow",
+        )
         ax.add_patch(arrow)
-        ax.text(x0, y0 - 0.03 * span, f"{ref_len:g} {unit} discrepancy (vectors × {scale:.3g})",
-                fontsize=8, gid="scale-label")
+        ax.text(
+            x0,
+            y0 - 0.03 * span,
+            f"{ref_len:g} {unit} discrepancy (vectors × {scale:.3g})",
+            fontsize=8,
+            gid="scale-label",
+        )
         # ground scale bar (map distance, not exaggerated), right-aligned on the same line
         bar = _nice(0.2 * wx) if _nice(0.2 * wx) <= 0.3 * wx else _nice(0.1 * wx)
         x1 = float(allx.max())
-        (sb,) = ax.plot([x1 - bar, x1], [y0, y0], color="black", linewidth=2.5, solid_capstyle="butt")
+        (sb,) = ax.plot(
+            [x1 - bar, x1], [y0, y0], color="black", linewidth=2.5, solid_capstyle="butt"
+        )
         sb.set_gid("map-scale-bar")
-        ax.text(x1 - bar / 2, y0 - 0.03 * span, f"{bar:g} {unit}", fontsize=8, ha="center",
-                gid="map-scale-label")
+        ax.text(
+            x1 - bar / 2,
+            y0 - 0.03 * span,
+            f"{bar:g} {unit}",
+            fontsize=8,
+            ha="center",
+            gid="map-scale-label",
+        )
         ax.set_aspect("equal", adjustable="datalim")
         ax.set_xlabel(f"Easting ({unit})")
         ax.set_ylabel(f"Northing ({unit})")
@@ -351,8 +416,9 @@ def quadrant_distribution_svg(
         fig, ax = plt.subplots(figsize=(6, 6))
         if area is not None:
             ring = np.asarray(area, dtype=float)
-            (ln,) = ax.plot(np.r_[ring[:, 0], ring[0, 0]], np.r_[ring[:, 1], ring[0, 1]],
-                            color="grey", lw=1)
+            (ln,) = ax.plot(
+                np.r_[ring[:, 0], ring[0, 0]], np.r_[ring[:, 1], ring[0, 1]], color="grey", lw=1
+            )
             ln.set_gid("area")
         sample = sample_points(ax_x, ax_y, ids, None, max_points)
         sx, sy = (ax_x[sample.index], ax_y[sample.index]) if sample.thinned else (ax_x, ax_y)
@@ -362,12 +428,24 @@ def quadrant_distribution_svg(
         if shares:
             xmin, xmax = min(ax_x.min(), cx), max(ax_x.max(), cx)
             ymin, ymax = min(ax_y.min(), cy), max(ax_y.max(), cy)
-            pos = {"NE": ((cx + xmax) / 2, (cy + ymax) / 2), "NW": ((xmin + cx) / 2, (cy + ymax) / 2),
-                   "SW": ((xmin + cx) / 2, (ymin + cy) / 2), "SE": ((cx + xmax) / 2, (ymin + cy) / 2)}
+            pos = {
+                "NE": ((cx + xmax) / 2, (cy + ymax) / 2),
+                "NW": ((xmin + cx) / 2, (cy + ymax) / 2),
+                "SW": ((xmin + cx) / 2, (ymin + cy) / 2),
+                "SE": ((cx + xmax) / 2, (ymin + cy) / 2),
+            }
             for q, (px, py) in pos.items():
                 s = shares.get(q, 0.0)
-                ax.text(px, py, f"{q} {s:.0%}", ha="center", va="center", fontsize=11,
-                        color="tab:red" if s < min_share else "tab:green", gid=f"share-{q}")
+                ax.text(
+                    px,
+                    py,
+                    f"{q} {s:.0%}",
+                    ha="center",
+                    va="center",
+                    fontsize=11,
+                    color="tab:red" if s < min_share else "tab:green",
+                    gid=f"share-{q}",
+                )
         ax.set_aspect("equal", adjustable="datalim")
         ax.set_xlabel(f"Easting ({unit})")
         ax.set_ylabel(f"Northing ({unit})")
@@ -401,8 +479,9 @@ def residual_histograms_svg(
     with plt.rc_context(_RC):
         fig, axes = plt.subplots(1, len(series), figsize=(4 * len(series), 3.5), squeeze=False)
         for ax, (name, v) in zip(axes[0], series, strict=True):
-            _, _, patches = ax.hist(v, bins=MAX_BINS if _too_many_bins(v, bins) else bins,
-                                    color="tab:blue", alpha=0.8)
+            _, _, patches = ax.hist(
+                v, bins=MAX_BINS if _too_many_bins(v, bins) else bins, color="tab:blue", alpha=0.8
+            )
             for p in patches:
                 p.set_gid(f"hist-{name}-bar")
             rmse = float(np.sqrt(np.mean(v * v)))

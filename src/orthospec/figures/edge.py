@@ -22,11 +22,26 @@ from ..measures.edge import NYQUIST, EdgeResult
 if TYPE_CHECKING:
     from matplotlib.typing import RcKeyType
 
-__all__ = ["FitCurves", "detection_svg", "detection_svg_from_arrays", "edge_figures", "esf_svg",
-           "esf_svg_from_arrays", "lsf_svg", "lsf_svg_from_arrays", "mtf_svg", "mtf_svg_from_arrays"]
+__all__ = [
+    "FitCurves",
+    "detection_svg",
+    "detection_svg_from_arrays",
+    "edge_figures",
+    "esf_svg",
+    "esf_svg_from_arrays",
+    "lsf_svg",
+    "lsf_svg_from_arrays",
+    "mtf_svg",
+    "mtf_svg_from_arrays",
+]
 
-_RC: dict[RcKeyType, Any] = {"svg.hashsalt": "orthospec-edge", "svg.fonttype": "none", "font.size": 9,
-       "axes.grid": True, "grid.alpha": 0.3}
+_RC: dict[RcKeyType, Any] = {
+    "svg.hashsalt": "orthospec-edge",
+    "svg.fonttype": "none",
+    "font.size": 9,
+    "axes.grid": True,
+    "grid.alpha": 0.3,
+}
 _COLOURS = {"spline": "tab:red", "fermi": "tab:blue"}
 _MAX_POINTS = 4000
 
@@ -51,7 +66,11 @@ def _figure() -> tuple[Figure, Axes]:
 
 
 def _status(result: EdgeResult) -> str:
-    return "valid" if result.valid else "INVALID: " + "; ".join(r.split(":")[0] for r in result.reasons)
+    return (
+        "valid"
+        if result.valid
+        else "INVALID: " + "; ".join(r.split(":")[0] for r in result.reasons)
+    )
 
 
 def detection_svg(roi: np.ndarray, result: EdgeResult) -> str:
@@ -62,17 +81,36 @@ def detection_svg(roi: np.ndarray, result: EdgeResult) -> str:
         ax.imshow(np.asarray(roi, dtype=float), cmap="gray", interpolation="nearest")
         k = result.line_kept
         if k.size:
-            ax.plot(result.line_x[k], result.line_y[k], ".", ms=3, color="tab:red",
-                    label="edge location per line")
+            ax.plot(
+                result.line_x[k],
+                result.line_y[k],
+                ".",
+                ms=3,
+                color="tab:red",
+                label="edge location per line",
+            )
             if (~k).any():
-                ax.plot(result.line_x[~k], result.line_y[~k], "x", ms=4, color="tab:orange",
-                        label="rejected line")
+                ax.plot(
+                    result.line_x[~k],
+                    result.line_y[~k],
+                    "x",
+                    ms=4,
+                    color="tab:orange",
+                    label="rejected line",
+                )
             if np.isfinite(result.fitted_x).all():
-                ax.plot(result.fitted_x, result.fitted_y, "-", lw=1, color="tab:green",
-                        label="fitted edge line")
+                ax.plot(
+                    result.fitted_x,
+                    result.fitted_y,
+                    "-",
+                    lw=1,
+                    color="tab:green",
+                    label="fitted edge line",
+                )
         angle = "n/a" if result.angle_deg is None else f"{result.angle_deg:.2f}°"
-        ax.set_title(f"Edge detection ({result.direction}, {angle}) — {_status(result)}",
-                     fontsize=8)
+        ax.set_title(
+            f"Edge detection ({result.direction}, {angle}) — {_status(result)}", fontsize=8
+        )
         ax.set_xlabel("x (column, px)")
         ax.set_ylabel("y (row, px)")
         if k.size:
@@ -95,8 +133,10 @@ def esf_svg(result: EdgeResult) -> str:
             ax.plot(d, v, ".", ms=1.5, color="0.5", label="pixels")
             for fit in result.fits.values():
                 ax.plot(fit.x, fit.esf, "-", lw=1.2, color=_colour(fit.fit), label=f"{fit.fit} fit")
-            for x, name, align in ((result.dark_start_px, "dark start ", "right"),
-                                   (result.bright_start_px, " bright start", "left")):
+            for x, name, align in (
+                (result.dark_start_px, "dark start ", "right"),
+                (result.bright_start_px, " bright start", "left"),
+            ):
                 if x is not None:
                     ax.axvline(x, ls=":", lw=0.8, color="k")
                     ax.text(x, 1.03, name, fontsize=6, ha=align)
@@ -112,11 +152,23 @@ def lsf_svg(result: EdgeResult) -> str:
     with mpl.rc_context(_RC):
         fig, ax = _figure()
         for fit in result.fits.values():
-            ax.plot(fit.x, fit.lsf, "-", lw=1.2, color=_colour(fit.fit),
-                    label=f"{fit.fit}: FWHM {fit.fwhm_px:.3f} px")
+            ax.plot(
+                fit.x,
+                fit.lsf,
+                "-",
+                lw=1.2,
+                color=_colour(fit.fit),
+                label=f"{fit.fit}: FWHM {fit.fwhm_px:.3f} px",
+            )
             peak = float(np.max(fit.lsf))
-            ax.hlines(peak / 2, fit.centre_px - fit.fwhm_px / 2, fit.centre_px + fit.fwhm_px / 2,
-                      color=_colour(fit.fit), lw=0.8, ls="--")
+            ax.hlines(
+                peak / 2,
+                fit.centre_px - fit.fwhm_px / 2,
+                fit.centre_px + fit.fwhm_px / 2,
+                color=_colour(fit.fit),
+                lw=0.8,
+                ls="--",
+            )
         if result.fits:
             ax.legend(loc="upper right", fontsize=7)
         ax.set_xlabel("distance from edge, perpendicular (px)")
@@ -130,8 +182,14 @@ def mtf_svg(result: EdgeResult) -> str:
     with mpl.rc_context(_RC):
         fig, ax = _figure()
         for fit in result.fits.values():
-            ax.plot(fit.mtf_freq, fit.mtf, "-", lw=1.2, color=_colour(fit.fit),
-                    label=f"{fit.fit}: MTF@Ny {fit.mtf_nyquist:.3f}")
+            ax.plot(
+                fit.mtf_freq,
+                fit.mtf,
+                "-",
+                lw=1.2,
+                color=_colour(fit.fit),
+                label=f"{fit.fit}: MTF@Ny {fit.mtf_nyquist:.3f}",
+            )
             ax.plot([NYQUIST], [fit.mtf_nyquist], "o", ms=4, color=_colour(fit.fit))
         ax.axvline(NYQUIST, ls="--", lw=0.8, color="k")
         ax.text(NYQUIST, 1.02, "Nyquist", fontsize=7, ha="center")
@@ -165,10 +223,10 @@ class FitCurves:
     """One fitted ESF/LSF/MTF as stored in qcr.json (``details.edges.<id>.curves.fits``)."""
 
     fit: str
-    x: np.ndarray          # px, perpendicular distance
-    esf: np.ndarray        # normalised 0..1
-    lsf: np.ndarray        # 1/px
-    freq: np.ndarray       # cycles/px
+    x: np.ndarray  # px, perpendicular distance
+    esf: np.ndarray  # normalised 0..1
+    lsf: np.ndarray  # 1/px
+    freq: np.ndarray  # cycles/px
     mtf: np.ndarray
     centre_px: float | None = None
     fwhm_px: float | None = None
@@ -189,10 +247,17 @@ def _finite(*arrays: Sequence[float | None] | np.ndarray) -> list[np.ndarray]:
     return [a[ok] for a in arrs]
 
 
-def detection_svg_from_arrays(kept_x: Sequence[float], kept_y: Sequence[float], *,
-                              shape: tuple[int, int], rejected_x: Sequence[float] = (),
-                              rejected_y: Sequence[float] = (), fit_x: Sequence[float] = (),
-                              fit_y: Sequence[float] = (), title: str = "Edge detection") -> str:
+def detection_svg_from_arrays(
+    kept_x: Sequence[float],
+    kept_y: Sequence[float],
+    *,
+    shape: tuple[int, int],
+    rejected_x: Sequence[float] = (),
+    rejected_y: Sequence[float] = (),
+    fit_x: Sequence[float] = (),
+    fit_y: Sequence[float] = (),
+    title: str = "Edge detection",
+) -> str:
     """Per-line edge locations and the fitted line in the ROI frame, without the image (step 5)."""
     kx, ky = _finite(kept_x, kept_y)
     rx, ry = _finite(rejected_x, rejected_y)
@@ -216,9 +281,15 @@ def detection_svg_from_arrays(kept_x: Sequence[float], kept_y: Sequence[float], 
         return _svg(fig)
 
 
-def esf_svg_from_arrays(d: Sequence[float], v: Sequence[float], fits: Sequence[FitCurves], *,
-                        dark_start_px: float | None = None, bright_start_px: float | None = None,
-                        title: str = "Edge spread function") -> str:
+def esf_svg_from_arrays(
+    d: Sequence[float],
+    v: Sequence[float],
+    fits: Sequence[FitCurves],
+    *,
+    dark_start_px: float | None = None,
+    bright_start_px: float | None = None,
+    title: str = "Edge spread function",
+) -> str:
     """Normalised ESF samples and the fitted ESFs, plateau starts marked (steps 6-8)."""
     dd, vv = _finite(d, v)
     with mpl.rc_context(_RC):
@@ -228,8 +299,10 @@ def esf_svg_from_arrays(d: Sequence[float], v: Sequence[float], fits: Sequence[F
         for f in fits:
             x, e = _finite(f.x, f.esf)
             ax.plot(x, e, "-", lw=1.2, color=_colour(f.fit), label=f"{f.fit} fit")
-        for start, name, align in ((dark_start_px, "dark start ", "right"),
-                               (bright_start_px, " bright start", "left")):
+        for start, name, align in (
+            (dark_start_px, "dark start ", "right"),
+            (bright_start_px, " bright start", "left"),
+        ):
             if start is not None:
                 ax.axvline(start, ls=":", lw=0.8, color="k")
                 ax.text(start, 1.03, name, fontsize=6, ha=align)
@@ -255,9 +328,12 @@ def lsf_svg_from_arrays(fits: Sequence[FitCurves], *, title: str = "Line spread 
             ax.plot(x, y, "-", lw=1.2, color=c, label=label)
             if f.fwhm_px is not None:
                 mid = f.centre_px if f.centre_px is not None else float(x[int(np.argmax(y))])
-                ax.annotate("", xy=(mid - f.fwhm_px / 2, float(y.max()) / 2),
-                            xytext=(mid + f.fwhm_px / 2, float(y.max()) / 2),
-                            arrowprops={"arrowstyle": "<->", "color": c, "lw": 0.8})
+                ax.annotate(
+                    "",
+                    xy=(mid - f.fwhm_px / 2, float(y.max()) / 2),
+                    xytext=(mid + f.fwhm_px / 2, float(y.max()) / 2),
+                    arrowprops={"arrowstyle": "<->", "color": c, "lw": 0.8},
+                )
         if fits:
             ax.legend(loc="upper right", fontsize=6.5)
         ax.set_xlabel("distance from edge, perpendicular (px)")
@@ -266,7 +342,9 @@ def lsf_svg_from_arrays(fits: Sequence[FitCurves], *, title: str = "Line spread 
         return _svg(fig)
 
 
-def mtf_svg_from_arrays(fits: Sequence[FitCurves], *, title: str = "Modulation transfer function") -> str:
+def mtf_svg_from_arrays(
+    fits: Sequence[FitCurves], *, title: str = "Modulation transfer function"
+) -> str:
     """MTF of each fit, Nyquist (0.5 cycles/px) marked with the value there (step 12)."""
     with mpl.rc_context(_RC):
         fig, ax = _small()

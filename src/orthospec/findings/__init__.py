@@ -14,5 +14,13 @@ from .geometry import DeliveryGeometry, read_geometry, with_footprints
 from .gpkg import to_gpkg
 from .layers import LAYER_NAMES, FindingsLayers, Layer, build_layers
 
-__all__ = ["LAYER_NAMES", "DeliveryGeometry", "FindingsLayers", "Layer", "build_layers", "read_geometry", "to_gpkg",
-           "with_footprints"]
+__all__ = [
+    "LAYER_NAMES",
+    "DeliveryGeometry",
+    "FindingsLayers",
+    "Layer",
+    "build_layers",
+    "read_geometry",
+    "to_gpkg",
+    "with_footprints",
+]

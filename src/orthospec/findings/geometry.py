@@ -53,8 +53,11 @@ def with_footprints(doc: dict[str, Any], geometry: DeliveryGeometry) -> dict[str
     raster), so the map of the findings re-renders from qcr.json alone (``orthospec report``)."""
     from ..qcr import natural_key
 
-    feet = {iid: list(b) for iid, b in sorted(geometry.footprints.items(), key=lambda kv: natural_key(kv[0]))
-            if b is not None}
+    feet = {
+        iid: list(b)
+        for iid, b in sorted(geometry.footprints.items(), key=lambda kv: natural_key(kv[0]))
+        if b is not None
+    }
     if feet:
         doc["details"] = dict(sorted({**(doc.get("details") or {}), "footprints": feet}.items()))
     return doc

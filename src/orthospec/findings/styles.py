@@ -33,7 +33,9 @@ def _symbol(parent: etree._Element, kind: str, name: str, rgb: tuple[int, int, i
     sym = etree.SubElement(parent, "symbol", type=kind, name=name, alpha="1", clip_to_extent="1",
                            force_rhr="0")
     cls = {"fill": "SimpleFill", "marker": "SimpleMarker", "line": "SimpleLine"}[kind]
-    lay = etree.SubElement(sym, "layer", attrib={"class": cls, "enabled": "1", "pass": "0", "locked": "0"})
+    lay = etree.SubElement(
+        sym, "layer", attrib={"class": cls, "enabled": "1", "pass": "0", "locked": "0"}
+    )
     opts = etree.SubElement(lay, "Option", type="Map")
     if kind == "fill":
         _option(opts, "color", _rgba(rgb, 90))
@@ -54,16 +56,33 @@ def qml(layer: Layer) -> str:
     """QGIS QML: a categorised renderer on ``verdict`` (every verdict, plus 'not judged')."""
     kind = _KIND[str(layer.geometry_type)]
     root = etree.Element("qgis", version="3.28.0", styleCategories="Symbology")
-    rend = etree.SubElement(root, "renderer-v2", type="categorizedSymbol", attr="verdict", symbollevels="0",
-                            enableorderby="0", forceraster="0")
+    rend = etree.SubElement(
+        root,
+        "renderer-v2",
+        type="categorizedSymbol",
+        attr="verdict",
+        symbollevels="0",
+        enableorderby="0",
+        forceraster="0",
+    )
     cats = etree.SubElement(rend, "categories")
     syms = etree.SubElement(rend, "symbols")
     for k, (verdict, rgb) in enumerate([*COLOURS.items(), ("", OTHER)]):
-        etree.SubElement(cats, "category", symbol=str(k), value=verdict, label=verdict or "not judged",
-                         render="true")
+        etree.SubElement(
+            cats,
+            "category",
+            symbol=str(k),
+            value=verdict,
+            label=verdict or "not judged",
+            render="true",
+        )
         _symbol(syms, kind, str(k), rgb)
-    etree.SubElement(root, "layerGeometryType").text = {"marker": "0", "line": "1", "fill": "2"}[kind]
-    return "<!DOCTYPE qgis PUBLIC 'http://mrcc.com/qgis.dtd' 'SYSTEM'>\n" + etree.tostring(root, encoding="unicode")
+    etree.SubElement(root, "layerGeometryType").text = {"marker": "0", "line": "1", "fill": "2"}[
+        kind
+    ]
+    return "<!DOCTYPE qgis PUBLIC 'http://mrcc.com/qgis.dtd' 'SYSTEM'>\n" + etree.tostring(
+        root, encoding="unicode"
+    )
 
 
 _SLD = "http://www.opengis.net/sld"
@@ -78,7 +97,9 @@ def sld(layer: Layer) -> str:
     root = etree.Element(f"{{{_SLD}}}StyledLayerDescriptor", nsmap=nsmap, version="1.1.0")
     nl = etree.SubElement(root, f"{{{_SLD}}}NamedLayer")
     etree.SubElement(nl, f"{{{_SE}}}Name").text = layer.name
-    fts = etree.SubElement(etree.SubElement(nl, f"{{{_SLD}}}UserStyle"), f"{{{_SE}}}FeatureTypeStyle")
+    fts = etree.SubElement(
+        etree.SubElement(nl, f"{{{_SLD}}}UserStyle"), f"{{{_SE}}}FeatureTypeStyle"
+    )
     for verdict, rgb in COLOURS.items():
         rule = etree.SubElement(fts, f"{{{_SE}}}Rule")
         etree.SubElement(rule, f"{{{_SE}}}Name").text = verdict

@@ -54,9 +54,23 @@ STATEMENTS = frozenset({"product.accuracy_statement"})
 #: colour interpretation (GDAL) -> the convention's band names
 BAND_NAMES = {"red": "R", "green": "G", "blue": "B", "gray": "PAN", "grey": "PAN", "alpha": "ALPHA"}
 #: manifest fields a metadata file may fill, in the order they are written
-FIELDS = ("id", "project.id", "project.name", "project.crs", "contractor.name", "contractor.contact",
-          "dates.acquired_from", "dates.acquired_to", "sensor.type", "sensor.platform", "sensor.camera",
-          "sensor.digital", "product.gsd", "product.bit_depth", "product.accuracy_statement")
+FIELDS = (
+    "id",
+    "project.id",
+    "project.name",
+    "project.crs",
+    "contractor.name",
+    "contractor.contact",
+    "dates.acquired_from",
+    "dates.acquired_to",
+    "sensor.type",
+    "sensor.platform",
+    "sensor.camera",
+    "sensor.digital",
+    "product.gsd",
+    "product.bit_depth",
+    "product.accuracy_statement",
+)
 
 
 @dataclass
@@ -89,7 +103,9 @@ class Draft:
 # ------------------------------------------------------------------ public entry point
 
 
-def make_draft(folder: str | Path, sources: Sequence[str | Path], opts: Options | None = None) -> Draft:
+def make_draft(
+    folder: str | Path, sources: Sequence[str | Path], opts: Options | None = None
+) -> Draft:
     """Write the draft delivery ``folder`` from the files under ``sources`` (read in place).
 
     Raises
@@ -107,7 +123,9 @@ def make_draft(folder: str | Path, sources: Sequence[str | Path], opts: Options 
     state = _Scan(out, srcs, opts)
     state.run()
     out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent if out.parent.exists() else None))
+    tmp = Path(
+        tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent if out.parent.exists() else None)
+    )
     try:
         umask = os.umask(0)
         os.umask(umask)
@@ -132,15 +150,21 @@ def _check_places(out: Path, srcs: list[Path]) -> None:
         if not s.exists():
             raise DeliveryError(f"source {str(s)!r} not found")
         if not s.is_dir():
-            raise DeliveryError(f"source {str(s)!r} is a file, not a folder; `init --from` takes the folder the "
-                                "delivery arrived in")
+            raise DeliveryError(
+                f"source {str(s)!r} is a file, not a folder; `init --from` takes the folder the "
+                "delivery arrived in"
+            )
         rs = s.resolve()
         if real_out.is_relative_to(rs) or rs.is_relative_to(real_out):
-            raise DeliveryError(f"the draft {out} would lie inside the source {s} (or hold it): nothing is written "
-                                "into a source; put the draft beside it")
+            raise DeliveryError(
+                f"the draft {out} would lie inside the source {s} (or hold it): nothing is written "
+                "into a source; put the draft beside it"
+            )
     if len(srcs) > 1:
-        raise DeliveryError("one source folder per draft: give the folder the delivery arrived in (its "
-                            "subfolders are read)")
+        raise DeliveryError(
+            "one source folder per draft: give the folder the delivery arrived in (its "
+            "subfolders are read)"
+        )
 
 
 # ------------------------------------------------------------------ the scan
@@ -191,7 +215,9 @@ class _Scan:
             if self.opts.progress:
                 self.opts.progress(done[0], total)
 
-        self.facts = list(read_all(jobs, sha256=self.opts.sha256, workers=self.opts.workers, on_done=tick))
+        self.facts = list(
+            read_all(jobs, sha256=self.opts.sha256, workers=self.opts.workers, on_done=tick)
+        )
         self.result.unreadable = [(f.path, f.error) for f in self.facts if f.error]
 
     def _readable(self) -> list[RasterFacts]:
@@ -212,11 +238,18 @@ class _Scan:
                 if old is None:
                     self.fields[s.field] = s
                 elif s.field in STATEMENTS and old.value != s.value:  # two statements: both quoted
-                    self.fields[s.field] = Stated(s.field, f"{old.value} | {s.value}", old.file,
-                                                  f"{old.xpath}; {s.file}:{s.line or ''} {s.xpath}", old.line)
+                    self.fields[s.field] = Stated(
+                        s.field,
+                        f"{old.value} | {s.value}",
+                        old.file,
+                        f"{old.xpath}; {s.file}:{s.line or ''} {s.xpath}",
+                        old.line,
+                    )
                 elif old.value != s.value:
-                    self.conflicts.append(f"`{s.field}`: {old.where} states {old.value!r}, {s.where} states "
-                                          f"{s.value!r}: left empty")
+                    self.conflicts.append(
+                        f"`{s.field}`: {old.where} states {old.value!r}, {s.where} states "
+                        f"{s.value!r}: left empty"
+                    )
         for c in self.conflicts:
             key = c.split("`")[1]
             self.fields.pop(key, None)
@@ -254,7 +287,9 @@ class _Scan:
                 from pyproj.exceptions import ProjError
 
                 try:
-                    t = Transformer.from_crs(CRS.from_wkt(f.crs_wkt), CRS.from_wkt(self._frame_wkt), always_xy=True)
+                    t = Transformer.from_crs(
+                        CRS.from_wkt(f.crs_wkt), CRS.from_wkt(self._frame_wkt), always_xy=True
+                    )
                 except ProjError:
                     t = False
                 to_frame[f.crs_name] = t
@@ -303,16 +338,21 @@ class _Scan:
             if len(blocks) == 1:
                 self.outlines, self.outline_source = blocks[0].outlines, blocks[0].file
             elif len(blocks) > 1:
-                self.notes.append("several block layers (" + ", ".join(b.file for b in blocks) + "): none used; "
-                                  "give one with --blocks")
+                self.notes.append(
+                    "several block layers (" + ", ".join(b.file for b in blocks) + "): none used; "
+                    "give one with --blocks"
+                )
         if self.outlines:
             from ..delivery.outlines import first_overlap
 
             ids = sorted(self.outlines)
             hit = first_overlap([self.outlines[i] for i in ids])
             if hit is not None:
-                raise DeliveryError(f"block outlines {ids[hit[0]]} and {ids[hit[1]]} overlap (area {hit[2]:.6g}): "
-                                    "a point cannot belong to two blocks", file=self.outline_source)
+                raise DeliveryError(
+                    f"block outlines {ids[hit[0]]} and {ids[hit[1]]} overlap (area {hit[2]:.6g}): "
+                    "a point cannot belong to two blocks",
+                    file=self.outline_source,
+                )
 
     def _points(self) -> None:
         layouts: list[dict[str, Any]] = []
@@ -325,9 +365,20 @@ class _Scan:
         if crs and readable:
             units = {f.pixel_unit for f in readable}
             u = units.pop() if len(units) == 1 else None
-            unit = {"metre": "m", "meter": "m", "m": "m", "foot": "ft", "US survey foot": "usft"}.get(u or "")
-        ctx = P.Context(footprints=sorted(fps.items()), crs_unit=unit, crs_name=crs, outlines=self.outlines,
-                        layouts=layouts)
+            unit = {
+                "metre": "m",
+                "meter": "m",
+                "m": "m",
+                "foot": "ft",
+                "US survey foot": "usft",
+            }.get(u or "")
+        ctx = P.Context(
+            footprints=sorted(fps.items()),
+            crs_unit=unit,
+            crs_name=crs,
+            outlines=self.outlines,
+            layouts=layouts,
+        )
         errors: list[P.Ambiguous] = []
         for name, f in self.files:
             if f.kind != "sheet":
@@ -343,9 +394,11 @@ class _Scan:
         tables = Counter(p.layout.table for p in self.points)
         for t, n in tables.items():
             if n > 1:
-                raise DeliveryError(f"{n} survey files feed the {t} table ("
-                                    + ", ".join(p.file for p in self.points if p.layout.table == t)
-                                    + "): give one source per table, or merge them")
+                raise DeliveryError(
+                    f"{n} survey files feed the {t} table ("
+                    + ", ".join(p.file for p in self.points if p.layout.table == t)
+                    + "): give one source per table, or merge them"
+                )
 
     # ------------------------------------------------------------------ composing
 
@@ -357,20 +410,26 @@ class _Scan:
             return self.opts.sensor, "--sensor"
         s = self.fields.get("sensor.type")
         if s is None:
-            raise DeliveryError("the files do not state the sensor type (aerial or satellite): no metadata names "
-                                "the platform or camera; give it with --sensor aerial|satellite")
+            raise DeliveryError(
+                "the files do not state the sensor type (aerial or satellite): no metadata names "
+                "the platform or camera; give it with --sensor aerial|satellite"
+            )
         return str(s.value), s.where
 
     def _ident(self) -> tuple[str, str]:
         s = self.fields.get("id")
         if self.opts.ident:
             if s is not None and s.value != self.opts.ident:
-                self.notes.append(f"the metadata's identifier {s.value!r} ({s.where}) is not the delivery id "
-                                  f"given with --id ({self.opts.ident!r})")
+                self.notes.append(
+                    f"the metadata's identifier {s.value!r} ({s.where}) is not the delivery id "
+                    f"given with --id ({self.opts.ident!r})"
+                )
             return self.opts.ident, "--id"
         if s is None:
-            raise DeliveryError("the files do not state the delivery's identifier (no metadata fileIdentifier); "
-                                "give it with --id (the checker's file binds to it)")
+            raise DeliveryError(
+                "the files do not state the delivery's identifier (no metadata fileIdentifier); "
+                "give it with --id (the checker's file binds to it)"
+            )
         return str(s.value), s.where
 
     def write(self, tmp: Path) -> None:
@@ -389,7 +448,9 @@ class _Scan:
         img_cols, img_rows = self._images_table(ids, image_blocks)
         _write_csv(tmp / "tables" / "images.csv", img_cols, img_rows)
         _write_csv(tmp / "ingest" / "rasters.csv", *_facts_table(self.facts))
-        tables = {"images": {c for c in img_cols if any(r.get(c) not in (None, "") for r in img_rows)}}
+        tables = {
+            "images": {c for c in img_cols if any(r.get(c) not in (None, "") for r in img_rows)}
+        }
         withheld: dict[str, str] = {}
         units: dict[str, str] = {}
         for pr in self.points:
@@ -397,9 +458,11 @@ class _Scan:
             body, filled = pr.csv_text, pr.filled
             if pr.unblocked or not pr.rows:
                 (tmp / "ingest" / f"{t}.csv").write_text(body, encoding="utf-8")
-                withheld[t] = (f"read from {pr.file} into ingest/{t}.csv, but the points have no block (no "
-                               "outlines given and no block column): add the blocks, then declare the table "
-                               f"(`tables: {{{t}: ingest/{t}.csv}}`)")
+                withheld[t] = (
+                    f"read from {pr.file} into ingest/{t}.csv, but the points have no block (no "
+                    "outlines given and no block column): add the blocks, then declare the table "
+                    f"(`tables: {{{t}: ingest/{t}.csv}}`)"
+                )
                 continue
             (tmp / "tables" / f"{t}.csv").write_text(body, encoding="utf-8")
             tables[t] = filled
@@ -411,45 +474,80 @@ class _Scan:
             vectors["seamlines"] = seam[0].file
         if len(tiles) == 1:
             vectors["tiles"] = tiles[0].file
-        manifest, comments = self._manifest(sensor, sensor_src, tables, units, vectors, image_blocks)
+        manifest, comments = self._manifest(
+            sensor, sensor_src, tables, units, vectors, image_blocks
+        )
         # --- TODO
         from ..profile.loader import load_profile
 
         profile = load_profile(self.opts.profile)
         filled = {k for k in _flat(manifest)}
-        if len(seam) == 1 and (seam[0].matched_by or "").lower().removeprefix("attribute ") in IMAGE_FIELDS:
+        if (
+            len(seam) == 1
+            and (seam[0].matched_by or "").lower().removeprefix("attribute ") in IMAGE_FIELDS
+        ):
             filled.add("vectors.seamlines.image_id")  # the rules read each polygon's image from it
         digital = manifest.get("sensor", {}).get("digital")
-        st = DraftState(filled=filled, tables=tables, blocks=bool(self.outlines), sensor=sensor,
-                        digital=digital, withheld=withheld,
-                        itt_params={n for n, p in profile.parameters.items() if p.authority() == "itt"})
+        st = DraftState(
+            filled=filled,
+            tables=tables,
+            blocks=bool(self.outlines),
+            sensor=sensor,
+            digital=digital,
+            withheld=withheld,
+            itt_params={n for n, p in profile.parameters.items() if p.authority() == "itt"},
+        )
         ents = entries(profile, st)
-        head = [f"# TODO: what the files in {', '.join(self._src_texts())} do not tell", "",
-                f"Written by `orthospec init --from` for profile {profile.id} {profile.version} ({sensor}). Each",
-                "entry below is a value the files do not state; the draft leaves it empty (never a default) and",
-                "`orthospec check` reports the rules listed under it as `missing`, naming this file and line.",
-                "Fill a value in delivery.yaml or the table named, or hand the checker's entries to the checker.",
-                ""]
+        head = [
+            f"# TODO: what the files in {', '.join(self._src_texts())} do not tell",
+            "",
+            f"Written by `orthospec init --from` for profile {profile.id} {profile.version} ({sensor}). Each",
+            "entry below is a value the files do not state; the draft leaves it empty (never a default) and",
+            "`orthospec check` reports the rules listed under it as `missing`, naming this file and line.",
+            "Fill a value in delivery.yaml or the table named, or hand the checker's entries to the checker.",
+            "",
+        ]
         todo_text, rule_lines = render(ents, head=head)
         (tmp / "TODO.md").write_text(todo_text, encoding="utf-8")
-        (tmp / "ingest" / "todo-rules.json").write_text(json.dumps(rule_lines, indent=0, sort_keys=True) + "\n",
-                                                        encoding="utf-8")
+        (tmp / "ingest" / "todo-rules.json").write_text(
+            json.dumps(rule_lines, indent=0, sort_keys=True) + "\n", encoding="utf-8"
+        )
         self.result.todo = sum(1 for e in ents if e.rules)
         self.result.missing_rules = len({r for e in ents for r in e.rules})
-        (tmp / "delivery.yaml").write_text(_manifest_text(manifest, comments, self._src_texts()), encoding="utf-8")
-        _write_csv(tmp / "ingest" / "evidence.csv", ["field", "value", "file", "line", "xpath"],
-                   [{"field": s.field, "value": _scalar(s.value), "file": s.file, "line": s.line or "",
-                     "xpath": s.xpath} for m in self.meta for s in m.stated])
+        (tmp / "delivery.yaml").write_text(
+            _manifest_text(manifest, comments, self._src_texts()), encoding="utf-8"
+        )
+        _write_csv(
+            tmp / "ingest" / "evidence.csv",
+            ["field", "value", "file", "line", "xpath"],
+            [
+                {
+                    "field": s.field,
+                    "value": _scalar(s.value),
+                    "file": s.file,
+                    "line": s.line or "",
+                    "xpath": s.xpath,
+                }
+                for m in self.meta
+                for s in m.stated
+            ],
+        )
         (tmp / "ingest" / "points-mapping.yaml").write_text(self._mapping_text(), encoding="utf-8")
         report = self._report(sensor, sensor_src, withheld, vectors)
         (tmp / "INGEST.md").write_text("\n".join(report) + "\n", encoding="utf-8")
         self.result.images = sum(1 for f in self.facts if f.error is None)
         self.result.report = report
-        self.result.written = sorted(p.relative_to(tmp).as_posix() for p in tmp.rglob("*")
-                                     if p.is_file() and not p.is_symlink())
+        self.result.written = sorted(
+            p.relative_to(tmp).as_posix()
+            for p in tmp.rglob("*")
+            if p.is_file() and not p.is_symlink()
+        )
 
     def _src_texts(self) -> list[str]:
-        return [os.path.relpath(s.resolve(), self.out.parent.resolve() / self.out.name) for s in self.srcs]
+        return [
+            os.path.relpath(s.resolve(), self.out.parent.resolve() / self.out.name)
+            for s in self.srcs
+        ]
 
     def _image_blocks(self) -> dict[str, str]:
         if not self.outlines:
@@ -457,7 +555,9 @@ class _Scan:
         import shapely
 
         out = {}
-        for image, bounds in sorted(self._footprints().items()):  # in the frame CRS, as the outlines
+        for image, bounds in sorted(
+            self._footprints().items()
+        ):  # in the frame CRS, as the outlines
             c = shapely.box(*bounds).centroid
             for bid in sorted(self.outlines):
                 if self.outlines[bid].covers(c):
@@ -465,22 +565,45 @@ class _Scan:
                     break
         return out
 
-    def _images_table(self, ids: dict[str, str], blocks: dict[str, str]) -> tuple[list[str], list[dict[str, Any]]]:
+    def _images_table(
+        self, ids: dict[str, str], blocks: dict[str, str]
+    ) -> tuple[list[str], list[dict[str, Any]]]:
         cols = ["image_id", "file", "block", "gsd", "bit_depth", "bands"]
         rows = []
-        for f in self.facts:  # an unreadable one too: the check judges it (raster.readable), never dropped
+        for f in (
+            self.facts
+        ):  # an unreadable one too: the check judges it (raster.readable), never dropped
             gsd = None
             ps = f.pixel_size_m
             if ps is not None and abs(ps[0] - ps[1]) <= 1e-9 * max(ps):
                 gsd = _num(ps[0])
             names = [BAND_NAMES.get(c) for c in f.colorinterp]
-            bands = ";".join(n for n in names if n) if names and all(names) and "ALPHA" not in names else None
-            rows.append({"image_id": ids[f.path], "file": f.path, "block": blocks.get(ids[f.path]), "gsd": gsd,
-                         "bit_depth": f.nbits, "bands": bands})
+            bands = (
+                ";".join(n for n in names if n)
+                if names and all(names) and "ALPHA" not in names
+                else None
+            )
+            rows.append(
+                {
+                    "image_id": ids[f.path],
+                    "file": f.path,
+                    "block": blocks.get(ids[f.path]),
+                    "gsd": gsd,
+                    "bit_depth": f.nbits,
+                    "bands": bands,
+                }
+            )
         return cols, rows
 
-    def _manifest(self, sensor: str, sensor_src: str, tables: dict[str, set[str]], units: dict[str, str],
-                  vectors: dict[str, str], image_blocks: dict[str, str]) -> tuple[dict[str, Any], dict[str, str]]:
+    def _manifest(
+        self,
+        sensor: str,
+        sensor_src: str,
+        tables: dict[str, set[str]],
+        units: dict[str, str],
+        vectors: dict[str, str],
+        image_blocks: dict[str, str],
+    ) -> tuple[dict[str, Any], dict[str, str]]:
         m: dict[str, Any] = {"orthospec_delivery": 1}
         comments: dict[str, str] = {}
 
@@ -513,8 +636,10 @@ class _Scan:
                     ring = [[_num(x), _num(y)] for x, y in poly.exterior.coords]
                     blocks.append({"id": bid, "polygon": ring})
                 else:
-                    self.notes.append(f"block {bid}: a multipolygon or a polygon with holes, written without its "
-                                      "outline (the manifest holds one ring per block)")
+                    self.notes.append(
+                        f"block {bid}: a multipolygon or a polygon with holes, written without its "
+                        "outline (the manifest holds one ring per block)"
+                    )
                     blocks.append({"id": bid})
             m["blocks"] = blocks
             comments["blocks"] = f"outlines from {self.outline_source}"
@@ -523,37 +648,66 @@ class _Scan:
             m["units"] = dict(sorted(units.items()))
         if vectors:
             m["vectors"] = dict(sorted(vectors.items()))
-        m["draft"] = {"source": self._src_texts()[0], "links": LINKS, "todo": "TODO.md",
-                      "todo_rules": "ingest/todo-rules.json", "made_by": f"orthospec {__version__} init --from"}
+        m["draft"] = {
+            "source": self._src_texts()[0],
+            "links": LINKS,
+            "todo": "TODO.md",
+            "todo_rules": "ingest/todo-rules.json",
+            "made_by": f"orthospec {__version__} init --from",
+        }
         return m, comments
 
     def _mapping_text(self) -> str:
-        head = ("# The survey layouts `orthospec init --from` read (matched on the header): give this file to\n"
-                "# `orthospec init DIR --from SOURCE --mapping FILE` and a survey in the same layout is read\n"
-                "# the same way, without questions. Roles: the columns of specs/delivery-tables.yaml.\n")
-        doc = {"orthospec_points_mapping": 1,
-               "layouts": [p.layout.to_mapping([p.file]) for p in self.points]}
+        head = (
+            "# The survey layouts `orthospec init --from` read (matched on the header): give this file to\n"
+            "# `orthospec init DIR --from SOURCE --mapping FILE` and a survey in the same layout is read\n"
+            "# the same way, without questions. Roles: the columns of specs/delivery-tables.yaml.\n"
+        )
+        doc = {
+            "orthospec_points_mapping": 1,
+            "layouts": [p.layout.to_mapping([p.file]) for p in self.points],
+        }
         return head + yaml.safe_dump(doc, sort_keys=False, allow_unicode=True, width=100)
 
-    def _report(self, sensor: str, sensor_src: str, withheld: dict[str, str], vectors: dict[str, str]) -> list[str]:
+    def _report(
+        self, sensor: str, sensor_src: str, withheld: dict[str, str], vectors: dict[str, str]
+    ) -> list[str]:
         ok = [f for f in self.facts if f.error is None]
-        lines = [f"# Draft of {', '.join(self._src_texts())}", "",
-                 f"Written by `orthospec init --from` (orthospec {__version__}). The files are read in place "
-                 f"through the links under `{LINKS}/`; nothing was copied or written into the source.", "",
-                 "## Images", "",
-                 f"{len(self.facts)} image files, {len(ok)} readable"
-                 + (f", {len(self.facts) - len(ok)} not readable (listed below; kept in tables/images.csv, where the check "
-                    "judges them)"
-                    if len(ok) < len(self.facts) else "") + ". Facts of each: `ingest/rasters.csv`."]
+        lines = [
+            f"# Draft of {', '.join(self._src_texts())}",
+            "",
+            f"Written by `orthospec init --from` (orthospec {__version__}). The files are read in place "
+            f"through the links under `{LINKS}/`; nothing was copied or written into the source.",
+            "",
+            "## Images",
+            "",
+            f"{len(self.facts)} image files, {len(ok)} readable"
+            + (
+                f", {len(self.facts) - len(ok)} not readable (listed below; kept in tables/images.csv, where the check "
+                "judges them)"
+                if len(ok) < len(self.facts)
+                else ""
+            )
+            + ". Facts of each: `ingest/rasters.csv`.",
+        ]
         crs = Counter(f.crs_name or "(none)" for f in ok)
         if len(crs) > 1:
-            lines.append("- **Mixed CRSs**: " + ", ".join(f"{k} ({v} images)" for k, v in sorted(crs.items())))
+            lines.append(
+                "- **Mixed CRSs**: "
+                + ", ".join(f"{k} ({v} images)" for k, v in sorted(crs.items()))
+            )
         elif crs:
             lines.append(f"- CRS: {next(iter(crs))}")
-        gsd = Counter(f"{_num(f.pixel_size[0])} x {_num(f.pixel_size[1])} {f.pixel_unit or ''}".strip()
-                      for f in ok if f.pixel_size)
+        gsd = Counter(
+            f"{_num(f.pixel_size[0])} x {_num(f.pixel_size[1])} {f.pixel_unit or ''}".strip()
+            for f in ok
+            if f.pixel_size
+        )
         if len(gsd) > 1:
-            lines.append("- **Mixed pixel sizes**: " + ", ".join(f"{k} ({v} images)" for k, v in sorted(gsd.items())))
+            lines.append(
+                "- **Mixed pixel sizes**: "
+                + ", ".join(f"{k} ({v} images)" for k, v in sorted(gsd.items()))
+            )
         elif gsd:
             lines.append(f"- Pixel size: {next(iter(gsd))}")
         nogeo = [f for f in ok if not f.georeferenced]
@@ -561,14 +715,28 @@ class _Scan:
             lines.append(f"- `{f.path}`: {f.georeference}")
         frame = self._frame()
         if len(crs) > 1 and frame:
-            lines.append(f"- footprints compared in {frame}, the CRS most images use (tile index, seamlines, block "
-                         "outlines and survey points are matched there); overlaps only between images of one CRS")
-        overlaps = sorted(o for c in sorted({f.crs_name or "" for f in ok})
-                          for o in _overlaps([(f.path, f.bounds) for f in ok
-                                              if f.bounds and f.georeferenced and (f.crs_name or "") == c]))
+            lines.append(
+                f"- footprints compared in {frame}, the CRS most images use (tile index, seamlines, block "
+                "outlines and survey points are matched there); overlaps only between images of one CRS"
+            )
+        overlaps = sorted(
+            o
+            for c in sorted({f.crs_name or "" for f in ok})
+            for o in _overlaps(
+                [
+                    (f.path, f.bounds)
+                    for f in ok
+                    if f.bounds and f.georeferenced and (f.crs_name or "") == c
+                ]
+            )
+        )
         if overlaps:
-            lines.append(f"- **Overlapping images**: {len(overlaps)} pairs, e.g. "
-                         + "; ".join(f"`{a}` / `{b}` ({_num(area)} sq. units)" for a, b, area in overlaps[:5]))
+            lines.append(
+                f"- **Overlapping images**: {len(overlaps)} pairs, e.g. "
+                + "; ".join(
+                    f"`{a}` / `{b}` ({_num(area)} sq. units)" for a, b, area in overlaps[:5]
+                )
+            )
         for name, why in self.result.unreadable:
             lines.append(f"- not readable: `{name}`: {why}")
         lines += ["", "## Metadata", ""]
@@ -578,7 +746,10 @@ class _Scan:
             if m.refused:
                 lines.append(f"- `{m.file}`: refused: {m.refused}")
             else:
-                lines.append(f"- `{m.file}` ({m.standard}): " + ", ".join(sorted({s.field for s in m.stated})))
+                lines.append(
+                    f"- `{m.file}` ({m.standard}): "
+                    + ", ".join(sorted({s.field for s in m.stated}))
+                )
         lines += [f"- conflict: {c}" for c in self.conflicts]
         lines.append(f"- sensor type {sensor}: {sensor_src}")
         lines += ["", "## Vector layers", ""]
@@ -589,24 +760,37 @@ class _Scan:
                 lines.append(f"- `{lay.file}` ({lay.role}): not used: {lay.error}")
                 continue
             declared = [k for k, v in vectors.items() if v == lay.file]
-            line = (f"- `{lay.file}` ({lay.role}, {lay.features} features, {lay.driver})"
-                    + (f", declared as vectors.{declared[0]}" if declared else "")
-                    + (f", matched by {lay.matched_by}: {len(lay.matched)} images"
-                       if lay.matched_by and lay.role != "blocks" else ""))
+            line = (
+                f"- `{lay.file}` ({lay.role}, {lay.features} features, {lay.driver})"
+                + (f", declared as vectors.{declared[0]}" if declared else "")
+                + (
+                    f", matched by {lay.matched_by}: {len(lay.matched)} images"
+                    if lay.matched_by and lay.role != "blocks"
+                    else ""
+                )
+            )
             lines.append(line)
             if lay.role == "blocks":
                 lines.append(f"  - blocks: {', '.join(sorted(lay.outlines))}")
             if lay.unmatched_features:
-                lines.append(f"  - features matching no image ({len(lay.unmatched_features)}): "
-                             + ", ".join(lay.unmatched_features[:20]))
+                lines.append(
+                    f"  - features matching no image ({len(lay.unmatched_features)}): "
+                    + ", ".join(lay.unmatched_features[:20])
+                )
             if lay.role == "seamlines" and lay.images_without_feature:
-                lines.append(f"  - **images not covered by the seamline polygons** ({len(lay.images_without_feature)}): "
-                             + ", ".join(lay.images_without_feature[:20]))
+                lines.append(
+                    f"  - **images not covered by the seamline polygons** ({len(lay.images_without_feature)}): "
+                    + ", ".join(lay.images_without_feature[:20])
+                )
             if lay.role in ("tiles",) and lay.images_without_feature:
-                lines.append(f"  - images without a feature ({len(lay.images_without_feature)}): "
-                             + ", ".join(lay.images_without_feature[:20]))
+                lines.append(
+                    f"  - images without a feature ({len(lay.images_without_feature)}): "
+                    + ", ".join(lay.images_without_feature[:20])
+                )
             if lay.driver == "GeoJSON":
-                lines.append("  - GeoJSON: used for matching; the check reads GeoPackage or shapefile only")
+                lines.append(
+                    "  - GeoJSON: used for matching; the check reads GeoPackage or shapefile only"
+                )
             lines += [f"  - {n}" for n in lay.notes]
         lines += ["", "## Surveys", ""]
         if not self.points and not self.point_errors:
@@ -616,15 +800,19 @@ class _Scan:
             lines.append(f"- `{pr.file}` -> {pr.layout.table}, {pr.rows} points ({where})")
             lines += [f"  - {n}" for n in pr.notes]
             if pr.outside:
-                lines.append(f"  - outside every block outline, not in the table ({len(pr.outside)}): "
-                             + ", ".join(pr.outside[:20]))
+                lines.append(
+                    f"  - outside every block outline, not in the table ({len(pr.outside)}): "
+                    + ", ".join(pr.outside[:20])
+                )
         lines += [f"- refused: {e}" for e in self.point_errors]
         others = [(n, f) for n, f in self.files if f.kind == "other"]
         lines += ["", "## Other files", ""]
         if not others and not self.refused:
             lines.append("None.")
         for n, f in others:
-            lines.append(f"- `{n}` ({f.bytes} bytes): not read (documents the profile asks for are named in TODO.md)")
+            lines.append(
+                f"- `{n}` ({f.bytes} bytes): not read (documents the profile asks for are named in TODO.md)"
+            )
         for r in self.refused:
             lines.append(f"- `{r.rel}`: {r.why}")
         lines += [f"- {n}" for n in self.notes]
@@ -664,7 +852,9 @@ def _flat(d: dict[str, Any], prefix: str = "") -> list[str]:
     return out
 
 
-def _overlaps(boxes: list[tuple[str, tuple[float, float, float, float] | None]]) -> list[tuple[str, str, float]]:
+def _overlaps(
+    boxes: list[tuple[str, tuple[float, float, float, float] | None]],
+) -> list[tuple[str, str, float]]:
     import shapely
 
     geoms = [shapely.box(*b) for _, b in boxes if b is not None]
@@ -677,34 +867,91 @@ def _overlaps(boxes: list[tuple[str, tuple[float, float, float, float] | None]])
     left, right = shapely.STRtree(arr).query(arr, predicate="intersects")
     keep = left < right
     left, right = left[keep], right[keep]
-    areas = shapely.area(shapely.intersection(arr[left], arr[right]))  # neighbours that only touch: 0
-    return sorted((names[i], names[j], float(a)) for i, j, a in zip(left.tolist(), right.tolist(), areas.tolist(),
-                                                                     strict=True) if a > 0)
+    areas = shapely.area(
+        shapely.intersection(arr[left], arr[right])
+    )  # neighbours that only touch: 0
+    return sorted(
+        (names[i], names[j], float(a))
+        for i, j, a in zip(left.tolist(), right.tolist(), areas.tolist(), strict=True)
+        if a > 0
+    )
 
 
 def _facts_table(facts: list[RasterFacts]) -> tuple[list[str], list[dict[str, Any]]]:
-    cols = ["file", "bytes", "sha256", "error", "georeference", "driver", "width", "height", "count", "dtypes",
-            "bit_depth", "colorinterp", "nodata", "crs", "epsg", "pixel_size_x", "pixel_size_y", "pixel_unit",
-            "left", "bottom", "right", "top", "compression", "lossless", "layout", "block_shape", "overviews",
-            "stored_stats"]
+    cols = [
+        "file",
+        "bytes",
+        "sha256",
+        "error",
+        "georeference",
+        "driver",
+        "width",
+        "height",
+        "count",
+        "dtypes",
+        "bit_depth",
+        "colorinterp",
+        "nodata",
+        "crs",
+        "epsg",
+        "pixel_size_x",
+        "pixel_size_y",
+        "pixel_unit",
+        "left",
+        "bottom",
+        "right",
+        "top",
+        "compression",
+        "lossless",
+        "layout",
+        "block_shape",
+        "overviews",
+        "stored_stats",
+    ]
     rows = []
     for f in facts:
         b = f.bounds or (None, None, None, None)
         ps = f.pixel_size or (None, None)
-        stats = ";".join("" if s is None else "/".join(f"{k}={_num(v)}" for k, v in sorted(s.items()))
-                         for s in f.stats) if any(f.stats) else ""
-        rows.append({"file": f.path, "bytes": f.bytes, "sha256": f.sha256, "error": f.error,
-                     "georeference": f.georeference, "driver": f.driver, "width": f.width, "height": f.height,
-                     "count": f.count, "dtypes": ";".join(f.dtypes), "bit_depth": f.bit_depth,
-                     "colorinterp": ";".join(f.colorinterp),
-                     "nodata": ";".join("" if v is None else str(_num(v)) for v in f.nodata),
-                     "crs": f.crs_name, "epsg": f.epsg, "pixel_size_x": None if ps[0] is None else _num(ps[0]),
-                     "pixel_size_y": None if ps[1] is None else _num(ps[1]), "pixel_unit": f.pixel_unit,
-                     "left": None if b[0] is None else _num(b[0]), "bottom": None if b[1] is None else _num(b[1]),
-                     "right": None if b[2] is None else _num(b[2]), "top": None if b[3] is None else _num(b[3]),
-                     "compression": f.compression, "lossless": f.lossless, "layout": f.layout,
-                     "block_shape": "x".join(map(str, f.block_shape)) if f.block_shape else None,
-                     "overviews": ";".join(map(str, f.overviews)), "stored_stats": stats})
+        stats = (
+            ";".join(
+                "" if s is None else "/".join(f"{k}={_num(v)}" for k, v in sorted(s.items()))
+                for s in f.stats
+            )
+            if any(f.stats)
+            else ""
+        )
+        rows.append(
+            {
+                "file": f.path,
+                "bytes": f.bytes,
+                "sha256": f.sha256,
+                "error": f.error,
+                "georeference": f.georeference,
+                "driver": f.driver,
+                "width": f.width,
+                "height": f.height,
+                "count": f.count,
+                "dtypes": ";".join(f.dtypes),
+                "bit_depth": f.bit_depth,
+                "colorinterp": ";".join(f.colorinterp),
+                "nodata": ";".join("" if v is None else str(_num(v)) for v in f.nodata),
+                "crs": f.crs_name,
+                "epsg": f.epsg,
+                "pixel_size_x": None if ps[0] is None else _num(ps[0]),
+                "pixel_size_y": None if ps[1] is None else _num(ps[1]),
+                "pixel_unit": f.pixel_unit,
+                "left": None if b[0] is None else _num(b[0]),
+                "bottom": None if b[1] is None else _num(b[1]),
+                "right": None if b[2] is None else _num(b[2]),
+                "top": None if b[3] is None else _num(b[3]),
+                "compression": f.compression,
+                "lossless": f.lossless,
+                "layout": f.layout,
+                "block_shape": "x".join(map(str, f.block_shape)) if f.block_shape else None,
+                "overviews": ";".join(map(str, f.overviews)),
+                "stored_stats": stats,
+            }
+        )
     return cols, rows
 
 
@@ -730,18 +977,32 @@ def _load_mapping(path: Path) -> list[dict[str, Any]]:
     except YamlError as exc:
         raise DeliveryError(str(exc)) from None
     data = doc.data
-    if not isinstance(data, dict) or data.get("orthospec_points_mapping") != 1 or not isinstance(
-            data.get("layouts"), list):
-        raise DeliveryError("expected `orthospec_points_mapping: 1` and `layouts: [...]`", file=str(path), line=1)
+    if (
+        not isinstance(data, dict)
+        or data.get("orthospec_points_mapping") != 1
+        or not isinstance(data.get("layouts"), list)
+    ):
+        raise DeliveryError(
+            "expected `orthospec_points_mapping: 1` and `layouts: [...]`", file=str(path), line=1
+        )
     out = []
     for i, lay in enumerate(data["layouts"]):
-        if not isinstance(lay, dict) or not isinstance(lay.get("match"), list) or not isinstance(
-                lay.get("columns"), dict):
-            raise DeliveryError(f"layouts[{i}]: expected match (the header as a list) and columns (role: column)",
-                                file=str(path), line=doc.where(("layouts", i))[0])
+        if (
+            not isinstance(lay, dict)
+            or not isinstance(lay.get("match"), list)
+            or not isinstance(lay.get("columns"), dict)
+        ):
+            raise DeliveryError(
+                f"layouts[{i}]: expected match (the header as a list) and columns (role: column)",
+                file=str(path),
+                line=doc.where(("layouts", i))[0],
+            )
         if any(k == "?" for k in lay["columns"]):
-            raise DeliveryError(f"layouts[{i}]: a column still has the role '?'", file=str(path),
-                                line=doc.where(("layouts", i, "columns"))[0])
+            raise DeliveryError(
+                f"layouts[{i}]: a column still has the role '?'",
+                file=str(path),
+                line=doc.where(("layouts", i, "columns"))[0],
+            )
         out.append(lay)
     return out
 
@@ -751,21 +1012,30 @@ def _load_mapping(path: Path) -> list[dict[str, Any]]:
 
 def _manifest_text(m: dict[str, Any], comments: dict[str, str], srcs: list[str]) -> str:
     """The manifest as YAML, one value per line with its source in a comment (stable layout)."""
-    out = [f"# Drafted by `orthospec init --from {' '.join(srcs)}`: every value below was read from a file,",
-           "# named in the comment beside it. TODO.md lists what the files did not tell; INGEST.md reports",
-           "# what was read, decided and refused."]
+    out = [
+        f"# Drafted by `orthospec init --from {' '.join(srcs)}`: every value below was read from a file,",
+        "# named in the comment beside it. TODO.md lists what the files did not tell; INGEST.md reports",
+        "# what was read, decided and refused.",
+    ]
 
     def dump(v: Any) -> str:
-        return yaml.safe_dump(v, default_flow_style=True, allow_unicode=True, width=10_000).strip().removesuffix(
-            "\n...").strip()
+        return (
+            yaml.safe_dump(v, default_flow_style=True, allow_unicode=True, width=10_000)
+            .strip()
+            .removesuffix("\n...")
+            .strip()
+        )
 
     def emit(node: dict[str, Any], indent: int, prefix: str) -> None:
         for k, v in node.items():
             path = f"{prefix}{k}"
             pad = " " * indent
             note = comments.get(path)
-            if isinstance(v, dict) and {"value", "unit"} != set(v) and k not in ("tables", "units", "vectors",
-                                                                                        "draft"):
+            if (
+                isinstance(v, dict)
+                and {"value", "unit"} != set(v)
+                and k not in ("tables", "units", "vectors", "draft")
+            ):
                 out.append(f"{pad}{k}:")
                 emit(v, indent + 2, path + ".")
                 continue

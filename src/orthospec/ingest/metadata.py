@@ -85,8 +85,15 @@ def safe_parse(path: Path, name: str) -> tuple[Any, str | None]:
         return None, f"cannot be read: {exc.strerror or exc}"
     if size > limit:
         return None, f"{size} bytes, larger than ORTHOSPEC_MAX_XML_BYTES ({limit}): not parsed"
-    parser = etree.XMLParser(resolve_entities=False, no_network=True, load_dtd=False, dtd_validation=False,
-                             huge_tree=False, remove_comments=True, remove_pis=True)
+    parser = etree.XMLParser(
+        resolve_entities=False,
+        no_network=True,
+        load_dtd=False,
+        dtd_validation=False,
+        huge_tree=False,
+        remove_comments=True,
+        remove_pis=True,
+    )
     try:
         data = path.read_bytes()
         tree = etree.fromstring(data, parser).getroottree()
@@ -96,8 +103,10 @@ def safe_parse(path: Path, name: str) -> tuple[Any, str | None]:
         return None, f"cannot be parsed: {exc}"
     dtd = tree.docinfo.internalDTD
     if dtd is not None and (list(dtd.iterentities()) or list(dtd.elements())):
-        return None, ("declares a DTD with entities or elements (<!ENTITY>/<!ELEMENT>): refused unread, "
-                      "entities are never expanded (external entities, billion laughs)")
+        return None, (
+            "declares a DTD with entities or elements (<!ENTITY>/<!ELEMENT>): refused unread, "
+            "entities are never expanded (external entities, billion laughs)"
+        )
     return tree, None
 
 
@@ -122,8 +131,11 @@ class _Reader:
             for node in self.tree.xpath(xp, namespaces=self.ns):
                 t = _text(node)
                 if t:
-                    line = getattr(node, "sourceline", None) if not isinstance(node, str) else getattr(
-                        node.getparent(), "sourceline", None)
+                    line = (
+                        getattr(node, "sourceline", None)
+                        if not isinstance(node, str)
+                        else getattr(node.getparent(), "sourceline", None)
+                    )
                     return t, xp, line
         return None, None, None
 
@@ -160,9 +172,26 @@ def _number(text: str) -> float | None:
     return v if v == v and abs(v) != float("inf") else None
 
 
-_UOM = {"9001": "m", "9002": "ft", "9003": "usft", "m": "m", "metre": "m", "metres": "m", "meter": "m", "meters": "m", "cm": "cm", "mm": "mm",
-        "ft": "ft", "feet": "ft", "foot": "ft", "international feet": "ft", "survey feet": "usft",
-        "us survey feet": "usft", "usft": "usft", "ft_us": "usft"}
+_UOM = {
+    "9001": "m",
+    "9002": "ft",
+    "9003": "usft",
+    "m": "m",
+    "metre": "m",
+    "metres": "m",
+    "meter": "m",
+    "meters": "m",
+    "cm": "cm",
+    "mm": "mm",
+    "ft": "ft",
+    "feet": "ft",
+    "foot": "ft",
+    "international feet": "ft",
+    "survey feet": "usft",
+    "us survey feet": "usft",
+    "usft": "usft",
+    "ft_us": "usft",
+}
 
 
 def _uom(text: str | None) -> str | None:
@@ -196,7 +225,9 @@ def sensor_of(names: list[str]) -> tuple[str | None, bool | None]:
         if has(FILM_CAMERAS):
             types.add("aerial")
             digital.add(False)
-    return (types.pop() if len(types) == 1 else None), (digital.pop() if len(digital) == 1 else None)
+    return (types.pop() if len(types) == 1 else None), (
+        digital.pop() if len(digital) == 1 else None
+    )
 
 
 def _epsg_from_code(text: str) -> str | None:
@@ -206,24 +237,42 @@ def _epsg_from_code(text: str) -> str | None:
 
 def read_iso(tree: Any, file: str) -> MetadataRead:
     r = _Reader(tree, file, NS)
-    root = "/gmi:MI_Metadata" if tree.getroot().tag == f"{{{NS['gmi']}}}MI_Metadata" else "/gmd:MD_Metadata"
+    root = (
+        "/gmi:MI_Metadata"
+        if tree.getroot().tag == f"{{{NS['gmi']}}}MI_Metadata"
+        else "/gmd:MD_Metadata"
+    )
     ident = f"{root}/gmd:identificationInfo/*"
-    r.take("id", f"{root}/gmd:fileIdentifier/gco:CharacterString", f"{root}/gmd:fileIdentifier/gmx:Anchor")
+    r.take(
+        "id",
+        f"{root}/gmd:fileIdentifier/gco:CharacterString",
+        f"{root}/gmd:fileIdentifier/gmx:Anchor",
+    )
     r.take("project.id", f"{root}/gmd:parentIdentifier/gco:CharacterString")
     r.take("project.name", f"{ident}/gmd:citation/gmd:CI_Citation/gmd:title/gco:CharacterString")
     for role in ("originator", "processor", "author"):
-        party = (f"{ident}/gmd:pointOfContact/gmd:CI_ResponsibleParty"
-                 f"[gmd:role/gmd:CI_RoleCode/@codeListValue='{role}']")
-        if r.take("contractor.name", f"{party}/gmd:organisationName/gco:CharacterString") is not None:
-            r.take("contractor.contact", f"{party}/gmd:contactInfo/gmd:CI_Contact/gmd:address/gmd:CI_Address/"
-                                         "gmd:electronicMailAddress/gco:CharacterString")
+        party = (
+            f"{ident}/gmd:pointOfContact/gmd:CI_ResponsibleParty"
+            f"[gmd:role/gmd:CI_RoleCode/@codeListValue='{role}']"
+        )
+        if (
+            r.take("contractor.name", f"{party}/gmd:organisationName/gco:CharacterString")
+            is not None
+        ):
+            r.take(
+                "contractor.contact",
+                f"{party}/gmd:contactInfo/gmd:CI_Contact/gmd:address/gmd:CI_Address/"
+                "gmd:electronicMailAddress/gco:CharacterString",
+            )
             break
-    code, xp, line = r.first(f"{root}/gmd:referenceSystemInfo/gmd:MD_ReferenceSystem/gmd:referenceSystemIdentifier/"
-                             "gmd:RS_Identifier/gmd:code/gco:CharacterString",
-                             f"{root}/gmd:referenceSystemInfo/gmd:MD_ReferenceSystem/gmd:referenceSystemIdentifier/"
-                             "gmd:RS_Identifier/gmd:code/gmx:Anchor",
-                             f"{root}/gmd:referenceSystemInfo/gmd:MD_ReferenceSystem/gmd:referenceSystemIdentifier/"
-                             "gmd:RS_Identifier/gmd:code/gmx:Anchor/@xlink:href")
+    code, xp, line = r.first(
+        f"{root}/gmd:referenceSystemInfo/gmd:MD_ReferenceSystem/gmd:referenceSystemIdentifier/"
+        "gmd:RS_Identifier/gmd:code/gco:CharacterString",
+        f"{root}/gmd:referenceSystemInfo/gmd:MD_ReferenceSystem/gmd:referenceSystemIdentifier/"
+        "gmd:RS_Identifier/gmd:code/gmx:Anchor",
+        f"{root}/gmd:referenceSystemInfo/gmd:MD_ReferenceSystem/gmd:referenceSystemIdentifier/"
+        "gmd:RS_Identifier/gmd:code/gmx:Anchor/@xlink:href",
+    )
     if code is not None:
         r.state("project.crs", _epsg_from_code(code), xp, line)
     dist = f"{ident}/gmd:spatialResolution/gmd:MD_Resolution/gmd:distance/gco:Distance"
@@ -233,34 +282,69 @@ def read_iso(tree: Any, file: str) -> MetadataRead:
         v = _number(value)
         if v is not None and uom is not None:
             r.state("product.gsd", {"value": v, "unit": uom}, xp, line)
-    temporal = f"{ident}/gmd:extent/gmd:EX_Extent/gmd:temporalElement/gmd:EX_TemporalExtent/gmd:extent"
-    for key, tag in (("dates.acquired_from", "beginPosition"), ("dates.acquired_to", "endPosition")):
-        r.take(key, f"{temporal}/gml:TimePeriod/gml:{tag}", f"{temporal}/gml31:TimePeriod/gml31:{tag}",
-               convert=_date)
-    report = (f"{root}/gmd:dataQualityInfo/gmd:DQ_DataQuality/gmd:report/"
-              "gmd:DQ_AbsoluteExternalPositionalAccuracy")
+    temporal = (
+        f"{ident}/gmd:extent/gmd:EX_Extent/gmd:temporalElement/gmd:EX_TemporalExtent/gmd:extent"
+    )
+    for key, tag in (
+        ("dates.acquired_from", "beginPosition"),
+        ("dates.acquired_to", "endPosition"),
+    ):
+        r.take(
+            key,
+            f"{temporal}/gml:TimePeriod/gml:{tag}",
+            f"{temporal}/gml31:TimePeriod/gml31:{tag}",
+            convert=_date,
+        )
+    report = (
+        f"{root}/gmd:dataQualityInfo/gmd:DQ_DataQuality/gmd:report/"
+        "gmd:DQ_AbsoluteExternalPositionalAccuracy"
+    )
     acc, xp, line = r.first(f"{report}/gmd:result/gmd:DQ_QuantitativeResult/gmd:value/gco:Record")
     if acc is not None:
-        measure = _text(next(iter(tree.xpath(f"{report}/gmd:nameOfMeasure/gco:CharacterString", namespaces=NS)),
-                             None))
-        unit = tree.xpath(f"string({report}/gmd:result/gmd:DQ_QuantitativeResult/gmd:valueUnit/@xlink:href)",
-                          namespaces=NS) or ""
+        measure = _text(
+            next(
+                iter(tree.xpath(f"{report}/gmd:nameOfMeasure/gco:CharacterString", namespaces=NS)),
+                None,
+            )
+        )
+        unit = (
+            tree.xpath(
+                f"string({report}/gmd:result/gmd:DQ_QuantitativeResult/gmd:valueUnit/@xlink:href)",
+                namespaces=NS,
+            )
+            or ""
+        )
         unit = _uom(unit) or unit.rsplit("#", 1)[-1] or ""
-        r.state("product.accuracy_statement", f"{measure + ': ' if measure else ''}{acc}{' ' + unit if unit else ''}",
-                xp, line)
-    r.take("lineage", f"{root}/gmd:dataQualityInfo/gmd:DQ_DataQuality/gmd:lineage/gmd:LI_Lineage/gmd:statement/"
-                      "gco:CharacterString")
+        r.state(
+            "product.accuracy_statement",
+            f"{measure + ': ' if measure else ''}{acc}{' ' + unit if unit else ''}",
+            xp,
+            line,
+        )
+    r.take(
+        "lineage",
+        f"{root}/gmd:dataQualityInfo/gmd:DQ_DataQuality/gmd:lineage/gmd:LI_Lineage/gmd:statement/"
+        "gco:CharacterString",
+    )
     acq = f"{root}/gmi:acquisitionInformation/gmi:MI_AcquisitionInformation"
-    platform = r.take("sensor.platform", f"{acq}/gmi:platform/gmi:MI_Platform/gmi:identifier/gmd:MD_Identifier/"
-                                         "gmd:code/gco:CharacterString",
-                      f"{acq}/gmi:platform/gmi:MI_Platform/gmi:description/gco:CharacterString")
-    camera = r.take("sensor.camera", f"{acq}/gmi:instrument/gmi:MI_Instrument/gmi:identifier/gmd:MD_Identifier/"
-                                     "gmd:code/gco:CharacterString",
-                    f"{acq}/gmi:platform/gmi:MI_Platform/gmi:instrument/gmi:MI_Instrument/gmi:identifier/"
-                    "gmd:MD_Identifier/gmd:code/gco:CharacterString",
-                    f"{acq}/gmi:instrument/gmi:MI_Instrument/gmi:type/gco:CharacterString")
+    platform = r.take(
+        "sensor.platform",
+        f"{acq}/gmi:platform/gmi:MI_Platform/gmi:identifier/gmd:MD_Identifier/"
+        "gmd:code/gco:CharacterString",
+        f"{acq}/gmi:platform/gmi:MI_Platform/gmi:description/gco:CharacterString",
+    )
+    camera = r.take(
+        "sensor.camera",
+        f"{acq}/gmi:instrument/gmi:MI_Instrument/gmi:identifier/gmd:MD_Identifier/"
+        "gmd:code/gco:CharacterString",
+        f"{acq}/gmi:platform/gmi:MI_Platform/gmi:instrument/gmi:MI_Instrument/gmi:identifier/"
+        "gmd:MD_Identifier/gmd:code/gco:CharacterString",
+        f"{acq}/gmi:instrument/gmi:MI_Instrument/gmi:type/gco:CharacterString",
+    )
     _sensor(r, [x for x in (platform, camera) if x])
-    bits = r.first(f"{root}/gmd:contentInfo/*/gmd:dimension/gmd:MD_Band/gmd:bitsPerValue/gco:Integer")
+    bits = r.first(
+        f"{root}/gmd:contentInfo/*/gmd:dimension/gmd:MD_Band/gmd:bitsPerValue/gco:Integer"
+    )
     if bits[0] is not None and bits[0].isdigit():
         r.state("product.bit_depth", int(bits[0]), bits[1], bits[2])
     return MetadataRead(file, "ISO 19139", r.out)
@@ -274,14 +358,28 @@ def _sensor(r: _Reader, names: list[str]) -> None:
         return
     where = src[0]
     if kind is not None:
-        r.out.append(Stated("sensor.type", kind, where.file, " + ".join(s.xpath for s in src), where.line))
+        r.out.append(
+            Stated("sensor.type", kind, where.file, " + ".join(s.xpath for s in src), where.line)
+        )
     if digital is not None:
-        r.out.append(Stated("sensor.digital", digital, where.file, " + ".join(s.xpath for s in src), where.line))
+        r.out.append(
+            Stated(
+                "sensor.digital", digital, where.file, " + ".join(s.xpath for s in src), where.line
+            )
+        )
 
 
-_UTM_DATUM = {"north american datum of 1983": "NAD83", "nad83": "NAD83", "nad 83": "NAD83",
-              "world geodetic system 1984": "WGS 84", "wgs84": "WGS 84", "wgs 84": "WGS 84",
-              "european terrestrial reference system 1989": "ETRS89", "etrs89": "ETRS89", "etrs 89": "ETRS89"}
+_UTM_DATUM = {
+    "north american datum of 1983": "NAD83",
+    "nad83": "NAD83",
+    "nad 83": "NAD83",
+    "world geodetic system 1984": "WGS 84",
+    "wgs84": "WGS 84",
+    "wgs 84": "WGS 84",
+    "european terrestrial reference system 1989": "ETRS89",
+    "etrs89": "ETRS89",
+    "etrs 89": "ETRS89",
+}
 
 
 def read_fgdc(tree: Any, file: str) -> MetadataRead:
@@ -313,12 +411,20 @@ def read_fgdc(tree: Any, file: str) -> MetadataRead:
     value, xp, line = r.first(f"{pa}/qhorizpa/horizpav")
     if value is not None:
         expl = r.first(f"{pa}/qhorizpa/horizpae")[0]
-        r.state("product.accuracy_statement", f"{value}{' (' + expl + ')' if expl else ''}", xp, line)
+        r.state(
+            "product.accuracy_statement", f"{value}{' (' + expl + ')' if expl else ''}", xp, line
+        )
     else:
         r.take("product.accuracy_statement", f"{pa}/horizpar")
     r.take("lineage", "/metadata/dataqual/lineage/procstep/procdesc")
-    platform = r.take("sensor.platform", "/metadata/idinfo/plainsid/platflnm", "/metadata/idinfo/plainsid/missname")
-    camera = r.take("sensor.camera", "/metadata/idinfo/plainsid/instshnm", "/metadata/idinfo/plainsid/instflnm")
+    platform = r.take(
+        "sensor.platform",
+        "/metadata/idinfo/plainsid/platflnm",
+        "/metadata/idinfo/plainsid/missname",
+    )
+    camera = r.take(
+        "sensor.camera", "/metadata/idinfo/plainsid/instshnm", "/metadata/idinfo/plainsid/instflnm"
+    )
     _sensor(r, [x for x in (platform, camera) if x])
     return MetadataRead(file, "FGDC CSDGM", r.out)
 

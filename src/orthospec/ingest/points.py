@@ -30,8 +30,21 @@ from .sheets import HEADER_SCAN, Cell, count_guard, read_cells, text_of
 
 #: the convention's columns a survey may fill, per table (specs/delivery-tables.yaml)
 COLUMNS = {
-    "checkpoints": ("point_id", "block", "x", "y", "x_ref", "y_ref", "z", "z_ref", "image_id", "source",
-                    "excluded", "exclusion_reason", "precision_xy"),
+    "checkpoints": (
+        "point_id",
+        "block",
+        "x",
+        "y",
+        "x_ref",
+        "y_ref",
+        "z",
+        "z_ref",
+        "image_id",
+        "source",
+        "excluded",
+        "exclusion_reason",
+        "precision_xy",
+    ),
     "gcps": ("point_id", "block", "x", "y", "z", "precision_xy", "precision_z", "source"),
 }
 LENGTH_ROLES = frozenset({"x", "y", "z", "x_ref", "y_ref", "z_ref", "precision_xy", "precision_z"})
@@ -39,35 +52,192 @@ NUMBER_ROLES = LENGTH_ROLES
 
 #: header words -> meaning (lower case, whole tokens). Languages: en, de, fr, es, it, nl.
 WORDS: dict[str, tuple[str, ...]] = {
-    "id": ("id", "point", "pt", "pkt", "punkt", "punktnr", "punktnummer", "pointid", "point_id", "name",
-           "nr", "no", "num", "number", "nummer", "pid", "station", "numero", "numéro", "punto", "nom",
-           "nombre", "code", "label", "cp", "gcp", "icp", "pnr"),
-    "east": ("e", "east", "easting", "rechtswert", "rw", "ost", "ostwert", "est", "este", "oost", "x_e"),
+    "id": (
+        "id",
+        "point",
+        "pt",
+        "pkt",
+        "punkt",
+        "punktnr",
+        "punktnummer",
+        "pointid",
+        "point_id",
+        "name",
+        "nr",
+        "no",
+        "num",
+        "number",
+        "nummer",
+        "pid",
+        "station",
+        "numero",
+        "numéro",
+        "punto",
+        "nom",
+        "nombre",
+        "code",
+        "label",
+        "cp",
+        "gcp",
+        "icp",
+        "pnr",
+    ),
+    "east": (
+        "e",
+        "east",
+        "easting",
+        "rechtswert",
+        "rw",
+        "ost",
+        "ostwert",
+        "est",
+        "este",
+        "oost",
+        "x_e",
+    ),
     "north": ("n", "north", "northing", "hochwert", "hw", "nord", "norte", "noord", "nordwert"),
     "x": ("x",),
     "y": ("y",),
-    "z": ("z", "h", "height", "elev", "elevation", "höhe", "hoehe", "alt", "altitude", "hgt", "ellh",
-          "altezza", "hauteur", "cota", "quota"),
-    "ref": ("ref", "reference", "referenz", "soll", "true", "survey", "surveyed", "gnss", "gps", "rtk",
-            "terrain", "ground", "field", "known", "vermessung", "vermessen", "geodetic", "terrestrial",
-            "référence", "referencia", "riferimento", "check"),
-    "image": ("img", "image", "ortho", "orthofoto", "orthophoto", "orthoimage", "photo", "bild", "measured",
-              "meas", "observed", "obs", "ist", "mesuré", "mesure", "medido", "misurato", "map"),
-    "delta": ("d", "delta", "diff", "difference", "differenz", "residual", "residuum", "abw", "abweichung",
-              "error", "err", "écart", "ecart", "dx", "dy", "dz", "de", "dn", "dh"),
+    "z": (
+        "z",
+        "h",
+        "height",
+        "elev",
+        "elevation",
+        "höhe",
+        "hoehe",
+        "alt",
+        "altitude",
+        "hgt",
+        "ellh",
+        "altezza",
+        "hauteur",
+        "cota",
+        "quota",
+    ),
+    "ref": (
+        "ref",
+        "reference",
+        "referenz",
+        "soll",
+        "true",
+        "survey",
+        "surveyed",
+        "gnss",
+        "gps",
+        "rtk",
+        "terrain",
+        "ground",
+        "field",
+        "known",
+        "vermessung",
+        "vermessen",
+        "geodetic",
+        "terrestrial",
+        "référence",
+        "referencia",
+        "riferimento",
+        "check",
+    ),
+    "image": (
+        "img",
+        "image",
+        "ortho",
+        "orthofoto",
+        "orthophoto",
+        "orthoimage",
+        "photo",
+        "bild",
+        "measured",
+        "meas",
+        "observed",
+        "obs",
+        "ist",
+        "mesuré",
+        "mesure",
+        "medido",
+        "misurato",
+        "map",
+    ),
+    "delta": (
+        "d",
+        "delta",
+        "diff",
+        "difference",
+        "differenz",
+        "residual",
+        "residuum",
+        "abw",
+        "abweichung",
+        "error",
+        "err",
+        "écart",
+        "ecart",
+        "dx",
+        "dy",
+        "dz",
+        "de",
+        "dn",
+        "dh",
+    ),
     "block": ("block", "lot", "los", "site", "bloc", "lotto", "lote"),
     "image_id": ("image_id", "imageid", "tile", "kachel", "photo_id", "bildnr", "scene", "dalle"),
-    "source": ("source", "quelle", "method", "methode", "méthode", "origine", "fuente", "fonte", "instrument"),
-    "precision": ("precision", "prec", "sigma", "accuracy", "genauigkeit", "std", "stddev", "rms",
-                  "rmse", "précision", "precisión", "precisione"),
-    "excluded": ("excluded", "exclude", "ausgeschlossen", "blunder", "ausreisser", "ausreißer", "exclu",
-                 "excluido", "escluso"),
+    "source": (
+        "source",
+        "quelle",
+        "method",
+        "methode",
+        "méthode",
+        "origine",
+        "fuente",
+        "fonte",
+        "instrument",
+    ),
+    "precision": (
+        "precision",
+        "prec",
+        "sigma",
+        "accuracy",
+        "genauigkeit",
+        "std",
+        "stddev",
+        "rms",
+        "rmse",
+        "précision",
+        "precisión",
+        "precisione",
+    ),
+    "excluded": (
+        "excluded",
+        "exclude",
+        "ausgeschlossen",
+        "blunder",
+        "ausreisser",
+        "ausreißer",
+        "exclu",
+        "excluido",
+        "escluso",
+    ),
     "reason": ("reason", "grund", "ausschlussgrund", "raison", "motivo"),
 }
-UNITS = {"m": "m", "meter": "m", "metre": "m", "meters": "m", "metres": "m", "ft": "ft", "feet": "ft",
-         "usft": "usft", "us-ft": "usft", "ftus": "usft", "us_ft": "usft", "survey ft": "usft"}
+UNITS = {
+    "m": "m",
+    "meter": "m",
+    "metre": "m",
+    "meters": "m",
+    "metres": "m",
+    "ft": "ft",
+    "feet": "ft",
+    "usft": "usft",
+    "us-ft": "usft",
+    "ftus": "usft",
+    "us_ft": "usft",
+    "survey ft": "usft",
+}
 _TOKEN = re.compile(r"[a-zäöüßéèêáíóúñç0-9]+")
-_UNIT_IN = re.compile(r"[\[(]\s*([a-z_ -]+?)\s*[\])]|\bin\s+(m|ft|usft|meter|metre|meters|metres|feet)\b")
+_UNIT_IN = re.compile(
+    r"[\[(]\s*([a-z_ -]+?)\s*[\])]|\bin\s+(m|ft|usft|meter|metre|meters|metres|feet)\b"
+)
 _NUM_DOT = re.compile(r"[+-]?(\d+\.\d+|\d+|\.\d+)([eE][+-]?\d+)?")
 _NUM_COMMA = re.compile(r"[+-]?\d+,\d+")
 _THOUSANDS_DOT_COMMA = re.compile(r"[+-]?\d{1,3}(\.\d{3})+,\d+")
@@ -114,8 +284,14 @@ class Layout:
     said: list[str] = field(default_factory=list)
 
     def to_mapping(self, files: Sequence[str]) -> dict[str, Any]:
-        return {"match": list(self.header), "table": self.table, "columns": dict(self.roles),
-                "unit": self.unit, "decimal": self.decimal, "files": list(files)}
+        return {
+            "match": list(self.header),
+            "table": self.table,
+            "columns": dict(self.roles),
+            "unit": self.unit,
+            "decimal": self.decimal,
+            "files": list(files),
+        }
 
 
 @dataclass
@@ -153,7 +329,9 @@ def tokens(name: str) -> list[str]:
 
 def _has(toks: list[str], key: str) -> bool:
     words = WORDS[key]
-    return any(t in words for t in toks) or any(("_".join(toks[i:i + 2])) in words for i in range(len(toks) - 1))
+    return any(t in words for t in toks) or any(
+        ("_".join(toks[i : i + 2])) in words for i in range(len(toks) - 1)
+    )
 
 
 def unit_of(name: str) -> str | None:
@@ -201,18 +379,30 @@ def number_text(v: Cell, decimal: str) -> str | None:
 
 def _decimal(samples: list[str], file: str) -> tuple[str, str | None]:
     """The file's decimal mark from its number-like text cells, and the example that decided it."""
-    comma = [s for s in samples if (_NUM_COMMA.fullmatch(s) and not _AMBIGUOUS_COMMA.fullmatch(s))
-             or _THOUSANDS_DOT_COMMA.fullmatch(s)]
-    dot = [s for s in samples if re.fullmatch(r"[+-]?\d+\.\d+", s) or _THOUSANDS_COMMA_DOT.fullmatch(s)]
+    comma = [
+        s
+        for s in samples
+        if (_NUM_COMMA.fullmatch(s) and not _AMBIGUOUS_COMMA.fullmatch(s))
+        or _THOUSANDS_DOT_COMMA.fullmatch(s)
+    ]
+    dot = [
+        s for s in samples if re.fullmatch(r"[+-]?\d+\.\d+", s) or _THOUSANDS_COMMA_DOT.fullmatch(s)
+    ]
     ambiguous = [s for s in samples if _AMBIGUOUS_COMMA.fullmatch(s)]
     if comma and dot:
-        raise Ambiguous(f"numbers written with a decimal comma ({comma[0]!r}) and a decimal point ({dot[0]!r}) "
-                        "in one file: one decimal mark per file", file=file)
+        raise Ambiguous(
+            f"numbers written with a decimal comma ({comma[0]!r}) and a decimal point ({dot[0]!r}) "
+            "in one file: one decimal mark per file",
+            file=file,
+        )
     if comma:
         return ",", comma[0]
     if ambiguous and not dot:
-        raise Ambiguous(f"{ambiguous[0]!r} may be a number with a decimal comma or with a thousands separator; "
-                        "state it in the mapping (decimal: ',' or '.')", file=file)
+        raise Ambiguous(
+            f"{ambiguous[0]!r} may be a number with a decimal comma or with a thousands separator; "
+            "state it in the mapping (decimal: ',' or '.')",
+            file=file,
+        )
     return ".", dot[0] if dot else None
 
 
@@ -222,16 +412,22 @@ def _is_number_like(v: Cell) -> bool:
     if isinstance(v, int | float):
         return True
     t = str(v).strip().replace("\u00a0", "").replace(" ", "").replace("'", "")
-    return bool(_NUM_DOT.fullmatch(t) or _NUM_COMMA.fullmatch(t) or _THOUSANDS_DOT_COMMA.fullmatch(t)
-                or _THOUSANDS_COMMA_DOT.fullmatch(t))
+    return bool(
+        _NUM_DOT.fullmatch(t)
+        or _NUM_COMMA.fullmatch(t)
+        or _THOUSANDS_DOT_COMMA.fullmatch(t)
+        or _THOUSANDS_COMMA_DOT.fullmatch(t)
+    )
 
 
 # ------------------------------------------------------------------ header and columns
 
 
-def _find_header(first: list[list[Cell]], merged: list[tuple[int, int, int, int]], file: str
-                 ) -> tuple[int, list[str], list[str]]:
+def _find_header(
+    first: list[list[Cell]], merged: list[tuple[int, int, int, int]], file: str
+) -> tuple[int, list[str], list[str]]:
     """(index of the first data row, combined column names, notes) of a sheet's first rows."""
+
     def numeric(row: list[Cell]) -> int:
         return sum(_is_number_like(c) for c in row)
 
@@ -241,12 +437,16 @@ def _find_header(first: list[list[Cell]], merged: list[tuple[int, int, int, int]
             data = i
             break
     if data is None:
-        raise DeliveryError(f"no data rows found in the first {len(first)} rows (a row with two or more numbers)",
-                            file=file)
+        raise DeliveryError(
+            f"no data rows found in the first {len(first)} rows (a row with two or more numbers)",
+            file=file,
+        )
     above = [i for i in range(data) if sum(c is not None for c in first[i]) > 1]
     if not above:
-        raise DeliveryError(f"no header row above the first data row (row {data + 1}): the columns have no names",
-                            file=file)
+        raise DeliveryError(
+            f"no header row above the first data row (row {data + 1}): the columns have no names",
+            file=file,
+        )
     header_rows = above[-3:]
     width = max(len(first[i]) for i in range(data, min(len(first), data + 5)))
     notes = []
@@ -259,8 +459,10 @@ def _find_header(first: list[list[Cell]], merged: list[tuple[int, int, int, int]
                 for c in range(c0, min(c1, width - 1) + 1):
                     filled[c] = text_of(row[c0])
                 if c1 > c0 and filled[c0]:
-                    notes.append(f"header {filled[c0]!r} spans merged cells of columns "
-                                 f"{Column(c0, '', '', None, '').letter}-{Column(min(c1, width - 1), '', '', None, '').letter}")
+                    notes.append(
+                        f"header {filled[c0]!r} spans merged cells of columns "
+                        f"{Column(c0, '', '', None, '').letter}-{Column(min(c1, width - 1), '', '', None, '').letter}"
+                    )
         if r != header_rows[-1] and not merged:  # a group title over the columns to its right
             last = ""
             below = [text_of(c) for c in (list(first[header_rows[-1]]) + [None] * width)[:width]]
@@ -274,11 +476,16 @@ def _find_header(first: list[list[Cell]], merged: list[tuple[int, int, int, int]
                 names[c].append(filled[c])
     for r0, _c0, r1, _c1 in merged:
         if r1 >= data and r0 != r1:
-            raise DeliveryError(f"merged cells over data rows {r0 + 1}-{r1 + 1}: a value standing for several "
-                                "rows is not a measurement of each; unmerge them", file=file)
+            raise DeliveryError(
+                f"merged cells over data rows {r0 + 1}-{r1 + 1}: a value standing for several "
+                "rows is not a measurement of each; unmerge them",
+                file=file,
+            )
     if len(header_rows) > 1:
-        notes.append(f"header in {len(header_rows)} rows ({', '.join(str(r + 1) for r in header_rows)}), "
-                     "read as one name per column")
+        notes.append(
+            f"header in {len(header_rows)} rows ({', '.join(str(r + 1) for r in header_rows)}), "
+            "read as one name per column"
+        )
     if header_rows[0] > 0:
         notes.append(f"rows 1-{header_rows[0]} above the header skipped (title)")
     return data, [" ".join(n) for n in names], notes
@@ -302,18 +509,41 @@ def _columns(names: list[str], data_rows: list[list[Cell]], decimal: str) -> lis
             kind = "number"  # a stray word in a number column is refused later, naming its row
         else:
             kind = "text"
-        out.append(Column(i, name or f"(column {i + 1})", kind, unit_of(name),
-                          text_of(present[0]) if present else ""))
+        out.append(
+            Column(
+                i,
+                name or f"(column {i + 1})",
+                kind,
+                unit_of(name),
+                text_of(present[0]) if present else "",
+            )
+        )
     return out
 
 
 def _table_of(file: str, cols: list[Column]) -> str | None:
     toks = tokens(Path(file).stem)
     joined = " ".join(toks)
-    if any(w in joined for w in ("gcp", "passpunkt", "control", "ground control", "pass point", "pp ")):
+    if any(
+        w in joined for w in ("gcp", "passpunkt", "control", "ground control", "pass point", "pp ")
+    ):
         return "gcps"
-    if any(w in joined for w in ("checkpoint", "check point", "check", "kontrollpunkt", "kontrolle", "icp",
-                                 "cp", "controle", "contrôle", "verifica", "punti di controllo")):
+    if any(
+        w in joined
+        for w in (
+            "checkpoint",
+            "check point",
+            "check",
+            "kontrollpunkt",
+            "kontrolle",
+            "icp",
+            "cp",
+            "controle",
+            "contrôle",
+            "verifica",
+            "punti di controllo",
+        )
+    ):
         return "checkpoints"
     return None
 
@@ -329,8 +559,14 @@ def detect(file: str, cols: list[Column], ctx: Context, xy_sample: Any) -> Layou
         if c.kind == "empty":
             continue
         if c.kind == "text" or not toks:
-            for key, role in (("id", "point_id"), ("block", "block"), ("image_id", "image_id"),
-                              ("source", "source"), ("excluded", "excluded"), ("reason", "exclusion_reason")):
+            for key, role in (
+                ("id", "point_id"),
+                ("block", "block"),
+                ("image_id", "image_id"),
+                ("source", "source"),
+                ("excluded", "excluded"),
+                ("reason", "exclusion_reason"),
+            ):
                 if toks and _has(toks, key) and role not in roles:
                     roles[role] = c.name
                     break
@@ -345,8 +581,19 @@ def detect(file: str, cols: list[Column], ctx: Context, xy_sample: Any) -> Layou
             continue
         if _has(toks, "delta") and not (_has(toks, "image") or _has(toks, "ref")):
             continue  # recomputed by the check from the two coordinate sets
-        axis = ("east" if _has(toks, "east") else "north" if _has(toks, "north") else
-                "x" if _has(toks, "x") else "y" if _has(toks, "y") else "z" if _has(toks, "z") else None)
+        axis = (
+            "east"
+            if _has(toks, "east")
+            else "north"
+            if _has(toks, "north")
+            else "x"
+            if _has(toks, "x")
+            else "y"
+            if _has(toks, "y")
+            else "z"
+            if _has(toks, "z")
+            else None
+        )
         if axis is None:
             continue
         qual = "image" if _has(toks, "image") else "ref" if _has(toks, "ref") else None
@@ -356,59 +603,92 @@ def detect(file: str, cols: list[Column], ctx: Context, xy_sample: Any) -> Layou
     # easting / northing: named directions win; bare X/Y are checked against the images
     axes = {a for _, a, _ in coords}
     if axes & {"east", "north"} and axes & {"x", "y"}:
-        coords = [t for t in coords if t[1] not in ("x", "y")]  # X/Y beside E/N: E/N are the coordinates
+        coords = [
+            t for t in coords if t[1] not in ("x", "y")
+        ]  # X/Y beside E/N: E/N are the coordinates
     elif axes & {"x", "y"}:
         order = _xy_order(coords, ctx, xy_sample)
         if order is None:
-            raise Ambiguous("columns named X and Y do not say which is the easting: with the images' "
-                            "footprints the files could not decide either (surveys in Germany, Austria or "
-                            "Switzerland often write X for the northing)", file=file)
+            raise Ambiguous(
+                "columns named X and Y do not say which is the easting: with the images' "
+                "footprints the files could not decide either (surveys in Germany, Austria or "
+                "Switzerland often write X for the northing)",
+                file=file,
+            )
         coords = [(c, order.get(a, a), q) for c, a, q in coords]
-        said.append(f"X/Y read as {order['x']}ing/{order['y']}ing: in that order the points lie on the "
-                    "delivered images, in the other they do not")
+        said.append(
+            f"X/Y read as {order['x']}ing/{order['y']}ing: in that order the points lie on the "
+            "delivered images, in the other they do not"
+        )
     quals = {q for _, _, q in coords}
     sets: dict[str | None, dict[str, Column]] = {}
     for c, a, q in coords:
         s = sets.setdefault(q, {})
         if a in s:
-            raise Ambiguous(f"two columns for the {a} coordinate ({s[a].name!r}, {c.name!r}) with nothing in "
-                            "their names telling image from reference coordinates", file=file)
+            raise Ambiguous(
+                f"two columns for the {a} coordinate ({s[a].name!r}, {c.name!r}) with nothing in "
+                "their names telling image from reference coordinates",
+                file=file,
+            )
         s[a] = c
     if None in sets and len(sets) > 1:
         other = "ref" if "image" in quals else "image"
         sets[other] = {**sets.pop(None), **sets.get(other, {})}
-        said.append(f"the unqualified coordinate columns read as the {'reference' if other == 'ref' else 'image'} "
-                    "coordinates (the others are named as "
-                    f"{'image' if other == 'ref' else 'reference'} ones)")
+        said.append(
+            f"the unqualified coordinate columns read as the {'reference' if other == 'ref' else 'image'} "
+            "coordinates (the others are named as "
+            f"{'image' if other == 'ref' else 'reference'} ones)"
+        )
     if table is None:
         table = "checkpoints" if ("image" in sets and "ref" in sets) else None
     if table is None:
-        raise Ambiguous("the file name does not say check points or GCPs (Kontrollpunkte, checkpoints, GCP, "
-                        "Passpunkte...) and the columns hold one coordinate set", file=file)
+        raise Ambiguous(
+            "the file name does not say check points or GCPs (Kontrollpunkte, checkpoints, GCP, "
+            "Passpunkte...) and the columns hold one coordinate set",
+            file=file,
+        )
     if table == "checkpoints":
         if set(sets) == {None}:
-            raise Ambiguous("one coordinate set with nothing in its names telling image (ortho, Bild, measured) "
-                            "from reference (GNSS, survey, Soll) coordinates", file=file)
+            raise Ambiguous(
+                "one coordinate set with nothing in its names telling image (ortho, Bild, measured) "
+                "from reference (GNSS, survey, Soll) coordinates",
+                file=file,
+            )
         img, ref = sets.get("image", {}), sets.get("ref", {})
-        for role, s, axis in (("x", img, "east"), ("y", img, "north"), ("x_ref", ref, "east"), ("y_ref", ref, "north"),
-                              ("z", img, "z"), ("z_ref", ref, "z")):
+        for role, s, axis in (
+            ("x", img, "east"),
+            ("y", img, "north"),
+            ("x_ref", ref, "east"),
+            ("y_ref", ref, "north"),
+            ("z", img, "z"),
+            ("z_ref", ref, "z"),
+        ):
             if axis in s:
                 roles[role] = s[axis].name
         if not img:
-            raise Ambiguous("only reference coordinates: the image coordinates of each point are the checker's "
-                            "measurement (not in this file)", file=file)
+            raise Ambiguous(
+                "only reference coordinates: the image coordinates of each point are the checker's "
+                "measurement (not in this file)",
+                file=file,
+            )
     else:
         s = sets.get(None) or sets.get("ref") or sets.get("image") or {}
         for role, axis in (("x", "east"), ("y", "north"), ("z", "z")):
             if axis in s:
                 roles[role] = s[axis].name
-    need = [r for r in (("x", "y", "x_ref", "y_ref") if table == "checkpoints" else ("x", "y")) if r not in roles]
+    need = [
+        r
+        for r in (("x", "y", "x_ref", "y_ref") if table == "checkpoints" else ("x", "y"))
+        if r not in roles
+    ]
     if need:
         raise Ambiguous(f"no column for {', '.join(need)}", file=file)
     return Layout(table, [c.name for c in cols], roles, None, ".", 1, said)
 
 
-def _xy_order(coords: list[tuple[Column, str, str | None]], ctx: Context, sample: Any) -> dict[str, str] | None:
+def _xy_order(
+    coords: list[tuple[Column, str, str | None]], ctx: Context, sample: Any
+) -> dict[str, str] | None:
     """{'x': 'east', 'y': 'north'} or the swap: the one order that puts points on the images."""
     if not ctx.footprints or sample is None:
         return None
@@ -447,33 +727,47 @@ def _given(header: list[str], ctx: Context) -> dict[str, Any] | None:
     return None
 
 
-def proposal(file: str, cols: list[Column], header: list[str], table: str | None, decimal: str | None = None) -> str:
+def proposal(
+    file: str, cols: list[Column], header: list[str], table: str | None, decimal: str | None = None
+) -> str:
     """The mapping to write for an undecided layout, with every column listed (the unit, and the
     decimal mark when it was not detected, left as '?': the user states them, nothing defaults)."""
-    lines = [f"  - match: {_flow(header)}",
-             f"    table: {table or 'checkpoints'}          # checkpoints or gcps",
-             "    columns:                     # role: column name as read (roles: point_id, block, x, y, "
-             "x_ref, y_ref, z, z_ref, image_id, source, precision_xy)"]
+    lines = [
+        f"  - match: {_flow(header)}",
+        f"    table: {table or 'checkpoints'}          # checkpoints or gcps",
+        "    columns:                     # role: column name as read (roles: point_id, block, x, y, "
+        "x_ref, y_ref, z, z_ref, image_id, source, precision_xy)",
+    ]
     for c in cols:
         if c.kind != "empty":
             lines.append(f"      ?: {_quote(c.name)}    # {c.kind}, e.g. {c.sample!r}")
-    lines += ["    unit: '?'                    # m, ft or usft",
-              f"    decimal: {_quote(decimal) if decimal else chr(39) + '?' + chr(39)}                 # '.' or ','"]
-    return ("columns read:\n    " + "\n    ".join(c.describe() for c in cols) +
-            "\n  name the mapping in a file (replace each ? by a role, delete the columns not used) and run "
-            "`orthospec init DIR --from SOURCE --mapping FILE`:\n"
-            "orthospec_points_mapping: 1\nlayouts:\n" + "\n".join(lines))
+    lines += [
+        "    unit: '?'                    # m, ft or usft",
+        f"    decimal: {_quote(decimal) if decimal else chr(39) + '?' + chr(39)}                 # '.' or ','",
+    ]
+    return (
+        "columns read:\n    "
+        + "\n    ".join(c.describe() for c in cols)
+        + "\n  name the mapping in a file (replace each ? by a role, delete the columns not used) and run "
+        "`orthospec init DIR --from SOURCE --mapping FILE`:\n"
+        "orthospec_points_mapping: 1\nlayouts:\n" + "\n".join(lines)
+    )
 
 
 def _unit_proposal(layout: Layout) -> str:
     """The mapping to write when only the unit is undecided: the layout as read, the unit asked."""
     lines = [f"  - match: {_flow(layout.header)}", f"    table: {layout.table}", "    columns:"]
     lines += [f"      {role}: {_quote(col)}" for role, col in layout.roles.items()]
-    lines += ["    unit: '?'                    # the survey's unit: m, ft or usft",
-              f"    decimal: {_quote(layout.decimal)}"]
-    return ("the columns were read as " + ", ".join(f"{r} <- {c!r}" for r, c in layout.roles.items())
-            + "; state the unit in a mapping file and run `orthospec init DIR --from SOURCE --mapping FILE`:\n"
-            "orthospec_points_mapping: 1\nlayouts:\n" + "\n".join(lines))
+    lines += [
+        "    unit: '?'                    # the survey's unit: m, ft or usft",
+        f"    decimal: {_quote(layout.decimal)}",
+    ]
+    return (
+        "the columns were read as "
+        + ", ".join(f"{r} <- {c!r}" for r, c in layout.roles.items())
+        + "; state the unit in a mapping file and run `orthospec init DIR --from SOURCE --mapping FILE`:\n"
+        "orthospec_points_mapping: 1\nlayouts:\n" + "\n".join(lines)
+    )
 
 
 def _quote(s: str) -> str:
@@ -525,9 +819,15 @@ def read_points(path: Path, name: str, ctx: Context) -> PointsRead:
     by_name = {c.name: c for c in cols}
 
     def sample(c: Column) -> np.ndarray | None:
-        vals = [parse_number(text_of(r[c.index]), decimal) if c.index < len(r) and r[c.index] is not None else None
-                for r in sample_rows]
-        return np.array([np.nan if x is None else x for x in vals], dtype=float)  # aligned on the rows
+        vals = [
+            parse_number(text_of(r[c.index]), decimal)
+            if c.index < len(r) and r[c.index] is not None
+            else None
+            for r in sample_rows
+        ]
+        return np.array(
+            [np.nan if x is None else x for x in vals], dtype=float
+        )  # aligned on the rows
 
     if given is not None:
         layout = _layout_given(given, header, name, by_name)
@@ -536,55 +836,85 @@ def read_points(path: Path, name: str, ctx: Context) -> PointsRead:
         try:
             layout = detect(name, cols, ctx, sample)
         except Ambiguous as exc:
-            raise Ambiguous(f"{exc}\n  {proposal(name, cols, header, _table_of(name, cols), decimal)}") from None
+            raise Ambiguous(
+                f"{exc}\n  {proposal(name, cols, header, _table_of(name, cols), decimal)}"
+            ) from None
     layout.decimal = decimal
     layout.header_rows = data_at
     try:
         layout.unit = _unit(layout, by_name, ctx, name, sample, given)
     except Ambiguous as exc:
         raise Ambiguous(f"{exc}\n  {_unit_proposal(layout)}") from None
-    layout.said.insert(0, f"read as {layout.table}: " + ", ".join(
-        f"{role} <- {col!r}" for role, col in layout.roles.items()))
+    layout.said.insert(
+        0,
+        f"read as {layout.table}: "
+        + ", ".join(f"{role} <- {col!r}" for role, col in layout.roles.items()),
+    )
     unused = [c.name for c in cols if c.kind != "empty" and c.name not in layout.roles.values()]
     if unused:
         notes.append("columns not used: " + ", ".join(repr(u) for u in unused))
     tally: dict[str, Any] = {"moved": [], "on_image": 0, "no_image": 0}
-    body, n, outside, filled, unblocked = _write(layout, first[data_at:], rows, by_name, ctx, name, tally)
+    body, n, outside, filled, unblocked = _write(
+        layout, first[data_at:], rows, by_name, ctx, name, tally
+    )
     if tally["moved"]:
         moved = tally["moved"]
-        notes.append(f"block stated in the file differs from the outline the point lies in ({len(moved)}; the "
-                     "location decides): " + ", ".join(moved[:20]) + (" ..." if len(moved) > 20 else ""))
+        notes.append(
+            f"block stated in the file differs from the outline the point lies in ({len(moved)}; the "
+            "location decides): " + ", ".join(moved[:20]) + (" ..." if len(moved) > 20 else "")
+        )
     if tally["on_image"] or tally["no_image"]:
-        notes.append(f"image_id: the image whose footprint holds the point ({tally['on_image']} points)"
-                     + (f"; {tally['no_image']} on no image or on several, left empty" if tally["no_image"] else ""))
+        notes.append(
+            f"image_id: the image whose footprint holds the point ({tally['on_image']} points)"
+            + (
+                f"; {tally['no_image']} on no image or on several, left empty"
+                if tally["no_image"]
+                else ""
+            )
+        )
     return PointsRead(name, layout, n, body, notes + layout.said, outside, filled, unblocked)
 
 
-def _layout_given(given: dict[str, Any], header: list[str], file: str, by_name: dict[str, Column]) -> Layout:
+def _layout_given(
+    given: dict[str, Any], header: list[str], file: str, by_name: dict[str, Column]
+) -> Layout:
     table = given.get("table")
     if table not in COLUMNS:
         raise Ambiguous(f"the mapping's table {table!r} is not checkpoints or gcps", file=file)
     roles = {str(k): str(v) for k, v in (given.get("columns") or {}).items()}
     for role, col in roles.items():
         if role not in COLUMNS[table]:
-            raise Ambiguous(f"the mapping names role {role!r}; {table} has {', '.join(COLUMNS[table])}",
-                            file=file)
+            raise Ambiguous(
+                f"the mapping names role {role!r}; {table} has {', '.join(COLUMNS[table])}",
+                file=file,
+            )
         if col not in by_name:
             raise Ambiguous(f"the mapping names column {col!r}, not in the header", file=file)
     return Layout(table, header, roles, given.get("unit"), str(given.get("decimal") or "."), 1, [])
 
 
-def _unit(layout: Layout, by_name: dict[str, Column], ctx: Context, file: str, sample: Any,
-          given: dict[str, Any] | None) -> str:
+def _unit(
+    layout: Layout,
+    by_name: dict[str, Column],
+    ctx: Context,
+    file: str,
+    sample: Any,
+    given: dict[str, Any] | None,
+) -> str:
     if given is not None and given.get("unit"):
         u = str(given["unit"])
         if u not in ("m", "ft", "usft"):
             raise Ambiguous(f"the mapping's unit {u!r} is not m, ft or usft", file=file)
         return u
-    stated = {by_name[c].unit for r, c in layout.roles.items() if r in LENGTH_ROLES and by_name[c].unit}
+    stated = {
+        by_name[c].unit for r, c in layout.roles.items() if r in LENGTH_ROLES and by_name[c].unit
+    }
     if len(stated) > 1:
-        raise Ambiguous(f"the length columns state different units ({', '.join(sorted(stated))}); the "
-                        "convention has one unit per table: convert the file or map one unit", file=file)
+        raise Ambiguous(
+            f"the length columns state different units ({', '.join(sorted(stated))}); the "
+            "convention has one unit per table: convert the file or map one unit",
+            file=file,
+        )
     if stated:
         u = stated.pop()
         layout.said.append(f"unit {u}, stated in the header")
@@ -593,26 +923,44 @@ def _unit(layout: Layout, by_name: dict[str, Column], ctx: Context, file: str, s
         e = sample(by_name[layout.roles["x_ref" if "x_ref" in layout.roles else "x"]])
         n = sample(by_name[layout.roles["y_ref" if "y_ref" in layout.roles else "y"]])
         if e is not None and n is not None and len(e) and _on_images(e, n, ctx):
-            layout.said.append(f"no unit in the file: {ctx.crs_unit}, the axis unit of the images' CRS "
-                               f"{ctx.crs_name or ''} (the points lie on the images)".replace("  ", " "))
+            layout.said.append(
+                f"no unit in the file: {ctx.crs_unit}, the axis unit of the images' CRS "
+                f"{ctx.crs_name or ''} (the points lie on the images)".replace("  ", " ")
+            )
             return ctx.crs_unit
-    why = ("the images do not share one CRS to take its unit from" if ctx.crs_name is None
-           else "the points do not lie on the images to take their CRS's unit")
-    raise Ambiguous("no unit stated for the coordinates (a header such as 'E [m]' or a unit row) and " + why,
-                    file=file)
+    why = (
+        "the images do not share one CRS to take its unit from"
+        if ctx.crs_name is None
+        else "the points do not lie on the images to take their CRS's unit"
+    )
+    raise Ambiguous(
+        "no unit stated for the coordinates (a header such as 'E [m]' or a unit row) and " + why,
+        file=file,
+    )
 
 
-def _write(layout: Layout, first: list[tuple[int, list[Cell]]], rest: Iterator[tuple[int, list[Cell]]],
-           by_name: dict[str, Column], ctx: Context, file: str, tally: dict[str, Any]
-           ) -> tuple[str, int, list[str], set[str], int]:
+def _write(
+    layout: Layout,
+    first: list[tuple[int, list[Cell]]],
+    rest: Iterator[tuple[int, list[Cell]]],
+    by_name: dict[str, Column],
+    ctx: Context,
+    file: str,
+    tally: dict[str, Any],
+) -> tuple[str, int, list[str], set[str], int]:
     """The convention CSV text of every data row (streamed, in chunks), the row count, the points
     outside every block outline, the columns filled and the rows without a block."""
     import csv
     import io
     import itertools
 
-    cols = [c for c in COLUMNS[layout.table] if c in layout.roles or c == "block" or
-            (c == "image_id" and ctx.footprints and layout.table == "checkpoints")]
+    cols = [
+        c
+        for c in COLUMNS[layout.table]
+        if c in layout.roles
+        or c == "block"
+        or (c == "image_id" and ctx.footprints and layout.table == "checkpoints")
+    ]
     out = io.StringIO()
     w = csv.writer(out, lineterminator="\n")
     w.writerow(cols)
@@ -637,24 +985,35 @@ def _write(layout: Layout, first: list[tuple[int, list[Cell]]], rest: Iterator[t
                 if role in NUMBER_ROLES:
                     t = number_text(v, layout.decimal)
                     if v is not None and t is None:
-                        raise DeliveryError(f"column {by_name[layout.roles[role]].letter} "
-                                            f"{layout.roles[role]!r} ({role}): {text_of(v)!r} is not a number",
-                                            file=file, row=row_no)
+                        raise DeliveryError(
+                            f"column {by_name[layout.roles[role]].letter} "
+                            f"{layout.roles[role]!r} ({role}): {text_of(v)!r} is not a number",
+                            file=file,
+                            row=row_no,
+                        )
                     rec[role] = t
                 elif role == "excluded":
                     rec[role] = _bool_text(v, file, row_no, layout.roles[role])
                 else:
                     rec[role] = text_of(v) or None
-            for role in ("point_id", "x", "y") + (("x_ref", "y_ref") if layout.table == "checkpoints" else ()):
+            for role in ("point_id", "x", "y") + (
+                ("x_ref", "y_ref") if layout.table == "checkpoints" else ()
+            ):
                 if not rec.get(role):
                     col = by_name[layout.roles[role]]
-                    raise DeliveryError(f"column {col.letter} {col.name!r} ({role}) is empty (a formula without a "
-                                        "stored result reads as empty: save the file in a spreadsheet program)",
-                                        file=file, row=row_no)
+                    raise DeliveryError(
+                        f"column {col.letter} {col.name!r} ({role}) is empty (a formula without a "
+                        "stored result reads as empty: save the file in a spreadsheet program)",
+                        file=file,
+                        row=row_no,
+                    )
             pid = str(rec["point_id"])
             if pid in seen:
-                raise DeliveryError(f"point id {pid!r} also on row {seen[pid]}: ids must be unique", file=file,
-                                    row=row_no)
+                raise DeliveryError(
+                    f"point id {pid!r} also on row {seen[pid]}: ids must be unique",
+                    file=file,
+                    row=row_no,
+                )
             seen[pid] = row_no
             recs.append(rec)
         _place(recs, layout, ctx, outside, tally)
@@ -684,8 +1043,13 @@ def _bool_text(v: Cell, file: str, row: int, col: str) -> str | None:
     raise DeliveryError(f"column {col!r}: {text_of(v)!r} is not a yes/no word", file=file, row=row)
 
 
-def _place(recs: list[dict[str, str | None]], layout: Layout, ctx: Context, outside: list[str],
-           tally: dict[str, Any]) -> None:
+def _place(
+    recs: list[dict[str, str | None]],
+    layout: Layout,
+    ctx: Context,
+    outside: list[str],
+    tally: dict[str, Any],
+) -> None:
     """Blocks by location (outlines given) and, for check points, the image each lies on (counted in
     ``tally``: the points whose stated block the location overrules, those on one image or not)."""
     if not recs:
@@ -699,7 +1063,9 @@ def _place(recs: list[dict[str, str | None]], layout: Layout, ctx: Context, outs
 
         found = np.full(len(recs), None, dtype=object)
         for bid, poly in ctx.outlines.items():
-            inside = shapely.contains_xy(poly, e, n) | shapely.intersects_xy(shapely.boundary(poly), e, n)
+            inside = shapely.contains_xy(poly, e, n) | shapely.intersects_xy(
+                shapely.boundary(poly), e, n
+            )
             found[inside & (found == None)] = bid  # noqa: E711 (object array)
         for r, b in zip(recs, found.tolist(), strict=True):
             stated = r.get("block")

@@ -61,7 +61,9 @@ def read_cells(path: Path, name: str) -> Cells:
     limit = _limit("ORTHOSPEC_MAX_SHEET_BYTES", SHEET_BYTES)
     size = path.stat().st_size
     if size > limit:
-        raise DeliveryError(f"{size} bytes, larger than ORTHOSPEC_MAX_SHEET_BYTES ({limit})", file=name)
+        raise DeliveryError(
+            f"{size} bytes, larger than ORTHOSPEC_MAX_SHEET_BYTES ({limit})", file=name
+        )
     suffix = path.suffix.lower()
     if suffix in (".xlsx", ".xlsm", ".ods"):
         return _workbook(path, name, limit)
@@ -82,8 +84,11 @@ def _csv(path: Path, name: str) -> Cells:
     lines = [ln for ln in text.splitlines()[:50] if ln.strip()]
     delimiter = _delimiter(lines)
     if delimiter is None:
-        raise DeliveryError("cannot tell the column separator (tried , ; tab |): the first lines split "
-                            "into different numbers of columns with each", file=name)
+        raise DeliveryError(
+            "cannot tell the column separator (tried , ; tab |): the first lines split "
+            "into different numbers of columns with each",
+            file=name,
+        )
     if delimiter != ",":
         notes.append(f"columns separated by {_DELIM_NAME[delimiter]}")
 
@@ -94,12 +99,15 @@ def _csv(path: Path, name: str) -> Cells:
                 for row in reader:
                     yield [c if c.strip() else None for c in row]
             except UnicodeDecodeError as exc:
-                raise DeliveryError(f"not {encoding} text past byte {exc.start}: mixed encodings",
-                                    file=name) from None
+                raise DeliveryError(
+                    f"not {encoding} text past byte {exc.start}: mixed encodings", file=name
+                ) from None
             except csv.Error as exc:
                 raise DeliveryError(f"line {reader.line_num}: {exc}", file=name) from None
 
-    return Cells(name, rows(), notes=notes, delimiter=delimiter, encoding=encoding.replace("-sig", ""))
+    return Cells(
+        name, rows(), notes=notes, delimiter=delimiter, encoding=encoding.replace("-sig", "")
+    )
 
 
 _DELIM_NAME = {",": "commas", ";": "semicolons", "\t": "tabs", "|": "vertical bars"}
@@ -110,7 +118,7 @@ def _delimiter(lines: list[str]) -> str | None:
     best = None
     for d in (";", "\t", "|", ","):
         counts = [len(next(csv.reader([ln], delimiter=d))) for ln in lines]
-        tail = counts[-min(len(counts), 20):]  # data lines (a title line above may differ)
+        tail = counts[-min(len(counts), 20) :]  # data lines (a title line above may differ)
         if tail and min(tail) > 1 and len(set(tail)) == 1 and (best is None or tail[0] > best[1]):
             best = (d, tail[0])
     return best[0] if best else None
@@ -123,8 +131,11 @@ def _workbook(path: Path, name: str, limit: int) -> Cells:
     except (zipfile.BadZipFile, OSError) as exc:
         raise DeliveryError(f"not a readable XLSX/ODS archive ({exc})", file=name) from None
     if inflated > 4 * limit:
-        raise DeliveryError(f"the archive inflates to {inflated} bytes, more than 4 x ORTHOSPEC_MAX_SHEET_BYTES: "
-                            "refused unread (a zip bomb?)", file=name)
+        raise DeliveryError(
+            f"the archive inflates to {inflated} bytes, more than 4 x ORTHOSPEC_MAX_SHEET_BYTES: "
+            "refused unread (a zip bomb?)",
+            file=name,
+        )
     import python_calamine as pc
 
     try:
@@ -135,11 +146,19 @@ def _workbook(path: Path, name: str, limit: int) -> Cells:
             if s.height and s.width and str(meta.visible).endswith("Visible"):
                 sheet = s
                 break
-    except Exception as exc:  # calamine's errors (XmlError, ZipError, CalamineError, PasswordError) share no base
-        raise DeliveryError(f"cannot be read as a spreadsheet ({type(exc).__name__}: {exc})", file=name) from None
+    except (
+        Exception
+    ) as exc:  # calamine's errors (XmlError, ZipError, CalamineError, PasswordError) share no base
+        raise DeliveryError(
+            f"cannot be read as a spreadsheet ({type(exc).__name__}: {exc})", file=name
+        ) from None
     if sheet is None:
         raise DeliveryError("no visible sheet holds data", file=name)
-    notes = [f"sheet {sheet.name!r} (the first visible sheet with data)"] if len(wb.sheet_names) > 1 else []
+    notes = (
+        [f"sheet {sheet.name!r} (the first visible sheet with data)"]
+        if len(wb.sheet_names) > 1
+        else []
+    )
     merged: list[tuple[int, int, int, int]] = []
     try:
         ranges = sheet.merged_cell_ranges or []
@@ -173,8 +192,11 @@ def count_guard(rows: Iterator[list[Cell]], name: str) -> Iterator[tuple[int, li
     limit = _limit("ORTHOSPEC_MAX_SHEET_ROWS", SHEET_ROWS)
     for i, row in enumerate(rows, start=1):
         if i > limit:
-            raise DeliveryError(f"more than ORTHOSPEC_MAX_SHEET_ROWS ({limit}) rows: refused (a check point or "
-                                "GCP survey holds far fewer; raise the limit if this one is real)", file=name)
+            raise DeliveryError(
+                f"more than ORTHOSPEC_MAX_SHEET_ROWS ({limit}) rows: refused (a check point or "
+                "GCP survey holds far fewer; raise the limit if this one is real)",
+                file=name,
+            )
         yield i, row
 
 

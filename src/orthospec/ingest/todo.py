@@ -3,7 +3,8 @@
 Read from the profile alone (as ``orthospec init`` reads it for its template, spec/template.py):
 for every rule that can apply to the draft's sensor, the delivery facts it reads (its measure,
 its ``when``, the names in its threshold) and, for measures computed from tables, the tables
-behind them (``spec.template.rule_inputs``, which ``orthospec init`` uses for its template too). A rule reading a fact the draft leaves empty is listed under that
+behind them (``spec.template.rule_inputs``, which ``orthospec init`` uses for its template too). A
+rule reading a fact the draft leaves empty is listed under that
 fact's entry; the map rule -> line is written beside TODO.md (``draft.todo_rules``) and the
 evaluator appends "see TODO.md line N" to every ``missing`` record (engine/evaluator.py). A rule
 the map does not name cites the last entry, which says to read the record's own message.
@@ -26,7 +27,7 @@ MANIFEST_HELP = {
     "operator.name": "who produced the delivery's QC record (JRC §2.4)",
     "contractor.name": "the contractor (the metadata names no originator)",
     "product.gsd": "the delivered pixel size the contract fixes (the metadata states none; the images' "
-                   "own pixel size is measured by the check, never copied here)",
+    "own pixel size is measured by the check, never copied here)",
     "product.mosaic": "whether the product is a mosaic (no seamlines delivered)",
     "product.dem_delivered": "whether a DEM is delivered",
     "product.accuracy_statement": "the producer's statement of positional accuracy",
@@ -107,45 +108,74 @@ def entries(profile: Any, st: DraftState) -> list[Entry]:
     order = {"manifest": 0, "blocks": 1, "table": 2, "column": 3, "param": 4, "checker": 5}
     ranked = sorted(found.values(), key=lambda e: (order[e.key[0]], e.key))
     out = [e for e in ranked if e.rules]
-    out.append(Entry(("other",), "anything else a record reports `missing`",
-                     "a value the check could not measure from the files (a broken image, a rule whose "
-                     "inputs are present but incomplete): the record's own message says which file and row"))
+    out.append(
+        Entry(
+            ("other",),
+            "anything else a record reports `missing`",
+            "a value the check could not measure from the files (a broken image, a rule whose "
+            "inputs are present but incomplete): the record's own message says which file and row",
+        )
+    )
     return out + [e for e in ranked if not e.rules]  # read only by rules of the other sensor type
 
 
 def _entry(inp: tuple[str, ...], st: DraftState, specs: dict[str, Any], profile: Any) -> Entry:
     kind = inp[0]
     if kind == "manifest" and inp[1].startswith("documents."):
-        return Entry(inp, f"delivery.yaml `{inp[1]}`",
-                     "a report the profile asks for; no file of the source is known to be it: name it under "
-                     "`documents:` (INGEST.md lists the files not read)")
+        return Entry(
+            inp,
+            f"delivery.yaml `{inp[1]}`",
+            "a report the profile asks for; no file of the source is known to be it: name it under "
+            "`documents:` (INGEST.md lists the files not read)",
+        )
     if inp == ("manifest", "vectors.seamlines.image_id"):
-        return Entry(inp, "attribute `image_id` of the seamline polygons (the file delivery.yaml `vectors.seamlines` "
-                          "names)", "each polygon names the image its pixels come from (JRC Table 11, area "
-                                    "selection); the source's seamlines carry no such attribute: add it in a GIS")
+        return Entry(
+            inp,
+            "attribute `image_id` of the seamline polygons (the file delivery.yaml `vectors.seamlines` "
+            "names)",
+            "each polygon names the image its pixels come from (JRC Table 11, area "
+            "selection); the source's seamlines carry no such attribute: add it in a GIS",
+        )
     if kind == "manifest":
-        return Entry(inp, f"delivery.yaml `{inp[1]}`", MANIFEST_HELP.get(inp[1], "not stated by the files"))
+        return Entry(
+            inp, f"delivery.yaml `{inp[1]}`", MANIFEST_HELP.get(inp[1], "not stated by the files")
+        )
     if kind == "blocks":
-        return Entry(inp, "blocks (delivery.yaml `blocks:` and the `block` column of the tables)",
-                     "the files give no block outlines: run `init` again with `--blocks FILE` (a vector file "
-                     "of the block outlines) or write the blocks and each point's block by hand")
+        return Entry(
+            inp,
+            "blocks (delivery.yaml `blocks:` and the `block` column of the tables)",
+            "the files give no block outlines: run `init` again with `--blocks FILE` (a vector file "
+            "of the block outlines) or write the blocks and each point's block by hand",
+        )
     if kind == "table":
         why = st.withheld.get(inp[1]) or "not in the files"
-        return Entry(inp, f"table `{inp[1]}` (tables/{inp[1]}.csv): {specs[inp[1]].description}", why)
+        return Entry(
+            inp, f"table `{inp[1]}` (tables/{inp[1]}.csv): {specs[inp[1]].description}", why
+        )
     if kind == "column":
         cs = specs[inp[1]].columns[inp[2]]
-        return Entry(inp, f"column `{inp[2]}` of tables/{inp[1]}.csv", f"{cs.description} Not in the files.")
+        return Entry(
+            inp, f"column `{inp[2]}` of tables/{inp[1]}.csv", f"{cs.description} Not in the files."
+        )
     if kind == "param":
         p = profile.parameters.get(inp[1])
         desc = p.description if p is not None else ""
-        return Entry(inp, f"for the checker: ITT parameter `{inp[1]}`",
-                     f"{desc} Stated in the checker's file (`parameters:`), by `--param` or a tender profile; "
-                     "never by the delivery.")
-    what = {"manual_checks": "manual checks: the checker's verdicts (`manual_checks:` in the checker's file)",
-            "blocks": "block outlines in force (`blocks:` in the checker's file)",
-            "area_of_interest": "the area of interest (`area_of_interest:` in the checker's file)"}
-    return Entry(inp, f"for the checker: {what.get(inp[1], inp[1])}",
-                 "the external QC's part (JRC §2, §12), outside the delivery")
+        return Entry(
+            inp,
+            f"for the checker: ITT parameter `{inp[1]}`",
+            f"{desc} Stated in the checker's file (`parameters:`), by `--param` or a tender profile; "
+            "never by the delivery.",
+        )
+    what = {
+        "manual_checks": "manual checks: the checker's verdicts (`manual_checks:` in the checker's file)",
+        "blocks": "block outlines in force (`blocks:` in the checker's file)",
+        "area_of_interest": "the area of interest (`area_of_interest:` in the checker's file)",
+    }
+    return Entry(
+        inp,
+        f"for the checker: {what.get(inp[1], inp[1])}",
+        "the external QC's part (JRC §2, §12), outside the delivery",
+    )
 
 
 def render(entries_: list[Entry], *, head: list[str]) -> tuple[str, dict[str, list[Any]]]:
@@ -156,7 +186,11 @@ def render(entries_: list[Entry], *, head: list[str]) -> tuple[str, dict[str, li
     headed = False
     for e in entries_:
         if not e.rules and e.key != ("other",) and not headed:
-            lines += ["", "## Read only by rules of the other sensor type (not applicable to this draft)", ""]
+            lines += [
+                "",
+                "## Read only by rules of the other sensor type (not applicable to this draft)",
+                "",
+            ]
             headed = True
         e.line = len(lines) + 1
         lines.append(f"- [ ] {e.title}: {e.why}")

@@ -22,8 +22,29 @@ from ..errors import MeasureError
 #: a feature and a footprint are the same tile when they overlap by this share of their union
 SAME_TILE_IOU = 0.9
 BLOCK_WORDS = ("block", "blocks", "lot", "lots", "los", "site", "sites", "bloc", "blocs")
-SEAM_WORDS = ("seam", "seamline", "seamlines", "cutline", "cutlines", "mosaic", "naht", "nahtlinien")
-ID_FIELDS = ("id", "block", "block_id", "blockid", "name", "lot", "los", "site", "code", "nr", "label")
+SEAM_WORDS = (
+    "seam",
+    "seamline",
+    "seamlines",
+    "cutline",
+    "cutlines",
+    "mosaic",
+    "naht",
+    "nahtlinien",
+)
+ID_FIELDS = (
+    "id",
+    "block",
+    "block_id",
+    "blockid",
+    "name",
+    "lot",
+    "los",
+    "site",
+    "code",
+    "nr",
+    "label",
+)
 
 
 @dataclass
@@ -80,16 +101,24 @@ def _read(path: Path, name: str) -> tuple[str, str | None, list[Any], dict[str, 
         with gdal_errors(file=name, path=local, what="vector file"):
             meta, _fids, geometry, fields = pyogrio.raw.read(local)
     else:
-        with readable_vector(path, name=name) as (local, driver), gdal_errors(
-                file=name, path=local, what="vector file"):
+        with (
+            readable_vector(path, name=name) as (local, driver),
+            gdal_errors(file=name, path=local, what="vector file"),
+        ):
             meta, _fids, geometry, fields = pyogrio.raw.read(local)
     geoms = [] if geometry is None else list(shapely.from_wkb(geometry))
     cols = {str(n): list(v) for n, v in zip(meta.get("fields", []), fields, strict=True)}
     return driver, meta.get("crs"), geoms, cols
 
 
-def read_layer(path: Path, rel: str, *, images: dict[str, tuple[float, float, float, float]],
-               image_crs: str | None, role: str | None = None) -> Layer:
+def read_layer(
+    path: Path,
+    rel: str,
+    *,
+    images: dict[str, tuple[float, float, float, float]],
+    image_crs: str | None,
+    role: str | None = None,
+) -> Layer:
     """Read one vector file and match it to the images (name -> footprint bounds in ``image_crs``)."""
 
     lay = Layer(rel, role or role_of(rel) or "other")
@@ -160,8 +189,12 @@ def _lookup(v: Any, names: dict[str, str]) -> str | None:
     return None
 
 
-def _match(lay: Layer, geoms: list[Any], cols: dict[str, list[Any]],
-           images: dict[str, tuple[float, float, float, float]]) -> None:
+def _match(
+    lay: Layer,
+    geoms: list[Any],
+    cols: dict[str, list[Any]],
+    images: dict[str, tuple[float, float, float, float]],
+) -> None:
     import shapely
 
     names = _names(images)
@@ -203,7 +236,9 @@ def _match(lay: Layer, geoms: list[Any], cols: dict[str, list[Any]],
     lay.images_without_feature = sorted(set(images) - set(lay.matched))
 
 
-def _cover(lay: Layer, geoms: list[Any], images: dict[str, tuple[float, float, float, float]]) -> None:
+def _cover(
+    lay: Layer, geoms: list[Any], images: dict[str, tuple[float, float, float, float]]
+) -> None:
     """Seamline polygons are cut along the source images, not the tiles: an image is matched when
     the polygons cover its footprint (to 99 %), else listed as not covered."""
     import shapely
@@ -234,15 +269,19 @@ def _outlines(lay: Layer, geoms: list[Any], cols: dict[str, list[Any]]) -> None:
                 idcol = col
                 break
     if idcol is None:
-        lay.error = ("no attribute names the blocks (a unique id, block, name or lot per feature): "
-                     "outlines not used")
+        lay.error = (
+            "no attribute names the blocks (a unique id, block, name or lot per feature): "
+            "outlines not used"
+        )
         return
     for g, v in zip(geoms, cols[idcol], strict=True):
         if g is None or g.is_empty or g.geom_type not in ("Polygon", "MultiPolygon"):
             lay.notes.append(f"block {v!r}: not a polygon, not used")
             continue
         if not g.is_valid:
-            lay.notes.append(f"block {v!r}: invalid polygon ({shapely.is_valid_reason(g)}), not used")
+            lay.notes.append(
+                f"block {v!r}: invalid polygon ({shapely.is_valid_reason(g)}), not used"
+            )
             continue
         lay.outlines[str(v).strip()] = g
     lay.matched_by = f"attribute {idcol}"

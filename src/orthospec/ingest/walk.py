@@ -16,16 +16,38 @@ from ..errors import DeliveryError
 
 #: suffixes read as images (GeoTIFF/COG and JPEG 2000 are read; the others are listed as refused
 #: by the one raster reader, with its reason)
-RASTER_SUFFIXES = frozenset({".tif", ".tiff", ".jp2", ".j2k", ".jpf", ".jpx", ".img", ".ecw", ".sid",
-                             ".vrt"})
+RASTER_SUFFIXES = frozenset(
+    {".tif", ".tiff", ".jp2", ".j2k", ".jpf", ".jpx", ".img", ".ecw", ".sid", ".vrt"}
+)
 VECTOR_SUFFIXES = frozenset({".shp", ".gpkg", ".geojson", ".fgb"})
 SHEET_SUFFIXES = frozenset({".csv", ".tsv", ".xlsx", ".xlsm", ".ods"})
 XML_SUFFIXES = frozenset({".xml"})
 #: files that belong to another (a shapefile's parts, GDAL side-cars, world files): not listed
-SIDECAR_SUFFIXES = frozenset({".dbf", ".shx", ".prj", ".cpg", ".qix", ".sbn", ".sbx", ".tfw", ".tifw",
-                              ".j2w", ".jgw", ".ovr", ".msk", ".aux", ".rrd"})
-_SPECIAL = {stat.S_IFIFO: "a FIFO (named pipe)", stat.S_IFCHR: "a character device",
-            stat.S_IFBLK: "a block device", stat.S_IFSOCK: "a socket"}
+SIDECAR_SUFFIXES = frozenset(
+    {
+        ".dbf",
+        ".shx",
+        ".prj",
+        ".cpg",
+        ".qix",
+        ".sbn",
+        ".sbx",
+        ".tfw",
+        ".tifw",
+        ".j2w",
+        ".jgw",
+        ".ovr",
+        ".msk",
+        ".aux",
+        ".rrd",
+    }
+)
+_SPECIAL = {
+    stat.S_IFIFO: "a FIFO (named pipe)",
+    stat.S_IFCHR: "a character device",
+    stat.S_IFBLK: "a block device",
+    stat.S_IFSOCK: "a socket",
+}
 
 
 @dataclass(frozen=True)
@@ -55,9 +77,13 @@ def kind_of(name: str) -> str:
     if low.endswith(".aux.xml"):
         return "sidecar"
     suffix = os.path.splitext(low)[1]
-    for kind, suffixes in (("raster", RASTER_SUFFIXES), ("vector", VECTOR_SUFFIXES),
-                           ("sheet", SHEET_SUFFIXES), ("xml", XML_SUFFIXES),
-                           ("sidecar", SIDECAR_SUFFIXES)):
+    for kind, suffixes in (
+        ("raster", RASTER_SUFFIXES),
+        ("vector", VECTOR_SUFFIXES),
+        ("sheet", SHEET_SUFFIXES),
+        ("xml", XML_SUFFIXES),
+        ("sidecar", SIDECAR_SUFFIXES),
+    ):
         if suffix in suffixes:
             return kind
     return "other"
@@ -75,10 +101,14 @@ def walk_source(source: str | Path) -> tuple[list[SourceFile], list[Refused]]:
     try:
         st = root.stat()
     except OSError as exc:
-        raise DeliveryError(f"source {str(source)!r} cannot be read: {exc.strerror or exc}") from None
+        raise DeliveryError(
+            f"source {str(source)!r} cannot be read: {exc.strerror or exc}"
+        ) from None
     if not stat.S_ISDIR(st.st_mode):
-        raise DeliveryError(f"source {str(source)!r} is a file, not a folder; `init --from` takes the "
-                            "folder the delivery arrived in")
+        raise DeliveryError(
+            f"source {str(source)!r} is a file, not a folder; `init --from` takes the "
+            "folder the delivery arrived in"
+        )
     real_root = root.resolve()
     files: list[SourceFile] = []
     refused: list[Refused] = []
@@ -88,8 +118,12 @@ def walk_source(source: str | Path) -> tuple[list[SourceFile], list[Refused]]:
         try:
             entries = sorted(os.scandir(folder), key=lambda e: e.name)
         except OSError as exc:
-            refused.append(Refused(folder.relative_to(root).as_posix() + "/",
-                                   f"folder cannot be listed: {exc.strerror or exc}"))
+            refused.append(
+                Refused(
+                    folder.relative_to(root).as_posix() + "/",
+                    f"folder cannot be listed: {exc.strerror or exc}",
+                )
+            )
             continue
         subdirs = []
         for e in entries:
@@ -99,15 +133,26 @@ def walk_source(source: str | Path) -> tuple[list[SourceFile], list[Refused]]:
                     try:
                         real = Path(e.path).resolve(strict=True)
                     except (OSError, RuntimeError):
-                        refused.append(Refused(rel, "symbolic link that cannot be resolved (dangling or a loop)"))
+                        refused.append(
+                            Refused(
+                                rel, "symbolic link that cannot be resolved (dangling or a loop)"
+                            )
+                        )
                         continue
                     if not real.is_relative_to(real_root):
-                        refused.append(Refused(rel, "symbolic link leading out of the source folder: not read"))
+                        refused.append(
+                            Refused(rel, "symbolic link leading out of the source folder: not read")
+                        )
                         continue
                     mode = os.stat(e.path).st_mode
                     if stat.S_ISDIR(mode):
-                        refused.append(Refused(rel, "symbolic link to a folder: not followed (its files are "
-                                                    "listed under their own path)"))
+                        refused.append(
+                            Refused(
+                                rel,
+                                "symbolic link to a folder: not followed (its files are "
+                                "listed under their own path)",
+                            )
+                        )
                         continue
                 else:
                     mode = e.stat(follow_symlinks=False).st_mode

@@ -32,8 +32,13 @@ class Chip:
 
     def to_dict(self) -> dict[str, Any]:
         h, w = self.data.shape
-        return {"shape": [int(h), int(w)], "extent": [float(v) for v in self.extent],
-                "luminance": base64.b64encode(np.ascontiguousarray(self.data, dtype=np.uint8).tobytes()).decode()}
+        return {
+            "shape": [int(h), int(w)],
+            "extent": [float(v) for v in self.extent],
+            "luminance": base64.b64encode(
+                np.ascontiguousarray(self.data, dtype=np.uint8).tobytes()
+            ).decode(),
+        }
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> Chip:
@@ -56,12 +61,18 @@ def read_chip(path: str | Path, x: float, y: float, *, name: str, px: int = CHIP
     from ..raster.reading import gdal_errors, open_read_only, read_only_env
 
     try:
-        with read_only_env(), open_read_only(path, name=name) as ds, gdal_errors(file=name, path=path):
+        with (
+            read_only_env(),
+            open_read_only(path, name=name) as ds,
+            gdal_errors(file=name, path=path),
+        ):
             row, col = ds.index(x, y)
             if not (0 <= row < ds.height and 0 <= col < ds.width):
                 return f"({x:.3f}, {y:.3f}) lies outside {name}"
             half = px // 2
-            win = Window(col - half, row - half, px, px).intersection(Window(0, 0, ds.width, ds.height))
+            win = Window(col - half, row - half, px, px).intersection(
+                Window(0, 0, ds.width, ds.height)
+            )
             bands = list(range(1, min(ds.count, 3) + 1))
             arr = ds.read(bands, window=win, masked=True).astype(np.float64)
             lum = np.ma.mean(arr, axis=0).filled(np.nan)

@@ -57,8 +57,12 @@ def catalogue() -> Catalogue:
     for d in raw.get("defects") or []:
         code = str(d["code"])
         if not _CODE.match(code) or code in {x.code for x in defects}:
-            raise SpecError(f"defect code {code!r} is not a unique lower-case field name", file=str(path))
-        defects.append(DefectClass(code, str(d["title"]), dict(d.get("clause") or {}), str(d["quote"])))
+            raise SpecError(
+                f"defect code {code!r} is not a unique lower-case field name", file=str(path)
+            )
+        defects.append(
+            DefectClass(code, str(d["title"]), dict(d.get("clause") or {}), str(d["quote"]))
+        )
     codes = {d.code for d in defects}
     rules: dict[str, tuple[str, ...]] = {}
     for rule, want in (raw.get("rules") or {}).items():

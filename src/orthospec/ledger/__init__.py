@@ -75,7 +75,9 @@ def sample_fraction(ledger: Ledger | str | None, project: str, family: str, norm
         return led.sample_fraction(project, family, normal, tightened)
 
 
-def head_for_check(target: str | None, *, allowed_signers: str | os.PathLike[str] | None = None) -> dict[str, object]:
+def head_for_check(
+    target: str | None, *, allowed_signers: str | os.PathLike[str] | None = None
+) -> dict[str, object]:
     """Open (or create) the ledger a check will record into, refuse it when it does not verify,
     and return its chain head ``{"seq", "hash"}`` for qcr.json (``ledger_head``).
 
@@ -86,7 +88,9 @@ def head_for_check(target: str | None, *, allowed_signers: str | os.PathLike[str
     with open_ledger(target, allowed_signers=allowed_signers) as led:
         rep = led.verify()
         if not rep.ok:
-            raise LedgerError(f"ledger {led.display} does not verify ({rep.problems[0]}); "
-                              "run `orthospec ledger verify` before recording more runs")
+            raise LedgerError(
+                f"ledger {led.display} does not verify ({rep.problems[0]}); "
+                "run `orthospec ledger verify` before recording more runs"
+            )
         seq, head = led.head()
     return {"seq": seq, "hash": head}

@@ -28,7 +28,9 @@ def append_anchor(seq: int, head: str) -> None:
             fh.flush()
             os.fsync(fh.fileno())
     except OSError as exc:
-        raise LedgerError(f"recorded, but the head could not be appended to ${ENV_ANCHOR} {path}: {exc}") from None
+        raise LedgerError(
+            f"recorded, but the head could not be appended to ${ENV_ANCHOR} {path}: {exc}"
+        ) from None
 
 
 def read_anchors() -> list[tuple[int, tuple[int, str]]]:

@@ -84,8 +84,9 @@ def is_marginal(measured: Any, requirement: Mapping[str, Any], *, margin: float 
     return False
 
 
-def outcome(verdict: str, measured: Any, requirement: Mapping[str, Any], *,
-            margin: float = MARGIN) -> str | None:
+def outcome(
+    verdict: str, measured: Any, requirement: Mapping[str, Any], *, margin: float = MARGIN
+) -> str | None:
     """``fail``, ``marginal``, ``pass`` or None (the record says nothing) for one record."""
     if verdict in NEUTRAL:
         return None
@@ -103,8 +104,8 @@ class RunRecords:
     """One run's QCR rows as the state machine needs them."""
 
     run_id: int
-    records: Sequence[Mapping[str, Any]]   # keys: rule, item, verdict, family, measured, requirement
-    manual: Mapping[str, str] = field(default_factory=dict)   # sign-off verdicts by rule
+    records: Sequence[Mapping[str, Any]]  # keys: rule, item, verdict, family, measured, requirement
+    manual: Mapping[str, str] = field(default_factory=dict)  # sign-off verdicts by rule
 
 
 _LEVEL = re.compile(r"(normal|tightened)\s*\(\s*(\d+(?:\.\d+)?)\s*%\s*\)", re.IGNORECASE)
@@ -141,17 +142,29 @@ def audit_states(runs: Iterable[RunRecords], *, margin: float = MARGIN) -> dict[
                 n_fail = sum(o == V.FAIL for o, _, _ in bad)
                 n_marg = len(bad) - n_fail
                 rules = sorted({r for _, r, _ in bad})
-                what = ", ".join(p for p in (f"{n_fail} failing" if n_fail else "",
-                                             f"{n_marg} marginal" if n_marg else "") if p)
-                since = prev.since_run if prev is not None and prev.state == TIGHTENED else run.run_id
+                what = ", ".join(
+                    p
+                    for p in (
+                        f"{n_fail} failing" if n_fail else "",
+                        f"{n_marg} marginal" if n_marg else "",
+                    )
+                    if p
+                )
+                since = (
+                    prev.since_run if prev is not None and prev.state == TIGHTENED else run.run_id
+                )
                 states[fam] = FamilyState(
-                    fam, TIGHTENED, since, run.run_id,
+                    fam,
+                    TIGHTENED,
+                    since,
+                    run.run_id,
                     f"run {run.run_id}: {what} ({', '.join(rules)})",
-                    tuple(sorted({i for _, _, i in bad})))
+                    tuple(sorted({i for _, _, i in bad})),
+                )
             else:
-                reason = (f"run {run.run_id}: all {len(outs)} passed clearly"
-                          + (" (back from tightened)" if prev is not None and prev.state == TIGHTENED
-                             else ""))
+                reason = f"run {run.run_id}: all {len(outs)} passed clearly" + (
+                    " (back from tightened)" if prev is not None and prev.state == TIGHTENED else ""
+                )
                 since = prev.since_run if prev is not None and prev.state == NORMAL else run.run_id
                 states[fam] = FamilyState(fam, NORMAL, since, run.run_id, reason)
     return states

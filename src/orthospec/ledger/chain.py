@@ -38,7 +38,7 @@ def sha256_text(text: str) -> str:
     """SHA-256 of the UTF-8 text, encoded a chunk at a time (a document may be tens of MB)."""
     h = hashlib.sha256()
     for i in range(0, len(text), _CHUNK):
-        h.update(text[i:i + _CHUNK].encode("utf-8"))
+        h.update(text[i : i + _CHUNK].encode("utf-8"))
     return h.hexdigest()
 
 
@@ -51,7 +51,7 @@ def _canonical_pieces(d: Mapping[str, Any]) -> Iterator[str]:
         if isinstance(v, str) and len(v) > _CHUNK:
             yield '"'
             for i in range(0, len(v), _CHUNK):
-                yield encode_basestring(v[i:i + _CHUNK])[1:-1]
+                yield encode_basestring(v[i : i + _CHUNK])[1:-1]
             yield '"'
         else:
             yield _ENC.encode(v)
@@ -71,7 +71,9 @@ class RunHasher:
         self._h = hashlib.sha256()
         self._prev = prev
         self._first = True
-        ordered = sorted(({k: v for k, v in f.items() if k != "run_id"} for f in files), key=lambda f: f["path"])
+        ordered = sorted(
+            ({k: v for k, v in f.items() if k != "run_id"} for f in files), key=lambda f: f["path"]
+        )
         self._update('{"content":{"files":' + _ENC.encode(ordered) + ',"qcrs":[')
 
     def _update(self, text: str) -> None:

@@ -61,12 +61,16 @@ def connect(target: str | os.PathLike[str] | None, *, create: bool) -> tuple[Eng
         if not url.database or url.database == ":memory:":
             raise LedgerError(f"ledger {raw!r}: an in-memory SQLite ledger would keep nothing")
         if path.is_file() and path.stat().st_size == 0:
-            raise LedgerError(f"ledger {raw}: empty file (0 bytes). A truncated ledger is not a new one: "
-                              "restore it from a backup, or remove the file to start a new ledger")
+            raise LedgerError(
+                f"ledger {raw}: empty file (0 bytes). A truncated ledger is not a new one: "
+                "restore it from a backup, or remove the file to start a new ledger"
+            )
         if not path.exists():
             if not create:
-                raise LedgerError(f"no ledger at {raw} (record a run first with "
-                                  f"`orthospec check ... --ledger {raw}`)")
+                raise LedgerError(
+                    f"no ledger at {raw} (record a run first with "
+                    f"`orthospec check ... --ledger {raw}`)"
+                )
             path.parent.mkdir(parents=True, exist_ok=True)
         engine = create_engine(url, connect_args={"timeout": 60})
         _sqlite_events(engine)
@@ -74,11 +78,14 @@ def connect(target: str | os.PathLike[str] | None, *, create: bool) -> tuple[Eng
         try:
             engine = create_engine(url, pool_pre_ping=True)
         except (NoSuchModuleError, ModuleNotFoundError) as exc:
-            raise LedgerError(f"ledger {display}: PostgreSQL driver missing ({exc}); "
-                              "install orthospec[postgres]") from None
+            raise LedgerError(
+                f"ledger {display}: PostgreSQL driver missing ({exc}); install orthospec[postgres]"
+            ) from None
     else:
-        raise LedgerError(f"ledger {display}: unsupported database {url.drivername!r}; "
-                          "use a SQLite path or a postgresql+psycopg:// URL")
+        raise LedgerError(
+            f"ledger {display}: unsupported database {url.drivername!r}; "
+            "use a SQLite path or a postgresql+psycopg:// URL"
+        )
     return engine, display
 
 
@@ -92,8 +99,10 @@ def ensure_schema(engine: Engine, display: str) -> None:
     if rev is not None and not rev.isdigit():
         raise LedgerError(f"ledger {display}: unknown schema revision {rev!r}")
     if rev is not None and int(rev) > int(m.SCHEMA_REVISION):
-        raise LedgerError(f"ledger {display}: schema revision {rev} is newer than this "
-                          f"orthospec ({m.SCHEMA_REVISION}); upgrade orthospec")
+        raise LedgerError(
+            f"ledger {display}: schema revision {rev} is newer than this "
+            f"orthospec ({m.SCHEMA_REVISION}); upgrade orthospec"
+        )
     with writer(engine).begin() as conn:
         if conn.dialect.name == "postgresql":
             conn.execute(text("SELECT pg_advisory_xact_lock(:k)"), {"k": _PG_LOCK_KEY})
@@ -110,15 +119,18 @@ def write_transaction(engine: Engine, display: str) -> Iterator[tuple[Connection
     """A write transaction holding the chain head: yields (conn, head seq, head hash)."""
     try:
         with writer(engine).begin() as conn:
-            row = conn.execute(select(m.head.c.seq, m.head.c.hash).where(m.head.c.id == 1)
-                               .with_for_update()).one_or_none()
+            row = conn.execute(
+                select(m.head.c.seq, m.head.c.hash).where(m.head.c.id == 1).with_for_update()
+            ).one_or_none()
             if row is None:
-                raise LedgerError(f"{display}: the chain head row is missing; "
-                                  "run `orthospec ledger verify`")
+                raise LedgerError(
+                    f"{display}: the chain head row is missing; run `orthospec ledger verify`"
+                )
             yield conn, int(row.seq), str(row.hash)
     except DBAPIError as exc:
-        raise LedgerError(f"{display}: write failed, nothing recorded: "
-                          f"{str(exc.orig).strip()}") from None
+        raise LedgerError(
+            f"{display}: write failed, nothing recorded: {str(exc.orig).strip()}"
+        ) from None
 
 
 def _sqlite_events(engine: Engine) -> None:
@@ -154,7 +166,6 @@ def current_revision(conn: Connection) -> str | None:
     return MigrationContext.configure(conn).get_current_revision()
 
 
-
 #: QCR rows per executemany and per hash update (a few MB of rows at a time)
 BATCH = 5000
 
@@ -164,10 +175,14 @@ def next_batch(rows: Iterator[Row]) -> list[Row]:
     try:
         return list(itertools.islice(rows, BATCH))
     except (KeyError, TypeError, AttributeError) as exc:
-        raise LedgerError(f"not a QCR document (missing {exc}); expected qcr.json structure") from None
+        raise LedgerError(
+            f"not a QCR document (missing {exc}); expected qcr.json structure"
+        ) from None
 
 
-def qcr_writer(conn: Connection, run_id: int, display: str) -> Callable[[list[tuple[Any, ...]]], None]:
+def qcr_writer(
+    conn: Connection, run_id: int, display: str
+) -> Callable[[list[tuple[Any, ...]]], None]:
     """Writes a batch of QCR rows (value tuples in :data:`QCR_COLUMNS` order) of run ``run_id`` in
     the open transaction: PostgreSQL by COPY (one stream, not a statement per row), SQLite by
     executemany of one INSERT with positional parameters (they bind faster than named ones)."""
@@ -185,7 +200,9 @@ def qcr_writer(conn: Connection, run_id: int, display: str) -> Callable[[list[tu
                     for values in batch:
                         out.write_row((run_id, *values))
             except psycopg.Error as exc:
-                raise LedgerError(f"{display}: write failed, nothing recorded: {str(exc).strip()}") from None
+                raise LedgerError(
+                    f"{display}: write failed, nothing recorded: {str(exc).strip()}"
+                ) from None
 
         return write_pg
     insert = f"INSERT INTO {q(m.qcrs.name)} ({columns}) VALUES ({int(run_id)}, {', '.join('?' for _ in QCR_COLUMNS)})"
@@ -194,4 +211,3 @@ def qcr_writer(conn: Connection, run_id: int, display: str) -> Callable[[list[tu
         conn.exec_driver_sql(insert, batch)
 
     return write_sqlite
-

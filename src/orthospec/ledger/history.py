@@ -80,12 +80,18 @@ def round_of_document(runs: Sequence[RunInfo], doc: Mapping[str, Any]) -> tuple[
     return rounds_of([*pairs, ("", document_content_key(doc))])[-1]
 
 
-def build_history(project: str | None, runs: Sequence[RunInfo],
-                  qcrs: Mapping[int, Sequence[Mapping[str, Any]]],
-                  manual: Mapping[int, Mapping[str, str]], signoffs: Mapping[int, int]) -> History:
+def build_history(
+    project: str | None,
+    runs: Sequence[RunInfo],
+    qcrs: Mapping[int, Sequence[Mapping[str, Any]]],
+    manual: Mapping[int, Mapping[str, str]],
+    signoffs: Mapping[int, int],
+) -> History:
     """Assemble the per-run, per-rule and per-block views from stored rows."""
-    entries = tuple(HistoryEntry(r, k, n, signoffs.get(r.id, 0)) for r, (k, n) in zip(runs, rounds(runs),
-                                                                                        strict=True))
+    entries = tuple(
+        HistoryEntry(r, k, n, signoffs.get(r.id, 0))
+        for r, (k, n) in zip(runs, rounds(runs), strict=True)
+    )
     rules: dict[str, dict[int, set[str]]] = {}
     blocks: dict[str, dict[int, set[str]]] = {}
     for r in runs:
@@ -98,8 +104,10 @@ def build_history(project: str | None, runs: Sequence[RunInfo],
         for b in (r.summary.get("rejected") or {}).get("block", []):
             blocks.setdefault(str(b), {}).setdefault(r.id, set()).add(REJECTED)
     rule_view = {k: {rid: worst(vs) for rid, vs in per.items()} for k, per in sorted(rules.items())}
-    block_view = {k: {rid: (REJECTED if REJECTED in vs else worst(vs)) for rid, vs in per.items()}
-                  for k, per in sorted(blocks.items())}
+    block_view = {
+        k: {rid: (REJECTED if REJECTED in vs else worst(vs)) for rid, vs in per.items()}
+        for k, per in sorted(blocks.items())
+    }
     return History(project, entries, rule_view, block_view)
 
 
@@ -107,9 +115,9 @@ def build_history(project: str | None, runs: Sequence[RunInfo],
 class Change:
     rule: str
     item: str
-    before: str | None   # None: the record did not exist in run A
+    before: str | None  # None: the record did not exist in run A
     after: str | None
-    status: str          # fixed | newly_failing | still_failing | changed | added | removed
+    status: str  # fixed | newly_failing | still_failing | changed | added | removed
 
 
 @dataclass(frozen=True)
@@ -137,8 +145,9 @@ def classify(before: str | None, after: str | None) -> str | None:
     return "changed"
 
 
-def diff_verdicts(run_a: int, run_b: int, a: Mapping[tuple[str, str], str],
-                  b: Mapping[tuple[str, str], str]) -> Diff:
+def diff_verdicts(
+    run_a: int, run_b: int, a: Mapping[tuple[str, str], str], b: Mapping[tuple[str, str], str]
+) -> Diff:
     """Compare two runs' (rule, item) -> verdict maps."""
     changes = []
     for key in sorted(set(a) | set(b)):
@@ -151,21 +160,45 @@ def diff_verdicts(run_a: int, run_b: int, a: Mapping[tuple[str, str], str],
     return Diff(run_a, run_b, tuple(changes), counts)
 
 
-def history_rows(entries: Sequence[HistoryEntry], *, current_run: int | None = None) -> list[dict[str, Any]]:
+def history_rows(
+    entries: Sequence[HistoryEntry], *, current_run: int | None = None
+) -> list[dict[str, Any]]:
     """Plain rows of a project's sequence of runs, as reports show them (JRC §12.8)."""
-    return [{"run": e.run.id, "round": e.round, "kind": e.kind, "date": e.run.date,
-             "delivery": e.run.delivery_id, "verdict": e.run.verdict, "signoffs": e.signoffs,
-             "profile": f"{e.run.profile_id} {e.run.profile_version}", "current": e.run.id == current_run}
-            for e in entries]
+    return [
+        {
+            "run": e.run.id,
+            "round": e.round,
+            "kind": e.kind,
+            "date": e.run.date,
+            "delivery": e.run.delivery_id,
+            "verdict": e.run.verdict,
+            "signoffs": e.signoffs,
+            "profile": f"{e.run.profile_id} {e.run.profile_version}",
+            "current": e.run.id == current_run,
+        }
+        for e in entries
+    ]
 
 
-def history_rows_before_recording(entries: Sequence[HistoryEntry], doc: Mapping[str, Any]) -> list[dict[str, Any]]:
+def history_rows_before_recording(
+    entries: Sequence[HistoryEntry], doc: Mapping[str, Any]
+) -> list[dict[str, Any]]:
     """The project's recorded runs, then the row ``doc`` (checked now, recorded right after its
     reports are rendered) will have: the report archived at check time states the same round as
     ``orthospec report --ledger --run N`` later does."""
     rows = history_rows(entries)
     kind, n = round_of_document([e.run for e in entries], doc)
-    rows.append({"run": "new", "round": n, "kind": kind, "date": doc["date"], "delivery": doc["delivery"]["id"],
-                 "verdict": doc["verdict"], "signoffs": 0,
-                 "profile": f"{doc['profile']['id']} {doc['profile']['version']}", "current": True})
+    rows.append(
+        {
+            "run": "new",
+            "round": n,
+            "kind": kind,
+            "date": doc["date"],
+            "delivery": doc["delivery"]["id"],
+            "verdict": doc["verdict"],
+            "signoffs": 0,
+            "profile": f"{doc['profile']['id']} {doc['profile']['version']}",
+            "current": True,
+        }
+    )
     return rows

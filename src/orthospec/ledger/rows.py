@@ -22,9 +22,27 @@ from .audit import family_of
 from .chain import canonical
 
 #: the QCR columns of a row, sorted (the order canonical JSON writes them in); ``run_id`` is not part
-QCR_COLUMNS = ("clause_document", "clause_row", "clause_section", "clause_table", "consequence", "family",
-               "item", "level", "manual", "measure", "measured", "message", "ordinal", "requirement",
-               "requirement_text", "rule", "scope", "unit", "verdict")
+QCR_COLUMNS = (
+    "clause_document",
+    "clause_row",
+    "clause_section",
+    "clause_table",
+    "consequence",
+    "family",
+    "item",
+    "level",
+    "manual",
+    "measure",
+    "measured",
+    "message",
+    "ordinal",
+    "requirement",
+    "requirement_text",
+    "rule",
+    "scope",
+    "unit",
+    "verdict",
+)
 
 
 def _s(x: Any) -> str | None:
@@ -37,13 +55,25 @@ def qcr_row(i: int, rec: Mapping[str, Any]) -> dict[str, Any]:
     measured = rec.get("measured") or {}
     req = rec.get("requirement") or {}
     return {
-        "clause_document": _s(clause.get("document")), "clause_row": _s(clause.get("row")),
-        "clause_section": _s(clause.get("section")), "clause_table": _s(clause.get("table")),
-        "consequence": rec.get("consequence"), "family": family_of(rec), "item": str(rec["item"]),
-        "level": rec.get("level"), "manual": bool(rec.get("manual", False)), "measure": rec.get("measure"),
-        "measured": canonical(measured.get("value")), "message": rec.get("message"), "ordinal": i,
-        "requirement": canonical(req), "requirement_text": req.get("text"), "rule": str(rec["rule"]),
-        "scope": str(rec["scope"]), "unit": measured.get("unit"), "verdict": str(rec["verdict"]),
+        "clause_document": _s(clause.get("document")),
+        "clause_row": _s(clause.get("row")),
+        "clause_section": _s(clause.get("section")),
+        "clause_table": _s(clause.get("table")),
+        "consequence": rec.get("consequence"),
+        "family": family_of(rec),
+        "item": str(rec["item"]),
+        "level": rec.get("level"),
+        "manual": bool(rec.get("manual", False)),
+        "measure": rec.get("measure"),
+        "measured": canonical(measured.get("value")),
+        "message": rec.get("message"),
+        "ordinal": i,
+        "requirement": canonical(req),
+        "requirement_text": req.get("text"),
+        "rule": str(rec["rule"]),
+        "scope": str(rec["scope"]),
+        "unit": measured.get("unit"),
+        "verdict": str(rec["verdict"]),
     }
 
 
@@ -53,7 +83,9 @@ def json_value(v: Any) -> str:
     if t is bool:
         return "true" if v else "false"
     if t is float:
-        return float.__repr__(v) if math.isfinite(v) else canonical(v)  # non-finite: the encoder's error
+        return (
+            float.__repr__(v) if math.isfinite(v) else canonical(v)
+        )  # non-finite: the encoder's error
     if t is int:
         return int.__repr__(v)
     if v is None:
@@ -105,11 +137,13 @@ def _texts(rows: Sequence[Sequence[Any]], texts_only: bool) -> list[str]:
     cols = [_column_texts(k, col, texts_only) for k, col in enumerate(zip(*rows, strict=True))]
     if len(cols) != len(QCR_COLUMNS):
         raise ValueError(f"a QCR row has {len(cols)} values, expected {len(QCR_COLUMNS)}")
-    return [f'{{"clause_document":{a},"clause_row":{b},"clause_section":{c},"clause_table":{d},'
-            f'"consequence":{e},"family":{f},"item":{g},"level":{h},"manual":{i},"measure":{j},'
-            f'"measured":{k},"message":{l_},"ordinal":{m},"requirement":{n},"requirement_text":{o},'
-            f'"rule":{p},"scope":{q},"unit":{r},"verdict":{s}}}'
-            for a, b, c, d, e, f, g, h, i, j, k, l_, m, n, o, p, q, r, s in zip(*cols, strict=True)]
+    return [
+        f'{{"clause_document":{a},"clause_row":{b},"clause_section":{c},"clause_table":{d},'
+        f'"consequence":{e},"family":{f},"item":{g},"level":{h},"manual":{i},"measure":{j},'
+        f'"measured":{k},"message":{l_},"ordinal":{m},"requirement":{n},"requirement_text":{o},'
+        f'"rule":{p},"scope":{q},"unit":{r},"verdict":{s}}}'
+        for a, b, c, d, e, f, g, h, i, j, k, l_, m, n, o, p, q, r, s in zip(*cols, strict=True)
+    ]
 
 
 def canonical_texts(rows: Sequence[Sequence[Any]]) -> list[str]:
@@ -128,8 +162,9 @@ def _with_text(row: dict[str, Any]) -> Row:
     return row_values(row), canonical(row)
 
 
-def _compact_rows(rule: Mapping[str, Any], block: Mapping[str, Any], compact: Mapping[str, Any],
-                  start: int | None) -> Iterator[_Draft]:
+def _compact_rows(
+    rule: Mapping[str, Any], block: Mapping[str, Any], compact: Mapping[str, Any], start: int | None
+) -> Iterator[_Draft]:
     """Rows of one rule's compact block, read as ``qcr._expand`` reads it: rule constants once, per
     item only what varies. With ``start`` (the first ordinal) each row comes with its canonical
     text, built from the rule's constant parts already encoded (the same text :func:`canonical`
@@ -138,14 +173,27 @@ def _compact_rows(rule: Mapping[str, Any], block: Mapping[str, Any], compact: Ma
 
     items, verdicts, measured, reqs, msgs = block_columns(rule, block, compact)
     n = len(items)
-    const = qcr_row(0, _full(rule, "", "", None, {}, [], ""))  # what every record of the rule shares
-    cd, crow, csec, ctab = const["clause_document"], const["clause_row"], const["clause_section"], \
-        const["clause_table"]
-    consequence, family, level, manual = const["consequence"], const["family"], const["level"], const["manual"]
+    const = qcr_row(
+        0, _full(rule, "", "", None, {}, [], "")
+    )  # what every record of the rule shares
+    cd, crow, csec, ctab = (
+        const["clause_document"],
+        const["clause_row"],
+        const["clause_section"],
+        const["clause_table"],
+    )
+    consequence, family, level, manual = (
+        const["consequence"],
+        const["family"],
+        const["level"],
+        const["manual"],
+    )
     measure, rule_id, scope, unit = const["measure"], const["rule"], const["scope"], const["unit"]
     jv = json_value
-    head = (f'{{"clause_document":{jv(cd)},"clause_row":{jv(crow)},"clause_section":{jv(csec)},'
-            f'"clause_table":{jv(ctab)},"consequence":{jv(consequence)},"family":{jv(family)},"item":')
+    head = (
+        f'{{"clause_document":{jv(cd)},"clause_row":{jv(crow)},"clause_section":{jv(csec)},'
+        f'"clause_table":{jv(ctab)},"consequence":{jv(consequence)},"family":{jv(family)},"item":'
+    )
     mid = f',"level":{jv(level)},"manual":{jv(manual)},"measure":{jv(measure)},"measured":'
     tail = f',"rule":{jv(rule_id)},"scope":{jv(scope)},"unit":{jv(unit)},"verdict":'
     shown = _shown_unit(rule.get("unit"))
@@ -166,10 +214,15 @@ def _compact_rows(rule: Mapping[str, Any], block: Mapping[str, Any], compact: Ma
             last_req = req
             r = req or {}
             req_text, req_words = canonical(r), r.get("text")
-            req_json = f',"requirement":{encode_basestring(req_text)},"requirement_text":{jv(req_words)}'
+            req_json = (
+                f',"requirement":{encode_basestring(req_text)},"requirement_text":{jv(req_words)}'
+            )
         if msg is None:
             if pass_key[0] is not v or pass_key[1] is not req:
-                pass_key, pass_msg = (v, req), _pass_message(measure_text, v, shown, req.get("text", ""))
+                pass_key, pass_msg = (
+                    (v, req),
+                    _pass_message(measure_text, v, shown, req.get("text", "")),
+                )
             msg = pass_msg
         if msg is not last_msg:
             last_msg, msg_json = msg, jv(msg)
@@ -178,13 +231,37 @@ def _compact_rows(rule: Mapping[str, Any], block: Mapping[str, Any], compact: Ma
             verdict = str(last_verdict)
             verdict_json = jv(verdict)
         item = str(items[k])
-        values = (cd, crow, csec, ctab, consequence, family, item, level, manual, measure, v_text, msg,
-                  0 if start is None else start + k, req_text, req_words, rule_id, scope, unit, verdict)
+        values = (
+            cd,
+            crow,
+            csec,
+            ctab,
+            consequence,
+            family,
+            item,
+            level,
+            manual,
+            measure,
+            v_text,
+            msg,
+            0 if start is None else start + k,
+            req_text,
+            req_words,
+            rule_id,
+            scope,
+            unit,
+            verdict,
+        )
         if start is None:
             yield values, None
         else:
-            yield values, (f'{head}{encode_basestring(item)}{mid}{v_json},"message":{msg_json},'
-                           f'"ordinal":{start + k}{req_json}{tail}{verdict_json}}}')
+            yield (
+                values,
+                (
+                    f'{head}{encode_basestring(item)}{mid}{v_json},"message":{msg_json},'
+                    f'"ordinal":{start + k}{req_json}{tail}{verdict_json}}}'
+                ),
+            )
 
 
 def rows_with_text(doc: Mapping[str, Any]) -> Iterator[Row]:
@@ -209,13 +286,18 @@ def rows_with_text(doc: Mapping[str, Any]) -> Iterator[Row]:
                 yield _with_text(qcr_row(n, _expand_stored(summary, kept)))
                 n += 1
         elif not stored:
-            for row in cast(Iterator[Row], _compact_rows(summary, block, blocks, n)):  # numbered: with text
+            for row in cast(
+                Iterator[Row], _compact_rows(summary, block, blocks, n)
+            ):  # numbered: with text
                 yield row
                 n += 1
         else:
             mine = ((row_values(qcr_row(0, _expand_stored(summary, rec))), None) for rec in stored)
-            for values, _ in heapq.merge(mine, _compact_rows(summary, block, blocks, None),
-                                         key=lambda r: natural_key(r[0][_ITEM])):
+            for values, _ in heapq.merge(
+                mine,
+                _compact_rows(summary, block, blocks, None),
+                key=lambda r: natural_key(r[0][_ITEM]),
+            ):
                 merged = dict(zip(QCR_COLUMNS, values, strict=True))
                 merged["ordinal"] = n
                 yield _with_text(merged)

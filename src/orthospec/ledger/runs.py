@@ -17,7 +17,9 @@ from .chain import canonical, sha256_text
 def content_key(manifest_sha256: str, files: Iterable[tuple[str, str]]) -> str:
     """Identity of what was delivered: the manifest's and every file's SHA-256 (not the delivery id:
     a redelivery may keep its id, JRC §12.8)."""
-    return sha256_text(canonical([str(manifest_sha256), sorted((str(p), str(h)) for p, h in files)]))
+    return sha256_text(
+        canonical([str(manifest_sha256), sorted((str(p), str(h)) for p, h in files)])
+    )
 
 
 def document_content_key(doc: Mapping[str, Any]) -> str:
@@ -47,7 +49,7 @@ class RunInfo:
     n_records: int
     summary: dict[str, Any]
     hash: str
-    files: tuple[tuple[str, str], ...] = field(default=())   # (path, sha256)
+    files: tuple[tuple[str, str], ...] = field(default=())  # (path, sha256)
     #: the key its audit state and rounds are kept under (None for runs recorded before schema 0002:
     #: their manifest project id stands in), and the earlier run whose content it continues
     audit_key: str | None = None
@@ -73,7 +75,7 @@ class RecordedRun:
 
     id: int
     seq: int
-    hash: str          # its chain hash: the ledger head once it commits
+    hash: str  # its chain hash: the ledger head once it commits
     audit_key: str
 
 
@@ -107,5 +109,3 @@ def lineage(runs: Sequence[RunInfo], key: str) -> list[RunInfo]:
                 keys.add(r.audit)
                 changed = True
     return [r for r in runs if r.audit in keys]
-
-

@@ -46,8 +46,14 @@ def apply_manual(records: Sequence[Mapping[str, Any]], decided: Mapping[str, Map
         v = d["verdict"]
         if v == V.FAIL and r.get("level") == "recommended":
             v = V.WARN
-        out.append({**r, "verdict": v, "signed_verdict": d["verdict"],
-                    "message": f"signed {d['verdict']} by {d['by']} ({d['role']}) on {d['date']}"})
+        out.append(
+            {
+                **r,
+                "verdict": v,
+                "signed_verdict": d["verdict"],
+                "message": f"signed {d['verdict']} by {d['by']} ({d['role']}) on {d['date']}",
+            }
+        )
     return out
 
 
@@ -63,15 +69,20 @@ def _checkers(r: Mapping[str, Any]) -> bool:
     """An open record that is the checker's to complete (engine/incomplete.py), not a rejection."""
     from ..engine.incomplete import checker_measure
 
-    return (r.get("consequence") == V.INCOMPLETE or bool(r.get("manual") and r["verdict"] == V.MISSING)
-            or (r["verdict"] == V.MISSING and checker_measure(str(r.get("measure") or ""))))
+    return (
+        r.get("consequence") == V.INCOMPLETE
+        or bool(r.get("manual") and r["verdict"] == V.MISSING)
+        or (r["verdict"] == V.MISSING and checker_measure(str(r.get("measure") or "")))
+    )
 
 
 def _blocking(r: Mapping[str, Any], fail_on: str) -> bool:
     return _open(r, fail_on) and not _checkers(r)
 
 
-def after_signoff(doc: Mapping[str, Any], signoffs: Sequence[Mapping[str, Any]]) -> dict[str, Any] | None:
+def after_signoff(
+    doc: Mapping[str, Any], signoffs: Sequence[Mapping[str, Any]]
+) -> dict[str, Any] | None:
     """{verdict, summary, decisions, basis} for a run with manual verdicts signed; None without."""
     decided = decisions(signoffs)
     if not decided:
@@ -90,19 +101,27 @@ def after_signoff(doc: Mapping[str, Any], signoffs: Sequence[Mapping[str, Any]])
     elif doc.get("verdict") == V.ACCEPTED:
         verdict, basis = V.ACCEPTED, "the run was accepted and no manual check was signed failing"
     else:
-        open_ = [r for r in records if _open(r, fail_on)
-                 and not (r.get("manual") and (decided.get(r["rule"]) or {}).get("verdict") == V.PASS)]
+        open_ = [
+            r
+            for r in records
+            if _open(r, fail_on)
+            and not (r.get("manual") and (decided.get(r["rule"]) or {}).get("verdict") == V.PASS)
+        ]
         rejecting = [r for r in open_ if not _checkers(r)]
         if rejecting:
             rules = sorted({r["rule"] for r in rejecting})
             verdict = V.REJECTED
-            basis = (f"{len(rejecting)} rejecting record(s) are not manual checks signed pass "
-                     f"({', '.join(rules[:4])}{', …' if len(rules) > 4 else ''})")
+            basis = (
+                f"{len(rejecting)} rejecting record(s) are not manual checks signed pass "
+                f"({', '.join(rules[:4])}{', …' if len(rules) > 4 else ''})"
+            )
         elif open_:
             rules = sorted({r["rule"] for r in open_})
             verdict = V.INCOMPLETE
-            basis = (f"{len(open_)} record(s) are still the checker's to complete "
-                     f"({', '.join(rules[:4])}{', …' if len(rules) > 4 else ''})")
+            basis = (
+                f"{len(open_)} record(s) are still the checker's to complete "
+                f"({', '.join(rules[:4])}{', …' if len(rules) > 4 else ''})"
+            )
         else:
             verdict, basis = V.ACCEPTED, "every rejecting record was a manual check signed pass"
     counts: dict[str, int] = {}

@@ -45,17 +45,28 @@ ENV_ALLOWED = "ORTHOSPEC_ALLOWED_SIGNERS"
 #: seconds ssh-keygen may take (a passphrase prompt or a hardware token touch included)
 _TIMEOUT = 300
 
-__all__ = ["ENV_ALLOWED", "ENV_KEY", "NAMESPACE", "Signature", "allowed_signers_from_env", "check_signature",
-           "key_from_env", "sign", "signature_key", "statement", "verify_signature"]
+__all__ = [
+    "ENV_ALLOWED",
+    "ENV_KEY",
+    "NAMESPACE",
+    "Signature",
+    "allowed_signers_from_env",
+    "check_signature",
+    "key_from_env",
+    "sign",
+    "signature_key",
+    "statement",
+    "verify_signature",
+]
 
 
 @dataclass(frozen=True)
 class Signature:
     """One signature as stored with its ledger entry."""
 
-    armored: str            # -----BEGIN SSH SIGNATURE----- ...
-    fingerprint: str        # SHA256:... of the signing key (ssh-keygen -l style)
-    principal: str | None   # who the allowed-signers file says the key is; None without one
+    armored: str  # -----BEGIN SSH SIGNATURE----- ...
+    fingerprint: str  # SHA256:... of the signing key (ssh-keygen -l style)
+    principal: str | None  # who the allowed-signers file says the key is; None without one
 
 
 def statement(kind: str, fields: Mapping[str, Any]) -> bytes:
@@ -86,26 +97,31 @@ def allowed_signers_from_env() -> Path | None:
 def _ssh_keygen() -> str:
     exe = shutil.which("ssh-keygen")
     if exe is None:
-        raise LedgerError("ssh-keygen not found: ledger signatures need OpenSSH's ssh-keygen "
-                          "(Debian/Ubuntu: apt-get install openssh-client)")
+        raise LedgerError(
+            "ssh-keygen not found: ledger signatures need OpenSSH's ssh-keygen "
+            "(Debian/Ubuntu: apt-get install openssh-client)"
+        )
     return exe
 
 
 def _run(args: list[str], *, data: bytes | None = None) -> subprocess.CompletedProcess[bytes]:
     try:
-        return subprocess.run([_ssh_keygen(), *args], input=data, capture_output=True, timeout=_TIMEOUT,
-                              check=False)
+        return subprocess.run(
+            [_ssh_keygen(), *args], input=data, capture_output=True, timeout=_TIMEOUT, check=False
+        )
     except subprocess.TimeoutExpired:
-        raise LedgerError(f"ssh-keygen {args[0]} {args[1]} did not finish in {_TIMEOUT} s") from None
+        raise LedgerError(
+            f"ssh-keygen {args[0]} {args[1]} did not finish in {_TIMEOUT} s"
+        ) from None
 
 
 def _read_string(buf: bytes, pos: int) -> tuple[bytes, int]:
     if pos + 4 > len(buf):
         raise ValueError("truncated")
-    (n,) = struct.unpack(">I", buf[pos:pos + 4])
+    (n,) = struct.unpack(">I", buf[pos : pos + 4])
     if pos + 4 + n > len(buf):
         raise ValueError("truncated")
-    return buf[pos + 4:pos + 4 + n], pos + 4 + n
+    return buf[pos + 4 : pos + 4 + n], pos + 4 + n
 
 
 def signature_key(armored: str) -> tuple[str, str]:
@@ -140,8 +156,10 @@ def sign(message: bytes, key: Path, *, allowed_signers: Path | None) -> Signatur
     With an allowed-signers file the key must be listed there (else the signature would name
     nobody): its principal is returned. Raises :class:`LedgerError` with ssh-keygen's reason."""
     if not Path(key).is_file():
-        raise LedgerError(f"signing key {key}: no such file (give --key or ${ENV_KEY}: an SSH private key, "
-                          "or the .pub of a key held by ssh-agent)")
+        raise LedgerError(
+            f"signing key {key}: no such file (give --key or ${ENV_KEY}: an SSH private key, "
+            "or the .pub of a key held by ssh-agent)"
+        )
     res = _run(["-Y", "sign", "-q", "-f", str(key), "-n", NAMESPACE], data=message)
     if res.returncode != 0 or b"BEGIN SSH SIGNATURE" not in res.stdout:
         why = res.stderr.decode("utf-8", "replace").strip() or f"exit {res.returncode}"
@@ -156,15 +174,19 @@ def sign(message: bytes, key: Path, *, allowed_signers: Path | None) -> Signatur
             sig.write_text(armored, encoding="ascii")
             found = _principals(sig, allowed_signers)
         if not found:
-            raise LedgerError(f"the key {key} ({fingerprint}) is not in the allowed-signers file {allowed_signers}: "
-                              "a signature must name a person the buyer registered")
+            raise LedgerError(
+                f"the key {key} ({fingerprint}) is not in the allowed-signers file {allowed_signers}: "
+                "a signature must name a person the buyer registered"
+            )
         principal = found[0]
     return Signature(armored, fingerprint, principal)
 
 
 def _check_allowed(path: Path) -> None:
     if not Path(path).is_file():
-        raise LedgerError(f"allowed-signers file {path}: no such file (${ENV_ALLOWED} or --allowed-signers)")
+        raise LedgerError(
+            f"allowed-signers file {path}: no such file (${ENV_ALLOWED} or --allowed-signers)"
+        )
 
 
 def check_signature(message: bytes, armored: str) -> str | None:
@@ -184,8 +206,14 @@ def check_signature(message: bytes, armored: str) -> str | None:
         return verify_signature(message, armored, principal=None, allowed_signers=None)
 
 
-def verify_signature(message: bytes, armored: str, *, principal: str | None, allowed_signers: Path | None,
-                     day: str | None = None) -> str | None:
+def verify_signature(
+    message: bytes,
+    armored: str,
+    *,
+    principal: str | None,
+    allowed_signers: Path | None,
+    day: str | None = None,
+) -> str | None:
     """None when ``armored`` is a valid ledger signature of ``message``; else why not.
 
     With an allowed-signers file: by ``principal``'s key as registered there, at ``day`` (YYYY-MM-DD,
@@ -202,9 +230,22 @@ def verify_signature(message: bytes, armored: str, *, principal: str | None, all
             if who is None:
                 found = _principals(sig, allowed_signers)
                 if not found:
-                    return f"signed by a key that is not in the allowed-signers file {allowed_signers}"
+                    return (
+                        f"signed by a key that is not in the allowed-signers file {allowed_signers}"
+                    )
                 who = found[0]
-            args = ["-Y", "verify", "-f", str(allowed_signers), "-I", who, "-n", NAMESPACE, "-s", str(sig)]
+            args = [
+                "-Y",
+                "verify",
+                "-f",
+                str(allowed_signers),
+                "-I",
+                who,
+                "-n",
+                NAMESPACE,
+                "-s",
+                str(sig),
+            ]
             if day:
                 args.append(f"-Overify-time={day.replace('-', '')[:8]}")
             res = _run(args, data=message)

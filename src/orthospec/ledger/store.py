@@ -57,8 +57,16 @@ from .signing import (
 )
 from .verify import Problem, VerifyReport, verify_chain
 
-__all__ = ["DEFAULT_LEDGER", "ENV_LEDGER", "ROLES", "Ledger", "Problem", "VerifyReport", "default_ledger",
-           "open_ledger"]
+__all__ = [
+    "DEFAULT_LEDGER",
+    "ENV_LEDGER",
+    "ROLES",
+    "Ledger",
+    "Problem",
+    "VerifyReport",
+    "default_ledger",
+    "open_ledger",
+]
 
 ROLES = ("supervisor", "inspector", "auditor", "operator")
 
@@ -67,11 +75,12 @@ def _now() -> str:
     return dt.datetime.now(dt.UTC).isoformat(timespec="seconds")
 
 
-
 class Ledger:
     """An open ledger. Use :func:`open_ledger`; close it (or use ``with``) when done."""
 
-    def __init__(self, engine: Engine, display: str, *, allowed_signers: Path | None = None) -> None:
+    def __init__(
+        self, engine: Engine, display: str, *, allowed_signers: Path | None = None
+    ) -> None:
         self.engine = engine
         self.display = display
         #: the buyer's register of signing keys (:mod:`.signing`): when set, every new run and
@@ -94,8 +103,14 @@ class Ledger:
 
     # --- writing -----------------------------------------------------------------------------
 
-    def record(self, document: Mapping[str, Any], *, recorded_at: str | None = None, key: Path | None = None,
-               before_commit: Callable[[RecordedRun], None] | None = None) -> int:
+    def record(
+        self,
+        document: Mapping[str, Any],
+        *,
+        recorded_at: str | None = None,
+        key: Path | None = None,
+        before_commit: Callable[[RecordedRun], None] | None = None,
+    ) -> int:
         """Record one check run (its qcr.json document) and return the new run id.
 
         One transaction. The QCR rows are made from the document's compact columns a batch at a
@@ -113,46 +128,81 @@ class Ledger:
         from ..qcr import SCHEMA_IDS, dumps
 
         if not isinstance(document, Mapping) or document.get("schema") not in SCHEMA_IDS:
-            got = document.get("schema") if isinstance(document, Mapping) else type(document).__name__
-            raise LedgerError(f"not a QCR document: schema {got!r}, expected one of "
-                              f"{', '.join(map(repr, SCHEMA_IDS))} (qcr.json)")
+            got = (
+                document.get("schema") if isinstance(document, Mapping) else type(document).__name__
+            )
+            raise LedgerError(
+                f"not a QCR document: schema {got!r}, expected one of "
+                f"{', '.join(map(repr, SCHEMA_IDS))} (qcr.json)"
+            )
         try:
             d = document["delivery"]
             p = document["profile"]
             project = str((d.get("project") or {}).get("id") or "")
             doc_text = dumps(dict(document))
             rollup = document.get("rollup") or {}
-            summary = {"counts": document.get("summary", {}), "rejected": rollup.get("rejected", {}),
-                       "reasons": rollup.get("reasons", [])}
-            files = [{"path": str(f["path"]), "sha256": str(f["sha256"]),
-                      "bytes": None if f.get("bytes") is None else int(f["bytes"])}
-                     for f in d.get("files", [])]
+            summary = {
+                "counts": document.get("summary", {}),
+                "rejected": rollup.get("rejected", {}),
+                "reasons": rollup.get("reasons", []),
+            }
+            files = [
+                {
+                    "path": str(f["path"]),
+                    "sha256": str(f["sha256"]),
+                    "bytes": None if f.get("bytes") is None else int(f["bytes"]),
+                }
+                for f in d.get("files", [])
+            ]
             fields: dict[str, Any] = {
-                "date": str(document["date"]), "project_id": project, "delivery_id": str(d["id"]),
-                "delivery_path": d.get("path"), "manifest_sha256": str(d["manifest_sha256"]),
-                "profile_id": str(p["id"]), "profile_version": str(p["version"]),
-                "profile_sha256": str(p["sha256"]), "verdict": str(document["verdict"]),
-                "fail_on": str(document.get("fail_on", V.FAIL)), "operator": document.get("operator"),
-                "n_records": 0, "summary": canonical(summary), "document": doc_text,
+                "date": str(document["date"]),
+                "project_id": project,
+                "delivery_id": str(d["id"]),
+                "delivery_path": d.get("path"),
+                "manifest_sha256": str(d["manifest_sha256"]),
+                "profile_id": str(p["id"]),
+                "profile_version": str(p["version"]),
+                "profile_sha256": str(p["sha256"]),
+                "verdict": str(document["verdict"]),
+                "fail_on": str(document.get("fail_on", V.FAIL)),
+                "operator": document.get("operator"),
+                "n_records": 0,
+                "summary": canonical(summary),
+                "document": doc_text,
                 "document_sha256": sha256_text(doc_text),
             }
         except (KeyError, TypeError, AttributeError) as exc:
-            raise LedgerError(f"not a QCR document (missing {exc}); expected qcr.json structure") from None
+            raise LedgerError(
+                f"not a QCR document (missing {exc}); expected qcr.json structure"
+            ) from None
         if not project:
-            raise LedgerError(f"delivery {d.get('id')!r}: manifest has no project.id; "
-                              "the ledger files runs by project")
+            raise LedgerError(
+                f"delivery {d.get('id')!r}: manifest has no project.id; "
+                "the ledger files runs by project"
+            )
         sig = self._sign(run_statement(fields["document_sha256"]), key, what="the run")
-        fields.update(signer=sig.principal if sig else None, key_fingerprint=sig.fingerprint if sig else None,
-                      signature=sig.armored if sig else None)
+        fields.update(
+            signer=sig.principal if sig else None,
+            key_fingerprint=sig.fingerprint if sig else None,
+            signature=sig.armored if sig else None,
+        )
         stated = stated_project(document)
         rows = rows_with_text(document)
         with write_transaction(self.engine, self.display) as (conn, seq, prev):
-            run_id = int(conn.execute(select(func.coalesce(func.max(m.runs.c.id), 0))).scalar_one()) + 1
+            run_id = (
+                int(conn.execute(select(func.coalesce(func.max(m.runs.c.id), 0))).scalar_one()) + 1
+            )
             shas = [str(f["sha256"]) for f in files]  # str already: typed for the checker
             audit_key, continues = resolve_audit_key(conn, stated, project, shas)
-            row: dict[str, Any] = {"id": run_id, "seq": seq + 1, "recorded_at": recorded_at or _now(),
-                                   **fields, "audit_key": audit_key, "continues_run": continues,
-                                   "prev_hash": prev}
+            row: dict[str, Any] = {
+                "id": run_id,
+                "seq": seq + 1,
+                "recorded_at": recorded_at or _now(),
+                **fields,
+                "audit_key": audit_key,
+                "continues_run": continues,
+                "prev_hash": prev,
+            }
             conn.execute(m.runs.insert(), {**row, "hash": ""})
             if files:
                 conn.execute(m.run_files.insert(), [{"run_id": run_id, **f} for f in files])
@@ -165,8 +215,12 @@ class Ledger:
                 n += len(batch)
             row["n_records"] = n
             row["hash"] = hasher.hexdigest(row)
-            conn.execute(update(m.runs).where(m.runs.c.id == run_id).values(n_records=n, hash=row["hash"]))
-            conn.execute(update(m.head).where(m.head.c.id == 1).values(seq=seq + 1, hash=row["hash"]))
+            conn.execute(
+                update(m.runs).where(m.runs.c.id == run_id).values(n_records=n, hash=row["hash"])
+            )
+            conn.execute(
+                update(m.head).where(m.head.c.id == 1).values(seq=seq + 1, hash=row["hash"])
+            )
             if before_commit is not None:
                 before_commit(RecordedRun(run_id, seq + 1, row["hash"], audit_key))
         append_anchor(seq + 1, row["hash"])
@@ -176,16 +230,27 @@ class Ledger:
         """Sign an entry with ``key``; no key is refused when the ledger has an allowed-signers file."""
         if key is None:
             if self.allowed_signers is not None:
-                raise LedgerError(f"{what} must be signed: the allowed-signers file {self.allowed_signers} is set, "
-                                  f"so every run and sign-off is signed with its maker's key (--key or "
-                                  f"${ENV_KEY})")
+                raise LedgerError(
+                    f"{what} must be signed: the allowed-signers file {self.allowed_signers} is set, "
+                    f"so every run and sign-off is signed with its maker's key (--key or "
+                    f"${ENV_KEY})"
+                )
             return None
         return sign(message, key, allowed_signers=self.allowed_signers)
 
-    def signoff(self, run_id: int, *, by: str | None = None, role: str = "supervisor", date: str | None = None,
-                note: str | None = None, manual: Mapping[str, str] | None = None,
-                recorded_at: str | None = None, acknowledge_rejection: bool = False,
-                key: Path | None = None) -> int:
+    def signoff(
+        self,
+        run_id: int,
+        *,
+        by: str | None = None,
+        role: str = "supervisor",
+        date: str | None = None,
+        note: str | None = None,
+        manual: Mapping[str, str] | None = None,
+        recorded_at: str | None = None,
+        acknowledge_rejection: bool = False,
+        key: Path | None = None,
+    ) -> int:
         """Countersign a run (JRC §2.4), optionally with manual-check verdicts; returns its id.
 
         With ``key`` the sign-off is signed and its signer is that key (and, with an allowed-signers
@@ -202,62 +267,94 @@ class Ledger:
         run = self.run(run_id)
         if acknowledge_rejection and run.verdict == V.REJECTED:
             note = ACK_PREFIX + (f" {note}" if note else "")
-        content: dict[str, Any] = {"run_hash": run.hash, "date": day, "role": role, "note": note,
-                                   "manual": canonical(dict(sorted(verdicts.items())))}
+        content: dict[str, Any] = {
+            "run_hash": run.hash,
+            "date": day,
+            "role": role,
+            "note": note,
+            "manual": canonical(dict(sorted(verdicts.items()))),
+        }
         # the signature covers what is vouched for; the name is the key's registered principal when
         # there is a register (verify checks the row's name against it), else the name typed
         sig = self._sign(signoff_statement(content), key, what="the sign-off")
         principal = sig.principal if sig is not None else None
         if by is not None and principal is not None and not same_person(by, principal):
-            raise LedgerError(f"--by {by!r} is not the owner of the key {key}: the allowed-signers file "
-                              f"{self.allowed_signers} registers it to {principal!r}")
+            raise LedgerError(
+                f"--by {by!r} is not the owner of the key {key}: the allowed-signers file "
+                f"{self.allowed_signers} registers it to {principal!r}"
+            )
         if principal is None and by is None:
             raise LedgerError("sign-off needs the name of the person signing (--by)")
         content["by_name"] = display_name(principal if principal is not None else str(by))
         name = content["by_name"]
         with write_transaction(self.engine, self.display) as (conn, seq, prev):
-            cur = conn.execute(select(m.runs.c.hash).where(m.runs.c.id == run_id)).scalar_one_or_none()
+            cur = conn.execute(
+                select(m.runs.c.hash).where(m.runs.c.id == run_id)
+            ).scalar_one_or_none()
             if cur != run.hash:
                 raise LedgerError(f"run {run_id} changed while it was being signed; sign again")
             if verdicts:
                 _refuse_unknown_manual(conn, run_id, verdicts)
             if day < run.date:
-                raise LedgerError(f"sign-off date {day} is before run {run_id} ({run.date}): "
-                                  "a run cannot be countersigned before it was made")
+                raise LedgerError(
+                    f"sign-off date {day} is before run {run_id} ({run.date}): "
+                    "a run cannot be countersigned before it was made"
+                )
             if role != "operator":
                 self._refuse_own_run(conn, run, name, sig, role)
             if run.verdict == V.REJECTED and not acknowledge_rejection:
-                raise LedgerError(f"run {run_id} was REJECTED; signing it records that you accept that "
-                                  "verdict: repeat with --acknowledge-rejection (CLI) to sign anyway")
+                raise LedgerError(
+                    f"run {run_id} was REJECTED; signing it records that you accept that "
+                    "verdict: repeat with --acknowledge-rejection (CLI) to sign anyway"
+                )
             _refuse_duplicate(conn, run_id, name, sig, role, verdicts)
-            sid = int(conn.execute(select(func.coalesce(func.max(m.signoffs.c.id), 0))).scalar_one()) + 1
+            sid = (
+                int(conn.execute(select(func.coalesce(func.max(m.signoffs.c.id), 0))).scalar_one())
+                + 1
+            )
             row: dict[str, Any] = {
-                "id": sid, "seq": seq + 1, "run_id": run_id, "recorded_at": recorded_at or _now(), **content,
-                "key_fingerprint": sig.fingerprint if sig else None, "signature": sig.armored if sig else None,
+                "id": sid,
+                "seq": seq + 1,
+                "run_id": run_id,
+                "recorded_at": recorded_at or _now(),
+                **content,
+                "key_fingerprint": sig.fingerprint if sig else None,
+                "signature": sig.armored if sig else None,
                 "prev_hash": prev,
             }
             row["hash"] = signoff_hash(row, prev)
             conn.execute(m.signoffs.insert(), row)
-            conn.execute(update(m.head).where(m.head.c.id == 1).values(seq=seq + 1, hash=row["hash"]))
+            conn.execute(
+                update(m.head).where(m.head.c.id == 1).values(seq=seq + 1, hash=row["hash"])
+            )
         append_anchor(seq + 1, row["hash"])
         return sid
 
-    def _refuse_own_run(self, conn: Connection, run: RunInfo, name: str, sig: Signature | None, role: str) -> None:
+    def _refuse_own_run(
+        self, conn: Connection, run: RunInfo, name: str, sig: Signature | None, role: str
+    ) -> None:
         """JRC §2.4: the run's checker (its key, or a name it goes by) cannot countersign it."""
         why = f"cannot countersign it as {role}: JRC §2.4 asks for an independent countersignature"
         if sig is not None and run.key_fingerprint and sig.fingerprint == run.key_fingerprint:
-            raise LedgerError(f"the key {sig.fingerprint} signed check run {run.id} (its checker) and {why}")
+            raise LedgerError(
+                f"the key {sig.fingerprint} signed check run {run.id} (its checker) and {why}"
+            )
         doc = conn.execute(select(m.runs.c.document).where(m.runs.c.id == run.id)).scalar_one()
         checker = json.loads(doc).get("checker") or {}
-        for who, as_what in ((run.operator, "ran check run"), (run.signer, "signed check run"),
-                             (checker.get("name"), "is the checker named in the checker file of run")):
+        for who, as_what in (
+            (run.operator, "ran check run"),
+            (run.signer, "signed check run"),
+            (checker.get("name"), "is the checker named in the checker file of run"),
+        ):
             if isinstance(who, str) and same_person(who, name):
                 shown = f"{name!r}" if name == who else f"{name!r} (the same name as {who!r})"
                 raise LedgerError(f"{shown} {as_what} {run.id} and {why}")
 
     # --- reading -----------------------------------------------------------------------------
 
-    def runs(self, project: str | None = None, *, ids: Iterable[int] | None = None) -> list[RunInfo]:
+    def runs(
+        self, project: str | None = None, *, ids: Iterable[int] | None = None
+    ) -> list[RunInfo]:
         """Runs oldest first (chain order): all, or one audit trail (``project``: an audit key or,
         for runs recorded before audit keys, a manifest project id; :func:`.runs.lineage`), or
         those with the given ids."""
@@ -302,7 +399,9 @@ class Ledger:
     def document(self, run_id: int) -> dict[str, Any]:
         """The qcr.json document exactly as the run produced it."""
         with self._read() as conn:
-            doc = conn.execute(select(m.runs.c.document).where(m.runs.c.id == run_id)).scalar_one_or_none()
+            doc = conn.execute(
+                select(m.runs.c.document).where(m.runs.c.id == run_id)
+            ).scalar_one_or_none()
         if doc is None:
             raise LedgerError(f"{self.display}: no run {run_id} (see `orthospec ledger runs`)")
         return json.loads(doc)
@@ -314,9 +413,20 @@ class Ledger:
             q = q.where(m.signoffs.c.run_id == run_id)
         with self._read() as conn:
             rows = conn.execute(q).mappings().all()
-        return [{"id": r["id"], "run": r["run_id"], "by": r["by_name"], "role": r["role"],
-                 "date": r["date"], "note": r["note"], "manual": json.loads(r["manual"]),
-                 "recorded_at": r["recorded_at"], "key": r["key_fingerprint"]} for r in rows]
+        return [
+            {
+                "id": r["id"],
+                "run": r["run_id"],
+                "by": r["by_name"],
+                "role": r["role"],
+                "date": r["date"],
+                "note": r["note"],
+                "manual": json.loads(r["manual"]),
+                "recorded_at": r["recorded_at"],
+                "key": r["key_fingerprint"],
+            }
+            for r in rows
+        ]
 
     def report_document(self, run_id: int, *, heads: Iterable[str] = ()) -> dict[str, Any]:
         """What a report of ``run_id`` shows: its document, sign-offs and the project's sequence of
@@ -338,21 +448,34 @@ class Ledger:
         """The stored qcr document plus ``signoffs`` [{by, role, date, note, manual, key}] and ``ledger``
         (the run's entry and signer, the head, what ``verify`` found) for reports."""
         doc = self.document(run_id)
-        doc["signoffs"] = [{k: s[k] for k in ("by", "role", "date", "note", "manual", "key")}
-                           for s in self.signoffs(run_id)]
+        doc["signoffs"] = [
+            {k: s[k] for k in ("by", "role", "date", "note", "manual", "key")}
+            for s in self.signoffs(run_id)
+        ]
         seq, head = self.head()
         rep = self.verify(heads=heads)
         run = self.run(run_id)
-        doc["ledger"] = {"run": run_id, "hash": run.hash, "head": head, "head_seq": seq,
-                         "signer": run.signer, "key": run.key_fingerprint,
-                         "problems": [str(p) for p in rep.problems]}
+        doc["ledger"] = {
+            "run": run_id,
+            "hash": run.hash,
+            "head": head,
+            "head_seq": seq,
+            "signer": run.signer,
+            "key": run.key_fingerprint,
+            "problems": [str(p) for p in rep.problems],
+        }
         return doc
 
     def qcrs(self, run_id: int) -> list[dict[str, Any]]:
         """The run's QCR rows (ordinal order); ``measured``/``requirement`` decoded from JSON."""
         with self._read() as conn:
-            rows = conn.execute(select(m.qcrs).where(m.qcrs.c.run_id == run_id)
-                                .order_by(m.qcrs.c.ordinal)).mappings().all()
+            rows = (
+                conn.execute(
+                    select(m.qcrs).where(m.qcrs.c.run_id == run_id).order_by(m.qcrs.c.ordinal)
+                )
+                .mappings()
+                .all()
+            )
         out = []
         for r in rows:
             d = dict(r)
@@ -377,8 +500,13 @@ class Ledger:
         """
         manual = self.manual_verdicts(run_id)
         did = self.run(run_id).delivery_id
-        return {(q["rule"], "delivery" if q["scope"] == "delivery" and q["item"] == did else q["item"]):
-                manual.get(q["rule"], q["verdict"]) for q in self.qcrs(run_id)}
+        return {
+            (
+                q["rule"],
+                "delivery" if q["scope"] == "delivery" and q["item"] == did else q["item"],
+            ): manual.get(q["rule"], q["verdict"])
+            for q in self.qcrs(run_id)
+        }
 
     # --- history and diff ---------------------------------------------------------------------
 
@@ -404,13 +532,17 @@ class Ledger:
         """The JRC §12.8 sequence a report rendered *before* ``record(doc)`` shows: the project's
         recorded runs, then this run (``"run": "new"``) with the round it will be recorded with."""
         project = str((doc["delivery"].get("project") or {}).get("id") or "")
-        key = self.audit_key_for(stated_project(doc), project, (f["sha256"] for f in doc["delivery"].get("files", [])))
+        key = self.audit_key_for(
+            stated_project(doc), project, (f["sha256"] for f in doc["delivery"].get("files", []))
+        )
         return history_rows_before_recording(self.history(key).entries, doc)
 
     def diff(self, run_a: int, run_b: int) -> Diff:
         """Per (rule, item): fixed, newly failing, still failing, changed, added, removed."""
         self.run(run_a), self.run(run_b)  # a clear error for an unknown id
-        return diff_verdicts(run_a, run_b, self.effective_verdicts(run_a), self.effective_verdicts(run_b))
+        return diff_verdicts(
+            run_a, run_b, self.effective_verdicts(run_a), self.effective_verdicts(run_b)
+        )
 
     # --- audit state -------------------------------------------------------------------------
 
@@ -418,31 +550,54 @@ class Ledger:
         """Normal/Tightened state of every QCR family the project's runs touched."""
         runs = self.runs(project)
         ids = [r.id for r in runs]
-        cols = (m.qcrs.c.run_id, m.qcrs.c.rule, m.qcrs.c.item, m.qcrs.c.verdict, m.qcrs.c.family,
-                m.qcrs.c.measured, m.qcrs.c.requirement)
+        cols = (
+            m.qcrs.c.run_id,
+            m.qcrs.c.rule,
+            m.qcrs.c.item,
+            m.qcrs.c.verdict,
+            m.qcrs.c.family,
+            m.qcrs.c.measured,
+            m.qcrs.c.requirement,
+        )
         per_run: dict[int, list[Mapping[str, Any]]] = {i: [] for i in ids}
         if ids:
             with self._read() as conn:
-                for row in conn.execute(select(*cols).where(m.qcrs.c.run_id.in_(ids))
-                                        .order_by(m.qcrs.c.run_id, m.qcrs.c.ordinal)).mappings():
+                for row in conn.execute(
+                    select(*cols)
+                    .where(m.qcrs.c.run_id.in_(ids))
+                    .order_by(m.qcrs.c.run_id, m.qcrs.c.ordinal)
+                ).mappings():
                     per_run[row["run_id"]].append(row)
         manual: dict[int, dict[str, str]] = {}
         for s in self.signoffs():
             if s["run"] in per_run:
                 manual.setdefault(s["run"], {}).update(s["manual"])
-        return audit_states((RunRecords(i, per_run[i], manual.get(i, {})) for i in ids), margin=margin)
+        return audit_states(
+            (RunRecords(i, per_run[i], manual.get(i, {})) for i in ids), margin=margin
+        )
 
     def audit_state(self, project: str, family: str, *, margin: float = MARGIN) -> str:
         """``"normal"`` or ``"tightened"``; a family never checked is normal."""
         st = self.audit_states(project, margin=margin).get(family)
         return st.state if st is not None else NORMAL
 
-    def sample_fraction(self, project: str, family: str, normal: float = 0.10,
-                        tightened: float = 0.20, *, margin: float = MARGIN) -> float:
+    def sample_fraction(
+        self,
+        project: str,
+        family: str,
+        normal: float = 0.10,
+        tightened: float = 0.20,
+        *,
+        margin: float = MARGIN,
+    ) -> float:
         """Share of items to sample next for this family: larger while it is tightened."""
-        return tightened if self.audit_state(project, family, margin=margin) == TIGHTENED else normal
+        return (
+            tightened if self.audit_state(project, family, margin=margin) == TIGHTENED else normal
+        )
 
-    def suspect_items(self, project: str, family: str, *, margin: float = MARGIN) -> tuple[str, ...]:
+    def suspect_items(
+        self, project: str, family: str, *, margin: float = MARGIN
+    ) -> tuple[str, ...]:
         """Items that failed or were marginal in the family's last run: the tightened trail."""
         st = self.audit_states(project, margin=margin).get(family)
         return st.suspect_items if st is not None and st.state == TIGHTENED else ()
@@ -452,9 +607,13 @@ class Ledger:
     def head(self) -> tuple[int, str]:
         """(seq, hash) of the chain head row: the anchor a report prints and `verify --head` checks."""
         with self._read() as conn:
-            row = conn.execute(select(m.head.c.seq, m.head.c.hash).where(m.head.c.id == 1)).one_or_none()
+            row = conn.execute(
+                select(m.head.c.seq, m.head.c.hash).where(m.head.c.id == 1)
+            ).one_or_none()
         if row is None:
-            raise LedgerError(f"{self.display}: the chain head row is missing; run `orthospec ledger verify`")
+            raise LedgerError(
+                f"{self.display}: the chain head row is missing; run `orthospec ledger verify`"
+            )
         return int(row.seq), str(row.hash)
 
     def verify(self, head: str | None = None, *, heads: Iterable[str] = ()) -> VerifyReport:
@@ -470,8 +629,9 @@ class Ledger:
 ACK_PREFIX = "[signed acknowledging the REJECTED verdict]"
 
 
-def _signoff_arguments(role: str, date: str | None, manual: Mapping[str, str] | None,
-                       by: str | None) -> tuple[str, dict[str, str]]:
+def _signoff_arguments(
+    role: str, date: str | None, manual: Mapping[str, str] | None, by: str | None
+) -> tuple[str, dict[str, str]]:
     """A sign-off's day (today when not given) and manual verdicts, refused when malformed."""
     if role not in ROLES:
         raise LedgerError(f"sign-off role {role!r}: expected one of {', '.join(ROLES)}")
@@ -491,49 +651,87 @@ def _signoff_arguments(role: str, date: str | None, manual: Mapping[str, str] | 
 
 def _refuse_unknown_manual(conn: Connection, run_id: int, verdicts: Mapping[str, str]) -> None:
     """Manual verdicts may name only the run's manual rules."""
-    manual_rules = set(conn.execute(
-        select(m.qcrs.c.rule).where(m.qcrs.c.run_id == run_id, m.qcrs.c.manual.is_(True))
-    ).scalars())
+    manual_rules = set(
+        conn.execute(
+            select(m.qcrs.c.rule).where(m.qcrs.c.run_id == run_id, m.qcrs.c.manual.is_(True))
+        ).scalars()
+    )
     unknown = sorted(set(verdicts) - manual_rules)
     if unknown:
         raise LedgerError(
             f"run {run_id} has no manual rule {', '.join(unknown)}; manual rules of this run: "
-            f"{', '.join(sorted(manual_rules)) or 'none'}")
+            f"{', '.join(sorted(manual_rules)) or 'none'}"
+        )
 
 
-def _refuse_duplicate(conn: Connection, run_id: int, name: str, sig: Signature | None, role: str,
-                      verdicts: Mapping[str, str]) -> None:
+def _refuse_duplicate(
+    conn: Connection,
+    run_id: int,
+    name: str,
+    sig: Signature | None,
+    role: str,
+    verdicts: Mapping[str, str],
+) -> None:
     """The same person (by name or key) signing the same run in the same role again, with no new
     manual verdict, is refused."""
-    earlier = conn.execute(select(m.signoffs.c.by_name, m.signoffs.c.role, m.signoffs.c.manual,
-                                  m.signoffs.c.date, m.signoffs.c.key_fingerprint)
-                           .where(m.signoffs.c.run_id == run_id)).all()
+    earlier = conn.execute(
+        select(
+            m.signoffs.c.by_name,
+            m.signoffs.c.role,
+            m.signoffs.c.manual,
+            m.signoffs.c.date,
+            m.signoffs.c.key_fingerprint,
+        ).where(m.signoffs.c.run_id == run_id)
+    ).all()
     for e in earlier:
         same = same_person(e.by_name, name) or (
-            sig is not None and e.key_fingerprint is not None and e.key_fingerprint == sig.fingerprint)
+            sig is not None
+            and e.key_fingerprint is not None
+            and e.key_fingerprint == sig.fingerprint
+        )
         if same and e.role == role:
             signed = json.loads(e.manual)
             if not verdicts or all(signed.get(k) == v for k, v in verdicts.items()):
-                raise LedgerError(f"{name} already signed run {run_id} as {role} on {e.date}: "
-                                  "a duplicate sign-off is refused")
+                raise LedgerError(
+                    f"{name} already signed run {run_id} as {role} on {e.date}: "
+                    "a duplicate sign-off is refused"
+                )
 
 
 def _run_info(r: Mapping[str, Any], files: list[tuple[str, str]]) -> RunInfo:
     return RunInfo(
-        id=r["id"], seq=r["seq"], recorded_at=r["recorded_at"], date=r["date"], project_id=r["project_id"],
-        delivery_id=r["delivery_id"], delivery_path=r["delivery_path"], manifest_sha256=r["manifest_sha256"],
-        profile_id=r["profile_id"], profile_version=r["profile_version"], profile_sha256=r["profile_sha256"],
-        verdict=r["verdict"], fail_on=r["fail_on"], operator=r["operator"], n_records=r["n_records"],
-        summary=json.loads(r["summary"]), hash=r["hash"], files=tuple(sorted(files)),
-        audit_key=r.get("audit_key"), continues_run=r.get("continues_run"), signer=r.get("signer"),
-        key_fingerprint=r.get("key_fingerprint"))
+        id=r["id"],
+        seq=r["seq"],
+        recorded_at=r["recorded_at"],
+        date=r["date"],
+        project_id=r["project_id"],
+        delivery_id=r["delivery_id"],
+        delivery_path=r["delivery_path"],
+        manifest_sha256=r["manifest_sha256"],
+        profile_id=r["profile_id"],
+        profile_version=r["profile_version"],
+        profile_sha256=r["profile_sha256"],
+        verdict=r["verdict"],
+        fail_on=r["fail_on"],
+        operator=r["operator"],
+        n_records=r["n_records"],
+        summary=json.loads(r["summary"]),
+        hash=r["hash"],
+        files=tuple(sorted(files)),
+        audit_key=r.get("audit_key"),
+        continues_run=r.get("continues_run"),
+        signer=r.get("signer"),
+        key_fingerprint=r.get("key_fingerprint"),
+    )
 
 
 #: SHA-256 of an empty file: shared by unrelated deliveries, never a sign of continuity
 _EMPTY = "e3b0c44298fc1c149afbf4c8996fb92427ae41e4649b934ca495991b7852b855"
 
 
-def resolve_audit_key(conn: Connection, stated: str | None, project: str, shas: list[str]) -> tuple[str, int | None]:
+def resolve_audit_key(
+    conn: Connection, stated: str | None, project: str, shas: list[str]
+) -> tuple[str, int | None]:
     """(audit key, run continued) of a delivery about to be recorded (issue 25 item 6).
 
     The run it continues: the latest recorded run sharing the most file contents with it (SHA-256,
@@ -543,20 +741,31 @@ def resolve_audit_key(conn: Connection, stated: str | None, project: str, shas: 
     mine = sorted(set(shas) - {_EMPTY})
     shared: dict[int, int] = {}
     for i in range(0, len(mine), 500):
-        part = mine[i:i + 500]
-        q = (select(m.run_files.c.run_id, func.count(func.distinct(m.run_files.c.sha256)))
-             .where(m.run_files.c.sha256.in_(part)).group_by(m.run_files.c.run_id))
+        part = mine[i : i + 500]
+        q = (
+            select(m.run_files.c.run_id, func.count(func.distinct(m.run_files.c.sha256)))
+            .where(m.run_files.c.sha256.in_(part))
+            .group_by(m.run_files.c.run_id)
+        )
         for rid, n in conn.execute(q):
             shared[int(rid)] = shared.get(int(rid), 0) + int(n)
-    best: tuple[int, int, str] | None = None   # (shared, seq, key) of the continued run
+    best: tuple[int, int, str] | None = None  # (shared, seq, key) of the continued run
     cont: int | None = None
     if shared:
-        counted = (select(m.run_files.c.run_id, func.count(func.distinct(m.run_files.c.sha256)))
-                   .where(m.run_files.c.run_id.in_(list(shared)), m.run_files.c.sha256 != _EMPTY)
-                   .group_by(m.run_files.c.run_id))
+        counted = (
+            select(m.run_files.c.run_id, func.count(func.distinct(m.run_files.c.sha256)))
+            .where(m.run_files.c.run_id.in_(list(shared)), m.run_files.c.sha256 != _EMPTY)
+            .group_by(m.run_files.c.run_id)
+        )
         sizes: dict[Any, Any] = dict(conn.execute(counted).all())
-        info = {int(r.id): r for r in conn.execute(select(m.runs.c.id, m.runs.c.seq, m.runs.c.audit_key,
-                                                         m.runs.c.project_id).where(m.runs.c.id.in_(list(shared))))}
+        info = {
+            int(r.id): r
+            for r in conn.execute(
+                select(m.runs.c.id, m.runs.c.seq, m.runs.c.audit_key, m.runs.c.project_id).where(
+                    m.runs.c.id.in_(list(shared))
+                )
+            )
+        }
         for rid, n in shared.items():
             r = info.get(rid)
             if r is None or 2 * n < min(len(mine), int(sizes.get(rid, 0))):
@@ -571,10 +780,12 @@ def resolve_audit_key(conn: Connection, stated: str | None, project: str, shas: 
     return project, None
 
 
-
-
-def open_ledger(target: str | os.PathLike[str] | None = None, *, create: bool = True,
-                allowed_signers: str | os.PathLike[str] | None = None) -> Ledger:
+def open_ledger(
+    target: str | os.PathLike[str] | None = None,
+    *,
+    create: bool = True,
+    allowed_signers: str | os.PathLike[str] | None = None,
+) -> Ledger:
     """Open (creating and migrating as needed) the ledger at a path or SQLAlchemy URL.
 
     ``create=False`` refuses to create a missing SQLite file (read-only commands use it so a
@@ -583,7 +794,9 @@ def open_ledger(target: str | os.PathLike[str] | None = None, *, create: bool = 
     """
     signers = Path(allowed_signers) if allowed_signers is not None else allowed_signers_from_env()
     if signers is not None and not signers.is_file():
-        raise LedgerError(f"allowed-signers file {signers}: no such file (--allowed-signers or ${ENV_ALLOWED})")
+        raise LedgerError(
+            f"allowed-signers file {signers}: no such file (--allowed-signers or ${ENV_ALLOWED})"
+        )
     engine, display = connect(target, create=create)
     try:
         ensure_schema(engine, display)

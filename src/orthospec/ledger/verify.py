@@ -79,42 +79,69 @@ def verify_chain(engine: Engine, head: str | None = None, *, heads: Iterable[str
         head_rows = conn.execute(select(m.head)).mappings().all()
         # the run rows without their documents (each read on its own below), the sign-offs
         runs = [dict(r) for r in conn.execute(select(*run_cols).order_by(m.runs.c.seq)).mappings()]
-        signs = [dict(s) for s in conn.execute(select(m.signoffs).order_by(m.signoffs.c.seq)).mappings()]
+        signs = [
+            dict(s) for s in conn.execute(select(m.signoffs).order_by(m.signoffs.c.seq)).mappings()
+        ]
         run_ids = {r["id"] for r in runs}
         for table, t in (("run_files", m.run_files), ("qcrs", m.qcrs)):
             owners = conn.execute(select(t.c.run_id).distinct().order_by(t.c.run_id)).scalars()
             for rid in owners:
                 if rid not in run_ids:
                     problems.append(Problem(table, f"run {rid}", "rows belong to no recorded run"))
-        entries = sorted([("run", r) for r in runs] + [("signoff", s) for s in signs],
-                         key=lambda e: e[1]["seq"])
+        entries = sorted(
+            [("run", r) for r in runs] + [("signoff", s) for s in signs], key=lambda e: e[1]["seq"]
+        )
         run_hashes = {r["id"]: r["hash"] for r in runs}
         prev, expected_seq = m.GENESIS, 1
         for kind, row in entries:
             key = f"{kind} {row['id']} (seq {row['seq']})"
             table = "runs" if kind == "run" else "signoffs"
             if row["seq"] != expected_seq:
-                problems.append(Problem(table, key, f"expected seq {expected_seq}: "
-                                        f"{row['seq'] - expected_seq} entr(y/ies) before it deleted"))
+                problems.append(
+                    Problem(
+                        table,
+                        key,
+                        f"expected seq {expected_seq}: "
+                        f"{row['seq'] - expected_seq} entr(y/ies) before it deleted",
+                    )
+                )
             if row["prev_hash"] != prev:
-                problems.append(Problem(table, key, "prev_hash does not match the previous entry's hash "
-                                        "(an entry before it was deleted, edited or reordered)"))
+                problems.append(
+                    Problem(
+                        table,
+                        key,
+                        "prev_hash does not match the previous entry's hash "
+                        "(an entry before it was deleted, edited or reordered)",
+                    )
+                )
             if kind == "run":
                 h, n_qcrs, doc_ok = rehash_run(conn, row)
                 if not doc_ok:
                     problems.append(Problem("runs", key, "document does not match document_sha256"))
                 if n_qcrs != row["n_records"]:
-                    problems.append(Problem("qcrs", key, f"{n_qcrs} QCR rows, the run recorded "
-                                            f"{row['n_records']}"))
+                    problems.append(
+                        Problem(
+                            "qcrs", key, f"{n_qcrs} QCR rows, the run recorded {row['n_records']}"
+                        )
+                    )
             else:
                 if run_hashes.get(row["run_id"]) != row["run_hash"]:
-                    problems.append(Problem("signoffs", key, f"signed run {row['run_id']} is missing or "
-                                            "its hash differs from the one signed"))
+                    problems.append(
+                        Problem(
+                            "signoffs",
+                            key,
+                            f"signed run {row['run_id']} is missing or "
+                            "its hash differs from the one signed",
+                        )
+                    )
                 h = signoff_hash(row, row["prev_hash"])
             problems += _signature_problems(kind, table, key, row, who_checks)
             if h != row["hash"]:
-                what = ("its row, file or QCR rows were edited or deleted" if kind == "run"
-                        else "its row was edited")
+                what = (
+                    "its row, file or QCR rows were edited or deleted"
+                    if kind == "run"
+                    else "its row was edited"
+                )
                 problems.append(Problem(table, key, f"content hash mismatch: {what}"))
             prev, expected_seq = row["hash"], row["seq"] + 1
     if allowed_signers is not None:
@@ -125,8 +152,9 @@ def verify_chain(engine: Engine, head: str | None = None, *, heads: Iterable[str
     return VerifyReport(len(entries), len(runs), len(signs), prev, tuple(problems))
 
 
-def _head_problems(head_rows: Sequence[Any], hashes: set[str], prev: str, last_seq: int,
-                   noted_heads: list[str]) -> list[Problem]:
+def _head_problems(
+    head_rows: Sequence[Any], hashes: set[str], prev: str, last_seq: int, noted_heads: list[str]
+) -> list[Problem]:
     """The head row ends the chain; every head in the anchor file and every head noted earlier
     (``noted_heads``) is in it."""
     problems: list[Problem] = []
@@ -135,32 +163,56 @@ def _head_problems(head_rows: Sequence[Any], hashes: set[str], prev: str, last_s
     else:
         hd = head_rows[0]
         if hd["seq"] != last_seq or hd["hash"] != prev:
-            problems.append(Problem(
-                "ledger_head", "id 1",
-                f"head says seq {hd['seq']} hash {hd['hash'][:12]}..., the chain ends at seq "
-                f"{last_seq} hash {prev[:12]}... (newest entries deleted or head edited)"))
+            problems.append(
+                Problem(
+                    "ledger_head",
+                    "id 1",
+                    f"head says seq {hd['seq']} hash {hd['hash'][:12]}..., the chain ends at seq "
+                    f"{last_seq} hash {prev[:12]}... (newest entries deleted or head edited)",
+                )
+            )
     anchors = read_anchors()
     for line, (a_seq, a_hash) in anchors:
         if a_hash not in hashes:
-            problems.append(Problem("ledger_head", f"anchor line {line}",
-                                    f"the head of seq {a_seq} ({a_hash[:16]}...) recorded in "
-                                    f"${ENV_ANCHOR} is not in the chain: entries were deleted or rewritten"))
+            problems.append(
+                Problem(
+                    "ledger_head",
+                    f"anchor line {line}",
+                    f"the head of seq {a_seq} ({a_hash[:16]}...) recorded in "
+                    f"${ENV_ANCHOR} is not in the chain: entries were deleted or rewritten",
+                )
+            )
     for noted in noted_heads:
         want = noted.strip().lower()
         if len(want) < 12 or any(ch not in "0123456789abcdef" for ch in want):
-            problems.append(Problem("ledger_head", "anchor", f"{noted!r} is not a chain hash (at least 12 "
-                                    "hex digits, as printed on a report)"))
+            problems.append(
+                Problem(
+                    "ledger_head",
+                    "anchor",
+                    f"{noted!r} is not a chain hash (at least 12 "
+                    "hex digits, as printed on a report)",
+                )
+            )
         elif not any(h.startswith(want) for h in hashes):
-            problems.append(Problem(
-                "ledger_head", "anchor",
-                f"the head {want[:16]}... noted earlier is not in the chain: entries up to it were deleted "
-                f"and the chain rewritten (the chain now ends at seq {last_seq} hash "
-                f"{prev[:12]}...)"))
+            problems.append(
+                Problem(
+                    "ledger_head",
+                    "anchor",
+                    f"the head {want[:16]}... noted earlier is not in the chain: entries up to it were deleted "
+                    f"and the chain rewritten (the chain now ends at seq {last_seq} hash "
+                    f"{prev[:12]}...)",
+                )
+            )
     return problems
 
 
-def _signature_problems(kind: str, table: str, key: str, row: Mapping[str, Any],
-                        who_checks: dict[tuple[str, str, str], list[tuple[str, str, bytes, str]]]) -> list[Problem]:
+def _signature_problems(
+    kind: str,
+    table: str,
+    key: str,
+    row: Mapping[str, Any],
+    who_checks: dict[tuple[str, str, str], list[tuple[str, str, bytes, str]]],
+) -> list[Problem]:
     """The signature of a run or sign-off row: made by the key the row records, valid for what the
     entry vouches for (:mod:`.signing`). Whether that key is the named person's is checked later, once
     per (name, key, day), from ``who_checks``."""
@@ -172,33 +224,61 @@ def _signature_problems(kind: str, table: str, key: str, row: Mapping[str, Any],
     except LedgerError as exc:
         return [Problem(table, key, f"signature unreadable: {exc}")]
     if fingerprint != row.get("key_fingerprint"):
-        return [Problem(table, key, f"signature made by key {fingerprint}, the row records {row.get('key_fingerprint')}")]
+        return [
+            Problem(
+                table,
+                key,
+                f"signature made by key {fingerprint}, the row records {row.get('key_fingerprint')}",
+            )
+        ]
     if kind == "run":
         message, who = run_statement(row["document_sha256"]), row.get("signer")
     else:
         message, who = signoff_statement(row), row.get("by_name")
     why = check_signature(message, armored)
     if why is not None:
-        return [Problem(table, key, f"signature of {who or fingerprint} does not verify ({why}): the entry was "
-                                    "changed after it was signed")]
+        return [
+            Problem(
+                table,
+                key,
+                f"signature of {who or fingerprint} does not verify ({why}): the entry was "
+                "changed after it was signed",
+            )
+        ]
     day = str(row.get("recorded_at") or "")[:10]
-    who_checks.setdefault((str(who or ""), fingerprint, day), []).append((table, key, message, armored))
+    who_checks.setdefault((str(who or ""), fingerprint, day), []).append(
+        (table, key, message, armored)
+    )
     return []
 
 
-def _identity_problems(who_checks: Mapping[tuple[str, str, str], list[tuple[str, str, bytes, str]]],
-                       allowed_signers: Path) -> list[Problem]:
+def _identity_problems(
+    who_checks: Mapping[tuple[str, str, str], list[tuple[str, str, bytes, str]]],
+    allowed_signers: Path,
+) -> list[Problem]:
     """Each (name, key, day) of the signed entries against the allowed-signers file: one ssh-keygen
     run per combination (the signatures themselves are already checked), its verdict for all its entries."""
     out = []
     for (who, fingerprint, day), entries in who_checks.items():
         _table, _key, message, armored = entries[0]
-        why = verify_signature(message, armored, principal=who or None, allowed_signers=allowed_signers,
-                               day=day or None)
+        why = verify_signature(
+            message,
+            armored,
+            principal=who or None,
+            allowed_signers=allowed_signers,
+            day=day or None,
+        )
         if why is not None:
-            out += [Problem(table, key, f"signature of {who or fingerprint} does not verify against the allowed "
-                                        f"signers ({why}): the key {fingerprint} is not the one registered "
-                                        "for that name at that date") for table, key, _m, _a in entries]
+            out += [
+                Problem(
+                    table,
+                    key,
+                    f"signature of {who or fingerprint} does not verify against the allowed "
+                    f"signers ({why}): the key {fingerprint} is not the one registered "
+                    "for that name at that date",
+                )
+                for table, key, _m, _a in entries
+            ]
     return out
 
 
@@ -208,11 +288,18 @@ def rehash_run(conn: Connection, run: Mapping[str, Any]) -> tuple[str, int, bool
     rid = run["id"]
     document = conn.execute(select(m.runs.c.document).where(m.runs.c.id == rid)).scalar_one()
     doc_ok = sha256_text(document) == run["document_sha256"]
-    files = [dict(f) for f in conn.execute(select(m.run_files).where(m.run_files.c.run_id == rid)).mappings()]
+    files = [
+        dict(f)
+        for f in conn.execute(select(m.run_files).where(m.run_files.c.run_id == rid)).mappings()
+    ]
     hasher = RunHasher(files, run["prev_hash"])
     cols = [m.qcrs.c[c] for c in QCR_COLUMNS]
-    result = conn.execute(select(*cols).where(m.qcrs.c.run_id == rid).order_by(m.qcrs.c.ordinal)
-                          .execution_options(yield_per=BATCH))  # PostgreSQL: a server-side cursor
+    result = conn.execute(
+        select(*cols)
+        .where(m.qcrs.c.run_id == rid)
+        .order_by(m.qcrs.c.ordinal)
+        .execution_options(yield_per=BATCH)
+    )  # PostgreSQL: a server-side cursor
     n = 0
     for part in result.partitions():
         hasher.qcr_texts(canonical_texts(part))

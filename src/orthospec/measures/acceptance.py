@@ -149,13 +149,20 @@ def image_delivery_verdict(
         parts.append(f"more than {max_failed_fraction:.0%} failed: the entire delivery is "
                      "returned for quality checking and redelivery")
     elif exceeded:
-        parts.append(f"more than {max_failed_fraction:.0%} failed; the checker used the discretion of "
-                     "§12.3 ('may be returned'): failing images are reprocessed")
+        parts.append(
+            f"more than {max_failed_fraction:.0%} failed; the checker used the discretion of "
+            "§12.3 ('may be returned'): failing images are reprocessed"
+        )
     elif n_f:
         parts.append("failing images are reprocessed until the specification is met")
     return DeliveryVerdict(
-        n_images=n_images, n_sampled=n_s, sampled_fraction=frac_s, sample_sufficient=bool(enough),
-        n_failed=n_f, failed_fraction=frac_f, return_delivery=bool(ret),
-        reprocess=tuple(ids[failed].tolist()), reason="; ".join(parts),
+        n_images=n_images,
+        n_sampled=n_s,
+        sampled_fraction=frac_s,
+        sample_sufficient=bool(enough),
+        n_failed=n_f,
+        failed_fraction=frac_f,
+        return_delivery=bool(ret),
+        reprocess=tuple(ids[failed].tolist()),
+        reason="; ".join(parts),
     )
-

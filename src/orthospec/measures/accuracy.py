@@ -73,9 +73,28 @@ _NUMPY_METHOD = {"linear": "linear", "nearest-rank": "inverted_cdf"}
 
 # Fields of AccuracyStats that are lengths (scale with the input, divide by the GSD).
 _LENGTH_FIELDS = (
-    "mean_x", "mean_y", "mean_z", "std_x", "std_y", "std_z", "rmse_x", "rmse_y", "rmse_z",
-    "rmse_r", "nssda_horizontal_95", "nssda_vertical_95", "ce90", "ce95", "sigma_c", "mu_h",
-    "ce90_empirical", "ce95_empirical", "max_abs_dx", "max_abs_dy", "max_abs_dz", "max_dr",
+    "mean_x",
+    "mean_y",
+    "mean_z",
+    "std_x",
+    "std_y",
+    "std_z",
+    "rmse_x",
+    "rmse_y",
+    "rmse_z",
+    "rmse_r",
+    "nssda_horizontal_95",
+    "nssda_vertical_95",
+    "ce90",
+    "ce95",
+    "sigma_c",
+    "mu_h",
+    "ce90_empirical",
+    "ce95_empirical",
+    "max_abs_dx",
+    "max_abs_dy",
+    "max_abs_dz",
+    "max_dr",
 )
 
 
@@ -115,7 +134,9 @@ def elliptical_probability(r: float, sigma_x: float, sigma_y: float) -> float:
         return 1.0 if s == 0 else float(2.0 * ndtr(r / s) - 1.0)
     t = 0.5 * math.pi * _GL_NODES
     x, w = r * np.sin(t), r * np.cos(t)
-    with np.errstate(over="ignore"):  # w / sigma_y overflows to inf for a tiny sigma_y: ndtr(inf) = 1
+    with np.errstate(
+        over="ignore"
+    ):  # w / sigma_y overflows to inf for a tiny sigma_y: ndtr(inf) = 1
         inner = 2.0 * ndtr(w / sigma_y) - 1.0
     dens = np.exp(-0.5 * (x / sigma_x) ** 2) / (sigma_x * math.sqrt(2.0 * math.pi))
     return float(0.5 * math.pi * np.sum(_GL_WEIGHTS * dens * inner * w))
@@ -131,7 +152,7 @@ def elliptical_radius(sigma_x: float, sigma_y: float, p: float = 0.95) -> float:
     hi_s, lo_s = max(sigma_x, sigma_y), min(sigma_x, sigma_y)
     if hi_s <= 0:
         return 0.0
-    lo = float(ndtri(0.5 + p / 2.0)) * hi_s          # P(|X| <= r) = p: a lower bound
+    lo = float(ndtri(0.5 + p / 2.0)) * hi_s  # P(|X| <= r) = p: a lower bound
     hi = math.sqrt(-2.0 * math.log(1.0 - p)) * hi_s  # both sigmas = σmax: an upper bound
     if lo_s <= 0:
         return lo
@@ -409,26 +430,45 @@ def accuracy_stats(
     bias_ratio_x = _safe_ratio(abs(mx), sigma_c)
     dr = np.hypot(ax, ay)
     return AccuracyStats(
-        n=n, unit=unit,
-        mean_x=mx, mean_y=my, mean_z=mz,
-        std_x=sx, std_y=sy, std_z=sz,
-        rmse_x=rx, rmse_y=ry, rmse_z=rz, rmse_r=rr,
-        nssda_horizontal_95=float(nssda_h), nssda_ratio=float(ratio),
-        nssda_approximation_holds=bool(holds), nssda_method=method,
+        n=n,
+        unit=unit,
+        mean_x=mx,
+        mean_y=my,
+        mean_z=mz,
+        std_x=sx,
+        std_y=sy,
+        std_z=sz,
+        rmse_x=rx,
+        rmse_y=ry,
+        rmse_z=rz,
+        rmse_r=rr,
+        nssda_horizontal_95=float(nssda_h),
+        nssda_ratio=float(ratio),
+        nssda_approximation_holds=bool(holds),
+        nssda_method=method,
         nssda_vertical_95=nssda_v,
-        ce90=float(ce90_formula(rx, ry)), ce95=float(ce95_formula(rx, ry)),
-        sigma_c=sigma_c, mu_h=mu_h, std_ratio=std_ratio,
-        bias_ratio=bias_ratio, bias_ratio_x=bias_ratio_x,
+        ce90=float(ce90_formula(rx, ry)),
+        ce95=float(ce95_formula(rx, ry)),
+        sigma_c=sigma_c,
+        mu_h=mu_h,
+        std_ratio=std_ratio,
+        bias_ratio=bias_ratio,
+        bias_ratio_x=bias_ratio_x,
         bias_negligible=bool(bias_ratio <= BIAS_RATIO_LIMIT),
         ce90_empirical=empirical_percentile(dr, 90, method=percentile_method),
         ce95_empirical=empirical_percentile(dr, 95, method=percentile_method),
         percentile_method=percentile_method,
-        max_abs_dx=maxx, max_abs_dy=maxy, max_abs_dz=maxz, max_dr=float(dr.max()),
+        max_abs_dx=maxx,
+        max_abs_dy=maxy,
+        max_abs_dz=maxz,
+        max_dr=float(dr.max()),
         gsd=gsd,
     )
 
 
-def bias_significance(mean: float | None, std: float | None, n: int) -> tuple[float | None, float | None]:
+def bias_significance(
+    mean: float | None, std: float | None, n: int
+) -> tuple[float | None, float | None]:
     """One-sample Student t of a mean error and its two-sided p-value: systematic error per axis.
 
     ``t = |μ| / (σ/√n)`` with ``σ`` the standard deviation with ``n-1`` (the seed 000 definition,
@@ -576,8 +616,13 @@ class BlunderResult:
         out = texts[inverse.reshape(-1)] if n else np.empty(0, dtype=object)
         ids = self.ids
         for i in np.flatnonzero(self.decision == EXCLUDED).tolist():
-            out[i] = _reason(EXCLUDED, bool(self.exceeds_x[i]), bool(self.exceeds_y[i]),
-                             bool(self.exceeds_z[i]), self.justifications.get(ids[i], ""))
+            out[i] = _reason(
+                EXCLUDED,
+                bool(self.exceeds_x[i]),
+                bool(self.exceeds_y[i]),
+                bool(self.exceeds_z[i]),
+                self.justifications.get(ids[i], ""),
+            )
         return out
 
     @cached_property
@@ -586,18 +631,29 @@ class BlunderResult:
         dr, reasons = self.dr.tolist(), self.reasons
         dx, dy = self.dx.tolist(), self.dy.tolist()
         dz = [None] * self.ids.size if self.dz is None else self.dz.tolist()
-        ex, ey, ez, er = (a.tolist() for a in (self.exceeds_x, self.exceeds_y, self.exceeds_z,
-                                               self.exceeds_r))
+        ex, ey, ez, er = (
+            a.tolist() for a in (self.exceeds_x, self.exceeds_y, self.exceeds_z, self.exceeds_r)
+        )
         cand = self.candidate.tolist()
         return tuple(
             BlunderDecision(
-                point_id=pid, dx=dx[i], dy=dy[i], dz=dz[i], dr=dr[i], exceeds_x=ex[i],
-                exceeds_y=ey[i], exceeds_z=ez[i], exceeds_r=er[i], candidate=cand[i],
+                point_id=pid,
+                dx=dx[i],
+                dy=dy[i],
+                dz=dz[i],
+                dr=dr[i],
+                exceeds_x=ex[i],
+                exceeds_y=ey[i],
+                exceeds_z=ez[i],
+                exceeds_r=er[i],
+                candidate=cand[i],
                 exclusion_requested=pid in self.justifications,
-                justification=self.justifications.get(pid, ""), decision=str(self.decision[i]),
+                justification=self.justifications.get(pid, ""),
+                decision=str(self.decision[i]),
                 reason=reasons[i],
             )
-            for i, pid in enumerate(self.ids.tolist()))
+            for i, pid in enumerate(self.ids.tolist())
+        )
 
 
 _DECISIONS = (KEPT, ERROR_WITHIN_TOLERANCE, CANDIDATE_KEPT, ERROR_NO_JUSTIFICATION, EXCLUDED)
@@ -661,8 +717,9 @@ def detect_blunders(
     ax, ay, az = _f(dx), _f(dy), _f(dz)
     assert ax is not None and ay is not None
     id_arr = _as_ids(ids, ax.size)
-    stats = accuracy_stats(ax, ay, az, ids=id_arr, gsd=gsd, unit=unit,
-                           percentile_method=percentile_method)
+    stats = accuracy_stats(
+        ax, ay, az, ids=id_arr, gsd=gsd, unit=unit, percentile_method=percentile_method
+    )
     if not (math.isfinite(factor) and factor > 0):
         raise MeasureError(f"blunder factor must be positive, got {factor!r}")
     if basis == "calculated":
@@ -670,7 +727,9 @@ def detect_blunders(
         lz = None if stats.rmse_z is None else factor * stats.rmse_z
     elif basis == "target":
         if target_rmse_xy is None or not target_rmse_xy > 0:
-            raise MeasureError("blunder basis 'target' needs a positive target RMSE (target_rmse_xy)")
+            raise MeasureError(
+                "blunder basis 'target' needs a positive target RMSE (target_rmse_xy)"
+            )
         lx = ly = factor * float(target_rmse_xy)
         if az is None or target_rmse_z is None:
             lz = None  # z not screened: reported in ``note``
@@ -683,7 +742,11 @@ def detect_blunders(
     lr = math.hypot(lx, ly)
 
     requests = {str(k): (v or "").strip() for k, v in (exclusions or {}).items()}
-    pos = pd.Index(id_arr, dtype=object).get_indexer(list(requests)) if requests else np.zeros(0, dtype=np.intp)
+    pos = (
+        pd.Index(id_arr, dtype=object).get_indexer(list(requests))
+        if requests
+        else np.zeros(0, dtype=np.intp)
+    )
     unknown = sorted(pid for pid, i in zip(requests, pos.tolist(), strict=True) if i < 0)
     if unknown:
         raise MeasureError(f"exclusion requested for unknown point id(s): {', '.join(unknown)}")
@@ -704,8 +767,10 @@ def detect_blunders(
         [0, 1, 2, 3],
         default=4,
     )
-    decision = np.array([KEPT, ERROR_WITHIN_TOLERANCE, CANDIDATE_KEPT, ERROR_NO_JUSTIFICATION, EXCLUDED],
-                        dtype=object)[choice]
+    decision = np.array(
+        [KEPT, ERROR_WITHIN_TOLERANCE, CANDIDATE_KEPT, ERROR_NO_JUSTIFICATION, EXCLUDED],
+        dtype=object,
+    )[choice]
     keep = decision != EXCLUDED
 
     note = ""
@@ -719,12 +784,32 @@ def detect_blunders(
         note += f"only {int(keep.sum())} point(s) left after exclusions"
     else:
         kept_stats = accuracy_stats(
-            ax[keep], ay[keep], None if az is None else az[keep], ids=id_arr[keep], gsd=gsd,
-            unit=unit, percentile_method=percentile_method,
+            ax[keep],
+            ay[keep],
+            None if az is None else az[keep],
+            ids=id_arr[keep],
+            gsd=gsd,
+            unit=unit,
+            percentile_method=percentile_method,
         )
     return BlunderResult(
-        basis=basis, factor=factor, limit_x=lx, limit_y=ly, limit_z=lz, limit_r=lr,
-        stats_all=stats, stats_kept=kept_stats, ids=id_arr, dx=ax, dy=ay, dz=az,
-        exceeds_x=ex, exceeds_y=ey, exceeds_z=ez, exceeds_r=er, decision=decision,
-        justifications=requests, note=note,
+        basis=basis,
+        factor=factor,
+        limit_x=lx,
+        limit_y=ly,
+        limit_z=lz,
+        limit_r=lr,
+        stats_all=stats,
+        stats_kept=kept_stats,
+        ids=id_arr,
+        dx=ax,
+        dy=ay,
+        dz=az,
+        exceeds_x=ex,
+        exceeds_y=ey,
+        exceeds_z=ez,
+        exceeds_r=er,
+        decision=decision,
+        justifications=requests,
+        note=note,
     )

@@ -61,15 +61,24 @@ def synthetic_clouds(rgb: np.ndarray, *, cover: float, seed: int, scale: float =
     if cover <= 0:
         alpha = np.zeros((h, w), dtype=np.float32)
     else:
-        t = float(np.quantile(field[scored], 1.0 - cover))  # alpha >= 0.5 over `cover` of the scored pixels
+        t = float(
+            np.quantile(field[scored], 1.0 - cover)
+        )  # alpha >= 0.5 over `cover` of the scored pixels
         alpha = np.clip((field - t) / (EDGE * 2) + 0.5, 0.0, 1.0).astype(np.float32)
     texture = _smooth_field((h, w), 2.0, rng).astype(np.float32)
-    cloud = np.clip(232.0 + 12.0 * texture, 0, 255)[None, :, :] * np.array([1.0, 1.0, 1.02], np.float32)[:, None, None]
+    cloud = (
+        np.clip(232.0 + 12.0 * texture, 0, 255)[None, :, :]
+        * np.array([1.0, 1.0, 1.02], np.float32)[:, None, None]
+    )
     out = (1.0 - alpha) * rgb.astype(np.float32) + alpha * np.clip(cloud, 0, 255)
     out = np.where((rgb == 0).all(axis=0)[None], 0, np.clip(np.rint(out), 1, 255)).astype(np.uint8)
     truth = alpha >= 0.5
-    return Labelled(pixels=out, truth=truth, scored=scored,
-                    cover_pct=100.0 * float(truth[scored].mean()) if scored.any() else 0.0)
+    return Labelled(
+        pixels=out,
+        truth=truth,
+        scored=scored,
+        cover_pct=100.0 * float(truth[scored].mean()) if scored.any() else 0.0,
+    )
 
 
 @dataclass(frozen=True)
@@ -78,9 +87,9 @@ class Score:
 
     true_pct: float
     estimated_pct: float
-    accuracy: float     # share of scored pixels classified right
-    precision: float    # of the pixels called cloud, the share that are
-    recall: float       # of the cloud pixels, the share called cloud
+    accuracy: float  # share of scored pixels classified right
+    precision: float  # of the pixels called cloud, the share that are
+    recall: float  # of the cloud pixels, the share called cloud
 
     @property
     def error_pct(self) -> float:
@@ -92,8 +101,13 @@ def score(labelled: Labelled, estimated: np.ndarray, estimated_pct: float | None
     t, e = labelled.truth[labelled.scored], estimated[labelled.scored]
     tp = float(np.count_nonzero(t & e))
     pct = 100.0 * float(e.mean()) if estimated_pct is None else float(estimated_pct)
-    return Score(true_pct=labelled.cover_pct, estimated_pct=pct, accuracy=float((t == e).mean()),
-                 precision=tp / max(float(np.count_nonzero(e)), 1.0), recall=tp / max(float(np.count_nonzero(t)), 1.0))
+    return Score(
+        true_pct=labelled.cover_pct,
+        estimated_pct=pct,
+        accuracy=float((t == e).mean()),
+        precision=tp / max(float(np.count_nonzero(e)), 1.0),
+        recall=tp / max(float(np.count_nonzero(t)), 1.0),
+    )
 
 
 #: the labelled set: (cover, seed) of each synthetic scene

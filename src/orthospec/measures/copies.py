@@ -38,7 +38,7 @@ class Content:
 
     id: str
     pixels_hash: str | None
-    thumbnail: np.ndarray | None     # (rows, cols) float, NaN = no sample
+    thumbnail: np.ndarray | None  # (rows, cols) float, NaN = no sample
     cell_px: int | None
     bands: int | None
     bounds: tuple[float, float, float, float] | None = None  # left, bottom, right, top
@@ -64,9 +64,12 @@ class Match:
         if self.shift_cells != (0, 0):
             unit = f" x {cell_px} px" if cell_px else ""
             where = f", shifted by ({self.shift_cells[0]}, {self.shift_cells[1]}) cells{unit}"
-        geo = ("the georeferences place them on nearly the same ground" if self.expected_shift_cells is not None
-               and _close(self.shift_cells, self.expected_shift_cells)
-               else "not where their georeferences put the common ground")
+        geo = (
+            "the georeferences place them on nearly the same ground"
+            if self.expected_shift_cells is not None
+            and _close(self.shift_cells, self.expected_shift_cells)
+            else "not where their georeferences put the common ground"
+        )
         return f"{self.other} (thumbnail correlation {self.correlation:.4f}{where}; {geo})"
 
 
@@ -103,8 +106,9 @@ def _coarse(stack: np.ndarray, n: int = 8) -> np.ndarray:
     return _unit_rows(blocks.reshape(len(stack), -1).astype(np.float64))
 
 
-def aligned_correlation(a: np.ndarray, b: np.ndarray, *, min_overlap: float = 0.5
-                        ) -> tuple[float, tuple[int, int]] | None:
+def aligned_correlation(
+    a: np.ndarray, b: np.ndarray, *, min_overlap: float = 0.5
+) -> tuple[float, tuple[int, int]] | None:
     """Best normalised cross-correlation of two grids over whole-cell shifts, and that shift
     (dy, dx): cell (r, c) of ``b`` lies on cell (r + dy, c + dx) of ``a``. Only shifts where at
     least ``min_overlap`` of the smaller grid's valid cells overlap count (Padfield's masked NCC,
@@ -144,8 +148,15 @@ def aligned_correlation(a: np.ndarray, b: np.ndarray, *, min_overlap: float = 0.
 
 def _expected_shift(a: Content, b: Content) -> tuple[float, float] | None:
     """Whole-cell shift the georeferences predict for the common ground (see aligned_correlation)."""
-    if (a.bounds is None or b.bounds is None or a.pixel_size is None or b.pixel_size is None
-            or a.crs is None or a.crs != b.crs or not a.cell_px):
+    if (
+        a.bounds is None
+        or b.bounds is None
+        or a.pixel_size is None
+        or b.pixel_size is None
+        or a.crs is None
+        or a.crs != b.crs
+        or not a.cell_px
+    ):
         return None
     if any(abs(p - q) > 0.01 * max(p, q) for p, q in zip(a.pixel_size, b.pixel_size, strict=True)):
         return None
@@ -167,18 +178,32 @@ def _shared_ground(a: Content, b: Content) -> float:
     return min(area / aa, area / ab) if aa > 0 and ab > 0 else 0.0
 
 
-def find_copies(images: Sequence[Content], *, min_correlation: float = 0.99, min_overlap: float = 0.5,
-                same_ground: float = 0.9, flat_std: float = 0.5, screen: float = 0.9,
-                candidates: int = 3) -> dict[str, list[Match]]:
+def find_copies(
+    images: Sequence[Content],
+    *,
+    min_correlation: float = 0.99,
+    min_overlap: float = 0.5,
+    same_ground: float = 0.9,
+    flat_std: float = 0.5,
+    screen: float = 0.9,
+    candidates: int = 3,
+) -> dict[str, list[Match]]:
     """image id -> the images it is a copy or near copy of (both directions listed)."""
     out: dict[str, list[Match]] = {}
 
     def add(i: Content, j: Content, m: Match) -> None:
         out.setdefault(i.id, []).append(m)
-        out.setdefault(j.id, []).append(Match(i.id, m.kind, m.correlation,
-                                              None if m.shift_cells is None else (-m.shift_cells[0], -m.shift_cells[1]),
-                                              None if m.expected_shift_cells is None else
-                                              (-m.expected_shift_cells[0], -m.expected_shift_cells[1])))
+        out.setdefault(j.id, []).append(
+            Match(
+                i.id,
+                m.kind,
+                m.correlation,
+                None if m.shift_cells is None else (-m.shift_cells[0], -m.shift_cells[1]),
+                None
+                if m.expected_shift_cells is None
+                else (-m.expected_shift_cells[0], -m.expected_shift_cells[1]),
+            )
+        )
 
     # thumbnails by geometry (bands, cell size, grid): flat ones are never copies
     groups: dict[tuple[int | None, int | None, tuple[int, ...]], list[Content]] = {}
@@ -189,11 +214,16 @@ def find_copies(images: Sequence[Content], *, min_correlation: float = 0.99, min
     for members in groups.values():
         raw = np.stack([c.thumbnail for c in members]).astype(np.float32, copy=False)  # type: ignore[misc]
         with np.errstate(invalid="ignore"):
-            spread = np.nanstd(raw.reshape(len(members), -1), axis=1) if np.isfinite(raw).any() else \
-                np.zeros(len(members))
+            spread = (
+                np.nanstd(raw.reshape(len(members), -1), axis=1)
+                if np.isfinite(raw).any()
+                else np.zeros(len(members))
+            )
         keep = np.isfinite(spread) & (spread >= flat_std)
         if keep.any():
-            stacks.append(([c for c, k in zip(members, keep.tolist(), strict=True) if k], raw[keep]))
+            stacks.append(
+                ([c for c, k in zip(members, keep.tolist(), strict=True) if k], raw[keep])
+            )
     varied = {c.id for members, _ in stacks for c in members}
     by_hash: dict[str, list[Content]] = {}
     for c in images:
@@ -202,7 +232,7 @@ def find_copies(images: Sequence[Content], *, min_correlation: float = 0.99, min
     done: set[tuple[str, str]] = set()
     for group in by_hash.values():
         for k, a in enumerate(group):
-            for b in group[k + 1:]:
+            for b in group[k + 1 :]:
                 add(a, b, Match(b.id, SAME_PIXELS))
                 done.add((a.id, b.id))
                 done.add((b.id, a.id))
@@ -216,7 +246,7 @@ def find_copies(images: Sequence[Content], *, min_correlation: float = 0.99, min
         coarse = _coarse(stack)
         pairs: set[tuple[int, int]] = set()
         for start in range(0, len(members), 512):
-            sims = coarse[start:start + 512] @ coarse.T
+            sims = coarse[start : start + 512] @ coarse.T
             rows = np.arange(sims.shape[0])
             sims[rows, rows + start] = -np.inf
             hit_r, hit_c = np.nonzero(sims >= screen)
@@ -224,13 +254,17 @@ def find_copies(images: Sequence[Content], *, min_correlation: float = 0.99, min
                 continue
             per_row = np.bincount(hit_r, minlength=sims.shape[0])
             crowded = np.flatnonzero(per_row > candidates)
-            if crowded.size:  # many look-alikes (a table padded with copies): the best few are enough
+            if (
+                crowded.size
+            ):  # many look-alikes (a table padded with copies): the best few are enough
                 top = np.argsort(-sims[crowded], axis=1, kind="stable")[:, :candidates]
                 keep = ~np.isin(hit_r, crowded)
                 hit_r = np.concatenate([hit_r[keep], np.repeat(crowded, candidates)])
                 hit_c = np.concatenate([hit_c[keep], top.ravel()])
             i = hit_r + start
-            pairs.update(zip(np.minimum(i, hit_c).tolist(), np.maximum(i, hit_c).tolist(), strict=True))
+            pairs.update(
+                zip(np.minimum(i, hit_c).tolist(), np.maximum(i, hit_c).tolist(), strict=True)
+            )
         if not pairs:
             continue
         ij = np.array(sorted(pairs))
@@ -250,7 +284,11 @@ def find_copies(images: Sequence[Content], *, min_correlation: float = 0.99, min
             if got is None or got[0] < min_correlation:
                 continue
             expected = _expected_shift(a, b)
-            if expected is not None and _close(got[1], expected) and _shared_ground(a, b) < same_ground:
+            if (
+                expected is not None
+                and _close(got[1], expected)
+                and _shared_ground(a, b) < same_ground
+            ):
                 continue  # the same ground where both georeferences put it: overlapping images
             add(a, b, Match(b.id, NEAR_COPY, got[0], got[1], expected))
             done.add((a.id, b.id))

@@ -235,14 +235,26 @@ def checkpoint_distribution(
         inside_share = float(inside.mean())
 
     return DistributionResult(
-        n=n, min_count=min_count, count_ok=n >= min_count, split_source=source,
-        centre=(float(cx), float(cy)), diagonal=diagonal,
-        quadrant_counts=q_counts, quadrant_shares=q_shares,
-        min_quadrant_share=float(shares.min()), required_quadrant_share=min_quadrant_share,
+        n=n,
+        min_count=min_count,
+        count_ok=n >= min_count,
+        split_source=source,
+        centre=(float(cx), float(cy)),
+        diagonal=diagonal,
+        quadrant_counts=q_counts,
+        quadrant_shares=q_shares,
+        min_quadrant_share=float(shares.min()),
+        required_quadrant_share=min_quadrant_share,
         quadrants_ok=bool((shares >= min_quadrant_share).all()),
-        nn_reference=ref, nn_min=nn_min, nn_min_ratio=nn_min / ref if ref > 0 else float("inf"),
-        gcp_min_distance=gmin, too_close_to_gcp=too_close, identical_to_gcp=identical,
-        outside_footprint=outside, inside_footprint_share=inside_share, quadrant=quad,
+        nn_reference=ref,
+        nn_min=nn_min,
+        nn_min_ratio=nn_min / ref if ref > 0 else float("inf"),
+        gcp_min_distance=gmin,
+        too_close_to_gcp=too_close,
+        identical_to_gcp=identical,
+        outside_footprint=outside,
+        inside_footprint_share=inside_share,
+        quadrant=quad,
         points=_Points(pts, cp_ids, tree, gpts, workers),
     )
 
@@ -270,8 +282,9 @@ def _smallest_spacing(tree: cKDTree, workers: int) -> float:
     return float(min(h, near.min())) if near.size else h
 
 
-def _near_gcps(tree: cKDTree, gpts: np.ndarray, radius: float, workers: int
-               ) -> tuple[float, np.ndarray, np.ndarray]:
+def _near_gcps(
+    tree: cKDTree, gpts: np.ndarray, radius: float, workers: int
+) -> tuple[float, np.ndarray, np.ndarray]:
     """(smallest check point-GCP distance, positions of the points within ``radius`` of a GCP
     (ascending), their distance to the nearest GCP).
 
@@ -282,7 +295,10 @@ def _near_gcps(tree: cKDTree, gpts: np.ndarray, radius: float, workers: int
     pts = tree.data  # the check points (tree.data keeps the input order)
     gmin = float(tree.query(gpts, k=1, workers=workers)[0].min())
     reach = radius * (1 + 1e-6) + 1e-12  # never short of ``radius`` by a rounding
-    if int(tree.query_ball_point(gpts, reach, return_length=True, workers=workers).sum()) > len(pts) // 8:
+    if (
+        int(tree.query_ball_point(gpts, reach, return_length=True, workers=workers).sum())
+        > len(pts) // 8
+    ):
         gdist = cKDTree(gpts).query(pts, k=1, workers=workers)[0]  # a wide radius: every point
         near = np.flatnonzero(gdist <= reach)
         return gmin, near, gdist[near]

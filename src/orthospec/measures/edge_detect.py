@@ -228,7 +228,9 @@ def _segments(work: np.ndarray, lines: list[tuple[np.ndarray, np.ndarray]],
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN columns: outside
             hi = np.nanmean(np.stack([_sample(work, px + s * n[0], py + s * n[1]) for s in k]), axis=0)
-            lo = np.nanmean(np.stack([_sample(work, px - s * n[0], py - s * n[1]) for s in k]), axis=0)
+            lo = np.nanmean(
+                np.stack([_sample(work, px - s * n[0], py - s * n[1]) for s in k]), axis=0
+            )
         con = hi - lo
         fin = np.isfinite(con)
         if not fin.any():
@@ -254,9 +256,16 @@ def _segments(work: np.ndarray, lines: list[tuple[np.ndarray, np.ndarray]],
 _WIDTH_CHECKS = {"dark_width", "bright_width", "fit"}
 
 
-def _band_mask(shape: tuple[int, int], c: np.ndarray, u: np.ndarray, t0: float, t1: float,
-               half: float, others: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
-    yy, xx = np.mgrid[0:shape[0], 0:shape[1]].astype(float)
+def _band_mask(
+    shape: tuple[int, int],
+    c: np.ndarray,
+    u: np.ndarray,
+    t0: float,
+    t1: float,
+    half: float,
+    others: list[tuple[np.ndarray, np.ndarray]],
+) -> np.ndarray:
+    yy, xx = np.mgrid[0 : shape[0], 0 : shape[1]].astype(float)
     rel_x, rel_y = xx - c[0], yy - c[1]
     along = rel_x * u[0] + rel_y * u[1]
     across = -rel_x * u[1] + rel_y * u[0]
@@ -273,9 +282,15 @@ def _band_mask(shape: tuple[int, int], c: np.ndarray, u: np.ndarray, t0: float, 
     return band
 
 
-def measure_target(image: np.ndarray, *, nodata: float | None = None, gsd: float | None = None,
-                   half_widths: tuple[float, ...] = (9.0, 13.0, 18.0), min_length_px: float = 20.0,
-                   **measure_kw: Any) -> TargetEdges:
+def measure_target(
+    image: np.ndarray,
+    *,
+    nodata: float | None = None,
+    gsd: float | None = None,
+    half_widths: tuple[float, ...] = (9.0, 13.0, 18.0),
+    min_length_px: float = 20.0,
+    **measure_kw: Any,
+) -> TargetEdges:
     """Find every straight edge of a target image, grow a passing ROI around each, measure it.
 
     ``measure_kw`` goes to :func:`orthospec.measures.edge.measure_edge` (``limits=EdgeLimits(...)``
@@ -308,13 +323,16 @@ def measure_target(image: np.ndarray, *, nodata: float | None = None, gsd: float
     return _combined(tuple(edges), nodata, fill is not None)
 
 
-def _one_per_edge(edges: list[FoundEdge], max_dangle: float = 3.0, max_offset: float = 3.0) -> list[FoundEdge]:
+def _one_per_edge(
+    edges: list[FoundEdge], max_dangle: float = 3.0, max_offset: float = 3.0
+) -> list[FoundEdge]:
     """One measurement per physical edge (issue 31): found edges whose lines agree within
     ``max_dangle`` deg and ``max_offset`` px and whose segments overlap along the line are the same
     edge found twice (noise splits a line's Hough segments or its contrast run); the valid one
     with the longest segment is kept. An invalid line whose ROI lies mostly inside a valid
     edge's ROI is noise crossing that edge (seen at SNR 30), not another edge. Runs of a
     checkerboard line on either side of the centre (opposite polarity, no overlap) stay apart."""
+
     def seg(e: FoundEdge) -> tuple[np.ndarray, np.ndarray, float]:
         p0, p1 = np.array([e.x0, e.y0]), np.array([e.x1, e.y1])
         return p0, p1, float(np.hypot(*(p1 - p0)))
@@ -334,7 +352,9 @@ def _one_per_edge(edges: list[FoundEdge], max_dangle: float = 3.0, max_offset: f
 
     def inside(a: FoundEdge, b: FoundEdge) -> bool:
         """b is an invalid short line mostly inside a valid edge's ROI (noise crossing it)."""
-        if not (a.result is not None and a.result.valid) or (b.result is not None and b.result.valid):
+        if not (a.result is not None and a.result.valid) or (
+            b.result is not None and b.result.valid
+        ):
             return False
         ax0, ay0, ax1, ay1 = a.window
         bx0, by0, bx1, by1 = b.window
@@ -351,9 +371,15 @@ def _one_per_edge(edges: list[FoundEdge], max_dangle: float = 3.0, max_offset: f
     return kept
 
 
-def _grow(img: np.ndarray, valid: np.ndarray, seg: tuple[np.ndarray, np.ndarray, float, float],
-          others: list[tuple[np.ndarray, np.ndarray]], half_widths: tuple[float, ...],
-          gsd: float | None, measure_kw: dict[str, Any]) -> FoundEdge | None:
+def _grow(
+    img: np.ndarray,
+    valid: np.ndarray,
+    seg: tuple[np.ndarray, np.ndarray, float, float],
+    others: list[tuple[np.ndarray, np.ndarray]],
+    half_widths: tuple[float, ...],
+    gsd: float | None,
+    measure_kw: dict[str, Any],
+) -> FoundEdge | None:
     """The ROI of one edge segment: bands of growing half width around it (away from the other
     lines), measured until one passes and the next no longer does; the widest passing one, else
     the last tried."""
@@ -372,9 +398,18 @@ def _grow(img: np.ndarray, valid: np.ndarray, seg: tuple[np.ndarray, np.ndarray,
             continue
         axis = "y" if res.transposed else "x"
         p0, p1 = c + t0 * u, c + t1 * u
-        cand = FoundEdge(float(p0[0]), float(p0[1]), float(p1[0]), float(p1[1]),
-                         math.degrees(math.atan2(u[1], u[0])) % 180.0, axis,
-                         (x0, y0, x1, y1), half, res, roi)
+        cand = FoundEdge(
+            float(p0[0]),
+            float(p0[1]),
+            float(p1[0]),
+            float(p1[1]),
+            math.degrees(math.atan2(u[1], u[0])) % 180.0,
+            axis,
+            (x0, y0, x1, y1),
+            half,
+            res,
+            roi,
+        )
         if res.valid or best is None or not (best.result and best.result.valid):
             best = cand
         elif best.result is not None and best.result.valid:

@@ -98,7 +98,9 @@ def nearest_gcp(x: Any, y: Any, gcp_x: Any, gcp_y: Any) -> tuple[np.ndarray, np.
         return dist, which
     pos = np.flatnonzero(ok)
     finite = np.isfinite(ax) & np.isfinite(ay)
-    d, j = cKDTree(np.column_stack([gx[ok], gy[ok]])).query(np.column_stack([ax[finite], ay[finite]]), k=1)
+    d, j = cKDTree(np.column_stack([gx[ok], gy[ok]])).query(
+        np.column_stack([ax[finite], ay[finite]]), k=1
+    )
     dist[finite] = d
     which[finite] = pos[j]
     return dist, which

@@ -45,8 +45,15 @@ from typing import Literal
 
 import numpy as np
 
-__all__ = ["METHODS", "Match", "MatchSettings", "luminance", "match_chip", "noise_sigma",
-           "texture_ratio"]
+__all__ = [
+    "METHODS",
+    "Match",
+    "MatchSettings",
+    "luminance",
+    "match_chip",
+    "noise_sigma",
+    "texture_ratio",
+]
 
 #: subpixel estimators (the first is the default, chosen by ``benchmarks/matching.py``)
 METHODS: tuple[str, ...] = ("phase", "ncc")
@@ -99,7 +106,9 @@ class MatchSettings:
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
-            raise ValueError(f"unknown matching method {self.method!r}; expected one of {', '.join(METHODS)}")
+            raise ValueError(
+                f"unknown matching method {self.method!r}; expected one of {', '.join(METHODS)}"
+            )
         if self.search_px < 1 or self.upsample < 1 or self.min_template_px < 8:
             raise ValueError("search_px and upsample must be >= 1, min_template_px >= 8")
 
@@ -145,9 +154,17 @@ def noise_sigma(img: np.ndarray) -> float:
     h, w = a.shape
     if h < 3 or w < 3:
         return math.nan
-    r = (a[:-2, :-2] - 2 * a[:-2, 1:-1] + a[:-2, 2:]
-         - 2 * a[1:-1, :-2] + 4 * a[1:-1, 1:-1] - 2 * a[1:-1, 2:]
-         + a[2:, :-2] - 2 * a[2:, 1:-1] + a[2:, 2:])
+    r = (
+        a[:-2, :-2]
+        - 2 * a[:-2, 1:-1]
+        + a[:-2, 2:]
+        - 2 * a[1:-1, :-2]
+        + 4 * a[1:-1, 1:-1]
+        - 2 * a[1:-1, 2:]
+        + a[2:, :-2]
+        - 2 * a[2:, 1:-1]
+        + a[2:, 2:]
+    )
     return float(math.sqrt(math.pi / 2) * np.abs(r).mean() / 6.0)
 
 
@@ -189,15 +206,15 @@ def _patch(search: np.ndarray, top: float, left: float, t: int) -> np.ndarray:
     i, j = math.floor(top), math.floor(left)
     fi, fj = top - i, left - j
     if fi == 0 and fj == 0 and i >= 0 and j >= 0:
-        return search[i:i + t, j:j + t]
+        return search[i : i + t, j : j + t]
     from scipy.ndimage import fourier_shift
 
     p = _FOURIER_PAD
     padded = np.pad(search, p + 1, mode="reflect")
     i0, j0 = i + 1, j + 1  # position in padded, minus the border p
-    region = padded[i0:i0 + t + 2 * p, j0:j0 + t + 2 * p]
+    region = padded[i0 : i0 + t + 2 * p, j0 : j0 + t + 2 * p]
     moved = np.fft.ifft2(fourier_shift(np.fft.fft2(region), (-fi, -fj))).real
-    return moved[p:p + t, p:p + t]
+    return moved[p : p + t, p : p + t]
 
 
 def _gauss_or_parabola(m1: float, c0: float, p1: float) -> float:
@@ -222,8 +239,9 @@ def _second_peak(surface: np.ndarray, at: tuple[int, int], exclude: int) -> floa
     return float(surface[rr[far], cc[far]].max()) if far.any() else -1.0
 
 
-def _cross_power_peak(f_ref: np.ndarray, f_mov: np.ndarray, *, upsample: int,
-                      span_px: float) -> tuple[float, float]:
+def _cross_power_peak(
+    f_ref: np.ndarray, f_mov: np.ndarray, *, upsample: int, span_px: float
+) -> tuple[float, float]:
     """Displacement (dy, dx) of ``moving`` relative to ``reference`` from their spectra: the peak of
     the cross-correlation, refined on a DFT upsampled ``upsample`` times over +-``span_px`` around
     it (Guizar-Sicairos et al. 2008, the algorithm of ``skimage.registration.phase_cross_correlation``
@@ -244,15 +262,22 @@ def _cross_power_peak(f_ref: np.ndarray, f_mov: np.ndarray, *, upsample: int,
         region = max(3, math.ceil(upsample * 2 * span_px))
         centre = float(np.fix(region / 2.0))
         offsets = centre - shifts * upsample
-        up = _upsampled_dft(product.conj(), region, upsample,
-                            (float(offsets[0]), float(offsets[1]))).conj()
+        up = _upsampled_dft(
+            product.conj(), region, upsample, (float(offsets[0]), float(offsets[1]))
+        ).conj()
         m = np.unravel_index(int(np.argmax(up.real)), up.shape)
         shifts = shifts + (np.array(m, dtype=np.float64) - centre) / upsample
     return float(-shifts[0]), float(-shifts[1])
 
 
-def _phase_refine(template: np.ndarray, search: np.ndarray, top: float, left: float,
-                  upsample: int, iterations: int = 5) -> tuple[float, float] | None:
+def _phase_refine(
+    template: np.ndarray,
+    search: np.ndarray,
+    top: float,
+    left: float,
+    upsample: int,
+    iterations: int = 5,
+) -> tuple[float, float] | None:
     """Iterated :func:`_cross_power_peak` of the Hann-tapered template and image patch, the patch
     resampled at each new estimate: first to 1/10 px over +-0.75 px around the integer peak, then
     to 1/``upsample`` px over +-0.1 px, until the correction is below 1/1000 px. None when an
@@ -265,8 +290,9 @@ def _phase_refine(template: np.ndarray, search: np.ndarray, top: float, left: fl
     f_t = tapered_spectrum(template)
     factor, span = min(10, upsample), 0.75
     for _ in range(iterations):
-        dy, dx = _cross_power_peak(f_t, tapered_spectrum(_patch(search, top, left, t)),
-                                   upsample=factor, span_px=span)
+        dy, dx = _cross_power_peak(
+            f_t, tapered_spectrum(_patch(search, top, left, t)), upsample=factor, span_px=span
+        )
         top, left = top + dy, left + dx
         if not (0.0 <= top <= last and 0.0 <= left <= last):
             return None
@@ -298,14 +324,16 @@ def _obscured(template: np.ndarray, patch: np.ndarray, cell: int = 8) -> tuple[f
         return 0.0, False
 
     def cells(a: np.ndarray) -> np.ndarray:
-        return a[:n * cell, :n * cell].reshape(n, cell, n, cell).swapaxes(1, 2).reshape(n, n, -1)
+        return a[: n * cell, : n * cell].reshape(n, cell, n, cell).swapaxes(1, 2).reshape(n, n, -1)
 
     tt, pp = cells(template), cells(patch)
     ts, ps = tt.std(axis=2), pp.std(axis=2)
     textured = (ts >= 0.5 * float(np.median(ts))) & (ts > 2.5 * noise_sigma(template))
     if not textured.any():
         return 0.0, False
-    if texture_ratio(patch) < FLAT_TEXTURE:  # a flat image: the reference's texture is missing everywhere
+    if (
+        texture_ratio(patch) < FLAT_TEXTURE
+    ):  # a flat image: the reference's texture is missing everywhere
         missing = textured
     else:
         kept = float(np.percentile(ps[textured] / ts[textured], 75))
@@ -317,12 +345,18 @@ def _obscured(template: np.ndarray, patch: np.ndarray, cell: int = 8) -> tuple[f
     level = float(pp[missing].mean())
     rest = ~missing
     bright = (bool(rest.any()) and level > float(pp[rest].mean())) or (
-        level > float(template.mean()) + 0.5 * float(template.std()))
+        level > float(template.mean()) + 0.5 * float(template.std())
+    )
     return share, bright
 
 
-def match_chip(template: np.ndarray, search: np.ndarray, *, search_valid: np.ndarray | None = None,
-               settings: MatchSettings | None = None) -> Match:
+def match_chip(
+    template: np.ndarray,
+    search: np.ndarray,
+    *,
+    search_valid: np.ndarray | None = None,
+    settings: MatchSettings | None = None,
+) -> Match:
     """Locate ``template`` (t x t, the reference on the image grid) in ``search`` ((t+2s) x (t+2s)).
 
     The template's nominal place is the centre of ``search`` (offset ``s`` both ways); the result's
@@ -339,18 +373,36 @@ def match_chip(template: np.ndarray, search: np.ndarray, *, search_valid: np.nda
     template = np.asarray(template, dtype=np.float64)
     search = np.asarray(search, dtype=np.float64)
     t = template.shape[0]
-    if template.ndim != 2 or template.shape[1] != t or search.ndim != 2 or search.shape[0] != search.shape[1]:
-        raise ValueError(f"template {template.shape} and search {search.shape} must be square 2-D arrays")
+    if (
+        template.ndim != 2
+        or template.shape[1] != t
+        or search.ndim != 2
+        or search.shape[0] != search.shape[1]
+    ):
+        raise ValueError(
+            f"template {template.shape} and search {search.shape} must be square 2-D arrays"
+        )
     margin = (search.shape[0] - t) // 2
     if search.shape[0] != t + 2 * margin or margin < 1:
-        raise ValueError(f"search window {search.shape} must be the template {template.shape} plus an even margin")
+        raise ValueError(
+            f"search window {search.shape} must be the template {template.shape} plus an even margin"
+        )
     if t < s.min_template_px:
-        raise ValueError(f"template of {t} px is smaller than min_template_px = {s.min_template_px}")
+        raise ValueError(
+            f"template of {t} px is smaller than min_template_px = {s.min_template_px}"
+        )
     nan = math.nan
 
     def by_hand(code: str, **kw: float) -> Match:
-        base = {"dx_px": nan, "dy_px": nan, "score": nan, "peak_ratio": nan, "sigma_px": nan,
-                "texture": nan, "obscured": nan}
+        base = {
+            "dx_px": nan,
+            "dy_px": nan,
+            "score": nan,
+            "peak_ratio": nan,
+            "sigma_px": nan,
+            "texture": nan,
+            "obscured": nan,
+        }
         base.update(kw)
         return Match(decision="by_hand", reason_code=code, reason=REASONS[code], **base)  # type: ignore[arg-type]
 
@@ -372,14 +424,20 @@ def match_chip(template: np.ndarray, search: np.ndarray, *, search_valid: np.nda
     # texture the image lacks where the reference has it: cloud, or change
     obscured, bright = _obscured(template, _patch(search, float(i0), float(j0), t))
     if obscured > s.max_obscured:
-        return by_hand("cloud" if bright else "change", score=peak, peak_ratio=ratio,
-                       texture=texture, obscured=obscured)
+        return by_hand(
+            "cloud" if bright else "change",
+            score=peak,
+            peak_ratio=ratio,
+            texture=texture,
+            obscured=obscured,
+        )
     if i0 in (0, surface.shape[0] - 1) or j0 in (0, surface.shape[1] - 1):
-        return by_hand("search_limit", score=peak, peak_ratio=ratio, texture=texture,
-                       obscured=obscured)
+        return by_hand(
+            "search_limit", score=peak, peak_ratio=ratio, texture=texture, obscured=obscured
+        )
     # both subpixel estimators from the integer peak
-    fi = _gauss_or_parabola(*(float(v) for v in surface[i0 - 1:i0 + 2, j0]))
-    fj = _gauss_or_parabola(*(float(v) for v in surface[i0, j0 - 1:j0 + 2]))
+    fi = _gauss_or_parabola(*(float(v) for v in surface[i0 - 1 : i0 + 2, j0]))
+    fj = _gauss_or_parabola(*(float(v) for v in surface[i0, j0 - 1 : j0 + 2]))
     ncc_top, ncc_left = i0 + fi, j0 + fj
     # keep the refined patch inside the search window (a cubic spline needs one px beyond)
     refined = _phase_refine(template, search, float(i0), float(j0), s.upsample)
@@ -399,19 +457,34 @@ def match_chip(template: np.ndarray, search: np.ndarray, *, search_valid: np.nda
     gain = float((tc * (patch - patch.mean())).sum() / max(float((tc * tc).sum()), 1e-12))
     resid = patch - patch.mean() - gain * tc
     lam_min, _ = _structure(template)
-    sigma_px = float(resid.std() / (abs(gain) * math.sqrt(lam_min))) if gain != 0 and lam_min > 0 else math.inf
-    kw = {"dx_px": left - margin, "dy_px": top - margin, "score": score, "peak_ratio": ratio,
-          "sigma_px": sigma_px, "texture": texture, "obscured": obscured,
-          "other_dx_px": o_left - margin, "other_dy_px": o_top - margin}
+    sigma_px = (
+        float(resid.std() / (abs(gain) * math.sqrt(lam_min)))
+        if gain != 0 and lam_min > 0
+        else math.inf
+    )
+    kw = {
+        "dx_px": left - margin,
+        "dy_px": top - margin,
+        "score": score,
+        "peak_ratio": ratio,
+        "sigma_px": sigma_px,
+        "texture": texture,
+        "obscured": obscured,
+        "other_dx_px": o_left - margin,
+        "other_dy_px": o_top - margin,
+    }
     disagreement = math.hypot(top - o_top, left - o_left)
     details = {"gain": gain, "disagreement_px": disagreement}
     if score < s.min_score or not sigma_px <= s.max_sigma_px:
-        code = "low_texture" if float(template.std()) < s.low_contrast * noise_sigma(template) else "change"
+        code = (
+            "low_texture"
+            if float(template.std()) < s.low_contrast * noise_sigma(template)
+            else "change"
+        )
     elif ratio < s.min_peak_ratio:
         code = "ambiguous"
     elif disagreement > s.max_disagreement_px:
         code = "unstable"
     else:
         return Match(decision="accepted", details=details, **kw)  # type: ignore[arg-type]
-    return Match(decision="by_hand", reason_code=code, reason=REASONS[code], details=details,
-                 **kw)  # type: ignore[arg-type]
+    return Match(decision="by_hand", reason_code=code, reason=REASONS[code], details=details, **kw)  # type: ignore[arg-type]

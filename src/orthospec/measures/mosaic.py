@@ -67,7 +67,11 @@ def seamline_coverage(seamlines: Sequence[object], aoi: object, *,
     arr = np.asarray(geoms, dtype=object)
     try:
         coverage = bool(arr.size) and bool(shapely.coverage_is_valid(arr))
-    except (shapely.errors.GEOSException, TypeError, ValueError):  # lines or collections in the layer
+    except (
+        shapely.errors.GEOSException,
+        TypeError,
+        ValueError,
+    ):  # lines or collections in the layer
         coverage = False
     pairs = []
     overlap = 0.0
@@ -96,10 +100,16 @@ def seamline_coverage(seamlines: Sequence[object], aoi: object, *,
                 overlap += area
     gap = float(aoi_g.difference(union).area)
     gap = 0.0 if gap <= tol else gap
-    return SeamlineCoverage(aoi_area=a_area, covered_area=a_area - gap, gap_area=gap,
-                            gap_pct=100.0 * gap / a_area, overlap_area=overlap,
-                            overlap_pct=100.0 * overlap / a_area,
-                            overlapping_pairs=tuple(pairs), invalid_polygons=invalid)
+    return SeamlineCoverage(
+        aoi_area=a_area,
+        covered_area=a_area - gap,
+        gap_area=gap,
+        gap_pct=100.0 * gap / a_area,
+        overlap_area=overlap,
+        overlap_pct=100.0 * overlap / a_area,
+        overlapping_pairs=tuple(pairs),
+        invalid_polygons=invalid,
+    )
 
 
 @dataclass(frozen=True)
@@ -109,7 +119,7 @@ class RadiometricDifference:
     mean_a: tuple[float, ...]
     mean_b: tuple[float, ...]
     difference_dn: tuple[float, ...]
-    difference_pct: tuple[float, ...]         # of the mean of the two averages
+    difference_pct: tuple[float, ...]  # of the mean of the two averages
     difference_range_pct: tuple[float, ...] | None  # of 2^bit_depth grey levels
 
     @property
@@ -117,8 +127,9 @@ class RadiometricDifference:
         return max(self.difference_pct)
 
 
-def radiometric_difference(mean_a: Sequence[float], mean_b: Sequence[float], *,
-                           bit_depth: int | None = None) -> RadiometricDifference:
+def radiometric_difference(
+    mean_a: Sequence[float], mean_b: Sequence[float], *, bit_depth: int | None = None
+) -> RadiometricDifference:
     """|mean_a - mean_b| per band as % of their average DN (Table 11 "10% in DN value")."""
     a = np.asarray(mean_a, dtype=np.float64)
     b = np.asarray(mean_b, dtype=np.float64)
@@ -131,11 +142,13 @@ def radiometric_difference(mean_a: Sequence[float], mean_b: Sequence[float], *,
     rng = None
     if bit_depth is not None:
         rng = tuple(float(v) for v in 100.0 * diff / float(1 << bit_depth))
-    return RadiometricDifference(mean_a=tuple(float(v) for v in a),
-                                 mean_b=tuple(float(v) for v in b),
-                                 difference_dn=tuple(float(v) for v in diff),
-                                 difference_pct=tuple(float(v) for v in 100.0 * diff / level),
-                                 difference_range_pct=rng)
+    return RadiometricDifference(
+        mean_a=tuple(float(v) for v in a),
+        mean_b=tuple(float(v) for v in b),
+        difference_dn=tuple(float(v) for v in diff),
+        difference_pct=tuple(float(v) for v in 100.0 * diff / level),
+        difference_range_pct=rng,
+    )
 
 
 def gradient_energy(image: np.ndarray) -> float:
@@ -159,7 +172,7 @@ class Sharpness:
 
     ge_pan: float
     ge_fused: float
-    ratio: float                 # ge_fused / ge_pan (1 = as sharp as PAN)
+    ratio: float  # ge_fused / ge_pan (1 = as sharp as PAN)
     highpass_correlation: float  # correlation of the Laplacians of PAN and fused intensity
 
 
@@ -182,8 +195,13 @@ def pan_sharpness(pan: np.ndarray, fused: np.ndarray) -> Sharpness:
     return Sharpness(ge_pan=ge_p, ge_fused=ge_f, ratio=ge_f / ge_p, highpass_correlation=corr)
 
 
-def photo_footprints(cx: Sequence[float], cy: Sequence[float], across: Sequence[float],
-                     along: Sequence[float], heading: Sequence[float]) -> list[object]:
+def photo_footprints(
+    cx: Sequence[float],
+    cy: Sequence[float],
+    across: Sequence[float],
+    along: Sequence[float],
+    heading: Sequence[float],
+) -> list[object]:
     """Ground footprints of vertical frame photos as rectangles (JRC §5.2.2 photo lay-down).
 
     Each photo covers ``across`` × ``along`` metres (format in pixels × H/f × pixel size) centred
@@ -199,18 +217,21 @@ def photo_footprints(cx: Sequence[float], cy: Sequence[float], across: Sequence[
     if not np.isfinite(np.concatenate([x, y, a, b, h])).all() or (a <= 0).any() or (b <= 0).any():
         raise MeasureError("photo footprints need finite centres and positive sizes")
     ux, uy = np.cos(h), np.sin(h)  # along track
-    vx, vy = -uy, ux               # across track
+    vx, vy = -uy, ux  # across track
     out = []
     for i in range(x.size):
         da, dc = b[i] / 2.0, a[i] / 2.0
-        corners = [(x[i] + sa * da * ux[i] + sc * dc * vx[i], y[i] + sa * da * uy[i] + sc * dc * vy[i])
-                   for sa, sc in ((1, 1), (1, -1), (-1, -1), (-1, 1))]
+        corners = [
+            (x[i] + sa * da * ux[i] + sc * dc * vx[i], y[i] + sa * da * uy[i] + sc * dc * vy[i])
+            for sa, sc in ((1, 1), (1, -1), (-1, -1), (-1, 1))
+        ]
         out.append(Polygon(corners))
     return out
 
 
-def strip_headings(cx: Sequence[float], cy: Sequence[float], groups: Sequence[str], *,
-                   min_distance: float = 0.0) -> np.ndarray:
+def strip_headings(
+    cx: Sequence[float], cy: Sequence[float], groups: Sequence[str], *, min_distance: float = 0.0
+) -> np.ndarray:
     """Flight direction per photo: towards its nearest neighbour of the same flight (radians).
 
     Along-track photo spacing is shorter than the strip spacing, so the nearest exposure of the

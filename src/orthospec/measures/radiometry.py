@@ -54,8 +54,9 @@ ROBUST_TAIL = 0.001
 SPARSE_INVALID = 64
 
 #: (dy, dx, weight) of Immerkaer's 3x3 difference-of-Laplacians kernel [[1,-2,1],[-2,4,-2],[1,-2,1]].
-_LAPLACIAN_TAPS = tuple((dy, dx, (1 if dy and dx else -2 if dy or dx else 4))
-                        for dy in (-1, 0, 1) for dx in (-1, 0, 1))
+_LAPLACIAN_TAPS = tuple(
+    (dy, dx, (1 if dy and dx else -2 if dy or dx else 4)) for dy in (-1, 0, 1) for dx in (-1, 0, 1)
+)
 
 # log-spaced bins for the histogram of local standard deviations (0.5 % relative resolution)
 _LOCAL_STD_EDGES = np.geomspace(1e-3, 1e6, 4201)
@@ -128,8 +129,8 @@ def _bincount_serial(out: np.ndarray, values: np.ndarray) -> np.ndarray:
     """``out += np.bincount(values, minlength=out.size)`` slice by slice through the buffer."""
     buf = _intp_buffer()
     for i in range(0, values.size, _BINCOUNT_SLICE):
-        part = values[i:i + _BINCOUNT_SLICE]
-        b = buf[:part.size]
+        part = values[i : i + _BINCOUNT_SLICE]
+        b = buf[: part.size]
         b[...] = part
         out += np.bincount(b, minlength=out.size)
     return out
@@ -164,8 +165,11 @@ def serial_counting() -> Iterator[None]:
 
 def _bincount_into(out: np.ndarray, values: np.ndarray) -> None:
     """Add the counts of ``values`` to ``out`` (integer counts: any split gives the same sum)."""
-    if (values.size < PARALLEL_BINCOUNT_MIN or (os.cpu_count() or 1) < 2
-            or getattr(_buffers, "serial", False)):
+    if (
+        values.size < PARALLEL_BINCOUNT_MIN
+        or (os.cpu_count() or 1) < 2
+        or getattr(_buffers, "serial", False)
+    ):
         _bincount_serial(out, values)
         return
     half = values.size // 2 // _BINCOUNT_SLICE * _BINCOUNT_SLICE or values.size // 2
@@ -228,7 +232,9 @@ def fast_bincount(values: np.ndarray, bins: int) -> np.ndarray:
 def numpy_bincount(values: np.ndarray, bins: int) -> np.ndarray:
     """:func:`fast_bincount` by numpy alone (16-bit values; bytes when Pillow is missing)."""
     v = np.ascontiguousarray(values).ravel()
-    if v.size <= _BINCOUNT_SLICE:  # a small block: the 65536 pair bins would cost more than they save
+    if (
+        v.size <= _BINCOUNT_SLICE
+    ):  # a small block: the 65536 pair bins would cost more than they save
         return np.bincount(v, minlength=bins).astype(np.int64, copy=False)
     out = np.zeros(bins, dtype=np.int64)
     if v.dtype.itemsize == 1 and bins == 256:
@@ -372,8 +378,13 @@ class Moments:
             return
         v = values.astype(np.float64, copy=False)
         mean = float(v.mean())
-        block = Moments(n=int(v.size), mean=mean, m2=float(np.square(v - mean).sum()),
-                        vmin=float(v.min()), vmax=float(v.max()))
+        block = Moments(
+            n=int(v.size),
+            mean=mean,
+            m2=float(np.square(v - mean).sum()),
+            vmin=float(v.min()),
+            vmax=float(v.max()),
+        )
         self.merge(block)
 
     def merge(self, other: Moments) -> Moments:
@@ -447,7 +458,8 @@ class NoiseAccumulator:
     sum_abs: float = 0.0
     n_lap: int = 0
     local_counts: np.ndarray = field(
-        default_factory=lambda: np.zeros(_LOCAL_STD_EDGES.size - 1, dtype=np.int64))
+        default_factory=lambda: np.zeros(_LOCAL_STD_EDGES.size - 1, dtype=np.int64)
+    )
     n_flat: int = 0  # windows whose local std is below the first edge (perfectly flat)
 
     def add(self, block: np.ndarray, valid: np.ndarray | None = None) -> None:
@@ -480,8 +492,9 @@ class NoiseAccumulator:
         if sd is not None:
             self._bin_local_stds(sd)
 
-    def _exclude_invalid(self, block: np.ndarray, rows: np.ndarray, cols: np.ndarray,
-                         sd: np.ndarray | None) -> np.ndarray | None:
+    def _exclude_invalid(
+        self, block: np.ndarray, rows: np.ndarray, cols: np.ndarray, sd: np.ndarray | None
+    ) -> np.ndarray | None:
         """Take the neighbourhoods and windows touching the invalid pixels (``rows``,
         ``cols``) back out of an integer block added whole; the local stds that remain.
 
@@ -522,7 +535,7 @@ class NoiseAccumulator:
         # for 16 bits) summed in int64, about 4x faster than float32 for bytes. The sums are
         # the same exact integers float32 + a float64 sum gave (every |lap| < 2^24, every
         # partial sum < 2^53), so sigma does not change; other dtypes stay in float32.
-        src = block[c0 - 1:c1 + 1]
+        src = block[c0 - 1 : c1 + 1]
         if src.dtype.kind in "uib" and src.dtype.itemsize <= 2:
             a = src.astype(np.int16 if src.dtype.itemsize == 1 else np.int32)
             total_dtype: type = np.int64
@@ -544,7 +557,7 @@ class NoiseAccumulator:
             self.sum_abs += float(lap.sum(dtype=total_dtype))
             self.n_lap += lap.size
             return
-        v = valid[c0 - 1:c1 + 1]
+        v = valid[c0 - 1 : c1 + 1]
         r = v[:, :-2] & v[:, 1:-1] & v[:, 2:]
         ok = r[:-2] & r[1:-1] & r[2:]
         n_ok = int(np.count_nonzero(ok))
@@ -552,8 +565,9 @@ class NoiseAccumulator:
         self.sum_abs += float((lap if n_ok == ok.size else lap[ok]).sum(dtype=total_dtype))
         self.n_lap += n_ok
 
-    def _local_std(self, block: np.ndarray, valid: np.ndarray | None, r0: int,
-                   r1: int) -> np.ndarray:
+    def _local_std(
+        self, block: np.ndarray, valid: np.ndarray | None, r0: int, r1: int
+    ) -> np.ndarray:
         """Local stds of the fully valid NOISE_WINDOW squares in rows [r0, r1) (multiples
         of k), flat."""
         k = NOISE_WINDOW
@@ -694,8 +708,15 @@ def luminosity(r: np.ndarray, g: np.ndarray, b: np.ndarray, dtype: np.dtype | st
 _LUMA_PER_MILLE = np.array([299, 587, 114], dtype=np.uint32)
 
 
-def luminosity_block(r: np.ndarray, g: np.ndarray, b: np.ndarray, dtype: np.dtype | str, *,
-                     out: np.ndarray | None = None, planes: np.ndarray | None = None) -> np.ndarray:
+def luminosity_block(
+    r: np.ndarray,
+    g: np.ndarray,
+    b: np.ndarray,
+    dtype: np.dtype | str,
+    *,
+    out: np.ndarray | None = None,
+    planes: np.ndarray | None = None,
+) -> np.ndarray:
     """:func:`luminosity` of whole 2-D blocks, worked through in cache-sized slabs of rows.
 
     Same values; unsigned bands reuse two uint32 work buffers of ``SLAB_PIXELS`` (no fresh
@@ -718,9 +739,15 @@ def luminosity_block(r: np.ndarray, g: np.ndarray, b: np.ndarray, dtype: np.dtyp
     if planes is not None and planes.shape == (3, *r.shape) and planes.dtype == r.dtype:
         for r0 in range(0, r.shape[0], step):
             sl = slice(r0, r0 + step)
-            acc = a[:r[sl].shape[0]]
-            np.einsum("i,ijk->jk", _LUMA_PER_MILLE, planes[:, sl], dtype=np.uint32,
-                      casting="unsafe", out=acc)  # unsafe: the uint8/16 values widen
+            acc = a[: r[sl].shape[0]]
+            np.einsum(
+                "i,ijk->jk",
+                _LUMA_PER_MILLE,
+                planes[:, sl],
+                dtype=np.uint32,
+                casting="unsafe",
+                out=acc,
+            )  # unsafe: the uint8/16 values widen
             acc += np.uint32(500)
             acc //= np.uint32(1000)
             y[sl] = acc
@@ -765,8 +792,9 @@ class GreyRange:
         return None if self.bit_depth is None else 1 << self.bit_depth
 
 
-def grey_range(dtype: np.dtype | str, *, declared: int | None = None,
-               nbits: int | None = None) -> GreyRange:
+def grey_range(
+    dtype: np.dtype | str, *, declared: int | None = None, nbits: int | None = None
+) -> GreyRange:
     """Bit depth from the caller, else the NBITS tag, else the dtype (floats: none)."""
     dt = np.dtype(dtype)
     signed = dt.kind == "i"
@@ -830,8 +858,11 @@ class BandStats:
     @property
     def saturation_low_hidden(self) -> bool:
         """True when nodata is the lowest grey level: dark saturation is then invisible."""
-        return self.nodata is not None and self.range_low is not None and (
-            self.nodata == self.range_low)
+        return (
+            self.nodata is not None
+            and self.range_low is not None
+            and (self.nodata == self.range_low)
+        )
 
     @property
     def nodata_fraction(self) -> float:
@@ -839,21 +870,33 @@ class BandStats:
 
     def to_dict(self, *, histogram: bool = True) -> dict[str, Any]:
         out: dict[str, Any] = {
-            "band": self.band, "dtype": self.dtype, "pixels": self.pixels, "valid": self.valid,
-            "nodata_fraction": self.nodata_fraction, "min": self.min, "max": self.max,
-            "mean": self.mean, "std": self.std, "bit_depth": self.bit_depth,
-            "bit_depth_source": self.bit_depth_source, "range_low": self.range_low,
-            "range_high": self.range_high, "used_bits": self.used_bits,
+            "band": self.band,
+            "dtype": self.dtype,
+            "pixels": self.pixels,
+            "valid": self.valid,
+            "nodata_fraction": self.nodata_fraction,
+            "min": self.min,
+            "max": self.max,
+            "mean": self.mean,
+            "std": self.std,
+            "bit_depth": self.bit_depth,
+            "bit_depth_source": self.bit_depth_source,
+            "range_low": self.range_low,
+            "range_high": self.range_high,
+            "used_bits": self.used_bits,
             "above_range": self.above_range,
             "saturation_low_pct": self.saturation_low_pct,
             "saturation_high_pct": self.saturation_high_pct,
-            "dark_margin_pct": self.dark_margin_pct, "bright_margin_pct": self.bright_margin_pct,
+            "dark_margin_pct": self.dark_margin_pct,
+            "bright_margin_pct": self.bright_margin_pct,
             "dark_margin_robust_pct": self.dark_margin_robust_pct,
             "bright_margin_robust_pct": self.bright_margin_robust_pct,
-            "cv_percent": self.cv_percent, "noise_std_global": self.std,
+            "cv_percent": self.cv_percent,
+            "noise_std_global": self.std,
             "noise_sigma_immerkaer": self.noise_sigma_immerkaer,
             "noise_sigma_homogeneous": self.noise_sigma_homogeneous,
-            "nodata": self.nodata, "saturation_low_hidden_by_nodata": self.saturation_low_hidden,
+            "nodata": self.nodata,
+            "saturation_low_hidden_by_nodata": self.saturation_low_hidden,
         }
         if self.nonfinite is not None:
             out["nonfinite_pixels"] = self.nonfinite
@@ -870,8 +913,13 @@ def _used_bits(vmax: float | None, signed: bool) -> int | None:
 
 
 def band_stats_from_histogram(
-    band: str, dtype: str, acc: HistogramAccumulator, rng: GreyRange, *,
-    noise: NoiseAccumulator | None = None, nodata: float | None = None,
+    band: str,
+    dtype: str,
+    acc: HistogramAccumulator,
+    rng: GreyRange,
+    *,
+    noise: NoiseAccumulator | None = None,
+    nodata: float | None = None,
 ) -> BandStats:
     """Exact statistics and §6.3 measures from a per-DN histogram (nodata already excluded)."""
     m = acc.moments()
@@ -880,7 +928,7 @@ def band_stats_from_histogram(
     hist = None
     if n:
         lo_i, hi_i = int(m.vmin) - acc.offset, int(m.vmax) - acc.offset
-        hist = Histogram(counts=tuple(counts[lo_i:hi_i + 1].tolist()), offset=int(m.vmin))
+        hist = Histogram(counts=tuple(counts[lo_i : hi_i + 1].tolist()), offset=int(m.vmin))
     sat_lo = sat_hi = dm = bm = dmr = bmr = cv = None
     above = 0
     if n and rng.bit_depth is not None:
@@ -894,8 +942,9 @@ def band_stats_from_histogram(
 
         sat_lo = 100.0 * count_at(low) / n
         sat_hi = 100.0 * count_at(high) / n
-        above = int(counts[max(high + 1 - acc.offset, 0):].sum()) + int(
-            counts[:max(low - acc.offset, 0)].sum())
+        above = int(counts[max(high + 1 - acc.offset, 0) :].sum()) + int(
+            counts[: max(low - acc.offset, 0)].sum()
+        )
         dm = 100.0 * (m.vmin - low) / span
         bm = 100.0 * (high - m.vmax) / span
         cum = np.cumsum(counts)
@@ -906,31 +955,55 @@ def band_stats_from_histogram(
         bmr = 100.0 * (high - p_hi) / span
         cv = 100.0 * m.std / float(rng.levels)  # type: ignore[arg-type]
     return BandStats(
-        band=band, dtype=dtype, pixels=acc.total, valid=n,
-        min=m.vmin if n else None, max=m.vmax if n else None,
-        mean=m.mean if n else None, std=m.std if n else None, histogram=hist,
-        bit_depth=rng.bit_depth, bit_depth_source=rng.source,
-        range_low=rng.low, range_high=rng.high,
-        used_bits=_used_bits(m.vmax if n else None, rng.signed), above_range=above,
-        saturation_low_pct=sat_lo, saturation_high_pct=sat_hi,
-        dark_margin_pct=dm, bright_margin_pct=bm,
-        dark_margin_robust_pct=dmr, bright_margin_robust_pct=bmr, cv_percent=cv,
+        band=band,
+        dtype=dtype,
+        pixels=acc.total,
+        valid=n,
+        min=m.vmin if n else None,
+        max=m.vmax if n else None,
+        mean=m.mean if n else None,
+        std=m.std if n else None,
+        histogram=hist,
+        bit_depth=rng.bit_depth,
+        bit_depth_source=rng.source,
+        range_low=rng.low,
+        range_high=rng.high,
+        used_bits=_used_bits(m.vmax if n else None, rng.signed),
+        above_range=above,
+        saturation_low_pct=sat_lo,
+        saturation_high_pct=sat_hi,
+        dark_margin_pct=dm,
+        bright_margin_pct=bm,
+        dark_margin_robust_pct=dmr,
+        bright_margin_robust_pct=bmr,
+        cv_percent=cv,
         noise_sigma_immerkaer=noise.immerkaer_sigma if noise else None,
-        noise_sigma_homogeneous=noise.homogeneous_sigma if noise else None, nodata=nodata,
+        noise_sigma_homogeneous=noise.homogeneous_sigma if noise else None,
+        nodata=nodata,
     )
 
 
 def band_stats_from_moments(
-    band: str, dtype: str, pixels: int, m: Moments, rng: GreyRange, *,
-    histogram: BinnedHistogramAccumulator | None = None, noise: NoiseAccumulator | None = None,
-    count_low: int = 0, count_high: int = 0, above_range: int = 0, nodata: float | None = None,
+    band: str,
+    dtype: str,
+    pixels: int,
+    m: Moments,
+    rng: GreyRange,
+    *,
+    histogram: BinnedHistogramAccumulator | None = None,
+    noise: NoiseAccumulator | None = None,
+    count_low: int = 0,
+    count_high: int = 0,
+    above_range: int = 0,
+    nodata: float | None = None,
 ) -> BandStats:
     """Statistics of a float / 32-bit band; saturation only when a bit depth is known."""
     n = m.n
     hist = None
     if histogram is not None and n:
-        hist = Histogram(counts=tuple(histogram.counts.tolist()),
-                         edges=tuple(float(e) for e in histogram.edges))
+        hist = Histogram(
+            counts=tuple(histogram.counts.tolist()), edges=tuple(float(e) for e in histogram.edges)
+        )
     sat_lo = sat_hi = dm = bm = cv = None
     if n and rng.bit_depth is not None:
         low, high = rng.low, rng.high
@@ -940,16 +1013,31 @@ def band_stats_from_moments(
         dm, bm = 100.0 * (m.vmin - low) / span, 100.0 * (high - m.vmax) / span
         cv = 100.0 * m.std / float(rng.levels)  # type: ignore[arg-type]
     return BandStats(
-        band=band, dtype=dtype, pixels=pixels, valid=n,
-        min=m.vmin if n else None, max=m.vmax if n else None,
-        mean=m.mean if n else None, std=m.std if n else None, histogram=hist,
-        bit_depth=rng.bit_depth, bit_depth_source=rng.source, range_low=rng.low,
-        range_high=rng.high, used_bits=_used_bits(m.vmax if n else None, rng.signed),
-        above_range=above_range, saturation_low_pct=sat_lo, saturation_high_pct=sat_hi,
-        dark_margin_pct=dm, bright_margin_pct=bm, dark_margin_robust_pct=None,
-        bright_margin_robust_pct=None, cv_percent=cv,
+        band=band,
+        dtype=dtype,
+        pixels=pixels,
+        valid=n,
+        min=m.vmin if n else None,
+        max=m.vmax if n else None,
+        mean=m.mean if n else None,
+        std=m.std if n else None,
+        histogram=hist,
+        bit_depth=rng.bit_depth,
+        bit_depth_source=rng.source,
+        range_low=rng.low,
+        range_high=rng.high,
+        used_bits=_used_bits(m.vmax if n else None, rng.signed),
+        above_range=above_range,
+        saturation_low_pct=sat_lo,
+        saturation_high_pct=sat_hi,
+        dark_margin_pct=dm,
+        bright_margin_pct=bm,
+        dark_margin_robust_pct=None,
+        bright_margin_robust_pct=None,
+        cv_percent=cv,
         noise_sigma_immerkaer=noise.immerkaer_sigma if noise else None,
-        noise_sigma_homogeneous=noise.homogeneous_sigma if noise else None, nodata=nodata,
+        noise_sigma_homogeneous=noise.homogeneous_sigma if noise else None,
+        nodata=nodata,
     )
 
 
@@ -973,8 +1061,9 @@ class Shift:
         return math.hypot(self.dy, self.dx)
 
 
-def _upsampled_dft(data: np.ndarray, region: int, factor: float,
-                   offsets: tuple[float, float]) -> np.ndarray:
+def _upsampled_dft(
+    data: np.ndarray, region: int, factor: float, offsets: tuple[float, float]
+) -> np.ndarray:
     """Matrix-multiply DFT of ``data`` on a ``region``^2 grid upsampled by ``factor``.
 
     Guizar-Sicairos, Thurman & Fienup (2008), "Efficient subpixel image registration
@@ -987,8 +1076,9 @@ def _upsampled_dft(data: np.ndarray, region: int, factor: float,
     kernels = []
     for axis in (0, 1):
         freq = np.fft.fftfreq(data.shape[axis], factor)
-        kernels.append(np.exp(-2j * np.pi * (np.arange(region) - offsets[axis])[:, None]
-                              * freq[None, :]))
+        kernels.append(
+            np.exp(-2j * np.pi * (np.arange(region) - offsets[axis])[:, None] * freq[None, :])
+        )
     rows = _complex_einsum("rm,mn->rn", kernels[0], data)
     return _complex_einsum("rn,cn->rc", rows, kernels[1])
 
@@ -1023,8 +1113,7 @@ def _hann2d(rows: int, cols: int) -> np.ndarray:
     return win
 
 
-def phase_correlation(reference: np.ndarray, moving: np.ndarray, *,
-                      upsample: int = 20) -> Shift:
+def phase_correlation(reference: np.ndarray, moving: np.ndarray, *, upsample: int = 20) -> Shift:
     """Sub-pixel shift of ``moving`` relative to ``reference`` by phase correlation.
 
     Both images are demeaned and tapered with a Hann window, the normalised cross-power
@@ -1032,14 +1121,16 @@ def phase_correlation(reference: np.ndarray, moving: np.ndarray, *,
     """
     ref, mov = np.asarray(reference), np.asarray(moving)
     if ref.shape != mov.shape or ref.ndim != 2:
-        raise MeasureError(f"phase correlation needs two equal 2-D arrays of at least 8x8, "
-                           f"got {ref.shape} and {mov.shape}")
-    return phase_correlation_spectra(tapered_spectrum(ref), tapered_spectrum(mov),
-                                     upsample=upsample)
+        raise MeasureError(
+            f"phase correlation needs two equal 2-D arrays of at least 8x8, "
+            f"got {ref.shape} and {mov.shape}"
+        )
+    return phase_correlation_spectra(
+        tapered_spectrum(ref), tapered_spectrum(mov), upsample=upsample
+    )
 
 
-def phase_correlation_spectra(f_ref: np.ndarray, f_mov: np.ndarray, *,
-                              upsample: int = 20) -> Shift:
+def phase_correlation_spectra(f_ref: np.ndarray, f_mov: np.ndarray, *, upsample: int = 20) -> Shift:
     """:func:`phase_correlation` from :func:`tapered_spectrum` s (reuse the reference's)."""
     product = f_ref * f_mov.conj()
     product /= np.maximum(np.abs(product), 1e-12)
@@ -1055,8 +1146,9 @@ def phase_correlation_spectra(f_ref: np.ndarray, f_mov: np.ndarray, *,
         region = math.ceil(upsample * 1.5)
         centre = float(np.fix(region / 2.0))
         offsets = centre - shifts * upsample
-        up = _upsampled_dft(product.conj(), region, upsample,
-                            (float(offsets[0]), float(offsets[1]))).conj()
+        up = _upsampled_dft(
+            product.conj(), region, upsample, (float(offsets[0]), float(offsets[1]))
+        ).conj()
         mag = np.abs(up)
         best = int(np.argmax(mag))
         m = np.unravel_index(best, up.shape)

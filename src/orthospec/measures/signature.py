@@ -73,12 +73,14 @@ class PixelHash:
             words = raw.view("<u8")
         else:  # the chunk's rows do not start or end on a word of the canonical row: pad a copy
             buf = np.zeros((b, h, nwords * 8), dtype=np.uint8)
-            buf[:, :, lead:lead + nbytes] = raw
+            buf[:, :, lead : lead + nbytes] = raw
             words = buf.view("<u8")
         first = start // 8
         g = _splitmix64(np.arange(first, first + nwords, dtype=_U64) ^ _SEED_WORD)
         per_row = np.einsum("brj,j->br", words, g)  # uint64, wraps mod 2**64
-        rows = (np.arange(b, dtype=_U64)[:, None] << _U64(40)) + np.arange(row_off, row_off + h, dtype=_U64)[None, :]
+        rows = (np.arange(b, dtype=_U64)[:, None] << _U64(40)) + np.arange(
+            row_off, row_off + h, dtype=_U64
+        )[None, :]
         f = _splitmix64(rows ^ _SEED_ROW)
         self.value = (self.value + int(np.einsum("br,br->", per_row, f))) & 0xFFFFFFFFFFFFFFFF
 
@@ -92,7 +94,9 @@ class PixelHash:
         return hashlib.sha256(text.encode()).hexdigest()[:32]
 
 
-def thumbnail_geometry(width: int, height: int, cells: int = THUMB_CELLS) -> tuple[int, int, int, int]:
+def thumbnail_geometry(
+    width: int, height: int, cells: int = THUMB_CELLS
+) -> tuple[int, int, int, int]:
     """(cell size px, subsample stride px, grid rows, grid cols) of an image's thumbnail."""
     cell = max(1, math.ceil(max(width, height) / cells))
     sub = max(1, cell // THUMB_SAMPLES)
@@ -105,8 +109,9 @@ def _sampled(n: int, off: int, sub: int) -> tuple[int, np.ndarray]:
     return first, np.arange(off + first, off + n, sub)
 
 
-def _cell_sums(values: np.ndarray, rows: np.ndarray, cols: np.ndarray, cell: int
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _cell_sums(
+    values: np.ndarray, rows: np.ndarray, cols: np.ndarray, cell: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Sums of ``values`` (sampled rows x cols) per cell: (cell rows, cell cols, sums)."""
     cr, cc = rows // cell, cols // cell
     sr = np.flatnonzero(np.r_[True, cr[1:] != cr[:-1]])
@@ -131,9 +136,11 @@ class Thumbnail:
         c0, cols = _sampled(w, col_off, self.sub)
         if not (rows.size and cols.size):
             return
-        samp = data[:, r0::self.sub, c0::self.sub]
+        samp = data[:, r0 :: self.sub, c0 :: self.sub]
         if self.exact:
-            narrow = samp.dtype.kind in "ub" and samp.dtype.itemsize <= 2  # unsigned: uint32 cannot wrap
+            narrow = (
+                samp.dtype.kind in "ub" and samp.dtype.itemsize <= 2
+            )  # unsigned: uint32 cannot wrap
             values = samp.sum(axis=0, dtype=np.uint32 if narrow else np.int64)
             n = None
         else:
@@ -142,7 +149,9 @@ class Thumbnail:
             n = finite.sum(axis=0, dtype=np.int64)
         cr, cc, part = _cell_sums(values, rows, cols, self.cell)
         self.sums[np.ix_(cr, cc)] += part
-        if self.exact:  # every sample counts: samples per cell = sampled rows x sampled cols x bands
+        if (
+            self.exact
+        ):  # every sample counts: samples per cell = sampled rows x sampled cols x bands
             per_r = np.bincount(rows // self.cell - cr[0])
             per_c = np.bincount(cols // self.cell - cc[0])
             self.counts[np.ix_(cr, cc)] += np.outer(per_r[per_r > 0], per_c[per_c > 0]) * b
@@ -188,7 +197,7 @@ def cloud_mask(r: np.ndarray, g: np.ndarray, b: np.ndarray) -> np.ndarray:
 class CloudCounter:
     """Cloudy and valid samples of an image (see :data:`CLOUD_BRIGHT`)."""
 
-    rgb: tuple[int, int, int]          # 0-based band indexes in the chunk
+    rgb: tuple[int, int, int]  # 0-based band indexes in the chunk
     scale: tuple[float, float, float]  # 1 / grey-range top of each band
     nodata: tuple[float | None, float | None, float | None]
     sub: int
@@ -196,12 +205,21 @@ class CloudCounter:
     valid: int = 0
 
     @classmethod
-    def for_image(cls, *, width: int, height: int, rgb: tuple[int, int, int], tops: tuple[float, float, float],
-                  nodata: tuple[float | None, float | None, float | None]) -> CloudCounter:
+    def for_image(
+        cls,
+        *,
+        width: int,
+        height: int,
+        rgb: tuple[int, int, int],
+        tops: tuple[float, float, float],
+        nodata: tuple[float | None, float | None, float | None],
+    ) -> CloudCounter:
         sub = max(1, math.ceil(math.sqrt(width * height / CLOUD_SAMPLES)))
         return cls(rgb=rgb, scale=tuple(1.0 / t for t in tops), nodata=nodata, sub=sub)  # type: ignore[arg-type]
 
-    def add(self, data: np.ndarray, col_off: int, row_off: int, mask: np.ndarray | None = None) -> None:
+    def add(
+        self, data: np.ndarray, col_off: int, row_off: int, mask: np.ndarray | None = None
+    ) -> None:
         _b, h, w = data.shape
         r0, rows = _sampled(h, row_off, self.sub)
         c0, cols = _sampled(w, col_off, self.sub)
@@ -211,9 +229,9 @@ class CloudCounter:
             self._add_integers(data, r0, c0, mask)
             return
         planes = []
-        ok = None if mask is None else mask[r0::self.sub, c0::self.sub] != 0
+        ok = None if mask is None else mask[r0 :: self.sub, c0 :: self.sub] != 0
         for idx, scale, nd in zip(self.rgb, self.scale, self.nodata, strict=True):
-            band = data[idx, r0::self.sub, c0::self.sub]
+            band = data[idx, r0 :: self.sub, c0 :: self.sub]
             v = band.astype(np.float32) * np.float32(scale)
             bad = ~np.isfinite(v)
             if nd is not None and math.isfinite(nd):
@@ -230,7 +248,7 @@ class CloudCounter:
         r + g + b >= 3 x CLOUD_BRIGHT x top, white when (max - min) x 3 / CLOUD_WHITE <= r + g + b;
         the same decisions as the float test (the thresholds are whole numbers here), at a third of
         the cost."""
-        r, g, b = (data[i, r0::self.sub, c0::self.sub] for i in self.rgb)
+        r, g, b = (data[i, r0 :: self.sub, c0 :: self.sub] for i in self.rgb)
         wide = np.uint32 if data.dtype.itemsize == 2 else np.uint16
         total = r.astype(wide)
         total += g
@@ -242,16 +260,19 @@ class CloudCounter:
         spread -= low
         top = 1.0 / self.scale[0]
         bright = math.ceil(3.0 * CLOUD_BRIGHT * top - 1e-9)
-        if bright > np.iinfo(wide).max:  # a grey range beyond the data type: no pixel is bright
-            cloud = np.zeros(total.shape, dtype=bool)
-        else:
-            cloud = total >= wide(bright)
+        # a grey range beyond the data type: no pixel is bright
+        cloud = np.zeros(total.shape, dtype=bool) if bright > np.iinfo(wide).max else total >= wide(bright)
         scaled = spread.astype(wide)
         scaled *= wide(round(3.0 / CLOUD_WHITE))
         cloud &= scaled <= total
-        ok = None if mask is None else mask[r0::self.sub, c0::self.sub] != 0
+        ok = None if mask is None else mask[r0 :: self.sub, c0 :: self.sub] != 0
         for plane, nd in zip((r, g, b), self.nodata, strict=True):
-            if nd is not None and math.isfinite(nd) and float(nd).is_integer() and 0 <= nd <= np.iinfo(plane.dtype).max:
+            if (
+                nd is not None
+                and math.isfinite(nd)
+                and float(nd).is_integer()
+                and 0 <= nd <= np.iinfo(plane.dtype).max
+            ):
                 bad = plane == int(nd)
                 ok = ~bad if ok is None else ok & ~bad
         if ok is None:
@@ -269,4 +290,6 @@ class CloudCounter:
     @property
     def percent(self) -> float | None:
         """Estimated cloud cover, % of the valid pixels (the count corrected by :data:`CLOUD_RECALL`)."""
-        return None if not self.valid else min(100.0, 100.0 * self.cloudy / self.valid / CLOUD_RECALL)
+        return (
+            None if not self.valid else min(100.0, 100.0 * self.cloudy / self.valid / CLOUD_RECALL)
+        )

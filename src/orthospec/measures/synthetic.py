@@ -81,7 +81,10 @@ def _width_at(level: float, *, sigma_px: float, angle_deg: float) -> float:
     peak = float(truth_lsf(np.array([0.0]), sigma_px=sigma_px, angle_deg=angle_deg)[0])
 
     def g(x: float) -> float:
-        return float(truth_lsf(np.array([x]), sigma_px=sigma_px, angle_deg=angle_deg)[0]) - level * peak
+        return (
+            float(truth_lsf(np.array([x]), sigma_px=sigma_px, angle_deg=angle_deg)[0])
+            - level * peak
+        )
 
     hi = 1.0
     while g(hi) > 0:
@@ -100,7 +103,9 @@ def edge_truth(*, sigma_px: float, angle_deg: float) -> EdgeTruth:
         width80_px=_width_at(0.80, sigma_px=sigma_px, angle_deg=angle_deg),
         rer=float(esf[1] - esf[0]),
         mtf_nyquist=float(truth_mtf(np.array([0.5]), sigma_px=sigma_px, angle_deg=angle_deg)[0]),
-        edge_slope_per_px=float(truth_lsf(np.array([0.0]), sigma_px=sigma_px, angle_deg=angle_deg)[0]),
+        edge_slope_per_px=float(
+            truth_lsf(np.array([0.0]), sigma_px=sigma_px, angle_deg=angle_deg)[0]
+        ),
     )
 
 
@@ -126,8 +131,14 @@ def _level_width(x: np.ndarray, y: np.ndarray, level: float) -> float:
     return float(xr - xl)
 
 
-def kernel_truth(psf: np.ndarray, *, angle_deg: float, psf_step_px: float = 1.0,
-                 supersample: int = 15, step_px: float = 0.002) -> EdgeTruth:
+def kernel_truth(
+    psf: np.ndarray,
+    *,
+    angle_deg: float,
+    psf_step_px: float = 1.0,
+    supersample: int = 15,
+    step_px: float = 0.002,
+) -> EdgeTruth:
     """True estimators of an edge rendered by :func:`slanted_edge` with a measured ``psf``.
 
     Numerical, not closed-form: the kernel (as rendered) is projected on the edge normal
@@ -172,7 +183,9 @@ def kernel_truth(psf: np.ndarray, *, angle_deg: float, psf_step_px: float = 1.0,
         width25_px=_level_width(x, lsf, 0.25),
         width80_px=_level_width(x, lsf, 0.80),
         rer=float(e[1] - e[0]),
-        mtf_nyquist=float(otf * abs(np.sinc(0.5 * a)) * abs(np.sinc(0.5 * b)) * abs(np.sinc(0.5 * h))),
+        mtf_nyquist=float(
+            otf * abs(np.sinc(0.5 * a)) * abs(np.sinc(0.5 * b)) * abs(np.sinc(0.5 * h))
+        ),
         edge_slope_per_px=float(lsf.max()),
     )
 
@@ -228,10 +241,7 @@ def slanted_edge(
 
     s = int(supersample)
     # render with a margin wide enough for the PSF, so the blur sees the edge continue
-    if psf is not None:
-        reach = 0.5 * max(np.shape(psf)) * psf_step_px
-    else:
-        reach = 6.0 * float(sigma_px or 0.0)
+    reach = 0.5 * max(np.shape(psf)) * psf_step_px if psf is not None else 6.0 * float(sigma_px or 0.0)
     m = int(np.ceil(reach)) + 1
     # sub-pixel centres in pixel coordinates (pixel centres at integers)
     sub = (np.arange(s) + 0.5) / s - 0.5
@@ -251,8 +261,9 @@ def slanted_edge(
         padded = np.pad(scene, pad, mode="edge")
         blurred = signal.fftconvolve(padded, kernel, mode="same")[pad:-pad, pad:-pad]
     elif sigma_px is not None and sigma_px > 0:
-        blurred = ndimage.gaussian_filter(scene, sigma=float(sigma_px) * s, mode="nearest",
-                                          truncate=6.0)
+        blurred = ndimage.gaussian_filter(
+            scene, sigma=float(sigma_px) * s, mode="nearest", truncate=6.0
+        )
     else:
         blurred = scene
     img = blurred.reshape(rows + 2 * m, s, cols + 2 * m, s).mean(axis=(1, 3))[m:-m, m:-m]
@@ -286,8 +297,14 @@ def unsharp_mask(img: np.ndarray, *, amount: float, sigma_px: float) -> np.ndarr
     return a + float(amount) * (a - ndimage.gaussian_filter(a, float(sigma_px), mode="nearest"))
 
 
-def unsharp_truth(*, sigma_px: float, angle_deg: float, amount: float, mask_sigma_px: float,
-                  step_px: float = 0.002) -> EdgeTruth:
+def unsharp_truth(
+    *,
+    sigma_px: float,
+    angle_deg: float,
+    amount: float,
+    mask_sigma_px: float,
+    step_px: float = 0.002,
+) -> EdgeTruth:
     """True estimators of a Gaussian-blurred edge (``slanted_edge``, no noise) sharpened by
     :func:`unsharp_mask`.
 
@@ -307,11 +324,15 @@ def unsharp_truth(*, sigma_px: float, angle_deg: float, amount: float, mask_sigm
     k = float(amount)
 
     def lsf_at(q: np.ndarray) -> np.ndarray:
-        blur = sum(wi * gauss_pixel_lsf(q - ui, sigma_px, angle_deg) for ui, wi in zip(u, w, strict=True))
+        blur = sum(
+            wi * gauss_pixel_lsf(q - ui, sigma_px, angle_deg) for ui, wi in zip(u, w, strict=True)
+        )
         return (1.0 + k) * gauss_pixel_lsf(q, sigma_px, angle_deg) - k * blur
 
     def esf_at(q: np.ndarray) -> np.ndarray:
-        blur = sum(wi * gauss_pixel_esf(q - ui, sigma_px, angle_deg) for ui, wi in zip(u, w, strict=True))
+        blur = sum(
+            wi * gauss_pixel_esf(q - ui, sigma_px, angle_deg) for ui, wi in zip(u, w, strict=True)
+        )
         return (1.0 + k) * gauss_pixel_esf(q, sigma_px, angle_deg) - k * blur
 
     # only the central part of the LSF matters for the widths
@@ -406,8 +427,11 @@ class PsfFamily:
             return np.sinc(self.length * fy) * g(self.sigma)
         if k == "mtfc":
             a = self.amount
-            return (g(self.sigma) * (1 + 2 * a - 2 * a * np.cos(2 * np.pi * fx))
-                    * (1 + 2 * a - 2 * a * np.cos(2 * np.pi * fy)))
+            return (
+                g(self.sigma)
+                * (1 + 2 * a - 2 * a * np.cos(2 * np.pi * fx))
+                * (1 + 2 * a - 2 * a * np.cos(2 * np.pi * fy))
+            )
         if k == "diffraction":
             return _airy_otf(np.sqrt(r2), self.cutoff) * g(self.sigma) * np.sinc(self.length * fy)
         raise MeasureError(f"unknown PSF family {k!r}")
@@ -471,15 +495,31 @@ def family_truth(fam: PsfFamily, *, angle_deg: float) -> FamilyTruth:
     mid = float(np.interp(0.5, esf[(x > -8) & (x < 8)], x[(x > -8) & (x < 8)]))
     core = np.abs(x) <= 100.0
     e = np.interp([mid - 0.5, mid + 0.5], x, esf)
-    return FamilyTruth(family=fam, angle_deg=float(angle_deg), x=x[core], esf=esf[core], lsf=lsf[core],
-                       fwhm_px=_level_width(x[core], lsf[core], 0.5), rer=float(e[1] - e[0]),
-                       mtf_nyquist=float(np.abs(_normal_otf(fam, angle_deg, np.array([0.5])))[0]))
+    return FamilyTruth(
+        family=fam,
+        angle_deg=float(angle_deg),
+        x=x[core],
+        esf=esf[core],
+        lsf=lsf[core],
+        fwhm_px=_level_width(x[core], lsf[core], 0.5),
+        rer=float(e[1] - e[0]),
+        mtf_nyquist=float(np.abs(_normal_otf(fam, angle_deg, np.array([0.5])))[0]),
+    )
 
 
-def family_edge(fam: PsfFamily, shape: tuple[int, int], *, angle_deg: float, dark: float,
-                bright: float, snr: float | None = None, bit_depth: int | None = None,
-                offset_px: float = 0.0, rng: np.random.Generator | None = None,
-                truth: FamilyTruth | None = None) -> np.ndarray:
+def family_edge(
+    fam: PsfFamily,
+    shape: tuple[int, int],
+    *,
+    angle_deg: float,
+    dark: float,
+    bright: float,
+    snr: float | None = None,
+    bit_depth: int | None = None,
+    offset_px: float = 0.0,
+    rng: np.random.Generator | None = None,
+    truth: FamilyTruth | None = None,
+) -> np.ndarray:
     """Render an edge of ``fam``: every pixel is dark + (bright - dark) ESF(d) at the
     perpendicular distance d of its centre (as :func:`slanted_edge`: the edge turned by
     ``angle_deg`` from the columns, bright on the right), plus Gaussian noise of std

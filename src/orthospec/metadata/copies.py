@@ -88,7 +88,9 @@ def find_metadata(delivery: Any) -> list[MetadataFile]:
             continue
         tree, why = safe_parse(path, rel)
         if tree is None:
-            raise OrthospecError(f"{rel} ({found}): the metadata file {why}; no metadata copy written")
+            raise OrthospecError(
+                f"{rel} ({found}): the metadata file {why}; no metadata copy written"
+            )
         standard = _standard(tree)
         if standard is not None:
             out.append(MetadataFile(rel, path, found, standard))
@@ -107,8 +109,9 @@ def copy_name(rel: str, taken: Iterable[str] = ()) -> str:
     return name
 
 
-def metadata_copies(doc: Mapping[str, Any], files: Iterable[MetadataFile],
-                    taken: Iterable[str] = ()) -> dict[str, bytes]:
+def metadata_copies(
+    doc: Mapping[str, Any], files: Iterable[MetadataFile], taken: Iterable[str] = ()
+) -> dict[str, bytes]:
     """Output name -> bytes of the updated copy of each metadata file (see the module docstring)."""
     out: dict[str, bytes] = {}
     used = set(taken)

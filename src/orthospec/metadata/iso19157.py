@@ -39,7 +39,9 @@ def _q(ns: str, tag: str) -> str:
     return f"{{{ns}}}{tag}"
 
 
-def _text(parent: etree._Element, tag: str, value: str, kind: str = "CharacterString") -> etree._Element:
+def _text(
+    parent: etree._Element, tag: str, value: str, kind: str = "CharacterString"
+) -> etree._Element:
     el = etree.SubElement(parent, _q(GMD, tag))
     etree.SubElement(el, _q(GCO, kind)).text = value
     return el
@@ -53,29 +55,47 @@ def _code(parent: etree._Element, tag: str, code: str, value: str) -> None:
 
 
 def _positional(parent: etree._Element, rec: Mapping[str, Any], value: float) -> None:
-    el = etree.SubElement(etree.SubElement(parent, _q(GMD, "report")), _q(GMD, "DQ_AbsoluteExternalPositionalAccuracy"))
+    el = etree.SubElement(
+        etree.SubElement(parent, _q(GMD, "report")),
+        _q(GMD, "DQ_AbsoluteExternalPositionalAccuracy"),
+    )
     _text(el, "nameOfMeasure", f"{rec['measure']} ({rec['item']})")
-    ident = etree.SubElement(etree.SubElement(el, _q(GMD, "measureIdentification")), _q(GMD, "MD_Identifier"))
+    ident = etree.SubElement(
+        etree.SubElement(el, _q(GMD, "measureIdentification")), _q(GMD, "MD_Identifier")
+    )
     _text(ident, "code", str(rec["measure"]))
     _text(el, "measureDescription", f"{rec['title']} (rule {rec['rule']}, item {rec['item']})")
     _code(el, "evaluationMethodType", "DQ_EvaluationMethodTypeCode", "directExternal")
-    _text(el, "evaluationMethodDescription",
-          "Measured by orthospec on the check points of the checker's external quality control "
-          "(independent reference coordinates)")
-    res = etree.SubElement(etree.SubElement(el, _q(GMD, "result")), _q(GMD, "DQ_QuantitativeResult"))
+    _text(
+        el,
+        "evaluationMethodDescription",
+        "Measured by orthospec on the check points of the checker's external quality control "
+        "(independent reference coordinates)",
+    )
+    res = etree.SubElement(
+        etree.SubElement(el, _q(GMD, "result")), _q(GMD, "DQ_QuantitativeResult")
+    )
     etree.SubElement(res, _q(GMD, "valueUnit")).set(_q(XLINK, "href"), METRE)
     rec_el = etree.SubElement(etree.SubElement(res, _q(GMD, "value")), _q(GCO, "Record"))
     rec_el.set(_q(XSI, "type"), "xs:double")
     rec_el.text = repr(float(value))
 
 
-def _conformance(parent: etree._Element, rule: Mapping[str, Any], profile: Mapping[str, Any], date: str) -> None:
-    el = etree.SubElement(etree.SubElement(parent, _q(GMD, "report")), _q(GMD, "DQ_DomainConsistency"))
-    ident = etree.SubElement(etree.SubElement(el, _q(GMD, "measureIdentification")), _q(GMD, "MD_Identifier"))
+def _conformance(
+    parent: etree._Element, rule: Mapping[str, Any], profile: Mapping[str, Any], date: str
+) -> None:
+    el = etree.SubElement(
+        etree.SubElement(parent, _q(GMD, "report")), _q(GMD, "DQ_DomainConsistency")
+    )
+    ident = etree.SubElement(
+        etree.SubElement(el, _q(GMD, "measureIdentification")), _q(GMD, "MD_Identifier")
+    )
     _text(ident, "code", str(rule["rule"]))
     res = etree.SubElement(etree.SubElement(el, _q(GMD, "result")), _q(GMD, "DQ_ConformanceResult"))
     cit = etree.SubElement(etree.SubElement(res, _q(GMD, "specification")), _q(GMD, "CI_Citation"))
-    _text(cit, "title", f"{profile.get('title') or profile.get('id', '')}: {rule.get('clause', '')}")
+    _text(
+        cit, "title", f"{profile.get('title') or profile.get('id', '')}: {rule.get('clause', '')}"
+    )
     cd = etree.SubElement(etree.SubElement(cit, _q(GMD, "date")), _q(GMD, "CI_Date"))
     _text(cd, "date", date, "Date")
     _code(cd, "dateType", "CI_DateTypeCode", "publication")
@@ -93,8 +113,13 @@ def data_quality(doc: Mapping[str, Any]) -> etree._Element:
         measured = rec["measured"]
         value = measured.get("value") if isinstance(measured, Mapping) else measured
         unit = measured.get("unit") if isinstance(measured, Mapping) else rec.get("unit")
-        if (str(rec.get("measure", "")).startswith("checkpoints.") and unit == "m"
-                and isinstance(value, (int, float)) and not isinstance(value, bool) and value == value):
+        if (
+            str(rec.get("measure", "")).startswith("checkpoints.")
+            and unit == "m"
+            and isinstance(value, (int, float))
+            and not isinstance(value, bool)
+            and value == value
+        ):
             _positional(dq, rec, float(value))
     profile = doc.get("profile") or {}
     date = str(doc.get("date", ""))
@@ -103,8 +128,12 @@ def data_quality(doc: Mapping[str, Any]) -> etree._Element:
             _conformance(dq, rule, profile, date)
     lineage = etree.SubElement(etree.SubElement(dq, _q(GMD, "lineage")), _q(GMD, "LI_Lineage"))
     who = f"{profile.get('title') or profile.get('id', '')}".strip()
-    _text(lineage, "statement", f"{MARK} of delivery {(doc.get('delivery') or {}).get('id', '')} against "
-                                f"{who} on {date}: verdict {doc.get('verdict', '')}")
+    _text(
+        lineage,
+        "statement",
+        f"{MARK} of delivery {(doc.get('delivery') or {}).get('id', '')} against "
+        f"{who} on {date}: verdict {doc.get('verdict', '')}",
+    )
     return dq
 
 
@@ -112,18 +141,31 @@ def data_quality(doc: Mapping[str, Any]) -> etree._Element:
 GMI = "http://www.isotc211.org/2005/gmi"
 ROOTS = (_q(GMD, "MD_Metadata"), _q(GMI, "MI_Metadata"))
 #: MD_Metadata's elements after dataQualityInfo (ISO 19139 sequence), then MI_Metadata's own
-_AFTER = tuple(_q(GMD, t) for t in ("portrayalCatalogueInfo", "metadataConstraints", "applicationSchemaInfo",
-                                    "metadataMaintenance", "series", "describes", "propertyType",
-                                    "featureType", "featureAttribute")) + tuple(
-    _q(GMI, t) for t in ("acquisitionInformation",))
+_AFTER = tuple(
+    _q(GMD, t)
+    for t in (
+        "portrayalCatalogueInfo",
+        "metadataConstraints",
+        "applicationSchemaInfo",
+        "metadataMaintenance",
+        "series",
+        "describes",
+        "propertyType",
+        "featureType",
+        "featureAttribute",
+    )
+) + tuple(_q(GMI, t) for t in ("acquisitionInformation",))
 #: the title of orthospec's DQ_DataQuality (its lineage statement), so a copy of a copy replaces
 #: it rather than adding a second one
 MARK = "orthospec external quality control"
 
 
 def _ours(holder: etree._Element) -> bool:
-    return any(MARK in (t.text or "") for t in holder.iter(_q(GCO, "CharacterString"))
-               if t.getparent() is not None and t.getparent().tag == _q(GMD, "statement"))
+    return any(
+        MARK in (t.text or "")
+        for t in holder.iter(_q(GCO, "CharacterString"))
+        if t.getparent() is not None and t.getparent().tag == _q(GMD, "statement")
+    )
 
 
 def iso19139_document(doc: Mapping[str, Any], source: bytes | None = None) -> bytes:
@@ -137,7 +179,9 @@ def iso19139_document(doc: Mapping[str, Any], source: bytes | None = None) -> by
     dq = data_quality(doc)
     if source is None:
         return etree.tostring(dq, xml_declaration=True, encoding="UTF-8", pretty_print=True)
-    parser = etree.XMLParser(resolve_entities=False, no_network=True, load_dtd=False, remove_blank_text=True)
+    parser = etree.XMLParser(
+        resolve_entities=False, no_network=True, load_dtd=False, remove_blank_text=True
+    )
     root = etree.fromstring(source, parser)
     if root.tag not in ROOTS:
         raise ValueError(f"not an ISO 19139 gmd:MD_Metadata document (root {root.tag!r})")
@@ -151,4 +195,6 @@ def iso19139_document(doc: Mapping[str, Any], source: bytes | None = None) -> by
         nxt.addprevious(holder)
     else:
         root.append(holder)
-    return etree.tostring(root.getroottree(), xml_declaration=True, encoding="UTF-8", pretty_print=True)
+    return etree.tostring(
+        root.getroottree(), xml_declaration=True, encoding="UTF-8", pretty_print=True
+    )

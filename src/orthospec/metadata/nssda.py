@@ -54,19 +54,31 @@ class NssdaStatement:
                f"{INDEPENDENCE_RULE}), so FGDC-STD-007.3-1998 §3.2.3 words it 'Compiled to meet'")
         formula = ("Accuracy_r per FGDC-STD-007.3-1998 Appendix 3-A" if self.axis == "horizontal"
                    else "Accuracy_z = 1.9600 x RMSE_z per FGDC-STD-007.3-1998 Appendix 3-A")
-        warn = "" if self.valid else "; RMSE_min/RMSE_max below 0.6: the approximation does not hold"
+        warn = (
+            "" if self.valid else "; RMSE_min/RMSE_max below 0.6: the approximation does not hold"
+        )
         return f"Block {self.item}: {formula} (orthospec rule {self.rule}); {how}{warn}."
 
     def as_dict(self) -> dict[str, Any]:
-        return {"item": self.item, "axis": self.axis, "value": self.value_m, "unit": "m",
-                "tested": self.tested, "valid": self.valid, "rule": self.rule, "text": self.text}
+        return {
+            "item": self.item,
+            "axis": self.axis,
+            "value": self.value_m,
+            "unit": "m",
+            "tested": self.tested,
+            "valid": self.valid,
+            "rule": self.rule,
+            "text": self.text,
+        }
 
 
 def nssda_statements(doc: Mapping[str, Any]) -> list[NssdaStatement]:
     """The §3.2.3 statements of a QCR document, one per block and axis with a measured figure."""
     records = list(all_records(doc))
     tested = any(r["rule"] == INDEPENDENCE_RULE and r["verdict"] == "pass" for r in records)
-    ratio_failed = {r["item"] for r in records if r["rule"] == RATIO_RULE and r["verdict"] == "fail"}
+    ratio_failed = {
+        r["item"] for r in records if r["rule"] == RATIO_RULE and r["verdict"] == "fail"
+    }
     out: list[NssdaStatement] = []
     for r in records:
         measure = r.get("measure", "")
@@ -76,9 +88,16 @@ def nssda_statements(doc: Mapping[str, Any]) -> list[NssdaStatement]:
         if isinstance(value, bool) or not isinstance(value, (int, float)) or value != value:
             continue
         axis = "horizontal" if measure == H_MEASURE else "vertical"
-        out.append(NssdaStatement(item=str(r["item"]), axis=axis, value_m=float(value), tested=tested,
-                                  valid=not (axis == "horizontal" and r["item"] in ratio_failed),
-                                  rule=str(r["rule"])))
+        out.append(
+            NssdaStatement(
+                item=str(r["item"]),
+                axis=axis,
+                value_m=float(value),
+                tested=tested,
+                valid=not (axis == "horizontal" and r["item"] in ratio_failed),
+                rule=str(r["rule"]),
+            )
+        )
     return out
 
 
@@ -86,18 +105,29 @@ def nssda_statements(doc: Mapping[str, Any]) -> list[NssdaStatement]:
 #: fgdc-std-001-1998.xsd and every CSDGM tool read) and as the standard's long names (a document
 #: whose root's children use long names gets long names)
 _LONG = {
-    "dataqual": "Data_Quality_Information", "posacc": "Positional_Accuracy",
-    "horizpa": "Horizontal_Positional_Accuracy", "horizpar": "Horizontal_Positional_Accuracy_Report",
+    "dataqual": "Data_Quality_Information",
+    "posacc": "Positional_Accuracy",
+    "horizpa": "Horizontal_Positional_Accuracy",
+    "horizpar": "Horizontal_Positional_Accuracy_Report",
     "qhorizpa": "Quantitative_Horizontal_Positional_Accuracy_Assessment",
-    "horizpav": "Horizontal_Positional_Accuracy_Value", "horizpae": "Horizontal_Positional_Accuracy_Explanation",
-    "vertpa": "Vertical_Positional_Accuracy", "vertaccr": "Vertical_Positional_Accuracy_Report",
+    "horizpav": "Horizontal_Positional_Accuracy_Value",
+    "horizpae": "Horizontal_Positional_Accuracy_Explanation",
+    "vertpa": "Vertical_Positional_Accuracy",
+    "vertaccr": "Vertical_Positional_Accuracy_Report",
     "qvertpa": "Quantitative_Vertical_Positional_Accuracy_Assessment",
-    "vertaccv": "Vertical_Positional_Accuracy_Value", "vertacce": "Vertical_Positional_Accuracy_Explanation",
-    "idinfo": "Identification_Information", "attracc": "Attribute_Accuracy",
-    "logic": "Logical_Consistency_Report", "complete": "Completeness_Report", "lineage": "Lineage",
-    "cloud": "Cloud_Cover", "spdoinfo": "Spatial_Data_Organization_Information",
-    "spref": "Spatial_Reference_Information", "eainfo": "Entity_and_Attribute_Information",
-    "distinfo": "Distribution_Information", "metainfo": "Metadata_Reference_Information",
+    "vertaccv": "Vertical_Positional_Accuracy_Value",
+    "vertacce": "Vertical_Positional_Accuracy_Explanation",
+    "idinfo": "Identification_Information",
+    "attracc": "Attribute_Accuracy",
+    "logic": "Logical_Consistency_Report",
+    "complete": "Completeness_Report",
+    "lineage": "Lineage",
+    "cloud": "Cloud_Cover",
+    "spdoinfo": "Spatial_Data_Organization_Information",
+    "spref": "Spatial_Reference_Information",
+    "eainfo": "Entity_and_Attribute_Information",
+    "distinfo": "Distribution_Information",
+    "metainfo": "Metadata_Reference_Information",
 }
 #: the sequences the elements sit in (FGDC-STD-001-1998 sections 0 and 2; the XML schema keeps the
 #: standard's order): a new element goes before the first sibling that follows it
@@ -107,8 +137,10 @@ _ORDER = {
     "posacc": ("horizpa", "vertpa"),
 }
 #: axis -> (holder, report, quantitative assessment, value, explanation)
-_AXES = {"horizontal": ("horizpa", "horizpar", "qhorizpa", "horizpav", "horizpae"),
-         "vertical": ("vertpa", "vertaccr", "qvertpa", "vertaccv", "vertacce")}
+_AXES = {
+    "horizontal": ("horizpa", "horizpar", "qhorizpa", "horizpav", "horizpae"),
+    "vertical": ("vertpa", "vertaccr", "qvertpa", "vertaccv", "vertacce"),
+}
 #: FGDC-STD-007.3-1998 §3.2.3: the explanation of a value tested (or compiled) to the NSSDA
 NSSDA_NAME = "National Standard for Spatial Data Accuracy"
 
@@ -136,7 +168,7 @@ class _Names:
     def place(self, parent: etree._Element, el: etree._Element) -> None:
         order = self._order.get(parent.tag)
         if order and el.tag in order:
-            later = set(order[order.index(el.tag) + 1:])
+            later = set(order[order.index(el.tag) + 1 :])
             nxt = next((c for c in parent if c.tag in later), None)
             if nxt is not None:
                 nxt.addprevious(el)
@@ -146,8 +178,10 @@ class _Names:
 
 def _report_text(axis: str, mine: list[NssdaStatement]) -> str:
     lines = [f"{s.text} (block {s.item})." for s in mine]
-    return (f"{NSSDA_NAME} (FGDC-STD-007.3-1998 §3.2.3), {axis} accuracy per block measured by the external "
-            "quality control: " + " ".join(lines))
+    return (
+        f"{NSSDA_NAME} (FGDC-STD-007.3-1998 §3.2.3), {axis} accuracy per block measured by the external "
+        "quality control: " + " ".join(lines)
+    )
 
 
 def fgdc_with_statements(source: bytes | None, statements: list[NssdaStatement]) -> bytes:
@@ -158,7 +192,9 @@ def fgdc_with_statements(source: bytes | None, statements: list[NssdaStatement])
     own positional accuracy of that axis is replaced (it is a declaration; the statement is the
     measured figure); every other element is kept. New elements go where the standard's sequence
     puts them. The parser resolves no entities, loads no DTD and reads nothing from the network."""
-    parser = etree.XMLParser(resolve_entities=False, no_network=True, load_dtd=False, remove_blank_text=True)
+    parser = etree.XMLParser(
+        resolve_entities=False, no_network=True, load_dtd=False, remove_blank_text=True
+    )
     root = etree.fromstring(source, parser) if source else etree.Element("metadata")
     names = _Names(root)
     if not statements:
@@ -183,11 +219,18 @@ def fgdc_with_statements(source: bytes | None, statements: list[NssdaStatement])
 
 def _serialise(root: etree._Element) -> bytes:
     """The whole document (its DOCTYPE line and the comments around the root kept), UTF-8."""
-    return etree.tostring(root.getroottree(), xml_declaration=True, encoding="UTF-8", pretty_print=True)
+    return etree.tostring(
+        root.getroottree(), xml_declaration=True, encoding="UTF-8", pretty_print=True
+    )
 
 
-def write_fgdc_copy(doc: Mapping[str, Any], out_dir: str | Path, source: str | Path | None = None,
-                    *, name: str = "metadata.fgdc.xml") -> Path:
+def write_fgdc_copy(
+    doc: Mapping[str, Any],
+    out_dir: str | Path,
+    source: str | Path | None = None,
+    *,
+    name: str = "metadata.fgdc.xml",
+) -> Path:
     """Write the delivery's CSDGM XML (``source``; None: a minimal one) with the statements into
     ``out_dir`` atomically; the source file is only read."""
     data = Path(source).read_bytes() if source is not None else None

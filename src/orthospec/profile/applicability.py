@@ -75,8 +75,15 @@ def cannot_apply(rule: Rule, sensors: set[str], digital: bool | None) -> str | N
                 return f"does not apply to {val} sensors"
         for val in _DIGITAL_EQ.findall(part):
             if digital is not None and (val == "true") != digital:
-                return "applies to film cameras only" if val == "false" else "applies to digital sensors only"
-    if sensors and "satellite" not in sensors and (
-            rule.measure.startswith(SATELLITE_TABLES) or any(t in when for t in SATELLITE_TABLES)):
+                return (
+                    "applies to film cameras only"
+                    if val == "false"
+                    else "applies to digital sensors only"
+                )
+    if (
+        sensors
+        and "satellite" not in sensors
+        and (rule.measure.startswith(SATELLITE_TABLES) or any(t in when for t in SATELLITE_TABLES))
+    ):
         return "reads the satellite scenes table"
     return None

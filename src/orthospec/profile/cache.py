@@ -45,8 +45,12 @@ def code_fingerprint() -> str:
     from .catalog import fingerprint as measures_fingerprint
 
     h = hashlib.sha256(f"{FORMAT}|{__version__}|{measures_fingerprint()}".encode())
-    files = [*sorted((_PKG / "spec").glob("*.py")), _PKG / "units.py", _PKG / "yamlio.py",
-             _PKG / "delivery" / "manifest.py"]
+    files = [
+        *sorted((_PKG / "spec").glob("*.py")),
+        _PKG / "units.py",
+        _PKG / "yamlio.py",
+        _PKG / "delivery" / "manifest.py",
+    ]
     for p in files:
         h.update(p.name.encode() + b"\0")
         try:
@@ -102,7 +106,12 @@ def get(k: str) -> tuple[dict[str, Any], list[tuple[str, str]]] | None:
         payload = doc["profile"]
         if not isinstance(payload, dict):
             return None
-    except (KeyError, TypeError, ValueError, AttributeError):  # a damaged entry is a miss, never an error
+    except (
+        KeyError,
+        TypeError,
+        ValueError,
+        AttributeError,
+    ):  # a damaged entry is a miss, never an error
         return None
     return payload, chain_shas
 

@@ -39,7 +39,10 @@ def _sources() -> list[tuple[str, Path]]:
     eng = _PKG / "engine"
     for p in sorted([*eng.glob("*.py"), *eng.glob("providers/*.py")]):
         try:
-            defines = p.name in ("registry.py", "generic.py", "catalog.py") or b"provider(" in p.read_bytes()
+            defines = (
+                p.name in ("registry.py", "generic.py", "catalog.py")
+                or b"provider(" in p.read_bytes()
+            )
         except OSError:
             defines = True
         if defines:
@@ -104,8 +107,10 @@ def stale_hint() -> str:
     """What an unknown-measure message adds when the names came from a stale snapshot, else ''."""
     if _LIVE or is_current():
         return ""
-    return (f" ({specs_dir() / 'schema' / CATALOG_NAME} does not match the measure providers edited in this "
-            "checkout: run `python -m orthospec.schemas`)")
+    return (
+        f" ({specs_dir() / 'schema' / CATALOG_NAME} does not match the measure providers edited in this "
+        "checkout: run `python -m orthospec.schemas`)"
+    )
 
 
 def is_current() -> bool:

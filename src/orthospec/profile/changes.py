@@ -23,7 +23,13 @@ __all__ = ["CONSEQUENCE_RANK", "Weakening", "weakened_fields", "weakening_change
 
 #: how much of the delivery a failing rule takes with it (a move down this scale weakens the rule);
 #: ``incomplete`` sends the finding to the checker, so the contractor's products are never rejected
-CONSEQUENCE_RANK = {"warn": 0, "incomplete": 1, "reject_item": 2, "reject_block": 3, "return_delivery": 4}
+CONSEQUENCE_RANK = {
+    "warn": 0,
+    "incomplete": 1,
+    "reject_item": 2,
+    "reject_block": 3,
+    "return_delivery": 4,
+}
 
 
 @dataclass(frozen=True)
@@ -38,13 +44,23 @@ class Weakening:
     title: str = ""
 
     def to_dict(self) -> dict[str, Any]:
-        return {"id": self.id, "title": self.title, "changes": list(self.changes),
-                "justification": self.justification, "profile": self.profile}
+        return {
+            "id": self.id,
+            "title": self.title,
+            "changes": list(self.changes),
+            "justification": self.justification,
+            "profile": self.profile,
+        }
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> Weakening:
-        return cls(str(d["id"]), tuple(str(c) for c in d["changes"]), d.get("justification"),
-                   str(d["profile"]), str(d.get("title") or ""))
+        return cls(
+            str(d["id"]),
+            tuple(str(c) for c in d["changes"]),
+            d.get("justification"),
+            str(d["profile"]),
+            str(d.get("title") or ""),
+        )
 
 
 def _text(v: Any) -> str:
@@ -98,6 +114,8 @@ def weakening_changes(before: Rule, after: Rule | None) -> list[str]:
         elif f == "manual":
             out.append("made manual (a human verdict instead of the measurement)")
         elif f == "requirement":
-            out.append(f"requirement {_text(before.requirement.model_dump(exclude_defaults=True))} -> "
-                       f"{_text(after.requirement.model_dump(exclude_defaults=True))}")
+            out.append(
+                f"requirement {_text(before.requirement.model_dump(exclude_defaults=True))} -> "
+                f"{_text(after.requirement.model_dump(exclude_defaults=True))}"
+            )
     return out

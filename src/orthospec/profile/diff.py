@@ -22,10 +22,16 @@ def _section(a: dict[str, Any], b: dict[str, Any]) -> dict[str, Any]:
     changed = {}
     for k in sorted(set(a) & set(b)):
         fa, fb = _flat(a[k]), _flat(b[k])
-        diffs = {f: (fa.get(f), fb.get(f)) for f in sorted(set(fa) | set(fb)) if fa.get(f) != fb.get(f)}
+        diffs = {
+            f: (fa.get(f), fb.get(f)) for f in sorted(set(fa) | set(fb)) if fa.get(f) != fb.get(f)
+        }
         if diffs:
             changed[k] = diffs
-    return {"added": sorted(set(b) - set(a)), "removed": sorted(set(a) - set(b)), "changed": changed}
+    return {
+        "added": sorted(set(b) - set(a)),
+        "removed": sorted(set(a) - set(b)),
+        "changed": changed,
+    }
 
 
 def weakened(a: ResolvedProfile, b: ResolvedProfile) -> list[dict[str, Any]]:
@@ -45,7 +51,9 @@ def weakened(a: ResolvedProfile, b: ResolvedProfile) -> list[dict[str, Any]]:
             after = None
         changes = weakening_changes(r, after)
         if changes:
-            out.append({"id": r.id, "title": r.title, "changes": changes, "justification": said.get(r.id)})
+            out.append(
+                {"id": r.id, "title": r.title, "changes": changes, "justification": said.get(r.id)}
+            )
     return out
 
 
@@ -55,7 +63,8 @@ def diff_profiles(a: ResolvedProfile, b: ResolvedProfile) -> dict[str, Any]:
     ra = {r["id"]: r for r in a.canonical["rules"]}
     rb = {r["id"]: r for r in b.canonical["rules"]}
     return {
-        "a": f"{a.id} {a.version}", "b": f"{b.id} {b.version}",
+        "a": f"{a.id} {a.version}",
+        "b": f"{b.id} {b.version}",
         "sha256": [a.sha256, b.sha256],
         "parameters": _section(a.canonical["parameters"], b.canonical["parameters"]),
         "rules": _section(ra, rb),

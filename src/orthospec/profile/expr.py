@@ -18,7 +18,8 @@ ever compiled or executed):
 
 Names resolve through a caller-given mapping: parameters, manifest paths (``manifest.sensor.type``)
 and measures of the rule's scope. In comparisons and in + and -, a bare number takes the unit of
-the other side: ``images.roll > 1`` reads 1 deg, ``cloud_cover < 5`` reads 5 %. Values may be numbers, strings, booleans, numpy arrays or pint
+the other side: ``images.roll > 1`` reads 1 deg, ``cloud_cover < 5`` reads 5 %. Values may be
+numbers, strings, booleans, numpy arrays or pint
 quantities, so one expression evaluates a whole column at once (vectorised).
 
 Trigonometry keeps its units (issue 26: JRC Figure 2, dx = dh x tan(off-nadir angle)):
@@ -106,7 +107,9 @@ def parse(source: str) -> Expression:
     try:
         tree = ast.parse(source.strip(), mode="eval")
     except SyntaxError as exc:
-        raise ExpressionError(f"invalid expression {source!r}: {exc.msg} at column {exc.offset}") from None
+        raise ExpressionError(
+            f"invalid expression {source!r}: {exc.msg} at column {exc.offset}"
+        ) from None
     names: set[str] = set()
     _check(tree.body, source, names)
     return Expression(source, tree.body, frozenset(names))
@@ -118,8 +121,11 @@ def _number(node: ast.AST) -> float | int | None:
     while isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.USub | ast.UAdd):
         sign = -sign if isinstance(node.op, ast.USub) else sign
         node = node.operand
-    if isinstance(node, ast.Constant) and isinstance(node.value, int | float) and not isinstance(
-            node.value, bool):
+    if (
+        isinstance(node, ast.Constant)
+        and isinstance(node.value, int | float)
+        and not isinstance(node.value, bool)
+    ):
         return sign * node.value
     return None
 
@@ -144,11 +150,19 @@ def _limits(node: ast.AST, src: str) -> None:
     if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Mult | ast.Mod):
         for side in (node.left, node.right):
             if isinstance(side, ast.Constant) and isinstance(side.value, str):
-                raise ExpressionError(f"string repetition and formatting ('text' * n, 'text' % x) "
-                                      f"are not allowed in {src!r}")
-    if isinstance(node, ast.Constant) and isinstance(node.value, int) and not isinstance(node.value, bool) \
-            and abs(node.value) > MAX_INT:
-        raise ExpressionError(f"integer {str(node.value)[:30]} is larger than {MAX_INT:.0e} in {src!r}")
+                raise ExpressionError(
+                    f"string repetition and formatting ('text' * n, 'text' % x) "
+                    f"are not allowed in {src!r}"
+                )
+    if (
+        isinstance(node, ast.Constant)
+        and isinstance(node.value, int)
+        and not isinstance(node.value, bool)
+        and abs(node.value) > MAX_INT
+    ):
+        raise ExpressionError(
+            f"integer {str(node.value)[:30]} is larger than {MAX_INT:.0e} in {src!r}"
+        )
     if isinstance(node, ast.Call) and len(node.args) > MAX_ARGS:
         raise ExpressionError(f"{len(node.args)} arguments: at most {MAX_ARGS} in {src!r}")
 
@@ -177,8 +191,9 @@ def _check_node(node: ast.AST, src: str, names: set[str], depth: int, bad: str) 
     elif isinstance(node, ast.Call):
         fname = node.func.id if isinstance(node.func, ast.Name) else None
         if fname not in _FUNCS or node.keywords or not node.args:
-            raise ExpressionError(f"only {', '.join(f + '()' for f in sorted(_FUNCS))} calls are allowed "
-                                  f"in {src!r}")
+            raise ExpressionError(
+                f"only {', '.join(f + '()' for f in sorted(_FUNCS))} calls are allowed in {src!r}"
+            )
         if fname in _ARITY and len(node.args) != _ARITY[fname]:
             n = _ARITY[fname]
             raise ExpressionError(f"{fname}() takes {n} argument{'s' if n > 1 else ''} in {src!r}")
@@ -210,8 +225,10 @@ class _Eval:
     def visit(self, node: ast.AST) -> Any:
         self.steps += 1
         if self.steps > MAX_STEPS or time.perf_counter() > self.deadline:
-            raise ExpressionError(f"evaluation budget exceeded ({MAX_STEPS} steps or {MAX_SECONDS:g} s) "
-                                  f"in {self.src!r}")
+            raise ExpressionError(
+                f"evaluation budget exceeded ({MAX_STEPS} steps or {MAX_SECONDS:g} s) "
+                f"in {self.src!r}"
+            )
         if isinstance(node, ast.Constant):
             return node.value
         if isinstance(node, ast.Name | ast.Attribute):
@@ -266,8 +283,14 @@ class _Eval:
         self._bounded(fn, a, b)
         try:
             out = fn(a, b)
-            if isinstance(out, int) and not isinstance(out, bool) and out.bit_length() > MAX_INT_BITS:
-                raise ExpressionError(f"integer result larger than {MAX_INT_BITS} bits in {self.src!r}")
+            if (
+                isinstance(out, int)
+                and not isinstance(out, bool)
+                and out.bit_length() > MAX_INT_BITS
+            ):
+                raise ExpressionError(
+                    f"integer result larger than {MAX_INT_BITS} bits in {self.src!r}"
+                )
             return out
         except ExpressionError:
             raise
@@ -276,8 +299,9 @@ class _Eval:
         except (TypeError, ValueError, ArithmeticError, AttributeError) as exc:
             # pint's DimensionalityError/OffsetUnitCalculusError are TypeErrors, UndefinedUnitError an
             # AttributeError; str vs number a TypeError: all become one ExpressionError (cause kept)
-            raise ExpressionError(f"cannot combine {_show(a)} and {_show(b)} in {self.src!r}: {exc}") from exc
-
+            raise ExpressionError(
+                f"cannot combine {_show(a)} and {_show(b)} in {self.src!r}: {exc}"
+            ) from exc
 
     def _bounded(self, fn: Callable[[Any, Any], Any], a: Any, b: Any) -> None:
         """Refuse, before computing, an operation whose result could exhaust time or memory."""
@@ -342,12 +366,16 @@ def _radians(v: Any, fname: str, src: str) -> Any:
     if v is None:
         raise ExpressionError(f"{fname}() of a value that is not given in {src!r}")
     if not hasattr(v, "units"):
-        raise ExpressionError(f"{fname}() needs an angle with its unit (deg or rad), got {_show(v)} in {src!r}: "
-                              "name a measure or parameter in degrees")
+        raise ExpressionError(
+            f"{fname}() needs an angle with its unit (deg or rad), got {_show(v)} in {src!r}: "
+            "name a measure or parameter in degrees"
+        )
     try:
         return np.asarray(v.to("radian").magnitude, dtype=float)[()]
     except Exception as exc:  # pint DimensionalityError (a TypeError) or an undefined unit
-        raise ExpressionError(f"{fname}() needs an angle (deg or rad), got {_show(v)} in {src!r}") from exc
+        raise ExpressionError(
+            f"{fname}() needs an angle (deg or rad), got {_show(v)} in {src!r}"
+        ) from exc
 
 
 def _ratio(v: Any, fname: str, src: str) -> Any:
@@ -358,8 +386,10 @@ def _ratio(v: Any, fname: str, src: str) -> Any:
         try:
             return np.asarray(v.to("dimensionless").magnitude, dtype=float)[()]
         except Exception as exc:
-            raise ExpressionError(f"{fname}() of {_show(v)} in {src!r}: expected a pure number (a ratio whose "
-                                  "units cancel)") from exc
+            raise ExpressionError(
+                f"{fname}() of {_show(v)} in {src!r}: expected a pure number (a ratio whose "
+                "units cancel)"
+            ) from exc
     return np.asarray(v, dtype=float)[()]
 
 
@@ -377,8 +407,10 @@ def _arctan(fname: str, args: list[Any], src: str) -> Any:
                 y = np.asarray(y.to(unit).magnitude if hasattr(y, "units") else y, dtype=float)
                 x = np.asarray(x.to(unit).magnitude if hasattr(x, "units") else x, dtype=float)
             except Exception as exc:
-                raise ExpressionError(f"atan2() of {_show(args[0])} and {_show(args[1])} in {src!r}: both "
-                                      "must have one dimension") from exc
+                raise ExpressionError(
+                    f"atan2() of {_show(args[0])} and {_show(args[1])} in {src!r}: both "
+                    "must have one dimension"
+                ) from exc
         rad = np.arctan2(_ratio(y, fname, src), _ratio(x, fname, src))
     return units.Q_(np.degrees(rad), "degree")
 

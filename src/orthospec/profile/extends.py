@@ -48,15 +48,21 @@ def _unjustified(rule_id: str, changes: list[str], base: ResolvedProfile | None,
     where = f"{base.id} {base.version}" if base is not None else "the base profile"
     listed = "`spec diff`, the annex and every report checked under this profile list the change"
     if how == "remove":
-        return (f"remove_rules: {rule_id} is a mandatory rule of {where}; removing it needs a justification: "
-                f"write `{{id: {rule_id}, justification: \"ITT §...: why it does not apply\"}}` ({listed})")
+        return (
+            f"remove_rules: {rule_id} is a mandatory rule of {where}; removing it needs a justification: "
+            f'write `{{id: {rule_id}, justification: "ITT §...: why it does not apply"}}` ({listed})'
+        )
     what = "; ".join(changes)
     if how == "restate":
-        return (f"rule {rule_id} is mandatory in {where}, and this profile writes it again so that it checks less "
-                f"({what}): write only the keys that change under `override: true`, with `justification: "
-                f"\"ITT §...: why\"` ({listed})")
-    return (f"rule {rule_id} is mandatory in {where}, and this override makes it check less ({what}) without a "
-            f"justification: add `justification: \"ITT §...: why\"` to the override ({listed})")
+        return (
+            f"rule {rule_id} is mandatory in {where}, and this profile writes it again so that it checks less "
+            f"({what}): write only the keys that change under `override: true`, with `justification: "
+            f'"ITT §...: why"` ({listed})'
+        )
+    return (
+        f"rule {rule_id} is mandatory in {where}, and this override makes it check less ({what}) without a "
+        f'justification: add `justification: "ITT §...: why"` to the override ({listed})'
+    )
 
 
 def _unit_change(name: str, old: Parameter, new: Parameter, base: ResolvedProfile | None) -> str:
@@ -73,22 +79,30 @@ def _unit_change(name: str, old: Parameter, new: Parameter, base: ResolvedProfil
         return f"parameter {name}: {spelled}"
     head = f"parameter {name}: unit {new.unit!r}, but {name} is in {old.unit!r} in {where}"
     value = new.value if new.value is not None else None
-    if isinstance(value, int | float) and not isinstance(value, bool) and old.unit not in (None, "text", "bool",
-                                                                                             "date"):
+    if (
+        isinstance(value, int | float)
+        and not isinstance(value, bool)
+        and old.unit not in (None, "text", "bool", "date")
+    ):
         try:
             from ..units import convert
 
             got = float(convert([float(value)], new.unit, old.unit)[0])
-            return (f"{head}: a tender gives the value in the parameter's unit: write `value: {got:g}` "
-                    f"({value:g} {new.unit}) and leave out `unit`")
+            return (
+                f"{head}: a tender gives the value in the parameter's unit: write `value: {got:g}` "
+                f"({value:g} {new.unit}) and leave out `unit`"
+            )
         except (UnitError, ValueError, TypeError):
             pass
-    return (f"{head} (another kind of quantity): a tender gives the value in {old.unit!r} and leaves out "
-            f"`unit`")
+    return (
+        f"{head} (another kind of quantity): a tender gives the value in {old.unit!r} and leaves out "
+        f"`unit`"
+    )
 
 
-def _merge(prof: Profile, base: ResolvedProfile | None, path: Path, doc: Located,
-           problems: list[Problem]) -> ResolvedProfile | None:
+def _merge(
+    prof: Profile, base: ResolvedProfile | None, path: Path, doc: Located, problems: list[Problem]
+) -> ResolvedProfile | None:
     """``prof`` (the file ``doc``) merged onto ``base``: its parameters, its removals, its rules
     and overrides, each problem appended (in that order); None when there is any."""
     sites = _Sites(top=doc)
@@ -96,9 +110,12 @@ def _merge(prof: Profile, base: ResolvedProfile | None, path: Path, doc: Located
         sites.rules = {k: list(v) for k, v in base.sites.rules.items()}
         sites.params = {k: list(v) for k, v in base.sites.params.items()}
     params = _merge_parameters(prof, base, doc, sites, problems)
-    m = _Rules(dict((r.id, r) for r in base.rules) if base else {},
-               list(base.removed) if base else [], list(base.weakened) if base else [],
-               {k: tuple(v) for k, v in base.overridden.items()} if base else {})
+    m = _Rules(
+        dict((r.id, r) for r in base.rules) if base else {},
+        list(base.removed) if base else [],
+        list(base.weakened) if base else [],
+        {k: tuple(v) for k, v in base.overridden.items()} if base else {},
+    )
     _remove_rules(prof, base, doc, sites, m, problems)
     _merge_rules(prof, base, doc, sites, m, problems)
     if problems:
@@ -116,8 +133,13 @@ class _Rules:
     overridden: dict[str, tuple[str, ...]]
 
 
-def _merge_parameters(prof: Profile, base: ResolvedProfile | None, doc: Located, sites: _Sites,
-                      problems: list[Problem]) -> dict[str, Parameter]:
+def _merge_parameters(
+    prof: Profile,
+    base: ResolvedProfile | None,
+    doc: Located,
+    sites: _Sites,
+    problems: list[Problem],
+) -> dict[str, Parameter]:
     """The base's parameters with this profile's added or changed (authority and unit kept)."""
     params = dict(base.parameters) if base else {}
     sites.inherited_params = set(params)
@@ -126,8 +148,15 @@ def _merge_parameters(prof: Profile, base: ResolvedProfile | None, doc: Located,
         if name not in params:
             if p.unit is None:
                 line, col = doc.where(("parameters", name))
-                problems.append(Problem(doc.file, line, col, f"parameter {name}: a new parameter needs a unit"
-                                        + _did_you_mean(name, sites.inherited_params, "inherited")))
+                problems.append(
+                    Problem(
+                        doc.file,
+                        line,
+                        col,
+                        f"parameter {name}: a new parameter needs a unit"
+                        + _did_you_mean(name, sites.inherited_params, "inherited"),
+                    )
+                )
                 continue
             params[name] = p.model_copy(update={"set_by": p.authority()})
             sites.own_params.add(name)
@@ -136,8 +165,15 @@ def _merge_parameters(prof: Profile, base: ResolvedProfile | None, doc: Located,
         given = p.model_dump(exclude_unset=True)
         if "set_by" in given and given["set_by"] != old.authority():
             line, col = doc.where(("parameters", name, "set_by"))
-            problems.append(Problem(doc.file, line, col, f"parameter {name}: set_by is {old.authority()!r} where "
-                                    "the parameter is defined; an extending profile cannot change it"))
+            problems.append(
+                Problem(
+                    doc.file,
+                    line,
+                    col,
+                    f"parameter {name}: set_by is {old.authority()!r} where "
+                    "the parameter is defined; an extending profile cannot change it",
+                )
+            )
             continue
         if "unit" in given and old.unit is not None and given["unit"] != old.unit:
             line, col = doc.where(("parameters", name, "unit"))
@@ -145,8 +181,15 @@ def _merge_parameters(prof: Profile, base: ResolvedProfile | None, doc: Located,
             continue
         if "default" in given and not _same_value(given["default"], old.default):
             line, col = doc.where(("parameters", name, "default"))
-            problems.append(Problem(doc.file, line, col, f"parameter {name}: an extending profile sets `value:`, "
-                                    "not `default:` (the default is the value of the profile that defines it)"))
+            problems.append(
+                Problem(
+                    doc.file,
+                    line,
+                    col,
+                    f"parameter {name}: an extending profile sets `value:`, "
+                    "not `default:` (the default is the value of the profile that defines it)",
+                )
+            )
             continue
         merged = old.model_dump()
         merged.update(given)
@@ -154,45 +197,76 @@ def _merge_parameters(prof: Profile, base: ResolvedProfile | None, doc: Located,
         if "justification" not in given:
             merged["justification"] = None
         new = Parameter.model_validate(merged)
-        if (old.authority() == "standard" and base is not None
-                and not _same_value(_effective(new), _effective(old)) and not p.justification):
+        if (
+            old.authority() == "standard"
+            and base is not None
+            and not _same_value(_effective(new), _effective(old))
+            and not p.justification
+        ):
             key = "value" if "value" in given else ("default" if "default" in given else None)
             line, col = doc.where(("parameters", name, *((key,) if key else ())))
-            problems.append(Problem(
-                doc.file, line, col,
-                f"parameter {name}: {_effective(old)!r} is the standard's value ({base.id} {base.version}); "
-                f"a tender profile that changes it to {_effective(new)!r} must say why: add "
-                f"`justification: \"ITT §...: ...\"` to the parameter (the report annex prints it)"))
+            problems.append(
+                Problem(
+                    doc.file,
+                    line,
+                    col,
+                    f"parameter {name}: {_effective(old)!r} is the standard's value ({base.id} {base.version}); "
+                    f"a tender profile that changes it to {_effective(new)!r} must say why: add "
+                    f'`justification: "ITT §...: ..."` to the parameter (the report annex prints it)',
+                )
+            )
         params[name] = new
     return params
 
 
-def _remove_rules(prof: Profile, base: ResolvedProfile | None, doc: Located, sites: _Sites,
-                  m: _Rules, problems: list[Problem]) -> None:
+def _remove_rules(
+    prof: Profile,
+    base: ResolvedProfile | None,
+    doc: Located,
+    sites: _Sites,
+    m: _Rules,
+    problems: list[Problem],
+) -> None:
     """``remove_rules``: an inherited rule taken out (a mandatory one only with a justification)."""
     for i, item in enumerate(prof.remove_rules):
         rid = item if isinstance(item, str) else item.id
         if rid not in m.rules:
             line, col = doc.where(("remove_rules", i))
-            problems.append(Problem(doc.file, line, col, f"remove_rules: no inherited rule {rid!r}"
-                                    + _did_you_mean(rid, m.rules, "inherited")))
+            problems.append(
+                Problem(
+                    doc.file,
+                    line,
+                    col,
+                    f"remove_rules: no inherited rule {rid!r}"
+                    + _did_you_mean(rid, m.rules, "inherited"),
+                )
+            )
             continue
         justification = None if isinstance(item, str) else item.justification
         if m.rules[rid].level == "mandatory":
             if justification is None:
                 line, col = doc.where(("remove_rules", i))
-                problems.append(Problem(doc.file, line, col, _unjustified(rid, ["removed"], base, "remove")))
+                problems.append(
+                    Problem(doc.file, line, col, _unjustified(rid, ["removed"], base, "remove"))
+                )
                 continue
-            m.weakened.append(Weakening(rid, ("removed",), justification, prof.id,
-                                        m.rules[rid].title))
+            m.weakened.append(
+                Weakening(rid, ("removed",), justification, prof.id, m.rules[rid].title)
+            )
         del m.rules[rid]
         sites.rules.pop(rid, None)
         m.overridden.pop(rid, None)
         m.removed.append(Removal(rid, justification, prof.id))
 
 
-def _merge_rules(prof: Profile, base: ResolvedProfile | None, doc: Located, sites: _Sites,
-                 m: _Rules, problems: list[Problem]) -> None:
+def _merge_rules(
+    prof: Profile,
+    base: ResolvedProfile | None,
+    doc: Located,
+    sites: _Sites,
+    m: _Rules,
+    problems: list[Problem],
+) -> None:
     """This profile's rules: new ones, inherited ones written again, and overrides (one that
     checks less only with a justification)."""
     for i, r in enumerate(prof.rules):
@@ -200,46 +274,75 @@ def _merge_rules(prof: Profile, base: ResolvedProfile | None, doc: Located, site
         if isinstance(r, RuleOverride):
             if before is None:
                 line, col = doc.where(("rules", i))
-                problems.append(Problem(doc.file, line, col, f"override of unknown rule {r.id!r}"
-                                        + _did_you_mean(r.id, m.rules, "inherited"), r.id))
+                problems.append(
+                    Problem(
+                        doc.file,
+                        line,
+                        col,
+                        f"override of unknown rule {r.id!r}"
+                        + _did_you_mean(r.id, m.rules, "inherited"),
+                        r.id,
+                    )
+                )
                 continue
             merged_r = before.model_dump()
-            changed = {k: v for k, v in r.model_dump(exclude_unset=True).items()
-                       if k not in ("override", "id", "justification")}
+            changed = {
+                k: v
+                for k, v in r.model_dump(exclude_unset=True).items()
+                if k not in ("override", "id", "justification")
+            }
             merged_r.update(changed)
             try:
                 after = Rule.model_validate(merged_r)
             except ValidationError as exc:
                 line, col = doc.where(("rules", i))
-                problems.append(Problem(doc.file, line, col, f"override invalid: {exc.errors()[0]['msg']}", r.id))
+                problems.append(
+                    Problem(
+                        doc.file, line, col, f"override invalid: {exc.errors()[0]['msg']}", r.id
+                    )
+                )
                 continue
             weak = weakening_changes(before, after)
             if weak and not r.justification:
                 key = weakened_fields(before, after)[0]
                 line, col = doc.where(("rules", i, key))
-                problems.append(Problem(doc.file, line, col, _unjustified(r.id, weak, base, "override"), r.id))
+                problems.append(
+                    Problem(doc.file, line, col, _unjustified(r.id, weak, base, "override"), r.id)
+                )
                 continue
             if weak:
-                m.weakened.append(Weakening(r.id, tuple(weak), r.justification, prof.id,
-                                            after.title))
+                m.weakened.append(
+                    Weakening(r.id, tuple(weak), r.justification, prof.id, after.title)
+                )
             m.overridden[r.id] = tuple(sorted({*m.overridden.get(r.id, ()), *changed}))
             m.rules[r.id] = after
             sites.rules.setdefault(r.id, []).append((doc, i))
         else:
             weak = weakening_changes(before, r) if before is not None else []
-            if weak:  # an inherited rule written again in full, checking less: say how to do it openly
+            if (
+                weak
+            ):  # an inherited rule written again in full, checking less: say how to do it openly
                 key = weakened_fields(before, r)[0] if before is not None else "id"
                 line, col = doc.where(("rules", i, key))
-                problems.append(Problem(doc.file, line, col, _unjustified(r.id, weak, base, "restate"), r.id))
+                problems.append(
+                    Problem(doc.file, line, col, _unjustified(r.id, weak, base, "restate"), r.id)
+                )
                 continue
             m.rules[r.id] = r
             sites.rules[r.id] = [(doc, i)]
             m.overridden.pop(r.id, None)
 
 
-def _resolved(prof: Profile, base: ResolvedProfile | None, path: Path, doc: Located,
-              params: dict[str, Parameter], m: _Rules, sites: _Sites,
-              problems: list[Problem]) -> ResolvedProfile | None:
+def _resolved(
+    prof: Profile,
+    base: ResolvedProfile | None,
+    path: Path,
+    doc: Located,
+    params: dict[str, Parameter],
+    m: _Rules,
+    sites: _Sites,
+    problems: list[Problem],
+) -> ResolvedProfile | None:
     """The resolved profile: its canonical form and SHA-256 (None, with the place of a value that
     is not a finite number, when it cannot be hashed)."""
     tables = {**(base.tables if base else {}), **prof.tables}
@@ -254,18 +357,23 @@ def _resolved(prof: Profile, base: ResolvedProfile | None, path: Path, doc: Loca
         "source": prof.source.model_dump(mode="json"),
         "extends": [{"id": c[0], "version": c[1]} for c in chain[1:]],
         "parameters": {k: _param_json(v) for k, v in sorted(params.items())},
-        "tables": {k: (v.model_dump(mode="json") if hasattr(v, "model_dump") else v)
-                   for k, v in sorted(tables.items())},
-        "classes": {k: (v.model_dump(mode="json") if hasattr(v, "model_dump") else v)
-                    for k, v in sorted(classes.items())},
+        "tables": {
+            k: (v.model_dump(mode="json") if hasattr(v, "model_dump") else v)
+            for k, v in sorted(tables.items())
+        },
+        "classes": {
+            k: (v.model_dump(mode="json") if hasattr(v, "model_dump") else v)
+            for k, v in sorted(classes.items())
+        },
         "rules": [_rule_json(r) for r in final_rules],
         "waivers": [w.model_dump(mode="json") for w in waivers],
     }
     if prof.allow_no_mandatory:
         canonical["allow_no_mandatory"] = True
     if m.removed:
-        canonical["removed_rules"] = [{"id": x.id, "justification": x.justification, "profile": x.profile}
-                                      for x in m.removed]
+        canonical["removed_rules"] = [
+            {"id": x.id, "justification": x.justification, "profile": x.profile} for x in m.removed
+        ]
     if m.weakened:
         canonical["weakened_rules"] = [w.to_dict() for w in m.weakened]
     try:
@@ -273,17 +381,44 @@ def _resolved(prof: Profile, base: ResolvedProfile | None, path: Path, doc: Loca
     except ValueError:  # nan or inf somewhere: say where (only on this failure path)
         for where in _nonfinite(doc.data, ()):
             line, col = doc.where(where)
-            problems.append(Problem(doc.file, line, col, f"{'/'.join(map(str, where))}: not a finite number "
-                                    "(write a number such as 1.0)", _rule_at(doc, where)))
+            problems.append(
+                Problem(
+                    doc.file,
+                    line,
+                    col,
+                    f"{'/'.join(map(str, where))}: not a finite number "
+                    "(write a number such as 1.0)",
+                    _rule_at(doc, where),
+                )
+            )
         if not problems:
-            problems.append(Problem(doc.file, None, None, "the profile holds a value that is not a finite number"))
+            problems.append(
+                Problem(
+                    doc.file, None, None, "the profile holds a value that is not a finite number"
+                )
+            )
         return None
     return ResolvedProfile(
-        id=prof.id, version=prof.version, title=prof.title, description=prof.description,
-        source=prof.source, parameters=params, tables=tables, classes=classes, rules=final_rules,
-        tests=tuple(prof.tests), waivers=waivers, path=path, chain=chain, canonical=canonical,
-        sha256=sha, allow_no_mandatory=prof.allow_no_mandatory, sites=sites,
-        removed=tuple(m.removed), overridden=m.overridden, weakened=tuple(m.weakened),
+        id=prof.id,
+        version=prof.version,
+        title=prof.title,
+        description=prof.description,
+        source=prof.source,
+        parameters=params,
+        tables=tables,
+        classes=classes,
+        rules=final_rules,
+        tests=tuple(prof.tests),
+        waivers=waivers,
+        path=path,
+        chain=chain,
+        canonical=canonical,
+        sha256=sha,
+        allow_no_mandatory=prof.allow_no_mandatory,
+        sites=sites,
+        removed=tuple(m.removed),
+        overridden=m.overridden,
+        weakened=tuple(m.weakened),
     )
 
 

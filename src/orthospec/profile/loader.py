@@ -119,7 +119,9 @@ def _load(path: Path, *, check_measures: bool) -> tuple[ResolvedProfile | None, 
         _RESOLVED[k] = (resolved, shas)
         from .catalog import extended_by_plugins
 
-        if not extended_by_plugins():  # validity then depends on installed plugins: not cached on disk
+        if (
+            not extended_by_plugins()
+        ):  # validity then depends on installed plugins: not cached on disk
             cache.put(k, _dump(resolved), shas)
     else:
         _RESOLVED[k + ":nomeasures"] = (resolved, shas)
@@ -149,7 +151,10 @@ def _rebuild(d: dict[str, Any]) -> ResolvedProfile:
     if sha != d["sha256"]:
         raise ValueError("cache entry does not hash to its recorded sha256")
     return ResolvedProfile(
-        id=c["id"], version=c["version"], title=c["title"], description=d.get("description"),
+        id=c["id"],
+        version=c["version"],
+        title=c["title"],
+        description=d.get("description"),
         source=Source.model_validate(c["source"]),
         parameters={k: Parameter.model_validate(v) for k, v in c["parameters"].items()},
         tables={k: LookupTable.model_validate(v) for k, v in c["tables"].items()},
@@ -157,16 +162,22 @@ def _rebuild(d: dict[str, Any]) -> ResolvedProfile:
         rules=tuple(Rule.model_validate(r) for r in c["rules"]),
         tests=tuple(ProfileTest.model_validate(t) for t in d.get("tests", [])),
         waivers=tuple(ProfileWaiver.model_validate(w) for w in c["waivers"]),
-        path=Path(d["path"]), chain=tuple((a, b, f) for a, b, f in d["chain"]),
-        canonical=c, sha256=sha, allow_no_mandatory=bool(d.get("allow_no_mandatory")),
-        removed=tuple(Removal(x["id"], x["justification"], x["profile"]) for x in c.get("removed_rules", [])),
+        path=Path(d["path"]),
+        chain=tuple((a, b, f) for a, b, f in d["chain"]),
+        canonical=c,
+        sha256=sha,
+        allow_no_mandatory=bool(d.get("allow_no_mandatory")),
+        removed=tuple(
+            Removal(x["id"], x["justification"], x["profile"]) for x in c.get("removed_rules", [])
+        ),
         overridden={k: tuple(v) for k, v in d.get("overridden", {}).items()},
         weakened=tuple(Weakening.from_dict(w) for w in c.get("weakened_rules", [])),
     )
 
 
-def _resolve(path: Path, problems: list[Problem], *, depth: int,
-             seen: tuple[str, ...]) -> ResolvedProfile | None:
+def _resolve(
+    path: Path, problems: list[Problem], *, depth: int, seen: tuple[str, ...]
+) -> ResolvedProfile | None:
     try:
         doc, _ = _load_doc(path)
     except YamlError as exc:
@@ -178,7 +189,11 @@ def _resolve(path: Path, problems: list[Problem], *, depth: int,
         return None
     key = f"{prof.id}@{prof.version}"
     if key in seen:
-        problems.append(Problem(doc.file, *doc.where(("extends",)), f"extends cycle: {' -> '.join((*seen, key))}"))
+        problems.append(
+            Problem(
+                doc.file, *doc.where(("extends",)), f"extends cycle: {' -> '.join((*seen, key))}"
+            )
+        )
         return None
     _check_unique_ids(prof, doc, problems)
     base: ResolvedProfile | None = None
@@ -187,7 +202,9 @@ def _resolve(path: Path, problems: list[Problem], *, depth: int,
             problems.append(Problem(doc.file, *doc.where(("extends",)), "extends chain too deep"))
             return None
         try:
-            parent_path = find_by_id(prof.extends.id, near=path.parent, version=prof.extends.version)
+            parent_path = find_by_id(
+                prof.extends.id, near=path.parent, version=prof.extends.version
+            )
         except SpecError as exc:
             problems.append(Problem(doc.file, *doc.where(("extends",)), str(exc)))
             return None
@@ -195,9 +212,14 @@ def _resolve(path: Path, problems: list[Problem], *, depth: int,
         if base is None:
             return None
         if (base.id, base.version) != (prof.extends.id, prof.extends.version):
-            problems.append(Problem(doc.file, *doc.where(("extends",)),
-                                    f"extends {prof.extends.id} {prof.extends.version}, but {parent_path} "
-                                    f"is {base.id} {base.version}"))
+            problems.append(
+                Problem(
+                    doc.file,
+                    *doc.where(("extends",)),
+                    f"extends {prof.extends.id} {prof.extends.version}, but {parent_path} "
+                    f"is {base.id} {base.version}",
+                )
+            )
             return None
     resolved = _merge(prof, base, path, doc, problems)
     if resolved is not None:
@@ -232,6 +254,8 @@ def _claims_reserved_id(p: ResolvedProfile, path: Path) -> str | None:
             except SpecError:
                 pass
     files = ", ".join(sorted({str(t[3]) for t in owners}))
-    return (f"id {p.id!r} is reserved: it names the profile {kind} in {files}, and this file is not that "
-            f"profile; give this profile its own id (e.g. '{p.id}-itt') and `extends: {{id: {owners[0][0]}, "
-            f"version: {owners[-1][1]}}}` to build on it")
+    return (
+        f"id {p.id!r} is reserved: it names the profile {kind} in {files}, and this file is not that "
+        f"profile; give this profile its own id (e.g. '{p.id}-itt') and `extends: {{id: {owners[0][0]}, "
+        f"version: {owners[-1][1]}}}` to build on it"
+    )

@@ -99,12 +99,16 @@ def find_by_id(pid: str, *, version: str | None = None, near: Path | None = None
         hits = match(local)
         if version is not None and len(hits) > 1:
             files = ", ".join(str(t[3]) for t in hits)
-            raise SpecError(f"profile {pid!r} version {version} is defined by several files: {files}")
+            raise SpecError(
+                f"profile {pid!r} version {version} is defined by several files: {files}"
+            )
     if not hits:  # plugins are looked for only when needed: importlib.metadata costs ~0.1 s
         hits = match(plugin_profiles())
         if version is not None and len(hits) > 1:
             files = ", ".join(str(t[3]) for t in hits)
-            raise SpecError(f"profile {pid!r} version {version} is shipped by several plugins: {files}")
+            raise SpecError(
+                f"profile {pid!r} version {version} is shipped by several plugins: {files}"
+            )
     if hits:
         return sorted(hits, key=lambda t: _semver_key(t[1]))[-1][3]
     raise SpecError(_unknown_profile(pid, version, near))
@@ -115,19 +119,31 @@ def _unknown_profile(pid: str, version: str | None, near: Path | None) -> str:
     nearest id; the shipped and plugin profiles by id, the local folder's files only counted (a
     tender's folder of variants once made this message list the same id 23 times)."""
     shared = sorted({(i, v) for i, v, _, _ in (*available(), *plugin_profiles())})
-    local = [] if near is None else sorted(
-        {(i, v) for i, v, _, f in available([near]) if f.parent.resolve() == near.resolve()} - set(shared))
+    local = (
+        []
+        if near is None
+        else sorted(
+            {(i, v) for i, v, _, f in available([near]) if f.parent.resolve() == near.resolve()}
+            - set(shared)
+        )
+    )
     pin = f" version {version}" if version else ""
     versions = sorted({v for i, v in (*shared, *local) if i == pid}, key=_semver_key)
     if versions:
         hint = f"; {pid} exists in version {', '.join(versions)}: pin one of them"
     else:
-        close = difflib.get_close_matches(pid, sorted({i for i, _ in (*shared, *local)}), n=1, cutoff=0.6)
+        close = difflib.get_close_matches(
+            pid, sorted({i for i, _ in (*shared, *local)}), n=1, cutoff=0.6
+        )
         hint = f"; did you mean {close[0]!r}?" if close else ""
     known = ", ".join(f"{i} {v}" for i, v in shared) or "none"
     if local:
         ids = sorted({i for i, _ in local})
-        known += (f"; and {len(local)} in {near}: " + ", ".join(ids[:5]) + (" ..." if len(ids) > 5 else ""))
+        known += (
+            f"; and {len(local)} in {near}: "
+            + ", ".join(ids[:5])
+            + (" ..." if len(ids) > 5 else "")
+        )
     return f"unknown profile {pid!r}{pin}{hint}; available: {known}"
 
 

@@ -34,7 +34,9 @@ class Clause(_Strict):
     table: str | int | None = Field(None, description="Table number, e.g. 9.")
     row: str | int | None = Field(None, description="Table row or item, when there is one.")
     figure: str | int | None = None
-    seed: str | None = Field(None, description="Seed file the quote is taken from, when not the profile's.")
+    seed: str | None = Field(
+        None, description="Seed file the quote is taken from, when not the profile's."
+    )
 
     @field_validator("section", "table", "row", "figure", mode="before")
     @classmethod
@@ -70,7 +72,9 @@ class Source(_Strict):
     issue: str | int | float | None = None
     year: int | None = None
     identifier: str | None = None
-    seed: str | None = Field(None, description="Seed file in ../shared/seeds that quotes come from.")
+    seed: str | None = Field(
+        None, description="Seed file in ../shared/seeds that quotes come from."
+    )
     url: str | None = None
 
     @field_validator("issue", mode="before")
@@ -89,35 +93,52 @@ class Parameter(_Strict):
     tender profile (with a justification), never through the contractor's delivery manifest.
     """
 
-    unit: str | None = Field(None, description="m, mm, µm, ft, usft, px, %, deg, DN, 1, or text/bool/date "
-                                               "(required for a new parameter; optional when overriding).")
-    default: Scalar | None = Field(None, description="Value from the standard, when it gives one. A number "
-                                   "for a numeric unit (write 1.0, not '1.0' or 1,0).")
-    value: Scalar | None = Field(None, description="Value fixed by a tender profile (wins over defaults).")
+    unit: str | None = Field(
+        None,
+        description="m, mm, µm, ft, usft, px, %, deg, DN, 1, or text/bool/date "
+        "(required for a new parameter; optional when overriding).",
+    )
+    default: Scalar | None = Field(
+        None,
+        description="Value from the standard, when it gives one. A number "
+        "for a numeric unit (write 1.0, not '1.0' or 1,0).",
+    )
+    value: Scalar | None = Field(
+        None, description="Value fixed by a tender profile (wins over defaults)."
+    )
     required: bool = False
-    description: str = Field("", description="Public: what the value means and where the source fixes it "
-                                             "(the annex prints it).")
-    internal_note: str | None = Field(None, description="For the profile's maintainers; never printed.")
+    description: str = Field(
+        "",
+        description="Public: what the value means and where the source fixes it "
+        "(the annex prints it).",
+    )
+    internal_note: str | None = Field(
+        None, description="For the profile's maintainers; never printed."
+    )
     choices: list[Scalar] | None = None
     set_by: SetBy | None = Field(
         None,
         description="Who fixes the value. 'standard': a constant of the published standard; only a "
-                    "tender profile that extends it may change it, with a `justification`, and the "
-                    "delivery manifest never does. 'itt': left to the invitation to tender; a tender "
-                    "profile or --param sets it, and failing both the value the contractor's manifest "
-                    "declares under tender.parameters is used with a visible warning. When omitted: "
-                    "'standard' if the parameter has a default, else 'itt'. Fixed by the profile that "
-                    "defines the parameter (an extending profile cannot change it).")
+        "tender profile that extends it may change it, with a `justification`, and the "
+        "delivery manifest never does. 'itt': left to the invitation to tender; a tender "
+        "profile or --param sets it, and failing both the value the contractor's manifest "
+        "declares under tender.parameters is used with a visible warning. When omitted: "
+        "'standard' if the parameter has a default, else 'itt'. Fixed by the profile that "
+        "defines the parameter (an extending profile cannot change it).",
+    )
     justification: str | None = Field(
-        None, min_length=1,
+        None,
+        min_length=1,
         description="Why an extending (tender) profile changes the value of an inherited 'standard' "
-                    "parameter; required then, and printed in the report annex.")
+        "parameter; required then, and printed in the report annex.",
+    )
     checker_may_set: bool = Field(
         False,
         description="In a tender profile (one that extends another): the checker's file or --param may "
-                    "replace this parameter's value; every report prints the value in force beside the "
-                    "tender's. Without it the tender's value is the contract, and a different value from "
-                    "the checker's side stops the check (exit 2) naming both values.")
+        "replace this parameter's value; every report prints the value in force beside the "
+        "tender's. Without it the tender's value is the contract, and a different value from "
+        "the checker's side stops the check (exit 2) naming both values.",
+    )
 
     @field_validator("default", "value", mode="before")
     @classmethod
@@ -173,12 +194,20 @@ class Rule(_Strict):
     level: Level = "mandatory"
     consequence: Consequence
     manual: bool = False
-    note: str | None = Field(None, description=(
-        "Public note: how the rule reads its clause, written for bidders and checkers (printed in the "
-        "annex and by `explain`)."))
-    internal_note: str | None = Field(None, description=(
-        "Internal note for the profile's maintainers (history, tests, tools, open questions): kept in the "
-        "profile, never printed in the annex, reports or `explain`."))
+    note: str | None = Field(
+        None,
+        description=(
+            "Public note: how the rule reads its clause, written for bidders and checkers (printed in the "
+            "annex and by `explain`)."
+        ),
+    )
+    internal_note: str | None = Field(
+        None,
+        description=(
+            "Internal note for the profile's maintainers (history, tests, tools, open questions): kept in the "
+            "profile, never printed in the annex, reports or `explain`."
+        ),
+    )
     audit: Audit | None = None
     tags: list[str] = Field(default_factory=list)
     override: Literal[False] = False
@@ -204,10 +233,12 @@ class RuleOverride(_Strict):
     audit: Audit | None = None
     tags: list[str] | None = None
     justification: str | None = Field(
-        None, min_length=1,
+        None,
+        min_length=1,
         description="Why the ITT changes a mandatory rule of the profile it extends so that it can check "
-                    "less (level, a lighter consequence, a new `when`, another measure, scope or requirement, "
-                    "manual): required then; `spec diff`, the annex and every report print it.")
+        "less (level, a lighter consequence, a new `when`, another measure, scope or requirement, "
+        "manual): required then; `spec diff`, the annex and every report print it.",
+    )
 
 
 def _rule_kind(v: Any) -> str:
@@ -226,8 +257,11 @@ class RuleRemoval(_Strict):
     """An inherited rule a tender profile takes out, and why (the report annex prints it)."""
 
     id: Annotated[str, Field(pattern=RULE_ID)]
-    justification: str = Field(min_length=1, description="Why the ITT does not apply this rule (required "
-                               "for a mandatory rule; the annex and every report print it).")
+    justification: str = Field(
+        min_length=1,
+        description="Why the ITT does not apply this rule (required "
+        "for a mandatory rule; the annex and every report print it).",
+    )
 
 
 class Extends(_Strict):
@@ -266,10 +300,14 @@ class ProfileTest(_Strict):
     params: dict[str, Scalar] = Field(default_factory=dict)
     expect: dict[str, Any] = Field(default_factory=dict)
     description: str | None = None
-    checker: str | None = Field(None, description=(
-        "The checker's folder or file (check --checker), relative to the profile file: the manual-check "
-        "verdicts, waivers and check point measurements in force for this test delivery (a delivery's own "
-        "manual_checks and check points are only the contractor's evidence)."))
+    checker: str | None = Field(
+        None,
+        description=(
+            "The checker's folder or file (check --checker), relative to the profile file: the manual-check "
+            "verdicts, waivers and check point measurements in force for this test delivery (a delivery's own "
+            "manual_checks and check points are only the contractor's evidence)."
+        ),
+    )
 
 
 class ProfileWaiver(_Strict):
@@ -298,13 +336,15 @@ class Profile(_Strict):
     remove_rules: list[str | RuleRemoval] = Field(
         default_factory=list,
         description="Inherited rules this profile takes out: {id, justification} (the annex and every "
-                    "report print it); a bare id only for a rule that is not mandatory.")
+        "report print it); a bare id only for a rule that is not mandatory.",
+    )
     waivers: list[ProfileWaiver] = Field(default_factory=list)
     tests: list[ProfileTest] = Field(default_factory=list)
     allow_no_mandatory: bool = Field(
         False,
         description="A resolved profile with no mandatory rule accepts every delivery; it is refused "
-                    "unless this says so explicitly (e.g. an informative profile of recommendations).")
+        "unless this says so explicitly (e.g. an informative profile of recommendations).",
+    )
 
     @field_validator("parameters")
     @classmethod

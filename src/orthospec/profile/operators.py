@@ -63,11 +63,11 @@ class Decision:
     """What an operator decided per item; :meth:`verdicts` applies the missing-value policy."""
 
     op: Operator
-    ok: np.ndarray             # bool: the requirement is met (meaningless where undecided)
-    no_value: np.ndarray       # bool: the measured value is missing
-    no_threshold: np.ndarray   # bool: a threshold could not be computed (NaN)
+    ok: np.ndarray  # bool: the requirement is met (meaningless where undecided)
+    no_value: np.ndarray  # bool: the measured value is missing
+    no_threshold: np.ndarray  # bool: a threshold could not be computed (NaN)
     bad_threshold: np.ndarray  # bool: a given threshold is not finite (±inf)
-    measured: np.ndarray       # the measured values as compared (floats, or text for text compares)
+    measured: np.ndarray  # the measured values as compared (floats, or text for text compares)
 
     @property
     def undecided(self) -> np.ndarray:
@@ -126,20 +126,39 @@ class Operator:
     def _decide(self, raw: np.ndarray, t: Thresholds) -> Decision:
         raise NotImplementedError
 
-    def text(self, value: str = "", *, lo: str = "", hi: str = "", min_inclusive: bool = True,
-             max_inclusive: bool = True, values: Sequence[str] = ()) -> str:
+    def text(
+        self,
+        value: str = "",
+        *,
+        lo: str = "",
+        hi: str = "",
+        min_inclusive: bool = True,
+        max_inclusive: bool = True,
+        values: Sequence[str] = (),
+    ) -> str:
         """The requirement in words, from threshold texts already formatted with their unit."""
         raise NotImplementedError
 
     # helpers shared by the subclasses
-    def _decision(self, ok: np.ndarray, no_value: np.ndarray, measured: np.ndarray,
-                  no_threshold: np.ndarray | None = None, bad_threshold: np.ndarray | None = None) -> Decision:
+    def _decision(
+        self,
+        ok: np.ndarray,
+        no_value: np.ndarray,
+        measured: np.ndarray,
+        no_threshold: np.ndarray | None = None,
+        bad_threshold: np.ndarray | None = None,
+    ) -> Decision:
         import numpy as np
 
         none = np.zeros(len(ok), dtype=bool)
-        return Decision(self, np.asarray(ok, dtype=bool), np.asarray(no_value, dtype=bool),
-                        none if no_threshold is None else no_threshold,
-                        none if bad_threshold is None else bad_threshold, measured)
+        return Decision(
+            self,
+            np.asarray(ok, dtype=bool),
+            np.asarray(no_value, dtype=bool),
+            none if no_threshold is None else no_threshold,
+            none if bad_threshold is None else bad_threshold,
+            measured,
+        )
 
 
 def _floats(raw: np.ndarray) -> np.ndarray:
@@ -178,7 +197,12 @@ def _is_text(*vals: Any) -> bool:
 class _Order(Operator):
     """``<``, ``<=``, ``>``, ``>=``: numbers only."""
 
-    _UFUNC: ClassVar[dict[str, str]] = {"<": "less", "<=": "less_equal", ">": "greater", ">=": "greater_equal"}
+    _UFUNC: ClassVar[dict[str, str]] = {
+        "<": "less",
+        "<=": "less_equal",
+        ">": "greater",
+        ">=": "greater_equal",
+    }
 
     def _decide(self, raw: np.ndarray, t: Thresholds) -> Decision:
         import numpy as np
@@ -208,8 +232,9 @@ class _Equality(Operator):
         thr = _bound(math.nan if t.value is None else t.value, len(values))
         with np.errstate(invalid="ignore"):
             eq = np.isclose(values, thr)
-        return self._decision(eq if self.name == "==" else ~eq, np.isnan(values), values,
-                              np.isnan(thr), np.isinf(thr))
+        return self._decision(
+            eq if self.name == "==" else ~eq, np.isnan(values), values, np.isnan(thr), np.isinf(thr)
+        )
 
     def text(self, value: str = "", **_: Any) -> str:
         return f"{self.symbol} {value}"
@@ -234,10 +259,20 @@ class _Between(Operator):
         bad_thr = np.logical_or.reduce([np.isinf(x) for x in given]) if given else none
         return self._decision(a & b, np.isnan(values), values, no_thr, bad_thr)
 
-    def text(self, value: str = "", *, lo: str = "", hi: str = "", min_inclusive: bool = True,
-             max_inclusive: bool = True, **_: Any) -> str:
-        return (f"between {lo or '−∞'} ({'incl.' if min_inclusive else 'excl.'}) "
-                f"and {hi or '+∞'} ({'incl.' if max_inclusive else 'excl.'})")
+    def text(
+        self,
+        value: str = "",
+        *,
+        lo: str = "",
+        hi: str = "",
+        min_inclusive: bool = True,
+        max_inclusive: bool = True,
+        **_: Any,
+    ) -> str:
+        return (
+            f"between {lo or '−∞'} ({'incl.' if min_inclusive else 'excl.'}) "
+            f"and {hi or '+∞'} ({'incl.' if max_inclusive else 'excl.'})"
+        )
 
 
 class _In(Operator):
@@ -294,8 +329,11 @@ class _Truth(Operator):
         want = self.name == "true"
         if raw.dtype.kind == "b":
             return self._decision(raw == want, np.zeros(len(raw), dtype=bool), raw)
-        ok = np.fromiter(((v is want) or (isinstance(v, np.bool_) and bool(v) is want) for v in raw),
-                         dtype=bool, count=len(raw))
+        ok = np.fromiter(
+            ((v is want) or (isinstance(v, np.bool_) and bool(v) is want) for v in raw),
+            dtype=bool,
+            count=len(raw),
+        )
         miss = np.fromiter((is_missing(v) for v in raw), dtype=bool, count=len(raw))
         return self._decision(ok, miss, raw)
 
@@ -313,9 +351,19 @@ def _register(op: Operator) -> None:
     OPERATORS[op.name] = op
 
 
-for _op in (_Order("<", "<"), _Order("<=", "≤"), _Order(">", ">"), _Order(">=", "≥"),
-            _Equality("==", "="), _Equality("!=", "≠"), _Between("between", "between"), _In("in", "in"),
-            _Present("present", "present"), _Truth("true", "true"), _Truth("false", "false")):
+for _op in (
+    _Order("<", "<"),
+    _Order("<=", "≤"),
+    _Order(">", ">"),
+    _Order(">=", "≥"),
+    _Equality("==", "="),
+    _Equality("!=", "≠"),
+    _Between("between", "between"),
+    _In("in", "in"),
+    _Present("present", "present"),
+    _Truth("true", "true"),
+    _Truth("false", "false"),
+):
     _register(_op)
 
 
@@ -324,4 +372,6 @@ def operator(name: str) -> Operator:
     try:
         return OPERATORS[name]
     except KeyError:
-        raise KeyError(f"unknown requirement operator {name!r}; known: {', '.join(OPERATORS)}") from None
+        raise KeyError(
+            f"unknown requirement operator {name!r}; known: {', '.join(OPERATORS)}"
+        ) from None

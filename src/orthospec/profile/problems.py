@@ -50,7 +50,9 @@ def _yaml_problem(path: Path, exc: YamlError) -> Problem:
     m = _YAML_POS.match(text)
     if m:
         return Problem(m["file"], int(m["line"]), int(m["col"]), m["msg"])
-    return Problem(str(path), None, None, text.split(": ", 1)[-1] if text.startswith(str(path)) else text)
+    return Problem(
+        str(path), None, None, text.split(": ", 1)[-1] if text.startswith(str(path)) else text
+    )
 
 
 def _short(msg: str) -> str:
@@ -78,7 +80,11 @@ def _unwrap(t: Any, tag: Any = None) -> Any:
             t = args[0]
             continue
         if origin is Union or str(origin) == "<class 'types.UnionType'>":
-            models = [a for a in (_unwrap(x) for x in args) if isinstance(a, type) and issubclass(a, BaseModel)]
+            models = [
+                a
+                for a in (_unwrap(x) for x in args)
+                if isinstance(a, type) and issubclass(a, BaseModel)
+            ]
             if tag == "override" and RuleOverride in models:
                 return RuleOverride
             if tag == "rule" and Rule in models:
@@ -104,7 +110,11 @@ def _fields_at(loc: tuple[Any, ...]) -> list[str]:
             if f is None:
                 return []
             t = f.annotation
-            if get_origin(_unwrap(t)) is list and i + 2 < len(parts) and parts[i + 2] in ("rule", "override"):
+            if (
+                get_origin(_unwrap(t)) is list
+                and i + 2 < len(parts)
+                and parts[i + 2] in ("rule", "override")
+            ):
                 t = _unwrap(get_args(_unwrap(t))[0], tag=parts[i + 2])
                 i += 3
                 continue
@@ -127,7 +137,9 @@ def _pydantic_problems(doc: Located, exc: ValidationError) -> list[Problem]:
     for e in errors:
         if e["type"] == "extra_forbidden":
             raw_loc = tuple(e["loc"])
-            near = difflib.get_close_matches(str(raw_loc[-1]), _fields_at(raw_loc[:-1]), n=1, cutoff=0.6)
+            near = difflib.get_close_matches(
+                str(raw_loc[-1]), _fields_at(raw_loc[:-1]), n=1, cutoff=0.6
+            )
             if near:
                 suggested.add((*raw_loc[:-1], near[0]))
     for e in errors:
@@ -136,14 +148,20 @@ def _pydantic_problems(doc: Located, exc: ValidationError) -> list[Problem]:
         raw_loc = tuple(e["loc"])
         path = tuple(p for p in raw_loc if not (isinstance(p, str) and p in ("rule", "override")))
         # a union of scalar types reports one error per member type: name the location once
-        path = tuple(p for p in path if p not in ("float", "int", "str", "bool", "list[...]", "dict[...]"))
+        path = tuple(
+            p for p in path if p not in ("float", "int", "str", "bool", "list[...]", "dict[...]")
+        )
         line, col = doc.where(path)
         loc = "/".join(str(p) for p in path) or "(document)"
         if e["type"] == "extra_forbidden":
             key = str(path[-1])
             allowed = _fields_at(raw_loc[:-1])
             near = difflib.get_close_matches(key, allowed, n=1, cutoff=0.6)
-            hint = f"; did you mean {near[0]!r}?" if near else (f"; allowed: {', '.join(allowed)}" if allowed else "")
+            hint = (
+                f"; did you mean {near[0]!r}?"
+                if near
+                else (f"; allowed: {', '.join(allowed)}" if allowed else "")
+            )
             if key.isdigit():  # `{value: 1,0}`: in a {flow mapping} the comma splits the number
                 hint = _split_number_hint(doc, path, key)
             msg = f"{loc}: unknown key {key!r}{hint}"
@@ -151,7 +169,9 @@ def _pydantic_problems(doc: Located, exc: ValidationError) -> list[Problem]:
             msg = f"{loc}: extends pins the version it builds on{_versions_hint(doc)}"
         else:
             got = e.get("input")
-            shown = "" if isinstance(got, dict | list) or got is None else f" (got {_short(repr(got))})"
+            shown = (
+                "" if isinstance(got, dict | list) or got is None else f" (got {_short(repr(got))})"
+            )
             msg = f"{loc}: {e['msg']}{shown}"
         out.append(Problem(doc.file, line, col, msg, _rule_at(doc, path)))
     return out
@@ -164,8 +184,10 @@ def _versions_hint(doc: Located) -> str:
     versions = sorted({v for i, v, _, _ in available() if i == pid}, key=_semver_key) if pid else []
     if not versions:
         return " (write `extends: {id: ..., version: ...}`)"
-    return (f": write `extends: {{id: {pid}, version: {versions[-1]}}}` (a later {pid} is then never picked up "
-            "silently)")
+    return (
+        f": write `extends: {{id: {pid}, version: {versions[-1]}}}` (a later {pid} is then never picked up "
+        "silently)"
+    )
 
 
 def _split_number_hint(doc: Located, path: tuple[Any, ...], key: str) -> str:
@@ -180,11 +202,19 @@ def _split_number_hint(doc: Located, path: tuple[Any, ...], key: str) -> str:
     if isinstance(parent, dict) and key in parent:
         keys = list(parent)
         i = keys.index(key)
-        if i > 0 and isinstance(parent[keys[i - 1]], int) and not isinstance(parent[keys[i - 1]], bool):
+        if (
+            i > 0
+            and isinstance(parent[keys[i - 1]], int)
+            and not isinstance(parent[keys[i - 1]], bool)
+        ):
             prev, whole = keys[i - 1], parent[keys[i - 1]]
-            return (f": a decimal comma inside {{...}} splits the number (`{prev}: {whole},{key}` reads as "
-                    f"{prev} {whole} and a key '{key}'); write {whole}.{key}")
-    return ": a decimal comma inside {...} splits a number (`1,0` reads as 1 and a key '0'); write 1.0"
+            return (
+                f": a decimal comma inside {{...}} splits the number (`{prev}: {whole},{key}` reads as "
+                f"{prev} {whole} and a key '{key}'); write {whole}.{key}"
+            )
+    return (
+        ": a decimal comma inside {...} splits a number (`1,0` reads as 1 and a key '0'); write 1.0"
+    )
 
 
 def parse_profile(doc: Located) -> tuple[Profile | None, list[Problem]]:
@@ -192,8 +222,14 @@ def parse_profile(doc: Located) -> tuple[Profile | None, list[Problem]]:
     if not isinstance(doc.data, dict):
         return None, [Problem(doc.file, 1, 1, "a profile must be a YAML mapping")]
     if "orthospec_profile" not in doc.data:
-        return None, [Problem(doc.file, 1, 1, "not an orthospec spec profile (it has no "
-                              "'orthospec_profile: 1' key)")]
+        return None, [
+            Problem(
+                doc.file,
+                1,
+                1,
+                "not an orthospec spec profile (it has no 'orthospec_profile: 1' key)",
+            )
+        ]
     try:
         prof = Profile.model_validate(doc.data)
     except ValidationError as exc:

@@ -66,7 +66,9 @@ class Removal:
 
 
 def canonical_dumps(obj: Any) -> str:
-    return json.dumps(obj, sort_keys=True, separators=(",", ":"), ensure_ascii=False, allow_nan=False)
+    return json.dumps(
+        obj, sort_keys=True, separators=(",", ":"), ensure_ascii=False, allow_nan=False
+    )
 
 
 @dataclass
@@ -93,7 +95,9 @@ class _Sites:
     def param_where(self, name: str, key: str | None = None) -> tuple[str, int | None, int | None]:
         docs = self.params.get(name) or []
         for doc in reversed(docs):
-            pd = (doc.data.get("parameters") or {}).get(name) if isinstance(doc.data, dict) else None
+            pd = (
+                (doc.data.get("parameters") or {}).get(name) if isinstance(doc.data, dict) else None
+            )
             if key is None or (isinstance(pd, dict) and key in pd):
                 return (doc.file, *doc.where(("parameters", name, *((key,) if key else ()))))
         return (self.top.file if self.top else "?", None, None)

@@ -26,9 +26,11 @@ def profile_schema() -> dict[str, Any]:
     s["$schema"] = "https://json-schema.org/draft/2020-12/schema"
     s["$id"] = SCHEMA_BASE + "profile.schema.json"
     s["title"] = "orthospec spec profile"
-    s["description"] = ("A versioned YAML spec profile: parameters the tender fixes, lookup tables, "
-                        "classes and rules with clause, quote, scope, measure, requirement, level and "
-                        "consequence. See docs/ARCHITECTURE.md.")
+    s["description"] = (
+        "A versioned YAML spec profile: parameters the tender fixes, lookup tables, "
+        "classes and rules with clause, quote, scope, measure, requirement, level and "
+        "consequence. See docs/ARCHITECTURE.md."
+    )
     return s
 
 

@@ -70,8 +70,10 @@ def manifest_path_problem(name: str) -> str | None:
                 f"; manifest.{parent} has {', '.join(children)}")
     else:
         hint = f"; did you mean 'manifest.{near[0]}'?" if near else ""
-    return (f"{name!r} is not a key the delivery manifest defines (specs/schema/delivery.schema.json): "
-            f"a rule may read only what a delivery can state in its schema{hint}")
+    return (
+        f"{name!r} is not a key the delivery manifest defines (specs/schema/delivery.schema.json): "
+        f"a rule may read only what a delivery can state in its schema{hint}"
+    )
 
 
 def _parse(text: str) -> expr.Expression:
@@ -100,8 +102,16 @@ def semantic_problems(p: ResolvedProfile, *, check_measures: bool = True) -> lis
 
     numeric_units = _parameter_problems(p, add_param)
     _class_problems(p, out)
-    checks = _RuleChecks(p, set(p.parameters) | {f"class.{c}" for c in p.classes}, check_measures,
-                         measure_info, add, numeric_units, out, sites)
+    checks = _RuleChecks(
+        p,
+        set(p.parameters) | {f"class.{c}" for c in p.classes},
+        check_measures,
+        measure_info,
+        add,
+        numeric_units,
+        out,
+        sites,
+    )
     read_params: set[str] = set()
     mandatory = 0
     for r in p.rules:
@@ -113,14 +123,26 @@ def semantic_problems(p: ResolvedProfile, *, check_measures: bool = True) -> lis
         if not sites.inherited_params:
             break
         near = difflib.get_close_matches(name, sorted(sites.inherited_params), n=1, cutoff=0.6)
-        hint = (f"; did you mean {near[0]!r} (inherited)? As written, the inherited {near[0]} keeps its "
-                "value") if near else ""
+        hint = (
+            (
+                f"; did you mean {near[0]!r} (inherited)? As written, the inherited {near[0]} keeps its "
+                "value"
+            )
+            if near
+            else ""
+        )
         add_param(name, None, f"parameter {name} is defined here but no rule reads it{hint}")
     if mandatory == 0 and not p.allow_no_mandatory:
         top = sites.top
-        out.append(Problem(top.file if top else str(p.path), 1 if top else None, 1 if top else None,
-                           f"profile {p.id} has no mandatory rule, so it would accept every delivery; "
-                           "add one, or say so explicitly with `allow_no_mandatory: true`"))
+        out.append(
+            Problem(
+                top.file if top else str(p.path),
+                1 if top else None,
+                1 if top else None,
+                f"profile {p.id} has no mandatory rule, so it would accept every delivery; "
+                "add one, or say so explicitly with `allow_no_mandatory: true`",
+            )
+        )
     return out
 
 
@@ -139,8 +161,13 @@ def _parameter_problems(p: ResolvedProfile, add_param: Any) -> dict[str, str]:
         for key in ("value", "default"):
             v = getattr(par, key)
             if v is not None and par.choices is not None and v not in par.choices:
-                add_param(name, key, f"parameter {name}: {key} {v!r} is not one of "
-                          f"{', '.join(map(str, par.choices))}" + _did_you_mean(str(v), map(str, par.choices)))
+                add_param(
+                    name,
+                    key,
+                    f"parameter {name}: {key} {v!r} is not one of "
+                    f"{', '.join(map(str, par.choices))}"
+                    + _did_you_mean(str(v), map(str, par.choices)),
+                )
             elif isinstance(v, str) and unit == "text" and name.endswith("_crs"):
                 why = _crs_problem(v)
                 if why:
@@ -219,10 +246,18 @@ def _rule_problems(r: Rule, c: _RuleChecks) -> set[str]:
     elif c.check_measures:
         info = c.measure_info(r.measure)
         if info is None:
-            add(r, ("measure",), f"unknown measure {r.measure!r}{_near_measure(r.measure)} "
-                "(see `orthospec measures`)")
+            add(
+                r,
+                ("measure",),
+                f"unknown measure {r.measure!r}{_near_measure(r.measure)} "
+                "(see `orthospec measures`)",
+            )
         elif info[0] != r.scope:  # located at the measure: an override that swaps it is the cause
-            add(r, ("measure",), f"measure {r.measure!r} is at scope {info[0]!r}, rule says {r.scope!r}")
+            add(
+                r,
+                ("measure",),
+                f"measure {r.measure!r} is at scope {info[0]!r}, rule says {r.scope!r}",
+            )
     req = r.requirement
     req_numeric = req.unit is not None and req.unit not in NON_NUMERIC and req.unit != "any"
     if req_numeric:
@@ -283,8 +318,11 @@ def _threshold_problems(r: Rule, c: _RuleChecks, req_numeric: bool) -> set[str]:
         try:
             e = _parse(v)
         except ExpressionError as exc:
-            hint = " (a threshold is a number such as 1.0, or an expression over parameters)" \
-                if numeric_threshold else ""
+            hint = (
+                " (a threshold is a number such as 1.0, or an expression over parameters)"
+                if numeric_threshold
+                else ""
+            )
             add(r, ("requirement", key), f"{exc}{hint}{_single_equals(v)}")
             continue
         _check_names(r, ("requirement", key), e, c.known, c.check_measures, c.measure_info, add)
@@ -292,8 +330,9 @@ def _threshold_problems(r: Rule, c: _RuleChecks, req_numeric: bool) -> set[str]:
         used = params_named(e.names, c.p.parameters)
         read |= used
         if req_numeric and used and req.unit is not None:
-            _check_dimensions(r, key, v, e, used, c.numeric_units, req.unit, c.unit_ok, c.out,
-                              c.sites)
+            _check_dimensions(
+                r, key, v, e, used, c.numeric_units, req.unit, c.unit_ok, c.out, c.sites
+            )
     return read
 
 
@@ -322,7 +361,9 @@ def _test_problems(p: ResolvedProfile, sites: _Sites, *, paths: bool = True) -> 
 
     def add(i: int, key: tuple[Any, ...], msg: str) -> None:
         line, col = top.where(("tests", i, *key)) if top is not None else (None, None)
-        out.append(Problem(top.file if top is not None else str(p.path), line, col, f"tests[{i}]: {msg}"))
+        out.append(
+            Problem(top.file if top is not None else str(p.path), line, col, f"tests[{i}]: {msg}")
+        )
 
     here = p.path.parent
     rule_ids = {r.id for r in p.rules}
@@ -331,48 +372,91 @@ def _test_problems(p: ResolvedProfile, sites: _Sites, *, paths: bool = True) -> 
         if not paths:
             pass
         elif not folder.is_dir():
-            add(i, ("delivery",), f"delivery folder {t.delivery!r} not found (paths are relative to the profile "
-                f"file's folder {str(here)!r}){_near_path(folder)}")
+            add(
+                i,
+                ("delivery",),
+                f"delivery folder {t.delivery!r} not found (paths are relative to the profile "
+                f"file's folder {str(here)!r}){_near_path(folder)}",
+            )
         elif not (folder / "delivery.yaml").is_file():
             add(i, ("delivery",), f"{t.delivery!r} is not a delivery (it has no delivery.yaml)")
         checker = here / t.checker if t.checker is not None else None
-        if paths and checker is not None and not (
-            checker.is_file() or (checker / "checker.yaml").is_file()
+        if (
+            paths
+            and checker is not None
+            and not (checker.is_file() or (checker / "checker.yaml").is_file())
         ):
-            add(i, ("checker",), f"checker file or folder {t.checker!r} not found (relative to the profile file's folder)"
-                + _near_path(checker))
+            add(
+                i,
+                ("checker",),
+                f"checker file or folder {t.checker!r} not found (relative to the profile file's folder)"
+                + _near_path(checker),
+            )
         for name, given in t.params.items():
             par = p.parameters.get(name)
             if par is None:
-                add(i, ("params", name), f"params: profile {p.id} has no parameter {name!r}"
-                    + _did_you_mean(name, p.parameters))
+                add(
+                    i,
+                    ("params", name),
+                    f"params: profile {p.id} has no parameter {name!r}"
+                    + _did_you_mean(name, p.parameters),
+                )
                 continue
             own = par.value if par.value is not None else par.default
-            if (len(p.chain) > 1 and not par.checker_may_set and own is not None
-                    and isinstance(given, int | float) and isinstance(own, int | float)
-                    and not isinstance(given, bool) and float(given) != float(own)):
-                add(i, ("params", name), f"params: {name} = {given} differs from {own}, the value this tender "
+            if (
+                len(p.chain) > 1
+                and not par.checker_may_set
+                and own is not None
+                and isinstance(given, int | float)
+                and isinstance(own, int | float)
+                and not isinstance(given, bool)
+                and float(given) != float(own)
+            ):
+                add(
+                    i,
+                    ("params", name),
+                    f"params: {name} = {given} differs from {own}, the value this tender "
                     "fixes; the check would stop (the contract wins): leave it out, or mark the parameter "
-                    "`checker_may_set: true`")
+                    "`checker_may_set: true`",
+                )
         extra = sorted(set(t.expect) - {"verdict", "rules"})
         if extra:
-            add(i, ("expect", extra[0]), f"expect: unknown key {extra[0]!r}; expect holds verdict and rules")
+            add(
+                i,
+                ("expect", extra[0]),
+                f"expect: unknown key {extra[0]!r}; expect holds verdict and rules",
+            )
         verdict = t.expect.get("verdict")
         if verdict is not None and verdict not in _VERDICTS_EXPECTED:
-            add(i, ("expect", "verdict"), f"expect: verdict {verdict!r} is not one of {', '.join(_VERDICTS_EXPECTED)}"
-                + _did_you_mean(str(verdict), _VERDICTS_EXPECTED))
+            add(
+                i,
+                ("expect", "verdict"),
+                f"expect: verdict {verdict!r} is not one of {', '.join(_VERDICTS_EXPECTED)}"
+                + _did_you_mean(str(verdict), _VERDICTS_EXPECTED),
+            )
         rules = t.expect.get("rules") or {}
         if not isinstance(rules, dict):
-            add(i, ("expect", "rules"), "expect: rules maps a rule id to the verdict expected, e.g. "
-                "{JRC-12.7-RMSEX: pass}")
+            add(
+                i,
+                ("expect", "rules"),
+                "expect: rules maps a rule id to the verdict expected, e.g. {JRC-12.7-RMSEX: pass}",
+            )
             continue
         for rid, want in rules.items():
             if rid not in rule_ids:
-                add(i, ("expect", "rules", rid), f"expect: profile {p.id} has no rule {rid!r}"
-                    + _did_you_mean(str(rid), rule_ids))
+                add(
+                    i,
+                    ("expect", "rules", rid),
+                    f"expect: profile {p.id} has no rule {rid!r}"
+                    + _did_you_mean(str(rid), rule_ids),
+                )
             elif want not in VERDICTS:
-                add(i, ("expect", "rules", rid), f"expect: {rid}: verdict {want!r} is not one of "
-                    f"{', '.join(VERDICTS)}" + _did_you_mean(str(want), VERDICTS))
+                add(
+                    i,
+                    ("expect", "rules", rid),
+                    f"expect: {rid}: verdict {want!r} is not one of "
+                    f"{', '.join(VERDICTS)}" + _did_you_mean(str(want), VERDICTS),
+                )
     return out
 
 
@@ -390,8 +474,11 @@ def _near_path(path: Path) -> str:
     except OSError:
         return ""
     near = difflib.get_close_matches(path.name, names, n=1, cutoff=0.8)
-    return f"; {str(parent / near[0])!r} exists" if near and parent != path.parent else (
-        f"; did you mean {near[0]!r}?" if near and near[0] != path.name else "")
+    return (
+        f"; {str(parent / near[0])!r} exists"
+        if near and parent != path.parent
+        else (f"; did you mean {near[0]!r}?" if near and near[0] != path.name else "")
+    )
 
 
 def params_named(names: Any, params: Mapping[str, Any]) -> set[str]:
@@ -404,35 +491,62 @@ def params_named(names: Any, params: Mapping[str, Any]) -> set[str]:
     return out
 
 
-def _check_names(rule: Rule, key: tuple[str, ...], e: expr.Expression, known: set[str], check_measures: bool,
-                 measure_info: Any, add: Any) -> None:
+def _check_names(
+    rule: Rule,
+    key: tuple[str, ...],
+    e: expr.Expression,
+    known: set[str],
+    check_measures: bool,
+    measure_info: Any,
+    add: Any,
+) -> None:
     for n in e.names:
         if n in known or n.startswith("manifest.") or n.startswith("param."):
             continue
         if not check_measures or measure_info(n) is not None:
             continue
-        add(rule, key, f"expression {e.source!r} names {n!r}, which is neither a parameter nor a measure"
-            + _did_you_mean(n, known, "parameter"))
+        add(
+            rule,
+            key,
+            f"expression {e.source!r} names {n!r}, which is neither a parameter nor a measure"
+            + _did_you_mean(n, known, "parameter"),
+        )
 
 
-def _check_dimensions(r: Rule, key: str, text: str, e: expr.Expression, used: set[str],
-                      numeric_units: dict[str, str], req_unit: str, memo: dict[tuple[str, str], str | None],
-                      out: list[Problem], sites: _Sites) -> None:
+def _check_dimensions(
+    r: Rule,
+    key: str,
+    text: str,
+    e: expr.Expression,
+    used: set[str],
+    numeric_units: dict[str, str],
+    req_unit: str,
+    memo: dict[tuple[str, str], str | None],
+    out: list[Problem],
+    sites: _Sites,
+) -> None:
     """The unit an expression over parameters yields must meet the requirement's unit (px meets m)."""
     from ..units import UnitProbe, probe_meets
 
-    if any(not (n in numeric_units or (n.startswith("param.") and n[6:] in numeric_units)) for n in e.names):
+    if any(
+        not (n in numeric_units or (n.startswith("param.") and n[6:] in numeric_units))
+        for n in e.names
+    ):
         return  # reads measures, manifest facts or text parameters: checked when evaluated
     sig = (text, req_unit + "|" + ",".join(f"{n}={numeric_units[n]}" for n in sorted(used)))
     if sig not in memo:
-        env = {n: UnitProbe.of(numeric_units[n[6:] if n.startswith("param.") else n]) for n in e.names}
+        env = {
+            n: UnitProbe.of(numeric_units[n[6:] if n.startswith("param.") else n]) for n in e.names
+        }
         units = ", ".join(f"{n} is in {numeric_units[n]!r}" for n in sorted(used))
         why: str | None = None
         try:
             got = e.evaluate(env)
             if not probe_meets(got, req_unit):
-                why = (f"requirement {key} {text!r} yields {got.units.describe()} ({units}), which cannot be "
-                       f"compared with the rule's unit {req_unit!r}")
+                why = (
+                    f"requirement {key} {text!r} yields {got.units.describe()} ({units}), which cannot be "
+                    f"compared with the rule's unit {req_unit!r}"
+                )
         except (ExpressionError, UnitError, ValueError, TypeError) as exc:
             why = f"requirement {key} {text!r}: units do not combine ({units}): {exc}"
         memo[sig] = why
@@ -440,8 +554,11 @@ def _check_dimensions(r: Rule, key: str, text: str, e: expr.Expression, used: se
         name = sorted(used)[0]
         file, line, col = sites.param_where(name, "unit")
         rfile, rline, _ = sites.rule_where(r.id, ("requirement",))
-        out.append(Problem(file, line, col, f"parameter {name}: {memo[sig]} (rule {r.id} at "
-                           f"{rfile}:{rline})"))
+        out.append(
+            Problem(
+                file, line, col, f"parameter {name}: {memo[sig]} (rule {r.id} at {rfile}:{rline})"
+            )
+        )
 
 
 def _constant_when(e: expr.Expression, text: str) -> str:
@@ -451,15 +568,20 @@ def _constant_when(e: expr.Expression, text: str) -> str:
     except (ExpressionError, ArithmeticError, TypeError, ValueError):
         value = None
     if value is False:
-        return (f"condition {text!r} reads no fact and is always false: the rule would never apply; to take a rule "
-                "out, list it in remove_rules with a justification")
+        return (
+            f"condition {text!r} reads no fact and is always false: the rule would never apply; to take a rule "
+            "out, list it in remove_rules with a justification"
+        )
     return f"condition {text!r} reads no fact and is always {'true' if value else 'the same'}: leave `when` out"
 
 
 def _single_equals(text: str) -> str:
     """The hint for ``a = b`` written for ``a == b`` (the grammar has no assignment)."""
-    return "; compare with `==` (a single `=` is not an operator)" \
-        if re.search(r"(?<![=!<>])=(?!=)", text) else ""
+    return (
+        "; compare with `==` (a single `=` is not an operator)"
+        if re.search(r"(?<![=!<>])=(?!=)", text)
+        else ""
+    )
 
 
 def _near_measure(name: str) -> str:

@@ -1,5 +1,6 @@
 """`orthospec init DIR [--profile ID --sensor aerial|satellite]`: a delivery template that validates
-as written (in spec/: it is what a profile reads, written in the delivery convention). With a profile, it holds every table, column and document that profile reads for that
+as written (in spec/: it is what a profile reads, written in the delivery convention). With a
+profile, it holds every table, column and document that profile reads for that
 sensor (required and optional marked in TEMPLATE.md and in the manifest's comments); the manifest
 points at a local copy of the JSON Schema (an editor validates it offline)."""
 
@@ -72,23 +73,39 @@ NEEDS: dict[str, tuple[tuple[str, ...], ...]] = {
     "gcps.": (("table", "gcps"), ("blocks",)),
     "camera.": (("table", "cameras"),),
     "flight.": (("table", "flights"), ("column", "images", "roll")),
-    "geometry.gsd_from_flying_height": (("column", "images", "flying_height"), ("table", "cameras"),
-                                        ("column", "images", "flight_id")),
-    "derived.photo_coverage": (("table", "flights"), ("table", "cameras"), ("column", "images", "exposure_x"),
-                               ("column", "images", "flying_height")),
-    "derived.area_of_interest_agrees": (("manifest", "project.area_of_interest"),
-                                        ("checker", "area_of_interest")),
+    "geometry.gsd_from_flying_height": (
+        ("column", "images", "flying_height"),
+        ("table", "cameras"),
+        ("column", "images", "flight_id"),
+    ),
+    "derived.photo_coverage": (
+        ("table", "flights"),
+        ("table", "cameras"),
+        ("column", "images", "exposure_x"),
+        ("column", "images", "flying_height"),
+    ),
+    "derived.area_of_interest_agrees": (
+        ("manifest", "project.area_of_interest"),
+        ("checker", "area_of_interest"),
+    ),
     "derived.block_outlines_agree": (("blocks",), ("checker", "blocks")),
     "derived.project_crs_agrees": (("manifest", "project.crs"), ("param", "map_crs")),
     "derived.resolution_class_agrees": (("table", "scenes"),),
     "derived.master_images": (("table", "scenes"),),
     "derived.is_master": (("table", "scenes"),),
     "demfile.": (("table", "dem"),),
-    "derived.orthorectification": (("blocks",), ("manifest", "blocks.method"),
-                                   ("manifest", "product.orthorectification")),
+    "derived.orthorectification": (
+        ("blocks",),
+        ("manifest", "blocks.method"),
+        ("manifest", "product.orthorectification"),
+    ),
     "derived.dem_blocks": (("table", "dem"),),
     "derived.": (),
-    "mosaic.": (("manifest", "vectors.seamlines"), ("blocks",), ("manifest", "project.area_of_interest")),
+    "mosaic.": (
+        ("manifest", "vectors.seamlines"),
+        ("blocks",),
+        ("manifest", "project.area_of_interest"),
+    ),
     "edge.": (("manifest", "edge_targets"),),
     "seamline.": (("manifest", "vectors.seamlines"), ("manifest", "vectors.seamlines.image_id")),
     "acquisition.": (("column", "images", "exposure_time"), ("manifest", "dates")),
@@ -97,6 +114,7 @@ NEEDS: dict[str, tuple[tuple[str, ...], ...]] = {
 }
 _NAME = re.compile(r"\b([a-z_][a-z_0-9]*(?:\.[a-z_][a-z_0-9]*)+)\b")
 _WORD = re.compile(r"\b([a-z_][a-z_0-9]*)\b")
+
 
 def rule_inputs(rule: Any, params: Iterable[str]) -> list[tuple[str, ...]]:
     """The delivery facts a rule reads (see :data:`NEEDS`), in the order it reads them."""
@@ -136,7 +154,9 @@ def rule_inputs(rule: Any, params: Iterable[str]) -> list[tuple[str, ...]]:
     return seen
 
 
-def profile_needs(profile: str, sensor: str) -> tuple[dict[str, dict[str, list[str]]], dict[str, str]]:
+def profile_needs(
+    profile: str, sensor: str
+) -> tuple[dict[str, dict[str, list[str]]], dict[str, str]]:
     """What ``profile`` reads for ``sensor``: {table: {column: [rule ids]}} and {document: level}
     (from :func:`rule_inputs`, the reading ``init --from`` builds its TODO.md on)."""
     prof = load_profile(profile)
@@ -162,7 +182,9 @@ def profile_needs(profile: str, sensor: str) -> tuple[dict[str, dict[str, list[s
     return tables, documents
 
 
-def write_template(folder: Path, *, profile: str | None = None, sensor: str = "aerial") -> list[Path]:
+def write_template(
+    folder: Path, *, profile: str | None = None, sensor: str = "aerial"
+) -> list[Path]:
     from ..resources import specs_dir
 
     folder = Path(folder)
@@ -174,10 +196,14 @@ def write_template(folder: Path, *, profile: str | None = None, sensor: str = "a
     (folder / "images").mkdir(exist_ok=True)
     written = []
     lines = []
-    guide = [f"# Delivery template{f' for {profile} ({sensor})' if profile else ''}", "",
-             "Every table below is a CSV file under tables/ (header row written). Columns marked "
-             "*required* must be present; *optional* ones are read when given (a rule that needs a "
-             "missing value records `missing`, never `pass`).", ""]
+    guide = [
+        f"# Delivery template{f' for {profile} ({sensor})' if profile else ''}",
+        "",
+        "Every table below is a CSV file under tables/ (header row written). Columns marked "
+        "*required* must be present; *optional* ones are read when given (a rule that needs a "
+        "missing value records `missing`, never `pass`).",
+        "",
+    ]
     for name in specs:
         if name not in needs:
             continue
@@ -190,26 +216,55 @@ def write_template(folder: Path, *, profile: str | None = None, sensor: str = "a
         if not p.exists():
             p.write_text(",".join(cols) + "\n", encoding="utf-8")
             written.append(p)
-        guide += [f"## {name} ({rel}): {spec.description}", "", "| column | required | unit | description |",
-                  "|---|---|---|---|"]
+        guide += [
+            f"## {name} ({rel}): {spec.description}",
+            "",
+            "| column | required | unit | description |",
+            "|---|---|---|---|",
+        ]
         for c in cols:
             cs = spec.columns[c]
-            used = f" Read by {', '.join(sorted(set(read.get(c, []))))[:200]}." if read.get(c) else ""
-            guide.append(f"| {c} | {'required' if cs.required else 'optional'} | {cs.unit or ''} | "
-                         f"{cs.description}{used} |")
+            used = (
+                f" Read by {', '.join(sorted(set(read.get(c, []))))[:200]}." if read.get(c) else ""
+            )
+            guide.append(
+                f"| {c} | {'required' if cs.required else 'optional'} | {cs.unit or ''} | "
+                f"{cs.description}{used} |"
+            )
         guide.append("")
     docs = ""
     if documents:
-        docs = "documents:                          # files under documents/ (required / recommended)\n" + "".join(
-            f"  {k}: documents/{k}.pdf{' ' * max(1, 24 - len(k) * 2)}# {v}\n" for k, v in sorted(documents.items()))
-        guide += ["## documents", "", "| document | level |", "|---|---|",
-                  *(f"| {k} | {v} |" for k, v in sorted(documents.items())), ""]
+        docs = (
+            "documents:                          # files under documents/ (required / recommended)\n"
+            + "".join(
+                f"  {k}: documents/{k}.pdf{' ' * max(1, 24 - len(k) * 2)}# {v}\n"
+                for k, v in sorted(documents.items())
+            )
+        )
+        guide += [
+            "## documents",
+            "",
+            "| document | level |",
+            "|---|---|",
+            *(f"| {k} | {v} |" for k, v in sorted(documents.items())),
+            "",
+        ]
     m = folder / "delivery.yaml"
-    m.write_text(MANIFEST_TEMPLATE.format(name=folder.name, tables="\n".join(lines), profile=profile or "jrc-v3",
-                                          sensor=sensor, documents=docs), encoding="utf-8")
+    m.write_text(
+        MANIFEST_TEMPLATE.format(
+            name=folder.name,
+            tables="\n".join(lines),
+            profile=profile or "jrc-v3",
+            sensor=sensor,
+            documents=docs,
+        ),
+        encoding="utf-8",
+    )
     schema = folder / "delivery.schema.json"
-    schema.write_text((specs_dir() / "schema" / "delivery.schema.json").read_text(encoding="utf-8"),
-                      encoding="utf-8")
+    schema.write_text(
+        (specs_dir() / "schema" / "delivery.schema.json").read_text(encoding="utf-8"),
+        encoding="utf-8",
+    )
     g = folder / "TEMPLATE.md"
     g.write_text("\n".join(guide), encoding="utf-8")
     return [m, schema, g, *written]

@@ -60,8 +60,13 @@ def requirement_text(req: Requirement, resolved: dict[str, Any]) -> str:
     with one threshold for 1,000,000 check points builds it once).
     """
     try:
-        key = (id(req), _memo_part(resolved.get("unit")), _memo_part(resolved.get("min")),
-               _memo_part(resolved.get("max")), _memo_part(resolved.get("value")))
+        key = (
+            id(req),
+            _memo_part(resolved.get("unit")),
+            _memo_part(resolved.get("min")),
+            _memo_part(resolved.get("max")),
+            _memo_part(resolved.get("value")),
+        )
         hit = _TEXT_MEMO.get(key)
     except TypeError:  # an unhashable resolved value: build the text directly
         return _requirement_text(req, resolved)
@@ -93,8 +98,14 @@ def _requirement_text(req: Requirement, resolved: dict[str, Any]) -> str:
         return f"{fmt_value(val)}{suffix}"
 
     op = operator(req.op)
-    return op.text(show("value"), lo=show("min"), hi=show("max"), min_inclusive=req.min_inclusive,
-                   max_inclusive=req.max_inclusive, values=[fmt_value(v) for v in req.values or []])
+    return op.text(
+        show("value"),
+        lo=show("min"),
+        hi=show("max"),
+        min_inclusive=req.min_inclusive,
+        max_inclusive=req.max_inclusive,
+        values=[fmt_value(v) for v in req.values or []],
+    )
 
 
 # --- the requirement in force before a delivery is read (annex, `explain`, `spec diff`) -----------
@@ -108,9 +119,13 @@ def param_value(p: Any) -> Any:
     return p.value if p.value is not None else p.default
 
 
-def profile_thresholds(req: Requirement, params: Mapping[str, Any], *,
-                       evaluate: Callable[[str, dict[str, Any]], Any] | None = None,
-                       words: Callable[[str], str] | None = None) -> dict[str, Any]:
+def profile_thresholds(
+    req: Requirement,
+    params: Mapping[str, Any],
+    *,
+    evaluate: Callable[[str, dict[str, Any]], Any] | None = None,
+    words: Callable[[str], str] | None = None,
+) -> dict[str, Any]:
     """The thresholds of ``req`` as the profile's parameters fix them, as ``requirement_text`` takes
     them: a bare parameter name gives its value (or :data:`UNFIXED`); an expression over parameters
     gives ``evaluate(source, {name: value})`` when the caller passes an evaluator (the annex does;

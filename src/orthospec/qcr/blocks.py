@@ -58,11 +58,18 @@ class _Block:
     built per slice of items with list operations (what :func:`_expand` yields as dicts, without
     a dict per item)."""
 
-    def __init__(self, rule: Mapping[str, Any], block: Mapping[str, Any], evidence: list[dict[str, Any]],
-                 compact: Mapping[str, Any]) -> None:
+    def __init__(
+        self,
+        rule: Mapping[str, Any],
+        block: Mapping[str, Any],
+        evidence: list[dict[str, Any]],
+        compact: Mapping[str, Any],
+    ) -> None:
         self.rule = rule
         items = _resolve(block["items"], compact)
-        self.items: list[Any] = list(items) if isinstance(items, list) else []  # as _expand: n = len(items)
+        self.items: list[Any] = (
+            list(items) if isinstance(items, list) else []
+        )  # as _expand: n = len(items)
         self.n = len(self.items)
         self.verdict = _Col(block.get("verdict"), compact)
         self.measured = _Col(block.get("measured"), compact)
@@ -109,12 +116,18 @@ class _Block:
     def messages(self, a: int, b: int) -> list[str] | str:
         """Each item's message: the column's, or the default wording (:func:`_pass_message`) for None;
         one text when it is the same for every item (one measured value and one requirement)."""
-        if self.message.values is None and (self.req is None or self.req.values is None) and \
-                self.measured.values is None:
+        if (
+            self.message.values is None
+            and (self.req is None or self.req.values is None)
+            and self.measured.values is None
+        ):
             text = self.req_texts(a, b)
             msg = self.message.const
-            return _pass_message(self.measure, self.measured.const, self.shown, next(iter(text), "")) \
-                if msg is None else msg
+            return (
+                _pass_message(self.measure, self.measured.const, self.shown, next(iter(text), ""))
+                if msg is None
+                else msg
+            )
         msgs = list(self.message.get(a, b))
         todo = [k for k, m in enumerate(msgs) if m is None]
         if not todo:
@@ -124,8 +137,10 @@ class _Block:
         texts = self.req_texts(a, b)
         texts = texts if isinstance(texts, list) else list(texts)
         if len(todo) == len(msgs):
-            return [f"{head}{f'{v:.6g}' if type(v) is float else _fmt(v)}{tail}{t}"
-                    for v, t in zip(measured, texts, strict=True)]
+            return [
+                f"{head}{f'{v:.6g}' if type(v) is float else _fmt(v)}{tail}{t}"
+                for v, t in zip(measured, texts, strict=True)
+            ]
         for k in todo:
             msgs[k] = f"{head}{_fmt(measured[k])}{tail}{texts[k]}"
         return msgs
@@ -137,7 +152,9 @@ class _Block:
             part = self.reason.part(a, b)
             if part is None:
                 return V.reason_of(str(self.verdict.const), self.reason.const) or ""
-            return [V.reason_of(v, x) or "" for v, x in zip(self.verdict.get(a, b), part, strict=True)]
+            return [
+                V.reason_of(v, x) or "" for v, x in zip(self.verdict.get(a, b), part, strict=True)
+            ]
         verdicts = self.verdict.part(a, b)
         if verdicts is None:
             return V.reason_of(str(self.verdict.const)) or ""
@@ -151,9 +168,13 @@ class _Block:
             head = str(base.get("file", "")) + "#rows="
             tail = f"#{base['path']}" if base.get("path") else ""
             rows = col["rows"][a:b]
-            plain = not _CSV_SPECIAL.search(head + tail)  # the row numbers are digits: the cells as they are
+            plain = not _CSV_SPECIAL.search(
+                head + tail
+            )  # the row numbers are digits: the cells as they are
             if plain and csv_safe(head) == head and None not in rows:
-                return _Parts((head, list(map(str, rows)), tail))  # the head and tail merged into the line
+                return _Parts(
+                    (head, list(map(str, rows)), tail)
+                )  # the head and tail merged into the line
             cells = ["" if r is None else f"{head}{r}{tail}" for r in rows]
             if plain:
                 return _Cells(cells) if csv_safe(head) == head else _Cells(map(csv_safe, cells))
@@ -182,15 +203,27 @@ class _Block:
         ev = self.evidence_texts(a, b)
         items = self.items[a:b]
         cols: list[Any] = [
-            rule["rule"], _clause_text(rule.get("citation") or {}), rule.get("scope", ""),
-            items if self.items_plain_csv() else _csv_cells(items), rule.get("level"), rule.get("consequence"),
-            self.verdict.const if verdict is None else _csv_cells(verdict), self.measure,
-            ("" if self.measured.const is None else self.measured.const) if measured is None else
-            [repr(v) if type(v) is float else _csv_cell(v) for v in measured],
-            rule.get("unit") or "", _csv_cells(req) if isinstance(req, list) else next(iter(req), ""),
-            ev if isinstance(ev, _Cells | _Parts) else _csv_cells(ev) if isinstance(ev, list) else next(iter(ev), ""),
+            rule["rule"],
+            _clause_text(rule.get("citation") or {}),
+            rule.get("scope", ""),
+            items if self.items_plain_csv() else _csv_cells(items),
+            rule.get("level"),
+            rule.get("consequence"),
+            self.verdict.const if verdict is None else _csv_cells(verdict),
+            self.measure,
+            ("" if self.measured.const is None else self.measured.const)
+            if measured is None
+            else [repr(v) if type(v) is float else _csv_cell(v) for v in measured],
+            rule.get("unit") or "",
+            _csv_cells(req) if isinstance(req, list) else next(iter(req), ""),
+            ev
+            if isinstance(ev, _Cells | _Parts)
+            else _csv_cells(ev)
+            if isinstance(ev, list)
+            else next(iter(ev), ""),
             _csv_cells(msgs) if isinstance(msgs := self.messages(a, b), list) else msgs,
-            _csv_cells(why) if isinstance(why := self.reasons(a, b), list) else why]
+            _csv_cells(why) if isinstance(why := self.reasons(a, b), list) else why,
+        ]
         return _lines(cols, len(items))
 
 
@@ -210,8 +243,13 @@ def _lines(cols: list[Any], n: int) -> str:
     pieces: list[Any] = []
     for j, c in enumerate(cols):
         sep = "," if j else ""
-        seq = [sep + c[0], c[1], c[2]] if isinstance(c, _Parts) else ([sep, c] if sep else [c]) \
-            if isinstance(c, list) else [sep + _csv_cell(c)]
+        seq = (
+            [sep + c[0], c[1], c[2]]
+            if isinstance(c, _Parts)
+            else ([sep, c] if sep else [c])
+            if isinstance(c, list)
+            else [sep + _csv_cell(c)]
+        )
         for x in seq:
             if isinstance(x, str) and pieces and isinstance(pieces[-1], str):
                 pieces[-1] += x
@@ -230,8 +268,9 @@ def _lines(cols: list[Any], n: int) -> str:
     return "".join(flat)
 
 
-def _rule_parts(doc: Mapping[str, Any]) -> Iterator[tuple[Mapping[str, Any] | None, list[Mapping[str, Any]],
-                                                         _Block | None]]:
+def _rule_parts(
+    doc: Mapping[str, Any],
+) -> Iterator[tuple[Mapping[str, Any] | None, list[Mapping[str, Any]], _Block | None]]:
     """Per rule summary, in document order: the rule, its stored full records, its compact block;
     then the records without a rule summary (rule None) - what :func:`all_records` expands."""
     blocks = doc["compact"] or {}
@@ -242,20 +281,29 @@ def _rule_parts(doc: Mapping[str, Any]) -> Iterator[tuple[Mapping[str, Any] | No
     for summary in doc.get("rules") or []:
         rid = summary["rule"]
         block = blocks.get(rid)
-        yield summary, full.pop(rid, []), (_Block(summary, block, evidence, blocks) if block else None)
+        yield (
+            summary,
+            full.pop(rid, []),
+            (_Block(summary, block, evidence, blocks) if block else None),
+        )
     for rest in full.values():
         yield None, rest, None
 
 
-def _merged(summary: Mapping[str, Any], full: list[Mapping[str, Any]], block: _Block | None
-            ) -> Iterator[tuple[int, int] | dict[str, Any]]:
+def _merged(
+    summary: Mapping[str, Any], full: list[Mapping[str, Any]], block: _Block | None
+) -> Iterator[tuple[int, int] | dict[str, Any]]:
     """A rule's records in :func:`all_records` order: expanded full records (dicts) and slices
     ``(a, b)`` of the compact items between them. The order ``heapq.merge`` gives on the natural
     key (a full record before a compact item of the same key), found by binary search."""
     n = block.n if block is not None else 0
     at = 0
     for rec in full:
-        pos = bisect.bisect_left(block.items, natural_key(rec["item"]), lo=at, key=natural_key) if n else 0
+        pos = (
+            bisect.bisect_left(block.items, natural_key(rec["item"]), lo=at, key=natural_key)
+            if n
+            else 0
+        )
         for a in range(at, pos, BLOCK_CHUNK):
             yield a, min(pos, a + BLOCK_CHUNK)
         at = pos

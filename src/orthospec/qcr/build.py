@@ -61,7 +61,9 @@ class _Evidence:
         self.table: list[dict[str, Any]] = []
         #: id(e) -> (e, kept alive so the id stays its own; its entry; the entry's canonical text)
         self._long: dict[int, tuple[Evidence, dict[str, Any], str]] = {}
-        self._columns: dict[Any, Any] = {}  # (file, column) -> codes and distinct values (selectors)
+        self._columns: dict[
+            Any, Any
+        ] = {}  # (file, column) -> codes and distinct values (selectors)
 
     def _long_entry(self, e: Evidence) -> tuple[Evidence, dict[str, Any], str]:
         hit = self._long.get(id(e))
@@ -83,7 +85,7 @@ class _Evidence:
 
     def ids(self, ev: tuple[Evidence, ...] | list[Evidence]) -> list[int]:
         out = []
-        for e in (sorted(set(ev)) if len(ev) > 1 else ev):
+        for e in sorted(set(ev)) if len(ev) > 1 else ev:
             if len(e.rows) <= ROWS_LISTED_MAX:
                 k = self.index.get(e)
                 out.append(k if k is not None else self._intern(e, e.to_dict()))
@@ -135,8 +137,14 @@ def _selector(d: Any, e: Evidence, cache: dict[Any, Any]) -> dict[str, Any] | No
     at = np.searchsorted(all_rows, rows[0])
     if at >= len(all_rows) or all_rows[at] != rows[0]:
         return None
-    texts = [c for c, cs in table.spec.columns.items() if cs.type == "text" and c in df and c != table.spec.id]
-    for col in sorted(texts, key=lambda c: c != "block"):  # the block column first: the usual grouping
+    texts = [
+        c
+        for c, cs in table.spec.columns.items()
+        if cs.type == "text" and c in df and c != table.spec.id
+    ]
+    for col in sorted(
+        texts, key=lambda c: c != "block"
+    ):  # the block column first: the usual grouping
         codes, values = _factorized(table, col, cache)
         k = int(codes[at])
         if k < 0 or not isinstance(values[k], str):
@@ -179,7 +187,15 @@ class _Shared:
     list, often their evidence) is written as ``{"ref": [rule, column]}`` to that first one."""
 
     MIN_LEN = 4
-    COLUMNS = ("items", "measured", "requirement", "evidence", "message", "waiver_requested", "reason")
+    COLUMNS = (
+        "items",
+        "measured",
+        "requirement",
+        "evidence",
+        "message",
+        "waiver_requested",
+        "reason",
+    )
 
     def __init__(self) -> None:
         #: a cheap fingerprint of a column -> the columns written with it ([rule, column], value)
@@ -192,14 +208,23 @@ class _Shared:
         seq = values if isinstance(values, list) else values["rows"]
         n = len(seq)
         probe = [seq[i] for i in sorted({0, n // 3, n // 2, (2 * n) // 3, n - 1})]
-        return (type(values).__name__, n, json.dumps(probe, sort_keys=True, ensure_ascii=False),
-                json.dumps(values.get("entry") if isinstance(values, dict) else None))
+        return (
+            type(values).__name__,
+            n,
+            json.dumps(probe, sort_keys=True, ensure_ascii=False),
+            json.dumps(values.get("entry") if isinstance(values, dict) else None),
+        )
 
     def apply(self, rule_id: str, block: dict[str, Any]) -> dict[str, Any]:
         for col in self.COLUMNS:
             values = block.get(col)
-            size = (len(values) if isinstance(values, list) else
-                    len(values["rows"]) if isinstance(values, dict) and "entry" in values else 0)
+            size = (
+                len(values)
+                if isinstance(values, list)
+                else len(values["rows"])
+                if isinstance(values, dict) and "entry" in values
+                else 0
+            )
             if size < self.MIN_LEN:
                 continue
             known = self.seen.setdefault(self._fingerprint(values), [])
@@ -236,9 +261,16 @@ class _RuleRecords:
         self.unit = r.unit if r.unit not in ("", "any") else None
         self.shown_unit = _shown_unit(self.unit)
         self.summary: dict[str, Any] = {
-            "rule": rule.id, "title": rule.title, "scope": rule.scope, "level": rule.level,
-            "consequence": rule.consequence, "citation": rule.clause.model_dump(mode="json", exclude_none=True),
-            "quote": rule.quote, "manual": rule.manual, "measure": rule.measure, "unit": self.unit,
+            "rule": rule.id,
+            "title": rule.title,
+            "scope": rule.scope,
+            "level": rule.level,
+            "consequence": rule.consequence,
+            "citation": rule.clause.model_dump(mode="json", exclude_none=True),
+            "quote": rule.quote,
+            "manual": rule.manual,
+            "measure": rule.measure,
+            "unit": self.unit,
             "requirement": self.req,
         }
         if rule.audit is not None:
@@ -246,8 +278,11 @@ class _RuleRecords:
 
     def summary_fields(self) -> dict[str, Any]:
         """What every record of this rule shares: records take it from the rule summary."""
-        return {k: v for k, v in self.summary.items()
-                if k not in ("rule", "title", "scope", "level", "consequence")}
+        return {
+            k: v
+            for k, v in self.summary.items()
+            if k not in ("rule", "title", "scope", "level", "consequence")
+        }
 
     def _measured(self, i: int) -> Any:
         measured = self.r.measured[i]
@@ -280,7 +315,9 @@ class _RuleRecords:
             a = np.asarray(a, dtype=np.float64)
             # one threshold for every item (a stride-0 view): one value, not one per item
             v = a[:1] if a.ndim == 1 and a.size and a.strides[0] == 0 and len(idx) else a[idx]
-            if len(v) > 1 and bool((v == v[0]).all()):  # one threshold for every item (NaN never equals)
+            if len(v) > 1 and bool(
+                (v == v[0]).all()
+            ):  # one threshold for every item (NaN never equals)
                 v = v[:1]
             cols.append(np.where(np.isfinite(v), round_sig(v) + 0.0, np.inf))  # non-finite: null
         rows = max(len(c) for c in cols)  # 1 when every threshold is one value
@@ -289,8 +326,10 @@ class _RuleRecords:
             uniq, inverse = stack[:1], np.zeros(len(idx), dtype=np.int64)
         else:
             uniq, inverse = np.unique(stack, axis=0, return_inverse=True)
-        reqs = [self._with_thresholds(tuple(None if math.isinf(x) else x for x in row))
-                for row in uniq.tolist()]
+        reqs = [
+            self._with_thresholds(tuple(None if math.isinf(x) else x for x in row))
+            for row in uniq.tolist()
+        ]
         if len(reqs) == 1 and reqs[0] == self.req:
             return None
         if len(reqs) == 1:
@@ -310,11 +349,18 @@ class _RuleRecords:
             note = _pass_message(rule.measure, measured, self.shown_unit, req.get("text", ""))
         elif v == WAIVED and r.original is not None:
             w = r.waivers.get(item, {})
-            note = (f"{VERDICTS[int(r.original[i])]} waived: {w.get('justification', '')} "
-                    f"(approved by {w.get('approver', '?')})")
+            note = (
+                f"{VERDICTS[int(r.original[i])]} waived: {w.get('justification', '')} "
+                f"(approved by {w.get('approver', '?')})"
+            )
         elif note is None:
             note = ""
-        rec: dict[str, Any] = {"rule": rule.id, "item": item, "verdict": VERDICTS[v], "measured": measured}
+        rec: dict[str, Any] = {
+            "rule": rule.id,
+            "item": item,
+            "verdict": VERDICTS[v],
+            "measured": measured,
+        }
         if self.arrays is not None:
             rec["requirement"] = req
         rec["evidence"] = self.ev.records(r.evidence[i])
@@ -351,7 +397,11 @@ class _RuleRecords:
         else:
             verdict = [VERDICTS[int(c)] for c in codes.tolist()]
         m = np.asarray(r.measured) if every else np.asarray(r.measured)[idx]
-        measured = _numeric_column(m) if m.dtype.kind in "fiub" else _column([self._measured(int(i)) for i in idx])
+        measured = (
+            _numeric_column(m)
+            if m.dtype.kind in "fiub"
+            else _column([self._measured(int(i)) for i in idx])
+        )
         out: dict[str, Any] = {"items": items, "verdict": verdict, "measured": measured}
         if self.arrays is not None:
             req = self._requirement_column(idx)
@@ -366,11 +416,17 @@ class _RuleRecords:
         if r.reasons is not None:  # a column only where a reason is not its verdict's default
             rs = np.asarray(r.reasons, dtype=object)
             rs = rs if every else rs[idx]
-            other = (codes == NA) & (np.equal(rs, V.Reason.OUTSIDE_SAMPLE) |
-                                     np.equal(rs, V.Reason.PROVIDER_NOT_APPLICABLE)).astype(bool)
+            other = (codes == NA) & (
+                np.equal(rs, V.Reason.OUTSIDE_SAMPLE)
+                | np.equal(rs, V.Reason.PROVIDER_NOT_APPLICABLE)
+            ).astype(bool)
             if other.any():
-                out["reason"] = _column([V.reason_of(VERDICTS[c], x) for c, x in zip(codes.tolist(), rs.tolist(),
-                                                                                    strict=True)])
+                out["reason"] = _column(
+                    [
+                        V.reason_of(VERDICTS[c], x)
+                        for c, x in zip(codes.tolist(), rs.tolist(), strict=True)
+                    ]
+                )
         return out
 
     def _evidence_column(self, idx: np.ndarray, every: bool = False) -> Any:
@@ -386,7 +442,11 @@ class _RuleRecords:
             if not have.any():
                 return _column([[] for _ in range(len(idx))])
             ints = np.where(have, picked, 0).astype(np.int64).tolist()
-            col = ints if have.all() else [x if h else None for x, h in zip(ints, have.tolist(), strict=True)]
+            col = (
+                ints
+                if have.all()
+                else [x if h else None for x, h in zip(ints, have.tolist(), strict=True)]
+            )
             return {"entry": self.ev.file_id(file, sha), "rows": col}
         return _column([self.ev.ids(evs[int(i)]) for i in idx])
 
@@ -401,8 +461,12 @@ class _RuleRecords:
                 return {"all": None}
             if (codes == NA).all():
                 return {"all": ""}
-        return _column([None if nn and c == PASS else ("" if nn else str(note))
-                        for note, nn, c in zip(notes.tolist(), none.tolist(), codes.tolist(), strict=True)])
+        return _column(
+            [
+                None if nn and c == PASS else ("" if nn else str(note))
+                for note, nn, c in zip(notes.tolist(), none.tolist(), codes.tolist(), strict=True)
+            ]
+        )
 
 
 def _sorted_results(ev: Evaluation) -> list[RuleResult]:
@@ -419,8 +483,9 @@ def iter_records(ev: Evaluation) -> Iterable[dict[str, Any]]:
             yield rb.record(int(i))
 
 
-def build_document(ev: Evaluation, *, date: str, operator: str | None = None,
-                   delivery_path: str | None = None) -> dict[str, Any]:
+def build_document(
+    ev: Evaluation, *, date: str, operator: str | None = None, delivery_path: str | None = None
+) -> dict[str, Any]:
     """The QCR document (see docs/QCR.md and specs/schema/qcr.schema.json)."""
     d, p = ev.delivery, ev.profile
     summary = {k: 0 for k in VERDICTS}
@@ -435,12 +500,24 @@ def build_document(ev: Evaluation, *, date: str, operator: str | None = None,
         rb = _RuleRecords(r, evidence)
         bad = np.asarray(r.items, dtype=object)[np.isin(r.verdict, (FAIL, WARN, MISSING, ERROR))]
         offending = [str(bad[i]) for i in natural_order(bad).tolist()]
-        rules.append(stable({
-            "rule": r.rule.id, "title": r.rule.title, "scope": r.rule.scope, "level": r.rule.level,
-            "consequence": r.rule.consequence, "clause": r.rule.clause.text(), "clause_ref": r.rule.clause.ref(),
-            "verdict": VERDICTS[r.worst], "counts": {k: v for k, v in r.counts().items() if v},
-            "offending": offending, "error": r.error, **rb.summary_fields(),
-        }))
+        rules.append(
+            stable(
+                {
+                    "rule": r.rule.id,
+                    "title": r.rule.title,
+                    "scope": r.rule.scope,
+                    "level": r.rule.level,
+                    "consequence": r.rule.consequence,
+                    "clause": r.rule.clause.text(),
+                    "clause_ref": r.rule.clause.ref(),
+                    "verdict": VERDICTS[r.worst],
+                    "counts": {k: v for k, v in r.counts().items() if v},
+                    "offending": offending,
+                    "error": r.error,
+                    **rb.summary_fields(),
+                }
+            )
+        )
         order = _order(r.items, cache)
         codes = np.asarray(r.verdict)[order]
         for code, count in zip(*np.unique(codes, return_counts=True), strict=True):
@@ -460,12 +537,19 @@ def build_document(ev: Evaluation, *, date: str, operator: str | None = None,
         # the checker's file (check --checker): who decided the manual checks and waivers in force
         "checker": ev.checker,
         "profile": {
-            "id": p.id, "version": p.version, "title": p.title, "sha256": p.sha256,
+            "id": p.id,
+            "version": p.version,
+            "title": p.title,
+            "sha256": p.sha256,
             "source": p.source.model_dump(mode="json", exclude_none=True),
             "extends": [{"id": c[0], "version": c[1]} for c in p.chain[1:]],
             "parameters": {k: v.to_dict() for k, v in sorted(ev.parameters.items())},
             # mandatory rules of the standard the tender removed or weakened, with its justification
-            **({"weakened": [w.to_dict() for w in p.weakened]} if getattr(p, "weakened", ()) else {}),
+            **(
+                {"weakened": [w.to_dict() for w in p.weakened]}
+                if getattr(p, "weakened", ())
+                else {}
+            ),
         },
         "delivery": {
             "id": d.id,
@@ -473,7 +557,9 @@ def build_document(ev: Evaluation, *, date: str, operator: str | None = None,
             "manifest_sha256": d.manifest_sha256,
             "project": man.project.model_dump(mode="json", exclude_none=True),
             "contractor": man.contractor.model_dump(mode="json", exclude_none=True),
-            "operator": man.operator.model_dump(mode="json", exclude_none=True) if man.operator else None,
+            "operator": man.operator.model_dump(mode="json", exclude_none=True)
+            if man.operator
+            else None,
             "sensor": man.sensor.model_dump(mode="json", exclude_none=True),
             "dates": {k: str(v) for k, v in sorted(man.dates.items())},
             "files": d.files,
@@ -481,8 +567,11 @@ def build_document(ev: Evaluation, *, date: str, operator: str | None = None,
         "verdict": ev.verdict,
         "fail_on": ev.fail_on,
         "summary": {"rules": len(ev.results), "records": n_records, **summary},
-        "rollup": {"rejected": ev.rejected, "reasons": ev.reasons,
-                   "incomplete": list(getattr(ev, "incomplete", None) or [])},
+        "rollup": {
+            "rejected": ev.rejected,
+            "reasons": ev.reasons,
+            "incomplete": list(getattr(ev, "incomplete", None) or []),
+        },
         "waivers_unused": ev.unused_waivers,
         # checker-file verdicts that judged nothing the delivery lists (red team R15)
         "manual_unused": list(getattr(ev, "manual_unused", None) or []),

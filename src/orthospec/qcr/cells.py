@@ -82,8 +82,10 @@ def evidence_rows(entry: Mapping[str, Any], root: str | Path) -> list[int]:
     rows = rows_where(Path(root) / str(entry["file"]), entry["where"] or {},
                       file=str(entry["file"]), sha256=entry.get("sha256"))
     if len(rows) != entry.get("rows_count", len(rows)):
-        raise OrthospecError(f"{entry['file']}: the selector gives {len(rows)} rows, the record says "
-                             f"{entry.get('rows_count')}")
+        raise OrthospecError(
+            f"{entry['file']}: the selector gives {len(rows)} rows, the record says "
+            f"{entry.get('rows_count')}"
+        )
     return rows
 
 
@@ -158,7 +160,9 @@ def _clause_text(c: Mapping[str, Any]) -> str:
 
 
 #: characters quoteattr/escape or xml_text would change: text without them is written as it is
-_XML_SPECIAL = re.compile("[&<>\"'\n\r\t\x00-\x08\x0b\x0c\x0e-\x1f\x7f-\x84\x86-\x9f\ud800-\udfff\ufffe\uffff]")
+_XML_SPECIAL = re.compile(
+    "[&<>\"'\n\r\t\x00-\x08\x0b\x0c\x0e-\x1f\x7f-\x84\x86-\x9f\ud800-\udfff\ufffe\uffff]"
+)
 #: the ASCII characters :data:`_XML_SPECIAL` matches (bytes.translate deletes them in one C pass)
 _XML_SPECIAL_ASCII = bytes(i for i in range(128) if _XML_SPECIAL.match(chr(i)))
 

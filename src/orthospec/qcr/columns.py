@@ -16,7 +16,9 @@ from ..engine.evaluator import (
 )
 from ..engine.registry import SCOPES
 
-SCHEMA_ID = "orthospec.qcr/3"  # version 3: version 2 + evidence selectors and row columns (docs/QCR.md)
+SCHEMA_ID = (
+    "orthospec.qcr/3"  # version 3: version 2 + evidence selectors and row columns (docs/QCR.md)
+)
 
 SIG_DIGITS = 10
 _SCOPE_ORDER = {s: i for i, s in enumerate(SCOPES)}
@@ -111,7 +113,10 @@ def point_rows(table: Any) -> list[dict[str, Any]]:
         cols = list(table.get("columns") or [])
         data = table.get("data") or {}
         n = max((len(data.get(c) or []) for c in cols), default=0)
-        return [{c: (data[c][i] if c in data and i < len(data[c]) else None) for c in cols} for i in range(n)]
+        return [
+            {c: (data[c][i] if c in data and i < len(data[c]) else None) for c in cols}
+            for i in range(n)
+        ]
     return [dict(p) for p in table]
 
 
@@ -157,17 +162,40 @@ def _shown_unit(unit: str | None) -> str:
     return unit_suffix(unit)
 
 
-def _full(rule: Mapping[str, Any], item: str, verdict: str, measured: Any, requirement: dict[str, Any],
-          evidence: list[dict[str, Any]], message: str, waiver: Any = None, waiver_requested: Any = None,
-          waived_verdict: str | None = None, reason: str | None = None) -> dict[str, Any]:
+def _full(
+    rule: Mapping[str, Any],
+    item: str,
+    verdict: str,
+    measured: Any,
+    requirement: dict[str, Any],
+    evidence: list[dict[str, Any]],
+    message: str,
+    waiver: Any = None,
+    waiver_requested: Any = None,
+    waived_verdict: str | None = None,
+    reason: str | None = None,
+) -> dict[str, Any]:
     """A record as readers see it: what is particular to the item, plus what its rule summary
     holds for every item (title, clause, quote, level, consequence, measure, unit, audit)."""
-    rec = {"rule": rule["rule"], "title": rule.get("title", ""), "clause": rule.get("citation") or {},
-           "quote": rule.get("quote", ""), "scope": rule.get("scope", ""), "item": item,
-           "level": rule.get("level"), "consequence": rule.get("consequence"), "manual": rule.get("manual", False),
-           "verdict": verdict, "measure": rule.get("measure", ""),
-           "measured": {"value": measured, "unit": rule.get("unit")}, "requirement": requirement,
-           "evidence": evidence, "message": message, "waiver": waiver, "waiver_requested": waiver_requested}
+    rec = {
+        "rule": rule["rule"],
+        "title": rule.get("title", ""),
+        "clause": rule.get("citation") or {},
+        "quote": rule.get("quote", ""),
+        "scope": rule.get("scope", ""),
+        "item": item,
+        "level": rule.get("level"),
+        "consequence": rule.get("consequence"),
+        "manual": rule.get("manual", False),
+        "verdict": verdict,
+        "measure": rule.get("measure", ""),
+        "measured": {"value": measured, "unit": rule.get("unit")},
+        "requirement": requirement,
+        "evidence": evidence,
+        "message": message,
+        "waiver": waiver,
+        "waiver_requested": waiver_requested,
+    }
     if waived_verdict is not None:
         rec["waived_verdict"] = waived_verdict
     if rule.get("audit") is not None:
@@ -183,8 +211,9 @@ _LARGE = 4096
 
 def _every(idx: np.ndarray, n: int) -> bool:
     """``idx`` is 0..n-1 in order (a rule whose items are all compact and already in natural order)."""
-    return len(idx) == n and (n == 0 or (int(idx[0]) == 0 and int(idx[-1]) == n - 1 and
-                                         bool((np.diff(idx) == 1).all())))
+    return len(idx) == n and (
+        n == 0 or (int(idx[0]) == 0 and int(idx[-1]) == n - 1 and bool((np.diff(idx) == 1).all()))
+    )
 
 
 def _numeric_column(values: np.ndarray) -> list[Any] | dict[str, Any]:

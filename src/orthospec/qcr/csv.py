@@ -25,9 +25,22 @@ def to_csv(doc: Mapping[str, Any]) -> str:
 def _csv_row(r: Mapping[str, Any]) -> list[Any]:
     """One record's qcr.csv cells (before :func:`csv_safe`)."""
     ev = "; ".join(evidence_text(e) for e in r["evidence"])
-    return [r["rule"], _clause_text(r["clause"]), r["scope"], r["item"], r["level"], r["consequence"],
-            r["verdict"], r["measure"], "" if r["measured"]["value"] is None else r["measured"]["value"],
-            r["measured"]["unit"] or "", r["requirement"].get("text", ""), ev, r["message"], r.get("reason") or ""]
+    return [
+        r["rule"],
+        _clause_text(r["clause"]),
+        r["scope"],
+        r["item"],
+        r["level"],
+        r["consequence"],
+        r["verdict"],
+        r["measure"],
+        "" if r["measured"]["value"] is None else r["measured"]["value"],
+        r["measured"]["unit"] or "",
+        r["requirement"].get("text", ""),
+        ev,
+        r["message"],
+        r.get("reason") or "",
+    ]
 
 
 def _iter_csv_records(doc: Mapping[str, Any], *, rows_per_piece: int = 2000) -> Iterator[str]:

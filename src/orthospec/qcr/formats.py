@@ -37,7 +37,9 @@ def render_all(doc: dict[str, Any], formats: Iterable[str]) -> dict[str, Output]
 
         fmt = plugins.output_format(name)
         if fmt is None:
-            raise OrthospecError(f"unknown output format {name!r}: neither orthospec's nor a plugin's "
-                                 "(orthospec.formats entry point)")
+            raise OrthospecError(
+                f"unknown output format {name!r}: neither orthospec's nor a plugin's "
+                "(orthospec.formats entry point)"
+            )
         out[f"qcr{fmt.suffix}"] = fmt.render(doc)
     return out

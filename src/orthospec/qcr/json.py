@@ -39,10 +39,17 @@ def iter_dumps(doc: Mapping[str, Any]) -> Iterator[str]:
             yield "\n ]"
         elif key in _PER_LINE and isinstance(value, dict) and value:
             for k, (name, item) in enumerate(value.items()):
-                yield ("{\n  " if k == 0 else ",\n  ") + enc(str(name)) + ": " + _encode_columns(enc, item)
+                yield (
+                    ("{\n  " if k == 0 else ",\n  ")
+                    + enc(str(name))
+                    + ": "
+                    + _encode_columns(enc, item)
+                )
             yield "\n }"
         else:
-            yield json.dumps(value, indent=1, ensure_ascii=False, allow_nan=False).replace("\n", "\n ")
+            yield json.dumps(value, indent=1, ensure_ascii=False, allow_nan=False).replace(
+                "\n", "\n "
+            )
     yield "\n}\n"
 
 
@@ -53,8 +60,11 @@ _JSON_JOIN_MIN = 256
 def _encode_columns(enc: Any, value: Any) -> str:
     """``enc(value)``; a mapping's long columns of text (a compact block's item ids) joined at once
     when no text needs a JSON escape (a fifth of the encoder's time for a million ids)."""
-    if not isinstance(value, dict) or not all(type(k) is str for k in value) or \
-            not any(type(v) is list and len(v) >= _JSON_JOIN_MIN for v in value.values()):
+    if (
+        not isinstance(value, dict)
+        or not all(type(k) is str for k in value)
+        or not any(type(v) is list and len(v) >= _JSON_JOIN_MIN for v in value.values())
+    ):
         return str(enc(value))
     parts = []
     for k, v in value.items():

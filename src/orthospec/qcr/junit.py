@@ -18,10 +18,17 @@ from .records import all_records
 
 def _junit_head(doc: Mapping[str, Any]) -> str:
     s = doc["summary"]
-    return "\n".join(['<?xml version="1.0" encoding="UTF-8"?>',
-           f'<testsuites name={_xml_attr("orthospec " + doc["profile"]["id"])} tests="{s["records"]}" '
-           f'failures="{s[V.FAIL] + s[V.MISSING] + (s[V.WARN] if doc["fail_on"] == V.WARN else 0)}" '
-           f'errors="{s[V.ERROR]}" skipped="{s[V.NOT_APPLICABLE] + s[V.WAIVED]}">']) + "\n"
+    return (
+        "\n".join(
+            [
+                '<?xml version="1.0" encoding="UTF-8"?>',
+                f'<testsuites name={_xml_attr("orthospec " + doc["profile"]["id"])} tests="{s["records"]}" '
+                f'failures="{s[V.FAIL] + s[V.MISSING] + (s[V.WARN] if doc["fail_on"] == V.WARN else 0)}" '
+                f'errors="{s[V.ERROR]}" skipped="{s[V.NOT_APPLICABLE] + s[V.WAIVED]}">',
+            ]
+        )
+        + "\n"
+    )
 
 
 def _xml_attr(v: Any) -> str:
@@ -29,8 +36,10 @@ def _xml_attr(v: Any) -> str:
 
 
 def _junit_suite(rid: str, tests: int, fails: int, errs: int, skipped: int) -> str:
-    return (f'  <testsuite name={_xml_attr(rid)} tests="{tests}" failures="{fails}" '
-            f'errors="{errs}" skipped="{skipped}">')
+    return (
+        f'  <testsuite name={_xml_attr(rid)} tests="{tests}" failures="{fails}" '
+        f'errors="{errs}" skipped="{skipped}">'
+    )
 
 
 def _junit_case(rid: str, r: Mapping[str, Any], fail_on: str) -> str:
@@ -42,22 +51,34 @@ def _junit_case(rid: str, r: Mapping[str, Any], fail_on: str) -> str:
         body = _escape(xml_text(f"{r['title']} — {r['requirement'].get('text', '')}"))
         # the checker's own open work (consequence incomplete, an unsigned manual check) is told
         # apart from a failure of the contractor's products
-        kind = V.INCOMPLETE if r.get("consequence") == V.INCOMPLETE or (r.get("manual") and v == V.MISSING) else v
-        return (f'    <testcase name={name} classname={cls}>{_junit_reason(r)}<failure '
-                f'message={_xml_attr(r["message"])} type="{kind}">{body}</failure></testcase>')
+        kind = (
+            V.INCOMPLETE
+            if r.get("consequence") == V.INCOMPLETE or (r.get("manual") and v == V.MISSING)
+            else v
+        )
+        return (
+            f"    <testcase name={name} classname={cls}>{_junit_reason(r)}<failure "
+            f'message={_xml_attr(r["message"])} type="{kind}">{body}</failure></testcase>'
+        )
     if v == V.ERROR:
         body = _escape(xml_text(f"{r['title']} — {r['requirement'].get('text', '')}"))
-        return (f'    <testcase name={name} classname={cls}>{_junit_reason(r)}<error '
-                f'message={_xml_attr(r["message"])} type="error">{body}</error></testcase>')
+        return (
+            f"    <testcase name={name} classname={cls}>{_junit_reason(r)}<error "
+            f'message={_xml_attr(r["message"])} type="error">{body}</error></testcase>'
+        )
     if v in V.NEUTRAL:
-        return f'    <testcase name={name} classname={cls}><skipped message={_xml_attr(r["message"])}/></testcase>'
-    return f'    <testcase name={name} classname={cls}/>'
+        return f"    <testcase name={name} classname={cls}><skipped message={_xml_attr(r['message'])}/></testcase>"
+    return f"    <testcase name={name} classname={cls}/>"
 
 
 def _junit_reason(r: Mapping[str, Any]) -> str:
     """The record's reason code as a testcase property (CI tools group failures by it), "" without one."""
     why = r.get("reason")
-    return f'<properties><property name="reason" value={_xml_attr(str(why))}/></properties>' if why else ""
+    return (
+        f'<properties><property name="reason" value={_xml_attr(str(why))}/></properties>'
+        if why
+        else ""
+    )
 
 
 def _counts(verdicts: Iterable[str] | _Counter[str]) -> tuple[int, int, int]:
@@ -71,7 +92,9 @@ def _counts(verdicts: Iterable[str] | _Counter[str]) -> tuple[int, int, int]:
     return fails, errs, skipped
 
 
-def _junit_block_cases(rid: str, block: _Block, a: int, b: int, fail_on: str, plain: bool) -> list[str] | str:
+def _junit_block_cases(
+    rid: str, block: _Block, a: int, b: int, fail_on: str, plain: bool
+) -> list[str] | str:
     """Testcases of compact items a..b-1: passes as one string operation per item when the rule id
     and the ids need no escaping (``plain``; every item a pass: the lines as one text, by slice
     assignment), any other verdict through :func:`_junit_case`."""
@@ -98,8 +121,14 @@ def _junit_block_cases(rid: str, block: _Block, a: int, b: int, fail_on: str, pl
         if v == V.PASS and plain:
             out.append(f'    <testcase name="{rid}[{it}]" classname={cls}/>')
         else:
-            r = {"item": it, "scope": rule.get("scope", ""), "verdict": v, "message": msgs[k],
-                 "title": rule.get("title", ""), "requirement": {"text": reqs[k]}}
+            r = {
+                "item": it,
+                "scope": rule.get("scope", ""),
+                "verdict": v,
+                "message": msgs[k],
+                "title": rule.get("title", ""),
+                "requirement": {"text": reqs[k]},
+            }
             out.append(_junit_case(rid, r, fail_on))
     return out
 

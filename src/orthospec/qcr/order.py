@@ -59,9 +59,16 @@ def natural_order(items: Any) -> np.ndarray:
         # equal numbers: more digits are more leading zeros, first for a number > 0 ('01' < '1'),
         # last for 0 ('0' < '00')
         tie = np.where(value == 0, digits, -digits)
-        keys = [k for k in (tie, value, has, rank) if not bool((k == k[0]).all())]  # a constant key sorts nothing
-        order = fi[np.lexsort(keys) if len(keys) > 1 else np.argsort(keys[0], kind="stable") if keys else
-                   np.arange(len(fi))]
+        keys = [
+            k for k in (tie, value, has, rank) if not bool((k == k[0]).all())
+        ]  # a constant key sorts nothing
+        order = fi[
+            np.lexsort(keys)
+            if len(keys) > 1
+            else np.argsort(keys[0], kind="stable")
+            if keys
+            else np.arange(len(fi))
+        ]
     if len(fi) == n:
         return order.astype(np.int64)
     slow = _slow_order(strs, np.flatnonzero(~fast))
@@ -81,16 +88,22 @@ def _head_tail_keys(strs: list[str]) -> tuple[np.ndarray, ...]:
     heads = list(map(str.rstrip, strs, itertools.repeat(_ASCII_DIGITS, n)))
     lens = np.fromiter(map(len, strs), dtype=np.int64, count=n)
     tail = lens - np.fromiter(map(len, heads), dtype=np.int64, count=n)
-    if len(set(heads[::max(1, n // 64)])) == 1 and heads.count(heads[0]) == n:  # one head (P1, P2, ...)
+    if (
+        len(set(heads[:: max(1, n // 64)])) == 1 and heads.count(heads[0]) == n
+    ):  # one head (P1, P2, ...)
         codes, distinct = np.zeros(n, dtype=np.int64), [heads[0]]
     else:
         codes, distinct = _factorize(heads)
     del heads
     keys = [natural_key(h) for h in distinct]
     by_key = sorted(range(len(distinct)), key=keys.__getitem__)
-    usable = np.array([not h or not h[-1].isdecimal() for h in distinct], dtype=bool)  # '٣' + '5' is one run
+    usable = np.array(
+        [not h or not h[-1].isdecimal() for h in distinct], dtype=bool
+    )  # '٣' + '5' is one run
     for a, b in itertools.pairwise(by_key):
-        if keys[b][:len(keys[a])] == keys[a]:  # a's key begins b's (then it begins every key between)
+        if (
+            keys[b][: len(keys[a])] == keys[a]
+        ):  # a's key begins b's (then it begins every key between)
             usable[a] = False
     rank = np.empty(len(distinct), dtype=np.int64)
     rank[by_key] = np.arange(len(distinct))
@@ -105,7 +118,7 @@ def _head_tail_keys(strs: list[str]) -> tuple[np.ndarray, ...]:
         for p in range(width):  # the digit p places from the end, times 10**p
             on = p < tail
             digit = chars[np.where(on, last - p, 0)].astype(np.int64) - 48
-            value += np.where(on, digit, 0) * 10 ** p
+            value += np.where(on, digit, 0) * 10**p
     return fast, rank[codes], value, tail, tail > 0
 
 
@@ -117,7 +130,9 @@ def _factorize(values: list[str]) -> tuple[np.ndarray, list[str]]:
         codes, distinct = pd.factorize(np.array(values, dtype=object))
         return np.asarray(codes, dtype=np.int64), list(distinct)
     index: dict[str, int] = {}
-    out = np.fromiter((index.setdefault(v, len(index)) for v in values), dtype=np.int64, count=len(values))
+    out = np.fromiter(
+        (index.setdefault(v, len(index)) for v in values), dtype=np.int64, count=len(values)
+    )
     return out, list(index)
 
 
@@ -132,14 +147,19 @@ def _uniform_order(strs: list[Any]) -> np.ndarray | None:
     if not strs or type(strs[0]) is not str:
         return None
     n, width = len(strs), len(strs[0])
-    if {len(x) if type(x) is str else -1 for x in strs[::max(1, n // 64)]} != {width}:
+    if {len(x) if type(x) is str else -1 for x in strs[:: max(1, n // 64)]} != {width}:
         return None  # a sample of other lengths: no join of every id
     try:
         joined = "\n".join(strs)
     except TypeError:  # not text only
         return None
-    if not width or len(joined) != n * (width + 1) - 1 or not joined.isascii() or "\x00" in joined \
-            or joined.count("\n") != n - 1:  # no line feed inside an id: the separators are the n - 1
+    if (
+        not width
+        or len(joined) != n * (width + 1) - 1
+        or not joined.isascii()
+        or "\x00" in joined
+        or joined.count("\n") != n - 1
+    ):  # no line feed inside an id: the separators are the n - 1
         return None
     rows = np.frombuffer((joined + "\n").encode("ascii"), dtype=np.uint8).reshape(n, width + 1)
     if not bool((rows[:, width] == 10).all()):  # the lengths differ
@@ -185,8 +205,11 @@ class _Keys:
 def _slow_order(strs: list[str], idx: np.ndarray) -> np.ndarray:
     """``idx`` sorted by natural_key of its ids (stable)."""
     keys = [natural_key(strs[i]) for i in idx.tolist()]
-    return idx[np.array(sorted(range(len(keys)), key=keys.__getitem__), dtype=np.int64)] if len(keys) \
+    return (
+        idx[np.array(sorted(range(len(keys)), key=keys.__getitem__), dtype=np.int64)]
+        if len(keys)
         else idx.astype(np.int64)
+    )
 
 
 def _order(items: np.ndarray, cache: dict[Any, Any]) -> np.ndarray:

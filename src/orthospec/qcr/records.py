@@ -13,10 +13,19 @@ from .order import natural_key
 
 def _expand_stored(rule: Mapping[str, Any], rec: Mapping[str, Any]) -> dict[str, Any]:
     """A stored record in full (version 2) as readers see it."""
-    return _full(rule, rec["item"], rec["verdict"], rec.get("measured"),
-                 rec.get("requirement") or rule.get("requirement") or {}, rec.get("evidence") or [],
-                 rec.get("message", ""), rec.get("waiver"), rec.get("waiver_requested"), rec.get("waived_verdict"),
-                 rec.get("reason"))
+    return _full(
+        rule,
+        rec["item"],
+        rec["verdict"],
+        rec.get("measured"),
+        rec.get("requirement") or rule.get("requirement") or {},
+        rec.get("evidence") or [],
+        rec.get("message", ""),
+        rec.get("waiver"),
+        rec.get("waiver_requested"),
+        rec.get("waived_verdict"),
+        rec.get("reason"),
+    )
 
 
 def _column_values(col: Any, n: int, compact: Mapping[str, Any]) -> list[Any]:
@@ -28,8 +37,9 @@ def _column_values(col: Any, n: int, compact: Mapping[str, Any]) -> list[Any]:
     return list(col) if col is not None else [None] * n
 
 
-def _evidence_values(col: Any, n: int, compact: Mapping[str, Any], table: list[dict[str, Any]]
-                     ) -> Iterator[list[dict[str, Any]]]:
+def _evidence_values(
+    col: Any, n: int, compact: Mapping[str, Any], table: list[dict[str, Any]]
+) -> Iterator[list[dict[str, Any]]]:
     """Each item's evidence entries from a compact ``evidence`` column (any of its forms)."""
     while isinstance(col, dict) and "ref" in col:
         rule_id, name = col["ref"]
@@ -43,22 +53,30 @@ def _evidence_values(col: Any, n: int, compact: Mapping[str, Any], table: list[d
         yield [table[e] for e in (ids or [])]
 
 
-def block_columns(rule: Mapping[str, Any], block: Mapping[str, Any],
-                  compact: Mapping[str, Any]) -> tuple[Sequence[Any], ...]:
+def block_columns(
+    rule: Mapping[str, Any], block: Mapping[str, Any], compact: Mapping[str, Any]
+) -> tuple[Sequence[Any], ...]:
     """A compact block's items, verdicts, measured values, requirements and messages, one value
     per item each: the one reading of these columns (records here, the ledger's rows)."""
     items = _column_values(block["items"], 0, compact)
     n = len(items)
     verdicts = _column_values(block.get("verdict"), n, compact)
     measured = _column_values(block.get("measured"), n, compact)
-    reqs = (_column_values(block["requirement"], n, compact) if "requirement" in block
-            else [rule.get("requirement") or {}] * n)
+    reqs = (
+        _column_values(block["requirement"], n, compact)
+        if "requirement" in block
+        else [rule.get("requirement") or {}] * n
+    )
     msgs = _column_values(block.get("message"), n, compact)
     return items, verdicts, measured, reqs, msgs
 
 
-def _expand(rule: Mapping[str, Any], block: Mapping[str, Any], evidence: list[dict[str, Any]],
-            compact: Mapping[str, Any]) -> Iterator[dict[str, Any]]:
+def _expand(
+    rule: Mapping[str, Any],
+    block: Mapping[str, Any],
+    evidence: list[dict[str, Any]],
+    compact: Mapping[str, Any],
+) -> Iterator[dict[str, Any]]:
     """The records of one rule's compact block (the same dicts as records in full)."""
     items, verdicts, measured, reqs, msgs = block_columns(rule, block, compact)
     n = len(items)
@@ -72,7 +90,9 @@ def _expand(rule: Mapping[str, Any], block: Mapping[str, Any], evidence: list[di
         msg = msgs[k]
         if msg is None:
             msg = _pass_message(measure, measured[k], shown, req.get("text", ""))
-        yield _full(rule, items[k], verdicts[k], measured[k], req, ev, msg, None, asked[k], None, why[k])
+        yield _full(
+            rule, items[k], verdicts[k], measured[k], req, ev, msg, None, asked[k], None, why[k]
+        )
 
 
 def all_records(doc: Mapping[str, Any], *, compact: bool = True) -> Iterator[dict[str, Any]]:
@@ -89,7 +109,9 @@ def all_records(doc: Mapping[str, Any], *, compact: bool = True) -> Iterator[dic
     """
     records = doc.get("records") or []
     if "compact" not in doc:
-        yield from (records if compact else (r for r in records if r.get("verdict") not in COMPACT_VERDICTS))
+        yield from (
+            records if compact else (r for r in records if r.get("verdict") not in COMPACT_VERDICTS)
+        )
         return
     blocks = doc["compact"] or {}
     evidence = doc.get("evidence") or []
@@ -101,12 +123,16 @@ def all_records(doc: Mapping[str, Any], *, compact: bool = True) -> Iterator[dic
         if not block:
             yield from mine
         else:
-            yield from heapq.merge(mine, _expand(summary, block, evidence, blocks),
-                                   key=lambda r: natural_key(r["item"]))
+            yield from heapq.merge(
+                mine,
+                _expand(summary, block, evidence, blocks),
+                key=lambda r: natural_key(r["item"]),
+            )
 
 
-def record_groups(doc: Mapping[str, Any], *, compact: bool = True
-                  ) -> Iterator[tuple[Mapping[str, Any] | None, list[Mapping[str, Any]], Mapping[str, Any] | None]]:
+def record_groups(
+    doc: Mapping[str, Any], *, compact: bool = True
+) -> Iterator[tuple[Mapping[str, Any] | None, list[Mapping[str, Any]], Mapping[str, Any] | None]]:
     """The walk of a version 2+ document in record order: per rule summary (summary, its records
     stored in full, its compact block or None), then (None, records, None) per rule that has no
     summary. The one walk behind :func:`all_records` and the ledger's rows; the stored records of a

@@ -131,8 +131,13 @@ def _images(d: Delivery) -> tuple[list[tuple[str, str, RasterHeader | None, int]
     out: list[tuple[str, str, RasterHeader | None, int]] = []
     warnings: list[str] = []
     blocks = table.df["block"].tolist() if "block" in table.df else [None] * len(table.df)
-    for image_id, rel, block, row in zip(table.df["image_id"].tolist(), table.df["file"].tolist(), blocks,
-                                         table.df["_row"].tolist(), strict=True):
+    for image_id, rel, block, row in zip(
+        table.df["image_id"].tolist(),
+        table.df["file"].tolist(),
+        blocks,
+        table.df["_row"].tolist(),
+        strict=True,
+    ):
         try:
             h = read_header(d.path(rel, what="image", file=table.file, row=row), name=rel)
         except OrthospecError as exc:
@@ -142,12 +147,16 @@ def _images(d: Delivery) -> tuple[list[tuple[str, str, RasterHeader | None, int]
     return out, warnings
 
 
-def _survey_crs(options: MeasureOptions, images: list[tuple[str, str, RasterHeader | None, int]]) -> CRS:
+def _survey_crs(
+    options: MeasureOptions, images: list[tuple[str, str, RasterHeader | None, int]]
+) -> CRS:
     if options.crs:
         try:
             return CRS.from_user_input(options.crs)
         except Exception as exc:  # rasterio's CRSError, pyproj's
-            raise MeasureError(f"--crs {options.crs!r}: not a coordinate reference system: {exc}") from None
+            raise MeasureError(
+                f"--crs {options.crs!r}: not a coordinate reference system: {exc}"
+            ) from None
     crss = {h.crs for _, _, h, _ in images if h is not None}
     if len(crss) == 1:
         return next(iter(crss))
@@ -168,13 +177,19 @@ def read_hand(path: str | Path) -> list[HandEntry]:
     import shapely
 
     name = str(path)
-    with readable_vector(p, name=name) as (local, _driver), gdal_errors(file=name, path=local, what="hand list"):
+    with (
+        readable_vector(p, name=name) as (local, _driver),
+        gdal_errors(file=name, path=local, what="hand list"),
+    ):
         meta, _fids, geometry, fields = pyogrio.raw.read(local)
     names = [str(n) for n in meta["fields"]]
     for need in ("point_id", "status"):
         if need not in names:
-            raise DeliveryError(f"no field {need!r}; expected the hand list this command wrote "
-                                f"(fields point_id, status, ...)", file=name)
+            raise DeliveryError(
+                f"no field {need!r}; expected the hand list this command wrote "
+                f"(fields point_id, status, ...)",
+                file=name,
+            )
     cols = dict(zip(names, fields, strict=True))
     n = len(cols["point_id"])
     geoms = shapely.from_wkb(geometry) if geometry is not None else [None] * n
@@ -185,13 +200,22 @@ def read_hand(path: str | Path) -> list[HandEntry]:
             xs.append(None)
             ys.append(None)
         elif g.geom_type != "Point":
-            raise DeliveryError(f"geometry is a {g.geom_type}, expected a point", file=name, row=i + 1)
+            raise DeliveryError(
+                f"geometry is a {g.geom_type}, expected a point", file=name, row=i + 1
+            )
         else:
             xs.append(float(g.x))
             ys.append(float(g.y))
     comments = list(cols["comment"]) if "comment" in cols else [None] * n
-    entries = hand_entries(list(cols["point_id"]), list(cols["status"]), xs, ys, comments, file=name,
-                           rows=list(range(1, n + 1)))
+    entries = hand_entries(
+        list(cols["point_id"]),
+        list(cols["status"]),
+        xs,
+        ys,
+        comments,
+        file=name,
+        rows=list(range(1, n + 1)),
+    )
     crs = meta.get("crs")
     return [replace(e, crs=crs) for e in entries] if crs else entries
 
@@ -229,40 +253,89 @@ class Located:
     detail: str = ""
 
 
-def locate(image_ds: DatasetReader, image: RasterHeader, chip_ds: DatasetReader, chip: RasterHeader,
-           x: float, y: float, settings: MatchSettings, *, chip_px: int = 64) -> Located:
+def locate(
+    image_ds: DatasetReader,
+    image: RasterHeader,
+    chip_ds: DatasetReader,
+    chip: RasterHeader,
+    x: float,
+    y: float,
+    settings: MatchSettings,
+    *,
+    chip_px: int = 64,
+) -> Located:
     """Locate the point whose true position is (``x``, ``y``) in the image's CRS on the image.
 
     Call inside :func:`orthospec.raster.reading.read_only_env`.
     """
     col, row = ~image.transform * (x, y)
-    pair = read_pair(image_ds, image, chip_ds, chip, col, row, chip_px=chip_px,
-                     search_px=settings.search_px, min_template_px=settings.min_template_px)
+    pair = read_pair(
+        image_ds,
+        image,
+        chip_ds,
+        chip,
+        col,
+        row,
+        chip_px=chip_px,
+        search_px=settings.search_px,
+        min_template_px=settings.min_template_px,
+    )
     if pair.problem:
-        return Located(None, None, None, pair.chip_px, pair.problem,
-                       pair.detail or "edge of image: the search window leaves the image")
+        return Located(
+            None,
+            None,
+            None,
+            pair.chip_px,
+            pair.problem,
+            pair.detail or "edge of image: the search window leaves the image",
+        )
     m = match_chip(pair.template, pair.search, search_valid=pair.search_valid, settings=settings)  # type: ignore[arg-type]
     if pair.offset != (0.0, 0.0):
-        m = replace(m, dx_px=m.dx_px + pair.offset[0], dy_px=m.dy_px + pair.offset[1],
-                    other_dx_px=m.other_dx_px + pair.offset[0], other_dy_px=m.other_dy_px + pair.offset[1])
+        m = replace(
+            m,
+            dx_px=m.dx_px + pair.offset[0],
+            dy_px=m.dy_px + pair.offset[1],
+            other_dx_px=m.other_dx_px + pair.offset[0],
+            other_dy_px=m.other_dy_px + pair.offset[1],
+        )
     if not (math.isfinite(m.dx_px) and math.isfinite(m.dy_px)):
         return Located(m, None, None, pair.chip_px)
     mx, my = image.transform * (col + m.dx_px, row + m.dy_px)
     return Located(m, float(mx), float(my), pair.chip_px)
 
 
-def _measure_one(p: SurveyPoint, res: PointResult, image: RasterHeader, ref: Reference, crs: CRS,
-                 options: MeasureOptions, images_open: _Open, chips_open: _Open) -> None:
+def _measure_one(
+    p: SurveyPoint,
+    res: PointResult,
+    image: RasterHeader,
+    ref: Reference,
+    crs: CRS,
+    options: MeasureOptions,
+    images_open: _Open,
+    chips_open: _Open,
+) -> None:
     chip = ref.chip_for(p.point_id, p.x, p.y, crs, chip=p.chip)
     res.guess_x, res.guess_y = p.x, p.y
     if chip is None:
-        what = f"chip {p.chip!r} not in the reference" if p.chip else "no reference chip covers the point"
+        what = (
+            f"chip {p.chip!r} not in the reference"
+            if p.chip
+            else "no reference chip covers the point"
+        )
         res.decision, res.reason_code, res.reason = "to_measure", "reference", what
         return
     res.reference_file, res.reference_sha256 = chip.name, ref.sha256(chip)
     ix, iy = transform_xy(p.x, p.y, crs, image.crs)
-    loc = locate(images_open.get(image), image, chips_open.get(chip), chip, float(ix[0]), float(iy[0]),
-                 options.settings, chip_px=options.chip_px)
+    loc = locate(
+        images_open.get(image),
+        image,
+        chips_open.get(chip),
+        chip,
+        float(ix[0]),
+        float(iy[0]),
+        options.settings,
+        chip_px=options.chip_px,
+    )
     res.chip_px = loc.chip_px or None
     if loc.problem:
         res.decision, res.reason_code, res.reason = "to_measure", loc.problem, loc.detail
@@ -275,19 +348,29 @@ def _measure_one(p: SurveyPoint, res: PointResult, image: RasterHeader, ref: Ref
         res.guess_x, res.guess_y = float(gx[0]), float(gy[0])
     if m.accepted:
         res.decision, res.x, res.y = "accepted", res.guess_x, res.guess_y
-        res.reason = (f"shift {m.dx_px:+.3f}, {m.dy_px:+.3f} px (column, row); peak ratio "
-                      f"{m.peak_ratio:.2f}; predicted precision {m.sigma_px:.3f} px")
+        res.reason = (
+            f"shift {m.dx_px:+.3f}, {m.dy_px:+.3f} px (column, row); peak ratio "
+            f"{m.peak_ratio:.2f}; predicted precision {m.sigma_px:.3f} px"
+        )
     else:
         res.decision, res.reason_code, res.reason = "to_measure", m.reason_code, m.reason
 
 
-def _choose_image(p: SurveyPoint, images: list[tuple[str, str, RasterHeader | None, int]], crs: CRS,
-                  ids: dict[str, int]) -> tuple[int | None, str]:
+def _choose_image(
+    p: SurveyPoint,
+    images: list[tuple[str, str, RasterHeader | None, int]],
+    crs: CRS,
+    ids: dict[str, int],
+) -> tuple[int | None, str]:
     """Index of the image to measure ``p`` on, or None and why not."""
     if p.image_id is not None:
         if p.image_id not in ids:
-            raise DeliveryError(f"image_id {p.image_id!r} is not in the delivery's images table",
-                                file=p.file, row=p.row, field="image_id")
+            raise DeliveryError(
+                f"image_id {p.image_id!r} is not in the delivery's images table",
+                file=p.file,
+                row=p.row,
+                field="image_id",
+            )
         k = ids[p.image_id]
         h = images[k][2]
         if h is None:
@@ -307,14 +390,20 @@ def _choose_image(p: SurveyPoint, images: list[tuple[str, str, RasterHeader | No
     return (best, "") if best is not None else (None, "lies outside every delivered image")
 
 
-def _merge_hand(results: dict[str, PointResult], entries: list[HandEntry], hand: Path, crs: CRS) -> None:
+def _merge_hand(
+    results: dict[str, PointResult], entries: list[HandEntry], hand: Path, crs: CRS
+) -> None:
     """The checker's answers override the tool's: measured (x, y from the hand list), unusable."""
     sha = sha256_file(hand)
     for e in entries:
         res = results.get(e.point_id)
         if res is None:
-            raise DeliveryError(f"point_id {e.point_id!r} is not in the survey", file=e.file, row=e.row,
-                                field="point_id")
+            raise DeliveryError(
+                f"point_id {e.point_id!r} is not in the survey",
+                file=e.file,
+                row=e.row,
+                field="point_id",
+            )
         if res.decision == "outside":
             continue
         if e.status == "to measure":
@@ -325,7 +414,10 @@ def _merge_hand(results: dict[str, PointResult], entries: list[HandEntry], hand:
         auto = res.reason if res.decision != "accepted" else "accepted automatically"
         res.comment = e.comment
         if e.status == "unusable":
-            res.decision, res.reason = "unusable", f"unusable (checker){': ' + e.comment if e.comment else ''}"
+            res.decision, res.reason = (
+                "unusable",
+                f"unusable (checker){': ' + e.comment if e.comment else ''}",
+            )
             continue
         x, y = float(e.x), float(e.y)  # type: ignore[arg-type]
         if e.crs:
@@ -338,8 +430,15 @@ def _merge_hand(results: dict[str, PointResult], entries: list[HandEntry], hand:
         res.match = None
 
 
-def measure_checkpoints(delivery: str | Path, reference: str | Path, survey: str | Path, out: str | Path, *,
-                        hand: str | Path | None = None, options: MeasureOptions | None = None) -> Run:
+def measure_checkpoints(
+    delivery: str | Path,
+    reference: str | Path,
+    survey: str | Path,
+    out: str | Path,
+    *,
+    hand: str | Path | None = None,
+    options: MeasureOptions | None = None,
+) -> Run:
     """Measure every surveyed point on the delivered images; write the checker folder's table and
     hand list (see the module docstring).
 
@@ -353,10 +452,16 @@ def measure_checkpoints(delivery: str | Path, reference: str | Path, survey: str
     opts = options or MeasureOptions()
     d = open_delivery(delivery)
     out_dir = Path(out)
-    for what, path in (("--out", out_dir), ("the survey", Path(survey)), ("the reference", Path(reference))):
+    for what, path in (
+        ("--out", out_dir),
+        ("the survey", Path(survey)),
+        ("the reference", Path(reference)),
+    ):
         if _inside(path, d.root):
-            raise MeasureError(f"{what} {str(path)!r} lies inside the delivery {str(delivery)!r}: the checker's "
-                               "files are kept outside the delivery, and nothing is written into it")
+            raise MeasureError(
+                f"{what} {str(path)!r} lies inside the delivery {str(delivery)!r}: the checker's "
+                "files are kept outside the delivery, and nothing is written into it"
+            )
     if hand is not None and _inside(Path(hand), d.root):
         raise MeasureError(f"--hand {str(hand)!r} lies inside the delivery {str(delivery)!r}")
     points = read_survey(survey)
@@ -373,16 +478,22 @@ def measure_checkpoints(delivery: str | Path, reference: str | Path, survey: str
         k, why = _choose_image(p, images, crs, ids)
         if k is None:
             res.decision, res.reason = "outside", why
-            warnings.append(f"{p.file}: row {p.row}: point {p.point_id} at ({p.x:.3f}, {p.y:.3f}) {why}; not measured")
+            warnings.append(
+                f"{p.file}: row {p.row}: point {p.point_id} at ({p.x:.3f}, {p.y:.3f}) {why}; not measured"
+            )
             continue
         iid, block, h, _row = images[k]
         res.image_id, res.block = iid, p.block or block or None
         todo.setdefault(k, []).append((p, res))
     if not todo:
         listed = [w for w in warnings if w.startswith(f"{survey}: row ")]
-        rows = "; ".join(listed[:10]) + (f"; and {len(listed) - 10} more" if len(listed) > 10 else "")
-        raise MeasureError(f"{survey}: none of its {len(points)} point(s) lies on a delivered image: "
-                           f"nothing can be measured (check the survey's CRS, --crs, and the delivery): {rows}")
+        rows = "; ".join(listed[:10]) + (
+            f"; and {len(listed) - 10} more" if len(listed) > 10 else ""
+        )
+        raise MeasureError(
+            f"{survey}: none of its {len(points)} point(s) lies on a delivered image: "
+            f"nothing can be measured (check the survey's CRS, --crs, and the delivery): {rows}"
+        )
     images_open, chips_open = _Open(), _Open()
     try:
         with read_only_env():
@@ -400,8 +511,10 @@ def measure_checkpoints(delivery: str | Path, reference: str | Path, survey: str
     in_images = [r for r in results.values() if r.decision != "outside"]
     if all(r.reason_code == "reference" for r in in_images):
         detail = "; ".join(sorted({r.reason for r in in_images}))
-        raise MeasureError(f"{reference}: the reference gives no usable chip for any surveyed point "
-                           f"({detail}): nothing can be measured")
+        raise MeasureError(
+            f"{reference}: the reference gives no usable chip for any surveyed point "
+            f"({detail}): nothing can be measured"
+        )
     hand_path = Path(hand) if hand is not None else out_dir / HAND_FILE
     if hand is not None or hand_path.is_file():
         _merge_hand(results, read_hand(hand_path), hand_path, crs)
@@ -424,15 +537,39 @@ def _csv_cell(v: str) -> str:
 def _row(r: PointResult) -> list[str]:
     p = r.point
     score = r.match.score if r.match is not None else None
-    return [p.point_id, r.block or "", _fmt(r.x), _fmt(r.y), _fmt(p.x), _fmt(p.y), "", _fmt(p.z),
-            r.image_id or "", p.source or "", "false", "", _fmt(p.precision_xy), r.method, _fmt(score, ".4f"),
-            r.decision, r.reason, r.reference_file, r.reference_sha256, r.image_sha256,
-            str(r.chip_px or ""), __version__]
+    return [
+        p.point_id,
+        r.block or "",
+        _fmt(r.x),
+        _fmt(r.y),
+        _fmt(p.x),
+        _fmt(p.y),
+        "",
+        _fmt(p.z),
+        r.image_id or "",
+        p.source or "",
+        "false",
+        "",
+        _fmt(p.precision_xy),
+        r.method,
+        _fmt(score, ".4f"),
+        r.decision,
+        r.reason,
+        r.reference_file,
+        r.reference_sha256,
+        r.image_sha256,
+        str(r.chip_px or ""),
+        __version__,
+    ]
 
 
 def _write_table(path: Path, results: list[PointResult]) -> Path:
     lines = [",".join(COLUMNS)]
-    lines += [",".join(_csv_cell(c) for c in _row(r)) for r in results if r.decision in ("accepted", "by_hand")]
+    lines += [
+        ",".join(_csv_cell(c) for c in _row(r))
+        for r in results
+        if r.decision in ("accepted", "by_hand")
+    ]
     with atomic_path(path, path.suffix) as tmp:
         tmp.write_text("\n".join(lines) + "\n", encoding="utf-8")
     return path
@@ -459,18 +596,33 @@ def _write_hand(path: Path, results: list[PointResult], crs: CRS) -> Path | None
         "reference_file": [r.reference_file for r in rows],
     }
     numbers = {
-        "x_ref": [r.point.x for r in rows], "y_ref": [r.point.y for r in rows],
+        "x_ref": [r.point.x for r in rows],
+        "y_ref": [r.point.y for r in rows],
         "score": [r.match.score if r.match is not None else math.nan for r in rows],
     }
     fields = list(text) + list(numbers)
-    arrays = [np.array(v, dtype=object) for v in text.values()] + [np.array(v, dtype=float) for v in numbers.values()]
+    arrays = [np.array(v, dtype=object) for v in text.values()] + [
+        np.array(v, dtype=float) for v in numbers.values()
+    ]
     previous = pyogrio.get_gdal_config_option("OGR_CURRENT_DATE")
     pyogrio.set_gdal_config_options({"OGR_CURRENT_DATE": _GPKG_DATE})
     try:
-        with atomic_path(path, path.suffix) as tmp, gdal_errors(file=str(path), path=tmp, what="hand list"):
+        with (
+            atomic_path(path, path.suffix) as tmp,
+            gdal_errors(file=str(path), path=tmp, what="hand list"),
+        ):
             tmp.unlink()
-            pyogrio.raw.write(str(tmp), geoms, arrays, fields=fields, layer=HAND_LAYER, driver="GPKG",
-                              crs=crs.to_wkt(), geometry_type="Point", promote_to_multi=False)
+            pyogrio.raw.write(
+                str(tmp),
+                geoms,
+                arrays,
+                fields=fields,
+                layer=HAND_LAYER,
+                driver="GPKG",
+                crs=crs.to_wkt(),
+                geometry_type="Point",
+                promote_to_multi=False,
+            )
     finally:
         pyogrio.set_gdal_config_options({"OGR_CURRENT_DATE": previous})
     return path

@@ -6,7 +6,8 @@ point, :func:`read_pair` reads
 
 * the reference around the point, only the window of the reference that covers the template:
   taken as it is when its grid is the image's up to a translation (the fraction of a pixel is
-  added to the measured position instead), else resampled (``rasterio.warp.reproject``: Lanczos when the reference is as coarse as the image or
+  added to the measured position instead), else resampled (``rasterio.warp.reproject``: Lanczos
+  when the reference is as coarse as the image or
   coarser, area average when it is finer) onto the delivered image's own pixel grid, in
   the image's CRS: after that the two differ by the delivery's error only;
 * the delivered image's search window around the point (template plus the search range).
@@ -37,8 +38,15 @@ from ..measures.matching import luminance
 from ..provenance import sha256_file
 from .reading import gdal_errors, open_read_only, read_only_env
 
-__all__ = ["CHIP_SUFFIXES", "Pair", "RasterHeader", "Reference", "open_reference", "read_header",
-           "read_pair"]
+__all__ = [
+    "CHIP_SUFFIXES",
+    "Pair",
+    "RasterHeader",
+    "Reference",
+    "open_reference",
+    "read_header",
+    "read_pair",
+]
 
 CHIP_SUFFIXES: tuple[str, ...] = (".tif", ".tiff")
 #: pixels read beyond the template on the reference side, in reference pixels (Lanczos kernel).
@@ -70,7 +78,9 @@ class RasterHeader:
 
 def _luminance_bands(ds: rasterio.io.DatasetReader) -> tuple[int, ...]:
     ci = list(ds.colorinterp)
-    rgb = [ci.index(c) + 1 for c in (ColorInterp.red, ColorInterp.green, ColorInterp.blue) if c in ci]
+    rgb = [
+        ci.index(c) + 1 for c in (ColorInterp.red, ColorInterp.green, ColorInterp.blue) if c in ci
+    ]
     if len(rgb) == 3:
         return tuple(rgb)
     first = next((i + 1 for i, c in enumerate(ci) if c != ColorInterp.alpha), 1)
@@ -81,14 +91,26 @@ def read_header(path: str | Path, *, name: str | None = None) -> RasterHeader:
     """The header of one raster (GeoTIFF or JPEG 2000); MeasureError naming ``name`` when the file
     cannot be opened or has no CRS or no georeference."""
     label = name or str(path)
-    with read_only_env(), open_read_only(path, name=label) as ds, gdal_errors(file=label, path=path):
+    with (
+        read_only_env(),
+        open_read_only(path, name=label) as ds,
+        gdal_errors(file=label, path=path),
+    ):
         if ds.crs is None:
             raise MeasureError(f"{label}: has no coordinate reference system; cannot place it")
         t = ds.transform
         if t.is_identity or t.determinant == 0:
             raise MeasureError(f"{label}: has no georeference (geotransform)")
-        return RasterHeader(Path(path), label, ds.crs, t, ds.width, ds.height, _luminance_bands(ds),
-                            math.sqrt(abs(t.determinant)))
+        return RasterHeader(
+            Path(path),
+            label,
+            ds.crs,
+            t,
+            ds.width,
+            ds.height,
+            _luminance_bands(ds),
+            math.sqrt(abs(t.determinant)),
+        )
 
 
 @dataclass
@@ -110,7 +132,9 @@ class Reference:
             try:
                 self._sha[chip.path] = sha256_file(chip.path)
             except OSError as exc:
-                raise MeasureError(f"{chip.name}: cannot read file: {exc.strerror or exc}") from None
+                raise MeasureError(
+                    f"{chip.name}: cannot read file: {exc.strerror or exc}"
+                ) from None
         return self._sha[chip.path]
 
     def by_name(self, name: str) -> RasterHeader | None:
@@ -121,7 +145,9 @@ class Reference:
                 return c
         return None
 
-    def chip_for(self, point_id: str, x: float, y: float, crs: CRS, *, chip: str | None = None) -> RasterHeader | None:
+    def chip_for(
+        self, point_id: str, x: float, y: float, crs: CRS, *, chip: str | None = None
+    ) -> RasterHeader | None:
         """The chip of a point: the one the survey names, else ``<point_id>.tif``, else the chip
         that holds the point farthest from its edges (the reference image itself when it holds it)."""
         if chip:
@@ -170,9 +196,14 @@ def open_reference(path: str | Path) -> Reference:
 _TRANSFORMERS: dict[tuple[str, str], object] = {}
 
 
-def transform_xy(x: np.ndarray | float, y: np.ndarray | float, src: CRS, dst: CRS) -> tuple[np.ndarray, np.ndarray]:
+def transform_xy(
+    x: np.ndarray | float, y: np.ndarray | float, src: CRS, dst: CRS
+) -> tuple[np.ndarray, np.ndarray]:
     """Coordinates from ``src`` to ``dst`` (pyproj, always x/y order); identity when equal."""
-    xa, ya = np.atleast_1d(np.asarray(x, dtype=np.float64)), np.atleast_1d(np.asarray(y, dtype=np.float64))
+    xa, ya = (
+        np.atleast_1d(np.asarray(x, dtype=np.float64)),
+        np.atleast_1d(np.asarray(y, dtype=np.float64)),
+    )
     if src == dst:
         return xa, ya
     from pyproj import Transformer
@@ -216,12 +247,21 @@ class Pair:
 def _same_grid(chip: RasterHeader, image: RasterHeader) -> bool:
     """The chip's pixels are the image's up to a translation (same CRS, size and orientation)."""
     a, b = chip.transform, image.transform
-    return chip.crs == image.crs and a.b == b.b == a.d == b.d == 0 and \
-        math.isclose(a.a, b.a, rel_tol=1e-9) and math.isclose(a.e, b.e, rel_tol=1e-9)
+    return (
+        chip.crs == image.crs
+        and a.b == b.b == a.d == b.d == 0
+        and math.isclose(a.a, b.a, rel_tol=1e-9)
+        and math.isclose(a.e, b.e, rel_tol=1e-9)
+    )
 
 
-def _reference_on_grid(ds: rasterio.io.DatasetReader, chip: RasterHeader, image: RasterHeader,
-                       origin: tuple[int, int], size: int) -> tuple[np.ndarray, tuple[float, float]]:
+def _reference_on_grid(
+    ds: rasterio.io.DatasetReader,
+    chip: RasterHeader,
+    image: RasterHeader,
+    origin: tuple[int, int],
+    size: int,
+) -> tuple[np.ndarray, tuple[float, float]]:
     """The chip's luminance on ``size`` x ``size`` image pixels from ``origin`` (NaN where the chip
     has no valid pixel to give), and the offset (columns, rows) to add to a position measured
     with it.
@@ -240,7 +280,9 @@ def _reference_on_grid(ds: rasterio.io.DatasetReader, chip: RasterHeader, image:
         c0, r0, c1, r1 = max(cu, 0), max(rv, 0), min(cu + size, ds.width), min(rv + size, ds.height)
         if c1 > c0 and r1 > r0:
             src = ds.read(list(chip.bands), window=Window(c0, r0, c1 - c0, r1 - r0), masked=True)
-            out[:, r0 - rv:r1 - rv, c0 - cu:c1 - cu] = np.ma.filled(src.astype(np.float64), np.nan)
+            out[:, r0 - rv : r1 - rv, c0 - cu : c1 - cu] = np.ma.filled(
+                src.astype(np.float64), np.nan
+            )
         return luminance(out), (float(u - cu), float(v - rv))
     left, top = dst_transform * (0, 0)
     right, bottom = dst_transform * (size, size)
@@ -258,26 +300,50 @@ def _reference_on_grid(ds: rasterio.io.DatasetReader, chip: RasterHeader, image:
     src = ds.read(list(chip.bands), window=w, masked=True)
     arr = np.ma.filled(src.astype(np.float64), np.nan)
     finer = chip.pixel < 0.75 * image.pixel if chip.crs == image.crs else False
-    reproject(arr, out, src_transform=ds.window_transform(w), src_crs=chip.crs, src_nodata=np.nan,
-              dst_transform=dst_transform, dst_crs=image.crs, dst_nodata=np.nan,
-              resampling=Resampling.average if finer else Resampling.lanczos)
+    reproject(
+        arr,
+        out,
+        src_transform=ds.window_transform(w),
+        src_crs=chip.crs,
+        src_nodata=np.nan,
+        dst_transform=dst_transform,
+        dst_crs=image.crs,
+        dst_nodata=np.nan,
+        resampling=Resampling.average if finer else Resampling.lanczos,
+    )
     return luminance(out), (0.0, 0.0)
 
 
-def _centred_square(valid: np.ndarray, centre: tuple[float, float], largest: int, smallest: int) -> int:
+def _centred_square(
+    valid: np.ndarray, centre: tuple[float, float], largest: int, smallest: int
+) -> int:
     """Side of the largest even square of valid pixels centred on ``centre`` (0 when below ``smallest``)."""
     cr, cc = centre
     for side in range(largest - largest % 2, smallest - 1, -2):
         r0, c0 = round(cr - side / 2), round(cc - side / 2)
-        if r0 >= 0 and c0 >= 0 and r0 + side <= valid.shape[0] and c0 + side <= valid.shape[1] \
-                and bool(valid[r0:r0 + side, c0:c0 + side].all()):
+        if (
+            r0 >= 0
+            and c0 >= 0
+            and r0 + side <= valid.shape[0]
+            and c0 + side <= valid.shape[1]
+            and bool(valid[r0 : r0 + side, c0 : c0 + side].all())
+        ):
             return side
     return 0
 
 
-def read_pair(image_ds: rasterio.io.DatasetReader, image: RasterHeader, chip_ds: rasterio.io.DatasetReader,
-              chip: RasterHeader, col: float, row: float, *, chip_px: int, search_px: int,
-              min_template_px: int) -> Pair:
+def read_pair(
+    image_ds: rasterio.io.DatasetReader,
+    image: RasterHeader,
+    chip_ds: rasterio.io.DatasetReader,
+    chip: RasterHeader,
+    col: float,
+    row: float,
+    *,
+    chip_px: int,
+    search_px: int,
+    min_template_px: int,
+) -> Pair:
     """Read the template and search window of the point at image pixel (``col``, ``row``).
 
     The template is ``chip_px`` square around the point, smaller (down to ``min_template_px``)
@@ -294,11 +360,18 @@ def read_pair(image_ds: rasterio.io.DatasetReader, image: RasterHeader, chip_ds:
     side = _centred_square(valid, (row - origin[1], col - origin[0]), big, min_template_px)
     if side == 0:
         got = int(valid.sum())
-        what = "does not cover the point" if got == 0 else (
-            f"covers too little around the point (a {min_template_px} px square is needed)")
-        return Pair(None, None, None, origin, margin, 0, problem="reference", detail=f"{chip.name} {what}")
+        what = (
+            "does not cover the point"
+            if got == 0
+            else (f"covers too little around the point (a {min_template_px} px square is needed)")
+        )
+        return Pair(
+            None, None, None, origin, margin, 0, problem="reference", detail=f"{chip.name} {what}"
+        )
     t0 = (round(col - side / 2), round(row - side / 2))
-    template = ref[t0[1] - origin[1]:t0[1] - origin[1] + side, t0[0] - origin[0]:t0[0] - origin[0] + side]
+    template = ref[
+        t0[1] - origin[1] : t0[1] - origin[1] + side, t0[0] - origin[0] : t0[0] - origin[0] + side
+    ]
     s0c, s0r, size = t0[0] - margin, t0[1] - margin, side + 2 * margin
     if s0c < 0 or s0r < 0 or s0c + size > image.width or s0r + size > image.height:
         return Pair(template, None, None, t0, margin, side, offset, "edge")

@@ -66,19 +66,31 @@ def spikes_in(z: np.ndarray, valid: np.ndarray, spike_height: float) -> np.ndarr
     """Mask of cells more than ``spike_height`` from the median of their fully valid 3 x 3 window."""
     filled = np.where(valid, z, 0.0)
     med = ndimage.median_filter(filled, size=3, mode="nearest")
-    whole = ndimage.minimum_filter(valid.astype(np.uint8), size=3, mode="constant", cval=0).astype(bool)
+    whole = ndimage.minimum_filter(valid.astype(np.uint8), size=3, mode="constant", cval=0).astype(
+        bool
+    )
     return whole & (np.abs(z - med) > spike_height)
 
 
-def dem_integrity(path: str | Path, *, name: str | None = None, spike_height: float = 30.0,
-                  within: Any = None, keep: int = 5) -> DemIntegrity:
+def dem_integrity(
+    path: str | Path,
+    *,
+    name: str | None = None,
+    spike_height: float = 30.0,
+    within: Any = None,
+    keep: int = 5,
+) -> DemIntegrity:
     """Read a DEM file once: no-data cells (of the cells whose centre lies in ``within``, a shapely
     geometry in the file's CRS, when given: "completeness in the project zone"), spikes/holes beyond
     ``spike_height``, CRS.
 
     Raises MeasureError naming ``name`` when the file is refused or unreadable."""
     label = name or str(path)
-    with read_only_env(), open_read_only(path, name=label) as ds, gdal_errors(file=label, path=path):
+    with (
+        read_only_env(),
+        open_read_only(path, name=label) as ds,
+        gdal_errors(file=label, path=path),
+    ):
         w, h = ds.width, ds.height
         nodata = ds.nodata
         nod = spikes = judged = 0
@@ -90,12 +102,15 @@ def dem_integrity(path: str | Path, *, name: str | None = None, spike_height: fl
             if nodata is not None and not np.isnan(nodata):
                 valid &= z.filled(np.nan) != nodata
             zz = z.filled(np.nan)
-            own = slice(top - r0, top - r0 + min(STRIP_ROWS, h - top))  # this strip's rows, halo excluded
+            own = slice(
+                top - r0, top - r0 + min(STRIP_ROWS, h - top)
+            )  # this strip's rows, halo excluded
             zone = np.ones_like(valid[own])
             if within is not None:
                 win = Window(0, top, w, own.stop - own.start)
-                zone = features.geometry_mask([within], out_shape=zone.shape, transform=ds.window_transform(win),
-                                              invert=True)
+                zone = features.geometry_mask(
+                    [within], out_shape=zone.shape, transform=ds.window_transform(win), invert=True
+                )
             judged += int(zone.sum())
             nod += int((~valid[own] & zone).sum())
             hit = spikes_in(zz, valid, spike_height)[own]

@@ -148,7 +148,9 @@ class RasterFacts:
 
 
 def _nbits(ds: rasterio.io.DatasetReader) -> int | None:
-    tag = ds.tags(1, ns="IMAGE_STRUCTURE").get("NBITS") or ds.tags(ns="IMAGE_STRUCTURE").get("NBITS")
+    tag = ds.tags(1, ns="IMAGE_STRUCTURE").get("NBITS") or ds.tags(ns="IMAGE_STRUCTURE").get(
+        "NBITS"
+    )
     try:
         return int(tag) if tag else None
     except ValueError:  # a malformed tag states nothing
@@ -222,7 +224,9 @@ def crs_facts(wkt: str) -> tuple[str, int | None, str | None, float | None]:
     return crs.to_string(), crs.to_epsg(), unit, metres
 
 
-def facts_of_dataset(ds: rasterio.io.DatasetReader, *, path: str, size: int | None = None) -> RasterFacts:
+def facts_of_dataset(
+    ds: rasterio.io.DatasetReader, *, path: str, size: int | None = None
+) -> RasterFacts:
     """The facts of a dataset opened with :func:`~orthospec.raster.reading.open_read_only`.
 
     Raises
@@ -234,21 +238,37 @@ def facts_of_dataset(ds: rasterio.io.DatasetReader, *, path: str, size: int | No
     with gdal_errors(file=path, what="raster header"):
         comp, lossless = compression_of(ds)
         bh, bw = ds.block_shapes[0]
-        layout = "striped" if bw >= ds.width and ds.driver == "GTiff" else (
-            "tiled" if bw < ds.width or bh < ds.height else "single-block")
+        layout = (
+            "striped"
+            if bw >= ds.width and ds.driver == "GTiff"
+            else ("tiled" if bw < ds.width or bh < ds.height else "single-block")
+        )
         dtypes = tuple(ds.dtypes)
         dt = np.dtype(dtypes[0])
         container = 8 * dt.itemsize if dt.kind in "uib" else None
         nbits = _nbits(ds)
         base: dict[str, Any] = dict(
-            path=path, bytes=size, driver=ds.driver, width=ds.width, height=ds.height, count=ds.count,
-            dtypes=dtypes, bit_depth=nbits or container, nbits=nbits, bit_depth_container=container,
+            path=path,
+            bytes=size,
+            driver=ds.driver,
+            width=ds.width,
+            height=ds.height,
+            count=ds.count,
+            dtypes=dtypes,
+            bit_depth=nbits or container,
+            nbits=nbits,
+            bit_depth_container=container,
             colorinterp=tuple(c.name for c in ds.colorinterp),
             nodata=tuple(None if v is None else float(v) for v in ds.nodatavals),
             internal_mask=any(f.name == "per_dataset" for f in ds.mask_flag_enums[0]),
-            compression=comp, lossless=lossless, tiled=layout == "tiled", layout=layout,
-            block_shape=(int(bh), int(bw)), overviews=tuple(int(f) for f in ds.overviews(1)),
-            stats=_stats(ds))
+            compression=comp,
+            lossless=lossless,
+            tiled=layout == "tiled",
+            layout=layout,
+            block_shape=(int(bh), int(bw)),
+            overviews=tuple(int(f) for f in ds.overviews(1)),
+            stats=_stats(ds),
+        )
         if ds.crs is None:
             return RasterFacts(georeference="no georeference (no CRS)", **base)
         if ds.transform.is_identity and not ds.gcps[0] and ds.driver != "JP2OpenJPEG":
@@ -262,15 +282,26 @@ def facts_of_dataset(ds: rasterio.io.DatasetReader, *, path: str, size: int | No
     t = ds.transform
     b = ds.bounds
     return RasterFacts(
-        crs_wkt=wkt, crs_name=name, epsg=epsg, pixel_unit=unit, unit_metres=metres,
+        crs_wkt=wkt,
+        crs_name=name,
+        epsg=epsg,
+        pixel_unit=unit,
+        unit_metres=metres,
         transform=(t.a, t.b, t.c, t.d, t.e, t.f),
-        pixel_size=(math.hypot(t.a, t.d), math.hypot(t.b, t.e)), rotated=bool(t.b or t.d),
-        bounds=(float(b.left), float(b.bottom), float(b.right), float(b.top)), **base)
+        pixel_size=(math.hypot(t.a, t.d), math.hypot(t.b, t.e)),
+        rotated=bool(t.b or t.d),
+        bounds=(float(b.left), float(b.bottom), float(b.right), float(b.top)),
+        **base,
+    )
 
 
 @contextmanager
-def opened_facts(path: str | Path, *, settings: ScanSettings | None = None, name: str | None = None,
-                 ) -> Iterator[tuple[RasterFacts, rasterio.io.DatasetReader | None]]:
+def opened_facts(
+    path: str | Path,
+    *,
+    settings: ScanSettings | None = None,
+    name: str | None = None,
+) -> Iterator[tuple[RasterFacts, rasterio.io.DatasetReader | None]]:
     """:func:`read_facts` without the hash, keeping the dataset open (read-only) for a pixel scan.
 
     Yields the facts and the open dataset, or None when it could not be opened: one open and one
@@ -282,7 +313,10 @@ def opened_facts(path: str | Path, *, settings: ScanSettings | None = None, name
     try:
         st = p.stat()
     except OSError as exc:
-        yield RasterFacts(path=label, error=f"{label}: cannot stat file: {exc.strerror or exc}"), None
+        yield (
+            RasterFacts(path=label, error=f"{label}: cannot stat file: {exc.strerror or exc}"),
+            None,
+        )
         return
     if not stat.S_ISREG(st.st_mode):  # a FIFO or device would block or never end
         yield RasterFacts(path=label, error=f"{label}: not a regular file"), None
@@ -329,5 +363,7 @@ def read_facts(path: str | Path, *, sha256: bool = True, name: str | None = None
         try:
             facts = replace(facts, sha256=sha256_file(path))
         except OSError as exc:
-            facts = replace(facts, error=facts.error or f"{facts.path}: cannot read file: {exc.strerror or exc}")
+            facts = replace(
+                facts, error=facts.error or f"{facts.path}: cannot read file: {exc.strerror or exc}"
+            )
     return facts

@@ -165,32 +165,63 @@ def checked_file(path: str | Path, *, expect_epsg: int | None = None,
     keeps them.
     """
     with opened_facts(path, settings=settings) as (facts, ds):
-        yield checks_of(facts, expect_epsg=expect_epsg, expect_gsd=expect_gsd, gsd_tolerance=gsd_tolerance,
-                        min_bits=min_bits, recommended_bits=recommended_bits), ds
+        yield (
+            checks_of(
+                facts,
+                expect_epsg=expect_epsg,
+                expect_gsd=expect_gsd,
+                gsd_tolerance=gsd_tolerance,
+                min_bits=min_bits,
+                recommended_bits=recommended_bits,
+            ),
+            ds,
+        )
 
 
-def checks_of(facts: RasterFacts, *, expect_epsg: int | None = None, expect_gsd: float | None = None,
-              gsd_tolerance: float = 0.01, min_bits: int = 8, recommended_bits: int = 11) -> FileChecks:
+def checks_of(
+    facts: RasterFacts,
+    *,
+    expect_epsg: int | None = None,
+    expect_gsd: float | None = None,
+    gsd_tolerance: float = 0.01,
+    min_bits: int = 8,
+    recommended_bits: int = 11,
+) -> FileChecks:
     """The file checks (§3.2 bit depth, §6.4 name, CRS and pixel size against what is expected)
     judged on one image's :class:`RasterFacts`."""
     p = facts.path
     name = check_name(Path(p).name)
-    base: dict[str, Any] = {"path": p, "name_ok": name.ok, "name_problems": name.problems,
-                            "bytes": facts.bytes, "facts": facts}
+    base: dict[str, Any] = {
+        "path": p,
+        "name_ok": name.ok,
+        "name_problems": name.problems,
+        "bytes": facts.bytes,
+        "facts": facts,
+    }
     if facts.error is not None:
         return FileChecks(error=facts.error, **base)
     depth = facts.bit_depth
     values: dict[str, Any] = dict(
-        driver=facts.driver, compression=facts.compression, lossless=facts.lossless, layout=facts.layout,
+        driver=facts.driver,
+        compression=facts.compression,
+        lossless=facts.lossless,
+        layout=facts.layout,
         block_width=None if facts.block_shape is None else facts.block_shape[1],
         block_height=None if facts.block_shape is None else facts.block_shape[0],
-        width=facts.width, height=facts.height, band_count=facts.count, dtypes=facts.dtypes,
-        bit_depth_container=facts.bit_depth_container, nbits=facts.nbits,
+        width=facts.width,
+        height=facts.height,
+        band_count=facts.count,
+        dtypes=facts.dtypes,
+        bit_depth_container=facts.bit_depth_container,
+        nbits=facts.nbits,
         bit_depth_ok=None if depth is None else depth >= min_bits,
         bit_depth_recommended=None if depth is None else depth >= recommended_bits,
-        colour_interpretation=facts.colorinterp, nodata=facts.nodata,
-        nodata_declared=any(v is not None for v in facts.nodata), has_internal_mask=facts.internal_mask,
-        has_overviews=bool(facts.overviews), stored_statistics=any(s is not None for s in facts.stats),
+        colour_interpretation=facts.colorinterp,
+        nodata=facts.nodata,
+        nodata_declared=any(v is not None for v in facts.nodata),
+        has_internal_mask=facts.internal_mask,
+        has_overviews=bool(facts.overviews),
+        stored_statistics=any(s is not None for s in facts.stats),
     )
     if facts.georeference is not None:
         return FileChecks(error=f"{p}: {facts.georeference}", **base, **values)
@@ -206,8 +237,18 @@ def checks_of(facts: RasterFacts, *, expect_epsg: int | None = None, expect_gsd:
     gsd_ok = None
     if expect_gsd is not None:
         gsd_ok = all(abs(v - expect_gsd) <= gsd_tolerance * expect_gsd for v in (px, py))
-    return FileChecks(crs=facts.crs_name, epsg=facts.epsg, crs_ok=crs_ok, pixel_size_x=px, pixel_size_y=py,
-                      pixel_size_unit=facts.pixel_unit, gsd_ok=gsd_ok, rotated=facts.rotated, **base, **values)
+    return FileChecks(
+        crs=facts.crs_name,
+        epsg=facts.epsg,
+        crs_ok=crs_ok,
+        pixel_size_x=px,
+        pixel_size_y=py,
+        pixel_size_unit=facts.pixel_unit,
+        gsd_ok=gsd_ok,
+        rotated=facts.rotated,
+        **base,
+        **values,
+    )
 
 
 @lru_cache(maxsize=64)
@@ -245,7 +286,10 @@ def check_vector(path: str | Path, *, expect_epsg: int | None = None) -> VectorC
     if not p.exists():
         return VectorCheck(path=str(p), error=f"{p}: file not found")
     try:
-        with readable_vector(p) as (local, _driver), gdal_errors(file=p, path=local, what="vector file"):
+        with (
+            readable_vector(p) as (local, _driver),
+            gdal_errors(file=p, path=local, what="vector file"),
+        ):
             info = pyogrio.read_info(local)
     except MeasureError as exc:
         return VectorCheck(path=str(p), error=str(exc))
@@ -259,10 +303,16 @@ def check_vector(path: str | Path, *, expect_epsg: int | None = None) -> VectorC
 
             try:
                 with gdal_errors(file=p, what="CRS"):
-                    crs_ok = CRS.from_user_input(crs_text).equals(CRS.from_epsg(int(expect_epsg)),
-                                                                  ignore_axis_order=True)
+                    crs_ok = CRS.from_user_input(crs_text).equals(
+                        CRS.from_epsg(int(expect_epsg)), ignore_axis_order=True
+                    )
             except MeasureError:  # pyproj's CRSError, mapped by the one boundary: not equal
                 crs_ok = False
-    return VectorCheck(path=str(p), features=int(info.get("features", 0)),
-                       geometry_type=info.get("geometry_type"), crs=crs_text, crs_ok=crs_ok,
-                       fields=tuple(str(f) for f in info.get("fields", ())))
+    return VectorCheck(
+        path=str(p),
+        features=int(info.get("features", 0)),
+        geometry_type=info.get("geometry_type"),
+        crs=crs_text,
+        crs_ok=crs_ok,
+        fields=tuple(str(f) for f in info.get("fields", ())),
+    )

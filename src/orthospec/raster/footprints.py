@@ -27,25 +27,34 @@ def image_footprints(d: Delivery) -> dict[str, tuple[Bounds | None, str | None]]
     imgs = d.table("images")
     if imgs is None or "file" not in imgs.df:
         return out
-    for iid, rel, row in zip(imgs.ids.astype(str), imgs.df["file"].tolist(), imgs.df["_row"].tolist(), strict=True):
+    for iid, rel, row in zip(
+        imgs.ids.astype(str), imgs.df["file"].tolist(), imgs.df["_row"].tolist(), strict=True
+    ):
         if rel is None:
             out[iid] = (None, f"{imgs.file} row {row} names no file")
             continue
         try:
-            out[iid] = (raster_bounds(d.path(str(rel), file=imgs.file, row=int(row)), name=str(rel)), None)
+            out[iid] = (
+                raster_bounds(d.path(str(rel), file=imgs.file, row=int(row)), name=str(rel)),
+                None,
+            )
         except (OrthospecError, OSError) as exc:
             out[iid] = (None, f"{rel}: {exc}")
     return out
 
 
-def read_seamlines(path: str | Path, *, name: str | None = None) -> tuple[list[tuple[Any, str | None]], str | None]:
+def read_seamlines(
+    path: str | Path, *, name: str | None = None
+) -> tuple[list[tuple[Any, str | None]], str | None]:
     """([(polygon, image id or None)], the attribute read) of a seamline layer (GeoPackage or shapefile)."""
     import pyogrio
     import shapely
 
     label = name or str(path)
-    with readable_vector(path, name=label) as (local, _driver), gdal_errors(
-            file=label, path=local, what="vector file"):
+    with (
+        readable_vector(path, name=label) as (local, _driver),
+        gdal_errors(file=label, path=local, what="vector file"),
+    ):
         meta, _fids, geometry, fields = pyogrio.raw.read(local)
     names = [str(f) for f in meta.get("fields", [])]
     lower = {n.lower(): k for k, n in enumerate(names)}

@@ -67,9 +67,14 @@ class ImageReport:
     def to_dict(self) -> dict[str, Any]:
         """Flat mapping: file checks, ``band<i>.<measure>``, ``luminosity.<measure>``,
         ``image.<aggregate>``; histograms stay as nested values under ``*.histogram``."""
-        out: dict[str, Any] = {"path": self.path, "sha256": self.sha256, "bytes": self.bytes,
-                               "error": self.error, "cached": self.cached,
-                               "cloud_cover_pct": self.cloud_cover_pct}
+        out: dict[str, Any] = {
+            "path": self.path,
+            "sha256": self.sha256,
+            "bytes": self.bytes,
+            "error": self.error,
+            "cached": self.cached,
+            "cloud_cover_pct": self.cloud_cover_pct,
+        }
         for k, v in self.checks.items():
             if k not in out:
                 out[k] = v
@@ -95,9 +100,11 @@ class ImageReport:
         return out
 
 
-def _aggregates(bands: list[dict[str, Any]], lum: dict[str, Any] | None,
-                mis: dict[str, Any]) -> dict[str, Any]:
+def _aggregates(
+    bands: list[dict[str, Any]], lum: dict[str, Any] | None, mis: dict[str, Any]
+) -> dict[str, Any]:
     """Image-level values for rules: the luminosity for colour images (§6.3), else worst band."""
+
     def vals(key: str) -> list[float]:
         return [b[key] for b in bands if b.get(key) is not None]
 
@@ -107,10 +114,12 @@ def _aggregates(bands: list[dict[str, Any]], lum: dict[str, Any] | None,
 
     src = lum if lum else None
     out = {
-        "image.saturation_low_pct": (src or {}).get("saturation_low_pct",
-                                                    worst("saturation_low_pct", max)),
-        "image.saturation_high_pct": (src or {}).get("saturation_high_pct",
-                                                     worst("saturation_high_pct", max)),
+        "image.saturation_low_pct": (src or {}).get(
+            "saturation_low_pct", worst("saturation_low_pct", max)
+        ),
+        "image.saturation_high_pct": (src or {}).get(
+            "saturation_high_pct", worst("saturation_high_pct", max)
+        ),
         "image.saturation_low_pct_max_band": worst("saturation_low_pct", max),
         "image.saturation_high_pct_max_band": worst("saturation_high_pct", max),
         "image.cv_percent_min": worst("cv_percent", min),
@@ -121,10 +130,12 @@ def _aggregates(bands: list[dict[str, Any]], lum: dict[str, Any] | None,
         "image.noise_sigma_homogeneous_max": worst("noise_sigma_homogeneous", max),
         "image.nodata_fraction": worst("nodata_fraction", max),
         "image.used_bits_max": worst("used_bits", max),
-        "image.misregistration_px_max": max((m["magnitude_px"] for m in mis.values() if m.get("reliable", True)),
-                                            default=None),
+        "image.misregistration_px_max": max(
+            (m["magnitude_px"] for m in mis.values() if m.get("reliable", True)), default=None
+        ),
         "image.saturation_low_hidden_by_nodata": any(
-            bool(b.get("saturation_low_hidden_by_nodata")) for b in bands),
+            bool(b.get("saturation_low_hidden_by_nodata")) for b in bands
+        ),
     }
     nonfinite = vals("nonfinite_pixels")  # float bands only: integer images keep their keys
     if nonfinite:
@@ -137,8 +148,13 @@ def _aggregates(bands: list[dict[str, Any]], lum: dict[str, Any] | None,
 HASH_THREAD_BYTES = 4 * 2**20
 
 
-def scan_image(path: str | Path, options: ScanOptions | None = None, *,
-               cloud_mask: str | Path | None = None, sha256: Future[str] | None = None) -> ImageReport:
+def scan_image(
+    path: str | Path,
+    options: ScanOptions | None = None,
+    *,
+    cloud_mask: str | Path | None = None,
+    sha256: Future[str] | None = None,
+) -> ImageReport:
     """Check and measure one image; never raises for a bad file.
 
     A header problem that leaves the pixels readable (no CRS, identity geotransform) is kept in
@@ -150,21 +166,38 @@ def scan_image(path: str | Path, options: ScanOptions | None = None, *,
     o = options or ScanOptions()
     t0 = time.perf_counter()
     p = str(path)
-    with checked_file(p, expect_epsg=o.expect_epsg, expect_gsd=o.expect_gsd,
-                      gsd_tolerance=o.gsd_tolerance, settings=o.settings) as (checks, ds):
-        rep = ImageReport(path=p, bytes=checks.bytes, checks=checks.to_dict(), error=checks.error,
-                          facts=None if checks.facts is None else checks.facts.to_dict())
+    with checked_file(
+        p,
+        expect_epsg=o.expect_epsg,
+        expect_gsd=o.expect_gsd,
+        gsd_tolerance=o.gsd_tolerance,
+        settings=o.settings,
+    ) as (checks, ds):
+        rep = ImageReport(
+            path=p,
+            bytes=checks.bytes,
+            checks=checks.to_dict(),
+            error=checks.error,
+            facts=None if checks.facts is None else checks.facts.to_dict(),
+        )
         if checks.error is not None and checks.bytes in (None, 0):
             rep.seconds = time.perf_counter() - t0
             return rep
         raster = ds is not None and not (checks.error is not None and checks.driver is None)
         # With a result cache the hash decides whether to scan at all: compute it first. Without
         # one, hash a big file in a thread while its pixels are scanned (one pass of wall time).
-        alongside = (sha256 is None and raster and not o.cache_dir
-                     and (checks.bytes or 0) >= HASH_THREAD_BYTES)
+        alongside = (
+            sha256 is None
+            and raster
+            and not o.cache_dir
+            and (checks.bytes or 0) >= HASH_THREAD_BYTES
+        )
         with ThreadPoolExecutor(max_workers=1) if alongside else nullcontext() as pool:
-            hashing = sha256 if sha256 is not None else (
-                pool.submit(_file_hash, p, o) if pool is not None else None)
+            hashing = (
+                sha256
+                if sha256 is not None
+                else (pool.submit(_file_hash, p, o) if pool is not None else None)
+            )
             if hashing is None or not raster or o.cache_dir:  # the hash is needed first
                 try:
                     rep.sha256 = _file_hash(p, o) if hashing is None else hashing.result()
@@ -182,7 +215,10 @@ def scan_image(path: str | Path, options: ScanOptions | None = None, *,
                 try:
                     rep.sha256 = hashing.result()
                 except OSError as exc:
-                    rep.error, rep.radiometry = f"{p}: cannot read file: {exc.strerror or exc}", None
+                    rep.error, rep.radiometry = (
+                        f"{p}: cannot read file: {exc.strerror or exc}",
+                        None,
+                    )
                     return rep
     if rep.facts is not None:
         rep.facts["sha256"] = rep.sha256
@@ -195,7 +231,9 @@ def scan_image(path: str | Path, options: ScanOptions | None = None, *,
     return rep
 
 
-def _measure_pixels(rep: ImageReport, p: str, o: ScanOptions, ds: rasterio.io.DatasetReader) -> None:
+def _measure_pixels(
+    rep: ImageReport, p: str, o: ScanOptions, ds: rasterio.io.DatasetReader
+) -> None:
     """Radiometry from the cache (by SHA-256 and settings) or from one scan of the open dataset."""
     cached = None
     if o.cache_dir and rep.sha256:
@@ -263,8 +301,11 @@ class PlainProgress:
 
     def advance(self, report: ImageReport) -> None:
         self.i += 1
-        status = "error: " + report.error if report.error else (
-            "cached" if report.cached else f"ok {report.seconds:.2f} s")
+        status = (
+            "error: " + report.error
+            if report.error
+            else ("cached" if report.cached else f"ok {report.seconds:.2f} s")
+        )
         size = f"{(report.bytes or 0) / 2**20:.1f} MiB"
         print(f"[{self.i}/{self.n}] {report.path} {size} {status}", file=self.stream, flush=True)
 
@@ -290,10 +331,15 @@ class RichProgress:
             TransferSpeedColumn,
         )
 
-        self._p = Progress(TextColumn("{task.description}"), BarColumn(),
-                           TextColumn("{task.fields[files_done]}/{task.fields[files]} files"),
-                           DownloadColumn(), TransferSpeedColumn(), TimeRemainingColumn(),
-                           console=console)
+        self._p = Progress(
+            TextColumn("{task.description}"),
+            BarColumn(),
+            TextColumn("{task.fields[files_done]}/{task.fields[files]} files"),
+            DownloadColumn(),
+            TransferSpeedColumn(),
+            TimeRemainingColumn(),
+            console=console,
+        )
         self._task: Any = None
         self._done = 0
 
@@ -355,17 +401,26 @@ def _check_cache_outside(cache_dir: Path, paths: Sequence[str]) -> None:
     for p in paths:
         parent = Path(p).resolve().parent
         if parent == c or c in parent.parents or parent in c.parents:
-            raise MeasureError(f"cache directory {cache_dir} contains the image {p}; "
-                               "put the cache outside the delivery")
+            raise MeasureError(
+                f"cache directory {cache_dir} contains the image {p}; "
+                "put the cache outside the delivery"
+            )
 
 
 def scan_images(
-    paths: Sequence[str | Path], *, workers: int | None = None,
-    scheduler: Any = None, cache_dir: str | Path | None = None, bit_depth: int | None = None,
-    progress: Progress | None = None, expect_epsg: int | None = None,
-    expect_gsd: float | None = None, gsd_tolerance: float = 0.01,
+    paths: Sequence[str | Path],
+    *,
+    workers: int | None = None,
+    scheduler: Any = None,
+    cache_dir: str | Path | None = None,
+    bit_depth: int | None = None,
+    progress: Progress | None = None,
+    expect_epsg: int | None = None,
+    expect_gsd: float | None = None,
+    gsd_tolerance: float = 0.01,
     cloud_masks: Mapping[str, str | Path] | None = None,
-    settings: ScanSettings | None = None, trust_mtime: bool = True,
+    settings: ScanSettings | None = None,
+    trust_mtime: bool = True,
     on_report: Callable[[int, ImageReport], None] | None = None,
 ) -> list[ImageReport]:
     """Check and measure many images; results in input order, bad files as ``error``.
@@ -413,10 +468,14 @@ def scan_images(
         s = replace(s, bit_depth=bit_depth)
     if cache_dir is not None:
         _check_cache_outside(Path(cache_dir), p_list)
-    opts = ScanOptions(settings=s, expect_epsg=expect_epsg, expect_gsd=expect_gsd,
-                       gsd_tolerance=gsd_tolerance,
-                       cache_dir=None if cache_dir is None else str(cache_dir),
-                       trust_mtime=trust_mtime)
+    opts = ScanOptions(
+        settings=s,
+        expect_epsg=expect_epsg,
+        expect_gsd=expect_gsd,
+        gsd_tolerance=gsd_tolerance,
+        cache_dir=None if cache_dir is None else str(cache_dir),
+        trust_mtime=trust_mtime,
+    )
     masks = {str(k): str(v) for k, v in (cloud_masks or {}).items()}
     sizes = []
     for p in p_list:
@@ -471,8 +530,12 @@ def scan_images(
                     for i, p in islice(todo, window - len(pending)):
                         pending[pool.submit(scan_image, p, one, cloud_mask=masks.get(p))] = i
 
-                with ProcessPoolExecutor(max_workers=n, mp_context=ctx, initializer=die_with_parent,
-                                         initargs=(os.getpid(),)) as pool:
+                with ProcessPoolExecutor(
+                    max_workers=n,
+                    mp_context=ctx,
+                    initializer=die_with_parent,
+                    initargs=(os.getpid(),),
+                ) as pool:
                     with _one_thread_per_worker():  # workers (and the forkserver) start here
                         submit_more()
                     while pending:
@@ -529,8 +592,10 @@ def tune_allocator(trim_threshold: int = 1 << 30) -> bool:
     return bool(libc.mallopt(_M_TRIM_THRESHOLD, int(trim_threshold)))
 
 
-DASK_MISSING = ("running on a Dask cluster (--scheduler) needs Dask, an optional extra: "
-                "install it with  pip install 'orthospec[dask]'")
+DASK_MISSING = (
+    "running on a Dask cluster (--scheduler) needs Dask, an optional extra: "
+    "install it with  pip install 'orthospec[dask]'"
+)
 
 
 def require_dask() -> None:
@@ -544,21 +609,24 @@ def require_dask() -> None:
         raise OrthospecError(DASK_MISSING) from None
 
 
-def _run_dask(scheduler: Any, paths: list[str], opts: ScanOptions, masks: dict[str, str],
-              done: Callable[[int, ImageReport], None]) -> None:
+def _run_dask(
+    scheduler: Any,
+    paths: list[str],
+    opts: ScanOptions,
+    masks: dict[str, str],
+    done: Callable[[int, ImageReport], None],
+) -> None:
     require_dask()
     from distributed import Client
     from distributed import as_completed as dask_completed
 
     own = not isinstance(scheduler, Client)
-    if isinstance(scheduler, Client):
-        client = scheduler
-    else:
-        client = Client(getattr(scheduler, "scheduler_address", scheduler))
+    client = scheduler if isinstance(scheduler, Client) else Client(getattr(scheduler, "scheduler_address", scheduler))
     try:
         client.run(tune_allocator)  # False on a worker without glibc: it keeps its allocator
-        futs = [client.submit(scan_image, p, opts, cloud_mask=masks.get(p), pure=False)
-                for p in paths]
+        futs = [
+            client.submit(scan_image, p, opts, cloud_mask=masks.get(p), pure=False) for p in paths
+        ]
         index = {f.key: i for i, f in enumerate(futs)}
         completed = dask_completed(futs)
         del futs  # as_completed lets each future go once it is yielded: the cluster then releases

@@ -103,13 +103,13 @@ def _clean(exc: BaseException, path: str, name: str) -> str:
 #: ``map_exceptions`` is the model): one table, mapped to MeasureError in one place,
 #: :func:`gdal_errors`. A module not imported yet cannot have raised, so it is not imported.
 LIBRARY_ERRORS: tuple[tuple[str, str], ...] = (
-    ("rasterio.errors", "RasterioError"),            # RasterioIOError, WindowError, ...
-    ("rasterio.errors", "CRSError"),                 # a ValueError in rasterio
+    ("rasterio.errors", "RasterioError"),  # RasterioIOError, WindowError, ...
+    ("rasterio.errors", "CRSError"),  # a ValueError in rasterio
     ("rasterio.errors", "DriverRegistrationError"),  # a ValueError in rasterio
-    ("rasterio._err", "CPLE_BaseError"),             # GDAL's CPLE_* errors, raised by rasterio
+    ("rasterio._err", "CPLE_BaseError"),  # GDAL's CPLE_* errors, raised by rasterio
     ("pyogrio.errors", "DataSourceError"),
-    ("pyogrio.errors", "DataLayerError"),            # CRSError, FeatureError, FieldError, GeometryError
-    ("pyproj.exceptions", "ProjError"),              # CRSError
+    ("pyogrio.errors", "DataLayerError"),  # CRSError, FeatureError, FieldError, GeometryError
+    ("pyproj.exceptions", "ProjError"),  # CRSError
 )
 
 
@@ -124,7 +124,9 @@ def library_errors() -> tuple[type[BaseException], ...]:
 
 
 @contextmanager
-def gdal_errors(*, file: str | Path, path: str | Path | None = None, what: str = "raster") -> Iterator[None]:
+def gdal_errors(
+    *, file: str | Path, path: str | Path | None = None, what: str = "raster"
+) -> Iterator[None]:
     """The one boundary where rasterio / GDAL / pyogrio / pyproj errors become MeasureError naming the file.
 
     ``file`` is what the message shows (relative to the delivery when known); ``path`` the path
@@ -136,7 +138,9 @@ def gdal_errors(*, file: str | Path, path: str | Path | None = None, what: str =
     except OrthospecError:
         raise
     except library_errors() as exc:
-        raise MeasureError(f"{file}: not a readable {what}: {_clean(exc, str(path or file), str(file))}") from exc
+        raise MeasureError(
+            f"{file}: not a readable {what}: {_clean(exc, str(path or file), str(file))}"
+        ) from exc
 
 
 def _nonblocking(path: str, flags: int) -> int:
@@ -170,19 +174,27 @@ def raster_driver(path: str | Path, name: str | None = None) -> str:
         if head.startswith(magic):
             return driver
     kind = " (XML: a GDAL VRT?)" if head.lstrip().startswith(b"<") else ""
-    raise MeasureError(f"{label}: not a readable raster: not a GeoTIFF or JPEG 2000 file{kind}; other "
-                       "formats and VRTs are not read")
+    raise MeasureError(
+        f"{label}: not a readable raster: not a GeoTIFF or JPEG 2000 file{kind}; other "
+        "formats and VRTs are not read"
+    )
 
 
-def check_declared_size(ds: rasterio.io.DatasetReader, name: str, limits: RasterLimits | None = None) -> None:
+def check_declared_size(
+    ds: rasterio.io.DatasetReader, name: str, limits: RasterLimits | None = None
+) -> None:
     """Refuse a raster whose header declares more pixels or bands than the limits (before reading)."""
     lim = limits or RasterLimits.from_env()
     if ds.count > lim.bands:
-        raise MeasureError(f"{name}: declares {ds.count:,} bands, more than the limit of {lim.bands} "
-                           "(ORTHOSPEC_MAX_RASTER_BANDS); not read")
+        raise MeasureError(
+            f"{name}: declares {ds.count:,} bands, more than the limit of {lim.bands} "
+            "(ORTHOSPEC_MAX_RASTER_BANDS); not read"
+        )
     if ds.width * ds.height > lim.pixels:
-        raise MeasureError(f"{name}: declares {ds.width:,} x {ds.height:,} = {ds.width * ds.height:,} pixels, "
-                           f"more than the limit of {lim.pixels:,} (ORTHOSPEC_MAX_RASTER_PIXELS); not read")
+        raise MeasureError(
+            f"{name}: declares {ds.width:,} x {ds.height:,} = {ds.width * ds.height:,} pixels, "
+            f"more than the limit of {lim.pixels:,} (ORTHOSPEC_MAX_RASTER_PIXELS); not read"
+        )
 
 
 @dataclass(frozen=True)
@@ -224,14 +236,20 @@ def read_only_env(settings: ScanSettings | None = None) -> Iterator[None]:
     truncated striped file (``test_truncated_file_raises_measure_error``).
     """
     s = settings or ScanSettings()
-    with rasterio.Env(GDAL_PAM_ENABLED="NO", GDAL_CACHEMAX=s.gdal_cachemax_mb,
-                      GDAL_DISABLE_READDIR_ON_OPEN="EMPTY_DIR", GTIFF_DIRECT_IO="NO",
-                      GTIFF_VIRTUAL_MEM_IO="NO", **_SAFE_GDAL):
+    with rasterio.Env(
+        GDAL_PAM_ENABLED="NO",
+        GDAL_CACHEMAX=s.gdal_cachemax_mb,
+        GDAL_DISABLE_READDIR_ON_OPEN="EMPTY_DIR",
+        GTIFF_DIRECT_IO="NO",
+        GTIFF_VIRTUAL_MEM_IO="NO",
+        **_SAFE_GDAL,
+    ):
         yield
 
 
-def open_read_only(path: str | Path, *, name: str | None = None,
-                   limits: RasterLimits | None = None) -> rasterio.io.DatasetReader:
+def open_read_only(
+    path: str | Path, *, name: str | None = None, limits: RasterLimits | None = None
+) -> rasterio.io.DatasetReader:
     """Open a delivered raster strictly read-only (call inside :func:`read_only_env`).
 
     Only a regular TIFF/BigTIFF or JPEG 2000 file, with that driver alone; the declared size is
@@ -301,17 +319,28 @@ def band_infos(ds: rasterio.io.DatasetReader, bit_depth: int | None) -> list[Ban
         nodata = ds.nodatavals[i - 1]
         flags = ds.mask_flag_enums[i - 1]
         colour = ds.colorinterp[i - 1]
-        use_mask = nodata is None and colour != ColorInterp.alpha and (
-            MaskFlags.per_dataset in flags or MaskFlags.alpha in flags) and (
-            MaskFlags.all_valid not in flags)
+        use_mask = (
+            nodata is None
+            and colour != ColorInterp.alpha
+            and (MaskFlags.per_dataset in flags or MaskFlags.alpha in flags)
+            and (MaskFlags.all_valid not in flags)
+        )
         nbits_tag = ds.tags(i, ns="IMAGE_STRUCTURE").get("NBITS") or ds.tags(
-            ns="IMAGE_STRUCTURE").get("NBITS")
+            ns="IMAGE_STRUCTURE"
+        ).get("NBITS")
         nbits = int(nbits_tag) if nbits_tag else None
         if nodata is not None and np.dtype(dtype).kind in "ui":
             nodata = float(nodata)
-        out.append(BandInfo(index=i, dtype=dtype, nodata=nodata, use_mask=use_mask,
-                            colour=colour.name, grey=rad.grey_range(dtype, declared=bit_depth,
-                                                                    nbits=nbits)))
+        out.append(
+            BandInfo(
+                index=i,
+                dtype=dtype,
+                nodata=nodata,
+                use_mask=use_mask,
+                colour=colour.name,
+                grey=rad.grey_range(dtype, declared=bit_depth, nbits=nbits),
+            )
+        )
     return out
 
 
@@ -338,18 +367,30 @@ class RasterStats:
         return {
             "statistics": "exact, population std, nodata excluded per band, as GDAL",
             "bands": [b.to_dict(histogram=histogram) for b in self.bands],
-            "luminosity": None if self.luminosity is None else self.luminosity.to_dict(
-                histogram=histogram),
+            "luminosity": None
+            if self.luminosity is None
+            else self.luminosity.to_dict(histogram=histogram),
             "luminosity_weights": list(rad.LUMA_WEIGHTS),
             "misregistration": {
-                str(k): {"dy_px": v.dy, "dx_px": v.dx, "magnitude_px": v.magnitude, "peak": v.peak,
-                         "spread_px": self.misregistration_spread.get(k),
-                         "reliable": misregistration_reliable(v.peak, self.misregistration_spread.get(k))}
-                for k, v in sorted(self.misregistration.items())},
+                str(k): {
+                    "dy_px": v.dy,
+                    "dx_px": v.dx,
+                    "magnitude_px": v.magnitude,
+                    "peak": v.peak,
+                    "spread_px": self.misregistration_spread.get(k),
+                    "reliable": misregistration_reliable(
+                        v.peak, self.misregistration_spread.get(k)
+                    ),
+                }
+                for k, v in sorted(self.misregistration.items())
+            },
             "misregistration_reference_band": self.reference_band,
-            "pixels_hash": self.pixels_hash, "thumbnail": self.thumbnail,
-            "thumbnail_cell_px": self.thumbnail_cell_px, "cloud_pct": self.cloud_pct,
-            "cloud_samples": self.cloud_samples, "low_nodata": self.low_nodata,
+            "pixels_hash": self.pixels_hash,
+            "thumbnail": self.thumbnail,
+            "thumbnail_cell_px": self.thumbnail_cell_px,
+            "cloud_pct": self.cloud_pct,
+            "cloud_samples": self.cloud_samples,
+            "low_nodata": self.low_nodata,
         }
 
 
@@ -411,8 +452,12 @@ def scan_raster(path: str | Path, settings: ScanSettings | None = None) -> Raste
         return scan_dataset(ds, s, file=path)
 
 
-def scan_dataset(ds: rasterio.io.DatasetReader, settings: ScanSettings | None = None, *,
-                 file: str | Path | None = None) -> RasterStats:
+def scan_dataset(
+    ds: rasterio.io.DatasetReader,
+    settings: ScanSettings | None = None,
+    *,
+    file: str | Path | None = None,
+) -> RasterStats:
     """:func:`scan_raster` of a dataset already opened with :func:`open_read_only`.
 
     Raises
@@ -428,7 +473,9 @@ def scan_dataset(ds: rasterio.io.DatasetReader, settings: ScanSettings | None = 
 def _scan(ds: rasterio.io.DatasetReader, s: ScanSettings) -> RasterStats:
     infos = band_infos(ds, s.bit_depth)
     acc = _Accumulators.for_bands(infos, s, ds)
-    capture = _MisregistrationWindows.plan(ds, infos) if s.misregistration and ds.count >= 2 else None
+    capture = (
+        _MisregistrationWindows.plan(ds, infos) if s.misregistration and ds.count >= 2 else None
+    )
     chunks = _stream(ds, infos, s, acc, capture)
     binned = _binned_histograms(ds, infos, acc, s)  # floats / 32-bit only
     bands: list[rad.BandStats] = []
@@ -438,14 +485,28 @@ def _scan(ds: rasterio.io.DatasetReader, s: ScanSettings) -> RasterStats:
             h = acc.hists[b.index]
             if not b.use_mask:
                 h.exclude_value(b.nodata)
-            bands.append(rad.band_stats_from_histogram(str(b.index), b.dtype, h, b.grey,
-                                                       noise=nz, nodata=b.nodata))
+            bands.append(
+                rad.band_stats_from_histogram(
+                    str(b.index), b.dtype, h, b.grey, noise=nz, nodata=b.nodata
+                )
+            )
         else:
             ec = acc.edge_counts[b.index]
-            bands.append(rad.band_stats_from_moments(
-                str(b.index), b.dtype, ds.width * ds.height, acc.moms[b.index], b.grey,
-                histogram=binned.get(b.index), noise=nz, count_low=ec[0], count_high=ec[1],
-                above_range=ec[2], nodata=b.nodata))
+            bands.append(
+                rad.band_stats_from_moments(
+                    str(b.index),
+                    b.dtype,
+                    ds.width * ds.height,
+                    acc.moms[b.index],
+                    b.grey,
+                    histogram=binned.get(b.index),
+                    noise=nz,
+                    count_low=ec[0],
+                    count_high=ec[1],
+                    above_range=ec[2],
+                    nodata=b.nodata,
+                )
+            )
         if b.index in acc.nonfinite:
             bands[-1] = replace(bands[-1], nonfinite=acc.nonfinite[b.index])
     lum_stats = None
@@ -466,8 +527,13 @@ def _scan(ds: rasterio.io.DatasetReader, s: ScanSettings) -> RasterStats:
 CHUNKS_IN_FLIGHT = 6
 
 
-def _stream(ds: rasterio.io.DatasetReader, infos: Sequence[BandInfo], s: ScanSettings,
-            acc: _Accumulators, capture: _MisregistrationWindows | None) -> int:
+def _stream(
+    ds: rasterio.io.DatasetReader,
+    infos: Sequence[BandInfo],
+    s: ScanSettings,
+    acc: _Accumulators,
+    capture: _MisregistrationWindows | None,
+) -> int:
     """The one read of the pixels: feed every chunk to ``acc`` and ``capture``; the chunk count.
 
     A reader thread decodes the next chunks (GDAL releases the GIL) while up to ``s.threads``
@@ -498,11 +564,13 @@ def _stream(ds: rasterio.io.DatasetReader, infos: Sequence[BandInfo], s: ScanSet
             if not dtype or len(wins) <= 1:  # the first chunk: read() allocates, picks the dtype
                 data = ds.read(window=win)
                 dtype.append(data.dtype)
-                flat = data.reshape(-1) if data.size == largest and data.flags.c_contiguous else None
+                flat = (
+                    data.reshape(-1) if data.size == largest and data.flags.c_contiguous else None
+                )
                 return data, mask, flat
             buf = np.empty(largest, dtype=dtype[0])  # none free yet: the pool grows by one
         shape = (ds.count, int(win.height), int(win.width))
-        out = buf[:shape[0] * shape[1] * shape[2]].reshape(shape)
+        out = buf[: shape[0] * shape[1] * shape[2]].reshape(shape)
         return ds.read(window=win, out=out), mask, buf
 
     # chunk k goes to accumulator set k % 2 and is counted by thread k % threads, in chunk
@@ -527,8 +595,9 @@ def _stream(ds: rasterio.io.DatasetReader, infos: Sequence[BandInfo], s: ScanSet
     side: list[ThreadPoolExecutor] = []  # the side thread of a threaded scan
     noise_jobs: list[Future[list[tuple[int, rad.NoiseAccumulator]]]] = []
 
-    def noise_of(work: list[tuple[int, np.ndarray, np.ndarray | None]],
-                 buf: np.ndarray | None) -> list[tuple[int, rad.NoiseAccumulator]]:
+    def noise_of(
+        work: list[tuple[int, np.ndarray, np.ndarray | None]], buf: np.ndarray | None
+    ) -> list[tuple[int, rad.NoiseAccumulator]]:
         try:
             out = []
             for idx, band, valid in work:
@@ -539,8 +608,9 @@ def _stream(ds: rasterio.io.DatasetReader, infos: Sequence[BandInfo], s: ScanSet
         finally:
             done(buf)
 
-    def feed(k: int, win: Window, data: np.ndarray, mask: np.ndarray | None,
-             buf: np.ndarray | None) -> None:
+    def feed(
+        k: int, win: Window, data: np.ndarray, mask: np.ndarray | None, buf: np.ndarray | None
+    ) -> None:
         later: list[tuple[int, np.ndarray, np.ndarray | None]] | None = [] if side else None
         handed = False
         try:
@@ -567,7 +637,9 @@ def _stream(ds: rasterio.io.DatasetReader, infos: Sequence[BandInfo], s: ScanSet
             side.append(stack.enter_context(ThreadPoolExecutor(max_workers=1)))
             if capture is not None:
                 capture.correlator = side[0]
-            counters = [stack.enter_context(ThreadPoolExecutor(max_workers=1)) for _ in range(threads)]
+            counters = [
+                stack.enter_context(ThreadPoolExecutor(max_workers=1)) for _ in range(threads)
+            ]
             queued: deque[Future[None]] = deque()
             slots.acquire()
             pending = reader.submit(fetch, wins[0])
@@ -589,11 +661,14 @@ def _stream(ds: rasterio.io.DatasetReader, infos: Sequence[BandInfo], s: ScanSet
     return len(wins)
 
 
-def _binned_histograms(ds: rasterio.io.DatasetReader, infos: Sequence[BandInfo], acc: _Accumulators,
-                       s: ScanSettings) -> dict[int, rad.BinnedHistogramAccumulator]:
+def _binned_histograms(
+    ds: rasterio.io.DatasetReader, infos: Sequence[BandInfo], acc: _Accumulators, s: ScanSettings
+) -> dict[int, rad.BinnedHistogramAccumulator]:
     """Float and 32-bit bands: a second pass for the equal-bin histogram between the exact
     min and max (only known after the first); integer bands up to 16 bits need none."""
-    binned = {idx: rad.BinnedHistogramAccumulator(m.vmin, m.vmax) for idx, m in acc.moms.items() if m.n}
+    binned = {
+        idx: rad.BinnedHistogramAccumulator(m.vmin, m.vmax) for idx, m in acc.moms.items() if m.n
+    }
     if not binned:
         return binned
     idxs = sorted(binned)
@@ -640,40 +715,68 @@ class _Accumulators:
     nonfinite: dict[int, int] = field(default_factory=dict)
 
     @classmethod
-    def for_bands(cls, infos: Sequence[BandInfo], s: ScanSettings,
-                  ds: rasterio.io.DatasetReader | None = None) -> _Accumulators:
+    def for_bands(
+        cls, infos: Sequence[BandInfo], s: ScanSettings, ds: rasterio.io.DatasetReader | None = None
+    ) -> _Accumulators:
         exact = [rad.histogram_layout(b.dtype) is not None for b in infos]
         rgb = _rgb_bands(infos) if s.luminosity else None
         if rgb is not None and not all(exact[i - 1] for i in rgb):
             rgb = None
-        hidden = tuple(b.index for b in infos if not b.use_mask and b.nodata is not None
-                       and b.grey.low is not None and b.nodata == b.grey.low)
-        extra: dict[str, Any] = {"hidden": hidden, "low_told": dict.fromkeys(hidden, 0),
-                                 "nonfinite": {b.index: 0 for b in infos if np.dtype(b.dtype).kind == "f"}}
+        hidden = tuple(
+            b.index
+            for b in infos
+            if not b.use_mask
+            and b.nodata is not None
+            and b.grey.low is not None
+            and b.nodata == b.grey.low
+        )
+        extra: dict[str, Any] = {
+            "hidden": hidden,
+            "low_told": dict.fromkeys(hidden, 0),
+            "nonfinite": {b.index: 0 for b in infos if np.dtype(b.dtype).kind == "f"},
+        }
         if s.signature and ds is not None:
             dtype = str(np.result_type(*ds.dtypes))
-            extra["pixel_hash"] = sig.PixelHash(width=ds.width, height=ds.height, count=ds.count, dtype=dtype)
+            extra["pixel_hash"] = sig.PixelHash(
+                width=ds.width, height=ds.height, count=ds.count, dtype=dtype
+            )
             extra["thumb"] = sig.Thumbnail(width=ds.width, height=ds.height, dtype=dtype)
             colour = _rgb_bands(infos)
             if colour is not None and all(infos[i - 1].grey.high for i in colour):
                 extra["cloud"] = sig.CloudCounter.for_image(
-                    width=ds.width, height=ds.height, rgb=tuple(i - 1 for i in colour),  # type: ignore[arg-type]
+                    width=ds.width,
+                    height=ds.height,
+                    rgb=tuple(i - 1 for i in colour),  # type: ignore[arg-type]
                     tops=tuple(float(infos[i - 1].grey.high) for i in colour),  # type: ignore[arg-type]
-                    nodata=tuple(None if infos[i - 1].use_mask else infos[i - 1].nodata  # type: ignore[arg-type]
-                                 for i in colour))
-        return cls(**extra,
+                    nodata=tuple(
+                        None if infos[i - 1].use_mask else infos[i - 1].nodata  # type: ignore[arg-type]
+                        for i in colour
+                    ),
+                )
+        return cls(
+            **extra,
             infos=infos,
-            hists={b.index: rad.HistogramAccumulator.for_dtype(b.dtype)
-                   for b, ex in zip(infos, exact, strict=True) if ex},
+            hists={
+                b.index: rad.HistogramAccumulator.for_dtype(b.dtype)
+                for b, ex in zip(infos, exact, strict=True)
+                if ex
+            },
             moms={b.index: rad.Moments() for b, ex in zip(infos, exact, strict=True) if not ex},
             edge_counts={b.index: [0, 0, 0] for b, ex in zip(infos, exact, strict=True) if not ex},
             noise={b.index: rad.NoiseAccumulator() for b in infos} if s.noise else {},
             rgb=rgb,
-            lum=rad.HistogramAccumulator.for_dtype(infos[rgb[0] - 1].dtype) if rgb else None)
+            lum=rad.HistogramAccumulator.for_dtype(infos[rgb[0] - 1].dtype) if rgb else None,
+        )
 
-    def add(self, data: np.ndarray, shared_mask: np.ndarray | None, *, noise: bool,
-            later: list[tuple[int, np.ndarray, np.ndarray | None]] | None = None,
-            win: Window | None = None) -> None:
+    def add(
+        self,
+        data: np.ndarray,
+        shared_mask: np.ndarray | None,
+        *,
+        noise: bool,
+        later: list[tuple[int, np.ndarray, np.ndarray | None]] | None = None,
+        win: Window | None = None,
+    ) -> None:
         """Feed one chunk (bands, rows, cols); ``noise`` False skips the noise estimators.
 
         Validity masks cost as much as a histogram: they are built only where a pixel can be
@@ -698,7 +801,9 @@ class _Accumulators:
                 valid = _valid(band, b, mask_valid if b.use_mask else None)
                 self._add_moments(band, b, valid)
                 if b.index in self.nonfinite:
-                    self.nonfinite[b.index] += _nonfinite(band, b, mask_valid if b.use_mask else None)
+                    self.nonfinite[b.index] += _nonfinite(
+                        band, b, mask_valid if b.use_mask else None
+                    )
             elif b.use_mask:
                 hist.add(band, mask_valid)
                 valid = mask_valid
@@ -708,7 +813,9 @@ class _Accumulators:
                 hist.add(band)  # the nodata bin is dropped once at the end (exclude_value)
                 if nd is not None and int(hist.counts[nd]) != before:
                     with_nodata[b.index] = int(hist.counts[nd]) - before
-                valid = _valid(band, b, None) if b.index in with_nodata and b.index in need else None
+                valid = (
+                    _valid(band, b, None) if b.index in with_nodata and b.index in need else None
+                )
             valids[b.index] = valid
             if noise and b.index in self.noise:
                 if later is not None and band.dtype.kind in "uib" and band.dtype.itemsize <= 2:
@@ -728,8 +835,9 @@ class _Accumulators:
             if self.cloud is not None:
                 self.cloud.add(data, c0, r0, shared_mask)
 
-    def _add_low_nodata(self, data: np.ndarray, with_nodata: dict[int, int],
-                        valids: dict[int, np.ndarray | None]) -> None:
+    def _add_low_nodata(
+        self, data: np.ndarray, with_nodata: dict[int, int], valids: dict[int, np.ndarray | None]
+    ) -> None:
         """DN-0 saturation under a nodata value of 0 (issue 26): a band at its nodata value where
         another band of the pixel is valid is saturated, not no-data; a pixel at nodata in every
         band cannot be told apart. Only for chunks where a band's nodata value occurs. A band's
@@ -740,8 +848,12 @@ class _Accumulators:
         band has no nodata pixel in the chunk (then no pixel is at nodata in every band)."""
         bands: list[BandInfo] = []
         for b in self.infos:
-            if (b.use_mask or b.nodata is None or (isinstance(b.nodata, float) and math.isnan(b.nodata))
-                    or (b.index in self.hists and b.index not in with_nodata)):
+            if (
+                b.use_mask
+                or b.nodata is None
+                or (isinstance(b.nodata, float) and math.isnan(b.nodata))
+                or (b.index in self.hists and b.index not in with_nodata)
+            ):
                 bands = []  # a band without nodata here: no pixel is nodata in every band
                 break
             bands.append(b)
@@ -753,7 +865,11 @@ class _Accumulators:
             nd = np.asarray(b.nodata).astype(data.dtype)
             if where is None:
                 valid = valids.get(b.index)
-                at = ~valid.reshape(-1) if valid is not None and data.dtype.kind in "uib" else band == nd
+                at = (
+                    ~valid.reshape(-1)
+                    if valid is not None and data.dtype.kind in "uib"
+                    else band == nd
+                )
                 where = np.flatnonzero(at)
             else:
                 where = where[band[where] == nd]
@@ -763,7 +879,9 @@ class _Accumulators:
         self.all_nodata += ambiguous
         for idx in self.hidden:
             if idx in with_nodata:
-                self.low_told[idx] += with_nodata[idx] - ambiguous  # every-band pixels are not told apart
+                self.low_told[idx] += (
+                    with_nodata[idx] - ambiguous
+                )  # every-band pixels are not told apart
 
     def finish(self, out: RasterStats, ds: rasterio.io.DatasetReader) -> None:
         """Put the pixel facts into ``out`` (after every chunk was added and the sets merged)."""
@@ -779,28 +897,43 @@ class _Accumulators:
             out.low_nodata = {
                 "bands": [str(i) for i in self.hidden],
                 "pixels_nodata_in_every_band": self.all_nodata,
-                "pixels_nodata_in_every_band_pct": 100.0 * self.all_nodata / total if total else None,
-                "saturation_low_told_pct": {str(i): (100.0 * self.low_told[i] / rest if rest else None)
-                                            for i in self.hidden},
+                "pixels_nodata_in_every_band_pct": 100.0 * self.all_nodata / total
+                if total
+                else None,
+                "saturation_low_told_pct": {
+                    str(i): (100.0 * self.low_told[i] / rest if rest else None) for i in self.hidden
+                },
             }
 
-    def _add_luminosity(self, data: np.ndarray, mask_valid: np.ndarray | None,
-                        valids: dict[int, np.ndarray | None], with_nodata: dict[int, int]) -> None:
+    def _add_luminosity(
+        self,
+        data: np.ndarray,
+        mask_valid: np.ndarray | None,
+        valids: dict[int, np.ndarray | None],
+        with_nodata: dict[int, int],
+    ) -> None:
         """Luminosity of the pixels valid in all three colour bands."""
         assert self.rgb is not None and self.lum is not None
         rgb = [self.infos[i - 1] for i in self.rgb]
         r, g, bl = (data[i - 1] for i in self.rgb)
         first = self.rgb[0] - 1
-        planes = data[first:first + 3] if self.rgb == (first + 1, first + 2, first + 3) else None
-        y = rad.luminosity_block(r, g, bl, data.dtype, planes=planes,
-                                 out=rad.scratch("luminosity", r.shape, data.dtype))
+        planes = data[first : first + 3] if self.rgb == (first + 1, first + 2, first + 3) else None
+        y = rad.luminosity_block(
+            r, g, bl, data.dtype, planes=planes, out=rad.scratch("luminosity", r.shape, data.dtype)
+        )
         nodata = {b.nodata for b in rgb}
-        if not with_nodata.keys() & set(self.rgb) and not any(b.use_mask and mask_valid is not None for b in rgb):
+        if not with_nodata.keys() & set(self.rgb) and not any(
+            b.use_mask and mask_valid is not None for b in rgb
+        ):
             self.lum.add(y)  # every pixel of the chunk is valid in all three bands
             return
         low = np.iinfo(data.dtype).min if data.dtype.kind in "ui" else None
-        if len(nodata) == 1 and low is not None and nodata == {float(low)} and not any(
-                b.use_mask for b in rgb):
+        if (
+            len(nodata) == 1
+            and low is not None
+            and nodata == {float(low)}
+            and not any(b.use_mask for b in rgb)
+        ):
             # the usual case (nodata 0 in every band): a pixel is invalid where the darkest of its
             # three values is the nodata value; two np.minimum beat three masks by about 3x
             darkest = np.minimum(r, g, out=rad.scratch("darkest", r.shape, r.dtype))
@@ -825,14 +958,18 @@ class _Accumulators:
             h.merge(other.hists[idx])
         for idx, m in self.moms.items():
             m.merge(other.moms[idx])
-            self.edge_counts[idx] = [a + b for a, b in zip(self.edge_counts[idx], other.edge_counts[idx],
-                                                          strict=True)]
+            self.edge_counts[idx] = [
+                a + b for a, b in zip(self.edge_counts[idx], other.edge_counts[idx], strict=True)
+            ]
         for idx, nz in self.noise.items():
             nz.merge(other.noise[idx])
         if self.lum is not None and other.lum is not None:
             self.lum.merge(other.lum)
-        for mine, theirs in ((self.pixel_hash, other.pixel_hash), (self.thumb, other.thumb),
-                             (self.cloud, other.cloud)):
+        for mine, theirs in (
+            (self.pixel_hash, other.pixel_hash),
+            (self.thumb, other.thumb),
+            (self.cloud, other.cloud),
+        ):
             if mine is not None and theirs is not None:
                 mine.merge(theirs)  # type: ignore[arg-type]
         for idx in self.hidden:
@@ -882,8 +1019,9 @@ class _MisregistrationWindows:
     pending: dict[int, Future[dict[int, rad.Shift]]] = field(default_factory=dict)
 
     @classmethod
-    def plan(cls, ds: rasterio.io.DatasetReader, infos: Sequence[BandInfo], *,
-             size: int = 256) -> _MisregistrationWindows:
+    def plan(
+        cls, ds: rasterio.io.DatasetReader, infos: Sequence[BandInfo], *, size: int = 256
+    ) -> _MisregistrationWindows:
         colour = {b.colour: b.index for b in infos}
         ref = colour.get("green", 1)
         others = [b for b in infos if b.index != ref and b.colour != "alpha"]
@@ -898,10 +1036,16 @@ class _MisregistrationWindows:
                     wins.append(w)
         use_mask = any(b.use_mask for b in infos)
         dtype = np.result_type(*ds.dtypes)
-        return cls(infos=infos, ref=ref, others=others, windows=wins,
-                   data=[np.zeros((ds.count, n, n), dtype=dtype) for _ in wins],
-                   masks=[np.zeros((n, n), dtype=np.uint8) if use_mask else None for _ in wins],
-                   filled=[0] * len(wins), shifts=[None] * len(wins))
+        return cls(
+            infos=infos,
+            ref=ref,
+            others=others,
+            windows=wins,
+            data=[np.zeros((ds.count, n, n), dtype=dtype) for _ in wins],
+            masks=[np.zeros((n, n), dtype=np.uint8) if use_mask else None for _ in wins],
+            filled=[0] * len(wins),
+            shifts=[None] * len(wins),
+        )
 
     def take(self, win: Window, data: np.ndarray, mask: np.ndarray | None) -> None:
         """Copy the part of each window that this chunk (at ``win``) holds; correlate the
@@ -935,17 +1079,22 @@ class _MisregistrationWindows:
         valid pixels or a flat band)."""
         data, mask = self.data[i], self.masks[i]
         ref_info = self.infos[self.ref - 1]
-        a = _filled(data[self.ref - 1], _valid(data[self.ref - 1], ref_info,
-                                               mask if ref_info.use_mask else None))
+        a = _filled(
+            data[self.ref - 1],
+            _valid(data[self.ref - 1], ref_info, mask if ref_info.use_mask else None),
+        )
         if a is None:
             return {}
         f_ref = rad.tapered_spectrum(a)
         out = {}
         for b in self.others:
-            m = _filled(data[b.index - 1], _valid(data[b.index - 1], b, mask if b.use_mask else None))
+            m = _filled(
+                data[b.index - 1], _valid(data[b.index - 1], b, mask if b.use_mask else None)
+            )
             if m is not None:
                 out[b.index] = rad.phase_correlation_spectra(
-                    f_ref, rad.tapered_spectrum(m), upsample=MISREGISTRATION_UPSAMPLE)
+                    f_ref, rad.tapered_spectrum(m), upsample=MISREGISTRATION_UPSAMPLE
+                )
         return out
 
     def result(self) -> tuple[int, dict[int, rad.Shift], dict[int, float]]:
@@ -964,7 +1113,9 @@ class _MisregistrationWindows:
                 dy = float(np.median([s.dy for s in shifts]))
                 dx = float(np.median([s.dx for s in shifts]))
                 spreads[idx] = max(float(np.hypot(s.dy - dy, s.dx - dx)) for s in shifts)
-                result[idx] = rad.Shift(dy=dy, dx=dx, peak=float(np.median([s.peak for s in shifts])))
+                result[idx] = rad.Shift(
+                    dy=dy, dx=dx, peak=float(np.median([s.peak for s in shifts]))
+                )
         return self.ref, result, spreads
 
 
@@ -975,14 +1126,18 @@ MISREGISTRATION_MAX_SPREAD_PX = 1.0
 
 
 def misregistration_reliable(peak: float, spread_px: float | None) -> bool:
-    return peak >= MISREGISTRATION_MIN_PEAK and (spread_px is None or spread_px <= MISREGISTRATION_MAX_SPREAD_PX)
+    return peak >= MISREGISTRATION_MIN_PEAK and (
+        spread_px is None or spread_px <= MISREGISTRATION_MAX_SPREAD_PX
+    )
 
 
 def _mask(ds: rasterio.io.DatasetReader, info: BandInfo, win: Window) -> np.ndarray | None:
     return ds.read_masks(info.index, window=win) if info.use_mask else None
 
 
-def _filled(band: np.ndarray, valid: np.ndarray | None, min_valid: float = 0.9) -> np.ndarray | None:
+def _filled(
+    band: np.ndarray, valid: np.ndarray | None, min_valid: float = 0.9
+) -> np.ndarray | None:
     """Band as float with invalid pixels set to the valid mean; None if too few or flat."""
     a = band.astype(np.float64)
     if valid is not None:
@@ -997,7 +1152,9 @@ def _filled(band: np.ndarray, valid: np.ndarray | None, min_valid: float = 0.9) 
 # --------------------------------------------------------------------------- cloud mask
 
 
-def mask_share(path: str | Path, *, settings: ScanSettings | None = None) -> rad.MaskShareAccumulator:
+def mask_share(
+    path: str | Path, *, settings: ScanSettings | None = None
+) -> rad.MaskShareAccumulator:
     """Share of non-zero pixels of band 1 of a delivered mask raster (nodata excluded)."""
     s = settings or ScanSettings()
     acc = rad.MaskShareAccumulator()
@@ -1029,8 +1186,10 @@ def vector_driver(path: str | Path, name: str | None = None) -> str:
                 break
             return driver
     kind = " (XML: an OGR VRT?)" if head.lstrip().startswith(b"<") else ""
-    raise MeasureError(f"{label}: not a readable vector file: not a GeoPackage or shapefile{kind}; other "
-                       "vector formats are not read")
+    raise MeasureError(
+        f"{label}: not a readable vector file: not a GeoPackage or shapefile{kind}; other "
+        "vector formats are not read"
+    )
 
 
 @contextmanager
@@ -1063,8 +1222,9 @@ def readable_vector(path: str | Path, *, name: str | None = None) -> Iterator[tu
 VECTOR_BATCH = 20_000
 
 
-def read_vector(path: str | Path, *, name: str | None = None,
-                batch: int = VECTOR_BATCH) -> tuple[list[Any], str | None]:
+def read_vector(
+    path: str | Path, *, name: str | None = None, batch: int = VECTOR_BATCH
+) -> tuple[list[Any], str | None]:
     """Geometries (shapely) and CRS (WKT/authority string) of a vector file, with pyogrio, read in
     batches of ``batch`` features (no attribute columns: only the geometries are measured)."""
     import pyogrio
@@ -1073,13 +1233,16 @@ def read_vector(path: str | Path, *, name: str | None = None,
     label = name or str(path)
     geoms: list[Any] = []
     crs = None
-    with readable_vector(path, name=label) as (local, _driver), gdal_errors(
-            file=label, path=local, what="vector file"):
+    with (
+        readable_vector(path, name=label) as (local, _driver),
+        gdal_errors(file=label, path=local, what="vector file"),
+    ):
         total = pyogrio.read_info(local).get("features", -1)
         skip = 0
         while True:
             meta, _fids, geometry, _fields = pyogrio.raw.read(
-                local, columns=[], skip_features=skip, max_features=batch)
+                local, columns=[], skip_features=skip, max_features=batch
+            )
             crs = meta.get("crs")
             n = 0 if geometry is None else len(geometry)
             if n:
@@ -1101,16 +1264,25 @@ class OverlapPixels:
     pixels: int
 
 
-def overlap_means(path_a: str | Path, path_b: str | Path, *, bands: Sequence[int] | None = None,
-                  settings: ScanSettings | None = None) -> OverlapPixels:
+def overlap_means(
+    path_a: str | Path,
+    path_b: str | Path,
+    *,
+    bands: Sequence[int] | None = None,
+    settings: ScanSettings | None = None,
+) -> OverlapPixels:
     """Stream the overlap strip of two adjacent orthos on the grid of ``path_a``.
 
     Both must share the CRS; ``path_b`` is read with nearest resampling onto ``path_a``'s
     pixels of the common extent. Pixels valid in both (GDAL masks) are averaged.
     """
     s = settings or ScanSettings()
-    with read_only_env(s), open_read_only(path_a) as a, open_read_only(path_b) as b, gdal_errors(
-            file=f"{path_a} / {path_b}", what="overlap of two rasters"):
+    with (
+        read_only_env(s),
+        open_read_only(path_a) as a,
+        open_read_only(path_b) as b,
+        gdal_errors(file=f"{path_a} / {path_b}", what="overlap of two rasters"),
+    ):
         if a.crs != b.crs:
             raise MeasureError(f"{path_a} and {path_b} have different CRS ({a.crs} vs {b.crs})")
         left = max(a.bounds.left, b.bounds.left)
@@ -1132,23 +1304,39 @@ def overlap_means(path_a: str | Path, path_b: str | Path, *, bands: Sequence[int
             da = a.read(idx, window=sub, masked=True)
             ba = rasterio.windows.bounds(sub, a.transform)
             wb = b.window(*ba)
-            db = b.read(idx, window=wb, out_shape=(len(idx), h, int(wa.width)), boundless=True,
-                        masked=True, resampling=rasterio.enums.Resampling.nearest)
+            db = b.read(
+                idx,
+                window=wb,
+                out_shape=(len(idx), h, int(wa.width)),
+                boundless=True,
+                masked=True,
+                resampling=rasterio.enums.Resampling.nearest,
+            )
             ok = ~(np.ma.getmaskarray(da).any(axis=0) | np.ma.getmaskarray(db).any(axis=0))
             n += int(ok.sum())
             sums_a += np.asarray(da.data[:, ok], dtype=np.float64).sum(axis=1)
             sums_b += np.asarray(db.data[:, ok], dtype=np.float64).sum(axis=1)
         if n == 0:
             raise MeasureError(f"{path_a} and {path_b} have no jointly valid overlap pixels")
-        return OverlapPixels(bands=tuple(idx), mean_a=tuple(sums_a / n), mean_b=tuple(sums_b / n),
-                             pixels=n)
+        return OverlapPixels(
+            bands=tuple(idx), mean_a=tuple(sums_a / n), mean_b=tuple(sums_b / n), pixels=n
+        )
 
 
-def read_window_array(path: str | Path, *, size: int = 1024, bands: Sequence[int] | None = None,
-                      bounds: tuple[float, float, float, float] | None = None,
-                      out_shape: tuple[int, int] | None = None) -> np.ndarray:
+def read_window_array(
+    path: str | Path,
+    *,
+    size: int = 1024,
+    bands: Sequence[int] | None = None,
+    bounds: tuple[float, float, float, float] | None = None,
+    out_shape: tuple[int, int] | None = None,
+) -> np.ndarray:
     """A central (or given-bounds) window as float64, for sharpness comparisons."""
-    with read_only_env(), open_read_only(path) as ds, gdal_errors(file=path, what="raster (pixels)"):
+    with (
+        read_only_env(),
+        open_read_only(path) as ds,
+        gdal_errors(file=path, what="raster (pixels)"),
+    ):
         idx = list(bands or range(1, ds.count + 1))
         if bounds is not None:
             win = ds.window(*bounds)
@@ -1156,8 +1344,13 @@ def read_window_array(path: str | Path, *, size: int = 1024, bands: Sequence[int
             n_r, n_c = min(size, ds.height), min(size, ds.width)
             win = Window((ds.width - n_c) // 2, (ds.height - n_r) // 2, n_c, n_r)
         shape = None if out_shape is None else (len(idx), *out_shape)
-        return ds.read(idx, window=win, out_shape=shape, boundless=bounds is not None,
-                       resampling=rasterio.enums.Resampling.nearest).astype(np.float64)
+        return ds.read(
+            idx,
+            window=win,
+            out_shape=shape,
+            boundless=bounds is not None,
+            resampling=rasterio.enums.Resampling.nearest,
+        ).astype(np.float64)
 
 
 def window_bounds(path: str | Path, size: int = 1024) -> tuple[float, float, float, float]:
@@ -1168,8 +1361,9 @@ def window_bounds(path: str | Path, size: int = 1024) -> tuple[float, float, flo
         return tuple(rasterio.windows.bounds(win, ds.transform))  # type: ignore[return-value]
 
 
-def pan_fused_windows(pan_path: str | Path, fused_path: str | Path, *,
-                      size: int = 1024) -> tuple[np.ndarray, np.ndarray]:
+def pan_fused_windows(
+    pan_path: str | Path, fused_path: str | Path, *, size: int = 1024
+) -> tuple[np.ndarray, np.ndarray]:
     """The central PAN window and the fused product over the same ground, on the PAN grid."""
     b = window_bounds(pan_path, size)
     pan = read_window_array(pan_path, bands=[1], bounds=b)

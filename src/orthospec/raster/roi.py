@@ -52,10 +52,14 @@ class PixelWindow:
     def __post_init__(self) -> None:
         vals = (self.x0, self.y0, self.x1, self.y1)
         if not all(isinstance(v, int | np.integer) and not isinstance(v, bool) for v in vals):
-            raise MeasureError(f"ROI {list(vals)}: expected four whole numbers of pixels x0, y0, x1, y1")
+            raise MeasureError(
+                f"ROI {list(vals)}: expected four whole numbers of pixels x0, y0, x1, y1"
+            )
         if not (0 <= self.x0 < self.x1 and 0 <= self.y0 < self.y1):
-            raise MeasureError(f"ROI {list(vals)}: expected 0 <= x0 < x1 and 0 <= y0 < y1 (pixels, "
-                               "x1/y1 exclusive)")
+            raise MeasureError(
+                f"ROI {list(vals)}: expected 0 <= x0 < x1 and 0 <= y0 < y1 (pixels, "
+                "x1/y1 exclusive)"
+            )
 
     def as_tuple(self) -> tuple[int, int, int, int]:
         return int(self.x0), int(self.y0), int(self.x1), int(self.y1)
@@ -72,7 +76,9 @@ class MapWindow:
 
     def __post_init__(self) -> None:
         vals = (self.xmin, self.ymin, self.xmax, self.ymax)
-        if not all(math.isfinite(float(v)) for v in vals) or not (self.xmin < self.xmax and self.ymin < self.ymax):
+        if not all(math.isfinite(float(v)) for v in vals) or not (
+            self.xmin < self.xmax and self.ymin < self.ymax
+        ):
             raise MeasureError(f"map ROI {list(vals)}: expected finite xmin < xmax and ymin < ymax")
 
 
@@ -104,9 +110,16 @@ class RasterRoi:
         return self.data.astype(float).filled(np.nan)
 
 
-def read_roi(path: str | Path, *, window: PixelWindow | MapWindow | None = None, band: int = 1,
-             nodata: float | None = None, name: str | None = None,
-             max_pixels: int | None = None, too_large: str = "give an ROI") -> RasterRoi:
+def read_roi(
+    path: str | Path,
+    *,
+    window: PixelWindow | MapWindow | None = None,
+    band: int = 1,
+    nodata: float | None = None,
+    name: str | None = None,
+    max_pixels: int | None = None,
+    too_large: str = "give an ROI",
+) -> RasterRoi:
     """Read ``band`` of the raster at ``path`` in ``window`` (see the module docstring).
 
     ``max_pixels`` bounds the read (a whole band for an automatic edge search), checked before
@@ -119,24 +132,45 @@ def read_roi(path: str | Path, *, window: PixelWindow | MapWindow | None = None,
         not exist, the window is not inside the image, or the read is too large.
     """
     label = name or str(path)
-    with _not_georeferenced_is_fine(), read_only_env(), open_read_only(path, name=label) as ds, \
-            gdal_errors(file=label, path=path):
-        return roi_of(ds, label, window=window, band=band, nodata=nodata, max_pixels=max_pixels,
-                      too_large=too_large)
+    with (
+        _not_georeferenced_is_fine(),
+        read_only_env(),
+        open_read_only(path, name=label) as ds,
+        gdal_errors(file=label, path=path),
+    ):
+        return roi_of(
+            ds,
+            label,
+            window=window,
+            band=band,
+            nodata=nodata,
+            max_pixels=max_pixels,
+            too_large=too_large,
+        )
 
 
-def roi_of(ds: Any, label: str, *, window: PixelWindow | MapWindow | None = None, band: int = 1,
-           nodata: float | None = None, max_pixels: int | None = None,
-           too_large: str = "give an ROI") -> RasterRoi:
+def roi_of(
+    ds: Any,
+    label: str,
+    *,
+    window: PixelWindow | MapWindow | None = None,
+    band: int = 1,
+    nodata: float | None = None,
+    max_pixels: int | None = None,
+    too_large: str = "give an ROI",
+) -> RasterRoi:
     """:func:`read_roi` on an open dataset (call inside ``read_only_env`` and ``gdal_errors``)."""
     if not 1 <= band <= ds.count:
-        raise MeasureError(f"{label}: band {band} does not exist; the file has {ds.count} band(s) "
-                           f"(1..{ds.count})")
+        raise MeasureError(
+            f"{label}: band {band} does not exist; the file has {ds.count} band(s) (1..{ds.count})"
+        )
     px = _pixel_window(ds, window, label)
     x0, y0, x1, y1 = px
     if max_pixels is not None and (x1 - x0) * (y1 - y0) > max_pixels:
-        raise MeasureError(f"{label}: band {band} is to be read as {x1 - x0} x {y1 - y0} px, more than "
-                           f"the limit of {max_pixels} px; {too_large}")
+        raise MeasureError(
+            f"{label}: band {band} is to be read as {x1 - x0} x {y1 - y0} px, more than "
+            f"the limit of {max_pixels} px; {too_large}"
+        )
     win = Window(x0, y0, x1 - x0, y1 - y0)
     if nodata is None:
         data = ds.read(band, window=win, masked=True)
@@ -154,26 +188,34 @@ def roi_of(ds: Any, label: str, *, window: PixelWindow | MapWindow | None = None
     return RasterRoi(label, band, px, data, used, gsd, note, crs)
 
 
-def _pixel_window(ds: Any, window: PixelWindow | MapWindow | None, label: str) -> tuple[int, int, int, int]:
+def _pixel_window(
+    ds: Any, window: PixelWindow | MapWindow | None, label: str
+) -> tuple[int, int, int, int]:
     """The pixel window to read, checked to lie inside the image."""
     if window is None:
         return 0, 0, int(ds.width), int(ds.height)
     if isinstance(window, MapWindow):
         if ds.crs is None and ds.transform.is_identity:
-            raise MeasureError(f"{label}: a map ROI needs a georeferenced raster; this one has no "
-                               "transform (give the ROI in pixels)")
+            raise MeasureError(
+                f"{label}: a map ROI needs a georeferenced raster; this one has no "
+                "transform (give the ROI in pixels)"
+            )
         w = from_bounds(window.xmin, window.ymin, window.xmax, window.ymax, transform=ds.transform)
         eps = 1e-6  # px: a bound on a pixel edge does not take in the next pixel
         x0, y0 = max(math.floor(w.col_off + eps), 0), max(math.floor(w.row_off + eps), 0)
         x1 = min(math.ceil(w.col_off + w.width - eps), ds.width)
         y1 = min(math.ceil(w.row_off + w.height - eps), ds.height)
         if x1 <= x0 or y1 <= y0:
-            raise MeasureError(f"{label}: map ROI {window.xmin:g},{window.ymin:g},{window.xmax:g},"
-                               f"{window.ymax:g} does not overlap the image")
+            raise MeasureError(
+                f"{label}: map ROI {window.xmin:g},{window.ymin:g},{window.xmax:g},"
+                f"{window.ymax:g} does not overlap the image"
+            )
         return x0, y0, x1, y1
     x0, y0, x1, y1 = window.as_tuple()
     if x1 > ds.width or y1 > ds.height:
-        raise MeasureError(f"{label}: ROI {x0},{y0},{x1},{y1} exceeds the image ({ds.width} x {ds.height} px)")
+        raise MeasureError(
+            f"{label}: ROI {x0},{y0},{x1},{y1} exceeds the image ({ds.width} x {ds.height} px)"
+        )
     return x0, y0, x1, y1
 
 
@@ -198,8 +240,12 @@ def pixel_size_m(ds: Any) -> tuple[float | None, str]:
 def raster_bounds(path: str | Path, *, name: str | None = None) -> Bounds:
     """Footprint (left, bottom, right, top) of a raster in its CRS; MeasureError naming the file."""
     label = name or str(path)
-    with _not_georeferenced_is_fine(), read_only_env(), open_read_only(path, name=label) as ds, \
-            gdal_errors(file=label, path=path):
+    with (
+        _not_georeferenced_is_fine(),
+        read_only_env(),
+        open_read_only(path, name=label) as ds,
+        gdal_errors(file=label, path=path),
+    ):
         b = ds.bounds
         return float(b.left), float(b.bottom), float(b.right), float(b.top)
 

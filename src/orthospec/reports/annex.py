@@ -38,11 +38,13 @@ CONSEQUENCES = {
     "reject_block": "all products of the block are rejected",
     "return_delivery": "the whole delivery is returned to the contractor",
     "incomplete": "the check is incomplete until the checker completes it (e.g. more check points); "
-                  "the contractor's products are not rejected for it",
+    "the contractor's products are not rejected for it",
     "warn": "recorded as a warning; not a ground for rejection by itself",
 }
-LEVELS = {"mandatory": "must be met (\"shall\", \"must\", \"will\")",
-          "recommended": "should be met; failing it is reported as a warning"}
+LEVELS = {
+    "mandatory": 'must be met ("shall", "must", "will")',
+    "recommended": "should be met; failing it is reported as a warning",
+}
 
 
 def _num(v: Any) -> str:
@@ -155,18 +157,37 @@ def _group_order(g: Group, sections: list[Rule]) -> tuple[Any, ...]:
     return (doc, ((2, 0, ""),), 2, ())
 
 
-def _rule_view(rule: Rule, params: dict[str, Parameter], tender_params: set[str] | None = None,
-               change: str = "") -> dict[str, Any]:
+def _rule_view(
+    rule: Rule,
+    params: dict[str, Parameter],
+    tender_params: set[str] | None = None,
+    change: str = "",
+) -> dict[str, Any]:
     req = requirement_text(rule.requirement, params)
     return {
-        "id": rule.id, "title": _title(rule, req, tender_params or set()), "clause": rule.clause.text(),
-        "quote": _plain_markup(rule.quote), "quote_html": _html_markup(rule.quote),
-        "scope": rule.scope, "when": rule.when, "when_prose": condition_prose(rule.when) if rule.when else "",
-        "requirement": req, "measure": rule.measure, "level": rule.level, "consequence": rule.consequence,
-        "consequence_text": CONSEQUENCES.get(rule.consequence, rule.consequence), "manual": rule.manual,
-        "note": plain_note(rule.note), "audit": rule.audit.model_dump(exclude_none=True) if rule.audit else {},
-        "tags": list(rule.tags), "change": change,
-        "sort": (natural_key(str(rule.clause.section or "")), natural_key(str(rule.clause.row or "")), rule.id),
+        "id": rule.id,
+        "title": _title(rule, req, tender_params or set()),
+        "clause": rule.clause.text(),
+        "quote": _plain_markup(rule.quote),
+        "quote_html": _html_markup(rule.quote),
+        "scope": rule.scope,
+        "when": rule.when,
+        "when_prose": condition_prose(rule.when) if rule.when else "",
+        "requirement": req,
+        "measure": rule.measure,
+        "level": rule.level,
+        "consequence": rule.consequence,
+        "consequence_text": CONSEQUENCES.get(rule.consequence, rule.consequence),
+        "manual": rule.manual,
+        "note": plain_note(rule.note),
+        "audit": rule.audit.model_dump(exclude_none=True) if rule.audit else {},
+        "tags": list(rule.tags),
+        "change": change,
+        "sort": (
+            natural_key(str(rule.clause.section or "")),
+            natural_key(str(rule.clause.row or "")),
+            rule.id,
+        ),
     }
 
 
@@ -215,8 +236,6 @@ def tender_sensor(profile: ResolvedProfile) -> tuple[set[str], bool | None]:
     return types or set(), digital
 
 
-
-
 def _parent(profile: ResolvedProfile) -> ResolvedProfile | None:
     """The profile this one extends, resolved (to mark what the ITT added, changed or removed)."""
     if len(profile.chain) < 2:
@@ -232,15 +251,20 @@ def _changed_keys(a: Rule, b: Rule) -> list[str]:
     return sorted(k for k in set(da) | set(db) if da.get(k) != db.get(k) and k not in ("override",))
 
 
-def annex_context(profile: ResolvedProfile, *, day: str, sensor: str | None = None) -> dict[str, Any]:
+def annex_context(
+    profile: ResolvedProfile, *, day: str, sensor: str | None = None
+) -> dict[str, Any]:
     """Everything the annex templates show, from the resolved profile."""
     params = dict(profile.parameters)
     parent = _parent(profile)
     base_rules = {r.id: r for r in parent.rules} if parent is not None else {}
     base_params = dict(parent.parameters) if parent is not None else {}
-    tender_params = {n for n, p in params.items()
-                     if parent is not None and (n not in base_params
-                                                or param_value(base_params[n]) != param_value(p))}
+    tender_params = {
+        n
+        for n, p in params.items()
+        if parent is not None
+        and (n not in base_params or param_value(base_params[n]) != param_value(p))
+    }
     sensors, digital = tender_sensor(profile)
     if sensor:
         sensors = {sensor}
@@ -254,7 +278,9 @@ def annex_context(profile: ResolvedProfile, *, day: str, sensor: str | None = No
     for rule in profile.rules:
         why = cannot_apply(rule, sensors, digital)
         if why is not None:
-            excluded.append({"id": rule.id, "title": rule.title, "clause": rule.clause.text(), "why": why})
+            excluded.append(
+                {"id": rule.id, "title": rule.title, "clause": rule.clause.text(), "why": why}
+            )
             continue
         change = ""
         if parent is not None:
@@ -263,12 +289,21 @@ def annex_context(profile: ResolvedProfile, *, day: str, sensor: str | None = No
             else:
                 keys = _changed_keys(base_rules[rule.id], rule)
                 if keys:
-                    change = "changed by the ITT (" + ", ".join(k.replace("_", " ") for k in keys) + ")"
+                    change = (
+                        "changed by the ITT (" + ", ".join(k.replace("_", " ") for k in keys) + ")"
+                    )
         view = _rule_view(rule, params, tender_params, change)
         if change:
-            changes.append({"id": rule.id, "title": view["title"], "change": change,
-                            "requirement": view["requirement"], "level": rule.level,
-                            "consequence": rule.consequence})
+            changes.append(
+                {
+                    "id": rule.id,
+                    "title": view["title"],
+                    "change": change,
+                    "requirement": view["requirement"],
+                    "level": rule.level,
+                    "consequence": rule.consequence,
+                }
+            )
         if view["note"]:
             notes.append({"id": rule.id, "note": view["note"]})
         key, title = _group_of(rule)
@@ -277,44 +312,82 @@ def annex_context(profile: ResolvedProfile, *, day: str, sensor: str | None = No
     removed = []
     if parent is not None:
         ids = {r.id for r in profile.rules}
-        just = {str(getattr(x, "id", x)): getattr(x, "justification", None)
-                for x in getattr(profile, "removed", ()) or ()}
-        removed = [{"id": rid, "title": r.title, "clause": r.clause.text(),
-                    "justification": just.get(rid) or "no justification recorded in the profile"}
-                   for rid, r in base_rules.items() if rid not in ids]
+        just = {
+            str(getattr(x, "id", x)): getattr(x, "justification", None)
+            for x in getattr(profile, "removed", ()) or ()
+        }
+        removed = [
+            {
+                "id": rid,
+                "title": r.title,
+                "clause": r.clause.text(),
+                "justification": just.get(rid) or "no justification recorded in the profile",
+            }
+            for rid, r in base_rules.items()
+            if rid not in ids
+        ]
     ordered = sorted(groups.values(), key=lambda g: _group_order(g, members[g.key]))
     for g in ordered:
         g.rules.sort(key=lambda r: r["sort"])
     body = [r for rules in members.values() for r in rules]
     body_ids = {r.id for r in body}
     unset = _unset_itt(params, body, [r for r in profile.rules if r.id not in body_ids])
-    weakened = [{**w.to_dict(), "changes_text": "; ".join(w.changes)} for w in getattr(profile, "weakened", ())]
-    sensor_unstated = parent is not None and not sensors and any(
-        cannot_apply(r, {t}, None) is not None for r in profile.rules for t in SENSOR_TYPES)
+    weakened = [
+        {**w.to_dict(), "changes_text": "; ".join(w.changes)}
+        for w in getattr(profile, "weakened", ())
+    ]
+    sensor_unstated = (
+        parent is not None
+        and not sensors
+        and any(cannot_apply(r, {t}, None) is not None for r in profile.rules for t in SENSOR_TYPES)
+    )
     src = profile.source
     n_rules = sum(len(g.rules) for g in ordered)
     return {
-        "profile": profile, "day": day, "source": src,
-        "parameters": [{"name": n, "value": param_value(p), "unit": p.unit or "", "required": p.required,
-                        "description": plain_note(p.description) or p.description, "choices": p.choices,
-                        "changed": n in tender_params, "justification": getattr(p, "justification", None),
-                        "fixed_by": "tender" if p.value is not None else ("standard" if p.default is not None
-                                                                          else "to be fixed in the ITT")}
-                       for n, p in sorted(params.items())],
+        "profile": profile,
+        "day": day,
+        "source": src,
+        "parameters": [
+            {
+                "name": n,
+                "value": param_value(p),
+                "unit": p.unit or "",
+                "required": p.required,
+                "description": plain_note(p.description) or p.description,
+                "choices": p.choices,
+                "changed": n in tender_params,
+                "justification": getattr(p, "justification", None),
+                "fixed_by": "tender"
+                if p.value is not None
+                else ("standard" if p.default is not None else "to be fixed in the ITT"),
+            }
+            for n, p in sorted(params.items())
+        ],
         "groups": ordered,
         "tables": sorted(profile.tables.items()),
         "classes": sorted(profile.classes.items()),
         "waivers": list(profile.waivers),
-        "consequences": CONSEQUENCES, "levels": LEVELS,
-        "n_rules": n_rules, "n_manual": sum(r["manual"] for g in ordered for r in g.rules),
-        "excluded": excluded, "changes": changes, "removed": removed, "notes": notes,
-        "sensors": sorted(sensors), "digital": digital, "parent": parent,
-        "unset": unset, "weakened": weakened, "sensor_unstated": sensor_unstated,
+        "consequences": CONSEQUENCES,
+        "levels": LEVELS,
+        "n_rules": n_rules,
+        "n_manual": sum(r["manual"] for g in ordered for r in g.rules),
+        "excluded": excluded,
+        "changes": changes,
+        "removed": removed,
+        "notes": notes,
+        "sensors": sorted(sensors),
+        "digital": digital,
+        "parent": parent,
+        "unset": unset,
+        "weakened": weakened,
+        "sensor_unstated": sensor_unstated,
         "title": f"Technical specification annex — {profile.title}",
     }
 
 
-def _unset_itt(params: dict[str, Parameter], rules: list[Rule], others: list[Rule]) -> list[dict[str, Any]]:
+def _unset_itt(
+    params: dict[str, Parameter], rules: list[Rule], others: list[Rule]
+) -> list[dict[str, Any]]:
     """Parameters left to the ITT that have no value and that the annex's requirements use: the ITT
     must fix them before the call for tender is published (page 1 warns).
 
@@ -322,6 +395,7 @@ def _unset_itt(params: dict[str, Parameter], rules: list[Rule], others: list[Rul
     it (a measure may read a parameter, e.g. the Table 9 master-image rules read ``master_images``).
     A parameter only the requirements of another sensor use (``others``) is not the tender's to fix.
     """
+
     def users(rs: list[Rule], name: str) -> list[str]:
         word = re.compile(rf"\b{re.escape(name)}\b")
         out = []
@@ -330,8 +404,11 @@ def _unset_itt(params: dict[str, Parameter], rules: list[Rule], others: list[Rul
             if r.when:
                 with contextlib.suppress(ExpressionError):
                     names |= set(parse(r.when).names)
-            if name in names or f"param.{name}" in names or any(
-                    word.search(t) for t in (r.note or "", r.internal_note or "")):
+            if (
+                name in names
+                or f"param.{name}" in names
+                or any(word.search(t) for t in (r.note or "", r.internal_note or ""))
+            ):
                 out.append(r.id)
         return out
 
@@ -344,8 +421,13 @@ def _unset_itt(params: dict[str, Parameter], rules: list[Rule], others: list[Rul
             continue  # only requirements that cannot apply to this tender use it
         shown = ", ".join(ids[:6]) + (f" and {len(ids) - 6} more" if len(ids) > 6 else "")
         unit = p.unit if p.unit and p.unit not in NO_UNIT else ""
-        out.append({"name": name, "unit": unit,
-                    "readers": f"used by {shown}" if ids else "used by no requirement of this annex"})
+        out.append(
+            {
+                "name": name,
+                "unit": unit,
+                "readers": f"used by {shown}" if ids else "used by no requirement of this annex",
+            }
+        )
     return out
 
 
@@ -386,8 +468,10 @@ def default_out_dir(cwd: Path | None = None) -> Path:
     here = (cwd or Path.cwd()).resolve()
     for d in (here, *here.parents):
         if _is_delivery(d):
-            raise ReportError(f"the current folder is inside the delivery {str(d)!r}; orthospec never writes "
-                              "into a delivery: give --out DIR outside it")
+            raise ReportError(
+                f"the current folder is inside the delivery {str(d)!r}; orthospec never writes "
+                "into a delivery: give --out DIR outside it"
+            )
     for d in (here, *here.parents):
         if _is_orthospec_checkout(d):
             return d / DEFAULT_OUT
@@ -413,20 +497,32 @@ def _md_text(v: Any) -> str:
     return " ".join(text.split())
 
 
-def render_annex(profile: ResolvedProfile, *, formats: Iterable[str] = ANNEX_FORMATS,
-                 day: str | None = None, sensor: str | None = None) -> dict[str, str | bytes]:
+def render_annex(
+    profile: ResolvedProfile,
+    *,
+    formats: Iterable[str] = ANNEX_FORMATS,
+    day: str | None = None,
+    sensor: str | None = None,
+) -> dict[str, str | bytes]:
     """Render the annex in memory: ``{"annex-<id>-<version>.md": ..., ...}``."""
     fmts = list(dict.fromkeys(formats))
     bad = [f for f in fmts if f not in ANNEX_FORMATS]
     if bad:
-        raise ReportError(f"unknown annex format(s) {', '.join(bad)}; choose from {', '.join(ANNEX_FORMATS)}")
+        raise ReportError(
+            f"unknown annex format(s) {', '.join(bad)}; choose from {', '.join(ANNEX_FORMATS)}"
+        )
     day = day or Date.today().isoformat()
     ctx = annex_context(profile, day=day, sensor=sensor)
     out: dict[str, str | bytes] = {}
     if "md" in fmts:
-        env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(templates_dir())), autoescape=False,
-                                 undefined=jinja2.StrictUndefined, trim_blocks=True, lstrip_blocks=True,
-                                 keep_trailing_newline=True)
+        env = jinja2.Environment(
+            loader=jinja2.FileSystemLoader(str(templates_dir())),
+            autoescape=False,
+            undefined=jinja2.StrictUndefined,
+            trim_blocks=True,
+            lstrip_blocks=True,
+            keep_trailing_newline=True,
+        )
         env.filters.update(cell=_md_cell, text=_md_text, num=_num, human=human)
         out[annex_filename(profile, "md")] = env.get_template("annex.md.j2").render(**ctx)
     if "html" in fmts or "pdf" in fmts:
@@ -434,7 +530,9 @@ def render_annex(profile: ResolvedProfile, *, formats: Iterable[str] = ANNEX_FOR
         env.filters["num"] = _num
         env.filters["human"] = human
         if "html" in fmts:
-            out[annex_filename(profile, "html")] = env.get_template("annex.html.j2").render(**ctx, pdf=False)
+            out[annex_filename(profile, "html")] = env.get_template("annex.html.j2").render(
+                **ctx, pdf=False
+            )
         if "pdf" in fmts:
             from .fetcher import SafeFetcher
             from .pdf import FileAttachment, write_pdf
@@ -442,9 +540,15 @@ def render_annex(profile: ResolvedProfile, *, formats: Iterable[str] = ANNEX_FOR
             fetcher = SafeFetcher(templates_dir())
             html = env.get_template("annex.html.j2").render(**ctx, pdf=True)
             canonical = profile.canonical_json().encode("utf-8")
-            files = [FileAttachment(f"{profile.id}-{profile.version}.json", canonical,
-                                    f"Resolved profile {profile.id} {profile.version} (SHA-256 {profile.sha256})",
-                                    relationship="Source")]
-            out[annex_filename(profile, "pdf")] = write_pdf(html, fetcher=fetcher, day=day,
-                                                            identifier=profile.sha256, attachments=files)
+            files = [
+                FileAttachment(
+                    f"{profile.id}-{profile.version}.json",
+                    canonical,
+                    f"Resolved profile {profile.id} {profile.version} (SHA-256 {profile.sha256})",
+                    relationship="Source",
+                )
+            ]
+            out[annex_filename(profile, "pdf")] = write_pdf(
+                html, fetcher=fetcher, day=day, identifier=profile.sha256, attachments=files
+            )
     return out

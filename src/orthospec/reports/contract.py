@@ -46,11 +46,15 @@ def parameter_lines(doc: dict[str, Any]) -> list[str]:
         if "profile_value" not in p:
             filled.setdefault(_SOURCES[p["source"]], []).append(got)
         elif not same_value(p["value"], p["profile_value"]):
-            out.append(f"{got} from {_SOURCES[p['source']]}, instead of the {whose} "
-                       f"{_show(p['profile_value'], p.get('unit'))}")
+            out.append(
+                f"{got} from {_SOURCES[p['source']]}, instead of the {whose} "
+                f"{_show(p['profile_value'], p.get('unit'))}"
+            )
     for source, values in filled.items():
-        out.append(f"{', '.join(values)} from {source} (the profile leaves {'them' if len(values) > 1 else 'it'} "
-                   "to the ITT)")
+        out.append(
+            f"{', '.join(values)} from {source} (the profile leaves {'them' if len(values) > 1 else 'it'} "
+            "to the ITT)"
+        )
     return out
 
 
@@ -63,8 +67,10 @@ def weakened_lines(doc: dict[str, Any]) -> list[str]:
             continue
         title = f" ({w['title']})" if w.get("title") else ""
         why = w.get("justification") or "no justification recorded"
-        out.append(f"{w.get('id')}{title}, mandatory in the standard: {'; '.join(map(str, w.get('changes') or []))}"
-                   f" by {w.get('profile')}, justified: {why}")
+        out.append(
+            f"{w.get('id')}{title}, mandatory in the standard: {'; '.join(map(str, w.get('changes') or []))}"
+            f" by {w.get('profile')}, justified: {why}"
+        )
     return out
 
 

@@ -3,7 +3,8 @@
 A *finding* states one problem as measured against required, with the rule title, the item and
 the clause (``B02: Block RMSEy within the tolerance: 0.641 m > 0.5 m (JRC EUR 23638 EN, §12.7)``).
 Findings are ordered by consequence (return the delivery, reject a block, reject an item, the
-checker's open work, then missing evidence, errors, warnings) and one root cause gives one finding: the records of several
+checker's open work, then missing evidence, errors, warnings) and one root cause gives one finding:
+the records of several
 rules that fail for the same item with the same message (one missing file) become one finding
 that lists the rules affected. The terminal, page 1 of the PDF and the failures table all use
 :func:`findings`, so they never disagree.
@@ -22,18 +23,37 @@ from typing import Any
 from .. import verdicts as V
 from ..qcr import natural_key
 
-__all__ = ["Finding", "NotApplicableSummary", "checker_text", "clean_text", "findings", "fmt_number", "not_applicable_summary", "stated",
-           "unsigned_manual_note"]
+__all__ = [
+    "Finding",
+    "NotApplicableSummary",
+    "checker_text",
+    "clean_text",
+    "findings",
+    "fmt_number",
+    "not_applicable_summary",
+    "stated",
+    "unsigned_manual_note",
+]
 
 PROBLEMS = V.PROBLEMS
 _CONSEQUENCE_RANK = {"return_delivery": 0, "reject_block": 1, "reject_item": 2}
-RANK_LABELS = ("returns the delivery", "rejects a block", "rejects an item", "check incomplete (checker's)",
-               "fails (no rejection)", "missing evidence", "could not be evaluated", "warning")
+RANK_LABELS = (
+    "returns the delivery",
+    "rejects a block",
+    "rejects an item",
+    "check incomplete (checker's)",
+    "fails (no rejection)",
+    "missing evidence",
+    "could not be evaluated",
+    "warning",
+)
 #: the requirement violated, stated the other way round
 _NEGATED = {"<=": ">", "<": "≥", ">=": "<", ">": "≤", "==": "≠", "!=": "="}
 _NO_UNIT = (None, "", "1", "text", "bool", "date", "any")
 # ANSI CSI/OSC sequences and C0/C1 control characters (delivery text must not drive a terminal)
-_ESCAPES = re.compile(r"\x1b\][^\x07\x1b]*(?:\x07|\x1b\\)?|\x1b\[[0-?]*[ -/]*[@-~]|\x1b[@-_]?|[\x00-\x08\x0b-\x1f\x7f-\x9f]")
+_ESCAPES = re.compile(
+    r"\x1b\][^\x07\x1b]*(?:\x07|\x1b\\)?|\x1b\[[0-?]*[ -/]*[@-~]|\x1b[@-_]?|[\x00-\x08\x0b-\x1f\x7f-\x9f]"
+)
 
 
 def checker_text(doc: dict[str, Any]) -> str | None:
@@ -46,8 +66,11 @@ def checker_text(doc: dict[str, Any]) -> str | None:
     if chk:
         who = ", ".join(str(chk[k]) for k in ("name", "role", "organisation") if chk.get(k))
         sha = str(chk.get("sha256") or "")[:12]
-        where = (f"checker's folder {chk['folder']}, {chk.get('file', '?')}" if chk.get("folder")
-                 else f"checker's file {chk.get('file', '?')}")
+        where = (
+            f"checker's folder {chk['folder']}, {chk.get('file', '?')}"
+            if chk.get("folder")
+            else f"checker's file {chk.get('file', '?')}"
+        )
         party = f"{who} ({where}, sha256 {sha}…)"
     if operator and party:
         return f"{operator}; {party}"
@@ -63,11 +86,15 @@ def unsigned_manual_note(records: Iterable[dict[str, Any]], *, checker: Any = No
         return None
     head = f"{n} manual check{'s have' if n > 1 else ' has'} no verdict from the checker"
     if isinstance(checker, dict) and checker.get("file"):
-        return (f"{head}: the checker's file {checker['file']} has no manual_checks entry for "
-                f"{'them' if n > 1 else 'it'}; add one per check (the contractor's manual_checks are evidence, "
-                "not verdicts)")
-    return (f"{head}: give the checker's file with --checker FILE (the contractor's manual_checks are "
-            "evidence, not verdicts)")
+        return (
+            f"{head}: the checker's file {checker['file']} has no manual_checks entry for "
+            f"{'them' if n > 1 else 'it'}; add one per check (the contractor's manual_checks are evidence, "
+            "not verdicts)"
+        )
+    return (
+        f"{head}: give the checker's file with --checker FILE (the contractor's manual_checks are "
+        "evidence, not verdicts)"
+    )
 
 
 def clean_text(text: Any) -> str:
@@ -129,7 +156,9 @@ def stated(rec: dict[str, Any]) -> str | None:
             return f"{'true' if v else 'false'}, required {op}"
         return None
     if op in _NEGATED and req.get("value") is not None:
-        return f"{_distinct(v, req['value'])}{unit} {_NEGATED[op]} {_req_number(req['value'])}{unit}"
+        return (
+            f"{_distinct(v, req['value'])}{unit} {_NEGATED[op]} {_req_number(req['value'])}{unit}"
+        )
     if op == "between":
         lo = "−∞" if req.get("min") is None else _req_number(req["min"])
         hi = "+∞" if req.get("max") is None else _req_number(req["max"])
@@ -179,8 +208,8 @@ class Finding:
     title: str
     clause: str
     items: list[str]
-    what: str                      # '0.641 m > 0.5 m' or the plain message
-    rules: list[str] = field(default_factory=list)   # every rule this finding stands for
+    what: str  # '0.641 m > 0.5 m' or the plain message
+    rules: list[str] = field(default_factory=list)  # every rule this finding stands for
     n_records: int = 1
 
     @property
@@ -193,8 +222,10 @@ class Finding:
     def text(self) -> str:
         """'B02: Block RMSEy within the tolerance: 0.641 m > 0.5 m (JRC EUR 23638 EN, §12.7)'."""
         if len(self.rules) > 1:
-            return (f"{self.item_text}: {self.what} ({len(self.rules)} checks affected: "
-                    f"{', '.join(self.rules[:4])}{', …' if len(self.rules) > 4 else ''})")
+            return (
+                f"{self.item_text}: {self.what} ({len(self.rules)} checks affected: "
+                f"{', '.join(self.rules[:4])}{', …' if len(self.rules) > 4 else ''})"
+            )
         return f"{self.item_text}: {self.title}: {self.what} ({self.clause})"
 
     @property
@@ -202,11 +233,21 @@ class Finding:
         return RANK_LABELS[self.rank] if self.rank < len(RANK_LABELS) else self.verdict
 
     def as_dict(self) -> dict[str, Any]:
-        return {"rank": self.rank, "label": self.label, "verdict": self.verdict,
-                "consequence": self.consequence, "rule": self.rule, "title": self.title,
-                "clause": self.clause, "items": list(self.items), "item_text": self.item_text,
-                "what": self.what, "rules": list(self.rules), "n_records": self.n_records,
-                "text": self.text}
+        return {
+            "rank": self.rank,
+            "label": self.label,
+            "verdict": self.verdict,
+            "consequence": self.consequence,
+            "rule": self.rule,
+            "title": self.title,
+            "clause": self.clause,
+            "items": list(self.items),
+            "item_text": self.item_text,
+            "what": self.what,
+            "rules": list(self.rules),
+            "n_records": self.n_records,
+            "text": self.text,
+        }
 
 
 def _what(rec: dict[str, Any]) -> str:
@@ -241,24 +282,48 @@ def findings(records: list[dict[str, Any]]) -> list[Finding]:
         recs.sort(key=lambda r: (_rank(r), r["rule"]))
         top = recs[0]
         grouped.update(id(r) for r in recs)
-        out.append(Finding(_rank(top), top["verdict"],
-                           top.get("consequence") or "", top["rule"], top.get("title", ""), _clause(top),
-                           [item], clean_text(msg), rules=[r["rule"] for r in recs], n_records=len(recs)))
+        out.append(
+            Finding(
+                _rank(top),
+                top["verdict"],
+                top.get("consequence") or "",
+                top["rule"],
+                top.get("title", ""),
+                _clause(top),
+                [item],
+                clean_text(msg),
+                rules=[r["rule"] for r in recs],
+                n_records=len(recs),
+            )
+        )
     # 2. the same rule and message for many items (no value): one finding listing the items
     by_rule: dict[tuple[str, str, str], list[dict[str, Any]]] = {}
     for r in problems:
         if id(r) in grouped:
             continue
         value = (r.get("measured") or {}).get("value")
-        key = (r["rule"], r["verdict"], _what(r)) if value is None or stated(r) is None else \
-              (r["rule"], r["verdict"], f"#{id(r)}")
+        key = (
+            (r["rule"], r["verdict"], _what(r))
+            if value is None or stated(r) is None
+            else (r["rule"], r["verdict"], f"#{id(r)}")
+        )
         by_rule.setdefault(key, []).append(r)
     for (_rid, _v, _k), recs in by_rule.items():
         top = recs[0]
-        out.append(Finding(_rank(top), top["verdict"],
-                           top.get("consequence") or "", top["rule"], top.get("title", ""), _clause(top),
-                           sorted((str(r["item"]) for r in recs), key=natural_key), _what(top),
-                           rules=[top["rule"]], n_records=len(recs)))
+        out.append(
+            Finding(
+                _rank(top),
+                top["verdict"],
+                top.get("consequence") or "",
+                top["rule"],
+                top.get("title", ""),
+                _clause(top),
+                sorted((str(r["item"]) for r in recs), key=natural_key),
+                _what(top),
+                rules=[top["rule"]],
+                n_records=len(recs),
+            )
+        )
     # 3. the same statement for the same rules in many items (one cause): one finding listing them
     merged: dict[tuple[Any, ...], Finding] = {}
     for f in out:
@@ -280,18 +345,41 @@ _NA = re.compile(r"^not applicable:\s*(?P<cond>.*?)\s+is false(?: for this deliv
 def condition_prose(cond: str) -> str:
     """``manifest.sensor.type == 'satellite'`` -> ``the sensor type is 'satellite'`` (plain words)."""
     text = " ".join(cond.split())
-    text = re.sub(r"\bmanifest\.tables\.(\w+)", lambda m: "a " + m.group(1).replace("_", " ") + " table", text)
-    text = re.sub(r"\bmanifest\.vectors\.(\w+)", lambda m: "a " + m.group(1).replace("_", " ") + " vector layer",
-                  text)
-    text = re.sub(r"\bmanifest\.(sensor|product|tender|project)\.(\w+)(?:\.value)?",
-                  lambda m: f"the {m.group(1)} {m.group(2).replace('_', ' ')}", text)
-    text = re.sub(r"\bmanifest\.(\w+)", lambda m: "the delivery's " + m.group(1).replace("_", " "), text)
-    text = re.sub(r"\b([a-z]\w*)\.([a-z]\w*)\b", lambda m: f"the {m.group(2).replace('_', ' ')} "
-                  f"(in the {m.group(1)} table)", text)
-    for a, b in ((" == true", " is true"), (" == false", " is false"), (" != true", " is not true"),
-                 (" != false", " is not false"), (" != null", " is given"), (" == null", " is not given"),
-                 (" != ", " is not "), (" == ", " is "), (" >= ", " is at least "), (" <= ", " is at most "),
-                 (" > ", " is above "), (" < ", " is below ")):
+    text = re.sub(
+        r"\bmanifest\.tables\.(\w+)", lambda m: "a " + m.group(1).replace("_", " ") + " table", text
+    )
+    text = re.sub(
+        r"\bmanifest\.vectors\.(\w+)",
+        lambda m: "a " + m.group(1).replace("_", " ") + " vector layer",
+        text,
+    )
+    text = re.sub(
+        r"\bmanifest\.(sensor|product|tender|project)\.(\w+)(?:\.value)?",
+        lambda m: f"the {m.group(1)} {m.group(2).replace('_', ' ')}",
+        text,
+    )
+    text = re.sub(
+        r"\bmanifest\.(\w+)", lambda m: "the delivery's " + m.group(1).replace("_", " "), text
+    )
+    text = re.sub(
+        r"\b([a-z]\w*)\.([a-z]\w*)\b",
+        lambda m: f"the {m.group(2).replace('_', ' ')} (in the {m.group(1)} table)",
+        text,
+    )
+    for a, b in (
+        (" == true", " is true"),
+        (" == false", " is false"),
+        (" != true", " is not true"),
+        (" != false", " is not false"),
+        (" != null", " is given"),
+        (" == null", " is not given"),
+        (" != ", " is not "),
+        (" == ", " is "),
+        (" >= ", " is at least "),
+        (" <= ", " is at most "),
+        (" > ", " is above "),
+        (" < ", " is below "),
+    ):
         text = text.replace(a, b)
     text = re.sub(r"\b([a-z]+)_([a-z_]+)\b", lambda m: m.group(0).replace("_", " "), text)
     return text
@@ -315,9 +403,14 @@ class NotApplicableSummary:
             # grouped by the reason code; only a false `when` has a condition to put in words
             m = _NA.match(msg) if why == V.Reason.CONDITION_FALSE else None
             cond = m.group("cond") if m else (msg or "not applicable to this delivery")
-            hit = self._seen[f"{why}\0{msg}"] = (cond, f"applies only when {condition_prose(cond)}" if m else cond)
+            hit = self._seen[f"{why}\0{msg}"] = (
+                cond,
+                f"applies only when {condition_prose(cond)}" if m else cond,
+            )
         cond, prose = hit
-        g = self.groups.setdefault(cond, {"condition": cond, "prose": prose, "rules": [], "records": 0})
+        g = self.groups.setdefault(
+            cond, {"condition": cond, "prose": prose, "rules": [], "records": 0}
+        )
         g["records"] += 1
         if r["rule"] not in g["rules"]:
             g["rules"].append(r["rule"])

@@ -84,9 +84,15 @@ def document_sha256(doc: dict[str, Any]) -> str:
 # --- formatting filters -------------------------------------------------------------------------
 
 #: where a parameter value came from, in words (helper names: cli, tender, standard, manifest, unset)
-PARAMETER_SOURCES = {"cli": "command line (--param)", "tender": "tender profile", "standard": "the standard",
-                     "default": "the standard", "manifest": "contractor's manifest (confirm against the ITT)",
-                     "unset": "not set", "profile": "tender profile"}
+PARAMETER_SOURCES = {
+    "cli": "command line (--param)",
+    "tender": "tender profile",
+    "standard": "the standard",
+    "default": "the standard",
+    "manifest": "contractor's manifest (confirm against the ITT)",
+    "unset": "not set",
+    "profile": "tender profile",
+}
 
 
 def param_source(v: Any) -> str:
@@ -185,13 +191,22 @@ def environment() -> jinja2.Environment:
         lstrip_blocks=True,
         keep_trailing_newline=True,
     )
-    env.filters.update(value=fmt_value, fixed=fmt_fixed, measured=fmt_measured, clause=fmt_clause,
-                       rows=fmt_rows, short=lambda s, n=12: (s or "")[:n], blank=blank,
-                       source=param_source, ident=ident)
+    env.filters.update(
+        value=fmt_value,
+        fixed=fmt_fixed,
+        measured=fmt_measured,
+        clause=fmt_clause,
+        rows=fmt_rows,
+        short=lambda s, n=12: (s or "")[:n],
+        blank=blank,
+        source=param_source,
+        ident=ident,
+    )
     return env
 
 
 # --- view model ---------------------------------------------------------------------------------
+
 
 @dataclass
 class RuleView:
@@ -206,7 +221,7 @@ class RuleView:
     verdict: str
     counts: dict[str, int]
     requirement: str
-    shown: list[dict[str, Any]] = field(default_factory=list)   # rows: records not passing, grouped
+    shown: list[dict[str, Any]] = field(default_factory=list)  # rows: records not passing, grouped
     n_shown: int = 0
     passing: list[dict[str, Any]] = field(default_factory=list)  # HTML: passing records listed
     pass_count: int = 0
@@ -250,10 +265,20 @@ def _problem_rules(records: list[dict[str, Any]], max_items: int) -> list[dict[s
     for r in records:
         if r["verdict"] not in PROBLEM_VERDICTS:
             continue
-        row = out.setdefault((r["rule"], r["verdict"]), {
-            "rule": r["rule"], "title": r["title"], "clause": r["clause"], "scope": r["scope"],
-            "verdict": r["verdict"], "requirement": r["requirement"].get("text", ""),
-            "consequence": r["consequence"], "item_list": [], "n": 0})
+        row = out.setdefault(
+            (r["rule"], r["verdict"]),
+            {
+                "rule": r["rule"],
+                "title": r["title"],
+                "clause": r["clause"],
+                "scope": r["scope"],
+                "verdict": r["verdict"],
+                "requirement": r["requirement"].get("text", ""),
+                "consequence": r["consequence"],
+                "item_list": [],
+                "n": 0,
+            },
+        )
         row["n"] += 1
         if len(row["item_list"]) < max_items:
             row["item_list"].append(r["item"])
@@ -282,8 +307,8 @@ class _Collected:
     manual records, not by the number of passing items (national deliveries)."""
 
     by_rule: dict[str, _RuleRecords]
-    kept: list[dict[str, Any]]     # every record that is not pass / not applicable
-    manual: list[dict[str, Any]]   # every record of a manual rule
+    kept: list[dict[str, Any]]  # every record that is not pass / not applicable
+    manual: list[dict[str, Any]]  # every record of a manual rule
     not_applicable: list[dict[str, Any]]
 
 
@@ -329,7 +354,9 @@ def _shown_evidence(e: dict[str, Any]) -> dict[str, Any]:
     return {**e, "rows": {"where": e["where"], "rows_count": e.get("rows_count")}}
 
 
-def _rule_views(doc: dict[str, Any], opts: ReportOptions, collected: _Collected | None = None) -> list[RuleView]:
+def _rule_views(
+    doc: dict[str, Any], opts: ReportOptions, collected: _Collected | None = None
+) -> list[RuleView]:
     by_rule = (collected or _collect(doc, opts)).by_rule
     meta = {r["rule"]: r for r in doc.get("rules", [])}
     order = list(meta) + [r for r in by_rule if r not in meta]
@@ -340,16 +367,24 @@ def _rule_views(doc: dict[str, Any], opts: ReportOptions, collected: _Collected 
         first = acc.first or {}
         reqs = acc.reqs
         v = RuleView(
-            rule=rid, title=m.get("title") or first.get("title", ""),
-            clause=fmt_clause(first.get("clause") or m.get("clause")), quote=first.get("quote", ""),
-            scope=m.get("scope") or first.get("scope", ""), level=m.get("level") or first.get("level", ""),
+            rule=rid,
+            title=m.get("title") or first.get("title", ""),
+            clause=fmt_clause(first.get("clause") or m.get("clause")),
+            quote=first.get("quote", ""),
+            scope=m.get("scope") or first.get("scope", ""),
+            level=m.get("level") or first.get("level", ""),
             consequence=m.get("consequence") or first.get("consequence", ""),
-            measure=first.get("measure", ""), verdict=m.get("verdict", V.NOT_APPLICABLE),
-            counts=m.get("counts", {}), requirement=next(iter(reqs)) if len(reqs) == 1 else "per item",
-            error=m.get("error"), clause_ref=m.get("clause_ref") or "",
+            measure=first.get("measure", ""),
+            verdict=m.get("verdict", V.NOT_APPLICABLE),
+            counts=m.get("counts", {}),
+            requirement=next(iter(reqs)) if len(reqs) == 1 else "per item",
+            error=m.get("error"),
+            clause_ref=m.get("clause_ref") or "",
         )
         v.na_count = acc.na_count
-        shown = sorted(acc.others, key=lambda r: VERDICT_ORDER.get(r["verdict"], 9))  # stable: item order kept
+        shown = sorted(
+            acc.others, key=lambda r: VERDICT_ORDER.get(r["verdict"], 9)
+        )  # stable: item order kept
         v.shown = group_rows(shown)
         v.n_shown = len(shown)
         if opts.bounded and len(v.shown) > opts.max_rule_rows:
@@ -359,7 +394,9 @@ def _rule_views(doc: dict[str, Any], opts: ReportOptions, collected: _Collected 
         if acc.lo is not None:
             u = unit_suffix(acc.pass_unit)
             lo, hi = acc.lo, acc.hi
-            v.pass_range = fmt_value(lo) + u if lo == hi else f"{fmt_value(lo)} to {fmt_value(hi)}{u}"
+            v.pass_range = (
+                fmt_value(lo) + u if lo == hi else f"{fmt_value(lo)} to {fmt_value(hi)}{u}"
+            )
         if not opts.bounded:
             v.passing = [{**r, "item_list": [r["item"]]} for r in acc.passing]
             v.pass_hidden = acc.pass_count - len(v.passing)
@@ -367,9 +404,12 @@ def _rule_views(doc: dict[str, Any], opts: ReportOptions, collected: _Collected 
     return views
 
 
-def _checkpoint_blocks(doc: dict[str, Any], opts: ReportOptions,
-                       figure: Callable[[str, str], str] | None,
-                       cache: dict[str, list[dict[str, str]]]) -> list[dict[str, Any]]:
+def _checkpoint_blocks(
+    doc: dict[str, Any],
+    opts: ReportOptions,
+    figure: Callable[[str, str], str] | None,
+    cache: dict[str, list[dict[str, str]]],
+) -> list[dict[str, Any]]:
     cps = (doc.get("details") or {}).get("checkpoints") or {}
     failing_blocks = set((doc.get("rollup") or {}).get("rejected", {}).get("block", []))
     blocks = []
@@ -385,27 +425,46 @@ def _checkpoint_blocks(doc: dict[str, Any], opts: ReportOptions,
             shown = [p for p in pts if _point_flagged(p)]
         elif not opts.bounded and len(pts) > opts.max_table_points:
             shown = _first_points(pts, opts.max_table_points)
-        blocks.append({
-            "id": bid, "points": shown, "n_points": b.get("points_total") or len(pts),
-            "n_hidden": len(pts) - len(shown), "n_omitted": b.get("points_omitted") or 0,
-            "n_fail": n_fail, "has_z": has_z, "stats": b.get("stats") or {}, "unit": b.get("unit", "m"),
-            "limit_x": b.get("limit_x"), "limit_y": b.get("limit_y"), "basis": b.get("basis"),
-            "n_gcps": len(b.get("gcps") or []), "rejected": bid in failing_blocks,
-            "area_source": b.get("area_source"), "figures": [],
-            "n_pass_shown": sum(not _point_flagged(p) for p in shown),
-        })
+        blocks.append(
+            {
+                "id": bid,
+                "points": shown,
+                "n_points": b.get("points_total") or len(pts),
+                "n_hidden": len(pts) - len(shown),
+                "n_omitted": b.get("points_omitted") or 0,
+                "n_fail": n_fail,
+                "has_z": has_z,
+                "stats": b.get("stats") or {},
+                "unit": b.get("unit", "m"),
+                "limit_x": b.get("limit_x"),
+                "limit_y": b.get("limit_y"),
+                "basis": b.get("basis"),
+                "n_gcps": len(b.get("gcps") or []),
+                "rejected": bid in failing_blocks,
+                "area_source": b.get("area_source"),
+                "figures": [],
+                "n_pass_shown": sum(not _point_flagged(p) for p in shown),
+            }
+        )
     if figure is not None and opts.figures:
+
         def worst(b: dict[str, Any]) -> tuple[Any, ...]:
-            rmse = max((v for v in (b["stats"].get("rmse_x"), b["stats"].get("rmse_y")) if _numeric(v)),
-                       default=0.0)
+            rmse = max(
+                (v for v in (b["stats"].get("rmse_x"), b["stats"].get("rmse_y")) if _numeric(v)),
+                default=0.0,
+            )
             return (not b["rejected"], -b["n_fail"], -rmse, natural_key(b["id"]))
 
         ranked = sorted(blocks, key=worst)
         details = doc.get("details") or {}
         for b in ranked[: opts.max_figure_blocks]:
             if b["id"] not in cache:
-                cache[b["id"]] = _block_figures(cps[b["id"]], b["id"], details.get("inspection"),
-                                                (details.get("checker_chips") or {}).get(b["id"]))
+                cache[b["id"]] = _block_figures(
+                    cps[b["id"]],
+                    b["id"],
+                    details.get("inspection"),
+                    (details.get("checker_chips") or {}).get(b["id"]),
+                )
             b["figures"] = [{**f, "uri": figure(f["svg"], "image/svg+xml")} for f in cache[b["id"]]]
     return blocks
 
@@ -429,16 +488,23 @@ def _first_points(pts: list[dict[str, Any]], cap: int) -> list[dict[str, Any]]:
     return out
 
 
-def _block_figures(b: dict[str, Any], bid: str, inspection: dict[str, Any] | None = None,
-                   chips: dict[str, Any] | None = None) -> list[dict[str, str]]:
+def _block_figures(
+    b: dict[str, Any],
+    bid: str,
+    inspection: dict[str, Any] | None = None,
+    chips: dict[str, Any] | None = None,
+) -> list[dict[str, str]]:
     """JRC §12.6 / Figure 5 graphics for one block, from the JSON point list (SVG data URIs); the checker's
     marked inspection cells of the block on its map, and the image chips of its flagged or hand-measured
     points (issue 29 item 6; details.inspection, details.checker_chips)."""
     from ..figures import accuracy as figs  # matplotlib: imported only when figures are drawn
     from ..measures.distribution import checkpoint_distribution
 
-    pts = [p for p in point_rows(b.get("points"))
-           if all(_numeric(p.get(k)) for k in ("x_ref", "y_ref", "dx", "dy"))]
+    pts = [
+        p
+        for p in point_rows(b.get("points"))
+        if all(_numeric(p.get(k)) for k in ("x_ref", "y_ref", "dx", "dy"))
+    ]
     if not pts:
         return []
     unit = b.get("unit", "m")
@@ -450,48 +516,95 @@ def _block_figures(b: dict[str, Any], bid: str, inspection: dict[str, Any] | Non
     gcps = [g for g in b.get("gcps") or [] if _numeric(g.get("x")) and _numeric(g.get("y"))]
     out = []
     flagged = [str(p["point_id"]) for p in pts if p.get("status") == "fail"]
-    excluded = [str(p["point_id"]) for p in pts if p.get("decision") not in (None, "kept")]  # drawn always too
+    excluded = [
+        str(p["point_id"]) for p in pts if p.get("decision") not in (None, "kept")
+    ]  # drawn always too
     poly = b.get("polygon")  # the block outline, when the provider stores it in qcr.json
-    polygon = [(float(v[0]), float(v[1])) for v in poly
-               if isinstance(v, list | tuple) and len(v) >= 2 and _numeric(v[0]) and _numeric(v[1])] \
-        if isinstance(poly, list) else None
-    cells = [(c["bounds"], ", ".join(c.get("defects") or [])) for c in (inspection or {}).get("cells") or []
-             if c.get("block") == bid and isinstance(c.get("bounds"), list) and len(c["bounds"]) == 4
-             and all(_numeric(v) for v in c["bounds"])]
+    polygon = (
+        [
+            (float(v[0]), float(v[1]))
+            for v in poly
+            if isinstance(v, list | tuple) and len(v) >= 2 and _numeric(v[0]) and _numeric(v[1])
+        ]
+        if isinstance(poly, list)
+        else None
+    )
+    cells = [
+        (c["bounds"], ", ".join(c.get("defects") or []))
+        for c in (inspection or {}).get("cells") or []
+        if c.get("block") == bid
+        and isinstance(c.get("bounds"), list)
+        and len(c["bounds"]) == 4
+        and all(_numeric(v) for v in c["bounds"])
+    ]
     svg = figs.checkpoint_map_svg(
-        x, y, dx, dy, ids=ids, gcp_x=[g["x"] for g in gcps] or None, gcp_y=[g["y"] for g in gcps] or None,
-        unit=unit, flagged=flagged, title=f"Block {bid}: check points and discrepancies",
-        polygon=polygon if polygon and len(polygon) >= 3 else None, always=excluded, defect_cells=cells)
+        x,
+        y,
+        dx,
+        dy,
+        ids=ids,
+        gcp_x=[g["x"] for g in gcps] or None,
+        gcp_y=[g["y"] for g in gcps] or None,
+        unit=unit,
+        flagged=flagged,
+        title=f"Block {bid}: check points and discrepancies",
+        polygon=polygon if polygon and len(polygon) >= 3 else None,
+        always=excluded,
+        defect_cells=cells,
+    )
     omitted = b.get("points_omitted")
     # a capped point table (B: flagged points + the largest residuals) is not a sample of the block:
     # say so on the map, and draw no distribution from it (the block statistics cover every point)
     total = b.get("points_total")
-    subset = (f" Shown: {len(pts):,} of {f'{total:,}' if isinstance(total, int) else '?'} points, the flagged ones and the largest "
-              f"residuals; the statistics cover every point." if omitted else "")
+    subset = (
+        f" Shown: {len(pts):,} of {f'{total:,}' if isinstance(total, int) else '?'} points, the "
+        f"flagged ones and the largest "
+        f"residuals; the statistics cover every point."
+        if omitted
+        else ""
+    )
     must = {*flagged, *excluded}
     drawn = figs.sample_points(x, y, ids, [i in must for i in ids])
     if drawn.thinned:  # the figure draws a sample (issue 14): the caption counts what it drew
-        subset += (f" Drawn: {drawn.drawn:,} of {'these' if omitted else 'the'} {drawn.total:,} points, "
-                   f"all {drawn.must:,} flagged or excluded and 1 in {drawn.step:,} of the others (an even "
-                   f"spatial sample); qcr.json holds every one of the {drawn.total:,}.")
-    marked = (f" Orange: the {len(cells)} cell(s) of the block marked with a defect on the checker's inspection "
-              f"grid ({(inspection or {}).get('file')}): " + "; ".join(sorted({lab for _, lab in cells})) + "."
-              if cells else "")
-    out.append({"svg": svg, "kind": "map",
-                "caption": f"Block {bid}: check points (blue; red = above the maximum tolerable "
-                           f"discrepancy), discrepancy vectors (exaggerated, see scale arrow) and GCPs "
-                           f"(green triangles), as JRC Figure 5.{subset}{marked}"})
+        subset += (
+            f" Drawn: {drawn.drawn:,} of {'these' if omitted else 'the'} {drawn.total:,} points, "
+            f"all {drawn.must:,} flagged or excluded and 1 in {drawn.step:,} of the others (an even "
+            f"spatial sample); qcr.json holds every one of the {drawn.total:,}."
+        )
+    marked = (
+        f" Orange: the {len(cells)} cell(s) of the block marked with a defect on the checker's inspection "
+        f"grid ({(inspection or {}).get('file')}): "
+        + "; ".join(sorted({lab for _, lab in cells}))
+        + "."
+        if cells
+        else ""
+    )
+    out.append(
+        {
+            "svg": svg,
+            "kind": "map",
+            "caption": f"Block {bid}: check points (blue; red = above the maximum tolerable "
+            f"discrepancy), discrepancy vectors (exaggerated, see scale arrow) and GCPs "
+            f"(green triangles), as JRC Figure 5.{subset}{marked}",
+        }
+    )
     out += _chip_figures(chips, bid, unit)
     if omitted:
         return out
     dz = [p.get("dz") for p in pts]
     dz_ok = all(_numeric(v) for v in dz)
-    svg = figs.residual_histograms_svg(dx, dy, dz if dz_ok else None, unit=unit,
-                                       title=f"Block {bid}: discrepancies")
-    out.append({"svg": svg, "kind": "hist",
-                "caption": f"Block {bid}: distribution of the discrepancies per axis with the mean "
-                           f"(black) and ±RMSE (red dashed)."
-                           + (f" Every one of the {len(pts):,} points is binned." if drawn.thinned else "")})
+    svg = figs.residual_histograms_svg(
+        dx, dy, dz if dz_ok else None, unit=unit, title=f"Block {bid}: discrepancies"
+    )
+    out.append(
+        {
+            "svg": svg,
+            "kind": "hist",
+            "caption": f"Block {bid}: distribution of the discrepancies per axis with the mean "
+            f"(black) and ±RMSE (red dashed)."
+            + (f" Every one of the {len(pts):,} points is binned." if drawn.thinned else ""),
+        }
+    )
     if len(pts) >= 4:
         outline = polygon if polygon and len(polygon) >= 3 else None
         from shapely.errors import ShapelyError
@@ -500,24 +613,44 @@ def _block_figures(b: dict[str, Any], bid: str, inspection: dict[str, Any] | Non
         from ..errors import MeasureError
 
         try:
-            dist = checkpoint_distribution(x, y, ids=ids, min_count=0,
-                                           area=Polygon(outline) if outline else None)
+            dist = checkpoint_distribution(
+                x, y, ids=ids, min_count=0, area=Polygon(outline) if outline else None
+            )
         except (MeasureError, ShapelyError, ValueError):  # a degenerate layout (collinear points,
-            dist = None                                    # an empty polygon): the map above shows it
+            dist = None  # an empty polygon): the map above shows it
         if dist is not None:
-            svg = figs.quadrant_distribution_svg(x, y, centre=dist.centre, shares=dist.quadrant_shares,
-                                                 area=outline, unit=unit, ids=ids,
-                                                 title=f"Block {bid}: distribution by quadrant")
+            svg = figs.quadrant_distribution_svg(
+                x,
+                y,
+                centre=dist.centre,
+                shares=dist.quadrant_shares,
+                area=outline,
+                unit=unit,
+                ids=ids,
+                title=f"Block {bid}: distribution by quadrant",
+            )
             spread = figs.sample_points(x, y, ids)
-            where = ("the block polygon (grey)" if outline else
-                     f"the points' {dist.split_source.replace('_', ' ')} (no block polygon in the "
-                     f"delivery, so shares may differ slightly from the measured value, which used the "
-                     f"{b.get('area_source') or 'block'})")
-            drawn_note = (f" Drawn: {spread.drawn:,} of the {spread.total:,} points, 1 in {spread.step:,} (an "
-                          f"even spatial sample); the shares count every point." if spread.thinned else "")
-            out.append({"svg": svg, "kind": "dist",
-                        "caption": f"Block {bid}: check points per quadrant, split at the centre of {where}."
-                                   + drawn_note})
+            where = (
+                "the block polygon (grey)"
+                if outline
+                else f"the points' {dist.split_source.replace('_', ' ')} (no block polygon in the "
+                f"delivery, so shares may differ slightly from the measured value, which used the "
+                f"{b.get('area_source') or 'block'})"
+            )
+            drawn_note = (
+                f" Drawn: {spread.drawn:,} of the {spread.total:,} points, 1 in {spread.step:,} (an "
+                f"even spatial sample); the shares count every point."
+                if spread.thinned
+                else ""
+            )
+            out.append(
+                {
+                    "svg": svg,
+                    "kind": "dist",
+                    "caption": f"Block {bid}: check points per quadrant, split at the centre of {where}."
+                    + drawn_note,
+                }
+            )
     return out
 
 
@@ -535,21 +668,35 @@ def _chip_figures(chips: dict[str, Any] | None, bid: str, unit: str) -> list[dic
             svg = chip_svg(p, unit=unit)
         except (KeyError, TypeError, ValueError):  # a hand-edited document: the chip is left out
             continue
-        why = "flagged" if p.get("flagged") else ("measured by hand" if p.get("decision") == "by_hand" else "")
-        out.append({"svg": svg, "kind": "chip",
-                    "caption": f"Block {bid}, check point {p.get('point_id')} ({why}): the delivered image around "
-                               "the measured position (red cross) and the reference chip around the 'true' "
-                               "position (green circle); the arrow is the measured shift, to scale."})
+        why = (
+            "flagged"
+            if p.get("flagged")
+            else ("measured by hand" if p.get("decision") == "by_hand" else "")
+        )
+        out.append(
+            {
+                "svg": svg,
+                "kind": "chip",
+                "caption": f"Block {bid}, check point {p.get('point_id')} ({why}): the delivered image around "
+                "the measured position (red cross) and the reference chip around the 'true' "
+                "position (green circle); the arrow is the measured shift, to scale.",
+            }
+        )
     more = int(chips.get("eligible") or 0) - len(out)
     if out and more > 0:
-        out[-1]["caption"] += f" Chips are drawn for {len(out)} of the block's {len(out) + more} flagged or " \
-                              "hand-measured points (flagged first, then the largest residuals)."
+        out[-1]["caption"] += (
+            f" Chips are drawn for {len(out)} of the block's {len(out) + more} flagged or "
+            "hand-measured points (flagged first, then the largest residuals)."
+        )
     return out
 
 
-def _edge_targets(doc: dict[str, Any], opts: ReportOptions | None = None,
-                  figure: Callable[[str, str], str] | None = None,
-                  cache: dict[str, list[dict[str, str]]] | None = None) -> list[dict[str, Any]]:
+def _edge_targets(
+    doc: dict[str, Any],
+    opts: ReportOptions | None = None,
+    figure: Callable[[str, str], str] | None = None,
+    cache: dict[str, list[dict[str, str]]] | None = None,
+) -> list[dict[str, Any]]:
     """Edge-target results (``details.edges``): health checks, estimators and figures per target.
 
     The figures (detection, ESF, LSF, MTF) are drawn from the decimated ``curves`` the edge
@@ -568,26 +715,57 @@ def _edge_targets(doc: dict[str, Any], opts: ReportOptions | None = None,
         checks = []
         for k in d:
             if k.startswith("check.") and k.endswith(".value"):
-                name = k[len("check."):-len(".value")]
-                checks.append({"name": name, "value": d[k], "unit": d.get(f"check.{name}.unit"),
-                               "passed": d.get(f"check.{name}.passed")})
+                name = k[len("check.") : -len(".value")]
+                checks.append(
+                    {
+                        "name": name,
+                        "value": d[k],
+                        "unit": d.get(f"check.{name}.unit"),
+                        "passed": d.get(f"check.{name}.passed"),
+                    }
+                )
         estimates = []
         for k, v in d.items():
             if k.startswith("check.") or k.endswith((".unit", ".fit")) or not _numeric(v):
                 continue
             if f"{k}.unit" in d:
-                estimates.append({"name": k, "value": v, "unit": d.get(f"{k}.unit"), "fit": d.get(f"{k}.fit", "")})
-            elif "." in k and k.rsplit(".", 1)[0] + ".unit" in d:  # an alternative fit of an estimator
+                estimates.append(
+                    {
+                        "name": k,
+                        "value": v,
+                        "unit": d.get(f"{k}.unit"),
+                        "fit": d.get(f"{k}.fit", ""),
+                    }
+                )
+            elif (
+                "." in k and k.rsplit(".", 1)[0] + ".unit" in d
+            ):  # an alternative fit of an estimator
                 base, fit = k.rsplit(".", 1)
-                estimates.append({"name": base, "value": v, "unit": d.get(f"{base}.unit"), "fit": fit})
-        out.append({"id": tid, "valid": d.get("valid"), "reasons": d.get("reasons") or "",
-                    "direction": d.get("direction"), "angle_deg": d.get("angle_deg"),
-                    "checks": checks, "estimates": estimates,
-                    "has_curves": isinstance(d.get("curves"), dict), "figures": []})
+                estimates.append(
+                    {"name": base, "value": v, "unit": d.get(f"{base}.unit"), "fit": fit}
+                )
+        out.append(
+            {
+                "id": tid,
+                "valid": d.get("valid"),
+                "reasons": d.get("reasons") or "",
+                "direction": d.get("direction"),
+                "angle_deg": d.get("angle_deg"),
+                "checks": checks,
+                "estimates": estimates,
+                "has_curves": isinstance(d.get("curves"), dict),
+                "figures": [],
+            }
+        )
     if figure is not None and opts.figures:
-        bad = {r["item"] for r in all_records(doc, compact=False)
-               if r.get("scope") == "edge" and r.get("verdict") in (V.FAIL, V.ERROR)}
-        ranked = sorted((e for e in out if e["has_curves"]), key=lambda e: e["id"] not in bad)  # stable
+        bad = {
+            r["item"]
+            for r in all_records(doc, compact=False)
+            if r.get("scope") == "edge" and r.get("verdict") in (V.FAIL, V.ERROR)
+        }
+        ranked = sorted(
+            (e for e in out if e["has_curves"]), key=lambda e: e["id"] not in bad
+        )  # stable
         for e in ranked[: opts.max_figure_edges]:
             key = f"edge:{e['id']}"  # block ids share the cache
             if key not in cache:
@@ -616,52 +794,91 @@ def _edge_figures(d: dict[str, Any], tid: str) -> list[dict[str, str]]:
     angle_txt = f", {angle:.2f}°" if _numeric(angle) else ""
     if lines.get("kept_x") or lines.get("rejected_x"):
         svg = figs.detection_svg_from_arrays(
-            _floats(lines.get("kept_x")), _floats(lines.get("kept_y")), shape=(int(shape[0]), int(shape[1])),
-            rejected_x=_floats(lines.get("rejected_x")), rejected_y=_floats(lines.get("rejected_y")),
-            fit_x=_floats(lines.get("fit_x")), fit_y=_floats(lines.get("fit_y")),
-            title=f"{tid}: edge detection ({c.get('direction', '?')}{angle_txt}) — {status}")
-        out.append({"svg": svg, "kind": "edge detection",
-                    "caption": f"Edge target {tid}, edge detection: edge location per line (red; orange = "
-                               f"rejected as outlier) and the fitted edge line (green), in ROI pixels "
-                               f"(CEOS step 5)."})
+            _floats(lines.get("kept_x")),
+            _floats(lines.get("kept_y")),
+            shape=(int(shape[0]), int(shape[1])),
+            rejected_x=_floats(lines.get("rejected_x")),
+            rejected_y=_floats(lines.get("rejected_y")),
+            fit_x=_floats(lines.get("fit_x")),
+            fit_y=_floats(lines.get("fit_y")),
+            title=f"{tid}: edge detection ({c.get('direction', '?')}{angle_txt}) — {status}",
+        )
+        out.append(
+            {
+                "svg": svg,
+                "kind": "edge detection",
+                "caption": f"Edge target {tid}, edge detection: edge location per line (red; orange = "
+                f"rejected as outlier) and the fitted edge line (green), in ROI pixels "
+                f"(CEOS step 5).",
+            }
+        )
     n = len(c.get("mtf_freq") or [])
     fits = []
     for name, f in (c.get("fits") or {}).items():
         if not isinstance(f, dict) or not _numeric(f.get("x0")) or not _numeric(f.get("dx")):
             continue
         esf = _floats(f.get("esf"))
-        fits.append(figs.FitCurves(
-            fit=str(name), x=[f["x0"] + i * f["dx"] for i in range(len(esf))], esf=esf,
-            lsf=_floats(f.get("lsf")), freq=_floats(c.get("mtf_freq")), mtf=_floats(f.get("mtf"))[:n],
-            centre_px=f.get("centre_px") if _numeric(f.get("centre_px")) else None,
-            fwhm_px=f.get("fwhm_px") if _numeric(f.get("fwhm_px")) else None,
-            mtf_nyquist=f.get("mtf_nyquist") if _numeric(f.get("mtf_nyquist")) else None))
+        fits.append(
+            figs.FitCurves(
+                fit=str(name),
+                x=[f["x0"] + i * f["dx"] for i in range(len(esf))],
+                esf=esf,
+                lsf=_floats(f.get("lsf")),
+                freq=_floats(c.get("mtf_freq")),
+                mtf=_floats(f.get("mtf"))[:n],
+                centre_px=f.get("centre_px") if _numeric(f.get("centre_px")) else None,
+                fwhm_px=f.get("fwhm_px") if _numeric(f.get("fwhm_px")) else None,
+                mtf_nyquist=f.get("mtf_nyquist") if _numeric(f.get("mtf_nyquist")) else None,
+            )
+        )
     esf = c.get("esf") or {}
     if esf or fits:
         svg = figs.esf_svg_from_arrays(
-            _floats(esf.get("d")), _floats(esf.get("v")), fits,
+            _floats(esf.get("d")),
+            _floats(esf.get("v")),
+            fits,
             dark_start_px=esf.get("dark_start_px") if _numeric(esf.get("dark_start_px")) else None,
-            bright_start_px=esf.get("bright_start_px") if _numeric(esf.get("bright_start_px")) else None,
-            title=f"{tid}: edge spread function (ESF) — {status}")
+            bright_start_px=esf.get("bright_start_px")
+            if _numeric(esf.get("bright_start_px"))
+            else None,
+            title=f"{tid}: edge spread function (ESF) — {status}",
+        )
         shown = len(esf.get("d") or [])
-        out.append({"svg": svg, "kind": "edge esf",
-                    "caption": f"Edge target {tid}, ESF: {shown} of the {esf.get('n_samples', shown)} pixel "
-                               f"samples within the fitted window ±1 px (grey) at their perpendicular "
-                               f"distance from the edge, normalised "
-                               f"0 (dark) to 1 (bright), the fitted ESFs and the plateau starts "
-                               f"(CEOS steps 6-8)."})
+        out.append(
+            {
+                "svg": svg,
+                "kind": "edge esf",
+                "caption": f"Edge target {tid}, ESF: {shown} of the {esf.get('n_samples', shown)} pixel "
+                f"samples within the fitted window ±1 px (grey) at their perpendicular "
+                f"distance from the edge, normalised "
+                f"0 (dark) to 1 (bright), the fitted ESFs and the plateau starts "
+                f"(CEOS steps 6-8).",
+            }
+        )
     if fits:
         fw = "; ".join(f"{f.fit} {f.fwhm_px:.3f} px" for f in fits if f.fwhm_px is not None)
         svg = figs.lsf_svg_from_arrays(fits, title=f"{tid}: line spread function (LSF) — {status}")
-        out.append({"svg": svg, "kind": "edge lsf",
-                    "caption": f"Edge target {tid}, LSF: derivative of the fitted ESF, the arrow marks "
-                               f"the full width at half maximum (FWHM {fw or 'n/a'}; CEOS steps 10-11)."})
+        out.append(
+            {
+                "svg": svg,
+                "kind": "edge lsf",
+                "caption": f"Edge target {tid}, LSF: derivative of the fitted ESF, the arrow marks "
+                f"the full width at half maximum (FWHM {fw or 'n/a'}; CEOS steps 10-11).",
+            }
+        )
         ny = "; ".join(f"{f.fit} {f.mtf_nyquist:.3f}" for f in fits if f.mtf_nyquist is not None)
-        svg = figs.mtf_svg_from_arrays(fits, title=f"{tid}: modulation transfer function (MTF) — {status}")
-        out.append({"svg": svg, "kind": "edge mtf",
-                    "caption": f"Edge target {tid}, MTF: modulus of the Fourier transform of the LSF, "
-                               f"normalised at zero frequency; Nyquist (0.5 cycles/px) dashed, MTF there "
-                               f"{ny or 'n/a'} (CEOS step 12)."})
+        svg = figs.mtf_svg_from_arrays(
+            fits, title=f"{tid}: modulation transfer function (MTF) — {status}"
+        )
+        out.append(
+            {
+                "svg": svg,
+                "kind": "edge mtf",
+                "caption": f"Edge target {tid}, MTF: modulus of the Fourier transform of the LSF, "
+                f"normalised at zero frequency; Nyquist (0.5 cycles/px) dashed, MTF there "
+                f"{ny or 'n/a'} (CEOS step 12).",
+            }
+        )
     return out
 
 
@@ -678,16 +895,26 @@ def _bounded_signed(groups: list[dict[str, Any]], max_rows: int) -> list[dict[st
             out.extend(gs)
             continue
         items = [i for g in gs for i in g["item_list"]]
-        out.append({**gs[0], "item_list": items,
-                    "message": f"{len(gs)} different statements, each in qcr.json and the HTML report; "
-                               f"the first: {gs[0]['message']}"})
+        out.append(
+            {
+                **gs[0],
+                "item_list": items,
+                "message": f"{len(gs)} different statements, each in qcr.json and the HTML report; "
+                f"the first: {gs[0]['message']}",
+            }
+        )
     return out
 
 
-def report_context(doc: dict[str, Any], opts: ReportOptions | None = None, *,
-                   figure: Callable[[str, str], str] | None = None,
-                   cache: dict[str, list[dict[str, str]]] | None = None,
-                   sha256: str | None = None, findings_map: Any = None) -> dict[str, Any]:
+def report_context(
+    doc: dict[str, Any],
+    opts: ReportOptions | None = None,
+    *,
+    figure: Callable[[str, str], str] | None = None,
+    cache: dict[str, list[dict[str, str]]] | None = None,
+    sha256: str | None = None,
+    findings_map: Any = None,
+) -> dict[str, Any]:
     """Everything the template shows, computed from the QCR document alone.
 
     ``figure(svg_text, mime)`` turns a figure into a URI (the PDF registers data: URIs with its
@@ -701,8 +928,14 @@ def report_context(doc: dict[str, Any], opts: ReportOptions | None = None, *,
     scopes: list[dict[str, Any]] = []
     for v in rules:
         if not scopes or scopes[-1]["scope"] != v.scope:
-            scopes.append({"scope": v.scope, "title": SCOPE_TITLES.get(v.scope, v.scope.title()),
-                           "rules": [], "quiet": []})
+            scopes.append(
+                {
+                    "scope": v.scope,
+                    "title": SCOPE_TITLES.get(v.scope, v.scope.title()),
+                    "rules": [],
+                    "quiet": [],
+                }
+            )
         # bounded: rules with nothing to show (all passing / not applicable) become one table row
         quiet = opts.bounded and not v.shown and not v.error
         if quiet and not v.pass_count and not v.counts.get("waived"):
@@ -730,21 +963,28 @@ def report_context(doc: dict[str, Any], opts: ReportOptions | None = None, *,
     d = doc.get("delivery", {})
     p = doc.get("profile", {})
     return {
-        "doc": doc, "opts": opts, "sha256": sha256 or document_sha256(doc),
-        "delivery": d, "profile": p, "summary": doc.get("summary", {}),
+        "doc": doc,
+        "opts": opts,
+        "sha256": sha256 or document_sha256(doc),
+        "delivery": d,
+        "profile": p,
+        "summary": doc.get("summary", {}),
         "verdict": doc.get("verdict", V.REJECTED),
         "reasons": (doc.get("rollup") or {}).get("reasons", []),
         "incomplete": (doc.get("rollup") or {}).get("incomplete", []),
         "rejected": (doc.get("rollup") or {}).get("rejected", {}),
-        "problems": problems, "failing_rules": failing_rules,
+        "problems": problems,
+        "failing_rules": failing_rules,
         "findings": found,
         # the checker's open items are listed above the findings on page 1: not a second time there
         "page1_findings": [f for f in found if f.get("consequence") != V.INCOMPLETE][
-            :max(3, PAGE1_FINDINGS - len((doc.get("rollup") or {}).get("incomplete", [])))],
+            : max(3, PAGE1_FINDINGS - len((doc.get("rollup") or {}).get("incomplete", [])))
+        ],
         "not_applicable": collected.not_applicable,
         "unsigned_manual": unsigned_manual_note(records, checker=doc.get("checker")),
         "contract": contract_lines(doc),
-        "checker": checker_text(doc), "qa_operator": d.get("operator") or {},
+        "checker": checker_text(doc),
+        "qa_operator": d.get("operator") or {},
         "after_signoff": doc.get("after_signoff"),
         "missing": [r for r in records if r["verdict"] == V.MISSING],
         "waived": [r for r in records if r["verdict"] == V.WAIVED],
@@ -753,7 +993,8 @@ def report_context(doc: dict[str, Any], opts: ReportOptions | None = None, *,
         "scopes": scopes,
         "checkpoints": _checkpoint_blocks(doc, opts, figure, {} if cache is None else cache),
         "edges": _edge_targets(doc, opts, figure, {} if cache is None else cache),
-        "to_sign": list(to_sign.values()), "signed": signed,
+        "to_sign": list(to_sign.values()),
+        "signed": signed,
         "signoffs": doc.get("signoffs") or [],
         "history": doc.get("history") or [],
         "ledger": doc.get("ledger"),
@@ -764,9 +1005,15 @@ def report_context(doc: dict[str, Any], opts: ReportOptions | None = None, *,
     }
 
 
-def render_html(doc: dict[str, Any], opts: ReportOptions | None = None, *,
-                figure: Callable[[str, str], str] | None = None, pdf: bool = False,
-                cache: dict[str, list[dict[str, str]]] | None = None, sha256: str | None = None) -> str:
+def render_html(
+    doc: dict[str, Any],
+    opts: ReportOptions | None = None,
+    *,
+    figure: Callable[[str, str], str] | None = None,
+    pdf: bool = False,
+    cache: dict[str, list[dict[str, str]]] | None = None,
+    sha256: str | None = None,
+) -> str:
     """The report as one self-contained HTML page (figures inlined as data: URIs)."""
     findings_map = None
     if figure is not None and (opts is None or opts.figures):  # the map of the findings (issue 30)
@@ -774,5 +1021,7 @@ def render_html(doc: dict[str, Any], opts: ReportOptions | None = None, *,
         from .interactive import map_html
 
         findings_map = map_html(build_layers(doc), interactive=not pdf)
-    ctx = report_context(doc, opts, figure=figure, cache=cache, sha256=sha256, findings_map=findings_map)
+    ctx = report_context(
+        doc, opts, figure=figure, cache=cache, sha256=sha256, findings_map=findings_map
+    )
     return environment().get_template("report.html.j2").render(**ctx, pdf=pdf)

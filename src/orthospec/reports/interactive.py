@@ -29,8 +29,14 @@ MAP_LAYERS = ("blocks", "images", "seamlines", "inspection_cells", "residuals", 
 MAX_FEATURES = 3000  # per layer; non-pass features first, the caption says what was left out
 MAX_RECORDS = 60     # QCR records shown per feature (the worst first)
 WIDTH = 960.0
-_LABEL = {"blocks": "blocks", "images": "image footprints", "seamlines": "seamlines",
-          "inspection_cells": "inspection cells", "residuals": "residual vectors", "checkpoints": "check points"}
+_LABEL = {
+    "blocks": "blocks",
+    "images": "image footprints",
+    "seamlines": "seamlines",
+    "inspection_cells": "inspection cells",
+    "residuals": "residual vectors",
+    "checkpoints": "check points",
+}
 
 
 _text = visible  # delivery text as shown: controls and bidi overrides made visible, never obeyed
@@ -45,7 +51,12 @@ def _chosen(layer: Layer) -> tuple[list[int], int]:
     idx = [k for k, (g, _) in enumerate(layer.features) if g is not None]
     if len(idx) <= MAX_FEATURES:
         return idx, 0
-    idx.sort(key=lambda k: (V.severity_rank(str(layer.features[k][1].get("verdict"))) >= V.severity_rank(V.PASS), k))
+    idx.sort(
+        key=lambda k: (
+            V.severity_rank(str(layer.features[k][1].get("verdict"))) >= V.severity_rank(V.PASS),
+            k,
+        )
+    )
     return sorted(idx[:MAX_FEATURES]), len(idx) - MAX_FEATURES
 
 
@@ -97,7 +108,9 @@ def _extent(layers: FindingsLayers) -> tuple[float, float, float, float] | None:
     return (x0, y0, x1, y1) if all(math.isfinite(v) for v in (x0, y0, x1, y1)) else None
 
 
-def map_svg(layers: FindingsLayers, *, interactive: bool = False) -> tuple[markupsafe.Markup, dict[str, Any]]:
+def map_svg(
+    layers: FindingsLayers, *, interactive: bool = False
+) -> tuple[markupsafe.Markup, dict[str, Any]]:
     """(the SVG, what it drew: layer -> {verdict: count} and features left out). Each feature is an
     element with ``data-k`` (layer:index into the JSON island) and a ``<title>``."""
     bounds = _extent(layers)
@@ -106,11 +119,13 @@ def map_svg(layers: FindingsLayers, *, interactive: bool = False) -> tuple[marku
         return markupsafe.Markup(""), drawn
     fr = _Frame(bounds)
     esc = markupsafe.escape
-    out = [f'<svg xmlns="http://www.w3.org/2000/svg" class="findings-map" viewBox="0 0 {WIDTH:.0f} {fr.height:.0f}" '
-           f'width="100%" role="img" aria-label="Map of the findings">',
-           '<defs><marker id="arrow" viewBox="0 0 6 6" refX="5" refY="3" markerWidth="5" markerHeight="5" '
-           'orient="auto-start-reverse"><path d="M0,0L6,3L0,6Z" fill="#222"/></marker></defs>',
-           '<g class="view">']
+    out = [
+        f'<svg xmlns="http://www.w3.org/2000/svg" class="findings-map" viewBox="0 0 {WIDTH:.0f} {fr.height:.0f}" '
+        f'width="100%" role="img" aria-label="Map of the findings">',
+        '<defs><marker id="arrow" viewBox="0 0 6 6" refX="5" refY="3" markerWidth="5" markerHeight="5" '
+        'orient="auto-start-reverse"><path d="M0,0L6,3L0,6Z" fill="#222"/></marker></defs>',
+        '<g class="view">',
+    ]
     r = max(2.5, WIDTH / 260)
     for name in MAP_LAYERS:
         layer = layers[name]
@@ -122,20 +137,31 @@ def map_svg(layers: FindingsLayers, *, interactive: bool = False) -> tuple[marku
             verdict = props.get("verdict")
             counts[str(verdict)] = counts.get(str(verdict), 0) + 1
             c = _colour(verdict)
-            title = f"<title>{esc(_text(_LABEL[name]))} {esc(_text(_feature_id(name, props)))}: {esc(_text(verdict or 'not judged'))}</title>"
-            key = f'data-k="{name}:{k}" data-verdict="{esc(_text(verdict))}"' if interactive else f'data-verdict="{esc(_text(verdict))}"'
+            title = (f"<title>{esc(_text(_LABEL[name]))} {esc(_text(_feature_id(name, props)))}: "
+                     f"{esc(_text(verdict or 'not judged'))}</title>")
+            key = (
+                f'data-k="{name}:{k}" data-verdict="{esc(_text(verdict))}"'
+                if interactive
+                else f'data-verdict="{esc(_text(verdict))}"'
+            )
             if name == "checkpoints":
                 xy = fr.xy(g.x, g.y).split(",")
-                out.append(f'<circle {key} cx="{xy[0]}" cy="{xy[1]}" r="{r:.1f}" fill="{c}" stroke="#222" '
-                           f'stroke-width="0.6">{title}</circle>')
+                out.append(
+                    f'<circle {key} cx="{xy[0]}" cy="{xy[1]}" r="{r:.1f}" fill="{c}" stroke="#222" '
+                    f'stroke-width="0.6">{title}</circle>'
+                )
             elif name == "residuals":
-                out.append(f'<path {key} d="{_path(fr, g)}" stroke="#222" stroke-width="1" fill="none" '
-                           f'marker-end="url(#arrow)">{title}</path>')
+                out.append(
+                    f'<path {key} d="{_path(fr, g)}" stroke="#222" stroke-width="1" fill="none" '
+                    f'marker-end="url(#arrow)">{title}</path>'
+                )
             else:
                 width = "2" if name == "blocks" else "0.8"
                 opacity = "0.12" if name == "blocks" else "0.35"
-                out.append(f'<path {key} d="{_path(fr, g)}" fill="{c}" fill-opacity="{opacity}" stroke="{c}" '
-                           f'stroke-width="{width}" fill-rule="evenodd">{title}</path>')
+                out.append(
+                    f'<path {key} d="{_path(fr, g)}" fill="{c}" fill-opacity="{opacity}" stroke="{c}" '
+                    f'stroke-width="{width}" fill-rule="evenodd">{title}</path>'
+                )
         out.append("</g>")
         drawn["counts"][name] = counts
         if omitted:
@@ -152,15 +178,33 @@ def _island(layers: FindingsLayers) -> str:
         for k in _chosen(layer)[0]:
             props = layer.features[k][1]
             fid = _feature_id(name, props)
-            recs = layers.records.get(name if name != "residuals" else "checkpoints", {}).get(fid, [])
+            recs = layers.records.get(name if name != "residuals" else "checkpoints", {}).get(
+                fid, []
+            )
             recs = sorted(recs, key=lambda r: V.severity_rank(str(r.get("verdict"))))[:MAX_RECORDS]
             data[f"{name}:{k}"] = {
-                "layer": _LABEL[name], "id": _text(fid), "verdict": _text(props.get("verdict") or "not judged"),
-                "props": [[_text(a), _text(_shown(v))] for a, v in props.items()
-                          if a not in ("reasons", "evidence") and v is not None],
-                "records": [[_text(r.get("rule")), _text(r.get("verdict")), _text(r.get("message") or ""),
-                             _text(r.get("clause") if isinstance(r.get("clause"), str) else
-                                   (r.get("clause") or {}).get("section", ""))] for r in recs]}
+                "layer": _LABEL[name],
+                "id": _text(fid),
+                "verdict": _text(props.get("verdict") or "not judged"),
+                "props": [
+                    [_text(a), _text(_shown(v))]
+                    for a, v in props.items()
+                    if a not in ("reasons", "evidence") and v is not None
+                ],
+                "records": [
+                    [
+                        _text(r.get("rule")),
+                        _text(r.get("verdict")),
+                        _text(r.get("message") or ""),
+                        _text(
+                            r.get("clause")
+                            if isinstance(r.get("clause"), str)
+                            else (r.get("clause") or {}).get("section", "")
+                        ),
+                    ]
+                    for r in recs
+                ],
+            }
     text = json.dumps(data, ensure_ascii=True, sort_keys=True, separators=(",", ":"))
     return text.replace("<", "\\u003c").replace(">", "\\u003e").replace("&", "\\u0026")
 
@@ -177,23 +221,47 @@ def map_html(layers: FindingsLayers, *, interactive: bool) -> markupsafe.Markup:
     if not svg:
         return markupsafe.Markup("")
     esc = markupsafe.escape
-    legend = "".join(f'<span class="key"><i style="background:{_colour(v)}"></i>{esc(v)}</span>'
-                     for v in (*COLOURS, ) if any(v in c for c in drawn["counts"].values()))
-    counts = "; ".join(f"{_LABEL[n]}: " + ", ".join(f"{c} {esc(v if v != 'None' else 'not judged')}"
-                                                   for v, c in sorted(drawn['counts'][n].items()))
-                       for n in MAP_LAYERS if drawn["counts"].get(n))
-    left = "".join(f" {n} of the {_LABEL[name]} (passing) are not drawn;" for name, n in drawn["omitted"].items())
+    legend = "".join(
+        f'<span class="key"><i style="background:{_colour(v)}"></i>{esc(v)}</span>'
+        for v in (*COLOURS,)
+        if any(v in c for c in drawn["counts"].values())
+    )
+    counts = "; ".join(
+        f"{_LABEL[n]}: "
+        + ", ".join(
+            f"{c} {esc(v if v != 'None' else 'not judged')}"
+            for v, c in sorted(drawn["counts"][n].items())
+        )
+        for n in MAP_LAYERS
+        if drawn["counts"].get(n)
+    )
+    left = "".join(
+        f" {n} of the {_LABEL[name]} (passing) are not drawn;"
+        for name, n in drawn["omitted"].items()
+    )
     scale = layers["residuals"].metadata.get("residual_scale", "1")
-    cap = (f'<p class="small map-caption">Drawn: {counts}.{esc(left)} Residual vectors are drawn {esc(scale)} times '
-           f'their length. Coordinates: {esc(_text(layers.crs or "the delivery CRS"))}.'
-           + (" Drag to pan, wheel to zoom, click a feature for its quality control records." if interactive else "")
-           + "</p>")
-    parts = [f'<div class="findings-map-box" id="findings-map">{svg}', f'<div class="legend">{legend}</div>', cap]
+    cap = (
+        f'<p class="small map-caption">Drawn: {counts}.{esc(left)} Residual vectors are drawn {esc(scale)} times '
+        f"their length. Coordinates: {esc(_text(layers.crs or 'the delivery CRS'))}."
+        + (
+            " Drag to pan, wheel to zoom, click a feature for its quality control records."
+            if interactive
+            else ""
+        )
+        + "</p>"
+    )
+    parts = [
+        f'<div class="findings-map-box" id="findings-map">{svg}',
+        f'<div class="legend">{legend}</div>',
+        cap,
+    ]
     if interactive:
         script = (templates_dir() / "map.js").read_text(encoding="utf-8")
-        parts += ['<div class="map-panel" id="map-panel" aria-live="polite"><p class="muted">Click a block, an '
-                  'image footprint or a check point.</p></div>',
-                  f'<script type="application/json" id="findings-data">{_island(layers)}</script>',
-                  f"<script>{script}</script>"]
+        parts += [
+            '<div class="map-panel" id="map-panel" aria-live="polite"><p class="muted">Click a block, an '
+            "image footprint or a check point.</p></div>",
+            f'<script type="application/json" id="findings-data">{_island(layers)}</script>',
+            f"<script>{script}</script>",
+        ]
     parts.append("</div>")
     return markupsafe.Markup("".join(parts))

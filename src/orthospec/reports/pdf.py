@@ -68,16 +68,33 @@ def write_pdf(html: str, *, fetcher: SafeFetcher, day: str, identifier: str,
     import weasyprint  # heavy: imported only when a PDF is asked for
 
     moment = _moment(day)
-    files = [weasyprint.Attachment(file_obj=io.BytesIO(a.data), name=a.name, description=a.description,
-                                   created=moment, modified=moment, relationship=a.relationship,
-                                   url_fetcher=fetcher)
-             for a in attachments]
+    files = [
+        weasyprint.Attachment(
+            file_obj=io.BytesIO(a.data),
+            name=a.name,
+            description=a.description,
+            created=moment,
+            modified=moment,
+            relationship=a.relationship,
+            url_fetcher=fetcher,
+        )
+        for a in attachments
+    ]
     pdf_id = hashlib.sha256(f"orthospec-pdf:{identifier}".encode()).hexdigest()[:32].encode("ascii")
     try:
-        doc = weasyprint.HTML(string=html, base_url=fetcher.root.as_uri() + "/", url_fetcher=fetcher)
+        doc = weasyprint.HTML(
+            string=html, base_url=fetcher.root.as_uri() + "/", url_fetcher=fetcher
+        )
         with _source_date_epoch(moment):
-            return doc.write_pdf(pdf_variant=PDF_VARIANT, attachments=files, pdf_identifier=pdf_id,
-                                 uncompressed_pdf=False, custom_metadata=False)
-    except Exception as exc:  # WeasyPrint raises many kinds; never swallowed: one error class, chained
+            return doc.write_pdf(
+                pdf_variant=PDF_VARIANT,
+                attachments=files,
+                pdf_identifier=pdf_id,
+                uncompressed_pdf=False,
+                custom_metadata=False,
+            )
+    except (
+        Exception
+    ) as exc:  # WeasyPrint raises many kinds; never swallowed: one error class, chained
         # (the original traceback stays on __cause__ for --debug)
         raise ReportError(f"PDF rendering failed: {type(exc).__name__}: {exc}") from exc

@@ -50,12 +50,16 @@ def _day(v: Any) -> dt.date | None:
     return (t.astimezone(dt.UTC) if t.tzinfo else t).date()
 
 
-def _table_days(ctx: ProviderContext, table: str, column: str) -> tuple[dict[str, dt.date], dict[str, Evidence]]:
+def _table_days(
+    ctx: ProviderContext, table: str, column: str
+) -> tuple[dict[str, dt.date], dict[str, Evidence]]:
     t = ctx.delivery.table(table)
     if t is None or column not in t.df:
         return {}, {}
     days, ev = {}, {}
-    for item, v, row in zip(t.ids.astype(str), t.df[column].tolist(), t.df["_row"].tolist(), strict=True):
+    for item, v, row in zip(
+        t.ids.astype(str), t.df[column].tolist(), t.df["_row"].tolist(), strict=True
+    ):
         day = _day(v)
         if day is not None:
             days[item] = day
@@ -79,8 +83,9 @@ def _flight_days(ctx: ProviderContext) -> tuple[dict[str, set[dt.date]], dict[st
     return out, ev
 
 
-def image_dates(ctx: ProviderContext) -> tuple[list[str], dict[str, dt.date | None], dict[str, str],
-                                               dict[str, tuple[Evidence, ...]]]:
+def image_dates(
+    ctx: ProviderContext,
+) -> tuple[list[str], dict[str, dt.date | None], dict[str, str], dict[str, tuple[Evidence, ...]]]:
     """(image ids, date or None, note, evidence) from the images', scenes' and flights' records
     (computed once per run: both providers read it)."""
     if "acquisition.image_dates" not in ctx.memo:
@@ -88,8 +93,9 @@ def image_dates(ctx: ProviderContext) -> tuple[list[str], dict[str, dt.date | No
     return ctx.memo["acquisition.image_dates"]  # type: ignore[no-any-return]
 
 
-def _image_dates(ctx: ProviderContext) -> tuple[list[str], dict[str, dt.date | None], dict[str, str],
-                                                dict[str, tuple[Evidence, ...]]]:
+def _image_dates(
+    ctx: ProviderContext,
+) -> tuple[list[str], dict[str, dt.date | None], dict[str, str], dict[str, tuple[Evidence, ...]]]:
     d = ctx.delivery
     imgs = d.table("images")
     ids: list[str] = imgs.ids.astype(str).tolist() if imgs is not None else []
@@ -100,7 +106,11 @@ def _image_dates(ctx: ProviderContext) -> tuple[list[str], dict[str, dt.date | N
     scene_day, ev_scene = _table_days(ctx, "scenes", "acquisition_date")
     flight_of: dict[str, str] = {}
     if imgs is not None and "flight_id" in imgs.df:
-        flight_of = {str(i): str(f) for i, f in zip(imgs.ids, imgs.df["flight_id"], strict=True) if f is not None}
+        flight_of = {
+            str(i): str(f)
+            for i, f in zip(imgs.ids, imgs.df["flight_id"], strict=True)
+            if f is not None
+        }
     flight_days, ev_flight = _flight_days(ctx)
     dates: dict[str, dt.date | None] = {}
     notes: dict[str, str] = {}
@@ -128,9 +138,11 @@ def _image_dates(ctx: ProviderContext) -> tuple[list[str], dict[str, dt.date | N
             evidence[i] = (ev_flight[fl],)
         else:
             dates[i] = None
-            notes[i] = (f"flight {fl} spans {', '.join(map(str, sorted(flight_days[fl])))}: no single date"
-                        if fl in flight_days else
-                        "no acquisition time: images.exposure_time, scenes.acquisition_date or the flight's times")
+            notes[i] = (
+                f"flight {fl} spans {', '.join(map(str, sorted(flight_days[fl])))}: no single date"
+                if fl in flight_days
+                else "no acquisition time: images.exposure_time, scenes.acquisition_date or the flight's times"
+            )
             if fl in ev_flight:
                 evidence[i] = (ev_flight[fl],)
     return ids, dates, notes, evidence
@@ -177,17 +189,31 @@ def acquisition_window(ctx: ProviderContext) -> list[Measured]:
             n = days_outside(day, start, end)
             outside[i] = float(n)
             window = f"{start or '…'} to {end or '…'}"
-            out_notes[i] = (f"{notes[i]}, inside the ITT window {window}" if n == 0 else
-                            f"{notes[i]}: {n} day(s) {'before' if start and day < start else 'after'} the ITT "
-                            f"window {window}")
+            out_notes[i] = (
+                f"{notes[i]}, inside the ITT window {window}"
+                if n == 0
+                else f"{notes[i]}: {n} day(s) {'before' if start and day < start else 'after'} the ITT "
+                f"window {window}"
+            )
     ev = pd.Series({i: evidence[i] for i in ids}, dtype=object)
     return [
-        Measured("acquisition.date", "image", "date",
-                 pd.Series({i: (dates[i].isoformat() if dates[i] else None) for i in ids}, dtype=object),
-                 ev, notes=pd.Series(notes, dtype=object)),
-        Measured("acquisition.days_outside_window", "image", "d", pd.Series(outside, dtype=object), ev,
-                 notes=pd.Series(out_notes, dtype=object),
-                 errors=pd.Series(errors, dtype=object) if errors else None),
+        Measured(
+            "acquisition.date",
+            "image",
+            "date",
+            pd.Series({i: (dates[i].isoformat() if dates[i] else None) for i in ids}, dtype=object),
+            ev,
+            notes=pd.Series(notes, dtype=object),
+        ),
+        Measured(
+            "acquisition.days_outside_window",
+            "image",
+            "d",
+            pd.Series(outside, dtype=object),
+            ev,
+            notes=pd.Series(out_notes, dtype=object),
+            errors=pd.Series(errors, dtype=object) if errors else None,
+        ),
     ]
 
 
@@ -203,9 +229,22 @@ def declared_window(ctx: ProviderContext) -> list[Measured]:
         start = end = single
     ev: tuple[Evidence, ...] = (d.manifest_evidence("dates"),)
     if start is None and end is None:
-        return [Measured(name, "delivery", "1", pd.Series({d.id: None}, dtype=object), pd.Series({d.id: ev}, dtype=object),
-                         na=pd.Series({d.id: "delivery.yaml declares no acquisition window (dates.acquired_from / "
-                                             "acquired_to): nothing to compare"}, dtype=object))]
+        return [
+            Measured(
+                name,
+                "delivery",
+                "1",
+                pd.Series({d.id: None}, dtype=object),
+                pd.Series({d.id: ev}, dtype=object),
+                na=pd.Series(
+                    {
+                        d.id: "delivery.yaml declares no acquisition window (dates.acquired_from / "
+                        "acquired_to): nothing to compare"
+                    },
+                    dtype=object,
+                ),
+            )
+        ]
     ids, dates, _, evidence = image_dates(ctx)
     known = [i for i in ids if dates[i] is not None]
     off = [(i, days_outside(dates[i], start, end)) for i in known]  # type: ignore[arg-type]
@@ -214,14 +253,26 @@ def declared_window(ctx: ProviderContext) -> list[Measured]:
     window = f"{start or '…'} to {end or '…'}"
     if off:
         worst = max(n for _, n in off)
-        shown = ", ".join(f"{i} ({dates[i]})" for i, _ in off[:10]) + (f" and {len(off) - 10} more" if len(off) > 10 else "")
-        note = (f"{len(off)} of {len(known)} dated images lie outside the declared window {window} (up to {worst} "
-                f"days): {shown}")
+        shown = ", ".join(f"{i} ({dates[i]})" for i, _ in off[:10]) + (
+            f" and {len(off) - 10} more" if len(off) > 10 else ""
+        )
+        note = (
+            f"{len(off)} of {len(known)} dated images lie outside the declared window {window} (up to {worst} "
+            f"days): {shown}"
+        )
     else:
         note = f"all {len(known)} dated images lie inside the declared window {window}"
     if unknown:
         note += f"; {len(unknown)} image(s) without an acquisition date"
     rows = tuple(e for i, _ in off for e in evidence[i])
     value = float(len(off)) if known else None
-    return [Measured(name, "delivery", "1", pd.Series({d.id: value}, dtype=object),
-                     pd.Series({d.id: ev + rows}, dtype=object), notes=pd.Series({d.id: note}, dtype=object))]
+    return [
+        Measured(
+            name,
+            "delivery",
+            "1",
+            pd.Series({d.id: value}, dtype=object),
+            pd.Series({d.id: ev + rows}, dtype=object),
+            notes=pd.Series({d.id: note}, dtype=object),
+        )
+    ]

@@ -30,8 +30,9 @@ OUTSIDE_SHARE = 0.01
 NADIR_SLACK = 0.05
 
 
-def faults(polys: list[tuple[Any, str | None]], feet: dict[str, Any], nadir: dict[str, tuple[float, float]]
-           ) -> list[str]:
+def faults(
+    polys: list[tuple[Any, str | None]], feet: dict[str, Any], nadir: dict[str, tuple[float, float]]
+) -> list[str]:
     """What is wrong with each seamline polygon, as text (empty when all agree)."""
     out = []
     for k, (g, img) in enumerate(polys, start=1):
@@ -41,22 +42,31 @@ def faults(polys: list[tuple[Any, str | None]], feet: dict[str, Any], nadir: dic
             continue
         b = feet.get(img, (None, "not in the images table"))[0]
         if b is None:
-            out.append(f"{label}: its image has no footprint ({feet.get(img, (None, 'not listed'))[1]})")
+            out.append(
+                f"{label}: its image has no footprint ({feet.get(img, (None, 'not listed'))[1]})"
+            )
             continue
         outside = g.area - g.intersection(box(*b)).area
         if g.area > 0 and outside > OUTSIDE_SHARE * g.area:
-            out.append(f"{label}: {100 * outside / g.area:.1f} % of it outside its image's footprint")
+            out.append(
+                f"{label}: {100 * outside / g.area:.1f} % of it outside its image's footprint"
+            )
             continue
         if img not in nadir:
             continue
         p = g.representative_point()
         own = float(np.hypot(p.x - nadir[img][0], p.y - nadir[img][1]))
-        covering = [(i, float(np.hypot(p.x - xy[0], p.y - xy[1]))) for i, xy in nadir.items()
-                    if i != img and feet.get(i, (None,))[0] is not None and box(*feet[i][0]).contains(p)]
+        covering = [
+            (i, float(np.hypot(p.x - xy[0], p.y - xy[1])))
+            for i, xy in nadir.items()
+            if i != img and feet.get(i, (None,))[0] is not None and box(*feet[i][0]).contains(p)
+        ]
         better = [(i, dist) for i, dist in covering if dist < own * (1 - NADIR_SLACK)]
         if better:
             i, dist = min(better, key=lambda t: t[1])
-            out.append(f"{label}: {own:.0f} from its nadir point, {dist:.0f} from {i}'s, which also covers it")
+            out.append(
+                f"{label}: {own:.0f} from its nadir point, {dist:.0f} from {i}'s, which also covers it"
+            )
     return out
 
 
@@ -86,15 +96,31 @@ def area_selection(ctx: ProviderContext) -> list[Measured]:
             imgs = d.table("images")
             nadir: dict[str, tuple[float, float]] = {}
             if imgs is not None and {"exposure_x", "exposure_y"} <= set(imgs.df):
-                for i, x, y in zip(imgs.ids.astype(str), imgs.df["exposure_x"].tolist(), imgs.df["exposure_y"].tolist(),
-                                   strict=True):
+                for i, x, y in zip(
+                    imgs.ids.astype(str),
+                    imgs.df["exposure_x"].tolist(),
+                    imgs.df["exposure_y"].tolist(),
+                    strict=True,
+                ):
                     if x is not None and y is not None and np.isfinite(x) and np.isfinite(y):
                         nadir[i] = (float(x), float(y))
                 ev += (imgs.evidence(imgs.df["_row"])[0],)
             found = faults(polys, feet, nadir)
             value = float(len(found))
-            note = (f"{len(polys)} seamline polygon(s) of {seam} ({field}): " +
-                    ("each within its image's footprint and nearest its nadir point" if not found else
-                     "; ".join(found[:10]) + (f" and {len(found) - 10} more" if len(found) > 10 else "")))
-    return [Measured(NAME, "delivery", "1", pd.Series({d.id: value}, dtype=object), pd.Series({d.id: ev}, dtype=object),
-                     notes=pd.Series({d.id: note}, dtype=object), errors=errors)]
+            note = f"{len(polys)} seamline polygon(s) of {seam} ({field}): " + (
+                "each within its image's footprint and nearest its nadir point"
+                if not found
+                else "; ".join(found[:10])
+                + (f" and {len(found) - 10} more" if len(found) > 10 else "")
+            )
+    return [
+        Measured(
+            NAME,
+            "delivery",
+            "1",
+            pd.Series({d.id: value}, dtype=object),
+            pd.Series({d.id: ev}, dtype=object),
+            notes=pd.Series({d.id: note}, dtype=object),
+            errors=errors,
+        )
+    ]

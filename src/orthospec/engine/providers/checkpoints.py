@@ -43,35 +43,83 @@ from ...units import convert
 from ..registry import Measured, ProviderContext, RowEvidence, provider
 
 _STATS = {
-    "n": "1", "rmse_x": "L", "rmse_y": "L", "rmse_z": "L", "rmse_r": "L", "mean_x": "L", "mean_y": "L",
-    "mean_z": "L", "std_x": "L", "std_y": "L", "std_z": "L", "max_abs_dx": "L", "max_abs_dy": "L",
-    "max_abs_dz": "L", "max_dr": "L", "ce90": "L", "ce95": "L", "ce90_selected": "L",
-    "ce95_selected": "L", "ce90_empirical": "L", "ce95_empirical": "L", "nssda_horizontal_95": "L",
-    "nssda_vertical_95": "L", "nssda_ratio": "1", "bias_ratio": "1", "std_ratio": "1",
+    "n": "1",
+    "rmse_x": "L",
+    "rmse_y": "L",
+    "rmse_z": "L",
+    "rmse_r": "L",
+    "mean_x": "L",
+    "mean_y": "L",
+    "mean_z": "L",
+    "std_x": "L",
+    "std_y": "L",
+    "std_z": "L",
+    "max_abs_dx": "L",
+    "max_abs_dy": "L",
+    "max_abs_dz": "L",
+    "max_dr": "L",
+    "ce90": "L",
+    "ce95": "L",
+    "ce90_selected": "L",
+    "ce95_selected": "L",
+    "ce90_empirical": "L",
+    "ce95_empirical": "L",
+    "nssda_horizontal_95": "L",
+    "nssda_vertical_95": "L",
+    "nssda_ratio": "1",
+    "bias_ratio": "1",
+    "std_ratio": "1",
 }
-BLOCK_MEASURES: dict[str, str] = {f"checkpoints.{k}": ("m" if u == "L" else u) for k, u in _STATS.items()}
-BLOCK_MEASURES.update({
-    "checkpoints.rmse_x_all": "m", "checkpoints.rmse_y_all": "m", "checkpoints.rmse_z_all": "m",
-    "checkpoints.n_all": "1", "checkpoints.excluded": "1", "checkpoints.blunders": "1",
-    "checkpoints.blunders_unjustified": "1", "checkpoints.blunders_uninspected": "1",
-    "checkpoints.bias_negligible": "bool",
-    "checkpoints.nssda_approximation_holds": "bool",
-    "checkpoints.rmse_x_gsd": "px", "checkpoints.rmse_y_gsd": "px",
-    "checkpoints.quadrant_min_share": "%", "checkpoints.spacing_ratio": "1",
-    "checkpoints.min_gcp_distance": "m", "checkpoints.near_gcp": "1", "checkpoints.outside_block": "1",
-    "checkpoints.duplicate_locations": "1", "checkpoints.zero_residuals": "1",
-    "checkpoints.imprecise": "1", "checkpoints.block_cells_bad": "1", "checkpoints.screened": "1",
-    "checkpoints.separation": "m", "checkpoints.nssda_method": "text",
-    "checkpoints.reported_diff_x": "m", "checkpoints.reported_diff_y": "m",
-    "checkpoints.reported_diff_z": "m",
-    "checkpoints.asprs_rmse_h": "m", "checkpoints.asprs_rmse_v": "m",
-    # systematic error (JRC §12.4; seed 000 bias): Student t of the mean error and its p-value
-    "checkpoints.bias_t_x": "1", "checkpoints.bias_t_y": "1", "checkpoints.bias_t_z": "1",
-    "checkpoints.bias_p_x": "1", "checkpoints.bias_p_y": "1", "checkpoints.bias_p_z": "1",
-})
+BLOCK_MEASURES: dict[str, str] = {
+    f"checkpoints.{k}": ("m" if u == "L" else u) for k, u in _STATS.items()
+}
+BLOCK_MEASURES.update(
+    {
+        "checkpoints.rmse_x_all": "m",
+        "checkpoints.rmse_y_all": "m",
+        "checkpoints.rmse_z_all": "m",
+        "checkpoints.n_all": "1",
+        "checkpoints.excluded": "1",
+        "checkpoints.blunders": "1",
+        "checkpoints.blunders_unjustified": "1",
+        "checkpoints.blunders_uninspected": "1",
+        "checkpoints.bias_negligible": "bool",
+        "checkpoints.nssda_approximation_holds": "bool",
+        "checkpoints.rmse_x_gsd": "px",
+        "checkpoints.rmse_y_gsd": "px",
+        "checkpoints.quadrant_min_share": "%",
+        "checkpoints.spacing_ratio": "1",
+        "checkpoints.min_gcp_distance": "m",
+        "checkpoints.near_gcp": "1",
+        "checkpoints.outside_block": "1",
+        "checkpoints.duplicate_locations": "1",
+        "checkpoints.zero_residuals": "1",
+        "checkpoints.imprecise": "1",
+        "checkpoints.block_cells_bad": "1",
+        "checkpoints.screened": "1",
+        "checkpoints.separation": "m",
+        "checkpoints.nssda_method": "text",
+        "checkpoints.reported_diff_x": "m",
+        "checkpoints.reported_diff_y": "m",
+        "checkpoints.reported_diff_z": "m",
+        "checkpoints.asprs_rmse_h": "m",
+        "checkpoints.asprs_rmse_v": "m",
+        # systematic error (JRC §12.4; seed 000 bias): Student t of the mean error and its p-value
+        "checkpoints.bias_t_x": "1",
+        "checkpoints.bias_t_y": "1",
+        "checkpoints.bias_t_z": "1",
+        "checkpoints.bias_p_x": "1",
+        "checkpoints.bias_p_y": "1",
+        "checkpoints.bias_p_z": "1",
+    }
+)
 POINT_MEASURES = {
-    "checkpoint.dx": "m", "checkpoint.dy": "m", "checkpoint.dz": "m", "checkpoint.dr": "m",
-    "checkpoint.blunder_ok": "bool", "checkpoint.decision": "text",
+    "checkpoint.dx": "m",
+    "checkpoint.dy": "m",
+    "checkpoint.dz": "m",
+    "checkpoint.dr": "m",
+    "checkpoint.blunder_ok": "bool",
+    "checkpoint.decision": "text",
 }
 #: Rows of the per-point table a block's report detail holds: every flagged point (a blunder
 #: candidate or an exclusion request) and the largest residuals up to this many; beyond it the
@@ -83,8 +131,19 @@ DETAIL_POINTS_MAX = 10_000
 _STATUS = np.array(["pass", "fail"], dtype=object)
 #: the decision of a point screened out of the statistics (not an independent measurement)
 NOT_USED = "not_used"
-_DETAIL_STATS = ("n", "mean_x", "mean_y", "std_x", "std_y", "rmse_x", "rmse_y", "rmse_z", "max_abs_dx",
-                 "max_abs_dy", "max_dr")
+_DETAIL_STATS = (
+    "n",
+    "mean_x",
+    "mean_y",
+    "std_x",
+    "std_y",
+    "rmse_x",
+    "rmse_y",
+    "rmse_z",
+    "max_abs_dx",
+    "max_abs_dy",
+    "max_dr",
+)
 
 
 @dataclass(frozen=True)
@@ -115,17 +174,26 @@ class Settings:
         gsd = ctx.delivery.gsd_m
         acc = _param(ctx, "checkpoint_accuracy_factor", None)
         survey_h = _param(ctx, "survey_rmse_h", None, "m")
-        return cls(basis=basis if basis in ("calculated", "target") else "calculated",
-                   factor=float(_param(ctx, "blunder_factor", 3.0)),
-                   target_xy=target_xy, target_z=_param(ctx, "tolerance_z", None, "m"),
-                   min_gcp=float(_param(ctx, "min_checkpoint_gcp_distance", 0.0, "m") or 0.0),
-                   min_count=int(_param(ctx, "min_checkpoints", 20)),
-                   survey_h=None if survey_h is None else float(survey_h),
-                   survey_v=float(_param(ctx, "survey_rmse_v", 0.0, "m") or 0.0), gsd=gsd,
-                   separation=separation(target_xy, gsd,
-                                         tolerance_factor=float(_param(ctx, "checkpoint_separation_factor", 1.0)),
-                                         gsd_px=float(_param(ctx, "checkpoint_separation_px", 2.0))),
-                   precision_max=(float(target_xy) / float(acc) if target_xy is not None and acc else None))
+        return cls(
+            basis=basis if basis in ("calculated", "target") else "calculated",
+            factor=float(_param(ctx, "blunder_factor", 3.0)),
+            target_xy=target_xy,
+            target_z=_param(ctx, "tolerance_z", None, "m"),
+            min_gcp=float(_param(ctx, "min_checkpoint_gcp_distance", 0.0, "m") or 0.0),
+            min_count=int(_param(ctx, "min_checkpoints", 20)),
+            survey_h=None if survey_h is None else float(survey_h),
+            survey_v=float(_param(ctx, "survey_rmse_v", 0.0, "m") or 0.0),
+            gsd=gsd,
+            separation=separation(
+                target_xy,
+                gsd,
+                tolerance_factor=float(_param(ctx, "checkpoint_separation_factor", 1.0)),
+                gsd_px=float(_param(ctx, "checkpoint_separation_px", 2.0)),
+            ),
+            precision_max=(
+                float(target_xy) / float(acc) if target_xy is not None and acc else None
+            ),
+        )
 
 
 @dataclass(frozen=True)
@@ -147,11 +215,17 @@ class BlockPoints:
         """The points where ``mask`` is true (exclusion requests of the others dropped)."""
         ids = self.ids[mask]
         keep = set(ids.tolist()) if self.exclusions else set()
-        return BlockPoints(ids=ids, rows=self.rows[mask], dx=self.dx[mask], dy=self.dy[mask],
-                           dz=None if self.dz is None else self.dz[mask], x_ref=self.x_ref[mask],
-                           y_ref=self.y_ref[mask],
-                           exclusions={k: v for k, v in self.exclusions.items() if k in keep},
-                           precision=None if self.precision is None else self.precision[mask])
+        return BlockPoints(
+            ids=ids,
+            rows=self.rows[mask],
+            dx=self.dx[mask],
+            dy=self.dy[mask],
+            dz=None if self.dz is None else self.dz[mask],
+            x_ref=self.x_ref[mask],
+            y_ref=self.y_ref[mask],
+            exclusions={k: v for k, v in self.exclusions.items() if k in keep},
+            precision=None if self.precision is None else self.precision[mask],
+        )
 
 
 @dataclass(frozen=True)
@@ -260,11 +334,21 @@ def _compute_once(ctx: ProviderContext, table: str = "checkpoints") -> Results:
             continue
         screen = _screen(pts, outlines.get(block), gcps.get(block), settings)
         n_used = int(np.count_nonzero(screen.used))
-        if n_used < 2:  # the checker's points give no statistic: missing, never an error or a rejection
-            out.blocks[block] = BlockAccuracy(block, ev, settings, screen=screen, screen_ids=pts.ids,
-                                              outline=outlines.get(block), missing=(
-                f"only {n_used} of block {block}'s {len(pts.ids)} check point(s) usable (the others are listed "
-                "as not independent measurements): at least 2 are needed for statistics"))
+        if (
+            n_used < 2
+        ):  # the checker's points give no statistic: missing, never an error or a rejection
+            out.blocks[block] = BlockAccuracy(
+                block,
+                ev,
+                settings,
+                screen=screen,
+                screen_ids=pts.ids,
+                outline=outlines.get(block),
+                missing=(
+                    f"only {n_used} of block {block}'s {len(pts.ids)} check point(s) usable (the others are listed "
+                    "as not independent measurements): at least 2 are needed for statistics"
+                ),
+            )
             if not screen.used.all():
                 out.screened.append((pts.subset(~screen.used), screen.reasons[~screen.used]))
             continue
@@ -272,8 +356,13 @@ def _compute_once(ctx: ProviderContext, table: str = "checkpoints") -> Results:
     if out.bad_cells:
         rows = np.flatnonzero(np.equal(cells, None))  # type: ignore[call-overload]  # no None operand in the stubs
         pts = _block_points(df, rows, to_m)
-        why = np.array([f"block cell {str(c)!r} does not name exactly one block"
-                        for c in df["block"].to_numpy(dtype=object)[rows]], dtype=object)
+        why = np.array(
+            [
+                f"block cell {str(c)!r} does not name exactly one block"
+                for c in df["block"].to_numpy(dtype=object)[rows]
+            ],
+            dtype=object,
+        )
         out.screened.append((pts, why))
     used = [(pts.subset(screen.used), outlines.get(block)) for block, pts, _, screen in todo]
     done = _per_block(used, settings)
@@ -281,23 +370,43 @@ def _compute_once(ctx: ProviderContext, table: str = "checkpoints") -> Results:
         if not screen.used.all():
             out.screened.append((pts.subset(~screen.used), screen.reasons[~screen.used]))
         if isinstance(got, str):
-            out.blocks[block] = BlockAccuracy(block, ev, settings, error=f"{t.file}: block {block}: {got}",
-                                              screen=screen, screen_ids=pts.ids, outline=outlines.get(block))
+            out.blocks[block] = BlockAccuracy(
+                block,
+                ev,
+                settings,
+                error=f"{t.file}: block {block}: {got}",
+                screen=screen,
+                screen_ids=pts.ids,
+                outline=outlines.get(block),
+            )
             continue
         br, dist, dist_error = got
         outline = outlines.get(block)
-        res = BlockAccuracy(block, ev, settings, blunders=br, distribution=dist, distribution_error=dist_error,
-                            outline=outline, reported=_reported(ctx, block), screen=screen, screen_ids=pts.ids,
-                            survey_h=_survey_h(kept, br, settings))
+        res = BlockAccuracy(
+            block,
+            ev,
+            settings,
+            blunders=br,
+            distribution=dist,
+            distribution_error=dist_error,
+            outline=outline,
+            reported=_reported(ctx, block),
+            screen=screen,
+            screen_ids=pts.ids,
+            survey_h=_survey_h(kept, br, settings),
+        )
         out.blocks[block] = res
         out.points.append((kept, br))
-        out.detail[block] = _block_detail(res, kept, gcps.get(block), pts.subset(~screen.used),
-                                          screen.reasons[~screen.used])
+        out.detail[block] = _block_detail(
+            res, kept, gcps.get(block), pts.subset(~screen.used), screen.reasons[~screen.used]
+        )
     out.blocks = dict(sorted(out.blocks.items()))  # block order, whichever blocks erred
     return out
 
 
-def _block_cells(df: pd.DataFrame, blocks: list[str]) -> tuple[np.ndarray, dict[str, tuple[str, ...]]]:
+def _block_cells(
+    df: pd.DataFrame, blocks: list[str]
+) -> tuple[np.ndarray, dict[str, tuple[str, ...]]]:
     """Each point's block (None when its cell is not exactly one known block id) and, per block an
     unclear cell names, those points' ids. JRC §12.7 computes the RMSE "of all check points in the
     block/site": a point belongs to one block, and a cell such as "B02;B02" must neither make it
@@ -318,8 +427,9 @@ def _listed(ids: tuple[str, ...] | list[str], n: int = 10) -> str:
     return ", ".join(ids[:n]) + (f" (+{len(ids) - n} more)" if len(ids) > n else "")
 
 
-def _screen(pts: BlockPoints, outline: Polygon | None, gcps: tuple[np.ndarray, ...] | None,
-            s: Settings) -> Screen:
+def _screen(
+    pts: BlockPoints, outline: Polygon | None, gcps: tuple[np.ndarray, ...] | None, s: Settings
+) -> Screen:
     """Why each point is not an independent measurement of the image (None: it is one)."""
     n = len(pts.ids)
     parts: list[tuple[np.ndarray, Any]] = []
@@ -327,9 +437,16 @@ def _screen(pts: BlockPoints, outline: Polygon | None, gcps: tuple[np.ndarray, .
     dup = rep >= 0
     if dup.any():
         gap = np.hypot(pts.x_ref[dup] - pts.x_ref[rep[dup]], pts.y_ref[dup] - pts.y_ref[rep[dup]])
-        parts.append((dup, [f"repeats the reference position of {a} ({g:.3f} m apart, closer than the "
-                            f"{s.separation:.3g} m that tells two points apart)"
-                            for a, g in zip(pts.ids[rep[dup]].tolist(), gap.tolist(), strict=True)]))
+        parts.append(
+            (
+                dup,
+                [
+                    f"repeats the reference position of {a} ({g:.3f} m apart, closer than the "
+                    f"{s.separation:.3g} m that tells two points apart)"
+                    for a, g in zip(pts.ids[rep[dup]].tolist(), gap.tolist(), strict=True)
+                ],
+            )
+        )
     gmin = None
     near = np.zeros(n, dtype=bool)
     if gcps is not None and len(gcps[0]):
@@ -340,13 +457,27 @@ def _screen(pts: BlockPoints, outline: Polygon | None, gcps: tuple[np.ndarray, .
         same_id = pd.Index(pts.ids.astype(str), dtype=object).isin(set(gids.astype(str).tolist()))
         near = (dist < limit) | same_id
         if near.any():
-            parts.append((near, [f"{d_:.3f} m from GCP {gids[w]} (closer than {limit:.3g} m): not independent "
-                                 "of the GCPs used for the correction" if w >= 0 else "has the id of a GCP"
-                                 for d_, w in zip(dist[near].tolist(), which[near].tolist(), strict=True)]))
+            parts.append(
+                (
+                    near,
+                    [
+                        f"{d_:.3f} m from GCP {gids[w]} (closer than {limit:.3g} m): not independent "
+                        "of the GCPs used for the correction"
+                        if w >= 0
+                        else "has the id of a GCP"
+                        for d_, w in zip(dist[near].tolist(), which[near].tolist(), strict=True)
+                    ],
+                )
+            )
     zero = zero_residuals(pts.dx, pts.dy)
     if zero.any():
-        parts.append((zero, "residual exactly 0 in x and y: the image position equals the reference, "
-                            "it was not measured on the image"))
+        parts.append(
+            (
+                zero,
+                "residual exactly 0 in x and y: the image position equals the reference, "
+                "it was not measured on the image",
+            )
+        )
     outside = np.zeros(n, dtype=bool)
     if outline is not None and n:
         outside = ~shapely.intersects_xy(outline, pts.x_ref, pts.y_ref)
@@ -356,9 +487,16 @@ def _screen(pts: BlockPoints, outline: Polygon | None, gcps: tuple[np.ndarray, .
     if s.precision_max is not None and pts.precision is not None:
         imprecise = pts.precision > s.precision_max  # NaN (not given): judged by its own rule
         if imprecise.any():
-            parts.append((imprecise, [f"reference precision {p:.3g} m above {s.precision_max:.3g} m (the "
-                                      "tolerance over the checkpoint accuracy factor)"
-                                      for p in pts.precision[imprecise].tolist()]))
+            parts.append(
+                (
+                    imprecise,
+                    [
+                        f"reference precision {p:.3g} m above {s.precision_max:.3g} m (the "
+                        "tolerance over the checkpoint accuracy factor)"
+                        for p in pts.precision[imprecise].tolist()
+                    ],
+                )
+            )
     reasons = np.full(n, None, dtype=object)
     for mask, why in parts:
         pos = np.flatnonzero(mask)
@@ -369,8 +507,15 @@ def _screen(pts: BlockPoints, outline: Polygon | None, gcps: tuple[np.ndarray, .
     def ids(mask: np.ndarray) -> tuple[str, ...]:
         return tuple(pts.ids[mask].astype(str).tolist())
 
-    return Screen(reasons=reasons, duplicates=ids(dup), near_gcp=ids(near), zero=ids(zero),
-                  outside=ids(outside), imprecise=ids(imprecise), gcp_min_distance=gmin)
+    return Screen(
+        reasons=reasons,
+        duplicates=ids(dup),
+        near_gcp=ids(near),
+        zero=ids(zero),
+        outside=ids(outside),
+        imprecise=ids(imprecise),
+        gcp_min_distance=gmin,
+    )
 
 
 def _survey_h(kept: BlockPoints, br: BlunderResult, s: Settings) -> float | None:
@@ -395,9 +540,19 @@ _Done = tuple[BlunderResult, DistributionResult | None, str | None] | str
 def _blunders(pts: BlockPoints, s: Settings) -> BlunderResult | str:
     """The block's blunder screening; its complaint (a MeasureError: invalid points) as text."""
     try:
-        return detect_blunders(pts.dx, pts.dy, pts.dz, ids=pts.ids, basis=s.basis,  # type: ignore[arg-type]
-                               factor=s.factor, target_rmse_xy=s.target_xy, target_rmse_z=s.target_z,
-                               exclusions=pts.exclusions, gsd=s.gsd, unit="m")
+        return detect_blunders(
+            pts.dx,
+            pts.dy,
+            pts.dz,
+            ids=pts.ids,
+            basis=s.basis,  # type: ignore[arg-type]
+            factor=s.factor,
+            target_rmse_xy=s.target_xy,
+            target_rmse_z=s.target_z,
+            exclusions=pts.exclusions,
+            gsd=s.gsd,
+            unit="m",
+        )
     except MeasureError as exc:
         return str(exc)
 
@@ -444,8 +599,10 @@ def _outlines(ctx: ProviderContext) -> tuple[dict[str, Polygon], dict[str, str]]
         if not np.isfinite(xy).all():
             row = int(np.flatnonzero(~np.isfinite(xy).all(axis=1))[0])
             # a broken outline makes the block's statistics untrustworthy: error, never a pass
-            broken[block] = (f"{ev.file} {ev.path or 'blocks'} ({block}) vertex {row + 1} is not a finite "
-                             f"number ({list(ring[row])}): the block cannot be checked")
+            broken[block] = (
+                f"{ev.file} {ev.path or 'blocks'} ({block}) vertex {row + 1} is not a finite "
+                f"number ({list(ring[row])}): the block cannot be checked"
+            )
             continue
         polys[block] = Polygon([(float(x) * to_m, float(y) * to_m) for x, y in ring])
     return polys, broken
@@ -461,13 +618,17 @@ def _gcps(ctx: ProviderContext) -> dict[str, tuple[np.ndarray, np.ndarray, np.nd
     out = {}
     for block, rows in sorted(df.groupby(df["block"].astype(str)).indices.items()):
         part = df.iloc[rows]
-        out[block] = (part["point_id"].astype(str).to_numpy(), part["x"].to_numpy(float) * unit,
-                      part["y"].to_numpy(float) * unit)
+        out[block] = (
+            part["point_id"].astype(str).to_numpy(),
+            part["x"].to_numpy(float) * unit,
+            part["y"].to_numpy(float) * unit,
+        )
     return out
 
 
 def _block_points(df: pd.DataFrame, rows: np.ndarray, to_m: float) -> BlockPoints:
     """One block's points (``rows``: positions in the table) as metre arrays."""
+
     def col(name: str) -> np.ndarray:
         return df[name].to_numpy(float)[rows]
 
@@ -480,34 +641,56 @@ def _block_points(df: pd.DataFrame, rows: np.ndarray, to_m: float) -> BlockPoint
     if "excluded" in df:
         flags = _is_true(df["excluded"].to_numpy()[rows])
         if flags.any():
-            whys = (df["exclusion_reason"].to_numpy(dtype=object)[rows][flags].tolist()
-                    if "exclusion_reason" in df else [None] * int(flags.sum()))
+            whys = (
+                df["exclusion_reason"].to_numpy(dtype=object)[rows][flags].tolist()
+                if "exclusion_reason" in df
+                else [None] * int(flags.sum())
+            )
             exclusions = dict(zip(ids[flags].tolist(), whys, strict=True))
-    return BlockPoints(ids=ids, rows=df["_row"].to_numpy(np.int64)[rows],
-                       dx=(col("x") - col("x_ref")) * to_m, dy=(col("y") - col("y_ref")) * to_m, dz=dz,
-                       x_ref=col("x_ref") * to_m, y_ref=col("y_ref") * to_m, exclusions=exclusions,
-                       precision=col("precision_xy") * to_m if "precision_xy" in df else None)
+    return BlockPoints(
+        ids=ids,
+        rows=df["_row"].to_numpy(np.int64)[rows],
+        dx=(col("x") - col("x_ref")) * to_m,
+        dy=(col("y") - col("y_ref")) * to_m,
+        dz=dz,
+        x_ref=col("x_ref") * to_m,
+        y_ref=col("y_ref") * to_m,
+        exclusions=exclusions,
+        precision=col("precision_xy") * to_m if "precision_xy" in df else None,
+    )
 
 
-def _distribution(pts: BlockPoints, outline: Polygon | None, s: Settings
-                  ) -> tuple[DistributionResult | None, str | None]:
+def _distribution(
+    pts: BlockPoints, outline: Polygon | None, s: Settings
+) -> tuple[DistributionResult | None, str | None]:
     """Quadrants and spacing of the points used (GCP distances and the outline: :func:`_screen`)."""
     try:
-        return checkpoint_distribution(pts.x_ref, pts.y_ref, ids=pts.ids, area=outline,
-                                       min_count=s.min_count), None
+        return checkpoint_distribution(
+            pts.x_ref, pts.y_ref, ids=pts.ids, area=outline, min_count=s.min_count
+        ), None
     except MeasureError as exc:
         return None, str(exc)
 
 
 def _reported(ctx: ProviderContext, block: str) -> dict[str, float]:
     """The contractor's reported RMSE per axis for ``block`` (manifest blocks[].reported), in metres."""
-    rep = next((b.reported for b in ctx.delivery.manifest.blocks if b.id == block and b.reported), None)
-    return {axis: float(convert([rep[f"rmse_{axis}"].value], rep[f"rmse_{axis}"].unit, "m")[0])
-            for axis in ("x", "y", "z") if rep and f"rmse_{axis}" in rep}
+    rep = next(
+        (b.reported for b in ctx.delivery.manifest.blocks if b.id == block and b.reported), None
+    )
+    return {
+        axis: float(convert([rep[f"rmse_{axis}"].value], rep[f"rmse_{axis}"].unit, "m")[0])
+        for axis in ("x", "y", "z")
+        if rep and f"rmse_{axis}" in rep
+    }
 
 
-def _block_detail(res: BlockAccuracy, pts: BlockPoints, gcps: tuple[np.ndarray, ...] | None,
-                  left: BlockPoints, why: np.ndarray) -> dict[str, Any]:
+def _block_detail(
+    res: BlockAccuracy,
+    pts: BlockPoints,
+    gcps: tuple[np.ndarray, ...] | None,
+    left: BlockPoints,
+    why: np.ndarray,
+) -> dict[str, Any]:
     """The report's detail of one block: the points table (a DataFrame: the points used, then those
     screened out with why), limits, stats, GCPs, outline."""
     br = res.blunders
@@ -522,35 +705,68 @@ def _block_detail(res: BlockAccuracy, pts: BlockPoints, gcps: tuple[np.ndarray, 
             keep[np.argpartition(np.where(flagged, np.inf, -br.dr), room - 1)[:room]] = True
     # the kept rows only, text columns as Python objects (pandas' string inference would convert
     # every id of the block first)
-    cols = {"point_id": pts.ids, "dx": pts.dx, "dy": pts.dy,
-            "dz": np.full(n, np.nan) if pts.dz is None else pts.dz, "dr": br.dr, "x_ref": pts.x_ref,
-            "y_ref": pts.y_ref, "status": _STATUS[br.candidate.astype(np.intp)],
-            "decision": br.decision, "row": pts.rows}
-    frame = pd.DataFrame({k: pd.Series(np.asarray(v)[keep], dtype=object if np.asarray(v).dtype == object else None)
-                          for k, v in cols.items()})
+    cols = {
+        "point_id": pts.ids,
+        "dx": pts.dx,
+        "dy": pts.dy,
+        "dz": np.full(n, np.nan) if pts.dz is None else pts.dz,
+        "dr": br.dr,
+        "x_ref": pts.x_ref,
+        "y_ref": pts.y_ref,
+        "status": _STATUS[br.candidate.astype(np.intp)],
+        "decision": br.decision,
+        "row": pts.rows,
+    }
+    frame = pd.DataFrame(
+        {
+            k: pd.Series(
+                np.asarray(v)[keep], dtype=object if np.asarray(v).dtype == object else None
+            )
+            for k, v in cols.items()
+        }
+    )
     if len(left.ids):
         m = min(len(left.ids), DETAIL_POINTS_MAX)  # every screened point up to the cap
-        out = pd.DataFrame({
-            "point_id": pd.Series(left.ids[:m], dtype=object), "dx": left.dx[:m], "dy": left.dy[:m],
-            "dz": np.full(m, np.nan) if left.dz is None else left.dz[:m], "dr": np.hypot(left.dx, left.dy)[:m],
-            "x_ref": left.x_ref[:m], "y_ref": left.y_ref[:m], "status": pd.Series(["screened"] * m, dtype=object),
-            "decision": pd.Series([f"not used: {w}" for w in why[:m].tolist()], dtype=object),
-            "row": left.rows[:m]})
+        out = pd.DataFrame(
+            {
+                "point_id": pd.Series(left.ids[:m], dtype=object),
+                "dx": left.dx[:m],
+                "dy": left.dy[:m],
+                "dz": np.full(m, np.nan) if left.dz is None else left.dz[:m],
+                "dr": np.hypot(left.dx, left.dy)[:m],
+                "x_ref": left.x_ref[:m],
+                "y_ref": left.y_ref[:m],
+                "status": pd.Series(["screened"] * m, dtype=object),
+                "decision": pd.Series([f"not used: {w}" for w in why[:m].tolist()], dtype=object),
+                "row": left.rows[:m],
+            }
+        )
         frame = pd.concat([frame, out], ignore_index=True) if len(frame) else out
     detail: dict[str, Any] = {"points": frame}
     if n > DETAIL_POINTS_MAX or len(left.ids) > DETAIL_POINTS_MAX:
         total = n + len(left.ids)
         detail.update({"points_total": total, "points_omitted": int(total - len(frame))})
     gids, gx, gy = gcps if gcps is not None else ((), (), ())
-    detail.update({
-        "limit_x": br.limit_x, "limit_y": br.limit_y, "basis": br.basis, "unit": "m",
-        "stats": {k: _MEASURES[f"checkpoints.{k}"](res) for k in _DETAIL_STATS},
-        "gcps": [{"point_id": str(a), "x": float(b), "y": float(c)} for a, b, c in zip(gids, gx, gy, strict=True)],
-        "area_source": None if res.distribution is None else res.distribution.split_source,
-        # the block outline (manifest blocks[].polygon, same units as x_ref/y_ref) for the report's map
-        "polygon": (None if res.outline is None
-                    else [[float(px), float(py)] for px, py in res.outline.exterior.coords[:-1]]),
-    })
+    detail.update(
+        {
+            "limit_x": br.limit_x,
+            "limit_y": br.limit_y,
+            "basis": br.basis,
+            "unit": "m",
+            "stats": {k: _MEASURES[f"checkpoints.{k}"](res) for k in _DETAIL_STATS},
+            "gcps": [
+                {"point_id": str(a), "x": float(b), "y": float(c)}
+                for a, b, c in zip(gids, gx, gy, strict=True)
+            ],
+            "area_source": None if res.distribution is None else res.distribution.split_source,
+            # the block outline (manifest blocks[].polygon, same units as x_ref/y_ref) for the report's map
+            "polygon": (
+                None
+                if res.outline is None
+                else [[float(px), float(py)] for px, py in res.outline.exterior.coords[:-1]]
+            ),
+        }
+    )
     return detail
 
 
@@ -568,6 +784,7 @@ def _is_true(v: np.ndarray) -> np.ndarray:
 
 # --- block measures: each a function of one block's typed results ------------------------------
 
+
 def _stat(name: str) -> Callable[[BlockAccuracy], Any]:
     return lambda r: getattr(r.stats, name)
 
@@ -580,7 +797,10 @@ def _all(name: str) -> Callable[[BlockAccuracy], Any]:
 def _bias(axis: str, which: int) -> Callable[[BlockAccuracy], Any]:
     def f(r: BlockAccuracy) -> Any:
         st = r.stats
-        return bias_significance(getattr(st, f"mean_{axis}"), getattr(st, f"std_{axis}"), st.n)[which]
+        return bias_significance(getattr(st, f"mean_{axis}"), getattr(st, f"std_{axis}"), st.n)[
+            which
+        ]
+
     return f
 
 
@@ -591,7 +811,10 @@ def _dist(get: Callable[[DistributionResult], Any]) -> Callable[[BlockAccuracy],
 def _reported_diff(axis: str) -> Callable[[BlockAccuracy], Any]:
     def f(r: BlockAccuracy) -> Any:
         mine = getattr(r.stats, f"rmse_{axis}")
-        return None if axis not in r.reported or mine is None else abs(r.reported[axis] - float(mine))
+        return (
+            None if axis not in r.reported or mine is None else abs(r.reported[axis] - float(mine))
+        )
+
     return f
 
 
@@ -605,52 +828,73 @@ def _count(mask: Callable[[BlunderResult], np.ndarray]) -> Callable[[BlockAccura
 
 def _asprs_v(r: BlockAccuracy) -> float | None:
     st = r.stats
-    return None if st.rmse_z is None else float(np.sqrt(st.rmse_z ** 2 + r.settings.survey_v ** 2))
+    return None if st.rmse_z is None else float(np.sqrt(st.rmse_z**2 + r.settings.survey_v**2))
 
 
-_MEASURES: dict[str, Callable[[BlockAccuracy], Any]] = {f"checkpoints.{k}": _stat(k) for k in _STATS}
-_MEASURES.update({
-    "checkpoints.bias_negligible": _stat("bias_negligible"),
-    "checkpoints.nssda_approximation_holds": _stat("nssda_approximation_holds"),
-    **{f"checkpoints.bias_{w}_{a}": _bias(a, i) for a in "xyz" for i, w in enumerate("tp")},
-    **{f"checkpoints.rmse_{a}_all": _all(f"rmse_{a}") for a in "xyz"},
-    "checkpoints.n_all": _all("n"),
-    "checkpoints.excluded": _count(lambda b: b.decision == EXCLUDED),
-    "checkpoints.blunders": _count(lambda b: b.candidate),
-    "checkpoints.blunders_unjustified": _count(lambda b: b.is_error),
-    # a candidate excluded with a documented justification has been inspected (§12.6)
-    "checkpoints.blunders_uninspected": _count(lambda b: b.candidate & (b.decision != EXCLUDED)),
-    # ASPRS Ed. 2: product accuracy combines the checkpoint survey's own error (RMSE_H2, RMSE_V2);
-    # RMSE_H2 from the points' documented precision unless the profile states the survey's
-    "checkpoints.asprs_rmse_h": lambda r: (None if r.survey_h is None else float(np.sqrt(
-        r.stats.rmse_x ** 2 + r.stats.rmse_y ** 2 + r.survey_h ** 2))),
-    "checkpoints.asprs_rmse_v": _asprs_v,
-    "checkpoints.rmse_x_gsd": _gsd_units("x"), "checkpoints.rmse_y_gsd": _gsd_units("y"),
-    "checkpoints.quadrant_min_share": _dist(lambda d: d.min_quadrant_share * 100.0),
-    "checkpoints.spacing_ratio": _dist(lambda d: d.nn_min_ratio),
-    **{f"checkpoints.reported_diff_{a}": _reported_diff(a) for a in "xyz"},
-    "checkpoints.nssda_method": _stat("nssda_method"),
-})
+_MEASURES: dict[str, Callable[[BlockAccuracy], Any]] = {
+    f"checkpoints.{k}": _stat(k) for k in _STATS
+}
+_MEASURES.update(
+    {
+        "checkpoints.bias_negligible": _stat("bias_negligible"),
+        "checkpoints.nssda_approximation_holds": _stat("nssda_approximation_holds"),
+        **{f"checkpoints.bias_{w}_{a}": _bias(a, i) for a in "xyz" for i, w in enumerate("tp")},
+        **{f"checkpoints.rmse_{a}_all": _all(f"rmse_{a}") for a in "xyz"},
+        "checkpoints.n_all": _all("n"),
+        "checkpoints.excluded": _count(lambda b: b.decision == EXCLUDED),
+        "checkpoints.blunders": _count(lambda b: b.candidate),
+        "checkpoints.blunders_unjustified": _count(lambda b: b.is_error),
+        # a candidate excluded with a documented justification has been inspected (§12.6)
+        "checkpoints.blunders_uninspected": _count(
+            lambda b: b.candidate & (b.decision != EXCLUDED)
+        ),
+        # ASPRS Ed. 2: product accuracy combines the checkpoint survey's own error (RMSE_H2, RMSE_V2);
+        # RMSE_H2 from the points' documented precision unless the profile states the survey's
+        "checkpoints.asprs_rmse_h": lambda r: (
+            None
+            if r.survey_h is None
+            else float(np.sqrt(r.stats.rmse_x**2 + r.stats.rmse_y**2 + r.survey_h**2))
+        ),
+        "checkpoints.asprs_rmse_v": _asprs_v,
+        "checkpoints.rmse_x_gsd": _gsd_units("x"),
+        "checkpoints.rmse_y_gsd": _gsd_units("y"),
+        "checkpoints.quadrant_min_share": _dist(lambda d: d.min_quadrant_share * 100.0),
+        "checkpoints.spacing_ratio": _dist(lambda d: d.nn_min_ratio),
+        **{f"checkpoints.reported_diff_{a}": _reported_diff(a) for a in "xyz"},
+        "checkpoints.nssda_method": _stat("nssda_method"),
+    }
+)
 #: measures of the points screened out (:class:`Screen`): given even when no statistic can be computed
 _SCREEN: dict[str, Callable[[Screen, BlockAccuracy], Any]] = {
     "checkpoints.min_gcp_distance": lambda sc, r: sc.gcp_min_distance,
     "checkpoints.near_gcp": lambda sc, r: len(sc.near_gcp),
-    "checkpoints.outside_block": lambda sc, r: None if r.outline is None and not sc.outside else len(sc.outside),
+    "checkpoints.outside_block": lambda sc, r: (
+        None if r.outline is None and not sc.outside else len(sc.outside)
+    ),
     "checkpoints.duplicate_locations": lambda sc, r: len(sc.duplicates),
     "checkpoints.zero_residuals": lambda sc, r: len(sc.zero),
-    "checkpoints.imprecise": lambda sc, r: None if r.settings.precision_max is None else len(sc.imprecise),
+    "checkpoints.imprecise": lambda sc, r: (
+        None if r.settings.precision_max is None else len(sc.imprecise)
+    ),
     "checkpoints.screened": lambda sc, r: int(np.count_nonzero(~sc.used)),
     "checkpoints.separation": lambda sc, r: r.settings.separation,
 }
 #: what each screen measure lists in its note: the points and the clause
 _SCREEN_NOTES: dict[str, tuple[str, str]] = {
-    "checkpoints.duplicate_locations": ("duplicates", "repeat another point's reference position (JRC §12.5: "
-                                        "independent measurements)"),
+    "checkpoints.duplicate_locations": (
+        "duplicates",
+        "repeat another point's reference position (JRC §12.5: independent measurements)",
+    ),
     "checkpoints.near_gcp": ("near_gcp", "are not independent of the GCPs (JRC §12.5)"),
-    "checkpoints.zero_residuals": ("zero", "have a zero residual in x and y: not measured on the image (JRC §12.6)"),
+    "checkpoints.zero_residuals": (
+        "zero",
+        "have a zero residual in x and y: not measured on the image (JRC §12.6)",
+    ),
     "checkpoints.outside_block": ("outside", "lie outside the block's outline"),
-    "checkpoints.imprecise": ("imprecise", "have a reference less precise than the tolerance allows (JRC "
-                              "Definitions, Check Point)"),
+    "checkpoints.imprecise": (
+        "imprecise",
+        "have a reference less precise than the tolerance allows (JRC Definitions, Check Point)",
+    ),
 }
 #: the block cells measure (from :attr:`Results.bad_cells`, whichever block erred)
 _CELLS = "checkpoints.block_cells_bad"
@@ -664,27 +908,55 @@ def _note(name: str, r: BlockAccuracy, value: Any) -> tuple[str, str] | None:
         if value is None and axis in ("x", "y"):
             # the checkpoint RMSE is a QCR field the contractor must record (JRC §9.5): not
             # reporting it must not switch the cross-check off - missing evidence
-            return "note", (f"delivery.yaml blocks[{r.block}].reported gives no rmse_{axis}: the contractor's "
-                            "QCR value to cross-check is missing")
+            return "note", (
+                f"delivery.yaml blocks[{r.block}].reported gives no rmse_{axis}: the contractor's "
+                "QCR value to cross-check is missing"
+            )
         if value is None:
             return "na", f"block {r.block} reports no rmse_{axis}"
-        return "note", (f"reported RMSE_{axis} {r.reported[axis]:.4g} m vs recomputed "
-                        f"{getattr(r.stats, f'rmse_{axis}'):.4g} m")
+        return "note", (
+            f"reported RMSE_{axis} {r.reported[axis]:.4g} m vs recomputed "
+            f"{getattr(r.stats, f'rmse_{axis}'):.4g} m"
+        )
     if name in _SCREEN_NOTES and value and r.screen is not None:
         field_, what = _SCREEN_NOTES[name]
         ids = getattr(r.screen, field_)
-        pos = pd.Index(r.screen_ids, dtype=object).get_indexer(list(ids[:5])) if r.screen_ids is not None else []
-        why = "; ".join(f"{i}: {r.screen.reasons[p]}" for i, p in zip(ids[:5], pos, strict=True) if p >= 0)
-        return "note", (f"{value} check point(s) of block {r.block} {what}, left out of its statistics: "
-                        f"{_listed(list(ids))}" + (f" ({why})" if why else ""))
-    if name == "checkpoints.asprs_rmse_h" and value is None and r.error is None and r.survey_h is None:
-        return "note", (f"the survey accuracy of block {r.block}'s check points is unknown: precision_xy is "
-                        "not given for every point used and the profile states no survey_rmse_h")
-    if name == "checkpoints.nssda_horizontal_95" and value is not None and r.stats.nssda_method == "elliptical":
-        return "note", (f"RMSEmin/RMSEmax = {r.stats.nssda_ratio:.3g} < 0.6: the closed form does not hold; the "
-                        "95 % radius of the elliptical normal error is computed instead (Greenwalt and Schultz)")
-    if value is None and r.distribution_error and name in ("checkpoints.quadrant_min_share",
-                                                            "checkpoints.spacing_ratio"):
+        pos = (
+            pd.Index(r.screen_ids, dtype=object).get_indexer(list(ids[:5]))
+            if r.screen_ids is not None
+            else []
+        )
+        why = "; ".join(
+            f"{i}: {r.screen.reasons[p]}" for i, p in zip(ids[:5], pos, strict=True) if p >= 0
+        )
+        return "note", (
+            f"{value} check point(s) of block {r.block} {what}, left out of its statistics: "
+            f"{_listed(list(ids))}" + (f" ({why})" if why else "")
+        )
+    if (
+        name == "checkpoints.asprs_rmse_h"
+        and value is None
+        and r.error is None
+        and r.survey_h is None
+    ):
+        return "note", (
+            f"the survey accuracy of block {r.block}'s check points is unknown: precision_xy is "
+            "not given for every point used and the profile states no survey_rmse_h"
+        )
+    if (
+        name == "checkpoints.nssda_horizontal_95"
+        and value is not None
+        and r.stats.nssda_method == "elliptical"
+    ):
+        return "note", (
+            f"RMSEmin/RMSEmax = {r.stats.nssda_ratio:.3g} < 0.6: the closed form does not hold; the "
+            "95 % radius of the elliptical normal error is computed instead (Greenwalt and Schultz)"
+        )
+    if (
+        value is None
+        and r.distribution_error
+        and name in ("checkpoints.quadrant_min_share", "checkpoints.spacing_ratio")
+    ):
         return "note", r.distribution_error
     return None
 
@@ -697,9 +969,17 @@ def block_checkpoint_stats(ctx: ProviderContext) -> list[Measured]:
     items = d.block_ids
     if got.missing is not None:
         note = pd.Series({b: got.missing for b in items}, dtype=object)
-        return [Measured(name, "block", unit, pd.Series({b: None for b in items}, dtype=object),
-                         pd.Series({b: (d.manifest_evidence("tables"),) for b in items}, dtype=object), notes=note)
-                for name, unit in BLOCK_MEASURES.items()]
+        return [
+            Measured(
+                name,
+                "block",
+                unit,
+                pd.Series({b: None for b in items}, dtype=object),
+                pd.Series({b: (d.manifest_evidence("tables"),) for b in items}, dtype=object),
+                notes=note,
+            )
+            for name, unit in BLOCK_MEASURES.items()
+        ]
     return [_block_measure(ctx, got, name, unit) for name, unit in BLOCK_MEASURES.items()]
 
 
@@ -716,8 +996,10 @@ def _block_measure(ctx: ProviderContext, got: Results, name: str, unit: str) -> 
             bad = got.bad_cells.get(b, ())
             vals[b], evs[b] = len(bad), (r.evidence if r is not None else _table_evidence(ctx))
             if bad:
-                notes[b] = (f"{len(bad)} check point(s) whose block cell names {b} but not exactly one block "
-                            f"(e.g. '{b};{b}'): {_listed(list(bad))}; left out of every block's statistics")
+                notes[b] = (
+                    f"{len(bad)} check point(s) whose block cell names {b} but not exactly one block "
+                    f"(e.g. '{b};{b}'): {_listed(list(bad))}; left out of every block's statistics"
+                )
             continue
         if r is None:
             vals[b], evs[b] = None, (d.manifest_evidence("blocks"),)
@@ -738,11 +1020,16 @@ def _block_measure(ctx: ProviderContext, got: Results, name: str, unit: str) -> 
         if why is not None:
             (na if why[0] == "na" else notes)[b] = why[1]
     return Measured(
-        name, "block", unit, pd.Series(vals, dtype=object), pd.Series(evs, dtype=object),
+        name,
+        "block",
+        unit,
+        pd.Series(vals, dtype=object),
+        pd.Series(evs, dtype=object),
         detail={"checkpoints": got.detail} if name == "checkpoints.rmse_x" else None,
         notes=pd.Series(notes, dtype=object) if notes else None,
         errors=pd.Series(errs, dtype=object) if errs else None,
-        na=pd.Series(na, dtype=object) if na else None)
+        na=pd.Series(na, dtype=object) if na else None,
+    )
 
 
 @provider(scope="checkpoint", measures=POINT_MEASURES)
@@ -758,18 +1045,29 @@ def point_decisions(ctx: ProviderContext) -> list[Measured]:
     if all(p.dz is not None for p in every):
         dz = _cat([p.dz for p in every], float)  # type: ignore[misc]
     else:
-        dz = _cat([np.full(len(p.ids), None, dtype=object) if p.dz is None else p.dz.astype(object)
-                   for p in every], object)
+        dz = _cat(
+            [
+                np.full(len(p.ids), None, dtype=object) if p.dz is None else p.dz.astype(object)
+                for p in every
+            ],
+            object,
+        )
     cols: dict[str, np.ndarray] = {
         "checkpoint.dx": _cat([p.dx for p in every], float),
         "checkpoint.dy": _cat([p.dy for p in every], float),
         "checkpoint.dz": dz,
-        "checkpoint.dr": _cat([b.dr for _, b in parts] + [np.hypot(p.dx, p.dy) for p, _ in left], float),
+        "checkpoint.dr": _cat(
+            [b.dr for _, b in parts] + [np.hypot(p.dx, p.dy) for p, _ in left], float
+        ),
         # Python booleans, as the rules' `true`/`false` comparisons and the records expect
-        "checkpoint.blunder_ok": _cat([~b.is_error for _, b in parts] + [np.ones(len(p.ids), bool) for p, _ in left],
-                                      bool).astype(object),
-        "checkpoint.decision": _cat([b.decision for _, b in parts]
-                                    + [np.full(len(p.ids), NOT_USED, dtype=object) for p, _ in left], object),
+        "checkpoint.blunder_ok": _cat(
+            [~b.is_error for _, b in parts] + [np.ones(len(p.ids), bool) for p, _ in left], bool
+        ).astype(object),
+        "checkpoint.decision": _cat(
+            [b.decision for _, b in parts]
+            + [np.full(len(p.ids), NOT_USED, dtype=object) for p, _ in left],
+            object,
+        ),
     }
     reason = _cat([b.reasons for _, b in parts] + [why for _, why in left], object)
     # a point id repeated across blocks: one item, at its first position, with the last block's values
@@ -781,17 +1079,32 @@ def point_decisions(ctx: ProviderContext) -> list[Measured]:
         cols = {k: v[keep] for k, v in cols.items()}
     index = pd.Index(ids, dtype=object).astype(str)  # once: Measured would convert it per measure
     t = ctx.delivery.table("checkpoints")
-    ev = RowEvidence(t.file, t.sha256, pd.Series(rows, index=index)) if t is not None else \
-        pd.Series([], dtype=object)
+    ev = (
+        RowEvidence(t.file, t.sha256, pd.Series(rows, index=index))
+        if t is not None
+        else pd.Series([], dtype=object)
+    )
     notes = pd.Series(reason, index=index, dtype=object)
-    return [Measured(name, "checkpoint", unit, pd.Series(cols[name], index=index), ev,
-                     notes=notes if name in ("checkpoint.blunder_ok", "checkpoint.decision") else None)
-            for name, unit in POINT_MEASURES.items()]
+    return [
+        Measured(
+            name,
+            "checkpoint",
+            unit,
+            pd.Series(cols[name], index=index),
+            ev,
+            notes=notes if name in ("checkpoint.blunder_ok", "checkpoint.decision") else None,
+        )
+        for name, unit in POINT_MEASURES.items()
+    ]
 
 
 def _table_evidence(ctx: ProviderContext) -> tuple[Evidence, ...]:
     t = ctx.delivery.table("checkpoints")
-    return (Evidence(t.file, t.sha256, ()),) if t is not None else (ctx.delivery.manifest_evidence("tables"),)
+    return (
+        (Evidence(t.file, t.sha256, ()),)
+        if t is not None
+        else (ctx.delivery.manifest_evidence("tables"),)
+    )
 
 
 def _cat(arrays: list[Any], dtype: Any) -> np.ndarray:

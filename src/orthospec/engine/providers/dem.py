@@ -48,7 +48,9 @@ def _project_zone(ctx: ProviderContext) -> tuple[Any, str]:
         zone = union_all(polys) if polys else None
     except (ValueError, TypeError):
         zone = None
-    return zone, ("inside the blocks" if zone is not None else "(the whole file: no block outlines)")
+    return zone, (
+        "inside the blocks" if zone is not None else "(the whole file: no block outlines)"
+    )
 
 
 @provider(scope="dem", measures=MEASURES)
@@ -75,28 +77,50 @@ def dem_file(ctx: ProviderContext) -> list[Measured]:
                 na[i] = f"no DEM file delivered ({t.file} row {row}: file is empty)"
                 continue
             try:
-                res = dem_integrity(d.path(str(rel), file=t.file, row=int(row)), name=str(rel), spike_height=spike_m,
-                                    within=zone)
+                res = dem_integrity(
+                    d.path(str(rel), file=t.file, row=int(row)),
+                    name=str(rel),
+                    spike_height=spike_m,
+                    within=zone,
+                )
                 ev[i] = (row_ev, d.evidence(str(rel)))
             except (OrthospecError, OSError) as exc:
                 errors[i] = f"{rel}: {exc}"
                 continue
             vals["demfile.nodata_share"][i] = res.nodata_share
-            notes["demfile.nodata_share"][i] = (f"{res.nodata_cells:,} of the {res.judged_cells:,} cells of {rel} "
-                                                f"{zone_text} are no-data ({res.nodata_share:.3f} %)")
+            notes["demfile.nodata_share"][i] = (
+                f"{res.nodata_cells:,} of the {res.judged_cells:,} cells of {rel} "
+                f"{zone_text} are no-data ({res.nodata_share:.3f} %)"
+            )
             vals["demfile.spikes"][i] = float(res.spikes)
             shown = "; ".join(f"row {r}, column {c}: {dz:+.1f}" for r, c, dz in res.examples)
-            notes["demfile.spikes"][i] = (f"{res.spikes:,} cell(s) of {rel} more than {spike_m:g} m from the median of "
-                                          f"their 3 x 3 neighbourhood" + (f" ({shown})" if shown else ""))
+            notes["demfile.spikes"][i] = (
+                f"{res.spikes:,} cell(s) of {rel} more than {spike_m:g} m from the median of "
+                f"their 3 x 3 neighbourhood" + (f" ({shown})" if shown else "")
+            )
             if res.epsg is None or target is None:
                 vals["demfile.crs_ok"][i] = None
-                notes["demfile.crs_ok"][i] = (f"{rel} has no CRS with an EPSG code" if res.epsg is None else
-                                              "no map projection in force (parameter map_crs)")
+                notes["demfile.crs_ok"][i] = (
+                    f"{rel} has no CRS with an EPSG code"
+                    if res.epsg is None
+                    else "no map projection in force (parameter map_crs)"
+                )
             else:
                 vals["demfile.crs_ok"][i] = res.epsg == target
-                notes["demfile.crs_ok"][i] = f"{rel} is in EPSG:{res.epsg}, the map projection in force is EPSG:{target}"
+                notes["demfile.crs_ok"][i] = (
+                    f"{rel} is in EPSG:{res.epsg}, the map projection in force is EPSG:{target}"
+                )
     s = pd.Series
-    return [Measured(n, "dem", u, s({i: vals[n].get(i) for i in ids}, dtype=object), s(ev, dtype=object),
-                     notes=s(notes[n], dtype=object), errors=s(errors, dtype=object) if errors else None,
-                     na=s(na, dtype=object) if na else None)
-            for n, u in MEASURES.items()]
+    return [
+        Measured(
+            n,
+            "dem",
+            u,
+            s({i: vals[n].get(i) for i in ids}, dtype=object),
+            s(ev, dtype=object),
+            notes=s(notes[n], dtype=object),
+            errors=s(errors, dtype=object) if errors else None,
+            na=s(na, dtype=object) if na else None,
+        )
+        for n, u in MEASURES.items()
+    ]

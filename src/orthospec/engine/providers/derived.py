@@ -77,7 +77,8 @@ AOI_AGREE = {"derived.area_of_interest_agrees": "bool"}
 OUTLINE_TOLERANCE = 0.01
 #: A photo counts toward coverage only when its lay-down GSD (H/f x pixel size, the scale of its
 #: footprint) is at most this factor times its reference GSD (the finest of ``images.acquisition_gsd``,
-#: ``images.gsd``, ``product.gsd`` and its delivered raster's measured pixel size). 20 %: the ground-pixel size of one photo
+#: ``images.gsd``, ``product.gsd`` and its delivered raster's measured pixel size). 20 %: the
+# ground-pixel size of one photo
 #: varies with the terrain under it (H is above mean ground) and §5.2.1 only asks for the
 #: "predefined GSD" (should, no tolerance); aerial-pass agrees within 0.1 %, the red team's
 #: inflated heights were 150 % too coarse. Only a coarser (larger) footprint is refused: a smaller
@@ -117,11 +118,22 @@ def orthorectification(ctx: ProviderContext) -> list[Measured]:
     else:
         known = sorted({m for m in methods.values() if m})
         value = known[0] if len(known) == 1 else None
-        note = (f"blocks[].method: {known[0]}" if len(known) == 1 else
-                "delivery.yaml gives no product.orthorectification and the blocks' methods "
-                + ("disagree (" + ", ".join(known) + ")" if known else "are not given"))
-    return [Measured("derived.orthorectification", "delivery", "text", pd.Series({d.id: value}, dtype=object),
-                     pd.Series({d.id: ev}, dtype=object), notes=pd.Series({d.id: note}, dtype=object))]
+        note = (
+            f"blocks[].method: {known[0]}"
+            if len(known) == 1
+            else "delivery.yaml gives no product.orthorectification and the blocks' methods "
+            + ("disagree (" + ", ".join(known) + ")" if known else "are not given")
+        )
+    return [
+        Measured(
+            "derived.orthorectification",
+            "delivery",
+            "text",
+            pd.Series({d.id: value}, dtype=object),
+            pd.Series({d.id: ev}, dtype=object),
+            notes=pd.Series({d.id: note}, dtype=object),
+        )
+    ]
 
 
 def measured_pixel_m(ctx: ProviderContext) -> dict[str, float]:
@@ -171,7 +183,9 @@ def _pixel_sizes(ctx: ProviderContext) -> tuple[pd.Series, dict[str, str], Any]:
         v = inp.get(i)
         if v is not None and np.isfinite(v) and v < measured[i]:
             size[i] = float(v)
-            source[i] = f"scenes.input_pixel_size {v:.4g} m, finer than the file's pixel {measured[i]:.4g} m"
+            source[i] = (
+                f"scenes.input_pixel_size {v:.4g} m, finer than the file's pixel {measured[i]:.4g} m"
+            )
     candidates = [(scenes, "input_pixel_size"), (imgs, "acquisition_gsd"), (imgs, "gsd")]
     for t, col in candidates:
         if t is None or col not in t.df:
@@ -186,9 +200,15 @@ def _pixel_sizes(ctx: ProviderContext) -> tuple[pd.Series, dict[str, str], Any]:
             source[i] = f"{t.file} {col}, declared: the file's pixel is unknown"
         size[fill] = s.reindex(size.index)[fill]
     base = scenes if scenes is not None else imgs
-    ev = (RowEvidence(base.file, base.sha256, pd.Series(base.df["_row"].to_numpy(),
-                                                        index=base.ids.astype(str).to_numpy()))
-          if base is not None else None)
+    ev = (
+        RowEvidence(
+            base.file,
+            base.sha256,
+            pd.Series(base.df["_row"].to_numpy(), index=base.ids.astype(str).to_numpy()),
+        )
+        if base is not None
+        else None
+    )
     return size, source, ev
 
 
@@ -201,11 +221,16 @@ def resolution_class(ctx: ProviderContext) -> list[Measured]:
     items = size.index.tolist()
     evidence: Any = ev if ev is not None else pd.Series({i: () for i in items}, dtype=object)
     if cset is None or not items:
-        why = ("the profile defines no `classes: resolution`" if cset is None
-               else "the delivery has no images or scenes table")
+        why = (
+            "the profile defines no `classes: resolution`"
+            if cset is None
+            else "the delivery has no images or scenes table"
+        )
         notes = pd.Series({i: why for i in items}, dtype=object)
         empty = pd.Series({i: None for i in items}, dtype=object)
-        return [Measured(n, "image", u, empty.copy(), evidence, notes=notes) for n, u in IMAGE.items()]
+        return [
+            Measured(n, "image", u, empty.copy(), evidence, notes=notes) for n, u in IMAGE.items()
+        ]
     unit = cset["unit"] if isinstance(cset, dict) else cset.unit
     class_items = cset["items"] if isinstance(cset, dict) else cset.items
     in_unit = convert(size.to_numpy(dtype=float), "m", unit)
@@ -214,15 +239,21 @@ def resolution_class(ctx: ProviderContext) -> list[Measured]:
     notes = {}
     for i, c, v in zip(items, classes, in_unit, strict=True):
         if np.isnan(v):
-            notes[i] = "no pixel size (scenes.input_pixel_size, images.acquisition_gsd or images.gsd)"
+            notes[i] = (
+                "no pixel size (scenes.input_pixel_size, images.acquisition_gsd or images.gsd)"
+            )
         elif c is None:
-            notes[i] = f"pixel size {v:.4g} {unit} falls in no class of `classes: resolution` (a gap of §9.1)"
+            notes[i] = (
+                f"pixel size {v:.4g} {unit} falls in no class of `classes: resolution` (a gap of §9.1)"
+            )
         else:
             notes[i] = f"pixel size {v:.4g} {unit} ({source.get(i, '?')}) -> {c}"
     declared = pd.Series({i: None for i in items}, dtype=object)
     scenes = d.table("scenes")
     if scenes is not None and "resolution_class" in scenes.df:
-        decl = pd.Series(scenes.df["resolution_class"].to_numpy(), index=scenes.ids.astype(str).to_numpy())
+        decl = pd.Series(
+            scenes.df["resolution_class"].to_numpy(), index=scenes.ids.astype(str).to_numpy()
+        )
         declared = decl[~decl.index.duplicated()].reindex(items)
     agrees: dict[str, Any] = {}
     na: dict[str, str] = {}
@@ -236,12 +267,30 @@ def resolution_class(ctx: ProviderContext) -> list[Measured]:
         else:
             agrees[i] = str(dv).strip().upper() == str(cls[i]).upper()
     return [
-        Measured("derived.resolution_class", "image", "text", cls, evidence,
-                 notes=pd.Series(notes, dtype=object)),
-        Measured("derived.resolution_class_agrees", "image", "bool", pd.Series(agrees, dtype=object), evidence,
-                 notes=pd.Series({i: f"declared {declared.get(i)!s}, computed {cls[i]!s}" for i in items
-                                  if i not in na}, dtype=object),
-                 na=pd.Series(na, dtype=object) if na else None),
+        Measured(
+            "derived.resolution_class",
+            "image",
+            "text",
+            cls,
+            evidence,
+            notes=pd.Series(notes, dtype=object),
+        ),
+        Measured(
+            "derived.resolution_class_agrees",
+            "image",
+            "bool",
+            pd.Series(agrees, dtype=object),
+            evidence,
+            notes=pd.Series(
+                {
+                    i: f"declared {declared.get(i)!s}, computed {cls[i]!s}"
+                    for i in items
+                    if i not in na
+                },
+                dtype=object,
+            ),
+            na=pd.Series(na, dtype=object) if na else None,
+        ),
     ]
 
 
@@ -252,56 +301,98 @@ def _lay_down(ctx: ProviderContext) -> tuple[list[Any], list[Any], str | None]:
     ev: list[Any] = [t.evidence(t.df["_row"]) for t in (imgs, flights, cams) if t is not None]
     ev = [e for tup in ev for e in tup]
     if imgs is None or flights is None or cams is None:
-        absent = [n for n, t in (("images", imgs), ("flights", flights), ("cameras", cams)) if t is None]
+        absent = [
+            n for n, t in (("images", imgs), ("flights", flights), ("cameras", cams)) if t is None
+        ]
         return [], ev, f"the manifest declares no {', '.join(absent)} table: no photo lay-down"
-    need_img = [c for c in ("exposure_x", "exposure_y", "flying_height", "flight_id") if c not in imgs.df]
+    need_img = [
+        c for c in ("exposure_x", "exposure_y", "flying_height", "flight_id") if c not in imgs.df
+    ]
     need_cam = [c for c in ("focal_length", "pixel_size", *FORMAT_COLUMNS) if c not in cams.df]
     if need_img or need_cam or "camera_id" not in flights.df:
         parts = ([f"{imgs.file} columns {', '.join(need_img)}"] if need_img else []) + (
-            [f"{cams.file} columns {', '.join(need_cam)}"] if need_cam else [])
-        return [], ev, "the photo lay-down needs " + "; ".join(parts or [f"{flights.file} column camera_id"])
+            [f"{cams.file} columns {', '.join(need_cam)}"] if need_cam else []
+        )
+        return (
+            [],
+            ev,
+            "the photo lay-down needs " + "; ".join(parts or [f"{flights.file} column camera_id"]),
+        )
     df = imgs.df
-    cam_of_flight = dict(zip(flights.ids.astype(str), flights.df["camera_id"].astype(str), strict=True))
+    cam_of_flight = dict(
+        zip(flights.ids.astype(str), flights.df["camera_id"].astype(str), strict=True)
+    )
     cam = cams.df.set_index(cams.ids.astype(str))
     x = pd.to_numeric(df["exposure_x"], errors="coerce").to_numpy(float)
     y = pd.to_numeric(df["exposure_y"], errors="coerce").to_numpy(float)
-    x, y = convert(x, imgs.units.get("exposure_x", "m"), "m"), convert(y, imgs.units.get("exposure_y", "m"), "m")
-    hgt = convert(pd.to_numeric(df["flying_height"], errors="coerce").to_numpy(float),
-                  imgs.units.get("flying_height", "m"), "m")
+    x, y = (
+        convert(x, imgs.units.get("exposure_x", "m"), "m"),
+        convert(y, imgs.units.get("exposure_y", "m"), "m"),
+    )
+    hgt = convert(
+        pd.to_numeric(df["flying_height"], errors="coerce").to_numpy(float),
+        imgs.units.get("flying_height", "m"),
+        "m",
+    )
     cid = [cam_of_flight.get(str(f)) for f in df["flight_id"]]
+
     def col(name: str, unit: str | None) -> np.ndarray:
-        v = np.array([float(cam.at[c, name]) if c in cam.index and cam.at[c, name] is not None else np.nan
-                      for c in cid], dtype=float)
+        v = np.array(
+            [
+                float(cam.at[c, name]) if c in cam.index and cam.at[c, name] is not None else np.nan
+                for c in cid
+            ],
+            dtype=float,
+        )
         return v if unit is None else convert(v, cams.units.get(name, unit), unit)
+
     focal, pix = col("focal_length", "mm"), col("pixel_size", "µm")
     across_px, along_px = col(FORMAT_COLUMNS[0], None), col(FORMAT_COLUMNS[1], None)
     # a camera model of the published table: its own format and pixel, not the declared ones (issue 25:
     # a format declared 3 x larger hid a missing strip)
-    models = dict(zip(cams.ids.astype(str), cams.df["model"].tolist(), strict=True)) if "model" in cams.df else {}
+    models = (
+        dict(zip(cams.ids.astype(str), cams.df["model"].tolist(), strict=True))
+        if "model" in cams.df
+        else {}
+    )
     for k, c in enumerate(cid):
         known = known_camera(models.get(str(c)))
         if known is None:
             continue
         big, small = max(known["pixels"]), min(known["pixels"])
-        wide = not (np.isfinite(along_px[k]) and np.isfinite(across_px[k]) and along_px[k] > across_px[k])
+        wide = not (
+            np.isfinite(along_px[k]) and np.isfinite(across_px[k]) and along_px[k] > across_px[k]
+        )
         across_px[k], along_px[k] = (big, small) if wide else (small, big)
         pix[k] = known["pixel_size_um"]
     scale = hgt * (pix * 1e-6) / (focal * 1e-3)  # ground metres per pixel = H/f x pixel size
     across, along = across_px * scale, along_px * scale
-    ok = np.isfinite(np.column_stack([x, y, across, along])).all(axis=1) & (across > 0) & (along > 0)
+    ok = (
+        np.isfinite(np.column_stack([x, y, across, along])).all(axis=1) & (across > 0) & (along > 0)
+    )
     ref = _reference_gsd(ctx, imgs)
     inflated = ok & np.isfinite(ref) & (scale > GSD_TOLERANCE * ref)
     ids = imgs.ids.astype(str).to_numpy()
-    ctx.memo["derived.lay_down_inflated"] = [f"{i} ({g:.3g} m vs {r:.3g} m)" for i, g, r
-                                             in zip(ids[inflated], scale[inflated], ref[inflated], strict=True)]
+    ctx.memo["derived.lay_down_inflated"] = [
+        f"{i} ({g:.3g} m vs {r:.3g} m)"
+        for i, g, r in zip(ids[inflated], scale[inflated], ref[inflated], strict=True)
+    ]
     ok &= ~inflated
     if not ok.any():
-        return [], ev, ("no image has an exposure station, flying height and a camera with format, focal "
-                        "length and pixel size consistent with its GSD: the photo lay-down cannot be computed")
+        return (
+            [],
+            ev,
+            (
+                "no image has an exposure station, flying height and a camera with format, focal "
+                "length and pixel size consistent with its GSD: the photo lay-down cannot be computed"
+            ),
+        )
     ctx.memo["derived.lay_down_incomplete"] = ids[~ok & ~inflated].tolist()
     # stations closer than 5 % of a footprint's length are one station recorded twice (a copied row)
     same = 0.05 * float(np.nanmedian(np.minimum(across[ok], along[ok])))
-    heading = strip_headings(x[ok], y[ok], df["flight_id"].astype(str).to_numpy()[ok].tolist(), min_distance=same)
+    heading = strip_headings(
+        x[ok], y[ok], df["flight_id"].astype(str).to_numpy()[ok].tolist(), min_distance=same
+    )
     try:
         return photo_footprints(x[ok], y[ok], across[ok], along[ok], heading), ev, None
     except MeasureError as exc:
@@ -331,10 +422,15 @@ def known_camera(model: Any) -> dict[str, Any] | None:
         from ...resources import specs_dir
 
         raw = yaml.safe_load((specs_dir() / "cameras.yaml").read_text(encoding="utf-8"))
-        _CAMERAS = {_camera_key(c["id"]): {"id": c["id"], "pixels": (int(c["pixels_x"]), int(c["pixels_y"])),
-                                           "pixel_size_um": float(c["pixel_size_um"]),
-                                           "focal_length_mm": tuple(float(f) for f in c["focal_length_mm"])}
-                    for c in raw["cameras"]}
+        _CAMERAS = {
+            _camera_key(c["id"]): {
+                "id": c["id"],
+                "pixels": (int(c["pixels_x"]), int(c["pixels_y"])),
+                "pixel_size_um": float(c["pixel_size_um"]),
+                "focal_length_mm": tuple(float(f) for f in c["focal_length_mm"]),
+            }
+            for c in raw["cameras"]
+        }
     return _CAMERAS.get(_camera_key(model))
 
 
@@ -346,12 +442,19 @@ def _reference_gsd(ctx: ProviderContext, imgs: Any) -> np.ndarray:
     number here is declared: inflating heights and declared GSDs together (red team R18) leaves
     the delivered 0.25 m pixels as they are."""
     n = len(imgs.df)
-    cands = [np.full(n, ctx.delivery.gsd_m if ctx.delivery.gsd_m is not None else np.nan, dtype=float),
-             _raster_pixel_sizes(ctx, imgs)]
+    cands = [
+        np.full(n, ctx.delivery.gsd_m if ctx.delivery.gsd_m is not None else np.nan, dtype=float),
+        _raster_pixel_sizes(ctx, imgs),
+    ]
     for col in ("gsd", "acquisition_gsd"):
         if col in imgs.df:
-            cands.append(convert(pd.to_numeric(imgs.df[col], errors="coerce").to_numpy(float),
-                                 imgs.units.get(col, "m"), "m"))
+            cands.append(
+                convert(
+                    pd.to_numeric(imgs.df[col], errors="coerce").to_numpy(float),
+                    imgs.units.get(col, "m"),
+                    "m",
+                )
+            )
     stack = np.column_stack(cands)
     out = np.full(n, np.nan)
     have = np.isfinite(stack).any(axis=1)
@@ -378,9 +481,18 @@ def photo_coverage(ctx: ProviderContext) -> list[Measured]:
 
         aoi, aoi_ev, source = aoi_in_force(ctx)
     except (OrthospecError, OSError) as exc:
-        aoi, aoi_ev, source, note = None, (d.manifest_evidence("project.area_of_interest"),), "", str(exc)
+        aoi, aoi_ev, source, note = (
+            None,
+            (d.manifest_evidence("project.area_of_interest"),),
+            "",
+            str(exc),
+        )
     else:
-        note = None if aoi is not None else "no area of interest: give project.area_of_interest or block polygons"
+        note = (
+            None
+            if aoi is not None
+            else "no area of interest: give project.area_of_interest or block polygons"
+        )
     feet, ev, why = _lay_down(ctx)
     if aoi is not None:
         if why is not None:
@@ -393,23 +505,38 @@ def photo_coverage(ctx: ProviderContext) -> list[Measured]:
             if (skipped or inflated) and share < 100.0:
                 # the photos left out might cover the gap: a lower bound below 100 % decides nothing
                 if skipped:
-                    note += (f"; image(s) {', '.join(skipped[:5])} lack an exposure station or flying height, "
-                             "so full coverage can be neither shown nor refuted")
+                    note += (
+                        f"; image(s) {', '.join(skipped[:5])} lack an exposure station or flying height, "
+                        "so full coverage can be neither shown nor refuted"
+                    )
                 if inflated:
-                    note += (f"; image(s) {', '.join(inflated[:5])}{' ...' if len(inflated) > 5 else ''} "
-                             f"have a flying height whose H/f x pixel GSD is more than "
-                             f"{(GSD_TOLERANCE - 1) * 100:.0f} % coarser than their acquisition_gsd, "
-                             "declared GSD or delivered raster pixel, so their footprints are not evidence of coverage (JRC §3.1, "
-                             "§5.2.1): full coverage is not shown")
+                    note += (
+                        f"; image(s) {', '.join(inflated[:5])}{' ...' if len(inflated) > 5 else ''} "
+                        f"have a flying height whose H/f x pixel GSD is more than "
+                        f"{(GSD_TOLERANCE - 1) * 100:.0f} % coarser than their acquisition_gsd, "
+                        "declared GSD or delivered raster pixel, so their footprints are not "
+                        "evidence of coverage (JRC §3.1, "
+                        "§5.2.1): full coverage is not shown"
+                    )
             else:
                 value = share
                 if skipped:
                     note += f" even without image(s) {', '.join(skipped[:5])} (no exposure station or height)"
                 if inflated:
-                    note += (f" even without image(s) {', '.join(inflated[:5])} (flying height inconsistent "
-                             "with the GSD)")
-    return [Measured("derived.photo_coverage", "delivery", "%", pd.Series({d.id: value}, dtype=object),
-                     pd.Series({d.id: (*aoi_ev, *ev)}, dtype=object), notes=pd.Series({d.id: note}, dtype=object))]
+                    note += (
+                        f" even without image(s) {', '.join(inflated[:5])} (flying height inconsistent "
+                        "with the GSD)"
+                    )
+    return [
+        Measured(
+            "derived.photo_coverage",
+            "delivery",
+            "%",
+            pd.Series({d.id: value}, dtype=object),
+            pd.Series({d.id: (*aoi_ev, *ev)}, dtype=object),
+            notes=pd.Series({d.id: note}, dtype=object),
+        )
+    ]
 
 
 def _disagreement(declared: Any, in_force: Any) -> str | None:
@@ -422,8 +549,10 @@ def _disagreement(declared: Any, in_force: Any) -> str | None:
     limit = OUTLINE_TOLERANCE * math.sqrt(area)
     if sym <= OUTLINE_TOLERANCE * area and far <= limit:
         return None
-    return (f"differs by {sym / area * 100:.3g} % of the area in force (symmetric difference; at most "
-            f"{OUTLINE_TOLERANCE * 100:g} %) and by up to {far:.6g} map units (Hausdorff distance; at most {limit:.6g})")
+    return (
+        f"differs by {sym / area * 100:.3g} % of the area in force (symmetric difference; at most "
+        f"{OUTLINE_TOLERANCE * 100:g} %) and by up to {far:.6g} map units (Hausdorff distance; at most {limit:.6g})"
+    )
 
 
 @provider(scope="delivery", measures=OUTLINES_AGREE)
@@ -437,7 +566,10 @@ def block_outlines_agree(ctx: ProviderContext) -> list[Measured]:
     na = None
     value: bool | None
     if stated is None or not stated.blocks:
-        value, note = None, "the checker's file states no block outlines: the manifest's are in force"
+        value, note = (
+            None,
+            "the checker's file states no block outlines: the manifest's are in force",
+        )
         na = pd.Series({d.id: note}, dtype=object)
     else:
         ev += tuple(e for _, e in stated.blocks.values())
@@ -445,23 +577,46 @@ def block_outlines_agree(ctx: ProviderContext) -> list[Measured]:
         problems = []
         for block in sorted(set(declared) | set(stated.blocks)):
             if block not in declared:
-                problems.append(f"block {block}: the {stated.source} gives its outline, delivery.yaml lists no "
-                                "such block")
+                problems.append(
+                    f"block {block}: the {stated.source} gives its outline, delivery.yaml lists no "
+                    "such block"
+                )
             elif block not in stated.blocks:
-                problems.append(f"block {block} (delivery.yaml blocks[{declared[block][0]}]): the {stated.source} "
-                                "gives no outline for it, so none of its check points lies in a block in force")
+                problems.append(
+                    f"block {block} (delivery.yaml blocks[{declared[block][0]}]): the {stated.source} "
+                    "gives no outline for it, so none of its check points lies in a block in force"
+                )
             elif not finite_ring(declared[block][1]):
-                problems.append(f"block {block}: delivery.yaml blocks[{declared[block][0]}] declares no valid polygon")
+                problems.append(
+                    f"block {block}: delivery.yaml blocks[{declared[block][0]}] declares no valid polygon"
+                )
             else:
-                why = _disagreement(ring_polygon(declared[block][1]), ring_polygon(stated.blocks[block][0]))
+                why = _disagreement(
+                    ring_polygon(declared[block][1]), ring_polygon(stated.blocks[block][0])
+                )
                 if why:
-                    problems.append(f"block {block}: delivery.yaml blocks[{declared[block][0]}].polygon {why}")
+                    problems.append(
+                        f"block {block}: delivery.yaml blocks[{declared[block][0]}].polygon {why}"
+                    )
         value = not problems
-        note = ("; ".join(problems[:5]) + (f"; and {len(problems) - 5} more" if len(problems) > 5 else "")
-                if problems else f"the {len(stated.blocks)} block outline(s) of delivery.yaml agree with the "
-                f"{stated.source} (within {OUTLINE_TOLERANCE * 100:g} %)")
-    return [Measured("derived.block_outlines_agree", "delivery", "bool", pd.Series({d.id: value}, dtype=object),
-                     pd.Series({d.id: ev}, dtype=object), notes=pd.Series({d.id: note}, dtype=object), na=na)]
+        note = (
+            "; ".join(problems[:5])
+            + (f"; and {len(problems) - 5} more" if len(problems) > 5 else "")
+            if problems
+            else f"the {len(stated.blocks)} block outline(s) of delivery.yaml agree with the "
+            f"{stated.source} (within {OUTLINE_TOLERANCE * 100:g} %)"
+        )
+    return [
+        Measured(
+            "derived.block_outlines_agree",
+            "delivery",
+            "bool",
+            pd.Series({d.id: value}, dtype=object),
+            pd.Series({d.id: ev}, dtype=object),
+            notes=pd.Series({d.id: note}, dtype=object),
+            na=na,
+        )
+    ]
 
 
 @provider(scope="delivery", measures=AOI_AGREE)
@@ -479,10 +634,14 @@ def area_of_interest_agrees(ctx: ProviderContext) -> list[Measured]:
     na: str | None = None
     value: bool | None = None
     if stated is None:
-        note = na = "the checker's file states no area of interest or block outlines: the manifest's are in force"
+        note = na = (
+            "the checker's file states no area of interest or block outlines: the manifest's are in force"
+        )
     elif stated.area_of_interest is not None and not rel:
-        note = na = (f"delivery.yaml declares no project.area_of_interest; the {stated.source}'s is in force "
-                     "and nothing is declared to compare with it")
+        note = na = (
+            f"delivery.yaml declares no project.area_of_interest; the {stated.source}'s is in force "
+            "and nothing is declared to compare with it"
+        )
     else:
         from .mosaic import aoi_in_force, declared_aoi
 
@@ -498,12 +657,23 @@ def area_of_interest_agrees(ctx: ProviderContext) -> list[Measured]:
             else:
                 why = _disagreement(declared, in_force)
                 value = why is None
-                note = (f"the {declared_what} (delivery.yaml) is not the {in_force_what}: it {why}" if why else
-                        f"the {declared_what} (delivery.yaml) agrees with the {in_force_what} "
-                        f"(within {OUTLINE_TOLERANCE * 100:g} %)")
-    return [Measured("derived.area_of_interest_agrees", "delivery", "bool", pd.Series({d.id: value}, dtype=object),
-                     pd.Series({d.id: ev}, dtype=object), notes=pd.Series({d.id: note}, dtype=object),
-                     na=None if na is None else pd.Series({d.id: na}, dtype=object))]
+                note = (
+                    f"the {declared_what} (delivery.yaml) is not the {in_force_what}: it {why}"
+                    if why
+                    else f"the {declared_what} (delivery.yaml) agrees with the {in_force_what} "
+                    f"(within {OUTLINE_TOLERANCE * 100:g} %)"
+                )
+    return [
+        Measured(
+            "derived.area_of_interest_agrees",
+            "delivery",
+            "bool",
+            pd.Series({d.id: value}, dtype=object),
+            pd.Series({d.id: ev}, dtype=object),
+            notes=pd.Series({d.id: note}, dtype=object),
+            na=None if na is None else pd.Series({d.id: na}, dtype=object),
+        )
+    ]
 
 
 #: scenes columns that show a master-image workflow (JRC Table 9 "Accuracy of the master image")
@@ -518,7 +688,9 @@ def _flagged_master(t: Any) -> pd.Series:
     """Per scenes row: the contractor flags it ``is_master`` (true or 1)."""
     if "is_master" not in t.df:
         return pd.Series(False, index=t.df.index)
-    return t.df["is_master"].map(lambda v: v is True or (isinstance(v, (int, float, np.bool_)) and v == 1))
+    return t.df["is_master"].map(
+        lambda v: v is True or (isinstance(v, (int, float, np.bool_)) and v == 1)
+    )
 
 
 def named_masters(ctx: ProviderContext) -> list[str] | None:
@@ -544,19 +716,45 @@ def is_master(ctx: ProviderContext) -> list[Measured]:
     rows = rows[~rows.index.duplicated()]
     named = named_masters(ctx)
     if named is None:
-        raw = t.df["is_master"].to_numpy(dtype=object) if "is_master" in t.df else np.full(len(ids), None)
-        values = pd.Series([None if v is None or (isinstance(v, float) and np.isnan(v)) else bool(v) for v in raw],
-                           index=ids, dtype=object)
-        notes = pd.Series(f"declared in {t.file} is_master (the checker names no master_images)",
-                          index=rows.index, dtype=object)
+        raw = (
+            t.df["is_master"].to_numpy(dtype=object)
+            if "is_master" in t.df
+            else np.full(len(ids), None)
+        )
+        values = pd.Series(
+            [None if v is None or (isinstance(v, float) and np.isnan(v)) else bool(v) for v in raw],
+            index=ids,
+            dtype=object,
+        )
+        notes = pd.Series(
+            f"declared in {t.file} is_master (the checker names no master_images)",
+            index=rows.index,
+            dtype=object,
+        )
     else:
         values = pd.Series([i in named for i in ids], index=ids, dtype=object)
-        notes = pd.Series({i: ("a master image named by the checker (master_images)" if i in named
-                               else "not among the master images the checker names (master_images)")
-                           for i in rows.index}, dtype=object)
+        notes = pd.Series(
+            {
+                i: (
+                    "a master image named by the checker (master_images)"
+                    if i in named
+                    else "not among the master images the checker names (master_images)"
+                )
+                for i in rows.index
+            },
+            dtype=object,
+        )
     values = values[~values.index.duplicated()]
-    return [Measured("derived.is_master", "image", "bool", values, RowEvidence(t.file, t.sha256, rows),
-                     notes=notes)]
+    return [
+        Measured(
+            "derived.is_master",
+            "image",
+            "bool",
+            values,
+            RowEvidence(t.file, t.sha256, rows),
+            notes=notes,
+        )
+    ]
 
 
 @provider(scope="delivery", measures=MASTER_AGREE)
@@ -568,25 +766,46 @@ def master_images_agree(ctx: ProviderContext) -> list[Measured]:
     named = named_masters(ctx)
     if named is None:
         why = "the checker names no master image (parameter master_images)"
-        return [Measured("derived.master_images_agree", "delivery", "bool", pd.Series({d.id: None}, dtype=object),
-                         pd.Series({d.id: ()}, dtype=object), notes=pd.Series({d.id: why}, dtype=object),
-                         na=pd.Series({d.id: why}, dtype=object))]
+        return [
+            Measured(
+                "derived.master_images_agree",
+                "delivery",
+                "bool",
+                pd.Series({d.id: None}, dtype=object),
+                pd.Series({d.id: ()}, dtype=object),
+                notes=pd.Series({d.id: why}, dtype=object),
+                na=pd.Series({d.id: why}, dtype=object),
+            )
+        ]
     ids = t.ids.astype(str) if t is not None else pd.Series(dtype=str)
     flagged = sorted(ids[_flagged_master(t).to_numpy(bool)].tolist()) if t is not None else []
     unknown = [n for n in named if n not in set(ids.tolist())]
     problems = []
     if unknown:
-        problems.append(f"named by the checker but no row of the scenes table: {', '.join(unknown)}")
+        problems.append(
+            f"named by the checker but no row of the scenes table: {', '.join(unknown)}"
+        )
     if not_flagged := [n for n in named if n not in flagged and n not in unknown]:
         problems.append(f"named by the checker but not flagged is_master: {', '.join(not_flagged)}")
     if extra := [f for f in flagged if f not in named]:
         problems.append(f"flagged is_master but not named by the checker: {', '.join(extra)}")
     where = t.file if t is not None else "the delivery (no scenes table)"
-    note = (f"{where}: " + "; ".join(problems) if problems else
-            f"{where} flags is_master exactly the checker's master images ({', '.join(named)})")
+    note = (
+        f"{where}: " + "; ".join(problems)
+        if problems
+        else f"{where} flags is_master exactly the checker's master images ({', '.join(named)})"
+    )
     ev = t.evidence(t.df["_row"]) if t is not None else (d.manifest_evidence("tables"),)
-    return [Measured("derived.master_images_agree", "delivery", "bool", pd.Series({d.id: not problems}, dtype=object),
-                     pd.Series({d.id: ev}, dtype=object), notes=pd.Series({d.id: note}, dtype=object))]
+    return [
+        Measured(
+            "derived.master_images_agree",
+            "delivery",
+            "bool",
+            pd.Series({d.id: not problems}, dtype=object),
+            pd.Series({d.id: ev}, dtype=object),
+            notes=pd.Series({d.id: note}, dtype=object),
+        )
+    ]
 
 
 @provider(scope="delivery", measures=MASTER)
@@ -602,8 +821,14 @@ def master_images(ctx: ProviderContext) -> list[Measured]:
     t = d.table("scenes")
     na = None
     if t is None:
-        value, ev, note = None, (d.manifest_evidence("tables"),), "the manifest declares no 'scenes' table"
-        na = pd.Series({d.id: "no scenes table: no satellite master image to identify"}, dtype=object)
+        value, ev, note = (
+            None,
+            (d.manifest_evidence("tables"),),
+            "the manifest declares no 'scenes' table",
+        )
+        na = pd.Series(
+            {d.id: "no scenes table: no satellite master image to identify"}, dtype=object
+        )
     else:
         flag = _flagged_master(t)
         masters = t.ids.astype(str)[flag.to_numpy(bool)].tolist()
@@ -617,15 +842,30 @@ def master_images(ctx: ProviderContext) -> list[Measured]:
         if masters:
             note = f"master image(s) {', '.join(masters[:5])} ({t.file} is_master)"
         elif traced:
-            note = (f"no row of {t.file} has is_master true, but scene(s) {', '.join(traced[:5])} record a master "
-                    f"image ({'/'.join(MASTER_EVIDENCE)})")
+            note = (
+                f"no row of {t.file} has is_master true, but scene(s) {', '.join(traced[:5])} record a master "
+                f"image ({'/'.join(MASTER_EVIDENCE)})"
+            )
         else:
             note = f"no scene of {t.file} is or refers to a master image"
-            na = pd.Series({d.id: "no master-image workflow: no scene has is_master, master_image_id, "
-                                  "master_pixel_size or master_check_date (JRC §9.4: absolute correction)"},
-                           dtype=object)
-    return [Measured("derived.master_images", "delivery", "1", pd.Series({d.id: value}, dtype=object),
-                     pd.Series({d.id: ev}, dtype=object), notes=pd.Series({d.id: note}, dtype=object), na=na)]
+            na = pd.Series(
+                {
+                    d.id: "no master-image workflow: no scene has is_master, master_image_id, "
+                    "master_pixel_size or master_check_date (JRC §9.4: absolute correction)"
+                },
+                dtype=object,
+            )
+    return [
+        Measured(
+            "derived.master_images",
+            "delivery",
+            "1",
+            pd.Series({d.id: value}, dtype=object),
+            pd.Series({d.id: ev}, dtype=object),
+            notes=pd.Series({d.id: note}, dtype=object),
+            na=na,
+        )
+    ]
 
 
 @provider(scope="delivery", measures=PROJECT_CRS)
@@ -640,22 +880,42 @@ def project_crs_agrees(ctx: ProviderContext) -> list[Measured]:
     na = None
     value: bool | None
     if in_force is None:
-        value, note = None, "no map projection in force (the profile's parameter map_crs has no value)"
+        value, note = (
+            None,
+            "no map projection in force (the profile's parameter map_crs has no value)",
+        )
         na = pd.Series({d.id: note}, dtype=object)
     elif not declared:
-        value, note = False, (f"delivery.yaml states no project.crs: the CRS of its coordinates and block "
-                              f"outlines is not stated; the map projection in force is {in_force}")
+        value, note = (
+            False,
+            (
+                f"delivery.yaml states no project.crs: the CRS of its coordinates and block "
+                f"outlines is not stated; the map projection in force is {in_force}"
+            ),
+        )
     else:
         try:
             value = same_crs(declared, in_force)
         except CrsProblem as exc:
             value, note = False, f"delivery.yaml project.crs: {exc}"
         else:
-            note = (f"delivery.yaml project.crs {declared} is the map projection in force {in_force}" if value else
-                    f"delivery.yaml project.crs is {declared}, the map projection in force is {in_force}: the "
-                    "delivery's coordinates and block outlines are not in the ITT's projection")
-    return [Measured("derived.project_crs_agrees", "delivery", "bool", pd.Series({d.id: value}, dtype=object),
-                     pd.Series({d.id: ev}, dtype=object), notes=pd.Series({d.id: note}, dtype=object), na=na)]
+            note = (
+                f"delivery.yaml project.crs {declared} is the map projection in force {in_force}"
+                if value
+                else f"delivery.yaml project.crs is {declared}, the map projection in force is {in_force}: the "
+                "delivery's coordinates and block outlines are not in the ITT's projection"
+            )
+    return [
+        Measured(
+            "derived.project_crs_agrees",
+            "delivery",
+            "bool",
+            pd.Series({d.id: value}, dtype=object),
+            pd.Series({d.id: ev}, dtype=object),
+            notes=pd.Series({d.id: note}, dtype=object),
+            na=na,
+        )
+    ]
 
 
 @provider(scope="dem", measures=DEM)
@@ -668,10 +928,22 @@ def dem_blocks(ctx: ProviderContext) -> list[Measured]:
     d = ctx.delivery
     t = d.table("dem")
     if t is None:
-        return [Measured("derived.dem_blocks", "dem", "text", pd.Series(dtype=object), pd.Series(dtype=object),
-                         notes=pd.Series({"*": "the manifest declares no 'dem' table"}, dtype=object))]
+        return [
+            Measured(
+                "derived.dem_blocks",
+                "dem",
+                "text",
+                pd.Series(dtype=object),
+                pd.Series(dtype=object),
+                notes=pd.Series({"*": "the manifest declares no 'dem' table"}, dtype=object),
+            )
+        ]
     # the outlines in force: the checker's file's when it states blocks (red team R13), else the manifest's
-    polys = {block: Polygon(ring) for block, (ring, _) in ctx.block_outlines().items() if finite_ring(ring)}
+    polys = {
+        block: Polygon(ring)
+        for block, (ring, _) in ctx.block_outlines().items()
+        if finite_ring(ring)
+    }
     ids = t.ids.astype(str).tolist()
     vals: dict[str, Any] = {}
     notes: dict[str, str] = {}
@@ -679,39 +951,64 @@ def dem_blocks(ctx: ProviderContext) -> list[Measured]:
     blocks_col = t.df["block"].tolist() if "block" in t.df else [None] * len(ids)
     with read_only_env():
         for dem_id, blk, rel in zip(ids, blocks_col, files, strict=True):
-            if blk is not None and not (isinstance(blk, float) and np.isnan(blk)) and str(blk).strip():
+            if (
+                blk is not None
+                and not (isinstance(blk, float) and np.isnan(blk))
+                and str(blk).strip()
+            ):
                 vals[dem_id] = ";".join(x.strip() for x in str(blk).split(";") if x.strip())
                 notes[dem_id] = f"{t.file} column block"
                 continue
             vals[dem_id] = None
             if not rel or (isinstance(rel, float) and np.isnan(rel)) or not polys:
-                notes[dem_id] = (f"{t.file} gives no block for {dem_id}"
-                                 + ("" if polys else " and the manifest gives no block polygons")
-                                 + ("" if rel and not isinstance(rel, float) else " and no DEM file"))
+                notes[dem_id] = (
+                    f"{t.file} gives no block for {dem_id}"
+                    + ("" if polys else " and the manifest gives no block polygons")
+                    + ("" if rel and not isinstance(rel, float) else " and no DEM file")
+                )
                 continue
             try:
-                with open_read_only(d.path(str(rel), what=f"dem row for {dem_id}"), name=str(rel)) as ds:
+                with open_read_only(
+                    d.path(str(rel), what=f"dem row for {dem_id}"), name=str(rel)
+                ) as ds:
                     foot = box(*ds.bounds)
             except (OrthospecError, OSError) as exc:
                 notes[dem_id] = f"cannot read the footprint of {rel}: {exc}"
                 continue
             served = sorted(b for b, poly in polys.items() if foot.intersection(poly).area > 0)
             vals[dem_id] = ";".join(served) or None
-            notes[dem_id] = (f"footprint of {rel} overlaps block(s) {', '.join(served)}" if served
-                             else f"footprint of {rel} overlaps no block polygon")
-    ev = RowEvidence(t.file, t.sha256, pd.Series(t.df["_row"].to_numpy(), index=t.ids.astype(str).to_numpy()))
-    return [Measured("derived.dem_blocks", "dem", "text", pd.Series(vals, dtype=object), ev,
-                     notes=pd.Series(notes, dtype=object))]
+            notes[dem_id] = (
+                f"footprint of {rel} overlaps block(s) {', '.join(served)}"
+                if served
+                else f"footprint of {rel} overlaps no block polygon"
+            )
+    ev = RowEvidence(
+        t.file, t.sha256, pd.Series(t.df["_row"].to_numpy(), index=t.ids.astype(str).to_numpy())
+    )
+    return [
+        Measured(
+            "derived.dem_blocks",
+            "dem",
+            "text",
+            pd.Series(vals, dtype=object),
+            ev,
+            notes=pd.Series(notes, dtype=object),
+        )
+    ]
 
 
 def _table_metres(t: Any, col: str) -> pd.Series:
     """One numeric column of a table in metres, indexed by item id (first row per id)."""
-    vals = convert(pd.to_numeric(t.df[col], errors="coerce").to_numpy(dtype=float), t.units.get(col, "m"), "m")
+    vals = convert(
+        pd.to_numeric(t.df[col], errors="coerce").to_numpy(dtype=float), t.units.get(col, "m"), "m"
+    )
     s = pd.Series(vals, index=t.ids.astype(str).to_numpy())
     return s[~s.index.duplicated()]
 
 
-def _image_pansharpened(n_bands: int | None, gsd: float, ms: float, declared: bool | None) -> tuple[bool | None, str]:
+def _image_pansharpened(
+    n_bands: int | None, gsd: float, ms: float, declared: bool | None
+) -> tuple[bool | None, str]:
     """One image: pan-sharpened or not, and why (see :func:`pansharpened`)."""
     if n_bands is None:
         return None, "band count unknown (image file, images.bands or product.bands)"
@@ -722,16 +1019,25 @@ def _image_pansharpened(n_bands: int | None, gsd: float, ms: float, declared: bo
     if not np.isfinite(ms):
         return None, "no native multispectral pixel size: deliver scenes.ms_pixel_size"
     if gsd <= ms / PAN_MARGIN:
-        return True, (f"{n_bands} bands at {gsd:.4g} m, finer than the {ms:.4g} m multispectral pixel / "
-                      f"{PAN_MARGIN:g}: the detail comes from the PAN band")
+        return True, (
+            f"{n_bands} bands at {gsd:.4g} m, finer than the {ms:.4g} m multispectral pixel / "
+            f"{PAN_MARGIN:g}: the detail comes from the PAN band"
+        )
     if gsd >= ms:
-        return False, f"{n_bands} bands at {gsd:.4g} m, not finer than the {ms:.4g} m multispectral pixel"
+        return (
+            False,
+            f"{n_bands} bands at {gsd:.4g} m, not finer than the {ms:.4g} m multispectral pixel",
+        )
     if declared is not None:
-        return declared, (f"{n_bands} bands at {gsd:.4g} m, between the {ms:.4g} m multispectral pixel and "
-                          f"{ms / PAN_MARGIN:.4g} m (plain resampling possible): the declared "
-                          f"product.pansharpened decides")
-    return None, (f"{n_bands} bands at {gsd:.4g} m, between the {ms:.4g} m multispectral pixel and "
-                  f"{ms / PAN_MARGIN:.4g} m: the data do not decide and product.pansharpened is not declared")
+        return declared, (
+            f"{n_bands} bands at {gsd:.4g} m, between the {ms:.4g} m multispectral pixel and "
+            f"{ms / PAN_MARGIN:.4g} m (plain resampling possible): the declared "
+            f"product.pansharpened decides"
+        )
+    return None, (
+        f"{n_bands} bands at {gsd:.4g} m, between the {ms:.4g} m multispectral pixel and "
+        f"{ms / PAN_MARGIN:.4g} m: the data do not decide and product.pansharpened is not declared"
+    )
 
 
 def _file_band_counts(ctx: ProviderContext, ids: list[str]) -> tuple[dict[str, int], list[Any]]:
@@ -763,7 +1069,8 @@ def pansharpened(ctx: ProviderContext) -> list[Measured]:
     """The delivered product is pan-sharpened (JRC §10.5), computed from bands and pixel sizes.
 
     Per image: true when the product is multispectral (>= 2 colour bands: in the delivered file,
-    else ``images.bands``, else ``product.bands``) at a pixel size (``images.gsd``, else ``product.gsd``) at most the native
+    else ``images.bands``, else ``product.bands``) at a pixel size (``images.gsd``, else
+    ``product.gsd``) at most the native
     multispectral pixel of its scene (``scenes.ms_pixel_size``) divided by 1.5. Resampling the MS
     bands alone to a grid a little finer than their own pixel (1.24 m -> 1.0 m for a round output
     pixel) is ordinary resampling, not fusion; but a product 1.5 x finer than the MS bands carries
@@ -780,8 +1087,11 @@ def pansharpened(ctx: ProviderContext) -> list[Measured]:
     m = d.manifest
     imgs, scenes = d.table("images"), d.table("scenes")
     declared = getattr(m.product, "pansharpened", None)
-    ev: list[Any] = [d.manifest_evidence("product.bands"), d.manifest_evidence("product.gsd"),
-                     d.manifest_evidence("product.pansharpened")]
+    ev: list[Any] = [
+        d.manifest_evidence("product.bands"),
+        d.manifest_evidence("product.gsd"),
+        d.manifest_evidence("product.pansharpened"),
+    ]
     ev += [e for t in (imgs, scenes) if t is not None for e in t.evidence(t.df["_row"])]
     ids: list[str] = sorted(set(imgs.ids.astype(str)) if imgs is not None else set())
     if scenes is not None:
@@ -799,8 +1109,11 @@ def pansharpened(ctx: ProviderContext) -> list[Measured]:
             parts = [b for b in str(v).split(";") if b.strip()] if isinstance(v, str) else []
             if parts:
                 bands[i] = len(parts)
-    ms = (_table_metres(scenes, "ms_pixel_size").reindex(ids) if scenes is not None and "ms_pixel_size" in scenes.df
-          else pd.Series(np.nan, index=ids, dtype=float))
+    ms = (
+        _table_metres(scenes, "ms_pixel_size").reindex(ids)
+        if scenes is not None and "ms_pixel_size" in scenes.df
+        else pd.Series(np.nan, index=ids, dtype=float)
+    )
     file_bands, file_ev = _file_band_counts(ctx, [i for i in ids if np.isfinite(ms[i])])
     ev += file_ev
     bands.update(file_bands)
@@ -811,27 +1124,59 @@ def pansharpened(ctx: ProviderContext) -> list[Measured]:
         value: bool | None = None
         note = "the delivery has no images or scenes table: pan-sharpening cannot be computed"
     elif yes:
-        value, note = True, f"{len(yes)} of {len(ids)} image(s) pan-sharpened, e.g. {yes[0]}: {per[yes[0]][1]}"
+        value, note = (
+            True,
+            f"{len(yes)} of {len(ids)} image(s) pan-sharpened, e.g. {yes[0]}: {per[yes[0]][1]}",
+        )
     elif undecided:
-        value, note = None, f"{len(undecided)} image(s) undecided, e.g. {undecided[0]}: {per[undecided[0]][1]}"
+        value, note = (
+            None,
+            f"{len(undecided)} image(s) undecided, e.g. {undecided[0]}: {per[undecided[0]][1]}",
+        )
     else:
         value, note = False, f"no image pan-sharpened, e.g. {ids[0]}: {per[ids[0]][1]}"
     agrees: bool | None = None if declared is None or value is None else bool(declared) == value
     if agrees is False:
         note += f"; the manifest declares product.pansharpened: {str(declared).lower()}, which the data contradict"
-    agree_note = (f"declared {str(declared).lower()}, computed {str(value).lower()}" if agrees is not None else
-                  "product.pansharpened not declared" if declared is None else "the computed value is missing")
-    na = pd.Series({d.id: "the contractor declares no product.pansharpened"}, dtype=object) if declared is None else None
+    agree_note = (
+        f"declared {str(declared).lower()}, computed {str(value).lower()}"
+        if agrees is not None
+        else "product.pansharpened not declared"
+        if declared is None
+        else "the computed value is missing"
+    )
+    na = (
+        pd.Series({d.id: "the contractor declares no product.pansharpened"}, dtype=object)
+        if declared is None
+        else None
+    )
     evidence = pd.Series({d.id: tuple(ev)}, dtype=object)
     return [
-        Measured("derived.pansharpened", "delivery", "bool", pd.Series({d.id: value}, dtype=object), evidence,
-                 notes=pd.Series({d.id: note}, dtype=object)),
-        Measured("derived.pansharpened_agrees", "delivery", "bool", pd.Series({d.id: agrees}, dtype=object),
-                 evidence, notes=pd.Series({d.id: agree_note}, dtype=object), na=na),
+        Measured(
+            "derived.pansharpened",
+            "delivery",
+            "bool",
+            pd.Series({d.id: value}, dtype=object),
+            evidence,
+            notes=pd.Series({d.id: note}, dtype=object),
+        ),
+        Measured(
+            "derived.pansharpened_agrees",
+            "delivery",
+            "bool",
+            pd.Series({d.id: agrees}, dtype=object),
+            evidence,
+            notes=pd.Series({d.id: agree_note}, dtype=object),
+            na=na,
+        ),
     ]
 
 
-DEM_PRESENCE = {"derived.dem_delivered": "bool", "derived.dem_used": "bool", "derived.dem_delivered_agrees": "bool"}
+DEM_PRESENCE = {
+    "derived.dem_delivered": "bool",
+    "derived.dem_used": "bool",
+    "derived.dem_delivered_agrees": "bool",
+}
 #: scenes columns that record a DEM used to orthorectify the scene (JRC Table 7 "DEM", §9.5)
 SCENE_DEM_COLUMNS = ("dem_grid_size", "dem_accuracy", "dem_qc_result")
 
@@ -892,21 +1237,49 @@ def dem_presence(ctx: ProviderContext) -> list[Measured]:
     if t is not None and len(t.df):
         parts.append(f"{t.file} records {len(t.df)} DEM(s)")
     if recorded:
-        parts.append(f"scene(s) {', '.join(recorded[:5])} record the DEM they were orthorectified with "
-                     f"({'/'.join(SCENE_DEM_COLUMNS)})")
+        parts.append(
+            f"scene(s) {', '.join(recorded[:5])} record the DEM they were orthorectified with "
+            f"({'/'.join(SCENE_DEM_COLUMNS)})"
+        )
     note = "; ".join(parts)
     agrees = None if declared is None else bool(declared) == delivered
-    agree_note = ("product.dem_delivered not declared" if declared is None else
-                  f"declared {str(declared).lower()}, the files say {str(delivered).lower()} ({parts[0]})")
+    agree_note = (
+        "product.dem_delivered not declared"
+        if declared is None
+        else f"declared {str(declared).lower()}, the files say {str(delivered).lower()} ({parts[0]})"
+    )
     evidence = pd.Series({d.id: tuple(ev)}, dtype=object)
-    na = pd.Series({d.id: "the contractor declares no product.dem_delivered"}, dtype=object) if declared is None else None
+    na = (
+        pd.Series({d.id: "the contractor declares no product.dem_delivered"}, dtype=object)
+        if declared is None
+        else None
+    )
     return [
-        Measured("derived.dem_delivered", "delivery", "bool", pd.Series({d.id: delivered}, dtype=object), evidence,
-                 notes=pd.Series({d.id: note}, dtype=object)),
-        Measured("derived.dem_used", "delivery", "bool", pd.Series({d.id: used}, dtype=object), evidence,
-                 notes=pd.Series({d.id: note}, dtype=object)),
-        Measured("derived.dem_delivered_agrees", "delivery", "bool", pd.Series({d.id: agrees}, dtype=object),
-                 evidence, notes=pd.Series({d.id: agree_note}, dtype=object), na=na),
+        Measured(
+            "derived.dem_delivered",
+            "delivery",
+            "bool",
+            pd.Series({d.id: delivered}, dtype=object),
+            evidence,
+            notes=pd.Series({d.id: note}, dtype=object),
+        ),
+        Measured(
+            "derived.dem_used",
+            "delivery",
+            "bool",
+            pd.Series({d.id: used}, dtype=object),
+            evidence,
+            notes=pd.Series({d.id: note}, dtype=object),
+        ),
+        Measured(
+            "derived.dem_delivered_agrees",
+            "delivery",
+            "bool",
+            pd.Series({d.id: agrees}, dtype=object),
+            evidence,
+            notes=pd.Series({d.id: agree_note}, dtype=object),
+            na=na,
+        ),
     ]
 
 
@@ -939,16 +1312,39 @@ def camera_agrees(ctx: ProviderContext) -> list[Measured]:
         problems = []
         declared = sorted(float(row[c]) for c in FORMAT_COLUMNS if c in t.df and _filled(row[c]))
         if len(declared) == 2 and declared != sorted(float(v) for v in known["pixels"]):
-            problems.append(f"format {declared[1]:.0f} x {declared[0]:.0f} px declared, the {known['id']}'s is "
-                            f"{max(known['pixels'])} x {min(known['pixels'])} px")
+            problems.append(
+                f"format {declared[1]:.0f} x {declared[0]:.0f} px declared, the {known['id']}'s is "
+                f"{max(known['pixels'])} x {min(known['pixels'])} px"
+            )
         if "pixel_size" in t.df and _filled(row["pixel_size"]):
-            px = float(convert(np.array([float(row["pixel_size"])]), t.units.get("pixel_size", "µm"), "µm")[0])
+            px = float(
+                convert(
+                    np.array([float(row["pixel_size"])]), t.units.get("pixel_size", "µm"), "µm"
+                )[0]
+            )
             if abs(px - known["pixel_size_um"]) > 0.01 * known["pixel_size_um"]:
-                problems.append(f"pixel {px:g} µm declared, the {known['id']}'s is {known['pixel_size_um']:g} µm")
+                problems.append(
+                    f"pixel {px:g} µm declared, the {known['id']}'s is {known['pixel_size_um']:g} µm"
+                )
         values[i] = not problems
-        notes[i] = ("; ".join(problems) + " (Passini, Jacobsen & Day Table 1): the photo lay-down uses the "
-                    "published values") if problems else f"declared format and pixel are the {known['id']}'s"
+        notes[i] = (
+            (
+                "; ".join(problems)
+                + " (Passini, Jacobsen & Day Table 1): the photo lay-down uses the "
+                "published values"
+            )
+            if problems
+            else f"declared format and pixel are the {known['id']}'s"
+        )
     rows = pd.Series(t.df["_row"].to_numpy(), index=ids)
-    return [Measured("derived.camera_agrees", "camera", "bool", pd.Series(values, dtype=object),
-                     RowEvidence(t.file, t.sha256, rows), notes=pd.Series(notes, dtype=object),
-                     na=pd.Series(na, dtype=object) if na else None)]
+    return [
+        Measured(
+            "derived.camera_agrees",
+            "camera",
+            "bool",
+            pd.Series(values, dtype=object),
+            RowEvidence(t.file, t.sha256, rows),
+            notes=pd.Series(notes, dtype=object),
+            na=pd.Series(na, dtype=object) if na else None,
+        )
+    ]

@@ -30,33 +30,46 @@ if TYPE_CHECKING:  # the edge chain loads only to measure an edge
     from ...measures.edge_detect import FoundEdge
 
 HEALTH = {  # measure -> health check name in EdgeResult
-    "edge.snr": ("snr", "1"), "edge.dn_difference": ("contrast", "DN"), "edge.angle": ("angle", "deg"),
-    "edge.length_px": ("edge_length", "px"), "edge.bright_width_px": ("bright_width", "px"),
-    "edge.dark_width_px": ("dark_width", "px"), "edge.straightness_px": ("straightness", "px"),
+    "edge.snr": ("snr", "1"),
+    "edge.dn_difference": ("contrast", "DN"),
+    "edge.angle": ("angle", "deg"),
+    "edge.length_px": ("edge_length", "px"),
+    "edge.bright_width_px": ("bright_width", "px"),
+    "edge.dark_width_px": ("dark_width", "px"),
+    "edge.straightness_px": ("straightness", "px"),
 }
 ESTIMATES = {  # measure -> estimator name
-    "edge.rer": ("rer", "1"), "edge.fwhm": ("fwhm_px", "px"), "edge.fwhm25": ("width25_px", "px"),
-    "edge.width80": ("width80_px", "px"), "edge.mtf_nyquist": ("mtf_nyquist", "1"),
+    "edge.rer": ("rer", "1"),
+    "edge.fwhm": ("fwhm_px", "px"),
+    "edge.fwhm25": ("width25_px", "px"),
+    "edge.width80": ("width80_px", "px"),
+    "edge.mtf_nyquist": ("mtf_nyquist", "1"),
     "edge.slope": ("edge_slope_per_px", "1"),
     "edge.effective_resolution_factor": ("effective_resolution_factor", "1"),
 }
-MEASURES = {"edge.valid": "bool", "edge.direction": "text",
-            **{k: u for k, (_, u) in HEALTH.items()}, **{k: u for k, (_, u) in ESTIMATES.items()}}
+MEASURES = {
+    "edge.valid": "bool",
+    "edge.direction": "text",
+    **{k: u for k, (_, u) in HEALTH.items()},
+    **{k: u for k, (_, u) in ESTIMATES.items()},
+}
 
 # bounds of the stored curves: enough to draw them legibly, small enough for qcr.json
-CURVE_DIGITS = 6           # significant digits of every stored number
-MAX_ESF_SAMPLES = 300      # ESF pixel samples (of typically ~10^4)
-MAX_LINES = 150            # per-line edge locations
-FIT_STEP_PX = 0.05         # grid of the fitted ESF/LSF (a multiple of it for wide windows)
+CURVE_DIGITS = 6  # significant digits of every stored number
+MAX_ESF_SAMPLES = 300  # ESF pixel samples (of typically ~10^4)
+MAX_LINES = 150  # per-line edge locations
+FIT_STEP_PX = 0.05  # grid of the fitted ESF/LSF (a multiple of it for wide windows)
 MAX_FIT_POINTS = 161
-MTF_STEP = 0.02            # cycles/px, MTF stored at 0..1
+MTF_STEP = 0.02  # cycles/px, MTF stored at 0..1
 MTF_MAX = 1.0
 
 
 def _r(a: Any) -> list[float | None]:
     """Rounded to CURVE_DIGITS significant digits, NaN/inf -> None (JSON-safe, deterministic)."""
-    return [float(f"{x:.{CURVE_DIGITS}g}") if np.isfinite(x) else None
-            for x in np.asarray(a, dtype=float).ravel().tolist()]
+    return [
+        float(f"{x:.{CURVE_DIGITS}g}") if np.isfinite(x) else None
+        for x in np.asarray(a, dtype=float).ravel().tolist()
+    ]
 
 
 def _r1(x: float | None) -> float | None:
@@ -79,8 +92,11 @@ def edge_curves(res: EdgeResult) -> dict[str, Any]:
     the grid ``x0 + i * dx`` px and the MTF at ``mtf_freq`` cycles/px, with the FWHM, its centre and
     the MTF at Nyquist. Everything is decimated deterministically (evenly spaced samples).
     """
-    out: dict[str, Any] = {"shape": [int(res.shape[0]), int(res.shape[1])],
-                           "direction": res.direction, "angle_deg": _r1(res.angle_deg)}
+    out: dict[str, Any] = {
+        "shape": [int(res.shape[0]), int(res.shape[1])],
+        "direction": res.direction,
+        "angle_deg": _r1(res.angle_deg),
+    }
     fin = np.isfinite(res.line_x) & np.isfinite(res.line_y)
     lines: dict[str, Any] = {}
     for key, sel in (("kept", res.line_kept & fin), ("rejected", ~res.line_kept & fin)):
@@ -92,16 +108,25 @@ def edge_curves(res: EdgeResult) -> dict[str, Any]:
         ends = ok[[0, -1]]
         lines["fit_x"], lines["fit_y"] = _r(res.fitted_x[ends]), _r(res.fitted_y[ends])
     out["lines"] = lines
-    if res.dark_level is not None and res.bright_level is not None and res.window_px \
-            and res.bright_level > res.dark_level:
+    if (
+        res.dark_level is not None
+        and res.bright_level is not None
+        and res.window_px
+        and res.bright_level > res.dark_level
+    ):
         lo, hi = res.window_px
         sel = (res.esf_d >= lo - 1) & (res.esf_d <= hi + 1)
         d = res.esf_d[sel]
         v = (res.esf_dn[sel] - res.dark_level) / (res.bright_level - res.dark_level)
         k = _pick(d.size, MAX_ESF_SAMPLES)
-        out["esf"] = {"d": _r(d[k]), "v": _r(v[k]), "n_samples": int(d.size),
-                      "window_px": _r(res.window_px),
-                      "dark_start_px": _r1(res.dark_start_px), "bright_start_px": _r1(res.bright_start_px)}
+        out["esf"] = {
+            "d": _r(d[k]),
+            "v": _r(v[k]),
+            "n_samples": int(d.size),
+            "window_px": _r(res.window_px),
+            "dark_start_px": _r1(res.dark_start_px),
+            "bright_start_px": _r1(res.bright_start_px),
+        }
     fits = _curve_fits(res)
     if fits:
         nf = round(MTF_MAX / MTF_STEP) + 1
@@ -116,11 +141,16 @@ def edge_curves(res: EdgeResult) -> dict[str, Any]:
             stride *= max(1, int(np.ceil((f.x.size - 1) / stride / (MAX_FIT_POINTS - 1))))
             idx = np.arange(0, f.x.size, stride)
             out["fits"][f.fit] = {
-                "x0": _r1(float(f.x[0])), "dx": _r1(grid * stride),
-                "esf": _r(f.esf[idx]), "lsf": _r(f.lsf[idx]),
+                "x0": _r1(float(f.x[0])),
+                "dx": _r1(grid * stride),
+                "esf": _r(f.esf[idx]),
+                "lsf": _r(f.lsf[idx]),
                 "mtf": _r(np.interp(freq, f.mtf_freq, f.mtf)),
-                "centre_px": _r1(f.centre_px), "fwhm_px": _r1(f.fwhm_px), "rer": _r1(f.rer),
-                "mtf_nyquist": _r1(f.mtf_nyquist), "nyquist": NYQUIST,
+                "centre_px": _r1(f.centre_px),
+                "fwhm_px": _r1(f.fwhm_px),
+                "rer": _r1(f.rer),
+                "mtf_nyquist": _r1(f.mtf_nyquist),
+                "nyquist": NYQUIST,
             }
     return out
 
@@ -157,7 +187,9 @@ def _measure_targets(ctx: ProviderContext) -> dict[str, Any]:
     """
     d = ctx.delivery
     imgs = d.table("images")
-    files = dict(zip(imgs.ids, imgs.df["file"].astype(str), strict=True)) if imgs is not None else {}
+    files = (
+        dict(zip(imgs.ids, imgs.df["file"].astype(str), strict=True)) if imgs is not None else {}
+    )
     out: dict[str, Any] = {}
     for t in d.manifest.edge_targets:
         rel = files.get(t.image, t.image)
@@ -165,11 +197,16 @@ def _measure_targets(ctx: ProviderContext) -> dict[str, Any]:
         try:
             path = d.path(rel, what=f"edge target {t.id}")
             window = PixelWindow(*t.roi) if t.roi is not None else None
-            got = read_roi(path, window=window, band=t.band, name=rel,
-                           max_pixels=None if window is not None else MAX_AUTO_PIXELS,
-                           too_large=f"edge target {t.id} has no ROI and the automatic edge search "
-                                     "reads the whole band: give the target an roi [x0, y0, x1, y1] "
-                                     "around its edges")
+            got = read_roi(
+                path,
+                window=window,
+                band=t.band,
+                name=rel,
+                max_pixels=None if window is not None else MAX_AUTO_PIXELS,
+                too_large=f"edge target {t.id} has no ROI and the automatic edge search "
+                "reads the whole band: give the target an roi [x0, y0, x1, y1] "
+                "around its edges",
+            )
             gsd = got.gsd_m if got.gsd_m is not None else d.gsd_m
             if window is None:
                 out[t.id] = _auto_target(d, t, rel, got, gsd)
@@ -201,26 +238,58 @@ def _auto_target(d: Any, t: Any, rel: str, got: RasterRoi, gsd: float | None) ->
     ev = (d.manifest_evidence(f"edge_targets.{t.id}"), d.evidence(rel))
     found = [e for e in target.edges if e.result is not None]
     if not found:
-        return {"file": rel, "evidence": ev,
-                "missing": f"{rel}: no straight edge found in band {t.band} (edge target {t.id} has "
-                         "no ROI, so its edges are searched automatically)"}
-    def rer(e: FoundEdge) -> float:
-        return float(e.result.rer) if e.result is not None and e.result.rer is not None else float("inf")
+        return {
+            "file": rel,
+            "evidence": ev,
+            "missing": f"{rel}: no straight edge found in band {t.band} (edge target {t.id} has "
+            "no ROI, so its edges are searched automatically)",
+        }
 
-    valid = [e for e in found if e.result is not None and e.result.valid and e.result.rer is not None]
+    def rer(e: FoundEdge) -> float:
+        return (
+            float(e.result.rer)
+            if e.result is not None and e.result.rer is not None
+            else float("inf")
+        )
+
+    valid = [
+        e for e in found if e.result is not None and e.result.valid and e.result.rer is not None
+    ]
     pick = min(valid, key=rer) if valid else found[0]
     summary = [{k: v for k, v in e.to_dict().items() if k in _FOUND_KEYS} for e in found]
-    return {"file": rel, "evidence": ev, "result": pick.result, "edges": [e.result for e in found],
-            "found": {"edges": summary, "reported": found.index(pick),
-                      "rer_x": target.rer_x, "rer_y": target.rer_y, "rer_combined": target.rer_combined,
-                      "choice": "the valid edge with the lowest RER (else the first edge found)"}}
+    return {
+        "file": rel,
+        "evidence": ev,
+        "result": pick.result,
+        "edges": [e.result for e in found],
+        "found": {
+            "edges": summary,
+            "reported": found.index(pick),
+            "rer_x": target.rer_x,
+            "rer_y": target.rer_y,
+            "rer_combined": target.rer_combined,
+            "choice": "the valid edge with the lowest RER (else the first edge found)",
+        },
+    }
 
 
 # a target without ROI is read whole (float64 plus the Canny/Hough work arrays): a target chip,
 # not an orthophoto tile; 2048 x 2048 px keeps it to ~100 MB and a few seconds
 MAX_AUTO_PIXELS = 2048 * 2048
-_FOUND_KEYS = ("segment", "line_angle_deg", "axis", "direction", "roi", "half_width_px", "valid", "rer",
-               "fwhm_px", "mtf_nyquist", "angle_deg", "reasons")
+_FOUND_KEYS = (
+    "segment",
+    "line_angle_deg",
+    "axis",
+    "direction",
+    "roi",
+    "half_width_px",
+    "valid",
+    "rer",
+    "fwhm_px",
+    "mtf_nyquist",
+    "angle_deg",
+    "reasons",
+)
 
 
 @provider(scope="edge", measures=MEASURES)
@@ -229,9 +298,15 @@ def edge_measures(ctx: ProviderContext) -> list[Measured]:
     got = _measure_all(ctx)
     ev = pd.Series({k: v["evidence"] for k, v in got.items()}, dtype=object)
     out = []
-    detail = {k: {**v["result"].to_dict(), "curves": edge_curves(v["result"]),
-                  **({"found": v["found"]} if "found" in v else {})}
-              for k, v in got.items() if "result" in v}
+    detail = {
+        k: {
+            **v["result"].to_dict(),
+            "curves": edge_curves(v["result"]),
+            **({"found": v["found"]} if "found" in v else {}),
+        }
+        for k, v in got.items()
+        if "result" in v
+    }
     for name, unit in MEASURES.items():
         vals: dict[str, Any] = {}
         errs: dict[str, str] = {}
@@ -252,17 +327,26 @@ def edge_measures(ctx: ProviderContext) -> list[Measured]:
                 vals[tid] = res.check(HEALTH[name][0]).value
             else:
                 if not res.valid:
-                    vals[tid], errs[tid] = None, "edge health checks failed: " + "; ".join(res.reasons)
+                    vals[tid], errs[tid] = (
+                        None,
+                        "edge health checks failed: " + "; ".join(res.reasons),
+                    )
                 else:
                     e = res.estimate(ESTIMATES[name][0])
                     vals[tid] = None if e is None else e.value
-        out.append(Measured(name, "edge", unit, pd.Series(vals, dtype=object), ev,
-                            detail={"edges": detail} if name == "edge.valid" and detail else None,
-                            errors=pd.Series(errs, dtype=object) if errs else None,
-                            notes=pd.Series(why, dtype=object) if why else None))
+        out.append(
+            Measured(
+                name,
+                "edge",
+                unit,
+                pd.Series(vals, dtype=object),
+                ev,
+                detail={"edges": detail} if name == "edge.valid" and detail else None,
+                errors=pd.Series(errs, dtype=object) if errs else None,
+                notes=pd.Series(why, dtype=object) if why else None,
+            )
+        )
     return out
-
-
 
 
 COMBINED = {"edge.rer_combined": "1", "edge.giqe4_niirs": "1"}
@@ -294,8 +378,11 @@ def edge_combined(ctx: ProviderContext) -> list[Measured]:
     if not got:
         why = "no edge targets listed"
     elif not by_axis["across"] or not by_axis["along"]:
-        missing = [n for n, k in (("X (profile along x)", "across"), ("Y (profile along y)", "along"))
-                   if not by_axis[k]]
+        missing = [
+            n
+            for n, k in (("X (profile along x)", "across"), ("Y (profile along y)", "along"))
+            if not by_axis[k]
+        ]
         why = f"no valid edge target measured in {' and '.join(missing)}"
     else:
         why = ""
@@ -303,8 +390,10 @@ def edge_combined(ctx: ProviderContext) -> list[Measured]:
         ry = float(np.median([r.rer for r in by_axis["along"]]))
         rer = float(rer_two_directions(rx, ry))
         vals["edge.rer_combined"] = rer
-        notes["edge.rer_combined"] = (f"sqrt(RER_x {rx:.4f} x RER_y {ry:.4f}) over "
-                                      f"{len(by_axis['across'])} + {len(by_axis['along'])} edges")
+        notes["edge.rer_combined"] = (
+            f"sqrt(RER_x {rx:.4f} x RER_y {ry:.4f}) over "
+            f"{len(by_axis['across'])} + {len(by_axis['along'])} edges"
+        )
         h = [r.estimate("overshoot_h") for r in by_axis["across"] + by_axis["along"]]
         hx = [e.value for e in h if e is not None]
         gsds = [r.gsd_m for r in by_axis["across"] + by_axis["along"] if r.gsd_m]
@@ -314,16 +403,26 @@ def edge_combined(ctx: ProviderContext) -> list[Measured]:
             hgm = float(np.exp(np.mean(np.log(hx))))
             g = giqe4(gsd_m=float(gsd), rer=rer, overshoot=hgm, noise_gain=1.0, snr=snr)
             vals["edge.giqe4_niirs"] = g.niirs
-            notes["edge.giqe4_niirs"] = ("GIQE 4 (Leachtenauer et al. 1997): " + ", ".join(
-                f"{k} {v:.4g}" for k, v in g.inputs.items()) + "; G = 1 assumed (no declared "
-                "sharpening), SNR = median edge SNR")
+            notes["edge.giqe4_niirs"] = (
+                "GIQE 4 (Leachtenauer et al. 1997): "
+                + ", ".join(f"{k} {v:.4g}" for k, v in g.inputs.items())
+                + "; G = 1 assumed (no declared "
+                "sharpening), SNR = median edge SNR"
+            )
         else:
             notes["edge.giqe4_niirs"] = "no GSD known for the edge targets"
     for n in COMBINED:
         if vals[n] is None and why:
             notes[n] = why
     item = d.id
-    return [Measured(n, "delivery", u, pd.Series({item: vals[n]}, dtype=object),
-                     pd.Series({item: ev}, dtype=object),
-                     notes=pd.Series({item: notes[n]}, dtype=object) if n in notes else None)
-            for n, u in COMBINED.items()]
+    return [
+        Measured(
+            n,
+            "delivery",
+            u,
+            pd.Series({item: vals[n]}, dtype=object),
+            pd.Series({item: ev}, dtype=object),
+            notes=pd.Series({item: notes[n]}, dtype=object) if n in notes else None,
+        )
+        for n, u in COMBINED.items()
+    ]

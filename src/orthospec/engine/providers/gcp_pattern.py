@@ -43,7 +43,9 @@ def dgps_gaps(poly: Polygon, gx: np.ndarray, gy: np.ndarray) -> list[str]:
     simple = poly.simplify(0.02 * size, preserve_topology=True)
     corners = list(simple.exterior.coords)[:-1]
     middle = poly.centroid if poly.contains(poly.centroid) else poly.representative_point()
-    places = [(f"corner ({x:.0f}, {y:.0f})", x, y) for x, y in corners] + [("middle", middle.x, middle.y)]
+    places = [(f"corner ({x:.0f}, {y:.0f})", x, y) for x, y in corners] + [
+        ("middle", middle.x, middle.y)
+    ]
     out = []
     for label, x, y in places:
         n = int((np.hypot(gx - x, gy - y) <= CORNER_RADIUS * size).sum())
@@ -71,7 +73,9 @@ def strips(ex: np.ndarray, ey: np.ndarray) -> tuple[float, list[float]] | None:
     return base, lengths
 
 
-def no_dgps_gaps(poly: Polygon, gx: np.ndarray, gy: np.ndarray, base: float, lengths: list[float]) -> list[str]:
+def no_dgps_gaps(
+    poly: Polygon, gx: np.ndarray, gy: np.ndarray, base: float, lengths: list[float]
+) -> list[str]:
     """Perimeter and cross-strip GCPs missing for a block adjusted without DGPS (Table 4)."""
     ring = poly.exterior
     pts = shapely.points(gx, gy)
@@ -80,13 +84,17 @@ def no_dgps_gaps(poly: Polygon, gx: np.ndarray, gy: np.ndarray, base: float, len
     need_perimeter = math.ceil(ring.length / (5.0 * base))
     have = int(on_edge.sum())
     if have < need_perimeter:
-        out.append(f"perimeter: {have} GCP(s) within a base length ({base:.0f}) of the outline, "
-                   f"{need_perimeter} needed (one every five base lengths of its {ring.length:.0f})")
+        out.append(
+            f"perimeter: {have} GCP(s) within a base length ({base:.0f}) of the outline, "
+            f"{need_perimeter} needed (one every five base lengths of its {ring.length:.0f})"
+        )
     need_inside = sum(max(0, math.ceil(length / (4.0 * base)) - 1) for length in lengths)
     inside = int((~on_edge & shapely.contains(poly, pts)).sum()) if len(gx) else 0
     if inside < need_inside:
-        out.append(f"across the strips: {inside} GCP(s) inside the block, {need_inside} needed (one per strip "
-                   f"every four base lengths, {len(lengths)} strip(s))")
+        out.append(
+            f"across the strips: {inside} GCP(s) inside the block, {need_inside} needed (one per strip "
+            f"every four base lengths, {len(lengths)} strip(s))"
+        )
     return out
 
 
@@ -113,7 +121,10 @@ def gcp_pattern(ctx: ProviderContext) -> list[Measured]:
             items.append(outlines[b][1])
         ev[b] = tuple(items)
         if cfg is None:
-            vals[b], notes[b] = None, "no flight configuration for the block (aerotriangulation.configuration)"
+            vals[b], notes[b] = (
+                None,
+                "no flight configuration for the block (aerotriangulation.configuration)",
+            )
             continue
         if cfg == "single_model":
             na[b] = "a single model: JRC-T4-GCP-SINGLE-MODEL counts its four GCPs"
@@ -134,15 +145,29 @@ def gcp_pattern(ctx: ProviderContext) -> list[Measured]:
         else:  # at_no_dgps
             got = _photo_strips(ctx, b)
             if got is None:
-                vals[b], notes[b] = None, "no photo centres (images.exposure_x/_y) to find the base length"
+                vals[b], notes[b] = (
+                    None,
+                    "no photo centres (images.exposure_x/_y) to find the base length",
+                )
                 continue
             gaps = no_dgps_gaps(poly, gx, gy, *got)
             what = "GCPs every five base lengths on the perimeter and across the strips every four"
         vals[b] = float(len(gaps))
-        notes[b] = (f"{cfg}: {what}: " + ("; ".join(gaps) if gaps else f"met by the block's {len(gx)} GCPs"))
+        notes[b] = f"{cfg}: {what}: " + (
+            "; ".join(gaps) if gaps else f"met by the block's {len(gx)} GCPs"
+        )
     s = pd.Series
-    return [Measured(NAME, "block", "1", s({b: vals.get(b) for b in blocks}, dtype=object), s(ev, dtype=object),
-                     notes=s(notes, dtype=object), na=s(na, dtype=object) if na else None)]
+    return [
+        Measured(
+            NAME,
+            "block",
+            "1",
+            s({b: vals.get(b) for b in blocks}, dtype=object),
+            s(ev, dtype=object),
+            notes=s(notes, dtype=object),
+            na=s(na, dtype=object) if na else None,
+        )
+    ]
 
 
 def _photo_strips(ctx: ProviderContext, block: str) -> tuple[float, list[float]] | None:
@@ -150,7 +175,15 @@ def _photo_strips(ctx: ProviderContext, block: str) -> tuple[float, list[float]]
     if imgs is None or not {"exposure_x", "exposure_y"} <= set(imgs.df):
         return None
     df = imgs.df[imgs.df["block"].astype(str) == block]
-    order = ["flight_id", "exposure_time"] if "exposure_time" in df else ["flight_id"] if "flight_id" in df else []
+    order = (
+        ["flight_id", "exposure_time"]
+        if "exposure_time" in df
+        else ["flight_id"]
+        if "flight_id" in df
+        else []
+    )
     df = df.sort_values([c for c in order if c in df] + ["_row"], kind="stable")
     ok = df["exposure_x"].notna() & df["exposure_y"].notna()
-    return strips(df.loc[ok, "exposure_x"].to_numpy(float), df.loc[ok, "exposure_y"].to_numpy(float))
+    return strips(
+        df.loc[ok, "exposure_x"].to_numpy(float), df.loc[ok, "exposure_y"].to_numpy(float)
+    )

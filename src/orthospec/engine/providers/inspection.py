@@ -26,15 +26,24 @@ MAX_CELLS = 2000
 def _marked(ctx: ProviderContext, grid: Any) -> dict[str, Any]:
     """The grid's marked cells for the report (block maps): id, image, block, classes, comment, bounds."""
     t = ctx.delivery.table("images")
-    block = ({} if t is None or "block" not in t.df
-             else dict(zip(t.ids.tolist(), t.df["block"].astype(str).tolist(), strict=True)))
+    block = (
+        {}
+        if t is None or "block" not in t.df
+        else dict(zip(t.ids.tolist(), t.df["block"].astype(str).tolist(), strict=True))
+    )
     marked = grid.defect_cells()
     cells = []
     for r in marked.head(MAX_CELLS).itertuples(index=False):
-        cells.append({"cell_id": r.cell_id, "image_id": r.image_id, "block": block.get(r.image_id),
-                      "defects": [c for c in grid.codes if getattr(r, c)],
-                      "comment": r.comment if isinstance(r.comment, str) else None,
-                      "bounds": list(r.bounds) if r.bounds is not None else None})
+        cells.append(
+            {
+                "cell_id": r.cell_id,
+                "image_id": r.image_id,
+                "block": block.get(r.image_id),
+                "defects": [c for c in grid.codes if getattr(r, c)],
+                "comment": r.comment if isinstance(r.comment, str) else None,
+                "bounds": list(r.bounds) if r.bounds is not None else None,
+            }
+        )
     return {"file": grid.path.name, "sha256": grid.sha256, "marked": len(marked), "cells": cells}
 
 
@@ -46,13 +55,41 @@ def inspection(ctx: ProviderContext) -> list[Measured]:
     if grid is None:
         ev = (d.manifest_evidence("id"),)
         why = "the checker folder holds no inspection grid (inspection.gpkg; orthospec inspect grid writes one)"
-        return [Measured("inspection.present", "delivery", "bool", pd.Series({d.id: False}, dtype=object),
-                         pd.Series({d.id: ev}, dtype=object), notes=pd.Series({d.id: why}, dtype=object)),
-                Measured("inspection.inspected_share", "delivery", "%", pd.Series({d.id: None}, dtype=object),
-                         pd.Series({d.id: ev}, dtype=object), na=pd.Series({d.id: why}, dtype=object))]
+        return [
+            Measured(
+                "inspection.present",
+                "delivery",
+                "bool",
+                pd.Series({d.id: False}, dtype=object),
+                pd.Series({d.id: ev}, dtype=object),
+                notes=pd.Series({d.id: why}, dtype=object),
+            ),
+            Measured(
+                "inspection.inspected_share",
+                "delivery",
+                "%",
+                pd.Series({d.id: None}, dtype=object),
+                pd.Series({d.id: ev}, dtype=object),
+                na=pd.Series({d.id: why}, dtype=object),
+            ),
+        ]
     ev = (Evidence(f"checker:{grid.path.name}", grid.sha256),)
     share, note = grid.inspected_share()
-    return [Measured("inspection.present", "delivery", "bool", pd.Series({d.id: True}, dtype=object),
-                     pd.Series({d.id: ev}, dtype=object), detail={"inspection": _marked(ctx, grid)}),
-            Measured("inspection.inspected_share", "delivery", "%", pd.Series({d.id: share}, dtype=object),
-                     pd.Series({d.id: ev}, dtype=object), notes=pd.Series({d.id: note}, dtype=object))]
+    return [
+        Measured(
+            "inspection.present",
+            "delivery",
+            "bool",
+            pd.Series({d.id: True}, dtype=object),
+            pd.Series({d.id: ev}, dtype=object),
+            detail={"inspection": _marked(ctx, grid)},
+        ),
+        Measured(
+            "inspection.inspected_share",
+            "delivery",
+            "%",
+            pd.Series({d.id: share}, dtype=object),
+            pd.Series({d.id: ev}, dtype=object),
+            notes=pd.Series({d.id: note}, dtype=object),
+        ),
+    ]

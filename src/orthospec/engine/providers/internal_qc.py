@@ -61,8 +61,12 @@ def internal_qc(ctx: ProviderContext) -> list[Measured]:
         why = d.table_absent_reason(INTERNAL)
         empty = pd.Series({b: None for b in blocks}, dtype=object)
         ev = pd.Series({b: (d.manifest_evidence("tables"),) for b in blocks}, dtype=object)
-        return [Measured(name, "block", unit, empty, ev, na=pd.Series({b: why for b in blocks}, dtype=object))
-                for name, unit in MEASURES.items()]
+        return [
+            Measured(
+                name, "block", unit, empty, ev, na=pd.Series({b: why for b in blocks}, dtype=object)
+            )
+            for name, unit in MEASURES.items()
+        ]
     mine, theirs = _compute(ctx, INTERNAL), _compute(ctx, "checkpoints")
     tol = _tolerance(ctx)
     out = []
@@ -73,10 +77,14 @@ def internal_qc(ctx: ProviderContext) -> list[Measured]:
         for b in blocks:
             r = mine.blocks.get(b)
             ext = theirs.blocks.get(b)
-            evs[b] = (r.evidence if r is not None else ()) + (ext.evidence if ext is not None else ())
+            evs[b] = (r.evidence if r is not None else ()) + (
+                ext.evidence if ext is not None else ()
+            )
             if r is None:
                 vals[b] = None
-                notes[b] = f"the contractor's internal QC table ({t.file}) has no check points for block {b}"
+                notes[b] = (
+                    f"the contractor's internal QC table ({t.file}) has no check points for block {b}"
+                )
                 continue
             if r.error is not None:
                 vals[b], notes[b] = None, r.error
@@ -92,8 +100,16 @@ def internal_qc(ctx: ProviderContext) -> list[Measured]:
                 vals[b] = _stat(mine, b, stat)
                 if vals[b] is None:
                     notes[b] = f"block {b}: the contractor's internal QC points give no {stat}"
-        out.append(Measured(name, "block", unit, pd.Series(vals, dtype=object), pd.Series(evs, dtype=object),
-                            notes=pd.Series(notes, dtype=object) if notes else None))
+        out.append(
+            Measured(
+                name,
+                "block",
+                unit,
+                pd.Series(vals, dtype=object),
+                pd.Series(evs, dtype=object),
+                notes=pd.Series(notes, dtype=object) if notes else None,
+            )
+        )
     return out
 
 
@@ -104,17 +120,25 @@ def _imprecise(t: Any, block: str, tol: float | None) -> tuple[float | None, str
         return None, "tolerance_xy is not set: no limit for the reference accuracy"
     df = t.df[t.df["block"].astype(str) == block]
     to_m = float(convert([1.0], t.units.get("precision_xy", "m"), "m")[0])
-    prec = df["precision_xy"].to_numpy(float) * to_m if "precision_xy" in df else np.full(len(df), np.nan)
+    prec = (
+        df["precision_xy"].to_numpy(float) * to_m
+        if "precision_xy" in df
+        else np.full(len(df), np.nan)
+    )
     bad = ~(prec <= tol / 3.0)
     ids = df["point_id"].astype(str).to_numpy()[bad].tolist()
     if not ids:
         return 0.0, None
-    return float(len(ids)), (f"{len(ids)} of the contractor's {len(df)} internal-QC check points of block {block} "
-                             f"document a reference accuracy that is blank or worse than tolerance_xy / 3 "
-                             f"({tol / 3:.3g} m): " + ", ".join(ids[:10]) + (" ..." if len(ids) > 10 else ""))
+    return float(len(ids)), (
+        f"{len(ids)} of the contractor's {len(df)} internal-QC check points of block {block} "
+        f"document a reference accuracy that is blank or worse than tolerance_xy / 3 "
+        f"({tol / 3:.3g} m): " + ", ".join(ids[:10]) + (" ..." if len(ids) > 10 else "")
+    )
 
 
-def _agrees(block: str, mine: Results, theirs: Results, tol: float | None) -> tuple[bool | None, str]:
+def _agrees(
+    block: str, mine: Results, theirs: Results, tol: float | None
+) -> tuple[bool | None, str]:
     """(the two tables reach the same pass/fail for RMSEx and RMSEy against the tolerance, the note)."""
     ix, iy = _stat(mine, block, "rmse_x"), _stat(mine, block, "rmse_y")
     ex, ey = _stat(theirs, block, "rmse_x"), _stat(theirs, block, "rmse_y")
@@ -124,12 +148,17 @@ def _agrees(block: str, mine: Results, theirs: Results, tol: float | None) -> tu
         return None, f"block {block}: the contractor's internal QC points give no RMSE"
     if tol is None:
         return None, "tolerance_xy is not set: nothing to compare the two results against"
-    said = (f"internal QC (contractor) RMSEx {ix:.3f} m, RMSEy {iy:.3f} m vs external (checker) RMSEx {ex:.3f} m, "
-            f"RMSEy {ey:.3f} m; tolerance {tol:g} m")
+    said = (
+        f"internal QC (contractor) RMSEx {ix:.3f} m, RMSEy {iy:.3f} m vs external (checker) RMSEx {ex:.3f} m, "
+        f"RMSEy {ey:.3f} m; tolerance {tol:g} m"
+    )
     inside = [v <= tol for v in (ix, iy, ex, ey)]
     same = inside[0] == inside[2] and inside[1] == inside[3]
     if same:
         return True, f"{said}: both {'pass' if all(inside) else 'fail'} the block"
     word = "passes" if inside[0] and inside[1] else "fails"
     other = "passes" if inside[2] and inside[3] else "fails"
-    return False, f"{said}: the contractor's internal QC {word} the block, the external check {other} it"
+    return (
+        False,
+        f"{said}: the contractor's internal QC {word} the block, the external check {other} it",
+    )

@@ -20,8 +20,12 @@ from ...provenance import Evidence
 from ...raster.reading import read_vector
 from ..registry import Measured, ProviderContext, provider
 
-MEASURES = {"mosaic.aoi_coverage": "%", "mosaic.seamline_coverage": "%", "mosaic.seamline_overlap": "%",
-            "mosaic.seamlines_invalid": "1"}
+MEASURES = {
+    "mosaic.aoi_coverage": "%",
+    "mosaic.seamline_coverage": "%",
+    "mosaic.seamline_overlap": "%",
+    "mosaic.seamlines_invalid": "1",
+}
 
 
 def declared_aoi(ctx: ProviderContext) -> tuple[Any, tuple[Any, ...], str]:
@@ -36,8 +40,10 @@ def declared_aoi(ctx: ProviderContext) -> tuple[Any, tuple[Any, ...], str]:
     blocks = [b for b in d.manifest.blocks if b.polygon and len(b.polygon) >= 3]
     broken = [b.id for b in blocks if not finite_ring(b.polygon)]
     if broken:
-        raise MeasureError(f"delivery.yaml blocks {', '.join(broken)}: a polygon vertex is not a finite number, "
-                           "so the area of interest cannot be formed")
+        raise MeasureError(
+            f"delivery.yaml blocks {', '.join(broken)}: a polygon vertex is not a finite number, "
+            "so the area of interest cannot be formed"
+        )
     polys = [Polygon(b.polygon) for b in blocks]
     if not polys:
         return None, (d.manifest_evidence("project.area_of_interest"),), ""
@@ -59,8 +65,11 @@ def aoi_in_force(ctx: ProviderContext) -> tuple[Any, tuple[Any, ...], str]:
         ring, ev = in_force
         return ring_polygon(ring), (ev,), f"area of interest of the {stated.source}"
     if stated is not None and stated.blocks:
-        return (shapely.union_all([ring_polygon(r) for r, _ in stated.blocks.values()]),
-                tuple(e for _, e in stated.blocks.values()), f"union of the block outlines of the {stated.source}")
+        return (
+            shapely.union_all([ring_polygon(r) for r, _ in stated.blocks.values()]),
+            tuple(e for _, e in stated.blocks.values()),
+            f"union of the block outlines of the {stated.source}",
+        )
     return declared_aoi(ctx)
 
 
@@ -103,8 +112,9 @@ def mosaic_measures(ctx: ProviderContext) -> list[Measured]:
         if feet:
             cov = shapely.union_all(feet).intersection(aoi).area / aoi.area * 100.0
             vals["mosaic.aoi_coverage"] = cov
-            notes["mosaic.aoi_coverage"] = (f"image footprints cover {cov:.3f} % of the {source}"
-                                            + (f"; unreadable: {', '.join(bad)}" if bad else ""))
+            notes["mosaic.aoi_coverage"] = f"image footprints cover {cov:.3f} % of the {source}" + (
+                f"; unreadable: {', '.join(bad)}" if bad else ""
+            )
             t = d.table("images")
             evs["mosaic.aoi_coverage"] = aoi_ev + t.evidence(t.df["_row"])
         seam = d.manifest.vectors.get("seamlines")
@@ -115,25 +125,51 @@ def mosaic_measures(ctx: ProviderContext) -> list[Measured]:
                 vals["mosaic.seamline_coverage"] = 100.0 - sc.gap_pct
                 vals["mosaic.seamline_overlap"] = sc.overlap_pct
                 vals["mosaic.seamlines_invalid"] = float(len(sc.invalid_polygons))
-                notes["mosaic.seamline_coverage"] = (f"gap {sc.gap_area:.1f} m² ({sc.gap_pct:.4f} %) of the "
-                                                     f"{source}")
-                for n in ("mosaic.seamline_coverage", "mosaic.seamline_overlap", "mosaic.seamlines_invalid"):
+                notes["mosaic.seamline_coverage"] = (
+                    f"gap {sc.gap_area:.1f} m² ({sc.gap_pct:.4f} %) of the {source}"
+                )
+                for n in (
+                    "mosaic.seamline_coverage",
+                    "mosaic.seamline_overlap",
+                    "mosaic.seamlines_invalid",
+                ):
                     evs[n] = (*aoi_ev, d.evidence(seam))
-            except (OrthospecError, OSError, shapely.errors.ShapelyError) as exc:  # unreadable vector: error
-                for n in ("mosaic.seamline_coverage", "mosaic.seamline_overlap", "mosaic.seamlines_invalid"):
+            except (
+                OrthospecError,
+                OSError,
+                shapely.errors.ShapelyError,
+            ) as exc:  # unreadable vector: error
+                for n in (
+                    "mosaic.seamline_coverage",
+                    "mosaic.seamline_overlap",
+                    "mosaic.seamlines_invalid",
+                ):
                     errors[n] = f"{seam}: cannot read seamlines: {exc}"
         else:
-            for n in ("mosaic.seamline_coverage", "mosaic.seamline_overlap", "mosaic.seamlines_invalid"):
+            for n in (
+                "mosaic.seamline_coverage",
+                "mosaic.seamline_overlap",
+                "mosaic.seamlines_invalid",
+            ):
                 notes[n] = "the manifest gives no vectors.seamlines file"
     else:
         for n in MEASURES:
-            notes.setdefault(n, "no area of interest: give project.area_of_interest or block polygons")
+            notes.setdefault(
+                n, "no area of interest: give project.area_of_interest or block polygons"
+            )
     out = []
     for n, unit in MEASURES.items():
-        out.append(Measured(n, "delivery", unit, pd.Series({item: vals[n]}, dtype=object),
-                            pd.Series({item: evs.get(n, aoi_ev)}, dtype=object),
-                            notes=pd.Series({item: notes[n]}, dtype=object) if n in notes else None,
-                            errors=pd.Series({item: errors[n]}, dtype=object) if n in errors else None))
+        out.append(
+            Measured(
+                n,
+                "delivery",
+                unit,
+                pd.Series({item: vals[n]}, dtype=object),
+                pd.Series({item: evs.get(n, aoi_ev)}, dtype=object),
+                notes=pd.Series({item: notes[n]}, dtype=object) if n in notes else None,
+                errors=pd.Series({item: errors[n]}, dtype=object) if n in errors else None,
+            )
+        )
     return out
 
 
@@ -194,8 +230,16 @@ def raster_location(ctx: ProviderContext) -> list[Measured]:
     d = ctx.delivery
     got = scanned(ctx)
     if "missing" in got:
-        return [Measured("raster.in_area", "image", "bool", pd.Series(dtype=object), pd.Series(dtype=object),
-                         notes=pd.Series({"*": got["missing"]}, dtype=object))]
+        return [
+            Measured(
+                "raster.in_area",
+                "image",
+                "bool",
+                pd.Series(dtype=object),
+                pd.Series(dtype=object),
+                notes=pd.Series({"*": got["missing"]}, dtype=object),
+            )
+        ]
     t = got["table"]
     ids = [str(i) for i in t.ids.tolist()]
     blocks = dict(zip(ids, t.df["block"].tolist(), strict=True)) if "block" in t.df else {}
@@ -216,21 +260,34 @@ def raster_location(ctx: ProviderContext) -> list[Measured]:
         listed = Evidence(t.file, t.sha256, (int(rows[i]),))
         f = got["facts"].get(i)
         block = blocks.get(i)
-        block = None if block is None or (isinstance(block, float) and block != block) else str(block).strip()
+        block = (
+            None
+            if block is None or (isinstance(block, float) and block != block)
+            else str(block).strip()
+        )
         if block in polys:
             area, ev, what = polys[block], (outline_ev[block],), f"the outline of block {block}"
         elif aoi is not None:
-            area, ev, what = aoi, aoi_ev, f"the {aoi_what}" + (f" (block {block} has no outline)" if block else "")
+            area, ev, what = (
+                aoi,
+                aoi_ev,
+                f"the {aoi_what}" + (f" (block {block} has no outline)" if block else ""),
+            )
         else:
             area, ev, what = None, (), ""
-        file_ev = (Evidence(f.path, f.sha256 or got["sha256"].get(i, ""), ()),) if f is not None else ()
+        file_ev = (
+            (Evidence(f.path, f.sha256 or got["sha256"].get(i, ""), ()),) if f is not None else ()
+        )
         evidence[i] = (listed, *file_ev, *ev)
         if f is None or i in got["errors"]:
             values[i], notes[i] = None, "the file could not be read: its footprint is unknown"
             continue
         if area is None:
             values[i] = None
-            notes[i] = aoi_error or f"no outline for block {block} and no area of interest: nothing to place it in"
+            notes[i] = (
+                aoi_error
+                or f"no outline for block {block} and no area of interest: nothing to place it in"
+            )
             continue
         foot, why = _footprint(f, target, same)
         if foot is None:
@@ -241,7 +298,17 @@ def raster_location(ctx: ProviderContext) -> list[Measured]:
         if shared > 0.0:
             notes[i] = f"{100.0 * shared / foot.area:.1f} % of the file's footprint lies in {what}"
         else:
-            notes[i] = (f"the file's footprint {tuple(round(v, 2) for v in foot.bounds)} lies "
-                        f"{float(foot.distance(area)):.1f} map units outside {what}")
-    return [Measured("raster.in_area", "image", "bool", pd.Series(values, dtype=object),
-                     pd.Series(evidence, dtype=object), notes=pd.Series(notes, dtype=object))]
+            notes[i] = (
+                f"the file's footprint {tuple(round(v, 2) for v in foot.bounds)} lies "
+                f"{float(foot.distance(area)):.1f} map units outside {what}"
+            )
+    return [
+        Measured(
+            "raster.in_area",
+            "image",
+            "bool",
+            pd.Series(values, dtype=object),
+            pd.Series(evidence, dtype=object),
+            notes=pd.Series(notes, dtype=object),
+        )
+    ]

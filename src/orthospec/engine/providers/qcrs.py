@@ -40,31 +40,69 @@ class Qcr:
 
 AERIAL = (
     Qcr(6, "1", "Camera calibration certificate", ("cameras.certificate",)),
-    Qcr(6, "2", "Flight data including log of photo centres and flying height",
-        ("flights", "images.exposure_x", "images.exposure_y", "images.flying_height")),
-    Qcr(6, "3", "Control chart for the scanner performance (geometric)", ("scanner_tests",), "film"),
+    Qcr(
+        6,
+        "2",
+        "Flight data including log of photo centres and flying height",
+        ("flights", "images.exposure_x", "images.exposure_y", "images.flying_height"),
+    ),
+    Qcr(
+        6, "3", "Control chart for the scanner performance (geometric)", ("scanner_tests",), "film"
+    ),
     Qcr(6, "5", "Table of ground reference data for GCPs and check points", ("gcps",)),
     Qcr(6, "6", "Interior and exterior orientation results", ("aerotriangulation",)),
-    Qcr(6, "6", "Interior orientation results of the scanned images", ("interior_orientation",), "film"),
-    Qcr(6, "7", "Number of items rejected/reprocessed at each stage of internal QC", ("documents.rejected_items",)),
+    Qcr(
+        6,
+        "6",
+        "Interior orientation results of the scanned images",
+        ("interior_orientation",),
+        "film",
+    ),
+    Qcr(
+        6,
+        "7",
+        "Number of items rejected/reprocessed at each stage of internal QC",
+        ("documents.rejected_items",),
+    ),
     Qcr(6, "8", "Visualisation of the DEMs", ("documents.internal_qcr",)),
     Qcr(6, "9", "Comparison of DEMs with vertical checkpoints", ("dem.rmse_z?",), "dem"),
-    Qcr(6, "10", "Residuals of block adjustment on control and check points",
-        ("aerotriangulation.gcp_rmse_x", "aerotriangulation.gcp_rmse_y")),
-    Qcr(6, "11", "RMSE of finalised block adjustments using contractors' check points",
-        ("aerotriangulation.checkpoint_rmse_x", "aerotriangulation.checkpoint_rmse_y")),
+    Qcr(
+        6,
+        "10",
+        "Residuals of block adjustment on control and check points",
+        ("aerotriangulation.gcp_rmse_x", "aerotriangulation.gcp_rmse_y"),
+    ),
+    Qcr(
+        6,
+        "11",
+        "RMSE of finalised block adjustments using contractors' check points",
+        ("aerotriangulation.checkpoint_rmse_x", "aerotriangulation.checkpoint_rmse_y"),
+    ),
     Qcr(6, "12", "Ortho-image metadata", ("images",)),
     Qcr(6, "13", "Ortho-images (inspection result)", ("documents.internal_qcr",)),
 )
 SATELLITE = (
     Qcr(10, "1", "Image Check (esp. view angle record)", ("scenes.view_angle",)),
-    Qcr(10, "2", "DEM (esp. anomalies and height accuracy)", ("scenes.dem_accuracy", "scenes.dem_qc_result")),
+    Qcr(
+        10,
+        "2",
+        "DEM (esp. anomalies and height accuracy)",
+        ("scenes.dem_accuracy", "scenes.dem_qc_result"),
+    ),
     Qcr(10, "3", "Ground reference data", ("gcps",)),
-    Qcr(10, "6", "File of GCPs, check points and residuals", ("gcps.residual_x", "gcps.residual_y")),
+    Qcr(
+        10, "6", "File of GCPs, check points and residuals", ("gcps.residual_x", "gcps.residual_y")
+    ),
     Qcr(10, "7", "Adjustment/warp results", ("scenes.residual_rmse",)),
     Qcr(10, "8", "Resampling", ("scenes.resampling_method",)),
     Qcr(10, "9", "Visual accuracy check", ("documents.internal_qcr",)),
-    Qcr(10, "10", "Accuracy of the master image", ("scenes.checkpoint_rmse?", "scenes.master_check_date?"), "master"),
+    Qcr(
+        10,
+        "10",
+        "Accuracy of the master image",
+        ("scenes.checkpoint_rmse?", "scenes.master_check_date?"),
+        "master",
+    ),
     Qcr(10, "11", "Image metadata", ("scenes",)),
 )
 
@@ -102,8 +140,11 @@ def _record(ctx: ProviderContext, need: str) -> tuple[str | None, tuple[Evidence
     if (any_row and filled.any()) or filled.all():
         return None, ev
     blank = t.df.loc[~filled, "_row"].tolist()
-    return (f"{t.file} {col} empty in every row" if any_row else
-            f"{t.file} {col} empty in {len(blank)} row(s) (first: row {blank[0]})"), ev
+    return (
+        f"{t.file} {col} empty in every row"
+        if any_row
+        else f"{t.file} {col} empty in {len(blank)} row(s) (first: row {blank[0]})"
+    ), ev
 
 
 def _applies(ctx: ProviderContext, when: str) -> bool:
@@ -114,7 +155,11 @@ def _applies(ctx: ProviderContext, when: str) -> bool:
         return d.table("dem") is not None
     if when == "master":
         s = d.table("scenes")
-        return s is not None and "is_master" in s.df and bool(s.df["is_master"].map(lambda v: v is True).any())
+        return (
+            s is not None
+            and "is_master" in s.df
+            and bool(s.df["is_master"].map(lambda v: v is True).any())
+        )
     return True
 
 
@@ -139,7 +184,19 @@ def minimum_set(ctx: ProviderContext) -> list[Measured]:
         if whys:
             missing.append(f"Table {q.table} row {q.row} ({q.name}): {'; '.join(whys)}")
     table = qcrs[0].table
-    note = (f"every one of the {looked} QCRs of Table {table} that apply has its record" if not missing else
-            f"{len(missing)} of the {looked} QCRs of Table {table} have no record: " + " | ".join(missing))
-    return [Measured(NAME, "delivery", "1", pd.Series({d.id: float(len(missing))}, dtype=object),
-                     pd.Series({d.id: tuple(evidence)}, dtype=object), notes=pd.Series({d.id: note}, dtype=object))]
+    note = (
+        f"every one of the {looked} QCRs of Table {table} that apply has its record"
+        if not missing
+        else f"{len(missing)} of the {looked} QCRs of Table {table} have no record: "
+        + " | ".join(missing)
+    )
+    return [
+        Measured(
+            NAME,
+            "delivery",
+            "1",
+            pd.Series({d.id: float(len(missing))}, dtype=object),
+            pd.Series({d.id: tuple(evidence)}, dtype=object),
+            notes=pd.Series({d.id: note}, dtype=object),
+        )
+    ]

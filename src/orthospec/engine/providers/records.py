@@ -33,12 +33,26 @@ def flight_attitude(ctx: ProviderContext) -> list[Measured]:
     g = pd.DataFrame({"f": df["flight_id"].astype(str), "r": roll, "row": df["_row"]}).groupby("f")
     mean, mx, n = g["r"].mean(), g["r"].max(), g["r"].size()
     rows = g["row"].agg(list)
-    ev = {f: (Evidence(imgs.file, imgs.sha256, tuple(int(r) for r in rows.get(f, []))),) for f in ids}
+    ev = {
+        f: (Evidence(imgs.file, imgs.sha256, tuple(int(r) for r in rows.get(f, []))),) for f in ids
+    }
     notes = {f: "no photos of this flight in the images table" for f in ids if f not in rows.index}
     out = []
-    for name, s, unit in ((names[0], mean, "deg"), (names[1], mx, "deg"), (names[2], n.astype(float), "1")):
-        out.append(Measured(name, "flight", unit, pd.Series({f: s.get(f) for f in ids}, dtype=object),
-                            pd.Series(ev, dtype=object), notes=pd.Series(notes, dtype=object) if notes else None))
+    for name, s, unit in (
+        (names[0], mean, "deg"),
+        (names[1], mx, "deg"),
+        (names[2], n.astype(float), "1"),
+    ):
+        out.append(
+            Measured(
+                name,
+                "flight",
+                unit,
+                pd.Series({f: s.get(f) for f in ids}, dtype=object),
+                pd.Series(ev, dtype=object),
+                notes=pd.Series(notes, dtype=object) if notes else None,
+            )
+        )
     return out
 
 
@@ -65,21 +79,48 @@ def camera_age(ctx: ProviderContext) -> list[Measured]:
     d = ctx.delivery
     cams = d.table("cameras")
     if cams is None:
-        return [Measured("camera.calibration_age", "camera", "year", pd.Series(dtype=object),
-                         pd.Series(dtype=object), notes=pd.Series({"*": "no cameras table"}, dtype=object))]
+        return [
+            Measured(
+                "camera.calibration_age",
+                "camera",
+                "year",
+                pd.Series(dtype=object),
+                pd.Series(dtype=object),
+                notes=pd.Series({"*": "no cameras table"}, dtype=object),
+            )
+        ]
     ref, key = _reference_date(ctx)
     vals: dict[str, Any] = {}
     notes: dict[str, str] = {}
-    for cid, cal in zip(cams.ids, cams.df.get("calibration_date", pd.Series([None] * len(cams.df))), strict=True):
+    for cid, cal in zip(
+        cams.ids, cams.df.get("calibration_date", pd.Series([None] * len(cams.df))), strict=True
+    ):
         if cal is None or ref is None:
             vals[cid] = None
-            notes[cid] = "no calibration_date" if cal is None else "delivery.yaml dates give no acquisition date"
+            notes[cid] = (
+                "no calibration_date"
+                if cal is None
+                else "delivery.yaml dates give no acquisition date"
+            )
             continue
         vals[cid] = (ref - dt.date.fromisoformat(str(cal))).days / 365.25
-    ev = {cid: (Evidence(cams.file, cams.sha256, (int(r),)), d.manifest_evidence(f"dates.{key}" if key else "dates"))
-          for cid, r in zip(cams.ids, cams.df["_row"], strict=True)}
-    return [Measured("camera.calibration_age", "camera", "year", pd.Series(vals, dtype=object),
-                     pd.Series(ev, dtype=object), notes=pd.Series(notes, dtype=object) if notes else None)]
+    ev = {
+        cid: (
+            Evidence(cams.file, cams.sha256, (int(r),)),
+            d.manifest_evidence(f"dates.{key}" if key else "dates"),
+        )
+        for cid, r in zip(cams.ids, cams.df["_row"], strict=True)
+    }
+    return [
+        Measured(
+            "camera.calibration_age",
+            "camera",
+            "year",
+            pd.Series(vals, dtype=object),
+            pd.Series(ev, dtype=object),
+            notes=pd.Series(notes, dtype=object) if notes else None,
+        )
+    ]
 
 
 @provider(scope="image", measures={"geometry.gsd_from_flying_height": "m"})
@@ -90,13 +131,27 @@ def gsd_from_height(ctx: ProviderContext) -> list[Measured]:
     name = "geometry.gsd_from_flying_height"
     if imgs is None or cams is None:
         why = "needs the images and cameras tables"
-        return [Measured(name, "image", "m", pd.Series(dtype=object), pd.Series(dtype=object),
-                         notes=pd.Series({"*": why}, dtype=object))]
+        return [
+            Measured(
+                name,
+                "image",
+                "m",
+                pd.Series(dtype=object),
+                pd.Series(dtype=object),
+                notes=pd.Series({"*": why}, dtype=object),
+            )
+        ]
     cdf = cams.df.set_index(cams.ids)
-    f_mm = convert(cdf["focal_length"].to_numpy(float), cams.units.get("focal_length", "mm"), "m") \
-        if "focal_length" in cdf else np.full(len(cdf), np.nan)
-    px_m = convert(cdf["pixel_size"].to_numpy(float), cams.units.get("pixel_size", "µm"), "m") \
-        if "pixel_size" in cdf else np.full(len(cdf), np.nan)
+    f_mm = (
+        convert(cdf["focal_length"].to_numpy(float), cams.units.get("focal_length", "mm"), "m")
+        if "focal_length" in cdf
+        else np.full(len(cdf), np.nan)
+    )
+    px_m = (
+        convert(cdf["pixel_size"].to_numpy(float), cams.units.get("pixel_size", "µm"), "m")
+        if "pixel_size" in cdf
+        else np.full(len(cdf), np.nan)
+    )
     scale = pd.Series(px_m / f_mm, index=cdf.index)  # metres of ground per metre of height
     cam_row = dict(zip(cams.ids, cams.df["_row"], strict=True))
     cam_of_flight: dict[str, str] = {}
@@ -107,18 +162,36 @@ def gsd_from_height(ctx: ProviderContext) -> list[Measured]:
     ev: dict[str, tuple[Evidence, ...]] = {}
     notes: dict[str, str] = {}
     only = cdf.index[0] if len(cdf) == 1 else None
-    for iid, row, h, fl in zip(imgs.ids, df["_row"], df.get("flying_height", pd.Series([np.nan] * len(df))),
-                               df.get("flight_id", pd.Series([None] * len(df))), strict=True):
+    for iid, row, h, fl in zip(
+        imgs.ids,
+        df["_row"],
+        df.get("flying_height", pd.Series([np.nan] * len(df))),
+        df.get("flight_id", pd.Series([None] * len(df))),
+        strict=True,
+    ):
         cam = cam_of_flight.get(str(fl)) if fl is not None else None
         cam = cam or only
         items: list[Evidence] = [Evidence(imgs.file, imgs.sha256, (int(row),))]
         if cam is None or cam not in scale.index:
-            vals[iid], notes[iid] = None, "cannot tell which camera took this photo (flights.camera_id)"
+            vals[iid], notes[iid] = (
+                None,
+                "cannot tell which camera took this photo (flights.camera_id)",
+            )
         elif h is None or np.isnan(h):
             vals[iid], notes[iid] = None, "no flying_height"
         else:
-            vals[iid] = float(convert([h], imgs.units.get("flying_height", "m"), "m")[0] * scale[cam])
+            vals[iid] = float(
+                convert([h], imgs.units.get("flying_height", "m"), "m")[0] * scale[cam]
+            )
             items.append(Evidence(cams.file, cams.sha256, (int(cam_row[cam]),)))
         ev[iid] = tuple(items)
-    return [Measured(name, "image", "m", pd.Series(vals, dtype=object), pd.Series(ev, dtype=object),
-                     notes=pd.Series(notes, dtype=object) if notes else None)]
+    return [
+        Measured(
+            name,
+            "image",
+            "m",
+            pd.Series(vals, dtype=object),
+            pd.Series(ev, dtype=object),
+            notes=pd.Series(notes, dtype=object) if notes else None,
+        )
+    ]

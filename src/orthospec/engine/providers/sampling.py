@@ -36,7 +36,11 @@ def _sample(ctx: ProviderContext, ids: list[str], marked: list[bool]) -> tuple[s
     if given:
         return str(given[0]), set(map(str, given[1])), "the sample given with check --sample"
     if any(marked):
-        return "image", {i for i, m in zip(ids, marked, strict=True) if m}, "images marked in the sample column"
+        return (
+            "image",
+            {i for i, m in zip(ids, marked, strict=True) if m},
+            "images marked in the sample column",
+        )
     return "image", set(ids), "no sample: every image is checked"
 
 
@@ -48,8 +52,10 @@ def _view_angles(ctx: ProviderContext, ids: list[str]) -> pd.Series:
     for table in ("images", "scenes"):
         t = d.table(table)
         if t is not None and "view_angle" in t.df:
-            s = pd.Series(pd.to_numeric(t.df["view_angle"], errors="coerce").to_numpy(float),
-                          index=t.ids.astype(str).to_numpy())
+            s = pd.Series(
+                pd.to_numeric(t.df["view_angle"], errors="coerce").to_numpy(float),
+                index=t.ids.astype(str).to_numpy(),
+            )
             s = s[~s.index.duplicated()].reindex(ids).abs()
             out = pd.concat([out, s], axis=1).max(axis=1)
     return out
@@ -81,8 +87,10 @@ def strata_missed(ctx: ProviderContext) -> tuple[list[str], str, tuple[Evidence,
         if not any(block_of[i] == b for i in sampled if i in block_of):
             missed.append(f"block {b}: no image sampled")
     if "tags" in df:
-        tags_of = {i: {t.strip() for t in str(v).split(";") if t.strip()} if v is not None else set()
-                   for i, v in zip(ids, df["tags"].tolist(), strict=True)}
+        tags_of = {
+            i: {t.strip() for t in str(v).split(";") if t.strip()} if v is not None else set()
+            for i, v in zip(ids, df["tags"].tolist(), strict=True)
+        }
         for tag in sorted(set().union(*tags_of.values()) if tags_of else set()):
             if not any(tag in tags_of[i] for i in sampled if i in tags_of):
                 missed.append(f"tag {tag!r}: no sampled image carries it")
@@ -96,7 +104,9 @@ def strata_missed(ctx: ProviderContext) -> tuple[list[str], str, tuple[Evidence,
     views = _view_angles(ctx, ids)
     high = [i for i in ids if views.get(i, np.nan) > lim]
     if high and not sampled & set(high):
-        missed.append(f"high view angles: none of the {len(high)} images beyond {lim:g} deg sampled")
+        missed.append(
+            f"high view angles: none of the {len(high)} images beyond {lim:g} deg sampled"
+        )
     return missed, f"{len(sampled & set(ids))} of {len(ids)} images ({source})", ev
 
 
@@ -106,8 +116,19 @@ def sample_selection(ctx: ProviderContext) -> list[Measured]:
     sample in force leaves out."""
     d = ctx.delivery
     missed, what, ev = strata_missed(ctx)
-    note = (f"sample: {what}; " + ("every block, tag, problem batch and high view angle is represented"
-                                    if not missed else "the checker must add: " + "; ".join(missed)))
+    note = f"sample: {what}; " + (
+        "every block, tag, problem batch and high view angle is represented"
+        if not missed
+        else "the checker must add: " + "; ".join(missed)
+    )
     value: Any = float(len(missed))
-    return [Measured(NAME, "delivery", "1", pd.Series({d.id: value}, dtype=object), pd.Series({d.id: ev}, dtype=object),
-                     notes=pd.Series({d.id: note}, dtype=object))]
+    return [
+        Measured(
+            NAME,
+            "delivery",
+            "1",
+            pd.Series({d.id: value}, dtype=object),
+            pd.Series({d.id: ev}, dtype=object),
+            notes=pd.Series({d.id: note}, dtype=object),
+        )
+    ]

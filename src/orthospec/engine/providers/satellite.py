@@ -37,15 +37,23 @@ from ...raster.footprints import image_footprints
 from ...units import convert
 from ..registry import Measured, ProviderContext, provider
 
-MEASURES = {"scene.gcp_count": "1", "scene.gcp_count_agrees": "bool", "scene.area": "km²",
-            "scene.gcp_strip_supplement": "1", "scene.gcp_quadrants": "1", "scene.checkpoints_on_gcps": "1"}
+MEASURES = {
+    "scene.gcp_count": "1",
+    "scene.gcp_count_agrees": "bool",
+    "scene.area": "km²",
+    "scene.gcp_strip_supplement": "1",
+    "scene.gcp_quadrants": "1",
+    "scene.checkpoints_on_gcps": "1",
+}
 #: the strip step of Table 9 ("plus 2 per additional 100km² of strip scene")
 STRIP_AREA_KM2 = 100.0
 #: precision (m) assumed for a point whose precision_xy is not given, when telling a check point from a GCP
 DEFAULT_PRECISION_M = 0.05
 
 
-def strip_supplement(area_km2: float, *, base_area_km2: float = 100.0, per_area: float = 2.0) -> float:
+def strip_supplement(
+    area_km2: float, *, base_area_km2: float = 100.0, per_area: float = 2.0
+) -> float:
     """Extra GCPs for a strip of ``area_km2``: ``per_area`` for each started ``base_area_km2`` beyond
     the first (Table 9 "plus 2 per additional 100km² of strip scene")."""
     if not math.isfinite(area_km2) or area_km2 <= base_area_km2:
@@ -53,7 +61,9 @@ def strip_supplement(area_km2: float, *, base_area_km2: float = 100.0, per_area:
     return per_area * math.ceil((area_km2 - base_area_km2) / base_area_km2 - 1e-9)
 
 
-def footprints(ctx: ProviderContext) -> dict[str, tuple[tuple[float, float, float, float] | None, str | None]]:
+def footprints(
+    ctx: ProviderContext,
+) -> dict[str, tuple[tuple[float, float, float, float] | None, str | None]]:
     """Image id -> (left, bottom, right, top) of its delivered raster, or (None, why); once per run."""
     if "image_footprints" not in ctx.memo:
         ctx.memo["image_footprints"] = image_footprints(ctx.delivery)
@@ -85,10 +95,20 @@ def scene_gcps(ctx: ProviderContext) -> list[Measured]:
     ids: list[str] = imgs.ids.astype(str).tolist() if imgs is not None else []
     if scenes is not None:
         ids += [i for i in scenes.ids.astype(str).tolist() if i not in set(ids)]
-    if d.manifest.sensor.type != "satellite":  # Table 9 facts: no raster or GCP file is read for air photos
+    if (
+        d.manifest.sensor.type != "satellite"
+    ):  # Table 9 facts: no raster or GCP file is read for air photos
         # (every rule reading these applies to satellite deliveries only: its `when` says why not here)
-        return [Measured(n, "image", u, pd.Series(dict.fromkeys(ids), dtype=object),
-                         pd.Series({i: () for i in ids}, dtype=object)) for n, u in MEASURES.items()]
+        return [
+            Measured(
+                n,
+                "image",
+                u,
+                pd.Series(dict.fromkeys(ids), dtype=object),
+                pd.Series({i: () for i in ids}, dtype=object),
+            )
+            for n, u in MEASURES.items()
+        ]
     feet = footprints(ctx)
     count: dict[str, Any] = {}
     notes: dict[str, str] = {}
@@ -96,13 +116,20 @@ def scene_gcps(ctx: ProviderContext) -> list[Measured]:
     scene_rows: dict[str, np.ndarray] = {}  # scene -> mask of its GCP rows
     if gcps is None:
         for i in ids:
-            count[i], notes[i], ev[i] = None, "the delivery has no GCP table (tables.gcps): nothing to count", ()
+            count[i], notes[i], ev[i] = (
+                None,
+                "the delivery has no GCP table (tables.gcps): nothing to count",
+                (),
+            )
     else:
         df = gcps.df
         named = df["image_id"].tolist() if "image_id" in df else [None] * len(df)
         xs, ys = df["x"].to_numpy(float), df["y"].to_numpy(float)
         rows = df["_row"].to_numpy(np.int64)
-        lists = [{p.strip() for p in str(v).split(";") if p.strip()} if v is not None else set() for v in named]
+        lists = [
+            {p.strip() for p in str(v).split(";") if p.strip()} if v is not None else set()
+            for v in named
+        ]
         unnamed = np.array([not s for s in lists], dtype=bool)
         unknown = sorted({p for s in lists for p in s} - set(ids))
         rows_of: dict[str, list[int]] = {}
@@ -122,23 +149,34 @@ def scene_gcps(ctx: ProviderContext) -> list[Measured]:
             if by_name.any():
                 parts.append(f"{int(by_name.sum())} naming it in {gcps.file} image_id")
             if unnamed.any():
-                parts.append(f"{int(inside.sum())} of the {int(unnamed.sum())} rows naming no scene inside its "
-                             "orthoimage footprint" if b is not None else
-                             f"{int(unnamed.sum())} rows name no scene and its footprint is unknown ({why})")
+                parts.append(
+                    f"{int(inside.sum())} of the {int(unnamed.sum())} rows naming no scene inside its "
+                    "orthoimage footprint"
+                    if b is not None
+                    else f"{int(unnamed.sum())} rows name no scene and its footprint is unknown ({why})"
+                )
             if b is None and unnamed.any() and not by_name.any():
                 count[i] = None
             else:
                 count[i] = float(n)
-            notes[i] = f"{n} GCP(s): " + "; ".join(parts) if parts else f"no row of {gcps.file} names {i}"
+            notes[i] = (
+                f"{n} GCP(s): " + "; ".join(parts) if parts else f"no row of {gcps.file} names {i}"
+            )
             if unknown:
-                notes[i] += f" ({gcps.file} image_id names unknown scenes: {', '.join(unknown[:5])})"
+                notes[i] += (
+                    f" ({gcps.file} image_id names unknown scenes: {', '.join(unknown[:5])})"
+                )
             ev[i] = (Evidence(gcps.file, gcps.sha256, tuple(int(r) for r in rows[hit])),)
             scene_rows[i] = hit
     declared: dict[str, Any] = {}
     decl_ev: dict[str, Evidence] = {}
     if scenes is not None and "gcp_count" in scenes.df:
-        for i, v, row in zip(scenes.ids.astype(str), scenes.df["gcp_count"].tolist(), scenes.df["_row"].tolist(),
-                             strict=True):
+        for i, v, row in zip(
+            scenes.ids.astype(str),
+            scenes.df["gcp_count"].tolist(),
+            scenes.df["_row"].tolist(),
+            strict=True,
+        ):
             if v is not None and not (isinstance(v, float) and math.isnan(v)):
                 declared[i] = float(v)
                 decl_ev[i] = Evidence(scenes.file, scenes.sha256, (int(row),))
@@ -153,7 +191,9 @@ def scene_gcps(ctx: ProviderContext) -> list[Measured]:
             agrees[i], agree_notes[i] = None, notes[i]
         else:
             agrees[i] = declared[i] == count[i]
-            agree_notes[i] = f"declared {declared[i]:g} (scenes.gcp_count), counted {count[i]:g}: {notes[i]}"
+            agree_notes[i] = (
+                f"declared {declared[i]:g} (scenes.gcp_count), counted {count[i]:g}: {notes[i]}"
+            )
     base = STRIP_AREA_KM2
     per = _param(ctx, "gcp_strip_per_area", "1", 2.0)
     area: dict[str, Any] = {}
@@ -164,35 +204,78 @@ def scene_gcps(ctx: ProviderContext) -> list[Measured]:
         a = _area_km2(b, d.crs_unit if d.manifest.project.crs else "m") if b is not None else None
         area[i] = a
         supp[i] = strip_supplement(a, base_area_km2=base, per_area=per) if a is not None else None
-        area_notes[i] = (f"orthoimage footprint {a:.4g} km²; + {supp[i]:g} GCP(s) for a strip (Table 9: "
-                         f"+{per:g} per additional {base:g} km²)" if a is not None else
-                         f"no footprint area: {why or 'the project CRS is not in a length unit'}")
+        area_notes[i] = (
+            f"orthoimage footprint {a:.4g} km²; + {supp[i]:g} GCP(s) for a strip (Table 9: "
+            f"+{per:g} per additional {base:g} km²)"
+            if a is not None
+            else f"no footprint area: {why or 'the project CRS is not in a length unit'}"
+        )
     row_ev = {i: (*ev.get(i, ()), *((decl_ev[i],) if i in decl_ev else ())) for i in ids}
     img_ev: dict[str, tuple[Evidence, ...]] = {}
     if imgs is not None:
-        img_ev = {str(i): (Evidence(imgs.file, imgs.sha256, (int(r),)),)
-                  for i, r in zip(imgs.ids, imgs.df["_row"], strict=True)}
+        img_ev = {
+            str(i): (Evidence(imgs.file, imgs.sha256, (int(r),)),)
+            for i, r in zip(imgs.ids, imgs.df["_row"], strict=True)
+        }
     quads, quad_notes = _quadrants(ids, feet, gcps, scene_rows)
     on_gcps, on_notes, on_ev = _checkpoints_on_gcps(ctx, ids, gcps, scene_rows)
     s = pd.Series
     return [
-        Measured("scene.gcp_quadrants", "image", "1", s(quads, dtype=object), s(ev, dtype=object),
-                 notes=s(quad_notes, dtype=object)),
-        Measured("scene.checkpoints_on_gcps", "image", "1", s(on_gcps, dtype=object), s(on_ev, dtype=object),
-                 notes=s(on_notes, dtype=object)),
-        Measured("scene.gcp_count", "image", "1", s(count, dtype=object), s(ev, dtype=object),
-                 notes=s(notes, dtype=object)),
-        Measured("scene.gcp_count_agrees", "image", "bool", s(agrees, dtype=object), s(row_ev, dtype=object),
-                 notes=s(agree_notes, dtype=object), na=s(na, dtype=object) if na else None),
-        Measured("scene.area", "image", "km²", s(area, dtype=object), s(img_ev, dtype=object),
-                 notes=s(area_notes, dtype=object)),
-        Measured("scene.gcp_strip_supplement", "image", "1", s(supp, dtype=object), s(img_ev, dtype=object),
-                 notes=s(area_notes, dtype=object)),
+        Measured(
+            "scene.gcp_quadrants",
+            "image",
+            "1",
+            s(quads, dtype=object),
+            s(ev, dtype=object),
+            notes=s(quad_notes, dtype=object),
+        ),
+        Measured(
+            "scene.checkpoints_on_gcps",
+            "image",
+            "1",
+            s(on_gcps, dtype=object),
+            s(on_ev, dtype=object),
+            notes=s(on_notes, dtype=object),
+        ),
+        Measured(
+            "scene.gcp_count",
+            "image",
+            "1",
+            s(count, dtype=object),
+            s(ev, dtype=object),
+            notes=s(notes, dtype=object),
+        ),
+        Measured(
+            "scene.gcp_count_agrees",
+            "image",
+            "bool",
+            s(agrees, dtype=object),
+            s(row_ev, dtype=object),
+            notes=s(agree_notes, dtype=object),
+            na=s(na, dtype=object) if na else None,
+        ),
+        Measured(
+            "scene.area",
+            "image",
+            "km²",
+            s(area, dtype=object),
+            s(img_ev, dtype=object),
+            notes=s(area_notes, dtype=object),
+        ),
+        Measured(
+            "scene.gcp_strip_supplement",
+            "image",
+            "1",
+            s(supp, dtype=object),
+            s(img_ev, dtype=object),
+            notes=s(area_notes, dtype=object),
+        ),
     ]
 
 
-def _quadrants(ids: list[str], feet: dict[str, Any], gcps: Any, scene_rows: dict[str, np.ndarray]
-               ) -> tuple[dict[str, Any], dict[str, str]]:
+def _quadrants(
+    ids: list[str], feet: dict[str, Any], gcps: Any, scene_rows: dict[str, np.ndarray]
+) -> tuple[dict[str, Any], dict[str, str]]:
     """Per scene: quarters of its footprint holding one of its GCPs (None when either is unknown)."""
     vals: dict[str, Any] = {}
     notes: dict[str, str] = {}
@@ -209,16 +292,21 @@ def _quadrants(ids: list[str], feet: dict[str, Any], gcps: Any, scene_rows: dict
         cx, cy = (b[0] + b[2]) / 2.0, (b[1] + b[3]) / 2.0
         inside = (xs >= b[0]) & (xs <= b[2]) & (ys >= b[1]) & (ys <= b[3])
         names = ("south-west", "south-east", "north-west", "north-east")
-        held = {names[int(x >= cx) + 2 * int(y >= cy)] for x, y in zip(xs[inside], ys[inside], strict=True)}
+        held = {
+            names[int(x >= cx) + 2 * int(y >= cy)]
+            for x, y in zip(xs[inside], ys[inside], strict=True)
+        }
         vals[i] = float(len(held))
         empty = [q for q in names if q not in held]
-        notes[i] = (f"{int(inside.sum())} of its {int(hit.sum())} GCPs inside the footprint; "
-                    + (f"no GCP in the {', '.join(empty)} quarter(s)" if empty else "a GCP in every quarter"))
+        notes[i] = f"{int(inside.sum())} of its {int(hit.sum())} GCPs inside the footprint; " + (
+            f"no GCP in the {', '.join(empty)} quarter(s)" if empty else "a GCP in every quarter"
+        )
     return vals, notes
 
 
-def _checkpoints_on_gcps(ctx: ProviderContext, ids: list[str], gcps: Any, scene_rows: dict[str, np.ndarray]
-                         ) -> tuple[dict[str, Any], dict[str, str], dict[str, tuple[Evidence, ...]]]:
+def _checkpoints_on_gcps(
+    ctx: ProviderContext, ids: list[str], gcps: Any, scene_rows: dict[str, np.ndarray]
+) -> tuple[dict[str, Any], dict[str, str], dict[str, tuple[Evidence, ...]]]:
     """Per scene: its listed check points that are one of its GCPs (id, or position within
     blunder_factor x the combined precision, and never nearer than the distance that tells two points
     apart whatever precision the tables declare: :func:`~orthospec.measures.independence.separation`
@@ -230,9 +318,12 @@ def _checkpoints_on_gcps(ctx: ProviderContext, ids: list[str], gcps: Any, scene_
         cps = ctx.delivery.table("checkpoints")
     factor = _param(ctx, "blunder_factor", "1", 3.0)
     # a declared precision of 0.1 mm must not shrink "the same point" to nothing (a GCP moved 1 cm)
-    floor = separation(_param(ctx, "tolerance_xy", "m", math.nan), ctx.delivery.gsd_m,
-                       tolerance_factor=_param(ctx, "checkpoint_separation_factor", "1", 1.0),
-                       gsd_px=_param(ctx, "checkpoint_separation_px", "pixel", 2.0))
+    floor = separation(
+        _param(ctx, "tolerance_xy", "m", math.nan),
+        ctx.delivery.gsd_m,
+        tolerance_factor=_param(ctx, "checkpoint_separation_factor", "1", 1.0),
+        gsd_px=_param(ctx, "checkpoint_separation_px", "pixel", 2.0),
+    )
     vals: dict[str, Any] = {}
     notes: dict[str, str] = {}
     ev: dict[str, tuple[Evidence, ...]] = {}
@@ -242,21 +333,28 @@ def _checkpoints_on_gcps(ctx: ProviderContext, ids: list[str], gcps: Any, scene_
     cdf = cps.df
     c_img = cdf["image_id"].astype(str).to_numpy()
     cx, cy = cdf["x_ref"].to_numpy(float), cdf["y_ref"].to_numpy(float)
-    cp_prec = (cdf["precision_xy"].to_numpy(float) if "precision_xy" in cdf
-               else np.full(len(cdf), np.nan))
+    cp_prec = (
+        cdf["precision_xy"].to_numpy(float) if "precision_xy" in cdf else np.full(len(cdf), np.nan)
+    )
     cp_prec = np.where(np.isnan(cp_prec), DEFAULT_PRECISION_M, cp_prec)
     cp_ids = cdf["point_id"].astype(str).to_numpy()
     for i in ids:
         mine = c_img == i
         if not mine.any():
-            vals[i], notes[i], ev[i] = None, f"no check point of {cps.file} is measured on {i} (image_id)", ()
+            vals[i], notes[i], ev[i] = (
+                None,
+                f"no check point of {cps.file} is measured on {i} (image_id)",
+                (),
+            )
             continue
         if gcps is None or i not in scene_rows:
             vals[i], notes[i], ev[i] = None, "no GCP table to compare with", ()
             continue
         g = gcps.df[scene_rows[i]]
         gx, gy = g["x"].to_numpy(float), g["y"].to_numpy(float)
-        g_prec = g["precision_xy"].to_numpy(float) if "precision_xy" in g else np.full(len(g), np.nan)
+        g_prec = (
+            g["precision_xy"].to_numpy(float) if "precision_xy" in g else np.full(len(g), np.nan)
+        )
         g_prec = np.where(np.isnan(g_prec), DEFAULT_PRECISION_M, g_prec)
         g_ids = set(g["point_id"].astype(str))
         same: list[str] = []
@@ -272,8 +370,13 @@ def _checkpoints_on_gcps(ctx: ProviderContext, ids: list[str], gcps: Any, scene_
                     same.append(f"{cp_ids[k]} ({dist[j]:.3f} m from GCP {g['point_id'].iloc[j]})")
         vals[i] = float(len(same))
         n = int(mine.sum())
-        notes[i] = (f"{len(same)} of its {n} check points are GCPs of the scene: {', '.join(same[:5])}" if same else
-                    f"none of its {n} check points is one of its {len(g)} GCPs")
-        ev[i] = (Evidence(cps.file, cps.sha256, tuple(int(r) for r in cdf["_row"].to_numpy()[mine])),
-                 Evidence(gcps.file, gcps.sha256, tuple(int(r) for r in g["_row"])))
+        notes[i] = (
+            f"{len(same)} of its {n} check points are GCPs of the scene: {', '.join(same[:5])}"
+            if same
+            else f"none of its {n} check points is one of its {len(g)} GCPs"
+        )
+        ev[i] = (
+            Evidence(cps.file, cps.sha256, tuple(int(r) for r in cdf["_row"].to_numpy()[mine])),
+            Evidence(gcps.file, gcps.sha256, tuple(int(r) for r in g["_row"])),
+        )
     return vals, notes, ev

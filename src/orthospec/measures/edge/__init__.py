@@ -30,7 +30,8 @@ The chain (seed step in brackets) on a 2-D ROI holding one straight edge:
   unsharp-masked, diffraction-limited pupil) integrated over the square pixel at the measured
   angle, chosen by its leave-one-out error (issue 31), primary when its lack-of-fit F test
   passes (else the better of it and the spline out of sample); every RER, FWHM and MTF@Ny
-  with a standard uncertainty (noise and the spread of the plausible models); non-parametric (GCV cubic smoothing spline, scipy's criterion in numpy, on the ESF
+  with a standard uncertainty (noise and the spread of the plausible models); non-parametric (GCV
+  cubic smoothing spline, scipy's criterion in numpy, on the ESF
   binned at 1/``oversample`` px, weighted by counts) and parametric (sum of
   Fermi-Dirac functions); both normalised 0..1.
 * RER [9] at +-0.5 px around the centre (LSF peak for the spline, ESF = 0.5

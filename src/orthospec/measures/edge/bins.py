@@ -49,7 +49,9 @@ def bin_index(d: np.ndarray, bw: float, core: Core = None) -> np.ndarray:
     return idx - idx.min()
 
 
-def bins(d: np.ndarray, v: np.ndarray, bw: float, core: Core = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def bins(
+    d: np.ndarray, v: np.ndarray, bw: float, core: Core = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Bin the ESF at ``bw`` px: mean distance, mean value and count of each non-empty bin."""
     idx = bin_index(d, bw, core)
     n = np.bincount(idx)
@@ -88,8 +90,15 @@ _CHI2_TRIGGER = 0.1  # GCV fits below this interpolate noise (seen: 0.07; normal
 _CHI2_TARGET = 0.4  # where such a fit is moved to (typical chi2 / bins of good fits)
 
 
-def smoothing_spline(d: np.ndarray, v: np.ndarray, bw: float, lo: float, hi: float,
-            noise: float = math.nan, core: Core = None) -> Any:
+def smoothing_spline(
+    d: np.ndarray,
+    v: np.ndarray,
+    bw: float,
+    lo: float,
+    hi: float,
+    noise: float = math.nan,
+    core: Core = None,
+) -> Any:
     """GCV cubic smoothing spline of the binned ESF (weights = samples per bin).
 
     Guard against GCV's known occasional gross under-smoothing: with the pixel ``noise``
@@ -129,5 +138,3 @@ def smoothing_spline(d: np.ndarray, v: np.ndarray, bw: float, lo: float, hi: flo
         return best
     except (ValueError, np.linalg.LinAlgError):
         return None
-
-

@@ -100,13 +100,16 @@ def _warnings(angle_deg: float | None, lim: EdgeLimits) -> tuple[str, ...]:
     """Seed step 3d permits 0-30 deg (TBR); beyond it (up to ``max_angle_deg``) the edge is
     measured as accurately (issue 31 benchmark) and the result says so."""
     if angle_deg is not None and lim.standard_max_angle_deg < angle_deg <= lim.max_angle_deg:
-        return (f"edge angle {angle_deg:.2f} deg is beyond the 0-{lim.standard_max_angle_deg:g} deg "
-                "of CEOS step 3d (TBR); measured (the ESF is sampled as finely up to 45 deg)",)
+        return (
+            f"edge angle {angle_deg:.2f} deg is beyond the 0-{lim.standard_max_angle_deg:g} deg "
+            "of CEOS step 3d (TBR); measured (the ESF is sampled as finely up to 45 deg)",
+        )
     return ()
 
 
-def fit_esf(s: EsfSamples, areas: Areas, lim: EdgeLimits, angle_deg: float | None,
-            quant: float) -> dict[str, EdgeFit]:
+def fit_esf(
+    s: EsfSamples, areas: Areas, lim: EdgeLimits, angle_deg: float | None, quant: float
+) -> dict[str, EdgeFit]:
     """Step 8 on the trimmed ESF: Fermi-Dirac, smoothing spline and (with an angle) the PSF
     model; none without a window and ordered levels."""
     fits: dict[str, EdgeFit] = {}
@@ -125,28 +128,44 @@ def fit_esf(s: EsfSamples, areas: Areas, lim: EdgeLimits, angle_deg: float | Non
     if spl is not None:
         fits[SPLINE] = spline_fit(spl, lo, hi, areas.levels, bw)
     if angle_deg is not None:
-        model = psf_fit(d, v, bw, lo, hi, areas.levels, angle_deg,
-                        sigma0=0.5 * (areas.bright_start - areas.dark_start), quant=quant, core=core)
+        model = psf_fit(
+            d,
+            v,
+            bw,
+            lo,
+            hi,
+            areas.levels,
+            angle_deg,
+            sigma0=0.5 * (areas.bright_start - areas.dark_start),
+            quant=quant,
+            core=core,
+        )
         if model is not None:
             fits[model.fit] = model
     return fits
 
 
-def _with_spline_uncertainty(fits: dict[str, EdgeFit], s: EsfSamples, areas: Areas, lim: EdgeLimits,
-                             quant: float) -> EdgeFit:
+def _with_spline_uncertainty(
+    fits: dict[str, EdgeFit], s: EsfSamples, areas: Areas, lim: EdgeLimits, quant: float
+) -> EdgeFit:
     """The spline fit with its standard uncertainties (only computed when it is the primary)."""
     lo, hi = areas.window  # type: ignore[misc]
     spl = fits[SPLINE]
     model = next((fits[n] for n in PSF_FITS if n in fits), None)
     cands = model.params.get("candidates", {}) if model is not None else {}
     noise = within_bin_std(s.d[areas.uniform], s.v[areas.uniform], lim.bin_px)
-    unc = spline_uncertainty(s.d, s.v, lim.bin_px, lo, hi, areas.levels, noise, quant, spl, cands,
-                             areas.core)
+    unc = spline_uncertainty(
+        s.d, s.v, lim.bin_px, lo, hi, areas.levels, noise, quant, spl, cands, areas.core
+    )
     return dataclasses.replace(spl, params={**spl.params, **unc})
 
 
-def _prepare(roi: np.ndarray | np.ma.MaskedArray, nodata: float | None, bit_depth: int | None,
-             gsd: float | None) -> tuple[np.ndarray, np.ndarray, float]:
+def _prepare(
+    roi: np.ndarray | np.ma.MaskedArray,
+    nodata: float | None,
+    bit_depth: int | None,
+    gsd: float | None,
+) -> tuple[np.ndarray, np.ndarray, float]:
     """Malformed input raises; returns the array, its float copy with ``nodata`` and masked
     pixels as NaN, and the DN step of quantised data (integer DNs: its noise floor q / sqrt(12)
     never averages out)."""
@@ -156,13 +175,18 @@ def _prepare(roi: np.ndarray | np.ma.MaskedArray, nodata: float | None, bit_dept
     if arr.ndim != 2:
         raise MeasureError(f"edge ROI must be a 2-D array, got {arr.ndim} dimension(s) {arr.shape}")
     if min(arr.shape) < 5:
-        raise MeasureError(f"edge ROI {arr.shape[1]} x {arr.shape[0]} px is too small; "
-                           "expected at least 5 x 5 px (and > 20 lines to pass the checks)")
+        raise MeasureError(
+            f"edge ROI {arr.shape[1]} x {arr.shape[0]} px is too small; "
+            "expected at least 5 x 5 px (and > 20 lines to pass the checks)"
+        )
     if not (np.issubdtype(arr.dtype, np.number) or arr.dtype == bool):
         raise MeasureError(f"edge ROI must be numeric, got dtype {arr.dtype}")
     img = arr.astype(float)
-    quant = 1.0 if (bit_depth is not None or np.issubdtype(arr.dtype, np.integer)
-                    or _integer_valued(img)) else 0.0
+    quant = (
+        1.0
+        if (bit_depth is not None or np.issubdtype(arr.dtype, np.integer) or _integer_valued(img))
+        else 0.0
+    )
     if nodata is not None:
         img[img == nodata] = np.nan
     if invalid is not None:

@@ -97,13 +97,33 @@ def uniform_areas(s: EsfSamples, bw: float, plateau_px: float,
     if dark_side.sum() > 1 and bright_side.sum() > 1:
         stds = (float(v[dark_side].std(ddof=1)), float(v[bright_side].std(ddof=1)))
         sat_frac = max(saturated(v[dark_side], *sat), saturated(v[bright_side], *sat))
-    widths = (float(np.median(dark_start - s.row_dmin)), float(np.median(s.row_dmax - bright_start)))
-    return Areas(cover, gap, dark_start, bright_start, (lo, hi), levels, stds, sat_frac, widths,
-                 dsel | bsel, (dark_edge - 1.0, bright_edge + 1.0))
+    widths = (
+        float(np.median(dark_start - s.row_dmin)),
+        float(np.median(s.row_dmax - bright_start)),
+    )
+    return Areas(
+        cover,
+        gap,
+        dark_start,
+        bright_start,
+        (lo, hi),
+        levels,
+        stds,
+        sat_frac,
+        widths,
+        dsel | bsel,
+        (dark_edge - 1.0, bright_edge + 1.0),
+    )
 
 
-def _trim(first: Any, d: np.ndarray, v: np.ndarray, dark_start: float, bright_start: float,
-          plateau_px: float) -> tuple[float, float, float, float]:
+def _trim(
+    first: Any,
+    d: np.ndarray,
+    v: np.ndarray,
+    dark_start: float,
+    bright_start: float,
+    plateau_px: float,
+) -> tuple[float, float, float, float]:
     """Step 7b-c: where the uniform areas begin (dark_edge, bright_edge) and the trimmed window.
 
     The uniform areas begin at 3x the start's distance from the centre (>= 1 px beyond it; at
@@ -120,10 +140,14 @@ def _trim(first: Any, d: np.ndarray, v: np.ndarray, dark_start: float, bright_st
         dark_edge = min(dark_edge, tail_d)
     if math.isfinite(tail_b):
         bright_edge = max(bright_edge, tail_b)
-    lo = max(min(dark_start - plateau_px, centre + 4.0 * (dark_start - centre),
-                 dark_edge - 1.0), float(d[0]))
-    hi = min(max(bright_start + plateau_px, centre + 4.0 * (bright_start - centre),
-                 bright_edge + 1.0), float(d[-1]))
+    lo = max(
+        min(dark_start - plateau_px, centre + 4.0 * (dark_start - centre), dark_edge - 1.0),
+        float(d[0]),
+    )
+    hi = min(
+        max(bright_start + plateau_px, centre + 4.0 * (bright_start - centre), bright_edge + 1.0),
+        float(d[-1]),
+    )
     # issue 31: the window grows with the PSF's measured extent: twice the distance out to which
     # the ESF still differs from the far plateau by more than the noise allows (a halo or a
     # diffraction tail below 2 % of the LSF's peak still holds 1-2 % of the step beyond 4 px,
@@ -139,7 +163,9 @@ def _trim(first: Any, d: np.ndarray, v: np.ndarray, dark_start: float, bright_st
 _TAIL_TOL = 0.005  # of the step: an ESF this close to its far plateau is in the uniform area
 
 
-def _tail_extent(d: np.ndarray, v: np.ndarray, centre: float, bw: float = 0.5) -> tuple[float, float]:
+def _tail_extent(
+    d: np.ndarray, v: np.ndarray, centre: float, bw: float = 0.5
+) -> tuple[float, float]:
     """Distances (px) from the centre beyond which the ESF, binned at ``bw`` and smoothed over
     three bins, stays within max(0.5 % of the step, 3 standard errors) of its far plateau (the
     median of the outer quarter of each side); 0 when it settles at once."""
@@ -159,7 +185,7 @@ def _tail_extent(d: np.ndarray, v: np.ndarray, centre: float, bw: float = 0.5) -
         if xs.size < 8:
             out.append(0.0)
             continue
-        far = np.argsort(np.abs(xs))[-max(xs.size // 4, 2):]
+        far = np.argsort(np.abs(xs))[-max(xs.size // 4, 2) :]
         level = float(np.median(vals[far]))
         spread = 1.4826 * float(np.median(np.abs(y[side][far] - np.median(y[side][far]))))
         out.append((xs, vals, cs, level, spread))
@@ -168,14 +194,16 @@ def _tail_extent(d: np.ndarray, v: np.ndarray, centre: float, bw: float = 0.5) -
     step = abs(out[1][3] - out[0][3])
     ext = []
     for xs, vals, cs, level, spread in out:
-        tol = np.maximum(_TAIL_TOL * step, 3.0 * spread / np.sqrt(3.0) * np.sqrt(np.median(cs) / cs))
+        tol = np.maximum(
+            _TAIL_TOL * step, 3.0 * spread / np.sqrt(3.0) * np.sqrt(np.median(cs) / cs)
+        )
         order = np.argsort(np.abs(xs))  # outward from the edge
         off = (np.abs(vals - level) > tol)[order]
         # settled: the first place from where 2 px (4 bins) in a row are within tolerance, so
         # that a noise excursion far out does not count as tail
         run = np.convolve(~off, np.ones(_SETTLE), mode="valid") == _SETTLE
         first = int(np.argmax(run)) if run.any() else off.size - 1
-        ext.append(float(np.abs(xs[order][first])) if off[:first + 1].any() else 0.0)
+        ext.append(float(np.abs(xs[order][first])) if off[: first + 1].any() else 0.0)
     return ext[0], ext[1]
 
 
@@ -183,6 +211,7 @@ _SETTLE = 4  # bins of 0.5 px
 
 
 _TAIL = 0.02  # the uniform areas begin where the LSF is below 2 % of its peak
+
 
 def _plateau_starts(spl: Any, d: np.ndarray) -> tuple[float, float]:
     """Seed 7a: LSF inflection points (extrema of ESF'') either side of the LSF peak."""
@@ -202,8 +231,9 @@ def _plateau_starts(spl: Any, d: np.ndarray) -> tuple[float, float]:
     return float(x[left][np.argmax(d2[left])]), float(x[right][np.argmin(d2[right])])
 
 
-def _tail_ends(spl: Any, d: np.ndarray, dark_start: float, bright_start: float,
-               frac: float = _TAIL) -> tuple[float, float]:
+def _tail_ends(
+    spl: Any, d: np.ndarray, dark_start: float, bright_start: float, frac: float = _TAIL
+) -> tuple[float, float]:
     """First points beyond the plateau starts where the first-pass LSF falls below ``frac``
     of its peak (NaN if it never does within the data / 12 px)."""
     lo, hi = max(float(d[0]), -12.0), min(float(d[-1]), 12.0)
@@ -221,7 +251,7 @@ def _tail_ends(spl: Any, d: np.ndarray, dark_start: float, bright_start: float,
     tail_b = math.nan
     if right.size:
         i = int(right[0])
-        neg = np.flatnonzero(lsf[i:i + reach] < -thr)
+        neg = np.flatnonzero(lsf[i : i + reach] < -thr)
         if neg.size:
             j = i + int(neg[0])
             while j + 1 < x.size and lsf[j + 1] < -thr:
@@ -231,7 +261,7 @@ def _tail_ends(spl: Any, d: np.ndarray, dark_start: float, bright_start: float,
     tail_d = math.nan
     if left.size:
         i = int(left[-1])
-        neg = np.flatnonzero(lsf[max(i - reach, 0):i + 1][::-1] < -thr)
+        neg = np.flatnonzero(lsf[max(i - reach, 0) : i + 1][::-1] < -thr)
         if neg.size:
             j = i - int(neg[0])
             while j - 1 >= 0 and lsf[j - 1] < -thr:
@@ -241,8 +271,9 @@ def _tail_ends(spl: Any, d: np.ndarray, dark_start: float, bright_start: float,
     return tail_d, tail_b
 
 
-def saturation_levels(dtype: np.dtype, bit_depth: int | None,
-                      given: tuple[float | None, float | None] | None) -> tuple[float | None, float | None]:
+def saturation_levels(
+    dtype: np.dtype, bit_depth: int | None, given: tuple[float | None, float | None] | None
+) -> tuple[float | None, float | None]:
     """Saturation levels (low, high) in DN: ``given``, else 0 and 2**bit_depth - 1, or the
     integer dtype's range (0 low for unsigned data: zero fill counts as saturated)."""
     if given is not None:

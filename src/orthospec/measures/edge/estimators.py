@@ -107,7 +107,7 @@ def _width(x: np.ndarray, lsf: np.ndarray, ip: int, level: float) -> float:
     """Width of the LSF at ``level`` of its peak: nearest crossings either side, linear."""
     h = level * lsf[ip]
     left = np.flatnonzero(lsf[:ip] < h)
-    right = np.flatnonzero(lsf[ip + 1:] < h)
+    right = np.flatnonzero(lsf[ip + 1 :] < h)
     if not left.size or not right.size:
         return math.nan
     i = int(left[-1])
@@ -145,8 +145,13 @@ def _estimates_of(f: EdgeFit, gsd: float | None) -> list[Estimate]:
             Estimate("width25_m", f.width25_px * gsd, "m", f.fit),
             Estimate("width80_m", f.width80_px * gsd, "m", f.fit),
             Estimate("edge_slope_per_m", f.edge_slope_per_px / gsd, "1/m", f.fit),
-            Estimate("effective_gsd_m", f.effective_resolution_factor * gsd, "m", f.fit,
-                     None if uf is None else uf * gsd),
+            Estimate(
+                "effective_gsd_m",
+                f.effective_resolution_factor * gsd,
+                "m",
+                f.fit,
+                None if uf is None else uf * gsd,
+            ),
         ]
     return out
 

@@ -167,6 +167,8 @@ def spline_uncertainty(d: np.ndarray, v: np.ndarray, bw: float, lo: float, hi: f
         u_model = np.maximum(u_model, np.abs(np.nan_to_num(other - base, nan=0.0)))
     names = ("rer", "fwhm_px", "mtf_nyquist")
     total = np.hypot(u_noise, u_model)
-    return {"u": dict(zip(names, map(float, total), strict=True)),
-            "u_noise": dict(zip(names, map(float, u_noise), strict=True)),
-            "u_model": dict(zip(names, map(float, u_model), strict=True))}
+    return {
+        "u": dict(zip(names, map(float, total), strict=True)),
+        "u_noise": dict(zip(names, map(float, u_noise), strict=True)),
+        "u_model": dict(zip(names, map(float, u_model), strict=True)),
+    }

@@ -75,12 +75,17 @@ class EdgeLimits:
         for f in dataclasses.fields(self):
             val = getattr(self, f.name)
             if isinstance(val, bool) != (f.name == "refine_line") or not (
-                    isinstance(val, bool) or (isinstance(val, numbers.Real) and math.isfinite(val))):
+                isinstance(val, bool) or (isinstance(val, numbers.Real) and math.isfinite(val))
+            ):
                 raise MeasureError(f"edge limit {f.name} must be a finite number, got {val!r}")
         if int(self.oversample) != self.oversample or self.oversample < 1:
-            raise MeasureError(f"edge limit oversample must be a whole number >= 1, got {self.oversample!r}")
+            raise MeasureError(
+                f"edge limit oversample must be a whole number >= 1, got {self.oversample!r}"
+            )
         if int(self.fermi_terms) != self.fermi_terms or self.fermi_terms < 1:
-            raise MeasureError(f"edge limit fermi_terms must be a whole number >= 1, got {self.fermi_terms!r}")
+            raise MeasureError(
+                f"edge limit fermi_terms must be a whole number >= 1, got {self.fermi_terms!r}"
+            )
 
     @classmethod
     def merged(cls, limits: EdgeLimits | None, overrides: Mapping[str, Any]) -> EdgeLimits:
@@ -94,8 +99,10 @@ class EdgeLimits:
         names = {f.name for f in dataclasses.fields(cls)}
         unknown = sorted(set(overrides) - names)
         if unknown:
-            raise TypeError(f"measure_edge() got unexpected keyword argument(s) {', '.join(unknown)}; "
-                            f"edge limits are {', '.join(sorted(names))}")
+            raise TypeError(
+                f"measure_edge() got unexpected keyword argument(s) {', '.join(unknown)}; "
+                f"edge limits are {', '.join(sorted(names))}"
+            )
         return dataclasses.replace(base, **overrides)
 
     @property

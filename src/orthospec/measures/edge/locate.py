@@ -192,15 +192,17 @@ def _refine_line(work: np.ndarray, rows: np.ndarray, c0: float, c1: float,
 
     p0 = np.array([c0 + c1 * ym, c1, lo, hi - lo, 0.5])
     try:
-        res = least_squares(resid, p0, jac=jac, x_scale=np.array([1.0, 0.01, hi - lo, hi - lo, 0.5]),
-                            max_nfev=200)
+        res = least_squares(
+            resid, p0, jac=jac, x_scale=np.array([1.0, 0.01, hi - lo, hi - lo, 0.5]), max_nfev=200
+        )
     except (ValueError, np.linalg.LinAlgError):
         return c0, c1
     k0, k1 = float(res.x[0]), float(res.x[1])
     new0 = k0 - k1 * ym
     span = float(ys.max() - ys.min())
     moved = max(abs(new0 - c0 + (k1 - c1) * y) for y in (ys.min(), ys.max()))
-    if not (res.status > 0 and np.all(np.isfinite(res.x)) and res.x[4] > 0 and moved <= 1.0
-            and span > 0):
+    if not (
+        res.status > 0 and np.all(np.isfinite(res.x)) and res.x[4] > 0 and moved <= 1.0 and span > 0
+    ):
         return c0, c1
     return new0, k1

@@ -56,11 +56,19 @@ def _components(kind: str, q: np.ndarray) -> list[tuple[float, float, float, flo
     if kind == "gauss-usm":  # (1 + k) G(s) - k G(s) x G(s_m): unsharp masking (MTFC)
         s, sm, k = float(q[0]), float(q[1]), float(q[2])
         return [(s, 1.0 + k, 0.0, 0.0), (math.hypot(s, sm), -k, 0.0, 0.0)]
-    return [(float(q[0]), float(q[2]), 0.0, 0.0), (float(q[1]), 1.0 - float(q[2]), float(q[3]), 0.0)]
+    return [
+        (float(q[0]), float(q[2]), 0.0, 0.0),
+        (float(q[1]), 1.0 - float(q[2]), float(q[3]), 0.0),
+    ]
 
 
-def _per_component(fn: Any, x: np.ndarray, c: float, comps: list[tuple[float, float, float, float]],
-                   fp: tuple[float, float]) -> list[np.ndarray]:
+def _per_component(
+    fn: Any,
+    x: np.ndarray,
+    c: float,
+    comps: list[tuple[float, float, float, float]],
+    fp: tuple[float, float],
+) -> list[np.ndarray]:
     """``fn(x - c - shift_k, sigma_k, (*fp, box_k))`` for every component; components that
     share sigma and box (the disk's quadrature nodes) in one vectorised call."""
     out: list[np.ndarray | None] = [None] * len(comps)
@@ -72,7 +80,7 @@ def _per_component(fn: Any, x: np.ndarray, c: float, comps: list[tuple[float, fl
         xs = np.concatenate([x - c - comps[i][2] for i in idx])
         vals = fn(xs, sig, (*fp, box))
         for j, i in enumerate(idx):
-            out[i] = vals[j * n:(j + 1) * n]
+            out[i] = vals[j * n : (j + 1) * n]
     return out  # type: ignore[return-value]
 
 
@@ -155,8 +163,9 @@ class _Problem:
     qv: float  # q^2 / 12: the quantisation variance of a bin mean (0 for float data)
     vd: float = 0.0  # px^2: mean spread of the samples' d within their (finely binned) bins
 
-    def fit(self, kind: str, p0: list[float], lower: list[float],
-            upper: list[float]) -> tuple[np.ndarray, float] | None:
+    def fit(
+        self, kind: str, p0: list[float], lower: list[float], upper: list[float]
+    ) -> tuple[np.ndarray, float] | None:
         """Parameters and chi2 (2 x cost) of ``kind`` started at ``p0``; None if it fails."""
         lo_b, hi_b = np.array(self.base_lo + lower), np.array(self.base_hi + upper)
         try:
@@ -164,7 +173,10 @@ class _Problem:
                 lambda p: (_model_esf(kind, self.xb, p, self.fp) - self.yb) * self.sw,
                 np.clip(np.array(p0, dtype=float), lo_b, hi_b),
                 jac=lambda p: _model_jac(kind, self.xb, p, self.fp) * self.sw[:, None],
-                bounds=(lo_b, hi_b), x_scale="jac", max_nfev=400)
+                bounds=(lo_b, hi_b),
+                x_scale="jac",
+                max_nfev=400,
+            )
         except (ValueError, np.linalg.LinAlgError):
             return None
         if res.status < 0 or not np.all(np.isfinite(res.x)):
@@ -210,9 +222,18 @@ class _Test:
     cv_spline: float | None
 
 
-def psf_fit(d: np.ndarray, v: np.ndarray, bw: float, lo: float, hi: float,
-            levels: tuple[float, float], angle_deg: float, sigma0: float,
-            quant: float = 0.0, core: tuple[float, float] | None = None) -> EdgeFit | None:
+def psf_fit(
+    d: np.ndarray,
+    v: np.ndarray,
+    bw: float,
+    lo: float,
+    hi: float,
+    levels: tuple[float, float],
+    angle_deg: float,
+    sigma0: float,
+    quant: float = 0.0,
+    core: tuple[float, float] | None = None,
+) -> EdgeFit | None:
     """Physical ESF model on the trimmed ESF samples, tested against the data.
 
     * every candidate PSF is fitted and the one chosen by its leave-one-out error, the
@@ -230,11 +251,24 @@ def psf_fit(d: np.ndarray, v: np.ndarray, bw: float, lo: float, hi: float,
     dark, bright = levels
     span = bright - dark
     big = 10 * abs(span) + 1
-    prob = _Problem(d, v, idx, xb, yb, nb, np.sqrt(nb), footprint(angle_deg),
-                    [dark - big, 0.0, lo], [bright + big, 3 * big, hi], quant**2 / 12.0,
-                    _within_bin_spread(d, idx, core))
+    prob = _Problem(
+        d,
+        v,
+        idx,
+        xb,
+        yb,
+        nb,
+        np.sqrt(nb),
+        footprint(angle_deg),
+        [dark - big, 0.0, lo],
+        [bright + big, 3 * big, hi],
+        quant**2 / 12.0,
+        _within_bin_spread(d, idx, core),
+    )
     s0 = min(max(sigma0, 0.05), 8.0)
-    one = prob.fit("gauss", [dark, span, 0.0 if lo < 0 < hi else 0.5 * (lo + hi), s0], [0.02], [10.0])
+    one = prob.fit(
+        "gauss", [dark, span, 0.0 if lo < 0 < hi else 0.5 * (lo + hi), s0], [0.02], [10.0]
+    )
     if one is None:
         return None
     p = one[0]
@@ -262,8 +296,9 @@ def _within_bin_spread(d: np.ndarray, idx: np.ndarray, core: tuple[float, float]
     return float(np.mean((d[sel] - mean[idx[sel]]) ** 2))
 
 
-def _select_model(prob: _Problem, p: np.ndarray, var_pe: float, lo: float,
-                  hi: float) -> tuple[str, np.ndarray, dict[str, np.ndarray]]:
+def _select_model(
+    prob: _Problem, p: np.ndarray, var_pe: float, lo: float, hi: float
+) -> tuple[str, np.ndarray, dict[str, np.ndarray]]:
     """The candidate PSF models fitted, and the one their out-of-sample error prefers.
 
     Candidates: the Gaussian ``p``, Gaussian x box (motion, defocus), core + halo, unsharp-masked
@@ -282,18 +317,32 @@ def _select_model(prob: _Problem, p: np.ndarray, var_pe: float, lo: float,
     half = 0.5 * (hi - lo)
     wide = max(half / 2.0, 1.5 * g)
     tried = {
-        "gauss-box": prob.fit("gauss-box", [a0, b0, c0, 0.7 * g, 2.0 * g], [0.02, 0.0],
-                              [wide, max(half, 3.0 * g)]),
-        "gauss2": prob.fit("gauss2", [a0, b0, c0, 0.8 * g, min(2.5 * g, wide), 0.8, 0.0],
-                           [0.02, 0.02, 0.0, -half / 2.0], [wide, wide, 1.0, half / 2.0]),
-        "gauss-usm": prob.fit("gauss-usm", [a0, b0, c0, g, min(1.5, wide), 0.5],
-                              [0.02, 0.3, 0.0], [wide, wide, 5.0]),
-        "gauss-disk": prob.fit("gauss-disk", [a0, b0, c0, 0.6 * g, 1.2 * g], [0.2, 0.0],
-                               [wide, max(half, 3.0 * g)]),
-        "airy": prob.fit("airy", [a0, b0, c0, min(max(0.5 / g, 0.2), 2.5), 0.3 * g, 0.5],
-                         [0.15, 0.0, 0.0], [3.0, wide, max(half, 3.0 * g)]),
+        "gauss-box": prob.fit(
+            "gauss-box", [a0, b0, c0, 0.7 * g, 2.0 * g], [0.02, 0.0], [wide, max(half, 3.0 * g)]
+        ),
+        "gauss2": prob.fit(
+            "gauss2",
+            [a0, b0, c0, 0.8 * g, min(2.5 * g, wide), 0.8, 0.0],
+            [0.02, 0.02, 0.0, -half / 2.0],
+            [wide, wide, 1.0, half / 2.0],
+        ),
+        "gauss-usm": prob.fit(
+            "gauss-usm", [a0, b0, c0, g, min(1.5, wide), 0.5], [0.02, 0.3, 0.0], [wide, wide, 5.0]
+        ),
+        "gauss-disk": prob.fit(
+            "gauss-disk", [a0, b0, c0, 0.6 * g, 1.2 * g], [0.2, 0.0], [wide, max(half, 3.0 * g)]
+        ),
+        "airy": prob.fit(
+            "airy",
+            [a0, b0, c0, min(max(0.5 / g, 0.2), 2.5), 0.3 * g, 0.5],
+            [0.15, 0.0, 0.0],
+            [3.0, wide, max(half, 3.0 * g)],
+        ),
     }
-    cands = {"gauss": p, **{k: v[0] for k, v in tried.items() if v is not None and float(v[0][1]) > 0}}
+    cands = {
+        "gauss": p,
+        **{k: v[0] for k, v in tried.items() if v is not None and float(v[0][1]) > 0},
+    }
     loo = {k: prob.loo(k, q, var_pe) for k, q in cands.items()}
     best = min(loo, key=lambda k: float(loo[k].sum()))
     n = loo[best].size
@@ -314,8 +363,9 @@ def _lack_of_fit(prob: _Problem, kind: str, p: np.ndarray, var_pe: float) -> _Te
     p_value = float(fdtrc(dof[0], dof[1], f_stat))  # F survival
     cv_model = cv_spline = None
     if p_value < _ADEQUATE_P:
-        cv_model, cv_spline = _cv_errors(prob.xb, prob.yb, prob.nb, var_pe, prob.qv, kind, p, prob.fp,
-                                         prob.base_lo, prob.base_hi)
+        cv_model, cv_spline = _cv_errors(
+            prob.xb, prob.yb, prob.nb, var_pe, prob.qv, kind, p, prob.fp, prob.base_lo, prob.base_hi
+        )
     return _Test(f_stat, dof, p_value, cv_model, cv_spline)
 
 
@@ -339,15 +389,28 @@ def _deblur(kind: str, p: np.ndarray, vd: float) -> np.ndarray:
     if vd <= 0:
         return p
     q = p.copy()
-    idx = {"gauss": [3], "gauss-box": [3], "gauss2": [3, 4], "gauss-usm": [3], "gauss-disk": [3],
-           "airy": [4]}[kind]
+    idx = {
+        "gauss": [3],
+        "gauss-box": [3],
+        "gauss2": [3, 4],
+        "gauss-usm": [3],
+        "gauss-disk": [3],
+        "airy": [4],
+    }[kind]
     for i in idx:
         q[i] = math.sqrt(max(float(q[i]) ** 2 - vd, 0.25 * float(q[i]) ** 2))
     return q
 
 
-def _curves(kind: str, p: np.ndarray, fp: tuple[float, float], lo: float, hi: float,
-            step: float = GRID, vd: float = 0.0) -> _Curves:
+def _curves(
+    kind: str,
+    p: np.ndarray,
+    fp: tuple[float, float],
+    lo: float,
+    hi: float,
+    step: float = GRID,
+    vd: float = 0.0,
+) -> _Curves:
     p = _deblur(kind, p, vd)
     a, b_tot, c = float(p[0]), float(p[1]), float(p[2])
     x = np.arange(lo, hi + step / 2, step)
@@ -369,8 +432,12 @@ def _curves(kind: str, p: np.ndarray, fp: tuple[float, float], lo: float, hi: fl
 
         def mtf_at(f: np.ndarray) -> np.ndarray:
             f = np.asarray(f, dtype=float)
-            otf = sum(w * np.exp(-2.0 * np.pi**2 * sig**2 * f**2 - 2j * np.pi * f * shift) * np.sinc(f * box)
-                      for sig, w, shift, box in comps)
+            otf = sum(
+                w
+                * np.exp(-2.0 * np.pi**2 * sig**2 * f**2 - 2j * np.pi * f * shift)
+                * np.sinc(f * box)
+                for sig, w, shift, box in comps
+            )
             return np.abs(otf) * np.abs(np.sinc(f * fp[0])) * np.abs(np.sinc(f * fp[1]))
 
     # seed 9d: for a parametric ESF the RER centre is 0.5 on the normalised DN
@@ -383,18 +450,28 @@ def _curves(kind: str, p: np.ndarray, fp: tuple[float, float], lo: float, hi: fl
     return _Curves(x, esf_at, lsf, mtf_at, centre, comps)
 
 
-def _figures(kind: str, p: np.ndarray, fp: tuple[float, float], lo: float, hi: float,
-             vd: float = 0.0) -> np.ndarray:
+def _figures(
+    kind: str, p: np.ndarray, fp: tuple[float, float], lo: float, hi: float, vd: float = 0.0
+) -> np.ndarray:
     """(RER, FWHM px, MTF@Nyquist) of a model, on a 0.02-px grid within +-8 px of its centre
     (for the uncertainty's derivatives and the candidates' spread)."""
     c = float(p[2])
     cv = _curves(kind, p, fp, max(lo, c - 8.0), min(hi, c + 8.0), step=0.02, vd=vd)
     e = cv.esf_at(np.array([cv.centre - 0.5, cv.centre + 0.5]))
-    return np.array([float(e[1] - e[0]), fwhm_of(cv.x, cv.lsf), float(cv.mtf_at(np.array([NYQUIST]))[0])])
+    return np.array(
+        [float(e[1] - e[0]), fwhm_of(cv.x, cv.lsf), float(cv.mtf_at(np.array([NYQUIST]))[0])]
+    )
 
 
-def _uncertainty(prob: _Problem, kind: str, p: np.ndarray, var_pe: float, lo: float, hi: float,
-                 plausible: dict[str, np.ndarray]) -> dict[str, Any]:
+def _uncertainty(
+    prob: _Problem,
+    kind: str,
+    p: np.ndarray,
+    var_pe: float,
+    lo: float,
+    hi: float,
+    plausible: dict[str, np.ndarray],
+) -> dict[str, Any]:
     """Standard uncertainties of RER, FWHM and MTF@Ny of the chosen model (issue 31).
 
     * noise: the delta method, u^2 = g C g', C the parameters' covariance of the weighted fit
@@ -423,7 +500,9 @@ def _uncertainty(prob: _Problem, kind: str, p: np.ndarray, var_pe: float, lo: fl
         up, dn = p.copy(), p.copy()
         up[k] += h
         dn[k] -= h
-        grad[:, k] = (_figures(kind, up, fp, lo, hi, vd) - _figures(kind, dn, fp, lo, hi, vd)) / (2 * h)
+        grad[:, k] = (_figures(kind, up, fp, lo, hi, vd) - _figures(kind, dn, fp, lo, hi, vd)) / (
+            2 * h
+        )
     u_noise = np.sqrt(np.maximum(np.einsum("ik,kl,il->i", grad, cov, grad), 0.0))
     others = {k: _figures(k, q, fp, lo, hi, vd) for k, q in plausible.items() if k != kind}
     u_model = np.zeros(3)
@@ -431,44 +510,91 @@ def _uncertainty(prob: _Problem, kind: str, p: np.ndarray, var_pe: float, lo: fl
         u_model = np.maximum(u_model, np.abs(np.nan_to_num(fig - base, nan=0.0)))
     total = np.hypot(u_noise, u_model)
     names = ("rer", "fwhm_px", "mtf_nyquist")
-    return {"u": dict(zip(names, map(float, total), strict=True)),
-            "u_noise": dict(zip(names, map(float, u_noise), strict=True)),
-            "u_model": dict(zip(names, map(float, u_model), strict=True)),
-            "candidates": {k: dict(zip(names, map(float, v), strict=True)) for k, v in
-                           {kind: base, **others}.items()}}
+    return {
+        "u": dict(zip(names, map(float, total), strict=True)),
+        "u_noise": dict(zip(names, map(float, u_noise), strict=True)),
+        "u_model": dict(zip(names, map(float, u_model), strict=True)),
+        "candidates": {
+            k: dict(zip(names, map(float, v), strict=True))
+            for k, v in {kind: base, **others}.items()
+        },
+    }
 
 
-def _model_fit(prob: _Problem, kind: str, p: np.ndarray, window: tuple[float, float], bw: float,
-               quant: float, var_pe: float, test: _Test, unc: dict[str, Any]) -> EdgeFit:
+def _model_fit(
+    prob: _Problem,
+    kind: str,
+    p: np.ndarray,
+    window: tuple[float, float],
+    bw: float,
+    quant: float,
+    var_pe: float,
+    test: _Test,
+    unc: dict[str, Any],
+) -> EdgeFit:
     """The chosen model as an :class:`EdgeFit`: its exact ESF, LSF and MTF (no FFT of a window)."""
     lo, hi = window
     fp = prob.fp
     a, b_tot = float(p[0]), float(p[1])
     cv = _curves(kind, p, fp, lo, hi, vd=prob.vd)
     comps = cv.comps
-    return make_fit(kind, cv.x, cv.esf_at(cv.x), cv.lsf, cv.centre, cv.esf_at, (a, a + b_tot), {
-        "model": _MODEL_TEXT[kind],
-        "sigma_px": [q[0] for q in comps], "weights": [q[1] for q in comps],
-        "shift_px": [q[2] for q in comps], "box_px": [q[3] for q in comps],
-        **({"disk_radius_px": float(p[4])} if kind == "gauss-disk" else {}),
-        **({"usm_amount": float(p[5]), "usm_sigma_px": float(p[4])} if kind == "gauss-usm" else {}),
-        **({"cutoff_cy_px": float(p[3]), "jitter_px": float(p[4]), "smear_px": float(p[5])}
-           if kind == "airy" else {}),
-        "footprint_px": list(fp), "bin_px": bw, "noise_dn": math.sqrt(var_pe),
-        "lack_of_fit_f": test.f_stat, "dof": list(test.dof), "p_value": test.p_value,
-        "adequate": test.p_value >= _ADEQUATE_P, "quantisation_dn": quant,
-        "cv_error_model": test.cv_model, "cv_error_spline": test.cv_spline,
-        "selection": "leave-one-out error over the ESF bins, simplest model within one SE",
-        **unc,
-    }, mtf_at=cv.mtf_at)
+    return make_fit(
+        kind,
+        cv.x,
+        cv.esf_at(cv.x),
+        cv.lsf,
+        cv.centre,
+        cv.esf_at,
+        (a, a + b_tot),
+        {
+            "model": _MODEL_TEXT[kind],
+            "sigma_px": [q[0] for q in comps],
+            "weights": [q[1] for q in comps],
+            "shift_px": [q[2] for q in comps],
+            "box_px": [q[3] for q in comps],
+            **({"disk_radius_px": float(p[4])} if kind == "gauss-disk" else {}),
+            **(
+                {"usm_amount": float(p[5]), "usm_sigma_px": float(p[4])}
+                if kind == "gauss-usm"
+                else {}
+            ),
+            **(
+                {"cutoff_cy_px": float(p[3]), "jitter_px": float(p[4]), "smear_px": float(p[5])}
+                if kind == "airy"
+                else {}
+            ),
+            "footprint_px": list(fp),
+            "bin_px": bw,
+            "noise_dn": math.sqrt(var_pe),
+            "lack_of_fit_f": test.f_stat,
+            "dof": list(test.dof),
+            "p_value": test.p_value,
+            "adequate": test.p_value >= _ADEQUATE_P,
+            "quantisation_dn": quant,
+            "cv_error_model": test.cv_model,
+            "cv_error_spline": test.cv_spline,
+            "selection": "leave-one-out error over the ESF bins, simplest model within one SE",
+            **unc,
+        },
+        mtf_at=cv.mtf_at,
+    )
 
 
 _CV_FOLDS = 5
 
 
-def _cv_errors(xb: np.ndarray, yb: np.ndarray, nb: np.ndarray, var_pe: float, qv: float,
-               kind: str, p: np.ndarray, fp: tuple[float, float], base_lo: list[float],
-               base_hi: list[float]) -> tuple[float, float]:
+def _cv_errors(
+    xb: np.ndarray,
+    yb: np.ndarray,
+    nb: np.ndarray,
+    var_pe: float,
+    qv: float,
+    kind: str,
+    p: np.ndarray,
+    fp: tuple[float, float],
+    base_lo: list[float],
+    base_hi: list[float],
+) -> tuple[float, float]:
     """Out-of-sample error of the PSF model and of the GCV spline: 5-fold cross-validation
     over the ESF bins (bin k in fold k mod 5), each held-out bin's squared error divided by
     its quantisation-aware variance var_pe / n + q^2 / 12, mean over bins.
@@ -492,12 +618,15 @@ def _cv_errors(xb: np.ndarray, yb: np.ndarray, nb: np.ndarray, var_pe: float, qv
         tr, te = fold != k, fold == k
         xt, yt, wt = xb[tr], yb[tr], sw[tr]
 
-        def resid(q: np.ndarray, xt: np.ndarray = xt, yt: np.ndarray = yt, wt: np.ndarray = wt) -> np.ndarray:
+        def resid(
+            q: np.ndarray, xt: np.ndarray = xt, yt: np.ndarray = yt, wt: np.ndarray = wt
+        ) -> np.ndarray:
             return (_model_esf(kind, xt, q, fp) - yt) * wt
 
         try:
             res = least_squares(
-                resid, np.clip(p, lo_b, hi_b), bounds=(lo_b, hi_b), x_scale="jac", max_nfev=100)
+                resid, np.clip(p, lo_b, hi_b), bounds=(lo_b, hi_b), x_scale="jac", max_nfev=100
+            )
             err_m[te] = (_model_esf(kind, xb[te], res.x, fp) - yb[te]) ** 2
         except (ValueError, np.linalg.LinAlgError):
             err_m[te] = np.inf
@@ -508,4 +637,7 @@ def _cv_errors(xb: np.ndarray, yb: np.ndarray, nb: np.ndarray, var_pe: float, qv
             err_s[te] = np.inf
     # the end bins cannot be predicted by a spline (extrapolation): score the inner bins
     inner = slice(_CV_FOLDS, xb.size - _CV_FOLDS)
-    return (float(np.mean(err_m[inner] / var_b[inner])), float(np.mean(err_s[inner] / var_b[inner])))
+    return (
+        float(np.mean(err_m[inner] / var_b[inner])),
+        float(np.mean(err_s[inner] / var_b[inner])),
+    )

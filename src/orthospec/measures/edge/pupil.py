@@ -40,10 +40,17 @@ def transfer(f: np.ndarray, fc: float, s: float, length: float,
             * np.sinc(f * fp[0]) * np.sinc(f * fp[1]))
 
 
-def _nodes(fc: float, s: float, length: float, fp: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+def _nodes(
+    fc: float, s: float, length: float, fp: tuple[float, float]
+) -> tuple[np.ndarray, np.ndarray]:
     f = fc * _V
-    t = _PUPIL * np.exp(-2.0 * np.pi**2 * s * s * f * f) * np.sinc(length * f) \
-        * np.sinc(f * fp[0]) * np.sinc(f * fp[1])
+    t = (
+        _PUPIL
+        * np.exp(-2.0 * np.pi**2 * s * s * f * f)
+        * np.sinc(length * f)
+        * np.sinc(f * fp[0])
+        * np.sinc(f * fp[1])
+    )
     return f, t
 
 
@@ -62,8 +69,9 @@ def lsf(x: np.ndarray, fc: float, s: float, length: float, fp: tuple[float, floa
     return np.cos(2.0 * np.pi * np.multiply.outer(x, f)) @ (2.0 * fc * _W * t)
 
 
-def esf_dsigma(x: np.ndarray, fc: float, s: float, length: float,
-               fp: tuple[float, float]) -> np.ndarray:
+def esf_dsigma(
+    x: np.ndarray, fc: float, s: float, length: float, fp: tuple[float, float]
+) -> np.ndarray:
     """d ESF / d s (the jitter), for the analytic Jacobian."""
     f, t = _nodes(fc, s, length, fp)
     x = np.asarray(x, dtype=float)

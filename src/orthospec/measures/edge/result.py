@@ -16,7 +16,15 @@ NYQUIST = 0.5  # cycles per pixel
 SPLINE = "spline"
 GRID = 0.01  # px, evaluation grid of fitted curves
 MTF_FREQ = np.round(np.arange(0, 101) * 0.01, 10)  # reported MTF curve, cycles/px
-PSF_FITS = ("gauss", "gauss-box", "gauss2", "gauss-usm", "gauss-disk", "airy")  # the physical models
+PSF_FITS = (
+    "gauss",
+    "gauss-box",
+    "gauss2",
+    "gauss-usm",
+    "gauss-disk",
+    "airy",
+)  # the physical models
+
 
 @dataclass(frozen=True)
 class HealthCheck:
@@ -32,8 +40,15 @@ class HealthCheck:
 
     def to_dict(self) -> dict[str, Any]:
         lim = list(self.limit) if isinstance(self.limit, tuple) else self.limit
-        return {"name": self.name, "value": _f(self.value), "op": self.op, "limit": lim,
-                "unit": self.unit, "passed": self.passed, "reason": self.reason}
+        return {
+            "name": self.name,
+            "value": _f(self.value),
+            "op": self.op,
+            "limit": lim,
+            "unit": self.unit,
+            "passed": self.passed,
+            "reason": self.reason,
+        }
 
 
 @dataclass(frozen=True)
@@ -236,7 +251,9 @@ class EdgeResult:
                 e = np.interp([fit.centre_px - 0.5 * n, fit.centre_px + 0.5 * n], fit.x, fit.esf)
                 rer = _f(e[1] - e[0])
                 f_ax = NYQUIST / n
-                mtf = _f(np.interp(f_ax, fit.mtf_freq, fit.mtf)) if f_ax <= fit.mtf_freq[-1] else None
+                mtf = (
+                    _f(np.interp(f_ax, fit.mtf_freq, fit.mtf)) if f_ax <= fit.mtf_freq[-1] else None
+                )
             out[f"fwhm_px.{axis}"] = fw
             out[f"rer.{axis}"] = rer
             out[f"mtf_nyquist.{axis}"] = mtf
@@ -246,11 +263,21 @@ class EdgeResult:
 DIRECTION_CONVENTION = (
     "widths, RER, slope and MTF are measured along the edge normal (perpendicular distance "
     "from the fitted edge line, cycles per pixel along the normal); *.along_row / "
-    "*.along_column give the same response as seen along an image row (x) / column (y)")
+    "*.along_column give the same response as seen along an image row (x) / column (y)"
+)
 ESTIMATORS = {  # name -> unit: the keys every to_dict() carries (null when not measured)
-    "rer": "1", "fwhm_px": "px", "width25_px": "px", "width80_px": "px", "mtf_nyquist": "1",
-    "edge_slope_per_px": "1/px", "effective_resolution_factor": "1", "overshoot_h": "1",
-    "fwhm_m": "m", "width25_m": "m", "width80_m": "m", "edge_slope_per_m": "1/m",
+    "rer": "1",
+    "fwhm_px": "px",
+    "width25_px": "px",
+    "width80_px": "px",
+    "mtf_nyquist": "1",
+    "edge_slope_per_px": "1/px",
+    "effective_resolution_factor": "1",
+    "overshoot_h": "1",
+    "fwhm_m": "m",
+    "width25_m": "m",
+    "width80_m": "m",
+    "edge_slope_per_m": "1/m",
     "effective_gsd_m": "m",
 }
 

@@ -27,14 +27,27 @@ def tile_name_ok(ctx: ProviderContext) -> list[Measured]:
     """The image file is named <flight_id>_<photo_number>.<ext> (self-documenting, JRC §5.3)."""
     t = ctx.delivery.table("images")
     if t is None:
-        return [Measured(NAME, "image", "bool", pd.Series(dtype=object), pd.Series(dtype=object),
-                         notes=pd.Series({"*": "the manifest declares no images table"}, dtype=object))]
+        return [
+            Measured(
+                NAME,
+                "image",
+                "bool",
+                pd.Series(dtype=object),
+                pd.Series(dtype=object),
+                notes=pd.Series({"*": "the manifest declares no images table"}, dtype=object),
+            )
+        ]
     df = t.df
     ids = t.ids.astype(str).tolist()
     values: dict[str, bool | None] = {}
     notes: dict[str, str] = {}
-    for item, file, flight, photo in zip(ids, df["file"], df.get("flight_id", [None] * len(df)),
-                                         df.get("photo_number", [None] * len(df)), strict=True):
+    for item, file, flight, photo in zip(
+        ids,
+        df["file"],
+        df.get("flight_id", [None] * len(df)),
+        df.get("photo_number", [None] * len(df)),
+        strict=True,
+    ):
         if _blank(flight) or _blank(photo):
             values[item] = None
             notes[item] = "no flight_id or photo_number in the images table"
@@ -44,5 +57,13 @@ def tile_name_ok(ctx: ProviderContext) -> list[Measured]:
         if not values[item]:
             notes[item] = f"file {file} is not named {expected}.<ext>"
     ev = RowEvidence(t.file, t.sha256, pd.Series(df["_row"].to_numpy(), index=ids))
-    return [Measured(NAME, "image", "bool", pd.Series(values, dtype=object), ev,
-                     notes=pd.Series(notes, dtype=object) if notes else None)]
+    return [
+        Measured(
+            NAME,
+            "image",
+            "bool",
+            pd.Series(values, dtype=object),
+            ev,
+            notes=pd.Series(notes, dtype=object) if notes else None,
+        )
+    ]
