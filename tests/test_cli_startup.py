@@ -141,12 +141,12 @@ def test_measure_radiometry_help_loads_no_raster_stack() -> None:
 
 def test_explain_words_a_rule_without_importing_the_engine(tmp_path, monkeypatch) -> None:
     """Issue 14: `explain` took 4-5 s because it imported the evaluator for the requirement's
-    wording; the wording lives in spec/wording.py and measure names come from the shipped catalog.
+    wording; the wording lives in profile/wording.py and measure names come from the shipped catalog.
     Cold cache (a fresh ORTHOSPEC_CACHE_DIR), so the profile is really validated."""
     monkeypatch.setenv("ORTHOSPEC_CACHE_DIR", str(tmp_path))
     res = probe("explain", "JRC-12.7-RMSEX", "--profile", "jrc-v3")
     assert res["code"] == 0
-    # numpy is allowed: a cold validation parses the rules' expressions (spec/expr.py uses it)
+    # numpy is allowed: a cold validation parses the rules' expressions (profile/expr.py uses it)
     engine = [
         m
         for m in res["modules"]

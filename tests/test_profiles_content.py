@@ -469,7 +469,7 @@ def test_coverage_md_lists_every_jrc_rule_and_manual_rule() -> None:
 
 # ---------------------------------------------------------------- loader / CLI
 loader_ready = pytest.mark.skipif(
-    not (ROOT / "src" / "orthospec" / "spec" / "loader.py").exists(),
+    not (ROOT / "src" / "orthospec" / "profile" / "loader.py").exists(),
     reason="profile loader not available",
 )
 

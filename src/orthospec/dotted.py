@@ -1,5 +1,5 @@
 """Dotted names in parsed expressions (``manifest.sensor.digital``), shared by the profile
-expression grammar (spec/expr.py), the delivery vocabulary (delivery/vocabulary.py) and the
+expression grammar (profile/expr.py), the delivery vocabulary (delivery/vocabulary.py) and the
 engine's name analysis (engine/names.py). Foundation layer: it imports nothing of orthospec, so
 the expression grammar does not pull the vocabulary's pandas in (+0.4 s start-up)."""
 

@@ -253,7 +253,7 @@ class ProfileRef(_Open):
         [],
         description=(
             "Mandatory rules of the extended standard that this (tender) profile removed or made check less, "
-            "each with its changes and justification (spec/changes.py)."
+            "each with its changes and justification (profile/changes.py)."
         ),
     )
 

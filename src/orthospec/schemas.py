@@ -1,10 +1,10 @@
 """Write the published JSON Schemas and the measure catalog: ``python -m orthospec.schemas``.
 
-Rewrites ``specs/schema/``: profile.schema.json (spec/models.py), delivery.schema.json
+Rewrites ``specs/schema/``: profile.schema.json (profile/models.py), delivery.schema.json
 (delivery/manifest.py), qcr.schema.json (qcr_model.py), checker.schema.json (delivery/checker.py), the
 checker folder's table and grid (checker-checkpoints.schema.json: delivery/checker_tables.py,
 checker-inspection.schema.json: inspection/grid.py) and measures.json (engine/catalog.py, the
-snapshot spec/catalog.py reads). Tests fail when a shipped
+snapshot profile/catalog.py reads). Tests fail when a shipped
 file differs from what this writes.
 It sits at the api level because it reads every layer below.
 """

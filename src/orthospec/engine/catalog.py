@@ -4,9 +4,9 @@ measures and the evaluator's roll-ups; and the per-run cache that calls each pro
 Providers register with engine/registry.py when their module is imported. This module imports
 them (the modules of engine/providers/, then the ``orthospec.providers`` entry points of
 installed plugins, see orthospec/plugins.py), once per process, on the first lookup. It also
-builds the snapshot ``specs/schema/measures.json`` (built-in measures only) that spec/catalog.py
+builds the snapshot ``specs/schema/measures.json`` (built-in measures only) that profile/catalog.py
 reads so that validating a profile does not import the engine; once this module is imported,
-spec/catalog.py asks it instead (never stale, plugins included).
+profile/catalog.py asks it instead (never stale, plugins included).
 """
 
 from __future__ import annotations

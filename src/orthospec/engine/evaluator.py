@@ -1,7 +1,7 @@
 """Apply every rule of a resolved profile to every item in its scope, then roll up.
 
 Phase 1 judges each rule over its items (engine/rules.py: applicability, comparison through the
-requirement operators of spec/operators.py; manual rules in engine/manual.py) plus the engine's
+requirement operators of profile/operators.py; manual rules in engine/manual.py) plus the engine's
 own rules (engine/builtin.py: who set each threshold). Waivers in force - the tender profile's
 and the checker's file's, never the contractor's (engine/waivers.py) - turn findings into
 ``waived``. Phase 2 (engine/rollup.py) derives the rejected items, the JRC §12.3/§12.8 roll-up

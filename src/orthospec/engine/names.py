@@ -1,6 +1,6 @@
 """What an expression (`when`, a threshold) may name, and how a missing value is recognised.
 
-:class:`Names` is the mapping the safe expression grammar (spec/expr.py) evaluates against:
+:class:`Names` is the mapping the safe expression grammar (profile/expr.py) evaluates against:
 parameters, ``manifest.*`` facts and the measures of the rule's scope, per item. During
 applicability probing (engine/applicability.py) ``Names.fill`` substitutes a stand-in value where a
 fact or measure is missing, to see whether the `when` depends on it.

@@ -6,7 +6,7 @@ needs (the decorator, ``Measured``, ``ProviderContext``, ``RowEvidence``, the sc
 no provider: finding the providers (built-in modules, plugins), looking a measure up and calling
 each provider once per run live one level up, in engine/catalog.py. So a provider module (built-in
 or plugin) imports this module, and nothing here imports a provider (no cycle, issue 15 item 2).
-A registered measure is announced to spec/catalog.py, so profile validation knows plugin measures
+A registered measure is announced to profile/catalog.py, so profile validation knows plugin measures
 without importing the engine.
 """
 

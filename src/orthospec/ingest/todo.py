@@ -1,6 +1,6 @@
 """TODO.md of a draft: what the files could not tell, each with the rules that stay ``missing``.
 
-Read from the profile alone (as ``orthospec init`` reads it for its template, spec/template.py):
+Read from the profile alone (as ``orthospec init`` reads it for its template, profile/template.py):
 for every rule that can apply to the draft's sensor, the delivery facts it reads (its measure,
 its ``when``, the names in its threshold) and, for measures computed from tables, the tables
 behind them (``spec.template.rule_inputs``, which ``orthospec init`` uses for its template too). A

@@ -1,6 +1,6 @@
 """Whether a rule can apply under a tender's sensor, read from the rule alone (no delivery).
 
-Used by ``orthospec init --sensor`` (spec/template.py) and the tender annex (reports/annex.py) to
+Used by ``orthospec init --sensor`` (profile/template.py) and the tender annex (reports/annex.py) to
 leave out the rules a sensor type or film/digital choice excludes. Only the parts of a condition
 joined by a top-level ``and`` are read: ``type == 'aerial' and (a or b)`` cannot apply to a
 satellite tender; a part with a top-level ``or`` is kept (it might apply).

@@ -46,7 +46,7 @@ def code_fingerprint() -> str:
 
     h = hashlib.sha256(f"{FORMAT}|{__version__}|{measures_fingerprint()}".encode())
     files = [
-        *sorted((_PKG / "spec").glob("*.py")),
+        *sorted((_PKG / "profile").glob("*.py")),
         _PKG / "units.py",
         _PKG / "yamlio.py",
         _PKG / "delivery" / "manifest.py",

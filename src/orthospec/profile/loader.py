@@ -129,7 +129,7 @@ def _load(path: Path, *, check_measures: bool) -> tuple[ResolvedProfile | None, 
 
 
 def _dump(p: ResolvedProfile) -> dict[str, Any]:
-    """The JSON payload spec/cache.py stores for a resolved profile (_rebuild reads it back)."""
+    """The JSON payload profile/cache.py stores for a resolved profile (_rebuild reads it back)."""
     return {
         "canonical": p.canonical,
         "sha256": p.sha256,

@@ -1,4 +1,4 @@
-"""The profile JSON Schema, generated from the pydantic models of spec/models.py.
+"""The profile JSON Schema, generated from the pydantic models of profile/models.py.
 
 Writing every published schema (profile, delivery manifest, QCR, measure catalog) needs the
 QCR model and the engine, which sit above spec/: that is orthospec/schemas.py

@@ -2,7 +2,7 @@
 the tender annex (the annex the buyer publishes and the QCR the contractor receives state a
 requirement the same way).
 
-The sentence of each operator lives with the operator (``spec/operators.py``); this module formats
+The sentence of each operator lives with the operator (``profile/operators.py``); this module formats
 the thresholds (number, unit) it is given. Pure (no numpy, no pint), so the commands that only word
 a rule do not import the engine.
 """

@@ -59,15 +59,9 @@ class NaturalSpline:
         a = (x[i + 1] - q) / h
         b = (q - x[i]) / h
         if self.nu == 0:
-            return (
-                a * g[i]
-                + b * g[i + 1]
-                + ((a**3 - a) * gam[i] + (b**3 - b) * gam[i + 1]) * h * h / 6.0
-            )
+            return a * g[i] + b * g[i + 1] + ((a**3 - a) * gam[i] + (b**3 - b) * gam[i + 1]) * h * h / 6.0
         if self.nu == 1:
-            return (g[i + 1] - g[i]) / h + (
-                (3 * b * b - 1) * gam[i + 1] - (3 * a * a - 1) * gam[i]
-            ) * h / 6.0
+            return (g[i + 1] - g[i]) / h + ((3 * b * b - 1) * gam[i + 1] - (3 * a * a - 1) * gam[i]) * h / 6.0
         if self.nu == 2:
             return a * gam[i] + b * gam[i + 1]
         if self.nu == 3:
@@ -75,9 +69,8 @@ class NaturalSpline:
         return np.zeros_like(q)
 
 
-def make_smoothing_spline(
-    x: np.ndarray, y: np.ndarray, w: np.ndarray | None = None, lam: float | None = None
-) -> Any:
+def make_smoothing_spline(x: np.ndarray, y: np.ndarray, w: np.ndarray | None = None,
+                          lam: float | None = None) -> Any:
     """Cubic smoothing spline of (x, y) with weights w, lam by GCV when None (as scipy's)."""
     if _SCIPY:
         from scipy.interpolate import make_smoothing_spline as msp
@@ -103,7 +96,6 @@ def make_smoothing_spline(
         return t @ coef, lam_ * (resid_basis @ coef)
 
     if lam is None:
-
         def gcv(lam_: float) -> float:
             res = lam_ * (resid_basis @ (z / (1.0 + lam_ * mu)))
             tr = n - float(np.sum(lam_ * mu / (1.0 + lam_ * mu)))
@@ -119,9 +111,8 @@ def make_smoothing_spline(
     return NaturalSpline(x, y - res, np.concatenate([[0.0], gam, [0.0]]))
 
 
-def _reinsch_basis(
-    x: np.ndarray, y: np.ndarray, w: np.ndarray, h: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _reinsch_basis(x: np.ndarray, y: np.ndarray, w: np.ndarray,
+                   h: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The smoothing spline for every lam from one eigen-decomposition: gamma =
     T diag(1 / (1 + lam mu)) z, residuals y - g = lam W^-1 Q gamma."""
     n = x.size
@@ -147,9 +138,8 @@ def _reinsch_basis(
     return t, z, winv_q @ t, mu
 
 
-def fminbound(
-    f: Callable[[float], float], x1: float, x2: float, xatol: float = 1e-5, maxfun: int = 500
-) -> tuple[float, bool]:
+def fminbound(f: Callable[[float], float], x1: float, x2: float, xatol: float = 1e-5,
+              maxfun: int = 500) -> tuple[float, bool]:
     """Brent's bounded minimisation (golden section with parabolic steps; Brent 1973, ch. 5;
     Forsythe, Malcolm & Moler's FMIN): the argmin and whether it converged."""
     sqrt_eps = math.sqrt(2.2e-16)
@@ -219,14 +209,8 @@ def q_between(p: float, q: float, lo: float, hi: float) -> bool:
 # --------------------------------------------------------------------------- roots
 
 
-def brentq(
-    f: Callable[[float], float],
-    a: float,
-    b: float,
-    xtol: float = 2e-12,
-    rtol: float = 8.9e-16,
-    maxiter: int = 100,
-) -> float:
+def brentq(f: Callable[[float], float], a: float, b: float, xtol: float = 2e-12,
+           rtol: float = 8.9e-16, maxiter: int = 100) -> float:
     """A root of f in [a, b] (Brent 1973, ch. 4: bisection, secant and inverse quadratic
     steps); ValueError when f(a) and f(b) have the same sign, as scipy's."""
     if _SCIPY:
@@ -289,16 +273,10 @@ class LsqResult:
     nfev: int
 
 
-def least_squares(
-    fun: Callable[[np.ndarray], np.ndarray],
-    x0: np.ndarray,
-    jac: Callable[[np.ndarray], np.ndarray] | None = None,
-    bounds: tuple[Any, Any] = (-np.inf, np.inf),
-    x_scale: Any = "jac",
-    max_nfev: int = 200,
-    ftol: float = 1e-12,
-    xtol: float = 1e-12,
-) -> Any:
+def least_squares(fun: Callable[[np.ndarray], np.ndarray], x0: np.ndarray,
+                  jac: Callable[[np.ndarray], np.ndarray] | None = None,
+                  bounds: tuple[Any, Any] = (-np.inf, np.inf), x_scale: Any = "jac",
+                  max_nfev: int = 200, ftol: float = 1e-12, xtol: float = 1e-12) -> Any:
     """Bounded nonlinear least squares: Levenberg-Marquardt (Marquardt 1963; Moré 1978's
     scaling by the Jacobian's column norms for ``x_scale="jac"``), steps projected on the box,
     a variable held at a bound while the step pushes it out; forward differences without
@@ -322,9 +300,7 @@ def least_squares(
     if not np.all(np.isfinite(r)):
         raise ValueError("residuals are not finite in the initial point")
     cost = 0.5 * float(r @ r)
-    fixed = (
-        None if isinstance(x_scale, str) else np.broadcast_to(np.asarray(x_scale, float), x.shape)
-    )
+    fixed = None if isinstance(x_scale, str) else np.broadcast_to(np.asarray(x_scale, float), x.shape)
     dmax = np.zeros(x.size)
     lam = -1.0
     status = 0
@@ -358,9 +334,8 @@ def least_squares(
     return LsqResult(x=x, cost=cost, status=status, nfev=nfev)
 
 
-def _fd_jac(
-    fun: Callable[[np.ndarray], np.ndarray], p: np.ndarray, r0: np.ndarray, hi: np.ndarray
-) -> np.ndarray:
+def _fd_jac(fun: Callable[[np.ndarray], np.ndarray], p: np.ndarray, r0: np.ndarray,
+            hi: np.ndarray) -> np.ndarray:
     """Forward-difference Jacobian (steps kept inside the upper bound)."""
     out = np.empty((r0.size, p.size))
     for k in range(p.size):
@@ -372,15 +347,8 @@ def _fd_jac(
     return out
 
 
-def _lm_step(
-    a: np.ndarray,
-    g: np.ndarray,
-    diag: np.ndarray,
-    lam: float,
-    x: np.ndarray,
-    lo: np.ndarray,
-    hi: np.ndarray,
-) -> np.ndarray:
+def _lm_step(a: np.ndarray, g: np.ndarray, diag: np.ndarray, lam: float, x: np.ndarray,
+             lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     """x + the damped Gauss-Newton step (J^T J + lam D) dx = -g, on the box: a variable at
     its bound whose step points out is held there and the rest solved again."""
     free = ~(((x <= lo) & (g > 0)) | ((x >= hi) & (g < 0)))
@@ -428,9 +396,8 @@ def betainc(a: float, b: float, x: float) -> float:
         return 0.0
     if x >= 1:
         return 1.0
-    ln_front = (
-        math.lgamma(a + b) - math.lgamma(a) - math.lgamma(b) + a * math.log(x) + b * math.log1p(-x)
-    )
+    ln_front = (math.lgamma(a + b) - math.lgamma(a) - math.lgamma(b) + a * math.log(x)
+                + b * math.log1p(-x))
     if x < (a + 1.0) / (a + b + 2.0):
         return math.exp(ln_front) * _betacf(a, b, x) / a
     return 1.0 - math.exp(ln_front) * _betacf(b, a, 1.0 - x) / b
@@ -443,10 +410,8 @@ def _betacf(a: float, b: float, x: float) -> float:
     h = d
     for m in range(1, 1000):
         m2 = 2 * m
-        for num in (
-            m * (b - m) * x / ((a + m2 - 1.0) * (a + m2)),
-            -(a + m) * (a + b + m) * x / ((a + m2) * (a + m2 + 1.0)),
-        ):
+        for num in (m * (b - m) * x / ((a + m2 - 1.0) * (a + m2)),
+                    -(a + m) * (a + b + m) * x / ((a + m2) * (a + m2 + 1.0))):
             d = 1.0 + num * d
             d = 1.0 / (d if abs(d) > tiny else tiny)
             c = 1.0 + num / c
