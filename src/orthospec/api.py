@@ -252,6 +252,44 @@ def check(
     return CheckResult(doc, ev)
 
 
+def diff(a: str | Path | ResolvedProfile, b: str | Path | ResolvedProfile, *, prose: bool = False
+         ) -> dict[str, Any]:
+    """What changed from profile ``a`` to ``b`` (``orthospec spec diff``, text or ``--json``):
+    rules and parameters added, removed, changed (prose fields only with ``prose``), the mandatory
+    rules a tender weakened, and ``through_parameters``: the rules whose effective requirement
+    changed only because a parameter did, worded as the QCR and the annex word it."""
+    from .profile.diff import diff_profiles
+    from .reports.annex import requirement_text
+
+    pa = a if isinstance(a, ResolvedProfile) else load_profile(a)
+    pb = b if isinstance(b, ResolvedProfile) else load_profile(b)
+    d = diff_profiles(pa, pb)
+    if not prose:
+        for kind in ("parameters", "rules"):
+            d[kind]["changed"] = {
+                name: kept for name, fields_ in d[kind]["changed"].items()
+                if (kept := {f: v for f, v in fields_.items()
+                             if f.split(".")[-1] not in ("description", "note", "title")})}
+    if (pa.id, pa.version) == (pb.id, pb.version) and pa.sha256 != pb.sha256:
+        d["warning"] = (f"warning: both files say {pa.id} {pa.version} but their contents differ (sha256 "
+                        f"{pa.sha256[:12]}… vs {pb.sha256[:12]}…): give the changed profile a new version")
+    through: list[dict[str, str]] = []
+    if d["parameters"]["changed"] or d["parameters"]["added"]:
+        for r in pb.rules:
+            if r.id in d["rules"]["changed"] or r.id in d["rules"]["added"]:
+                continue
+            try:
+                old_rule = pa.rule(r.id)
+            except KeyError:
+                continue
+            ra = requirement_text(old_rule.requirement, dict(pa.parameters))
+            rb = requirement_text(r.requirement, dict(pb.parameters))
+            if ra != rb:
+                through.append({"id": r.id, "before": ra, "after": rb})
+    d["through_parameters"] = through
+    return d
+
+
 def _nssda(doc: dict[str, Any]) -> list[dict[str, Any]]:
     """FGDC-STD-007.3 §3.2.3 reporting statements ("Tested 0.683 meters horizontal accuracy at 95%
     confidence level"), one per block and axis, when the profile judges an NSSDA figure; [] otherwise

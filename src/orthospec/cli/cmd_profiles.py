@@ -11,7 +11,6 @@ from rich.markup import escape
 from rich.table import Table
 
 from ..errors import OrthospecError
-from ..profile.diff import diff_profiles
 from ..profile.loader import available, load_profile, validate_file
 from .groups import main, spec
 
@@ -116,27 +115,13 @@ def diff_cmd(a: str, b: str, as_json: bool, show_all: bool) -> None:
     """
     import json
 
+    from ..api import diff
     from ..profile.wording import param_value, unit_suffix
     from ..reports.annex import requirement_text
 
     pa, pb = load_profile(a), load_profile(b)
-    d = diff_profiles(pa, pb)
-    if not show_all:
-        prose = ("description", "note", "title")
-        for kind in ("parameters", "rules"):
-            changed = {}
-            for name, fields in d[kind]["changed"].items():
-                kept = {f: v for f, v in fields.items() if f.split(".")[-1] not in prose}
-                if kept:
-                    changed[name] = kept
-            d[kind]["changed"] = changed
-    warning = None
-    if (pa.id, pa.version) == (pb.id, pb.version) and pa.sha256 != pb.sha256:
-        warning = (
-            f"warning: both files say {pa.id} {pa.version} but their contents differ (sha256 "
-            f"{pa.sha256[:12]}… vs {pb.sha256[:12]}…): give the changed profile a new version"
-        )
-        d["warning"] = warning
+    d = diff(pa, pb, prose=show_all)
+    warning = d.get("warning")
     if as_json:
         click.echo(json.dumps(d, indent=1, ensure_ascii=False))
         return
@@ -175,19 +160,8 @@ def diff_cmd(a: str, b: str, as_json: bool, show_all: bool) -> None:
                 click.echo(f"~ rule {name}" + (f": requirement {ra} -> {rb}" if ra != rb else ""))
             for field, (old, new) in changes.items():
                 click.echo(f"    {field}: {_show(old)} -> {_show(new)}")
-    # rules whose threshold changed only through a parameter
-    if d["parameters"]["changed"] or d["parameters"]["added"]:
-        for r in pb.rules:
-            if r.id in d["rules"]["changed"] or r.id in d["rules"]["added"]:
-                continue
-            try:
-                old_rule = pa.rule(r.id)
-            except KeyError:
-                continue
-            ra = requirement_text(old_rule.requirement, dict(pa.parameters))
-            rb = requirement_text(r.requirement, dict(pb.parameters))
-            if ra != rb:
-                click.echo(f"~ rule {r.id}: requirement {ra} -> {rb} (through its parameters)")
+    for t in d["through_parameters"]:  # rules whose threshold changed only through a parameter
+        click.echo(f"~ rule {t['id']}: requirement {t['before']} -> {t['after']} (through its parameters)")
     if not any(d[k][c] for k in ("parameters", "rules") for c in ("added", "removed", "changed")):
         click.echo("no differences in rules or parameters")
 
