@@ -89,6 +89,21 @@ def test_render_refuses_a_folder_inside_the_delivery(make_delivery, mini_profile
     assert not (Path(root) / "out").exists()
 
 
+@pytest.mark.parametrize("as_object", [False, True])
+def test_a_ledger_inside_the_delivery_is_refused_however_the_delivery_is_given(
+    make_delivery, mini_profile, as_object: bool
+) -> None:
+    """Given as a path or as an opened Delivery, a ledger file inside the delivery is refused before
+    anything is created (orthospec never writes into a delivery)."""
+    from orthospec.delivery.reader import open_delivery
+
+    root = Path(make_delivery())
+    target = open_delivery(root) if as_object else root
+    with pytest.raises(OrthospecError, match="inside the delivery"):
+        api.check(target, mini_profile, params=PARAMS, date="2026-01-01", ledger=root / "ledger.sqlite")
+    assert not (root / "ledger.sqlite").exists()
+
+
 def test_sample_given_as_ids_has_a_statement_without_a_file(make_delivery, mini_profile) -> None:
     result = api.check(
         make_delivery(),

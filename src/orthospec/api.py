@@ -196,8 +196,9 @@ def check(
     if ledger is not None:
         from .ledger import head_for_check
 
-        if "://" not in str(ledger) and not isinstance(delivery, Delivery):
-            refuse_inside_delivery(ledger, delivery, what="--ledger")
+        if "://" not in str(ledger):  # a ledger file is never written inside the delivery
+            root = delivery.root if isinstance(delivery, Delivery) else delivery
+            refuse_inside_delivery(ledger, root, what="--ledger")
         ledger_head = head_for_check(str(ledger), allowed_signers=allowed_signers)
     sample_file = None
     if isinstance(opts.sample, str | Path):
