@@ -196,12 +196,13 @@ def acquisition_window(ctx: ProviderContext) -> list[Measured]:
                 f"window {window}"
             )
     ev = pd.Series({i: evidence[i] for i in ids}, dtype=object)
+    iso: dict[str, str | None] = {i: (day.isoformat() if (day := dates[i]) else None) for i in ids}
     return [
         Measured(
             "acquisition.date",
             "image",
             "date",
-            pd.Series({i: (dates[i].isoformat() if dates[i] else None) for i in ids}, dtype=object),
+            pd.Series(iso, dtype=object),
             ev,
             notes=pd.Series(notes, dtype=object),
         ),

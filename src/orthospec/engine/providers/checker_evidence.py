@@ -86,7 +86,7 @@ def points_bound(ctx: ProviderContext) -> list[Measured]:
         empty = pd.Series({b: None for b in blocks}, dtype=object)
         ev = pd.Series({b: (d.manifest_evidence("blocks"),) for b in blocks}, dtype=object)
         return [Measured(name, "block", unit, empty, ev, na=na) for name, unit in BLOCK.items()]
-    t = d.table("checkpoints")  # resolves the binding
+    t = d.require_table("checkpoints")  # resolves the binding
     unbound = view.unbound_frame()
     ids = t.df.set_index(t.df["point_id"].astype(str))
     unhashed = set(view.unhashed)

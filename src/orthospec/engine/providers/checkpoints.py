@@ -615,10 +615,10 @@ def _gcps(ctx: ProviderContext) -> dict[str, tuple[np.ndarray, np.ndarray, np.nd
         return {}
     unit = float(convert([1.0], g.units.get("x", "m"), "m")[0])
     df = g.df
-    out = {}
+    out: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
     for block, rows in sorted(df.groupby(df["block"].astype(str)).indices.items()):
         part = df.iloc[rows]
-        out[block] = (
+        out[str(block)] = (
             part["point_id"].astype(str).to_numpy(),
             part["x"].to_numpy(float) * unit,
             part["y"].to_numpy(float) * unit,

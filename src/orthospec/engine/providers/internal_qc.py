@@ -92,9 +92,9 @@ def internal_qc(ctx: ProviderContext) -> list[Measured]:
             if name == "internal_qc.agrees":
                 vals[b], notes[b] = _agrees(b, mine, theirs, tol)
             elif name == "internal_qc.imprecise":
-                vals[b], why = _imprecise(t, b, tol)
-                if why:
-                    notes[b] = why
+                vals[b], imprecise = _imprecise(t, b, tol)
+                if imprecise:
+                    notes[b] = imprecise
             else:
                 stat = name.split(".", 1)[1]
                 vals[b] = _stat(mine, b, stat)

@@ -116,7 +116,9 @@ def mosaic_measures(ctx: ProviderContext) -> list[Measured]:
                 f"; unreadable: {', '.join(bad)}" if bad else ""
             )
             t = d.table("images")
-            evs["mosaic.aoi_coverage"] = aoi_ev + t.evidence(t.df["_row"])
+            evs["mosaic.aoi_coverage"] = aoi_ev + (
+                t.evidence(t.df["_row"]) if t is not None else ()
+            )
         seam = d.manifest.vectors.get("seamlines")
         if seam:
             try:
@@ -265,6 +267,7 @@ def raster_location(ctx: ProviderContext) -> list[Measured]:
             if block is None or (isinstance(block, float) and block != block)
             else str(block).strip()
         )
+        ev: tuple[Evidence, ...]
         if block in polys:
             area, ev, what = polys[block], (outline_ev[block],), f"the outline of block {block}"
         elif aoi is not None:

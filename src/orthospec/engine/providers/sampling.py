@@ -100,7 +100,11 @@ def strata_missed(ctx: ProviderContext) -> tuple[list[str], str, tuple[Evidence,
         if members and not sampled & set(members):
             missed.append(f"problem batch {b}: none of its {len(members)} images sampled")
     limit = ctx.parameters.get("hr_view_angle_max")
-    lim = float(limit.to("degree").magnitude) if hasattr(limit, "to") else float(limit or 15.0)
+    lim = (
+        float(limit.to("degree").magnitude)
+        if limit is not None and hasattr(limit, "to")
+        else float(limit or 15.0)
+    )
     views = _view_angles(ctx, ids)
     high = [i for i in ids if views.get(i, np.nan) > lim]
     if high and not sampled & set(high):
