@@ -5,6 +5,8 @@ handing its left-out images to ``derived.photo_coverage`` as a typed result, not
 from __future__ import annotations
 
 import math
+import shutil
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -177,3 +179,56 @@ def test_the_lay_down_names_the_photos_it_left_out_without_ctx_memo() -> None:
     assert got.values.iloc[0] is None  # a lower bound below 100 % decides nothing
     assert "F01_0103, F01_0104, F01_0105 lack an exposure station or flying height" in note
     assert not [k for k in ctx.memo if k.startswith("derived.")]
+
+
+# ---------------------------------------------------------------- derived.dem_blocks reads through raster/facts.py
+
+
+def _dem_delivery(tmp_path: Path, crs: str | None) -> Path:
+    """aerial-pass with a 2 x 2 km DEM (x 508-510 km, y 5404-5406 km: inside block B02) and no
+    `block` column, so derived.dem_blocks places it by its file's footprint."""
+    import rasterio
+    import yaml
+    from rasterio.transform import from_origin
+
+    d = tmp_path / "aerial-pass"
+    shutil.copytree(EXAMPLES / "aerial-pass", d)
+    with rasterio.open(
+        d / "images" / "dem.tif",
+        "w",
+        driver="GTiff",
+        width=20,
+        height=20,
+        count=1,
+        dtype="float32",
+        crs=crs,
+        transform=from_origin(508000, 5406000, 100, 100),
+    ) as ds:
+        ds.write(np.zeros((1, 20, 20), dtype="float32"))
+    (d / "tables" / "dem.csv").write_text("dem_id,file\nDEM-1,images/dem.tif\n", encoding="utf-8")
+    m = yaml.safe_load((d / "delivery.yaml").read_text(encoding="utf-8"))
+    m["tables"]["dem"] = "tables/dem.csv"
+    (d / "delivery.yaml").write_text(yaml.safe_dump(m, sort_keys=False), encoding="utf-8")
+    return d
+
+
+@pytest.mark.parametrize(
+    ("crs", "blocks", "note"),
+    [
+        ("EPSG:25832", "B02", "footprint of images/dem.tif overlaps block(s) B02"),
+        # no CRS: its geotransform alone is no place on the ground, so it serves no block (a failing
+        # DEM then returns the delivery, rollup.py) instead of the blocks its numbers happen to hit
+        (None, None, "cannot read the footprint of images/dem.tif: no georeference (no CRS)"),
+    ],
+)
+def test_a_dem_is_placed_by_its_georeferenced_footprint(
+    tmp_path: Path, crs: str | None, blocks: str | None, note: str
+) -> None:
+    from orthospec.delivery.reader import open_delivery
+    from orthospec.engine.providers.dem import dem_blocks
+    from orthospec.engine.registry import ProviderContext
+
+    delivery = open_delivery(_dem_delivery(tmp_path, crs))
+    (got,) = dem_blocks(ProviderContext(delivery=delivery, parameters={}))
+    assert got.values.to_dict() == {"DEM-1": blocks}
+    assert got.notes.to_dict() == {"DEM-1": note}

@@ -146,12 +146,33 @@ def dem_file(ctx: ProviderContext) -> list[Measured]:
 DEM = {"derived.dem_blocks": "text"}
 
 
+def _served_blocks(d: Any, rel: str, dem_id: str, polys: dict[str, Any]) -> tuple[str | None, str]:
+    """The blocks (';'-separated) whose polygon the footprint of DEM file ``rel`` overlaps, and how it
+    was found. The footprint is the file's georeferenced bounds as raster/facts.py reads them (the
+    one reading of a raster's header); a file that cannot be read or has no georeference serves none."""
+    from shapely.geometry import box
+
+    from ...raster.facts import read_facts
+
+    try:
+        facts = read_facts(d.path(rel, what=f"dem row for {dem_id}"), sha256=False, name=rel)
+    except (OrthospecError, OSError) as exc:
+        return None, f"cannot read the footprint of {rel}: {exc}"
+    if facts.error is not None or facts.bounds is None:
+        return None, f"cannot read the footprint of {rel}: {facts.error or facts.georeference}"
+    foot = box(*facts.bounds)
+    served = sorted(b for b, poly in polys.items() if foot.intersection(poly).area > 0)
+    return ";".join(served) or None, (
+        f"footprint of {rel} overlaps block(s) {', '.join(served)}"
+        if served
+        else f"footprint of {rel} overlaps no block polygon"
+    )
+
+
 @provider(scope="dem", measures=DEM)
 def dem_blocks(ctx: ProviderContext) -> list[Measured]:
     """Blocks each DEM serves: its `block` value, else its file's footprint over the block polygons."""
-    from shapely.geometry import Polygon, box
-
-    from ...raster.reading import open_read_only, read_only_env
+    from shapely.geometry import Polygon
 
     d = ctx.delivery
     t = d.table("dem")
@@ -177,39 +198,20 @@ def dem_blocks(ctx: ProviderContext) -> list[Measured]:
     notes: dict[str, str] = {}
     files = t.df["file"].tolist() if "file" in t.df else [None] * len(ids)
     blocks_col = t.df["block"].tolist() if "block" in t.df else [None] * len(ids)
-    with read_only_env():
-        for dem_id, blk, rel in zip(ids, blocks_col, files, strict=True):
-            if (
-                blk is not None
-                and not (isinstance(blk, float) and np.isnan(blk))
-                and str(blk).strip()
-            ):
-                vals[dem_id] = ";".join(x.strip() for x in str(blk).split(";") if x.strip())
-                notes[dem_id] = f"{t.file} column block"
-                continue
-            vals[dem_id] = None
-            if not rel or (isinstance(rel, float) and np.isnan(rel)) or not polys:
-                notes[dem_id] = (
-                    f"{t.file} gives no block for {dem_id}"
-                    + ("" if polys else " and the manifest gives no block polygons")
-                    + ("" if rel and not isinstance(rel, float) else " and no DEM file")
-                )
-                continue
-            try:
-                with open_read_only(
-                    d.path(str(rel), what=f"dem row for {dem_id}"), name=str(rel)
-                ) as ds:
-                    foot = box(*ds.bounds)
-            except (OrthospecError, OSError) as exc:
-                notes[dem_id] = f"cannot read the footprint of {rel}: {exc}"
-                continue
-            served = sorted(b for b, poly in polys.items() if foot.intersection(poly).area > 0)
-            vals[dem_id] = ";".join(served) or None
+    for dem_id, blk, rel in zip(ids, blocks_col, files, strict=True):
+        if blk is not None and not (isinstance(blk, float) and np.isnan(blk)) and str(blk).strip():
+            vals[dem_id] = ";".join(x.strip() for x in str(blk).split(";") if x.strip())
+            notes[dem_id] = f"{t.file} column block"
+            continue
+        vals[dem_id] = None
+        if not rel or (isinstance(rel, float) and np.isnan(rel)) or not polys:
             notes[dem_id] = (
-                f"footprint of {rel} overlaps block(s) {', '.join(served)}"
-                if served
-                else f"footprint of {rel} overlaps no block polygon"
+                f"{t.file} gives no block for {dem_id}"
+                + ("" if polys else " and the manifest gives no block polygons")
+                + ("" if rel and not isinstance(rel, float) else " and no DEM file")
             )
+            continue
+        vals[dem_id], notes[dem_id] = _served_blocks(d, str(rel), dem_id, polys)
     ev = RowEvidence(
         t.file, t.sha256, pd.Series(t.df["_row"].to_numpy(), index=t.ids.astype(str).to_numpy())
     )
