@@ -232,3 +232,34 @@ def test_a_dem_is_placed_by_its_georeferenced_footprint(
     (got,) = dem_blocks(ProviderContext(delivery=delivery, parameters={}))
     assert got.values.to_dict() == {"DEM-1": blocks}
     assert got.notes.to_dict() == {"DEM-1": note}
+
+
+# ---------------------------------------------------------------- shared work under a typed key
+
+
+def test_shared_work_is_computed_once_per_run() -> None:
+    from orthospec.engine.providers.shared import Shared
+    from orthospec.engine.registry import ProviderContext
+
+    calls: list[int] = []
+
+    def compute(ctx: ProviderContext) -> list[int]:
+        calls.append(1)
+        return [len(calls)]
+
+    work = Shared("test.work", compute)
+    run, other = (ProviderContext(delivery=None, parameters={}) for _ in range(2))  # type: ignore[arg-type]
+    first = work.get(run)
+    assert work.get(run) is first and first == [1]  # the same object, computed once
+    assert work.get(other) == [2]  # another run computes its own
+    assert len(calls) == 2
+
+
+def test_satellite_and_seamlines_read_one_footprint_computation() -> None:
+    """area_selection.py reads the image footprints through satellite.footprints, not its own key."""
+    import inspect
+
+    from orthospec.engine.providers import area_selection, satellite
+
+    assert area_selection.footprints is satellite.footprints
+    assert "ctx.memo" not in inspect.getsource(area_selection)

@@ -26,6 +26,7 @@ import pandas as pd
 
 from ...provenance import Evidence
 from ..registry import Measured, ProviderContext, provider
+from .shared import Shared
 
 IMAGE = {"acquisition.date": "date", "acquisition.days_outside_window": "d"}
 DELIVERY = {"acquisition.outside_declared_window": "1"}
@@ -83,14 +84,18 @@ def _flight_days(ctx: ProviderContext) -> tuple[dict[str, set[dt.date]], dict[st
     return out, ev
 
 
+#: computed once per run: both providers read it
+_IMAGE_DATES: Shared[
+    tuple[list[str], dict[str, dt.date | None], dict[str, str], dict[str, tuple[Evidence, ...]]]
+] = Shared("acquisition.image_dates", lambda ctx: _image_dates(ctx))
+
+
 def image_dates(
     ctx: ProviderContext,
 ) -> tuple[list[str], dict[str, dt.date | None], dict[str, str], dict[str, tuple[Evidence, ...]]]:
     """(image ids, date or None, note, evidence) from the images', scenes' and flights' records
     (computed once per run: both providers read it)."""
-    if "acquisition.image_dates" not in ctx.memo:
-        ctx.memo["acquisition.image_dates"] = _image_dates(ctx)
-    return ctx.memo["acquisition.image_dates"]  # type: ignore[no-any-return]
+    return _IMAGE_DATES.get(ctx)
 
 
 def _image_dates(

@@ -20,8 +20,9 @@ from shapely.geometry import box
 
 from ...errors import OrthospecError
 from ...provenance import Evidence
-from ...raster.footprints import image_footprints, read_seamlines
+from ...raster.footprints import read_seamlines
 from ..registry import Measured, ProviderContext, provider
+from .satellite import footprints
 
 NAME = "seamline.area_selection_faults"
 #: a seamline polygon may stick out of its image's footprint by this share of its area (edge rounding)
@@ -90,9 +91,7 @@ def area_selection(ctx: ProviderContext) -> list[Measured]:
         if field is None:
             note = f"{seam} gives no image attribute (image_id) for its polygons"
         else:
-            if "image_footprints" not in ctx.memo:
-                ctx.memo["image_footprints"] = image_footprints(d)
-            feet = ctx.memo["image_footprints"]
+            feet = footprints(ctx)
             imgs = d.table("images")
             nadir: dict[str, tuple[float, float]] = {}
             if imgs is not None and {"exposure_x", "exposure_y"} <= set(imgs.df):

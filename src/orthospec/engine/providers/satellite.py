@@ -36,6 +36,7 @@ from ...provenance import Evidence
 from ...raster.footprints import image_footprints
 from ...units import convert
 from ..registry import Measured, ProviderContext, provider
+from .shared import Shared
 
 MEASURES = {
     "scene.gcp_count": "1",
@@ -61,13 +62,17 @@ def strip_supplement(
     return per_area * math.ceil((area_km2 - base_area_km2) / base_area_km2 - 1e-9)
 
 
+#: image id -> (left, bottom, right, top) of its delivered raster, or (None, why); once per run
+FOOTPRINTS: Shared[dict[str, tuple[tuple[float, float, float, float] | None, str | None]]] = Shared(
+    "image_footprints", lambda ctx: image_footprints(ctx.delivery)
+)
+
+
 def footprints(
     ctx: ProviderContext,
 ) -> dict[str, tuple[tuple[float, float, float, float] | None, str | None]]:
     """Image id -> (left, bottom, right, top) of its delivered raster, or (None, why); once per run."""
-    if "image_footprints" not in ctx.memo:
-        ctx.memo["image_footprints"] = image_footprints(ctx.delivery)
-    return ctx.memo["image_footprints"]  # type: ignore[no-any-return]
+    return FOOTPRINTS.get(ctx)
 
 
 def _area_km2(bounds: tuple[float, float, float, float], unit: str | None) -> float | None:
