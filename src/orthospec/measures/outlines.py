@@ -20,7 +20,8 @@ OUTLINE_TOLERANCE = 0.01
 
 
 def disagreement(declared: Any, in_force: Any) -> str | None:
-    """None when ``declared`` agrees with ``in_force`` within ``OUTLINE_TOLERANCE``, else how far apart."""
+    """None when ``declared`` agrees with ``in_force`` within ``OUTLINE_TOLERANCE``, else how far
+    apart."""
     area = float(in_force.area)
     sym = float(declared.symmetric_difference(in_force).area)
     far = float(declared.hausdorff_distance(in_force))
@@ -29,5 +30,6 @@ def disagreement(declared: Any, in_force: Any) -> str | None:
         return None
     return (
         f"differs by {sym / area * 100:.3g} % of the area in force (symmetric difference; at most "
-        f"{OUTLINE_TOLERANCE * 100:g} %) and by up to {far:.6g} map units (Hausdorff distance; at most {limit:.6g})"
+        f"{OUTLINE_TOLERANCE * 100:g} %) and by up to {far:.6g} map units (Hausdorff distance; at "
+        f"most {limit:.6g})"
     )

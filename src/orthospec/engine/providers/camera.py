@@ -1,13 +1,15 @@
 """Large-format cameras as published (specs/cameras.yaml: Passini, Jacobsen & Day, Table 1).
 
-* ``derived.camera_agrees`` (camera): the declared format and pixel size of a camera are its
-  model's published ones; the photo lay-down (``derived.photo_coverage``, coverage.py) uses the
-  published values for a listed model whatever the cameras table declares (issue 25: a format
-  declared 3 x larger hid a missing strip).
+* ``derived.camera_agrees`` (camera): the declared format and pixel size of a camera are its model's
+  published ones; the photo lay-down (``derived.photo_coverage``, coverage.py) uses the published
+  values for a listed model whatever the cameras table declares (issue 25: a format declared 3 x
+  larger hid a missing strip).
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -29,41 +31,51 @@ def _camera_key(model: Any) -> str:
     return re.sub(r"[^a-z0-9]", "", text)
 
 
-_CAMERAS: dict[str, dict[str, Any]] | None = None
+@dataclass(frozen=True)
+class PublishedCamera:
+    """One row of specs/cameras.yaml."""
+
+    id: str
+    #: format in pixels (x, y) as published
+    pixels: tuple[int, int]
+    pixel_size_um: float
+    focal_length_mm: tuple[float, ...]
 
 
-def known_camera(model: Any) -> dict[str, Any] | None:
-    """The published format of a large-format camera model (specs/cameras.yaml: Passini, Jacobsen & Day,
-    Table 1), or None for a model the table does not list. Names match without case, spaces or
+@lru_cache(maxsize=1)
+def _published() -> dict[str, PublishedCamera]:
+    import yaml
+
+    from ...resources import specs_dir
+
+    raw = yaml.safe_load((specs_dir() / "cameras.yaml").read_text(encoding="utf-8"))
+    return {
+        _camera_key(c["id"]): PublishedCamera(
+            id=c["id"],
+            pixels=(int(c["pixels_x"]), int(c["pixels_y"])),
+            pixel_size_um=float(c["pixel_size_um"]),
+            focal_length_mm=tuple(float(f) for f in c["focal_length_mm"]),
+        )
+        for c in raw["cameras"]
+    }
+
+
+def known_camera(model: Any) -> PublishedCamera | None:
+    """The published format of a large-format camera model (specs/cameras.yaml: Passini, Jacobsen &
+    Day, Table 1), or None for a model the table does not list. Names match without case, spaces or
     punctuation, "UltraCam" read as "UC" (``UltraCam Eagle`` is ``UC Eagle``)."""
-    global _CAMERAS
     if not model or not str(model).strip():
         return None
-    if _CAMERAS is None:
-        import yaml
-
-        from ...resources import specs_dir
-
-        raw = yaml.safe_load((specs_dir() / "cameras.yaml").read_text(encoding="utf-8"))
-        _CAMERAS = {
-            _camera_key(c["id"]): {
-                "id": c["id"],
-                "pixels": (int(c["pixels_x"]), int(c["pixels_y"])),
-                "pixel_size_um": float(c["pixel_size_um"]),
-                "focal_length_mm": tuple(float(f) for f in c["focal_length_mm"]),
-            }
-            for c in raw["cameras"]
-        }
-    return _CAMERAS.get(_camera_key(model))
+    return _published().get(_camera_key(model))
 
 
 @provider(scope="camera", measures=CAMERA)
 def camera_agrees(ctx: ProviderContext) -> list[Measured]:
     """The declared format and pixel size of a camera are its model's published ones (specs/cameras.yaml,
     Passini, Jacobsen & Day Table 1). The photo lay-down (derived.photo_coverage) uses the published
-    values for a listed model whatever the table declares (issue 25: a format declared 3 x larger hid a
-    missing strip); this measure reports the declaration the table contradicts. Not applicable to a
-    model the table does not list."""
+    values for a listed model whatever the table declares (issue 25: a format declared 3 x larger
+    hid a missing strip); this measure reports the declaration the table contradicts. Not applicable
+    to a model the table does not list."""
     t = ctx.delivery.table("cameras")
     if t is None:
         empty = pd.Series(dtype=object)
@@ -82,10 +94,10 @@ def camera_agrees(ctx: ProviderContext) -> list[Measured]:
             continue
         problems = []
         declared = sorted(float(row[c]) for c in FORMAT_COLUMNS if c in t.df and _filled(row[c]))
-        if len(declared) == 2 and declared != sorted(float(v) for v in known["pixels"]):
+        if len(declared) == 2 and declared != sorted(float(v) for v in known.pixels):
             problems.append(
-                f"format {declared[1]:.0f} x {declared[0]:.0f} px declared, the {known['id']}'s is "
-                f"{max(known['pixels'])} x {min(known['pixels'])} px"
+                f"format {declared[1]:.0f} x {declared[0]:.0f} px declared, the {known.id}'s is "
+                f"{max(known.pixels)} x {min(known.pixels)} px"
             )
         if "pixel_size" in t.df and _filled(row["pixel_size"]):
             px = float(
@@ -93,9 +105,9 @@ def camera_agrees(ctx: ProviderContext) -> list[Measured]:
                     np.array([float(row["pixel_size"])]), t.units.get("pixel_size", "µm"), "µm"
                 )[0]
             )
-            if abs(px - known["pixel_size_um"]) > 0.01 * known["pixel_size_um"]:
+            if abs(px - known.pixel_size_um) > 0.01 * known.pixel_size_um:
                 problems.append(
-                    f"pixel {px:g} µm declared, the {known['id']}'s is {known['pixel_size_um']:g} µm"
+                    f"pixel {px:g} µm declared, the {known.id}'s is {known.pixel_size_um:g} µm"
                 )
         values[i] = not problems
         notes[i] = (
@@ -105,7 +117,7 @@ def camera_agrees(ctx: ProviderContext) -> list[Measured]:
                 "published values"
             )
             if problems
-            else f"declared format and pixel are the {known['id']}'s"
+            else f"declared format and pixel are the {known.id}'s"
         )
     rows = pd.Series(t.df["_row"].to_numpy(), index=ids)
     return [

@@ -1,5 +1,6 @@
-"""Reading single cells and columns of the delivery's tables the way the ``derived.*`` providers need:
-a cell that holds a value, a column in metres, a normalised method name. No measure is registered here.
+"""Reading single cells and columns of the delivery's tables the way the ``derived.*`` providers
+need: a cell that holds a value, a column in metres, a normalised method name. No measure is
+registered here.
 """
 
 from __future__ import annotations

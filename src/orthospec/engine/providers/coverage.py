@@ -1,13 +1,15 @@
-"""Whether the photos cover the area of interest, from the photo lay-down rather than a declared flag.
+"""Whether the photos cover the area of interest, from the photo lay-down rather than a declared
+flag.
 
-* ``derived.photo_coverage`` (delivery): share of the area of interest in force (``mosaic.aoi_in_force``)
-  covered by the photo lay-down - footprints from the exposure stations, flying heights and the camera's focal
-  length, pixel size and format (JRC §5.2.2 "Side overlap must ensure that all the surveyed area
-  will be covered with imagery"). It does not depend on the delivered orthoimages, so a delivery
-  of extracts (§12.4) cannot switch the coverage check off by declaring ``product.extracts``.
-  A photo whose lay-down GSD (H/f x pixel size) is more than ``GSD_TOLERANCE`` coarser than its
-  own recorded GSD counts toward no coverage (red team R7: inflated flying heights hid a strip).
-  A camera model of the published table (camera.py) lays down with its published format and pixel.
+* ``derived.photo_coverage`` (delivery): share of the area of interest in force
+  (``mosaic.aoi_in_force``) covered by the photo lay-down - footprints from the exposure stations,
+  flying heights and the camera's focal length, pixel size and format (JRC §5.2.2 "Side overlap must
+  ensure that all the surveyed area will be covered with imagery"). It does not depend on the
+  delivered orthoimages, so a delivery of extracts (§12.4) cannot switch the coverage check off by
+  declaring ``product.extracts``. A photo whose lay-down GSD (H/f x pixel size) is more than
+  ``GSD_TOLERANCE`` coarser than its own recorded GSD counts toward no coverage (red team R7:
+  inflated flying heights hid a strip). A camera model of the published table (camera.py) lays down
+  with its published format and pixel.
 
 The arithmetic (ground scale, published format, inflated heights) is measures/laydown.py; the
 footprints are measures/mosaic.py.
@@ -108,14 +110,14 @@ def _camera_of_images(
         if known is None:
             continue
         across_px[k], along_px[k] = laydown.published_format(
-            across_px[k], along_px[k], known["pixels"]
+            across_px[k], along_px[k], known.pixels
         )
-        pix[k] = known["pixel_size_um"]
+        pix[k] = known.pixel_size_um
     return focal, pix, across_px, along_px
 
 
 def _metres(t: Any, column: str) -> np.ndarray:
-    return convert(  # type: ignore[no-any-return]
+    return convert(
         pd.to_numeric(t.df[column], errors="coerce").to_numpy(float), t.units.get(column, "m"), "m"
     )
 
@@ -162,8 +164,8 @@ def _reference_gsd(ctx: ProviderContext, imgs: Any) -> np.ndarray:
     (``images.gsd``, ``product.gsd``) and the pixel size of its delivered raster as measured; NaN
     when none is known. A lay-down GSD much coarser than that is a flying height the delivery
     contradicts (see ``GSD_TOLERANCE``). The raster's own pixel size counts because every other
-    number here is declared: inflating heights and declared GSDs together (red team R18) leaves
-    the delivered 0.25 m pixels as they are."""
+    number here is declared: inflating heights and declared GSDs together (red team R18) leaves the
+    delivered 0.25 m pixels as they are."""
     n = len(imgs.df)
     cands = [
         np.full(n, ctx.delivery.gsd_m if ctx.delivery.gsd_m is not None else np.nan, dtype=float),
@@ -186,8 +188,9 @@ def _reference_gsd(ctx: ProviderContext, imgs: Any) -> np.ndarray:
 
 
 def _raster_pixel_sizes(ctx: ProviderContext, imgs: Any) -> np.ndarray:
-    """Pixel size in metres of each images row's delivered file (the run's one reading of the files);
-    NaN where the file is absent, unreadable or not in a length unit (its own raster rules report that)."""
+    """Pixel size in metres of each images row's delivered file (the run's one reading of the
+    files); NaN where the file is absent, unreadable or not in a length unit (its own raster rules
+    report that)."""
     measured = measured_pixel_m(ctx)
     return np.array([measured.get(str(i), np.nan) for i in imgs.ids.tolist()], dtype=float)
 
@@ -225,17 +228,21 @@ def photo_coverage(ctx: ProviderContext) -> list[Measured]:
         else:
             share = float(shapely.union_all(feet).intersection(aoi).area / aoi.area * 100.0)
             skipped, inflated = lay.incomplete, lay.inflated
-            note = f"{len(feet)} photo footprints (H/f x pixel size x format) cover {share:.3f} % of the {source}"
+            note = (
+                f"{len(feet)} photo footprints (H/f x pixel size x format) cover {share:.3f} % "
+                f"of the {source}"
+            )
             if (skipped or inflated) and share < 100.0:
                 # the photos left out might cover the gap: a lower bound below 100 % decides nothing
                 if skipped:
                     note += (
-                        f"; image(s) {', '.join(skipped[:5])} lack an exposure station or flying height, "
-                        "so full coverage can be neither shown nor refuted"
+                        f"; image(s) {', '.join(skipped[:5])} lack an exposure station or flying "
+                        "height, so full coverage can be neither shown nor refuted"
                     )
                 if inflated:
                     note += (
-                        f"; image(s) {', '.join(inflated[:5])}{' ...' if len(inflated) > 5 else ''} "
+                        "; image(s) "
+                        f"{', '.join(inflated[:5])}{' ...' if len(inflated) > 5 else ''} "
                         f"have a flying height whose H/f x pixel GSD is more than "
                         f"{(GSD_TOLERANCE - 1) * 100:.0f} % coarser than their acquisition_gsd, "
                         "declared GSD or delivered raster pixel, so their footprints are not "
@@ -245,10 +252,14 @@ def photo_coverage(ctx: ProviderContext) -> list[Measured]:
             else:
                 value = share
                 if skipped:
-                    note += f" even without image(s) {', '.join(skipped[:5])} (no exposure station or height)"
+                    note += (
+                        f" even without image(s) {', '.join(skipped[:5])} (no exposure station "
+                        "or height)"
+                    )
                 if inflated:
                     note += (
-                        f" even without image(s) {', '.join(inflated[:5])} (flying height inconsistent "
+                        f" even without image(s) {', '.join(inflated[:5])} (flying height "
+                        "inconsistent "
                         "with the GSD)"
                     )
     return [

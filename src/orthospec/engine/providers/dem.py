@@ -16,15 +16,15 @@ than trusting a declared flag:
 
 * ``derived.dem_blocks`` (dem): the blocks a DEM serves (';'-separated), from the dem table's
   ``block`` column, else from the delivered DEM file's footprint against the block polygons. A
-  failing DEM then rejects those blocks only (JRC Table 5, §12.7 "will reject all products for
-  the block"), never every block of the delivery.
+  failing DEM then rejects those blocks only (JRC Table 5, §12.7 "will reject all products for the
+  block"), never every block of the delivery.
 * ``derived.dem_delivered``, ``derived.dem_used`` and ``derived.dem_delivered_agrees`` (delivery):
   see :func:`dem_presence`.
 """
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
@@ -35,6 +35,9 @@ from ...provenance import Evidence
 from ...raster.dem import dem_integrity
 from ..registry import Measured, ProviderContext, RowEvidence, provider
 from .cells import filled as _filled
+
+if TYPE_CHECKING:
+    from shapely.geometry import Polygon
 
 MEASURES = {"demfile.nodata_share": "%", "demfile.spikes": "1", "demfile.crs_ok": "bool"}
 
@@ -51,7 +54,8 @@ def _map_epsg(ctx: ProviderContext) -> int | None:
 
 
 def _project_zone(ctx: ProviderContext) -> tuple[Any, str]:
-    """The union of the block outlines in force (the project zone whose completeness counts), or None."""
+    """The union of the block outlines in force (the project zone whose completeness counts), or
+    None."""
     from shapely import union_all
     from shapely.geometry import Polygon
 
@@ -146,10 +150,13 @@ def dem_file(ctx: ProviderContext) -> list[Measured]:
 DEM = {"derived.dem_blocks": "text"}
 
 
-def _served_blocks(d: Any, rel: str, dem_id: str, polys: dict[str, Any]) -> tuple[str | None, str]:
-    """The blocks (';'-separated) whose polygon the footprint of DEM file ``rel`` overlaps, and how it
-    was found. The footprint is the file's georeferenced bounds as raster/facts.py reads them (the
-    one reading of a raster's header); a file that cannot be read or has no georeference serves none."""
+def _served_blocks(
+    d: Any, rel: str, dem_id: str, polys: dict[str, Polygon]
+) -> tuple[str | None, str]:
+    """The blocks (';'-separated) whose polygon the footprint of DEM file ``rel`` overlaps, and how
+    it was found. The footprint is the file's georeferenced bounds as raster/facts.py reads them
+    (the one reading of a raster's header); a file that cannot be read or has no georeference serves
+    none."""
     from shapely.geometry import box
 
     from ...raster.facts import read_facts
@@ -187,7 +194,8 @@ def dem_blocks(ctx: ProviderContext) -> list[Measured]:
                 notes=pd.Series({"*": "the manifest declares no 'dem' table"}, dtype=object),
             )
         ]
-    # the outlines in force: the checker's file's when it states blocks (red team R13), else the manifest's
+    # the outlines in force: the checker's file's when it states blocks (red team R13), else the
+    # manifest's
     polys = {
         block: Polygon(ring)
         for block, (ring, _) in ctx.block_outlines().items()
@@ -270,6 +278,28 @@ def _scenes_recording_dem(scenes: Any) -> tuple[list[str], list[Any]]:
     return sorted(set(recorded)), ev
 
 
+def _presence_parts(
+    t: Any, states: list[str] | None, declared: Any, recorded: list[str]
+) -> list[str]:
+    """The parts of the presence note: the DEM files named (``states``, None when none is), the dem
+    table's rows, the scenes that record a DEM."""
+    parts = []
+    if states is not None:
+        parts.append(f"the dem table names DEM file(s): {'; '.join(states[:5])}")
+    elif declared is True:
+        parts.append("delivery.yaml declares product.dem_delivered: true")
+    else:
+        parts.append("no DEM file is named in the delivery")
+    if t is not None and len(t.df):
+        parts.append(f"{t.file} records {len(t.df)} DEM(s)")
+    if recorded:
+        parts.append(
+            f"scene(s) {', '.join(recorded[:5])} record the DEM they were orthorectified with "
+            f"({'/'.join(SCENE_DEM_COLUMNS)})"
+        )
+    return parts
+
+
 @provider(scope="delivery", measures=DEM_PRESENCE)
 def dem_presence(ctx: ProviderContext) -> list[Measured]:
     """Whether a DEM is delivered and whether one was used, from the files (issue 25, "flags that switch
@@ -277,11 +307,12 @@ def dem_presence(ctx: ProviderContext) -> list[Measured]:
 
     * ``derived.dem_delivered``: the dem table names a DEM file (the delivery lists a DEM among its
       files: JRC §12.7 "Where the DEM is also a deliverable"), or the manifest declares
-      ``product.dem_delivered: true`` (an admission is never ignored). The note says whether each named
-      file is present and readable.
-    * ``derived.dem_used``: a DEM is delivered, or the dem table has rows, or a scene records the DEM it
-      was orthorectified with (``scenes.dem_grid_size``, ``dem_accuracy``, ``dem_qc_result``): the
-      DEM checks of Tables 5 and 7 then apply, whatever tables the contractor removed.
+      ``product.dem_delivered: true`` (an admission is never ignored). The note says whether each
+      named file is present and readable.
+    * ``derived.dem_used``: a DEM is delivered, or the dem table has rows, or a scene records the
+      DEM it was orthorectified with (``scenes.dem_grid_size``, ``dem_accuracy``,
+      ``dem_qc_result``): the DEM checks of Tables 5 and 7 then apply, whatever tables the
+      contractor removed.
     * ``derived.dem_delivered_agrees``: the declared ``product.dem_delivered`` is the computed fact
       (not applicable when nothing is declared).
     """
@@ -297,26 +328,14 @@ def dem_presence(ctx: ProviderContext) -> list[Measured]:
     ev += scene_ev
     delivered = bool(named) or declared is True
     used = delivered or (t is not None and len(t.df) > 0) or bool(recorded)
-    parts = []
-    if named:
-        parts.append(f"the dem table names DEM file(s): {'; '.join(states[:5])}")
-    elif declared is True:
-        parts.append("delivery.yaml declares product.dem_delivered: true")
-    else:
-        parts.append("no DEM file is named in the delivery")
-    if t is not None and len(t.df):
-        parts.append(f"{t.file} records {len(t.df)} DEM(s)")
-    if recorded:
-        parts.append(
-            f"scene(s) {', '.join(recorded[:5])} record the DEM they were orthorectified with "
-            f"({'/'.join(SCENE_DEM_COLUMNS)})"
-        )
+    parts = _presence_parts(t, states if named else None, declared, recorded)
     note = "; ".join(parts)
     agrees = None if declared is None else bool(declared) == delivered
     agree_note = (
         "product.dem_delivered not declared"
         if declared is None
-        else f"declared {str(declared).lower()}, the files say {str(delivered).lower()} ({parts[0]})"
+        else f"declared {str(declared).lower()}, the files say {str(delivered).lower()} "
+        f"({parts[0]})"
     )
     evidence = pd.Series({d.id: tuple(ev)}, dtype=object)
     na = (

@@ -12,8 +12,8 @@ live in modules by subject (issue 28); this module keeps their former import pat
   ``derived.dem_delivered_agrees``;
 * pansharpening.py: ``derived.pansharpened`` / ``_agrees`` (JRC §10.5).
 
-Their arithmetic is in measures/ (laydown.py, outlines.py, pansharpening.py, classes.py).
-No measure is registered here.
+Their arithmetic is in measures/ (laydown.py, outlines.py, pansharpening.py, classes.py). No measure
+is registered here.
 """
 
 from __future__ import annotations

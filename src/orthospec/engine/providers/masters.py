@@ -6,10 +6,10 @@ scenes' records and the checker's knowledge rather than trusting the ``is_master
   date, or another scene's ``master_image_id``) cannot switch the Table 9 master-image rules off
   unseen (red team R8); not applicable when no scene shows a master-image workflow (§9.4).
 * ``derived.is_master`` (image) and ``derived.master_images_agree`` (delivery): which scenes are
-  master images is the checker's knowledge (parameter ``master_images``, scene ids); when stated, the
-  Table 9 master-image rules judge those scenes whatever ``scenes.is_master`` says, and the flags
-  are compared with it (red team R8: a master un-flagged with every trace erased escaped them).
-  Without the parameter ``derived.is_master`` is the contractor's ``scenes.is_master``.
+  master images is the checker's knowledge (parameter ``master_images``, scene ids); when stated,
+  the Table 9 master-image rules judge those scenes whatever ``scenes.is_master`` says, and the
+  flags are compared with it (red team R8: a master un-flagged with every trace erased escaped
+  them). Without the parameter ``derived.is_master`` is the contractor's ``scenes.is_master``.
 """
 
 from __future__ import annotations
@@ -39,8 +39,8 @@ def _flagged_master(t: Any) -> pd.Series:
 
 
 def named_masters(ctx: ProviderContext) -> list[str] | None:
-    """The master images the checker names (parameter ``master_images``: scene ids separated by ';' or
-    ','), or None when nobody on the checker's side names them."""
+    """The master images the checker names (parameter ``master_images``: scene ids separated by ';'
+    or ','), or None when nobody on the checker's side names them."""
     raw = ctx.parameters.get("master_images")
     if raw is None:
         return None
@@ -51,7 +51,8 @@ def named_masters(ctx: ProviderContext) -> list[str] | None:
 @provider(scope="image", measures=MASTER_FLAG)
 def is_master(ctx: ProviderContext) -> list[Measured]:
     """Per scene: it is a master image (JRC Table 9). The checker's ``master_images`` when stated,
-    else the contractor's ``scenes.is_master`` (red team R8: un-flagging a master switched its rules off)."""
+    else the contractor's ``scenes.is_master`` (red team R8: un-flagging a master switched its rules
+    off)."""
     t = ctx.delivery.table("scenes")
     if t is None:
         empty = pd.Series(dtype=object)
@@ -157,11 +158,11 @@ def master_images_agree(ctx: ProviderContext) -> list[Measured]:
 def master_images(ctx: ProviderContext) -> list[Measured]:
     """Number of scenes declared master image (JRC Table 9 "identify as master image").
 
-    Not applicable when no scene shows a master-image workflow: §9.4 "only in rare cases will
-    images be corrected to a "master image"", so a delivery corrected to absolute positions needs
-    none. Any trace of one (a scene flagged ``is_master``, or ``master_image_id``,
-    ``master_pixel_size`` or ``master_check_date`` filled) makes the declaration required, so
-    clearing ``is_master`` on a checked master (red team R8) gives 0, not "not applicable"."""
+    Not applicable when no scene shows a master-image workflow: §9.4 "only in rare cases will images
+    be corrected to a "master image"", so a delivery corrected to absolute positions needs none. Any
+    trace of one (a scene flagged ``is_master``, or ``master_image_id``, ``master_pixel_size`` or
+    ``master_check_date`` filled) makes the declaration required, so clearing ``is_master`` on a
+    checked master (red team R8) gives 0, not "not applicable"."""
     d = ctx.delivery
     t = d.table("scenes")
     na = None
@@ -189,7 +190,8 @@ def master_images(ctx: ProviderContext) -> list[Measured]:
             note = f"master image(s) {', '.join(masters[:5])} ({t.file} is_master)"
         elif traced:
             note = (
-                f"no row of {t.file} has is_master true, but scene(s) {', '.join(traced[:5])} record a master "
+                f"no row of {t.file} has is_master true, but scene(s) {', '.join(traced[:5])} "
+                "record a master "
                 f"image ({'/'.join(MASTER_EVIDENCE)})"
             )
         else:

@@ -1,10 +1,10 @@
 """How the orthoimages were produced, computed from the blocks rather than trusting a declared flag.
 
-* ``derived.orthorectification`` (delivery): ``space_resection`` when any block of the manifest
-  was produced by space resection (or the manifest says so), else the declared or block method.
-  JRC §12.8 footnote 6 ("For projects where space resection has been used in the production of
-  individual orthophotos should any block fail, the dataset will be subject to redelivery") keys
-  on it; the manifest's ``product.orthorectification`` alone is a flag the contractor may omit.
+* ``derived.orthorectification`` (delivery): ``space_resection`` when any block of the manifest was
+  produced by space resection (or the manifest says so), else the declared or block method. JRC
+  §12.8 footnote 6 ("For projects where space resection has been used in the production of
+  individual orthophotos should any block fail, the dataset will be subject to redelivery") keys on
+  it; the manifest's ``product.orthorectification`` alone is a flag the contractor may omit.
 """
 
 from __future__ import annotations

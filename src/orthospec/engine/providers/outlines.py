@@ -6,7 +6,8 @@
   photos must cover) and the manifest's are declarations compared with them (red team R13: B02's
   outline shrunk to hide a coverage hole; R17: B01's redrawn over B02's worst points). A declared
   outline agrees within ``OUTLINE_TOLERANCE`` (measures/outlines.py); a block only one side lists is
-  a disagreement. Not applicable when the checker's file states none (the manifest's are then in force).
+  a disagreement. Not applicable when the checker's file states none (the manifest's are then in
+  force).
 """
 
 from __future__ import annotations
@@ -56,12 +57,14 @@ def block_outlines_agree(ctx: ProviderContext) -> list[Measured]:
                 )
             elif block not in stated.blocks:
                 problems.append(
-                    f"block {block} (delivery.yaml blocks[{declared[block][0]}]): the {stated.source} "
+                    f"block {block} (delivery.yaml blocks[{declared[block][0]}]): the "
+                    f"{stated.source} "
                     "gives no outline for it, so none of its check points lies in a block in force"
                 )
             elif not finite_ring(declared[block][1]):
                 problems.append(
-                    f"block {block}: delivery.yaml blocks[{declared[block][0]}] declares no valid polygon"
+                    f"block {block}: delivery.yaml blocks[{declared[block][0]}] declares no valid "
+                    "polygon"
                 )
             else:
                 ring = cast(
@@ -109,11 +112,13 @@ def area_of_interest_agrees(ctx: ProviderContext) -> list[Measured]:
     value: bool | None = None
     if stated is None:
         note = na = (
-            "the checker's file states no area of interest or block outlines: the manifest's are in force"
+            "the checker's file states no area of interest or block outlines: the manifest's are "
+            "in force"
         )
     elif stated.area_of_interest is not None and not rel:
         note = na = (
-            f"delivery.yaml declares no project.area_of_interest; the {stated.source}'s is in force "
+            f"delivery.yaml declares no project.area_of_interest; the {stated.source}'s is in "
+            "force "
             "and nothing is declared to compare with it"
         )
     else:

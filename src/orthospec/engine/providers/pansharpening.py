@@ -110,18 +110,18 @@ def pansharpened(ctx: ProviderContext) -> list[Measured]:
 
     Per image: true when the product is multispectral (>= 2 colour bands: in the delivered file,
     else ``images.bands``, else ``product.bands``) at a pixel size (``images.gsd``, else
-    ``product.gsd``) at most the native
-    multispectral pixel of its scene (``scenes.ms_pixel_size``) divided by 1.5. Resampling the MS
-    bands alone to a grid a little finer than their own pixel (1.24 m -> 1.0 m for a round output
-    pixel) is ordinary resampling, not fusion; but a product 1.5 x finer than the MS bands carries
-    detail they do not have, and every VHR/HR pan/MS pair has a ratio of at least 2 (WorldView-3
-    0.31/1.24 m, Pleiades 0.7/2.8 m, SPOT 6/7 1.5/6 m, Landsat 15/30 m), so a true pan-sharpened
-    product is always on the true side of the margin. (A product merely upsampled 1.5 x from its MS
-    bands also counts: §10.3 "preservation of the spatial resolution of the panchromatic image" is
-    then exactly what the inspector must look at.) False for a single-band product or one not
-    finer than the MS pixel; between the two the data do not decide and the declared
-    ``product.pansharpened`` is used (with a note), else missing. The delivery is pan-sharpened when
-    any image is; false when every image is decided false; else missing with the column to deliver.
+    ``product.gsd``) at most the native multispectral pixel of its scene (``scenes.ms_pixel_size``)
+    divided by 1.5. Resampling the MS bands alone to a grid a little finer than their own pixel
+    (1.24 m -> 1.0 m for a round output pixel) is ordinary resampling, not fusion; but a product 1.5
+    x finer than the MS bands carries detail they do not have, and every VHR/HR pan/MS pair has a
+    ratio of at least 2 (WorldView-3 0.31/1.24 m, Pleiades 0.7/2.8 m, SPOT 6/7 1.5/6 m, Landsat
+    15/30 m), so a true pan-sharpened product is always on the true side of the margin. (A product
+    merely upsampled 1.5 x from its MS bands also counts: §10.3 "preservation of the spatial
+    resolution of the panchromatic image" is then exactly what the inspector must look at.) False
+    for a single-band product or one not finer than the MS pixel; between the two the data do not
+    decide and the declared ``product.pansharpened`` is used (with a note), else missing. The
+    delivery is pan-sharpened when any image is; false when every image is decided false; else
+    missing with the column to deliver.
     """
     d = ctx.delivery
     m = d.manifest
@@ -142,7 +142,10 @@ def pansharpened(ctx: ProviderContext) -> list[Measured]:
     value, note = _delivery_verdict(ids, per)
     agrees: bool | None = None if declared is None or value is None else bool(declared) == value
     if agrees is False:
-        note += f"; the manifest declares product.pansharpened: {str(declared).lower()}, which the data contradict"
+        note += (
+            f"; the manifest declares product.pansharpened: {str(declared).lower()}, which the "
+            "data contradict"
+        )
     agree_note = (
         f"declared {str(declared).lower()}, computed {str(value).lower()}"
         if agrees is not None

@@ -1,4 +1,5 @@
-"""The pixel size of each image as measured from its file, and the JRC §9.1 resolution class read from it.
+"""The pixel size of each image as measured from its file, and the JRC §9.1 resolution class read
+from it.
 
 * ``derived.resolution_class`` (image): the JRC §9.1 class of each scene from its pixel size (the
   delivered file's, or ``scenes.input_pixel_size`` when finer; without a readable file
@@ -23,9 +24,9 @@ IMAGE = {"derived.resolution_class": "text", "derived.resolution_class_agrees": 
 
 
 def measured_pixel_m(ctx: ProviderContext) -> dict[str, float]:
-    """Per image id: the coarser axis of its delivered file's pixel, in metres (the one reading of the
-    files, raster/facts.py, through the run's scan); images whose file is absent, unreadable or not
-    in a length unit are left out (their own raster rules report them)."""
+    """Per image id: the coarser axis of its delivered file's pixel, in metres (the one reading of
+    the files, raster/facts.py, through the run's scan); images whose file is absent, unreadable or
+    not in a length unit are left out (their own raster rules report them)."""
     from .rasters import scanned
 
     got = scanned(ctx)
@@ -43,11 +44,12 @@ def _pixel_sizes(ctx: ProviderContext) -> tuple[pd.Series, dict[str, str], Any]:
     """Per image: the pixel size its §9.1 class is read from, in m, where it came from, and the row
     evidence.
 
-    Measured, not declared (issue 25): the delivered file's own pixel (its geotransform) decides,
-    or the scene's input pixel (``scenes.input_pixel_size``) when that is finer: the class is the
+    Measured, not declared (issue 25): the delivered file's own pixel (its geotransform) decides, or
+    the scene's input pixel (``scenes.input_pixel_size``) when that is finer: the class is the
     finest the evidence shows, so declaring a coarser input pixel (4 m for a 0.5 m raster) cannot
     move a VHR scene into a class with fewer obligations. Without a readable file the declared
-    columns are used, in order: ``scenes.input_pixel_size``, ``images.acquisition_gsd``, ``images.gsd``."""
+    columns are used, in order: ``scenes.input_pixel_size``, ``images.acquisition_gsd``,
+    ``images.gsd``."""
     d = ctx.delivery
     imgs = d.table("images")
     scenes = d.table("scenes")
@@ -70,7 +72,8 @@ def _pixel_sizes(ctx: ProviderContext) -> tuple[pd.Series, dict[str, str], Any]:
         if v is not None and np.isfinite(v) and v < measured[i]:
             size[i] = float(v)
             source[i] = (
-                f"scenes.input_pixel_size {v:.4g} m, finer than the file's pixel {measured[i]:.4g} m"
+                f"scenes.input_pixel_size {v:.4g} m, finer than the file's pixel {measured[i]:.4g} "
+                "m"
             )
     candidates = [(scenes, "input_pixel_size"), (imgs, "acquisition_gsd"), (imgs, "gsd")]
     for t, col in candidates:
@@ -130,7 +133,8 @@ def resolution_class(ctx: ProviderContext) -> list[Measured]:
             )
         elif c is None:
             class_notes[i] = (
-                f"pixel size {v:.4g} {unit} falls in no class of `classes: resolution` (a gap of §9.1)"
+                f"pixel size {v:.4g} {unit} falls in no class of `classes: resolution` (a gap of "
+                "§9.1)"
             )
         else:
             class_notes[i] = f"pixel size {v:.4g} {unit} ({source.get(i, '?')}) -> {c}"

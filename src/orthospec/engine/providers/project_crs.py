@@ -1,9 +1,10 @@
-"""Whether the delivery's coordinates are written in the map projection in force (JRC §12.4 Table 12).
+"""Whether the delivery's coordinates are written in the map projection in force (JRC §12.4 Table
+12).
 
-* ``derived.project_crs_agrees`` (delivery): the manifest's ``project.crs`` (the CRS its
-  coordinates and block outlines are written in) names the map projection in force, the ITT
-  parameter ``map_crs`` (JRC §12.4 Table 12; red team R16: the contractor relabelled every image
-  and project.crs alike). Absent or unreadable is False, never "not applicable".
+* ``derived.project_crs_agrees`` (delivery): the manifest's ``project.crs`` (the CRS its coordinates
+  and block outlines are written in) names the map projection in force, the ITT parameter
+  ``map_crs`` (JRC §12.4 Table 12; red team R16: the contractor relabelled every image and
+  project.crs alike). Absent or unreadable is False, never "not applicable".
 """
 
 from __future__ import annotations
@@ -49,7 +50,8 @@ def project_crs_agrees(ctx: ProviderContext) -> list[Measured]:
             note = (
                 f"delivery.yaml project.crs {declared} is the map projection in force {in_force}"
                 if value
-                else f"delivery.yaml project.crs is {declared}, the map projection in force is {in_force}: the "
+                else f"delivery.yaml project.crs is {declared}, the map projection in force is "
+                f"{in_force}: the "
                 "delivery's coordinates and block outlines are not in the ITT's projection"
             )
     return [

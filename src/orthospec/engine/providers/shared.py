@@ -1,6 +1,6 @@
-"""Work one run computes once and several providers read (issue 28): a typed key into the run's
-memo (``ProviderContext.memo``), so every reader names one object, gets its declared type back, and
-no two modules spell the same string key. No measure is registered here.
+"""Work one run computes once and several providers read (issue 28): a typed key into the run's memo
+(``ProviderContext.memo``), so every reader names one object, gets its declared type back, and no
+two modules spell the same string key. No measure is registered here.
 
     FOOTPRINTS = Shared("image_footprints", lambda ctx: image_footprints(ctx.delivery))
     feet = FOOTPRINTS.get(ctx)  # computed by the first caller of the run, then the same object
