@@ -27,7 +27,8 @@ SLAB_PIXELS = 1 << 16
 
 
 def histogram_layout(dtype: np.dtype | str) -> tuple[int, int] | None:
-    """(offset, bins) of the one-bin-per-DN histogram of an integer dtype up to 16 bits, else None."""
+    """(offset, bins) of the one-bin-per-DN histogram of an integer dtype up to 16 bits, else
+    None."""
     dt = np.dtype(dtype)
     if dt.kind == "b":
         return 0, 2

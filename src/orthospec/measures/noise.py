@@ -26,7 +26,8 @@ NOISE_PERCENTILE = 10.0
 #: the few neighbourhoods and windows touching them are taken out afterwards (same sums).
 SPARSE_INVALID = 64
 
-#: (dy, dx, weight) of Immerkaer's 3x3 difference-of-Laplacians kernel [[1,-2,1],[-2,4,-2],[1,-2,1]].
+#: (dy, dx, weight) of Immerkaer's 3x3 difference-of-Laplacians kernel
+#: [[1,-2,1],[-2,4,-2],[1,-2,1]].
 _LAPLACIAN_TAPS = tuple(
     (dy, dx, (1 if dy and dx else -2 if dy or dx else 4)) for dy in (-1, 0, 1) for dx in (-1, 0, 1)
 )

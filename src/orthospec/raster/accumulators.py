@@ -2,8 +2,8 @@
 
 Validity masks cost as much as a histogram: they are built only where a pixel can be invalid, and
 only for the accumulators that need them. Two sets of accumulators count alternate chunks and merge
-at the end; integer counts merge exactly, and the floating-point sums are added in chunk order within
-each set, so the results do not depend on the machine's cores or on timing.
+at the end; integer counts merge exactly, and the floating-point sums are added in chunk order
+within each set, so the results do not depend on the machine's cores or on timing.
 """
 
 from __future__ import annotations
@@ -116,14 +116,20 @@ class ScanAccumulators:
             extra["thumb"] = sig.Thumbnail(width=ds.width, height=ds.height, dtype=dtype)
             colour = _rgb_bands(infos)
             if colour is not None and all(infos[i - 1].grey.high for i in colour):
+                r, g, b = (infos[i - 1] for i in colour)
                 extra["cloud"] = sig.CloudCounter.for_image(
                     width=ds.width,
                     height=ds.height,
-                    rgb=tuple(i - 1 for i in colour),  # type: ignore[arg-type]
-                    tops=tuple(float(infos[i - 1].grey.high) for i in colour),  # type: ignore[arg-type]
-                    nodata=tuple(
-                        None if infos[i - 1].use_mask else infos[i - 1].nodata  # type: ignore[arg-type]
-                        for i in colour
+                    rgb=(r.index - 1, g.index - 1, b.index - 1),
+                    tops=(
+                        float(r.grey.high or 0),
+                        float(g.grey.high or 0),
+                        float(b.grey.high or 0),
+                    ),
+                    nodata=(
+                        None if r.use_mask else r.nodata,
+                        None if g.use_mask else g.nodata,
+                        None if b.use_mask else b.nodata,
                     ),
                 )
         return cls(

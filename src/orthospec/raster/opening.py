@@ -121,7 +121,8 @@ def library_errors() -> tuple[type[BaseException], ...]:
 def gdal_errors(
     *, file: str | Path, path: str | Path | None = None, what: str = "raster"
 ) -> Iterator[None]:
-    """The one boundary where rasterio / GDAL / pyogrio / pyproj errors become MeasureError naming the file.
+    """The one boundary where rasterio / GDAL / pyogrio / pyproj errors become MeasureError
+    naming the file.
 
     ``file`` is what the message shows (relative to the delivery when known); ``path`` the path
     GDAL was given, removed from GDAL's text so messages do not depend on the working folder.
@@ -177,7 +178,8 @@ def raster_driver(path: str | Path, name: str | None = None) -> str:
 def check_declared_size(
     ds: rasterio.io.DatasetReader, name: str, limits: RasterLimits | None = None
 ) -> None:
-    """Refuse a raster whose header declares more pixels or bands than the limits (before reading)."""
+    """Refuse a raster whose header declares more pixels or bands than the limits (before
+    reading)."""
     lim = limits or RasterLimits.from_env()
     if ds.count > lim.bands:
         raise MeasureError(

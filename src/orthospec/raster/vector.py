@@ -18,12 +18,14 @@ _VECTOR_MAGIC = ((b"SQLite format 3\x00", "GPKG"), (b"\x00\x00\x27\x0a", "ESRI S
 
 
 def vector_driver(path: str | Path, name: str | None = None) -> str:
-    """``GPKG`` or ``ESRI Shapefile`` from the file's first bytes; MeasureError for anything else."""
+    """``GPKG`` or ``ESRI Shapefile`` from the file's first bytes; MeasureError for anything
+    else."""
     label = name or str(path)
     head = _head(path, label, 72)
     for magic, driver in _VECTOR_MAGIC:
         if head.startswith(magic):
-            # a GeoPackage says so in the SQLite application_id (offset 68, OGC 12-128r18 §1.1.1.1.1);
+            # a GeoPackage says so in the SQLite application_id (offset 68, OGC 12-128r18
+            # §1.1.1.1.1);
             # any other SQLite file would go to OGR's SQLite driver (VirtualOGR tables, SpatiaLite)
             if driver == "GPKG" and head[68:72] not in (b"GPKG", b"GP10", b"GP11"):
                 break
