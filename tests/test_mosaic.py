@@ -2,14 +2,10 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pyogrio
 import pytest
-import rasterio
 import shapely
-from affine import Affine
 from scipy import ndimage
 from shapely.geometry import box
 
@@ -20,7 +16,7 @@ from orthospec.measures.mosaic import (
     radiometric_difference,
     seamline_coverage,
 )
-from orthospec.raster.reading import overlap_means, pan_fused_windows, seamline_check
+from orthospec.raster.vector import read_vector
 
 
 def test_seamlines_that_partition_the_aoi_are_ok():
@@ -50,41 +46,6 @@ def test_radiometric_difference_percent_of_mean_level():
         radiometric_difference([1.0], [1.0, 2.0])
 
 
-def _write(path: Path, data: np.ndarray, x0: float, nodata: int | None = None) -> Path:
-    if data.ndim == 2:
-        data = data[None]
-    with rasterio.open(path, "w", driver="GTiff", width=data.shape[2], height=data.shape[1],
-                       count=data.shape[0], dtype=data.dtype, crs="EPSG:25832", nodata=nodata,
-                       transform=Affine(1, 0, x0, 0, -1, 1000)) as ds:
-        ds.write(data)
-    return path
-
-
-def test_overlap_means_of_two_adjacent_orthos(tmp_path):
-    rng = np.random.default_rng(3)
-    a = rng.integers(80, 120, (2, 50, 100), dtype=np.uint8)
-    b = rng.integers(90, 130, (2, 50, 100), dtype=np.uint8)
-    a[:, :5, 70:] = 0  # nodata in part of a's overlap: excluded from both sides
-    fa = _write(tmp_path / "a.tif", a, 0, nodata=0)
-    fb = _write(tmp_path / "b.tif", b, 60, nodata=0)  # b starts at x=60: overlap x 60..100
-    r = overlap_means(fa, fb)
-    sel_a = a[:, :, 60:100].astype(float)
-    sel_b = b[:, :, 0:40].astype(float)
-    ok = (a[:, :, 60:100] != 0).all(axis=0)
-    assert r.pixels == ok.sum()
-    assert r.mean_a == pytest.approx(tuple(sel_a[:, ok].mean(axis=1)))
-    assert r.mean_b == pytest.approx(tuple(sel_b[:, ok].mean(axis=1)))
-    d = radiometric_difference(r.mean_a, r.mean_b)
-    assert d.max_pct > 5
-
-
-def test_overlap_requires_overlap(tmp_path):
-    a = np.ones((10, 10), np.uint8)
-    fa, fb = _write(tmp_path / "a.tif", a, 0), _write(tmp_path / "b.tif", a, 500)
-    with pytest.raises(MeasureError, match="do not overlap"):
-        overlap_means(fa, fb)
-
-
 def test_gradient_energy_proxy_separates_sharp_and_blurred():
     rng = np.random.default_rng(5)
     pan = ndimage.gaussian_filter(rng.normal(size=(256, 256)), 0.7) * 50 + 500
@@ -99,17 +60,6 @@ def test_gradient_energy_proxy_separates_sharp_and_blurred():
         gradient_energy(np.zeros((10, 10)))
 
 
-def test_pan_fused_windows_read_the_same_ground(tmp_path):
-    rng = np.random.default_rng(6)
-    pan = (ndimage.gaussian_filter(rng.normal(size=(200, 200)), 1) * 40 + 120).astype(np.uint8)
-    fused = np.stack([pan, pan, pan])
-    fp = _write(tmp_path / "pan.tif", pan, 0)
-    ff = _write(tmp_path / "fused.tif", fused, 0)
-    p, f = pan_fused_windows(fp, ff, size=128)
-    assert p.shape == (128, 128) and f.shape == (3, 128, 128)
-    assert pan_sharpness(p, f).ratio == pytest.approx(1.0)
-
-
 def test_seamline_and_aoi_files(tmp_path):
     seams = tmp_path / "seamlines.gpkg"
     aoi = tmp_path / "aoi.gpkg"
@@ -120,7 +70,8 @@ def test_seamline_and_aoi_files(tmp_path):
                                                   dtype=object),
                       field_data=[np.array([1])], fields=["id"], geometry_type="Polygon",
                       crs="EPSG:25832", driver="GPKG")
-    r = seamline_check(seams, aoi)
+    (cells, _), (area, _) = read_vector(seams), read_vector(aoi)
+    r = seamline_coverage(cells, shapely.union_all(area))  # what the mosaic provider measures
     assert r.gap_area == pytest.approx(250) and r.overlap_area == 0
-    with pytest.raises(MeasureError, match="seamline file unreadable"):
-        seamline_check(tmp_path / "missing.gpkg", aoi)
+    with pytest.raises(MeasureError, match="missing.gpkg: file not found"):
+        read_vector(tmp_path / "missing.gpkg")

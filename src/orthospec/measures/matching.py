@@ -249,7 +249,7 @@ def _cross_power_peak(
     products cost 25 ms each here, the real einsums well under 1 ms). Not phase-normalised:
     whitening the spectrum lifts the frequencies a coarser reference lacks and biased 1:2 pairs by
     0.17 px (benchmarks/matching.py)."""
-    from .radiometry import _upsampled_dft
+    from .registration import _upsampled_dft
 
     product = f_ref * f_mov.conj()
     cc = np.fft.ifft2(product).real
@@ -283,7 +283,7 @@ def _phase_refine(
     to 1/``upsample`` px over +-0.1 px, until the correction is below 1/1000 px. None when an
     estimate leaves the search window (the iteration diverged: seen on a repetitive texture with
     a large radiometric change, where it walked 17 px off the correlation peak and out)."""
-    from .radiometry import tapered_spectrum
+    from .registration import tapered_spectrum
 
     t = template.shape[0]
     last = search.shape[0] - t  # the largest top/left whose patch lies inside the window

@@ -1,7 +1,7 @@
 """Reading rasters in windows, file checks, parallel scans and the result cache.
 
 Public API for the rule engine: :func:`scan_images` -> list of :class:`ImageReport`.
-Names are imported lazily (PEP 562) so that ``import orthospec.raster.reading`` in a worker
+Names are imported lazily (PEP 562) so that ``import orthospec.raster.scan`` in a worker
 or a short CLI call does not pay for multiprocessing, SQLite and the rest.
 """
 
@@ -17,31 +17,28 @@ _EXPORTS = {
     "PlainProgress": "parallel",
     "Progress": "parallel",
     "RasterFacts": "facts",
-    "RasterStats": "reading",
+    "RasterStats": "scan",
     "ResultCache": "cache",
     "RichProgress": "parallel",
     "ScanOptions": "parallel",
-    "ScanSettings": "reading",
+    "ScanSettings": "scan",
     "VectorCheck": "filechecks",
     "check_file": "filechecks",
     "checked_file": "filechecks",
-    "gdal_errors": "reading",
-    "library_errors": "reading",
-    "open_read_only": "reading",
+    "gdal_errors": "opening",
+    "library_errors": "opening",
+    "open_read_only": "opening",
     "require_dask": "parallel",
-    "scan_dataset": "reading",
+    "scan_dataset": "scan",
     "check_name": "filechecks",
     "check_vector": "filechecks",
     "listing_consistency": "filechecks",
     "make_progress": "parallel",
-    "mask_share": "reading",
-    "overlap_means": "reading",
-    "pan_fused_windows": "reading",
+    "mask_share": "scan",
     "read_facts": "facts",
     "scan_image": "parallel",
     "scan_images": "parallel",
-    "scan_raster": "reading",
-    "seamline_check": "reading",
+    "scan_raster": "scan",
 }
 
 __all__ = sorted(_EXPORTS)

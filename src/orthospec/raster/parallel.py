@@ -23,7 +23,7 @@ import rasterio
 from ..errors import MeasureError, OrthospecError
 from ..provenance import sha256_file
 from .filechecks import checked_file
-from .reading import ScanSettings, mask_share, scan_dataset
+from .scan import ScanSettings, mask_share, scan_dataset
 
 if TYPE_CHECKING:  # imported where used: `measure radiometry` needs neither processes nor the cache
     import multiprocessing.context
