@@ -33,11 +33,8 @@ def _leftovers(tmp: Path) -> list[str]:
     )
 
 
-def test_sigterm_leaves_no_cache_folder(tmp_path: Path) -> None:
-    tmp = tmp_path / "tmp"
-    tmp.mkdir()
-    probe = tmp_path / "test_probe.py"
-    probe.write_text(SLOW, encoding="utf-8")
+def _probe_env(tmp: Path) -> dict[str, str]:
+    """A fresh test run's environment (no inherited cache or worker id) with its temp folder ``tmp``."""
     env = {
         k: v
         for k, v in os.environ.items()
@@ -45,6 +42,15 @@ def test_sigterm_leaves_no_cache_folder(tmp_path: Path) -> None:
     }
     env["TMPDIR"] = str(tmp)
     env["PYTHONPATH"] = os.pathsep.join([str(ROOT), str(ROOT / "tests")])
+    return env
+
+
+def test_sigterm_leaves_no_cache_folder(tmp_path: Path) -> None:
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    probe = tmp_path / "test_probe.py"
+    probe.write_text(SLOW, encoding="utf-8")
+    env = _probe_env(tmp)
     # the repository's conftest as a plugin, on a probe test that waits: the run is stopped while it waits
     proc = subprocess.Popen(
         [
@@ -110,13 +116,7 @@ def test_postgres_folder_is_gone_when_the_session_ends(tmp_path: Path) -> None:
 def _run_probe(tmp: Path, tmp_path: Path) -> None:
     probe = tmp_path / "test_probe.py"
     probe.write_text(USES_PG, encoding="utf-8")
-    env = {
-        k: v
-        for k, v in os.environ.items()
-        if k not in ("ORTHOSPEC_CACHE_DIR", "PYTEST_XDIST_WORKER")
-    }
-    env["TMPDIR"] = str(tmp)
-    env["PYTHONPATH"] = os.pathsep.join([str(ROOT), str(ROOT / "tests")])
+    env = _probe_env(tmp)
     args = ["-q", "-p", "no:cacheprovider", "-p", "no:xdist", "-p", "tests.conftest"]
     args += ["--rootdir", str(tmp_path), str(probe)]
     done = subprocess.run(
