@@ -5,9 +5,10 @@ from __future__ import annotations
 import os
 import shutil
 import signal
+import sys
 import tempfile
 import textwrap
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
@@ -55,6 +56,17 @@ def pytest_configure(config: pytest.Config) -> None:
         from mutation_coverage import PLUGIN_NAME, CoverageReport
 
         config.pluginmanager.register(CoverageReport(), PLUGIN_NAME)
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _postgres_ends_with_the_session() -> Iterator[None]:
+    """The PostgreSQL server of tests/pg.py, if this process started one, is stopped and its folder
+    removed after the process's last test, not at exit: xdist kills a worker still busy 10 s after
+    its last test, which left a half-deleted data folder in the temp folder."""
+    yield
+    pg = sys.modules.get("pg")
+    if pg is not None:
+        pg.stop_server()
 
 
 def pytest_unconfigure(config: pytest.Config) -> None:

@@ -167,5 +167,13 @@ def server() -> PgServer:
                 "with `bash scripts/sysdeps.sh` (Debian package postgresql)"
             )
         _server = start_server()
-        atexit.register(_server.stop)
+        atexit.register(stop_server)
     return _server
+
+
+def stop_server() -> None:
+    """Stop the process-wide server, if one was started, and remove its folder (idempotent)."""
+    global _server
+    if _server is not None:
+        _server.stop()
+        _server = None

@@ -9,8 +9,10 @@ import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import textwrap
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -86,9 +88,25 @@ POOL = textwrap.dedent("""
 """)
 
 
-def _left_after(initializer: str, sig: signal.Signals) -> set[int]:
+@pytest.fixture
+def own_tmp() -> Iterator[dict[str, str]]:
+    """The environment with a TMPDIR of the test's own, removed after it: a command ended by a signal
+    leaves its multiprocessing folder (pymp-*) behind. Short, beside the temp folder (not in
+    tmp_path): the forkserver's socket path must fit in AF_UNIX's 108 bytes."""
+    tmp = tempfile.mkdtemp(prefix="orthospec-w-")
+    try:
+        yield {**os.environ, "TMPDIR": tmp}
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _left_after(initializer: str, sig: signal.Signals, env: dict[str, str]) -> set[int]:
     """The pool's processes still alive 2 s after ``sig`` ended the command that made them."""
-    proc = subprocess.Popen([sys.executable, "-c", POOL, initializer], stdout=subprocess.PIPE)
+    proc = subprocess.Popen(
+        [sys.executable, "-c", POOL, initializer],
+        stdout=subprocess.PIPE,
+        env=env,
+    )
     kids: set[int] = set()
     try:
         assert proc.stdout is not None and proc.stdout.readline().strip() == b"started"
@@ -104,19 +122,21 @@ def _left_after(initializer: str, sig: signal.Signals) -> set[int]:
 
 
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL])
-def test_pool_workers_end_within_2_s_of_their_command(sig: signal.Signals) -> None:
-    left = _left_after("yes", sig)
+def test_pool_workers_end_within_2_s_of_their_command(
+    sig: signal.Signals, own_tmp: dict[str, str]
+) -> None:
+    left = _left_after("yes", sig, own_tmp)
     assert not left, f"orphans after {sig.name}: {sorted(left)}"
 
 
-def test_without_the_initializer_the_workers_would_outlive_it() -> None:
+def test_without_the_initializer_the_workers_would_outlive_it(own_tmp: dict[str, str]) -> None:
     """The test above can fail: a pool without die_with_parent leaves its sleeping workers behind."""
-    assert _left_after("no", signal.SIGKILL), (
+    assert _left_after("no", signal.SIGKILL, own_tmp), (
         "the workers ended anyway: the test above proves nothing"
     )
 
 
-def test_sigterm_to_check_leaves_no_worker(tmp_path: Path) -> None:
+def test_sigterm_to_check_leaves_no_worker(tmp_path: Path, own_tmp: dict[str, str]) -> None:
     """The real command, scanning large images with two workers, ended by SIGTERM mid-scan."""
     d = tmp_path / "delivery"
     shutil.copytree(EXAMPLE, d)
@@ -154,7 +174,7 @@ def test_sigterm_to_check_leaves_no_worker(tmp_path: Path) -> None:
         "--format",
         "json",
     ]
-    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=own_tmp)
     try:
         kids = _wait_for_workers(proc, 3, 60)
         time.sleep(0.3)

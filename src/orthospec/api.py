@@ -307,11 +307,8 @@ def _sample_block(
 ) -> dict[str, Any]:
     """What the sample restricted the check to, for the QCR (JRC §12.3 / §12.8)."""
     scope, items = sample
-    total = (
-        len(d.block_ids)
-        if scope == "block"
-        else (len(d.table("images").df) if d.has_table("images") else 0)
-    )
+    images = d.table("images") if scope != "block" and d.has_table("images") else None
+    total = len(d.block_ids) if scope == "block" else (len(images.df) if images is not None else 0)
     clause = "§12.8" if scope == "block" else "§12.3"
     source = f"file {sample_file.name}, " if sample_file is not None else ""
     return {

@@ -12,7 +12,7 @@ import math
 import re
 import threading
 from functools import lru_cache
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
@@ -294,7 +294,10 @@ def unit_signature(name: str | None) -> tuple[Dims, bool]:
     if hit is not None:
         return hit
     unit = parse_unit(key)
-    dims = tuple(sorted((str(k), int(v)) for k, v in dict(unit.dimensionality).items() if v))
+    # pint types an exponent as any scalar, complex included; a unit's exponents are real numbers
+    dims = tuple(
+        sorted((str(k), int(cast(float, v))) for k, v in dict(unit.dimensionality).items() if v)
+    )
     return dims, unit == _reg().dimensionless
 
 
@@ -548,13 +551,13 @@ class UnitProbe:
 
     __lt__ = __le__ = __gt__ = __ge__ = _cmp
 
-    def __eq__(self, o: object) -> bool:  # type: ignore[override]
+    def __eq__(self, o: object) -> bool:
         return self._cmp(o)
 
-    def __ne__(self, o: object) -> bool:  # type: ignore[override]
+    def __ne__(self, o: object) -> bool:
         return self._cmp(o)
 
-    __hash__ = None  # type: ignore[assignment]
+    __hash__ = None  # type: ignore[assignment]  # unhashable: typeshed types __hash__ as a method
 
 
 def probe_meets(result: Any, unit: str | None) -> bool:

@@ -186,16 +186,17 @@ class DeliveryInForce(Delivery):
         rows = df["_row"].to_numpy()
         for i in np.flatnonzero(hashed).tolist():
             image, sha = ids[i], str(shas[i]).lower()
+            current = None if image is None else now.get(str(image))
             if image is None:
                 why = "the measurement records an image_sha256 but no image_id: it names no delivered image"
             elif str(image) not in files:
                 why = f"image {image} is no longer delivered (the images table does not list it with a file)"
-            elif now[str(image)] is None:
+            elif current is None:
                 why = f"image {image}'s file {files[str(image)]} is not in the delivery"
-            elif sha != now[str(image)]:
+            elif sha != current:
                 why = (
                     f"measured on image {image} with SHA-256 {sha[:12]}…; the delivered {files[str(image)]} is "
-                    f"{now[str(image)][:12]}… (changed or swapped since): measure it again"
+                    f"{current[:12]}… (changed or swapped since): measure it again"
                 )
             else:
                 continue

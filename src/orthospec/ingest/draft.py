@@ -32,7 +32,7 @@ from collections import Counter
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import yaml
 
@@ -47,6 +47,9 @@ from .rasters import Job, read_all
 from .todo import DraftState, entries, render
 from .vectors import Layer, read_layer
 from .walk import Refused, SourceFile, walk_source
+
+if TYPE_CHECKING:
+    from pyproj import Transformer
 
 LINKS = "source"
 #: free-text fields where two files' wordings are both kept (joined), not a conflict
@@ -272,34 +275,34 @@ class _Scan:
         ids = self._image_ids()
         frame = self._frame()
         out: dict[str, tuple[float, float, float, float]] = {}
-        to_frame: dict[str, Any] = {}
+        frame_wkt = self._frame_wkt  # set by _frame()
+        to_frame: dict[str, Transformer | None] = {}  # None: that CRS cannot be transformed
         for f in self._readable():
             if f.bounds is None:
                 continue
             if f.crs_name == frame:
                 out[ids[f.path]] = f.bounds
                 continue
-            if not (frame and f.crs_wkt and f.crs_name):
+            if not (frame and frame_wkt and f.crs_wkt and f.crs_name):
                 continue
-            t = to_frame.get(f.crs_name)
-            if t is None:
+            if f.crs_name not in to_frame:
                 from pyproj import CRS, Transformer
                 from pyproj.exceptions import ProjError
 
                 try:
-                    t = Transformer.from_crs(
-                        CRS.from_wkt(f.crs_wkt), CRS.from_wkt(self._frame_wkt), always_xy=True
+                    to_frame[f.crs_name] = Transformer.from_crs(
+                        CRS.from_wkt(f.crs_wkt), CRS.from_wkt(frame_wkt), always_xy=True
                     )
                 except ProjError:
-                    t = False
-                to_frame[f.crs_name] = t
-            if t:
+                    to_frame[f.crs_name] = None
+            t = to_frame[f.crs_name]
+            if t is not None:
                 try:
                     b = t.transform_bounds(*f.bounds, densify_pts=21)
                 except ProjError:
                     continue
                 if all(math.isfinite(v) for v in b):
-                    out[ids[f.path]] = tuple(b)
+                    out[ids[f.path]] = (b[0], b[1], b[2], b[3])
         self._fps = out
         return out
 
@@ -805,13 +808,13 @@ class _Scan:
                     + ", ".join(pr.outside[:20])
                 )
         lines += [f"- refused: {e}" for e in self.point_errors]
-        others = [(n, f) for n, f in self.files if f.kind == "other"]
+        others = [(n, sf) for n, sf in self.files if sf.kind == "other"]
         lines += ["", "## Other files", ""]
         if not others and not self.refused:
             lines.append("None.")
-        for n, f in others:
+        for n, sf in others:
             lines.append(
-                f"- `{n}` ({f.bytes} bytes): not read (documents the profile asks for are named in TODO.md)"
+                f"- `{n}` ({sf.bytes} bytes): not read (documents the profile asks for are named in TODO.md)"
             )
         for r in self.refused:
             lines.append(f"- `{r.rel}`: {r.why}")

@@ -131,11 +131,9 @@ class _Reader:
             for node in self.tree.xpath(xp, namespaces=self.ns):
                 t = _text(node)
                 if t:
-                    line = (
-                        getattr(node, "sourceline", None)
-                        if not isinstance(node, str)
-                        else getattr(node.getparent(), "sourceline", None)
-                    )
+                    # a text() or @attr match is lxml's "smart string": its line is its element's
+                    parent = getattr(node, "getparent", None) if isinstance(node, str) else None
+                    line = getattr(parent() if parent else node, "sourceline", None)
                     return t, xp, line
         return None, None, None
 

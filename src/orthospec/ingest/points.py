@@ -907,7 +907,7 @@ def _unit(
             raise Ambiguous(f"the mapping's unit {u!r} is not m, ft or usft", file=file)
         return u
     stated = {
-        by_name[c].unit for r, c in layout.roles.items() if r in LENGTH_ROLES and by_name[c].unit
+        unit for r, c in layout.roles.items() if r in LENGTH_ROLES and (unit := by_name[c].unit)
     }
     if len(stated) > 1:
         raise Ambiguous(

@@ -14,6 +14,7 @@ from collections import deque
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import Future
 from dataclasses import dataclass
+from multiprocessing.context import BaseContext
 
 from ..raster.facts import RasterFacts, read_facts
 
@@ -37,7 +38,7 @@ def _read_chunk(jobs: Sequence[Job], sha256: bool) -> list[RasterFacts]:
     return [read_facts(j.path, sha256=sha256, name=j.name) for j in jobs]
 
 
-def _context() -> object:
+def _context() -> BaseContext:
     """forkserver where available (workers fork from a server that imported the reader once)."""
     from ..workers import mp_context
 
@@ -71,7 +72,7 @@ def read_all(jobs: Sequence[Job], *, sha256: bool = True, workers: int | None = 
 
     chunks = (jobs[i:i + CHUNK] for i in range(0, len(jobs), CHUNK))
     pending: deque[Future[list[RasterFacts]]] = deque()
-    with ProcessPoolExecutor(max_workers=n, mp_context=_context(),  # type: ignore[arg-type]
+    with ProcessPoolExecutor(max_workers=n, mp_context=_context(),
                              initializer=die_with_parent, initargs=(os.getpid(),)) as pool:
         for chunk in chunks:
             pending.append(pool.submit(_read_chunk, chunk, sha256))

@@ -15,16 +15,21 @@ An image is a copy of another when
 
 Flat images (thumbnail spread under ``flat_std`` DN: blank, all nodata, open water) are never
 called copies: equal pixels there say nothing. Images are compared only with images of the same
-band count and thumbnail cell size (the same scale). Screening: each image's best ``candidates``
-others by the zero-shift correlation of an 8 x 8 block-mean thumbnail (at least ``screen``, 0.9)
-are then aligned and tested; a copy shifted by more than about a quarter of the image can be
-missed (stated limitation).
+band count and thumbnail cell size (the same scale). Images with byte-equal thumbnails are one
+class, compared once (a table padded with many files of one picture costs one comparison, plus
+the pairs it lists). Screening: each class's best ``candidates`` others by the zero-shift
+correlation of an 8 x 8 block-mean thumbnail (at least ``screen``, 0.9) are then aligned and
+tested; a copy shifted by more than about a quarter of the image can be missed (stated
+limitation). The screen is a blocked matrix product over the distinct thumbnails (quadratic in
+their number, in 512-row blocks of bounded memory); the result lists every pair, so its size
+is the sum of k x k over groups of k copies.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from operator import attrgetter
 
 import numpy as np
 
@@ -178,6 +183,47 @@ def _shared_ground(a: Content, b: Content) -> float:
     return min(area / aa, area / ab) if aa > 0 and ab > 0 else 0.0
 
 
+def _top(sims: np.ndarray, k: int) -> np.ndarray:
+    """Mask of each row's ``k`` largest values, ties taken in column order (what a stable sort of
+    the row, largest first, would keep), in time linear in the row length."""
+    kth = -np.partition(-sims, k - 1, axis=1)[:, k - 1 : k]
+    above = sims > kth
+    tied = sims == kth
+    room = k - above.sum(axis=1, keepdims=True)
+    return above | (tied & (np.cumsum(tied, axis=1) <= room))
+
+
+def _screen(coarse: np.ndarray, screen: float, candidates: int) -> list[tuple[int, int]]:
+    """Pairs (i < j) of rows whose zero-shift coarse correlation is at least ``screen``; a row with
+    more such partners keeps its best ``candidates`` (a table padded with look-alikes)."""
+    pairs: set[tuple[int, int]] = set()
+    for start in range(0, len(coarse), 512):
+        sims = coarse[start : start + 512] @ coarse.T
+        rows = np.arange(sims.shape[0])
+        sims[rows, rows + start] = -np.inf
+        hit = sims >= screen
+        crowded = np.flatnonzero(hit.sum(axis=1) > candidates)
+        if crowded.size:  # many look-alikes: the best few are enough
+            hit[crowded] = _top(sims[crowded], candidates)
+        hit_r, hit_c = np.nonzero(hit)
+        i = hit_r + start
+        pairs.update(zip(np.minimum(i, hit_c).tolist(), np.maximum(i, hit_c).tolist(), strict=True))
+    return sorted(pairs)
+
+
+def _flipped(m: Match, other: str) -> Match:
+    """``m`` seen from the other image of the pair."""
+    return Match(
+        other,
+        m.kind,
+        m.correlation,
+        None if m.shift_cells is None else (-m.shift_cells[0], -m.shift_cells[1]),
+        None
+        if m.expected_shift_cells is None
+        else (-m.expected_shift_cells[0], -m.expected_shift_cells[1]),
+    )
+
+
 def find_copies(
     images: Sequence[Content],
     *,
@@ -188,22 +234,28 @@ def find_copies(
     screen: float = 0.9,
     candidates: int = 3,
 ) -> dict[str, list[Match]]:
-    """image id -> the images it is a copy or near copy of (both directions listed)."""
+    """image id -> the images it is a copy or near copy of (both directions listed).
+
+    Images with the same thumbnail (bytes) form one class and are compared once, through the
+    first of them: a correlation depends only on the two thumbnails, so a table padded with many
+    files of the same pixels costs one comparison per distinct content plus the pairs it lists
+    (the georeference test, which differs from image to image, is made for every listed pair).
+    """
     out: dict[str, list[Match]] = {}
 
-    def add(i: Content, j: Content, m: Match) -> None:
-        out.setdefault(i.id, []).append(m)
-        out.setdefault(j.id, []).append(
-            Match(
-                i.id,
-                m.kind,
-                m.correlation,
-                None if m.shift_cells is None else (-m.shift_cells[0], -m.shift_cells[1]),
-                None
-                if m.expected_shift_cells is None
-                else (-m.expected_shift_cells[0], -m.expected_shift_cells[1]),
-            )
-        )
+    def add(a: Content, b: Content, m: Match) -> None:
+        out.setdefault(a.id, []).append(m)
+        out.setdefault(b.id, []).append(_flipped(m, a.id))
+
+    def same_pixels(a: Content, b: Content) -> bool:
+        return bool(a.pixels_hash) and a.pixels_hash == b.pixels_hash
+
+    def near(a: Content, b: Content, r: float, shift: tuple[int, int]) -> None:
+        """List a and b as near copies unless their georeferences explain the match."""
+        expected = _expected_shift(a, b)
+        if expected is not None and _close(shift, expected) and _shared_ground(a, b) < same_ground:
+            return  # the same ground where both georeferences put it: overlapping images
+        add(a, b, Match(b.id, NEAR_COPY, r, shift, expected))
 
     # thumbnails by geometry (bands, cell size, grid): flat ones are never copies
     groups: dict[tuple[int | None, int | None, tuple[int, ...]], list[Content]] = {}
@@ -212,7 +264,7 @@ def find_copies(
             groups.setdefault((c.bands, c.cell_px, c.thumbnail.shape), []).append(c)
     stacks: list[tuple[list[Content], np.ndarray]] = []
     for members in groups.values():
-        raw = np.stack([c.thumbnail for c in members]).astype(np.float32, copy=False)  # type: ignore[misc]
+        raw = np.stack([np.asarray(c.thumbnail) for c in members]).astype(np.float32, copy=False)
         with np.errstate(invalid="ignore"):
             spread = (
                 np.nanstd(raw.reshape(len(members), -1), axis=1)
@@ -229,68 +281,61 @@ def find_copies(
     for c in images:
         if c.pixels_hash and c.id in varied:
             by_hash.setdefault(c.pixels_hash, []).append(c)
-    done: set[tuple[str, str]] = set()
-    for group in by_hash.values():
-        for k, a in enumerate(group):
-            for b in group[k + 1 :]:
-                add(a, b, Match(b.id, SAME_PIXELS))
-                done.add((a.id, b.id))
-                done.add((b.id, a.id))
-    # near copies: screen by the coarse zero-shift correlation among images of one thumbnail geometry
+    for group in by_hash.values():  # one Match per image, shared by the lists that name it
+        named = [Match(c.id, SAME_PIXELS) for c in group]
+        for k, c in enumerate(group):
+            if len(group) > 1:
+                out.setdefault(c.id, []).extend(named[:k] + named[k + 1 :])
+    # near copies: one representative per class of equal thumbnails, screened by the coarse
+    # zero-shift correlation among the classes of one thumbnail geometry
     while stacks:  # popped, so each group's arrays are freed before the next is read
         members, raw = stacks.pop()
-        if len(members) < 2:
-            continue
-        stack = _filled(raw)
+        classes: dict[bytes, list[int]] = {}
+        for k in range(len(members)):
+            classes.setdefault(raw[k].tobytes(), []).append(k)
+        reps = [ks[0] for ks in classes.values()]  # in member order
+        stack = _filled(raw[reps])
         del raw
-        coarse = _coarse(stack)
-        pairs: set[tuple[int, int]] = set()
-        for start in range(0, len(members), 512):
-            sims = coarse[start : start + 512] @ coarse.T
-            rows = np.arange(sims.shape[0])
-            sims[rows, rows + start] = -np.inf
-            hit_r, hit_c = np.nonzero(sims >= screen)
-            if not hit_r.size:
+        unit = _unit_rows(stack.reshape(len(reps), -1))
+        class_members = list(classes.values())
+        twins = [t for t, ks in enumerate(class_members) if len(ks) > 1]
+        itself = np.einsum("pk,pk->p", unit[twins], unit[twins]).tolist() if twins else []
+        for t, r_t in zip(twins, itself, strict=True):  # equal thumbnails: zero-shift correlation
+            r = float(min(r_t, 1.0))
+            if r < min_correlation:  # no variance left after filling
                 continue
-            per_row = np.bincount(hit_r, minlength=sims.shape[0])
-            crowded = np.flatnonzero(per_row > candidates)
-            if (
-                crowded.size
-            ):  # many look-alikes (a table padded with copies): the best few are enough
-                top = np.argsort(-sims[crowded], axis=1, kind="stable")[:, :candidates]
-                keep = ~np.isin(hit_r, crowded)
-                hit_r = np.concatenate([hit_r[keep], np.repeat(crowded, candidates)])
-                hit_c = np.concatenate([hit_c[keep], top.ravel()])
-            i = hit_r + start
-            pairs.update(
-                zip(np.minimum(i, hit_c).tolist(), np.maximum(i, hit_c).tolist(), strict=True)
-            )
+            same: dict[str | int, list[int]] = {}  # the class by pixel hash (listed above)
+            for i in class_members[t]:
+                same.setdefault(members[i].pixels_hash or i, []).append(i)
+            subs = list(same.values())
+            for x, si in enumerate(subs):
+                for sj in subs[x + 1 :]:
+                    for i in si:
+                        for j in sj:
+                            near(members[min(i, j)], members[max(i, j)], r, (0, 0))
+        if len(reps) < 2:
+            continue
+        pairs = _screen(_coarse(stack), screen, candidates)
+        del stack
         if not pairs:
             continue
-        ij = np.array(sorted(pairs))
-        rows, where = np.unique(ij, return_inverse=True)  # unit vectors of the screened images only
-        unit = _unit_rows(stack.reshape(len(members), -1)[rows])
-        del stack
-        where = where.reshape(ij.shape)
-        zero = np.einsum("pk,pk->p", unit[where[:, 0]], unit[where[:, 1]])
-        for (i, j), r0 in zip(ij.tolist(), zero.tolist(), strict=True):
-            a, b = members[i], members[j]
-            if (a.id, b.id) in done:
-                continue
+        ij = np.array(pairs)
+        zero = np.einsum("pk,pk->p", unit[ij[:, 0]], unit[ij[:, 1]])
+        for (ci, cj), r0 in zip(pairs, zero.tolist(), strict=True):
+            ra, rb = members[reps[ci]], members[reps[cj]]
             got: tuple[float, tuple[int, int]] | None = (float(min(r0, 1.0)), (0, 0))
             if r0 < min_correlation:  # not at zero shift: align (rare: the screen passed)
-                assert a.thumbnail is not None and b.thumbnail is not None
-                got = aligned_correlation(a.thumbnail, b.thumbnail, min_overlap=min_overlap)
+                assert ra.thumbnail is not None and rb.thumbnail is not None
+                got = aligned_correlation(ra.thumbnail, rb.thumbnail, min_overlap=min_overlap)
             if got is None or got[0] < min_correlation:
                 continue
-            expected = _expected_shift(a, b)
-            if (
-                expected is not None
-                and _close(got[1], expected)
-                and _shared_ground(a, b) < same_ground
-            ):
-                continue  # the same ground where both georeferences put it: overlapping images
-            add(a, b, Match(b.id, NEAR_COPY, got[0], got[1], expected))
-            done.add((a.id, b.id))
-            done.add((b.id, a.id))
-    return {k: sorted(v, key=lambda m: m.other) for k, v in sorted(out.items())}
+            r, (dy, dx) = got
+            for i in class_members[ci]:  # every pair of the two classes, oriented as listed
+                for j in class_members[cj]:
+                    if same_pixels(members[i], members[j]):
+                        continue
+                    if i < j:
+                        near(members[i], members[j], r, (dy, dx))
+                    else:
+                        near(members[j], members[i], r, (-dy, -dx))
+    return {k: sorted(v, key=attrgetter("other")) for k, v in sorted(out.items())}

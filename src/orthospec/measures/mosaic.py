@@ -23,10 +23,14 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..errors import MeasureError
+
+if TYPE_CHECKING:  # shapely ships no type information: Any to mypy, but it names what is meant
+    from shapely import Geometry
 
 
 @dataclass(frozen=True)
@@ -47,7 +51,7 @@ class SeamlineCoverage:
         return self.gap_area == 0.0 and self.overlap_area == 0.0 and not self.invalid_polygons
 
 
-def seamline_coverage(seamlines: Sequence[object], aoi: object, *,
+def seamline_coverage(seamlines: Sequence[Geometry], aoi: Geometry, *,
                       area_tolerance: float = 1e-9) -> SeamlineCoverage:
     """Gap area/share of the AOI not covered by seamline polygons, and pairwise overlaps.
 

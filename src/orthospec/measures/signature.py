@@ -127,8 +127,9 @@ class Thumbnail:
     def __init__(self, *, width: int, height: int, dtype: str, cells: int = THUMB_CELLS) -> None:
         self.cell, self.sub, gh, gw = thumbnail_geometry(width, height, cells)
         self.exact = np.dtype(dtype).kind in "uib"
-        self.sums = np.zeros((gh, gw), dtype=np.int64 if self.exact else np.float64)
-        self.counts = np.zeros((gh, gw), dtype=np.int64)
+        # int64 sums for integer pixels (exact), float64 otherwise
+        self.sums: np.ndarray = np.zeros((gh, gw), dtype=np.int64 if self.exact else np.float64)
+        self.counts: np.ndarray = np.zeros((gh, gw), dtype=np.int64)
 
     def add(self, data: np.ndarray, col_off: int, row_off: int) -> None:
         b, h, w = data.shape
@@ -156,6 +157,7 @@ class Thumbnail:
             per_c = np.bincount(cols // self.cell - cc[0])
             self.counts[np.ix_(cr, cc)] += np.outer(per_r[per_r > 0], per_c[per_c > 0]) * b
         else:
+            assert n is not None  # counted with the float samples above
             self.counts[np.ix_(cr, cc)] += _cell_sums(n, rows, cols, self.cell)[2]
 
     def merge(self, other: Thumbnail) -> Thumbnail:
@@ -169,7 +171,7 @@ class Thumbnail:
         with np.errstate(invalid="ignore", divide="ignore"):
             mean = np.round(self.sums / self.counts, 3)
         if np.isfinite(mean).all():
-            return mean.tolist()  # type: ignore[no-any-return]
+            return mean.tolist()
         return [[None if not math.isfinite(v) else float(v) for v in row] for row in mean.tolist()]
 
 
@@ -215,7 +217,8 @@ class CloudCounter:
         nodata: tuple[float | None, float | None, float | None],
     ) -> CloudCounter:
         sub = max(1, math.ceil(math.sqrt(width * height / CLOUD_SAMPLES)))
-        return cls(rgb=rgb, scale=tuple(1.0 / t for t in tops), nodata=nodata, sub=sub)  # type: ignore[arg-type]
+        scale = (1.0 / tops[0], 1.0 / tops[1], 1.0 / tops[2])
+        return cls(rgb=rgb, scale=scale, nodata=nodata, sub=sub)
 
     def add(
         self, data: np.ndarray, col_off: int, row_off: int, mask: np.ndarray | None = None
@@ -250,7 +253,7 @@ class CloudCounter:
         the cost."""
         r, g, b = (data[i, r0 :: self.sub, c0 :: self.sub] for i in self.rgb)
         wide = np.uint32 if data.dtype.itemsize == 2 else np.uint16
-        total = r.astype(wide)
+        total: np.ndarray = r.astype(wide)
         total += g
         total += b
         spread = np.maximum(r, g)

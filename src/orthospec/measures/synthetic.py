@@ -165,7 +165,7 @@ def kernel_truth(
     pos = (u + n * step_px) / step_px
     i0 = np.floor(pos).astype(np.int64)
     frac = pos - i0
-    lsf = np.bincount(i0, weights=w * (1 - frac), minlength=x.size)[: x.size]
+    lsf: np.ndarray = np.bincount(i0, weights=w * (1 - frac), minlength=x.size)[: x.size]
     lsf += np.bincount(i0 + 1, weights=w * frac, minlength=x.size)[: x.size]
     for width in (a, b, h):
         m = max(round(width / step_px), 1)

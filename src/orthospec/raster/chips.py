@@ -25,6 +25,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import rasterio
@@ -37,6 +38,9 @@ from ..errors import MeasureError, OrthospecError
 from ..measures.matching import luminance
 from ..provenance import sha256_file
 from .reading import gdal_errors, open_read_only, read_only_env
+
+if TYPE_CHECKING:
+    from pyproj import Transformer
 
 __all__ = [
     "CHIP_SUFFIXES",
@@ -193,7 +197,7 @@ def open_reference(path: str | Path) -> Reference:
     return Reference(p.parent, False, [read_header(p, name=str(path))])
 
 
-_TRANSFORMERS: dict[tuple[str, str], object] = {}
+_TRANSFORMERS: dict[tuple[str, str], Transformer] = {}
 
 
 def transform_xy(
@@ -212,7 +216,7 @@ def transform_xy(
     tr = _TRANSFORMERS.get(key)
     if tr is None:
         tr = _TRANSFORMERS[key] = Transformer.from_crs(src, dst, always_xy=True)
-    ox, oy = tr.transform(xa, ya)  # type: ignore[attr-defined]
+    ox, oy = tr.transform(xa, ya)
     return np.asarray(ox, dtype=np.float64), np.asarray(oy, dtype=np.float64)
 
 
@@ -377,6 +381,6 @@ def read_pair(
         return Pair(template, None, None, t0, margin, side, offset, "edge")
     with gdal_errors(file=image.name, path=image.path):
         data = image_ds.read(list(image.bands), window=Window(s0c, s0r, size, size), masked=True)
-    mask = np.ma.getmaskarray(data).any(axis=0)
+    valid = ~np.any(np.ma.getmaskarray(data), axis=0)
     search = luminance(np.ma.getdata(data))
-    return Pair(template, search, ~mask, t0, margin, side, offset)
+    return Pair(template, search, valid, t0, margin, side, offset)

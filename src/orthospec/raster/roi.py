@@ -107,7 +107,7 @@ class RasterRoi:
 
     def filled(self) -> np.ndarray:
         """Float64 copy with invalid pixels as NaN."""
-        return self.data.astype(float).filled(np.nan)
+        return np.ma.filled(self.data.astype(float), np.nan)
 
 
 def read_roi(
