@@ -21,6 +21,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from .. import verdicts as V
+from ..present import cite, fmt_number, fmt_value, unit_suffix
+from ..profile.operators import OPERATORS
 from ..qcr import natural_key
 
 __all__ = [
@@ -47,9 +49,6 @@ RANK_LABELS = (
     "could not be evaluated",
     "warning",
 )
-#: the requirement violated, stated the other way round
-_NEGATED = {"<=": ">", "<": "≥", ">=": "<", ">": "≤", "==": "≠", "!=": "="}
-_NO_UNIT = (None, "", "1", "text", "bool", "date", "any")
 # ANSI CSI/OSC sequences and C0/C1 control characters (delivery text must not drive a terminal)
 _ESCAPES = re.compile(
     r"\x1b\][^\x07\x1b]*(?:\x07|\x1b\\)?|\x1b\[[0-?]*[ -/]*[@-~]|\x1b[@-_]?|[\x00-\x08\x0b-\x1f\x7f-\x9f]"
@@ -102,85 +101,58 @@ def clean_text(text: Any) -> str:
     return _ESCAPES.sub("", "" if text is None else str(text))
 
 
-def fmt_number(v: Any) -> str:
-    """A measured number for a reader: three significant digits, large values to the unit."""
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, int):
-        return str(v)
-    if isinstance(v, float):
-        if not math.isfinite(v):
-            return str(v)
-        if v == int(v) and abs(v) < 1e15:
-            return str(int(v))
-        return f"{v:.0f}" if abs(v) >= 1000 else f"{v:.3g}"
-    return str(v)
-
-
 def _distinct(v: Any, required: Any) -> str:
     """The measured number with enough digits that it never reads equal to the requirement
     (1.0004 m > 1 m must not print as '1 m > 1 m')."""
     text = fmt_number(v)
-    if isinstance(v, float) and isinstance(required, int | float) and v != required:
+    if (
+        isinstance(v, float)
+        and math.isfinite(v)
+        and isinstance(required, int | float)
+        and v != required
+    ):
         digits = 3
         while digits < 12 and float(text) == float(required):
             digits += 1
-            text = f"{v:.{digits}g}"
+            text = fmt_value(v, digits)
     return text
 
 
 def _req_number(v: Any) -> str:
     """A required value as the profile states it (never rounded: 0.33 stays 0.33)."""
-    if isinstance(v, float) and math.isfinite(v) and v == int(v) and abs(v) < 1e15:
-        return str(int(v))
-    if isinstance(v, float):
-        return f"{v:.10g}"
-    return str(v)
-
-
-def _u(unit: Any) -> str:
-    return "" if unit in _NO_UNIT else f" {unit}"
+    return fmt_value(v, 10)
 
 
 def stated(rec: dict[str, Any]) -> str | None:
-    """'0.641 m > 0.5 m' for a record with a numeric value and a comparison; None otherwise."""
+    """'0.641 m > 0.5 m' for a record with a numeric value and a comparison; None otherwise (the
+    operator words what a value that fails it is: ``Operator.unmet_text``)."""
     m = rec.get("measured") or {}
     v = m.get("value")
     req = rec.get("requirement") or {}
-    op = req.get("op")
-    unit = _u(m.get("unit") if m.get("unit") not in _NO_UNIT else req.get("unit"))
-    if v is None or isinstance(v, str | list | dict):
+    op = OPERATORS.get(str(req.get("op")))
+    if op is None or v is None or isinstance(v, str | list | dict):
         return None
-    if isinstance(v, bool):
-        if op in ("true", "false"):
-            return f"{'true' if v else 'false'}, required {op}"
+    if isinstance(v, bool):  # only a truth requirement is stated for a boolean
+        return None if op.has_threshold else op.unmet_text(fmt_value(v))
+    if not op.has_threshold:
         return None
-    if op in _NEGATED and req.get("value") is not None:
+    unit = unit_suffix(m.get("unit") if unit_suffix(m.get("unit")) else req.get("unit"))
+    if op.unmet:
+        value = req.get("value")
         return (
-            f"{_distinct(v, req['value'])}{unit} {_NEGATED[op]} {_req_number(req['value'])}{unit}"
+            None
+            if value is None
+            else op.unmet_text(_distinct(v, value), _req_number(value), unit=unit)
         )
-    if op == "between":
-        lo = "−∞" if req.get("min") is None else _req_number(req["min"])
-        hi = "+∞" if req.get("max") is None else _req_number(req["max"])
-        lb = "[" if req.get("min_inclusive", True) else "("
-        rb = "]" if req.get("max_inclusive", True) else ")"
-        return f"{fmt_number(v)}{unit} outside {lb}{lo}, {hi}{rb}{unit}"
-    if op == "in":
-        return f"{fmt_number(v)} not one of {', '.join(map(str, req.get('values') or []))}"
-    return None
-
-
-def _clause(rec: dict[str, Any]) -> str:
-    c = rec.get("clause")
-    if isinstance(c, str):
-        return c
-    c = c or {}
-    parts = [str(c.get("document") or "")]
-    if c.get("section"):
-        parts.append(f"§{c['section']}")
-    if c.get("table"):
-        parts.append(f"Table {c['table']}")
-    return ", ".join(p for p in parts if p)
+    return op.unmet_text(
+        fmt_number(v),
+        lo="" if req.get("min") is None else _req_number(req["min"]),
+        hi="" if req.get("max") is None else _req_number(req["max"]),
+        min_inclusive=req.get("min_inclusive", True),
+        max_inclusive=req.get("max_inclusive", True),
+        values=[str(x) for x in req.get("values") or []],
+        unit=unit,
+    )
 
 
 def rank(verdict: str, consequence: str | None, manual: bool = False) -> int:
@@ -289,7 +261,7 @@ def findings(records: list[dict[str, Any]]) -> list[Finding]:
                 top.get("consequence") or "",
                 top["rule"],
                 top.get("title", ""),
-                _clause(top),
+                cite(top.get("clause")),
                 [item],
                 clean_text(msg),
                 rules=[r["rule"] for r in recs],
@@ -317,7 +289,7 @@ def findings(records: list[dict[str, Any]]) -> list[Finding]:
                 top.get("consequence") or "",
                 top["rule"],
                 top.get("title", ""),
-                _clause(top),
+                cite(top.get("clause")),
                 sorted((str(r["item"]) for r in recs), key=natural_key),
                 _what(top),
                 rules=[top["rule"]],

@@ -19,7 +19,7 @@ import jinja2
 import markupsafe
 
 from .. import verdicts as V
-from ..profile.wording import unit_suffix
+from ..present import NO_VALUE, cite, fmt_fixed, fmt_measured, fmt_value, unit_suffix
 from ..qcr import all_records, dumps, natural_key, point_rows, where_text
 from ..resources import templates_dir
 from .contract import contract_lines
@@ -104,53 +104,6 @@ def blank(v: Any) -> str:
     return "" if v is None else str(v)
 
 
-def fmt_value(v: Any, digits: int = 6) -> str:
-    if v is None:
-        return "—"
-    if isinstance(v, bool):
-        return "yes" if v else "no"
-    if isinstance(v, float):
-        if math.isnan(v) or math.isinf(v):
-            return "—"
-        return f"{v:.{digits}g}"
-    if isinstance(v, list):
-        return ", ".join(fmt_value(x, digits) for x in v)
-    return str(v)
-
-
-def fmt_fixed(v: Any, places: int = 3) -> str:
-    if v is None or isinstance(v, str):
-        return "—" if v is None else v
-    return f"{float(v):.{places}f}"
-
-
-def fmt_measured(m: dict[str, Any] | None) -> str:
-    if not m:
-        return "—"
-    unit = m.get("unit")
-    text = fmt_value(m.get("value"))
-    if text != "—" and unit_suffix(unit):
-        text += f" {unit}"
-    return text
-
-
-def fmt_clause(c: dict[str, Any] | str | None) -> str:
-    if not c:
-        return ""
-    if isinstance(c, str):
-        return c
-    parts = [str(c.get("document", ""))]
-    if c.get("section"):
-        parts.append(f"§{c['section']}")
-    if c.get("table"):
-        parts.append(f"Table {c['table']}")
-    if c.get("row"):
-        parts.append(f"row '{c['row']}'")
-    if c.get("figure"):
-        parts.append(f"Figure {c['figure']}")
-    return ", ".join(p for p in parts if p)
-
-
 def fmt_rows(rows: Iterable[int] | Mapping[str, Any] | None) -> str:
     """[1,2,3,7] -> '1–3, 7' (evidence row lists can be long); a selector standing for many rows
     (qcr.json version 3) -> 'where block = B02 (333412 rows)'."""
@@ -191,11 +144,13 @@ def environment() -> jinja2.Environment:
         lstrip_blocks=True,
         keep_trailing_newline=True,
     )
+    # every value and citation through the one vocabulary (orthospec.present)
+    env.globals["NO_VALUE"] = NO_VALUE
     env.filters.update(
         value=fmt_value,
         fixed=fmt_fixed,
         measured=fmt_measured,
-        clause=fmt_clause,
+        clause=cite,
         rows=fmt_rows,
         short=lambda s, n=12: (s or "")[:n],
         blank=blank,
@@ -369,7 +324,7 @@ def _rule_views(
         v = RuleView(
             rule=rid,
             title=m.get("title") or first.get("title", ""),
-            clause=fmt_clause(first.get("clause") or m.get("clause")),
+            clause=cite(first.get("clause") or m.get("clause")),
             quote=first.get("quote", ""),
             scope=m.get("scope") or first.get("scope", ""),
             level=m.get("level") or first.get("level", ""),
