@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from .. import verdicts as V
+from ..present import cite
 
 NORMAL, TIGHTENED = "normal", "tightened"
 #: default relative distance to a threshold under which a pass counts as marginal
@@ -51,10 +52,7 @@ def family_of(record: Mapping[str, Any]) -> str:
     audit = record.get("audit") or {}
     if audit.get("family"):
         return str(audit["family"])
-    clause = record.get("clause") or {}
-    if clause.get("section"):
-        return f"§{clause['section']}"
-    return str(record["rule"])
+    return cite(record.get("clause"), "section") or str(record["rule"])
 
 
 def _num(x: Any) -> float | None:

@@ -453,7 +453,6 @@ def _block_figures(
     marked inspection cells of the block on its map, and the image chips of its flagged or hand-measured
     points (issue 29 item 6; details.inspection, details.checker_chips)."""
     from ..figures import accuracy as figs  # matplotlib: imported only when figures are drawn
-    from ..measures.distribution import checkpoint_distribution
 
     pts = [
         p
@@ -560,53 +559,58 @@ def _block_figures(
             + (f" Every one of the {len(pts):,} points is binned." if drawn.thinned else ""),
         }
     )
-    if len(pts) >= 4:
+    quad = _judged_quadrants(b)
+    if quad is not None:
+        # the split and shares the provider judged (details.checkpoints.<block>.quadrants), never a
+        # recomputation: the figure shows what the verdict used
+        centre, shares = quad
         outline = polygon if polygon and len(polygon) >= 3 else None
-        from shapely.errors import ShapelyError
-        from shapely.geometry import Polygon
-
-        from ..errors import MeasureError
-
-        try:
-            dist = checkpoint_distribution(
-                x, y, ids=ids, min_count=0, area=Polygon(outline) if outline else None
-            )
-        except (MeasureError, ShapelyError, ValueError):  # a degenerate layout (collinear points,
-            dist = None  # an empty polygon): the map above shows it
-        if dist is not None:
-            svg = figs.quadrant_distribution_svg(
-                x,
-                y,
-                centre=dist.centre,
-                shares=dist.quadrant_shares,
-                area=outline,
-                unit=unit,
-                ids=ids,
-                title=f"Block {bid}: distribution by quadrant",
-            )
-            spread = figs.sample_points(x, y, ids)
-            where = (
-                "the block polygon (grey)"
-                if outline
-                else f"the points' {dist.split_source.replace('_', ' ')} (no block polygon in the "
-                f"delivery, so shares may differ slightly from the measured value, which used the "
-                f"{b.get('area_source') or 'block'})"
-            )
-            drawn_note = (
-                f" Drawn: {spread.drawn:,} of the {spread.total:,} points, 1 in {spread.step:,} (an "
-                f"even spatial sample); the shares count every point."
-                if spread.thinned
-                else ""
-            )
-            out.append(
-                {
-                    "svg": svg,
-                    "kind": "dist",
-                    "caption": f"Block {bid}: check points per quadrant, split at the centre of {where}."
-                    + drawn_note,
-                }
-            )
+        svg = figs.quadrant_distribution_svg(
+            x,
+            y,
+            centre=centre,
+            shares=shares,
+            area=outline,
+            unit=unit,
+            ids=ids,
+            title=f"Block {bid}: distribution by quadrant",
+        )
+        spread = figs.sample_points(x, y, ids)
+        source = b.get("area_source")
+        where = (
+            "the block polygon"
+            if source == "area"
+            else f"the points' {str(source or 'convex hull').replace('_', ' ')}"
+        ) + (" (grey)" if outline else "")
+        drawn_note = (
+            f" Drawn: {spread.drawn:,} of the {spread.total:,} points, 1 in {spread.step:,} (an "
+            f"even spatial sample); the shares are the measured ones, over every point used."
+            if spread.thinned
+            else ""
+        )
+        out.append(
+            {
+                "svg": svg,
+                "kind": "dist",
+                "caption": f"Block {bid}: check points per quadrant, split at the centre of {where}; "
+                f"the shares are those the distribution rule judged." + drawn_note,
+            }
+        )
     return out
+
+
+def _judged_quadrants(b: Mapping[str, Any]) -> tuple[tuple[float, float], dict[str, float]] | None:
+    """The quadrant split centre and shares the provider recorded for a block, or None (an older
+    qcr.json, or a layout the distribution could not be computed for: the map shows the points)."""
+    q = b.get("quadrants")
+    if not isinstance(q, Mapping):
+        return None
+    c, shares = q.get("centre"), q.get("shares")
+    if not (isinstance(c, list) and len(c) == 2 and all(_numeric(v) for v in c)):
+        return None
+    if not isinstance(shares, Mapping) or not all(_numeric(v) for v in shares.values()):
+        return None
+    return (float(c[0]), float(c[1])), {str(k): float(v) for k, v in shares.items()}
 
 
 def _chip_figures(chips: dict[str, Any] | None, bid: str, unit: str) -> list[dict[str, str]]:
