@@ -28,11 +28,13 @@ from ..qcr import natural_key
 __all__ = [
     "Finding",
     "NotApplicableSummary",
+    "by_reason",
     "checker_text",
     "clean_text",
     "findings",
     "fmt_number",
     "not_applicable_summary",
+    "reason_line",
     "stated",
     "unsigned_manual_note",
 ]
@@ -183,6 +185,8 @@ class Finding:
     what: str  # '0.641 m > 0.5 m' or the plain message
     rules: list[str] = field(default_factory=list)  # every rule this finding stands for
     n_records: int = 1
+    reason: str = ""  # the reason code of the first record (orthospec.verdicts.Reason)
+    reasons: dict[str, int] = field(default_factory=dict)  # records per reason code
 
     @property
     def item_text(self) -> str:
@@ -218,6 +222,8 @@ class Finding:
             "what": self.what,
             "rules": list(self.rules),
             "n_records": self.n_records,
+            "reason": self.reason,
+            "reason_text": REASON_WORDS.get(self.reason, self.reason.replace("_", " ")),
             "text": self.text,
         }
 
@@ -237,8 +243,25 @@ def _what(rec: dict[str, Any]) -> str:
     return msg or f"{v}, required {(rec.get('requirement') or {}).get('text', '')}".strip()
 
 
+def reason(rec: dict[str, Any]) -> str:
+    """A record's reason code; a qcr.json written before reason codes: its verdict's default."""
+    return V.reason_of(str(rec.get("verdict")), rec.get("reason")) or ""
+
+
+def _count_reasons(recs: Iterable[dict[str, Any]]) -> dict[str, int]:
+    out: dict[str, int] = {}
+    for r in recs:
+        why = reason(r)
+        out[why] = out.get(why, 0) + 1
+    return out
+
+
 def findings(records: list[dict[str, Any]]) -> list[Finding]:
-    """Every failing, missing, erring or warning record as findings, most consequential first."""
+    """Every failing, missing, erring or warning record as findings, most consequential first.
+
+    Records of one rule are grouped by their reason code (``orthospec.verdicts.Reason``), never by
+    parsing the message; one root cause (one missing file) stays one finding whatever the reasons
+    of its records (each finding counts its records per reason: :func:`by_reason`)."""
     problems = [r for r in records if r.get("verdict") in PROBLEMS]
     # 1. one root cause: the same item and message under several rules, without a measured value
     by_cause: dict[tuple[str, str], list[dict[str, Any]]] = {}
@@ -266,21 +289,23 @@ def findings(records: list[dict[str, Any]]) -> list[Finding]:
                 clean_text(msg),
                 rules=[r["rule"] for r in recs],
                 n_records=len(recs),
+                reason=reason(top),
+                reasons=_count_reasons(recs),
             )
         )
     # 2. the same rule and message for many items (no value): one finding listing the items
-    by_rule: dict[tuple[str, str, str], list[dict[str, Any]]] = {}
+    by_rule: dict[tuple[str, str, str, str], list[dict[str, Any]]] = {}
     for r in problems:
         if id(r) in grouped:
             continue
         value = (r.get("measured") or {}).get("value")
         key = (
-            (r["rule"], r["verdict"], _what(r))
+            (r["rule"], r["verdict"], reason(r), _what(r))
             if value is None or stated(r) is None
-            else (r["rule"], r["verdict"], f"#{id(r)}")
+            else (r["rule"], r["verdict"], reason(r), f"#{id(r)}")
         )
         by_rule.setdefault(key, []).append(r)
-    for (_rid, _v, _k), recs in by_rule.items():
+    for (_rid, _v, why, _k), recs in by_rule.items():
         top = recs[0]
         out.append(
             Finding(
@@ -294,21 +319,78 @@ def findings(records: list[dict[str, Any]]) -> list[Finding]:
                 _what(top),
                 rules=[top["rule"]],
                 n_records=len(recs),
+                reason=why,
+                reasons={why: len(recs)},
             )
         )
     # 3. the same statement for the same rules in many items (one cause): one finding listing them
     merged: dict[tuple[Any, ...], Finding] = {}
     for f in out:
-        key = (f.rank, f.verdict, tuple(f.rules), f.what)
+        key = (f.rank, f.verdict, f.reason, tuple(f.rules), f.what)
         g = merged.get(key)
         if g is None:
             merged[key] = f
         else:
             g.items = sorted(set(g.items) | set(f.items), key=natural_key)
             g.n_records += f.n_records
+            for why, n in f.reasons.items():
+                g.reasons[why] = g.reasons.get(why, 0) + n
     final = list(merged.values())
     final.sort(key=lambda f: (f.rank, f.rule, natural_key(f.items[0] if f.items else "")))
     return final
+
+
+#: each reason code in words (a heading of the findings grouped by reason)
+REASON_WORDS: dict[str, str] = {
+    V.Reason.NOT_MET: "the measured value does not meet the requirement",
+    V.Reason.UNSET_PARAMETER: "a threshold's parameter is not set (the ITT must fix it)",
+    V.Reason.NO_GSD: "a value in pixels without the item's GSD",
+    V.Reason.NO_THRESHOLD: "the threshold cannot be computed for the item",
+    V.Reason.BAD_THRESHOLD: "the threshold is not a finite number",
+    V.Reason.NO_VALUE: "no value measured for the item (evidence missing)",
+    V.Reason.NO_ITEMS: "no item to judge",
+    V.Reason.UNKNOWN_FACT: "the rule's condition reads a fact the delivery does not give",
+    V.Reason.PROVIDER_ERROR: "the value could not be read or computed",
+    V.Reason.REQUIREMENT_ERROR: "the requirement cannot be evaluated on the measure",
+    V.Reason.INTERNAL_ERROR: "an internal error of orthospec",
+    V.Reason.UNSIGNED: "a manual check without the checker's verdict",
+    V.Reason.WAIVED: "waived",
+}
+
+
+def by_reason(found: Iterable[Finding]) -> list[dict[str, Any]]:
+    """Findings grouped by reason code: {reason, text, findings, records, rules}, most records
+    first (what the terminal and the report's section 1 print beside the findings). A finding of
+    one root cause whose records have several reasons counts under each."""
+    groups: dict[str, dict[str, Any]] = {}
+    for f in found:
+        for why, n in (f.reasons or {f.reason: f.n_records}).items():
+            g = groups.setdefault(
+                why,
+                {
+                    "reason": why,
+                    "text": REASON_WORDS.get(why, why.replace("_", " ")),
+                    "findings": 0,
+                    "records": 0,
+                    "rules": [],
+                },
+            )
+            g["findings"] += 1
+            g["records"] += n
+            g["rules"] += [r for r in f.rules if r not in g["rules"]]
+    return sorted(groups.values(), key=lambda g: (-g["records"], g["reason"]))
+
+
+def reason_line(found: Iterable[Finding]) -> str | None:
+    """``by reason: not_met 3 findings (5 records); no_value 1 finding (2 records)``, or None."""
+    groups = by_reason(found)
+    if not groups:
+        return None
+    return "by reason: " + "; ".join(
+        f"{g['reason']} {g['findings']} finding{'s' if g['findings'] != 1 else ''} "
+        f"({g['records']} record{'s' if g['records'] != 1 else ''})"
+        for g in groups
+    )
 
 
 _NA = re.compile(r"^not applicable:\s*(?P<cond>.*?)\s+is false(?: for this delivery)?\s*$", re.S)

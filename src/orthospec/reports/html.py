@@ -23,7 +23,7 @@ from ..present import NO_VALUE, cite, fmt_fixed, fmt_measured, fmt_value, unit_s
 from ..qcr import all_records, dumps, natural_key, point_rows, where_text
 from ..resources import templates_dir
 from .contract import contract_lines
-from .findings import NotApplicableSummary, checker_text, unsigned_manual_note
+from .findings import NotApplicableSummary, by_reason, checker_text, unsigned_manual_note
 from .findings import findings as find_problems
 
 __all__ = ["ReportOptions", "document_sha256", "environment", "render_html", "report_context"]
@@ -917,7 +917,8 @@ def report_context(
     signed = list(signed_groups.values())
     if opts.bounded:
         signed = _bounded_signed(signed, opts.max_rule_rows)
-    found = [f.as_dict() for f in find_problems(records)]
+    problems = find_problems(records)
+    found = [f.as_dict() for f in problems]
     scopes = [s for s in scopes if s["rules"] or s["quiet"]]
     d = doc.get("delivery", {})
     p = doc.get("profile", {})
@@ -935,6 +936,7 @@ def report_context(
         "problems": problems,
         "failing_rules": failing_rules,
         "findings": found,
+        "findings_by_reason": by_reason(problems),
         # the checker's open items are listed above the findings on page 1: not a second time there
         "page1_findings": [f for f in found if f.get("consequence") != V.INCOMPLETE][
             : max(3, PAGE1_FINDINGS - len((doc.get("rollup") or {}).get("incomplete", [])))
