@@ -7,7 +7,7 @@
 # some must not break CI). The goal is 0: then this becomes plain `mypy src`.
 set -uo pipefail
 cd "$(dirname "$0")/.."
-ALLOWED=72
+ALLOWED=56
 MYPY="${MYPY:-.venv/bin/mypy}"
 out="$("$MYPY" src 2>&1)"
 status=$?

@@ -297,10 +297,11 @@ def _merged(
     ``(a, b)`` of the compact items between them. The order ``heapq.merge`` gives on the natural
     key (a full record before a compact item of the same key), found by binary search."""
     n = block.n if block is not None else 0
+    items = block.items if block is not None else []
     at = 0
     for rec in full:
         pos = (
-            bisect.bisect_left(block.items, natural_key(rec["item"]), lo=at, key=natural_key)
+            bisect.bisect_left(items, natural_key(rec["item"]), lo=at, key=natural_key)
             if n
             else 0
         )

@@ -326,10 +326,10 @@ def findings(records: list[dict[str, Any]]) -> list[Finding]:
     # 3. the same statement for the same rules in many items (one cause): one finding listing them
     merged: dict[tuple[Any, ...], Finding] = {}
     for f in out:
-        key = (f.rank, f.verdict, f.reason, tuple(f.rules), f.what)
-        g = merged.get(key)
+        same = (f.rank, f.verdict, f.reason, tuple(f.rules), f.what)
+        g = merged.get(same)
         if g is None:
-            merged[key] = f
+            merged[same] = f
         else:
             g.items = sorted(set(g.items) | set(f.items), key=natural_key)
             g.n_records += f.n_records

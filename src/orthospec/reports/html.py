@@ -742,6 +742,8 @@ def _floats(v: Any) -> list[float]:
 
 def _edge_figures(d: dict[str, Any], tid: str) -> list[dict[str, str]]:
     """CEOS steps 5-12 for one edge target, from ``details.edges.<id>.curves`` (SVG)."""
+    import numpy as np
+
     from ..figures import edge as figs  # matplotlib: imported only when figures are drawn
 
     c = d["curves"]
@@ -776,15 +778,15 @@ def _edge_figures(d: dict[str, Any], tid: str) -> list[dict[str, str]]:
     for name, f in (c.get("fits") or {}).items():
         if not isinstance(f, dict) or not _numeric(f.get("x0")) or not _numeric(f.get("dx")):
             continue
-        esf = _floats(f.get("esf"))
+        fit_esf = _floats(f.get("esf"))
         fits.append(
             figs.FitCurves(
                 fit=str(name),
-                x=[f["x0"] + i * f["dx"] for i in range(len(esf))],
-                esf=esf,
-                lsf=_floats(f.get("lsf")),
-                freq=_floats(c.get("mtf_freq")),
-                mtf=_floats(f.get("mtf"))[:n],
+                x=np.asarray([f["x0"] + i * f["dx"] for i in range(len(fit_esf))], dtype=float),
+                esf=np.asarray(fit_esf, dtype=float),
+                lsf=np.asarray(_floats(f.get("lsf")), dtype=float),
+                freq=np.asarray(_floats(c.get("mtf_freq")), dtype=float),
+                mtf=np.asarray(_floats(f.get("mtf"))[:n], dtype=float),
                 centre_px=f.get("centre_px") if _numeric(f.get("centre_px")) else None,
                 fwhm_px=f.get("fwhm_px") if _numeric(f.get("fwhm_px")) else None,
                 mtf_nyquist=f.get("mtf_nyquist") if _numeric(f.get("mtf_nyquist")) else None,
@@ -917,8 +919,8 @@ def report_context(
     signed = list(signed_groups.values())
     if opts.bounded:
         signed = _bounded_signed(signed, opts.max_rule_rows)
-    problems = find_problems(records)
-    found = [f.as_dict() for f in problems]
+    stated_findings = find_problems(records)
+    found = [f.as_dict() for f in stated_findings]
     scopes = [s for s in scopes if s["rules"] or s["quiet"]]
     d = doc.get("delivery", {})
     p = doc.get("profile", {})
@@ -936,7 +938,7 @@ def report_context(
         "problems": problems,
         "failing_rules": failing_rules,
         "findings": found,
-        "findings_by_reason": by_reason(problems),
+        "findings_by_reason": by_reason(stated_findings),
         # the checker's open items are listed above the findings on page 1: not a second time there
         "page1_findings": [f for f in found if f.get("consequence") != V.INCOMPLETE][
             : max(3, PAGE1_FINDINGS - len((doc.get("rollup") or {}).get("incomplete", [])))
