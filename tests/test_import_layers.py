@@ -43,6 +43,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
         "orthospec._forkserver",
         "orthospec.outputs",
         "orthospec.dotted",
+        "orthospec.present",
     ),
     ("orthospec.delivery",),  # the delivery convention and its readers
     ("orthospec.profile", "orthospec.spec"),  # profiles, written against the delivery convention

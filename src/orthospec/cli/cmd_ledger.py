@@ -415,6 +415,9 @@ def state_cmd(
         {
             **asdict(s),
             "suspect_items": list(s.suspect_items),
+            "by_reason": [
+                {"reason": why, "records": n, "rules": list(rules)} for why, n, rules in s.by_reason
+            ],
             "sample_fraction": tightened if s.state == "tightened" else normal,
         }
         for s in states.values()
@@ -434,6 +437,11 @@ def state_cmd(
             f"{r['family']:<{width}}  {r['state']:<9}  sample {100 * r['sample_fraction']:.0f} %  "
             f"since run #{r['since_run']}  ({r['reason']}{trail})"
         )
+        for g in r["by_reason"]:  # the family's findings grouped by reason code
+            click.echo(
+                f"{'':<{width}}  - {g['reason']}: {g['records']} record(s) "
+                f"({', '.join(g['rules'][:6])}{' ...' if len(g['rules']) > 6 else ''})"
+            )
 
 
 @ledger.command("runs")

@@ -11,6 +11,7 @@ import click
 from ..delivery.points import PointTable, point_table, read_point_file
 from ..errors import OrthospecError
 from ..measures.accuracy import AccuracyStats, BlunderResult, detect_blunders
+from ..present import fmt_fixed, fmt_value
 from .groups import measure
 
 _KEYS = (
@@ -67,13 +68,7 @@ def _render(payload: dict[str, Any]) -> None:
     console = Console(highlight=False)
 
     def fmt(v: Any) -> str:
-        if v is None:
-            return "—"
-        if isinstance(v, bool):
-            return "yes" if v else "no"
-        if isinstance(v, float):
-            return f"{v:.4f}"
-        return str(v)
+        return fmt_fixed(v, 4) if isinstance(v, float) else fmt_value(v)
 
     gsd = payload["in_gsd"]
     table = Table(title=f"Checkpoint accuracy: {payload['file']} (n = {payload['n']}, m)")

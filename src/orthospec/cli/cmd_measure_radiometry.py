@@ -7,18 +7,16 @@ from typing import TYPE_CHECKING
 
 import click
 
+from ..present import fmt_fixed, fmt_value
 from .groups import measure
 
 if TYPE_CHECKING:  # the raster stack (numpy, rasterio) loads only when an image is measured
     from ..raster.parallel import ImageReport
 
 
-def _fmt(v: object, digits: int = 3) -> str:
-    if v is None:
-        return "-"
-    if isinstance(v, float):
-        return f"{v:.{digits}f}"
-    return str(v)
+def _fmt(v: object) -> str:
+    """Measured values with 3 decimals, counts as they are."""
+    return fmt_fixed(v, 3) if isinstance(v, float) else fmt_value(v)
 
 
 def _render(rep: ImageReport, findings: list[str]) -> None:

@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .. import verdicts as V
+from ..present import fmt_number
 
 if TYPE_CHECKING:
     from .context import RuleResult
@@ -138,10 +139,6 @@ def _threshold(r: RuleResult, i: int) -> float | None:
     return _number(r.threshold.get("value"))
 
 
-def _fmt(v: float) -> str:
-    return str(int(v)) if v == int(v) and abs(v) < 1e15 else f"{v:.3g}"
-
-
 def _shortfall(op: str, measured: float, need: float) -> int | None:
     """How many more units make ``measured op need`` true (>= / > only)."""
     if op == ">=":
@@ -165,7 +162,7 @@ def _what(r: RuleResult, i: int, totals: dict[str, int]) -> str:
     op = rule.requirement.op
     unit = "" if r.unit in ("1", "", None) else f" {r.unit}"
     said = (
-        f"{_fmt(measured)}{unit}, required {r.threshold.get('text', '')}".rstrip(", ")
+        f"{fmt_number(measured)}{unit}, required {r.threshold.get('text', '')}".rstrip(", ")
         if measured is not None
         else (note[:160] or "failed")
     )

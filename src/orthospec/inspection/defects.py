@@ -10,6 +10,7 @@ from typing import Any
 import yaml
 
 from ..errors import SpecError
+from ..present import cite
 from ..resources import specs_dir
 
 FILE = "inspection.yaml"
@@ -26,9 +27,7 @@ class DefectClass:
     quote: str
 
     def cite(self) -> str:
-        c = self.clause
-        where = f"§{c.get('section')}" + (f" Table {c['table']}" if c.get("table") else "")
-        return f"JRC {where}"
+        return cite(self.clause)
 
 
 @dataclass(frozen=True)

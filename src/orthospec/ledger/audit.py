@@ -20,11 +20,13 @@ from __future__ import annotations
 import json
 import math
 import re
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 from .. import verdicts as V
+from ..present import cite
+from ..profile.operators import OPERATORS
 
 NORMAL, TIGHTENED = "normal", "tightened"
 #: default relative distance to a threshold under which a pass counts as marginal
@@ -44,6 +46,9 @@ class FamilyState:
     last_run: int | None
     reason: str
     suspect_items: tuple[str, ...] = field(default=())
+    #: the last run's findings of the family by reason code (orthospec.verdicts.Reason; a pass
+    #: near its threshold is ``marginal``), most records first: (code, records, rules)
+    by_reason: tuple[tuple[str, int, tuple[str, ...]], ...] = field(default=())
 
 
 def family_of(record: Mapping[str, Any]) -> str:
@@ -51,10 +56,7 @@ def family_of(record: Mapping[str, Any]) -> str:
     audit = record.get("audit") or {}
     if audit.get("family"):
         return str(audit["family"])
-    clause = record.get("clause") or {}
-    if clause.get("section"):
-        return f"§{clause['section']}"
-    return str(record["rule"])
+    return cite(record.get("clause"), "section") or str(record["rule"])
 
 
 def _num(x: Any) -> float | None:
@@ -69,12 +71,8 @@ def is_marginal(measured: Any, requirement: Mapping[str, Any], *, margin: float 
     v = _num(measured)
     if v is None:
         return False
-    op = requirement.get("op")
-    bounds: list[float | None] = []
-    if op in ("<", "<=", ">", ">="):
-        bounds = [_num(requirement.get("value"))]
-    elif op == "between":
-        bounds = [_num(requirement.get("min")), _num(requirement.get("max"))]
+    op = OPERATORS.get(str(requirement.get("op")))
+    bounds = [_num(requirement.get(k)) for k in (op.bounds if op is not None else ())]
     for t in bounds:
         if t is None:
             continue
@@ -106,6 +104,25 @@ class RunRecords:
     run_id: int
     records: Sequence[Mapping[str, Any]]  # keys: rule, item, verdict, family, measured, requirement
     manual: Mapping[str, str] = field(default_factory=dict)  # sign-off verdicts by rule
+    #: the run's reason codes by (rule, item), read only for a run with findings (a record's own
+    #: ``reason`` key wins; without either, the verdict's default reason)
+    reasons: Callable[[], Mapping[tuple[str, str], str]] | None = None
+
+
+#: the group of a pass within the margin of its threshold (it tightens, yet carries no reason code)
+MARGINAL = "marginal"
+
+
+def _by_reason(
+    bad: Sequence[tuple[str, str, str, str]],
+) -> tuple[tuple[str, int, tuple[str, ...]], ...]:
+    groups: dict[str, list[str]] = {}
+    for _, rule, _, why in bad:
+        groups.setdefault(why, []).append(rule)
+    return tuple(
+        (why, len(rules), tuple(sorted(set(rules))))
+        for why, rules in sorted(groups.items(), key=lambda kv: (-len(kv[1]), kv[0]))
+    )
 
 
 _LEVEL = re.compile(r"(normal|tightened)\s*\(\s*(\d+(?:\.\d+)?)\s*%\s*\)", re.IGNORECASE)
@@ -126,7 +143,8 @@ def audit_states(runs: Iterable[RunRecords], *, margin: float = MARGIN) -> dict[
     """Replay runs (oldest first) and return the state of every family seen."""
     states: dict[str, FamilyState] = {}
     for run in runs:
-        per_family: dict[str, list[tuple[str, str, str]]] = {}
+        per_family: dict[str, list[tuple[str, str, str, str]]] = {}
+        stored: Mapping[tuple[str, str], str] | None = None
         for rec in run.records:
             verdict = run.manual.get(rec["rule"], rec["verdict"])
             req = _decode(rec["requirement"]) or {}
@@ -134,14 +152,22 @@ def audit_states(runs: Iterable[RunRecords], *, margin: float = MARGIN) -> dict[
             out = outcome(verdict, measured, req, margin=margin)
             if out is None:
                 continue
-            per_family.setdefault(rec["family"], []).append((out, rec["rule"], rec["item"]))
+            why = ""
+            if out != V.PASS:
+                given = rec.get("reason")
+                if given is None and run.reasons is not None:
+                    if stored is None:
+                        stored = run.reasons()
+                    given = stored.get((rec["rule"], rec["item"]))
+                why = (V.reason_of(verdict, given) or MARGINAL) if verdict != V.PASS else MARGINAL
+            per_family.setdefault(rec["family"], []).append((out, rec["rule"], rec["item"], why))
         for fam, outs in sorted(per_family.items()):
-            bad = [(o, r, i) for o, r, i in outs if o != V.PASS]
+            bad = [(o, r, i, w) for o, r, i, w in outs if o != V.PASS]
             prev = states.get(fam)
             if bad:
-                n_fail = sum(o == V.FAIL for o, _, _ in bad)
+                n_fail = sum(o == V.FAIL for o, _, _, _ in bad)
                 n_marg = len(bad) - n_fail
-                rules = sorted({r for _, r, _ in bad})
+                rules = sorted({r for _, r, _, _ in bad})
                 what = ", ".join(
                     p
                     for p in (
@@ -159,7 +185,8 @@ def audit_states(runs: Iterable[RunRecords], *, margin: float = MARGIN) -> dict[
                     since,
                     run.run_id,
                     f"run {run.run_id}: {what} ({', '.join(rules)})",
-                    tuple(sorted({i for _, _, i in bad})),
+                    tuple(sorted({i for _, _, i, _ in bad})),
+                    _by_reason(bad),
                 )
             else:
                 reason = f"run {run.run_id}: all {len(outs)} passed clearly" + (

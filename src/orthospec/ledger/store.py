@@ -13,6 +13,7 @@ import datetime as dt
 import json
 import os
 from collections.abc import Callable, Iterable, Mapping
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -573,8 +574,19 @@ class Ledger:
             if s["run"] in per_run:
                 manual.setdefault(s["run"], {}).update(s["manual"])
         return audit_states(
-            (RunRecords(i, per_run[i], manual.get(i, {})) for i in ids), margin=margin
+            (RunRecords(i, per_run[i], manual.get(i, {}), partial(self._reasons, i)) for i in ids),
+            margin=margin,
         )
+
+    def _reasons(self, run_id: int) -> dict[tuple[str, str], str]:
+        """The reason codes of a run's non-pass records, by (rule, item), from its stored document
+        (the QCR rows keep no reason column: a ledger written before reason codes reads the same)."""
+        doc = self.document(run_id)
+        return {
+            (str(r.get("rule")), str(r.get("item"))): str(r["reason"])
+            for r in doc.get("records") or ()
+            if isinstance(r, dict) and r.get("reason")
+        }
 
     def audit_state(self, project: str, family: str, *, margin: float = MARGIN) -> str:
         """``"normal"`` or ``"tightened"``; a family never checked is normal."""

@@ -8,6 +8,8 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Discriminator, Field, Tag, field_validator
 
+from ..present import cite
+
 SEMVER = r"^(0|[1-9]\d*)\.(0|[1-9]\d*)\.(0|[1-9]\d*)(?:-[0-9A-Za-z.-]+)?$"
 PROFILE_ID = r"^[a-z0-9][a-z0-9._-]*$"
 RULE_ID = r"^[A-Za-z0-9][A-Za-z0-9._-]*$"
@@ -44,27 +46,12 @@ class Clause(_Strict):
         return None if v is None else str(v)
 
     def ref(self) -> str:
-        """Section, table and row without the document name (short form for terminals)."""
-        parts = []
-        if self.section:
-            parts.append(f"§{self.section}")
-        if self.table:
-            parts.append(f"T{self.table}")
-        if self.figure:
-            parts.append(f"Fig. {self.figure}")
-        return " ".join(parts) or self.document
+        """Section, table and figure without the document name (short form for terminals)."""
+        return cite(self, "ref")
 
     def text(self) -> str:
-        parts = [self.document]
-        if self.section:
-            parts.append(f"§{self.section}")
-        if self.table:
-            parts.append(f"Table {self.table}")
-        if self.row:
-            parts.append(f"row '{self.row}'")
-        if self.figure:
-            parts.append(f"Figure {self.figure}")
-        return ", ".join(parts)
+        """The citation a person reads (:func:`orthospec.present.cite`)."""
+        return cite(self)
 
 
 class Source(_Strict):

@@ -106,10 +106,34 @@ class Operator:
     nonfinite_threshold: ClassVar[str] = V.ERROR
     #: the requirement reads thresholds (value / min / max / values)
     has_threshold: ClassVar[bool] = True
+    #: the thresholds a measured number is compared with by order (what a pass can be close to:
+    #: the ledger's marginal passes, JRC §12.7)
+    bounds: ClassVar[tuple[str, ...]] = ()
 
-    def __init__(self, name: str, symbol: str) -> None:
+    def __init__(self, name: str, symbol: str, unmet: str = "") -> None:
         self.name = name
         self.symbol = symbol
+        #: the relation of a value that does not meet the requirement (``>`` for ``<=``)
+        self.unmet = unmet
+
+    def unmet_text(
+        self,
+        measured: str,
+        value: str = "",
+        *,
+        lo: str = "",
+        hi: str = "",
+        min_inclusive: bool = True,
+        max_inclusive: bool = True,
+        values: Sequence[str] = (),
+        unit: str = "",
+    ) -> str | None:
+        """How a finding states a value that does not meet the requirement (``0.641 m > 0.5 m``),
+        from texts already formatted (``unit`` follows each number); None when the operator has no
+        such sentence (the message says it)."""
+        if self.unmet and value:
+            return f"{measured}{unit} {self.unmet} {value}{unit}"
+        return None
 
     def __repr__(self) -> str:
         return f"<operator {self.name}>"
@@ -197,6 +221,7 @@ def _is_text(*vals: Any) -> bool:
 class _Order(Operator):
     """``<``, ``<=``, ``>``, ``>=``: numbers only."""
 
+    bounds: ClassVar[tuple[str, ...]] = ("value",)
     _UFUNC: ClassVar[dict[str, str]] = {
         "<": "less",
         "<=": "less_equal",
@@ -243,6 +268,8 @@ class _Equality(Operator):
 class _Between(Operator):
     """``between``: ``min``/``max`` each inclusive unless said; a side not given is open."""
 
+    bounds: ClassVar[tuple[str, ...]] = ("min", "max")
+
     def _decide(self, raw: np.ndarray, t: Thresholds) -> Decision:
         import numpy as np
 
@@ -258,6 +285,21 @@ class _Between(Operator):
         no_thr = np.logical_or.reduce([np.isnan(x) for x in given]) if given else none
         bad_thr = np.logical_or.reduce([np.isinf(x) for x in given]) if given else none
         return self._decision(a & b, np.isnan(values), values, no_thr, bad_thr)
+
+    def unmet_text(
+        self,
+        measured: str,
+        value: str = "",
+        *,
+        lo: str = "",
+        hi: str = "",
+        min_inclusive: bool = True,
+        max_inclusive: bool = True,
+        values: Sequence[str] = (),
+        unit: str = "",
+    ) -> str | None:
+        lb, rb = "[" if min_inclusive else "(", "]" if max_inclusive else ")"
+        return f"{measured}{unit} outside {lb}{lo or '−∞'}, {hi or '+∞'}{rb}{unit}"
 
     def text(
         self,
@@ -295,6 +337,11 @@ class _In(Operator):
 
     def text(self, value: str = "", *, values: Sequence[str] = (), **_: Any) -> str:
         return "one of " + ", ".join(values)
+
+    def unmet_text(
+        self, measured: str, value: str = "", *, values: Sequence[str] = (), **_: Any
+    ) -> str:
+        return f"{measured} not one of {', '.join(values)}"
 
 
 class _Present(Operator):
@@ -340,6 +387,9 @@ class _Truth(Operator):
     def text(self, value: str = "", **_: Any) -> str:
         return f"is {self.name}"
 
+    def unmet_text(self, measured: str, value: str = "", **_: Any) -> str:
+        return f"{measured}, required {self.name}"
+
 
 #: every requirement operator, by its name in a profile (`spec.models.Op`)
 OPERATORS: dict[str, Operator] = {}
@@ -352,12 +402,12 @@ def _register(op: Operator) -> None:
 
 
 for _op in (
-    _Order("<", "<"),
-    _Order("<=", "≤"),
-    _Order(">", ">"),
-    _Order(">=", "≥"),
-    _Equality("==", "="),
-    _Equality("!=", "≠"),
+    _Order("<", "<", "≥"),
+    _Order("<=", "≤", ">"),
+    _Order(">", ">", "≤"),
+    _Order(">=", "≥", "<"),
+    _Equality("==", "=", "≠"),
+    _Equality("!=", "≠", "="),
     _Between("between", "between"),
     _In("in", "in"),
     _Present("present", "present"),

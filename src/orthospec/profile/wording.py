@@ -3,8 +3,9 @@ the tender annex (the annex the buyer publishes and the QCR the contractor recei
 requirement the same way).
 
 The sentence of each operator lives with the operator (``profile/operators.py``); this module formats
-the thresholds (number, unit) it is given. Pure (no numpy, no pint), so the commands that only word
-a rule do not import the engine.
+the thresholds (number, unit) it is given with ``orthospec.present`` (whose ``fmt_value`` and
+``unit_suffix`` it re-exports). Pure (no numpy, no pint), so the commands that only word a rule do
+not import the engine.
 """
 
 from __future__ import annotations
@@ -13,29 +14,20 @@ import math
 from collections.abc import Callable, Mapping
 from typing import Any
 
+from ..present import NO_UNIT, fmt_value, unit_suffix
 from .models import Requirement
 from .operators import operator
 
-#: units not printed after a number (dimensionless and the non-numeric kinds)
-NO_UNIT = frozenset({"", "1", "text", "bool", "date", "any"})
-
-
-def unit_suffix(unit: str | None) -> str:
-    """What follows a number: ``" m"``, or nothing for a dimensionless or non-numeric unit."""
-    return f" {unit}" if unit and unit not in NO_UNIT else ""
-
-
-def fmt_value(x: Any) -> str:
-    """A measured or threshold value as printed: 6 significant digits, NaN as n/a, booleans as
-    true/false (as a profile writes them)."""
-    if isinstance(x, bool):
-        return "true" if x else "false"
-    if isinstance(x, float):
-        if math.isnan(x):
-            return "n/a"
-        return f"{x:.6g}"
-    return str(x)
-
+__all__ = [
+    "NO_UNIT",
+    "UNFIXED",
+    "fmt_value",
+    "param_value",
+    "profile_requirement_text",
+    "profile_thresholds",
+    "requirement_text",
+    "unit_suffix",
+]
 
 #: requirement texts already built: (id of the requirement, resolved unit and bounds) -> (requirement, text)
 _TEXT_MEMO: dict[tuple[Any, ...], tuple[Requirement, str]] = {}

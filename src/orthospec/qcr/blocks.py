@@ -10,9 +10,9 @@ from collections.abc import Iterable, Iterator, Mapping
 from typing import Any
 
 from .. import verdicts as V
+from ..present import cite, fmt_value
 from .cells import (
     _CSV_SPECIAL,
-    _clause_text,
     _csv_cell,
     _csv_cells,
     _plain_cells,
@@ -20,7 +20,7 @@ from .cells import (
     csv_safe,
     evidence_text,
 )
-from .columns import _fmt, _pass_message, _shown_unit
+from .columns import _pass_message, _shown_unit
 from .order import natural_key
 from .records import _expand_stored
 
@@ -138,11 +138,11 @@ class _Block:
         texts = texts if isinstance(texts, list) else list(texts)
         if len(todo) == len(msgs):
             return [
-                f"{head}{f'{v:.6g}' if type(v) is float else _fmt(v)}{tail}{t}"
+                f"{head}{f'{v:.6g}' if type(v) is float and v == v else fmt_value(v)}{tail}{t}"
                 for v, t in zip(measured, texts, strict=True)
             ]
         for k in todo:
-            msgs[k] = f"{head}{_fmt(measured[k])}{tail}{texts[k]}"
+            msgs[k] = f"{head}{fmt_value(measured[k])}{tail}{texts[k]}"
         return msgs
 
     def reasons(self, a: int, b: int) -> list[str] | str:
@@ -204,7 +204,7 @@ class _Block:
         items = self.items[a:b]
         cols: list[Any] = [
             rule["rule"],
-            _clause_text(rule.get("citation") or {}),
+            cite(rule.get("citation"), "columns"),
             rule.get("scope", ""),
             items if self.items_plain_csv() else _csv_cells(items),
             rule.get("level"),
@@ -297,10 +297,11 @@ def _merged(
     ``(a, b)`` of the compact items between them. The order ``heapq.merge`` gives on the natural
     key (a full record before a compact item of the same key), found by binary search."""
     n = block.n if block is not None else 0
+    items = block.items if block is not None else []
     at = 0
     for rec in full:
         pos = (
-            bisect.bisect_left(block.items, natural_key(rec["item"]), lo=at, key=natural_key)
+            bisect.bisect_left(items, natural_key(rec["item"]), lo=at, key=natural_key)
             if n
             else 0
         )

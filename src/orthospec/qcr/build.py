@@ -455,7 +455,7 @@ class _RuleRecords:
         not-applicable record without one; else the note."""
         notes = np.asarray(self.r.notes, dtype=object)
         notes = notes if every else notes[idx]
-        none = np.equal(notes, None).astype(bool)
+        none = np.asarray(notes == None, dtype=bool)  # noqa: E711 (elementwise on objects)
         if len(idx) > 1 and none.all():
             if (codes == PASS).all():
                 return {"all": None}

@@ -155,10 +155,6 @@ def _formula_at(joined: str) -> bool:
 _FORMULA_AT = re.compile("(?:^|\x00)[" + re.escape("".join(_FORMULA_START)) + "]")
 
 
-def _clause_text(c: Mapping[str, Any]) -> str:
-    return ", ".join(str(c[k]) for k in ("document", "section", "table", "row") if c.get(k))
-
-
 #: characters quoteattr/escape or xml_text would change: text without them is written as it is
 _XML_SPECIAL = re.compile(
     "[&<>\"'\n\r\t\x00-\x08\x0b\x0c\x0e-\x1f\x7f-\x84\x86-\x9f\ud800-\udfff\ufffe\uffff]"

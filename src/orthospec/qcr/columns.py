@@ -15,6 +15,7 @@ from ..engine.evaluator import (
     PASS,
 )
 from ..engine.registry import SCOPES
+from ..present import fmt_value
 
 SCHEMA_ID = (
     "orthospec.qcr/3"  # version 3: version 2 + evidence selectors and row columns (docs/QCR.md)
@@ -133,14 +134,6 @@ def point_frame(table: Any) -> Any:
     return pd.DataFrame(list(table or []))
 
 
-def _fmt(v: Any) -> str:
-    if v is None:
-        return "n/a"
-    if isinstance(v, float):
-        return f"{v:.6g}"
-    return str(v)
-
-
 #: verdicts recorded compactly (columnar, per rule); every other verdict is a record in full
 COMPACT_VERDICTS = (V.PASS, V.NOT_APPLICABLE)
 _COMPACT_CODES = (PASS, NA)
@@ -153,7 +146,7 @@ ROWS_LISTED_MAX = 1000
 
 def _pass_message(measure: str, measured: Any, shown_unit: str, req_text: str) -> str:
     """The message of a pass/fail/warn record whose rule gave no note (one wording, two callers)."""
-    return f"{measure} = {_fmt(measured)}{shown_unit}; required {req_text}"
+    return f"{measure} = {fmt_value(measured)}{shown_unit}; required {req_text}"
 
 
 def _shown_unit(unit: str | None) -> str:

@@ -7,8 +7,9 @@ import io
 from collections.abc import Iterator, Mapping
 from typing import Any
 
+from ..present import cite
 from .blocks import _merged, _rule_parts
-from .cells import _clause_text, _SafeWriter, evidence_text
+from .cells import _SafeWriter, evidence_text
 from .records import all_records
 
 # --- writers --------------------------------------------------------------------------------
@@ -27,7 +28,7 @@ def _csv_row(r: Mapping[str, Any]) -> list[Any]:
     ev = "; ".join(evidence_text(e) for e in r["evidence"])
     return [
         r["rule"],
-        _clause_text(r["clause"]),
+        cite(r["clause"], "columns"),
         r["scope"],
         r["item"],
         r["level"],

@@ -8,7 +8,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from ..errors import OrthospecError
-from .cells import _clause_text
+from ..present import cite
 from .records import all_records
 
 #: the columns of qcr.parquet, in order (docs/QCR.md "Parquet table"); one row per record
@@ -118,7 +118,7 @@ def to_parquet(doc: Mapping[str, Any]) -> bytes:
             row = {
                 "rule": r["rule"],
                 "title": r.get("title"),
-                "clause": _clause_text(r.get("clause") or {}),
+                "clause": cite(r.get("clause"), "columns"),
                 "scope": r.get("scope"),
                 "item": r["item"],
                 "level": r.get("level"),

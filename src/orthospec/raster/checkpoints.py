@@ -34,6 +34,7 @@ from ..delivery.survey import HandEntry, SurveyPoint, hand_entries, read_hand_cs
 from ..errors import DeliveryError, MeasureError, OrthospecError
 from ..measures.matching import Match, MatchSettings, match_chip
 from ..outputs import atomic_path
+from ..present import fmt_fixed, fmt_value
 from ..provenance import sha256_file
 from .chips import RasterHeader, Reference, open_reference, read_header, read_pair, transform_xy
 from .reading import gdal_errors, open_read_only, read_only_env, readable_vector
@@ -524,8 +525,11 @@ def measure_checkpoints(
     return Run(ordered, table, hand_list, warnings, crs.to_string())
 
 
-def _fmt(v: float | None, spec: str = ".12g") -> str:
-    return "" if v is None or not math.isfinite(v) else format(v, spec)
+def _fmt(v: float | None, places: int | None = None) -> str:
+    """A CSV cell: blank when there is no value; 12 significant digits, or ``places`` decimals."""
+    if v is None or not math.isfinite(v):
+        return ""
+    return fmt_value(v, 12) if places is None else fmt_fixed(v, places)
 
 
 def _csv_cell(v: str) -> str:
@@ -552,7 +556,7 @@ def _row(r: PointResult) -> list[str]:
         "",
         _fmt(p.precision_xy),
         r.method,
-        _fmt(score, ".4f"),
+        _fmt(score, 4),
         r.decision,
         r.reason,
         r.reference_file,

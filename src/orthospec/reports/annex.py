@@ -20,11 +20,12 @@ import jinja2
 from markupsafe import Markup, escape
 
 from ..errors import ExpressionError, ReportError
+from ..present import NO_UNIT, fmt_value
 from ..profile.applicability import cannot_apply
 from ..profile.expr import parse
 from ..profile.loader import ResolvedProfile
 from ..profile.models import Parameter, Requirement, Rule
-from ..profile.wording import NO_UNIT, fmt_value, param_value, profile_requirement_text
+from ..profile.wording import param_value, profile_requirement_text
 from ..qcr import natural_key
 from ..resources import templates_dir
 from .findings import condition_prose
@@ -48,7 +49,9 @@ LEVELS = {
 
 
 def _num(v: Any) -> str:
-    """A number or word in a table cell (template filter), printed as the requirement prints it."""
+    """A number or word in a table cell (template filter), printed as the requirement prints it.
+    The templates print a value the ITT has not fixed yet as a dash (with "to be fixed in the ITT"
+    beside it), not as a missing measurement."""
     return fmt_value(v) if isinstance(v, bool | float) else str(v)
 
 

@@ -21,16 +21,20 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from .. import verdicts as V
+from ..present import cite, fmt_number, fmt_value, unit_suffix
+from ..profile.operators import OPERATORS
 from ..qcr import natural_key
 
 __all__ = [
     "Finding",
     "NotApplicableSummary",
+    "by_reason",
     "checker_text",
     "clean_text",
     "findings",
     "fmt_number",
     "not_applicable_summary",
+    "reason_line",
     "stated",
     "unsigned_manual_note",
 ]
@@ -47,9 +51,6 @@ RANK_LABELS = (
     "could not be evaluated",
     "warning",
 )
-#: the requirement violated, stated the other way round
-_NEGATED = {"<=": ">", "<": "≥", ">=": "<", ">": "≤", "==": "≠", "!=": "="}
-_NO_UNIT = (None, "", "1", "text", "bool", "date", "any")
 # ANSI CSI/OSC sequences and C0/C1 control characters (delivery text must not drive a terminal)
 _ESCAPES = re.compile(
     r"\x1b\][^\x07\x1b]*(?:\x07|\x1b\\)?|\x1b\[[0-?]*[ -/]*[@-~]|\x1b[@-_]?|[\x00-\x08\x0b-\x1f\x7f-\x9f]"
@@ -102,85 +103,58 @@ def clean_text(text: Any) -> str:
     return _ESCAPES.sub("", "" if text is None else str(text))
 
 
-def fmt_number(v: Any) -> str:
-    """A measured number for a reader: three significant digits, large values to the unit."""
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, int):
-        return str(v)
-    if isinstance(v, float):
-        if not math.isfinite(v):
-            return str(v)
-        if v == int(v) and abs(v) < 1e15:
-            return str(int(v))
-        return f"{v:.0f}" if abs(v) >= 1000 else f"{v:.3g}"
-    return str(v)
-
-
 def _distinct(v: Any, required: Any) -> str:
     """The measured number with enough digits that it never reads equal to the requirement
     (1.0004 m > 1 m must not print as '1 m > 1 m')."""
     text = fmt_number(v)
-    if isinstance(v, float) and isinstance(required, int | float) and v != required:
+    if (
+        isinstance(v, float)
+        and math.isfinite(v)
+        and isinstance(required, int | float)
+        and v != required
+    ):
         digits = 3
         while digits < 12 and float(text) == float(required):
             digits += 1
-            text = f"{v:.{digits}g}"
+            text = fmt_value(v, digits)
     return text
 
 
 def _req_number(v: Any) -> str:
     """A required value as the profile states it (never rounded: 0.33 stays 0.33)."""
-    if isinstance(v, float) and math.isfinite(v) and v == int(v) and abs(v) < 1e15:
-        return str(int(v))
-    if isinstance(v, float):
-        return f"{v:.10g}"
-    return str(v)
-
-
-def _u(unit: Any) -> str:
-    return "" if unit in _NO_UNIT else f" {unit}"
+    return fmt_value(v, 10)
 
 
 def stated(rec: dict[str, Any]) -> str | None:
-    """'0.641 m > 0.5 m' for a record with a numeric value and a comparison; None otherwise."""
+    """'0.641 m > 0.5 m' for a record with a numeric value and a comparison; None otherwise (the
+    operator words what a value that fails it is: ``Operator.unmet_text``)."""
     m = rec.get("measured") or {}
     v = m.get("value")
     req = rec.get("requirement") or {}
-    op = req.get("op")
-    unit = _u(m.get("unit") if m.get("unit") not in _NO_UNIT else req.get("unit"))
-    if v is None or isinstance(v, str | list | dict):
+    op = OPERATORS.get(str(req.get("op")))
+    if op is None or v is None or isinstance(v, str | list | dict):
         return None
-    if isinstance(v, bool):
-        if op in ("true", "false"):
-            return f"{'true' if v else 'false'}, required {op}"
+    if isinstance(v, bool):  # only a truth requirement is stated for a boolean
+        return None if op.has_threshold else op.unmet_text(fmt_value(v))
+    if not op.has_threshold:
         return None
-    if op in _NEGATED and req.get("value") is not None:
+    unit = unit_suffix(m.get("unit") if unit_suffix(m.get("unit")) else req.get("unit"))
+    if op.unmet:
+        value = req.get("value")
         return (
-            f"{_distinct(v, req['value'])}{unit} {_NEGATED[op]} {_req_number(req['value'])}{unit}"
+            None
+            if value is None
+            else op.unmet_text(_distinct(v, value), _req_number(value), unit=unit)
         )
-    if op == "between":
-        lo = "−∞" if req.get("min") is None else _req_number(req["min"])
-        hi = "+∞" if req.get("max") is None else _req_number(req["max"])
-        lb = "[" if req.get("min_inclusive", True) else "("
-        rb = "]" if req.get("max_inclusive", True) else ")"
-        return f"{fmt_number(v)}{unit} outside {lb}{lo}, {hi}{rb}{unit}"
-    if op == "in":
-        return f"{fmt_number(v)} not one of {', '.join(map(str, req.get('values') or []))}"
-    return None
-
-
-def _clause(rec: dict[str, Any]) -> str:
-    c = rec.get("clause")
-    if isinstance(c, str):
-        return c
-    c = c or {}
-    parts = [str(c.get("document") or "")]
-    if c.get("section"):
-        parts.append(f"§{c['section']}")
-    if c.get("table"):
-        parts.append(f"Table {c['table']}")
-    return ", ".join(p for p in parts if p)
+    return op.unmet_text(
+        fmt_number(v),
+        lo="" if req.get("min") is None else _req_number(req["min"]),
+        hi="" if req.get("max") is None else _req_number(req["max"]),
+        min_inclusive=req.get("min_inclusive", True),
+        max_inclusive=req.get("max_inclusive", True),
+        values=[str(x) for x in req.get("values") or []],
+        unit=unit,
+    )
 
 
 def rank(verdict: str, consequence: str | None, manual: bool = False) -> int:
@@ -211,6 +185,8 @@ class Finding:
     what: str  # '0.641 m > 0.5 m' or the plain message
     rules: list[str] = field(default_factory=list)  # every rule this finding stands for
     n_records: int = 1
+    reason: str = ""  # the reason code of the first record (orthospec.verdicts.Reason)
+    reasons: dict[str, int] = field(default_factory=dict)  # records per reason code
 
     @property
     def item_text(self) -> str:
@@ -246,6 +222,8 @@ class Finding:
             "what": self.what,
             "rules": list(self.rules),
             "n_records": self.n_records,
+            "reason": self.reason,
+            "reason_text": REASON_WORDS.get(self.reason, self.reason.replace("_", " ")),
             "text": self.text,
         }
 
@@ -265,8 +243,25 @@ def _what(rec: dict[str, Any]) -> str:
     return msg or f"{v}, required {(rec.get('requirement') or {}).get('text', '')}".strip()
 
 
+def reason(rec: dict[str, Any]) -> str:
+    """A record's reason code; a qcr.json written before reason codes: its verdict's default."""
+    return V.reason_of(str(rec.get("verdict")), rec.get("reason")) or ""
+
+
+def _count_reasons(recs: Iterable[dict[str, Any]]) -> dict[str, int]:
+    out: dict[str, int] = {}
+    for r in recs:
+        why = reason(r)
+        out[why] = out.get(why, 0) + 1
+    return out
+
+
 def findings(records: list[dict[str, Any]]) -> list[Finding]:
-    """Every failing, missing, erring or warning record as findings, most consequential first."""
+    """Every failing, missing, erring or warning record as findings, most consequential first.
+
+    Records of one rule are grouped by their reason code (``orthospec.verdicts.Reason``), never by
+    parsing the message; one root cause (one missing file) stays one finding whatever the reasons
+    of its records (each finding counts its records per reason: :func:`by_reason`)."""
     problems = [r for r in records if r.get("verdict") in PROBLEMS]
     # 1. one root cause: the same item and message under several rules, without a measured value
     by_cause: dict[tuple[str, str], list[dict[str, Any]]] = {}
@@ -289,26 +284,28 @@ def findings(records: list[dict[str, Any]]) -> list[Finding]:
                 top.get("consequence") or "",
                 top["rule"],
                 top.get("title", ""),
-                _clause(top),
+                cite(top.get("clause")),
                 [item],
                 clean_text(msg),
                 rules=[r["rule"] for r in recs],
                 n_records=len(recs),
+                reason=reason(top),
+                reasons=_count_reasons(recs),
             )
         )
     # 2. the same rule and message for many items (no value): one finding listing the items
-    by_rule: dict[tuple[str, str, str], list[dict[str, Any]]] = {}
+    by_rule: dict[tuple[str, str, str, str], list[dict[str, Any]]] = {}
     for r in problems:
         if id(r) in grouped:
             continue
         value = (r.get("measured") or {}).get("value")
         key = (
-            (r["rule"], r["verdict"], _what(r))
+            (r["rule"], r["verdict"], reason(r), _what(r))
             if value is None or stated(r) is None
-            else (r["rule"], r["verdict"], f"#{id(r)}")
+            else (r["rule"], r["verdict"], reason(r), f"#{id(r)}")
         )
         by_rule.setdefault(key, []).append(r)
-    for (_rid, _v, _k), recs in by_rule.items():
+    for (_rid, _v, why, _k), recs in by_rule.items():
         top = recs[0]
         out.append(
             Finding(
@@ -317,26 +314,83 @@ def findings(records: list[dict[str, Any]]) -> list[Finding]:
                 top.get("consequence") or "",
                 top["rule"],
                 top.get("title", ""),
-                _clause(top),
+                cite(top.get("clause")),
                 sorted((str(r["item"]) for r in recs), key=natural_key),
                 _what(top),
                 rules=[top["rule"]],
                 n_records=len(recs),
+                reason=why,
+                reasons={why: len(recs)},
             )
         )
     # 3. the same statement for the same rules in many items (one cause): one finding listing them
     merged: dict[tuple[Any, ...], Finding] = {}
     for f in out:
-        key = (f.rank, f.verdict, tuple(f.rules), f.what)
-        g = merged.get(key)
+        same = (f.rank, f.verdict, f.reason, tuple(f.rules), f.what)
+        g = merged.get(same)
         if g is None:
-            merged[key] = f
+            merged[same] = f
         else:
             g.items = sorted(set(g.items) | set(f.items), key=natural_key)
             g.n_records += f.n_records
+            for why, n in f.reasons.items():
+                g.reasons[why] = g.reasons.get(why, 0) + n
     final = list(merged.values())
     final.sort(key=lambda f: (f.rank, f.rule, natural_key(f.items[0] if f.items else "")))
     return final
+
+
+#: each reason code in words (a heading of the findings grouped by reason)
+REASON_WORDS: dict[str, str] = {
+    V.Reason.NOT_MET: "the measured value does not meet the requirement",
+    V.Reason.UNSET_PARAMETER: "a threshold's parameter is not set (the ITT must fix it)",
+    V.Reason.NO_GSD: "a value in pixels without the item's GSD",
+    V.Reason.NO_THRESHOLD: "the threshold cannot be computed for the item",
+    V.Reason.BAD_THRESHOLD: "the threshold is not a finite number",
+    V.Reason.NO_VALUE: "no value measured for the item (evidence missing)",
+    V.Reason.NO_ITEMS: "no item to judge",
+    V.Reason.UNKNOWN_FACT: "the rule's condition reads a fact the delivery does not give",
+    V.Reason.PROVIDER_ERROR: "the value could not be read or computed",
+    V.Reason.REQUIREMENT_ERROR: "the requirement cannot be evaluated on the measure",
+    V.Reason.INTERNAL_ERROR: "an internal error of orthospec",
+    V.Reason.UNSIGNED: "a manual check without the checker's verdict",
+    V.Reason.WAIVED: "waived",
+}
+
+
+def by_reason(found: Iterable[Finding]) -> list[dict[str, Any]]:
+    """Findings grouped by reason code: {reason, text, findings, records, rules}, most records
+    first (what the terminal and the report's section 1 print beside the findings). A finding of
+    one root cause whose records have several reasons counts under each."""
+    groups: dict[str, dict[str, Any]] = {}
+    for f in found:
+        for why, n in (f.reasons or {f.reason: f.n_records}).items():
+            g = groups.setdefault(
+                why,
+                {
+                    "reason": why,
+                    "text": REASON_WORDS.get(why, why.replace("_", " ")),
+                    "findings": 0,
+                    "records": 0,
+                    "rules": [],
+                },
+            )
+            g["findings"] += 1
+            g["records"] += n
+            g["rules"] += [r for r in f.rules if r not in g["rules"]]
+    return sorted(groups.values(), key=lambda g: (-g["records"], g["reason"]))
+
+
+def reason_line(found: Iterable[Finding]) -> str | None:
+    """``by reason: not_met 3 findings (5 records); no_value 1 finding (2 records)``, or None."""
+    groups = by_reason(found)
+    if not groups:
+        return None
+    return "by reason: " + "; ".join(
+        f"{g['reason']} {g['findings']} finding{'s' if g['findings'] != 1 else ''} "
+        f"({g['records']} record{'s' if g['records'] != 1 else ''})"
+        for g in groups
+    )
 
 
 _NA = re.compile(r"^not applicable:\s*(?P<cond>.*?)\s+is false(?: for this delivery)?\s*$", re.S)

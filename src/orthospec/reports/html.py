@@ -19,11 +19,11 @@ import jinja2
 import markupsafe
 
 from .. import verdicts as V
-from ..profile.wording import unit_suffix
+from ..present import NO_VALUE, cite, fmt_fixed, fmt_measured, fmt_value, unit_suffix
 from ..qcr import all_records, dumps, natural_key, point_rows, where_text
 from ..resources import templates_dir
 from .contract import contract_lines
-from .findings import NotApplicableSummary, checker_text, unsigned_manual_note
+from .findings import NotApplicableSummary, by_reason, checker_text, unsigned_manual_note
 from .findings import findings as find_problems
 
 __all__ = ["ReportOptions", "document_sha256", "environment", "render_html", "report_context"]
@@ -104,53 +104,6 @@ def blank(v: Any) -> str:
     return "" if v is None else str(v)
 
 
-def fmt_value(v: Any, digits: int = 6) -> str:
-    if v is None:
-        return "—"
-    if isinstance(v, bool):
-        return "yes" if v else "no"
-    if isinstance(v, float):
-        if math.isnan(v) or math.isinf(v):
-            return "—"
-        return f"{v:.{digits}g}"
-    if isinstance(v, list):
-        return ", ".join(fmt_value(x, digits) for x in v)
-    return str(v)
-
-
-def fmt_fixed(v: Any, places: int = 3) -> str:
-    if v is None or isinstance(v, str):
-        return "—" if v is None else v
-    return f"{float(v):.{places}f}"
-
-
-def fmt_measured(m: dict[str, Any] | None) -> str:
-    if not m:
-        return "—"
-    unit = m.get("unit")
-    text = fmt_value(m.get("value"))
-    if text != "—" and unit_suffix(unit):
-        text += f" {unit}"
-    return text
-
-
-def fmt_clause(c: dict[str, Any] | str | None) -> str:
-    if not c:
-        return ""
-    if isinstance(c, str):
-        return c
-    parts = [str(c.get("document", ""))]
-    if c.get("section"):
-        parts.append(f"§{c['section']}")
-    if c.get("table"):
-        parts.append(f"Table {c['table']}")
-    if c.get("row"):
-        parts.append(f"row '{c['row']}'")
-    if c.get("figure"):
-        parts.append(f"Figure {c['figure']}")
-    return ", ".join(p for p in parts if p)
-
-
 def fmt_rows(rows: Iterable[int] | Mapping[str, Any] | None) -> str:
     """[1,2,3,7] -> '1–3, 7' (evidence row lists can be long); a selector standing for many rows
     (qcr.json version 3) -> 'where block = B02 (333412 rows)'."""
@@ -191,11 +144,13 @@ def environment() -> jinja2.Environment:
         lstrip_blocks=True,
         keep_trailing_newline=True,
     )
+    # every value and citation through the one vocabulary (orthospec.present)
+    env.globals["NO_VALUE"] = NO_VALUE
     env.filters.update(
         value=fmt_value,
         fixed=fmt_fixed,
         measured=fmt_measured,
-        clause=fmt_clause,
+        clause=cite,
         rows=fmt_rows,
         short=lambda s, n=12: (s or "")[:n],
         blank=blank,
@@ -369,7 +324,7 @@ def _rule_views(
         v = RuleView(
             rule=rid,
             title=m.get("title") or first.get("title", ""),
-            clause=fmt_clause(first.get("clause") or m.get("clause")),
+            clause=cite(first.get("clause") or m.get("clause")),
             quote=first.get("quote", ""),
             scope=m.get("scope") or first.get("scope", ""),
             level=m.get("level") or first.get("level", ""),
@@ -498,7 +453,6 @@ def _block_figures(
     marked inspection cells of the block on its map, and the image chips of its flagged or hand-measured
     points (issue 29 item 6; details.inspection, details.checker_chips)."""
     from ..figures import accuracy as figs  # matplotlib: imported only when figures are drawn
-    from ..measures.distribution import checkpoint_distribution
 
     pts = [
         p
@@ -605,53 +559,58 @@ def _block_figures(
             + (f" Every one of the {len(pts):,} points is binned." if drawn.thinned else ""),
         }
     )
-    if len(pts) >= 4:
+    quad = _judged_quadrants(b)
+    if quad is not None:
+        # the split and shares the provider judged (details.checkpoints.<block>.quadrants), never a
+        # recomputation: the figure shows what the verdict used
+        centre, shares = quad
         outline = polygon if polygon and len(polygon) >= 3 else None
-        from shapely.errors import ShapelyError
-        from shapely.geometry import Polygon
-
-        from ..errors import MeasureError
-
-        try:
-            dist = checkpoint_distribution(
-                x, y, ids=ids, min_count=0, area=Polygon(outline) if outline else None
-            )
-        except (MeasureError, ShapelyError, ValueError):  # a degenerate layout (collinear points,
-            dist = None  # an empty polygon): the map above shows it
-        if dist is not None:
-            svg = figs.quadrant_distribution_svg(
-                x,
-                y,
-                centre=dist.centre,
-                shares=dist.quadrant_shares,
-                area=outline,
-                unit=unit,
-                ids=ids,
-                title=f"Block {bid}: distribution by quadrant",
-            )
-            spread = figs.sample_points(x, y, ids)
-            where = (
-                "the block polygon (grey)"
-                if outline
-                else f"the points' {dist.split_source.replace('_', ' ')} (no block polygon in the "
-                f"delivery, so shares may differ slightly from the measured value, which used the "
-                f"{b.get('area_source') or 'block'})"
-            )
-            drawn_note = (
-                f" Drawn: {spread.drawn:,} of the {spread.total:,} points, 1 in {spread.step:,} (an "
-                f"even spatial sample); the shares count every point."
-                if spread.thinned
-                else ""
-            )
-            out.append(
-                {
-                    "svg": svg,
-                    "kind": "dist",
-                    "caption": f"Block {bid}: check points per quadrant, split at the centre of {where}."
-                    + drawn_note,
-                }
-            )
+        svg = figs.quadrant_distribution_svg(
+            x,
+            y,
+            centre=centre,
+            shares=shares,
+            area=outline,
+            unit=unit,
+            ids=ids,
+            title=f"Block {bid}: distribution by quadrant",
+        )
+        spread = figs.sample_points(x, y, ids)
+        source = b.get("area_source")
+        where = (
+            "the block polygon"
+            if source == "area"
+            else f"the points' {str(source or 'convex hull').replace('_', ' ')}"
+        ) + (" (grey)" if outline else "")
+        drawn_note = (
+            f" Drawn: {spread.drawn:,} of the {spread.total:,} points, 1 in {spread.step:,} (an "
+            f"even spatial sample); the shares are the measured ones, over every point used."
+            if spread.thinned
+            else ""
+        )
+        out.append(
+            {
+                "svg": svg,
+                "kind": "dist",
+                "caption": f"Block {bid}: check points per quadrant, split at the centre of {where}; "
+                f"the shares are those the distribution rule judged." + drawn_note,
+            }
+        )
     return out
+
+
+def _judged_quadrants(b: Mapping[str, Any]) -> tuple[tuple[float, float], dict[str, float]] | None:
+    """The quadrant split centre and shares the provider recorded for a block, or None (an older
+    qcr.json, or a layout the distribution could not be computed for: the map shows the points)."""
+    q = b.get("quadrants")
+    if not isinstance(q, Mapping):
+        return None
+    c, shares = q.get("centre"), q.get("shares")
+    if not (isinstance(c, list) and len(c) == 2 and all(_numeric(v) for v in c)):
+        return None
+    if not isinstance(shares, Mapping) or not all(_numeric(v) for v in shares.values()):
+        return None
+    return (float(c[0]), float(c[1])), {str(k): float(v) for k, v in shares.items()}
 
 
 def _chip_figures(chips: dict[str, Any] | None, bid: str, unit: str) -> list[dict[str, str]]:
@@ -783,6 +742,8 @@ def _floats(v: Any) -> list[float]:
 
 def _edge_figures(d: dict[str, Any], tid: str) -> list[dict[str, str]]:
     """CEOS steps 5-12 for one edge target, from ``details.edges.<id>.curves`` (SVG)."""
+    import numpy as np
+
     from ..figures import edge as figs  # matplotlib: imported only when figures are drawn
 
     c = d["curves"]
@@ -817,15 +778,15 @@ def _edge_figures(d: dict[str, Any], tid: str) -> list[dict[str, str]]:
     for name, f in (c.get("fits") or {}).items():
         if not isinstance(f, dict) or not _numeric(f.get("x0")) or not _numeric(f.get("dx")):
             continue
-        esf = _floats(f.get("esf"))
+        fit_esf = _floats(f.get("esf"))
         fits.append(
             figs.FitCurves(
                 fit=str(name),
-                x=[f["x0"] + i * f["dx"] for i in range(len(esf))],
-                esf=esf,
-                lsf=_floats(f.get("lsf")),
-                freq=_floats(c.get("mtf_freq")),
-                mtf=_floats(f.get("mtf"))[:n],
+                x=np.asarray([f["x0"] + i * f["dx"] for i in range(len(fit_esf))], dtype=float),
+                esf=np.asarray(fit_esf, dtype=float),
+                lsf=np.asarray(_floats(f.get("lsf")), dtype=float),
+                freq=np.asarray(_floats(c.get("mtf_freq")), dtype=float),
+                mtf=np.asarray(_floats(f.get("mtf"))[:n], dtype=float),
                 centre_px=f.get("centre_px") if _numeric(f.get("centre_px")) else None,
                 fwhm_px=f.get("fwhm_px") if _numeric(f.get("fwhm_px")) else None,
                 mtf_nyquist=f.get("mtf_nyquist") if _numeric(f.get("mtf_nyquist")) else None,
@@ -958,7 +919,8 @@ def report_context(
     signed = list(signed_groups.values())
     if opts.bounded:
         signed = _bounded_signed(signed, opts.max_rule_rows)
-    found = [f.as_dict() for f in find_problems(records)]
+    stated_findings = find_problems(records)
+    found = [f.as_dict() for f in stated_findings]
     scopes = [s for s in scopes if s["rules"] or s["quiet"]]
     d = doc.get("delivery", {})
     p = doc.get("profile", {})
@@ -976,6 +938,7 @@ def report_context(
         "problems": problems,
         "failing_rules": failing_rules,
         "findings": found,
+        "findings_by_reason": by_reason(stated_findings),
         # the checker's open items are listed above the findings on page 1: not a second time there
         "page1_findings": [f for f in found if f.get("consequence") != V.INCOMPLETE][
             : max(3, PAGE1_FINDINGS - len((doc.get("rollup") or {}).get("incomplete", [])))

@@ -16,7 +16,7 @@ from rich.table import Table
 from .. import verdicts as V
 from ..qcr import all_records
 from .contract import contract_lines
-from .findings import checker_text, clean_text, findings, unsigned_manual_note
+from .findings import checker_text, clean_text, findings, reason_line, unsigned_manual_note
 
 MAX_ITEMS = 8
 _STYLE = {V.PASS: "green", V.FAIL: "bold red", V.WARN: "yellow", V.MISSING: "magenta",
@@ -89,6 +89,7 @@ def render(
                 text = f"{shown}: {f.title}: {f.what} ({f.clause})"
             t.add_row(f"[{_STYLE.get(f.verdict, '')}]{f.verdict}[/]", _t(text), _t(f.rule))
         console.print(t)
+        console.print(_t(reason_line(found)), overflow="fold")
     if verbose:
         for r in doc["rules"]:
             if r["verdict"] in (V.PASS, V.WAIVED):

@@ -759,6 +759,16 @@ def _block_detail(
                 for a, b, c in zip(gids, gx, gy, strict=True)
             ],
             "area_source": None if res.distribution is None else res.distribution.split_source,
+            # the quadrant split the rule judged (JRC Figure 4): the report draws these, never its own
+            "quadrants": (
+                None
+                if res.distribution is None
+                else {
+                    "centre": [float(c) for c in res.distribution.centre],
+                    "counts": {q: int(n) for q, n in res.distribution.quadrant_counts.items()},
+                    "shares": {q: float(s) for q, s in res.distribution.quadrant_shares.items()},
+                }
+            ),
             # the block outline (manifest blocks[].polygon, same units as x_ref/y_ref) for the report's map
             "polygon": (
                 None
