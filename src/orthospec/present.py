@@ -52,6 +52,8 @@ def fmt_value(x: Any, digits: int = 6) -> str:
     """A measured or threshold value as printed: ``digits`` significant digits (6: what qcr.json's
     messages and requirement texts say), booleans as true/false (as a profile writes them), None
     and NaN as :data:`NO_VALUE`, a list as its values joined by commas."""
+    if type(x) is float:  # the common case first (a message per record of a national delivery)
+        return f"{x:.{digits}g}" if x == x else NO_VALUE
     if _no_value(x):
         return NO_VALUE
     if _is_bool(x):
