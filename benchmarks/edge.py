@@ -522,6 +522,19 @@ def _report31(
         "  targets: no refusal at SNR >= 50; SNR 100 >= 95 % of non-Gaussian within all three; "
         "SNR 50 >= 85 % within FWHM 2 %; MTF@Ny within 0.01 at least as often as MTF Mapper"
     )
+    fam_cov: dict[str, list[int]] = {}
+    for (fam, _snr), rows in rec.items():
+        ok = [r for r in rows if r["valid"]]
+        c = fam_cov.setdefault(fam, [0, 0, 0, 0])
+        c[3] += len(ok)
+        for i, m in enumerate(("fwhm", "rer", "mtf")):
+            c[i] += sum(abs(r[m]) <= 2 * r[f"{m}_u"] for r in ok)
+    print("uncertainty coverage per family, |error| <= 2u over the four SNRs (FWHM / RER / MTF@Ny):")
+    for fam, c in fam_cov.items():
+        print(
+            f"  {fam:>13}: "
+            + " / ".join(f"{c[i]}/{c[3]} ({100 * c[i] / max(c[3], 1):.0f} %)" for i in range(3))
+        )
     cov = [sum(t["cov"][i] for t in tot.values()) for i in range(3)]
     nv = sum(t["valid"] for t in tot.values())
     print(

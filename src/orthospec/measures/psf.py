@@ -40,7 +40,7 @@ _ZMAX, _H = 9.0, 1.0 / 64.0
 
 
 def _cdf_table() -> np.ndarray:
-    z = np.linspace(-_ZMAX, _ZMAX, int(round(2 * _ZMAX / _H)) + 1)
+    z = np.linspace(-_ZMAX, _ZMAX, round(2 * _ZMAX / _H) + 1)
     y = np.array([0.5 * math.erfc(-float(t) / math.sqrt(2.0)) for t in z])
     d1 = np.exp(-0.5 * z * z) / _SQRT2PI * _H  # h Phi'
     d2 = -z * d1 * _H  # h^2 Phi''

@@ -74,8 +74,7 @@ def _components(
     if kind == "gauss-mtfc":  # G(s) x pixel, then the 3-tap kernel on rows and columns
         s, k = float(q[0]), float(q[1])
         return [
-            (s, _tap_weight(i, k) * _tap_weight(j, k), i * fp[0] + j * fp[1], 0.0)
-            for i, j in _TAPS
+            (s, _tap_weight(i, k) * _tap_weight(j, k), i * fp[0] + j * fp[1], 0.0) for i, j in _TAPS
         ]
     return [
         (float(q[0]), float(q[2]), 0.0, 0.0),
@@ -390,9 +389,7 @@ def _select_model(
         "gauss-disk": prob.fit(
             "gauss-disk", [a0, b0, c0, 0.6 * g, 1.2 * g], [0.2, 0.0], [wide, max(half, 3.0 * g)]
         ),
-        "gauss-mtfc": prob.fit(
-            "gauss-mtfc", [a0, b0, c0, g, 0.1], [0.02, 0.0], [wide, 2.0]
-        ),
+        "gauss-mtfc": prob.fit("gauss-mtfc", [a0, b0, c0, g, 0.1], [0.02, 0.0], [wide, 2.0]),
         "airy": prob.fit(
             "airy",
             [a0, b0, c0, min(max(0.5 / g, 0.2), 2.5), 0.3 * g, 0.5],
