@@ -1,28 +1,24 @@
-"""Run `check` with a checker file (``check --checker FILE``) from the tests.
+"""Shared test steps: run `check` with a checker file (``check --checker FILE``) as a library call,
+copy and edit example deliveries, and compute figures by hand from the checker's tables.
 
-Until ``orthospec.api.check`` takes ``checker=`` (helper A, INTERFACES item 4) this does the same
-steps as ``api.check`` and hands the loaded checker file to the Evaluator; afterwards it simply
-calls ``api.check``. Real components only: the checker file is a real YAML file on disk.
+Real components only: the checker file is a real YAML file on disk.
 """
 
 from __future__ import annotations
 
 import csv
 import hashlib
-import inspect
 import shutil
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+import pandas as pd
 import yaml
 
 from orthospec import api
-from orthospec.delivery.checker import load_checker
-from orthospec.delivery.reader import open_delivery
-from orthospec.engine.evaluator import Evaluator
-from orthospec.engine.params import parse_cli_params, resolve_parameters
-from orthospec.profile.loader import ResolvedProfile, load_profile
-from orthospec.qcr import build_document
+from orthospec.profile.loader import ResolvedProfile
+from orthospec.qcr import all_records
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "examples" / "deliveries"
@@ -64,11 +60,7 @@ manual_checks:
 
 
 def records(doc: dict[str, Any]) -> list[dict[str, Any]]:
-    """Every record of a QCR document (through qcr.all_records when it exists)."""
-    try:
-        from orthospec.qcr import all_records
-    except ImportError:  # pragma: no cover - before helper A's records accessor
-        return list(doc["records"])
+    """Every record of a QCR document (the one way to read records: qcr.all_records)."""
     return list(all_records(doc))
 
 
@@ -168,31 +160,29 @@ def check_with(
     options: dict[str, Any] | None = None,
 ) -> api.CheckResult:
     """`orthospec check DELIVERY --profile PROFILE [--checker FILE]` as a library call."""
-    if "checker" in inspect.signature(api.check).parameters:
-        return api.check(
-            delivery,
-            profile,
-            checker=checker,
-            date=date,
-            params=params,
-            fail_on=fail_on,
-            options=options,
-        )
-    prof = profile if isinstance(profile, ResolvedProfile) else load_profile(profile)
-    d = open_delivery(delivery)
-    d.load_all_tables()
-    chk = load_checker(checker, delivery=d) if checker is not None else None
-    values = resolve_parameters(
-        prof,
-        dict(d.manifest.tender.parameters) if d.manifest.tender else {},
-        dict(params) if isinstance(params, dict) else parse_cli_params(list(params)),
-        manifest=d.flat_manifest(),
-        checker=chk,
+    return api.check(
+        delivery,
+        profile,
+        checker=checker,
+        date=date,
+        params=params,
+        fail_on=fail_on,
+        options=options,
     )
-    ev = Evaluator(prof, d, values, fail_on=fail_on, options=options, checker=chk).run()
-    return api.CheckResult(
-        build_document(ev, date=api.parse_date(date), delivery_path=d.root.name), ev
-    )
+
+
+def nssda_accuracy_r(checkpoints_csv: Path) -> dict[str, float]:
+    """NSSDA horizontal Accuracy_r per block, by hand from a checker's check point table
+    (FGDC-STD-007.3-1998 Appendix 3-A: 1.7308 RMSE_r when RMSE_x = RMSE_y, else
+    2.4477 x 0.5 (RMSE_x + RMSE_y)); rows marked ``excluded`` are left out."""
+    t = pd.read_csv(checkpoints_csv)
+    t = t[~t["excluded"].astype(str).str.lower().eq("true")]
+    out = {}
+    for block, g in t.groupby("block"):
+        rx = float(np.sqrt(np.mean((g["x"] - g["x_ref"]) ** 2)))
+        ry = float(np.sqrt(np.mean((g["y"] - g["y_ref"]) ** 2)))
+        out[str(block)] = 1.7308 * float(np.hypot(rx, ry)) if rx == ry else 2.4477 * 0.5 * (rx + ry)
+    return out
 
 
 # --- editing a copied delivery (the red-team and regression tests plant defects with these) ---

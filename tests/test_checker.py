@@ -1,4 +1,4 @@
-"""The checker's file (`check --checker FILE`, INTERFACES item 4): strict, located, outside the delivery.
+"""The checker's file (`check --checker FILE`, docs/CHECKER.md): strict, located, outside the delivery.
 
 Real YAML files on disk read by the real loader; the messages must name file:line:col (exit 2
 through the CLI's OrthospecError mapping), and the published schema must be the model's.
@@ -142,7 +142,7 @@ def test_check_with_a_checker_file_inside_the_delivery_exits_2(
     assert doc["checker"]["name"] == "Eva External" and doc["checker"]["file"] == "checker.yaml"
 
 
-# --- the checker file is bound to what it signed (lead 14:30; red team R5) -----------------------
+# --- the checker file is bound to what it signed (red team R5) -----------------------
 
 
 def _bind(root: Path, text: str, tmp_path: Path):

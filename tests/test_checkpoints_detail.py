@@ -1,4 +1,4 @@
-"""The check-point provider's typed block results and its report detail (INTERFACES item 3, issue 14
+"""The check-point provider's typed block results and its report detail (docs/QCR.md, issue 14
 item 3): the detail's points are a DataFrame in file-row order; beyond DETAIL_POINTS_MAX rows per
 block it keeps every flagged point and the largest residuals and says how many it leaves out,
 while statistics and per-point measures use every point."""

@@ -11,7 +11,7 @@ from orthospec.provenance import sha256_file
 from orthospec.qcr import all_records
 
 #: the ITT tolerance the mini profile requires: the manifest's declared value is the contractor's
-#: evidence, never the value in force (INTERFACES 4), so a check states it as the checker would
+#: evidence, never the value in force (docs/CHECKER.md), so a check states it as the checker would
 ITT = ["--param", "tolerance_xy=0.5m"]
 
 
@@ -424,7 +424,7 @@ def test_qcr_json_does_not_depend_on_the_working_folder(tmp_path, monkeypatch, c
 def test_without_a_checker_manual_rules_are_missing_and_the_contractors_waiver_is_a_request(
     make_delivery, mini_profile, tmp_path, capsys
 ):
-    """INTERFACES item 4: the delivery's manual_checks and waivers never decide a verdict."""
+    """docs/CHECKER.md: the delivery's manual_checks and waivers never decide a verdict."""
     images = "image_id,file,block,roll,flying_height,std_dn\nI1,a.tif,B1,0.5,1000,30\nI3,c.tif,B2,4,1100,20\n"
     root = make_delivery(images=images)
     code, _, _ = run_main(

@@ -26,7 +26,7 @@ def run(*args):
 
 def _checker(tmp_path):
     """The checker's own file (outside the delivery): the manual R-VIS verdict and the R-ROLL waiver
-    the delivery only requests (INTERFACES 4)."""
+    the delivery only requests (docs/CHECKER.md)."""
     path = tmp_path / "checker.yaml"
     path.write_text(CHECKER, encoding="utf-8")
     return path

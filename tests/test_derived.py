@@ -247,7 +247,7 @@ def test_a_declared_false_does_not_switch_off_the_pan_sharpening_rules(tmp_path)
     f = d / "tables" / "manual_checks.csv"
     mc = pd.read_csv(f, dtype=str, keep_default_na=False)
     mc[mc["check"] != "JRC-10.5.1-SAME-MODEL-GCPS"].to_csv(f, index=False)
-    # the external QC's folder (INTERFACES 4, its measurements with it) without its §10.5.1 verdict
+    # the external QC's folder (docs/CHECKER.md, its measurements with it) without its §10.5.1 verdict
     folder = tmp_path / "checker"
     shutil.copytree(CHECKERS / "satellite-pass", folder)
     checker = yaml.safe_load((folder / "checker.yaml").read_text(encoding="utf-8"))

@@ -17,10 +17,9 @@ from typing import Any
 import pytest
 import yaml
 from click.testing import CliRunner
-from tests.checking import CHECKERS, EXAMPLES, ROOT, check_with, records
+from tests.checking import CHECKERS, EXAMPLES, ROOT, records
 
 from orthospec.cli.main import cli
-from orthospec.qcr import dumps
 
 PROFILE = yaml.safe_load((ROOT / "specs" / "jrc-v3.yaml").read_text(encoding="utf-8"))
 RULES = {r["id"]: r for r in PROFILE["rules"]}
@@ -29,10 +28,6 @@ BAD = ("fail", "missing", "error")
 
 def _expected(name: str) -> dict[str, Any]:
     return yaml.safe_load((EXAMPLES / name / "expected.yaml").read_text(encoding="utf-8"))
-
-
-def _has_checker_option() -> bool:
-    return "--checker" in CliRunner().invoke(cli(), ["check", "--help"], terminal_width=200).output
 
 
 def _check(name: str, out: Path, *, checker: bool = True) -> tuple[int, dict[str, Any]]:
@@ -52,13 +47,6 @@ def _check(name: str, out: Path, *, checker: bool = True) -> tuple[int, dict[str
             "map_crs=EPSG:25832",
         ]
     )
-    if checker and not _has_checker_option():  # until cmd_check gains --checker (helper A)
-        res = check_with(EXAMPLES / name, "jrc-v3", checker=CHECKERS / name, date="2026-11-21")
-        out.mkdir(parents=True, exist_ok=True)
-        (out / "qcr.json").write_text(dumps(res.document), encoding="utf-8")
-        return (0 if res.accepted else 1), json.loads(
-            (out / "qcr.json").read_text(encoding="utf-8")
-        )
     res = CliRunner().invoke(
         cli(),
         [

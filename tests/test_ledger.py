@@ -67,7 +67,7 @@ def docs(tmp_path_factory: pytest.TempPathFactory) -> list[dict[str, Any]]:
         (root / "tables" / "manual.csv").write_text(MANUAL, encoding="utf-8")
         roots.append(root)
     profile = DATA / "profiles" / "mini.yaml"
-    checker = base / "checker.yaml"  # the checker's manual verdict and waiver (INTERFACES item 4)
+    checker = base / "checker.yaml"  # the checker's manual verdict and waiver (docs/CHECKER.md)
     checker.write_text(MINI_CHECKER, encoding="utf-8")
     return [check(roots[0], profile, date="2026-01-01", checker=checker).document,
             check(roots[1], profile, date="2026-01-10", checker=checker).document,

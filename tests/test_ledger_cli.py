@@ -85,7 +85,7 @@ blocks: [{{id: B1}}, {{id: B2}}]
 tables: {{images: tables/images.csv, manual_checks: tables/manual.csv}}
 """
 MANUAL = "check,item,inspector,date,verdict\nR-VIS,*,Joe Bloggs,2026-01-01,pass\n"
-#: the checker's file of each delivery (INTERFACES item 4): the ITT value in force and the verdict of
+#: the checker's file of each delivery (docs/CHECKER.md): the ITT value in force and the verdict of
 #: the manual rule (the delivery's own table above and its tender.parameters are only the
 #: contractor's statements); written next to, never inside, the delivery
 CHECKER = LEDGER_CHECKER

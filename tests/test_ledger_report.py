@@ -9,7 +9,7 @@ from tests.conftest import MANIFEST
 
 from orthospec.cli.main import cli
 
-#: the checker's file for delivery ID (INTERFACES item 4): the ITT value in force and the verdict of
+#: the checker's file for delivery ID (docs/CHECKER.md): the ITT value in force and the verdict of
 #: the mini profile's manual rule (the delivery's own manual_checks and tender.parameters are the
 #: contractor's statements, not values in force)
 CHECKER = LEDGER_CHECKER

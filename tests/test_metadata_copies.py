@@ -17,13 +17,11 @@ import subprocess
 import sys
 from pathlib import Path
 
-import numpy as np
-import pandas as pd
 import pytest
 import yaml
 from lxml import etree
 from tests import metadata_xsd
-from tests.checking import CHECKERS, DATE, EXAMPLES, copy_example
+from tests.checking import CHECKERS, DATE, EXAMPLES, copy_example, nssda_accuracy_r
 
 from orthospec.metadata.copies import FGDC, ISO, MetadataFile, copy_name, metadata_copies
 from orthospec.metadata.iso19157 import GCO, GMD, MARK
@@ -62,16 +60,7 @@ def _check(delivery: Path, out: Path, *args: str, example: str = "aerial-pass") 
 
 
 def _by_hand(example: str = "aerial-pass") -> dict[str, float]:
-    """NSSDA Accuracy_r per block from the checker's check points (FGDC-STD-007.3-1998 Appendix
-    3-A: 1.7308 RMSE_r when RMSE_x = RMSE_y, else 2.4477 x 0.5 (RMSE_x + RMSE_y))."""
-    t = pd.read_csv(CHECKERS / example / "tables" / "checkpoints.csv")
-    t = t[~t["excluded"].astype(str).str.lower().eq("true")]
-    out = {}
-    for block, g in t.groupby("block"):
-        rx = float(np.sqrt(np.mean((g["x"] - g["x_ref"]) ** 2)))
-        ry = float(np.sqrt(np.mean((g["y"] - g["y_ref"]) ** 2)))
-        out[str(block)] = 1.7308 * float(np.hypot(rx, ry)) if rx == ry else 2.4477 * 0.5 * (rx + ry)
-    return out
+    return nssda_accuracy_r(CHECKERS / example / "tables" / "checkpoints.csv")
 
 
 @pytest.mark.parametrize(

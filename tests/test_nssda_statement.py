@@ -5,10 +5,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
-import pandas as pd
 import pytest
 from lxml import etree
+from tests.checking import nssda_accuracy_r
 
 from orthospec import api
 from orthospec.metadata import nssda_statements, write_fgdc_copy
@@ -26,15 +25,7 @@ def doc():
 
 
 def _by_hand() -> dict[str, float]:
-    t = pd.read_csv(CHECKER / "tables" / "checkpoints.csv")
-    t = t[~t["excluded"].astype(str).str.lower().eq("true")]
-    out = {}
-    for block, g in t.groupby("block"):
-        rx = float(np.sqrt(np.mean((g["x"] - g["x_ref"]) ** 2)))
-        ry = float(np.sqrt(np.mean((g["y"] - g["y_ref"]) ** 2)))
-        # FGDC-STD-007.3-1998 Appendix 3-A: 1.7308·RMSE_r when RMSE_x = RMSE_y, else 2.4477·0.5·(RMSE_x+RMSE_y)
-        out[str(block)] = 1.7308 * float(np.hypot(rx, ry)) if rx == ry else 2.4477 * 0.5 * (rx + ry)
-    return out
+    return nssda_accuracy_r(CHECKER / "tables" / "checkpoints.csv")
 
 
 def test_statement_equals_hand_computation(doc):

@@ -1,5 +1,5 @@
 """Red team: a dishonest or careless contractor edits only what it controls, and must not get a
-defective delivery ACCEPTED (INTERFACES item 4: the delivery is evidence, never authority).
+defective delivery ACCEPTED (docs/CHECKER.md: the delivery is evidence, never authority).
 
 Each case copies a shipped example delivery into tmp_path, makes real file edits there (manifest,
 CSV tables, images), and runs the real check with the checker's own fixed file
@@ -702,7 +702,7 @@ _check_gcps = _check_external_stands("JRC-12.5-INDEPENDENT-CHECKPOINTS")
 
 
 def _check_self_waiver(code: int, doc: dict[str, Any] | None, err: str) -> None:
-    # INTERFACES 4: waivers and manual verdicts only from the checker's file or the tender profile
+    # docs/CHECKER.md: waivers and manual verdicts only from the checker's file or the tender profile
     assert code == 1 and doc is not None
     _rejects(doc, "JRC-12.7-RMSEY", "B02")
     assert "waived" not in _verdicts(doc, "JRC-12.7-RMSEY").values()
@@ -828,7 +828,7 @@ def _check_outlines_unused(code: int, doc: dict[str, Any] | None, err: str) -> N
 
 
 def _check_inflated_heights(code: int, doc: dict[str, Any] | None, err: str) -> None:
-    # R7 (fixed by d44b081), R18 (helper I, after 543dba9): photos whose H/f x pixel contradicts the
+    # R7 (fixed by d44b081), R18 (after 543dba9): photos whose H/f x pixel contradicts the
     # raster's 0.25 m pixels cover nothing -> coverage missing, naming them
     assert code == 1 and doc is not None
     _rejects(doc, "JRC-5.2.2-COVERAGE", doc["delivery"]["id"], "missing")

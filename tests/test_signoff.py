@@ -50,7 +50,7 @@ def unsigned(make_delivery, mini_profile, tmp_path: Path) -> dict[str, Path]:
         "  - {check: R-VIS, item: '*', date: 2026-02-28, verdict: fail, note: haze}\n",
         encoding="utf-8",
     )
-    # the ITT value comes from the checker's side (--param), never from the delivery (INTERFACES 4)
+    # the ITT value comes from the checker's side (--param), never from the delivery (docs/CHECKER.md)
     res = run(
         "check",
         root,

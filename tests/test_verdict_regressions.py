@@ -801,7 +801,7 @@ def test_a_when_that_tests_an_unset_parameter_is_not_applicable_not_missing(tmp_
     assert tight["verdict"] == "rejected"
 
 
-# --- the contractor's delivery is evidence, never authority (INTERFACES item 4, JRC §2) ----------
+# --- the contractor's delivery is evidence, never authority (docs/CHECKER.md, JRC §2) ----------
 # A waiver written in the contractor's delivery.yaml and a verdict in the delivery's own
 # manual_checks table used to change the verdict: a contractor could waive a failing mandatory
 # rule with an approver name it typed and be ACCEPTED. Now they are a request and a statement.

@@ -10,7 +10,6 @@ import csv
 import io
 import re
 import warnings
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -22,7 +21,7 @@ from ..errors import DeliveryError
 from ..provenance import sha256_bytes
 from .convention import ColumnSpec, TableSpec
 from .table_bounds import Limits, read_table_bytes, utf8_body
-from .table_shape import _arrow_text, _records, _shape_from_cells
+from .table_shape import _arrow_text, _records, _shape_from_cells, _Typed
 
 #: The one set of boolean words of every orthospec table (delivery tables and ``measure accuracy``
 #: point files alike, issue 15), compared case-insensitively after stripping; an empty cell is unset.
@@ -196,20 +195,6 @@ def _read_csv(body: bytes, header: list[str], file: str, **kw: Any) -> pd.DataFr
                 row=int(m.group(2)) - 1,
             ) from None
         raise DeliveryError(f"not a valid CSV table: {exc}", file=file) from None
-
-
-@dataclass(frozen=True)
-class _Typed:
-    """What the C parser's own type inference gave, checked against the spec: ``frame`` holds
-    float64 number columns and text columns whose cells are the delivered text (NaN where empty;
-    as categories where the parser's booleans or empty cells stand for that text);
-    ``texts`` names the columns the parser inferred as text (their cells are what it read);
-    ``reread``: some column was read a second time as text, so the parser's cells are not all
-    from one pass (the record widths are then counted from the bytes)."""
-
-    frame: pd.DataFrame
-    texts: tuple[str, ...]
-    reread: bool
 
 
 def _read_typed(body: bytes, header: list[str], spec: TableSpec, file: str) -> _Typed | None:

@@ -8,15 +8,26 @@ from __future__ import annotations
 import csv
 import io
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import pandas as pd
 
 from .table_bounds import _count
 
-if TYPE_CHECKING:
-    from .table import _Typed
+
+@dataclass(frozen=True)
+class _Typed:
+    """What the C parser's own type inference gave, checked against the spec: ``frame`` holds
+    float64 number columns and text columns whose cells are the delivered text (NaN where empty;
+    as categories where the parser's booleans or empty cells stand for that text);
+    ``texts`` names the columns the parser inferred as text (their cells are what it read);
+    ``reread``: some column was read a second time as text, so the parser's cells are not all
+    from one pass (the record widths are then counted from the bytes)."""
+
+    frame: pd.DataFrame
+    texts: tuple[str, ...]
+    reread: bool
 
 
 #: Bytes at a cell's edge that str.strip() may remove: ASCII whitespace and the \x1c-\x1f

@@ -1,7 +1,7 @@
 """A rule's requirement against its measured column: thresholds resolved, units converted, decided.
 
 The comparison, its missing-value policy and its wording belong to the requirement operator
-(profile/operators.py, INTERFACES item 5); this module resolves what the operator is given: the
+(profile/operators.py); this module resolves what the operator is given: the
 measured values in the requirement's unit (px via the item's GSD) and the threshold(s), which may
 be expressions over parameters, manifest facts and measures of the rule's scope.
 

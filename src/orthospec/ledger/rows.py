@@ -1,7 +1,7 @@
 """The ledger's QCR rows of a qcr.json document, generated one at a time from its compact columns.
 
 ``rows_with_text(doc)`` yields, in document order, exactly the rows ``qcr_row(i, rec)`` gives for
-``enumerate(all_records(doc))`` (the one way to read records, INTERFACES item 2), as value tuples
+``enumerate(all_records(doc))`` (the one way to read records, docs/QCR.md), as value tuples
 with each row's canonical text (what the chain hash is fed), without building the full record of
 each pass / not-applicable item or its evidence (which the ledger does not store): a rule over a
 million check points is a million small tuples and texts made and dropped a batch at a time, the

@@ -98,7 +98,7 @@ def _expand(
 def all_records(doc: Mapping[str, Any], *, compact: bool = True) -> Iterator[dict[str, Any]]:
     """Every record of a QCR document, in document order (scope, rule id, item in natural order).
 
-    The one way to read records (INTERFACES item 2). Version 2 documents store each record once,
+    The one way to read records (docs/QCR.md). Version 2 documents store each record once,
     without its rule's text: ``doc["records"]`` holds the records whose verdict is not pass or
     not applicable (item, verdict, measured value, evidence, message...), ``doc["compact"]`` the
     others as columns per rule; both are expanded here with the rule summary into the same dicts.
