@@ -9,7 +9,7 @@ For every (angle, PSF, SNR) it renders ``--repeats`` synthetic slanted edges
 ``measure_edge`` and prints, against the truth (closed form for Gaussian PSFs,
 ``kernel_truth`` for the measured kernels: core + halo, defocus disk, motion smear):
 the fit chosen as primary (g = gauss, b = gauss-box, 2 = gauss2, u = gauss-usm, d = gauss-disk,
-s = spline), the mean
+m = gauss-mtfc, a = airy, s = spline), the mean
 and worst FWHM error (%) of the primary fit, the worst FWHM error of the model-free
 spline on the same ROIs (the peer this method improves on), the worst MTF@Nyquist, RER
 and angle errors and the mean CPU time per ROI (measurement only, ``time.process_time``:
@@ -66,7 +66,7 @@ SIGMAS = (0.4, 0.8, 1.5)
 SNRS = (50.0, 100.0, 500.0)
 S = 9  # supersampling of the render; kernels are sampled at 1/S px
 CODE = {"gauss": "g", "gauss-box": "b", "gauss2": "2", "gauss-usm": "u", "gauss-disk": "d",
-        "spline": "s"}
+        "gauss-mtfc": "m", "airy": "a", "spline": "s"}
 
 
 def _kernels() -> dict[str, np.ndarray]:
