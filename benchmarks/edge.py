@@ -9,7 +9,7 @@ For every (angle, PSF, SNR) it renders ``--repeats`` synthetic slanted edges
 ``measure_edge`` and prints, against the truth (closed form for Gaussian PSFs,
 ``kernel_truth`` for the measured kernels: core + halo, defocus disk, motion smear):
 the fit chosen as primary (g = gauss, b = gauss-box, 2 = gauss2, u = gauss-usm, d = gauss-disk,
-s = spline), the mean
+m = gauss-mtfc, a = airy, s = spline), the mean
 and worst FWHM error (%) of the primary fit, the worst FWHM error of the model-free
 spline on the same ROIs (the peer this method improves on), the worst MTF@Nyquist, RER
 and angle errors and the mean CPU time per ROI (measurement only, ``time.process_time``:
@@ -66,7 +66,7 @@ SIGMAS = (0.4, 0.8, 1.5)
 SNRS = (50.0, 100.0, 500.0)
 S = 9  # supersampling of the render; kernels are sampled at 1/S px
 CODE = {"gauss": "g", "gauss-box": "b", "gauss2": "2", "gauss-usm": "u", "gauss-disk": "d",
-        "spline": "s"}
+        "gauss-mtfc": "m", "airy": "a", "spline": "s"}
 
 
 def _kernels() -> dict[str, np.ndarray]:
@@ -522,6 +522,19 @@ def _report31(
         "  targets: no refusal at SNR >= 50; SNR 100 >= 95 % of non-Gaussian within all three; "
         "SNR 50 >= 85 % within FWHM 2 %; MTF@Ny within 0.01 at least as often as MTF Mapper"
     )
+    fam_cov: dict[str, list[int]] = {}
+    for (fam, _snr), rows in rec.items():
+        ok = [r for r in rows if r["valid"]]
+        c = fam_cov.setdefault(fam, [0, 0, 0, 0])
+        c[3] += len(ok)
+        for i, m in enumerate(("fwhm", "rer", "mtf")):
+            c[i] += sum(abs(r[m]) <= 2 * r[f"{m}_u"] for r in ok)
+    print("uncertainty coverage per family, |error| <= 2u over the four SNRs (FWHM / RER / MTF@Ny):")
+    for fam, c in fam_cov.items():
+        print(
+            f"  {fam:>13}: "
+            + " / ".join(f"{c[i]}/{c[3]} ({100 * c[i] / max(c[3], 1):.0f} %)" for i in range(3))
+        )
     cov = [sum(t["cov"][i] for t in tot.values()) for i in range(3)]
     nv = sum(t["valid"] for t in tot.values())
     print(

@@ -144,9 +144,9 @@ def test_motion_across_the_edge_is_not_read_as_a_gaussian_at_snr_100():
 
 
 def test_noise_free_8bit_diffraction_edge_is_within_its_uncertainty():
-    """Noise-free 8-bit: the lack-of-fit test at the rounding's variance (q^2 / 12 per bin
-    mean) rejects the pupil model and the spline is primary, 0.012 off in MTF@Ny (a known
-    limitation, docs/edge-method.md); its stated uncertainty covers the error."""
+    """Noise-free 8-bit: the stated uncertainty covers the error. (Until the rounding bound of
+    one-DN bins, the pupil model failed its lack-of-fit test here and the spline, 0.012 off in
+    MTF@Ny, was primary; test_edge_discrete.py now asserts the model.)"""
     r, t = _measure(PsfFamily("diffraction", cutoff=1.0, sigma=0.25, length=0.8), 9.0, None, 0)
     assert r.valid, r.reasons
     for name, truth in (("rer", t.rer), ("fwhm_px", t.fwhm_px), ("mtf_nyquist", t.mtf_nyquist)):

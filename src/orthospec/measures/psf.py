@@ -16,8 +16,9 @@ integral, and (Fourier slice theorem) MTF(f) = exp(-2 pi^2 sigma^2 f^2)
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
-from scipy.special import ndtr
 
 __all__ = [
     "footprint",
@@ -29,6 +30,43 @@ __all__ = [
 ]
 
 _SQRT2PI = np.sqrt(2.0 * np.pi)
+
+# The standard normal CDF without scipy.special (importing it costs ~0.2 s CPU, more than an
+# edge measurement): a quintic Hermite interpolant on a 1/64 grid over [-9, 9] of the exact
+# values and first two derivatives (phi, -z phi), one polynomial per interval, evaluated by
+# Horner. Error < 1e-15 (the interpolation error h^6 / 46,080 max|Phi^(6)| ~ 6e-16); beyond
+# +-9 the CDF is 0 or 1 to 1e-19. One table lookup and ~15 array operations per call.
+_ZMAX, _H = 9.0, 1.0 / 64.0
+
+
+def _cdf_table() -> np.ndarray:
+    z = np.linspace(-_ZMAX, _ZMAX, round(2 * _ZMAX / _H) + 1)
+    y = np.array([0.5 * math.erfc(-float(t) / math.sqrt(2.0)) for t in z])
+    d1 = np.exp(-0.5 * z * z) / _SQRT2PI * _H  # h Phi'
+    d2 = -z * d1 * _H  # h^2 Phi''
+    y0, y1, a0, a1, b0, b1 = y[:-1], y[1:], d1[:-1], d1[1:], d2[:-1], d2[1:]
+    # p(u) = sum c_k u^k with p, p', p'' matching at u = 0 and u = 1
+    c3 = 10 * (y1 - y0) - 6 * a0 - 4 * a1 - 1.5 * b0 + 0.5 * b1
+    c4 = -15 * (y1 - y0) + 8 * a0 + 7 * a1 + 1.5 * b0 - b1
+    c5 = 6 * (y1 - y0) - 3 * a0 - 3 * a1 - 0.5 * b0 + 0.5 * b1
+    return np.stack([c5, c4, c3, 0.5 * b0, a0, y0])  # highest power first, one row each
+
+
+_CDF = _cdf_table()
+_LAST = _CDF.shape[1] - 1
+
+
+def ndtr(z: np.ndarray) -> np.ndarray:
+    """Standard normal CDF (as ``scipy.special.ndtr``, to 1e-15) of an array; NaN stays NaN."""
+    t = (np.clip(np.asarray(z, dtype=float), -_ZMAX, _ZMAX) + _ZMAX) * (1.0 / _H)
+    with np.errstate(invalid="ignore"):  # NaN: any interval, u = NaN gives NaN
+        i = t.astype(np.intp)
+    u = t - i
+    out = _CDF[0].take(i, mode="clip")
+    for row in _CDF[1:]:
+        out *= u
+        out += row.take(i, mode="clip")
+    return out
 
 
 def footprint(angle_deg: float) -> tuple[float, float]:
@@ -67,6 +105,9 @@ def _psi(n: int, x: np.ndarray, s: float) -> np.ndarray:
 
 
 _NARROW = 1e-9  # px; a box narrower than this is a delta
+# corner c of n boxes: bit k set = +w_k / 2 (else -w_k / 2, sign flipped)
+_CORNERS = [(np.arange(1 << n)[:, None] >> np.arange(n)) & 1 for n in range(5)]
+_SIGNS = [np.prod(np.where(b == 1, 1.0, -1.0), axis=1) for b in _CORNERS]
 
 
 def _boxed(x: np.ndarray, s: float, widths: tuple[float, ...], order: int) -> np.ndarray:
@@ -74,18 +115,14 @@ def _boxed(x: np.ndarray, s: float, widths: tuple[float, ...], order: int) -> np
     each box is a central difference of the next antiderivative over its width."""
     ws = [float(w) for w in widths if w > _NARROW]
     n = len(ws)
-    out = np.zeros_like(x)
-    # sum over the 2^n corners of the central differences
-    for corner in range(1 << n):
-        shift, sign = 0.0, 1.0
-        for k, w in enumerate(ws):
-            if corner >> k & 1:
-                shift += w / 2
-            else:
-                shift -= w / 2
-                sign = -sign
-        out += sign * _psi(n + order, x + shift, s)
-    return out / float(np.prod(ws)) if n else out
+    if not n:
+        return _psi(order, x, s)
+    # the 2^n corners of the central differences, all in one call of the antiderivative
+    bits = _CORNERS[n]
+    shifts = (bits - 0.5) @ np.asarray(ws)
+    signs = _SIGNS[n]
+    vals = _psi(n + order, x[..., None] + shifts, s)
+    return (vals @ signs) / math.prod(ws)
 
 
 def gauss_boxes_esf(d: np.ndarray, sigma_px: float, widths: tuple[float, ...]) -> np.ndarray:

@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import Any
 
 import numpy as np
@@ -68,6 +71,41 @@ def measure_edge(
     if primary not in PRIMARY:
         raise MeasureError(f"primary must be one of {', '.join(PRIMARY)}, got {primary!r}")
     arr, img, quant = _prepare(roi, nodata, bit_depth, gsd)
+    with one_blas_thread():
+        return _chain(arr, img, quant, gsd, bit_depth, saturation_dn, lim, primary)
+
+
+@contextmanager
+def one_blas_thread() -> Iterator[None]:
+    """The chain's linear algebra (an eigen-decomposition per spline fit, QRs of the fits'
+    Jacobians: matrices of a few hundred rows) on one BLAS thread, for the call only.
+
+    Why: OpenBLAS's threads on such small matrices only spin beside the caller's own work; under
+    load (issue 31) a library call took 0.56 s of CPU per ROI on average and up to 25 s, against
+    0.13 s and 1.9 s on one thread. The CLI and ``check``'s workers set OPENBLAS_NUM_THREADS=1
+    before numpy loads, so nothing is done there; elsewhere threadpoolctl sets it and puts the
+    caller's setting back afterwards.
+    """
+    if os.environ.get("OPENBLAS_NUM_THREADS") == "1":
+        yield
+        return
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(1, user_api="blas"):
+        yield
+
+
+def _chain(
+    arr: np.ndarray,
+    img: np.ndarray,
+    quant: float,
+    gsd: float | None,
+    bit_depth: int | None,
+    saturation_dn: tuple[float | None, float | None] | None,
+    lim: EdgeLimits,
+    primary: str,
+) -> EdgeResult:
+    """Steps 3-12 on the prepared ROI (:func:`measure_edge`)."""
     sat = saturation_levels(arr.dtype, bit_depth, saturation_dn)
     frame = orient(img)                                           # step 4
     line = locate_line(frame.work, refine=lim.refine_line)         # step 5

@@ -23,6 +23,7 @@ PSF_FITS = (
     "gauss-usm",
     "gauss-disk",
     "airy",
+    "gauss-mtfc",
 )  # the physical models
 
 
