@@ -146,8 +146,8 @@ class _Bar:
                 TimeRemainingColumn(),
                 transient=True,
             )
-            self.rich.start()  # type: ignore[attr-defined]
-            self.task = self.rich.add_task("scan", total=total)  # type: ignore[attr-defined]
+            self.rich.start()
+            self.task = self.rich.add_task("scan", total=total)
         if self.rich is not None:
             self.rich.update(self.task, completed=done)  # type: ignore[attr-defined]
             return

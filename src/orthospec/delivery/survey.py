@@ -154,7 +154,7 @@ def read_survey(path: str | Path) -> list[SurveyPoint]:
                 float(x),
                 float(y),
                 _number(z),
-                _text(block),  # type: ignore[arg-type]
+                _text(block),
                 _text(image),
                 _text(source),
                 _number(prec),

@@ -49,7 +49,7 @@ class Chip:
         ext = tuple(float(v) for v in d["extent"])
         if len(ext) != 4:
             raise ValueError("chip extent needs 4 numbers")
-        return cls(np.frombuffer(raw, dtype=np.uint8).reshape(h, w), ext)  # type: ignore[arg-type]
+        return cls(np.frombuffer(raw, dtype=np.uint8).reshape(h, w), ext)
 
 
 def read_chip(path: str | Path, x: float, y: float, *, name: str, px: int = CHIP_PX) -> Chip | str:

@@ -486,5 +486,5 @@ def match_chip(
     elif disagreement > s.max_disagreement_px:
         code = "unstable"
     else:
-        return Match(decision="accepted", details=details, **kw)  # type: ignore[arg-type]
-    return Match(decision="by_hand", reason_code=code, reason=REASONS[code], details=details, **kw)  # type: ignore[arg-type]
+        return Match(decision="accepted", details=details, **kw)
+    return Match(decision="by_hand", reason_code=code, reason=REASONS[code], details=details, **kw)

@@ -94,7 +94,7 @@ def _stable_column(values: np.ndarray) -> list[Any]:
 
 
 def frame_table(frame: Any) -> dict[str, Any]:
-    """A DataFrame as the column table qcr.json stores (INTERFACES item 3):
+    """A DataFrame as the column table qcr.json stores (docs/QCR.md):
     ``{"columns": [names...], "data": {name: [values...]}}``, rows in frame order."""
     cols = [str(c) for c in frame.columns if not str(c).startswith("_")]
     data = {}

@@ -228,7 +228,7 @@ class _Open:
         self.path: Path | None = None
         self.ds = None
 
-    def get(self, h: RasterHeader):  # type: ignore[no-untyped-def]
+    def get(self, h: RasterHeader):
         if self.path != h.path:
             self.close()
             self.ds = open_read_only(h.path, name=h.name)

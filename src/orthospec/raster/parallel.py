@@ -392,7 +392,7 @@ def _mp_context() -> multiprocessing.context.BaseContext:
     imported orthospec (fast start, no inherited threads or GDAL handles); else spawn."""
     from ..workers import mp_context
 
-    return mp_context(["orthospec.raster.parallel", "pyproj"])  # type: ignore[no-any-return]
+    return mp_context(["orthospec.raster.parallel", "pyproj"])
 
 
 def _check_cache_outside(cache_dir: Path, paths: Sequence[str]) -> None:

@@ -80,7 +80,7 @@ def checker_text(doc: dict[str, Any]) -> str | None:
 
 def unsigned_manual_note(records: Iterable[dict[str, Any]], *, checker: Any = None) -> str | None:
     """The one line terminal and page 1 show when manual checks have no checker verdict
-    (INTERFACES item 4: the contractor's statements are evidence, never verdicts). ``checker`` is
+    (docs/CHECKER.md: the contractor's statements are evidence, never verdicts). ``checker`` is
     qcr.json's ``checker`` entry: when a checker's file was given, the advice is to complete it."""
     n = sum(1 for r in records if r.get("manual") and r.get("verdict") == V.MISSING)
     if not n:

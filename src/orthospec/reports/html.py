@@ -290,7 +290,7 @@ def _collect(doc: dict[str, Any], opts: ReportOptions) -> _Collected:
                     acc.pass_unit = r["measured"].get("unit")
                     acc.lo = acc.hi = value
                 else:
-                    acc.lo, acc.hi = min(acc.lo, value), max(acc.hi, value)  # type: ignore[type-var]
+                    acc.lo, acc.hi = min(acc.lo, value), max(acc.hi, value)
             if not opts.bounded and len(acc.passing) < opts.max_pass_rows:
                 acc.passing.append(r)
         elif v == V.NOT_APPLICABLE:

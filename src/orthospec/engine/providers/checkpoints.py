@@ -12,7 +12,7 @@ counted by their own measures and listed in the notes and the report.
 Each block's results are one typed :class:`BlockAccuracy` (issue 15); every block measure is a
 small function of it (:data:`_MEASURES`). Per-point results stay arrays (a national delivery has
 millions of points): one :class:`BlockPoints` per block, and the report detail per block holds
-the points as a pandas DataFrame (INTERFACES item 3), capped at :data:`DETAIL_POINTS_MAX` rows.
+the points as a pandas DataFrame (docs/QCR.md), capped at :data:`DETAIL_POINTS_MAX` rows.
 """
 
 from __future__ import annotations
@@ -1053,7 +1053,7 @@ def point_decisions(ctx: ProviderContext) -> list[Measured]:
     ids = _cat([p.ids for p in every], object)
     rows = _cat([p.rows for p in every], np.int64)
     if all(p.dz is not None for p in every):
-        dz = _cat([p.dz for p in every], float)  # type: ignore[misc]
+        dz = _cat([p.dz for p in every], float)
     else:
         dz = _cat(
             [

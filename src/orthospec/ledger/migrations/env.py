@@ -16,7 +16,7 @@ config = context.config
 connection = config.attributes.get("connection")
 
 
-def _run(conn) -> None:  # type: ignore[no-untyped-def]
+def _run(conn) -> None:
     context.configure(connection=conn, target_metadata=metadata,
                       render_as_batch=conn.dialect.name == "sqlite")
     with context.begin_transaction():
