@@ -25,7 +25,7 @@ from ..measures.noise import NoiseAccumulator
 from .opening import BandInfo, validity
 
 if TYPE_CHECKING:
-    from .scan import RasterStats, ScanSettings
+    from .stats import RasterStats, ScanSettings
 
 
 def _rgb_bands(infos: Sequence[BandInfo]) -> tuple[int, int, int] | None:

@@ -29,7 +29,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 import rasterio
@@ -39,9 +39,6 @@ from rasterio.windows import Window
 from ..errors import MeasureError, OrthospecError
 from ..limits import env_limit
 from ..measures.histogram import GreyRange, grey_range
-
-if TYPE_CHECKING:
-    from .scan import ScanSettings
 
 #: GDAL configuration for the whole process (environment, so worker processes inherit it and
 #: every GDAL in the process, rasterio's and pyogrio's, reads it): no network file systems, no
@@ -197,8 +194,15 @@ def check_declared_size(
 GDAL_CACHEMAX_MB = 32
 
 
+class CacheSetting(Protocol):
+    """Settings that size GDAL's block cache (raster/stats.py ScanSettings is one)."""
+
+    @property
+    def gdal_cachemax_mb(self) -> int: ...
+
+
 @contextmanager
-def read_only_env(settings: ScanSettings | None = None) -> Iterator[None]:
+def read_only_env(settings: CacheSetting | None = None) -> Iterator[None]:
     """GDAL configuration that writes nothing next to the input and caches little.
 
     ``GTIFF_DIRECT_IO`` and ``GTIFF_VIRTUAL_MEM_IO`` are forced off, even when the user's
